@@ -1,0 +1,37 @@
+# mech_balance: `make run` runs the main job, `make test` runs every test.
+# Both create .venv on first use and re-use it afterwards; `make help` lists the targets.
+
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+# Touched once requirements and the package are installed; lives in .venv, so removing
+# .venv also forgets it.
+STAMP := $(VENV)/.mech_balance-installed
+PIP := $(BIN)/python -m pip --disable-pip-version-check
+
+.DEFAULT_GOAL := help
+.PHONY: help venv run test clean
+
+help:  ## List the targets.
+	@grep -E '^[a-z]+:.*## ' $(MAKEFILE_LIST) | sed -e 's/:.*## /\t/' | expand -t 8
+
+venv: $(STAMP)  ## Create .venv with the pinned requirements and the package (editable).
+
+# --use-pep517 makes the editable install a PEP 660 wheel, so pip puts the console scripts
+# (mech-balance, rig_node) in .venv/bin whatever setup.cfg says for `setup.py develop`.
+# --no-build-isolation builds with the pinned setuptools/wheel already in .venv.
+$(STAMP): requirements.txt setup.py
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(PIP) install --quiet -r requirements.txt
+	$(PIP) install --quiet --no-deps --no-build-isolation --use-pep517 -e .
+	touch $@
+
+run: venv  ## Install everything and run the main job.
+	$(BIN)/mech-balance analyze --scene hoeken
+
+test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
+test: venv  ## Install everything and run all tests (ament flake8, pep257, colcon build, suite).
+	$(BIN)/python -m pytest test
+
+clean:  ## Remove .venv and build leftovers.
+	rm -rf $(VENV) build install log .pytest_cache *.egg-info

@@ -1,0 +1,153 @@
+"""
+The ``mech-balance`` command line: thin verbs over the numerical core.
+
+Every verb validates its input at the boundary; a bad scene, field or option prints one
+line naming the field, the value and what was expected, and exits with status 2.
+"""
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+EXIT_USAGE = 2
+
+
+def _add_scene(p):
+    p.add_argument('--scene', default='hoeken',
+                   help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
+                        'file (default: %(default)s)')
+
+
+def _samples(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'got {text!r}, expected an integer >= 4') from None
+    if value < 4:
+        raise argparse.ArgumentTypeError(f'got {value}, expected an integer >= 4')
+    return value
+
+
+def _design(text):
+    try:
+        values = [float(v) for v in text.replace(' ', '').split(',') if v]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f'got {text!r}, expected comma-separated numbers m11,m12,m13,l11,...') from None
+    if not values or not all(np.isfinite(values)):
+        raise argparse.ArgumentTypeError(f'got {text!r}, expected finite numbers')
+    return values
+
+
+def build_parser():
+    """Return the argument parser of ``mech-balance``."""
+    parser = argparse.ArgumentParser(
+        prog='mech-balance',
+        description='Kinematics, inverse dynamics, shaking wrench and balancing of '
+                    'single-input linkages (seeds 000-002).')
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND')
+    sub.required = True
+
+    p = sub.add_parser('analyze', help='RMS and extreme values of one crank revolution',
+                       description='Analyze one revolution of a scene: bearing reactions, '
+                                   'driving torque, shaking force and moment (RMS and max), '
+                                   'worst Newton residual and Jacobian condition number.')
+    _add_scene(p)
+    p.add_argument('--normalized', action='store_true',
+                   help="print in the papers' units (m1, a1, omega) recorded in the scene")
+    p.add_argument('--samples', type=_samples, default=None,
+                   help='crank angles per revolution (default: the scene\'s, usually 360)')
+    p.add_argument('--design', type=_design, default=None, metavar='X1,X2,...',
+                   help='evaluate a seed-001 design vector [m_i1,m_i2,m_i3,l_i1 per link]; '
+                        'normalized units if the scene records a normalization, else SI')
+    p.add_argument('--json', action='store_true', help='print the table as JSON')
+    p.set_defaults(func=cmd_analyze)
+
+    p = sub.add_parser('scenes', help='list the built-in scenes',
+                       description='List the scenes shipped in config/.')
+    p.set_defaults(func=cmd_scenes)
+
+    p = sub.add_parser('bench', help='timings of the core (median of repeated runs)',
+                       description='Time a full cycle (position, velocity, acceleration, '
+                                   'inverse dynamics, bearing reactions, shaking wrench) of '
+                                   'every built-in scene: median after warm-up.')
+    p.add_argument('--scene', action='append', default=None,
+                   help='time only this scene (repeatable; default: all built-in)')
+    p.add_argument('--samples', type=_samples, default=360,
+                   help='crank angles per cycle (default: %(default)s)')
+    p.add_argument('--repeat', type=int, default=50,
+                   help='timed runs per figure (default: %(default)s)')
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def cmd_scenes(args):
+    """List the built-in scenes."""
+    from mech_balance import scene
+    for name, path in scene.builtin_scenes().items():
+        data, _ = scene.load_data(path)
+        text = ' '.join(str(data.get('description', '')).split())
+        print(f'{name:<18} {text[:100]}')
+    return 0
+
+
+def cmd_analyze(args):
+    """Analyze one revolution of a scene."""
+    from mech_balance import analysis, equimomental, scene
+    sc = scene.load(args.scene)
+    if getattr(sc, 'kind', 'planar') == 'rggr':
+        from mech_balance import rggr
+        report = rggr.analyze_report(sc, args.samples or 360, args.normalized)
+        print(json.dumps(report, indent=2) if args.json else rggr.format_report(report))
+        return 0
+    if args.design is not None:
+        sc = equimomental.apply_design(sc, args.design,
+                                       normalized=sc.normalization is not None)
+    rig = analysis.Rig(sc)
+    cycle = analysis.run_cycle(rig, args.samples)
+    rows = analysis.summarize(cycle, args.normalized)
+    if args.json:
+        print(json.dumps({'scene': sc.name, 'samples': int(cycle.psi.size),
+                          'normalized': bool(args.normalized),
+                          'rows': [r.__dict__ for r in rows],
+                          'worst_residual': float(np.max(cycle.state.residual)),
+                          'worst_condition': float(np.max(cycle.state.cond))}, indent=2))
+    else:
+        print(analysis.format_table(cycle, rows, args.normalized))
+    for text in rig.linkage.warnings:
+        print(f'warning: {text}', file=sys.stderr)
+    return 0
+
+
+def cmd_bench(args):
+    """Print core timings."""
+    from mech_balance import bench
+    print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} warm-up '
+          f'runs, {args.samples} crank angles per cycle', flush=True)
+    rows = bench.run(args.scene, args.samples, args.repeat,
+                     progress=lambda s: print(s, file=sys.stderr, flush=True))
+    print(bench.format_rows(rows))
+    return 0
+
+
+def main(argv=None):
+    """Run ``mech-balance``; return the exit status."""
+    import warnings
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', RuntimeWarning)  # reported in the tables
+            return args.func(args)
+    except (ValueError, KeyError) as exc:
+        print(f'mech-balance {args.command}: error: {exc}', file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print('mech-balance: interrupted', file=sys.stderr)
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,210 @@
+"""
+Inverse dynamics of a planar linkage: driving torque, bearing reactions, shaking wrench.
+
+Per link, Newton-Euler about the link origin O_i (seed 001 eqs. 23-26): with the twist
+t_i = (omega_i, v_i) of O_i, the first moment h_i = m_i c_i and the inertia I_i about O_i,
+
+    f*_i = m_i a_i + (i alpha_i - omega_i^2) R_i h_i            (= m_i * a_ci)
+    n*_i = I_i alpha_i + cross(R_i h_i, a_i)                    (about O_i)
+
+which is ``M_i tdot_i + C_i t_i`` of seed 001 eq. 25 written with complex numbers.
+
+* Driving torque: the natural orthogonal complement projects the uncoupled equations onto
+  the crank (seed 000 eq. 37, seed 001 eq. 32): tau = u^T (w* - w^E), u = t / psi_dot.
+* Bearing reactions: the tree's generalized forces Q = N^T (w* - w^E) give the cut-joint
+  multipliers lambda = J_u^-T Q_u and tau = Q_psi - J_psi^T lambda (seed 001 eqs. 33-38);
+  the tree-joint reactions follow recursively from the leaves to the frame.
+* Shaking wrench: seed 001 eq. 39 (sign and frame: :mod:`mech_balance.conventions`).
+
+All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given motion;
+:func:`parameter_vector` and :func:`inertia_from_vector` expose those parameters.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mech_balance.kinematics import _cross
+
+PARAMS_PER_LINK = 4
+"""Inertial parameters per link: m, m*c_x, m*c_y (link frame), I about the link origin."""
+
+
+@dataclass
+class Inertia:
+    """Inertial parameters of every body (row 0: the frame, all zeros), SI."""
+
+    mass: np.ndarray            # (nb,) kg
+    first_moment: np.ndarray    # (nb,) complex, m*c in the link frame, kg*m
+    inertia_origin: np.ndarray  # (nb,) kg*m^2 about the link origin
+
+    @classmethod
+    def from_links(cls, links):
+        """Build from scene links (frame row prepended)."""
+        m = np.array([0.0] + [lk.mass_kg for lk in links])
+        h = np.array([0j] + [complex(*lk.first_moment_kg_m) for lk in links])
+        i_o = np.array([0.0] + [lk.inertia_origin_kg_m2 for lk in links])
+        return cls(m, h, i_o)
+
+
+def parameter_vector(inertia):
+    """Return the ``(4 n,)`` vector [m, hx, hy, I_O] per moving link."""
+    return np.column_stack([inertia.mass[1:], inertia.first_moment[1:].real,
+                            inertia.first_moment[1:].imag, inertia.inertia_origin[1:]]).ravel()
+
+
+def inertia_from_vector(theta):
+    """Return the :class:`Inertia` of a ``(4 n,)`` parameter vector."""
+    theta = np.asarray(theta, dtype=float).reshape(-1, PARAMS_PER_LINK)
+    return Inertia(np.concatenate([[0.0], theta[:, 0]]),
+                   np.concatenate([[0j], theta[:, 1] + 1j * theta[:, 2]]),
+                   np.concatenate([[0.0], theta[:, 3]]))
+
+
+@dataclass
+class Wrenches:
+    """Inertia wrenches of every body about its origin, and what follows from them."""
+
+    f_star: np.ndarray        # (nb, p) complex, N
+    n_star: np.ndarray        # (nb, p) N*m about the link origin
+    shaking_force: np.ndarray  # (p,) complex, N
+    shaking_moment: np.ndarray  # (p,) N*m about the crank pivot
+    driving_torque: np.ndarray = None  # (p,) N*m on the crank
+    reaction_force: dict = None   # joint name -> (p,) complex force on link b from link a, N
+    reaction_moment: dict = None  # joint name -> (p,) moment on link b from link a, N*m
+    reaction_point: dict = None   # joint name -> (p,) complex point the moment is taken about
+    multipliers: np.ndarray = None  # (m, p) cut-joint Lagrange multipliers
+    consistency: float = None       # max |revolute joint moment| + |tau_recursion - tau|, N*m
+
+
+def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench',)):
+    """
+    Return the :class:`Wrenches` of a solved :class:`KinematicState`.
+
+    ``need`` is a set from ``shaking_wrench``, ``driving_torque``, ``bearing_reactions``;
+    only what it asks for (and what that depends on) is computed.
+    """
+    need = set(need)
+    pose = state.pose
+    world_h = pose.rot * inertia.first_moment[:, None]
+    f_star = inertia.mass[:, None] * state.acc + (
+        1j * state.alpha - state.omega ** 2) * world_h
+    n_star = inertia.inertia_origin[:, None] * state.alpha + _cross(world_h, state.acc)
+    arm = pose.origin - linkage.pivot
+    # seed 001 eq. 39: the reaction of the resultant inertia wrench, about the crank pivot
+    shaking_force = -np.sum(f_star, axis=0)
+    shaking_moment = -np.sum(n_star + _cross(arm, f_star), axis=0)
+    out = Wrenches(f_star, n_star, shaking_force, shaking_moment)
+    gravity = complex(gravity)
+    if 'bearing_reactions' in need:
+        _reactions(linkage, state, inertia, world_h, arm, gravity, out)
+    elif 'driving_torque' in need:
+        # seed 000 eq. 37: tau = u^T (w* - w^E), u = t / psi_dot (power balance per unit speed)
+        power = np.sum(state.omega * n_star + _dot(state.vel, f_star), axis=0)
+        if gravity:
+            power -= np.sum(inertia.mass[:, None] * _dot(state.vel, gravity)
+                            + state.omega * _cross(world_h, gravity), axis=0)
+        out.driving_torque = power / state.psi_d
+    return out
+
+
+def _matvec_t(mat, vec):
+    """Return mat^T @ vec for batch-last (k, m, p) and (k, p) stacks."""
+    if mat.shape[0] == 2 and mat.shape[1] == 2:
+        return np.array([mat[0, 0] * vec[0] + mat[1, 0] * vec[1],
+                         mat[0, 1] * vec[0] + mat[1, 1] * vec[1]])
+    return np.einsum('kip,kp->ip', mat, vec)
+
+
+def _dot(a, b):
+    return a.real * b.real + a.imag * b.imag
+
+
+def _reactions(linkage, state, inertia, world_h, arm, gravity, out):
+    pose = state.pose
+    pivot = linkage.pivot
+    f_net = out.f_star
+    m_net = out.n_star + _cross(arm, out.f_star)           # about the crank pivot
+    if gravity:
+        weight = inertia.mass[:, None] * gravity
+        f_net = f_net - weight
+        m_net = m_net - _cross(arm, weight) - _cross(world_h, gravity)
+    below = linkage.anc_all.T                              # (nt, nb): bodies below joint t
+    lever = pose.joint_at - pivot
+    # generalized forces of the tree coordinates, Q = N^T (w* - w^E) (seed 001 eq. 32)
+    f_sub = below @ f_net
+    q_gen = below @ m_net - _cross(lever, f_sub)
+    if linkage.has_pri:
+        q_gen = np.where(linkage.is_prismatic[:, None], _dot(pose.axis, f_sub), q_gen)
+    # cut-joint multipliers, seed 001 eqs. 33-38: lambda = J_u^-T Q_u (scaled Jacobian)
+    lam_scaled = _matvec_t(state.jac_inv, q_gen[linkage.unknown] * linkage.col_scale[:, None])
+    lam = lam_scaled * linkage.row_scale[:, None]
+    tau = q_gen[0] - np.sum(state.jac[:, 0, :] * lam_scaled, axis=0)
+    out.driving_torque = tau
+    out.multipliers = lam
+    nr, npc = linkage.nr, linkage.npc
+    pa, pb = linkage._cut_points(pose)
+    force = lam[:nr] + 1j * lam[nr:2 * nr]               # on b from a, at the common point
+    m_on_b = _cross(pb[:nr] - pivot, force)
+    m_on_a = -_cross(pa[:nr] - pivot, force)
+    cut_moment = np.zeros((nr, state.size))
+    if npc:
+        ia = linkage.cut_a[nr:]
+        normal = 1j * pose.rot[ia] * np.array([c.axis for c in linkage.cuts[nr:]])[:, None]
+        mu, nu = lam[2 * nr:2 * nr + npc], lam[2 * nr + npc:]
+        f_pri = nu * normal
+        mb = mu + _cross(pb[nr:] - pivot, f_pri)
+        force = np.concatenate([force, f_pri])
+        m_on_b = np.concatenate([m_on_b, mb])
+        m_on_a = np.concatenate([m_on_a, -mb])
+        cut_moment = np.concatenate([cut_moment, mu])
+    inc_a, inc_b = linkage.cut_inc_a, linkage.cut_inc_b
+    f_req = below @ (f_net - (inc_b - inc_a) @ force)
+    m_req = below @ (m_net - inc_b @ m_on_b - inc_a @ m_on_a)
+    moment = m_req - _cross(lever, f_req)                 # about each tree joint
+    worst = float(np.max(np.abs(moment[0] - tau), initial=0.0))
+    rev = ~linkage.is_prismatic
+    rev[0] = False
+    if rev.any():
+        worst = max(worst, float(np.max(np.abs(moment[rev]), initial=0.0)))
+        moment[rev] = 0.0
+    sign = linkage.tree_sign[:, None]
+    forces = dict(zip(linkage.tree_names, sign * f_req))
+    moments = dict(zip(linkage.tree_names, sign * moment))
+    forces.update(zip(linkage.cut_names, force))
+    moments.update(zip(linkage.cut_names, cut_moment))
+    points = dict(zip(linkage.tree_names, pose.joint_at))
+    points.update(zip(linkage.cut_names, pb))
+    order = linkage.joint_names
+    out.reaction_force = {n: forces[n] for n in order}
+    out.reaction_moment = {n: moments[n] for n in order}
+    out.reaction_point = {n: points[n] for n in order}
+    out.consistency = worst
+
+
+def generalized_inertia(state, inertia):
+    """
+    Return I(psi) = u^T M u (seed 000 eq. 39) per crank angle, kg*m^2.
+
+    With the seed-001 link inertia dyad about the origin: I_O w^2 + m |v|^2 + 2 w cross(h, v)
+    per unit crank speed.
+    """
+    u_w = state.omega / state.psi_d
+    u_v = state.vel / state.psi_d
+    world_h = state.pose.rot * inertia.first_moment[:, None]
+    return np.sum(inertia.inertia_origin[:, None] * u_w ** 2
+                  + inertia.mass[:, None] * np.abs(u_v) ** 2
+                  + 2.0 * u_w * _cross(world_h, u_v), axis=0)
+
+
+def coriolis_term(state, inertia, wrenches):
+    """
+    Return C(psi, psi_dot) * psi_dot of seed 000 eq. 39 per crank angle, N*m.
+
+    From the projected equation without external loads: I psi_ddot = C psi_dot + tau, so
+    ``C psi_dot = I psi_ddot - u^T w*``.
+    """
+    u_w = state.omega / state.psi_d
+    u_v = state.vel / state.psi_d
+    inertial = np.sum(u_w * wrenches.n_star + _dot(u_v, wrenches.f_star), axis=0)
+    return generalized_inertia(state, inertia) * state.psi_dd - inertial

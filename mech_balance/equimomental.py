@@ -1,0 +1,152 @@
+"""
+Equimomental three-point-mass models of planar links (seed 001 eqs. 1-22, 27, 45).
+
+A link of mass m, mass centre c (polar d, theta in the link frame) and moment of inertia
+I_O about its origin is dynamically equivalent to three point masses m_1, m_2, m_3 at the
+common distance l from the origin and at the angles 0, 2 pi/3, 4 pi/3 (seed 001 eq. 27):
+
+    sum m_j = m,   l * sum m_j e^(i theta_j) = m c,   l^2 * sum m_j = I_O     (eqs. 19-22)
+
+With l = k = sqrt(I_O / m) (eq. 8) the masses are eqs. 13-15.  A design vector (eq. 45)
+stacks ``[m_i1, m_i2, m_i3, l_i1]`` per link.  Point masses may be negative; the link is
+*realizable* only if its centroidal moment of inertia I_O - |m c|^2 / m is positive (and,
+when the point masses stand for counterweights, they are non-negative).
+"""
+
+from dataclasses import dataclass, replace
+import math
+
+import numpy as np
+
+POINT_ANGLES_RAD = np.array([0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0])
+"""The angles of the three point masses in the link frame (seed 001 eq. 27)."""
+UNIT = np.exp(1j * POINT_ANGLES_RAD)
+REALIZABLE_TOL = 1e-12
+"""Relative tolerance on the centroidal inertia below which a link is not realizable."""
+
+
+@dataclass(frozen=True)
+class PointMasses:
+    """Three equimomental point masses of one link (SI: kg and m)."""
+
+    masses_kg: tuple
+    distance_m: float
+
+    @property
+    def mass_kg(self):
+        """Return the link mass, eq. 19."""
+        return float(sum(self.masses_kg))
+
+    @property
+    def first_moment_kg_m(self):
+        """Return m*c as a complex number in the link frame, eqs. 20-21."""
+        return complex(self.distance_m * np.dot(self.masses_kg, UNIT))
+
+    @property
+    def inertia_origin_kg_m2(self):
+        """Return the moment of inertia about the link origin, eq. 22."""
+        return self.distance_m ** 2 * self.mass_kg
+
+
+def from_link(mass_kg, com_m, inertia_origin_kg_m2):
+    """
+    Return the :class:`PointMasses` of a link with l = k = sqrt(I_O/m) (seed 001 eqs. 8-15).
+
+    ``com_m`` is ``(x, y)`` in the link frame.
+    """
+    if not mass_kg > 0.0:
+        raise ValueError(f'mass_kg: got {mass_kg!r}, expected > 0')
+    if not inertia_origin_kg_m2 > 0.0:
+        raise ValueError(f'inertia_origin_kg_m2: got {inertia_origin_kg_m2!r}, expected > 0')
+    k = math.sqrt(inertia_origin_kg_m2 / mass_kg)
+    h = complex(*com_m) * mass_kg
+    # eq. 11 with theta_j = 0, 2pi/3, 4pi/3: m_j = m/3 + (2/3) Re(h e^(-i theta_j)) / k
+    masses = mass_kg / 3.0 + (2.0 / 3.0) * (np.conj(UNIT) * h).real / k
+    return PointMasses(tuple(float(v) for v in masses), k)
+
+
+def link_properties(point_masses):
+    """
+    Return ``(mass_kg, com_m, inertia_origin_kg_m2)`` of a point-mass model (eqs. 19-22).
+
+    ``com_m`` is ``(x, y)``; raises ``ValueError`` when the total mass is not positive.
+    """
+    m = point_masses.mass_kg
+    if not m > 0.0:
+        raise ValueError(
+            f'point masses {list(point_masses.masses_kg)}: total mass {m!r} kg, expected > 0')
+    c = point_masses.first_moment_kg_m / m
+    return m, (c.real, c.imag), point_masses.inertia_origin_kg_m2
+
+
+def centroidal_inertia(mass_kg, first_moment_kg_m, inertia_origin_kg_m2):
+    """Return I_O - |m c|^2 / m, the moment of inertia about the mass centre."""
+    return inertia_origin_kg_m2 - abs(complex(first_moment_kg_m)) ** 2 / mass_kg
+
+
+def is_realizable(point_masses, counterweights=False):
+    """
+    Return ``(ok, reason)``: a buildable link has positive mass and centroidal inertia.
+
+    With ``counterweights`` the point masses must also be non-negative.
+    """
+    m = point_masses.mass_kg
+    if not m > 0.0:
+        return False, f'total mass {m:.6g} kg <= 0'
+    i_c = centroidal_inertia(m, point_masses.first_moment_kg_m,
+                             point_masses.inertia_origin_kg_m2)
+    if i_c <= REALIZABLE_TOL * point_masses.inertia_origin_kg_m2:
+        return False, f'centroidal moment of inertia {i_c:.6g} kg*m^2 <= 0'
+    if counterweights and min(point_masses.masses_kg) < 0.0:
+        return False, f'negative point mass {min(point_masses.masses_kg):.6g} kg'
+    return True, 'ok'
+
+
+def design_vector(scene):
+    """Return the seed-001 design vector (eq. 45) of a scene's links, SI."""
+    out = []
+    for lk in scene.links:
+        pm = from_link(lk.mass_kg, lk.com_m, lk.inertia_origin_kg_m2)
+        out += list(pm.masses_kg) + [pm.distance_m]
+    return np.array(out)
+
+
+def split_design(values, n_links):
+    """Return one :class:`PointMasses` per link from a ``(4 n,)`` design vector (SI)."""
+    x = np.asarray(values, dtype=float).ravel()
+    if x.size != 4 * n_links:
+        raise ValueError(
+            f'design: got {x.size} values, expected {4 * n_links} (m_i1, m_i2, m_i3, l_i1 '
+            f'for each of the {n_links} links)')
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f'design: got {x.tolist()}, expected finite numbers')
+    out = []
+    for i in range(n_links):
+        m1, m2, m3, dist = x[4 * i:4 * i + 4]
+        if not dist > 0.0:
+            raise ValueError(f'design: l_{i + 1}1 = {dist!r}, expected a distance > 0')
+        out.append(PointMasses((float(m1), float(m2), float(m3)), float(dist)))
+    return out
+
+
+def apply_design(scene, values, normalized=False):
+    """
+    Return ``scene`` with its link inertias replaced by a design vector (eq. 45).
+
+    With ``normalized`` the masses are in units of the scene's m_1 and distances of a_1
+    (the papers' tables); the scene must then record its normalization.
+    """
+    pms = split_design(values, len(scene.links))
+    if normalized:
+        norm = scene.normalization
+        if norm is None:
+            raise ValueError(f'design: scene {scene.name!r} records no normalization, so a '
+                             'normalized design vector cannot be converted to SI')
+        pms = [PointMasses(tuple(m * norm.mass_kg for m in pm.masses_kg),
+                           pm.distance_m * norm.length_m) for pm in pms]
+    links = []
+    for lk, pm in zip(scene.links, pms):
+        m, com, i_o = link_properties(pm)
+        i_c = i_o - m * (com[0] ** 2 + com[1] ** 2)
+        links.append(replace(lk, mass_kg=m, com_m=com, inertia_com_kg_m2=i_c))
+    return scene.with_links(links)

@@ -1,0 +1,723 @@
+"""
+Position, velocity and acceleration analysis of a single-input planar linkage.
+
+Formulation (seed 001 sec. 3.2, seed 000 eqs. 17-36)
+    The joint graph is opened into a spanning tree rooted at the frame (the crank joint
+    first); the remaining joints are *cut joints*.  The tree's relative joint coordinates q
+    (revolute: relative angle; prismatic: slide) are the unknowns, the crank's coordinate is
+    the input psi, and each cut joint contributes two loop-closure equations g(q) = 0
+    (revolute: the two joint points coincide; prismatic: the relative angle is fixed and the
+    point lies on the guide).  Gruebler's count makes this system square.
+
+Numbers
+    Planar vectors are complex numbers: x + i*y.  The seeds' 90-degree rotation operator E
+    is multiplication by 1j, ``a^T E b = -cross(a, b)`` and a rotation by phi is
+    ``exp(1j*phi)``.  Arrays are batch-last: one row per body or joint, one column per crank
+    angle.  The Newton system is scaled by a characteristic length L (the crank length) so
+    residuals, condition numbers and tolerances are dimensionless and scale-free.
+
+Branches
+    The assembly mode chosen in the scene (approximate link angles at one crank angle) is
+    followed by adaptive continuation around one full turn (the *branch skeleton*: nodes with
+    q, dq/dpsi and d2q/dpsi2).  Any set of crank angles is then solved by Newton from a
+    quintic Hermite predictor on that skeleton.  A step whose Newton correction leaves the
+    trust region, a Jacobian whose determinant changes sign between nodes (a singular
+    position was crossed), or a condition number above ``COND_LIMIT`` raises
+    :class:`BranchError` naming the crank angle; above ``COND_WARN`` a warning is recorded.
+"""
+
+from dataclasses import dataclass
+import math
+import warnings
+
+import numpy as np
+
+from mech_balance import smallsolve
+from mech_balance.scene import FRAME
+
+NEWTON_TOL = 1e-13
+"""Loop-closure residual (relative to the characteristic length) that ends Newton."""
+NEWTON_MAX_ITER = 8
+"""Newton iterations per continuation step or per batched evaluation."""
+ASSEMBLY_MAX_ITER = 60
+"""Damped Newton iterations allowed to assemble the linkage from the scene's guess."""
+COND_WARN = 1e4
+"""Scaled Jacobian condition number (1-norm) above which the position is reported near-singular."""
+COND_LIMIT = 1e10
+"""Scaled Jacobian condition number above which the position is refused as singular."""
+STEP_MAX_RAD = math.radians(5.0)
+"""Largest crank step between skeleton nodes (keeps the Hermite predictor within 1e-6)."""
+STEP_MIN_RAD = 1e-7
+"""Smallest crank step the continuation may take before it declares the branch lost."""
+STEP_TRUST = 0.05
+"""Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
+EVAL_TRUST = 1e-4
+"""Largest scaled correction from the skeleton predictor before an angle is re-traced."""
+TWO_PI = 2.0 * math.pi
+
+
+class BranchError(ValueError):
+    """The linkage cannot be assembled, is singular, or would leave its branch."""
+
+
+@dataclass
+class TreeJoint:
+    """A joint of the spanning tree: ``child`` hangs from ``parent``."""
+
+    joint: int
+    name: str
+    type: str
+    parent: int
+    child: int
+    p_parent: complex
+    p_child: complex
+    axis: complex
+    axis_on_parent: bool
+    angle: float
+
+
+@dataclass
+class CutJoint:
+    """A joint closing a loop: two equations g = 0 between bodies ``a`` and ``b``."""
+
+    joint: int
+    name: str
+    type: str
+    a: int
+    b: int
+    p_a: complex
+    p_b: complex
+    axis: complex
+    angle: float
+
+
+@dataclass
+class Pose:
+    """Body poses for a batch of crank angles (batch-last arrays)."""
+
+    phi: np.ndarray       # (nb, p) absolute link angles, rad
+    rot: np.ndarray       # (nb, p) exp(i*phi)
+    origin: np.ndarray    # (nb, p) complex, link origins, m
+    joint_at: np.ndarray  # (nt, p) complex, world location of each tree joint, m
+    axis: np.ndarray      # (nt, p) complex, world slide direction (prismatic tree joints)
+    cut_points: tuple = None  # cached world points (a, b) of the cut joints
+
+
+@dataclass
+class KinematicState:
+    """Everything the kinematics computes for a batch of crank angles (SI)."""
+
+    psi: np.ndarray        # (p,) crank angle, rad
+    psi_d: np.ndarray      # (p,) crank speed, rad/s
+    psi_dd: np.ndarray     # (p,) crank acceleration, rad/s^2
+    q: np.ndarray          # (nt, p) tree joint coordinates (rad or m)
+    pose: Pose
+    residual: np.ndarray   # (p,) max |g| / L at the solution
+    cond: np.ndarray       # (p,) 1-norm condition number of the scaled Jacobian
+    iterations: np.ndarray  # (p,) Newton iterations used
+    qd: np.ndarray = None      # (nt, p)
+    omega: np.ndarray = None   # (nb, p) rad/s
+    vel: np.ndarray = None     # (nb, p) complex velocity of each link origin, m/s
+    qdd: np.ndarray = None
+    alpha: np.ndarray = None   # (nb, p) rad/s^2
+    acc: np.ndarray = None     # (nb, p) complex acceleration of each link origin, m/s^2
+    jac_inv: np.ndarray = None  # (nu, m, p) inverse of the scaled Jacobian J_u
+    jac: np.ndarray = None      # (m, nt, p) scaled loop Jacobian over all tree coordinates
+
+    @property
+    def size(self):
+        """Return the number of crank angles in the batch."""
+        return self.psi.shape[0]
+
+
+class Linkage:
+    """The geometry and topology of a planar scene, compiled for batched analysis."""
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.body_names = [FRAME] + [lk.name for lk in scene.links]
+        index = {n: i for i, n in enumerate(self.body_names)}
+        points = {FRAME: scene.frame_points, **{lk.name: lk.points for lk in scene.links}}
+        pts = {n: {k: complex(*v) for k, v in p.items()} for n, p in points.items()}
+        self.nb = len(self.body_names)
+        joints = list(scene.joints)
+        self.joint_names = [j.name for j in joints]
+        crank_idx = self.joint_names.index(scene.crank_joint)
+        order = [crank_idx] + [i for i in range(len(joints)) if i != crank_idx]
+
+        # Breadth-first spanning tree from the frame, crank joint first.
+        self.tree, self.cuts = [], []
+        visited, used, frontier = {0}, set(), [0]
+        parent_joint = {0: None}
+        while frontier:
+            body = frontier.pop(0)
+            for ji in order:
+                if ji in used:
+                    continue
+                jt = joints[ji]
+                ia, ib = index[jt.link_a], index[jt.link_b]
+                if body not in (ia, ib):
+                    continue
+                other = ib if ia == body else ia
+                used.add(ji)
+                if other in visited:
+                    self.cuts.append(self._cut(ji, jt, ia, ib, pts))
+                    continue
+                visited.add(other)
+                frontier.append(other)
+                parent_joint[other] = len(self.tree)
+                self.tree.append(self._tree(ji, jt, body, other, index, pts))
+            if body == 0 and not self.tree:
+                break
+        self.nt = len(self.tree)
+        self.parent_joint = [parent_joint[b] for b in range(self.nb)]  # None for the frame
+        # body order: tree order (parents before children)
+        self.order = [tj.child for tj in self.tree]
+        self.unknown = list(range(1, self.nt))          # tree coords solved by Newton
+        self.nu = len(self.unknown)
+        self.m = 2 * len(self.cuts)
+        if self.m != self.nu:
+            raise BranchError(
+                f'joints: {self.nu} unknown joint coordinates but {self.m} loop equations; '
+                'the linkage is not a single-degree-of-freedom closed chain')
+        # ancestry: anc[b] = tree joints on the path from the frame to body b
+        self.anc = [set() for _ in range(self.nb)]
+        for t, tj in enumerate(self.tree):
+            self.anc[tj.child] = self.anc[tj.parent] | {t}
+        self.descendants = [[b for b in range(self.nb) if t in self.anc[b]]
+                            for t in range(self.nt)]
+        self.is_prismatic = np.array([tj.type == 'prismatic' for tj in self.tree])
+        self.length_scale = self._length_scale(scene, pts)
+        self._compile()
+        self.pivot = self._crank_pivot(scene)
+        self._skeleton = None
+        self.warnings = []
+
+    # ------------------------------------------------------------------ construction
+
+    @staticmethod
+    def _tree(ji, jt, parent, child, index, pts):
+        a_is_parent = index[jt.link_a] == parent
+        pa, pb = pts[jt.link_a][jt.point_a], pts[jt.link_b][jt.point_b]
+        p_parent, p_child = (pa, pb) if a_is_parent else (pb, pa)
+        return TreeJoint(ji, jt.name, jt.type, parent, child, p_parent, p_child,
+                         complex(*jt.axis), a_is_parent, jt.angle_rad)
+
+    @staticmethod
+    def _cut(ji, jt, ia, ib, pts):
+        return CutJoint(ji, jt.name, jt.type, ia, ib, pts[jt.link_a][jt.point_a],
+                        pts[jt.link_b][jt.point_b], complex(*jt.axis), jt.angle_rad)
+
+    @staticmethod
+    def _length_scale(scene, pts):
+        if scene.normalization is not None:
+            return scene.normalization.length_m
+        crank = next(j for j in scene.joints if j.name == scene.crank_joint)
+        name = crank.link_b if crank.link_a == FRAME else crank.link_a
+        p = list(pts[name].values())
+        span = max((abs(x - y) for x in p for y in p), default=0.0)
+        if span > 0.0:
+            return span
+        spans = [abs(x - y) for q in pts.values() for x in q.values() for y in q.values()]
+        return max(spans) if max(spans, default=0.0) > 0.0 else 1.0
+
+    @staticmethod
+    def _crank_pivot(scene):
+        crank = next(j for j in scene.joints if j.name == scene.crank_joint)
+        point = crank.point_a if crank.link_a == FRAME else crank.point_b
+        return complex(*scene.frame_points[point])
+
+    # ------------------------------------------------------------------ position level
+
+    def _compile(self):
+        """Precompute the incidence and ancestry matrices that vectorize over bodies."""
+        nb, nt = self.nb, self.nt
+        self.par = np.array([tj.parent for tj in self.tree])
+        self.ch = np.array([tj.child for tj in self.tree])
+        rev = ~self.is_prismatic
+        self.anc_rev = np.zeros((nb, nt))
+        self.anc_pri = np.zeros((nb, nt))
+        for b in range(nb):
+            for t in self.anc[b]:
+                (self.anc_rev if rev[t] else self.anc_pri)[b, t] = 1.0
+        self.anc_all = self.anc_rev + self.anc_pri
+        self.has_pri = bool(self.is_prismatic.any())
+        self.p_par = np.array([tj.p_parent for tj in self.tree])[:, None]
+        self.p_ch = np.array([tj.p_child for tj in self.tree])[:, None]
+        self.axis_local = np.where(self.is_prismatic,
+                                   np.array([tj.axis for tj in self.tree]), 0)[:, None]
+        self.axis_on_par = np.array([tj.axis_on_parent for tj in self.tree])[:, None]
+        offset = np.array([(tj.angle if tj.axis_on_parent else -tj.angle)
+                           if tj.type == 'prismatic' else 0.0 for tj in self.tree])
+        self.phi_offset = (self.anc_pri @ offset)[:, None]
+        # subtree sums (for the reaction recursion): sub[b, c] = 1 if c hangs below b or is b
+        rc = [c for c in self.cuts if c.type == 'revolute']
+        pc = [c for c in self.cuts if c.type == 'prismatic']
+        self.cuts = rc + pc
+        self.nr, self.npc = len(rc), len(pc)
+        self.cut_a = np.array([c.a for c in self.cuts], dtype=int)
+        self.cut_b = np.array([c.b for c in self.cuts], dtype=int)
+        self.cut_pa = np.array([c.p_a for c in self.cuts])[:, None]
+        self.cut_pb = np.array([c.p_b for c in self.cuts])[:, None]
+        ncut = len(self.cuts)
+        self.cut_inc_a = np.zeros((nb, ncut))
+        self.cut_inc_b = np.zeros((nb, ncut))
+        self.cut_inc_a[self.cut_a, np.arange(ncut)] = 1.0
+        self.cut_inc_b[self.cut_b, np.arange(ncut)] = 1.0
+        self.cut_names = [c.name for c in self.cuts]
+        self.tree_names = [tj.name for tj in self.tree]
+        joints = {j.name: j for j in self.scene.joints}
+        # reactions are reported as the force on the joint's link b from its link a
+        self.tree_sign = np.array([1.0 if joints[tj.name].link_b == self.body_names[tj.child]
+                                   else -1.0 for tj in self.tree])
+        L = self.length_scale
+        self.row_scale = np.concatenate([np.full(2 * self.nr, 1.0 / L),
+                                         np.ones(self.npc), np.full(self.npc, 1.0 / L)])
+        self.col_scale_all = np.where(self.is_prismatic, L, 1.0)
+        self.col_scale = self.col_scale_all[self.unknown]
+        # d(point on body b)/dq_t selectors for the cut ends: (ncut, nt)
+        self.sel_rev = self.anc_rev[self.cut_b] - self.anc_rev[self.cut_a]
+        self.sel_rev_a, self.sel_rev_b = self.anc_rev[self.cut_a], self.anc_rev[self.cut_b]
+        self.sel_pri = self.anc_pri[self.cut_b] - self.anc_pri[self.cut_a]
+
+    def pose(self, q, rot_crank=None):
+        """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
+        phi = self.anc_rev @ q
+        if self.has_pri:
+            phi = phi + self.phi_offset
+        rot = np.empty(phi.shape, dtype=complex)
+        rot[0] = 1.0
+        rot[1:] = np.exp(1j * phi[1:])
+        rot_par, rot_ch = rot[self.par], rot[self.ch]
+        contrib = rot_par * self.p_par - rot_ch * self.p_ch
+        axis = None
+        if self.has_pri:
+            axis = np.where(self.axis_on_par, rot_par, -rot_ch) * self.axis_local
+            contrib = contrib + q * axis
+        origin = self.anc_all @ contrib
+        joint_at = origin[self.ch] + rot_ch * self.p_ch
+        return Pose(phi, rot, origin, joint_at, axis)
+
+    def _cut_points(self, pose):
+        if pose.cut_points is not None:
+            return pose.cut_points
+        pa = pose.origin[self.cut_a] + pose.rot[self.cut_a] * self.cut_pa
+        pb = pose.origin[self.cut_b] + pose.rot[self.cut_b] * self.cut_pb
+        pose.cut_points = (pa, pb)
+        return pa, pb
+
+    def residual(self, pose):
+        """Return the scaled loop-closure residuals ``(m, p)`` (seed 000 eq. 27)."""
+        pa, pb = self._cut_points(pose)
+        d = pb - pa
+        nr = self.nr
+        rows = [d.real[:nr], d.imag[:nr]]
+        if self.npc:
+            ia, ib = self.cut_a[nr:], self.cut_b[nr:]
+            angles = np.array([c.angle for c in self.cuts[nr:]])[:, None]
+            dphi = pose.phi[ib] - pose.phi[ia] - angles
+            n = pose.rot[ia] * np.array([c.axis for c in self.cuts[nr:]])[:, None]
+            rows += [np.remainder(dphi + math.pi, TWO_PI) - math.pi, _cross(n, d[nr:])]
+        return np.concatenate(rows) * self.row_scale[:, None]
+
+    def jacobian(self, pose):
+        """Return the scaled loop Jacobian dg/dq over all tree coordinates, ``(m, nt, p)``."""
+        pa, pb = self._cut_points(pose)
+        # revolute tree joint t moves a point P below it by i (P - J_t) per unit rate
+        d = 1j * (self.sel_rev_b[:, :, None] * pb[:, None, :]
+                  - self.sel_rev_a[:, :, None] * pa[:, None, :]
+                  - self.sel_rev[:, :, None] * pose.joint_at[None, :, :])
+        if self.has_pri:
+            d = d + self.sel_pri[:, :, None] * pose.axis[None, :, :]
+            d = d * self.col_scale_all[None, :, None]
+        nr = self.nr
+        if not self.npc:
+            return np.concatenate([d.real, d.imag]) * self.row_scale[:, None, None]
+        rows = [d.real[:nr], d.imag[:nr]]
+        if self.npc:
+            ia = self.cut_a[nr:]
+            n = pose.rot[ia] * np.array([c.axis for c in self.cuts[nr:]])[:, None]
+            dn = self.sel_rev_a[nr:, :, None] * (1j * n[:, None, :])
+            rows += [np.broadcast_to(self.sel_rev[nr:, :, None], d[nr:].shape).copy(),
+                     _cross(dn, (pb - pa)[nr:, None, :]) * self.col_scale_all[None, :, None]
+                     + _cross(n[:, None, :], d[nr:])]
+        return np.concatenate(rows) * self.row_scale[:, None, None]
+
+    # ------------------------------------------------------------------ Newton
+
+    def newton(self, psi, q, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
+        """
+        Solve g(q) = 0 for the unknown tree coordinates at crank angles ``psi``.
+
+        ``q`` ``(nt, p)`` is the starting guess (its crank row is overwritten by ``psi``).
+        Returns ``(q, pose, residual, iterations, converged)``; no branch checks here.
+        """
+        q = np.array(q, dtype=float)
+        q[0] = psi
+        p = q.shape[1]
+        iters = np.zeros(p, dtype=int)
+        cs = self.col_scale[:, None]
+        unknown = self.unknown
+        for it in range(max_iter + 1):
+            pose = self.pose(q)
+            g = self.residual(pose)
+            res = np.max(np.abs(g), axis=0)
+            if it == max_iter or not res.max() > tol:  # also stops on nan (handled below)
+                break
+            jinv, _ = smallsolve.inverse(self.jacobian(pose)[:, unknown])
+            # a Newton step for every angle: at converged ones it is a no-op to round-off
+            q[unknown] -= _matvec(jinv, g) * cs
+            iters += res > tol
+        ok = res <= tol
+        return q, pose, res, iters, ok
+
+    def assemble(self):
+        """
+        Return the tree coordinates at the scene's assembly angle, from its guess.
+
+        Damped Newton from the scene's approximate link angles (the assembly mode).
+        Raises :class:`BranchError` when the linkage does not close.
+        """
+        scene = self.scene
+        psi0 = scene.assembly_crank_angle_rad
+        angles = {0: 0.0, self.tree[0].child: psi0}
+        q = np.zeros((self.nt, 1))
+        q[0] = psi0
+        missing = []
+        for t, tj in enumerate(self.tree[1:], start=1):
+            name = self.body_names[tj.child]
+            if tj.type == 'revolute':
+                if name not in scene.assembly_link_angles_rad:
+                    missing.append(f'link_angles_deg.{name}')
+                    continue
+                angles[tj.child] = scene.assembly_link_angles_rad[name]
+                q[t] = angles[tj.child] - angles.get(tj.parent, 0.0)
+            else:
+                angles[tj.child] = angles.get(tj.parent, 0.0) + (
+                    tj.angle if tj.axis_on_parent else -tj.angle)
+                if tj.name not in scene.assembly_displacements_m:
+                    missing.append(f'joint_displacements_m.{tj.name}')
+                    continue
+                q[t] = scene.assembly_displacements_m[tj.name]
+        if missing:
+            raise BranchError(
+                f'assembly: missing {", ".join(missing)}; expected an approximate value for '
+                'each, which selects the assembly mode (branch)')
+        cs = self.col_scale[:, None]
+        for _ in range(ASSEMBLY_MAX_ITER):
+            pose = self.pose(q)
+            g = self.residual(pose)
+            norm = float(np.max(np.abs(g))) if self.m else 0.0
+            if norm <= NEWTON_TOL:
+                return q
+            jinv, cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown])
+            if not np.isfinite(cond[0]):
+                break
+            step = -_matvec(jinv, g) * cs
+            lam = 1.0
+            while lam > 1e-4:  # backtracking line search on the residual norm
+                trial = q.copy()
+                trial[self.unknown] += lam * step
+                if np.max(np.abs(self.residual(self.pose(trial)))) < norm:
+                    break
+                lam *= 0.5
+            q = trial
+        raise BranchError(
+            f'assembly: the linkage does not close at crank angle {math.degrees(psi0):.3f} deg '
+            f'from the given link angles (loop residual {norm * self.length_scale:.3e} m after '
+            f'{ASSEMBLY_MAX_ITER} damped Newton steps); check the joint points and lengths')
+
+    # ------------------------------------------------------------------ rates
+
+    def rates(self, pose, psi_d, psi_dd, jac=None, need_acc=True):
+        """
+        Return joint and link rates at a solved pose (seed 000 eqs. 28-36).
+
+        ``psi_d``, ``psi_dd`` broadcast to ``(p,)``; ``jac`` is the scaled loop Jacobian at
+        ``pose`` if already known.  Returns a dict with ``qd``, ``omega``, ``vel``,
+        ``jac_inv``, ``cond``, ``jac`` and, if ``need_acc``, ``qdd``, ``alpha``, ``acc``.
+        Every link rate is the sum over the tree joints above it (vectorized with the
+        ancestry matrices): a revolute joint t turning at qd_t moves the point P at
+        ``i qd_t (P - J_t)``, a prismatic one at ``qd_t * axis_t``.
+        """
+        p = pose.phi.shape[1]
+        if np.ndim(psi_d):
+            psi_d = np.broadcast_to(psi_d, (p,))
+        if np.ndim(psi_dd):
+            psi_dd = np.broadcast_to(psi_dd, (p,))
+        if jac is None:
+            jac = self.jacobian(pose)
+        jinv, cond = smallsolve.inverse(jac[:, self.unknown])
+        cs = self.col_scale[:, None]
+        qd = np.empty((self.nt, p))
+        qd[0] = psi_d
+        # q_u' = -J_u^-1 J_psi (seed 000 eq. 32, generalized)
+        shape_u = -_matvec(jinv, jac[:, 0])
+        qd[self.unknown] = shape_u * cs * psi_d
+        omega = self.anc_rev @ qd
+        J = pose.joint_at
+        vel = 1j * (omega * pose.origin - self.anc_rev @ (qd * J))
+        if self.has_pri:
+            vel += self.anc_pri @ (qd * pose.axis)
+        out = {'qd': qd, 'omega': omega, 'vel': vel, 'jac_inv': jinv, 'cond': cond, 'jac': jac}
+        if not need_acc:
+            return out
+        # velocity-product part of the link accelerations (all joint accelerations zero)
+        par = self.par
+        v_joint = vel[par] + 1j * omega[par] * (J - pose.origin[par])
+        acc_v = 1j * (omega * vel - self.anc_rev @ (qd * v_joint))
+        if self.has_pri:
+            acc_v += self.anc_pri @ (1j * qd * omega[par] * pose.axis)
+        gamma = self._cut_bias(pose, omega, vel, acc_v)
+        qdd = np.empty((self.nt, p))
+        qdd[0] = psi_dd
+        # J_u q_u'' = -(gamma + J_psi psi'')
+        qdd[self.unknown] = -_matvec(jinv, gamma + jac[:, 0] * psi_dd) * cs
+        alpha = self.anc_rev @ qdd
+        acc = acc_v + 1j * (alpha * pose.origin - self.anc_rev @ (qdd * J))
+        if self.has_pri:
+            acc += self.anc_pri @ (qdd * pose.axis)
+        out.update(qdd=qdd, alpha=alpha, acc=acc)
+        return out
+
+    def _cut_bias(self, pose, omega, vel, acc_v):
+        """Return the scaled loop-equation accelerations with all joint accelerations zero."""
+        ia, ib = self.cut_a, self.cut_b
+        ra = pose.rot[ia] * self.cut_pa
+        rb = pose.rot[ib] * self.cut_pb
+        acc_a = acc_v[ia] - omega[ia] ** 2 * ra
+        acc_b = acc_v[ib] - omega[ib] ** 2 * rb
+        d = acc_b - acc_a
+        nr = self.nr
+        rows = [d.real[:nr], d.imag[:nr]]
+        if self.npc:
+            ia, ib = ia[nr:], ib[nr:]
+            n = pose.rot[ia] * np.array([c.axis for c in self.cuts[nr:]])[:, None]
+            dist = (pose.origin[ib] + rb[nr:]) - (pose.origin[ia] + ra[nr:])
+            dist_d = (vel[ib] + 1j * omega[ib] * rb[nr:]) - (vel[ia] + 1j * omega[ia] * ra[nr:])
+            n_d = 1j * omega[ia] * n
+            n_dd = -omega[ia] ** 2 * n
+            rows += [np.zeros((self.npc, d.shape[1])),
+                     _cross(n_dd, dist) + 2.0 * _cross(n_d, dist_d) + _cross(n, d[nr:])]
+        return np.concatenate(rows) * self.row_scale[:, None]
+
+    # ------------------------------------------------------------------ branch skeleton
+
+    @property
+    def skeleton(self):
+        """Return the branch skeleton (traced once per linkage, on first use)."""
+        if self._skeleton is None:
+            self._skeleton = self._trace()
+        return self._skeleton
+
+    def _derivatives(self, pose):
+        r = self.rates(pose, 1.0, 0.0)
+        return r['qd'], r['qdd'], r['cond'], r['jac_inv']
+
+    def _trace(self):
+        psi0 = self.scene.assembly_crank_angle_rad
+        q = self.assemble()
+        pose = self.pose(q)
+        qd, qdd, cond, _ = self._derivatives(pose)
+        det0 = self._det_sign(pose)
+        nodes_psi, nodes_q, nodes_qd, nodes_qdd, nodes_cond = [psi0], [q[:, 0]], [qd[:, 0]], \
+            [qdd[:, 0]], [cond[0]]
+        psi, h = psi0, STEP_MAX_RAD
+        end = psi0 + TWO_PI
+        while psi < end - 1e-12:
+            h = min(h, end - psi)
+            pred = q + qd * h + 0.5 * qdd * h * h
+            q_new, pose_new, res, iters, ok = self.newton(np.array([psi + h]), pred)
+            corr = np.max(np.abs((q_new - pred)[self.unknown]) / self.col_scale[:, None]) \
+                if self.nu else 0.0
+            good = bool(ok[0]) and corr <= STEP_TRUST
+            if good:
+                qd_new, qdd_new, cond_new, _ = self._derivatives(pose_new)
+                good = np.isfinite(cond_new[0]) and cond_new[0] <= COND_LIMIT
+            if good and self._det_sign(pose_new) != det0:
+                good = False
+                if h <= 2 * STEP_MIN_RAD:
+                    raise BranchError(
+                        f'crank angle {math.degrees(psi + h):.4f} deg: the linkage passes a '
+                        'singular position here (the loop Jacobian changes sign); beyond it '
+                        'the assembly branch is not unique, so the cycle cannot be followed')
+            if not good:
+                h *= 0.5
+                if h < STEP_MIN_RAD:
+                    c = cond_new[0] if 'cond_new' in locals() else float('inf')
+                    raise BranchError(
+                        f'crank angle {math.degrees(psi):.4f} deg: cannot continue the '
+                        f'assembly branch (Newton residual {res[0]:.2e}, Jacobian condition '
+                        f'{c:.3g}); the linkage cannot be assembled beyond this angle or '
+                        'reaches a singular position')
+                continue
+            psi += h
+            q, qd, qdd = q_new, qd_new, qdd_new
+            nodes_psi.append(psi)
+            nodes_q.append(q[:, 0])
+            nodes_qd.append(qd[:, 0])
+            nodes_qdd.append(qdd[:, 0])
+            nodes_cond.append(cond_new[0])
+            if cond_new[0] > COND_WARN:
+                self._warn(f'crank angle {math.degrees(psi):.3f} deg: near-singular position '
+                           f'(Jacobian condition number {cond_new[0]:.3g} > {COND_WARN:g})')
+            if iters[0] <= 2:
+                h = min(1.5 * h, STEP_MAX_RAD)
+        q_start, q_end = nodes_q[0], nodes_q[-1]
+        turns = np.zeros(self.nt)
+        rev = ~self.is_prismatic
+        turns[rev] = np.round((q_end[rev] - q_start[rev]) / TWO_PI)
+        gap = np.abs(q_end - q_start - TWO_PI * turns) / np.where(
+            self.is_prismatic, self.length_scale, 1.0)
+        if np.max(gap[1:], initial=0.0) > 1e-7:
+            raise BranchError(
+                'assembly: after one full crank turn the linkage does not return to its start '
+                f'(largest joint mismatch {np.max(gap):.3e}); the crank cannot turn fully on '
+                'this branch')
+        return Skeleton(np.array(nodes_psi), np.array(nodes_q).T, np.array(nodes_qd).T,
+                        np.array(nodes_qdd).T, np.array(nodes_cond), turns)
+
+    def _det_sign(self, pose):
+        if not self.nu:
+            return 1.0
+        jac = self.jacobian(pose)[:, self.unknown, 0]
+        return float(np.sign(np.linalg.det(jac)))
+
+    def _warn(self, text):
+        if text not in self.warnings:
+            self.warnings.append(text)
+            warnings.warn(text, RuntimeWarning, stacklevel=3)
+
+    # ------------------------------------------------------------------ public evaluation
+
+    def solve(self, psi, psi_d=None, psi_dd=None, need_rates=True, need_acc=True):
+        """
+        Return the :class:`KinematicState` at crank angles ``psi`` (rad, any shape -> (p,)).
+
+        ``psi_d`` and ``psi_dd`` default to the scene's crank speed and acceleration.
+        """
+        psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
+        if not np.all(np.isfinite(psi)):
+            raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
+        sk = self.skeleton
+        q_pred = sk.predict(psi)
+        q, pose, res, iters, ok = self.newton(psi, q_pred)
+        corr = np.max(np.abs((q - q_pred)[self.unknown]) / self.col_scale[:, None],
+                      axis=0) if self.nu else np.zeros(psi.shape)
+        bad = ~ok | (corr > EVAL_TRUST)
+        if np.any(bad):
+            q[:, bad] = self._retrace(psi[bad])
+            pose = self.pose(q)
+            res = np.max(np.abs(self.residual(pose)), axis=0) if self.m else res
+        state = KinematicState(psi, None, None, q, pose, res, None, iters)
+        speed = self.scene.crank_speed_rad_s if psi_d is None else psi_d
+        accel = self.scene.crank_acceleration_rad_s2 if psi_dd is None else psi_dd
+        state.psi_d = np.full(psi.shape, speed) if np.ndim(speed) == 0 else \
+            np.broadcast_to(np.asarray(speed, dtype=float), psi.shape)
+        state.psi_dd = np.full(psi.shape, accel) if np.ndim(accel) == 0 else \
+            np.broadcast_to(np.asarray(accel, dtype=float), psi.shape)
+        if need_rates:
+            r = self.rates(pose, speed if np.ndim(speed) == 0 else state.psi_d,
+                           accel if np.ndim(accel) == 0 else state.psi_dd, need_acc=need_acc)
+            state.cond = r['cond']
+            state.jac_inv, state.jac = r['jac_inv'], r['jac']
+            state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
+            if need_acc:
+                state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
+        else:
+            _, state.cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown])
+        if np.any(state.cond > COND_WARN):
+            worst = int(np.argmax(state.cond))
+            self._warn(f'crank angle {math.degrees(psi[worst]):.3f} deg: near-singular '
+                       f'position (Jacobian condition number {state.cond[worst]:.3g})')
+        return state
+
+    def _retrace(self, psi):
+        """Follow the branch from the nearest skeleton node to each angle, step by step."""
+        sk = self.skeleton
+        out = np.empty((self.nt, psi.size))
+        for i, target in enumerate(psi):
+            k, x = sk.locate(np.array([target]))
+            base = sk.psi[k[0]] + (target - sk.psi[0] - x[0])
+            q = sk.q[:, k[0]:k[0] + 1] + np.where(self.is_prismatic, 0.0,
+                                                  sk.turns * sk.wraps(target))[:, None]
+            qd = sk.qd[:, k[0]:k[0] + 1]
+            qdd = sk.qdd[:, k[0]:k[0] + 1]
+            psi_now, goal = base, target
+            h = min(STEP_MAX_RAD / 4, goal - psi_now) if goal > psi_now else 0.0
+            while goal - psi_now > 1e-15:
+                h = min(h, goal - psi_now)
+                pred = q + qd * h + 0.5 * qdd * h * h
+                q_new, pose_new, res, _, ok = self.newton(np.array([psi_now + h]), pred)
+                corr = np.max(np.abs((q_new - pred)[self.unknown]) / self.col_scale[:, None])
+                if not ok[0] or corr > STEP_TRUST:
+                    h *= 0.5
+                    if h < STEP_MIN_RAD:
+                        raise BranchError(
+                            f'crank angle {math.degrees(psi_now):.4f} deg: cannot follow the '
+                            f'assembly branch (Newton residual {res[0]:.2e})')
+                    continue
+                psi_now += h
+                q = q_new
+                qd, qdd, _, _ = self._derivatives(pose_new)
+            out[:, i] = q[:, 0]
+        return out
+
+
+class Skeleton:
+    """Branch nodes over one crank turn and a quintic Hermite predictor between them."""
+
+    # quintic Hermite basis in powers of t: rows (value0, slope0, curv0, value1, slope1, curv1)
+    _BASIS = np.array([
+        [1, 0, 0, -10, 15, -6],
+        [0, 1, 0, -6, 8, -3],
+        [0, 0, 0.5, -1.5, 1.5, -0.5],
+        [0, 0, 0, 10, -15, 6],
+        [0, 0, 0, -4, 7, -3],
+        [0, 0, 0, 0.5, -1, 0.5],
+    ])
+
+    def __init__(self, psi, q, qd, qdd, cond, turns):
+        self.psi, self.q, self.qd, self.qdd, self.cond, self.turns = psi, q, qd, qdd, cond, turns
+        self.h = np.diff(psi)
+        self.offset = psi - psi[0]
+        h = self.h
+        data = np.stack([q[:, :-1], qd[:, :-1] * h, qdd[:, :-1] * h * h,
+                         q[:, 1:], qd[:, 1:] * h, qdd[:, 1:] * h * h], axis=-1)
+        # (nt, segments, 6) power-series coefficients of each segment in t in [0, 1]
+        self.coef = np.ascontiguousarray(np.moveaxis(data @ self._BASIS, -1, 0))
+
+    def wraps(self, psi):
+        """Return how many whole turns ``psi`` lies beyond the skeleton's start."""
+        return np.floor((np.asarray(psi) - self.psi[0]) / TWO_PI)
+
+    def locate(self, psi):
+        """Return the interval index and the offset into one turn for each angle."""
+        x = np.remainder(psi - self.psi[0], TWO_PI)
+        k = np.clip(np.searchsorted(self.offset, x, side='right') - 1, 0, self.h.size - 1)
+        return k, x
+
+    def predict(self, psi):
+        """Return predicted tree coordinates ``(nt, p)`` at crank angles ``psi``."""
+        k, x = self.locate(psi)
+        t = (x - self.offset[k]) / self.h[k]
+        c = self.coef[:, :, k]
+        q = c[5]
+        for j in (4, 3, 2, 1, 0):
+            q = q * t + c[j]
+        if np.any(self.turns):
+            q = q + TWO_PI * self.turns[:, None] * self.wraps(psi)[None, :]
+        return q
+
+
+def _matvec(mat, vec):
+    """Return mat @ vec for batch-last (m, k, p) and (k, p) stacks."""
+    if mat.shape[0] == 2 and mat.shape[1] == 2:
+        return np.array([mat[0, 0] * vec[0] + mat[0, 1] * vec[1],
+                         mat[1, 0] * vec[0] + mat[1, 1] * vec[1]])
+    return np.einsum('ikp,kp->ip', mat, vec)
+
+
+def _cross(a, b):
+    """Return the scalar cross product a x b of complex-coded planar vectors."""
+    return a.real * b.imag - a.imag * b.real

@@ -1,0 +1,480 @@
+"""
+Scenes: the YAML description of a rig, its one schema, and its validation.
+
+A scene describes a single-degree-of-freedom planar linkage (``kind: planar``) or the RGGR
+spatial four-bar (``kind: rggr``, see :mod:`mech_balance.rggr`).  The planar schema is
+documented in README.md (section *Scenes*) and enforced here; every error is a
+:class:`SceneError` (a ``ValueError``) that names the field, the bad value and what was
+expected.  Values are SI; the papers' normalization is recorded, never applied to storage.
+"""
+
+from dataclasses import dataclass, field, replace
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+SCHEMA_VERSION = 1
+
+OUTPUTS = ('kinematics', 'shaking_wrench', 'driving_torque', 'bearing_reactions')
+"""What a scene can ask for; each implies the ones it depends on (see :func:`needs`)."""
+
+JOINT_TYPES = ('revolute', 'prismatic')
+FRAME = 'frame'
+MAX_ABS_VALUE = 1e12
+"""Larger magnitudes in any numeric field are rejected as almost certainly wrong units."""
+
+_CONFIG_DIRS = (
+    Path(__file__).resolve().parent.parent / 'config',
+)
+
+
+class SceneError(ValueError):
+    """A scene field is missing, has the wrong type or an impossible value."""
+
+
+@dataclass(frozen=True)
+class Normalization:
+    """The papers' view: masses by m_1, lengths by a_1, time by 1/omega (seed 001 sec. 3.4)."""
+
+    mass_kg: float
+    length_m: float
+    omega_rad_s: float
+
+    def force(self, force_N):
+        """Return a normalized force, f / (m_1 a_1 omega^2)."""
+        return np.asarray(force_N) / (self.mass_kg * self.length_m * self.omega_rad_s ** 2)
+
+    def moment(self, moment_Nm):
+        """Return a normalized moment or torque, n / (m_1 a_1^2 omega^2)."""
+        return np.asarray(moment_Nm) / (
+            self.mass_kg * self.length_m ** 2 * self.omega_rad_s ** 2)
+
+
+@dataclass(frozen=True)
+class Link:
+    """A rigid link: named points and inertia, all in the link's own frame (SI)."""
+
+    name: str
+    points: dict
+    mass_kg: float
+    com_m: tuple
+    inertia_com_kg_m2: float
+
+    @property
+    def first_moment_kg_m(self):
+        """Return m*c, the first moment of mass about the link origin."""
+        return (self.mass_kg * self.com_m[0], self.mass_kg * self.com_m[1])
+
+    @property
+    def inertia_origin_kg_m2(self):
+        """Return the moment of inertia about the link origin (parallel axes)."""
+        return self.inertia_com_kg_m2 + self.mass_kg * (self.com_m[0] ** 2 + self.com_m[1] ** 2)
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint between the points ``a`` and ``b`` (``link.point``) of two links."""
+
+    name: str
+    type: str
+    link_a: str
+    point_a: str
+    link_b: str
+    point_b: str
+    axis: tuple = (1.0, 0.0)
+    angle_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated planar rig (SI units throughout)."""
+
+    name: str
+    description: str
+    frame_points: dict
+    links: tuple
+    joints: tuple
+    crank_joint: str
+    crank_speed_rad_s: float
+    crank_acceleration_rad_s2: float
+    assembly_crank_angle_rad: float
+    assembly_link_angles_rad: dict
+    assembly_displacements_m: dict
+    outputs: tuple
+    samples: int
+    gravity_m_s2: tuple = (0.0, 0.0)
+    normalization: Normalization = None
+    notes: dict = field(default_factory=dict)
+    source: str = '<dict>'
+    kind: str = 'planar'
+
+    def link(self, name):
+        """Return the link called ``name``."""
+        for lk in self.links:
+            if lk.name == name:
+                return lk
+        raise KeyError(name)
+
+    def with_links(self, links, name=None):
+        """Return a copy with other link inertias (same geometry), e.g. a balanced design."""
+        return replace(self, links=tuple(links), name=name or self.name)
+
+    def with_outputs(self, outputs):
+        """Return a copy that asks for other outputs (validated)."""
+        return replace(self, outputs=_outputs(list(outputs), 'outputs'))
+
+
+def needs(outputs):
+    """
+    Return the set of computations the given outputs require.
+
+    ``kinematics`` < ``shaking_wrench`` (accelerations) < ``driving_torque`` (NOC projection)
+    < ``bearing_reactions`` (cut-joint multipliers and the recursion through the tree).
+    """
+    out = set(outputs)
+    if 'bearing_reactions' in out:
+        out |= {'driving_torque'}
+    if 'driving_torque' in out or 'shaking_wrench' in out:
+        out |= {'accelerations'}
+    out |= {'kinematics'}
+    return out
+
+
+# ----------------------------------------------------------------------------- loading
+
+
+def builtin_scenes():
+    """Return ``{name: path}`` of the scenes shipped in ``config/``."""
+    found = {}
+    for d in _config_dirs():
+        for p in sorted(d.glob('*.yaml')):
+            if p.name.endswith('_params.yaml'):
+                continue
+            found.setdefault(p.stem, p)
+    return found
+
+
+def _config_dirs():
+    dirs = list(_CONFIG_DIRS)
+    try:  # installed by colcon: share/mech_balance/config
+        from ament_index_python.packages import get_package_share_directory
+        dirs.append(Path(get_package_share_directory('mech_balance')) / 'config')
+    except Exception:  # noqa: BLE001 - ament index absent or package not installed
+        pass
+    return [d for d in dirs if d.is_dir()]
+
+
+def resolve(name_or_path):
+    """Return the path of a built-in scene name or of a YAML file."""
+    text = str(name_or_path)
+    if os.sep in text or text.endswith(('.yaml', '.yml')):
+        path = Path(text).expanduser()
+        if not path.is_file():
+            raise SceneError(f'scene: file {text!r} does not exist')
+        return path
+    scenes = builtin_scenes()
+    if text not in scenes:
+        raise SceneError(
+            f'scene: got {text!r}, expected a built-in scene ({", ".join(sorted(scenes))}) '
+            'or a path to a .yaml file')
+    return scenes[text]
+
+
+def load_data(name_or_path):
+    """Return the parsed YAML mapping of a scene and its path."""
+    path = resolve(name_or_path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise SceneError(f'scene {path.name}: not valid YAML: {exc}') from None
+    if not isinstance(data, dict):
+        raise SceneError(f'scene {path.name}: got {type(data).__name__}, expected a mapping')
+    data.setdefault('name', path.stem)
+    return data, path
+
+
+def load(name_or_path):
+    """Load and validate a scene (planar or RGGR) by built-in name or path."""
+    data, path = load_data(name_or_path)
+    return from_dict(data, source=str(path))
+
+
+def from_dict(data, source='<dict>'):
+    """Validate a parsed scene mapping; dispatch on ``kind``."""
+    if not isinstance(data, dict):
+        raise SceneError(f'scene: got {type(data).__name__}, expected a mapping')
+    kind = data.get('kind', 'planar')
+    if kind == 'rggr':
+        from mech_balance import rggr
+        return rggr.load_rggr_scene(data, source=source)
+    if kind != 'planar':
+        raise SceneError(f'kind: got {kind!r}, expected "planar" or "rggr"')
+    return _planar_from_dict(data, source)
+
+
+_TOP_KEYS = {
+    'schema_version', 'name', 'description', 'kind', 'normalization', 'crank', 'gravity_m_s2',
+    'frame', 'links', 'joints', 'assembly', 'outputs', 'samples', 'notes', 'recording',
+    'balance',
+}
+
+
+def _planar_from_dict(data, source):
+    _known_keys(data, _TOP_KEYS, '')
+    version = data.get('schema_version', SCHEMA_VERSION)
+    if version != SCHEMA_VERSION:
+        raise SceneError(f'schema_version: got {version!r}, expected {SCHEMA_VERSION}')
+    name = _string(data.get('name', 'scene'), 'name')
+    frame = _mapping(_require(data, 'frame', ''), 'frame')
+    _known_keys(frame, {'points'}, 'frame')
+    frame_points = _points(_require(frame, 'points', 'frame'), 'frame.points')
+
+    links_data = _mapping(_require(data, 'links', ''), 'links')
+    if not links_data:
+        raise SceneError('links: got an empty mapping, expected at least one moving link')
+    links = tuple(_link(n, spec) for n, spec in links_data.items())
+    names = {lk.name for lk in links}
+    if FRAME in names:
+        raise SceneError(f'links.{FRAME}: "{FRAME}" is reserved for the fixed link')
+
+    joints_data = _mapping(_require(data, 'joints', ''), 'joints')
+    all_points = {FRAME: frame_points, **{lk.name: lk.points for lk in links}}
+    joints = tuple(_joint(n, spec, all_points) for n, spec in joints_data.items())
+
+    crank = _mapping(_require(data, 'crank', ''), 'crank')
+    _known_keys(crank, {'joint', 'speed_rad_s', 'acceleration_rad_s2'}, 'crank')
+    crank_joint = _string(_require(crank, 'joint', 'crank'), 'crank.joint')
+    by_name = {j.name: j for j in joints}
+    if crank_joint not in by_name:
+        raise SceneError(
+            f'crank.joint: got {crank_joint!r}, expected one of the joints '
+            f'({", ".join(by_name)})')
+    cj = by_name[crank_joint]
+    if cj.type != 'revolute' or FRAME not in (cj.link_a, cj.link_b) or cj.link_a == cj.link_b:
+        raise SceneError(
+            f'crank.joint: got {crank_joint!r} ({cj.type} between {cj.link_a} and '
+            f'{cj.link_b}), expected a revolute joint between the frame and a moving link')
+    speed = _number(crank.get('speed_rad_s', 1.0), 'crank.speed_rad_s')
+    if speed == 0.0:
+        raise SceneError('crank.speed_rad_s: got 0.0, expected a non-zero crank speed (rad/s)')
+    accel = _number(crank.get('acceleration_rad_s2', 0.0), 'crank.acceleration_rad_s2')
+
+    _check_mobility(links, joints)
+
+    assembly = _mapping(_require(data, 'assembly', ''), 'assembly')
+    _known_keys(assembly, {'crank_angle_deg', 'link_angles_deg', 'joint_displacements_m'},
+                'assembly')
+    crank_angle = math.radians(
+        _number(assembly.get('crank_angle_deg', 0.0), 'assembly.crank_angle_deg'))
+    link_angles = {}
+    for k, v in _mapping(assembly.get('link_angles_deg', {}),
+                         'assembly.link_angles_deg').items():
+        if k not in names:
+            raise SceneError(
+                f'assembly.link_angles_deg.{k}: no such link, expected one of '
+                f'{", ".join(sorted(names))}')
+        link_angles[k] = math.radians(_number(v, f'assembly.link_angles_deg.{k}'))
+    displacements = {}
+    for k, v in _mapping(assembly.get('joint_displacements_m', {}),
+                         'assembly.joint_displacements_m').items():
+        if k not in by_name or by_name[k].type != 'prismatic':
+            raise SceneError(
+                f'assembly.joint_displacements_m.{k}: expected the name of a prismatic joint')
+        displacements[k] = _number(v, f'assembly.joint_displacements_m.{k}')
+
+    normalization = None
+    if 'normalization' in data:
+        nd = _mapping(data['normalization'], 'normalization')
+        _known_keys(nd, {'mass_kg', 'length_m', 'omega_rad_s'}, 'normalization')
+        normalization = Normalization(
+            _positive(_require(nd, 'mass_kg', 'normalization'), 'normalization.mass_kg'),
+            _positive(_require(nd, 'length_m', 'normalization'), 'normalization.length_m'),
+            _positive(_require(nd, 'omega_rad_s', 'normalization'),
+                      'normalization.omega_rad_s'))
+
+    gravity = _vector(data.get('gravity_m_s2', [0.0, 0.0]), 'gravity_m_s2')
+    outputs = _outputs(data.get('outputs', list(OUTPUTS)), 'outputs')
+    samples = data.get('samples', 360)
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 4:
+        raise SceneError(f'samples: got {samples!r}, expected an integer >= 4')
+    notes = data.get('notes', {})
+    description = data.get('description', '')
+    if not isinstance(description, str):
+        raise SceneError(f'description: got {type(description).__name__}, expected text')
+    return Scene(
+        name=name, description=description.strip(), frame_points=frame_points,
+        links=links, joints=joints, crank_joint=crank_joint, crank_speed_rad_s=speed,
+        crank_acceleration_rad_s2=accel, assembly_crank_angle_rad=crank_angle,
+        assembly_link_angles_rad=link_angles, assembly_displacements_m=displacements,
+        outputs=outputs, samples=samples, gravity_m_s2=gravity, normalization=normalization,
+        notes=notes if isinstance(notes, dict) else {'text': notes}, source=source)
+
+
+def _check_mobility(links, joints):
+    # Gruebler-Kutzbach for planar linkages: M = 3 n - 2 j (revolute and prismatic joints).
+    n, j = len(links), len(joints)
+    mobility = 3 * n - 2 * j
+    if mobility != 1:
+        raise SceneError(
+            f'joints: {n} moving links and {j} joints give mobility 3*{n} - 2*{j} = '
+            f'{mobility}, expected a single-degree-of-freedom linkage (mobility 1)')
+    adj = {lk.name: set() for lk in links}
+    adj[FRAME] = set()
+    for jt in joints:
+        adj[jt.link_a].add(jt.link_b)
+        adj[jt.link_b].add(jt.link_a)
+    seen, todo = {FRAME}, [FRAME]
+    while todo:
+        for nb in adj[todo.pop()]:
+            if nb not in seen:
+                seen.add(nb)
+                todo.append(nb)
+    loose = [lk.name for lk in links if lk.name not in seen]
+    if loose:
+        raise SceneError(
+            f'joints: link(s) {", ".join(loose)} are not connected to the frame, expected '
+            'every moving link to be joined to the frame through other links')
+
+
+def _link(name, spec):
+    where = f'links.{name}'
+    spec = _mapping(spec, where)
+    _known_keys(spec, {'points', 'mass_kg', 'com_m', 'inertia_com_kg_m2',
+                       'inertia_origin_kg_m2', 'description'}, where)
+    points = _points(_require(spec, 'points', where), f'{where}.points')
+    mass = _positive(_require(spec, 'mass_kg', where), f'{where}.mass_kg')
+    com = _vector(spec.get('com_m', [0.0, 0.0]), f'{where}.com_m')
+    has_c, has_o = 'inertia_com_kg_m2' in spec, 'inertia_origin_kg_m2' in spec
+    if has_c == has_o:
+        raise SceneError(
+            f'{where}: give exactly one of inertia_com_kg_m2 and inertia_origin_kg_m2 '
+            f'(got {"both" if has_c else "neither"})')
+    d2 = com[0] ** 2 + com[1] ** 2
+    if has_c:
+        i_c = _number(spec['inertia_com_kg_m2'], f'{where}.inertia_com_kg_m2')
+        key, value = 'inertia_com_kg_m2', i_c
+    else:
+        i_o = _number(spec['inertia_origin_kg_m2'], f'{where}.inertia_origin_kg_m2')
+        i_c = i_o - mass * d2
+        key, value = 'inertia_origin_kg_m2', i_o
+    # A rigid body's centroidal polar moment of inertia is >= 0 (zero: a point mass).
+    scale = max(abs(value), mass * d2, 1e-300)
+    if i_c < -1e-12 * scale:
+        raise SceneError(
+            f'{where}.{key}: got {value!r}, which gives a centroidal moment of inertia '
+            f'{i_c:.6g} kg*m^2 < 0; no body has that (expected inertia about the mass centre '
+            '>= 0)')
+    return Link(name, points, mass, com, max(i_c, 0.0))
+
+
+def _joint(name, spec, all_points):
+    where = f'joints.{name}'
+    spec = _mapping(spec, where)
+    _known_keys(spec, {'type', 'a', 'b', 'axis', 'angle_deg', 'description'}, where)
+    jtype = _require(spec, 'type', where)
+    if jtype not in JOINT_TYPES:
+        raise SceneError(f'{where}.type: got {jtype!r}, expected one of {", ".join(JOINT_TYPES)}')
+    ends = []
+    for key in ('a', 'b'):
+        ref = _string(_require(spec, key, where), f'{where}.{key}')
+        link, _, point = ref.partition('.')
+        if link not in all_points:
+            raise SceneError(
+                f'{where}.{key}: got {ref!r}, expected "link.point" with link one of '
+                f'{", ".join(all_points)}')
+        if point not in all_points[link]:
+            raise SceneError(
+                f'{where}.{key}: got {ref!r}, link {link!r} has no point {point!r} (it has '
+                f'{", ".join(all_points[link]) or "none"})')
+        ends.append((link, point))
+    if ends[0][0] == ends[1][0]:
+        raise SceneError(f'{where}: both ends are on link {ends[0][0]!r}, expected two links')
+    axis, angle = (1.0, 0.0), 0.0
+    if jtype == 'prismatic':
+        axis = _vector(_require(spec, 'axis', where), f'{where}.axis')
+        norm = math.hypot(*axis)
+        if norm == 0.0:
+            raise SceneError(f'{where}.axis: got {list(axis)}, expected a non-zero direction')
+        axis = (axis[0] / norm, axis[1] / norm)
+        angle = math.radians(_number(spec.get('angle_deg', 0.0), f'{where}.angle_deg'))
+    elif 'axis' in spec or 'angle_deg' in spec:
+        raise SceneError(f'{where}: axis and angle_deg apply to prismatic joints only')
+    return Joint(name, jtype, ends[0][0], ends[0][1], ends[1][0], ends[1][1], axis, angle)
+
+
+# ----------------------------------------------------------------------------- primitives
+
+
+def _require(mapping, key, where):
+    if key not in mapping:
+        path = f'{where}.{key}' if where else key
+        raise SceneError(f'{path}: missing, expected a value')
+    return mapping[key]
+
+
+def _known_keys(mapping, allowed, where):
+    unknown = sorted(set(mapping) - set(allowed))
+    if unknown:
+        path = f'{where}.{unknown[0]}' if where else unknown[0]
+        raise SceneError(
+            f'{path}: unknown field, expected one of {", ".join(sorted(allowed))}')
+
+
+def _mapping(value, where):
+    if not isinstance(value, dict):
+        raise SceneError(f'{where}: got {value!r}, expected a mapping')
+    for k in value:
+        if not isinstance(k, str):
+            raise SceneError(f'{where}: key {k!r} is not text, expected names')
+    return value
+
+
+def _string(value, where):
+    if not isinstance(value, str) or not value:
+        raise SceneError(f'{where}: got {value!r}, expected a non-empty name')
+    return value
+
+
+def _number(value, where):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SceneError(f'{where}: got {value!r}, expected a number')
+    value = float(value)
+    if not math.isfinite(value):
+        raise SceneError(f'{where}: got {value!r}, expected a finite number')
+    if abs(value) > MAX_ABS_VALUE:
+        raise SceneError(f'{where}: got {value!r}, expected a magnitude <= {MAX_ABS_VALUE:g}')
+    return value
+
+
+def _positive(value, where):
+    value = _number(value, where)
+    if value <= 0.0:
+        raise SceneError(f'{where}: got {value!r}, expected a number > 0')
+    return value
+
+
+def _vector(value, where):
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise SceneError(f'{where}: got {value!r}, expected [x, y]')
+    return (_number(value[0], f'{where}[0]'), _number(value[1], f'{where}[1]'))
+
+
+def _points(value, where):
+    value = _mapping(value, where)
+    if not value:
+        raise SceneError(f'{where}: got an empty mapping, expected named points')
+    return {k: _vector(v, f'{where}.{k}') for k, v in value.items()}
+
+
+def _outputs(value, where):
+    if value == 'all':
+        return OUTPUTS
+    if not isinstance(value, (list, tuple)) or not value:
+        raise SceneError(f'{where}: got {value!r}, expected a list from {", ".join(OUTPUTS)}')
+    for v in value:
+        if v not in OUTPUTS:
+            raise SceneError(f'{where}: got {v!r}, expected one of {", ".join(OUTPUTS)}')
+    return tuple(o for o in OUTPUTS if o in value)
