@@ -9,11 +9,10 @@ computes only what the scene's outputs need.
 from dataclasses import dataclass
 import time
 
-import numpy as np
-
 from mech_balance import dynamics, kinematics
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.scene import needs
+import numpy as np
 
 _LINKAGES = {}
 
@@ -41,6 +40,7 @@ class Rig:
     def __init__(self, scene, linkage=None):
         self.scene = scene
         self.linkage = linkage if linkage is not None else linkage_for(scene)
+        self.linkage.skeleton  # noqa: B018 - assemble and trace the branch: fail early
         self.inertia = dynamics.Inertia.from_links(scene.links)
         self.gravity = complex(*scene.gravity_m_s2)
 

@@ -15,6 +15,10 @@ WARMUP = 3
 DEFAULT_REPEAT = 50
 """Timed runs per figure; the median is reported."""
 
+SECTIONS = ()
+"""Modules that add bench sections: each has ``bench_section(args, progress) -> str``
+returning its printed table; ``mech-balance bench`` prints them after the core timings."""
+
 
 def median_seconds(fn, repeat=DEFAULT_REPEAT, warmup=WARMUP):
     """Return the median wall time of ``fn()`` over ``repeat`` runs after ``warmup`` runs."""
@@ -50,7 +54,7 @@ def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
 
 def run(names=None, samples=360, repeat=DEFAULT_REPEAT, progress=print):
     """Return the bench table (list of dicts) for the given built-in scene names."""
-    names = names or [n for n in scene_mod.builtin_scenes()]
+    names = names or list(scene_mod.builtin_scenes())
     rows = []
     for name in names:
         sc = scene_mod.load(name)

@@ -13,6 +13,10 @@ import numpy as np
 
 EXIT_USAGE = 2
 
+EXTENSIONS = ()
+"""Modules that add verbs: each has ``register(subparsers)`` adding its parser(s) with
+``set_defaults(func=...)``; a verb module owns its parser, handler and help text."""
+
 
 def _add_scene(p):
     p.add_argument('--scene', default='hoeken',
@@ -58,10 +62,11 @@ def build_parser():
     p.add_argument('--normalized', action='store_true',
                    help="print in the papers' units (m1, a1, omega) recorded in the scene")
     p.add_argument('--samples', type=_samples, default=None,
-                   help='crank angles per revolution (default: the scene\'s, usually 360)')
+                   help="crank angles per revolution (default: the scene's, usually 360)")
     p.add_argument('--design', type=_design, default=None, metavar='X1,X2,...',
                    help='evaluate a seed-001 design vector [m_i1,m_i2,m_i3,l_i1 per link]; '
-                        'normalized units if the scene records a normalization, else SI')
+                        'normalized units if the scene records a normalization, else SI; '
+                        'write --design=-3.5,2.3,... when it starts with a minus sign')
     p.add_argument('--json', action='store_true', help='print the table as JSON')
     p.set_defaults(func=cmd_analyze)
 
@@ -80,6 +85,9 @@ def build_parser():
     p.add_argument('--repeat', type=int, default=50,
                    help='timed runs per figure (default: %(default)s)')
     p.set_defaults(func=cmd_bench)
+    import importlib
+    for name in EXTENSIONS:
+        importlib.import_module(name).register(sub)
     return parser
 
 
@@ -126,9 +134,13 @@ def cmd_bench(args):
     from mech_balance import bench
     print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} warm-up '
           f'runs, {args.samples} crank angles per cycle', flush=True)
-    rows = bench.run(args.scene, args.samples, args.repeat,
-                     progress=lambda s: print(s, file=sys.stderr, flush=True))
-    print(bench.format_rows(rows))
+    progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
+    rows = bench.run(args.scene, args.samples, args.repeat, progress=progress)
+    print(bench.format_rows(rows), flush=True)
+    import importlib
+    for name in bench.SECTIONS:
+        print()
+        print(importlib.import_module(name).bench_section(args, progress), flush=True)
     return 0
 
 

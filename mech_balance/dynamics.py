@@ -22,9 +22,8 @@ All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from mech_balance.kinematics import _cross
+import numpy as np
 
 PARAMS_PER_LINK = 4
 """Inertial parameters per link: m, m*c_x, m*c_y (link frame), I about the link origin."""

@@ -30,10 +30,9 @@ from dataclasses import dataclass
 import math
 import warnings
 
-import numpy as np
-
 from mech_balance import smallsolve
 from mech_balance.scene import FRAME
+import numpy as np
 
 NEWTON_TOL = 1e-13
 """Loop-closure residual (relative to the characteristic length) that ends Newton."""
@@ -66,7 +65,7 @@ class TreeJoint:
 
     joint: int
     name: str
-    type: str
+    kind: str
     parent: int
     child: int
     p_parent: complex
@@ -82,7 +81,7 @@ class CutJoint:
 
     joint: int
     name: str
-    type: str
+    kind: str
     a: int
     b: int
     p_a: complex
@@ -186,7 +185,7 @@ class Linkage:
             self.anc[tj.child] = self.anc[tj.parent] | {t}
         self.descendants = [[b for b in range(self.nb) if t in self.anc[b]]
                             for t in range(self.nt)]
-        self.is_prismatic = np.array([tj.type == 'prismatic' for tj in self.tree])
+        self.is_prismatic = np.array([tj.kind == 'prismatic' for tj in self.tree])
         self.length_scale = self._length_scale(scene, pts)
         self._compile()
         self.pivot = self._crank_pivot(scene)
@@ -200,12 +199,12 @@ class Linkage:
         a_is_parent = index[jt.link_a] == parent
         pa, pb = pts[jt.link_a][jt.point_a], pts[jt.link_b][jt.point_b]
         p_parent, p_child = (pa, pb) if a_is_parent else (pb, pa)
-        return TreeJoint(ji, jt.name, jt.type, parent, child, p_parent, p_child,
+        return TreeJoint(ji, jt.name, jt.kind, parent, child, p_parent, p_child,
                          complex(*jt.axis), a_is_parent, jt.angle_rad)
 
     @staticmethod
     def _cut(ji, jt, ia, ib, pts):
-        return CutJoint(ji, jt.name, jt.type, ia, ib, pts[jt.link_a][jt.point_a],
+        return CutJoint(ji, jt.name, jt.kind, ia, ib, pts[jt.link_a][jt.point_a],
                         pts[jt.link_b][jt.point_b], complex(*jt.axis), jt.angle_rad)
 
     @staticmethod
@@ -248,11 +247,11 @@ class Linkage:
                                    np.array([tj.axis for tj in self.tree]), 0)[:, None]
         self.axis_on_par = np.array([tj.axis_on_parent for tj in self.tree])[:, None]
         offset = np.array([(tj.angle if tj.axis_on_parent else -tj.angle)
-                           if tj.type == 'prismatic' else 0.0 for tj in self.tree])
+                           if tj.kind == 'prismatic' else 0.0 for tj in self.tree])
         self.phi_offset = (self.anc_pri @ offset)[:, None]
         # subtree sums (for the reaction recursion): sub[b, c] = 1 if c hangs below b or is b
-        rc = [c for c in self.cuts if c.type == 'revolute']
-        pc = [c for c in self.cuts if c.type == 'prismatic']
+        rc = [c for c in self.cuts if c.kind == 'revolute']
+        pc = [c for c in self.cuts if c.kind == 'prismatic']
         self.cuts = rc + pc
         self.nr, self.npc = len(rc), len(pc)
         self.cut_a = np.array([c.a for c in self.cuts], dtype=int)
@@ -386,7 +385,7 @@ class Linkage:
         missing = []
         for t, tj in enumerate(self.tree[1:], start=1):
             name = self.body_names[tj.child]
-            if tj.type == 'revolute':
+            if tj.kind == 'revolute':
                 if name not in scene.assembly_link_angles_rad:
                     missing.append(f'link_angles_deg.{name}')
                     continue
@@ -505,7 +504,7 @@ class Linkage:
 
     @property
     def skeleton(self):
-        """Return the branch skeleton (traced once per linkage, on first use)."""
+        """Return the traced branch: nodes over one crank turn (computed on first use)."""
         if self._skeleton is None:
             self._skeleton = self._trace()
         return self._skeleton

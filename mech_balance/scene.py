@@ -79,7 +79,7 @@ class Joint:
     """A joint between the points ``a`` and ``b`` (``link.point``) of two links."""
 
     name: str
-    type: str
+    kind: str
     link_a: str
     point_a: str
     link_b: str
@@ -253,9 +253,9 @@ def _planar_from_dict(data, source):
             f'crank.joint: got {crank_joint!r}, expected one of the joints '
             f'({", ".join(by_name)})')
     cj = by_name[crank_joint]
-    if cj.type != 'revolute' or FRAME not in (cj.link_a, cj.link_b) or cj.link_a == cj.link_b:
+    if cj.kind != 'revolute' or FRAME not in (cj.link_a, cj.link_b) or cj.link_a == cj.link_b:
         raise SceneError(
-            f'crank.joint: got {crank_joint!r} ({cj.type} between {cj.link_a} and '
+            f'crank.joint: got {crank_joint!r} ({cj.kind} between {cj.link_a} and '
             f'{cj.link_b}), expected a revolute joint between the frame and a moving link')
     speed = _number(crank.get('speed_rad_s', 1.0), 'crank.speed_rad_s')
     if speed == 0.0:
@@ -280,7 +280,7 @@ def _planar_from_dict(data, source):
     displacements = {}
     for k, v in _mapping(assembly.get('joint_displacements_m', {}),
                          'assembly.joint_displacements_m').items():
-        if k not in by_name or by_name[k].type != 'prismatic':
+        if k not in by_name or by_name[k].kind != 'prismatic':
             raise SceneError(
                 f'assembly.joint_displacements_m.{k}: expected the name of a prismatic joint')
         displacements[k] = _number(v, f'assembly.joint_displacements_m.{k}')
@@ -345,6 +345,13 @@ def _link(name, spec):
     _known_keys(spec, {'points', 'mass_kg', 'com_m', 'inertia_com_kg_m2',
                        'inertia_origin_kg_m2', 'description'}, where)
     points = _points(_require(spec, 'points', where), f'{where}.points')
+    names = list(points)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            if points[a] == points[b]:
+                raise SceneError(
+                    f'{where}.points: {a} and {b} are both at {list(points[a])}, a link of '
+                    'length 0; expected distinct joint points')
     mass = _positive(_require(spec, 'mass_kg', where), f'{where}.mass_kg')
     com = _vector(spec.get('com_m', [0.0, 0.0]), f'{where}.com_m')
     has_c, has_o = 'inertia_com_kg_m2' in spec, 'inertia_origin_kg_m2' in spec

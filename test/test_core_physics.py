@@ -5,12 +5,11 @@ The reference quantities are built from *positions only* (link poses solved at n
 angles) by finite differences: with a constant crank speed omega, d/dt = omega d/dpsi.
 """
 
+from mech_balance import analysis, dynamics, scene
+from mech_balance.conventions import cycle_angles
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
-
-from mech_balance import analysis, dynamics, scene
-from mech_balance.conventions import cycle_angles
 
 PLANAR = [n for n, p in scene.builtin_scenes().items() if scene.load(n).kind == 'planar']
 FD_STEP_RAD = 2e-3
