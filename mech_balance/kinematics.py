@@ -189,6 +189,7 @@ class Linkage:
         self.length_scale = self._length_scale(scene, pts)
         self._compile()
         self.pivot = self._crank_pivot(scene)
+        self.pivots = None  # static row order for the loop Jacobian, set at assembly
         self._skeleton = None
         self.warnings = []
 
@@ -363,7 +364,7 @@ class Linkage:
             res = np.max(np.abs(g), axis=0)
             if it == max_iter or not res.max() > tol:  # also stops on nan (handled below)
                 break
-            jinv, _ = smallsolve.inverse(self.jacobian(pose)[:, unknown])
+            jinv, _ = smallsolve.inverse(self.jacobian(pose)[:, unknown], self.pivots)
             # a Newton step for every angle: at converged ones it is a no-op to round-off
             q[unknown] -= _matvec(jinv, g) * cs
             iters += res > tol
@@ -403,13 +404,15 @@ class Linkage:
                 f'assembly: missing {", ".join(missing)}; expected an approximate value for '
                 'each, which selects the assembly mode (branch)')
         cs = self.col_scale[:, None]
+        if self.nu > 2:
+            self.pivots = smallsolve.pivot_order(self.jacobian(self.pose(q))[:, self.unknown, 0])
         for _ in range(ASSEMBLY_MAX_ITER):
             pose = self.pose(q)
             g = self.residual(pose)
             norm = float(np.max(np.abs(g))) if self.m else 0.0
             if norm <= NEWTON_TOL:
                 return q
-            jinv, cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown])
+            jinv, cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown], self.pivots)
             if not np.isfinite(cond[0]):
                 break
             step = -_matvec(jinv, g) * cs
@@ -446,7 +449,7 @@ class Linkage:
             psi_dd = np.broadcast_to(psi_dd, (p,))
         if jac is None:
             jac = self.jacobian(pose)
-        jinv, cond = smallsolve.inverse(jac[:, self.unknown])
+        jinv, cond = smallsolve.inverse(jac[:, self.unknown], self.pivots)
         cs = self.col_scale[:, None]
         qd = np.empty((self.nt, p))
         qd[0] = psi_d
@@ -624,7 +627,7 @@ class Linkage:
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
         else:
-            _, state.cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown])
+            _, state.cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown], self.pivots)
         if np.any(state.cond > COND_WARN):
             worst = int(np.argmax(state.cond))
             self._warn(f'crank angle {math.degrees(psi[worst]):.3f} deg: near-singular '
