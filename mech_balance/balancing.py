@@ -1,0 +1,1098 @@
+"""
+Balancing of planar linkages: analytic complete force balance and optimal mass distribution.
+
+Two tools, one physics (the core's shaking wrench, :mod:`mech_balance.conventions`):
+
+Analytic complete force balance (the total mass centre is stationary)
+    * slider-crank, seed 000 eqs. 44-75: :func:`slider_crank_balance`;
+    * four-bar, Berkof-Lowen, seed 001 eq. 48: :func:`four_bar_balance`.
+    Both are derived here in complex numbers for arbitrary link frames (docstrings) and
+    checked against the physics: the shaking force of the result vanishes to round-off.
+    Seed 000 eq. 75 prints ``xi_2 = 1/mu_2``; eqs. 67 and 71 give ``mu_2 xi_2 = -1``, and
+    only ``xi_2 = -1/mu_2`` makes the shaking force vanish (``printed_eq75=True`` shows it).
+
+Optimal mass redistribution, seed 001 eqs. 42-53: :func:`optimize`
+    Per moving link the inertial parameters theta_i = (m_i, h_i = m_i c_i, I_Oi) enter the
+    shaking force, the shaking moment, the driving torque and every bearing reaction
+    *linearly* (seed 001 eqs. 25-26, 39).  The RMS of a linear map over p crank angles is a
+    Euclidean norm, ``||A theta|| / sqrt(p)``, and the paper's constraints are convex in
+    theta (the three point masses at 0, 120, 240 deg and common distance l of eq. 27 are
+    ``m = sum m_j``, ``h = l sum m_j e^(i theta_j)``, ``I_O = m l^2``):
+
+    ==========================================  ==============================================
+    seed 001 constraint (design x = m_ij, l_i1)  in theta (convex)
+    ==========================================  ==============================================
+    m_min <= sum_j m_ij <= m_max (46b, 50b)      linear in m
+    l_min <= l_i1 <= l_max (46c, 50c)            m l_min^2 <= I_O <= m l_max^2 (linear)
+    m_ij >= 0 (50f, case b)                      sqrt(m I_O) >= -2 Re(h e^(-i theta_j)),
+                                                 a rotated second-order cone
+    realizable: I_O - |h|^2/m >= eps I_O          |h|^2 <= m (1 - eps) I_O, rotated cone
+    ==========================================  ==============================================
+
+    so the problem is a second-order cone program (SOCP), solved to global optimality by the
+    interior-point solver Clarabel, whose primal and dual objectives give the certificate
+    (duality gap).  The maps are built from the core by evaluating the wrenches at unit
+    parameter vectors on one kinematic solution, then compressed by a QR factorization
+    (``||A theta|| = ||R theta||``, R is 4n x 4n) so the cones stay small.  The optimum is
+    mapped back to link mass, mass centre, inertia and the three point masses (eqs. 11-15).
+
+Units: scenes are SI.  The objective ``z = w1 f~ + w2 n~`` is dimensionless, in the units of
+seed 001 sec. 3.4 (force by m_1 a_1 omega^2, moment by m_1 a_1^2 omega^2) taken from the
+scene's ``normalization`` or, if it records none, from its crank link mass, crank length
+and crank speed (:func:`objective_units`).
+"""
+
+from dataclasses import dataclass, field, replace
+import math
+import time
+
+import clarabel
+from mech_balance import analysis, dynamics, equimomental
+from mech_balance.conventions import cycle_angles
+from mech_balance.scene import FRAME, Normalization
+import numpy as np
+import scipy.sparse as sp
+import yaml
+
+PAPER_MASS_FACTORS = (1.0, 5.0)
+"""Link mass bounds as factors of the original mass (seed 001 eqs. 50b, 53b)."""
+PAPER_DISTANCE_FACTORS = (0.5, 1.5)
+"""Point-mass distance bounds as factors of the original l = sqrt(I_O/m) (eqs. 50c, 53c)."""
+CENTROIDAL_MARGIN = 1e-2
+"""Realizable links keep a centroidal moment of inertia >= this fraction of I_O (a lump of
+radius of gyration >= 0.1 l); any positive value makes the design buildable.  Between 1e-2
+and 0 the optimum moves by 0.3-0.7% on Hoeken and 0.4-3% on the carpet scraper; at 0 it is
+the infimum over realizable designs, attained only by a point-mass link."""
+FORCE_BALANCE_REL_TOL = 1e-6
+"""A stage-1 RMS shaking force below this fraction of the original's counts as complete
+force balance attainable; stage 2 then imposes it exactly (force map null space)."""
+RANK_REL_TOL = 1e-9
+"""Singular values of a compressed map below this fraction of the largest span its null
+space."""
+TIE_BREAK_SLACK = 1e-7
+"""Stage 2 keeps the stage-1 objective within this fraction of max(z*, 1)."""
+GAP_FLOOR = 1.0
+"""Relative gap = |primal - dual| / max(|primal|, |dual|, GAP_FLOOR) (normalized units)."""
+SOLVER_TOL = 1e-9
+"""Clarabel's relative and absolute gap and feasibility tolerances."""
+SOLVER_MAX_ITER = 200
+"""Interior-point iterations before giving up."""
+POINT_MASS_INERTIA_TOL = 1e-6
+"""A link whose centroidal inertia is below this fraction of I_O is reported as a point
+mass, not realizable (an optimum on the bound I_c = 0 lands within round-off of it)."""
+POINT_MASS_TOL = 1e-8
+"""Counterweight point masses down to -this fraction of the link mass count as zero (an
+interior-point optimum on the bound m_j = 0 lands within round-off of it)."""
+CASES = ('a', 'b')
+"""seed 001 sec. 4.1.2: (a) point masses of any sign, (b) non-negative point masses."""
+_POINT_UNITS = np.exp(1j * equimomental.POINT_ANGLES_RAD)
+
+
+class BalanceError(ValueError):
+    """A balancing problem is ill-posed, infeasible or cannot be solved."""
+
+
+# ============================================================================ public API
+
+
+def optimize(scene, weights=(1.0, 0.0), case='a', realizable=True, paper_constraints=False,
+             mass_bounds=None, distance_bounds=None, samples=None, *, torque_weight=0.0,
+             reaction_weight=0.0, max_added_mass_kg=None, fixed_links=(),
+             mass_factors=PAPER_MASS_FACTORS, distance_factors=PAPER_DISTANCE_FACTORS,
+             centroidal_margin=CENTROIDAL_MARGIN, tie_break=True):
+    """
+    Return the globally optimal mass distribution of a planar scene (seed 001 eqs. 42-53).
+
+    Minimizes ``z = w1 f~ + w2 n~ [+ torque_weight tau~ + reaction_weight sum_j f~_j]``
+    (RMS over one revolution of the normalized shaking force, shaking moment, driving
+    torque and bearing forces) over every moving link's mass, mass centre and inertia.
+
+    Constraints per link (not for ``fixed_links``, whose inertia stays the original):
+    ``mass_bounds`` ``{link: (min_kg, max_kg)}`` (default ``mass_factors`` times the
+    original mass), ``distance_bounds`` ``{link: (min_m, max_m)}`` on the point-mass
+    distance l = sqrt(I_O/m) (default ``distance_factors`` times the original l; ``None``
+    for no upper bound), ``case`` 'a' (point masses of any sign) or 'b' (non-negative,
+    counterweights), ``realizable`` (centroidal inertia >= ``centroidal_margin`` I_O, on
+    by default), ``max_added_mass_kg`` (cap on total mass minus the original's).
+
+    ``paper_constraints=True`` reproduces seed 001 eqs. 50/53 exactly: the paper's bounds,
+    the chosen case, no realizability constraint; it rejects the options the paper lacks.
+
+    If exactly one of w1, w2 is zero (and no other term is weighted) the optimum is
+    generally not unique; with ``tie_break`` a second cone program returns, among the
+    optimal designs, the one with the least RMS of the unweighted quantity; when complete
+    force balance is attainable with w2 = 0 it is imposed exactly (shaking force zero to
+    round-off) and the least RMS shaking moment is found among force-balanced designs.
+    """
+    t_start = time.perf_counter()
+    w1, w2 = _weights(weights)
+    torque_weight = _nonneg(torque_weight, 'torque_weight')
+    reaction_weight = _nonneg(reaction_weight, 'reaction_weight')
+    if w1 + w2 + torque_weight + reaction_weight == 0.0:
+        raise BalanceError('weights: got all zero, expected at least one positive weight')
+    if case not in CASES:
+        raise BalanceError(f'case: got {case!r}, expected one of {", ".join(CASES)}')
+    _check_planar(scene)
+    names = [lk.name for lk in scene.links]
+    fixed = _link_names(fixed_links, names, 'fixed_links')
+    if paper_constraints:
+        extras = {'mass_bounds': mass_bounds, 'distance_bounds': distance_bounds,
+                  'max_added_mass_kg': max_added_mass_kg,
+                  'torque_weight': torque_weight or None,
+                  'reaction_weight': reaction_weight or None,
+                  'fixed_links': fixed or None}
+        given = [k for k, v in extras.items() if v is not None and v != {}]
+        if given or tuple(mass_factors) != PAPER_MASS_FACTORS or \
+                tuple(distance_factors) != PAPER_DISTANCE_FACTORS:
+            raise BalanceError(
+                f'paper_constraints: got also {", ".join(given) or "other bound factors"}, '
+                'expected none: the paper problem (seed 001 eqs. 50/53) has only its own '
+                'bounds and weights')
+        realizable = False
+    if max_added_mass_kg is not None:
+        max_added_mass_kg = _nonneg(max_added_mass_kg, 'max_added_mass_kg')
+    margin = float(centroidal_margin)
+    if not 0.0 <= margin < 1.0:
+        raise BalanceError(f'centroidal_margin: got {centroidal_margin!r}, expected 0 <= '
+                           'margin < 1')
+    samples = scene.samples if samples is None else int(samples)
+    if samples < 4:
+        raise BalanceError(f'samples: got {samples}, expected an integer >= 4')
+    units = objective_units(scene)
+    need = ['shaking_wrench']
+    if torque_weight:
+        need.append('driving_torque')
+    if reaction_weight:
+        need.append('bearing_reactions')
+    t0 = time.perf_counter()
+    maps = linear_maps(scene, samples, need, units)
+    maps_s = time.perf_counter() - t0
+    theta0 = maps.theta_original
+    m0 = theta0[0::4]
+    l0 = np.sqrt(theta0[3::4] / m0)
+    mlo, mhi = _bounds(mass_bounds, names, m0 * units.mass_kg, mass_factors, 'mass_bounds',
+                       positive=True)
+    llo, lhi = _bounds(distance_bounds, names, l0 * units.length_m, distance_factors,
+                       'distance_bounds', positive=False)
+    spec = _Spec(n=len(names), w=(w1, w2, torque_weight, reaction_weight), case=case,
+                 realizable=realizable, margin=margin, mass_lo=mlo / units.mass_kg,
+                 mass_hi=mhi / units.mass_kg, dist_lo=llo / units.length_m,
+                 dist_hi=lhi / units.length_m, fixed=[nm in fixed for nm in names],
+                 theta0=theta0,
+                 added_mass=None if max_added_mass_kg is None
+                 else max_added_mass_kg / units.mass_kg)
+    stage1 = _solve(maps, spec)
+    theta, stage2, exact = stage1.theta, None, False
+    secondary = _secondary(spec)
+    if tie_break and secondary is not None:
+        f_star = float(np.linalg.norm(maps.force @ theta))
+        exact = (secondary == 'moment' and
+                 f_star <= FORCE_BALANCE_REL_TOL * maps.force_rms_original)
+        try:
+            stage2 = _solve(maps, spec, secondary=secondary, bound=stage1.objective,
+                            exact_force=exact)
+        except BalanceError:
+            stage2, exact = None, False
+        if stage2 is not None:
+            theta = stage2.theta
+            if exact:
+                theta = theta - maps.force_null_projector @ theta
+    balanced = _scene_from_theta(scene, theta, units, case)
+    terms = maps.terms(theta)
+    primal = float(np.dot(spec.w, terms))
+    gap = abs(primal - stage1.dual)
+    cert = Certificate(
+        solver=f'clarabel {clarabel.__version__}', status=stage1.status,
+        primal=primal, dual=stage1.dual, gap_abs=gap,
+        gap_rel=gap / max(abs(primal), abs(stage1.dual), GAP_FLOOR),
+        residual_primal=stage1.r_prim, residual_dual=stage1.r_dual,
+        iterations=stage1.iterations,
+        stage2=None if stage2 is None else {
+            'minimized': f'RMS shaking {secondary}', 'status': stage2.status,
+            'objective': stage2.objective, 'dual': stage2.dual,
+            'iterations': stage2.iterations,
+            'exact_force_balance': bool(exact)},
+        max_violation=_violation(theta, spec))
+    conic_s = stage1.seconds + (0.0 if stage2 is None else stage2.seconds)
+    table = before_after(scene, balanced, samples)
+    return BalanceResult(
+        scene=scene, balanced_scene=balanced, weights=(w1, w2), case=case,
+        realizable_constraint=bool(realizable), paper_constraints=bool(paper_constraints),
+        torque_weight=torque_weight, reaction_weight=reaction_weight, samples=samples,
+        units=units, links=tuple(link_design(lk, case == 'b', units) for lk in
+                                 balanced.links),
+        objective={'z': primal, 'shaking_force_rms': float(terms[0]),
+                   'shaking_moment_rms': float(terms[1]),
+                   'driving_torque_rms': None if not torque_weight else float(terms[2]),
+                   'bearing_force_rms_sum': None if not reaction_weight else float(terms[3]),
+                   'z_original': float(np.dot(spec.w, maps.terms(theta0)))},
+        bounds={nm: {'mass_kg': [_num(mlo[i]), _num(mhi[i])],
+                     'distance_m': [_num(llo[i]), _num(lhi[i])],
+                     'fixed': bool(spec.fixed[i])} for i, nm in enumerate(names)},
+        max_added_mass_kg=max_added_mass_kg, certificate=cert, table=table,
+        maps_time_s=maps_s, conic_time_s=conic_s,
+        solve_time_s=time.perf_counter() - t_start)
+
+
+def scene_to_yaml(scene, balance=None):
+    """
+    Return a planar scene as YAML text that :func:`mech_balance.scene.load` reads back.
+
+    Floats are written with their shortest exact representation, so masses, mass centres
+    and inertias load back bit for bit.  ``balance`` (a plain dict, e.g. the summary of a
+    :class:`BalanceResult`) is stored under the scene's ``balance`` key.  A link with a
+    negative centroidal inertia cannot be written (no body has one): ``ValueError``.
+    """
+    _check_planar(scene)
+    for lk in scene.links:
+        if lk.inertia_com_kg_m2 < 0.0:
+            raise BalanceError(
+                f'links.{lk.name}.inertia_com_kg_m2: got {lk.inertia_com_kg_m2:.6g}, expected '
+                '>= 0; an unrealizable design cannot be saved as a scene')
+    data = {'schema_version': 1, 'name': scene.name, 'description': scene.description,
+            'kind': 'planar'}
+    if scene.normalization is not None:
+        n = scene.normalization
+        data['normalization'] = {'mass_kg': n.mass_kg, 'length_m': n.length_m,
+                                 'omega_rad_s': n.omega_rad_s}
+    data['crank'] = {'joint': scene.crank_joint, 'speed_rad_s': scene.crank_speed_rad_s,
+                     'acceleration_rad_s2': scene.crank_acceleration_rad_s2}
+    data['gravity_m_s2'] = list(scene.gravity_m_s2)
+    data['frame'] = {'points': {k: list(v) for k, v in scene.frame_points.items()}}
+    data['links'] = {lk.name: {'points': {k: list(v) for k, v in lk.points.items()},
+                               'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),
+                               'inertia_com_kg_m2': lk.inertia_com_kg_m2}
+                     for lk in scene.links}
+    joints = {}
+    for jt in scene.joints:
+        spec = {'type': jt.kind, 'a': f'{jt.link_a}.{jt.point_a}',
+                'b': f'{jt.link_b}.{jt.point_b}'}
+        if jt.kind == 'prismatic':
+            spec['axis'] = list(jt.axis)
+            spec['angle_deg'] = math.degrees(jt.angle_rad)
+        joints[jt.name] = spec
+    data['joints'] = joints
+    assembly = {'crank_angle_deg': math.degrees(scene.assembly_crank_angle_rad)}
+    if scene.assembly_link_angles_rad:
+        assembly['link_angles_deg'] = {k: math.degrees(v) for k, v in
+                                       scene.assembly_link_angles_rad.items()}
+    if scene.assembly_displacements_m:
+        assembly['joint_displacements_m'] = dict(scene.assembly_displacements_m)
+    data['assembly'] = assembly
+    data['outputs'] = list(scene.outputs)
+    data['samples'] = int(scene.samples)
+    if scene.notes:
+        data['notes'] = scene.notes
+    rec = getattr(scene, 'recording', None)
+    if rec is not None and rec != type(rec)():
+        from mech_balance.scene import RECORDING_STREAMS
+        data['recording'] = {'streams': {s: s in rec.streams for s in RECORDING_STREAMS}}
+        for key in ('force_scale_m_per_N', 'moment_scale_deg_per_Nm'):
+            if getattr(rec, key) is not None:
+                data['recording'][key] = getattr(rec, key)
+    if balance is not None:
+        data['balance'] = balance
+    return yaml.safe_dump(_plain(data), sort_keys=False, default_flow_style=None, width=99)
+
+
+# ============================================================================ results
+
+
+@dataclass
+class Certificate:
+    """Global-optimality certificate of a balancing cone program (stage 1)."""
+
+    solver: str
+    status: str
+    primal: float          # z of the returned design (normalized units)
+    dual: float            # dual objective: a lower bound on every feasible z
+    gap_abs: float
+    gap_rel: float         # gap_abs / max(|primal|, |dual|, GAP_FLOOR)
+    residual_primal: float
+    residual_dual: float
+    iterations: int
+    stage2: dict = None    # the tie-break program, if one was solved
+    max_violation: float = 0.0  # worst constraint violation of the design (normalized)
+
+    def to_dict(self):
+        """Return the certificate as a plain dict."""
+        return _plain(self.__dict__)
+
+
+@dataclass
+class BalanceResult:
+    """The optimal design, its certificate, and the before/after table."""
+
+    scene: object
+    balanced_scene: object
+    weights: tuple
+    case: str
+    realizable_constraint: bool
+    paper_constraints: bool
+    torque_weight: float
+    reaction_weight: float
+    samples: int
+    units: Normalization
+    links: tuple            # LinkDesign per moving link (balanced)
+    objective: dict
+    bounds: dict
+    max_added_mass_kg: float
+    certificate: Certificate
+    table: list             # before/after rows (dicts), see before_after
+    maps_time_s: float
+    conic_time_s: float
+    solve_time_s: float
+
+    @property
+    def realizable(self):
+        """Return True if every link of the design is realizable."""
+        return all(d.realizable for d in self.links)
+
+    def summary(self):
+        """Return the provenance stored with a balanced scene (``balance`` key)."""
+        return _plain({
+            'source_scene': self.scene.name, 'method': 'seed 001 eqs. 42-53, SOCP',
+            'weights': list(self.weights), 'case': self.case,
+            'torque_weight': self.torque_weight, 'reaction_weight': self.reaction_weight,
+            'paper_constraints': self.paper_constraints,
+            'realizable_constraint': self.realizable_constraint,
+            'objective': self.objective, 'relative_gap': self.certificate.gap_rel,
+            'realizable': self.realizable})
+
+    def to_dict(self):
+        """Return everything as a plain, YAML- and JSON-able dict (SI and normalized)."""
+        u = self.units
+        return _plain({
+            'scene': self.scene.name, 'samples': self.samples,
+            'weights': list(self.weights), 'case': self.case,
+            'torque_weight': self.torque_weight, 'reaction_weight': self.reaction_weight,
+            'paper_constraints': self.paper_constraints,
+            'realizable_constraint': self.realizable_constraint,
+            'units': {'mass_kg': u.mass_kg, 'length_m': u.length_m,
+                      'omega_rad_s': u.omega_rad_s,
+                      'normalized_from': 'scene' if self.scene.normalization is not None
+                      else 'crank link'},
+            'links': [d.to_dict() for d in self.links], 'realizable': self.realizable,
+            'objective': self.objective, 'bounds': self.bounds,
+            'max_added_mass_kg': self.max_added_mass_kg,
+            'certificate': self.certificate.to_dict(), 'table': self.table,
+            'maps_time_s': self.maps_time_s, 'conic_time_s': self.conic_time_s,
+            'solve_time_s': self.solve_time_s})
+
+
+@dataclass
+class LinkDesign:
+    """One link of a design: point masses (eqs. 11-15), mass, mass centre, inertia."""
+
+    name: str
+    point_masses_kg: tuple
+    distance_m: float
+    mass_kg: float
+    com_distance_m: float
+    com_angle_deg: float
+    inertia_origin_kg_m2: float
+    inertia_com_kg_m2: float
+    realizable: bool
+    reason: str
+    normalized: dict = field(default_factory=dict)
+
+    def to_dict(self):
+        """Return the link design as a plain dict."""
+        return _plain(self.__dict__)
+
+
+def link_design(link, counterweights=False, units=None):
+    """
+    Return the :class:`LinkDesign` of a scene link (three point masses, l = sqrt(I_O/m)).
+
+    ``counterweights`` also requires non-negative point masses for realizability (case b).
+    """
+    m = float(link.mass_kg)
+    h = complex(*link.first_moment_kg_m)
+    i_o = float(link.inertia_origin_kg_m2)
+    i_c = i_o - abs(h) ** 2 / m
+    dist = math.sqrt(max(i_o, 0.0) / m)
+    if dist > 0.0:
+        # seed 001 eqs. 13-15: m_j = m/3 + (2/3) Re(h e^(-i theta_j)) / l
+        masses = m / 3.0 + (2.0 / 3.0) * (np.conj(_POINT_UNITS) * h).real / dist
+        pm = equimomental.PointMasses(tuple(float(v) for v in masses), dist)
+        ok, reason = equimomental.is_realizable(pm, counterweights=False)
+        if ok and i_c <= POINT_MASS_INERTIA_TOL * i_o:
+            ok, reason = False, (f'centroidal moment of inertia {i_c:.3g} kg*m^2 = '
+                                 f'{i_c / i_o:.1e} I_O: a point mass, no body')
+        if ok and counterweights and min(masses) < -POINT_MASS_TOL * m:
+            ok, reason = False, f'negative point mass {min(masses):.6g} kg (counterweights)'
+    else:
+        masses = np.full(3, m / 3.0)
+        ok, reason = False, 'zero moment of inertia about the origin (a point mass)'
+    c = h / m
+    out = LinkDesign(link.name, tuple(float(v) for v in masses), dist, m, abs(c),
+                     math.degrees(math.atan2(c.imag, c.real)) % 360.0, i_o, i_c, bool(ok),
+                     reason)
+    if units is not None:
+        ms, ls = units.mass_kg, units.length_m
+        out.normalized = {'point_masses': [v / ms for v in masses], 'distance': dist / ls,
+                          'mass': m / ms, 'com_distance': abs(c) / ls,
+                          'inertia_origin': i_o / (ms * ls * ls),
+                          'inertia_com': i_c / (ms * ls * ls)}
+    return out
+
+
+def objective_units(scene):
+    """
+    Return the units of the objective: the scene's normalization, or its crank's.
+
+    Without a recorded normalization: the crank link's mass, the crank length (the
+    linkage's characteristic length) and the crank speed.
+    """
+    if scene.normalization is not None:
+        return scene.normalization
+    rig_linkage = analysis.linkage_for(scene)
+    crank = next(j for j in scene.joints if j.name == scene.crank_joint)
+    name = crank.link_b if crank.link_a == FRAME else crank.link_a
+    return Normalization(scene.link(name).mass_kg, rig_linkage.length_scale,
+                         abs(scene.crank_speed_rad_s))
+
+
+def before_after(original, balanced, samples=None):
+    """
+    Return the before/after rows of RMS bearing forces, torque, shaking force and moment.
+
+    Each row: quantity, ``unit``/``before``/``after`` in the papers' normalized units when
+    the scene records a normalization (SI otherwise), the same in SI (``unit_si``,
+    ``before_si``, ``after_si``) and ``change_percent``.
+    """
+    rig = analysis.Rig(original.with_outputs(('bearing_reactions',)))
+    cycles = [analysis.run_cycle(r, samples) for r in
+              (rig, rig.with_scene(balanced.with_outputs(('bearing_reactions',))))]
+    si = [analysis.summarize(c, False) for c in cycles]
+    view = si if original.normalization is None else \
+        [analysis.summarize(c, True) for c in cycles]
+    rows = []
+    for b, a, b_si, a_si in zip(*view, *si):
+        change = (a.rms - b.rms) / b.rms * 100.0 if b.rms > 0.0 else None
+        rows.append({'quantity': b.quantity, 'unit': b.unit, 'before': b.rms,
+                     'after': a.rms, 'change_percent': change, 'unit_si': b_si.unit,
+                     'before_si': b_si.rms, 'after_si': a_si.rms})
+    return rows
+
+
+# ============================================================================ linear maps
+
+
+@dataclass
+class LinearMaps:
+    """
+    The RMS quantities of a scene as compressed linear maps of its inertial parameters.
+
+    ``theta`` is the normalized ``(4 n,)`` vector [m, hx, hy, I_O] per link (mass by
+    units.mass_kg, first moment by mass*length, inertia by mass*length^2).  Each map R
+    satisfies ``RMS(quantity(theta)) = ||R theta||`` in normalized units.
+    """
+
+    force: np.ndarray                 # (k, 4n) RMS shaking force
+    moment: np.ndarray                # (k, 4n) RMS shaking moment
+    torque: np.ndarray = None         # (k, 4n) RMS driving torque
+    reactions: dict = None            # joint -> (k, 4n) RMS bearing force
+    theta_original: np.ndarray = None
+    force_rms_original: float = 0.0
+    force_row_basis: np.ndarray = None  # (r, 4n) orthonormal rows: force = 0 <=> rows theta = 0
+
+    @property
+    def force_null_projector(self):
+        """Return the projector onto the force map's row space (theta - P theta: balanced)."""
+        return self.force_row_basis.T @ self.force_row_basis
+
+    def terms(self, theta):
+        """Return [f~, n~, tau~, sum_j f~_j] of a normalized parameter vector."""
+        tau = 0.0 if self.torque is None else np.linalg.norm(self.torque @ theta)
+        react = 0.0 if self.reactions is None else sum(
+            np.linalg.norm(r @ theta) for r in self.reactions.values())
+        return np.array([np.linalg.norm(self.force @ theta),
+                         np.linalg.norm(self.moment @ theta), tau, react])
+
+
+def linear_maps(scene, samples=None, outputs=('shaking_wrench',), units=None):
+    """
+    Return the :class:`LinearMaps` of a planar scene over ``samples`` crank angles.
+
+    One kinematic solution is reused; the wrenches are evaluated at the 4 n unit parameter
+    vectors (they are linear in theta, seed 001 eqs. 25-26) and each stacked map is
+    compressed to its triangular QR factor.
+    """
+    units = objective_units(scene) if units is None else units
+    samples = scene.samples if samples is None else samples
+    rig = analysis.Rig(scene)
+    psi = cycle_angles(samples, scene.assembly_crank_angle_rad)
+    outputs = set(outputs)
+    need = {'shaking_wrench'} | outputs
+    if 'bearing_reactions' in outputs:
+        need.add('driving_torque')
+    state = rig.linkage.solve(psi, None, None)
+    n = len(scene.links)
+    ms, ls, om = units.mass_kg, units.length_m, units.omega_rad_s
+    scale = np.tile([ms, ms * ls, ms * ls, ms * ls * ls], n)
+    f_unit, n_unit = ms * ls * om ** 2, ms * ls * ls * om ** 2
+    cols_f, cols_n, cols_t, cols_r = [], [], [], {}
+    gravity = complex(*scene.gravity_m_s2)
+    for k in range(4 * n):
+        e = np.zeros(4 * n)
+        e[k] = scale[k]
+        w = dynamics.inverse_dynamics(rig.linkage, state, dynamics.inertia_from_vector(e),
+                                      gravity, need)
+        f = w.shaking_force / f_unit
+        cols_f.append(np.concatenate([f.real, f.imag]))
+        cols_n.append(w.shaking_moment / n_unit)
+        if 'driving_torque' in outputs or 'bearing_reactions' in outputs:
+            cols_t.append(w.driving_torque / n_unit)
+        if 'bearing_reactions' in outputs:
+            for name, fr in w.reaction_force.items():
+                fr = fr / f_unit
+                cols_r.setdefault(name, []).append(np.concatenate([fr.real, fr.imag]))
+    root = math.sqrt(samples)
+
+    def compress(cols):
+        return np.linalg.qr(np.column_stack(cols) / root, mode='r')
+
+    force = compress(cols_f)
+    theta0 = dynamics.parameter_vector(rig.inertia) / scale
+    _, sv, vt = np.linalg.svd(force)
+    rank = int(np.sum(sv > RANK_REL_TOL * sv[0])) if sv.size and sv[0] > 0 else 0
+    rows = vt[:rank]
+    return LinearMaps(
+        force=force, moment=compress(cols_n),
+        torque=compress(cols_t) if cols_t else None,
+        reactions={k: compress(v) for k, v in cols_r.items()} if cols_r else None,
+        theta_original=theta0, force_rms_original=float(np.linalg.norm(force @ theta0)),
+        force_row_basis=rows)
+
+
+# ============================================================================ cone program
+
+
+@dataclass
+class _Spec:
+    n: int
+    w: tuple           # weights of [f~, n~, tau~, sum f~_j]
+    case: str
+    realizable: bool
+    margin: float
+    mass_lo: np.ndarray   # normalized; inf/0 for none
+    mass_hi: np.ndarray
+    dist_lo: np.ndarray
+    dist_hi: np.ndarray
+    fixed: list
+    theta0: np.ndarray
+    added_mass: float = None
+
+
+@dataclass
+class _Stage:
+    theta: np.ndarray
+    objective: float
+    dual: float
+    status: str
+    iterations: int
+    r_prim: float
+    r_dual: float
+    seconds: float
+
+
+def _secondary(spec):
+    w1, w2, wt, wr = spec.w
+    if wt or wr:
+        return None
+    if w2 == 0.0:
+        return 'moment'
+    if w1 == 0.0:
+        return 'force'
+    return None
+
+
+class _Program:
+    """Rows of ``A x + s = b, s in K`` for Clarabel, built block by block."""
+
+    def __init__(self, nx):
+        self.nx = nx
+        self.blocks = []
+
+    def add(self, kind, a, b):
+        a = np.atleast_2d(np.asarray(a, dtype=float))
+        self.blocks.append((kind, a, np.asarray(b, dtype=float).ravel()))
+
+    def norm_cone(self, t_index, mat, cols):
+        """Add ``x[t_index] >= ||mat @ x[cols]||``."""
+        a = np.zeros((1 + mat.shape[0], self.nx))
+        a[0, t_index] = -1.0
+        a[1:, cols] = -mat
+        self.add('soc', a, np.zeros(a.shape[0]))
+
+    def solve(self, q):
+        kinds = {'zero': clarabel.ZeroConeT, 'nonneg': clarabel.NonnegativeConeT,
+                 'soc': clarabel.SecondOrderConeT}
+        merged = []
+        for kind, a, b in self.blocks:
+            if kind != 'soc' and merged and merged[-1][0] == kind:
+                merged[-1] = (kind, np.vstack([merged[-1][1], a]),
+                              np.concatenate([merged[-1][2], b]))
+            else:
+                merged.append((kind, a, b))
+        a = sp.csc_matrix(np.vstack([m[1] for m in merged]))
+        b = np.concatenate([m[2] for m in merged])
+        cones = [kinds[k](blk.shape[0]) for k, blk, _ in merged]
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        settings.max_iter = SOLVER_MAX_ITER
+        settings.tol_gap_abs = settings.tol_gap_rel = SOLVER_TOL
+        settings.tol_feas = SOLVER_TOL
+        t0 = time.perf_counter()
+        sol = clarabel.DefaultSolver(sp.csc_matrix((self.nx, self.nx)), np.asarray(q, float),
+                                     a, b, cones, settings).solve()
+        return sol, time.perf_counter() - t0
+
+
+def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
+    """
+    Build and solve the SOCP (stage 1, or the tie-break stage 2); return a _Stage.
+
+    The variables are each link's parameters in units of its original link,
+    y = theta / (m^o, m^o l^o, m^o l^o, m^o l^o^2): the cone forms below are invariant under
+    that scaling (h^2 and m I_O scale alike) and it equilibrates links of very different
+    size (the carpet scraper's inertias span four decades).
+    """
+    n = spec.n
+    nv = 4 * n
+    t0 = spec.theta0.reshape(-1, 4)
+    m0 = t0[:, 0]
+    l0 = np.sqrt(t0[:, 3] / m0)
+    dscale = np.column_stack([m0, m0 * l0, m0 * l0, m0 * l0 * l0]).ravel()
+    y0 = spec.theta0 / dscale
+    react = list(maps.reactions.values()) if maps.reactions is not None and spec.w[3] else []
+    # variables: y (nv) | t_f, t_n, t_tau | t_react (len(react)) | u (n, case b)
+    it_f, it_n, it_t = nv, nv + 1, nv + 2
+    ir0 = nv + 3
+    iu0 = ir0 + len(react)
+    nx = iu0 + (n if spec.case == 'b' else 0)
+    prog = _Program(nx)
+    cols = np.arange(nv)
+    prog.norm_cone(it_f, maps.force * dscale, cols)
+    prog.norm_cone(it_n, maps.moment * dscale, cols)
+    primary = np.zeros(nx)
+    primary[[it_f, it_n, it_t]] = spec.w[:3]
+    if spec.w[2]:
+        prog.norm_cone(it_t, maps.torque * dscale, cols)
+    for j, mat in enumerate(react):
+        prog.norm_cone(ir0 + j, mat * dscale, cols)
+        primary[ir0 + j] = spec.w[3]
+    for i in range(n):
+        im, ix, iy, ii = 4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3
+        if spec.fixed[i]:
+            a = np.zeros((4, nx))
+            a[:, im:im + 4] = np.eye(4)
+            prog.add('zero', a, y0[im:im + 4])
+            continue
+        rows, rhs = [], []
+        if np.isfinite(spec.mass_lo[i]):   # seed 001 eq. 46b / 50b
+            rows.append(_row(nx, {im: -1.0}))
+            rhs.append(-spec.mass_lo[i] / m0[i])
+        if np.isfinite(spec.mass_hi[i]):
+            rows.append(_row(nx, {im: 1.0}))
+            rhs.append(spec.mass_hi[i] / m0[i])
+        # eq. 46c / 50c: l_lo <= l <= l_hi  <=>  m l_lo^2 <= I_O <= m l_hi^2
+        rows.append(_row(nx, {im: (spec.dist_lo[i] / l0[i]) ** 2, ii: -1.0}))
+        rhs.append(0.0)
+        if np.isfinite(spec.dist_hi[i]):
+            rows.append(_row(nx, {im: -(spec.dist_hi[i] / l0[i]) ** 2, ii: 1.0}))
+            rhs.append(0.0)
+        if spec.case == 'b':
+            # eq. 50f: m_j >= 0  <=>  u >= -2 Re(h e^(-i theta_j)), u >= 0, u^2 <= m I_O
+            iu = iu0 + i
+            rows.append(_row(nx, {iu: -1.0}))
+            rhs.append(0.0)
+            for unit in _POINT_UNITS:
+                rows.append(_row(nx, {ix: -2.0 * unit.real, iy: -2.0 * unit.imag,
+                                      iu: -1.0}))
+                rhs.append(0.0)
+        prog.add('nonneg', rows, rhs)
+        if spec.case == 'b':
+            prog.add('soc', [_row(nx, {im: -1.0, ii: -1.0}), _row(nx, {iu0 + i: -2.0}),
+                             _row(nx, {im: -1.0, ii: 1.0})], np.zeros(3))
+        if spec.realizable:
+            # |h|^2 <= m (1 - eps) I_O: rotated cone (m + c I, 2h, m - c I) in SOC
+            c = 1.0 - spec.margin
+            prog.add('soc', [_row(nx, {im: -1.0, ii: -c}), _row(nx, {ix: -2.0}),
+                             _row(nx, {iy: -2.0}), _row(nx, {im: -1.0, ii: c})],
+                     np.zeros(4))
+    if spec.added_mass is not None and not all(spec.fixed):
+        cap = spec.added_mass + float(np.sum(m0))
+        prog.add('nonneg', _row(nx, {4 * i: m0[i] for i in range(n)}), [cap])
+    q = primary
+    if secondary is not None:
+        if exact_force:
+            basis = maps.force_row_basis * dscale
+            a = np.zeros((basis.shape[0], nx))
+            a[:, :nv] = basis / np.linalg.norm(basis, axis=1, keepdims=True)
+            prog.add('zero', a, np.zeros(basis.shape[0]))
+        else:
+            slack = TIE_BREAK_SLACK * max(abs(bound), GAP_FLOOR)
+            prog.add('nonneg', primary, [bound + slack])
+        q = np.zeros(nx)
+        q[it_n if secondary == 'moment' else it_f] = 1.0
+    sol, seconds = prog.solve(q)
+    status = str(sol.status)
+    if status in ('PrimalInfeasible', 'AlmostPrimalInfeasible'):
+        raise BalanceError(
+            'constraints: the balancing problem is infeasible (solver status '
+            f'{status}); widen mass_bounds / distance_bounds / max_added_mass_kg')
+    if status not in ('Solved', 'AlmostSolved'):
+        raise BalanceError(f'solver: Clarabel stopped with status {status} after '
+                           f'{sol.iterations} iterations')
+    x = np.array(sol.x)
+    return _Stage(theta=x[:nv] * dscale, objective=float(q @ x),
+                  dual=float(sol.obj_val_dual), status=status,
+                  iterations=int(sol.iterations), r_prim=float(sol.r_prim),
+                  r_dual=float(sol.r_dual), seconds=seconds)
+
+
+def _row(nx, entries):
+    r = np.zeros(nx)
+    for k, v in entries.items():
+        r[k] += v
+    return r
+
+
+def _violation(theta, spec):
+    """Return the worst violation of the design constraints (normalized units, >= 0)."""
+    t = theta.reshape(-1, 4)
+    worst = 0.0
+    for i in range(spec.n):
+        if spec.fixed[i]:
+            continue
+        m, hx, hy, i_o = t[i]
+        checks = [spec.mass_lo[i] - m if np.isfinite(spec.mass_lo[i]) else 0.0,
+                  m - spec.mass_hi[i] if np.isfinite(spec.mass_hi[i]) else 0.0,
+                  m * spec.dist_lo[i] ** 2 - i_o,
+                  i_o - m * spec.dist_hi[i] ** 2 if np.isfinite(spec.dist_hi[i]) else 0.0]
+        if spec.realizable:
+            checks.append((hx * hx + hy * hy) / m - (1.0 - spec.margin) * i_o)
+        if spec.case == 'b':
+            dist = math.sqrt(max(i_o / m, 0.0))
+            h = complex(hx, hy)
+            checks += list(-(m / 3.0 + (2.0 / 3.0) * (np.conj(_POINT_UNITS) * h).real / dist))
+        worst = max(worst, max(checks))
+    return float(max(worst, 0.0))
+
+
+# ============================================================================ analytic balance
+
+
+@dataclass
+class AnalyticBalance:
+    """An analytic complete force balance: the design, its parameters and its cost."""
+
+    method: str
+    scene: object
+    balanced_scene: object
+    parameters: dict
+    links: tuple
+    table: list
+    force_rms_ratio: float   # RMS shaking force after / before
+
+    def to_dict(self):
+        """Return the analytic balance as a plain dict."""
+        return _plain({'method': self.method, 'scene': self.scene.name,
+                       'parameters': self.parameters,
+                       'links': [d.to_dict() for d in self.links], 'table': self.table,
+                       'force_rms_ratio': self.force_rms_ratio})
+
+
+def slider_crank_balance(scene, mass_ratios=None, printed_eq75=False, samples=None):
+    """
+    Return the complete force balance of a slider-crank (seed 000 eqs. 44-75).
+
+    The link masses are kept (or set by ``mass_ratios`` = (mu_1, mu_2) = (m_1, m_2)/m_3,
+    eq. 59, with the slider mass kept); the crank's and rod's mass centres are moved to
+    the balancing positions and their centroidal inertias kept.
+
+    Derivation in complex numbers (link frames arbitrary): a point P of link k is at
+    ``o_k + R_k P`` and the link's first moment about the world origin is
+    ``m_k o_k + R_k h_k``.  With crank pivot P_1 and pin A_1 (crank frame), rod points
+    A_2, B_2 (rod frame) and the slider at B, the rod's rotation is
+    ``R_2 = (B - A) / (B_2 - A_2)`` and the total first moment is, up to a constant,
+    ``R_1 [h_1 - m_1 P_1 + (m_2 - g)(A_1 - P_1)] + (g + m_3) B``, with
+    ``g = (h_2 - m_2 A_2)/(B_2 - A_2)``.  R_1 and the slider position B(psi) are
+    independent functions of the crank angle, so both brackets vanish:
+
+        h_2 = m_2 A_2 - m_3 (B_2 - A_2),   h_1 = m_1 P_1 - (m_2 + m_3)(A_1 - P_1).
+
+    In seed 000's notation (eqs. 63-64, 73: r_1 = (xi_1 + i eta_1) r_12,
+    r_2 = (xi_2 + i eta_2) r_23) this is eta_1 = eta_2 = 0 (eq. 74),
+    xi_1 = -(1 + mu_2)/mu_1 (eq. 75, as printed) and **xi_2 = -1/mu_2**: eqs. 67 and 71
+    give mu_2 xi_2 = -1, while eq. 75 prints xi_2 = 1/mu_2 (a lost sign).  The rod's mass
+    centre lies beyond the crank pin, away from the slider.  ``printed_eq75=True`` builds
+    the printed design instead, to show that its shaking force does not vanish.
+    """
+    crank, rod, slider, pts = _chain(scene, 'prismatic')
+    m1, m2, m3 = crank.mass_kg, rod.mass_kg, slider.mass_kg
+    if mass_ratios is not None:
+        mu1, mu2 = (float(v) for v in mass_ratios)
+        if not (mu1 > 0.0 and mu2 > 0.0 and math.isfinite(mu1 + mu2)):
+            raise BalanceError(f'mass_ratios: got {mass_ratios!r}, expected (mu_1, mu_2) > 0')
+        m1, m2 = mu1 * m3, mu2 * m3
+    mu1, mu2 = m1 / m3, m2 / m3                                     # seed 000 eq. 59
+    p1, a1, a2, b2 = pts['P1'], pts['A1'], pts['A2'], pts['B2']
+    xi1 = -(1.0 + mu2) / mu1                                        # eq. 75
+    xi2 = (1.0 if printed_eq75 else -1.0) / mu2                     # eq. 75, sign corrected
+    c1 = p1 + xi1 * (a1 - p1)                                       # eqs. 63-64, 73-74
+    c2 = a2 + xi2 * (b2 - a2)
+    links = []
+    for lk in scene.links:
+        if lk.name == crank.name:
+            lk = replace(lk, mass_kg=m1, com_m=(c1.real, c1.imag))
+        elif lk.name == rod.name:
+            lk = replace(lk, mass_kg=m2, com_m=(c2.real, c2.imag))
+        links.append(lk)
+    suffix = '_eq75_printed' if printed_eq75 else '_force_balanced'
+    balanced = scene.with_links(links, name=scene.name + suffix)
+    params = {'mu_1': mu1, 'mu_2': mu2, 'xi_1': xi1, 'eta_1': 0.0, 'xi_2': xi2,
+              'eta_2': 0.0, 'xi_2_printed_eq75': 1.0 / mu2, 'printed_eq75': bool(printed_eq75),
+              'rho_1': abs(xi1), 'alpha_1_deg': 180.0 if xi1 < 0 else 0.0,
+              'rho_2': abs(xi2), 'alpha_2_deg': 180.0 if xi2 < 0 else 0.0}
+    return _analytic('slider-crank, seed 000 eqs. 44-75 (xi_2 = -1/mu_2)' if not printed_eq75
+                     else 'slider-crank, seed 000 eq. 75 as printed (xi_2 = +1/mu_2)',
+                     scene, balanced, params, samples, counterweights=False)
+
+
+def four_bar_balance(scene, mass_factor=1.0, inertia='distance', samples=None):
+    """
+    Return the Berkof-Lowen complete force balance of a four-bar (seed 001 eq. 48).
+
+    The coupler (link 2) is kept; the crank's and rocker's masses become ``mass_factor``
+    times the original (Table 3 cases 1, 2, 5) and their first moments are set to
+
+        h_1 = m_1 P_1 - (m_2 - g)(A_1 - P_1),   h_3 = m_3 Q_3 - g (B_3 - Q_3),
+        g = (h_2 - m_2 A_2) / (B_2 - A_2)
+
+    (crank pivot P_1 and pin A_1, coupler points A_2, B_2, rocker pivot Q_3 and pin B_3, in
+    the link frames): the coefficients of the crank and rocker rotations in the total first
+    moment after eliminating the coupler's rotation through the loop ``B - A``.  With the
+    link x-axes along O_i O_(i+1) this is eq. 48: ``m_1 d_1 = m_2 r_2 a_12/a_2B`` with
+    r_2 = |c_2 - B|, ``m_3 d_3 = m_2 d_2 a_3B / a_2B``, theta_1 = theta'_2 and
+    theta_3 = theta_2 + pi.
+
+    ``inertia``: 'distance' keeps the point-mass distance l = sqrt(I_O/m) of the original
+    (the paper's Table 3, ``l_i1 = l_i1^o``: I_O = m l^2, realizable only if d <= l);
+    'centroidal' keeps the centroidal moment of inertia (always realizable).
+    """
+    crank, coupler, rocker, pts = _chain(scene, 'revolute')
+    if inertia not in ('distance', 'centroidal'):
+        raise BalanceError(f'inertia: got {inertia!r}, expected "distance" or "centroidal"')
+    k = float(mass_factor)
+    if not (k > 0.0 and math.isfinite(k)):
+        raise BalanceError(f'mass_factor: got {mass_factor!r}, expected a number > 0')
+    m2, h2 = coupler.mass_kg, complex(*coupler.first_moment_kg_m)
+    g = (h2 - m2 * pts['A2']) / (pts['B2'] - pts['A2'])
+    m1, m3 = k * crank.mass_kg, k * rocker.mass_kg
+    h1 = m1 * pts['P1'] - (m2 - g) * (pts['A1'] - pts['P1'])       # seed 001 eq. 48
+    h3 = m3 * pts['Q3'] - g * (pts['B3'] - pts['Q3'])
+    new = {}
+    for lk, m, h in ((crank, m1, h1), (rocker, m3, h3)):
+        c = h / m
+        if inertia == 'distance':
+            i_o = m * lk.inertia_origin_kg_m2 / lk.mass_kg          # I_O = m (l^o)^2
+            i_c = i_o - abs(h) ** 2 / m
+        else:
+            i_c = lk.inertia_com_kg_m2
+        new[lk.name] = replace(lk, mass_kg=m, com_m=(c.real, c.imag), inertia_com_kg_m2=i_c)
+    balanced = scene.with_links([new.get(lk.name, lk) for lk in scene.links],
+                                name=f'{scene.name}_force_balanced')
+    units = objective_units(scene)
+    link1 = pts['A1'] - pts['P1']
+    link3 = pts['B3'] - pts['Q3']
+    params = {
+        'mass_factor': k, 'inertia': inertia,
+        'm1_d1_kg_m': abs(h1 - m1 * pts['P1']), 'm3_d3_kg_m': abs(h3 - m3 * pts['Q3']),
+        'theta_1_deg': _angle_deg((h1 - m1 * pts['P1']) / link1),
+        'theta_3_deg': _angle_deg((h3 - m3 * pts['Q3']) / link3),
+        'm1_d1': abs(h1 - m1 * pts['P1']) / (units.mass_kg * units.length_m),
+        'm3_d3': abs(h3 - m3 * pts['Q3']) / (units.mass_kg * units.length_m)}
+    return _analytic(f'four-bar, Berkof-Lowen (seed 001 eq. 48), links 1 and 3 x{k:g}',
+                     scene, balanced, params, samples, counterweights=False)
+
+
+# ============================================================================ helpers
+
+
+def _analytic(method, scene, balanced, params, samples, counterweights):
+    units = objective_units(scene)
+    table = before_after(scene, balanced, samples)
+    force = next(r for r in table if r['quantity'].startswith('shaking force'))
+    ratio = force['after'] / force['before']
+    return AnalyticBalance(method, scene, balanced, params,
+                           tuple(link_design(lk, counterweights, units)
+                                 for lk in balanced.links), table, ratio)
+
+
+def _chain(scene, output_type):
+    """
+    Identify crank, coupler and output of a 3-link single loop; return them and points.
+
+    Points (complex, link frames): P1 crank pivot, A1 crank pin, A2/B2 coupler ends, and
+    Q3/B3 rocker pivot and pin (``output_type`` 'revolute') or B3 the slider's joint point.
+    """
+    _check_planar(scene)
+    kind = 'slider-crank' if output_type == 'prismatic' else 'four-bar'
+    if len(scene.links) != 3 or len(scene.joints) != 4:
+        raise BalanceError(
+            f'scene {scene.name!r}: {len(scene.links)} links and {len(scene.joints)} joints, '
+            f'expected a {kind} (3 moving links, 4 joints)')
+    cj = next(j for j in scene.joints if j.name == scene.crank_joint)
+    crank_name = cj.link_b if cj.link_a == FRAME else cj.link_a
+
+    def ends(jt, name):
+        return jt.point_a if jt.link_a == name else jt.point_b
+
+    def other(jt, name):
+        return jt.link_b if jt.link_a == name else jt.link_a
+
+    joints = [j for j in scene.joints if j is not cj]
+    try:
+        ja = next(j for j in joints if crank_name in (j.link_a, j.link_b)
+                  and FRAME not in (j.link_a, j.link_b))
+        coupler_name = other(ja, crank_name)
+        jb = next(j for j in joints if j is not ja and coupler_name in (j.link_a, j.link_b))
+        out_name = other(jb, coupler_name)
+        jg = next(j for j in joints if j not in (ja, jb))
+    except StopIteration:
+        raise BalanceError(f'scene {scene.name!r}: expected a {kind} chain '
+                           'frame-crank-coupler-output-frame') from None
+    if out_name in (FRAME, crank_name) or FRAME not in (jg.link_a, jg.link_b) or \
+            out_name not in (jg.link_a, jg.link_b) or ja.kind != 'revolute' or \
+            jb.kind != 'revolute' or jg.kind != output_type:
+        raise BalanceError(
+            f'scene {scene.name!r}: expected a {kind} (revolute crank, coupler joints '
+            f'revolute, output joined to the frame by a {output_type} joint)')
+    crank, coupler, out = (scene.link(n) for n in (crank_name, coupler_name, out_name))
+
+    def pt(link, name):
+        return complex(*link.points[name])
+
+    pts = {'P1': pt(crank, ends(cj, crank_name)), 'A1': pt(crank, ends(ja, crank_name)),
+           'A2': pt(coupler, ends(ja, coupler_name)), 'B2': pt(coupler, ends(jb, coupler_name)),
+           'B3': pt(out, ends(jb, out_name)), 'Q3': pt(out, ends(jg, out_name))}
+    return crank, coupler, out, pts
+
+
+def _scene_from_theta(scene, theta, units, case):
+    """Return the scene with link inertias from a normalized parameter vector."""
+    t = theta.reshape(-1, 4)
+    links = []
+    for lk, (m, hx, hy, i_o) in zip(scene.links, t):
+        m_kg = m * units.mass_kg
+        h = complex(hx, hy) * units.mass_kg * units.length_m
+        i_o = i_o * units.mass_kg * units.length_m ** 2
+        c = h / m_kg
+        links.append(replace(lk, mass_kg=float(m_kg), com_m=(float(c.real), float(c.imag)),
+                             inertia_com_kg_m2=float(i_o - abs(h) ** 2 / m_kg)))
+    return scene.with_links(links, name=f'{scene.name}_balanced')
+
+
+def _angle_deg(z):
+    return math.degrees(math.atan2(z.imag, z.real)) % 360.0
+
+
+def _check_planar(scene):
+    if getattr(scene, 'kind', 'planar') != 'planar':
+        raise BalanceError(f'scene {scene.name!r}: kind {scene.kind!r}, expected a planar '
+                           'scene (RGGR scenes balance with mech_balance.rggr)')
+
+
+def _weights(weights):
+    try:
+        w1, w2 = (float(v) for v in weights)
+    except (TypeError, ValueError):
+        raise BalanceError(f'weights: got {weights!r}, expected two numbers (w1, w2)') \
+            from None
+    for name, v in (('w1', w1), ('w2', w2)):
+        if not (math.isfinite(v) and v >= 0.0):
+            raise BalanceError(f'weights: {name} = {v!r}, expected a finite number >= 0')
+    return w1, w2
+
+
+def _nonneg(value, name):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise BalanceError(f'{name}: got {value!r}, expected a number >= 0') from None
+    if not (math.isfinite(v) and v >= 0.0):
+        raise BalanceError(f'{name}: got {value!r}, expected a finite number >= 0')
+    return v
+
+
+def _link_names(values, names, field_name):
+    if isinstance(values, str):
+        values = [values]
+    out = set()
+    for v in values or ():
+        if v not in names:
+            raise BalanceError(f'{field_name}: got {v!r}, expected link names from '
+                               f'{", ".join(names)}')
+        out.add(v)
+    return out
+
+
+def _bounds(given, names, original, factors, field_name, positive):
+    """Return SI (lo, hi) arrays: defaults are factors x original, overridden per link."""
+    try:
+        f_lo, f_hi = (float(v) for v in factors)
+    except (TypeError, ValueError):
+        raise BalanceError(f'{field_name}: factors {factors!r}, expected (low, high)') \
+            from None
+    if not (0.0 <= f_lo <= f_hi):
+        raise BalanceError(f'{field_name}: factors {factors!r}, expected 0 <= low <= high')
+    lo = np.array(original, dtype=float) * f_lo
+    hi = np.array(original, dtype=float) * f_hi
+    if given is not None:
+        if not isinstance(given, dict):
+            raise BalanceError(f'{field_name}: got {given!r}, expected a mapping link -> '
+                               '(min, max)')
+        for key, pair in given.items():
+            if key not in names:
+                raise BalanceError(f'{field_name}.{key}: no such link, expected one of '
+                                   f'{", ".join(names)}')
+            i = names.index(key)
+            try:
+                a, b = pair
+                a = 0.0 if a is None else float(a)
+                b = math.inf if b is None else float(b)
+            except (TypeError, ValueError):
+                raise BalanceError(f'{field_name}.{key}: got {pair!r}, expected (min, max), '
+                                   'max may be None') from None
+            if math.isnan(a) or math.isnan(b) or a < 0.0 or b < a or math.isinf(a):
+                raise BalanceError(f'{field_name}.{key}: got {pair!r}, expected '
+                                   '0 <= min <= max')
+            lo[i], hi[i] = a, b
+    if positive and np.any(lo <= 0.0):
+        i = int(np.argmin(lo))
+        raise BalanceError(f'{field_name}.{names[i]}: lower bound {lo[i]!r}, expected > 0 '
+                           '(a link needs positive mass)')
+    return lo, hi
+
+
+def _num(x):
+    return None if not math.isfinite(x) else float(x)
+
+
+def _plain(obj):
+    """Return ``obj`` with numpy scalars and tuples turned into YAML-safe Python types."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj)
+    return obj

@@ -1,0 +1,248 @@
+"""
+The balancing API: linear maps, the cone program's options, YAML export, bad input, CLI.
+
+Seed 001's tables are checked in test_balancing_paper.py, the analytic force balance in
+test_balancing_analytic.py.
+"""
+
+from dataclasses import replace
+import json
+import math
+
+from mech_balance import analysis, balancing, cli, scene
+import numpy as np
+from numpy.testing import assert_allclose
+import pytest
+import yaml
+
+GAP_REL = 1e-6
+
+
+@pytest.fixture(scope='module')
+def hoeken():
+    return scene.load('hoeken')
+
+
+def _with_theta(sc, theta_si):
+    links = []
+    for lk, (m, hx, hy, i_o) in zip(sc.links, np.reshape(theta_si, (-1, 4))):
+        c = (hx / m, hy / m)
+        links.append(replace(lk, mass_kg=m, com_m=c,
+                             inertia_com_kg_m2=i_o - m * (c[0] ** 2 + c[1] ** 2)))
+    return sc.with_links(links)
+
+
+@pytest.mark.parametrize('name', ['hoeken', 'slider_crank'])
+def test_linear_maps_give_the_rms_of_the_core(name):
+    """||R theta|| equals the RMS of the full analysis for random inertial parameters."""
+    sc = scene.load(name)
+    units = balancing.objective_units(sc)
+    maps = balancing.linear_maps(sc, 90, ('bearing_reactions',), units)
+    rng = np.random.default_rng(3)
+    scale = np.tile([units.mass_kg, units.mass_kg * units.length_m,
+                     units.mass_kg * units.length_m, units.mass_kg * units.length_m ** 2],
+                    len(sc.links))
+    for _ in range(3):
+        theta = maps.theta_original * rng.uniform(0.5, 2.0, maps.theta_original.size)
+        theta[3::4] += 2.0 * (theta[1::4] ** 2 + theta[2::4] ** 2) / theta[0::4]
+        cycle = analysis.run_cycle(analysis.Rig(_with_theta(sc, theta * scale)), 90)
+        w = cycle.wrenches
+        f_unit = units.mass_kg * units.length_m * units.omega_rad_s ** 2
+        n_unit = f_unit * units.length_m
+        ref = [np.sqrt(np.mean(np.abs(w.shaking_force) ** 2)) / f_unit,
+               np.sqrt(np.mean(w.shaking_moment ** 2)) / n_unit,
+               np.sqrt(np.mean(w.driving_torque ** 2)) / n_unit]
+        assert_allclose(maps.terms(theta)[:3], ref, rtol=1e-10)
+        for joint, mat in maps.reactions.items():
+            rms = np.sqrt(np.mean(np.abs(w.reaction_force[joint]) ** 2)) / f_unit
+            assert_allclose(np.linalg.norm(mat @ theta), rms, rtol=1e-10)
+
+
+def test_result_maps_back_to_consistent_links(hoeken):
+    result = balancing.optimize(hoeken, (0.5, 0.5), 'b')
+    assert result.certificate.gap_rel <= GAP_REL
+    for d, lk in zip(result.links, result.balanced_scene.links):
+        # eqs. 19-22: the point masses reproduce mass, first moment and inertia
+        units = np.exp(1j * np.radians([0.0, 120.0, 240.0]))
+        assert_allclose(sum(d.point_masses_kg), lk.mass_kg, rtol=1e-12)
+        assert_allclose(d.distance_m * np.dot(d.point_masses_kg, units),
+                        complex(*lk.first_moment_kg_m), rtol=1e-10)
+        assert_allclose(d.distance_m ** 2 * lk.mass_kg, lk.inertia_origin_kg_m2, rtol=1e-12)
+        assert_allclose(d.inertia_com_kg_m2, lk.inertia_com_kg_m2, rtol=1e-9)
+        assert_allclose(d.com_distance_m * np.exp(1j * math.radians(d.com_angle_deg)),
+                        complex(*lk.com_m), rtol=1e-10)
+        assert min(d.point_masses_kg) >= -1e-8 * d.mass_kg       # case b
+    data = result.to_dict()
+    assert yaml.safe_load(yaml.safe_dump(data)) == data
+    json.dumps(data)
+    assert data['certificate']['gap_rel'] <= GAP_REL
+    assert {r['quantity'] for r in data['table']} >= {
+        'shaking force |f_sh|', 'shaking moment n_sh', 'driving torque', 'bearing O1 |f|'}
+
+
+def test_extra_terms_and_mass_cap(hoeken):
+    base = balancing.optimize(hoeken, (0.5, 0.5))
+    torque = balancing.optimize(hoeken, (0.5, 0.5), torque_weight=1.0)
+    react = balancing.optimize(hoeken, (0.5, 0.5), reaction_weight=0.25)
+    for r in (torque, react):
+        assert r.certificate.status == 'Solved' and r.certificate.gap_rel <= GAP_REL
+    assert torque.objective['driving_torque_rms'] < \
+        {r['quantity']: r['after'] for r in base.table}['driving torque']
+
+    def bearings(r):
+        return sum(x['after'] for x in r.table if x['quantity'].startswith('bearing'))
+    assert bearings(react) < bearings(base)
+    assert_allclose(react.objective['bearing_force_rms_sum'], bearings(react), rtol=1e-8)
+    cap = 0.25
+    capped = balancing.optimize(hoeken, (0.5, 0.5), max_added_mass_kg=cap)
+    added = sum(d.mass_kg for d in capped.links) - sum(lk.mass_kg for lk in hoeken.links)
+    assert added <= cap * (1 + 1e-7)
+    assert capped.objective['z'] >= base.objective['z'] - 1e-9
+
+
+def test_fixed_links_and_bounds_are_kept(hoeken):
+    crank_m = hoeken.link('crank').mass_kg
+    result = balancing.optimize(hoeken, (0.5, 0.5), fixed_links=('coupler',),
+                                mass_bounds={'crank': (crank_m, 2.0 * crank_m)},
+                                distance_bounds={'rocker': (0.01, None)})
+    got = {lk.name: lk for lk in result.balanced_scene.links}
+    ref = hoeken.link('coupler')
+    assert_allclose([got['coupler'].mass_kg, *got['coupler'].com_m,
+                     got['coupler'].inertia_origin_kg_m2],
+                    [ref.mass_kg, *ref.com_m, ref.inertia_origin_kg_m2], rtol=1e-7, atol=1e-12)
+    assert crank_m * (1 - 1e-8) <= got['crank'].mass_kg <= 2.0 * crank_m * (1 + 1e-8)
+    assert result.bounds['rocker']['distance_m'] == [0.01, None]
+
+
+def test_scene_without_normalization_uses_crank_units():
+    sc = scene.load('slider_crank')
+    data, _ = scene.load_data('slider_crank')
+    del data['normalization']
+    bare = scene.from_dict(data, 'bare')
+    units = balancing.objective_units(bare)
+    assert (units.mass_kg, units.length_m) == (0.8, pytest.approx(0.04))
+    result = balancing.optimize(bare, (1.0, 0.0))
+    assert result.certificate.gap_rel <= GAP_REL
+    assert result.objective['shaking_force_rms'] <= 1e-12 * result.objective['z_original']
+    assert result.table[0]['unit'] == 'N'
+    assert balancing.optimize(sc, (1.0, 0.0)).realizable
+
+
+@pytest.mark.parametrize('name', ['hoeken', 'slider_crank', 'carpet_scraper'])
+def test_scene_yaml_round_trip(tmp_path, name):
+    sc = scene.load(name)
+    result = balancing.optimize(sc, (0.5, 0.5), samples=72)
+    path = tmp_path / 'balanced.yaml'
+    path.write_text(balancing.scene_to_yaml(result.balanced_scene, result.summary()))
+    back = scene.load(str(path))
+    assert back.links == result.balanced_scene.links
+    assert back.joints == sc.joints and back.frame_points == sc.frame_points
+    assert back.normalization == sc.normalization
+    assert yaml.safe_load(path.read_text())['balance']['realizable'] is True
+    rows = analysis.summarize(analysis.run_cycle(analysis.Rig(back), 72))
+    ref = analysis.summarize(analysis.run_cycle(analysis.Rig(result.balanced_scene), 72))
+    assert_allclose([r.rms for r in rows], [r.rms for r in ref], rtol=1e-12)
+
+
+def test_unrealizable_design_cannot_be_saved(hoeken):
+    result = balancing.optimize(hoeken, (0.5, 0.5), paper_constraints=True)
+    assert not result.realizable
+    with pytest.raises(ValueError, match='unrealizable'):
+        balancing.scene_to_yaml(result.balanced_scene)
+
+
+@pytest.mark.parametrize('kwargs, match', [
+    ({'weights': (-1.0, 0.0)}, 'weights'),
+    ({'weights': (0.0, 0.0)}, 'at least one positive weight'),
+    ({'weights': (1.0,)}, 'weights'),
+    ({'case': 'c'}, 'case'),
+    ({'paper_constraints': True, 'mass_bounds': {'crank': (0.3, 1.0)}}, 'paper_constraints'),
+    ({'paper_constraints': True, 'torque_weight': 1.0}, 'paper_constraints'),
+    ({'mass_bounds': {'wheel': (0.3, 1.0)}}, 'mass_bounds.wheel'),
+    ({'mass_bounds': {'crank': (0.5, 0.1)}}, 'mass_bounds.crank'),
+    ({'mass_bounds': {'crank': (0.0, 1.0)}}, 'positive mass'),
+    ({'distance_bounds': {'crank': 0.1}}, 'distance_bounds.crank'),
+    ({'fixed_links': ('wheel',)}, 'fixed_links'),
+    ({'max_added_mass_kg': -1.0}, 'max_added_mass_kg'),
+    ({'centroidal_margin': 1.0}, 'centroidal_margin'),
+    ({'samples': 2}, 'samples'),
+    ({'torque_weight': float('nan')}, 'torque_weight'),
+])
+def test_bad_input(hoeken, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        balancing.optimize(hoeken, **kwargs)
+
+
+def test_infeasible_constraints_are_reported(hoeken):
+    m = hoeken.link('crank').mass_kg
+    with pytest.raises(ValueError, match='infeasible'):
+        balancing.optimize(hoeken, (1.0, 0.0), mass_bounds={'crank': (3.0 * m, 4.0 * m)},
+                           max_added_mass_kg=0.0)
+
+
+def test_rggr_scene_is_not_planar():
+    with pytest.raises(ValueError, match='planar'):
+        balancing.optimize(scene.load('rggr'))
+
+
+# ------------------------------------------------------------------------ command line
+
+
+def test_cli_balance_prints_design_table_certificate(capsys):
+    assert cli.main(['balance', '--scene', 'hoeken', '--paper-constraints', '--weights',
+                     '0.5', '0.5']) == 0
+    out = capsys.readouterr().out
+    for text in ('certificate (clarabel', 'relative', 'solve time', 'realizable',
+                 'shaking moment n_sh', 'bearing O1 |f|', 'Table 7 case a(2)',
+                 "paper's design vector: NOT realizable"):
+        assert text in out, text
+
+
+def test_cli_balance_json_and_output(tmp_path, capsys):
+    path = tmp_path / 'out.yaml'
+    assert cli.main(['balance', '--scene', 'hoeken', '--case', 'b', '--weights', '0', '1',
+                     '--samples', '90', '--json', '--output', str(path)]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data['case'] == 'b' and data['samples'] == 90 and data['realizable']
+    assert data['certificate']['gap_rel'] <= GAP_REL
+    back = scene.load(str(path))
+    assert [lk.mass_kg for lk in back.links] == pytest.approx(
+        [d['mass_kg'] for d in data['links']], rel=1e-15)
+    assert cli.main(['analyze', '--scene', str(path)]) == 0
+
+
+def test_cli_balance_analytic_and_rggr(capsys):
+    assert cli.main(['balance', '--scene', 'slider_crank', '--analytic']) == 0
+    out = capsys.readouterr().out
+    assert 'xi_2 = -1/mu_2' in out and 'as printed (xi_2 = +1/mu_2)' in out
+    assert cli.main(['balance', '--scene', 'hoeken', '--analytic', '--mass-factor', '2',
+                     '--si']) == 0
+    out = capsys.readouterr().out
+    assert 'Berkof-Lowen' in out and 'm3_d3 = 20.306' in out and 'kg' in out
+    assert cli.main(['balance', '--scene', 'rggr', '--samples', '72']) == 0
+    assert 'RGGR' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize('argv, match', [
+    (['--case', 'c'], None),
+    (['--scene', 'rggr', '--output', 'x.yaml'], '--output'),
+    (['--weights', '-1', '0'], 'weights'),
+    (['--paper-constraints', '--output', 'x.yaml'], 'unrealizable'),
+])
+def test_cli_balance_bad_input(capsys, tmp_path, argv, match):
+    argv = [a if a != 'x.yaml' else str(tmp_path / a) for a in argv]
+    if match is None:
+        with pytest.raises(SystemExit) as exc:
+            cli.main(['balance', *argv])
+        assert exc.value.code == 2
+        return
+    assert cli.main(['balance', *argv]) == 2
+    assert match in capsys.readouterr().err
+
+
+def test_bench_section_lists_every_case():
+    from argparse import Namespace
+    from mech_balance import cli_balance
+    text = cli_balance.bench_section(Namespace(scene=['hoeken'], repeat=3, samples=90),
+                                     lambda s: None)
+    assert text.count('hoeken') == 12 and 'median ms' in text
