@@ -28,6 +28,7 @@ $(STAMP): requirements.txt setup.py
 
 run: venv  ## Install everything and run the main job.
 	$(BIN)/mech-balance analyze --scene hoeken
+	$(BIN)/mech-balance record --scene hoeken --balance --out recordings/hoeken.rrd
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
 test: venv  ## Install everything and run all tests (ament flake8, pep257, colcon build, suite).

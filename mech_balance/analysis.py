@@ -154,6 +154,7 @@ def format_table(cycle, rows, normalized=False):
     ]
     if cycle.wrenches is not None and cycle.wrenches.consistency is not None:
         lines.append(f'reaction recursion consistency: {cycle.wrenches.consistency:.3e} N*m')
-    lines.append(f'cycle computed in {cycle.seconds * 1e3:.3f} ms '
-                 f'({cycle.seconds * 1e6 / cycle.psi.size:.2f} us per angle)')
+    lines.append(f'cycle computed in {cycle.seconds * 1e3:.3f} ms, one cold run '
+                 f'({cycle.seconds * 1e6 / cycle.psi.size:.2f} us per angle; '
+                 '`mech-balance bench` gives warm medians)')
     return '\n'.join(lines)

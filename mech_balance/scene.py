@@ -23,8 +23,14 @@ OUTPUTS = ('kinematics', 'shaking_wrench', 'driving_torque', 'bearing_reactions'
 
 JOINT_TYPES = ('revolute', 'prismatic')
 FRAME = 'frame'
-MAX_ABS_VALUE = 1e12
-"""Larger magnitudes in any numeric field are rejected as almost certainly wrong units."""
+MAX_ABS_VALUE = 1e18
+"""Larger magnitudes in any numeric field are rejected (their squares would overflow soon)."""
+RECORDING_STREAMS = (
+    'frame', 'links', 'joints', 'mass_centres', 'point_masses', 'shaking_force_arrow',
+    'shaking_moment_arc', 'shaking_force_plot', 'shaking_moment_plot', 'driving_torque_plot',
+    'info',
+)
+"""What a rerun recording of the scene can show (``recording.streams``; all on by default)."""
 
 _CONFIG_DIRS = (
     Path(__file__).resolve().parent.parent / 'config',
@@ -89,6 +95,24 @@ class Joint:
 
 
 @dataclass(frozen=True)
+class Recording:
+    """
+    What ``mech-balance record`` and the rig node's recording show (``recording:`` key).
+
+    ``streams`` lists the enabled streams (of :data:`RECORDING_STREAMS`).  The scales of the
+    shaking-force arrow and the shaking-moment arc are chosen from the data when ``None``.
+    """
+
+    streams: tuple = RECORDING_STREAMS
+    force_scale_m_per_N: float = None
+    moment_scale_deg_per_Nm: float = None
+
+    def enabled(self, stream):
+        """Return whether ``stream`` (a name from :data:`RECORDING_STREAMS`) is switched on."""
+        return stream in self.streams
+
+
+@dataclass(frozen=True)
 class Scene:
     """A validated planar rig (SI units throughout)."""
 
@@ -110,6 +134,7 @@ class Scene:
     notes: dict = field(default_factory=dict)
     source: str = '<dict>'
     kind: str = 'planar'
+    recording: Recording = Recording()
 
     def link(self, name):
         """Return the link called ``name``."""
@@ -310,7 +335,25 @@ def _planar_from_dict(data, source):
         crank_acceleration_rad_s2=accel, assembly_crank_angle_rad=crank_angle,
         assembly_link_angles_rad=link_angles, assembly_displacements_m=displacements,
         outputs=outputs, samples=samples, gravity_m_s2=gravity, normalization=normalization,
-        notes=notes if isinstance(notes, dict) else {'text': notes}, source=source)
+        notes=notes if isinstance(notes, dict) else {'text': notes}, source=source,
+        recording=_recording(data.get('recording', {})))
+
+
+def _recording(value):
+    """Validate ``recording: {streams: {name: bool}, force_scale_m_per_N, ...}``."""
+    if value is None:
+        return Recording()
+    value = _mapping(value, 'recording')
+    _known_keys(value, {'streams', 'force_scale_m_per_N', 'moment_scale_deg_per_Nm'},
+                'recording')
+    switches = _mapping(value.get('streams', {}) or {}, 'recording.streams')
+    _known_keys(switches, set(RECORDING_STREAMS), 'recording.streams')
+    for k, v in switches.items():
+        if not isinstance(v, bool):
+            raise SceneError(f'recording.streams.{k}: got {v!r}, expected true or false')
+    scales = {k: None if value.get(k) is None else _positive(value[k], f'recording.{k}')
+              for k in ('force_scale_m_per_N', 'moment_scale_deg_per_Nm')}
+    return Recording(tuple(s for s in RECORDING_STREAMS if switches.get(s, True)), **scales)
 
 
 def _check_mobility(links, joints):
