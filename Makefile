@@ -26,9 +26,13 @@ $(STAMP): requirements.txt setup.py
 	$(PIP) install --quiet --no-deps --no-build-isolation --use-pep517 -e .
 	touch $@
 
+# The main job: the analysis table of the default scene, an original-vs-balanced recording,
+# then the rig node on the default scene (it says what it publishes; Ctrl-C stops it).
+run: export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 run: venv  ## Install everything and run the main job.
 	$(BIN)/mech-balance analyze --scene hoeken
 	$(BIN)/mech-balance record --scene hoeken --balance --out recordings/hoeken.rrd
+	$(BIN)/rig_node --ros-args --params-file config/rig_params.yaml
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
 test: venv  ## Install everything and run all tests (ament flake8, pep257, colcon build, suite).

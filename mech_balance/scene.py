@@ -326,6 +326,8 @@ def _planar_from_dict(data, source):
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 4:
         raise SceneError(f'samples: got {samples!r}, expected an integer >= 4')
     notes = data.get('notes', {})
+    if 'balance' in data:  # provenance written by `mech-balance balance --output`
+        _mapping(data['balance'], 'balance')
     description = data.get('description', '')
     if not isinstance(description, str):
         raise SceneError(f'description: got {type(description).__name__}, expected text')

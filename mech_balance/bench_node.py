@@ -1,0 +1,211 @@
+"""
+``mech-balance bench`` section of the rig node: the publish rate it sustains, its step time.
+
+The node runs as it is deployed, in its own process (``python -m mech_balance.node``, clock
+mode), on a private ROS domain; this process subscribes to both topics and counts, from the
+stamps, the clock-mode periods whose sample never arrived.  Each rate of :data:`RATES_HZ`
+is set through the parameter service and measured over :data:`WINDOW_S` after
+:data:`SETTLE_S`.  The subscriber takes the messages serialized (``raw=True``) and reads
+only the stamp, so that it is not the bottleneck.  The node's own statistics, logged at its
+shutdown after :data:`STATS_S` at the target rate (:data:`mech_balance.node.STATS_TAG`),
+give the compute per sample (the core's evaluation and the serialization of both
+messages, amortized over the batches a second thread prepares ahead of the ticks) and the
+wall time of a tick (two ``publish`` calls of prepared bytes, middleware included).
+"""
+
+import json
+import os
+import re
+import signal
+import struct
+import subprocess
+import sys
+import time
+
+from mech_balance import node as node_mod
+
+RATES_HZ = (250.0, 500.0, 1000.0, 2000.0, 4000.0, 8000.0, 16000.0)
+"""Clock-mode publish rates tried, ascending."""
+MISSED_MAX = 0.01
+"""A rate is sustained when less than this fraction of its periods is missed on each topic."""
+WINDOW_S = 3.0
+"""Measuring window per rate."""
+SETTLE_S = 0.5
+"""Time after a rate change before measuring."""
+IN_FLIGHT_S = 0.05
+"""Samples stamped this close to the end of a window may still be on their way: not counted."""
+START_TIMEOUT_S = 60.0
+"""Upper bound for the node process to start and be discovered."""
+STAMP = struct.Struct('<iI')
+"""builtin_interfaces/Time at the start of a CDR-serialized message with a header."""
+CDR_HEADER = 4
+"""Bytes of the CDR encapsulation header before the first field."""
+TARGET_RATE_HZ = 1000.0
+"""The issue's target: sustained publish rate, and the rate of the per-callback timing."""
+TARGET_STEP_S = 100e-6
+"""The issue's target: compute time per callback (sample)."""
+FOLLOW_BATCH = 8
+"""Follow mode: the batch size reported next to a single sample."""
+FOLLOW_REPEAT = 50
+"""Timed follow-mode evaluations (median)."""
+STATS_S = 5.0
+"""Run at the target rate before shutdown (the node's statistics cover it alone)."""
+
+
+def bench_section(args, progress):
+    """Return the rig node's bench table (rates, missed periods, step and core times)."""
+    names = list(args.scene or ['hoeken'])
+    lines = [f'rig node (clock mode, node in its own process, subscriber here; {WINDOW_S:g} s '
+             f'per rate, sustained = < {MISSED_MAX:.0%} missed periods on both topics)']
+    head = f"{'scene':<16}{'rate Hz':>9}{'joint_states':>14}{'shaking_wrench':>16}  result"
+    for name in names:
+        progress(f'  rig node: {name} ...')
+        try:
+            rows, stats = _sweep(name, progress)
+        except (RuntimeError, OSError) as exc:
+            lines.append(f'{name}: not measured ({exc})')
+            continue
+        lines += ['', head, '-' * len(head)]
+        follow = _follow_costs(name)
+        best = None
+        for rate, joint, wrench in rows:
+            ok = joint < MISSED_MAX and wrench < MISSED_MAX
+            best = rate if ok else best
+            lines.append(f'{name:<16}{rate:>9.0f}{joint:>13.2%} {wrench:>15.2%}  '
+                         f'{"sustained" if ok else "missed periods"}')
+        step = stats.get('step_median_s', float('nan'))
+        compute = stats.get('prepare_per_sample_s', float('nan'))
+        lines += [
+            f'highest sustained rate: {best:g} Hz' if best else 'no rate sustained',
+            f'per callback at {TARGET_RATE_HZ:g} Hz: compute {compute * 1e6:.1f} us (core '
+            'evaluation and serialization of both messages, batched ahead in a second thread); '
+            f'publishing {step * 1e6:.1f} us median, p99 '
+            f'{stats.get("step_p99_s", float("nan")) * 1e6:.1f} us (the tick: two rclpy '
+            'publish calls of the prepared bytes, middleware delivery included)',
+            f'follow mode (evaluated as encoder messages arrive): {follow[0] * 1e6:.0f} us for '
+            f'a sample alone, {follow[1] * 1e6:.0f} us per sample in batches of '
+            f'{FOLLOW_BATCH} (the node batches what arrived during the last evaluation)',
+            f'target: >= {TARGET_RATE_HZ:g} Hz sustained '
+            f'{"met" if best and best >= TARGET_RATE_HZ else "NOT met"}; '
+            f'<= {TARGET_STEP_S * 1e6:g} us compute per callback '
+            f'{"met" if compute <= TARGET_STEP_S else "NOT met"}',
+        ]
+    return '\n'.join(lines)
+
+
+def _follow_costs(scene_name):
+    """Return the compute per sample in follow mode: alone, and in a batch."""
+    from mech_balance import bench, ros_conversions as conv, scene as scene_mod, twin
+    import numpy as np
+    model = twin.model_for(scene_mod.load(scene_name))
+    ser = conv.SampleSerializer(model.joint_names, model.has_effort, 'rig_frame')
+    times = []
+    for n in (1, FOLLOW_BATCH):
+        psi = np.linspace(0.1, 0.2, n)
+        stamps = np.arange(n, dtype=np.int64) + 1
+
+        def run(psi=psi, stamps=stamps):
+            ser.serialize(model.evaluate(psi, 1.0, 0.0), stamps)
+        times.append(bench.median_seconds(run, repeat=FOLLOW_REPEAT) / n)
+    return times
+
+
+def _sweep(scene_name, progress):
+    import rclpy
+    from rclpy.experimental import EventsExecutor
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    from rclpy.qos import QoSProfile
+    from sensor_msgs.msg import JointState
+    from geometry_msgs.msg import WrenchStamped
+
+    domain = 101 - os.getpid() % 50
+    ns = f'/bench{os.getpid()}'
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
+               ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE',
+                                                            'LOCALHOST'))
+    env['PYTHONPATH'] = os.pathsep.join(
+        p for p in (os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                    env.get('PYTHONPATH')) if p)
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'mech_balance.node', '--ros-args', '-r', f'__ns:={ns}',
+         '-p', f'scene:={scene_name}', '-p', f'publish_rate:={RATES_HZ[0]}'],
+        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node(f'bench_probe_{os.getpid()}', context=ctx)
+    executor = EventsExecutor(context=ctx)
+    executor.add_node(node)
+    stamps = {'joint_states': [], 'shaking_wrench': []}
+
+    def keep(key):
+        def cb(raw):
+            sec, nsec = STAMP.unpack_from(raw, CDR_HEADER)
+            stamps[key].append(sec * 1_000_000_000 + nsec)
+        return cb
+
+    qos = QoSProfile(depth=1000)
+    node.create_subscription(JointState, f'{ns}/joint_states', keep('joint_states'), qos,
+                             raw=True)
+    node.create_subscription(WrenchStamped, f'{ns}/shaking_wrench', keep('shaking_wrench'),
+                             qos, raw=True)
+    client = AsyncParameterClient(node, f'{ns}/rig')
+
+    def spin_for(seconds, until=None):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end and not (until and until()):
+            executor.spin_once(timeout_sec=0.01)
+
+    rows = []
+    try:
+        spin_for(START_TIMEOUT_S, lambda: client.services_are_ready() and
+                 all(len(v) > 10 for v in stamps.values()) or proc.poll() is not None)
+        if proc.poll() is not None or not client.services_are_ready():
+            raise RuntimeError('the node did not start or was not discovered')
+        failures = 0
+        for rate in RATES_HZ:
+            future = client.set_parameters([Parameter('publish_rate', value=rate)])
+            spin_for(10.0, future.done)
+            if not (future.done() and future.result().results[0].successful):
+                raise RuntimeError(f'could not set publish_rate to {rate:g}')
+            progress(f'    {rate:g} Hz ...')
+            spin_for(SETTLE_S)
+            start = node.get_clock().now().nanoseconds
+            for v in stamps.values():
+                v.clear()
+            spin_for(WINDOW_S)
+            stop = node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
+            period = round(1e9 / rate)
+            missed = [_missed(v, start, stop, period) for v in stamps.values()]
+            rows.append((rate, *missed))
+            failures = failures + 1 if max(missed) >= MISSED_MAX else 0
+            if failures >= 2:
+                break
+        # the node's own statistics (logged at shutdown) at the target rate
+        future = client.set_parameters([Parameter('publish_rate', value=TARGET_RATE_HZ)])
+        spin_for(10.0, future.done)
+        progress(f'    per-callback time at {TARGET_RATE_HZ:g} Hz ...')
+        spin_for(STATS_S)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+        try:
+            _, err = proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            _, err = proc.communicate()
+    match = re.search(re.escape(node_mod.STATS_TAG) + r'(\{.*\})', err or '')
+    return rows, (json.loads(match.group(1)) if match else {})
+
+
+def _missed(stamps, start_ns, stop_ns, period_ns):
+    """Return the fraction of periods in [start, stop) whose stamp was not received."""
+    inside = {s for s in stamps if start_ns <= s < stop_ns}
+    if not inside:
+        return 1.0
+    first = min(inside)
+    expected = (stop_ns - 1 - first) // period_ns + 1
+    return max(0.0, 1.0 - len(inside) / expected)

@@ -1,0 +1,359 @@
+"""
+The rig node's parameters, each declared once: type, default, description, bounds, check.
+
+In the manner of generate_parameter_library: :data:`PARAMETERS` is the single table the
+node declares from (:func:`mech_balance.ros_conversions.parameter_descriptor` turns a
+:class:`Spec` into a ROS ``ParameterDescriptor``), ``config/rig_params.yaml`` documents a
+working set and :func:`check` is the validator the node runs on every update (a
+``ValueError`` naming the parameter, the value and what was expected becomes the ``reason``
+of ``SetParametersResult(successful=False)``).  ``scene`` is validated by the scene loader
+itself (:func:`mech_balance.scene.load`, then the twin traces the linkage's branch), the
+balancing options by the same rules as :func:`mech_balance.balancing.optimize`.  No ROS
+import here: the command line and the tests use this table too.
+"""
+
+from dataclasses import dataclass
+import math
+import re
+
+from mech_balance import balancing
+import yaml
+
+STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
+    'double_array'
+MODES = ('clock', 'follow')
+CASES = ('a', 'b')
+MAX_CRANK_SPEED = 1000.0
+"""Largest |crank_speed| accepted, rad/s (about 9500 rpm)."""
+MIN_PUBLISH_RATE = 0.1
+"""Slowest clock-mode publish rate, Hz."""
+MAX_PUBLISH_RATE = 20000.0
+"""Fastest clock-mode publish rate, Hz (see ``mech-balance bench`` for what is sustained)."""
+MAX_SAMPLES = 100000
+"""Most crank angles per revolution in a balancing run."""
+DEFAULT_BALANCE_WEIGHTS = (1.0, 0.0)
+"""Default [w1, w2]: those of balancing.optimize and ``mech-balance balance``."""
+MAX_WEIGHT = 1e6
+"""Largest extra objective weight accepted."""
+MAX_MARGIN = 0.999
+"""Largest realizability margin (the balancing requires margin < 1)."""
+_FRAME_ID = re.compile(r'^[A-Za-z_][A-Za-z0-9_/]*$')
+
+
+@dataclass(frozen=True)
+class Spec:
+    """One parameter: name, ROS type, default, description, bounds, allowed values, check."""
+
+    name: str
+    kind: str                 # STRING, DOUBLE, INTEGER, BOOL or DOUBLE_ARRAY (the ROS type)
+    default: object
+    description: str
+    bounds: tuple = None      # (low, high) inclusive, numbers only
+    choices: tuple = None     # allowed values, strings only
+    check: object = None      # callable(value) raising ValueError with the reason
+    rule: str = ''            # what ``check`` accepts, for ``ros2 param describe``
+
+    @property
+    def constraints(self):
+        """Return the constraint text shown by ``ros2 param describe``."""
+        parts = []
+        if self.bounds is not None:
+            parts.append(f'{self.bounds[0]:g} <= value <= {self.bounds[1]:g}')
+        if self.choices is not None:
+            parts.append('one of: ' + ', '.join(self.choices))
+        if self.rule:
+            parts.append(self.rule)
+        return '; '.join(parts)
+
+
+# ------------------------------------------------------------------------------ checks
+
+
+def _scene(value):
+    """Reject an empty scene name (the node then loads and assembles the scene)."""
+    if not value:
+        raise ValueError('scene: got an empty name, expected a built-in scene or a path')
+
+
+def _frame_id(value):
+    """Accept a TF frame name: letters, digits, '_', '/'; no leading '/' or digit."""
+    if not _FRAME_ID.match(value):
+        raise ValueError(f'frame_id: got {value!r}, expected a frame name of letters, digits, '
+                         "'_' and '/', not starting with '/' or a digit (e.g. rig_frame)")
+
+
+def _joint_name(value):
+    """Accept empty (the scene's crank joint) or a joint name without spaces around."""
+    if value != value.strip():
+        raise ValueError(f'crank_joint: got {value!r}, expected a joint name without '
+                         "surrounding spaces (or empty for the scene's crank joint)")
+
+
+def _weights(value):
+    """Accept [w1, w2] >= 0, not both 0 (weights of the RMS shaking force and moment)."""
+    if len(value) != 2 or not all(math.isfinite(v) and v >= 0.0 for v in value):
+        raise ValueError(f'balance.weights: got {list(value)}, expected [w1, w2] with finite '
+                         'w1, w2 >= 0 (seed 001 eq. 43)')
+    if value[0] + value[1] == 0.0:
+        raise ValueError('balance.weights: got [0, 0], expected at least one positive weight')
+
+
+def _factors(name):
+    def check(value):
+        """Accept [low, high] factors of the original value, 0 <= low <= high."""
+        if len(value) != 2 or not all(math.isfinite(v) for v in value) or \
+                not 0.0 <= value[0] <= value[1]:
+            raise ValueError(f'{name}: got {list(value)}, expected [low, high] with '
+                             '0 <= low <= high (factors of the original link value)')
+    return check
+
+
+def _link_bounds(name, unit):
+    def check(value):
+        """Accept empty or a YAML mapping link: [min, max] in SI (max may be null)."""
+        parse_link_bounds(name, value, unit)
+    return check
+
+
+def parse_link_bounds(name, text, unit):
+    """
+    Return ``{link: (min, max)}`` from a ``balance.*_bounds`` text, or None when empty.
+
+    The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [0.5, null]}`` in
+    ``unit``; link names are checked against the scene when the balancing runs.
+    """
+    if not text.strip():
+        return None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ValueError(f'{name}: not valid YAML ({exc.problem}), expected a mapping '
+                         f'link: [min, max] in {unit}') from None
+    if not isinstance(data, dict) or not data:
+        raise ValueError(f'{name}: got {text!r}, expected a mapping link: [min, max] in {unit}')
+    out = {}
+    for link, pair in data.items():
+        ok = isinstance(link, str) and isinstance(pair, (list, tuple)) and len(pair) == 2
+        if ok:
+            lo, hi = pair
+            ok = all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)
+                                   and math.isfinite(v)) for v in (lo, hi))
+            ok = ok and lo is not None and lo >= 0.0 and (hi is None or hi >= lo)
+        if not ok:
+            raise ValueError(f'{name}.{link}: got {pair!r}, expected [min, max] in {unit} with '
+                             '0 <= min <= max (max may be null: no upper bound)')
+        out[link] = (float(lo), None if hi is None else float(hi))
+    return out
+
+
+def _link_list(value):
+    """Accept empty or comma-separated link names."""
+    names = split_links(value)
+    if any(not n or ' ' in n for n in names):
+        raise ValueError(f'balance.fixed_links: got {value!r}, expected comma-separated link '
+                         'names such as "crank,rocker" (or empty)')
+
+
+def split_links(text):
+    """Return the link names of a comma-separated ``balance.fixed_links`` text."""
+    return [n.strip() for n in text.split(',')] if text.strip() else []
+
+
+def _samples(value):
+    """Accept 0 (the scene's samples) or an integer >= 4."""
+    if 0 < value < 4:
+        raise ValueError(f"balance.samples: got {value}, expected 0 (the scene's) or an "
+                         'integer >= 4')
+
+
+def check_links(values, link_names):
+    """
+    Raise ValueError if a ``balance.*`` option names a link the scene does not have.
+
+    ``values`` holds checked parameter values; ``link_names`` are the scene's moving links.
+    """
+    named = {'balance.fixed_links': split_links(values['balance.fixed_links'])}
+    for key, unit in (('balance.mass_bounds', 'kg'), ('balance.distance_bounds', 'm')):
+        named[key] = list(parse_link_bounds(key, values[key], unit) or ())
+    for key, names in named.items():
+        for name in names:
+            if name not in link_names:
+                raise ValueError(f'{key}: got link {name!r}, expected links of the scene '
+                                 f'({", ".join(link_names)})')
+
+
+def _path(value):
+    """Accept empty (no recording) or a path ending in .rrd."""
+    if value and not value.endswith('.rrd'):
+        raise ValueError(f'recording_path: got {value!r}, expected a path ending in .rrd '
+                         '(or empty for no recording)')
+
+
+# ------------------------------------------------------------------------------ table
+
+_BOUNDS_RULE = 'empty or {link: [min, max]}, 0 <= min <= max, max may be null'
+
+
+PARAMETERS = (
+    Spec('scene', STRING, 'hoeken',
+         'Built-in scene name (`mech-balance scenes`) or path to a scene YAML file. A new '
+         'value is loaded and assembled before it is accepted; the rig then restarts from '
+         "the scene's original design.", check=_scene,
+         rule='loads with the scene loader and assembles over a full crank turn'),
+    Spec('mode', STRING, 'clock',
+         'clock: the node turns the crank at crank_speed and publishes at publish_rate. '
+         "follow: it publishes one sample per message of a real rig's crank encoder on "
+         "crank_joint_state, stamped with the encoder's stamp.", choices=MODES),
+    Spec('crank_speed', DOUBLE, 0.0,
+         "Clock mode: crank speed in rad/s (negative turns backwards); 0 takes the scene's "
+         'crank.speed_rad_s.', bounds=(-MAX_CRANK_SPEED, MAX_CRANK_SPEED)),
+    Spec('publish_rate', DOUBLE, 100.0,
+         'Clock mode: samples per second on joint_states and shaking_wrench, Hz.',
+         bounds=(MIN_PUBLISH_RATE, MAX_PUBLISH_RATE)),
+    Spec('frame_id', STRING, 'rig_frame',
+         'Frame of the shaking wrench (header.frame_id of shaking_wrench).', check=_frame_id,
+         rule="letters, digits, '_' and '/', not starting with '/' or a digit"),
+    Spec('crank_joint', STRING, '',
+         "Follow mode: the crank's name in the encoder's JointState; empty: the scene's "
+         'crank joint (RGGR: crank).', check=_joint_name, rule='no surrounding spaces'),
+    Spec('follow.window', INTEGER, 7,
+         'Follow mode: encoder samples in the least-squares fit that estimates the crank '
+         'speed and acceleration.', bounds=(2, 1000)),
+    Spec('follow.use_encoder_velocity', BOOL, True,
+         "Follow mode: use the encoder's velocity when it sends one; false estimates it "
+         'from the positions (for a noisy velocity).'),
+    Spec('follow.max_speed', DOUBLE, 200.0,
+         'Follow mode: fastest crank the rig can have, rad/s; an encoder step that needs a '
+         'faster crank is a jump the linkage cannot make and is skipped.',
+         bounds=(1e-3, 1e5)),
+    Spec('follow.max_gap', DOUBLE, 0.5,
+         'Follow mode: a longer gap between encoder stamps, s, restarts the estimator.',
+         bounds=(1e-6, 3600.0)),
+    Spec('balance.weights', DOUBLE_ARRAY, list(DEFAULT_BALANCE_WEIGHTS),
+         'Weights [w1, w2] of the RMS shaking force and moment in the balancing objective '
+         '(seed 001 eq. 43; mech-balance balance --weights).', check=_weights,
+         rule='two numbers >= 0, not both 0'),
+    Spec('balance.case', STRING, 'a',
+         'a: point masses of any sign; b: non-negative point masses (counterweights).',
+         choices=CASES),
+    Spec('balance.realizable', BOOL, True,
+         'Require every balanced link to be a realizable body (centroidal inertia >= '
+         'balance.margin x I_O); false is --no-realizable.'),
+    Spec('balance.margin', DOUBLE, balancing.CENTROIDAL_MARGIN,
+         'Realizability margin: centroidal inertia >= margin x inertia about the link '
+         'origin.', bounds=(0.0, MAX_MARGIN)),
+    Spec('balance.paper_constraints', BOOL, False,
+         "Solve exactly seed 001 eqs. 50/53 (the paper's bounds, no realizability); other "
+         'bound options must keep their defaults.'),
+    Spec('balance.mass_factors', DOUBLE_ARRAY, list(balancing.PAPER_MASS_FACTORS),
+         'Link mass bounds [low, high] as factors of the original link mass (eq. 50b).',
+         check=_factors('balance.mass_factors'), rule='[low, high], 0 <= low <= high'),
+    Spec('balance.distance_factors', DOUBLE_ARRAY, list(balancing.PAPER_DISTANCE_FACTORS),
+         'Point-mass distance bounds [low, high] as factors of the original '
+         'l = sqrt(I_O/m) (eq. 50c).', check=_factors('balance.distance_factors'),
+         rule='[low, high], 0 <= low <= high'),
+    Spec('balance.mass_bounds', STRING, '',
+         'Per-link mass bounds in kg overriding the factors, YAML: {crank: [0.3, 1.6]}.',
+         check=_link_bounds('balance.mass_bounds', 'kg'), rule=_BOUNDS_RULE),
+    Spec('balance.distance_bounds', STRING, '',
+         'Per-link point-mass distance bounds in m overriding the factors, YAML: '
+         '{crank: [0.02, null]}.', check=_link_bounds('balance.distance_bounds', 'm'),
+         rule=_BOUNDS_RULE),
+    Spec('balance.torque_weight', DOUBLE, 0.0,
+         'Extra weight on the RMS normalized driving torque.', bounds=(0.0, MAX_WEIGHT)),
+    Spec('balance.reaction_weight', DOUBLE, 0.0,
+         'Extra weight on the sum of the RMS normalized bearing forces.',
+         bounds=(0.0, MAX_WEIGHT)),
+    Spec('balance.max_added_mass', DOUBLE, -1.0,
+         'Cap on the total added mass, kg (over the original total); negative: no cap.',
+         bounds=(-1.0, 1e6)),
+    Spec('balance.fixed_links', STRING, '',
+         'Comma-separated links kept as they are (e.g. "crank,rocker"); empty: none.',
+         check=_link_list, rule='links of the scene'),
+    Spec('balance.samples', INTEGER, 0,
+         "Crank angles per revolution in the balancing objective; 0: the scene's samples "
+         '(RGGR: 360).', bounds=(0, MAX_SAMPLES), check=_samples,
+         rule='0 or >= 4'),
+    Spec('use_balanced', BOOL, False,
+         'Publish the balanced rig instead of the original; true runs the balancing with '
+         'the balance.* options if no design is known for them (~/balance sets it, '
+         '~/reset clears it).'),
+    Spec('recording_path', STRING, '',
+         'Write a rerun recording (.rrd) of the published samples; empty: none.',
+         check=_path, rule="empty or ending in '.rrd', in an existing directory"),
+)
+"""Every parameter of the rig node, in declaration order."""
+
+BY_NAME = {spec.name: spec for spec in PARAMETERS}
+
+
+def check(name, value):
+    """
+    Return ``value`` of parameter ``name`` checked (lists for arrays); raise ValueError.
+
+    The reason names the parameter, the value and what was expected.
+    """
+    spec = BY_NAME.get(name)
+    if spec is None:
+        raise ValueError(f'{name}: unknown parameter, expected one of '
+                         f'{", ".join(BY_NAME)}')
+    value = _typed(spec, value)
+    if spec.bounds is not None and not spec.bounds[0] <= value <= spec.bounds[1]:
+        raise ValueError(f'{name}: got {value!r}, expected {spec.bounds[0]:g} <= value <= '
+                         f'{spec.bounds[1]:g}')
+    if spec.choices is not None and value not in spec.choices:
+        raise ValueError(f'{name}: got {value!r}, expected one of {", ".join(spec.choices)}')
+    if spec.check is not None:
+        spec.check(value)
+    return value
+
+
+def _typed(spec, value):
+    expected = {STRING: 'text', DOUBLE: 'a floating-point number', INTEGER: 'an integer',
+                BOOL: 'true or false', DOUBLE_ARRAY: 'a list of numbers'}[spec.kind]
+    # as ROS: a double is a float (100 is an integer, 100.0 a double)
+    ok = {STRING: lambda v: isinstance(v, str),
+          DOUBLE: lambda v: isinstance(v, float),
+          INTEGER: lambda v: isinstance(v, int) and not isinstance(v, bool),
+          BOOL: lambda v: isinstance(v, bool),
+          DOUBLE_ARRAY: lambda v: not isinstance(v, (str, bytes)) and hasattr(v, '__len__')
+          and all(isinstance(x, float) for x in v)}
+    if not ok[spec.kind](value):
+        raise ValueError(f'{spec.name}: got {value!r}, expected {expected}')
+    if spec.kind == DOUBLE:
+        value = float(value)
+        if not math.isfinite(value):
+            raise ValueError(f'{spec.name}: got {value!r}, expected a finite number')
+    if spec.kind == DOUBLE_ARRAY:
+        value = [float(x) for x in value]
+    return value
+
+
+def defaults():
+    """Return ``{name: default}`` of every parameter."""
+    return {spec.name: spec.default for spec in PARAMETERS}
+
+
+def balance_options(values):
+    """
+    Return the keyword arguments of :func:`mech_balance.balancing.optimize` for ``values``.
+
+    ``values`` maps parameter names to checked values (at least the ``balance.*`` ones);
+    the same call as ``mech-balance balance`` with the matching options.
+    """
+    cap = values['balance.max_added_mass']
+    return {'weights': tuple(values['balance.weights']), 'case': values['balance.case'],
+            'realizable': values['balance.realizable'],
+            'paper_constraints': values['balance.paper_constraints'],
+            'mass_bounds': parse_link_bounds('balance.mass_bounds',
+                                             values['balance.mass_bounds'], 'kg'),
+            'distance_bounds': parse_link_bounds('balance.distance_bounds',
+                                                 values['balance.distance_bounds'], 'm'),
+            'samples': values['balance.samples'] or None,
+            'torque_weight': values['balance.torque_weight'],
+            'reaction_weight': values['balance.reaction_weight'],
+            'max_added_mass_kg': None if cap < 0.0 else cap,
+            'fixed_links': tuple(split_links(values['balance.fixed_links'])),
+            'mass_factors': tuple(values['balance.mass_factors']),
+            'distance_factors': tuple(values['balance.distance_factors']),
+            'centroidal_margin': values['balance.margin']}

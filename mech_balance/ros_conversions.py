@@ -1,0 +1,265 @@
+"""
+Message conversion for the rig node: pure functions, no node is ever created here.
+
+* :func:`fill_joint_state`, :func:`fill_wrench`: one sample of :class:`mech_balance.twin.Samples`
+  into a ``sensor_msgs/JointState`` and a ``geometry_msgs/WrenchStamped`` (SI, the frame's
+  axes; sign convention of :mod:`mech_balance.conventions`); :class:`SampleSerializer`
+  (and its reference :func:`serialized_samples`): a batch of them, serialized for publishing.
+* :func:`crank_reading`: the crank's stamp, position and velocity from an encoder's
+  ``JointState``, checked (``ValueError`` naming what is wrong).
+* :func:`parameter_descriptor`, :func:`parameter_value`: a :class:`mech_balance.params.Spec`
+  as a ROS ``ParameterDescriptor``, and a ROS ``Parameter`` as a plain value.
+* :func:`stamp_from_ns`, :func:`ns_from_stamp`: ``builtin_interfaces/Time`` <-> int ns.
+"""
+
+from array import array
+import math
+import struct
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import WrenchStamped
+from mech_balance import params
+import numpy as np
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import ParameterType
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import JointState
+
+NS_PER_S = 1_000_000_000
+
+_ROS_TYPES = {params.STRING: ParameterType.PARAMETER_STRING,
+              params.DOUBLE: ParameterType.PARAMETER_DOUBLE,
+              params.INTEGER: ParameterType.PARAMETER_INTEGER,
+              params.BOOL: ParameterType.PARAMETER_BOOL,
+              params.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY}
+
+
+def stamp_from_ns(stamp_ns):
+    """Return the ``builtin_interfaces/Time`` of an int time in ns (>= 0)."""
+    sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def ns_from_stamp(stamp):
+    """Return a ``builtin_interfaces/Time`` as int ns."""
+    return stamp.sec * NS_PER_S + stamp.nanosec
+
+
+def _doubles(row):
+    out = array('d')
+    out.frombytes(row.tobytes())
+    return out
+
+
+def joint_state_template(msg, joint_names):
+    """Set the joint names of a reusable ``JointState`` (they never change for a scene)."""
+    msg.name = list(joint_names)
+    return msg
+
+
+def fill_joint_state(msg, samples, i, stamp):
+    """
+    Fill ``msg`` (``sensor_msgs/JointState``, names set) with sample ``i`` of ``samples``.
+
+    Position and velocity of every joint (rad, rad/s; m, m/s for prismatic joints); effort
+    (N*m) as :mod:`mech_balance.twin` defines it, or empty when the scene does not compute
+    the driving torque (ROS convention: arrays are full length or empty).
+    """
+    msg.header.stamp = stamp
+    msg.position = _doubles(samples.joint_position[i])
+    msg.velocity = _doubles(samples.joint_velocity[i])
+    msg.effort = _doubles(samples.joint_effort[i]) if samples.joint_effort is not None \
+        else array('d')
+    return msg
+
+
+def fill_wrench(msg, samples, i, stamp, frame_id):
+    """
+    Fill ``msg`` (``geometry_msgs/WrenchStamped``) with the shaking wrench of sample ``i``.
+
+    Force (N) and moment (N*m) that the rig exerts on its frame, in the frame's axes, about
+    the crank pivot (RGGR: about O); planar rigs have force z = moment x = moment y = 0.
+    """
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    f, m = samples.force_N[i], samples.moment_Nm[i]
+    force, torque = msg.wrench.force, msg.wrench.torque
+    force.x, force.y, force.z = float(f[0]), float(f[1]), float(f[2])
+    torque.x, torque.y, torque.z = float(m[0]), float(m[1]), float(m[2])
+    return msg
+
+
+def serialized_samples(samples, stamps_ns, frame_id):
+    """
+    Return ``[(joint_state_bytes, wrench_bytes)]``, one pair per sample, CDR-serialized.
+
+    Message by message with rclpy's serializer (the reference :class:`SampleSerializer`
+    checks itself against).  Publishing the bytes is what a clock-mode tick does.
+    """
+    joints = joint_state_template(JointState(), samples.joint_names)
+    wrench = WrenchStamped()
+    out = []
+    for i, stamp_ns in enumerate(stamps_ns):
+        stamp = stamp_from_ns(stamp_ns)
+        out.append((serialize_message(fill_joint_state(joints, samples, i, stamp)),
+                    serialize_message(fill_wrench(wrench, samples, i, stamp, frame_id))))
+    return out
+
+
+_PROBE_SEC, _PROBE_NANOSEC = 0x1A2B3C4D, 0x05060708
+"""Distinctive stamp of the probe messages (found by value in their bytes)."""
+
+
+class SampleSerializer:
+    """
+    Serialize batches of samples to JointState and WrenchStamped bytes, vectorized.
+
+    With the joint names, the frame and the array lengths fixed, the serialized layout of
+    a message does not depend on its values.  One probe message per type, serialized by
+    rclpy with distinctive values, is the template; the offsets of its stamp and doubles
+    are found by value, and a batch is written into copies of the template with numpy.  The
+    first sample of every batch is read back with rclpy and compared with the message
+    filled by :func:`fill_joint_state` / :func:`fill_wrench` (the bytes themselves may differ
+    in the alignment padding, which CDR leaves unspecified): on any difference (another
+    middleware or encoding) this serializer falls back to :func:`serialized_samples` for
+    good (``fast`` becomes False).
+    """
+
+    def __init__(self, joint_names, has_effort, frame_id):
+        self.joint_names, self.has_effort = tuple(joint_names), bool(has_effort)
+        self.frame_id = frame_id
+        n = len(self.joint_names)
+        count = 3 if self.has_effort else 2
+        probe = _probe_values(count * n + 6)
+        js = joint_state_template(JointState(), self.joint_names)
+        js.header.stamp = Time(sec=_PROBE_SEC, nanosec=_PROBE_NANOSEC)
+        js.position, js.velocity = probe[:n].tolist(), probe[n:2 * n].tolist()
+        js.effort = probe[2 * n:3 * n].tolist() if self.has_effort else []
+        ws = WrenchStamped()
+        ws.header.stamp, ws.header.frame_id = js.header.stamp, frame_id
+        w = probe[count * n:]
+        f, m = ws.wrench.force, ws.wrench.torque
+        f.x, f.y, f.z, m.x, m.y, m.z = (float(x) for x in w)
+        self._joint = _Template(serialize_message(js), probe[:count * n])
+        self._wrench = _Template(serialize_message(ws), w)
+        self.fast = self._joint.ok and self._wrench.ok
+
+    def serialize(self, samples, stamps_ns):
+        """Return ``[(joint_state_bytes, wrench_bytes)]`` of a batch (its ``stamps_ns``)."""
+        if not self.fast:
+            return serialized_samples(samples, stamps_ns, self.frame_id)
+        stamps_ns = np.asarray(stamps_ns, dtype=np.int64)
+        sec, nanosec = np.divmod(stamps_ns, NS_PER_S)
+        parts = [samples.joint_position, samples.joint_velocity]
+        if self.has_effort:
+            parts.append(samples.joint_effort)
+        joints = self._joint.fill(sec, nanosec, np.hstack(parts))
+        wrench = self._wrench.fill(sec, nanosec, np.hstack([samples.force_N,
+                                                            samples.moment_Nm]))
+        out = [(joints[i].tobytes(), wrench[i].tobytes()) for i in range(stamps_ns.size)]
+        if out and not self._same_as_rclpy(samples, stamps_ns[0], out[0]):
+            self.fast = False
+            return serialized_samples(samples, stamps_ns, self.frame_id)
+        return out
+
+    def _same_as_rclpy(self, samples, stamp_ns, payload):
+        """Return whether ``payload`` reads back as the messages of sample 0 (padding aside)."""
+        stamp = stamp_from_ns(stamp_ns)
+        joints = fill_joint_state(joint_state_template(JointState(), self.joint_names),
+                                  samples, 0, stamp)
+        wrench = fill_wrench(WrenchStamped(), samples, 0, stamp, self.frame_id)
+        return (deserialize_message(payload[0], JointState) == joints and
+                deserialize_message(payload[1], WrenchStamped) == wrench)
+
+
+class _Template:
+    """The serialized probe of one message type and where its values sit."""
+
+    def __init__(self, data, doubles):
+        self.data = np.frombuffer(data, dtype=np.uint8)
+        offsets = [_find_once(data, struct.pack('<d', x)) for x in doubles]
+        self.sec = _find_once(data, struct.pack('<i', _PROBE_SEC))
+        self.nanosec = _find_once(data, struct.pack('<I', _PROBE_NANOSEC))
+        self.ok = None not in offsets and None not in (self.sec, self.nanosec)
+        if self.ok:
+            self.index = (np.array(offsets)[:, None] + np.arange(8)).ravel()
+
+    def fill(self, sec, nanosec, values):
+        """Return ``(n, size)`` bytes: the template with ``values`` ``(n, m)`` written in."""
+        n = values.shape[0]
+        out = np.tile(self.data, (n, 1))
+        out[:, self.sec:self.sec + 4] = sec.astype('<i4').view(np.uint8).reshape(n, 4)
+        out[:, self.nanosec:self.nanosec + 4] = \
+            nanosec.astype('<u4').view(np.uint8).reshape(n, 4)
+        out[:, self.index] = np.ascontiguousarray(values, dtype='<f8').view(np.uint8) \
+            .reshape(n, -1)
+        return out
+
+
+def _probe_values(count):
+    """Return ``count`` doubles whose 8-byte patterns are distinct and unlikely elsewhere."""
+    return np.pi * 1e-100 * (1.0 + np.arange(count) / 7.0)
+
+
+def _find_once(data, pattern):
+    at = data.find(pattern)
+    return at if at >= 0 and data.find(pattern, at + 1) < 0 else None
+
+
+def wrench_values(msg):
+    """Return ``(force (3,), moment (3,))`` of a ``WrenchStamped`` as tuples of floats."""
+    f, m = msg.wrench.force, msg.wrench.torque
+    return (f.x, f.y, f.z), (m.x, m.y, m.z)
+
+
+def crank_reading(msg, joint):
+    """
+    Return ``(stamp_ns, position_rad, velocity_rad_s or None)`` of ``joint`` in a JointState.
+
+    Position is required; velocity is used when the message has one per joint (else
+    None).  Raises ``ValueError`` naming the problem: joint missing, arrays of the wrong
+    length, a non-finite position or velocity.
+    """
+    names = list(msg.name)
+    if joint not in names:
+        raise ValueError(f'name: no joint {joint!r} in {names}, expected the crank joint '
+                         '(parameter crank_joint)')
+    i = names.index(joint)
+    if len(msg.position) != len(names):
+        raise ValueError(f'position: got {len(msg.position)} values for {len(names)} '
+                         'names, expected one per joint')
+    position = float(msg.position[i])
+    if not math.isfinite(position):
+        raise ValueError(f'position of {joint!r}: got {position!r}, expected a finite angle')
+    velocity = None
+    if len(msg.velocity):
+        if len(msg.velocity) != len(names):
+            raise ValueError(f'velocity: got {len(msg.velocity)} values for {len(names)} '
+                             'names, expected one per joint or none')
+        velocity = float(msg.velocity[i])
+        if not math.isfinite(velocity):
+            raise ValueError(f'velocity of {joint!r}: got {velocity!r}, expected a finite '
+                             'speed or an empty velocity array')
+    return ns_from_stamp(msg.header.stamp), position, velocity
+
+
+def parameter_descriptor(spec):
+    """Return the ROS ``ParameterDescriptor`` of a :class:`mech_balance.params.Spec`."""
+    desc = ParameterDescriptor(name=spec.name, type=_ROS_TYPES[spec.kind],
+                               description=spec.description,
+                               additional_constraints=spec.constraints)
+    if spec.bounds is not None and spec.kind == params.DOUBLE:
+        desc.floating_point_range = [FloatingPointRange(
+            from_value=float(spec.bounds[0]), to_value=float(spec.bounds[1]), step=0.0)]
+    if spec.bounds is not None and spec.kind == params.INTEGER:
+        desc.integer_range = [IntegerRange(from_value=int(spec.bounds[0]),
+                                           to_value=int(spec.bounds[1]), step=1)]
+    return desc
+
+
+def parameter_value(parameter):
+    """Return the plain Python value of an ``rclpy.parameter.Parameter`` (lists for arrays)."""
+    value = parameter.value
+    if value is not None and not isinstance(value, (str, bool, int, float)):
+        value = list(value)
+    return value

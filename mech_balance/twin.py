@@ -1,0 +1,739 @@
+"""
+The live twin's numerics: a rig's joints and shaking wrench at given crank angles.
+
+numpy only (no ROS): the rig node (:mod:`mech_balance.node`) wires these pieces to topics,
+:mod:`mech_balance.ros_conversions` turns their arrays into messages.
+
+:func:`model_for`
+    A scene's :class:`PlanarTwin` or :class:`RggrTwin`: ``evaluate(psi, speed, accel)``
+    returns :class:`Samples`, every joint's position, velocity and effort and the shaking
+    wrench, evaluated by the core in one vectorized call over a batch of crank angles.
+:class:`ClockSchedule`
+    Clock mode: tick ``k`` is stamped ``t_k = epoch + k * period`` and has the crank at
+    ``psi_k = psi_0 + omega (t_k - epoch)``.  The tick angles are known ahead, so the core
+    is evaluated on the exact angles of the next batch of ticks before they are due (no
+    interpolation: a published sample is the core's at its stamped angle).
+:class:`CrankEstimator`
+    Follow mode: crank speed and acceleration from an encoder's positions (and velocities,
+    if it sends them) by a causal least-squares polynomial fit over the last samples, with
+    the checks that reject input the rig cannot have produced.
+:class:`Streamer`
+    The two threads that publish: clock-mode ticks on schedule from precomputed batches,
+    or follow-mode samples evaluated in batches as encoder messages arrive.
+
+Joint values (ROS ``JointState`` convention: rad and rad/s for revolute joints, m and m/s
+for prismatic ones)
+    * the crank joint: the crank angle psi and speed psi_dot the core is evaluated at;
+    * any other revolute joint between links a and b: phi_b - phi_a, omega_b - omega_a;
+    * a prismatic joint: the slide of its point on link b from its point on link a along
+      the joint axis (fixed in link a), and its rate;
+    * RGGR: ``crank`` (phi1, omega) and ``output`` (phi3 about the output axis, seed 002
+      eq. 23, and its rate); the spherical joints of the coupler have no single coordinate.
+    Effort (when the scene's outputs include the driving torque): the driving torque on the
+    crank joint, the core's reaction moment at a prismatic joint (on link b from link a),
+    0 at every other joint (a frictionless revolute joint carries no moment about its axis).
+
+Shaking wrench: :mod:`mech_balance.conventions` (force and moment the rig exerts on its
+frame, frame axes); planar rigs about the crank pivot (force x, y, moment z), the RGGR about
+the origin O of its frame (seed 002: on the output axis, the foot of the common normal of
+the two axes), all six components.
+"""
+
+from collections import deque
+from dataclasses import dataclass, replace
+import math
+import threading
+import time
+
+from mech_balance import analysis
+from mech_balance.scene import FRAME
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+RGGR_JOINTS = ('crank', 'output')
+"""Joint names published for an RGGR scene (its crank and output axes)."""
+
+BATCH_SECONDS = 0.25
+"""Clock mode: ticks evaluated per core call, in seconds of publishing."""
+MIN_BATCH = 16
+"""Clock mode: fewest ticks per core call (low rates)."""
+MAX_BATCH = 4096
+"""Clock mode: most ticks per core call (high rates)."""
+MAX_LAG_S = 0.5
+"""Clock mode: a tick later than this is skipped (counted) instead of published late."""
+MAX_WAIT_S = 0.005
+"""Longest single wait of the publishing thread (bounds its reaction to sim-time jumps)."""
+MAX_FOLLOW_BATCH = 256
+"""Follow mode: most encoder samples evaluated in one core call."""
+MAX_PENDING = 10000
+"""Follow mode: encoder samples waiting for evaluation before the oldest are dropped."""
+STATS_WINDOW = 4096
+"""Per-callback times kept for the median (the most recent ones)."""
+
+
+# ------------------------------------------------------------------------------ samples
+
+
+@dataclass
+class Samples:
+    """
+    A batch of n samples of the rig, SI, ready to publish.
+
+    ``joint_*`` are ``(n, n_joints)`` in the order of ``joint_names``;
+    ``joint_effort`` is None when the scene does not compute the driving torque.  ``force_N``
+    and ``moment_Nm`` are ``(n, 3)`` in the frame's axes.  ``state`` and ``wrenches`` are the
+    core's planar results (None for the RGGR), kept for the recorder.
+    """
+
+    crank_angle_rad: np.ndarray
+    crank_speed_rad_s: np.ndarray
+    crank_accel_rad_s2: np.ndarray
+    joint_position: np.ndarray
+    joint_velocity: np.ndarray
+    joint_effort: np.ndarray
+    force_N: np.ndarray
+    moment_Nm: np.ndarray
+    joint_names: tuple = ()
+    state: object = None
+    wrenches: object = None
+
+    def __len__(self):
+        """Return the number of samples."""
+        return self.crank_angle_rad.shape[0]
+
+
+def _batch(psi, speed, accel):
+    psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
+    if psi.size == 0 or not np.all(np.isfinite(psi)):
+        raise ValueError(f'crank_angle_rad: got {psi!r}, expected finite angles (rad)')
+    speed = np.broadcast_to(np.asarray(speed, dtype=float), psi.shape).copy()
+    accel = np.broadcast_to(np.asarray(accel, dtype=float), psi.shape).copy()
+    if not (np.all(np.isfinite(speed)) and np.all(np.isfinite(accel))):
+        raise ValueError('crank speed and acceleration: got non-finite values, expected '
+                         'finite rad/s and rad/s^2')
+    return psi, speed, accel
+
+
+class PlanarTwin:
+    """A planar scene evaluated for publishing (module docstring: joint values, wrench)."""
+
+    kind = 'planar'
+    moment_point = 'the crank pivot'
+
+    def __init__(self, scene, linkage=None):
+        self.scene = scene
+        self.rig = analysis.Rig(scene, linkage)
+        lk = self.rig.linkage
+        body = {name: i for i, name in enumerate(lk.body_names)}
+        points = {FRAME: scene.frame_points, **{link.name: link.points for link in scene.links}}
+        joints = scene.joints
+        self.joint_names = tuple(j.name for j in joints)
+        self.crank_joint = scene.crank_joint
+        self.crank_index = self.joint_names.index(scene.crank_joint)
+        self._a = np.array([body[j.link_a] for j in joints])
+        self._b = np.array([body[j.link_b] for j in joints])
+        self._pa = np.array([complex(*points[j.link_a][j.point_a]) for j in joints])[:, None]
+        self._pb = np.array([complex(*points[j.link_b][j.point_b]) for j in joints])[:, None]
+        self._prismatic = np.array([j.kind == 'prismatic' for j in joints])
+        self._axis = np.array([complex(*j.axis) for j in joints])[:, None]
+        self.has_effort = bool({'driving_torque', 'bearing_reactions'} & set(scene.outputs))
+        # the reaction moments of prismatic joints come with the bearing reactions; those
+        # also give the driving torque at zero crank speed (the NOC projection divides by it)
+        self.outputs = ('shaking_wrench', 'bearing_reactions') if self.has_effort else \
+            ('shaking_wrench',)
+
+    def with_design(self, scene):
+        """Return the twin of another inertia on the same geometry (no re-tracing)."""
+        return PlanarTwin(scene, self.rig.linkage)
+
+    def evaluate(self, psi, speed, accel=0.0):
+        """Return the :class:`Samples` at crank angles ``psi`` ``(n,)`` (rad), rad/s, rad/s^2."""
+        psi, speed, accel = _batch(psi, speed, accel)
+        state, w = self.rig.evaluate(psi, outputs=self.outputs, speed=speed, accel=accel)
+        pose, a, b = state.pose, self._a, self._b
+        # relative joint coordinates (module docstring); batch-last (n_joints, n)
+        position = pose.phi[b] - pose.phi[a]
+        velocity = state.omega[b] - state.omega[a]
+        if np.any(self._prismatic):
+            s = self._prismatic
+            pa = pose.origin[a[s]] + pose.rot[a[s]] * self._pa[s]
+            pb = pose.origin[b[s]] + pose.rot[b[s]] * self._pb[s]
+            va = state.vel[a[s]] + 1j * state.omega[a[s]] * (pa - pose.origin[a[s]])
+            vb = state.vel[b[s]] + 1j * state.omega[b[s]] * (pb - pose.origin[b[s]])
+            axis = pose.rot[a[s]] * self._axis[s]
+            d = pb - pa
+            position[s] = (d * np.conj(axis)).real
+            velocity[s] = ((vb - va) * np.conj(axis)).real + \
+                (d * np.conj(1j * state.omega[a[s]] * axis)).real
+        position[self.crank_index] = psi
+        velocity[self.crank_index] = state.psi_d
+        effort = None
+        if self.has_effort:
+            effort = np.zeros_like(position)
+            for j in np.flatnonzero(self._prismatic):
+                effort[j] = w.reaction_moment[self.joint_names[j]]
+            effort[self.crank_index] = w.driving_torque
+            effort = effort.T
+        n = psi.size
+        force = np.zeros((n, 3))
+        force[:, 0], force[:, 1] = w.shaking_force.real, w.shaking_force.imag
+        moment = np.zeros((n, 3))
+        moment[:, 2] = w.shaking_moment
+        return Samples(psi, speed, accel, position.T, velocity.T, effort, force, moment,
+                       self.joint_names, state, w)
+
+
+class RggrTwin:
+    """
+    An RGGR scene evaluated for publishing (module docstring: joint values, wrench).
+
+    The core's RGGR model (seed 002) turns the crank at constant speed: each sample is
+    evaluated at its own crank speed with zero crank acceleration (an acceleration passed
+    in is not used).  At zero speed every inertia load vanishes and the driving torque is
+    its limit, 0 (the model has no gravity).
+    """
+
+    kind = 'rggr'
+    moment_point = 'the origin O of the RGGR frame'
+
+    def __init__(self, scene):
+        from mech_balance import rggr  # the RGGR module is only needed for RGGR scenes
+        self._rggr = rggr
+        self.scene = scene
+        self.joint_names = RGGR_JOINTS
+        self.crank_joint = RGGR_JOINTS[0]
+        self.crank_index = 0
+        self.has_effort = True
+        rggr.check_full_rotation(scene)
+
+    def with_design(self, scene):
+        """Return the twin of another design of the same RGGR."""
+        return RggrTwin(scene)
+
+    def evaluate(self, psi, speed, accel=0.0):
+        """Return the :class:`Samples` at crank angles ``psi`` ``(n,)`` (rad), rad/s."""
+        psi, speed, accel = _batch(psi, speed, accel)
+        n = psi.size
+        position, velocity = np.zeros((n, 2)), np.zeros((n, 2))
+        effort, force, moment = np.zeros((n, 2)), np.zeros((n, 3)), np.zeros((n, 3))
+        for value in np.unique(speed):
+            sel = speed == value
+            with np.errstate(divide='ignore', invalid='ignore'):  # torque 0/0 at rest
+                dyn = self._rggr.dynamics(replace(self.scene, crank_speed_rad_s=float(value)),
+                                          psi[sel])
+            kin = dyn.kinematics
+            position[sel] = np.column_stack([psi[sel], kin.output_angle_rad])
+            velocity[sel] = np.column_stack([speed[sel], kin.output_rate_rad_s])
+            torque = dyn.driving_torque_Nm if value != 0.0 else np.zeros(int(sel.sum()))
+            effort[sel, 0] = torque
+            force[sel], moment[sel] = dyn.shaking_force_N, dyn.shaking_moment_Nm
+        return Samples(psi, speed, np.zeros(n), position, velocity, effort, force, moment,
+                       self.joint_names)
+
+
+def model_for(scene):
+    """Return the twin of a scene: :class:`PlanarTwin` or :class:`RggrTwin` by its kind."""
+    if getattr(scene, 'kind', 'planar') == 'rggr':
+        return RggrTwin(scene)
+    return PlanarTwin(scene)
+
+
+# ------------------------------------------------------------------------------ clock
+
+
+@dataclass(frozen=True)
+class ClockSchedule:
+    """
+    Clock-mode ticks: tick k at ``epoch_ns + k period_ns`` with the crank at psi_k.
+
+    ``psi_k = angle0_rad + speed_rad_s (k period_ns 1e-9)``, published reduced to
+    [0, 2 pi); :meth:`turned` is the unreduced angle (for the recorder's timeline).
+    """
+
+    epoch_ns: int
+    period_ns: int
+    angle0_rad: float
+    speed_rad_s: float
+
+    def __post_init__(self):
+        """Check the period and the angles."""
+        if not (isinstance(self.period_ns, int) and self.period_ns > 0):
+            raise ValueError(f'period_ns: got {self.period_ns!r}, expected an integer > 0')
+        if not (math.isfinite(self.angle0_rad) and math.isfinite(self.speed_rad_s)):
+            raise ValueError(f'angle0_rad, speed_rad_s: got {self.angle0_rad!r}, '
+                             f'{self.speed_rad_s!r}, expected finite numbers')
+
+    def time_ns(self, k):
+        """Return the stamp of tick ``k`` (int ns on the node's clock)."""
+        return self.epoch_ns + int(k) * self.period_ns
+
+    def turned(self, k0, count):
+        """Return the unreduced crank angles of ticks ``k0 .. k0 + count - 1``, rad."""
+        k = np.arange(k0, k0 + count, dtype=np.int64)
+        return self.angle0_rad + self.speed_rad_s * ((k * self.period_ns) * 1e-9)
+
+    def angles(self, k0, count):
+        """Return the published crank angles of ticks ``k0 ..``, in [0, 2 pi) rad."""
+        return np.mod(self.turned(k0, count), TWO_PI)
+
+    def first_index_at_or_after(self, now_ns):
+        """Return the first tick whose stamp is not before ``now_ns``."""
+        return -((self.epoch_ns - int(now_ns)) // self.period_ns)
+
+    def rebased(self, epoch_ns, speed_rad_s=None, period_ns=None):
+        """Return a schedule from ``epoch_ns`` on, continuing the crank angle there."""
+        turned = self.angle0_rad + self.speed_rad_s * ((int(epoch_ns) - self.epoch_ns) * 1e-9)
+        return ClockSchedule(int(epoch_ns), self.period_ns if period_ns is None else period_ns,
+                             float(np.mod(turned, TWO_PI)),
+                             self.speed_rad_s if speed_rad_s is None else speed_rad_s)
+
+
+def batch_size(period_ns):
+    """Return the ticks per core call for a tick period (:data:`BATCH_SECONDS` of them)."""
+    return int(min(MAX_BATCH, max(MIN_BATCH, math.ceil(BATCH_SECONDS * 1e9 / period_ns))))
+
+
+# ------------------------------------------------------------------------------ follow
+
+
+FOLLOW_WINDOW = 7
+"""Encoder samples in the least-squares fit (default of ``follow.window``)."""
+MAX_SAMPLE_GAP_S = 0.5
+"""A longer gap between encoder stamps restarts the estimator (default ``follow.max_gap``)."""
+MAX_CRANK_SPEED = 200.0
+"""Fastest crank the rig can have, rad/s (default of ``follow.max_speed``)."""
+
+
+@dataclass(frozen=True)
+class CrankSample:
+    """One accepted encoder sample: the angle as sent, the turned angle, speed, accel."""
+
+    stamp_ns: int
+    angle_rad: float
+    turned_rad: float
+    speed_rad_s: float
+    accel_rad_s2: float
+
+
+class CrankEstimator:
+    """
+    Crank speed and acceleration from an encoder stream (follow mode).
+
+    Each sample's position is kept as sent (the core is evaluated at it); the turned angle
+    is unwrapped from the prediction of the last estimate, so encoders that wrap the angle
+    and encoders that do not are both followed.  Estimates (causal, at the newest sample):
+
+    * speed: the encoder's velocity if it sends one and ``use_encoder_velocity``; otherwise
+      the slope at the newest stamp of a least-squares quadratic in time through the last
+      ``window`` turned angles (a line through two; the first sample only primes);
+    * acceleration: twice the quadratic's leading coefficient or, with encoder velocities,
+      the slope of a least-squares line through the last ``window`` velocities.
+
+    The fit is exact for motion at constant acceleration and averages white encoder noise
+    over the window (the speed's noise falls as window^-1.5).  :meth:`update` raises
+    ``ValueError`` naming the problem for a sample the rig cannot have produced: a
+    non-finite value, a stamp not after the previous one, or a step that needs a crank
+    faster than ``max_speed``.  A gap longer than ``max_gap_s`` restarts the fit.
+    """
+
+    def __init__(self, window=FOLLOW_WINDOW, max_speed=MAX_CRANK_SPEED,
+                 max_gap_s=MAX_SAMPLE_GAP_S, use_encoder_velocity=True):
+        window = int(window)
+        if window < 2:
+            raise ValueError(f'window: got {window}, expected an integer >= 2')
+        if not (max_speed > 0.0 and max_gap_s > 0.0):
+            raise ValueError(f'max_speed, max_gap_s: got {max_speed!r}, {max_gap_s!r}, '
+                             'expected numbers > 0')
+        self.window = window
+        self.max_speed = float(max_speed)
+        self.max_gap_ns = int(max_gap_s * 1e9)
+        self.use_encoder_velocity = bool(use_encoder_velocity)
+        self.reset()
+
+    def reset(self):
+        """Forget the history (the next sample primes a new fit)."""
+        self._t = deque(maxlen=self.window)      # ns
+        self._psi = deque(maxlen=self.window)    # turned angle, rad
+        self._vel = deque(maxlen=self.window)    # encoder velocity or None
+        self._last = None                        # last accepted CrankSample or raw tuple
+
+    def update(self, stamp_ns, position, velocity=None):
+        """Return the :class:`CrankSample` of an encoder reading, or None while priming."""
+        stamp_ns = int(stamp_ns)
+        position = float(position)
+        if not math.isfinite(position):
+            raise ValueError(f'position: got {position!r}, expected a finite crank angle')
+        if velocity is not None:
+            velocity = float(velocity)
+            if not math.isfinite(velocity):
+                raise ValueError(f'velocity: got {velocity!r}, expected a finite crank '
+                                 'speed or none')
+        last = self._last
+        if last is not None and stamp_ns <= last[0]:
+            raise ValueError(f'stamp: {stamp_ns * 1e-9:.9f} s is not after the previous '
+                             f'{last[0] * 1e-9:.9f} s, expected increasing stamps')
+        if last is not None and stamp_ns - last[0] > self.max_gap_ns:
+            self.reset()
+            last = None
+        if last is None:
+            turned = position
+        else:
+            t_prev, raw_prev, turned_prev, speed_prev = last
+            dt = (stamp_ns - t_prev) * 1e-9
+            guess = 0.0 if speed_prev is None else speed_prev * dt
+            # the turn since the last sample: the 2 pi branch nearest the prediction
+            step = guess + _wrap_pi(position - raw_prev - guess)
+            if abs(step) > self.max_speed * dt:
+                raise ValueError(
+                    f'position: {position:.6g} rad after {raw_prev:.6g} rad in {dt:.3g} s '
+                    f'needs a crank speed of {abs(step) / dt:.4g} rad/s, expected at most '
+                    f'follow.max_speed = {self.max_speed:g} rad/s (a jump the linkage cannot '
+                    'make)')
+            turned = turned_prev + step
+        self._t.append(stamp_ns)
+        self._psi.append(turned)
+        self._vel.append(velocity)
+        speed, accel = self._estimate(velocity)
+        self._last = (stamp_ns, position, turned, speed)
+        if speed is None:
+            return None
+        return CrankSample(stamp_ns, position, turned, speed, accel)
+
+    def _estimate(self, velocity):
+        n = len(self._t)
+        t_new = self._t[-1]
+        tau = np.array([(t - t_new) * 1e-9 for t in self._t])
+        if velocity is not None and self.use_encoder_velocity:
+            vel = [v for v in self._vel if v is not None]
+            if len(vel) < 2 or len(vel) != n:
+                return velocity, 0.0
+            return velocity, _slope(tau, np.array(vel))
+        if n < 2:
+            return None, None
+        psi = np.array(self._psi) - self._psi[-1]
+        if n == 2:
+            return float(psi[0] / tau[0]), 0.0
+        # least-squares quadratic psi(tau) = c0 + c1 tau + c2 tau^2 about the newest stamp,
+        # tau scaled by the window span so the Vandermonde matrix is well conditioned
+        span = -tau[0]
+        x = tau / span
+        coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(n), x, x * x]), psi, rcond=None)
+        return float(coef[1] / span), float(2.0 * coef[2] / span ** 2)
+
+
+def _wrap_pi(x):
+    return (x + math.pi) % TWO_PI - math.pi
+
+
+def _slope(x, y):
+    xc = x - x.mean()
+    return float(np.dot(xc, y - y.mean()) / np.dot(xc, xc))
+
+
+# ------------------------------------------------------------------------------ streamer
+
+
+class TickStats:
+    """
+    Wall time of the publishing step of each sample (for ``mech-balance bench``).
+
+    Kept since the last change of mode, rate or speed; the median is over the most recent
+    :data:`STATS_WINDOW` steps.
+    """
+
+    def __init__(self):
+        self.count = 0
+        self.skipped = 0
+        self.late_max_s = 0.0
+        self._times = deque(maxlen=STATS_WINDOW)
+        self.batch_seconds = deque(maxlen=64)
+        self.batch_sizes = deque(maxlen=64)
+
+    def add(self, seconds):
+        """Record one publishing step."""
+        self.count += 1
+        self._times.append(seconds)
+
+    def summary(self):
+        """
+        Return count, skipped ticks, the median and 99th percentile publishing step.
+
+        ``prepare_per_sample_s`` is the compute per sample: the core's evaluation and the
+        preparation (serialization) of both messages, amortized over the batches.
+        """
+        times = np.array(self._times) if self._times else np.zeros(1)
+        per_tick = (sum(self.batch_seconds) / sum(self.batch_sizes)) if self.batch_sizes \
+            else float('nan')
+        return {'published': self.count, 'skipped': self.skipped,
+                'step_median_s': float(np.median(times)),
+                'step_p99_s': float(np.percentile(times, 99)),
+                'late_max_s': self.late_max_s,
+                'prepare_per_sample_s': per_tick}
+
+
+class Streamer:
+    """
+    The publishing threads of the rig node (no ROS inside: callables are passed in).
+
+    ``now_ns()`` reads the node's clock; ``prepare(samples, stamps_ns)`` turns an evaluated
+    batch into one payload per sample (the node: both messages, serialized);
+    ``publish(payload)`` sends one; ``warn(text)`` reports a problem;
+    ``record(samples, turned_rad, stamps_ns)`` (optional) receives every evaluated batch.
+
+    Clock mode: one thread publishes tick k at its stamp from prepared batches, a second
+    evaluates and prepares the next batch while the current one is published, so that a
+    tick costs only the publishing of its payload.  Follow mode: encoder samples queued by
+    :meth:`push` are evaluated in batches (as many as arrived while the last batch was
+    evaluated), prepared and published.
+    """
+
+    def __init__(self, now_ns, prepare, publish, warn, record=None):
+        self._now_ns = now_ns
+        self._prepare = prepare
+        self._publish = publish
+        self._warn = warn
+        self._record = record
+        self._cond = threading.Condition()
+        self._generation = 0
+        self._mode = None
+        self._model = None
+        self._schedule = None
+        self._batches = deque()        # (k0, payloads), contiguous, ascending
+        self._next_k = None
+        self._pending = deque()        # CrankSample, follow mode
+        self._stopped = False
+        self._refill = threading.Event()  # wakes the precompute thread (not every tick)
+        self.stats = TickStats()
+        self._threads = [threading.Thread(target=self._run_publisher, name='rig-publish',
+                                          daemon=True),
+                         threading.Thread(target=self._run_precompute, name='rig-precompute',
+                                          daemon=True)]
+        for t in self._threads:
+            t.start()
+
+    # -------------------------------------------------------------- control (any thread)
+
+    def clock(self, model, speed_rad_s, period_ns, angle0_rad=0.0):
+        """Publish ticks of ``model`` at ``speed_rad_s`` every ``period_ns``, continuing on."""
+        with self._cond:
+            now = self._now_ns()
+            if self._mode == 'clock' and self._schedule is not None:
+                schedule = self._schedule.rebased(now, float(speed_rad_s), int(period_ns))
+            else:
+                schedule = ClockSchedule(int(now), int(period_ns), float(angle0_rad),
+                                         float(speed_rad_s))
+            self._restart('clock', model, schedule)
+
+    def follow(self, model):
+        """Publish one sample of ``model`` per encoder sample pushed."""
+        with self._cond:
+            self._restart('follow', model, None)
+
+    def set_model(self, model):
+        """Publish another design (or re-prepare) from the next sample on, same schedule."""
+        with self._cond:
+            self._restart(self._mode, model, self._schedule, keep_pending=True)
+
+    def push(self, sample):
+        """Queue a follow-mode :class:`CrankSample`; return False if the oldest was dropped."""
+        with self._cond:
+            dropped = len(self._pending) >= MAX_PENDING
+            if dropped:
+                self._pending.popleft()
+            self._pending.append(sample)
+            self._cond.notify_all()
+        return not dropped
+
+    def stop(self, timeout=2.0):
+        """Stop both threads (idempotent)."""
+        with self._cond:
+            self._stopped = True
+            self._cond.notify_all()
+        self._refill.set()
+        for t in self._threads:
+            if t is not threading.current_thread():
+                t.join(timeout)
+
+    def _restart(self, mode, model, schedule, keep_pending=False):
+        if not keep_pending:  # a new mode, rate or speed: statistics start again
+            self.stats = TickStats()
+        self._generation += 1
+        self._mode, self._model, self._schedule = mode, model, schedule
+        self._batches.clear()
+        self._next_k = None
+        if not keep_pending:
+            self._pending.clear()
+        self._cond.notify_all()
+
+    # -------------------------------------------------------------- evaluation
+
+    def _evaluate_ticks(self, model, schedule, k0, count):
+        """Return the payloads of ticks ``k0 ..``: the core on their exact angles, prepared."""
+        t0 = time.perf_counter()
+        turned = schedule.turned(k0, count)
+        samples = model.evaluate(np.mod(turned, TWO_PI), schedule.speed_rad_s, 0.0)
+        stamps = schedule.epoch_ns + np.arange(k0, k0 + count, dtype=np.int64) * \
+            schedule.period_ns
+        payloads = self._prepare(samples, stamps)
+        self.stats.batch_seconds.append(time.perf_counter() - t0)
+        self.stats.batch_sizes.append(count)
+        if self._record is not None:
+            self._record(samples, turned, stamps)
+        return payloads
+
+    def _evaluate_follow(self, model, batch):
+        """Evaluate queued encoder samples; on a core error, one by one (skipping bad ones)."""
+        t0 = time.perf_counter()
+        try:
+            groups = [(model.evaluate([s.angle_rad for s in batch],
+                                      [s.speed_rad_s for s in batch],
+                                      [s.accel_rad_s2 for s in batch]), batch)]
+        except ValueError:
+            groups = []
+            for s in batch:
+                try:
+                    groups.append((model.evaluate([s.angle_rad], [s.speed_rad_s],
+                                                  [s.accel_rad_s2]), [s]))
+                except ValueError as exc:
+                    self._warn(f'crank_joint_state: skipped the sample at '
+                               f'{s.stamp_ns * 1e-9:.9f} s: {exc}')
+        out = []
+        for samples, group in groups:
+            stamps = np.array([s.stamp_ns for s in group], dtype=np.int64)
+            out.append(self._prepare(samples, stamps))
+            if self._record is not None:
+                self._record(samples, np.array([s.turned_rad for s in group]), stamps)
+        self.stats.batch_seconds.append(time.perf_counter() - t0)
+        self.stats.batch_sizes.append(len(batch))
+        return [p for payloads in out for p in payloads]
+
+    # -------------------------------------------------------------- threads
+
+    def _run_publisher(self):
+        while True:
+            with self._cond:
+                if self._stopped:
+                    return
+                mode = self._mode
+                if mode is None:
+                    self._cond.wait(MAX_WAIT_S * 20)
+                    continue
+            try:
+                if mode == 'clock':
+                    self._clock_step()
+                else:
+                    self._follow_step()
+            except Exception as exc:  # noqa: BLE001 - the node never dies on a sample
+                self._warn(f'publishing failed: {type(exc).__name__}: {exc}')
+                time.sleep(MAX_WAIT_S)
+
+    def _clock_step(self):
+        with self._cond:
+            gen, model, schedule = self._generation, self._model, self._schedule
+            now = self._now_ns()
+            if now == 0:  # simulated time that has not started (no /clock yet)
+                self._cond.wait(MAX_WAIT_S)
+                return
+            if schedule.epoch_ns == 0:  # the schedule was made before the clock started
+                schedule = self._schedule = ClockSchedule(
+                    now, schedule.period_ns, schedule.angle0_rad, schedule.speed_rad_s)
+            k = self._next_k
+            if k is None:
+                k = schedule.first_index_at_or_after(now)
+            due = schedule.time_ns(k)
+            if due > now + schedule.period_ns + int(MAX_LAG_S * 1e9):
+                # the clock went back (e.g. a simulation restarted): start again from now
+                self._schedule = schedule.rebased(now)
+                self._next_k = None
+                self._batches.clear()
+                self._generation += 1
+                return
+            if due > now:
+                self._next_k = k
+                self._cond.wait(min((due - now) * 1e-9, MAX_WAIT_S))
+                return
+            late = (now - due) * 1e-9
+            if late > MAX_LAG_S:
+                k_now = schedule.first_index_at_or_after(now)
+                self.stats.skipped += k_now - k
+                self._next_k = k_now
+                self._batches.clear()
+                self._warn(f'clock mode: skipped {k_now - k} ticks ({late:.3f} s late: the '
+                           'clock jumped or the machine is overloaded)')
+                return
+            found = self._lookup(k)
+        if found is None:  # not prepared yet (start, design change): evaluate it now
+            payloads = self._evaluate_ticks(model, schedule, k, batch_size(schedule.period_ns))
+            with self._cond:
+                if gen != self._generation:
+                    return
+                self._batches.clear()
+                self._batches.append((k, payloads))
+                found = payloads[0]
+        t0 = time.perf_counter()
+        self._publish(found)
+        self.stats.add(time.perf_counter() - t0)
+        self.stats.late_max_s = max(self.stats.late_max_s, late)
+        with self._cond:
+            if gen == self._generation:
+                self._next_k = k + 1
+                if self._needs_refill():
+                    self._refill.set()
+
+    def _needs_refill(self):
+        """Return whether less than one batch lies ahead of the next tick (lock held)."""
+        if not self._batches or self._next_k is None:
+            return False
+        k0, last = self._batches[-1]
+        return k0 + len(last) - self._next_k < batch_size(self._schedule.period_ns)
+
+    def _lookup(self, k):
+        while self._batches:
+            k0, payloads = self._batches[0]
+            if k < k0:
+                return None
+            if k < k0 + len(payloads):
+                return payloads[k - k0]
+            self._batches.popleft()
+        return None
+
+    def _run_precompute(self):
+        """Evaluate the next clock-mode batch whenever less than one batch lies ahead."""
+        while True:
+            self._refill.wait(MAX_WAIT_S * 20)
+            self._refill.clear()
+            with self._cond:
+                if self._stopped:
+                    return
+                if self._mode != 'clock' or not self._needs_refill():
+                    continue
+                k0, last = self._batches[-1]
+                gen, model, schedule = self._generation, self._model, self._schedule
+                k0, count = k0 + len(last), batch_size(schedule.period_ns)
+            try:
+                payloads = self._evaluate_ticks(model, schedule, k0, count)
+            except Exception as exc:  # noqa: BLE001 - reported, the publisher retries
+                self._warn(f'clock mode: evaluating ticks {k0}.. failed: {exc}')
+                time.sleep(MAX_WAIT_S * 20)
+                continue
+            with self._cond:
+                if gen == self._generation and self._batches:
+                    k_last, last = self._batches[-1]
+                    if k_last + len(last) == k0:
+                        self._batches.append((k0, payloads))
+
+    def _follow_step(self):
+        with self._cond:
+            if not self._pending:
+                self._cond.wait(MAX_WAIT_S * 20)
+                return
+            gen, model = self._generation, self._model
+            batch = [self._pending.popleft()
+                     for _ in range(min(len(self._pending), MAX_FOLLOW_BATCH))]
+        for payload in self._evaluate_follow(model, batch):
+            with self._cond:
+                if gen != self._generation or self._stopped:
+                    return
+            t0 = time.perf_counter()
+            self._publish(payload)
+            self.stats.add(time.perf_counter() - t0)
