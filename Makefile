@@ -10,10 +10,10 @@ STAMP := $(VENV)/.mech_balance-installed
 PIP := $(BIN)/python -m pip --disable-pip-version-check
 
 .DEFAULT_GOAL := help
-.PHONY: help venv run test clean
+.PHONY: help venv run test bench bench-mujoco clean
 
 help:  ## List the targets.
-	@grep -E '^[a-z]+:.*## ' $(MAKEFILE_LIST) | sed -e 's/:.*## /\t/' | expand -t 8
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -e 's/:.*## /\t/' | expand -t 8
 
 venv: $(STAMP)  ## Create .venv with the pinned requirements and the package (editable).
 
@@ -37,6 +37,15 @@ run: venv  ## Install everything and run the main job.
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
 test: venv  ## Install everything and run all tests (ament flake8, pep257, colcon build, suite).
 	$(BIN)/python -m pytest test
+
+bench: venv  ## Print the timing tables (core, balancing, recording, node).
+	$(BIN)/mech-balance bench
+
+# MuJoCo is an optional benchmark dependency: only this target installs it (pinned).
+MUJOCO_VERSION ?= 4.0.0
+bench-mujoco: venv  ## Install MuJoCo (optional, pinned) and compare it with this package.
+	$(PIP) install --quiet mujoco==$(MUJOCO_VERSION)
+	$(BIN)/mech-balance bench --compare mujoco
 
 clean:  ## Remove .venv and build leftovers.
 	rm -rf $(VENV) build install log .pytest_cache *.egg-info

@@ -84,6 +84,10 @@ def build_parser():
                    help='crank angles per cycle (default: %(default)s)')
     p.add_argument('--repeat', type=int, default=50,
                    help='timed runs per figure (default: %(default)s)')
+    p.add_argument('--compare', choices=['mujoco'], default=None,
+                   help='instead, run Hoeken and generated 4-20 link chains through this '
+                        'package and through MuJoCo side by side: agreement, us per angle, '
+                        'scaling (needs the optional mujoco package: make bench-mujoco)')
     p.set_defaults(func=cmd_bench)
     import importlib
     for name in EXTENSIONS:
@@ -131,6 +135,9 @@ def cmd_analyze(args):
 
 def cmd_bench(args):
     """Print core timings."""
+    if args.compare == 'mujoco':
+        from mech_balance import bench_mujoco
+        return bench_mujoco.cmd_compare(args)
     from mech_balance import bench
     print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} warm-up '
           f'runs, {args.samples} crank angles per cycle', flush=True)

@@ -22,7 +22,7 @@ All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given
 
 from dataclasses import dataclass
 
-from mech_balance.kinematics import _cross
+from mech_balance.kinematics import _cross, _rmat
 import numpy as np
 
 PARAMS_PER_LINK = 4
@@ -83,26 +83,34 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
     ``need`` is a set from ``shaking_wrench``, ``driving_torque``, ``bearing_reactions``;
     only what it asks for (and what that depends on) is computed.
     """
-    need = set(need)
     pose = state.pose
+    omega, alpha, acc = state.omega, state.alpha, state.acc
     world_h = pose.rot * inertia.first_moment[:, None]
-    f_star = inertia.mass[:, None] * state.acc + (
-        1j * state.alpha - state.omega ** 2) * world_h
-    n_star = inertia.inertia_origin[:, None] * state.alpha + _cross(world_h, state.acc)
+    # seed 001 eq. 26: f* = m a + (i alpha - omega^2) R h,  n* = I_O alpha + cross(R h, a)
+    f_star = 1j * alpha
+    f_star -= omega * omega
+    f_star *= world_h
+    f_star += inertia.mass[:, None] * acc
+    n_star = _cross(world_h, acc)
+    n_star += inertia.inertia_origin[:, None] * alpha
     arm = pose.origin - linkage.pivot
+    m_net = _cross(arm, f_star)                # inertia moments about the crank pivot
+    m_net += n_star
     # seed 001 eq. 39: the reaction of the resultant inertia wrench, about the crank pivot
-    shaking_force = -np.sum(f_star, axis=0)
-    shaking_moment = -np.sum(n_star + _cross(arm, f_star), axis=0)
+    shaking_force = np.add.reduce(f_star, axis=0)
+    np.negative(shaking_force, out=shaking_force)
+    shaking_moment = np.add.reduce(m_net, axis=0)
+    np.negative(shaking_moment, out=shaking_moment)
     out = Wrenches(f_star, n_star, shaking_force, shaking_moment)
     gravity = complex(gravity)
     if 'bearing_reactions' in need:
-        _reactions(linkage, state, inertia, world_h, arm, gravity, out)
+        _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net)
     elif 'driving_torque' in need:
         # seed 000 eq. 37: tau = u^T (w* - w^E), u = t / psi_dot (power balance per unit speed)
-        power = np.sum(state.omega * n_star + _dot(state.vel, f_star), axis=0)
+        power = np.sum(omega * n_star + _dot(state.vel, f_star), axis=0)
         if gravity:
             power -= np.sum(inertia.mass[:, None] * _dot(state.vel, gravity)
-                            + state.omega * _cross(world_h, gravity), axis=0)
+                            + omega * _cross(world_h, gravity), axis=0)
         out.driving_torque = power / state.psi_d
     return out
 
@@ -110,74 +118,84 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
 def _matvec_t(mat, vec):
     """Return mat^T @ vec for batch-last (k, m, p) and (k, p) stacks."""
     if mat.shape[0] == 2 and mat.shape[1] == 2:
-        return np.array([mat[0, 0] * vec[0] + mat[1, 0] * vec[1],
-                         mat[0, 1] * vec[0] + mat[1, 1] * vec[1]])
+        out = mat[0] * vec[0]
+        out += mat[1] * vec[1]
+        return out
     return np.einsum('kip,kp->ip', mat, vec)
 
 
 def _dot(a, b):
-    return a.real * b.real + a.imag * b.imag
+    """Return the scalar product of complex-coded planar vectors."""
+    return (a.conjugate() * b).real
 
 
-def _reactions(linkage, state, inertia, world_h, arm, gravity, out):
+def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
+    """
+    Fill in the driving torque, cut multipliers and every joint reaction (seed 001 eqs. 32-38).
+
+    ``m_net`` are the inertia moments of the bodies about the crank pivot.
+    """
     pose = state.pose
     pivot = linkage.pivot
     f_net = out.f_star
-    m_net = out.n_star + _cross(arm, out.f_star)           # about the crank pivot
     if gravity:
         weight = inertia.mass[:, None] * gravity
         f_net = f_net - weight
         m_net = m_net - _cross(arm, weight) - _cross(world_h, gravity)
-    below = linkage.anc_all.T                              # (nt, nb): bodies below joint t
+    below = linkage.below                                  # (nt, nb): bodies below joint t
     lever = pose.joint_at - pivot
     # generalized forces of the tree coordinates, Q = N^T (w* - w^E) (seed 001 eq. 32)
-    f_sub = below @ f_net
-    q_gen = below @ m_net - _cross(lever, f_sub)
+    f_sub = _rmat(below, f_net)                            # net force of each subtree
+    m_sub = below @ m_net                                  # and its moment about the pivot
+    q_gen = m_sub - _cross(lever, f_sub)
     if linkage.has_pri:
         q_gen = np.where(linkage.is_prismatic[:, None], _dot(pose.axis, f_sub), q_gen)
     # cut-joint multipliers, seed 001 eqs. 33-38: lambda = J_u^-T Q_u (scaled Jacobian)
-    lam_scaled = _matvec_t(state.jac_inv, q_gen[linkage.unknown] * linkage.col_scale[:, None])
+    q_u = q_gen[linkage.unknown_rows]
+    if linkage.has_pri:
+        q_u = q_u * linkage.col_scale[:, None]
+    lam_scaled = _matvec_t(state.jac_inv, q_u)
     lam = lam_scaled * linkage.row_scale[:, None]
-    tau = q_gen[0] - np.sum(state.jac[:, 0, :] * lam_scaled, axis=0)
+    tau = q_gen[0] - np.einsum('ip,ip->p', state.jac[:, 0, :], lam_scaled)
     out.driving_torque = tau
     out.multipliers = lam
     nr, npc = linkage.nr, linkage.npc
     pa, pb = linkage._cut_points(pose)
-    force = lam[:nr] + 1j * lam[nr:2 * nr]               # on b from a, at the common point
-    m_on_b = _cross(pb[:nr] - pivot, force)
-    m_on_a = -_cross(pa[:nr] - pivot, force)
-    cut_moment = np.zeros((nr, state.size))
+    force = np.empty((nr + npc, state.size), dtype=complex)  # on b from a
+    force.real[:nr] = lam[:nr]                            # at the common point
+    force.imag[:nr] = lam[nr:2 * nr]
+    cut_moment = np.zeros((nr + npc, state.size))
     if npc:
         ia = linkage.cut_a[nr:]
-        normal = 1j * pose.rot[ia] * np.array([c.axis for c in linkage.cuts[nr:]])[:, None]
         mu, nu = lam[2 * nr:2 * nr + npc], lam[2 * nr + npc:]
-        f_pri = nu * normal
-        mb = mu + _cross(pb[nr:] - pivot, f_pri)
-        force = np.concatenate([force, f_pri])
-        m_on_b = np.concatenate([m_on_b, mb])
-        m_on_a = np.concatenate([m_on_a, -mb])
-        cut_moment = np.concatenate([cut_moment, mu])
-    inc_a, inc_b = linkage.cut_inc_a, linkage.cut_inc_b
-    f_req = below @ (f_net - (inc_b - inc_a) @ force)
-    m_req = below @ (m_net - inc_b @ m_on_b - inc_a @ m_on_a)
+        force[nr:] = nu * (1j * pose.rot[ia] * linkage.cut_axis)   # along the normal
+        cut_moment[nr:] = mu
+    m_on_b = _cross(pb - pivot, force)                    # about the pivot
+    m_on_a = _cross(pa - pivot, force)
+    np.negative(m_on_a, out=m_on_a)
+    if npc:
+        m_on_b[nr:] += cut_moment[nr:]
+        m_on_a[nr:] = -m_on_b[nr:]
+    # tree joint t carries what its subtree needs beyond the cut loads on that subtree
+    f_req = f_sub - _rmat(linkage.below_cut, force)
+    m_req = m_sub - linkage.below_cut_b @ m_on_b - linkage.below_cut_a @ m_on_a
     moment = m_req - _cross(lever, f_req)                 # about each tree joint
-    worst = float(np.max(np.abs(moment[0] - tau), initial=0.0))
-    rev = ~linkage.is_prismatic
-    rev[0] = False
-    if rev.any():
-        worst = max(worst, float(np.max(np.abs(moment[rev]), initial=0.0)))
+    dev = moment[0] - tau
+    worst = float(np.abs(dev, out=dev).max())
+    rev = linkage.rev_passive
+    if rev.size:
+        worst = max(worst, float(np.abs(moment[rev]).max()))
         moment[rev] = 0.0
-    sign = linkage.tree_sign[:, None]
-    forces = dict(zip(linkage.tree_names, sign * f_req))
-    moments = dict(zip(linkage.tree_names, sign * moment))
-    forces.update(zip(linkage.cut_names, force))
-    moments.update(zip(linkage.cut_names, cut_moment))
-    points = dict(zip(linkage.tree_names, pose.joint_at))
-    points.update(zip(linkage.cut_names, pb))
-    order = linkage.joint_names
-    out.reaction_force = {n: forces[n] for n in order}
-    out.reaction_moment = {n: moments[n] for n in order}
-    out.reaction_point = {n: points[n] for n in order}
+    if linkage.tree_flip.size:
+        f_req[linkage.tree_flip] *= -1.0
+        moment[linkage.tree_flip] *= -1.0
+    # joint order of the scene: (tree row or cut row) of each joint
+    out.reaction_force = {n: (f_req[i] if tree else force[i])
+                          for n, tree, i in linkage.joint_rows}
+    out.reaction_moment = {n: (moment[i] if tree else cut_moment[i])
+                           for n, tree, i in linkage.joint_rows}
+    out.reaction_point = {n: (pose.joint_at[i] if tree else pb[i])
+                          for n, tree, i in linkage.joint_rows}
     out.consistency = worst
 
 

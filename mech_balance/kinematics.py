@@ -99,7 +99,7 @@ class Pose:
     origin: np.ndarray    # (nb, p) complex, link origins, m
     joint_at: np.ndarray  # (nt, p) complex, world location of each tree joint, m
     axis: np.ndarray      # (nt, p) complex, world slide direction (prismatic tree joints)
-    cut_points: tuple = None  # cached world points (a, b) of the cut joints
+    cut_points: tuple = None  # cached (pa, pb, arm_a, arm_b, arms) of the cut joints
 
 
 @dataclass
@@ -173,6 +173,7 @@ class Linkage:
         # body order: tree order (parents before children)
         self.order = [tj.child for tj in self.tree]
         self.unknown = list(range(1, self.nt))          # tree coords solved by Newton
+        self.unknown_rows = slice(1, self.nt)           # the same, as a slice (no copies)
         self.nu = len(self.unknown)
         self.m = 2 * len(self.cuts)
         if self.m != self.nu:
@@ -190,6 +191,7 @@ class Linkage:
         self._compile()
         self.pivot = self._crank_pivot(scene)
         self.pivots = None  # static row order for the loop Jacobian, set at assembly
+        self.lu = None      # its sparse LU plan (smallsolve.LUPlan), set at assembly
         self._skeleton = None
         self.warnings = []
 
@@ -259,6 +261,8 @@ class Linkage:
         self.cut_b = np.array([c.b for c in self.cuts], dtype=int)
         self.cut_pa = np.array([c.p_a for c in self.cuts])[:, None]
         self.cut_pb = np.array([c.p_b for c in self.cuts])[:, None]
+        self.cut_ab = np.concatenate([self.cut_a, self.cut_b])
+        self.cut_p_ab = np.concatenate([self.cut_pa, self.cut_pb]).astype(complex)
         ncut = len(self.cuts)
         self.cut_inc_a = np.zeros((nb, ncut))
         self.cut_inc_b = np.zeros((nb, ncut))
@@ -279,67 +283,145 @@ class Linkage:
         self.sel_rev = self.anc_rev[self.cut_b] - self.anc_rev[self.cut_a]
         self.sel_rev_a, self.sel_rev_b = self.anc_rev[self.cut_a], self.anc_rev[self.cut_b]
         self.sel_pri = self.anc_pri[self.cut_b] - self.anc_pri[self.cut_a]
+        # the same as broadcastable (ncut, cols, 1) stacks, all columns and unknown ones only
+        sel = (self.sel_rev_a, self.sel_rev_b, self.sel_rev)
+        self.sel_rev_a3, self.sel_rev_b3, self.sel_rev3 = (
+            np.ascontiguousarray(x[:, :, None]) for x in sel)
+        self.sel_rev_a_u, self.sel_rev_b_u, self.sel_rev_u = (
+            np.ascontiguousarray(x[:, self.unknown, None]) for x in sel)
+        # all-revolute loops: the Jacobian's structural nonzeros (cut c, tree joint t) are
+        # differences of two points of S = [pa; pb; J]: pb - J_t (t above b only), J_t - pa
+        # (t above a only) or pb - pa (above both); i times that is the entry
+        ncut = len(self.cuts)
+        nz = []
+        for c in range(ncut):
+            for t in range(nt):
+                above_b, above_a = self.anc_rev[self.cut_b[c], t], self.anc_rev[self.cut_a[c], t]
+                if above_b and above_a:
+                    nz.append((c, t, ncut + c, c))
+                elif above_b:
+                    nz.append((c, t, ncut + c, 2 * ncut + t))
+                elif above_a:
+                    nz.append((c, t, 2 * ncut + t, c))
+        nz = np.array(nz, dtype=int).reshape(-1, 4)
+        unk = nz[:, 1] > 0
+        self.jac_nz = (nz[:, 0], nz[:, 1], nz[:, 2], nz[:, 3])
+        self.jac_nz_u = (nz[unk, 0], nz[unk, 1] - 1, nz[unk, 2], nz[unk, 3])
+        self.cut_angle = np.array([c.angle for c in self.cuts[self.nr:]])[:, None]
+        self.cut_axis = np.array([c.axis for c in self.cuts[self.nr:]], dtype=complex)[:, None]
+        # reaction recursion (dynamics): bodies below each tree joint, and the cut-joint
+        # loads summed over those bodies
+        self.below = np.ascontiguousarray(self.anc_all.T)                  # (nt, nb)
+        self.below_cut_a = self.below @ self.cut_inc_a                     # (nt, ncut)
+        self.below_cut_b = self.below @ self.cut_inc_b
+        self.below_cut = self.below_cut_b - self.below_cut_a
+        rev = ~self.is_prismatic
+        rev[0] = False
+        self.rev_passive = np.flatnonzero(rev)     # revolute tree joints other than the crank
+        self.tree_flip = np.flatnonzero(self.tree_sign < 0)  # reported from child to parent
+        rows = {n: (True, t) for t, n in enumerate(self.tree_names)}
+        rows.update({n: (False, c) for c, n in enumerate(self.cut_names)})
+        self.joint_rows = [(n, *rows[n]) for n in self.joint_names]
+
+    def _jacobian_pattern(self):
+        """Return the structural nonzeros ``(m, nu)`` of the loop Jacobian's unknown columns."""
+        touched = (self.anc_all[self.cut_a] + self.anc_all[self.cut_b]) != 0  # (ncut, nt)
+        nr = self.nr
+        rows = [touched[:nr], touched[:nr], touched[nr:], touched[nr:]]
+        return np.concatenate(rows)[:, self.unknown]
 
     def pose(self, q, rot_crank=None):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
         phi = self.anc_rev @ q
         if self.has_pri:
-            phi = phi + self.phi_offset
+            phi += self.phi_offset
         rot = np.empty(phi.shape, dtype=complex)
         rot[0] = 1.0
-        rot[1:] = np.exp(1j * phi[1:])
+        # cos and sin straight into the real and imaginary parts: cheaper than complex exp
+        np.cos(phi[1:], out=rot.real[1:])
+        np.sin(phi[1:], out=rot.imag[1:])
         rot_par, rot_ch = rot[self.par], rot[self.ch]
-        contrib = rot_par * self.p_par - rot_ch * self.p_ch
+        arm_ch = rot_ch * self.p_ch
+        contrib = rot_par * self.p_par - arm_ch
         axis = None
         if self.has_pri:
             axis = np.where(self.axis_on_par, rot_par, -rot_ch) * self.axis_local
-            contrib = contrib + q * axis
-        origin = self.anc_all @ contrib
-        joint_at = origin[self.ch] + rot_ch * self.p_ch
+            contrib += q * axis
+        origin = _rmat(self.anc_all, contrib)
+        joint_at = origin[self.ch] + arm_ch
         return Pose(phi, rot, origin, joint_at, axis)
 
     def _cut_points(self, pose):
-        if pose.cut_points is not None:
-            return pose.cut_points
-        pa = pose.origin[self.cut_a] + pose.rot[self.cut_a] * self.cut_pa
-        pb = pose.origin[self.cut_b] + pose.rot[self.cut_b] * self.cut_pb
-        pose.cut_points = (pa, pb)
-        return pa, pb
+        """Return the world points ``(pa, pb)`` of the cut joints (cached on the pose)."""
+        if pose.cut_points is None:
+            # both ends of every cut in one go: rows (a ends, b ends)
+            arms = pose.rot[self.cut_ab] * self.cut_p_ab
+            points = pose.origin[self.cut_ab] + arms
+            n = len(self.cuts)
+            pose.cut_points = (points[:n], points[n:], arms[:n], arms[n:], arms)
+        return pose.cut_points[:2]
 
     def residual(self, pose):
         """Return the scaled loop-closure residuals ``(m, p)`` (seed 000 eq. 27)."""
         pa, pb = self._cut_points(pose)
         d = pb - pa
         nr = self.nr
+        if not self.npc:
+            out = np.empty((self.m, d.shape[1]))
+            np.multiply(d.real, self.row_scale[0], out=out[:nr])
+            np.multiply(d.imag, self.row_scale[0], out=out[nr:])
+            return out
         rows = [d.real[:nr], d.imag[:nr]]
-        if self.npc:
-            ia, ib = self.cut_a[nr:], self.cut_b[nr:]
-            angles = np.array([c.angle for c in self.cuts[nr:]])[:, None]
-            dphi = pose.phi[ib] - pose.phi[ia] - angles
-            n = pose.rot[ia] * np.array([c.axis for c in self.cuts[nr:]])[:, None]
-            rows += [np.remainder(dphi + math.pi, TWO_PI) - math.pi, _cross(n, d[nr:])]
+        ia, ib = self.cut_a[nr:], self.cut_b[nr:]
+        dphi = pose.phi[ib] - pose.phi[ia] - self.cut_angle
+        n = pose.rot[ia] * self.cut_axis
+        rows += [np.remainder(dphi + math.pi, TWO_PI) - math.pi, _cross(n, d[nr:])]
         return np.concatenate(rows) * self.row_scale[:, None]
 
-    def jacobian(self, pose):
-        """Return the scaled loop Jacobian dg/dq over all tree coordinates, ``(m, nt, p)``."""
+    def jacobian(self, pose, unknown_only=False):
+        """
+        Return the scaled loop Jacobian dg/dq over all tree coordinates, ``(m, nt, p)``.
+
+        With ``unknown_only`` only the columns of the unknown coordinates, ``(m, nu, p)``.
+        """
         pa, pb = self._cut_points(pose)
-        # revolute tree joint t moves a point P below it by i (P - J_t) per unit rate
-        d = 1j * (self.sel_rev_b[:, :, None] * pb[:, None, :]
-                  - self.sel_rev_a[:, :, None] * pa[:, None, :]
-                  - self.sel_rev[:, :, None] * pose.joint_at[None, :, :])
-        if self.has_pri:
-            d = d + self.sel_pri[:, :, None] * pose.axis[None, :, :]
-            d = d * self.col_scale_all[None, :, None]
+        cols = self.unknown_rows if unknown_only else slice(None)
+        if not self.has_pri and not self.npc:
+            c, t, i1, i2 = self.jac_nz_u if unknown_only else self.jac_nz
+            points = np.concatenate([pose.cut_points[0], pose.cut_points[1], pose.joint_at])
+            d = points[i1]
+            d -= points[i2]
+            scale = self.row_scale[0] if self.m else 1.0
+            out = np.zeros((self.m, self.nu if unknown_only else self.nt, d.shape[1]))
+            out[c, t] = d.imag
+            out[c, t] *= -scale
+            out[self.nr + c, t] = d.real
+            out[self.nr + c, t] *= scale
+            return out
+        sel_a, sel_b, sel = (self.sel_rev_a_u, self.sel_rev_b_u, self.sel_rev_u) if unknown_only \
+            else (self.sel_rev_a3, self.sel_rev_b3, self.sel_rev3)
+        # revolute tree joint t moves a point P below it by i (P - J_t) per unit rate:
+        # d = (P - J_t) summed with the signs of the cut ends; i d = -Im d + i Re d
+        d = sel_b * pb[:, None, :]
+        d -= sel_a * pa[:, None, :]
+        d -= sel * pose.joint_at[cols][None, :, :]
         nr = self.nr
-        if not self.npc:
-            return np.concatenate([d.real, d.imag]) * self.row_scale[:, None, None]
+        if not self.has_pri and not self.npc:
+            out = np.empty((self.m,) + d.shape[1:])
+            np.multiply(d.imag, -self.row_scale[0], out=out[:nr])
+            np.multiply(d.real, self.row_scale[0], out=out[nr:])
+            return out
+        d = 1j * d
+        if self.has_pri:
+            d += self.sel_pri[:, cols, None] * pose.axis[None, cols, :]
+            d *= self.col_scale_all[None, cols, None]
         rows = [d.real[:nr], d.imag[:nr]]
         if self.npc:
             ia = self.cut_a[nr:]
-            n = pose.rot[ia] * np.array([c.axis for c in self.cuts[nr:]])[:, None]
-            dn = self.sel_rev_a[nr:, :, None] * (1j * n[:, None, :])
-            rows += [np.broadcast_to(self.sel_rev[nr:, :, None], d[nr:].shape).copy(),
-                     _cross(dn, (pb - pa)[nr:, None, :]) * self.col_scale_all[None, :, None]
+            n = pose.rot[ia] * self.cut_axis
+            dn = self.sel_rev_a[nr:, cols, None] * (1j * n[:, None, :])
+            rows += [np.broadcast_to(self.sel_rev[nr:, cols, None], d[nr:].shape),
+                     _cross(dn, (pb - pa)[nr:, None, :]) * self.col_scale_all[None, cols, None]
                      + _cross(n[:, None, :], d[nr:])]
         return np.concatenate(rows) * self.row_scale[:, None, None]
 
@@ -354,19 +436,19 @@ class Linkage:
         """
         q = np.array(q, dtype=float)
         q[0] = psi
-        p = q.shape[1]
-        iters = np.zeros(p, dtype=int)
-        cs = self.col_scale[:, None]
-        unknown = self.unknown
+        iters = np.zeros(q.shape[1], dtype=int)
+        unknown = self.unknown_rows
         for it in range(max_iter + 1):
             pose = self.pose(q)
             g = self.residual(pose)
-            res = np.max(np.abs(g), axis=0)
-            if it == max_iter or not res.max() > tol:  # also stops on nan (handled below)
+            res = np.abs(g).max(axis=0) if self.m else np.zeros(q.shape[1])
+            if it == max_iter or not res.max(initial=0.0) > tol:  # also stops on nan
                 break
-            jinv, _ = smallsolve.inverse(self.jacobian(pose)[:, unknown], self.pivots)
             # a Newton step for every angle: at converged ones it is a no-op to round-off
-            q[unknown] -= _matvec(jinv, g) * cs
+            step = smallsolve.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
+            if self.has_pri:
+                step *= self.col_scale[:, None]
+            q[unknown] -= step
             iters += res > tol
         ok = res <= tol
         return q, pose, res, iters, ok
@@ -406,13 +488,14 @@ class Linkage:
         cs = self.col_scale[:, None]
         if self.nu > 2:
             self.pivots = smallsolve.pivot_order(self.jacobian(self.pose(q))[:, self.unknown, 0])
+            self.lu = smallsolve.LUPlan(self._jacobian_pattern(), self.pivots)
         for _ in range(ASSEMBLY_MAX_ITER):
             pose = self.pose(q)
             g = self.residual(pose)
             norm = float(np.max(np.abs(g))) if self.m else 0.0
             if norm <= NEWTON_TOL:
                 return q
-            jinv, cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown], self.pivots)
+            jinv, cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown], self.lu)
             if not np.isfinite(cond[0]):
                 break
             step = -_matvec(jinv, g) * cs
@@ -449,58 +532,83 @@ class Linkage:
             psi_dd = np.broadcast_to(psi_dd, (p,))
         if jac is None:
             jac = self.jacobian(pose)
-        jinv, cond = smallsolve.inverse(jac[:, self.unknown], self.pivots)
-        cs = self.col_scale[:, None]
+        unknown = self.unknown_rows
+        jinv, cond = smallsolve.inverse(jac[:, unknown], self.lu)
+        scale_d = -self.col_scale[:, None] * psi_d if self.has_pri else -psi_d
+        jac_psi = jac[:, 0]
         qd = np.empty((self.nt, p))
         qd[0] = psi_d
-        # q_u' = -J_u^-1 J_psi (seed 000 eq. 32, generalized)
-        shape_u = -_matvec(jinv, jac[:, 0])
-        qd[self.unknown] = shape_u * cs * psi_d
+        # q_u' = -J_u^-1 J_psi psi' (seed 000 eq. 32, generalized)
+        qd[unknown] = _matvec(jinv, jac_psi)
+        qd[unknown] *= scale_d
         omega = self.anc_rev @ qd
-        J = pose.joint_at
-        vel = 1j * (omega * pose.origin - self.anc_rev @ (qd * J))
+        origin, J = pose.origin, pose.joint_at
+        # v = i (omega O - sum_t qd_t J_t)  (+ prismatic slides)
+        vel = omega * origin
+        vel -= _rmat(self.anc_rev, qd * J)
+        vel *= 1j
         if self.has_pri:
-            vel += self.anc_pri @ (qd * pose.axis)
+            vel += _rmat(self.anc_pri, qd * pose.axis)
         out = {'qd': qd, 'omega': omega, 'vel': vel, 'jac_inv': jinv, 'cond': cond, 'jac': jac}
         if not need_acc:
             return out
-        # velocity-product part of the link accelerations (all joint accelerations zero)
+        # velocity-product part of the link accelerations (all joint accelerations zero):
+        # each joint's point moves at v_J = v_parent + i omega_parent (J - O_parent)
         par = self.par
-        v_joint = vel[par] + 1j * omega[par] * (J - pose.origin[par])
-        acc_v = 1j * (omega * vel - self.anc_rev @ (qd * v_joint))
+        omega_par = omega[par]
+        v_joint = J - origin[par]
+        v_joint *= 1j * omega_par
+        v_joint += vel[par]
+        acc_v = omega * vel
+        acc_v -= _rmat(self.anc_rev, qd * v_joint)
+        acc_v *= 1j
         if self.has_pri:
-            acc_v += self.anc_pri @ (1j * qd * omega[par] * pose.axis)
+            acc_v += _rmat(self.anc_pri, 1j * qd * omega_par * pose.axis)
         gamma = self._cut_bias(pose, omega, vel, acc_v)
+        if np.ndim(psi_dd) or psi_dd != 0.0:
+            gamma += jac_psi * psi_dd
         qdd = np.empty((self.nt, p))
         qdd[0] = psi_dd
         # J_u q_u'' = -(gamma + J_psi psi'')
-        qdd[self.unknown] = -_matvec(jinv, gamma + jac[:, 0] * psi_dd) * cs
+        qdd[unknown] = _matvec(jinv, gamma)
+        qdd[unknown] *= -self.col_scale[:, None] if self.has_pri else -1.0
         alpha = self.anc_rev @ qdd
-        acc = acc_v + 1j * (alpha * pose.origin - self.anc_rev @ (qdd * J))
+        acc = alpha * origin
+        acc -= _rmat(self.anc_rev, qdd * J)
+        acc *= 1j
+        acc += acc_v
         if self.has_pri:
-            acc += self.anc_pri @ (qdd * pose.axis)
+            acc += _rmat(self.anc_pri, qdd * pose.axis)
         out.update(qdd=qdd, alpha=alpha, acc=acc)
         return out
 
     def _cut_bias(self, pose, omega, vel, acc_v):
         """Return the scaled loop-equation accelerations with all joint accelerations zero."""
+        self._cut_points(pose)
+        pa, pb, ra, rb, _ = pose.cut_points
         ia, ib = self.cut_a, self.cut_b
-        ra = pose.rot[ia] * self.cut_pa
-        rb = pose.rot[ib] * self.cut_pb
-        acc_a = acc_v[ia] - omega[ia] ** 2 * ra
-        acc_b = acc_v[ib] - omega[ib] ** 2 * rb
-        d = acc_b - acc_a
+        # acceleration of each cut end: a_O - omega^2 r (no angular acceleration here)
+        n = len(self.cuts)
+        w = omega[self.cut_ab]
+        w *= w
+        ends = acc_v[self.cut_ab]
+        ends -= w * pose.cut_points[4]
+        d = ends[n:] - ends[:n]
         nr = self.nr
+        if not self.npc:
+            out = np.empty((self.m, d.shape[1]))
+            np.multiply(d.real, self.row_scale[0], out=out[:nr])
+            np.multiply(d.imag, self.row_scale[0], out=out[nr:])
+            return out
         rows = [d.real[:nr], d.imag[:nr]]
-        if self.npc:
-            ia, ib = ia[nr:], ib[nr:]
-            n = pose.rot[ia] * np.array([c.axis for c in self.cuts[nr:]])[:, None]
-            dist = (pose.origin[ib] + rb[nr:]) - (pose.origin[ia] + ra[nr:])
-            dist_d = (vel[ib] + 1j * omega[ib] * rb[nr:]) - (vel[ia] + 1j * omega[ia] * ra[nr:])
-            n_d = 1j * omega[ia] * n
-            n_dd = -omega[ia] ** 2 * n
-            rows += [np.zeros((self.npc, d.shape[1])),
-                     _cross(n_dd, dist) + 2.0 * _cross(n_d, dist_d) + _cross(n, d[nr:])]
+        ia, ib = ia[nr:], ib[nr:]
+        n = pose.rot[ia] * self.cut_axis
+        dist = pb[nr:] - pa[nr:]
+        dist_d = (vel[ib] + 1j * omega[ib] * rb[nr:]) - (vel[ia] + 1j * omega[ia] * ra[nr:])
+        n_d = 1j * omega[ia] * n
+        n_dd = -omega[ia] ** 2 * n
+        rows += [np.zeros((self.npc, d.shape[1])),
+                 _cross(n_dd, dist) + 2.0 * _cross(n_d, dist_d) + _cross(n, d[nr:])]
         return np.concatenate(rows) * self.row_scale[:, None]
 
     # ------------------------------------------------------------------ branch skeleton
@@ -599,15 +707,22 @@ class Linkage:
         ``psi_d`` and ``psi_dd`` default to the scene's crank speed and acceleration.
         """
         psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
-        if not np.all(np.isfinite(psi)):
+        if not np.isfinite(psi).all():
             raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
         sk = self.skeleton
         q_pred = sk.predict(psi)
         q, pose, res, iters, ok = self.newton(psi, q_pred)
-        corr = np.max(np.abs((q - q_pred)[self.unknown]) / self.col_scale[:, None],
-                      axis=0) if self.nu else np.zeros(psi.shape)
-        bad = ~ok | (corr > EVAL_TRUST)
-        if np.any(bad):
+        if self.nu:  # how far Newton moved from the predictor (scaled)
+            corr = q[1:] - q_pred[1:]
+            np.abs(corr, out=corr)
+            if self.has_pri:
+                corr /= self.col_scale[:, None]
+            corr = corr.max(axis=0)
+        else:
+            corr = np.zeros(psi.shape)
+        bad = corr > EVAL_TRUST
+        bad |= ~ok
+        if bad.any():
             q[:, bad] = self._retrace(psi[bad])
             pose = self.pose(q)
             res = np.max(np.abs(self.residual(pose)), axis=0) if self.m else res
@@ -627,8 +742,8 @@ class Linkage:
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
         else:
-            _, state.cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown], self.pivots)
-        if np.any(state.cond > COND_WARN):
+            _, state.cond = smallsolve.inverse(self.jacobian(pose, unknown_only=True), self.lu)
+        if (state.cond > COND_WARN).any():
             worst = int(np.argmax(state.cond))
             self._warn(f'crank angle {math.degrees(psi[worst]):.3f} deg: near-singular '
                        f'position (Jacobian condition number {state.cond[worst]:.3g})')
@@ -686,8 +801,12 @@ class Skeleton:
         h = self.h
         data = np.stack([q[:, :-1], qd[:, :-1] * h, qdd[:, :-1] * h * h,
                          q[:, 1:], qd[:, 1:] * h, qdd[:, 1:] * h * h], axis=-1)
-        # (nt, segments, 6) power-series coefficients of each segment in t in [0, 1]
+        # (6, nt, segments) power-series coefficients of each segment in t in [0, 1]
         self.coef = np.ascontiguousarray(np.moveaxis(data @ self._BASIS, -1, 0))
+        self.last = self.h.size - 1
+        # the crank row is the crank angle itself: only the other rows are interpolated
+        self.coef_u = np.ascontiguousarray(self.coef[:, 1:])
+        self.wrap_step_u = (TWO_PI * turns[1:])[:, None] if np.any(turns[1:]) else None
 
     def wraps(self, psi):
         """Return how many whole turns ``psi`` lies beyond the skeleton's start."""
@@ -695,21 +814,42 @@ class Skeleton:
 
     def locate(self, psi):
         """Return the interval index and the offset into one turn for each angle."""
-        x = np.remainder(psi - self.psi[0], TWO_PI)
-        k = np.clip(np.searchsorted(self.offset, x, side='right') - 1, 0, self.h.size - 1)
+        k, x, _ = self._locate(psi)
         return k, x
+
+    def _locate(self, psi):
+        """Return the interval index, the offset into the turn and the whole turns."""
+        turns, x = np.divmod(psi - self.psi[0], TWO_PI)
+        # offset[0] = 0 <= x, so the index is >= 0; x may round up to 2 pi: cap at the last
+        k = np.searchsorted(self.offset, x, side='right')
+        k -= 1
+        return np.minimum(k, self.last, out=k), x, turns
 
     def predict(self, psi):
         """Return predicted tree coordinates ``(nt, p)`` at crank angles ``psi``."""
-        k, x = self.locate(psi)
-        t = (x - self.offset[k]) / self.h[k]
-        c = self.coef[:, :, k]
-        q = c[5]
-        for j in (4, 3, 2, 1, 0):
-            q = q * t + c[j]
-        if np.any(self.turns):
-            q = q + TWO_PI * self.turns[:, None] * self.wraps(psi)[None, :]
+        psi = np.asarray(psi, dtype=float)
+        k, x, turns = self._locate(psi)
+        x -= self.offset[k]
+        x /= self.h[k]                   # t in [0, 1] along the segment
+        q = np.empty((self.q.shape[0], psi.size))
+        q[0] = psi                       # the crank joint's coordinate is the crank angle
+        c = self.coef_u[:, :, k]
+        qu = np.multiply(c[5], x, out=q[1:])
+        for j in (4, 3, 2, 1):           # Horner, in place
+            qu += c[j]
+            qu *= x
+        qu += c[0]
+        if self.wrap_step_u is not None:
+            qu += self.wrap_step_u * turns
         return q
+
+
+def _rmat(mat, z):
+    """Return ``mat @ z`` for a real matrix and a complex batch-last stack ``z``."""
+    # numpy has no BLAS path for real @ complex (it loops in C, ~50x slower): multiply the
+    # interleaved real and imaginary parts as one real matrix instead
+    z = np.ascontiguousarray(z)
+    return np.dot(mat, z.view(np.float64)).view(np.complex128)
 
 
 def _matvec(mat, vec):
@@ -722,4 +862,5 @@ def _matvec(mat, vec):
 
 def _cross(a, b):
     """Return the scalar cross product a x b of complex-coded planar vectors."""
-    return a.real * b.imag - a.imag * b.real
+    # Im(conj(a) b) = a.x b.y - a.y b.x, in two vectorized operations instead of four
+    return (a.conjugate() * b).imag

@@ -62,7 +62,10 @@ def _check_certificate(result):
     # the printed z is the z of the returned design, evaluated by the core's full analysis
     rows = {r['quantity']: r['after'] for r in result.table}
     z_table = _z(result.weights, rows['shaking force |f_sh|'], rows['shaking moment n_sh'])
-    assert_allclose(result.objective['z'], z_table, rtol=1e-8, atol=1e-12)
+    # Same tolerance as the certificate: with the paper's constraints (case a) the first
+    # moments are unbounded, and e.g. carpet case (3)'s optimum has link parameters ~3e4 whose
+    # moments (~7e7 m1 a1^2 w^2) cancel to z = 0.2, so round-off alone is ~1e-8 relative.
+    assert_allclose(result.objective['z'], z_table, rtol=GAP_REL, atol=1e-12)
 
 
 @pytest.mark.parametrize('case', CASES, ids=[f'{c}({k})' for c, k in CASES])

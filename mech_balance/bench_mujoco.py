@@ -1,0 +1,540 @@
+"""
+``mech-balance bench --compare mujoco``: this package against MuJoCo, side by side.
+
+Only this module imports :mod:`mujoco` (an optional benchmark dependency: ``make
+bench-mujoco`` installs a pinned version); without it the command prints how to install it
+and exits with status 2.
+
+The MuJoCo model of a planar rig (:class:`MujocoRig`)
+    The linkage's own spanning tree (:class:`~mech_balance.kinematics.Linkage`): one body per
+    link with a hinge about z to its tree parent (body frame at that joint, so hinge angle =
+    this package's relative joint coordinate), mass properties as ``inertial`` (mass, centre
+    of mass, ``diaginertia`` about it: the planar moment about z; the x and y moments only
+    matter for out-of-plane motion, which never happens), no geoms (no contacts), no joint
+    limits, gravity off.  Every cut joint closes its loop with a ``connect`` equality between
+    two sites, one on each link at the joint point.
+
+What MuJoCo's inverse dynamics gives for a closed loop, and the rigid forces
+    ``mj_inverse`` computes constraint forces from MuJoCo's *soft* constraint model:
+    ``f = -R^-1 (J qacc + Jdot qvel - aref)`` (Computation chapter, "Inverse dynamics").  For
+    a motion that satisfies the loop closure exactly (positions, velocities and
+    accelerations imposed from a rigid solution) the bracket is zero, so ``efc_force`` is
+    round-off (1e-12 N here, larger for stiffer ``solref``/``solimp``, which only amplify the
+    round-off) and ``qfrc_inverse`` carries ``M qacc + c`` on *every* joint, passive ones
+    included.  No option changes that (solref, solimp, noslip only shape the soft model and
+    the forward solver).  The rigid loop forces follow exactly from MuJoCo's own outputs: the
+    passive joints carry no applied torque, so ``J_u^T lambda = (qfrc_inverse +
+    qfrc_constraint)_u`` over their columns of ``efc_J`` (the x and y rows of each connect;
+    its z row is identically zero in a planar rig), and the driving torque is the crank
+    column's remainder ``qfrc_crank - J_crank^T lambda``.  ``lambda`` written to
+    ``efc_force`` then feeds ``mj_rnePostConstraint``, whose ``cfrc_int`` (wrench from the
+    tree parent) of the bodies hinged to the world, plus the connect forces to the world,
+    is the load on the frame.  The shaking wrench is its reaction about the crank pivot
+    (:mod:`mech_balance.conventions`).
+
+What is timed, per crank angle (printed with the results)
+    full pipeline
+        this package: :meth:`~mech_balance.analysis.Rig.evaluate` of all angles at once
+        (Newton from the branch predictor with its residual and condition number per angle,
+        velocities, accelerations, driving torque, every bearing reaction, shaking wrench);
+        MuJoCo: a Python loop over the angles: Newton on the connect residual (``mj_kinematics``,
+        ``mj_comPos``, ``mj_makeConstraint``: ``efc_pos``, ``efc_J``; numpy solve) from a
+        Taylor predictor off the previous angle, velocities from ``efc_J``, accelerations with
+        ``mj_comVel`` and ``mj_jacDot``, ``mj_inverse``, the rigid multipliers (numpy solve),
+        ``mj_rnePostConstraint`` and the frame load.
+    dynamics alone (positions, velocities and accelerations imposed from this package)
+        this package: :func:`~mech_balance.dynamics.inverse_dynamics`; MuJoCo: ``mj_inverse``
+        per angle (qpos, qvel, qacc copied in), and separately the same plus what it takes to
+        get the same outputs (rigid multipliers, ``mj_rnePostConstraint``, frame load).
+"""
+
+import math
+import statistics
+import sys
+import time
+
+from mech_balance import analysis, chain, dynamics, kinematics, scene as scene_mod
+from mech_balance.conventions import cycle_angles
+import numpy as np
+
+AGREEMENT_TOL = 1e-9
+"""Largest relative difference (to the cycle's peak) accepted between the two engines."""
+SPEEDUP_GOAL = 20.0
+"""This package's full pipeline must be at least this many times faster than MuJoCo's."""
+MUJOCO_PIN = '4.0.0'
+"""The MuJoCo version the comparison was written and checked against."""
+MUJOCO_REPEAT_DIVISOR = 5
+"""MuJoCo's per-angle Python loop is timed ``repeat / this`` times (at least 5)."""
+CHAIN_LOOPS = (1, 3, 4, 9)
+"""Generated chains of the scaling table: 4, 8, 10 and 20 links counting the frame."""
+NEWTON_MAX_ITER = kinematics.NEWTON_MAX_ITER
+NEWTON_TOL = kinematics.NEWTON_TOL
+"""MuJoCo's Newton stops where this package's does (residual / characteristic length)."""
+EXIT_MISSING = 2
+INSTALL_HINT = (f'mech-balance bench --compare mujoco: the optional benchmark dependency '
+                f'"mujoco" is not installed; install it with `make bench-mujoco` (or '
+                f'`pip install mujoco=={MUJOCO_PIN}`)')
+
+
+class MujocoMissing(RuntimeError):
+    """MuJoCo is not installed."""
+
+
+def import_mujoco():
+    """Return the :mod:`mujoco` module or raise :class:`MujocoMissing`."""
+    try:
+        import mujoco
+    except ImportError as exc:
+        raise MujocoMissing(INSTALL_HINT) from exc
+    return mujoco
+
+
+def _f(x):
+    return repr(float(x))
+
+
+def _solve(a, b):
+    """Return the solution of a small dense system (Cramer's rule for 2 x 2, else LAPACK)."""
+    if a.shape[0] == 2:
+        (a00, a01), (a10, a11) = a.tolist()
+        b0, b1 = b.tolist()
+        det = a00 * a11 - a01 * a10
+        return np.array([(a11 * b0 - a01 * b1) / det, (a00 * b1 - a10 * b0) / det])
+    return np.linalg.solve(a, b)
+
+
+class MujocoRig:
+    """A planar rig as a MuJoCo model: hinge tree plus ``connect`` loop closures."""
+
+    def __init__(self, rig):
+        self.mj = import_mujoco()
+        self.rig = rig
+        lk = self.linkage = rig.linkage
+        sc = rig.scene
+        if lk.has_pri or lk.npc:
+            raise ValueError(f'scene {sc.name!r}: the MuJoCo comparison covers revolute joints '
+                             'only (this scene has prismatic joints)')
+        if any(sc.gravity_m_s2):
+            raise ValueError(f'scene {sc.name!r}: gravity_m_s2 is {list(sc.gravity_m_s2)}, '
+                             'expected [0, 0] for the MuJoCo comparison')
+        self.xml = self._mjcf(sc)
+        mj = self.mj
+        self.model = mj.MjModel.from_xml_string(self.xml)
+        self.data = mj.MjData(self.model)
+        m = self.model
+        self.dof = np.array([m.jnt_dofadr[m.joint(f't{t}').id] for t in range(lk.nt)])
+        self.crank = int(self.dof[0])
+        self.passive = self.dof[1:]
+        ncut = len(lk.cuts)
+        self.rows = np.array([3 * k + r for k in range(ncut) for r in (0, 1)])
+        self.site1 = [m.site(f'cut{k}_1').id for k in range(ncut)]
+        self.site2 = [m.site(f'cut{k}_2').id for k in range(ncut)]
+        self.body1 = [int(m.site_bodyid[s]) for s in self.site1]
+        self.body2 = [int(m.site_bodyid[s]) for s in self.site2]
+        self.roots = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0]
+        self.world_cuts = [k for k, b in enumerate(self.body2) if b == 0]
+        self.pivot = np.array([lk.pivot.real, lk.pivot.imag, 0.0])
+        self.length = lk.length_scale
+        self._jac1 = np.zeros((3, m.nv))
+        self._jac2 = np.zeros((3, m.nv))
+
+    # ------------------------------------------------------------------ model
+
+    def _mjcf(self, sc):
+        lk = self.linkage
+        # each body's MuJoCo frame sits at the joint to its tree parent, axes as the link's
+        offset = [0j] * lk.nb
+        for tj in lk.tree:
+            offset[tj.child] = tj.p_child
+        links = {i + 1: link for i, link in enumerate(sc.links)}
+        children = {b: [] for b in range(lk.nb)}
+        for t, tj in enumerate(lk.tree):
+            children[tj.parent].append((t, tj))
+        # cut k: site 1 on the moving end (body b unless b is the frame), site 2 on the other
+        self.cut_sign = []
+        sites = {b: [] for b in range(lk.nb)}
+        for k, cut in enumerate(lk.cuts):
+            ends = [(cut.b, cut.p_b), (cut.a, cut.p_a)]
+            if cut.b == 0:
+                ends.reverse()
+            self.cut_sign.append(1.0 if ends[0][0] == cut.b else -1.0)
+            for n, (body, point) in enumerate(ends, start=1):
+                pos = point - offset[body]
+                sites[body].append(f'<site name="cut{k}_{n}" pos="{_f(pos.real)} '
+                                   f'{_f(pos.imag)} 0"/>')
+
+        def body(t, tj, pad):
+            c = tj.child
+            link = links[c]
+            pos = tj.p_parent - offset[tj.parent]
+            com = complex(*link.com_m) - offset[c]
+            inertia = _f(link.inertia_com_kg_m2)
+            text = [f'{pad}<body name="{lk.body_names[c]}" pos="{_f(pos.real)} '
+                    f'{_f(pos.imag)} 0">',
+                    f'{pad}  <joint name="t{t}" type="hinge" axis="0 0 1"/>',
+                    f'{pad}  <inertial pos="{_f(com.real)} {_f(com.imag)} 0" '
+                    f'mass="{_f(link.mass_kg)}" diaginertia="{inertia} {inertia} {inertia}"/>']
+            text += [pad + '  ' + s for s in sites[c]]
+            for t2, tj2 in children[c]:
+                text += body(t2, tj2, pad + '  ')
+            return text + [f'{pad}</body>']
+
+        lines = ['<mujoco model="mech_balance">',
+                 '  <option gravity="0 0 0" jacobian="dense"/>',
+                 '  <worldbody>']
+        lines += ['    ' + s for s in sites[0]]
+        for t, tj in children[0]:
+            lines += body(t, tj, '    ')
+        lines += ['  </worldbody>', '  <equality>']
+        lines += [f'    <connect name="{cut.name}" site1="cut{k}_1" site2="cut{k}_2"/>'
+                  for k, cut in enumerate(lk.cuts)]
+        lines += ['  </equality>', '</mujoco>']
+        return '\n'.join(lines)
+
+    # ------------------------------------------------------------------ per angle
+
+    def _jacobian(self):
+        d = self.data
+        return d.efc_J[:d.nefc * self.model.nv].reshape(d.nefc, self.model.nv)[self.rows]
+
+    def _bias(self, qvel):
+        """Return the connect points' relative acceleration at zero qacc (Jdot qvel)."""
+        mj, m, d = self.mj, self.model, self.data
+        gamma = np.empty(self.rows.size)
+        ends = zip(self.site1, self.site2, self.body1, self.body2)
+        for k, (s1, s2, b1, b2) in enumerate(ends):
+            mj.mj_jacDot(m, d, self._jac1, None, d.site_xpos[s1], b1)
+            acc = self._jac1[:2] @ qvel
+            if b2:
+                mj.mj_jacDot(m, d, self._jac2, None, d.site_xpos[s2], b2)
+                acc -= self._jac2[:2] @ qvel
+            gamma[2 * k:2 * k + 2] = acc
+        return gamma
+
+    def _rigid(self, jac):
+        """From ``mj_inverse``'s outputs: driving torque, multipliers, frame load (planar)."""
+        mj, m, d = self.mj, self.model, self.data
+        # M qacc + c = tau e_crank + J^T lambda; the passive joints have no applied torque
+        gen = d.qfrc_inverse + d.qfrc_constraint
+        lam = _solve(jac[:, self.passive].T, gen[self.passive])
+        tau = float(gen[self.crank] - jac[:, self.crank] @ lam)
+        d.efc_force[:] = 0.0
+        d.efc_force[self.rows] = lam
+        d.qfrc_constraint[:] = jac.T @ lam
+        mj.mj_rnePostConstraint(m, d)
+        # wrench of the world on the links: hinge reactions (incl. the motor), about the
+        # pivot (cfrc_int of a root body is taken about its subtree's centre of mass) ...
+        px, py = self.pivot[0], self.pivot[1]
+        fx = fy = mz = 0.0
+        cfrc, com = d.cfrc_int, d.subtree_com
+        for b in self.roots:
+            _, _, tz, gx, gy, _ = cfrc[b].tolist()
+            cx, cy, _ = com[b].tolist()
+            fx += gx
+            fy += gy
+            mz += tz + (cx - px) * gy - (cy - py) * gx
+        # ... and connects to the world (site 2 on the world: +lambda acts on body 1)
+        for k in self.world_cuts:
+            gx, gy = float(lam[2 * k]), float(lam[2 * k + 1])
+            sx, sy, _ = d.site_xpos[self.site1[k]].tolist()
+            fx += gx
+            fy += gy
+            mz += (sx - px) * gy - (sy - py) * gx
+        return tau, lam, complex(-fx, -fy), -mz
+
+    def dynamics(self, q, qd, qdd):
+        """
+        Return MuJoCo's driving torque, shaking force and moment for imposed motion.
+
+        ``q``, ``qd``, ``qdd`` are this package's tree coordinates ``(nt, p)``.  Also returns
+        the cut-joint forces ``(ncut, p)`` (on the joint's link b from its link a).
+        """
+        mj, m, d = self.mj, self.model, self.data
+        p = q.shape[1]
+        qpos, qvel, qacc = (self._to_dofs(x) for x in (q, qd, qdd))
+        tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
+        cut = np.empty((len(self.site1), p), dtype=complex)
+        for i in range(p):
+            d.qpos[:] = qpos[i]
+            d.qvel[:] = qvel[i]
+            d.qacc[:] = qacc[i]
+            mj.mj_inverse(m, d)
+            tau[i], lam, fsh[i], nsh[i] = self._rigid(self._jacobian())
+            cut[:, i] = (lam[0::2] + 1j * lam[1::2]) * self.cut_sign
+        return tau, fsh, nsh, cut
+
+    def inverse_only(self, qpos, qvel, qacc):
+        """Run ``mj_inverse`` at every angle of ``(p, nv)`` dof arrays (the timed kernel)."""
+        mj, m, d = self.mj, self.model, self.data
+        for i in range(qpos.shape[0]):
+            d.qpos[:] = qpos[i]
+            d.qvel[:] = qvel[i]
+            d.qacc[:] = qacc[i]
+            mj.mj_inverse(m, d)
+
+    def _to_dofs(self, x):
+        out = np.empty((x.shape[1], self.model.nv))
+        out[:, self.dof] = x.T
+        return out
+
+    def full(self, psi, speed, accel, q_start):
+        """
+        Return MuJoCo's own solution over crank angles ``psi``, one angle at a time.
+
+        Positions by Newton on the connect residual from a Taylor predictor off the
+        previous angle (the first from ``q_start``, this package's tree coordinates there),
+        then velocities, accelerations and the rigid inverse dynamics.  Returns ``(tau,
+        f_sh, n_sh, q, residual, iterations)``; ``q`` in this package's tree order.
+        """
+        mj, m, d = self.mj, self.model, self.data
+        p = psi.size
+        crank, passive = self.crank, self.passive
+        tol = NEWTON_TOL * self.length
+        tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
+        q_out, res_out, iters = np.empty((p, m.nv)), np.empty(p), np.zeros(p, dtype=int)
+        qpos = np.zeros(m.nv)
+        qpos[self.dof] = q_start
+        slope, curve = np.zeros(m.nv), np.zeros(m.nv)
+        qvel, qacc = np.zeros(m.nv), np.zeros(m.nv)
+        qvel[crank], qacc[crank] = speed, accel
+        for i in range(p):
+            if i:
+                h = psi[i] - psi[i - 1]
+                qpos += h * slope + 0.5 * h * h * curve
+            qpos[crank] = psi[i]
+            for it in range(NEWTON_MAX_ITER + 1):
+                d.qpos[:] = qpos
+                mj.mj_kinematics(m, d)
+                mj.mj_comPos(m, d)
+                mj.mj_makeConstraint(m, d)
+                r = d.efc_pos[self.rows]
+                res = max(map(abs, r.tolist()))
+                jac = self._jacobian()
+                if not res > tol or it == NEWTON_MAX_ITER:
+                    break
+                qpos[passive] -= _solve(jac[:, passive], r)
+                iters[i] += 1
+            res_out[i] = res / self.length
+            j_u, j_c = jac[:, passive], jac[:, crank]
+            qvel[passive] = _solve(j_u, -speed * j_c)
+            d.qvel[:] = qvel
+            mj.mj_comVel(m, d)
+            qacc[passive] = _solve(j_u, -accel * j_c - self._bias(qvel))
+            d.qacc[:] = qacc
+            mj.mj_inverse(m, d)
+            tau[i], _, fsh[i], nsh[i] = self._rigid(self._jacobian())
+            q_out[i] = qpos
+            slope[:] = qvel / speed             # dq/dpsi and d2q/dpsi2 for the predictor
+            curve[:] = (qacc - slope * accel) / speed ** 2
+        return tau, fsh, nsh, q_out[:, self.dof].T, res_out, iters
+
+
+# ---------------------------------------------------------------------------- comparison
+
+
+def relative_difference(ours, theirs):
+    """Return max |theirs - ours| / max |ours| over the cycle (vectors: magnitudes)."""
+    ours, theirs = np.asarray(ours), np.asarray(theirs)
+    scale = float(np.max(np.abs(ours)))
+    return float(np.max(np.abs(theirs - ours))) / (scale if scale > 0.0 else 1.0)
+
+
+def _interleaved_medians(fns, warmup=2):
+    """Return the median wall time of each function, timing them in turn (shared load)."""
+    for fn, _ in fns:
+        for _ in range(warmup):
+            fn()
+    times = [[] for _ in fns]
+    for r in range(max(n for _, n in fns)):
+        for (fn, n), acc in zip(fns, times):
+            if r < n:
+                t0 = time.perf_counter()
+                fn()
+                acc.append(time.perf_counter() - t0)
+    return [statistics.median(t) for t in times]
+
+
+def compare(sc, samples=360, repeat=50, progress=None):
+    """
+    Return the agreement and timing figures of one scene, both engines, one process.
+
+    Keys: ``agreement_imposed`` and ``agreement_own`` (dicts quantity -> relative
+    difference), ``cut_forces`` (imposed), ``us`` (dict of microseconds per angle),
+    ``mujoco_residual``, ``mujoco_iterations``, ``ours_residual``, ``ours_cond``.
+    """
+    sc = sc.with_outputs(scene_mod.OUTPUTS)
+    rig = analysis.Rig(sc)
+    lk = rig.linkage
+    mjr = MujocoRig(rig)
+    psi = cycle_angles(samples, sc.assembly_crank_angle_rad)
+    speed, accel = sc.crank_speed_rad_s, sc.crank_acceleration_rad_s2
+    need = scene_mod.needs(sc.outputs)
+    state, w = rig.evaluate(psi)
+    tau, fsh, nsh, cut = mjr.dynamics(state.q, state.qd, state.qdd)
+    ours_cut = np.array([w.reaction_force[c.name] for c in lk.cuts])
+    tau2, fsh2, nsh2, q2, res2, it2 = mjr.full(psi, speed, accel, state.q[:, 0])
+    out = {
+        'scene': sc.name, 'links': len(sc.links), 'joints': len(sc.joints),
+        'loops': len(lk.cuts), 'samples': samples,
+        'agreement_imposed': {
+            'driving torque': relative_difference(w.driving_torque, tau),
+            'shaking force': relative_difference(w.shaking_force, fsh),
+            'shaking moment': relative_difference(w.shaking_moment, nsh)},
+        'agreement_own': {
+            'driving torque': relative_difference(w.driving_torque, tau2),
+            'shaking force': relative_difference(w.shaking_force, fsh2),
+            'shaking moment': relative_difference(w.shaking_moment, nsh2)},
+        'cut_forces': relative_difference(ours_cut, cut),
+        'positions': float(np.max(np.abs(q2 - state.q))),
+        'mujoco_residual': float(np.max(res2)), 'mujoco_iterations': float(np.mean(it2)),
+        'ours_residual': float(np.max(state.residual)), 'ours_cond': float(np.max(state.cond)),
+        'ours_iterations': float(np.mean(state.iterations)),
+    }
+    if progress:
+        progress(f'  timing {sc.name} ({len(sc.links)} moving links) ...')
+    qpos, qvel, qacc = (mjr._to_dofs(x) for x in (state.q, state.qd, state.qdd))
+    q_start = state.q[:, 0]
+    slow = max(5, repeat // MUJOCO_REPEAT_DIVISOR)
+    fns = [
+        (lambda: rig.evaluate(psi), repeat),
+        (lambda: dynamics.inverse_dynamics(lk, state, rig.inertia, rig.gravity, need), repeat),
+        (lambda: mjr.full(psi, speed, accel, q_start), slow),
+        (lambda: mjr.inverse_only(qpos, qvel, qacc), slow),
+        (lambda: mjr.dynamics(state.q, state.qd, state.qdd), slow),
+    ]
+    names = ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse', 'mj_dyn')
+    secs = _interleaved_medians(fns)
+    out['us'] = {n: s * 1e6 / samples for n, s in zip(names, secs)}
+    out['repeats'] = (repeat, slow)
+    return out
+
+
+def _worst(r):
+    return max(max(r['agreement_imposed'].values()), max(r['agreement_own'].values()))
+
+
+def format_report(hoeken, chains, mujoco_version, extras=()):
+    """Return the printed comparison (``extras``: more scenes for the scaling table)."""
+    rep, slow = hoeken['repeats']
+    us = hoeken['us']
+    lines = [
+        f'mech-balance bench --compare mujoco: mech_balance vs MuJoCo {mujoco_version}, '
+        f'{hoeken["samples"]} crank angles per cycle, one process; median wall time of '
+        f'{rep} runs (MuJoCo: {slow}), timed in turn after warm-up',
+        '',
+        'timed, per crank angle:',
+        '  full pipeline   mech_balance: Rig.evaluate on all angles at once (Newton from the '
+        'branch predictor,',
+        '                  residual and condition number per angle; velocities, '
+        'accelerations, driving torque,',
+        '                  every bearing reaction, shaking wrench)',
+        '                  MuJoCo: Python loop over angles: Newton on efc_pos/efc_J '
+        '(mj_kinematics, mj_comPos,',
+        '                  mj_makeConstraint, numpy solve), velocities, accelerations '
+        '(mj_comVel, mj_jacDot), mj_inverse,',
+        '                  rigid multipliers (numpy solve), mj_rnePostConstraint, '
+        'frame load from cfrc_int',
+        '  dynamics alone  motion imposed from mech_balance; mech_balance: '
+        'dynamics.inverse_dynamics (same outputs);',
+        '                  MuJoCo: mj_inverse per angle (qpos, qvel, qacc copied in); '
+        '"+ rigid": also the multipliers,',
+        '                  mj_rnePostConstraint and the frame load, i.e. the same outputs',
+        '',
+        f'{hoeken["scene"]} (seed 001 Table 1): {hoeken["links"]} moving links, '
+        f'{hoeken["joints"]} joints, {hoeken["loops"]} loop',
+        '  agreement, max |MuJoCo - mech_balance| / max |mech_balance| over the cycle:',
+        f'  {"":<18}{"imposed motion":>16}{"MuJoCo kinematics":>20}',
+    ]
+    for q in ('driving torque', 'shaking force', 'shaking moment'):
+        lines.append(f'  {q:<18}{hoeken["agreement_imposed"][q]:>16.1e}'
+                     f'{hoeken["agreement_own"][q]:>20.1e}')
+    worst = _worst(hoeken)
+    lines += [
+        f'  {"cut joint forces":<18}{hoeken["cut_forces"]:>16.1e}',
+        f'  -> {"PASS" if worst <= AGREEMENT_TOL else "FAIL"} (worst {worst:.1e}, '
+        f'limit {AGREEMENT_TOL:.0e}); MuJoCo Newton: residual {hoeken["mujoco_residual"]:.1e}, '
+        f'{hoeken["mujoco_iterations"]:.2f} iterations/angle; positions differ by '
+        f'{hoeken["positions"]:.1e} rad',
+        '  us per crank angle:',
+        f'  {"":<26}{"mech_balance":>14}{"MuJoCo":>12}{"ratio":>10}',
+        f'  {"full pipeline":<26}{us["ours_full"]:>14.3f}{us["mj_full"]:>12.2f}'
+        f'{us["mj_full"] / us["ours_full"]:>9.1f}x',
+        f'  {"dynamics alone":<26}{us["ours_dyn"]:>14.3f}{us["mj_inverse"]:>12.2f}'
+        f'{us["mj_inverse"] / us["ours_dyn"]:>9.1f}x   (mj_inverse)',
+        f'  {"dynamics, same outputs":<26}{us["ours_dyn"]:>14.3f}{us["mj_dyn"]:>12.2f}'
+        f'{us["mj_dyn"] / us["ours_dyn"]:>9.1f}x   (mj_inverse + rigid)',
+        f'  -> full pipeline {us["mj_full"] / us["ours_full"]:.1f}x faster '
+        f'({"PASS" if us["mj_full"] >= SPEEDUP_GOAL * us["ours_full"] else "FAIL"}: '
+        f'>= {SPEEDUP_GOAL:g}x); dynamics alone '
+        f'{"PASS" if us["ours_dyn"] <= us["mj_inverse"] else "FAIL"} (no slower than '
+        'mj_inverse)',
+        '',
+        'scaling: generated chains (mech_balance.chain.dyad_chain: a crank-rocker and '
+        'near-parallelogram stages)',
+        f'  {"links":>5}{"moving":>7}{"loops":>6} |{"mech_balance us/angle":>22}'
+        f'{"":>6}|{"MuJoCo us/angle":>17}{"":>12}|{"ratio":>7} |{"agreement":>10}',
+        f'  {"":>5}{"":>7}{"":>6} |{"full":>11}{"dynamics":>11}{"":>6}|'
+        f'{"full":>10}{"mj_inverse":>12}{"":>7}|{"full":>7} |{"worst":>10}',
+    ]
+    for r in list(chains) + list(extras):
+        u = r['us']
+        lines.append(f'  {r["links"] + 1:>5}{r["links"]:>7}{r["loops"]:>6} |'
+                     f'{u["ours_full"]:>11.3f}{u["ours_dyn"]:>11.3f}{"":>6}|'
+                     f'{u["mj_full"]:>10.2f}{u["mj_inverse"]:>12.2f}{"":>7}|'
+                     f'{u["mj_full"] / u["ours_full"]:>6.1f}x |{_worst(r):>10.1e}'
+                     + ('' if r['scene'].startswith('dyad_chain') else f'  {r["scene"]}'))
+    every = [hoeken] + list(chains) + list(extras)
+    worst_all = max(_worst(r) for r in every)
+    lines.append(f'  agreement over all {len(every)} rigs (both motions, torque, shaking force '
+                 f'and moment): worst {worst_all:.1e} -> '
+                 f'{"PASS" if worst_all <= AGREEMENT_TOL else "FAIL"}')
+    if len(chains) >= 2:
+        a, b = chains[0], chains[-1]
+        ratio = (b['links'] + 1) / (a['links'] + 1)
+        grow = {k: math.log(b['us'][k] / a['us'][k]) / math.log(ratio)
+                for k in ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse')}
+        lines += [
+            f'  growth exponent {a["links"] + 1} -> {b["links"] + 1} links '
+            f'(cost ~ links^e): mech_balance full {grow["ours_full"]:.2f}, dynamics '
+            f'{grow["ours_dyn"]:.2f}; MuJoCo full {grow["mj_full"]:.2f}, mj_inverse '
+            f'{grow["mj_inverse"]:.2f}  ({"PASS" if grow["ours_full"] <= 2.0 else "FAIL"}: '
+            'mech_balance full <= 2, quadratic)',
+            '  links count the frame.  A single-input planar chain of revolute joints has an '
+            'odd number of moving',
+            '  links (Gruebler: 3 n - 2 j = 1), so 7 links with the frame cannot exist: '
+            '8 (7 moving, the carpet',
+            "  scraper's count) stands in for it.",
+        ]
+    return '\n'.join(lines)
+
+
+def run(samples=360, repeat=50, progress=print, loops=CHAIN_LOOPS):
+    """
+    Return ``(hoeken, chains, extras, version)``: :func:`compare` of each rig.
+
+    ``chains`` are the generated chains with ``loops`` loops, ``extras`` the carpet scraper
+    (seed 001 Table 8, 7 moving links) as a paper rig of the same size as the 8-link chain.
+    """
+    mujoco = import_mujoco()
+    progress('  comparing hoeken ...')
+    hoeken = compare(scene_mod.load('hoeken'), samples, repeat, progress)
+    chains = []
+    for n in loops:
+        progress(f'  comparing a generated chain with {n} loops ...')
+        chains.append(compare(chain.dyad_chain(n), samples, repeat, progress))
+    progress('  comparing carpet_scraper ...')
+    extras = [compare(scene_mod.load('carpet_scraper'), samples, repeat, progress)]
+    return hoeken, chains, extras, mujoco.__version__
+
+
+def cmd_compare(args):
+    """Run ``mech-balance bench --compare mujoco``; return the exit status."""
+    try:
+        import_mujoco()
+    except MujocoMissing as exc:
+        print(str(exc), file=sys.stderr)
+        return EXIT_MISSING
+    progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
+    hoeken, chains, extras, version = run(args.samples, args.repeat, progress)
+    print(format_report(hoeken, chains, version, extras), flush=True)
+    return 0

@@ -1,0 +1,170 @@
+"""
+The MuJoCo comparison and the generated chains it scales over.
+
+The chain tests run everywhere; the agreement tests need the optional ``mujoco`` package and
+are skipped without it (``make bench-mujoco`` installs it).  No timings here.
+"""
+
+import math
+import sys
+
+from mech_balance import analysis, chain, cli, dynamics, kinematics, scene
+from mech_balance.conventions import cycle_angles
+import numpy as np
+from numpy.testing import assert_allclose
+import pytest
+
+AGREEMENT = 1e-9
+"""The comparison's acceptance: relative difference to the cycle's peak."""
+
+
+def _relative(ours, theirs):
+    return float(np.max(np.abs(np.asarray(theirs) - ours)) / np.max(np.abs(ours)))
+
+
+# ----------------------------------------------------------------------------- the generator
+
+
+@pytest.mark.parametrize('loops', [1, 3, 4, 9])
+def test_chain_counts_assembles_and_turns_fully(loops):
+    sc = chain.dyad_chain(loops)
+    moving, with_frame, joints = chain.link_counts(loops)
+    assert (len(sc.links), len(sc.joints)) == (moving, joints)
+    assert with_frame == moving + 1 and 3 * moving - 2 * joints == 1   # Gruebler
+    rig = analysis.Rig(sc)                      # assembles and traces the branch, full turn
+    lk = rig.linkage
+    assert len(lk.cuts) == loops and lk.nu == 2 * loops
+    psi = cycle_angles(360) + 0.3
+    state, w = rig.evaluate(psi)
+    assert np.max(state.residual) < 1e-12
+    assert np.max(state.cond) < kinematics.COND_WARN
+    # every cut joint closes: its two points coincide (independent of the residual code)
+    for c in lk.cuts:
+        pa = state.pose.origin[c.a] + state.pose.rot[c.a] * c.p_a
+        pb = state.pose.origin[c.b] + state.pose.rot[c.b] * c.p_b
+        assert np.max(np.abs(pb - pa)) < 1e-13
+    # the crank turns once, every rocker swings within the documented range
+    phi = np.degrees(state.pose.phi)
+    assert_allclose(np.unwrap(state.pose.phi[1]) - psi, 0.0, atol=1e-12)
+    for i, name in enumerate(lk.body_names):
+        if name.startswith('rocker'):
+            assert 85.0 < phi[i].min() and phi[i].max() < 135.0, name
+    assert np.all(np.isfinite(w.driving_torque))
+
+
+def test_chain_power_balance():
+    """Driving power equals the kinetic energy rate, from positions only (finite differences)."""
+    rig = analysis.Rig(chain.dyad_chain(4))
+    omega, h = rig.scene.crank_speed_rad_s, 1e-3
+    psi = cycle_angles(24)
+    _, w = rig.evaluate(psi, ('bearing_reactions',), speed=omega, accel=0.0)
+
+    def kinetic(angles):
+        st, _ = rig.evaluate(angles, ('kinematics',), speed=omega, accel=0.0)
+        return 0.5 * omega ** 2 * dynamics.generalized_inertia(st, rig.inertia)
+
+    # dT/dt = omega dT/dpsi, 4th-order central difference
+    rate = omega * (-kinetic(psi + 2 * h) + 8 * kinetic(psi + h) - 8 * kinetic(psi - h)
+                    + kinetic(psi - 2 * h)) / (12 * h)
+    assert_allclose(w.driving_torque * omega, rate, rtol=0, atol=1e-8 * np.max(np.abs(rate)))
+
+
+@pytest.mark.parametrize('kwargs, match', [
+    ({'loops': 0}, 'loops: got 0, expected an integer from 1'),
+    ({'loops': 2.0}, 'loops: got 2.0, expected an integer'),
+    ({'loops': True}, 'loops: got True'),
+    ({'loops': 2, 'crank_m': -0.1}, 'crank_m: got -0.1, expected a positive'),
+    ({'loops': 2, 'density_kg_m': math.nan}, 'density_kg_m: got nan'),
+    ({'loops': 2, 'skew': 0.5}, r'skew: got 0.5, expected a number in \[0, 0.2\)'),
+])
+def test_chain_rejects_bad_input(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        chain.dyad_chain(**kwargs)
+
+
+# ----------------------------------------------------------------------------- without MuJoCo
+
+
+def test_compare_without_mujoco_exits_2(monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, 'mujoco', None)        # import mujoco -> ImportError
+    assert cli.main(['bench', '--compare', 'mujoco']) == 2
+    err = capsys.readouterr().err
+    assert '"mujoco" is not installed' in err and 'make bench-mujoco' in err
+
+
+# ----------------------------------------------------------------------------- with MuJoCo
+
+
+@pytest.fixture(scope='module')
+def bench_mujoco():
+    pytest.importorskip('mujoco')
+    from mech_balance import bench_mujoco
+    return bench_mujoco
+
+
+def _rigs(name_or_loops, bench_mujoco):
+    sc = chain.dyad_chain(name_or_loops) if isinstance(name_or_loops, int) else \
+        scene.load(name_or_loops)
+    rig = analysis.Rig(sc.with_outputs(scene.OUTPUTS))
+    return rig, bench_mujoco.MujocoRig(rig)
+
+
+@pytest.mark.parametrize('which', ['hoeken', 4])
+def test_imposed_motion_agrees_with_mujoco(which, bench_mujoco):
+    rig, mjr = _rigs(which, bench_mujoco)
+    psi = cycle_angles(72, rig.scene.assembly_crank_angle_rad) + 0.01
+    st, w = rig.evaluate(psi, speed=1.7, accel=0.9)
+    tau, fsh, nsh, cut = mjr.dynamics(st.q, st.qd, st.qdd)
+    assert _relative(w.driving_torque, tau) < AGREEMENT
+    assert _relative(w.shaking_force, fsh) < AGREEMENT
+    assert _relative(w.shaking_moment, nsh) < AGREEMENT
+    ours_cut = np.array([w.reaction_force[c.name] for c in rig.linkage.cuts])
+    assert _relative(ours_cut, cut) < AGREEMENT
+
+
+@pytest.mark.parametrize('which', ['hoeken', 'carpet_scraper', 9])
+def test_mujoco_own_kinematics_agrees(which, bench_mujoco):
+    rig, mjr = _rigs(which, bench_mujoco)
+    sc = rig.scene
+    psi = cycle_angles(90, sc.assembly_crank_angle_rad)
+    st, w = rig.evaluate(psi)
+    tau, fsh, nsh, q, res, iters = mjr.full(psi, sc.crank_speed_rad_s,
+                                            sc.crank_acceleration_rad_s2, st.q[:, 0])
+    assert np.max(res) <= kinematics.NEWTON_TOL and np.max(iters) <= 3
+    assert_allclose(q, st.q, rtol=0, atol=1e-12)
+    assert _relative(w.driving_torque, tau) < AGREEMENT
+    assert _relative(w.shaking_force, fsh) < AGREEMENT
+    assert _relative(w.shaking_moment, nsh) < AGREEMENT
+
+
+def test_mj_inverse_soft_force_vanishes_for_a_rigid_motion(bench_mujoco):
+    """The documented finding: for exact loop kinematics mj_inverse's constraint force is ~0."""
+    import mujoco
+    rig, mjr = _rigs('hoeken', bench_mujoco)
+    st, w = rig.evaluate(cycle_angles(12))
+    m, d = mjr.model, mjr.data
+    lam = np.array([w.reaction_force[c.name] for c in rig.linkage.cuts])
+    for i in range(12):
+        d.qpos[mjr.dof], d.qvel[mjr.dof], d.qacc[mjr.dof] = st.q[:, i], st.qd[:, i], st.qdd[:, i]
+        mujoco.mj_inverse(m, d)
+        assert np.max(np.abs(d.efc_force)) < 1e-6 * np.max(np.abs(lam))
+        # so the passive joints appear to need torque: the loop forces are missing there
+        assert np.max(np.abs(d.qfrc_inverse[mjr.passive])) > 1e-3 * np.max(np.abs(
+            w.driving_torque))
+
+
+def test_mujoco_model_rejects_prismatic_joints(bench_mujoco):
+    rig = analysis.Rig(scene.load('slider_crank'))
+    with pytest.raises(ValueError, match='revolute joints only'):
+        bench_mujoco.MujocoRig(rig)
+
+
+def test_compare_report_passes(bench_mujoco):
+    """One small run of the whole comparison: agreement PASS printed (timings not checked)."""
+    hoeken = bench_mujoco.compare(scene.load('hoeken'), samples=24, repeat=2)
+    chains = [bench_mujoco.compare(chain.dyad_chain(n), samples=24, repeat=2) for n in (1, 3)]
+    text = bench_mujoco.format_report(hoeken, chains, 'test')
+    assert 'PASS (worst' in text and 'FAIL (worst' not in text
+    line = next(x for x in text.splitlines() if 'rigs (both motions' in x)
+    assert line.endswith('-> PASS'), line
+    assert max(hoeken['agreement_own'].values()) < AGREEMENT
