@@ -13,7 +13,7 @@ import numpy as np
 
 EXIT_USAGE = 2
 
-EXTENSIONS = ('mech_balance.cli_balance', 'mech_balance.cli_record')
+EXTENSIONS = ('mech_balance.cli_balance', 'mech_balance.cli_record', 'mech_balance.cli_sim')
 """Modules that add verbs: each has ``register(subparsers)`` adding its parser(s) with
 ``set_defaults(func=...)``; a verb module owns its parser, handler and help text."""
 

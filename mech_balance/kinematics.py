@@ -363,6 +363,8 @@ class Linkage:
 
     def residual(self, pose):
         """Return the scaled loop-closure residuals ``(m, p)`` (seed 000 eq. 27)."""
+        if not self.m:  # an open chain (a lone crank): nothing to close
+            return np.zeros((0, pose.phi.shape[1]))
         pa, pb = self._cut_points(pose)
         d = pb - pa
         nr = self.nr
@@ -384,6 +386,8 @@ class Linkage:
 
         With ``unknown_only`` only the columns of the unknown coordinates, ``(m, nu, p)``.
         """
+        if not self.m:
+            return np.zeros((0, self.nu if unknown_only else self.nt, pose.phi.shape[1]))
         pa, pb = self._cut_points(pose)
         cols = self.unknown_rows if unknown_only else slice(None)
         if not self.has_pri and not self.npc:
@@ -584,6 +588,8 @@ class Linkage:
 
     def _cut_bias(self, pose, omega, vel, acc_v):
         """Return the scaled loop-equation accelerations with all joint accelerations zero."""
+        if not self.m:
+            return np.zeros((0, pose.phi.shape[1]))
         self._cut_points(pose)
         pa, pb, ra, rb, _ = pose.cut_points
         ia, ib = self.cut_a, self.cut_b

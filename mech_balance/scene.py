@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, replace
 import math
 import os
 from pathlib import Path
+import re
 
 import numpy as np
 import yaml
@@ -135,6 +136,7 @@ class Scene:
     source: str = '<dict>'
     kind: str = 'planar'
     recording: Recording = Recording()
+    drive: dict = None  # motor, speed loop and damping for `mech-balance simulate`
 
     def link(self, name):
         """Return the link called ``name``."""
@@ -208,11 +210,30 @@ def resolve(name_or_path):
     return scenes[text]
 
 
+class _Loader(yaml.SafeLoader):
+    """
+    SafeLoader that also reads ``1e-3`` and ``2E+5`` as floats (YAML 1.2).
+
+    PyYAML follows YAML 1.1, where a float needs a dot (``1.0e-3``) and ``1e-3`` is text.
+    """
+
+
+_Loader.add_implicit_resolver(
+    'tag:yaml.org,2002:float',
+    re.compile(r'^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$'),
+    list('-+0123456789'))
+
+
+def parse_yaml(text):
+    """Parse YAML text as scenes are parsed (safe, YAML 1.2 floats)."""
+    return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+
+
 def load_data(name_or_path):
     """Return the parsed YAML mapping of a scene and its path."""
     path = resolve(name_or_path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = parse_yaml(path.read_text())
     except yaml.YAMLError as exc:
         raise SceneError(f'scene {path.name}: not valid YAML: {exc}') from None
     if not isinstance(data, dict):
@@ -243,7 +264,7 @@ def from_dict(data, source='<dict>'):
 _TOP_KEYS = {
     'schema_version', 'name', 'description', 'kind', 'normalization', 'crank', 'gravity_m_s2',
     'frame', 'links', 'joints', 'assembly', 'outputs', 'samples', 'notes', 'recording',
-    'balance',
+    'balance', 'drive',
 }
 
 
@@ -331,14 +352,18 @@ def _planar_from_dict(data, source):
     description = data.get('description', '')
     if not isinstance(description, str):
         raise SceneError(f'description: got {type(description).__name__}, expected text')
-    return Scene(
+    sc = Scene(
         name=name, description=description.strip(), frame_points=frame_points,
         links=links, joints=joints, crank_joint=crank_joint, crank_speed_rad_s=speed,
         crank_acceleration_rad_s2=accel, assembly_crank_angle_rad=crank_angle,
         assembly_link_angles_rad=link_angles, assembly_displacements_m=displacements,
         outputs=outputs, samples=samples, gravity_m_s2=gravity, normalization=normalization,
         notes=notes if isinstance(notes, dict) else {'text': notes}, source=source,
-        recording=_recording(data.get('recording', {})))
+        recording=_recording(data.get('recording', {})), drive=data.get('drive'))
+    if sc.drive is not None:  # validated by the simulation module, which owns its schema
+        from mech_balance import simulate
+        simulate.drive_from_dict(sc.drive, sc)
+    return sc
 
 
 def _recording(value):

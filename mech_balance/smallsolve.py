@@ -216,6 +216,8 @@ def inverse(mat, plan=None):
     if mat.ndim != 3 or mat.shape[0] != mat.shape[1]:
         raise ValueError(f'mat: got shape {mat.shape}, expected (k, k, p)')
     k, _, p = mat.shape
+    if k == 0:  # no unknowns (an open chain): an empty, perfectly conditioned system
+        return np.zeros((0, 0, p)), np.ones(p)
     if k == 2:
         return _inverse_2(mat)
     if k == 1:

@@ -1,0 +1,114 @@
+"""
+The ``simulate`` and ``accuracy`` verbs of ``mech-balance`` (registered in cli.EXTENSIONS).
+
+Thin: parse, call :mod:`mech_balance.simulate` or :mod:`mech_balance.accuracy`, print.
+"""
+
+import argparse
+import json
+import math
+import sys
+
+from mech_balance import accuracy, simulate
+
+
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'got {text!r}, expected a number > 0') from None
+    if not math.isfinite(value) or value <= 0.0:
+        raise argparse.ArgumentTypeError(f'got {text!r}, expected a finite number > 0')
+    return value
+
+
+def _rows(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'got {text!r}, expected an integer >= 2') from None
+    if value < 2:
+        raise argparse.ArgumentTypeError(f'got {value}, expected an integer >= 2')
+    return value
+
+
+def _sections(text):
+    names = [s for s in text.replace(' ', '').split(',') if s]
+    bad = [s for s in names if s not in accuracy.SECTIONS]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(
+            f'got {text!r}, expected a comma-separated list from '
+            f'{",".join(accuracy.SECTIONS)}')
+    return tuple(names)
+
+
+def register(sub):
+    """Add the ``simulate`` and ``accuracy`` parsers to the ``mech-balance`` subparsers."""
+    p = sub.add_parser(
+        'simulate', help='forward dynamics: start-up and steady state with motor and damping',
+        description='Integrate the equation of motion of a planar rig (seed 000 eq. 39) with '
+                    "the scene's drive: section (DC motor line, PI speed controller, joint "
+                    'damping; gravity from gravity_m_s2). Prints the method used and why, '
+                    'crank speed ripple, driving torque and shaking wrench over time, and '
+                    'the energy balance. A scene without a drive coasts from its crank speed.')
+    p.add_argument('--scene', default='slider_crank',
+                   help='built-in scene name or path to a YAML file (default: %(default)s)')
+    p.add_argument('--duration', type=_positive_float, required=True, metavar='T',
+                   help='simulated time in seconds')
+    p.add_argument('--method', default='auto', choices=('auto',) + simulate.METHODS,
+                   help='integrator; auto picks Radau for stiff rigs, else DOP853 '
+                        '(default: %(default)s)')
+    p.add_argument('--rtol', type=_positive_float, default=simulate.DEFAULT_RTOL,
+                   help='relative tolerance (absolute tolerances scale with the rig; '
+                        'default: %(default)g)')
+    p.add_argument('--rhs', default='table', choices=('table', 'direct'),
+                   help='right-hand side from checked Fourier tables of the core (fast) or '
+                        'the core at every call (default: %(default)s)')
+    p.add_argument('--rows', type=_rows, default=20,
+                   help='rows of the time table (default: %(default)s)')
+    p.add_argument('--json', action='store_true', help='print the summary as JSON')
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser(
+        'accuracy', help='error against run time: RMS vs samples, integrators, Newton, '
+                         'balancing',
+        description='Error against run time for one planar scene: RMS figures against the '
+                    'number of crank samples p; forward-dynamics error against integrator '
+                    'and tolerance (explicit and implicit) with run time, right-hand-side '
+                    'evaluations and energy balance; Newton residual and iterations per '
+                    'angle; balancing certificate gap against solve time.')
+    p.add_argument('--scene', default='hoeken',
+                   help='built-in scene name or path to a YAML file (default: %(default)s)')
+    p.add_argument('--duration', type=_positive_float, default=None, metavar='T',
+                   help='simulated time of the integrator study in seconds (default: '
+                        f'{accuracy.ACCURACY_TURNS:g} crank turns at the operating speed)')
+    p.add_argument('--sections', type=_sections, default=accuracy.SECTIONS,
+                   metavar='LIST',
+                   help=f'which studies, comma-separated (default: '
+                        f'{",".join(accuracy.SECTIONS)})')
+    p.add_argument('--json', action='store_true', help='print the studies as JSON')
+    p.set_defaults(func=cmd_accuracy)
+
+
+def cmd_simulate(args):
+    """Run a simulation and print its report."""
+    rep = simulate.simulate(args.scene, args.duration, method=args.method, rtol=args.rtol,
+                            rhs=args.rhs)
+    if args.json:
+        print(json.dumps(rep.summary, indent=2))
+    else:
+        print(simulate.format_report(rep, rows=args.rows))
+    for text in rep.simulation.model.rig.linkage.warnings:
+        print(f'warning: {text}', file=sys.stderr)
+    return 0
+
+
+def cmd_accuracy(args):
+    """Run the accuracy studies and print their tables."""
+    progress = (lambda s: print(s, file=sys.stderr, flush=True))  # noqa: E731
+    result = accuracy.run(args.scene, args.sections, args.duration, progress=progress)
+    if args.json:
+        print(json.dumps(accuracy.to_jsonable(result), indent=2))
+    else:
+        print(accuracy.format_tables(result))
+    return 0
