@@ -55,6 +55,9 @@ class Rig:
         ``outputs`` defaults to the scene's; ``wrenches`` is ``None`` for kinematics only.
         """
         need = needs(self.scene.outputs if outputs is None else outputs)
+        # this rig's crank speed, not that of the scene the shared linkage was compiled from
+        speed = self.scene.crank_speed_rad_s if speed is None else speed
+        accel = self.scene.crank_acceleration_rad_s2 if accel is None else accel
         state = self.linkage.solve(psi, speed, accel, need_acc='accelerations' in need)
         if 'accelerations' not in need:
             return state, None

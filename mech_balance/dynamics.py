@@ -25,6 +25,8 @@ from dataclasses import dataclass
 from mech_balance.kinematics import _cross, _rmat
 import numpy as np
 
+SPEED_FLOOR_RAD_S = 1e-300
+"""Crank speeds at or below this magnitude take the torque path that does not divide by it."""
 PARAMS_PER_LINK = 4
 """Inertial parameters per link: m, m*c_x, m*c_y (link frame), I about the link origin."""
 
@@ -105,6 +107,11 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
     gravity = complex(gravity)
     if 'bearing_reactions' in need:
         _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net)
+    elif 'driving_torque' in need and not np.all(np.abs(state.psi_d) > SPEED_FLOOR_RAD_S):
+        # at rest the power balance below is 0/0: take the torque from the generalized
+        # forces of the tree (the same NOC projection, without dividing by the speed)
+        _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net)
+        out.reaction_force = out.reaction_moment = out.reaction_point = None
     elif 'driving_torque' in need:
         # seed 000 eq. 37: tau = u^T (w* - w^E), u = t / psi_dot (power balance per unit speed)
         power = np.sum(omega * n_star + _dot(state.vel, f_star), axis=0)

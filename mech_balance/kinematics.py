@@ -190,6 +190,7 @@ class Linkage:
         self.length_scale = self._length_scale(scene, pts)
         self._compile()
         self.pivot = self._crank_pivot(scene)
+        self.branch_sign = 1.0  # sign of det J_u on the traced branch (set by the trace)
         self.pivots = None  # static row order for the loop Jacobian, set at assembly
         self.lu = None      # its sparse LU plan (smallsolve.LUPlan), set at assembly
         self._skeleton = None
@@ -636,6 +637,7 @@ class Linkage:
         pose = self.pose(q)
         qd, qdd, cond, _ = self._derivatives(pose)
         det0 = self._det_sign(pose)
+        self.branch_sign = det0
         nodes_psi, nodes_q, nodes_qd, nodes_qdd, nodes_cond = [psi0], [q[:, 0]], [qd[:, 0]], \
             [qdd[:, 0]], [cond[0]]
         psi, h = psi0, STEP_MAX_RAD
@@ -650,7 +652,9 @@ class Linkage:
             if good:
                 qd_new, qdd_new, cond_new, _ = self._derivatives(pose_new)
                 good = np.isfinite(cond_new[0]) and cond_new[0] <= COND_LIMIT
-            if good and self._det_sign(pose_new) != det0:
+            if good and self._det_sign(pose_new) == det0:
+                good = self._midpoint_ok(psi, h, q, qd, qdd, q_new, qd_new, qdd_new, det0)
+            elif good:
                 good = False
                 if h <= 2 * STEP_MIN_RAD:
                     raise BranchError(
@@ -693,6 +697,24 @@ class Linkage:
         return Skeleton(np.array(nodes_psi), np.array(nodes_q).T, np.array(nodes_qd).T,
                         np.array(nodes_qdd).T, np.array(nodes_cond), turns)
 
+    def _midpoint_ok(self, psi, h, q0, qd0, qdd0, q1, qd1, qdd1, det0):
+        """
+        Return whether the quintic Hermite predictor holds at the middle of a new segment.
+
+        The batched solve starts Newton from that predictor, so a segment is accepted only
+        if, at its midpoint, Newton moves less than a tenth of ``EVAL_TRUST`` and stays on
+        the branch (same sign of det J_u).  Near a change point this shortens the steps
+        until the two nearby branches can no longer be confused.
+        """
+        if not self.nu:
+            return True
+        # quintic Hermite basis at t = 1/2: 1/2, 5/32, 1/64 (and mirrored for the end)
+        pred = (0.5 * (q0 + q1) + 0.15625 * h * (qd0 - qd1)
+                + 0.015625 * h * h * (qdd0 + qdd1))
+        q_mid, pose_mid, _, _, ok = self.newton(np.array([psi + 0.5 * h]), pred)
+        corr = np.max(np.abs((q_mid - pred)[self.unknown]) / self.col_scale[:, None])
+        return bool(ok[0]) and corr <= 0.1 * EVAL_TRUST and self._det_sign(pose_mid) == det0
+
     def _det_sign(self, pose):
         if not self.nu:
             return 1.0
@@ -728,10 +750,27 @@ class Linkage:
             corr = np.zeros(psi.shape)
         bad = corr > EVAL_TRUST
         bad |= ~ok
+        jac = self.jacobian(pose) if self.nu else None
+        if self.nu:
+            # The branch is the set of solutions where det J_u keeps the sign it has at the
+            # assembly (the trace refuses to cross a sign change).  Near a change point the
+            # two branches can be closer than EVAL_TRUST, so the correction size alone does
+            # not tell them apart; the sign does.
+            bad |= smallsolve.det_sign(jac[:, self.unknown], self.lu) != self.branch_sign
         if bad.any():
             q[:, bad] = self._retrace(psi[bad])
             pose = self.pose(q)
             res = np.max(np.abs(self.residual(pose)), axis=0) if self.m else res
+            jac = self.jacobian(pose) if self.nu else None
+            if self.nu:
+                wrong = smallsolve.det_sign(jac[:, self.unknown], self.lu) != self.branch_sign
+                if wrong.any():
+                    at = math.degrees(psi[np.flatnonzero(wrong)[0]])
+                    raise BranchError(
+                        f'crank angle {at:.4f} deg: the solution found is on the other '
+                        'assembly branch (the loop Jacobian determinant changed sign); the '
+                        'linkage is too close to a singular position here to follow its '
+                        'branch')
         state = KinematicState(psi, None, None, q, pose, res, None, iters)
         speed = self.scene.crank_speed_rad_s if psi_d is None else psi_d
         accel = self.scene.crank_acceleration_rad_s2 if psi_dd is None else psi_dd
@@ -741,7 +780,8 @@ class Linkage:
             np.broadcast_to(np.asarray(accel, dtype=float), psi.shape)
         if need_rates:
             r = self.rates(pose, speed if np.ndim(speed) == 0 else state.psi_d,
-                           accel if np.ndim(accel) == 0 else state.psi_dd, need_acc=need_acc)
+                           accel if np.ndim(accel) == 0 else state.psi_dd, jac=jac,
+                           need_acc=need_acc)
             state.cond = r['cond']
             state.jac_inv, state.jac = r['jac_inv'], r['jac']
             state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
@@ -762,8 +802,8 @@ class Linkage:
         for i, target in enumerate(psi):
             k, x = sk.locate(np.array([target]))
             base = sk.psi[k[0]] + (target - sk.psi[0] - x[0])
-            q = sk.q[:, k[0]:k[0] + 1] + np.where(self.is_prismatic, 0.0,
-                                                  sk.turns * sk.wraps(target))[:, None]
+            q = sk.q[:, k[0]:k[0] + 1] + np.where(
+                self.is_prismatic, 0.0, TWO_PI * sk.turns * sk.wraps(target))[:, None]
             qd = sk.qd[:, k[0]:k[0] + 1]
             qdd = sk.qdd[:, k[0]:k[0] + 1]
             psi_now, goal = base, target
@@ -773,7 +813,8 @@ class Linkage:
                 pred = q + qd * h + 0.5 * qdd * h * h
                 q_new, pose_new, res, _, ok = self.newton(np.array([psi_now + h]), pred)
                 corr = np.max(np.abs((q_new - pred)[self.unknown]) / self.col_scale[:, None])
-                if not ok[0] or corr > STEP_TRUST:
+                if not ok[0] or corr > STEP_TRUST or \
+                        self._det_sign(pose_new) != self.branch_sign:
                     h *= 0.5
                     if h < STEP_MIN_RAD:
                         raise BranchError(

@@ -240,6 +240,32 @@ def inverse(mat, plan=None):
 _DENSE_PLANS = {}
 
 
+def det_sign(mat, plan=None):
+    """
+    Return the sign of the determinant of each matrix of a batch-last ``(k, k, p)`` stack.
+
+    k <= 2 in closed form; otherwise from the static-order LU (the permutation's sign times
+    the signs of U's diagonal), with LAPACK for the matrices whose static pivots are small.
+    """
+    mat = np.asarray(mat, dtype=float)
+    k, _, p = mat.shape
+    if k == 0:
+        return np.ones(p)
+    if k == 1:
+        return np.sign(mat[0, 0])
+    if k == 2:
+        return np.sign(mat[0, 0] * mat[1, 1] - mat[0, 1] * mat[1, 0])
+    plan = _plan_for(k, plan)
+    lu, weak = factor(mat, plan)
+    order = plan.row_order
+    inversions = sum(1 for i in range(k) for j in range(i + 1, k) if order[i] > order[j])
+    sign = np.prod(np.sign(lu[plan.diag]), axis=0) * (-1.0 if inversions % 2 else 1.0)
+    if weak.any():
+        sign[weak] = np.sign(np.linalg.det(np.ascontiguousarray(
+            np.moveaxis(mat[:, :, weak], -1, 0))))
+    return sign
+
+
 def _plan_for(k, plan):
     """Return ``plan`` if it is an :class:`LUPlan`, else a dense plan for that row order."""
     if isinstance(plan, LUPlan):

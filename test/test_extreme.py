@@ -12,9 +12,10 @@ Extreme and ill-conditioned rigs: change points, toggles, scale, mass ratios.
 * Mass ratios between links up to 1e8: superposition, power balance and the independence of
   the other joints' reactions from the crank's inertia hold to round-off.
 
-Tests marked ``xfail(strict=True)`` document core misbehaviour found here (reported to the
-lead with a proposed fix); they turn into failures when the core is fixed, so the marker is
-removed then.
+Five core bugs were first found here (as strict xfails) and fixed: silent branch jumps
+near a change point (now guarded by the sign of det J_u and a midpoint check of the branch
+trace), a missing 2 pi in the step-by-step re-trace, a stale crank speed from the linkage
+cache, and a NaN driving torque at rest.
 """
 
 import copy
@@ -141,11 +142,6 @@ def test_slider_crank_condition_grows_and_warns():
     assert any('Jacobian condition number' in w for w in rig.linkage.warnings)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    'core: Linkage.solve returns the other assembly branch between skeleton nodes '
-    '89.99 and 90.39 deg when the rod is 1 + 1e-9 crank lengths (quintic Hermite predictor '
-    'across the near-corner lands on the mirror branch; det J_u has the opposite sign there); '
-    'reported to the lead'))
 def test_slider_crank_never_jumps_branch_near_change_point():
     rod = R_CRANK * (1.0 + 1e-9)
     rig = analysis.Rig(slider_crank(rod))
@@ -182,17 +178,8 @@ def test_assembly_where_the_rod_cannot_reach_names_the_angle():
 # ----------------------------------------------------------------------------- four-bar
 
 
-RETRACE_BUG = pytest.mark.xfail(strict=True, raises=kinematics.BranchError, reason=(
-    'core: Linkage._retrace starts from the skeleton node shifted by turns * wraps instead '
-    'of 2 pi * turns * wraps, so re-tracing an angle before the assembly angle (wraps = -1) '
-    'starts 1 rad off per turn of each revolving joint and fails ("cannot follow the '
-    'assembly branch") here; reported to the lead'))
-
-
 @pytest.mark.parametrize('family, eps', [
-    (family, eps) if (family, eps) != ('folded', 1e-4) else
-    pytest.param(family, eps, marks=RETRACE_BUG)
-    for family in FAMILIES for eps in (0.5, 1e-2, 1e-4, 1e-6)])
+    (family, eps) for family in FAMILIES for eps in (0.5, 1e-2, 1e-4, 1e-6)])
 def test_four_bar_follows_branch_near_grashof_change_point(family, eps):
     dims, singular_deg = FAMILIES[family]
     a, b, c, d = dims(eps)
@@ -235,10 +222,6 @@ def test_non_grashof_four_bar_is_refused_where_it_stops(family, eps):
     assert min(abs(angle - stop), abs(angle - (360.0 - stop))) < 0.05
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    'core: near the Grashof change point (d = b + c - a - 1e-9) Linkage.solve returns the '
-    'mirror branch at crank angles between two skeleton nodes around 180 deg (same cause as '
-    'the slider-crank case); reported to the lead'))
 def test_four_bar_never_jumps_branch_near_change_point():
     a, b, c, d = FAMILIES['stretched'][0](1e-9)
     rig = analysis.Rig(four_bar(a, b, c, d))
@@ -322,11 +305,6 @@ def test_normalized_outputs_are_scale_invariant(name):
         assert_allclose(got[3], ref[3], rtol=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    'core: analysis.linkage_for caches the Linkage by geometry but not by crank speed, and '
-    'Linkage.solve defaults the speed to its *own* scene; a Rig for the same geometry and '
-    'name at another crank speed silently computes at the first speed (fix: Rig.evaluate '
-    'passes speed/accel from self.scene when None); reported to the lead'))
 def test_rig_uses_its_own_crank_speed():
     data, _ = scene.load_data('hoeken')
     slow = scene.from_dict(copy.deepcopy(data), 'test')
@@ -436,10 +414,6 @@ def test_single_crank_flywheel_rig():
     assert_allclose(simulate.rig_functions(rig, cycle.psi)[0], i_o, rtol=1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "core: with outputs ('driving_torque',) the NOC path divides the power by the crank "
-    'speed, so at rest (start-up, statics under gravity) the driving torque is NaN although '
-    "it is I psi'' - tau_G (the bearing-reaction path gives it); reported to the lead"))
 def test_driving_torque_at_rest_is_finite():
     sc, _ = simulate.load('slider_crank')
     rig = analysis.Rig(sc)
