@@ -72,11 +72,12 @@ def run(names=None, samples=360, repeat=DEFAULT_REPEAT, progress=print):
 
 def format_rows(rows):
     """Return the bench table as text."""
-    lines = [f'{"scene":<16}{"outputs":<30}{"us/angle":>10}{"ms/cycle":>10}{"build ms":>10}',
-             '-' * 76]
+    width = max([16] + [len(r['scene']) + 2 for r in rows])
+    lines = [f'{"scene":<{width}}{"outputs":<30}{"us/angle":>10}{"ms/cycle":>10}'
+             f'{"build ms":>10}', '-' * (width + 60)]
     for r in rows:
         outs = 'everything' if len(r['outputs']) == len(scene_mod.OUTPUTS) else \
             '+'.join(r['outputs'])
-        lines.append(f'{r["scene"]:<16}{outs:<30}{r["us_per_angle"]:>10.3f}'
+        lines.append(f'{r["scene"]:<{width}}{outs:<30}{r["us_per_angle"]:>10.3f}'
                      f'{r["cycle_s"] * 1e3:>10.3f}{r["build_s"] * 1e3:>10.1f}')
     return '\n'.join(lines)
