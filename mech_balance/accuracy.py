@@ -218,13 +218,6 @@ def equal_error(runs):
     return rows
 
 
-def best_speedup(study, method):
-    """Return the largest time ratio of the equal-error rows of one implicit method."""
-    ratios = [r['time_ratio'] for r in study['equal_error']
-              if r['implicit'].method == method and r['time_ratio'] is not None]
-    return max(ratios) if ratios else None
-
-
 # ============================================================================ position
 
 

@@ -46,12 +46,21 @@ COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which the position is refused as singular."""
 STEP_MAX_RAD = math.radians(5.0)
 """Largest crank step between skeleton nodes (keeps the Hermite predictor within 1e-6)."""
+LINE_SEARCH_MIN = 1e-4
+"""Smallest step fraction of the damped Newton that assembles the linkage from the guess."""
+ANGLE_EPS_RAD = 1e-12
+"""Crank angles closer than this are the same angle (ends of the trace and of re-traces)."""
+CLOSURE_TOL = 1e-7
+"""Largest scaled joint mismatch after one traced turn for the branch to count as closed."""
 STEP_MIN_RAD = 1e-7
 """Smallest crank step the continuation may take before it declares the branch lost."""
 STEP_TRUST = 0.05
 """Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
 EVAL_TRUST = 1e-4
 """Largest scaled correction from the skeleton predictor before an angle is re-traced."""
+MIDPOINT_TRUST_FRACTION = 0.1
+"""A traced segment is accepted when Newton moves its midpoint predictor by less than this
+fraction of ``EVAL_TRUST``, so that batched solves seldom need the step-by-step re-trace."""
 TWO_PI = 2.0 * math.pi
 
 
@@ -505,7 +514,7 @@ class Linkage:
                 break
             step = -_matvec(jinv, g) * cs
             lam = 1.0
-            while lam > 1e-4:  # backtracking line search on the residual norm
+            while lam > LINE_SEARCH_MIN:  # backtracking line search on the residual norm
                 trial = q.copy()
                 trial[self.unknown] += lam * step
                 if np.max(np.abs(self.residual(self.pose(trial)))) < norm:
@@ -642,7 +651,7 @@ class Linkage:
             [qdd[:, 0]], [cond[0]]
         psi, h = psi0, STEP_MAX_RAD
         end = psi0 + TWO_PI
-        while psi < end - 1e-12:
+        while psi < end - ANGLE_EPS_RAD:
             h = min(h, end - psi)
             pred = q + qd * h + 0.5 * qdd * h * h
             q_new, pose_new, res, iters, ok = self.newton(np.array([psi + h]), pred)
@@ -689,7 +698,7 @@ class Linkage:
         turns[rev] = np.round((q_end[rev] - q_start[rev]) / TWO_PI)
         gap = np.abs(q_end - q_start - TWO_PI * turns) / np.where(
             self.is_prismatic, self.length_scale, 1.0)
-        if np.max(gap[1:], initial=0.0) > 1e-7:
+        if np.max(gap[1:], initial=0.0) > CLOSURE_TOL:
             raise BranchError(
                 'assembly: after one full crank turn the linkage does not return to its start '
                 f'(largest joint mismatch {np.max(gap):.3e}); the crank cannot turn fully on '
@@ -713,7 +722,8 @@ class Linkage:
                 + 0.015625 * h * h * (qdd0 + qdd1))
         q_mid, pose_mid, _, _, ok = self.newton(np.array([psi + 0.5 * h]), pred)
         corr = np.max(np.abs((q_mid - pred)[self.unknown]) / self.col_scale[:, None])
-        return bool(ok[0]) and corr <= 0.1 * EVAL_TRUST and self._det_sign(pose_mid) == det0
+        return (bool(ok[0]) and corr <= MIDPOINT_TRUST_FRACTION * EVAL_TRUST
+                and self._det_sign(pose_mid) == det0)
 
     def _det_sign(self, pose):
         if not self.nu:
@@ -808,7 +818,7 @@ class Linkage:
             qdd = sk.qdd[:, k[0]:k[0] + 1]
             psi_now, goal = base, target
             h = min(STEP_MAX_RAD / 4, goal - psi_now) if goal > psi_now else 0.0
-            while goal - psi_now > 1e-15:
+            while goal - psi_now > ANGLE_EPS_RAD:
                 h = min(h, goal - psi_now)
                 pred = q + qd * h + 0.5 * qdd * h * h
                 q_new, pose_new, res, _, ok = self.newton(np.array([psi_now + h]), pred)

@@ -66,6 +66,7 @@ import math
 import time
 
 from mech_balance import analysis, dynamics, scene as scene_mod
+from mech_balance.conventions import rms
 from mech_balance.kinematics import _cross
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -860,11 +861,13 @@ def _steady(t, psi, speed, tau, force, moment, model):
     out['speed_ripple'] = float((np.max(s) - np.min(s)) / abs(mean)) if mean else math.inf
     reached = np.nonzero(np.abs(speed) >= STARTUP_FRACTION * abs(mean))[0]
     out['startup_time_s'] = float(t[reached[0]]) if reached.size and mean else None
-    out['motor_torque_rms_Nm'] = float(np.sqrt(np.mean(tau[window] ** 2)))
+    # RMS over the uniform time samples of the steady window (conventions.rms over time, not
+    # over p crank angles: in a simulation the crank speed is not constant)
+    out['motor_torque_rms_Nm'] = float(rms(tau[window]))
     out['motor_torque_max_Nm'] = float(np.max(np.abs(tau)))
-    out['shaking_force_rms_N'] = float(np.sqrt(np.mean(np.abs(force[window]) ** 2)))
+    out['shaking_force_rms_N'] = float(rms(np.abs(force[window])))
     out['shaking_force_max_N'] = float(np.max(np.abs(force)))
-    out['shaking_moment_rms_Nm'] = float(np.sqrt(np.mean(moment[window] ** 2)))
+    out['shaking_moment_rms_Nm'] = float(rms(moment[window]))
     out['shaking_moment_max_Nm'] = float(np.max(np.abs(moment)))
     return out
 
@@ -919,10 +922,10 @@ def format_report(rep, rows=20):
         f'steady state (last {s["steady_window_turns"]:.3g} turns, t = '
         f'{s["steady_window_s"][0]:.4g}..{s["steady_window_s"][1]:.4g} s): mean speed '
         f'{s["speed_mean_rad_s"]:.6g} rad/s, ripple (max - min)/mean = {s["speed_ripple"]:.4g}',
-        f'motor torque on the crank: RMS {s["motor_torque_rms_Nm"]:.5g} N*m (steady), max '
+        f'motor torque on the crank: time-RMS {s["motor_torque_rms_Nm"]:.5g} N*m (steady), max '
         f'{s["motor_torque_max_Nm"]:.5g} N*m',
-        f'shaking force: RMS {s["shaking_force_rms_N"]:.5g} N (steady), max '
-        f'{s["shaking_force_max_N"]:.5g} N; shaking moment: RMS '
+        f'shaking force: time-RMS {s["shaking_force_rms_N"]:.5g} N (steady), max '
+        f'{s["shaking_force_max_N"]:.5g} N; shaking moment: time-RMS '
         f'{s["shaking_moment_rms_Nm"]:.5g} N*m, max {s["shaking_moment_max_Nm"]:.5g} N*m',
         f'energy balance: motor work - dissipation - change of energy = '
         f'{s["energy_residual_J"]:.3e} J ({s["energy_residual_rel"]:.1e} relative)',

@@ -315,13 +315,3 @@ def _inverse_2(mat):
     np.multiply(c, -r, out=inv[1, 0])
     np.multiply(a, r, out=inv[1, 1])
     return inv, cond
-
-
-def matvec(mat, vec):
-    """Return ``mat @ vec`` for batch-last ``(m, k, p)`` and ``(k, p)`` -> ``(m, p)``."""
-    return np.einsum('ikp,kp->ip', mat, vec)
-
-
-def matvec_t(mat, vec):
-    """Return ``mat.T @ vec`` for batch-last ``(k, m, p)`` and ``(k, p)`` -> ``(m, p)``."""
-    return np.einsum('kip,kp->ip', mat, vec)
