@@ -14,6 +14,7 @@ import os
 from pathlib import Path
 import re
 
+from mech_balance import conventions
 import numpy as np
 import yaml
 
@@ -24,6 +25,11 @@ OUTPUTS = ('kinematics', 'shaking_wrench', 'driving_torque', 'bearing_reactions'
 
 JOINT_TYPES = ('revolute', 'prismatic')
 FRAME = 'frame'
+INERTIA_ROUNDOFF = 1e-12
+"""Relative slack of the check inertia about the mass centre >= 0 (parallel-axis round-off).
+
+Loading rejects what no body can have (I_c < 0); whether a link is *buildable* (I_c > 0 by a
+design margin, non-negative counterweights) is :func:`mech_balance.equimomental.is_realizable`."""
 MAX_ABS_VALUE = 1e18
 """Larger magnitudes in any numeric field are rejected (their squares would overflow soon)."""
 RECORDING_STREAMS = (
@@ -51,13 +57,14 @@ class Normalization:
     omega_rad_s: float
 
     def force(self, force_N):
-        """Return a normalized force, f / (m_1 a_1 omega^2)."""
-        return np.asarray(force_N) / (self.mass_kg * self.length_m * self.omega_rad_s ** 2)
+        """Return a normalized force, f / (m_1 a_1 omega^2) (conventions.normalize_force)."""
+        return conventions.normalize_force(force_N, self.mass_kg, self.length_m,
+                                           self.omega_rad_s)
 
     def moment(self, moment_Nm):
         """Return a normalized moment or torque, n / (m_1 a_1^2 omega^2)."""
-        return np.asarray(moment_Nm) / (
-            self.mass_kg * self.length_m ** 2 * self.omega_rad_s ** 2)
+        return conventions.normalize_moment(moment_Nm, self.mass_kg, self.length_m,
+                                            self.omega_rad_s)
 
 
 @dataclass(frozen=True)
@@ -437,9 +444,10 @@ def _link(name, spec):
         i_o = _number(spec['inertia_origin_kg_m2'], f'{where}.inertia_origin_kg_m2')
         i_c = i_o - mass * d2
         key, value = 'inertia_origin_kg_m2', i_o
-    # A rigid body's centroidal polar moment of inertia is >= 0 (zero: a point mass).
+    # A rigid body's centroidal polar moment of inertia is >= 0 (zero: a point mass); the
+    # slack only absorbs the round-off of the parallel-axis subtraction.
     scale = max(abs(value), mass * d2, 1e-300)
-    if i_c < -1e-12 * scale:
+    if i_c < -INERTIA_ROUNDOFF * scale:
         raise SceneError(
             f'{where}.{key}: got {value!r}, which gives a centroidal moment of inertia '
             f'{i_c:.6g} kg*m^2 < 0; no body has that (expected inertia about the mass centre '
