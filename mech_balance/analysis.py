@@ -11,8 +11,13 @@ import time
 
 from mech_balance import dynamics, kinematics
 from mech_balance.conventions import cycle_angles, rms
-from mech_balance.scene import needs
+from mech_balance.scene import needs, OUTPUTS
 import numpy as np
+
+MOMENT_ROUNDOFF_REL = 1e-12
+"""A bearing moment whose largest value is below this fraction of the rig's moment scale
+(largest driving torque, shaking moment, or bearing force times the linkage's length) is
+round-off, not a load: its row is left out of the table."""
 
 _LINKAGES = {}
 
@@ -118,10 +123,11 @@ def summarize(cycle, normalized=False):
     if w is None:
         return rows
     if w.reaction_force is not None:
+        floor = MOMENT_ROUNDOFF_REL * moment_scale(cycle)
         for name, f in w.reaction_force.items():
             add(f'bearing {name} |f|', f, 'force')
             moment = w.reaction_moment[name]
-            if name != cycle.rig.scene.crank_joint and np.any(moment):
+            if name != cycle.rig.scene.crank_joint and np.max(np.abs(moment)) > floor:
                 add(f'bearing {name} moment', moment, 'moment')
     if w.driving_torque is not None:
         add('driving torque', w.driving_torque, 'moment')
@@ -130,21 +136,52 @@ def summarize(cycle, normalized=False):
     return rows
 
 
+def moment_scale(cycle):
+    """
+    Return the rig's moment scale over a cycle, N*m: what round-off is measured against.
+
+    The largest of |driving torque|, |shaking moment| and |bearing force| times the
+    linkage's characteristic length (those the cycle computed); 0 for kinematics only.
+    """
+    w = cycle.wrenches
+    if w is None:
+        return 0.0
+    scales = [np.max(np.abs(w.shaking_moment))]
+    if w.driving_torque is not None:
+        scales.append(np.max(np.abs(w.driving_torque)))
+    if w.reaction_force is not None:
+        force = max(np.max(np.abs(f)) for f in w.reaction_force.values())
+        scales.append(force * cycle.rig.linkage.length_scale)
+    return float(max(scales))
+
+
 def format_table(cycle, rows, normalized=False):
     """Return the analysis table as text."""
     sc = cycle.rig.scene
     st = cycle.state
     lines = [
         f'scene: {sc.name} ({sc.source})',
-        f'crank: joint {sc.crank_joint}, {sc.crank_speed_rad_s:g} rad/s, '
-        f'{cycle.psi.size} angles per revolution; RMS = sqrt(mean(x^2)) over the cycle',
-        f'units: {"normalized by m1, a1, omega (seed 001 sec. 3.4)" if normalized else "SI"}',
+        f'crank: joint {sc.crank_joint}, {cycle.psi.size} angles per revolution',
+        f'crank speed {sc.crank_speed_rad_s:g} rad/s and acceleration '
+        f'{sc.crank_acceleration_rad_s2:g} rad/s^2 at every angle',
+        'RMS = sqrt(mean(x^2)) over the cycle; units: '
+        + ('normalized by m1, a1, omega (seed 001 sec. 3.4)' if normalized else 'SI'),
+    ]
+    if sc.crank_acceleration_rad_s2:
+        lines += ['note: crank.acceleration_rad_s2 is not 0: every angle is evaluated at this '
+                  'speed with this', 'acceleration (a snapshot, not a run-up; '
+                  '`mech-balance simulate` integrates one)']
+    lines += [
         '',
         f'{"quantity":<28}{"unit":>14}{"RMS":>14}{"max |.|":>14}',
         '-' * 70,
     ]
     for r in rows:
         lines.append(f'{r.quantity:<28}{r.unit:>14}{r.rms:>14.6g}{r.max_abs:>14.6g}')
+    if cycle.wrenches is None:
+        more = ', '.join(o for o in OUTPUTS if o != 'kinematics')
+        lines += ["(no rows: the scene's outputs key asks for kinematics only; add one of",
+                  f'{more} to it for the wrench rows)']
     lines += [
         '-' * 70,
         f'worst loop-closure residual: {np.max(st.residual):.3e} (relative to '
@@ -157,7 +194,7 @@ def format_table(cycle, rows, normalized=False):
     ]
     if cycle.wrenches is not None and cycle.wrenches.consistency is not None:
         lines.append(f'reaction recursion consistency: {cycle.wrenches.consistency:.3e} N*m')
-    lines.append(f'cycle computed in {cycle.seconds * 1e3:.3f} ms, one cold run '
-                 f'({cycle.seconds * 1e6 / cycle.psi.size:.2f} us per angle; '
-                 '`mech-balance bench` gives warm medians)')
+    lines.append(f'cycle computed in {cycle.seconds * 1e3:.3f} ms '
+                 f'({cycle.seconds * 1e6 / cycle.psi.size:.2f} us per angle), one cold run; warm '
+                 'medians: `mech-balance bench`')
     return '\n'.join(lines)

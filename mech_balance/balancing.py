@@ -49,18 +49,26 @@ import time
 import clarabel
 from mech_balance import analysis, dynamics, equimomental
 from mech_balance.conventions import cycle_angles
-from mech_balance.scene import FRAME, Normalization
+from mech_balance.scene import FRAME, Normalization, Recording, RECORDING_STREAMS, \
+    SCHEMA_VERSION
 import numpy as np
 import scipy.sparse as sp
 import yaml
 
+DEFAULT_WEIGHTS = (0.5, 0.5)
+"""Default objective weights (w1, w2) of the RMS shaking force and moment (seed 001 eq. 43):
+the paper's best compromise, its cases a(2) and b(2).  The balance and record commands and
+the rig node's ``balance.weights`` default to it."""
 PAPER_MASS_FACTORS = (1.0, 5.0)
 """Link mass bounds as factors of the original mass (seed 001 eqs. 50b, 53b)."""
 PAPER_DISTANCE_FACTORS = (0.5, 1.5)
 """Point-mass distance bounds as factors of the original l = sqrt(I_O/m) (eqs. 50c, 53c)."""
 CENTROIDAL_MARGIN = 1e-2
-"""Realizable links keep a centroidal moment of inertia >= this fraction of I_O (a lump of
-radius of gyration >= 0.1 l); any positive value makes the design buildable.  Between 1e-2
+"""Design margin of the realizability constraint: each link keeps a centroidal moment of
+inertia >= this fraction of I_O (a lump of radius of gyration >= 0.1 l).  It is a requirement
+of the design, not the definition of a body (:func:`mech_balance.equimomental.is_realizable`,
+which only needs I_c above round-off): any margin above
+:data:`mech_balance.equimomental.REALIZABLE_TOL` makes the design buildable.  Between 1e-2
 and 0 the optimum moves by 0.3-0.7% on Hoeken and 0.4-3% on the carpet scraper; at 0 it is
 the infimum over realizable designs, attained only by a point-mass link."""
 FORCE_BALANCE_REL_TOL = 1e-6
@@ -77,15 +85,12 @@ SOLVER_TOL = 1e-9
 """Clarabel's relative and absolute gap and feasibility tolerances."""
 SOLVER_MAX_ITER = 200
 """Interior-point iterations before giving up."""
-POINT_MASS_INERTIA_TOL = 1e-6
-"""A link whose centroidal inertia is below this fraction of I_O is reported as a point
-mass, not realizable (an optimum on the bound I_c = 0 lands within round-off of it)."""
-POINT_MASS_TOL = 1e-8
-"""Counterweight point masses down to -this fraction of the link mass count as zero (an
-interior-point optimum on the bound m_j = 0 lands within round-off of it)."""
+CHANGE_BASELINE_REL_TOL = 1e-9
+"""A before/after row whose before value is below this fraction of the table's largest value
+of the same kind (force or moment) is round-off (e.g. the moment of a prismatic bearing that
+is zero but for the last bits): its change is reported as None ('n/a'), not a percentage."""
 CASES = ('a', 'b')
 """seed 001 sec. 4.1.2: (a) point masses of any sign, (b) non-negative point masses."""
-_POINT_UNITS = np.exp(1j * equimomental.POINT_ANGLES_RAD)
 
 
 class BalanceError(ValueError):
@@ -95,9 +100,9 @@ class BalanceError(ValueError):
 # ============================================================================ public API
 
 
-def optimize(scene, weights=(1.0, 0.0), case='a', realizable=True, paper_constraints=False,
-             mass_bounds=None, distance_bounds=None, samples=None, *, torque_weight=0.0,
-             reaction_weight=0.0, max_added_mass_kg=None, fixed_links=(),
+def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
+             paper_constraints=False, mass_bounds=None, distance_bounds=None, samples=None, *,
+             torque_weight=0.0, reaction_weight=0.0, max_added_mass_kg=None, fixed_links=(),
              mass_factors=PAPER_MASS_FACTORS, distance_factors=PAPER_DISTANCE_FACTORS,
              centroidal_margin=CENTROIDAL_MARGIN, tie_break=True):
     """
@@ -105,7 +110,8 @@ def optimize(scene, weights=(1.0, 0.0), case='a', realizable=True, paper_constra
 
     Minimizes ``z = w1 f~ + w2 n~ [+ torque_weight tau~ + reaction_weight sum_j f~_j]``
     (RMS over one revolution of the normalized shaking force, shaking moment, driving
-    torque and bearing forces) over every moving link's mass, mass centre and inertia.
+    torque and bearing forces) over every moving link's mass, mass centre and inertia;
+    ``weights`` = (w1, w2) defaults to :data:`DEFAULT_WEIGHTS`.
 
     Constraints per link (not for ``fixed_links``, whose inertia stays the original):
     ``mass_bounds`` ``{link: (min_kg, max_kg)}`` (default ``mass_factors`` times the
@@ -113,7 +119,9 @@ def optimize(scene, weights=(1.0, 0.0), case='a', realizable=True, paper_constra
     distance l = sqrt(I_O/m) (default ``distance_factors`` times the original l; ``None``
     for no upper bound), ``case`` 'a' (point masses of any sign) or 'b' (non-negative,
     counterweights), ``realizable`` (centroidal inertia >= ``centroidal_margin`` I_O, on
-    by default), ``max_added_mass_kg`` (cap on total mass minus the original's).
+    by default), ``max_added_mass_kg`` (cap on total mass minus the original's).  Bounds
+    and factors need 0 < min <= max (equal bounds fix the value; a zero mass or distance
+    is no body), else ``ValueError`` naming the option.
 
     ``paper_constraints=True`` reproduces seed 001 eqs. 50/53 exactly: the paper's bounds,
     the chosen case, no realizability constraint; it rejects the options the paper lacks.
@@ -153,7 +161,7 @@ def optimize(scene, weights=(1.0, 0.0), case='a', realizable=True, paper_constra
         max_added_mass_kg = _nonneg(max_added_mass_kg, 'max_added_mass_kg')
     margin = float(centroidal_margin)
     if not 0.0 <= margin < 1.0:
-        raise BalanceError(f'centroidal_margin: got {centroidal_margin!r}, expected 0 <= '
+        raise BalanceError(f'centroidal_margin: got {_show(centroidal_margin)}, expected 0 <= '
                            'margin < 1')
     samples = scene.samples if samples is None else int(samples)
     if samples < 4:
@@ -171,9 +179,9 @@ def optimize(scene, weights=(1.0, 0.0), case='a', realizable=True, paper_constra
     m0 = theta0[0::4]
     l0 = np.sqrt(theta0[3::4] / m0)
     mlo, mhi = _bounds(mass_bounds, names, m0 * units.mass_kg, mass_factors, 'mass_bounds',
-                       positive=True)
+                       'mass_factors')
     llo, lhi = _bounds(distance_bounds, names, l0 * units.length_m, distance_factors,
-                       'distance_bounds', positive=False)
+                       'distance_bounds', 'distance_factors')
     spec = _Spec(n=len(names), w=(w1, w2, torque_weight, reaction_weight), case=case,
                  realizable=realizable, margin=margin, mass_lo=mlo / units.mass_kg,
                  mass_hi=mhi / units.mass_kg, dist_lo=llo / units.length_m,
@@ -238,10 +246,14 @@ def scene_to_yaml(scene, balance=None):
     """
     Return a planar scene as YAML text that :func:`mech_balance.scene.load` reads back.
 
-    Floats are written with their shortest exact representation, so masses, mass centres
-    and inertias load back bit for bit.  ``balance`` (a plain dict, e.g. the summary of a
-    :class:`BalanceResult`) is stored under the scene's ``balance`` key.  A link with a
-    negative centroidal inertia cannot be written (no body has one): ``ValueError``.
+    Every top-level section is written: the links with their (balanced) inertias and,
+    unchanged, everything a design leaves alone (description, normalization, crank,
+    gravity, frame, joints, assembly, outputs, samples, notes, ``recording`` and the
+    ``drive`` of ``mech-balance simulate``).  Floats are written with their shortest exact
+    representation, so masses, mass centres and inertias load back bit for bit.
+    ``balance`` (a plain dict, e.g. the summary of a :class:`BalanceResult`) is stored under
+    the scene's ``balance`` key.  A link with a negative centroidal inertia cannot be
+    written (no body has one): ``ValueError``.
     """
     _check_planar(scene)
     for lk in scene.links:
@@ -249,8 +261,8 @@ def scene_to_yaml(scene, balance=None):
             raise BalanceError(
                 f'links.{lk.name}.inertia_com_kg_m2: got {lk.inertia_com_kg_m2:.6g}, expected '
                 '>= 0; an unrealizable design cannot be saved as a scene')
-    data = {'schema_version': 1, 'name': scene.name, 'description': scene.description,
-            'kind': 'planar'}
+    data = {'schema_version': SCHEMA_VERSION, 'name': scene.name,
+            'description': scene.description, 'kind': 'planar'}
     if scene.normalization is not None:
         n = scene.normalization
         data['normalization'] = {'mass_kg': n.mass_kg, 'length_m': n.length_m,
@@ -283,16 +295,29 @@ def scene_to_yaml(scene, balance=None):
     data['samples'] = int(scene.samples)
     if scene.notes:
         data['notes'] = scene.notes
-    rec = getattr(scene, 'recording', None)
-    if rec is not None and rec != type(rec)():
-        from mech_balance.scene import RECORDING_STREAMS
-        data['recording'] = {'streams': {s: s in rec.streams for s in RECORDING_STREAMS}}
-        for key in ('force_scale_m_per_N', 'moment_scale_deg_per_Nm'):
-            if getattr(rec, key) is not None:
-                data['recording'][key] = getattr(rec, key)
+    if scene.recording != Recording():
+        data['recording'] = _recording_dict(scene.recording)
+    if scene.drive is not None:
+        data['drive'] = scene.drive
     if balance is not None:
         data['balance'] = balance
     return yaml.safe_dump(_plain(data), sort_keys=False, default_flow_style=None, width=99)
+
+
+def _recording_dict(recording):
+    """
+    Return a :class:`mech_balance.scene.Recording` as the scene's ``recording:`` mapping.
+
+    The inverse of the scene loader's ``recording`` validation:
+    ``{streams: {name: bool, ...}, force_scale_m_per_N, moment_scale_deg_per_Nm}`` with
+    every stream of :data:`mech_balance.scene.RECORDING_STREAMS`; a scale chosen from the
+    data (``None``) is left out.
+    """
+    out = {'streams': {s: recording.enabled(s) for s in RECORDING_STREAMS}}
+    for key in ('force_scale_m_per_N', 'moment_scale_deg_per_Nm'):
+        if getattr(recording, key) is not None:
+            out[key] = getattr(recording, key)
+    return out
 
 
 # ============================================================================ results
@@ -410,20 +435,13 @@ def link_design(link, counterweights=False, units=None):
     m = float(link.mass_kg)
     h = complex(*link.first_moment_kg_m)
     i_o = float(link.inertia_origin_kg_m2)
-    i_c = i_o - abs(h) ** 2 / m
-    dist = math.sqrt(max(i_o, 0.0) / m)
-    if dist > 0.0:
-        # seed 001 eqs. 13-15: m_j = m/3 + (2/3) Re(h e^(-i theta_j)) / l
-        masses = m / 3.0 + (2.0 / 3.0) * (np.conj(_POINT_UNITS) * h).real / dist
-        pm = equimomental.PointMasses(tuple(float(v) for v in masses), dist)
-        ok, reason = equimomental.is_realizable(pm, counterweights=False)
-        if ok and i_c <= POINT_MASS_INERTIA_TOL * i_o:
-            ok, reason = False, (f'centroidal moment of inertia {i_c:.3g} kg*m^2 = '
-                                 f'{i_c / i_o:.1e} I_O: a point mass, no body')
-        if ok and counterweights and min(masses) < -POINT_MASS_TOL * m:
-            ok, reason = False, f'negative point mass {min(masses):.6g} kg (counterweights)'
+    i_c = equimomental.centroidal_inertia(m, h, i_o)
+    if i_o > 0.0:
+        pm = equimomental.from_link(m, link.com_m, i_o)   # seed 001 eqs. 8-15
+        masses, dist = pm.masses_kg, pm.distance_m
+        ok, reason = equimomental.is_realizable(pm, counterweights)
     else:
-        masses = np.full(3, m / 3.0)
+        masses, dist = (m / 3.0,) * 3, 0.0
         ok, reason = False, 'zero moment of inertia about the origin (a point mass)'
     c = h / m
     out = LinkDesign(link.name, tuple(float(v) for v in masses), dist, m, abs(c),
@@ -460,7 +478,10 @@ def before_after(original, balanced, samples=None):
 
     Each row: quantity, ``unit``/``before``/``after`` in the papers' normalized units when
     the scene records a normalization (SI otherwise), the same in SI (``unit_si``,
-    ``before_si``, ``after_si``) and ``change_percent``.
+    ``before_si``, ``after_si``) and ``change_percent``: ``None`` (print 'n/a') when the
+    before value is round-off, below :data:`CHANGE_BASELINE_REL_TOL` times the largest
+    value of its kind (force or moment) in the table.  Rows are matched by quantity: one
+    that the analysis leaves out on one side as round-off (a bearing moment) counts 0 there.
     """
     rig = analysis.Rig(original.with_outputs(('bearing_reactions',)))
     cycles = [analysis.run_cycle(r, samples) for r in
@@ -468,13 +489,40 @@ def before_after(original, balanced, samples=None):
     si = [analysis.summarize(c, False) for c in cycles]
     view = si if original.normalization is None else \
         [analysis.summarize(c, True) for c in cycles]
+    quantities = _merged([r.quantity for r in view[0]], [r.quantity for r in view[1]])
+    by_name = [[{r.quantity: r for r in rows} for rows in pair] for pair in (view, si)]
+    scale = {}
+    for row in (*view[0], *view[1]):
+        scale[row.kind] = max(scale.get(row.kind, 0.0), row.rms)
     rows = []
-    for b, a, b_si, a_si in zip(*view, *si):
-        change = (a.rms - b.rms) / b.rms * 100.0 if b.rms > 0.0 else None
-        rows.append({'quantity': b.quantity, 'unit': b.unit, 'before': b.rms,
-                     'after': a.rms, 'change_percent': change, 'unit_si': b_si.unit,
-                     'before_si': b_si.rms, 'after_si': a_si.rms})
+    for q in quantities:
+        (b, a), (b_si, a_si) = ([side.get(q) for side in pair] for pair in by_name)
+        ref, ref_si = b or a, b_si or a_si
+        before, after = (0.0 if r is None else r.rms for r in (b, a))
+        change = None
+        if before > CHANGE_BASELINE_REL_TOL * scale[ref.kind]:
+            change = (after - before) / before * 100.0
+        rows.append({'quantity': q, 'unit': ref.unit, 'before': before, 'after': after,
+                     'change_percent': change, 'unit_si': ref_si.unit,
+                     'before_si': 0.0 if b_si is None else b_si.rms,
+                     'after_si': 0.0 if a_si is None else a_si.rms})
     return rows
+
+
+def _merged(first, second):
+    """Return the union of two sub-sequences of one order, in that order."""
+    out, i, j = [], 0, 0
+    while i < len(first) and j < len(second):
+        if first[i] == second[j]:
+            out.append(first[i])
+            i, j = i + 1, j + 1
+        elif first[i] not in second:
+            out.append(first[i])
+            i += 1
+        else:
+            out.append(second[j])
+            j += 1
+    return out + first[i:] + second[j:]
 
 
 # ============================================================================ linear maps
@@ -709,7 +757,7 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
             iu = iu0 + i
             rows.append(_row(nx, {iu: -1.0}))
             rhs.append(0.0)
-            for unit in _POINT_UNITS:
+            for unit in equimomental.UNIT:
                 rows.append(_row(nx, {ix: -2.0 * unit.real, iy: -2.0 * unit.imag,
                                       iu: -1.0}))
                 rhs.append(0.0)
@@ -764,6 +812,7 @@ def _row(nx, entries):
 def _violation(theta, spec):
     """Return the worst violation of the design constraints (normalized units, >= 0)."""
     t = theta.reshape(-1, 4)
+    point_masses, _ = equimomental.point_mass_arrays(t[:, 0], t[:, 1] + 1j * t[:, 2], t[:, 3])
     worst = 0.0
     for i in range(spec.n):
         if spec.fixed[i]:
@@ -775,10 +824,8 @@ def _violation(theta, spec):
                   i_o - m * spec.dist_hi[i] ** 2 if np.isfinite(spec.dist_hi[i]) else 0.0]
         if spec.realizable:
             checks.append((hx * hx + hy * hy) / m - (1.0 - spec.margin) * i_o)
-        if spec.case == 'b':
-            dist = math.sqrt(max(i_o / m, 0.0))
-            h = complex(hx, hy)
-            checks += list(-(m / 3.0 + (2.0 / 3.0) * (np.conj(_POINT_UNITS) * h).real / dist))
+        if spec.case == 'b':   # eq. 50f: m_j >= 0
+            checks += list(-point_masses[i])
         worst = max(worst, max(checks))
     return float(max(worst, 0.0))
 
@@ -1011,11 +1058,11 @@ def _weights(weights):
     try:
         w1, w2 = (float(v) for v in weights)
     except (TypeError, ValueError):
-        raise BalanceError(f'weights: got {weights!r}, expected two numbers (w1, w2)') \
+        raise BalanceError(f'weights: got {_show(weights)}, expected two numbers (w1, w2)') \
             from None
     for name, v in (('w1', w1), ('w2', w2)):
         if not (math.isfinite(v) and v >= 0.0):
-            raise BalanceError(f'weights: {name} = {v!r}, expected a finite number >= 0')
+            raise BalanceError(f'weights: {name} = {v:g}, expected a finite number >= 0')
     return w1, w2
 
 
@@ -1025,7 +1072,7 @@ def _nonneg(value, name):
     except (TypeError, ValueError):
         raise BalanceError(f'{name}: got {value!r}, expected a number >= 0') from None
     if not (math.isfinite(v) and v >= 0.0):
-        raise BalanceError(f'{name}: got {value!r}, expected a finite number >= 0')
+        raise BalanceError(f'{name}: got {v:g}, expected a finite number >= 0')
     return v
 
 
@@ -1041,20 +1088,27 @@ def _link_names(values, names, field_name):
     return out
 
 
-def _bounds(given, names, original, factors, field_name, positive):
-    """Return SI (lo, hi) arrays: defaults are factors x original, overridden per link."""
+def _bounds(given, names, original, factors, field_name, factors_name):
+    """
+    Return SI (lo, hi) arrays: defaults are factors x original, overridden per link.
+
+    Every link needs 0 < lo <= hi (hi may be inf, for no bound; lo == hi fixes the value):
+    a link without mass, or with point masses at distance 0 (I_O = 0, no body, the
+    equimomental model of seed 001 eq. 27 degenerates), makes the problem meaningless.
+    """
     try:
         f_lo, f_hi = (float(v) for v in factors)
     except (TypeError, ValueError):
-        raise BalanceError(f'{field_name}: factors {factors!r}, expected (low, high)') \
+        raise BalanceError(f'{factors_name}: got {_show(factors)}, expected (low, high)') \
             from None
-    if not (0.0 <= f_lo <= f_hi):
-        raise BalanceError(f'{field_name}: factors {factors!r}, expected 0 <= low <= high')
+    if not (0.0 < f_lo <= f_hi) or math.isinf(f_lo):
+        raise BalanceError(f'{factors_name}: got {_show(factors)}, expected factors of the '
+                           'original with 0 < low <= high')
     lo = np.array(original, dtype=float) * f_lo
     hi = np.array(original, dtype=float) * f_hi
     if given is not None:
         if not isinstance(given, dict):
-            raise BalanceError(f'{field_name}: got {given!r}, expected a mapping link -> '
+            raise BalanceError(f'{field_name}: got {_show(given)}, expected a mapping link -> '
                                '(min, max)')
         for key, pair in given.items():
             if key not in names:
@@ -1063,20 +1117,29 @@ def _bounds(given, names, original, factors, field_name, positive):
             i = names.index(key)
             try:
                 a, b = pair
-                a = 0.0 if a is None else float(a)
+                a = float(a)
                 b = math.inf if b is None else float(b)
             except (TypeError, ValueError):
-                raise BalanceError(f'{field_name}.{key}: got {pair!r}, expected (min, max), '
-                                   'max may be None') from None
-            if math.isnan(a) or math.isnan(b) or a < 0.0 or b < a or math.isinf(a):
-                raise BalanceError(f'{field_name}.{key}: got {pair!r}, expected '
-                                   '0 <= min <= max')
+                raise BalanceError(f'{field_name}.{key}: got {_show(pair)}, expected '
+                                   '(min, max), max may be None') from None
+            if not (0.0 < a <= b) or math.isinf(a):
+                raise BalanceError(f'{field_name}.{key}: got {_show(pair)}, expected '
+                                   '0 < min <= max')
             lo[i], hi[i] = a, b
-    if positive and np.any(lo <= 0.0):
-        i = int(np.argmin(lo))
-        raise BalanceError(f'{field_name}.{names[i]}: lower bound {lo[i]!r}, expected > 0 '
-                           '(a link needs positive mass)')
+    for i, name in enumerate(names):
+        if not lo[i] > 0.0:   # a factor times an original of 0
+            raise BalanceError(f'{field_name}.{name}: lower bound {lo[i]:g}, expected > 0 '
+                               f'(the original is 0; give {field_name} for this link)')
     return lo, hi
+
+
+def _show(value):
+    """Return a value for an error message: numbers as :g, never a numpy repr."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return '(' + ', '.join(_show(v) for v in value) + ')'
+    if isinstance(value, (float, np.floating, np.integer)) and not isinstance(value, bool):
+        return f'{value:g}'
+    return repr(value)
 
 
 def _num(x):

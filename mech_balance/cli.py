@@ -7,15 +7,78 @@ line naming the field, the value and what was expected, and exits with status 2.
 
 import argparse
 import json
+import os
 import sys
+import textwrap
 
+from mech_balance import paths
 import numpy as np
 
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+SCENE_NAME_WIDTH = 18
+"""``mech-balance scenes``: width of the name column; the description wraps after it."""
+LINE_WIDTH = 99
+"""Width of printed text: ``mech-balance scenes`` wraps its descriptions to it at word breaks."""
 
 EXTENSIONS = ('mech_balance.cli_balance', 'mech_balance.cli_record', 'mech_balance.cli_sim')
 """Modules that add verbs: each has ``register(subparsers)`` adding its parser(s) with
 ``set_defaults(func=...)``; a verb module owns its parser, handler and help text."""
+
+
+class Parser(argparse.ArgumentParser):
+    """
+    ArgumentParser whose usage errors are one line: verb, message and where the help is.
+
+    Subparsers inherit the class (``add_subparsers`` makes them of the parent's type), so every
+    verb prints ``mech-balance VERB: error: MESSAGE (see mech-balance VERB --help)`` and exits
+    with :data:`EXIT_USAGE`, without the usage block argparse prints first.
+    """
+
+    def error(self, message):
+        """Print one line naming the verb and the problem to stderr; exit with status 2."""
+        self.exit(EXIT_USAGE, f'{self.prog}: error: {message} (see {self.prog} --help)\n')
+
+    def parse_args(self, args=None, namespace=None):
+        """Parse like argparse; an unknown option is reported by the verb it was given to."""
+        args, extras = self.parse_known_args(args, namespace)
+        if extras:
+            verbs = next((a.choices for a in self._actions
+                          if isinstance(a, argparse._SubParsersAction)), {})
+            verb = verbs.get(getattr(args, 'command', None), self)
+            verb.error(f'unrecognized arguments: {" ".join(extras)}')
+        return args
+
+
+def positive_int(text):
+    """Return ``text`` as an integer >= 1 (an argparse ``type``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'got {text!r}, expected an integer >= 1') from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'got {value}, expected an integer >= 1')
+    return value
+
+
+def writable_path(option, text, suffixes, create_parent=False):
+    """Return the output file of ``option``, checked before any computation (paths.py)."""
+    return paths.check_output_path(text, option, suffixes, create_dir=create_parent)
+
+
+def planar_only(sc, **given):
+    """
+    Raise ValueError when an option that only planar scenes use was given for another kind.
+
+    ``given`` maps each option (``--design``) to whether the command line set it.
+    """
+    kind = getattr(sc, 'kind', 'planar')
+    if kind == 'planar':
+        return
+    for option, was_given in given.items():
+        if was_given:
+            raise ValueError(f'{option} applies to planar scenes only, got scene {sc.name!r} '
+                             f'of kind {kind}; expected no {option}')
 
 
 def _add_scene(p):
@@ -47,7 +110,8 @@ def _design(text):
 
 def build_parser():
     """Return the argument parser of ``mech-balance``."""
-    parser = argparse.ArgumentParser(
+    from mech_balance import bench
+    parser = Parser(
         prog='mech-balance',
         description='Kinematics, inverse dynamics, shaking wrench and balancing of '
                     'single-input linkages (seeds 000-002).')
@@ -82,8 +146,8 @@ def build_parser():
                    help='time only this scene (repeatable; default: all built-in)')
     p.add_argument('--samples', type=_samples, default=360,
                    help='crank angles per cycle (default: %(default)s)')
-    p.add_argument('--repeat', type=int, default=50,
-                   help='timed runs per figure (default: %(default)s)')
+    p.add_argument('--repeat', type=positive_int, default=bench.DEFAULT_REPEAT,
+                   help='timed runs per figure, an integer >= 1 (default: %(default)s)')
     p.add_argument('--compare', choices=['mujoco'], default=None,
                    help='instead, run Hoeken and generated 4-20 link chains through this '
                         'package and through MuJoCo side by side: agreement, us per angle, '
@@ -98,10 +162,13 @@ def build_parser():
 def cmd_scenes(args):
     """List the built-in scenes."""
     from mech_balance import scene
+    indent = ' ' * (SCENE_NAME_WIDTH + 1)
     for name, path in scene.builtin_scenes().items():
         data, _ = scene.load_data(path)
         text = ' '.join(str(data.get('description', '')).split())
-        print(f'{name:<18} {text[:100]}')
+        print(textwrap.fill(text, LINE_WIDTH, initial_indent=f'{name:<{SCENE_NAME_WIDTH}} ',
+                            subsequent_indent=indent, break_long_words=False,
+                            break_on_hyphens=False) if text else name)
     return 0
 
 
@@ -109,9 +176,11 @@ def cmd_analyze(args):
     """Analyze one revolution of a scene."""
     from mech_balance import analysis, equimomental, scene
     sc = scene.load(args.scene)
+    planar_only(sc, **{'--design': args.design is not None})
     if getattr(sc, 'kind', 'planar') == 'rggr':
         from mech_balance import rggr
-        report = rggr.analyze_report(sc, args.samples or 360, args.normalized)
+        report = rggr.analyze_report(sc, args.samples or rggr.DEFAULT_SAMPLES,
+                                     args.normalized)
         print(json.dumps(report, indent=2) if args.json else rggr.format_report(report))
         return 0
     if args.design is not None:
@@ -122,6 +191,9 @@ def cmd_analyze(args):
     rows = analysis.summarize(cycle, args.normalized)
     if args.json:
         print(json.dumps({'scene': sc.name, 'samples': int(cycle.psi.size),
+                          'crank_speed_rad_s': sc.crank_speed_rad_s,
+                          'crank_acceleration_rad_s2': sc.crank_acceleration_rad_s2,
+                          'outputs': list(sc.outputs),
                           'normalized': bool(args.normalized),
                           'rows': [r.__dict__ for r in rows],
                           'worst_residual': float(np.max(cycle.state.residual)),
@@ -160,12 +232,18 @@ def main(argv=None):
         with warnings.catch_warnings():
             warnings.simplefilter('ignore', RuntimeWarning)  # reported in the tables
             return args.func(args)
-    except (ValueError, KeyError) as exc:
+    except ValueError as exc:
         print(f'mech-balance {args.command}: error: {exc}', file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:   # a file the verb reads or writes
+        reason = exc.strerror or str(exc)
+        if exc.filename is not None:
+            reason = f'{os.fsdecode(exc.filename)}: {reason}'
+        print(f'mech-balance {args.command}: error: {reason}', file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print('mech-balance: interrupted', file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == '__main__':

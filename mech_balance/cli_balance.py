@@ -57,7 +57,32 @@ PAPER_TABLE9 = {
 TABLE3_MASS_FACTORS = (1.0, 2.0, 5.0)
 """Seed 001 Table 3 cases (1)-(3): crank and rocker masses 1x, 2x, 5x the original."""
 BENCH_REPEAT_MAX = 20
-"""Timed optimizations per bench figure (the median is printed)."""
+"""Timed optimizations per bench figure at most (the median is printed)."""
+DEFAULT_CASE = 'a'
+"""``--case`` of ``balance`` and ``record --balance``: seed 001 case a, masses of any sign."""
+OUTPUT_SUFFIXES = ('.yaml', '.yml')
+"""``--output``: what the balanced scene's file name ends in (so that it loads as a scene)."""
+OPTIMIZE_OPTIONS = ('--weights', '--case', '--paper-constraints', '--no-realizable',
+                    '--margin', '--mass-factors', '--distance-factors', '--torque-weight',
+                    '--reaction-weight', '--max-added-mass', '--fix')
+"""Options of the seed-001 optimization: rejected with --analytic and for RGGR scenes."""
+ANALYTIC_OPTIONS = ('--mass-factor', '--keep-centroidal')
+"""Options of --analytic alone: rejected without it."""
+PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + ('--analytic',)
+"""Options RGGR scenes reject: their balancing (seed 002) has no such choices."""
+
+
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Append ``(default: ...)`` unless the default is None or False (said in words, or off)."""
+
+    def _get_help_string(self, action):
+        if action.default is None or action.default is False:
+            return action.help
+        return super()._get_help_string(action)
+
+
+def _dest(option):
+    return option.lstrip('-').replace('-', '_')
 
 
 def register(subparsers):
@@ -71,14 +96,16 @@ def register(subparsers):
                     'completely (seed 000 eqs. 44-75, seed 001 eq. 48). Prints the design per '
                     'link, the before/after RMS table, the duality-gap certificate and the '
                     'solve time. RGGR scenes print the seed-002 balancing report.',
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=_HelpFormatter)
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML file')
-    p.add_argument('--weights', nargs=2, type=float, default=(1.0, 0.0), metavar=('W1', 'W2'),
-                   help='weights on the RMS normalized shaking force and shaking moment')
-    p.add_argument('--case', choices=balancing.CASES, default='a',
+    w1, w2 = balancing.DEFAULT_WEIGHTS
+    p.add_argument('--weights', nargs=2, type=float, default=None, metavar=('W1', 'W2'),
+                   help='weights on the RMS normalized shaking force and shaking moment '
+                        f'(default: {w1:g} {w2:g}, seed 001 case (2))')
+    p.add_argument('--case', choices=balancing.CASES, default=None,
                    help='seed 001 sec. 4.1.2: a = point masses of any sign, b = non-negative '
-                        'point masses (counterweights)')
+                        f'point masses (counterweights) (default: {DEFAULT_CASE})')
     p.add_argument('--paper-constraints', action='store_true',
                    help="reproduce seed 001's problem exactly (eqs. 50/53: masses in [1, 5] x "
                         'original, l in [0.5, 1.5] x original, no realizability constraint)')
@@ -117,22 +144,49 @@ def register(subparsers):
                         'records a normalization)')
     p.add_argument('--json', action='store_true', help='print the result as JSON')
     p.add_argument('--output', default=None, metavar='FILE.yaml',
-                   help='write the balanced scene (loadable by every other command)')
-    p.set_defaults(func=cmd_balance)
+                   help='write the balanced scene (loadable by every other command) to a '
+                        'file in an existing directory; checked before the solve')
+    p.set_defaults(func=cmd_balance, option_defaults={
+        option: p.get_default(_dest(option)) for option in PLANAR_OPTIONS})
+
+
+def _given(args, options):
+    """Return those of ``options`` that the command line set to other than their defaults."""
+    def plain(value):
+        return tuple(value) if isinstance(value, (list, tuple)) else value
+    return [o for o in options
+            if plain(getattr(args, _dest(o))) != plain(args.option_defaults[o])]
+
+
+def _check_options(args):
+    """Raise ValueError for an option the chosen method would ignore (no scene needed)."""
+    ignored = _given(args, OPTIMIZE_OPTIONS if args.analytic else ANALYTIC_OPTIONS)
+    if ignored and args.analytic:
+        raise ValueError(f'{ignored[0]} applies to the optimization, not to --analytic; '
+                         f'expected no {ignored[0]} with --analytic')
+    if ignored:
+        raise ValueError(f'{ignored[0]} applies with --analytic only, expected --analytic or '
+                         f'no {ignored[0]}')
 
 
 def cmd_balance(args):
     """Balance a scene and print the design, the before/after table and the certificate."""
-    sc = scene_mod.load(args.scene)
+    from mech_balance import cli
     if args.samples is not None and args.samples < 4:
         raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
+    _check_options(args)
+    sc = scene_mod.load(args.scene)
     if getattr(sc, 'kind', 'planar') == 'rggr':
+        cli.planar_only(sc, **dict.fromkeys(_given(args, PLANAR_OPTIONS), True))
         return _rggr(sc, args)
+    if args.output:
+        cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
     if args.analytic:
         return _analytic(sc, args)
     paper = args.paper_constraints
     result = balancing.optimize(
-        sc, weights=tuple(args.weights), case=args.case,
+        sc, weights=balancing.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
+        case=DEFAULT_CASE if args.case is None else args.case,
         realizable=not args.no_realizable, paper_constraints=paper,
         samples=args.samples, torque_weight=args.torque_weight,
         reaction_weight=args.reaction_weight, max_added_mass_kg=args.max_added_mass,
@@ -233,7 +287,7 @@ def _before_after_text(table, si=False):
     out = [head, '-' * len(head)]
     sfx = '_si' if si else ''
     for r in table:
-        ch = '' if r['change_percent'] is None else f"{r['change_percent']:+.1f}%"
+        ch = 'n/a' if r['change_percent'] is None else f"{r['change_percent']:+.1f}%"
         out.append(f"{r['quantity']:<26}{r['unit' + sfx]:>13}{r['before' + sfx]:>13.6g}"
                    f"{r['after' + sfx]:>13.6g}{ch:>10}")
     return '\n'.join(out)
@@ -345,12 +399,15 @@ def _write(balanced, path, summary):
 def bench_section(args, progress):
     """Return the bench table of :func:`balancing.optimize`: median wall time per case."""
     names = args.scene or ['hoeken', 'carpet_scraper']
-    repeat = max(3, min(int(args.repeat), BENCH_REPEAT_MAX))
+    repeat = min(int(args.repeat), BENCH_REPEAT_MAX)
     head = (f"{'balance: scene':<18}{'case':<6}{'weights':<12}{'constraints':<13}"
             f"{'z':>12}{'rel. gap':>10}{'median ms':>11}{'cone ms':>9}")
     lines = [f'balance (seed 001 SOCP): median of {repeat} optimizations after '
-             f'{bench.WARMUP} warm-up runs, {args.samples} crank angles',
+             f'{bench.WARMUP} warm-up runs, {args.samples} crank angles'
+             + (f' (--repeat {args.repeat} capped at {BENCH_REPEAT_MAX})'
+                if args.repeat > repeat else ''),
              head, '-' * len(head)]
+    header_lines = len(lines)
     for name in names:
         if name not in ('hoeken', 'carpet_scraper'):
             continue
@@ -372,7 +429,7 @@ def bench_section(args, progress):
                                  f"{'paper' if paper else 'realizable':<13}"
                                  f"{r.objective['z']:>12.6g}{r.certificate.gap_rel:>10.1e}"
                                  f'{sec * 1e3:>11.1f}{r.conic_time_s * 1e3:>9.1f}')
-    if len(lines) == 3:
+    if len(lines) == header_lines:
         lines.append('(no balancing benchmark for the selected scenes)')
     return '\n'.join(lines)
 

@@ -13,24 +13,17 @@ import sys
 import tempfile
 import time
 
+from mech_balance import balancing
+from mech_balance.cli_balance import DEFAULT_CASE
+
 HOEKEN_A2_DESIGN = (-4.8784, 0.7227, 5.1566, 0.5886, 5.2843, -1.3781, 3.1938, 1.7240,
                     -5.1095, 8.0046, -0.9951, 0.8759)
 """Seed 001 Table 5, case a(2), (w1, w2) = (0.5, 0.5): the bench's balanced Hoeken design."""
 BENCH_SAMPLES = 360
 BENCH_REPEAT_MAX = 20
 """The bench records at most this many times (each run writes a file)."""
-DEFAULT_WEIGHTS = (0.5, 0.5)
-"""``--balance`` weights (w1, w2) of seed 001 eq. 44: the paper's case a(2)/b(2)."""
-
-
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'got {text!r}, expected an integer >= 1') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'got {value}, expected an integer >= 1')
-    return value
+OUT_SUFFIXES = ('.rrd',)
+"""``--out``: what the recording's file name ends in."""
 
 
 def _samples(text):
@@ -57,6 +50,7 @@ def _weight(text):
 
 def register(subparsers):
     """Add the ``record`` verb to the ``mech-balance`` sub-parsers."""
+    from mech_balance import cli
     p = subparsers.add_parser(
         'record', help='write a rerun recording (.rrd) of the rig, original vs balanced',
         description='Write an offline rerun recording of a scene: the rig moving (links, '
@@ -76,14 +70,15 @@ def register(subparsers):
                        help='balance the scene first: seed 001 optimization for planar '
                             'scenes (mech_balance.balancing.optimize), seed 002 force '
                             'balance and minimum RMS shaking moment for the RGGR')
-    p.add_argument('--weights', nargs=2, type=_weight, default=DEFAULT_WEIGHTS,
-                   metavar=('W1', 'W2'),
+    w1, w2 = balancing.DEFAULT_WEIGHTS
+    p.add_argument('--weights', nargs=2, type=_weight, default=None, metavar=('W1', 'W2'),
                    help='with --balance (planar): weights of the RMS shaking force and '
-                        'moment, seed 001 eq. 44 (default: 0.5 0.5)')
-    p.add_argument('--case', choices=('a', 'b'), default='a',
+                        f'moment, seed 001 eq. 44 (default: {w1:g} {w2:g})')
+    p.add_argument('--case', choices=balancing.CASES, default=None,
                    help="with --balance (planar): seed 001 case 'a' (point masses of any "
-                        "sign) or 'b' (non-negative, counterweights) (default: %(default)s)")
-    p.add_argument('--cycles', type=_positive_int, default=1,
+                        "sign) or 'b' (non-negative, counterweights) (default: "
+                        f'{DEFAULT_CASE})')
+    p.add_argument('--cycles', type=cli.positive_int, default=1,
                    help='crank turns to record (default: %(default)s)')
     p.add_argument('--samples', type=_samples, default=None,
                    help="samples per crank turn, a divisor of 360 (default: the scene's, "
@@ -93,26 +88,19 @@ def register(subparsers):
     p.set_defaults(func=cmd_record)
 
 
-def balanced_design(sc, weights=DEFAULT_WEIGHTS, case='a'):
+def balanced_design(sc, weights=balancing.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     """
     Return ``(balanced_scene, description)`` for ``--balance``.
 
-    Planar scenes use :func:`mech_balance.balancing.optimize`; RGGR scenes
-    :func:`mech_balance.rggr.balance_scene` (force balance, then minimum RMS moment).
+    Planar scenes use :func:`mech_balance.balancing.optimize` with ``weights`` and ``case``;
+    RGGR scenes :func:`mech_balance.rggr.balance_scene` (force balance, then minimum RMS
+    moment), which takes neither.
     """
     if getattr(sc, 'kind', 'planar') == 'rggr':
         from mech_balance import rggr
         return (rggr.balance_scene(sc).design.scene,
                 'seed 002 complete force balance with the minimum RMS shaking moment '
                 '(rggr.balance_scene)')
-    try:
-        from mech_balance import balancing
-    except ModuleNotFoundError as exc:
-        if exc.name != 'mech_balance.balancing':
-            raise
-        raise ValueError('--balance: mech_balance.balancing is not available in this '
-                         'installation, expected it for planar scenes; pass --design '
-                         'BALANCED.yaml instead') from None
     result = balancing.optimize(sc, weights=tuple(weights), case=case)
     return (result.balanced_scene,
             f'seed 001 optimum, (w1, w2) = ({weights[0]:g}, {weights[1]:g}), case {case} '
@@ -121,20 +109,25 @@ def balanced_design(sc, weights=DEFAULT_WEIGHTS, case='a'):
 
 def cmd_record(args):
     """Write the recording and say where it is and how to open it."""
-    from mech_balance import recording, scene
+    from mech_balance import cli, recording, scene
+    given = {'--weights': args.weights is not None, '--case': args.case is not None}
+    for option, was_given in given.items():
+        if was_given and not args.balance:
+            raise ValueError(f'{option} applies with --balance only, expected --balance or '
+                             f'no {option}')
+    out = cli.writable_path('--out', args.out, OUT_SUFFIXES, create_parent=True)
     sc = scene.load(args.scene)
     balanced, source = None, None
     if args.design is not None:
         balanced = scene.load(args.design)
         source = f'scene file {balanced.source}'
     elif args.balance:
-        balanced, source = balanced_design(sc, args.weights, args.case)
-    out = Path(args.out).expanduser()
-    if out.suffix != '.rrd':
-        raise ValueError(f'--out: got {args.out!r}, expected a file name ending in .rrd')
-    out.parent.mkdir(parents=True, exist_ok=True)
+        cli.planar_only(sc, **given)
+        balanced, source = balanced_design(
+            sc, balancing.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
+            DEFAULT_CASE if args.case is None else args.case)
     summary = recording.record(out, sc, balanced, cycles=args.cycles, samples=args.samples,
-                               balanced_source=source)
+                               balanced_source=source, field='--out')
     path = summary.path.resolve()
     print(f'wrote {path}')
     print(f'  {sc.name}: {" vs ".join(summary.variants)}; {summary.samples_per_cycle} '
@@ -161,7 +154,8 @@ def bench_section(args, progress):
     from mech_balance import bench, equimomental, recording, scene
     sc = scene.load('hoeken')
     balanced = equimomental.apply_design(sc, HOEKEN_A2_DESIGN, normalized=True)
-    repeat = max(1, min(int(getattr(args, 'repeat', BENCH_REPEAT_MAX)), BENCH_REPEAT_MAX))
+    asked = int(getattr(args, 'repeat', BENCH_REPEAT_MAX))
+    repeat = min(asked, BENCH_REPEAT_MAX)
     progress('  timing record hoeken (original + a(2)) ...')
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / 'hoeken.rrd'
@@ -173,7 +167,9 @@ def bench_section(args, progress):
             repeat=repeat)
         size = path.stat().st_size
     lines = [f'record (rerun file): hoeken original + seed 001 a(2), 1 turn at {BENCH_SAMPLES} '
-             'samples;', f'median of {repeat} runs after {bench.WARMUP} warm-up runs',
+             'samples;', f'median of {repeat} runs after {bench.WARMUP} warm-up runs'
+             + (f' (--repeat {asked} capped at {BENCH_REPEAT_MAX}: each run writes a file)'
+                if asked > repeat else ''),
              f'{"scene":<16}{"first run s":>14}{"median s":>12}{"file MB":>10}',
              '-' * 52,
              f'{"hoeken":<16}{cold:>14.3f}{warm:>12.3f}{size / 1e6:>10.3f}']

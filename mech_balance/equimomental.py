@@ -10,7 +10,8 @@ common distance l from the origin and at the angles 0, 2 pi/3, 4 pi/3 (seed 001 
 With l = k = sqrt(I_O / m) (eq. 8) the masses are eqs. 13-15.  A design vector (eq. 45)
 stacks ``[m_i1, m_i2, m_i3, l_i1]`` per link.  Point masses may be negative; the link is
 *realizable* only if its centroidal moment of inertia I_O - |m c|^2 / m is positive (and,
-when the point masses stand for counterweights, they are non-negative).
+when the point masses stand for counterweights, they are non-negative): :func:`is_realizable`
+is the one definition, which the balancing reports use too.
 """
 
 from dataclasses import dataclass, replace
@@ -21,8 +22,15 @@ import numpy as np
 POINT_ANGLES_RAD = np.array([0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0])
 """The angles of the three point masses in the link frame (seed 001 eq. 27)."""
 UNIT = np.exp(1j * POINT_ANGLES_RAD)
-REALIZABLE_TOL = 1e-12
-"""Relative tolerance on the centroidal inertia below which a link is not realizable."""
+"""The unit vectors e^(i theta_j) towards the three point masses, shape (3,) complex."""
+REALIZABLE_TOL = 1e-6
+"""A link whose centroidal moment of inertia is at most this fraction of I_O is a point mass,
+not a buildable body.  The data of a body is exact to far better than this, while a design on
+the bound I_c = 0 (all the mass in one point: seed 001 Table 5 b(2); an interior-point optimum
+without a realizability margin) lands within round-off of it, up to ~1e-8 I_O."""
+COUNTERWEIGHT_TOL = 1e-8
+"""With counterweights, point masses down to -this fraction of the link mass count as zero (an
+optimum on the bound m_j = 0 lands within round-off of it)."""
 
 
 @dataclass(frozen=True)
@@ -48,6 +56,24 @@ class PointMasses:
         return self.distance_m ** 2 * self.mass_kg
 
 
+def point_mass_arrays(mass, first_moment, inertia_origin):
+    """
+    Return the point masses ``(..., 3)`` and their distance l ``(...)`` (seed 001 eqs. 8-15).
+
+    Vectorized over links: ``mass`` m and ``inertia_origin`` I_O are real arrays of one
+    shape, ``first_moment`` h = m c is complex of that shape (link frames); any consistent
+    units (SI or normalized).  With l = k = sqrt(I_O/m) (eq. 8) and theta_j = 0, 2 pi/3,
+    4 pi/3, eqs. 13-15 read ``m_j = m/3 + (2/3) Re(h e^(-i theta_j)) / l``.  No checks: m > 0
+    and I_O > 0 are the caller's (see :func:`from_link`).
+    """
+    m = np.asarray(mass, dtype=float)
+    h = np.asarray(first_moment, dtype=complex)
+    dist = np.sqrt(np.asarray(inertia_origin, dtype=float) / m)
+    masses = m[..., None] / 3.0 + (2.0 / 3.0) * (
+        h[..., None] * np.conj(UNIT)).real / dist[..., None]
+    return masses, dist
+
+
 def from_link(mass_kg, com_m, inertia_origin_kg_m2):
     """
     Return the :class:`PointMasses` of a link with l = k = sqrt(I_O/m) (seed 001 eqs. 8-15).
@@ -58,11 +84,8 @@ def from_link(mass_kg, com_m, inertia_origin_kg_m2):
         raise ValueError(f'mass_kg: got {mass_kg!r}, expected > 0')
     if not inertia_origin_kg_m2 > 0.0:
         raise ValueError(f'inertia_origin_kg_m2: got {inertia_origin_kg_m2!r}, expected > 0')
-    k = math.sqrt(inertia_origin_kg_m2 / mass_kg)
-    h = complex(*com_m) * mass_kg
-    # eq. 11 with theta_j = 0, 2pi/3, 4pi/3: m_j = m/3 + (2/3) Re(h e^(-i theta_j)) / k
-    masses = mass_kg / 3.0 + (2.0 / 3.0) * (np.conj(UNIT) * h).real / k
-    return PointMasses(tuple(float(v) for v in masses), k)
+    masses, dist = point_mass_arrays(mass_kg, complex(*com_m) * mass_kg, inertia_origin_kg_m2)
+    return PointMasses(tuple(float(v) for v in masses), float(dist))
 
 
 def link_properties(point_masses):
@@ -88,17 +111,25 @@ def is_realizable(point_masses, counterweights=False):
     """
     Return ``(ok, reason)``: a buildable link has positive mass and centroidal inertia.
 
-    With ``counterweights`` the point masses must also be non-negative.
+    The one definition of realizability: mass > 0 and centroidal moment of inertia
+    > :data:`REALIZABLE_TOL` x I_O (at or below it the link is a point mass, no body).  With
+    ``counterweights`` the point masses must also be non-negative (down to
+    -:data:`COUNTERWEIGHT_TOL` x m).  A design *margin* on the centroidal inertia, which an
+    optimizer may impose, is a separate, larger requirement of the design, not of a body.
     """
-    m = point_masses.mass_kg
+    pm = point_masses
+    m = pm.mass_kg
     if not m > 0.0:
         return False, f'total mass {m:.6g} kg <= 0'
-    i_c = centroidal_inertia(m, point_masses.first_moment_kg_m,
-                             point_masses.inertia_origin_kg_m2)
-    if i_c <= REALIZABLE_TOL * point_masses.inertia_origin_kg_m2:
+    i_o = pm.inertia_origin_kg_m2
+    i_c = centroidal_inertia(m, pm.first_moment_kg_m, i_o)
+    if i_c <= 0.0:
         return False, f'centroidal moment of inertia {i_c:.6g} kg*m^2 <= 0'
-    if counterweights and min(point_masses.masses_kg) < 0.0:
-        return False, f'negative point mass {min(point_masses.masses_kg):.6g} kg'
+    if i_c <= REALIZABLE_TOL * i_o:
+        return False, (f'centroidal moment of inertia {i_c:.3g} kg*m^2 = {i_c / i_o:.1e} I_O: '
+                       'a point mass, no body')
+    if counterweights and min(pm.masses_kg) < -COUNTERWEIGHT_TOL * m:
+        return False, f'negative point mass {min(pm.masses_kg):.6g} kg (counterweights)'
     return True, 'ok'
 
 

@@ -102,12 +102,14 @@ class RigNode(Node):
         self._streamer = twin.Streamer(lambda: self.get_clock().now().nanoseconds,
                                        self._prepare, self._publish, self._warn, self._record)
         self._open_recorder()
+        # say what the node publishes before it starts to (a signal right after the first
+        # samples then finds nothing left to log to rosout)
+        self._announce()
         self._apply_mode()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
         if self._values['use_balanced']:
             self._balance_in_background()
-        self._announce()
 
     # ------------------------------------------------------------------ wiring
 
@@ -203,8 +205,14 @@ class RigNode(Node):
 
     def _publish(self, payload):
         """Publish one prepared sample on both topics (the streamer's publishing thread)."""
-        self._joint_pub.publish(payload[0])
-        self._wrench_pub.publish(payload[1])
+        try:
+            self._joint_pub.publish(payload[0])
+            self._wrench_pub.publish(payload[1])
+        except Exception:
+            if self.context.ok():
+                raise
+            # Ctrl-C or SIGTERM: rclpy shut the context down before destroy_node stops
+            # this thread; the sample is dropped without a warning (rosout is gone too)
 
     def _on_encoder(self, msg):
         """Turn one encoder message into a sample to publish; skip bad input with a warning."""
@@ -251,7 +259,12 @@ class RigNode(Node):
                 return
             from mech_balance import recording  # rerun is imported only when recording
             balanced = None if self._balanced is None else self._balanced.scene
-            self._recorder = recording.LiveRecorder(path, self._original.scene, balanced)
+            try:
+                self._recorder = recording.LiveRecorder(path, self._original.scene, balanced,
+                                                        field='recording_path')
+            except (ValueError, OSError) as exc:  # checked when set; the disk may change
+                self.get_logger().error(f'not recording: {exc}')
+                return
             self.get_logger().info(f'recording to {path}')
 
     # ------------------------------------------------------------------ parameters
@@ -268,8 +281,6 @@ class RigNode(Node):
                 if p.name == 'scene' and value != self._values['scene']:
                     model = self._build_model(value)
                     self._pending_scene = (value, model)
-                if p.name == 'recording_path' and value:
-                    _check_writable(value)
             if model.kind == 'planar':
                 params.check_links(candidate, [lk.name for lk in model.scene.links])
         except ValueError as exc:
@@ -396,29 +407,34 @@ class RigNode(Node):
     # ------------------------------------------------------------------ shutdown
 
     def destroy_node(self):
-        """Stop the publishing threads and close the recording, then destroy the node."""
+        """
+        Stop the publishing threads, close the recording, destroy the node, log the stats.
+
+        After Ctrl-C or SIGTERM rclpy has already shut the context down, so the node's
+        rosout publisher is invalid: the statistics are then logged once the node (and its
+        rosout registration) is gone, to the console only, instead of failing to reach
+        rosout ("Failed to publish log message to rosout").
+        """
         self._streamer.stop()
-        stats = self._streamer.stats.summary()
-        self.get_logger().info(
-            f'published {stats["published"]} samples ({stats["skipped"]} ticks skipped); '
-            f'compute {stats["prepare_per_sample_s"] * 1e6:.1f} us per sample (core and '
-            f'serialization, batched); publishing {stats["step_median_s"] * 1e6:.1f} us '
-            'median per sample; '
-            f'{STATS_TAG}{json.dumps(stats)}')
         with self._recorder_lock:
             if self._recorder is not None:
                 self._recorder.close()
                 self._recorder = None
-        return super().destroy_node()
+        logger, line = self.get_logger(), self._stats_line()
+        if self.context.ok():
+            logger.info(line)
+            return super().destroy_node()
+        destroyed = super().destroy_node()
+        logger.info(line)
+        return destroyed
 
-
-def _check_writable(path):
-    """Raise ValueError if ``path``'s directory does not exist."""
-    import os
-    directory = os.path.dirname(os.path.abspath(os.path.expanduser(path)))
-    if not os.path.isdir(directory):
-        raise ValueError(f'recording_path: got {path!r}, its directory {directory!r} does not '
-                         'exist')
+    def _stats_line(self):
+        """Return the publishing statistics: a summary, then :data:`STATS_TAG` and JSON."""
+        stats = self._streamer.stats.summary()
+        return (f'published {stats["published"]} samples ({stats["skipped"]} ticks skipped); '
+                f'compute {stats["prepare_per_sample_s"] * 1e6:.1f} us per sample (core and '
+                f'serialization, batched); publishing {stats["step_median_s"] * 1e6:.1f} us '
+                f'median per sample; {STATS_TAG}{json.dumps(stats)}')
 
 
 def main(args=None):

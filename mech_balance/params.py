@@ -17,6 +17,7 @@ import math
 import re
 
 from mech_balance import balancing
+from mech_balance.scene import parse_yaml
 import yaml
 
 STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
@@ -31,8 +32,6 @@ MAX_PUBLISH_RATE = 20000.0
 """Fastest clock-mode publish rate, Hz (see ``mech-balance bench`` for what is sustained)."""
 MAX_SAMPLES = 100000
 """Most crank angles per revolution in a balancing run."""
-DEFAULT_BALANCE_WEIGHTS = (1.0, 0.0)
-"""Default [w1, w2]: those of balancing.optimize and ``mech-balance balance``."""
 MAX_WEIGHT = 1e6
 """Largest extra objective weight accepted."""
 MAX_MARGIN = 0.999
@@ -100,11 +99,11 @@ def _weights(value):
 
 def _factors(name):
     def check(value):
-        """Accept [low, high] factors of the original value, 0 <= low <= high."""
+        """Accept [low, high] factors of the original value, 0 < low <= high."""
         if len(value) != 2 or not all(math.isfinite(v) for v in value) or \
-                not 0.0 <= value[0] <= value[1]:
+                not 0.0 < value[0] <= value[1]:
             raise ValueError(f'{name}: got {list(value)}, expected [low, high] with '
-                             '0 <= low <= high (factors of the original link value)')
+                             '0 < low <= high (factors of the original link value)')
     return check
 
 
@@ -119,13 +118,15 @@ def parse_link_bounds(name, text, unit):
     """
     Return ``{link: (min, max)}`` from a ``balance.*_bounds`` text, or None when empty.
 
-    The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [0.5, null]}`` in
-    ``unit``; link names are checked against the scene when the balancing runs.
+    The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in
+    ``unit``, parsed as scenes are (:func:`mech_balance.scene.parse_yaml`: YAML 1.2 floats,
+    ``1e-1`` is a number); link names are checked against the scene when the balancing
+    runs.
     """
     if not text.strip():
         return None
     try:
-        data = yaml.safe_load(text)
+        data = parse_yaml(text)
     except yaml.YAMLError as exc:
         raise ValueError(f'{name}: not valid YAML ({exc.problem}), expected a mapping '
                          f'link: [min, max] in {unit}') from None
@@ -138,10 +139,10 @@ def parse_link_bounds(name, text, unit):
             lo, hi = pair
             ok = all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)
                                    and math.isfinite(v)) for v in (lo, hi))
-            ok = ok and lo is not None and lo >= 0.0 and (hi is None or hi >= lo)
+            ok = ok and lo is not None and lo > 0.0 and (hi is None or hi >= lo)
         if not ok:
             raise ValueError(f'{name}.{link}: got {pair!r}, expected [min, max] in {unit} with '
-                             '0 <= min <= max (max may be null: no upper bound)')
+                             '0 < min <= max (max may be null: no upper bound)')
         out[link] = (float(lo), None if hi is None else float(hi))
     return out
 
@@ -183,15 +184,15 @@ def check_links(values, link_names):
 
 
 def _path(value):
-    """Accept empty (no recording) or a path ending in .rrd."""
-    if value and not value.endswith('.rrd'):
-        raise ValueError(f'recording_path: got {value!r}, expected a path ending in .rrd '
-                         '(or empty for no recording)')
+    """Accept empty (no recording) or a writable .rrd file in an existing directory."""
+    if value:
+        from mech_balance import recording  # imports rerun: only when a recording is asked for
+        recording.check_output_path(value, 'recording_path', create_dir=False)
 
 
 # ------------------------------------------------------------------------------ table
 
-_BOUNDS_RULE = 'empty or {link: [min, max]}, 0 <= min <= max, max may be null'
+_BOUNDS_RULE = 'empty or {link: [min, max]}, 0 < min <= max, max may be null'
 
 
 PARAMETERS = (
@@ -229,7 +230,7 @@ PARAMETERS = (
     Spec('follow.max_gap', DOUBLE, 0.5,
          'Follow mode: a longer gap between encoder stamps, s, restarts the estimator.',
          bounds=(1e-6, 3600.0)),
-    Spec('balance.weights', DOUBLE_ARRAY, list(DEFAULT_BALANCE_WEIGHTS),
+    Spec('balance.weights', DOUBLE_ARRAY, list(balancing.DEFAULT_WEIGHTS),
          'Weights [w1, w2] of the RMS shaking force and moment in the balancing objective '
          '(seed 001 eq. 43; mech-balance balance --weights).', check=_weights,
          rule='two numbers >= 0, not both 0'),
@@ -247,11 +248,11 @@ PARAMETERS = (
          'bound options must keep their defaults.'),
     Spec('balance.mass_factors', DOUBLE_ARRAY, list(balancing.PAPER_MASS_FACTORS),
          'Link mass bounds [low, high] as factors of the original link mass (eq. 50b).',
-         check=_factors('balance.mass_factors'), rule='[low, high], 0 <= low <= high'),
+         check=_factors('balance.mass_factors'), rule='[low, high], 0 < low <= high'),
     Spec('balance.distance_factors', DOUBLE_ARRAY, list(balancing.PAPER_DISTANCE_FACTORS),
          'Point-mass distance bounds [low, high] as factors of the original '
          'l = sqrt(I_O/m) (eq. 50c).', check=_factors('balance.distance_factors'),
-         rule='[low, high], 0 <= low <= high'),
+         rule='[low, high], 0 < low <= high'),
     Spec('balance.mass_bounds', STRING, '',
          'Per-link mass bounds in kg overriding the factors, YAML: {crank: [0.3, 1.6]}.',
          check=_link_bounds('balance.mass_bounds', 'kg'), rule=_BOUNDS_RULE),
@@ -280,7 +281,8 @@ PARAMETERS = (
          '~/reset clears it).'),
     Spec('recording_path', STRING, '',
          'Write a rerun recording (.rrd) of the published samples; empty: none.',
-         check=_path, rule="empty or ending in '.rrd', in an existing directory"),
+         check=_path, rule="empty or a writable file ending in '.rrd' in an existing "
+         'directory (none is created)'),
 )
 """Every parameter of the rig node, in declaration order."""
 

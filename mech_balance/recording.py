@@ -41,7 +41,7 @@ import re
 import threading
 import time
 
-from mech_balance import analysis, dynamics, equimomental
+from mech_balance import analysis, dynamics, equimomental, paths
 from mech_balance.conventions import normalize_force, normalize_moment, rms
 from mech_balance.scene import FRAME, needs, Recording
 import numpy as np
@@ -50,6 +50,8 @@ import rerun.blueprint as rrb
 
 APPLICATION_ID = 'mech_balance'
 """Prefix of the rerun application id (the scene name follows, so layouts never clash)."""
+RRD_SUFFIX = '.rrd'
+"""What the name of a recording file ends in (rerun's format)."""
 VARIANTS = ('original', 'balanced')
 DEGREES_PER_TURN = 360
 """The ``crank_angle`` timeline counts whole degrees, so samples per turn divide 360."""
@@ -1024,13 +1026,17 @@ def application_id(scene):
     return f'{APPLICATION_ID}_' + re.sub(r'[^A-Za-z0-9_-]+', '_', scene.name)
 
 
+def check_output_path(path, field, create_dir=False):
+    """
+    Return the recording file ``path`` as a ``Path``, checked before anything is computed.
+
+    :func:`mech_balance.paths.check_output_path` with the suffix :data:`RRD_SUFFIX`; ``field``
+    names the caller's option or parameter (``--out``, ``recording_path``) in the error.
+    """
+    return paths.check_output_path(path, field, (RRD_SUFFIX,), create_dir=create_dir)
+
+
 def _open(path, scene, layout):
-    path = Path(path)
-    if path.suffix != '.rrd':
-        raise ValueError(f'out: got {str(path)!r}, expected a file name ending in .rrd')
-    if not path.parent.is_dir():
-        raise ValueError(f'out: directory {str(path.parent)!r} does not exist, expected an '
-                         'existing directory for the recording')
     rec = rr.RecordingStream(application_id(scene))
     rec.save(str(path))
     rec.send_blueprint(blueprint(layout), make_active=True, make_default=True)
@@ -1042,16 +1048,19 @@ def _open(path, scene, layout):
 # ------------------------------------------------------------------------------- offline
 
 
-def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=None):
+def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=None, *,
+           field='path'):
     """
     Write an offline recording of ``scene`` (and ``balanced``) to ``path`` (``.rrd``).
 
     ``balanced`` is a scene with the same geometry and other inertias (or None for the
     original alone); ``samples`` per crank turn (a divisor of 360, default the scene's) over
     ``cycles`` turns.  One turn is computed and repeated, since the rig's motion is periodic
-    in the crank angle.  Returns a :class:`RecordingSummary`.
+    in the crank angle.  ``path`` is checked first by :func:`check_output_path` (its errors
+    name ``field``).  Returns a :class:`RecordingSummary`.
     """
     t0 = time.perf_counter()
+    path = check_output_path(path, field)
     samples = getattr(scene, 'samples', 360) if samples is None else samples
     _check_samples(samples, cycles)
     model = _model_for(scene, balanced)
@@ -1103,15 +1112,16 @@ class LiveRecorder:
     """
     Write the recording of a running rig sample by sample (used by the rig node).
 
-    ``LiveRecorder(path, scene, balanced=None)`` opens ``path`` (``.rrd``), lays it out and
-    logs the static geometry, the blueprint and the text panel from one reference turn
+    ``LiveRecorder(path, scene, balanced=None)`` opens ``path`` (``.rrd``, checked by
+    :func:`check_output_path`, whose errors name ``field``), lays it out and logs the static
+    geometry, the blueprint and the text panel from one reference turn
     (``scene.samples`` angles).  :meth:`log_sample` appends samples; :meth:`close` (also run
     at interpreter exit) flushes and closes the file, is idempotent and safe to call from a
     signal handler or another thread.
     """
 
-    def __init__(self, path, scene, balanced=None, balanced_source=None):
-        self.path = Path(path)
+    def __init__(self, path, scene, balanced=None, balanced_source=None, *, field='path'):
+        self.path = check_output_path(path, field)
         self.scene = scene
         self._model = _model_for(scene, balanced)
         samples = getattr(scene, 'samples', 360)

@@ -15,7 +15,6 @@ from pathlib import Path
 import re
 
 from mech_balance import conventions
-import numpy as np
 import yaml
 
 SCHEMA_VERSION = 1
@@ -242,7 +241,10 @@ def load_data(name_or_path):
     try:
         data = parse_yaml(path.read_text())
     except yaml.YAMLError as exc:
-        raise SceneError(f'scene {path.name}: not valid YAML: {exc}') from None
+        mark, problem = getattr(exc, 'problem_mark', None), getattr(exc, 'problem', None)
+        where = '' if mark is None else f' at line {mark.line + 1}, column {mark.column + 1}'
+        reason = problem or ' '.join(str(exc).split())
+        raise SceneError(f'scene {path.name}: not valid YAML{where}: {reason}') from None
     if not isinstance(data, dict):
         raise SceneError(f'scene {path.name}: got {type(data).__name__}, expected a mapping')
     data.setdefault('name', path.stem)

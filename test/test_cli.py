@@ -1,12 +1,16 @@
 """The ``mech-balance`` command line: help texts, tables, JSON, exit codes."""
 
+import argparse
 import json
 import os
 import subprocess
 import sys
 
-from mech_balance import cli
+from mech_balance import analysis, balancing, cli, cli_balance, scene
+import numpy as np
+from numpy.testing import assert_allclose
 import pytest
+import yaml
 
 
 def _run(*argv):
@@ -83,3 +87,253 @@ def test_scenes_lists_builtins(capsys):
     out = capsys.readouterr().out
     for name in ('hoeken', 'slider_crank', 'carpet_scraper', 'rggr'):
         assert name in out
+
+
+# ----------------------------------------------------------------------------- one error line
+
+USAGE_CASES = ('samples', 'case', 'cycles', 'repeat', 'unknown', 'no verb', 'record out',
+               'record suffix', 'balance dir', 'balance suffix', 'rggr design', 'rggr weights',
+               'rggr case', 'rggr balance weights', 'yaml')
+IN_A_FRESH_PROCESS = ('samples', 'record out', 'balance dir', 'rggr weights', 'yaml')
+"""The cases also run as ``python -m mech_balance.cli`` (about 1 s of imports each)."""
+
+
+def _usage_cases(tmp):
+    """Return ``{case: (argv, verb, message)}`` with files under ``tmp``."""
+    blocker = tmp / 'a_file'
+    blocker.write_text('not a directory')
+    bad_yaml = tmp / 'bad.yaml'
+    bad_yaml.write_text('name: x\nlinks: [1, 2\nkind: planar\n')
+    return {
+        'samples': (['analyze', '--samples', '3'], 'analyze',
+                    'argument --samples: got 3, expected an integer >= 4'),
+        'case': (['balance', '--case', 'c'], 'balance', "argument --case: invalid choice: 'c'"),
+        'cycles': (['record', '--cycles', '0', '--out', str(tmp / 'c.rrd')], 'record',
+                   'argument --cycles: got 0, expected an integer >= 1'),
+        'repeat': (['bench', '--repeat', '0'], 'bench',
+                   'argument --repeat: got 0, expected an integer >= 1'),
+        'unknown': (['analyze', '--bogus'], 'analyze', 'unrecognized arguments: --bogus'),
+        'no verb': ([], None, 'the following arguments are required: COMMAND'),
+        'record out': (['record', '--out', str(blocker / 'x.rrd')], 'record',
+                       f"--out: got '{blocker / 'x.rrd'}', its directory '{blocker}' cannot "
+                       'be created'),
+        'record suffix': (['record', '--out', str(tmp / 'x.mp4')], 'record',
+                          'expected a file name ending in .rrd'),
+        'balance dir': (['balance', '--output', str(tmp / 'none' / 'x.yaml')], 'balance',
+                        'expected a file in an existing directory'),
+        'balance suffix': (['balance', '--output', str(tmp / 'x.txt')], 'balance',
+                           'expected a file name ending in .yaml or .yml'),
+        'rggr design': (['analyze', '--scene', 'rggr', '--design=1,2'], 'analyze',
+                        '--design applies to planar scenes only'),
+        'rggr weights': (['record', '--scene', 'rggr', '--balance', '--weights', '0', '1',
+                          '--out', str(tmp / 'r.rrd')], 'record',
+                         '--weights applies to planar scenes only'),
+        'rggr case': (['record', '--scene', 'rggr', '--balance', '--case', 'b',
+                       '--out', str(tmp / 'r.rrd')], 'record',
+                      '--case applies to planar scenes only'),
+        'rggr balance weights': (['balance', '--scene', 'rggr', '--weights', '1', '0'],
+                                 'balance', '--weights applies to planar scenes only'),
+        'yaml': (['analyze', '--scene', str(bad_yaml)], 'analyze',
+                 "scene bad.yaml: not valid YAML at line 3, column 5: expected ',' or ']', "
+                 "but got ':'"),
+    }
+
+
+def _check_one_error_line(case, verb, message, code, out, err):
+    prog = 'mech-balance' if verb is None else f'mech-balance {verb}'
+    assert code == cli.EXIT_USAGE, (case, err)
+    assert out == '', case                          # nothing computed or printed first
+    assert len(err.splitlines()) == 1 and err.endswith('\n'), err
+    assert err.startswith(f'{prog}: error: ') and message in err, err
+    assert 'Traceback' not in err and 'usage:' not in err
+    if message.startswith(('argument', 'unrecognized', 'the following')):
+        assert err.rstrip().endswith(f'(see {prog} --help)'), err
+
+
+@pytest.mark.parametrize('case', USAGE_CASES)
+def test_usage_error_is_one_line_and_exit_2(case, tmp_path, capsys):
+    argv, verb, message = _usage_cases(tmp_path)[case]
+    try:
+        code = cli.main(argv)
+    except SystemExit as exc:                        # argparse: the parser's one line
+        code = exc.code
+    out, err = capsys.readouterr()
+    _check_one_error_line(case, verb, message, code, out, err)
+
+
+def test_usage_errors_in_fresh_processes(tmp_path):
+    """The installed entry point's view: exit status 2, one line, no traceback."""
+    cases = _usage_cases(tmp_path)
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(
+        [os.path.dirname(os.path.dirname(os.path.abspath(cli.__file__)))]
+        + env.get('PYTHONPATH', '').split(os.pathsep))
+    procs = {k: subprocess.Popen([sys.executable, '-m', 'mech_balance.cli', *cases[k][0]],
+                                 env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                 text=True)
+             for k in IN_A_FRESH_PROCESS}
+    for k, proc in procs.items():
+        out, err = proc.communicate(timeout=120)
+        _check_one_error_line(k, cases[k][1], cases[k][2], proc.returncode, out, err)
+
+
+def test_os_error_is_one_line_naming_the_path(monkeypatch, capsys):
+    def fail(args):
+        raise FileNotFoundError(2, 'No such file or directory', '/no/such/dir/x.yaml')
+    monkeypatch.setattr(cli, 'cmd_scenes', fail)
+    assert cli.main(['scenes']) == cli.EXIT_USAGE
+    assert capsys.readouterr().err == \
+        'mech-balance scenes: error: /no/such/dir/x.yaml: No such file or directory\n'
+
+
+def test_key_error_is_a_bug_not_a_usage_error(monkeypatch):
+    def fail(args):
+        raise KeyError('x')
+    monkeypatch.setattr(cli, 'cmd_scenes', fail)
+    with pytest.raises(KeyError):
+        cli.main(['scenes'])
+
+
+def test_output_paths_are_checked_before_the_solve(monkeypatch, tmp_path, capsys):
+    def solve(*args, **kwargs):
+        pytest.fail('solved before the output path was checked')
+    monkeypatch.setattr(balancing, 'optimize', solve)
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    (tmp_path / 'dir.rrd').mkdir()
+    assert cli.main(['balance', '--output', str(tmp_path / 'no' / 'x.yaml')]) == 2
+    assert cli.main(['record', '--balance', '--out', str(blocker / 'x.rrd')]) == 2
+    assert cli.main(['record', '--balance', '--out', str(tmp_path / 'dir.rrd')]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 3 and all(line.startswith('mech-balance ') for line in err)
+    assert '--output' in err[0] and '--out' in err[1] and '--out' in err[2]
+
+
+def test_writable_path(tmp_path):
+    made = cli.writable_path('--out', str(tmp_path / 'a' / 'b' / 'x.rrd'), ('.rrd',),
+                             create_parent=True)
+    assert made.parent.is_dir() and not made.exists()
+    (tmp_path / 'd.rrd').mkdir()
+    with pytest.raises(ValueError, match=r"--out: got '.*d\.rrd', a directory"):
+        cli.writable_path('--out', str(tmp_path / 'd.rrd'), ('.rrd',))
+    with pytest.raises(ValueError, match='--output: .* in an existing directory'):
+        cli.writable_path('--output', str(tmp_path / 'none' / 'x.yaml'), ('.yaml',))
+    with pytest.raises(ValueError, match=r'expected a file name ending in \.yaml or \.yml'):
+        cli.writable_path('--output', str(tmp_path / 'x.yam'), ('.yaml', '.yml'))
+    assert not list(tmp_path.glob('.mech-balance-probe-*'))
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['balance', '--analytic', '--weights', '1', '0'],
+     '--weights applies to the optimization, not to --analytic'),
+    (['balance', '--analytic', '--case', 'b'], '--case applies to the optimization'),
+    (['balance', '--mass-factor', '2'], '--mass-factor applies with --analytic only'),
+    (['balance', '--scene', 'rggr', '--analytic'], '--analytic applies to planar scenes only'),
+    (['record', '--case', 'b', '--out', 'OUT'], '--case applies with --balance only'),
+])
+def test_ignored_options_are_rejected(argv, message, tmp_path, capsys):
+    argv = [str(tmp_path / 'x.rrd') if a == 'OUT' else a for a in argv]
+    assert cli.main(argv) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert message in err and len(err.splitlines()) == 1
+
+
+# ----------------------------------------------------------------------------- weights
+
+
+def test_balance_and_record_share_the_default_weights(monkeypatch, tmp_path, capsys):
+    calls = []
+
+    def solve(scene, weights, case, **kwargs):
+        calls.append((tuple(weights), case))
+        raise ValueError('stop here')
+    monkeypatch.setattr(balancing, 'optimize', solve)
+    assert cli.main(['balance']) == 2
+    assert cli.main(['record', '--balance', '--out', str(tmp_path / 'x.rrd')]) == 2
+    assert cli.main(['balance', '--weights', '1', '0', '--case', 'b']) == 2
+    assert cli.main(['record', '--balance', '--weights', '1', '0', '--case', 'b',
+                     '--out', str(tmp_path / 'x.rrd')]) == 2
+    default = (tuple(balancing.DEFAULT_WEIGHTS), cli_balance.DEFAULT_CASE)
+    assert calls == [default, default, ((1.0, 0.0), 'b'), ((1.0, 0.0), 'b')]
+    capsys.readouterr()
+    w1, w2 = balancing.DEFAULT_WEIGHTS
+    for verb in ('balance', 'record'):
+        with pytest.raises(SystemExit):
+            cli.main([verb, '--help'])
+        text = ' '.join(capsys.readouterr().out.split())
+        assert '--weights W1 W2' in text and f'(default: {w1:g} {w2:g}' in text, verb
+        assert f'(default: {cli_balance.DEFAULT_CASE})' in text, verb
+        assert '(default: None)' not in text, verb
+
+
+# ----------------------------------------------------------------------------- bench
+
+
+def test_bench_balance_section_honours_repeat():
+    def header(repeat):
+        args = argparse.Namespace(scene=['slider_crank'], repeat=repeat, samples=90)
+        return cli_balance.bench_section(args, lambda s: None).splitlines()[0]
+    assert 'median of 1 optimizations' in header(1)
+    capped = header(cli_balance.BENCH_REPEAT_MAX + 5)
+    assert f'median of {cli_balance.BENCH_REPEAT_MAX} optimizations' in capped
+    assert f'--repeat {cli_balance.BENCH_REPEAT_MAX + 5} capped at' in capped
+
+
+# ----------------------------------------------------------------------------- analyze, scenes
+
+
+def _slider_crank(**changes):
+    data, _ = scene.load_data('slider_crank')
+    for key, value in changes.items():
+        data[key] = value
+    return data
+
+
+def test_round_off_bearing_moment_gets_no_row():
+    """Gravity on the in-line slider: its guide's moment is ~4e-16 N*m, round-off."""
+    sc = scene.from_dict(_slider_crank(gravity_m_s2=[0.0, -9.81]))
+    cycle = analysis.run_cycle(analysis.Rig(sc))
+    moment = np.max(np.abs(cycle.wrenches.reaction_moment['S']))
+    assert 0.0 < moment < analysis.MOMENT_ROUNDOFF_REL * analysis.moment_scale(cycle)
+    assert 'bearing S moment' not in [r.quantity for r in analysis.summarize(cycle)]
+    data = _slider_crank()
+    data['links']['slider']['com_m'] = [0.0, 0.01]   # off the guide: a real moment
+    cycle = analysis.run_cycle(analysis.Rig(scene.from_dict(data)))
+    rows = {r.quantity: r for r in analysis.summarize(cycle)}
+    assert_allclose(rows['bearing S moment'].max_abs,
+                    np.max(np.abs(cycle.wrenches.reaction_moment['S'])), rtol=1e-15)
+    assert rows['bearing S moment'].max_abs > 0.1
+
+
+def test_analyze_kinematics_only_says_why_the_table_is_empty(tmp_path, capsys):
+    path = tmp_path / 'kin.yaml'
+    path.write_text(yaml.safe_dump(_slider_crank(outputs=['kinematics'])))
+    assert cli.main(['analyze', '--scene', str(path)]) == 0
+    out = capsys.readouterr().out
+    assert 'asks for kinematics only' in out and 'outputs key' in out
+    assert 'shaking_wrench' in out
+
+
+def test_analyze_states_crank_speed_and_acceleration(tmp_path, capsys):
+    data = _slider_crank()
+    data['crank']['acceleration_rad_s2'] = 50.0
+    path = tmp_path / 'acc.yaml'
+    path.write_text(yaml.safe_dump(data))
+    assert cli.main(['analyze', '--scene', str(path)]) == 0
+    out = capsys.readouterr().out
+    assert 'crank speed 31.4159 rad/s and acceleration 50 rad/s^2 at every angle' in out
+    assert 'note: crank.acceleration_rad_s2 is not 0' in out
+    assert cli.main(['analyze', '--scene', 'slider_crank']) == 0
+    out = capsys.readouterr().out
+    assert 'acceleration 0 rad/s^2' in out and 'note:' not in out
+    assert max(len(line) for line in out.splitlines()) <= cli.LINE_WIDTH
+
+
+def test_scenes_wraps_descriptions_at_word_boundaries(capsys):
+    assert cli.main(['scenes']) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert max(len(line) for line in lines) <= cli.LINE_WIDTH
+    text = ' '.join(' '.join(lines).split())
+    for name, path in scene.builtin_scenes().items():
+        data, _ = scene.load_data(path)
+        assert ' '.join(str(data.get('description', '')).split()) in text, name

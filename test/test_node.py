@@ -18,6 +18,7 @@ import time
 
 from geometry_msgs.msg import WrenchStamped
 from mech_balance import analysis, balancing, params, rggr, twin
+from mech_balance import node as rig_node
 from mech_balance import ros_conversions as conv
 from mech_balance import scene as scene_mod
 import numpy as np
@@ -90,6 +91,9 @@ def test_params_file_documents_a_working_set():
     for name, value in flat.items():
         params.check(name, value)
     assert 'rig_params' not in scene_mod.builtin_scenes()
+    # one default objective: the file, the node's declaration and balancing.optimize agree
+    assert flat['balance.weights'] == params.defaults()['balance.weights'] == \
+        list(balancing.DEFAULT_WEIGHTS)
 
 
 @pytest.mark.parametrize('name, value, reason', [
@@ -104,8 +108,14 @@ def test_params_file_documents_a_working_set():
     ('balance.mass_factors', [5.0, 1.0], r'balance.mass_factors: got \[5.0, 1.0\]'),
     ('balance.mass_bounds', '{crank: [2, 1]}', r'balance.mass_bounds.crank: got \[2, 1\]'),
     ('balance.mass_bounds', '[1, 2]', 'balance.mass_bounds: got .* expected a mapping'),
+    ('balance.mass_bounds', '{crank: [0, 2]}', r'balance.mass_bounds.crank: .* 0 < min'),
+    ('balance.distance_factors', [0.0, 0.0], r'balance.distance_factors: got \[0.0, 0.0\]'),
     ('balance.samples', 3, 'balance.samples: got 3, expected 0'),
-    ('recording_path', '/tmp/x.txt', 'recording_path: got .* expected a path ending in .rrd'),
+    ('recording_path', '/tmp/x.txt', 'recording_path: got .* expected a file name ending in '
+     '.rrd'),
+    ('recording_path', '/no/such/dir/x.rrd', "recording_path: got .*directory '/no/such/dir' "
+     'does not exist'),
+    ('recording_path', '/tmp', 'recording_path: got .* expected a file name ending in .rrd'),
     ('no_such', 1, 'no_such: unknown parameter'),
 ])
 def test_bad_parameter_values_are_rejected_with_a_reason(name, value, reason):
@@ -120,6 +130,10 @@ def test_balance_options_are_those_of_the_balance_command():
                    'balance.max_added_mass': 2.0, 'balance.fixed_links': 'rocker'})
     opts = params.balance_options(values)
     assert opts['weights'] == (0.5, 0.5) and opts['case'] == 'b'
+    # YAML 1.2 floats, as in scenes: 1e-1 is a number, not text
+    assert params.check('balance.distance_bounds', '{crank: [1e-2, 2E-1]}')
+    assert params.parse_link_bounds('balance.mass_bounds', '{crank: [1e-1, 2]}', 'kg') == \
+        {'crank': (0.1, 2.0)}
     assert opts['mass_bounds'] == {'crank': (0.3, None)} and opts['samples'] == 90
     assert opts['max_added_mass_kg'] == 2.0 and opts['fixed_links'] == ('rocker',)
     params.check_links(values, ['crank', 'coupler', 'rocker'])
@@ -321,9 +335,9 @@ class RigProcess:
         self.log.seek(0)
         return self.log.read()
 
-    def stop(self):
+    def stop(self, sig=signal.SIGINT):
         if self.alive():
-            self.proc.send_signal(signal.SIGINT)
+            self.proc.send_signal(sig)
             try:
                 self.proc.wait(timeout=15)
             except subprocess.TimeoutExpired:
@@ -486,6 +500,7 @@ def test_clock_mode_topics_parameters_and_balancing_across_processes(context):
                 ('balance.weights', [0.0, 0.0], 'balance.weights'),
                 ('balance.fixed_links', 'wheel', "balance.fixed_links: got link 'wheel'"),
                 ('frame_id', '/bad', 'frame_id'),
+                ('recording_path', '/no/such/dir/x.rrd', 'recording_path: got'),
                 ('mode', 'dance', 'mode')):
             result = probe.set_params(**{name.replace('.', '__'): value})[0]
             assert not result.successful, name
@@ -542,6 +557,8 @@ def test_clock_mode_topics_parameters_and_balancing_across_processes(context):
     (('-p', 'publish_rate:=-1.0'), 'publish_rate'),
     (('-p', 'scene:=no_such_scene'), "scene: got 'no_such_scene'"),
     (('-p', 'balance.weights:=[0.0, 0.0]'), 'balance.weights'),
+    (('-p', 'recording_path:=/no/such/dir/rig.rrd'),
+     "recording_path: got '/no/such/dir/rig.rrd', its directory '/no/such/dir' does not"),
 ])
 def test_an_invalid_parameter_at_start_up_is_a_clear_error(args, reason):
     rig = RigProcess(_namespace('bad'), *args)
@@ -550,6 +567,24 @@ def test_an_invalid_parameter_at_start_up_is_a_clear_error(args, reason):
     finally:
         log = rig.stop()
     assert 'rig_node: error:' in log and reason in log, log
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_shutdown_by_signal_is_quiet_and_logs_the_stats(context, sig):
+    """Ctrl-C and SIGTERM stop the node without 'Failed to publish log message to rosout'."""
+    ns = _namespace(f'signal{int(sig)}')
+    rig = RigProcess(ns, '-p', 'publish_rate:=1000.0')
+    probe = Probe(context, ns)
+    try:
+        probe.wait_for_rig(rig)
+        probe.collect(50)  # publishing when the signal arrives
+    finally:
+        probe.destroy()
+        log = rig.stop(sig)
+    assert rig.proc.returncode == 0, log
+    assert 'rosout' not in log and 'context is invalid' not in log, log
+    assert 'publishing failed' not in log, log
+    assert sum(rig_node.STATS_TAG in line for line in log.splitlines()) == 1, log
 
 
 def _same_report(got, expected, path=''):

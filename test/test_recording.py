@@ -269,10 +269,33 @@ def test_bad_design_and_path(tmp_path):
         recording.record(tmp_path / 'x.rrd', sc, scene_mod.load('carpet_scraper'))
     with pytest.raises(ValueError, match='design: got a rggr scene'):
         recording.record(tmp_path / 'x.rrd', sc, scene_mod.load('rggr'))
-    with pytest.raises(ValueError, match='out: got .*expected a file name ending in .rrd'):
+    with pytest.raises(ValueError, match='path: got .*expected a file name ending in .rrd'):
         recording.record(tmp_path / 'x.txt', sc)
-    with pytest.raises(ValueError, match='out: directory .* does not exist'):
-        recording.record(tmp_path / 'no' / 'x.rrd', sc)
+    with pytest.raises(ValueError, match="--out: got .*its directory '.*no' does not exist"):
+        recording.record(tmp_path / 'no' / 'x.rrd', sc, field='--out')
+    with pytest.raises(ValueError, match='recording_path: got .*does not exist'):
+        recording.LiveRecorder(tmp_path / 'no' / 'x.rrd', sc, field='recording_path')
+    assert not (tmp_path / 'no').exists()
+
+
+def test_output_path_check_names_the_callers_field(tmp_path):
+    check = recording.check_output_path
+    assert check(tmp_path / 'a.rrd', 'recording_path') == tmp_path / 'a.rrd'
+    for path, message in ((tmp_path / 'a.txt', 'expected a file name ending in .rrd'),
+                          (tmp_path / 'a', 'expected a file name ending in .rrd'),
+                          (tmp_path / 'sub' / 'a.rrd', "its directory '.*sub' does not exist")):
+        for field in ('--out', 'recording_path'):
+            with pytest.raises(ValueError, match=f'^{field}: got .*{message}'):
+                check(path, field)
+    (tmp_path / 'dir.rrd').mkdir()
+    with pytest.raises(ValueError, match='--out: got .* a directory, expected a file name'):
+        check(tmp_path / 'dir.rrd', '--out')
+    # create_dir (a command that documents it): missing directories are made, mkdir -p
+    deep = tmp_path / 'new' / 'deeper' / 'a.rrd'
+    assert check(deep, '--out', create_dir=True) == deep and deep.parent.is_dir()
+    (tmp_path / 'file').write_text('')
+    with pytest.raises(ValueError, match="--out: got .*'.*file' cannot be created"):
+        check(tmp_path / 'file' / 'a.rrd', '--out', create_dir=True)
 
 
 def test_design_links_are_matched_by_name():

@@ -1,0 +1,52 @@
+"""
+Output files: the one check every writer runs before it computes anything.
+
+Used by ``mech-balance balance --output``, ``mech-balance record --out`` and the rig node's
+``recording_path`` parameter, so that a bad path fails at once, with one message naming the
+caller's option or parameter, the path and what was expected.
+"""
+
+import os
+from pathlib import Path
+import tempfile
+
+
+def check_output_path(path, field, suffixes, create_dir=False):
+    """
+    Return the output file ``path`` as a ``Path``, checked before anything is computed.
+
+    The name must end in one of ``suffixes``; it must not be a directory; an existing file
+    must be writable.  Directory policy: the file's directory must exist and accept a new
+    file; ``create_dir=True`` creates missing directories (``mkdir -p``) for a command that
+    documents it; a writer never creates them on its own (a mistyped node parameter must
+    not litter a robot's disk).  Raises ``ValueError`` naming ``field``.
+    """
+    text = str(path)
+    path = Path(text).expanduser()
+    if path.suffix.lower() not in suffixes:
+        raise ValueError(f'{field}: got {text!r}, expected a file name ending in '
+                         + ' or '.join(suffixes))
+    if path.is_dir():
+        raise ValueError(f'{field}: got {text!r}, a directory, expected a file name ending in '
+                         + ' or '.join(suffixes))
+    directory = path.parent
+    if not directory.is_dir():
+        if not create_dir:
+            raise ValueError(f'{field}: got {text!r}, its directory {str(directory)!r} does '
+                             'not exist, expected a file in an existing directory')
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f'{field}: got {text!r}, its directory {str(directory)!r} cannot '
+                             f'be created ({exc.strerror})') from None
+    try:  # the directory accepts a new file (permissions, read-only mounts, quotas)
+        with tempfile.NamedTemporaryFile(dir=directory, prefix='.mech-balance-probe-'):
+            pass
+    except OSError as exc:
+        raise ValueError(f'{field}: got {text!r}, its directory {str(directory)!r} is not '
+                         f'writable ({exc.strerror}), expected a directory this process can '
+                         'write in') from None
+    if path.exists() and not os.access(path, os.W_OK):
+        raise ValueError(f'{field}: got {text!r}, an existing file that is not writable, '
+                         'expected a path this process can write')
+    return path
