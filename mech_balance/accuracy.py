@@ -25,9 +25,8 @@ from dataclasses import dataclass
 import inspect
 import math
 import statistics
-import time
 
-from mech_balance import analysis, kinematics, scene as scene_mod, simulate
+from mech_balance import analysis, bench, kinematics, scene as scene_mod, simulate
 from mech_balance.conventions import cycle_angles
 import numpy as np
 
@@ -443,10 +442,5 @@ def to_jsonable(result):
 
 
 def _median(fn, repeat):
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    """Return the median wall time of ``fn()`` over ``repeat`` runs after one warm-up run."""
+    return bench.median_seconds(fn, repeat=repeat, warmup=1)

@@ -50,15 +50,23 @@ class Parser(argparse.ArgumentParser):
         return args
 
 
-def positive_int(text):
-    """Return ``text`` as an integer >= 1 (an argparse ``type``)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'got {text!r}, expected an integer >= 1') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'got {value}, expected an integer >= 1')
-    return value
+def int_at_least(lowest):
+    """Return an argparse ``type`` that accepts integers >= ``lowest``."""
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f'got {text!r}, expected an integer >= {lowest}') from None
+        if value < lowest:
+            raise argparse.ArgumentTypeError(f'got {value}, expected an integer >= {lowest}')
+        return value
+    parse.__name__ = f'integer >= {lowest}'
+    return parse
+
+
+positive_int = int_at_least(1)
+"""An argparse ``type``: an integer >= 1."""
 
 
 def writable_path(option, text, suffixes, create_parent=False):
@@ -87,14 +95,7 @@ def _add_scene(p):
                         'file (default: %(default)s)')
 
 
-def _samples(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'got {text!r}, expected an integer >= 4') from None
-    if value < 4:
-        raise argparse.ArgumentTypeError(f'got {value}, expected an integer >= 4')
-    return value
+_samples = int_at_least(4)
 
 
 def _design(text):

@@ -3,7 +3,7 @@
 
 A thin verb over :mod:`mech_balance.balancing` (planar scenes) and
 :func:`mech_balance.rggr.balance_report` (RGGR scenes).  The seed-001 reference values
-printed next to the results are the papers' tables, copied here verbatim.
+printed next to the results are the papers' tables (:mod:`mech_balance.seed_tables`).
 """
 
 import argparse
@@ -11,49 +11,9 @@ import json
 from pathlib import Path
 import sys
 
-from mech_balance import balancing, bench, scene as scene_mod
+from mech_balance import balancing, bench, scene as scene_mod, seed_tables
 import numpy as np
 
-WEIGHT_CASES = ((1.0, 0.0), (0.5, 0.5), (0.0, 1.0))
-"""The three weightings of seed 001 Tables 5-10, cases (1)-(3)."""
-
-# seed 001 Table 7 (RMS normalized shaking force, shaking moment) per case and weighting
-PAPER_TABLE7 = {
-    ('a', 1): (5.98e-5, 10.2544), ('a', 2): (4.46e-4, 3.4903), ('a', 3): (7.7835, 0.6078),
-    ('b', 1): (0.5212, 47.9376), ('b', 2): (4.0489, 4.2403), ('b', 3): (6.6909, 4.1755),
-}
-# seed 001 Table 5 design vectors [m_i1, m_i2, m_i3, l_i1] per link (normalized); b(2) is
-# damaged in the extracted text: reconstructed (README of the core) from Table 6
-PAPER_TABLE5 = {
-    ('a', 1): [-3.5246, 2.3285, 2.3718, 0.9134, 4.3784, 1.3282, 1.3968, 1.7398,
-               -2.9843, 2.5052, 2.3818, 0.9667],
-    ('a', 2): [-4.8784, 0.7227, 5.1566, 0.5886, 5.2843, -1.3781, 3.1938, 1.7240,
-               -5.1095, 8.0046, -0.9951, 0.8759],
-    ('a', 3): [0.4910, 0.2545, 0.2545, 0.6343, 5.0594, 0.7484, 1.2922, 1.7240,
-               -2.9119, 8.3848, -3.5729, 0.8759],
-    ('b', 1): [0.0, 2.3350, 2.6650, 0.9514, 5.9063, 0.3106, 0.8831, 2.4240,
-               0.0, 4.9305, 4.5695, 2.6276],
-    ('b', 2): [0.0, 1.5990, 3.4010, 0.9514, 4.6933, 0.0, 2.4067, 1.7240,
-               0.0, 9.5000, 0.0, 0.8759],
-    ('b', 3): [0.4910, 0.2545, 0.2545, 0.6343, 4.9665, 0.0, 2.1335, 1.7240,
-               0.0, 9.5000, 0.0, 0.9368],
-}
-# seed 001 Table 10 (driving torque, shaking force, shaking moment), carpet scraper, case a
-PAPER_TABLE10 = {1: (533.63, 1.36, 1337.60), 2: (245.02, 32.74, 5.32), 3: (474.63, 84.70, 3.38)}
-PAPER_TABLE10_ORIGINAL = (1192.30, 182.40, 413.50)
-# seed 001 Table 9 design vectors (normalized); case (3)'s "- 5.3880" read as -5.3880
-PAPER_TABLE9 = {
-    1: [-9.0271, 3.1794, 6.8477, 0.6480, 3.0299, 3.1281, 1.7513, 1.9080, -0.8209, 13.2130,
-        -9.5284, 2.6033, -8.4529, 6.9753, 6.6780, 4.7979, 0.1514, 1.0659, 3.0828, 3.5648,
-        2.3972, 6.9384, 6.8620, 8.0674, 17.7147, -5.6340, -5.7872, 5.5376],
-    2: [-5.3548, -22.4369, 28.7917, 0.3592, -6.9162, 4.9914, 9.0249, 1.7240, -70.8281,
-        37.1001, 43.2280, 1.3079, 22.0392, -6.4234, 33.6626, 2.8325, 1.0194, -10.6993,
-        13.9800, 1.9142, 7.8013, 9.6599, -3.2613, 5.9602, 25.2464, -40.4415, 19.4951,
-        2.0326],
-    3: [0.4910, 0.2545, 0.2545, 0.6343, -8.9417, 21.7354, -5.1980, 1.7240, -37.5079,
-        14.1236, 29.2331, 0.8922, 0.2026, -4.1376, 21.8940, 2.7065, 4.9895, 4.6985, -5.3880,
-        5.6265, 8.2713, 9.8027, -3.8741, 6.4858, 26.5309, -19.9802, -2.2506, 2.9904],
-}
 TABLE3_MASS_FACTORS = (1.0, 2.0, 5.0)
 """Seed 001 Table 3 cases (1)-(3): crank and rocker masses 1x, 2x, 5x the original."""
 BENCH_REPEAT_MAX = 20
@@ -294,7 +254,7 @@ def _before_after_text(table, si=False):
 
 
 def _case_index(weights):
-    for k, w in enumerate(WEIGHT_CASES, 1):
+    for k, w in enumerate(seed_tables.WEIGHT_CASES, 1):
         if np.allclose(weights, w):
             return k
     return None
@@ -311,14 +271,14 @@ def _paper_comparison(result):
     z = result.objective['z']
     lines = ['']
     if name == 'hoeken':
-        f, n = PAPER_TABLE7[(result.case, k)]
-        x = PAPER_TABLE5[(result.case, k)]
+        f, n = seed_tables.TABLE7[(result.case, k)]
+        x = seed_tables.TABLE5[(result.case, k)]
         label = f'Table 7 case {result.case}({k})'
     else:
         if result.case != 'a':
             return []
-        _, f, n = PAPER_TABLE10[k]
-        x = PAPER_TABLE9[k]
+        _, f, n = seed_tables.TABLE10[k]
+        x = seed_tables.TABLE9[k]
         label = f'Table 10 case ({k})'
     z_paper = w1 * f + w2 * n
     rel = (z - z_paper) / z_paper * 100.0
@@ -414,7 +374,7 @@ def bench_section(args, progress):
         sc = scene_mod.load(name)
         cases = ('a', 'b') if name == 'hoeken' else ('a',)
         for case in cases:
-            for w in WEIGHT_CASES:
+            for w in seed_tables.WEIGHT_CASES:
                 for paper in (True, False):
                     progress(f'  timing balance {name} {case} {w} '
                              f'{"paper" if paper else "realizable"} ...')

@@ -9,7 +9,7 @@ import json
 import math
 import sys
 
-from mech_balance import accuracy, simulate
+from mech_balance import accuracy, cli, simulate
 
 
 def _positive_float(text):
@@ -22,14 +22,7 @@ def _positive_float(text):
     return value
 
 
-def _rows(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'got {text!r}, expected an integer >= 2') from None
-    if value < 2:
-        raise argparse.ArgumentTypeError(f'got {value}, expected an integer >= 2')
-    return value
+_rows = cli.int_at_least(2)
 
 
 def _sections(text):

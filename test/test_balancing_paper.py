@@ -7,7 +7,7 @@ by which the core reproduces the paper's own rows.  The realizable optimum and t
 realizability of every printed design are checked too.
 """
 
-from mech_balance import balancing, equimomental, scene
+from mech_balance import balancing, equimomental, scene, seed_tables
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -17,20 +17,7 @@ WEIGHTS = {1: (1.0, 0.0), 2: (0.5, 0.5), 3: (0.0, 1.0)}
 TABLE7 = {('a', 1): (5.98e-5, 10.2544), ('a', 2): (4.46e-4, 3.4903),
           ('a', 3): (7.7835, 0.6078), ('b', 1): (0.5212, 47.9376),
           ('b', 2): (4.0489, 4.2403), ('b', 3): (6.6909, 4.1755)}
-# seed 001 Table 5 (b(2) damaged in the text; reconstruction of the core README)
-TABLE5 = {
-    ('a', 1): [-3.5246, 2.3285, 2.3718, 0.9134, 4.3784, 1.3282, 1.3968, 1.7398,
-               -2.9843, 2.5052, 2.3818, 0.9667],
-    ('a', 2): [-4.8784, 0.7227, 5.1566, 0.5886, 5.2843, -1.3781, 3.1938, 1.7240,
-               -5.1095, 8.0046, -0.9951, 0.8759],
-    ('a', 3): [0.4910, 0.2545, 0.2545, 0.6343, 5.0594, 0.7484, 1.2922, 1.7240,
-               -2.9119, 8.3848, -3.5729, 0.8759],
-    ('b', 1): [0.0, 2.3350, 2.6650, 0.9514, 5.9063, 0.3106, 0.8831, 2.4240,
-               0.0, 4.9305, 4.5695, 2.6276],
-    ('b', 2): [0.0, 1.5990, 3.4010, 0.9514, 4.6933, 0.0, 2.4067, 1.7240,
-               0.0, 9.5000, 0.0, 0.8759],
-    ('b', 3): [0.4910, 0.2545, 0.2545, 0.6343, 4.9665, 0.0, 2.1335, 1.7240,
-               0.0, 9.5000, 0.0, 0.9368]}
+TABLE5 = seed_tables.TABLE5  # the printed design vectors (inputs), b(2) reconstructed
 # links of the printed designs that are not realizable (centroidal inertia <= 0: negative
 # for a(1)-a(3); a single point mass, zero, for the rocker of b(2) and b(3))
 TABLE5_UNREALIZABLE = {('a', 1): {'crank', 'rocker'}, ('a', 2): {'crank', 'rocker'},

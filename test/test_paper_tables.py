@@ -7,7 +7,7 @@ tuned to them.
 
 import math
 
-from mech_balance import analysis, equimomental, scene
+from mech_balance import analysis, equimomental, scene, seed_tables
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -16,26 +16,13 @@ import pytest
 TABLE4_ORIGINAL = [24.7783, 24.6928, 22.9319, 23.0385, 15.3173, 11.5362, 36.7785]
 HOEKEN_JOINTS = ['O1', 'A', 'B', 'O3']   # the paper's 41, 12, 23, 43 (4 = frame)
 
-# Table 5 design vectors [m_i1, m_i2, m_i3, l_i1] x 3 links (normalized).
-TABLE5 = {
-    'a1': [-3.5246, 2.3285, 2.3718, 0.9134, 4.3784, 1.3282, 1.3968, 1.7398,
-           -2.9843, 2.5052, 2.3818, 0.9667],
-    'a2': [-4.8784, 0.7227, 5.1566, 0.5886, 5.2843, -1.3781, 3.1938, 1.7240,
-           -5.1095, 8.0046, -0.9951, 0.8759],
-    'a3': [0.4910, 0.2545, 0.2545, 0.6343, 5.0594, 0.7484, 1.2922, 1.7240,
-           -2.9119, 8.3848, -3.5729, 0.8759],
-    'b1': [0, 2.3350, 2.6650, 0.9514, 5.9063, 0.3106, 0.8831, 2.4240,
-           0, 4.9305, 4.5695, 2.6276],
-    # Printed damaged: '[0.5990 3.4010 0.9514 4.6933 0 2.4067 1.7240 0.95000 0 0.8759]' has
-    # 10 numbers for 12 slots.  Table 6's b(2) row fixes them: link 1 (m = 5, d = 0.5608 at
-    # 211.97 deg, I = 4.5258) gives l = sqrt(I/m) = 0.9514 and point masses 0, 1.5990,
-    # 3.4010 (the leading '0' and the '1' of '1.5990' were lost); link 3 (m = 9.5, d = l =
-    # 0.8759 at 120 deg) is one point mass 9.5 at 120 deg ('0.95000' is '0 9.5000').
-    'b2': [0, 1.5990, 3.4010, 0.9514, 4.6933, 0, 2.4067, 1.7240,
-           0, 9.5000, 0, 0.8759],
-    'b3': [0.4910, 0.2545, 0.2545, 0.6343, 4.9665, 0, 2.1335, 1.7240,
-           0, 9.5000, 0, 0.9368],
-}
+# Table 5 design vectors [m_i1, m_i2, m_i3, l_i1] x 3 links (normalized), the inputs.
+# Printed damaged: b(2) '[0.5990 3.4010 0.9514 4.6933 0 2.4067 1.7240 0.95000 0 0.8759]' has
+# 10 numbers for 12 slots.  Table 6's b(2) row fixes them: link 1 (m = 5, d = 0.5608 at
+# 211.97 deg, I = 4.5258) gives l = sqrt(I/m) = 0.9514 and point masses 0, 1.5990,
+# 3.4010 (the leading '0' and the '1' of '1.5990' were lost); link 3 (m = 9.5, d = l =
+# 0.8759 at 120 deg) is one point mass 9.5 at 120 deg ('0.95000' is '0 9.5000').
+TABLE5 = {f'{case}{k}': x for (case, k), x in seed_tables.TABLE5.items()}
 # Table 6: per link (m, d, theta deg, I about origin)
 TABLE6 = {
     'a1': [(1.176, 4.5642, 180.36, 0.9809), (7.103, 0.7388, 358.87, 21.5013),
