@@ -46,7 +46,7 @@ STEP_TIMEOUT_S = 30.0
 """Upper bound for any other wait (messages, service answers)."""
 
 
-def _close(actual, expected, rtol=RTOL, what=''):
+def _assert_close(actual, expected, rtol=RTOL, what=''):
     """Compare with ``rtol`` relative to the largest |expected| (zero crossings included)."""
     expected = np.asarray(expected, dtype=float)
     scale = max(float(np.max(np.abs(expected))), 1e-300)
@@ -153,21 +153,21 @@ def test_planar_twin_equals_the_core_and_joint_rates_are_derivatives():
     s = model.evaluate(psi, speed, accel)
     state, w = analysis.Rig(sc).evaluate(psi, outputs=('bearing_reactions',), speed=speed,
                                          accel=accel)
-    _close(s.force_N[:, 0], w.shaking_force.real)
-    _close(s.force_N[:, 1], w.shaking_force.imag)
-    _close(s.moment_Nm[:, 2], w.shaking_moment)
+    _assert_close(s.force_N[:, 0], w.shaking_force.real)
+    _assert_close(s.force_N[:, 1], w.shaking_force.imag)
+    _assert_close(s.moment_Nm[:, 2], w.shaking_moment)
     assert not np.any(s.force_N[:, 2]) and not np.any(s.moment_Nm[:, :2])
     assert model.joint_names == ('O1', 'A', 'B', 'O3')
     assert np.array_equal(s.joint_position[:, 0], psi)
     assert np.all(s.joint_velocity[:, 0] == speed)
-    _close(s.joint_effort[:, 0], w.driving_torque)
+    _assert_close(s.joint_effort[:, 0], w.driving_torque)
     assert not np.any(s.joint_effort[:, 1:])
     # joint velocities are the time derivatives of the joint positions (central differences)
     h = 1e-6
     ahead = model.evaluate(psi + speed * h, speed, 0.0).joint_position
     behind = model.evaluate(psi - speed * h, speed, 0.0).joint_position
     rates = model.evaluate(psi, speed, 0.0).joint_velocity
-    _close((ahead - behind) / (2.0 * h), rates, rtol=1e-7)
+    _assert_close((ahead - behind) / (2.0 * h), rates, rtol=1e-7)
 
 
 def test_prismatic_joint_is_the_slide_and_its_effort_the_reaction_moment():
@@ -179,12 +179,12 @@ def test_prismatic_joint_is_the_slide_and_its_effort_the_reaction_moment():
     a, l_rod = 0.04, 0.16  # crank and rod of config/slider_crank.yaml, in-line guide on x
     x_b = a * np.cos(psi) + np.sqrt(l_rod ** 2 - (a * np.sin(psi)) ** 2)
     slide = model.joint_names.index('S')
-    _close(s.joint_position[:, slide], x_b)
+    _assert_close(s.joint_position[:, slide], x_b)
     rod_x = np.sqrt(l_rod ** 2 - (a * np.sin(psi)) ** 2)
     dx_dpsi = -a * np.sin(psi) * (1.0 + a * np.cos(psi) / rod_x)
-    _close(s.joint_velocity[:, slide], dx_dpsi * omega, rtol=1e-8)
+    _assert_close(s.joint_velocity[:, slide], dx_dpsi * omega, rtol=1e-8)
     _, w = analysis.Rig(sc).evaluate(psi, outputs=('bearing_reactions',))
-    _close(s.joint_effort[:, slide], w.reaction_moment['S'])
+    _assert_close(s.joint_effort[:, slide], w.reaction_moment['S'])
 
 
 def test_rggr_twin_fills_all_six_components_from_the_core():
@@ -193,13 +193,13 @@ def test_rggr_twin_fills_all_six_components_from_the_core():
     psi = np.linspace(0.1, 6.0, 25)
     s = model.evaluate(psi, 7.0)
     dyn = rggr.dynamics(type(sc)(**{**sc.__dict__, 'crank_speed_rad_s': 7.0}), psi)
-    _close(s.force_N, dyn.shaking_force_N)
-    _close(s.moment_Nm, dyn.shaking_moment_Nm)
+    _assert_close(s.force_N, dyn.shaking_force_N)
+    _assert_close(s.moment_Nm, dyn.shaking_moment_Nm)
     assert np.all(np.max(np.abs(s.force_N), axis=0) > 0.0)
     assert np.all(np.max(np.abs(s.moment_Nm), axis=0) > 0.0)
     assert model.joint_names == ('crank', 'output')
-    _close(s.joint_position[:, 1], dyn.kinematics.output_angle_rad)
-    _close(s.joint_effort[:, 0], dyn.driving_torque_Nm)
+    _assert_close(s.joint_position[:, 1], dyn.kinematics.output_angle_rad)
+    _assert_close(s.joint_effort[:, 0], dyn.driving_torque_Nm)
     still = model.evaluate(psi[:3], 0.0)
     assert not np.any(still.force_N) and not np.any(still.joint_effort)
 
@@ -459,17 +459,17 @@ def _check_against_core(probe, model, frame_id, rtol=RTOL):
     joints = [j for j in probe.joints if j[1] == model.joint_names]
     assert len(joints) == len(probe.joints)
     ref = _expected_planar(model, joints)
-    _close(np.array([j[2] for j in joints]), ref.joint_position, rtol, 'positions')
-    _close(np.array([j[3] for j in joints]), ref.joint_velocity, rtol, 'velocities')
-    _close(np.array([j[4] for j in joints]), ref.joint_effort, rtol, 'efforts')
+    _assert_close(np.array([j[2] for j in joints]), ref.joint_position, rtol, 'positions')
+    _assert_close(np.array([j[3] for j in joints]), ref.joint_velocity, rtol, 'velocities')
+    _assert_close(np.array([j[4] for j in joints]), ref.joint_effort, rtol, 'efforts')
     by_stamp = {j[0]: i for i, j in enumerate(joints)}
     matched = [(by_stamp[w[0]], w) for w in probe.wrenches if w[0] in by_stamp]
     assert len(matched) >= len(probe.wrenches) // 2
     assert all(w[1] == frame_id for _, w in matched)
     rows = [i for i, _ in matched]
     got = np.array([w[2] for _, w in matched])
-    _close(got[:, :3], ref.force_N[rows], rtol, 'shaking force')
-    _close(got[:, 3:], ref.moment_Nm[rows], rtol, 'shaking moment')
+    _assert_close(got[:, :3], ref.force_N[rows], rtol, 'shaking force')
+    _assert_close(got[:, 3:], ref.moment_Nm[rows], rtol, 'shaking moment')
 
 
 def test_clock_mode_topics_parameters_and_balancing_across_processes(context):
@@ -667,10 +667,10 @@ def test_follow_mode_reproduces_the_core_for_an_encoder_stream(context):
         for stamps, rtol in ((with_velocity, RTOL), (position_only[1:], 1e-7)):
             psi = np.array([joints[t][2][0] for t in stamps])
             speed = np.array([joints[t][3][0] for t in stamps])
-            _close(speed, np.full(len(stamps), omega), rtol, 'estimated speed')
+            _assert_close(speed, np.full(len(stamps), omega), rtol, 'estimated speed')
             ref = model.evaluate(psi, omega, 0.0)
-            _close(np.array([joints[t][2] for t in stamps]), ref.joint_position, rtol)
-            _close(np.array([wrenches[t][2] for t in stamps]),
+            _assert_close(np.array([joints[t][2] for t in stamps]), ref.joint_position, rtol)
+            _assert_close(np.array([wrenches[t][2] for t in stamps]),
                    np.hstack([ref.force_N, ref.moment_Nm]), rtol, 'shaking wrench')
         assert probe.set_params(mode='clock')[0].successful  # and back
         probe.collect(5, 'clock-mode samples')
@@ -698,8 +698,8 @@ def test_rggr_scene_publishes_all_six_components_and_balances(context, tmp_path)
         assert all(j[1] == ('crank', 'output') and j[3][0] == -4.0 for j, _ in rows)
         ref = model.evaluate(np.array([j[2][0] for j, _ in rows]), -4.0)
         got = np.array([w[2] for _, w in rows])
-        _close(got, np.hstack([ref.force_N, ref.moment_Nm]), RTOL, 'RGGR wrench')
-        _close(np.array([j[4] for j, _ in rows]), ref.joint_effort, RTOL, 'RGGR efforts')
+        _assert_close(got, np.hstack([ref.force_N, ref.moment_Nm]), RTOL, 'RGGR wrench')
+        _assert_close(np.array([j[4] for j, _ in rows]), ref.joint_effort, RTOL, 'RGGR efforts')
         return got
 
     try:
@@ -762,7 +762,7 @@ def test_clock_mode_follows_simulated_time(context):
         steps = np.diff(stamps)
         assert np.all(steps > 0) and np.all(steps % 10_000_000 == 0)
         psi = np.unwrap([j[2][0] for j in probe.joints])
-        _close(np.diff(psi), steps * 1e-9 * scene_mod.load('hoeken').crank_speed_rad_s, 1e-9)
+        _assert_close(np.diff(psi), steps * 1e-9 * scene_mod.load('hoeken').crank_speed_rad_s, 1e-9)
     finally:
         probe.destroy()
         rig.stop()
