@@ -671,7 +671,7 @@ def test_follow_mode_reproduces_the_core_for_an_encoder_stream(context):
             ref = model.evaluate(psi, omega, 0.0)
             _assert_close(np.array([joints[t][2] for t in stamps]), ref.joint_position, rtol)
             _assert_close(np.array([wrenches[t][2] for t in stamps]),
-                   np.hstack([ref.force_N, ref.moment_Nm]), rtol, 'shaking wrench')
+                          np.hstack([ref.force_N, ref.moment_Nm]), rtol, 'shaking wrench')
         assert probe.set_params(mode='clock')[0].successful  # and back
         probe.collect(5, 'clock-mode samples')
     finally:
@@ -762,7 +762,8 @@ def test_clock_mode_follows_simulated_time(context):
         steps = np.diff(stamps)
         assert np.all(steps > 0) and np.all(steps % 10_000_000 == 0)
         psi = np.unwrap([j[2][0] for j in probe.joints])
-        _assert_close(np.diff(psi), steps * 1e-9 * scene_mod.load('hoeken').crank_speed_rad_s, 1e-9)
+        _assert_close(np.diff(psi),
+                      steps * 1e-9 * scene_mod.load('hoeken').crank_speed_rad_s, 1e-9)
     finally:
         probe.destroy()
         rig.stop()
