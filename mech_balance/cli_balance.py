@@ -45,6 +45,22 @@ def _dest(option):
     return option.lstrip('-').replace('-', '_')
 
 
+def add_weight_and_case(p, when=''):
+    """
+    Add ``--weights W1 W2`` and ``--case a|b`` (default None: the caller applies the defaults).
+
+    ``when`` prefixes the help texts (e.g. ``'with --balance (planar): '``).  The weights
+    are checked where they are used, by :func:`mech_balance.balancing.optimize`.
+    """
+    w1, w2 = balancing.DEFAULT_WEIGHTS
+    p.add_argument('--weights', nargs=2, type=float, default=None, metavar=('W1', 'W2'),
+                   help=f'{when}weights on the RMS normalized shaking force and shaking '
+                        f'moment, seed 001 eq. 43 (default: {w1:g} {w2:g}, seed 001 case (2))')
+    p.add_argument('--case', choices=balancing.CASES, default=None,
+                   help=f'{when}seed 001 sec. 4.1.2: a = point masses of any sign, b = '
+                        f'non-negative point masses (counterweights) (default: {DEFAULT_CASE})')
+
+
 def register(subparsers):
     """Add the ``balance`` verb."""
     p = subparsers.add_parser(
@@ -59,13 +75,7 @@ def register(subparsers):
         formatter_class=_HelpFormatter)
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML file')
-    w1, w2 = balancing.DEFAULT_WEIGHTS
-    p.add_argument('--weights', nargs=2, type=float, default=None, metavar=('W1', 'W2'),
-                   help='weights on the RMS normalized shaking force and shaking moment '
-                        f'(default: {w1:g} {w2:g}, seed 001 case (2))')
-    p.add_argument('--case', choices=balancing.CASES, default=None,
-                   help='seed 001 sec. 4.1.2: a = point masses of any sign, b = non-negative '
-                        f'point masses (counterweights) (default: {DEFAULT_CASE})')
+    add_weight_and_case(p)
     p.add_argument('--paper-constraints', action='store_true',
                    help="reproduce seed 001's problem exactly (eqs. 50/53: masses in [1, 5] x "
                         'original, l in [0.5, 1.5] x original, no realizability constraint)')

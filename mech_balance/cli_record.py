@@ -13,7 +13,7 @@ import sys
 import tempfile
 import time
 
-from mech_balance import balancing
+from mech_balance import balancing, cli_balance
 from mech_balance.cli_balance import DEFAULT_CASE
 
 HOEKEN_A2_DESIGN = (-4.8784, 0.7227, 5.1566, 0.5886, 5.2843, -1.3781, 3.1938, 1.7240,
@@ -35,16 +35,6 @@ def _samples(text):
         raise argparse.ArgumentTypeError(
             f'got {text!r}, expected a divisor of 360 that is >= 4 (the crank_angle timeline '
             'counts whole degrees)')
-    return value
-
-
-def _weight(text):
-    try:
-        value = float(text)
-    except ValueError:
-        value = float('nan')
-    if not value >= 0.0 or value == float('inf'):
-        raise argparse.ArgumentTypeError(f'got {text!r}, expected a finite weight >= 0')
     return value
 
 
@@ -70,14 +60,7 @@ def register(subparsers):
                        help='balance the scene first: seed 001 optimization for planar '
                             'scenes (mech_balance.balancing.optimize), seed 002 force '
                             'balance and minimum RMS shaking moment for the RGGR')
-    w1, w2 = balancing.DEFAULT_WEIGHTS
-    p.add_argument('--weights', nargs=2, type=_weight, default=None, metavar=('W1', 'W2'),
-                   help='with --balance (planar): weights of the RMS shaking force and '
-                        f'moment, seed 001 eq. 44 (default: {w1:g} {w2:g})')
-    p.add_argument('--case', choices=balancing.CASES, default=None,
-                   help="with --balance (planar): seed 001 case 'a' (point masses of any "
-                        "sign) or 'b' (non-negative, counterweights) (default: "
-                        f'{DEFAULT_CASE})')
+    cli_balance.add_weight_and_case(p, when='with --balance (planar): ')
     p.add_argument('--cycles', type=cli.positive_int, default=1,
                    help='crank turns to record (default: %(default)s)')
     p.add_argument('--samples', type=_samples, default=None,

@@ -547,7 +547,7 @@ class Linkage:
         if jac is None:
             jac = self.jacobian(pose)
         unknown = self.unknown_rows
-        jinv, cond = smallsolve.inverse(jac[:, unknown], self.lu)
+        jinv, cond, sign = smallsolve.inverse(jac[:, unknown], self.lu, with_sign=True)
         scale_d = -self.col_scale[:, None] * psi_d if self.has_pri else -psi_d
         jac_psi = jac[:, 0]
         qd = np.empty((self.nt, p))
@@ -563,7 +563,8 @@ class Linkage:
         vel *= 1j
         if self.has_pri:
             vel += _rmat(self.anc_pri, qd * pose.axis)
-        out = {'qd': qd, 'omega': omega, 'vel': vel, 'jac_inv': jinv, 'cond': cond, 'jac': jac}
+        out = {'qd': qd, 'omega': omega, 'vel': vel, 'jac_inv': jinv, 'cond': cond, 'jac': jac,
+               'det_sign': sign}
         if not need_acc:
             return out
         # velocity-product part of the link accelerations (all joint accelerations zero):
@@ -728,8 +729,7 @@ class Linkage:
     def _det_sign(self, pose):
         if not self.nu:
             return 1.0
-        jac = self.jacobian(pose)[:, self.unknown, 0]
-        return float(np.sign(np.linalg.det(jac)))
+        return float(smallsolve.det_sign(self.jacobian(pose, unknown_only=True), self.lu)[0])
 
     def _warn(self, text):
         if text not in self.warnings:
@@ -760,45 +760,50 @@ class Linkage:
             corr = np.zeros(psi.shape)
         bad = corr > EVAL_TRUST
         bad |= ~ok
-        jac = self.jacobian(pose) if self.nu else None
-        if self.nu:
-            # The branch is the set of solutions where det J_u keeps the sign it has at the
-            # assembly (the trace refuses to cross a sign change).  Near a change point the
-            # two branches can be closer than EVAL_TRUST, so the correction size alone does
-            # not tell them apart; the sign does.
-            bad |= smallsolve.det_sign(jac[:, self.unknown], self.lu) != self.branch_sign
         if bad.any():
             q[:, bad] = self._retrace(psi[bad])
             pose = self.pose(q)
             res = np.max(np.abs(self.residual(pose)), axis=0) if self.m else res
-            jac = self.jacobian(pose) if self.nu else None
-            if self.nu:
-                wrong = smallsolve.det_sign(jac[:, self.unknown], self.lu) != self.branch_sign
-                if wrong.any():
-                    at = math.degrees(psi[np.flatnonzero(wrong)[0]])
-                    raise BranchError(
-                        f'crank angle {at:.4f} deg: the solution found is on the other '
-                        'assembly branch (the loop Jacobian determinant changed sign); the '
-                        'linkage is too close to a singular position here to follow its '
-                        'branch')
-        state = KinematicState(psi, None, None, q, pose, res, None, iters)
         speed = self.scene.crank_speed_rad_s if psi_d is None else psi_d
         accel = self.scene.crank_acceleration_rad_s2 if psi_dd is None else psi_dd
-        state.psi_d = np.full(psi.shape, speed) if np.ndim(speed) == 0 else \
+        speed_p = np.full(psi.shape, speed) if np.ndim(speed) == 0 else \
             np.broadcast_to(np.asarray(speed, dtype=float), psi.shape)
-        state.psi_dd = np.full(psi.shape, accel) if np.ndim(accel) == 0 else \
+        accel_p = np.full(psi.shape, accel) if np.ndim(accel) == 0 else \
             np.broadcast_to(np.asarray(accel, dtype=float), psi.shape)
+
+        def at(pose):
+            if need_rates:
+                return self.rates(pose, speed if np.ndim(speed) == 0 else speed_p,
+                                  accel if np.ndim(accel) == 0 else accel_p,
+                                  need_acc=need_acc)
+            _, cond, sign = smallsolve.inverse(self.jacobian(pose, unknown_only=True),
+                                               self.lu, with_sign=True)
+            return {'cond': cond, 'det_sign': sign}
+
+        r = at(pose)
+        # The branch is the set of solutions where det J_u keeps the sign it has at the
+        # assembly (the trace refuses to cross a sign change).  Near a change point the two
+        # branches can be closer than EVAL_TRUST, so the correction size alone does not tell
+        # them apart; the sign (a by-product of the factorization the rates need) does.
+        wrong = r['det_sign'] != self.branch_sign
+        if wrong.any():
+            q[:, wrong] = self._retrace(psi[wrong])
+            pose = self.pose(q)
+            res = np.max(np.abs(self.residual(pose)), axis=0) if self.m else res
+            r = at(pose)
+            wrong = r['det_sign'] != self.branch_sign
+            if wrong.any():
+                angle = math.degrees(psi[np.flatnonzero(wrong)[0]])
+                raise BranchError(
+                    f'crank angle {angle:.4f} deg: the solution found is on the other '
+                    'assembly branch (the loop Jacobian determinant changed sign); the '
+                    'linkage is too close to a singular position here to follow its branch')
+        state = KinematicState(psi, speed_p, accel_p, q, pose, res, r['cond'], iters)
         if need_rates:
-            r = self.rates(pose, speed if np.ndim(speed) == 0 else state.psi_d,
-                           accel if np.ndim(accel) == 0 else state.psi_dd, jac=jac,
-                           need_acc=need_acc)
-            state.cond = r['cond']
             state.jac_inv, state.jac = r['jac_inv'], r['jac']
             state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
-        else:
-            _, state.cond = smallsolve.inverse(self.jacobian(pose, unknown_only=True), self.lu)
         if (state.cond > COND_WARN).any():
             worst = int(np.argmax(state.cond))
             self._warn(f'crank angle {math.degrees(psi[worst]):.3f} deg: near-singular '

@@ -495,27 +495,27 @@ def _joint(name, spec, all_points):
 # ----------------------------------------------------------------------------- primitives
 
 
-def _require(mapping, key, where):
+def _require(mapping, key, where, error=SceneError):
     if key not in mapping:
         path = f'{where}.{key}' if where else key
-        raise SceneError(f'{path}: missing, expected a value')
+        raise error(f'{path}: missing, expected a value')
     return mapping[key]
 
 
-def _known_keys(mapping, allowed, where):
+def _known_keys(mapping, allowed, where, error=SceneError):
     unknown = sorted(set(mapping) - set(allowed))
     if unknown:
         path = f'{where}.{unknown[0]}' if where else unknown[0]
-        raise SceneError(
+        raise error(
             f'{path}: unknown field, expected one of {", ".join(sorted(allowed))}')
 
 
-def _mapping(value, where):
+def _mapping(value, where, error=SceneError):
     if not isinstance(value, dict):
-        raise SceneError(f'{where}: got {value!r}, expected a mapping')
+        raise error(f'{where}: got {value!r}, expected a mapping')
     for k in value:
         if not isinstance(k, str):
-            raise SceneError(f'{where}: key {k!r} is not text, expected names')
+            raise error(f'{where}: key {k!r} is not text, expected names')
     return value
 
 
@@ -525,21 +525,28 @@ def _string(value, where):
     return value
 
 
-def _number(value, where):
+def _number(value, where, error=SceneError):
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SceneError(f'{where}: got {value!r}, expected a number')
+        raise error(f'{where}: got {value!r}, expected a number')
     value = float(value)
     if not math.isfinite(value):
-        raise SceneError(f'{where}: got {value!r}, expected a finite number')
+        raise error(f'{where}: got {value!r}, expected a finite number')
     if abs(value) > MAX_ABS_VALUE:
-        raise SceneError(f'{where}: got {value!r}, expected a magnitude <= {MAX_ABS_VALUE:g}')
+        raise error(f'{where}: got {value!r}, expected a magnitude <= {MAX_ABS_VALUE:g}')
     return value
 
 
-def _positive(value, where):
-    value = _number(value, where)
+def _positive(value, where, error=SceneError):
+    value = _number(value, where, error)
     if value <= 0.0:
-        raise SceneError(f'{where}: got {value!r}, expected a number > 0')
+        raise error(f'{where}: got {value!r}, expected a number > 0')
+    return value
+
+
+def _nonneg(value, where, error=SceneError):
+    value = _number(value, where, error)
+    if value < 0.0:
+        raise error(f'{where}: got {value!r}, expected a number >= 0')
     return value
 
 

@@ -62,6 +62,7 @@ Drive schema (the scene's optional top-level ``drive:`` key; :func:`drive_from_d
 """
 
 from dataclasses import dataclass, field
+import functools
 import math
 import time
 
@@ -695,8 +696,8 @@ class ForwardDynamics:
         Refuses runs of more than ``MAX_SIMULATED_TURNS`` crank turns and gives up after
         ``max_evaluations`` right-hand-side evaluations (a ``ValueError`` either way).
         """
-        duration_s = _positive(duration_s, 'duration_s', ValueError)
-        rtol = _positive(rtol, 'rtol', ValueError)
+        duration_s = _positive(duration_s, 'duration_s', error=ValueError)
+        rtol = _positive(rtol, 'rtol', error=ValueError)
         if not 1e-14 <= rtol <= 1e-1:
             raise ValueError(f'rtol: got {rtol!r}, expected 1e-14 <= rtol <= 0.1')
         if method == 'auto':
@@ -949,52 +950,13 @@ def simulate(name_or_scene, duration_s, method='auto', rtol=DEFAULT_RTOL, rhs='t
 # ============================================================================ validation
 
 
-def _mapping(value, where):
-    if not isinstance(value, dict):
-        raise DriveError(f'{where}: got {value!r}, expected a mapping')
-    for k in value:
-        if not isinstance(k, str):
-            raise DriveError(f'{where}: key {k!r} is not text, expected names')
-    return value
-
-
-def _known(mapping, allowed, where):
-    unknown = sorted(set(mapping) - set(allowed))
-    if unknown:
-        raise DriveError(f'{where}.{unknown[0]}: unknown field, expected one of '
-                         f'{", ".join(sorted(allowed))}')
-
-
-def _require(mapping, key, where):
-    if key not in mapping:
-        raise DriveError(f'{where}.{key}: missing, expected a value')
-    return mapping[key]
-
-
-def _number(value, where, error=DriveError):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise error(f'{where}: got {value!r}, expected a number')
-    value = float(value)
-    if not math.isfinite(value):
-        raise error(f'{where}: got {value!r}, expected a finite number')
-    if abs(value) > scene_mod.MAX_ABS_VALUE:
-        raise error(f'{where}: got {value!r}, expected a magnitude <= '
-                    f'{scene_mod.MAX_ABS_VALUE:g}')
-    return value
-
-
-def _positive(value, where, error=DriveError):
-    value = _number(value, where, error)
-    if value <= 0.0:
-        raise error(f'{where}: got {value!r}, expected a number > 0')
-    return value
-
-
-def _nonneg(value, where, error=DriveError):
-    value = _number(value, where, error)
-    if value < 0.0:
-        raise error(f'{where}: got {value!r}, expected a number >= 0')
-    return value
+# the scene loader's field checks, raising DriveError (a ValueError) instead of SceneError
+_mapping = functools.partial(scene_mod._mapping, error=DriveError)
+_known = functools.partial(scene_mod._known_keys, error=DriveError)
+_require = functools.partial(scene_mod._require, error=DriveError)
+_number = functools.partial(scene_mod._number, error=DriveError)
+_positive = functools.partial(scene_mod._positive, error=DriveError)
+_nonneg = functools.partial(scene_mod._nonneg, error=DriveError)
 
 
 __all__ = ['Drive', 'DriveError', 'ForwardDynamics', 'Motor', 'Report', 'RigTables',

@@ -203,30 +203,35 @@ def solve(mat, rhs, plan=None):
     return x
 
 
-def inverse(mat, plan=None):
+def inverse(mat, plan=None, with_sign=False):
     """
     Return the inverses of a batch-last stack ``(k, k, p)`` and the 1-norm condition numbers.
 
     Returns ``(inv, cond)`` with ``inv`` of shape ``(k, k, p)`` and ``cond`` of shape ``(p,)``
     (``inf`` where a matrix is singular; its ``inv`` entries are then ``nan``).  ``plan`` is
     an :class:`LUPlan` (or a static row order) for k > 2; matrices whose static pivots are
-    small are inverted again with LAPACK's partial pivoting.
+    small are inverted again with LAPACK's partial pivoting.  With ``with_sign`` the signs
+    of the determinants come third, from the same factorization (see :func:`det_sign`).
     """
     mat = np.asarray(mat, dtype=float)
     if mat.ndim != 3 or mat.shape[0] != mat.shape[1]:
         raise ValueError(f'mat: got shape {mat.shape}, expected (k, k, p)')
     k, _, p = mat.shape
     if k == 0:  # no unknowns (an open chain): an empty, perfectly conditioned system
-        return np.zeros((0, 0, p)), np.ones(p)
+        inv, cond, sign = np.zeros((0, 0, p)), np.ones(p), np.ones(p)
+        return (inv, cond, sign) if with_sign else (inv, cond)
     if k == 2:
-        return _inverse_2(mat)
+        inv, cond, det = _inverse_2(mat)
+        return (inv, cond, np.sign(det)) if with_sign else (inv, cond)
     if k == 1:
         with np.errstate(divide='ignore', invalid='ignore'):
             inv = 1.0 / mat
+        sign = np.sign(mat[0, 0]) if with_sign else None
     else:
         plan = _plan_for(k, plan)
         lu, weak = factor(mat, plan)
         inv = _inverse_lu(lu, plan, p)
+        sign = _lu_sign(lu, plan, mat, weak) if with_sign else None
         if np.any(weak):
             inv[:, :, weak] = np.moveaxis(_lapack_inv(mat[:, :, weak]), 0, -1)
     norm = np.max(np.sum(np.abs(mat), axis=0), axis=0)
@@ -234,7 +239,7 @@ def inverse(mat, plan=None):
         norm_inv = np.max(np.sum(np.abs(inv), axis=0), axis=0)
         cond = norm * norm_inv
     cond = np.where(np.isfinite(cond), cond, np.inf)
-    return inv, cond
+    return (inv, cond, sign) if with_sign else (inv, cond)
 
 
 _DENSE_PLANS = {}
@@ -257,7 +262,13 @@ def det_sign(mat, plan=None):
         return np.sign(mat[0, 0] * mat[1, 1] - mat[0, 1] * mat[1, 0])
     plan = _plan_for(k, plan)
     lu, weak = factor(mat, plan)
+    return _lu_sign(lu, plan, mat, weak)
+
+
+def _lu_sign(lu, plan, mat, weak):
+    """Return det signs from static-order LU factors (LAPACK where ``weak``)."""
     order = plan.row_order
+    k = plan.k
     inversions = sum(1 for i in range(k) for j in range(i + 1, k) if order[i] > order[j])
     sign = np.prod(np.sign(lu[plan.diag]), axis=0) * (-1.0 if inversions % 2 else 1.0)
     if weak.any():
@@ -314,4 +325,4 @@ def _inverse_2(mat):
     np.multiply(b, -r, out=inv[0, 1])
     np.multiply(c, -r, out=inv[1, 0])
     np.multiply(a, r, out=inv[1, 1])
-    return inv, cond
+    return inv, cond, det
