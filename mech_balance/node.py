@@ -134,12 +134,13 @@ class RigNode(Node):
         return speed if speed != 0.0 else self._original.scene.crank_speed_rad_s
 
     def _apply_mode(self):
-        """Start publishing in the current mode; (un)subscribe the encoder."""
+        """Start publishing in the current mode; subscribe the encoder when first following."""
         model = self._published
         if self._values['mode'] == 'clock':
-            if self._encoder_sub is not None:
-                self.destroy_subscription(self._encoder_sub)
-                self._encoder_sub = None
+            # The encoder subscription, once made, stays: destroying it from this parameter
+            # callback races with the MultiThreadedExecutor's other threads, which may be
+            # adding it to their wait sets (rclpy raises InvalidHandle there and the node
+            # dies).  In clock mode _on_encoder ignores what arrives.
             period_ns = max(1, round(1e9 / self._values['publish_rate']))
             self._streamer.clock(model, self._crank_speed(), period_ns)
             return
@@ -216,6 +217,8 @@ class RigNode(Node):
 
     def _on_encoder(self, msg):
         """Turn one encoder message into a sample to publish; skip bad input with a warning."""
+        if self._values['mode'] != 'follow':  # subscribed by an earlier follow mode
+            return
         joint = self._values['crank_joint'] or self._original.crank_joint
         try:
             stamp_ns, position, velocity = conv.crank_reading(msg, joint)
