@@ -24,8 +24,8 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'mech-balance = mech_balance.cli:main',
-            'rig_node = mech_balance.node:main',
+            'mech-balance = mech_balance.cli.main:main',
+            'rig_node = mech_balance.ros.node:main',
         ],
     },
 )

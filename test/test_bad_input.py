@@ -16,7 +16,10 @@ import subprocess
 import sys
 
 from hypothesis import given, HealthCheck, settings, strategies as st
-from mech_balance import analysis, cli, scene, simulate
+from mech_balance.analysis import cycle as analysis
+from mech_balance.cli import main as cli
+from mech_balance.core import forward as simulate
+from mech_balance.schema import scene
 import numpy as np
 import pytest
 import yaml
@@ -279,7 +282,7 @@ def test_cli_bad_drive_exits_2_in_a_fresh_process(tmp_path):
     path = tmp_path / 'bad_drive.yaml'
     path.write_text(yaml.safe_dump(data))
     env = dict(os.environ)
-    root = os.path.dirname(os.path.dirname(os.path.abspath(cli.__file__)))
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env['PYTHONPATH'] = os.pathsep.join([root] + env.get('PYTHONPATH', '').split(os.pathsep))
     proc = subprocess.run([sys.executable, '-m', 'mech_balance.cli', 'simulate', '--scene',
                            str(path), '--duration', '0.1'], env=env, capture_output=True,

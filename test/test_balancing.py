@@ -10,7 +10,11 @@ import inspect
 import json
 import math
 
-from mech_balance import analysis, balancing, cli, equimomental, scene
+from mech_balance.analysis import cycle as analysis
+from mech_balance.balancing import socp as balancing
+from mech_balance.cli import main as cli
+from mech_balance.core import equimomental
+from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -365,7 +369,7 @@ def test_cli_balance_bad_input(capsys, tmp_path, argv, match):
 
 def test_bench_section_lists_every_case():
     from argparse import Namespace
-    from mech_balance import cli_balance
+    from mech_balance.cli import balance as cli_balance
     text = cli_balance.bench_section(Namespace(scene=['hoeken'], repeat=3, samples=90),
                                      lambda s: None)
     assert text.count('hoeken') == 12 and 'median ms' in text

@@ -8,8 +8,12 @@ are skipped without it (``make bench-mujoco`` installs it).  No timings here.
 import math
 import sys
 
-from mech_balance import analysis, chain, cli, dynamics, kinematics, scene
+from mech_balance.analysis import cycle as analysis
+from mech_balance.bench import chains as chain
+from mech_balance.cli import main as cli
 from mech_balance.conventions import cycle_angles
+from mech_balance.core.planar import dynamics, kinematics
+from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -98,7 +102,7 @@ def test_compare_without_mujoco_exits_2(monkeypatch, capsys):
 @pytest.fixture(scope='module')
 def bench_mujoco():
     pytest.importorskip('mujoco')
-    from mech_balance import bench_mujoco
+    from mech_balance.bench import mujoco as bench_mujoco
     return bench_mujoco
 
 

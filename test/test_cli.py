@@ -6,7 +6,10 @@ import os
 import subprocess
 import sys
 
-from mech_balance import analysis, balancing, cli, cli_balance, scene
+from mech_balance.analysis import cycle as analysis
+from mech_balance.balancing import socp as balancing
+from mech_balance.cli import balance as cli_balance, main as cli
+from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -16,7 +19,7 @@ import yaml
 def _run(*argv):
     env = dict(os.environ)
     env['PYTHONPATH'] = os.pathsep.join(
-        [os.path.dirname(os.path.dirname(os.path.abspath(cli.__file__)))]
+        [os.path.dirname(os.path.dirname(os.path.abspath(__file__)))]
         + env.get('PYTHONPATH', '').split(os.pathsep))
     return subprocess.run([sys.executable, '-m', 'mech_balance.cli', *argv], env=env,
                           capture_output=True, text=True, timeout=120)
@@ -67,7 +70,7 @@ def test_bad_input_exits_2_without_traceback(argv, message):
 
 def test_bad_scene_field_exits_2(tmp_path):
     path = tmp_path / 'bad.yaml'
-    text = open(os.path.join(os.path.dirname(cli.__file__), '..', 'config',
+    text = open(os.path.join(os.path.dirname(__file__), '..', 'config',
                              'hoeken.yaml')).read()
     path.write_text(text.replace('mass_kg: 0.326', 'mass_kg: -0.326'))
     proc = _run('analyze', '--scene', str(path))
@@ -166,7 +169,7 @@ def test_usage_errors_in_fresh_processes(tmp_path):
     cases = _usage_cases(tmp_path)
     env = dict(os.environ)
     env['PYTHONPATH'] = os.pathsep.join(
-        [os.path.dirname(os.path.dirname(os.path.abspath(cli.__file__)))]
+        [os.path.dirname(os.path.dirname(os.path.abspath(__file__)))]
         + env.get('PYTHONPATH', '').split(os.pathsep))
     procs = {k: subprocess.Popen([sys.executable, '-m', 'mech_balance.cli', *cases[k][0]],
                                  env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,

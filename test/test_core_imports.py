@@ -5,8 +5,9 @@ import subprocess
 import sys
 
 BLOCKED = ('rclpy', 'rerun', 'sensor_msgs', 'geometry_msgs', 'std_srvs', 'std_msgs')
-CORE = ('conventions', 'scene', 'smallsolve', 'kinematics', 'dynamics', 'equimomental',
-        'analysis', 'rggr', 'balancing')
+CORE = ('conventions', 'schema.scene', 'core.planar.smallsolve', 'core.planar.kinematics',
+        'core.planar.dynamics', 'core.equimomental', 'analysis.cycle', 'core.rggr',
+        'balancing.socp')
 
 SCRIPT = f"""
 import importlib.abc, sys
@@ -20,7 +21,8 @@ sys.meta_path.insert(0, Block())
 import importlib
 for mod in {CORE!r}:
     importlib.import_module('mech_balance.' + mod)
-from mech_balance import analysis, scene
+from mech_balance.analysis import cycle as analysis
+from mech_balance.schema import scene
 cycle = analysis.run_cycle(analysis.Rig(scene.load('hoeken')), 36)
 assert cycle.wrenches.shaking_moment.shape == (36,)
 loaded = sorted(m for m in sys.modules if m.split('.')[0] in BLOCKED)

@@ -17,10 +17,13 @@ import tempfile
 import time
 
 from geometry_msgs.msg import WrenchStamped
-from mech_balance import analysis, balancing, params, rggr, twin
-from mech_balance import node as rig_node
-from mech_balance import ros_conversions as conv
-from mech_balance import scene as scene_mod
+from mech_balance.analysis import cycle as analysis
+from mech_balance.balancing import socp as balancing
+from mech_balance.core import rggr
+from mech_balance.ros import conversions as conv
+from mech_balance.ros import node as rig_node
+from mech_balance.ros import params, streaming as twin
+from mech_balance.schema import scene as scene_mod
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -323,7 +326,7 @@ class RigProcess:
         self.log = tempfile.NamedTemporaryFile('w+', prefix='rig_node_', suffix='.log')
         env = dict(os.environ, PYTHONPATH=str(ROOT), ROS_DOMAIN_ID=str(DOMAIN_ID),
                    ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
-        cmd = [sys.executable, '-m', 'mech_balance.node', '--ros-args',
+        cmd = [sys.executable, '-m', 'mech_balance.ros.node', '--ros-args',
                '-r', f'__ns:={namespace}', *ros_args]
         self.proc = subprocess.Popen(cmd, env=env, stdout=self.log, stderr=subprocess.STDOUT,
                                      cwd=str(ROOT))

@@ -15,9 +15,13 @@ import subprocess
 import sys
 import textwrap
 
-from mech_balance import analysis, cli, cli_record, dynamics, equimomental, recording, rggr
-from mech_balance import scene as scene_mod
+from mech_balance.analysis import cycle as analysis
+from mech_balance.cli import main as cli, record as cli_record
 from mech_balance.conventions import cycle_angles, rms
+from mech_balance.core import equimomental, rggr
+from mech_balance.core.planar import dynamics
+from mech_balance.schema import scene as scene_mod
+from mech_balance.viz import recording
 import numpy as np
 from numpy.testing import assert_allclose, assert_array_equal
 import pytest
@@ -389,7 +393,8 @@ def test_live_recorder_rejects_bad_samples(tmp_path):
 
 LIVE_SCRIPT = textwrap.dedent("""
     import sys, time
-    from mech_balance import recording, scene
+    from mech_balance.schema import scene
+    from mech_balance.viz import recording
     rec = recording.LiveRecorder(sys.argv[1], scene.load('hoeken'))
     k = 0
     while True:
@@ -403,7 +408,7 @@ LIVE_SCRIPT = textwrap.dedent("""
 
 def test_live_recording_survives_ctrl_c(tmp_path):
     path = tmp_path / 'sigint.rrd'
-    root = os.path.dirname(os.path.dirname(os.path.abspath(recording.__file__)))
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = dict(os.environ, PYTHONPATH=root)
     proc = subprocess.Popen([sys.executable, '-c', LIVE_SCRIPT, str(path)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

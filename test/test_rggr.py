@@ -11,9 +11,9 @@ import dataclasses
 import math
 import pathlib
 
-from mech_balance import rggr
 from mech_balance.conventions import cycle_angles
 from mech_balance.conventions import rms
+from mech_balance.core import rggr
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

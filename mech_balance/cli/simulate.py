@@ -9,7 +9,9 @@ import json
 import math
 import sys
 
-from mech_balance import accuracy, cli, simulate
+from mech_balance.analysis import accuracy
+from mech_balance.cli import main as cli
+from mech_balance.core import forward as simulate
 
 
 def _positive_float(text):

@@ -21,7 +21,7 @@ SCENE_NAME_WIDTH = 18
 LINE_WIDTH = 99
 """Width of printed text: ``mech-balance scenes`` wraps its descriptions to it at word breaks."""
 
-EXTENSIONS = ('mech_balance.cli_balance', 'mech_balance.cli_record', 'mech_balance.cli_sim')
+EXTENSIONS = ('mech_balance.cli.balance', 'mech_balance.cli.record', 'mech_balance.cli.simulate')
 """Modules that add verbs: each has ``register(subparsers)`` adding its parser(s) with
 ``set_defaults(func=...)``; a verb module owns its parser, handler and help text."""
 
@@ -111,7 +111,7 @@ def _design(text):
 
 def build_parser():
     """Return the argument parser of ``mech-balance``."""
-    from mech_balance import bench
+    from mech_balance.bench import core as bench
     parser = Parser(
         prog='mech-balance',
         description='Kinematics, inverse dynamics, shaking wrench and balancing of '
@@ -162,7 +162,7 @@ def build_parser():
 
 def cmd_scenes(args):
     """List the built-in scenes."""
-    from mech_balance import scene
+    from mech_balance.schema import scene
     indent = ' ' * (SCENE_NAME_WIDTH + 1)
     for name, path in scene.builtin_scenes().items():
         data, _ = scene.load_data(path)
@@ -175,11 +175,13 @@ def cmd_scenes(args):
 
 def cmd_analyze(args):
     """Analyze one revolution of a scene."""
-    from mech_balance import analysis, equimomental, scene
+    from mech_balance.analysis import cycle as analysis
+    from mech_balance.core import equimomental
+    from mech_balance.schema import scene
     sc = scene.load(args.scene)
     planar_only(sc, **{'--design': args.design is not None})
     if getattr(sc, 'kind', 'planar') == 'rggr':
-        from mech_balance import rggr
+        from mech_balance.core import rggr
         report = rggr.analyze_report(sc, args.samples or rggr.DEFAULT_SAMPLES,
                                      args.normalized)
         print(json.dumps(report, indent=2) if args.json else rggr.format_report(report))
@@ -209,9 +211,9 @@ def cmd_analyze(args):
 def cmd_bench(args):
     """Print core timings."""
     if args.compare == 'mujoco':
-        from mech_balance import bench_mujoco
+        from mech_balance.bench import mujoco as bench_mujoco
         return bench_mujoco.cmd_compare(args)
-    from mech_balance import bench
+    from mech_balance.bench import core as bench
     print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} warm-up '
           f'runs, {args.samples} crank angles per cycle', flush=True)
     progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731

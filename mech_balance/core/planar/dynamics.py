@@ -22,7 +22,7 @@ All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given
 
 from dataclasses import dataclass
 
-from mech_balance.kinematics import _cross, _rmat
+from mech_balance.core.planar.kinematics import _cross, _rmat
 import numpy as np
 
 SPEED_FLOOR_RAD_S = 1e-300

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import math
 import re
 
-from mech_balance import balancing
-from mech_balance.scene import parse_yaml
+from mech_balance.balancing import socp as balancing
+from mech_balance.schema.scene import parse_yaml
 import yaml
 
 STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
@@ -186,7 +186,7 @@ def check_links(values, link_names):
 def _path(value):
     """Accept empty (no recording) or a writable .rrd file in an existing directory."""
     if value:
-        from mech_balance import recording  # imports rerun: only when a recording is asked for
+        from mech_balance.viz import recording
         recording.check_output_path(value, 'recording_path', create_dir=False)
 
 

@@ -66,9 +66,11 @@ import functools
 import math
 import time
 
-from mech_balance import analysis, dynamics, scene as scene_mod
+from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import rms
-from mech_balance.kinematics import _cross
+from mech_balance.core.planar import dynamics
+from mech_balance.core.planar.kinematics import _cross
+from mech_balance.schema import scene as scene_mod
 import numpy as np
 from scipy.integrate import solve_ivp
 

@@ -11,7 +11,9 @@ import json
 from pathlib import Path
 import sys
 
-from mech_balance import balancing, bench, scene as scene_mod, seed_tables
+from mech_balance.balancing import paper_tables as seed_tables, socp as balancing
+from mech_balance.bench import core as bench
+from mech_balance.schema import scene as scene_mod
 import numpy as np
 
 TABLE3_MASS_FACTORS = (1.0, 2.0, 5.0)
@@ -141,7 +143,7 @@ def _check_options(args):
 
 def cmd_balance(args):
     """Balance a scene and print the design, the before/after table and the certificate."""
-    from mech_balance import cli
+    from mech_balance.cli import main as cli
     if args.samples is not None and args.samples < 4:
         raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
     _check_options(args)
@@ -304,7 +306,7 @@ def _paper_comparison(result):
 
 
 def _paper_design_links(sc, x, counterweights):
-    from mech_balance import equimomental
+    from mech_balance.core import equimomental
     design = equimomental.apply_design(sc, x, normalized=True)
     return [balancing.link_design(lk, counterweights, sc.normalization)
             for lk in design.links]
@@ -347,7 +349,7 @@ def _analytic(sc, args):
 
 
 def _rggr(sc, args):
-    from mech_balance import rggr
+    from mech_balance.core import rggr
     if args.output:
         raise ValueError('--output: RGGR scenes are balanced by mech_balance.rggr, which does '
                          'not export scenes; expected no --output for kind rggr')
@@ -405,5 +407,5 @@ def bench_section(args, progress):
 
 
 if __name__ == '__main__':  # pragma: no cover - use `mech-balance balance`
-    from mech_balance import cli
+    from mech_balance.cli import main as cli
     sys.exit(cli.main(['balance', *sys.argv[1:]]))

@@ -26,9 +26,9 @@ import sys
 import threading
 
 from geometry_msgs.msg import WrenchStamped
-from mech_balance import params, twin
-from mech_balance import ros_conversions as conv
-from mech_balance import scene as scene_mod
+from mech_balance.ros import conversions as conv
+from mech_balance.ros import params, streaming as twin
+from mech_balance.schema import scene as scene_mod
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -260,7 +260,7 @@ class RigNode(Node):
                 self._recorder = None
             if not path:
                 return
-            from mech_balance import recording  # rerun is imported only when recording
+            from mech_balance.viz import recording
             balanced = None if self._balanced is None else self._balanced.scene
             try:
                 self._recorder = recording.LiveRecorder(path, self._original.scene, balanced,
@@ -366,12 +366,12 @@ class RigNode(Node):
             original, values = self._original, dict(self._values)
         sc = original.scene
         if original.kind == 'rggr':
-            from mech_balance import rggr
+            from mech_balance.core import rggr
             samples = values['balance.samples'] or rggr.DEFAULT_SAMPLES
             report = rggr.balance_report(sc, samples)
             balanced = rggr.balance_scene(sc, samples).design.scene
         else:
-            from mech_balance import balancing
+            from mech_balance.balancing import socp as balancing
             result = balancing.optimize(sc, **params.balance_options(values))
             report, balanced = result.to_dict(), result.balanced_scene
         model = original.with_design(balanced)

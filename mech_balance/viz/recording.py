@@ -41,9 +41,12 @@ import re
 import threading
 import time
 
-from mech_balance import analysis, dynamics, equimomental, paths
+from mech_balance import paths
+from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import normalize_force, normalize_moment, rms
-from mech_balance.scene import FRAME, needs, Recording
+from mech_balance.core import equimomental
+from mech_balance.core.planar import dynamics
+from mech_balance.schema.scene import FRAME, needs, Recording
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
@@ -614,7 +617,7 @@ class _RggrModel:
     """An RGGR scene (and its balanced design) turned into drawable 3-D samples."""
 
     def __init__(self, scene, balanced=None):
-        from mech_balance import rggr
+        from mech_balance.core import rggr
         self.rggr = rggr
         self.scenes = {'original': scene}
         if balanced is not None:

@@ -7,15 +7,16 @@ Only this module (and the command that prints it) measures time; tests never do.
 import statistics
 import time
 
-from mech_balance import analysis, scene as scene_mod
+from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import cycle_angles
+from mech_balance.schema import scene as scene_mod
 
 WARMUP = 3
 """Runs discarded before timing (caches, branch tracing, allocator)."""
 DEFAULT_REPEAT = 50
 """Timed runs per figure; the median is reported."""
 
-SECTIONS = ('mech_balance.cli_balance', 'mech_balance.cli_record', 'mech_balance.bench_node')
+SECTIONS = ('mech_balance.cli.balance', 'mech_balance.cli.record', 'mech_balance.bench.node')
 """Modules that add bench sections: each has ``bench_section(args, progress) -> str``
 returning its printed table; ``mech-balance bench`` prints them after the core timings."""
 

@@ -39,7 +39,7 @@ RECORDING_STREAMS = (
 """What a rerun recording of the scene can show (``recording.streams``; all on by default)."""
 
 _CONFIG_DIRS = (
-    Path(__file__).resolve().parent.parent / 'config',
+    Path(__file__).resolve().parents[2] / 'config',
 )
 
 
@@ -263,7 +263,7 @@ def from_dict(data, source='<dict>'):
         raise SceneError(f'scene: got {type(data).__name__}, expected a mapping')
     kind = data.get('kind', 'planar')
     if kind == 'rggr':
-        from mech_balance import rggr
+        from mech_balance.core import rggr
         return rggr.load_rggr_scene(data, source=source)
     if kind != 'planar':
         raise SceneError(f'kind: got {kind!r}, expected "planar" or "rggr"')
@@ -370,7 +370,7 @@ def _planar_from_dict(data, source):
         notes=notes if isinstance(notes, dict) else {'text': notes}, source=source,
         recording=_recording(data.get('recording', {})), drive=data.get('drive'))
     if sc.drive is not None:  # validated by the simulation module, which owns its schema
-        from mech_balance import simulate
+        from mech_balance.core import forward as simulate
         simulate.drive_from_dict(sc.drive, sc)
     return sc
 

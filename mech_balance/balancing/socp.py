@@ -47,9 +47,11 @@ import math
 import time
 
 import clarabel
-from mech_balance import analysis, dynamics, equimomental
+from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import cycle_angles
-from mech_balance.scene import FRAME, Normalization, Recording, RECORDING_STREAMS, \
+from mech_balance.core import equimomental
+from mech_balance.core.planar import dynamics
+from mech_balance.schema.scene import FRAME, Normalization, Recording, RECORDING_STREAMS, \
     SCHEMA_VERSION
 import numpy as np
 import scipy.sparse as sp

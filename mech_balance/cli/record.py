@@ -13,8 +13,9 @@ import sys
 import tempfile
 import time
 
-from mech_balance import balancing, cli_balance
-from mech_balance.cli_balance import DEFAULT_CASE
+from mech_balance.balancing import socp as balancing
+from mech_balance.cli import balance as cli_balance
+from mech_balance.cli.balance import DEFAULT_CASE
 
 HOEKEN_A2_DESIGN = (-4.8784, 0.7227, 5.1566, 0.5886, 5.2843, -1.3781, 3.1938, 1.7240,
                     -5.1095, 8.0046, -0.9951, 0.8759)
@@ -40,7 +41,7 @@ def _samples(text):
 
 def register(subparsers):
     """Add the ``record`` verb to the ``mech-balance`` sub-parsers."""
-    from mech_balance import cli
+    from mech_balance.cli import main as cli
     p = subparsers.add_parser(
         'record', help='write a rerun recording (.rrd) of the rig, original vs balanced',
         description='Write an offline rerun recording of a scene: the rig moving (links, '
@@ -80,7 +81,7 @@ def balanced_design(sc, weights=balancing.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     moment), which takes neither.
     """
     if getattr(sc, 'kind', 'planar') == 'rggr':
-        from mech_balance import rggr
+        from mech_balance.core import rggr
         return (rggr.balance_scene(sc).design.scene,
                 'seed 002 complete force balance with the minimum RMS shaking moment '
                 '(rggr.balance_scene)')
@@ -92,7 +93,9 @@ def balanced_design(sc, weights=balancing.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
 
 def cmd_record(args):
     """Write the recording and say where it is and how to open it."""
-    from mech_balance import cli, recording, scene
+    from mech_balance.cli import main as cli
+    from mech_balance.schema import scene
+    from mech_balance.viz import recording
     given = {'--weights': args.weights is not None, '--case': args.case is not None}
     for option, was_given in given.items():
         if was_given and not args.balance:
@@ -134,7 +137,10 @@ def _viewer():
 
 def bench_section(args, progress):
     """Return the timing of one Hoeken recording (original + seed 001 a(2), 360 samples)."""
-    from mech_balance import bench, equimomental, recording, scene
+    from mech_balance.bench import core as bench
+    from mech_balance.core import equimomental
+    from mech_balance.schema import scene
+    from mech_balance.viz import recording
     sc = scene.load('hoeken')
     balanced = equimomental.apply_design(sc, HOEKEN_A2_DESIGN, normalized=True)
     asked = int(getattr(args, 'repeat', BENCH_REPEAT_MAX))

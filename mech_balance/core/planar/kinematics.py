@@ -30,8 +30,8 @@ from dataclasses import dataclass
 import math
 import warnings
 
-from mech_balance import smallsolve
-from mech_balance.scene import FRAME
+from mech_balance.core.planar import smallsolve
+from mech_balance.schema.scene import FRAME
 import numpy as np
 
 NEWTON_TOL = 1e-13

@@ -18,7 +18,7 @@ import struct
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import WrenchStamped
-from mech_balance import params
+from mech_balance.ros import params
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rcl_interfaces.msg import ParameterType

@@ -26,8 +26,12 @@ import inspect
 import math
 import statistics
 
-from mech_balance import analysis, bench, kinematics, scene as scene_mod, simulate
+from mech_balance.analysis import cycle as analysis
+from mech_balance.bench import core as bench
 from mech_balance.conventions import cycle_angles
+from mech_balance.core import forward as simulate
+from mech_balance.core.planar import kinematics
+from mech_balance.schema import scene as scene_mod
 import numpy as np
 
 P_LADDER = (8, 12, 16, 24, 36, 48, 60, 72, 96, 120, 180, 360)
@@ -88,7 +92,7 @@ def rggr_rms_convergence(sc, p_values=P_LADDER, p_ref=P_REFERENCE,
     Same rows as :func:`rms_convergence`; the quantities are the report's RMS metrics
     (shaking force and moment magnitudes, driving torque), normalized.
     """
-    from mech_balance import rggr
+    from mech_balance.core import rggr
 
     def metrics(p):
         m = rggr.analyze_report(sc, p, True)['metrics']
@@ -256,7 +260,7 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
     is used instead as soon as ``optimize`` accepts one).
     """
     try:
-        from mech_balance import balancing
+        from mech_balance.balancing import socp as balancing
     except ImportError as exc:
         return {'available': False, 'note': f'balancing not available ({exc})'}
     if not hasattr(balancing, 'optimize'):

@@ -22,7 +22,7 @@ import subprocess
 import sys
 import time
 
-from mech_balance import node as node_mod
+from mech_balance.ros import node as node_mod
 
 RATES_HZ = (250.0, 500.0, 1000.0, 2000.0, 4000.0, 8000.0, 16000.0)
 """Clock-mode publish rates tried, ascending."""
@@ -95,7 +95,9 @@ def bench_section(args, progress):
 
 def _follow_costs(scene_name):
     """Return the compute per sample in follow mode: alone, and in a batch."""
-    from mech_balance import bench, ros_conversions as conv, scene as scene_mod, twin
+    from mech_balance.bench import core as bench
+    from mech_balance.ros import conversions as conv, streaming as twin
+    from mech_balance.schema import scene as scene_mod
     import numpy as np
     model = twin.model_for(scene_mod.load(scene_name))
     ser = conv.SampleSerializer(model.joint_names, model.has_effort, 'rig_frame')
@@ -125,10 +127,10 @@ def _sweep(scene_name, progress):
                ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE',
                                                             'LOCALHOST'))
     env['PYTHONPATH'] = os.pathsep.join(
-        p for p in (os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+        p for p in (os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
                     env.get('PYTHONPATH')) if p)
     proc = subprocess.Popen(
-        [sys.executable, '-m', 'mech_balance.node', '--ros-args', '-r', f'__ns:={ns}',
+        [sys.executable, '-m', 'mech_balance.ros.node', '--ros-args', '-r', f'__ns:={ns}',
          '-p', f'scene:={scene_name}', '-p', f'publish_rate:={RATES_HZ[0]}'],
         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     ctx = rclpy.Context()

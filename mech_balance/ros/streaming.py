@@ -45,8 +45,8 @@ import math
 import threading
 import time
 
-from mech_balance import analysis
-from mech_balance.scene import FRAME
+from mech_balance.analysis import cycle as analysis
+from mech_balance.schema.scene import FRAME
 import numpy as np
 
 TWO_PI = 2.0 * math.pi
@@ -197,7 +197,7 @@ class RggrTwin:
     moment_point = 'the origin O of the RGGR frame'
 
     def __init__(self, scene):
-        from mech_balance import rggr  # the RGGR module is only needed for RGGR scenes
+        from mech_balance.core import rggr
         self._rggr = rggr
         self.scene = scene
         self.joint_names = RGGR_JOINTS

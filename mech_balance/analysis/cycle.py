@@ -9,9 +9,9 @@ computes only what the scene's outputs need.
 from dataclasses import dataclass
 import time
 
-from mech_balance import dynamics, kinematics
 from mech_balance.conventions import cycle_angles, rms
-from mech_balance.scene import needs, OUTPUTS
+from mech_balance.core.planar import dynamics, kinematics
+from mech_balance.schema.scene import needs, OUTPUTS
 import numpy as np
 
 MOMENT_ROUNDOFF_REL = 1e-12
