@@ -16,10 +16,10 @@ import subprocess
 import sys
 
 from hypothesis import given, HealthCheck, settings, strategies as st
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.cli import main as cli
 from mech_balance.core import forward as simulate
-from mech_balance.schema import scene
 import numpy as np
 import pytest
 import yaml

@@ -10,11 +10,11 @@ import inspect
 import json
 import math
 
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import socp as balancing
 from mech_balance.cli import main as cli
 from mech_balance.core import equimomental
-from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

@@ -13,9 +13,9 @@ from the slider.  Only the corrected sign balances (test_printed_eq75_does_not_b
 
 import math
 
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import socp as balancing
-from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

@@ -7,9 +7,9 @@ by which the core reproduces the paper's own rows.  The realizable optimum and t
 realizability of every printed design are checked too.
 """
 
+from mech_balance import schema as scene
 from mech_balance.balancing import paper_tables as seed_tables, socp as balancing
 from mech_balance.core import equimomental
-from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

@@ -8,12 +8,12 @@ are skipped without it (``make bench-mujoco`` installs it).  No timings here.
 import math
 import sys
 
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import chains as chain
 from mech_balance.cli import main as cli
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import dynamics, kinematics
-from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

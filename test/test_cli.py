@@ -6,10 +6,10 @@ import os
 import subprocess
 import sys
 
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import socp as balancing
 from mech_balance.cli import balance as cli_balance, main as cli
-from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

@@ -22,7 +22,7 @@ import importlib
 for mod in {CORE!r}:
     importlib.import_module('mech_balance.' + mod)
 from mech_balance.analysis import cycle as analysis
-from mech_balance.schema import scene
+from mech_balance import schema as scene
 cycle = analysis.run_cycle(analysis.Rig(scene.load('hoeken')), 36)
 assert cycle.wrenches.shaking_moment.shape == (36,)
 loaded = sorted(m for m in sys.modules if m.split('.')[0] in BLOCKED)

@@ -5,10 +5,10 @@ The reference quantities are built from *positions only* (link poses solved at n
 angles) by finite differences: with a constant crank speed omega, d/dt = omega d/dpsi.
 """
 
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import dynamics
-from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

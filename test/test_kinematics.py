@@ -2,10 +2,10 @@
 
 import copy
 
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import kinematics
-from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

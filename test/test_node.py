@@ -17,13 +17,14 @@ import tempfile
 import time
 
 from geometry_msgs.msg import WrenchStamped
+from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
+from mech_balance.balancing import rggr as rggr_balancing
 from mech_balance.balancing import socp as balancing
 from mech_balance.core import rggr
 from mech_balance.ros import conversions as conv
 from mech_balance.ros import node as rig_node
 from mech_balance.ros import params, streaming as twin
-from mech_balance.schema import scene as scene_mod
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -692,7 +693,7 @@ def test_rggr_scene_publishes_all_six_components_and_balances(context, tmp_path)
     probe = Probe(context, ns)
     sc = scene_mod.load('rggr')
     original = twin.model_for(sc)
-    balanced = original.with_design(rggr.balance_scene(sc).design.scene)
+    balanced = original.with_design(rggr_balancing.balance_scene(sc).design.scene)
 
     def received(model):
         joints = {j[0]: j for j in probe.joints}

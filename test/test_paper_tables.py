@@ -7,10 +7,10 @@ tuned to them.
 
 import math
 
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import paper_tables as seed_tables
 from mech_balance.core import equimomental
-from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

@@ -15,12 +15,13 @@ import subprocess
 import sys
 import textwrap
 
+from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
+from mech_balance.balancing import rggr as rggr_balancing
 from mech_balance.cli import main as cli, record as cli_record
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import equimomental, rggr
 from mech_balance.core.planar import dynamics
-from mech_balance.schema import scene as scene_mod
 from mech_balance.viz import recording
 import numpy as np
 from numpy.testing import assert_allclose, assert_array_equal
@@ -324,7 +325,7 @@ def test_recording_schema_errors_name_the_field(value, message):
 
 def test_rggr_recording_is_3d(tmp_path):
     sc = scene_mod.load('rggr')
-    bal = rggr.balance_scene(sc).design.scene
+    bal = rggr_balancing.balance_scene(sc).design.scene
     path = tmp_path / 'rggr.rrd'
     summary = recording.record(path, sc, bal)
     ent = recording.read_recording(path)
@@ -393,7 +394,7 @@ def test_live_recorder_rejects_bad_samples(tmp_path):
 
 LIVE_SCRIPT = textwrap.dedent("""
     import sys, time
-    from mech_balance.schema import scene
+    from mech_balance import schema as scene
     from mech_balance.viz import recording
     rec = recording.LiveRecorder(sys.argv[1], scene.load('hoeken'))
     k = 0

@@ -11,9 +11,12 @@ import dataclasses
 import math
 import pathlib
 
+from mech_balance.analysis import rggr_report
+from mech_balance.balancing import rggr as rggr_balancing
 from mech_balance.conventions import cycle_angles
 from mech_balance.conventions import rms
 from mech_balance.core import rggr
+from mech_balance.schema import rggr as rggr_schema
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -45,18 +48,18 @@ def data():
 
 @pytest.fixture(scope='module')
 def scene(data):
-    return rggr.load_rggr_scene(data, str(CONFIG))
+    return rggr_schema.load_rggr_scene(data, str(CONFIG))
 
 
 @pytest.fixture(scope='module')
 def balanced(scene):
-    return rggr.balance_scene(scene)
+    return rggr_balancing.balance_scene(scene)
 
 
 def _with_branch(data, branch):
     d = copy.deepcopy(data)
     d['assembly']['branch'] = branch
-    return rggr.load_rggr_scene(d)
+    return rggr_schema.load_rggr_scene(d)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -204,7 +207,7 @@ def test_momentum_unbalanced(data, branch):
 @pytest.mark.parametrize('branch', [1, -1])
 def test_momentum_optimized_with_products(data, branch):
     # the optimized rig has nonzero products on both links: every J term is exercised
-    designed = rggr.balance_scene(_with_branch(data, branch)).design.scene
+    designed = rggr_balancing.balance_scene(_with_branch(data, branch)).design.scene
     assert np.all(np.abs(designed.inertia_parameters_kg_m2()) > 0.0)
     _fd_check(designed, ANGLES)
 
@@ -218,9 +221,9 @@ def test_momentum_offset_centres_and_negative_speed(data):
     d['links']['output']['inertia_about_pivot_kg_m2'] = {'ww': 0.03, 'wu': -2e-3, 'vw': 1e-3}
     d['links']['coupler']['centre_from_b_m'] = 0.1
     d['crank']['speed_rad_s'] = -7.0
-    s = rggr.load_rggr_scene(d)
+    s = rggr_schema.load_rggr_scene(d)
     _fd_check(s, ANGLES)
-    _fd_check(rggr.balance_scene(s).design.scene, ANGLES)
+    _fd_check(rggr_balancing.balance_scene(s).design.scene, ANGLES)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -270,11 +273,11 @@ def test_coupler_angular_velocity_eqs_45_46(scene):
 def test_cannot_assemble_names_the_angle(data):
     d = copy.deepcopy(data)
     d['geometry']['a2_m'] = 0.1
-    s = rggr.load_rggr_scene(d)
+    s = rggr_schema.load_rggr_scene(d)
     with pytest.raises(ValueError, match=r'crank angle 0 deg: the RGGR linkage cannot be'):
         rggr.kinematics(s, [0.0])
     with pytest.raises(ValueError, match='cannot be assembled'):
-        rggr.analyze_report(s)
+        rggr_report.analyze_report(s)
 
 
 def test_dead_centre_raises_instead_of_switching_branch(data, scene):
@@ -289,7 +292,7 @@ def test_dead_centre_raises_instead_of_switching_branch(data, scene):
     d3 = -2 * g.a3_m * (g.l2_m + g.a1_m * math.sin(phi1))
     d = copy.deepcopy(data)
     d['geometry']['a2_m'] = math.sqrt(d1_without_a2 + (1 - 1e-13) * math.hypot(d2, d3))
-    s = rggr.load_rggr_scene(d)
+    s = rggr_schema.load_rggr_scene(d)
     with pytest.raises(ValueError, match=r'crank angle 30 deg: the two assembly branches meet'):
         rggr.kinematics(s, [phi1])
 
@@ -308,7 +311,7 @@ def test_normalization_recorded(scene):
 
 
 def test_force_balancing_reproduces_paper(scene):
-    rep = rggr.balance_report(scene, normalized=True)
+    rep = rggr_report.balance_report(scene, normalized=True)
     cw, ow = rep['crank_weight'], rep['output_weight']
     for value, printed, decimals in ((cw['centre_uvw'][0], -1.0, 0),
                                      (ow['mass'], 8.5, 1),
@@ -324,7 +327,7 @@ def test_force_balancing_reproduces_paper(scene):
 
 
 def test_optimized_rms_shaking_moment_within_1pct_of_paper(scene):
-    rep = rggr.balance_report(scene, normalized=True)
+    rep = rggr_report.balance_report(scene, normalized=True)
     optimized = rep['table'][2]['shaking_moment_rms']
     assert optimized == pytest.approx(14.25, rel=PAPER_TOL)
     assert rep['optimum']['shaking_moment_rms'] == pytest.approx(optimized, rel=1e-12)
@@ -336,7 +339,7 @@ def test_our_figures_for_the_paper_example(scene):
     # Regression values of this implementation next to the paper's (report, not acceptance):
     # before optimization 19.137 (paper 22.38), I_1wu -5.975 (-59.94), I_1vw -11.143
     # (-55.75), alpha 25.11 deg (28.5), gamma 204.26 deg (226.6).
-    rep = rggr.balance_report(scene, normalized=True)
+    rep = rggr_report.balance_report(scene, normalized=True)
     assert rep['table'][0]['shaking_moment_rms'] == pytest.approx(25.550, abs=1e-3)
     assert rep['table'][1]['shaking_moment_rms'] == pytest.approx(19.137, abs=1e-3)
     j = rep['inertia_parameters']
@@ -361,7 +364,7 @@ def test_paper_products_inconsistent_with_its_rms_figures(data, branch):
     kin = rggr.kinematics(s, cycle_angles(3600))
     om = s.crank_speed_rad_s
     gain = np.sqrt(kin.output_accel_rad_s2 ** 2 + kin.output_rate_rad_s ** 4) / om ** 2
-    fb = rggr.force_balance(s)
+    fb = rggr_balancing.force_balance(s)
     m = fb.output_weight.mass_kg / s.normalization['mass_kg']
     r = fb.output_weight_radius_m / s.normalization['length_m']
     j34 = m * r ** 2 / (4 * math.tan(math.radians(28.5)))
@@ -427,9 +430,9 @@ def test_yaml_with_fitted_weights_is_force_balanced(data, balanced):
                                              'vw': w.product_vw_kg_m2}}
         for link, w in (('crank', balanced.design.crank_weight),
                         ('output', balanced.design.output_weight))}
-    with_weights = rggr.load_rggr_scene(d)
-    rep = rggr.analyze_report(with_weights, 360, normalized=True)
-    bare = rggr.analyze_report(rggr.load_rggr_scene(data), 360, normalized=True)
+    with_weights = rggr_schema.load_rggr_scene(d)
+    rep = rggr_report.analyze_report(with_weights, 360, normalized=True)
+    bare = rggr_report.analyze_report(rggr_schema.load_rggr_scene(data), 360, normalized=True)
     assert rep['metrics']['shaking_force_rms'] <= 1e-12 * bare['metrics']['shaking_force_rms']
     assert rep['metrics']['shaking_moment_rms'] == pytest.approx(
         balanced.optimum.moment_rms_optimal_Nm / (0.5 * 0.05 ** 2 * 10.0 ** 2), rel=1e-12)
@@ -437,15 +440,16 @@ def test_yaml_with_fitted_weights_is_force_balanced(data, balanced):
 
 
 def test_reports_are_plain_and_formatted(scene):
-    for rep in (rggr.analyze_report(scene, 72), rggr.balance_report(scene, 72, True)):
-        text = rggr.format_report(rep)
+    for rep in (rggr_report.analyze_report(scene, 72),
+                rggr_report.balance_report(scene, 72, True)):
+        text = rggr_report.format_report(rep)
         assert 'RGGR' in text and 'worst loop residual' in text
         assert max(len(line) for line in text.splitlines()) <= 120
         _assert_plain(rep)
-    rep = rggr.analyze_report(scene, 72)
+    rep = rggr_report.analyze_report(scene, 72)
     assert len(rep['shaking_moment_rms_xyz']) == 3
     assert rep['loop_residual_max_m'] <= LOOP_TOL_M
-    assert set(rep['metrics']) == set(rggr.METRIC_KEYS)
+    assert set(rep['metrics']) == set(rggr_report.METRIC_KEYS)
 
 
 def _assert_plain(obj):
@@ -490,21 +494,21 @@ def test_bad_input_names_the_field(data, path, value, match):
         node = node[key]
     node[path[-1]] = value
     with pytest.raises(ValueError, match=match):
-        rggr.load_rggr_scene(d)
+        rggr_schema.load_rggr_scene(d)
 
 
 def test_missing_fields(data):
     d = copy.deepcopy(data)
     del d['links']['coupler']['mass_kg']
     with pytest.raises(ValueError, match=r'links\.coupler\.mass_kg: missing'):
-        rggr.load_rggr_scene(d)
+        rggr_schema.load_rggr_scene(d)
     d = copy.deepcopy(data)
     del d['balancing_design']
-    s = rggr.load_rggr_scene(d)
+    s = rggr_schema.load_rggr_scene(d)
     with pytest.raises(ValueError, match=r'balancing_design: missing'):
-        rggr.balance_report(s)
+        rggr_report.balance_report(s)
     with pytest.raises(ValueError, match=r'^geometry: got'):
-        rggr.load_rggr_scene({**data, 'geometry': [1, 2]})
+        rggr_schema.load_rggr_scene({**data, 'geometry': [1, 2]})
 
 
 def test_bad_angles(scene):

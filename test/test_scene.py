@@ -3,9 +3,9 @@
 import copy
 import math
 
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.core.planar import kinematics
-from mech_balance.schema import scene
 import pytest
 import yaml
 

@@ -12,10 +12,10 @@ import copy
 import json
 import math
 
+from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.cli import main as cli
 from mech_balance.core import forward as simulate
-from mech_balance.schema import scene
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

@@ -26,12 +26,12 @@ import inspect
 import math
 import statistics
 
+from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import core as bench
 from mech_balance.conventions import cycle_angles
 from mech_balance.core import forward as simulate
 from mech_balance.core.planar import kinematics
-from mech_balance.schema import scene as scene_mod
 import numpy as np
 
 P_LADDER = (8, 12, 16, 24, 36, 48, 60, 72, 96, 120, 180, 360)
@@ -87,15 +87,15 @@ def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
 def rggr_rms_convergence(sc, p_values=P_LADDER, p_ref=P_REFERENCE,
                          repeat=RMS_TIMING_REPEAT):
     """
-    Return the RMS study of an RGGR scene (seed 002) from :func:`rggr.analyze_report`.
+    Return the RMS study of an RGGR scene (seed 002) from :func:`rggr_report.analyze_report`.
 
     Same rows as :func:`rms_convergence`; the quantities are the report's RMS metrics
     (shaking force and moment magnitudes, driving torque), normalized.
     """
-    from mech_balance.core import rggr
+    from mech_balance.analysis import rggr_report
 
     def metrics(p):
-        m = rggr.analyze_report(sc, p, True)['metrics']
+        m = rggr_report.analyze_report(sc, p, True)['metrics']
         return {k[:-4]: v for k, v in m.items() if k.endswith('_rms')}
     ref = metrics(p_ref)
     names = sorted(ref)
@@ -106,7 +106,7 @@ def rggr_rms_convergence(sc, p_values=P_LADDER, p_ref=P_REFERENCE,
         got = metrics(p)
         err = np.abs(np.array([got[k] for k in names]) - ref_rms) / scale
         k = int(np.argmax(err))
-        seconds = _median(lambda: rggr.analyze_report(sc, p, True), repeat)
+        seconds = _median(lambda: rggr_report.analyze_report(sc, p, True), repeat)
         rows.append({'p': int(p), 'max_rel_error': float(err[k]), 'worst': names[k],
                      'seconds': seconds})
     return {'p_reference': p_ref, 'normalized': True, 'rows': rows,

@@ -27,7 +27,7 @@ length, so the first moments have both components.
 
 import math
 
-from mech_balance.schema import scene as scene_mod
+from mech_balance import schema as scene_mod
 
 STAGE0 = {'crank': 1.0, 'coupler': 4.0, 'rocker': 3.0, 'frame': 4.0}
 """Stage-0 four-bar in crank lengths: Grashof crank-rocker, transmission angle 48-90 deg."""

@@ -7,9 +7,9 @@ Only this module (and the command that prints it) measures time; tests never do.
 import statistics
 import time
 
+from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import cycle_angles
-from mech_balance.schema import scene as scene_mod
 
 WARMUP = 3
 """Runs discarded before timing (caches, branch tracing, allocator)."""

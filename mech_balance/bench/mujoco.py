@@ -53,11 +53,11 @@ import statistics
 import sys
 import time
 
+from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import chains as chain
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import dynamics, kinematics
-from mech_balance.schema import scene as scene_mod
 import numpy as np
 
 AGREEMENT_TOL = 1e-9

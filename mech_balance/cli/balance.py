@@ -2,7 +2,7 @@
 ``mech-balance balance``: optimal mass redistribution and analytic force balance of a scene.
 
 A thin verb over :mod:`mech_balance.balancing` (planar scenes) and
-:func:`mech_balance.rggr.balance_report` (RGGR scenes).  The seed-001 reference values
+:func:`mech_balance.rggr_report.balance_report` (RGGR scenes).  The seed-001 reference values
 printed next to the results are the papers' tables (:mod:`mech_balance.seed_tables`).
 """
 
@@ -11,9 +11,9 @@ import json
 from pathlib import Path
 import sys
 
+from mech_balance import schema as scene_mod
 from mech_balance.balancing import paper_tables as seed_tables, socp as balancing
 from mech_balance.bench import core as bench
-from mech_balance.schema import scene as scene_mod
 import numpy as np
 
 TABLE3_MASS_FACTORS = (1.0, 2.0, 5.0)
@@ -349,13 +349,14 @@ def _analytic(sc, args):
 
 
 def _rggr(sc, args):
-    from mech_balance.core import rggr
+    from mech_balance.conventions import DEFAULT_SAMPLES
+    from mech_balance.analysis import rggr_report
     if args.output:
         raise ValueError('--output: RGGR scenes are balanced by mech_balance.rggr, which does '
                          'not export scenes; expected no --output for kind rggr')
-    report = rggr.balance_report(sc, args.samples or rggr.DEFAULT_SAMPLES,
-                                 normalized=not args.si)
-    print(json.dumps(report, indent=2) if args.json else rggr.format_report(report))
+    report = rggr_report.balance_report(sc, args.samples or DEFAULT_SAMPLES,
+                                        normalized=not args.si)
+    print(json.dumps(report, indent=2) if args.json else rggr_report.format_report(report))
     return 0
 
 

@@ -162,7 +162,7 @@ def build_parser():
 
 def cmd_scenes(args):
     """List the built-in scenes."""
-    from mech_balance.schema import scene
+    from mech_balance import schema as scene
     indent = ' ' * (SCENE_NAME_WIDTH + 1)
     for name, path in scene.builtin_scenes().items():
         data, _ = scene.load_data(path)
@@ -177,14 +177,15 @@ def cmd_analyze(args):
     """Analyze one revolution of a scene."""
     from mech_balance.analysis import cycle as analysis
     from mech_balance.core import equimomental
-    from mech_balance.schema import scene
+    from mech_balance import schema as scene
     sc = scene.load(args.scene)
     planar_only(sc, **{'--design': args.design is not None})
     if getattr(sc, 'kind', 'planar') == 'rggr':
-        from mech_balance.core import rggr
-        report = rggr.analyze_report(sc, args.samples or rggr.DEFAULT_SAMPLES,
-                                     args.normalized)
-        print(json.dumps(report, indent=2) if args.json else rggr.format_report(report))
+        from mech_balance.conventions import DEFAULT_SAMPLES
+        from mech_balance.analysis import rggr_report
+        report = rggr_report.analyze_report(sc, args.samples or DEFAULT_SAMPLES,
+                                            args.normalized)
+        print(json.dumps(report, indent=2) if args.json else rggr_report.format_report(report))
         return 0
     if args.design is not None:
         sc = equimomental.apply_design(sc, args.design,

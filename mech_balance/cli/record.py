@@ -77,14 +77,14 @@ def balanced_design(sc, weights=balancing.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     Return ``(balanced_scene, description)`` for ``--balance``.
 
     Planar scenes use :func:`mech_balance.balancing.optimize` with ``weights`` and ``case``;
-    RGGR scenes :func:`mech_balance.rggr.balance_scene` (force balance, then minimum RMS
+    RGGR scenes :func:`mech_balance.rggr_balancing.balance_scene` (force balance, then minimum RMS
     moment), which takes neither.
     """
     if getattr(sc, 'kind', 'planar') == 'rggr':
-        from mech_balance.core import rggr
-        return (rggr.balance_scene(sc).design.scene,
+        from mech_balance.balancing import rggr as rggr_balancing
+        return (rggr_balancing.balance_scene(sc).design.scene,
                 'seed 002 complete force balance with the minimum RMS shaking moment '
-                '(rggr.balance_scene)')
+                '(rggr_balancing.balance_scene)')
     result = balancing.optimize(sc, weights=tuple(weights), case=case)
     return (result.balanced_scene,
             f'seed 001 optimum, (w1, w2) = ({weights[0]:g}, {weights[1]:g}), case {case} '
@@ -94,7 +94,7 @@ def balanced_design(sc, weights=balancing.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
 def cmd_record(args):
     """Write the recording and say where it is and how to open it."""
     from mech_balance.cli import main as cli
-    from mech_balance.schema import scene
+    from mech_balance import schema as scene
     from mech_balance.viz import recording
     given = {'--weights': args.weights is not None, '--case': args.case is not None}
     for option, was_given in given.items():
@@ -139,7 +139,7 @@ def bench_section(args, progress):
     """Return the timing of one Hoeken recording (original + seed 001 a(2), 360 samples)."""
     from mech_balance.bench import core as bench
     from mech_balance.core import equimomental
-    from mech_balance.schema import scene
+    from mech_balance import schema as scene
     from mech_balance.viz import recording
     sc = scene.load('hoeken')
     balanced = equimomental.apply_design(sc, HOEKEN_A2_DESIGN, normalized=True)

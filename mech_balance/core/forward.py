@@ -61,16 +61,17 @@ Drive schema (the scene's optional top-level ``drive:`` key; :func:`drive_from_d
       initial_crank_angle_deg: 0.0        # default: assembly.crank_angle_deg
 """
 
-from dataclasses import dataclass, field
-import functools
+from dataclasses import dataclass
 import math
 import time
 
+from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import rms
 from mech_balance.core.planar import dynamics
 from mech_balance.core.planar.kinematics import _cross
-from mech_balance.schema import scene as scene_mod
+from mech_balance.schema import fields
+from mech_balance.schema.drive import Drive, drive_from_dict, DriveError, Motor, SpeedController
 import numpy as np
 from scipy.integrate import solve_ivp
 
@@ -103,8 +104,6 @@ STARTUP_FRACTION = 0.95
 """Start-up time: when the crank speed first reaches this fraction of its steady mean."""
 STEADY_TURNS = 2
 """Crank turns at the end of a run over which the steady-state figures are taken."""
-VOLTAGE_FRACTION_MAX = 10.0
-"""Largest |voltage fraction| accepted (over-voltage beyond 10x rated is a typo)."""
 OMEGA_FLOOR_REL = 1e-9
 """Speeds below this fraction of the scene's crank speed do not set the operating speed."""
 MAX_SIMULATED_TURNS = 1e5
@@ -117,132 +116,7 @@ class _TooManyEvaluations(Exception):
     """Raised inside the right-hand side to stop a runaway integration."""
 
 
-class DriveError(ValueError):
-    """A ``drive`` field is missing, has the wrong type or an impossible value."""
-
-
-# ============================================================================ drive schema
-
-
-@dataclass(frozen=True)
-class Motor:
-    """DC motor on its torque-speed line (SI)."""
-
-    stall_torque_Nm: float
-    no_load_speed_rad_s: float
-    rotor_inertia_kg_m2: float = 0.0
-    gear_ratio: float = 1.0
-    electrical_time_constant_s: float = 0.0
-    voltage_fraction: float = 1.0
-
-
-@dataclass(frozen=True)
-class SpeedController:
-    """PI crank-speed controller acting on the motor voltage fraction."""
-
-    kp_per_rad_s: float
-    ki_per_rad: float
-    setpoint_rad_s: float = None
-    voltage_limit: float = 1.0
-
-
-@dataclass(frozen=True)
-class Drive:
-    """Motor, speed controller, joint damping and initial state of a simulation."""
-
-    motor: Motor = None
-    speed_controller: SpeedController = None
-    joint_damping: dict = field(default_factory=dict)
-    initial_speed_rad_s: float = None
-    initial_crank_angle_deg: float = None
-
-
-_DRIVE_KEYS = {'motor', 'speed_controller', 'joint_damping', 'initial_speed_rad_s',
-               'initial_crank_angle_deg'}
-_MOTOR_KEYS = {'stall_torque_Nm', 'no_load_speed_rad_s', 'rotor_inertia_kg_m2', 'gear_ratio',
-               'electrical_time_constant_s', 'voltage_fraction'}
-_PI_KEYS = {'kp_per_rad_s', 'ki_per_rad', 'setpoint_rad_s', 'voltage_limit'}
-
-
-def drive_from_dict(data, scene=None):
-    """
-    Return the validated :class:`Drive` of a scene's ``drive`` mapping.
-
-    Every error is a :class:`DriveError` naming the field (``drive.motor.gear_ratio``), the
-    value and what was expected.  With ``scene`` the joint names of ``joint_damping`` are
-    checked against the scene's joints.
-    """
-    if data is None:
-        return Drive()
-    if isinstance(data, Drive):
-        data_drive = data
-    else:
-        data = _mapping(data, 'drive')
-        _known(data, _DRIVE_KEYS, 'drive')
-        motor = None
-        if data.get('motor') is not None:
-            m = _mapping(data['motor'], 'drive.motor')
-            _known(m, _MOTOR_KEYS, 'drive.motor')
-            motor = Motor(
-                stall_torque_Nm=_positive(_require(m, 'stall_torque_Nm', 'drive.motor'),
-                                          'drive.motor.stall_torque_Nm'),
-                no_load_speed_rad_s=_positive(
-                    _require(m, 'no_load_speed_rad_s', 'drive.motor'),
-                    'drive.motor.no_load_speed_rad_s'),
-                rotor_inertia_kg_m2=_nonneg(m.get('rotor_inertia_kg_m2', 0.0),
-                                            'drive.motor.rotor_inertia_kg_m2'),
-                gear_ratio=_positive(m.get('gear_ratio', 1.0), 'drive.motor.gear_ratio'),
-                electrical_time_constant_s=_nonneg(
-                    m.get('electrical_time_constant_s', 0.0),
-                    'drive.motor.electrical_time_constant_s'),
-                voltage_fraction=_number(m.get('voltage_fraction', 1.0),
-                                         'drive.motor.voltage_fraction'))
-            if abs(motor.voltage_fraction) > VOLTAGE_FRACTION_MAX:
-                raise DriveError(
-                    f'drive.motor.voltage_fraction: got {motor.voltage_fraction!r}, expected '
-                    f'a fraction of the rated voltage with magnitude <= '
-                    f'{VOLTAGE_FRACTION_MAX:g}')
-        pi = None
-        if data.get('speed_controller') is not None:
-            if motor is None:
-                raise DriveError('drive.speed_controller: got a speed controller without a '
-                                 'motor, expected drive.motor as well')
-            c = _mapping(data['speed_controller'], 'drive.speed_controller')
-            _known(c, _PI_KEYS, 'drive.speed_controller')
-            setpoint = c.get('setpoint_rad_s')
-            pi = SpeedController(
-                kp_per_rad_s=_nonneg(_require(c, 'kp_per_rad_s', 'drive.speed_controller'),
-                                     'drive.speed_controller.kp_per_rad_s'),
-                ki_per_rad=_nonneg(_require(c, 'ki_per_rad', 'drive.speed_controller'),
-                                   'drive.speed_controller.ki_per_rad'),
-                setpoint_rad_s=None if setpoint is None else _number(
-                    setpoint, 'drive.speed_controller.setpoint_rad_s'),
-                voltage_limit=_positive(c.get('voltage_limit', 1.0),
-                                        'drive.speed_controller.voltage_limit'))
-            if pi.voltage_limit > VOLTAGE_FRACTION_MAX:
-                raise DriveError(
-                    f'drive.speed_controller.voltage_limit: got {pi.voltage_limit!r}, '
-                    f'expected a fraction of the rated voltage <= {VOLTAGE_FRACTION_MAX:g}')
-        damping = {}
-        for name, value in _mapping(data.get('joint_damping') or {},
-                                    'drive.joint_damping').items():
-            damping[name] = _nonneg(value, f'drive.joint_damping.{name}')
-        speed = data.get('initial_speed_rad_s')
-        angle = data.get('initial_crank_angle_deg')
-        data_drive = Drive(
-            motor=motor, speed_controller=pi, joint_damping=damping,
-            initial_speed_rad_s=None if speed is None else _number(
-                speed, 'drive.initial_speed_rad_s'),
-            initial_crank_angle_deg=None if angle is None else _number(
-                angle, 'drive.initial_crank_angle_deg'))
-    if scene is not None:
-        joints = [j.name for j in scene.joints]
-        for name in data_drive.joint_damping:
-            if name not in joints:
-                raise DriveError(
-                    f'drive.joint_damping.{name}: no such joint, expected one of '
-                    f'{", ".join(joints)}')
-    return data_drive
+# ============================================================================ loading
 
 
 def load(name_or_path):
@@ -698,8 +572,8 @@ class ForwardDynamics:
         Refuses runs of more than ``MAX_SIMULATED_TURNS`` crank turns and gives up after
         ``max_evaluations`` right-hand-side evaluations (a ``ValueError`` either way).
         """
-        duration_s = _positive(duration_s, 'duration_s', error=ValueError)
-        rtol = _positive(rtol, 'rtol', error=ValueError)
+        duration_s = fields.positive(duration_s, 'duration_s', error=ValueError)
+        rtol = fields.positive(rtol, 'rtol', error=ValueError)
         if not 1e-14 <= rtol <= 1e-1:
             raise ValueError(f'rtol: got {rtol!r}, expected 1e-14 <= rtol <= 0.1')
         if method == 'auto':
@@ -947,18 +821,6 @@ def simulate(name_or_scene, duration_s, method='auto', rtol=DEFAULT_RTOL, rhs='t
     model = ForwardDynamics(sc, drive, rhs=rhs)
     sim = model.simulate(duration_s, method=method, rtol=rtol, dense_output=True)
     return report(sim)
-
-
-# ============================================================================ validation
-
-
-# the scene loader's field checks, raising DriveError (a ValueError) instead of SceneError
-_mapping = functools.partial(scene_mod._mapping, error=DriveError)
-_known = functools.partial(scene_mod._known_keys, error=DriveError)
-_require = functools.partial(scene_mod._require, error=DriveError)
-_number = functools.partial(scene_mod._number, error=DriveError)
-_positive = functools.partial(scene_mod._positive, error=DriveError)
-_nonneg = functools.partial(scene_mod._nonneg, error=DriveError)
 
 
 __all__ = ['Drive', 'DriveError', 'ForwardDynamics', 'Motor', 'Report', 'RigTables',

@@ -26,9 +26,9 @@ import sys
 import threading
 
 from geometry_msgs.msg import WrenchStamped
+from mech_balance import schema as scene_mod
 from mech_balance.ros import conversions as conv
 from mech_balance.ros import params, streaming as twin
-from mech_balance.schema import scene as scene_mod
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -366,10 +366,12 @@ class RigNode(Node):
             original, values = self._original, dict(self._values)
         sc = original.scene
         if original.kind == 'rggr':
-            from mech_balance.core import rggr
-            samples = values['balance.samples'] or rggr.DEFAULT_SAMPLES
-            report = rggr.balance_report(sc, samples)
-            balanced = rggr.balance_scene(sc, samples).design.scene
+            from mech_balance.conventions import DEFAULT_SAMPLES
+            from mech_balance.analysis import rggr_report
+            from mech_balance.balancing import rggr as rggr_balancing
+            samples = values['balance.samples'] or DEFAULT_SAMPLES
+            report = rggr_report.balance_report(sc, samples)
+            balanced = rggr_balancing.balance_scene(sc, samples).design.scene
         else:
             from mech_balance.balancing import socp as balancing
             result = balancing.optimize(sc, **params.balance_options(values))

@@ -15,6 +15,10 @@ from pathlib import Path
 import re
 
 from mech_balance import conventions
+from mech_balance.schema.drive import drive_from_dict
+from mech_balance.schema.fields import known_keys as _known_keys, mapping as _mapping, \
+    number as _number, points as _points, positive as _positive, require as _require, \
+    SceneError, string as _string, vector as _vector
 import yaml
 
 SCHEMA_VERSION = 1
@@ -29,8 +33,6 @@ INERTIA_ROUNDOFF = 1e-12
 
 Loading rejects what no body can have (I_c < 0); whether a link is *buildable* (I_c > 0 by a
 design margin, non-negative counterweights) is :func:`mech_balance.equimomental.is_realizable`."""
-MAX_ABS_VALUE = 1e18
-"""Larger magnitudes in any numeric field are rejected (their squares would overflow soon)."""
 RECORDING_STREAMS = (
     'frame', 'links', 'joints', 'mass_centres', 'point_masses', 'shaking_force_arrow',
     'shaking_moment_arc', 'shaking_force_plot', 'shaking_moment_plot', 'driving_torque_plot',
@@ -41,10 +43,6 @@ RECORDING_STREAMS = (
 _CONFIG_DIRS = (
     Path(__file__).resolve().parents[2] / 'config',
 )
-
-
-class SceneError(ValueError):
-    """A scene field is missing, has the wrong type or an impossible value."""
 
 
 @dataclass(frozen=True)
@@ -64,6 +62,35 @@ class Normalization:
         """Return a normalized moment or torque, n / (m_1 a_1^2 omega^2)."""
         return conventions.normalize_moment(moment_Nm, self.mass_kg, self.length_m,
                                             self.omega_rad_s)
+
+    def energy(self, energy_J):
+        """Return a normalized energy, E / (m_1 a_1^2 omega^2) (the unit of a moment)."""
+        return conventions.normalize_moment(energy_J, self.mass_kg, self.length_m,
+                                            self.omega_rad_s)
+
+    def keys(self):
+        """Return the field names: a normalization reads as ``{mass_kg, length_m, ...}``."""
+        return ('mass_kg', 'length_m', 'omega_rad_s')
+
+    def items(self):
+        """Return ``(name, value)`` pairs, as a mapping does."""
+        return [(k, getattr(self, k)) for k in self.keys()]
+
+    def __getitem__(self, key):
+        """Return a field by name (``norm['mass_kg']``), as in the scene file."""
+        if key not in self.keys():
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __eq__(self, other):
+        """Compare with another normalization or with its mapping form."""
+        if isinstance(other, (Normalization, dict)):
+            return all(self[k] == other[k] for k in self.keys()) and len(other.keys()) == 3
+        return NotImplemented
+
+    def __hash__(self):
+        """Hash as the tuple of the three values."""
+        return hash((self.mass_kg, self.length_m, self.omega_rad_s))
 
 
 @dataclass(frozen=True)
@@ -99,6 +126,11 @@ class Joint:
     point_b: str
     axis: tuple = (1.0, 0.0)
     angle_rad: float = 0.0
+
+    @property
+    def prismatic(self):
+        """Return whether the joint slides (else it turns)."""
+        return self.kind == 'prismatic'
 
 
 @dataclass(frozen=True)
@@ -251,25 +283,6 @@ def load_data(name_or_path):
     return data, path
 
 
-def load(name_or_path):
-    """Load and validate a scene (planar or RGGR) by built-in name or path."""
-    data, path = load_data(name_or_path)
-    return from_dict(data, source=str(path))
-
-
-def from_dict(data, source='<dict>'):
-    """Validate a parsed scene mapping; dispatch on ``kind``."""
-    if not isinstance(data, dict):
-        raise SceneError(f'scene: got {type(data).__name__}, expected a mapping')
-    kind = data.get('kind', 'planar')
-    if kind == 'rggr':
-        from mech_balance.core import rggr
-        return rggr.load_rggr_scene(data, source=source)
-    if kind != 'planar':
-        raise SceneError(f'kind: got {kind!r}, expected "planar" or "rggr"')
-    return _planar_from_dict(data, source)
-
-
 _TOP_KEYS = {
     'schema_version', 'name', 'description', 'kind', 'normalization', 'crank', 'gravity_m_s2',
     'frame', 'links', 'joints', 'assembly', 'outputs', 'samples', 'notes', 'recording',
@@ -277,7 +290,8 @@ _TOP_KEYS = {
 }
 
 
-def _planar_from_dict(data, source):
+def planar_from_dict(data, source='<dict>'):
+    """Validate a parsed planar scene mapping (README, section *Scenes*)."""
     _known_keys(data, _TOP_KEYS, '')
     version = data.get('schema_version', SCHEMA_VERSION)
     if version != SCHEMA_VERSION:
@@ -369,10 +383,80 @@ def _planar_from_dict(data, source):
         outputs=outputs, samples=samples, gravity_m_s2=gravity, normalization=normalization,
         notes=notes if isinstance(notes, dict) else {'text': notes}, source=source,
         recording=_recording(data.get('recording', {})), drive=data.get('drive'))
-    if sc.drive is not None:  # validated by the simulation module, which owns its schema
-        from mech_balance.core import forward as simulate
-        simulate.drive_from_dict(sc.drive, sc)
+    if sc.drive is not None:  # checked now, used by `mech-balance simulate`
+        drive_from_dict(sc.drive, sc)
     return sc
+
+
+def planar_to_dict(scene):
+    """
+    Return a planar scene as the mapping :func:`planar_from_dict` reads back.
+
+    Every top-level section is written: the links with their inertias and everything else
+    unchanged (description, normalization, crank, gravity, frame, joints, assembly, outputs,
+    samples, notes, ``recording`` and the ``drive`` of ``mech-balance simulate``).  A link
+    with a negative centroidal inertia cannot be written (no body has one).
+    """
+    for lk in scene.links:
+        if lk.inertia_com_kg_m2 < 0.0:
+            raise SceneError(
+                f'links.{lk.name}.inertia_com_kg_m2: got {lk.inertia_com_kg_m2:.6g}, expected '
+                '>= 0; an unrealizable design cannot be saved as a scene')
+    data = {'schema_version': SCHEMA_VERSION, 'name': scene.name,
+            'description': scene.description, 'kind': 'planar'}
+    if scene.normalization is not None:
+        n = scene.normalization
+        data['normalization'] = {'mass_kg': n.mass_kg, 'length_m': n.length_m,
+                                 'omega_rad_s': n.omega_rad_s}
+    data['crank'] = {'joint': scene.crank_joint, 'speed_rad_s': scene.crank_speed_rad_s,
+                     'acceleration_rad_s2': scene.crank_acceleration_rad_s2}
+    data['gravity_m_s2'] = list(scene.gravity_m_s2)
+    data['frame'] = {'points': {k: list(v) for k, v in scene.frame_points.items()}}
+    data['links'] = {lk.name: {'points': {k: list(v) for k, v in lk.points.items()},
+                               'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),
+                               'inertia_com_kg_m2': lk.inertia_com_kg_m2}
+                     for lk in scene.links}
+    joints = {}
+    for jt in scene.joints:
+        spec = {'type': jt.kind, 'a': f'{jt.link_a}.{jt.point_a}',
+                'b': f'{jt.link_b}.{jt.point_b}'}
+        if jt.prismatic:
+            spec['axis'] = list(jt.axis)
+            spec['angle_deg'] = math.degrees(jt.angle_rad)
+        joints[jt.name] = spec
+    data['joints'] = joints
+    assembly = {'crank_angle_deg': math.degrees(scene.assembly_crank_angle_rad)}
+    if scene.assembly_link_angles_rad:
+        assembly['link_angles_deg'] = {k: math.degrees(v) for k, v in
+                                       scene.assembly_link_angles_rad.items()}
+    if scene.assembly_displacements_m:
+        assembly['joint_displacements_m'] = dict(scene.assembly_displacements_m)
+    data['assembly'] = assembly
+    data['outputs'] = list(scene.outputs)
+    data['samples'] = int(scene.samples)
+    if scene.notes:
+        data['notes'] = scene.notes
+    if scene.recording != Recording():
+        data['recording'] = recording_to_dict(scene.recording)
+    if scene.drive is not None:
+        data['drive'] = scene.drive
+    return data
+
+
+def recording_to_dict(recording):
+    """
+    Return a :class:`Recording` as the scene's ``recording:`` mapping.
+
+    The inverse of the loader's ``recording`` validation:
+    ``{streams: {name: bool, ...}, force_scale_m_per_N, moment_scale_deg_per_Nm}`` with
+    every stream of :data:`RECORDING_STREAMS`; a scale chosen from the data (``None``) is
+    left out.
+    """
+    out = {'streams': {s: recording.enabled(s) for s in RECORDING_STREAMS}}
+    for key in ('force_scale_m_per_N', 'moment_scale_deg_per_Nm'):
+        if getattr(recording, key) is not None:
+            out[key] = getattr(recording, key)
+    return out
 
 
 def _recording(value):
@@ -490,77 +574,6 @@ def _joint(name, spec, all_points):
     elif 'axis' in spec or 'angle_deg' in spec:
         raise SceneError(f'{where}: axis and angle_deg apply to prismatic joints only')
     return Joint(name, jtype, ends[0][0], ends[0][1], ends[1][0], ends[1][1], axis, angle)
-
-
-# ----------------------------------------------------------------------------- primitives
-
-
-def _require(mapping, key, where, error=SceneError):
-    if key not in mapping:
-        path = f'{where}.{key}' if where else key
-        raise error(f'{path}: missing, expected a value')
-    return mapping[key]
-
-
-def _known_keys(mapping, allowed, where, error=SceneError):
-    unknown = sorted(set(mapping) - set(allowed))
-    if unknown:
-        path = f'{where}.{unknown[0]}' if where else unknown[0]
-        raise error(
-            f'{path}: unknown field, expected one of {", ".join(sorted(allowed))}')
-
-
-def _mapping(value, where, error=SceneError):
-    if not isinstance(value, dict):
-        raise error(f'{where}: got {value!r}, expected a mapping')
-    for k in value:
-        if not isinstance(k, str):
-            raise error(f'{where}: key {k!r} is not text, expected names')
-    return value
-
-
-def _string(value, where):
-    if not isinstance(value, str) or not value:
-        raise SceneError(f'{where}: got {value!r}, expected a non-empty name')
-    return value
-
-
-def _number(value, where, error=SceneError):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise error(f'{where}: got {value!r}, expected a number')
-    value = float(value)
-    if not math.isfinite(value):
-        raise error(f'{where}: got {value!r}, expected a finite number')
-    if abs(value) > MAX_ABS_VALUE:
-        raise error(f'{where}: got {value!r}, expected a magnitude <= {MAX_ABS_VALUE:g}')
-    return value
-
-
-def _positive(value, where, error=SceneError):
-    value = _number(value, where, error)
-    if value <= 0.0:
-        raise error(f'{where}: got {value!r}, expected a number > 0')
-    return value
-
-
-def _nonneg(value, where, error=SceneError):
-    value = _number(value, where, error)
-    if value < 0.0:
-        raise error(f'{where}: got {value!r}, expected a number >= 0')
-    return value
-
-
-def _vector(value, where):
-    if not isinstance(value, (list, tuple)) or len(value) != 2:
-        raise SceneError(f'{where}: got {value!r}, expected [x, y]')
-    return (_number(value[0], f'{where}[0]'), _number(value[1], f'{where}[1]'))
-
-
-def _points(value, where):
-    value = _mapping(value, where)
-    if not value:
-        raise SceneError(f'{where}: got an empty mapping, expected named points')
-    return {k: _vector(v, f'{where}.{k}') for k, v in value.items()}
 
 
 def _outputs(value, where):

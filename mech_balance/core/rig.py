@@ -1,0 +1,166 @@
+"""
+The Rig protocol: one model of a rig, whatever its kind, and the data it evaluates to.
+
+The pinocchio idea: a :class:`Rig` is an immutable model built once per geometry and design
+(it holds no speeds and no warnings); :meth:`Rig.at` evaluates it at a batch of crank angles,
+speeds and accelerations and returns a fresh :class:`RigData`.  Every consumer (analysis,
+balancing, the node, the recording, the command line, the benchmarks) works through this
+protocol; none asks which kind of rig it has.  A rig says what it can do through
+:attr:`Rig.capabilities` (for example ``'bearing_reactions'`` or ``'mass_redistribution'``),
+and :func:`rig_for` builds the rig of any scene from the kind registry of
+:mod:`mech_balance.schema.registry`.
+
+Implementations: :class:`mech_balance.core.planar.rig.PlanarRig` (every single-input planar
+linkage) and :class:`mech_balance.core.rggr.RggrRig` (the RGGR spatial four-bar, seed 002).
+
+Frames, units and signs: :mod:`mech_balance.conventions`.  The shaking wrench is always a pair
+of 3-vectors in the frame's axes (planar rigs: force z = 0, moment x = y = 0), reduced to the
+rig's moment point (:attr:`Rig.moment_point`).
+"""
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from mech_balance.schema import registry
+import numpy as np
+
+
+@dataclass
+class BodyPoses:
+    """
+    Where every body is, for drawing and for sensors: ``(n, nb, 3)`` origins, ``(n, nb, 3, 3)``.
+
+    ``names[k]`` is body k (``frame`` first); ``rotation[i, k]`` maps body k's own axes to the
+    frame's at sample i, ``origin_m[i, k]`` is its origin in the frame, m.
+    """
+
+    names: tuple
+    origin_m: np.ndarray
+    rotation: np.ndarray
+
+    def world(self, body, local_m):
+        """Return ``(n, 3)`` frame coordinates of a point fixed in ``body`` (name or index)."""
+        k = self.names.index(body) if isinstance(body, str) else int(body)
+        local = np.asarray(local_m, dtype=float)
+        if local.shape == (2,):
+            local = np.append(local, 0.0)
+        return self.origin_m[:, k] + self.rotation[:, k] @ local
+
+
+@dataclass
+class RigData:
+    """
+    A rig evaluated at n crank angles (SI; arrays are sample-first).
+
+    ``joint_*`` are ``(n, n_joints)`` in the order of ``joint_names`` (ROS ``JointState``
+    values; the implementations document their coordinates); ``joint_effort`` is None when
+    no torque was asked for.  ``force_N`` and ``moment_Nm`` are the shaking wrench ``(n, 3)``
+    (None for kinematics only).  ``series`` holds the scalar outputs that were asked for
+    (``driving_torque``, ``kinetic_energy``, ...: :data:`mech_balance.schema.scene.SERIES`),
+    ``reactions`` the bearing loads ``{joint: (force (n, 3), moment (n, 3))}`` when asked for.
+    ``residual`` (loop closure, relative), ``condition`` (Jacobian condition number) and
+    ``near_singular`` are the per-angle diagnostics of the position solution.  ``native`` is
+    the implementation's own result (planar: ``(state, wrenches)``), for code inside the core.
+    """
+
+    crank_angle_rad: np.ndarray
+    crank_speed_rad_s: np.ndarray
+    crank_accel_rad_s2: np.ndarray
+    joint_position: np.ndarray
+    joint_velocity: np.ndarray
+    joint_effort: np.ndarray
+    force_N: np.ndarray
+    moment_Nm: np.ndarray
+    joint_names: tuple = ()
+    series: dict = field(default_factory=dict)
+    reactions: dict = None
+    residual: np.ndarray = None
+    condition: np.ndarray = None
+    near_singular: np.ndarray = None
+    bodies: BodyPoses = None
+    native: object = None
+
+    def __len__(self):
+        """Return the number of samples."""
+        return self.crank_angle_rad.shape[0]
+
+    @property
+    def state(self):
+        """Return the planar kinematic state, or None for other rigs (the recorder's input)."""
+        return self.native[0] if isinstance(self.native, tuple) else None
+
+    @property
+    def wrenches(self):
+        """Return the planar inertia wrenches, or None (other rigs, kinematics only)."""
+        return self.native[1] if isinstance(self.native, tuple) else None
+
+
+@dataclass(frozen=True)
+class DrawingBody:
+    """A body to draw: its points in its own frame (m, 3-D) and the outline joining them."""
+
+    name: str
+    points: dict
+    outline: tuple
+    mass_centre_m: tuple
+
+
+@dataclass(frozen=True)
+class Drawing:
+    """
+    What a rig looks like, in body frames: the static part of every picture of it.
+
+    ``dimension`` is 2 (planar: z = 0) or 3; ``frame`` the fixed points ``{name: (x, y, z)}``;
+    ``bodies`` the moving bodies in the order of :class:`BodyPoses`'s names after ``frame``;
+    ``joints`` ``(name, body, point)`` for the joint markers; ``axes`` ``(name, point (3,),
+    direction (3,))`` of the fixed joint axes (3-D rigs).
+    """
+
+    dimension: int
+    frame: dict
+    bodies: tuple
+    joints: tuple
+    axes: tuple = ()
+
+
+class Rig(Protocol):
+    """
+    The protocol every rig implements (see the module docstring).
+
+    ``scene`` is the validated scene, ``name`` its name; ``joint_names`` and ``crank_joint``
+    name the published joints; ``moment_point`` says in words where the shaking moment is
+    reduced; ``capabilities`` what the rig can compute or be balanced by; ``drawing`` its
+    :class:`Drawing`.
+    """
+
+    scene: object
+    name: str
+    joint_names: tuple
+    crank_joint: str
+    moment_point: str
+    capabilities: frozenset
+    drawing: Drawing
+
+    def at(self, psi, speed=None, accel=None, outputs=None):
+        """Return the :class:`RigData` at crank angles ``psi`` (rad), rad/s, rad/s^2."""
+
+    def with_scene(self, scene):
+        """Return the rig of another design (inertia) of the same geometry."""
+
+
+def rig_for(scene):
+    """Return the :class:`Rig` of a validated scene of any registered kind."""
+    return registry.kind_of(scene).rig_factory()(scene)
+
+
+def batch(psi, speed, accel):
+    """Return ``psi``, ``speed`` and ``accel`` as checked ``(n,)`` float arrays."""
+    psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
+    if psi.size == 0 or not np.all(np.isfinite(psi)):
+        raise ValueError(f'crank_angle_rad: got {psi!r}, expected finite angles (rad)')
+    speed = np.broadcast_to(np.asarray(speed, dtype=float), psi.shape).copy()
+    accel = np.broadcast_to(np.asarray(accel, dtype=float), psi.shape).copy()
+    if not (np.all(np.isfinite(speed)) and np.all(np.isfinite(accel))):
+        raise ValueError('crank speed and acceleration: got non-finite values, expected '
+                         'finite rad/s and rad/s^2')
+    return psi, speed, accel

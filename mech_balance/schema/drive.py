@@ -1,0 +1,154 @@
+"""
+The ``drive:`` section of a scene: motor, speed controller, joint damping, initial state.
+
+Read here, used by the forward dynamics (:mod:`mech_balance.core.forward`).  The schema is
+documented there and in the README; the field checks are the scene loader's
+(:mod:`mech_balance.schema.fields`) raising :class:`DriveError`.
+"""
+
+from dataclasses import dataclass, field
+import functools
+
+from mech_balance.schema import fields
+
+
+VOLTAGE_FRACTION_MAX = 10.0
+"""Largest |voltage fraction| accepted (over-voltage beyond 10x rated is a typo)."""
+
+
+class DriveError(ValueError):
+    """A ``drive`` field is missing, has the wrong type or an impossible value."""
+
+
+@dataclass(frozen=True)
+class Motor:
+    """DC motor on its torque-speed line (SI)."""
+
+    stall_torque_Nm: float
+    no_load_speed_rad_s: float
+    rotor_inertia_kg_m2: float = 0.0
+    gear_ratio: float = 1.0
+    electrical_time_constant_s: float = 0.0
+    voltage_fraction: float = 1.0
+
+
+@dataclass(frozen=True)
+class SpeedController:
+    """PI crank-speed controller acting on the motor voltage fraction."""
+
+    kp_per_rad_s: float
+    ki_per_rad: float
+    setpoint_rad_s: float = None
+    voltage_limit: float = 1.0
+
+
+@dataclass(frozen=True)
+class Drive:
+    """Motor, speed controller, joint damping and initial state of a simulation."""
+
+    motor: Motor = None
+    speed_controller: SpeedController = None
+    joint_damping: dict = field(default_factory=dict)
+    initial_speed_rad_s: float = None
+    initial_crank_angle_deg: float = None
+
+
+_DRIVE_KEYS = {'motor', 'speed_controller', 'joint_damping', 'initial_speed_rad_s',
+               'initial_crank_angle_deg'}
+
+
+_MOTOR_KEYS = {'stall_torque_Nm', 'no_load_speed_rad_s', 'rotor_inertia_kg_m2', 'gear_ratio',
+               'electrical_time_constant_s', 'voltage_fraction'}
+
+
+_PI_KEYS = {'kp_per_rad_s', 'ki_per_rad', 'setpoint_rad_s', 'voltage_limit'}
+
+
+def drive_from_dict(data, scene=None):
+    """
+    Return the validated :class:`Drive` of a scene's ``drive`` mapping.
+
+    Every error is a :class:`DriveError` naming the field (``drive.motor.gear_ratio``), the
+    value and what was expected.  With ``scene`` the joint names of ``joint_damping`` are
+    checked against the scene's joints.
+    """
+    if data is None:
+        return Drive()
+    if isinstance(data, Drive):
+        data_drive = data
+    else:
+        data = _mapping(data, 'drive')
+        _known(data, _DRIVE_KEYS, 'drive')
+        motor = None
+        if data.get('motor') is not None:
+            m = _mapping(data['motor'], 'drive.motor')
+            _known(m, _MOTOR_KEYS, 'drive.motor')
+            motor = Motor(
+                stall_torque_Nm=_positive(_require(m, 'stall_torque_Nm', 'drive.motor'),
+                                          'drive.motor.stall_torque_Nm'),
+                no_load_speed_rad_s=_positive(
+                    _require(m, 'no_load_speed_rad_s', 'drive.motor'),
+                    'drive.motor.no_load_speed_rad_s'),
+                rotor_inertia_kg_m2=_nonneg(m.get('rotor_inertia_kg_m2', 0.0),
+                                            'drive.motor.rotor_inertia_kg_m2'),
+                gear_ratio=_positive(m.get('gear_ratio', 1.0), 'drive.motor.gear_ratio'),
+                electrical_time_constant_s=_nonneg(
+                    m.get('electrical_time_constant_s', 0.0),
+                    'drive.motor.electrical_time_constant_s'),
+                voltage_fraction=_number(m.get('voltage_fraction', 1.0),
+                                         'drive.motor.voltage_fraction'))
+            if abs(motor.voltage_fraction) > VOLTAGE_FRACTION_MAX:
+                raise DriveError(
+                    f'drive.motor.voltage_fraction: got {motor.voltage_fraction!r}, expected '
+                    f'a fraction of the rated voltage with magnitude <= '
+                    f'{VOLTAGE_FRACTION_MAX:g}')
+        pi = None
+        if data.get('speed_controller') is not None:
+            if motor is None:
+                raise DriveError('drive.speed_controller: got a speed controller without a '
+                                 'motor, expected drive.motor as well')
+            c = _mapping(data['speed_controller'], 'drive.speed_controller')
+            _known(c, _PI_KEYS, 'drive.speed_controller')
+            setpoint = c.get('setpoint_rad_s')
+            pi = SpeedController(
+                kp_per_rad_s=_nonneg(_require(c, 'kp_per_rad_s', 'drive.speed_controller'),
+                                     'drive.speed_controller.kp_per_rad_s'),
+                ki_per_rad=_nonneg(_require(c, 'ki_per_rad', 'drive.speed_controller'),
+                                   'drive.speed_controller.ki_per_rad'),
+                setpoint_rad_s=None if setpoint is None else _number(
+                    setpoint, 'drive.speed_controller.setpoint_rad_s'),
+                voltage_limit=_positive(c.get('voltage_limit', 1.0),
+                                        'drive.speed_controller.voltage_limit'))
+            if pi.voltage_limit > VOLTAGE_FRACTION_MAX:
+                raise DriveError(
+                    f'drive.speed_controller.voltage_limit: got {pi.voltage_limit!r}, '
+                    f'expected a fraction of the rated voltage <= {VOLTAGE_FRACTION_MAX:g}')
+        damping = {}
+        for name, value in _mapping(data.get('joint_damping') or {},
+                                    'drive.joint_damping').items():
+            damping[name] = _nonneg(value, f'drive.joint_damping.{name}')
+        speed = data.get('initial_speed_rad_s')
+        angle = data.get('initial_crank_angle_deg')
+        data_drive = Drive(
+            motor=motor, speed_controller=pi, joint_damping=damping,
+            initial_speed_rad_s=None if speed is None else _number(
+                speed, 'drive.initial_speed_rad_s'),
+            initial_crank_angle_deg=None if angle is None else _number(
+                angle, 'drive.initial_crank_angle_deg'))
+    if scene is not None:
+        joints = [j.name for j in scene.joints]
+        for name in data_drive.joint_damping:
+            if name not in joints:
+                raise DriveError(
+                    f'drive.joint_damping.{name}: no such joint, expected one of '
+                    f'{", ".join(joints)}')
+    return data_drive
+
+
+# the scene loader's field checks, raising DriveError (a ValueError) instead of SceneError
+_mapping = functools.partial(fields.mapping, error=DriveError)
+_known = functools.partial(fields.known_keys, error=DriveError)
+_require = functools.partial(fields.require, error=DriveError)
+_number = functools.partial(fields.number, error=DriveError)
+_positive = functools.partial(fields.positive, error=DriveError)
+_nonneg = functools.partial(fields.nonneg, error=DriveError)

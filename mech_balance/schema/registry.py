@@ -1,0 +1,74 @@
+"""
+The registry of scene kinds: the one place that knows which kinds of rig exist.
+
+Each :class:`Kind` names a scene file's ``kind:`` value and gives its loader (mapping ->
+scene), its writer (scene -> mapping), its scene type and its rig factory.  The factory is
+named by its import path (``module:attribute``), the way setuptools entry points name
+plug-ins: the schema layer sits below the core and must not import it, and a kind's rig is
+only imported when a rig of that kind is built.  A new kind of rig registers here and
+nowhere else; every consumer asks :func:`kind_of` or builds the rig through
+:func:`mech_balance.core.rig.rig_for`.
+"""
+
+from dataclasses import dataclass
+import importlib
+
+from mech_balance.schema import rggr, scene
+from mech_balance.schema.fields import SceneError
+
+
+@dataclass(frozen=True)
+class Kind:
+    """A registered kind of scene and rig."""
+
+    name: str
+    scene_type: type
+    load: object     # (mapping, source) -> scene
+    write: object    # scene -> mapping (the inverse of load)
+    rig: str         # 'module:attribute' of the rig factory (scene -> Rig)
+
+    def rig_factory(self):
+        """Return the rig factory (imported on first use)."""
+        module, _, attr = self.rig.partition(':')
+        return getattr(importlib.import_module(module), attr)
+
+
+KINDS = {
+    'planar': Kind('planar', scene.Scene, scene.planar_from_dict, scene.planar_to_dict,
+                   'mech_balance.core.planar.rig:PlanarRig'),
+    'rggr': Kind('rggr', rggr.RggrScene, rggr.load_rggr_scene, rggr.rggr_to_dict,
+                 'mech_balance.core.rggr:RggrRig'),
+}
+"""Every kind of scene, by its ``kind:`` value; ``planar`` is the default."""
+DEFAULT_KIND = 'planar'
+
+
+def kind_named(name):
+    """Return the :class:`Kind` of a ``kind:`` value, or a SceneError listing the kinds."""
+    try:
+        return KINDS[name]
+    except (KeyError, TypeError):
+        raise SceneError(f'kind: got {name!r}, expected '
+                         + ' or '.join(f'"{k}"' for k in KINDS)) from None
+
+
+def kind_of(obj):
+    """Return the :class:`Kind` of a scene, or of a rig (through its ``scene``)."""
+    sc = getattr(obj, 'scene', obj)
+    for kind in KINDS.values():
+        if isinstance(sc, kind.scene_type):
+            return kind
+    raise TypeError(f'got {type(obj).__name__}, expected a scene of a registered kind '
+                    f'({", ".join(KINDS)}) or a rig built from one')
+
+
+def from_dict(data, source='<dict>'):
+    """Validate a parsed scene mapping with the loader of its ``kind`` (default planar)."""
+    if not isinstance(data, dict):
+        raise SceneError(f'scene: got {type(data).__name__}, expected a mapping')
+    return kind_named(data.get('kind', DEFAULT_KIND)).load(data, source=source)
+
+
+def to_dict(sc):
+    """Return a scene as the mapping its kind's loader reads back."""
+    return kind_of(sc).write(sc)
