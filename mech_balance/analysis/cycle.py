@@ -9,65 +9,18 @@ computes only what the scene's outputs need.
 from dataclasses import dataclass
 import time
 
+from mech_balance.analysis.report import Report
 from mech_balance.conventions import cycle_angles, rms
+from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics, kinematics
-from mech_balance.schema.scene import needs, OUTPUTS
+from mech_balance.core.planar.rig import linkage_for, PlanarRig as Rig  # noqa: F401
+from mech_balance.schema.scene import OUTPUTS
 import numpy as np
 
 MOMENT_ROUNDOFF_REL = 1e-12
 """A bearing moment whose largest value is below this fraction of the rig's moment scale
 (largest driving torque, shaking moment, or bearing force times the linkage's length) is
 round-off, not a load: its row is left out of the table."""
-
-_LINKAGES = {}
-
-
-def linkage_for(scene):
-    """Return the compiled :class:`~mech_balance.kinematics.Linkage` of a scene's geometry."""
-    key = (scene.source, scene.name, scene.frame_points.__repr__(),
-           tuple((lk.name, repr(lk.points)) for lk in scene.links), scene.joints,
-           scene.crank_joint, scene.assembly_crank_angle_rad,
-           repr(sorted(scene.assembly_link_angles_rad.items())),
-           repr(sorted(scene.assembly_displacements_m.items())),
-           None if scene.normalization is None else scene.normalization.length_m)
-    linkage = _LINKAGES.get(key)
-    if linkage is None:
-        linkage = kinematics.Linkage(scene)
-        if len(_LINKAGES) > 64:
-            _LINKAGES.clear()
-        _LINKAGES[key] = linkage
-    return linkage
-
-
-class Rig:
-    """A planar scene with its compiled linkage and inertial parameters."""
-
-    def __init__(self, scene, linkage=None):
-        self.scene = scene
-        self.linkage = linkage if linkage is not None else linkage_for(scene)
-        self.linkage.skeleton  # noqa: B018 - assemble and trace the branch: fail early
-        self.inertia = dynamics.Inertia.from_links(scene.links)
-        self.gravity = complex(*scene.gravity_m_s2)
-
-    def with_scene(self, scene):
-        """Return a rig for another inertia on the same geometry (no re-tracing)."""
-        return Rig(scene, self.linkage)
-
-    def evaluate(self, psi, outputs=None, speed=None, accel=None):
-        """
-        Return ``(state, wrenches)`` at crank angles ``psi`` (rad).
-
-        ``outputs`` defaults to the scene's; ``wrenches`` is ``None`` for kinematics only.
-        """
-        need = needs(self.scene.outputs if outputs is None else outputs)
-        # this rig's crank speed, not that of the scene the shared linkage was compiled from
-        speed = self.scene.crank_speed_rad_s if speed is None else speed
-        accel = self.scene.crank_acceleration_rad_s2 if accel is None else accel
-        state = self.linkage.solve(psi, speed, accel, need_acc='accelerations' in need)
-        if 'accelerations' not in need:
-            return state, None
-        return state, dynamics.inverse_dynamics(self.linkage, state, self.inertia,
-                                                self.gravity, need)
 
 
 @dataclass
@@ -198,3 +151,26 @@ def format_table(cycle, rows, normalized=False):
                  f'({cycle.seconds * 1e6 / cycle.psi.size:.2f} us per angle), one cold run; warm '
                  'medians: `mech-balance bench`')
     return '\n'.join(lines)
+
+
+def analyze(sc, samples=None, normalized=False, design=None):
+    """
+    Return the ``mech-balance analyze`` :class:`~mech_balance.analysis.report.Report`.
+
+    ``design`` is an optional seed 001 point-mass design vector (normalized when the scene
+    records a normalization) applied to the scene's links first.
+    """
+    if design is not None:
+        sc = equimomental.apply_design(sc, design, normalized=sc.normalization is not None)
+    rig = Rig(sc)
+    cycle = run_cycle(rig, samples)
+    rows = summarize(cycle, normalized)
+    data = {'scene': sc.name, 'samples': int(cycle.psi.size),
+            'crank_speed_rad_s': sc.crank_speed_rad_s,
+            'crank_acceleration_rad_s2': sc.crank_acceleration_rad_s2,
+            'outputs': list(sc.outputs),
+            'normalized': bool(normalized),
+            'rows': [r.__dict__ for r in rows],
+            'worst_residual': float(np.max(cycle.state.residual)),
+            'worst_condition': float(np.max(cycle.state.cond))}
+    return Report(format_table(cycle, rows, normalized), data, list(rig.linkage.warnings))

@@ -7,6 +7,7 @@ SI values or the paper's dimensionless view (by m_o1, a1 and omega).
 import dataclasses
 import math
 
+from mech_balance.analysis.report import Report
 from mech_balance.balancing import rggr as rggr_balancing
 from mech_balance.conventions import cycle_angles, DEFAULT_SAMPLES, normalize_force, \
     normalize_moment, rms
@@ -105,7 +106,7 @@ def analyze_report(scene, samples=DEFAULT_SAMPLES, normalized=False):
     return report
 
 
-def balance_report(scene, samples=DEFAULT_SAMPLES, normalized=False):
+def balance_report(scene, samples=DEFAULT_SAMPLES, normalized=False, result=None):
     """
     Return the force balancing and shaking-moment optimization of ``scene`` as a plain dict.
 
@@ -115,7 +116,8 @@ def balance_report(scene, samples=DEFAULT_SAMPLES, normalized=False):
     worst loop residual and the solve time.
     """
     view = _View(scene, normalized)
-    result = rggr_balancing.balance_scene(scene, samples)
+    if result is None:
+        result = rggr_balancing.balance_scene(scene, samples)
     angles = cycle_angles(samples)
     bare = dataclasses.replace(scene, crank_weight=None, output_weight=None)
     rows = []
@@ -201,3 +203,11 @@ def format_report(report):
             f"solve time: {report['solve_time_s'] * 1e3:.1f} ms"]
     lines.append(f"worst loop residual |BC| - a2: {report['loop_residual_max_m']:.3e} m")
     return '\n'.join(lines)
+
+
+def analyze(sc, samples=None, normalized=False, design=None):
+    """Return the ``mech-balance analyze`` :class:`~mech_balance.analysis.report.Report`."""
+    if design is not None:
+        raise ValueError('design: a point-mass design applies to planar scenes only')
+    report = analyze_report(sc, samples or DEFAULT_SAMPLES, normalized)
+    return Report(format_report(report), report)

@@ -48,6 +48,8 @@ import time
 
 import clarabel
 from mech_balance.analysis import cycle as analysis
+from mech_balance.balancing.defaults import CASES, CENTROIDAL_MARGIN, DEFAULT_WEIGHTS, \
+    PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
 from mech_balance.conventions import cycle_angles
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics
@@ -57,22 +59,6 @@ import numpy as np
 import scipy.sparse as sp
 import yaml
 
-DEFAULT_WEIGHTS = (0.5, 0.5)
-"""Default objective weights (w1, w2) of the RMS shaking force and moment (seed 001 eq. 43):
-the paper's best compromise, its cases a(2) and b(2).  The balance and record commands and
-the rig node's ``balance.weights`` default to it."""
-PAPER_MASS_FACTORS = (1.0, 5.0)
-"""Link mass bounds as factors of the original mass (seed 001 eqs. 50b, 53b)."""
-PAPER_DISTANCE_FACTORS = (0.5, 1.5)
-"""Point-mass distance bounds as factors of the original l = sqrt(I_O/m) (eqs. 50c, 53c)."""
-CENTROIDAL_MARGIN = 1e-2
-"""Design margin of the realizability constraint: each link keeps a centroidal moment of
-inertia >= this fraction of I_O (a lump of radius of gyration >= 0.1 l).  It is a requirement
-of the design, not the definition of a body (:func:`mech_balance.equimomental.is_realizable`,
-which only needs I_c above round-off): any margin above
-:data:`mech_balance.equimomental.REALIZABLE_TOL` makes the design buildable.  Between 1e-2
-and 0 the optimum moves by 0.3-0.7% on Hoeken and 0.4-3% on the carpet scraper; at 0 it is
-the infimum over realizable designs, attained only by a point-mass link."""
 FORCE_BALANCE_REL_TOL = 1e-6
 """A stage-1 RMS shaking force below this fraction of the original's counts as complete
 force balance attainable; stage 2 then imposes it exactly (force map null space)."""
@@ -91,8 +77,6 @@ CHANGE_BASELINE_REL_TOL = 1e-9
 """A before/after row whose before value is below this fraction of the table's largest value
 of the same kind (force or moment) is round-off (e.g. the moment of a prismatic bearing that
 is zero but for the last bits): its change is reported as None ('n/a'), not a percentage."""
-CASES = ('a', 'b')
-"""seed 001 sec. 4.1.2: (a) point masses of any sign, (b) non-negative point masses."""
 
 
 class BalanceError(ValueError):

@@ -148,9 +148,10 @@ def cmd_balance(args):
         raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
     _check_options(args)
     sc = scene_mod.load(args.scene)
-    if getattr(sc, 'kind', 'planar') == 'rggr':
-        cli.planar_only(sc, **dict.fromkeys(_given(args, PLANAR_OPTIONS), True))
-        return _rggr(sc, args)
+    cli.requires(sc, 'mass_redistribution',
+                 **dict.fromkeys(_given(args, PLANAR_OPTIONS), True))
+    if 'mass_redistribution' not in scene_mod.kind_of(sc).rig_factory().capabilities:
+        return _weights(sc, args)
     if args.output:
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
     if args.analytic:
@@ -348,14 +349,18 @@ def _analytic(sc, args):
     return 0
 
 
-def _rggr(sc, args):
-    from mech_balance.conventions import DEFAULT_SAMPLES
+def _weights(sc, args):
+    """Balance by balancing weights (the RGGR, seed 002) and print its report."""
+    from mech_balance import balancing as front
     from mech_balance.analysis import rggr_report
+    from mech_balance.core.rig import rig_for
     if args.output:
-        raise ValueError('--output: RGGR scenes are balanced by mech_balance.rggr, which does '
-                         'not export scenes; expected no --output for kind rggr')
-    report = rggr_report.balance_report(sc, args.samples or DEFAULT_SAMPLES,
-                                        normalized=not args.si)
+        raise ValueError('--output: the balancing weights of seed 002 are reported, not '
+                         'written as a scene; expected no --output for a scene balanced by '
+                         'weights')
+    design = front.balance(rig_for(sc), 'weights', samples=args.samples)
+    report = rggr_report.balance_report(sc, design.report['samples'], normalized=not args.si,
+                                        result=design.result)
     print(json.dumps(report, indent=2) if args.json else rggr_report.format_report(report))
     return 0
 

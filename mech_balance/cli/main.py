@@ -74,19 +74,23 @@ def writable_path(option, text, suffixes, create_parent=False):
     return paths.check_output_path(text, option, suffixes, create_dir=create_parent)
 
 
-def planar_only(sc, **given):
+def requires(sc, capability, **given):
     """
-    Raise ValueError when an option that only planar scenes use was given for another kind.
+    Raise ValueError when an option was given for a scene whose rig lacks ``capability``.
 
-    ``given`` maps each option (``--design``) to whether the command line set it.
+    ``given`` maps each option (``--design``) to whether the command line set it; the
+    message names the kinds of scene the option applies to (from the kind registry).
     """
-    kind = getattr(sc, 'kind', 'planar')
-    if kind == 'planar':
+    from mech_balance.schema import registry
+    kind = registry.kind_of(sc)
+    if capability in kind.rig_factory().capabilities:
         return
+    able = ' and '.join(k.name for k in registry.KINDS.values()
+                        if capability in k.rig_factory().capabilities)
     for option, was_given in given.items():
         if was_given:
-            raise ValueError(f'{option} applies to planar scenes only, got scene {sc.name!r} '
-                             f'of kind {kind}; expected no {option}')
+            raise ValueError(f'{option} applies to {able} scenes only, got scene {sc.name!r} '
+                             f'of kind {kind.name}; expected no {option}')
 
 
 def _add_scene(p):
@@ -175,36 +179,13 @@ def cmd_scenes(args):
 
 def cmd_analyze(args):
     """Analyze one revolution of a scene."""
-    from mech_balance.analysis import cycle as analysis
-    from mech_balance.core import equimomental
     from mech_balance import schema as scene
     sc = scene.load(args.scene)
-    planar_only(sc, **{'--design': args.design is not None})
-    if getattr(sc, 'kind', 'planar') == 'rggr':
-        from mech_balance.conventions import DEFAULT_SAMPLES
-        from mech_balance.analysis import rggr_report
-        report = rggr_report.analyze_report(sc, args.samples or DEFAULT_SAMPLES,
-                                            args.normalized)
-        print(json.dumps(report, indent=2) if args.json else rggr_report.format_report(report))
-        return 0
-    if args.design is not None:
-        sc = equimomental.apply_design(sc, args.design,
-                                       normalized=sc.normalization is not None)
-    rig = analysis.Rig(sc)
-    cycle = analysis.run_cycle(rig, args.samples)
-    rows = analysis.summarize(cycle, args.normalized)
-    if args.json:
-        print(json.dumps({'scene': sc.name, 'samples': int(cycle.psi.size),
-                          'crank_speed_rad_s': sc.crank_speed_rad_s,
-                          'crank_acceleration_rad_s2': sc.crank_acceleration_rad_s2,
-                          'outputs': list(sc.outputs),
-                          'normalized': bool(args.normalized),
-                          'rows': [r.__dict__ for r in rows],
-                          'worst_residual': float(np.max(cycle.state.residual)),
-                          'worst_condition': float(np.max(cycle.state.cond))}, indent=2))
-    else:
-        print(analysis.format_table(cycle, rows, args.normalized))
-    for text in rig.linkage.warnings:
+    requires(sc, 'mass_redistribution', **{'--design': args.design is not None})
+    report = scene.kind_of(sc).implementation('analyze')(sc, args.samples, args.normalized,
+                                                         args.design)
+    print(json.dumps(report.data, indent=2) if args.json else report.text)
+    for text in report.warnings:
         print(f'warning: {text}', file=sys.stderr)
     return 0
 

@@ -80,13 +80,16 @@ def balanced_design(sc, weights=balancing.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     RGGR scenes :func:`mech_balance.rggr_balancing.balance_scene` (force balance, then minimum RMS
     moment), which takes neither.
     """
-    if getattr(sc, 'kind', 'planar') == 'rggr':
-        from mech_balance.balancing import rggr as rggr_balancing
-        return (rggr_balancing.balance_scene(sc).design.scene,
+    from mech_balance import balancing as front
+    from mech_balance.core.rig import rig_for
+    rig = rig_for(sc)
+    method = front.method_for(rig)
+    if method == 'weights':
+        return (front.balance(rig, method).scene,
                 'seed 002 complete force balance with the minimum RMS shaking moment '
-                '(rggr_balancing.balance_scene)')
-    result = balancing.optimize(sc, weights=tuple(weights), case=case)
-    return (result.balanced_scene,
+                '(mech_balance.balancing.rggr.balance_scene)')
+    design = front.balance(rig, method, weights=tuple(weights), case=case)
+    return (design.scene,
             f'seed 001 optimum, (w1, w2) = ({weights[0]:g}, {weights[1]:g}), case {case} '
             '(mech_balance.balancing.optimize)')
 
@@ -108,7 +111,7 @@ def cmd_record(args):
         balanced = scene.load(args.design)
         source = f'scene file {balanced.source}'
     elif args.balance:
-        cli.planar_only(sc, **given)
+        cli.requires(sc, 'mass_redistribution', **given)
         balanced, source = balanced_design(
             sc, balancing.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
             DEFAULT_CASE if args.case is None else args.case)

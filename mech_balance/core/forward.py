@@ -69,7 +69,6 @@ from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import rms
 from mech_balance.core.planar import dynamics
-from mech_balance.core.planar.kinematics import _cross
 from mech_balance.schema import fields
 from mech_balance.schema.drive import Drive, drive_from_dict, DriveError, Motor, SpeedController
 import numpy as np
@@ -154,53 +153,25 @@ def rig_functions(rig, psi, damping=None):
     Coriolis term (seed 000 eq. 39).
     """
     psi = np.atleast_1d(np.asarray(psi, dtype=float))
-    state, wrenches = rig.evaluate(psi, ('shaking_wrench',), speed=1.0, accel=0.0)
+    data = rig.at(psi, speed=1.0, accel=0.0, outputs=('shaking_wrench',))
+    state, wrenches = data.native
     inertia = rig.inertia
     out = np.zeros((len(FUNCTIONS), psi.size))
     out[0] = dynamics.generalized_inertia(state, inertia)
     out[1] = dynamics.coriolis_term(state, inertia, wrenches)
     g = complex(*rig.scene.gravity_m_s2)
     if g:
-        world_h = state.pose.rot * inertia.first_moment[:, None]
-        m = inertia.mass[:, None]
         # seed 000 eq. 43, tau^G = u^T w^G: power of the weights per unit crank speed
-        out[2] = np.sum(m * _dot(state.vel, g) + state.omega * _cross(world_h, g), axis=0)
-        out[4] = -np.sum(m * _dot(state.pose.origin, g) + _dot(world_h, g), axis=0)
+        out[2] = dynamics.gravity_power(state, inertia, g)
+        out[4] = dynamics.potential_energy(state, inertia, g)
     if damping:
-        out[3] = _joint_rates_squared(rig, state, damping)
+        # sum_j c_j (dq_j/dpsi)^2: the joint rates at unit crank speed are dq_j/dpsi
+        names = list(data.joint_names)
+        for name, c in damping.items():
+            if c:
+                rate = data.joint_velocity[:, names.index(name)]
+                out[3] += c * rate * rate
     return out
-
-
-def _joint_rates_squared(rig, state, damping):
-    """Return sum_j c_j (dq_j/dpsi)^2 from the link twists at unit crank speed."""
-    index = {n: i for i, n in enumerate(rig.linkage.body_names)}
-    joints = {j.name: j for j in rig.scene.joints}
-    points = {scene_mod.FRAME: rig.scene.frame_points,
-              **{lk.name: lk.points for lk in rig.scene.links}}
-    pose = state.pose
-    total = np.zeros(state.size)
-    for name, c in damping.items():
-        if not c:
-            continue
-        jt = joints[name]
-        a, b = index[jt.link_a], index[jt.link_b]
-        if jt.kind == 'revolute':
-            rate = state.omega[b] - state.omega[a]
-        else:
-            # slide s = (P_b - P_a) . n with n = R_a axis: s' = (v_Pb - v_Pa) . n + d . n'
-            pa = pose.rot[a] * complex(*points[jt.link_a][jt.point_a])
-            pb = pose.rot[b] * complex(*points[jt.link_b][jt.point_b])
-            va = state.vel[a] + 1j * state.omega[a] * pa
-            vb = state.vel[b] + 1j * state.omega[b] * pb
-            n = pose.rot[a] * complex(*jt.axis)
-            d = (pose.origin[b] + pb) - (pose.origin[a] + pa)
-            rate = _dot(vb - va, n) + _dot(d, 1j * state.omega[a] * n)
-        total += c * rate * rate
-    return total
-
-
-def _dot(a, b):
-    return a.real * b.real + a.imag * b.imag
 
 
 class RigTables:

@@ -41,6 +41,7 @@ import dataclasses
 import math
 
 from mech_balance.conventions import cycle_angles
+from mech_balance.core.rig import batch, BodyPoses, Drawing, DrawingBody, RigData
 import numpy as np
 
 
@@ -418,3 +419,158 @@ def check_full_rotation(scene, samples=FULL_ROTATION_SAMPLES):
 # ---------------------------------------------------------------------------------------------
 # Reports for the command line
 # ---------------------------------------------------------------------------------------------
+
+
+# ---------------------------------------------------------------------------------------------
+# The Rig protocol
+# ---------------------------------------------------------------------------------------------
+
+JOINTS = ('crank', 'output')
+"""Joint names of an RGGR rig: its crank and output axes (the spherical joints of the coupler
+have no single coordinate)."""
+CAPABILITIES = frozenset({'kinematics', 'shaking_wrench', 'driving_torque', 'kinetic_energy',
+                          'balancing_weights'})
+"""What the RGGR rig computes and how it can be balanced (:attr:`Rig.capabilities`)."""
+
+
+class RggrRig:
+    """
+    An RGGR scene behind the Rig protocol (:mod:`mech_balance.core.rig`).
+
+    Joints: ``crank`` (phi1, omega) and ``output`` (phi3 about the output axis, seed 002 eq. 23,
+    and its rate).  Seed 002's model turns the crank at constant speed: each sample is
+    evaluated at its own crank speed with zero crank acceleration (an acceleration passed in
+    is not used).  At zero speed every inertia load vanishes and the driving torque is its
+    limit, 0 (the model has no gravity).  The shaking wrench is about the origin O of the
+    frame (on the output axis, the foot of the common normal of the two axes).
+    """
+
+    moment_point = 'the origin O of the RGGR frame'
+    capabilities = CAPABILITIES
+    joint_names = JOINTS
+    crank_joint = JOINTS[0]
+    crank_index = 0
+    outputs = ('kinematics', 'shaking_wrench', 'driving_torque')
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.name = scene.name
+        check_full_rotation(scene)
+        self._drawing = None
+
+    def with_scene(self, scene):
+        """Return the rig of another design of the same RGGR."""
+        return RggrRig(scene)
+
+    def at(self, psi, speed=None, accel=None, outputs=None):
+        """Return the :class:`RigData` at crank angles ``psi`` (rad) and speeds (rad/s)."""
+        speed = self.scene.crank_speed_rad_s if speed is None else speed
+        psi, speed, _ = batch(psi, speed, 0.0 if accel is None else accel)
+        want = set(outputs or ('shaking_wrench', 'driving_torque'))
+        n = psi.size
+        position, velocity = np.zeros((n, 2)), np.zeros((n, 2))
+        effort, force, moment = np.zeros((n, 2)), np.zeros((n, 3)), np.zeros((n, 3))
+        energy = np.zeros(n)
+        residual = np.zeros(n)
+        kins = []
+        for value in np.unique(speed):
+            sel = speed == value
+            sc = dataclasses.replace(self.scene, crank_speed_rad_s=float(value))
+            with np.errstate(divide='ignore', invalid='ignore'):  # torque 0/0 at rest
+                dyn = dynamics(sc, psi[sel])
+            kin = dyn.kinematics
+            kins.append((sel, kin))
+            position[sel] = np.column_stack([psi[sel], kin.output_angle_rad])
+            velocity[sel] = np.column_stack([speed[sel], kin.output_rate_rad_s])
+            effort[sel, 0] = dyn.driving_torque_Nm if value != 0.0 else 0.0
+            force[sel], moment[sel] = dyn.shaking_force_N, dyn.shaking_moment_Nm
+            residual[sel] = np.abs(kin.loop_residual_m) / self.scene.geometry.a2_m
+            if 'kinetic_energy' in want:
+                energy[sel] = kinetic_energy(sc, kin)
+        series = {}
+        if want & {'driving_torque', 'bearing_reactions'}:
+            series['driving_torque'] = effort[:, 0].copy()
+        if 'kinetic_energy' in want:
+            series['kinetic_energy'] = energy
+        kinematics_only = not want & {'shaking_wrench', 'driving_torque', 'bearing_reactions'}
+        return RigData(
+            psi, speed, np.zeros(n), position, velocity,
+            None if kinematics_only else effort,
+            None if kinematics_only else force, None if kinematics_only else moment,
+            JOINTS, series=series, residual=residual, condition=np.ones(n),
+            near_singular=np.zeros(n, dtype=bool), bodies=self._poses(psi, kins),
+            native=None)
+
+    def _poses(self, psi, kins):
+        g = self.scene.geometry
+        n = psi.size
+        origin = np.zeros((n, 4, 3))
+        rot = np.zeros((n, 4, 3, 3))
+        rot[:, 0] = np.eye(3)
+        for sel, kin in kins:
+            origin[sel, 1] = (0.0, g.l2_m, g.l1_m)                            # Q1
+            origin[sel, 2] = kin.pin_b_m                                       # B
+            origin[sel, 3] = g.l3_m * np.array([math.sin(g.beta_rad), 0.0,
+                                                math.cos(g.beta_rad)])         # Q3
+            rot[sel, 1] = kin.crank_axes
+            rot[sel, 3] = kin.output_axes
+            try:
+                rot[sel, 2] = coupler_frame(kin)
+            except ValueError:  # coupler parallel to z: its frame is undefined, not its line
+                u = kin.coupler_m / g.a2_m
+                rot[sel, 2] = _frame_along(u)
+        return BodyPoses(('frame', 'crank', 'coupler', 'output'), origin, rot)
+
+    @property
+    def drawing(self):
+        """Return the RGGR's :class:`Drawing` (3-D; bodies in their own frames)."""
+        if self._drawing is None:
+            g = self.scene.geometry
+            w3 = (math.sin(g.beta_rad), 0.0, math.cos(g.beta_rad))
+            q3 = tuple(g.l3_m * x for x in w3)
+            c2 = self.scene.coupler.centre_from_b_m
+            bodies = (
+                DrawingBody('crank', {'Q1': (0.0, 0.0, 0.0), 'B': (g.a1_m, 0.0, 0.0)},
+                            ('Q1', 'B'), tuple(self.scene.crank_total().centre_uvw_m)),
+                DrawingBody('coupler', {'B': (0.0, 0.0, 0.0), 'C': (g.a2_m, 0.0, 0.0)},
+                            ('B', 'C'), (c2, 0.0, 0.0)),
+                DrawingBody('output', {'Q3': (0.0, 0.0, 0.0), 'C': (g.a3_m, 0.0, 0.0)},
+                            ('Q3', 'C'), tuple(self.scene.output_total().centre_uvw_m)))
+            frame = {'O': (0.0, 0.0, 0.0), 'E': (0.0, g.l2_m, 0.0),
+                     'Q1': (0.0, g.l2_m, g.l1_m), 'Q3': q3}
+            joints = (('B', 'coupler', 'B'), ('C', 'coupler', 'C'))
+            axes = (('crank axis', (0.0, g.l2_m, 0.0), (0.0, 0.0, 1.0)),
+                    ('output axis', (0.0, 0.0, 0.0), w3))
+            self._drawing = Drawing(3, frame, bodies, joints, axes)
+        return self._drawing
+
+
+def kinetic_energy(scene, kin):
+    """
+    Return the kinetic energy of the three moving links, ``(n,)`` J.
+
+    T = I_1ww omega^2 / 2 (crank about its fixed axis) + I_3ww phi3'^2 / 2 (output) +
+    m2 |v_G2|^2 / 2 + I |dU/dt|^2 / 2 (the thin-rod coupler, U = (C - B) / a2): the same
+    terms as the driving torque's power balance (:func:`dynamics`).
+    """
+    crank, output, cpl = scene.crank_total(), scene.output_total(), scene.coupler
+    a2 = scene.geometry.a2_m
+    omega = kin.crank_speed_rad_s
+    return (0.5 * crank.inertia_ww_kg_m2 * omega ** 2
+            + 0.5 * output.inertia_ww_kg_m2 * kin.output_rate_rad_s ** 2
+            + 0.5 * cpl.mass_kg * np.einsum('ij,ij->i', kin.coupler_centre_vel_m_s,
+                                            kin.coupler_centre_vel_m_s)
+            + 0.5 * cpl.transverse_inertia_kg_m2 / a2 ** 2
+            * np.einsum('ij,ij->i', kin.coupler_vel_m_s, kin.coupler_vel_m_s))
+
+
+def _frame_along(u):
+    """Return ``(n, 3, 3)`` frames whose first column is the unit vector ``u``."""
+    helper = np.zeros_like(u)
+    helper[:, 0] = 1.0
+    v = np.cross(u, helper)
+    small = np.linalg.norm(v, axis=1) < 1e-6
+    helper[small] = (0.0, 1.0, 0.0)
+    v = np.cross(u, helper)
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    return np.stack([u, v, np.cross(u, v)], -1)

@@ -129,8 +129,8 @@ class Rig(Protocol):
 
     ``scene`` is the validated scene, ``name`` its name; ``joint_names`` and ``crank_joint``
     name the published joints; ``moment_point`` says in words where the shaking moment is
-    reduced; ``capabilities`` what the rig can compute or be balanced by; ``drawing`` its
-    :class:`Drawing`.
+    reduced; ``capabilities`` what the rig can compute or be balanced by; ``outputs`` what its
+    scene asks for; ``drawing`` its :class:`Drawing`.
     """
 
     scene: object
@@ -139,6 +139,7 @@ class Rig(Protocol):
     crank_joint: str
     moment_point: str
     capabilities: frozenset
+    outputs: tuple
     drawing: Drawing
 
     def at(self, psi, speed=None, accel=None, outputs=None):

@@ -26,6 +26,7 @@ import sys
 import threading
 
 from geometry_msgs.msg import WrenchStamped
+from mech_balance import balancing
 from mech_balance import schema as scene_mod
 from mech_balance.ros import conversions as conv
 from mech_balance.ros import params, streaming as twin
@@ -76,8 +77,7 @@ class RigNode(Node):
                                               conv.parameter_descriptor(spec))
             self._values[spec.name] = params.check(spec.name, conv.parameter_value(declared))
         self._original = self._build_model(self._values['scene'])
-        if self._original.kind == 'planar':
-            params.check_links(self._values, [lk.name for lk in self._original.scene.links])
+        _check_link_options(self._values, self._original)
         self._balanced = None          # the design published while use_balanced is true
         self._published = self._original
         self._pending_scene = None     # (name, model) checked by the on-set callback
@@ -284,8 +284,7 @@ class RigNode(Node):
                 if p.name == 'scene' and value != self._values['scene']:
                     model = self._build_model(value)
                     self._pending_scene = (value, model)
-            if model.kind == 'planar':
-                params.check_links(candidate, [lk.name for lk in model.scene.links])
+            _check_link_options(candidate, model)
         except ValueError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
@@ -364,19 +363,10 @@ class RigNode(Node):
         """Return ``(model, YAML)`` of the balanced design, or ``(None, reason)``."""
         with self._lock:
             original, values = self._original, dict(self._values)
-        sc = original.scene
-        if original.kind == 'rggr':
-            from mech_balance.conventions import DEFAULT_SAMPLES
-            from mech_balance.analysis import rggr_report
-            from mech_balance.balancing import rggr as rggr_balancing
-            samples = values['balance.samples'] or DEFAULT_SAMPLES
-            report = rggr_report.balance_report(sc, samples)
-            balanced = rggr_balancing.balance_scene(sc, samples).design.scene
-        else:
-            from mech_balance.balancing import socp as balancing
-            result = balancing.optimize(sc, **params.balance_options(values))
-            report, balanced = result.to_dict(), result.balanced_scene
-        model = original.with_design(balanced)
+        method = balancing.method_for(original.rig)
+        design = balancing.balance(original.rig, method, **params.balance_options(values, method))
+        report = design.report
+        model = original.with_design(design.scene)
         with self._lock:
             if self._original is not original:
                 return None, ('the scene changed during the balancing run; still publishing '
@@ -440,6 +430,12 @@ class RigNode(Node):
                 f'compute {stats["prepare_per_sample_s"] * 1e6:.1f} us per sample (core and '
                 f'serialization, batched); publishing {stats["step_median_s"] * 1e6:.1f} us '
                 f'median per sample; {STATS_TAG}{json.dumps(stats)}')
+
+
+def _check_link_options(values, model):
+    """Check the per-link balancing options against the links of a redistributable rig."""
+    if 'mass_redistribution' in model.rig.capabilities:
+        params.check_links(values, [lk.name for lk in model.scene.links])
 
 
 def main(args=None):

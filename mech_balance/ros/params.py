@@ -336,13 +336,17 @@ def defaults():
     return {spec.name: spec.default for spec in PARAMETERS}
 
 
-def balance_options(values):
+def balance_options(values, method='redistribution'):
     """
-    Return the keyword arguments of :func:`mech_balance.balancing.optimize` for ``values``.
+    Return the options of :func:`mech_balance.balancing.balance` for ``values``.
 
     ``values`` maps parameter names to checked values (at least the ``balance.*`` ones);
-    the same call as ``mech-balance balance`` with the matching options.
+    the same call as ``mech-balance balance`` with the matching options.  ``method`` is the
+    balancing method (:func:`mech_balance.balancing.method_for`): the RGGR's ``weights``
+    take the sample count only.
     """
+    if method == 'weights':
+        return {'samples': values['balance.samples'] or None}
     cap = values['balance.max_added_mass']
     return {'weights': tuple(values['balance.weights']), 'case': values['balance.case'],
             'realizable': values['balance.realizable'],

@@ -5,9 +5,10 @@ numpy only (no ROS): the rig node (:mod:`mech_balance.node`) wires these pieces 
 :mod:`mech_balance.ros_conversions` turns their arrays into messages.
 
 :func:`model_for`
-    A scene's :class:`PlanarTwin` or :class:`RggrTwin`: ``evaluate(psi, speed, accel)``
-    returns :class:`Samples`, every joint's position, velocity and effort and the shaking
-    wrench, evaluated by the core in one vectorized call over a batch of crank angles.
+    A scene's :class:`TwinModel` (its :class:`~mech_balance.core.rig.Rig`, of any kind):
+    ``evaluate(psi, speed, accel)`` returns :class:`Samples`, every joint's position,
+    velocity and effort and the shaking wrench, evaluated by the core in one vectorized
+    call over a batch of crank angles.
 :class:`ClockSchedule`
     Clock mode: tick ``k`` is stamped ``t_k = epoch + k * period`` and has the crank at
     ``psi_k = psi_0 + omega (t_k - epoch)``.  The tick angles are known ahead, so the core
@@ -21,17 +22,8 @@ numpy only (no ROS): the rig node (:mod:`mech_balance.node`) wires these pieces 
     The two threads that publish: clock-mode ticks on schedule from precomputed batches,
     or follow-mode samples evaluated in batches as encoder messages arrive.
 
-Joint values (ROS ``JointState`` convention: rad and rad/s for revolute joints, m and m/s
-for prismatic ones)
-    * the crank joint: the crank angle psi and speed psi_dot the core is evaluated at;
-    * any other revolute joint between links a and b: phi_b - phi_a, omega_b - omega_a;
-    * a prismatic joint: the slide of its point on link b from its point on link a along
-      the joint axis (fixed in link a), and its rate;
-    * RGGR: ``crank`` (phi1, omega) and ``output`` (phi3 about the output axis, seed 002
-      eq. 23, and its rate); the spherical joints of the coupler have no single coordinate.
-    Effort (when the scene's outputs include the driving torque): the driving torque on the
-    crank joint, the core's reaction moment at a prismatic joint (on link b from link a),
-    0 at every other joint (a frictionless revolute joint carries no moment about its axis).
+Joint values and efforts: the rig's own (:mod:`mech_balance.core.planar.rig`,
+:class:`mech_balance.core.rggr.RggrRig`).
 
 Shaking wrench: :mod:`mech_balance.conventions` (force and moment the rig exerts on its
 frame, frame axes); planar rigs about the crank pivot (force x, y, moment z), the RGGR about
@@ -40,18 +32,16 @@ the two axes), all six components.
 """
 
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 import math
 import threading
 import time
 
-from mech_balance.analysis import cycle as analysis
-from mech_balance.schema.scene import FRAME
+from mech_balance.core.rig import rig_for, RigData
+from mech_balance.schema import registry
 import numpy as np
 
 TWO_PI = 2.0 * math.pi
-RGGR_JOINTS = ('crank', 'output')
-"""Joint names published for an RGGR scene (its crank and output axes)."""
 
 BATCH_SECONDS = 0.25
 """Clock mode: ticks evaluated per core call, in seconds of publishing."""
@@ -74,168 +64,42 @@ STATS_WINDOW = 4096
 # ------------------------------------------------------------------------------ samples
 
 
-@dataclass
-class Samples:
+Samples = RigData
+"""A batch of samples ready to publish: the Rig protocol's :class:`RigData`."""
+
+
+class TwinModel:
     """
-    A batch of n samples of the rig, SI, ready to publish.
+    A rig as the publisher sees it: ``evaluate(psi, speed, accel)`` returns :class:`Samples`.
 
-    ``joint_*`` are ``(n, n_joints)`` in the order of ``joint_names``;
-    ``joint_effort`` is None when the scene does not compute the driving torque.  ``force_N``
-    and ``moment_Nm`` are ``(n, 3)`` in the frame's axes.  ``state`` and ``wrenches`` are the
-    core's planar results (None for the RGGR), kept for the recorder.
+    Any :class:`~mech_balance.core.rig.Rig`; the outputs evaluated are the shaking wrench and,
+    when the scene asks for the driving torque (or the bearing reactions), the joint efforts.
     """
 
-    crank_angle_rad: np.ndarray
-    crank_speed_rad_s: np.ndarray
-    crank_accel_rad_s2: np.ndarray
-    joint_position: np.ndarray
-    joint_velocity: np.ndarray
-    joint_effort: np.ndarray
-    force_N: np.ndarray
-    moment_Nm: np.ndarray
-    joint_names: tuple = ()
-    state: object = None
-    wrenches: object = None
-
-    def __len__(self):
-        """Return the number of samples."""
-        return self.crank_angle_rad.shape[0]
-
-
-def _batch(psi, speed, accel):
-    psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
-    if psi.size == 0 or not np.all(np.isfinite(psi)):
-        raise ValueError(f'crank_angle_rad: got {psi!r}, expected finite angles (rad)')
-    speed = np.broadcast_to(np.asarray(speed, dtype=float), psi.shape).copy()
-    accel = np.broadcast_to(np.asarray(accel, dtype=float), psi.shape).copy()
-    if not (np.all(np.isfinite(speed)) and np.all(np.isfinite(accel))):
-        raise ValueError('crank speed and acceleration: got non-finite values, expected '
-                         'finite rad/s and rad/s^2')
-    return psi, speed, accel
-
-
-class PlanarTwin:
-    """A planar scene evaluated for publishing (module docstring: joint values, wrench)."""
-
-    kind = 'planar'
-    moment_point = 'the crank pivot'
-
-    def __init__(self, scene, linkage=None):
-        self.scene = scene
-        self.rig = analysis.Rig(scene, linkage)
-        lk = self.rig.linkage
-        body = {name: i for i, name in enumerate(lk.body_names)}
-        points = {FRAME: scene.frame_points, **{link.name: link.points for link in scene.links}}
-        joints = scene.joints
-        self.joint_names = tuple(j.name for j in joints)
-        self.crank_joint = scene.crank_joint
-        self.crank_index = self.joint_names.index(scene.crank_joint)
-        self._a = np.array([body[j.link_a] for j in joints])
-        self._b = np.array([body[j.link_b] for j in joints])
-        self._pa = np.array([complex(*points[j.link_a][j.point_a]) for j in joints])[:, None]
-        self._pb = np.array([complex(*points[j.link_b][j.point_b]) for j in joints])[:, None]
-        self._prismatic = np.array([j.kind == 'prismatic' for j in joints])
-        self._axis = np.array([complex(*j.axis) for j in joints])[:, None]
-        self.has_effort = bool({'driving_torque', 'bearing_reactions'} & set(scene.outputs))
-        # the reaction moments of prismatic joints come with the bearing reactions; those
-        # also give the driving torque at zero crank speed (the NOC projection divides by it)
-        self.outputs = ('shaking_wrench', 'bearing_reactions') if self.has_effort else \
+    def __init__(self, rig):
+        self.rig = rig
+        self.scene = rig.scene
+        self.joint_names = tuple(rig.joint_names)
+        self.crank_joint = rig.crank_joint
+        self.crank_index = self.joint_names.index(rig.crank_joint)
+        self.moment_point = rig.moment_point
+        self.kind = registry.kind_of(rig).name
+        self.has_effort = bool({'driving_torque', 'bearing_reactions'} & set(rig.outputs))
+        self.outputs = ('shaking_wrench', 'driving_torque') if self.has_effort else \
             ('shaking_wrench',)
 
     def with_design(self, scene):
-        """Return the twin of another inertia on the same geometry (no re-tracing)."""
-        return PlanarTwin(scene, self.rig.linkage)
+        """Return the twin of another design (inertia) of the same geometry."""
+        return TwinModel(self.rig.with_scene(scene))
 
     def evaluate(self, psi, speed, accel=0.0):
         """Return the :class:`Samples` at crank angles ``psi`` ``(n,)`` (rad), rad/s, rad/s^2."""
-        psi, speed, accel = _batch(psi, speed, accel)
-        state, w = self.rig.evaluate(psi, outputs=self.outputs, speed=speed, accel=accel)
-        pose, a, b = state.pose, self._a, self._b
-        # relative joint coordinates (module docstring); batch-last (n_joints, n)
-        position = pose.phi[b] - pose.phi[a]
-        velocity = state.omega[b] - state.omega[a]
-        if np.any(self._prismatic):
-            s = self._prismatic
-            pa = pose.origin[a[s]] + pose.rot[a[s]] * self._pa[s]
-            pb = pose.origin[b[s]] + pose.rot[b[s]] * self._pb[s]
-            va = state.vel[a[s]] + 1j * state.omega[a[s]] * (pa - pose.origin[a[s]])
-            vb = state.vel[b[s]] + 1j * state.omega[b[s]] * (pb - pose.origin[b[s]])
-            axis = pose.rot[a[s]] * self._axis[s]
-            d = pb - pa
-            position[s] = (d * np.conj(axis)).real
-            velocity[s] = ((vb - va) * np.conj(axis)).real + \
-                (d * np.conj(1j * state.omega[a[s]] * axis)).real
-        position[self.crank_index] = psi
-        velocity[self.crank_index] = state.psi_d
-        effort = None
-        if self.has_effort:
-            effort = np.zeros_like(position)
-            for j in np.flatnonzero(self._prismatic):
-                effort[j] = w.reaction_moment[self.joint_names[j]]
-            effort[self.crank_index] = w.driving_torque
-            effort = effort.T
-        n = psi.size
-        force = np.zeros((n, 3))
-        force[:, 0], force[:, 1] = w.shaking_force.real, w.shaking_force.imag
-        moment = np.zeros((n, 3))
-        moment[:, 2] = w.shaking_moment
-        return Samples(psi, speed, accel, position.T, velocity.T, effort, force, moment,
-                       self.joint_names, state, w)
-
-
-class RggrTwin:
-    """
-    An RGGR scene evaluated for publishing (module docstring: joint values, wrench).
-
-    The core's RGGR model (seed 002) turns the crank at constant speed: each sample is
-    evaluated at its own crank speed with zero crank acceleration (an acceleration passed
-    in is not used).  At zero speed every inertia load vanishes and the driving torque is
-    its limit, 0 (the model has no gravity).
-    """
-
-    kind = 'rggr'
-    moment_point = 'the origin O of the RGGR frame'
-
-    def __init__(self, scene):
-        from mech_balance.core import rggr
-        self._rggr = rggr
-        self.scene = scene
-        self.joint_names = RGGR_JOINTS
-        self.crank_joint = RGGR_JOINTS[0]
-        self.crank_index = 0
-        self.has_effort = True
-        rggr.check_full_rotation(scene)
-
-    def with_design(self, scene):
-        """Return the twin of another design of the same RGGR."""
-        return RggrTwin(scene)
-
-    def evaluate(self, psi, speed, accel=0.0):
-        """Return the :class:`Samples` at crank angles ``psi`` ``(n,)`` (rad), rad/s."""
-        psi, speed, accel = _batch(psi, speed, accel)
-        n = psi.size
-        position, velocity = np.zeros((n, 2)), np.zeros((n, 2))
-        effort, force, moment = np.zeros((n, 2)), np.zeros((n, 3)), np.zeros((n, 3))
-        for value in np.unique(speed):
-            sel = speed == value
-            with np.errstate(divide='ignore', invalid='ignore'):  # torque 0/0 at rest
-                dyn = self._rggr.dynamics(replace(self.scene, crank_speed_rad_s=float(value)),
-                                          psi[sel])
-            kin = dyn.kinematics
-            position[sel] = np.column_stack([psi[sel], kin.output_angle_rad])
-            velocity[sel] = np.column_stack([speed[sel], kin.output_rate_rad_s])
-            torque = dyn.driving_torque_Nm if value != 0.0 else np.zeros(int(sel.sum()))
-            effort[sel, 0] = torque
-            force[sel], moment[sel] = dyn.shaking_force_N, dyn.shaking_moment_Nm
-        return Samples(psi, speed, np.zeros(n), position, velocity, effort, force, moment,
-                       self.joint_names)
+        return self.rig.at(psi, speed, accel, outputs=self.outputs)
 
 
 def model_for(scene):
-    """Return the twin of a scene: :class:`PlanarTwin` or :class:`RggrTwin` by its kind."""
-    if getattr(scene, 'kind', 'planar') == 'rggr':
-        return RggrTwin(scene)
-    return PlanarTwin(scene)
+    """Return the :class:`TwinModel` of a scene of any kind."""
+    return TwinModel(rig_for(scene))
 
 
 # ------------------------------------------------------------------------------ clock

@@ -2,12 +2,18 @@
 The registry of scene kinds: the one place that knows which kinds of rig exist.
 
 Each :class:`Kind` names a scene file's ``kind:`` value and gives its loader (mapping ->
-scene), its writer (scene -> mapping), its scene type and its rig factory.  The factory is
-named by its import path (``module:attribute``), the way setuptools entry points name
-plug-ins: the schema layer sits below the core and must not import it, and a kind's rig is
-only imported when a rig of that kind is built.  A new kind of rig registers here and
-nowhere else; every consumer asks :func:`kind_of` or builds the rig through
-:func:`mech_balance.core.rig.rig_for`.
+scene), its writer (scene -> mapping), its scene type and its implementations by role:
+
+``rig``
+    the :class:`~mech_balance.core.rig.Rig` factory (scene -> rig);
+``analyze``
+    the ``mech-balance analyze`` report (scene, samples, normalized, design -> Report).
+
+Implementations are named by their import path (``module:attribute``), the way setuptools
+entry points name plug-ins: the schema layer sits below the core and must not import it,
+and a kind's code is only imported when it is used.  A new kind of rig registers here and
+nowhere else; every consumer asks :func:`kind_of` for an implementation or builds the rig
+through :func:`mech_balance.core.rig.rig_for`.
 """
 
 from dataclasses import dataclass
@@ -23,21 +29,27 @@ class Kind:
 
     name: str
     scene_type: type
-    load: object     # (mapping, source) -> scene
-    write: object    # scene -> mapping (the inverse of load)
-    rig: str         # 'module:attribute' of the rig factory (scene -> Rig)
+    load: object             # (mapping, source) -> scene
+    write: object            # scene -> mapping (the inverse of load)
+    implementations: dict    # role -> 'module:attribute' (module docstring)
+
+    def implementation(self, role):
+        """Return this kind's implementation of ``role`` (imported on first use)."""
+        module, _, attr = self.implementations[role].partition(':')
+        return getattr(importlib.import_module(module), attr)
 
     def rig_factory(self):
-        """Return the rig factory (imported on first use)."""
-        module, _, attr = self.rig.partition(':')
-        return getattr(importlib.import_module(module), attr)
+        """Return the rig factory (scene -> Rig)."""
+        return self.implementation('rig')
 
 
 KINDS = {
-    'planar': Kind('planar', scene.Scene, scene.planar_from_dict, scene.planar_to_dict,
-                   'mech_balance.core.planar.rig:PlanarRig'),
-    'rggr': Kind('rggr', rggr.RggrScene, rggr.load_rggr_scene, rggr.rggr_to_dict,
-                 'mech_balance.core.rggr:RggrRig'),
+    'planar': Kind('planar', scene.Scene, scene.planar_from_dict, scene.planar_to_dict, {
+        'rig': 'mech_balance.core.planar.rig:PlanarRig',
+        'analyze': 'mech_balance.analysis.cycle:analyze'}),
+    'rggr': Kind('rggr', rggr.RggrScene, rggr.load_rggr_scene, rggr.rggr_to_dict, {
+        'rig': 'mech_balance.core.rggr:RggrRig',
+        'analyze': 'mech_balance.analysis.rggr_report:analyze'}),
 }
 """Every kind of scene, by its ``kind:`` value; ``planar`` is the default."""
 DEFAULT_KIND = 'planar'

@@ -22,7 +22,8 @@ All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given
 
 from dataclasses import dataclass
 
-from mech_balance.core.planar.kinematics import _cross, _rmat
+from mech_balance.core.planar.algebra import cross as _cross, dot as _dot, \
+    matvec_t as _matvec_t, rmat as _rmat
 import numpy as np
 
 SPEED_FLOOR_RAD_S = 1e-300
@@ -116,24 +117,9 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
         # seed 000 eq. 37: tau = u^T (w* - w^E), u = t / psi_dot (power balance per unit speed)
         power = np.sum(omega * n_star + _dot(state.vel, f_star), axis=0)
         if gravity:
-            power -= np.sum(inertia.mass[:, None] * _dot(state.vel, gravity)
-                            + omega * _cross(world_h, gravity), axis=0)
+            power -= gravity_power(state, inertia, gravity)
         out.driving_torque = power / state.psi_d
     return out
-
-
-def _matvec_t(mat, vec):
-    """Return mat^T @ vec for batch-last (k, m, p) and (k, p) stacks."""
-    if mat.shape[0] == 2 and mat.shape[1] == 2:
-        out = mat[0] * vec[0]
-        out += mat[1] * vec[1]
-        return out
-    return np.einsum('kip,kp->ip', mat, vec)
-
-
-def _dot(a, b):
-    """Return the scalar product of complex-coded planar vectors."""
-    return (a.conjugate() * b).real
 
 
 def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
@@ -204,6 +190,24 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
     out.reaction_point = {n: (pose.joint_at[i] if tree else pb[i])
                           for n, tree, i in linkage.joint_rows}
     out.consistency = worst
+
+
+def gravity_power(state, inertia, gravity):
+    """
+    Return the power of the links' weights, ``(p,)`` W (per unit crank speed: tau_G).
+
+    sum_i m_i g . v_ci, with v_ci = v_i + omega_i x R_i h_i / m_i (seed 000 eq. 43).
+    """
+    world_h = state.pose.rot * inertia.first_moment[:, None]
+    return np.sum(inertia.mass[:, None] * _dot(state.vel, gravity)
+                  + state.omega * _cross(world_h, gravity), axis=0)
+
+
+def potential_energy(state, inertia, gravity):
+    """Return the links' potential energy in the gravity field, ``(p,)`` J: -sum m g . c."""
+    world_h = state.pose.rot * inertia.first_moment[:, None]
+    return -np.sum(inertia.mass[:, None] * _dot(state.pose.origin, gravity)
+                   + _dot(world_h, gravity), axis=0)
 
 
 def generalized_inertia(state, inertia):

@@ -31,6 +31,8 @@ import math
 import warnings
 
 from mech_balance.core.planar import smallsolve
+from mech_balance.core.planar.algebra import cross as _cross, matvec as _matvec, \
+    rmat as _rmat
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
@@ -904,25 +906,3 @@ class Skeleton:
         if self.wrap_step_u is not None:
             qu += self.wrap_step_u * turns
         return q
-
-
-def _rmat(mat, z):
-    """Return ``mat @ z`` for a real matrix and a complex batch-last stack ``z``."""
-    # numpy has no BLAS path for real @ complex (it loops in C, ~50x slower): multiply the
-    # interleaved real and imaginary parts as one real matrix instead
-    z = np.ascontiguousarray(z)
-    return np.dot(mat, z.view(np.float64)).view(np.complex128)
-
-
-def _matvec(mat, vec):
-    """Return mat @ vec for batch-last (m, k, p) and (k, p) stacks."""
-    if mat.shape[0] == 2 and mat.shape[1] == 2:
-        return np.array([mat[0, 0] * vec[0] + mat[0, 1] * vec[1],
-                         mat[1, 0] * vec[0] + mat[1, 1] * vec[1]])
-    return np.einsum('ikp,kp->ip', mat, vec)
-
-
-def _cross(a, b):
-    """Return the scalar cross product a x b of complex-coded planar vectors."""
-    # Im(conj(a) b) = a.x b.y - a.y b.x, in two vectorized operations instead of four
-    return (a.conjugate() * b).imag

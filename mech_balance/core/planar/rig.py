@@ -1,0 +1,211 @@
+"""
+The planar rig: a planar scene's compiled linkage and inertia behind the Rig protocol.
+
+:class:`PlanarRig` binds a scene's geometry (compiled once and its branch traced once, shared
+by every design of the same geometry through :func:`linkage_for`) to one design's inertia.
+:meth:`PlanarRig.evaluate` returns the core's own ``(state, wrenches)``;
+:meth:`PlanarRig.at` the protocol's :class:`~mech_balance.core.rig.RigData`.
+
+Joint values (ROS ``JointState`` convention: rad and rad/s for revolute joints, m and m/s
+for prismatic ones)
+    * the crank joint: the crank angle psi and speed psi_dot the core is evaluated at;
+    * any other revolute joint between links a and b: phi_b - phi_a, omega_b - omega_a;
+    * a prismatic joint: the slide of its point on link b from its point on link a along
+      the joint axis (fixed in link a), and its rate.
+    Effort (when the driving torque is asked for): the driving torque on the crank joint, the
+    core's reaction moment at a prismatic joint (on link b from link a), 0 at every other
+    joint (a frictionless revolute joint carries no moment about its axis).
+"""
+
+from mech_balance.core.planar import dynamics, kinematics
+from mech_balance.core.planar.algebra import cross
+from mech_balance.core.rig import batch, BodyPoses, Drawing, DrawingBody, RigData
+from mech_balance.schema import FRAME, needs
+import numpy as np
+
+CAPABILITIES = frozenset({'kinematics', 'shaking_wrench', 'driving_torque',
+                          'bearing_reactions', 'kinetic_energy', 'gravity',
+                          'forward_dynamics', 'mass_redistribution', 'counterweights',
+                          'analytic_balance', 'accuracy_study'})
+"""What a planar rig computes and how it can be balanced (:attr:`Rig.capabilities`)."""
+
+_LINKAGES = {}
+_LINKAGE_CACHE_SIZE = 64
+
+
+def linkage_for(scene):
+    """Return the compiled :class:`~kinematics.Linkage` of a scene's geometry (cached)."""
+    key = (scene.source, scene.name, scene.frame_points.__repr__(),
+           tuple((lk.name, repr(lk.points)) for lk in scene.links), scene.joints,
+           scene.crank_joint, scene.assembly_crank_angle_rad,
+           repr(sorted(scene.assembly_link_angles_rad.items())),
+           repr(sorted(scene.assembly_displacements_m.items())),
+           None if scene.normalization is None else scene.normalization.length_m)
+    linkage = _LINKAGES.get(key)
+    if linkage is None:
+        linkage = kinematics.Linkage(scene)
+        if len(_LINKAGES) > _LINKAGE_CACHE_SIZE:
+            _LINKAGES.clear()
+        _LINKAGES[key] = linkage
+    return linkage
+
+
+class PlanarRig:
+    """A planar scene with its compiled linkage and inertial parameters."""
+
+    moment_point = 'the crank pivot'
+    capabilities = CAPABILITIES
+
+    def __init__(self, scene, linkage=None):
+        self.scene = scene
+        self.name = scene.name
+        self.linkage = linkage if linkage is not None else linkage_for(scene)
+        self.linkage.skeleton  # noqa: B018 - assemble and trace the branch: fail early
+        self.inertia = dynamics.Inertia.from_links(scene.links)
+        self.gravity = complex(*scene.gravity_m_s2)
+        lk = self.linkage
+        body = {name: i for i, name in enumerate(lk.body_names)}
+        points = {FRAME: scene.frame_points, **{link.name: link.points for link in scene.links}}
+        joints = scene.joints
+        self.joint_names = tuple(j.name for j in joints)
+        self.crank_joint = scene.crank_joint
+        self.crank_index = self.joint_names.index(scene.crank_joint)
+        self._a = np.array([body[j.link_a] for j in joints])
+        self._b = np.array([body[j.link_b] for j in joints])
+        self._pa = np.array([complex(*points[j.link_a][j.point_a]) for j in joints])[:, None]
+        self._pb = np.array([complex(*points[j.link_b][j.point_b]) for j in joints])[:, None]
+        self._prismatic = np.array([j.prismatic for j in joints])
+        self._axis = np.array([complex(*j.axis) for j in joints])[:, None]
+        self._drawing = None
+
+    @property
+    def outputs(self):
+        """Return what the scene asks for (its ``outputs:``)."""
+        return self.scene.outputs
+
+    def with_scene(self, scene):
+        """Return a rig for another inertia on the same geometry (no re-tracing)."""
+        return PlanarRig(scene, self.linkage)
+
+    def evaluate(self, psi, outputs=None, speed=None, accel=None):
+        """
+        Return the core's ``(state, wrenches)`` at crank angles ``psi`` (rad).
+
+        ``outputs`` defaults to the scene's; ``wrenches`` is ``None`` for kinematics only.
+        """
+        need = needs(self.scene.outputs if outputs is None else outputs)
+        # this rig's crank speed, not that of the scene the shared linkage was compiled from
+        speed = self.scene.crank_speed_rad_s if speed is None else speed
+        accel = self.scene.crank_acceleration_rad_s2 if accel is None else accel
+        state = self.linkage.solve(psi, speed, accel, need_acc='accelerations' in need)
+        if 'accelerations' not in need:
+            return state, None
+        return state, dynamics.inverse_dynamics(self.linkage, state, self.inertia,
+                                                self.gravity, need)
+
+    # ------------------------------------------------------------------ the Rig protocol
+
+    def at(self, psi, speed=None, accel=None, outputs=None):
+        """Return the :class:`RigData` at crank angles ``psi`` (module docstring: joints)."""
+        speed = self.scene.crank_speed_rad_s if speed is None else speed
+        accel = self.scene.crank_acceleration_rad_s2 if accel is None else accel
+        psi, speed, accel = batch(psi, speed, accel)
+        outputs = self.scene.outputs if outputs is None else tuple(outputs)
+        want = set(outputs)
+        # the reaction moments of prismatic joints come with the bearing reactions; those
+        # also give the driving torque at zero crank speed (the NOC projection divides by it)
+        effort = bool({'driving_torque', 'bearing_reactions'} & want)
+        core_outputs = {o for o in outputs if o != 'kinetic_energy'}
+        if effort and np.any(self._prismatic):
+            core_outputs.add('bearing_reactions')
+        state, w = self.evaluate(psi, tuple(core_outputs) or ('kinematics',), speed, accel)
+        pose, a, b = state.pose, self._a, self._b
+        position = pose.phi[b] - pose.phi[a]
+        velocity = state.omega[b] - state.omega[a]
+        if np.any(self._prismatic):
+            s = self._prismatic
+            pa = pose.origin[a[s]] + pose.rot[a[s]] * self._pa[s]
+            pb = pose.origin[b[s]] + pose.rot[b[s]] * self._pb[s]
+            va = state.vel[a[s]] + 1j * state.omega[a[s]] * (pa - pose.origin[a[s]])
+            vb = state.vel[b[s]] + 1j * state.omega[b[s]] * (pb - pose.origin[b[s]])
+            axis = pose.rot[a[s]] * self._axis[s]
+            d = pb - pa
+            position[s] = (d * np.conj(axis)).real
+            velocity[s] = ((vb - va) * np.conj(axis)).real + \
+                (d * np.conj(1j * state.omega[a[s]] * axis)).real
+        position[self.crank_index] = psi
+        velocity[self.crank_index] = state.psi_d
+        n = psi.size
+        series, reactions, joint_effort, force, moment = {}, None, None, None, None
+        if w is not None:
+            force = np.zeros((n, 3))
+            force[:, 0], force[:, 1] = w.shaking_force.real, w.shaking_force.imag
+            moment = np.zeros((n, 3))
+            moment[:, 2] = w.shaking_moment
+            if w.driving_torque is not None and effort:
+                series['driving_torque'] = w.driving_torque
+                joint_effort = np.zeros_like(position)
+                for j in np.flatnonzero(self._prismatic):
+                    joint_effort[j] = w.reaction_moment[self.joint_names[j]]
+                joint_effort[self.crank_index] = w.driving_torque
+                joint_effort = joint_effort.T
+            if w.reaction_force is not None and 'bearing_reactions' in want:
+                reactions = {}
+                for name, f in w.reaction_force.items():
+                    rf = np.zeros((n, 3))
+                    rf[:, 0], rf[:, 1] = f.real, f.imag
+                    rm = np.zeros((n, 3))
+                    rm[:, 2] = w.reaction_moment[name]
+                    reactions[name] = (rf, rm)
+        if 'kinetic_energy' in want:
+            series['kinetic_energy'] = kinetic_energy(state, self.inertia)
+        return RigData(
+            psi, speed, accel, position.T, velocity.T, joint_effort, force, moment,
+            self.joint_names, series=series, reactions=reactions,
+            residual=state.residual, condition=state.cond,
+            near_singular=state.cond > kinematics.COND_WARN,
+            bodies=body_poses(self.linkage, state), native=(state, w))
+
+    @property
+    def drawing(self):
+        """Return the rig's :class:`Drawing` (planar: every point at z = 0)."""
+        if self._drawing is None:
+            sc = self.scene
+            bodies = tuple(
+                DrawingBody(lk.name, {k: (v[0], v[1], 0.0) for k, v in lk.points.items()},
+                            tuple(lk.points), (lk.com_m[0], lk.com_m[1], 0.0))
+                for lk in sc.links)
+            joints = tuple((j.name, j.link_b, j.point_b) for j in sc.joints)
+            self._drawing = Drawing(2, {k: (v[0], v[1], 0.0) for k, v in
+                                        sc.frame_points.items()}, bodies, joints)
+        return self._drawing
+
+
+def kinetic_energy(state, inertia):
+    """
+    Return the kinetic energy of the moving links, ``(p,)`` J.
+
+    Per body with origin velocity v, angular velocity omega, world first moment R h and
+    inertia I_O about the origin: T = m |v|^2 / 2 + omega cross(R h, v) + I_O omega^2 / 2
+    (seed 000 eq. 38, T = t^T M t / 2, written about the link origin).
+    """
+    world_h = state.pose.rot * inertia.first_moment[:, None]
+    v, omega = state.vel, state.omega
+    t = 0.5 * inertia.mass[:, None] * (v.real ** 2 + v.imag ** 2)
+    t += omega * cross(world_h, v)
+    t += 0.5 * inertia.inertia_origin[:, None] * omega * omega
+    return np.sum(t, axis=0)
+
+
+def body_poses(linkage, state):
+    """Return the :class:`BodyPoses` of a solved planar state (3-D, z out of the plane)."""
+    pose = state.pose
+    n, nb = state.size, linkage.nb
+    origin = np.zeros((n, nb, 3))
+    origin[:, :, 0], origin[:, :, 1] = pose.origin.real.T, pose.origin.imag.T
+    c, s = pose.rot.real.T, pose.rot.imag.T
+    rot = np.zeros((n, nb, 3, 3))
+    rot[:, :, 0, 0], rot[:, :, 0, 1] = c, -s
+    rot[:, :, 1, 0], rot[:, :, 1, 1] = s, c
+    rot[:, :, 2, 2] = 1.0
+    return BodyPoses(tuple(linkage.body_names), origin, rot)
