@@ -271,9 +271,13 @@ def scene_to_yaml(scene, balance=None):
                      'acceleration_rad_s2': scene.crank_acceleration_rad_s2}
     data['gravity_m_s2'] = list(scene.gravity_m_s2)
     data['frame'] = {'points': {k: list(v) for k, v in scene.frame_points.items()}}
+    # a link with counterweights: its own body and its discs (the loader adds them up)
     data['links'] = {lk.name: {'points': {k: list(v) for k, v in lk.points.items()},
-                               'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),
-                               'inertia_com_kg_m2': lk.inertia_com_kg_m2}
+                               'mass_kg': lk.own_mass_kg, 'com_m': list(lk.own_com_m),
+                               'inertia_com_kg_m2': lk.own_inertia_com_kg_m2,
+                               **({'counterweights': [cw.to_dict() for cw in
+                                                      lk.counterweights]}
+                                  if lk.counterweights else {})}
                      for lk in scene.links}
     joints = {}
     for jt in scene.joints:
