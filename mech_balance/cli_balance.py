@@ -34,6 +34,8 @@ COUNTERWEIGHT_OPTIONS = ('--density', '--max-thickness', '--max-radius-factor',
 """Options of --counterweights alone: rejected without it."""
 COUNTERWEIGHT_SHARED = ('--weights', '--torque-weight', '--reaction-weight')
 """Options of the optimization that --counterweights uses too (the rest it rejects)."""
+COUNTERWEIGHT_BENCH = {'hoeken': (('crank', 'rocker'), 20.0), 'carpet_scraper': (None, 300.0)}
+"""Bench cases of --counterweights: scene -> (links, None for every link; median limit ms)."""
 PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + (
     '--analytic', '--counterweights', '--model')
 """Options RGGR scenes reject: their balancing (seed 002) has no such choices."""
@@ -569,6 +571,37 @@ def bench_section(args, progress):
                                  f'{sec * 1e3:>11.1f}{r.conic_time_s * 1e3:>9.1f}')
     if len(lines) == header_lines:
         lines.append('(no balancing benchmark for the selected scenes)')
+    lines += ['', _bench_counterweights(names, args, repeat, progress)]
+    return '\n'.join(lines)
+
+
+def _bench_counterweights(names, args, repeat, progress):
+    """Return the counterweight rows: median solve time against its limit (issue 13)."""
+    head = (f"{'counterweights: scene':<22}{'links':<22}{'weights':<12}{'rel. gap':>10}"
+            f"{'median ms':>11}{'limit ms':>10}{'cone ms':>9}  within")
+    lines = [f'counterweights (add-only discs, SOCP): median of {repeat} solves after '
+             f'{bench.WARMUP} warm-up runs, {args.samples} crank angles', head,
+             '-' * len(head)]
+    for name in names:
+        if name not in COUNTERWEIGHT_BENCH:
+            continue
+        sc = scene_mod.load(name)
+        links, limit_ms = COUNTERWEIGHT_BENCH[name]
+        links = links or tuple(lk.name for lk in sc.links)
+        for w in seed_tables.WEIGHT_CASES:
+            progress(f'  timing counterweights {name} {w} ...')
+            last = {}
+
+            def run(w=w, last=last):
+                last['r'] = cw_mod.balance_with_counterweights(sc, links, w,
+                                                               samples=args.samples)
+            sec = bench.median_seconds(run, repeat=repeat)
+            r = last['r']
+            label = ','.join(links) if len(links) <= 3 else f'all {len(links)}'
+            lines.append(f"{name:<22}{label:<22}{f'({w[0]:g}, {w[1]:g})':<12}"
+                         f'{r.certificate.gap_rel:>10.1e}{sec * 1e3:>11.1f}{limit_ms:>10.0f}'
+                         f'{r.conic_time_s * 1e3:>9.1f}  '
+                         + ('yes' if sec * 1e3 <= limit_ms else 'NO'))
     return '\n'.join(lines)
 
 

@@ -33,8 +33,8 @@ the total added mass among those.  A single-norm stage's optimal set is pinned e
 Euclidean norm minimized over a convex set has one optimal image, so the optimal designs
 are those with the same image: an equality on the map's row space), a weighted sum of norms
 by ``z <= z* + TIE_BREAK_SLACK max(z*, 1)``.  A link whose inertia enters no term (a crank
-turning at constant speed) gets the thickest, smallest disc, t = t_max.  A counterweight lighter than
-:data:`MIN_MASS_REL` of its link is none (omitted).
+turning at constant speed) gets the thickest, smallest disc, t = t_max.  A counterweight
+lighter than :data:`MIN_MASS_REL` of its link is none (omitted).
 """
 
 from dataclasses import dataclass, field
@@ -241,7 +241,7 @@ class CounterweightResult:
 
     @property
     def counterweights(self):
-        """Return ``{link: [disc entry]}`` in the scene's form (``links.<name>.counterweights``)."""
+        """Return ``{link: [disc entry]}``, the scene's form (``links.<name>.counterweights``)."""
         return {d.link: [d.counterweight().to_dict()] for d in self.designs}
 
     @property
@@ -471,6 +471,7 @@ class _Problem:
     opt: CounterweightOptions
     units: object
     norms: list = field(default_factory=list)   # (G (k, 4L), c (k,)) per objective term
+    _static: tuple = None                       # the shared cones, built once
 
     def __post_init__(self):
         maps, opt, u = self.maps, self.opt, self.units
@@ -623,6 +624,39 @@ class _Problem:
             a = np.zeros((rows.shape[0], nx))
             a[:, :ny] = rows
             add(clarabel.ZeroConeT, a, target)
+        dynamic = len(a_blocks)
+        if self._static is None:
+            self._add_cones(add)
+            self._static = (sp.csc_matrix(np.vstack(a_blocks[dynamic:])),
+                            np.concatenate(b_blocks[dynamic:]),
+                            [blk.shape[0] for blk in a_blocks[dynamic:]])
+        a_static, b_static, sizes = self._static
+        a_all = sp.vstack([sp.csc_matrix(np.vstack(a_blocks[:dynamic])), a_static],
+                          format='csc')
+        b_all = np.concatenate(b_blocks[:dynamic] + [b_static])
+        cones = cones[:dynamic] + [clarabel.SecondOrderConeT(k) for k in sizes]
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        settings.max_iter = SOLVER_MAX_ITER
+        settings.tol_gap_abs = settings.tol_gap_rel = SOLVER_TOL
+        settings.tol_feas = SOLVER_TOL
+        t0 = time.perf_counter()
+        sol = clarabel.DefaultSolver(sp.csc_matrix((nx, nx)), np.asarray(q, dtype=float),
+                                     a_all, b_all, cones, settings).solve()
+        seconds = time.perf_counter() - t0
+        status = str(sol.status)
+        if status not in ('Solved', 'AlmostSolved'):
+            raise CounterweightError(
+                f'solver: Clarabel stopped with status {status} after {sol.iterations} '
+                'iterations (counterweight problem)')
+        x = np.array(sol.x)
+        return _Stage(y=x[:ny], objective=float(q @ x), dual=float(sol.obj_val_dual),
+                      status=status, iterations=int(sol.iterations),
+                      r_prim=float(sol.r_prim), r_dual=float(sol.r_dual), seconds=seconds)
+
+    def _add_cones(self, add):
+        """Add the cones every stage shares: the discs' and the objective terms' epigraphs."""
+        nx, ny, nl = self.nx, self.ny, self.nl
         for i in range(nl):
             im, ix, iy, ii, i_s = 4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3, ny + i
             # |dh| <= r_max dm  ->  |y_h| <= (r_max / l0) y_m
@@ -648,25 +682,6 @@ class _Problem:
             a[0, ny + nl + k] = -1.0
             a[1:, :ny] = -g
             add(clarabel.SecondOrderConeT, a, np.concatenate([[0.0], c]))
-        settings = clarabel.DefaultSettings()
-        settings.verbose = False
-        settings.max_iter = SOLVER_MAX_ITER
-        settings.tol_gap_abs = settings.tol_gap_rel = SOLVER_TOL
-        settings.tol_feas = SOLVER_TOL
-        t0 = time.perf_counter()
-        sol = clarabel.DefaultSolver(sp.csc_matrix((nx, nx)), np.asarray(q, dtype=float),
-                                     sp.csc_matrix(np.vstack(a_blocks)),
-                                     np.concatenate(b_blocks), cones, settings).solve()
-        seconds = time.perf_counter() - t0
-        status = str(sol.status)
-        if status not in ('Solved', 'AlmostSolved'):
-            raise CounterweightError(
-                f'solver: Clarabel stopped with status {status} after {sol.iterations} '
-                'iterations (counterweight problem)')
-        x = np.array(sol.x)
-        return _Stage(y=x[:ny], objective=float(q @ x), dual=float(sol.obj_val_dual),
-                      status=status, iterations=int(sol.iterations),
-                      r_prim=float(sol.r_prim), r_dual=float(sol.r_dual), seconds=seconds)
 
     # ----------------------------------------------------------------------- discs
 
@@ -728,4 +743,3 @@ def _plain(obj):
     if isinstance(obj, (float, np.floating)):
         return float(obj)
     return obj
-

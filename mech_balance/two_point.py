@@ -280,4 +280,3 @@ def _plain(obj):
     if isinstance(obj, (float, np.floating)):
         return float(obj)
     return obj
-
