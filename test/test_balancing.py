@@ -369,7 +369,7 @@ def test_cli_balance_bad_input(capsys, tmp_path, argv, match):
 
 def test_bench_section_lists_every_case():
     from argparse import Namespace
-    from mech_balance.cli import balance as cli_balance
-    text = cli_balance.bench_section(Namespace(scene=['hoeken'], repeat=3, samples=90),
-                                     lambda s: None)
+    from mech_balance.bench import balancing as bench_balancing
+    text = bench_balancing.bench_section(Namespace(scene=['hoeken'], repeat=3, samples=90),
+                                         lambda s: None)
     assert text.count('hoeken') == 12 and 'median ms' in text

@@ -9,6 +9,7 @@ import sys
 from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import socp as balancing
+from mech_balance.bench import balancing as bench_balancing
 from mech_balance.cli import balance as cli_balance, main as cli
 import numpy as np
 from numpy.testing import assert_allclose
@@ -275,11 +276,11 @@ def test_balance_and_record_share_the_default_weights(monkeypatch, tmp_path, cap
 def test_bench_balance_section_honours_repeat():
     def header(repeat):
         args = argparse.Namespace(scene=['slider_crank'], repeat=repeat, samples=90)
-        return cli_balance.bench_section(args, lambda s: None).splitlines()[0]
+        return bench_balancing.bench_section(args, lambda s: None).splitlines()[0]
     assert 'median of 1 optimizations' in header(1)
-    capped = header(cli_balance.BENCH_REPEAT_MAX + 5)
-    assert f'median of {cli_balance.BENCH_REPEAT_MAX} optimizations' in capped
-    assert f'--repeat {cli_balance.BENCH_REPEAT_MAX + 5} capped at' in capped
+    capped = header(bench_balancing.BENCH_REPEAT_MAX + 5)
+    assert f'median of {bench_balancing.BENCH_REPEAT_MAX} optimizations' in capped
+    assert f'--repeat {bench_balancing.BENCH_REPEAT_MAX + 5} capped at' in capped
 
 
 # ----------------------------------------------------------------------------- analyze, scenes

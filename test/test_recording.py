@@ -18,7 +18,8 @@ import textwrap
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import rggr as rggr_balancing
-from mech_balance.cli import main as cli, record as cli_record
+from mech_balance.bench import recording as bench_recording
+from mech_balance.cli import main as cli
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import equimomental, rggr
 from mech_balance.core.planar import dynamics
@@ -28,7 +29,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 import pytest
 import yaml
 
-A2 = cli_record.HOEKEN_A2_DESIGN  # seed 001 Table 5, case a(2)
+A2 = bench_recording.HOEKEN_A2_DESIGN  # seed 001 Table 5, case a(2)
 B2 = (0.0, 1.5990, 3.4010, 0.9514, 4.6933, 0.0, 2.4067, 1.7240, 0.0, 9.5000, 0.0, 0.8759)
 """seed 001 Table 5, case b(2) as reconstructed (its print is damaged): counterweights, so
 every link is realizable and can be written as a scene file (a(2)'s crank cannot)."""
@@ -487,5 +488,5 @@ def test_cli_record_samples_must_divide_360(capsys):
 
 
 def test_bench_section_reports_seconds_and_megabytes():
-    text = cli_record.bench_section(argparse.Namespace(repeat=1), progress=lambda s: None)
+    text = bench_recording.bench_section(argparse.Namespace(repeat=1), progress=lambda s: None)
     assert 'hoeken' in text and 'file MB' in text and 'median s' in text

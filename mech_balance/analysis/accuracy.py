@@ -28,7 +28,7 @@ import statistics
 
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
-from mech_balance.bench import core as bench
+from mech_balance.analysis import timing
 from mech_balance.conventions import cycle_angles
 from mech_balance.core import forward as simulate
 from mech_balance.core.planar import kinematics
@@ -447,4 +447,4 @@ def to_jsonable(result):
 
 def _median(fn, repeat):
     """Return the median wall time of ``fn()`` over ``repeat`` runs after one warm-up run."""
-    return bench.median_seconds(fn, repeat=repeat, warmup=1)
+    return timing.median_seconds(fn, repeat=repeat, warmup=1)

@@ -65,9 +65,12 @@ def balance(rig, method='auto', **options):
     method = method_for(rig, method)
     sc = rig.scene
     if method == 'redistribution':
-        from mech_balance.balancing import socp
+        from mech_balance.balancing import counterweights, socp
         result = socp.optimize(sc, **options)
-        return Design(result.balanced_scene, result.to_dict(), method, result)
+        report = result.to_dict()
+        report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
+                                                          result.table)
+        return Design(result.balanced_scene, report, method, result)
     from mech_balance.analysis import rggr_report
     from mech_balance.balancing import rggr as rggr_balancing
     from mech_balance.conventions import DEFAULT_SAMPLES

@@ -33,3 +33,32 @@ the infimum over realizable designs, attained only by a point-mass link."""
 
 CASES = ('a', 'b')
 """seed 001 sec. 4.1.2: (a) point masses of any sign, (b) non-negative point masses."""
+
+
+DEFAULT_CASE = 'a'
+"""Default point-mass case of the redistribution (seed 001 sec. 4.1.2): 'a', any sign."""
+
+
+DEFAULT_DENSITY_KG_M3 = 7850.0
+"""Counterweight material: steel."""
+
+
+DEFAULT_MAX_THICKNESS_M = 0.02
+"""Thickest disc allowed (m)."""
+
+
+DEFAULT_MAX_RADIUS_FACTOR = 1.0
+"""Disc centre at most this factor times the distance from the link origin to its farthest
+joint point."""
+
+
+DEFAULT_MAX_MASS_FACTOR = 5.0
+"""Disc mass at most this factor times the link's own mass."""
+
+
+DEFAULT_MAX_GYRATION_FACTOR = 2.0
+"""The disc's radius of gyration about the link origin, sqrt(dI/dm) = sqrt(|r|^2 + R^2/2), at
+most this factor times the link's joint reach (a disc of radius up to 2.45 x reach centred at
+the reach, 2.8 x at the origin).  Not in issue 13's set, and needed: without it the closure
+of the disc set holds an inertia without mass (dm -> 0, R -> infinity, dI > 0), which
+optima use (the carpet scraper's links 5-7 at (0.5, 0.5)); with it dm = 0 forces dI = 0."""

@@ -47,17 +47,16 @@ import math
 import time
 
 import clarabel
+from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing.defaults import CASES, CENTROIDAL_MARGIN, DEFAULT_WEIGHTS, \
     PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
 from mech_balance.conventions import cycle_angles
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics
-from mech_balance.schema.scene import FRAME, Normalization, Recording, RECORDING_STREAMS, \
-    SCHEMA_VERSION
+from mech_balance.schema.scene import FRAME, Normalization
 import numpy as np
 import scipy.sparse as sp
-import yaml
 
 FORCE_BALANCE_REL_TOL = 1e-6
 """A stage-1 RMS shaking force below this fraction of the original's counts as complete
@@ -230,80 +229,19 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
 
 def scene_to_yaml(scene, balance=None):
     """
-    Return a planar scene as YAML text that :func:`mech_balance.scene.load` reads back.
+    Return a balanced planar scene as YAML text that :func:`mech_balance.schema.load` reads.
 
-    Every top-level section is written: the links with their (balanced) inertias and,
-    unchanged, everything a design leaves alone (description, normalization, crank,
-    gravity, frame, joints, assembly, outputs, samples, notes, ``recording`` and the
-    ``drive`` of ``mech-balance simulate``).  Floats are written with their shortest exact
-    representation, so masses, mass centres and inertias load back bit for bit.
-    ``balance`` (a plain dict, e.g. the summary of a :class:`BalanceResult`) is stored under
-    the scene's ``balance`` key.  A link with a negative centroidal inertia cannot be
-    written (no body has one): ``ValueError``.
+    The scene writer (:func:`mech_balance.schema.to_yaml`) with ``balance`` (a plain dict,
+    e.g. the summary of a :class:`BalanceResult`) stored under the scene's ``balance`` key.
+    A link with a negative centroidal inertia cannot be written (no body has one):
+    :class:`BalanceError`.
     """
-    _check_planar(scene)
     for lk in scene.links:
         if lk.inertia_com_kg_m2 < 0.0:
             raise BalanceError(
                 f'links.{lk.name}.inertia_com_kg_m2: got {lk.inertia_com_kg_m2:.6g}, expected '
                 '>= 0; an unrealizable design cannot be saved as a scene')
-    data = {'schema_version': SCHEMA_VERSION, 'name': scene.name,
-            'description': scene.description, 'kind': 'planar'}
-    if scene.normalization is not None:
-        n = scene.normalization
-        data['normalization'] = {'mass_kg': n.mass_kg, 'length_m': n.length_m,
-                                 'omega_rad_s': n.omega_rad_s}
-    data['crank'] = {'joint': scene.crank_joint, 'speed_rad_s': scene.crank_speed_rad_s,
-                     'acceleration_rad_s2': scene.crank_acceleration_rad_s2}
-    data['gravity_m_s2'] = list(scene.gravity_m_s2)
-    data['frame'] = {'points': {k: list(v) for k, v in scene.frame_points.items()}}
-    data['links'] = {lk.name: {'points': {k: list(v) for k, v in lk.points.items()},
-                               'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),
-                               'inertia_com_kg_m2': lk.inertia_com_kg_m2}
-                     for lk in scene.links}
-    joints = {}
-    for jt in scene.joints:
-        spec = {'type': jt.kind, 'a': f'{jt.link_a}.{jt.point_a}',
-                'b': f'{jt.link_b}.{jt.point_b}'}
-        if jt.kind == 'prismatic':
-            spec['axis'] = list(jt.axis)
-            spec['angle_deg'] = math.degrees(jt.angle_rad)
-        joints[jt.name] = spec
-    data['joints'] = joints
-    assembly = {'crank_angle_deg': math.degrees(scene.assembly_crank_angle_rad)}
-    if scene.assembly_link_angles_rad:
-        assembly['link_angles_deg'] = {k: math.degrees(v) for k, v in
-                                       scene.assembly_link_angles_rad.items()}
-    if scene.assembly_displacements_m:
-        assembly['joint_displacements_m'] = dict(scene.assembly_displacements_m)
-    data['assembly'] = assembly
-    data['outputs'] = list(scene.outputs)
-    data['samples'] = int(scene.samples)
-    if scene.notes:
-        data['notes'] = scene.notes
-    if scene.recording != Recording():
-        data['recording'] = _recording_dict(scene.recording)
-    if scene.drive is not None:
-        data['drive'] = scene.drive
-    if balance is not None:
-        data['balance'] = balance
-    return yaml.safe_dump(_plain(data), sort_keys=False, default_flow_style=None, width=99)
-
-
-def _recording_dict(recording):
-    """
-    Return a :class:`mech_balance.scene.Recording` as the scene's ``recording:`` mapping.
-
-    The inverse of the scene loader's ``recording`` validation:
-    ``{streams: {name: bool, ...}, force_scale_m_per_N, moment_scale_deg_per_Nm}`` with
-    every stream of :data:`mech_balance.scene.RECORDING_STREAMS`; a scale chosen from the
-    data (``None``) is left out.
-    """
-    out = {'streams': {s: recording.enabled(s) for s in RECORDING_STREAMS}}
-    for key in ('force_scale_m_per_N', 'moment_scale_deg_per_Nm'):
-        if getattr(recording, key) is not None:
-            out[key] = getattr(recording, key)
-    return out
+    return schema.to_yaml(scene, balance)
 
 
 # ============================================================================ results
@@ -327,7 +265,7 @@ class Certificate:
 
     def to_dict(self):
         """Return the certificate as a plain dict."""
-        return _plain(self.__dict__)
+        return schema.plain(self.__dict__)
 
 
 @dataclass
@@ -361,7 +299,7 @@ class BalanceResult:
 
     def summary(self):
         """Return the provenance stored with a balanced scene (``balance`` key)."""
-        return _plain({
+        return schema.plain({
             'source_scene': self.scene.name, 'method': 'seed 001 eqs. 42-53, SOCP',
             'weights': list(self.weights), 'case': self.case,
             'torque_weight': self.torque_weight, 'reaction_weight': self.reaction_weight,
@@ -373,7 +311,7 @@ class BalanceResult:
     def to_dict(self):
         """Return everything as a plain, YAML- and JSON-able dict (SI and normalized)."""
         u = self.units
-        return _plain({
+        return schema.plain({
             'scene': self.scene.name, 'samples': self.samples,
             'weights': list(self.weights), 'case': self.case,
             'torque_weight': self.torque_weight, 'reaction_weight': self.reaction_weight,
@@ -409,7 +347,7 @@ class LinkDesign:
 
     def to_dict(self):
         """Return the link design as a plain dict."""
-        return _plain(self.__dict__)
+        return schema.plain(self.__dict__)
 
 
 def link_design(link, counterweights=False, units=None):
@@ -833,10 +771,10 @@ class AnalyticBalance:
 
     def to_dict(self):
         """Return the analytic balance as a plain dict."""
-        return _plain({'method': self.method, 'scene': self.scene.name,
-                       'parameters': self.parameters,
-                       'links': [d.to_dict() for d in self.links], 'table': self.table,
-                       'force_rms_ratio': self.force_rms_ratio})
+        return schema.plain({'method': self.method, 'scene': self.scene.name,
+                             'parameters': self.parameters,
+                             'links': [d.to_dict() for d in self.links], 'table': self.table,
+                             'force_rms_ratio': self.force_rms_ratio})
 
 
 def slider_crank_balance(scene, mass_ratios=None, printed_eq75=False, samples=None):
@@ -1035,9 +973,11 @@ def _angle_deg(z):
 
 
 def _check_planar(scene):
-    if getattr(scene, 'kind', 'planar') != 'planar':
-        raise BalanceError(f'scene {scene.name!r}: kind {scene.kind!r}, expected a planar '
-                           'scene (RGGR scenes balance with mech_balance.rggr)')
+    kind = schema.kind_of(scene)
+    if 'mass_redistribution' not in kind.rig_factory().capabilities:
+        raise BalanceError(f'scene {scene.name!r}: kind {kind.name!r}, expected a planar '
+                           'scene (the rig cannot be balanced by mass redistribution; '
+                           'mech_balance.balancing.balance picks its method)')
 
 
 def _weights(weights):
@@ -1130,18 +1070,3 @@ def _show(value):
 
 def _num(x):
     return None if not math.isfinite(x) else float(x)
-
-
-def _plain(obj):
-    """Return ``obj`` with numpy scalars and tuples turned into YAML-safe Python types."""
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple, np.ndarray)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj)
-    return obj

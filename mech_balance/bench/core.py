@@ -4,33 +4,19 @@ Timings for ``mech-balance bench``: median of repeated runs after warm-up.
 Only this module (and the command that prints it) measures time; tests never do.
 """
 
-import statistics
 import time
 
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
+from mech_balance.analysis.timing import DEFAULT_REPEAT, median_seconds, WARMUP  # noqa: F401
 from mech_balance.conventions import cycle_angles
 
-WARMUP = 3
-"""Runs discarded before timing (caches, branch tracing, allocator)."""
-DEFAULT_REPEAT = 50
-"""Timed runs per figure; the median is reported."""
-
-SECTIONS = ('mech_balance.cli.balance', 'mech_balance.cli.record', 'mech_balance.bench.node')
-"""Modules that add bench sections: each has ``bench_section(args, progress) -> str``
-returning its printed table; ``mech-balance bench`` prints them after the core timings."""
-
-
-def median_seconds(fn, repeat=DEFAULT_REPEAT, warmup=WARMUP):
-    """Return the median wall time of ``fn()`` over ``repeat`` runs after ``warmup`` runs."""
-    for _ in range(warmup):
-        fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+SECTIONS = ('mech_balance.bench.balancing:bench_section',
+            'mech_balance.bench.balancing:counterweights_section',
+            'mech_balance.bench.recording:bench_section',
+            'mech_balance.bench.node:bench_section')
+"""The bench sections, ``module:function`` with ``function(args, progress) -> str`` returning
+its printed table; ``mech-balance bench`` prints them after the core timings."""
 
 
 def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):

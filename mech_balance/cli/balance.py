@@ -12,16 +12,14 @@ from pathlib import Path
 import sys
 
 from mech_balance import schema as scene_mod
-from mech_balance.balancing import paper_tables as seed_tables, socp as balancing
-from mech_balance.bench import core as bench
+from mech_balance.balancing import defaults, paper_tables as seed_tables
+from mech_balance.balancing.defaults import DEFAULT_CASE
 import numpy as np
 
 TABLE3_MASS_FACTORS = (1.0, 2.0, 5.0)
 """Seed 001 Table 3 cases (1)-(3): crank and rocker masses 1x, 2x, 5x the original."""
 BENCH_REPEAT_MAX = 20
 """Timed optimizations per bench figure at most (the median is printed)."""
-DEFAULT_CASE = 'a'
-"""``--case`` of ``balance`` and ``record --balance``: seed 001 case a, masses of any sign."""
 OUTPUT_SUFFIXES = ('.yaml', '.yml')
 """``--output``: what the balanced scene's file name ends in (so that it loads as a scene)."""
 OPTIMIZE_OPTIONS = ('--weights', '--case', '--paper-constraints', '--no-realizable',
@@ -30,7 +28,13 @@ OPTIMIZE_OPTIONS = ('--weights', '--case', '--paper-constraints', '--no-realizab
 """Options of the seed-001 optimization: rejected with --analytic and for RGGR scenes."""
 ANALYTIC_OPTIONS = ('--mass-factor', '--keep-centroidal')
 """Options of --analytic alone: rejected without it."""
-PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + ('--analytic',)
+COUNTERWEIGHT_OPTIONS = ('--density', '--max-thickness', '--max-radius-factor',
+                         '--max-mass-factor', '--max-gyration-factor')
+"""Options of --counterweights alone: rejected without it."""
+COUNTERWEIGHT_SHARED = ('--weights', '--torque-weight', '--reaction-weight')
+"""Options of the optimization that --counterweights uses too (the rest it rejects)."""
+PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + (
+    '--analytic', '--counterweights', '--model')
 """Options RGGR scenes reject: their balancing (seed 002) has no such choices."""
 
 
@@ -54,11 +58,11 @@ def add_weight_and_case(p, when=''):
     ``when`` prefixes the help texts (e.g. ``'with --balance (planar): '``).  The weights
     are checked where they are used, by :func:`mech_balance.balancing.optimize`.
     """
-    w1, w2 = balancing.DEFAULT_WEIGHTS
+    w1, w2 = defaults.DEFAULT_WEIGHTS
     p.add_argument('--weights', nargs=2, type=float, default=None, metavar=('W1', 'W2'),
                    help=f'{when}weights on the RMS normalized shaking force and shaking '
                         f'moment, seed 001 eq. 43 (default: {w1:g} {w2:g}, seed 001 case (2))')
-    p.add_argument('--case', choices=balancing.CASES, default=None,
+    p.add_argument('--case', choices=defaults.CASES, default=None,
                    help=f'{when}seed 001 sec. 4.1.2: a = point masses of any sign, b = '
                         f'non-negative point masses (counterweights) (default: {DEFAULT_CASE})')
 
@@ -83,14 +87,14 @@ def register(subparsers):
                         'original, l in [0.5, 1.5] x original, no realizability constraint)')
     p.add_argument('--no-realizable', action='store_true',
                    help='drop the realizability constraint (centroidal inertia >= margin x I_O)')
-    p.add_argument('--margin', type=float, default=balancing.CENTROIDAL_MARGIN,
+    p.add_argument('--margin', type=float, default=defaults.CENTROIDAL_MARGIN,
                    help='realizability margin: centroidal inertia >= MARGIN x inertia about '
                         'the link origin')
     p.add_argument('--mass-factors', nargs=2, type=float, metavar=('LO', 'HI'),
-                   default=balancing.PAPER_MASS_FACTORS,
+                   default=defaults.PAPER_MASS_FACTORS,
                    help='link mass bounds as factors of the original masses')
     p.add_argument('--distance-factors', nargs=2, type=float, metavar=('LO', 'HI'),
-                   default=balancing.PAPER_DISTANCE_FACTORS,
+                   default=defaults.PAPER_DISTANCE_FACTORS,
                    help='point-mass distance bounds as factors of the original l = sqrt(I_O/m)')
     p.add_argument('--torque-weight', type=float, default=0.0,
                    help='extra weight on the RMS normalized driving torque')
@@ -111,6 +115,30 @@ def register(subparsers):
     p.add_argument('--keep-centroidal', action='store_true',
                    help='--analytic four-bar: keep the centroidal inertias (always realizable) '
                         'instead of the point-mass distance l (the paper)')
+    p.add_argument('--counterweights', default=None, metavar='LINK[,LINK...]',
+                   help='add-only counterweights instead: each listed link keeps its mass, '
+                        'mass centre and inertia and gains one solid disc (certified SOCP); '
+                        'every other link is untouched')
+    p.add_argument('--density', type=float, default=defaults.DEFAULT_DENSITY_KG_M3,
+                   metavar='KG_M3', help='--counterweights: disc material density (kg/m^3; '
+                                         'steel)')
+    p.add_argument('--max-thickness', type=float, default=defaults.DEFAULT_MAX_THICKNESS_M,
+                   metavar='M', help='--counterweights: thickest disc (m)')
+    p.add_argument('--max-radius-factor', type=float,
+                   default=defaults.DEFAULT_MAX_RADIUS_FACTOR, metavar='F',
+                   help="--counterweights: disc centre at most F x the distance from the link's "
+                        'origin to its farthest joint point')
+    p.add_argument('--max-mass-factor', type=float, default=defaults.DEFAULT_MAX_MASS_FACTOR,
+                   metavar='F', help="--counterweights: disc mass at most F x the link's mass")
+    p.add_argument('--max-gyration-factor', type=float,
+                   default=defaults.DEFAULT_MAX_GYRATION_FACTOR, metavar='F',
+                   help="--counterweights: the disc's radius of gyration about the link origin "
+                        "at most F x the link's farthest joint distance (keeps a vanishing disc "
+                        'from carrying inertia)')
+    p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
+                   help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
+                        'with two point masses per link at 0 and 90 deg, and print the '
+                        "certified bounds next to the paper's rows")
     p.add_argument('--si', action='store_true',
                    help="print SI values (default: the papers' normalized units when the scene "
                         'records a normalization)')
@@ -132,6 +160,31 @@ def _given(args, options):
 
 def _check_options(args):
     """Raise ValueError for an option the chosen method would ignore (no scene needed)."""
+    if args.counterweights is not None:
+        if args.analytic:
+            raise ValueError('--counterweights: a method of its own, expected no --analytic '
+                             'with --counterweights')
+        ignored = _given(args, tuple(o for o in OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS
+                                     if o not in COUNTERWEIGHT_SHARED))
+        if args.model != 'three-point':
+            ignored.insert(0, '--model')
+        if ignored:
+            raise ValueError(f'{ignored[0]} does not apply to --counterweights; expected no '
+                             f'{ignored[0]} with --counterweights')
+        for option in COUNTERWEIGHT_OPTIONS:
+            value = getattr(args, _dest(option))
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f'{option}: got {value:g}, expected a finite number > 0')
+        return
+    given_cw = _given(args, COUNTERWEIGHT_OPTIONS)
+    if given_cw:
+        raise ValueError(f'{given_cw[0]} applies with --counterweights only, expected '
+                         f'--counterweights LINK[,LINK...] or no {given_cw[0]}')
+    if args.model != 'three-point' and (args.analytic or args.paper_constraints or
+                                        args.torque_weight or args.reaction_weight):
+        raise ValueError('--model two-point: seed 001 eqs. B.1-B.3 have their own bounds and '
+                         'weights w1, w2 only; expected no --analytic, --paper-constraints, '
+                         '--torque-weight or --reaction-weight with it')
     ignored = _given(args, OPTIMIZE_OPTIONS if args.analytic else ANALYTIC_OPTIONS)
     if ignored and args.analytic:
         raise ValueError(f'{ignored[0]} applies to the optimization, not to --analytic; '
@@ -143,6 +196,7 @@ def _check_options(args):
 
 def cmd_balance(args):
     """Balance a scene and print the design, the before/after table and the certificate."""
+    from mech_balance.balancing import counterweights as cw_mod, socp as balancing, two_point
     from mech_balance.cli import main as cli
     if args.samples is not None and args.samples < 4:
         raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
@@ -156,9 +210,11 @@ def cmd_balance(args):
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
     if args.analytic:
         return _analytic(sc, args)
+    if args.counterweights is not None:
+        return _counterweights(sc, args)
     paper = args.paper_constraints
     result = balancing.optimize(
-        sc, weights=balancing.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
+        sc, weights=defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
         case=DEFAULT_CASE if args.case is None else args.case,
         realizable=not args.no_realizable, paper_constraints=paper,
         samples=args.samples, torque_weight=args.torque_weight,
@@ -167,13 +223,121 @@ def cmd_balance(args):
         distance_factors=tuple(args.distance_factors), centroidal_margin=args.margin)
     if args.output:
         _write(result.balanced_scene, args.output, result.summary())
+    table12 = None
+    if args.model == 'two-point':
+        table12 = two_point.table12(sc, result.weights, args.samples)
     if args.json:
-        print(json.dumps(result.to_dict(), indent=2))
+        out = result.to_dict()
+        out['cost'] = cw_mod.cost_of_balancing(sc, result.balanced_scene, result.table)
+        if table12 is not None:
+            out['two_point_model'] = table12.to_dict()
+        print(json.dumps(out, indent=2))
         return 0
     print(format_result(result, normalized=not args.si))
+    if table12 is not None:
+        print('\n' + format_table12(table12))
     if args.output:
         print(f'balanced scene written to {args.output}')
     return 0
+
+
+def _counterweights(sc, args):
+    from mech_balance.balancing import counterweights as cw_mod
+    result = cw_mod.balance_with_counterweights(
+        sc, args.counterweights,
+        defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
+        density_kg_m3=args.density, max_thickness_m=args.max_thickness,
+        max_radius_factor=args.max_radius_factor, max_mass_factor=args.max_mass_factor,
+        max_gyration_factor=args.max_gyration_factor, torque_weight=args.torque_weight,
+        reaction_weight=args.reaction_weight, samples=args.samples)
+    if args.output:
+        _write(result.balanced_scene, args.output, result.summary())
+    if args.json:
+        print(json.dumps(result.to_dict(), indent=2))
+        return 0
+    print(format_counterweights(result, normalized=not args.si))
+    if args.output:
+        print(f'scene with counterweights written to {args.output}')
+    return 0
+
+
+def format_counterweights(result, normalized=True):
+    """Return a :class:`~mech_balance.counterweights.CounterweightResult` as readable text."""
+    from mech_balance.balancing import counterweights as cw_mod
+    sc, opt = result.scene, result.options
+    view = normalized and sc.normalization is not None
+    w1, w2 = opt.weights
+    lines = [f'scene: {sc.name} ({sc.source}); {opt.samples} crank angles per revolution',
+             f'problem: add one solid disc to each of {", ".join(opt.links)}; minimize z = '
+             f'{w1:g} f~ + {w2:g} n~'
+             + (f' + {opt.torque_weight:g} tau~' if opt.torque_weight else '')
+             + (f' + {opt.reaction_weight:g} sum f~_bearing' if opt.reaction_weight else ''),
+             f'discs: density {opt.density_kg_m3:g} kg/m^3, thickness <= '
+             f'{opt.max_thickness_m:g} m, centre <= {opt.max_radius_factor:g} x joint reach, '
+             f'mass <= {opt.max_mass_factor:g} x link mass, radius of gyration <= '
+             f'{opt.max_gyration_factor:g} x joint reach', '']
+    head = (f"{'link':<10}{'mass kg':>10}{'r m':>10}{'angle':>9}{'x m':>11}{'y m':>11}"
+            f"{'disc R m':>10}{'t mm':>8}{'total kg':>10}{'total I_C':>11}")
+    lines += ['counterweights (centre in the link frame; disc radius R and thickness t as '
+              'built)', head, '-' * len(head)]
+    for d in result.designs:
+        tot = result.link_totals[d.link]
+        lines.append(f'{d.link:<10}{d.mass_kg:>10.5g}{d.centre_radius_m:>10.5g}'
+                     f'{d.centre_angle_deg:>9.2f} {d.centre_m[0]:>10.4g} {d.centre_m[1]:>10.4g}'
+                     f'{d.radius_m:>10.5g}{d.thickness_m * 1e3:>8.3g}{tot["mass_kg"]:>10.5g}'
+                     f'{tot["inertia_com_kg_m2"]:>11.4g}')
+    for name in result.omitted:
+        lines.append(f'{name:<10}  no counterweight (the optimal disc mass is zero)')
+    lines.append(f'total added mass {result.added_mass_kg:.6g} kg')
+    lines += ['', _before_after_text(result.table, si=not view), '']
+    obj, cert = result.objective, result.certificate
+    lines += [f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
+              f"f~ = {obj['shaking_force_rms']:.6g}, n~ = {obj['shaking_moment_rms']:.6g}",
+              f'certificate ({cert.solver}): status {cert.status}, primal {cert.primal:.9g}, '
+              f'dual {cert.dual:.9g}, gap {cert.gap_abs:.2e} (relative {cert.gap_rel:.2e}), '
+              f'{cert.iterations} iterations; max constraint violation '
+              f'{cert.max_violation:.1e}']
+    if cert.stage2 is not None:
+        s2 = cert.stage2
+        lines.append(f"tie-break: minimized {s2['minimized']} among optimal designs"
+                     + (' with the shaking force exactly zero' if s2['exact_force_balance']
+                        else '') + f": {s2['objective']:.6g} ({s2['status']})")
+    if result.least_mass is not None:
+        lm = result.least_mass
+        lines.append(f"tie-break: least total added mass {lm['objective_kg']:.6g} kg "
+                     f"({lm['status']})")
+    lines.append(cw_mod.format_cost(result.cost))
+    lines.append(f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
+                 f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
+                 f'{result.conic_time_s * 1e3:.1f} ms)')
+    return '\n'.join(lines)
+
+
+def format_table12(r):
+    """Return seed 001 Table 12's comparison (:func:`mech_balance.two_point.table12`)."""
+    paper = seed_tables.TABLE12.get(r.scene)
+    head = f"{'seed 001 eqs. B.1-B.5':<44}{'torque':>10}{'force':>10}{'moment':>10}{'z':>10}"
+    lines = [f'two-point-mass model (seed 001 Appendix B), weights ({r.weights[0]:g}, '
+             f'{r.weights[1]:g}), normalized RMS', head, '-' * len(head)]
+
+    def row(label, tau, f, n):
+        z = r.weights[0] * f + r.weights[1] * n
+        return f'{label:<44}{tau:>10.4g}{f:>10.4g}{n:>10.4g}{z:>10.5g}'
+
+    if paper is not None and tuple(r.weights) == (0.5, 0.5):
+        for key, label in (('two', 'paper, two point masses'),
+                           ('three', 'paper, three point masses')):
+            lines.append(row(label, *paper[key]))
+    lo, up = r.lower_terms, r.upper_terms
+    lines.append(row('three point masses = relaxation (certified)', lo['driving_torque'],
+                     lo['shaking_force'], lo['shaking_moment']))
+    lines.append(row('two point masses, best design found', up['driving_torque'],
+                     up['shaking_force'], up['shaking_moment']))
+    lines.append(f'certified: {r.lower_bound_z:.6g} <= two-point optimum <= '
+                 f'{r.upper_bound_z:.6g} (bounds {r.gap_rel * 100:.2f}% apart; relaxation '
+                 f'gap {r.lower_bound_gap_rel:.1e}); links the relaxation leaves outside the '
+                 f'two-point set: {", ".join(r.band_links) or "none"}')
+    return '\n'.join(lines)
 
 
 # ============================================================================ text output
@@ -181,6 +345,7 @@ def cmd_balance(args):
 
 def format_result(result, normalized=True):
     """Return a :class:`~mech_balance.balancing.BalanceResult` as readable text."""
+    from mech_balance.balancing import counterweights as cw_mod
     sc = result.scene
     view = normalized and sc.normalization is not None
     w1, w2 = result.weights
@@ -217,6 +382,8 @@ def format_result(result, normalized=True):
                      'iterations)')
     lines.append('design realizable: ' + ('yes' if result.realizable else 'NO ('
                  + ', '.join(d.name for d in result.links if not d.realizable) + ')'))
+    lines.append(cw_mod.format_cost(cw_mod.cost_of_balancing(sc, result.balanced_scene,
+                                                             result.table)))
     lines.append(f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
                  f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
                  f'{result.conic_time_s * 1e3:.1f} ms)')
@@ -307,6 +474,7 @@ def _paper_comparison(result):
 
 
 def _paper_design_links(sc, x, counterweights):
+    from mech_balance.balancing import socp as balancing
     from mech_balance.core import equimomental
     design = equimomental.apply_design(sc, x, normalized=True)
     return [balancing.link_design(lk, counterweights, sc.normalization)
@@ -317,6 +485,7 @@ def _paper_design_links(sc, x, counterweights):
 
 
 def _analytic(sc, args):
+    from mech_balance.balancing import counterweights as cw_mod, socp as balancing
     kinds = {j.kind for j in sc.joints}
     if 'prismatic' in kinds:
         results = [balancing.slider_crank_balance(sc, samples=args.samples),
@@ -341,7 +510,8 @@ def _analytic(sc, args):
         blocks.append('\n'.join([
             f'{r.method}', f'parameters: {params}', '',
             _links_table(r.links, view, sc), '', _before_after_text(r.table, not view), '',
-            f'RMS shaking force after / before: {r.force_rms_ratio:.3e}']))
+            f'RMS shaking force after / before: {r.force_rms_ratio:.3e}',
+            cw_mod.format_cost(cw_mod.cost_of_balancing(sc, r.balanced_scene, r.table))]))
     text = ('\n\n' + '=' * 99 + '\n\n').join(blocks)
     print(f'scene: {sc.name} ({sc.source})\n\n{text}')
     if args.output:
@@ -366,50 +536,14 @@ def _weights(sc, args):
 
 
 def _write(balanced, path, summary):
+    from mech_balance.balancing import counterweights as cw_mod, socp as balancing
     text = balancing.scene_to_yaml(balanced, balance=summary)
-    Path(path).write_text(f'# written by mech-balance balance from scene {summary["source_scene"]}'
-                          '\n' + text)
+    cw_mod.write_text_atomic(
+        Path(path), f'# written by mech-balance balance from scene {summary["source_scene"]}'
+                    '\n' + text)
 
 
 # ============================================================================ bench
-
-
-def bench_section(args, progress):
-    """Return the bench table of :func:`balancing.optimize`: median wall time per case."""
-    names = args.scene or ['hoeken', 'carpet_scraper']
-    repeat = min(int(args.repeat), BENCH_REPEAT_MAX)
-    head = (f"{'balance: scene':<18}{'case':<6}{'weights':<12}{'constraints':<13}"
-            f"{'z':>12}{'rel. gap':>10}{'median ms':>11}{'cone ms':>9}")
-    lines = [f'balance (seed 001 SOCP): median of {repeat} optimizations after '
-             f'{bench.WARMUP} warm-up runs, {args.samples} crank angles'
-             + (f' (--repeat {args.repeat} capped at {BENCH_REPEAT_MAX})'
-                if args.repeat > repeat else ''),
-             head, '-' * len(head)]
-    header_lines = len(lines)
-    for name in names:
-        if name not in ('hoeken', 'carpet_scraper'):
-            continue
-        sc = scene_mod.load(name)
-        cases = ('a', 'b') if name == 'hoeken' else ('a',)
-        for case in cases:
-            for w in seed_tables.WEIGHT_CASES:
-                for paper in (True, False):
-                    progress(f'  timing balance {name} {case} {w} '
-                             f'{"paper" if paper else "realizable"} ...')
-                    last = {}
-
-                    def run(w=w, case=case, paper=paper, last=last):
-                        last['r'] = balancing.optimize(sc, w, case, paper_constraints=paper,
-                                                       samples=args.samples)
-                    sec = bench.median_seconds(run, repeat=repeat)
-                    r = last['r']
-                    lines.append(f"{name:<18}{case:<6}{f'({w[0]:g}, {w[1]:g})':<12}"
-                                 f"{'paper' if paper else 'realizable':<13}"
-                                 f"{r.objective['z']:>12.6g}{r.certificate.gap_rel:>10.1e}"
-                                 f'{sec * 1e3:>11.1f}{r.conic_time_s * 1e3:>9.1f}')
-    if len(lines) == header_lines:
-        lines.append('(no balancing benchmark for the selected scenes)')
-    return '\n'.join(lines)
 
 
 if __name__ == '__main__':  # pragma: no cover - use `mech-balance balance`

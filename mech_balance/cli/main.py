@@ -203,8 +203,9 @@ def cmd_bench(args):
     print(bench.format_rows(rows), flush=True)
     import importlib
     for name in bench.SECTIONS:
+        module, _, function = name.partition(':')
         print()
-        print(importlib.import_module(name).bench_section(args, progress), flush=True)
+        print(getattr(importlib.import_module(module), function)(args, progress), flush=True)
     return 0
 
 

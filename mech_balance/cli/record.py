@@ -10,19 +10,11 @@ import argparse
 from pathlib import Path
 import shutil
 import sys
-import tempfile
-import time
 
-from mech_balance.balancing import socp as balancing
+from mech_balance.balancing import defaults
+from mech_balance.balancing.defaults import DEFAULT_CASE
 from mech_balance.cli import balance as cli_balance
-from mech_balance.cli.balance import DEFAULT_CASE
 
-HOEKEN_A2_DESIGN = (-4.8784, 0.7227, 5.1566, 0.5886, 5.2843, -1.3781, 3.1938, 1.7240,
-                    -5.1095, 8.0046, -0.9951, 0.8759)
-"""Seed 001 Table 5, case a(2), (w1, w2) = (0.5, 0.5): the bench's balanced Hoeken design."""
-BENCH_SAMPLES = 360
-BENCH_REPEAT_MAX = 20
-"""The bench records at most this many times (each run writes a file)."""
 OUT_SUFFIXES = ('.rrd',)
 """``--out``: what the recording's file name ends in."""
 
@@ -72,7 +64,7 @@ def register(subparsers):
     p.set_defaults(func=cmd_record)
 
 
-def balanced_design(sc, weights=balancing.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
+def balanced_design(sc, weights=defaults.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     """
     Return ``(balanced_scene, description)`` for ``--balance``.
 
@@ -113,7 +105,7 @@ def cmd_record(args):
     elif args.balance:
         cli.requires(sc, 'mass_redistribution', **given)
         balanced, source = balanced_design(
-            sc, balancing.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
+            sc, defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
             DEFAULT_CASE if args.case is None else args.case)
     summary = recording.record(out, sc, balanced, cycles=args.cycles, samples=args.samples,
                                balanced_source=source, field='--out')
@@ -136,33 +128,3 @@ def _viewer():
         return 'rerun'
     beside = Path(sys.executable).parent / 'rerun'
     return str(beside) if beside.exists() else 'rerun'
-
-
-def bench_section(args, progress):
-    """Return the timing of one Hoeken recording (original + seed 001 a(2), 360 samples)."""
-    from mech_balance.bench import core as bench
-    from mech_balance.core import equimomental
-    from mech_balance import schema as scene
-    from mech_balance.viz import recording
-    sc = scene.load('hoeken')
-    balanced = equimomental.apply_design(sc, HOEKEN_A2_DESIGN, normalized=True)
-    asked = int(getattr(args, 'repeat', BENCH_REPEAT_MAX))
-    repeat = min(asked, BENCH_REPEAT_MAX)
-    progress('  timing record hoeken (original + a(2)) ...')
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / 'hoeken.rrd'
-        t0 = time.perf_counter()
-        recording.record(path, sc, balanced, cycles=1, samples=BENCH_SAMPLES)
-        cold = time.perf_counter() - t0
-        warm = bench.median_seconds(
-            lambda: recording.record(path, sc, balanced, cycles=1, samples=BENCH_SAMPLES),
-            repeat=repeat)
-        size = path.stat().st_size
-    lines = [f'record (rerun file): hoeken original + seed 001 a(2), 1 turn at {BENCH_SAMPLES} '
-             'samples;', f'median of {repeat} runs after {bench.WARMUP} warm-up runs'
-             + (f' (--repeat {asked} capped at {BENCH_REPEAT_MAX}: each run writes a file)'
-                if asked > repeat else ''),
-             f'{"scene":<16}{"first run s":>14}{"median s":>12}{"file MB":>10}',
-             '-' * 52,
-             f'{"hoeken":<16}{cold:>14.3f}{warm:>12.3f}{size / 1e6:>10.3f}']
-    return '\n'.join(lines)

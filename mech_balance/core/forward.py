@@ -72,7 +72,6 @@ from mech_balance.core.planar import dynamics
 from mech_balance.schema import fields
 from mech_balance.schema.drive import Drive, drive_from_dict, DriveError, Motor, SpeedController
 import numpy as np
-from scipy.integrate import solve_ivp
 
 DEFAULT_RTOL = 1e-8
 """Relative tolerance of a simulation when the caller does not say."""
@@ -570,6 +569,7 @@ class ForwardDynamics:
         t0 = time.perf_counter()
         try:
             with np.errstate(over='raise', invalid='raise'):
+                from scipy.integrate import solve_ivp  # imported when a simulation runs
                 res = solve_ivp(self.rhs, (0.0, duration_s), y0, method=method, rtol=rtol,
                                 atol=self.atol(rtol), t_eval=t_eval,
                                 dense_output=dense_output, **kwargs)

@@ -33,6 +33,9 @@ INERTIA_ROUNDOFF = 1e-12
 
 Loading rejects what no body can have (I_c < 0); whether a link is *buildable* (I_c > 0 by a
 design margin, non-negative counterweights) is :func:`mech_balance.equimomental.is_realizable`."""
+COUNTERWEIGHT_MASS_REL_TOL = 1e-6
+"""A counterweight's mass_kg must equal density * pi * R^2 * t to this relative tolerance (the
+writer stores shortest-exact floats, so a written disc meets it to round-off, ~1e-16)."""
 RECORDING_STREAMS = (
     'frame', 'links', 'joints', 'mass_centres', 'point_masses', 'shaking_force_arrow',
     'shaking_moment_arc', 'shaking_force_plot', 'shaking_moment_plot', 'driving_torque_plot',
@@ -94,14 +97,101 @@ class Normalization:
 
 
 @dataclass(frozen=True)
+class Counterweight:
+    """
+    A solid disc (cylinder) fixed to a link: ``links.<name>.counterweights`` entries (SI).
+
+    ``centre_m`` is the disc's centre ``(x, y)`` in the link frame; its axis is normal to
+    the plane of motion.  Mass = density * pi * radius^2 * thickness (checked on loading).
+    """
+
+    mass_kg: float
+    centre_m: tuple
+    radius_m: float
+    thickness_m: float
+    density_kg_m3: float
+
+    @property
+    def inertia_com_kg_m2(self):
+        """Return the disc's polar moment of inertia about its own centre, m R^2 / 2."""
+        return 0.5 * self.mass_kg * self.radius_m ** 2
+
+    def to_dict(self):
+        """Return the disc as its scene entry (``mass_kg``, ``centre_m``, ...)."""
+        return {'mass_kg': float(self.mass_kg), 'centre_m': [float(v) for v in self.centre_m],
+                'radius_m': float(self.radius_m), 'thickness_m': float(self.thickness_m),
+                'density_kg_m3': float(self.density_kg_m3)}
+
+
+def counterweight_totals(mass_kg, com_m, inertia_com_kg_m2, counterweights):
+    """
+    Return ``(mass_kg, com_m, inertia_com_kg_m2)`` of a link body plus its discs.
+
+    Sums of the masses, of the first moments m c and of the moments of inertia about the
+    link origin (parallel axes), then back to the mass centre.  With no discs the inputs are
+    returned unchanged (bit for bit).
+    """
+    if not counterweights:
+        return mass_kg, com_m, inertia_com_kg_m2
+    m = mass_kg
+    hx, hy = mass_kg * com_m[0], mass_kg * com_m[1]
+    i_o = inertia_com_kg_m2 + mass_kg * (com_m[0] ** 2 + com_m[1] ** 2)
+    for cw in counterweights:
+        x, y = cw.centre_m
+        m += cw.mass_kg
+        hx += cw.mass_kg * x
+        hy += cw.mass_kg * y
+        i_o += cw.inertia_com_kg_m2 + cw.mass_kg * (x * x + y * y)
+    com = (hx / m, hy / m)
+    return m, com, max(i_o - m * (com[0] ** 2 + com[1] ** 2), 0.0)
+
+
+@dataclass(frozen=True)
 class Link:
-    """A rigid link: named points and inertia, all in the link's own frame (SI)."""
+    """
+    A rigid link: named points and inertia, all in the link's own frame (SI).
+
+    ``mass_kg``, ``com_m`` and ``inertia_com_kg_m2`` are the TOTALS of the link body and its
+    ``counterweights`` (what every computation reads); the body alone is ``own_mass_kg``,
+    ``own_com_m``, ``own_inertia_com_kg_m2`` (``own``, set by :func:`add_counterweights`).
+    A copy whose totals no longer equal body + discs (``dataclasses.replace`` of the inertia
+    by a redistribution or analytic design: a new link as a whole) keeps the new totals and
+    drops the discs, so a link never lists counterweights that its totals do not contain.
+    """
 
     name: str
     points: dict
     mass_kg: float
     com_m: tuple
     inertia_com_kg_m2: float
+    counterweights: tuple = ()
+    own: tuple = None   # (mass_kg, com_m, inertia_com_kg_m2) of the body without the discs
+
+    def __post_init__(self):
+        """Drop discs that the totals do not contain (see the class docstring)."""
+        if not self.counterweights and self.own is None:
+            return
+        if self.counterweights and self.own is not None and \
+                counterweight_totals(*self.own, self.counterweights) == \
+                (self.mass_kg, self.com_m, self.inertia_com_kg_m2):
+            return
+        object.__setattr__(self, 'counterweights', ())
+        object.__setattr__(self, 'own', None)
+
+    @property
+    def own_mass_kg(self):
+        """Return the mass of the link body without its counterweights."""
+        return self.mass_kg if self.own is None else self.own[0]
+
+    @property
+    def own_com_m(self):
+        """Return the mass centre of the link body without its counterweights."""
+        return self.com_m if self.own is None else self.own[1]
+
+    @property
+    def own_inertia_com_kg_m2(self):
+        """Return the centroidal inertia of the link body without its counterweights."""
+        return self.inertia_com_kg_m2 if self.own is None else self.own[2]
 
     @property
     def first_moment_kg_m(self):
@@ -112,6 +202,15 @@ class Link:
     def inertia_origin_kg_m2(self):
         """Return the moment of inertia about the link origin (parallel axes)."""
         return self.inertia_com_kg_m2 + self.mass_kg * (self.com_m[0] ** 2 + self.com_m[1] ** 2)
+
+
+def add_counterweights(link, counterweights):
+    """Return ``link`` with more discs: same body, its totals include every disc."""
+    own = (link.own_mass_kg, tuple(link.own_com_m), link.own_inertia_com_kg_m2)
+    discs = tuple(link.counterweights) + tuple(counterweights)
+    m, com, i_c = counterweight_totals(*own, discs)
+    return replace(link, mass_kg=m, com_m=com, inertia_com_kg_m2=i_c, counterweights=discs,
+                   own=own if discs else None)
 
 
 @dataclass(frozen=True)
@@ -412,9 +511,13 @@ def planar_to_dict(scene):
                      'acceleration_rad_s2': scene.crank_acceleration_rad_s2}
     data['gravity_m_s2'] = list(scene.gravity_m_s2)
     data['frame'] = {'points': {k: list(v) for k, v in scene.frame_points.items()}}
+    # a link with counterweights: its own body and its discs (the loader adds them up)
     data['links'] = {lk.name: {'points': {k: list(v) for k, v in lk.points.items()},
-                               'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),
-                               'inertia_com_kg_m2': lk.inertia_com_kg_m2}
+                               'mass_kg': lk.own_mass_kg, 'com_m': list(lk.own_com_m),
+                               'inertia_com_kg_m2': lk.own_inertia_com_kg_m2,
+                               **({'counterweights': [cw.to_dict() for cw in
+                                                      lk.counterweights]}
+                                  if lk.counterweights else {})}
                      for lk in scene.links}
     joints = {}
     for jt in scene.joints:
@@ -506,7 +609,7 @@ def _link(name, spec):
     where = f'links.{name}'
     spec = _mapping(spec, where)
     _known_keys(spec, {'points', 'mass_kg', 'com_m', 'inertia_com_kg_m2',
-                       'inertia_origin_kg_m2', 'description'}, where)
+                       'inertia_origin_kg_m2', 'description', 'counterweights'}, where)
     points = _points(_require(spec, 'points', where), f'{where}.points')
     names = list(points)
     for i, a in enumerate(names):
@@ -538,7 +641,33 @@ def _link(name, spec):
             f'{where}.{key}: got {value!r}, which gives a centroidal moment of inertia '
             f'{i_c:.6g} kg*m^2 < 0; no body has that (expected inertia about the mass centre '
             '>= 0)')
-    return Link(name, points, mass, com, max(i_c, 0.0))
+    link = Link(name, points, mass, com, max(i_c, 0.0))
+    discs = spec.get('counterweights') or []
+    if not isinstance(discs, list):
+        raise SceneError(f'{where}.counterweights: got {discs!r}, expected a list of discs '
+                         '{mass_kg, centre_m, radius_m, thickness_m, density_kg_m3}')
+    discs = [_counterweight(d, f'{where}.counterweights[{k}]') for k, d in enumerate(discs)]
+    return add_counterweights(link, discs) if discs else link
+
+
+def _counterweight(spec, where):
+    spec = _mapping(spec, where)
+    keys = ('mass_kg', 'centre_m', 'radius_m', 'thickness_m', 'density_kg_m3')
+    _known_keys(spec, set(keys), where)
+    for key in keys:
+        _require(spec, key, where)
+    mass = _positive(spec['mass_kg'], f'{where}.mass_kg')
+    centre = _vector(spec['centre_m'], f'{where}.centre_m')
+    radius = _positive(spec['radius_m'], f'{where}.radius_m')
+    thickness = _positive(spec['thickness_m'], f'{where}.thickness_m')
+    density = _positive(spec['density_kg_m3'], f'{where}.density_kg_m3')
+    solid = density * math.pi * radius ** 2 * thickness
+    if abs(solid - mass) > COUNTERWEIGHT_MASS_REL_TOL * mass:
+        raise SceneError(
+            f'{where}.mass_kg: got {mass!r}, but density_kg_m3 * pi * radius_m^2 * '
+            f'thickness_m = {solid:.9g} kg; expected them equal (relative '
+            f'{COUNTERWEIGHT_MASS_REL_TOL:g}): mass_kg or one of the dimensions is inconsistent')
+    return Counterweight(mass, centre, radius, thickness, density)
 
 
 def _joint(name, spec, all_points):

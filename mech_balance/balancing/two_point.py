@@ -1,0 +1,282 @@
+"""
+Seed 001 Appendix B: the two-point-mass model of a link, and Table 12's comparison.
+
+Two point masses m_1, m_2 at theta = 0 and pi/2 of the link frame, at distances l_1, l_2
+(seed 001 Table 11, [23]) give the link parameters
+
+    m = m_1 + m_2,   h = (m_1 l_1, m_2 l_2),   I_O = m_1 l_1^2 + m_2 l_2^2,
+
+and the paper's problem (eqs. B.1-B.3) is ``min w1 f~ + w2 n~`` subject to
+``m^o <= m <= 5 m^o`` and ``I_O >= 0.25 I^o`` (point masses of any sign, as case a).
+
+Which (m, h, I_O) can two such masses represent?  Eliminating l_j,
+``I_O = hx^2/m_1 + hy^2/(m - m_1)``; over real m_1 (m > 0) that reaches exactly
+
+    P: m I_O >= (|hx| + |hy|)^2   (0 < m_1 < m: both masses positive), or
+    N: m I_O <= (|hx| - |hy|)^2   (one mass negative; then I_c < 0, no body),
+
+so the two-point model cannot represent the band between, which contains real bodies (a
+compact link whose mass centre is off both axes).  The three-point model (seed 001 eq. 27)
+represents every m > 0, I_O > 0.  Hence, with the same bounds (B.2-B.5):
+
+* the three-point problem is the convex relaxation R of the two-point problem (an SOCP,
+  certified by Clarabel): its optimum is a certified LOWER bound on the two-point optimum;
+* P is convex (``|hx| + |hy| <= sqrt(m I_O)``, a rotated cone) and N, for a fixed sign
+  pattern and dominant axis, is inner-approximated by the polyhedron
+  ``sx hx - sy hy >= m/(2a) + a I_O/2`` (AM-GM: sqrt(m I_O) <= m/(2a) + a I_O/2, tight at
+  a = sqrt(m/I_O)).  Sequential convex programs over these pieces, started from R's
+  optimum with every choice of piece for the links R leaves in the band, give feasible
+  two-point designs: an UPPER bound, verified by building the point masses and evaluating
+  the design with the core.
+
+:func:`table12` returns both bounds and their relative gap: the certified statement about
+the two-point model's optimum.
+"""
+
+from dataclasses import dataclass
+import itertools
+import math
+import time
+
+import clarabel
+from mech_balance.balancing import socp as balancing
+import numpy as np
+import scipy.sparse as sp
+
+PAPER_MASS_FACTORS = (1.0, 5.0)
+"""seed 001 eqs. B.2 / B.4: m^o <= m <= 5 m^o."""
+PAPER_INERTIA_FACTOR = 0.25
+"""seed 001 eqs. B.3 / B.5: I_O >= 0.25 I^o (no upper bound)."""
+SCP_ITERATIONS = 30
+"""Sequential convex programs per choice of pieces, at most."""
+SCP_TOL = 1e-10
+"""Stop when z changes by less than this fraction between two programs."""
+SOLVER_TOL = 1e-9
+"""Clarabel's gap and feasibility tolerances."""
+BAND_REL_TOL = 1e-9
+"""A link is representable by two point masses if m I_O is outside the band by -this x
+(|hx| + |hy|)^2 (round-off of an optimum on its edge)."""
+MAX_BAND_LINKS = 4
+"""Links in the band at R's optimum beyond which the choices are not all tried (2^k)."""
+
+
+@dataclass
+class TwoPointResult:
+    """Table 12 for one scene and weighting: both bounds, designs and RMS values."""
+
+    scene: str
+    weights: tuple
+    lower_bound_z: float          # three-point model = convex relaxation, certified
+    lower_bound_dual: float
+    lower_bound_gap_rel: float
+    lower_terms: dict             # f~, n~, tau~ of the relaxation's optimum
+    upper_bound_z: float          # best two-point design found (feasible, verified)
+    upper_terms: dict
+    gap_rel: float                # (upper - lower) / max(upper, 1)
+    point_masses: dict            # link -> {m_1, m_2, l_1, l_2} (normalized) of the upper
+    band_links: tuple             # links R's optimum leaves unrepresentable
+    programs: int
+    seconds: float
+
+    def to_dict(self):
+        """Return the result as a plain dict."""
+        return _plain(self.__dict__)
+
+
+def representable(theta, rel_tol=BAND_REL_TOL):
+    """Return per link whether (m, hx, hy, I_O) rows of ``theta`` lie in P or N."""
+    t = np.asarray(theta, dtype=float).reshape(-1, 4)
+    m, hx, hy, i_o = t.T
+    hi = (np.abs(hx) + np.abs(hy)) ** 2
+    lo = (np.abs(hx) - np.abs(hy)) ** 2
+    slack = rel_tol * np.maximum(hi, 1e-300)
+    return (m * i_o >= hi - slack) | (m * i_o <= lo + slack)
+
+
+def point_masses(m, hx, hy, i_o):
+    """
+    Return (m_1, m_2, l_1, l_2) of a link in P or N (seed 001 Table 11, theta = 0, pi/2).
+
+    ``I_O m_1^2 + (hy^2 - hx^2 - I_O m) m_1 + hx^2 m = 0`` (from I_O = hx^2/m_1 +
+    hy^2/(m - m_1)); the root with 0 < m_1 < m is taken when it exists.
+    """
+    b = hy * hy - hx * hx - i_o * m
+    disc = max(b * b - 4.0 * i_o * hx * hx * m, 0.0)
+    roots = [(-b + s * math.sqrt(disc)) / (2.0 * i_o) for s in (1.0, -1.0)]
+    inside = [r for r in roots if 0.0 < r < m]
+    m1 = inside[0] if inside else roots[0]
+    m2 = m - m1
+    return m1, m2, hx / m1 if m1 else 0.0, hy / m2 if m2 else 0.0
+
+
+def table12(scene, weights=(0.5, 0.5), samples=None):
+    """Return the :class:`TwoPointResult` of seed 001 eqs. B.1-B.5 for a planar scene."""
+    t_start = time.perf_counter()
+    w = np.array([float(weights[0]), float(weights[1])])
+    maps = balancing.linear_maps(scene, samples, ('shaking_wrench', 'driving_torque'))
+    theta0 = maps.theta_original.reshape(-1, 4)
+    n = theta0.shape[0]
+    m0, i0 = theta0[:, 0], theta0[:, 3]
+    dsc = np.column_stack([m0, np.sqrt(m0 * i0), np.sqrt(m0 * i0), i0]).ravel()
+    lower = _program(maps, dsc, w, n, ['free'] * n, None)
+    programs = 1
+    y_r = lower['theta']
+    band = [i for i, ok in enumerate(representable(y_r)) if not ok]
+    best = None
+    if not band:
+        best = lower
+    else:
+        tried = band[:MAX_BAND_LINKS]
+        for choice in itertools.product(('P', 'N'), repeat=len(tried)):
+            pieces = _initial_pieces(y_r)
+            for i, c in zip(tried, choice):
+                pieces[i] = 'P' if c == 'P' else _n_piece(y_r[4 * i:4 * i + 4])
+            theta, z_prev = y_r, math.inf
+            for _ in range(SCP_ITERATIONS):
+                try:
+                    sol = _program(maps, dsc, w, n, pieces, theta)
+                except balancing.BalanceError:
+                    break
+                programs += 1
+                theta = sol['theta']
+                if all(representable(theta)) and (best is None or sol['z'] < best['z']):
+                    best = sol
+                if abs(z_prev - sol['z']) <= SCP_TOL * max(abs(sol['z']), 1.0):
+                    break
+                z_prev = sol['z']
+    t = best['theta'].reshape(-1, 4)
+    pm = {lk.name: dict(zip(('m_1', 'm_2', 'l_1', 'l_2'), point_masses(*row)))
+          for lk, row in zip(scene.links, t)}
+    # verify: the point masses give back the parameters, and the core evaluates the design
+    rebuilt = []
+    for p in pm.values():
+        rebuilt += [p['m_1'] + p['m_2'], p['m_1'] * p['l_1'], p['m_2'] * p['l_2'],
+                    p['m_1'] * p['l_1'] ** 2 + p['m_2'] * p['l_2'] ** 2]
+    upper_terms = _terms(maps, np.array(rebuilt))
+    lower_terms = _terms(maps, lower['theta'])
+    z_up = float(w @ [upper_terms['shaking_force'], upper_terms['shaking_moment']])
+    z_lo = lower['z']
+    return TwoPointResult(
+        scene=scene.name, weights=tuple(w), lower_bound_z=z_lo,
+        lower_bound_dual=lower['dual'],
+        lower_bound_gap_rel=abs(z_lo - lower['dual']) / max(abs(z_lo), 1.0),
+        lower_terms=lower_terms, upper_bound_z=z_up, upper_terms=upper_terms,
+        gap_rel=(z_up - z_lo) / max(abs(z_up), 1.0), point_masses=pm,
+        band_links=tuple(scene.links[i].name for i in band), programs=programs,
+        seconds=time.perf_counter() - t_start)
+
+
+def _terms(maps, theta):
+    return {'shaking_force': float(np.linalg.norm(maps.force @ theta)),
+            'shaking_moment': float(np.linalg.norm(maps.moment @ theta)),
+            'driving_torque': float(np.linalg.norm(maps.torque @ theta))}
+
+
+def _initial_pieces(theta):
+    """Return the piece of each link at ``theta``: 'P', an N piece, or 'P' when in the band."""
+    out = []
+    for row in np.asarray(theta).reshape(-1, 4):
+        m, hx, hy, i_o = row
+        out.append('P' if m * i_o >= (abs(hx) + abs(hy)) ** 2 * (1 - BAND_REL_TOL)
+                   else _n_piece(row) if m * i_o <= (abs(hx) - abs(hy)) ** 2 * (1 + 1e-9)
+                   else 'P')
+    return out
+
+
+def _n_piece(row):
+    """Return the N piece (dominant axis, signs) nearest to a link's parameters."""
+    _, hx, hy, _ = row
+    axis = 0 if abs(hx) >= abs(hy) else 1
+    return ('N', axis, 1.0 if hx >= 0 else -1.0, 1.0 if hy >= 0 else -1.0)
+
+
+def _program(maps, dsc, w, n, pieces, theta_at):
+    """Solve B.1-B.3 with each link in its piece ('free': the relaxation); return a dict."""
+    nv = 4 * n
+    nx = nv + 2 + n
+    blocks = []
+
+    def add(cone, a, b):
+        blocks.append((cone, np.atleast_2d(a), np.asarray(b, dtype=float).ravel()))
+
+    rows, rhs = [], []
+    for i in range(n):
+        r = np.zeros(nx)
+        r[4 * i] = -1.0
+        rows.append(r)
+        rhs.append(-PAPER_MASS_FACTORS[0])                      # seed 001 eq. B.2
+        r = np.zeros(nx)
+        r[4 * i] = 1.0
+        rows.append(r)
+        rhs.append(PAPER_MASS_FACTORS[1])
+        r = np.zeros(nx)
+        r[4 * i + 3] = -1.0
+        rows.append(r)
+        rhs.append(-PAPER_INERTIA_FACTOR)                       # eq. B.3
+        piece = pieces[i]
+        if piece == 'P':
+            # |hx| + |hy| <= u (4 rows) and u^2 <= m I_O (rotated cone below)
+            for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+                r = np.zeros(nx)
+                r[[4 * i + 1, 4 * i + 2, nv + 2 + i]] = (sx, sy, -1.0)
+                rows.append(r)
+                rhs.append(0.0)
+        elif piece != 'free':
+            _, axis, sx, sy = piece
+            m, hx, hy, i_o = theta_at[4 * i:4 * i + 4]
+            a_ = math.sqrt((m / i_o) * (dsc[4 * i + 3] / dsc[4 * i]))   # scaled variables
+            sb, sd = (sx, sy) if axis == 0 else (sy, sx)
+            ib, id_ = (4 * i + 1, 4 * i + 2) if axis == 0 else (4 * i + 2, 4 * i + 1)
+            # sb h_b - sd h_d >= m/(2a) + a I/2 (in units: h by sqrt(m0 I0)), and signs fixed
+            r = np.zeros(nx)
+            r[ib], r[id_], r[4 * i], r[4 * i + 3] = -sb, sd, 0.5 / a_, 0.5 * a_
+            rows.append(r)
+            rhs.append(0.0)
+            for idx, s in ((ib, sb), (id_, sd)):
+                r = np.zeros(nx)
+                r[idx] = -s
+                rows.append(r)
+                rhs.append(0.0)
+    add(clarabel.NonnegativeConeT, rows, rhs)
+    for i in range(n):
+        if pieces[i] == 'P':
+            a = np.zeros((3, nx))
+            a[0, [4 * i, 4 * i + 3]] = -1.0
+            a[1, nv + 2 + i] = -2.0
+            a[2, [4 * i, 4 * i + 3]] = (-1.0, 1.0)
+            add(clarabel.SecondOrderConeT, a, np.zeros(3))
+    for k, mat in enumerate((maps.force, maps.moment)):
+        a = np.zeros((1 + mat.shape[0], nx))
+        a[0, nv + k] = -1.0
+        a[1:, :nv] = -mat * dsc
+        add(clarabel.SecondOrderConeT, a, np.zeros(a.shape[0]))
+    q = np.zeros(nx)
+    q[nv:nv + 2] = w
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = SOLVER_TOL
+    sol = clarabel.DefaultSolver(
+        sp.csc_matrix((nx, nx)), q, sp.csc_matrix(np.vstack([b[1] for b in blocks])),
+        np.concatenate([b[2] for b in blocks]), [b[0](b[1].shape[0]) for b in blocks],
+        settings).solve()
+    status = str(sol.status)
+    if status not in ('Solved', 'AlmostSolved'):
+        raise balancing.BalanceError(f'two-point model: Clarabel status {status}')
+    x = np.array(sol.x)
+    theta = x[:nv] * dsc
+    z = float(w @ [np.linalg.norm(maps.force @ theta), np.linalg.norm(maps.moment @ theta)])
+    return {'theta': theta, 'z': z, 'dual': float(sol.obj_val_dual), 'status': status}
+
+
+def _plain(obj):
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj)
+    return obj
