@@ -16,9 +16,7 @@ from dataclasses import dataclass
 import math
 import re
 
-from mech_balance import balancing
-from mech_balance.scene import parse_yaml
-import yaml
+from mech_balance import balancing, safe_yaml
 
 STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
     'double_array'
@@ -119,17 +117,13 @@ def parse_link_bounds(name, text, unit):
     Return ``{link: (min, max)}`` from a ``balance.*_bounds`` text, or None when empty.
 
     The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in
-    ``unit``, parsed as scenes are (:func:`mech_balance.scene.parse_yaml`: YAML 1.2 floats,
+    ``unit``, parsed as scenes are (:func:`mech_balance.safe_yaml.loads`: YAML 1.2 floats,
     ``1e-1`` is a number); link names are checked against the scene when the balancing
     runs.
     """
     if not text.strip():
         return None
-    try:
-        data = parse_yaml(text)
-    except yaml.YAMLError as exc:
-        raise ValueError(f'{name}: not valid YAML ({exc.problem}), expected a mapping '
-                         f'link: [min, max] in {unit}') from None
+    data = safe_yaml.loads(text, name)  # bounded: depth, size, aliases (a YamlError)
     if not isinstance(data, dict) or not data:
         raise ValueError(f'{name}: got {text!r}, expected a mapping link: [min, max] in {unit}')
     out = {}
