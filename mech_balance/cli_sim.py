@@ -9,7 +9,7 @@ import json
 import math
 import sys
 
-from mech_balance import accuracy, cli, simulate
+from mech_balance import accuracy, cli, conventions, simulate
 
 
 def _positive_float(text):
@@ -22,7 +22,7 @@ def _positive_float(text):
     return value
 
 
-_rows = cli.int_at_least(2)
+_rows = cli.int_at_least(2, conventions.MAX_TABLE_ROWS, 'conventions.MAX_TABLE_ROWS')
 
 
 def _sections(text):

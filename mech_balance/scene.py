@@ -266,12 +266,14 @@ def _planar_from_dict(data, source):
     links_data = _mapping(_require(data, 'links', ''), 'links')
     if not links_data:
         raise SceneError('links: got an empty mapping, expected at least one moving link')
+    _at_most(links_data, conventions.MAX_LINKS, 'links', 'moving links', 'MAX_LINKS')
     links = tuple(_link(n, spec) for n, spec in links_data.items())
     names = {lk.name for lk in links}
     if FRAME in names:
         raise SceneError(f'links.{FRAME}: "{FRAME}" is reserved for the fixed link')
 
     joints_data = _mapping(_require(data, 'joints', ''), 'joints')
+    _at_most(joints_data, conventions.MAX_JOINTS, 'joints', 'joints', 'MAX_JOINTS')
     all_points = {FRAME: frame_points, **{lk.name: lk.points for lk in links}}
     joints = tuple(_joint(n, spec, all_points) for n, spec in joints_data.items())
 
@@ -331,6 +333,10 @@ def _planar_from_dict(data, source):
     samples = data.get('samples', 360)
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 4:
         raise SceneError(f'samples: got {samples!r}, expected an integer >= 4')
+    try:  # at most MAX_SAMPLES, and bounded work for this many links
+        conventions.check_samples(samples, 'samples', links=len(links))
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
     notes = data.get('notes', {})
     if 'balance' in data:  # provenance written by `mech-balance balance --output`
         _mapping(data['balance'], 'balance')
@@ -532,10 +538,17 @@ def _vector(value, where):
     return (_number(value[0], f'{where}[0]'), _number(value[1], f'{where}[1]'))
 
 
+def _at_most(mapping, limit, where, what, name):
+    if len(mapping) > limit:
+        raise SceneError(f'{where}: got {len(mapping)} {what}, expected at most {limit} '
+                         f'(conventions.{name})')
+
+
 def _points(value, where):
     value = _mapping(value, where)
     if not value:
         raise SceneError(f'{where}: got an empty mapping, expected named points')
+    _at_most(value, conventions.MAX_POINTS, where, 'points', 'MAX_POINTS')
     return {k: _vector(v, f'{where}.{k}') for k, v in value.items()}
 
 
