@@ -71,8 +71,10 @@ def atomic_path(path):
     try:
         yield tmp
         commit(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         discard(tmp)
+        if isinstance(exc, OSError) and exc.filename is None:
+            exc.filename = str(path)  # 'File too large' alone does not say which file
         raise
 
 

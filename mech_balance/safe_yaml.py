@@ -27,7 +27,15 @@ import re
 import stat
 
 import yaml
+from yaml.composer import Composer
+from yaml.constructor import SafeConstructor
 from yaml.nodes import MappingNode, ScalarNode, SequenceNode
+from yaml.resolver import Resolver
+
+try:  # libyaml scans and parses (7x faster); composing stays here, with the limits
+    from yaml.cyaml import CParser as _CParser
+except ImportError:  # PyYAML without libyaml: the pure-Python reader, scanner and parser
+    _CParser = None
 
 MAX_BYTES = 1 << 20
 """Largest YAML document read, in bytes (1 MiB; the built-in scenes are below 20 kB)."""
@@ -52,12 +60,28 @@ class _Refused(Exception):
     """Raised inside the loader; turned into the caller's error class by :func:`loads`."""
 
 
-class Loader(yaml.SafeLoader):
-    """
-    SafeLoader with YAML 1.2 floats, duplicate-key refusal and the limits of this module.
+if _CParser is not None:
+    class _Base(Composer, _CParser, SafeConstructor, Resolver):
+        """PyYAML's safe loader with libyaml's parser and the pure-Python composer."""
 
-    Use it through :func:`loads`, which sets ``label`` (the file or field named in errors)
-    and turns every refusal into the caller's error class.
+        def __init__(self, stream):
+            _CParser.__init__(self, stream)
+            SafeConstructor.__init__(self)
+            Resolver.__init__(self)
+            Composer.__init__(self)
+else:
+    _Base = yaml.SafeLoader
+
+
+class Loader(_Base):
+    """
+    A safe loader (PyYAML's SafeConstructor: plain data only) with YAML 1.2 floats,
+    duplicate-key refusal and the limits of this module.
+
+    Its parser is libyaml's when PyYAML has it (the events are the same); composing, where
+    the limits are counted, is PyYAML's Python composer overridden here.  Use it through
+    :func:`loads`, which sets ``label`` (the file or field named in errors) and turns every
+    refusal into the caller's error class.
     """
 
     label = 'YAML'
@@ -200,18 +224,23 @@ def loads(text, label='YAML', error=YamlError):
     if len(text) > MAX_BYTES or len(text.encode('utf-8', 'surrogatepass')) > MAX_BYTES:
         raise error(f'{label}: got more than {MAX_BYTES} bytes of YAML, expected at most '
                     f'{MAX_BYTES} (safe_yaml.MAX_BYTES)')
-    loader = Loader(text)
-    loader.label = label
+    loader = None
     try:
+        loader = Loader(text)  # its reader refuses control characters at once
+        loader.label = label
         return loader.get_single_data()
     except _Refused as exc:
         raise error(str(exc)) from None
+    except yaml.reader.ReaderError as exc:
+        where = text if _CParser is None else text.encode('utf-8', 'surrogatepass')
+        newline = '\n' if _CParser is None else b'\n'  # libyaml counts bytes, PyYAML chars
+        line = where.count(newline, 0, exc.position) + 1
+        column = exc.position - (where.rfind(newline, 0, exc.position) + 1) + 1
+        raise error(f'{label}: not valid YAML at line {line}, column {column}: character '
+                    f'#x{exc.character:04x} (a control character) is not allowed') from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, 'problem_mark', None) or getattr(exc, 'context_mark', None)
-        problem = getattr(exc, 'problem', None)
-        if problem is None and isinstance(exc, yaml.reader.ReaderError):
-            problem = f'unacceptable character #x{exc.character:04x} (a control character)'
-        reason = problem or ' '.join(str(exc).split())
+        reason = getattr(exc, 'problem', None) or ' '.join(str(exc).split())
         raise error(f'{label}: not valid YAML{_at(mark)}: {reason}') from None
     except RecursionError:  # cannot happen below MAX_DEPTH; never let it escape
         raise error(f'{label}: nesting too deep to read, expected at most {MAX_DEPTH} levels '
@@ -219,7 +248,8 @@ def loads(text, label='YAML', error=YamlError):
     except (ValueError, TypeError, OverflowError) as exc:  # e.g. a timestamp 2001-02-30
         raise error(f'{label}: a value cannot be read ({exc})') from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 def check_file(path, label, error=YamlError):
