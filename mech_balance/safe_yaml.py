@@ -231,17 +231,8 @@ def loads(text, label='YAML', error=YamlError):
         return loader.get_single_data()
     except _Refused as exc:
         raise error(str(exc)) from None
-    except yaml.reader.ReaderError as exc:
-        where = text if _CParser is None else text.encode('utf-8', 'surrogatepass')
-        newline = '\n' if _CParser is None else b'\n'  # libyaml counts bytes, PyYAML chars
-        line = where.count(newline, 0, exc.position) + 1
-        column = exc.position - (where.rfind(newline, 0, exc.position) + 1) + 1
-        raise error(f'{label}: not valid YAML at line {line}, column {column}: character '
-                    f'#x{exc.character:04x} (a control character) is not allowed') from None
     except yaml.YAMLError as exc:
-        mark = getattr(exc, 'problem_mark', None) or getattr(exc, 'context_mark', None)
-        reason = getattr(exc, 'problem', None) or ' '.join(str(exc).split())
-        raise error(f'{label}: not valid YAML{_at(mark)}: {reason}') from None
+        raise error(f'{label}: {_syntax_error(text, exc)}') from None
     except RecursionError:  # cannot happen below MAX_DEPTH; never let it escape
         raise error(f'{label}: nesting too deep to read, expected at most {MAX_DEPTH} levels '
                     '(safe_yaml.MAX_DEPTH)') from None
@@ -250,6 +241,38 @@ def loads(text, label='YAML', error=YamlError):
     finally:
         if loader is not None:
             loader.dispose()
+
+
+def _syntax_error(text, exc):
+    """
+    Return 'not valid YAML at line L, column C: PROBLEM' for a YAMLError of the parser.
+
+    libyaml's messages are terser than PyYAML's (``did not find expected ','`` against
+    ``expected ',' or ']', but got ':'``): the text is then parsed again by PyYAML's
+    pure-Python parser (events only, not recursive) for its message.
+    """
+    if _CParser is not None and not isinstance(exc, yaml.composer.ComposerError):
+        try:
+            for _ in yaml.parse(text, Loader=yaml.SafeLoader):
+                pass
+        except yaml.YAMLError as python_exc:
+            return _describe(python_exc, text)
+        except RecursionError:  # the Python parser is not recursive: defensive only
+            pass
+        return _describe(exc, text.encode('utf-8', 'surrogatepass'))
+    return _describe(exc, text)
+
+
+def _describe(exc, where):
+    if isinstance(exc, yaml.reader.ReaderError):
+        newline = '\n' if isinstance(where, str) else b'\n'  # libyaml counts bytes
+        line = where.count(newline, 0, exc.position) + 1
+        column = exc.position - (where.rfind(newline, 0, exc.position) + 1) + 1
+        return (f'not valid YAML at line {line}, column {column}: character '
+                f'#x{exc.character:04x} (a control character) is not allowed')
+    mark = getattr(exc, 'problem_mark', None) or getattr(exc, 'context_mark', None)
+    reason = getattr(exc, 'problem', None) or ' '.join(str(exc).split())
+    return f'not valid YAML{_at(mark)}: {reason}'
 
 
 def check_file(path, label, error=YamlError):
