@@ -43,8 +43,9 @@ MAX_JOINTS = 128
 """Most joints of a scene (a single-dof planar rig of MAX_LINKS links has 95)."""
 MAX_POINTS = 64
 """Most named points of one link (or of the frame)."""
-MAX_CYCLES = 1000
-"""Most crank turns of a recording (``record --cycles``; about 250 MB of .rrd at 360)."""
+MAX_CYCLES = 100
+"""Most crank turns of a recording (``record --cycles``; at 360 samples per turn about
+25 MB of .rrd and 0.3 GB of memory while it is encoded)."""
 MAX_WEIGHT = 1e6
 """Largest objective weight (``--weights``, ``--torque-weight``, ``balance.*weight*``)."""
 MAX_NAME_LENGTH = 256
