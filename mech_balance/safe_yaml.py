@@ -75,13 +75,13 @@ else:
 
 class Loader(_Base):
     """
-    A safe loader (PyYAML's SafeConstructor: plain data only) with YAML 1.2 floats,
-    duplicate-key refusal and the limits of this module.
+    A safe loader with YAML 1.2 floats, duplicate-key refusal and this module's limits.
 
-    Its parser is libyaml's when PyYAML has it (the events are the same); composing, where
-    the limits are counted, is PyYAML's Python composer overridden here.  Use it through
-    :func:`loads`, which sets ``label`` (the file or field named in errors) and turns every
-    refusal into the caller's error class.
+    PyYAML's SafeConstructor makes plain data only.  The parser is libyaml's when PyYAML
+    has it (the events are the same); composing, where the limits are counted, is PyYAML's
+    Python composer overridden here.  Use it through :func:`loads`, which sets ``label``
+    (the file or field named in errors) and turns every refusal into the caller's error
+    class.
     """
 
     label = 'YAML'

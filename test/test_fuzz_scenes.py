@@ -244,7 +244,7 @@ def _evaluate(path):
     w = cycle.wrenches
     if w is not None:
         out += [w.shaking_force, w.shaking_moment]
-        out += [f for f in (w.reaction_force or {}).values()]
+        out += list((w.reaction_force or {}).values())
     out += [[r.rms for r in analysis.summarize(cycle)]]
     return out
 

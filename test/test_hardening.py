@@ -402,7 +402,7 @@ def test_class8_weights_1e308_names_the_option(capsys):
 
 
 def test_class8_syntax_and_control_characters_name_line_and_column():
-    with pytest.raises(safe_yaml.YamlError, match=r"^f: not valid YAML at line 2, column 1: "
+    with pytest.raises(safe_yaml.YamlError, match=r'^f: not valid YAML at line 2, column 1: '
                                                   r"expected ',' or ']'"):
         safe_yaml.loads('a: [1, 2\n', 'f')
     with pytest.raises(safe_yaml.YamlError, match=r'^f: not valid YAML at line 2, column 5: '
