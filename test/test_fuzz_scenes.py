@@ -215,8 +215,8 @@ def _mutate_text(rng, text):
 
 def _finite(values):
     for v in values:
-        a = np.asarray(v, dtype=float)
-        if not np.all(np.isfinite(a)):
+        a = np.asarray(v)
+        if a.dtype.kind in 'fciu' and not np.all(np.isfinite(a)):  # complex: both parts
             return False
     return True
 
