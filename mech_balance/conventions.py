@@ -31,16 +31,64 @@ import numpy as np
 DEFAULT_SAMPLES = 360
 """Crank angles per revolution when a caller does not say (one per degree)."""
 
+# Bounds on work and input, checked before the work starts; every error names the field and
+# the limit (README, section Limits).  The YAML reader's limits are in safe_yaml.py.
+MAX_SAMPLES = 100_000
+"""Most crank angles per revolution (scene ``samples:``, ``--samples``, ``balance.samples``)."""
+MAX_LINK_SAMPLES = 1_000_000
+"""Most moving links x crank angles in one evaluation (about 0.6 GB of kinematic state)."""
+MAX_LINKS = 64
+"""Most moving links of a scene."""
+MAX_JOINTS = 128
+"""Most joints of a scene (a single-dof planar rig of MAX_LINKS links has 95)."""
+MAX_POINTS = 64
+"""Most named points of one link (or of the frame)."""
+MAX_CYCLES = 100
+"""Most crank turns of a recording (``record --cycles``; at 360 samples per turn about
+25 MB of .rrd and 0.3 GB of memory while it is encoded)."""
+MAX_WEIGHT = 1e6
+"""Largest objective weight (``--weights``, ``--torque-weight``, ``balance.*weight*``)."""
+MAX_NAME_LENGTH = 256
+"""Longest name accepted where one is given as text (``frame_id``)."""
+MAX_TABLE_ROWS = 10_000
+"""Most rows of a printed time table (``simulate --rows``)."""
+MAX_REPEAT = 10_000
+"""Most timed runs per benchmark figure (``bench --repeat``)."""
 
-def cycle_angles(samples, start_rad=0.0):
+
+def check_samples(samples, field='samples', links=1):
+    """
+    Return ``samples`` as an int if 1 <= samples <= MAX_SAMPLES and the work is bounded.
+
+    ``links`` moving links are evaluated at each angle: ``links * samples`` must not exceed
+    :data:`MAX_LINK_SAMPLES`.  Raises ValueError naming ``field`` and the limit.
+    """
+    try:
+        count = int(samples)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f'{field}: got {samples!r}, expected an integer') from None
+    if count != samples:
+        raise ValueError(f'{field}: got {samples!r}, expected an integer')
+    if count < 1:
+        raise ValueError(f'{field}: got {count}, expected an integer >= 1')
+    if count > MAX_SAMPLES:
+        raise ValueError(f'{field}: got {count}, expected at most {MAX_SAMPLES} crank angles '
+                         'per revolution (conventions.MAX_SAMPLES)')
+    if count * max(int(links), 1) > MAX_LINK_SAMPLES:
+        raise ValueError(f'{field}: got {count} crank angles x {int(links)} moving links = '
+                         f'{count * int(links)}, expected at most {MAX_LINK_SAMPLES} '
+                         '(conventions.MAX_LINK_SAMPLES); use fewer samples')
+    return count
+
+
+def cycle_angles(samples, start_rad=0.0, links=1):
     """
     Return ``samples`` equally spaced crank angles of one revolution, in rad.
 
     The end point is excluded, so that each angle carries the same weight in the RMS.
+    ``samples`` is bounded by :func:`check_samples` (``links`` moving links per angle).
     """
-    samples = int(samples)
-    if samples < 1:
-        raise ValueError(f'samples: got {samples}, expected an integer >= 1')
+    samples = check_samples(samples, links=links)
     return start_rad + 2.0 * np.pi * np.arange(samples) / samples
 
 

@@ -353,7 +353,7 @@ def test_cli_balance_analytic_and_rggr(capsys):
 @pytest.mark.parametrize('argv, match', [
     (['--case', 'c'], None),
     (['--scene', 'rggr', '--output', 'x.yaml'], '--output'),
-    (['--weights', '-1', '0'], 'weights'),
+    (['--weights', '-1', '0'], None),        # argparse: --weights is 0 <= w <= MAX_WEIGHT
     (['--paper-constraints', '--output', 'x.yaml'], 'unrealizable'),
 ])
 def test_cli_balance_bad_input(capsys, tmp_path, argv, match):

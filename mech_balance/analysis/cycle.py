@@ -37,7 +37,8 @@ class Cycle:
 def run_cycle(rig, samples=None, outputs=None):
     """Evaluate one revolution at ``samples`` equally spaced crank angles."""
     samples = rig.scene.samples if samples is None else samples
-    psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad)
+    psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
+                       links=len(rig.scene.links))
     rig.linkage.skeleton  # noqa: B018 - trace the branch outside the timed section
     t0 = time.perf_counter()
     state, wrenches = rig.evaluate(psi, outputs)

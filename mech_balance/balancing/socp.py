@@ -51,7 +51,7 @@ from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing.defaults import CASES, CENTROIDAL_MARGIN, DEFAULT_WEIGHTS, \
     PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
-from mech_balance.conventions import cycle_angles
+from mech_balance.conventions import cycle_angles, MAX_WEIGHT
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics
 from mech_balance.schema.scene import FRAME, Normalization
@@ -119,8 +119,8 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     """
     t_start = time.perf_counter()
     w1, w2 = _weights(weights)
-    torque_weight = _nonneg(torque_weight, 'torque_weight')
-    reaction_weight = _nonneg(reaction_weight, 'reaction_weight')
+    torque_weight = _nonneg(torque_weight, 'torque_weight', MAX_WEIGHT)
+    reaction_weight = _nonneg(reaction_weight, 'reaction_weight', MAX_WEIGHT)
     if w1 + w2 + torque_weight + reaction_weight == 0.0:
         raise BalanceError('weights: got all zero, expected at least one positive weight')
     if case not in CASES:
@@ -128,6 +128,9 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     _check_planar(scene)
     names = [lk.name for lk in scene.links]
     fixed = _link_names(fixed_links, names, 'fixed_links')
+    if fixed and len(fixed) == len(names):
+        raise BalanceError(f'fixed_links: got every link ({", ".join(names)}), expected at '
+                           'least one link free to balance')
     if paper_constraints:
         extras = {'mass_bounds': mass_bounds, 'distance_bounds': distance_bounds,
                   'max_added_mass_kg': max_added_mass_kg,
@@ -495,7 +498,7 @@ def linear_maps(scene, samples=None, outputs=('shaking_wrench',), units=None):
     units = objective_units(scene) if units is None else units
     samples = scene.samples if samples is None else samples
     rig = analysis.Rig(scene)
-    psi = cycle_angles(samples, scene.assembly_crank_angle_rad)
+    psi = cycle_angles(samples, scene.assembly_crank_angle_rad, links=len(scene.links))
     outputs = set(outputs)
     need = {'shaking_wrench'} | outputs
     if 'bearing_reactions' in outputs:
@@ -989,16 +992,22 @@ def _weights(weights):
     for name, v in (('w1', w1), ('w2', w2)):
         if not (math.isfinite(v) and v >= 0.0):
             raise BalanceError(f'weights: {name} = {v:g}, expected a finite number >= 0')
+        if v > MAX_WEIGHT:
+            raise BalanceError(f'weights: {name} = {v:g}, expected at most {MAX_WEIGHT:g} '
+                               '(conventions.MAX_WEIGHT)')
     return w1, w2
 
 
-def _nonneg(value, name):
+def _nonneg(value, name, highest=None):
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise BalanceError(f'{name}: got {value!r}, expected a number >= 0') from None
     if not (math.isfinite(v) and v >= 0.0):
         raise BalanceError(f'{name}: got {v:g}, expected a finite number >= 0')
+    if highest is not None and v > highest:
+        raise BalanceError(f'{name}: got {v:g}, expected at most {highest:g} '
+                           '(conventions.MAX_WEIGHT)')
     return v
 
 
@@ -1010,6 +1019,8 @@ def _link_names(values, names, field_name):
         if v not in names:
             raise BalanceError(f'{field_name}: got {v!r}, expected link names from '
                                f'{", ".join(names)}')
+        if v in out:
+            raise BalanceError(f'{field_name}: got {v!r} twice, expected each link once')
         out.add(v)
     return out
 

@@ -8,12 +8,12 @@ printed next to the results are the papers' tables (:mod:`mech_balance.seed_tabl
 
 import argparse
 import json
-from pathlib import Path
 import sys
 
-from mech_balance import schema as scene_mod
+from mech_balance import atomic, conventions, schema as scene_mod
 from mech_balance.balancing import defaults, paper_tables as seed_tables
 from mech_balance.balancing.defaults import DEFAULT_CASE
+from mech_balance.cli import main as cli
 import numpy as np
 
 TABLE3_MASS_FACTORS = (1.0, 2.0, 5.0)
@@ -59,7 +59,7 @@ def add_weight_and_case(p, when=''):
     are checked where they are used, by :func:`mech_balance.balancing.optimize`.
     """
     w1, w2 = defaults.DEFAULT_WEIGHTS
-    p.add_argument('--weights', nargs=2, type=float, default=None, metavar=('W1', 'W2'),
+    p.add_argument('--weights', nargs=2, type=cli.weight, default=None, metavar=('W1', 'W2'),
                    help=f'{when}weights on the RMS normalized shaking force and shaking '
                         f'moment, seed 001 eq. 43 (default: {w1:g} {w2:g}, seed 001 case (2))')
     p.add_argument('--case', choices=defaults.CASES, default=None,
@@ -96,15 +96,16 @@ def register(subparsers):
     p.add_argument('--distance-factors', nargs=2, type=float, metavar=('LO', 'HI'),
                    default=defaults.PAPER_DISTANCE_FACTORS,
                    help='point-mass distance bounds as factors of the original l = sqrt(I_O/m)')
-    p.add_argument('--torque-weight', type=float, default=0.0,
+    p.add_argument('--torque-weight', type=cli.weight, default=0.0,
                    help='extra weight on the RMS normalized driving torque')
-    p.add_argument('--reaction-weight', type=float, default=0.0,
+    p.add_argument('--reaction-weight', type=cli.weight, default=0.0,
                    help='extra weight on the sum of the RMS normalized bearing forces')
     p.add_argument('--max-added-mass', type=float, default=None, metavar='KG',
                    help='cap on the total added mass (kg, over the original total)')
     p.add_argument('--fix', action='append', default=[], metavar='LINK',
                    help='keep this link as it is (repeatable)')
-    p.add_argument('--samples', type=int, default=None,
+    p.add_argument('--samples', type=cli.int_at_least(4, conventions.MAX_SAMPLES,
+                                                      'conventions.MAX_SAMPLES'), default=None,
                    help="crank angles per revolution (default: the scene's, usually 360)")
     p.add_argument('--analytic', action='store_true',
                    help='analytic complete force balance instead: slider-crank (seed 000 eqs. '
@@ -197,7 +198,6 @@ def _check_options(args):
 def cmd_balance(args):
     """Balance a scene and print the design, the before/after table and the certificate."""
     from mech_balance.balancing import counterweights as cw_mod, socp as balancing, two_point
-    from mech_balance.cli import main as cli
     if args.samples is not None and args.samples < 4:
         raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
     _check_options(args)
@@ -536,16 +536,15 @@ def _weights(sc, args):
 
 
 def _write(balanced, path, summary):
-    from mech_balance.balancing import counterweights as cw_mod, socp as balancing
+    from mech_balance.balancing import socp as balancing
     text = balancing.scene_to_yaml(balanced, balance=summary)
-    cw_mod.write_text_atomic(
-        Path(path), f'# written by mech-balance balance from scene {summary["source_scene"]}'
-                    '\n' + text)
+    atomic.write_text_atomic(  # a failed write leaves an existing file as it was
+        path, f'# written by mech-balance balance from scene {summary["source_scene"]}\n'
+        + text)
 
 
 # ============================================================================ bench
 
 
 if __name__ == '__main__':  # pragma: no cover - use `mech-balance balance`
-    from mech_balance.cli import main as cli
     sys.exit(cli.main(['balance', *sys.argv[1:]]))

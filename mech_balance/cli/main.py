@@ -11,7 +11,8 @@ import os
 import sys
 import textwrap
 
-from mech_balance import paths
+from mech_balance import conventions, paths
+from mech_balance.scene import MAX_ABS_VALUE
 import numpy as np
 
 EXIT_USAGE = 2
@@ -50,8 +51,12 @@ class Parser(argparse.ArgumentParser):
         return args
 
 
-def int_at_least(lowest):
-    """Return an argparse ``type`` that accepts integers >= ``lowest``."""
+def int_at_least(lowest, highest=None, limit=None):
+    """
+    Return an argparse ``type`` that accepts integers >= ``lowest`` (and <= ``highest``).
+
+    ``limit`` names the constant of ``highest`` in the error (``conventions.MAX_SAMPLES``).
+    """
     def parse(text):
         try:
             value = int(text)
@@ -60,13 +65,39 @@ def int_at_least(lowest):
                 f'got {text!r}, expected an integer >= {lowest}') from None
         if value < lowest:
             raise argparse.ArgumentTypeError(f'got {value}, expected an integer >= {lowest}')
+        if highest is not None and value > highest:
+            raise argparse.ArgumentTypeError(
+                f'got {value}, expected an integer <= {highest}'
+                + (f' ({limit})' if limit else ''))
         return value
     parse.__name__ = f'integer >= {lowest}'
     return parse
 
 
+def number_between(lowest, highest, limit=None):
+    """Return an argparse ``type``: a finite number ``lowest <= x <= highest``."""
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            value = None
+        if value is None or not lowest <= value <= highest:  # also refuses nan
+            raise argparse.ArgumentTypeError(
+                f'got {text!r}, expected a number {lowest:g} <= x <= {highest:g}'
+                + (f' ({limit})' if limit else ''))
+        return value
+    parse.__name__ = f'number in [{lowest:g}, {highest:g}]'
+    return parse
+
+
 positive_int = int_at_least(1)
 """An argparse ``type``: an integer >= 1."""
+cycles = int_at_least(1, conventions.MAX_CYCLES, 'conventions.MAX_CYCLES')
+"""An argparse ``type``: crank turns, 1 <= n <= MAX_CYCLES."""
+repeats = int_at_least(1, conventions.MAX_REPEAT, 'conventions.MAX_REPEAT')
+"""An argparse ``type``: timed runs of a benchmark, 1 <= n <= MAX_REPEAT."""
+weight = number_between(0.0, conventions.MAX_WEIGHT, 'conventions.MAX_WEIGHT')
+"""An argparse ``type``: an objective weight, 0 <= w <= MAX_WEIGHT."""
 
 
 def writable_path(option, text, suffixes, create_parent=False):
@@ -99,7 +130,7 @@ def _add_scene(p):
                         'file (default: %(default)s)')
 
 
-_samples = int_at_least(4)
+_samples = int_at_least(4, conventions.MAX_SAMPLES, 'conventions.MAX_SAMPLES')
 
 
 def _design(text):
@@ -110,6 +141,10 @@ def _design(text):
             f'got {text!r}, expected comma-separated numbers m11,m12,m13,l11,...') from None
     if not values or not all(np.isfinite(values)):
         raise argparse.ArgumentTypeError(f'got {text!r}, expected finite numbers')
+    if max(abs(v) for v in values) > MAX_ABS_VALUE:  # the magnitude limit of scene files
+        raise argparse.ArgumentTypeError(
+            f'got {text!r}, expected numbers of magnitude <= {MAX_ABS_VALUE:g} '
+            '(scene.MAX_ABS_VALUE)')
     return values
 
 
@@ -151,7 +186,7 @@ def build_parser():
                    help='time only this scene (repeatable; default: all built-in)')
     p.add_argument('--samples', type=_samples, default=360,
                    help='crank angles per cycle (default: %(default)s)')
-    p.add_argument('--repeat', type=positive_int, default=bench.DEFAULT_REPEAT,
+    p.add_argument('--repeat', type=repeats, default=bench.DEFAULT_REPEAT,
                    help='timed runs per figure, an integer >= 1 (default: %(default)s)')
     p.add_argument('--compare', choices=['mujoco'], default=None,
                    help='instead, run Hoeken and generated 4-20 link chains through this '

@@ -54,8 +54,9 @@ def register(subparsers):
                             'scenes (mech_balance.balancing.optimize), seed 002 force '
                             'balance and minimum RMS shaking moment for the RGGR')
     cli_balance.add_weight_and_case(p, when='with --balance (planar): ')
-    p.add_argument('--cycles', type=cli.positive_int, default=1,
-                   help='crank turns to record (default: %(default)s)')
+    p.add_argument('--cycles', type=cli.cycles, default=1,
+                   help='crank turns to record, at most conventions.MAX_CYCLES '
+                        '(default: %(default)s)')
     p.add_argument('--samples', type=_samples, default=None,
                    help="samples per crank turn, a divisor of 360 (default: the scene's, "
                         'usually 360)')

@@ -9,6 +9,7 @@ import json
 import math
 import sys
 
+from mech_balance import conventions
 from mech_balance.analysis import accuracy
 from mech_balance.cli import main as cli
 from mech_balance.core import forward as simulate
@@ -24,7 +25,7 @@ def _positive_float(text):
     return value
 
 
-_rows = cli.int_at_least(2)
+_rows = cli.int_at_least(2, conventions.MAX_TABLE_ROWS, 'conventions.MAX_TABLE_ROWS')
 
 
 def _sections(text):

@@ -17,6 +17,7 @@ is the one definition, which the balancing reports use too.
 from dataclasses import dataclass, replace
 import math
 
+from mech_balance.scene import MAX_ABS_VALUE
 import numpy as np
 
 POINT_ANGLES_RAD = np.array([0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0])
@@ -151,6 +152,9 @@ def split_design(values, n_links):
             f'for each of the {n_links} links)')
     if not np.all(np.isfinite(x)):
         raise ValueError(f'design: got {x.tolist()}, expected finite numbers')
+    if x.size and np.max(np.abs(x)) > MAX_ABS_VALUE:
+        raise ValueError(f'design: got {float(x[np.argmax(np.abs(x))])!r}, expected magnitudes '
+                         f'<= {MAX_ABS_VALUE:g} (scene.MAX_ABS_VALUE, as in scene files)')
     out = []
     for i in range(n_links):
         m1, m2, m3, dist = x[4 * i:4 * i + 4]

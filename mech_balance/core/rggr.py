@@ -45,6 +45,10 @@ from mech_balance.core.rig import batch, BodyPoses, Drawing, DrawingBody, RigDat
 import numpy as np
 
 
+class AssemblyError(ValueError):
+    """The RGGR cannot be assembled, or leaves its branch, at a crank angle (named)."""
+
+
 DEG = math.pi / 180.0
 """One degree in rad (for messages)."""
 
@@ -115,9 +119,9 @@ def _crank_angles(crank_angle_rad):
     if phi1.ndim == 0:
         phi1 = phi1.reshape(1)
     if phi1.ndim != 1 or phi1.size == 0:
-        raise ValueError(f'crank_angle_rad: got shape {phi1.shape}, expected (n,) with n >= 1')
+        raise AssemblyError(f'crank_angle_rad: got shape {phi1.shape}, expected (n,) with n >= 1')
     if not np.all(np.isfinite(phi1)):
-        raise ValueError('crank_angle_rad: got non-finite values, expected finite angles in rad')
+        raise AssemblyError('crank_angle_rad: got non-finite values, expected finite angles in rad')
     return phi1
 
 
@@ -126,21 +130,21 @@ def _check_assembly(phi1, cos_half, sin_half, amp, amp_scale):
     degenerate = amp <= DEGENERATE_LOOP_TOL * amp_scale
     if np.any(degenerate):
         k = int(np.argmax(degenerate))
-        raise ValueError(
+        raise AssemblyError(
             f'crank angle {phi1[k] / DEG:.6g} deg: D2 = D3 = 0 in seed 002 eq. 23, so phi3 '
             'is undetermined (output pin on the output axis or geometry degenerate); '
             'expected a geometry with sqrt(D2^2 + D3^2) > 0')
     apart = np.abs(cos_half) > 1.0
     if np.any(apart):
         k = int(np.argmax(apart))
-        raise ValueError(
+        raise AssemblyError(
             f'crank angle {phi1[k] / DEG:.6g} deg: the RGGR linkage cannot be assembled '
             f'(|D1| / sqrt(D2^2 + D3^2) = {abs(cos_half[k]):.6g}, expected <= 1 by seed 002 '
             'eq. 23); the coupler length geometry.a2_m does not fit this crank position')
     merged = sin_half < BRANCH_SEPARATION_MIN
     if np.any(merged):
         k = int(np.argmax(merged))
-        raise ValueError(
+        raise AssemblyError(
             f'crank angle {phi1[k] / DEG:.6g} deg: the two assembly branches meet '
             f'(sine of half their separation {sin_half[k]:.3g}, expected >= '
             f'{BRANCH_SEPARATION_MIN:g}); the output link is at a dead centre where the '
@@ -271,7 +275,7 @@ def coupler_frame(kin):
     bad = h < COUPLER_FRAME_MIN * a2
     if np.any(bad):
         k = int(np.argmax(bad))
-        raise ValueError(
+        raise AssemblyError(
             f'crank angle {kin.crank_angle_rad[k] / DEG:.6g} deg: coupler parallel to z '
             f'(h / a2 = {h[k] / a2[k]:.3g}, expected >= {COUPLER_FRAME_MIN:g}), so the frame '
             'of seed 002 eq. 42 is undefined')

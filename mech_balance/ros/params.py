@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import math
 import re
 
+from mech_balance import conventions
 from mech_balance.balancing import socp as balancing
-from mech_balance.schema.scene import parse_yaml
-import yaml
+from mech_balance.schema import safe_yaml
 
 STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
     'double_array'
@@ -30,10 +30,10 @@ MIN_PUBLISH_RATE = 0.1
 """Slowest clock-mode publish rate, Hz."""
 MAX_PUBLISH_RATE = 20000.0
 """Fastest clock-mode publish rate, Hz (see ``mech-balance bench`` for what is sustained)."""
-MAX_SAMPLES = 100000
+MAX_SAMPLES = conventions.MAX_SAMPLES
 """Most crank angles per revolution in a balancing run."""
-MAX_WEIGHT = 1e6
-"""Largest extra objective weight accepted."""
+MAX_WEIGHT = conventions.MAX_WEIGHT
+"""Largest objective weight accepted."""
 MAX_MARGIN = 0.999
 """Largest realizability margin (the balancing requires margin < 1)."""
 _FRAME_ID = re.compile(r'^[A-Za-z_][A-Za-z0-9_/]*$')
@@ -76,6 +76,9 @@ def _scene(value):
 
 def _frame_id(value):
     """Accept a TF frame name: letters, digits, '_', '/'; no leading '/' or digit."""
+    if len(value) > conventions.MAX_NAME_LENGTH:
+        raise ValueError(f'frame_id: got a name of {len(value)} characters, expected at most '
+                         f'{conventions.MAX_NAME_LENGTH} (conventions.MAX_NAME_LENGTH)')
     if not _FRAME_ID.match(value):
         raise ValueError(f'frame_id: got {value!r}, expected a frame name of letters, digits, '
                          "'_' and '/', not starting with '/' or a digit (e.g. rig_frame)")
@@ -90,9 +93,10 @@ def _joint_name(value):
 
 def _weights(value):
     """Accept [w1, w2] >= 0, not both 0 (weights of the RMS shaking force and moment)."""
-    if len(value) != 2 or not all(math.isfinite(v) and v >= 0.0 for v in value):
-        raise ValueError(f'balance.weights: got {list(value)}, expected [w1, w2] with finite '
-                         'w1, w2 >= 0 (seed 001 eq. 43)')
+    if len(value) != 2 or not all(math.isfinite(v) and 0.0 <= v <= MAX_WEIGHT for v in value):
+        raise ValueError(f'balance.weights: got {list(value)}, expected [w1, w2] with '
+                         f'0 <= w1, w2 <= {MAX_WEIGHT:g} (seed 001 eq. 43; '
+                         'conventions.MAX_WEIGHT)')
     if value[0] + value[1] == 0.0:
         raise ValueError('balance.weights: got [0, 0], expected at least one positive weight')
 
@@ -119,17 +123,13 @@ def parse_link_bounds(name, text, unit):
     Return ``{link: (min, max)}`` from a ``balance.*_bounds`` text, or None when empty.
 
     The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in
-    ``unit``, parsed as scenes are (:func:`mech_balance.scene.parse_yaml`: YAML 1.2 floats,
+    ``unit``, parsed as scenes are (:func:`mech_balance.safe_yaml.loads`: YAML 1.2 floats,
     ``1e-1`` is a number); link names are checked against the scene when the balancing
     runs.
     """
     if not text.strip():
         return None
-    try:
-        data = parse_yaml(text)
-    except yaml.YAMLError as exc:
-        raise ValueError(f'{name}: not valid YAML ({exc.problem}), expected a mapping '
-                         f'link: [min, max] in {unit}') from None
+    data = safe_yaml.loads(text, name)  # bounded: depth, size, aliases (a YamlError)
     if not isinstance(data, dict) or not data:
         raise ValueError(f'{name}: got {text!r}, expected a mapping link: [min, max] in {unit}')
     out = {}
@@ -153,6 +153,10 @@ def _link_list(value):
     if any(not n or ' ' in n for n in names):
         raise ValueError(f'balance.fixed_links: got {value!r}, expected comma-separated link '
                          'names such as "crank,rocker" (or empty)')
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f'balance.fixed_links: got {twice[0]!r} twice in {value!r}, expected '
+                         'each link once')
 
 
 def split_links(text):
@@ -181,6 +185,9 @@ def check_links(values, link_names):
             if name not in link_names:
                 raise ValueError(f'{key}: got link {name!r}, expected links of the scene '
                                  f'({", ".join(link_names)})')
+    if link_names and set(named['balance.fixed_links']) >= set(link_names):
+        raise ValueError(f'balance.fixed_links: got every link ({", ".join(link_names)}), '
+                         'expected at least one link free to balance')
 
 
 def _path(value):

@@ -9,6 +9,8 @@ same bad number reads the same wherever it is given.
 
 import math
 
+from mech_balance import conventions
+
 MAX_ABS_VALUE = 1e18
 """Larger magnitudes in any numeric field are rejected (their squares would overflow soon)."""
 
@@ -111,6 +113,7 @@ def points(value, where, error=SceneError):
     value = mapping(value, where, error)
     if not value:
         raise error(f'{where}: got an empty mapping, expected named points')
+    at_most(value, conventions.MAX_POINTS, where, 'points', 'MAX_POINTS', error)
     return {k: vector(v, f'{where}.{k}', 2, error) for k, v in value.items()}
 
 
@@ -123,3 +126,10 @@ def integer(value, where, minimum=None, maximum=None, error=SceneError):
     if maximum is not None and value > maximum:
         raise error(f'{where}: got {value!r}, expected an integer <= {maximum}')
     return value
+
+
+def at_most(items, limit, where, what, name, error=SceneError):
+    """Refuse more than ``limit`` entries (``name``: the limit's constant in conventions)."""
+    if len(items) > limit:
+        raise error(f'{where}: got {len(items)} {what}, expected at most {limit} '
+                    f'(conventions.{name})')

@@ -12,14 +12,13 @@ from dataclasses import dataclass, field, replace
 import math
 import os
 from pathlib import Path
-import re
 
 from mech_balance import conventions
+from mech_balance.schema import safe_yaml
 from mech_balance.schema.drive import drive_from_dict
-from mech_balance.schema.fields import known_keys as _known_keys, mapping as _mapping, \
-    number as _number, points as _points, positive as _positive, require as _require, \
-    SceneError, string as _string, vector as _vector
-import yaml
+from mech_balance.schema.fields import at_most as _at_most, known_keys as _known_keys, \
+    mapping as _mapping, number as _number, points as _points, positive as _positive, \
+    require as _require, SceneError, string as _string, vector as _vector
 
 SCHEMA_VERSION = 1
 
@@ -335,10 +334,8 @@ def resolve(name_or_path):
     """Return the path of a built-in scene name or of a YAML file."""
     text = str(name_or_path)
     if os.sep in text or text.endswith(('.yaml', '.yml')):
-        path = Path(text).expanduser()
-        if not path.is_file():
-            raise SceneError(f'scene: file {text!r} does not exist')
-        return path
+        # missing, a directory, /dev/null, empty or too large: said as such (safe_yaml)
+        return safe_yaml.check_file(text, 'scene', error=SceneError)
     scenes = builtin_scenes()
     if text not in scenes:
         raise SceneError(
@@ -347,35 +344,15 @@ def resolve(name_or_path):
     return scenes[text]
 
 
-class _Loader(yaml.SafeLoader):
-    """
-    SafeLoader that also reads ``1e-3`` and ``2E+5`` as floats (YAML 1.2).
-
-    PyYAML follows YAML 1.1, where a float needs a dot (``1.0e-3``) and ``1e-3`` is text.
-    """
-
-
-_Loader.add_implicit_resolver(
-    'tag:yaml.org,2002:float',
-    re.compile(r'^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$'),
-    list('-+0123456789'))
-
-
-def parse_yaml(text):
-    """Parse YAML text as scenes are parsed (safe, YAML 1.2 floats)."""
-    return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+def parse_yaml(text, label='YAML'):
+    """Parse YAML text as scenes are parsed (:mod:`mech_balance.safe_yaml`: safe, bounded)."""
+    return safe_yaml.loads(text, label, error=SceneError)
 
 
 def load_data(name_or_path):
     """Return the parsed YAML mapping of a scene and its path."""
     path = resolve(name_or_path)
-    try:
-        data = parse_yaml(path.read_text())
-    except yaml.YAMLError as exc:
-        mark, problem = getattr(exc, 'problem_mark', None), getattr(exc, 'problem', None)
-        where = '' if mark is None else f' at line {mark.line + 1}, column {mark.column + 1}'
-        reason = problem or ' '.join(str(exc).split())
-        raise SceneError(f'scene {path.name}: not valid YAML{where}: {reason}') from None
+    data = safe_yaml.load_file(path, f'scene {path.name}', error=SceneError)
     if not isinstance(data, dict):
         raise SceneError(f'scene {path.name}: got {type(data).__name__}, expected a mapping')
     data.setdefault('name', path.stem)
@@ -403,12 +380,14 @@ def planar_from_dict(data, source='<dict>'):
     links_data = _mapping(_require(data, 'links', ''), 'links')
     if not links_data:
         raise SceneError('links: got an empty mapping, expected at least one moving link')
+    _at_most(links_data, conventions.MAX_LINKS, 'links', 'moving links', 'MAX_LINKS')
     links = tuple(_link(n, spec) for n, spec in links_data.items())
     names = {lk.name for lk in links}
     if FRAME in names:
         raise SceneError(f'links.{FRAME}: "{FRAME}" is reserved for the fixed link')
 
     joints_data = _mapping(_require(data, 'joints', ''), 'joints')
+    _at_most(joints_data, conventions.MAX_JOINTS, 'joints', 'joints', 'MAX_JOINTS')
     all_points = {FRAME: frame_points, **{lk.name: lk.points for lk in links}}
     joints = tuple(_joint(n, spec, all_points) for n, spec in joints_data.items())
 
@@ -468,6 +447,10 @@ def planar_from_dict(data, source='<dict>'):
     samples = data.get('samples', 360)
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 4:
         raise SceneError(f'samples: got {samples!r}, expected an integer >= 4')
+    try:  # at most MAX_SAMPLES, and bounded work for this many links
+        conventions.check_samples(samples, 'samples', links=len(links))
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
     notes = data.get('notes', {})
     if 'balance' in data:  # provenance written by `mech-balance balance --output`
         _mapping(data['balance'], 'balance')

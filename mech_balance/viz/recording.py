@@ -41,7 +41,7 @@ import re
 import threading
 import time
 
-from mech_balance import paths
+from mech_balance import atomic, conventions, paths
 from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import normalize_force, normalize_moment, rms
 from mech_balance.core import equimomental
@@ -274,6 +274,9 @@ def _check_samples(samples, cycles):
             '(the crank_angle timeline counts whole degrees, one distinct tick per sample)')
     if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1:
         raise ValueError(f'cycles: got {cycles!r}, expected an integer >= 1')
+    if cycles > conventions.MAX_CYCLES:
+        raise ValueError(f'cycles: got {cycles}, expected at most {conventions.MAX_CYCLES} '
+                         'crank turns (conventions.MAX_CYCLES)')
 
 
 def _psi_grid(psi0, speed, samples):
@@ -1042,10 +1045,15 @@ def check_output_path(path, field, create_dir=False):
 def _open(path, scene, layout):
     rec = rr.RecordingStream(application_id(scene))
     rec.save(str(path))
+    _start(rec, scene, layout)
+    return rec
+
+
+def _start(rec, scene, layout):
+    """Send the blueprint, the recording's name and the static geometry."""
     rec.send_blueprint(blueprint(layout), make_active=True, make_default=True)
     rec.send_recording_name(f'{scene.name}: ' + ' vs '.join(layout.variants))
     _log_static(rec, layout)
-    return rec
 
 
 # ------------------------------------------------------------------------------- offline
@@ -1073,12 +1081,18 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
     layout = model.layout(state, wrenches, int(samples), balanced_source)
     motion = model.motion(state, wrenches).tiled(int(cycles))
     degrees, seconds = _ticks(psi0, scene.crank_speed_rad_s, int(samples), int(cycles))
-    rec = _open(path, scene, layout)
+    # Encoded into one binary stream (its reads do not concatenate: read it once, at the end)
+    # that this process writes atomically (atomic.py): a write error is raised here (rerun's
+    # own file sink blocks on one) and an existing file survives any failure, SIGKILL too.
+    rec = rr.RecordingStream(application_id(scene))
+    stream = rec.binary_stream()
     try:
+        _start(rec, scene, layout)
         _log_motion(rec, layout, motion, degrees, seconds)
+        data = stream.read(flush=True) or b''
     finally:
-        rec.flush()
         rec.disconnect()
+    atomic.write_bytes_atomic(path, data)
     return RecordingSummary(
         path=Path(path), size_bytes=os.path.getsize(path), samples_per_cycle=int(samples),
         cycles=int(cycles), rows=int(samples) * int(cycles),
@@ -1120,7 +1134,9 @@ class LiveRecorder:
     geometry, the blueprint and the text panel from one reference turn
     (``scene.samples`` angles).  :meth:`log_sample` appends samples; :meth:`close` (also run
     at interpreter exit) flushes and closes the file, is idempotent and safe to call from a
-    signal handler or another thread.
+    signal handler or another thread.  Until then the samples go to ``.NAME.partial-XXXXXXXX``
+    next to ``path`` (:mod:`mech_balance.atomic`); :meth:`close` renames it over ``path``, so
+    an existing recording is replaced only by a complete one.
     """
 
     def __init__(self, path, scene, balanced=None, balanced_source=None, *, field='path'):
@@ -1138,7 +1154,13 @@ class LiveRecorder:
         self._close_requested = False
         self.samples_logged = 0
         self._t0 = None
-        self._rec = _open(self.path, scene, self.layout)
+        # visibly partial (.NAME.partial-XXXXXXXX) until close() renames it over the path
+        self._partial = atomic.partial_path(self.path)
+        try:
+            self._rec = _open(self._partial, scene, self.layout)
+        except BaseException:
+            atomic.discard(self._partial)
+            raise
         atexit.register(self.close)
 
     @property
@@ -1218,6 +1240,8 @@ class LiveRecorder:
                 finally:
                     self._rec.disconnect()
                     atexit.unregister(self.close)
+                # complete: replace the target (a failed flush leaves the .partial file)
+                atomic.commit(self._partial, self.path)
         finally:
             self._lock.release()
 
