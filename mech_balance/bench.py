@@ -15,7 +15,8 @@ WARMUP = 3
 DEFAULT_REPEAT = 50
 """Timed runs per figure; the median is reported."""
 
-SECTIONS = ('mech_balance.cli_balance', 'mech_balance.cli_record', 'mech_balance.bench_node')
+SECTIONS = ('mech_balance.cli_balance', 'mech_balance.cli_record', 'mech_balance.bench_node',
+            'mech_balance.cli_identify')
 """Modules that add bench sections: each has ``bench_section(args, progress) -> str``
 returning its printed table; ``mech-balance bench`` prints them after the core timings."""
 

@@ -1,0 +1,174 @@
+"""
+``mech-balance identify``: a rig's inertial parameters from a recording of its sensors.
+
+A thin verb over :mod:`mech_balance.bags` (rosbag2 MCAP or sqlite3, or CSV) and
+:mod:`mech_balance.identify` (encoder smoothing, regressor, base parameters, calibrated
+scene).  The calibrated scene it writes loads in every other command and in the node.
+"""
+
+import json
+import math
+import sys
+import time
+
+from mech_balance import analysis, bags, bench, identify, scene as scene_mod
+import numpy as np
+
+OUTPUT_SUFFIXES = ('.yaml', '.yml')
+"""``--output``: what the calibrated scene's file name ends in (so that it loads as a scene)."""
+BENCH_SCENE = 'hoeken'
+BENCH_SECONDS = 60.0
+"""Bench: seconds of synthetic recording at :data:`BENCH_RATE_HZ`."""
+BENCH_RATE_HZ = 1000.0
+BENCH_LIMIT_S = 2.0
+"""Bench: the time identification of :data:`BENCH_SECONDS` may take (issue 14)."""
+BENCH_REPEAT_MAX = 5
+"""Timed identifications per bench figure at most (the median is printed)."""
+
+
+def register(subparsers):
+    """Add the ``identify`` verb."""
+    p = subparsers.add_parser(
+        'identify', help="identify a rig's link inertias from a recording of its encoder and "
+                         'force sensor',
+        description='Read a rosbag2 recording (MCAP or sqlite3) or a CSV of the crank encoder '
+                    '(sensor_msgs/JointState) and the force sensor (geometry_msgs/'
+                    'WrenchStamped: rig frame, about the crank pivot, the load the rig exerts '
+                    'on its frame), estimate the crank angle, speed and acceleration from the '
+                    'encoder by a Savitzky-Golay fit, and solve the linear least-squares '
+                    "problem for the links' inertial parameters and the sensor bias. Prints "
+                    'the rank, condition number, identifiable combinations (base parameters) '
+                    'with standard errors, the bias and the residual RMS before and after; '
+                    'writes the calibrated scene with --output.')
+    p.add_argument('--scene', required=True,
+                   help='the rig: built-in scene name (see `mech-balance scenes`) or YAML file')
+    p.add_argument('--bag', required=True, metavar='PATH',
+                   help='rosbag2 directory (or a file in it) or a .csv file (columns: see '
+                        'README, section Identification)')
+    p.add_argument('--encoder-topic', default=bags.ENCODER_TOPIC, metavar='TOPIC',
+                   help=f'JointState topic of the crank encoder (default: {bags.ENCODER_TOPIC})')
+    p.add_argument('--wrench-topic', default=bags.WRENCH_TOPIC, metavar='TOPIC',
+                   help=f'WrenchStamped topic of the sensor (default: {bags.WRENCH_TOPIC})')
+    p.add_argument('--joint', default=None, metavar='NAME',
+                   help="the crank's name in the JointState (default: the scene's crank "
+                        'joint if the message carries it, else its only joint)')
+    p.add_argument('--window', type=int, default=None, metavar='SAMPLES',
+                   help='encoder smoothing window, an odd number of samples (default: chosen '
+                        'from the quantization step, the rate and the crank speed)')
+    p.add_argument('--output', default=None, metavar='CALIBRATED.yaml',
+                   help='write the calibrated scene (loadable by every other command) to a '
+                        'file in an existing directory; checked before the bag is read')
+    p.add_argument('--json', action='store_true', help='print the report as JSON')
+    p.set_defaults(func=cmd_identify)
+
+
+def _progress(text):
+    print(text, file=sys.stderr, flush=True)
+
+
+def cmd_identify(args):
+    """Identify the scene's inertial parameters from a recording; print and write the result."""
+    from mech_balance import cli
+    if args.output:
+        cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
+    sc = scene_mod.load(args.scene)
+    if getattr(sc, 'kind', 'planar') != 'planar':
+        raise identify.IdentifyError(f'--scene: got {sc.name!r} of kind {sc.kind}, expected a '
+                                     'planar scene (identification of the RGGR is not '
+                                     'implemented)')
+    if args.window is not None and (args.window < identify.MIN_WINDOW or args.window % 2 == 0):
+        raise identify.IdentifyError(f'--window: got {args.window}, expected an odd number of '
+                                     f'samples >= {identify.MIN_WINDOW}')
+    _progress(f'mech-balance identify: reading {args.bag} ...')
+    t0 = time.perf_counter()
+    rec = bags.read(args.bag, args.encoder_topic, args.wrench_topic, args.joint,
+                    progress=_progress, default_joint=sc.crank_joint)
+    read_s = time.perf_counter() - t0
+    _progress(f'  {rec.position_rad.size} encoder and {rec.wrench_t_s.size} wrench samples '
+              f'(joint {rec.joint!r}) in {read_s:.2f} s; identifying ...')
+    t0 = time.perf_counter()
+    try:
+        result = identify.identify(sc, rec.encoder_t_s, rec.position_rad, rec.wrench_t_s,
+                                   rec.planar_wrench, effort=rec.effort_Nm,
+                                   window=args.window)
+    except identify.IdentifyError as exc:
+        raise identify.IdentifyError(f'--bag {args.bag}: {exc}') from None
+    solve_s = time.perf_counter() - t0
+    if args.json:
+        report = result.to_dict()
+        report.update(source=rec.source, joint=rec.joint, read_time_s=read_s,
+                      identify_time_s=solve_s,
+                      output=args.output if args.output and result.realizable else None)
+        print(json.dumps(_finite(report), indent=2))
+    else:
+        print(identify.format_report(result))
+        print(f'\nread {read_s:.2f} s, identified in {solve_s:.2f} s')
+    if args.output:
+        text = identify.calibrated_yaml(result, source=rec.source)   # raises if unrealizable
+        identify.write_text_atomic(args.output, text)
+        if not args.json:
+            print(f'calibrated scene written to {args.output}')
+    return 0
+
+
+def _finite(obj):
+    """Return ``obj`` with NaN and infinities as None (JSON has neither)."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+# ============================================================================ bench
+
+
+def bench_data(sc, seconds=BENCH_SECONDS, rate_hz=BENCH_RATE_HZ, seed=0):
+    """
+    Return synthetic (t, position, wrench) of the scene itself for the bench (not a test).
+
+    The crank turns at 1 rev/s with a 5% speed ripple; the encoder has 4096 counts per
+    turn; the wrench is the core's shaking wrench plus 1% white noise.
+    """
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * rate_hz)) / rate_hz
+    w0, wr = 2.0 * math.pi, 0.7 * 2.0 * math.pi
+    speed = w0 * (1.0 + 0.05 * np.sin(wr * t))
+    accel = w0 * 0.05 * wr * np.cos(wr * t)
+    psi = w0 * t + w0 * 0.05 * (1.0 - np.cos(wr * t)) / wr
+    _, w = analysis.Rig(sc).evaluate(np.mod(psi, 2.0 * math.pi), outputs=('shaking_wrench',),
+                                     speed=speed, accel=accel)
+    wrench = np.column_stack([w.shaking_force.real, w.shaking_force.imag, w.shaking_moment])
+    wrench += rng.normal(size=wrench.shape) * 0.01 * np.max(np.abs(wrench), axis=0)
+    q = 2.0 * math.pi / 4096
+    return t, np.mod(np.round(psi / q), 4096) * q, wrench
+
+
+def bench_section(args, progress):
+    """Return the bench table of :func:`identify.identify` on 60 s of 1 kHz data."""
+    repeat = min(int(args.repeat), BENCH_REPEAT_MAX)
+    sc = scene_mod.load(BENCH_SCENE)
+    progress(f'  timing identify {BENCH_SCENE} on {BENCH_SECONDS:g} s at '
+             f'{BENCH_RATE_HZ:g} Hz ...')
+    t, pos, wrench = bench_data(sc)
+    last = {}
+
+    def run():
+        last['r'] = identify.identify(sc, t, pos, t, wrench)
+    sec = bench.median_seconds(run, repeat=repeat, warmup=1)
+    r = last['r']
+    head = (f"{'identify: scene':<18}{'samples':>9}{'rank':>6}{'cond':>10}{'median s':>10}"
+            f"{'limit s':>9}  verdict")
+    return '\n'.join([
+        f'identify (encoder smoothing, regressor, SVD): median of {repeat} runs after 1 '
+        f'warm-up run, {BENCH_SECONDS:g} s of synthetic data at {BENCH_RATE_HZ:g} Hz',
+        head, '-' * len(head),
+        f'{BENCH_SCENE:<18}{r.samples:>9}{r.rank:>6}{r.condition_number:>10.4g}{sec:>10.3f}'
+        f"{BENCH_LIMIT_S:>9.1f}  {'ok' if sec <= BENCH_LIMIT_S else 'TOO SLOW'}"])
+
+
+if __name__ == '__main__':  # pragma: no cover - use `mech-balance identify`
+    from mech_balance import cli
+    sys.exit(cli.main(['identify', *sys.argv[1:]]))
