@@ -348,7 +348,8 @@ def regressor(scene, psi_rad, speed_rad_s, accel_rad_s2, torque=False, rig=None)
         if torque:
             tau[:, k] = w.driving_torque
     if gravity:
-        # the links' weight on the frame: m_i g at c_i, about the pivot (m_i (o_i - O) + R_i h_i) x g
+        # the links' weight on the frame: m_i g at c_i; about the pivot
+        # (c_i - O) x m_i g = (m_i (o_i - O) + R_i h_i) x g
         pose = state.pose
         arm = pose.origin[1:] - rig.linkage.pivot          # (n, p)
         rot = pose.rot[1:]
@@ -568,22 +569,26 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     rms_before = np.sqrt(np.mean(r0c ** 2, axis=0))
     sigma = np.sqrt(np.mean((meas - meas.mean(axis=0)) ** 2, axis=0))
     sigma = np.where(sigma > 0.0, sigma, 1.0)
+    # one orthogonal (QR) reduction per channel of [Y_c | r_c] to its (n+1, n+1) R factor:
+    # every weighted pass below is then exact on the small stacked factors, residual norms
+    # included (||[Y_c r_c] [-du; 1]|| = ||R_c [-du; 1]||)
+    factors = [np.linalg.qr(np.column_stack([ysc[:, c, :], r0c[:, c]]), mode='r')
+               for c in range(nc)]
     for _ in range(WEIGHT_PASSES):
-        a = (ysc / sigma[None, :, None]).reshape(p * nc, nparam)
-        rhs = (r0c / sigma).ravel()
-        u_mat, sv, vt = np.linalg.svd(a, full_matrices=False)
+        stacked = np.vstack([f / s for f, s in zip(factors, sigma)])
+        u_mat, sv, vt = np.linalg.svd(stacked[:, :nparam], full_matrices=False)
         if not sv.size or sv[0] <= 0.0:
             raise IdentifyError('recording: the measured motion excites no inertial '
                                 'parameter, expected a turning crank')
         rank = int(np.sum(sv > RANK_RTOL * sv[0]))
         v1 = vt[:rank].T
-        du = v1 @ ((u_mat[:, :rank].T @ rhs) / sv[:rank])
-        res = r0c - ysc @ du
-        new_sigma = np.sqrt(np.sum(res ** 2, axis=0) / max(p - 1 - nparam / nc, 1.0))
+        du = v1 @ ((u_mat[:, :rank].T @ stacked[:, nparam]) / sv[:rank])
+        step = np.append(-du, 1.0)
+        res_sq = np.array([float(np.sum((f @ step) ** 2)) for f in factors])
+        new_sigma = np.sqrt(res_sq / max(p - 1 - nparam / nc, 1.0))
         sigma = np.where(new_sigma > 0.0, new_sigma, sigma)
-    a_res = (res / sigma).ravel()
     dof = max(p * nc - rank - nc, 1)
-    s2 = float(a_res @ a_res) / dof
+    s2 = float(np.sum(res_sq / sigma ** 2)) / dof
     cov_u = s2 * (v1 / sv[:rank] ** 2) @ v1.T
     theta = theta0 + scale * du
     cov = cov_u * np.outer(scale, scale)
@@ -596,7 +601,7 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     size = np.sqrt(np.mean(np.sum(ys ** 2, axis=2), axis=0))
     identifiable_b = np.linalg.norm(confound_u, axis=1) <= CONFOUND_RTOL * size
     confound = np.where(identifiable_b[:, None], 0.0, confound_u / scale)
-    rms_after = np.sqrt(np.mean(res ** 2, axis=0))
+    rms_after = np.sqrt(res_sq / p)
     combos = _combinations(vt[:rank], scale, reg.names, theta, theta0, cov)
     links, problems = _calibrated_links(scene, theta)
     return Identification(
