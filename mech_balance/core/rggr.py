@@ -119,9 +119,11 @@ def _crank_angles(crank_angle_rad):
     if phi1.ndim == 0:
         phi1 = phi1.reshape(1)
     if phi1.ndim != 1 or phi1.size == 0:
-        raise AssemblyError(f'crank_angle_rad: got shape {phi1.shape}, expected (n,) with n >= 1')
+        raise AssemblyError(
+            f'crank_angle_rad: got shape {phi1.shape}, expected (n,) with n >= 1')
     if not np.all(np.isfinite(phi1)):
-        raise AssemblyError('crank_angle_rad: got non-finite values, expected finite angles in rad')
+        raise AssemblyError('crank_angle_rad: got non-finite values, expected finite angles '
+                            'in rad')
     return phi1
 
 

@@ -1,0 +1,739 @@
+"""
+Identification of a planar rig's inertial parameters from its encoder and force sensor.
+
+Pure functions on numpy arrays (numpy and scipy only): the ``identify`` command feeds them
+the arrays of a recording (:mod:`mech_balance.bags`), the rig node its buffered samples.
+
+Measurement model
+    The sensor reports the wrench the moving links exert on the frame, in the frame's axes
+    and about the crank pivot O (the sign and frame of :mod:`mech_balance.conventions`),
+    planar components (f_x, f_y, n_z).  By Newton and Euler for the moving links as a whole
+    that wrench is the shaking wrench (seed 001 eq. 39: -dp/dt, -dH_O/dt) plus the static
+    weight of the links, which the conventions leave out of the shaking wrench but a sensor
+    under a rig whose plane is not horizontal measures:
+
+        w_k = f_sh(psi_k, psid_k, psidd_k; theta) + sum_i [m_i g,  (c_i - O) x m_i g] + b + e_k
+
+    with g the scene's gravity (in the plane of motion), b a constant sensor bias and e_k
+    the sensor noise.  For a given motion both terms are linear in the links' inertial
+    parameters theta = (m, m c_x, m c_y, I_O) per link (seed 001 eqs. 25-26, 39): the
+    shaking part is evaluated by the core (:func:`mech_balance.dynamics.inverse_dynamics`)
+    at the 4 n unit parameter vectors on one kinematic solution at the measured crank
+    states (the idea of :func:`mech_balance.balancing.linear_maps`, here with per-sample
+    speed and acceleration), the weight part from the link poses:
+    ``(c_i - O) x m_i g = (m_i (o_i - O) + R_i h_i) x g``.  When the encoder reports effort
+    (the motor torque) the driving torque tau_k = Y_tau theta + b_tau + e_k is stacked
+    below (the core's power balance, gravity included; b_tau absorbs a constant friction).
+
+Crank motion (:func:`crank_motion`)
+    The encoder gives quantized positions only.  The angle is unwrapped and smoothed by a
+    Savitzky-Golay filter (a least-squares polynomial of order :data:`SG_ORDER` over a
+    sliding window, evaluated with its first and second derivatives at the window's
+    centre).  The window is the shortest one whose predicted acceleration noise from the
+    quantization (step q, uniform error of standard deviation q / sqrt(12), white) is below
+    :data:`ACCEL_NOISE_REL` times the mean crank speed squared, but at most
+    :data:`MAX_WINDOW_TURNS` of a mean revolution (the crank's speed varies at multiples
+    of the rotation frequency; over half a turn an order-6 fit passes them with a gain
+    error of 1.5e-4 at once and 8e-3 at twice the rotation frequency).  The predicted
+    standard deviations of angle, speed and acceleration and the gain errors at one and two
+    times the rotation frequency are returned with the estimate (:class:`CrankMotion`);
+    samples within half a window of either end are dropped.  Non-uniform stamps are
+    resampled (linearly) to the median period first.
+
+Least squares, base parameters (:func:`identify`)
+    Columns are scaled per link by the scene's own size (m, m l, m l, m l^2, l the radius
+    of gyration about the link origin: :func:`parameter_scales`) and rows weighted by one
+    noise level per channel (f_x, f_y, n_z, tau), re-estimated from the residuals
+    (:data:`WEIGHT_PASSES` passes).  The bias is a free nuisance parameter: it is
+    projected out (per-channel mean removed), and the SVD of what remains gives the
+    numerical rank (singular values above :data:`RANK_RTOL` times the largest), the
+    condition number of the identifiable part and the row space.  The estimate keeps the
+    non-identifiable directions at the scene's values, the minimum-norm deviation from the
+    prior: theta = theta_scene + V1 V1^T (theta_ls - theta_scene) (scaled coordinates).
+    The identifiable combinations are reported as base parameters: a QR factorization with
+    column pivoting of V1^T picks r parameters, and the basis of the row space is
+    normalized to have coefficient 1 on its own base parameter and 0 on the others.
+    Standard errors follow from the residual variance: Cov = s^2 V1 S1^-2 V1^T (scaled).
+    The solve runs on the per-channel QR factors of [Y_c | r_c] (exact, small).  Errors
+    in the estimated crank acceleration enter as errors in the variables: on the
+    slider-crank at 5 rev/s they bias the crank-inertia combinations by about 1-2 standard
+    errors (measured on the synthetic rig).
+    The bias estimate is b = mean(w - Y theta); when the static weight of links that only
+    rotate about a frame pivot (a crank, a rocker) is constant it is
+    confounded with the bias, and then the bias reported is b + G (theta - theta_scene),
+    whose coefficients G are returned (:attr:`Identification.bias_confounding`).
+"""
+
+from dataclasses import dataclass, field, replace
+import math
+
+from mech_balance import schema
+from mech_balance.analysis import cycle as analysis
+from mech_balance.balancing import socp as balancing
+from mech_balance.core.planar import dynamics
+from mech_balance.schema.scene import INERTIA_ROUNDOFF
+import numpy as np
+import scipy.linalg
+from scipy.signal import oaconvolve
+
+SG_ORDER = 6
+"""Order of the Savitzky-Golay polynomial fitted to the unwrapped encoder angle."""
+ACCEL_NOISE_REL = 1e-3
+"""Window choice: predicted crank acceleration noise (from the quantization) at most this
+fraction of the mean crank speed squared."""
+MAX_WINDOW_TURNS = 0.5
+"""Window choice: at most this fraction of a mean crank revolution (bounds the smoothing
+bias of speed variations at the rotation frequency and its harmonics).  Measured on the
+synthetic rigs: Hoeken at 1 rev/s takes 379 samples (the noise target, 0.38 turn), the
+slider-crank at 5 rev/s 99 (this cap), acceleration noise 0.034 and 0.96 rad/s^2."""
+MIN_WINDOW = 2 * SG_ORDER + 3
+"""Fewest samples in the smoothing window."""
+UNIFORM_JITTER_REL = 1e-3
+"""Encoder stamps whose periods deviate from their median by more than this fraction are
+resampled to a uniform grid before smoothing."""
+MAX_STEP_RAD = 0.9 * math.pi
+"""Largest crank step between encoder samples that unwraps unambiguously."""
+MIN_TURNS = 1.0
+"""A recording must turn the crank at least this many revolutions in its usable span."""
+RANK_RTOL = 1e-7
+"""Singular values of the scaled, weighted, bias-free regressor at or below this fraction of
+the largest span its null space: structurally non-identifiable combinations sit at
+round-off (at most 3e-13 relative on the synthetic Hoeken and slider-crank rigs), every
+excited one above 2e-4 there."""
+CONFOUND_RTOL = 1e-9
+"""A bias channel whose sensitivity to the non-identifiable directions is below this
+fraction of the channel's regressor size is identifiable on its own."""
+COEFF_PRINT_RTOL = 1e-6
+"""Coefficients of a base-parameter combination smaller than this (in the rig's units) are
+left out of its printed form (kept in the numbers)."""
+WEIGHT_PASSES = 3
+"""Least-squares passes: the first weights each channel by its measured RMS, the next by
+the residual noise level of the previous pass."""
+CHANNELS = ('force_x', 'force_y', 'moment_z')
+"""Wrench channels of a planar rig (rig frame, about the crank pivot)."""
+TORQUE_CHANNEL = 'torque'
+"""Channel of the driving torque (from the encoder's effort), stacked when present."""
+CHANNEL_UNITS = {'force_x': 'N', 'force_y': 'N', 'moment_z': 'N*m', 'torque': 'N*m'}
+PARAMETERS = ('m', 'hx', 'hy', 'I_O')
+"""Per link: mass (kg), first moment m c_x and m c_y in the link frame (kg*m), inertia about
+the link origin (kg*m^2), the order of :func:`mech_balance.dynamics.parameter_vector`."""
+PARAMETER_UNITS = ('kg', 'kg*m', 'kg*m', 'kg*m^2')
+
+
+class IdentifyError(ValueError):
+    """Identification input is missing, inconsistent or cannot determine the parameters."""
+
+
+# ============================================================================ crank motion
+
+
+@dataclass
+class CrankMotion:
+    """
+    Crank angle, speed and acceleration estimated from encoder positions (uniform grid).
+
+    ``predicted_std`` is the standard deviation from the quantization alone (angle rad,
+    speed rad/s, acceleration rad/s^2); ``gain_error`` the relative error of speed and
+    acceleration for a sinusoidal speed variation at 1x and 2x the mean rotation frequency.
+    """
+
+    t_s: np.ndarray             # (p,) grid stamps, s
+    psi_rad: np.ndarray         # (p,) unwrapped crank angle
+    speed_rad_s: np.ndarray     # (p,)
+    accel_rad_s2: np.ndarray    # (p,)
+    period_s: float
+    window: int                 # samples
+    order: int
+    quantization_rad: float
+    mean_speed_rad_s: float
+    resampled: bool
+    predicted_std: dict = field(default_factory=dict)
+    gain_error: dict = field(default_factory=dict)
+
+    @property
+    def window_s(self):
+        """Return the smoothing window in seconds."""
+        return self.window * self.period_s
+
+    def at(self, t_s):
+        """
+        Return (psi, speed, accel) interpolated to stamps ``t_s`` (s) in the valid span.
+
+        Linear interpolation on the grid (its error in the angle is below
+        period^2 |psidd| / 8, far below the quantization).
+        """
+        t_s = np.asarray(t_s, dtype=float)
+        return tuple(np.interp(t_s, self.t_s, v)
+                     for v in (self.psi_rad, self.speed_rad_s, self.accel_rad_s2))
+
+    def to_dict(self):
+        """Return the settings and accuracy of the estimate as a plain dict."""
+        return {'period_s': self.period_s, 'window_samples': int(self.window),
+                'window_s': self.window_s, 'order': int(self.order),
+                'quantization_rad': self.quantization_rad,
+                'counts_per_turn': 2.0 * math.pi / self.quantization_rad
+                if self.quantization_rad > 0.0 else None,
+                'mean_speed_rad_s': self.mean_speed_rad_s, 'resampled': bool(self.resampled),
+                'predicted_std': dict(self.predicted_std),
+                'gain_error': dict(self.gain_error)}
+
+
+def quantization_step(position_rad):
+    """
+    Return the encoder's quantization step, rad: the least gap between recorded positions.
+
+    The positions of a quantized encoder are multiples of its step; over a few turns every
+    multiple occurs, so the smallest gap between distinct wrapped positions is the step.
+    """
+    wrapped = np.unique(np.round(np.mod(position_rad, 2.0 * math.pi), 12))
+    if wrapped.size < 2:
+        return 0.0
+    return float(np.min(np.diff(wrapped)))
+
+
+def savgol_weights(window, order, period_s):
+    """
+    Return the ``(3, window)`` Savitzky-Golay weights of value, slope and curvature.
+
+    Row d applied (as a dot product) to ``window`` samples spaced ``period_s`` gives the d-th
+    derivative at the centre of the least-squares polynomial of degree ``order``.  The fit is
+    done on the abscissa scaled to [-1, 1] by an orthogonal factorization (scipy's
+    ``savgol_coeffs`` fits on raw sample indices and loses all accuracy for windows of
+    hundreds of samples at order 6).
+    """
+    half = (window - 1) // 2
+    x = np.arange(-half, half + 1) / half
+    vander = np.vander(x, order + 1, increasing=True)
+    pinv = np.linalg.pinv(vander)                  # (order + 1, window)
+    scale = half * period_s
+    return np.stack([pinv[0], pinv[1] / scale, 2.0 * pinv[2] / scale ** 2])
+
+
+def _window_accuracy(window, order, period_s, sigma_q, turn_hz):
+    """Return (predicted std dict, gain error dict) of a Savitzky-Golay window."""
+    half = (window - 1) // 2
+    k = np.arange(-half, half + 1)
+    c = savgol_weights(window, order, period_s)
+    std = {'angle_rad': sigma_q * float(np.linalg.norm(c[0])),
+           'speed_rad_s': sigma_q * float(np.linalg.norm(c[1])),
+           'accel_rad_s2': sigma_q * float(np.linalg.norm(c[2]))}
+    gain = {}
+    for mult in (1, 2):
+        w = 2.0 * math.pi * turn_hz * mult
+        phase = np.exp(1j * w * k * period_s)
+        for d, name in ((1, 'speed'), (2, 'accel')):
+            g = abs(np.sum(c[d] * phase)) / w ** d if w > 0.0 else 1.0
+            gain[f'{name}_{mult}x'] = float(g - 1.0)
+    return std, gain
+
+
+def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_rad=None):
+    """
+    Return the :class:`CrankMotion` of encoder samples (stamps s, positions rad).
+
+    ``window`` (odd number of samples) overrides the choice of this module's docstring;
+    ``quantization_rad`` the step found by :func:`quantization_step`.
+    """
+    t = np.asarray(t_s, dtype=float).ravel()
+    pos = np.asarray(position_rad, dtype=float).ravel()
+    if t.shape != pos.shape:
+        raise IdentifyError(f'encoder: {t.size} stamps and {pos.size} positions, expected '
+                            'one stamp per position')
+    if not (np.isfinite(t).all() and np.isfinite(pos).all()):
+        raise IdentifyError('encoder: non-finite stamp or position, expected finite values')
+    if t.size < MIN_WINDOW + 2:
+        raise IdentifyError(f'encoder: {t.size} samples, expected at least {MIN_WINDOW + 2}')
+    dts = np.diff(t)
+    if not (dts > 0.0).all():
+        i = int(np.argmin(dts))
+        raise IdentifyError(f'encoder: stamp {t[i + 1]:.9f} s is not after {t[i]:.9f} s, '
+                            'expected increasing stamps')
+    period = float(np.median(dts))
+    psi = np.unwrap(pos)    # a wrapping encoder: steps taken in (-pi, pi]
+    if np.max(np.abs(np.diff(psi))) > MAX_STEP_RAD:
+        raise IdentifyError('encoder: the crank turns by nearly half a revolution or more '
+                            'between samples (or the angle jumps), expected a faster encoder '
+                            'rate')
+    resampled = bool(np.max(np.abs(dts - period)) > UNIFORM_JITTER_REL * period)
+    if resampled:
+        grid = t[0] + period * np.arange(int(math.floor((t[-1] - t[0]) / period)) + 1)
+        psi = np.interp(grid, t, psi)
+        t = grid
+    q = quantization_step(pos) if quantization_rad is None else float(quantization_rad)
+    sigma_q = q / math.sqrt(12.0)
+    span = t[-1] - t[0]
+    speed_mean = abs(psi[-1] - psi[0]) / span
+    turn_hz = speed_mean / (2.0 * math.pi)
+    if window is None:
+        cap = MAX_WINDOW_TURNS / turn_hz / period if turn_hz > 0.0 else t.size
+        cap = max(MIN_WINDOW, min(int(cap), t.size - 2))
+        window = MIN_WINDOW
+        target = ACCEL_NOISE_REL * speed_mean ** 2
+        while window < cap:
+            c2 = savgol_weights(window | 1, order, period)[2]
+            if sigma_q * np.linalg.norm(c2) <= target:
+                break
+            window = int(window * 1.25) + 1
+        window = min(window, cap)
+    window = int(window) | 1
+    if not (order + 2 <= window <= t.size):
+        raise IdentifyError(f'window: got {window} samples, expected an odd number from '
+                            f'{order + 2} to the {t.size} encoder samples')
+    weights = savgol_weights(window, order, period)
+    # samples within half a window of either end have no centred fit: dropped
+    psi_s, speed, accel = (oaconvolve(psi - psi[0], wd[::-1], mode='valid') for wd in weights)
+    half = (window - 1) // 2
+    std, gain = _window_accuracy(window, order, period, sigma_q, turn_hz)
+    return CrankMotion(t[half:t.size - half], psi_s + psi[0], speed, accel, period, window,
+                       order, q, speed_mean, resampled, std, gain)
+
+
+# ============================================================================ regressor
+
+
+@dataclass
+class Regressor:
+    """
+    The measured quantities as a linear function of the inertial parameters theta (SI).
+
+    ``wrench`` is ``(p, 3, 4 n)``: [f_x, f_y, n_z] per sample (rig frame, about the crank
+    pivot, what the links exert on the frame, weight included); ``torque`` ``(p, 4 n)`` the
+    driving torque, or None.  ``w = wrench @ theta (+ bias)``.
+    """
+
+    wrench: np.ndarray
+    torque: np.ndarray = None
+    names: tuple = ()
+    residual: float = 0.0   # worst loop-closure residual of the kinematic solution
+    cond: float = 0.0       # worst Jacobian condition number
+
+    def predict(self, theta):
+        """Return the modelled (wrench (p, 3), torque (p,) or None) of a parameter vector."""
+        w = self.wrench @ theta
+        return w, None if self.torque is None else self.torque @ theta
+
+
+def parameter_names(scene):
+    """Return the names ``m[link]``, ``hx[link]``, ``hy[link]``, ``I_O[link]`` in order."""
+    return tuple(f'{p}[{lk.name}]' for lk in scene.links for p in PARAMETERS)
+
+
+def cross2(a, b):
+    """Return the z component of a x b for complex-coded planar vectors."""
+    return (np.conjugate(a) * b).imag
+
+
+def regressor(scene, psi_rad, speed_rad_s, accel_rad_s2, torque=False, rig=None):
+    """
+    Return the :class:`Regressor` of a planar scene at per-sample crank states.
+
+    One kinematic solution at the given angles, speeds and accelerations; the core's
+    shaking wrench (and driving torque) at the 4 n unit parameter vectors (seed 001 eqs.
+    25-26, 39; linear in theta); the links' weight from their poses.
+    """
+    _check_planar(scene)
+    rig = analysis.Rig(scene) if rig is None else rig
+    # the kinematics is periodic in the crank angle: solve at the wrapped angle (the solver
+    # loses the branch at large unwrapped angles on some scenes)
+    psi = np.mod(np.asarray(psi_rad, dtype=float), 2.0 * math.pi)
+    state = rig.linkage.solve(psi, np.asarray(speed_rad_s, dtype=float),
+                              np.asarray(accel_rad_s2, dtype=float))
+    n = len(scene.links)
+    p = psi.size
+    gravity = complex(*scene.gravity_m_s2)
+    need = ('shaking_wrench', 'driving_torque') if torque else ('shaking_wrench',)
+    wrench = np.empty((p, 3, 4 * n))
+    tau = np.empty((p, 4 * n)) if torque else None
+    for k in range(4 * n):
+        e = np.zeros(4 * n)
+        e[k] = 1.0
+        w = dynamics.inverse_dynamics(rig.linkage, state, dynamics.inertia_from_vector(e),
+                                      gravity, need)
+        wrench[:, 0, k] = w.shaking_force.real
+        wrench[:, 1, k] = w.shaking_force.imag
+        wrench[:, 2, k] = w.shaking_moment
+        if torque:
+            tau[:, k] = w.driving_torque
+    if gravity:
+        # the links' weight on the frame: m_i g at c_i; about the pivot
+        # (c_i - O) x m_i g = (m_i (o_i - O) + R_i h_i) x g
+        pose = state.pose
+        arm = pose.origin[1:] - rig.linkage.pivot          # (n, p)
+        rot = pose.rot[1:]
+        for i in range(n):
+            k = 4 * i
+            wrench[:, 0, k] += gravity.real
+            wrench[:, 1, k] += gravity.imag
+            wrench[:, 2, k] += cross2(arm[i], gravity)
+            wrench[:, 2, k + 1] += cross2(rot[i], gravity)
+            wrench[:, 2, k + 2] += cross2(1j * rot[i], gravity)
+    return Regressor(wrench, tau, parameter_names(scene), float(np.max(state.residual)),
+                     float(np.max(state.cond)))
+
+
+# ============================================================================ identification
+
+
+@dataclass
+class Combination:
+    """One identifiable combination of parameters: ``sum coefficients[j] theta_j``."""
+
+    base: str                 # the base parameter (coefficient 1)
+    unit: str
+    coefficients: np.ndarray  # (4 n,) on theta (SI)
+    estimate: float
+    std_error: float
+    scene_value: float
+    text: str
+
+    def value(self, theta):
+        """Return the combination of a parameter vector (e.g. the truth)."""
+        return float(self.coefficients @ np.asarray(theta, dtype=float))
+
+    def to_dict(self):
+        """Return the combination as a plain dict."""
+        return {'base': self.base, 'unit': self.unit, 'combination': self.text,
+                'coefficients': [float(c) for c in self.coefficients],
+                'estimate': self.estimate, 'std_error': self.std_error,
+                'scene_value': self.scene_value}
+
+
+@dataclass
+class Identification:
+    """Result of :func:`identify` (SI throughout)."""
+
+    scene: object
+    names: tuple
+    theta_scene: np.ndarray
+    theta: np.ndarray               # calibrated parameters
+    covariance: np.ndarray          # (4 n, 4 n) of theta
+    rank: int
+    singular_values: np.ndarray     # scaled, weighted, bias-free regressor
+    condition_number: float         # of the identifiable part
+    combinations: list
+    channels: tuple
+    bias: np.ndarray                # per channel
+    bias_std_error: np.ndarray
+    bias_confounding: np.ndarray    # (channels, 4 n): b estimates b + G (theta - theta_scene)
+    bias_identifiable: np.ndarray   # (channels,) bool
+    noise_std: np.ndarray           # per channel, residual standard deviation after
+    rms_before: np.ndarray          # per channel: measured - scene model (bias fitted)
+    rms_after: np.ndarray           # per channel: measured - calibrated model
+    samples: int
+    motion: CrankMotion
+    kinematic_residual: float
+    kinematic_cond: float
+    calibrated_links: list          # dicts per link
+    problems: list                  # why the calibrated scene is not physical, if it is not
+
+    @property
+    def realizable(self):
+        """Return True if every calibrated link has a positive mass and inertia."""
+        return not self.problems
+
+    def bias_target(self, bias_true, theta_true):
+        """Return what :attr:`bias` estimates for a true bias and parameter vector."""
+        return np.asarray(bias_true, dtype=float) + self.bias_confounding @ (
+            np.asarray(theta_true, dtype=float) - self.theta_scene)
+
+    def calibrated_scene(self):
+        """
+        Return the scene with the calibrated link inertias.
+
+        Raises :class:`IdentifyError` naming the links whose calibrated parameters no body
+        can have (a mass <= 0 or a centroidal inertia < 0).
+        """
+        if self.problems:
+            raise IdentifyError('calibrated parameters are physically unrealizable: '
+                                + '; '.join(self.problems)
+                                + '; expected a positive mass and centroidal inertia per link '
+                                  '(record a longer or richer motion, or check the sensor)')
+        links = []
+        for lk, c in zip(self.scene.links, self.calibrated_links):
+            links.append(replace(lk, mass_kg=c['mass_kg'], com_m=tuple(c['com_m']),
+                                 inertia_com_kg_m2=c['inertia_com_kg_m2']))
+        return self.scene.with_links(links, name=f'{self.scene.name}_calibrated')
+
+    def to_dict(self):
+        """Return the report as a plain, JSON- and YAML-able dict."""
+        unit = [CHANNEL_UNITS[c] for c in self.channels]
+        return {
+            'scene': self.scene.name, 'samples': int(self.samples),
+            'parameters': list(self.names), 'rank': int(self.rank),
+            'parameter_count': len(self.names),
+            'condition_number': self.condition_number,
+            'singular_values': [float(s) for s in self.singular_values],
+            'rank_rtol': RANK_RTOL,
+            'combinations': [c.to_dict() for c in self.combinations],
+            'bias': {c: {'estimate': float(b), 'std_error': float(s), 'unit': u,
+                         'identifiable': bool(ok)}
+                     for c, b, s, u, ok in zip(self.channels, self.bias, self.bias_std_error,
+                                               unit, self.bias_identifiable)},
+            'residual_rms': {c: {'before': float(b), 'after': float(a), 'unit': u}
+                             for c, b, a, u in zip(self.channels, self.rms_before,
+                                                   self.rms_after, unit)},
+            'theta_scene': [float(v) for v in self.theta_scene],
+            'theta': [float(v) for v in self.theta],
+            'theta_std_error': [float(v) for v in np.sqrt(np.maximum(
+                np.diag(self.covariance), 0.0))],
+            'calibrated_links': self.calibrated_links, 'realizable': self.realizable,
+            'problems': list(self.problems), 'crank_motion': self.motion.to_dict(),
+            'kinematic_residual': self.kinematic_residual,
+            'kinematic_condition': self.kinematic_cond}
+
+
+def _check_planar(scene):
+    kind = schema.kind_of(scene)
+    if 'identification' not in kind.rig_factory().capabilities:
+        raise IdentifyError(f'scene {scene.name!r}: kind {kind.name!r}, expected a planar '
+                            'scene (identification of the RGGR is not implemented)')
+
+
+def parameter_scales(scene):
+    """
+    Return the ``(4 n,)`` scale of each parameter: per link m, m l, m l, m l^2 (scene).
+
+    l = sqrt(I_O / m) is the link's radius of gyration about its origin (the point-mass
+    distance of seed 001 eq. 27), so a unit step in the scaled coordinates is a change of
+    the link's own size: the minimum-norm deviation from the scene spreads what the data
+    cannot separate over the links in proportion to their size (the scaling the balancing's
+    cone program uses).  A link without mass or inertia falls back to the rig's units.
+    """
+    u = balancing.objective_units(scene)
+    out = []
+    for lk in scene.links:
+        m = lk.mass_kg if lk.mass_kg > 0.0 else u.mass_kg
+        i_o = lk.inertia_origin_kg_m2
+        ln = math.sqrt(i_o / m) if i_o > 0.0 else u.length_m
+        out += [m, m * ln, m * ln, m * ln * ln]
+    return np.array(out)
+
+
+def _measurements(wrench, effort, t_wrench, t_effort, motion):
+    """Return the (p, c) measurement matrix at the wrench stamps inside the valid span."""
+    wrench = np.asarray(wrench, dtype=float)
+    if wrench.ndim != 2 or wrench.shape[1] != 3:
+        raise IdentifyError(f'wrench: got shape {wrench.shape}, expected (samples, 3): '
+                            'force x, force y, moment z')
+    t_w = np.asarray(t_wrench, dtype=float).ravel()
+    if t_w.size != wrench.shape[0]:
+        raise IdentifyError(f'wrench: {t_w.size} stamps and {wrench.shape[0]} samples, '
+                            'expected one stamp per sample')
+    if not (np.isfinite(wrench).all() and np.isfinite(t_w).all()):
+        raise IdentifyError('wrench: non-finite value, expected finite forces and moments')
+    inside = (t_w >= motion.t_s[0]) & (t_w <= motion.t_s[-1])
+    meas = wrench[inside]
+    if effort is not None:
+        eff = np.asarray(effort, dtype=float).ravel()
+        t_e = np.asarray(t_effort, dtype=float).ravel()
+        if not np.isfinite(eff).all():
+            raise IdentifyError('effort: non-finite value, expected finite torques')
+        meas = np.column_stack([meas, np.interp(t_w[inside], t_e, eff)])
+    return t_w[inside], meas
+
+
+def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, window=None,
+             quantization_rad=None):
+    """
+    Return the :class:`Identification` of a planar rig from encoder and wrench samples.
+
+    ``t_encoder`` and ``position_rad`` (s, rad): the encoder's stamps and crank positions;
+    ``t_wrench`` and ``wrench`` ``(samples, 3)``: the sensor's stamps and [f_x, f_y, n_z]
+    (rig frame, about the crank pivot, what the rig exerts on its frame, N and N*m);
+    ``effort``: the encoder's motor torque at its stamps (N*m) or None.  The model is
+    evaluated at each wrench stamp with the crank state interpolated from the encoder.
+    """
+    _check_planar(scene)
+    motion = crank_motion(t_encoder, position_rad, window, quantization_rad=quantization_rad)
+    t_w, meas = _measurements(wrench, effort, t_wrench, t_encoder, motion)
+    channels = CHANNELS + ((TORQUE_CHANNEL,) if effort is not None else ())
+    nc = len(channels)
+    if t_w.size < 2:
+        raise IdentifyError(f'wrench: {t_w.size} samples inside the encoder span '
+                            f'{motion.t_s[0]:.3f}..{motion.t_s[-1]:.3f} s, expected the '
+                            'sensor and the encoder to record the same time')
+    psi, speed, accel = motion.at(t_w)
+    turns = abs(psi[-1] - psi[0]) / (2.0 * math.pi)
+    if turns < MIN_TURNS:
+        raise IdentifyError(f'recording: the crank turns {turns:.3g} revolutions in the usable '
+                            f'span of {t_w[-1] - t_w[0]:.3g} s, expected at least {MIN_TURNS:g}'
+                            ' (a longer recording)')
+    reg = regressor(scene, psi, speed, accel, torque=effort is not None)
+    y = reg.wrench if reg.torque is None else np.concatenate([reg.wrench,
+                                                              reg.torque[:, None, :]], axis=1)
+    p, _, nparam = y.shape
+    if p * nc <= nparam + nc:
+        raise IdentifyError(f'recording: {p} samples, expected more than {nparam + nc} '
+                            'measurements for the parameters and the bias')
+    theta0 = dynamics.parameter_vector(dynamics.Inertia.from_links(scene.links))
+    scale = parameter_scales(scene)
+    ys = y * scale                                  # scaled columns: theta = scale * u
+    r0 = meas - y @ theta0                          # measured minus the scene's model
+    # bias free: remove the per-channel mean of the data and of every column
+    ys_mean = ys.mean(axis=0)                       # (c, n): bias sensitivity M (SI per u)
+    r0_mean = r0.mean(axis=0)
+    ysc = ys - ys_mean
+    r0c = r0 - r0_mean
+    rms_before = np.sqrt(np.mean(r0c ** 2, axis=0))
+    sigma = np.sqrt(np.mean((meas - meas.mean(axis=0)) ** 2, axis=0))
+    sigma = np.where(sigma > 0.0, sigma, 1.0)
+    # one orthogonal (QR) reduction per channel of [Y_c | r_c] to its (n+1, n+1) R factor:
+    # every weighted pass below is then exact on the small stacked factors, residual norms
+    # included (||[Y_c r_c] [-du; 1]|| = ||R_c [-du; 1]||)
+    factors = [np.linalg.qr(np.column_stack([ysc[:, c, :], r0c[:, c]]), mode='r')
+               for c in range(nc)]
+    for _ in range(WEIGHT_PASSES):
+        stacked = np.vstack([f / s for f, s in zip(factors, sigma)])
+        u_mat, sv, vt = np.linalg.svd(stacked[:, :nparam], full_matrices=False)
+        if not sv.size or sv[0] <= 0.0:
+            raise IdentifyError('recording: the measured motion excites no inertial '
+                                'parameter, expected a turning crank')
+        rank = int(np.sum(sv > RANK_RTOL * sv[0]))
+        v1 = vt[:rank].T
+        du = v1 @ ((u_mat[:, :rank].T @ stacked[:, nparam]) / sv[:rank])
+        step = np.append(-du, 1.0)
+        res_sq = np.array([float(np.sum((f @ step) ** 2)) for f in factors])
+        new_sigma = np.sqrt(res_sq / max(p - 1 - nparam / nc, 1.0))
+        sigma = np.where(new_sigma > 0.0, new_sigma, sigma)
+    dof = max(p * nc - rank - nc, 1)
+    s2 = float(np.sum(res_sq / sigma ** 2)) / dof
+    cov_u = s2 * (v1 / sv[:rank] ** 2) @ v1.T
+    theta = theta0 + scale * du
+    cov = cov_u * np.outer(scale, scale)
+    bias = r0_mean - ys_mean @ du
+    # Cov(b) = s^2 [(B^T B)^-1 + M P1-part]: sigma_c^2 / p from the mean, plus the slope's
+    m_sens = ys_mean                                # (c, n) SI per unit u
+    cov_b = s2 * np.diag(sigma ** 2 / p) + m_sens @ cov_u @ m_sens.T
+    v0 = vt[rank:].T
+    confound_u = m_sens @ v0 @ v0.T                 # (c, n) per unit of u
+    size = np.sqrt(np.mean(np.sum(ys ** 2, axis=2), axis=0))
+    identifiable_b = np.linalg.norm(confound_u, axis=1) <= CONFOUND_RTOL * size
+    confound = np.where(identifiable_b[:, None], 0.0, confound_u / scale)
+    rms_after = np.sqrt(res_sq / p)
+    combos = _combinations(vt[:rank], scale, reg.names, theta, theta0, cov)
+    links, problems = _calibrated_links(scene, theta)
+    return Identification(
+        scene=scene, names=reg.names, theta_scene=theta0, theta=theta, covariance=cov,
+        rank=rank, singular_values=sv,
+        condition_number=float(sv[0] / sv[rank - 1]), combinations=combos,
+        channels=channels, bias=bias, bias_std_error=np.sqrt(np.diag(cov_b)),
+        bias_confounding=confound, bias_identifiable=identifiable_b, noise_std=sigma,
+        rms_before=rms_before, rms_after=rms_after, samples=p, motion=motion,
+        kinematic_residual=reg.residual, kinematic_cond=reg.cond, calibrated_links=links,
+        problems=problems)
+
+
+def _combinations(v1t, scale, names, theta, theta0, cov):
+    """Return the base-parameter form of the row space ``v1t`` (scaled coordinates)."""
+    rank = v1t.shape[0]
+    _, _, piv = scipy.linalg.qr(v1t, pivoting=True, mode='economic')
+    base = np.sort(piv[:rank])
+    e = np.linalg.solve(v1t[:, base], v1t)         # coefficient 1 on its own base parameter
+    out = []
+    for k, j in enumerate(base):
+        coeff_u = e[k]
+        coeff = coeff_u * scale[j] / scale         # on theta (SI), 1 on theta_j
+        coeff[base] = np.where(base == j, 1.0, 0.0)
+        terms = []
+        for i in np.argsort(-np.abs(coeff_u)):
+            cu = coeff_u[i]
+            if abs(cu) <= COEFF_PRINT_RTOL:
+                continue
+            c = coeff[i]
+            if i == j:
+                terms.insert(0, names[i])
+            else:
+                terms.append(f'{"-" if c < 0 else "+"} {abs(c):.6g} {names[i]}')
+        text = ' '.join(terms)
+        unit = PARAMETER_UNITS[j % 4]
+        out.append(Combination(
+            base=names[j], unit=unit, coefficients=coeff, estimate=float(coeff @ theta),
+            std_error=float(math.sqrt(max(coeff @ cov @ coeff, 0.0))),
+            scene_value=float(coeff @ theta0), text=text))
+    return out
+
+
+def _calibrated_links(scene, theta):
+    """Return (per-link dicts of mass, centre, inertias, problems) of a parameter vector."""
+    links, problems = [], []
+    for lk, (m, hx, hy, i_o) in zip(scene.links, np.asarray(theta).reshape(-1, 4)):
+        entry = {'name': lk.name, 'mass_kg': float(m), 'inertia_origin_kg_m2': float(i_o)}
+        if not m > 0.0:
+            problems.append(f'links.{lk.name}.mass_kg = {m:.6g}, expected > 0')
+            entry.update(com_m=[math.nan, math.nan], inertia_com_kg_m2=math.nan)
+        else:
+            i_c = i_o - (hx * hx + hy * hy) / m
+            tol = INERTIA_ROUNDOFF * abs(i_o)
+            if i_c < -tol:
+                problems.append(f'links.{lk.name}.inertia_com_kg_m2 = {i_c:.6g} (from I_O = '
+                                f'{i_o:.6g} and m c = ({hx:.6g}, {hy:.6g})), expected >= 0')
+            else:
+                i_c = max(i_c, 0.0)   # parallel-axis round-off
+            entry.update(com_m=[float(hx / m), float(hy / m)], inertia_com_kg_m2=float(i_c))
+        links.append(entry)
+    return links, problems
+
+
+# ============================================================================ output
+
+
+def calibrated_yaml(result, source=''):
+    """Return the calibrated scene as YAML text (:func:`balancing.scene_to_yaml`)."""
+    sc = result.calibrated_scene()
+    head = [f'# written by mech-balance identify from scene {result.scene.name}'
+            + (f' and {source}' if source else ''),
+            f'# rank {result.rank} of {len(result.names)} parameters, condition number '
+            f'{result.condition_number:.4g}; residual RMS before -> after:']
+    for c, b, a in zip(result.channels, result.rms_before, result.rms_after):
+        head.append(f'#   {c}: {b:.6g} -> {a:.6g} {CHANNEL_UNITS[c]}')
+    return '\n'.join(head) + '\n' + balancing.scene_to_yaml(sc)
+
+
+def format_report(result):
+    """Return the identification report as text."""
+    m = result.motion
+    std = m.predicted_std
+    lines = [
+        f'scene: {result.scene.name} ({result.scene.source}); {result.samples} wrench samples, '
+        f'channels {", ".join(result.channels)}',
+        f'crank motion: Savitzky-Golay order {m.order} over {m.window} samples '
+        f'({m.window_s * 1e3:.1f} ms) at {1.0 / m.period_s:.6g} Hz'
+        + (' (resampled to a uniform grid)' if m.resampled else ''),
+        f'  encoder step {m.quantization_rad:.4g} rad'
+        + (f' ({2 * math.pi / m.quantization_rad:.0f} counts per turn)'
+           if m.quantization_rad > 0 else '')
+        + f'; mean speed {m.mean_speed_rad_s:.6g} rad/s',
+        f"  predicted noise: angle {std['angle_rad']:.2e} rad, speed "
+        f"{std['speed_rad_s']:.2e} rad/s, acceleration {std['accel_rad_s2']:.2e} rad/s^2; "
+        f"gain error at 1x/2x rotation: accel {m.gain_error['accel_1x']:+.1e}/"
+        f"{m.gain_error['accel_2x']:+.1e}",
+        f'kinematics: worst loop-closure residual {result.kinematic_residual:.2e}, worst '
+        f'Jacobian condition {result.kinematic_cond:.4g}',
+        f'rank {result.rank} of {len(result.names)} inertial parameters (singular values > '
+        f'{RANK_RTOL:g} x largest), condition number {result.condition_number:.4g}',
+        '', 'identifiable combinations (base parameters; estimate +- standard error, scene):']
+    for c in result.combinations:
+        lines.append(f'  {c.text}')
+        lines.append(f'      = {c.estimate:.6g} +- {c.std_error:.2g} {c.unit} '
+                     f'(scene {c.scene_value:.6g})')
+    lines += ['', 'sensor bias:']
+    for i, ch in enumerate(result.channels):
+        note = '' if result.bias_identifiable[i] else \
+            '  (confounded with the static weight: given the non-identifiable parameters at ' \
+            "the scene's values)"
+        lines.append(f'  {ch:<10} {result.bias[i]:+.6g} +- {result.bias_std_error[i]:.2g} '
+                     f'{CHANNEL_UNITS[ch]}{note}')
+    lines += ['', f"{'residual RMS':<14}{'unit':>6}{'before':>14}{'after':>14}{'ratio':>9}",
+              '-' * 57]
+    for ch, b, a in zip(result.channels, result.rms_before, result.rms_after):
+        ratio = a / b if b > 0 else math.nan
+        lines.append(f'{ch:<14}{CHANNEL_UNITS[ch]:>6}{b:>14.6g}{a:>14.6g}{ratio:>9.3f}')
+    lines.append('(before: the scene with a fitted bias; after: the calibrated scene)')
+    lines += ['', 'calibrated links:']
+    for c in result.calibrated_links:
+        lines.append(f"  {c['name']:<10} mass {c['mass_kg']:.6g} kg, centre ({c['com_m'][0]:.6g},"
+                     f" {c['com_m'][1]:.6g}) m, I_C {c['inertia_com_kg_m2']:.6g} kg*m^2, I_O "
+                     f"{c['inertia_origin_kg_m2']:.6g} kg*m^2")
+    if result.problems:
+        lines.append('NOT physically realizable: ' + '; '.join(result.problems))
+    return '\n'.join(lines)

@@ -1,0 +1,65 @@
+"""
+The identification bench section of ``mech-balance bench``: identify on 60 s of 1 kHz data.
+
+The data is synthetic: the scene's own shaking wrench with 1% noise and a quantized encoder
+(the tests build their own, independent, synthetic rig).
+"""
+
+import math
+
+from mech_balance import schema as scene_mod
+from mech_balance.analysis import cycle as analysis, identify
+from mech_balance.analysis.timing import median_seconds
+import numpy as np
+
+BENCH_SCENE = 'hoeken'
+BENCH_SECONDS = 60.0
+BENCH_RATE_HZ = 1000.0
+BENCH_LIMIT_S = 2.0
+"""The identification of 60 s at 1 kHz must take at most this long (median)."""
+BENCH_REPEAT_MAX = 5
+"""Most timed runs (each takes about a second)."""
+
+
+def bench_data(sc, seconds=BENCH_SECONDS, rate_hz=BENCH_RATE_HZ, seed=0):
+    """
+    Return synthetic (t, position, wrench) of the scene itself for the bench (not a test).
+
+    The crank turns at 1 rev/s with a 5% speed ripple; the encoder has 4096 counts per
+    turn; the wrench is the core's shaking wrench plus 1% white noise.
+    """
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * rate_hz)) / rate_hz
+    w0, wr = 2.0 * math.pi, 0.7 * 2.0 * math.pi
+    speed = w0 * (1.0 + 0.05 * np.sin(wr * t))
+    accel = w0 * 0.05 * wr * np.cos(wr * t)
+    psi = w0 * t + w0 * 0.05 * (1.0 - np.cos(wr * t)) / wr
+    _, w = analysis.Rig(sc).evaluate(np.mod(psi, 2.0 * math.pi), outputs=('shaking_wrench',),
+                                     speed=speed, accel=accel)
+    wrench = np.column_stack([w.shaking_force.real, w.shaking_force.imag, w.shaking_moment])
+    wrench += rng.normal(size=wrench.shape) * 0.01 * np.max(np.abs(wrench), axis=0)
+    q = 2.0 * math.pi / 4096
+    return t, np.mod(np.round(psi / q), 4096) * q, wrench
+
+
+def bench_section(args, progress):
+    """Return the bench table of :func:`identify.identify` on 60 s of 1 kHz data."""
+    repeat = min(int(args.repeat), BENCH_REPEAT_MAX)
+    sc = scene_mod.load(BENCH_SCENE)
+    progress(f'  timing identify {BENCH_SCENE} on {BENCH_SECONDS:g} s at '
+             f'{BENCH_RATE_HZ:g} Hz ...')
+    t, pos, wrench = bench_data(sc)
+    last = {}
+
+    def run():
+        last['r'] = identify.identify(sc, t, pos, t, wrench)
+    sec = median_seconds(run, repeat=repeat, warmup=1)
+    r = last['r']
+    head = (f"{'identify: scene':<18}{'samples':>9}{'rank':>6}{'cond':>10}{'median s':>10}"
+            f"{'limit s':>9}  verdict")
+    return '\n'.join([
+        f'identify (encoder smoothing, regressor, SVD): median of {repeat} runs after 1 '
+        f'warm-up run, {BENCH_SECONDS:g} s of synthetic data at {BENCH_RATE_HZ:g} Hz',
+        head, '-' * len(head),
+        f'{BENCH_SCENE:<18}{r.samples:>9}{r.rank:>6}{r.condition_number:>10.4g}{sec:>10.3f}'
+        f"{BENCH_LIMIT_S:>9.1f}  {'ok' if sec <= BENCH_LIMIT_S else 'TOO SLOW'}"])

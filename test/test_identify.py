@@ -1,0 +1,304 @@
+"""
+Identification against a synthetic real rig (test/synthetic_rig.py), bag I/O and the verb.
+
+The rig is made here from the TRUE perturbed scene by the core's forward evaluation; the
+code under test sees only the quantized encoder, the noisy biased wrench and the nominal
+scene.
+"""
+
+from dataclasses import replace
+import json
+import math
+import os
+import sys
+
+from mech_balance import atomic
+from mech_balance import schema as scene_mod
+from mech_balance.analysis import identify
+from mech_balance.balancing import socp as balancing
+from mech_balance.cli import main as cli
+from mech_balance.ros import bags
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+import synthetic_rig as sr  # noqa: E402, I100
+
+DURATION_S = 20.0
+SE_BOUND = 3.0
+"""Every identifiable combination and the bias within this many standard errors."""
+RMS_REL_TOL = 0.10
+"""Residual RMS after calibration within this fraction of the injected noise RMS."""
+Z_REL_TOL = 0.05
+"""The calibrated design on the true rig within this fraction of the true optimum z."""
+GRAVITY = (0.0, -9.81)
+CASES = {
+    # name: (scene, mean crank speed rad/s (None: the scene's), gravity, effort, seed)
+    'hoeken': ('hoeken', 2.0 * math.pi, None, False, 11),
+    'hoeken_gravity': ('hoeken', 2.0 * math.pi, GRAVITY, False, 12),
+    'slider_crank_effort': ('slider_crank', None, None, True, 13),
+}
+
+
+def _nominal(name, gravity):
+    sc = scene_mod.load(name)
+    return sc if gravity is None else replace(sc, gravity_m_s2=gravity)
+
+
+@pytest.fixture(scope='module')
+def rigs():
+    """Return {case: (nominal, true, data, result)} for every case (20 s at 1 kHz)."""
+    out = {}
+    for case, (name, w0, gravity, effort, seed) in CASES.items():
+        nominal = _nominal(name, gravity)
+        true = sr.perturbed(nominal, seed, gravity=gravity)
+        data = sr.record(true, DURATION_S, w0 or nominal.crank_speed_rad_s, seed, effort)
+        t = (data.t_ns - data.t_ns[0]) * 1e-9
+        result = identify.identify(nominal, t, data.position_rad, t, data.wrench,
+                                   effort=data.effort_Nm)
+        out[case] = (nominal, true, data, result)
+    return out
+
+
+def _z_on(true, theta, weights=balancing.DEFAULT_WEIGHTS):
+    """Return z = w1 f~ + w2 n~ of parameters ``theta`` (SI) on the true rig's geometry."""
+    units = balancing.objective_units(true)
+    maps = balancing.linear_maps(true, units=units)
+    m, ln = units.mass_kg, units.length_m
+    scale = np.tile([m, m * ln, m * ln, m * ln * ln], len(true.links))
+    return float(np.dot(weights, maps.terms(np.asarray(theta) / scale)[:2]))
+
+
+# ---------------------------------------------------------------------------- physics
+
+
+@pytest.mark.parametrize('case', list(CASES))
+def test_regressor_reproduces_the_true_wrench(rigs, case):
+    """Y(psi, psid, psidd) theta_true is the rig's wrench on its frame, weight included."""
+    _, true, data, _ = rigs[case]
+    reg = identify.regressor(true, data.psi, data.speed, data.accel,
+                             torque=data.effort_Nm is not None)
+    w, tau = reg.predict(data.theta_true)
+    scale = np.max(np.abs(data.true_wrench), axis=0)
+    np.testing.assert_allclose(w / scale, data.true_wrench / scale, atol=1e-12)
+    if tau is not None:
+        truth = data.effort_Nm - data.bias[3]
+        assert np.sqrt(np.mean((tau - truth) ** 2)) < 1.2 * data.noise_std[3]
+
+
+def test_crank_motion_accuracy(rigs):
+    """The smoothed encoder matches the true crank state to its predicted accuracy."""
+    for case in ('hoeken', 'slider_crank_effort'):
+        _, _, data, result = rigs[case]
+        m = result.motion
+        t = (data.t_ns - data.t_ns[0]) * 1e-9
+        psi, speed, accel = (np.interp(m.t_s, t, v)
+                             for v in (data.psi, data.speed, data.accel))
+        psi_err = m.psi_rad - psi
+        psi_err -= 2.0 * math.pi * np.round(np.mean(psi_err) / (2.0 * math.pi))
+        std = m.predicted_std
+        ripple = sr.RIPPLE * m.mean_speed_rad_s ** 2 * sr.RIPPLE_TURNS
+        assert np.sqrt(np.mean(psi_err ** 2)) < 2.0 * std['angle_rad']
+        assert np.sqrt(np.mean((m.speed_rad_s - speed) ** 2)) < 2.0 * std['speed_rad_s']
+        assert np.sqrt(np.mean((m.accel_rad_s2 - accel) ** 2)) < \
+            2.0 * std['accel_rad_s2'] + abs(m.gain_error['accel_1x']) * ripple
+        assert m.quantization_rad == pytest.approx(2.0 * math.pi / sr.COUNTS_PER_TURN,
+                                                   rel=1e-9)
+
+
+# ---------------------------------------------------------------------------- acceptance
+
+
+@pytest.mark.parametrize('case', list(CASES))
+def test_identifiable_combinations_within_three_standard_errors(rigs, case):
+    _, _, data, result = rigs[case]
+    assert 0 < result.rank < len(result.names)
+    assert len(result.combinations) == result.rank
+    for c in result.combinations:
+        err = c.estimate - c.value(data.theta_true)
+        assert abs(err) <= SE_BOUND * c.std_error, (c.text, err, c.std_error)
+        # the data moved the estimate: the scene's value is off by more than the noise
+    moved = [abs(c.scene_value - c.value(data.theta_true)) > SE_BOUND * c.std_error
+             for c in result.combinations]
+    assert sum(moved) >= result.rank // 2
+
+
+@pytest.mark.parametrize('case', list(CASES))
+def test_bias_within_three_standard_errors(rigs, case):
+    _, _, data, result = rigs[case]
+    target = result.bias_target(data.bias, data.theta_true)
+    assert np.all(np.abs(result.bias - target) <= SE_BOUND * result.bias_std_error)
+    if CASES[case][2] is None:
+        # no gravity: the bias is identifiable on its own and estimates the true bias
+        assert result.bias_identifiable.all()
+        np.testing.assert_array_equal(target, data.bias)
+    else:
+        # the weight of the links that do not translate is constant: confounded with the
+        # bias in f_y and n_z (gravity along -y), not in f_x
+        assert list(result.bias_identifiable) == [True, False, False]
+
+
+@pytest.mark.parametrize('case', list(CASES))
+def test_residual_after_calibration_is_the_noise(rigs, case):
+    _, _, data, result = rigs[case]
+    ratio = result.rms_after / data.noise_std
+    assert np.all(np.abs(ratio - 1.0) <= RMS_REL_TOL), ratio
+    # the perturbation is visible: the scene's model is worse everywhere, much worse somewhere
+    assert np.all(result.rms_before > result.rms_after)
+    assert np.max(result.rms_before / result.rms_after) > 3.0
+
+
+@pytest.mark.parametrize('case', ['hoeken', 'hoeken_gravity', 'slider_crank_effort'])
+def test_calibrated_design_balances_the_true_rig(rigs, case):
+    """The optimum of the calibrated scene, built on the true rig, is near its own optimum."""
+    nominal, true, data, result = rigs[case]
+    z_true = balancing.optimize(true).objective['z']
+    z_applied = {}
+    for label, sc in (('calibrated', result.calibrated_scene()), ('nominal', nominal)):
+        design = balancing.optimize(sc).balanced_scene
+        change = sr.theta_of(design) - sr.theta_of(sc)     # what is built onto the rig
+        z_applied[label] = _z_on(true, data.theta_true + change)
+    assert abs(z_applied['calibrated'] - z_true) <= Z_REL_TOL * z_true, (z_applied, z_true)
+    # the calibration is what brings the design there: the nominal scene's misses by more
+    assert abs(z_applied['nominal'] - z_true) > abs(z_applied['calibrated'] - z_true)
+
+
+def test_calibrated_scene_is_physical_and_loads(rigs, tmp_path):
+    _, _, data, result = rigs['hoeken_gravity']
+    assert result.realizable
+    path = tmp_path / 'cal.yaml'
+    atomic.write_text_atomic(path, identify.calibrated_yaml(result))
+    loaded = scene_mod.load(str(path))
+    np.testing.assert_allclose(sr.theta_of(loaded), result.theta, rtol=1e-12, atol=1e-15)
+    assert loaded.gravity_m_s2 == GRAVITY
+    assert [p.name for p in tmp_path.iterdir()] == ['cal.yaml']   # no temporary left
+
+
+# ---------------------------------------------------------------------------- recordings
+
+
+@pytest.fixture(scope='module')
+def recordings(rigs, tmp_path_factory):
+    """Write the slider-crank case (with effort) as MCAP, sqlite3 and CSV."""
+    _, _, data, _ = rigs['slider_crank_effort']
+    root = tmp_path_factory.mktemp('bags')
+    paths = {}
+    for storage in bags.STORAGES:
+        paths[storage] = bags.write_bag(root / storage, storage, data.t_ns, data.position_rad,
+                                        data.wrench, data.effort_Nm, joint='O',
+                                        extra_joints=('A', 'B'))
+    t_s = (data.t_ns - data.t_ns[0]) * 1e-9
+    paths['csv'] = bags.write_csv(root / 'rig.csv', t_s, data.position_rad, data.wrench,
+                                  data.effort_Nm)
+    return root, paths
+
+
+def test_storages_and_csv_read_back_identically(rigs, recordings):
+    _, _, data, _ = rigs['slider_crank_effort']
+    _, paths = recordings
+    recs = {k: bags.read(p, default_joint='O') for k, p in paths.items()}
+    ref = recs['mcap']
+    np.testing.assert_array_equal(ref.position_rad, data.position_rad)
+    np.testing.assert_array_equal(ref.planar_wrench, data.wrench)
+    np.testing.assert_array_equal(ref.effort_Nm, data.effort_Nm)
+    assert ref.t0_ns == data.t_ns[0] and ref.joint == 'O' and ref.frame_id == 'rig'
+    for key in ('sqlite3', 'csv'):
+        rec = recs[key]
+        for field in ('encoder_t_s', 'position_rad', 'effort_Nm', 'wrench_t_s', 'wrench'):
+            np.testing.assert_array_equal(getattr(rec, field), getattr(ref, field),
+                                          err_msg=f'{key}: {field}')
+    results = [identify.identify(scene_mod.load('slider_crank'), r.encoder_t_s,
+                                 r.position_rad, r.wrench_t_s, r.planar_wrench,
+                                 effort=r.effort_Nm) for r in recs.values()]
+    for r in results[1:]:
+        np.testing.assert_array_equal(r.theta, results[0].theta)
+        np.testing.assert_array_equal(r.bias, results[0].bias)
+
+
+def test_identify_verb(recordings, tmp_path, capsys):
+    _, paths = recordings
+    out = tmp_path / 'slider_calibrated.yaml'
+    rc = cli.main(['identify', '--scene', 'slider_crank', '--bag', str(paths['sqlite3']),
+                   '--output', str(out), '--json'])
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    report = json.loads(captured.out)
+    assert report['rank'] == len(report['combinations']) == 7
+    assert set(report['bias']) == {'force_x', 'force_y', 'moment_z', 'torque'}
+    assert report['output'] == str(out)
+    assert 'read 20000 of 40000 messages' in captured.err
+    loaded = scene_mod.load(str(out))
+    np.testing.assert_allclose(sr.theta_of(loaded), report['theta'], rtol=1e-12)
+    rc = cli.main(['identify', '--scene', 'slider_crank', '--bag', str(paths['csv'])])
+    text = capsys.readouterr().out
+    assert rc == 0
+    for words in ('rank 7 of 12', 'condition number', 'identifiable combinations',
+                  'sensor bias', 'residual RMS', 'before', 'after'):
+        assert words in text
+
+
+# ---------------------------------------------------------------------------- bad input
+
+
+def _error(capsys, argv):
+    rc = cli.main(argv)
+    err = capsys.readouterr().err
+    assert rc == cli.EXIT_USAGE, err
+    return err
+
+
+def test_bad_recordings_name_the_option(recordings, tmp_path, capsys, rigs):
+    _, paths = recordings
+    bag = str(paths['mcap'])
+    base = ['identify', '--scene', 'slider_crank', '--bag']
+    err = _error(capsys, base + [bag, '--wrench-topic', '/nope'])
+    assert '--wrench-topic' in err and '/nope' in err and '/measured_wrench' in err
+    err = _error(capsys, base + [bag, '--encoder-topic', '/measured_wrench'])
+    assert '--encoder-topic' in err and 'sensor_msgs/msg/JointState' in err
+    err = _error(capsys, base + [bag, '--joint', 'crank_joint'])
+    assert '--joint' in err and "'crank_joint'" in err and 'O, A, B' in err
+    err = _error(capsys, base + [str(tmp_path / 'missing')])
+    assert '--bag' in err and 'does not exist' in err
+    err = _error(capsys, base + [bag, '--output', str(tmp_path / 'no_dir' / 'x.yaml')])
+    assert '--output' in err
+    # too short: half a second of the slider crank (2.5 turns, less than one usable)
+    _, _, data, _ = rigs['slider_crank_effort']
+    short = bags.write_bag(tmp_path / 'short', 'mcap', data.t_ns[:200],
+                           data.position_rad[:200], data.wrench[:200], joint='O')
+    err = _error(capsys, base + [str(short)])
+    assert '--bag' in err and 'revolutions' in err and 'expected at least 1' in err
+    # a JointState with several joints and no --joint naming the scene's crank
+    err = _error(capsys, ['identify', '--scene', 'hoeken', '--bag', bag])
+    assert '--joint' in err and 'O, A, B' in err
+
+
+def test_unrealizable_calibration_is_reported_not_written(rigs, tmp_path, capsys):
+    """A sensor mounted upside down (wrench negated) gives negative masses: no scene."""
+    nominal, _, data, _ = rigs['hoeken']
+    t_s = (data.t_ns - data.t_ns[0]) * 1e-9
+    path = bags.write_csv(tmp_path / 'flipped.csv', t_s, data.position_rad, -data.wrench)
+    result = identify.identify(nominal, t_s, data.position_rad, t_s, -data.wrench)
+    assert not result.realizable
+    with pytest.raises(identify.IdentifyError, match=r'links\.\w+\.(mass_kg|inertia_com)'):
+        result.calibrated_scene()
+    out = tmp_path / 'cal.yaml'
+    rc = cli.main(['identify', '--scene', 'hoeken', '--bag', str(path), '--output', str(out)])
+    captured = capsys.readouterr()
+    assert rc == cli.EXIT_USAGE
+    assert 'NOT physically realizable' in captured.out
+    assert 'unrealizable' in captured.err
+    assert not out.exists()
+
+
+def test_bad_arrays():
+    sc = scene_mod.load('hoeken')
+    t = np.arange(2000) * 1e-3
+    pos = np.mod(2.0 * math.pi * t, 2.0 * math.pi)
+    with pytest.raises(identify.IdentifyError, match='wrench: got shape'):
+        identify.identify(sc, t, pos, t, np.zeros((2000, 2)))
+    with pytest.raises(identify.IdentifyError, match='encoder: stamp'):
+        identify.identify(sc, t[::-1], pos, t, np.zeros((2000, 3)))
+    with pytest.raises(identify.IdentifyError, match='recording: the crank turns'):
+        identify.identify(sc, t, np.zeros(2000), t, np.zeros((2000, 3)))
+    with pytest.raises(identify.IdentifyError, match='planar'):
+        identify.identify(scene_mod.load('rggr'), t, pos, t, np.zeros((2000, 3)))
