@@ -21,7 +21,8 @@ SCENE_NAME_WIDTH = 18
 LINE_WIDTH = 99
 """Width of printed text: ``mech-balance scenes`` wraps its descriptions to it at word breaks."""
 
-EXTENSIONS = ('mech_balance.cli_balance', 'mech_balance.cli_record', 'mech_balance.cli_sim')
+EXTENSIONS = ('mech_balance.cli_balance', 'mech_balance.cli_record', 'mech_balance.cli_sim',
+              'mech_balance.cli_urdf')
 """Modules that add verbs: each has ``register(subparsers)`` adding its parser(s) with
 ``set_defaults(func=...)``; a verb module owns its parser, handler and help text."""
 
