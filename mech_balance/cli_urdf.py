@@ -15,6 +15,8 @@ from mech_balance import urdf
 
 OUT_SUFFIXES = ('.urdf', '.xml')
 """``--out``: what the URDF's file name ends in."""
+RIG_NODE_NAME = 'rig'
+"""The rig node's name (mech_balance.node.NODE_NAME), as params files address it."""
 
 
 def register(subparsers):
@@ -71,6 +73,36 @@ def same_geometry(base, design):
         raise ValueError(f'--design: scene {design.name!r} ({design.source}) differs from '
                          f'--scene {base.name!r} in its {what}; expected the same geometry '
                          'with other inertias')
+
+
+def frame_id_from_params_file(path):
+    """
+    Return the rig node's ``frame_id`` in a ROS params file (the URDF's root link name).
+
+    Sections apply in file order, as ROS applies them: ``/**`` and any section whose last
+    name is ``*``, ``**`` or the node's name (``rig``, ``/cell/rig``).  Without a
+    ``frame_id`` the node's default, :data:`mech_balance.urdf.DEFAULT_FRAME_ID`.
+    """
+    from mech_balance.scene import parse_yaml
+    try:
+        data = parse_yaml(Path(path).read_text())
+    except OSError as exc:
+        raise ValueError(f'params_file: got {str(path)!r}, cannot read it '
+                         f'({exc.strerror}); expected a ROS params file') from None
+    if not isinstance(data, dict):
+        raise ValueError(f'params_file: got {str(path)!r}, expected a mapping of node names '
+                         'to ros__parameters')
+    frame_id = urdf.DEFAULT_FRAME_ID
+    for key, section in data.items():
+        if str(key).rstrip('/').split('/')[-1] not in ('*', '**', RIG_NODE_NAME):
+            continue
+        values = section.get('ros__parameters', {}) if isinstance(section, dict) else {}
+        if isinstance(values, dict) and 'frame_id' in values:
+            frame_id = values['frame_id']
+    if not isinstance(frame_id, str) or not frame_id:
+        raise ValueError(f'params_file: frame_id: got {frame_id!r} in {str(path)!r}, expected '
+                         'a frame name')
+    return frame_id
 
 
 def write_atomic(path, text):

@@ -6,7 +6,7 @@ import sys
 
 BLOCKED = ('rclpy', 'rerun', 'sensor_msgs', 'geometry_msgs', 'std_srvs', 'std_msgs')
 CORE = ('conventions', 'scene', 'smallsolve', 'kinematics', 'dynamics', 'equimomental',
-        'analysis', 'rggr', 'balancing')
+        'analysis', 'rggr', 'balancing', 'urdf')
 
 SCRIPT = f"""
 import importlib.abc, sys
