@@ -18,6 +18,7 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
 from mech_balance import cli_urdf, scene, urdf
 
 PACKAGE = 'mech_balance'
@@ -55,10 +56,11 @@ def _nodes(context):
     prefix = f'/{namespace}' if namespace else ''
     return [
         Node(package=PACKAGE, executable=EXECUTABLE, namespace=namespace, output='screen',
-             parameters=[params_file, {'scene': scene_name}]),
+             parameters=[params_file, {'scene': ParameterValue(scene_name, value_type=str)}]),
         Node(package='robot_state_publisher', executable='robot_state_publisher',
              namespace=namespace, output='screen',
-             parameters=[{'robot_description': description}]),
+             # a string, not YAML: the XML's comments hold ': ' (launch_ros would parse it)
+             parameters=[{'robot_description': ParameterValue(description, value_type=str)}]),
         Node(package='rviz2', executable='rviz2', namespace=namespace, output='screen',
              arguments=['-d', _share(RVIZ_FILE)],
              remappings=[(topic, prefix + topic) for topic in RVIZ_TOPICS] if prefix else [],
