@@ -13,6 +13,7 @@ import importlib.util
 import math
 from pathlib import Path
 import runpy
+import xml.etree.ElementTree as ET
 
 from mech_balance import analysis, cli_urdf, params, scene, urdf
 import numpy as np
@@ -78,6 +79,15 @@ def test_the_executable_is_an_entry_point_of_the_package(setup_kwargs):
     assert c['EXECUTABLE'] in scripts
     module, function = scripts[c['EXECUTABLE']].split(':')
     assert callable(getattr(importlib.import_module(module), function))
+
+
+def test_the_packages_it_starts_are_exec_depends():
+    started = {node.value.value for node in ast.walk(ast.parse(LAUNCH_FILE.read_text()))
+               if isinstance(node, ast.keyword) and node.arg == 'package'
+               and isinstance(node.value, ast.Constant)}
+    assert started == {'robot_state_publisher', 'rviz2'}   # and PACKAGE itself
+    depends = {e.text for e in ET.parse(ROOT / 'package.xml').getroot().iter('exec_depend')}
+    assert started | {'launch', 'launch_ros'} <= depends
 
 
 def test_params_rviz_and_launch_files_are_installed(setup_kwargs):
