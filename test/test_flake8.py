@@ -20,7 +20,8 @@ import pytest
 # The upstream template lints the working directory; name the package's own files instead,
 # so that the result does not depend on where pytest starts and .venv/ is never linted.
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
-LINTED_PATHS = [str(PACKAGE_ROOT / name) for name in ('mech_balance', 'test', 'setup.py')]
+LINTED_PATHS = [str(PACKAGE_ROOT / name)
+                for name in ('mech_balance', 'test', 'launch', 'setup.py')]
 
 
 @pytest.mark.flake8

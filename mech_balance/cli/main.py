@@ -23,7 +23,7 @@ LINE_WIDTH = 99
 """Width of printed text: ``mech-balance scenes`` wraps its descriptions to it at word breaks."""
 
 EXTENSIONS = ('mech_balance.cli.balance', 'mech_balance.cli.record', 'mech_balance.cli.simulate',
-              'mech_balance.cli.identify')
+              'mech_balance.cli.identify', 'mech_balance.cli.urdf')
 """Modules that add verbs: each has ``register(subparsers)`` adding its parser(s) with
 ``set_defaults(func=...)``; a verb module owns its parser, handler and help text."""
 

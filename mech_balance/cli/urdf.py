@@ -1,0 +1,129 @@
+"""
+The ``mech-balance urdf`` verb: the URDF of a rig's spanning tree, for robot_state_publisher.
+
+The verb is thin: it loads the scene (and a balanced design of the same geometry, if given)
+and prints or writes :func:`mech_balance.urdf.urdf_xml`.  The file is written atomically
+(a temporary file in the same directory, then ``os.replace``).
+"""
+
+from pathlib import Path
+import sys
+
+from mech_balance.ros import urdf
+
+OUT_SUFFIXES = ('.urdf', '.xml')
+"""``--out``: what the URDF's file name ends in."""
+RIG_NODE_NAME = 'rig'
+"""The rig node's name (mech_balance.node.NODE_NAME), as params files address it."""
+
+
+def register(subparsers):
+    """Add the ``urdf`` verb to the ``mech-balance`` sub-parsers."""
+    p = subparsers.add_parser(
+        'urdf', help="write the URDF of the rig's spanning tree (RViz, robot_state_publisher)",
+        description="Write the URDF of a scene: a root link named after the rig node's "
+                    'frame_id, one link per moving link with its inertial (mass, mass centre, '
+                    'inertia about it; z out of the plane for planar rigs), bars, pins and '
+                    'blocks as visuals and collisions, and one joint per joint of the '
+                    'spanning tree the core solves, named as on joint_states, with limits '
+                    'where the joint swings (continuous where it turns fully). The joints '
+                    'that close the loops are listed in a comment. The RGGR is written in 3-D '
+                    'with its real axes; its coupler hangs from the crank by two revolute '
+                    'joints (coupler_yaw, coupler_pitch). Zero convention: README section '
+                    '"RViz, robot_state_publisher and launch" and mech_balance/urdf.py.')
+    p.add_argument('--scene', default='hoeken',
+                   help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
+                        'file (default: %(default)s)')
+    p.add_argument('--design', metavar='BALANCED.yaml', default=None,
+                   help='a scene of the same geometry with other inertias (e.g. written by '
+                        '`mech-balance balance --output`, counterweights included): the '
+                        'URDF carries its inertials')
+    p.add_argument('--frame-id', default=urdf.DEFAULT_FRAME_ID,
+                   help="name of the root link: the rig node's frame_id (default: "
+                        '%(default)s)')
+    p.add_argument('--out', default=None, metavar='F.urdf',
+                   help='write the URDF to this file (atomically; its directory must exist); '
+                        'default: print it on stdout')
+    p.set_defaults(func=cmd_urdf)
+
+
+def same_geometry(base, design):
+    """
+    Raise ValueError unless ``design`` has the geometry of ``base`` (only inertias differ).
+
+    Planar: frame points, link names and points, joints and crank joint; RGGR: the
+    geometry and the assembly branch.
+    """
+    kind = getattr(base, 'kind', 'planar')
+    if getattr(design, 'kind', 'planar') != kind:
+        raise ValueError(f'--design: got a {getattr(design, "kind", "planar")} scene '
+                         f'({design.name!r}), expected a {kind} scene like --scene')
+    if kind == 'rggr':
+        same = (design.geometry == base.geometry and design.branch == base.branch)
+        what = 'geometry and assembly.branch'
+    else:
+        same = (design.frame_points == base.frame_points
+                and [(lk.name, lk.points) for lk in design.links]
+                == [(lk.name, lk.points) for lk in base.links]
+                and design.joints == base.joints and design.crank_joint == base.crank_joint)
+        what = 'frame points, link points and joints'
+    if not same:
+        raise ValueError(f'--design: scene {design.name!r} ({design.source}) differs from '
+                         f'--scene {base.name!r} in its {what}; expected the same geometry '
+                         'with other inertias')
+
+
+def frame_id_from_params_file(path):
+    """
+    Return the rig node's ``frame_id`` in a ROS params file (the URDF's root link name).
+
+    Sections apply in file order, as ROS applies them: ``/**`` and any section whose last
+    name is ``*``, ``**`` or the node's name (``rig``, ``/cell/rig``).  Without a
+    ``frame_id`` the node's default, :data:`mech_balance.urdf.DEFAULT_FRAME_ID`.
+    """
+    from mech_balance.schema.scene import parse_yaml
+    try:
+        data = parse_yaml(Path(path).read_text())
+    except OSError as exc:
+        raise ValueError(f'params_file: got {str(path)!r}, cannot read it '
+                         f'({exc.strerror}); expected a ROS params file') from None
+    if not isinstance(data, dict):
+        raise ValueError(f'params_file: got {str(path)!r}, expected a mapping of node names '
+                         'to ros__parameters')
+    frame_id = urdf.DEFAULT_FRAME_ID
+    for key, section in data.items():
+        if str(key).rstrip('/').split('/')[-1] not in ('*', '**', RIG_NODE_NAME):
+            continue
+        values = section.get('ros__parameters', {}) if isinstance(section, dict) else {}
+        if isinstance(values, dict) and 'frame_id' in values:
+            frame_id = values['frame_id']
+    if not isinstance(frame_id, str) or not frame_id:
+        raise ValueError(f'params_file: frame_id: got {frame_id!r} in {str(path)!r}, expected '
+                         'a frame name')
+    return frame_id
+
+
+def cmd_urdf(args):
+    """Print or write the URDF of the scene (or of its design)."""
+    from mech_balance.cli import main as cli
+    from mech_balance import atomic, schema as scene
+    out = None if args.out is None else cli.writable_path('--out', args.out, OUT_SUFFIXES)
+    sc = scene.load(args.scene)
+    if args.design is not None:
+        design = scene.load(args.design)
+        same_geometry(sc, design)
+        sc = design
+    text = urdf.urdf_xml(sc, frame_id=args.frame_id)
+    if out is None:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+        return 0
+    atomic.write_text_atomic(out, text)
+    print(f'wrote {out.resolve()} ({sc.name}: root link {args.frame_id!r}, joints '
+          f'{", ".join(urdf.tree_model(sc).names)})')
+    return 0
+
+
+if __name__ == '__main__':  # pragma: no cover - use `mech-balance urdf`
+    from mech_balance.cli import main as cli
+    sys.exit(cli.main(['urdf', *sys.argv[1:]]))

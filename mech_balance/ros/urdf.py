@@ -1,0 +1,826 @@
+"""
+URDF of a rig's spanning tree and the tree's joint positions from the core's state.
+
+numpy only (no ROS): ``mech-balance urdf`` writes :func:`urdf_xml`, the launch file gives it
+to robot_state_publisher, and the rig node publishes :func:`joint_positions` on
+``joint_states``, so that RViz draws the rig where the core puts it.
+
+URDF is a tree.  A closed linkage is opened into the spanning tree the core itself solves
+(:class:`mech_balance.kinematics.Linkage`: ``tree`` and ``cuts``); the core closes the loops
+exactly, so every tree joint gets its exact value and no ``<mimic>`` approximation is needed.
+The cut joints are listed in an XML comment with the two points each one closes.
+
+Link frames (the URDF's own, SI)
+    Planar rigs: the root link (named after the node's ``frame_id``) is the scene's frame: x
+    and y in the plane of motion, z out of it.  The URDF link of a moving link b is the
+    scene's link frame of b (axes turned by phi_b) moved to b's point of the tree joint
+    that holds b, so a point p of b (link coordinates) is at ``(p - p_j, 0)`` in the URDF
+    frame.  RGGR (seed 002): the root is Oxyz; ``crank`` is Q1uvw, ``output`` is Q3uvw
+    (module docstring of :mod:`mech_balance.rggr`); ``coupler`` has its origin at the pin B
+    and the axes U, V, W of seed 002 eqs. 38, 42-44 (U along BC, V parallel to the xy-plane).
+
+Joint zero convention (:func:`joint_positions`)
+    * Revolute joint of a planar rig: the relative angle phi_child - phi_parent of the two
+      link frames minus the joint's offset, wrapped to (-pi, pi].  The offset is 0 (the link
+      frames are parallel at 0) except for a joint with a limited swing that passes through
+      the wrap point +-pi over a cycle: its offset is the middle of the swing (the joint
+      origin's yaw), so that its position stays continuous and inside its limits.  The crank
+      joint reads the crank angle psi, wrapped.
+    * Prismatic joint: the slide of the child's joint point from the parent's along the
+      joint axis (the core's tree coordinate), 0 where the two points coincide.
+    * RGGR: ``crank`` = phi1 and ``output`` = phi3 (seed 002 eqs. 16-23), wrapped (with the
+      same offset rule).  The coupler hangs from the crank through a spherical joint at B,
+      carried by two revolute joints: ``coupler_yaw`` about the crank's w axis, the angle
+      from u to the projection of BC on the crank's uv-plane, and ``coupler_pitch``, the
+      elevation of BC above that plane (towards +w).  The third rotation of a spherical
+      joint, the coupler's spin about BC, is seed 002's idle spin (a thin rod has no inertia
+      about its axis); it is fixed by the paper's choice V parallel to the xy-plane (eq. 42),
+      so it has no joint.  The frame is undefined where BC is parallel to the crank axis.
+    Velocities are the time derivatives of the positions (rad/s, m/s).
+
+Joint limits
+    A joint whose coordinate returns to its start after one crank turn is ``revolute`` (or
+    ``prismatic``) with ``<limit>`` at the extremes over the cycle (golden-section refined,
+    widened by :data:`LIMIT_MARGIN`); one that turns fully is ``continuous``.  A limit's
+    ``velocity`` is the largest rate over the cycle at the scene's crank speed; ``effort``
+    is 0: every limited joint is passive (the crank, the driven joint, turns fully).
+
+Inertials
+    Mass, mass centre and inertia about the mass centre of each moving link.  Planar rigs
+    (z out of the plane): izz is the scene's centroidal moment of inertia; ixx and iyy do
+    not enter planar dynamics and are those of a thin plate in the plane with equal second
+    moments along x and y, ixx = iyy = izz / 2 (ixx + iyy = izz for a thin plate).  A link
+    whose scene entry lists ``counterweights`` (discs: ``mass_kg``, ``centre_m``,
+    ``radius_m``, ``thickness_m``, included in the link's totals) adds each disc's
+    out-of-plane inertia to ixx, iyy and ixy and draws it.  RGGR: the scene gives I_ww,
+    I_wu and I_vw about the pivot only; the others do not enter its dynamics (rggr.py), so
+    the URDF takes the thinnest body that has the given ones (:func:`pivot_body_inertia`).
+"""
+
+from dataclasses import dataclass, replace
+import math
+import os
+import xml.etree.ElementTree as ET
+
+from mech_balance.analysis import cycle as analysis
+from mech_balance.conventions import cycle_angles
+from mech_balance.core.planar import kinematics
+from mech_balance.schema.scene import FRAME
+import numpy as np
+
+DEFAULT_FRAME_ID = 'rig_frame'
+"""Root link name when none is given: the rig node's ``frame_id`` default (params.py)."""
+RANGE_SAMPLES = 720
+"""Crank angles per turn at which each joint's range over a cycle is first located."""
+GOLDEN_ITERATIONS = 60
+"""Golden-section steps refining each extreme (the bracket shrinks to ~1e-12 of its width)."""
+LIMIT_MARGIN = 1e-9
+"""Joint limits lie this far outside the cycle's extremes (rad; prismatic: times the
+linkage's length scale, m), so that round-off never puts a published position outside."""
+FULL_TURN_FRACTION = 1.0 - 1e-9
+"""A swing wider than this fraction of 2 pi is treated as a full turn (``continuous``)."""
+PIN_RADIUS = 0.08
+"""Planar pins: cylinder radius as a fraction of the linkage's length scale (the crank)."""
+BAR_WIDTH = 0.14
+"""Planar bars: box width (in the plane) as a fraction of the length scale."""
+BAR_THICKNESS = 0.06
+"""Planar bars: box thickness (along z) as a fraction of the length scale."""
+LAYER = 0.1
+"""Planar visuals: z step between the links' drawing layers, fraction of the length scale."""
+BLOCK_SIZE = (0.8, 0.5)
+"""A one-point link (a slider block): box length and width, fractions of the length scale."""
+RGGR_ROD_RADIUS = 0.08
+"""RGGR: rod radius of the links and axes as a fraction of the crank radius a1."""
+RGGR_PIN_RADIUS = 0.16
+"""RGGR: sphere radius of the coupler's spherical joints as a fraction of a1."""
+WEIGHT_DENSITY = 7850.0
+"""RGGR balancing weights are drawn as steel spheres of their mass (kg/m^3; drawing only)."""
+COUPLER_FRAME_MIN = 1e-9
+"""h / a2 (the coupler's horizontal extent) below which the coupler frame is undefined."""
+PALETTE = (
+    (0.95, 0.55, 0.10, 1.0), (0.20, 0.45, 0.85, 1.0), (0.25, 0.70, 0.30, 1.0),
+    (0.80, 0.25, 0.25, 1.0), (0.60, 0.35, 0.75, 1.0), (0.10, 0.70, 0.70, 1.0),
+    (0.85, 0.75, 0.15, 1.0), (0.55, 0.40, 0.25, 1.0),
+)
+"""Link colours (rgba), in body order; the frame is grey."""
+FRAME_COLOUR = (0.6, 0.6, 0.6, 1.0)
+WEIGHT_COLOUR = (0.25, 0.25, 0.25, 1.0)
+RGGR_COUPLER_JOINTS = ('coupler_yaw', 'coupler_pitch')
+"""The two revolute joints that carry the RGGR coupler's spherical joint at B."""
+RGGR_JOINT_ORDER = ('crank', 'output') + RGGR_COUPLER_JOINTS
+"""Joint order of an RGGR's :func:`joint_positions` (the twin's crank and output first)."""
+TWO_PI = 2.0 * math.pi
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+
+
+class UrdfError(ValueError):
+    """A scene cannot be written as a URDF (a name clash, an impossible body, a bad state)."""
+
+
+@dataclass(frozen=True)
+class UrdfJoint:
+    """
+    One URDF joint: where it sits on its parent, how it moves, its zero and its limits.
+
+    ``xyz`` and ``rpy`` place the joint frame in the parent link's frame; ``axis`` is in the
+    joint frame.  ``offset`` (rad) is subtracted from the core's coordinate before wrapping
+    (revolute joints; module docstring).  ``lower``/``upper`` are None for ``continuous``.
+    """
+
+    name: str
+    joint_type: str
+    parent: str
+    child: str
+    xyz: tuple
+    rpy: tuple
+    axis: tuple
+    offset: float = 0.0
+    lower: float = None
+    upper: float = None
+    velocity: float = 0.0
+
+
+@dataclass(frozen=True)
+class TreeModel:
+    """
+    The URDF's joints of one scene geometry, built once (:func:`tree_model`).
+
+    ``joints`` are in :func:`joint_positions` order; ``kind`` is ``planar`` or ``rggr``;
+    ``linkage`` is the compiled planar linkage (None for the RGGR).
+    """
+
+    kind: str
+    joints: tuple
+    linkage: object = None
+
+    @property
+    def names(self):
+        """Return the joint names, in :func:`joint_positions` order."""
+        return tuple(j.name for j in self.joints)
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def wrap_angle(angle_rad):
+    """Return angles wrapped to (-pi, pi], with no -0.0 (array in, array out)."""
+    a = np.asarray(angle_rad, dtype=float)
+    w = math.pi - np.mod(math.pi - a, TWO_PI)
+    w = np.where(w <= -math.pi, w + TWO_PI, w)  # mod may round up to 2 pi
+    return w + 0.0
+
+
+def _is_rggr(scene):
+    return getattr(scene, 'kind', 'planar') == 'rggr'
+
+
+def _golden_extremes(f, centres, rows, half_width, sign):
+    """
+    Return refined extreme values of ``f`` near ``centres``.
+
+    ``f(psi)`` returns ``(n_rows, len(psi))``; candidate i looks at row ``rows[i]`` within
+    ``centres[i] +- half_width``, for a minimum (``sign`` +1) or a maximum (-1) per candidate.
+    """
+    cols = np.arange(len(centres))
+    a, b = centres - half_width, centres + half_width
+    c, d = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
+
+    def value(psi):
+        return sign * f(psi)[rows, cols]
+
+    fc, fd = value(c), value(d)
+    for _ in range(GOLDEN_ITERATIONS):
+        left = fc < fd
+        b = np.where(left, d, b)
+        a = np.where(left, a, c)
+        c_new = b - _GOLDEN * (b - a)
+        d_new = a + _GOLDEN * (b - a)
+        c, d = np.where(left, c_new, d), np.where(left, c, d_new)
+        fresh = np.where(left, c, d)
+        fv = value(fresh)
+        fc, fd = np.where(left, fv, fd), np.where(left, fc, fv)
+    return sign * np.minimum(fc, fd)
+
+
+def cycle_ranges(f, start_rad, angular):
+    """
+    Return ``(lower, upper, turns)`` of each row of ``f(psi)`` over one crank turn.
+
+    ``f`` returns ``(n_rows, len(psi))`` joint coordinates; ``angular`` ``(n_rows,)`` says
+    which rows are angles (compared modulo 2 pi about the middle of their sampled swing).
+    ``turns`` is the number of full turns a row makes per crank turn (0: a limited swing);
+    its lower/upper are then nan.  Extremes: :data:`RANGE_SAMPLES` samples, then a
+    golden-section search about the best sample.
+    """
+    angular = np.asarray(angular, dtype=bool)
+    psi = start_rad + TWO_PI * np.arange(RANGE_SAMPLES + 1) / RANGE_SAMPLES
+    values = np.asarray(f(psi), dtype=float)
+    values = np.where(angular[:, None], np.unwrap(values, axis=1), values)
+    turns = np.where(angular, np.round((values[:, -1] - values[:, 0]) / TWO_PI), 0.0)
+    span = values.max(axis=1) - values.min(axis=1)
+    turns = np.where(angular & (span >= FULL_TURN_FRACTION * TWO_PI) & (turns == 0),
+                     np.nan, turns)  # swings a full turn and back: continuous as well
+    mid = 0.5 * (values.max(axis=1) + values.min(axis=1))
+
+    def centred(p):
+        v = np.asarray(f(p), dtype=float) - mid[:, None]
+        return np.where(angular[:, None], wrap_angle(v), v)
+
+    rows = np.arange(values.shape[0])
+    sampled = centred(psi[:-1])
+    h = TWO_PI / RANGE_SAMPLES
+    low = _golden_extremes(centred, psi[np.argmin(sampled, axis=1)], rows, h, 1.0)
+    high = _golden_extremes(centred, psi[np.argmax(sampled, axis=1)], rows, h, -1.0)
+    low = np.minimum(low, sampled.min(axis=1)) + mid
+    high = np.maximum(high, sampled.max(axis=1)) + mid
+    limited = turns == 0
+    return np.where(limited, low, np.nan), np.where(limited, high, np.nan), turns
+
+
+def angle_limits(lower, upper):
+    """
+    Return ``(offset, lower, upper)`` of a limited revolute joint (module docstring).
+
+    Offset 0 (a whole number of turns) when the swing fits in (-pi, pi] as it is, else the
+    middle of the swing; the limits are widened by :data:`LIMIT_MARGIN`.
+    """
+    k = math.ceil((upper + LIMIT_MARGIN - math.pi) / TWO_PI)
+    if lower - LIMIT_MARGIN - k * TWO_PI > -math.pi:
+        offset = k * TWO_PI
+        lo, hi = lower - offset, upper - offset
+        return 0.0, lo - LIMIT_MARGIN, hi + LIMIT_MARGIN
+    mid = 0.5 * (lower + upper)
+    half = 0.5 * (upper - lower) + LIMIT_MARGIN
+    return float(wrap_angle(mid)), -half, half
+
+
+def rotation(axis, angle_rad):
+    """Return the 3x3 rotation by ``angle_rad`` about the unit vector ``axis`` (Rodrigues)."""
+    k = np.asarray(axis, dtype=float)
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(angle_rad) * kx + (1.0 - math.cos(angle_rad)) * (kx @ kx)
+
+
+def rpy_matrix(rpy):
+    """Return the rotation of a URDF ``rpy``: Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = rpy
+    return (rotation((0.0, 0.0, 1.0), y) @ rotation((0.0, 1.0, 0.0), p)
+            @ rotation((1.0, 0.0, 0.0), r))
+
+
+def matrix_rpy(matrix):
+    """Return the URDF ``(roll, pitch, yaw)`` of a rotation matrix (inverse of rpy_matrix)."""
+    m = np.asarray(matrix, dtype=float)
+    cos_pitch = math.hypot(m[0, 0], m[1, 0])
+    pitch = math.atan2(-m[2, 0], cos_pitch)
+    if cos_pitch < 1e-12:  # gimbal lock: put the whole turn about z into the roll
+        return (math.atan2(-m[1, 2], m[1, 1]), pitch, 0.0)
+    return (math.atan2(m[2, 1], m[2, 2]), pitch, math.atan2(m[1, 0], m[0, 0]))
+
+
+def _revolute_spec(name, parent, child, xyz, rpy, axis, lower, upper, turns, rate_max):
+    """Return the :class:`UrdfJoint` of a revolute joint with the cycle's range."""
+    if turns != 0:
+        return UrdfJoint(name, 'continuous', parent, child, xyz, rpy, axis, 0.0, None, None,
+                         rate_max)
+    offset, lo, hi = angle_limits(lower, upper)
+    if offset:  # the joint origin turned by the offset about the joint axis
+        if rpy[:2] == (0.0, 0.0) and tuple(axis) == (0.0, 0.0, 1.0):
+            rpy = (0.0, 0.0, rpy[2] + offset)
+        else:
+            rpy = matrix_rpy(rpy_matrix(rpy) @ rotation(axis, offset))
+    return UrdfJoint(name, 'revolute', parent, child, xyz, rpy, axis, offset, lo, hi,
+                     rate_max)
+
+
+# ----------------------------------------------------------------------------- tree model
+
+
+_MODELS = {}
+_MODELS_MAX = 64
+
+
+def tree_model(scene_or_linkage):
+    """
+    Return the :class:`TreeModel` of a planar scene, a compiled Linkage or an RGGR scene.
+
+    Built once per object (cached): the joint ranges need one cycle of the kinematics.
+    A :class:`TreeModel` passed in is returned as it is.
+    """
+    if isinstance(scene_or_linkage, TreeModel):
+        return scene_or_linkage
+    key = id(scene_or_linkage)
+    hit = _MODELS.get(key)
+    if hit is not None and hit[0] is scene_or_linkage:
+        return hit[1]
+    if isinstance(scene_or_linkage, kinematics.Linkage):
+        model = _planar_model(scene_or_linkage)
+    elif _is_rggr(scene_or_linkage):
+        model = _rggr_model(scene_or_linkage)
+    elif hasattr(scene_or_linkage, 'joints') and hasattr(scene_or_linkage, 'links'):
+        model = tree_model(analysis.linkage_for(scene_or_linkage))
+    else:
+        raise UrdfError(f'scene: got {type(scene_or_linkage).__name__}, expected a planar '
+                        'scene, a kinematics.Linkage, an RGGR scene or a TreeModel')
+    if len(_MODELS) >= _MODELS_MAX:
+        _MODELS.clear()
+    _MODELS[key] = (scene_or_linkage, model)
+    return model
+
+
+def _frame_offsets(linkage):
+    """Return each body's URDF frame offset p_j (link coordinates, complex); frame: 0."""
+    offset = [0j] * linkage.nb
+    for tj in linkage.tree:
+        offset[tj.child] = tj.p_child
+    return offset
+
+
+def _planar_model(linkage):
+    sc = linkage.scene
+    linkage.skeleton  # noqa: B018 - assemble and trace the branch: fail early
+    names = linkage.body_names
+    offset = _frame_offsets(linkage)
+    prismatic = linkage.is_prismatic
+
+    def coordinates(psi):
+        return linkage.solve(psi, 1.0, 0.0, need_acc=False).q
+
+    psi = cycle_angles(RANGE_SAMPLES, sc.assembly_crank_angle_rad)
+    rates = linkage.solve(psi, 1.0, 0.0, need_acc=False).qd
+    rate_max = np.max(np.abs(rates), axis=1) * abs(sc.crank_speed_rad_s)
+    lower, upper, turns = cycle_ranges(coordinates, sc.assembly_crank_angle_rad, ~prismatic)
+    turns[0] = 1.0  # the crank turns fully by construction
+    joints = []
+    for t, tj in enumerate(linkage.tree):
+        p = tj.p_parent - offset[tj.parent]
+        xyz = (p.real, p.imag, 0.0)
+        parent = names[tj.parent]
+        child = names[tj.child]
+        if tj.kind == 'revolute':
+            joints.append(_revolute_spec(tj.name, parent, child, xyz, (0.0, 0.0, 0.0),
+                                         (0.0, 0.0, 1.0), lower[t], upper[t], turns[t],
+                                         float(rate_max[t])))
+            continue
+        # prismatic: the child turns by +-angle against the parent; the slide axis in the
+        # child's (= joint frame's) axes (kinematics.Linkage.pose)
+        if tj.axis_on_parent:
+            turn, axis = tj.angle, tj.axis * complex(math.cos(-tj.angle), math.sin(-tj.angle))
+        else:
+            turn, axis = -tj.angle, -tj.axis
+        margin = LIMIT_MARGIN * linkage.length_scale
+        joints.append(UrdfJoint(tj.name, 'prismatic', parent, child, xyz, (0.0, 0.0, turn),
+                                (axis.real, axis.imag, 0.0), 0.0, float(lower[t] - margin),
+                                float(upper[t] + margin), float(rate_max[t])))
+    return TreeModel('planar', tuple(joints), linkage)
+
+
+def _rggr_angles(scene, psi):
+    """Return the RGGR's tree coordinates ``(4, n)`` (output, coupler yaw, pitch unwrapped)."""
+    from mech_balance.core import rggr
+    kin = rggr.kinematics(scene, psi)
+    yaw, pitch, _, _ = _coupler_angles(kin)
+    return np.stack([kin.crank_angle_rad, kin.output_angle_rad, yaw, pitch])
+
+
+def _coupler_angles(kin):
+    """
+    Return ``(yaw, pitch, yaw_rate, pitch_rate)`` of the coupler relative to the crank.
+
+    U = BC / a2 in the crank's axes, u_c = R1^T U: yaw = atan2(u_c,y, u_c,x), pitch =
+    atan2(u_c,z, h) with h = |(u_c,x, u_c,y)|.  Rates from du_c/dt = R1^T (dU/dt - w1 x U),
+    w1 = omega z (the crank turns about z).
+    """
+    a = kin.coupler_m
+    a2 = np.linalg.norm(a, axis=1)
+    u = a / a2[:, None]
+    du = kin.coupler_vel_m_s / a2[:, None]
+    omega = np.asarray(kin.crank_speed_rad_s, dtype=float)
+    du = du - np.stack([-omega * u[:, 1], omega * u[:, 0], np.zeros(u.shape[0])], -1)
+    r1 = kin.crank_axes
+    uc = np.einsum('nji,nj->ni', r1, u)
+    duc = np.einsum('nji,nj->ni', r1, du)
+    h = np.hypot(uc[:, 0], uc[:, 1])
+    bad = h < COUPLER_FRAME_MIN
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise UrdfError(
+            f'crank angle {math.degrees(kin.crank_angle_rad[k]):.6g} deg: coupler parallel to '
+            f'the crank axis (h / a2 = {h[k]:.3g}, expected >= {COUPLER_FRAME_MIN:g}), where '
+            'its yaw and the frame of seed 002 eq. 42 are undefined')
+    yaw = np.arctan2(uc[:, 1], uc[:, 0])
+    pitch = np.arctan2(uc[:, 2], h)
+    yaw_rate = (uc[:, 0] * duc[:, 1] - uc[:, 1] * duc[:, 0]) / (h * h)
+    pitch_rate = duc[:, 2] * h - uc[:, 2] * (uc[:, 0] * duc[:, 0] + uc[:, 1] * duc[:, 1]) / h
+    return yaw, pitch, yaw_rate, pitch_rate
+
+
+def _rggr_model(scene):
+    from mech_balance.core import rggr
+    rggr.check_full_rotation(scene)
+    g = scene.geometry
+    lower, upper, turns = cycle_ranges(lambda p: _rggr_angles(scene, p), 0.0,
+                                       np.ones(4, dtype=bool))
+    kin = rggr.kinematics(scene, cycle_angles(RANGE_SAMPLES))
+    _, _, yaw_rate, pitch_rate = _coupler_angles(kin)
+    rate_max = [abs(scene.crank_speed_rad_s), np.max(np.abs(kin.output_rate_rad_s)),
+                np.max(np.abs(yaw_rate)), np.max(np.abs(pitch_rate))]
+    z = (0.0, 0.0, 1.0)
+    q1 = (0.0, g.l2_m, g.l1_m)                                       # seed 002, eq. 15
+    q3 = (g.l3_m * math.sin(g.beta_rad), 0.0, g.l3_m * math.cos(g.beta_rad))  # eqs. 17, 19
+    specs = [
+        ('crank', 'crank', q1, (0.0, 0.0, 0.0), z),
+        ('output', 'output', q3, (0.0, g.beta_rad, 0.0), z),         # Q3uvw = Ry(beta) Rz
+        # the spherical joint at B: yaw about the crank's w, then pitch about the turned v;
+        # the roll of pi makes the coupler frame seed 002's U, V, W (V parallel to xy)
+        ('coupler_yaw', 'coupler_yaw_link', (g.a1_m, 0.0, 0.0), (0.0, 0.0, 0.0), z),
+        ('coupler_pitch', 'coupler', (0.0, 0.0, 0.0), (math.pi, 0.0, 0.0), (0.0, 1.0, 0.0)),
+    ]
+    parents = {'crank': None, 'output': None, 'coupler_yaw': 'crank',
+               'coupler_pitch': 'coupler_yaw_link'}
+    joints = []
+    for i, (name, child, xyz, rpy, axis) in enumerate(specs):
+        joints.append(_revolute_spec(name, parents[name], child, xyz, rpy, axis, lower[i],
+                                     upper[i], 1.0 if name == 'crank' else turns[i],
+                                     float(rate_max[i])))
+    return TreeModel('rggr', tuple(joints), None)
+
+
+# ----------------------------------------------------------------------------- positions
+
+
+def joint_positions(model, state):
+    """
+    Return ``(names, positions, velocities)`` of the URDF joints at the core's state.
+
+    ``model``: a planar scene, its :class:`~mech_balance.kinematics.Linkage`, an RGGR scene
+    or a :class:`TreeModel` (:func:`tree_model`; pass it to avoid the cache lookup).
+    ``state``: a :class:`~mech_balance.kinematics.KinematicState` with rates (planar) or a
+    :class:`~mech_balance.rggr.RggrKinematics`.  ``positions`` and ``velocities`` are
+    ``(n, n_joints)`` (rad or m; rad/s or m/s) in the zero convention of the module
+    docstring: revolute positions wrapped to (-pi, pi], no -0.0 anywhere.
+    """
+    tree = tree_model(model)
+    names = tree.names
+    if tree.kind == 'rggr':
+        if not hasattr(state, 'coupler_m'):
+            raise UrdfError(f'state: got {type(state).__name__}, expected the RggrKinematics '
+                            'of an RGGR scene (rggr.kinematics)')
+        yaw, pitch, yaw_rate, pitch_rate = _coupler_angles(state)
+        n = state.crank_angle_rad.shape[0]
+        q = np.stack([state.crank_angle_rad, state.output_angle_rad, yaw, pitch])
+        qd = np.stack([np.full(n, float(state.crank_speed_rad_s)), state.output_rate_rad_s,
+                       yaw_rate, pitch_rate])
+        angular = np.ones(4, dtype=bool)
+    else:
+        if not hasattr(state, 'q') or state.qd is None:
+            raise UrdfError(f'state: got {type(state).__name__} without rates, expected a '
+                            'KinematicState solved with rates (Linkage.solve)')
+        q, qd = state.q, state.qd
+        if q.shape[0] != len(names):
+            raise UrdfError(f'state: got {q.shape[0]} tree coordinates, expected '
+                            f'{len(names)} (the linkage of this scene)')
+        angular = ~tree.linkage.is_prismatic
+    offset = np.array([j.offset for j in tree.joints])[:, None]
+    positions = np.where(angular[:, None], wrap_angle(q - offset), q + 0.0)
+    return names, positions.T + 0.0, np.asarray(qd, dtype=float).T + 0.0
+
+
+# ----------------------------------------------------------------------------- inertials
+
+
+def thin_plate_inertia(link):
+    """
+    Return ``(mass, com_xy, (ixx, iyy, izz, ixy))`` of a planar link about its mass centre.
+
+    Mass, mass centre and izz are the link's (totals, counterweights included); ixx, iyy
+    and ixy those of a thin plate with ixx = iyy (module docstring), plus the discs of
+    ``link.counterweights`` (if the link has any) with their own thickness.
+    """
+    mass, com, izz = float(link.mass_kg), tuple(link.com_m), float(link.inertia_com_kg_m2)
+    discs = tuple(getattr(link, 'counterweights', ()) or ())
+    own = getattr(link, 'own', None)
+    if not discs or own is None:
+        return mass, com, (0.5 * izz, 0.5 * izz, izz, 0.0)
+    parts = [(own[0], own[1], 0.5 * own[2], 0.5 * own[2])]
+    for cw in discs:
+        r, t = float(cw.radius_m), float(cw.thickness_m)
+        i_d = cw.mass_kg * (3.0 * r * r + t * t) / 12.0  # a disc about a diameter
+        parts.append((float(cw.mass_kg), tuple(cw.centre_m), i_d, i_d))
+    ixx = iyy = ixy = 0.0
+    for m, (x, y), i_x, i_y in parts:
+        dx, dy = x - com[0], y - com[1]
+        ixx += i_x + m * dy * dy
+        iyy += i_y + m * dx * dx
+        ixy -= m * dx * dy
+    return mass, com, (ixx, iyy, izz, ixy)
+
+
+def pivot_body_inertia(body):
+    """
+    Return ``(mass, centre_uvw, inertia_3x3)`` of an RGGR pivot body about its mass centre.
+
+    The scene gives I_ww, I_wu = int(w u dm) and I_vw = int(v w dm) about the pivot
+    (rggr.py).  About the mass centre the second moments S = int(r r^T dm) then have
+    S_uu + S_vv = K = I_ww - m (u^2 + v^2), S_wu = I_wu - m w u, S_vw = I_vw - m v w; the URDF
+    takes S_uu = S_vv = K / 2, S_uv = 0 and the smallest S_ww that makes S positive
+    semi-definite, (S_wu^2 + S_vw^2) / (K / 2) (a flat body when the products vanish).  The
+    inertia is trace(S) 1 - S, whose off-diagonal terms carry -I_wu, -I_vw (seed 002 eq. 53).
+    """
+    m = float(body.mass_kg)
+    c = np.asarray(body.centre_uvw_m, dtype=float)
+    k = max(body.inertia_ww_kg_m2 - m * (c[0] ** 2 + c[1] ** 2), 0.0)
+    x = body.product_wu_kg_m2 - m * c[2] * c[0]
+    y = body.product_vw_kg_m2 - m * c[1] * c[2]
+    a = 0.5 * k
+    scale = max(abs(body.inertia_ww_kg_m2), 1e-300)
+    if a > 0.0:
+        z = (x * x + y * y) / a
+    elif max(abs(x), abs(y)) <= 1e-12 * scale:
+        z = 0.0
+    else:
+        raise UrdfError(
+            f'inertia_about_pivot_kg_m2: I_ww = {body.inertia_ww_kg_m2!r} equals m (u^2 + v^2) '
+            f'but the products about the mass centre are ({x:.6g}, {y:.6g}) kg m^2; no body '
+            'has that (expected zero products for a body on its axis)')
+    s = np.array([[a, 0.0, x], [0.0, a, y], [x, y, z]])
+    return m, c, np.trace(s) * np.eye(3) - s
+
+
+# ----------------------------------------------------------------------------- XML
+
+
+def _num(x):
+    """Return the shortest exact text of a float (no -0)."""
+    return repr(float(x) + 0.0)
+
+
+def _vec(values):
+    return ' '.join(_num(v) for v in values)
+
+
+def _origin(parent, xyz, rpy=(0.0, 0.0, 0.0)):
+    ET.SubElement(parent, 'origin', xyz=_vec(xyz), rpy=_vec(rpy))
+
+
+def _shape(parent, name, material, xyz, rpy, geometry, collide=True):
+    """Add a ``<visual>`` (and the same ``<collision>``) named ``name`` to a link."""
+    tags = ('visual', 'collision') if collide else ('visual',)
+    for tag in tags:
+        el = ET.SubElement(parent, tag, name=name)
+        _origin(el, xyz, rpy)
+        geo = ET.SubElement(el, 'geometry')
+        kind, attrs = geometry
+        ET.SubElement(geo, kind, **attrs)
+        if tag == 'visual':
+            ET.SubElement(el, 'material', name=material)
+
+
+def _box(size):
+    return 'box', {'size': _vec(size)}
+
+
+def _cylinder(radius, length):
+    return 'cylinder', {'radius': _num(radius), 'length': _num(length)}
+
+
+def _sphere(radius):
+    return 'sphere', {'radius': _num(radius)}
+
+
+def _inertial(link_el, mass, xyz, tensor):
+    """Add ``<inertial>``; ``tensor`` is (ixx, iyy, izz, ixy, ixz, iyz)."""
+    el = ET.SubElement(link_el, 'inertial')
+    _origin(el, xyz)
+    ET.SubElement(el, 'mass', value=_num(mass))
+    ixx, iyy, izz, ixy, ixz, iyz = tensor
+    ET.SubElement(el, 'inertia', ixx=_num(ixx), ixy=_num(ixy), ixz=_num(ixz), iyy=_num(iyy),
+                  iyz=_num(iyz), izz=_num(izz))
+
+
+def _joint_element(robot, spec):
+    el = ET.SubElement(robot, 'joint', name=spec.name, type=spec.joint_type)
+    _origin(el, spec.xyz, spec.rpy)
+    ET.SubElement(el, 'parent', link=spec.parent)
+    ET.SubElement(el, 'child', link=spec.child)
+    ET.SubElement(el, 'axis', xyz=_vec(spec.axis))
+    if spec.joint_type != 'continuous':
+        ET.SubElement(el, 'limit', lower=_num(spec.lower), upper=_num(spec.upper),
+                      effort='0.0', velocity=_num(spec.velocity))
+    return el
+
+
+def _materials(robot, colours):
+    for name, rgba in colours:
+        ET.SubElement(ET.SubElement(robot, 'material', name=name), 'color', rgba=_vec(rgba))
+
+
+def _tree_edges(points):
+    """Return the bars of a link: a shortest spanning tree over its points (Prim)."""
+    names = list(points)
+    if len(names) < 2:
+        return []
+    inside, edges = {names[0]}, []
+    while len(inside) < len(names):
+        best = min(((abs(points[a] - points[b]), a, b) for a in inside for b in names
+                    if b not in inside), key=lambda e: e[0])
+        edges.append((best[1], best[2]))
+        inside.add(best[2])
+    return edges
+
+
+def _check_names(frame_id, link_names):
+    if not isinstance(frame_id, str) or not frame_id:
+        raise UrdfError(f'frame_id: got {frame_id!r}, expected a non-empty frame name')
+    if frame_id in link_names:
+        raise UrdfError(f'frame_id: got {frame_id!r}, which is also a link of the scene '
+                        f'({", ".join(link_names)}); expected another root link name')
+
+
+def _source(scene):
+    """Return the scene file's name (not its directory: the URDF is the same everywhere)."""
+    return os.path.basename(str(getattr(scene, 'source', ''))) or '<dict>'
+
+
+def _header(robot, text):
+    robot.append(ET.Comment(' ' + ' '.join(text.split()) + ' '))
+
+
+def urdf_xml(scene, frame_id=DEFAULT_FRAME_ID, linkage=None):
+    """
+    Return the URDF (text) of a planar or RGGR scene's spanning tree.
+
+    ``frame_id`` names the root link (the frame); ``linkage`` is the scene's compiled
+    linkage if at hand (planar).  Links, joints, zero convention: module docstring.
+    """
+    if _is_rggr(scene):
+        robot = _rggr_robot(scene, frame_id)
+    else:
+        robot = _planar_robot(scene, frame_id, linkage)
+    ET.indent(robot, space='  ')
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding='unicode') + '\n'
+
+
+def _planar_robot(sc, frame_id, linkage):
+    linkage = analysis.linkage_for(sc) if linkage is None else linkage
+    model = tree_model(linkage)
+    names = linkage.body_names
+    _check_names(frame_id, names[1:])
+    L = linkage.length_scale
+    offset = _frame_offsets(linkage)
+    urdf_name = {FRAME: frame_id, **{n: n for n in names[1:]}}
+    robot = ET.Element('robot', name=sc.name)
+    _header(robot, f'Generated by mech_balance.urdf from scene {sc.name!r} ({_source(sc)}): the '
+                   'spanning tree of the linkage the core solves; joint positions in the zero '
+                   'convention of mech_balance.urdf (revolute: relative angle of the link '
+                   'frames minus the joint origin yaw, wrapped to (-pi, pi]; prismatic: slide '
+                   'from the parent point). SI units, z out of the plane of motion.')
+    cut_lines = []
+    for c in linkage.cuts:
+        pa, pb = c.p_a - offset[c.a], c.p_b - offset[c.b]
+        jt = next(j for j in sc.joints if j.name == c.name)
+        cut_lines.append(
+            f'{c.name}: {c.kind}, closes {names[c.a]}.{jt.point_a} ({_num(pa.real)}, '
+            f'{_num(pa.imag)}) with {names[c.b]}.{jt.point_b} ({_num(pb.real)}, '
+            f'{_num(pb.imag)})')
+    _header(robot, 'Cut joints (closed by the core, not part of the URDF tree; points in '
+                   'the URDF frames of their links): ' + ('; '.join(cut_lines) or 'none'))
+    colours = [(f'{sc.name}/{FRAME}', FRAME_COLOUR)] + [
+        (f'{sc.name}/{n}', PALETTE[(i - 1) % len(PALETTE)]) for i, n in enumerate(names)
+        if i > 0]
+    if any(getattr(lk, 'counterweights', ()) for lk in sc.links):
+        colours.append((f'{sc.name}/counterweight', WEIGHT_COLOUR))
+    _materials(robot, colours)
+    points = {FRAME: sc.frame_points, **{lk.name: lk.points for lk in sc.links}}
+    links = {lk.name: lk for lk in sc.links}
+    width, thick, pin_r = BAR_WIDTH * L, BAR_THICKNESS * L, PIN_RADIUS * L
+    rails = {}
+    for t, tj in enumerate(linkage.tree):
+        if tj.kind == 'prismatic':
+            rails[tj.name] = model.joints[t]
+    for bi, body in enumerate(names):
+        el = ET.SubElement(robot, 'link', name=urdf_name[body])
+        material = f'{sc.name}/{body}'
+        z = LAYER * L * bi
+        local = {k: complex(*v) - offset[bi] for k, v in points[body].items()}
+        if bi > 0:
+            mass, com, (ixx, iyy, izz, ixy) = thin_plate_inertia(links[body])
+            _inertial(el, mass, (com[0] - offset[bi].real, com[1] - offset[bi].imag, 0.0),
+                      (ixx, iyy, izz, ixy, 0.0, 0.0))
+        for a, b in _tree_edges(local):
+            d = local[b] - local[a]
+            if abs(d) == 0.0:  # two names of one point (the frame may have them)
+                continue
+            mid = 0.5 * (local[a] + local[b])
+            _shape(el, f'bar_{a}_{b}', material, (mid.real, mid.imag, z),
+                   (0.0, 0.0, math.atan2(d.imag, d.real)), _box((abs(d), width, thick)))
+        if bi > 0 and len(local) == 1:
+            p = next(iter(local.values()))
+            size = (BLOCK_SIZE[0] * L, BLOCK_SIZE[1] * L, thick)
+            _shape(el, 'block', material, (p.real, p.imag, z), (0.0, 0.0, 0.0), _box(size))
+        for k, p in local.items():
+            _shape(el, f'pin_{k}', material, (p.real, p.imag, z), (0.0, 0.0, 0.0),
+                   _cylinder(pin_r, 1.5 * thick), collide=False)
+        for i, cw in enumerate(getattr(links.get(body), 'counterweights', ()) or ()):
+            c = complex(*cw.centre_m) - offset[bi]
+            _shape(el, f'counterweight_{i}', f'{sc.name}/counterweight', (c.real, c.imag, z),
+                   (0.0, 0.0, 0.0), _cylinder(cw.radius_m, cw.thickness_m))
+        for jt in sc.joints:
+            spec = rails.get(jt.name)
+            if spec is None or jt.link_a != body:
+                continue
+            p, axis = local[jt.point_a], complex(*jt.axis)
+            lo, hi = spec.lower, spec.upper
+            centre = p + 0.5 * (lo + hi) * axis
+            _shape(el, f'rail_{jt.name}', material, (centre.real, centre.imag, z - thick),
+                   (0.0, 0.0, math.atan2(axis.imag, axis.real)),
+                   _box((hi - lo + BLOCK_SIZE[0] * L, 0.5 * width, 0.5 * thick)))
+    for spec in model.joints:
+        _joint_element(robot, replace(spec, parent=urdf_name[spec.parent],
+                                      child=urdf_name[spec.child]))
+    return robot
+
+
+def _rod(parent, name, material, start, end, radius):
+    """Add a cylinder from ``start`` to ``end`` (3-vectors in the link frame)."""
+    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    d = end - start
+    length = float(np.linalg.norm(d))
+    # a URDF cylinder lies along z: turn z onto d (pitch about y, then yaw about z)
+    pitch = math.atan2(math.hypot(d[0], d[1]), d[2])
+    yaw = math.atan2(d[1], d[0])
+    _shape(parent, name, material, tuple(0.5 * (start + end)), (0.0, pitch, yaw),
+           _cylinder(radius, length))
+
+
+def _weight(parent, name, body, material):
+    """Draw a balancing weight as a steel sphere of its mass at its centre (if any)."""
+    if body is None or body.mass_kg <= 0.0:
+        return
+    radius = (3.0 * body.mass_kg / (4.0 * math.pi * WEIGHT_DENSITY)) ** (1.0 / 3.0)
+    _shape(parent, name, material, tuple(body.centre_uvw_m), (0.0, 0.0, 0.0), _sphere(radius))
+
+
+def _rggr_robot(sc, frame_id):
+    model = tree_model(sc)
+    g = sc.geometry
+    links = ('crank', 'coupler_yaw_link', 'coupler', 'output')
+    _check_names(frame_id, links)
+    robot = ET.Element('robot', name=sc.name)
+    _header(robot, f'Generated by mech_balance.urdf from RGGR scene {sc.name!r} ({_source(sc)}) '
+                   '(seed 002): crank about the crank axis, output about the output axis, the '
+                   'coupler hung from the crank by its spherical joint at B as two revolute '
+                   'joints (coupler_yaw, coupler_pitch; its idle spin about BC has no joint). '
+                   'SI units; zero convention in mech_balance.urdf.')
+    _header(robot, f'Cut joint (closed by the core, not part of the URDF tree): C: spherical, '
+                   f'closes coupler.C ({_num(g.a2_m)}, 0.0, 0.0) with output.C '
+                   f'({_num(g.a3_m)}, 0.0, 0.0) (points in the URDF frames of their links)')
+    colours = [(f'{sc.name}/{FRAME}', FRAME_COLOUR), (f'{sc.name}/crank', PALETTE[0]),
+               (f'{sc.name}/coupler', PALETTE[1]), (f'{sc.name}/output', PALETTE[2]),
+               (f'{sc.name}/weight', WEIGHT_COLOUR)]
+    _materials(robot, colours)
+    rod, pin = RGGR_ROD_RADIUS * g.a1_m, RGGR_PIN_RADIUS * g.a1_m
+    sb, cb = math.sin(g.beta_rad), math.cos(g.beta_rad)
+    q1 = (0.0, g.l2_m, g.l1_m)
+    q3 = (g.l3_m * sb, 0.0, g.l3_m * cb)
+    root = ET.SubElement(robot, 'link', name=frame_id)
+    frame_mat = f'{sc.name}/{FRAME}'
+    _rod(root, 'axis_crank', frame_mat, (0.0, g.l2_m, 0.0), q1, 0.5 * rod)      # E to Q1
+    _rod(root, 'axis_output', frame_mat, (0.0, 0.0, 0.0), q3, 0.5 * rod)        # O to Q3
+    if g.l2_m != 0.0:
+        _rod(root, 'common_normal', frame_mat, (0.0, 0.0, 0.0), (0.0, g.l2_m, 0.0), 0.5 * rod)
+    _shape(root, 'pin_Q1', frame_mat, q1, (0.0, 0.0, 0.0), _cylinder(pin, 2.0 * pin),
+           collide=False)
+    _shape(root, 'pin_Q3', frame_mat, q3, (0.0, g.beta_rad, 0.0), _cylinder(pin, 2.0 * pin),
+           collide=False)
+    for name, total, own, weight in (('crank', sc.crank_total(), sc.crank, sc.crank_weight),
+                                     ('output', sc.output_total(), sc.output,
+                                      sc.output_weight)):
+        el = ET.SubElement(robot, 'link', name=name)
+        mass, centre, inertia = pivot_body_inertia(total)
+        _inertial(el, mass, tuple(centre), (inertia[0, 0], inertia[1, 1], inertia[2, 2],
+                                            inertia[0, 1], inertia[0, 2], inertia[1, 2]))
+        radius = g.a1_m if name == 'crank' else g.a3_m
+        pin_name = 'B' if name == 'crank' else 'C'
+        mat = f'{sc.name}/{name}'
+        _rod(el, f'bar_{"Q1" if name == "crank" else "Q3"}_{pin_name}', mat, (0.0, 0.0, 0.0),
+             (radius, 0.0, 0.0), rod)
+        _shape(el, f'pin_{"Q1" if name == "crank" else "Q3"}', mat, (0.0, 0.0, 0.0),
+               (0.0, 0.0, 0.0), _cylinder(0.8 * pin, 2.5 * pin), collide=False)
+        _shape(el, f'pin_{pin_name}', mat, (radius, 0.0, 0.0), (0.0, 0.0, 0.0), _sphere(pin),
+               collide=False)
+        _weight(el, 'weight', weight, f'{sc.name}/weight')
+    ET.SubElement(robot, 'link', name='coupler_yaw_link')
+    el = ET.SubElement(robot, 'link', name='coupler')
+    cp = sc.coupler
+    _inertial(el, cp.mass_kg, (cp.centre_from_b_m, 0.0, 0.0),     # thin rod: seed 002 eq. 60
+              (0.0, cp.transverse_inertia_kg_m2, cp.transverse_inertia_kg_m2, 0.0, 0.0, 0.0))
+    mat = f'{sc.name}/coupler'
+    _rod(el, 'bar_B_C', mat, (0.0, 0.0, 0.0), (g.a2_m, 0.0, 0.0), rod)
+    _shape(el, 'pin_B', mat, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), _sphere(0.8 * pin),
+           collide=False)
+    _shape(el, 'pin_C', mat, (g.a2_m, 0.0, 0.0), (0.0, 0.0, 0.0), _sphere(0.8 * pin),
+           collide=False)
+    for spec in model.joints:
+        _joint_element(robot, replace(spec, parent=spec.parent or frame_id))
+    return robot
