@@ -299,9 +299,8 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
     RGGR (spatial) scenes have the RMS study only; the other sections say so.
     """
     say = progress or (lambda text: None)
-    data, path = scene_mod.load_data(name_or_path)
-    if data.get('kind') == 'rggr':
-        sc = scene_mod.load(path)
+    sc = scene_mod.load(name_or_path)
+    if 'accuracy_study' not in scene_mod.kind_of(sc).rig_factory().capabilities:
         out = {'scene': sc.name, 'source': sc.source}
         if 'rms' in sections:
             say('RMS against p ...')
@@ -309,7 +308,7 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
         out['notes'] = [f'{name}: not available for RGGR (spatial) scenes'
                         for name in sections if name != 'rms']
         return out
-    sc, drive = simulate.load(path)
+    drive = simulate.drive_of(sc)
     rig = analysis.Rig(sc)
     out = {'scene': sc.name, 'source': sc.source}
     if 'rms' in sections:

@@ -486,7 +486,7 @@ def _paper_design_links(sc, x, counterweights):
 
 def _analytic(sc, args):
     from mech_balance.balancing import counterweights as cw_mod, socp as balancing
-    kinds = {j.kind for j in sc.joints}
+    kinds = {j.joint_type for j in sc.joints}
     if 'prismatic' in kinds:
         results = [balancing.slider_crank_balance(sc, samples=args.samples),
                    balancing.slider_crank_balance(sc, printed_eq75=True, samples=args.samples)]

@@ -12,7 +12,7 @@ import sys
 import textwrap
 
 from mech_balance import conventions, paths
-from mech_balance.scene import MAX_ABS_VALUE
+from mech_balance.schema.fields import MAX_ABS_VALUE
 import numpy as np
 
 EXIT_USAGE = 2

@@ -48,29 +48,9 @@ def register(subparsers):
 
 
 def same_geometry(base, design):
-    """
-    Raise ValueError unless ``design`` has the geometry of ``base`` (only inertias differ).
-
-    Planar: frame points, link names and points, joints and crank joint; RGGR: the
-    geometry and the assembly branch.
-    """
-    kind = getattr(base, 'kind', 'planar')
-    if getattr(design, 'kind', 'planar') != kind:
-        raise ValueError(f'--design: got a {getattr(design, "kind", "planar")} scene '
-                         f'({design.name!r}), expected a {kind} scene like --scene')
-    if kind == 'rggr':
-        same = (design.geometry == base.geometry and design.branch == base.branch)
-        what = 'geometry and assembly.branch'
-    else:
-        same = (design.frame_points == base.frame_points
-                and [(lk.name, lk.points) for lk in design.links]
-                == [(lk.name, lk.points) for lk in base.links]
-                and design.joints == base.joints and design.crank_joint == base.crank_joint)
-        what = 'frame points, link points and joints'
-    if not same:
-        raise ValueError(f'--design: scene {design.name!r} ({design.source}) differs from '
-                         f'--scene {base.name!r} in its {what}; expected the same geometry '
-                         'with other inertias')
+    """Raise ValueError unless ``design`` has the geometry of ``base`` (only inertias differ)."""
+    from mech_balance.schema import registry
+    registry.same_geometry(base, design, '--design')
 
 
 def frame_id_from_params_file(path):

@@ -129,8 +129,9 @@ def drive_of(sc):
 
 
 def _planar(sc):
-    if getattr(sc, 'kind', 'planar') != 'planar':
-        raise ValueError(f'scene: got {sc.name!r} of kind {sc.kind!r}, expected a planar '
+    kind = scene_mod.kind_of(sc)
+    if 'forward_dynamics' not in kind.rig_factory().capabilities:
+        raise ValueError(f'scene: got {sc.name!r} of kind {kind.name!r}, expected a planar '
                          'scene (the forward dynamics covers planar rigs)')
     return sc
 

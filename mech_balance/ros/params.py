@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import math
 import re
 
-from mech_balance import conventions
+from mech_balance import conventions, paths
 from mech_balance.balancing import socp as balancing
 from mech_balance.schema import safe_yaml
 
@@ -193,8 +193,7 @@ def check_links(values, link_names):
 def _path(value):
     """Accept empty (no recording) or a writable .rrd file in an existing directory."""
     if value:
-        from mech_balance.viz import recording
-        recording.check_output_path(value, 'recording_path', create_dir=False)
+        paths.check_output_path(value, 'recording_path', ('.rrd',), create_dir=False)
 
 
 # ------------------------------------------------------------------------------ table

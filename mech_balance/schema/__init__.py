@@ -20,8 +20,8 @@ from mech_balance.schema.fields import MAX_ABS_VALUE, SceneError
 from mech_balance.schema.registry import from_dict, kind_of, KINDS, to_dict
 from mech_balance.schema.rggr import RggrScene
 from mech_balance.schema.scene import add_counterweights, builtin_scenes, Counterweight, \
-    FRAME, INERTIA_ROUNDOFF, Joint, Link, load_data, needs, Normalization, OUTPUTS, parse_yaml, \
-    Recording, RECORDING_STREAMS, resolve, Scene, SCHEMA_VERSION
+    DEFAULT_OUTPUTS, FRAME, INERTIA_ROUNDOFF, Joint, Link, load_data, needs, Normalization, \
+    OUTPUTS, parse_yaml, Recording, RECORDING_STREAMS, resolve, Scene, SCHEMA_VERSION, SERIES
 import numpy as np
 import yaml
 
@@ -61,8 +61,9 @@ def plain(obj):
     return obj
 
 
-__all__ = ['add_counterweights', 'builtin_scenes', 'Counterweight', 'Drive', 'drive_from_dict',
-           'DriveError', 'FRAME', 'from_dict', 'INERTIA_ROUNDOFF', 'Joint', 'KINDS', 'kind_of',
-           'Link', 'load', 'load_data', 'MAX_ABS_VALUE', 'needs', 'Normalization', 'OUTPUTS',
-           'parse_yaml', 'plain', 'Recording', 'RECORDING_STREAMS', 'resolve', 'RggrScene',
-           'Scene', 'SceneError', 'SCHEMA_VERSION', 'to_dict', 'to_yaml']
+__all__ = ['add_counterweights', 'builtin_scenes', 'Counterweight', 'DEFAULT_OUTPUTS', 'Drive',
+           'drive_from_dict', 'DriveError', 'FRAME', 'from_dict', 'INERTIA_ROUNDOFF', 'Joint',
+           'KINDS', 'kind_of', 'Link', 'load', 'load_data', 'MAX_ABS_VALUE', 'needs',
+           'Normalization', 'OUTPUTS', 'parse_yaml', 'plain', 'Recording', 'RECORDING_STREAMS',
+           'resolve', 'RggrScene', 'Scene', 'SceneError', 'SCHEMA_VERSION', 'SERIES', 'to_dict',
+           'to_yaml']

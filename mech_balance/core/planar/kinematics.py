@@ -76,7 +76,7 @@ class TreeJoint:
 
     joint: int
     name: str
-    kind: str
+    joint_type: str
     parent: int
     child: int
     p_parent: complex
@@ -85,6 +85,11 @@ class TreeJoint:
     axis_on_parent: bool
     angle: float
 
+    @property
+    def prismatic(self):
+        """Return whether the joint slides (else it turns)."""
+        return self.joint_type == 'prismatic'
+
 
 @dataclass
 class CutJoint:
@@ -92,13 +97,18 @@ class CutJoint:
 
     joint: int
     name: str
-    kind: str
+    joint_type: str
     a: int
     b: int
     p_a: complex
     p_b: complex
     axis: complex
     angle: float
+
+    @property
+    def prismatic(self):
+        """Return whether the joint slides (else it turns)."""
+        return self.joint_type == 'prismatic'
 
 
 @dataclass
@@ -197,7 +207,7 @@ class Linkage:
             self.anc[tj.child] = self.anc[tj.parent] | {t}
         self.descendants = [[b for b in range(self.nb) if t in self.anc[b]]
                             for t in range(self.nt)]
-        self.is_prismatic = np.array([tj.kind == 'prismatic' for tj in self.tree])
+        self.is_prismatic = np.array([tj.prismatic for tj in self.tree])
         self.length_scale = self._length_scale(scene, pts)
         self._compile()
         self.pivot = self._crank_pivot(scene)
@@ -214,12 +224,12 @@ class Linkage:
         a_is_parent = index[jt.link_a] == parent
         pa, pb = pts[jt.link_a][jt.point_a], pts[jt.link_b][jt.point_b]
         p_parent, p_child = (pa, pb) if a_is_parent else (pb, pa)
-        return TreeJoint(ji, jt.name, jt.kind, parent, child, p_parent, p_child,
+        return TreeJoint(ji, jt.name, jt.joint_type, parent, child, p_parent, p_child,
                          complex(*jt.axis), a_is_parent, jt.angle_rad)
 
     @staticmethod
     def _cut(ji, jt, ia, ib, pts):
-        return CutJoint(ji, jt.name, jt.kind, ia, ib, pts[jt.link_a][jt.point_a],
+        return CutJoint(ji, jt.name, jt.joint_type, ia, ib, pts[jt.link_a][jt.point_a],
                         pts[jt.link_b][jt.point_b], complex(*jt.axis), jt.angle_rad)
 
     @staticmethod
@@ -262,11 +272,11 @@ class Linkage:
                                    np.array([tj.axis for tj in self.tree]), 0)[:, None]
         self.axis_on_par = np.array([tj.axis_on_parent for tj in self.tree])[:, None]
         offset = np.array([(tj.angle if tj.axis_on_parent else -tj.angle)
-                           if tj.kind == 'prismatic' else 0.0 for tj in self.tree])
+                           if tj.prismatic else 0.0 for tj in self.tree])
         self.phi_offset = (self.anc_pri @ offset)[:, None]
         # subtree sums (for the reaction recursion): sub[b, c] = 1 if c hangs below b or is b
-        rc = [c for c in self.cuts if c.kind == 'revolute']
-        pc = [c for c in self.cuts if c.kind == 'prismatic']
+        rc = [c for c in self.cuts if not c.prismatic]
+        pc = [c for c in self.cuts if c.prismatic]
         self.cuts = rc + pc
         self.nr, self.npc = len(rc), len(pc)
         self.cut_a = np.array([c.a for c in self.cuts], dtype=int)
@@ -484,7 +494,7 @@ class Linkage:
         missing = []
         for t, tj in enumerate(self.tree[1:], start=1):
             name = self.body_names[tj.child]
-            if tj.kind == 'revolute':
+            if not tj.prismatic:
                 if name not in scene.assembly_link_angles_rad:
                     missing.append(f'link_angles_deg.{name}')
                     continue
