@@ -373,7 +373,7 @@ class Linkage:
         joint_at = origin[self.ch] + arm_ch
         return Pose(phi, rot, origin, joint_at, axis)
 
-    def _cut_points(self, pose):
+    def cut_points(self, pose):
         """Return the world points ``(pa, pb)`` of the cut joints (cached on the pose)."""
         if pose.cut_points is None:
             # both ends of every cut in one go: rows (a ends, b ends)
@@ -387,7 +387,7 @@ class Linkage:
         """Return the scaled loop-closure residuals ``(m, p)`` (seed 000 eq. 27)."""
         if not self.m:  # an open chain (a lone crank): nothing to close
             return np.zeros((0, pose.phi.shape[1]))
-        pa, pb = self._cut_points(pose)
+        pa, pb = self.cut_points(pose)
         d = pb - pa
         nr = self.nr
         if not self.npc:
@@ -410,7 +410,7 @@ class Linkage:
         """
         if not self.m:
             return np.zeros((0, self.nu if unknown_only else self.nt, pose.phi.shape[1]))
-        pa, pb = self._cut_points(pose)
+        pa, pb = self.cut_points(pose)
         cols = self.unknown_rows if unknown_only else slice(None)
         if not self.has_pri and not self.npc:
             c, t, i1, i2 = self.jac_nz_u if unknown_only else self.jac_nz
@@ -613,7 +613,7 @@ class Linkage:
         """Return the scaled loop-equation accelerations with all joint accelerations zero."""
         if not self.m:
             return np.zeros((0, pose.phi.shape[1]))
-        self._cut_points(pose)
+        self.cut_points(pose)
         pa, pb, ra, rb, _ = pose.cut_points
         ia, ib = self.cut_a, self.cut_b
         # acceleration of each cut end: a_O - omega^2 r (no angular acceleration here)
