@@ -32,6 +32,18 @@ UPPER = ('ros', 'viz', 'cli', 'bench')
 FORBIDDEN_BELOW = tuple(f'mech_balance.{u}' for u in UPPER) + ('rclpy', 'rerun')
 KIND_TEST = re.compile(r"kind\s*==|==\s*'rggr'|getattr\([^)]*'kind'")
 REGISTRY = PACKAGE / 'schema' / 'registry.py'
+ALLOWED = {
+    'base': {'base'},
+    'schema': {'base', 'schema'},
+    'core': {'base', 'schema', 'core'},
+    'balancing': {'base', 'schema', 'core', 'analysis', 'balancing'},
+    'analysis': {'base', 'schema', 'core', 'balancing', 'analysis'},
+    'ros': {'base', 'schema', 'core', 'balancing', 'analysis', 'ros'},
+    'viz': {'base', 'schema', 'core', 'balancing', 'analysis', 'viz'},
+    'cli': set(LOWER + UPPER) | {'base'},
+    'bench': set(LOWER + UPPER) | {'base'},
+}
+"""The layer table: what each layer may import of the package (viz from ros: the hook)."""
 VIZ_HOOK = ('mech_balance/ros/node.py',)
 """The modules of ros/ allowed to import viz, and only inside a function (the recording)."""
 
@@ -117,6 +129,20 @@ def test_lower_layers_never_import_ros_viz_cli_bench_rclpy_or_rerun(layer):
         for target, _, _, line in _imports(path):
             if target.startswith(FORBIDDEN_BELOW) or target.split('.')[0] in ('rclpy', 'rerun'):
                 bad.append(f'{path.relative_to(ROOT)}:{line} imports {target}')
+    assert not bad, '\n'.join(bad)
+
+
+def test_every_import_follows_the_layer_table():
+    bad = []
+    for name, path in MODULES.items():
+        mine = _layer(name)
+        for target, _, _, line in _imports(path):
+            if target not in MODULES:
+                continue
+            theirs = _layer(target)
+            if theirs not in ALLOWED[mine] and not (mine == 'ros' and theirs == 'viz'):
+                bad.append(f'{path.relative_to(ROOT)}:{line}: {mine} imports {theirs} '
+                           f'({target})')
     assert not bad, '\n'.join(bad)
 
 

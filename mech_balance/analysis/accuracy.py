@@ -29,6 +29,7 @@ import statistics
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.analysis import timing
+from mech_balance.analysis.studies import ACCURACY_TURNS, SECTIONS
 from mech_balance.conventions import cycle_angles
 from mech_balance.core import forward as simulate
 from mech_balance.core.planar import kinematics
@@ -40,8 +41,6 @@ P_REFERENCE = 2880
 """Samples of the reference RMS (eight per degree)."""
 RMS_TIMING_REPEAT = 5
 """Timed repeats per p (median reported)."""
-ACCURACY_TURNS = 2.0
-"""Default simulated time of the integrator study, in crank turns at the operating speed."""
 RTOL_LADDER = (1e-4, 1e-6, 1e-8, 1e-10)
 """Tolerances of the integrator study."""
 MAX_RTOL = {'RK45': 1e-8}
@@ -287,9 +286,6 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
 
 
 # ============================================================================ all of it
-
-
-SECTIONS = ('rms', 'integrators', 'position', 'balancing')
 
 
 def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):

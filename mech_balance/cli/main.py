@@ -7,13 +7,13 @@ line naming the field, the value and what was expected, and exits with status 2.
 
 import argparse
 import json
+import math
 import os
 import sys
 import textwrap
 
 from mech_balance import conventions, paths
 from mech_balance.schema.fields import MAX_ABS_VALUE
-import numpy as np
 
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
@@ -140,7 +140,7 @@ def _design(text):
     except ValueError:
         raise argparse.ArgumentTypeError(
             f'got {text!r}, expected comma-separated numbers m11,m12,m13,l11,...') from None
-    if not values or not all(np.isfinite(values)):
+    if not values or not all(math.isfinite(v) for v in values):
         raise argparse.ArgumentTypeError(f'got {text!r}, expected finite numbers')
     if max(abs(v) for v in values) > MAX_ABS_VALUE:  # the magnitude limit of scene files
         raise argparse.ArgumentTypeError(
@@ -151,7 +151,7 @@ def _design(text):
 
 def build_parser():
     """Return the argument parser of ``mech-balance``."""
-    from mech_balance.bench import core as bench
+    from mech_balance.analysis import timing
     parser = Parser(
         prog='mech-balance',
         description='Kinematics, inverse dynamics, shaking wrench and balancing of '
@@ -187,7 +187,7 @@ def build_parser():
                    help='time only this scene (repeatable; default: all built-in)')
     p.add_argument('--samples', type=_samples, default=360,
                    help='crank angles per cycle (default: %(default)s)')
-    p.add_argument('--repeat', type=repeats, default=bench.DEFAULT_REPEAT,
+    p.add_argument('--repeat', type=repeats, default=timing.DEFAULT_REPEAT,
                    help='timed runs per figure, an integer >= 1 (default: %(default)s)')
     p.add_argument('--compare', choices=['mujoco'], default=None,
                    help='instead, run Hoeken and generated 4-20 link chains through this '

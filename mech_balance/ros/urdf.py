@@ -66,11 +66,10 @@ from mech_balance import schema
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import kinematics
 from mech_balance.core.planar.rig import linkage_for
+from mech_balance.ros.names import DEFAULT_FRAME_ID
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
-DEFAULT_FRAME_ID = 'rig_frame'
-"""Root link name when none is given: the rig node's ``frame_id`` default (params.py)."""
 RANGE_SAMPLES = 720
 """Crank angles per turn at which each joint's range over a cycle is first located."""
 GOLDEN_ITERATIONS = 60
