@@ -33,6 +33,8 @@ METHODS = {
     'analytic': 'analytic_balance',
 }
 """Balancing methods by name, and the rig capability each needs."""
+SUMMARY_NAME_CHARS = 40
+"""Longest scene name in :meth:`Design.summary` (the line stays under 200 characters)."""
 
 
 @dataclass
@@ -53,7 +55,9 @@ class Design:
         0.0173 -> 0.00603 N m; certificate Solved, gap 1.0e-09``.
         """
         f = self.figures or {}
-        parts = [f'balanced {self.report.get("scene", "")} ({self.method})']
+        name = str(self.report.get('scene', ''))
+        name = name if len(name) <= SUMMARY_NAME_CHARS else name[:SUMMARY_NAME_CHARS] + '...'
+        parts = [f'balanced {name} ({self.method})']
         if 'force_N' in f:
             parts.append(f'RMS shaking force {f["force_N"][0]:.4g} -> {f["force_N"][1]:.4g} N, '
                          f'moment {f["moment_Nm"][0]:.4g} -> {f["moment_Nm"][1]:.4g} N m')
