@@ -152,7 +152,9 @@ def format_table(cycle, rows, normalized=False):
         f'worst loop-closure residual: {np.max(st.residual):.3e} (relative to '
         f'{cycle.rig.linkage.length_scale:g} m)',
         f'worst Jacobian condition number: {np.max(st.cond):.4g}'
-        + (f'  (WARNING: near-singular, > {kinematics.COND_WARN:g})'
+        + (f'  (WARNING: near-singular, > {kinematics.COND_WARN:.4g}: the figures may be '
+           f'wrong in their last printed digit, error bound 2 kappa^2 x Newton tolerance = '
+           f'{2.0 * np.max(st.cond) ** 2 * kinematics.NEWTON_TOL:.1e} relative)'
            if np.max(st.cond) > kinematics.COND_WARN else ''),
         f'Newton iterations per angle: max {int(np.max(st.iterations))}, '
         f'mean {np.mean(st.iterations):.2f}',
@@ -184,5 +186,7 @@ def analyze(sc, samples=None, normalized=False, design=None):
             'normalized': bool(normalized),
             'rows': [r.__dict__ for r in rows],
             'worst_residual': float(np.max(cycle.state.residual)),
-            'worst_condition': float(np.max(cycle.state.cond))}
+            'worst_condition': float(np.max(cycle.state.cond)),
+            'near_singular': bool(np.max(cycle.state.cond) > kinematics.COND_WARN),
+            'near_singular_condition': kinematics.COND_WARN}
     return Report(format_table(cycle, rows, normalized), data, list(rig.linkage.warnings))

@@ -454,6 +454,7 @@ class RggrRig:
     moment_point = 'the origin O of the RGGR frame'
     capabilities = CAPABILITIES
     joint_names = JOINTS
+    joint_prismatic = (False,) * len(JOINTS)
     crank_joint = JOINTS[0]
     crank_index = 0
     outputs = ('kinematics', 'shaking_wrench', 'driving_torque')

@@ -136,7 +136,8 @@ class Rig(Protocol):
     The protocol every rig implements (see the module docstring).
 
     ``scene`` is the validated scene, ``name`` its name; ``joint_names`` and ``crank_joint``
-    name the published joints; ``moment_point`` says in words where the shaking moment is
+    name the published joints, ``joint_prismatic`` says which of them slide (m; the others
+    turn, rad); ``moment_point`` says in words where the shaking moment is
     reduced; ``capabilities`` what the rig can compute or be balanced by; ``outputs`` what its
     scene asks for; ``drawing`` its :class:`Drawing`.
     """
@@ -144,6 +145,7 @@ class Rig(Protocol):
     scene: object
     name: str
     joint_names: tuple
+    joint_prismatic: tuple
     crank_joint: str
     moment_point: str
     capabilities: frozenset

@@ -20,8 +20,9 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import WrenchStamped
 from mech_balance.ros import params
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor
 from rcl_interfaces.msg import ParameterType
+from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
@@ -244,17 +245,30 @@ def crank_reading(msg, joint):
 
 
 def parameter_descriptor(spec):
-    """Return the ROS ``ParameterDescriptor`` of a :class:`mech_balance.params.Spec`."""
-    desc = ParameterDescriptor(name=spec.name, type=_ROS_TYPES[spec.kind],
+    """
+    Return the ROS ``ParameterDescriptor`` of a :class:`mech_balance.params.Spec`.
+
+    Declared with ``dynamic_typing`` and without ``floating_point_range`` /
+    ``integer_range``: rclpy would check the type and the range before the node's callback
+    and refuse with reasons of its own (``Wrong parameter type, expected 'Type.DOUBLE' got
+    'Type.INTEGER'``, naming no parameter).  The node checks both instead
+    (:func:`mech_balance.ros.params.check`), accepts an integer for a double, and refuses
+    with ``name: got <value>, expected ...``; the type and range are in
+    ``additional_constraints`` (``ros2 param describe``), and the node's pre-set callback
+    keeps the stored type the declared one (:func:`mech_balance.ros.params.coerced`).
+    """
+    constraints = f'type {spec.value_type}; {spec.constraints}' if spec.constraints else \
+        f'type {spec.value_type}'
+    return ParameterDescriptor(name=spec.name, type=_ROS_TYPES[spec.value_type],
                                description=spec.description,
-                               additional_constraints=spec.constraints)
-    if spec.bounds is not None and spec.kind == params.DOUBLE:
-        desc.floating_point_range = [FloatingPointRange(
-            from_value=float(spec.bounds[0]), to_value=float(spec.bounds[1]), step=0.0)]
-    if spec.bounds is not None and spec.kind == params.INTEGER:
-        desc.integer_range = [IntegerRange(from_value=int(spec.bounds[0]),
-                                           to_value=int(spec.bounds[1]), step=1)]
-    return desc
+                               additional_constraints=constraints, dynamic_typing=True)
+
+
+def ros_parameter(name, value):
+    """Return an ``rclpy.parameter.Parameter`` of a checked value, of its declared type."""
+    spec = params.spec_for(name)
+    kind = Parameter.Type(_ROS_TYPES[spec.value_type]) if spec is not None else None
+    return Parameter(name, kind, value)
 
 
 def parameter_value(parameter):

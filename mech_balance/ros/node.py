@@ -22,13 +22,16 @@ publishing threads, :mod:`mech_balance.ros_conversions` fills the messages.
 """
 
 import json
+import os
 import sys
+import tempfile
 import threading
 
 from geometry_msgs.msg import WrenchStamped
-from mech_balance import balancing
+from mech_balance import atomic, balancing
 from mech_balance import schema as scene_mod
 from mech_balance.ros import conversions as conv
+from mech_balance.ros import guard as guards
 from mech_balance.ros import params, streaming as twin
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -37,9 +40,10 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 from std_srvs.srv import Trigger
 import yaml
 
@@ -62,6 +66,9 @@ BUSY = 'a balancing run is in progress'
 STATS_TAG = 'stats '
 """Precedes the JSON of the publishing statistics in the node's last log line."""
 EXIT_BAD_PARAMETER = 2
+EXIT_FAILURE = 1
+BALANCE_RESULT = '~/balance_result'
+"""Transient-local std_msgs/String: the YAML of the last balancing run (late joiners get it)."""
 
 
 class RigNode(Node):
@@ -71,13 +78,14 @@ class RigNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self._lock = threading.RLock()
         self._balance_lock = threading.Lock()
+        self._guard = guards.Guard(lambda text: self.get_logger().warning(text))
         self._values = {}
         for spec in params.PARAMETERS:
-            declared = self.declare_parameter(spec.name, spec.default,
-                                              conv.parameter_descriptor(spec))
-            self._values[spec.name] = params.check(spec.name, conv.parameter_value(declared))
+            self._declare(spec)
         self._original = self._build_model(self._values['scene'])
+        self._declare_link_parameters(self._original)
         _check_link_options(self._values, self._original)
+        self._zero_stamp_said = False
         self._balanced = None          # the design published while use_balanced is true
         self._published = self._original
         self._pending_scene = None     # (name, model) checked by the on-set callback
@@ -95,21 +103,77 @@ class RigNode(Node):
                                                  qos_overriding_options=overrides)
         self._encoder_sub = None
         self._encoder_group = MutuallyExclusiveCallbackGroup()
-        self._balance_srv = self.create_service(Trigger, '~/balance', self._on_balance,
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self._result_pub = self.create_publisher(String, BALANCE_RESULT, latched)
+        self._balance_srv = self.create_service(Trigger, '~/balance',
+                                                self._refusing('~/balance', self._on_balance),
                                                 callback_group=ReentrantCallbackGroup())
-        self._reset_srv = self.create_service(Trigger, '~/reset', self._on_reset)
+        self._reset_srv = self.create_service(Trigger, '~/reset',
+                                              self._refusing('~/reset', self._on_reset))
 
         self._streamer = twin.Streamer(lambda: self.get_clock().now().nanoseconds,
-                                       self._prepare, self._publish, self._warn, self._record)
+                                       self._prepare, self._publish, self._warn, self._record,
+                                       guard=self._guard)
         self._open_recorder()
         # say what the node publishes before it starts to (a signal right after the first
         # samples then finds nothing left to log to rosout)
         self._announce()
         self._apply_mode()
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.add_post_set_parameters_callback(self._on_parameters_set)
+        self.add_pre_set_parameters_callback(self._coerce_parameters)
+        self.add_on_set_parameters_callback(self._guard.refusing(
+            'parameters', lambda exc, ps: SetParametersResult(
+                successful=False, reason=guards.parameter_reason(ps, exc)))(
+                    self._on_set_parameters))
+        self.add_post_set_parameters_callback(
+            self._guard.skipping('applying parameters')(self._on_parameters_set))
         if self._values['use_balanced']:
             self._balance_in_background()
+
+    # ------------------------------------------------------------------ guard
+
+    def _refusing(self, label, callback):
+        """Guard a Trigger service: any exception is answered ``success=False`` (a reason)."""
+        def refuse(exc, request, response):
+            response.success, response.message = False, f'{label}: {guards.describe(exc)}'
+            return response
+        return self._guard.refusing(label, refuse)(callback)
+
+    def _declare(self, spec):
+        """Declare a parameter; store its checked value, of the declared type (ROS too)."""
+        declared = self.declare_parameter(spec.name, spec.default if not
+                                          spec.name.startswith(params.LINK_PREFIX) else None,
+                                          conv.parameter_descriptor(spec))
+        value = conv.parameter_value(declared)
+        value = spec.default if value is None else params.coerced(spec.name, value)
+        self._values[spec.name] = params.check(spec.name, value)
+        typed = conv.ros_parameter(spec.name, self._values[spec.name])
+        if declared.type_ != typed.type_:  # an integer for a double, an unset link option
+            self.set_parameters([typed])
+
+    def _declare_link_parameters(self, model):
+        """Declare ``balance.links.<link>.*`` for the scene's links; drop the others'."""
+        links = model.rig.scene.links if 'mass_redistribution' in model.rig.capabilities \
+            else ()
+        wanted = {spec.name: spec for spec in params.link_specs([lk.name for lk in links])}
+        for name in [n for n in self._values if n.startswith(params.LINK_PREFIX)]:
+            if name not in wanted:
+                self.undeclare_parameter(name)
+                self._values.pop(name, None)
+        for name, spec in wanted.items():
+            if name not in self._values:
+                self._declare(spec)
+
+    def _coerce_parameters(self, parameters):
+        """Pre-set: an integer becomes the declared double (rclpy stores the declared type)."""
+        out = []
+        for p in parameters:
+            try:
+                value = conv.parameter_value(p)
+                new = params.coerced(p.name, value)
+                out.append(p if new is value else conv.ros_parameter(p.name, new))
+            except Exception:  # noqa: BLE001 - the on-set callback names what is wrong
+                out.append(p)
+        return out
 
     # ------------------------------------------------------------------ wiring
 
@@ -127,7 +191,8 @@ class RigNode(Node):
     def _new_estimator(self, values):
         return twin.CrankEstimator(values['follow.window'], values['follow.max_speed'],
                                    values['follow.max_gap'],
-                                   values['follow.use_encoder_velocity'])
+                                   values['follow.use_encoder_velocity'],
+                                   values['follow.resync_after'])
 
     def _crank_speed(self):
         speed = self._values['crank_speed']
@@ -148,7 +213,8 @@ class RigNode(Node):
         self._streamer.follow(model)
         if self._encoder_sub is None:
             self._encoder_sub = self.create_subscription(
-                JointState, ENCODER, self._on_encoder, QoSProfile(depth=ENCODER_DEPTH),
+                JointState, ENCODER, self._guard.skipping(ENCODER)(self._on_encoder),
+                QoSProfile(depth=ENCODER_DEPTH),
                 callback_group=self._encoder_group,
                 qos_overriding_options=QoSOverridingOptions.with_default_policies())
 
@@ -220,13 +286,23 @@ class RigNode(Node):
         if self._values['mode'] != 'follow':  # subscribed by an earlier follow mode
             return
         joint = self._values['crank_joint'] or self._original.crank_joint
+        estimator = self._estimator
         try:
             stamp_ns, position, velocity = conv.crank_reading(msg, joint)
-            sample = self._estimator.update(stamp_ns, position, velocity)
+            if stamp_ns == 0:  # unset: `ros2 topic pub` sends stamp 0 (README: follow mode)
+                stamp_ns = self.get_clock().now().nanoseconds
+                if not self._zero_stamp_said:
+                    self._zero_stamp_said = True
+                    self.get_logger().info(f'{ENCODER}: a message with an unset (zero) stamp: '
+                                           'such messages are stamped with their receive time')
+            sample = estimator.update(stamp_ns, position, velocity)
         except ValueError as exc:
             self._skipped_inputs += 1
             self._warn(f'{ENCODER}: skipped a message ({self._skipped_inputs} so far): {exc}')
             return
+        if estimator.just_resynced:
+            self.get_logger().warning(f'{ENCODER}: re-synchronized on the incoming stream at '
+                                      f'{stamp_ns * 1e-9:.9f} s: {estimator.last_resync}')
         if sample is not None and not self._streamer.push(sample):
             self._warn(f'{ENCODER}: the core is behind the encoder; dropped the oldest sample')
 
@@ -274,25 +350,27 @@ class RigNode(Node):
 
     def _on_set_parameters(self, parameters):
         """Check an update with the same code as the scene loader; reject with a reason."""
-        try:
-            candidate = dict(self._values)
-            model = self._original
-            for p in parameters:
-                if p.name not in params.BY_NAME:
-                    continue  # use_sim_time, qos overrides: rclpy's own
-                value = candidate[p.name] = params.check(p.name, conv.parameter_value(p))
-                if p.name == 'scene' and value != self._values['scene']:
-                    model = self._build_model(value)
-                    self._pending_scene = (value, model)
-            _check_link_options(candidate, model)
-        except ValueError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
+        candidate = dict(self._values)
+        model = self._original
+        for p in parameters:
+            if params.spec_for(p.name) is None:
+                continue  # use_sim_time, qos overrides: rclpy's own
+            value = conv.parameter_value(p)
+            if value is None and p.name.startswith(params.LINK_PREFIX):
+                value = []  # declared unset: the factors
+            value = candidate[p.name] = params.check(p.name, value)
+            if p.name == 'scene' and value != self._values['scene']:
+                model = self._build_model(value)
+                self._pending_scene = (value, model)
+        _check_link_options(candidate, model)
+        _balance_method(candidate, model.rig)
         return SetParametersResult(successful=True)
 
     def _on_parameters_set(self, parameters):
         """Apply an accepted update."""
         changed = {p.name: params.check(p.name, conv.parameter_value(p))
-                   for p in parameters if p.name in params.BY_NAME}
+                   for p in parameters if params.spec_for(p.name) is not None and
+                   p.value is not None}
         with self._lock:
             self._values.update(changed)
             if 'scene' in changed and self._pending_scene is not None and \
@@ -301,9 +379,12 @@ class RigNode(Node):
                 self._balanced = None
                 self._published = self._original
             self._pending_scene = None
-            restart = {'scene', 'mode', 'crank_speed', 'publish_rate'} & set(changed)
+            restart = {'scene', 'mode', 'crank_speed', 'publish_rate'} & set(changed) or \
+                'use_sim_time' in {p.name for p in parameters}  # a new clock: start again
             if any(k.startswith('follow.') for k in changed):
                 self._estimator = self._new_estimator(self._values)
+        if 'scene' in changed:
+            self._declare_link_parameters(self._original)
         if restart:
             self._apply_mode()
         elif 'frame_id' in changed:
@@ -360,21 +441,39 @@ class RigNode(Node):
         return response
 
     def _run_balancing(self):
-        """Return ``(model, YAML)`` of the balanced design, or ``(None, reason)``."""
+        """Return ``(model, answer)`` of the balanced design, or ``(None, reason)``."""
         with self._lock:
             original, values = self._original, dict(self._values)
-        method = balancing.method_for(original.rig)
+        method = _balance_method(values, original.rig)
         design = balancing.balance(original.rig, method, **params.balance_options(values, method))
-        report = design.report
         model = original.with_design(design.scene)
         with self._lock:
             if self._original is not original:
                 return None, ('the scene changed during the balancing run; still publishing '
                               "the new scene's original design")
-        return model, yaml.safe_dump(report, sort_keys=False)
+        return model, self._publish_result(design)
+
+    def _publish_result(self, design):
+        """
+        Publish a result on ``~/balance_result``, write it to a file; return the answer.
+
+        The answer is YAML whose first line, a comment, is :meth:`Design.summary` (one line
+        under 200 characters), the second where the full result is.
+        """
+        text = yaml.safe_dump(design.report, sort_keys=False)
+        self._result_pub.publish(String(data=text))
+        name = self.get_fully_qualified_name().strip('/').replace('/', '_')
+        path = os.path.join(tempfile.gettempdir(), f'mech_balance_{name}_balance.yaml')
+        try:
+            atomic.write_text_atomic(path, text)
+            where = f'{path} and {self._result_pub.topic_name}'
+        except OSError as exc:
+            where = f'{self._result_pub.topic_name} ({path} not written: {exc.strerror})'
+        return f'# {design.summary()}\n# full result: {where} (std_msgs/String YAML)\n{text}'
 
     def _balance_in_background(self):
         """use_balanced is true but no design is known: balance, then publish the design."""
+        @self._guard.skipping('use_balanced')
         def run():
             if not self._balance_lock.acquire(blocking=False):
                 return  # the running ~/balance call publishes its design
@@ -426,7 +525,10 @@ class RigNode(Node):
     def _stats_line(self):
         """Return the publishing statistics: a summary, then :data:`STATS_TAG` and JSON."""
         stats = self._streamer.stats.summary()
-        return (f'published {stats["published"]} samples ({stats["skipped"]} ticks skipped); '
+        stats['caught'] = dict(self._guard.counts)
+        return (f'published {stats["published"]} samples ({stats["skipped"]} ticks skipped, '
+                f'{stats["withheld"]} non-finite withheld, {self._guard.total()} callback '
+                'errors caught); '
                 f'compute {stats["prepare_per_sample_s"] * 1e6:.1f} us per sample (core and '
                 f'serialization, batched); publishing {stats["step_median_s"] * 1e6:.1f} us '
                 f'median per sample; {STATS_TAG}{json.dumps(stats)}')
@@ -435,7 +537,28 @@ class RigNode(Node):
 def _check_link_options(values, model):
     """Check the per-link balancing options against the links of a redistributable rig."""
     if 'mass_redistribution' in model.rig.capabilities:
-        params.check_links(values, [lk.name for lk in model.scene.links])
+        links = [lk.name for lk in model.scene.links]
+        own = {f'{params.LINK_PREFIX}{link}.' for link in links}
+        params.check_links({k: v for k, v in values.items() if not k.startswith(
+            params.LINK_PREFIX) or k[:k.rindex('.') + 1] in own}, links)
+
+
+def _balance_method(values, rig):
+    """
+    Return the balancing method of ``balance.method`` for ``rig``; ValueError if it has none.
+
+    The default, redistribution, on a rig that cannot be redistributed (the RGGR) is the
+    rig's own method (:func:`mech_balance.balancing.method_for`).
+    """
+    chosen = values['balance.method']
+    if chosen == params.BY_NAME['balance.method'].default and \
+            balancing.METHODS[chosen] not in rig.capabilities:
+        return balancing.method_for(rig)
+    try:
+        return balancing.method_for(rig, chosen)
+    except ValueError as exc:
+        raise ValueError(f'balance.method: got {chosen!r}, expected a method of this scene '
+                         f'({exc})') from None
 
 
 def main(args=None):
@@ -449,8 +572,11 @@ def main(args=None):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ValueError, ParameterException) as exc:
-        print(f'rig_node: error: {exc}', file=sys.stderr)
+        print(f'rig_node: error: {guards.clip(exc)}', file=sys.stderr)
         return EXIT_BAD_PARAMETER
+    except Exception as exc:  # noqa: BLE001 - a defect is one line, not a traceback
+        print(f'rig_node: error: {guards.describe(exc)}', file=sys.stderr)
+        return EXIT_FAILURE
     finally:
         if node is not None:
             node.destroy_node()

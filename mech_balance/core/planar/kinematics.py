@@ -42,8 +42,28 @@ NEWTON_MAX_ITER = 8
 """Newton iterations per continuation step or per batched evaluation."""
 ASSEMBLY_MAX_ITER = 60
 """Damped Newton iterations allowed to assemble the linkage from the scene's guess."""
-COND_WARN = 1e4
-"""Scaled Jacobian condition number (1-norm) above which the position is reported near-singular."""
+PRINTED_RTOL = 5e-7
+"""Relative resolution of the printed figures: ``analyze`` prints 6 significant digits, and
+half a unit of the 6th digit is 5e-7 of a figure that starts with 9 (5e-6 of one with 1)."""
+COND_WARN = math.sqrt(PRINTED_RTOL / (2.0 * NEWTON_TOL))
+"""Scaled Jacobian condition number (1-norm) above which the position is reported
+near-singular: where the error bound of the rates reaches the printed resolution (~1581).
+
+Derivation.  Newton stops with a scaled loop residual ``|g| <= NEWTON_TOL`` (= tau), so the
+positions err by ``|dq| <= |J_u^-1| tau ~ kappa tau`` (the scaled Jacobian has ``|J_u| ~ 1``).
+The rates solve ``J_u q' = -J_psi``; both matrices are evaluated at the erring positions,
+and their derivatives with respect to q are of their own size (the closure equations are
+sums of rotations of scaled lengths), so ``|dJ|/|J| ~ kappa tau``.  The perturbation bound
+of a linear system, ``|dq'|/|q'| <= kappa (|dJ_u|/|J_u| + |dJ_psi|/|J_psi|)``, gives the
+relative error bound of the velocities (and of every figure linear in them, the shaking
+wrench and the driving torque at constant speed)
+
+    e_rates = 2 kappa^2 tau   (+ kappa u, round-off u = 1.1e-16: negligible here).
+
+It reaches ``PRINTED_RTOL`` at ``kappa = sqrt(PRINTED_RTOL / (2 tau))`` = 1581: from there on
+the printed figures may be wrong in their last digit.  (Hoeken's worst is 5.6, the carpet
+scraper's 255; a Hoeken-like four-bar with rocker = a + b - d + 1e-8, 1e-8 m from a change
+point, reaches 7.5e3.)"""
 COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which the position is refused as singular."""
 STEP_MAX_RAD = math.radians(5.0)
@@ -702,7 +722,7 @@ class Linkage:
             nodes_cond.append(cond_new[0])
             if cond_new[0] > COND_WARN:
                 self._warn(f'crank angle {math.degrees(psi):.3f} deg: near-singular position '
-                           f'(Jacobian condition number {cond_new[0]:.3g} > {COND_WARN:g})')
+                           f'(Jacobian condition number {cond_new[0]:.3g} > {COND_WARN:.4g})')
             if iters[0] <= 2:
                 h = min(1.5 * h, STEP_MAX_RAD)
         q_start, q_end = nodes_q[0], nodes_q[-1]

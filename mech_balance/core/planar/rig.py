@@ -78,6 +78,7 @@ class PlanarRig:
         self._pa = np.array([complex(*points[j.link_a][j.point_a]) for j in joints])[:, None]
         self._pb = np.array([complex(*points[j.link_b][j.point_b]) for j in joints])[:, None]
         self._prismatic = np.array([j.prismatic for j in joints])
+        self.joint_prismatic = tuple(bool(p) for p in self._prismatic)
         self._axis = np.array([complex(*j.axis) for j in joints])[:, None]
         self._drawing = None
 
