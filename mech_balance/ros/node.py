@@ -28,7 +28,7 @@ import threading
 from geometry_msgs.msg import WrenchStamped
 from mech_balance import balancing
 from mech_balance import schema as scene_mod
-from mech_balance.ros import conversions as conv
+from mech_balance.ros import conversions as conv, description
 from mech_balance.ros import params, streaming as twin
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -98,10 +98,12 @@ class RigNode(Node):
         self._balance_srv = self.create_service(Trigger, '~/balance', self._on_balance,
                                                 callback_group=ReentrantCallbackGroup())
         self._reset_srv = self.create_service(Trigger, '~/reset', self._on_reset)
+        self._description = description.DescriptionPublisher(self)
 
         self._streamer = twin.Streamer(lambda: self.get_clock().now().nanoseconds,
                                        self._prepare, self._publish, self._warn, self._record)
         self._open_recorder()
+        self._describe()
         # say what the node publishes before it starts to (a signal right after the first
         # samples then finds nothing left to log to rosout)
         self._announce()
@@ -116,7 +118,7 @@ class RigNode(Node):
     def _build_model(self, name):
         """Load, validate and assemble a scene (the scene loader's checks); ValueError."""
         try:
-            return twin.model_for(scene_mod.load(name))
+            return description.twin_for(scene_mod.load(name))  # URDF joints: description
         except OSError as exc:
             raise ValueError(f'scene: cannot read {name!r}: {exc.strerror}') from None
         except ValueError as exc:
@@ -157,6 +159,12 @@ class RigNode(Node):
         with self._lock:
             self._published = model
             self._streamer.set_model(model)
+        self._describe()
+
+    def _describe(self):
+        """Publish the URDF of the published design on robot_description (if enabled)."""
+        self._description.show(self._values['publish_robot_description'], self._published,
+                               self._values['frame_id'])
 
     def _announce(self):
         model, v = self._published, self._values
@@ -317,6 +325,8 @@ class RigNode(Node):
                 self._balance_in_background()
         if 'scene' in changed or 'recording_path' in changed:
             self._open_recorder()
+        if {'scene', 'frame_id', 'publish_robot_description'} & set(changed):
+            self._describe()
         if 'scene' in changed or 'mode' in changed:
             self._announce()
 

@@ -57,7 +57,7 @@ Inertials
     the URDF takes the thinnest body that has the given ones (:func:`pivot_body_inertia`).
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 import math
 import os
 import xml.etree.ElementTree as ET
@@ -146,12 +146,17 @@ class TreeModel:
     The URDF's joints of one scene geometry, built once (:func:`tree_model`).
 
     ``joints`` are in :func:`joint_positions` order; ``kind`` is ``planar`` or ``rggr``;
-    ``linkage`` is the compiled planar linkage (None for the RGGR).
+    ``linkage`` is the compiled planar linkage (None for the RGGR).  ``cuts`` are the
+    ``(name, joint_type)`` of the joints the core closes (not in the URDF);
+    ``state_of(data)`` returns the core state :func:`joint_positions` reads from a
+    :class:`~mech_balance.core.rig.RigData` of the scene's rig (:func:`rig_joint_positions`).
     """
 
     kind: str
     joints: tuple
     linkage: object = None
+    cuts: tuple = ()
+    state_of: object = field(default=None, compare=False, repr=False)
 
     @property
     def names(self):
@@ -372,7 +377,34 @@ def _planar_model(linkage):
         joints.append(UrdfJoint(tj.name, 'prismatic', parent, child, xyz, (0.0, 0.0, turn),
                                 (axis.real, axis.imag, 0.0), 0.0, float(lower[t] - margin),
                                 float(upper[t] + margin), float(rate_max[t])))
-    return TreeModel('planar', tuple(joints), linkage)
+    cuts = tuple((c.name, c.kind) for c in linkage.cuts)
+    return TreeModel('planar', tuple(joints), linkage, cuts, _planar_state)
+
+
+def _planar_state(data):
+    """Return the planar kinematic state of a :class:`RigData` (solved with rates)."""
+    state = data.state
+    if state is None:
+        raise UrdfError('data: got a RigData without a planar kinematic state, expected the '
+                        "evaluation of this scene's planar rig (rig.at)")
+    return state
+
+
+def _rggr_state(scene, data):
+    """
+    Return the :class:`~mech_balance.core.rggr.RggrKinematics` of an RGGR :class:`RigData`.
+
+    The closed-form kinematics at the data's crank angles; its rates are linear in the
+    crank speed (seed 002 eqs. 30-34), so they are evaluated at 1 rad/s and scaled by each
+    sample's own speed (follow mode: every sample has its own).
+    """
+    from mech_balance.core import rggr
+    psi = np.asarray(data.crank_angle_rad, dtype=float)
+    speed = np.broadcast_to(np.asarray(data.crank_speed_rad_s, dtype=float), psi.shape)
+    kin = rggr.kinematics(replace(scene, crank_speed_rad_s=1.0), psi)
+    return replace(kin, crank_speed_rad_s=speed,
+                   output_rate_rad_s=kin.output_rate_rad_s * speed,
+                   coupler_vel_m_s=kin.coupler_vel_m_s * speed[:, None])
 
 
 def _rggr_angles(scene, psi):
@@ -443,7 +475,8 @@ def _rggr_model(scene):
         joints.append(_revolute_spec(name, parents[name], child, xyz, rpy, axis, lower[i],
                                      upper[i], 1.0 if name == 'crank' else turns[i],
                                      float(rate_max[i])))
-    return TreeModel('rggr', tuple(joints), None)
+    return TreeModel('rggr', tuple(joints), None, (('C', 'spherical'),),
+                     lambda data: _rggr_state(scene, data))
 
 
 # ----------------------------------------------------------------------------- positions
@@ -469,8 +502,8 @@ def joint_positions(model, state):
         yaw, pitch, yaw_rate, pitch_rate = _coupler_angles(state)
         n = state.crank_angle_rad.shape[0]
         q = np.stack([state.crank_angle_rad, state.output_angle_rad, yaw, pitch])
-        qd = np.stack([np.full(n, float(state.crank_speed_rad_s)), state.output_rate_rad_s,
-                       yaw_rate, pitch_rate])
+        speed = np.broadcast_to(np.asarray(state.crank_speed_rad_s, dtype=float), (n,))
+        qd = np.stack([speed, state.output_rate_rad_s, yaw_rate, pitch_rate])
         angular = np.ones(4, dtype=bool)
     else:
         if not hasattr(state, 'q') or state.qd is None:
@@ -484,6 +517,18 @@ def joint_positions(model, state):
     offset = np.array([j.offset for j in tree.joints])[:, None]
     positions = np.where(angular[:, None], wrap_angle(q - offset), q + 0.0)
     return names, positions.T + 0.0, np.asarray(qd, dtype=float).T + 0.0
+
+
+def rig_joint_positions(model, data):
+    """
+    Return ``(names, positions, velocities)`` of the URDF joints at a rig's evaluation.
+
+    ``data`` is the :class:`~mech_balance.core.rig.RigData` of the scene's rig (``rig.at``,
+    any design of the geometry of ``model``); the values are those of
+    :func:`joint_positions`, vectorized over the batch.
+    """
+    tree = tree_model(model)
+    return joint_positions(tree, tree.state_of(data))
 
 
 # ----------------------------------------------------------------------------- inertials
