@@ -11,6 +11,7 @@ subscriber, and the ``joint_states`` it publishes over a full crank turn.
 
 import io
 import math
+import os
 
 from mech_balance import schema as scene_mod
 from mech_balance.balancing import socp as balancing
@@ -165,6 +166,16 @@ def test_a_balanced_design_shares_the_layout():
     assert np.array_equal(balanced.evaluate(psi, 1.0).joint_position,
                           model.evaluate(psi, 1.0).joint_position)
     assert description.urdf_twin(balanced) is balanced
+
+
+def test_cell_bench_is_a_section_and_reads_process_cpu():
+    from mech_balance.bench import cell, core
+    assert 'mech_balance.bench.cell:bench_section' in core.SECTIONS
+    total = sum(x * x for x in range(200_000))   # some CPU time of this process
+    times = os.times()
+    assert total > 0
+    # /proc/<pid>/stat against the kernel's own account of this process (clock ticks)
+    assert abs(cell.process_cpu_s(os.getpid()) - (times.user + times.system)) < 0.05
 
 
 # ----------------------------------------------------------------------------- node

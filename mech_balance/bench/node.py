@@ -96,10 +96,10 @@ def bench_section(args, progress):
 def _follow_costs(scene_name):
     """Return the compute per sample in follow mode: alone, and in a batch."""
     from mech_balance.bench import core as bench
-    from mech_balance.ros import conversions as conv, streaming as twin
+    from mech_balance.ros import conversions as conv, description
     from mech_balance import schema as scene_mod
     import numpy as np
-    model = twin.model_for(scene_mod.load(scene_name))
+    model = description.twin_for(scene_mod.load(scene_name))  # what the node publishes
     ser = conv.SampleSerializer(model.joint_names, model.has_effort, 'rig_frame')
     times = []
     for n in (1, FOLLOW_BATCH):

@@ -6,8 +6,10 @@ The rig node: joint states and the shaking wrench on ROS 2 topics, a balancing s
 ``--ros-args -r __ns:=/cell3`` runs several rigs side by side.
 
 Publications (both stamped with the time of the crank angle they belong to)
-    ``joint_states`` (sensor_msgs/msg/JointState) and ``shaking_wrench``
-    (geometry_msgs/msg/WrenchStamped), values in :mod:`mech_balance.twin`.
+    ``joint_states`` (sensor_msgs/msg/JointState: the URDF's joints,
+    :mod:`mech_balance.ros.description`) and ``shaking_wrench``
+    (geometry_msgs/msg/WrenchStamped), values in :mod:`mech_balance.twin`; the URDF on
+    ``robot_description`` (latched, while ``publish_robot_description``).
 Subscription (follow mode)
     ``crank_joint_state`` (sensor_msgs/msg/JointState), the crank encoder.
 Services (std_srvs/srv/Trigger)

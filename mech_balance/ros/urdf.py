@@ -390,21 +390,40 @@ def _planar_state(data):
     return state
 
 
+@dataclass(frozen=True)
+class RggrTreeState:
+    """The part of :class:`~mech_balance.core.rggr.RggrKinematics` the RGGR's joints need."""
+
+    crank_angle_rad: np.ndarray
+    crank_speed_rad_s: np.ndarray
+    output_angle_rad: np.ndarray
+    output_rate_rad_s: np.ndarray
+    crank_axes: np.ndarray
+    coupler_m: np.ndarray
+    coupler_vel_m_s: np.ndarray
+
+
 def _rggr_state(scene, data):
     """
-    Return the :class:`~mech_balance.core.rggr.RggrKinematics` of an RGGR :class:`RigData`.
+    Return the :class:`RggrTreeState` of an RGGR :class:`RigData` (no kinematics again).
 
-    The closed-form kinematics at the data's crank angles; its rates are linear in the
-    crank speed (seed 002 eqs. 30-34), so they are evaluated at 1 rad/s and scaled by each
-    sample's own speed (follow mode: every sample has its own).
+    From the rig's body poses (``frame, crank, coupler, output``: the crank axes Q1uvw, the
+    pin B, the output axes Q3uvw) and its ``output`` joint: C = Q3 + a3 u3 (seed 002 eq. 20),
+    A2 = C - B (eq. 21) and dA2/dt = a3 phi3' v3 - a1 omega v1 (eq. 34), each sample at its
+    own crank speed.
     """
-    from mech_balance.core import rggr
-    psi = np.asarray(data.crank_angle_rad, dtype=float)
-    speed = np.broadcast_to(np.asarray(data.crank_speed_rad_s, dtype=float), psi.shape)
-    kin = rggr.kinematics(replace(scene, crank_speed_rad_s=1.0), psi)
-    return replace(kin, crank_speed_rad_s=speed,
-                   output_rate_rad_s=kin.output_rate_rad_s * speed,
-                   coupler_vel_m_s=kin.coupler_vel_m_s * speed[:, None])
+    g = scene.geometry
+    poses = data.bodies
+    crank, coupler, output = (poses.names.index(n) for n in ('crank', 'coupler', 'output'))
+    j = data.joint_names.index('output')
+    crank_axes, output_axes = poses.rotation[:, crank], poses.rotation[:, output]
+    speed = np.asarray(data.crank_speed_rad_s, dtype=float)
+    rate = data.joint_velocity[:, j]
+    pin_c = poses.origin_m[:, output] + g.a3_m * output_axes[:, :, 0]
+    coupler_vel = g.a3_m * rate[:, None] * output_axes[:, :, 1] - \
+        g.a1_m * speed[:, None] * crank_axes[:, :, 1]
+    return RggrTreeState(data.crank_angle_rad, speed, data.joint_position[:, j], rate,
+                         crank_axes, pin_c - poses.origin_m[:, coupler], coupler_vel)
 
 
 def _rggr_angles(scene, psi):
