@@ -22,7 +22,7 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import rggr as rggr_balancing
 from mech_balance.balancing import socp as balancing
 from mech_balance.core import rggr
-from mech_balance.ros import conversions as conv
+from mech_balance.ros import conversions as conv, description, urdf
 from mech_balance.ros import node as rig_node
 from mech_balance.ros import params, streaming as twin
 import numpy as np
@@ -462,6 +462,7 @@ def _expected_planar(model, joints):
 
 def _check_against_core(probe, model, frame_id, rtol=RTOL):
     """Every received JointState and WrenchStamped equals the core at its stamped angle."""
+    model = description.urdf_twin(model)  # the published joints: the URDF's, then cut joints
     joints = [j for j in probe.joints if j[1] == model.joint_names]
     assert len(joints) == len(probe.joints)
     ref = _expected_planar(model, joints)
@@ -630,7 +631,7 @@ def test_follow_mode_reproduces_the_core_for_an_encoder_stream(context):
         probe.spin_until(lambda: probe.encoder.get_subscription_count() >= 1,
                          DISCOVERY_TIMEOUT_S, 'the node to subscribe to the encoder')
         sc = scene_mod.load('slider_crank')
-        model = twin.model_for(sc)
+        model = description.twin_for(sc)  # the published joints (description.JointLayout)
         omega, dt = sc.crank_speed_rad_s, 1_000_000
         t0 = 1_000 * 1_000_000_000
         angle = lambda t: 0.3 + omega * (t - t0) * 1e-9  # noqa: E731
@@ -695,14 +696,15 @@ def test_rggr_scene_publishes_all_six_components_and_balances(context, tmp_path)
                      '-p', 'use_balanced:=true')
     probe = Probe(context, ns)
     sc = scene_mod.load('rggr')
-    original = twin.model_for(sc)
+    original = description.twin_for(sc)  # the published joints (description.JointLayout)
     balanced = original.with_design(rggr_balancing.balance_scene(sc).design.scene)
 
     def received(model):
         joints = {j[0]: j for j in probe.joints}
         rows = [(joints[w[0]], w) for w in probe.wrenches if w[0] in joints]
         assert len(rows) >= len(probe.wrenches) // 2
-        assert all(j[1] == ('crank', 'output') and j[3][0] == -4.0 for j, _ in rows)
+        assert all(j[1] == ('crank', 'output') + urdf.RGGR_COUPLER_JOINTS and j[3][0] == -4.0
+                   for j, _ in rows)
         ref = model.evaluate(np.array([j[2][0] for j, _ in rows]), -4.0)
         got = np.array([w[2] for _, w in rows])
         _assert_close(got, np.hstack([ref.force_N, ref.moment_Nm]), RTOL, 'RGGR wrench')

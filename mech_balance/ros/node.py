@@ -6,8 +6,10 @@ The rig node: joint states and the shaking wrench on ROS 2 topics, a balancing s
 ``--ros-args -r __ns:=/cell3`` runs several rigs side by side.
 
 Publications (both stamped with the time of the crank angle they belong to)
-    ``joint_states`` (sensor_msgs/msg/JointState) and ``shaking_wrench``
-    (geometry_msgs/msg/WrenchStamped), values in :mod:`mech_balance.twin`.
+    ``joint_states`` (sensor_msgs/msg/JointState: the URDF's joints,
+    :mod:`mech_balance.ros.description`) and ``shaking_wrench``
+    (geometry_msgs/msg/WrenchStamped), values in :mod:`mech_balance.twin`; the URDF on
+    ``robot_description`` (latched, while ``publish_robot_description``).
 Subscription (follow mode)
     ``crank_joint_state`` (sensor_msgs/msg/JointState), the crank encoder.
 Services (std_srvs/srv/Trigger)
@@ -30,7 +32,7 @@ import threading
 from geometry_msgs.msg import WrenchStamped
 from mech_balance import atomic, balancing
 from mech_balance import schema as scene_mod
-from mech_balance.ros import conversions as conv
+from mech_balance.ros import conversions as conv, description
 from mech_balance.ros import guard as guards
 from mech_balance.ros import params, streaming as twin
 from rcl_interfaces.msg import SetParametersResult
@@ -110,11 +112,13 @@ class RigNode(Node):
                                                 callback_group=ReentrantCallbackGroup())
         self._reset_srv = self.create_service(Trigger, '~/reset',
                                               self._refusing('~/reset', self._on_reset))
+        self._description = description.DescriptionPublisher(self)
 
         self._streamer = twin.Streamer(lambda: self.get_clock().now().nanoseconds,
                                        self._prepare, self._publish, self._warn, self._record,
                                        guard=self._guard)
         self._open_recorder()
+        self._describe()
         # say what the node publishes before it starts to (a signal right after the first
         # samples then finds nothing left to log to rosout)
         self._announce()
@@ -180,7 +184,7 @@ class RigNode(Node):
     def _build_model(self, name):
         """Load, validate and assemble a scene (the scene loader's checks); ValueError."""
         try:
-            return twin.model_for(scene_mod.load(name))
+            return description.twin_for(scene_mod.load(name))  # URDF joints: description
         except OSError as exc:
             raise ValueError(f'scene: cannot read {name!r}: {exc.strerror}') from None
         except ValueError as exc:
@@ -223,6 +227,12 @@ class RigNode(Node):
         with self._lock:
             self._published = model
             self._streamer.set_model(model)
+        self._describe()
+
+    def _describe(self):
+        """Publish the URDF of the published design on robot_description (if enabled)."""
+        self._description.show(self._values['publish_robot_description'], self._published,
+                               self._values['frame_id'])
 
     def _announce(self):
         model, v = self._published, self._values
@@ -398,6 +408,8 @@ class RigNode(Node):
                 self._balance_in_background()
         if 'scene' in changed or 'recording_path' in changed:
             self._open_recorder()
+        if {'scene', 'frame_id', 'publish_robot_description'} & set(changed):
+            self._describe()
         if 'scene' in changed or 'mode' in changed:
             self._announce()
 

@@ -300,6 +300,11 @@ PARAMETERS = (
     Spec('frame_id', STRING, 'rig_frame',
          'Frame of the shaking wrench (header.frame_id of shaking_wrench).', check=_frame_id,
          rule="letters, digits, '_' and '/', not starting with '/' or a digit"),
+    Spec('publish_robot_description', BOOL, True,
+         'Publish the URDF of the published design on robot_description (std_msgs/String, '
+         'transient local, as robot_state_publisher does), again when the scene, the design '
+         'or frame_id changes; false when robot_state_publisher publishes it (the launch '
+         'file).'),
     Spec('crank_joint', STRING, '',
          "Follow mode: the crank's name in the encoder's JointState; empty: the scene's "
          'crank joint (RGGR: crank).', check=_joint_name, rule='no surrounding spaces'),

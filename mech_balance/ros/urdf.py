@@ -57,7 +57,7 @@ Inertials
     the URDF takes the thinnest body that has the given ones (:func:`pivot_body_inertia`).
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 import math
 import os
 import xml.etree.ElementTree as ET
@@ -148,11 +148,16 @@ class TreeModel:
     ``coordinates(tree, state)`` returns the tree joints' ``(q, qd, angular)`` of a solved
     state (each kind's own, registered as its ``urdf_tree``); ``joints`` are in
     :func:`joint_positions` order; ``linkage`` is the compiled planar linkage (or None).
+    ``cuts`` are the ``(name, joint_type)`` of the joints the core closes (not in the URDF);
+    ``state_of(data)`` returns the core state :func:`joint_positions` reads from a
+    :class:`~mech_balance.core.rig.RigData` of the scene's rig (:func:`rig_joint_positions`).
     """
 
     coordinates: object
     joints: tuple
     linkage: object = None
+    cuts: tuple = ()
+    state_of: object = field(default=None, compare=False, repr=False)
 
     @property
     def names(self):
@@ -372,7 +377,8 @@ def planar_tree(linkage):
         joints.append(UrdfJoint(tj.name, 'prismatic', parent, child, xyz, (0.0, 0.0, turn),
                                 (axis.real, axis.imag, 0.0), 0.0, float(lower[t] - margin),
                                 float(upper[t] + margin), float(rate_max[t])))
-    return TreeModel(_planar_coordinates, tuple(joints), linkage)
+    cuts = tuple((c.name, c.joint_type) for c in linkage.cuts)
+    return TreeModel(_planar_coordinates, tuple(joints), linkage, cuts, _planar_state)
 
 
 def _planar_coordinates(tree, state):
@@ -383,6 +389,51 @@ def _planar_coordinates(tree, state):
         raise UrdfError(f'state: got {state.q.shape[0]} tree coordinates, expected '
                         f'{len(tree.joints)} (the linkage of this scene)')
     return state.q, state.qd, ~tree.linkage.is_prismatic
+
+
+def _planar_state(data):
+    """Return the planar kinematic state of a :class:`RigData` (solved with rates)."""
+    state = data.state
+    if state is None:
+        raise UrdfError('data: got a RigData without a planar kinematic state, expected the '
+                        "evaluation of this scene's planar rig (rig.at)")
+    return state
+
+
+@dataclass(frozen=True)
+class RggrTreeState:
+    """The part of :class:`~mech_balance.core.rggr.RggrKinematics` the RGGR's joints need."""
+
+    crank_angle_rad: np.ndarray
+    crank_speed_rad_s: np.ndarray
+    output_angle_rad: np.ndarray
+    output_rate_rad_s: np.ndarray
+    crank_axes: np.ndarray
+    coupler_m: np.ndarray
+    coupler_vel_m_s: np.ndarray
+
+
+def _rggr_state(scene, data):
+    """
+    Return the :class:`RggrTreeState` of an RGGR :class:`RigData` (no kinematics again).
+
+    From the rig's body poses (``frame, crank, coupler, output``: the crank axes Q1uvw, the
+    pin B, the output axes Q3uvw) and its ``output`` joint: C = Q3 + a3 u3 (seed 002 eq. 20),
+    A2 = C - B (eq. 21) and dA2/dt = a3 phi3' v3 - a1 omega v1 (eq. 34), each sample at its
+    own crank speed.
+    """
+    g = scene.geometry
+    poses = data.bodies
+    crank, coupler, output = (poses.names.index(n) for n in ('crank', 'coupler', 'output'))
+    j = data.joint_names.index('output')
+    crank_axes, output_axes = poses.rotation[:, crank], poses.rotation[:, output]
+    speed = np.asarray(data.crank_speed_rad_s, dtype=float)
+    rate = data.joint_velocity[:, j]
+    pin_c = poses.origin_m[:, output] + g.a3_m * output_axes[:, :, 0]
+    coupler_vel = g.a3_m * rate[:, None] * output_axes[:, :, 1] - \
+        g.a1_m * speed[:, None] * crank_axes[:, :, 1]
+    return RggrTreeState(data.crank_angle_rad, speed, data.joint_position[:, j], rate,
+                         crank_axes, pin_c - poses.origin_m[:, coupler], coupler_vel)
 
 
 def _rggr_angles(scene, psi):
@@ -453,7 +504,8 @@ def rggr_tree(scene):
         joints.append(_revolute_spec(name, parents[name], child, xyz, rpy, axis, lower[i],
                                      upper[i], 1.0 if name == 'crank' else turns[i],
                                      float(rate_max[i])))
-    return TreeModel(_rggr_coordinates, tuple(joints), None)
+    return TreeModel(_rggr_coordinates, tuple(joints), None, (('C', 'spherical'),),
+                     lambda data: _rggr_state(scene, data))
 
 
 def _rggr_coordinates(tree, state):
@@ -463,8 +515,8 @@ def _rggr_coordinates(tree, state):
     yaw, pitch, yaw_rate, pitch_rate = _coupler_angles(state)
     n = state.crank_angle_rad.shape[0]
     q = np.stack([state.crank_angle_rad, state.output_angle_rad, yaw, pitch])
-    qd = np.stack([np.full(n, float(state.crank_speed_rad_s)), state.output_rate_rad_s,
-                   yaw_rate, pitch_rate])
+    speed = np.broadcast_to(np.asarray(state.crank_speed_rad_s, dtype=float), (n,))
+    qd = np.stack([speed, state.output_rate_rad_s, yaw_rate, pitch_rate])
     return q, qd, np.ones(4, dtype=bool)
 
 
@@ -488,6 +540,18 @@ def joint_positions(model, state):
     offset = np.array([j.offset for j in tree.joints])[:, None]
     positions = np.where(angular[:, None], wrap_angle(q - offset), q + 0.0)
     return names, positions.T + 0.0, np.asarray(qd, dtype=float).T + 0.0
+
+
+def rig_joint_positions(model, data):
+    """
+    Return ``(names, positions, velocities)`` of the URDF joints at a rig's evaluation.
+
+    ``data`` is the :class:`~mech_balance.core.rig.RigData` of the scene's rig (``rig.at``,
+    any design of the geometry of ``model``); the values are those of
+    :func:`joint_positions`, vectorized over the batch.
+    """
+    tree = tree_model(model)
+    return joint_positions(tree, tree.state_of(data))
 
 
 # ----------------------------------------------------------------------------- inertials
