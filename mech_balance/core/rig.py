@@ -129,8 +129,9 @@ class Rig(Protocol):
 
     ``scene`` is the validated scene, ``name`` its name; ``joint_names`` and ``crank_joint``
     name the published joints; ``moment_point`` says in words where the shaking moment is
-    reduced; ``capabilities`` what the rig can compute or be balanced by; ``outputs`` what its
-    scene asks for; ``drawing`` its :class:`Drawing`.
+    reduced and ``moment_point_m`` is that point ``(x, y, z)`` in the frame, m;
+    ``capabilities`` what the rig can compute or be balanced by; ``outputs`` what its scene
+    asks for; ``drawing`` its :class:`Drawing`.
     """
 
     scene: object
@@ -138,6 +139,7 @@ class Rig(Protocol):
     joint_names: tuple
     crank_joint: str
     moment_point: str
+    moment_point_m: tuple
     capabilities: frozenset
     outputs: tuple
     drawing: Drawing
