@@ -252,7 +252,7 @@ class RigNode(Node):
             self._warn(f'{ENCODER}: skipped a message ({self._skipped_inputs} so far): {exc}')
             return
         self._encoder_input.use()
-        self._sensor_encoder(stamp_ns, position if sample is None else sample.turned_rad)
+        self._sensor_encoder(stamp_ns, position, None if sample is None else sample.turned_rad)
         if sample is not None and not self._streamer.push(sample):
             self._warn(f'{ENCODER}: the core is behind the encoder; dropped the oldest sample')
 
@@ -479,10 +479,10 @@ class RigNode(Node):
         self._warn(f'{what}: skipped ({self._sensor_skips} so far): '
                    f'{type(exc).__name__}: {exc}')
 
-    def _sensor_encoder(self, stamp_ns, turned_rad):
+    def _sensor_encoder(self, stamp_ns, position_rad, turned_rad):
         """Follow mode: add an accepted encoder sample to the crank track."""
         with self._sensor_lock:
-            self._sensor.encoder(stamp_ns, turned_rad)
+            self._sensor.encoder(stamp_ns, position_rad, turned_rad)
 
     def _on_measured_wrench(self, msg):
         """Accept one measurement; a bad one is counted by reason and skipped."""
@@ -539,7 +539,7 @@ class RigNode(Node):
             return response
         response.success = True
         response.message = estimate.summary() + '\n' + yaml.safe_dump(
-            estimate.to_dict(), sort_keys=False)
+            scene_mod.plain(estimate.to_dict()), sort_keys=False)
         return response
 
     def _on_identify(self, request, response):
@@ -556,7 +556,7 @@ class RigNode(Node):
             report = {'summary': summary, **result.to_dict(),
                       'calibrated_scene': identify.calibrated_yaml(result, 'the rig node')
                       if result.realizable else None}
-            text = yaml.safe_dump(report, sort_keys=False)
+            text = yaml.safe_dump(scene_mod.plain(report), sort_keys=False)
             if not result.realizable:
                 response.success = False
                 response.message = f'{summary}; NOT physically realizable, still publishing ' \

@@ -340,12 +340,14 @@ class EncoderTrack:
 
     ``window_s``: span of the centred least-squares quadratic (module docstring).  Angles are
     kept continuous: a new angle is moved by whole turns to the branch nearest the last
-    (an estimator restarted after a gap may send the angle as the encoder reports it).
+    (an estimator restarted after a gap may send the angle as the encoder reports it).  The
+    raw position as the encoder sent it is kept too (column 1): the identification smooths
+    those (their quantization step is exact; accumulated turned angles carry round-off).
     """
 
     def __init__(self, window_s, capacity=IDENTIFY_CAPACITY):
         self.set_window(window_s)
-        self.series = Series(1, capacity)
+        self.series = Series(2, capacity)
 
     def set_window(self, window_s):
         """Set the fit's span, s."""
@@ -353,16 +355,22 @@ class EncoderTrack:
             raise ValueError(f'sensor.crank_window: got {window_s!r}, expected a span > 0 s')
         self.half_ns = int(round(0.5 * window_s * 1e9))
 
-    def add(self, stamp_ns, turned_rad):
-        """Add an accepted encoder sample; a stamp not after the newest is ignored."""
+    def add(self, stamp_ns, position_rad, turned_rad=None):
+        """
+        Add an accepted encoder sample; a stamp not after the newest is ignored.
+
+        ``position_rad`` as the encoder sent it; ``turned_rad`` the unwrapped angle (the
+        follow-mode estimator's), or None to unwrap to the branch nearest the last.
+        """
         newest = self.series.newest_ns
-        turned = float(turned_rad)
+        raw = float(position_rad)
+        turned = raw if turned_rad is None else float(turned_rad)
         if newest is not None:
             if int(stamp_ns) <= newest:
                 return
             last = float(self.series.values[-1, 0])
             turned -= TWO_PI * round((turned - last) / TWO_PI)
-        self.series.append([int(stamp_ns)], [[turned]])
+        self.series.append([int(stamp_ns)], [[turned, raw]])
 
     def clear(self):
         """Forget the encoder's history."""
@@ -534,9 +542,9 @@ class Comparison:
         self.pending.append([int(stamp_ns)], w)
         self.measured.append([int(stamp_ns)], w)
 
-    def encoder(self, stamp_ns, turned_rad):
-        """Add an accepted encoder sample (follow mode)."""
-        self.track.add(stamp_ns, turned_rad)
+    def encoder(self, stamp_ns, position_rad, turned_rad=None):
+        """Add an accepted encoder sample (follow mode; :meth:`EncoderTrack.add`)."""
+        self.track.add(stamp_ns, position_rad, turned_rad)
 
     # ------------------------------------------------------------------ settings
 
@@ -670,8 +678,9 @@ class Comparison:
         Return ``(t_encoder_s, angle_rad, t_wrench_s, planar_wrench (n, 3), t0_ns)``.
 
         The buffered encoder since its last gap (:data:`IDENTIFY_GAP_PERIODS`; follow mode)
-        or, with a clock-mode ``schedule``, the node's crank at the measurement stamps; the measurements in the rig frame about the moment
-        point, [f_x, f_y, n_z], bias not removed (the identification estimates it).
+        or, with a clock-mode ``schedule``, the node's crank at the measurement stamps; the
+        measurements in the rig frame about the moment point, [f_x, f_y, n_z], bias not
+        removed (the identification estimates it).
         """
         tw = self.measured.stamps_ns
         if tw.size == 0:
@@ -682,7 +691,7 @@ class Comparison:
             angle = clock_crank(schedule, te)[0]
         else:
             te = self.track.series.stamps_ns
-            angle = self.track.series.values[:, 0]
+            angle = self.track.series.values[:, 1]    # as sent: exact quantization steps
             if te.size < 2:
                 raise ValueError('identify: no crank_joint_state received, expected the '
                                  'encoder to stream (follow mode)')
