@@ -452,6 +452,7 @@ class RggrRig:
     """
 
     moment_point = 'the origin O of the RGGR frame'
+    moment_point_m = (0.0, 0.0, 0.0)
     capabilities = CAPABILITIES
     joint_names = JOINTS
     joint_prismatic = (False,) * len(JOINTS)

@@ -137,9 +137,10 @@ class Rig(Protocol):
 
     ``scene`` is the validated scene, ``name`` its name; ``joint_names`` and ``crank_joint``
     name the published joints, ``joint_prismatic`` says which of them slide (m; the others
-    turn, rad); ``moment_point`` says in words where the shaking moment is
-    reduced; ``capabilities`` what the rig can compute or be balanced by; ``outputs`` what its
-    scene asks for; ``drawing`` its :class:`Drawing`.
+    turn, rad); ``moment_point`` says in words where the shaking moment is reduced and
+    ``moment_point_m`` is that point ``(x, y, z)`` in the frame, m; ``capabilities`` what the
+    rig can compute or be balanced by; ``outputs`` what its scene asks for; ``drawing`` its
+    :class:`Drawing`.
     """
 
     scene: object
@@ -148,6 +149,7 @@ class Rig(Protocol):
     joint_prismatic: tuple
     crank_joint: str
     moment_point: str
+    moment_point_m: tuple
     capabilities: frozenset
     outputs: tuple
     drawing: Drawing

@@ -10,6 +10,8 @@ Message conversion for the rig node: pure functions, no node is ever created her
 * :func:`parameter_descriptor`, :func:`parameter_value`: a :class:`mech_balance.params.Spec`
   as a ROS ``ParameterDescriptor``, and a ROS ``Parameter`` as a plain value.
 * :func:`stamp_from_ns`, :func:`ns_from_stamp`: ``builtin_interfaces/Time`` <-> int ns.
+* :func:`wrench_reading`, :func:`fill_wrench_values`, :func:`diagnostic_array`: the measured
+  wrench read with checks, a residual wrench, the node's ``/diagnostics``.
 """
 
 from array import array
@@ -17,6 +19,7 @@ import math
 import struct
 
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from mech_balance.ros import params
 import numpy as np
@@ -277,3 +280,39 @@ def parameter_value(parameter):
     if value is not None and not isinstance(value, (str, bool, int, float)):
         value = list(value)
     return value
+
+
+# ------------------------------------------------------------------------------ the real rig
+
+
+def wrench_reading(msg):
+    """
+    Return ``(stamp_ns, force (3,), torque (3,))`` of a measured ``WrenchStamped``.
+
+    Raises ``ValueError`` naming the problem: a non-finite force or torque component.
+    """
+    force, torque = wrench_values(msg)
+    for name, values in (('force', force), ('torque', torque)):
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f'wrench.{name}: got {list(values)}, expected finite values')
+    return ns_from_stamp(msg.header.stamp), force, torque
+
+
+def fill_wrench_values(msg, stamp_ns, frame_id, wrench):
+    """Fill a ``WrenchStamped`` with a ``(6,)`` wrench (force xyz N, torque xyz N*m)."""
+    msg.header.stamp = stamp_from_ns(stamp_ns)
+    msg.header.frame_id = frame_id
+    f, m = msg.wrench.force, msg.wrench.torque
+    f.x, f.y, f.z, m.x, m.y, m.z = (float(v) for v in wrench)
+    return msg
+
+
+def diagnostic_array(statuses, stamp_ns):
+    """Return the ``diagnostic_msgs/DiagnosticArray`` of :class:`diagnostics.Status` items."""
+    out = DiagnosticArray()
+    out.header.stamp = stamp_from_ns(stamp_ns)
+    for s in statuses:
+        out.status.append(DiagnosticStatus(
+            level=bytes([s.level]), name=s.name, message=s.message, hardware_id=s.hardware_id,
+            values=[KeyValue(key=k, value=v) for k, v in s.values]))
+    return out

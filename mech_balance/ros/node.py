@@ -15,7 +15,13 @@ Subscription (follow mode)
 Services (std_srvs/srv/Trigger)
     ``~/balance`` runs the balancing with the ``balance.*`` parameters and publishes the
     balanced design (the answer's ``message`` is the YAML of the result); ``~/reset``
-    returns to the scene's original design.
+    returns to the scene's original design (and from a calibrated scene to the scene).
+The real rig (section "the twin against the real rig" below, :mod:`mech_balance.ros.sensor`)
+    subscribes ``measured_wrench`` (geometry_msgs/msg/WrenchStamped, the force sensor),
+    publishes ``wrench_residual`` (measured minus model, rig frame, moment point, the
+    measurement's stamp) and ``/diagnostics`` (diagnostic_msgs/msg/DiagnosticArray, 1 Hz,
+    :mod:`mech_balance.ros.diagnostics`); services ``~/tare`` (the sensor bias) and
+    ``~/identify`` (calibrate the scene from the buffered data, publish it).
 Every parameter is declared once in :data:`mech_balance.params.PARAMETERS`
 (``config/rig_params.yaml`` is a working set).
 
@@ -28,11 +34,15 @@ import os
 import sys
 import tempfile
 import threading
+import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from mech_balance import atomic, balancing
 from mech_balance import schema as scene_mod
+from mech_balance.analysis import identify
 from mech_balance.ros import conversions as conv, description
+from mech_balance.ros import diagnostics, sensor
 from mech_balance.ros import guard as guards
 from mech_balance.ros import params, streaming as twin
 from rcl_interfaces.msg import SetParametersResult
@@ -71,6 +81,15 @@ EXIT_BAD_PARAMETER = 2
 EXIT_FAILURE = 1
 BALANCE_RESULT = '~/balance_result'
 """Transient-local std_msgs/String: the YAML of the last balancing run (late joiners get it)."""
+MEASURED_WRENCH = 'measured_wrench'
+WRENCH_RESIDUAL = 'wrench_residual'
+DIAGNOSTICS = '/diagnostics'
+MEASUREMENT_DEPTH = 1000
+"""History of the measured_wrench subscription."""
+SENSOR_PERIOD_S = 0.02
+"""Period of the pairing of measurements with the model (one core call per period)."""
+DIAGNOSTICS_PERIOD_S = 1.0
+"""Period of /diagnostics (the ROS convention: 1 Hz)."""
 
 
 class RigNode(Node):
@@ -88,6 +107,7 @@ class RigNode(Node):
         self._declare_link_parameters(self._original)
         _check_link_options(self._values, self._original)
         self._zero_stamp_said = False
+        params.check_together(self._values)
         self._balanced = None          # the design published while use_balanced is true
         self._published = self._original
         self._pending_scene = None     # (name, model) checked by the on-set callback
@@ -119,6 +139,7 @@ class RigNode(Node):
                                        guard=self._guard)
         self._open_recorder()
         self._describe()
+        self._init_real_rig()
         # say what the node publishes before it starts to (a signal right after the first
         # samples then finds nothing left to log to rosout)
         self._announce()
@@ -270,6 +291,7 @@ class RigNode(Node):
 
     def _prepare(self, samples, stamps_ns):
         """Serialize a batch of samples (the streamer's evaluating threads)."""
+        self._model_watch.add(samples)
         key = (samples.joint_names, samples.joint_effort is not None, self._values['frame_id'])
         serializer = self._serializer
         if serializer is None or (serializer.joint_names, serializer.has_effort,
@@ -294,6 +316,7 @@ class RigNode(Node):
     def _on_encoder(self, msg):
         """Turn one encoder message into a sample to publish; skip bad input with a warning."""
         if self._values['mode'] != 'follow':  # subscribed by an earlier follow mode
+            self._encoder_input.reject('ignored in clock mode')
             return
         joint = self._values['crank_joint'] or self._original.crank_joint
         estimator = self._estimator
@@ -308,11 +331,14 @@ class RigNode(Node):
             sample = estimator.update(stamp_ns, position, velocity)
         except ValueError as exc:
             self._skipped_inputs += 1
+            self._encoder_input.reject(diagnostics.reason_of(exc))
             self._warn(f'{ENCODER}: skipped a message ({self._skipped_inputs} so far): {exc}')
             return
         if estimator.just_resynced:
             self.get_logger().warning(f'{ENCODER}: re-synchronized on the incoming stream at '
                                       f'{stamp_ns * 1e-9:.9f} s: {estimator.last_resync}')
+        self._encoder_input.use()
+        self._sensor_encoder(stamp_ns, position, None if sample is None else sample.turned_rad)
         if sample is not None and not self._streamer.push(sample):
             self._warn(f'{ENCODER}: the core is behind the encoder; dropped the oldest sample')
 
@@ -374,6 +400,7 @@ class RigNode(Node):
                 self._pending_scene = (value, model)
         _check_link_options(candidate, model)
         _balance_method(candidate, model.rig)
+        params.check_together(candidate)
         return SetParametersResult(successful=True)
 
     def _on_parameters_set(self, parameters):
@@ -412,6 +439,7 @@ class RigNode(Node):
             self._describe()
         if 'scene' in changed or 'mode' in changed:
             self._announce()
+        self._sensor_parameters_set(changed)
 
     # ------------------------------------------------------------------ services
 
@@ -444,12 +472,13 @@ class RigNode(Node):
         if self._balance_lock.locked():
             response.success, response.message = False, BUSY
             return response
+        note = self._uncalibrate()
         with self._lock:
             self._balanced = None
         self.set_parameters([Parameter('use_balanced', value=False)])
         response.success = True
         response.message = f'publishing the original design of scene ' \
-                           f'{self._original.scene.name!r}'
+                           f'{self._original.scene.name!r}{note}'
         return response
 
     def _run_balancing(self):
@@ -510,6 +539,212 @@ class RigNode(Node):
         self.get_logger().info('use_balanced: balancing with the balance.* parameters ...')
         threading.Thread(target=run, name='rig-balance', daemon=True).start()
 
+    # ------------------------------------------------------------------ the real rig
+    # The twin against the real rig: measured_wrench paired with the published model
+    # (mech_balance.ros.sensor), wrench_residual, ~/tare, ~/identify, /diagnostics
+    # (mech_balance.ros.diagnostics).  self._sensor is guarded by self._sensor_lock.
+
+    def _init_real_rig(self):
+        """Create the sensor comparison, its topics, services and timers."""
+        model = self._published
+        self._sensor_lock = threading.Lock()
+        self._sensor = sensor.Comparison(
+            sensor.SensorPose(**params.sensor_pose_values(self._values)), model.moment_point_m,
+            self._values['sensor.crank_window'], sensor.WeightModel.of(model.rig))
+        self._sensor_model = model           # the model self._sensor compares with
+        self._calibration = None             # (calibrated, the model it replaced, old bias)
+        self._last_measurement_s = None      # time.monotonic() of the last measurement
+        self._sensor_skips = 0
+        self._encoder_input = diagnostics.InputCounter()
+        self._model_watch = diagnostics.ModelWatch()
+        self._rate_meter = diagnostics.RateMeter()
+        self._skipped_reported = 0
+        group = MutuallyExclusiveCallbackGroup()
+        self._measured_sub = self.create_subscription(
+            WrenchStamped, MEASURED_WRENCH,
+            self._guard.skipping(MEASURED_WRENCH)(self._on_measured_wrench),
+            QoSProfile(depth=MEASUREMENT_DEPTH), callback_group=group)
+        self._residual_pub = self.create_publisher(WrenchStamped, WRENCH_RESIDUAL,
+                                                   QoSProfile(depth=PUBLISH_DEPTH))
+        self._diagnostics_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS,
+                                                      QoSProfile(depth=10))
+        self._sensor_timer = self.create_timer(SENSOR_PERIOD_S,
+                                               self._guard.skipping('sensor pairing')(
+                                                   self._on_sensor_tick),
+                                               callback_group=group)
+        services = MutuallyExclusiveCallbackGroup()
+        self._tare_srv = self.create_service(Trigger, '~/tare',
+                                             self._refusing('~/tare', self._on_tare),
+                                             callback_group=services)
+        self._identify_srv = self.create_service(Trigger, '~/identify',
+                                                 self._refusing('~/identify', self._on_identify),
+                                                 callback_group=services)
+        self._diagnostics_timer = self.create_timer(
+            DIAGNOSTICS_PERIOD_S, self._guard.skipping(DIAGNOSTICS)(self._on_diagnostics),
+            callback_group=MutuallyExclusiveCallbackGroup())
+        self.get_logger().info(
+            f'real rig: {self._measured_sub.topic_name} (geometry_msgs/msg/WrenchStamped, '
+            f'sensor frame) -> {self._residual_pub.topic_name} (measured minus model, '
+            f'{self._values["frame_id"]!r}, about {model.moment_point}); '
+            f'{self._tare_srv.service_name}, {self._identify_srv.service_name}; '
+            f'{DIAGNOSTICS} at {1.0 / DIAGNOSTICS_PERIOD_S:g} Hz')
+
+    def _sensor_skip(self, what, exc):
+        """Count and report a skipped sensor step (the node never dies from input)."""
+        self._sensor_skips += 1
+        self._warn(f'{what}: skipped ({self._sensor_skips} so far): '
+                   f'{type(exc).__name__}: {exc}')
+
+    def _sensor_encoder(self, stamp_ns, position_rad, turned_rad):
+        """Follow mode: add an accepted encoder sample to the crank track."""
+        with self._sensor_lock:
+            self._sensor.encoder(stamp_ns, position_rad, turned_rad)
+
+    def _on_measured_wrench(self, msg):
+        """Accept one measurement; a bad one is counted by reason and skipped."""
+        try:
+            stamp_ns, force, torque = conv.wrench_reading(msg)
+            with self._sensor_lock:
+                self._sensor.measurement(stamp_ns, force, torque)
+            self._last_measurement_s = time.monotonic()
+        except Exception as exc:  # noqa: BLE001 - bad input is counted, never fatal
+            with self._sensor_lock:
+                self._sensor.rejected[diagnostics.reason_of(exc)] += 1
+            self._warn(f'{MEASURED_WRENCH}: skipped a message: {exc}')
+
+    def _on_sensor_tick(self):
+        """Pair the measurements that can be paired; publish their residuals."""
+        try:
+            with self._sensor_lock:
+                model = self._published
+                if model is not self._sensor_model:
+                    self._sensor.new_model(sensor.WeightModel.of(model.rig),
+                                           model.moment_point_m)
+                    self._sensor_model = model
+                schedule = self._streamer.clock_schedule
+                if self._values['mode'] == 'clock' and schedule is None:
+                    return
+                paired = self._sensor.process(model.evaluate, schedule)
+            frame_id = self._values['frame_id']
+            for stamp_ns, residual in zip(paired.stamps_ns, paired.residual):
+                self._residual_pub.publish(conv.fill_wrench_values(
+                    WrenchStamped(), int(stamp_ns), frame_id, residual))
+        except Exception as exc:  # noqa: BLE001 - counted and reported, never fatal
+            if self.context.ok():
+                self._sensor_skip(WRENCH_RESIDUAL, exc)
+
+    def _sensor_parameters_set(self, changed):
+        """Apply accepted sensor.* parameters (a new pose forgets the bias and the data)."""
+        if not any(k.startswith('sensor.') for k in changed):
+            return
+        pose = sensor.SensorPose(**params.sensor_pose_values(self._values))
+        with self._sensor_lock:
+            reposed = pose != self._sensor.pose
+            self._sensor.configure(pose, self._values['sensor.crank_window'])
+        if reposed:
+            self.get_logger().info('sensor pose or convention changed: bias and buffered '
+                                   'measurements forgotten (~/tare again)')
+
+    def _on_tare(self, request, response):
+        """Estimate the sensor bias from the last sensor.tare_seconds and use it."""
+        try:
+            with self._sensor_lock:
+                estimate = self._sensor.tare(self._values['sensor.tare_seconds'])
+        except Exception as exc:  # noqa: BLE001 - any failure is answered, never fatal
+            response.success, response.message = False, f'tare failed: {exc}'
+            return response
+        response.success = True
+        response.message = estimate.summary() + '\n' + yaml.safe_dump(
+            scene_mod.plain(estimate.to_dict()), sort_keys=False)
+        return response
+
+    def _on_identify(self, request, response):
+        """Identify the scene's inertial parameters from the buffered data; publish them."""
+        try:
+            with self._lock:
+                base = self._original if self._calibration is None or \
+                    self._original is not self._calibration[0] else self._calibration[1]
+            with self._sensor_lock:
+                schedule = self._streamer.clock_schedule
+                data = self._sensor.identification_data(schedule)
+            result = identify.identify(base.scene, *data[:4])
+            summary = _identify_summary(result)
+            report = {'summary': summary, **result.to_dict(),
+                      'calibrated_scene': identify.calibrated_yaml(result, 'the rig node')
+                      if result.realizable else None}
+            text = yaml.safe_dump(scene_mod.plain(report), sort_keys=False)
+            if not result.realizable:
+                response.success = False
+                response.message = f'{summary}; NOT physically realizable, still publishing ' \
+                                   f'the current model\n{text}'
+                return response
+            calibrated = base.with_design(result.calibrated_scene())
+        except Exception as exc:  # noqa: BLE001 - any failure is answered, never fatal
+            response.success, response.message = False, f'identify failed: {exc}'
+            return response
+        with self._sensor_lock:
+            old_bias = self._sensor.bias.copy()
+            bias = old_bias.copy()
+            bias[list(sensor.PLANAR)] = result.bias[:len(sensor.PLANAR)]
+            self._sensor.bias = bias
+        with self._lock:
+            self._calibration = (calibrated, base, old_bias)
+            self._original = calibrated
+            self._balanced = None
+        self.set_parameters([Parameter('use_balanced', value=False)])
+        self._switch_to(calibrated)
+        response.success, response.message = True, f'{summary}\n{text}'
+        return response
+
+    def _uncalibrate(self):
+        """~/reset: from a calibrated scene back to the scene and the bias before it."""
+        with self._lock:
+            cal, self._calibration = self._calibration, None
+            if cal is None or self._original is not cal[0]:
+                return ''
+            self._original = cal[1]
+        with self._sensor_lock:
+            self._sensor.bias = cal[2]
+        return ' (calibration dropped)'
+
+    def _on_diagnostics(self):
+        """Publish the four statuses on /diagnostics."""
+        try:
+            now_ns = self.get_clock().now().nanoseconds
+            self._diagnostics_pub.publish(conv.diagnostic_array(self._statuses(now_ns),
+                                                                now_ns))
+        except Exception as exc:  # noqa: BLE001 - counted and reported, never fatal
+            if self.context.ok():
+                self._sensor_skip(DIAGNOSTICS, exc)
+
+    def _statuses(self, now_ns):
+        """Return the publisher, encoder input, model and measured-wrench statuses."""
+        name, hw, v = self.get_fully_qualified_name(), self._published.scene.name, self._values
+        stats = self._streamer.stats
+        skipped_new = max(stats.skipped - self._skipped_reported, 0)
+        self._skipped_reported = stats.skipped
+        clock = v['mode'] == 'clock'
+        out = [diagnostics.publisher_status(
+            f'{name}: publisher', hw, v['mode'], v['publish_rate'] if clock else None,
+            self._rate_meter.rate(stats.count, now_ns), stats.count, stats.skipped,
+            skipped_new)]
+        used, rejected, new = self._encoder_input.snapshot()
+        out.append(diagnostics.input_status(f'{name}: encoder input', hw, ENCODER, used,
+                                            rejected, new))
+        out.append(diagnostics.model_status(f'{name}: model', hw,
+                                            *self._model_watch.snapshot()))
+        last = self._last_measurement_s
+        with self._sensor_lock:
+            s = self._sensor
+            rms = s.rms(v['sensor.residual_window'])
+            out.append(diagnostics.measurement_status(
+                f'{name}: measured wrench', hw, rms, sensor.COMPONENTS, sensor.UNITS,
+                v['diagnostics.warn_fraction'], v['diagnostics.error_fraction'],
+                s.received, s.used, dict(s.rejected),
+                None if last is None else time.monotonic() - last, s.bias,
+                self._sensor_model.scene.name))
+        return out
+
     # ------------------------------------------------------------------ shutdown
 
     def destroy_node(self):
@@ -544,6 +779,15 @@ class RigNode(Node):
                 f'compute {stats["prepare_per_sample_s"] * 1e6:.1f} us per sample (core and '
                 f'serialization, batched); publishing {stats["step_median_s"] * 1e6:.1f} us '
                 f'median per sample; {STATS_TAG}{json.dumps(stats)}')
+
+
+def _identify_summary(result):
+    """Return the one-line summary of an identification (the first line of ~/identify)."""
+    rms = ', '.join(f'{c} {b:.4g} -> {a:.4g} {identify.CHANNEL_UNITS[c]}'
+                    for c, b, a in zip(result.channels, result.rms_before, result.rms_after))
+    return (f'identified scene {result.scene.name!r} from {result.samples} measurements: '
+            f'rank {result.rank} of {len(result.names)}, condition number '
+            f'{result.condition_number:.4g}; residual RMS before -> after: {rms}')
 
 
 def _check_link_options(values, model):

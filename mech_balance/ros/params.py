@@ -19,11 +19,18 @@ import re
 from mech_balance import conventions, paths
 from mech_balance.balancing import defaults as balancing_defaults
 from mech_balance.balancing import socp as balancing
+from mech_balance.ros import sensor
 from mech_balance.schema import safe_yaml
 
 STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
     'double_array'
 MODES = ('clock', 'follow')
+MAX_SENSOR_OFFSET_M = 100.0
+"""Largest |sensor.x|, |sensor.y|, |sensor.z| accepted, m."""
+MAX_ANGLE_RAD = 2.0 * math.pi
+"""Largest |sensor.roll|, |sensor.pitch|, |sensor.yaw| accepted, rad."""
+MAX_FRACTION = 1000.0
+"""Largest diagnostics threshold (residual RMS / measured RMS)."""
 CASES = ('a', 'b')
 METHODS = ('redistribution', 'counterweights', 'analytic')
 """``balance.method``: :func:`mech_balance.balancing.balance`'s methods a planar rig takes (a
@@ -409,6 +416,37 @@ PARAMETERS = (
          'Write a rerun recording (.rrd) of the published samples; empty: none.',
          check=_path, rule="empty or a writable file ending in '.rrd' in an existing "
          'directory (none is created)'),
+    # the twin against the real rig (mech_balance.ros.sensor, README)
+    *(Spec(f'sensor.{axis}', DOUBLE, 0.0,
+           f'Origin of the force sensor in frame_id (the rig frame), {axis} in m; the '
+           'measured torque is about this point.',
+           bounds=(-MAX_SENSOR_OFFSET_M, MAX_SENSOR_OFFSET_M)) for axis in 'xyz'),
+    *(Spec(f'sensor.{angle}', DOUBLE, 0.0,
+           f'Orientation of the force sensor in frame_id, {angle} in rad (ROS fixed axes: '
+           'R = Rz(yaw) Ry(pitch) Rx(roll) maps the sensor axes to the rig axes).',
+           bounds=(-MAX_ANGLE_RAD, MAX_ANGLE_RAD)) for angle in ('roll', 'pitch', 'yaw')),
+    Spec('sensor.convention', STRING, sensor.CONVENTIONS[0],
+         'load_on_sensor: measured_wrench is the load the rig exerts on the sensor (a rig '
+         'at rest on it pushes down, the sign of shaking_wrench); reaction: the wrench the '
+         'sensor exerts on the rig (pushes up), negated before the comparison.',
+         choices=sensor.CONVENTIONS),
+    Spec('sensor.residual_window', DOUBLE, 2.0,
+         'Span of the running RMS of residual and measurement, s (by measurement stamps).',
+         bounds=(0.01, 600.0)),
+    Spec('sensor.crank_window', DOUBLE, 0.1,
+         'Follow mode: span of the centred least-squares quadratic through the encoder '
+         'angles that gives the crank state at a measurement stamp, s (longer: less '
+         'quantization noise, more smoothing of speed variations; the residual lags by '
+         'half of it).', bounds=(1e-3, 10.0)),
+    Spec('sensor.tare_seconds', DOUBLE, 2.0,
+         '~/tare estimates the sensor bias from the paired measurements of the last this '
+         'many seconds.', bounds=(1e-3, 600.0)),
+    Spec('diagnostics.warn_fraction', DOUBLE, 0.1,
+         '/diagnostics: the measured-wrench status is WARN when the residual RMS of a '
+         'component exceeds this fraction of its measured RMS.', bounds=(0.0, MAX_FRACTION)),
+    Spec('diagnostics.error_fraction', DOUBLE, 0.3,
+         '/diagnostics: ERROR above this fraction (>= diagnostics.warn_fraction).',
+         bounds=(0.0, MAX_FRACTION)),
 )
 """Every parameter of the rig node, in declaration order."""
 
@@ -435,6 +473,25 @@ def check(name, value):
     if spec.check is not None:
         spec.check(value)
     return value
+
+
+def check_together(values):
+    """
+    Raise ValueError if checked parameter values disagree with each other.
+
+    ``diagnostics.warn_fraction`` must not exceed ``diagnostics.error_fraction``.
+    """
+    warn, error = values['diagnostics.warn_fraction'], values['diagnostics.error_fraction']
+    if warn > error:
+        raise ValueError(f'diagnostics.warn_fraction: got {warn:g} above '
+                         f'diagnostics.error_fraction = {error:g}, expected warn <= error')
+
+
+def sensor_pose_values(values):
+    """Return the keyword arguments of :class:`mech_balance.ros.sensor.SensorPose`."""
+    out = {k: values[f'sensor.{k}'] for k in ('x', 'y', 'z', 'roll', 'pitch', 'yaw')}
+    out['convention'] = values['sensor.convention']
+    return out
 
 
 def _typed(spec, value):

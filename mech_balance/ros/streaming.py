@@ -93,6 +93,7 @@ class TwinModel:
         self.crank_joint = rig.crank_joint
         self.crank_index = self.joint_names.index(rig.crank_joint)
         self.moment_point = rig.moment_point
+        self.moment_point_m = tuple(float(v) for v in rig.moment_point_m)
         self.kind = registry.kind_of(rig).name
         self.has_effort = bool({'driving_torque', 'bearing_reactions'} & set(rig.outputs))
         self.outputs = ('shaking_wrench', 'driving_torque') if self.has_effort else \
@@ -500,6 +501,12 @@ class Streamer:
         """Publish another design (or re-prepare) from the next sample on, same schedule."""
         with self._cond:
             self._restart(self._mode, model, self._schedule, keep_pending=True)
+
+    @property
+    def clock_schedule(self):
+        """Return the clock-mode :class:`ClockSchedule` in force, or None (follow mode)."""
+        with self._cond:
+            return self._schedule if self._mode == 'clock' else None
 
     def push(self, sample):
         """Queue a follow-mode :class:`CrankSample`; return False if the oldest was dropped."""

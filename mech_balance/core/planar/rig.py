@@ -87,6 +87,11 @@ class PlanarRig:
         """Return what the scene asks for (its ``outputs:``)."""
         return self.scene.outputs
 
+    @property
+    def moment_point_m(self):
+        """Return the crank pivot in the frame, ``(x, y, 0)`` m (the shaking moment's point)."""
+        return (self.linkage.pivot.real, self.linkage.pivot.imag, 0.0)
+
     def with_scene(self, scene):
         """Return a rig for another inertia on the same geometry (no re-tracing)."""
         return PlanarRig(scene, self.linkage)
