@@ -21,6 +21,14 @@ SECTIONS = ('mech_balance.bench.balancing:bench_section',
 its printed table; ``mech-balance bench`` prints them after the core timings."""
 
 
+def section_name(entry):
+    """Return the short name of a :data:`SECTIONS` entry (``balancing``, ``cell``, ...)."""
+    module, _, function = entry.partition(':')
+    if function != 'bench_section':
+        return function.replace('_section', '')
+    return module.rsplit('.', 1)[-1]
+
+
 def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
     """
     Return timing figures of one full cycle of a scene of any kind.
