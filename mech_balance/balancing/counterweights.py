@@ -96,7 +96,7 @@ class CounterweightOptions:
 
     def to_dict(self):
         """Return the options as a plain dict."""
-        return _plain(self.__dict__)
+        return schema.plain(self.__dict__)
 
 
 def positive(value, name):
@@ -207,7 +207,7 @@ class CounterweightDesign:
 
     def to_dict(self):
         """Return the design as a plain dict."""
-        return _plain(self.__dict__)
+        return schema.plain(self.__dict__)
 
 
 @dataclass
@@ -242,7 +242,7 @@ class CounterweightResult:
 
     def summary(self):
         """Return the provenance stored with the balanced scene (``balance`` key)."""
-        return _plain({
+        return schema.plain({
             'source_scene': self.scene.name, 'method': METHOD,
             'options': self.options.to_dict(), 'objective': self.objective,
             'relative_gap': self.certificate.gap_rel, 'added_mass_kg': self.added_mass_kg})
@@ -250,7 +250,7 @@ class CounterweightResult:
     def to_dict(self):
         """Return everything as a plain, YAML- and JSON-able dict (SI, and normalized z)."""
         u = self.units
-        return _plain({
+        return schema.plain({
             'scene': self.scene.name, 'method': METHOD, 'options': self.options.to_dict(),
             'units': {'mass_kg': u.mass_kg, 'length_m': u.length_m,
                       'omega_rad_s': u.omega_rad_s},
@@ -719,18 +719,3 @@ class _Problem:
                 inertia_com_kg_m2=float(0.5 * dm * radius ** 2),
                 max_centre_radius_m=float(r_max), max_mass_kg=float(self.m_max[i] * ms)))
         return designs, omitted, float(max(worst, 0.0))
-
-
-def _plain(obj):
-    """Return ``obj`` with numpy scalars and tuples turned into YAML-safe Python types."""
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple, np.ndarray)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj)
-    return obj

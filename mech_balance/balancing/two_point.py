@@ -39,6 +39,7 @@ import math
 import time
 
 import clarabel
+from mech_balance import schema
 from mech_balance.balancing import socp as balancing
 import numpy as np
 import scipy.sparse as sp
@@ -80,7 +81,7 @@ class TwoPointResult:
 
     def to_dict(self):
         """Return the result as a plain dict."""
-        return _plain(self.__dict__)
+        return schema.plain(self.__dict__)
 
 
 def representable(theta, rel_tol=BAND_REL_TOL):
@@ -266,17 +267,3 @@ def _program(maps, dsc, w, n, pieces, theta_at):
     theta = x[:nv] * dsc
     z = float(w @ [np.linalg.norm(maps.force @ theta), np.linalg.norm(maps.moment @ theta)])
     return {'theta': theta, 'z': z, 'dual': float(sol.obj_val_dual), 'status': status}
-
-
-def _plain(obj):
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple, np.ndarray)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj)
-    return obj
