@@ -56,6 +56,11 @@ MAX_REPEAT = 10_000
 """Most timed runs per benchmark figure (``bench --repeat``)."""
 
 
+SERIES_UNITS = {'driving_torque': 'N*m', 'kinetic_energy': 'J'}
+"""SI unit of each scalar series a rig outputs (``RigData.series``); a series not listed is
+shown by its name without a unit.  N*m and J normalize as moments (m_1 a_1^2 omega^2)."""
+
+
 def check_samples(samples, field='samples', links=1):
     """
     Return ``samples`` as an int if 1 <= samples <= MAX_SAMPLES and the work is bounded.
