@@ -81,10 +81,12 @@ RIG_ROW_SHARE = 0.66
 """Share of the left column's height of the rig views (the RMS table below)."""
 LABEL_TEXT_PX = 13.0
 """Height of a label's text in the viewer."""
-LABEL_CHAR_PX = 7.4
-"""Width of one character of a label."""
+LABEL_CHAR_PX = {'upper': 10.0, 'digit': 7.0, 'other': 6.6}
+"""Width of one character of a label (capitals, digits, the rest), measured on screenshots."""
 LABEL_PAD_PX = (12.0, 9.0)
 """Padding of a label's box (width, height) around its text."""
+LABEL_DROP_PX = 2.0
+"""The viewer draws a point's label box this far below the point, centred on it."""
 LABEL_GAP_PX = 3.0
 """Free space kept between two label boxes."""
 LABEL_OFFSET_PX = 9.0
@@ -101,13 +103,13 @@ EYE_FIT = 1.15
 """The 3-D eye stands this much further than the distance that just fits the drawing."""
 
 # ----------------------------------------------------------------- sizes, shares of the rig
-FORCE_ARROW_SHARE = 0.35
+FORCE_ARROW_SHARE = 0.14
 """Automatic force scale: the longest shaking-force arrow is at most this share of the rig."""
 MOMENT_ARC_MAX_DEG = 270.0
 """Automatic moment scale: the largest shaking moment sweeps at most this arc."""
 MOMENT_ARC_LIMIT_DEG = 355.0
 """An arc never sweeps more than this (a scene's own scale may ask for more)."""
-DIAL_SHARE = 0.16
+DIAL_SHARE = 0.12
 """Least radius of the moment dial, as a share of the rig's size."""
 DIAL_OVER_ARROW = 1.15
 """The dial's radius is at least this times the longest force arrow (arrows stay inside)."""
@@ -145,12 +147,14 @@ GEOMETRY_RTOL = 1e-7
 """Poses of two designs of one geometry agree to this share of the rig."""
 LEGEND_HEADROOM = 0.24
 """Share of a plot's height kept free above the curves for the legend (top right)."""
-PLOT_MIN_TICKS = 4
-"""A plot's y range spans at least this many tick steps (so at least 3 labelled ticks)."""
+PLOT_MIN_TICKS = 3
+"""A plot's y range holds at least this many labelled ticks."""
+PLOT_TICK_PX = 24.0
+"""Least distance between two labelled y ticks (the viewer hides denser labels: 23 px are
+shown, 12 px are not, on screenshots of rerun 0.41)."""
 LINE_RADIUS_UI = rr.components.Radius.ui_points(2.0)
 FRAME_RADIUS_UI = rr.components.Radius.ui_points(1.5)
 JOINT_RADIUS_UI = rr.components.Radius.ui_points(4.5)
-LABEL_RADIUS_UI = rr.components.Radius.ui_points(0.5)
 Y_UP_SCALE = (1.0, -1.0, 1.0)
 """Scale of the 2-D drawing roots that shows the scene's y axis upwards."""
 CLOSE_TIMEOUT_S = 5.0
@@ -167,7 +171,8 @@ FORCE_COLOR = (240, 70, 70)
 MOMENT_COLOR = (200, 110, 255)
 DIAL_COLOR = (90, 90, 100)
 SCALE_COLOR = (200, 200, 200)
-ADDED_COLOR = (175, 180, 195)
+ADDED_COLOR = (175, 180, 195, 120)
+"""Added bodies: see-through, so that the link under a disc shows."""
 POSITIVE_MASS_COLOR = (225, 225, 225)
 NEGATIVE_MASS_COLOR = (255, 105, 180)
 SYSTEM_CENTRE_COLOR = (255, 255, 255)
@@ -259,17 +264,23 @@ class Screen:
         return (d[..., 0:1] * right - d[..., 1:2] * up) * s[..., None]
 
 
+def label_size_px(text):
+    """Return the (width, height) in pixels of the box of a label with ``text``."""
+    w = sum(LABEL_CHAR_PX['upper'] if c.isupper() else LABEL_CHAR_PX['digit'] if c.isdigit()
+            else LABEL_CHAR_PX['other'] for c in text)
+    return w + LABEL_PAD_PX[0], LABEL_TEXT_PX + LABEL_PAD_PX[1]
+
+
 def label_box_px(anchor_px, text):
     """
     Return the box ``(x0, y0, x1, y1)`` (pixels) that a label at ``anchor_px`` covers.
 
-    The labels entity draws each label centred on its (invisible) point.
+    The viewer draws a point's label centred under it, :data:`LABEL_DROP_PX` below.
     """
     a = np.asarray(anchor_px, dtype=float)
-    w = len(text) * LABEL_CHAR_PX + LABEL_PAD_PX[0]
-    h = LABEL_TEXT_PX + LABEL_PAD_PX[1]
-    return np.array([a[..., 0] - w / 2, a[..., 1] - h / 2, a[..., 0] + w / 2,
-                     a[..., 1] + h / 2])
+    w, h = label_size_px(text)
+    top = a[..., 1] + LABEL_DROP_PX
+    return np.array([a[..., 0] - w / 2, top, a[..., 0] + w / 2, top + h])
 
 
 @dataclass
@@ -375,12 +386,15 @@ def _arc_scale(largest):
     return 90.0 / _nice_ceil(largest * 90.0 / MOMENT_ARC_MAX_DEG)
 
 
-def plot_range(values):
+def plot_range(values, height_px):
     """
     Return ``(lo, hi, step)``: a y range on round ticks that covers ``values``.
 
-    At least :data:`PLOT_MIN_TICKS` steps, 0 inside when the data do not keep away from it,
-    and :data:`LEGEND_HEADROOM` of the height free above the data for the legend.
+    The viewer labels a plot's y axis at powers of ten only (egui_plot's decade grid), and
+    only where two labels are at least :data:`PLOT_TICK_PX` apart: ``step`` is the smallest
+    power of ten that is, so a plot ``height_px`` tall shows at least
+    :data:`PLOT_MIN_TICKS` labelled ticks.  0 is inside when the data do not keep away from
+    it, and :data:`LEGEND_HEADROOM` of the height is free above the data for the legend.
     """
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
@@ -390,18 +404,24 @@ def plot_range(values):
     if hi <= 0.0 and hi > 0.5 * lo:
         hi = 0.0
     span = hi - lo
-    if not span > 0.0:
+    if not span > 1e-300:
         span = abs(hi) or 1.0
         lo, hi = lo - 0.5 * span, hi + 0.5 * span
         span = hi - lo
     top = hi + span * LEGEND_HEADROOM / (1.0 - LEGEND_HEADROOM)
-    step = _nice_floor((top - lo) / PLOT_MIN_TICKS)
+    step = 10.0 ** math.floor(math.log10(top - lo) - 3.0)
     while True:
         y0 = math.floor(lo / step + 1e-9) * step
         y1 = math.ceil(top / step - 1e-9) * step
-        if (y1 - y0) / step <= 2 * PLOT_MIN_TICKS:
-            return float(y0), float(y1), float(step)
-        step = _nice_ceil(step * 1.5)
+        steps = round((y1 - y0) / step)
+        if height_px / max(steps, 1) >= PLOT_TICK_PX:
+            break
+        step *= 10.0
+    while round((y1 - y0) / step) < PLOT_MIN_TICKS - 1:
+        y0 -= step if lo < 0.0 or y0 > 0.0 else 0.0
+        if round((y1 - y0) / step) < PLOT_MIN_TICKS - 1:
+            y1 += step
+    return float(y0), float(y1), float(step)
 
 
 def _fmt(x):
@@ -635,7 +655,7 @@ class _TiledData:
 # ------------------------------------------------------------------------------- layout
 
 
-def _window(n_views, n_plots, has_text):
+def window_px(n_views, n_plots, has_text):
     """Return the drawing-area sizes (px) of a rig view and of a plot at :data:`WINDOW_PX`."""
     w, h = WINDOW_PX
     height = h - TOP_BAR_PX - TIME_PANEL_PX
@@ -690,12 +710,12 @@ def _merged_names(names, positions, size):
     return [('/'.join(n), idx) for n, idx in groups]
 
 
-def _pivot_name(drawing, rig, size):
+def _pivot_name(layout, motion, rig):
     """Return the name of the frame point where the crank joint is, or the rig's words."""
-    crank = next((j for j in drawing.joints if j[0] == rig.crank_joint), None)
-    if crank is not None:
-        for name, p in drawing.frame.items():
-            if crank[1] == 'frame' and crank[2] == name:
+    if rig.crank_joint in layout.joint_names and motion.joints.shape[1]:
+        at = motion.joints[:, layout.joint_names.index(rig.crank_joint)]
+        for name, q in zip(layout.frame_names, layout.frame_points):
+            if np.max(np.linalg.norm(at - q, axis=-1)) <= 1e3 * SAME_POINT_RTOL * layout.size_m:
                 return name
     return rig.moment_point
 
@@ -758,11 +778,12 @@ def _plan(scene, balanced, samples, balanced_source, live=False):
         link_names=names, link_colors=colors,
         joint_names=[j[0] for j in drawing.joints], frame_names=list(drawing.frame),
         frame_points=frame_pts, frame_strips=frame_strips,
-        pivot_name=_pivot_name(drawing, rig, size), force_scale_m_per_N=fscale,
+        pivot_name=rig.moment_point, force_scale_m_per_N=fscale,
         moment_scale=mscale, gauge_m=np.zeros(3), gauge_reach_m=0.0, dial_radius_m=0.0, scale_bar=None,
         screens={}, plots=[], labels=[], series=series, has_added=has_added,
         has_point_masses=has_pm, live=live)
     motion = _motion(layout, data)
+    layout.pivot_name = _pivot_name(layout, motion, rig)
     _place_views(layout, motion, fmax, nmax, len(series))
     layout.labels = _label_specs(layout, motion)
     layout.plots = _plots(layout, motion)
@@ -799,7 +820,7 @@ def _place_views(layout, motion, fmax, nmax, n_series):
     hi = np.max(pts + radii[:, None], axis=0)
     n_plots = int(layout.on('shaking_force_plot')) + int(layout.on('shaking_moment_plot')) + \
         n_series
-    view_px, _ = _window(len(layout.variants), n_plots, layout.on('info'))
+    view_px, _ = window_px(len(layout.variants), n_plots, layout.on('info'))
     arrow = fmax * layout.force_scale_m_per_N if layout.on('shaking_force_arrow') else 0.0
     gauge = layout.on('shaking_force_arrow') or layout.on('shaking_moment_arc')
     gap = GAUGE_GAP_SHARE * size
@@ -839,7 +860,7 @@ def _place_views(layout, motion, fmax, nmax, n_series):
                   (float(cy - 0.5 * h_px * s), float(cy + 0.5 * h_px * s)))
         screen = Screen(view_px, bounds=bounds)
         label_at = 0.5 * (strip[1] + strip[2]) + screen.offset_m(
-            strip[1], [0.0, LABEL_OFFSET_PX + 0.5 * (LABEL_TEXT_PX + LABEL_PAD_PX[1])])
+            strip[1], [0.0, 3.0 + 0.5 * (LABEL_TEXT_PX + LABEL_PAD_PX[1])])
         layout.scale_bar = (strip, text, label_at)
     else:
         reach = max(arrow, nmax * layout.moment_scale if layout.on('shaking_moment_arc')
@@ -856,16 +877,18 @@ def _place_views(layout, motion, fmax, nmax, n_series):
             lo = np.minimum(lo, layout.gauge_m - reach)
             hi = np.maximum(hi, layout.gauge_m + reach)
         target = 0.5 * (lo + hi)
-        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                            for z in (lo[2], hi[2])])
-        screen = _fit_eye(view_px, target, d, corners)
+        drawn = pts[::max(1, len(pts) // 4000)]
+        if layout.gauge_reach_m:
+            drawn = np.concatenate([drawn, layout.gauge_m + layout.gauge_reach_m * np.array(
+                [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])])
+        screen = _fit_eye(view_px, target, d, drawn)
     layout.screens = {v: screen for v in layout.variants}
 
 
 def _fit_eye(view_px, target, direction, corners):
     """Return a 3-D :class:`Screen` whose eye sees every corner inside the view's margins."""
-    dist = float(np.max(np.linalg.norm(corners - target, axis=1))) or 1.0
-    for _ in range(60):
+    dist = 0.3 * float(np.max(np.linalg.norm(corners - target, axis=1))) or 1.0
+    for _ in range(80):
         screen = Screen(view_px, eye_m=tuple(target + direction * dist),
                         target_m=tuple(target))
         px = screen.px(corners)
@@ -874,7 +897,7 @@ def _fit_eye(view_px, target, direction, corners):
                 np.all(px[:, 1] >= pad) and np.all(px[:, 1] <= view_px[1] - pad):
             return Screen(view_px, eye_m=tuple(target + direction * dist * EYE_FIT),
                           target_m=tuple(target))
-        dist *= 1.1
+        dist *= 1.05
     return screen
 
 
@@ -893,9 +916,10 @@ def _plots(layout, motion):
         specs.append((f'{k}_plot', k, k.replace('_', ' ') + (f' ({unit})' if unit else ''),
                       unit))
     plots = []
+    _, plot_px = window_px(len(layout.variants), len(specs), layout.on('info'))
     for stream, entity, title, unit in specs:
         values = np.concatenate([v for _, v in _plot_values(layout, motion, entity)])
-        y0, y1, step = plot_range(values)
+        y0, y1, step = plot_range(values, plot_px[1])
         plots.append(_Plot(stream, entity, title, unit, (y0, y1), step))
     return plots
 
@@ -1013,15 +1037,17 @@ def _place_labels(layout, motion, variant):
     h = LABEL_TEXT_PX + LABEL_PAD_PX[1]
     for spec in layout.labels:
         texts = [spec.text(d) for d in motion.degrees] if callable(spec.text) else None
-        longest = max(len(t) for t in texts) if texts else len(spec.text)
-        w = longest * LABEL_CHAR_PX + LABEL_PAD_PX[0]
-        if spec.where == 'readout':
+        w = max(label_size_px(t)[0] for t in (texts or [spec.text]))
+        if spec.where in ('readout', 'scale'):
             corner = np.array([LABEL_GAP_PX + 0.5 * w, LABEL_GAP_PX + 0.5 * h])
+            if spec.where == 'scale':
+                corner = screen.px(layout.scale_bar[2])
             box = np.broadcast_to(np.array([corner[0] - w / 2, corner[1] - h / 2,
                                             corner[0] + w / 2, corner[1] + h / 2]), (p, 4))
             ok = np.ones(p, dtype=bool)
             centre_px = np.broadcast_to(corner, (p, 2))
-            base = _unproject(screen, centre_px, layout, motion)
+            base = _unproject(screen, centre_px - [0.0, LABEL_DROP_PX + 0.5 * h], layout,
+                              motion)
             placed.append((box, ok))
             out.append((base, ok, texts or [spec.text] * p, spec.color))
             continue
@@ -1058,7 +1084,8 @@ def _place_labels(layout, motion, variant):
         box = boxes[rows, first]
         centre_px = centres[rows, first]
         placed.append((box, found))
-        base = _unproject(screen, centre_px, layout, motion, feature)
+        base = _unproject(screen, centre_px - [0.0, LABEL_DROP_PX + 0.5 * h], layout, motion,
+                          feature)
         out.append((base, found, texts or [spec.text] * p, spec.color))
     positions, labels, colors, counts = [], [], [], np.zeros(p, dtype=np.int64)
     for k in range(p):
@@ -1300,7 +1327,7 @@ def _log_static(rec, layout):
                                              radii=[FRAME_RADIUS_UI]), static=True)
     size = layout.size_m
     for v in layout.variants:
-        rec.log(f'{v}/labels', points.from_fields(radii=[LABEL_RADIUS_UI], show_labels=True),
+        rec.log(f'{v}/labels', points.from_fields(radii=[0.0], show_labels=True),
                 static=True)
         if layout.on('mass_centres'):
             n = len(layout.link_names)
