@@ -17,6 +17,9 @@ with rerun's own loader, and checked at the default window (``recording.WINDOW_P
 
 import itertools
 import math
+import os
+import signal
+import subprocess
 
 from mech_balance import schema as scene_mod
 from mech_balance.cli import main as cli
@@ -109,7 +112,7 @@ def test_labels_never_overlap_at_the_default_window(recordings, name):
         flat = {t for words in texts for t in words}
         assert any(t.startswith('crank ') and t.endswith(' deg') for t in flat)
         joints = [n for n in layout.joint_names
-                  if np.ptp(np.array([r for r in _positions(ent, '/rig/joints', layout.dim)]),
+                  if np.ptp(np.array(_positions(ent, '/rig/joints', layout.dim)),
                             axis=0)[layout.joint_names.index(n)].max() > 1e-6]
         assert all(any(n in t.split('/') for t in flat) for n in joints), joints
         assert 'G' not in flat or 'CoM' in flat      # the system mass centre is never 'G'
@@ -254,3 +257,40 @@ def test_any_sample_count_from_zero_degrees(tmp_path, samples):
     readout = [t for row in ent['/original/labels'].columns['Points2D:labels'] for t in row
                if t.startswith('crank ')]
     assert readout[0] == 'crank 0.0 deg' and len(readout) == samples
+
+
+# ------------------------------------------------------------------------------ live view
+
+LIVE_RATE_HZ = 200.0
+LIVE_WINDOW_S = 3.0
+
+
+def test_node_streams_the_offline_views_to_a_viewer_without_slowing(tmp_path):
+    """The node with ``rerun_url`` set: a viewer-side endpoint started here gets the views."""
+    from mech_balance.bench import node as bench_node
+    domain = int(os.environ.get('ROS_DOMAIN_ID', '53'))
+    port = bench_node.free_port()
+    saved = tmp_path / 'live.rrd'
+    viewer = bench_node.viewer_endpoint(saved, port)
+    try:
+        base = bench_node.run_node('hoeken', LIVE_RATE_HZ, LIVE_WINDOW_S, domain=domain)
+        live = bench_node.run_node(
+            'hoeken', LIVE_RATE_HZ, LIVE_WINDOW_S, domain=domain,
+            params=(f'rerun_url:=rerun+http://127.0.0.1:{port}/proxy',))
+    finally:
+        viewer.send_signal(signal.SIGINT)
+        try:
+            viewer.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            viewer.kill()
+    assert f'streaming the views to rerun+http://127.0.0.1:{port}/proxy' in live['log']
+    got = recording.read_recording(saved)
+    offline_path = tmp_path / 'offline.rrd'
+    recording.record(offline_path, scene_mod.load('hoeken'))
+    offline = recording.read_recording(offline_path)
+    assert set(offline) <= set(got), set(offline) - set(got)
+    assert got['/plots/shaking_force/original'].rows >= 10
+    assert got['/original/labels'].rows == got['/rig/links'].rows
+    # the live view never slows publishing: within 5 % of the rate without it
+    assert live['missed'] <= base['missed'] + 0.05
+    assert live['rate_hz'] >= 0.95 * base['rate_hz'], (live['rate_hz'], base['rate_hz'])

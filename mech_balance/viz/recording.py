@@ -41,7 +41,7 @@ whole time series go out through ``send_columns``.  :func:`record` writes a file
 
 import atexit
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 import math
 import os
 from pathlib import Path
@@ -161,7 +161,11 @@ CLOSE_TIMEOUT_S = 5.0
 """How long :meth:`LiveRecorder.close` waits for a logging call on another thread."""
 LIVE_MAX_RATE_HZ = 30.0
 """The live view logs at most this many samples per second of the rig's clock."""
-LIVE_QUEUE = 8
+LIVE_FLUSH_HZ = 5.0
+"""The live view's thread sends what it kept at most this often (per second of the rig's
+clock): a send costs ~15 ms of Python whatever its size, which the publishing thread waits
+for in slices of the node's switch interval."""
+LIVE_QUEUE = 256
 """Batches waiting for the live view's thread; when full the oldest is dropped."""
 
 # ----------------------------------------------------------------- colour roles (RGB)
@@ -481,7 +485,7 @@ def _streams_for(scene, rig):
     """Return the enabled stream names: the scene's switches, less what it does not compute."""
     rec = getattr(scene, 'recording', None) or Recording()
     have = needs(rig.outputs)
-    streams = [s for s in rec.streams]
+    streams = list(rec.streams)
     if 'accelerations' not in have:
         streams = [s for s in streams if s not in _SHAKING_STREAMS]
     if 'driving_torque' not in have:
@@ -559,8 +563,11 @@ def align_design(original, balanced):
 
 
 def _outline(body, half_block):
-    """Return a body's polyline in its own frame ``(k, 3)``: closed for a plate, a square for
-    a one-point body (a slider block)."""
+    """
+    Return a body's polyline in its own frame ``(k, 3)``.
+
+    Closed for a plate, a square for a one-point body (a slider block).
+    """
     pts = np.array([body.points[n] for n in body.outline], dtype=float).reshape(-1, 3)
     if len(pts) == 1:
         square = half_block * np.array([[1, 1, 0], [-1, 1, 0], [-1, -1, 0], [1, -1, 0],
@@ -731,8 +738,8 @@ def _plan(scene, balanced, samples, balanced_source, live=False):
     dim = drawing.dimension
     streams = _streams_for(scene, rig)
     stream_outputs = _stream_outputs(rig, streams)
-    table_outputs = tuple(dict.fromkeys(stream_outputs + (tuple(rig.outputs)
-                                                           if 'info' in streams else ())))
+    asked = tuple(rig.outputs) if 'info' in streams else ()
+    table_outputs = tuple(dict.fromkeys(stream_outputs + asked))
     psi = turn_angles(samples, scene.crank_speed_rad_s)
     data = {v: r.at(psi, outputs=table_outputs) for v, r in rigs.items()}
     ref = data['original']
@@ -779,7 +786,8 @@ def _plan(scene, balanced, samples, balanced_source, live=False):
         joint_names=[j[0] for j in drawing.joints], frame_names=list(drawing.frame),
         frame_points=frame_pts, frame_strips=frame_strips,
         pivot_name=rig.moment_point, force_scale_m_per_N=fscale,
-        moment_scale=mscale, gauge_m=np.zeros(3), gauge_reach_m=0.0, dial_radius_m=0.0, scale_bar=None,
+        moment_scale=mscale, gauge_m=np.zeros(3), gauge_reach_m=0.0, dial_radius_m=0.0,
+        scale_bar=None,
         screens={}, plots=[], labels=[], series=series, has_added=has_added,
         has_point_masses=has_pm, live=live)
     motion = _motion(layout, data)
@@ -795,7 +803,7 @@ def _plan(scene, balanced, samples, balanced_source, live=False):
 def _drawn_extent(layout, motion):
     """Return every drawn point of the rig over the turn ``(m, 3)``, and radii around them."""
     pts = [np.concatenate(motion.links, axis=1).reshape(-1, 3), layout.frame_points]
-    pts += [s for s in layout.frame_strips]
+    pts += list(layout.frame_strips)
     radii = [np.zeros(len(p)) for p in pts]
     if layout.on('mass_centres'):
         for c in motion.centres.values():
@@ -931,8 +939,8 @@ def _plot_values(layout, motion, entity):
         if entity == 'shaking_force':
             yield v, np.linalg.norm(d.force_N, axis=1)
         elif entity == 'shaking_moment':
-            yield v, d.moment_Nm[:, 2] if layout.dim == 2 else np.linalg.norm(d.moment_Nm,
-                                                                               axis=1)
+            norm = np.linalg.norm(d.moment_Nm, axis=1)
+            yield v, d.moment_Nm[:, 2] if layout.dim == 2 else norm
         elif entity in d.series:
             yield v, d.series[entity]
 
@@ -1061,8 +1069,9 @@ def _place_labels(layout, motion, variant):
             (boxes[..., 3] <= h_px)
         for other, mask in placed:
             g = LABEL_GAP_PX
-            hit = (boxes[..., 0] < other[:, None, 2] + g) & (boxes[..., 2] > other[:, None, 0] - g) \
-                & (boxes[..., 1] < other[:, None, 3] + g) & (boxes[..., 3] > other[:, None, 1] - g)
+            hit = (boxes[..., 0] < other[:, None, 2] + g) & \
+                (boxes[..., 2] > other[:, None, 0] - g) & \
+                (boxes[..., 1] < other[:, None, 3] + g) & (boxes[..., 3] > other[:, None, 1] - g)
             ok &= ~(hit & mask[:, None])
         if markers.shape[1]:
             mx, my = markers[:, None, :, 0], markers[:, None, :, 1]
@@ -1153,8 +1162,8 @@ def _text(layout, scene, data, samples, balanced_source):
     lines = [f'# {scene.name}: ' + ('original vs balanced' if both else 'original'), '']
     rows = _rms_rows(layout, data)
     if rows:
-        head = '| RMS over one turn | SI | original |' + (' balanced | balanced / original |'
-                                                         if both else '')
+        more = ' balanced | balanced / original |' if both else ''
+        head = '| RMS over one turn | SI | original |' + more
         sep = '|---|---|---:|' + ('---:|---:|' if both else '')
         if norm is not None:
             head += ' normalized | original |' + (' balanced |' if both else '')
@@ -1193,7 +1202,7 @@ def _text(layout, scene, data, samples, balanced_source):
     lines.append('* Grey: the frame, its pivots, fixed axes and guides; coloured: the links; '
                  'white dots: the joints. The bar under the rig is a length scale.')
     if layout.on('mass_centres'):
-        lines.append('* Dots in a link\'s colour: its mass centre; the large white dot CoM: the '
+        lines.append("* Dots in a link's colour: its mass centre; the large white dot CoM: the "
                      'mass centre of all moving links (it stands still when the rig is force '
                      'balanced).')
     if layout.has_added:
@@ -1209,8 +1218,8 @@ def _text(layout, scene, data, samples, balanced_source):
                      f'= {_fmt(0.01 / layout.force_scale_m_per_N)} N.')
     if layout.on('shaking_moment_arc'):
         if layout.dim == 2:
-            lines.append(f'* Purple arc on the gauge\'s dial: the shaking moment about '
-                         f'{layout.pivot_name}, counter-clockwise positive from 12 o\'clock; '
+            lines.append(f"* Purple arc on the gauge's dial: the shaking moment about "
+                         f"{layout.pivot_name}, counter-clockwise positive from 12 o'clock; "
                          f'90 deg of arc = {_fmt(90.0 / layout.moment_scale)} N*m.')
         else:
             lines.append(f'* Purple arrow in the gauge: the shaking moment vector about '
@@ -1627,19 +1636,31 @@ class _LiveView:
             self._cond.notify()
 
     def _run(self):
+        pending = []        # (t, psi, data, keep) kept samples, not yet logged
         while True:
             with self._cond:
-                while not self._queue and not self._stopped:
-                    self._cond.wait(0.5)
-                if self._stopped and not self._queue:
-                    return
-                t, psi, data = self._queue.popleft()
-            try:
-                self._log(t, psi, data)
-            except Exception:  # noqa: BLE001 - a viewer that went away stops nothing
-                pass
+                if not self._queue and not self._stopped:
+                    self._cond.wait(1.0 / LIVE_FLUSH_HZ)
+                batches = list(self._queue)
+                self._queue.clear()
+                stopped = self._stopped
+            for t, psi, data in batches:
+                keep = self._keep(t)
+                if keep.size:
+                    pending.append((t[keep], psi[keep], data, keep))
+            due = pending and (stopped or pending[-1][0][-1] - pending[0][0][0] >=
+                               1.0 / LIVE_FLUSH_HZ)
+            if due:
+                try:
+                    self._log(pending)
+                except Exception:  # noqa: BLE001 - a viewer that went away stops nothing
+                    pass
+                pending = []
+            if stopped:
+                return
 
-    def _log(self, t, psi, data):
+    def _keep(self, t):
+        """Return the indices of the samples kept by the throttle (rig's clock)."""
         if self._next_t is None:
             self._next_t, self._t0 = float(t[0]), float(t[0])
         keep = []
@@ -1647,14 +1668,17 @@ class _LiveView:
             if tk >= self._next_t:
                 keep.append(k)
                 self._next_t = tk + 1.0 / LIVE_MAX_RATE_HZ
-        if not keep:
-            return
-        keep = np.array(keep)
-        t, psi = t[keep], psi[keep]
-        motion = _live_motion(self.layout, psi, data, keep)
-        _log_motion(self._rec, self.layout, motion,
-                    np.round(np.degrees(psi)).astype(np.int64), t - self._t0)
-        self.samples_logged += len(keep)
+        return np.array(keep, dtype=np.int64)
+
+    def _log(self, pending):
+        """Send the kept samples of several batches as one batch (one send per entity)."""
+        motion = _concat([_live_motion(self.layout, psi, data, keep)
+                          for _, psi, data, keep in pending])
+        t = np.concatenate([p[0] for p in pending])
+        psi = np.concatenate([p[1] for p in pending])
+        _log_motion(self._rec, self.layout, motion, np.round(np.degrees(psi)).astype(np.int64),
+                    t - self._t0)
+        self.samples_logged += t.size
 
     def close(self):
         """Send what is queued and disconnect (idempotent)."""
@@ -1668,6 +1692,33 @@ class _LiveView:
             self._rec.flush(timeout_sec=CLOSE_TIMEOUT_S)
         finally:
             self._rec.disconnect()
+
+
+def _concat(motions):
+    """Return one :class:`_Motion` of several, sample after sample."""
+    if len(motions) == 1:
+        return motions[0]
+
+    def cat(arrays):
+        return np.concatenate(arrays, axis=0)
+
+    def cat_data(ds):
+        from mech_balance.core.rig import BodyPoses
+        b = ds[0].bodies
+        return _Data(BodyPoses(b.names, cat([d.bodies.origin_m for d in ds]),
+                               cat([d.bodies.rotation for d in ds])),
+                     cat([d.crank_angle_rad for d in ds]),
+                     None if ds[0].force_N is None else cat([d.force_N for d in ds]),
+                     None if ds[0].moment_Nm is None else cat([d.moment_Nm for d in ds]),
+                     {k: cat([d.series[k] for d in ds]) for k in ds[0].series})
+    m0 = motions[0]
+    return _Motion([cat([m.links[i] for m in motions]) for i in range(len(m0.links))],
+                   cat([m.joints for m in motions]),
+                   {v: cat([m.centres[v] for m in motions]) for v in m0.centres},
+                   {v: cat([m.added[v] for m in motions]) for v in m0.added},
+                   {v: cat([m.point_masses[v] for m in motions]) for v in m0.point_masses},
+                   {v: cat_data([m.data[v] for m in motions]) for v in m0.data},
+                   cat([m.degrees for m in motions]))
 
 
 class _Data:
