@@ -105,6 +105,10 @@ EYE_FIT = 1.15
 # ----------------------------------------------------------------- sizes, shares of the rig
 FORCE_ARROW_SHARE = 0.14
 """Automatic force scale: the longest shaking-force arrow is at most this share of the rig."""
+ARROW_3D_SHARE = 0.3
+"""3-D: the longest shaking-force (and moment) arrow is at most this share of the rig."""
+ARROW_3D_RADIUS_SHARE = 0.012
+"""3-D: radius of the gauge's arrows, as a share of the rig."""
 MOMENT_ARC_MAX_DEG = 270.0
 """Automatic moment scale: the largest shaking moment sweeps at most this arc."""
 MOMENT_ARC_LIMIT_DEG = 355.0
@@ -149,6 +153,8 @@ LEGEND_HEADROOM = 0.24
 """Share of a plot's height kept free above the curves for the legend (top right)."""
 PLOT_MIN_TICKS = 3
 """A plot's y range holds at least this many labelled ticks."""
+PLOT_EDGE_SHARE = 0.04
+"""Share of a plot's range added beyond its end ticks, so that the viewer labels them."""
 PLOT_TICK_PX = 24.0
 """Least distance between two labelled y ticks (the viewer hides denser labels: 23 px are
 shown, 12 px are not, on screenshots of rerun 0.41)."""
@@ -177,6 +183,8 @@ DIAL_COLOR = (90, 90, 100)
 SCALE_COLOR = (200, 200, 200)
 ADDED_COLOR = (175, 180, 195, 120)
 """Added bodies: see-through, so that the link under a disc shows."""
+ADDED_DRAW_ORDER = 5.0
+"""2-D draw order of the added bodies: behind the links (20) and points (30)."""
 POSITIVE_MASS_COLOR = (225, 225, 225)
 NEGATIVE_MASS_COLOR = (255, 105, 180)
 SYSTEM_CENTRE_COLOR = (255, 255, 255)
@@ -371,16 +379,15 @@ def _nice_floor(x):
     return 10.0 ** (exp - 1)
 
 
-def _arrow_scale(size_m, largest):
+def _arrow_scale(size_m, largest, share=FORCE_ARROW_SHARE):
     """
     Return metres of arrow per unit value (m per N, or m per N*m).
 
-    1 cm of arrow is a round value and the longest arrow at most ``FORCE_ARROW_SHARE`` of
-    the rig's size.
+    1 cm of arrow is a round value and the longest arrow at most ``share`` of the rig's size.
     """
     if not largest > 0.0:
         return 1.0
-    return 0.01 / _nice_ceil(largest * 0.01 / (FORCE_ARROW_SHARE * size_m))
+    return 0.01 / _nice_ceil(largest * 0.01 / (share * size_m))
 
 
 def _arc_scale(largest):
@@ -418,14 +425,16 @@ def plot_range(values, height_px):
         y0 = math.floor(lo / step + 1e-9) * step
         y1 = math.ceil(top / step - 1e-9) * step
         steps = round((y1 - y0) / step)
-        if height_px / max(steps, 1) >= PLOT_TICK_PX:
+        if height_px / ((1.0 + 2.0 * PLOT_EDGE_SHARE) * max(steps, 1)) >= PLOT_TICK_PX:
             break
         step *= 10.0
     while round((y1 - y0) / step) < PLOT_MIN_TICKS - 1:
         y0 -= step if lo < 0.0 or y0 > 0.0 else 0.0
         if round((y1 - y0) / step) < PLOT_MIN_TICKS - 1:
             y1 += step
-    return float(y0), float(y1), float(step)
+    # the viewer does not label a tick on the very edge: keep the end ticks inside
+    margin = PLOT_EDGE_SHARE * (y1 - y0)
+    return float(y0 - margin), float(y1 + margin), float(step)
 
 
 def _fmt(x):
@@ -773,11 +782,12 @@ def _plan(scene, balanced, samples, balanced_source, live=False):
                 if d.force_N is not None), default=0.0)
     nmax = max((float(np.max(np.linalg.norm(d.moment_Nm, axis=1))) for d in data.values()
                 if d.moment_Nm is not None), default=0.0)
-    fscale = rec.force_scale_m_per_N or _arrow_scale(size, fmax)
+    share = FORCE_ARROW_SHARE if dim == 2 else ARROW_3D_SHARE
+    fscale = rec.force_scale_m_per_N or _arrow_scale(size, fmax, share)
     if dim == 2:
         mscale = rec.moment_scale_deg_per_Nm or _arc_scale(nmax)
     else:
-        mscale = _arrow_scale(size, nmax)
+        mscale = _arrow_scale(size, nmax, share)
 
     layout = Layout(
         title=scene.name, dim=dim, streams=streams, variants=tuple(rigs), rigs=rigs,
@@ -1062,6 +1072,8 @@ def _place_labels(layout, motion, variant):
         feature = _label_anchor(layout, motion, spec, variant, screen)
         f_px = screen.px(feature)                                   # (p, 2)
         offs = _candidates(w, h)                                    # (c, 2)
+        if spec.where == 'gauge':
+            offs = offs[[2, 6, 7, 1, 3, 0, 4, 5]]                   # below the gauge first
         centres = f_px[:, None, :] + offs[None]                     # (p, c, 2)
         boxes = np.stack([centres[..., 0] - w / 2, centres[..., 1] - h / 2,
                           centres[..., 0] + w / 2, centres[..., 1] + h / 2], axis=-1)
@@ -1346,10 +1358,11 @@ def _log_static(rec, layout):
                 static=True)
         added = [a for b in layout.drawings[v].bodies for a in b.added]
         if layout.has_added and added:
+            behind = {'draw_order': ADDED_DRAW_ORDER} if layout.dim == 2 else {}
             rec.log(f'{v}/counterweights', points.from_fields(
                 radii=[a.radius_m for a in added], colors=[ADDED_COLOR],
-                labels=[f'{a.name}: {a.mass_kg:.3g} kg' for a in added], show_labels=False),
-                static=True)
+                labels=[f'{a.name}: {a.mass_kg:.3g} kg' for a in added], show_labels=False,
+                **behind), static=True)
         if layout.has_point_masses:
             kg = np.array([m for b in layout.drawings[v].bodies for m, _ in b.point_masses])
             mmax = max(float(np.max(np.abs(np.array(
@@ -1362,7 +1375,7 @@ def _log_static(rec, layout):
         if layout.on('shaking_force_arrow'):
             rec.log(f'{v}/shaking_force', arrows.from_fields(
                 origins=[_xy(layout, layout.gauge_m)], colors=[FORCE_COLOR],
-                radii=[_radius(layout, FRAME_RADIUS_3D_SHARE * 1.6, LINE_RADIUS_UI)]),
+                radii=[_radius(layout, ARROW_3D_RADIUS_SHARE, LINE_RADIUS_UI)]),
                 static=True)
         if layout.on('shaking_moment_arc'):
             if layout.dim == 2:
@@ -1371,7 +1384,7 @@ def _log_static(rec, layout):
             else:
                 rec.log(f'{v}/shaking_moment', rr.Arrows3D.from_fields(
                     origins=[layout.gauge_m], colors=[MOMENT_COLOR],
-                    radii=[FRAME_RADIUS_3D_SHARE * 1.6 * size]), static=True)
+                    radii=[ARROW_3D_RADIUS_SHARE * size]), static=True)
     for p in layout.plots:
         for v in layout.variants:
             rec.log(f'plots/{p.entity}/{v}', rr.SeriesLines(colors=[SERIES_COLORS[v]],
