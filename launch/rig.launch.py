@@ -5,8 +5,11 @@ Launch the rig node, robot_state_publisher with the rig's URDF and, optionally, 
 
 The URDF is generated here, at launch, by :func:`mech_balance.urdf.urdf_xml` for the
 launched scene, with the root link named after the node's ``frame_id`` from the params
-file, and handed to robot_state_publisher as its ``robot_description`` parameter.  The
-launch arguments are :data:`ARGUMENTS` (documented in README.md, section "RViz,
+file, and handed to robot_state_publisher as its ``robot_description`` parameter;
+robot_state_publisher then owns the ``robot_description`` topic, so the rig node is started
+with ``publish_robot_description`` false (one publisher per topic).  robot_state_publisher
+turns the node's ``joint_states`` (every URDF joint, in the URDF's zero convention) into TF.
+The launch arguments are :data:`ARGUMENTS` (documented in README.md, section "RViz,
 robot_state_publisher and launch").
 """
 
@@ -58,7 +61,9 @@ def _nodes(context):
     prefix = f'/{namespace}' if namespace else ''
     return [
         Node(package=PACKAGE, executable=EXECUTABLE, namespace=namespace, output='screen',
-             parameters=[params_file, {'scene': ParameterValue(scene_name, value_type=str)}]),
+             parameters=[params_file, {'scene': ParameterValue(scene_name, value_type=str),
+                                       # robot_state_publisher publishes the URDF
+                                       'publish_robot_description': False}]),
         Node(package='robot_state_publisher', executable='robot_state_publisher',
              namespace=namespace, output='screen',
              # a string, not YAML: the XML's comments hold ': ' (launch_ros would parse it)

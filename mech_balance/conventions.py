@@ -26,7 +26,6 @@ RMS over a cycle
     computed with the true RMS (checked against Table 4), so that is the one used here.
 """
 
-import numpy as np
 
 DEFAULT_SAMPLES = 360
 """Crank angles per revolution when a caller does not say (one per degree)."""
@@ -54,11 +53,6 @@ MAX_TABLE_ROWS = 10_000
 """Most rows of a printed time table (``simulate --rows``)."""
 MAX_REPEAT = 10_000
 """Most timed runs per benchmark figure (``bench --repeat``)."""
-
-
-SERIES_UNITS = {'driving_torque': 'N*m', 'kinetic_energy': 'J'}
-"""SI unit of each scalar series a rig outputs (``RigData.series``); a series not listed is
-shown by its name without a unit.  N*m and J normalize as moments (m_1 a_1^2 omega^2)."""
 
 
 def check_samples(samples, field='samples', links=1):
@@ -93,6 +87,7 @@ def cycle_angles(samples, start_rad=0.0, links=1):
     The end point is excluded, so that each angle carries the same weight in the RMS.
     ``samples`` is bounded by :func:`check_samples` (``links`` moving links per angle).
     """
+    import numpy as np  # on first use: the command line parsers need none
     samples = check_samples(samples, links=links)
     return start_rad + 2.0 * np.pi * np.arange(samples) / samples
 
@@ -104,6 +99,7 @@ def rms(values, axis=0):
     ``values`` is ``(p,)`` for a scalar series or ``(p, k)`` for a vector series, whose
     magnitude is taken over the last axis.  The mean runs over ``axis`` (the samples).
     """
+    import numpy as np  # on first use: the command line parsers need none
     v = np.asarray(values, dtype=float)
     if v.ndim == 0:
         raise ValueError('values: got a scalar, expected a series over crank angles')
@@ -113,9 +109,11 @@ def rms(values, axis=0):
 
 def normalize_force(force_N, mass_kg, length_m, omega_rad_s):
     """Return a force in units of m_1 * a_1 * omega^2 (seed 001, section 3.4)."""
+    import numpy as np  # on first use: the command line parsers need none
     return np.asarray(force_N, dtype=float) / (mass_kg * length_m * omega_rad_s ** 2)
 
 
 def normalize_moment(moment_Nm, mass_kg, length_m, omega_rad_s):
     """Return a moment or torque in units of m_1 * a_1^2 * omega^2 (seed 001, section 3.4)."""
+    import numpy as np  # on first use: the command line parsers need none
     return np.asarray(moment_Nm, dtype=float) / (mass_kg * length_m ** 2 * omega_rad_s ** 2)

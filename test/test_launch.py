@@ -118,6 +118,18 @@ def test_launch_arguments_are_documented_in_the_readme():
     assert 'mech-balance urdf' in section
 
 
+def test_robot_state_publisher_alone_publishes_robot_description():
+    """The launch starts the rig node with publish_robot_description false (one publisher)."""
+    assert params.BY_NAME['publish_robot_description'].default is True
+    settings = {}
+    for node in ast.walk(ast.parse(LAUNCH_FILE.read_text())):
+        if isinstance(node, ast.Dict):
+            for key, value in zip(node.keys, node.values):
+                if isinstance(key, ast.Constant) and isinstance(value, ast.Constant):
+                    settings.setdefault(key.value, []).append(value.value)
+    assert settings.get('publish_robot_description') == [False]
+
+
 def test_the_default_scene_and_frame_id_are_the_nodes():
     c = _constants()
     spec = {s.name: s for s in params.PARAMETERS}

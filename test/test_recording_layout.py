@@ -296,3 +296,22 @@ def test_node_streams_the_offline_views_to_a_viewer_without_slowing(tmp_path):
     # the live view never slows publishing: within 5 % of the rate without it
     assert live['missed'] <= base['missed'] + 0.05
     assert live['rate_hz'] >= 0.95 * base['rate_hz'], (live['rate_hz'], base['rate_hz'])
+
+
+def test_a_new_series_is_plotted_with_no_recording_change(tmp_path):
+    """kinetic_energy, asked for in the scene's outputs, gets its plot from RigData.series."""
+    data, source = scene_mod.load_data('hoeken')
+    data['outputs'] = ['kinematics', 'shaking_wrench', 'driving_torque', 'kinetic_energy']
+    sc = scene_mod.from_dict(data, source=str(source))
+    path = tmp_path / 'ke.rrd'
+    summary = recording.record(path, sc, samples=90)
+    ent = recording.read_recording(path)
+    got = np.array([r[0] for r in ent['/plots/kinetic_energy/original'].columns[
+        'Scalars:scalars']])
+    psi = recording.turn_angles(90, sc.crank_speed_rad_s)
+    want = rig_for(sc).at(psi, outputs=('kinetic_energy',)).series['kinetic_energy']
+    assert_allclose(got, want, rtol=1e-12, atol=0.0)
+    assert '/plots/kinetic_energy/original' in summary.entity_paths
+    names = [v['name'] for v in recording.read_blueprint(path) if v['kind'] == 'TimeSeries']
+    assert any(n.startswith('kinetic energy') and n.endswith('(J)') for n in names), names
+    assert 'kinetic energy' in ent['/info'].static['TextDocument:text'][0]

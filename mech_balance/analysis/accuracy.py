@@ -29,6 +29,7 @@ import statistics
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.analysis import timing
+from mech_balance.analysis.studies import ACCURACY_TURNS, SECTIONS
 from mech_balance.conventions import cycle_angles
 from mech_balance.core import forward as simulate
 from mech_balance.core.planar import kinematics
@@ -40,8 +41,6 @@ P_REFERENCE = 2880
 """Samples of the reference RMS (eight per degree)."""
 RMS_TIMING_REPEAT = 5
 """Timed repeats per p (median reported)."""
-ACCURACY_TURNS = 2.0
-"""Default simulated time of the integrator study, in crank turns at the operating speed."""
 RTOL_LADDER = (1e-4, 1e-6, 1e-8, 1e-10)
 """Tolerances of the integrator study."""
 MAX_RTOL = {'RK45': 1e-8}
@@ -289,9 +288,6 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
 # ============================================================================ all of it
 
 
-SECTIONS = ('rms', 'integrators', 'position', 'balancing')
-
-
 def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
     """
     Return every requested study of a scene as a dict.
@@ -299,9 +295,8 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
     RGGR (spatial) scenes have the RMS study only; the other sections say so.
     """
     say = progress or (lambda text: None)
-    data, path = scene_mod.load_data(name_or_path)
-    if data.get('kind') == 'rggr':
-        sc = scene_mod.load(path)
+    sc = scene_mod.load(name_or_path)
+    if 'accuracy_study' not in scene_mod.kind_of(sc).rig_factory().capabilities:
         out = {'scene': sc.name, 'source': sc.source}
         if 'rms' in sections:
             say('RMS against p ...')
@@ -309,7 +304,7 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
         out['notes'] = [f'{name}: not available for RGGR (spatial) scenes'
                         for name in sections if name != 'rms']
         return out
-    sc, drive = simulate.load(path)
+    drive = simulate.drive_of(sc)
     rig = analysis.Rig(sc)
     out = {'scene': sc.name, 'source': sc.source}
     if 'rms' in sections:

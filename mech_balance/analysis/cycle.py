@@ -14,9 +14,13 @@ from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics, kinematics
 from mech_balance.core.planar.rig import linkage_for, PlanarRig as Rig  # noqa: F401
-from mech_balance.schema.scene import OUTPUTS
+from mech_balance.schema.scene import OUTPUTS, SERIES
 import numpy as np
 
+SI_UNITS = {'force': 'N', 'moment': 'N*m', 'energy': 'J'}
+"""The unit of each dimension of a table row (:data:`mech_balance.schema.scene.SERIES`)."""
+NORMALIZED_UNITS = {'force': 'm1*a1*w^2', 'moment': 'm1*a1^2*w^2', 'energy': 'm1*a1^2*w^2'}
+"""The same in the papers' normalized view (seed 001 sec. 3.4)."""
 MOMENT_ROUNDOFF_REL = 1e-12
 """A bearing moment whose largest value is below this fraction of the rig's moment scale
 (largest driving torque, shaking moment, or bearing force times the linkage's length) is
@@ -32,6 +36,7 @@ class Cycle:
     state: kinematics.KinematicState
     wrenches: dynamics.Wrenches
     seconds: float
+    series: dict = None   # the scalar series from the kinematics alone (kinetic energy, ...)
 
 
 def run_cycle(rig, samples=None, outputs=None):
@@ -40,9 +45,11 @@ def run_cycle(rig, samples=None, outputs=None):
     psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
                        links=len(rig.scene.links))
     rig.linkage.skeleton  # noqa: B018 - trace the branch outside the timed section
+    outputs = rig.scene.outputs if outputs is None else outputs
     t0 = time.perf_counter()
     state, wrenches = rig.evaluate(psi, outputs)
-    return Cycle(rig, psi, state, wrenches, time.perf_counter() - t0)
+    series = rig.series(state, outputs)
+    return Cycle(rig, psi, state, wrenches, time.perf_counter() - t0, series)
 
 
 @dataclass
@@ -53,7 +60,7 @@ class Row:
     unit: str
     rms: float
     max_abs: float
-    kind: str  # 'force' | 'moment'
+    kind: str  # 'force' | 'moment' | 'energy' (the row's dimension)
 
 
 def summarize(cycle, normalized=False):
@@ -65,16 +72,17 @@ def summarize(cycle, normalized=False):
         raise ValueError(f'--normalized: scene {cycle.rig.scene.name!r} records no '
                          'normalization (mass_kg, length_m, omega_rad_s)')
 
-    def add(name, values, kind):
+    def add(name, values, dimension):
         values = np.abs(values)
         if normalized:
-            values = norm.force(values) if kind == 'force' else norm.moment(values)
-            unit = 'm1*a1*w^2' if kind == 'force' else 'm1*a1^2*w^2'
-        else:
-            unit = 'N' if kind == 'force' else 'N*m'
-        rows.append(Row(name, unit, float(rms(values)), float(np.max(values)), kind))
+            values = getattr(norm, dimension)(values)
+        unit = (NORMALIZED_UNITS if normalized else SI_UNITS)[dimension]
+        rows.append(Row(name, unit, float(rms(values)), float(np.max(values)), dimension))
 
     if w is None:
+        for name, values in (cycle.series or {}).items():
+            label, dimension = SERIES[name]
+            add(label, values, dimension)
         return rows
     if w.reaction_force is not None:
         floor = MOMENT_ROUNDOFF_REL * moment_scale(cycle)
@@ -87,6 +95,9 @@ def summarize(cycle, normalized=False):
         add('driving torque', w.driving_torque, 'moment')
     add('shaking force |f_sh|', w.shaking_force, 'force')
     add('shaking moment n_sh', w.shaking_moment, 'moment')
+    for name, values in (cycle.series or {}).items():
+        label, dimension = SERIES[name]
+        add(label, values, dimension)
     return rows
 
 
@@ -141,7 +152,9 @@ def format_table(cycle, rows, normalized=False):
         f'worst loop-closure residual: {np.max(st.residual):.3e} (relative to '
         f'{cycle.rig.linkage.length_scale:g} m)',
         f'worst Jacobian condition number: {np.max(st.cond):.4g}'
-        + (f'  (WARNING: near-singular, > {kinematics.COND_WARN:g})'
+        + (f'  (WARNING: near-singular, > {kinematics.COND_WARN:.4g}: the figures may be '
+           f'wrong in their last printed digit, error bound 2 kappa^2 x Newton tolerance = '
+           f'{2.0 * np.max(st.cond) ** 2 * kinematics.NEWTON_TOL:.1e} relative)'
            if np.max(st.cond) > kinematics.COND_WARN else ''),
         f'Newton iterations per angle: max {int(np.max(st.iterations))}, '
         f'mean {np.mean(st.iterations):.2f}',
@@ -173,5 +186,7 @@ def analyze(sc, samples=None, normalized=False, design=None):
             'normalized': bool(normalized),
             'rows': [r.__dict__ for r in rows],
             'worst_residual': float(np.max(cycle.state.residual)),
-            'worst_condition': float(np.max(cycle.state.cond))}
+            'worst_condition': float(np.max(cycle.state.cond)),
+            'near_singular': bool(np.max(cycle.state.cond) > kinematics.COND_WARN),
+            'near_singular_condition': kinematics.COND_WARN}
     return Report(format_table(cycle, rows, normalized), data, list(rig.linkage.warnings))

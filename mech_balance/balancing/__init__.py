@@ -10,6 +10,12 @@ can be balanced by (:attr:`mech_balance.core.rig.Rig.capabilities`), never from 
   :func:`mech_balance.balancing.socp.optimize`);
 * ``weights``: the RGGR's complete force balance and minimum RMS shaking moment by two
   balancing weights (seed 002, :mod:`mech_balance.balancing.rggr`);
+* ``counterweights``: add-only discs on listed links, to a certified optimum
+  (:func:`mech_balance.balancing.counterweights.balance_with_counterweights`; its report
+  carries ``counterweights`` in the scene's form, ``{link: [disc entry]}``);
+* ``analytic``: the complete force balance in closed form, the slider-crank's (seed 000,
+  :func:`mech_balance.balancing.socp.slider_crank_balance`) for a rig with a prismatic
+  joint, else the four-bar's (seed 001 eq. 48, :func:`~.socp.four_bar_balance`);
 * ``auto`` (the default): the first of those the rig supports.
 
 The modules that solve are imported when a method runs, so importing this package is cheap.
@@ -23,8 +29,12 @@ from mech_balance.balancing.defaults import DEFAULT_WEIGHTS
 METHODS = {
     'redistribution': 'mass_redistribution',
     'weights': 'balancing_weights',
+    'counterweights': 'counterweights',
+    'analytic': 'analytic_balance',
 }
 """Balancing methods by name, and the rig capability each needs."""
+SUMMARY_NAME_CHARS = 40
+"""Longest scene name in :meth:`Design.summary` (the line stays under 200 characters)."""
 
 
 @dataclass
@@ -35,6 +45,33 @@ class Design:
     report: dict
     method: str
     result: object
+    figures: dict = None   # RMS shaking force (N) and moment (N m) before/after, certificate
+
+    def summary(self):
+        """
+        Return one line a person reads in a terminal: method, RMS before -> after, certificate.
+
+        ``balanced hoeken (redistribution): RMS shaking force 0.143 -> 0.0168 N, moment
+        0.0173 -> 0.00603 N m; certificate Solved, gap 1.0e-09``.
+        """
+        f = self.figures or {}
+        name = str(self.report.get('scene', ''))
+        name = name if len(name) <= SUMMARY_NAME_CHARS else name[:SUMMARY_NAME_CHARS] + '...'
+        parts = [f'balanced {name} ({self.method})']
+        if 'force_N' in f:
+            parts.append(f'RMS shaking force {f["force_N"][0]:.4g} -> {f["force_N"][1]:.4g} N, '
+                         f'moment {f["moment_Nm"][0]:.4g} -> {f["moment_Nm"][1]:.4g} N m')
+        parts.append(f'certificate {f.get("certificate", "none")}')
+        return '; '.join(parts[:1]) + ': ' + '; '.join(parts[1:])
+
+
+def _table_figures(table, certificate):
+    """Return :attr:`Design.figures` from before/after rows (``before_si``, ``after_si``)."""
+    rows = {r['quantity'].split()[1]: r for r in table
+            if r['quantity'].startswith('shaking ')}
+    return {'force_N': (rows['force']['before_si'], rows['force']['after_si']),
+            'moment_Nm': (rows['moment']['before_si'], rows['moment']['after_si']),
+            'certificate': certificate}
 
 
 def method_for(rig, method='auto'):
@@ -60,7 +97,9 @@ def balance(rig, method='auto', **options):
     Balance a rig and return its :class:`Design` (module docstring: methods).
 
     ``options`` are the method's: those of :func:`mech_balance.balancing.socp.optimize` for
-    ``redistribution``; ``samples`` for ``weights``.
+    ``redistribution``; of :func:`~.counterweights.balance_with_counterweights` for
+    ``counterweights`` (``links`` first); ``samples`` (and for a four-bar ``mass_factor``,
+    ``inertia``) for ``analytic``; ``samples`` for ``weights``.
     """
     method = method_for(rig, method)
     sc = rig.scene
@@ -70,7 +109,29 @@ def balance(rig, method='auto', **options):
         report = result.to_dict()
         report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
                                                           result.table)
-        return Design(result.balanced_scene, report, method, result)
+        cert = result.certificate
+        return Design(result.balanced_scene, report, method, result, _table_figures(
+            result.table, f'{cert.status}, relative gap {cert.gap_rel:.1e}'))
+    if method == 'counterweights':
+        from mech_balance.balancing import counterweights
+        options = dict(options)
+        links = options.pop('links', ())
+        result = counterweights.balance_with_counterweights(sc, links, **options)
+        cert = result.certificate
+        return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
+            result.table, f'{cert.status}, relative gap {cert.gap_rel:.1e}'))
+    if method == 'analytic':
+        from mech_balance.balancing import counterweights, socp
+        if any(j.prismatic for j in sc.joints):
+            result = socp.slider_crank_balance(sc, **options)
+        else:
+            result = socp.four_bar_balance(sc, **options)
+        report = result.to_dict()
+        report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
+                                                          result.table)
+        return Design(result.balanced_scene, report, method, result, _table_figures(
+            result.table, f'closed form, RMS shaking force after/before '
+                          f'{result.force_rms_ratio:.1e}'))
     from mech_balance.analysis import rggr_report
     from mech_balance.balancing import rggr as rggr_balancing
     from mech_balance.conventions import DEFAULT_SAMPLES
@@ -80,8 +141,14 @@ def balance(rig, method='auto', **options):
                          'samples)')
     samples = options.get('samples') or DEFAULT_SAMPLES
     result = rggr_balancing.balance_scene(sc, samples)
-    return Design(result.design.scene, rggr_report.balance_report(sc, samples, result=result),
-                  method, result)
+    report = rggr_report.balance_report(sc, samples, result=result)
+    rows = {r['rig']: r for r in report['table']}
+    before, after = rows['unbalanced'], rows['optimized']
+    figures = {'force_N': (before['shaking_force_rms'], after['shaking_force_rms']),
+               'moment_Nm': (before['shaking_moment_rms'], after['shaking_moment_rms']),
+               'certificate': 'least squares, normal-equation residual '
+                              f'{report["optimum"]["normal_equation_residual"]:.1e}'}
+    return Design(result.design.scene, report, method, result, figures)
 
 
 __all__ = ['balance', 'DEFAULT_WEIGHTS', 'Design', 'method_for', 'METHODS']

@@ -45,6 +45,7 @@ import tempfile
 import time
 
 import clarabel
+from mech_balance import schema
 from mech_balance.balancing import socp as balancing
 from mech_balance.balancing.defaults import DEFAULT_DENSITY_KG_M3, \
     DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR, DEFAULT_MAX_RADIUS_FACTOR, \
@@ -144,8 +145,9 @@ def link_list(links, scene, name='counterweight_links'):
 
 def check_options(scene, options):
     """Return validated :class:`CounterweightOptions` (errors name the option)."""
-    if getattr(scene, 'kind', 'planar') != 'planar':
-        raise CounterweightError(f'scene {scene.name!r}: kind {scene.kind!r}, expected a '
+    kind = schema.kind_of(scene)
+    if 'counterweights' not in kind.rig_factory().capabilities:
+        raise CounterweightError(f'scene {scene.name!r}: kind {kind.name!r}, expected a '
                                  'planar scene')
     try:
         w1, w2 = (float(v) for v in options.weights)

@@ -941,8 +941,8 @@ def _chain(scene, output_type):
         raise BalanceError(f'scene {scene.name!r}: expected a {kind} chain '
                            'frame-crank-coupler-output-frame') from None
     if out_name in (FRAME, crank_name) or FRAME not in (jg.link_a, jg.link_b) or \
-            out_name not in (jg.link_a, jg.link_b) or ja.kind != 'revolute' or \
-            jb.kind != 'revolute' or jg.kind != output_type:
+            out_name not in (jg.link_a, jg.link_b) or ja.prismatic or \
+            jb.prismatic or jg.joint_type != output_type:
         raise BalanceError(
             f'scene {scene.name!r}: expected a {kind} (revolute crank, coupler joints '
             f'revolute, output joined to the frame by a {output_type} joint)')

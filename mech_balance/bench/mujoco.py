@@ -254,7 +254,7 @@ class MujocoRig:
         """
         mj, m, d = self.mj, self.model, self.data
         p = q.shape[1]
-        qpos, qvel, qacc = (self._to_dofs(x) for x in (q, qd, qdd))
+        qpos, qvel, qacc = (self.to_dofs(x) for x in (q, qd, qdd))
         tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
         cut = np.empty((len(self.site1), p), dtype=complex)
         for i in range(p):
@@ -275,7 +275,7 @@ class MujocoRig:
             d.qacc[:] = qacc[i]
             mj.mj_inverse(m, d)
 
-    def _to_dofs(self, x):
+    def to_dofs(self, x):
         out = np.empty((x.shape[1], self.model.nv))
         out[:, self.dof] = x.T
         return out
@@ -395,7 +395,7 @@ def compare(sc, samples=360, repeat=50, progress=None):
     }
     if progress:
         progress(f'  timing {sc.name} ({len(sc.links)} moving links) ...')
-    qpos, qvel, qacc = (mjr._to_dofs(x) for x in (state.q, state.qd, state.qdd))
+    qpos, qvel, qacc = (mjr.to_dofs(x) for x in (state.q, state.qd, state.qdd))
     q_start = state.q[:, 0]
     slow = max(5, repeat // MUJOCO_REPEAT_DIVISOR)
     fns = [

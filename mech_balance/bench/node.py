@@ -96,10 +96,10 @@ def bench_section(args, progress):
 def _follow_costs(scene_name):
     """Return the compute per sample in follow mode: alone, and in a batch."""
     from mech_balance.bench import core as bench
-    from mech_balance.ros import conversions as conv, streaming as twin
+    from mech_balance.ros import conversions as conv, description
     from mech_balance import schema as scene_mod
     import numpy as np
-    model = twin.model_for(scene_mod.load(scene_name))
+    model = description.twin_for(scene_mod.load(scene_name))  # what the node publishes
     ser = conv.SampleSerializer(model.joint_names, model.has_effort, 'rig_frame')
     times = []
     for n in (1, FOLLOW_BATCH):
@@ -178,7 +178,7 @@ def _sweep(scene_name, progress):
             spin_for(WINDOW_S)
             stop = node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
             period = round(1e9 / rate)
-            missed = [_missed(v, start, stop, period) for v in stamps.values()]
+            missed = [missed_fraction(v, start, stop, period) for v in stamps.values()]
             rows.append((rate, *missed))
             failures = failures + 1 if max(missed) >= MISSED_MAX else 0
             if failures >= 2:
@@ -203,7 +203,7 @@ def _sweep(scene_name, progress):
     return rows, (json.loads(match.group(1)) if match else {})
 
 
-def _missed(stamps, start_ns, stop_ns, period_ns):
+def missed_fraction(stamps, start_ns, stop_ns, period_ns):
     """Return the fraction of periods in [start, stop) whose stamp was not received."""
     inside = {s for s in stamps if start_ns <= s < stop_ns}
     if not inside:
@@ -316,7 +316,7 @@ def run_node(scene_name, rate_hz, seconds, params=(), domain=None):
         spin_for(seconds)
         stop = node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
         period = round(1e9 / rate_hz)
-        missed = max(_missed(v, start, stop, period) for v in stamps.values())
+        missed = max(missed_fraction(v, start, stop, period) for v in stamps.values())
         got = {s for s in stamps['joint_states'] if start <= s < stop}
         rate = len(got) / ((stop - start) * 1e-9)
     finally:

@@ -10,11 +10,10 @@ import argparse
 import json
 import sys
 
-from mech_balance import atomic, conventions, schema as scene_mod
+from mech_balance import atomic, conventions
 from mech_balance.balancing import defaults, paper_tables as seed_tables
 from mech_balance.balancing.defaults import DEFAULT_CASE
 from mech_balance.cli import main as cli
-import numpy as np
 
 TABLE3_MASS_FACTORS = (1.0, 2.0, 5.0)
 """Seed 001 Table 3 cases (1)-(3): crank and rocker masses 1x, 2x, 5x the original."""
@@ -161,6 +160,7 @@ def _given(args, options):
 
 def _check_options(args):
     """Raise ValueError for an option the chosen method would ignore (no scene needed)."""
+    import numpy as np
     if args.counterweights is not None:
         if args.analytic:
             raise ValueError('--counterweights: a method of its own, expected no --analytic '
@@ -197,6 +197,7 @@ def _check_options(args):
 
 def cmd_balance(args):
     """Balance a scene and print the design, the before/after table and the certificate."""
+    from mech_balance import schema as scene_mod
     from mech_balance.balancing import counterweights as cw_mod, socp as balancing, two_point
     if args.samples is not None and args.samples < 4:
         raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
@@ -434,6 +435,7 @@ def _before_after_text(table, si=False):
 
 
 def _case_index(weights):
+    import numpy as np
     for k, w in enumerate(seed_tables.WEIGHT_CASES, 1):
         if np.allclose(weights, w):
             return k
@@ -486,7 +488,7 @@ def _paper_design_links(sc, x, counterweights):
 
 def _analytic(sc, args):
     from mech_balance.balancing import counterweights as cw_mod, socp as balancing
-    kinds = {j.kind for j in sc.joints}
+    kinds = {j.joint_type for j in sc.joints}
     if 'prismatic' in kinds:
         results = [balancing.slider_crank_balance(sc, samples=args.samples),
                    balancing.slider_crank_balance(sc, printed_eq75=True, samples=args.samples)]

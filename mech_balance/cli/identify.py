@@ -11,7 +11,6 @@ import math
 import sys
 import time
 
-from mech_balance.ros import bags
 
 OUTPUT_SUFFIXES = ('.yaml', '.yml')
 """``--output``: what the calibrated scene's file name ends in (so that it loads as a scene)."""
@@ -19,6 +18,7 @@ OUTPUT_SUFFIXES = ('.yaml', '.yml')
 
 def register(subparsers):
     """Add the ``identify`` verb."""
+    from mech_balance.ros import names
     p = subparsers.add_parser(
         'identify', help="identify a rig's link inertias from a recording of its encoder and "
                          'force sensor',
@@ -36,10 +36,10 @@ def register(subparsers):
     p.add_argument('--bag', required=True, metavar='PATH',
                    help='rosbag2 directory (or a file in it) or a .csv file (columns: see '
                         'README, section Identification)')
-    p.add_argument('--encoder-topic', default=bags.ENCODER_TOPIC, metavar='TOPIC',
-                   help=f'JointState topic of the crank encoder (default: {bags.ENCODER_TOPIC})')
-    p.add_argument('--wrench-topic', default=bags.WRENCH_TOPIC, metavar='TOPIC',
-                   help=f'WrenchStamped topic of the sensor (default: {bags.WRENCH_TOPIC})')
+    p.add_argument('--encoder-topic', default=names.ENCODER_TOPIC, metavar='TOPIC',
+                   help=f'JointState topic of the crank encoder (default: {names.ENCODER_TOPIC})')
+    p.add_argument('--wrench-topic', default=names.WRENCH_TOPIC, metavar='TOPIC',
+                   help=f'WrenchStamped topic of the sensor (default: {names.WRENCH_TOPIC})')
     p.add_argument('--joint', default=None, metavar='NAME',
                    help="the crank's name in the JointState (default: the scene's crank "
                         'joint if the message carries it, else its only joint)')
@@ -59,6 +59,7 @@ def _progress(text):
 
 def cmd_identify(args):
     """Identify the scene's inertial parameters from a recording; print and write the result."""
+    from mech_balance.ros import bags
     from mech_balance import atomic, schema as scene_mod
     from mech_balance.analysis import identify
     from mech_balance.cli import main as cli

@@ -7,13 +7,13 @@ line naming the field, the value and what was expected, and exits with status 2.
 
 import argparse
 import json
+import math
 import os
 import sys
 import textwrap
 
 from mech_balance import conventions, paths
-from mech_balance.scene import MAX_ABS_VALUE
-import numpy as np
+from mech_balance.schema.fields import MAX_ABS_VALUE
 
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
@@ -140,7 +140,7 @@ def _design(text):
     except ValueError:
         raise argparse.ArgumentTypeError(
             f'got {text!r}, expected comma-separated numbers m11,m12,m13,l11,...') from None
-    if not values or not all(np.isfinite(values)):
+    if not values or not all(math.isfinite(v) for v in values):
         raise argparse.ArgumentTypeError(f'got {text!r}, expected finite numbers')
     if max(abs(v) for v in values) > MAX_ABS_VALUE:  # the magnitude limit of scene files
         raise argparse.ArgumentTypeError(
@@ -151,7 +151,7 @@ def _design(text):
 
 def build_parser():
     """Return the argument parser of ``mech-balance``."""
-    from mech_balance.bench import core as bench
+    from mech_balance.analysis import timing
     parser = Parser(
         prog='mech-balance',
         description='Kinematics, inverse dynamics, shaking wrench and balancing of '
@@ -187,8 +187,12 @@ def build_parser():
                    help='time only this scene (repeatable; default: all built-in)')
     p.add_argument('--samples', type=_samples, default=360,
                    help='crank angles per cycle (default: %(default)s)')
-    p.add_argument('--repeat', type=repeats, default=bench.DEFAULT_REPEAT,
+    p.add_argument('--repeat', type=repeats, default=timing.DEFAULT_REPEAT,
                    help='timed runs per figure, an integer >= 1 (default: %(default)s)')
+    p.add_argument('--section', action='append', default=None, metavar='NAME',
+                   help='print only this table (repeatable): core, or a section of the bench '
+                        '(balancing, counterweights, recording, node, identify, cell; '
+                        'default: every table)')
     p.add_argument('--compare', choices=['mujoco'], default=None,
                    help='instead, run Hoeken and generated 4-20 link chains through this '
                         'package and through MuJoCo side by side: agreement, us per angle, '
@@ -232,13 +236,22 @@ def cmd_bench(args):
         from mech_balance.bench import mujoco as bench_mujoco
         return bench_mujoco.cmd_compare(args)
     from mech_balance.bench import core as bench
-    print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} warm-up '
-          f'runs, {args.samples} crank angles per cycle', flush=True)
+    wanted = None if args.section is None else set(args.section)
+    names = {bench.section_name(name): name for name in bench.SECTIONS}
+    unknown = sorted((wanted or set()) - set(names) - {'core'})
+    if unknown:
+        raise ValueError(f'--section: got {unknown[0]!r}, expected core or one of '
+                         f'{", ".join(names)}')
     progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
-    rows = bench.run(args.scene, args.samples, args.repeat, progress=progress)
-    print(bench.format_rows(rows), flush=True)
+    if wanted is None or 'core' in wanted:
+        print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} '
+              f'warm-up runs, {args.samples} crank angles per cycle', flush=True)
+        rows = bench.run(args.scene, args.samples, args.repeat, progress=progress)
+        print(bench.format_rows(rows), flush=True)
     import importlib
-    for name in bench.SECTIONS:
+    for short, name in names.items():
+        if wanted is not None and short not in wanted:
+            continue
         module, _, function = name.partition(':')
         print()
         print(getattr(importlib.import_module(module), function)(args, progress), flush=True)

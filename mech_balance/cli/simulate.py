@@ -10,9 +10,9 @@ import math
 import sys
 
 from mech_balance import conventions
-from mech_balance.analysis import accuracy
+from mech_balance.analysis import studies
 from mech_balance.cli import main as cli
-from mech_balance.core import forward as simulate
+from mech_balance.core import integrators
 
 
 def _positive_float(text):
@@ -30,11 +30,11 @@ _rows = cli.int_at_least(2, conventions.MAX_TABLE_ROWS, 'conventions.MAX_TABLE_R
 
 def _sections(text):
     names = [s for s in text.replace(' ', '').split(',') if s]
-    bad = [s for s in names if s not in accuracy.SECTIONS]
+    bad = [s for s in names if s not in studies.SECTIONS]
     if bad or not names:
         raise argparse.ArgumentTypeError(
             f'got {text!r}, expected a comma-separated list from '
-            f'{",".join(accuracy.SECTIONS)}')
+            f'{",".join(studies.SECTIONS)}')
     return tuple(names)
 
 
@@ -51,10 +51,10 @@ def register(sub):
                    help='built-in scene name or path to a YAML file (default: %(default)s)')
     p.add_argument('--duration', type=_positive_float, required=True, metavar='T',
                    help='simulated time in seconds')
-    p.add_argument('--method', default='auto', choices=('auto',) + simulate.METHODS,
+    p.add_argument('--method', default='auto', choices=('auto',) + integrators.METHODS,
                    help='integrator; auto picks Radau for stiff rigs, else DOP853 '
                         '(default: %(default)s)')
-    p.add_argument('--rtol', type=_positive_float, default=simulate.DEFAULT_RTOL,
+    p.add_argument('--rtol', type=_positive_float, default=integrators.DEFAULT_RTOL,
                    help='relative tolerance (absolute tolerances scale with the rig; '
                         'default: %(default)g)')
     p.add_argument('--rhs', default='table', choices=('table', 'direct'),
@@ -77,17 +77,18 @@ def register(sub):
                    help='built-in scene name or path to a YAML file (default: %(default)s)')
     p.add_argument('--duration', type=_positive_float, default=None, metavar='T',
                    help='simulated time of the integrator study in seconds (default: '
-                        f'{accuracy.ACCURACY_TURNS:g} crank turns at the operating speed)')
-    p.add_argument('--sections', type=_sections, default=accuracy.SECTIONS,
+                        f'{studies.ACCURACY_TURNS:g} crank turns at the operating speed)')
+    p.add_argument('--sections', type=_sections, default=studies.SECTIONS,
                    metavar='LIST',
                    help=f'which studies, comma-separated (default: '
-                        f'{",".join(accuracy.SECTIONS)})')
+                        f'{",".join(studies.SECTIONS)})')
     p.add_argument('--json', action='store_true', help='print the studies as JSON')
     p.set_defaults(func=cmd_accuracy)
 
 
 def cmd_simulate(args):
     """Run a simulation and print its report."""
+    from mech_balance.core import forward as simulate
     rep = simulate.simulate(args.scene, args.duration, method=args.method, rtol=args.rtol,
                             rhs=args.rhs)
     if args.json:
@@ -101,6 +102,7 @@ def cmd_simulate(args):
 
 def cmd_accuracy(args):
     """Run the accuracy studies and print their tables."""
+    from mech_balance.analysis import accuracy
     progress = (lambda s: print(s, file=sys.stderr, flush=True))  # noqa: E731
     result = accuracy.run(args.scene, args.sections, args.duration, progress=progress)
     if args.json:

@@ -9,7 +9,6 @@ and prints or writes :func:`mech_balance.urdf.urdf_xml`.  The file is written at
 from pathlib import Path
 import sys
 
-from mech_balance.ros import urdf
 
 OUT_SUFFIXES = ('.urdf', '.xml')
 """``--out``: what the URDF's file name ends in."""
@@ -19,6 +18,7 @@ RIG_NODE_NAME = 'rig'
 
 def register(subparsers):
     """Add the ``urdf`` verb to the ``mech-balance`` sub-parsers."""
+    from mech_balance.ros import names
     p = subparsers.add_parser(
         'urdf', help="write the URDF of the rig's spanning tree (RViz, robot_state_publisher)",
         description="Write the URDF of a scene: a root link named after the rig node's "
@@ -38,7 +38,7 @@ def register(subparsers):
                    help='a scene of the same geometry with other inertias (e.g. written by '
                         '`mech-balance balance --output`, counterweights included): the '
                         'URDF carries its inertials')
-    p.add_argument('--frame-id', default=urdf.DEFAULT_FRAME_ID,
+    p.add_argument('--frame-id', default=names.DEFAULT_FRAME_ID,
                    help="name of the root link: the rig node's frame_id (default: "
                         '%(default)s)')
     p.add_argument('--out', default=None, metavar='F.urdf',
@@ -48,29 +48,9 @@ def register(subparsers):
 
 
 def same_geometry(base, design):
-    """
-    Raise ValueError unless ``design`` has the geometry of ``base`` (only inertias differ).
-
-    Planar: frame points, link names and points, joints and crank joint; RGGR: the
-    geometry and the assembly branch.
-    """
-    kind = getattr(base, 'kind', 'planar')
-    if getattr(design, 'kind', 'planar') != kind:
-        raise ValueError(f'--design: got a {getattr(design, "kind", "planar")} scene '
-                         f'({design.name!r}), expected a {kind} scene like --scene')
-    if kind == 'rggr':
-        same = (design.geometry == base.geometry and design.branch == base.branch)
-        what = 'geometry and assembly.branch'
-    else:
-        same = (design.frame_points == base.frame_points
-                and [(lk.name, lk.points) for lk in design.links]
-                == [(lk.name, lk.points) for lk in base.links]
-                and design.joints == base.joints and design.crank_joint == base.crank_joint)
-        what = 'frame points, link points and joints'
-    if not same:
-        raise ValueError(f'--design: scene {design.name!r} ({design.source}) differs from '
-                         f'--scene {base.name!r} in its {what}; expected the same geometry '
-                         'with other inertias')
+    """Raise ValueError unless ``design`` has the geometry of ``base`` (only inertias differ)."""
+    from mech_balance.schema import registry
+    registry.same_geometry(base, design, '--design')
 
 
 def frame_id_from_params_file(path):
@@ -79,8 +59,9 @@ def frame_id_from_params_file(path):
 
     Sections apply in file order, as ROS applies them: ``/**`` and any section whose last
     name is ``*``, ``**`` or the node's name (``rig``, ``/cell/rig``).  Without a
-    ``frame_id`` the node's default, :data:`mech_balance.urdf.DEFAULT_FRAME_ID`.
+    ``frame_id`` the node's default, :data:`mech_balance.ros.names.DEFAULT_FRAME_ID`.
     """
+    from mech_balance.ros import names
     from mech_balance.schema.scene import parse_yaml
     try:
         data = parse_yaml(Path(path).read_text())
@@ -90,7 +71,7 @@ def frame_id_from_params_file(path):
     if not isinstance(data, dict):
         raise ValueError(f'params_file: got {str(path)!r}, expected a mapping of node names '
                          'to ros__parameters')
-    frame_id = urdf.DEFAULT_FRAME_ID
+    frame_id = names.DEFAULT_FRAME_ID
     for key, section in data.items():
         if str(key).rstrip('/').split('/')[-1] not in ('*', '**', RIG_NODE_NAME):
             continue
@@ -105,6 +86,7 @@ def frame_id_from_params_file(path):
 
 def cmd_urdf(args):
     """Print or write the URDF of the scene (or of its design)."""
+    from mech_balance.ros import urdf
     from mech_balance.cli import main as cli
     from mech_balance import atomic, schema as scene
     out = None if args.out is None else cli.writable_path('--out', args.out, OUT_SUFFIXES)

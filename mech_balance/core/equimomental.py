@@ -17,7 +17,7 @@ is the one definition, which the balancing reports use too.
 from dataclasses import dataclass, replace
 import math
 
-from mech_balance.scene import MAX_ABS_VALUE
+from mech_balance.schema.fields import MAX_ABS_VALUE
 import numpy as np
 
 POINT_ANGLES_RAD = np.array([0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0])

@@ -66,17 +66,15 @@ import math
 import time
 
 from mech_balance import schema as scene_mod
-from mech_balance.analysis import cycle as analysis
 from mech_balance.conventions import rms
+from mech_balance.core.integrators import DEFAULT_RTOL, EXPLICIT_METHODS, IMPLICIT_METHODS, \
+    METHODS, REFERENCE_RTOL  # noqa: F401 - read as forward.EXPLICIT_METHODS, ...
 from mech_balance.core.planar import dynamics
+from mech_balance.core.planar.rig import PlanarRig
 from mech_balance.schema import fields
 from mech_balance.schema.drive import Drive, drive_from_dict, DriveError, Motor, SpeedController
 import numpy as np
 
-DEFAULT_RTOL = 1e-8
-"""Relative tolerance of a simulation when the caller does not say."""
-REFERENCE_RTOL = 1e-12
-"""Relative tolerance of the reference solutions of :mod:`mech_balance.accuracy`."""
 STIFFNESS_RATIO_LIMIT = 100.0
 """Largest |eigenvalue| / crank speed for which ``method='auto'`` integrates explicitly.
 
@@ -84,10 +82,6 @@ An explicit Runge-Kutta step must keep h |lambda| below about 3 (RK45) to 6 (DOP
 default tolerance DOP853 takes about 40 steps per crank turn on the built-in rigs, i.e.
 h omega ~ 0.15, so stability starts to bind near |lambda| / omega ~ 40; with Radau's higher
 cost per step the measured break-even is near 100 (see ``mech-balance accuracy``)."""
-EXPLICIT_METHODS = ('RK45', 'DOP853')
-IMPLICIT_METHODS = ('Radau', 'BDF')
-METHODS = EXPLICIT_METHODS + IMPLICIT_METHODS + ('LSODA',)
-"""Integrators of :func:`scipy.integrate.solve_ivp` that :func:`simulate` accepts."""
 TABLE_TOL = 1e-14
 """Fourier coefficients below this fraction of a function's scale are dropped."""
 TABLE_CHECK_TOL = 1e-11
@@ -129,8 +123,9 @@ def drive_of(sc):
 
 
 def _planar(sc):
-    if getattr(sc, 'kind', 'planar') != 'planar':
-        raise ValueError(f'scene: got {sc.name!r} of kind {sc.kind!r}, expected a planar '
+    kind = scene_mod.kind_of(sc)
+    if 'forward_dynamics' not in kind.rig_factory().capabilities:
+        raise ValueError(f'scene: got {sc.name!r} of kind {kind.name!r}, expected a planar '
                          'scene (the forward dynamics covers planar rigs)')
     return sc
 
@@ -296,8 +291,8 @@ class ForwardDynamics:
     """
 
     def __init__(self, scene_or_rig, drive=None, rhs='table'):
-        rig = scene_or_rig if isinstance(scene_or_rig, analysis.Rig) else \
-            analysis.Rig(_planar(scene_or_rig))
+        rig = scene_or_rig if isinstance(scene_or_rig, PlanarRig) else \
+            PlanarRig(_planar(scene_or_rig))
         self.rig = rig
         self.scene = sc = rig.scene
         # no drive given: the scene's own (``drive:`` key); Drive() means none at all

@@ -453,14 +453,16 @@ class RggrRig:
     """
 
     moment_point = 'the origin O of the RGGR frame'
+    moment_point_m = (0.0, 0.0, 0.0)
     capabilities = CAPABILITIES
     joint_names = JOINTS
+    joint_prismatic = (False,) * len(JOINTS)
     crank_joint = JOINTS[0]
     crank_index = 0
     outputs = ('kinematics', 'shaking_wrench', 'driving_torque')
 
-    def __init__(self, scene):
-        self.scene = scene
+    def __init__(self, scene, cache=True):
+        self.scene = scene  # nothing is cached: ``cache`` is the protocol's argument
         self.name = scene.name
         check_full_rotation(scene)
         self._drawing = None
@@ -505,7 +507,7 @@ class RggrRig:
             None if kinematics_only else effort,
             None if kinematics_only else force, None if kinematics_only else moment,
             JOINTS, series=series, residual=residual, condition=np.ones(n),
-            near_singular=np.zeros(n, dtype=bool), bodies=self._poses(psi, kins),
+            near_singular=np.zeros(n, dtype=bool), poses=lambda: self._poses(psi, kins),
             native=None)
 
     def _poses(self, psi, kins):

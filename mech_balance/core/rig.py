@@ -59,7 +59,8 @@ class RigData:
     (``driving_torque``, ``kinetic_energy``, ...: :data:`mech_balance.schema.scene.SERIES`),
     ``reactions`` the bearing loads ``{joint: (force (n, 3), moment (n, 3))}`` when asked for.
     ``residual`` (loop closure, relative), ``condition`` (Jacobian condition number) and
-    ``near_singular`` are the per-angle diagnostics of the position solution.  ``native`` is
+    ``near_singular`` are the per-angle diagnostics of the position solution.  ``poses`` is
+    the :class:`BodyPoses` or a function computing them (read :attr:`bodies`).  ``native`` is
     the implementation's own result (planar: ``(state, wrenches)``), for code inside the core.
     """
 
@@ -77,12 +78,19 @@ class RigData:
     residual: np.ndarray = None
     condition: np.ndarray = None
     near_singular: np.ndarray = None
-    bodies: BodyPoses = None
+    poses: object = None
     native: object = None
 
     def __len__(self):
         """Return the number of samples."""
         return self.crank_angle_rad.shape[0]
+
+    @property
+    def bodies(self):
+        """Return the :class:`BodyPoses` (computed on first use: drawing and sensors only)."""
+        if callable(self.poses):
+            self.poses = self.poses()
+        return self.poses
 
     @property
     def state(self):
@@ -155,16 +163,20 @@ class Rig(Protocol):
     The protocol every rig implements (see the module docstring).
 
     ``scene`` is the validated scene, ``name`` its name; ``joint_names`` and ``crank_joint``
-    name the published joints; ``moment_point`` says in words where the shaking moment is
-    reduced; ``capabilities`` what the rig can compute or be balanced by; ``outputs`` what its
-    scene asks for; ``drawing`` its :class:`Drawing`.
+    name the published joints, ``joint_prismatic`` says which of them slide (m; the others
+    turn, rad); ``moment_point`` says in words where the shaking moment is reduced and
+    ``moment_point_m`` is that point ``(x, y, z)`` in the frame, m; ``capabilities`` what the
+    rig can compute or be balanced by; ``outputs`` what its scene asks for; ``drawing`` its
+    :class:`Drawing`.
     """
 
     scene: object
     name: str
     joint_names: tuple
+    joint_prismatic: tuple
     crank_joint: str
     moment_point: str
+    moment_point_m: tuple
     capabilities: frozenset
     outputs: tuple
     drawing: Drawing
@@ -176,9 +188,14 @@ class Rig(Protocol):
         """Return the rig of another design (inertia) of the same geometry."""
 
 
-def rig_for(scene):
-    """Return the :class:`Rig` of a validated scene of any registered kind."""
-    return registry.kind_of(scene).rig_factory()(scene)
+def rig_for(scene, cache=True):
+    """
+    Return the :class:`Rig` of a validated scene of any registered kind.
+
+    With ``cache`` (the default) a rig reuses what an earlier rig of the same geometry built
+    (the planar linkage and its branch trace); without, it builds everything anew.
+    """
+    return registry.kind_of(scene).rig_factory()(scene, cache=cache)
 
 
 def batch(psi, speed, accel):

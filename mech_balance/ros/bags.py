@@ -34,12 +34,9 @@ from pathlib import Path
 import shutil
 import tempfile
 
+from mech_balance.ros.names import ENCODER_TOPIC, WRENCH_TOPIC
 import numpy as np
 
-ENCODER_TOPIC = '/crank_joint_state'
-"""Default encoder topic: the rig node subscribes ``crank_joint_state`` in follow mode."""
-WRENCH_TOPIC = '/measured_wrench'
-"""Default force-sensor topic."""
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 WRENCH_STAMPED = 'geometry_msgs/msg/WrenchStamped'
 STORAGES = ('mcap', 'sqlite3')

@@ -10,6 +10,8 @@ Message conversion for the rig node: pure functions, no node is ever created her
 * :func:`parameter_descriptor`, :func:`parameter_value`: a :class:`mech_balance.params.Spec`
   as a ROS ``ParameterDescriptor``, and a ROS ``Parameter`` as a plain value.
 * :func:`stamp_from_ns`, :func:`ns_from_stamp`: ``builtin_interfaces/Time`` <-> int ns.
+* :func:`wrench_reading`, :func:`fill_wrench_values`, :func:`diagnostic_array`: the measured
+  wrench read with checks, a residual wrench, the node's ``/diagnostics``.
 """
 
 from array import array
@@ -17,11 +19,13 @@ import math
 import struct
 
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from mech_balance.ros import params
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor
 from rcl_interfaces.msg import ParameterType
+from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
@@ -244,17 +248,30 @@ def crank_reading(msg, joint):
 
 
 def parameter_descriptor(spec):
-    """Return the ROS ``ParameterDescriptor`` of a :class:`mech_balance.params.Spec`."""
-    desc = ParameterDescriptor(name=spec.name, type=_ROS_TYPES[spec.kind],
+    """
+    Return the ROS ``ParameterDescriptor`` of a :class:`mech_balance.params.Spec`.
+
+    Declared with ``dynamic_typing`` and without ``floating_point_range`` /
+    ``integer_range``: rclpy would check the type and the range before the node's callback
+    and refuse with reasons of its own (``Wrong parameter type, expected 'Type.DOUBLE' got
+    'Type.INTEGER'``, naming no parameter).  The node checks both instead
+    (:func:`mech_balance.ros.params.check`), accepts an integer for a double, and refuses
+    with ``name: got <value>, expected ...``; the type and range are in
+    ``additional_constraints`` (``ros2 param describe``), and the node's pre-set callback
+    keeps the stored type the declared one (:func:`mech_balance.ros.params.coerced`).
+    """
+    constraints = f'type {spec.value_type}; {spec.constraints}' if spec.constraints else \
+        f'type {spec.value_type}'
+    return ParameterDescriptor(name=spec.name, type=_ROS_TYPES[spec.value_type],
                                description=spec.description,
-                               additional_constraints=spec.constraints)
-    if spec.bounds is not None and spec.kind == params.DOUBLE:
-        desc.floating_point_range = [FloatingPointRange(
-            from_value=float(spec.bounds[0]), to_value=float(spec.bounds[1]), step=0.0)]
-    if spec.bounds is not None and spec.kind == params.INTEGER:
-        desc.integer_range = [IntegerRange(from_value=int(spec.bounds[0]),
-                                           to_value=int(spec.bounds[1]), step=1)]
-    return desc
+                               additional_constraints=constraints, dynamic_typing=True)
+
+
+def ros_parameter(name, value):
+    """Return an ``rclpy.parameter.Parameter`` of a checked value, of its declared type."""
+    spec = params.spec_for(name)
+    kind = Parameter.Type(_ROS_TYPES[spec.value_type]) if spec is not None else None
+    return Parameter(name, kind, value)
 
 
 def parameter_value(parameter):
@@ -263,3 +280,39 @@ def parameter_value(parameter):
     if value is not None and not isinstance(value, (str, bool, int, float)):
         value = list(value)
     return value
+
+
+# ------------------------------------------------------------------------------ the real rig
+
+
+def wrench_reading(msg):
+    """
+    Return ``(stamp_ns, force (3,), torque (3,))`` of a measured ``WrenchStamped``.
+
+    Raises ``ValueError`` naming the problem: a non-finite force or torque component.
+    """
+    force, torque = wrench_values(msg)
+    for name, values in (('force', force), ('torque', torque)):
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f'wrench.{name}: got {list(values)}, expected finite values')
+    return ns_from_stamp(msg.header.stamp), force, torque
+
+
+def fill_wrench_values(msg, stamp_ns, frame_id, wrench):
+    """Fill a ``WrenchStamped`` with a ``(6,)`` wrench (force xyz N, torque xyz N*m)."""
+    msg.header.stamp = stamp_from_ns(stamp_ns)
+    msg.header.frame_id = frame_id
+    f, m = msg.wrench.force, msg.wrench.torque
+    f.x, f.y, f.z, m.x, m.y, m.z = (float(v) for v in wrench)
+    return msg
+
+
+def diagnostic_array(statuses, stamp_ns):
+    """Return the ``diagnostic_msgs/DiagnosticArray`` of :class:`diagnostics.Status` items."""
+    out = DiagnosticArray()
+    out.header.stamp = stamp_from_ns(stamp_ns)
+    for s in statuses:
+        out.status.append(DiagnosticStatus(
+            level=bytes([s.level]), name=s.name, message=s.message, hardware_id=s.hardware_id,
+            values=[KeyValue(key=k, value=v) for k, v in s.values]))
+    return out

@@ -16,14 +16,34 @@ from dataclasses import dataclass
 import math
 import re
 
-from mech_balance import conventions
+from mech_balance import conventions, paths
+from mech_balance.balancing import defaults as balancing_defaults
 from mech_balance.balancing import socp as balancing
+from mech_balance.ros import sensor
 from mech_balance.schema import safe_yaml
 
 STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
     'double_array'
 MODES = ('clock', 'follow')
+MAX_SENSOR_OFFSET_M = 100.0
+"""Largest |sensor.x|, |sensor.y|, |sensor.z| accepted, m."""
+MAX_ANGLE_RAD = 2.0 * math.pi
+"""Largest |sensor.roll|, |sensor.pitch|, |sensor.yaw| accepted, rad."""
+MAX_FRACTION = 1000.0
+"""Largest diagnostics threshold (residual RMS / measured RMS)."""
 CASES = ('a', 'b')
+METHODS = ('redistribution', 'counterweights', 'analytic')
+"""``balance.method``: :func:`mech_balance.balancing.balance`'s methods a planar rig takes (a
+rig that cannot be redistributed, the RGGR, is balanced by its own method when the method
+is the default, redistribution)."""
+LINK_PREFIX = 'balance.links.'
+"""Per-link balancing options are ``balance.links.<link>.<option>``, declared from the scene."""
+LINK_OPTIONS = {'mass_bounds': ('kg', 'balance.mass_bounds', 'link mass bounds'),
+                'distance_bounds': ('m', 'balance.distance_bounds',
+                                    'point-mass distance bounds')}
+"""Per-link options: unit, the older text parameter they replace, what they bound."""
+MAX_COUNTERWEIGHT_VALUE = 1e6
+"""Largest counterweight density (kg/m^3), thickness (m) or factor accepted (a finite cap)."""
 MAX_CRANK_SPEED = 1000.0
 """Largest |crank_speed| accepted, rad/s (about 9500 rpm)."""
 MIN_PUBLISH_RATE = 0.1
@@ -44,13 +64,18 @@ class Spec:
     """One parameter: name, ROS type, default, description, bounds, allowed values, check."""
 
     name: str
-    kind: str                 # STRING, DOUBLE, INTEGER, BOOL or DOUBLE_ARRAY (the ROS type)
+    value_type: str           # STRING, DOUBLE, INTEGER, BOOL or DOUBLE_ARRAY (the ROS type)
     default: object
     description: str
     bounds: tuple = None      # (low, high) inclusive, numbers only
     choices: tuple = None     # allowed values, strings only
     check: object = None      # callable(value) raising ValueError with the reason
     rule: str = ''            # what ``check`` accepts, for ``ros2 param describe``
+
+    @property
+    def kind(self):
+        """Return the ROS type, as :attr:`value_type` (the name ``ros2 param`` shows)."""
+        return self.value_type
 
     @property
     def constraints(self):
@@ -164,6 +189,59 @@ def split_links(text):
     return [n.strip() for n in text.split(',')] if text.strip() else []
 
 
+def _positive(name):
+    def check(value):
+        """Accept a finite number > 0 (as ``mech-balance balance --counterweights``)."""
+        if not 0.0 < value <= MAX_COUNTERWEIGHT_VALUE:
+            raise ValueError(f'{name}: got {value!r}, expected a number > 0 and at most '
+                             f'{MAX_COUNTERWEIGHT_VALUE:g}')
+    return check
+
+
+def _counterweight_links(value):
+    """Accept empty or comma-separated link names, each once."""
+    names = split_links(value)
+    if any(not n or ' ' in n for n in names) or len(set(names)) != len(names):
+        raise ValueError(f'balance.counterweight_links: got {value!r}, expected comma-separated '
+                         'link names, each once, such as "crank,rocker" (or empty)')
+
+
+def _link_pair(name, unit):
+    def check(value):
+        """Accept [] (the factors), [min] (no upper bound) or [min, max], 0 < min <= max."""
+        if len(value) > 2 or (value and not value[0] > 0.0) or \
+                (len(value) == 2 and not value[1] >= value[0]):
+            raise ValueError(f'{name}: got {list(value)}, expected [] (the factors), [min] '
+                             f'or [min, max] in {unit} with 0 < min <= max')
+    return check
+
+
+def link_spec(link, option):
+    """Return the :class:`Spec` of ``balance.links.<link>.<option>`` (LINK_OPTIONS)."""
+    unit, older, what = LINK_OPTIONS[option]
+    name = f'{LINK_PREFIX}{link}.{option}'
+    return Spec(name, DOUBLE_ARRAY, [],
+                f'Link {link!r}: {what} [min, max] in {unit} overriding the factors; [min]: no '
+                f'upper bound; []: the factors (typed form of {older}, which it may not '
+                'contradict).', check=_link_pair(name, unit),
+                rule=f'[], [min] or [min, max] in {unit}, 0 < min <= max')
+
+
+def link_specs(link_names):
+    """Return the per-link :class:`Spec` of every link and option, in declaration order."""
+    return [link_spec(link, option) for link in link_names for option in LINK_OPTIONS]
+
+
+def spec_for(name):
+    """Return the :class:`Spec` of a parameter name (per-link ones included), or None."""
+    spec = BY_NAME.get(name)
+    if spec is None and name.startswith(LINK_PREFIX):
+        link, _, option = name[len(LINK_PREFIX):].rpartition('.')
+        if link and option in LINK_OPTIONS:
+            spec = link_spec(link, option)
+    return spec
+
+
 def _samples(value):
     """Accept 0 (the scene's samples) or an integer >= 4."""
     if 0 < value < 4:
@@ -177,9 +255,18 @@ def check_links(values, link_names):
 
     ``values`` holds checked parameter values; ``link_names`` are the scene's moving links.
     """
-    named = {'balance.fixed_links': split_links(values['balance.fixed_links'])}
+    named = {'balance.fixed_links': split_links(values['balance.fixed_links']),
+             'balance.counterweight_links': split_links(values['balance.counterweight_links'])}
     for key, unit in (('balance.mass_bounds', 'kg'), ('balance.distance_bounds', 'm')):
         named[key] = list(parse_link_bounds(key, values[key], unit) or ())
+    for key, value in values.items():
+        if key.startswith(LINK_PREFIX) and value:
+            link, _, option = key[len(LINK_PREFIX):].rpartition('.')
+            named[key] = [link]
+            older = LINK_OPTIONS[option][1]
+            if link in named[older]:
+                raise ValueError(f'{key}: got {list(value)}, expected no second bound for link '
+                                 f'{link!r} ({older} gives one; clear one of them)')
     for key, names in named.items():
         for name in names:
             if name not in link_names:
@@ -193,15 +280,13 @@ def check_links(values, link_names):
 def _path(value):
     """Accept empty (no recording) or a writable .rrd file in an existing directory."""
     if value:
-        from mech_balance.viz import recording
-        recording.check_output_path(value, 'recording_path', create_dir=False)
+        paths.check_output_path(value, 'recording_path', ('.rrd',), create_dir=False)
 
 
 def _viewer_url(value):
     """Accept empty (no live view) or a rerun viewer's gRPC address."""
     if value:
-        from mech_balance.viz import recording
-        recording.check_viewer_url(value, 'rerun_url')
+        paths.check_viewer_url(value, 'rerun_url')
 
 
 # ------------------------------------------------------------------------------ table
@@ -228,6 +313,11 @@ PARAMETERS = (
     Spec('frame_id', STRING, 'rig_frame',
          'Frame of the shaking wrench (header.frame_id of shaking_wrench).', check=_frame_id,
          rule="letters, digits, '_' and '/', not starting with '/' or a digit"),
+    Spec('publish_robot_description', BOOL, True,
+         'Publish the URDF of the published design on robot_description (std_msgs/String, '
+         'transient local, as robot_state_publisher does), again when the scene, the design '
+         'or frame_id changes; false when robot_state_publisher publishes it (the launch '
+         'file).'),
     Spec('crank_joint', STRING, '',
          "Follow mode: the crank's name in the encoder's JointState; empty: the scene's "
          'crank joint (RGGR: crank).', check=_joint_name, rule='no surrounding spaces'),
@@ -244,6 +334,11 @@ PARAMETERS = (
     Spec('follow.max_gap', DOUBLE, 0.5,
          'Follow mode: a longer gap between encoder stamps, s, restarts the estimator.',
          bounds=(1e-6, 3600.0)),
+    Spec('follow.resync_after', INTEGER, 10,
+         'Follow mode: after this many encoder messages in a row rejected for their stamp '
+         '(not after the last accepted) or their step (a jump), the node re-synchronizes on '
+         'the incoming stream (one message stamped far in the future cannot lock it out).',
+         bounds=(1, 100000)),
     Spec('balance.weights', DOUBLE_ARRAY, list(balancing.DEFAULT_WEIGHTS),
          'Weights [w1, w2] of the RMS shaking force and moment in the balancing objective '
          '(seed 001 eq. 43; mech-balance balance --weights).', check=_weights,
@@ -268,11 +363,13 @@ PARAMETERS = (
          'l = sqrt(I_O/m) (eq. 50c).', check=_factors('balance.distance_factors'),
          rule='[low, high], 0 < low <= high'),
     Spec('balance.mass_bounds', STRING, '',
-         'Per-link mass bounds in kg overriding the factors, YAML: {crank: [0.3, 1.6]}.',
+         'Per-link mass bounds in kg overriding the factors, YAML text: {crank: [0.3, 1.6]} '
+         '(the older form of balance.links.<link>.mass_bounds).',
          check=_link_bounds('balance.mass_bounds', 'kg'), rule=_BOUNDS_RULE),
     Spec('balance.distance_bounds', STRING, '',
-         'Per-link point-mass distance bounds in m overriding the factors, YAML: '
-         '{crank: [0.02, null]}.', check=_link_bounds('balance.distance_bounds', 'm'),
+         'Per-link point-mass distance bounds in m overriding the factors, YAML text: '
+         '{crank: [0.02, null]} (the older form of balance.links.<link>.distance_bounds).',
+         check=_link_bounds('balance.distance_bounds', 'm'),
          rule=_BOUNDS_RULE),
     Spec('balance.torque_weight', DOUBLE, 0.0,
          'Extra weight on the RMS normalized driving torque.', bounds=(0.0, MAX_WEIGHT)),
@@ -289,6 +386,34 @@ PARAMETERS = (
          "Crank angles per revolution in the balancing objective; 0: the scene's samples "
          '(RGGR: 360).', bounds=(0, MAX_SAMPLES), check=_samples,
          rule='0 or >= 4'),
+    Spec('balance.method', STRING, 'redistribution',
+         'redistribution: the certified optimal mass redistribution (seed 001); '
+         'counterweights: add-only discs on balance.counterweight_links (certified); '
+         'analytic: complete force balance in closed form (slider-crank: seed 000, '
+         'four-bar: seed 001 eq. 48). A scene that cannot be redistributed (RGGR) is '
+         'balanced by its own method with the default.', choices=METHODS),
+    Spec('balance.counterweight_links', STRING, '',
+         'Counterweights: comma-separated links that each gain one disc (e.g. '
+         '"crank,rocker"); needed by balance.method counterweights.',
+         check=_counterweight_links, rule='links of the scene, each once'),
+    Spec('balance.density', DOUBLE, balancing_defaults.DEFAULT_DENSITY_KG_M3,
+         'Counterweights: disc material density, kg/m^3 (steel).',
+         check=_positive('balance.density'), rule='> 0'),
+    Spec('balance.max_thickness', DOUBLE, balancing_defaults.DEFAULT_MAX_THICKNESS_M,
+         'Counterweights: thickest disc, m.', check=_positive('balance.max_thickness'),
+         rule='> 0'),
+    Spec('balance.max_radius_factor', DOUBLE, balancing_defaults.DEFAULT_MAX_RADIUS_FACTOR,
+         "Counterweights: disc centre at most this factor times the distance from the link's "
+         'origin to its farthest joint point.', check=_positive('balance.max_radius_factor'),
+         rule='> 0'),
+    Spec('balance.max_mass_factor', DOUBLE, balancing_defaults.DEFAULT_MAX_MASS_FACTOR,
+         "Counterweights: disc mass at most this factor times the link's own mass.",
+         check=_positive('balance.max_mass_factor'), rule='> 0'),
+    Spec('balance.max_gyration_factor', DOUBLE,
+         balancing_defaults.DEFAULT_MAX_GYRATION_FACTOR,
+         "Counterweights: the disc's radius of gyration about the link origin at most this "
+         "factor times the link's joint reach.",
+         check=_positive('balance.max_gyration_factor'), rule='> 0'),
     Spec('use_balanced', BOOL, False,
          'Publish the balanced rig instead of the original; true runs the balancing with '
          'the balance.* options if no design is known for them (~/balance sets it, '
@@ -302,6 +427,37 @@ PARAMETERS = (
          '(`rerun` prints it when it starts, e.g. rerun+http://127.0.0.1:9876/proxy), at most '
          '30 samples per second on a thread of its own; empty: none.',
          check=_viewer_url, rule='empty or rerun[+http|+https]://HOST[:PORT]/proxy'),
+    # the twin against the real rig (mech_balance.ros.sensor, README)
+    *(Spec(f'sensor.{axis}', DOUBLE, 0.0,
+           f'Origin of the force sensor in frame_id (the rig frame), {axis} in m; the '
+           'measured torque is about this point.',
+           bounds=(-MAX_SENSOR_OFFSET_M, MAX_SENSOR_OFFSET_M)) for axis in 'xyz'),
+    *(Spec(f'sensor.{angle}', DOUBLE, 0.0,
+           f'Orientation of the force sensor in frame_id, {angle} in rad (ROS fixed axes: '
+           'R = Rz(yaw) Ry(pitch) Rx(roll) maps the sensor axes to the rig axes).',
+           bounds=(-MAX_ANGLE_RAD, MAX_ANGLE_RAD)) for angle in ('roll', 'pitch', 'yaw')),
+    Spec('sensor.convention', STRING, sensor.CONVENTIONS[0],
+         'load_on_sensor: measured_wrench is the load the rig exerts on the sensor (a rig '
+         'at rest on it pushes down, the sign of shaking_wrench); reaction: the wrench the '
+         'sensor exerts on the rig (pushes up), negated before the comparison.',
+         choices=sensor.CONVENTIONS),
+    Spec('sensor.residual_window', DOUBLE, 2.0,
+         'Span of the running RMS of residual and measurement, s (by measurement stamps).',
+         bounds=(0.01, 600.0)),
+    Spec('sensor.crank_window', DOUBLE, 0.1,
+         'Follow mode: span of the centred least-squares quadratic through the encoder '
+         'angles that gives the crank state at a measurement stamp, s (longer: less '
+         'quantization noise, more smoothing of speed variations; the residual lags by '
+         'half of it).', bounds=(1e-3, 10.0)),
+    Spec('sensor.tare_seconds', DOUBLE, 2.0,
+         '~/tare estimates the sensor bias from the paired measurements of the last this '
+         'many seconds.', bounds=(1e-3, 600.0)),
+    Spec('diagnostics.warn_fraction', DOUBLE, 0.1,
+         '/diagnostics: the measured-wrench status is WARN when the residual RMS of a '
+         'component exceeds this fraction of its measured RMS.', bounds=(0.0, MAX_FRACTION)),
+    Spec('diagnostics.error_fraction', DOUBLE, 0.3,
+         '/diagnostics: ERROR above this fraction (>= diagnostics.warn_fraction).',
+         bounds=(0.0, MAX_FRACTION)),
 )
 """Every parameter of the rig node, in declaration order."""
 
@@ -314,10 +470,11 @@ def check(name, value):
 
     The reason names the parameter, the value and what was expected.
     """
-    spec = BY_NAME.get(name)
+    spec = spec_for(name)
     if spec is None:
         raise ValueError(f'{name}: unknown parameter, expected one of '
-                         f'{", ".join(BY_NAME)}')
+                         f'{", ".join(BY_NAME)} or {LINK_PREFIX}<link>.<'
+                         f'{"|".join(LINK_OPTIONS)}>')
     value = _typed(spec, value)
     if spec.bounds is not None and not spec.bounds[0] <= value <= spec.bounds[1]:
         raise ValueError(f'{name}: got {value!r}, expected {spec.bounds[0]:g} <= value <= '
@@ -329,24 +486,93 @@ def check(name, value):
     return value
 
 
+def check_together(values):
+    """
+    Raise ValueError if checked parameter values disagree with each other.
+
+    ``diagnostics.warn_fraction`` must not exceed ``diagnostics.error_fraction``.
+    """
+    warn, error = values['diagnostics.warn_fraction'], values['diagnostics.error_fraction']
+    if warn > error:
+        raise ValueError(f'diagnostics.warn_fraction: got {warn:g} above '
+                         f'diagnostics.error_fraction = {error:g}, expected warn <= error')
+
+
+def sensor_pose_values(values):
+    """Return the keyword arguments of :class:`mech_balance.ros.sensor.SensorPose`."""
+    out = {k: values[f'sensor.{k}'] for k in ('x', 'y', 'z', 'roll', 'pitch', 'yaw')}
+    out['convention'] = values['sensor.convention']
+    return out
+
+
 def _typed(spec, value):
     expected = {STRING: 'text', DOUBLE: 'a floating-point number', INTEGER: 'an integer',
-                BOOL: 'true or false', DOUBLE_ARRAY: 'a list of numbers'}[spec.kind]
-    # as ROS: a double is a float (100 is an integer, 100.0 a double)
+                BOOL: 'true or false', DOUBLE_ARRAY: 'a list of numbers'}[spec.value_type]
+    # ROS types 100 as an integer and 100.0 as a double: an integer is accepted (and
+    # converted) where a double is declared, as `ros2 param set /rig publish_rate 100` sends
     ok = {STRING: lambda v: isinstance(v, str),
-          DOUBLE: lambda v: isinstance(v, float),
+          DOUBLE: _is_number,
           INTEGER: lambda v: isinstance(v, int) and not isinstance(v, bool),
           BOOL: lambda v: isinstance(v, bool),
           DOUBLE_ARRAY: lambda v: not isinstance(v, (str, bytes)) and hasattr(v, '__len__')
-          and all(isinstance(x, float) for x in v)}
-    if not ok[spec.kind](value):
-        raise ValueError(f'{spec.name}: got {value!r}, expected {expected}')
-    if spec.kind == DOUBLE:
-        value = float(value)
-        if not math.isfinite(value):
-            raise ValueError(f'{spec.name}: got {value!r}, expected a finite number')
-    if spec.kind == DOUBLE_ARRAY:
-        value = [float(x) for x in value]
+          and len(v) <= MAX_ARRAY and all(_is_number(x) for x in v)}
+    if not ok[spec.value_type](value):
+        raise ValueError(f'{spec.name}: got {_show(value)}, expected {expected}')
+    if spec.value_type == DOUBLE:
+        value = _finite(spec.name, value)
+    if spec.value_type == DOUBLE_ARRAY:
+        value = [_finite(spec.name, x, value) for x in value]
+    return value
+
+
+MAX_ARRAY = 64
+"""Longest array parameter accepted (the longest declared takes two numbers)."""
+
+
+def _is_number(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _finite(name, x, whole=None):
+    try:
+        v = float(x)
+    except OverflowError:  # an integer beyond the doubles
+        v = math.inf
+    if not math.isfinite(v):
+        if whole is None:
+            raise ValueError(f'{name}: got {_show(x)}, expected a finite number')
+        raise ValueError(f'{name}: got {_show(list(whole))}, expected finite numbers')
+    return v
+
+
+def _show(value):
+    text = repr(value)
+    return text if len(text) <= 80 else f'{text[:80]}... ({len(text)} characters)'
+
+
+def coerced(name, value):
+    """
+    Return ``value`` converted to the declared type of ``name`` where that loses nothing.
+
+    An integer (or a list of integers, or an empty list of any type) becomes the double
+    (list) a ``DOUBLE`` (``DOUBLE_ARRAY``) parameter is declared with; anything else is
+    returned as it is (the check then names what is wrong).  The node applies it before
+    rclpy stores a value, so that the stored type stays the declared one.
+    """
+    spec = spec_for(name)
+    if spec is None:
+        return value
+    if spec.value_type == DOUBLE and _is_number(value) and isinstance(value, int):
+        try:
+            return float(value)
+        except OverflowError:
+            return value
+    if spec.value_type == DOUBLE_ARRAY and isinstance(value, (list, tuple)) and \
+            (not value or all(_is_number(x) for x in value)):
+        try:
+            return [float(x) for x in value]
+        except OverflowError:
+            return value
     return value
 
 
@@ -362,18 +588,39 @@ def balance_options(values, method='redistribution'):
     ``values`` maps parameter names to checked values (at least the ``balance.*`` ones);
     the same call as ``mech-balance balance`` with the matching options.  ``method`` is the
     balancing method (:func:`mech_balance.balancing.method_for`): the RGGR's ``weights``
-    take the sample count only.
+    and ``analytic`` take the sample count only, ``counterweights`` the ``balance.*``
+    counterweight options; the per-link ``balance.links.<link>.*_bounds`` join the text
+    ``balance.*_bounds`` (a link in both is refused by :func:`check_links`).
     """
     if method == 'weights':
         return {'samples': values['balance.samples'] or None}
+    if method == 'analytic':
+        return {'samples': values['balance.samples'] or None}
+    if method == 'counterweights':
+        return {'links': tuple(split_links(values['balance.counterweight_links'])),
+                'weights': tuple(values['balance.weights']),
+                'density_kg_m3': values['balance.density'],
+                'max_thickness_m': values['balance.max_thickness'],
+                'max_radius_factor': values['balance.max_radius_factor'],
+                'max_mass_factor': values['balance.max_mass_factor'],
+                'max_gyration_factor': values['balance.max_gyration_factor'],
+                'torque_weight': values['balance.torque_weight'],
+                'reaction_weight': values['balance.reaction_weight'],
+                'samples': values['balance.samples'] or None}
+    bounds = {}
+    for key, unit in (('mass_bounds', 'kg'), ('distance_bounds', 'm')):
+        merged = dict(parse_link_bounds(f'balance.{key}', values[f'balance.{key}'], unit) or {})
+        for name, value in values.items():
+            if name.startswith(LINK_PREFIX) and name.endswith(f'.{key}') and value:
+                link = name[len(LINK_PREFIX):-len(key) - 1]
+                merged[link] = (float(value[0]), float(value[1]) if len(value) == 2 else None)
+        bounds[key] = merged or None
     cap = values['balance.max_added_mass']
     return {'weights': tuple(values['balance.weights']), 'case': values['balance.case'],
             'realizable': values['balance.realizable'],
             'paper_constraints': values['balance.paper_constraints'],
-            'mass_bounds': parse_link_bounds('balance.mass_bounds',
-                                             values['balance.mass_bounds'], 'kg'),
-            'distance_bounds': parse_link_bounds('balance.distance_bounds',
-                                                 values['balance.distance_bounds'], 'm'),
+            'mass_bounds': bounds['mass_bounds'],
+            'distance_bounds': bounds['distance_bounds'],
             'samples': values['balance.samples'] or None,
             'torque_weight': values['balance.torque_weight'],
             'reaction_weight': values['balance.reaction_weight'],

@@ -38,6 +38,7 @@ import threading
 import time
 
 from mech_balance.core.rig import rig_for, RigData
+from mech_balance.ros.guard import Guard
 from mech_balance.schema import registry
 import numpy as np
 
@@ -51,6 +52,15 @@ MAX_BATCH = 4096
 """Clock mode: most ticks per core call (high rates)."""
 MAX_LAG_S = 0.5
 """Clock mode: a tick later than this is skipped (counted) instead of published late."""
+CLOCK_JUMP_S = 5.0
+"""Clock mode: a tick later than this is a jump of the clock (``use_sim_time`` switched, a
+simulation resumed), not an overload: the schedule restarts from now and no tick is counted
+as skipped."""
+NO_CLOCK_WARN_S = 3.0
+"""Clock mode: the node's clock reading 0 (``use_sim_time`` true and no ``/clock`` message)
+for this long is reported, and again every :data:`NO_CLOCK_REPEAT_S`."""
+NO_CLOCK_REPEAT_S = 30.0
+"""Interval between two reports of a clock that still reads 0."""
 MAX_WAIT_S = 0.005
 """Longest single wait of the publishing thread (bounds its reaction to sim-time jumps)."""
 MAX_FOLLOW_BATCH = 256
@@ -83,18 +93,64 @@ class TwinModel:
         self.crank_joint = rig.crank_joint
         self.crank_index = self.joint_names.index(rig.crank_joint)
         self.moment_point = rig.moment_point
+        self.moment_point_m = tuple(float(v) for v in rig.moment_point_m)
         self.kind = registry.kind_of(rig).name
         self.has_effort = bool({'driving_torque', 'bearing_reactions'} & set(rig.outputs))
         self.outputs = ('shaking_wrench', 'driving_torque') if self.has_effort else \
             ('shaking_wrench',)
+        self.angular = ~np.array(rig.joint_prismatic, dtype=bool)
 
     def with_design(self, scene):
         """Return the twin of another design (inertia) of the same geometry."""
         return TwinModel(self.rig.with_scene(scene))
 
     def evaluate(self, psi, speed, accel=0.0):
-        """Return the :class:`Samples` at crank angles ``psi`` ``(n,)`` (rad), rad/s, rad/s^2."""
-        return self.rig.at(psi, speed, accel, outputs=self.outputs)
+        """
+        Return the :class:`Samples` at crank angles ``psi`` ``(n,)`` (rad), rad/s, rad/s^2.
+
+        As published: revolute joint positions wrapped to (-pi, pi], no -0.0 anywhere.
+        """
+        s = self.rig.at(psi, speed, accel, outputs=self.outputs)
+        position = s.joint_position + 0.0
+        position[:, self.angular] = wrap_angle(position[:, self.angular])
+        s.joint_position, s.joint_velocity = position, s.joint_velocity + 0.0
+        s.force_N, s.moment_Nm = s.force_N + 0.0, s.moment_Nm + 0.0
+        if s.joint_effort is not None:
+            s.joint_effort = s.joint_effort + 0.0
+        return s
+
+
+def wrap_angle(angle_rad):
+    """Return angles wrapped to (-pi, pi], with no -0.0 (array in, array out)."""
+    w = math.pi - np.mod(math.pi - np.asarray(angle_rad, dtype=float), TWO_PI)
+    return np.where(w <= -math.pi, w + TWO_PI, w) + 0.0  # mod may round up to 2 pi
+
+
+def finite_rows(samples):
+    """Return a ``(n,)`` mask of the samples whose every published value is finite."""
+    parts = [samples.joint_position, samples.joint_velocity, samples.force_N, samples.moment_Nm]
+    if samples.joint_effort is not None:
+        parts.append(samples.joint_effort)
+    return np.all(np.isfinite(np.hstack(parts)), axis=1)
+
+
+def withhold_nonfinite(samples):
+    """
+    Return ``(samples, ok)``: rows with a non-finite value zeroed, and the mask of good rows.
+
+    The last check before publishing: a row that is not ``ok`` is never sent (its payload
+    is None); it is zeroed only so that serializing the batch stays on the fast path.
+    """
+    ok = finite_rows(samples)
+    if not ok.all():
+        for name in ('joint_position', 'joint_velocity', 'joint_effort', 'force_N',
+                     'moment_Nm'):
+            values = getattr(samples, name)
+            if values is not None:
+                values = np.array(values, dtype=float)
+                values[~ok] = 0.0
+                setattr(samples, name, values)
+    return samples, ok
 
 
 def model_for(scene):
@@ -166,6 +222,13 @@ MAX_SAMPLE_GAP_S = 0.5
 """A longer gap between encoder stamps restarts the estimator (default ``follow.max_gap``)."""
 MAX_CRANK_SPEED = 200.0
 """Fastest crank the rig can have, rad/s (default of ``follow.max_speed``)."""
+RESYNC_AFTER = 10
+"""Consecutive messages rejected for their stamp or step after which the estimator
+re-synchronizes on the incoming stream (default of ``follow.resync_after``)."""
+
+
+class StreamRejected(ValueError):
+    """An encoder reading that contradicts the accepted history (its stamp or its step)."""
 
 
 @dataclass(frozen=True)
@@ -197,11 +260,19 @@ class CrankEstimator:
     over the window (the speed's noise falls as window^-1.5).  :meth:`update` raises
     ``ValueError`` naming the problem for a sample the rig cannot have produced: a
     non-finite value, a stamp not after the previous one, or a step that needs a crank
-    faster than ``max_speed``.  A gap longer than ``max_gap_s`` restarts the fit.
+    faster than ``max_speed``, or an encoder velocity beyond ``max_speed``.  A gap longer
+    than ``max_gap_s`` restarts the fit.
+
+    Re-synchronization: a reading rejected for its stamp or its step
+    (:class:`StreamRejected`) may be right and the history wrong (one message stamped far in
+    the future, an encoder re-zeroed).  After ``resync_after`` such rejections in a row the
+    history is dropped and the reading primes a new fit; ``resyncs`` counts these and
+    ``last_resync`` says why (the node logs it).
     """
 
     def __init__(self, window=FOLLOW_WINDOW, max_speed=MAX_CRANK_SPEED,
-                 max_gap_s=MAX_SAMPLE_GAP_S, use_encoder_velocity=True):
+                 max_gap_s=MAX_SAMPLE_GAP_S, use_encoder_velocity=True,
+                 resync_after=RESYNC_AFTER):
         window = int(window)
         if window < 2:
             raise ValueError(f'window: got {window}, expected an integer >= 2')
@@ -212,6 +283,11 @@ class CrankEstimator:
         self.max_speed = float(max_speed)
         self.max_gap_ns = int(max_gap_s * 1e9)
         self.use_encoder_velocity = bool(use_encoder_velocity)
+        self.resync_after = max(1, int(resync_after))
+        self.resyncs = 0
+        self.last_resync = ''
+        self.rejected_in_a_row = 0
+        self.just_resynced = False
         self.reset()
 
     def reset(self):
@@ -223,6 +299,23 @@ class CrankEstimator:
 
     def update(self, stamp_ns, position, velocity=None):
         """Return the :class:`CrankSample` of an encoder reading, or None while priming."""
+        self.just_resynced = False
+        try:
+            sample = self._update(stamp_ns, position, velocity)
+        except StreamRejected as exc:
+            self.rejected_in_a_row += 1
+            if self.rejected_in_a_row < self.resync_after:
+                raise
+            self.resyncs += 1
+            self.last_resync = (f'{self.rejected_in_a_row} consecutive messages rejected '
+                                f'(the last: {exc})')
+            self.reset()
+            sample = self._update(stamp_ns, position, velocity)
+            self.just_resynced = True
+        self.rejected_in_a_row = 0
+        return sample
+
+    def _update(self, stamp_ns, position, velocity):
         stamp_ns = int(stamp_ns)
         position = float(position)
         if not math.isfinite(position):
@@ -232,10 +325,14 @@ class CrankEstimator:
             if not math.isfinite(velocity):
                 raise ValueError(f'velocity: got {velocity!r}, expected a finite crank '
                                  'speed or none')
+            if abs(velocity) > self.max_speed:  # the limit of the position steps below
+                raise ValueError(f'velocity: got {velocity:.6g} rad/s, expected at most '
+                                 f'follow.max_speed = {self.max_speed:g} rad/s in magnitude '
+                                 '(a crank speed the rig cannot have)')
         last = self._last
         if last is not None and stamp_ns <= last[0]:
-            raise ValueError(f'stamp: {stamp_ns * 1e-9:.9f} s is not after the previous '
-                             f'{last[0] * 1e-9:.9f} s, expected increasing stamps')
+            raise StreamRejected(f'stamp: {stamp_ns * 1e-9:.9f} s is not after the previous '
+                                 f'{last[0] * 1e-9:.9f} s, expected increasing stamps')
         if last is not None and stamp_ns - last[0] > self.max_gap_ns:
             self.reset()
             last = None
@@ -248,7 +345,7 @@ class CrankEstimator:
             # the turn since the last sample: the 2 pi branch nearest the prediction
             step = guess + _wrap_pi(position - raw_prev - guess)
             if abs(step) > self.max_speed * dt:
-                raise ValueError(
+                raise StreamRejected(
                     f'position: {position:.6g} rad after {raw_prev:.6g} rad in {dt:.3g} s '
                     f'needs a crank speed of {abs(step) / dt:.4g} rad/s, expected at most '
                     f'follow.max_speed = {self.max_speed:g} rad/s (a jump the linkage cannot '
@@ -308,6 +405,7 @@ class TickStats:
     def __init__(self):
         self.count = 0
         self.skipped = 0
+        self.withheld = 0   # samples with a non-finite value, never published
         self.late_max_s = 0.0
         self._times = deque(maxlen=STATS_WINDOW)
         self.batch_seconds = deque(maxlen=64)
@@ -328,7 +426,7 @@ class TickStats:
         times = np.array(self._times) if self._times else np.zeros(1)
         per_tick = (sum(self.batch_seconds) / sum(self.batch_sizes)) if self.batch_sizes \
             else float('nan')
-        return {'published': self.count, 'skipped': self.skipped,
+        return {'published': self.count, 'skipped': self.skipped, 'withheld': self.withheld,
                 'step_median_s': float(np.median(times)),
                 'step_p99_s': float(np.percentile(times, 99)),
                 'late_max_s': self.late_max_s,
@@ -342,7 +440,10 @@ class Streamer:
     ``now_ns()`` reads the node's clock; ``prepare(samples, stamps_ns)`` turns an evaluated
     batch into one payload per sample (the node: both messages, serialized);
     ``publish(payload)`` sends one; ``warn(text)`` reports a problem;
-    ``record(samples, turned_rad, stamps_ns)`` (optional) receives every evaluated batch.
+    ``record(samples, turned_rad, stamps_ns)`` (optional) receives every evaluated batch;
+    ``guard`` (a :class:`mech_balance.ros.guard.Guard`, optional) counts and reports what
+    the threads catch: an exception skips one step, never ends a thread.  A sample with a
+    non-finite value is withheld (counted in ``stats.withheld``, warned), never published.
 
     Clock mode: one thread publishes tick k at its stamp from prepared batches, a second
     evaluates and prepares the next batch while the current one is published, so that a
@@ -351,8 +452,11 @@ class Streamer:
     evaluated), prepared and published.
     """
 
-    def __init__(self, now_ns, prepare, publish, warn, record=None):
+    def __init__(self, now_ns, prepare, publish, warn, record=None, guard=None):
         self._now_ns = now_ns
+        self._guard = guard if guard is not None else Guard(warn)
+        self._zero_clock_since = None   # monotonic time since the clock reads 0
+        self._zero_clock_warned = None
         self._prepare = prepare
         self._publish = publish
         self._warn = warn
@@ -398,6 +502,12 @@ class Streamer:
         with self._cond:
             self._restart(self._mode, model, self._schedule, keep_pending=True)
 
+    @property
+    def clock_schedule(self):
+        """Return the clock-mode :class:`ClockSchedule` in force, or None (follow mode)."""
+        with self._cond:
+            return self._schedule if self._mode == 'clock' else None
+
     def push(self, sample):
         """Queue a follow-mode :class:`CrankSample`; return False if the oldest was dropped."""
         with self._cond:
@@ -438,7 +548,7 @@ class Streamer:
         samples = model.evaluate(np.mod(turned, TWO_PI), schedule.speed_rad_s, 0.0)
         stamps = schedule.epoch_ns + np.arange(k0, k0 + count, dtype=np.int64) * \
             schedule.period_ns
-        payloads = self._prepare(samples, stamps)
+        payloads = self._prepared(samples, stamps)
         self.stats.batch_seconds.append(time.perf_counter() - t0)
         self.stats.batch_sizes.append(count)
         if self._record is not None:
@@ -464,12 +574,31 @@ class Streamer:
         out = []
         for samples, group in groups:
             stamps = np.array([s.stamp_ns for s in group], dtype=np.int64)
-            out.append(self._prepare(samples, stamps))
+            out.append(self._prepared(samples, stamps))
             if self._record is not None:
                 self._record(samples, np.array([s.turned_rad for s in group]), stamps)
         self.stats.batch_seconds.append(time.perf_counter() - t0)
         self.stats.batch_sizes.append(len(batch))
         return [p for payloads in out for p in payloads]
+
+    def _prepared(self, samples, stamps):
+        """Prepare a batch; a sample with a non-finite value gets the payload None."""
+        samples, ok = withhold_nonfinite(samples)
+        payloads = list(self._prepare(samples, stamps))
+        for i in np.flatnonzero(~ok):
+            payloads[i] = None
+        return payloads
+
+    def _send(self, payload):
+        """Publish one payload, the last check first: None (non-finite) is withheld."""
+        if payload is None:
+            self.stats.withheld += 1
+            self._warn(f'publishing: withheld a sample with a non-finite value '
+                       f'({self.stats.withheld} so far); nothing non-finite is published')
+            return
+        t0 = time.perf_counter()
+        self._publish(payload)
+        self.stats.add(time.perf_counter() - t0)
 
     # -------------------------------------------------------------- threads
 
@@ -488,7 +617,7 @@ class Streamer:
                 else:
                     self._follow_step()
             except Exception as exc:  # noqa: BLE001 - the node never dies on a sample
-                self._warn(f'publishing failed: {type(exc).__name__}: {exc}')
+                self._guard.caught('publishing failed', exc)
                 time.sleep(MAX_WAIT_S)
 
     def _clock_step(self):
@@ -496,8 +625,10 @@ class Streamer:
             gen, model, schedule = self._generation, self._model, self._schedule
             now = self._now_ns()
             if now == 0:  # simulated time that has not started (no /clock yet)
+                self._report_zero_clock()
                 self._cond.wait(MAX_WAIT_S)
                 return
+            self._zero_clock_since = self._zero_clock_warned = None
             if schedule.epoch_ns == 0:  # the schedule was made before the clock started
                 schedule = self._schedule = ClockSchedule(
                     now, schedule.period_ns, schedule.angle0_rad, schedule.speed_rad_s)
@@ -517,6 +648,15 @@ class Streamer:
                 self._cond.wait(min((due - now) * 1e-9, MAX_WAIT_S))
                 return
             late = (now - due) * 1e-9
+            if late > CLOCK_JUMP_S:  # use_sim_time switched, a simulation resumed
+                self._schedule = schedule.rebased(now)
+                self._next_k = None
+                self._batches.clear()
+                self._generation += 1
+                self._warn(f'clock mode: the clock jumped forward by {late:.3g} s (use_sim_time '
+                           'switched or a simulation resumed): publishing from now on, no '
+                           'ticks counted as skipped')
+                return
             if late > MAX_LAG_S:
                 k_now = schedule.first_index_at_or_after(now)
                 self.stats.skipped += k_now - k
@@ -534,15 +674,26 @@ class Streamer:
                 self._batches.clear()
                 self._batches.append((k, payloads))
                 found = payloads[0]
-        t0 = time.perf_counter()
-        self._publish(found)
-        self.stats.add(time.perf_counter() - t0)
+        self._send(found)
         self.stats.late_max_s = max(self.stats.late_max_s, late)
         with self._cond:
             if gen == self._generation:
                 self._next_k = k + 1
                 if self._needs_refill():
                     self._refill.set()
+
+    def _report_zero_clock(self):
+        """Say so when the clock has read 0 for NO_CLOCK_WARN_S (lock held)."""
+        now = time.monotonic()
+        if self._zero_clock_since is None:
+            self._zero_clock_since = now
+        waited = now - self._zero_clock_since
+        last = self._zero_clock_warned
+        if waited >= NO_CLOCK_WARN_S and (last is None or now - last >= NO_CLOCK_REPEAT_S):
+            self._zero_clock_warned = now
+            self._warn(f'clock mode: not publishing: the node clock has read 0 for {waited:.0f} '
+                       's (use_sim_time is true and no /clock message has arrived; start the '
+                       'simulation or set use_sim_time false)')
 
     def _needs_refill(self):
         """Return whether less than one batch lies ahead of the next tick (lock held)."""
@@ -563,28 +714,31 @@ class Streamer:
 
     def _run_precompute(self):
         """Evaluate the next clock-mode batch whenever less than one batch lies ahead."""
-        while True:
-            self._refill.wait(MAX_WAIT_S * 20)
-            self._refill.clear()
-            with self._cond:
-                if self._stopped:
-                    return
-                if self._mode != 'clock' or not self._needs_refill():
-                    continue
-                k0, last = self._batches[-1]
-                gen, model, schedule = self._generation, self._model, self._schedule
-                k0, count = k0 + len(last), batch_size(schedule.period_ns)
+        while not self._stopped:
             try:
-                payloads = self._evaluate_ticks(model, schedule, k0, count)
+                self._precompute_step()
             except Exception as exc:  # noqa: BLE001 - reported, the publisher retries
-                self._warn(f'clock mode: evaluating ticks {k0}.. failed: {exc}')
+                self._guard.caught('clock mode: evaluating ticks', exc)
                 time.sleep(MAX_WAIT_S * 20)
-                continue
-            with self._cond:
-                if gen == self._generation and self._batches:
-                    k_last, last = self._batches[-1]
-                    if k_last + len(last) == k0:
-                        self._batches.append((k0, payloads))
+
+    def _precompute_step(self):
+        """Evaluate one clock-mode batch if less than one batch lies ahead."""
+        self._refill.wait(MAX_WAIT_S * 20)
+        self._refill.clear()
+        with self._cond:
+            if self._stopped:
+                return
+            if self._mode != 'clock' or not self._needs_refill():
+                return
+            k0, last = self._batches[-1]
+            gen, model, schedule = self._generation, self._model, self._schedule
+            k0, count = k0 + len(last), batch_size(schedule.period_ns)
+        payloads = self._evaluate_ticks(model, schedule, k0, count)
+        with self._cond:
+            if gen == self._generation and self._batches:
+                k_last, last = self._batches[-1]
+                if k_last + len(last) == k0:
+                    self._batches.append((k0, payloads))
 
     def _follow_step(self):
         with self._cond:
@@ -598,6 +752,4 @@ class Streamer:
             with self._cond:
                 if gen != self._generation or self._stopped:
                     return
-            t0 = time.perf_counter()
-            self._publish(payload)
-            self.stats.add(time.perf_counter() - t0)
+            self._send(payload)

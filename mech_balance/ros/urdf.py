@@ -57,19 +57,19 @@ Inertials
     the URDF takes the thinnest body that has the given ones (:func:`pivot_body_inertia`).
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 import math
 import os
 import xml.etree.ElementTree as ET
 
-from mech_balance.analysis import cycle as analysis
+from mech_balance import schema
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import kinematics
+from mech_balance.core.planar.rig import linkage_for
+from mech_balance.ros.names import DEFAULT_FRAME_ID
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
-DEFAULT_FRAME_ID = 'rig_frame'
-"""Root link name when none is given: the rig node's ``frame_id`` default (params.py)."""
 RANGE_SAMPLES = 720
 """Crank angles per turn at which each joint's range over a cycle is first located."""
 GOLDEN_ITERATIONS = 60
@@ -145,13 +145,19 @@ class TreeModel:
     """
     The URDF's joints of one scene geometry, built once (:func:`tree_model`).
 
-    ``joints`` are in :func:`joint_positions` order; ``kind`` is ``planar`` or ``rggr``;
-    ``linkage`` is the compiled planar linkage (None for the RGGR).
+    ``coordinates(tree, state)`` returns the tree joints' ``(q, qd, angular)`` of a solved
+    state (each kind's own, registered as its ``urdf_tree``); ``joints`` are in
+    :func:`joint_positions` order; ``linkage`` is the compiled planar linkage (or None).
+    ``cuts`` are the ``(name, joint_type)`` of the joints the core closes (not in the URDF);
+    ``state_of(data)`` returns the core state :func:`joint_positions` reads from a
+    :class:`~mech_balance.core.rig.RigData` of the scene's rig (:func:`rig_joint_positions`).
     """
 
-    kind: str
+    coordinates: object
     joints: tuple
     linkage: object = None
+    cuts: tuple = ()
+    state_of: object = field(default=None, compare=False, repr=False)
 
     @property
     def names(self):
@@ -168,10 +174,6 @@ def wrap_angle(angle_rad):
     w = math.pi - np.mod(math.pi - a, TWO_PI)
     w = np.where(w <= -math.pi, w + TWO_PI, w)  # mod may round up to 2 pi
     return w + 0.0
-
-
-def _is_rggr(scene):
-    return getattr(scene, 'kind', 'planar') == 'rggr'
 
 
 def _golden_extremes(f, centres, rows, half_width, sign):
@@ -314,14 +316,14 @@ def tree_model(scene_or_linkage):
     if hit is not None and hit[0] is scene_or_linkage:
         return hit[1]
     if isinstance(scene_or_linkage, kinematics.Linkage):
-        model = _planar_model(scene_or_linkage)
-    elif _is_rggr(scene_or_linkage):
-        model = _rggr_model(scene_or_linkage)
-    elif hasattr(scene_or_linkage, 'joints') and hasattr(scene_or_linkage, 'links'):
-        model = tree_model(analysis.linkage_for(scene_or_linkage))
+        model = planar_tree(scene_or_linkage)
     else:
-        raise UrdfError(f'scene: got {type(scene_or_linkage).__name__}, expected a planar '
-                        'scene, a kinematics.Linkage, an RGGR scene or a TreeModel')
+        try:
+            kind = schema.kind_of(scene_or_linkage)
+        except TypeError:
+            raise UrdfError(f'scene: got {type(scene_or_linkage).__name__}, expected a planar '
+                            'scene, a kinematics.Linkage, an RGGR scene or a TreeModel') from None
+        model = kind.implementation('urdf_tree')(scene_or_linkage)
     if len(_MODELS) >= _MODELS_MAX:
         _MODELS.clear()
     _MODELS[key] = (scene_or_linkage, model)
@@ -336,7 +338,10 @@ def _frame_offsets(linkage):
     return offset
 
 
-def _planar_model(linkage):
+def planar_tree(linkage):
+    """Return the :class:`TreeModel` of a planar scene or its compiled Linkage."""
+    if not isinstance(linkage, kinematics.Linkage):
+        linkage = linkage_for(linkage)
     sc = linkage.scene
     linkage.skeleton  # noqa: B018 - assemble and trace the branch: fail early
     names = linkage.body_names
@@ -357,7 +362,7 @@ def _planar_model(linkage):
         xyz = (p.real, p.imag, 0.0)
         parent = names[tj.parent]
         child = names[tj.child]
-        if tj.kind == 'revolute':
+        if not tj.prismatic:
             joints.append(_revolute_spec(tj.name, parent, child, xyz, (0.0, 0.0, 0.0),
                                          (0.0, 0.0, 1.0), lower[t], upper[t], turns[t],
                                          float(rate_max[t])))
@@ -372,7 +377,63 @@ def _planar_model(linkage):
         joints.append(UrdfJoint(tj.name, 'prismatic', parent, child, xyz, (0.0, 0.0, turn),
                                 (axis.real, axis.imag, 0.0), 0.0, float(lower[t] - margin),
                                 float(upper[t] + margin), float(rate_max[t])))
-    return TreeModel('planar', tuple(joints), linkage)
+    cuts = tuple((c.name, c.joint_type) for c in linkage.cuts)
+    return TreeModel(_planar_coordinates, tuple(joints), linkage, cuts, _planar_state)
+
+
+def _planar_coordinates(tree, state):
+    if not hasattr(state, 'q') or state.qd is None:
+        raise UrdfError(f'state: got {type(state).__name__} without rates, expected a '
+                        'KinematicState solved with rates (Linkage.solve)')
+    if state.q.shape[0] != len(tree.joints):
+        raise UrdfError(f'state: got {state.q.shape[0]} tree coordinates, expected '
+                        f'{len(tree.joints)} (the linkage of this scene)')
+    return state.q, state.qd, ~tree.linkage.is_prismatic
+
+
+def _planar_state(data):
+    """Return the planar kinematic state of a :class:`RigData` (solved with rates)."""
+    state = data.state
+    if state is None:
+        raise UrdfError('data: got a RigData without a planar kinematic state, expected the '
+                        "evaluation of this scene's planar rig (rig.at)")
+    return state
+
+
+@dataclass(frozen=True)
+class RggrTreeState:
+    """The part of :class:`~mech_balance.core.rggr.RggrKinematics` the RGGR's joints need."""
+
+    crank_angle_rad: np.ndarray
+    crank_speed_rad_s: np.ndarray
+    output_angle_rad: np.ndarray
+    output_rate_rad_s: np.ndarray
+    crank_axes: np.ndarray
+    coupler_m: np.ndarray
+    coupler_vel_m_s: np.ndarray
+
+
+def _rggr_state(scene, data):
+    """
+    Return the :class:`RggrTreeState` of an RGGR :class:`RigData` (no kinematics again).
+
+    From the rig's body poses (``frame, crank, coupler, output``: the crank axes Q1uvw, the
+    pin B, the output axes Q3uvw) and its ``output`` joint: C = Q3 + a3 u3 (seed 002 eq. 20),
+    A2 = C - B (eq. 21) and dA2/dt = a3 phi3' v3 - a1 omega v1 (eq. 34), each sample at its
+    own crank speed.
+    """
+    g = scene.geometry
+    poses = data.bodies
+    crank, coupler, output = (poses.names.index(n) for n in ('crank', 'coupler', 'output'))
+    j = data.joint_names.index('output')
+    crank_axes, output_axes = poses.rotation[:, crank], poses.rotation[:, output]
+    speed = np.asarray(data.crank_speed_rad_s, dtype=float)
+    rate = data.joint_velocity[:, j]
+    pin_c = poses.origin_m[:, output] + g.a3_m * output_axes[:, :, 0]
+    coupler_vel = g.a3_m * rate[:, None] * output_axes[:, :, 1] - \
+        g.a1_m * speed[:, None] * crank_axes[:, :, 1]
+    return RggrTreeState(data.crank_angle_rad, speed, data.joint_position[:, j], rate,
+                         crank_axes, pin_c - poses.origin_m[:, coupler], coupler_vel)
 
 
 def _rggr_angles(scene, psi):
@@ -415,7 +476,7 @@ def _coupler_angles(kin):
     return yaw, pitch, yaw_rate, pitch_rate
 
 
-def _rggr_model(scene):
+def rggr_tree(scene):
     from mech_balance.core import rggr
     rggr.check_full_rotation(scene)
     g = scene.geometry
@@ -443,7 +504,20 @@ def _rggr_model(scene):
         joints.append(_revolute_spec(name, parents[name], child, xyz, rpy, axis, lower[i],
                                      upper[i], 1.0 if name == 'crank' else turns[i],
                                      float(rate_max[i])))
-    return TreeModel('rggr', tuple(joints), None)
+    return TreeModel(_rggr_coordinates, tuple(joints), None, (('C', 'spherical'),),
+                     lambda data: _rggr_state(scene, data))
+
+
+def _rggr_coordinates(tree, state):
+    if not hasattr(state, 'coupler_m'):
+        raise UrdfError(f'state: got {type(state).__name__}, expected the RggrKinematics '
+                        'of an RGGR scene (rggr.kinematics)')
+    yaw, pitch, yaw_rate, pitch_rate = _coupler_angles(state)
+    n = state.crank_angle_rad.shape[0]
+    q = np.stack([state.crank_angle_rad, state.output_angle_rad, yaw, pitch])
+    speed = np.broadcast_to(np.asarray(state.crank_speed_rad_s, dtype=float), (n,))
+    qd = np.stack([speed, state.output_rate_rad_s, yaw_rate, pitch_rate])
+    return q, qd, np.ones(4, dtype=bool)
 
 
 # ----------------------------------------------------------------------------- positions
@@ -462,28 +536,22 @@ def joint_positions(model, state):
     """
     tree = tree_model(model)
     names = tree.names
-    if tree.kind == 'rggr':
-        if not hasattr(state, 'coupler_m'):
-            raise UrdfError(f'state: got {type(state).__name__}, expected the RggrKinematics '
-                            'of an RGGR scene (rggr.kinematics)')
-        yaw, pitch, yaw_rate, pitch_rate = _coupler_angles(state)
-        n = state.crank_angle_rad.shape[0]
-        q = np.stack([state.crank_angle_rad, state.output_angle_rad, yaw, pitch])
-        qd = np.stack([np.full(n, float(state.crank_speed_rad_s)), state.output_rate_rad_s,
-                       yaw_rate, pitch_rate])
-        angular = np.ones(4, dtype=bool)
-    else:
-        if not hasattr(state, 'q') or state.qd is None:
-            raise UrdfError(f'state: got {type(state).__name__} without rates, expected a '
-                            'KinematicState solved with rates (Linkage.solve)')
-        q, qd = state.q, state.qd
-        if q.shape[0] != len(names):
-            raise UrdfError(f'state: got {q.shape[0]} tree coordinates, expected '
-                            f'{len(names)} (the linkage of this scene)')
-        angular = ~tree.linkage.is_prismatic
+    q, qd, angular = tree.coordinates(tree, state)
     offset = np.array([j.offset for j in tree.joints])[:, None]
     positions = np.where(angular[:, None], wrap_angle(q - offset), q + 0.0)
     return names, positions.T + 0.0, np.asarray(qd, dtype=float).T + 0.0
+
+
+def rig_joint_positions(model, data):
+    """
+    Return ``(names, positions, velocities)`` of the URDF joints at a rig's evaluation.
+
+    ``data`` is the :class:`~mech_balance.core.rig.RigData` of the scene's rig (``rig.at``,
+    any design of the geometry of ``model``); the values are those of
+    :func:`joint_positions`, vectorized over the batch.
+    """
+    tree = tree_model(model)
+    return joint_positions(tree, tree.state_of(data))
 
 
 # ----------------------------------------------------------------------------- inertials
@@ -653,16 +721,14 @@ def urdf_xml(scene, frame_id=DEFAULT_FRAME_ID, linkage=None):
     ``frame_id`` names the root link (the frame); ``linkage`` is the scene's compiled
     linkage if at hand (planar).  Links, joints, zero convention: module docstring.
     """
-    if _is_rggr(scene):
-        robot = _rggr_robot(scene, frame_id)
-    else:
-        robot = _planar_robot(scene, frame_id, linkage)
+    robot = schema.kind_of(scene).implementation('urdf')(scene, frame_id, linkage)
     ET.indent(robot, space='  ')
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding='unicode') + '\n'
 
 
-def _planar_robot(sc, frame_id, linkage):
-    linkage = analysis.linkage_for(sc) if linkage is None else linkage
+def planar_robot(sc, frame_id, linkage=None):
+    """Return the URDF element tree of a planar scene (the kind registry's ``urdf``)."""
+    linkage = linkage_for(sc) if linkage is None else linkage
     model = tree_model(linkage)
     names = linkage.body_names
     _check_names(frame_id, names[1:])
@@ -680,7 +746,7 @@ def _planar_robot(sc, frame_id, linkage):
         pa, pb = c.p_a - offset[c.a], c.p_b - offset[c.b]
         jt = next(j for j in sc.joints if j.name == c.name)
         cut_lines.append(
-            f'{c.name}: {c.kind}, closes {names[c.a]}.{jt.point_a} ({_num(pa.real)}, '
+            f'{c.name}: {c.joint_type}, closes {names[c.a]}.{jt.point_a} ({_num(pa.real)}, '
             f'{_num(pa.imag)}) with {names[c.b]}.{jt.point_b} ({_num(pb.real)}, '
             f'{_num(pb.imag)})')
     _header(robot, 'Cut joints (closed by the core, not part of the URDF tree; points in '
@@ -696,7 +762,7 @@ def _planar_robot(sc, frame_id, linkage):
     width, thick, pin_r = BAR_WIDTH * L, BAR_THICKNESS * L, PIN_RADIUS * L
     rails = {}
     for t, tj in enumerate(linkage.tree):
-        if tj.kind == 'prismatic':
+        if tj.prismatic:
             rails[tj.name] = model.joints[t]
     for bi, body in enumerate(names):
         el = ET.SubElement(robot, 'link', name=urdf_name[body])
@@ -761,7 +827,8 @@ def _weight(parent, name, body, material):
     _shape(parent, name, material, tuple(body.centre_uvw_m), (0.0, 0.0, 0.0), _sphere(radius))
 
 
-def _rggr_robot(sc, frame_id):
+def rggr_robot(sc, frame_id, linkage=None):
+    """Return the URDF element tree of an RGGR scene (the kind registry's ``urdf``)."""
     model = tree_model(sc)
     g = sc.geometry
     links = ('crank', 'coupler_yaw_link', 'coupler', 'output')

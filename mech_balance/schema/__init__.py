@@ -15,19 +15,58 @@ by :mod:`mech_balance.schema.drive`; the field checks all of them share are in
 ``ValueError``) naming the field, the bad value and what was expected.
 """
 
-from mech_balance.schema.drive import Drive, drive_from_dict, DriveError
-from mech_balance.schema.fields import MAX_ABS_VALUE, SceneError
-from mech_balance.schema.registry import from_dict, kind_of, KINDS, to_dict
-from mech_balance.schema.rggr import RggrScene
-from mech_balance.schema.scene import add_counterweights, builtin_scenes, Counterweight, \
-    FRAME, INERTIA_ROUNDOFF, Joint, Link, load_data, needs, Normalization, OUTPUTS, parse_yaml, \
-    Recording, RECORDING_STREAMS, resolve, Scene, SCHEMA_VERSION
-import numpy as np
-import yaml
+import importlib
+
+_LAZY = {
+    'add_counterweights': 'scene',
+    'builtin_scenes': 'scene',
+    'Counterweight': 'scene',
+    'DEFAULT_OUTPUTS': 'scene',
+    'Drive': 'drive',
+    'drive_from_dict': 'drive',
+    'DriveError': 'drive',
+    'FRAME': 'scene',
+    'from_dict': 'registry',
+    'INERTIA_ROUNDOFF': 'scene',
+    'Joint': 'scene',
+    'kind_of': 'registry',
+    'KINDS': 'registry',
+    'Link': 'scene',
+    'load_data': 'scene',
+    'MAX_ABS_VALUE': 'fields',
+    'needs': 'scene',
+    'Normalization': 'scene',
+    'OUTPUTS': 'scene',
+    'parse_yaml': 'scene',
+    'Recording': 'scene',
+    'RECORDING_STREAMS': 'scene',
+    'resolve': 'scene',
+    'RggrScene': 'rggr',
+    'Scene': 'scene',
+    'SceneError': 'fields',
+    'SCHEMA_VERSION': 'scene',
+    'SERIES': 'scene',
+    'to_dict': 'registry',
+}
+"""The public names of the schema's modules, imported on first use (so that a command line
+parser that needs one constant does not load the loaders)."""
+
+
+def __getattr__(name):
+    """Return a public name of the schema (module docstring), importing its module."""
+    try:
+        module = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f'module mech_balance.schema has no attribute {name!r}') from None
+    value = getattr(importlib.import_module(f'mech_balance.schema.{module}'), name)
+    globals()[name] = value
+    return value
 
 
 def load(name_or_path):
     """Load and validate a scene of any kind by built-in name or path."""
+    from mech_balance.schema.registry import from_dict
+    from mech_balance.schema.scene import load_data
     data, path = load_data(name_or_path)
     return from_dict(data, source=str(path))
 
@@ -40,6 +79,8 @@ def to_yaml(sc, provenance=None):
     mapping, e.g. the summary of a balancing run) is stored under the scene's ``balance``
     key.
     """
+    import yaml
+    from mech_balance.schema.registry import to_dict
     data = to_dict(sc)
     if provenance is not None:
         data['balance'] = provenance
@@ -48,6 +89,7 @@ def to_yaml(sc, provenance=None):
 
 def plain(obj):
     """Return ``obj`` with numpy scalars and tuples turned into YAML-safe Python types."""
+    import numpy as np
     if isinstance(obj, dict):
         return {str(k): plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple, np.ndarray)):
@@ -61,8 +103,4 @@ def plain(obj):
     return obj
 
 
-__all__ = ['add_counterweights', 'builtin_scenes', 'Counterweight', 'Drive', 'drive_from_dict',
-           'DriveError', 'FRAME', 'from_dict', 'INERTIA_ROUNDOFF', 'Joint', 'KINDS', 'kind_of',
-           'Link', 'load', 'load_data', 'MAX_ABS_VALUE', 'needs', 'Normalization', 'OUTPUTS',
-           'parse_yaml', 'plain', 'Recording', 'RECORDING_STREAMS', 'resolve', 'RggrScene',
-           'Scene', 'SceneError', 'SCHEMA_VERSION', 'to_dict', 'to_yaml']
+__all__ = sorted(set(_LAZY) | {'load', 'plain', 'to_yaml'}, key=str.lower)

@@ -7,7 +7,9 @@ scene), its writer (scene -> mapping), its scene type and its implementations by
 ``rig``
     the :class:`~mech_balance.core.rig.Rig` factory (scene -> rig);
 ``analyze``
-    the ``mech-balance analyze`` report (scene, samples, normalized, design -> Report).
+    the ``mech-balance analyze`` report (scene, samples, normalized, design -> Report);
+``urdf``, ``urdf_tree``
+    the URDF of the rig's spanning tree and its joint model (:mod:`mech_balance.ros.urdf`);
 
 Implementations are named by their import path (``module:attribute``), the way setuptools
 entry points name plug-ins: the schema layer sits below the core and must not import it,
@@ -32,6 +34,7 @@ class Kind:
     load: object             # (mapping, source) -> scene
     write: object            # scene -> mapping (the inverse of load)
     implementations: dict    # role -> 'module:attribute' (module docstring)
+    geometry: object = None  # scene -> (what a design may not change, its name in words)
 
     def implementation(self, role):
         """Return this kind's implementation of ``role`` (imported on first use)."""
@@ -46,10 +49,14 @@ class Kind:
 KINDS = {
     'planar': Kind('planar', scene.Scene, scene.planar_from_dict, scene.planar_to_dict, {
         'rig': 'mech_balance.core.planar.rig:PlanarRig',
-        'analyze': 'mech_balance.analysis.cycle:analyze'}),
+        'analyze': 'mech_balance.analysis.cycle:analyze',
+        'urdf': 'mech_balance.ros.urdf:planar_robot',
+        'urdf_tree': 'mech_balance.ros.urdf:planar_tree'}, scene.geometry),
     'rggr': Kind('rggr', rggr.RggrScene, rggr.load_rggr_scene, rggr.rggr_to_dict, {
         'rig': 'mech_balance.core.rggr:RggrRig',
-        'analyze': 'mech_balance.analysis.rggr_report:analyze'}),
+        'analyze': 'mech_balance.analysis.rggr_report:analyze',
+        'urdf': 'mech_balance.ros.urdf:rggr_robot',
+        'urdf_tree': 'mech_balance.ros.urdf:rggr_tree'}, rggr.geometry),
 }
 """Every kind of scene, by its ``kind:`` value; ``planar`` is the default."""
 DEFAULT_KIND = 'planar'
@@ -84,3 +91,21 @@ def from_dict(data, source='<dict>'):
 def to_dict(sc):
     """Return a scene as the mapping its kind's loader reads back."""
     return kind_of(sc).write(sc)
+
+
+def same_geometry(base, design, field='design'):
+    """
+    Raise SceneError unless ``design`` is ``base`` with other inertias (same kind, geometry).
+
+    ``field`` names the option or parameter that gave the design (``--design``).
+    """
+    kind = kind_of(base)
+    other = kind_of(design)
+    if other is not kind:
+        raise SceneError(f'{field}: got a {other.name} scene ({design.name!r}), expected a '
+                         f'{kind.name} scene like the original {base.name!r}')
+    mine, what = kind.geometry(base)
+    if kind.geometry(design)[0] != mine:
+        raise SceneError(f'{field}: scene {design.name!r} ({design.source}) differs from '
+                         f'{base.name!r} in its {what}; expected the same geometry with '
+                         'other inertias')

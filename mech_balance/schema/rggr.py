@@ -341,3 +341,8 @@ def rggr_to_dict(scene):
     data['assembly'] = {'branch': scene.branch}
     data['crank'] = {'speed_rad_s': scene.crank_speed_rad_s}
     return data
+
+
+def geometry(scene):
+    """Return what a design of an RGGR scene may not change, and its name in words."""
+    return (scene.geometry, scene.branch), 'geometry and assembly.branch'

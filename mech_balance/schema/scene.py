@@ -22,8 +22,18 @@ from mech_balance.schema.fields import at_most as _at_most, known_keys as _known
 
 SCHEMA_VERSION = 1
 
-OUTPUTS = ('kinematics', 'shaking_wrench', 'driving_torque', 'bearing_reactions')
+OUTPUTS = ('kinematics', 'shaking_wrench', 'driving_torque', 'bearing_reactions',
+           'kinetic_energy')
 """What a scene can ask for; each implies the ones it depends on (see :func:`needs`)."""
+DEFAULT_OUTPUTS = OUTPUTS[:4]
+"""What a scene without an ``outputs:`` key asks for (``all``: every one of :data:`OUTPUTS`)."""
+SERIES = {
+    'driving_torque': ('driving torque', 'moment'),
+    'kinetic_energy': ('kinetic energy T', 'energy'),
+}
+"""The scalar series among the outputs: name -> (label, dimension 'force' | 'moment' |
+'energy').  Reports, JSON and recording plots show every series a rig computes from this
+table; a new scalar output is one entry here plus its computation in each rig."""
 
 JOINT_TYPES = ('revolute', 'prismatic')
 FRAME = 'frame'
@@ -221,7 +231,7 @@ class Joint:
     """A joint between the points ``a`` and ``b`` (``link.point``) of two links."""
 
     name: str
-    kind: str
+    joint_type: str        # 'revolute' | 'prismatic' (JOINT_TYPES)
     link_a: str
     point_a: str
     link_b: str
@@ -232,7 +242,12 @@ class Joint:
     @property
     def prismatic(self):
         """Return whether the joint slides (else it turns)."""
-        return self.kind == 'prismatic'
+        return self.joint_type == 'prismatic'
+
+    @property
+    def kind(self):
+        """Return the joint type (the scene file's ``type``), as :attr:`joint_type`."""
+        return self.joint_type
 
 
 @dataclass(frozen=True)
@@ -404,9 +419,9 @@ def planar_from_dict(data, source='<dict>'):
             f'crank.joint: got {crank_joint!r}, expected one of the joints '
             f'({", ".join(by_name)})')
     cj = by_name[crank_joint]
-    if cj.kind != 'revolute' or FRAME not in (cj.link_a, cj.link_b) or cj.link_a == cj.link_b:
+    if cj.prismatic or FRAME not in (cj.link_a, cj.link_b) or cj.link_a == cj.link_b:
         raise SceneError(
-            f'crank.joint: got {crank_joint!r} ({cj.kind} between {cj.link_a} and '
+            f'crank.joint: got {crank_joint!r} ({cj.joint_type} between {cj.link_a} and '
             f'{cj.link_b}), expected a revolute joint between the frame and a moving link')
     speed = _number(crank.get('speed_rad_s', 1.0), 'crank.speed_rad_s')
     if speed == 0.0:
@@ -431,7 +446,7 @@ def planar_from_dict(data, source='<dict>'):
     displacements = {}
     for k, v in _mapping(assembly.get('joint_displacements_m', {}),
                          'assembly.joint_displacements_m').items():
-        if k not in by_name or by_name[k].kind != 'prismatic':
+        if k not in by_name or not by_name[k].prismatic:
             raise SceneError(
                 f'assembly.joint_displacements_m.{k}: expected the name of a prismatic joint')
         displacements[k] = _number(v, f'assembly.joint_displacements_m.{k}')
@@ -447,7 +462,7 @@ def planar_from_dict(data, source='<dict>'):
                       'normalization.omega_rad_s'))
 
     gravity = _vector(data.get('gravity_m_s2', [0.0, 0.0]), 'gravity_m_s2')
-    outputs = _outputs(data.get('outputs', list(OUTPUTS)), 'outputs')
+    outputs = _outputs(data.get('outputs', list(DEFAULT_OUTPUTS)), 'outputs')
     samples = data.get('samples', 360)
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 4:
         raise SceneError(f'samples: got {samples!r}, expected an integer >= 4')
@@ -508,7 +523,7 @@ def planar_to_dict(scene):
                      for lk in scene.links}
     joints = {}
     for jt in scene.joints:
-        spec = {'type': jt.kind, 'a': f'{jt.link_a}.{jt.point_a}',
+        spec = {'type': jt.joint_type, 'a': f'{jt.link_a}.{jt.point_a}',
                 'b': f'{jt.link_b}.{jt.point_b}'}
         if jt.prismatic:
             spec['axis'] = list(jt.axis)
@@ -531,6 +546,12 @@ def planar_to_dict(scene):
     if scene.drive is not None:
         data['drive'] = scene.drive
     return data
+
+
+def geometry(scene):
+    """Return what a design of a planar scene may not change, and its name in words."""
+    return ((scene.frame_points, [(lk.name, lk.points) for lk in scene.links], scene.joints,
+             scene.crank_joint), 'frame points, link points and joints')
 
 
 def recording_to_dict(recording):

@@ -24,7 +24,7 @@ Entities (the stream switch of the scene's ``recording: {streams: ...}`` in brac
   the moment; 3-D: two arrows);
 * ``/plots/{quantity}/{variant}`` [``{quantity}_plot``]: |shaking force| (N), shaking
   moment (N*m, 3-D: its norm) and every series of ``RigData.series`` (driving torque,
-  kinetic energy, ... units in :data:`mech_balance.conventions.SERIES_UNITS`).
+  kinetic energy, ...: :data:`mech_balance.schema.scene.SERIES`).
 
 View furniture, not switchable: ``/{variant}/labels`` (every label of that view, placed so
 that none overlaps another at the default window, :data:`WINDOW_PX`), ``/rig/scale`` (2-D
@@ -50,10 +50,10 @@ import threading
 import time
 
 from mech_balance import atomic, conventions, paths
-from mech_balance.conventions import rms, SERIES_UNITS
+from mech_balance.conventions import rms
 from mech_balance.core.rig import rig_for
 from mech_balance.schema import registry
-from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS
+from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS, SERIES
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
@@ -194,6 +194,16 @@ SERIES_COLORS = {'original': (255, 150, 40), 'balanced': (70, 165, 255)}
 LINK_PALETTE = ((27, 158, 119), (166, 216, 84), (255, 217, 47), (229, 196, 148),
                 (141, 211, 199), (188, 189, 34), (166, 118, 29), (178, 223, 138))
 """Link colours: greens, yellows and browns (none is a plot, arrow or mass colour)."""
+
+UNITS = {'force': 'N', 'moment': 'N*m', 'energy': 'J'}
+"""SI unit of each dimension of :data:`mech_balance.schema.scene.SERIES`."""
+
+
+def series_label(name):
+    """Return ``(label, SI unit, dimension)`` of a series (its name alone if not listed)."""
+    label, dim = SERIES.get(name, (name.replace('_', ' '), ''))
+    return label, UNITS.get(dim, ''), dim
+
 
 _SHAKING_STREAMS = ('shaking_force_arrow', 'shaking_moment_arc', 'shaking_force_plot',
                     'shaking_moment_plot')
@@ -726,13 +736,12 @@ def _merged_names(names, positions, size):
     return [('/'.join(n), idx) for n, idx in groups]
 
 
-def _pivot_name(layout, motion, rig):
-    """Return the name of the frame point where the crank joint is, or the rig's words."""
-    if rig.crank_joint in layout.joint_names and motion.joints.shape[1]:
-        at = motion.joints[:, layout.joint_names.index(rig.crank_joint)]
-        for name, q in zip(layout.frame_names, layout.frame_points):
-            if np.max(np.linalg.norm(at - q, axis=-1)) <= 1e3 * SAME_POINT_RTOL * layout.size_m:
-                return name
+def _pivot_name(layout, rig):
+    """Return the name of the frame point the shaking moment is reduced to, or its words."""
+    at = np.asarray(rig.moment_point_m, dtype=float)
+    for name, q in zip(layout.frame_names, layout.frame_points):
+        if np.linalg.norm(at - q) <= SAME_POINT_RTOL * layout.size_m:
+            return name
     return rig.moment_point
 
 
@@ -755,7 +764,7 @@ def _plan(scene, balanced, samples, balanced_source, live=False):
     has_wrench = ref.force_N is not None
     if not has_wrench:
         streams = tuple(s for s in streams if s not in _SHAKING_STREAMS)
-    series = tuple(k for k in list(SERIES_UNITS) + sorted(ref.series)
+    series = tuple(k for k in list(SERIES) + sorted(ref.series)
                    if k in ref.series and _series_on(k, streams))
     series = tuple(dict.fromkeys(series))
     has_pm = 'point_masses' in streams and all(
@@ -801,7 +810,7 @@ def _plan(scene, balanced, samples, balanced_source, live=False):
         screens={}, plots=[], labels=[], series=series, has_added=has_added,
         has_point_masses=has_pm, live=live)
     motion = _motion(layout, data)
-    layout.pivot_name = _pivot_name(layout, motion, rig)
+    layout.pivot_name = _pivot_name(layout, rig)
     _place_views(layout, motion, fmax, nmax, len(series))
     layout.labels = _label_specs(layout, motion)
     layout.plots = _plots(layout, motion)
@@ -930,9 +939,8 @@ def _plots(layout, motion):
                  f'|shaking moment| about {where} (N*m)')
         specs.append(('shaking_moment_plot', 'shaking_moment', title, 'N*m'))
     for k in layout.series:
-        unit = SERIES_UNITS.get(k, '')
-        specs.append((f'{k}_plot', k, k.replace('_', ' ') + (f' ({unit})' if unit else ''),
-                      unit))
+        label, unit, _ = series_label(k)
+        specs.append((f'{k}_plot', k, label + (f' ({unit})' if unit else ''), unit))
     plots = []
     _, plot_px = window_px(len(layout.variants), len(specs), layout.on('info'))
     for stream, entity, title, unit in specs:
@@ -1148,10 +1156,10 @@ def _rms_rows(layout, data):
         else:
             rows.append((f'|shaking moment| about {where}', 'N*m', 'moment',
                          {v: np.linalg.norm(d.moment_Nm, axis=1) for v, d in data.items()}))
-    for k in list(SERIES_UNITS) + sorted(ref.series):
-        if k in ref.series and not any(r[0] == k.replace('_', ' ') for r in rows):
-            unit = SERIES_UNITS.get(k, '')
-            rows.append((k.replace('_', ' '), unit, 'force' if unit == 'N' else 'moment',
+    for k in dict.fromkeys(list(SERIES) + sorted(ref.series)):
+        if k in ref.series:
+            label, unit, dim = series_label(k)
+            rows.append((label, unit, 'force' if dim == 'force' else 'moment',
                          {v: d.series[k] for v, d in data.items()}))
     if ref.reactions:
         scale = max([float(np.max(np.abs(r[3]['original']))) for r in rows if r[2] == 'moment']
@@ -1181,15 +1189,15 @@ def _text(layout, scene, data, samples, balanced_source):
             head += ' normalized | original |' + (' balanced |' if both else '')
             sep += '---|---:|' + ('---:|' if both else '')
         lines += [head, sep]
-        for quantity, unit, kind, values in rows:
+        for quantity, unit, dimension, values in rows:
             r = {v: float(rms(x)) for v, x in values.items()}
             text = f'| {_cell(quantity)} | {unit or "-"} | {_fmt(r["original"])} |'
             if both:
                 ratio = r['balanced'] / r['original'] if r['original'] > 0 else float('nan')
                 text += f' {_fmt(r["balanced"])} | {_fmt(ratio)} |'
             if norm is not None:
-                f = norm.force if kind == 'force' else norm.moment
-                nunit = 'm1*a1*w^2' if kind == 'force' else 'm1*a1^2*w^2'
+                f = norm.force if dimension == 'force' else norm.moment
+                nunit = 'm1*a1*w^2' if dimension == 'force' else 'm1*a1^2*w^2'
                 text += f' {nunit} | {_fmt(float(f(r["original"])))} |'
                 if both:
                     text += f' {_fmt(float(f(r["balanced"])))} |'
@@ -1274,13 +1282,8 @@ def check_output_path(path, field, create_dir=False):
 
 
 def check_viewer_url(url, field='rerun_url'):
-    """Return ``url`` if it is a rerun viewer's gRPC address, else raise ValueError."""
-    if not isinstance(url, str) or not re.fullmatch(
-            r'rerun(\+https?)?://[A-Za-z0-9_.\-\[\]:]+(:\d+)?/proxy', url):
-        raise ValueError(f'{field}: got {url!r}, expected a rerun viewer address such as '
-                         "'rerun+http://127.0.0.1:9876/proxy' (what `rerun` prints when it "
-                         'starts)')
-    return url
+    """Return ``url`` if it is a rerun viewer's gRPC address (:func:`paths.check_viewer_url`)."""
+    return paths.check_viewer_url(url, field)
 
 
 # ------------------------------------------------------------------------------- logging
@@ -1958,7 +1961,7 @@ def read_recording(path):
             col = batch.column(n)
             if n in timelines:
                 values = col.to_numpy()
-                if values.dtype.kind == 'm':
+                if np.issubdtype(values.dtype, np.timedelta64):
                     values = values.astype('timedelta64[ns]').astype(np.int64) * 1e-9
                 data.index.setdefault(n, []).append(np.asarray(values))
             else:

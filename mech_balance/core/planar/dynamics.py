@@ -153,7 +153,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
     out.driving_torque = tau
     out.multipliers = lam
     nr, npc = linkage.nr, linkage.npc
-    pa, pb = linkage._cut_points(pose)
+    pa, pb = linkage.cut_points(pose)
     force = np.empty((nr + npc, state.size), dtype=complex)  # on b from a
     force.real[:nr] = lam[:nr]                            # at the common point
     force.imag[:nr] = lam[nr:2 * nr]

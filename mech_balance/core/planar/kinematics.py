@@ -42,8 +42,28 @@ NEWTON_MAX_ITER = 8
 """Newton iterations per continuation step or per batched evaluation."""
 ASSEMBLY_MAX_ITER = 60
 """Damped Newton iterations allowed to assemble the linkage from the scene's guess."""
-COND_WARN = 1e4
-"""Scaled Jacobian condition number (1-norm) above which the position is reported near-singular."""
+PRINTED_RTOL = 5e-7
+"""Relative resolution of the printed figures: ``analyze`` prints 6 significant digits, and
+half a unit of the 6th digit is 5e-7 of a figure that starts with 9 (5e-6 of one with 1)."""
+COND_WARN = math.sqrt(PRINTED_RTOL / (2.0 * NEWTON_TOL))
+"""Scaled Jacobian condition number (1-norm) above which the position is reported
+near-singular: where the error bound of the rates reaches the printed resolution (~1581).
+
+Derivation.  Newton stops with a scaled loop residual ``|g| <= NEWTON_TOL`` (= tau), so the
+positions err by ``|dq| <= |J_u^-1| tau ~ kappa tau`` (the scaled Jacobian has ``|J_u| ~ 1``).
+The rates solve ``J_u q' = -J_psi``; both matrices are evaluated at the erring positions,
+and their derivatives with respect to q are of their own size (the closure equations are
+sums of rotations of scaled lengths), so ``|dJ|/|J| ~ kappa tau``.  The perturbation bound
+of a linear system, ``|dq'|/|q'| <= kappa (|dJ_u|/|J_u| + |dJ_psi|/|J_psi|)``, gives the
+relative error bound of the velocities (and of every figure linear in them, the shaking
+wrench and the driving torque at constant speed)
+
+    e_rates = 2 kappa^2 tau   (+ kappa u, round-off u = 1.1e-16: negligible here).
+
+It reaches ``PRINTED_RTOL`` at ``kappa = sqrt(PRINTED_RTOL / (2 tau))`` = 1581: from there on
+the printed figures may be wrong in their last digit.  (Hoeken's worst is 5.6, the carpet
+scraper's 255; a Hoeken-like four-bar with rocker = a + b - d + 1e-8, 1e-8 m from a change
+point, reaches 7.5e3.)"""
 COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which the position is refused as singular."""
 STEP_MAX_RAD = math.radians(5.0)
@@ -76,7 +96,7 @@ class TreeJoint:
 
     joint: int
     name: str
-    kind: str
+    joint_type: str
     parent: int
     child: int
     p_parent: complex
@@ -85,6 +105,11 @@ class TreeJoint:
     axis_on_parent: bool
     angle: float
 
+    @property
+    def prismatic(self):
+        """Return whether the joint slides (else it turns)."""
+        return self.joint_type == 'prismatic'
+
 
 @dataclass
 class CutJoint:
@@ -92,13 +117,18 @@ class CutJoint:
 
     joint: int
     name: str
-    kind: str
+    joint_type: str
     a: int
     b: int
     p_a: complex
     p_b: complex
     axis: complex
     angle: float
+
+    @property
+    def prismatic(self):
+        """Return whether the joint slides (else it turns)."""
+        return self.joint_type == 'prismatic'
 
 
 @dataclass
@@ -197,7 +227,7 @@ class Linkage:
             self.anc[tj.child] = self.anc[tj.parent] | {t}
         self.descendants = [[b for b in range(self.nb) if t in self.anc[b]]
                             for t in range(self.nt)]
-        self.is_prismatic = np.array([tj.kind == 'prismatic' for tj in self.tree])
+        self.is_prismatic = np.array([tj.prismatic for tj in self.tree])
         self.length_scale = self._length_scale(scene, pts)
         self._compile()
         self.pivot = self._crank_pivot(scene)
@@ -214,12 +244,12 @@ class Linkage:
         a_is_parent = index[jt.link_a] == parent
         pa, pb = pts[jt.link_a][jt.point_a], pts[jt.link_b][jt.point_b]
         p_parent, p_child = (pa, pb) if a_is_parent else (pb, pa)
-        return TreeJoint(ji, jt.name, jt.kind, parent, child, p_parent, p_child,
+        return TreeJoint(ji, jt.name, jt.joint_type, parent, child, p_parent, p_child,
                          complex(*jt.axis), a_is_parent, jt.angle_rad)
 
     @staticmethod
     def _cut(ji, jt, ia, ib, pts):
-        return CutJoint(ji, jt.name, jt.kind, ia, ib, pts[jt.link_a][jt.point_a],
+        return CutJoint(ji, jt.name, jt.joint_type, ia, ib, pts[jt.link_a][jt.point_a],
                         pts[jt.link_b][jt.point_b], complex(*jt.axis), jt.angle_rad)
 
     @staticmethod
@@ -262,11 +292,11 @@ class Linkage:
                                    np.array([tj.axis for tj in self.tree]), 0)[:, None]
         self.axis_on_par = np.array([tj.axis_on_parent for tj in self.tree])[:, None]
         offset = np.array([(tj.angle if tj.axis_on_parent else -tj.angle)
-                           if tj.kind == 'prismatic' else 0.0 for tj in self.tree])
+                           if tj.prismatic else 0.0 for tj in self.tree])
         self.phi_offset = (self.anc_pri @ offset)[:, None]
         # subtree sums (for the reaction recursion): sub[b, c] = 1 if c hangs below b or is b
-        rc = [c for c in self.cuts if c.kind == 'revolute']
-        pc = [c for c in self.cuts if c.kind == 'prismatic']
+        rc = [c for c in self.cuts if not c.prismatic]
+        pc = [c for c in self.cuts if c.prismatic]
         self.cuts = rc + pc
         self.nr, self.npc = len(rc), len(pc)
         self.cut_a = np.array([c.a for c in self.cuts], dtype=int)
@@ -363,7 +393,7 @@ class Linkage:
         joint_at = origin[self.ch] + arm_ch
         return Pose(phi, rot, origin, joint_at, axis)
 
-    def _cut_points(self, pose):
+    def cut_points(self, pose):
         """Return the world points ``(pa, pb)`` of the cut joints (cached on the pose)."""
         if pose.cut_points is None:
             # both ends of every cut in one go: rows (a ends, b ends)
@@ -377,7 +407,7 @@ class Linkage:
         """Return the scaled loop-closure residuals ``(m, p)`` (seed 000 eq. 27)."""
         if not self.m:  # an open chain (a lone crank): nothing to close
             return np.zeros((0, pose.phi.shape[1]))
-        pa, pb = self._cut_points(pose)
+        pa, pb = self.cut_points(pose)
         d = pb - pa
         nr = self.nr
         if not self.npc:
@@ -400,7 +430,7 @@ class Linkage:
         """
         if not self.m:
             return np.zeros((0, self.nu if unknown_only else self.nt, pose.phi.shape[1]))
-        pa, pb = self._cut_points(pose)
+        pa, pb = self.cut_points(pose)
         cols = self.unknown_rows if unknown_only else slice(None)
         if not self.has_pri and not self.npc:
             c, t, i1, i2 = self.jac_nz_u if unknown_only else self.jac_nz
@@ -484,7 +514,7 @@ class Linkage:
         missing = []
         for t, tj in enumerate(self.tree[1:], start=1):
             name = self.body_names[tj.child]
-            if tj.kind == 'revolute':
+            if not tj.prismatic:
                 if name not in scene.assembly_link_angles_rad:
                     missing.append(f'link_angles_deg.{name}')
                     continue
@@ -603,7 +633,7 @@ class Linkage:
         """Return the scaled loop-equation accelerations with all joint accelerations zero."""
         if not self.m:
             return np.zeros((0, pose.phi.shape[1]))
-        self._cut_points(pose)
+        self.cut_points(pose)
         pa, pb, ra, rb, _ = pose.cut_points
         ia, ib = self.cut_a, self.cut_b
         # acceleration of each cut end: a_O - omega^2 r (no angular acceleration here)
@@ -692,7 +722,7 @@ class Linkage:
             nodes_cond.append(cond_new[0])
             if cond_new[0] > COND_WARN:
                 self._warn(f'crank angle {math.degrees(psi):.3f} deg: near-singular position '
-                           f'(Jacobian condition number {cond_new[0]:.3g} > {COND_WARN:g})')
+                           f'(Jacobian condition number {cond_new[0]:.3g} > {COND_WARN:.4g})')
             if iters[0] <= 2:
                 h = min(1.5 * h, STEP_MAX_RAD)
         q_start, q_end = nodes_q[0], nodes_q[-1]

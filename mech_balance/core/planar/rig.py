@@ -23,6 +23,7 @@ from mech_balance.core.planar.algebra import cross
 from mech_balance.core.rig import AddedBody, batch, BodyPoses, Drawing, DrawingBody, \
     RigData
 from mech_balance.schema import FRAME, needs
+from mech_balance.schema.scene import SERIES
 import numpy as np
 
 CAPABILITIES = frozenset({'kinematics', 'shaking_wrench', 'driving_torque',
@@ -58,10 +59,12 @@ class PlanarRig:
     moment_point = 'the crank pivot'
     capabilities = CAPABILITIES
 
-    def __init__(self, scene, linkage=None):
+    def __init__(self, scene, linkage=None, cache=True):
         self.scene = scene
         self.name = scene.name
-        self.linkage = linkage if linkage is not None else linkage_for(scene)
+        if linkage is None:
+            linkage = linkage_for(scene) if cache else kinematics.Linkage(scene)
+        self.linkage = linkage
         self.linkage.skeleton  # noqa: B018 - assemble and trace the branch: fail early
         self.inertia = dynamics.Inertia.from_links(scene.links)
         self.gravity = complex(*scene.gravity_m_s2)
@@ -77,6 +80,7 @@ class PlanarRig:
         self._pa = np.array([complex(*points[j.link_a][j.point_a]) for j in joints])[:, None]
         self._pb = np.array([complex(*points[j.link_b][j.point_b]) for j in joints])[:, None]
         self._prismatic = np.array([j.prismatic for j in joints])
+        self.joint_prismatic = tuple(bool(p) for p in self._prismatic)
         self._axis = np.array([complex(*j.axis) for j in joints])[:, None]
         self._drawing = None
 
@@ -84,6 +88,11 @@ class PlanarRig:
     def outputs(self):
         """Return what the scene asks for (its ``outputs:``)."""
         return self.scene.outputs
+
+    @property
+    def moment_point_m(self):
+        """Return the crank pivot in the frame, ``(x, y, 0)`` m (the shaking moment's point)."""
+        return (self.linkage.pivot.real, self.linkage.pivot.imag, 0.0)
 
     def with_scene(self, scene):
         """Return a rig for another inertia on the same geometry (no re-tracing)."""
@@ -105,6 +114,13 @@ class PlanarRig:
         return state, dynamics.inverse_dynamics(self.linkage, state, self.inertia,
                                                 self.gravity, need)
 
+    def series(self, state, names):
+        """Return the scalar series among ``names`` that come from the kinematics alone."""
+        out = {}
+        if 'kinetic_energy' in names:
+            out['kinetic_energy'] = kinetic_energy(state, self.inertia)
+        return out
+
     # ------------------------------------------------------------------ the Rig protocol
 
     def at(self, psi, speed=None, accel=None, outputs=None):
@@ -117,7 +133,7 @@ class PlanarRig:
         # the reaction moments of prismatic joints come with the bearing reactions; those
         # also give the driving torque at zero crank speed (the NOC projection divides by it)
         effort = bool({'driving_torque', 'bearing_reactions'} & want)
-        core_outputs = {o for o in outputs if o != 'kinetic_energy'}
+        core_outputs = {o for o in outputs if o not in SERIES or o == 'driving_torque'}
         if effort and np.any(self._prismatic):
             core_outputs.add('bearing_reactions')
         state, w = self.evaluate(psi, tuple(core_outputs) or ('kinematics',), speed, accel)
@@ -159,14 +175,13 @@ class PlanarRig:
                     rm = np.zeros((n, 3))
                     rm[:, 2] = w.reaction_moment[name]
                     reactions[name] = (rf, rm)
-        if 'kinetic_energy' in want:
-            series['kinetic_energy'] = kinetic_energy(state, self.inertia)
+        series.update(self.series(state, want))
         return RigData(
             psi, speed, accel, position.T, velocity.T, joint_effort, force, moment,
             self.joint_names, series=series, reactions=reactions,
             residual=state.residual, condition=state.cond,
             near_singular=state.cond > kinematics.COND_WARN,
-            bodies=body_poses(self.linkage, state), native=(state, w))
+            poses=lambda: body_poses(self.linkage, state), native=(state, w))
 
     @property
     def drawing(self):

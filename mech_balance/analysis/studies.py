@@ -1,0 +1,12 @@
+"""
+The names and defaults of the accuracy studies (no imports).
+
+Read by :mod:`mech_balance.analysis.accuracy` and by the ``accuracy`` verb's parser.
+"""
+
+
+ACCURACY_TURNS = 2.0
+"""Default simulated time of the integrator study, in crank turns at the operating speed."""
+
+
+SECTIONS = ('rms', 'integrators', 'position', 'balancing')

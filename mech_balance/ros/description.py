@@ -1,0 +1,169 @@
+"""
+What the rig node tells robot_state_publisher: the URDF joints on ``joint_states`` and the URDF.
+
+:class:`JointLayout` (numpy only) maps a rig's evaluation onto the joints the node publishes:
+
+* first every joint of the scene, in the rig's order (:attr:`Rig.joint_names`; the crank's
+  index is unchanged);
+* then the URDF joints the scene does not have (the RGGR's ``coupler_yaw`` and
+  ``coupler_pitch``, which carry the coupler's spherical joint at B).
+
+Positions and velocities are those of the URDF (:func:`mech_balance.ros.urdf.joint_positions`,
+its zero convention: revolute joints wrapped to (-pi, pi], measured from the joint origin)
+for every URDF joint, so that robot_state_publisher puts each link where the core puts it.
+A scene joint the URDF lacks (a cut joint, closed by the core) keeps the rig's value
+(:mod:`mech_balance.core.planar.rig`: phi_b - phi_a, or the slide), revolute ones wrapped to
+(-pi, pi] as well.  Efforts are the rig's, by joint name (0 for the URDF-only joints: a
+frictionless spherical joint carries no moment).  No value is -0.0.  The whole batch is
+mapped with a few array operations (:meth:`JointLayout.apply`), whatever the kind of rig:
+the URDF tree model (:func:`mech_balance.ros.urdf.tree_model`) knows how to read its state.
+
+:class:`UrdfTwin` is the :class:`~mech_balance.ros.streaming.TwinModel` the node publishes
+from: ``evaluate`` returns its samples in this layout, ``joint_names`` are the published
+names.  :class:`DescriptionPublisher` publishes the URDF of the published design on
+``robot_description`` (std_msgs/msg/String, reliable, transient local, depth 1: the QoS of
+robot_state_publisher's own ``robot_description``), again whenever the scene, the design
+or ``frame_id`` changes.
+"""
+
+from dataclasses import replace
+import threading
+
+from mech_balance.ros import streaming, urdf
+import numpy as np
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+ROBOT_DESCRIPTION = 'robot_description'
+"""Topic of the URDF (relative: in the node's namespace, as robot_state_publisher's)."""
+ANGULAR = ('revolute', 'continuous', 'spherical')
+"""Joint types whose published position is an angle (wrapped)."""
+
+
+class JointLayout:
+    """
+    The published joints of a rig and how a batch of its samples maps onto them.
+
+    Built once per geometry: ``names`` (published order, module docstring), ``twin_names``
+    (the rig's), ``urdf_names`` (the URDF's, a subset of ``names``).
+    """
+
+    def __init__(self, rig):
+        tree = urdf.tree_model(rig.scene)
+        self.tree = tree
+        self.twin_names = tuple(rig.joint_names)
+        self.urdf_names = tree.names
+        extra = tuple(n for n in tree.names if n not in self.twin_names)
+        self.names = self.twin_names + extra
+        n_tree, n_twin = len(tree.names), len(self.twin_names)
+        cut_types = dict(tree.cuts)
+        # columns of [URDF values | rig values] (positions, velocities) and of
+        # [rig efforts | 0] for each published joint
+        self._value_index = np.array([tree.names.index(n) if n in tree.names
+                                      else n_tree + self.twin_names.index(n)
+                                      for n in self.names], dtype=int)
+        self._effort_index = np.array([self.twin_names.index(n) if n in self.twin_names
+                                       else n_twin for n in self.names], dtype=int)
+        self._wrap_twin = np.array([cut_types.get(n, 'revolute') in ANGULAR and
+                                    n not in tree.names for n in self.twin_names], dtype=bool)
+
+    def apply(self, samples):
+        """Return ``samples`` (RigData of the rig) with the published joints' values."""
+        _, position, velocity = urdf.rig_joint_positions(self.tree, samples)
+        twin_position = np.where(self._wrap_twin, urdf.wrap_angle(samples.joint_position),
+                                 samples.joint_position)
+        position = np.hstack([position, twin_position])[:, self._value_index] + 0.0
+        velocity = np.hstack([velocity, samples.joint_velocity])[:, self._value_index] + 0.0
+        effort = samples.joint_effort
+        if effort is not None:
+            zero = np.zeros((effort.shape[0], 1))
+            effort = np.hstack([effort, zero])[:, self._effort_index] + 0.0
+        return replace(samples, joint_position=position, joint_velocity=velocity,
+                       joint_effort=effort, joint_names=self.names)
+
+
+class UrdfTwin(streaming.TwinModel):
+    """
+    A :class:`~mech_balance.ros.streaming.TwinModel` whose samples carry the URDF joints.
+
+    ``joint_names`` are the published names (:class:`JointLayout`), ``twin_joint_names``
+    the rig's; ``evaluate`` is the twin's, mapped by the layout.  A design of the same
+    geometry (:meth:`with_design`) shares the layout.
+    """
+
+    def __init__(self, rig, layout=None):
+        super().__init__(rig)
+        self.layout = JointLayout(rig) if layout is None else layout
+        self.twin_joint_names = self.joint_names
+        self.joint_names = self.layout.names
+
+    def with_design(self, scene):
+        """Return the twin of another design (inertia) of the same geometry."""
+        return UrdfTwin(self.rig.with_scene(scene), self.layout)
+
+    def evaluate(self, psi, speed, accel=0.0):
+        """Return the published :class:`Samples` at crank angles ``psi`` ``(n,)``."""
+        return self.layout.apply(super().evaluate(psi, speed, accel))
+
+
+def twin_for(scene):
+    """Return the :class:`UrdfTwin` of a scene of any kind."""
+    return UrdfTwin(streaming.model_for(scene).rig)
+
+
+def urdf_twin(model):
+    """Return ``model`` (a TwinModel) as a :class:`UrdfTwin` (itself if it is one)."""
+    return model if isinstance(model, UrdfTwin) else UrdfTwin(model.rig)
+
+
+class DescriptionPublisher:
+    """
+    The node's ``robot_description`` publisher: the URDF of the published design, latched.
+
+    :meth:`show` is called whenever what is published may have changed (any thread); it
+    publishes only when the design (the scene object) or ``frame_id`` differs from the last
+    one published, creates the publisher when enabled and destroys it when disabled (a
+    publisher is in no wait set, so this is safe from a parameter callback).  A scene the
+    URDF cannot describe (e.g. a ``frame_id`` that names one of its links) is logged, never
+    raised.
+    """
+
+    def __init__(self, node):
+        self._node = node
+        self._lock = threading.Lock()
+        self._pub = None
+        self._shown = None      # (scene, frame_id) last published
+        self.text = None        # the URDF last published
+
+    @property
+    def topic_name(self):
+        """Return the resolved topic name, or None while disabled."""
+        return None if self._pub is None else self._pub.topic_name
+
+    def show(self, enabled, model, frame_id):
+        """Publish the URDF of ``model``'s scene with root ``frame_id`` (if enabled, new)."""
+        with self._lock:
+            if not enabled:
+                if self._pub is not None:
+                    self._node.destroy_publisher(self._pub)
+                    self._pub, self._shown = None, None
+                return
+            if self._pub is None:
+                qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                                 reliability=ReliabilityPolicy.RELIABLE)
+                self._pub = self._node.create_publisher(String, ROBOT_DESCRIPTION, qos)
+            shown = self._shown
+            if shown is not None and shown[0] is model.scene and shown[1] == frame_id:
+                return
+            try:
+                text = urdf.urdf_xml(model.scene, frame_id=frame_id,
+                                     linkage=model.layout.tree.linkage)
+            except ValueError as exc:
+                self._node.get_logger().warning(f'{ROBOT_DESCRIPTION}: not published: {exc}')
+                return
+            self._pub.publish(String(data=text))
+            self._shown, self.text = (model.scene, frame_id), text
+            topic = self._pub.topic_name
+        self._node.get_logger().info(
+            f'publishing {topic} (std_msgs/msg/String, transient local): the URDF of '
+            f'{model.scene.name!r} ({len(text)} characters), root link {frame_id!r}')

@@ -1,0 +1,252 @@
+"""
+The rig node's ``/diagnostics`` statuses, as plain data (no ROS: conversions fills messages).
+
+Four statuses, published at 1 Hz by the node (``diagnostic_msgs/DiagnosticArray``), each
+named ``<node>: <part>`` with the scene as ``hardware_id``:
+
+``publisher``
+    Mode, configured and achieved rate (samples per second on the node's clock since the
+    last status), samples published and clock ticks skipped.  WARN when ticks were skipped
+    in the last period or, in clock mode, the achieved rate is below
+    :data:`RATE_WARN_FRACTION` of the configured one.
+``encoder input``
+    ``crank_joint_state`` messages used and rejected, by reason (:func:`reason_of`).
+    WARN when messages were rejected in the last period.
+``model``
+    Over the samples the core evaluated in the last period: the worst loop-closure (Newton)
+    residual, the worst Jacobian condition number and how many were near-singular
+    (:class:`mech_balance.core.rig.RigData` ``residual``, ``condition``, ``near_singular``).
+    ERROR above :data:`RESIDUAL_ERROR`, WARN when any was near-singular.
+``measured wrench``
+    Per component the residual RMS as a fraction of the measured RMS over the residual
+    window (:meth:`mech_balance.ros.sensor.Comparison.rms`); OK / WARN / ERROR against
+    ``diagnostics.warn_fraction`` and ``diagnostics.error_fraction`` (the worst component
+    decides; components the model leaves at zero are not judged).  STALE when no
+    measurement arrived for :data:`STALE_AFTER_S`; OK "no sensor" when none ever did.
+"""
+
+from collections import Counter
+from dataclasses import dataclass, field
+import math
+import threading
+
+from mech_balance.ros.sensor import MODEL_FLOOR
+import numpy as np
+
+OK, WARN, ERROR, STALE = 0, 1, 2, 3
+"""diagnostic_msgs/DiagnosticStatus levels."""
+LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
+RATE_WARN_FRACTION = 0.9
+"""Clock mode: an achieved rate below this fraction of publish_rate is a WARN."""
+RESIDUAL_ERROR = 1e-7
+"""A loop-closure residual above this (relative, the planar solver's closure tolerance) is
+an ERROR: the published sample is not on the linkage."""
+STALE_AFTER_S = 5.0
+"""The measured-wrench status is STALE when no measurement arrived for this long."""
+
+
+@dataclass
+class Status:
+    """One diagnostic status: name, level, message, hardware id, key-value pairs."""
+
+    name: str
+    level: int
+    message: str
+    hardware_id: str = ''
+    values: list = field(default_factory=list)   # [(key, text)]
+
+
+def _fmt(value):
+    if isinstance(value, float):
+        return f'{value:.6g}'
+    return str(value)
+
+
+def reason_of(exc):
+    """
+    Return the reason a message was rejected, from its exception: the field it names.
+
+    The checks raise ValueError whose message starts with the field (``stamp: ...``,
+    ``position of 'O': ...``); an impossible step is ``position jump``; any other exception
+    is ``internal error: <type>``.
+    """
+    if not isinstance(exc, ValueError):
+        return f'internal error: {type(exc).__name__}'
+    text = str(exc)
+    if 'needs a crank speed' in text:
+        return 'position jump'
+    head = text.split(':', 1)[0].strip()
+    return head.split(' ', 1)[0] if head else 'invalid'
+
+
+class InputCounter:
+    """Messages used and rejected by reason (thread-safe)."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self.used = 0
+        self.rejected = Counter()
+        self._reported_rejected = 0
+
+    def use(self):
+        """Count a used message."""
+        with self._lock:
+            self.used += 1
+
+    def reject(self, reason):
+        """Count a rejected message."""
+        with self._lock:
+            self.rejected[reason] += 1
+
+    def snapshot(self):
+        """Return ``(used, {reason: count}, rejected since the last snapshot)``."""
+        with self._lock:
+            total = sum(self.rejected.values())
+            new = total - self._reported_rejected
+            self._reported_rejected = total
+            return self.used, dict(self.rejected), new
+
+
+class ModelWatch:
+    """The worst solver diagnostics of the evaluated samples since the last snapshot."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._reset()
+
+    def _reset(self):
+        self.samples = 0
+        self.residual = 0.0
+        self.condition = 0.0
+        self.near_singular = 0
+
+    def add(self, data):
+        """Take the ``residual``, ``condition`` and ``near_singular`` of a RigData batch."""
+        res, cond, near = data.residual, data.condition, data.near_singular
+        with self._lock:
+            self.samples += len(data)
+            if res is not None and np.size(res):
+                self.residual = max(self.residual, float(np.max(res)))
+            if cond is not None and np.size(cond):
+                self.condition = max(self.condition, float(np.max(cond)))
+            if near is not None:
+                self.near_singular += int(np.count_nonzero(near))
+
+    def snapshot(self):
+        """Return ``(samples, worst residual, worst condition, near-singular)`` and restart."""
+        with self._lock:
+            out = (self.samples, self.residual, self.condition, self.near_singular)
+            self._reset()
+        return out
+
+
+class RateMeter:
+    """Achieved rate from a growing count read at intervals (node clock, ns)."""
+
+    def __init__(self):
+        self._last = None     # (count, now_ns)
+
+    def rate(self, count, now_ns):
+        """Return the count per second since the previous call (NaN on the first)."""
+        last, self._last = self._last, (count, now_ns)
+        if last is None or now_ns <= last[1] or count < last[0]:
+            return math.nan
+        return (count - last[0]) / ((now_ns - last[1]) * 1e-9)
+
+
+def publisher_status(name, hardware_id, mode, configured_hz, achieved_hz, published,
+                     skipped, skipped_new):
+    """Return the publisher :class:`Status` (``configured_hz`` None: one per encoder sample)."""
+    level, notes = OK, []
+    if skipped_new:
+        level = WARN
+        notes.append(f'{skipped_new} ticks skipped in the last period')
+    if configured_hz is not None and math.isfinite(achieved_hz) and \
+            achieved_hz < RATE_WARN_FRACTION * configured_hz:
+        level = WARN
+        notes.append(f'below {RATE_WARN_FRACTION:g} x the configured rate')
+    how = f'{configured_hz:g} Hz configured' if configured_hz is not None else \
+        'one sample per encoder message'
+    message = f'{mode} mode, {how}, {achieved_hz:.1f} Hz achieved' + \
+        (f' ({"; ".join(notes)})' if notes else '')
+    return Status(name, level, message, hardware_id, [
+        ('mode', mode),
+        ('configured rate Hz', 'encoder' if configured_hz is None else _fmt(configured_hz)),
+        ('achieved rate Hz', _fmt(achieved_hz)), ('published', _fmt(published)),
+        ('skipped ticks', _fmt(skipped))])
+
+
+def input_status(name, hardware_id, topic, used, rejected, rejected_new):
+    """Return the :class:`Status` of an input topic: used and rejected by reason."""
+    total = sum(rejected.values())
+    level = WARN if rejected_new else OK
+    detail = ', '.join(f'{k} {v}' for k, v in sorted(rejected.items()))
+    message = f'{topic}: {used} used, {total} rejected' + (f' ({detail})' if detail else '')
+    values = [('used', _fmt(used)), ('rejected', _fmt(total))]
+    values += [(f'rejected: {k}', _fmt(v)) for k, v in sorted(rejected.items())]
+    return Status(name, level, message, hardware_id, values)
+
+
+def model_status(name, hardware_id, samples, residual, condition, near_singular):
+    """Return the model :class:`Status` from a :class:`ModelWatch` snapshot."""
+    if samples == 0:
+        return Status(name, OK, 'no samples evaluated in the last period', hardware_id,
+                      [('samples', '0')])
+    level = ERROR if residual > RESIDUAL_ERROR else WARN if near_singular else OK
+    message = (f'{samples} samples: worst Newton residual {residual:.2e}, worst condition '
+               f'number {condition:.4g}' + (f', {near_singular} near-singular'
+                                            if near_singular else ''))
+    return Status(name, level, message, hardware_id, [
+        ('samples', _fmt(samples)), ('worst residual', _fmt(residual)),
+        ('worst condition number', _fmt(condition)),
+        ('near singular', 'true' if near_singular else 'false'),
+        ('near-singular samples', _fmt(near_singular))])
+
+
+def measurement_status(name, hardware_id, rms, components, units, warn_fraction,
+                       error_fraction, received, used, rejected, age_s, bias, model_name):
+    """
+    Return the measured-wrench :class:`Status`.
+
+    ``rms`` is :meth:`Comparison.rms`'s dict (or None), ``age_s`` the time since the last
+    measurement arrived (None: never), ``bias`` the bias in use, ``model_name`` the scene
+    compared with.
+    """
+    values = [('received', _fmt(received)), ('paired', _fmt(used)),
+              ('rejected', _fmt(sum(rejected.values())))]
+    values += [(f'rejected: {k}', _fmt(v)) for k, v in sorted(rejected.items())]
+    values += [('model', model_name), ('warn fraction', _fmt(warn_fraction)),
+               ('error fraction', _fmt(error_fraction))]
+    values += [(f'bias {c} {u}', _fmt(float(b))) for c, u, b in zip(components, units, bias)]
+    if age_s is None:
+        return Status(name, OK, 'no measured_wrench received (no sensor connected)',
+                      hardware_id, values)
+    if rms is None:
+        detail = ', '.join(f'{k} {v}' for k, v in sorted(rejected.items()))
+        return Status(name, WARN, f'{received} measurements received, none paired with the '
+                      'model yet' + (f' (rejected: {detail})' if detail else ''),
+                      hardware_id, values)
+    measured = rms['measured']
+    with np.errstate(divide='ignore', invalid='ignore'):
+        fraction = np.where(measured > 0.0, rms['residual'] / measured, np.inf)
+    modelled = rms['model'] > MODEL_FLOOR
+    per = np.where(~modelled, -1, np.where(fraction > error_fraction, ERROR,
+                                           np.where(fraction > warn_fraction, WARN, OK)))
+    level = int(max(per.max(), OK))
+    judged = [f'{c} {f:.3g}' for c, f, m in zip(components, fraction, modelled) if m]
+    message = ('residual RMS / measured RMS: ' + ', '.join(judged) if judged else
+               'the model predicts no load: nothing to compare') + \
+        f' (over {rms["samples"]} samples; warn > {warn_fraction:g}, error > ' \
+        f'{error_fraction:g})'
+    if age_s > STALE_AFTER_S:
+        level = STALE
+        message = f'no measurement for {age_s:.1f} s; last: {message}'
+    values += [('samples', _fmt(rms['samples'])),
+               ('window oldest stamp s', f'{rms["oldest_ns"] * 1e-9:.9f}'),
+               ('window newest stamp s', f'{rms["newest_ns"] * 1e-9:.9f}')]
+    for c, u, r, m, f, lv in zip(components, units, rms['residual'], measured, fraction, per):
+        values += [(f'{c} residual RMS {u}', _fmt(float(r))),
+                   (f'{c} measured RMS {u}', _fmt(float(m))),
+                   (f'{c} fraction', _fmt(float(f)) if lv >= 0 else 'not modelled'),
+                   (f'{c} level', LEVEL_NAMES[int(lv)] if lv >= 0 else 'not judged')]
+    return Status(name, level, message, hardware_id, values)

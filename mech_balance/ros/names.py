@@ -1,0 +1,14 @@
+"""
+The ROS names of the rig: topics, frames and defaults, in one place (no imports).
+
+The README's node section documents them; the node, the bag reader, the URDF and the
+command line read them here, so that a name is spelled once.
+"""
+
+ENCODER_TOPIC = '/crank_joint_state'
+"""Default encoder topic of a recording: the rig node subscribes ``crank_joint_state`` in
+follow mode."""
+WRENCH_TOPIC = '/measured_wrench'
+"""Default force-sensor topic of a recording (the node subscribes ``measured_wrench``)."""
+DEFAULT_FRAME_ID = 'rig_frame'
+"""The rig frame: the node's ``frame_id`` default and the URDF's root link when none is given."""

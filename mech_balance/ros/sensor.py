@@ -1,0 +1,705 @@
+"""
+The twin against the real rig: a force sensor's wrench compared with the model (numpy only).
+
+No ROS here (the rig node wires it to ``measured_wrench``, ``wrench_residual``, ``~/tare``
+and ``~/identify``); every array is SI, sample-first, wrenches as six columns
+:data:`COMPONENTS` (force x, y, z in N, torque x, y, z in N*m).
+
+Sensor pose (:class:`SensorPose`)
+    The sensor's frame in the rig frame (``frame_id``, the frame of the shaking wrench):
+    origin ``(x, y, z)`` m and orientation ``roll, pitch, yaw`` rad, the ROS fixed-axis
+    convention (REP 103, tf2 ``setRPY``): R = Rz(yaw) Ry(pitch) Rx(roll), whose columns are
+    the sensor's axes in rig coordinates.  A measurement (force f_s and torque n_s in the
+    sensor's axes, about the sensor's origin p) becomes, in the rig's axes about the rig's
+    moment point O (the crank pivot of a planar rig, :attr:`Rig.moment_point_m`)
+
+        f = s R f_s,        n_O = s R n_s + (p - O) x f
+
+    with s = +1 or -1 by the sign convention.
+
+Sign convention (``sensor.convention``), a picture in words
+    Stand the rig on the sensor, rig and sensor axes parallel, z up, and hold the crank
+    still: the rig presses down on the sensor with its weight.
+
+    * ``load_on_sensor`` (s = +1): the sensor reports the wrench the rig exerts ON the
+      sensor, and reads f_z = -(the rig's weight), pointing down.  When the crank turns and
+      the links' momentum grows towards +x, the links push the frame (and the sensor) the
+      other way: f_x < 0.  This is the sign of the shaking wrench of
+      :mod:`mech_balance.conventions` (the wrench the moving links exert on the frame,
+      f_sh = -dp/dt): the frame is rigid and at rest, so what it passes on to the sensor
+      is the shaking wrench plus the static weights (links and frame) plus nothing else.
+    * ``reaction`` (s = -1): the sensor reports the wrench it exerts on the rig, the
+      support reaction (a force plate's "ground reaction force"): the rig at rest reads
+      f_z = +(its weight), pointing up, and the turning links read +x.  The node negates
+      it before comparing.
+
+Model of a measurement (:class:`Comparison`)
+    In the rig frame about O, at the measurement's crank state (psi, psi', psi''):
+
+        w_measured = w_shaking(psi, psi', psi'') + w_weight(psi) + b + noise
+
+    ``w_shaking`` is the core's (:mod:`mech_balance.conventions`), ``w_weight`` the static
+    weight of the moving links that the conventions leave out of the shaking wrench but a
+    sensor measures when the rig's plane is not horizontal (:class:`WeightModel`:
+    sum m_i g and sum (c_i - O) x m_i g from the mass centres c_i at the current pose; the
+    frame's own weight is constant and goes into the bias), b the sensor bias (any constant:
+    the sensor's offset, the frame's weight).  The residual is ``w_measured - w_model - b``.
+
+Crank state at a measurement's stamp
+    Follow mode (:class:`EncoderTrack`): a least-squares quadratic in time through the
+    encoder angles within +- ``window / 2`` of the stamp, centred on it (the encoder
+    "interpolated" to the stamp and smoothed: its value, slope and curvature are the angle,
+    speed and acceleration).  A measurement is paired once the encoder has passed its stamp
+    by half a window.  The quantization noise of the acceleration falls as window^-2.5
+    (4096 counts per turn at 250 Hz: 0.24 rad/s^2 over 0.1 s) and its smoothing error grows
+    as (omega_v window)^2 for speed variations at omega_v (1% at omega_v window / 2 = 0.2).
+    Clock mode (:func:`clock_crank`): the node's own crank, psi = psi_0 + omega (t - t_0).
+
+Running RMS (:meth:`Comparison.rms`)
+    Per component over the paired measurements of the last ``window`` seconds (by their
+    stamps), of the residual, of the measurement less the bias and of the model.
+
+Bias (:func:`estimate_bias`, ``~/tare``)
+    The least-squares constant of ``measured - model`` over the last seconds: its mean, with
+    standard error std / sqrt(samples) (white noise).  At rest the model is the static
+    weight alone and this is the sensor's offset (plus any error of the modelled weight);
+    while turning the estimate is as good as the model (after ``~/identify``, the calibrated
+    one; :mod:`mech_balance.analysis.identify` estimates the bias jointly with the inertial
+    parameters).
+"""
+
+from collections import Counter
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+CONVENTIONS = ('load_on_sensor', 'reaction')
+"""``sensor.convention``: what the sensor reports (module docstring, the picture)."""
+SIGN = {'load_on_sensor': 1.0, 'reaction': -1.0}
+COMPONENTS = ('force_x', 'force_y', 'force_z', 'torque_x', 'torque_y', 'torque_z')
+"""The six columns of every wrench array here, rig frame about the moment point."""
+UNITS = ('N', 'N', 'N', 'N*m', 'N*m', 'N*m')
+PLANAR = (0, 1, 5)
+"""Columns of the planar wrench [f_x, f_y, n_z] (:mod:`mech_balance.analysis.identify`)."""
+MIN_FIT_SAMPLES = 5
+"""Fewest encoder samples in a crank-state fit."""
+MIN_SIDE_SAMPLES = 2
+"""Fewest encoder samples on each side of a measurement's stamp in its fit."""
+PAIR_TIMEOUT_S = 2.0
+"""A measurement still without encoder data this long (by the stamps of later measurements,
+plus half the crank window) after its stamp is rejected."""
+PENDING_CAPACITY = 20_000
+"""Most measurements waiting for encoder data (the oldest are rejected beyond)."""
+PAIRED_CAPACITY = 120_000
+"""Most paired measurements kept for the RMS and the tare (2 min at 1 kHz): windows longer
+than the sensor's rate allows are cut to the newest samples."""
+IDENTIFY_CAPACITY = 120_000
+"""Most encoder and measurement samples kept for ``~/identify`` (each; 2 min at 1 kHz,
+about 8 MB): the identification uses the newest ones."""
+IDENTIFY_GAP_PERIODS = 10.0
+"""``~/identify`` uses the newest stretch of encoder data whose stamps are never further
+apart than this many median encoder periods."""
+REST_SPEED_RAD_S = 1e-3
+"""A tare whose crank speeds stay below this is taken at rest."""
+MODEL_FLOOR = 1e-12
+"""A component whose model RMS is at or below this (SI) is not modelled (out of the plane
+of a planar rig; a rig at rest without gravity): its fraction is not judged."""
+
+
+def rotation_rpy(roll, pitch, yaw):
+    """Return R = Rz(yaw) Ry(pitch) Rx(roll) (ROS fixed axes; columns: the rotated axes)."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def _wrench_pair(force, moment, what):
+    f = np.atleast_2d(np.asarray(force, dtype=float))
+    m = np.atleast_2d(np.asarray(moment, dtype=float))
+    if f.shape != m.shape or f.ndim != 2 or f.shape[1] != 3:
+        raise ValueError(f'{what}: got force {f.shape} and torque {m.shape}, expected two '
+                         '(n, 3) arrays')
+    return f, m
+
+
+def _point(point_m, what='point_m'):
+    p = np.asarray(point_m, dtype=float).ravel()
+    if p.shape == (2,):
+        p = np.append(p, 0.0)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ValueError(f'{what}: got {point_m!r}, expected a finite point (x, y, z) m')
+    return p
+
+
+def reduce_moment(force, moment, from_point_m, to_point_m):
+    """Return the moment about ``to_point_m`` of a wrench given about ``from_point_m``."""
+    f, m = _wrench_pair(force, moment, 'wrench')
+    return m + np.cross(_point(from_point_m) - _point(to_point_m), f)
+
+
+@dataclass(frozen=True)
+class SensorPose:
+    """The sensor's pose in the rig frame and its sign convention (module docstring)."""
+
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    roll: float = 0.0
+    pitch: float = 0.0
+    yaw: float = 0.0
+    convention: str = CONVENTIONS[0]
+
+    def __post_init__(self):
+        """Check the numbers and the convention."""
+        for name in ('x', 'y', 'z', 'roll', 'pitch', 'yaw'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise ValueError(f'sensor.{name}: got {value!r}, expected a finite number')
+        if self.convention not in CONVENTIONS:
+            raise ValueError(f'sensor.convention: got {self.convention!r}, expected one of '
+                             f'{", ".join(CONVENTIONS)}')
+
+    @property
+    def position_m(self):
+        """Return the sensor's origin in the rig frame, ``(3,)`` m."""
+        return np.array([self.x, self.y, self.z], dtype=float)
+
+    @property
+    def rotation(self):
+        """Return the ``(3, 3)`` rotation from the sensor's axes to the rig's."""
+        return rotation_rpy(self.roll, self.pitch, self.yaw)
+
+    @property
+    def sign(self):
+        """Return +1 (load_on_sensor) or -1 (reaction)."""
+        return SIGN[self.convention]
+
+    def to_rig(self, force_sensor, torque_sensor, point_m):
+        """
+        Return ``(n, 6)``: measurements in the rig's axes about ``point_m``, as loads on it.
+
+        ``force_sensor`` and ``torque_sensor`` are ``(n, 3)`` (or ``(3,)``) in the sensor's
+        axes, the torque about the sensor's origin.
+        """
+        f_s, n_s = _wrench_pair(force_sensor, torque_sensor, 'measured_wrench')
+        r = self.rotation * self.sign
+        f = f_s @ r.T
+        n = reduce_moment(f, n_s @ r.T, self.position_m, point_m)
+        return np.hstack([f, n])
+
+    def to_sensor(self, wrench_rig, point_m):
+        """Return ``(force (n, 3), torque (n, 3))`` the sensor reports (inverse of to_rig)."""
+        w = np.atleast_2d(np.asarray(wrench_rig, dtype=float))
+        if w.ndim != 2 or w.shape[1] != 6:
+            raise ValueError(f'wrench_rig: got shape {w.shape}, expected (n, 6)')
+        n_p = reduce_moment(w[:, :3], w[:, 3:], point_m, self.position_m)
+        r = self.rotation * self.sign
+        return w[:, :3] @ r, n_p @ r
+
+
+# ------------------------------------------------------------------------------ weight
+
+
+@dataclass(frozen=True)
+class WeightModel:
+    """
+    The static weight of the moving links: masses, local mass centres, gravity.
+
+    ``bodies`` names the links (as in :class:`~mech_balance.core.rig.BodyPoses`),
+    ``mass_kg`` ``(nb,)``, ``centre_m`` ``(nb, 3)`` in each link's own frame, ``gravity``
+    ``(3,)`` m/s^2 in the rig frame.
+    """
+
+    bodies: tuple
+    mass_kg: np.ndarray
+    centre_m: np.ndarray
+    gravity_m_s2: np.ndarray
+
+    @classmethod
+    def of(cls, rig):
+        """
+        Return the weight model of a rig, or None when its model has no gravity.
+
+        A rig with the ``gravity`` capability has a scene with ``gravity_m_s2`` and links
+        with ``mass_kg``; the mass centres come from the rig's drawing.
+        """
+        if 'gravity' not in rig.capabilities:
+            return None
+        g = np.zeros(3)
+        g[:len(rig.scene.gravity_m_s2)] = rig.scene.gravity_m_s2
+        if not np.any(g):
+            return None
+        mass = {lk.name: float(lk.mass_kg) for lk in rig.scene.links}
+        bodies = rig.drawing.bodies
+        return cls(tuple(b.name for b in bodies), np.array([mass[b.name] for b in bodies]),
+                   np.array([b.mass_centre_m for b in bodies], dtype=float), g)
+
+    def wrench(self, poses, point_m):
+        """
+        Return ``(n, 6)``: the links' weight on the frame at ``poses``, about ``point_m``.
+
+        ``poses`` is a :class:`~mech_balance.core.rig.BodyPoses`: per link m g at its mass
+        centre c = o + R c_local; force sum m g, moment sum (c - O) x m g.
+        """
+        point = _point(point_m)
+        n = poses.origin_m.shape[0]
+        out = np.zeros((n, 6))
+        for name, m, c_local in zip(self.bodies, self.mass_kg, self.centre_m):
+            k = poses.names.index(name)
+            c = poses.origin_m[:, k] + poses.rotation[:, k] @ c_local
+            weight = m * self.gravity_m_s2
+            out[:, :3] += weight
+            out[:, 3:] += np.cross(c - point, weight)
+        return out
+
+
+def model_wrench(data, weight, point_m):
+    """Return the ``(n, 6)`` model of a measurement: shaking wrench plus weight (RigData)."""
+    w = np.hstack([data.force_N, data.moment_Nm])
+    if weight is not None:
+        w = w + weight.wrench(data.bodies, point_m)
+    return w
+
+
+# ------------------------------------------------------------------------------ series
+
+
+class Series:
+    """
+    Samples in stamp order, at most ``capacity`` (the oldest dropped), appended in batches.
+
+    Kept in one array of twice the capacity, compacted when full (amortized O(1)):
+    :attr:`stamps_ns` and :attr:`values` are views of the newest samples, oldest first.
+    """
+
+    def __init__(self, columns, capacity):
+        self.capacity = int(capacity)
+        self._t = np.zeros(2 * self.capacity, dtype=np.int64)
+        self._v = np.zeros((2 * self.capacity, columns))
+        self._lo = self._hi = 0
+
+    def __len__(self):
+        """Return the number of samples kept."""
+        return self._hi - self._lo
+
+    def clear(self):
+        """Forget every sample."""
+        self._lo = self._hi = 0
+
+    def append(self, stamps_ns, values):
+        """Append samples (stamps increasing, after the newest kept)."""
+        t = np.atleast_1d(np.asarray(stamps_ns, dtype=np.int64))
+        if t.size == 0:
+            return
+        v = np.asarray(values, dtype=float).reshape(t.size, -1)
+        if t.size > self.capacity:
+            t, v = t[-self.capacity:], v[-self.capacity:]
+        if self._hi + t.size > self._t.size:
+            keep = min(len(self), self.capacity - t.size)
+            self._t[:keep] = self._t[self._hi - keep:self._hi]
+            self._v[:keep] = self._v[self._hi - keep:self._hi]
+            self._lo, self._hi = 0, keep
+        self._t[self._hi:self._hi + t.size] = t
+        self._v[self._hi:self._hi + t.size] = v
+        self._hi += t.size
+        self._lo = max(self._lo, self._hi - self.capacity)
+
+    @property
+    def stamps_ns(self):
+        """Return the stamps, ns, oldest first."""
+        return self._t[self._lo:self._hi]
+
+    @property
+    def values(self):
+        """Return the ``(n, columns)`` values, oldest first."""
+        return self._v[self._lo:self._hi]
+
+    @property
+    def newest_ns(self):
+        """Return the newest stamp, or None."""
+        return int(self._t[self._hi - 1]) if self._hi > self._lo else None
+
+    def since(self, stamp_ns):
+        """Return ``(stamps, values)`` of the samples stamped at or after ``stamp_ns``."""
+        t = self.stamps_ns
+        i = int(np.searchsorted(t, stamp_ns, side='left'))
+        return t[i:], self.values[i:]
+
+
+# ------------------------------------------------------------------------------ crank
+
+
+class EncoderTrack:
+    """
+    The encoder's turned angle over time, and the crank state at any stamp inside it.
+
+    ``window_s``: span of the centred least-squares quadratic (module docstring).  Angles are
+    kept continuous: a new angle is moved by whole turns to the branch nearest the last
+    (an estimator restarted after a gap may send the angle as the encoder reports it).  The
+    raw position as the encoder sent it is kept too (column 1): the identification smooths
+    those (their quantization step is exact; accumulated turned angles carry round-off).
+    """
+
+    def __init__(self, window_s, capacity=IDENTIFY_CAPACITY):
+        self.set_window(window_s)
+        self.series = Series(2, capacity)
+
+    def set_window(self, window_s):
+        """Set the fit's span, s."""
+        if not (window_s > 0.0 and math.isfinite(window_s)):
+            raise ValueError(f'sensor.crank_window: got {window_s!r}, expected a span > 0 s')
+        self.half_ns = int(round(0.5 * window_s * 1e9))
+
+    def add(self, stamp_ns, position_rad, turned_rad=None):
+        """
+        Add an accepted encoder sample; a stamp not after the newest is ignored.
+
+        ``position_rad`` as the encoder sent it; ``turned_rad`` the unwrapped angle (the
+        follow-mode estimator's), or None to unwrap to the branch nearest the last.
+        """
+        newest = self.series.newest_ns
+        raw = float(position_rad)
+        turned = raw if turned_rad is None else float(turned_rad)
+        if newest is not None:
+            if int(stamp_ns) <= newest:
+                return
+            last = float(self.series.values[-1, 0])
+            turned -= TWO_PI * round((turned - last) / TWO_PI)
+        self.series.append([int(stamp_ns)], [[turned, raw]])
+
+    def clear(self):
+        """Forget the encoder's history."""
+        self.series.clear()
+
+    def state_at(self, stamps_ns):
+        """
+        Return ``(psi, speed, accel, status)`` at ``stamps_ns`` ``(n,)``.
+
+        ``status`` per stamp: ``'ok'``; ``'wait'`` (the encoder has not passed the stamp by
+        half a window yet); or the reason it can never be paired: ``'before the encoder
+        data'`` or ``'encoder gap at the stamp'``.  psi, speed, accel are NaN unless ok.
+        """
+        stamps = np.atleast_1d(np.asarray(stamps_ns, dtype=np.int64))
+        n = stamps.size
+        psi, speed, accel = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        status = ['wait'] * n
+        t = self.series.stamps_ns
+        if t.size == 0:
+            return psi, speed, accel, status
+        ang = self.series.values[:, 0]
+        half = self.half_ns
+        lo = np.searchsorted(t, stamps - half, side='left')
+        hi = np.searchsorted(t, stamps + half, side='right')
+        mid = np.searchsorted(t, stamps, side='left')
+        passed = stamps + half <= t[-1]
+        early = passed & (stamps - half < t[0])
+        gap = passed & ~early & ((hi - lo < MIN_FIT_SAMPLES) | (mid - lo < MIN_SIDE_SAMPLES) |
+                                 (hi - mid < MIN_SIDE_SAMPLES))
+        ok = passed & ~early & ~gap
+        status = np.where(ok, 'ok', np.where(early, 'before the encoder data', np.where(
+            gap, 'encoder gap at the stamp', 'wait'))).tolist()
+        idx = np.flatnonzero(ok)
+        if idx.size:
+            # every window padded to the longest, the padding weighted 0: one batched solve
+            # of the 3x3 normal equations of the quadratic in x = (t_k - t) / (window / 2)
+            width = int(np.max(hi[idx] - lo[idx]))
+            k = lo[idx, None] + np.arange(width)
+            weight = (k < hi[idx, None]).astype(float)
+            k = np.minimum(k, t.size - 1)
+            scale = half * 1e-9
+            x = (t[k] - stamps[idx, None]) * (1e-9 / scale)
+            ref = ang[mid[idx]]
+            y = ang[k] - ref[:, None]
+            powers = x[:, :, None] ** np.arange(5)                      # (m, width, 5)
+            moments = np.einsum('mw,mwp->mp', weight, powers)
+            normal = np.stack([moments[:, i:i + 3] for i in range(3)], axis=1)
+            rhs = np.einsum('mw,mwp->mp', weight * y, powers[:, :, :3])
+            c = np.linalg.solve(normal, rhs[:, :, None])[:, :, 0]
+            psi[idx] = ref + c[:, 0]
+            speed[idx] = c[:, 1] / scale
+            accel[idx] = 2.0 * c[:, 2] / scale ** 2
+        return psi, speed, accel, status
+
+
+def clock_crank(schedule, stamps_ns):
+    """
+    Return ``(psi, speed, accel)`` of a clock-mode schedule at ``stamps_ns`` (turned angle).
+
+    ``schedule`` is a :class:`mech_balance.ros.streaming.ClockSchedule`: psi = angle0 +
+    speed (t - epoch), constant speed, zero acceleration.
+    """
+    t = np.atleast_1d(np.asarray(stamps_ns, dtype=np.int64))
+    psi = schedule.angle0_rad + schedule.speed_rad_s * ((t - schedule.epoch_ns) * 1e-9)
+    return psi, np.full(t.size, schedule.speed_rad_s), np.zeros(t.size)
+
+
+# ------------------------------------------------------------------------------ bias
+
+
+@dataclass(frozen=True)
+class BiasEstimate:
+    """A tare: bias ``(6,)`` and its standard error, samples used, at rest or turning."""
+
+    bias: np.ndarray
+    std_error: np.ndarray
+    samples: int
+    span_s: float
+    at_rest: bool
+
+    def summary(self):
+        """Return a one-line description."""
+        how = 'at rest' if self.at_rest else \
+            'while turning (jointly with the model: as good as the model)'
+        parts = ', '.join(f'{c} {b:+.6g} +- {s:.2g} {u}' for c, b, s, u in
+                          zip(COMPONENTS, self.bias, self.std_error, UNITS))
+        return f'tare from {self.samples} measurements over {self.span_s:.3g} s {how}: {parts}'
+
+    def to_dict(self):
+        """Return the estimate as a plain dict."""
+        return {'samples': self.samples, 'span_s': self.span_s, 'at_rest': self.at_rest,
+                'bias': {c: {'estimate': float(b), 'std_error': float(s), 'unit': u}
+                         for c, b, s, u in zip(COMPONENTS, self.bias, self.std_error,
+                                               UNITS)}}
+
+
+def estimate_bias(measured, model, speed_rad_s=None, span_s=0.0):
+    """
+    Return the :class:`BiasEstimate` of ``measured - model = bias + noise`` (``(n, 6)`` each).
+
+    The least-squares constant is the mean; its standard error std / sqrt(n) (ddof 1, white
+    noise).  ``speed_rad_s`` (the crank speeds) says whether the crank was at rest.
+    """
+    r = np.asarray(measured, dtype=float) - np.asarray(model, dtype=float)
+    n = r.shape[0]
+    if n < 2:
+        raise ValueError(f'tare: got {n} paired measurements, expected at least 2 (is '
+                         'measured_wrench publishing, and the crank state known?)')
+    std = np.std(r, axis=0, ddof=1)
+    rest = speed_rad_s is not None and bool(np.all(np.abs(speed_rad_s) < REST_SPEED_RAD_S))
+    return BiasEstimate(r.mean(axis=0), std / math.sqrt(n), n, float(span_s), rest)
+
+
+# ------------------------------------------------------------------------------ comparison
+
+
+@dataclass
+class Paired:
+    """Measurements paired with the model: stamps, residual (n, 6) after the bias."""
+
+    stamps_ns: np.ndarray
+    residual: np.ndarray
+
+
+class Comparison:
+    """
+    The measured wrench against the model: pairing, residual, RMS, tare, identification data.
+
+    ``pose`` (:class:`SensorPose`) and ``point_m`` (the rig's moment point, rig frame) turn
+    each measurement into the rig's wrench about the moment point on arrival
+    (:meth:`measurement`); encoder samples (:meth:`encoder`) feed the crank track and the
+    identification buffer.  :meth:`process` pairs what can be paired with the model (one core
+    call per batch) and returns the residuals.  Rejected input is counted by reason in
+    :attr:`rejected`.  Not thread-safe: the node holds a lock around every call.
+    """
+
+    def __init__(self, pose, point_m, crank_window_s, weight=None):
+        self.pose = pose
+        self.point_m = _point(point_m)
+        self.weight = weight
+        self.bias = np.zeros(6)
+        self.track = EncoderTrack(crank_window_s)
+        self.pending = Series(6, PENDING_CAPACITY)     # rig frame, about the moment point
+        self.measured = Series(6, IDENTIFY_CAPACITY)   # every accepted measurement
+        # paired: measured (6), model without bias (6), crank speed (1)
+        self.paired = Series(13, PAIRED_CAPACITY)
+        self.used = 0
+        self.received = 0
+        self.rejected = Counter()
+        self.last_model_error = ''
+
+    # ------------------------------------------------------------------ input
+
+    def measurement(self, stamp_ns, force_sensor, torque_sensor):
+        """Take one sensor-frame reading; raise ValueError naming what is wrong."""
+        self.received += 1
+        f = np.asarray(force_sensor, dtype=float)
+        m = np.asarray(torque_sensor, dtype=float)
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(m))):
+            raise ValueError(f'wrench: got force {f.tolist()} and torque {m.tolist()}, '
+                             'expected finite values')
+        newest = self.measured.newest_ns
+        if newest is not None and int(stamp_ns) <= newest:
+            raise ValueError(f'stamp: {int(stamp_ns) * 1e-9:.9f} s is not after the previous '
+                             f'{newest * 1e-9:.9f} s, expected increasing stamps')
+        w = self.pose.to_rig(f, m, self.point_m)
+        if len(self.pending) >= self.pending.capacity:
+            self.rejected['no encoder data (too many waiting)'] += 1
+        self.pending.append([int(stamp_ns)], w)
+        self.measured.append([int(stamp_ns)], w)
+
+    def encoder(self, stamp_ns, position_rad, turned_rad=None):
+        """Add an accepted encoder sample (follow mode; :meth:`EncoderTrack.add`)."""
+        self.track.add(stamp_ns, position_rad, turned_rad)
+
+    # ------------------------------------------------------------------ settings
+
+    def configure(self, pose=None, crank_window_s=None):
+        """
+        Change the sensor's pose and convention, or the crank window.
+
+        A new pose forgets the bias and every buffered measurement (taken in the old frame).
+        """
+        if pose is not None and pose != self.pose:
+            self.pose = pose
+            self._forget_measurements()
+        if crank_window_s is not None:
+            self.track.set_window(crank_window_s)
+
+    def new_model(self, weight, point_m):
+        """
+        Compare with another model from now on: forget the paired measurements.
+
+        ``weight`` (a :class:`WeightModel` or None) and ``point_m`` (its moment point) are
+        the new model's; another moment point forgets the bias and the measurements too.
+        """
+        self.weight = weight
+        self.paired.clear()
+        point = _point(point_m)
+        if not np.array_equal(point, self.point_m):
+            self.point_m = point
+            self._forget_measurements()
+
+    def _forget_measurements(self):
+        self.bias = np.zeros(6)
+        self.pending.clear()
+        self.measured.clear()
+        self.paired.clear()
+
+    # ------------------------------------------------------------------ pairing
+
+    def process(self, evaluate, schedule=None):
+        """
+        Pair the waiting measurements that can be paired; return their :class:`Paired`.
+
+        ``evaluate(psi, speed, accel)`` returns the model's RigData (shaking wrench and body
+        poses) at wrapped crank angles; ``schedule``: the clock-mode schedule, None in
+        follow mode (the encoder track).  Measurements that can never be paired are
+        rejected (counted by reason); a model evaluation that fails rejects its samples.
+        """
+        t, w = self.pending.stamps_ns.copy(), self.pending.values.copy()
+        if t.size == 0:
+            return Paired(np.zeros(0, dtype=np.int64), np.zeros((0, 6)))
+        if schedule is not None:
+            psi, speed, accel = clock_crank(schedule, t)
+            status = ['ok'] * t.size
+        else:
+            psi, speed, accel, status = self.track.state_at(t)
+            timeout = int(PAIR_TIMEOUT_S * 1e9) + self.track.half_ns
+            newest = t[-1]
+            status = ['no encoder data after the stamp' if s == 'wait' and newest - ti >
+                      timeout else s for s, ti in zip(status, t)]
+        status = np.array(status, dtype=object)
+        done = status != 'wait'
+        for reason in status[done & (status != 'ok')]:
+            self.rejected[reason] += 1
+        ok = np.flatnonzero(status == 'ok')
+        # keep the measurements still waiting (in order)
+        self.pending.clear()
+        self.pending.append(t[~done], w[~done])
+        if ok.size == 0:
+            return Paired(np.zeros(0, dtype=np.int64), np.zeros((0, 6)))
+        model, good = self._evaluate(evaluate, psi[ok], speed[ok], accel[ok])
+        ok = ok[good]
+        model = model[good]
+        self.used += ok.size
+        self.paired.append(t[ok], np.hstack([w[ok], model, speed[ok][:, None]]))
+        return Paired(t[ok], w[ok] - model - self.bias)
+
+    def _evaluate(self, evaluate, psi, speed, accel):
+        """Return ``(model (n, 6), good (n,) bool)``: a batch, one by one if it fails."""
+        wrapped = np.mod(psi, TWO_PI)
+        try:
+            data = evaluate(wrapped, speed, accel)
+            return model_wrench(data, self.weight, self.point_m), np.ones(psi.size, bool)
+        except ValueError:
+            pass
+        out, good = np.zeros((psi.size, 6)), np.zeros(psi.size, bool)
+        for i in range(psi.size):
+            try:
+                data = evaluate(wrapped[i:i + 1], speed[i:i + 1], accel[i:i + 1])
+                out[i] = model_wrench(data, self.weight, self.point_m)[0]
+                good[i] = True
+            except ValueError as exc:
+                self.rejected['model evaluation failed'] += 1
+                self.last_model_error = str(exc)
+        return out, good
+
+    # ------------------------------------------------------------------ statistics
+
+    def rms(self, window_s):
+        """
+        Return the RMS over the last ``window_s`` of paired measurements (by stamp).
+
+        A dict: ``residual``, ``measured`` (less the bias), ``model`` ``(6,)`` each,
+        ``samples``, ``oldest_ns``, ``newest_ns``; None when nothing is paired.
+        """
+        newest = self.paired.newest_ns
+        if newest is None:
+            return None
+        t, v = self.paired.since(newest - int(window_s * 1e9))
+        measured = v[:, :6] - self.bias
+        model = v[:, 6:12]
+
+        def rms(x):
+            return np.sqrt(np.mean(x * x, axis=0))
+        return {'residual': rms(measured - model), 'measured': rms(measured),
+                'model': rms(model), 'samples': int(t.size), 'oldest_ns': int(t[0]),
+                'newest_ns': int(t[-1])}
+
+    def tare(self, seconds):
+        """Estimate the bias from the last ``seconds`` of paired data, use it; return it."""
+        newest = self.paired.newest_ns
+        if newest is None:
+            raise ValueError('tare: no paired measurements yet, expected measured_wrench '
+                             'and the crank state (follow mode: crank_joint_state) to '
+                             'stream')
+        t, v = self.paired.since(newest - int(seconds * 1e9))
+        est = estimate_bias(v[:, :6], v[:, 6:12], v[:, 12], (t[-1] - t[0]) * 1e-9)
+        self.bias = est.bias
+        return est
+
+    def identification_data(self, schedule=None, t0_ns=None):
+        """
+        Return ``(t_encoder_s, angle_rad, t_wrench_s, planar_wrench (n, 3), t0_ns)``.
+
+        The buffered encoder since its last gap (:data:`IDENTIFY_GAP_PERIODS`; follow mode)
+        or, with a clock-mode ``schedule``, the node's crank at the measurement stamps; the
+        measurements in the rig frame about the moment point, [f_x, f_y, n_z], bias not
+        removed (the identification estimates it).
+        """
+        tw = self.measured.stamps_ns
+        if tw.size == 0:
+            raise ValueError('identify: no measured_wrench received, expected the sensor to '
+                             'stream (and the encoder, in follow mode)')
+        if schedule is not None:
+            te = tw
+            angle = clock_crank(schedule, te)[0]
+        else:
+            te = self.track.series.stamps_ns
+            angle = self.track.series.values[:, 1]    # as sent: exact quantization steps
+            if te.size < 2:
+                raise ValueError('identify: no crank_joint_state received, expected the '
+                                 'encoder to stream (follow mode)')
+            # the newest stretch without a gap (the crank may have stopped, or the encoder)
+            steps = np.diff(te)
+            gaps = np.flatnonzero(steps > IDENTIFY_GAP_PERIODS * np.median(steps))
+            if gaps.size:
+                te, angle = te[gaps[-1] + 1:], angle[gaps[-1] + 1:]
+        t0 = int(min(te[0], tw[0])) if t0_ns is None else int(t0_ns)
+        return ((te - t0) * 1e-9, angle.copy(), (tw - t0) * 1e-9,
+                self.measured.values[:, PLANAR].copy(), t0)
