@@ -8,6 +8,7 @@ caller's option or parameter, the path and what was expected.
 
 import os
 from pathlib import Path
+import re
 import tempfile
 
 
@@ -50,3 +51,16 @@ def check_output_path(path, field, suffixes, create_dir=False):
         raise ValueError(f'{field}: got {text!r}, an existing file that is not writable, '
                          'expected a path this process can write')
     return path
+
+
+VIEWER_URL = re.compile(r'rerun(\+https?)?://[A-Za-z0-9_.\-\[\]:]+/proxy')
+"""A running rerun viewer's gRPC address (``rerun`` prints it when it starts)."""
+
+
+def check_viewer_url(url, field):
+    """Return ``url`` if it is a rerun viewer's gRPC address, else raise ValueError."""
+    if not isinstance(url, str) or not VIEWER_URL.fullmatch(url):
+        raise ValueError(f'{field}: got {url!r}, expected a rerun viewer address such as '
+                         "'rerun+http://127.0.0.1:9876/proxy' (what `rerun` prints when it "
+                         'starts)')
+    return url

@@ -63,7 +63,9 @@ def _hoeken_pair():
 
 @pytest.fixture(scope='module')
 def hoeken(tmp_path_factory):
-    sc, bal = _hoeken_pair()
+    # point masses are off unless a scene asks for them (issue 16): this one asks
+    sc = _scene_with(recording={'streams': {'point_masses': True}})
+    bal = equimomental.apply_design(sc, A2, normalized=True)
     path = tmp_path_factory.mktemp('rec') / 'hoeken.rrd'
     summary = recording.record(path, sc, bal, cycles=1, samples=SAMPLES,
                                balanced_source='seed 001 Table 5 a(2)')
@@ -237,12 +239,13 @@ def test_cycles_repeat_the_turn_on_continuing_timelines(tmp_path):
     ent = recording.read_recording(path)
     series = ent['/plots/shaking_force/original']
     assert series.rows == 180
-    assert_array_equal(series.index['crank_angle'], 90 + 4 * np.arange(180))
+    # a recorded turn starts at crank angle 0, whatever the assembly angle (issue 16)
+    assert_array_equal(series.index['crank_angle'], 4 * np.arange(180))
     assert_allclose(series.index['time'], np.arange(180) * (2 * math.pi / 90) / (10 * math.pi),
                     rtol=0.0, atol=TIME_ATOL_S)
     f = _series(ent, '/plots/shaking_force/original')
     assert_array_equal(f[:90], f[90:])
-    _, _, _, w = _core(sc, 90)
+    _, w = analysis.Rig(sc).evaluate(cycle_angles(90))
     assert_allclose(f[:90], np.abs(w.shaking_force), rtol=EXACT_RTOL, atol=0.0)
 
 
@@ -260,7 +263,8 @@ def test_user_scale_is_used_and_stated(tmp_path):
 
 
 @pytest.mark.parametrize('kwargs, message', [
-    ({'samples': 100}, 'samples: got 100, expected a divisor of 360'),
+    ({'samples': 3}, 'samples: got 3, expected an integer >= 4'),
+    ({'samples': 2.5}, 'samples: got 2.5'),
     ({'samples': 2}, 'samples: got 2'),
     ({'cycles': 0}, 'cycles: got 0'),
 ])
@@ -480,11 +484,11 @@ def test_cli_record_bad_input_exits_2(tmp_path, capsys, argv, message):
     assert message in capsys.readouterr().err
 
 
-def test_cli_record_samples_must_divide_360(capsys):
+def test_cli_record_samples_must_be_at_least_4(capsys):
     with pytest.raises(SystemExit) as exc:
-        cli.main(['record', '--samples', '100', '--out', 'x.rrd'])
+        cli.main(['record', '--samples', '3', '--out', 'x.rrd'])
     assert exc.value.code == 2
-    assert 'expected a divisor of 360' in capsys.readouterr().err
+    assert 'expected an integer >= 4' in capsys.readouterr().err
 
 
 def test_bench_section_reports_seconds_and_megabytes():

@@ -211,3 +211,161 @@ def missed_fraction(stamps, start_ns, stop_ns, period_ns):
     first = min(inside)
     expected = (stop_ns - 1 - first) // period_ns + 1
     return max(0.0, 1.0 - len(inside) / expected)
+
+
+LIVE_RATE_HZ = 1000.0
+"""The rate of the live-view comparison (the node's target rate)."""
+LIVE_WINDOW_S = 4.0
+"""Measuring window of each run of the live-view comparison."""
+
+
+def viewer_endpoint(path, port):
+    """
+    Start ``rerun --port PORT --save PATH`` (a viewer-side endpoint that saves what it gets).
+
+    Returns the process once its gRPC port accepts connections; the caller stops it (SIGINT,
+    by its process id).
+    """
+    import pathlib
+    import socket
+    import rerun_cli
+    exe = pathlib.Path(rerun_cli.__file__).parent / 'rerun'
+    proc = subprocess.Popen([str(exe), '--port', str(port), '--save', str(path)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + START_TIMEOUT_S
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            with socket.create_connection(('127.0.0.1', port), timeout=0.2):
+                return proc
+        except OSError:
+            time.sleep(0.05)
+    proc.kill()
+    raise RuntimeError(f'rerun --port {port} --save {path} did not start listening')
+
+
+def free_port():
+    """Return a TCP port free on this machine now."""
+    import socket
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+def run_node(scene_name, rate_hz, seconds, params=(), domain=None):
+    """
+    Run the node in its own process at ``rate_hz`` and measure ``seconds`` of publishing.
+
+    ``params`` are extra ``name:=value`` parameters.  Returns ``{'rate_hz'``: distinct
+    joint_states stamps received per second of the window, ``'missed'``: the fraction of
+    periods whose sample did not arrive (either topic), ``'stats'``: the node's own
+    statistics at shutdown (compute per sample, tick time)}.
+    """
+    import rclpy
+    from rclpy.experimental import EventsExecutor
+    from rclpy.qos import QoSProfile
+    from sensor_msgs.msg import JointState
+    from geometry_msgs.msg import WrenchStamped
+
+    domain = (101 - os.getpid() % 50) if domain is None else domain
+    ns = f'/live{os.getpid()}_{int(time.monotonic() * 1000) % 100000}'
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
+               ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE',
+                                                            'LOCALHOST'))
+    env['PYTHONPATH'] = os.pathsep.join(
+        p for p in (os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
+                    env.get('PYTHONPATH')) if p)
+    cmd = [sys.executable, '-m', 'mech_balance.ros.node', '--ros-args', '-r', f'__ns:={ns}',
+           '-p', f'scene:={scene_name}', '-p', f'publish_rate:={rate_hz}']
+    for p in params:
+        cmd += ['-p', p]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node(f'live_probe_{os.getpid()}', context=ctx)
+    executor = EventsExecutor(context=ctx)
+    executor.add_node(node)
+    stamps = {'joint_states': [], 'shaking_wrench': []}
+
+    def keep(key):
+        def cb(raw):
+            sec, nsec = STAMP.unpack_from(raw, CDR_HEADER)
+            stamps[key].append(sec * 1_000_000_000 + nsec)
+        return cb
+
+    qos = QoSProfile(depth=1000)
+    node.create_subscription(JointState, f'{ns}/joint_states', keep('joint_states'), qos,
+                             raw=True)
+    node.create_subscription(WrenchStamped, f'{ns}/shaking_wrench', keep('shaking_wrench'),
+                             qos, raw=True)
+
+    def spin_for(secs, until=None):
+        end = time.monotonic() + secs
+        while time.monotonic() < end and not (until and until()):
+            executor.spin_once(timeout_sec=0.01)
+
+    try:
+        spin_for(START_TIMEOUT_S, lambda: all(len(v) > 10 for v in stamps.values()) or
+                 proc.poll() is not None)
+        if proc.poll() is not None or not all(len(v) > 10 for v in stamps.values()):
+            raise RuntimeError('the node did not start or was not discovered')
+        spin_for(SETTLE_S)
+        start = node.get_clock().now().nanoseconds
+        for v in stamps.values():
+            v.clear()
+        spin_for(seconds)
+        stop = node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
+        period = round(1e9 / rate_hz)
+        missed = max(missed_fraction(v, start, stop, period) for v in stamps.values())
+        got = {s for s in stamps['joint_states'] if start <= s < stop}
+        rate = len(got) / ((stop - start) * 1e-9)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+        try:
+            _, err = proc.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            _, err = proc.communicate()
+    match = re.search(re.escape(node_mod.STATS_TAG) + r'(\{.*\})', err or '')
+    return {'rate_hz': rate, 'missed': missed,
+            'stats': json.loads(match.group(1)) if match else {}, 'log': err or ''}
+
+
+def live_view_section(args, progress):
+    """Return the node's publishing with and without the live view (``rerun_url``)."""
+    import tempfile
+    name = (getattr(args, 'scene', None) or ['hoeken'])[0]
+    lines = [f'rig node with the live view (rerun_url to a `rerun --save` endpoint) against '
+             f'without: {name}, clock mode at {LIVE_RATE_HZ:g} Hz, {LIVE_WINDOW_S:g} s each',
+             f"{'run':<22}{'rate Hz':>10}{'missed':>9}{'compute us':>12}{'tick us':>9}"
+             f"{'tick p99 us':>13}", '-' * 75]
+    with tempfile.TemporaryDirectory() as tmp:
+        port = free_port()
+        viewer = viewer_endpoint(os.path.join(tmp, 'live.rrd'), port)
+        try:
+            runs = []
+            for label, extra in (('without live view', ()),
+                                 ('with live view', (f'rerun_url:=rerun+http://127.0.0.1:'
+                                                     f'{port}/proxy',))):
+                progress(f'  rig node {label} ...')
+                runs.append((label, run_node(name, LIVE_RATE_HZ, LIVE_WINDOW_S, extra)))
+        finally:
+            viewer.send_signal(signal.SIGINT)
+            try:
+                viewer.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                viewer.kill()
+    for label, r in runs:
+        st = r['stats']
+        lines.append(f"{label:<22}{r['rate_hz']:>10.1f}{r['missed']:>9.2%}"
+                     f"{st.get('prepare_per_sample_s', float('nan')) * 1e6:>12.1f}"
+                     f"{st.get('step_median_s', float('nan')) * 1e6:>9.1f}"
+                     f"{st.get('step_p99_s', float('nan')) * 1e6:>13.1f}")
+    ratio = runs[1][1]['rate_hz'] / runs[0][1]['rate_hz'] if runs[0][1]['rate_hz'] else 0.0
+    lines.append(f'publishing rate with / without the live view: {ratio:.3f} (the view logs '
+                 'at most 30 samples/s on a thread of its own)')
+    return '\n'.join(lines)

@@ -24,10 +24,9 @@ def _samples(text):
         value = int(text)
     except ValueError:
         value = None
-    if value is None or value < 4 or 360 % value:
+    if value is None or value < 4:
         raise argparse.ArgumentTypeError(
-            f'got {text!r}, expected a divisor of 360 that is >= 4 (the crank_angle timeline '
-            'counts whole degrees)')
+            f'got {text!r}, expected an integer >= 4 (samples per crank turn)')
     return value
 
 
@@ -37,10 +36,12 @@ def register(subparsers):
     p = subparsers.add_parser(
         'record', help='write a rerun recording (.rrd) of the rig, original vs balanced',
         description='Write an offline rerun recording of a scene: the rig moving (links, '
-                    'joints, mass centres, equimomental point masses), the shaking force '
-                    'and moment drawn at the crank pivot, and time series of |shaking '
-                    'force|, shaking moment and driving torque for the original and the '
-                    'balanced design, on the timelines crank_angle (degrees) and time (s). '
+                    'joints, mass centres, counterweights at true size), a gauge of the '
+                    'shaking force and moment, and time series of |shaking force|, shaking '
+                    'moment and every scalar output (driving torque, ...) for the original '
+                    'and the balanced design, on the timelines crank_angle (degrees from 0) '
+                    'and time (s). The point masses are off unless the scene switches them '
+                    'on (recording: {streams: {point_masses: true}}). '
                     'Open the file with `rerun FILE.rrd`.')
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
@@ -58,7 +59,7 @@ def register(subparsers):
                    help='crank turns to record, at most conventions.MAX_CYCLES '
                         '(default: %(default)s)')
     p.add_argument('--samples', type=_samples, default=None,
-                   help="samples per crank turn, a divisor of 360 (default: the scene's, "
+                   help="samples per crank turn, any count >= 4 (default: the scene's, "
                         'usually 360)')
     p.add_argument('--out', required=True, metavar='FILE.rrd',
                    help='the recording to write (its directory is created if needed)')

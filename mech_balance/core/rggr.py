@@ -41,7 +41,8 @@ import dataclasses
 import math
 
 from mech_balance.conventions import cycle_angles
-from mech_balance.core.rig import batch, BodyPoses, Drawing, DrawingBody, RigData
+from mech_balance.core.rig import AddedBody, batch, BodyPoses, Drawing, DrawingBody, \
+    RigData
 import numpy as np
 
 
@@ -536,14 +537,18 @@ class RggrRig:
             g = self.scene.geometry
             w3 = (math.sin(g.beta_rad), 0.0, math.cos(g.beta_rad))
             q3 = tuple(g.l3_m * x for x in w3)
-            c2 = self.scene.coupler.centre_from_b_m
+            sc = self.scene
+            c2 = sc.coupler.centre_from_b_m
+            crank, output = sc.crank_total(), sc.output_total()
             bodies = (
                 DrawingBody('crank', {'Q1': (0.0, 0.0, 0.0), 'B': (g.a1_m, 0.0, 0.0)},
-                            ('Q1', 'B'), tuple(self.scene.crank_total().centre_uvw_m)),
+                            ('Q1', 'B'), tuple(crank.centre_uvw_m), crank.mass_kg,
+                            _weight_drawing('crank weight', sc.crank_weight)),
                 DrawingBody('coupler', {'B': (0.0, 0.0, 0.0), 'C': (g.a2_m, 0.0, 0.0)},
-                            ('B', 'C'), (c2, 0.0, 0.0)),
+                            ('B', 'C'), (c2, 0.0, 0.0), sc.coupler.mass_kg),
                 DrawingBody('output', {'Q3': (0.0, 0.0, 0.0), 'C': (g.a3_m, 0.0, 0.0)},
-                            ('Q3', 'C'), tuple(self.scene.output_total().centre_uvw_m)))
+                            ('Q3', 'C'), tuple(output.centre_uvw_m), output.mass_kg,
+                            _weight_drawing('output weight', sc.output_weight)))
             frame = {'O': (0.0, 0.0, 0.0), 'E': (0.0, g.l2_m, 0.0),
                      'Q1': (0.0, g.l2_m, g.l1_m), 'Q3': q3}
             joints = (('B', 'coupler', 'B'), ('C', 'coupler', 'C'))
@@ -551,6 +556,19 @@ class RggrRig:
                     ('output axis', (0.0, 0.0, 0.0), w3))
             self._drawing = Drawing(3, frame, bodies, joints, axes)
         return self._drawing
+
+
+WEIGHT_DRAWING_DENSITY_KG_M3 = 7850.0
+"""A balancing weight is drawn as a steel sphere of its mass (drawing only, like the URDF)."""
+
+
+def _weight_drawing(name, weight):
+    """Return a balancing weight as an :class:`AddedBody` (a sphere of its mass), or ()."""
+    if weight is None or not weight.mass_kg > 0.0:
+        return ()
+    r = (3.0 * weight.mass_kg / (4.0 * math.pi * WEIGHT_DRAWING_DENSITY_KG_M3)) ** (1.0 / 3.0)
+    return (AddedBody(name, tuple(float(x) for x in weight.centre_uvw_m), r, 2.0 * r,
+                      weight.mass_kg),)
 
 
 def kinetic_energy(scene, kin):

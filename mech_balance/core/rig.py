@@ -104,13 +104,39 @@ class RigData:
 
 
 @dataclass(frozen=True)
+class AddedBody:
+    """
+    A body fixed to a moving body, drawn at true size: a counterweight disc, a balancing weight.
+
+    ``centre_m`` ``(x, y, z)`` in the carrying body's frame; a disc (cylinder) of
+    ``radius_m`` and ``thickness_m`` whose axis is the body frame's z (a sphere when the
+    thickness is its diameter); ``mass_kg`` its mass.
+    """
+
+    name: str
+    centre_m: tuple
+    radius_m: float
+    thickness_m: float
+    mass_kg: float
+
+
+@dataclass(frozen=True)
 class DrawingBody:
-    """A body to draw: its points in its own frame (m, 3-D) and the outline joining them."""
+    """
+    A body to draw: its points in its own frame (m, 3-D) and the outline joining them.
+
+    ``mass_kg`` and ``mass_centre_m`` are the body's totals (added bodies included);
+    ``added`` its :class:`AddedBody` parts; ``point_masses`` ``((mass_kg, (x, y, z)), ...)``
+    an equimomental point-mass model of it, where the rig has one (planar: seed 001).
+    """
 
     name: str
     points: dict
     outline: tuple
     mass_centre_m: tuple
+    mass_kg: float = None
+    added: tuple = ()
+    point_masses: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -121,7 +147,8 @@ class Drawing:
     ``dimension`` is 2 (planar: z = 0) or 3; ``frame`` the fixed points ``{name: (x, y, z)}``;
     ``bodies`` the moving bodies in the order of :class:`BodyPoses`'s names after ``frame``;
     ``joints`` ``(name, body, point)`` for the joint markers; ``axes`` ``(name, point (3,),
-    direction (3,))`` of the fixed joint axes (3-D rigs).
+    direction (3,))`` of the joint axes fixed in the frame (3-D rigs: the revolute axes;
+    planar rigs: the guides of prismatic joints on the frame).
     """
 
     dimension: int

@@ -350,9 +350,8 @@ class RigNode(Node):
             if recorder is None:
                 return
             try:
-                original = samples.wrenches if self._published is self._original else None
-                recorder.log_sample(stamps_ns * 1e-9, turned_rad, state=samples.state,
-                                    wrenches=original)
+                original = samples if self._published is self._original else None
+                recorder.log_sample(stamps_ns * 1e-9, turned_rad, data=original)
             except Exception as exc:  # noqa: BLE001 - a full disk must not stop the rig
                 self._warn(f'recording_path: stopped recording: {exc}')
                 recorder.close()
@@ -365,22 +364,25 @@ class RigNode(Node):
         Reopened (the file starts again) when the scene, the path or the balanced design
         changes; ``~/reset`` keeps it going (the original is in it).
         """
-        path = self._values['recording_path']
+        path, url = self._values['recording_path'], self._values['rerun_url']
         with self._recorder_lock:
             if self._recorder is not None:
                 self._recorder.close()
                 self._recorder = None
-            if not path:
+            if not path and not url:
                 return
             from mech_balance.viz import recording
             balanced = None if self._balanced is None else self._balanced.scene
             try:
-                self._recorder = recording.LiveRecorder(path, self._original.scene, balanced,
-                                                        field='recording_path')
+                self._recorder = recording.LiveRecorder(path or None, self._original.scene,
+                                                        balanced, field='recording_path',
+                                                        url=url or None)
             except (ValueError, OSError) as exc:  # checked when set; the disk may change
                 self.get_logger().error(f'not recording: {exc}')
                 return
-            self.get_logger().info(f'recording to {path}')
+            self.get_logger().info(' and '.join(
+                ([f'recording to {path}'] if path else []) +
+                ([f'streaming the views to {url}'] if url else [])))
 
     # ------------------------------------------------------------------ parameters
 
@@ -433,7 +435,7 @@ class RigNode(Node):
                 self._switch_to(self._balanced)
             else:
                 self._balance_in_background()
-        if 'scene' in changed or 'recording_path' in changed:
+        if {'scene', 'recording_path', 'rerun_url'} & set(changed):
             self._open_recorder()
         if {'scene', 'frame_id', 'publish_robot_description'} & set(changed):
             self._describe()

@@ -283,6 +283,12 @@ def _path(value):
         paths.check_output_path(value, 'recording_path', ('.rrd',), create_dir=False)
 
 
+def _viewer_url(value):
+    """Accept empty (no live view) or a rerun viewer's gRPC address."""
+    if value:
+        paths.check_viewer_url(value, 'rerun_url')
+
+
 # ------------------------------------------------------------------------------ table
 
 _BOUNDS_RULE = 'empty or {link: [min, max]}, 0 < min <= max, max may be null'
@@ -416,6 +422,11 @@ PARAMETERS = (
          'Write a rerun recording (.rrd) of the published samples; empty: none.',
          check=_path, rule="empty or a writable file ending in '.rrd' in an existing "
          'directory (none is created)'),
+    Spec('rerun_url', STRING, '',
+         "Stream the recording's views live to a running rerun viewer at this gRPC address "
+         '(`rerun` prints it when it starts, e.g. rerun+http://127.0.0.1:9876/proxy), at most '
+         '30 samples per second on a thread of its own; empty: none.',
+         check=_viewer_url, rule='empty or rerun[+http|+https]://HOST[:PORT]/proxy'),
     # the twin against the real rig (mech_balance.ros.sensor, README)
     *(Spec(f'sensor.{axis}', DOUBLE, 0.0,
            f'Origin of the force sensor in frame_id (the rig frame), {axis} in m; the '

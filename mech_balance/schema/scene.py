@@ -50,7 +50,11 @@ RECORDING_STREAMS = (
     'shaking_moment_arc', 'shaking_force_plot', 'shaking_moment_plot', 'driving_torque_plot',
     'info',
 )
-"""What a rerun recording of the scene can show (``recording.streams``; all on by default)."""
+"""What a rerun recording of the scene can show (``recording.streams``)."""
+DEFAULT_OFF_STREAMS = ('point_masses',)
+"""Streams a scene must switch on (``recording: {streams: {point_masses: true}}``); every
+other stream is on unless switched off."""
+DEFAULT_STREAMS = tuple(s for s in RECORDING_STREAMS if s not in DEFAULT_OFF_STREAMS)
 
 _CONFIG_DIRS = (
     Path(__file__).resolve().parents[2] / 'config',
@@ -255,7 +259,7 @@ class Recording:
     shaking-force arrow and the shaking-moment arc are chosen from the data when ``None``.
     """
 
-    streams: tuple = RECORDING_STREAMS
+    streams: tuple = DEFAULT_STREAMS
     force_scale_m_per_N: float = None
     moment_scale_deg_per_Nm: float = None
 
@@ -580,7 +584,8 @@ def _recording(value):
             raise SceneError(f'recording.streams.{k}: got {v!r}, expected true or false')
     scales = {k: None if value.get(k) is None else _positive(value[k], f'recording.{k}')
               for k in ('force_scale_m_per_N', 'moment_scale_deg_per_Nm')}
-    return Recording(tuple(s for s in RECORDING_STREAMS if switches.get(s, True)), **scales)
+    return Recording(tuple(s for s in RECORDING_STREAMS
+                           if switches.get(s, s not in DEFAULT_OFF_STREAMS)), **scales)
 
 
 def _check_mobility(links, joints):

@@ -17,9 +17,11 @@ for prismatic ones)
     joint (a frictionless revolute joint carries no moment about its axis).
 """
 
+from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics, kinematics
 from mech_balance.core.planar.algebra import cross
-from mech_balance.core.rig import batch, BodyPoses, Drawing, DrawingBody, RigData
+from mech_balance.core.rig import AddedBody, batch, BodyPoses, Drawing, DrawingBody, \
+    RigData
 from mech_balance.schema import FRAME, needs
 from mech_balance.schema.scene import SERIES
 import numpy as np
@@ -188,12 +190,28 @@ class PlanarRig:
             sc = self.scene
             bodies = tuple(
                 DrawingBody(lk.name, {k: (v[0], v[1], 0.0) for k, v in lk.points.items()},
-                            tuple(lk.points), (lk.com_m[0], lk.com_m[1], 0.0))
+                            tuple(lk.points), (lk.com_m[0], lk.com_m[1], 0.0), lk.mass_kg,
+                            tuple(AddedBody(f'{lk.name} counterweight {i + 1}',
+                                            (cw.centre_m[0], cw.centre_m[1], 0.0),
+                                            cw.radius_m, cw.thickness_m, cw.mass_kg)
+                                  for i, cw in enumerate(lk.counterweights)),
+                            _point_masses(lk))
                 for lk in sc.links)
             joints = tuple((j.name, j.link_b, j.point_b) for j in sc.joints)
+            guides = tuple((j.name, (*sc.frame_points[j.point_a], 0.0), (*j.axis, 0.0))
+                           for j in sc.joints if j.prismatic and j.link_a == FRAME)
             self._drawing = Drawing(2, {k: (v[0], v[1], 0.0) for k, v in
-                                        sc.frame_points.items()}, bodies, joints)
+                                        sc.frame_points.items()}, bodies, joints, guides)
         return self._drawing
+
+
+def _point_masses(link):
+    """Return a link's three equimomental point masses (seed 001 eqs. 13-15) for drawing."""
+    if not (link.mass_kg > 0.0 and link.inertia_origin_kg_m2 > 0.0):
+        return ()
+    pm = equimomental.from_link(link.mass_kg, link.com_m, link.inertia_origin_kg_m2)
+    at = pm.distance_m * equimomental.UNIT
+    return tuple((m, (float(z.real), float(z.imag), 0.0)) for m, z in zip(pm.masses_kg, at))
 
 
 def kinetic_energy(state, inertia):

@@ -1,0 +1,317 @@
+"""
+What a person sees in a recording, checked from the file and its blueprint (issue 16).
+
+Every built-in scene is recorded against its balanced design (and Hoeken against a design
+with counterweight discs, written by ``mech-balance balance --counterweights``), read back
+with rerun's own loader, and checked at the default window (``recording.WINDOW_PX``):
+
+* no two labels of one view closer than their text height, no two label boxes overlapping,
+  at any sample of the turn;
+* every plot's y range covers its data and shows at least three labelled ticks;
+* everything drawn (links, joints, pivots, mass centres, discs, arrows, arcs, labels) lies
+  inside its view (2-D: the blueprint's bounds; 3-D: the eye's picture);
+* the point masses absent unless asked for; the counterweights present exactly when the
+  design has them, at its radius and on its links;
+* any sample count, the crank-angle timeline from 0 deg.
+"""
+
+import itertools
+import math
+import os
+import signal
+import subprocess
+
+from mech_balance import schema as scene_mod
+from mech_balance.cli import main as cli
+from mech_balance.cli import record as cli_record
+from mech_balance.core.rig import rig_for
+from mech_balance.viz import recording
+import numpy as np
+from numpy.testing import assert_allclose, assert_array_equal
+import pytest
+
+SCENES = ('hoeken', 'slider_crank', 'carpet_scraper', 'rggr')
+FLOAT32_ATOL_M = 1e-6
+"""Positions are stored as float32 (rigs up to ~1 m)."""
+EDGE_TOL_PX = 0.5
+"""Something drawn may touch a view's edge by this much (float32 round-off)."""
+
+
+@pytest.fixture(scope='module')
+def recordings(tmp_path_factory):
+    """Record every built-in scene against its balanced design, and a counterweight design."""
+    tmp = tmp_path_factory.mktemp('layout')
+    out = {}
+    for name in SCENES:
+        sc = scene_mod.load(name)
+        balanced, source = cli_record.balanced_design(sc)
+        path = tmp / f'{name}.rrd'
+        summary = recording.record(path, sc, balanced, balanced_source=source)
+        out[name] = (sc, balanced, path, summary)
+    design = tmp / 'hoeken_cw.yaml'
+    assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank,rocker',
+                     '--output', str(design)]) == 0
+    sc, cw = scene_mod.load('hoeken'), scene_mod.load(str(design))
+    path = tmp / 'hoeken_cw.rrd'
+    out['hoeken_cw'] = (sc, cw, path, recording.record(path, sc, cw))
+    return {k: v + (recording.read_recording(v[2]), recording.read_blueprint(v[2]))
+            for k, v in out.items()}
+
+
+ALL = SCENES + ('hoeken_cw',)
+
+
+def _screen(view, layout, variant):
+    """Return the view's :class:`recording.Screen` from the blueprint read back."""
+    size = layout.screens[variant].size_px
+    if view['kind'] == '2D':
+        b = view['bounds']
+        (y0, y1) = b['y_range']
+        return recording.Screen(size, bounds=(tuple(b['x_range']), (-y1, -y0)))
+    eye = view['eye']
+    return recording.Screen(size, eye_m=eye['position'], target_m=eye['look_target'],
+                            up=eye['eye_up'])
+
+
+def _rig_views(blueprint):
+    return {v['name'].split(' | ')[0]: v for v in blueprint if v['kind'] in ('2D', '3D')}
+
+
+def _positions(ent, path, dim):
+    """Return the per-row positions of an entity as a list of (k, 3) arrays."""
+    comp = next(c for c in ent[path].columns if c.endswith(':positions'))
+    rows = []
+    for row in ent[path].columns[comp]:
+        a = np.array(row, dtype=float).reshape(-1, dim)
+        rows.append(np.pad(a, ((0, 0), (0, 3 - dim))))
+    return rows
+
+
+@pytest.mark.parametrize('name', ALL)
+def test_labels_never_overlap_at_the_default_window(recordings, name):
+    _, _, _, summary, ent, blueprint = recordings[name]
+    layout = summary.layout
+    views = _rig_views(blueprint)
+    for variant in layout.variants:
+        screen = _screen(views[variant], layout, variant)
+        labels = ent[f'/{variant}/labels'].columns
+        rows = _positions(ent, f'/{variant}/labels', layout.dim)
+        texts = labels[next(c for c in labels if c.endswith(':labels'))]
+        assert len(rows) == summary.rows
+        closest = math.inf
+        for anchors, words in zip(rows, texts):
+            px = screen.px(anchors)
+            boxes = [recording.label_box_px(p, t) for p, t in zip(px, words)]
+            for i, j in itertools.combinations(range(len(px)), 2):
+                closest = min(closest, float(np.linalg.norm(px[i] - px[j])))
+                a, b = boxes[i], boxes[j]
+                overlap = min(a[2], b[2]) - max(a[0], b[0]), min(a[3], b[3]) - max(a[1], b[1])
+                assert not (overlap[0] > 0 and overlap[1] > 0), (variant, words[i], words[j])
+        assert closest >= recording.LABEL_TEXT_PX, (variant, closest)
+        # the readout and the moving joints are labelled at some sample at least
+        flat = {t for words in texts for t in words}
+        assert any(t.startswith('crank ') and t.endswith(' deg') for t in flat)
+        joints = [n for n in layout.joint_names
+                  if np.ptp(np.array(_positions(ent, '/rig/joints', layout.dim)),
+                            axis=0)[layout.joint_names.index(n)].max() > 1e-6]
+        assert all(any(n in t.split('/') for t in flat) for n in joints), joints
+        assert 'G' not in flat or 'CoM' in flat      # the system mass centre is never 'G'
+
+
+@pytest.mark.parametrize('name', ALL)
+def test_plot_ranges_cover_the_data_with_three_ticks(recordings, name):
+    _, _, _, summary, ent, blueprint = recordings[name]
+    plots = [v for v in blueprint if v['kind'] == 'TimeSeries']
+    assert len(plots) == len(summary.layout.plots) >= 3
+    _, plot_px = recording.window_px(len(summary.layout.variants), len(plots), True)
+    for view in plots:
+        y0, y1 = view['y_range']
+        values = np.concatenate([
+            np.array([r[0] for r in ent[p].columns['Scalars:scalars']])
+            for p in ent if p.startswith(view['origin'] + '/')])
+        assert y0 <= values.min() and values.max() <= y1, view['name']
+        # legend room: the top share of the plot stays above the curves
+        assert values.max() <= y1 - recording.LEGEND_HEADROOM * 0.99 * (y1 - y0) or \
+            values.max() <= 0.0
+        # the viewer labels powers of ten at least PLOT_TICK_PX apart: count them
+        step = 10.0 ** math.floor(math.log10(y1 - y0) - 3)
+        while plot_px[1] * step / (y1 - y0) < recording.PLOT_TICK_PX:
+            step *= 10.0
+        # ... strictly inside the range: the viewer leaves a tick on the very edge unlabelled
+        inner = 0.01 * (y1 - y0)
+        ticks = math.floor((y1 - inner) / step) - math.ceil((y0 + inner) / step) + 1
+        assert ticks >= 3, (view['name'], y0, y1, step)
+
+
+def _drawn_points(ent, layout, variant):
+    """Return ``[(name, points (k, 3), radius m)]`` of everything a view draws, per row."""
+    dim = layout.dim
+    out = []
+    for path in ('/rig/links', ):
+        if path in ent:
+            comp = next(c for c in ent[path].columns if c.endswith(':strips'))
+            for row in ent[path].columns[comp]:
+                out.append((path, np.pad(np.concatenate([np.array(s).reshape(-1, dim)
+                                                         for s in row]),
+                                         ((0, 0), (0, 3 - dim))), 0.0))
+    for path in ('/rig/joints', f'/{variant}/mass_centres', f'/{variant}/counterweights',
+                 f'/{variant}/point_masses'):
+        if path in ent:
+            radii = ent[path].static.get(f'Points{dim}D:radii')
+            r = max([x for x in radii if x > 0] or [0.0]) if radii else 0.0
+            for pts in _positions(ent, path, dim):
+                out.append((path, pts, r))
+    for path in ('/rig/frame', '/rig/scale', '/rig/gauge'):
+        if path in ent:
+            comp = next(c for c in ent[path].static if c.endswith(':strips'))
+            out.append((path, np.pad(np.concatenate([np.array(s).reshape(-1, dim)
+                                                     for s in ent[path].static[comp]]),
+                                     ((0, 0), (0, 3 - dim))), 0.0))
+    arrows = f'/{variant}/shaking_force'
+    if arrows in ent:
+        origin = np.array(ent[arrows].static[f'Arrows{dim}D:origins'][0])
+        for row in ent[arrows].columns[f'Arrows{dim}D:vectors']:
+            tip = origin + np.array(row[0])
+            out.append((arrows, np.pad(np.stack([origin, tip]), ((0, 0), (0, 3 - dim))), 0.0))
+    moment = f'/{variant}/shaking_moment'
+    if moment in ent and dim == 2:
+        for row in ent[moment].columns['LineStrips2D:strips']:
+            out.append((moment, np.pad(np.concatenate([np.array(s) for s in row]),
+                                       ((0, 0), (0, 1))), 0.0))
+    return out
+
+
+@pytest.mark.parametrize('name', ALL)
+def test_everything_drawn_lies_inside_its_view(recordings, name):
+    _, _, _, summary, ent, blueprint = recordings[name]
+    layout = summary.layout
+    views = _rig_views(blueprint)
+    for variant in layout.variants:
+        screen = _screen(views[variant], layout, variant)
+        w, h = screen.size_px
+        for path, pts, radius in _drawn_points(ent, layout, variant):
+            px = screen.px(pts)
+            r_px = radius / screen.metres_per_px if screen.bounds is not None else 0.0
+            assert px[:, 0].min() - r_px >= -EDGE_TOL_PX and \
+                px[:, 0].max() + r_px <= w + EDGE_TOL_PX, (variant, path)
+            assert px[:, 1].min() - r_px >= -EDGE_TOL_PX and \
+                px[:, 1].max() + r_px <= h + EDGE_TOL_PX, (variant, path)
+        labels = ent[f'/{variant}/labels'].columns
+        texts = labels[next(c for c in labels if c.endswith(':labels'))]
+        for anchors, words in zip(_positions(ent, f'/{variant}/labels', layout.dim), texts):
+            for p, t in zip(screen.px(anchors), words):
+                x0, y0, x1, y1 = recording.label_box_px(p, t)
+                assert x0 >= -EDGE_TOL_PX and y0 >= -EDGE_TOL_PX, (variant, t)
+                assert x1 <= w + EDGE_TOL_PX and y1 <= h + EDGE_TOL_PX, (variant, t)
+
+
+@pytest.mark.parametrize('name', ALL)
+def test_point_masses_absent_unless_asked_for(recordings, name):
+    _, _, _, summary, ent, _ = recordings[name]
+    assert not [p for p in ent if 'point_masses' in p]
+    assert 'point_masses' not in summary.layout.streams
+
+
+def test_counterweights_drawn_at_the_designs_radius_and_place(recordings):
+    sc, cw, _, summary, ent, _ = recordings['hoeken_cw']
+    discs = [(lk.name, d) for lk in cw.links for d in lk.counterweights]
+    assert len(discs) == 2 and {n for n, _ in discs} == {'crank', 'rocker'}
+    assert '/original/counterweights' not in ent
+    assert '/balanced/counterweights' in summary.entity_paths
+    static = ent['/balanced/counterweights'].static
+    assert_allclose(static['Points2D:radii'], [d.radius_m for _, d in discs], rtol=1e-6)
+    got = np.array(ent['/balanced/counterweights'].columns['Points2D:positions'])
+    psi = recording.turn_angles(summary.samples_per_cycle, sc.crank_speed_rad_s)
+    poses = rig_for(cw).at(psi, outputs=('kinematics',)).bodies
+    for k, (link, d) in enumerate(discs):
+        want = poses.world(link, d.centre_m)[:, :2]
+        assert_allclose(got[:, k], want, rtol=0.0, atol=FLOAT32_ATOL_M)
+    for name in SCENES[:3]:       # the optimized (redistribution) designs add no discs
+        assert not [p for p in recordings[name][4] if 'counterweights' in p]
+
+
+def test_rggr_balancing_weights_are_drawn_on_their_links(recordings):
+    sc, bal, _, summary, ent, blueprint = recordings['rggr']
+    assert '/balanced/counterweights' in ent
+    eyes = [v['eye'] for v in blueprint if v['kind'] == '3D']
+    assert len(eyes) == 2 and eyes[0] == eyes[1]        # one camera for both rigs
+    radii = ent['/balanced/counterweights'].static['Points3D:radii']
+    drawing = rig_for(bal).drawing
+    assert_allclose(radii, [a.radius_m for b in drawing.bodies for a in b.added], rtol=1e-6)
+    links = ent['/rig/links'].static
+    assert all(r > 0.0 for r in links['LineStrips3D:radii'])   # tubes in metres, not lines
+
+
+@pytest.mark.parametrize('samples', [7, 720, 1000])
+def test_any_sample_count_from_zero_degrees(tmp_path, samples):
+    sc = scene_mod.load('slider_crank')                 # assembled at 90 deg
+    path = tmp_path / f'n{samples}.rrd'
+    summary = recording.record(path, sc, samples=samples)
+    ent = recording.read_recording(path)
+    series = ent['/plots/shaking_force/original']
+    assert series.rows == summary.rows == samples
+    ticks = series.index['crank_angle']
+    assert ticks[0] == 0 and ticks[-1] == round(360 * (samples - 1) / samples)
+    assert np.all(np.diff(ticks) >= 0) and np.all(np.diff(series.index['time']) > 0)
+    if samples <= 360:
+        assert np.all(np.diff(ticks) > 0)                # one tick per sample
+    assert_array_equal(ticks, np.round(360.0 * np.arange(samples) / samples))
+    readout = [t for row in ent['/original/labels'].columns['Points2D:labels'] for t in row
+               if t.startswith('crank ')]
+    assert readout[0] == 'crank 0.0 deg' and len(readout) == samples
+
+
+# ------------------------------------------------------------------------------ live view
+
+LIVE_RATE_HZ = 200.0
+LIVE_WINDOW_S = 3.0
+
+
+def test_node_streams_the_offline_views_to_a_viewer_without_slowing(tmp_path):
+    """The node with ``rerun_url`` set: a viewer-side endpoint started here gets the views."""
+    from mech_balance.bench import node as bench_node
+    domain = int(os.environ.get('ROS_DOMAIN_ID', '53'))
+    port = bench_node.free_port()
+    saved = tmp_path / 'live.rrd'
+    viewer = bench_node.viewer_endpoint(saved, port)
+    try:
+        base = bench_node.run_node('hoeken', LIVE_RATE_HZ, LIVE_WINDOW_S, domain=domain)
+        live = bench_node.run_node(
+            'hoeken', LIVE_RATE_HZ, LIVE_WINDOW_S, domain=domain,
+            params=(f'rerun_url:=rerun+http://127.0.0.1:{port}/proxy',))
+    finally:
+        viewer.send_signal(signal.SIGINT)
+        try:
+            viewer.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            viewer.kill()
+    assert f'streaming the views to rerun+http://127.0.0.1:{port}/proxy' in live['log']
+    got = recording.read_recording(saved)
+    offline_path = tmp_path / 'offline.rrd'
+    recording.record(offline_path, scene_mod.load('hoeken'))
+    offline = recording.read_recording(offline_path)
+    assert set(offline) <= set(got), set(offline) - set(got)
+    assert got['/plots/shaking_force/original'].rows >= 10
+    assert got['/original/labels'].rows == got['/rig/links'].rows
+    # the live view never slows publishing: within 5 % of the rate without it
+    assert live['missed'] <= base['missed'] + 0.05
+    assert live['rate_hz'] >= 0.95 * base['rate_hz'], (live['rate_hz'], base['rate_hz'])
+
+
+def test_a_new_series_is_plotted_with_no_recording_change(tmp_path):
+    """kinetic_energy, asked for in the scene's outputs, gets its plot from RigData.series."""
+    data, source = scene_mod.load_data('hoeken')
+    data['outputs'] = ['kinematics', 'shaking_wrench', 'driving_torque', 'kinetic_energy']
+    sc = scene_mod.from_dict(data, source=str(source))
+    path = tmp_path / 'ke.rrd'
+    summary = recording.record(path, sc, samples=90)
+    ent = recording.read_recording(path)
+    got = np.array([r[0] for r in ent['/plots/kinetic_energy/original'].columns[
+        'Scalars:scalars']])
+    psi = recording.turn_angles(90, sc.crank_speed_rad_s)
+    want = rig_for(sc).at(psi, outputs=('kinetic_energy',)).series['kinetic_energy']
+    assert_allclose(got, want, rtol=1e-12, atol=0.0)
+    assert '/plots/kinetic_energy/original' in summary.entity_paths
+    names = [v['name'] for v in recording.read_blueprint(path) if v['kind'] == 'TimeSeries']
+    assert any(n.startswith('kinetic energy') and n.endswith('(J)') for n in names), names
+    assert 'kinetic energy' in ent['/info'].static['TextDocument:text'][0]
