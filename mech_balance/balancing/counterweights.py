@@ -39,9 +39,6 @@ lighter than :data:`MIN_MASS_REL` of its link is none (omitted).
 
 from dataclasses import dataclass, field
 import math
-import os
-from pathlib import Path
-import tempfile
 import time
 
 import clarabel
@@ -64,10 +61,6 @@ TIE_BREAK_SLACK = 1e-9
 max(z*, 1) (a single-norm stage is pinned exactly instead)."""
 FREE_INERTIA_REL = 1e-12
 """A link's inertia column below this fraction of a term's map: the inertia enters no term."""
-SOLVER_TOL = 1e-9
-"""Clarabel's gap and feasibility tolerances (the certificate must reach 1e-7 relative)."""
-SOLVER_MAX_ITER = 200
-"""Interior-point iterations before giving up."""
 METHOD = 'counterweights (add-only discs, SOCP)'
 
 
@@ -424,20 +417,6 @@ def format_cost(cost):
     return 'cost of balancing: ' + ', '.join(parts)
 
 
-def write_text_atomic(path, text):
-    """Write ``text`` to ``path`` atomically (a temporary file in its directory, os.replace)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.tmp', dir=path.parent)
-    try:
-        with os.fdopen(fd, 'w') as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 # ============================================================================ the program
 
 
@@ -626,14 +605,9 @@ class _Problem:
                           format='csc')
         b_all = np.concatenate(b_blocks[:dynamic] + [b_static])
         cones = cones[:dynamic] + [clarabel.SecondOrderConeT(k) for k in sizes]
-        settings = clarabel.DefaultSettings()
-        settings.verbose = False
-        settings.max_iter = SOLVER_MAX_ITER
-        settings.tol_gap_abs = settings.tol_gap_rel = SOLVER_TOL
-        settings.tol_feas = SOLVER_TOL
         t0 = time.perf_counter()
         sol = clarabel.DefaultSolver(sp.csc_matrix((nx, nx)), np.asarray(q, dtype=float),
-                                     a_all, b_all, cones, settings).solve()
+                                     a_all, b_all, cones, balancing.solver_settings()).solve()
         seconds = time.perf_counter() - t0
         status = str(sol.status)
         if status not in ('Solved', 'AlmostSolved'):

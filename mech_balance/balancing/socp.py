@@ -584,6 +584,16 @@ def _secondary(spec):
     return None
 
 
+def solver_settings():
+    """Return Clarabel's settings for every cone program of the balancing (quiet, tolerances)."""
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.max_iter = SOLVER_MAX_ITER
+    settings.tol_gap_abs = settings.tol_gap_rel = SOLVER_TOL
+    settings.tol_feas = SOLVER_TOL
+    return settings
+
+
 class _Program:
     """Rows of ``A x + s = b, s in K`` for Clarabel, built block by block."""
 
@@ -615,14 +625,9 @@ class _Program:
         a = sp.csc_matrix(np.vstack([m[1] for m in merged]))
         b = np.concatenate([m[2] for m in merged])
         cones = [kinds[k](blk.shape[0]) for k, blk, _ in merged]
-        settings = clarabel.DefaultSettings()
-        settings.verbose = False
-        settings.max_iter = SOLVER_MAX_ITER
-        settings.tol_gap_abs = settings.tol_gap_rel = SOLVER_TOL
-        settings.tol_feas = SOLVER_TOL
         t0 = time.perf_counter()
         sol = clarabel.DefaultSolver(sp.csc_matrix((self.nx, self.nx)), np.asarray(q, float),
-                                     a, b, cones, settings).solve()
+                                     a, b, cones, solver_settings()).solve()
         return sol, time.perf_counter() - t0
 
 

@@ -52,8 +52,6 @@ SCP_ITERATIONS = 30
 """Sequential convex programs per choice of pieces, at most."""
 SCP_TOL = 1e-10
 """Stop when z changes by less than this fraction between two programs."""
-SOLVER_TOL = 1e-9
-"""Clarabel's gap and feasibility tolerances."""
 BAND_REL_TOL = 1e-9
 """A link is representable by two point masses if m I_O is outside the band by -this x
 (|hx| + |hy|)^2 (round-off of an optimum on its edge)."""
@@ -253,9 +251,7 @@ def _program(maps, dsc, w, n, pieces, theta_at):
         add(clarabel.SecondOrderConeT, a, np.zeros(a.shape[0]))
     q = np.zeros(nx)
     q[nv:nv + 2] = w
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
-    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = SOLVER_TOL
+    settings = balancing.solver_settings()
     sol = clarabel.DefaultSolver(
         sp.csc_matrix((nx, nx)), q, sp.csc_matrix(np.vstack([b[1] for b in blocks])),
         np.concatenate([b[2] for b in blocks]), [b[0](b[1].shape[0]) for b in blocks],

@@ -112,95 +112,131 @@ def _follow_costs(scene_name):
     return times
 
 
-def _sweep(scene_name, progress):
-    import rclpy
-    from rclpy.experimental import EventsExecutor
-    from rclpy.parameter import Parameter
-    from rclpy.parameter_client import AsyncParameterClient
-    from rclpy.qos import QoSProfile
-    from sensor_msgs.msg import JointState
-    from geometry_msgs.msg import WrenchStamped
+class NodeProbe:
+    """
+    A rig node in its own process (clock mode) and a subscriber counting its stamps.
 
-    domain = 101 - os.getpid() % 50
-    ns = f'/bench{os.getpid()}'
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
-               ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE',
-                                                            'LOCALHOST'))
-    env['PYTHONPATH'] = os.pathsep.join(
-        p for p in (os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
-                    env.get('PYTHONPATH')) if p)
-    proc = subprocess.Popen(
-        [sys.executable, '-m', 'mech_balance.ros.node', '--ros-args', '-r', f'__ns:={ns}',
-         '-p', f'scene:={scene_name}', '-p', f'publish_rate:={RATES_HZ[0]}'],
-        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    node = rclpy.create_node(f'bench_probe_{os.getpid()}', context=ctx)
-    executor = EventsExecutor(context=ctx)
-    executor.add_node(node)
-    stamps = {'joint_states': [], 'shaking_wrench': []}
+    The node runs under namespace ``ns`` on ROS domain ``domain`` with ``publish_rate``
+    ``rate_hz`` and the extra ``name:=value`` parameters; :attr:`stamps` collects the stamps
+    of ``joint_states`` and ``shaking_wrench`` (read from the serialized messages, so that
+    the subscriber is not the bottleneck).  :meth:`close` stops both and returns the node's
+    log; :func:`node_stats` reads its statistics from it.
+    """
 
-    def keep(key):
-        def cb(raw):
-            sec, nsec = STAMP.unpack_from(raw, CDR_HEADER)
-            stamps[key].append(sec * 1_000_000_000 + nsec)
-        return cb
+    def __init__(self, scene_name, rate_hz, ns, params=(), domain=None, label='bench'):
+        import rclpy
+        from rclpy.experimental import EventsExecutor
+        from rclpy.qos import QoSProfile
+        from sensor_msgs.msg import JointState
+        from geometry_msgs.msg import WrenchStamped
 
-    qos = QoSProfile(depth=1000)
-    node.create_subscription(JointState, f'{ns}/joint_states', keep('joint_states'), qos,
-                             raw=True)
-    node.create_subscription(WrenchStamped, f'{ns}/shaking_wrench', keep('shaking_wrench'),
-                             qos, raw=True)
-    client = AsyncParameterClient(node, f'{ns}/rig')
+        self.ns = ns
+        self.domain = (101 - os.getpid() % 50) if domain is None else domain
+        env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain), PYTHONUNBUFFERED='1',
+                   ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get(
+                       'ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST'))
+        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+        env['PYTHONPATH'] = os.pathsep.join(p for p in (root, env.get('PYTHONPATH')) if p)
+        cmd = [sys.executable, '-m', 'mech_balance.ros.node', '--ros-args', '-r',
+               f'__ns:={ns}', '-p', f'scene:={scene_name}', '-p', f'publish_rate:={rate_hz}']
+        for p in params:
+            cmd += ['-p', p]
+        self.proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL,
+                                     stderr=subprocess.PIPE, text=True)
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=self.domain)
+        self.node = rclpy.create_node(f'{label}_probe_{os.getpid()}', context=self.ctx)
+        self.executor = EventsExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self.stamps = {'joint_states': [], 'shaking_wrench': []}
 
-    def spin_for(seconds, until=None):
+        def keep(key):
+            def cb(raw):
+                sec, nsec = STAMP.unpack_from(raw, CDR_HEADER)
+                self.stamps[key].append(sec * 1_000_000_000 + nsec)
+            return cb
+
+        qos = QoSProfile(depth=1000)
+        self.node.create_subscription(JointState, f'{ns}/joint_states', keep('joint_states'),
+                                      qos, raw=True)
+        self.node.create_subscription(WrenchStamped, f'{ns}/shaking_wrench',
+                                      keep('shaking_wrench'), qos, raw=True)
+
+    def spin_for(self, seconds, until=None):
+        """Spin the subscriber for ``seconds`` or until ``until()`` is true."""
         end = time.monotonic() + seconds
         while time.monotonic() < end and not (until and until()):
-            executor.spin_once(timeout_sec=0.01)
+            self.executor.spin_once(timeout_sec=0.01)
 
+    def publishing(self):
+        """Return whether both topics have arrived (and the node still runs)."""
+        return self.proc.poll() is None and all(len(v) > 10 for v in self.stamps.values())
+
+    def window(self, seconds):
+        """Count afresh for ``seconds``; return the window ``(start_ns, stop_ns)`` counted."""
+        start = self.node.get_clock().now().nanoseconds
+        for v in self.stamps.values():
+            v.clear()
+        self.spin_for(seconds)
+        return start, self.node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
+
+    def close(self, timeout=20):
+        """Stop the subscriber and the node (SIGINT, then kill); return the node's log."""
+        import rclpy
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+        try:
+            _, err = self.proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            _, err = self.proc.communicate()
+        return err or ''
+
+
+def node_stats(log):
+    """Return the node's statistics logged at shutdown (:data:`node_mod.STATS_TAG`)."""
+    match = re.search(re.escape(node_mod.STATS_TAG) + r'(\{.*\})', log)
+    return json.loads(match.group(1)) if match else {}
+
+
+def _sweep(scene_name, progress):
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+
+    probe = NodeProbe(scene_name, RATES_HZ[0], f'/bench{os.getpid()}')
+    client = AsyncParameterClient(probe.node, f'{probe.ns}/rig')
     rows = []
     try:
-        spin_for(START_TIMEOUT_S, lambda: client.services_are_ready() and
-                 all(len(v) > 10 for v in stamps.values()) or proc.poll() is not None)
-        if proc.poll() is not None or not client.services_are_ready():
+        probe.spin_for(START_TIMEOUT_S, lambda: client.services_are_ready() and
+                       probe.publishing() or probe.proc.poll() is not None)
+        if probe.proc.poll() is not None or not client.services_are_ready():
             raise RuntimeError('the node did not start or was not discovered')
         failures = 0
         for rate in RATES_HZ:
             future = client.set_parameters([Parameter('publish_rate', value=rate)])
-            spin_for(10.0, future.done)
+            probe.spin_for(10.0, future.done)
             if not (future.done() and future.result().results[0].successful):
                 raise RuntimeError(f'could not set publish_rate to {rate:g}')
             progress(f'    {rate:g} Hz ...')
-            spin_for(SETTLE_S)
-            start = node.get_clock().now().nanoseconds
-            for v in stamps.values():
-                v.clear()
-            spin_for(WINDOW_S)
-            stop = node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
+            probe.spin_for(SETTLE_S)
+            start, stop = probe.window(WINDOW_S)
             period = round(1e9 / rate)
-            missed = [missed_fraction(v, start, stop, period) for v in stamps.values()]
+            missed = [missed_fraction(v, start, stop, period) for v in probe.stamps.values()]
             rows.append((rate, *missed))
             failures = failures + 1 if max(missed) >= MISSED_MAX else 0
             if failures >= 2:
                 break
         # the node's own statistics (logged at shutdown) at the target rate
         future = client.set_parameters([Parameter('publish_rate', value=TARGET_RATE_HZ)])
-        spin_for(10.0, future.done)
+        probe.spin_for(10.0, future.done)
         progress(f'    per-callback time at {TARGET_RATE_HZ:g} Hz ...')
-        spin_for(STATS_S)
+        probe.spin_for(STATS_S)
     finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-        try:
-            _, err = proc.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            _, err = proc.communicate()
-    match = re.search(re.escape(node_mod.STATS_TAG) + r'(\{.*\})', err or '')
-    return rows, (json.loads(match.group(1)) if match else {})
+        log = probe.close()
+    return rows, node_stats(log)
 
 
 def missed_fraction(stamps, start_ns, stop_ns, period_ns):
@@ -260,79 +296,23 @@ def run_node(scene_name, rate_hz, seconds, params=(), domain=None):
     periods whose sample did not arrive (either topic), ``'stats'``: the node's own
     statistics at shutdown (compute per sample, tick time)}.
     """
-    import rclpy
-    from rclpy.experimental import EventsExecutor
-    from rclpy.qos import QoSProfile
-    from sensor_msgs.msg import JointState
-    from geometry_msgs.msg import WrenchStamped
-
-    domain = (101 - os.getpid() % 50) if domain is None else domain
-    ns = f'/live{os.getpid()}_{int(time.monotonic() * 1000) % 100000}'
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
-               ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE',
-                                                            'LOCALHOST'))
-    env['PYTHONPATH'] = os.pathsep.join(
-        p for p in (os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
-                    env.get('PYTHONPATH')) if p)
-    cmd = [sys.executable, '-m', 'mech_balance.ros.node', '--ros-args', '-r', f'__ns:={ns}',
-           '-p', f'scene:={scene_name}', '-p', f'publish_rate:={rate_hz}']
-    for p in params:
-        cmd += ['-p', p]
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True)
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    node = rclpy.create_node(f'live_probe_{os.getpid()}', context=ctx)
-    executor = EventsExecutor(context=ctx)
-    executor.add_node(node)
-    stamps = {'joint_states': [], 'shaking_wrench': []}
-
-    def keep(key):
-        def cb(raw):
-            sec, nsec = STAMP.unpack_from(raw, CDR_HEADER)
-            stamps[key].append(sec * 1_000_000_000 + nsec)
-        return cb
-
-    qos = QoSProfile(depth=1000)
-    node.create_subscription(JointState, f'{ns}/joint_states', keep('joint_states'), qos,
-                             raw=True)
-    node.create_subscription(WrenchStamped, f'{ns}/shaking_wrench', keep('shaking_wrench'),
-                             qos, raw=True)
-
-    def spin_for(secs, until=None):
-        end = time.monotonic() + secs
-        while time.monotonic() < end and not (until and until()):
-            executor.spin_once(timeout_sec=0.01)
-
+    probe = NodeProbe(scene_name, rate_hz,
+                      f'/live{os.getpid()}_{int(time.monotonic() * 1000) % 100000}', params,
+                      domain, label='live')
     try:
-        spin_for(START_TIMEOUT_S, lambda: all(len(v) > 10 for v in stamps.values()) or
-                 proc.poll() is not None)
-        if proc.poll() is not None or not all(len(v) > 10 for v in stamps.values()):
+        probe.spin_for(START_TIMEOUT_S,
+                       lambda: probe.publishing() or probe.proc.poll() is not None)
+        if not probe.publishing():
             raise RuntimeError('the node did not start or was not discovered')
-        spin_for(SETTLE_S)
-        start = node.get_clock().now().nanoseconds
-        for v in stamps.values():
-            v.clear()
-        spin_for(seconds)
-        stop = node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
+        probe.spin_for(SETTLE_S)
+        start, stop = probe.window(seconds)
         period = round(1e9 / rate_hz)
-        missed = max(missed_fraction(v, start, stop, period) for v in stamps.values())
-        got = {s for s in stamps['joint_states'] if start <= s < stop}
+        missed = max(missed_fraction(v, start, stop, period) for v in probe.stamps.values())
+        got = {s for s in probe.stamps['joint_states'] if start <= s < stop}
         rate = len(got) / ((stop - start) * 1e-9)
     finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-        try:
-            _, err = proc.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            _, err = proc.communicate()
-    match = re.search(re.escape(node_mod.STATS_TAG) + r'(\{.*\})', err or '')
-    return {'rate_hz': rate, 'missed': missed,
-            'stats': json.loads(match.group(1)) if match else {}, 'log': err or ''}
+        log = probe.close(timeout=30)
+    return {'rate_hz': rate, 'missed': missed, 'stats': node_stats(log), 'log': log}
 
 
 def live_view_section(args, progress):
