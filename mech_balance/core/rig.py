@@ -48,6 +48,28 @@ class BodyPoses:
 
 
 @dataclass
+class BodyKinematics:
+    """
+    The motion of every moving body at n samples, in the frame's axes (SI).
+
+    ``names[k]`` is body k (moving bodies only, the order of :attr:`Drawing.bodies`);
+    ``rotation[i, k]`` ``(3, 3)`` maps body k's own axes to the frame's, ``origin_m[i, k]``
+    is its origin, m; ``omega_rad_s``, ``alpha_rad_s2`` its angular velocity and acceleration
+    and ``accel_origin_m_s2`` its origin's linear acceleration, all ``(n, nb, 3)`` in frame
+    axes.  With these, every body's inertia wrench is linear in its ten inertial parameters
+    (:mod:`mech_balance.core.regressor`), which is what spatial balancing and identification
+    build on.  Rigs that can produce it list ``'body_kinematics'`` in their capabilities.
+    """
+
+    names: tuple
+    rotation: np.ndarray
+    origin_m: np.ndarray
+    omega_rad_s: np.ndarray
+    alpha_rad_s2: np.ndarray
+    accel_origin_m_s2: np.ndarray
+
+
+@dataclass
 class RigData:
     """
     A rig evaluated at n crank angles (SI; arrays are sample-first).
