@@ -2,7 +2,7 @@
 launch/rig.launch.py and config/rig.rviz checked against the package.
 
 The launch file names an executable, a params file and an RViz file: they must be what
-setup.py installs, and its arguments must be documented in README.md.  launch and
+setup.py installs, and its arguments must be documented in docs/rviz_launch.md.  launch and
 launch_ros are not on PyPI, so the file is read as source here (its constants are plain
 literals); where launch_ros is importable the test also builds its LaunchDescription.
 """
@@ -25,8 +25,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 LAUNCH_FILE = ROOT / 'launch' / 'rig.launch.py'
-README = ROOT / 'README.md'
-README_SECTION = '## RViz, robot_state_publisher and launch'
+README = ROOT / 'docs' / 'rviz_launch.md'
+README_SECTION = '# RViz, robot_state_publisher and launch'
 RVIZ_ARROW_RANGE_M = (0.03, 0.3)
 """The largest shaking-force and -moment arrows of hoeken must be drawn this long in RViz."""
 
