@@ -2,8 +2,9 @@
 ``mech-balance balance``: optimal mass redistribution and analytic force balance of a scene.
 
 A thin verb over :mod:`mech_balance.balancing` (planar scenes) and
-:func:`mech_balance.rggr_report.balance_report` (RGGR scenes).  The seed-001 reference values
-printed next to the results are the papers' tables (:mod:`mech_balance.seed_tables`).
+:func:`mech_balance.balancing.rggr_report.balance_report` (RGGR scenes).  The seed-001
+reference values printed next to the results are the papers' tables
+(:mod:`mech_balance.seed_tables`).
 """
 
 import argparse
@@ -524,7 +525,7 @@ def _analytic(sc, args):
 def _weights(sc, args):
     """Balance by balancing weights (the RGGR, seed 002) and print its report."""
     from mech_balance import balancing as front
-    from mech_balance.analysis import rggr_report
+    from mech_balance.balancing import rggr_report
     from mech_balance.core.rig import rig_for
     if args.output:
         raise ValueError('--output: the balancing weights of seed 002 are reported, not '

@@ -23,7 +23,7 @@ from mech_balance.core.planar.algebra import cross
 from mech_balance.core.rig import AddedBody, batch, BodyPoses, Drawing, DrawingBody, \
     RigData
 from mech_balance.schema import FRAME, needs
-from mech_balance.schema.scene import SERIES
+from mech_balance.schema.scene import Normalization, SERIES
 import numpy as np
 
 CAPABILITIES = frozenset({'kinematics', 'shaking_wrench', 'driving_torque',
@@ -51,6 +51,22 @@ def linkage_for(scene):
             _LINKAGES.clear()
         _LINKAGES[key] = linkage
     return linkage
+
+
+def objective_units(scene):
+    """
+    Return the units of the objective: the scene's normalization, or its crank's.
+
+    Without a recorded normalization: the crank link's mass, the crank length (the
+    linkage's characteristic length) and the crank speed.
+    """
+    if scene.normalization is not None:
+        return scene.normalization
+    rig_linkage = linkage_for(scene)
+    crank = next(j for j in scene.joints if j.name == scene.crank_joint)
+    name = crank.link_b if crank.link_a == FRAME else crank.link_a
+    return Normalization(scene.link(name).mass_kg, rig_linkage.length_scale,
+                         abs(scene.crank_speed_rad_s))
 
 
 class PlanarRig:
