@@ -201,14 +201,20 @@ class PlanarRig:
 
     @property
     def drawing(self):
-        """Return the rig's :class:`Drawing` (planar: every point at z = 0)."""
+        """
+        Return the rig's :class:`Drawing` (planar: every point at z = 0).
+
+        A link's frame has its plane at z = 0, so an added disc's centre z is its plane's
+        offset from its link's plane (``Counterweight.plane_m``); the planes of the links
+        themselves are :func:`mech_balance.core.planar.drawn.plane_z_m`.
+        """
         if self._drawing is None:
             sc = self.scene
             bodies = tuple(
                 DrawingBody(lk.name, {k: (v[0], v[1], 0.0) for k, v in lk.points.items()},
                             tuple(lk.points), (lk.com_m[0], lk.com_m[1], 0.0), lk.mass_kg,
                             tuple(AddedBody(f'{lk.name} counterweight {i + 1}',
-                                            (cw.centre_m[0], cw.centre_m[1], 0.0),
+                                            (cw.centre_m[0], cw.centre_m[1], cw.plane_m),
                                             cw.radius_m, cw.thickness_m, cw.mass_kg)
                                   for i, cw in enumerate(lk.counterweights)),
                             _point_masses(lk))
