@@ -141,7 +141,7 @@ class Clearance:
             c = self.least
             lines = [f'least clearance {c.clearance_m * 1e3:.4g} mm over the cycle: {c.body_a} '
                      f'and {c.body_b} at crank angle {c.crank_angle_deg:.2f} deg ({self.pairs} '
-                     'pairs of bodies share a plane)']
+                     f'pair{"" if self.pairs == 1 else "s"} of bodies in a shared plane)']
         if self.planes_m:
             lines.append('disc planes (z of the mid-plane, mm): ' + ', '.join(
                 f'{k} {v * 1e3:.4g}' for k, v in self.planes_m.items()))
