@@ -10,6 +10,7 @@ the certificate.
 
 import json
 import math
+import xml.etree.ElementTree as ET
 
 from mech_balance import schema as scene
 from mech_balance.analysis import clearance
@@ -17,6 +18,7 @@ from mech_balance.balancing import counterweights as cw, socp as balancing
 from mech_balance.cli import main as cli
 from mech_balance.core.planar import drawn
 from mech_balance.core.rig import rig_for
+from mech_balance.ros import urdf
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -342,3 +344,17 @@ def test_cli_planes_and_rim_in_json(capsys):
 def test_cli_bad_placement_options_exit_2(argv, expected, capsys):
     assert cli.main(['balance', '--scene', 'hoeken', *argv]) == 2
     assert expected in capsys.readouterr().err
+
+
+def test_urdf_draws_each_disc_in_its_plane(rim_bounded):
+    sc = rim_bounded.balanced_scene
+    rig = rig_for(sc)
+    root = ET.fromstring(urdf.urdf_xml(sc))
+    for d in rim_bounded.designs:
+        link = next(el for el in root.iter('link') if el.get('name') == d.link)
+        visual = next(v for v in link.iter('visual') if v.get('name') == 'counterweight_0')
+        z = float(visual.find('origin').get('xyz').split()[2])
+        assert z == pytest.approx(drawn.plane_z_m(rig.linkage, d.link) + APART[d.link],
+                                  abs=1e-15)
+        assert z == pytest.approx(rim_bounded.clearance.planes_m[f'{d.link} counterweight 1'],
+                                  abs=1e-15)
