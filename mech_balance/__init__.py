@@ -13,7 +13,7 @@ simulated; the same objects feed the ROS 2 node and the recordings::
     report = mb.simulate('slider_crank_stiff', 0.4)
 
 Layers (README, *Design*): ``schema`` (the scene file) < ``core`` (numpy/scipy only) <
-``balancing`` and ``analysis`` < ``ros`` (rclpy), ``viz`` (rerun) < ``cli``, ``bench``.
+``analysis`` < ``balancing`` < ``ros`` (rclpy), ``viz`` (rerun) < ``cli``, ``bench``.
 Names are imported on first use, so ``import mech_balance`` costs nothing.
 """
 
@@ -34,7 +34,7 @@ _PUBLIC = {
     'summarize': ('mech_balance.analysis.cycle', 'summarize'),
     'balance': ('mech_balance.balancing', 'balance'),
     'Design': ('mech_balance.balancing', 'Design'),
-    'simulate': ('mech_balance.core.forward', 'simulate'),
+    'simulate': ('mech_balance.analysis.simulation', 'simulate'),
     'identify': ('mech_balance.analysis.identify', 'identify'),
 }
 __all__ = sorted(_PUBLIC) + ['__version__']

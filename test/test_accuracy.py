@@ -8,7 +8,8 @@ comparison is asserted on right-hand-side evaluations at equal error.
 
 import json
 
-from mech_balance.analysis import accuracy, cycle as analysis
+from mech_balance.analysis import cycle as analysis
+from mech_balance.bench import accuracy
 from mech_balance.cli import main as cli
 from mech_balance.core import forward as simulate
 from mech_balance.core.planar import kinematics

@@ -7,16 +7,18 @@ The layer table (also in the README's design section)::
     base       conventions, paths, atomic: nothing of the package
     schema     base
     core       base, schema
+    analysis   base, schema, core
     balancing  base, schema, core, analysis
-    analysis   base, schema, core, balancing
     ros        everything below, rclpy and the ROS messages; viz only lazily, from the
                recording hook inside a function of ros/node.py
     viz        everything below, rerun
     cli        everything
     bench      everything
 
-``schema``, ``core``, ``balancing`` and ``analysis`` never import ``ros``, ``viz``, ``cli``,
-``bench``, ``rclpy`` or ``rerun``.
+``schema``, ``core``, ``analysis`` and ``balancing`` never import ``ros``, ``viz``, ``cli``,
+``bench``, ``rclpy`` or ``rerun``.  ``balancing`` stands above ``analysis`` (it evaluates its
+designs with the cycle analysis); ``analysis`` never imports ``balancing``, not even inside a
+function.
 """
 
 import ast
@@ -27,7 +29,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / 'mech_balance'
-LOWER = ('schema', 'core', 'balancing', 'analysis')
+LOWER = ('schema', 'core', 'analysis', 'balancing')
 UPPER = ('ros', 'viz', 'cli', 'bench')
 FORBIDDEN_BELOW = tuple(f'mech_balance.{u}' for u in UPPER) + ('rclpy', 'rerun')
 KIND_TEST = re.compile(r"kind\s*==|==\s*'rggr'|getattr\([^)]*'kind'")
@@ -36,8 +38,8 @@ ALLOWED = {
     'base': {'base'},
     'schema': {'base', 'schema'},
     'core': {'base', 'schema', 'core'},
+    'analysis': {'base', 'schema', 'core', 'analysis'},
     'balancing': {'base', 'schema', 'core', 'analysis', 'balancing'},
-    'analysis': {'base', 'schema', 'core', 'balancing', 'analysis'},
     'ros': {'base', 'schema', 'core', 'balancing', 'analysis', 'ros'},
     'viz': {'base', 'schema', 'core', 'balancing', 'analysis', 'viz'},
     'cli': set(LOWER + UPPER) | {'base'},
@@ -144,6 +146,20 @@ def test_every_import_follows_the_layer_table():
                 bad.append(f'{path.relative_to(ROOT)}:{line}: {mine} imports {theirs} '
                            f'({target})')
     assert not bad, '\n'.join(bad)
+
+
+def test_balancing_and_analysis_are_one_way():
+    """Balancing imports analysis; no module of analysis imports balancing, at any depth."""
+    down = [f'{path.relative_to(ROOT)}:{line} imports {target}'
+            for name, path in MODULES.items() if _layer(name) == 'balancing'
+            for target, _, _, line in _imports(path) if _layer(target) == 'analysis'
+            and target in MODULES]
+    up = [f'{path.relative_to(ROOT)}:{line} imports {target}'
+          for name, path in MODULES.items() if _layer(name) == 'analysis'
+          for target, _, _, line in _imports(path) if target in MODULES
+          and _layer(target) == 'balancing']
+    assert down, 'balancing no longer uses analysis: the layer table should say so'
+    assert not up, '\n'.join(up)
 
 
 def test_ros_imports_viz_only_through_the_recording_hook():

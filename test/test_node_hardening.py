@@ -428,6 +428,11 @@ def test_balance_method_counterweights_answer_carries_counterweights(clock_rig):
             ref = expected['counterweights'][link][0]
             assert disc['mass_kg'] == pytest.approx(ref['mass_kg'], rel=1e-6)
         assert report['certificate']['gap_rel'] <= 1e-7
+        # the clearance over the cycle (issue 19 item 5): in their own planes, they collide
+        least = report['clearance']['least_clearance_m']
+        assert least == pytest.approx(expected['clearance']['least_clearance_m'], abs=1e-6)
+        assert least < 0.0
+        assert any('crank counterweight 1' in w for w in report['warnings'])
     finally:
         for name, value in (('balance.method', 'redistribution'),
                             ('balance.counterweight_links', ''), ('balance.weights', [0.5, 0.5])):

@@ -69,8 +69,8 @@ import math
 
 from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
-from mech_balance.balancing import socp as balancing
 from mech_balance.core.planar import dynamics
+from mech_balance.core.planar.rig import objective_units
 from mech_balance.schema.scene import INERTIA_ROUNDOFF
 import numpy as np
 import scipy.linalg
@@ -499,7 +499,7 @@ def parameter_scales(scene):
     cannot separate over the links in proportion to their size (the scaling the balancing's
     cone program uses).  A link without mass or inertia falls back to the rig's units.
     """
-    u = balancing.objective_units(scene)
+    u = objective_units(scene)
     out = []
     for lk in scene.links:
         m = lk.mass_kg if lk.mass_kg > 0.0 else u.mass_kg
@@ -678,7 +678,7 @@ def _calibrated_links(scene, theta):
 
 
 def calibrated_yaml(result, source=''):
-    """Return the calibrated scene as YAML text (:func:`balancing.scene_to_yaml`)."""
+    """Return the calibrated scene as YAML text (:func:`mech_balance.schema.to_yaml`)."""
     sc = result.calibrated_scene()
     head = [f'# written by mech-balance identify from scene {result.scene.name}'
             + (f' and {source}' if source else ''),
@@ -686,7 +686,7 @@ def calibrated_yaml(result, source=''):
             f'{result.condition_number:.4g}; residual RMS before -> after:']
     for c, b, a in zip(result.channels, result.rms_before, result.rms_after):
         head.append(f'#   {c}: {b:.6g} -> {a:.6g} {CHANNEL_UNITS[c]}')
-    return '\n'.join(head) + '\n' + balancing.scene_to_yaml(sc)
+    return '\n'.join(head) + '\n' + schema.to_yaml(sc)
 
 
 def format_report(result):

@@ -1,7 +1,7 @@
 """
 The names and defaults of the accuracy studies (no imports).
 
-Read by :mod:`mech_balance.analysis.accuracy` and by the ``accuracy`` verb's parser.
+Read by :mod:`mech_balance.bench.accuracy` and by the ``accuracy`` verb's parser.
 """
 
 

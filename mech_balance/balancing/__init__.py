@@ -132,8 +132,7 @@ def balance(rig, method='auto', **options):
         return Design(result.balanced_scene, report, method, result, _table_figures(
             result.table, f'closed form, RMS shaking force after/before '
                           f'{result.force_rms_ratio:.1e}'))
-    from mech_balance.analysis import rggr_report
-    from mech_balance.balancing import rggr as rggr_balancing
+    from mech_balance.balancing import rggr as rggr_balancing, rggr_report
     from mech_balance.conventions import DEFAULT_SAMPLES
     unknown = sorted(set(options) - {'samples'})
     if unknown:

@@ -43,12 +43,13 @@ import time
 
 import clarabel
 from mech_balance import schema
+from mech_balance.analysis import clearance as clearance_mod
 from mech_balance.balancing import socp as balancing
 from mech_balance.balancing.defaults import DEFAULT_DENSITY_KG_M3, \
     DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR, DEFAULT_MAX_RADIUS_FACTOR, \
     DEFAULT_MAX_THICKNESS_M
 from mech_balance.core.planar import dynamics
-from mech_balance.schema.scene import add_counterweights, Counterweight
+from mech_balance.schema.scene import add_counterweights, Counterweight, MAX_PLANE_OFFSET_M
 import numpy as np
 import scipy.sparse as sp
 
@@ -86,10 +87,14 @@ class CounterweightOptions:
     reaction_weight: float = 0.0
     samples: int = None
     tie_break: bool = True
+    planes: tuple = ()                  # ((link, plane_m), ...): a disc's plane (clearance)
+    max_rim_radius_factor: float = None  # disc inside F x joint reach of its link's origin
 
     def to_dict(self):
         """Return the options as a plain dict."""
-        return schema.plain(self.__dict__)
+        out = dict(self.__dict__)
+        out['planes'] = {str(k): float(v) for k, v in dict(self.planes).items()}
+        return schema.plain(out)
 
 
 def positive(value, name):
@@ -163,7 +168,53 @@ def check_options(scene, options):
         max_mass_factor=positive(options.max_mass_factor, 'max_mass_factor'),
         max_gyration_factor=positive(options.max_gyration_factor, 'max_gyration_factor'),
         torque_weight=tw, reaction_weight=rw, samples=int(samples),
-        tie_break=bool(options.tie_break))
+        tie_break=bool(options.tie_break), planes=plane_list(options.planes, options.links,
+                                                             scene),
+        max_rim_radius_factor=None if options.max_rim_radius_factor is None else
+        positive(options.max_rim_radius_factor, 'max_rim_radius_factor'))
+
+
+def plane_list(planes, links, scene, name='planes'):
+    """
+    Return ``((link, plane_m), ...)`` of a plane per counterweight link, checked.
+
+    ``planes``: a mapping, pairs, or text 'crank=-0.03,rocker=0.03' (m: the disc's mid-plane
+    offset along z from its link's plane; a listed link without one: its own plane, 0).
+    """
+    listed = link_list(links, scene)
+    if isinstance(planes, str):
+        items = []
+        for part in (v.strip() for v in planes.split(',')):
+            if not part:
+                continue
+            link, sep, value = part.partition('=')
+            if not sep:
+                raise CounterweightError(f'{name}: got {part!r}, expected LINK=Z_M (a link and '
+                                         "its disc's plane offset in m)")
+            items.append((link.strip(), value.strip()))
+    else:
+        try:
+            items = list(dict(planes or ()).items())
+        except (TypeError, ValueError):
+            raise CounterweightError(f'{name}: got {planes!r}, expected link: plane_m '
+                                     'pairs') from None
+    out = {}
+    for link, value in items:
+        if link not in listed:
+            raise CounterweightError(f'{name}: got link {link!r}, expected one of the '
+                                     f'counterweight links {", ".join(listed)}')
+        if link in out:
+            raise CounterweightError(f'{name}: got {link!r} twice, expected one plane per link')
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise CounterweightError(f'{name}.{link}: got {value!r}, expected a number '
+                                     '(m)') from None
+        if not (math.isfinite(v) and abs(v) <= MAX_PLANE_OFFSET_M):
+            raise CounterweightError(f'{name}.{link}: got {v:g}, expected a plane offset '
+                                     f'within +-{MAX_PLANE_OFFSET_M:g} m')
+        out[link] = v + 0.0
+    return tuple(out.items())
 
 
 def joint_reach_m(scene, link_name):
@@ -192,11 +243,12 @@ class CounterweightDesign:
     inertia_com_kg_m2: float
     max_centre_radius_m: float
     max_mass_kg: float
+    plane_m: float = 0.0        # the disc's plane: offset along z from its link's plane
 
     def counterweight(self):
         """Return the scene's :class:`~mech_balance.scene.Counterweight` of this disc."""
         return Counterweight(self.mass_kg, tuple(self.centre_m), self.radius_m,
-                             self.thickness_m, self.density_kg_m3)
+                             self.thickness_m, self.density_kg_m3, self.plane_m)
 
     def to_dict(self):
         """Return the design as a plain dict."""
@@ -222,6 +274,7 @@ class CounterweightResult:
     maps_time_s: float
     conic_time_s: float
     solve_time_s: float
+    clearance: object = None  # analysis.clearance.Clearance of the balanced scene
 
     @property
     def counterweights(self):
@@ -238,7 +291,10 @@ class CounterweightResult:
         return schema.plain({
             'source_scene': self.scene.name, 'method': METHOD,
             'options': self.options.to_dict(), 'objective': self.objective,
-            'relative_gap': self.certificate.gap_rel, 'added_mass_kg': self.added_mass_kg})
+            'relative_gap': self.certificate.gap_rel, 'added_mass_kg': self.added_mass_kg,
+            **({} if self.clearance is None else
+               {'least_clearance_m': self.clearance.to_dict()['least_clearance_m'],
+                'collisions': len(self.clearance.collisions)})})
 
     def to_dict(self):
         """Return everything as a plain, YAML- and JSON-able dict (SI, and normalized z)."""
@@ -253,7 +309,9 @@ class CounterweightResult:
             'objective': self.objective, 'certificate': self.certificate.to_dict(),
             'least_mass_stage': self.least_mass, 'table': self.table, 'cost': self.cost,
             'maps_time_s': self.maps_time_s, 'conic_time_s': self.conic_time_s,
-            'solve_time_s': self.solve_time_s})
+            'solve_time_s': self.solve_time_s,
+            'clearance': None if self.clearance is None else self.clearance.to_dict(),
+            'warnings': [] if self.clearance is None else self.clearance.warnings()})
 
 
 # ============================================================================ public API
@@ -266,7 +324,7 @@ def balance_with_counterweights(scene, links, weights=balancing.DEFAULT_WEIGHTS,
                                 max_mass_factor=DEFAULT_MAX_MASS_FACTOR,
                                 max_gyration_factor=DEFAULT_MAX_GYRATION_FACTOR,
                                 torque_weight=0.0, reaction_weight=0.0, samples=None,
-                                tie_break=True):
+                                tie_break=True, planes=(), max_rim_radius_factor=None):
     """
     Return the optimal add-only counterweights of ``links`` (a :class:`CounterweightResult`).
 
@@ -278,7 +336,8 @@ def balance_with_counterweights(scene, links, weights=balancing.DEFAULT_WEIGHTS,
         max_thickness_m=max_thickness_m, max_radius_factor=max_radius_factor,
         max_mass_factor=max_mass_factor, max_gyration_factor=max_gyration_factor,
         torque_weight=torque_weight,
-        reaction_weight=reaction_weight, samples=samples, tie_break=tie_break))
+        reaction_weight=reaction_weight, samples=samples, tie_break=tie_break, planes=planes,
+        max_rim_radius_factor=max_rim_radius_factor))
 
 
 def solve(scene, options):
@@ -331,6 +390,7 @@ def solve(scene, options):
         d = by_link.get(lk.name)
         balanced_links.append(lk if d is None else add_counterweights(lk, [d.counterweight()]))
     balanced = scene.with_links(balanced_links, name=f'{scene.name}_counterweights')
+    clear = clearance_mod.of_design(scene, balanced, opt.samples)
     theta = dynamics.parameter_vector(dynamics.Inertia.from_links(balanced.links)) / prob.scale
     terms = maps.terms(theta)
     w = prob.weights4
@@ -371,7 +431,7 @@ def solve(scene, options):
                    'shaking_moment_rms_original': float(t_orig[1])},
         certificate=cert, least_mass=least, table=table,
         cost=cost_of_balancing(scene, balanced, table), maps_time_s=maps_s,
-        conic_time_s=conic_s, solve_time_s=time.perf_counter() - t_start)
+        conic_time_s=conic_s, solve_time_s=time.perf_counter() - t_start, clearance=clear)
 
 
 def cost_of_balancing(original, balanced, table):
@@ -463,6 +523,10 @@ class _Problem:
                                for nm in opt.links])
         self.m_max = np.array([opt.max_mass_factor * self.scene.link(nm).own_mass_kg / ms
                                for nm in opt.links])
+        # the rim bound rho (normalized), None without max_rim_radius_factor
+        self.rho = None if opt.max_rim_radius_factor is None else np.array(
+            [opt.max_rim_radius_factor * joint_reach_m(self.scene, nm) / ls for nm in opt.links])
+        self.plane = dict(opt.planes)
         # c = 2 pi rho t_max (kg/m^2), normalized: kg/m^2 * ls^2 / ms
         self.c_disc = 2.0 * math.pi * opt.density_kg_m3 * opt.max_thickness_m * ls * ls / ms
         w1, w2 = opt.weights
@@ -642,6 +706,13 @@ class _Problem:
             a[0, i_s] = a[2, i_s] = -1.0
             a[1, im] = -2.0
             add(clarabel.SecondOrderConeT, a, [inv_kappa, 0.0, -inv_kappa])
+            if self.rho is not None:   # the disc inside rho: dI + c_h |dh| <= c_m dm
+                l0 = self.l0[i]
+                for c_h, c_m in clearance_mod.rim_cuts(self.rho[i]):
+                    a = np.zeros((3, nx))
+                    a[0, [im, ii]] = (-c_m / (l0 * l0), 1.0)
+                    a[1, ix] = a[2, iy] = -c_h / l0
+                    add(clarabel.SecondOrderConeT, a, np.zeros(3))
         for k, (g, c) in enumerate(self.norms):
             a = np.zeros((1 + g.shape[0], nx))
             a[0, ny + nl + k] = -1.0
@@ -684,6 +755,8 @@ class _Problem:
                         (dm - self.m_max[i] * ms) / own)
             i_c = i_min if self.inertia_free[i] else max(i_c, i_min)   # t <= t_max
             radius = math.sqrt(2.0 * i_c / dm)
+            if self.rho is not None:   # the rim bound, in units of the largest centre radius
+                worst = max(worst, (abs(r) + radius - self.rho[i] * ls) / r_max)
             thickness = dm * dm / (2.0 * math.pi * rho * i_c)
             designs.append(CounterweightDesign(
                 link=name, mass_kg=float(dm), centre_m=(float(r.real), float(r.imag)),
@@ -691,5 +764,6 @@ class _Problem:
                 centre_angle_deg=math.degrees(math.atan2(r.imag, r.real)) % 360.0,
                 radius_m=float(radius), thickness_m=float(thickness), density_kg_m3=rho,
                 inertia_com_kg_m2=float(0.5 * dm * radius ** 2),
-                max_centre_radius_m=float(r_max), max_mass_kg=float(self.m_max[i] * ms)))
+                max_centre_radius_m=float(r_max), max_mass_kg=float(self.m_max[i] * ms),
+                plane_m=float(self.plane.get(name, 0.0))))
         return designs, omitted, float(max(worst, 0.0))

@@ -54,6 +54,7 @@ from mech_balance.balancing.defaults import CASES, CENTROIDAL_MARGIN, DEFAULT_WE
 from mech_balance.conventions import cycle_angles, MAX_WEIGHT
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics
+from mech_balance.core.planar.rig import objective_units
 from mech_balance.schema.scene import FRAME, Normalization
 import numpy as np
 import scipy.sparse as sp
@@ -381,22 +382,6 @@ def link_design(link, counterweights=False, units=None):
                           'inertia_origin': i_o / (ms * ls * ls),
                           'inertia_com': i_c / (ms * ls * ls)}
     return out
-
-
-def objective_units(scene):
-    """
-    Return the units of the objective: the scene's normalization, or its crank's.
-
-    Without a recorded normalization: the crank link's mass, the crank length (the
-    linkage's characteristic length) and the crank speed.
-    """
-    if scene.normalization is not None:
-        return scene.normalization
-    rig_linkage = analysis.linkage_for(scene)
-    crank = next(j for j in scene.joints if j.name == scene.crank_joint)
-    name = crank.link_b if crank.link_a == FRAME else crank.link_a
-    return Normalization(scene.link(name).mass_kg, rig_linkage.length_scale,
-                         abs(scene.crank_speed_rad_s))
 
 
 def before_after(original, balanced, samples=None):

@@ -2,8 +2,9 @@
 ``mech-balance balance``: optimal mass redistribution and analytic force balance of a scene.
 
 A thin verb over :mod:`mech_balance.balancing` (planar scenes) and
-:func:`mech_balance.rggr_report.balance_report` (RGGR scenes).  The seed-001 reference values
-printed next to the results are the papers' tables (:mod:`mech_balance.seed_tables`).
+:func:`mech_balance.balancing.rggr_report.balance_report` (RGGR scenes).  The seed-001
+reference values printed next to the results are the papers' tables
+(:mod:`mech_balance.seed_tables`).
 """
 
 import argparse
@@ -30,10 +31,12 @@ ANALYTIC_OPTIONS = ('--mass-factor', '--keep-centroidal')
 COUNTERWEIGHT_OPTIONS = ('--density', '--max-thickness', '--max-radius-factor',
                          '--max-mass-factor', '--max-gyration-factor')
 """Options of --counterweights alone: rejected without it."""
+COUNTERWEIGHT_PLACEMENT = ('--planes', '--max-rim-radius-factor')
+"""Options of --counterweights alone that have no number default (checked by the solver)."""
 COUNTERWEIGHT_SHARED = ('--weights', '--torque-weight', '--reaction-weight')
 """Options of the optimization that --counterweights uses too (the rest it rejects)."""
-PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + (
-    '--analytic', '--counterweights', '--model')
+PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + \
+    COUNTERWEIGHT_PLACEMENT + ('--analytic', '--counterweights', '--model')
 """Options RGGR scenes reject: their balancing (seed 002) has no such choices."""
 
 
@@ -135,6 +138,15 @@ def register(subparsers):
                    help="--counterweights: the disc's radius of gyration about the link origin "
                         "at most F x the link's farthest joint distance (keeps a vanishing disc "
                         'from carrying inertia)')
+    p.add_argument('--planes', default='', metavar='LINK=Z[,LINK=Z...]',
+                   help="--counterweights: a disc's plane, its mid-plane's offset along z from "
+                        "its link's plane in m (default: each link's own plane, 0); bodies "
+                        'whose slabs along z overlap share a plane and are checked for '
+                        'clearance over the cycle')
+    p.add_argument('--max-rim-radius-factor', type=float, default=None, metavar='F',
+                   help="--counterweights: the whole disc inside F x the link's joint reach "
+                        "of the link's origin (a convex constraint of the program; default: "
+                        'no bound)')
     p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
                    help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
                         'with two point masses per link at 0 and 90 deg, and print the '
@@ -177,7 +189,7 @@ def _check_options(args):
             if not (np.isfinite(value) and value > 0.0):
                 raise ValueError(f'{option}: got {value:g}, expected a finite number > 0')
         return
-    given_cw = _given(args, COUNTERWEIGHT_OPTIONS)
+    given_cw = _given(args, COUNTERWEIGHT_OPTIONS + COUNTERWEIGHT_PLACEMENT)
     if given_cw:
         raise ValueError(f'{given_cw[0]} applies with --counterweights only, expected '
                          f'--counterweights LINK[,LINK...] or no {given_cw[0]}')
@@ -250,9 +262,12 @@ def _counterweights(sc, args):
         density_kg_m3=args.density, max_thickness_m=args.max_thickness,
         max_radius_factor=args.max_radius_factor, max_mass_factor=args.max_mass_factor,
         max_gyration_factor=args.max_gyration_factor, torque_weight=args.torque_weight,
-        reaction_weight=args.reaction_weight, samples=args.samples)
+        reaction_weight=args.reaction_weight, samples=args.samples, planes=args.planes,
+        max_rim_radius_factor=args.max_rim_radius_factor)
     if args.output:
         _write(result.balanced_scene, args.output, result.summary())
+    for text in result.clearance.warnings():
+        print(f'warning: {text}', file=sys.stderr)
     if args.json:
         print(json.dumps(result.to_dict(), indent=2))
         return 0
@@ -276,7 +291,9 @@ def format_counterweights(result, normalized=True):
              f'discs: density {opt.density_kg_m3:g} kg/m^3, thickness <= '
              f'{opt.max_thickness_m:g} m, centre <= {opt.max_radius_factor:g} x joint reach, '
              f'mass <= {opt.max_mass_factor:g} x link mass, radius of gyration <= '
-             f'{opt.max_gyration_factor:g} x joint reach', '']
+             f'{opt.max_gyration_factor:g} x joint reach'
+             + ('' if opt.max_rim_radius_factor is None else
+                f', rim <= {opt.max_rim_radius_factor:g} x joint reach'), '']
     head = (f"{'link':<10}{'mass kg':>10}{'r m':>10}{'angle':>9}{'x m':>11}{'y m':>11}"
             f"{'disc R m':>10}{'t mm':>8}{'total kg':>10}{'total I_C':>11}")
     lines += ['counterweights (centre in the link frame; disc radius R and thickness t as '
@@ -290,6 +307,8 @@ def format_counterweights(result, normalized=True):
     for name in result.omitted:
         lines.append(f'{name:<10}  no counterweight (the optimal disc mass is zero)')
     lines.append(f'total added mass {result.added_mass_kg:.6g} kg')
+    if result.clearance is not None:
+        lines += result.clearance.lines()
     lines += ['', _before_after_text(result.table, si=not view), '']
     obj, cert = result.objective, result.certificate
     lines += [f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
@@ -524,7 +543,7 @@ def _analytic(sc, args):
 def _weights(sc, args):
     """Balance by balancing weights (the RGGR, seed 002) and print its report."""
     from mech_balance import balancing as front
-    from mech_balance.analysis import rggr_report
+    from mech_balance.balancing import rggr_report
     from mech_balance.core.rig import rig_for
     if args.output:
         raise ValueError('--output: the balancing weights of seed 002 are reported, not '

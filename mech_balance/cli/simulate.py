@@ -1,7 +1,8 @@
 """
 The ``simulate`` and ``accuracy`` verbs of ``mech-balance`` (registered in cli.EXTENSIONS).
 
-Thin: parse, call :mod:`mech_balance.simulate` or :mod:`mech_balance.accuracy`, print.
+Thin: parse, call :mod:`mech_balance.analysis.simulation` or
+:mod:`mech_balance.bench.accuracy`, print.
 """
 
 import argparse
@@ -88,13 +89,13 @@ def register(sub):
 
 def cmd_simulate(args):
     """Run a simulation and print its report."""
-    from mech_balance.core import forward as simulate
-    rep = simulate.simulate(args.scene, args.duration, method=args.method, rtol=args.rtol,
-                            rhs=args.rhs)
+    from mech_balance.analysis import simulation
+    rep = simulation.simulate(args.scene, args.duration, method=args.method, rtol=args.rtol,
+                              rhs=args.rhs)
     if args.json:
         print(json.dumps(rep.summary, indent=2))
     else:
-        print(simulate.format_report(rep, rows=args.rows))
+        print(simulation.format_report(rep, rows=args.rows))
     for text in rep.simulation.model.rig.linkage.warnings:
         print(f'warning: {text}', file=sys.stderr)
     return 0
@@ -102,7 +103,7 @@ def cmd_simulate(args):
 
 def cmd_accuracy(args):
     """Run the accuracy studies and print their tables."""
-    from mech_balance.analysis import accuracy
+    from mech_balance.bench import accuracy
     progress = (lambda s: print(s, file=sys.stderr, flush=True))  # noqa: E731
     result = accuracy.run(args.scene, args.sections, args.duration, progress=progress)
     if args.json:

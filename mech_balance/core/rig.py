@@ -132,7 +132,8 @@ class AddedBody:
 
     ``centre_m`` ``(x, y, z)`` in the carrying body's frame; a disc (cylinder) of
     ``radius_m`` and ``thickness_m`` whose axis is the body frame's z (a sphere when the
-    thickness is its diameter); ``mass_kg`` its mass.
+    thickness is its diameter); ``mass_kg`` its mass.  On a planar rig the z of ``centre_m``
+    is the disc's plane: its mid-plane's offset along the normal from its link's plane.
     """
 
     name: str

@@ -65,6 +65,8 @@ import xml.etree.ElementTree as ET
 from mech_balance import schema
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import kinematics
+from mech_balance.core.planar.drawn import bar_edges, BAR_THICKNESS, BAR_WIDTH, BLOCK_SIZE, \
+    LAYER, PIN_LENGTH, PIN_RADIUS
 from mech_balance.core.planar.rig import linkage_for
 from mech_balance.ros.names import DEFAULT_FRAME_ID
 from mech_balance.schema.scene import FRAME
@@ -79,16 +81,6 @@ LIMIT_MARGIN = 1e-9
 linkage's length scale, m), so that round-off never puts a published position outside."""
 FULL_TURN_FRACTION = 1.0 - 1e-9
 """A swing wider than this fraction of 2 pi is treated as a full turn (``continuous``)."""
-PIN_RADIUS = 0.08
-"""Planar pins: cylinder radius as a fraction of the linkage's length scale (the crank)."""
-BAR_WIDTH = 0.14
-"""Planar bars: box width (in the plane) as a fraction of the length scale."""
-BAR_THICKNESS = 0.06
-"""Planar bars: box thickness (along z) as a fraction of the length scale."""
-LAYER = 0.1
-"""Planar visuals: z step between the links' drawing layers, fraction of the length scale."""
-BLOCK_SIZE = (0.8, 0.5)
-"""A one-point link (a slider block): box length and width, fractions of the length scale."""
 RGGR_ROD_RADIUS = 0.08
 """RGGR: rod radius of the links and axes as a fraction of the crank radius a1."""
 RGGR_PIN_RADIUS = 0.16
@@ -683,20 +675,6 @@ def _materials(robot, colours):
         ET.SubElement(ET.SubElement(robot, 'material', name=name), 'color', rgba=_vec(rgba))
 
 
-def _tree_edges(points):
-    """Return the bars of a link: a shortest spanning tree over its points (Prim)."""
-    names = list(points)
-    if len(names) < 2:
-        return []
-    inside, edges = {names[0]}, []
-    while len(inside) < len(names):
-        best = min(((abs(points[a] - points[b]), a, b) for a in inside for b in names
-                    if b not in inside), key=lambda e: e[0])
-        edges.append((best[1], best[2]))
-        inside.add(best[2])
-    return edges
-
-
 def _check_names(frame_id, link_names):
     if not isinstance(frame_id, str) or not frame_id:
         raise UrdfError(f'frame_id: got {frame_id!r}, expected a non-empty frame name')
@@ -773,7 +751,7 @@ def planar_robot(sc, frame_id, linkage=None):
             mass, com, (ixx, iyy, izz, ixy) = thin_plate_inertia(links[body])
             _inertial(el, mass, (com[0] - offset[bi].real, com[1] - offset[bi].imag, 0.0),
                       (ixx, iyy, izz, ixy, 0.0, 0.0))
-        for a, b in _tree_edges(local):
+        for a, b in bar_edges(local):
             d = local[b] - local[a]
             if abs(d) == 0.0:  # two names of one point (the frame may have them)
                 continue
@@ -786,10 +764,11 @@ def planar_robot(sc, frame_id, linkage=None):
             _shape(el, 'block', material, (p.real, p.imag, z), (0.0, 0.0, 0.0), _box(size))
         for k, p in local.items():
             _shape(el, f'pin_{k}', material, (p.real, p.imag, z), (0.0, 0.0, 0.0),
-                   _cylinder(pin_r, 1.5 * thick), collide=False)
+                   _cylinder(pin_r, PIN_LENGTH * thick), collide=False)
         for i, cw in enumerate(getattr(links.get(body), 'counterweights', ()) or ()):
             c = complex(*cw.centre_m) - offset[bi]
-            _shape(el, f'counterweight_{i}', f'{sc.name}/counterweight', (c.real, c.imag, z),
+            _shape(el, f'counterweight_{i}', f'{sc.name}/counterweight',
+                   (c.real, c.imag, z + getattr(cw, 'plane_m', 0.0)),
                    (0.0, 0.0, 0.0), _cylinder(cw.radius_m, cw.thickness_m))
         for jt in sc.joints:
             spec = rails.get(jt.name)

@@ -45,6 +45,8 @@ design margin, non-negative counterweights) is :func:`mech_balance.equimomental.
 COUNTERWEIGHT_MASS_REL_TOL = 1e-6
 """A counterweight's mass_kg must equal density * pi * R^2 * t to this relative tolerance (the
 writer stores shortest-exact floats, so a written disc meets it to round-off, ~1e-16)."""
+MAX_PLANE_OFFSET_M = 10.0
+"""Largest |plane_m| of a counterweight (m): a disc's plane further from its link is a typo."""
 RECORDING_STREAMS = (
     'frame', 'links', 'joints', 'mass_centres', 'point_masses', 'shaking_force_arrow',
     'shaking_moment_arc', 'shaking_force_plot', 'shaking_moment_plot', 'driving_torque_plot',
@@ -116,6 +118,10 @@ class Counterweight:
 
     ``centre_m`` is the disc's centre ``(x, y)`` in the link frame; its axis is normal to
     the plane of motion.  Mass = density * pi * radius^2 * thickness (checked on loading).
+    ``plane_m`` is the disc's plane: the z of its mid-plane relative to its link's plane (m,
+    along the normal, +z towards the viewer; 0, the default: the link's own plane).  It moves
+    no mass property of a planar rig; it decides which bodies the disc can collide with
+    (:mod:`mech_balance.analysis.clearance`).
     """
 
     mass_kg: float
@@ -123,6 +129,7 @@ class Counterweight:
     radius_m: float
     thickness_m: float
     density_kg_m3: float
+    plane_m: float = 0.0
 
     @property
     def inertia_com_kg_m2(self):
@@ -131,9 +138,12 @@ class Counterweight:
 
     def to_dict(self):
         """Return the disc as its scene entry (``mass_kg``, ``centre_m``, ...)."""
-        return {'mass_kg': float(self.mass_kg), 'centre_m': [float(v) for v in self.centre_m],
-                'radius_m': float(self.radius_m), 'thickness_m': float(self.thickness_m),
-                'density_kg_m3': float(self.density_kg_m3)}
+        out = {'mass_kg': float(self.mass_kg), 'centre_m': [float(v) for v in self.centre_m],
+               'radius_m': float(self.radius_m), 'thickness_m': float(self.thickness_m),
+               'density_kg_m3': float(self.density_kg_m3)}
+        if self.plane_m != 0.0:   # the link's own plane is the default, not written
+            out['plane_m'] = float(self.plane_m)
+        return out
 
 
 def counterweight_totals(mass_kg, com_m, inertia_com_kg_m2, counterweights):
@@ -662,7 +672,7 @@ def _link(name, spec):
 def _counterweight(spec, where):
     spec = _mapping(spec, where)
     keys = ('mass_kg', 'centre_m', 'radius_m', 'thickness_m', 'density_kg_m3')
-    _known_keys(spec, set(keys), where)
+    _known_keys(spec, set(keys) | {'plane_m'}, where)
     for key in keys:
         _require(spec, key, where)
     mass = _positive(spec['mass_kg'], f'{where}.mass_kg')
@@ -676,7 +686,11 @@ def _counterweight(spec, where):
             f'{where}.mass_kg: got {mass!r}, but density_kg_m3 * pi * radius_m^2 * '
             f'thickness_m = {solid:.9g} kg; expected them equal (relative '
             f'{COUNTERWEIGHT_MASS_REL_TOL:g}): mass_kg or one of the dimensions is inconsistent')
-    return Counterweight(mass, centre, radius, thickness, density)
+    plane = _number(spec.get('plane_m', 0.0), f'{where}.plane_m') + 0.0   # -0.0 is 0.0
+    if abs(plane) > MAX_PLANE_OFFSET_M:
+        raise SceneError(f'{where}.plane_m: got {plane!r}, expected a z offset from the '
+                         f"link's plane within +-{MAX_PLANE_OFFSET_M:g} m")
+    return Counterweight(mass, centre, radius, thickness, density, plane)
 
 
 def _joint(name, spec, all_points):

@@ -23,7 +23,7 @@ from mech_balance.core.planar.algebra import cross
 from mech_balance.core.rig import AddedBody, batch, BodyPoses, Drawing, DrawingBody, \
     RigData
 from mech_balance.schema import FRAME, needs
-from mech_balance.schema.scene import SERIES
+from mech_balance.schema.scene import Normalization, SERIES
 import numpy as np
 
 CAPABILITIES = frozenset({'kinematics', 'shaking_wrench', 'driving_torque',
@@ -51,6 +51,22 @@ def linkage_for(scene):
             _LINKAGES.clear()
         _LINKAGES[key] = linkage
     return linkage
+
+
+def objective_units(scene):
+    """
+    Return the units of the objective: the scene's normalization, or its crank's.
+
+    Without a recorded normalization: the crank link's mass, the crank length (the
+    linkage's characteristic length) and the crank speed.
+    """
+    if scene.normalization is not None:
+        return scene.normalization
+    rig_linkage = linkage_for(scene)
+    crank = next(j for j in scene.joints if j.name == scene.crank_joint)
+    name = crank.link_b if crank.link_a == FRAME else crank.link_a
+    return Normalization(scene.link(name).mass_kg, rig_linkage.length_scale,
+                         abs(scene.crank_speed_rad_s))
 
 
 class PlanarRig:
@@ -185,14 +201,20 @@ class PlanarRig:
 
     @property
     def drawing(self):
-        """Return the rig's :class:`Drawing` (planar: every point at z = 0)."""
+        """
+        Return the rig's :class:`Drawing` (planar: every point at z = 0).
+
+        A link's frame has its plane at z = 0, so an added disc's centre z is its plane's
+        offset from its link's plane (``Counterweight.plane_m``); the planes of the links
+        themselves are :func:`mech_balance.core.planar.drawn.plane_z_m`.
+        """
         if self._drawing is None:
             sc = self.scene
             bodies = tuple(
                 DrawingBody(lk.name, {k: (v[0], v[1], 0.0) for k, v in lk.points.items()},
                             tuple(lk.points), (lk.com_m[0], lk.com_m[1], 0.0), lk.mass_kg,
                             tuple(AddedBody(f'{lk.name} counterweight {i + 1}',
-                                            (cw.centre_m[0], cw.centre_m[1], 0.0),
+                                            (cw.centre_m[0], cw.centre_m[1], cw.plane_m),
                                             cw.radius_m, cw.thickness_m, cw.mass_kg)
                                   for i, cw in enumerate(lk.counterweights)),
                             _point_masses(lk))
