@@ -156,10 +156,16 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
                           float(np.max(np.abs(zp - z_raw), initial=0.0)), bad)
     resid_term = float(np.sum(terms))
     box = np.maximum(np.abs(lo), np.abs(hi))
-    abs_a = abs(a)
+    size = np.abs(q) + abs(a).T @ np.abs(zp)      # bounds |r_i| and its rounding error
+    blind = (~np.isfinite(box)) & (size > 0.0)
+    if blind.any():   # r_i computed 0 on an unbounded coordinate: its error is unbounded
+        bad = tuple(int(i) for i in np.flatnonzero(blind))
+        return LowerBound(-math.inf, dual_obj, resid_term, math.inf,
+                          float(np.max(np.abs(r))),
+                          float(np.max(np.abs(zp - z_raw), initial=0.0)), bad)
     k = m + n + 4
     err = (float(np.abs(b) @ np.abs(zp))
-           + float(box @ (np.abs(q) + abs_a.T @ np.abs(zp)))
+           + float(np.where(size > 0.0, box, 0.0) @ size)
            + float(np.sum(np.abs(terms))))
     rounding = 2.0 * gamma(k) * err * (1.0 + 4.0 * gamma(k))
     value = dual_obj + resid_term - rounding
@@ -184,37 +190,55 @@ def norm_bound(g, c, lo, hi):
     return total * (1.0 + 4.0 * gamma(g.shape[0] + g.shape[1] + 2))
 
 
-def level_set_bounds(mat, radius, lo, hi):
+def level_set_bounds(mat, radius, lo, hi, centre=None, null_rel_tol=None):
     """
-    Return (lo, hi) with the infinite entries replaced by what ``||mat y|| <= radius`` implies.
+    Return (lo, hi, nulls): the infinite entries replaced by what ``||mat y|| <= radius`` implies.
 
     For the coordinates S whose box is unbounded and B the others,
     ``||mat_S y_S|| <= radius + sum_{j in B} ||mat_j|| max(|lo_j|, |hi_j|)``, so
     ``|y_i| <= that / sigma_min(mat_S)`` for i in S, with sigma_min lowered by its rounding
-    error bound (sqrt(k) n u sigma_max); a rank-deficient mat_S leaves them infinite.
-    ``radius`` is p / w_min for an objective ``sum w_k ||G_k y|| <= p`` and ``mat`` the
-    stacked G_k (||mat y|| <= sum ||G_k y||).
+    error bound (sqrt(k) n u sigma_max).  ``radius`` is p / w_min for an objective
+    ``sum w_k ||G_k y|| <= p`` and ``mat`` the stacked G_k (||mat y|| <= sum ||G_k y||).
+
+    If mat_S is rank-deficient the bound needs ``centre`` (a design) and ``null_rel_tol``:
+    singular directions below ``null_rel_tol`` sigma_max are taken as exact null directions
+    of the objective (moving along them changes no term, so an optimal point shares the
+    centre's component there; valid when the coordinates S enter no constraint but the
+    objective), and ``|y_i - centre_i| <= (radius + rest + ||mat_S centre_S||) /
+    sigma_r`` with sigma_r the least singular value above it.  ``nulls`` counts those
+    directions (0 when none was assumed).
     """
     lo = np.array(lo, dtype=float)
     hi = np.array(hi, dtype=float)
     mat = np.atleast_2d(np.asarray(mat, dtype=float))
     free = ~(np.isfinite(lo) & np.isfinite(hi))
     if not free.any() or not math.isfinite(radius):
-        return lo, hi
+        return lo, hi, 0
     fixed = ~free
     rest = norm_bound(mat[:, fixed], np.zeros(mat.shape[0]), lo[fixed], hi[fixed]) \
         if fixed.any() else 0.0
     sv = np.linalg.svd(mat[:, free], compute_uv=False)
-    if sv.size < int(free.sum()):
-        return lo, hi
     k = mat.shape[0] + mat.shape[1]
-    smin = float(sv[-1]) - math.sqrt(k) * k * UNIT_ROUNDOFF * float(sv[0]) * 4.0
+    slack = math.sqrt(k) * k * UNIT_ROUNDOFF * float(sv[0] if sv.size else 0.0) * 4.0
+    full = sv.size == int(free.sum()) and float(sv[-1]) - slack > 0.0 and \
+        (null_rel_tol is None or sv[-1] > null_rel_tol * sv[0])
+    if full:
+        reach = (radius + rest) / (float(sv[-1]) - slack) * (1.0 + 8.0 * gamma(k))
+        lo[free] = np.maximum(lo[free], -reach)
+        hi[free] = np.minimum(hi[free], reach)
+        return lo, hi, 0
+    if centre is None or null_rel_tol is None or not sv.size:
+        return lo, hi, 0
+    keep = sv > null_rel_tol * sv[0]
+    smin = float(sv[keep][-1]) - slack
     if not smin > 0.0:
-        return lo, hi
-    reach = (radius + rest) / smin * (1.0 + 8.0 * gamma(k))
-    lo[free] = np.maximum(lo[free], -reach)
-    hi[free] = np.minimum(hi[free], reach)
-    return lo, hi
+        return lo, hi, 0
+    c = np.asarray(centre, dtype=float)[free]
+    reach = (radius + rest + float(np.linalg.norm(mat[:, free] @ c))) / smin \
+        * (1.0 + 8.0 * gamma(k))
+    lo[free] = np.maximum(lo[free], c - reach)
+    hi[free] = np.minimum(hi[free], c + reach)
+    return lo, hi, int(free.sum() - keep.sum())
 
 
 def relative_gap(primal, lower, floor=1.0):
