@@ -65,7 +65,7 @@ REPAIR_GROWTH = 2.0
 """The realizability repair multiplies its step by this factor until the body is PSD."""
 REPAIR_STEPS = 60
 """Most steps of the realizability repair."""
-CLUSTER_SPREAD_REL = 1e-9
+CLUSTER_SPREAD_REL = 1e-6
 """Eigenvalues of a counterweight's spread about its centre below this fraction of dm reach^2
 are round-off: no sphere pair is placed along them (the error is evaluated: the primal is the
 core's value of the built spheres)."""
