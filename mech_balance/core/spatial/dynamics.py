@@ -67,8 +67,11 @@ def body_motion(state, inertia):
     xc = fr.origin + np.einsum('nkij,kj->nki', fr.rot, inertia.com)
     w, v = tw[..., :3], tw[..., 3:]
     vc = v + np.cross(w, xc)
-    al, ao = ac[..., :3], ac[..., 3:]
-    a_c = ao + np.cross(al, xc) + np.cross(w, vc)
+    if ac is None:  # kinematics only (kinetic energy)
+        al = a_c = None
+    else:
+        al, ao = ac[..., :3], ac[..., 3:]
+        a_c = ao + np.cross(al, xc) + np.cross(w, vc)
     iw = fr.rot @ inertia.inertia @ np.swapaxes(fr.rot, -1, -2)
     return xc, vc, a_c, iw, w, al
 
