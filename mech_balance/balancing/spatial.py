@@ -194,7 +194,89 @@ def rggr_model(rig):
     return ParameterModel(bodies, theta, build, add)
 
 
-PARAMETER_MODELS = {'rggr': rggr_model}
+def line_basis(point_a, point_b):
+    """
+    Return the (10, 3) basis of mass distributions on the line through two points (body axes).
+
+    With p(s) = a + s d (d the unit direction), Sigma = int p p^T dm = mu0 a a^T + mu1 (a d^T
+    + d a^T) + mu2 d d^T and h = mu0 a + mu1 d, linear in the moments (mu0, mu1, mu2) of the
+    mass along the line (mu0 = m); J is PSD exactly when [[mu0, mu1], [mu1, mu2]] is.  A
+    slender rod on an S-S line (its idle spin needs zero inertia about the line).
+    """
+    a = np.asarray(point_a, dtype=float)
+    d = np.asarray(point_b, dtype=float) - a
+    d = d / np.linalg.norm(d)
+    out = np.zeros((10, 3))
+    for j, (h, sigma) in enumerate(((a, np.outer(a, a)), (d, np.outer(a, d) + np.outer(d, a)),
+                                    (np.zeros(3), np.outer(d, d)))):
+        i_o = np.trace(sigma) * np.eye(3) - sigma
+        out[:, j] = [1.0 if j == 0 else 0.0, *h, i_o[0, 0], i_o[0, 1], i_o[1, 1], i_o[0, 2],
+                     i_o[1, 2], i_o[2, 2]]
+    return out
+
+
+def spatial_model(rig):
+    """
+    Return the :class:`ParameterModel` of a ``kind: spatial`` rig.
+
+    Every link has its ten parameters, except a link held only by two spherical joints (an
+    idle spin, :class:`mech_balance.core.spatial.kinematics` fixes it by convention): its mass
+    stays on the line through the two joints (:func:`line_basis`), as the rig requires.  A
+    design is written as the links' mass, mass centre and inertia about it; counterweights are
+    folded into their link's (the scene has no counterweight field; the spheres are in the
+    report and the provenance).
+    """
+    from mech_balance.schema.spatial import SpatialLink
+    sc = rig.scene
+    idle = {name: (ja, jb) for name, ja, jb in getattr(rig.linkage, 'idle_spins', ())}
+    joints = {j.name: j for j in sc.joints}
+    names = [b.name for b in rig.drawing.bodies]
+    bodies, thetas = [], []
+    for name in names:
+        lk = sc.link(name)
+        reach = max([float(np.linalg.norm(p)) for p in lk.points.values()] + [0.0])
+        if reach <= 0.0:
+            reach = max(float(np.linalg.norm(lk.com_m)), 1.0)
+        thetas.append(regressor.parameters(lk.mass_kg, lk.com_m, lk.inertia_matrix()))
+        if name in idle:
+            ends = [lk.points[j.point_a if j.link_a == name else j.point_b]
+                    for j in (joints[idle[name][0]], joints[idle[name][1]])]
+            bodies.append(BodyModel(name, line_basis(*ends), (0, 1, 2), reach, True,
+                                    ('m', 'm s', 'm s^2')))
+        else:
+            bodies.append(_full_body(name, reach))
+
+    def build(t, name=None):
+        t = np.asarray(t, dtype=float).reshape(-1, 10)
+        links = []
+        for lk in sc.links:
+            if lk.name not in names:
+                links.append(lk)
+                continue
+            tk = t[names.index(lk.name)]
+            m = float(tk[0])
+            c = tk[1:4] / m
+            i_c = regressor.inertia_matrix(tk[4:10]) - m * (np.dot(c, c) * np.eye(3)
+                                                            - np.outer(c, c))
+            links.append(SpatialLink(lk.name, lk.points, m, tuple(float(x) for x in c),
+                                     tuple(float(x) for x in (i_c[0, 0], i_c[1, 1], i_c[2, 2],
+                                                              i_c[0, 1], i_c[0, 2],
+                                                              i_c[1, 2]))))
+        return sc.with_links(links, name=name or f'{sc.name}_balanced')
+
+    theta = np.concatenate(thetas)
+
+    def add(added, spheres, name=None):
+        t = theta.copy()
+        for key, extra in added.items():
+            k = names.index(key)
+            t[10 * k:10 * k + 10] += extra
+        return build(t, name or f'{sc.name}_counterweights')
+
+    return ParameterModel(tuple(bodies), theta, build, add)
+
+
+PARAMETER_MODELS = {'rggr': rggr_model, 'spatial': spatial_model}
 """The parameter model of each kind of rig that this module balances (kind name -> factory)."""
 
 
