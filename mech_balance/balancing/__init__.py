@@ -44,6 +44,9 @@ METHODS = {
 ALTERNATIVES = {'redistribution': 'body_kinematics', 'counterweights': 'body_kinematics'}
 """Methods that a second capability also supports (the spatial implementation), tried by
 ``auto`` after every method's own capability."""
+AUTO_LAST = ('force_balance',)
+"""Methods ``auto`` picks only when nothing else applies (a spatial rig's default is the
+certified redistribution, as a planar rig's)."""
 SPATIAL_OPTIONS = {
     'redistribution': ('weights', 'samples', 'mass_bounds', 'mass_factors', 'fixed_links',
                        'extent_bounds', 'extent_factor', 'force_balanced'),
@@ -113,9 +116,9 @@ def method_for(rig, method='auto'):
     caps = rig.capabilities
     if method == 'auto':
         for name, need in METHODS.items():
-            if need in caps:
+            if need in caps and name not in AUTO_LAST:
                 return name
-        for name, need in ALTERNATIVES.items():
+        for name, need in list(ALTERNATIVES.items()) + [(m, METHODS[m]) for m in AUTO_LAST]:
             if need in caps:
                 return name
         raise ValueError(f'scene {rig.name!r}: no balancing method supports this rig')
