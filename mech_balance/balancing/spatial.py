@@ -61,6 +61,9 @@ completely force balanced (issue 21's acceptance)."""
 CONDITION_COEFF_REL = 1e-12
 """Coefficients of a printed force-balance condition below this fraction of its largest are
 round-off (left out of the text, kept in the matrix)."""
+PSD_ROUNDOFF = 64.0 * np.finfo(float).eps
+"""A body's normalized pseudo-inertia counts as PSD down to this fraction of its largest
+eigenvalue below zero (the eigenvalue solver's round-off; a thin rod has exact zeros)."""
 REPAIR_GROWTH = 2.0
 """The realizability repair multiplies its step by this factor until the body is PSD."""
 REPAIR_STEPS = 60
@@ -565,7 +568,7 @@ def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAP
         theta = prog.project_null(theta)
     checks = _RealizableChecks(model, free_idx, mlo, mhi, extent)
     violation = checks.violation(theta)
-    theta, pull = checks.repair(theta)
+    theta, pull = checks.repair(theta, keep_force=bool(prog.balanceable))
     balanced = model.build(theta)
     return _finish(rig, model, units, maps, prog, run, theta, balanced, w, samples,
                    violation, pull, t_start, 'redistribution (PSD pseudo-inertia, SOCP+SDP)',
@@ -1207,20 +1210,59 @@ class _RealizableChecks:
         m0, r0 = _ref(self.model, k)
         d = np.array([1.0 / (math.sqrt(m0) * r0)] * 3 + [1.0 / math.sqrt(m0)])
         j = regressor.pseudo_inertia(t) * np.outer(d, d)
+        eig = np.linalg.eigvalsh(j)
         return [(self.mlo[k] - t[0]) / m0, (t[0] - self.mhi[k]) / m0,
-                -float(np.linalg.eigvalsh(j)[0]),
+                -float(eig[0]) - PSD_ROUNDOFF * float(np.abs(eig).max()),
                 (0.5 * (t[4] + t[6] + t[9]) - t[0] * self.extent[k] ** 2) / (m0 * r0 * r0)]
 
     def violation(self, theta):
         """Return the worst violation (units of each body's mass and reach), >= 0."""
         return float(max([0.0] + [max(self._body(theta, k)) for k in self.free]))
 
-    def repair(self, theta):
-        """Return theta with every body PSD (spread added where round-off broke it)."""
+    def anchor(self):
+        """Return a design strictly inside every bound (mass mid-range, spread m r^2 / 6)."""
+        theta = self.model.theta.copy()
+        for k in self.free:
+            body = self.model.bodies[k]
+            m = 0.5 * (self.mlo[k] + self.mhi[k])
+            r2 = self.extent[k] ** 2
+            if body.basis.shape[1] == 10:
+                target = np.array([m, 0, 0, 0, m * r2 / 3, 0, m * r2 / 3, 0, 0, m * r2 / 3])
+                theta[10 * k:10 * k + 10] = target
+            else:   # a body on a line: its first-moment column 0, its second moment m r^2/4
+                y = np.zeros(body.basis.shape[1])
+                y[0], y[-1] = m, 0.0
+                base = body.basis @ y
+                room = r2 - 0.5 * (base[4] + base[6] + base[9]) / m
+                y[-1] = m * max(room, 0.0) / 2.0
+                theta[10 * k:10 * k + 10] = body.basis @ y
+        return theta
+
+    def repair(self, theta, keep_force=False):
+        """
+        Return (theta, pull): theta moved onto the feasible set where round-off left it.
+
+        Without equality constraints, the least fraction ``pull`` of the way to the
+        :meth:`anchor` (a convex set holds the segment; bisection); with the force balance
+        imposed, spread along the inertia only (which the force map does not see).
+        """
+        if self.violation(theta) <= 0.0:
+            return theta, 0.0
+        if not keep_force:
+            anchor = self.anchor()
+            if self.violation(anchor) <= 0.0:
+                lo, hi = 0.0, 1.0
+                for _ in range(REPAIR_STEPS):
+                    mid = 0.5 * (lo + hi)
+                    if self.violation((1 - mid) * theta + mid * anchor) <= 0.0:
+                        hi = mid
+                    else:
+                        lo = mid
+                return (1 - hi) * theta + hi * anchor, hi
         theta = theta.copy()
         worst = 0.0
         for k in self.free:
-            if -self._body(theta, k)[2] >= 0.0:
+            if self._body(theta, k)[2] <= 0.0:
                 continue
             body = self.model.bodies[k]
             m0, r0 = _ref(self.model, k)
@@ -1229,7 +1271,7 @@ class _RealizableChecks:
             for _ in range(REPAIR_STEPS):
                 trial = theta.copy()
                 trial[10 * k:10 * k + 10] += step * spread
-                if -self._body(trial, k)[2] >= 0.0:
+                if self._body(trial, k)[2] <= 0.0:
                     theta = trial
                     worst = max(worst, step / (m0 * r0 * r0))
                     break
