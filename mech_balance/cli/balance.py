@@ -35,6 +35,13 @@ COUNTERWEIGHT_SHARED = ('--weights', '--torque-weight', '--reaction-weight')
 PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + (
     '--analytic', '--counterweights', '--model')
 """Options RGGR scenes reject: their balancing (seed 002) has no such choices."""
+SPATIAL_SHARED = ('--weights', '--mass-factors', '--fix', '--counterweights', '--density',
+                  '--max-mass-factor', '--max-radius-factor')
+"""Options of the planar balancing that spatial rigs (body kinematics) take too."""
+SPATIAL_OPTIONS = ('--method', '--extent-factor', '--force-balanced', '--free')
+"""Options of spatial rigs alone (mech_balance.balancing.spatial)."""
+SPATIAL_METHODS = ('auto', 'weights', 'force-balance', 'redistribution', 'counterweights')
+"""``--method`` values (auto: the rig's own, the RGGR's weights, else the redistribution)."""
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -139,6 +146,22 @@ def register(subparsers):
                    help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
                         'with two point masses per link at 0 and 90 deg, and print the '
                         "certified bounds next to the paper's rows")
+    p.add_argument('--method', choices=SPATIAL_METHODS, default='auto',
+                   help='spatial rigs (body kinematics: the RGGR, kind spatial): weights (the '
+                        "RGGR's seed-002 weights, its default), force-balance (the null space "
+                        'of the shaking force: conditions and the least-change design), '
+                        'redistribution (certified, every body a PSD pseudo-inertia; the '
+                        "default of kind spatial), counterweights (add-only spheres, with "
+                        '--counterweights LINKS)')
+    p.add_argument('--extent-factor', type=float, default=1.5, metavar='F',
+                   help='spatial redistribution: RMS distance of each body\'s mass from its '
+                        'origin at most F x its reach (farthest drawn point), F > 0')
+    p.add_argument('--force-balanced', action='store_true',
+                   help='spatial redistribution: impose complete force balance (falls back '
+                        'to the least RMS shaking force, with a note, when impossible)')
+    p.add_argument('--free', action='append', default=[], metavar='LINK',
+                   help='--method force-balance: a body that may change (repeatable; '
+                        'default all)')
     p.add_argument('--si', action='store_true',
                    help="print SI values (default: the papers' normalized units when the scene "
                         'records a normalization)')
@@ -147,7 +170,7 @@ def register(subparsers):
                    help='write the balanced scene (loadable by every other command) to a '
                         'file in an existing directory; checked before the solve')
     p.set_defaults(func=cmd_balance, option_defaults={
-        option: p.get_default(_dest(option)) for option in PLANAR_OPTIONS})
+        option: p.get_default(_dest(option)) for option in PLANAR_OPTIONS + SPATIAL_OPTIONS})
 
 
 def _given(args, options):
@@ -203,10 +226,22 @@ def cmd_balance(args):
         raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
     _check_options(args)
     sc = scene_mod.load(args.scene)
+    caps = scene_mod.kind_of(sc).rig_factory().capabilities
+    spatial_given = _given(args, SPATIAL_OPTIONS)
+    if 'mass_redistribution' not in caps and 'body_kinematics' in caps and (
+            spatial_given or _given(args, SPATIAL_SHARED) or args.counterweights is not None
+            or 'balancing_weights' not in caps):
+        cli.requires(sc, 'mass_redistribution', **dict.fromkeys(
+            [o for o in _given(args, PLANAR_OPTIONS) if o not in SPATIAL_SHARED], True))
+        return _spatial(sc, args)
+    cli.requires(sc, 'body_kinematics', **dict.fromkeys(spatial_given, True))
     cli.requires(sc, 'mass_redistribution',
                  **dict.fromkeys(_given(args, PLANAR_OPTIONS), True))
-    if 'mass_redistribution' not in scene_mod.kind_of(sc).rig_factory().capabilities:
+    if 'mass_redistribution' not in caps:
         return _weights(sc, args)
+    if spatial_given:
+        raise ValueError(f'{spatial_given[0]}: applies to spatial rigs (body kinematics), got '
+                         f'the planar scene {sc.name!r}; expected no {spatial_given[0]}')
     if args.output:
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
     if args.analytic:
@@ -535,6 +570,97 @@ def _weights(sc, args):
                                         result=design.result)
     print(json.dumps(report, indent=2) if args.json else rggr_report.format_report(report))
     return 0
+
+
+def _spatial(sc, args):
+    """Balance a rig with body kinematics (the RGGR, kind spatial) and print its result."""
+    from mech_balance import balancing as front
+    from mech_balance.balancing import spatial
+    from mech_balance.core.rig import rig_for
+    rig = rig_for(sc)
+    method = 'counterweights' if args.counterweights is not None else \
+        args.method.replace('-', '_')
+    method = front.method_for(rig, method)
+    if method == 'weights':
+        return _weights(sc, args)
+    if args.output:
+        cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
+    options = {'samples': args.samples}
+    weights = defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights)
+    if method == 'force_balance':
+        options['free'] = tuple(args.free) or None
+    elif method == 'redistribution':
+        options.update(weights=weights, mass_factors=tuple(args.mass_factors),
+                       fixed_links=tuple(args.fix), extent_factor=args.extent_factor,
+                       force_balanced=args.force_balanced)
+    else:
+        if not args.counterweights:
+            raise ValueError('--method counterweights: expected --counterweights LINK[,LINK...]')
+        options.update(links=args.counterweights, weights=weights,
+                       density_kg_m3=args.density, max_mass_factor=args.max_mass_factor,
+                       max_radius_factor=args.max_radius_factor)
+    for option, value in (('--free', args.free), ('--force-balanced', args.force_balanced),
+                          ('--extent-factor', args.extent_factor != 1.5)):
+        wanted = {'--free': 'force_balance', '--force-balanced': 'redistribution',
+                  '--extent-factor': 'redistribution'}[option]
+        if value and method != wanted:
+            raise ValueError(f'{option}: applies to --method {wanted.replace("_", "-")}, got '
+                             f'method {method}; expected no {option}')
+    design = front.balance(rig, method, **options)
+    if args.output:
+        spatial.write_scene(design.result, args.output)
+    if args.json:
+        print(json.dumps(design.report, indent=2))
+    else:
+        print(format_spatial(design))
+        if args.output:
+            print(f'balanced scene written to {args.output}')
+    cert = getattr(design.result, 'certificate', None)
+    return 0 if cert is None or cert.certified else 2
+
+
+def format_spatial(design):
+    """Return a spatial design (:mod:`mech_balance.balancing.spatial`) as readable text."""
+    from mech_balance.balancing import spatial
+    rep = design.report
+    lines = [design.summary(), '']
+    if design.method == 'force_balance':
+        lines.append(f"complete force balance: rank {rep['rank']}, {rep['nullity']} free "
+                     f"combinations; {'attained' if rep['attainable'] else 'NOT attainable'} "
+                     f"by changing {', '.join(rep['free'])}")
+        lines.append('conditions (SI: kg, kg m):')
+        lines += spatial.format_conditions(rep['conditions'])
+        for name, h in rep['added_first_moment_kg_m'].items():
+            lines.append(f'  {name}: first moment change (body axes) '
+                         + ' '.join(f'{x:.6g}' for x in h) + ' kg m, mass change '
+                         f"{rep['added_mass_kg'][name]:.6g} kg")
+    else:
+        cert = rep['certificate']
+        lines.append(f"{rep['method']}, weights {rep['weights'][0]:g} {rep['weights'][1]:g}")
+        lines.append(f"{'body':<12}{'mass kg':>12}{'centre x':>12}{'y':>12}{'z':>12}"
+                     f"{'min eig J':>12}")
+        for b in rep['bodies']:
+            lines.append(f"{b['name']:<12}{b['mass_kg']:>12.6g}"
+                         + ''.join(f'{x:>12.5g}' for x in b['mass_centre_m'])
+                         + f"{b['pseudo_inertia_min_eigenvalue']:>12.3g}")
+        for name, cluster in rep['options'].get('counterweights', {}).items():
+            for c in cluster:
+                lines.append(f"  counterweight on {name}: sphere {c['mass_kg']:.5g} kg at "
+                             + ' '.join(f'{x:.5g}' for x in c['centre_m'])
+                             + f" m, outer radius {c['outer_radius_m']:.4g} m, inner "
+                             f"{c['inner_radius_m']:.4g} m")
+        if rep['options'].get('note'):
+            lines.append(f"note: {rep['options']['note']}")
+        lines.append(f"certificate: {cert['status']}, primal {cert['primal']:.9g}, lower bound "
+                     f"{cert['lower_bound']:.9g}, gap {cert['gap_abs']:.2e} (relative "
+                     f"{cert['gap_rel']:.2e}), max violation {cert['max_violation']:.1e}, "
+                     f"{'certified' if cert['certified'] else 'NOT certified'}")
+    lines += ['', f"{'quantity':<18}{'unit':<16}{'before':>12}{'after':>12}{'change %':>10}"]
+    for r in rep['table']:
+        change = 'n/a' if r['change_percent'] is None else f"{r['change_percent']:.1f}"
+        lines.append(f"{r['quantity']:<18}{r['unit']:<16}{r['before']:>12.5g}"
+                     f"{r['after']:>12.5g}{change:>10}")
+    return '\n'.join(lines)
 
 
 def _write(balanced, path, summary):
