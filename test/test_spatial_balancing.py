@@ -288,7 +288,7 @@ def test_dispatch_through_capabilities(rggr_rig, rssr_rig):
     assert set(design.report['options']['counterweights']) == {'crank'}
     design = balancing.balance(rggr_rig, 'force_balance', free=('crank', 'output'))
     assert design.report['attainable'] and design.figures['force_N'][1] < 1e-9
-    with pytest.raises(ValueError, match="case: not an option of the spatial redistribution"):
+    with pytest.raises(ValueError, match='case: not an option of the spatial redistribution'):
         balancing.balance(rssr_rig, 'redistribution', case='b')
     hoeken = rig_for(schema.load('hoeken'))
     with pytest.raises(ValueError, match="method: got 'force_balance'"):

@@ -284,7 +284,7 @@ PARAMETER_MODELS = {'rggr': rggr_model, 'spatial': spatial_model}
 
 
 def parameter_model(rig):
-    """Return the :class:`ParameterModel` of a rig (its own ``parameter_model()`` first)."""
+    """Return the :class:`ParameterModel` of a rig (the rig's own model first, if it has one)."""
     if CAPABILITY not in rig.capabilities:
         raise SpatialBalanceError(f'scene {rig.name!r}: its rig has no {CAPABILITY!r} '
                                   'capability, expected a spatial rig')
@@ -642,7 +642,7 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
                    density_kg_m3=DEFAULT_DENSITY_KG_M3, max_mass_factor=DEFAULT_MAX_MASS_FACTOR,
                    max_radius_factor=DEFAULT_MAX_RADIUS_FACTOR):
     """
-    Return the certified optimal add-only counterweights (:class:`SpatialResult`).
+    Return the certified optimal add-only spheres on the listed bodies (a SpatialResult).
 
     Each listed body keeps its parameters and gains a counterweight of mass at most
     ``max_mass_factor`` x its mass, made of spheres of ``density_kg_m3``, whose mass lies
@@ -839,7 +839,7 @@ def sphere_cluster(dm, dh, sigma, s, density_kg_m3, reach_m):
 
 
 def cluster_overlap_m(cluster):
-    """Return the largest overlap (sum of outer radii - distance) of two spheres, m (<= 0: none)."""
+    """Return the largest overlap of two spheres, m: sum of outer radii - distance (<= 0: none)."""
     worst = -math.inf
     for i, a in enumerate(cluster):
         for b in cluster[i + 1:]:
@@ -880,7 +880,7 @@ class _Program:
         self.balanceable = None
 
     def theta(self, x):
-        """Return theta (10 nb,) of a solution x."""
+        """Return the parameters (10 nb,) of a solution x."""
         return self.offset + self.basis @ np.asarray(x, dtype=float)[:self.nd]
 
     def rows(self, kind, a, b):
@@ -1012,8 +1012,8 @@ def _fold_cones(run, lo, hi):
     for kind, n in run.layout:
         rows = np.arange(start, start + n)
         start += n
-        if kind in ('psd', 'pow'):
-            zb = _dual_psd(z[rows]) if kind == 'psd' else _dual_pow(z[rows], POWER_ALPHA)
+        if kind in DUAL_CONES:
+            zb = DUAL_CONES[kind](z[rows])
             fold_rows.append(rows)
             fold_z.append(zb)
         else:
@@ -1063,6 +1063,10 @@ def _dual_pow(zb, alpha):
         grow = abs(w) / value * (1.0 + 1e-12)
         u, v = u * grow, v * grow
     return np.array([u, v, w])
+
+
+DUAL_CONES = {'psd': lambda z: _dual_psd(z), 'pow': lambda z: _dual_pow(z, POWER_ALPHA)}
+"""The cones the certificate module does not know, and how a dual point is moved into K*."""
 
 
 # ============================================================================ results
@@ -1216,7 +1220,7 @@ class _RealizableChecks:
                 (0.5 * (t[4] + t[6] + t[9]) - t[0] * self.extent[k] ** 2) / (m0 * r0 * r0)]
 
     def violation(self, theta):
-        """Return the worst violation (units of each body's mass and reach), >= 0."""
+        """Return the worst constraint violation, >= 0 (units of each body's mass and reach)."""
         return float(max([0.0] + [max(self._body(theta, k)) for k in self.free]))
 
     def anchor(self):

@@ -151,10 +151,10 @@ def register(subparsers):
                         "RGGR's seed-002 weights, its default), force-balance (the null space "
                         'of the shaking force: conditions and the least-change design), '
                         'redistribution (certified, every body a PSD pseudo-inertia; the '
-                        "default of kind spatial), counterweights (add-only spheres, with "
+                        'default of kind spatial), counterweights (add-only spheres, with '
                         '--counterweights LINKS)')
     p.add_argument('--extent-factor', type=float, default=1.5, metavar='F',
-                   help='spatial redistribution: RMS distance of each body\'s mass from its '
+                   help="spatial redistribution: RMS distance of each body's mass from its "
                         'origin at most F x its reach (farthest drawn point), F > 0')
     p.add_argument('--force-balanced', action='store_true',
                    help='spatial redistribution: impose complete force balance (falls back '

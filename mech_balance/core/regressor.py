@@ -47,7 +47,9 @@ def skew(v):
 
 def inertia_product_matrix(v):
     """
-    Return ``L(v)`` ``(..., 3, 6)`` with ``I v = L(v) [I_xx, I_xy, I_yy, I_xz, I_yz, I_zz]``.
+    Return ``L(v)`` ``(..., 3, 6)``: ``I v = L(v) i6`` for every inertia tensor I.
+
+    ``i6`` = [I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] (the tensor's entries).
     """
     v = np.asarray(v, dtype=float)
     out = np.zeros(v.shape[:-1] + (3, 6))
