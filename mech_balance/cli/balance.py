@@ -229,7 +229,7 @@ def cmd_balance(args):
     caps = scene_mod.kind_of(sc).rig_factory().capabilities
     spatial_given = _given(args, SPATIAL_OPTIONS)
     if 'mass_redistribution' not in caps and 'body_kinematics' in caps and (
-            spatial_given or _given(args, SPATIAL_SHARED) or args.counterweights is not None
+            spatial_given or args.counterweights is not None
             or 'balancing_weights' not in caps):
         cli.requires(sc, 'mass_redistribution', **dict.fromkeys(
             [o for o in _given(args, PLANAR_OPTIONS) if o not in SPATIAL_SHARED], True))
