@@ -346,3 +346,48 @@ def test_rggr_spatial_and_rggr_redistribution_agree():
     tol = max(a.certificate.gap_abs, b.certificate.gap_abs) + 1e-9
     assert a.certificate.primal == pytest.approx(b.certificate.primal, abs=2 * tol)
     assert dataclasses.is_dataclass(a.certificate)
+
+
+@pytest.mark.parametrize('scene_name', ['rssr_skew', 'rssp_slider', 'spatial_two_loop',
+                                        'rggr_spatial'])
+def test_parameter_model_reproduces_the_spatial_rigs_wrench(scene_name):
+    rig = rig_for(schema.load(scene_name))
+    model = spatial.parameter_model(rig)
+    psi = cycle_angles(48)
+    force, moment = regressor.wrench(rig.body_kinematics(psi), model.theta, rig.moment_point_m)
+    data = rig.at(psi)
+    assert_allclose(force, data.force_N, rtol=0, atol=1e-10 * np.abs(data.force_N).max())
+    assert_allclose(moment, data.moment_Nm, rtol=0, atol=1e-10 * np.abs(data.moment_Nm).max())
+    # every body's scene parameters lie in its basis (an S-S rod on its line)
+    for k, body in enumerate(model.bodies):
+        t = model.theta[10 * k:10 * k + 10]
+        assert_allclose(body.basis @ spatial._coordinates(body, t), t, rtol=0,
+                        atol=1e-12 * np.abs(t).max())
+    # the model writes the scene back as it was
+    again = spatial.parameter_model(rig.with_scene(model.build(model.theta)))
+    assert_allclose(again.theta, model.theta, rtol=1e-12, atol=1e-15)
+
+
+def test_command_line_balance_and_analyze(tmp_path, capsys):
+    import json
+    from mech_balance.cli import main as cli
+    out = tmp_path / 'rssr_fb.yaml'
+    status = cli.main(['balance', '--scene', 'rssr_skew', '--force-balanced', '--samples', '90',
+                       '--output', str(out), '--json'])
+    assert status == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report['certificate']['certified']
+    rows = {r['quantity']: r for r in report['table']}
+    assert rows['shaking force']['after_si'] <= 1e-9 * rows['shaking force']['before_si']
+    data = rig_for(schema.load(str(out))).at(cycle_angles(90))
+    assert rms(data.moment_Nm) == pytest.approx(rows['shaking moment']['after_si'],
+                                                rel=REPRODUCE_RTOL, abs=1e-12)
+    status = cli.main(['balance', '--scene', 'rggr', '--method', 'force-balance',
+                       '--free', 'crank', '--free', 'output'])
+    text = capsys.readouterr().out
+    assert status == 0 and 'output.h_x = - 0.666667 coupler.h_x' in text
+    assert cli.main(['balance', '--scene', 'hoeken', '--force-balanced']) == cli.EXIT_USAGE
+    assert '--force-balanced applies to' in capsys.readouterr().err
+    assert cli.main(['balance', '--scene', 'rggr', '--method', 'force-balance',
+                     '--extent-factor', '2']) == cli.EXIT_USAGE
+    assert '--extent-factor: applies to --method redistribution' in capsys.readouterr().err
