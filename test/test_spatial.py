@@ -51,37 +51,32 @@ def _fd(values, dt):
 
 
 def _momenta(rig, psi, speed, moment_point, dt):
-    """Return (p, H_P) of the moving links from the rig's body poses (FD of the poses)."""
-    # positions and rotations at 9 times around each of the 9 stencil times
+    """Return (p, H_P) ``(9, n, 3)`` of the moving links at 9 times (FD of the body poses)."""
     sc = rig.scene
     mass = np.array([lk.mass_kg for lk in sc.links])
     com = np.array([lk.com_m for lk in sc.links])
     inertia = np.array([lk.inertia_matrix() for lk in sc.links])
-    out_p, out_h = [], []
-    for k in range(9):
-        t = (np.arange(9) - 4 + (k - 4) * 9) * dt
-        xs, rs = [], []
-        for tj in t:
-            ang = psi + speed * tj + 0.5 * ACCEL_FRACTION * speed ** 2 * tj ** 2
-            poses = rig.at(ang, outputs=('kinematics',)).bodies
-            xs.append(poses.origin_m[:, 1:] + np.einsum('nkij,kj->nki', poses.rotation[:, 1:],
-                                                      com))
-            rs.append(poses.rotation[:, 1:])
-        xs, rs = np.array(xs), np.array(rs)
-        v = _fd(xs, dt)
-        rdot = _fd(rs, dt)
-        r = rs[4]
-        w_mat = rdot @ np.swapaxes(r, -1, -2)
-        omega = 0.5 * np.stack([w_mat[..., 2, 1] - w_mat[..., 1, 2],
-                                w_mat[..., 0, 2] - w_mat[..., 2, 0],
-                                w_mat[..., 1, 0] - w_mat[..., 0, 1]], -1)
-        iw = r @ inertia @ np.swapaxes(r, -1, -2)
-        p = np.einsum('k,nki->ni', mass, v)
-        h = np.einsum('nkij,nkj->ni', iw, omega) + np.einsum(
-            'k,nki->ni', mass, np.cross(xs[4] - moment_point, v))
-        out_p.append(p)
-        out_h.append(h)
-    return np.array(out_p), np.array(out_h)
+    # 9 stencil times around each of the 9 outer times, all angles in one evaluation
+    t = ((np.arange(9) - 4)[None, :] + 9 * (np.arange(9) - 4)[:, None]) * dt   # (9, 9)
+    ang = psi[None, None, :] + speed * t[..., None] + 0.5 * ACCEL_FRACTION * speed ** 2 * \
+        t[..., None] ** 2
+    poses = rig.at(ang.ravel(), outputs=('kinematics',)).bodies
+    shape = ang.shape
+    rs = poses.rotation[:, 1:].reshape(shape + (len(mass), 3, 3))
+    xs = (poses.origin_m[:, 1:] + np.einsum('nkij,kj->nki', poses.rotation[:, 1:], com))
+    xs = xs.reshape(shape + (len(mass), 3))
+    v = _fd(np.moveaxis(xs, 1, 0), dt)            # (9 outer, n, k, 3)
+    rdot = _fd(np.moveaxis(rs, 1, 0), dt)
+    r = rs[:, 4]
+    w_mat = rdot @ np.swapaxes(r, -1, -2)
+    omega = 0.5 * np.stack([w_mat[..., 2, 1] - w_mat[..., 1, 2],
+                            w_mat[..., 0, 2] - w_mat[..., 2, 0],
+                            w_mat[..., 1, 0] - w_mat[..., 0, 1]], -1)
+    iw = r @ inertia @ np.swapaxes(r, -1, -2)
+    p = np.einsum('k,onki->oni', mass, v)
+    h = np.einsum('onkij,onkj->oni', iw, omega) + np.einsum(
+        'k,onki->oni', mass, np.cross(xs[:, 4] - moment_point, v))
+    return p, h
 
 
 def _check_momentum(rig, psi):
@@ -102,14 +97,12 @@ def _check_power(rig, psi):
     speed = rig.scene.crank_speed_rad_s
     accel = ACCEL_FRACTION * speed ** 2
     data = rig.at(psi, speed, accel, outputs=('driving_torque',))
-    energy = []
     dt = FD_STEP_RAD / abs(speed)
-    for j in range(9):
-        tj = (j - 4) * dt
-        ang = psi + speed * tj + 0.5 * accel * tj ** 2
-        energy.append(rig.at(ang, speed + accel * tj, accel,
-                             outputs=('kinetic_energy',)).series['kinetic_energy'])
-    dT = _fd(np.array(energy), dt)
+    t = ((np.arange(9) - 4) * dt)[:, None] + 0.0 * psi[None, :]
+    ang = psi[None, :] + speed * t + 0.5 * accel * t ** 2
+    energy = rig.at(ang.ravel(), (speed + accel * t).ravel(), accel,
+                    outputs=('kinetic_energy',)).series['kinetic_energy'].reshape(t.shape)
+    dT = _fd(energy, dt)
     power = data.series['driving_torque'] * speed
     assert_allclose(power, dT, rtol=0, atol=POWER_RTOL * np.max(np.abs(dT)))
 
