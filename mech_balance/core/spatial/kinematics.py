@@ -774,24 +774,17 @@ class Linkage:
             spins.append((k, sph_j, x, u))
         if len(spins) < null.shape[0]:
             return  # the rank check after assembly names the extra freedoms
+        self.idle_lines = []
         for k, sph_j, x, u in spins:
             name = self.body_names[k]
-            lk = sc.link(name)
             rl = fr.rot[0, k]
-            ul = rl.T @ u
-            c = np.array(lk.com_m) - self._points[name][
-                sph_j[0].point_a if sph_j[0].link_a == name else sph_j[0].point_b]
-            inertia = np.array(lk.inertia_matrix())
-            about = float(ul @ inertia @ ul + lk.mass_kg * np.sum(np.cross(c, ul) ** 2))
-            scale = lk.mass_kg * self.length_scale ** 2 + float(np.trace(inertia))
-            if about > IDLE_INERTIA_RTOL * max(scale, 1e-300):
-                raise SpatialError(
-                    f'links.{name}: held only by the spherical joints {sph_j[0].name} and '
-                    f'{sph_j[1].name}, it spins freely about the line through them (an idle '
-                    f'freedom of the Jacobian), and its inertia about that line is '
-                    f'{about:.6g} kg m^2; expected 0 (a slender rod on that line, whose '
-                    f'spin is then fixed by convention) - or replace one S by a U (universal '
-                    f'joint) to hold the spin')
+            x0 = self._points[name][sph_j[0].point_a if sph_j[0].link_a == name
+                                    else sph_j[0].point_b]
+            self.idle_lines.append((name, sph_j[0].name, sph_j[1].name, rl.T @ u, x0))
+        self.check_idle_inertia(self.scene)
+        for k, sph_j, x, u in spins:
+            name = self.body_names[k]
+            rl = fr.rot[0, k]
             n_ref = np.eye(3)[int(np.argmin(np.abs(u)))]
             v = np.cross(u, n_ref)
             v /= np.linalg.norm(v)
@@ -800,6 +793,28 @@ class Linkage:
             self.idle_spins = getattr(self, 'idle_spins', ()) + (
                 (name, sph_j[0].name, sph_j[1].name),)
         self._finish_rows()
+
+    def check_idle_inertia(self, scene):
+        """
+        Refuse a design whose S-S link has inertia about its S-S line (the spin convention).
+
+        The inertia about the line through the two spherical joints, ``u.I_c u + m |(c - x0)
+        x u|^2``, must be zero to :data:`IDLE_INERTIA_RTOL`; the message names the link,
+        the two joints and the way out.
+        """
+        for name, j1, j2, ul, x0 in getattr(self, 'idle_lines', ()):
+            lk = scene.link(name)
+            c = np.array(lk.com_m) - x0
+            inertia = np.array(lk.inertia_matrix())
+            about = float(ul @ inertia @ ul + lk.mass_kg * np.sum(np.cross(c, ul) ** 2))
+            scale = lk.mass_kg * self.length_scale ** 2 + float(np.trace(inertia))
+            if about > IDLE_INERTIA_RTOL * max(scale, 1e-300):
+                raise SpatialError(
+                    f'links.{name}: held only by the spherical joints {j1} and {j2}, it '
+                    'spins freely about the line through them (an idle freedom of the '
+                    f'Jacobian), and its inertia about that line is {about:.6g} kg m^2; '
+                    'expected 0 (a slender rod on that line, whose spin is then fixed by '
+                    'convention) - or replace one S by a U (universal joint) to hold the spin')
 
     # ------------------------------------------------------------------ rates
 

@@ -48,6 +48,7 @@ class SpatialRig:
         self.name = scene.name
         self.linkage = linkage if linkage is not None else linkage_for(scene, cache)
         self.linkage.skeleton  # noqa: B018 - trace the branch now: fail early
+        self.linkage.check_idle_inertia(scene)  # a design of the geometry keeps its rods
         self.inertia = dynamics.Inertia.from_scene(scene)
         self.joint_names, self.joint_prismatic = coordinates.joint_names(scene)
         self.crank_joint = scene.crank_joint
