@@ -44,9 +44,9 @@ import time
 import clarabel
 from mech_balance import schema
 from mech_balance.balancing import certificate, socp as balancing
-from mech_balance.balancing.defaults import DEFAULT_DENSITY_KG_M3, \
-    DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR, DEFAULT_MAX_RADIUS_FACTOR, \
-    DEFAULT_MAX_THICKNESS_M
+from mech_balance.balancing.defaults import check_counterweight_option, \
+    DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR, \
+    DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_MAX_THICKNESS_M
 from mech_balance.core.planar import dynamics
 from mech_balance.schema.scene import add_counterweights, Counterweight
 import numpy as np
@@ -160,13 +160,22 @@ def check_options(scene, options):
         raise CounterweightError(f'samples: got {samples!r}, expected an integer >= 4')
     return CounterweightOptions(
         links=link_list(options.links, scene), weights=(w1, w2),
-        density_kg_m3=positive(options.density_kg_m3, 'density_kg_m3'),
-        max_thickness_m=positive(options.max_thickness_m, 'max_thickness_m'),
-        max_radius_factor=positive(options.max_radius_factor, 'max_radius_factor'),
-        max_mass_factor=positive(options.max_mass_factor, 'max_mass_factor'),
-        max_gyration_factor=positive(options.max_gyration_factor, 'max_gyration_factor'),
+        density_kg_m3=_ranged(options.density_kg_m3, 'density_kg_m3'),
+        max_thickness_m=_ranged(options.max_thickness_m, 'max_thickness_m'),
+        max_radius_factor=_ranged(options.max_radius_factor, 'max_radius_factor'),
+        max_mass_factor=_ranged(options.max_mass_factor, 'max_mass_factor'),
+        max_gyration_factor=_ranged(options.max_gyration_factor, 'max_gyration_factor'),
         torque_weight=tw, reaction_weight=rw, samples=int(samples),
         tie_break=bool(options.tie_break))
+
+
+def _ranged(value, option):
+    """Return an option checked against :data:`.defaults.COUNTERWEIGHT_RANGES`."""
+    positive(value, option)
+    try:
+        return check_counterweight_option(option, value)
+    except ValueError as exc:
+        raise CounterweightError(str(exc)) from None
 
 
 def joint_reach_m(scene, link_name):
@@ -351,7 +360,7 @@ def solve(scene, options):
         stage3.solve.attempts = tuple(tried)
         if not stage3.solve.ok:
             failed.append(balancing.failed_stage(
-                'least added mass', stage3.solve, 'the previous stage\'s optimum (its '
+                'least added mass', stage3.solve, "the previous stage's optimum (its "
                 'added mass is not the least)'))
             stage3 = None
         else:
