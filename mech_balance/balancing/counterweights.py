@@ -327,13 +327,25 @@ def solve(scene, options):
                  prob.norm(0, y) <= balancing.FORCE_BALANCE_REL_TOL * maps.force_rms_original)
         pins = [prob.pin(primary, y, exact)]
         stage2 = prob.run(prob.unit(secondary), pins)
+        tried = list(stage2.solve.attempts)
+        if not stage2.solve.ok and not exact:
+            # the optimal image pinned exactly can be infeasible to round-off: cap the
+            # primary norm instead (z <= z* + slack), as the mass stage does
+            z_p = prob.norm(primary, y)
+            for slack in MASS_STAGE_SLACKS[1:]:
+                cap = [(prob.unit(primary), z_p + slack * max(z_p, balancing.GAP_FLOOR))]
+                stage2 = prob.run(prob.unit(secondary), [], None, cap)
+                tried.extend(stage2.solve.attempts)
+                if stage2.solve.ok:
+                    pins = []
+                    break
+        stage2.solve.attempts = tuple(tried)
         if not stage2.solve.ok:
             failed.append(balancing.failed_stage(name2, stage2.solve,
                                                  "the primary stage's optimum"))
             stage2, exact, pins = None, False, []
         else:
             y = stage2.y
-            pins = pins + [prob.pin(secondary, y, False)]
     if opt.tie_break and stage1.solve.ok:
         # the mass stage keeps every earlier objective within TIE_BREAK_SLACK of its optimum
         # (a cap on its epigraph variable; pinning the images exactly as well is infeasible
@@ -341,11 +353,11 @@ def solve(scene, options):
         variants = []
         for slack in MASS_STAGE_SLACKS:
             bound, caps, keep = None, [], []
-            if not pins:
+            if stage2 is None:
                 z1 = prob.z(y)
                 bound = z1 + slack * max(z1, balancing.GAP_FLOOR)
             else:
-                if exact and slack == MASS_STAGE_SLACKS[0]:
+                if exact and pins and slack == MASS_STAGE_SLACKS[0]:
                     keep = pins[:1]
                 for k in ([secondary] if keep else [primary, secondary]):
                     zk = prob.norm(k, y)

@@ -73,7 +73,7 @@ SOLVER_TOL = 1e-9
 """Clarabel's relative and absolute gap and feasibility tolerances."""
 SOLVER_MAX_ITER = 200
 """Interior-point iterations before giving up."""
-CERTIFIED_GAP_REL = 1e-6
+CERTIFIED_GAP_REL = 1e-5
 """A stage is certified when its safe lower bound is finite and primal - L is at most this
 fraction of max(|primal|, GAP_FLOOR) (``mech-balance balance`` exits 2 otherwise)."""
 RETRY_SETTINGS = (
