@@ -346,11 +346,15 @@ def solve(scene, options):
             stage2, exact, pins = None, False, []
         else:
             y = stage2.y
+            if pins:
+                pins = pins + [prob.pin(secondary, y, False)]
     if opt.tie_break and stage1.solve.ok:
-        # the mass stage keeps every earlier objective within TIE_BREAK_SLACK of its optimum
-        # (a cap on its epigraph variable; pinning the images exactly as well is infeasible
-        # to round-off at active cones: Clarabel ends AlmostPrimalInfeasible)
+        # the mass stage keeps every earlier objective optimal: the optimal images pinned
+        # exactly, or, where that is infeasible to round-off at active cones (Clarabel ends
+        # AlmostPrimalInfeasible), each objective capped at its optimum plus a slack
         variants = []
+        if pins:   # first the optimal images pinned exactly (the tie-break's own argument)
+            variants.append((prob.merged(pins, y), None, []))
         for slack in MASS_STAGE_SLACKS:
             bound, caps, keep = None, [], []
             if stage2 is None:

@@ -149,7 +149,7 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
     if best is None:
         raise balancing.BalanceError('two-point model: no sequential cone program found a '
                                      'two-point design (every piece failed or left the set)')
-    t = best['theta'].reshape(-1, 4)
+    t, feas_tol = _clipped(best['theta'].reshape(-1, 4), m0, i0, best['feasibility_tol'])
     pm = {lk.name: dict(zip(('m_1', 'm_2', 'l_1', 'l_2'), point_masses(*row)))
           for lk, row in zip(scene.links, t)}
     # verify: the point masses give back the parameters, and the core evaluates the design
@@ -157,6 +157,8 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
     for p in pm.values():
         rebuilt += [p['m_1'] + p['m_2'], p['m_1'] * p['l_1'], p['m_2'] * p['l_2'],
                     p['m_1'] * p['l_1'] ** 2 + p['m_2'] * p['l_2'] ** 2]
+    if feas_tol < balancing.SOLVER_TOL:   # clipped: repair the rebuild's round-off
+        pm, rebuilt = _repaired(pm, m0, i0)
     upper_terms = _terms(maps, np.array(rebuilt))
     lower_terms = _terms(maps, lower['theta'])
     z_up = float(w @ [upper_terms['shaking_force'], upper_terms['shaking_moment']])
@@ -169,7 +171,60 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
         gap_rel=(z_up - z_lo) / max(abs(z_up), 1.0), point_masses=pm,
         band_links=tuple(scene.links[i].name for i in band), programs=programs,
         seconds=time.perf_counter() - t_start, relaxation_z=lower['z'],
-        failed_programs=failed, upper_feasibility_tol=best['feasibility_tol'])
+        failed_programs=failed, upper_feasibility_tol=feas_tol)
+
+
+def _clipped(t, m0, i0, solver_tol):
+    """
+    Return the upper design moved into the bounds B.2-B.3 exactly, and its tolerance.
+
+    An interior-point solution meets the bounds to the solver's feasibility tolerance; the
+    masses are clipped into [1, 5] m^o and the inertias raised to 0.25 I^o where that keeps
+    every link representable by two point masses.  The tolerance returned is then the
+    round-off of rebuilding the parameters from the point masses (a few ulp), else the
+    solver's.
+    """
+    c = t.copy()
+    c[:, 0] = np.clip(c[:, 0], PAPER_MASS_FACTORS[0] * m0, PAPER_MASS_FACTORS[1] * m0)
+    c[:, 3] = np.maximum(c[:, 3], PAPER_INERTIA_FACTOR * i0)
+    if np.all(representable(c)):
+        return c, 4.0 * np.finfo(float).eps   # the test's conversion to SI: a few ulp
+    return t, solver_tol
+
+
+def _rebuild(p):
+    return [p['m_1'] + p['m_2'], p['m_1'] * p['l_1'], p['m_2'] * p['l_2'],
+            p['m_1'] * p['l_1'] ** 2 + p['m_2'] * p['l_2'] ** 2]
+
+
+def _repaired(pm, m0, i0):
+    """
+    Return point masses whose rebuilt parameters meet B.2-B.3 exactly, and those parameters.
+
+    Solving for the point masses cancels digits (masses of opposite sign at distances of
+    hundreds of link lengths): a rebuilt inertia can fall 1e-8 below its bound.  Any point
+    masses are a two-point design, so both distances are scaled up (inertia by the square)
+    or both masses scaled into the mass bounds, with a margin of a few ulp.
+    """
+    margin = 1.0 + 8.0 * np.finfo(float).eps
+    out, rebuilt = {}, []
+    for (name, p), mo, io in zip(pm.items(), m0, i0):
+        p = dict(p)
+        for _ in range(4):
+            m, _, _, i_o = _rebuild(p)
+            lo, hi = PAPER_MASS_FACTORS[0] * mo, PAPER_MASS_FACTORS[1] * mo
+            if m < lo or m > hi:
+                k = (lo * margin if m < lo else hi / margin) / m
+                p['m_1'], p['m_2'] = p['m_1'] * k, p['m_2'] * k
+                continue
+            if i_o < PAPER_INERTIA_FACTOR * io:
+                k = math.sqrt(PAPER_INERTIA_FACTOR * io / i_o) * margin
+                p['l_1'], p['l_2'] = p['l_1'] * k, p['l_2'] * k
+                continue
+            break
+        out[name] = p
+        rebuilt += _rebuild(p)
+    return out, rebuilt
 
 
 def _terms(maps, theta):
