@@ -111,6 +111,17 @@ def _supports(method, caps):
     return METHODS[method] in caps or ALTERNATIVES.get(method) in caps
 
 
+def _certificate_text(cert):
+    """Return a certificate in a few words: status, certified or not, gap, failed stages."""
+    text = (f'{cert.status}, {"certified" if cert.certified else "NOT certified"}, '
+            f'lower bound {cert.lower_bound:.6g} <= z {cert.primal:.6g}, relative gap '
+            f'{cert.gap_rel:.1e}')
+    failed = [f['stage'] for f in cert.failed_stages or ()]
+    if failed:
+        text += f'; failed stage(s): {", ".join(failed)}'
+    return text
+
+
 def method_for(rig, method='auto'):
     """Return the method that balances ``rig`` (``auto``: the first the rig supports)."""
     caps = rig.capabilities
@@ -165,10 +176,8 @@ def _spatial(rig, method, options):
         options = dict(options)
         links = options.pop('links', ())
         result = spatial.counterweights(rig, links, **options)
-    cert = result.certificate
     return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
-        result.table, f'{cert.status}, lower bound {cert.lower_bound:.6g}, relative gap '
-                      f'{cert.gap_rel:.1e}'))
+        result.table, _certificate_text(result.certificate)))
 
 
 def balance(rig, method='auto', **options):
@@ -190,17 +199,15 @@ def balance(rig, method='auto', **options):
         report = result.to_dict()
         report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
                                                           result.table)
-        cert = result.certificate
         return Design(result.balanced_scene, report, method, result, _table_figures(
-            result.table, f'{cert.status}, relative gap {cert.gap_rel:.1e}'))
+            result.table, _certificate_text(result.certificate)))
     if method == 'counterweights':
         from mech_balance.balancing import counterweights
         options = dict(options)
         links = options.pop('links', ())
         result = counterweights.balance_with_counterweights(sc, links, **options)
-        cert = result.certificate
         return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
-            result.table, f'{cert.status}, relative gap {cert.gap_rel:.1e}'))
+            result.table, _certificate_text(result.certificate)))
     if method == 'analytic':
         from mech_balance.balancing import counterweights, socp
         if any(j.prismatic for j in sc.joints):
@@ -223,12 +230,16 @@ def balance(rig, method='auto', **options):
     samples = options.get('samples') or DEFAULT_SAMPLES
     result = rggr_balancing.balance_scene(sc, samples)
     report = rggr_report.balance_report(sc, samples, result=result)
+    report.setdefault('optimum', {})['moment_rms_lower_bound_Nm'] = \
+        result.optimum.moment_rms_lower_bound_Nm
     rows = {r['rig']: r for r in report['table']}
     before, after = rows['unbalanced'], rows['optimized']
     figures = {'force_N': (before['shaking_force_rms'], after['shaking_force_rms']),
                'moment_Nm': (before['shaking_moment_rms'], after['shaking_moment_rms']),
                'certificate': 'least squares, normal-equation residual '
-                              f'{report["optimum"]["normal_equation_residual"]:.1e}'}
+                              f'{report["optimum"]["normal_equation_residual"]:.1e}, RMS '
+                              'moment lower bound '
+                              f'{result.optimum.moment_rms_lower_bound_Nm:.6g} N m'}
     return Design(result.design.scene, report, method, result, figures)
 
 

@@ -241,6 +241,57 @@ def level_set_bounds(mat, radius, lo, hi, centre=None, null_rel_tol=None):
     return lo, hi, int(free.sum() - keep.sum())
 
 
+SVD_MARGIN = 1e-6
+"""Relative margin on the level-set radius in :func:`polytope_bounds`: it covers the rounding
+of the singular vectors (orthogonal to ~1e-15) for the directions it keeps."""
+
+
+def polytope_bounds(mat, radius, lo, hi, rel_tol):
+    """
+    Return (lo, hi): every coordinate bounded over ``{lo <= y <= hi, ||mat y|| <= radius}``.
+
+    With ``mat = U S V'``, ``||mat y|| <= radius`` implies ``|v_j' y| <= radius / s_j`` for
+    each right singular vector; the directions with ``s_j > rel_tol s_max`` and the box make
+    a polytope, and each coordinate's range over it is a linear program (scipy HiGHS).  A
+    direction the objective does not see (s_j below rel_tol) is bounded only where the box
+    bounds the coordinates it moves, with both signs (the inertias of Table 12's null
+    direction, each >= 0.25 I^o).  An unbounded program leaves the side infinite.
+    """
+    from scipy.optimize import linprog
+    lo = np.array(lo, dtype=float)
+    hi = np.array(hi, dtype=float)
+    mat = np.atleast_2d(np.asarray(mat, dtype=float))
+    if np.all(np.isfinite(lo) & np.isfinite(hi)) or not math.isfinite(radius):
+        return lo, hi
+    _, sv, vt = np.linalg.svd(mat, full_matrices=False)
+    keep = sv > rel_tol * sv[0] if sv.size else sv > 0
+    rows = vt[keep]
+    cap = radius * (1.0 + SVD_MARGIN) / sv[keep]
+    a_ub = np.vstack([rows, -rows])
+    b_ub = np.concatenate([cap, cap])
+    bounds = [(None if not np.isfinite(a) else a, None if not np.isfinite(b) else b)
+              for a, b in zip(lo, hi)]
+    n = lo.size
+    out_lo, out_hi = lo.copy(), hi.copy()
+    for i in range(n):
+        for sign in (1.0, -1.0):
+            if (sign > 0 and np.isfinite(lo[i])) or (sign < 0 and np.isfinite(hi[i])):
+                continue
+            c = np.zeros(n)
+            c[i] = sign
+            res = linprog(c, A_ub=a_ub, b_ub=b_ub, bounds=bounds, method='highs')
+            if res.status != 0:
+                continue
+            # HiGHS meets its feasibility tolerance (1e-7): widen by it, relative to the box
+            value = sign * res.fun
+            slack = 1e-6 * (1.0 + abs(value))
+            if sign > 0:
+                out_lo[i] = value - slack
+            else:
+                out_hi[i] = value + slack
+    return out_lo, out_hi
+
+
 def relative_gap(primal, lower, floor=1.0):
     """Return (gap, relative gap): ``primal - lower`` (>= 0) over ``max(|primal|, floor)``."""
     gap = max(float(primal) - float(lower), 0.0)
@@ -248,4 +299,4 @@ def relative_gap(primal, lower, floor=1.0):
 
 
 __all__ = ['cone_list', 'gamma', 'level_set_bounds', 'LowerBound', 'norm_bound',
-           'project_dual', 'relative_gap', 'safe_lower_bound']
+           'polytope_bounds', 'project_dual', 'relative_gap', 'safe_lower_bound']

@@ -30,6 +30,11 @@ ANALYTIC_OPTIONS = ('--mass-factor', '--keep-centroidal')
 COUNTERWEIGHT_OPTIONS = ('--density', '--max-thickness', '--max-radius-factor',
                          '--max-mass-factor', '--max-gyration-factor')
 """Options of --counterweights alone: rejected without it."""
+COUNTERWEIGHT_KEYS = {'--density': 'density_kg_m3', '--max-thickness': 'max_thickness_m',
+                      '--max-radius-factor': 'max_radius_factor',
+                      '--max-mass-factor': 'max_mass_factor',
+                      '--max-gyration-factor': 'max_gyration_factor'}
+"""The counterweight options and their keys in :data:`.defaults.COUNTERWEIGHT_RANGES`."""
 COUNTERWEIGHT_SHARED = ('--weights', '--torque-weight', '--reaction-weight')
 """Options of the optimization that --counterweights uses too (the rest it rejects)."""
 PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + (
@@ -51,6 +56,11 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         if action.default is None or action.default is False:
             return action.help
         return super()._get_help_string(action)
+
+
+def _range(key):
+    lowest, highest = defaults.COUNTERWEIGHT_RANGES[key]
+    return f'; range {lowest:g} to {highest:g}'
 
 
 def _dest(option):
@@ -128,20 +138,23 @@ def register(subparsers):
                         'every other link is untouched')
     p.add_argument('--density', type=float, default=defaults.DEFAULT_DENSITY_KG_M3,
                    metavar='KG_M3', help='--counterweights: disc material density (kg/m^3; '
-                                         'steel)')
+                                         'steel)' + _range('density_kg_m3'))
     p.add_argument('--max-thickness', type=float, default=defaults.DEFAULT_MAX_THICKNESS_M,
-                   metavar='M', help='--counterweights: thickest disc (m)')
+                   metavar='M', help='--counterweights: thickest disc (m)'
+                   + _range('max_thickness_m'))
     p.add_argument('--max-radius-factor', type=float,
                    default=defaults.DEFAULT_MAX_RADIUS_FACTOR, metavar='F',
                    help="--counterweights: disc centre at most F x the distance from the link's "
-                        'origin to its farthest joint point')
+                        'origin to its farthest joint point' + _range('max_radius_factor'))
     p.add_argument('--max-mass-factor', type=float, default=defaults.DEFAULT_MAX_MASS_FACTOR,
-                   metavar='F', help="--counterweights: disc mass at most F x the link's mass")
+                   metavar='F', help="--counterweights: disc mass at most F x the link's mass"
+                   + _range('max_mass_factor'))
     p.add_argument('--max-gyration-factor', type=float,
                    default=defaults.DEFAULT_MAX_GYRATION_FACTOR, metavar='F',
                    help="--counterweights: the disc's radius of gyration about the link origin "
                         "at most F x the link's farthest joint distance (keeps a vanishing disc "
-                        'from carrying inertia)')
+                        'from carrying inertia; above 100 the program is ill-posed)'
+                        + _range('max_gyration_factor'))
     p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
                    help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
                         'with two point masses per link at 0 and 90 deg, and print the '
@@ -199,6 +212,7 @@ def _check_options(args):
             value = getattr(args, _dest(option))
             if not (np.isfinite(value) and value > 0.0):
                 raise ValueError(f'{option}: got {value:g}, expected a finite number > 0')
+            defaults.check_counterweight_option(COUNTERWEIGHT_KEYS[option], value, option)
         return
     given_cw = _given(args, COUNTERWEIGHT_OPTIONS)
     if given_cw:
@@ -268,13 +282,52 @@ def cmd_balance(args):
         if table12 is not None:
             out['two_point_model'] = table12.to_dict()
         print(json.dumps(out, indent=2))
-        return 0
+        return exit_status(result.certificate)
     print(format_result(result, normalized=not args.si))
     if table12 is not None:
         print('\n' + format_table12(table12))
     if args.output:
         print(f'balanced scene written to {args.output}')
-    return 0
+    _warn(result.certificate)
+    return exit_status(result.certificate)
+
+
+def exit_status(cert):
+    """Return 0 when the primary objective is certified, else 2 (a failed stage is warned)."""
+    return 0 if cert.certified else 2
+
+
+def certificate_lines(cert):
+    """Return the certificate as text: primal, safe lower bound, gap, stages, violations."""
+    lines = [f'certificate ({cert.solver}): status {cert.status}'
+             + (f' (attempts: {", ".join(cert.attempts)})' if cert.attempts and
+                len(cert.attempts) > 1 else '')
+             + f', primal {cert.primal:.9g}, lower bound {cert.lower_bound:.9g}, gap '
+             f'{cert.gap_abs:.2e} (relative {cert.gap_rel:.2e}), '
+             + ('certified' if cert.certified else 'NOT certified')
+             + f'; {cert.iterations} iterations, residuals {cert.residual_primal:.1e} / '
+             f'{cert.residual_dual:.1e}',
+             f'max constraint violation of the solver\'s design {cert.max_violation:.1e}'
+             + (f' (moved {cert.feasibility_pull:.0e} of the way to a feasible anchor; the '
+                'design reported satisfies every constraint)' if cert.feasibility_pull else
+                ' (the design reported satisfies every constraint)'
+                if cert.max_violation else '')]
+    return lines
+
+
+def _warn(cert):
+    """Print one warning line per failed stage, and one if the objective is not certified."""
+    for f in cert.failed_stages or ():
+        print(f"warning: stage '{f['stage']}' failed: {f['reason']}; the design is "
+              f"{f['design']}", file=sys.stderr)
+    if not cert.certified:
+        print(f'warning: the primary objective is not certified (relative gap '
+              f'{cert.gap_rel:.1e} > {_certified_gap():.0e}); exit status 2', file=sys.stderr)
+
+
+def _certified_gap():
+    from mech_balance.balancing import socp as balancing
+    return balancing.CERTIFIED_GAP_REL
 
 
 def _counterweights(sc, args):
@@ -290,11 +343,12 @@ def _counterweights(sc, args):
         _write(result.balanced_scene, args.output, result.summary())
     if args.json:
         print(json.dumps(result.to_dict(), indent=2))
-        return 0
+        return exit_status(result.certificate)
     print(format_counterweights(result, normalized=not args.si))
     if args.output:
         print(f'scene with counterweights written to {args.output}')
-    return 0
+    _warn(result.certificate)
+    return exit_status(result.certificate)
 
 
 def format_counterweights(result, normalized=True):
@@ -329,10 +383,7 @@ def format_counterweights(result, normalized=True):
     obj, cert = result.objective, result.certificate
     lines += [f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
               f"f~ = {obj['shaking_force_rms']:.6g}, n~ = {obj['shaking_moment_rms']:.6g}",
-              f'certificate ({cert.solver}): status {cert.status}, primal {cert.primal:.9g}, '
-              f'dual {cert.dual:.9g}, gap {cert.gap_abs:.2e} (relative {cert.gap_rel:.2e}), '
-              f'{cert.iterations} iterations; max constraint violation '
-              f'{cert.max_violation:.1e}']
+              *certificate_lines(cert)]
     if cert.stage2 is not None:
         s2 = cert.stage2
         lines.append(f"tie-break: minimized {s2['minimized']} among optimal designs"
@@ -341,7 +392,10 @@ def format_counterweights(result, normalized=True):
     if result.least_mass is not None:
         lm = result.least_mass
         lines.append(f"tie-break: least total added mass {lm['objective_kg']:.6g} kg "
-                     f"({lm['status']})")
+                     f"(lower bound {lm['lower_bound_kg']:.6g} kg; {lm['status']})")
+    for f in cert.failed_stages or ():
+        lines.append(f"FAILED stage '{f['stage']}': {f['reason']}; the design is "
+                     f"{f['design']}")
     lines.append(cw_mod.format_cost(result.cost))
     lines.append(f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
                  f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
@@ -404,11 +458,10 @@ def format_result(result, normalized=True):
     obj, cert = result.objective, result.certificate
     lines += ['', f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
               f"f~ = {obj['shaking_force_rms']:.6g}, n~ = {obj['shaking_moment_rms']:.6g}",
-              f'certificate ({cert.solver}): status {cert.status}, primal {cert.primal:.9g}, '
-              f'dual {cert.dual:.9g}, gap {cert.gap_abs:.2e} (relative {cert.gap_rel:.2e}), '
-              f'residuals {cert.residual_primal:.1e} / {cert.residual_dual:.1e}, '
-              f'{cert.iterations} iterations',
-              f'max constraint violation {cert.max_violation:.1e}']
+              *certificate_lines(cert)]
+    for f in cert.failed_stages or ():
+        lines.append(f"FAILED stage '{f['stage']}': {f['reason']}; the design is "
+                     f"{f['design']}")
     if cert.stage2 is not None:
         s2 = cert.stage2
         lines.append(f"tie-break (optimum not unique): minimized {s2['minimized']} among "
@@ -664,8 +717,16 @@ def format_spatial(design):
 
 
 def _write(balanced, path, summary):
+    from mech_balance import schema
     from mech_balance.balancing import socp as balancing
+    from mech_balance.schema.registry import from_dict
+    from mech_balance.schema.scene import parse_yaml
     text = balancing.scene_to_yaml(balanced, balance=summary)
+    try:   # a written scene always loads: check it as the loader will, before writing
+        from_dict(parse_yaml(text, f'--output {path}'), source=str(path))
+    except (ValueError, schema.SceneError) as exc:
+        raise ValueError(f'--output: the design is not a scene the loader accepts ({exc}); '
+                         'nothing written') from None
     atomic.write_text_atomic(  # a failed write leaves an existing file as it was
         path, f'# written by mech-balance balance from scene {summary["source_scene"]}\n'
         + text)
