@@ -391,3 +391,18 @@ def test_command_line_balance_and_analyze(tmp_path, capsys):
     assert cli.main(['balance', '--scene', 'rggr', '--method', 'force-balance',
                      '--extent-factor', '2']) == cli.EXIT_USAGE
     assert '--extent-factor: applies to --method redistribution' in capsys.readouterr().err
+
+
+def test_spatial_written_scene_analyze_reproduces(tmp_path):
+    from mech_balance.analysis import spatial_report
+    sc = schema.load('rssr_skew')
+    result = spatial.redistribute(rig_for(sc), fixed=('crank',))
+    assert result.samples == sc.samples
+    reloaded = spatial.write_scene(result, tmp_path / 'rssr_balanced.yaml')
+    report = spatial_report.analyze(reloaded).data
+    rows = {r['quantity'].split(' |')[0]: r for r in report['rows']}
+    mine = {r['quantity']: r for r in result.table}
+    for q in ('shaking force', 'shaking moment'):
+        assert rows[q]['rms'] == pytest.approx(mine[q]['after_si'], rel=REPRODUCE_RTOL)
+    text = (tmp_path / 'rssr_balanced.yaml').read_text()
+    assert 'balance:' in text and 'source_scene: rssr_skew' in text

@@ -351,9 +351,14 @@ class Maps:
     angles: np.ndarray
 
 
+def cycle_of(rig, samples):
+    """Return the crank angles of one revolution, from the scene's assembly angle (analyze's)."""
+    return cycle_angles(samples, float(getattr(rig.scene, 'assembly_crank_angle_rad', 0.0)))
+
+
 def maps_of(rig, samples):
     """Return the :class:`Maps` of a rig from its body kinematics over one revolution."""
-    psi = cycle_angles(samples)
+    psi = cycle_of(rig, samples)
     kin = rig.body_kinematics(psi)
     y = regressor.wrench_regressor(kin, rig.moment_point_m)
     root = math.sqrt(psi.size)
@@ -444,7 +449,7 @@ def force_balance(rig, free=None, samples=None):
     reach) that zeroes the shaking force at every crank angle.
     """
     model = parameter_model(rig)
-    samples = _samples(samples)
+    samples = _samples(samples, rig)
     maps = maps_of(rig, samples)
     nb = len(model.bodies)
     free_idx = _free(model, free, 'free')
@@ -541,7 +546,7 @@ def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAP
     t_start = time.perf_counter()
     w = _weights(weights)
     model = parameter_model(rig)
-    samples = _samples(samples)
+    samples = _samples(samples, rig)
     nb = len(model.bodies)
     fixed_idx = {model.index(n, 'fixed') for n in (fixed or ())}
     free_idx = [k for k in range(nb) if k not in fixed_idx]
@@ -656,7 +661,7 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
     t_start = time.perf_counter()
     w = _weights(weights)
     model = parameter_model(rig)
-    samples = _samples(samples)
+    samples = _samples(samples, rig)
     if isinstance(links, str):
         links = [part for part in links.split(',') if part]
     if not links:
@@ -1177,7 +1182,7 @@ def before_after(rig, balanced, samples, units, data=None):
     unit_si, before_si, after_si.
     """
     if data is None:
-        psi = cycle_angles(samples)
+        psi = cycle_of(rig, samples)
         rig2 = rig.with_scene(balanced)
         data = (rig.at(psi), rig2.at(psi))
     normalized = units.source == 'scene'
@@ -1317,9 +1322,9 @@ def _free(model, free, option):
     return out
 
 
-def _samples(samples):
+def _samples(samples, rig=None):
     if samples is None:
-        return DEFAULT_SAMPLES
+        return int(getattr(getattr(rig, 'scene', None), 'samples', None) or DEFAULT_SAMPLES)
     if isinstance(samples, bool) or int(samples) != samples or samples < 4:
         raise SpatialBalanceError(f'samples: got {samples!r}, expected an integer >= 4')
     return int(samples)
