@@ -282,7 +282,7 @@ def test_dispatch_through_capabilities(rggr_rig, rssr_rig):
     design = balancing.balance(rssr_rig, 'redistribution', samples=SAMPLES,
                                case='a', realizable=True, torque_weight=0.0)
     assert design.figures['force_N'][1] < design.figures['force_N'][0]
-    assert 'lower bound' in design.summary()
+    assert 'L ' in design.summary() and len(design.summary()) < 200
     assert design.report['certificate']['lower_bound'] <= design.report['certificate']['primal']
     design = balancing.balance(rggr_rig, 'counterweights', links=('crank',), samples=SAMPLES)
     assert set(design.report['options']['counterweights']) == {'crank'}

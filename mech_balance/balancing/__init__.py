@@ -176,8 +176,12 @@ def _spatial(rig, method, options):
         options = dict(options)
         links = options.pop('links', ())
         result = spatial.counterweights(rig, links, **options)
-    return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
-        result.table, _certificate_text(result.certificate)))
+    cert = result.certificate
+    # shorter than _certificate_text: a spatial optimum is often ~0 (e-notation on both sides)
+    text = (f'{cert.status}, {"certified" if cert.certified else "NOT certified"}, '
+            f'L {cert.lower_bound:.4g} <= z {cert.primal:.4g}, gap {cert.gap_rel:.1e}')
+    return Design(result.balanced_scene, result.to_dict(), method, result,
+                  _table_figures(result.table, text))
 
 
 def balance(rig, method='auto', **options):
