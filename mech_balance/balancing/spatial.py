@@ -97,6 +97,7 @@ class BodyModel:
     reach_m: float
     counterweights: object = True
     labels: tuple = regressor.PARAMETERS
+    line_offset_m: float = 0.0   # a body on a line: distance of the line's origin point
 
 
 @dataclass
@@ -245,7 +246,8 @@ def spatial_model(rig):
             ends = [lk.points[j.point_a if j.link_a == name else j.point_b]
                     for j in (joints[idle[name][0]], joints[idle[name][1]])]
             bodies.append(BodyModel(name, line_basis(*ends), (0, 1, 2), reach, True,
-                                    ('m', 'm s', 'm s^2')))
+                                    ('m', 'm s', 'm s^2'),
+                                    float(np.linalg.norm(ends[0]))))
         else:
             bodies.append(_full_body(name, reach))
 
@@ -601,9 +603,12 @@ def _redistribution_program(model, maps, units, free_idx, w, mlo, mhi, extent, f
         prog.mass_rows(cols, b_k, mlo[k], mhi[k], m0)
         prog.psd(cols, b_k, m0, r0)
         prog.extent(cols, b_k, extent[k], m0, r0)
-        # the box of every feasible point: lo <= m <= hi, |h_i| <= m r, |I_ij| <= m r^2
+        # the box of every feasible point: lo <= m <= hi, |h_i| <= m r, |I_ij| <= m r^2 (on a
+        # line from the point a: s <= |p| + |a|, so int s^2 dm <= m (r + |a|)^2 and
+        # |int s dm| <= m (r + |a|), Cauchy-Schwarz with int |p|^2 dm <= m r^2)
+        reach = extent[k] + body.line_offset_m
         for j, order in zip(range(cols.start, cols.stop), body.orders):
-            size = mhi[k] * extent[k] ** order / body_scale[j] * (1.0 + 1e-12)
+            size = mhi[k] * reach ** order / body_scale[j] * (1.0 + 1e-12)
             prog.box_lo[j] = mlo[k] / body_scale[j] * (1.0 - 1e-12) if order == 0 else -size
             prog.box_hi[j] = size
     prog.balanceable = prog.force_null(maps) if force_balanced else None
