@@ -334,6 +334,11 @@ def test_tight_bounds_are_met_to_the_reported_violation(rggr_rig):
     assert result.certificate.lower_bound <= result.certificate.primal
 
 
+def test_no_counterweight_on_an_idle_spin_link(rssr_rig):
+    with pytest.raises(ValueError, match='coupler is held only by the spherical joints B and C'):
+        spatial.counterweights(rssr_rig, 'crank,coupler')
+
+
 def test_planar_rig_has_no_parameter_model():
     with pytest.raises(ValueError, match="no 'body_kinematics' capability"):
         spatial.parameter_model(rig_for(schema.load('hoeken')))

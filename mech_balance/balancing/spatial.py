@@ -64,6 +64,13 @@ round-off (left out of the text, kept in the matrix)."""
 PSD_ROUNDOFF = 64.0 * np.finfo(float).eps
 """A body's normalized pseudo-inertia counts as PSD down to this fraction of its largest
 eigenvalue below zero (the eigenvalue solver's round-off; a thin rod has exact zeros)."""
+VIOLATION_TOL = 16.0 * np.finfo(float).eps
+"""A design meets a constraint when it violates it by at most this (units of its body's mass
+and reach): the rounding of evaluating the constraint (equal mass bounds are met exactly
+otherwise only by luck)."""
+TIGHT_TOL_SCALE = 1e-3
+"""A program whose first solve is not certified is solved again with Clarabel's tolerances
+this factor tighter (its dual residual, paid with the box, shrinks with them)."""
 REPAIR_GROWTH = 2.0
 """The realizability repair multiplies its step by this factor until the body is PSD."""
 REPAIR_STEPS = 60
@@ -245,7 +252,11 @@ def spatial_model(rig):
         if name in idle:
             ends = [lk.points[j.point_a if j.link_a == name else j.point_b]
                     for j in (joints[idle[name][0]], joints[idle[name][1]])]
-            bodies.append(BodyModel(name, line_basis(*ends), (0, 1, 2), reach, True,
+            bodies.append(BodyModel(name, line_basis(*ends), (0, 1, 2), reach,
+                                    f'{name} is held only by the spherical joints '
+                                    f'{idle[name][0]} and {idle[name][1]}: a sphere would give '
+                                    'it inertia about their line (its idle spin); expected a '
+                                    'link with a revolute, prismatic or universal joint',
                                     ('m', 'm s', 'm s^2'),
                                     float(np.linalg.norm(ends[0]))))
         else:
@@ -570,20 +581,37 @@ def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAP
                                        False)
         run = prog.solve()
     _check_run(run)
-    theta = prog.theta(run.sol.x)
-    if prog.balanceable:
-        theta = prog.project_null(theta)
     checks = _RealizableChecks(model, free_idx, mlo, mhi, extent)
-    violation = checks.violation(theta)
-    theta, pull = checks.repair(theta, keep_force=bool(prog.balanceable))
-    balanced = model.build(theta)
-    return _finish(rig, model, units, maps, prog, run, theta, balanced, w, samples,
-                   violation, pull, t_start, 'redistribution (PSD pseudo-inertia, SOCP+SDP)',
-                   {'mass_bounds_kg': {model.bodies[k].name: [mlo[k], mhi[k]]
-                                       for k in free_idx},
-                    'extent_bounds_m': {model.bodies[k].name: extent[k] for k in free_idx},
-                    'fixed': sorted(model.bodies[k].name for k in fixed_idx),
-                    'force_balanced': bool(force_balanced), 'note': note})
+    options = {'mass_bounds_kg': {model.bodies[k].name: [mlo[k], mhi[k]] for k in free_idx},
+               'extent_bounds_m': {model.bodies[k].name: extent[k] for k in free_idx},
+               'fixed': sorted(model.bodies[k].name for k in fixed_idx),
+               'force_balanced': bool(force_balanced), 'note': note}
+
+    def design(run):
+        theta = prog.theta(run.sol.x)
+        if prog.balanceable:
+            theta = prog.project_null(theta)
+        violation = checks.violation(theta)
+        theta, pull = checks.repair(theta, keep_force=bool(prog.balanceable))
+        options['violation_after_pull'] = checks.violation(theta)
+        return _finish(rig, model, units, maps, prog, run, theta, model.build(theta), w,
+                       samples, violation, pull, t_start,
+                       'redistribution (PSD pseudo-inertia, SOCP+SDP)', dict(options))
+    return _best(prog, run, design)
+
+
+def _best(prog, run, design):
+    """Return design(run), or that of a tighter solve when the first is not certified."""
+    result = design(run)
+    if result.certificate.certified:
+        return result
+    tight = prog.solve(TIGHT_TOL_SCALE)
+    if not tight.ok:
+        return result
+    other = design(tight)
+    if other.certificate.certified or other.certificate.gap_abs < result.certificate.gap_abs:
+        return other
+    return result
 
 
 def _redistribution_program(model, maps, units, free_idx, w, mlo, mhi, extent, force_balanced):
@@ -692,32 +720,34 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
                                   max_radius_factor, k_sphere)
     run = prog.solve()
     _check_run(run)
-    x = np.asarray(run.sol.x)
-    added, spheres, violation, pull = {}, {}, 0.0, 0.0
-    theta = model.theta.copy()
-    for j, k in enumerate(idx):
-        body = model.bodies[k]
-        dm, dh, sigma, s = prog.counterweight(x, j)
-        hi = max_mass_factor * model.theta[10 * k]
-        viol, (dm, dh, sigma, s) = _cw_check(dm, dh, sigma, s, k_sphere, hi,
-                                             (max_radius_factor * body.reach_m) ** 2)
-        violation = max(violation, viol / max(model.theta[10 * k], 1e-300))
-        if dm <= MIN_COUNTERWEIGHT_REL * model.theta[10 * k]:
-            continue
-        cluster = sphere_cluster(dm, dh, sigma, s, density_kg_m3, body.reach_m)
-        spheres[body.name] = cluster
-        added[body.name] = cluster_theta(cluster)
-        theta[10 * k:10 * k + 10] += added[body.name]
-    balanced = model.add(added, spheres)
-    extra = {'links': [model.bodies[k].name for k in idx], 'density_kg_m3': density_kg_m3,
-             'max_mass_factor': max_mass_factor, 'max_radius_factor': max_radius_factor,
-             'counterweights': spheres,
-             'added_mass_kg': {n: float(sum(c['mass_kg'] for c in cl))
-                               for n, cl in spheres.items()},
-             'sphere_overlap_m': {n: cluster_overlap_m(cl) for n, cl in spheres.items()}}
-    return _finish(rig, model, units, maps, prog, run, theta, balanced, w, samples,
-                   violation, pull, t_start, 'counterweights (add-only spheres, SOCP+SDP)',
-                   extra)
+
+    def design(run):
+        x = np.asarray(run.sol.x)
+        added, spheres, violation = {}, {}, 0.0
+        theta = model.theta.copy()
+        for j, k in enumerate(idx):
+            body = model.bodies[k]
+            dm, dh, sigma, s = prog.counterweight(x, j)
+            hi = max_mass_factor * model.theta[10 * k]
+            viol, (dm, dh, sigma, s) = _cw_check(dm, dh, sigma, s, k_sphere, hi,
+                                                 (max_radius_factor * body.reach_m) ** 2)
+            violation = max(violation, viol / max(model.theta[10 * k], 1e-300))
+            if dm <= MIN_COUNTERWEIGHT_REL * model.theta[10 * k]:
+                continue
+            cluster = sphere_cluster(dm, dh, sigma, s, density_kg_m3, body.reach_m)
+            spheres[body.name] = cluster
+            added[body.name] = cluster_theta(cluster)
+            theta[10 * k:10 * k + 10] += added[body.name]
+        extra = {'links': [model.bodies[k].name for k in idx], 'density_kg_m3': density_kg_m3,
+                 'max_mass_factor': max_mass_factor, 'max_radius_factor': max_radius_factor,
+                 'counterweights': spheres,
+                 'added_mass_kg': {n: float(sum(c['mass_kg'] for c in cl))
+                                   for n, cl in spheres.items()},
+                 'sphere_overlap_m': {n: cluster_overlap_m(cl) for n, cl in spheres.items()}}
+        return _finish(rig, model, units, maps, prog, run, theta, model.add(added, spheres), w,
+                       samples, violation, 0.0, t_start,
+                       'counterweights (add-only spheres, SOCP+SDP)', extra)
+    return _best(prog, run, design)
 
 
 MIN_COUNTERWEIGHT_REL = 1e-9
@@ -977,10 +1007,23 @@ class _Program:
             layout.append((kind, n))
         return a, b, cones, layout
 
-    def solve(self):
-        """Solve with the retries of :func:`mech_balance.balancing.socp.run_solver`."""
+    def solve(self, tol_scale=None):
+        """
+        Solve with the retries of :func:`mech_balance.balancing.socp.run_solver`.
+
+        With ``tol_scale`` one solve with Clarabel's tolerances scaled by it instead.
+        """
         a, b, cones, layout = self.assemble()
-        run = socp.run_solver(self.q, a, b, cones)
+        if tol_scale is None:
+            run = socp.run_solver(self.q, a, b, cones)
+        else:
+            t0 = time.perf_counter()
+            settings = socp.solver_settings(tol_scale=tol_scale, max_iter=400)
+            sol = clarabel.DefaultSolver(sp.csc_matrix((self.nx, self.nx)), self.q, a, b,
+                                         cones, settings).solve()
+            run = socp.Solve(sol, str(sol.status), (f'{sol.status} (tolerances x '
+                                                    f'{tol_scale:g})',), self.q, a, b, cones,
+                             time.perf_counter() - t0)
         run.layout = layout
         return run
 
@@ -1252,23 +1295,41 @@ class _RealizableChecks:
                 theta[10 * k:10 * k + 10] = body.basis @ y
         return theta
 
+    def feasible(self, theta):
+        """Return True if theta meets every constraint to :data:`VIOLATION_TOL`."""
+        return self.violation(theta) <= VIOLATION_TOL
+
+    def clip_masses(self, theta):
+        """Return theta with each free body scaled into its mass bounds (keeps J PSD, extent)."""
+        theta = theta.copy()
+        for k in self.free:
+            m = theta[10 * k]
+            target = min(max(m, self.mlo[k]), self.mhi[k])
+            if m > 0.0 and target != m:
+                theta[10 * k:10 * k + 10] *= target / m
+        return theta
+
     def repair(self, theta, keep_force=False):
         """
         Return (theta, pull): theta moved onto the feasible set where round-off left it.
 
-        Without equality constraints, the least fraction ``pull`` of the way to the
-        :meth:`anchor` (a convex set holds the segment; bisection); with the force balance
-        imposed, spread along the inertia only (which the force map does not see).
+        Without equality constraints: each body scaled into its mass bounds, then the least
+        fraction ``pull`` of the way to the :meth:`anchor` (a convex set holds the segment;
+        bisection).  With the force balance imposed: spread along the inertia only (which the
+        force map does not see).
         """
-        if self.violation(theta) <= 0.0:
+        if self.feasible(theta):
             return theta, 0.0
         if not keep_force:
+            theta = self.clip_masses(theta)
+            if self.feasible(theta):
+                return theta, 0.0
             anchor = self.anchor()
-            if self.violation(anchor) <= 0.0:
+            if self.feasible(anchor):
                 lo, hi = 0.0, 1.0
                 for _ in range(REPAIR_STEPS):
                     mid = 0.5 * (lo + hi)
-                    if self.violation((1 - mid) * theta + mid * anchor) <= 0.0:
+                    if self.feasible((1 - mid) * theta + mid * anchor):
                         hi = mid
                     else:
                         lo = mid
@@ -1276,7 +1337,7 @@ class _RealizableChecks:
         theta = theta.copy()
         worst = 0.0
         for k in self.free:
-            if self._body(theta, k)[2] <= 0.0:
+            if self._body(theta, k)[2] <= VIOLATION_TOL:
                 continue
             body = self.model.bodies[k]
             m0, r0 = _ref(self.model, k)
@@ -1285,7 +1346,7 @@ class _RealizableChecks:
             for _ in range(REPAIR_STEPS):
                 trial = theta.copy()
                 trial[10 * k:10 * k + 10] += step * spread
-                if self._body(trial, k)[2] <= 0.0:
+                if self._body(trial, k)[2] <= VIOLATION_TOL:
                     theta = trial
                     worst = max(worst, step / (m0 * r0 * r0))
                     break
