@@ -411,3 +411,34 @@ def test_spatial_written_scene_analyze_reproduces(tmp_path):
         assert rows[q]['rms'] == pytest.approx(mine[q]['after_si'], rel=REPRODUCE_RTOL)
     text = (tmp_path / 'rssr_balanced.yaml').read_text()
     assert 'balance:' in text and 'source_scene: rssr_skew' in text
+
+
+@pytest.mark.parametrize('scene_name,mass_factors,extent_factor,weights', [
+    ('rggr', (1.0, 1.0), 1.5, (0.0, 1.0)), ('rggr', (1.0, 1.0), 5.0, (0.5, 0.5)),
+    ('rssr_skew', (1.0, 1.0), 0.3, (0.5, 0.5)), ('rssr_skew', (0.5, 10.0), 0.3, (1.0, 0.0)),
+    ('spatial_two_loop', (1.0, 1.0), 5.0, (0.5, 0.5))])
+def test_redistribution_over_the_option_range(scene_name, mass_factors, extent_factor, weights):
+    # equal mass bounds and extreme extents: the design meets them, the bound holds, certified
+    rig = rig_for(schema.load(scene_name))
+    model = spatial.parameter_model(rig)
+    result = spatial.redistribute(rig, weights=weights, samples=60, mass_factors=mass_factors,
+                                  extent_factor=extent_factor)
+    cert = result.certificate
+    assert cert.lower_bound <= cert.primal and cert.certified, cert
+    assert result.options['violation_after_pull'] <= spatial.VIOLATION_TOL
+    for k in range(len(model.bodies)):
+        m, m0 = result.theta[10 * k], model.theta[10 * k]
+        assert mass_factors[0] * m0 * (1 - 1e-15) <= m <= mass_factors[1] * m0 * (1 + 1e-15)
+
+
+@pytest.mark.parametrize('density,mass_factor,radius_factor', [(1000.0, 20.0, 3.0),
+                                                               (20000.0, 0.1, 0.2)])
+def test_counterweights_over_the_option_range(rggr_rig, density, mass_factor, radius_factor):
+    result = spatial.counterweights(rggr_rig, 'crank,output', samples=60, density_kg_m3=density,
+                                    max_mass_factor=mass_factor, max_radius_factor=radius_factor)
+    cert = result.certificate
+    assert cert.lower_bound <= cert.primal and cert.certified, cert
+    for name, total in result.options['added_mass_kg'].items():
+        k = spatial.parameter_model(rggr_rig).index(name, 'links')
+        assert total <= mass_factor * rggr_rig.scene.crank.mass_kg * (1 + 1e-9) if k == 0 \
+            else total <= mass_factor * rggr_rig.scene.output.mass_kg * (1 + 1e-9)
