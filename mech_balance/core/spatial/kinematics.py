@@ -521,6 +521,9 @@ class Linkage:
                 c = np.cross(vb, np.broadcast_to(va, vb.shape))
                 gb.append(np.concatenate([c, np.zeros_like(c)], -1))
                 ga.append(np.zeros((n, k, 6)))
+        if not gb:
+            empty = np.zeros((fr.rot.shape[0], 0, 6))
+            return empty, empty
         return np.concatenate(gb, axis=1), np.concatenate(ga, axis=1)
 
     def jacobian(self, fr, grads=None):
@@ -574,7 +577,7 @@ class Linkage:
             else:
                 _, ddu = vec_rates(r.body_b, vb)
                 out.append(np.einsum('nki,ki->nk', ddu, va))
-        return np.concatenate(out, axis=1)
+        return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
 
     def twists(self, fr, qd):
         """Return the body twists ``(n, nb, 6)`` of coordinate rates ``qd`` (n, ndof)."""
@@ -678,6 +681,11 @@ class Linkage:
 
     def _assemble(self):
         """Assemble the linkage (Levenberg-Marquardt), find idle spins and redundancy."""
+        if not self.m and self.nu:
+            raise SpatialError(
+                f'joints: the linkage is an open chain (no closed loop) with {self.nu} '
+                f'degree(s) of freedom besides the crank joint {self.scene.crank_joint!r}; '
+                'expected a single-input linkage')
         q, sph = self._initial()
         lam = 1e-3
         fr = self.frames(q, sph)
