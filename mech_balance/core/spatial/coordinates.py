@@ -9,7 +9,7 @@ angular velocity ``R_a^T (omega_b - omega_a)`` and the relative point velocity.
 
 import math
 
-from mech_balance.core.spatial.kinematics import min_rotation, rot_axis
+from mech_balance.core.spatial.kinematics import cross, min_rotation, rot_axis
 import numpy as np
 
 SUFFIXES = {'revolute': ('',), 'prismatic': ('',), 'cylindrical': ('_turn', '_slide'),
@@ -95,10 +95,10 @@ def joint_values(linkage, state):
         xa = fr.origin[:, a] + ra @ linkage._points[jt.link_a][jt.point_a]
         xb = fr.origin[:, b] + rb @ linkage._points[jt.link_b][jt.point_b]
         w_rel = np.einsum('nji,nj->ni', ra, tw[:, b, :3] - tw[:, a, :3])
-        va = tw[:, a, 3:] + np.cross(tw[:, a, :3], xa)
-        vb = tw[:, b, 3:] + np.cross(tw[:, b, :3], xb)
+        va = tw[:, a, 3:] + cross(tw[:, a, :3], xa)
+        vb = tw[:, b, 3:] + cross(tw[:, b, :3], xb)
         d = np.einsum('nji,nj->ni', ra, xb - xa)
-        dd = np.einsum('nji,nj->ni', ra, vb - va - np.cross(tw[:, a, :3], xb - xa))
+        dd = np.einsum('nji,nj->ni', ra, vb - va - cross(tw[:, a, :3], xb - xa))
         ax, bx, fixed = joint_frames(sc, jt)
         t = jt.joint_type
         if t == 'spherical':
@@ -122,7 +122,7 @@ def joint_values(linkage, state):
         else:
             e = fixed @ bx
             bia = rel @ bx
-            th1 = np.arctan2(np.cross(e, bia) @ ax, bia @ e)
+            th1 = np.arctan2(cross(e, bia) @ ax, bia @ e)
             rest = np.einsum('ij,njk->nik', fixed.T, rot_axis(ax, -th1) @ rel)
             th2 = _angle_about(bx, rest)
             vals, rts = [th1, th2], [w_rel @ ax, np.einsum('ni,ni->n', w_rel, bia)]
