@@ -105,11 +105,10 @@ def joint_values(linkage, state):
             m = rel @ linkage.sph_zero[jt.name].T
             yaw, pitch, roll = rpy_of(m)
             cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
-            z = np.zeros_like(yaw)
-            # omega = yaw' z + pitch' Rz y + roll' Rz Ry x (a's axes)
-            e = np.stack([np.stack([z, z, z + 1.0], -1), np.stack([-sy, cy, z], -1),
-                          np.stack([cy * cp, sy * cp, -sp], -1)], -1)
-            rates = np.linalg.solve(e, w_rel[:, :, None])[:, :, 0]
+            # omega = yaw' z + pitch' Rz y + roll' Rz Ry x (a's axes), solved in closed form
+            wx, wy, wz = w_rel[:, 0], w_rel[:, 1], w_rel[:, 2]
+            roll_rate = (cy * wx + sy * wy) / cp
+            rates = np.stack([wz + sp * roll_rate, cy * wy - sy * wx, roll_rate], -1)
             vals, rts = [yaw, pitch, roll], [rates[:, 0], rates[:, 1], rates[:, 2]]
         elif t == 'prismatic':
             vals, rts = [d @ ax], [dd @ ax]
