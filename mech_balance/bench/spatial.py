@@ -15,6 +15,7 @@ from mech_balance import schema
 from mech_balance.analysis.timing import median_seconds
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
+from mech_balance.schema import registry
 from mech_balance.schema.scene import OUTPUTS
 import numpy as np
 
@@ -37,8 +38,8 @@ def bench_section(args, progress):
     """Return the spatial table (``function(args, progress) -> str`` of bench.core)."""
     samples = getattr(args, 'samples', 360)
     repeat = getattr(args, 'repeat', 20)
-    names = [n for n, p in schema.builtin_scenes().items()
-             if schema.load(n).kind == 'spatial']
+    spatial = registry.KINDS['spatial']
+    names = [n for n in schema.builtin_scenes() if registry.kind_of(schema.load(n)) is spatial]
     lines = [f'spatial kind: full cycle ({", ".join(OUTPUTS)}), {samples} crank angles, '
              f'median of {repeat}; load average {os.getloadavg()[0]:.2f} on '
              f'{os.cpu_count()} cores (figures on a loaded machine are upper bounds)',

@@ -26,7 +26,7 @@ Driving torque and reactions (virtual power in tree coordinates)
 
 from dataclasses import dataclass
 
-from mech_balance.core.spatial.kinematics import cross, dot, mv
+from mech_balance.core.spatial.kinematics import cross, mv
 import numpy as np
 
 
@@ -134,7 +134,7 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
         below[t.child] = lk.path[t.dofs[0]]
     for t in lk.tree:
         w = np.einsum('nks,k->ns', phi - on_body, below[t.child])
-        if t.reversed:
+        if t.flipped:
             w = -w
         reactions[t.name] = w
     for ji in lk.cut_joints:

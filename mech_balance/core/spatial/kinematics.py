@@ -159,7 +159,7 @@ def _unit(v, where):
     return v / np.linalg.norm(v)
 
 
-def _perp_pair(axis):
+def perp_pair(axis):
     """Return two unit vectors normal to ``axis`` and to each other (deterministic)."""
     helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
     e1 = cross(axis, helper)
@@ -172,6 +172,39 @@ def _spatial_cross(t, s):
     w, v = t[..., :3], t[..., 3:]
     w2, v2 = s[..., :3], s[..., 3:]
     return np.concatenate([cross(w, w2), cross(w, v2) + cross(v, w2)], axis=-1)
+
+
+def angle_about(axis, rot):
+    """Return the angle ``(n,)`` of rotations ``rot`` ``(n, 3, 3)`` about the unit ``axis``."""
+    skw = rot - np.swapaxes(rot, -1, -2)
+    vee = 0.5 * np.stack([skw[..., 2, 1], skw[..., 0, 2], skw[..., 1, 0]], -1)
+    cos = 0.5 * (np.trace(rot, axis1=-2, axis2=-1) - 1.0)
+    return np.arctan2(vee @ axis, cos)
+
+
+def tree_values(t, rel, d):
+    """Return the coordinates of a (non-spherical) tree joint from a guessed relative pose."""
+    jt = t.joint_type
+    if jt == 'prismatic':
+        return [float(d @ t.axis)]
+    theta = float(angle_about(t.axis, (rel @ t.fixed.T)[None])[0])
+    if jt == 'revolute':
+        return [theta]
+    if jt == 'cylindrical':
+        return [theta, float(d @ t.axis)]
+    rest = t.fixed.T @ rot_axis(t.axis, np.array([-theta]))[0] @ rel
+    return [theta, float(angle_about(t.axis_child, rest[None])[0])]
+
+
+def spherical_zeros(linkage, fr):
+    """Return ``{joint name: A}``, the relative rotation of each spherical joint at assembly."""
+    idx = {n: i for i, n in enumerate(linkage.body_names)}
+    out = {}
+    for jt in linkage.scene.joints:
+        if jt.joint_type == 'spherical':
+            ra, rb = fr.rot[0, idx[jt.link_a]], fr.rot[0, idx[jt.link_b]]
+            out[jt.name] = ra.T @ rb
+    return out
 
 
 @dataclass
@@ -189,14 +222,14 @@ class TreeJoint:
     axis_child: np.ndarray
     fixed: np.ndarray     # the constant rotation Z, Rot(a, angle) Z or U (None: spherical)
     dofs: tuple           # indices into the coordinate vector
-    reversed: bool        # the scene's end a is the child
+    flipped: bool         # the scene's end a is the child
 
 
 @dataclass
 class Rows:
     """The closure rows of one group, as index and local-vector arrays (module docstring)."""
 
-    kind: str
+    form: str
     body_b: np.ndarray
     body_a: np.ndarray
     vec_b: np.ndarray     # points: s_b; dots: u_b; lines: s_b; spin: v
@@ -207,7 +240,7 @@ class Rows:
     @property
     def size(self):
         """Return the number of rows."""
-        return self.body_b.size * (3 if self.kind == 'point' else 1)
+        return self.body_b.size * (3 if self.form == 'point' else 1)
 
 
 @dataclass
@@ -323,7 +356,7 @@ class Linkage:
                 axis, axis_c = (b_ax, a_ax) if rev else (a_ax, b_ax)
                 if jt.joint_type == 'universal':
                     e = axis_c - (axis_c @ axis) * axis
-                    e = _perp_pair(axis)[0] if np.linalg.norm(e) < 1e-12 else e / \
+                    e = perp_pair(axis)[0] if np.linalg.norm(e) < 1e-12 else e / \
                         np.linalg.norm(e)
                     fixed = min_rotation(axis_c, e)
                 else:
@@ -386,7 +419,7 @@ class Linkage:
             if t == 'universal':
                 dots.append((b, bx, a, ax, jt.name))
                 continue
-            e1, e2 = _perp_pair(ax)
+            e1, e2 = perp_pair(ax)
             dots.append((b, bx, a, e1, jt.name))
             dots.append((b, bx, a, e2, jt.name))
             if t in ('cylindrical', 'prismatic'):
@@ -420,13 +453,13 @@ class Linkage:
         self.m = sum(r.size for r in self.rows)
         scale = []
         for r in self.rows:
-            scale += [1.0 / self.length_scale if r.kind in ('point', 'line') else 1.0] * r.size
+            scale += [1.0 / self.length_scale if r.form in ('point', 'line') else 1.0] * r.size
         self.row_scale = np.array(scale)
         self.col_scale = np.where(self.dof_slide, self.length_scale, 1.0)
         self.row_joint = tuple(j for r in self.rows for j in r.joint)
         bodies_b, bodies_a = [], []
         for r in self.rows:
-            rep = 3 if r.kind == 'point' else 1
+            rep = 3 if r.form == 'point' else 1
             bodies_b += list(np.repeat(r.body_b, rep))
             bodies_a += list(np.repeat(r.body_a, rep))
         self.row_b = np.array(bodies_b, dtype=int)
@@ -472,8 +505,8 @@ class Linkage:
             rot[:, t.child] = rc
             origin[:, t.child] = r_joint - rc @ t.s_child
             if jtype == 'spherical':
-                axes = np.swapaxes(rp, 1, 2) if t.parent else np.broadcast_to(np.eye(3),
-                                                                            (n, 3, 3))
+                axes = np.swapaxes(rp, 1, 2) if t.parent else \
+                    np.broadcast_to(np.eye(3), (n, 3, 3))
                 for i in range(3):
                     cols[:, d[i], :3] = axes[:, i]
                     cols[:, d[i], 3:] = cross(r_joint, axes[:, i])
@@ -496,12 +529,12 @@ class Linkage:
         """Yield per group the world quantities the rows need."""
         for r in self.rows:
             rb, ra = fr.rot[:, r.body_b], fr.rot[:, r.body_a]
-            if r.kind == 'spin':
+            if r.form == 'spin':
                 yield r, rb, ra, mv(rb, r.vec_b), r.vec_a
                 continue
             vb = mv(rb, r.vec_b)
             va = mv(ra, r.vec_a)
-            if r.kind in ('point', 'line'):
+            if r.form in ('point', 'line'):
                 vb = vb + fr.origin[:, r.body_b]
                 va = va + fr.origin[:, r.body_a]
             yield r, rb, ra, vb, va
@@ -510,11 +543,11 @@ class Linkage:
         """Return the closure residuals ``(n, m)`` (SI: m for point and line rows)."""
         out = []
         for r, rb, ra, vb, va in self._row_parts(fr):
-            if r.kind == 'point':
+            if r.form == 'point':
                 out.append((vb - va).reshape(vb.shape[0], -1))
-            elif r.kind == 'dot':
+            elif r.form == 'dot':
                 out.append(dot(vb, va))
-            elif r.kind == 'line':
+            elif r.form == 'line':
                 w = mv(ra, r.extra)
                 out.append(dot(vb - va, w))
             else:
@@ -527,18 +560,18 @@ class Linkage:
         eye = np.eye(3)
         for r, rb, ra, vb, va in self._row_parts(fr):
             n, k = vb.shape[:2]
-            if r.kind == 'point':
+            if r.form == 'point':
                 wb = cross(vb[:, :, None, :], eye)          # x_b x e_i
                 wa = cross(va[:, :, None, :], eye)
                 lin = np.broadcast_to(eye, (n, k, 3, 3))
                 gb.append(np.concatenate([wb, lin], -1).reshape(n, 3 * k, 6))
                 ga.append(-np.concatenate([wa, lin], -1).reshape(n, 3 * k, 6))
-            elif r.kind == 'dot':
+            elif r.form == 'dot':
                 c = cross(vb, va)
                 z = np.zeros_like(c)
                 gb.append(np.concatenate([c, z], -1))
                 ga.append(np.concatenate([-c, z], -1))
-            elif r.kind == 'line':
+            elif r.form == 'line':
                 w = mv(ra, r.extra)
                 d = vb - va
                 gb.append(np.concatenate([cross(vb, w), w], -1))
@@ -583,16 +616,16 @@ class Linkage:
             return du, cross(al, u) + cross(w, du)
 
         for r, rb, ra, vb, va in self._row_parts(fr):
-            if r.kind == 'point':
+            if r.form == 'point':
                 out.append((point_acc(r.body_b, vb) - point_acc(r.body_a, va)).reshape(
                     vb.shape[0], -1))
-            elif r.kind == 'dot':
+            elif r.form == 'dot':
                 dub, ddub = vec_rates(r.body_b, vb)
                 dua, ddua = vec_rates(r.body_a, va)
                 out.append(dot(ddub, va)
                            + 2.0 * dot(dub, dua)
                            + dot(vb, ddua))
-            elif r.kind == 'line':
+            elif r.form == 'line':
                 w = mv(ra, r.extra)
                 dw, ddw = vec_rates(r.body_a, w)
                 d = vb - va
@@ -732,7 +765,6 @@ class Linkage:
 
     def _initial(self):
         """Return tree coordinates ``(1, ndof)`` and rotations from the scene's poses."""
-        from mech_balance.core.spatial import coordinates
         sc = self.scene
         rot = [np.eye(3)]
         org = [np.zeros(3)]
@@ -755,7 +787,7 @@ class Linkage:
                 sph[0, si] = rel
                 si += 1
                 continue
-            vals = coordinates.tree_values(t, rel, d)
+            vals = tree_values(t, rel, d)
             q[0, list(t.dofs)] = vals
         q[0, 0] = sc.assembly_crank_angle_rad
         return q, sph
@@ -805,8 +837,7 @@ class Linkage:
         if not ok[0]:
             raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
         self.q0, self.sph0 = q, sph
-        from mech_balance.core.spatial import coordinates
-        self.sph_zero = coordinates.spherical_zeros(self, fr)
+        self.sph_zero = spherical_zeros(self, fr)
         js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
             self.col_scale[self.unknown]
         _, cond, rank, sign = self._solver(js)
