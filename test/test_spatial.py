@@ -125,8 +125,8 @@ def test_round_trip_bit_for_bit(name):
     (('links', 'crank', 'inertia_com_kg_m2'), [1e-5, 1e-5, 1e-4, 0.0, 0.0, 0.0],
      r'links\.crank\.inertia_com_kg_m2.*triangle inequality'),
     (('links', 'crank', 'inertia_com_kg_m2'), [1e-5, 1e-5], r'six numbers'),
-    (('links', 'crank', 'mass_kg'), -1.0, r'links\.crank\.mass_kg: got -1\.0, expected a '
-                                         r'number >= 0'),
+    (('links', 'crank', 'mass_kg'), -1.0,
+     r'links\.crank\.mass_kg: got -1\.0, expected a number >= 0'),
     (('links', 'crank', 'com_m'), [0.0, 0.0], r'links\.crank\.com_m.*\[x, y, z\]'),
     (('joints', 'A', 'type'), 'ball', r'joints\.A\.type: got .ball., expected one of'),
     (('joints', 'A', 'axis'), [0.0, 0.0, 0.0], r'joints\.A\.axis.*non-zero direction'),
@@ -425,6 +425,7 @@ def random_rssr(rng, branch):
     rc = _frame_z(np.cross(x, _unit(rng.normal(size=3))), x)
     rc = np.stack([x, np.cross(rc[:, 2], x), rc[:, 2]], -1)
     m2 = rng.uniform(0.1, 0.5)
+    zero = min_rotation([0.0, 0.0, 1.0], u1)   # the crank joint's zero (kinematics docstring)
     return {
         'kind': 'spatial', 'name': 'random_rssr',
         'frame': {'points': {'A': [0.0, 0.0, 0.0], 'D': [float(v) for v in d0]}},
@@ -448,9 +449,9 @@ def random_rssr(rng, branch):
                   'axis': [float(v) for v in u3], 'axis_b': [0.0, 0.0, 1.0]}},
         'crank': {'joint': 'A', 'speed_rad_s': 30.0},
         'moment_point_m': [float(v) for v in rng.normal(size=3) * 0.05],
-        'assembly': {'crank_angle_deg': math.degrees(
-            math.atan2(rk[:, 0] @ (min_rotation([0.0, 0.0, 1.0], u1) @ [0.0, 1.0, 0.0]),
-                       rk[:, 0] @ (min_rotation([0.0, 0.0, 1.0], u1) @ [1.0, 0.0, 0.0]))),
+        'assembly': {
+            'crank_angle_deg': math.degrees(math.atan2(rk[:, 0] @ (zero @ [0.0, 1.0, 0.0]),
+                                                       rk[:, 0] @ (zero @ [1.0, 0.0, 0.0]))),
             'poses': {'crank': {'origin_m': [0.0, 0.0, 0.0], 'rpy_deg': _rpy(rk)},
                       'coupler': {'origin_m': [float(v) for v in b], 'rpy_deg': _rpy(rc)},
                       'rocker': {'origin_m': [float(v) for v in d0], 'rpy_deg': _rpy(ro)}}},
@@ -534,3 +535,50 @@ def test_random_near_singular_cases_are_flagged():
             flagged += 1
             assert any('near-singular' in m for m in messages)
     assert flagged >= 1
+
+
+# ----------------------------------------------------------------------------- URDF
+
+@pytest.mark.parametrize('name', BUILTINS)
+def test_urdf_fk_puts_every_joint_point_where_the_core_does(name):
+    """yourdfpy loads the URDF; FK at the published joint states meets the core's points."""
+    yourdfpy = pytest.importorskip('yourdfpy')
+    import io
+    from mech_balance.ros import urdf
+    sc = schema.load(name)
+    robot = yourdfpy.URDF.load(io.StringIO(urdf.urdf_xml(sc)), load_meshes=False,
+                               build_collision_scene_graph=False)
+    assert robot.validate()
+    rig = rig_for(sc)
+    psi = 0.0123 + np.linspace(0.0, 2.0 * np.pi, 45, endpoint=False)
+    data = rig.at(psi, outputs=('kinematics',))
+    names, pos, vel = urdf.rig_joint_positions(sc, data)
+    assert list(names) == robot.actuated_joint_names
+    pins = {}
+    for link_name, link in robot.link_map.items():
+        for v in link.visuals:
+            if v.name and v.name.startswith('pin_'):
+                pins[(link_name, v.name[4:])] = v.origin[:3, 3]
+    root = urdf.DEFAULT_FRAME_ID
+    worst = 0.0
+    for k in range(psi.size):
+        robot.update_cfg(dict(zip(names, pos[k])))
+        for jt in sc.joints:   # both ends of every joint, the cut joints' included
+            for link, point in ((jt.link_a, jt.point_a), (jt.link_b, jt.point_b)):
+                local = sc.frame_points[point] if link == 'frame' else \
+                    sc.link(link).points[point]
+                core = data.bodies.world(link, local)[k]
+                ul = root if link == 'frame' else link
+                t = robot.get_transform(ul, root)
+                worst = max(worst, float(np.max(np.abs(t[:3, :3] @ pins[(ul, point)]
+                                                       + t[:3, 3] - core))))
+    assert worst <= 1e-12
+    # the published velocities are the rates of the published positions
+    _, plus, _ = urdf.rig_joint_positions(sc, rig.at(psi + 1e-6, outputs=('kinematics',)))
+    _, minus, _ = urdf.rig_joint_positions(sc, rig.at(psi - 1e-6, outputs=('kinematics',)))
+    rate = urdf.wrap_angle(plus - minus) / 2e-6 * sc.crank_speed_rad_s
+    slides = [n for n, j in zip(names, robot.actuated_joints) if j.type == 'prismatic']
+    for i, n in enumerate(names):
+        if n in slides:
+            rate[:, i] = (plus[:, i] - minus[:, i]) / 2e-6 * sc.crank_speed_rad_s
+    assert_allclose(vel, rate, rtol=0, atol=1e-6 * np.max(np.abs(vel)))

@@ -104,7 +104,7 @@ class SpatialJoint:
 
     @property
     def prismatic(self):
-        """Return whether the joint is prismatic (it slides, it does not turn)."""
+        """Return True for a prismatic joint (it slides, it does not turn)."""
         return self.joint_type == 'prismatic'
 
 
@@ -412,7 +412,7 @@ def spatial_to_dict(scene):
     data = {'kind': KIND, 'schema_version': SCHEMA_VERSION, 'name': scene.name,
             'description': scene.description}
     if scene.normalization is not None:
-        data['normalization'] = {k: v for k, v in scene.normalization.items()}
+        data['normalization'] = dict(scene.normalization.items())
     data['frame'] = {'points': {k: list(v) for k, v in scene.frame_points.items()}}
     data['links'] = {lk.name: {'points': {k: list(v) for k, v in lk.points.items()},
                                'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),

@@ -9,7 +9,8 @@ angular velocity ``R_a^T (omega_b - omega_a)`` and the relative point velocity.
 
 import math
 
-from mech_balance.core.spatial.kinematics import min_rotation, rot_axis
+from mech_balance.core.spatial.kinematics import angle_about, cross, min_rotation, \
+    perp_pair, rot_axis
 import numpy as np
 
 SUFFIXES = {'revolute': ('',), 'prismatic': ('',), 'cylindrical': ('_turn', '_slide'),
@@ -20,17 +21,8 @@ SLIDES = {'revolute': (False,), 'prismatic': (True,), 'cylindrical': (False, Tru
 """Which of them slide (m) rather than turn (rad)."""
 
 
-def _angle_about(axis, rot):
-    """Return the angle ``(n,)`` of rotations ``rot`` ``(n, 3, 3)`` about the unit ``axis``."""
-    skew = rot - np.swapaxes(rot, -1, -2)
-    vee = 0.5 * np.stack([skew[..., 2, 1], skew[..., 0, 2], skew[..., 1, 0]], -1)
-    cos = 0.5 * (np.trace(rot, axis1=-2, axis2=-1) - 1.0)
-    return np.arctan2(vee @ axis, cos)
-
-
 def joint_frames(scene, jt):
     """Return a joint's constants: unit axes in a and b, and its fixed rotation (or None)."""
-    from mech_balance.core.spatial.kinematics import _perp_pair  # noqa: F401
     if jt.axis is None:
         return None, None, None
     a = np.asarray(jt.axis, dtype=float)
@@ -40,38 +32,12 @@ def joint_frames(scene, jt):
     if jt.joint_type == 'universal':
         e = b - (b @ a) * a
         if np.linalg.norm(e) < 1e-12:
-            e = _perp_pair(a)[0]
+            e = perp_pair(a)[0]
         return a, b, min_rotation(b, e / np.linalg.norm(e))
     fixed = min_rotation(b, a)
     if jt.joint_type == 'prismatic':
         fixed = rot_axis(a, np.array([math.radians(jt.angle_deg or 0.0)]))[0] @ fixed
     return a, b, fixed
-
-
-def tree_values(t, rel, d):
-    """Return the coordinates of a (non-spherical) tree joint from a guessed relative pose."""
-    jt = t.joint_type
-    if jt == 'prismatic':
-        return [float(d @ t.axis)]
-    theta = float(_angle_about(t.axis, (rel @ t.fixed.T)[None])[0])
-    if jt == 'revolute':
-        return [theta]
-    if jt == 'cylindrical':
-        return [theta, float(d @ t.axis)]
-    rest = t.fixed.T @ rot_axis(t.axis, np.array([-theta]))[0] @ rel
-    return [theta, float(_angle_about(t.axis_child, rest[None])[0])]
-
-
-def spherical_zeros(linkage, fr):
-    """Return ``{joint name: A}``, the relative rotation of each spherical joint at assembly."""
-    sc = linkage.scene
-    idx = {n: i for i, n in enumerate(linkage.body_names)}
-    out = {}
-    for jt in sc.joints:
-        if jt.joint_type == 'spherical':
-            ra, rb = fr.rot[0, idx[jt.link_a]], fr.rot[0, idx[jt.link_b]]
-            out[jt.name] = ra.T @ rb
-    return out
 
 
 def rpy_of(rot):
@@ -95,26 +61,25 @@ def joint_values(linkage, state):
         xa = fr.origin[:, a] + ra @ linkage._points[jt.link_a][jt.point_a]
         xb = fr.origin[:, b] + rb @ linkage._points[jt.link_b][jt.point_b]
         w_rel = np.einsum('nji,nj->ni', ra, tw[:, b, :3] - tw[:, a, :3])
-        va = tw[:, a, 3:] + np.cross(tw[:, a, :3], xa)
-        vb = tw[:, b, 3:] + np.cross(tw[:, b, :3], xb)
+        va = tw[:, a, 3:] + cross(tw[:, a, :3], xa)
+        vb = tw[:, b, 3:] + cross(tw[:, b, :3], xb)
         d = np.einsum('nji,nj->ni', ra, xb - xa)
-        dd = np.einsum('nji,nj->ni', ra, vb - va - np.cross(tw[:, a, :3], xb - xa))
+        dd = np.einsum('nji,nj->ni', ra, vb - va - cross(tw[:, a, :3], xb - xa))
         ax, bx, fixed = joint_frames(sc, jt)
         t = jt.joint_type
         if t == 'spherical':
             m = rel @ linkage.sph_zero[jt.name].T
             yaw, pitch, roll = rpy_of(m)
             cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
-            z = np.zeros_like(yaw)
-            # omega = yaw' z + pitch' Rz y + roll' Rz Ry x (a's axes)
-            e = np.stack([np.stack([z, z, z + 1.0], -1), np.stack([-sy, cy, z], -1),
-                          np.stack([cy * cp, sy * cp, -sp], -1)], -1)
-            rates = np.linalg.solve(e, w_rel[:, :, None])[:, :, 0]
+            # omega = yaw' z + pitch' Rz y + roll' Rz Ry x (a's axes), solved in closed form
+            wx, wy, wz = w_rel[:, 0], w_rel[:, 1], w_rel[:, 2]
+            roll_rate = (cy * wx + sy * wy) / cp
+            rates = np.stack([wz + sp * roll_rate, cy * wy - sy * wx, roll_rate], -1)
             vals, rts = [yaw, pitch, roll], [rates[:, 0], rates[:, 1], rates[:, 2]]
         elif t == 'prismatic':
             vals, rts = [d @ ax], [dd @ ax]
         elif t in ('revolute', 'cylindrical'):
-            vals = [_angle_about(ax, rel @ fixed.T)]
+            vals = [angle_about(ax, rel @ fixed.T)]
             rts = [w_rel @ ax]
             if t == 'cylindrical':
                 vals.append(d @ ax)
@@ -122,9 +87,9 @@ def joint_values(linkage, state):
         else:
             e = fixed @ bx
             bia = rel @ bx
-            th1 = np.arctan2(np.cross(e, bia) @ ax, bia @ e)
+            th1 = np.arctan2(cross(e, bia) @ ax, bia @ e)
             rest = np.einsum('ij,njk->nik', fixed.T, rot_axis(ax, -th1) @ rel)
-            th2 = _angle_about(bx, rest)
+            th2 = angle_about(bx, rest)
             vals, rts = [th1, th2], [w_rel @ ax, np.einsum('ni,ni->n', w_rel, bia)]
         for sfx, sl, v, r in zip(SUFFIXES[t], SLIDES[t], vals, rts):
             names.append(jt.name + sfx)

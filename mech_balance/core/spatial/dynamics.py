@@ -26,6 +26,7 @@ Driving torque and reactions (virtual power in tree coordinates)
 
 from dataclasses import dataclass
 
+from mech_balance.core.spatial.kinematics import cross, mv
 import numpy as np
 
 
@@ -64,14 +65,14 @@ class SpatialWrenches:
 def body_motion(state, inertia):
     """Return ``(x_c, v_c, a_c, I_w, omega, alpha)`` of every body, batch-first."""
     fr, tw, ac = state.frames, state.twist, state.accel
-    xc = fr.origin + np.einsum('nkij,kj->nki', fr.rot, inertia.com)
+    xc = fr.origin + mv(fr.rot, inertia.com)
     w, v = tw[..., :3], tw[..., 3:]
-    vc = v + np.cross(w, xc)
+    vc = v + cross(w, xc)
     if ac is None:  # kinematics only (kinetic energy)
         al = a_c = None
     else:
         al, ao = ac[..., :3], ac[..., 3:]
-        a_c = ao + np.cross(al, xc) + np.cross(w, vc)
+        a_c = ao + cross(al, xc) + cross(w, vc)
     iw = fr.rot @ inertia.inertia @ np.swapaxes(fr.rot, -1, -2)
     return xc, vc, a_c, iw, w, al
 
@@ -80,8 +81,8 @@ def momentum_rates(state, inertia):
     """Return ``Phi`` ``(n, nb, 6)`` = (N about the origin, F) of every body."""
     xc, _, a_c, iw, w, al = body_motion(state, inertia)
     f = inertia.mass[:, None] * a_c
-    dh = np.einsum('nkij,nkj->nki', iw, al) + np.cross(w, np.einsum('nkij,nkj->nki', iw, w))
-    return np.concatenate([dh + np.cross(xc, f), f], -1)
+    dh = mv(iw, al) + cross(w, mv(iw, w))
+    return np.concatenate([dh + cross(xc, f), f], -1)
 
 
 def kinetic_energy(state, inertia):
@@ -97,17 +98,17 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
     total = phi.sum(axis=1)
     p = np.asarray(moment_point, dtype=float)
     force = -total[:, 3:]
-    moment = -(total[:, :3] - np.cross(p, total[:, 3:]))
+    moment = -(total[:, :3] - cross(p, total[:, 3:]))
     out = SpatialWrenches(force, moment)
     if 'driving_torque' not in need:
         return out
     lk = linkage
-    q_gen = np.einsum('nks,nds,dk->nd', phi, state.frames.cols, lk.path)
+    q_gen = (np.matmul(lk.path, phi) * state.frames.cols).sum(-1)
     jac = state.jac
     n = state.size
     if lk.nu:
         rhs = q_gen[:, lk.unknown] * lk.col_scale[lk.unknown]
-        lam = np.einsum('nji,nj->ni', state.solver, rhs) * lk.row_scale
+        lam = lk.solve_ut(state.solver, state.refine, rhs) * lk.row_scale
     else:
         lam = np.zeros((n, lk.m))
     out.multipliers = lam
@@ -133,7 +134,7 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
         below[t.child] = lk.path[t.dofs[0]]
     for t in lk.tree:
         w = np.einsum('nks,k->ns', phi - on_body, below[t.child])
-        if t.reversed:
+        if t.flipped:
             w = -w
         reactions[t.name] = w
     for ji in lk.cut_joints:
@@ -146,6 +147,6 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
         b = idx[jt.link_b]
         x = state.frames.origin[:, b] + state.frames.rot[:, b] @ lk._points[jt.link_b][
             jt.point_b]
-        res[jt.name] = (w[:, 3:], w[:, :3] - np.cross(x, w[:, 3:]))
+        res[jt.name] = (w[:, 3:], w[:, :3] - cross(x, w[:, 3:]))
     out.reactions = res
     return out

@@ -64,6 +64,10 @@ EVAL_TRUST = 1e-3
 """Largest scaled correction from the branch predictor before an angle is re-traced."""
 CLOSURE_TOL = 1e-7
 """Largest scaled pose mismatch after one traced turn for the branch to count as closed."""
+REFINE_STEPS = 2
+"""Iterative-refinement steps of a solve with the predictor's inverse (error ~1e-8 each)."""
+DENSE_STEP_RAD = math.radians(1.0)
+"""Spacing of the dense branch nodes the batched evaluation predicts from."""
 IDLE_INERTIA_RTOL = 1e-9
 """Inertia about an S-S line, relative to m L^2 + trace(I), below which it counts as zero."""
 SPIN_ROW_MIN = 1e-3
@@ -73,6 +77,27 @@ TWO_PI = 2.0 * math.pi
 
 class SpatialError(ValueError):
     """The spatial linkage cannot be assembled, is singular, or would leave its branch."""
+
+
+def cross(a, b):
+    """Return ``a x b`` over the last axis (broadcast); numpy's cross without its overhead."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
+    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
+    return out
+
+
+def mv(mat, vec):
+    """Return ``mat @ vec`` over stacks: ``(..., 3, 3)`` times ``(..., 3)`` (broadcast)."""
+    return np.matmul(mat, vec[..., None])[..., 0]
+
+
+def dot(a, b):
+    """Return the dot products over the last axis (broadcast)."""
+    return (a * b).sum(-1)
 
 
 def skew(v):
@@ -108,13 +133,13 @@ def min_rotation(frm, to):
     """Return the smallest rotation (3, 3) taking the unit vector ``frm`` onto ``to``."""
     frm, to = np.asarray(frm, dtype=float), np.asarray(to, dtype=float)
     c = float(frm @ to)
-    axis = np.cross(frm, to)
+    axis = cross(frm, to)
     s = float(np.linalg.norm(axis))
     if s < 1e-15:
         if c > 0.0:
             return np.eye(3)
         helper = np.eye(3)[int(np.argmin(np.abs(frm)))]
-        axis = np.cross(frm, helper)
+        axis = cross(frm, helper)
         axis /= np.linalg.norm(axis)
         return rot_axis(axis, np.array([math.pi]))[0]
     return rot_axis(axis / s, np.array([math.atan2(s, c)]))[0]
@@ -134,19 +159,52 @@ def _unit(v, where):
     return v / np.linalg.norm(v)
 
 
-def _perp_pair(axis):
+def perp_pair(axis):
     """Return two unit vectors normal to ``axis`` and to each other (deterministic)."""
     helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-    e1 = np.cross(axis, helper)
+    e1 = cross(axis, helper)
     e1 /= np.linalg.norm(e1)
-    return e1, np.cross(axis, e1)
+    return e1, cross(axis, e1)
 
 
 def _spatial_cross(t, s):
     """Return the motion cross product ``t x s`` of twists ``(..., 6)`` (omega, v)."""
     w, v = t[..., :3], t[..., 3:]
     w2, v2 = s[..., :3], s[..., 3:]
-    return np.concatenate([np.cross(w, w2), np.cross(w, v2) + np.cross(v, w2)], axis=-1)
+    return np.concatenate([cross(w, w2), cross(w, v2) + cross(v, w2)], axis=-1)
+
+
+def angle_about(axis, rot):
+    """Return the angle ``(n,)`` of rotations ``rot`` ``(n, 3, 3)`` about the unit ``axis``."""
+    skw = rot - np.swapaxes(rot, -1, -2)
+    vee = 0.5 * np.stack([skw[..., 2, 1], skw[..., 0, 2], skw[..., 1, 0]], -1)
+    cos = 0.5 * (np.trace(rot, axis1=-2, axis2=-1) - 1.0)
+    return np.arctan2(vee @ axis, cos)
+
+
+def tree_values(t, rel, d):
+    """Return the coordinates of a (non-spherical) tree joint from a guessed relative pose."""
+    jt = t.joint_type
+    if jt == 'prismatic':
+        return [float(d @ t.axis)]
+    theta = float(angle_about(t.axis, (rel @ t.fixed.T)[None])[0])
+    if jt == 'revolute':
+        return [theta]
+    if jt == 'cylindrical':
+        return [theta, float(d @ t.axis)]
+    rest = t.fixed.T @ rot_axis(t.axis, np.array([-theta]))[0] @ rel
+    return [theta, float(angle_about(t.axis_child, rest[None])[0])]
+
+
+def spherical_zeros(linkage, fr):
+    """Return ``{joint name: A}``, the relative rotation of each spherical joint at assembly."""
+    idx = {n: i for i, n in enumerate(linkage.body_names)}
+    out = {}
+    for jt in linkage.scene.joints:
+        if jt.joint_type == 'spherical':
+            ra, rb = fr.rot[0, idx[jt.link_a]], fr.rot[0, idx[jt.link_b]]
+            out[jt.name] = ra.T @ rb
+    return out
 
 
 @dataclass
@@ -164,14 +222,14 @@ class TreeJoint:
     axis_child: np.ndarray
     fixed: np.ndarray     # the constant rotation Z, Rot(a, angle) Z or U (None: spherical)
     dofs: tuple           # indices into the coordinate vector
-    reversed: bool        # the scene's end a is the child
+    flipped: bool         # the scene's end a is the child
 
 
 @dataclass
 class Rows:
     """The closure rows of one group, as index and local-vector arrays (module docstring)."""
 
-    kind: str
+    form: str
     body_b: np.ndarray
     body_a: np.ndarray
     vec_b: np.ndarray     # points: s_b; dots: u_b; lines: s_b; spin: v
@@ -182,7 +240,7 @@ class Rows:
     @property
     def size(self):
         """Return the number of rows."""
-        return self.body_b.size * (3 if self.kind == 'point' else 1)
+        return self.body_b.size * (3 if self.form == 'point' else 1)
 
 
 @dataclass
@@ -209,6 +267,7 @@ class SpatialState:
     rank: np.ndarray       # (n,) rank of the Jacobian
     jac: np.ndarray = None         # (n, m, ndof) closure Jacobian
     solver: np.ndarray = None      # (n, nu, m) (pseudo-)inverse of the scaled J_u
+    refine: np.ndarray = None      # scaled J_u at the solution when solver is the predictor's
     qd: np.ndarray = None          # (n, ndof)
     qdd: np.ndarray = None
     twist: np.ndarray = None       # (n, nb, 6)
@@ -297,7 +356,7 @@ class Linkage:
                 axis, axis_c = (b_ax, a_ax) if rev else (a_ax, b_ax)
                 if jt.joint_type == 'universal':
                     e = axis_c - (axis_c @ axis) * axis
-                    e = _perp_pair(axis)[0] if np.linalg.norm(e) < 1e-12 else e / \
+                    e = perp_pair(axis)[0] if np.linalg.norm(e) < 1e-12 else e / \
                         np.linalg.norm(e)
                     fixed = min_rotation(axis_c, e)
                 else:
@@ -360,7 +419,7 @@ class Linkage:
             if t == 'universal':
                 dots.append((b, bx, a, ax, jt.name))
                 continue
-            e1, e2 = _perp_pair(ax)
+            e1, e2 = perp_pair(ax)
             dots.append((b, bx, a, e1, jt.name))
             dots.append((b, bx, a, e2, jt.name))
             if t in ('cylindrical', 'prismatic'):
@@ -394,13 +453,13 @@ class Linkage:
         self.m = sum(r.size for r in self.rows)
         scale = []
         for r in self.rows:
-            scale += [1.0 / self.length_scale if r.kind in ('point', 'line') else 1.0] * r.size
+            scale += [1.0 / self.length_scale if r.form in ('point', 'line') else 1.0] * r.size
         self.row_scale = np.array(scale)
         self.col_scale = np.where(self.dof_slide, self.length_scale, 1.0)
         self.row_joint = tuple(j for r in self.rows for j in r.joint)
         bodies_b, bodies_a = [], []
         for r in self.rows:
-            rep = 3 if r.kind == 'point' else 1
+            rep = 3 if r.form == 'point' else 1
             bodies_b += list(np.repeat(r.body_b, rep))
             bodies_a += list(np.repeat(r.body_a, rep))
         self.row_b = np.array(bodies_b, dtype=int)
@@ -446,22 +505,22 @@ class Linkage:
             rot[:, t.child] = rc
             origin[:, t.child] = r_joint - rc @ t.s_child
             if jtype == 'spherical':
-                axes = np.swapaxes(rp, 1, 2) if t.parent else np.broadcast_to(np.eye(3),
-                                                                            (n, 3, 3))
+                axes = np.swapaxes(rp, 1, 2) if t.parent else \
+                    np.broadcast_to(np.eye(3), (n, 3, 3))
                 for i in range(3):
                     cols[:, d[i], :3] = axes[:, i]
-                    cols[:, d[i], 3:] = np.cross(r_joint, axes[:, i])
+                    cols[:, d[i], 3:] = cross(r_joint, axes[:, i])
                 continue
             aw = rp @ t.axis if t.parent else np.broadcast_to(t.axis, (n, 3))
             if jtype in ('revolute', 'cylindrical', 'universal'):
                 cols[:, d[0], :3] = aw
-                cols[:, d[0], 3:] = np.cross(r_joint, aw)
+                cols[:, d[0], 3:] = cross(r_joint, aw)
             if jtype in ('cylindrical', 'prismatic'):
                 cols[:, d[-1], 3:] = aw
             if jtype == 'universal':
                 bw = rc @ t.axis_child
                 cols[:, d[1], :3] = bw
-                cols[:, d[1], 3:] = np.cross(r_joint, bw)
+                cols[:, d[1], 3:] = cross(r_joint, bw)
         return Frames(rot, origin, cols)
 
     # ------------------------------------------------------------------ closure rows
@@ -470,12 +529,12 @@ class Linkage:
         """Yield per group the world quantities the rows need."""
         for r in self.rows:
             rb, ra = fr.rot[:, r.body_b], fr.rot[:, r.body_a]
-            if r.kind == 'spin':
-                yield r, rb, ra, np.einsum('nkij,kj->nki', rb, r.vec_b), r.vec_a
+            if r.form == 'spin':
+                yield r, rb, ra, mv(rb, r.vec_b), r.vec_a
                 continue
-            vb = np.einsum('nkij,kj->nki', rb, r.vec_b)
-            va = np.einsum('nkij,kj->nki', ra, r.vec_a)
-            if r.kind in ('point', 'line'):
+            vb = mv(rb, r.vec_b)
+            va = mv(ra, r.vec_a)
+            if r.form in ('point', 'line'):
                 vb = vb + fr.origin[:, r.body_b]
                 va = va + fr.origin[:, r.body_a]
             yield r, rb, ra, vb, va
@@ -484,15 +543,15 @@ class Linkage:
         """Return the closure residuals ``(n, m)`` (SI: m for point and line rows)."""
         out = []
         for r, rb, ra, vb, va in self._row_parts(fr):
-            if r.kind == 'point':
+            if r.form == 'point':
                 out.append((vb - va).reshape(vb.shape[0], -1))
-            elif r.kind == 'dot':
-                out.append(np.einsum('nki,nki->nk', vb, va))
-            elif r.kind == 'line':
-                w = np.einsum('nkij,kj->nki', ra, r.extra)
-                out.append(np.einsum('nki,nki->nk', vb - va, w))
+            elif r.form == 'dot':
+                out.append(dot(vb, va))
+            elif r.form == 'line':
+                w = mv(ra, r.extra)
+                out.append(dot(vb - va, w))
             else:
-                out.append(np.einsum('nki,ki->nk', vb, va))
+                out.append(dot(vb, va))
         return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
 
     def gradients(self, fr):
@@ -501,33 +560,37 @@ class Linkage:
         eye = np.eye(3)
         for r, rb, ra, vb, va in self._row_parts(fr):
             n, k = vb.shape[:2]
-            if r.kind == 'point':
-                wb = np.cross(vb[:, :, None, :], eye)          # x_b x e_i
-                wa = np.cross(va[:, :, None, :], eye)
+            if r.form == 'point':
+                wb = cross(vb[:, :, None, :], eye)          # x_b x e_i
+                wa = cross(va[:, :, None, :], eye)
                 lin = np.broadcast_to(eye, (n, k, 3, 3))
                 gb.append(np.concatenate([wb, lin], -1).reshape(n, 3 * k, 6))
                 ga.append(-np.concatenate([wa, lin], -1).reshape(n, 3 * k, 6))
-            elif r.kind == 'dot':
-                c = np.cross(vb, va)
+            elif r.form == 'dot':
+                c = cross(vb, va)
                 z = np.zeros_like(c)
                 gb.append(np.concatenate([c, z], -1))
                 ga.append(np.concatenate([-c, z], -1))
-            elif r.kind == 'line':
-                w = np.einsum('nkij,kj->nki', ra, r.extra)
+            elif r.form == 'line':
+                w = mv(ra, r.extra)
                 d = vb - va
-                gb.append(np.concatenate([np.cross(vb, w), w], -1))
-                ga.append(np.concatenate([-np.cross(va, w) + np.cross(w, d), -w], -1))
+                gb.append(np.concatenate([cross(vb, w), w], -1))
+                ga.append(np.concatenate([-cross(va, w) + cross(w, d), -w], -1))
             else:
-                c = np.cross(vb, np.broadcast_to(va, vb.shape))
+                c = cross(vb, np.broadcast_to(va, vb.shape))
                 gb.append(np.concatenate([c, np.zeros_like(c)], -1))
                 ga.append(np.zeros((n, k, 6)))
+        if not gb:
+            empty = np.zeros((fr.rot.shape[0], 0, 6))
+            return empty, empty
         return np.concatenate(gb, axis=1), np.concatenate(ga, axis=1)
 
     def jacobian(self, fr, grads=None):
         """Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate)."""
         gb, ga = self.gradients(fr) if grads is None else grads
-        jb = np.einsum('nms,nds->nmd', gb, fr.cols)
-        ja = np.einsum('nms,nds->nmd', ga, fr.cols)
+        cols_t = np.swapaxes(fr.cols, 1, 2)
+        jb = np.matmul(gb, cols_t)
+        ja = np.matmul(ga, cols_t)
         return jb * self.mask_b + ja * self.mask_a
 
     def bias(self, fr, twist, acc0):
@@ -542,43 +605,43 @@ class Linkage:
         def point_acc(k, x):
             w, v = twist[:, k, :3], twist[:, k, 3:]
             al, ao = acc0[:, k, :3], acc0[:, k, 3:]
-            return ao + np.cross(al, x) + np.cross(w, v + np.cross(w, x))
+            return ao + cross(al, x) + cross(w, v + cross(w, x))
 
         def point_vel(k, x):
-            return twist[:, k, 3:] + np.cross(twist[:, k, :3], x)
+            return twist[:, k, 3:] + cross(twist[:, k, :3], x)
 
         def vec_rates(k, u):
             w, al = twist[:, k, :3], acc0[:, k, :3]
-            du = np.cross(w, u)
-            return du, np.cross(al, u) + np.cross(w, du)
+            du = cross(w, u)
+            return du, cross(al, u) + cross(w, du)
 
         for r, rb, ra, vb, va in self._row_parts(fr):
-            if r.kind == 'point':
+            if r.form == 'point':
                 out.append((point_acc(r.body_b, vb) - point_acc(r.body_a, va)).reshape(
                     vb.shape[0], -1))
-            elif r.kind == 'dot':
+            elif r.form == 'dot':
                 dub, ddub = vec_rates(r.body_b, vb)
                 dua, ddua = vec_rates(r.body_a, va)
-                out.append(np.einsum('nki,nki->nk', ddub, va)
-                           + 2.0 * np.einsum('nki,nki->nk', dub, dua)
-                           + np.einsum('nki,nki->nk', vb, ddua))
-            elif r.kind == 'line':
-                w = np.einsum('nkij,kj->nki', ra, r.extra)
+                out.append(dot(ddub, va)
+                           + 2.0 * dot(dub, dua)
+                           + dot(vb, ddua))
+            elif r.form == 'line':
+                w = mv(ra, r.extra)
                 dw, ddw = vec_rates(r.body_a, w)
                 d = vb - va
                 dd = point_vel(r.body_b, vb) - point_vel(r.body_a, va)
                 ddd = point_acc(r.body_b, vb) - point_acc(r.body_a, va)
-                out.append(np.einsum('nki,nki->nk', ddd, w)
-                           + 2.0 * np.einsum('nki,nki->nk', dd, dw)
-                           + np.einsum('nki,nki->nk', d, ddw))
+                out.append(dot(ddd, w)
+                           + 2.0 * dot(dd, dw)
+                           + dot(d, ddw))
             else:
                 _, ddu = vec_rates(r.body_b, vb)
-                out.append(np.einsum('nki,ki->nk', ddu, va))
-        return np.concatenate(out, axis=1)
+                out.append(dot(ddu, va))
+        return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
 
     def twists(self, fr, qd):
         """Return the body twists ``(n, nb, 6)`` of coordinate rates ``qd`` (n, ndof)."""
-        return np.einsum('nds,nd,dk->nks', fr.cols, qd, self.path)
+        return np.matmul(self.path.T, fr.cols * qd[:, :, None])
 
     def accelerations(self, fr, twist, qd, qdd):
         """Return the body spatial accelerations ``(n, nb, 6)`` (tree recursion in sums)."""
@@ -587,7 +650,7 @@ class Linkage:
         total = dcols * qd[:, :, None]
         if qdd is not None:
             total = total + fr.cols * qdd[:, :, None]
-        return np.einsum('nds,dk->nks', total, self.path)
+        return np.matmul(self.path.T, total)
 
     # ------------------------------------------------------------------ Newton
 
@@ -644,11 +707,64 @@ class Linkage:
         ok = (res <= tol) & np.isfinite(res)
         return q, sph, fr, res, ok
 
+    def _chord(self, q, sph, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
+        """
+        Return ``(q, sph, frames, residual, ok, factor)``: Newton with the predictor's factor.
+
+        The Jacobian is factorized once, at the predictor; the iteration is then a chord
+        method (linear convergence with the factor ~1e-8 of the predictor's error, so one or
+        two steps).  ``factor`` is ``(solver, cond, rank, sign)`` (None: not square, the
+        full Newton of :meth:`newton` was used).
+        """
+        if not self.square or not self.nu:
+            q, sph, fr, res, ok = self.newton(q, sph, max_iter, tol)
+            return q, sph, fr, res, ok, None
+        fr = self.frames(q, sph)
+        g = self.residual(fr) * self.row_scale
+        js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
+            self.col_scale[self.unknown]
+        factor = self._solver(js)
+        solver = factor[0]
+        cu = self.col_scale[self.unknown]
+        for _ in range(max_iter):
+            delta = -mv(solver, g) * cu
+            delta[~np.isfinite(delta).all(axis=1)] = 0.0
+            q, sph = self._update(q, sph, delta)
+            fr = self.frames(q, sph)
+            g = self.residual(fr) * self.row_scale
+            res = np.max(np.abs(g), axis=1)
+            if np.all(res <= tol):
+                break
+        ok = (res <= tol) & np.isfinite(res)
+        return q, sph, fr, res, ok, factor
+
+    @property
+    def dense(self):
+        """Return the branch at nodes every DENSE_STEP_RAD (solved in one batch, cached)."""
+        if getattr(self, '_dense', None) is None:
+            sk = self.skeleton
+            count = max(int(math.ceil(TWO_PI / DENSE_STEP_RAD)), 4)
+            psi = sk.psi[0] + TWO_PI * np.arange(count + 1) / count
+            k, h = sk.nearest(psi)
+            qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
+            q, sph, fr, res, ok = self.newton(qp, sphp)
+            bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp))
+                         > STEP_TRUST)
+            if bad.any():  # keep the traced nodes only: no dense node off the branch
+                self._dense = sk
+                return sk
+            q[:, 0] = psi
+            qd, qdd, cond, sign = self._derivs(fr, q)
+            if self.square and np.any(sign != self.branch_sign):
+                self._dense = sk
+                return sk
+            self._dense = Skeleton(psi, q, sph, qd, qdd, cond)
+        return self._dense
+
     # ------------------------------------------------------------------ assembly
 
     def _initial(self):
         """Return tree coordinates ``(1, ndof)`` and rotations from the scene's poses."""
-        from mech_balance.core.spatial import coordinates
         sc = self.scene
         rot = [np.eye(3)]
         org = [np.zeros(3)]
@@ -671,13 +787,18 @@ class Linkage:
                 sph[0, si] = rel
                 si += 1
                 continue
-            vals = coordinates.tree_values(t, rel, d)
+            vals = tree_values(t, rel, d)
             q[0, list(t.dofs)] = vals
         q[0, 0] = sc.assembly_crank_angle_rad
         return q, sph
 
     def _assemble(self):
         """Assemble the linkage (Levenberg-Marquardt), find idle spins and redundancy."""
+        if not self.m and self.nu:
+            raise SpatialError(
+                f'joints: the linkage is an open chain (no closed loop) with {self.nu} '
+                f'degree(s) of freedom besides the crank joint {self.scene.crank_joint!r}; '
+                'expected a single-input linkage')
         q, sph = self._initial()
         lam = 1e-3
         fr = self.frames(q, sph)
@@ -716,8 +837,7 @@ class Linkage:
         if not ok[0]:
             raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
         self.q0, self.sph0 = q, sph
-        from mech_balance.core.spatial import coordinates
-        self.sph_zero = coordinates.spherical_zeros(self, fr)
+        self.sph_zero = spherical_zeros(self, fr)
         js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
             self.col_scale[self.unknown]
         _, cond, rank, sign = self._solver(js)
@@ -766,7 +886,7 @@ class Linkage:
                 continue
             u = line / np.linalg.norm(line)
             e = np.zeros((self.nb, 6))
-            e[k, :3], e[k, 3:] = u, np.cross(x[0], u)
+            e[k, :3], e[k, 3:] = u, cross(x[0], u)
             e = e.ravel()
             coef, *_ = np.linalg.lstsq(tw.T, e, rcond=None)
             if np.linalg.norm(tw.T @ coef - e) > 1e-6 * np.linalg.norm(e):
@@ -786,7 +906,7 @@ class Linkage:
             name = self.body_names[k]
             rl = fr.rot[0, k]
             n_ref = np.eye(3)[int(np.argmin(np.abs(u)))]
-            v = np.cross(u, n_ref)
+            v = cross(u, n_ref)
             v /= np.linalg.norm(v)
             self.rows.append(Rows('spin', np.array([k]), np.array([0]), (rl.T @ v)[None],
                                   n_ref[None], None, (f'spin:{name}',)))
@@ -806,7 +926,7 @@ class Linkage:
             lk = scene.link(name)
             c = np.array(lk.com_m) - x0
             inertia = np.array(lk.inertia_matrix())
-            about = float(ul @ inertia @ ul + lk.mass_kg * np.sum(np.cross(c, ul) ** 2))
+            about = float(ul @ inertia @ ul + lk.mass_kg * np.sum(cross(c, ul) ** 2))
             scale = lk.mass_kg * self.length_scale ** 2 + float(np.trace(inertia))
             if about > IDLE_INERTIA_RTOL * max(scale, 1e-300):
                 raise SpatialError(
@@ -816,21 +936,56 @@ class Linkage:
                     'expected 0 (a slender rod on that line, whose spin is then fixed by '
                     'convention) - or replace one S by a U (universal joint) to hold the spin')
 
+    # ------------------------------------------------------------------ refined solves
+
+    def solve_u(self, solver, js, rhs):
+        """
+        Return ``x`` with ``js x = rhs`` ``(n, m)`` from an inverse ``solver`` of a nearby Js.
+
+        Square systems: ``solver`` is the inverse at the branch predictor, ``js`` the scaled
+        Jacobian at the solution; REFINE_STEPS steps of iterative refinement make the result
+        that of ``js`` itself (the two differ by the predictor's error, ~1e-8).
+        Redundant systems: ``solver`` is the pseudo-inverse of ``js`` itself.
+        """
+        x = mv(solver, rhs)
+        if self.square and js is not None:
+            for _ in range(REFINE_STEPS):
+                x += mv(solver, rhs - mv(js, x))
+        return x
+
+    def solve_ut(self, solver, js, rhs):
+        """Return ``y`` with ``js^T y = rhs`` (as :meth:`solve_u`; minimum norm if redundant)."""
+        y = mv(np.swapaxes(solver, 1, 2), rhs)
+        if self.square and js is not None:
+            for _ in range(REFINE_STEPS):
+                y += mv(np.swapaxes(solver, 1, 2), rhs - mv(np.swapaxes(js, 1, 2), y))
+        return y
+
     # ------------------------------------------------------------------ rates
 
-    def rates(self, fr, q, psi_d, psi_dd, need_acc=True):
-        """Return ``(qd, qdd, twist, accel, jac, solver, cond, rank, sign)`` at ``fr``."""
+    def rates(self, fr, q, psi_d, psi_dd, need_acc=True, factor=None):
+        """
+        Return ``(qd, qdd, twist, accel, jac, solver, cond, rank, sign, js)`` at ``fr``.
+
+        ``factor`` ``(solver, cond, rank, sign)`` from a nearby position (the predictor's)
+        is refined against this position's Jacobian instead of factorizing it anew.
+        """
         n = q.shape[0]
         jac = self.jacobian(fr) if self.m else np.zeros((n, 0, self.ndof))
         js = jac[:, :, self.unknown] * self.row_scale[:, None] * self.col_scale[self.unknown]
-        solver, cond, rank, sign = self._solver(js)
+        if factor is None or not self.square:
+            solver, cond, rank, sign = self._solver(js)
+            refine = None
+        else:
+            solver, cond, rank, sign = factor
+            refine = js
         rs = self.row_scale
         cu = self.col_scale[self.unknown]
         qd = np.zeros((n, self.ndof))
         qd[:, 0] = psi_d
         if self.nu:
             rhs = jac[:, :, 0] * psi_d[:, None] * rs
-            qd[:, self.unknown] = -np.einsum('nij,nj->ni', solver, rhs) * cu
+            qd[:, self.unknown] = -self.solve_u(solver, refine, rhs) * cu
         twist = self.twists(fr, qd)
         qdd = accel = None
         if need_acc:
@@ -839,9 +994,9 @@ class Linkage:
             qdd[:, 0] = psi_dd
             if self.nu:
                 gam = self.bias(fr, twist, acc0) + jac[:, :, 0] * psi_dd[:, None]
-                qdd[:, self.unknown] = -np.einsum('nij,nj->ni', solver, gam * rs) * cu
-            accel = acc0 + np.einsum('nds,nd,dk->nks', fr.cols, qdd, self.path)
-        return qd, qdd, twist, accel, jac, solver, cond, rank, sign
+                qdd[:, self.unknown] = -self.solve_u(solver, refine, gam * rs) * cu
+            accel = acc0 + self.twists(fr, qdd)
+        return qd, qdd, twist, accel, jac, solver, cond, rank, sign, refine
 
     # ------------------------------------------------------------------ branch
 
@@ -866,7 +1021,7 @@ class Linkage:
 
     def _derivs(self, fr, q):
         one = np.ones(q.shape[0])
-        qd, qdd, _, _, _, _, cond, _, sign = self.rates(fr, q, one, 0.0 * one)
+        qd, qdd, _, _, _, _, cond, _, sign, _ = self.rates(fr, q, one, 0.0 * one)
         return qd, qdd, cond, sign
 
     def _corr(self, q, qp):
@@ -943,25 +1098,28 @@ class Linkage:
     def solve(self, psi, psi_d, psi_dd, need_rates=True, need_acc=True):
         """Return the :class:`SpatialState` at crank angles ``psi`` (n,), rad/s, rad/s^2."""
         psi = np.asarray(psi, dtype=float)
-        sk = self.skeleton
+        sk = self.dense
         k, h = sk.nearest(psi)
         qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
-        q, sph, fr, res, ok = self.newton(qp, sphp)
+        q, sph, fr, res, ok, factor = self._chord(qp, sphp)
         bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp)) > EVAL_TRUST)
         if bad.any():
             q, sph = q.copy(), sph.copy()
-            for i in np.flatnonzero(bad):
-                qi, si = sk.q[k[i]:k[i] + 1], sk.sph[k[i]:k[i] + 1]
-                for qi, si, _, _, _ in self._advance(qi, si, sk.qd[k[i]:k[i] + 1],
-                                                     sk.qdd[k[i]:k[i] + 1], self.branch_sign,
-                                                     float(h[i])):
+            cs = self.skeleton
+            kc, hc = cs.nearest(psi[bad])
+            for i, kk, hh in zip(np.flatnonzero(bad), kc, hc):
+                qi, si = cs.q[kk:kk + 1], cs.sph[kk:kk + 1]
+                for qi, si, _, _, _ in self._advance(qi, si, cs.qd[kk:kk + 1],
+                                                     cs.qdd[kk:kk + 1], self.branch_sign,
+                                                     float(hh)):
                     pass
                 q[i], sph[i] = qi[0], si[0]
             q, sph, fr, res, ok = self.newton(q, sph)
+            factor = None
         psi_d = np.broadcast_to(np.asarray(psi_d, dtype=float), psi.shape)
         psi_dd = np.broadcast_to(np.asarray(psi_dd, dtype=float), psi.shape)
-        qd, qdd, twist, accel, jac, solver, cond, rank, sign = self.rates(
-            fr, q, psi_d, psi_dd, need_acc)
+        qd, qdd, twist, accel, jac, solver, cond, rank, sign, refine = self.rates(
+            fr, q, psi_d, psi_dd, need_acc, factor)
         if self.square:
             wrong = sign != self.branch_sign
             if wrong.any():
@@ -974,8 +1132,8 @@ class Linkage:
             i = int(np.argmax(cond))
             self._warn(f'crank angle {math.degrees(psi[i]):.3f} deg: near-singular position '
                        f'(Jacobian condition number {cond[i]:.3g} > {COND_WARN:.4g})')
-        return SpatialState(psi, psi_d, psi_dd, q, sph, fr, res, cond, rank, jac, solver, qd,
-                            qdd, twist, accel)
+        return SpatialState(psi, psi_d, psi_dd, q, sph, fr, res, cond, rank, jac, solver,
+                            refine, qd, qdd, twist, accel)
 
 
 class Skeleton:

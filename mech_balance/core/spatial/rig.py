@@ -13,6 +13,7 @@ for spatial balancing and identification.
 from mech_balance.core.rig import batch, BodyKinematics, BodyPoses, Drawing, DrawingBody, \
     RigData
 from mech_balance.core.spatial import coordinates, dynamics, kinematics
+from mech_balance.core.spatial.kinematics import cross
 from mech_balance.schema.scene import FRAME, needs
 import numpy as np
 
@@ -131,7 +132,7 @@ class SpatialRig:
         fr, tw, ac = state.frames, state.twist, state.accel
         p = fr.origin
         w, v = tw[..., :3], tw[..., 3:]
-        acc_origin = ac[..., 3:] + np.cross(ac[..., :3], p) + np.cross(w, v + np.cross(w, p))
+        acc_origin = ac[..., 3:] + cross(ac[..., :3], p) + cross(w, v + cross(w, p))
         return BodyKinematics(self.linkage.body_names[1:], fr.rot[:, 1:].copy(),
                               p[:, 1:].copy(), w[:, 1:].copy(), ac[:, 1:, :3].copy(),
                               acc_origin[:, 1:])
