@@ -39,7 +39,10 @@ import scipy.sparse as sp
 
 UNIT_ROUNDOFF = np.finfo(float).eps / 2.0
 """u of IEEE double precision (round to nearest)."""
-CONE_KINDS = ('zero', 'nonneg', 'soc')
+SVD_MARGIN = 1e-6
+"""Relative margin on level-set reaches computed from singular vectors: it covers their
+rounding (orthogonal to ~1e-15) for the directions kept."""
+CONE_FAMILIES = ('zero', 'nonneg', 'soc')
 """The cones of the balancing programs, by name (Clarabel's ZeroConeT, NonnegativeConeT,
 SecondOrderConeT)."""
 
@@ -66,22 +69,22 @@ class LowerBound:
 
 
 def cone_list(cones):
-    """Return ``[(kind, dim)]`` from Clarabel cone objects or ``(kind, dim)`` pairs."""
+    """Return ``[(family, dim)]`` from Clarabel cone objects or ``(family, dim)`` pairs."""
     out = []
     for c in cones:
         if isinstance(c, tuple):
-            kind, dim = c
+            family, dim = c
         else:
             name = type(c).__name__
-            kind = {'ZeroConeT': 'zero', 'NonnegativeConeT': 'nonneg',
-                    'SecondOrderConeT': 'soc'}.get(name)
-            if kind is None:
+            family = {'ZeroConeT': 'zero', 'NonnegativeConeT': 'nonneg',
+                      'SecondOrderConeT': 'soc'}.get(name)
+            if family is None:
                 raise ValueError(f'cones: got {name}, expected one of ZeroConeT, '
                                  'NonnegativeConeT, SecondOrderConeT')
             dim = int(str(c).split('(')[-1].rstrip(')')) if not hasattr(c, 'dim') else c.dim
-        if kind not in CONE_KINDS:
-            raise ValueError(f'cones: got {kind!r}, expected one of {", ".join(CONE_KINDS)}')
-        out.append((kind, int(dim)))
+        if family not in CONE_FAMILIES:
+            raise ValueError(f'cones: got {family!r}, expected one of {", ".join(CONE_FAMILIES)}')
+        out.append((family, int(dim)))
     return out
 
 
@@ -96,11 +99,11 @@ def project_dual(z, cones):
     z = np.array(z, dtype=float)
     out = z.copy()
     k = 0
-    for kind, dim in cones:
+    for family, dim in cones:
         blk = out[k:k + dim]
-        if kind == 'nonneg':
+        if family == 'nonneg':
             np.maximum(blk, 0.0, out=blk)
-        elif kind == 'soc':
+        elif family == 'soc':
             t, v = blk[0], blk[1:]
             nv = float(np.linalg.norm(v))
             if nv <= -t:
@@ -117,15 +120,121 @@ def project_dual(z, cones):
     return out
 
 
+REFINE_ROUNDS = 2
+"""Rounds of :func:`refine_dual` tried by :func:`safe_lower_bound` (the best bound is kept)."""
+REFINE_SHARE = 1e-2
+"""A coordinate is refined when its residual term is at least this share of the largest."""
+
+
+def refine_dual(a, cones, z, r, cols, frozen=None):
+    """
+    Return z corrected so that the dual residual r vanishes on ``cols`` (least squares).
+
+    Only the rows whose dual is free to move without leaving K* change: zero cones and the
+    vector part of second-order cones (whose first entry is then raised to the new norm by
+    :func:`project_dual`); a non-negative row or a cone's first entry stays.  The residual
+    moves to the columns of those first entries (epigraph variables with a finite box).
+    """
+    a = sp.csc_matrix(a)
+    movable = np.zeros(a.shape[0], dtype=bool)
+    k = 0
+    for family, dim in cones:
+        if family == 'zero':
+            movable[k:k + dim] = True
+        elif family == 'soc':
+            movable[k + 1:k + dim] = True
+        k += dim
+    if frozen is not None:
+        movable &= ~frozen
+    rows = np.flatnonzero(movable)
+    sub = a[rows][:, cols].toarray()          # (rows, cols)
+    if not sub.size:
+        return z
+    step, *_ = np.linalg.lstsq(sub.T, -r[cols], rcond=None)
+    out = np.array(z, dtype=float)
+    out[rows] += step
+    return out
+
+
 def safe_lower_bound(q, a, b, cones, z, lo, hi):
     """
     Return the :class:`LowerBound` (1) of ``min q'x s.t. a x + s = b, s in K``.
 
     ``q`` (n,), ``a`` (m, n) dense or scipy sparse, ``b`` (m,), ``cones`` Clarabel cone
-    objects or ``(kind, dim)`` pairs in row order, ``z`` the solver's dual (m,) (any
+    objects or ``(family, dim)`` pairs in row order, ``z`` the solver's dual (m,) (any
     vector: it is projected), ``lo``/``hi`` (n,) a box (entries may be -inf/inf) that the
-    caller guarantees to contain at least one optimal point.
+    caller guarantees to contain at least one optimal point.  Where a few coordinates with
+    wide boxes dominate the residual term, :func:`refine_dual` removes their residual and
+    the better of the bounds is returned (each is a bound).
     """
+    cones = cone_list(cones)
+    a = sp.csc_matrix(a)
+    q_arr = np.asarray(q, dtype=float).ravel()
+    best = _bound(q, a, b, cones, z, lo, hi)
+    z_now = np.asarray(z, dtype=float)
+    idle, frozen = _idle_epigraphs(a, q_arr, cones, z_now)
+    if idle is not None:      # a term the objective does not weight: its cone's dual is 0
+        cand = _bound(q, a, b, cones, idle, lo, hi)
+        if cand.value > best.value:
+            best, z_now = cand, idle
+        else:
+            frozen = None
+    for _ in range(REFINE_ROUNDS):
+        if best.terms is None or not np.isfinite(best.value) and not best.unbounded:
+            break
+        share = np.abs(best.terms)
+        cols = np.flatnonzero(share >= REFINE_SHARE * share.max()) if share.max() > 0 \
+            else np.array([], dtype=int)
+        cols = np.union1d(cols, np.array(best.unbounded, dtype=int))
+        if not cols.size:
+            break
+        z_now = refine_dual(a, cones, project_dual(z_now, cones), best.r, cols, frozen)
+        cand = _bound(q, a, b, cones, z_now, lo, hi)
+        if cand.value > best.value:
+            best = cand
+        else:
+            break
+    return LowerBound(best.value, best.dual_objective, best.residual_term, best.rounding,
+                      best.dual_residual, best.projection_shift, best.unbounded)
+
+
+def _idle_epigraphs(a, q, cones, z):
+    """
+    Return (z with the dual of every idle second-order cone set to 0, their rows) or Nones.
+
+    A cone is idle when its first row is ``-t`` for one variable t that the objective does
+    not weight (q_t = 0): ``t >= ||...||`` then only bounds t, whose box is wide (a norm
+    the stage does not minimize), and the solver's small dual there costs r_t times it.
+    """
+    a = sp.csr_matrix(a)
+    out = np.array(z, dtype=float)
+    frozen = np.zeros(out.size, dtype=bool)
+    k = 0
+    for family, dim in cones:
+        if family == 'soc':
+            row = a.getrow(k)
+            if row.nnz == 1 and q[row.indices[0]] == 0.0:
+                out[k:k + dim] = 0.0
+                frozen[k:k + dim] = True
+        k += dim
+    return (out, frozen) if frozen.any() else (None, None)
+
+
+@dataclass(frozen=True)
+class _Work:
+    value: float
+    dual_objective: float
+    residual_term: float
+    rounding: float
+    dual_residual: float
+    projection_shift: float
+    unbounded: tuple
+    terms: np.ndarray
+    r: np.ndarray
+
+
+def _bound(q, a, b, cones, z, lo, hi):
+    """Return the bound (1) at one dual point, with its terms and residual (a _Work)."""
     q = np.asarray(q, dtype=float).ravel()
     b = np.asarray(b, dtype=float).ravel()
     lo = np.asarray(lo, dtype=float).ravel()
@@ -137,10 +246,9 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
                          f'lo {lo.size}, hi {hi.size} do not match')
     if np.any(lo > hi):
         raise ValueError('safe_lower_bound: lo > hi, expected a box')
-    cones = cone_list(cones)
     z_raw = np.asarray(z, dtype=float).ravel()
     if not np.all(np.isfinite(z_raw)):
-        return LowerBound(-math.inf, math.nan, math.nan, 0.0, math.inf, math.inf)
+        return _Work(-math.inf, math.nan, math.nan, 0.0, math.inf, math.inf, (), None, None)
     zp = project_dual(z_raw, cones)
     dual_obj = -float(b @ zp)
     r = q + a.T @ zp
@@ -151,27 +259,26 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
     t_hi = np.where(r == 0.0, 0.0, t_hi)
     terms = np.minimum(t_lo, t_hi)
     bad = tuple(int(i) for i in np.flatnonzero(~np.isfinite(terms)))
+    shift = float(np.max(np.abs(zp - z_raw), initial=0.0))
     if bad:
-        return LowerBound(-math.inf, dual_obj, -math.inf, 0.0, float(np.max(np.abs(r))),
-                          float(np.max(np.abs(zp - z_raw), initial=0.0)), bad)
+        return _Work(-math.inf, dual_obj, -math.inf, 0.0, float(np.max(np.abs(r))), shift,
+                     bad, np.where(np.isfinite(terms), terms, 0.0), r)
     resid_term = float(np.sum(terms))
     box = np.maximum(np.abs(lo), np.abs(hi))
     size = np.abs(q) + abs(a).T @ np.abs(zp)      # bounds |r_i| and its rounding error
     blind = (~np.isfinite(box)) & (size > 0.0)
     if blind.any():   # r_i computed 0 on an unbounded coordinate: its error is unbounded
         bad = tuple(int(i) for i in np.flatnonzero(blind))
-        return LowerBound(-math.inf, dual_obj, resid_term, math.inf,
-                          float(np.max(np.abs(r))),
-                          float(np.max(np.abs(zp - z_raw), initial=0.0)), bad)
+        return _Work(-math.inf, dual_obj, resid_term, math.inf, float(np.max(np.abs(r))),
+                     shift, bad, terms, r)
     k = m + n + 4
     err = (float(np.abs(b) @ np.abs(zp))
            + float(np.where(size > 0.0, box, 0.0) @ size)
            + float(np.sum(np.abs(terms))))
     rounding = 2.0 * gamma(k) * err * (1.0 + 4.0 * gamma(k))
     value = dual_obj + resid_term - rounding
-    return LowerBound(float(value), dual_obj, resid_term, float(rounding),
-                      float(np.max(np.abs(r), initial=0.0)),
-                      float(np.max(np.abs(zp - z_raw), initial=0.0)))
+    return _Work(float(value), dual_obj, resid_term, float(rounding),
+                 float(np.max(np.abs(r), initial=0.0)), shift, (), terms, r)
 
 
 def norm_bound(g, c, lo, hi):
@@ -230,20 +337,18 @@ def level_set_bounds(mat, radius, lo, hi, centre=None, null_rel_tol=None):
     if centre is None or null_rel_tol is None or not sv.size:
         return lo, hi, 0
     keep = sv > null_rel_tol * sv[0]
-    smin = float(sv[keep][-1]) - slack
-    if not smin > 0.0:
+    if not float(sv[keep][-1]) - slack > 0.0:
         return lo, hi, 0
     c = np.asarray(centre, dtype=float)[free]
-    reach = (radius + rest + float(np.linalg.norm(mat[:, free] @ c))) / smin \
-        * (1.0 + 8.0 * gamma(k))
+    # y_S - c = V_r a (the null component is the centre's): ||S_r a|| <= big, so
+    # |y_i - c_i| <= big sqrt(sum_j V_ij^2 / s_j^2), each direction by its own s_j
+    _, _, vt = np.linalg.svd(mat[:, free], full_matrices=False)
+    big = (radius + rest + float(np.linalg.norm(mat[:, free] @ c))) * (1.0 + 8.0 * gamma(k))
+    weights = vt[keep] / (sv[keep] - slack)[:, None]
+    reach = big * np.sqrt(np.sum(weights * weights, axis=0)) * (1.0 + SVD_MARGIN)
     lo[free] = np.maximum(lo[free], c - reach)
     hi[free] = np.minimum(hi[free], c + reach)
     return lo, hi, int(free.sum() - keep.sum())
-
-
-SVD_MARGIN = 1e-6
-"""Relative margin on the level-set radius in :func:`polytope_bounds`: it covers the rounding
-of the singular vectors (orthogonal to ~1e-15) for the directions it keeps."""
 
 
 def polytope_bounds(mat, radius, lo, hi, rel_tol):

@@ -385,8 +385,7 @@ def solve(scene, options):
         y = prob.project_force_balance(y)
     designs, omitted, worst = prob.discs(y)
     y, pull = prob.feasible(y, worst)
-    if pull:
-        designs, omitted, _ = prob.discs(y)
+    designs, omitted, final_violation = prob.discs(y)
     balanced_links = []
     by_link = {d.link: d for d in designs}
     for lk in scene.links:
@@ -414,7 +413,9 @@ def solve(scene, options):
         attempts=list(stage1.solve.attempts),
         bound_detail=dict(balancing._bound_detail(bound1), null_directions_assumed=0),
         feasibility_pull=pull, failed_stages=failed,
-        certified=bool(np.isfinite(lower) and gap_rel <= balancing.CERTIFIED_GAP_REL))
+        certified=bool(np.isfinite(lower) and gap_rel <= balancing.CERTIFIED_GAP_REL
+                       and final_violation == 0.0),
+        design_violation=final_violation)
     least = None
     if stage3 is not None:
         mass = sum(d.mass_kg for d in designs) / units.mass_kg

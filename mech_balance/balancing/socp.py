@@ -241,7 +241,9 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
         max_violation=violation, lower_bound=lower, attempts=list(stage1.run.attempts),
         bound_detail=dict(_bound_detail(bound), null_directions_assumed=nulls),
         feasibility_pull=pull, failed_stages=failed,
-        certified=bool(np.isfinite(lower) and gap_rel <= CERTIFIED_GAP_REL))
+        certified=bool(np.isfinite(lower) and gap_rel <= CERTIFIED_GAP_REL
+                       and _violation(theta, spec) == 0.0),
+        design_violation=_violation(theta, spec))
     conic_s = stage1.seconds + (0.0 if stage2 is None else stage2.seconds)
     table = before_after(scene, balanced, samples)
     return BalanceResult(
@@ -311,6 +313,7 @@ class Certificate:
     feasibility_pull: float = 0.0  # fraction pulled towards the interior anchor
     failed_stages: list = None     # stages that did not end Solved/AlmostSolved
     certified: bool = False        # lower bound finite and gap_rel <= CERTIFIED_GAP_REL
+    design_violation: float = 0.0  # worst violation of the design reported (0: feasible)
 
     def to_dict(self):
         """Return the certificate as a plain dict."""
@@ -925,6 +928,17 @@ def _row(nx, entries):
     return r
 
 
+FEASIBLE_ULPS = 8.0
+"""A constraint a - b <= 0 counts as met when a - b <= this many ulp of max(|a|, |b|): the
+rounding of its own evaluation (equal bounds, m l^2 = I_O, cannot be met more exactly)."""
+
+
+def _excess(a, b):
+    """Return how far a exceeds b beyond the rounding of the comparison (>= 0 if it does)."""
+    slack = FEASIBLE_ULPS * np.finfo(float).eps * max(abs(a), abs(b))
+    return a - b - slack
+
+
 def _violation(theta, spec):
     """Return the worst violation of the design constraints (normalized units, >= 0)."""
     t = theta.reshape(-1, 4)
@@ -934,18 +948,43 @@ def _violation(theta, spec):
         if spec.fixed[i]:
             continue
         m, hx, hy, i_o = t[i]
-        checks = [spec.mass_lo[i] - m if np.isfinite(spec.mass_lo[i]) else 0.0,
-                  m - spec.mass_hi[i] if np.isfinite(spec.mass_hi[i]) else 0.0,
-                  m * spec.dist_lo[i] ** 2 - i_o,
-                  i_o - m * spec.dist_hi[i] ** 2 if np.isfinite(spec.dist_hi[i]) else 0.0]
+        checks = [_excess(spec.mass_lo[i], m) if np.isfinite(spec.mass_lo[i]) else 0.0,
+                  _excess(m, spec.mass_hi[i]) if np.isfinite(spec.mass_hi[i]) else 0.0,
+                  _excess(m * spec.dist_lo[i] ** 2, i_o),
+                  _excess(i_o, m * spec.dist_hi[i] ** 2) if np.isfinite(spec.dist_hi[i])
+                  else 0.0]
         if spec.realizable:
-            checks.append((hx * hx + hy * hy) / m - (1.0 - spec.margin) * i_o)
+            checks.append(_excess(hx * hx + hy * hy, m * (1.0 - spec.margin) * i_o))
         if spec.case == 'b':   # eq. 50f: m_j >= 0
-            checks += list(-point_masses[i])
+            checks += list(-point_masses[i] - FEASIBLE_ULPS * np.finfo(float).eps * m)
         worst = max(worst, max(checks))
     if spec.added_mass is not None and not all(spec.fixed):
-        worst = max(worst, float(np.sum(t[:, 0]) - np.sum(spec.theta0[0::4])) - spec.added_mass)
+        worst = max(worst, _excess(float(np.sum(t[:, 0])),
+                                   float(np.sum(spec.theta0[0::4])) + spec.added_mass))
     return float(max(worst, 0.0))
+
+
+def _repaired(theta, spec):
+    """
+    Return ``theta`` with each link moved onto its bounds by the least local change.
+
+    The mass clipped into its bounds, I_O into [m l_lo^2, m l_hi^2], the first moment
+    shrunk to the realizability cone (|h|^2 <= m (1 - margin) I_O): the round-off
+    violations of an interior-point solution at active constraints.
+    """
+    t = np.array(theta, dtype=float).reshape(-1, 4)
+    for i in range(spec.n):
+        if spec.fixed[i]:
+            continue
+        m = min(max(t[i, 0], spec.mass_lo[i]), spec.mass_hi[i])
+        i_o = min(max(t[i, 3], m * spec.dist_lo[i] ** 2), m * spec.dist_hi[i] ** 2)
+        t[i, 0], t[i, 3] = m, i_o
+        if spec.realizable:
+            h2 = t[i, 1] ** 2 + t[i, 2] ** 2
+            cap = m * (1.0 - spec.margin) * i_o
+            if h2 > cap:
+                t[i, 1:3] *= math.sqrt(cap / h2) * (1.0 - 4.0 * np.finfo(float).eps)
+    return t.ravel()
 
 
 PULL_STEPS = (0.0, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2, 1.0)
@@ -982,6 +1021,10 @@ def _feasible(theta, spec):
     before = _violation(theta, spec)
     if before == 0.0:
         return theta, 0.0, 0.0
+    fixed = _repaired(theta, spec)
+    if _violation(fixed, spec) == 0.0:
+        return fixed, before, 0.0
+    theta = fixed
     anchor = _anchor(spec)
     for lam in PULL_STEPS[1:]:
         cand = (1.0 - lam) * theta + lam * anchor

@@ -307,7 +307,7 @@ def certificate_lines(cert):
              + ('certified' if cert.certified else 'NOT certified')
              + f'; {cert.iterations} iterations, residuals {cert.residual_primal:.1e} / '
              f'{cert.residual_dual:.1e}',
-             f'max constraint violation of the solver\'s design {cert.max_violation:.1e}'
+             f"max constraint violation of the solver's design {cert.max_violation:.1e}"
              + (f' (moved {cert.feasibility_pull:.0e} of the way to a feasible anchor; the '
                 'design reported satisfies every constraint)' if cert.feasibility_pull else
                 ' (the design reported satisfies every constraint)'

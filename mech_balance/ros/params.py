@@ -193,11 +193,11 @@ def split_links(text):
 def _positive(name, option=None):
     def check(value):
         """Accept a number in the option's range (as ``mech-balance balance --counterweights``)."""
-        if option is not None:
-            balancing_defaults.check_counterweight_option(option, value, name)
-        elif not 0.0 < value <= MAX_COUNTERWEIGHT_VALUE:
+        if not 0.0 < value <= MAX_COUNTERWEIGHT_VALUE:
             raise ValueError(f'{name}: got {value!r}, expected a number > 0 and at most '
                              f'{MAX_COUNTERWEIGHT_VALUE:g}')
+        if option is not None:
+            balancing_defaults.check_counterweight_option(option, value, name)
     return check
 
 
