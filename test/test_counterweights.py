@@ -109,7 +109,7 @@ def test_hoeken_certified_and_reproduced(hoeken, hoeken_results, weights):
     cert = result.certificate
     assert cert.status == 'Solved'
     assert cert.gap_rel <= GAP_REL
-    assert cert.max_violation <= 1e-6
+    assert cert.design_violation == 0.0 and cert.max_violation <= 1e-6
     for d in result.designs:
         assert d.thickness_m <= cw.DEFAULT_MAX_THICKNESS_M * (1 + 1e-9)
         assert d.centre_radius_m <= d.max_centre_radius_m * (1 + 1e-8)
@@ -371,9 +371,13 @@ def test_table12_two_point_model(name):
     assert_allclose(0.5 * f + 0.5 * n, r.upper_bound_z, rtol=1e-7, atol=1e-9)
     t0 = np.array(_theta(sc)).reshape(-1, 4)
     t = (np.array(theta) * scale).reshape(-1, 4)
-    assert np.all(t[:, 0] >= t0[:, 0] * (1 - 1e-8))
-    assert np.all(t[:, 0] <= 5 * t0[:, 0] * (1 + 1e-8))
-    assert np.all(t[:, 3] >= 0.25 * t0[:, 3] * (1 - 1e-8))
+    # the bounds hold to the tolerance the result reports: the round-off of rebuilding the
+    # point masses once the design is clipped into the bounds, else the solver's (issue 19)
+    tol = r.upper_feasibility_tol
+    assert tol <= balancing.SOLVER_TOL * 1e3
+    assert np.all(t[:, 0] >= t0[:, 0] * (1 - tol))
+    assert np.all(t[:, 0] <= 5 * t0[:, 0] * (1 + tol))
+    assert np.all(t[:, 3] >= 0.25 * t0[:, 3] * (1 - tol))
     z_two_paper = 0.5 * paper['two'][1] + 0.5 * paper['two'][2]
     assert r.upper_bound_z < 0.5 * z_two_paper      # the paper's two-point row: far above
     if name == 'hoeken':                            # the three-point row, reproduced

@@ -42,6 +42,8 @@ TEXTS = {name: path.read_text(encoding='utf-8') for name, path in BUILTINS.items
 DATA = {name: scene.load_data(path)[0] for name, path in BUILTINS.items()}
 PLANAR = sorted(n for n, d in DATA.items() if d.get('kind', 'planar') == 'planar')
 RGGR = sorted(n for n, d in DATA.items() if d.get('kind') == 'rggr')
+SPATIAL = sorted(n for n, d in DATA.items() if d.get('kind') == 'spatial')
+SPATIAL_CASES = 240
 
 WRONG_TYPES = [None, 'text', '', True, False, [], {}, [1.0], [1.0, 2.0, 3.0], {'x': 1.0},
                [[0.0, 1.0], [2.0]], 'frame.O1', 7, -3, 0.5]
@@ -240,6 +242,8 @@ def _evaluate(path):
     sc = scene.load(path)
     if sc.kind == 'rggr':
         return list(_numbers(rggr_report.analyze_report(sc, SAMPLES)))
+    if sc.kind == 'spatial':  # the registry's analyze (through the Rig protocol)
+        return list(_numbers(scene.kind_of(sc).implementation('analyze')(sc, SAMPLES).data))
     cycle = analysis.run_cycle(analysis.Rig(sc), SAMPLES)
     st = cycle.state
     out = [st.residual, st.cond, st.omega]
@@ -318,8 +322,15 @@ def test_fuzz_rggr_scenes(tmp_path):
     assert not problems, '\n'.join(problems[:40])
 
 
+def test_fuzz_spatial_scenes(tmp_path):
+    counts, problems = _run(SPATIAL, SPATIAL_CASES, SEED + 2, tmp_path)
+    assert sum(counts.values()) == SPATIAL_CASES
+    assert counts['valid result'] > 0 and counts['SceneError'] > 0
+    assert not problems, '\n'.join(problems[:40])
+
+
 def test_fuzzer_covers_every_builtin_and_is_seeded():
-    assert sorted(PLANAR + RGGR) == sorted(BUILTINS) and PLANAR and RGGR
+    assert sorted(PLANAR + RGGR + SPATIAL) == sorted(BUILTINS) and PLANAR and RGGR
     first = [(n, op, raw) for n, op, raw in _cases(PLANAR, 50, SEED)]
     again = [(n, op, raw) for n, op, raw in _cases(PLANAR, 50, SEED)]
     assert first == again

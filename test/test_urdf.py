@@ -16,6 +16,7 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.cli import main as cli
 from mech_balance.conventions import cycle_angles
 from mech_balance.core import rggr
+from mech_balance.core.rig import rig_for
 from mech_balance.ros import params, urdf
 from mech_balance.schema import rggr as rggr_schema
 import numpy as np
@@ -147,12 +148,17 @@ def test_positions_wrapped_within_limits_and_velocities_are_their_rates(name):
     if sc.kind == 'rggr':
         def solve(p):
             return rggr.kinematics(sc, p)
+    elif sc.kind == 'spatial':   # through the Rig protocol (the node's path)
+        rig = rig_for(sc)
+
+        def solve(p):
+            return rig.at(p, outputs=('kinematics',))
     else:
         lk = analysis.linkage_for(sc)
 
         def solve(p):
             return lk.solve(p)
-    names, pos, vel = urdf.joint_positions(sc, solve(psi))
+    names, pos, vel = urdf.joint_positions(model, solve(psi))
     assert names == model.names
     assert not np.any(np.signbit(pos) & (pos == 0.0))
     assert not np.any(np.signbit(vel) & (vel == 0.0))
@@ -167,8 +173,8 @@ def test_positions_wrapped_within_limits_and_velocities_are_their_rates(name):
         assert pos[:, j].min() - spec.lower < 1e-4 * span
         assert spec.upper - pos[:, j].max() < 1e-4 * span
     # velocities: d(position)/dt by central differences in the crank angle
-    _, plus, _ = urdf.joint_positions(sc, solve(psi + FD_STEP))
-    _, minus, _ = urdf.joint_positions(sc, solve(psi - FD_STEP))
+    _, plus, _ = urdf.joint_positions(model, solve(psi + FD_STEP))
+    _, minus, _ = urdf.joint_positions(model, solve(psi - FD_STEP))
     diff = plus - minus
     angular = np.array([s.joint_type != 'prismatic' for s in model.joints])
     diff[:, angular] = urdf.wrap_angle(diff[:, angular])

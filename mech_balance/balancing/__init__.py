@@ -16,7 +16,13 @@ can be balanced by (:attr:`mech_balance.core.rig.Rig.capabilities`), never from 
 * ``analytic``: the complete force balance in closed form, the slider-crank's (seed 000,
   :func:`mech_balance.balancing.socp.slider_crank_balance`) for a rig with a prismatic
   joint, else the four-bar's (seed 001 eq. 48, :func:`~.socp.four_bar_balance`);
+* ``force_balance``: the complete force balance of a spatial rig (null space of its force
+  map, :func:`mech_balance.balancing.spatial.force_balance`);
 * ``auto`` (the default): the first of those the rig supports.
+
+A rig with the ``body_kinematics`` capability (spatial rigs) is balanced by
+``redistribution`` and ``counterweights`` too, through :mod:`mech_balance.balancing.spatial`
+(PSD pseudo-inertia per body; spheres as counterweights): :data:`ALTERNATIVES`.
 
 The modules that solve are imported when a method runs, so importing this package is cheap.
 The defaults of every option are :mod:`mech_balance.balancing.defaults`'s.
@@ -24,15 +30,42 @@ The defaults of every option are :mod:`mech_balance.balancing.defaults`'s.
 
 from dataclasses import dataclass
 
-from mech_balance.balancing.defaults import DEFAULT_WEIGHTS
+from mech_balance.balancing.defaults import CENTROIDAL_MARGIN, DEFAULT_MAX_GYRATION_FACTOR, \
+    DEFAULT_MAX_THICKNESS_M, DEFAULT_WEIGHTS, PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
 
 METHODS = {
     'redistribution': 'mass_redistribution',
     'weights': 'balancing_weights',
     'counterweights': 'counterweights',
     'analytic': 'analytic_balance',
+    'force_balance': 'body_kinematics',
 }
 """Balancing methods by name, and the rig capability each needs."""
+ALTERNATIVES = {'redistribution': 'body_kinematics', 'counterweights': 'body_kinematics'}
+"""Methods that a second capability also supports (the spatial implementation), tried by
+``auto`` after every method's own capability."""
+AUTO_LAST = ('force_balance',)
+"""Methods ``auto`` picks only when nothing else applies (a spatial rig's default is the
+certified redistribution, as a planar rig's)."""
+SPATIAL_OPTIONS = {
+    'redistribution': ('weights', 'samples', 'mass_bounds', 'mass_factors', 'fixed_links',
+                       'extent_bounds', 'extent_factor', 'force_balanced'),
+    'counterweights': ('links', 'weights', 'samples', 'density_kg_m3', 'max_mass_factor',
+                       'max_radius_factor'),
+    'force_balance': ('samples', 'free')}
+"""The options of each spatial method; the planar options at their defaults are ignored (the
+node passes them all), any other value is refused."""
+PLANAR_DEFAULTS = {'case': 'a', 'realizable': True, 'paper_constraints': False,
+                   'distance_bounds': None, 'torque_weight': 0.0, 'reaction_weight': 0.0,
+                   'max_added_mass_kg': None, 'max_thickness_m': DEFAULT_MAX_THICKNESS_M,
+                   'max_gyration_factor': DEFAULT_MAX_GYRATION_FACTOR,
+                   'distance_factors': PAPER_DISTANCE_FACTORS, 'tie_break': True,
+                   'centroidal_margin': CENTROIDAL_MARGIN, 'mass_factors': PAPER_MASS_FACTORS,
+                   'mass_bounds': None, 'fixed_links': ()}
+"""Planar options a spatial method that does not take them ignores at these values (the
+node passes every option); any other value is refused, naming the option."""
+
+
 SUMMARY_NAME_CHARS = 40
 """Longest scene name in :meth:`Design.summary` (the line stays under 200 characters)."""
 
@@ -74,22 +107,81 @@ def _table_figures(table, certificate):
             'certificate': certificate}
 
 
+def _supports(method, caps):
+    return METHODS[method] in caps or ALTERNATIVES.get(method) in caps
+
+
+def _certificate_text(cert):
+    """Return a certificate in a few words: status, certified or not, gap, failed stages."""
+    text = (f'{cert.status}, {"certified" if cert.certified else "NOT certified"}, '
+            f'lower bound {cert.lower_bound:.6g} <= z {cert.primal:.6g}, relative gap '
+            f'{cert.gap_rel:.1e}')
+    failed = [f['stage'] for f in cert.failed_stages or ()]
+    if failed:
+        text += f'; failed stage(s): {", ".join(failed)}'
+    return text
+
+
 def method_for(rig, method='auto'):
     """Return the method that balances ``rig`` (``auto``: the first the rig supports)."""
     caps = rig.capabilities
     if method == 'auto':
         for name, need in METHODS.items():
+            if need in caps and name not in AUTO_LAST:
+                return name
+        for name, need in list(ALTERNATIVES.items()) + [(m, METHODS[m]) for m in AUTO_LAST]:
             if need in caps:
                 return name
         raise ValueError(f'scene {rig.name!r}: no balancing method supports this rig')
     if method not in METHODS:
         raise ValueError(f'method: got {method!r}, expected auto or one of '
                          f'{", ".join(METHODS)}')
-    if METHODS[method] not in caps:
-        supported = [m for m, need in METHODS.items() if need in caps]
+    if not _supports(method, caps):
+        supported = [m for m in METHODS if _supports(m, caps)]
         raise ValueError(f'method: got {method!r}, which does not apply to scene '
                          f'{rig.name!r}; expected one of {", ".join(supported) or "none"}')
     return method
+
+
+def _spatial_options(method, options):
+    """Return the options of a spatial method (planar defaults dropped, others refused)."""
+    accepted = SPATIAL_OPTIONS[method]
+    out = {}
+    for key, value in options.items():
+        if key in accepted:
+            if value is not None:
+                out['fixed' if key == 'fixed_links' else key] = value
+            continue
+        plain = tuple(value) if isinstance(value, list) else value
+        if key in PLANAR_DEFAULTS and (plain == PLANAR_DEFAULTS[key] or value is None):
+            continue
+        raise ValueError(f'{key}: not an option of the spatial {method} method (it takes '
+                         f'{", ".join(accepted)}); got {value!r}')
+    return out
+
+
+def _spatial(rig, method, options):
+    """Balance a rig with body kinematics (:mod:`mech_balance.balancing.spatial`)."""
+    from mech_balance.balancing import spatial
+    options = _spatial_options(method, options)
+    if method == 'force_balance':
+        result = spatial.force_balance(rig, **options)
+        ratio = result.force_rms_N[1] / max(result.force_rms_N[0], 1e-300)
+        return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
+            result.table, f'null space (rank {result.rank}), RMS shaking force after/before '
+                          f'{ratio:.1e}'))
+    if method == 'redistribution':
+        result = spatial.redistribute(rig, **options)
+    else:
+        options = dict(options)
+        links = options.pop('links', ())
+        result = spatial.counterweights(rig, links, **options)
+    cert = result.certificate
+    # shorter than _certificate_text: a spatial optimum is often ~0 (e-notation on both sides)
+    text = (f'{cert.status}, {"certified" if cert.certified else "NOT certified"}, '
+            f'L {cert.lower_bound:.4g} <= z {cert.primal:.4g}, gap {cert.gap_rel:.1e}')
+    return Design(result.balanced_scene, result.to_dict(), method, result,
+                  _table_figures(result.table, text))
 
 
 def balance(rig, method='auto', **options):
@@ -103,23 +195,23 @@ def balance(rig, method='auto', **options):
     """
     method = method_for(rig, method)
     sc = rig.scene
+    if method == 'force_balance' or METHODS[method] not in rig.capabilities:
+        return _spatial(rig, method, options)
     if method == 'redistribution':
         from mech_balance.balancing import counterweights, socp
         result = socp.optimize(sc, **options)
         report = result.to_dict()
         report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
                                                           result.table)
-        cert = result.certificate
         return Design(result.balanced_scene, report, method, result, _table_figures(
-            result.table, f'{cert.status}, relative gap {cert.gap_rel:.1e}'))
+            result.table, _certificate_text(result.certificate)))
     if method == 'counterweights':
         from mech_balance.balancing import counterweights
         options = dict(options)
         links = options.pop('links', ())
         result = counterweights.balance_with_counterweights(sc, links, **options)
-        cert = result.certificate
         return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
-            result.table, f'{cert.status}, relative gap {cert.gap_rel:.1e}'))
+            result.table, _certificate_text(result.certificate)))
     if method == 'analytic':
         from mech_balance.balancing import counterweights, socp
         if any(j.prismatic for j in sc.joints):
@@ -141,13 +233,17 @@ def balance(rig, method='auto', **options):
     samples = options.get('samples') or DEFAULT_SAMPLES
     result = rggr_balancing.balance_scene(sc, samples)
     report = rggr_report.balance_report(sc, samples, result=result)
+    report.setdefault('optimum', {})['moment_rms_lower_bound_Nm'] = \
+        result.optimum.moment_rms_lower_bound_Nm
     rows = {r['rig']: r for r in report['table']}
     before, after = rows['unbalanced'], rows['optimized']
     figures = {'force_N': (before['shaking_force_rms'], after['shaking_force_rms']),
                'moment_Nm': (before['shaking_moment_rms'], after['shaking_moment_rms']),
                'certificate': 'least squares, normal-equation residual '
-                              f'{report["optimum"]["normal_equation_residual"]:.1e}'}
+                              f'{report["optimum"]["normal_equation_residual"]:.1e}, RMS '
+                              'moment lower bound '
+                              f'{result.optimum.moment_rms_lower_bound_Nm:.6g} N m'}
     return Design(result.design.scene, report, method, result, figures)
 
 
-__all__ = ['balance', 'DEFAULT_WEIGHTS', 'Design', 'method_for', 'METHODS']
+__all__ = ['ALTERNATIVES', 'balance', 'DEFAULT_WEIGHTS', 'Design', 'method_for', 'METHODS']

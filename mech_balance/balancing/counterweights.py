@@ -44,10 +44,10 @@ import time
 import clarabel
 from mech_balance import schema
 from mech_balance.analysis import clearance as clearance_mod
-from mech_balance.balancing import socp as balancing
-from mech_balance.balancing.defaults import DEFAULT_DENSITY_KG_M3, \
-    DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR, DEFAULT_MAX_RADIUS_FACTOR, \
-    DEFAULT_MAX_THICKNESS_M
+from mech_balance.balancing import certificate, socp as balancing
+from mech_balance.balancing.defaults import check_counterweight_option, \
+    DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR, \
+    DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_MAX_THICKNESS_M
 from mech_balance.core.planar import dynamics
 from mech_balance.schema.scene import add_counterweights, Counterweight, MAX_PLANE_OFFSET_M
 import numpy as np
@@ -60,6 +60,9 @@ the cones force its first moment and inertia to zero with it; the solver's accur
 TIE_BREAK_SLACK = 1e-9
 """A tie-break stage after a weighted sum of norms keeps z within this fraction of
 max(z*, 1) (a single-norm stage is pinned exactly instead)."""
+MASS_STAGE_SLACKS = (TIE_BREAK_SLACK, TIE_BREAK_SLACK, 1e-7)
+"""The least-mass stage keeps the earlier objectives within these fractions of max(z, 1), tried
+in turn until it solves (first with an exact force balance kept exactly, then capped)."""
 FREE_INERTIA_REL = 1e-12
 """A link's inertia column below this fraction of a term's map: the inertia enters no term."""
 METHOD = 'counterweights (add-only discs, SOCP)'
@@ -162,11 +165,11 @@ def check_options(scene, options):
         raise CounterweightError(f'samples: got {samples!r}, expected an integer >= 4')
     return CounterweightOptions(
         links=link_list(options.links, scene), weights=(w1, w2),
-        density_kg_m3=positive(options.density_kg_m3, 'density_kg_m3'),
-        max_thickness_m=positive(options.max_thickness_m, 'max_thickness_m'),
-        max_radius_factor=positive(options.max_radius_factor, 'max_radius_factor'),
-        max_mass_factor=positive(options.max_mass_factor, 'max_mass_factor'),
-        max_gyration_factor=positive(options.max_gyration_factor, 'max_gyration_factor'),
+        density_kg_m3=_ranged(options.density_kg_m3, 'density_kg_m3'),
+        max_thickness_m=_ranged(options.max_thickness_m, 'max_thickness_m'),
+        max_radius_factor=_ranged(options.max_radius_factor, 'max_radius_factor'),
+        max_mass_factor=_ranged(options.max_mass_factor, 'max_mass_factor'),
+        max_gyration_factor=_ranged(options.max_gyration_factor, 'max_gyration_factor'),
         torque_weight=tw, reaction_weight=rw, samples=int(samples),
         tie_break=bool(options.tie_break), planes=plane_list(options.planes, options.links,
                                                              scene),
@@ -215,6 +218,15 @@ def plane_list(planes, links, scene, name='planes'):
                                      f'within +-{MAX_PLANE_OFFSET_M:g} m')
         out[link] = v + 0.0
     return tuple(out.items())
+
+
+def _ranged(value, option):
+    """Return an option checked against :data:`.defaults.COUNTERWEIGHT_RANGES`."""
+    positive(value, option)
+    try:
+        return check_counterweight_option(option, value)
+    except ValueError as exc:
+        raise CounterweightError(str(exc)) from None
 
 
 def joint_reach_m(scene, link_name):
@@ -291,7 +303,11 @@ class CounterweightResult:
         return schema.plain({
             'source_scene': self.scene.name, 'method': METHOD,
             'options': self.options.to_dict(), 'objective': self.objective,
-            'relative_gap': self.certificate.gap_rel, 'added_mass_kg': self.added_mass_kg,
+            'relative_gap': self.certificate.gap_rel,
+            'lower_bound': self.certificate.lower_bound,
+            'certified': self.certificate.certified,
+            'failed_stages': self.certificate.failed_stages or [],
+            'added_mass_kg': self.added_mass_kg,
             **({} if self.clearance is None else
                {'least_clearance_m': self.clearance.to_dict()['least_clearance_m'],
                 'collisions': len(self.clearance.collisions)})})
@@ -355,35 +371,80 @@ def solve(scene, options):
     maps_s = time.perf_counter() - t0
     prob = _Problem(scene, maps, opt, units)
     stage1 = prob.run(prob.weights_vector(), [])
+    failed = []
+    if not stage1.solve.ok:
+        failed.append(balancing.failed_stage(
+            'primary (z)', stage1.solve, "the design is the solver's last iterate, made "
+            'feasible; its lower bound is safe'))
     y, stage2, stage3, exact = stage1.y, None, None, False
     secondary = prob.secondary()
     pins = []
-    if opt.tie_break and secondary is not None:
+    if opt.tie_break and secondary is not None and stage1.solve.ok:
+        name2 = f"tie-break (least RMS shaking {('force', 'moment')[secondary]})"
         primary = 0 if secondary == 1 else 1
         exact = (secondary == 1 and
                  prob.norm(0, y) <= balancing.FORCE_BALANCE_REL_TOL * maps.force_rms_original)
         pins = [prob.pin(primary, y, exact)]
-        try:
-            stage2 = prob.run(prob.unit(secondary), pins)
-        except CounterweightError:
+        stage2 = prob.run(prob.unit(secondary), pins)
+        tried = list(stage2.solve.attempts)
+        if not stage2.solve.ok and not exact:
+            # the optimal image pinned exactly can be infeasible to round-off: cap the
+            # primary norm instead (z <= z* + slack), as the mass stage does
+            z_p = prob.norm(primary, y)
+            for slack in MASS_STAGE_SLACKS[1:]:
+                cap = [(prob.unit(primary), z_p + slack * max(z_p, balancing.GAP_FLOOR))]
+                stage2 = prob.run(prob.unit(secondary), [], None, cap)
+                tried.extend(stage2.solve.attempts)
+                if stage2.solve.ok:
+                    pins = []
+                    break
+        stage2.solve.attempts = tuple(tried)
+        if not stage2.solve.ok:
+            failed.append(balancing.failed_stage(name2, stage2.solve,
+                                                 "the primary stage's optimum"))
             stage2, exact, pins = None, False, []
-        if stage2 is not None:
+        else:
             y = stage2.y
-            pins = pins + [prob.pin(secondary, y, False)]
-    if opt.tie_break:
-        bound = None
-        if not pins:
-            z1 = prob.z(y)
-            bound = z1 + TIE_BREAK_SLACK * max(z1, balancing.GAP_FLOOR)
-        try:
-            stage3 = prob.run(prob.mass_vector(), prob.merged(pins, y), bound)
-        except CounterweightError:
+            if pins:
+                pins = pins + [prob.pin(secondary, y, False)]
+    if opt.tie_break and stage1.solve.ok:
+        # the mass stage keeps every earlier objective optimal: the optimal images pinned
+        # exactly, or, where that is infeasible to round-off at active cones (Clarabel ends
+        # AlmostPrimalInfeasible), each objective capped at its optimum plus a slack
+        variants = []
+        if pins:   # first the optimal images pinned exactly (the tie-break's own argument)
+            variants.append((prob.merged(pins, y), None, []))
+        for slack in MASS_STAGE_SLACKS:
+            bound, caps, keep = None, [], []
+            if stage2 is None:
+                z1 = prob.z(y)
+                bound = z1 + slack * max(z1, balancing.GAP_FLOOR)
+            else:
+                if exact and pins and slack == MASS_STAGE_SLACKS[0]:
+                    keep = pins[:1]
+                for k in ([secondary] if keep else [primary, secondary]):
+                    zk = prob.norm(k, y)
+                    caps.append((prob.unit(k), zk + slack * max(zk, balancing.GAP_FLOOR)))
+            variants.append((keep, bound, caps))
+        tried = []
+        for keep, bound, caps in variants:
+            stage3 = prob.run(prob.mass_vector(), keep, bound, caps)
+            tried.extend(stage3.solve.attempts)
+            if stage3.solve.ok:
+                break
+        stage3.solve.attempts = tuple(tried)
+        if not stage3.solve.ok:
+            failed.append(balancing.failed_stage(
+                'least added mass', stage3.solve, "the previous stage's optimum (its "
+                'added mass is not the least)'))
             stage3 = None
-        if stage3 is not None:
+        else:
             y = stage3.y
     if exact:
         y = prob.project_force_balance(y)
     designs, omitted, worst = prob.discs(y)
+    y, pull = prob.feasible(y, worst)
+    designs, omitted, final_violation = prob.discs(y)
     balanced_links = []
     by_link = {d.link: d for d in designs}
     for lk in scene.links:
@@ -395,22 +456,34 @@ def solve(scene, options):
     terms = maps.terms(theta)
     w = prob.weights4
     primal = float(np.dot(w, terms))
-    gap = abs(primal - stage1.dual)
+    bound1 = prob.lower_bound(stage1, primal)
+    lower = min(bound1.value, primal)
+    gap, gap_rel = certificate.relative_gap(primal, lower, balancing.GAP_FLOOR)
     s2 = None
     if stage2 is not None:
         s2 = {'minimized': f"RMS shaking {('force', 'moment')[secondary]}",
-              'status': stage2.status, 'objective': stage2.objective, 'dual': stage2.dual,
-              'iterations': stage2.iterations, 'exact_force_balance': bool(exact)}
+              'status': stage2.status, 'objective': stage2.objective,
+              'iterations': stage2.iterations, 'attempts': list(stage2.solve.attempts),
+              'exact_force_balance': bool(exact)}
     cert = balancing.Certificate(
         solver=f'clarabel {clarabel.__version__}', status=stage1.status, primal=primal,
-        dual=stage1.dual, gap_abs=gap,
-        gap_rel=gap / max(abs(primal), abs(stage1.dual), balancing.GAP_FLOOR),
+        dual=lower, gap_abs=gap, gap_rel=gap_rel,
         residual_primal=stage1.r_prim, residual_dual=stage1.r_dual,
-        iterations=stage1.iterations, stage2=s2, max_violation=worst)
-    least = None if stage3 is None else {
-        'minimized': 'total added mass', 'status': stage3.status,
-        'objective_kg': stage3.objective * units.mass_kg,
-        'dual_kg': stage3.dual * units.mass_kg, 'iterations': stage3.iterations}
+        iterations=stage1.iterations, stage2=s2, max_violation=worst, lower_bound=lower,
+        attempts=list(stage1.solve.attempts),
+        bound_detail=dict(balancing._bound_detail(bound1), null_directions_assumed=0),
+        feasibility_pull=pull, failed_stages=failed,
+        certified=bool(np.isfinite(lower) and gap_rel <= balancing.CERTIFIED_GAP_REL
+                       and final_violation == 0.0),
+        design_violation=final_violation)
+    least = None
+    if stage3 is not None:
+        mass = sum(d.mass_kg for d in designs) / units.mass_kg
+        lb3 = min(prob.lower_bound(stage3, None).value, mass)
+        least = {'minimized': 'total added mass', 'status': stage3.status,
+                 'objective_kg': mass * units.mass_kg, 'lower_bound_kg': lb3 * units.mass_kg,
+                 'dual_kg': lb3 * units.mass_kg, 'iterations': stage3.iterations,
+                 'attempts': list(stage3.solve.attempts)}
     table = balancing.before_after(scene, balanced, opt.samples)
     conic_s = sum(s.seconds for s in (stage1, stage2, stage3) if s is not None)
     totals = {lk.name: {'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),
@@ -490,6 +563,7 @@ class _Stage:
     r_prim: float
     r_dual: float
     seconds: float
+    solve: object = None      # balancing.Solve: the data and statuses of the program
 
 
 @dataclass
@@ -515,12 +589,12 @@ class _Problem:
         l0 = np.sqrt(t0[self.idx, 3] / m0)
         # variables y per listed link, in units of the link: dm = m0 y_m, dh = m0 l0 y_h, ...
         self.m0, self.l0 = m0, l0
-        self.dsc = np.column_stack([m0, m0 * l0, m0 * l0, m0 * l0 * l0]).ravel()
         self.cols = np.concatenate([np.arange(4 * i, 4 * i + 4) for i in self.idx])
         self.r_max = np.array([opt.max_radius_factor * joint_reach_m(self.scene, nm) / ls
                                for nm in opt.links])
         self.k_max = np.array([opt.max_gyration_factor * joint_reach_m(self.scene, nm) / ls
                                for nm in opt.links])
+        self.dsc = np.column_stack([m0, m0 * l0, m0 * l0, m0 * l0 * l0]).ravel()
         self.m_max = np.array([opt.max_mass_factor * self.scene.link(nm).own_mass_kg / ms
                                for nm in opt.links])
         # the rim bound rho (normalized), None without max_rim_radius_factor
@@ -629,7 +703,7 @@ class _Problem:
 
     # ----------------------------------------------------------------------- solve
 
-    def run(self, q, pins, bound=None):
+    def run(self, q, pins, bound=None, caps=()):
         nx, ny, nl = self.nx, self.ny, self.nl
         a_blocks, b_blocks, cones = [], [], []
 
@@ -651,6 +725,9 @@ class _Problem:
         if bound is not None:
             a = np.vstack([a, self.weights_vector()])
             b = np.append(b, bound)
+        for row, value in caps:
+            a = np.vstack([a, row])
+            b = np.append(b, value)
         add(clarabel.NonnegativeConeT, a, b)
         for rows, target in pins:
             if not rows.shape[0]:
@@ -669,19 +746,115 @@ class _Problem:
                           format='csc')
         b_all = np.concatenate(b_blocks[:dynamic] + [b_static])
         cones = cones[:dynamic] + [clarabel.SecondOrderConeT(k) for k in sizes]
-        t0 = time.perf_counter()
-        sol = clarabel.DefaultSolver(sp.csc_matrix((nx, nx)), np.asarray(q, dtype=float),
-                                     a_all, b_all, cones, balancing.solver_settings()).solve()
-        seconds = time.perf_counter() - t0
-        status = str(sol.status)
-        if status not in ('Solved', 'AlmostSolved'):
-            raise CounterweightError(
-                f'solver: Clarabel stopped with status {status} after {sol.iterations} '
-                'iterations (counterweight problem)')
-        x = np.array(sol.x)
-        return _Stage(y=x[:ny], objective=float(q @ x), dual=float(sol.obj_val_dual),
-                      status=status, iterations=int(sol.iterations),
-                      r_prim=float(sol.r_prim), r_dual=float(sol.r_dual), seconds=seconds)
+        run = balancing.run_solver(q, a_all, b_all, cones)
+        status = run.status
+        if not np.all(np.isfinite(np.asarray(run.sol.x))):
+            raise CounterweightError(f'solver: {run.why()} (counterweight problem); no design')
+        x = np.array(run.sol.x)
+        return _Stage(y=x[:ny], objective=float(q @ x), dual=float(run.sol.obj_val_dual),
+                      status=status, iterations=int(run.sol.iterations),
+                      r_prim=float(run.sol.r_prim), r_dual=float(run.sol.r_dual),
+                      seconds=run.seconds, solve=run)
+
+    def box(self, level=None, q=None):
+        """
+        Return (lo, hi): bounds on every variable that the constraints imply (link units).
+
+        ``0 <= y_m <= m_max/m0``, ``|y_h| <= (r_max/l0) y_m``, ``0 <= y_s <= y_I <=
+        (k_max/l0)^2 y_m``; an epigraph t at most its norm's bound over that box, and at
+        most ``level / w`` when the stage's weighted objective is at most ``level``.  When
+        a link's inertia enters none of the norms that the objective ``q`` weights (exactly
+        zero columns: the RMS force alone), an optimal point with the least inertia the
+        disc allows exists, ``y_I = |y_h|^2/y_m + kappa y_m^2``, which bounds y_I instead.
+        """
+        nx, ny, nl = self.nx, self.ny, self.nl
+        lo, hi = np.zeros(nx), np.zeros(nx)
+        used = None if q is None else \
+            [k for k in range(len(self.norms)) if q[ny + nl + k] != 0.0]
+        for i in range(nl):
+            m_hi = self.m_max[i] / self.m0[i]
+            h_hi = self.r_max[i] / self.l0[i] * m_hi
+            i_hi = (self.k_max[i] / self.l0[i]) ** 2 * m_hi
+            if used is not None and all(not np.any(self.norms[k][0][:, 4 * i + 3])
+                                        for k in used):
+                kappa = self.m0[i] / (self.c_disc * self.l0[i] ** 2)
+                i_hi = min(i_hi, ((self.r_max[i] / self.l0[i]) ** 2 * m_hi
+                                  + kappa * m_hi * m_hi) * (1.0 + 8.0 * certificate.UNIT_ROUNDOFF))
+            lo[4 * i:4 * i + 4] = (0.0, -h_hi, -h_hi, 0.0)
+            hi[4 * i:4 * i + 4] = (m_hi, h_hi, h_hi, i_hi)
+            hi[ny + i] = i_hi
+        weights = self.weights_vector()
+        for k, (g, c) in enumerate(self.norms):
+            it = ny + nl + k
+            cap = certificate.norm_bound(g, c, lo[:ny], hi[:ny])
+            if level is not None and weights[it] > 0.0:
+                cap = min(cap, level / weights[it] * (1.0 + 4.0 * certificate.UNIT_ROUNDOFF))
+            hi[it] = cap
+        return lo, hi
+
+    def lower_bound(self, stage, level):
+        """Return the safe lower bound (:mod:`.certificate`) of a solved stage."""
+        run = stage.solve
+        lo, hi = self.box(level, run.q if level is not None else None)
+        return certificate.safe_lower_bound(run.q, run.a, run.b, run.cones, run.sol.z, lo, hi)
+
+    def anchor(self):
+        """Return a strictly feasible point of the disc constraints (centred small discs)."""
+        y = np.zeros(self.ny)
+        for i in range(self.nl):
+            g2 = (self.k_max[i] / self.l0[i]) ** 2
+            kappa = self.m0[i] / (self.c_disc * self.l0[i] ** 2)
+            a = min(0.5 * self.m_max[i] / self.m0[i], 0.5 * g2 / kappa)
+            y[4 * i] = a
+            y[4 * i + 3] = 0.5 * (kappa * a * a + g2 * a)
+        return y
+
+    def repair(self, y):
+        """
+        Return ``y`` with each disc moved onto its constraints by the least local change.
+
+        The mass is capped at m_max, the first moment shrunk to the radius bound, and the
+        inertia clipped into [|dh|^2/dm + dm^2/c, k_max^2 dm] (the round-off violations an
+        interior-point solution has at active constraints), each with a margin of a few ulp.
+        """
+        y = np.array(y, dtype=float)
+        shrink = 1.0 - 16.0 * certificate.UNIT_ROUNDOFF
+        for i in range(self.nl):
+            im = 4 * i
+            ym = min(y[im], self.m_max[i] / self.m0[i] * shrink)
+            if ym <= 0.0:
+                continue
+            y[im] = ym
+            h = math.hypot(y[im + 1], y[im + 2])
+            h_max = self.r_max[i] / self.l0[i] * ym * shrink
+            if h > h_max:
+                y[im + 1:im + 3] *= h_max / h
+                h = math.hypot(y[im + 1], y[im + 2])
+            kappa = self.m0[i] / (self.c_disc * self.l0[i] ** 2)
+            i_lo = (h * h / ym + kappa * ym * ym) / shrink
+            i_hi = (self.k_max[i] / self.l0[i]) ** 2 * ym * shrink
+            if i_lo <= i_hi:
+                y[im + 3] = min(max(y[im + 3], i_lo), i_hi)
+        return y
+
+    def feasible(self, y, worst):
+        """
+        Return (y, pull): ``y`` repaired (:meth:`repair`), else moved towards :meth:`anchor`.
+
+        The constraints are convex and the anchor inside them, so a convex combination
+        with a large enough fraction ``pull`` is feasible; ``pull`` 0 when ``y`` already is.
+        """
+        if worst <= 0.0:
+            return y, 0.0
+        y = self.repair(y)
+        if self.discs(y)[2] <= 0.0:
+            return y, 0.0
+        anchor = self.anchor()
+        for lam in balancing.PULL_STEPS[1:]:
+            cand = (1.0 - lam) * y + lam * anchor
+            if self.discs(cand)[2] <= 0.0:
+                return cand, lam
+        return anchor, 1.0
 
     def _add_cones(self, add):
         """Add the cones every stage shares: the discs' and the objective terms' epigraphs."""
@@ -739,21 +912,19 @@ class _Problem:
             dh = complex(d[i, 1], d[i, 2]) * ms * ls
             d_i = d[i, 3] * ms * ls * ls
             r_max = self.r_max[i] * ls
-            if dm <= MIN_MASS_REL * own:
+            if dm <= MIN_MASS_REL * own:   # built as no disc: feasible
                 omitted.append(name)
-                worst = max(worst, abs(dh) / (r_max * own), max(-dm, 0.0) / own)
                 continue
             r = dh / dm
             i_min = dm * dm / (2.0 * math.pi * rho * opt.max_thickness_m)
             i_c = d_i - abs(dh) ** 2 / dm
             k_max = self.k_max[i] * ls
-            # violations in units of the link (own mass, reach): the solver's accuracy
-            i_ref = own * r_max ** 2
-            worst = max(worst, (abs(dh) - r_max * dm) / (own * r_max),
-                        (d_i - k_max ** 2 * dm) / i_ref,
-                        0.0 if self.inertia_free[i] else (i_min - i_c) / i_ref,
-                        (dm - self.m_max[i] * ms) / own)
             i_c = i_min if self.inertia_free[i] else max(i_c, i_min)   # t <= t_max
+            # violations of the disc as built, in units of the link (own mass, reach)
+            i_ref = own * r_max ** 2
+            worst = max(worst, (abs(r) - r_max) * dm / (own * r_max),
+                        (i_c + dm * abs(r) ** 2 - k_max ** 2 * dm) / i_ref,
+                        (dm - self.m_max[i] * ms) / own)
             radius = math.sqrt(2.0 * i_c / dm)
             if self.rho is not None:   # the rim bound, in units of the largest centre radius
                 worst = max(worst, (abs(r) + radius - self.rho[i] * ls) / r_max)

@@ -62,3 +62,72 @@ most this factor times the link's joint reach (a disc of radius up to 2.45 x rea
 the reach, 2.8 x at the origin).  Not in issue 13's set, and needed: without it the closure
 of the disc set holds an inertia without mass (dm -> 0, R -> infinity, dI > 0), which
 optima use (the carpet scraper's links 5-7 at (0.5, 0.5)); with it dm = 0 forces dI = 0."""
+
+
+COUNTERWEIGHT_RANGES = {
+    'density_kg_m3': (1.0, 1e5),
+    'max_thickness_m': (1e-4, 1.0),
+    'max_radius_factor': (1e-3, 10.0),
+    'max_mass_factor': (1e-3, 100.0),
+    'max_gyration_factor': (1e-3, 100.0),
+}
+"""The documented range of each counterweight option, (lowest, highest), both included.
+
+Outside them the program is ill-posed for the solver or the design is no scene: above a
+gyration factor of 100 the bound is off in effect, the closure of the disc set holds an
+inertia without mass and the optimum sits on discs of 1e-12 of their link's mass (the safe
+lower bound then lies percents below the primal on Hoeken); a density below 1 kg/m^3 or a
+thickness above 1 m gives discs whose radius or thickness the scene loader refuses, and
+factors below 1e-3 bounds no solver resolves from a zero disc."""
+
+
+BOUND_RATIO_RANGE = (1e-6, 1e6)
+"""Link mass and point-mass distance bounds of the redistribution must lie within these
+factors of the link's original value: a bound of 5e-324 kg is below anything the solver
+(relative accuracy 1e-9) can tell from zero, so the 'certified' link would be noise."""
+
+
+def check_range(name, value, lowest, highest, unit=''):
+    """
+    Return ``value`` as a float in [lowest, highest], else ValueError naming it and the range.
+
+    The one check of the command line, :func:`mech_balance.balancing.counterweights` and the
+    rig node's parameter validators.
+    """
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name}: got {value!r}, expected a number in [{lowest:g}, '
+                         f'{highest:g}]{unit}') from None
+    if not lowest <= v <= highest:   # NaN fails too
+        raise ValueError(f'{name}: got {v:g}, expected a number in [{lowest:g}, '
+                         f'{highest:g}]{unit} (the range in which the program is '
+                         'well-posed and its design loads as a scene)')
+    return v
+
+
+def check_counterweight_option(option, value, name=None):
+    """Return a counterweight option (a key of :data:`COUNTERWEIGHT_RANGES`) checked."""
+    lowest, highest = COUNTERWEIGHT_RANGES[option]
+    unit = {'density_kg_m3': ' kg/m^3', 'max_thickness_m': ' m'}.get(option, '')
+    return check_range(name or option, value, lowest, highest, unit)
+
+
+ABSOLUTE_BOUND_RANGE = {'kg': (1e-6, 1e6), 'm': (1e-6, 1e3)}
+"""Where a link mass (kg) or point-mass distance (m) bound may be set without the scene at
+hand (the rig node's parameters): the redistribution checks :data:`BOUND_RATIO_RANGE`
+against the link's original when it runs."""
+
+
+def check_bound_pair(name, low, high, unit):
+    """
+    Raise ValueError unless ``low`` (and ``high``, None: no bound) lie in the unit's range.
+
+    ``unit`` 'kg' or 'm' (:data:`ABSOLUTE_BOUND_RANGE`); the caller checks 0 < low <= high.
+    """
+    lowest, highest = ABSOLUTE_BOUND_RANGE[unit]
+    for value in (low, high):
+        if value is not None and not lowest <= value <= highest:
+            raise ValueError(f'{name}: got {value:g} {unit}, expected bounds in '
+                             f'[{lowest:g}, {highest:g}] {unit} (defaults.ABSOLUTE_BOUND_RANGE:'
+                             ' a bound no solver can honour)')

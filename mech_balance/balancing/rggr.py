@@ -103,6 +103,7 @@ class ShakingMomentOptimum:
     normal_equation_residual: float
     rank: int
     samples: int
+    moment_rms_lower_bound_Nm: float = None   # safe: no J has a smaller RMS moment
 
 
 def optimize_shaking_moment(scene, samples=DEFAULT_SAMPLES):
@@ -128,13 +129,45 @@ def optimize_shaking_moment(scene, samples=DEFAULT_SAMPLES):
     normal = gram[1:, 1:] @ j_opt + gram[1:, 0]                              # eq. 94
     scale = float(np.max(np.abs(gram[1:, 1:]))) or 1.0
     current = f0 + f @ scene.inertia_parameters_kg_m2()
+    optimal = float(math.sqrt(residual @ residual / n))
     return ShakingMomentOptimum(
         inertia_parameters_kg_m2=j_opt,
         moment_rms_at_scene_Nm=float(rms(current)),
-        moment_rms_optimal_Nm=float(math.sqrt(residual @ residual / n)),
+        moment_rms_optimal_Nm=optimal,
         gram_matrix=gram,
         normal_equation_residual=float(np.max(np.abs(normal)) / scale),
-        rank=int(rank), samples=n)
+        rank=int(rank), samples=n,
+        moment_rms_lower_bound_Nm=min(least_squares_lower_bound(design, target, residual)
+                                      / math.sqrt(n), optimal))
+
+
+def least_squares_lower_bound(design, target, residual):
+    """
+    Return a safe lower bound on ``min_J ||design J - target||`` (:mod:`.certificate`).
+
+    The problem as a cone program ``min s s.t. ||target - design J|| <= s`` in Clarabel's
+    form, the dual point (1, -r/||r||) of the residual r = design J - target (dual residual
+    design' r / ||r||, the normal equations), and the box of the level set
+    ``||design J|| <= ||r|| + ||target||`` (:func:`.certificate.level_set_bounds`).
+    """
+    from mech_balance.balancing import certificate
+    rows, cols = design.shape
+    norm_r = float(np.linalg.norm(residual))
+    if norm_r == 0.0:
+        return 0.0
+    q = np.zeros(cols + 1)
+    q[cols] = 1.0
+    a = np.zeros((rows + 1, cols + 1))
+    a[0, cols] = -1.0
+    a[1:, :cols] = design
+    b = np.concatenate([[0.0], target])
+    z = np.concatenate([[1.0], residual / norm_r])   # -(target - design J) / ||r||
+    lo, hi = np.full(cols + 1, -np.inf), np.full(cols + 1, np.inf)
+    lo[:cols], hi[:cols], _ = certificate.level_set_bounds(
+        design, norm_r + float(np.linalg.norm(target)), lo[:cols], hi[:cols])
+    lo[cols], hi[cols] = 0.0, norm_r * (1.0 + 4.0 * certificate.UNIT_ROUNDOFF)
+    bound = certificate.safe_lower_bound(q, a, b, [('soc', rows + 1)], z, lo, hi)
+    return max(bound.value, 0.0)
 
 
 @dataclasses.dataclass(frozen=True)

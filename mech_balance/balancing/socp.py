@@ -49,8 +49,9 @@ import time
 import clarabel
 from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
-from mech_balance.balancing.defaults import CASES, CENTROIDAL_MARGIN, DEFAULT_WEIGHTS, \
-    PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
+from mech_balance.balancing import certificate
+from mech_balance.balancing.defaults import BOUND_RATIO_RANGE, CASES, CENTROIDAL_MARGIN, \
+    DEFAULT_WEIGHTS, PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
 from mech_balance.conventions import cycle_angles, MAX_WEIGHT
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics
@@ -73,6 +74,22 @@ SOLVER_TOL = 1e-9
 """Clarabel's relative and absolute gap and feasibility tolerances."""
 SOLVER_MAX_ITER = 200
 """Interior-point iterations before giving up."""
+CERTIFIED_GAP_REL = 1e-5
+"""A stage is certified when its safe lower bound is finite and primal - L is at most this
+fraction of max(|primal|, GAP_FLOOR) (``mech-balance balance`` exits 2 otherwise)."""
+RETRY_SETTINGS = (
+    {},
+    {'equilibrate_max_iter': 50, 'static_regularization_constant': 1e-7, 'max_iter': 400},
+    {'presolve_enable': False, 'iterative_refinement_max_iter': 50,
+     'static_regularization_constant': 1e-10, 'max_iter': 400},
+    {'equilibrate_enable': False, 'max_iter': 400, 'tol_scale': 10.0},
+)
+"""Clarabel settings tried in turn until a solve ends Solved (more equilibration, another
+static regularization without presolve, no equilibration with tolerances 10x looser)."""
+SOLVED = ('Solved', 'AlmostSolved')
+"""Statuses whose point is used; anything else after every retry is a failed stage."""
+INFEASIBLE = ('PrimalInfeasible', 'AlmostPrimalInfeasible')
+"""Statuses that prove (or nearly) the constraints have no common point."""
 CHANGE_BASELINE_REL_TOL = 1e-9
 """A before/after row whose before value is below this fraction of the table's largest value
 of the same kind (force or moment) is round-off (e.g. the moment of a prismatic bearing that
@@ -179,37 +196,55 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
                  added_mass=None if max_added_mass_kg is None
                  else max_added_mass_kg / units.mass_kg)
     stage1 = _solve(maps, spec)
+    failed = []
+    if not stage1.run.ok:
+        failed.append(failed_stage('primary (z)', stage1.run, "the design is the solver's "
+                                   'last iterate, made feasible; its lower bound is safe'))
     theta, stage2, exact = stage1.theta, None, False
     secondary = _secondary(spec)
-    if tie_break and secondary is not None:
+    if tie_break and secondary is not None and stage1.run.ok:
         f_star = float(np.linalg.norm(maps.force @ theta))
         exact = (secondary == 'moment' and
                  f_star <= FORCE_BALANCE_REL_TOL * maps.force_rms_original)
         try:
             stage2 = _solve(maps, spec, secondary=secondary, bound=stage1.objective,
                             exact_force=exact)
-        except BalanceError:
+        except BalanceError as exc:
+            failed.append({'stage': f'tie-break (least RMS shaking {secondary})',
+                           'status': 'error', 'reason': str(exc),
+                           'design': "the primary stage's optimum"})
+            stage2, exact = None, False
+        if stage2 is not None and not stage2.run.ok:
+            failed.append(failed_stage(f'tie-break (least RMS shaking {secondary})',
+                                       stage2.run, "the primary stage's optimum"))
             stage2, exact = None, False
         if stage2 is not None:
             theta = stage2.theta
             if exact:
                 theta = theta - maps.force_null_projector @ theta
+    theta, violation, pull = _feasible(theta, spec)
     balanced = _scene_from_theta(scene, theta, units, case)
     terms = maps.terms(theta)
     primal = float(np.dot(spec.w, terms))
-    gap = abs(primal - stage1.dual)
+    bound, nulls = _certify(stage1, primal, theta)
+    lower = min(bound.value, primal)
+    gap, gap_rel = certificate.relative_gap(primal, lower, GAP_FLOOR)
     cert = Certificate(
         solver=f'clarabel {clarabel.__version__}', status=stage1.status,
-        primal=primal, dual=stage1.dual, gap_abs=gap,
-        gap_rel=gap / max(abs(primal), abs(stage1.dual), GAP_FLOOR),
+        primal=primal, dual=lower, gap_abs=gap, gap_rel=gap_rel,
         residual_primal=stage1.r_prim, residual_dual=stage1.r_dual,
         iterations=stage1.iterations,
         stage2=None if stage2 is None else {
             'minimized': f'RMS shaking {secondary}', 'status': stage2.status,
-            'objective': stage2.objective, 'dual': stage2.dual,
-            'iterations': stage2.iterations,
+            'objective': stage2.objective, 'iterations': stage2.iterations,
+            'attempts': list(stage2.run.attempts),
             'exact_force_balance': bool(exact)},
-        max_violation=_violation(theta, spec))
+        max_violation=violation, lower_bound=lower, attempts=list(stage1.run.attempts),
+        bound_detail=dict(_bound_detail(bound), null_directions_assumed=nulls),
+        feasibility_pull=pull, failed_stages=failed,
+        certified=bool(np.isfinite(lower) and gap_rel <= CERTIFIED_GAP_REL
+                       and _violation(theta, spec) == 0.0),
+        design_violation=_violation(theta, spec))
     conic_s = stage1.seconds + (0.0 if stage2 is None else stage2.seconds)
     table = before_after(scene, balanced, samples)
     return BalanceResult(
@@ -253,23 +288,49 @@ def scene_to_yaml(scene, balance=None):
 
 @dataclass
 class Certificate:
-    """Global-optimality certificate of a balancing cone program (stage 1)."""
+    """
+    Global-optimality certificate of a balancing cone program (the primary stage).
+
+    ``lower_bound`` (also under the old key ``dual``) is a safe lower bound on every
+    feasible z (:func:`mech_balance.balancing.certificate.safe_lower_bound`), never above
+    ``primal``, the core's z of the returned design (which satisfies every constraint:
+    ``max_violation`` is its worst violation before ``feasibility_pull`` moved it).
+    """
 
     solver: str
     status: str
     primal: float          # z of the returned design (normalized units)
-    dual: float            # dual objective: a lower bound on every feasible z
-    gap_abs: float
-    gap_rel: float         # gap_abs / max(|primal|, |dual|, GAP_FLOOR)
+    dual: float            # = lower_bound (backward-compatible key)
+    gap_abs: float         # primal - lower_bound (>= 0)
+    gap_rel: float         # gap_abs / max(|primal|, GAP_FLOOR)
     residual_primal: float
     residual_dual: float
     iterations: int
     stage2: dict = None    # the tie-break program, if one was solved
-    max_violation: float = 0.0  # worst constraint violation of the design (normalized)
+    max_violation: float = 0.0  # worst constraint violation of the solver's design
+    lower_bound: float = None
+    attempts: list = None  # status of every solver attempt of the primary stage
+    bound_detail: dict = None
+    feasibility_pull: float = 0.0  # fraction pulled towards the interior anchor
+    failed_stages: list = None     # stages that did not end Solved/AlmostSolved
+    certified: bool = False        # lower bound finite and gap_rel <= CERTIFIED_GAP_REL
+    design_violation: float = 0.0  # worst violation of the design reported (0: feasible)
 
     def to_dict(self):
         """Return the certificate as a plain dict."""
         return schema.plain(self.__dict__)
+
+
+def failed_stage(stage, run, design):
+    """Return the report entry of a stage whose solve failed (name, status, why, design)."""
+    return {'stage': stage, 'status': run.status, 'reason': run.why(), 'design': design}
+
+
+def _bound_detail(bound):
+    return {'dual_objective': bound.dual_objective, 'residual_term': bound.residual_term,
+            'rounding': bound.rounding, 'dual_residual': bound.dual_residual,
+            'projection_shift': bound.projection_shift,
+            'unbounded_variables': list(bound.unbounded)}
 
 
 @dataclass
@@ -310,6 +371,9 @@ class BalanceResult:
             'paper_constraints': self.paper_constraints,
             'realizable_constraint': self.realizable_constraint,
             'objective': self.objective, 'relative_gap': self.certificate.gap_rel,
+            'lower_bound': self.certificate.lower_bound,
+            'certified': self.certificate.certified,
+            'failed_stages': self.certificate.failed_stages or [],
             'realizable': self.realizable})
 
     def to_dict(self):
@@ -556,6 +620,14 @@ class _Stage:
     r_prim: float
     r_dual: float
     seconds: float
+    run: object = None         # Solve
+    lo: np.ndarray = None     # explicit box of the program's variables (certificate)
+    hi: np.ndarray = None
+    norms: list = None        # (G in y units, epigraph index, weight) per objective term
+    dscale: np.ndarray = None
+    nv: int = 0
+    radius_scale: float = None
+    free_h: bool = False      # h enters no constraint (case a, no realizability)
 
 
 def _secondary(spec):
@@ -569,14 +641,76 @@ def _secondary(spec):
     return None
 
 
-def solver_settings():
-    """Return Clarabel's settings for every cone program of the balancing (quiet, tolerances)."""
+def solver_settings(**extra):
+    """
+    Return Clarabel's settings for every cone program of the balancing (quiet, tolerances).
+
+    ``extra``: settings to override (one entry of :data:`RETRY_SETTINGS`; ``tol_scale``
+    multiplies the tolerances).
+    """
+    extra = dict(extra)
+    tol = SOLVER_TOL * extra.pop('tol_scale', 1.0)
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.max_iter = SOLVER_MAX_ITER
-    settings.tol_gap_abs = settings.tol_gap_rel = SOLVER_TOL
-    settings.tol_feas = SOLVER_TOL
+    settings.tol_gap_abs = settings.tol_gap_rel = tol
+    settings.tol_feas = tol
+    for key, value in extra.items():
+        setattr(settings, key, value)
     return settings
+
+
+@dataclass
+class Solve:
+    """One cone program as solved: the solution, the data (for the certificate), attempts."""
+
+    sol: object
+    status: str
+    attempts: tuple        # the status of every attempt, in order
+    q: np.ndarray
+    a: object              # scipy csc (m, n)
+    b: np.ndarray
+    cones: list
+    seconds: float
+
+    @property
+    def ok(self):
+        """Return True if the solver's point is usable (Solved or AlmostSolved)."""
+        return self.status in SOLVED and np.all(np.isfinite(np.asarray(self.sol.x)))
+
+    def why(self):
+        """Return a plain reason for a failed solve (every attempt's status)."""
+        return (f'Clarabel status {self.status} after {len(self.attempts)} attempts '
+                f'({", ".join(self.attempts)}; retries: more equilibration, other '
+                'regularization without presolve, looser tolerances)')
+
+
+def run_solver(q, a, b, cones):
+    """
+    Solve ``min q'x s.t. a x + s = b, s in K`` with Clarabel, retrying until Solved.
+
+    Each entry of :data:`RETRY_SETTINGS` is tried in turn until one ends Solved (or proves
+    infeasibility); otherwise the best attempt (AlmostSolved before any other) is returned
+    with every status in :attr:`Solve.attempts`.
+    """
+    q = np.asarray(q, dtype=float)
+    a = sp.csc_matrix(a)
+    b = np.asarray(b, dtype=float)
+    p = sp.csc_matrix((q.size, q.size))
+    attempts, best, best_rank, t0 = [], None, None, time.perf_counter()
+    for extra in RETRY_SETTINGS:
+        sol = clarabel.DefaultSolver(p, q, a, b, cones, solver_settings(**extra)).solve()
+        status = str(sol.status)
+        attempts.append(status)
+        finite = bool(np.all(np.isfinite(np.asarray(sol.x))))
+        if status == 'Solved' and finite or status in INFEASIBLE:
+            best = sol
+            break
+        rank = (status == 'AlmostSolved' and finite, finite)
+        if best is None or rank > best_rank:
+            best, best_rank = sol, rank
+    return Solve(best, str(best.status), tuple(attempts), q, a, b, cones,
+                 time.perf_counter() - t0)
 
 
 class _Program:
@@ -610,10 +744,7 @@ class _Program:
         a = sp.csc_matrix(np.vstack([m[1] for m in merged]))
         b = np.concatenate([m[2] for m in merged])
         cones = [kinds[k](blk.shape[0]) for k, blk, _ in merged]
-        t0 = time.perf_counter()
-        sol = clarabel.DefaultSolver(sp.csc_matrix((self.nx, self.nx)), np.asarray(q, float),
-                                     a, b, cones, solver_settings()).solve()
-        return sol, time.perf_counter() - t0
+        return run_solver(q, a, b, cones)
 
 
 def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
@@ -703,20 +834,76 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
             prog.add('nonneg', primary, [bound + slack])
         q = np.zeros(nx)
         q[it_n if secondary == 'moment' else it_f] = 1.0
-    sol, seconds = prog.solve(q)
-    status = str(sol.status)
-    if status in ('PrimalInfeasible', 'AlmostPrimalInfeasible'):
+    run = prog.solve(q)
+    status = run.status
+    if status in INFEASIBLE:
         raise BalanceError(
             'constraints: the balancing problem is infeasible (solver status '
             f'{status}); widen mass_bounds / distance_bounds / max_added_mass_kg')
-    if status not in ('Solved', 'AlmostSolved'):
-        raise BalanceError(f'solver: Clarabel stopped with status {status} after '
-                           f'{sol.iterations} iterations')
-    x = np.array(sol.x)
+    if not np.all(np.isfinite(np.asarray(run.sol.x))):
+        raise BalanceError(f'solver: {run.why()}; no design')
+    x = np.array(run.sol.x)
+    # the box of the certificate (certificate.safe_lower_bound): explicit bounds in y units
+    lo = np.full(nx, -np.inf)
+    hi = np.full(nx, np.inf)
+    for i in range(n):
+        im, ii = 4 * i, 4 * i + 3
+        if spec.fixed[i]:
+            lo[im:im + 4] = hi[im:im + 4] = y0[im:im + 4]
+            continue
+        lo[im], hi[im] = spec.mass_lo[i] / m0[i], spec.mass_hi[i] / m0[i]
+        lo[ii] = lo[im] * (spec.dist_lo[i] / l0[i]) ** 2
+        hi[ii] = hi[im] * (spec.dist_hi[i] / l0[i]) ** 2
+        if spec.realizable or spec.case == 'b':   # |h|^2 <= m I_O
+            reach = math.sqrt(hi[im] * hi[ii]) if np.isfinite(hi[im] * hi[ii]) else np.inf
+            lo[im + 1:im + 3], hi[im + 1:im + 3] = -reach, reach
+        if spec.case == 'b':
+            lo[iu0 + i], hi[iu0 + i] = 0.0, reach
+    norms = [(maps.force * dscale, it_f, spec.w[0]), (maps.moment * dscale, it_n, spec.w[1])]
+    if spec.w[2]:
+        norms.append((maps.torque * dscale, it_t, spec.w[2]))
+    norms += [(mat * dscale, ir0 + j, spec.w[3]) for j, mat in enumerate(react)]
     return _Stage(theta=x[:nv] * dscale, objective=float(q @ x),
-                  dual=float(sol.obj_val_dual), status=status,
-                  iterations=int(sol.iterations), r_prim=float(sol.r_prim),
-                  r_dual=float(sol.r_dual), seconds=seconds)
+                  dual=float(run.sol.obj_val_dual), status=status,
+                  iterations=int(run.sol.iterations), r_prim=float(run.sol.r_prim),
+                  r_dual=float(run.sol.r_dual), seconds=run.seconds, run=run, lo=lo, hi=hi,
+                  norms=norms, dscale=dscale, nv=nv,
+                  free_h=spec.case == 'a' and not spec.realizable,
+                  radius_scale=None if secondary is None or exact_force else
+                  bound + TIE_BREAK_SLACK * max(abs(bound), GAP_FLOOR))
+
+
+def _certify(stage, level, centre_theta=None):
+    """
+    Return the safe lower bound (:mod:`.certificate`) of a stage's program.
+
+    ``level``: an upper bound on the weighted objective sum w_k ||G_k y|| at some optimal
+    point (a feasible design's z, or a tie-break's cap), which bounds the coordinates that
+    the constraints leave free (:func:`.certificate.level_set_bounds`).
+    """
+    lo, hi = stage.lo.copy(), stage.hi.copy()
+    nv = stage.nv
+    weighted = [(g, w) for g, _, w in stage.norms if w > 0.0]
+    nulls = 0
+    if weighted and np.isfinite(level):
+        mat = np.vstack([g for g, _ in weighted])
+        # h of case a without realizability enters no constraint: a null direction of the
+        # objective (the carpet scraper has one) leaves the optimal set unbounded along it
+        centre = None if centre_theta is None or not stage.free_h else \
+            centre_theta / stage.dscale
+        lo[:nv], hi[:nv], nulls = certificate.level_set_bounds(
+            mat, level / min(w for _, w in weighted), lo[:nv], hi[:nv], centre,
+            RANK_REL_TOL)
+    for g, it, w in stage.norms:
+        # an optimal point has t = ||G y|| (lower t where it is not tight: nothing else
+        # depends on t), and w t <= level for a weighted term
+        cap = certificate.norm_bound(g, np.zeros(g.shape[0]), lo[:nv], hi[:nv])
+        if w > 0.0 and np.isfinite(level):
+            cap = min(cap, level / w * (1.0 + 4.0 * certificate.UNIT_ROUNDOFF))
+        lo[it], hi[it] = 0.0, cap
+    run = stage.run
+    bound = certificate.safe_lower_bound(run.q, run.a, run.b, run.cones, run.sol.z, lo, hi)
+    return bound, nulls
 
 
 def _row(nx, entries):
@@ -724,6 +911,17 @@ def _row(nx, entries):
     for k, v in entries.items():
         r[k] += v
     return r
+
+
+FEASIBLE_ULPS = 8.0
+"""A constraint a - b <= 0 counts as met when a - b <= this many ulp of max(|a|, |b|): the
+rounding of its own evaluation (equal bounds, m l^2 = I_O, cannot be met more exactly)."""
+
+
+def _excess(a, b):
+    """Return how far a exceeds b beyond the rounding of the comparison (>= 0 if it does)."""
+    slack = FEASIBLE_ULPS * np.finfo(float).eps * max(abs(a), abs(b))
+    return a - b - slack
 
 
 def _violation(theta, spec):
@@ -735,16 +933,89 @@ def _violation(theta, spec):
         if spec.fixed[i]:
             continue
         m, hx, hy, i_o = t[i]
-        checks = [spec.mass_lo[i] - m if np.isfinite(spec.mass_lo[i]) else 0.0,
-                  m - spec.mass_hi[i] if np.isfinite(spec.mass_hi[i]) else 0.0,
-                  m * spec.dist_lo[i] ** 2 - i_o,
-                  i_o - m * spec.dist_hi[i] ** 2 if np.isfinite(spec.dist_hi[i]) else 0.0]
+        checks = [_excess(spec.mass_lo[i], m) if np.isfinite(spec.mass_lo[i]) else 0.0,
+                  _excess(m, spec.mass_hi[i]) if np.isfinite(spec.mass_hi[i]) else 0.0,
+                  _excess(m * spec.dist_lo[i] ** 2, i_o),
+                  _excess(i_o, m * spec.dist_hi[i] ** 2) if np.isfinite(spec.dist_hi[i])
+                  else 0.0]
         if spec.realizable:
-            checks.append((hx * hx + hy * hy) / m - (1.0 - spec.margin) * i_o)
+            checks.append(_excess(hx * hx + hy * hy, m * (1.0 - spec.margin) * i_o))
         if spec.case == 'b':   # eq. 50f: m_j >= 0
-            checks += list(-point_masses[i])
+            checks += list(-point_masses[i] - FEASIBLE_ULPS * np.finfo(float).eps * m)
         worst = max(worst, max(checks))
+    if spec.added_mass is not None and not all(spec.fixed):
+        worst = max(worst, _excess(float(np.sum(t[:, 0])),
+                                   float(np.sum(spec.theta0[0::4])) + spec.added_mass))
     return float(max(worst, 0.0))
+
+
+def _repaired(theta, spec):
+    """
+    Return ``theta`` with each link moved onto its bounds by the least local change.
+
+    The mass clipped into its bounds, I_O into [m l_lo^2, m l_hi^2], the first moment
+    shrunk to the realizability cone (|h|^2 <= m (1 - margin) I_O): the round-off
+    violations of an interior-point solution at active constraints.
+    """
+    t = np.array(theta, dtype=float).reshape(-1, 4)
+    for i in range(spec.n):
+        if spec.fixed[i]:
+            continue
+        m = min(max(t[i, 0], spec.mass_lo[i]), spec.mass_hi[i])
+        i_o = min(max(t[i, 3], m * spec.dist_lo[i] ** 2), m * spec.dist_hi[i] ** 2)
+        t[i, 0], t[i, 3] = m, i_o
+        if spec.realizable:
+            h2 = t[i, 1] ** 2 + t[i, 2] ** 2
+            cap = m * (1.0 - spec.margin) * i_o
+            if h2 > cap:
+                t[i, 1:3] *= math.sqrt(cap / h2) * (1.0 - 4.0 * np.finfo(float).eps)
+    return t.ravel()
+
+
+PULL_STEPS = (0.0, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2, 1.0)
+"""Fractions of the way to the interior anchor tried until a design violates nothing."""
+
+
+def _anchor(spec):
+    """Return a feasible design of the constraints (inside where it can be): the anchor."""
+    t0 = spec.theta0.reshape(-1, 4)
+    out = t0.copy()
+    for i in range(spec.n):
+        if spec.fixed[i]:
+            continue
+        m0, i0 = t0[i, 0], t0[i, 3]
+        lo, hi = spec.mass_lo[i], spec.mass_hi[i]
+        m = min(max(m0, lo), hi)
+        if spec.added_mass is None and hi > lo:
+            m = 0.5 * (lo + hi) if np.isfinite(hi) else 1.5 * lo
+        l_lo, l_hi = spec.dist_lo[i], spec.dist_hi[i]
+        l_2 = min(max(i0 / m0, l_lo ** 2), l_hi ** 2)
+        if l_hi > l_lo:
+            l_2 = 0.5 * (l_lo ** 2 + l_hi ** 2) if np.isfinite(l_hi) else 1.5 * l_lo ** 2
+        out[i] = (m, 0.0, 0.0, m * l_2)
+    return out.ravel()
+
+
+def _feasible(theta, spec):
+    """
+    Return (design, its violation before, pull): ``theta`` pulled towards the anchor.
+
+    The first fraction of :data:`PULL_STEPS` whose convex combination violates nothing
+    (the constraints are convex and the anchor satisfies them).
+    """
+    before = _violation(theta, spec)
+    if before == 0.0:
+        return theta, 0.0, 0.0
+    fixed = _repaired(theta, spec)
+    if _violation(fixed, spec) == 0.0:
+        return fixed, before, 0.0
+    theta = fixed
+    anchor = _anchor(spec)
+    for lam in PULL_STEPS[1:]:
+        cand = (1.0 - lam) * theta + lam * anchor
+        if _violation(cand, spec) == 0.0:
+            return cand, before, lam
+    return anchor, before, 1.0
 
 
 # ============================================================================ analytic balance
@@ -1053,10 +1324,18 @@ def _bounds(given, names, original, factors, field_name, factors_name):
                 raise BalanceError(f'{field_name}.{key}: got {_show(pair)}, expected '
                                    '0 < min <= max')
             lo[i], hi[i] = a, b
+    low_ratio, high_ratio = BOUND_RATIO_RANGE
     for i, name in enumerate(names):
         if not lo[i] > 0.0:   # a factor times an original of 0
             raise BalanceError(f'{field_name}.{name}: lower bound {lo[i]:g}, expected > 0 '
                                f'(the original is 0; give {field_name} for this link)')
+        ref = float(original[i])
+        if ref > 0.0 and not (low_ratio * ref <= lo[i] and
+                              (math.isinf(hi[i]) or hi[i] <= high_ratio * ref)):
+            raise BalanceError(
+                f'{field_name}.{name}: got ({lo[i]:g}, {hi[i]:g}), expected bounds within '
+                f'[{low_ratio:g}, {high_ratio:g}] x the original {ref:g} (defaults.'
+                'BOUND_RATIO_RANGE: tighter or wider bounds no solver resolves)')
     return lo, hi
 
 

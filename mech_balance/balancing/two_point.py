@@ -40,9 +40,8 @@ import time
 
 import clarabel
 from mech_balance import schema
-from mech_balance.balancing import socp as balancing
+from mech_balance.balancing import certificate, socp as balancing
 import numpy as np
-import scipy.sparse as sp
 
 PAPER_MASS_FACTORS = (1.0, 5.0)
 """seed 001 eqs. B.2 / B.4: m^o <= m <= 5 m^o."""
@@ -65,9 +64,9 @@ class TwoPointResult:
 
     scene: str
     weights: tuple
-    lower_bound_z: float          # three-point model = convex relaxation, certified
-    lower_bound_dual: float
-    lower_bound_gap_rel: float
+    lower_bound_z: float          # safe lower bound of the relaxation (three-point model)
+    lower_bound_dual: float       # = lower_bound_z (backward-compatible key)
+    lower_bound_gap_rel: float    # (relaxation_z - lower_bound_z) / max(relaxation_z, 1)
     lower_terms: dict             # f~, n~, tau~ of the relaxation's optimum
     upper_bound_z: float          # best two-point design found (feasible, verified)
     upper_terms: dict
@@ -76,6 +75,9 @@ class TwoPointResult:
     band_links: tuple             # links R's optimum leaves unrepresentable
     programs: int
     seconds: float
+    relaxation_z: float = None    # z of the relaxation's design (feasible, clipped)
+    failed_programs: list = None  # sequential programs that ended without a point, and why
+    upper_feasibility_tol: float = 0.0  # the solver's feasibility tolerance at the upper design
 
     def to_dict(self):
         """Return the result as a plain dict."""
@@ -118,7 +120,7 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
     m0, i0 = theta0[:, 0], theta0[:, 3]
     dsc = np.column_stack([m0, np.sqrt(m0 * i0), np.sqrt(m0 * i0), i0]).ravel()
     lower = _program(maps, dsc, w, n, ['free'] * n, None)
-    programs = 1
+    programs, failed = 1, []
     y_r = lower['theta']
     band = [i for i, ok in enumerate(representable(y_r)) if not ok]
     best = None
@@ -134,7 +136,8 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
             for _ in range(SCP_ITERATIONS):
                 try:
                     sol = _program(maps, dsc, w, n, pieces, theta)
-                except balancing.BalanceError:
+                except balancing.BalanceError as exc:
+                    failed.append(f'pieces {choice}: {exc}')
                     break
                 programs += 1
                 theta = sol['theta']
@@ -143,7 +146,10 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
                 if abs(z_prev - sol['z']) <= SCP_TOL * max(abs(sol['z']), 1.0):
                     break
                 z_prev = sol['z']
-    t = best['theta'].reshape(-1, 4)
+    if best is None:
+        raise balancing.BalanceError('two-point model: no sequential cone program found a '
+                                     'two-point design (every piece failed or left the set)')
+    t, feas_tol = _clipped(best['theta'].reshape(-1, 4), m0, i0, best['feasibility_tol'])
     pm = {lk.name: dict(zip(('m_1', 'm_2', 'l_1', 'l_2'), point_masses(*row)))
           for lk, row in zip(scene.links, t)}
     # verify: the point masses give back the parameters, and the core evaluates the design
@@ -151,18 +157,74 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
     for p in pm.values():
         rebuilt += [p['m_1'] + p['m_2'], p['m_1'] * p['l_1'], p['m_2'] * p['l_2'],
                     p['m_1'] * p['l_1'] ** 2 + p['m_2'] * p['l_2'] ** 2]
+    if feas_tol < balancing.SOLVER_TOL:   # clipped: repair the rebuild's round-off
+        pm, rebuilt = _repaired(pm, m0, i0)
     upper_terms = _terms(maps, np.array(rebuilt))
     lower_terms = _terms(maps, lower['theta'])
     z_up = float(w @ [upper_terms['shaking_force'], upper_terms['shaking_moment']])
-    z_lo = lower['z']
+    z_lo = min(lower['lower'].value, lower['z'], z_up)   # safe: below both designs
     return TwoPointResult(
         scene=scene.name, weights=tuple(w), lower_bound_z=z_lo,
-        lower_bound_dual=lower['dual'],
-        lower_bound_gap_rel=abs(z_lo - lower['dual']) / max(abs(z_lo), 1.0),
+        lower_bound_dual=z_lo,
+        lower_bound_gap_rel=certificate.relative_gap(lower['z'], z_lo)[1],
         lower_terms=lower_terms, upper_bound_z=z_up, upper_terms=upper_terms,
         gap_rel=(z_up - z_lo) / max(abs(z_up), 1.0), point_masses=pm,
         band_links=tuple(scene.links[i].name for i in band), programs=programs,
-        seconds=time.perf_counter() - t_start)
+        seconds=time.perf_counter() - t_start, relaxation_z=lower['z'],
+        failed_programs=failed, upper_feasibility_tol=feas_tol)
+
+
+def _clipped(t, m0, i0, solver_tol):
+    """
+    Return the upper design moved into the bounds B.2-B.3 exactly, and its tolerance.
+
+    An interior-point solution meets the bounds to the solver's feasibility tolerance; the
+    masses are clipped into [1, 5] m^o and the inertias raised to 0.25 I^o where that keeps
+    every link representable by two point masses.  The tolerance returned is then the
+    round-off of rebuilding the parameters from the point masses (a few ulp), else the
+    solver's.
+    """
+    c = t.copy()
+    c[:, 0] = np.clip(c[:, 0], PAPER_MASS_FACTORS[0] * m0, PAPER_MASS_FACTORS[1] * m0)
+    c[:, 3] = np.maximum(c[:, 3], PAPER_INERTIA_FACTOR * i0)
+    if np.all(representable(c)):
+        return c, 4.0 * np.finfo(float).eps   # the test's conversion to SI: a few ulp
+    return t, solver_tol
+
+
+def _rebuild(p):
+    return [p['m_1'] + p['m_2'], p['m_1'] * p['l_1'], p['m_2'] * p['l_2'],
+            p['m_1'] * p['l_1'] ** 2 + p['m_2'] * p['l_2'] ** 2]
+
+
+def _repaired(pm, m0, i0):
+    """
+    Return point masses whose rebuilt parameters meet B.2-B.3 exactly, and those parameters.
+
+    Solving for the point masses cancels digits (masses of opposite sign at distances of
+    hundreds of link lengths): a rebuilt inertia can fall 1e-8 below its bound.  Any point
+    masses are a two-point design, so both distances are scaled up (inertia by the square)
+    or both masses scaled into the mass bounds, with a margin of a few ulp.
+    """
+    margin = 1.0 + 8.0 * np.finfo(float).eps
+    out, rebuilt = {}, []
+    for (name, p), mo, io in zip(pm.items(), m0, i0):
+        p = dict(p)
+        for _ in range(4):
+            m, _, _, i_o = _rebuild(p)
+            lo, hi = PAPER_MASS_FACTORS[0] * mo, PAPER_MASS_FACTORS[1] * mo
+            if m < lo or m > hi:
+                k = (lo * margin if m < lo else hi / margin) / m
+                p['m_1'], p['m_2'] = p['m_1'] * k, p['m_2'] * k
+                continue
+            if i_o < PAPER_INERTIA_FACTOR * io:
+                k = math.sqrt(PAPER_INERTIA_FACTOR * io / i_o) * margin
+                p['l_1'], p['l_2'] = p['l_1'] * k, p['l_2'] * k
+                continue
+            break
+        out[name] = p
+        rebuilt += _rebuild(p)
+    return out, rebuilt
 
 
 def _terms(maps, theta):
@@ -251,15 +313,65 @@ def _program(maps, dsc, w, n, pieces, theta_at):
         add(clarabel.SecondOrderConeT, a, np.zeros(a.shape[0]))
     q = np.zeros(nx)
     q[nv:nv + 2] = w
-    settings = balancing.solver_settings()
-    sol = clarabel.DefaultSolver(
-        sp.csc_matrix((nx, nx)), q, sp.csc_matrix(np.vstack([b[1] for b in blocks])),
-        np.concatenate([b[2] for b in blocks]), [b[0](b[1].shape[0]) for b in blocks],
-        settings).solve()
-    status = str(sol.status)
-    if status not in ('Solved', 'AlmostSolved'):
-        raise balancing.BalanceError(f'two-point model: Clarabel status {status}')
-    x = np.array(sol.x)
-    theta = x[:nv] * dsc
+    run = balancing.run_solver(q, np.vstack([b[1] for b in blocks]),
+                               np.concatenate([b[2] for b in blocks]),
+                               [b[0](b[1].shape[0]) for b in blocks])
+    status = run.status
+    if not run.ok:
+        raise balancing.BalanceError(f'two-point model: {run.why()}')
+    x = np.array(run.sol.x)
+    y = x[:nv]
+    out = {'status': status, 'attempts': list(run.attempts),
+           'feasibility_tol': balancing.SOLVER_TOL * max(1.0, float(np.max(np.abs(x))))}
+    if all(p == 'free' for p in pieces):
+        # the relaxation's constraints are bounds only: clip the design into them exactly
+        # (a feasible design), then the safe lower bound (certificate.safe_lower_bound)
+        y = y.copy()
+        ym = y[0::4]
+        np.clip(ym, PAPER_MASS_FACTORS[0], PAPER_MASS_FACTORS[1], out=ym)
+        y[0::4] = ym
+        y[3::4] = np.maximum(y[3::4], PAPER_INERTIA_FACTOR)
+        out['feasibility_tol'] = 0.0
+    theta = y * dsc
     z = float(w @ [np.linalg.norm(maps.force @ theta), np.linalg.norm(maps.moment @ theta)])
-    return {'theta': theta, 'z': z, 'dual': float(sol.obj_val_dual), 'status': status}
+    out.update(theta=theta, z=z)
+    if all(p == 'free' for p in pieces):
+        out['lower'] = _relaxation_bound(run, maps, dsc, w, n, y, z)
+    return out
+
+
+def _relaxation_bound(run, maps, dsc, w, n, y, level):
+    """
+    Return the safe lower bound (:mod:`.certificate`) of the relaxation B.1-B.3.
+
+    Box: m in [1, 5] and I_O >= 0.25 (link units); a coordinate that enters no term
+    (exactly zero columns: the crank's inertia at constant speed) is fixed at the design's
+    value (an optimal point shares it: its only constraint is its own bound); the rest from
+    the level set ``w1 f~ + w2 n~ <= level`` (:func:`.certificate.polytope_bounds`); the
+    epigraphs in [0, level / w_k].
+    """
+    nv = 4 * n
+    nx = run.q.size
+    lo, hi = np.full(nx, -np.inf), np.full(nx, np.inf)
+    lo[0:nv:4], hi[0:nv:4] = PAPER_MASS_FACTORS
+    lo[3:nv:4] = PAPER_INERTIA_FACTOR
+    mats = [maps.force * dsc, maps.moment * dsc]
+    used = [m for m, wk in zip(mats, w) if wk > 0.0]
+    zero = ~np.any(np.vstack(used) != 0.0, axis=0)
+    lo[:nv][zero] = hi[:nv][zero] = y[zero]
+    lo[nv + 2:], hi[nv + 2:] = 0.0, 0.0     # the P pieces' auxiliaries: unused here
+    radius = level / min(w[w > 0])
+    lo[:nv], hi[:nv] = certificate.polytope_bounds(np.vstack(used), radius, lo[:nv], hi[:nv],
+                                                   balancing.RANK_REL_TOL)
+    # what stays unbounded is first moments along null directions of the objective: they
+    # enter no constraint of the relaxation, so an optimal point shares the design's
+    # component there (certificate.level_set_bounds, centre)
+    lo[:nv], hi[:nv], _ = certificate.level_set_bounds(np.vstack(used), radius, lo[:nv],
+                                                       hi[:nv], y, balancing.RANK_REL_TOL)
+    for k, wk in enumerate(w):
+        lo[nv + k] = 0.0
+        hi[nv + k] = certificate.norm_bound(mats[k], np.zeros(mats[k].shape[0]), lo[:nv],
+                                            hi[:nv])
+        if wk > 0.0:
+            hi[nv + k] = min(hi[nv + k], level / wk * (1.0 + 4.0 * certificate.UNIT_ROUNDOFF))
+    return certificate.safe_lower_bound(run.q, run.a, run.b, run.cones, run.sol.z, lo, hi)

@@ -14,7 +14,7 @@ Four studies of one planar scene, each against a converged reference:
   the run-time ratio of each implicit run to the fastest explicit run that is as accurate.
 * **Position analysis**: loop-closure residual, Newton iterations and Jacobian condition
   number per crank angle.
-* **Balancing** (:mod:`mech_balance.balancing`): the certificate's duality gap against
+* **Balancing** (:mod:`mech_balance.balancing`): the primal, the safe lower bound and gap against
   solve time as the conic solver's tolerance tightens.
 
 Run times here are wall-clock seconds of one run (median of a few for the fast ones) and
@@ -278,9 +278,9 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
             balancing.SOLVER_TOL = saved
         c = res.certificate
         rows.append({'tolerance': tol, 'status': c.status, 'iterations': c.iterations,
-                     'primal': c.primal, 'dual': c.dual, 'gap_abs': c.gap_abs,
-                     'gap_rel': c.gap_rel, 'conic_seconds': res.conic_time_s,
-                     'solve_seconds': res.solve_time_s})
+                     'primal': c.primal, 'lower_bound': c.lower_bound, 'dual': c.lower_bound,
+                     'gap_abs': c.gap_abs, 'gap_rel': c.gap_rel, 'certified': c.certified,
+                     'conic_seconds': res.conic_time_s, 'solve_seconds': res.solve_time_s})
     return {'available': True, 'weights': list(weights), 'rows': rows,
             'tolerance_via': 'solver_tol keyword' if keyword else 'balancing.SOLVER_TOL'}
 
@@ -414,13 +414,15 @@ def _format_position(study):
 def _format_balancing(study):
     if not study.get('available'):
         return [f'balancing: {study["note"]}']
-    lines = [f'balancing (weights {study["weights"]}): certificate gap against solve time '
+    lines = [f'balancing (weights {study["weights"]}): primal z of the design, safe lower '
+             'bound and gap against solve time '
              f'(tolerance set through {study["tolerance_via"]})',
-             f'{"tolerance":>10}{"status":>10}{"iter":>6}{"objective":>14}{"rel. gap":>11}'
-             f'{"abs. gap":>11}{"conic ms":>10}{"total ms":>10}', '-' * 82]
+             f'{"tolerance":>10}{"status":>10}{"iter":>6}{"primal":>14}{"lower bound":>14}'
+             f'{"gap":>11}{"rel. gap":>11}{"conic ms":>10}{"total ms":>10}', '-' * 96]
     for r in study['rows']:
         lines.append(f'{r["tolerance"]:>10.0e}{r["status"]:>10}{r["iterations"]:>6}'
-                     f'{r["primal"]:>14.8g}{r["gap_rel"]:>11.2e}{r["gap_abs"]:>11.2e}'
+                     f'{r["primal"]:>14.8g}{r["lower_bound"]:>14.8g}{r["gap_abs"]:>11.2e}'
+                     f'{r["gap_rel"]:>11.2e}'
                      f'{r["conic_seconds"] * 1e3:>10.2f}{r["solve_seconds"] * 1e3:>10.2f}')
     return lines
 

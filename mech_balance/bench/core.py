@@ -17,7 +17,8 @@ SECTIONS = ('mech_balance.bench.balancing:bench_section',
             'mech_balance.bench.node:bench_section',
             'mech_balance.bench.node:live_view_section',
             'mech_balance.bench.cell:bench_section',
-            'mech_balance.bench.identify:bench_section')
+            'mech_balance.bench.identify:bench_section',
+            'mech_balance.bench.spatial:bench_section')
 """The bench sections, ``module:function`` with ``function(args, progress) -> str`` returning
 its printed table; ``mech-balance bench`` prints them after the core timings."""
 

@@ -33,11 +33,23 @@ COUNTERWEIGHT_OPTIONS = ('--density', '--max-thickness', '--max-radius-factor',
 """Options of --counterweights alone: rejected without it."""
 COUNTERWEIGHT_PLACEMENT = ('--planes', '--max-rim-radius-factor')
 """Options of --counterweights alone that have no number default (checked by the solver)."""
+COUNTERWEIGHT_KEYS = {'--density': 'density_kg_m3', '--max-thickness': 'max_thickness_m',
+                      '--max-radius-factor': 'max_radius_factor',
+                      '--max-mass-factor': 'max_mass_factor',
+                      '--max-gyration-factor': 'max_gyration_factor'}
+"""The counterweight options and their keys in :data:`.defaults.COUNTERWEIGHT_RANGES`."""
 COUNTERWEIGHT_SHARED = ('--weights', '--torque-weight', '--reaction-weight')
 """Options of the optimization that --counterweights uses too (the rest it rejects)."""
 PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + \
     COUNTERWEIGHT_PLACEMENT + ('--analytic', '--counterweights', '--model')
 """Options RGGR scenes reject: their balancing (seed 002) has no such choices."""
+SPATIAL_SHARED = ('--weights', '--mass-factors', '--fix', '--counterweights', '--density',
+                  '--max-mass-factor', '--max-radius-factor')
+"""Options of the planar balancing that spatial rigs (body kinematics) take too."""
+SPATIAL_OPTIONS = ('--method', '--extent-factor', '--force-balanced', '--free')
+"""Options of spatial rigs alone (mech_balance.balancing.spatial)."""
+SPATIAL_METHODS = ('auto', 'weights', 'force-balance', 'redistribution', 'counterweights')
+"""``--method`` values (auto: the rig's own, the RGGR's weights, else the redistribution)."""
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -47,6 +59,11 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         if action.default is None or action.default is False:
             return action.help
         return super()._get_help_string(action)
+
+
+def _range(key):
+    lowest, highest = defaults.COUNTERWEIGHT_RANGES[key]
+    return f'; range {lowest:g} to {highest:g}'
 
 
 def _dest(option):
@@ -124,20 +141,23 @@ def register(subparsers):
                         'every other link is untouched')
     p.add_argument('--density', type=float, default=defaults.DEFAULT_DENSITY_KG_M3,
                    metavar='KG_M3', help='--counterweights: disc material density (kg/m^3; '
-                                         'steel)')
+                                         'steel)' + _range('density_kg_m3'))
     p.add_argument('--max-thickness', type=float, default=defaults.DEFAULT_MAX_THICKNESS_M,
-                   metavar='M', help='--counterweights: thickest disc (m)')
+                   metavar='M', help='--counterweights: thickest disc (m)'
+                   + _range('max_thickness_m'))
     p.add_argument('--max-radius-factor', type=float,
                    default=defaults.DEFAULT_MAX_RADIUS_FACTOR, metavar='F',
                    help="--counterweights: disc centre at most F x the distance from the link's "
-                        'origin to its farthest joint point')
+                        'origin to its farthest joint point' + _range('max_radius_factor'))
     p.add_argument('--max-mass-factor', type=float, default=defaults.DEFAULT_MAX_MASS_FACTOR,
-                   metavar='F', help="--counterweights: disc mass at most F x the link's mass")
+                   metavar='F', help="--counterweights: disc mass at most F x the link's mass"
+                   + _range('max_mass_factor'))
     p.add_argument('--max-gyration-factor', type=float,
                    default=defaults.DEFAULT_MAX_GYRATION_FACTOR, metavar='F',
                    help="--counterweights: the disc's radius of gyration about the link origin "
                         "at most F x the link's farthest joint distance (keeps a vanishing disc "
-                        'from carrying inertia)')
+                        'from carrying inertia; above 100 the program is ill-posed)'
+                        + _range('max_gyration_factor'))
     p.add_argument('--planes', default='', metavar='LINK=Z[,LINK=Z...]',
                    help="--counterweights: a disc's plane, its mid-plane's offset along z from "
                         "its link's plane in m (default: each link's own plane, 0); bodies "
@@ -151,6 +171,22 @@ def register(subparsers):
                    help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
                         'with two point masses per link at 0 and 90 deg, and print the '
                         "certified bounds next to the paper's rows")
+    p.add_argument('--method', choices=SPATIAL_METHODS, default='auto',
+                   help='spatial rigs (body kinematics: the RGGR, kind spatial): weights (the '
+                        "RGGR's seed-002 weights, its default), force-balance (the null space "
+                        'of the shaking force: conditions and the least-change design), '
+                        'redistribution (certified, every body a PSD pseudo-inertia; the '
+                        'default of kind spatial), counterweights (add-only spheres, with '
+                        '--counterweights LINKS)')
+    p.add_argument('--extent-factor', type=float, default=1.5, metavar='F',
+                   help="spatial redistribution: RMS distance of each body's mass from its "
+                        'origin at most F x its reach (farthest drawn point), F > 0')
+    p.add_argument('--force-balanced', action='store_true',
+                   help='spatial redistribution: impose complete force balance (falls back '
+                        'to the least RMS shaking force, with a note, when impossible)')
+    p.add_argument('--free', action='append', default=[], metavar='LINK',
+                   help='--method force-balance: a body that may change (repeatable; '
+                        'default all)')
     p.add_argument('--si', action='store_true',
                    help="print SI values (default: the papers' normalized units when the scene "
                         'records a normalization)')
@@ -159,7 +195,7 @@ def register(subparsers):
                    help='write the balanced scene (loadable by every other command) to a '
                         'file in an existing directory; checked before the solve')
     p.set_defaults(func=cmd_balance, option_defaults={
-        option: p.get_default(_dest(option)) for option in PLANAR_OPTIONS})
+        option: p.get_default(_dest(option)) for option in PLANAR_OPTIONS + SPATIAL_OPTIONS})
 
 
 def _given(args, options):
@@ -188,6 +224,7 @@ def _check_options(args):
             value = getattr(args, _dest(option))
             if not (np.isfinite(value) and value > 0.0):
                 raise ValueError(f'{option}: got {value:g}, expected a finite number > 0')
+            defaults.check_counterweight_option(COUNTERWEIGHT_KEYS[option], value, option)
         return
     given_cw = _given(args, COUNTERWEIGHT_OPTIONS + COUNTERWEIGHT_PLACEMENT)
     if given_cw:
@@ -215,10 +252,22 @@ def cmd_balance(args):
         raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
     _check_options(args)
     sc = scene_mod.load(args.scene)
+    caps = scene_mod.kind_of(sc).rig_factory().capabilities
+    spatial_given = _given(args, SPATIAL_OPTIONS)
+    if 'mass_redistribution' not in caps and 'body_kinematics' in caps and (
+            spatial_given or args.counterweights is not None
+            or 'balancing_weights' not in caps):
+        cli.requires(sc, 'mass_redistribution', **dict.fromkeys(
+            [o for o in _given(args, PLANAR_OPTIONS) if o not in SPATIAL_SHARED], True))
+        return _spatial(sc, args)
+    cli.requires(sc, 'body_kinematics', **dict.fromkeys(spatial_given, True))
     cli.requires(sc, 'mass_redistribution',
                  **dict.fromkeys(_given(args, PLANAR_OPTIONS), True))
-    if 'mass_redistribution' not in scene_mod.kind_of(sc).rig_factory().capabilities:
+    if 'mass_redistribution' not in caps:
         return _weights(sc, args)
+    if spatial_given:
+        raise ValueError(f'{spatial_given[0]}: applies to spatial rigs (body kinematics), got '
+                         f'the planar scene {sc.name!r}; expected no {spatial_given[0]}')
     if args.output:
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
     if args.analytic:
@@ -245,13 +294,52 @@ def cmd_balance(args):
         if table12 is not None:
             out['two_point_model'] = table12.to_dict()
         print(json.dumps(out, indent=2))
-        return 0
+        return exit_status(result.certificate)
     print(format_result(result, normalized=not args.si))
     if table12 is not None:
         print('\n' + format_table12(table12))
     if args.output:
         print(f'balanced scene written to {args.output}')
-    return 0
+    _warn(result.certificate)
+    return exit_status(result.certificate)
+
+
+def exit_status(cert):
+    """Return 0 when the primary objective is certified, else 2 (a failed stage is warned)."""
+    return 0 if cert.certified else 2
+
+
+def certificate_lines(cert):
+    """Return the certificate as text: primal, safe lower bound, gap, stages, violations."""
+    lines = [f'certificate ({cert.solver}): status {cert.status}'
+             + (f' (attempts: {", ".join(cert.attempts)})' if cert.attempts and
+                len(cert.attempts) > 1 else '')
+             + f', primal {cert.primal:.9g}, lower bound {cert.lower_bound:.9g}, gap '
+             f'{cert.gap_abs:.2e} (relative {cert.gap_rel:.2e}), '
+             + ('certified' if cert.certified else 'NOT certified')
+             + f'; {cert.iterations} iterations, residuals {cert.residual_primal:.1e} / '
+             f'{cert.residual_dual:.1e}',
+             f"max constraint violation of the solver's design {cert.max_violation:.1e}"
+             + (f' (moved {cert.feasibility_pull:.0e} of the way to a feasible anchor; the '
+                'design reported satisfies every constraint)' if cert.feasibility_pull else
+                ' (the design reported satisfies every constraint)'
+                if cert.max_violation else '')]
+    return lines
+
+
+def _warn(cert):
+    """Print one warning line per failed stage, and one if the objective is not certified."""
+    for f in cert.failed_stages or ():
+        print(f"warning: stage '{f['stage']}' failed: {f['reason']}; the design is "
+              f"{f['design']}", file=sys.stderr)
+    if not cert.certified:
+        print(f'warning: the primary objective is not certified (relative gap '
+              f'{cert.gap_rel:.1e} > {_certified_gap():.0e}); exit status 2', file=sys.stderr)
+
+
+def _certified_gap():
+    from mech_balance.balancing import socp as balancing
+    return balancing.CERTIFIED_GAP_REL
 
 
 def _counterweights(sc, args):
@@ -270,11 +358,12 @@ def _counterweights(sc, args):
         print(f'warning: {text}', file=sys.stderr)
     if args.json:
         print(json.dumps(result.to_dict(), indent=2))
-        return 0
+        return exit_status(result.certificate)
     print(format_counterweights(result, normalized=not args.si))
     if args.output:
         print(f'scene with counterweights written to {args.output}')
-    return 0
+    _warn(result.certificate)
+    return exit_status(result.certificate)
 
 
 def format_counterweights(result, normalized=True):
@@ -313,10 +402,7 @@ def format_counterweights(result, normalized=True):
     obj, cert = result.objective, result.certificate
     lines += [f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
               f"f~ = {obj['shaking_force_rms']:.6g}, n~ = {obj['shaking_moment_rms']:.6g}",
-              f'certificate ({cert.solver}): status {cert.status}, primal {cert.primal:.9g}, '
-              f'dual {cert.dual:.9g}, gap {cert.gap_abs:.2e} (relative {cert.gap_rel:.2e}), '
-              f'{cert.iterations} iterations; max constraint violation '
-              f'{cert.max_violation:.1e}']
+              *certificate_lines(cert)]
     if cert.stage2 is not None:
         s2 = cert.stage2
         lines.append(f"tie-break: minimized {s2['minimized']} among optimal designs"
@@ -325,7 +411,10 @@ def format_counterweights(result, normalized=True):
     if result.least_mass is not None:
         lm = result.least_mass
         lines.append(f"tie-break: least total added mass {lm['objective_kg']:.6g} kg "
-                     f"({lm['status']})")
+                     f"(lower bound {lm['lower_bound_kg']:.6g} kg; {lm['status']})")
+    for f in cert.failed_stages or ():
+        lines.append(f"FAILED stage '{f['stage']}': {f['reason']}; the design is "
+                     f"{f['design']}")
     lines.append(cw_mod.format_cost(result.cost))
     lines.append(f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
                  f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
@@ -388,11 +477,10 @@ def format_result(result, normalized=True):
     obj, cert = result.objective, result.certificate
     lines += ['', f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
               f"f~ = {obj['shaking_force_rms']:.6g}, n~ = {obj['shaking_moment_rms']:.6g}",
-              f'certificate ({cert.solver}): status {cert.status}, primal {cert.primal:.9g}, '
-              f'dual {cert.dual:.9g}, gap {cert.gap_abs:.2e} (relative {cert.gap_rel:.2e}), '
-              f'residuals {cert.residual_primal:.1e} / {cert.residual_dual:.1e}, '
-              f'{cert.iterations} iterations',
-              f'max constraint violation {cert.max_violation:.1e}']
+              *certificate_lines(cert)]
+    for f in cert.failed_stages or ():
+        lines.append(f"FAILED stage '{f['stage']}': {f['reason']}; the design is "
+                     f"{f['design']}")
     if cert.stage2 is not None:
         s2 = cert.stage2
         lines.append(f"tie-break (optimum not unique): minimized {s2['minimized']} among "
@@ -556,9 +644,108 @@ def _weights(sc, args):
     return 0
 
 
+def _spatial(sc, args):
+    """Balance a rig with body kinematics (the RGGR, kind spatial) and print its result."""
+    from mech_balance import balancing as front
+    from mech_balance.balancing import spatial
+    from mech_balance.core.rig import rig_for
+    rig = rig_for(sc)
+    method = 'counterweights' if args.counterweights is not None else \
+        args.method.replace('-', '_')
+    method = front.method_for(rig, method)
+    if method == 'weights':
+        return _weights(sc, args)
+    if args.output:
+        cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
+    options = {'samples': args.samples}
+    weights = defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights)
+    if method == 'force_balance':
+        options['free'] = tuple(args.free) or None
+    elif method == 'redistribution':
+        options.update(weights=weights, mass_factors=tuple(args.mass_factors),
+                       fixed_links=tuple(args.fix), extent_factor=args.extent_factor,
+                       force_balanced=args.force_balanced)
+    else:
+        if not args.counterweights:
+            raise ValueError('--method counterweights: expected --counterweights LINK[,LINK...]')
+        options.update(links=args.counterweights, weights=weights,
+                       density_kg_m3=args.density, max_mass_factor=args.max_mass_factor,
+                       max_radius_factor=args.max_radius_factor)
+    for option, value in (('--free', args.free), ('--force-balanced', args.force_balanced),
+                          ('--extent-factor', args.extent_factor != 1.5)):
+        wanted = {'--free': 'force_balance', '--force-balanced': 'redistribution',
+                  '--extent-factor': 'redistribution'}[option]
+        if value and method != wanted:
+            raise ValueError(f'{option}: applies to --method {wanted.replace("_", "-")}, got '
+                             f'method {method}; expected no {option}')
+    design = front.balance(rig, method, **options)
+    if args.output:
+        spatial.write_scene(design.result, args.output)
+    if args.json:
+        print(json.dumps(design.report, indent=2))
+    else:
+        print(format_spatial(design))
+        if args.output:
+            print(f'balanced scene written to {args.output}')
+    cert = getattr(design.result, 'certificate', None)
+    return 0 if cert is None or cert.certified else 2
+
+
+def format_spatial(design):
+    """Return a spatial design (:mod:`mech_balance.balancing.spatial`) as readable text."""
+    from mech_balance.balancing import spatial
+    rep = design.report
+    lines = [design.summary(), '']
+    if design.method == 'force_balance':
+        lines.append(f"complete force balance: rank {rep['rank']}, {rep['nullity']} free "
+                     f"combinations; {'attained' if rep['attainable'] else 'NOT attainable'} "
+                     f"by changing {', '.join(rep['free'])}")
+        lines.append('conditions (SI: kg, kg m):')
+        lines += spatial.format_conditions(rep['conditions'])
+        for name, h in rep['added_first_moment_kg_m'].items():
+            lines.append(f'  {name}: first moment change (body axes) '
+                         + ' '.join(f'{x:.6g}' for x in h) + ' kg m, mass change '
+                         f"{rep['added_mass_kg'][name]:.6g} kg")
+    else:
+        cert = rep['certificate']
+        lines.append(f"{rep['method']}, weights {rep['weights'][0]:g} {rep['weights'][1]:g}")
+        lines.append(f"{'body':<12}{'mass kg':>12}{'centre x':>12}{'y':>12}{'z':>12}"
+                     f"{'min eig J':>12}")
+        for b in rep['bodies']:
+            lines.append(f"{b['name']:<12}{b['mass_kg']:>12.6g}"
+                         + ''.join(f'{x:>12.5g}' for x in b['mass_centre_m'])
+                         + f"{b['pseudo_inertia_min_eigenvalue']:>12.3g}")
+        for name, cluster in rep['options'].get('counterweights', {}).items():
+            for c in cluster:
+                lines.append(f"  counterweight on {name}: sphere {c['mass_kg']:.5g} kg at "
+                             + ' '.join(f'{x:.5g}' for x in c['centre_m'])
+                             + f" m, outer radius {c['outer_radius_m']:.4g} m, inner "
+                             f"{c['inner_radius_m']:.4g} m")
+        if rep['options'].get('note'):
+            lines.append(f"note: {rep['options']['note']}")
+        lines.append(f"certificate: {cert['status']}, primal {cert['primal']:.9g}, lower bound "
+                     f"{cert['lower_bound']:.9g}, gap {cert['gap_abs']:.2e} (relative "
+                     f"{cert['gap_rel']:.2e}), max violation {cert['max_violation']:.1e}, "
+                     f"{'certified' if cert['certified'] else 'NOT certified'}")
+    lines += ['', f"{'quantity':<18}{'unit':<16}{'before':>12}{'after':>12}{'change %':>10}"]
+    for r in rep['table']:
+        change = 'n/a' if r['change_percent'] is None else f"{r['change_percent']:.1f}"
+        lines.append(f"{r['quantity']:<18}{r['unit']:<16}{r['before']:>12.5g}"
+                     f"{r['after']:>12.5g}{change:>10}")
+    return '\n'.join(lines)
+
+
 def _write(balanced, path, summary):
+    from mech_balance import schema
     from mech_balance.balancing import socp as balancing
+    from mech_balance.schema.registry import from_dict
+    from mech_balance.schema.scene import parse_yaml
     text = balancing.scene_to_yaml(balanced, balance=summary)
+    try:   # a written scene always loads: check it as the loader will, before writing
+        from_dict(parse_yaml(text, f'--output {path}'), source=str(path))
+    except (ValueError, schema.SceneError) as exc:
+        raise ValueError(f'--output: the design is not a scene the loader accepts ({exc}); '
+                         'nothing written') from None
     atomic.write_text_atomic(  # a failed write leaves an existing file as it was
         path, f'# written by mech-balance balance from scene {summary["source_scene"]}\n'
         + text)

@@ -41,8 +41,8 @@ import dataclasses
 import math
 
 from mech_balance.conventions import cycle_angles
-from mech_balance.core.rig import AddedBody, batch, BodyPoses, Drawing, DrawingBody, \
-    RigData
+from mech_balance.core.rig import AddedBody, batch, BodyKinematics, BodyPoses, Drawing, \
+    DrawingBody, RigData
 import numpy as np
 
 
@@ -436,7 +436,7 @@ JOINTS = ('crank', 'output')
 """Joint names of an RGGR rig: its crank and output axes (the spherical joints of the coupler
 have no single coordinate)."""
 CAPABILITIES = frozenset({'kinematics', 'shaking_wrench', 'driving_torque', 'kinetic_energy',
-                          'balancing_weights'})
+                          'balancing_weights', 'body_kinematics'})
 """What the RGGR rig computes and how it can be balanced (:attr:`Rig.capabilities`)."""
 
 
@@ -509,6 +509,28 @@ class RggrRig:
             JOINTS, series=series, residual=residual, condition=np.ones(n),
             near_singular=np.zeros(n, dtype=bool), poses=lambda: self._poses(psi, kins),
             native=None)
+
+    def body_kinematics(self, psi, speed=None, accel=None):
+        """
+        Return the :class:`BodyKinematics` of crank, coupler and output at crank angles ``psi``.
+
+        Exact, from the closed-form kinematics (:func:`body_kinematics`); each sample at its
+        own crank speed with zero crank acceleration, as :meth:`at`.  The bodies' frames are
+        those of :meth:`RigData.bodies` (coupler: seed 002 eq. 44, origin at B).
+        """
+        speed = self.scene.crank_speed_rad_s if speed is None else speed
+        psi, speed, _ = batch(psi, speed, 0.0 if accel is None else accel)
+        n = psi.size
+        names = ('crank', 'coupler', 'output')
+        arrays = [np.zeros((n, 3, 3, 3))] + [np.zeros((n, 3, 3)) for _ in range(4)]
+        for value in np.unique(speed):
+            sel = speed == value
+            sc = dataclasses.replace(self.scene, crank_speed_rad_s=float(value))
+            part = body_kinematics(sc, kinematics(sc, psi[sel]))
+            for whole, piece in zip(arrays, (part.rotation, part.origin_m, part.omega_rad_s,
+                                             part.alpha_rad_s2, part.accel_origin_m_s2)):
+                whole[sel] = piece
+        return BodyKinematics(names, *arrays)
 
     def _poses(self, psi, kins):
         g = self.scene.geometry
@@ -588,6 +610,57 @@ def kinetic_energy(scene, kin):
                                             kin.coupler_centre_vel_m_s)
             + 0.5 * cpl.transverse_inertia_kg_m2 / a2 ** 2
             * np.einsum('ij,ij->i', kin.coupler_vel_m_s, kin.coupler_vel_m_s))
+
+
+def body_kinematics(scene, kin):
+    """
+    Return the :class:`BodyKinematics` (crank, coupler, output) of :class:`RggrKinematics`.
+
+    Crank: origin Q1, omega = omega z; output: origin Q3, omega = phi3' w3, alpha = phi3'' w3
+    (fixed axes, seed 002 eqs. 27-28).  Coupler: origin B, the frame U V W of seed 002 eq. 44
+    (:func:`coupler_frame`), whose angular velocity is U x dU/dt (the rod's, eqs. 45-46)
+    plus the spin s U that keeps V parallel to the xy-plane, s = dV/dt . W; its
+    acceleration is U x d2U/dt2 + ds/dt U + s dU/dt.  The spin carries no load for the thin
+    rod (no inertia about U), so any frame convention gives the same wrench; this one is
+    the derivative of the drawn frame (finite differences of :class:`BodyPoses` agree).
+    """
+    n = kin.crank_angle_rad.size
+    g = scene.geometry
+    q1, q3 = _pivots(g)
+    rot = np.empty((n, 3, 3, 3))
+    origin = np.zeros((n, 3, 3))
+    omega = np.zeros((n, 3, 3))
+    alpha = np.zeros((n, 3, 3))
+    acc = np.zeros((n, 3, 3))
+    rot[:, 0], rot[:, 2] = kin.crank_axes, kin.output_axes
+    rot[:, 1] = coupler_frame(kin)
+    origin[:, 0], origin[:, 1], origin[:, 2] = q1, kin.pin_b_m, q3
+    omega[:, 0, 2] = kin.crank_speed_rad_s
+    w3 = kin.output_axes[:, :, 2]
+    omega[:, 2] = kin.output_rate_rad_s[:, None] * w3
+    alpha[:, 2] = kin.output_accel_rad_s2[:, None] * w3
+    acc[:, 1] = kin.pin_b_acc_m_s2
+    a, da, dda = kin.coupler_m, kin.coupler_vel_m_s, kin.coupler_acc_m_s2
+    u, du, ddu = (x / g.a2_m for x in (a, da, dda))
+    # V = p / h with p = (A_y, -A_x, 0), h = |p| (eqs. 42-43) and its first two derivatives
+    zero = np.zeros(n)
+    p = np.stack([a[:, 1], -a[:, 0], zero], -1)
+    dp = np.stack([da[:, 1], -da[:, 0], zero], -1)
+    ddp = np.stack([dda[:, 1], -dda[:, 0], zero], -1)
+    h = np.linalg.norm(p, axis=1)[:, None]
+    dh = np.einsum('ij,ij->i', p, dp)[:, None] / h
+    ddh = (np.einsum('ij,ij->i', dp, dp) + np.einsum('ij,ij->i', p, ddp))[:, None] / h \
+        - dh ** 2 / h
+    v = p / h
+    dv = dp / h - p * dh / h ** 2
+    ddv = ddp / h - 2.0 * dp * dh / h ** 2 - p * ddh / h ** 2 + 2.0 * p * dh ** 2 / h ** 3
+    w = np.cross(u, v)
+    dw = np.cross(du, v) + np.cross(u, dv)
+    spin = np.einsum('ij,ij->i', dv, w)[:, None]
+    dspin = (np.einsum('ij,ij->i', ddv, w) + np.einsum('ij,ij->i', dv, dw))[:, None]
+    omega[:, 1] = np.cross(u, du) + spin * u
+    alpha[:, 1] = np.cross(u, ddu) + dspin * u + spin * du
+    return BodyKinematics(('crank', 'coupler', 'output'), rot, origin, omega, alpha, acc)
 
 
 def _frame_along(u):

@@ -168,6 +168,7 @@ def parse_link_bounds(name, text, unit):
         if not ok:
             raise ValueError(f'{name}.{link}: got {pair!r}, expected [min, max] in {unit} with '
                              '0 < min <= max (max may be null: no upper bound)')
+        balancing_defaults.check_bound_pair(f'{name}.{link}', lo, hi, unit)
         out[link] = (float(lo), None if hi is None else float(hi))
     return out
 
@@ -189,13 +190,21 @@ def split_links(text):
     return [n.strip() for n in text.split(',')] if text.strip() else []
 
 
-def _positive(name):
+def _positive(name, option=None):
     def check(value):
-        """Accept a finite number > 0 (as ``mech-balance balance --counterweights``)."""
+        """Accept a number in the option's range (as ``mech-balance balance --counterweights``)."""
         if not 0.0 < value <= MAX_COUNTERWEIGHT_VALUE:
             raise ValueError(f'{name}: got {value!r}, expected a number > 0 and at most '
                              f'{MAX_COUNTERWEIGHT_VALUE:g}')
+        if option is not None:
+            balancing_defaults.check_counterweight_option(option, value, name)
     return check
+
+
+def _ranged(name, option):
+    """Return the check and rule of a counterweight option (balancing's documented range)."""
+    lowest, highest = balancing_defaults.COUNTERWEIGHT_RANGES[option]
+    return {'check': _positive(name, option), 'rule': f'in [{lowest:g}, {highest:g}]'}
 
 
 def _counterweight_links(value):
@@ -213,6 +222,9 @@ def _link_pair(name, unit):
                 (len(value) == 2 and not value[1] >= value[0]):
             raise ValueError(f'{name}: got {list(value)}, expected [] (the factors), [min] '
                              f'or [min, max] in {unit} with 0 < min <= max')
+        if value:
+            balancing_defaults.check_bound_pair(name, value[0],
+                                                value[1] if len(value) == 2 else None, unit)
     return check
 
 
@@ -398,22 +410,22 @@ PARAMETERS = (
          check=_counterweight_links, rule='links of the scene, each once'),
     Spec('balance.density', DOUBLE, balancing_defaults.DEFAULT_DENSITY_KG_M3,
          'Counterweights: disc material density, kg/m^3 (steel).',
-         check=_positive('balance.density'), rule='> 0'),
+         **_ranged('balance.density', 'density_kg_m3')),
     Spec('balance.max_thickness', DOUBLE, balancing_defaults.DEFAULT_MAX_THICKNESS_M,
-         'Counterweights: thickest disc, m.', check=_positive('balance.max_thickness'),
-         rule='> 0'),
+         'Counterweights: thickest disc, m.',
+         **_ranged('balance.max_thickness', 'max_thickness_m')),
     Spec('balance.max_radius_factor', DOUBLE, balancing_defaults.DEFAULT_MAX_RADIUS_FACTOR,
          "Counterweights: disc centre at most this factor times the distance from the link's "
-         'origin to its farthest joint point.', check=_positive('balance.max_radius_factor'),
-         rule='> 0'),
+         'origin to its farthest joint point.',
+         **_ranged('balance.max_radius_factor', 'max_radius_factor')),
     Spec('balance.max_mass_factor', DOUBLE, balancing_defaults.DEFAULT_MAX_MASS_FACTOR,
          "Counterweights: disc mass at most this factor times the link's own mass.",
-         check=_positive('balance.max_mass_factor'), rule='> 0'),
+         **_ranged('balance.max_mass_factor', 'max_mass_factor')),
     Spec('balance.max_gyration_factor', DOUBLE,
          balancing_defaults.DEFAULT_MAX_GYRATION_FACTOR,
          "Counterweights: the disc's radius of gyration about the link origin at most this "
          "factor times the link's joint reach.",
-         check=_positive('balance.max_gyration_factor'), rule='> 0'),
+         **_ranged('balance.max_gyration_factor', 'max_gyration_factor')),
     Spec('use_balanced', BOOL, False,
          'Publish the balanced rig instead of the original; true runs the balancing with '
          'the balance.* options if no design is known for them (~/balance sets it, '

@@ -870,3 +870,196 @@ def rggr_robot(sc, frame_id, linkage=None):
     for spec in model.joints:
         _joint_element(robot, replace(spec, parent=spec.parent or frame_id))
     return robot
+
+
+# ----------------------------------------------------------------------------- spatial kind
+#
+# Spatial scenes (kind: spatial, mech_balance.core.spatial): the URDF of the core's spanning
+# tree.  Each moving link b has the URDF frame of its tree joint: origin at b's point of that
+# joint, axes R_b K_b^T with a constant K_b (the joint's fixed rotation: revolute, prismatic,
+# cylindrical Z or Rot(a, angle) Z; universal I; spherical its assembly rotation A), so that
+# a point s of b is at K_b (s - s_b) in its URDF frame.  A joint frame has the parent's scene
+# axes at the parent's joint point.  A revolute joint is one URDF revolute (or continuous)
+# joint about its axis; prismatic one prismatic joint; cylindrical a revolute then a prismatic
+# joint on a massless link (``<name>_turn``, ``<name>_slide``); universal two revolute joints
+# (``<name>_1`` about the parent's axis, ``<name>_2`` about the child's); spherical three
+# revolute joints about z, y, x on two massless links (``<name>_yaw``, ``_pitch``, ``_roll``),
+# the common substitute for the ball joint URDF lacks.  The joint values are the rig's own
+# joint coordinates of the same names (mech_balance.core.spatial.coordinates), so the node's
+# joint_states are the rig's; a tree joint whose scene end ``a`` hangs below ``b`` has its
+# axes negated (revolute, prismatic, cylindrical, spherical; universal: refused).
+
+def _spatial_parts(sc):
+    """Return the linkage, ``K`` and ``s_b`` of every body, and the URDF joint specs."""
+    from mech_balance.core.spatial.rig import linkage_for as spatial_linkage
+    lk = spatial_linkage(sc)
+    lk.skeleton  # noqa: B018 - assemble and trace the branch: fail early
+    names = lk.body_names
+    k_of = {0: np.eye(3)}
+    s_of = {0: np.zeros(3)}
+    chains = []
+    for t in lk.tree:
+        jt = sc.joints[t.joint]
+        if t.flipped and t.joint_type == 'universal':
+            raise UrdfError(
+                f'joints.{t.name}: a universal joint whose end a ({jt.link_a}) hangs below '
+                f'its end b ({jt.link_b}) in the spanning tree; expected a: on the side of '
+                'the frame (swap a and b, and axis and axis_b)')
+        sign = -1.0 if t.flipped else 1.0
+        kp, sp = k_of[t.parent], s_of[t.parent]
+        xyz = tuple(float(v) for v in kp @ (t.s_parent - sp))
+        rpy = matrix_rpy(kp)
+        parent, child = names[t.parent], names[t.child]
+        if t.joint_type == 'spherical':
+            a_rot = lk.sph_zero[t.name]
+            if t.flipped:   # M_pc = A^T Rx(-r) Ry(-p) Rz(-y)
+                rpy = matrix_rpy(kp @ a_rot.T)
+                order = (('_roll', (-1.0, 0.0, 0.0)), ('_pitch', (0.0, -1.0, 0.0)),
+                         ('_yaw', (0.0, 0.0, -1.0)))
+                k_child = np.eye(3)
+            else:
+                order = (('_yaw', (0.0, 0.0, 1.0)), ('_pitch', (0.0, 1.0, 0.0)),
+                         ('_roll', (1.0, 0.0, 0.0)))
+                k_child = a_rot
+            links = [f'{t.name}_link{i}' for i in (1, 2)] + [child]
+            chains.append((t.name + order[0][0], 'revolute', parent, links[0], xyz, rpy,
+                           order[0][1]))
+            for i in (1, 2):
+                chains.append((t.name + order[i][0], 'revolute', links[i - 1], links[i],
+                               (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), order[i][1]))
+        else:
+            axis = tuple(float(sign * v) for v in t.axis)
+            if t.joint_type == 'revolute':
+                chains.append((t.name, 'revolute', parent, child, xyz, rpy, axis))
+                k_child = t.fixed
+            elif t.joint_type == 'prismatic':
+                chains.append((t.name, 'prismatic', parent, child, xyz, rpy, axis))
+                k_child = t.fixed
+            elif t.joint_type == 'cylindrical':
+                mid = f'{t.name}_link'
+                chains.append((t.name + '_turn', 'revolute', parent, mid, xyz, rpy, axis))
+                chains.append((t.name + '_slide', 'prismatic', mid, child, (0.0, 0.0, 0.0),
+                               (0.0, 0.0, 0.0), axis))
+                k_child = t.fixed
+            else:
+                mid = f'{t.name}_link'
+                chains.append((t.name + '_1', 'revolute', parent, mid, xyz, rpy, axis))
+                chains.append((t.name + '_2', 'revolute', mid, child, (0.0, 0.0, 0.0),
+                               matrix_rpy(t.fixed), tuple(float(v) for v in t.axis_child)))
+                k_child = np.eye(3)
+        k_of[t.child] = k_child
+        s_of[t.child] = t.s_child
+    return lk, k_of, s_of, chains
+
+
+def _spatial_values(tree, data):
+    """Return ``(q, qd)`` ``(k, n)`` of the URDF joints from a spatial RigData (by name)."""
+    idx = [data.joint_names.index(j.name) for j in tree.joints]
+    return data.joint_position[:, idx].T, data.joint_velocity[:, idx].T
+
+
+def spatial_tree(sc):
+    """Return the :class:`TreeModel` of a spatial scene (the kind registry's ``urdf_tree``)."""
+    from mech_balance.core.rig import rig_for
+    lk, _, _, chains = _spatial_parts(sc)
+    rig = rig_for(sc)
+    names = tuple(c[0] for c in chains)
+    rows = [rig.joint_names.index(n) for n in names]
+    slides = np.array([c[1] == 'prismatic' for c in chains])
+
+    def values(psi):
+        return rig.at(psi, 1.0, 0.0, outputs=('kinematics',)).joint_position[:, rows].T
+
+    start = sc.assembly_crank_angle_rad
+    lower, upper, turns = cycle_ranges(values, start, ~slides)
+    psi = cycle_angles(RANGE_SAMPLES, start)
+    rates = rig.at(psi, 1.0, 0.0, outputs=('kinematics',)).joint_velocity[:, rows]
+    rate_max = np.max(np.abs(rates), axis=0) * abs(sc.crank_speed_rad_s)
+    joints = []
+    for i, (name, jtype, parent, child, xyz, rpy, axis) in enumerate(chains):
+        if jtype == 'prismatic':
+            margin = LIMIT_MARGIN * lk.length_scale
+            joints.append(UrdfJoint(name, 'prismatic', parent, child, xyz, rpy, axis, 0.0,
+                                    float(lower[i] - margin), float(upper[i] + margin),
+                                    float(rate_max[i])))
+        else:
+            joints.append(_revolute_spec(name, parent, child, xyz, rpy, axis, lower[i],
+                                         upper[i], 1.0 if name == sc.crank_joint else turns[i],
+                                         float(rate_max[i])))
+    cuts = tuple((sc.joints[ji].name, sc.joints[ji].joint_type) for ji in lk.cut_joints)
+
+    def coordinates(tree, state):
+        if not hasattr(state, 'joint_names'):
+            raise UrdfError(f'state: got {type(state).__name__}, expected the RigData of '
+                            "this spatial scene's rig (rig.at)")
+        q, qd = _spatial_values(tree, state)
+        return q, qd, ~slides
+
+    return TreeModel(coordinates, tuple(joints), None, cuts, lambda data: data)
+
+
+def _edges3(points):
+    """Return the bars of a link: a shortest spanning tree over its 3-D points (Prim)."""
+    names = list(points)
+    inside, edges = {names[0]}, []
+    while len(inside) < len(names):
+        best = min(((float(np.linalg.norm(points[a] - points[b])), a, b) for a in inside
+                    for b in names if b not in inside), key=lambda e: e[0])
+        edges.append((best[1], best[2]))
+        inside.add(best[2])
+    return edges
+
+
+def spatial_robot(sc, frame_id, linkage=None):
+    """Return the URDF element tree of a spatial scene (the kind registry's ``urdf``)."""
+    lk, k_of, s_of, chains = _spatial_parts(sc)
+    model = tree_model(sc)
+    names = lk.body_names
+    helpers = sorted({c[3] for c in chains if c[3] not in names})
+    _check_names(frame_id, list(names[1:]) + helpers)
+    robot = ET.Element('robot', name=sc.name)
+    _header(robot, f'Generated by mech_balance.urdf from spatial scene {sc.name!r} '
+                   f'({_source(sc)}): the spanning tree of the linkage the core solves; '
+                   'spherical joints as three revolute joints (z, y, x) on massless links, '
+                   "universal and cylindrical joints as two; joint values are the rig's "
+                   'joint coordinates of the same names. SI units.')
+    cut_lines = []
+    for ji in lk.cut_joints:
+        jt = sc.joints[ji]
+        ia, ib = names.index(jt.link_a), names.index(jt.link_b)
+        pa = k_of[ia] @ (lk._points[jt.link_a][jt.point_a] - s_of[ia])
+        pb = k_of[ib] @ (lk._points[jt.link_b][jt.point_b] - s_of[ib])
+        cut_lines.append(f'{jt.name}: {jt.joint_type}, closes {jt.link_a}.{jt.point_a} '
+                         f'({_vec(pa)}) with {jt.link_b}.{jt.point_b} ({_vec(pb)})')
+    _header(robot, 'Cut joints (closed by the core, not part of the URDF tree; points in '
+                   'the URDF frames of their links): ' + ('; '.join(cut_lines) or 'none'))
+    colours = [(f'{sc.name}/{FRAME}', FRAME_COLOUR)] + [
+        (f'{sc.name}/{n}', PALETTE[(i - 1) % len(PALETTE)]) for i, n in enumerate(names)
+        if i > 0]
+    _materials(robot, colours)
+    rod = RGGR_ROD_RADIUS * 0.5 * lk.length_scale * 0.25
+    pin = RGGR_PIN_RADIUS * 0.5 * lk.length_scale * 0.25
+    for bi, body in enumerate(names):
+        el = ET.SubElement(robot, 'link', name=frame_id if bi == 0 else body)
+        material = f'{sc.name}/{body}'
+        kb, sb = k_of[bi], s_of[bi]
+        local = {p: kb @ (v - sb) for p, v in lk._points[body].items()}
+        if bi > 0:
+            link = sc.link(body)
+            centre = kb @ (np.array(link.com_m) - sb)
+            inertia = kb @ np.array(link.inertia_matrix()) @ kb.T
+            _inertial(el, link.mass_kg, tuple(centre),
+                      (inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1],
+                       inertia[0, 2], inertia[1, 2]))
+        for a, b in _edges3(local):
+            if np.linalg.norm(local[b] - local[a]) > 0.0:
+                _rod(el, f'bar_{a}_{b}', material, local[a], local[b], rod)
+        for p, x in local.items():
+            _shape(el, f'pin_{p}', material, tuple(x), (0.0, 0.0, 0.0), _sphere(pin),
+                   collide=False)
+    for name in helpers:
+        ET.SubElement(robot, 'link', name=name)
+    for spec in model.joints:
+        _joint_element(robot, replace(spec, parent=frame_id if spec.parent == FRAME
+                                      else spec.parent))
+    return robot

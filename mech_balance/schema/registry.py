@@ -21,7 +21,7 @@ through :func:`mech_balance.core.rig.rig_for`.
 from dataclasses import dataclass
 import importlib
 
-from mech_balance.schema import rggr, scene
+from mech_balance.schema import rggr, scene, spatial
 from mech_balance.schema.fields import SceneError
 
 
@@ -57,6 +57,12 @@ KINDS = {
         'analyze': 'mech_balance.analysis.rggr_report:analyze',
         'urdf': 'mech_balance.ros.urdf:rggr_robot',
         'urdf_tree': 'mech_balance.ros.urdf:rggr_tree'}, rggr.geometry),
+    'spatial': Kind('spatial', spatial.SpatialScene, spatial.spatial_from_dict,
+                    spatial.spatial_to_dict, {
+                        'rig': 'mech_balance.core.spatial.rig:SpatialRig',
+                        'analyze': 'mech_balance.analysis.spatial_report:analyze',
+                        'urdf': 'mech_balance.ros.urdf:spatial_robot',
+                        'urdf_tree': 'mech_balance.ros.urdf:spatial_tree'}, spatial.geometry),
 }
 """Every kind of scene, by its ``kind:`` value; ``planar`` is the default."""
 DEFAULT_KIND = 'planar'

@@ -1,0 +1,91 @@
+"""
+``mech-balance analyze`` for spatial scenes: RMS and peak of every output over one cycle.
+
+Everything comes through the Rig protocol (:func:`mech_balance.core.rig.rig_for`); the rows
+are the magnitudes of the shaking force and moment (about the scene's moment point), the
+scalar series (:data:`mech_balance.schema.scene.SERIES`) and the bearing loads of every
+joint, SI or in the papers' normalized units when the scene records a normalization.
+"""
+
+from mech_balance.analysis.report import Report
+from mech_balance.conventions import cycle_angles, rms
+from mech_balance.core.rig import rig_for
+from mech_balance.core.spatial.kinematics import COND_WARN
+from mech_balance.schema.scene import SERIES
+import numpy as np
+
+SI_UNITS = {'force': 'N', 'moment': 'N*m', 'energy': 'J'}
+NORMALIZED_UNITS = {'force': 'm1*a1*w^2', 'moment': 'm1*a1^2*w^2', 'energy': 'm1*a1^2*w^2'}
+
+
+def _rows(rig, data, normalized):
+    norm = rig.scene.normalization if normalized else None
+
+    def scaled(values, dim):
+        if norm is None:
+            return values
+        return norm.force(values) if dim == 'force' else norm.moment(values)
+
+    units = NORMALIZED_UNITS if norm is not None else SI_UNITS
+    rows = []
+
+    def add(quantity, values, dim):
+        v = scaled(np.asarray(values, dtype=float), dim)
+        mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
+        rows.append({'quantity': quantity, 'unit': units[dim], 'rms': float(rms(v)),
+                     'max': float(np.max(mag))})
+
+    if data.force_N is not None:
+        add('shaking force |f|', data.force_N, 'force')
+        add(f'shaking moment |n| about {rig.moment_point}', data.moment_Nm, 'moment')
+    for name, (label, dim) in SERIES.items():
+        if name in data.series:
+            add(label, data.series[name], dim)
+    for joint, (force, moment) in (data.reactions or {}).items():
+        add(f'bearing force |F| {joint}', force, 'force')
+        add(f'bearing moment |M| {joint}', moment, 'moment')
+    return rows
+
+
+def analyze(sc, samples=None, normalized=False, design=None):
+    """Return the ``mech-balance analyze`` :class:`~mech_balance.analysis.report.Report`."""
+    if design is not None:
+        raise ValueError('design: a point-mass design applies to planar scenes only')
+    if normalized and sc.normalization is None:
+        raise ValueError(f'--normalized: scene {sc.name!r} records no normalization, '
+                         'expected a scene with normalization {mass_kg, length_m, '
+                         'omega_rad_s}')
+    rig = rig_for(sc)
+    samples = sc.samples if samples is None else samples
+    psi = cycle_angles(samples, sc.assembly_crank_angle_rad, links=len(sc.links))
+    data = rig.at(psi)
+    rows = _rows(rig, data, normalized)
+    unique = rig.reactions_unique
+    out = {'scene': sc.name, 'kind': sc.kind, 'samples': int(psi.size),
+           'crank_speed_rad_s': sc.crank_speed_rad_s,
+           'crank_acceleration_rad_s2': sc.crank_acceleration_rad_s2,
+           'moment_point_m': list(rig.moment_point_m), 'outputs': list(sc.outputs),
+           'normalized': bool(normalized), 'rows': rows,
+           'worst_residual': float(np.max(data.residual)),
+           'worst_condition': float(np.max(data.condition)),
+           'near_singular': bool(np.any(data.near_singular)),
+           'near_singular_condition': COND_WARN,
+           'reactions_unique': bool(unique),
+           'idle_spins': [list(s) for s in getattr(rig.linkage, 'idle_spins', ())]}
+    width = max([len(r['quantity']) for r in rows] + [10])
+    lines = [f'scene {sc.name} (spatial): {psi.size} crank angles, crank speed '
+             f'{sc.crank_speed_rad_s:g} rad/s' + (' (normalized)' if normalized else ''),
+             f'{"quantity":<{width}}  {"unit":<12} {"rms":>12} {"max":>12}']
+    for r in rows:
+        lines.append(f'{r["quantity"]:<{width}}  {r["unit"]:<12} {r["rms"]:12.6g} '
+                     f'{r["max"]:12.6g}')
+    lines.append(f'worst loop residual {out["worst_residual"]:.3e} (relative), worst '
+                 f'Jacobian condition {out["worst_condition"]:.4g}'
+                 + (' - NEAR-SINGULAR' if out['near_singular'] else ''))
+    for name, j1, j2 in out['idle_spins']:
+        lines.append(f'idle spin of {name} about the line {j1}-{j2}: fixed by convention '
+                     '(slender rod)')
+    if not unique:
+        lines.append(f'over-constrained ({rig.linkage.redundant} redundant closure rows): '
+                     'bearing reactions are not unique; the minimum-norm ones are shown')
+    return Report('\n'.join(lines), out, rig.warnings)

@@ -1,0 +1,61 @@
+"""
+``mech-balance bench --section spatial``: the spatial kind's full cycle against its targets.
+
+Per spatial built-in: the one-off build (compile, assemble, trace the branch) and the median
+full cycle (every output: kinematics, shaking wrench, driving torque, bearing reactions,
+kinetic energy) at the bench's crank angles, in us per angle, with the spatial issue's
+targets (skew RSSR <= 5 us, two-loop <= 10 us) and the machine's load average, which the
+figures depend on.  Also the agreement of ``rggr_spatial`` with the closed-form ``rggr``.
+"""
+
+import os
+import time
+
+from mech_balance import schema
+from mech_balance.analysis.timing import median_seconds
+from mech_balance.conventions import cycle_angles
+from mech_balance.core.rig import rig_for
+from mech_balance.schema import registry
+from mech_balance.schema.scene import OUTPUTS
+import numpy as np
+
+TARGETS_US = {'rssr_skew': 5.0, 'spatial_two_loop': 10.0}
+"""The spatial issue's targets, us per crank angle for the full cycle."""
+
+
+def _agreement(samples):
+    psi = cycle_angles(samples)
+    mine = rig_for(schema.load('rggr_spatial')).at(psi)
+    theirs = rig_for(schema.load('rggr')).at(psi)
+    worst = 0.0
+    for a, b in ((mine.force_N, theirs.force_N), (mine.moment_Nm, theirs.moment_Nm),
+                 (mine.joint_effort[:, 0], theirs.joint_effort[:, 0])):
+        worst = max(worst, float(np.max(np.abs(a - b)) / np.max(np.abs(b))))
+    return worst
+
+
+def bench_section(args, progress):
+    """Return the spatial table (``function(args, progress) -> str`` of bench.core)."""
+    samples = getattr(args, 'samples', 360)
+    repeat = getattr(args, 'repeat', 20)
+    spatial = registry.KINDS['spatial']
+    names = [n for n in schema.builtin_scenes() if registry.kind_of(schema.load(n)) is spatial]
+    lines = [f'spatial kind: full cycle ({", ".join(OUTPUTS)}), {samples} crank angles, '
+             f'median of {repeat}; load average {os.getloadavg()[0]:.2f} on '
+             f'{os.cpu_count()} cores (figures on a loaded machine are upper bounds)',
+             f'{"scene":<18} {"links":>5} {"build ms":>9} {"us/angle":>9} {"target":>7}']
+    for name in sorted(names):
+        progress(f'bench spatial: {name}')
+        sc = schema.load(name)
+        t0 = time.perf_counter()
+        rig = rig_for(sc, cache=False)
+        build = time.perf_counter() - t0
+        psi = cycle_angles(samples, sc.assembly_crank_angle_rad)
+        seconds = median_seconds(lambda: rig.at(psi, outputs=OUTPUTS), repeat=repeat)
+        target = TARGETS_US.get(name)
+        lines.append(f'{name:<18} {len(sc.links):>5} {build * 1e3:9.1f} '
+                     f'{seconds * 1e6 / samples:9.2f} '
+                     f'{"" if target is None else f"<= {target:g}":>7}')
+    lines.append(f'rggr_spatial vs rggr (force, moment, torque), worst relative difference: '
+                 f'{_agreement(samples):.2e}')
+    return '\n'.join(lines)

@@ -1,0 +1,152 @@
+"""
+Inverse dynamics of a spatial linkage: shaking wrench, driving torque, bearing reactions.
+
+Per moving body k (frame axes, SI): mass centre ``x_c = p + R c``, its acceleration
+``a_c`` (point acceleration of :meth:`Linkage.bias`), world inertia ``I_w = R I R^T`` and
+the rate of angular momentum ``dH_c/dt = I_w alpha + omega x I_w omega``.  The rate of
+momentum as a wrench about the frame origin, ``Phi_k = (N_k, F_k)`` with ``F_k = m a_c`` and
+``N_k = dH_c/dt + x_c x F_k``, is what the joints must apply to the body (no gravity: the
+conventions consider inertia effects only).
+
+Shaking wrench (:mod:`mech_balance.conventions`): ``f = -sum F_k = -dp/dt`` and
+``n_P = -sum (N_k - P x F_k) = -dH_P/dt`` about the scene's moment point P, the motor's
+reaction included.
+
+Driving torque and reactions (virtual power in tree coordinates)
+    ``Q_d = sum over the bodies below coordinate d of Phi_k . S_d`` must equal ``tau_d + (J^T
+    lambda)_d``: tau only on the crank, lambda the closure rows' multipliers.  The unknown
+    coordinates give ``J_u^T lambda = Q_u`` (square: the unique solution; redundant rows:
+    the minimum-norm one, reactions *not unique*), the crank ``tau = Q_0 - J_0^T lambda``.
+    Row r exerts the wrench ``lambda_r G_b(r)`` on its body b (and ``lambda_r G_a(r)`` on a);
+    a tree joint carries the sum of ``Phi_k`` minus the cut-joint wrenches over the bodies
+    below it.  Reactions are reported as the force and moment on the joint's link b from its
+    link a, the moment about the joint point, frame axes; the crank joint's moment includes
+    the driving torque about its axis.
+"""
+
+from dataclasses import dataclass
+
+from mech_balance.core.spatial.kinematics import cross, mv
+import numpy as np
+
+
+@dataclass
+class Inertia:
+    """The links' inertia (bodies 1.. of the linkage; local axes)."""
+
+    mass: np.ndarray       # (nb,)  (frame: 0)
+    com: np.ndarray        # (nb, 3)
+    inertia: np.ndarray    # (nb, 3, 3) about the mass centre
+
+    @classmethod
+    def from_scene(cls, scene):
+        """Return the inertia of a spatial scene's links (the frame first, all zero)."""
+        links = scene.links
+        mass = np.array([0.0] + [lk.mass_kg for lk in links])
+        com = np.array([(0.0, 0.0, 0.0)] + [lk.com_m for lk in links], dtype=float)
+        inertia = np.array([np.zeros((3, 3))] + [np.array(lk.inertia_matrix())
+                                                 for lk in links])
+        return cls(mass, com, inertia)
+
+
+@dataclass
+class SpatialWrenches:
+    """The inverse dynamics over n samples (SI, frame axes)."""
+
+    force_N: np.ndarray
+    moment_Nm: np.ndarray
+    driving_torque: np.ndarray = None
+    multipliers: np.ndarray = None
+    reactions: dict = None
+    reactions_unique: bool = True
+    spin_moment: np.ndarray = None
+
+
+def body_motion(state, inertia):
+    """Return ``(x_c, v_c, a_c, I_w, omega, alpha)`` of every body, batch-first."""
+    fr, tw, ac = state.frames, state.twist, state.accel
+    xc = fr.origin + mv(fr.rot, inertia.com)
+    w, v = tw[..., :3], tw[..., 3:]
+    vc = v + cross(w, xc)
+    if ac is None:  # kinematics only (kinetic energy)
+        al = a_c = None
+    else:
+        al, ao = ac[..., :3], ac[..., 3:]
+        a_c = ao + cross(al, xc) + cross(w, vc)
+    iw = fr.rot @ inertia.inertia @ np.swapaxes(fr.rot, -1, -2)
+    return xc, vc, a_c, iw, w, al
+
+
+def momentum_rates(state, inertia):
+    """Return ``Phi`` ``(n, nb, 6)`` = (N about the origin, F) of every body."""
+    xc, _, a_c, iw, w, al = body_motion(state, inertia)
+    f = inertia.mass[:, None] * a_c
+    dh = mv(iw, al) + cross(w, mv(iw, w))
+    return np.concatenate([dh + cross(xc, f), f], -1)
+
+
+def kinetic_energy(state, inertia):
+    """Return T = sum (m |v_c|^2 + omega . I_w omega) / 2, ``(n,)`` J."""
+    _, vc, _, iw, w, _ = body_motion(state, inertia)
+    return 0.5 * (np.einsum('k,nki,nki->n', inertia.mass, vc, vc)
+                  + np.einsum('nki,nkij,nkj->n', w, iw, w))
+
+
+def inverse_dynamics(linkage, state, inertia, moment_point, need):
+    """Return the :class:`SpatialWrenches` the outputs in ``need`` require."""
+    phi = momentum_rates(state, inertia)
+    total = phi.sum(axis=1)
+    p = np.asarray(moment_point, dtype=float)
+    force = -total[:, 3:]
+    moment = -(total[:, :3] - cross(p, total[:, 3:]))
+    out = SpatialWrenches(force, moment)
+    if 'driving_torque' not in need:
+        return out
+    lk = linkage
+    q_gen = (np.matmul(lk.path, phi) * state.frames.cols).sum(-1)
+    jac = state.jac
+    n = state.size
+    if lk.nu:
+        rhs = q_gen[:, lk.unknown] * lk.col_scale[lk.unknown]
+        lam = lk.solve_ut(state.solver, state.refine, rhs) * lk.row_scale
+    else:
+        lam = np.zeros((n, lk.m))
+    out.multipliers = lam
+    out.driving_torque = q_gen[:, 0] - np.einsum('nm,nm->n', jac[:, :, 0], lam)
+    out.reactions_unique = lk.redundant == 0
+    if 'bearing_reactions' not in need and not lk.m:
+        return out
+    gb, ga = lk.gradients(state.frames)
+    wb, wa = gb * lam[:, :, None], ga * lam[:, :, None]
+    spin = [i for i, j in enumerate(lk.row_joint) if j.startswith('spin:')]
+    if spin:
+        out.spin_moment = lam[:, spin]
+    if 'bearing_reactions' not in need:
+        return out
+    on_body = np.zeros((n, lk.nb, 6))
+    np.add.at(on_body, (slice(None), lk.row_b), wb)
+    np.add.at(on_body, (slice(None), lk.row_a), wa)
+    sc = lk.scene
+    idx = {name: i for i, name in enumerate(lk.body_names)}
+    reactions = {}
+    below = np.zeros((lk.nb, lk.nb))
+    for t in lk.tree:
+        below[t.child] = lk.path[t.dofs[0]]
+    for t in lk.tree:
+        w = np.einsum('nks,k->ns', phi - on_body, below[t.child])
+        if t.flipped:
+            w = -w
+        reactions[t.name] = w
+    for ji in lk.cut_joints:
+        jt = sc.joints[ji]
+        rows = [i for i, j in enumerate(lk.row_joint) if j == jt.name]
+        reactions[jt.name] = wb[:, rows].sum(axis=1)
+    res = {}
+    for jt in sc.joints:
+        w = reactions[jt.name]
+        b = idx[jt.link_b]
+        x = state.frames.origin[:, b] + state.frames.rot[:, b] @ lk._points[jt.link_b][
+            jt.point_b]
+        res[jt.name] = (w[:, 3:], w[:, :3] - cross(x, w[:, 3:]))
+    out.reactions = res
+    return out

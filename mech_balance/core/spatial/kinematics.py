@@ -1,0 +1,1155 @@
+"""
+Position, velocity and acceleration of a single-input spatial linkage (``kind: spatial``).
+
+Formulation
+    The joint graph is opened into a spanning tree rooted at the frame (breadth first, the
+    crank joint first); the other joints are *cut joints*.  The unknowns are the tree
+    joints' relative coordinates: revolute (angle), prismatic (slide), cylindrical (angle,
+    slide), universal (two angles), spherical (a relative rotation, updated multiplicatively
+    ``M <- exp(d^) M`` with ``d`` in the parent's axes).  A tree joint places its child from
+    its parent: ``R_c = R_p M(q)``, ``p_c = p_p + R_p (s_p + d(q)) - R_c s_c``.  Each cut
+    joint contributes closure rows g = 0: three for a coincident point (R, U, S), two
+    *dot* rows per aligned axis (R, C, P: the b-axis normal to two a-vectors), one dot row
+    for a universal's crossed axes, two *line* rows (C, P: the b-point on the a-line) and one
+    more dot row locking a prismatic joint's turn.  Every row's gradient with respect to a
+    body's twist (angular velocity, velocity of the body point at the frame origin) is
+    analytic; the Jacobian with respect to the tree coordinates is that gradient applied to
+    each coordinate's twist column (its screw) on the bodies below it: one formula gives
+    Newton's Jacobian, the velocities and the accelerations (``J q'' = -g''|q''=0``).  Arrays
+    are batch-first (one row per crank angle) so that a whole cycle is one numpy pass.
+
+Joint coordinates (zero convention, also the URDF's)
+    Revolute and cylindrical angle: ``M = Rot(a, theta) Z`` with ``Z`` the smallest rotation
+    taking the b-axis onto the a-axis (0 where the link frames are related by ``Z`` alone);
+    prismatic: ``M = Rot(a, angle_deg) Z`` fixed, the slide of b's point from a's along a;
+    universal: ``M = Rot(a, theta1) U Rot(b, theta2)`` with ``U`` the smallest rotation taking
+    b onto the unit vector of b normal to a; spherical: ``M = Rz(yaw) Ry(pitch) Rx(roll) A``
+    with ``A`` the relative rotation at the assembly (the URDF's three revolute joints).
+
+Idle freedoms and redundancy
+    A link held only by two spherical joints spins freely about the line through them; the
+    assembled Jacobian's null space shows it.  Convention (:data:`IDLE_INERTIA_RTOL`): its
+    spin is fixed by one more row, ``(R v) . n = 0`` (v normal to the line in the link, n the
+    frame axis most normal to the line at assembly; seed 002 eq. 42 takes n = z), which is
+    legitimate only if its inertia about that line is zero (a slender rod): otherwise the
+    scene is refused, naming the two joints and the way out (replace one S by a U).  More
+    rows than independent ones (Bennett's linkage) are solved in the least-squares sense
+    with the rank-revealing pseudo-inverse; the reactions are then not unique and the
+    minimum-norm ones are reported.
+"""
+
+from dataclasses import dataclass
+import math
+import warnings
+
+from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
+from mech_balance.schema.scene import FRAME
+import numpy as np
+
+NEWTON_MAX_ITER = 10
+"""Newton iterations per batched evaluation or continuation step."""
+ASSEMBLY_MAX_ITER = 200
+"""Levenberg-Marquardt iterations allowed to assemble the linkage from the scene's poses."""
+COND_LIMIT = 1e10
+"""Scaled Jacobian condition number above which a position is refused as singular."""
+RANK_RTOL = 1e-9
+"""Singular values below this fraction of the largest count as zero (rank, null space)."""
+STEP_MAX_RAD = math.radians(5.0)
+"""Largest crank step between branch nodes."""
+STEP_MIN_RAD = 1e-7
+"""Smallest crank step before the continuation declares the branch lost."""
+STEP_TRUST = 0.05
+"""Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
+EVAL_TRUST = 1e-3
+"""Largest scaled correction from the branch predictor before an angle is re-traced."""
+CLOSURE_TOL = 1e-7
+"""Largest scaled pose mismatch after one traced turn for the branch to count as closed."""
+REFINE_STEPS = 2
+"""Iterative-refinement steps of a solve with the predictor's inverse (error ~1e-8 each)."""
+DENSE_STEP_RAD = math.radians(1.0)
+"""Spacing of the dense branch nodes the batched evaluation predicts from."""
+IDLE_INERTIA_RTOL = 1e-9
+"""Inertia about an S-S line, relative to m L^2 + trace(I), below which it counts as zero."""
+SPIN_ROW_MIN = 1e-3
+"""|u x n| below which the spin convention's reference axis n is too close to the S-S line."""
+TWO_PI = 2.0 * math.pi
+
+
+class SpatialError(ValueError):
+    """The spatial linkage cannot be assembled, is singular, or would leave its branch."""
+
+
+def cross(a, b):
+    """Return ``a x b`` over the last axis (broadcast); numpy's cross without its overhead."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
+    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
+    return out
+
+
+def mv(mat, vec):
+    """Return ``mat @ vec`` over stacks: ``(..., 3, 3)`` times ``(..., 3)`` (broadcast)."""
+    return np.matmul(mat, vec[..., None])[..., 0]
+
+
+def dot(a, b):
+    """Return the dot products over the last axis (broadcast)."""
+    return (a * b).sum(-1)
+
+
+def skew(v):
+    """Return the cross-product matrices ``(..., 3, 3)`` of vectors ``(..., 3)``."""
+    v = np.asarray(v, dtype=float)
+    out = np.zeros(v.shape + (3,))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def rot_axis(axis, angle):
+    """Return rotations ``(n, 3, 3)`` by ``angle`` ``(n,)`` about the unit ``axis`` (3,)."""
+    k = skew(axis)
+    k2 = k @ k
+    s, c = np.sin(angle), np.cos(angle)
+    return np.eye(3) + s[:, None, None] * k + (1.0 - c)[:, None, None] * k2
+
+
+def expmap(v):
+    """Return the rotations ``exp(v^)`` ``(n, 3, 3)`` of rotation vectors ``(n, 3)``."""
+    th = np.sqrt(np.einsum('ni,ni->n', v, v))
+    small = th < 1e-8
+    safe = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th ** 2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - th ** 2 / 24.0, (1.0 - np.cos(safe)) / safe ** 2)
+    k = skew(v)
+    return np.eye(3) + a[:, None, None] * k + b[:, None, None] * (k @ k)
+
+
+def min_rotation(frm, to):
+    """Return the smallest rotation (3, 3) taking the unit vector ``frm`` onto ``to``."""
+    frm, to = np.asarray(frm, dtype=float), np.asarray(to, dtype=float)
+    c = float(frm @ to)
+    axis = cross(frm, to)
+    s = float(np.linalg.norm(axis))
+    if s < 1e-15:
+        if c > 0.0:
+            return np.eye(3)
+        helper = np.eye(3)[int(np.argmin(np.abs(frm)))]
+        axis = cross(frm, helper)
+        axis /= np.linalg.norm(axis)
+        return rot_axis(axis, np.array([math.pi]))[0]
+    return rot_axis(axis / s, np.array([math.atan2(s, c)]))[0]
+
+
+def rpy_matrix(rpy_rad):
+    """Return Rz(yaw) Ry(pitch) Rx(roll) (3, 3) (URDF order) of (roll, pitch, yaw) in rad."""
+    r, p, y = rpy_rad
+    rx = rot_axis(np.array([1.0, 0.0, 0.0]), np.array([r]))[0]
+    ry = rot_axis(np.array([0.0, 1.0, 0.0]), np.array([p]))[0]
+    rz = rot_axis(np.array([0.0, 0.0, 1.0]), np.array([y]))[0]
+    return rz @ ry @ rx
+
+
+def _unit(v, where):
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def perp_pair(axis):
+    """Return two unit vectors normal to ``axis`` and to each other (deterministic)."""
+    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    e1 = cross(axis, helper)
+    e1 /= np.linalg.norm(e1)
+    return e1, cross(axis, e1)
+
+
+def _spatial_cross(t, s):
+    """Return the motion cross product ``t x s`` of twists ``(..., 6)`` (omega, v)."""
+    w, v = t[..., :3], t[..., 3:]
+    w2, v2 = s[..., :3], s[..., 3:]
+    return np.concatenate([cross(w, w2), cross(w, v2) + cross(v, w2)], axis=-1)
+
+
+def angle_about(axis, rot):
+    """Return the angle ``(n,)`` of rotations ``rot`` ``(n, 3, 3)`` about the unit ``axis``."""
+    skw = rot - np.swapaxes(rot, -1, -2)
+    vee = 0.5 * np.stack([skw[..., 2, 1], skw[..., 0, 2], skw[..., 1, 0]], -1)
+    cos = 0.5 * (np.trace(rot, axis1=-2, axis2=-1) - 1.0)
+    return np.arctan2(vee @ axis, cos)
+
+
+def tree_values(t, rel, d):
+    """Return the coordinates of a (non-spherical) tree joint from a guessed relative pose."""
+    jt = t.joint_type
+    if jt == 'prismatic':
+        return [float(d @ t.axis)]
+    theta = float(angle_about(t.axis, (rel @ t.fixed.T)[None])[0])
+    if jt == 'revolute':
+        return [theta]
+    if jt == 'cylindrical':
+        return [theta, float(d @ t.axis)]
+    rest = t.fixed.T @ rot_axis(t.axis, np.array([-theta]))[0] @ rel
+    return [theta, float(angle_about(t.axis_child, rest[None])[0])]
+
+
+def spherical_zeros(linkage, fr):
+    """Return ``{joint name: A}``, the relative rotation of each spherical joint at assembly."""
+    idx = {n: i for i, n in enumerate(linkage.body_names)}
+    out = {}
+    for jt in linkage.scene.joints:
+        if jt.joint_type == 'spherical':
+            ra, rb = fr.rot[0, idx[jt.link_a]], fr.rot[0, idx[jt.link_b]]
+            out[jt.name] = ra.T @ rb
+    return out
+
+
+@dataclass
+class TreeJoint:
+    """A joint of the spanning tree: ``child`` hangs from ``parent`` (body indices)."""
+
+    joint: int            # index in the scene's joints
+    name: str
+    joint_type: str
+    parent: int
+    child: int
+    s_parent: np.ndarray  # joint point in the parent's axes
+    s_child: np.ndarray
+    axis: np.ndarray      # in the parent's axes (unit; None for spherical)
+    axis_child: np.ndarray
+    fixed: np.ndarray     # the constant rotation Z, Rot(a, angle) Z or U (None: spherical)
+    dofs: tuple           # indices into the coordinate vector
+    flipped: bool         # the scene's end a is the child
+
+
+@dataclass
+class Rows:
+    """The closure rows of one group, as index and local-vector arrays (module docstring)."""
+
+    form: str
+    body_b: np.ndarray
+    body_a: np.ndarray
+    vec_b: np.ndarray     # points: s_b; dots: u_b; lines: s_b; spin: v
+    vec_a: np.ndarray     # points: s_a; dots: w_a; lines: s_a; spin: n (world)
+    extra: np.ndarray     # lines: w_a; others: unused
+    joint: tuple          # the joint name of each row (spin rows: 'spin:<link>')
+
+    @property
+    def size(self):
+        """Return the number of rows."""
+        return self.body_b.size * (3 if self.form == 'point' else 1)
+
+
+@dataclass
+class Frames:
+    """Body poses, twists and the tree's twist columns over a batch (batch-first)."""
+
+    rot: np.ndarray       # (n, nb, 3, 3)
+    origin: np.ndarray    # (n, nb, 3)
+    cols: np.ndarray      # (n, ndof, 6) twist columns (omega, v at the frame origin)
+
+
+@dataclass
+class SpatialState:
+    """The solved kinematics over n crank angles (batch-first; see :class:`Linkage`)."""
+
+    psi: np.ndarray
+    psi_d: np.ndarray
+    psi_dd: np.ndarray
+    q: np.ndarray          # (n, ndof) scalar coordinates (spherical entries unused)
+    sph: np.ndarray        # (n, ns, 3, 3) relative rotations of the spherical tree joints
+    frames: Frames
+    residual: np.ndarray   # (n,) largest scaled closure residual
+    cond: np.ndarray       # (n,) scaled Jacobian condition number
+    rank: np.ndarray       # (n,) rank of the Jacobian
+    jac: np.ndarray = None         # (n, m, ndof) closure Jacobian
+    solver: np.ndarray = None      # (n, nu, m) (pseudo-)inverse of the scaled J_u
+    refine: np.ndarray = None      # scaled J_u at the solution when solver is the predictor's
+    qd: np.ndarray = None          # (n, ndof)
+    qdd: np.ndarray = None
+    twist: np.ndarray = None       # (n, nb, 6)
+    accel: np.ndarray = None       # (n, nb, 6) spatial accelerations
+
+    @property
+    def size(self):
+        """Return the number of samples."""
+        return self.psi.shape[0]
+
+
+class Linkage:
+    """
+    A spatial scene's compiled spanning tree, closure rows, assembly and traced branch.
+
+    Immutable once built (the branch is traced on first use of :attr:`skeleton`).
+    """
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.warnings = []
+        self.body_names = (FRAME,) + tuple(lk.name for lk in scene.links)
+        self.nb = len(self.body_names)
+        body = {n: i for i, n in enumerate(self.body_names)}
+        points = {FRAME: scene.frame_points, **{lk.name: lk.points for lk in scene.links}}
+        self._points = {k: {p: np.array(v, dtype=float) for p, v in pts.items()}
+                        for k, pts in points.items()}
+        self.length_scale = self._length_scale()
+        self._compile(body)
+        self._assemble()
+        self._skeleton = None
+
+    # ------------------------------------------------------------------ compile
+
+    def _length_scale(self):
+        ext = []
+        for pts in self._points.values():
+            vals = list(pts.values())
+            for i, a in enumerate(vals):
+                for b in vals[i + 1:]:
+                    ext.append(float(np.linalg.norm(a - b)))
+        ext = [e for e in ext if e > 0.0]
+        return max(ext) if ext else 1.0
+
+    def _compile(self, body):
+        sc = self.scene
+        joints = sc.joints
+        crank = next(i for i, j in enumerate(joints) if j.name == sc.crank_joint)
+        order = [crank] + [i for i in range(len(joints)) if i != crank]
+        seen = {0}
+        tree, cuts = [], []
+        frontier = [0]
+        used = set()
+        while frontier:  # breadth first from the frame, crank first
+            nxt = []
+            for ji in order:
+                if ji in used:
+                    continue
+                jt = joints[ji]
+                a, b = body[jt.link_a], body[jt.link_b]
+                if a in frontier and b not in seen:
+                    tree.append((ji, a, b, False))
+                elif b in frontier and a not in seen:
+                    tree.append((ji, b, a, True))
+                else:
+                    continue
+                used.add(ji)
+                seen.add(tree[-1][2])
+                nxt.append(tree[-1][2])
+            frontier = nxt
+        cuts = [ji for ji in range(len(joints)) if ji not in used]
+        self.tree = []
+        dof = 0
+        self.dof_slide = []
+        self.dof_child_fixed = []
+        self.sph_index = []
+        for ji, parent, child, rev in tree:
+            jt = joints[ji]
+            pn, cn = self.body_names[parent], self.body_names[child]
+            sp = self._points[pn][jt.point_b if rev else jt.point_a]
+            scp = self._points[cn][jt.point_a if rev else jt.point_b]
+            axis = axis_c = fixed = None
+            if jt.axis is not None:
+                a_ax = _unit(jt.axis, 'axis')
+                b_ax = _unit(jt.axis if jt.axis_b is None else jt.axis_b, 'axis_b')
+                axis, axis_c = (b_ax, a_ax) if rev else (a_ax, b_ax)
+                if jt.joint_type == 'universal':
+                    e = axis_c - (axis_c @ axis) * axis
+                    e = perp_pair(axis)[0] if np.linalg.norm(e) < 1e-12 else e / \
+                        np.linalg.norm(e)
+                    fixed = min_rotation(axis_c, e)
+                else:
+                    fixed = min_rotation(axis_c, axis)
+                    if jt.joint_type == 'prismatic':
+                        ang = math.radians(jt.angle_deg or 0.0) * (-1.0 if rev else 1.0)
+                        fixed = rot_axis(axis, np.array([ang]))[0] @ fixed
+            n = jt.freedoms
+            dofs = tuple(range(dof, dof + n))
+            dof += n
+            kinds = {'revolute': ['r'], 'prismatic': ['s'], 'cylindrical': ['r', 's'],
+                     'universal': ['r', 'r'], 'spherical': ['w', 'w', 'w']}[jt.joint_type]
+            self.dof_slide += [k == 's' for k in kinds]
+            self.dof_child_fixed += [jt.joint_type == 'universal' and i == 1
+                                     for i in range(n)]
+            if jt.joint_type == 'spherical':
+                self.sph_index.append(len(self.tree))
+            self.tree.append(TreeJoint(ji, jt.name, jt.joint_type, parent, child, sp, scp,
+                                       axis, axis_c, fixed, dofs, rev))
+        self.ndof = dof
+        self.dof_slide = np.array(self.dof_slide, dtype=bool)
+        self.dof_child_fixed = np.array(self.dof_child_fixed, dtype=bool)
+        self.is_sph_dof = np.zeros(dof, dtype=bool)
+        for t in self.sph_index:
+            self.is_sph_dof[list(self.tree[t].dofs)] = True
+        self.scalar_dofs = np.flatnonzero(~self.is_sph_dof)
+        self.unknown = np.arange(1, dof)
+        self.nu = dof - 1
+        # path[d, k]: coordinate d moves body k (k below d's tree joint)
+        self.path = np.zeros((dof, self.nb))
+        below = {t.child: t for t in self.tree}
+        for k in range(1, self.nb):
+            node = k
+            while node != 0:
+                t = below[node]
+                self.path[list(t.dofs), k] = 1.0
+                node = t.parent
+        self.dof_owner = np.zeros(dof, dtype=int)  # the body each column is fixed in
+        for t in self.tree:
+            for i, d in enumerate(t.dofs):
+                self.dof_owner[d] = t.child if self.dof_child_fixed[d] else t.parent
+        self.cut_joints = cuts
+        self._build_rows(body, cuts)
+
+    def _build_rows(self, body, cuts):
+        sc = self.scene
+        pts, dots, lines = [], [], []
+        for ji in cuts:
+            jt = sc.joints[ji]
+            a, b = body[jt.link_a], body[jt.link_b]
+            sa = self._points[jt.link_a][jt.point_a]
+            sb = self._points[jt.link_b][jt.point_b]
+            t = jt.joint_type
+            if t in ('revolute', 'universal', 'spherical'):
+                pts.append((b, a, sb, sa, jt.name))
+            if t == 'spherical':
+                continue
+            ax = _unit(jt.axis, 'axis')
+            bx = _unit(jt.axis if jt.axis_b is None else jt.axis_b, 'axis_b')
+            if t == 'universal':
+                dots.append((b, bx, a, ax, jt.name))
+                continue
+            e1, e2 = perp_pair(ax)
+            dots.append((b, bx, a, e1, jt.name))
+            dots.append((b, bx, a, e2, jt.name))
+            if t in ('cylindrical', 'prismatic'):
+                lines.append((b, a, sb, sa, e1, jt.name))
+                lines.append((b, a, sb, sa, e2, jt.name))
+            if t == 'prismatic':
+                fixed = rot_axis(ax, np.array([math.radians(jt.angle_deg or 0.0)]))[0] @ \
+                    min_rotation(bx, ax)
+                dots.append((b, fixed.T @ e1, a, e2, jt.name))
+        self.rows = []
+        if pts:
+            self.rows.append(Rows('point', np.array([p[0] for p in pts]),
+                                  np.array([p[1] for p in pts]), np.array([p[2] for p in pts]),
+                                  np.array([p[3] for p in pts]), None,
+                                  tuple(p[4] for p in pts for _ in range(3))))
+        if dots:
+            self.rows.append(Rows('dot', np.array([p[0] for p in dots]),
+                                  np.array([p[2] for p in dots]),
+                                  np.array([p[1] for p in dots]),
+                                  np.array([p[3] for p in dots]), None,
+                                  tuple(p[4] for p in dots)))
+        if lines:
+            self.rows.append(Rows('line', np.array([p[0] for p in lines]),
+                                  np.array([p[1] for p in lines]),
+                                  np.array([p[2] for p in lines]),
+                                  np.array([p[3] for p in lines]),
+                                  np.array([p[4] for p in lines]), tuple(p[5] for p in lines)))
+        self._finish_rows()
+
+    def _finish_rows(self):
+        self.m = sum(r.size for r in self.rows)
+        scale = []
+        for r in self.rows:
+            scale += [1.0 / self.length_scale if r.form in ('point', 'line') else 1.0] * r.size
+        self.row_scale = np.array(scale)
+        self.col_scale = np.where(self.dof_slide, self.length_scale, 1.0)
+        self.row_joint = tuple(j for r in self.rows for j in r.joint)
+        bodies_b, bodies_a = [], []
+        for r in self.rows:
+            rep = 3 if r.form == 'point' else 1
+            bodies_b += list(np.repeat(r.body_b, rep))
+            bodies_a += list(np.repeat(r.body_a, rep))
+        self.row_b = np.array(bodies_b, dtype=int)
+        self.row_a = np.array(bodies_a, dtype=int)
+        self.mask_b = self.path[:, self.row_b].T  # (m, ndof)
+        self.mask_a = self.path[:, self.row_a].T
+        self.square = self.m == self.nu
+
+    # ------------------------------------------------------------------ forward kinematics
+
+    def frames(self, q, sph):
+        """Return the :class:`Frames` of coordinates ``q`` (n, ndof) and ``sph`` rotations."""
+        n = q.shape[0]
+        rot = np.empty((n, self.nb, 3, 3))
+        origin = np.empty((n, self.nb, 3))
+        rot[:, 0] = np.eye(3)
+        origin[:, 0] = 0.0
+        cols = np.zeros((n, self.ndof, 6))
+        si = 0
+        for t in self.tree:
+            rp, pp = rot[:, t.parent], origin[:, t.parent]
+            d = t.dofs
+            jtype = t.joint_type
+            if jtype == 'spherical':
+                m = sph[:, si]
+                si += 1
+                off = t.s_parent
+            elif jtype == 'revolute':
+                m = rot_axis(t.axis, q[:, d[0]]) @ t.fixed
+                off = t.s_parent
+            elif jtype == 'cylindrical':
+                m = rot_axis(t.axis, q[:, d[0]]) @ t.fixed
+                off = t.s_parent + q[:, d[1], None] * t.axis
+            elif jtype == 'prismatic':
+                m = np.broadcast_to(t.fixed, (n, 3, 3))
+                off = t.s_parent + q[:, d[0], None] * t.axis
+            else:  # universal
+                m = rot_axis(t.axis, q[:, d[0]]) @ t.fixed @ rot_axis(t.axis_child, q[:, d[1]])
+                off = t.s_parent
+            rc = rp @ m if t.parent else np.array(m)
+            r_joint = pp + np.einsum('nij,...j->ni', rp, off) if t.parent else \
+                np.broadcast_to(off, (n, 3)) + 0.0
+            rot[:, t.child] = rc
+            origin[:, t.child] = r_joint - rc @ t.s_child
+            if jtype == 'spherical':
+                axes = np.swapaxes(rp, 1, 2) if t.parent else \
+                    np.broadcast_to(np.eye(3), (n, 3, 3))
+                for i in range(3):
+                    cols[:, d[i], :3] = axes[:, i]
+                    cols[:, d[i], 3:] = cross(r_joint, axes[:, i])
+                continue
+            aw = rp @ t.axis if t.parent else np.broadcast_to(t.axis, (n, 3))
+            if jtype in ('revolute', 'cylindrical', 'universal'):
+                cols[:, d[0], :3] = aw
+                cols[:, d[0], 3:] = cross(r_joint, aw)
+            if jtype in ('cylindrical', 'prismatic'):
+                cols[:, d[-1], 3:] = aw
+            if jtype == 'universal':
+                bw = rc @ t.axis_child
+                cols[:, d[1], :3] = bw
+                cols[:, d[1], 3:] = cross(r_joint, bw)
+        return Frames(rot, origin, cols)
+
+    # ------------------------------------------------------------------ closure rows
+
+    def _row_parts(self, fr):
+        """Yield per group the world quantities the rows need."""
+        for r in self.rows:
+            rb, ra = fr.rot[:, r.body_b], fr.rot[:, r.body_a]
+            if r.form == 'spin':
+                yield r, rb, ra, mv(rb, r.vec_b), r.vec_a
+                continue
+            vb = mv(rb, r.vec_b)
+            va = mv(ra, r.vec_a)
+            if r.form in ('point', 'line'):
+                vb = vb + fr.origin[:, r.body_b]
+                va = va + fr.origin[:, r.body_a]
+            yield r, rb, ra, vb, va
+
+    def residual(self, fr):
+        """Return the closure residuals ``(n, m)`` (SI: m for point and line rows)."""
+        out = []
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            if r.form == 'point':
+                out.append((vb - va).reshape(vb.shape[0], -1))
+            elif r.form == 'dot':
+                out.append(dot(vb, va))
+            elif r.form == 'line':
+                w = mv(ra, r.extra)
+                out.append(dot(vb - va, w))
+            else:
+                out.append(dot(vb, va))
+        return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
+
+    def gradients(self, fr):
+        """Return ``(G_b, G_a)`` ``(n, m, 6)``: each row's rate per unit twist of b and a."""
+        gb, ga = [], []
+        eye = np.eye(3)
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            n, k = vb.shape[:2]
+            if r.form == 'point':
+                wb = cross(vb[:, :, None, :], eye)          # x_b x e_i
+                wa = cross(va[:, :, None, :], eye)
+                lin = np.broadcast_to(eye, (n, k, 3, 3))
+                gb.append(np.concatenate([wb, lin], -1).reshape(n, 3 * k, 6))
+                ga.append(-np.concatenate([wa, lin], -1).reshape(n, 3 * k, 6))
+            elif r.form == 'dot':
+                c = cross(vb, va)
+                z = np.zeros_like(c)
+                gb.append(np.concatenate([c, z], -1))
+                ga.append(np.concatenate([-c, z], -1))
+            elif r.form == 'line':
+                w = mv(ra, r.extra)
+                d = vb - va
+                gb.append(np.concatenate([cross(vb, w), w], -1))
+                ga.append(np.concatenate([-cross(va, w) + cross(w, d), -w], -1))
+            else:
+                c = cross(vb, np.broadcast_to(va, vb.shape))
+                gb.append(np.concatenate([c, np.zeros_like(c)], -1))
+                ga.append(np.zeros((n, k, 6)))
+        if not gb:
+            empty = np.zeros((fr.rot.shape[0], 0, 6))
+            return empty, empty
+        return np.concatenate(gb, axis=1), np.concatenate(ga, axis=1)
+
+    def jacobian(self, fr, grads=None):
+        """Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate)."""
+        gb, ga = self.gradients(fr) if grads is None else grads
+        cols_t = np.swapaxes(fr.cols, 1, 2)
+        jb = np.matmul(gb, cols_t)
+        ja = np.matmul(ga, cols_t)
+        return jb * self.mask_b + ja * self.mask_a
+
+    def bias(self, fr, twist, acc0):
+        """
+        Return the rows' second time derivatives ``(n, m)`` at body accelerations ``acc0``.
+
+        Body point acceleration ``a_O + alpha x x + omega x (v_O + omega x x)``; a vector u
+        fixed in a body: ``u' = omega x u``, ``u'' = alpha x u + omega x (omega x u)``.
+        """
+        out = []
+
+        def point_acc(k, x):
+            w, v = twist[:, k, :3], twist[:, k, 3:]
+            al, ao = acc0[:, k, :3], acc0[:, k, 3:]
+            return ao + cross(al, x) + cross(w, v + cross(w, x))
+
+        def point_vel(k, x):
+            return twist[:, k, 3:] + cross(twist[:, k, :3], x)
+
+        def vec_rates(k, u):
+            w, al = twist[:, k, :3], acc0[:, k, :3]
+            du = cross(w, u)
+            return du, cross(al, u) + cross(w, du)
+
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            if r.form == 'point':
+                out.append((point_acc(r.body_b, vb) - point_acc(r.body_a, va)).reshape(
+                    vb.shape[0], -1))
+            elif r.form == 'dot':
+                dub, ddub = vec_rates(r.body_b, vb)
+                dua, ddua = vec_rates(r.body_a, va)
+                out.append(dot(ddub, va)
+                           + 2.0 * dot(dub, dua)
+                           + dot(vb, ddua))
+            elif r.form == 'line':
+                w = mv(ra, r.extra)
+                dw, ddw = vec_rates(r.body_a, w)
+                d = vb - va
+                dd = point_vel(r.body_b, vb) - point_vel(r.body_a, va)
+                ddd = point_acc(r.body_b, vb) - point_acc(r.body_a, va)
+                out.append(dot(ddd, w)
+                           + 2.0 * dot(dd, dw)
+                           + dot(d, ddw))
+            else:
+                _, ddu = vec_rates(r.body_b, vb)
+                out.append(dot(ddu, va))
+        return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
+
+    def twists(self, fr, qd):
+        """Return the body twists ``(n, nb, 6)`` of coordinate rates ``qd`` (n, ndof)."""
+        return np.matmul(self.path.T, fr.cols * qd[:, :, None])
+
+    def accelerations(self, fr, twist, qd, qdd):
+        """Return the body spatial accelerations ``(n, nb, 6)`` (tree recursion in sums)."""
+        owner = twist[:, self.dof_owner]                      # (n, ndof, 6)
+        dcols = _spatial_cross(owner, fr.cols)                # S' = T_owner x S
+        total = dcols * qd[:, :, None]
+        if qdd is not None:
+            total = total + fr.cols * qdd[:, :, None]
+        return np.matmul(self.path.T, total)
+
+    # ------------------------------------------------------------------ Newton
+
+    def _update(self, q, sph, delta):
+        q = q.copy()
+        q[:, self.unknown] += delta * (~self.is_sph_dof[self.unknown])
+        if self.sph_index:
+            sph = sph.copy()
+            for i, t in enumerate(self.sph_index):
+                d = np.array(self.tree[t].dofs) - 1
+                sph[:, i] = expmap(delta[:, d]) @ sph[:, i]
+        return q, sph
+
+    def _solver(self, js):
+        """Return ``(solver, cond, rank, sign)`` of scaled Jacobians ``(n, m, nu)``."""
+        n = js.shape[0]
+        if self.nu == 0:
+            return np.zeros((n, 0, self.m)), np.ones(n), np.zeros(n, dtype=int), np.ones(n)
+        if self.square:
+            with np.errstate(all='ignore'):
+                inv = np.linalg.inv(js)
+            norm = np.max(np.sum(np.abs(js), axis=1), axis=1)
+            ninv = np.max(np.sum(np.abs(inv), axis=1), axis=1)
+            cond = norm * ninv
+            sign = np.sign(np.linalg.det(js))
+            return inv, np.where(np.isfinite(cond), cond, np.inf), \
+                np.full(n, self.nu, dtype=int), sign
+        u, s, vt = np.linalg.svd(js, full_matrices=False)
+        keep = s > RANK_RTOL * s[:, :1]
+        sinv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
+        pinv = np.einsum('nji,nj,nkj->nik', vt, sinv, u)
+        smin = np.min(np.where(keep, s, np.inf), axis=1)
+        return pinv, s[:, 0] / smin, keep.sum(axis=1), np.ones(n)
+
+    def newton(self, q, sph, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
+        """
+        Return ``(q, sph, frames, residual, ok)`` after Newton from ``q``, ``sph`` (batch).
+
+        Stops when every scaled residual is below ``tol``.
+        """
+        for _ in range(max_iter + 1):
+            fr = self.frames(q, sph)
+            g = self.residual(fr) * self.row_scale
+            res = np.max(np.abs(g), axis=1) if self.m else np.zeros(q.shape[0])
+            if np.all(res <= tol) or _ == max_iter or not self.nu:
+                break
+            js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
+                self.col_scale[self.unknown]
+            solver, _, _, _ = self._solver(js)
+            delta = -np.einsum('nij,nj->ni', solver, g) * self.col_scale[self.unknown]
+            bad = ~np.isfinite(delta).all(axis=1)
+            delta[bad] = 0.0
+            q, sph = self._update(q, sph, delta)
+        ok = (res <= tol) & np.isfinite(res)
+        return q, sph, fr, res, ok
+
+    def _chord(self, q, sph, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
+        """
+        Return ``(q, sph, frames, residual, ok, factor)``: Newton with the predictor's factor.
+
+        The Jacobian is factorized once, at the predictor; the iteration is then a chord
+        method (linear convergence with the factor ~1e-8 of the predictor's error, so one or
+        two steps).  ``factor`` is ``(solver, cond, rank, sign)`` (None: not square, the
+        full Newton of :meth:`newton` was used).
+        """
+        if not self.square or not self.nu:
+            q, sph, fr, res, ok = self.newton(q, sph, max_iter, tol)
+            return q, sph, fr, res, ok, None
+        fr = self.frames(q, sph)
+        g = self.residual(fr) * self.row_scale
+        js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
+            self.col_scale[self.unknown]
+        factor = self._solver(js)
+        solver = factor[0]
+        cu = self.col_scale[self.unknown]
+        for _ in range(max_iter):
+            delta = -mv(solver, g) * cu
+            delta[~np.isfinite(delta).all(axis=1)] = 0.0
+            q, sph = self._update(q, sph, delta)
+            fr = self.frames(q, sph)
+            g = self.residual(fr) * self.row_scale
+            res = np.max(np.abs(g), axis=1)
+            if np.all(res <= tol):
+                break
+        ok = (res <= tol) & np.isfinite(res)
+        return q, sph, fr, res, ok, factor
+
+    @property
+    def dense(self):
+        """Return the branch at nodes every DENSE_STEP_RAD (solved in one batch, cached)."""
+        if getattr(self, '_dense', None) is None:
+            sk = self.skeleton
+            count = max(int(math.ceil(TWO_PI / DENSE_STEP_RAD)), 4)
+            psi = sk.psi[0] + TWO_PI * np.arange(count + 1) / count
+            k, h = sk.nearest(psi)
+            qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
+            q, sph, fr, res, ok = self.newton(qp, sphp)
+            bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp))
+                         > STEP_TRUST)
+            if bad.any():  # keep the traced nodes only: no dense node off the branch
+                self._dense = sk
+                return sk
+            q[:, 0] = psi
+            qd, qdd, cond, sign = self._derivs(fr, q)
+            if self.square and np.any(sign != self.branch_sign):
+                self._dense = sk
+                return sk
+            self._dense = Skeleton(psi, q, sph, qd, qdd, cond)
+        return self._dense
+
+    # ------------------------------------------------------------------ assembly
+
+    def _initial(self):
+        """Return tree coordinates ``(1, ndof)`` and rotations from the scene's poses."""
+        sc = self.scene
+        rot = [np.eye(3)]
+        org = [np.zeros(3)]
+        for lk in sc.links:
+            pose = sc.assembly_poses.get(lk.name)
+            if pose is None:
+                rot.append(np.eye(3))
+                org.append(np.zeros(3))
+            else:
+                rot.append(rpy_matrix(np.radians(pose.rpy_deg)))
+                org.append(np.array(pose.origin_m, dtype=float))
+        q = np.zeros((1, self.ndof))
+        sph = np.zeros((1, len(self.sph_index), 3, 3))
+        si = 0
+        for t in self.tree:
+            rel = rot[t.parent].T @ rot[t.child]
+            d = rot[t.parent].T @ (org[t.child] + rot[t.child] @ t.s_child - org[t.parent]) \
+                - t.s_parent
+            if t.joint_type == 'spherical':
+                sph[0, si] = rel
+                si += 1
+                continue
+            vals = tree_values(t, rel, d)
+            q[0, list(t.dofs)] = vals
+        q[0, 0] = sc.assembly_crank_angle_rad
+        return q, sph
+
+    def _assemble(self):
+        """Assemble the linkage (Levenberg-Marquardt), find idle spins and redundancy."""
+        if not self.m and self.nu:
+            raise SpatialError(
+                f'joints: the linkage is an open chain (no closed loop) with {self.nu} '
+                f'degree(s) of freedom besides the crank joint {self.scene.crank_joint!r}; '
+                'expected a single-input linkage')
+        q, sph = self._initial()
+        lam = 1e-3
+        fr = self.frames(q, sph)
+        g = self.residual(fr) * self.row_scale
+        cost = float(np.sum(g * g))
+        for _ in range(ASSEMBLY_MAX_ITER):
+            if not self.m or np.max(np.abs(g)) <= NEWTON_TOL:
+                break
+            js = (self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None]
+                  * self.col_scale[self.unknown])[0]
+            a = js.T @ js
+            rhs = js.T @ g[0]
+            while True:
+                step = -np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-12), rhs)
+                q2, sph2 = self._update(q, sph, (step * self.col_scale[self.unknown])[None])
+                fr2 = self.frames(q2, sph2)
+                g2 = self.residual(fr2) * self.row_scale
+                cost2 = float(np.sum(g2 * g2))
+                if cost2 < cost:
+                    q, sph, fr, g, cost = q2, sph2, fr2, g2, cost2
+                    lam = max(lam / 3.0, 1e-12)
+                    break
+                lam *= 4.0
+                if lam > 1e12:
+                    break
+            if lam > 1e12:
+                break
+        if self.m and np.max(np.abs(g)) > 1e-10:
+            raise SpatialError(
+                f'assembly: the linkage cannot be closed at crank angle '
+                f'{self.scene.assembly_crank_angle_deg:g} deg from assembly.poses (largest '
+                f'scaled closure residual {np.max(np.abs(g)):.3e} after '
+                f'{ASSEMBLY_MAX_ITER} iterations); expected poses near an assembled position')
+        self._find_idle(q, sph, fr)
+        q, sph, fr, res, ok = self.newton(q, sph)
+        if not ok[0]:
+            raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
+        self.q0, self.sph0 = q, sph
+        self.sph_zero = spherical_zeros(self, fr)
+        js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
+            self.col_scale[self.unknown]
+        _, cond, rank, sign = self._solver(js)
+        self.rank = int(rank[0])
+        self.redundant = self.m - self.rank
+        self.branch_sign = float(sign[0])
+        if self.rank < self.nu:
+            raise SpatialError(
+                f'joints: the linkage has {self.nu - self.rank} degree(s) of freedom besides '
+                f'the crank joint {self.scene.crank_joint!r} (Jacobian rank {self.rank} of '
+                f'{self.nu} unknown coordinates) that are not idle spins of S-S links; '
+                'expected a single-input linkage')
+
+    def _find_idle(self, q, sph, fr):
+        """Detect idle spins from the Jacobian's null space; add the spin rows (or refuse)."""
+        if not self.nu:
+            return
+        js = (self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None]
+              * self.col_scale[self.unknown])[0] if self.m else np.zeros((0, self.nu))
+        if js.shape[0]:
+            _, s, vt = np.linalg.svd(js)
+            s_full = np.zeros(self.nu)
+            s_full[:s.size] = s
+            null = vt[s_full <= RANK_RTOL * max(s_full[0], 1.0)] if s.size else vt
+        else:
+            null = np.eye(self.nu)
+        if not null.shape[0]:
+            return
+        # the body twists of each null direction
+        qd = np.zeros((null.shape[0], self.ndof))
+        qd[:, self.unknown] = null * self.col_scale[self.unknown]
+        cols = np.broadcast_to(fr.cols[0], (null.shape[0],) + fr.cols.shape[1:])
+        tw = np.einsum('nds,nd,dk->nks', cols, qd, self.path).reshape(null.shape[0], -1)
+        spins = []
+        sc = self.scene
+        for k in range(1, self.nb):
+            name = self.body_names[k]
+            mine = [j for j in sc.joints if name in (j.link_a, j.link_b)]
+            sph_j = [j for j in mine if j.joint_type == 'spherical']
+            if len(mine) != 2 or len(sph_j) != 2:
+                continue
+            x = [fr.origin[0, k] + fr.rot[0, k] @ self._points[name][
+                j.point_a if j.link_a == name else j.point_b] for j in sph_j]
+            line = x[1] - x[0]
+            if np.linalg.norm(line) < 1e-12 * self.length_scale:
+                continue
+            u = line / np.linalg.norm(line)
+            e = np.zeros((self.nb, 6))
+            e[k, :3], e[k, 3:] = u, cross(x[0], u)
+            e = e.ravel()
+            coef, *_ = np.linalg.lstsq(tw.T, e, rcond=None)
+            if np.linalg.norm(tw.T @ coef - e) > 1e-6 * np.linalg.norm(e):
+                continue
+            spins.append((k, sph_j, x, u))
+        if len(spins) < null.shape[0]:
+            return  # the rank check after assembly names the extra freedoms
+        self.idle_lines = []
+        for k, sph_j, x, u in spins:
+            name = self.body_names[k]
+            rl = fr.rot[0, k]
+            x0 = self._points[name][sph_j[0].point_a if sph_j[0].link_a == name
+                                    else sph_j[0].point_b]
+            self.idle_lines.append((name, sph_j[0].name, sph_j[1].name, rl.T @ u, x0))
+        self.check_idle_inertia(self.scene)
+        for k, sph_j, x, u in spins:
+            name = self.body_names[k]
+            rl = fr.rot[0, k]
+            n_ref = np.eye(3)[int(np.argmin(np.abs(u)))]
+            v = cross(u, n_ref)
+            v /= np.linalg.norm(v)
+            self.rows.append(Rows('spin', np.array([k]), np.array([0]), (rl.T @ v)[None],
+                                  n_ref[None], None, (f'spin:{name}',)))
+            self.idle_spins = getattr(self, 'idle_spins', ()) + (
+                (name, sph_j[0].name, sph_j[1].name),)
+        self._finish_rows()
+
+    def check_idle_inertia(self, scene):
+        """
+        Refuse a design whose S-S link has inertia about its S-S line (the spin convention).
+
+        The inertia about the line through the two spherical joints, ``u.I_c u + m |(c - x0)
+        x u|^2``, must be zero to :data:`IDLE_INERTIA_RTOL`; the message names the link,
+        the two joints and the way out.
+        """
+        for name, j1, j2, ul, x0 in getattr(self, 'idle_lines', ()):
+            lk = scene.link(name)
+            c = np.array(lk.com_m) - x0
+            inertia = np.array(lk.inertia_matrix())
+            about = float(ul @ inertia @ ul + lk.mass_kg * np.sum(cross(c, ul) ** 2))
+            scale = lk.mass_kg * self.length_scale ** 2 + float(np.trace(inertia))
+            if about > IDLE_INERTIA_RTOL * max(scale, 1e-300):
+                raise SpatialError(
+                    f'links.{name}: held only by the spherical joints {j1} and {j2}, it '
+                    'spins freely about the line through them (an idle freedom of the '
+                    f'Jacobian), and its inertia about that line is {about:.6g} kg m^2; '
+                    'expected 0 (a slender rod on that line, whose spin is then fixed by '
+                    'convention) - or replace one S by a U (universal joint) to hold the spin')
+
+    # ------------------------------------------------------------------ refined solves
+
+    def solve_u(self, solver, js, rhs):
+        """
+        Return ``x`` with ``js x = rhs`` ``(n, m)`` from an inverse ``solver`` of a nearby Js.
+
+        Square systems: ``solver`` is the inverse at the branch predictor, ``js`` the scaled
+        Jacobian at the solution; REFINE_STEPS steps of iterative refinement make the result
+        that of ``js`` itself (the two differ by the predictor's error, ~1e-8).
+        Redundant systems: ``solver`` is the pseudo-inverse of ``js`` itself.
+        """
+        x = mv(solver, rhs)
+        if self.square and js is not None:
+            for _ in range(REFINE_STEPS):
+                x += mv(solver, rhs - mv(js, x))
+        return x
+
+    def solve_ut(self, solver, js, rhs):
+        """Return ``y`` with ``js^T y = rhs`` (as :meth:`solve_u`; minimum norm if redundant)."""
+        y = mv(np.swapaxes(solver, 1, 2), rhs)
+        if self.square and js is not None:
+            for _ in range(REFINE_STEPS):
+                y += mv(np.swapaxes(solver, 1, 2), rhs - mv(np.swapaxes(js, 1, 2), y))
+        return y
+
+    # ------------------------------------------------------------------ rates
+
+    def rates(self, fr, q, psi_d, psi_dd, need_acc=True, factor=None):
+        """
+        Return ``(qd, qdd, twist, accel, jac, solver, cond, rank, sign, js)`` at ``fr``.
+
+        ``factor`` ``(solver, cond, rank, sign)`` from a nearby position (the predictor's)
+        is refined against this position's Jacobian instead of factorizing it anew.
+        """
+        n = q.shape[0]
+        jac = self.jacobian(fr) if self.m else np.zeros((n, 0, self.ndof))
+        js = jac[:, :, self.unknown] * self.row_scale[:, None] * self.col_scale[self.unknown]
+        if factor is None or not self.square:
+            solver, cond, rank, sign = self._solver(js)
+            refine = None
+        else:
+            solver, cond, rank, sign = factor
+            refine = js
+        rs = self.row_scale
+        cu = self.col_scale[self.unknown]
+        qd = np.zeros((n, self.ndof))
+        qd[:, 0] = psi_d
+        if self.nu:
+            rhs = jac[:, :, 0] * psi_d[:, None] * rs
+            qd[:, self.unknown] = -self.solve_u(solver, refine, rhs) * cu
+        twist = self.twists(fr, qd)
+        qdd = accel = None
+        if need_acc:
+            acc0 = self.accelerations(fr, twist, qd, None)
+            qdd = np.zeros((n, self.ndof))
+            qdd[:, 0] = psi_dd
+            if self.nu:
+                gam = self.bias(fr, twist, acc0) + jac[:, :, 0] * psi_dd[:, None]
+                qdd[:, self.unknown] = -self.solve_u(solver, refine, gam * rs) * cu
+            accel = acc0 + self.twists(fr, qdd)
+        return qd, qdd, twist, accel, jac, solver, cond, rank, sign, refine
+
+    # ------------------------------------------------------------------ branch
+
+    @property
+    def skeleton(self):
+        """Return the traced branch: nodes over one crank turn (computed on first use)."""
+        if self._skeleton is None:
+            self._skeleton = self._trace()
+        return self._skeleton
+
+    def _step(self, q, sph, qd, qdd, h):
+        """Return the predictor ``h`` rad along the branch from one node (batch of 1+)."""
+        qp = q + qd * h[:, None] + 0.5 * qdd * (h * h)[:, None]
+        qp[:, 0] = q[:, 0] + h
+        if self.sph_index:
+            sph = sph.copy()
+            for i, t in enumerate(self.sph_index):
+                d = list(self.tree[t].dofs)
+                sph[:, i] = expmap(qd[:, d] * h[:, None] + 0.5 * qdd[:, d] * (h * h)[:, None]) \
+                    @ sph[:, i]
+        return qp, sph
+
+    def _derivs(self, fr, q):
+        one = np.ones(q.shape[0])
+        qd, qdd, _, _, _, _, cond, _, sign, _ = self.rates(fr, q, one, 0.0 * one)
+        return qd, qdd, cond, sign
+
+    def _corr(self, q, qp):
+        return np.max(np.abs(q - qp)[:, self.scalar_dofs[1:]]
+                      / self.col_scale[self.scalar_dofs[1:]], axis=1, initial=0.0)
+
+    def _sph_corr(self, sph, sphp):
+        if not self.sph_index:
+            return np.zeros(sph.shape[0])
+        diff = np.einsum('nsij,nsik->nsjk', sphp, sph) - np.eye(3)
+        return np.max(np.abs(diff), axis=(1, 2, 3))
+
+    def _advance(self, q, sph, qd, qdd, sign, h_goal, strict=True):
+        """Follow the branch from one state by ``h_goal`` rad; return the new node."""
+        done = 0.0
+        h = min(STEP_MAX_RAD, abs(h_goal)) * np.sign(h_goal)
+        while abs(h_goal - done) > 1e-13:
+            if abs(h) > abs(h_goal - done):
+                h = h_goal - done
+            qp, sphp = self._step(q, sph, qd, qdd, np.array([h]))
+            q1, sph1, fr1, res, ok = self.newton(qp, sphp)
+            good = bool(ok[0]) and max(self._corr(q1, qp)[0],
+                                       self._sph_corr(sph1, sphp)[0]) <= STEP_TRUST
+            if good:
+                qd1, qdd1, cond1, sign1 = self._derivs(fr1, q1)
+                good = bool(np.isfinite(cond1[0]) and cond1[0] <= COND_LIMIT
+                            and (not self.square or sign1[0] == sign))
+            if not good:
+                h *= 0.5
+                if abs(h) < STEP_MIN_RAD:
+                    raise SpatialError(
+                        f'crank angle {math.degrees(q[0, 0]):.4f} deg: cannot continue the '
+                        f'assembly branch (Newton residual {res[0]:.2e}); the linkage cannot '
+                        'be assembled beyond this angle, or reaches a singular position '
+                        'where its branch is not unique')
+                continue
+            done += h
+            q, sph, qd, qdd = q1, sph1, qd1, qdd1
+            if cond1[0] > COND_WARN:
+                self._warn(f'crank angle {math.degrees(q[0, 0]):.3f} deg: near-singular '
+                           f'position (Jacobian condition number {cond1[0]:.3g} > '
+                           f'{COND_WARN:.4g})')
+            h = min(1.5 * abs(h), STEP_MAX_RAD) * np.sign(h_goal)
+            yield q, sph, qd, qdd, cond1[0]
+
+    def _trace(self):
+        fr = self.frames(self.q0, self.sph0)
+        qd, qdd, cond, sign = self._derivs(fr, self.q0)
+        nodes = [(self.q0, self.sph0, qd, qdd, cond[0])]
+        for node in self._advance(self.q0, self.sph0, qd, qdd, self.branch_sign, TWO_PI):
+            nodes.append(node)
+        start, end = self.frames(self.q0, self.sph0), self.frames(nodes[-1][0], nodes[-1][1])
+        gap = max(np.max(np.abs(start.rot - end.rot)),
+                  np.max(np.abs(start.origin - end.origin)) / self.length_scale)
+        if gap > CLOSURE_TOL:
+            raise SpatialError(
+                'assembly: after one full crank turn the linkage does not return to its '
+                f'start (largest pose mismatch {gap:.3e}); the crank cannot turn fully on '
+                'this branch')
+        return Skeleton(np.array([n[0][0, 0] for n in nodes]),
+                        np.concatenate([n[0] for n in nodes]),
+                        np.concatenate([n[1] for n in nodes]),
+                        np.concatenate([n[2] for n in nodes]),
+                        np.concatenate([n[3] for n in nodes]),
+                        np.array([n[4] for n in nodes]))
+
+    def _warn(self, text):
+        if text not in self.warnings:
+            self.warnings.append(text)
+            warnings.warn(text, RuntimeWarning, stacklevel=3)
+
+    # ------------------------------------------------------------------ evaluation
+
+    def solve(self, psi, psi_d, psi_dd, need_rates=True, need_acc=True):
+        """Return the :class:`SpatialState` at crank angles ``psi`` (n,), rad/s, rad/s^2."""
+        psi = np.asarray(psi, dtype=float)
+        sk = self.dense
+        k, h = sk.nearest(psi)
+        qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
+        q, sph, fr, res, ok, factor = self._chord(qp, sphp)
+        bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp)) > EVAL_TRUST)
+        if bad.any():
+            q, sph = q.copy(), sph.copy()
+            cs = self.skeleton
+            kc, hc = cs.nearest(psi[bad])
+            for i, kk, hh in zip(np.flatnonzero(bad), kc, hc):
+                qi, si = cs.q[kk:kk + 1], cs.sph[kk:kk + 1]
+                for qi, si, _, _, _ in self._advance(qi, si, cs.qd[kk:kk + 1],
+                                                     cs.qdd[kk:kk + 1], self.branch_sign,
+                                                     float(hh)):
+                    pass
+                q[i], sph[i] = qi[0], si[0]
+            q, sph, fr, res, ok = self.newton(q, sph)
+            factor = None
+        psi_d = np.broadcast_to(np.asarray(psi_d, dtype=float), psi.shape)
+        psi_dd = np.broadcast_to(np.asarray(psi_dd, dtype=float), psi.shape)
+        qd, qdd, twist, accel, jac, solver, cond, rank, sign, refine = self.rates(
+            fr, q, psi_d, psi_dd, need_acc, factor)
+        if self.square:
+            wrong = sign != self.branch_sign
+            if wrong.any():
+                i = int(np.flatnonzero(wrong)[0])
+                raise SpatialError(
+                    f'crank angle {math.degrees(psi[i]):.4f} deg: the solution found is on '
+                    'the other assembly branch (the loop Jacobian determinant changed sign); '
+                    'the linkage is too close to a singular position here to follow it')
+        if np.any(cond > COND_WARN):
+            i = int(np.argmax(cond))
+            self._warn(f'crank angle {math.degrees(psi[i]):.3f} deg: near-singular position '
+                       f'(Jacobian condition number {cond[i]:.3g} > {COND_WARN:.4g})')
+        return SpatialState(psi, psi_d, psi_dd, q, sph, fr, res, cond, rank, jac, solver,
+                            refine, qd, qdd, twist, accel)
+
+
+class Skeleton:
+    """Branch nodes over one crank turn; a second-order predictor from the nearest node."""
+
+    def __init__(self, psi, q, sph, qd, qdd, cond):
+        self.psi, self.q, self.sph, self.qd, self.qdd, self.cond = psi, q, sph, qd, qdd, cond
+        self.offset = psi - psi[0]
+
+    def nearest(self, psi):
+        """Return the nearest node's index and the signed crank step from it, per angle."""
+        x = np.mod(psi - self.psi[0], TWO_PI)
+        k = np.searchsorted(self.offset, x, side='right') - 1
+        k = np.clip(k, 0, self.psi.size - 2)
+        right = (self.offset[k + 1] - x) < (x - self.offset[k])
+        k = np.where(right, k + 1, k)
+        h = x - self.offset[k]
+        k = np.where(k == self.psi.size - 1, 0, k)  # the last node is the first turned once
+        return k, h

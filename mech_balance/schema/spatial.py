@@ -1,0 +1,441 @@
+"""
+The spatial scene (``kind: spatial``): any single-input spatial linkage; loader and writer.
+
+Schema (``config/rssr_skew.yaml`` is a commented example)::
+
+    kind: spatial
+    schema_version: 1                              # optional
+    name: <str>                                    # optional (the file's stem)
+    description: <str>                             # optional
+    normalization: {mass_kg, length_m, omega_rad_s}          # optional
+    frame: {points: {NAME: [x, y, z], ...}}        # m, in the frame's axes
+    links:
+      NAME:
+        points: {NAME: [x, y, z], ...}             # m, in the link's own axes
+        mass_kg: <number >= 0>
+        com_m: [x, y, z]                           # mass centre in the link's axes
+        inertia_com_kg_m2: [ixx, iyy, izz, ixy, ixz, iyz]   # about the mass centre, link axes
+    joints:
+      NAME: {type: revolute | prismatic | cylindrical | universal | spherical,
+             a: LINK.POINT, b: LINK.POINT,
+             axis: [x, y, z],      # revolute, prismatic, cylindrical, universal: in a's axes
+             axis_b: [x, y, z],    # the same axis in b's axes (default: the numbers of axis);
+                                   # universal: b's own cross axis (required)
+             angle_deg: <number>}  # prismatic only: b's fixed turn about the axis (default 0)
+    crank: {joint: NAME, speed_rad_s: <nonzero>, acceleration_rad_s2: 0}
+    moment_point_m: [x, y, z]      # the point the shaking moment is reduced to (frame axes)
+    assembly:
+      crank_angle_deg: <number>    # the crank coordinate at which the poses below hold
+      poses: {LINK: {origin_m: [x, y, z], rpy_deg: [roll, pitch, yaw]}}  # approximate
+    outputs: [kinematics, shaking_wrench, driving_torque, bearing_reactions, kinetic_energy]
+    samples: <int >= 4>
+
+The inertia tensor's six numbers are the matrix entries in URDF order (``ixy`` is the
+off-diagonal entry, minus the product of inertia integral), validated here: a rigid body's
+tensor is positive semi-definite and its principal moments satisfy the triangle inequality
+(each <= the sum of the other two).  Values are stored as given (axes are not normalized,
+angles stay in degrees), so that the writer :func:`spatial_to_dict` reproduces them and a
+round trip is exact; the core normalizes.  The joint conventions (zero of each joint
+coordinate, the spin convention of an S-S link) are in :mod:`mech_balance.core.spatial`.
+"""
+
+from dataclasses import dataclass, field, replace
+import math
+
+from mech_balance import conventions
+from mech_balance.schema import fields
+from mech_balance.schema.fields import SceneError
+from mech_balance.schema.scene import DEFAULT_OUTPUTS, FRAME, Normalization, OUTPUTS
+
+KIND = 'spatial'
+"""Value of the top-level ``kind`` field of a spatial scene."""
+SCHEMA_VERSION = 1
+JOINT_TYPES = ('revolute', 'prismatic', 'cylindrical', 'universal', 'spherical')
+"""Joint types of a spatial scene."""
+JOINT_FREEDOMS = {'revolute': 1, 'prismatic': 1, 'cylindrical': 2, 'universal': 2,
+                  'spherical': 3}
+"""Relative freedoms of each joint type."""
+AXIS_JOINTS = ('revolute', 'prismatic', 'cylindrical', 'universal')
+"""Joint types that have an axis."""
+INPUT_TYPES = ('revolute', 'prismatic')
+"""Joint types that can be the input (crank) joint."""
+INERTIA_RTOL = 1e-12
+"""Relative slack (of the trace) of the PSD and triangle-inequality checks of an inertia."""
+AXIS_MIN = 1e-9
+"""Smallest norm of a joint axis (relative to its largest component's scale 1)."""
+MIN_SAMPLES = 4
+"""Fewest crank angles per revolution of ``samples``."""
+
+
+@dataclass(frozen=True)
+class SpatialLink:
+    """A rigid link: named points, mass, mass centre and inertia, in its own axes (SI)."""
+
+    name: str
+    points: dict
+    mass_kg: float
+    com_m: tuple
+    inertia_com_kg_m2: tuple      # (ixx, iyy, izz, ixy, ixz, iyz)
+
+    def inertia_matrix(self):
+        """Return the 3x3 inertia tensor about the mass centre (nested tuples)."""
+        ixx, iyy, izz, ixy, ixz, iyz = self.inertia_com_kg_m2
+        return ((ixx, ixy, ixz), (ixy, iyy, iyz), (ixz, iyz, izz))
+
+
+@dataclass(frozen=True)
+class SpatialJoint:
+    """A joint between the points ``a`` and ``b`` (``link.point``) of two links."""
+
+    name: str
+    joint_type: str
+    link_a: str
+    point_a: str
+    link_b: str
+    point_b: str
+    axis: tuple = None        # in link a's axes, as given
+    axis_b: tuple = None      # in link b's axes, as given (None: the numbers of ``axis``)
+    angle_deg: float = None   # prismatic: b's fixed turn about the axis
+
+    @property
+    def freedoms(self):
+        """Return the number of relative freedoms of the joint."""
+        return JOINT_FREEDOMS[self.joint_type]
+
+    @property
+    def prismatic(self):
+        """Return True for a prismatic joint (it slides, it does not turn)."""
+        return self.joint_type == 'prismatic'
+
+
+@dataclass(frozen=True)
+class Pose:
+    """An approximate link pose for the assembly: origin (m) and roll-pitch-yaw (deg)."""
+
+    origin_m: tuple = (0.0, 0.0, 0.0)
+    rpy_deg: tuple = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class SpatialScene:
+    """A validated spatial scene (values as given, SI; see the module docstring)."""
+
+    name: str
+    description: str
+    frame_points: dict
+    links: tuple
+    joints: tuple
+    crank_joint: str
+    crank_speed_rad_s: float
+    crank_acceleration_rad_s2: float
+    moment_point_m: tuple
+    assembly_crank_angle_deg: float
+    assembly_poses: dict
+    outputs: tuple = DEFAULT_OUTPUTS
+    samples: int = conventions.DEFAULT_SAMPLES
+    normalization: Normalization = None
+    notes: dict = field(default_factory=dict)
+    source: str = '<dict>'
+    kind: str = KIND
+
+    @property
+    def assembly_crank_angle_rad(self):
+        """Return the assembly crank coordinate in rad (the cycle's start)."""
+        return math.radians(self.assembly_crank_angle_deg)
+
+    def link(self, name):
+        """Return the link called ``name``."""
+        for lk in self.links:
+            if lk.name == name:
+                return lk
+        raise KeyError(name)
+
+    def with_links(self, links, name=None):
+        """Return a copy with other link inertias (same geometry), e.g. a balanced design."""
+        return replace(self, links=tuple(links), name=name or self.name)
+
+    def with_outputs(self, outputs):
+        """Return a copy that asks for other outputs (validated)."""
+        return replace(self, outputs=_outputs(list(outputs), 'outputs'))
+
+
+_TOP_KEYS = {'kind', 'schema_version', 'name', 'description', 'normalization', 'frame',
+             'links', 'joints', 'crank', 'moment_point_m', 'assembly', 'outputs', 'samples',
+             'notes', 'balance'}
+
+
+def _vec3(value, where):
+    return fields.vector(value, where, 3)
+
+
+def _points3(value, where):
+    value = fields.mapping(value, where)
+    if not value:
+        raise SceneError(f'{where}: got an empty mapping, expected named points [x, y, z]')
+    fields.at_most(value, conventions.MAX_POINTS, where, 'points', 'MAX_POINTS')
+    return {k: _vec3(v, f'{where}.{k}') for k, v in value.items()}
+
+
+def check_inertia(tensor, where):
+    """
+    Refuse an inertia tensor no rigid body has; ``tensor`` is (ixx, iyy, izz, ixy, ixz, iyz).
+
+    Positive semi-definite and principal moments obeying the triangle inequality, both to
+    :data:`INERTIA_RTOL` of the trace.  The error names ``where``, the value and the test.
+    """
+    import numpy as np  # on first use: the command line parsers need none
+    ixx, iyy, izz, ixy, ixz, iyz = tensor
+    m = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    eig = np.linalg.eigvalsh(m)
+    slack = INERTIA_RTOL * max(abs(ixx) + abs(iyy) + abs(izz), 1e-300)
+    if eig[0] < -slack:
+        raise SceneError(
+            f'{where}: got {list(tensor)}, whose principal moments {[float(e) for e in eig]} '
+            'include a negative one; expected a positive semi-definite inertia tensor')
+    if eig[2] > eig[0] + eig[1] + slack:
+        raise SceneError(
+            f'{where}: got {list(tensor)}, whose principal moments {[float(e) for e in eig]} '
+            f'break the triangle inequality ({eig[2]:.6g} > {eig[0]:.6g} + {eig[1]:.6g}); '
+            'expected each principal moment <= the sum of the other two (a rigid body)')
+    return tensor
+
+
+def _link(name, spec):
+    where = f'links.{name}'
+    spec = fields.mapping(spec, where)
+    fields.known_keys(spec, {'points', 'mass_kg', 'com_m', 'inertia_com_kg_m2',
+                             'description'}, where)
+    points = _points3(fields.require(spec, 'points', where), f'{where}.points')
+    mass = fields.nonneg(fields.require(spec, 'mass_kg', where), f'{where}.mass_kg')
+    com = _vec3(spec.get('com_m', [0.0, 0.0, 0.0]), f'{where}.com_m')
+    raw = fields.require(spec, 'inertia_com_kg_m2', where)
+    ipath = f'{where}.inertia_com_kg_m2'
+    if not isinstance(raw, (list, tuple)) or len(raw) != 6:
+        raise SceneError(f'{ipath}: got {raw!r}, expected six numbers [ixx, iyy, izz, ixy, '
+                         'ixz, iyz] (kg m^2, about the mass centre in the link axes)')
+    tensor = tuple(fields.number(v, f'{ipath}[{i}]') for i, v in enumerate(raw))
+    check_inertia(tensor, ipath)
+    if mass == 0.0 and any(tensor):
+        raise SceneError(f'{ipath}: got {list(tensor)} for a massless link ({where}.mass_kg '
+                         '= 0), expected all zeros')
+    return SpatialLink(name, points, mass, com, tensor)
+
+
+def _axis(value, where):
+    axis = _vec3(value, where)
+    if math.sqrt(sum(x * x for x in axis)) < AXIS_MIN:
+        raise SceneError(f'{where}: got {list(axis)}, expected a non-zero direction')
+    return axis
+
+
+def _joint(name, spec, all_points):
+    where = f'joints.{name}'
+    spec = fields.mapping(spec, where)
+    fields.known_keys(spec, {'type', 'a', 'b', 'axis', 'axis_b', 'angle_deg',
+                             'description'}, where)
+    jtype = fields.require(spec, 'type', where)
+    if jtype not in JOINT_TYPES:
+        raise SceneError(f'{where}.type: got {jtype!r}, expected one of '
+                         f'{", ".join(JOINT_TYPES)}')
+    ends = []
+    for key in ('a', 'b'):
+        ref = fields.string(fields.require(spec, key, where), f'{where}.{key}')
+        link, _, point = ref.partition('.')
+        if link not in all_points:
+            raise SceneError(f'{where}.{key}: got {ref!r}, expected "link.point" with link '
+                             f'one of {", ".join(all_points)}')
+        if point not in all_points[link]:
+            raise SceneError(f'{where}.{key}: got {ref!r}, link {link!r} has no point '
+                             f'{point!r} (it has {", ".join(all_points[link])})')
+        ends.append((link, point))
+    if ends[0][0] == ends[1][0]:
+        raise SceneError(f'{where}: both ends are on link {ends[0][0]!r}, expected two links')
+    axis = axis_b = angle = None
+    if jtype in AXIS_JOINTS:
+        axis = _axis(fields.require(spec, 'axis', where), f'{where}.axis')
+        if jtype == 'universal':
+            axis_b = _axis(fields.require(spec, 'axis_b', where), f'{where}.axis_b')
+        elif 'axis_b' in spec:
+            axis_b = _axis(spec['axis_b'], f'{where}.axis_b')
+    elif 'axis' in spec or 'axis_b' in spec:
+        raise SceneError(f'{where}: a spherical joint has no axis, expected no axis or axis_b')
+    if 'angle_deg' in spec:
+        if jtype != 'prismatic':
+            raise SceneError(f'{where}.angle_deg: applies to prismatic joints only (got type '
+                             f'{jtype})')
+        angle = fields.number(spec['angle_deg'], f'{where}.angle_deg')
+    return SpatialJoint(name, jtype, ends[0][0], ends[0][1], ends[1][0], ends[1][1], axis,
+                        axis_b, angle)
+
+
+def _outputs(value, where):
+    if value == 'all':
+        return OUTPUTS
+    if not isinstance(value, (list, tuple)) or not value:
+        raise SceneError(f'{where}: got {value!r}, expected a list from {", ".join(OUTPUTS)}')
+    for v in value:
+        if v not in OUTPUTS:
+            raise SceneError(f'{where}: got {v!r}, expected one of {", ".join(OUTPUTS)}')
+    return tuple(o for o in OUTPUTS if o in value)
+
+
+def _connected(links, joints):
+    adj = {lk.name: set() for lk in links}
+    adj[FRAME] = set()
+    for jt in joints:
+        adj[jt.link_a].add(jt.link_b)
+        adj[jt.link_b].add(jt.link_a)
+    seen, todo = {FRAME}, [FRAME]
+    while todo:
+        for nb in adj[todo.pop()]:
+            if nb not in seen:
+                seen.add(nb)
+                todo.append(nb)
+    loose = [lk.name for lk in links if lk.name not in seen]
+    if loose:
+        raise SceneError(f'joints: link(s) {", ".join(loose)} are not connected to the frame, '
+                         'expected every moving link joined to the frame through other links')
+
+
+def _pose(spec, where):
+    spec = fields.mapping(spec, where)
+    fields.known_keys(spec, {'origin_m', 'rpy_deg'}, where)
+    return Pose(_vec3(spec.get('origin_m', [0.0, 0.0, 0.0]), f'{where}.origin_m'),
+                _vec3(spec.get('rpy_deg', [0.0, 0.0, 0.0]), f'{where}.rpy_deg'))
+
+
+def spatial_from_dict(data, source='<dict>'):
+    """Validate a parsed spatial scene mapping (module docstring) into a SpatialScene."""
+    data = fields.mapping(data, 'scene')
+    fields.known_keys(data, _TOP_KEYS, '')
+    if data.get('kind') != KIND:
+        raise SceneError(f'kind: got {data.get("kind")!r}, expected {KIND!r}')
+    version = data.get('schema_version', SCHEMA_VERSION)
+    if isinstance(version, bool) or version != SCHEMA_VERSION:
+        raise SceneError(f'schema_version: got {version!r}, expected {SCHEMA_VERSION}')
+    name = fields.string(data.get('name', 'spatial'), 'name')
+    description = fields.text(data.get('description', ''), 'description')
+    frame = fields.mapping(fields.require(data, 'frame', ''), 'frame')
+    fields.known_keys(frame, {'points'}, 'frame')
+    frame_points = _points3(fields.require(frame, 'points', 'frame'), 'frame.points')
+
+    links_data = fields.mapping(fields.require(data, 'links', ''), 'links')
+    if not links_data:
+        raise SceneError('links: got an empty mapping, expected at least one moving link')
+    fields.at_most(links_data, conventions.MAX_LINKS, 'links', 'moving links', 'MAX_LINKS')
+    if FRAME in links_data:
+        raise SceneError(f'links.{FRAME}: "{FRAME}" is reserved for the fixed link')
+    links = tuple(_link(n, spec) for n, spec in links_data.items())
+
+    joints_data = fields.mapping(fields.require(data, 'joints', ''), 'joints')
+    if not joints_data:
+        raise SceneError('joints: got an empty mapping, expected the joints of the linkage')
+    fields.at_most(joints_data, conventions.MAX_JOINTS, 'joints', 'joints', 'MAX_JOINTS')
+    all_points = {FRAME: frame_points, **{lk.name: lk.points for lk in links}}
+    joints = tuple(_joint(n, spec, all_points) for n, spec in joints_data.items())
+    _connected(links, joints)
+
+    crank = fields.mapping(fields.require(data, 'crank', ''), 'crank')
+    fields.known_keys(crank, {'joint', 'speed_rad_s', 'acceleration_rad_s2'}, 'crank')
+    crank_joint = fields.string(fields.require(crank, 'joint', 'crank'), 'crank.joint')
+    by_name = {j.name: j for j in joints}
+    if crank_joint not in by_name:
+        raise SceneError(f'crank.joint: got {crank_joint!r}, expected one of the joints '
+                         f'({", ".join(by_name)})')
+    cj = by_name[crank_joint]
+    if cj.joint_type not in INPUT_TYPES or FRAME not in (cj.link_a, cj.link_b):
+        raise SceneError(
+            f'crank.joint: got {crank_joint!r} ({cj.joint_type} between {cj.link_a} and '
+            f'{cj.link_b}), expected a revolute or prismatic joint between the frame and a '
+            'moving link')
+    if cj.joint_type == 'prismatic':
+        raise SceneError(
+            f'crank.joint: got the prismatic joint {crank_joint!r}; a spatial scene is '
+            'analyzed over a full crank revolution, expected a revolute input joint (a '
+            'prismatic input has no cycle of crank angles)')
+    speed = fields.nonzero(crank.get('speed_rad_s', 1.0), 'crank.speed_rad_s')
+    accel = fields.number(crank.get('acceleration_rad_s2', 0.0), 'crank.acceleration_rad_s2')
+    moment_point = _vec3(fields.require(data, 'moment_point_m', ''), 'moment_point_m')
+
+    assembly = fields.mapping(data.get('assembly', {}) or {}, 'assembly')
+    fields.known_keys(assembly, {'crank_angle_deg', 'poses'}, 'assembly')
+    crank_angle = fields.number(assembly.get('crank_angle_deg', 0.0),
+                                'assembly.crank_angle_deg')
+    poses = {}
+    names = {lk.name for lk in links}
+    for k, v in fields.mapping(assembly.get('poses', {}) or {}, 'assembly.poses').items():
+        if k not in names:
+            raise SceneError(f'assembly.poses.{k}: no such link, expected one of '
+                             f'{", ".join(sorted(names))}')
+        poses[k] = _pose(v, f'assembly.poses.{k}')
+
+    normalization = None
+    if 'normalization' in data:
+        nd = fields.mapping(data['normalization'], 'normalization')
+        fields.known_keys(nd, {'mass_kg', 'length_m', 'omega_rad_s'}, 'normalization')
+        normalization = Normalization(*(
+            fields.positive(fields.require(nd, k, 'normalization'), f'normalization.{k}')
+            for k in ('mass_kg', 'length_m', 'omega_rad_s')))
+    outputs = _outputs(data.get('outputs', list(DEFAULT_OUTPUTS)), 'outputs')
+    samples = fields.integer(data.get('samples', conventions.DEFAULT_SAMPLES), 'samples',
+                             MIN_SAMPLES)
+    try:
+        conventions.check_samples(samples, 'samples', links=len(links))
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    notes = data.get('notes', {})
+    if 'balance' in data:
+        fields.mapping(data['balance'], 'balance')
+    return SpatialScene(
+        name=name, description=description.strip(), frame_points=frame_points, links=links,
+        joints=joints, crank_joint=crank_joint, crank_speed_rad_s=speed,
+        crank_acceleration_rad_s2=accel, moment_point_m=moment_point,
+        assembly_crank_angle_deg=crank_angle, assembly_poses=poses, outputs=outputs,
+        samples=samples, normalization=normalization,
+        notes=notes if isinstance(notes, dict) else {'text': notes}, source=str(source))
+
+
+def _joint_dict(jt):
+    spec = {'type': jt.joint_type, 'a': f'{jt.link_a}.{jt.point_a}',
+            'b': f'{jt.link_b}.{jt.point_b}'}
+    if jt.axis is not None:
+        spec['axis'] = list(jt.axis)
+    if jt.axis_b is not None:
+        spec['axis_b'] = list(jt.axis_b)
+    if jt.angle_deg is not None:
+        spec['angle_deg'] = jt.angle_deg
+    return spec
+
+
+def spatial_to_dict(scene):
+    """Return a :class:`SpatialScene` as the mapping :func:`spatial_from_dict` reads back."""
+    data = {'kind': KIND, 'schema_version': SCHEMA_VERSION, 'name': scene.name,
+            'description': scene.description}
+    if scene.normalization is not None:
+        data['normalization'] = dict(scene.normalization.items())
+    data['frame'] = {'points': {k: list(v) for k, v in scene.frame_points.items()}}
+    data['links'] = {lk.name: {'points': {k: list(v) for k, v in lk.points.items()},
+                               'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),
+                               'inertia_com_kg_m2': list(lk.inertia_com_kg_m2)}
+                     for lk in scene.links}
+    data['joints'] = {jt.name: _joint_dict(jt) for jt in scene.joints}
+    data['crank'] = {'joint': scene.crank_joint, 'speed_rad_s': scene.crank_speed_rad_s,
+                     'acceleration_rad_s2': scene.crank_acceleration_rad_s2}
+    data['moment_point_m'] = list(scene.moment_point_m)
+    assembly = {'crank_angle_deg': scene.assembly_crank_angle_deg}
+    if scene.assembly_poses:
+        assembly['poses'] = {k: {'origin_m': list(p.origin_m), 'rpy_deg': list(p.rpy_deg)}
+                             for k, p in scene.assembly_poses.items()}
+    data['assembly'] = assembly
+    data['outputs'] = list(scene.outputs)
+    data['samples'] = int(scene.samples)
+    if scene.notes:
+        data['notes'] = scene.notes
+    return data
+
+
+def geometry(scene):
+    """Return what a design of a spatial scene may not change, and its name in words."""
+    return ((scene.frame_points, [(lk.name, lk.points) for lk in scene.links], scene.joints,
+             scene.crank_joint, scene.assembly_crank_angle_deg, scene.assembly_poses),
+            'frame points, link points, joints and assembly')

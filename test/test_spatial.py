@@ -1,0 +1,584 @@
+"""
+Tests of the spatial kind (``kind: spatial``): schema, physics, the RGGR, random RSSRs.
+
+The physics checks differentiate the body poses the rig publishes (``RigData.bodies``) by
+finite differences in time: shaking force = -dp/dt, shaking moment = -dH_P/dt, and the
+power balance driving torque x speed = dT/dt, each at a crank acceleration other than zero
+so that the acceleration terms are exercised too.
+"""
+
+import copy
+import math
+import warnings
+
+from mech_balance import schema
+from mech_balance.core import rggr
+from mech_balance.core.rig import rig_for
+from mech_balance.core.spatial import kinematics
+from mech_balance.core.spatial.kinematics import min_rotation, SpatialError
+from mech_balance.schema.fields import SceneError
+from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
+import numpy as np
+from numpy.testing import assert_allclose
+import pytest
+import yaml
+
+BUILTINS = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop')
+FD_STEP_RAD = 2e-3
+"""Crank-angle step of the finite differences (their time step is this over the speed)."""
+FD_WEIGHTS = np.array([1 / 280, -4 / 105, 1 / 5, -4 / 5, 0.0, 4 / 5, -1 / 5, 4 / 105, -1 / 280])
+"""Eighth-order central first-derivative stencil over offsets -4..4."""
+FD_RTOL = 1e-7
+"""Momentum checks (acceptance of the spatial issue): relative to the quantity's scale."""
+POWER_RTOL = 1e-9
+"""Power balance tau omega = dT/dt (FD of the rig's own kinetic energy), relative."""
+RGGR_RTOL = 1e-12
+"""rggr_spatial against the closed-form rggr kind, relative to each quantity's scale."""
+ACCEL_FRACTION = 0.3
+"""Crank acceleration of the physics checks, as a fraction of speed^2 (rad/s^2)."""
+N_RANDOM = 100
+"""Random RSSR geometries; each is checked on both assembly branches (200 rigs)."""
+
+
+def _load_data(name):
+    data, path = schema.load_data(name)
+    return data
+
+
+def _fd(values, dt):
+    """Return the central derivative at the middle of 9 samples ``(9, ...)``."""
+    return np.tensordot(FD_WEIGHTS, values, axes=(0, 0)) / dt
+
+
+def _momenta(rig, psi, speed, moment_point, dt):
+    """Return (p, H_P) ``(9, n, 3)`` of the moving links at 9 times (FD of the body poses)."""
+    sc = rig.scene
+    mass = np.array([lk.mass_kg for lk in sc.links])
+    com = np.array([lk.com_m for lk in sc.links])
+    inertia = np.array([lk.inertia_matrix() for lk in sc.links])
+    # 9 stencil times around each of the 9 outer times, all angles in one evaluation
+    t = ((np.arange(9) - 4)[None, :] + 9 * (np.arange(9) - 4)[:, None]) * dt   # (9, 9)
+    ang = psi[None, None, :] + speed * t[..., None] + 0.5 * ACCEL_FRACTION * speed ** 2 * \
+        t[..., None] ** 2
+    poses = rig.at(ang.ravel(), outputs=('kinematics',)).bodies
+    shape = ang.shape
+    rs = poses.rotation[:, 1:].reshape(shape + (len(mass), 3, 3))
+    xs = (poses.origin_m[:, 1:] + np.einsum('nkij,kj->nki', poses.rotation[:, 1:], com))
+    xs = xs.reshape(shape + (len(mass), 3))
+    v = _fd(np.moveaxis(xs, 1, 0), dt)            # (9 outer, n, k, 3)
+    rdot = _fd(np.moveaxis(rs, 1, 0), dt)
+    r = rs[:, 4]
+    w_mat = rdot @ np.swapaxes(r, -1, -2)
+    omega = 0.5 * np.stack([w_mat[..., 2, 1] - w_mat[..., 1, 2],
+                            w_mat[..., 0, 2] - w_mat[..., 2, 0],
+                            w_mat[..., 1, 0] - w_mat[..., 0, 1]], -1)
+    iw = r @ inertia @ np.swapaxes(r, -1, -2)
+    p = np.einsum('k,onki->oni', mass, v)
+    h = np.einsum('onkij,onkj->oni', iw, omega) + np.einsum(
+        'k,onki->oni', mass, np.cross(xs[:, 4] - moment_point, v))
+    return p, h
+
+
+def _check_momentum(rig, psi):
+    speed = rig.scene.crank_speed_rad_s
+    accel = ACCEL_FRACTION * speed ** 2
+    data = rig.at(psi, speed, accel, outputs=('shaking_wrench',))
+    dt = FD_STEP_RAD / abs(speed)
+    p, h = _momenta(rig, psi, speed, np.array(rig.moment_point_m), dt)
+    dp = _fd(p, 9 * dt)
+    dh = _fd(h, 9 * dt)
+    scale_f = np.max(np.abs(data.force_N))
+    scale_n = np.max(np.abs(data.moment_Nm))
+    assert_allclose(data.force_N, -dp, rtol=0, atol=FD_RTOL * scale_f)
+    assert_allclose(data.moment_Nm, -dh, rtol=0, atol=FD_RTOL * scale_n)
+
+
+def _check_power(rig, psi):
+    speed = rig.scene.crank_speed_rad_s
+    accel = ACCEL_FRACTION * speed ** 2
+    data = rig.at(psi, speed, accel, outputs=('driving_torque',))
+    dt = FD_STEP_RAD / abs(speed)
+    t = ((np.arange(9) - 4) * dt)[:, None] + 0.0 * psi[None, :]
+    ang = psi[None, :] + speed * t + 0.5 * accel * t ** 2
+    energy = rig.at(ang.ravel(), (speed + accel * t).ravel(), accel,
+                    outputs=('kinetic_energy',)).series['kinetic_energy'].reshape(t.shape)
+    dT = _fd(energy, dt)
+    power = data.series['driving_torque'] * speed
+    assert_allclose(power, dT, rtol=0, atol=POWER_RTOL * np.max(np.abs(dT)))
+
+
+# ----------------------------------------------------------------------------- schema
+
+@pytest.mark.parametrize('name', BUILTINS)
+def test_round_trip_bit_for_bit(name):
+    sc = schema.load(name)
+    text = schema.to_yaml(sc)
+    again = schema.from_dict(yaml.safe_load(text), source=sc.source)
+    assert again == sc
+    assert schema.to_yaml(again) == text
+    assert spatial_to_dict(again) == spatial_to_dict(sc)
+
+
+@pytest.mark.parametrize('path, value, match', [
+    (('links', 'crank', 'inertia_com_kg_m2'), [1e-4, 1e-4, 1e-4, 2e-4, 0.0, 0.0],
+     r'links\.crank\.inertia_com_kg_m2.*negative.*positive semi-definite'),
+    (('links', 'crank', 'inertia_com_kg_m2'), [1e-5, 1e-5, 1e-4, 0.0, 0.0, 0.0],
+     r'links\.crank\.inertia_com_kg_m2.*triangle inequality'),
+    (('links', 'crank', 'inertia_com_kg_m2'), [1e-5, 1e-5], r'six numbers'),
+    (('links', 'crank', 'mass_kg'), -1.0,
+     r'links\.crank\.mass_kg: got -1\.0, expected a number >= 0'),
+    (('links', 'crank', 'com_m'), [0.0, 0.0], r'links\.crank\.com_m.*\[x, y, z\]'),
+    (('joints', 'A', 'type'), 'ball', r'joints\.A\.type: got .ball., expected one of'),
+    (('joints', 'A', 'axis'), [0.0, 0.0, 0.0], r'joints\.A\.axis.*non-zero direction'),
+    (('joints', 'B', 'axis'), [0.0, 0.0, 1.0], r'joints\.B: a spherical joint has no axis'),
+    (('joints', 'B', 'angle_deg'), 3.0, r'joints\.B\.angle_deg: applies to prismatic'),
+    (('crank', 'joint'), 'B', r'crank\.joint: got .B. \(spherical'),
+    (('crank', 'speed_rad_s'), 0.0, r'crank\.speed_rad_s.*nonzero'),
+    (('moment_point_m',), [0.0, 1.0], r'moment_point_m.*\[x, y, z\]'),
+    (('assembly', 'poses', 'nothing'), {}, r'assembly\.poses\.nothing: no such link'),
+    (('samples',), 2, r'samples: got 2, expected an integer >= 4'),
+])
+def test_bad_fields_are_named(path, value, match):
+    data = copy.deepcopy(_load_data('rssr_skew'))
+    node = data
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    with pytest.raises(SceneError, match=match):
+        spatial_from_dict(data)
+
+
+def test_missing_fields_are_named():
+    for key in ('frame', 'links', 'joints', 'crank', 'moment_point_m'):
+        data = copy.deepcopy(_load_data('rssr_skew'))
+        del data[key]
+        with pytest.raises(SceneError, match=rf'^{key}: missing'):
+            spatial_from_dict(data)
+    data = copy.deepcopy(_load_data('rssr_skew'))
+    del data['joints']['D']['axis']
+    with pytest.raises(SceneError, match=r'joints\.D\.axis: missing'):
+        spatial_from_dict(data)
+
+
+def test_universal_needs_its_second_axis():
+    data = copy.deepcopy(_load_data('spatial_two_loop'))
+    del data['joints']['U']['axis_b']
+    with pytest.raises(SceneError, match=r'joints\.U\.axis_b: missing'):
+        spatial_from_dict(data)
+
+
+def test_massless_link_must_have_no_inertia():
+    data = copy.deepcopy(_load_data('rssr_skew'))
+    data['links']['crank']['mass_kg'] = 0.0
+    with pytest.raises(SceneError, match=r'massless link'):
+        spatial_from_dict(data)
+
+
+def test_disconnected_link_is_named():
+    data = copy.deepcopy(_load_data('rssr_skew'))
+    data['links']['loose'] = {'points': {'X': [0.0, 0.0, 0.0]}, 'mass_kg': 1.0,
+                              'inertia_com_kg_m2': [1e-3, 1e-3, 1e-3, 0.0, 0.0, 0.0]}
+    with pytest.raises(SceneError, match=r'loose are not connected'):
+        spatial_from_dict(data)
+
+
+# ----------------------------------------------------------------------------- physics
+
+@pytest.mark.parametrize('name', BUILTINS)
+def test_shaking_wrench_is_minus_momentum_rate(name):
+    rig = rig_for(schema.load(name))
+    _check_momentum(rig, np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False))
+
+
+@pytest.mark.parametrize('name', BUILTINS)
+def test_power_balance(name):
+    rig = rig_for(schema.load(name))
+    _check_power(rig, np.linspace(0.0, 2.0 * np.pi, 36, endpoint=False))
+
+
+@pytest.mark.parametrize('name', BUILTINS)
+def test_closure_and_condition_reported(name):
+    rig = rig_for(schema.load(name))
+    psi = np.linspace(0.0, 2.0 * np.pi, 360, endpoint=False)
+    data = rig.at(psi)
+    assert data.residual.shape == data.condition.shape == psi.shape
+    assert np.all(data.residual <= kinematics.NEWTON_TOL)
+    assert np.all(np.isfinite(data.condition)) and np.all(data.condition >= 1.0)
+    assert np.array_equal(data.near_singular, data.condition > kinematics.COND_WARN)
+    # the published joint points close every loop to the reported residual
+    poses = data.bodies
+    lk = rig.linkage
+    for jt in rig.scene.joints:
+        xa = poses.world(jt.link_a, rig.scene.frame_points[jt.point_a]
+                         if jt.link_a == 'frame' else rig.scene.link(jt.link_a).points[
+                             jt.point_a])
+        xb = poses.world(jt.link_b, rig.scene.link(jt.link_b).points[jt.point_b])
+        if jt.joint_type in ('revolute', 'spherical', 'universal'):
+            assert np.max(np.abs(xa - xb)) <= 10 * kinematics.NEWTON_TOL * lk.length_scale
+
+
+@pytest.mark.parametrize('name', BUILTINS)
+def test_reactions_balance_every_link(name):
+    """Newton-Euler per link: the joint wrenches on it equal its rate of momentum."""
+    rig = rig_for(schema.load(name))
+    psi = np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False)
+    sc = rig.scene
+    data = rig.at(psi, outputs=('bearing_reactions',))
+    state = data.native
+    from mech_balance.core.spatial import dynamics
+    phi = dynamics.momentum_rates(state, rig.inertia)
+    for k, lk in enumerate(sc.links, start=1):
+        total = np.zeros((psi.size, 6))
+        for jt in sc.joints:
+            if lk.name not in (jt.link_a, jt.link_b):
+                continue
+            f, m = data.reactions[jt.name]
+            x = data.bodies.world(jt.link_b, sc.link(jt.link_b).points[jt.point_b])
+            sign = 1.0 if jt.link_b == lk.name else -1.0
+            total[:, 3:] += sign * f
+            total[:, :3] += sign * (m + np.cross(x, f))
+        scale = np.max(np.abs(phi[:, k]))
+        assert_allclose(total, phi[:, k], rtol=0, atol=1e-9 * scale)
+
+
+def test_rggr_spatial_matches_rggr():
+    psi = np.linspace(0.0, 2.0 * np.pi, 360, endpoint=False)
+    general = rig_for(schema.load('rggr_spatial')).at(psi)
+    closed = rggr.RggrRig(schema.load('rggr')).at(psi)
+    out = general.joint_names.index('output')
+    dphi = np.angle(np.exp(1j * (general.joint_position[:, out]
+                                 - closed.joint_position[:, 1])))
+    assert np.max(np.abs(dphi)) <= RGGR_RTOL * math.pi
+    rate = closed.joint_velocity[:, 1]
+    assert_allclose(general.joint_velocity[:, out], rate, rtol=0,
+                    atol=RGGR_RTOL * np.max(np.abs(rate)))
+    for mine, theirs in ((general.force_N, closed.force_N),
+                         (general.moment_Nm, closed.moment_Nm),
+                         (general.joint_effort[:, 0], closed.joint_effort[:, 0])):
+        assert_allclose(mine, theirs, rtol=0, atol=RGGR_RTOL * np.max(np.abs(theirs)))
+
+
+def test_body_kinematics_agree_with_poses():
+    rig = rig_for(schema.load('spatial_two_loop'))
+    assert 'body_kinematics' in rig.capabilities
+    psi = np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)
+    speed = rig.scene.crank_speed_rad_s
+    bk = rig.body_kinematics(psi)
+    assert bk.names == tuple(b.name for b in rig.drawing.bodies)
+    dt = FD_STEP_RAD / abs(speed)
+    poses = [rig.body_kinematics(psi + speed * (j - 4) * dt) for j in range(9)]
+    w = _fd(np.array([p.omega_rad_s for p in poses]), dt)
+    assert_allclose(bk.alpha_rad_s2, w, rtol=0, atol=1e-7 * np.max(np.abs(bk.alpha_rad_s2)))
+    v = [_fd(np.array([poses[j].origin_m for j in range(9)]), dt)]
+    acc_fd = np.zeros_like(bk.origin_m)
+    org = np.array([p.origin_m for p in poses])
+    acc_fd = (org[3] - 2.0 * org[4] + org[5]) / dt ** 2
+    assert v[0].shape == bk.origin_m.shape
+    assert_allclose(bk.accel_origin_m_s2, acc_fd, rtol=0,
+                    atol=1e-4 * np.max(np.abs(bk.accel_origin_m_s2)))
+
+
+# ----------------------------------------------------------------------------- idle, Bennett
+
+def test_idle_spin_with_inertia_is_refused_naming_the_joints():
+    data = copy.deepcopy(_load_data('rssr_skew'))
+    data['links']['coupler']['inertia_com_kg_m2'] = [1e-6, 6.75e-4, 6.75e-4, 0.0, 0.0, 0.0]
+    with pytest.raises(SpatialError, match=r'links\.coupler: held only by the spherical '
+                                           r'joints B and C.*replace one S by a U'):
+        rig_for(spatial_from_dict(data), cache=False)
+
+
+def test_idle_spin_off_the_line_is_refused():
+    data = copy.deepcopy(_load_data('rssr_skew'))
+    data['links']['coupler']['com_m'] = [0.09, 0.001, 0.0]
+    with pytest.raises(SpatialError, match=r'spins freely'):
+        rig_for(spatial_from_dict(data), cache=False)
+
+
+def test_universal_instead_of_spherical_holds_the_spin():
+    data = copy.deepcopy(_load_data('rssr_skew'))
+    data['links']['coupler']['inertia_com_kg_m2'] = [1e-6, 6.75e-4, 6.75e-4, 0.0, 0.0, 0.0]
+    # a U at B: cross axis normal to the crank axis in the crank, the coupler's z in it
+    data['joints']['B'] = {'type': 'universal', 'a': 'crank.B', 'b': 'coupler.B',
+                           'axis': [0.0, 1.0, 0.0], 'axis_b': [0.0, 0.0, 1.0]}
+    rig = rig_for(spatial_from_dict(data), cache=False)
+    assert not getattr(rig.linkage, 'idle_spins', ())
+    _check_momentum(rig, np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False))
+    _check_power(rig, np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False))
+
+
+def _bennett(alpha_deg=30.0, a_m=0.1, theta_deg=60.0):
+    """Return a Bennett linkage scene (over-constrained RRRR; lengths a, b, twists a, b)."""
+    alpha = math.radians(alpha_deg)
+    beta = math.radians(90.0 - alpha_deg * 0.5)
+    b_m = a_m * math.sin(beta) / math.sin(alpha)   # Bennett's condition a/sin(al) = b/sin(be)
+
+    def dh(theta, a, al):
+        ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(al), math.sin(al)
+        t = np.eye(4)
+        t[:3, :3] = [[ct, -st * ca, st * sa], [st, ct * ca, -ct * sa], [0.0, sa, ca]]
+        t[:3, 3] = [a * ct, a * st, 0.0]
+        return t
+
+    # chain frame -> l1 -> l2 -> l3 (-> frame), joint i at the origin of frame i-1, z axes
+    th1 = math.radians(theta_deg)
+    # Bennett closure: tan(th2 / 2) from tan(th1 / 2) (a classical relation)
+    th2 = 2.0 * math.atan(math.sin((beta + alpha) / 2.0) / math.sin((beta - alpha) / 2.0)
+                          / math.tan(th1 / 2.0))
+    frames = [np.eye(4)]
+    for th, a, al in ((th1, a_m, alpha), (th2, b_m, beta), (-th1, a_m, alpha)):
+        frames.append(frames[-1] @ dh(th, a, al))
+
+    def rpy(r):
+        return [math.degrees(math.atan2(r[2, 1], r[2, 2])),
+                math.degrees(math.atan2(-r[2, 0], math.hypot(r[0, 0], r[1, 0]))),
+                math.degrees(math.atan2(r[1, 0], r[0, 0]))]
+
+    links, poses = {}, {}
+    names = ('l1', 'l2', 'l3')
+    for i, name in enumerate(names):
+        t = frames[i + 1]
+        links[name] = {'points': {'P': [0.0, 0.0, 0.0]}, 'mass_kg': 0.3,
+                       'com_m': [0.0, 0.0, 0.0],
+                       'inertia_com_kg_m2': [1e-4, 2e-4, 2e-4, 0.0, 0.0, 0.0]}
+        poses[name] = {'origin_m': [float(x) for x in t[:3, 3]], 'rpy_deg': rpy(t[:3, :3])}
+    # the joint at each link's far end, in its own axes: the next frame's origin and z
+    r1 = frames[1][:3, :3]
+    joints = {'J1': {'type': 'revolute', 'a': 'frame.O', 'b': 'l1.Q', 'axis': [0.0, 0.0, 1.0],
+                     'axis_b': [float(x) for x in r1.T @ [0.0, 0.0, 1.0]]}}
+    links['l1']['points']['Q'] = [float(x) for x in r1.T @ (-frames[1][:3, 3])]
+    for i in (1, 2):
+        ti, tn = frames[i], frames[i + 1]
+        links[names[i]]['points']['Q'] = [float(x) for x in
+                                          tn[:3, :3].T @ (ti[:3, 3] - tn[:3, 3])]
+        joints[f'J{i + 1}'] = {'type': 'revolute', 'a': f'{names[i - 1]}.P',
+                               'b': f'{names[i]}.Q', 'axis': [0.0, 0.0, 1.0],
+                               'axis_b': [float(x) for x in tn[:3, :3].T @ ti[:3, 2]]}
+    t3 = frames[3]
+    joints['J4'] = {'type': 'revolute', 'a': 'l3.P', 'b': 'frame.E',
+                    'axis': [0.0, 0.0, 1.0], 'axis_b': [float(x) for x in t3[:3, 2]]}
+    return {'kind': 'spatial', 'name': 'bennett',
+            'frame': {'points': {'O': [0.0, 0.0, 0.0], 'E': [float(x) for x in t3[:3, 3]]}},
+            'links': links, 'joints': joints, 'crank': {'joint': 'J1', 'speed_rad_s': 10.0},
+            'moment_point_m': [0.0, 0.0, 0.0],
+            'assembly': {'crank_angle_deg': 0.0, 'poses': poses}}, t3
+
+
+def test_over_constrained_bennett_reports_non_unique_reactions():
+    data, t3 = _bennett()
+    data['joints']['J4']['axis_b'] = [float(x) for x in t3[:3, 2]]
+    rig = rig_for(spatial_from_dict(data), cache=False)
+    lk = rig.linkage
+    assert (lk.m, lk.nu, lk.rank) == (5, 2, 2)   # 5 closure rows, 2 unknowns, rank 2
+    assert lk.redundant == 3 and not rig.reactions_unique
+    psi = np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False)
+    _check_momentum(rig, psi)
+    _check_power(rig, psi)
+    # the reactions are a minimum-norm choice, yet they still balance every link
+    data_r = rig.at(psi, outputs=('bearing_reactions',))
+    assert set(data_r.reactions) == {'J1', 'J2', 'J3', 'J4'}
+
+
+# ----------------------------------------------------------------------------- random RSSRs
+
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+def _frame_z(axis, towards):
+    z = _unit(axis)
+    x = _unit(towards - (towards @ z) * z)
+    return np.stack([x, np.cross(z, x), z], -1)
+
+
+def _rpy(r):
+    return [math.degrees(math.atan2(r[2, 1], r[2, 2])),
+            math.degrees(math.atan2(-r[2, 0], math.hypot(r[0, 0], r[1, 0]))),
+            math.degrees(math.atan2(r[1, 0], r[0, 0]))]
+
+
+def random_rssr(rng, branch):
+    """Return a random RSSR scene mapping (skew axes) assembled on one of its two branches."""
+    u1 = _unit(rng.normal(size=3))
+    u3 = _unit(rng.normal(size=3))
+    d0 = rng.normal(size=3) * 0.15
+    r1 = rng.uniform(0.015, 0.03)
+    r3 = rng.uniform(0.06, 0.12)
+    rk = _frame_z(u1, _unit(rng.normal(size=3)))
+    b = r1 * rk[:, 0]
+    ro = _frame_z(u3, _unit(rng.normal(size=3)))
+    theta = rng.uniform(0, 2 * np.pi)
+    e1, e2 = ro[:, 0], ro[:, 1]
+    c = d0 + r3 * (math.cos(theta) * e1 + math.sin(theta) * e2)
+    length = float(np.linalg.norm(c - b))
+    if branch < 0:  # the other point of the rocker's circle at the coupler's length
+        # |d0 - b + r3 (cos e1 + sin e2)|^2 = L^2  ->  P cos + Q sin = K
+        w = d0 - b
+        p, q = 2 * r3 * (w @ e1), 2 * r3 * (w @ e2)
+        k = length ** 2 - w @ w - r3 ** 2
+        base, half = math.atan2(q, p), math.acos(max(-1.0, min(1.0, k / math.hypot(p, q))))
+        other = [base + half, base - half]
+        theta = max(other, key=lambda t: abs(np.angle(np.exp(1j * (t - theta)))))
+        c = d0 + r3 * (math.cos(theta) * e1 + math.sin(theta) * e2)
+    ro = _frame_z(u3, c - d0)
+    x = _unit(c - b)
+    rc = _frame_z(np.cross(x, _unit(rng.normal(size=3))), x)
+    rc = np.stack([x, np.cross(rc[:, 2], x), rc[:, 2]], -1)
+    m2 = rng.uniform(0.1, 0.5)
+    zero = min_rotation([0.0, 0.0, 1.0], u1)   # the crank joint's zero (kinematics docstring)
+    return {
+        'kind': 'spatial', 'name': 'random_rssr',
+        'frame': {'points': {'A': [0.0, 0.0, 0.0], 'D': [float(v) for v in d0]}},
+        'links': {
+            'crank': {'points': {'A': [0.0, 0.0, 0.0], 'B': [r1, 0.0, 0.0]},
+                      'mass_kg': 0.4, 'com_m': [0.3 * r1, 0.002, 0.001],
+                      'inertia_com_kg_m2': [4e-5, 9e-5, 1.1e-4, 2e-6, -3e-6, 1e-6]},
+            'coupler': {'points': {'B': [0.0, 0.0, 0.0], 'C': [length, 0.0, 0.0]},
+                        'mass_kg': m2, 'com_m': [0.4 * length, 0.0, 0.0],
+                        'inertia_com_kg_m2': [0.0, m2 * length ** 2 / 12,
+                                              m2 * length ** 2 / 12, 0.0, 0.0, 0.0]},
+            'rocker': {'points': {'D': [0.0, 0.0, 0.0], 'C': [r3, 0.0, 0.0]},
+                       'mass_kg': 0.6, 'com_m': [0.4 * r3, 0.004, -0.006],
+                       'inertia_com_kg_m2': [6e-5, 6.2e-4, 6.5e-4, 1e-5, 4e-6, -2e-6]}},
+        'joints': {
+            'A': {'type': 'revolute', 'a': 'frame.A', 'b': 'crank.A',
+                  'axis': [float(v) for v in u1], 'axis_b': [0.0, 0.0, 1.0]},
+            'B': {'type': 'spherical', 'a': 'crank.B', 'b': 'coupler.B'},
+            'C': {'type': 'spherical', 'a': 'coupler.C', 'b': 'rocker.C'},
+            'D': {'type': 'revolute', 'a': 'frame.D', 'b': 'rocker.D',
+                  'axis': [float(v) for v in u3], 'axis_b': [0.0, 0.0, 1.0]}},
+        'crank': {'joint': 'A', 'speed_rad_s': 30.0},
+        'moment_point_m': [float(v) for v in rng.normal(size=3) * 0.05],
+        'assembly': {
+            'crank_angle_deg': math.degrees(math.atan2(rk[:, 0] @ (zero @ [0.0, 1.0, 0.0]),
+                                                       rk[:, 0] @ (zero @ [1.0, 0.0, 0.0]))),
+            'poses': {'crank': {'origin_m': [0.0, 0.0, 0.0], 'rpy_deg': _rpy(rk)},
+                      'coupler': {'origin_m': [float(v) for v in b], 'rpy_deg': _rpy(rc)},
+                      'rocker': {'origin_m': [float(v) for v in d0], 'rpy_deg': _rpy(ro)}}},
+        'samples': 36}
+
+
+def _random_rigs():
+    rng = np.random.default_rng(20261201)
+    rigs, tries = [], 0
+    while len(rigs) < 2 * N_RANDOM and tries < 20 * N_RANDOM:
+        tries += 1
+        seed = rng.integers(1 << 31)
+        pair = []
+        for branch in (1, -1):
+            data = random_rssr(np.random.default_rng(seed), branch)
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter('ignore', RuntimeWarning)
+                    pair.append(rig_for(spatial_from_dict(data), cache=False))
+            except SpatialError:
+                break
+        if len(pair) == 2:
+            rigs += pair
+    return rigs
+
+
+@pytest.fixture(scope='module')
+def random_rigs():
+    return _random_rigs()
+
+
+def test_random_rssrs_both_branches(random_rigs):
+    assert len(random_rigs) == 2 * N_RANDOM
+    psi = np.linspace(0.0, 2.0 * np.pi, 5, endpoint=False)
+    for k in range(0, len(random_rigs), 2):
+        a, b = random_rigs[k], random_rigs[k + 1]
+        da, db = a.at(psi), b.at(psi)
+        # two branches: the rocker angles differ at the same crank angle
+        out = a.joint_names.index('D')
+        assert np.max(np.abs(np.angle(np.exp(1j * (da.joint_position[:, out]
+                                                   - db.joint_position[:, out]))))) > 1e-6
+    for rig in random_rigs:
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', RuntimeWarning)
+            _check_momentum(rig, psi[:2])
+            _check_power(rig, psi[:2])
+
+
+def test_random_near_singular_cases_are_flagged():
+    """Grow the crank of random RSSRs towards the limit of full rotation: flagged there."""
+    rng = np.random.default_rng(7)
+    flagged = 0
+    for _ in range(6):
+        seed = rng.integers(1 << 31)
+        data = random_rssr(np.random.default_rng(seed), 1)
+        try:
+            rig_for(spatial_from_dict(data), cache=False)
+        except SpatialError:
+            continue
+        lo, hi = data['links']['crank']['points']['B'][0], 0.5
+        best = None
+        for _ in range(30):
+            mid = 0.5 * (lo + hi)
+            trial = copy.deepcopy(data)
+            trial['links']['crank']['points']['B'][0] = mid
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter('always', RuntimeWarning)
+                try:
+                    rig = rig_for(spatial_from_dict(trial), cache=False)
+                    d = rig.at(np.linspace(0.0, 2.0 * np.pi, 720, endpoint=False))
+                except SpatialError:
+                    hi = mid
+                    continue
+            lo = mid
+            best = (rig, d, [str(w.message) for w in caught])
+        if best is None:
+            continue
+        rig, d, messages = best
+        assert np.array_equal(d.near_singular, d.condition > kinematics.COND_WARN)
+        if d.near_singular.any():
+            flagged += 1
+            assert any('near-singular' in m for m in messages)
+    assert flagged >= 1
+
+
+# ----------------------------------------------------------------------------- URDF
+
+@pytest.mark.parametrize('name', BUILTINS)
+def test_urdf_fk_puts_every_joint_point_where_the_core_does(name):
+    """yourdfpy loads the URDF; FK at the published joint states meets the core's points."""
+    yourdfpy = pytest.importorskip('yourdfpy')
+    import io
+    from mech_balance.ros import urdf
+    sc = schema.load(name)
+    robot = yourdfpy.URDF.load(io.StringIO(urdf.urdf_xml(sc)), load_meshes=False,
+                               build_collision_scene_graph=False)
+    assert robot.validate()
+    rig = rig_for(sc)
+    psi = 0.0123 + np.linspace(0.0, 2.0 * np.pi, 45, endpoint=False)
+    data = rig.at(psi, outputs=('kinematics',))
+    names, pos, vel = urdf.rig_joint_positions(sc, data)
+    assert list(names) == robot.actuated_joint_names
+    pins = {}
+    for link_name, link in robot.link_map.items():
+        for v in link.visuals:
+            if v.name and v.name.startswith('pin_'):
+                pins[(link_name, v.name[4:])] = v.origin[:3, 3]
+    root = urdf.DEFAULT_FRAME_ID
+    worst = 0.0
+    for k in range(psi.size):
+        robot.update_cfg(dict(zip(names, pos[k])))
+        for jt in sc.joints:   # both ends of every joint, the cut joints' included
+            for link, point in ((jt.link_a, jt.point_a), (jt.link_b, jt.point_b)):
+                local = sc.frame_points[point] if link == 'frame' else \
+                    sc.link(link).points[point]
+                core = data.bodies.world(link, local)[k]
+                ul = root if link == 'frame' else link
+                t = robot.get_transform(ul, root)
+                worst = max(worst, float(np.max(np.abs(t[:3, :3] @ pins[(ul, point)]
+                                                       + t[:3, 3] - core))))
+    assert worst <= 1e-12
+    # the published velocities are the rates of the published positions
+    _, plus, _ = urdf.rig_joint_positions(sc, rig.at(psi + 1e-6, outputs=('kinematics',)))
+    _, minus, _ = urdf.rig_joint_positions(sc, rig.at(psi - 1e-6, outputs=('kinematics',)))
+    rate = urdf.wrap_angle(plus - minus) / 2e-6 * sc.crank_speed_rad_s
+    slides = [n for n, j in zip(names, robot.actuated_joints) if j.type == 'prismatic']
+    for i, n in enumerate(names):
+        if n in slides:
+            rate[:, i] = (plus[:, i] - minus[:, i]) / 2e-6 * sc.crank_speed_rad_s
+    assert_allclose(vel, rate, rtol=0, atol=1e-6 * np.max(np.abs(vel)))
