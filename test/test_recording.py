@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
@@ -395,6 +396,78 @@ def test_live_recorder_rejects_bad_samples(tmp_path):
         with pytest.raises(ValueError, match='non-finite'):
             rec.log_sample(0.0, float('nan'))
     assert rec.closed
+
+
+RERUN_CONNECT_WAIT_S = 5.0
+"""rerun's ``connect_grpc`` and ``disconnect`` each wait this long for a viewer that is not
+there: a caller that waits for either is blocked at least this long."""
+
+
+def _dead_url():
+    from mech_balance.bench import node as bench_node
+    return f'rerun+http://127.0.0.1:{bench_node.free_port()}/proxy'
+
+
+def _wait_for(predicate, seconds):
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and not predicate():
+        time.sleep(0.02)
+    return predicate()
+
+
+def test_live_view_to_a_dead_url_never_blocks_and_says_dead(tmp_path):
+    """Issue 23 2b.1: nothing listens at the url; the caller is never held by rerun's waits."""
+    sc = scene_mod.load('hoeken')
+    t0 = time.monotonic()
+    rec = recording.LiveRecorder(None, sc, url=_dead_url())
+    built = time.monotonic() - t0
+    assert rec.status == 'connecting' or rec.status.startswith('dead: ')
+    worst = 0.0
+    for k in range(20):
+        t1 = time.monotonic()
+        assert rec.log_sample(0.01 * k, 0.05 * k) == 1
+        worst = max(worst, time.monotonic() - t1)
+    assert _wait_for(lambda: rec.status.startswith('dead: '), RERUN_CONNECT_WAIT_S)
+    assert '127.0.0.1' in rec.status and 'retried every' in rec.status, rec.status
+    t2 = time.monotonic()
+    rec.close(timeout_s=0.5)
+    closed = time.monotonic() - t2
+    assert rec.closed and rec.log_sample(1.0, 1.0) == 0
+    # none of the calls waited for rerun's connect or disconnect
+    assert max(built, worst, closed) < 0.5 * RERUN_CONNECT_WAIT_S, (built, worst, closed)
+
+
+def test_live_view_with_a_file_and_a_dead_url_still_writes_the_file(tmp_path):
+    path = tmp_path / 'both.rrd'
+    rec = recording.LiveRecorder(path, scene_mod.load('hoeken'), url=_dead_url())
+    for k in range(5):
+        rec.log_sample(0.01 * k, 0.05 * k)
+    t0 = time.monotonic()
+    rec.close(timeout_s=1.0)
+    assert time.monotonic() - t0 < 0.5 * RERUN_CONNECT_WAIT_S
+    assert recording.read_recording(path)['/plots/shaking_force/original'].rows == 5
+
+
+def test_live_view_connects_and_says_so(tmp_path):
+    from mech_balance.bench import node as bench_node
+    port = bench_node.free_port()
+    viewer = bench_node.viewer_endpoint(tmp_path / 'got.rrd', port)
+    try:
+        rec = recording.LiveRecorder(None, scene_mod.load('hoeken'),
+                                     url=f'rerun+http://127.0.0.1:{port}/proxy')
+        for k in range(40):
+            rec.log_sample(0.05 * k, 0.05 * k)
+            time.sleep(0.01)
+        assert _wait_for(lambda: rec.status == 'connected', 4 * RERUN_CONNECT_WAIT_S), \
+            rec.status
+        rec.close(timeout_s=RERUN_CONNECT_WAIT_S)
+    finally:
+        viewer.send_signal(signal.SIGINT)
+        try:
+            viewer.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            viewer.kill()
+    assert recording.read_recording(tmp_path / 'got.rrd')['/rig/links'].rows >= 1
 
 
 LIVE_SCRIPT = textwrap.dedent("""

@@ -1,5 +1,6 @@
 """The default blueprint: rigs side by side over the RMS table, plots right."""
 
+from mech_balance.viz.drawing import DEGREE_TIMELINE
 from mech_balance.viz.layout import LEFT_SHARE, nice_floor, RIG_ROW_SHARE
 from mech_balance.viz.style import SCALE_BAR_SHARE
 from mech_balance.viz.text import fmt
@@ -62,5 +63,6 @@ def blueprint(layout):
     root = rrb.Horizontal(*columns, column_shares=[LEFT_SHARE, 1.0 - LEFT_SHARE][:len(columns)])
     return rrb.Blueprint(
         root, rrb.BlueprintPanel(state='collapsed'), rrb.SelectionPanel(state='collapsed'),
-        rrb.TimePanel(state='collapsed', timeline='time' if layout.live else 'crank_angle',
-                      play_state='following' if layout.live else 'playing', loop_mode='all'))
+        rrb.TimePanel(state='collapsed', timeline='time' if layout.live else DEGREE_TIMELINE,
+                      play_state='following' if layout.live else 'playing',
+                      loop_mode='off' if layout.live else 'all'))

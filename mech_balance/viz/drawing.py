@@ -50,6 +50,15 @@ def check_samples(samples, cycles, links=1):
                          'crank turns (conventions.MAX_CYCLES)')
 
 
+DEGREE_TIMELINE = 'crank_angle_deg'
+"""The default timeline: whole degrees turned from crank angle 0 (its name says the unit: a
+sequence timeline shows ``#90`` and nothing else; rerun 0.41's duration and timestamp
+timelines show seconds or dates, never degrees)."""
+TIMELINES = (DEGREE_TIMELINE, 'crank_angle', 'time')
+"""Every timeline of a recording: ``crank_angle`` holds the same values as
+:data:`DEGREE_TIMELINE` (kept for older readers), ``time`` the seconds."""
+
+
 def turn_angles(samples, speed_rad_s=1.0):
     """Return the crank angles of one recorded turn: from 0 in the direction of rotation."""
     sign = -1.0 if speed_rad_s < 0.0 else 1.0

@@ -2,7 +2,10 @@
 
 import atexit
 from collections import deque
+import socket
 import threading
+import time
+from urllib.parse import urlsplit
 
 from mech_balance import atomic, conventions
 from mech_balance.viz.drawing import concat_motions, live_motion, plan
@@ -23,19 +26,33 @@ clock): a send costs ~15 ms of Python whatever its size, which the publishing th
 for in slices of the node's switch interval."""
 LIVE_QUEUE = 256
 """Batches waiting for the live view's thread; when full the oldest is dropped."""
+LIVE_FLUSH_TIMEOUT_S = 2.0
+"""The live view's thread waits this long for a flush to reach the viewer (else: dead)."""
+LIVE_RETRY_S = 5.0
+"""A dead viewer is tried again this often (its samples are dropped meanwhile)."""
+LIVE_KNOCK_TIMEOUT_S = 1.0
+"""How long the view's thread waits for a TCP connection to the viewer's port."""
+LIVE_DEFAULT_PORT = 9876
+"""The viewer's gRPC port when the url names none (rerun's default)."""
 
 
 class LiveView:
     """
     The views of a running rig streamed to a viewer, throttled, on a thread of its own.
 
-    :meth:`push` only queues a batch (the oldest is dropped when :data:`LIVE_QUEUE` are
-    waiting) and returns; the thread keeps at most one sample per 1 / :data:`LIVE_MAX_RATE_HZ`
-    seconds of the rig's clock, evaluates the other design and logs.  A viewer that is slow
-    or gone never holds up the caller.
+    The constructor returns at once: the thread lays the views out (if no ``layout`` is
+    given), connects (rerun's ``connect_grpc`` waits up to 5 s for a viewer that is not
+    there), sends the blueprint and the static geometry, and then logs.  :attr:`status` says
+    how far it got: ``'connecting'``, ``'connected'`` (a flush reached the viewer) or
+    ``'dead: <reason>'`` (a flush failed or the thread stopped on an error); a dead viewer
+    is retried every :data:`LIVE_RETRY_S` and its samples are dropped meanwhile, so nothing
+    piles up.  :meth:`push` only queues a batch (the oldest is dropped when
+    :data:`LIVE_QUEUE` are waiting) and never blocks; the thread keeps at most one sample
+    per 1 / :data:`LIVE_MAX_RATE_HZ` seconds of the rig's clock, evaluates the other design
+    and logs.  :meth:`close` waits at most its ``timeout_s``.
     """
 
-    def __init__(self, url, scene, layout):
+    def __init__(self, url, scene, layout=None, balanced=None, balanced_source=None):
         self.url = url
         self.layout = layout
         self.samples_logged = 0
@@ -44,11 +61,18 @@ class LiveView:
         self._stopped = False
         self._next_t = None
         self._t0 = None
-        self._rec = rr.RecordingStream(application_id(scene))
-        self._rec.connect_grpc(url)
-        start_stream(self._rec, scene, layout)
-        self._thread = threading.Thread(target=self._run, name='rig-live-view', daemon=True)
+        self._rec = None
+        self._status = 'connecting'
+        self._retry_at = 0.0
+        self._thread = threading.Thread(
+            target=self._run, args=(scene, balanced, balanced_source), name='rig-live-view',
+            daemon=True)
         self._thread.start()
+
+    @property
+    def status(self):
+        """Return ``'connecting'``, ``'connected'`` or ``'dead: <reason>'``."""
+        return self._status
 
     def push(self, t, psi, data):
         """Queue a batch (the rig's clock in s, cumulative crank angles, original RigData)."""
@@ -58,7 +82,28 @@ class LiveView:
             self._queue.append((t, psi, data))
             self._cond.notify()
 
-    def _run(self):
+    def _run(self, scene, balanced, balanced_source):
+        try:
+            while not self._knock():
+                with self._cond:                # nobody listens: drop, wait, knock again
+                    self._queue.clear()
+                    if self._stopped:
+                        return
+                    self._cond.wait(LIVE_RETRY_S)
+            if self.layout is None:
+                samples = getattr(scene, 'samples', conventions.DEFAULT_SAMPLES)
+                self.layout, _ = plan(scene, balanced, samples, balanced_source, live=True)
+            self._rec = rr.RecordingStream(application_id(scene))
+            self._rec.connect_grpc(self.url)
+            start_stream(self._rec, scene, self.layout)
+            self._flush(LIVE_FLUSH_TIMEOUT_S)
+            self._loop()
+        except Exception as exc:  # noqa: BLE001 - a dead viewer stops nothing but itself
+            self._status = f'dead: {exc}'
+        finally:
+            self._disconnect()
+
+    def _loop(self):
         pending = []        # (t, psi, data, keep) kept samples, not yet logged
         while True:
             with self._cond:
@@ -73,14 +118,51 @@ class LiveView:
                     pending.append((t[keep], psi[keep], data, keep))
             due = pending and (stopped or pending[-1][0][-1] - pending[0][0][0] >=
                                1.0 / LIVE_FLUSH_HZ)
-            if due:
-                try:
-                    self._log(pending)
-                except Exception:  # noqa: BLE001 - a viewer that went away stops nothing
-                    pass
+            if self._status.startswith('dead'):
+                pending = []            # nobody listens: drop, and knock now and then
+                if not stopped and time.monotonic() >= self._retry_at:
+                    self._flush(LIVE_FLUSH_TIMEOUT_S)
+            elif due:
+                self._log(pending)
+                self._flush(LIVE_FLUSH_TIMEOUT_S)
                 pending = []
             if stopped:
                 return
+
+    def _knock(self):
+        """
+        Return whether something accepts a connection at the viewer's host and port.
+
+        rerun's own ``connect_grpc`` waits 5 s for a viewer that is not there and its
+        disconnect 5 s more; a refused TCP connection says so at once (status ``dead``).
+        """
+        where = urlsplit(self.url.replace('rerun+', '', 1))
+        try:
+            with socket.create_connection((where.hostname, where.port or LIVE_DEFAULT_PORT),
+                                          timeout=LIVE_KNOCK_TIMEOUT_S):
+                return True
+        except OSError as exc:
+            self._status = (f'dead: nothing accepts a connection at {where.hostname}:'
+                            f'{where.port or LIVE_DEFAULT_PORT} ({exc}); retried every '
+                            f'{LIVE_RETRY_S:g} s')
+            return False
+
+    def _flush(self, timeout_s):
+        """Flush to the viewer within ``timeout_s``; set :attr:`status` from the outcome."""
+        try:
+            self._rec.flush(timeout_sec=timeout_s)
+        except Exception as exc:  # noqa: BLE001 - rerun raises RuntimeError; any is 'dead'
+            self._status = f'dead: {exc} ({self.url})'
+            self._retry_at = time.monotonic() + LIVE_RETRY_S
+        else:
+            self._status = 'connected'
+
+    def _disconnect(self):
+        if self._rec is not None:
+            try:
+                self._rec.disconnect()      # waits up to 5 s for a viewer that is not there
+            except Exception:  # noqa: BLE001 - this thread ends anyway
+                pass
 
     def _keep(self, t):
         """Return the indices of the samples kept by the throttle (rig's clock)."""
@@ -103,18 +185,12 @@ class LiveView:
                    t - self._t0)
         self.samples_logged += t.size
 
-    def close(self):
-        """Send what is queued and disconnect (idempotent)."""
+    def close(self, timeout_s=CLOSE_TIMEOUT_S):
+        """Ask the thread to send what is queued and disconnect; wait at most ``timeout_s``."""
         with self._cond:
-            if self._stopped:
-                return
             self._stopped = True
             self._cond.notify()
-        self._thread.join(CLOSE_TIMEOUT_S)
-        try:
-            self._rec.flush(timeout_sec=CLOSE_TIMEOUT_S)
-        finally:
-            self._rec.disconnect()
+        self._thread.join(max(0.0, float(timeout_s)))
 
 
 class LiveRecorder:
@@ -125,9 +201,12 @@ class LiveRecorder:
     :func:`check_output_path`, whose errors name ``field``; None for no file) and, with
     ``url`` (a running viewer's ``rerun+http://HOST:PORT/proxy``), streams the same views to
     it, throttled to :data:`LIVE_MAX_RATE_HZ` on a thread of its own.  Both are laid out
-    from one reference turn (``scene.samples`` angles).  :meth:`log_sample` appends samples
-    (the file gets every one); :meth:`close` (also run at interpreter exit) flushes and
-    closes, is idempotent and safe to call from a signal handler or another thread.  Until
+    from one reference turn (``scene.samples`` angles).  The viewer part never blocks the
+    caller: the constructor returns at once and connects on the view's thread,
+    :attr:`status` says whether the viewer answers, :meth:`log_sample` only queues for it.
+    :meth:`log_sample` appends samples (the file gets every one); :meth:`close` (also run at
+    interpreter exit) flushes and closes within ``timeout_s``, is idempotent and safe to call
+    from a signal handler or another thread.  Until
     then the file's samples go to ``.NAME.partial-XXXXXXXX`` next to ``path``
     (:mod:`mech_balance.atomic`); :meth:`close` renames it over ``path``, so an existing
     recording is replaced only by a complete one.
@@ -141,7 +220,9 @@ class LiveRecorder:
             raise ValueError(f'{field}, {url_field}: got neither, expected a file or a viewer')
         self.scene = scene
         samples = getattr(scene, 'samples', conventions.DEFAULT_SAMPLES)
-        self.layout, _ = plan(scene, balanced, samples, balanced_source, live=True)
+        self._layout = None
+        if self.path is not None:       # a viewer alone is laid out on its own thread
+            self._layout, _ = plan(scene, balanced, samples, balanced_source, live=True)
         self._lock = threading.Lock()
         self._owner = None
         self._closed = False
@@ -155,13 +236,28 @@ class LiveRecorder:
             try:
                 self._rec = rr.RecordingStream(application_id(scene))
                 self._rec.save(str(self._partial))
-                start_stream(self._rec, scene, self.layout)
+                start_stream(self._rec, scene, self._layout)
             except BaseException:
                 atomic.discard(self._partial)
                 raise
         if self.url is not None:
-            self._view = LiveView(self.url, scene, self.layout)
+            self._view = LiveView(self.url, scene, self._layout, balanced, balanced_source)
         atexit.register(self.close)
+
+    @property
+    def layout(self):
+        """Return the recording's layout, or None while a viewer alone is being laid out."""
+        return self._layout if self._layout is not None or self._view is None else \
+            self._view.layout
+
+    @property
+    def status(self):
+        """
+        Return the viewer's state: ``'connecting'``, ``'connected'`` or ``'dead: <reason>'``.
+
+        ``'off'`` without ``url`` (a file only).  Reading it never blocks.
+        """
+        return 'off' if self._view is None else self._view.status
 
     @property
     def closed(self):
@@ -223,26 +319,35 @@ class LiveRecorder:
             self.close()
         return psi.size
 
-    def close(self):
-        """Flush and close the file and the viewer stream (idempotent; signal-safe)."""
+    def close(self, timeout_s=CLOSE_TIMEOUT_S):
+        """
+        Flush and close the file and the viewer stream (idempotent; signal-safe).
+
+        Returns within about ``timeout_s`` seconds whatever the viewer does: the view's
+        thread is given what is left of it to send its last samples and disconnects on its
+        own (rerun waits up to 5 s for a viewer that is not there).
+        """
         if self._closed:
             return
+        deadline = time.monotonic() + max(0.0, float(timeout_s))
         self._close_requested = True
         if self._owner == threading.get_ident():
             return  # interrupted a log call on this thread: it closes the file when done
-        if not self._lock.acquire(timeout=CLOSE_TIMEOUT_S):
+        if not self._lock.acquire(timeout=max(0.0, float(timeout_s))):
             return
         try:
             if not self._closed:
                 self._closed = True
                 try:
                     if self._view is not None:
-                        self._view.close()
+                        # a viewer that answers gets what is left of the time; else none
+                        live = self._view.status == 'connected'
+                        self._view.close(max(0.0, deadline - time.monotonic()) if live else 0.0)
                 finally:
                     atexit.unregister(self.close)
                     if self._rec is not None:
                         try:
-                            self._rec.flush(timeout_sec=CLOSE_TIMEOUT_S)
+                            self._rec.flush(timeout_sec=max(0.1, deadline - time.monotonic()))
                         finally:
                             self._rec.disconnect()
                         # complete: replace the target (a failed flush leaves the .partial)

@@ -5,6 +5,7 @@ import re
 
 from mech_balance import paths
 from mech_balance.viz.blueprint import blueprint
+from mech_balance.viz.drawing import DEGREE_TIMELINE
 from mech_balance.viz.layout import place_labels, plot_values
 from mech_balance.viz.style import (
     ADDED_COLOR, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
@@ -46,7 +47,9 @@ def check_viewer_url(url, field='rerun_url'):
 
 
 def time_index(degrees, seconds):
-    return [rr.TimeColumn('crank_angle', sequence=degrees),
+    """Return the time columns of a batch: whole degrees turned (twice) and seconds."""
+    return [rr.TimeColumn(DEGREE_TIMELINE, sequence=degrees),
+            rr.TimeColumn('crank_angle', sequence=degrees),
             rr.TimeColumn('time', duration=seconds)]
 
 
