@@ -315,3 +315,93 @@ def test_a_new_series_is_plotted_with_no_recording_change(tmp_path):
     names = [v['name'] for v in recording.read_blueprint(path) if v['kind'] == 'TimeSeries']
     assert any(n.startswith('kinetic energy') and n.endswith('(J)') for n in names), names
     assert 'kinetic energy' in ent['/info'].static['TextDocument:text'][0]
+
+
+SAME_PLACE_PX = 1.0
+"""Two drawn points closer than this on screen are one place (a joint on a frame pivot)."""
+
+
+def _label_rows(ent, variant, dim):
+    labels = ent[f'/{variant}/labels'].columns
+    texts = labels[next(c for c in labels if c.endswith(':labels'))]
+    return zip(_positions(ent, f'/{variant}/labels', dim), texts)
+
+
+def _strip_rows(ent, path, dim):
+    comp = next(c for c in ent[path].columns if c.endswith(':strips'))
+    return [[np.pad(np.array(s, dtype=float).reshape(-1, dim), ((0, 0), (0, 3 - dim)))
+             for s in row] for row in ent[path].columns[comp]]
+
+
+def _segment_distance(p, strip):
+    """Return the distance (px) from point ``p`` (2,) to a polyline ``(k, 2)``."""
+    if len(strip) == 1:
+        return float(np.linalg.norm(p - strip[0]))
+    a, b = strip[:-1], strip[1:]
+    ab = b - a
+    t = np.clip(np.einsum('ij,ij->i', p - a, ab) / np.maximum(
+        np.einsum('ij,ij->i', ab, ab), 1e-300), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(a + t[:, None] * ab - p, axis=1)))
+
+
+def _label_centre(anchor_px, text):
+    x0, y0, x1, y1 = recording.label_box_px(anchor_px, text)
+    return np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])
+
+
+@pytest.mark.parametrize('name', ALL)
+def test_every_label_is_nearer_its_own_point_than_any_other(recordings, name):
+    """
+    Issue 23 3.1: at every sample, every point label is nearer its own point than any other.
+
+    The points are everything drawn as a dot (frame pivots, joints, mass centres); a link's
+    name is nearer its own link than any other link.  Distances from the label box's centre,
+    on screen at the default window.
+    """
+    _, _, _, summary, ent, blueprint = recordings[name]
+    layout = summary.layout
+    dim = layout.dim
+    views = _rig_views(blueprint)
+    pivots = np.pad(np.array(ent['/rig/pivots'].static[f'Points{dim}D:positions'],
+                             dtype=float).reshape(-1, dim), ((0, 0), (0, 3 - dim)))
+    joints = _positions(ent, '/rig/joints', dim)
+    links = _strip_rows(ent, '/rig/links', dim)
+    point_names = {}
+    for i, n in enumerate(layout.frame_names):
+        point_names.setdefault(n, []).append(('pivot', i))
+    for i, n in enumerate(layout.joint_names):
+        point_names.setdefault(n, []).append(('joint', i))
+    checked = 0
+    for variant in layout.variants:
+        screen = _screen(views[variant], layout, variant)
+        centres = _positions(ent, f'/{variant}/mass_centres', dim)
+        for k, (anchors, words) in enumerate(_label_rows(ent, variant, dim)):
+            dots = {'pivot': screen.px(pivots), 'joint': screen.px(joints[k]),
+                    'centre': screen.px(centres[k])}
+            every = np.concatenate(list(dots.values()))
+            strips = [screen.px(s) for s in links[k]]
+            for anchor, text in zip(screen.px(anchors), words):
+                c = _label_centre(anchor, text)
+                if text in layout.link_names:
+                    i = layout.link_names.index(text)
+                    own = _segment_distance(c, strips[i])
+                    other = min([_segment_distance(c, s) for j, s in enumerate(strips)
+                                 if j != i] or [math.inf])
+                    assert own < other, (variant, k, text, own, other)
+                    checked += 1
+                    continue
+                if text == 'CoM':
+                    mine = dots['centre'][-1:]
+                else:
+                    parts = [point_names.get(t, []) for t in text.split('/')]
+                    if not all(parts):
+                        continue                  # readout, scale, gauge: no point
+                    mine = np.array([dots[kind][i] for p in parts for kind, i in p])
+                d_own = float(np.min(np.linalg.norm(mine - c, axis=1)))
+                same = np.min(np.linalg.norm(every[:, None] - mine[None], axis=-1),
+                              axis=1) <= SAME_PLACE_PX
+                others = np.linalg.norm(every[~same] - c, axis=1)
+                assert others.size == 0 or d_own < others.min(), \
+                    (variant, k, text, d_own, float(others.min()))
+                checked += 1
+    assert checked > 0

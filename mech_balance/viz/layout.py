@@ -42,6 +42,19 @@ LABEL_GAP_PX = 3.0
 """Free space kept between two label boxes."""
 LABEL_OFFSET_PX = 9.0
 """Distance from a feature to the nearest edge of its label box."""
+LABEL_OFFSETS_PX = (LABEL_OFFSET_PX, 2.5 * LABEL_OFFSET_PX)
+"""The rings of places tried around a feature (the nearer first; the farther clears a
+slider's block or a crowded joint)."""
+NEAR_MARGIN_PX = 2.0
+"""A label is at least this much nearer its own feature than any other (points, links)."""
+SAME_PLACE_PX = 1.0
+"""Drawn points closer than this on screen are one place (a joint on a frame pivot)."""
+LINK_LABEL_ALONG = (0.3, 0.7, 0.15, 0.85)
+"""Besides its middle, a link's name may sit at these fractions of its first segment."""
+GAUGE_GRID = 15
+"""Places per side of the grid over the rig's box where a free corner for the gauge is sought."""
+GAUGE_CLEAR_POINTS = 9
+"""Points per drawn segment checked for the gauge's clearance."""
 MARKER_PX = 6.0
 """Radius kept free around a drawn point (pivot, joint, mass centre) by the labels."""
 VIEW_PAD_PX = 34.0
@@ -353,14 +366,7 @@ def place_views(layout, motion, fmax, nmax, n_series):
         text = f'{bar * 100:g} cm' if bar >= 0.01 else f'{bar * 1000:g} mm'
         lo = np.minimum(lo, strip.min(axis=0) - [0, tick, 0])
         if gauge and reach > 0.0:
-            w, h = hi[0] - lo[0], hi[1] - lo[1]
-            aspect = view_px[0] / view_px[1]
-            right = min(view_px[0] / (w + gap + 2 * reach), view_px[1] / max(h, 2 * reach))
-            below = min(view_px[0] / max(w, 2 * reach), view_px[1] / (h + gap + 2 * reach))
-            if right * aspect >= below * aspect:
-                centre = np.array([hi[0] + gap + reach, 0.5 * (lo[1] + hi[1]), 0.0])
-            else:
-                centre = np.array([0.5 * (lo[0] + hi[0]), lo[1] - gap - reach, 0.0])
+            centre = _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px)
             layout.gauge_m, layout.gauge_reach_m = centre, reach
             lo = np.minimum(lo, centre - reach)
             hi = np.maximum(hi, centre + reach)
@@ -396,6 +402,53 @@ def place_views(layout, motion, fmax, nmax, n_series):
                 [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])])
         screen = fit_eye(view_px, target, d, drawn)
     layout.screens = {v: screen for v in layout.variants}
+
+
+def _scale_2d(lo, hi, view_px):
+    """Return the metres per pixel at which the box ``lo``-``hi`` fits a 2-D view."""
+    w_px, h_px = view_px
+    return max((hi[0] - lo[0]) / (w_px - 2 * VIEW_PAD_PX),
+               (hi[1] - lo[1]) / (h_px - 2 * VIEW_PAD_PX - 2 * LABEL_TEXT_PX))
+
+
+def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
+    """
+    Return the 2-D gauge's centre: where the rig, gauge and all fit the view the largest.
+
+    Tried: beside the rig (right, left), under and over it, and every place of a grid over
+    the rig's own box where nothing of the rig comes within ``gap`` of the gauge over the
+    whole turn (a free corner); the first of the best is taken.
+    """
+    cx, cy = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
+    places = [(hi[0] + gap + reach, cy), (cx, lo[1] - gap - reach),
+              (lo[0] - gap - reach, cy), (cx, hi[1] + gap + reach)]
+    dense = [pts[:, :2]]
+    t = np.linspace(0.0, 1.0, GAUGE_CLEAR_POINTS)[None, None, :, None]
+    for strip in motion.links:
+        if strip.shape[1] >= 2:
+            a, b = strip[:, :-1, None, :2], strip[:, 1:, None, :2]
+            dense.append((a + t * (b - a)).reshape(-1, 2))
+    for strip in layout.frame_strips:
+        a, b = strip[:-1, None, :2], strip[1:, None, :2]
+        dense.append((a + t[0] * (b - a)).reshape(-1, 2))
+    cloud = np.concatenate(dense)
+    pad = np.concatenate([radii, np.zeros(len(cloud) - len(radii))])
+    cloud, pad = cloud[::max(1, len(cloud) // 20000)], pad[::max(1, len(cloud) // 20000)]
+    xs = np.linspace(lo[0] + reach, hi[0] - reach, GAUGE_GRID)
+    ys = np.linspace(lo[1] + reach, hi[1] - reach, GAUGE_GRID)
+    if hi[0] - lo[0] > 2 * reach and hi[1] - lo[1] > 2 * reach:
+        for y in ys[::-1]:
+            for x in xs:
+                d = np.linalg.norm(cloud - [x, y], axis=1) - pad
+                if d.min() >= reach + gap:
+                    places.append((x, y))
+    best, best_s = None, math.inf
+    for x, y in places:
+        c = np.array([x, y, 0.0])
+        s = _scale_2d(np.minimum(lo, c - reach), np.maximum(hi, c + reach), view_px)
+        if s < best_s * (1.0 - 1e-9):
+            best, best_s = c, s
+    return best
 
 
 def fit_eye(view_px, target, direction, corners):
@@ -475,10 +528,21 @@ def label_specs(layout, motion):
 
 
 def candidates(w, h):
-    """Return label-box centre offsets (px) around a feature: above, right, below, left, ..."""
-    dx, dy = 0.5 * w + LABEL_OFFSET_PX, 0.5 * h + LABEL_OFFSET_PX
-    return np.array([[0, -dy], [dx, 0], [0, dy], [-dx, 0], [dx, -dy], [-dx, -dy], [dx, dy],
-                     [-dx, dy]], dtype=float)
+    """
+    Return label-box centre offsets (px) around a feature: above, right, below, left, ...
+
+    The four sides and four corners first, then eight places between them on the ellipse
+    through the sides (a box there keeps about its offset from the feature), for each of
+    :data:`LABEL_OFFSETS_PX` in turn.
+    """
+    out = []
+    for offset in LABEL_OFFSETS_PX:
+        dx, dy = 0.5 * w + offset, 0.5 * h + offset
+        out += [[0, -dy], [dx, 0], [0, dy], [-dx, 0], [dx, -dy], [-dx, -dy], [dx, dy],
+                [-dx, dy]]
+        out += [[dx * math.cos(a), dy * math.sin(a)]
+                for a in np.radians([-67.5, -22.5, 22.5, 67.5, 112.5, 157.5, 202.5, 247.5])]
+    return np.array(out, dtype=float)
 
 
 def label_anchor(layout, motion, spec, variant, screen):
@@ -494,6 +558,11 @@ def label_anchor(layout, motion, spec, variant, screen):
         strip = motion.links[spec.index]
         k = strip.shape[1]
         return strip[:, :max(k - 1, 1)].mean(axis=1) if k > 2 else strip.mean(axis=1)
+    if spec.where == 'link_along':
+        strip = motion.links[spec.index]
+        if strip.shape[1] < 2:
+            return None
+        return [strip[:, 0] + t * (strip[:, 1] - strip[:, 0]) for t in LINK_LABEL_ALONG]
     if spec.where == 'gauge':
         below = np.array([0.0, layout.gauge_reach_m if layout.dim == 2 else 0.0, 0.0])
         return np.broadcast_to(layout.gauge_m - below, (p, 3))
@@ -502,21 +571,59 @@ def label_anchor(layout, motion, spec, variant, screen):
     return None
 
 
-def segments_px(layout, motion, screen):
-    """Return sample points ``(p, m, 2)`` along every drawn line of the rig, px."""
-    pts = []
-    t = np.linspace(0.0, 1.0, 9)[None, None, :, None]
+def link_segments_px(motion, screen):
+    """Return per link its segments ``(p, k - 1, 2, 2)`` on screen (a one-point link: none)."""
+    out = []
     for strip in motion.links:
-        if strip.shape[1] >= 2:
-            a, b = strip[:, :-1, None, :], strip[:, 1:, None, :]
-            pts.append((a + t * (b - a)).reshape(strip.shape[0], -1, 3))
+        px = screen.px(strip)                                       # (p, k, 2)
+        out.append(np.stack([px[:, :-1], px[:, 1:]], axis=2))
+    return out
+
+
+def segments_px(layout, motion, screen):
+    """Return every drawn line segment of the rig ``(p, m, 2, 2)`` on screen (links, frame)."""
+    segs = [s for s in link_segments_px(motion, screen) if s.shape[1]]
     for strip in layout.frame_strips:
-        a, b = strip[:-1, None, :], strip[1:, None, :]
-        seg = (a + t[0] * (b - a)).reshape(-1, 3)
-        pts.append(np.broadcast_to(seg, (motion.size,) + seg.shape))
-    if not pts:
-        return np.zeros((motion.size, 0, 2))
-    return screen.px(np.concatenate(pts, axis=1))
+        px = screen.px(strip)
+        seg = np.stack([px[:-1], px[1:]], axis=1)
+        segs.append(np.broadcast_to(seg, (motion.size,) + seg.shape))
+    if not segs:
+        return np.zeros((motion.size, 0, 2, 2))
+    return np.concatenate(segs, axis=1)
+
+
+def segments_hit_boxes(segments, boxes):
+    """
+    Return ``(p, c)``: whether any segment ``(p, m, 2, 2)`` crosses box ``(p, c, 4)``.
+
+    Liang-Barsky clipping of each segment against each box (x0, y0, x1, y1).
+    """
+    if segments.shape[1] == 0:
+        return np.zeros(boxes.shape[:2], dtype=bool)
+    a = segments[:, None, :, 0, :]                                  # (p, 1, m, 2)
+    d = segments[:, None, :, 1, :] - a
+    lo, hi = boxes[:, :, None, 0:2], boxes[:, :, None, 2:4]         # (p, c, 1, 2)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        ta, tb = (lo - a) / d, (hi - a) / d
+    flat = d == 0.0
+    inside = (a >= lo) & (a <= hi)
+    t_in = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
+    t_out = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
+    t0 = np.maximum(np.max(t_in, axis=-1), 0.0)
+    t1 = np.minimum(np.min(t_out, axis=-1), 1.0)
+    return (t0 <= t1).any(axis=-1)
+
+
+def distance_to_segments(points, segments):
+    """Return ``(p, c)``: the distance of points ``(p, c, 2)`` to segments ``(p, m, 2, 2)``."""
+    if segments.shape[1] == 0:
+        return np.full(points.shape[:2], np.inf)
+    a = segments[:, None, :, 0, :]
+    ab = segments[:, None, :, 1, :] - a
+    q = points[:, :, None, :]
+    t = np.clip(np.sum((q - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300),
+                0.0, 1.0)
+    return np.min(np.linalg.norm(a + t[..., None] * ab - q, axis=-1), axis=-1)
 
 
 def place_labels(layout, motion, variant):
@@ -525,8 +632,10 @@ def place_labels(layout, motion, variant):
 
     Greedy, most important label first, at each sample: each label takes the first place
     around its feature whose box keeps clear of the boxes already placed, of every drawn
-    point and (if it can) of every drawn line, inside the view; else it is left out at that
-    sample.  So no two labels ever overlap at the default window.
+    point and of every drawn line, inside the view, and that is nearer its own feature than
+    any other (:func:`_nearest_own`); else it is left out at that sample.  So no two labels
+    ever overlap, no line crosses a label and no label names a neighbour's point at the
+    default window.
     """
     screen = layout.screens[variant]
     p = motion.size
@@ -541,6 +650,7 @@ def place_labels(layout, motion, variant):
         points.append(screen.px(motion.centres[variant]))
     markers = np.concatenate(points, axis=1) if points else np.zeros((p, 0, 2))
     lines = segments_px(layout, motion, screen)
+    links_px = link_segments_px(motion, screen)
     placed = []      # (p, 4) boxes with (p,) masks
     out = []         # per spec: (p, 3) anchors, mask, texts
     h = LABEL_TEXT_PX + LABEL_PAD_PX[1]
@@ -561,11 +671,16 @@ def place_labels(layout, motion, variant):
             out.append((base, ok, texts or [spec.text] * p, spec.color))
             continue
         feature = label_anchor(layout, motion, spec, variant, screen)
-        f_px = screen.px(feature)                                   # (p, 2)
-        offs = candidates(w, h)                                    # (c, 2)
+        features = [feature]
+        if spec.where == 'link':
+            features += label_anchor(layout, motion, Label('', (), 'link_along', spec.index),
+                                     variant, screen) or []
+        offs = candidates(w, h)                                     # (c, 2)
         if spec.where == 'gauge':
-            offs = offs[[2, 6, 7, 1, 3, 0, 4, 5]]                   # below the gauge first
-        centres = f_px[:, None, :] + offs[None]                     # (p, c, 2)
+            offs = offs[[2, 6, 7, 1, 3, 0, 4, 5] + list(range(8, len(offs)))]
+        f_px = np.stack([screen.px(f) for f in features], axis=1)  # (p, a, 2)
+        centres = (f_px[:, :, None, :] + offs[None, None]).reshape(p, -1, 2)   # (p, a c, 2)
+        which = np.repeat(np.arange(len(features)), len(offs))     # anchor of each place
         boxes = np.stack([centres[..., 0] - w / 2, centres[..., 1] - h / 2,
                           centres[..., 0] + w / 2, centres[..., 1] + h / 2], axis=-1)
         ok = (boxes[..., 0] >= 0) & (boxes[..., 1] >= 0) & (boxes[..., 2] <= w_px) & \
@@ -582,22 +697,17 @@ def place_labels(layout, motion, variant):
             hit = (mx > boxes[..., 0, None] - m) & (mx < boxes[..., 2, None] + m) & \
                 (my > boxes[..., 1, None] - m) & (my < boxes[..., 3, None] + m)
             ok &= ~hit.any(axis=-1)
-        clear = ok.copy()
-        if lines.shape[1]:
-            lx, ly = lines[:, None, :, 0], lines[:, None, :, 1]
-            hit = (lx > boxes[..., 0, None]) & (lx < boxes[..., 2, None]) & \
-                (ly > boxes[..., 1, None]) & (ly < boxes[..., 3, None])
-            clear &= ~hit.any(axis=-1)
-        use_clear = clear.any(axis=1)
-        choice_ok = np.where(use_clear[:, None], clear, ok)
-        found = choice_ok.any(axis=1)
-        first = np.argmax(choice_ok, axis=1)
+        ok &= ~segments_hit_boxes(lines, boxes)     # no line crosses a label
+        ok &= _nearest_own(spec, f_px[:, 0], centres, markers, links_px)
+        found = ok.any(axis=1)
+        first = np.argmax(ok, axis=1)
         rows = np.arange(p)
         box = boxes[rows, first]
         centre_px = centres[rows, first]
         placed.append((box, found))
+        chosen = np.stack(features, axis=1)[rows, which[first]]    # (p, 3)
         base = unproject(screen, centre_px - [0.0, LABEL_DROP_PX + 0.5 * h], layout, motion,
-                         feature)
+                         chosen)
         out.append((base, found, texts or [spec.text] * p, spec.color))
     positions, labels, colors, counts = [], [], [], np.zeros(p, dtype=np.int64)
     for k in range(p):
@@ -608,6 +718,32 @@ def place_labels(layout, motion, variant):
                 colors.append(color)
                 counts[k] += 1
     return (np.array(positions).reshape(-1, 3), labels, colors, counts)
+
+
+def _nearest_own(spec, feature_px, centres, markers, links_px):
+    """
+    Return ``(p, c)``: whether a label box centred at ``centres`` names its own feature.
+
+    A point's label (frame, joint, mass centre) is nearer its point than any other drawn
+    point (points at its place excepted), by :data:`NEAR_MARGIN_PX`; a link's name nearer
+    its link than any other link.
+    """
+    if spec.where == 'link':
+        own = links_px[spec.index]
+        if own.shape[1] == 0:
+            return np.ones(centres.shape[:2], dtype=bool)
+        mine = distance_to_segments(centres, own)
+        others = [distance_to_segments(centres, s) for i, s in enumerate(links_px)
+                  if i != spec.index and s.shape[1]]
+        return mine + NEAR_MARGIN_PX < np.min(others, axis=0) if others else \
+            np.ones(centres.shape[:2], dtype=bool)
+    if spec.where not in ('frame', 'joint', 'centre') or markers.shape[1] == 0:
+        return np.ones(centres.shape[:2], dtype=bool)
+    mine = np.linalg.norm(centres - feature_px[:, None], axis=-1)              # (p, c)
+    same = np.linalg.norm(markers - feature_px[:, None], axis=-1) <= SAME_PLACE_PX
+    d = np.linalg.norm(centres[:, :, None] - markers[:, None], axis=-1)        # (p, c, M)
+    d = np.where(same[:, None], np.inf, d)
+    return mine + NEAR_MARGIN_PX < d.min(axis=-1)
 
 
 def unproject(screen, centre_px, layout, motion, feature=None):
