@@ -85,7 +85,8 @@ def _core(sc, samples=SAMPLES):
 
 def test_entity_paths_and_one_row_per_sample(hoeken):
     sc, _, path, summary, ent = hoeken
-    assert set(summary.entity_paths) == PLANAR_PATHS
+    # a redistribution design also shows where it moved each link's mass centre
+    assert set(summary.entity_paths) == PLANAR_PATHS | {'/balanced/mass_changes'}
     assert PLANAR_PATHS <= set(ent)
     assert summary.rows == SAMPLES and summary.variants == VARIANTS
     animated = PLANAR_PATHS - {'/info', '/rig/frame', '/rig/pivots'}
@@ -93,6 +94,7 @@ def test_entity_paths_and_one_row_per_sample(hoeken):
     for p in animated:
         assert ent[p].rows == SAMPLES, p
         assert_array_equal(ent[p].index['crank_angle'], np.arange(SAMPLES))  # whole degrees
+        assert_array_equal(ent[p].index['crank_angle_deg'], np.arange(SAMPLES))
         assert_allclose(ent[p].index['time'], np.arange(SAMPLES) * turn_s / SAMPLES,
                         rtol=0.0, atol=TIME_ATOL_S)
     for p in ('/info', '/rig/frame', '/rig/pivots'):
@@ -212,7 +214,7 @@ def test_switching_a_stream_off_removes_it(tmp_path):
     ent = recording.read_recording(path)
     gone = {f'/{v}/point_masses' for v in VARIANTS} | \
         {f'/plots/driving_torque/{v}' for v in VARIANTS}
-    assert set(summary.entity_paths) == PLANAR_PATHS - gone
+    assert set(summary.entity_paths) == (PLANAR_PATHS - gone) | {'/balanced/mass_changes'}
     assert not gone & set(ent)
     assert (PLANAR_PATHS - gone) <= set(ent)
     assert all('driving torque' not in n for _, n, _ in recording.read_blueprint_views(path))
@@ -417,9 +419,9 @@ def _wait_for(predicate, seconds):
 
 def test_live_view_to_a_dead_url_never_blocks_and_says_dead(tmp_path):
     """Issue 23 2b.1: nothing listens at the url; the caller is never held by rerun's waits."""
-    sc = scene_mod.load('hoeken')
+    sc, url = scene_mod.load('hoeken'), _dead_url()
     t0 = time.monotonic()
-    rec = recording.LiveRecorder(None, sc, url=_dead_url())
+    rec = recording.LiveRecorder(None, sc, url=url)
     built = time.monotonic() - t0
     assert rec.status == 'connecting' or rec.status.startswith('dead: ')
     worst = 0.0

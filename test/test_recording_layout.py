@@ -25,7 +25,7 @@ from mech_balance import schema as scene_mod
 from mech_balance.cli import main as cli
 from mech_balance.cli import record as cli_record
 from mech_balance.core.rig import rig_for
-from mech_balance.viz import recording
+from mech_balance.viz import drawing, recording
 import numpy as np
 from numpy.testing import assert_allclose, assert_array_equal
 import pytest
@@ -405,3 +405,52 @@ def test_every_label_is_nearer_its_own_point_than_any_other(recordings, name):
                     (variant, k, text, d_own, float(others.min()))
                 checked += 1
     assert checked > 0
+
+
+def test_counterweights_in_their_links_colour_with_mass_labels_and_planes(recordings):
+    """Issue 23 3.2: each disc in its link's colour, its mass in kg on it, its plane drawn."""
+    sc, cw, _, summary, ent, _ = recordings['hoeken_cw']
+    layout = summary.layout
+    discs = [(lk.name, d) for lk in cw.links for d in lk.counterweights]
+    colours = ent['/balanced/counterweights'].static['Points2D:colors']
+    for (link, _), rgba in zip(discs, colours):
+        rgb = layout.link_colors[layout.link_names.index(link)]
+        assert tuple((rgba >> s) & 255 for s in (24, 16, 8)) == rgb, link
+        assert 0 < (rgba & 255) < 255                               # see-through
+    texts = {t for row in ent['/balanced/labels'].columns['Points2D:labels'] for t in row}
+    for _, d in discs:
+        assert any(t.startswith(f'{d.mass_kg:.3g} kg') for t in texts), (d.mass_kg, texts)
+    # the plane ring: around the disc's centre at PLANE_RING_SHARE of its radius, every row
+    rings = ent['/balanced/counterweight_planes'].columns['LineStrips2D:strips']
+    centres = np.array(ent['/balanced/counterweights'].columns['Points2D:positions'])
+    assert len(rings) == summary.rows
+    for k in (0, summary.rows // 3):
+        for j, (_, d) in enumerate(discs):
+            r = np.linalg.norm(np.array(rings[k][j]) - centres[k, j], axis=1)
+            assert_allclose(r, drawing.PLANE_RING_SHARE * d.radius_m, rtol=1e-5)
+    assert '/original/counterweight_planes' not in ent
+
+
+@pytest.mark.parametrize('name', ['hoeken', 'slider_crank', 'carpet_scraper'])
+def test_a_redistribution_design_shows_what_it_changed(recordings, name):
+    """Issue 23 3.2: a line from the link to its moved mass centre, labelled with the kg."""
+    sc, bal, _, summary, ent, _ = recordings[name]
+    layout = summary.layout
+    moved = layout.changes['balanced']
+    assert moved and not layout.changes['original']
+    stalks = ent['/balanced/mass_changes'].columns['LineStrips2D:strips']
+    centres = _positions(ent, '/balanced/mass_centres', 2)
+    links = _strip_rows(ent, '/rig/links', 2)
+    texts = {t for row in ent['/balanced/labels'].columns['Points2D:labels'] for t in row}
+    original = {b.name: b for b in rig_for(sc).drawing.bodies}
+    for j, (i, dm) in enumerate(moved):
+        name_i = layout.link_names[i]
+        b = next(b for b in rig_for(bal).drawing.bodies if b.name == name_i)
+        change = b.mass_kg - original[name_i].mass_kg
+        assert dm == change or (dm == 0.0 and abs(change) <= 1e-6 * b.mass_kg)
+        assert f'{dm:+.3g} kg' in texts
+        for k in (0, summary.rows // 2):
+            a, c = np.array(stalks[k][j], dtype=float)
+            assert_allclose(c, centres[k][i, :2], atol=FLOAT32_ATOL_M)   # ends at the centre
+            link = links[k][i][:, :2]
+            assert _segment_distance(a, link) <= FLOAT32_ATOL_M           # starts on the link

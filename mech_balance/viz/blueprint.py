@@ -1,8 +1,7 @@
 """The default blueprint: rigs side by side over the RMS table, plots right."""
 
 from mech_balance.viz.drawing import DEGREE_TIMELINE
-from mech_balance.viz.layout import LEFT_SHARE, nice_floor, RIG_ROW_SHARE
-from mech_balance.viz.style import SCALE_BAR_SHARE
+from mech_balance.viz.layout import LEFT_SHARE, RIG_ROW_SHARE
 from mech_balance.viz.text import fmt
 import rerun as rr
 import rerun.blueprint as rrb
@@ -13,7 +12,7 @@ DRAWN_STREAMS = ('frame', 'links', 'joints', 'mass_centres', 'point_masses',
 
 
 def spatial_name(layout, variant):
-    parts = [variant]
+    parts = [variant] + ([f'grid {layout.grid_text}'] if layout.dim == 3 else [])
     if layout.on('shaking_force_arrow'):
         parts.append(f'force arrow 1 cm = {fmt(0.01 / layout.force_scale_m_per_N)} N')
     if layout.on('shaking_moment_arc'):
@@ -42,12 +41,16 @@ def blueprint(layout):
                     eye_controls=rrb.EyeControls3D(
                         kind=rrb.Eye3DKind.Orbital, position=screen.eye_m,
                         look_target=screen.target_m, eye_up=screen.up),
-                    line_grid=rrb.LineGrid3D(visible=True, spacing=nice_floor(
-                        SCALE_BAR_SHARE * layout.size_m), plane=rr.components.Plane3D.XY)))
-    plots = [rrb.TimeSeriesView(origin=f'/plots/{p.entity}', name=p.title,
+                    line_grid=rrb.LineGrid3D(visible=True, spacing=layout.grid_m,
+                                             plane=rr.components.Plane3D.XY)))
+    # the viewer's legend lists its entities in name order (balanced above original): the
+    # title says it instead, in the order of the rig views (original left, balanced right)
+    both = len(layout.variants) > 1
+    key = ': orange original, blue balanced' if both else ''
+    plots = [rrb.TimeSeriesView(origin=f'/plots/{p.entity}', name=p.title + key,
                                 axis_y=rrb.ScalarAxis(range=p.y_range, zoom_lock=False),
                                 plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop,
-                                                           visible=True))
+                                                           visible=not both))
              for p in layout.plots]
     left = []
     if spatial:

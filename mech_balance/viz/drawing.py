@@ -14,11 +14,11 @@ from mech_balance.core.rig import rig_for
 from mech_balance.schema import registry
 from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS, SERIES
 from mech_balance.viz.layout import (
-    arc_scale, arrow_scale, label_specs, Layout, place_views, plot_specs
+    arc_scale, arrow_scale, label_specs, Layout, nice_floor, place_views, plot_specs
 )
 from mech_balance.viz.style import (
     ARROW_3D_SHARE, AXIS_MARGIN_SHARE, BLOCK_SHARE, FORCE_ARROW_SHARE, LINK_PALETTE,
-    SAME_POINT_RTOL
+    SAME_POINT_RTOL, SCALE_BAR_SHARE
 )
 from mech_balance.viz.text import info_text
 import numpy as np
@@ -27,6 +27,14 @@ import numpy as np
 VARIANTS = ('original', 'balanced')
 MIN_SAMPLES = 4
 """Fewest samples per crank turn of a recording."""
+RING_POINTS = 49
+"""Points of the ring that draws a counterweight's plane."""
+PLANE_RING_SHARE = 1.25
+"""A counterweight's plane ring has this times the disc's radius."""
+MASS_KEPT_RTOL = 1e-6
+"""A mass change below this share of the body's mass is none (the solver's round-off)."""
+MOVED_RTOL = 1e-9
+"""A body's mass centre (share of the rig) or mass (relative) changed beyond this."""
 COLLINEAR_RTOL = 1e-9
 """A link's points are collinear (drawn open) below this relative cross product."""
 GEOMETRY_ANGLES = 8
@@ -186,6 +194,7 @@ class Motion:
     point_masses: dict    # variant -> (p, 3 nb, 3)
     data: dict            # variant -> RigData
     degrees: np.ndarray   # (p,) crank angle shown (deg, reduced to [0, 360))
+    marks: dict = None    # variant -> {'rings': (p, R, k, 3), 'stalks': (p, S, 2, 3)}
 
     @property
     def size(self):
@@ -219,7 +228,72 @@ def motion_of(layout, data):
                   for b in dr.bodies if b.point_masses]
             point_masses[v] = np.concatenate(pm, axis=1)
     degrees = np.mod(np.degrees(ref.crank_angle_rad), 360.0)
-    return Motion(links, joints, centres, added, point_masses, data, degrees)
+    marks = {}
+    for v, d in data.items():
+        marks[v] = {}
+        for kind, templates in (layout.marks or {}).get(v, {}).items():
+            parts = [world_points(d.bodies, body, local)[:, None] for body, local in templates]
+            marks[v][kind] = np.concatenate(parts, axis=1) if parts else None
+    return Motion(links, joints, centres, added, point_masses, data, degrees, marks)
+
+
+def length_text(length_m):
+    """Return a round length as a person writes it (``5 cm``, ``2 mm``, ``1 m``)."""
+    if length_m >= 1.0:
+        return f'{length_m:g} m'
+    return f'{length_m * 100:g} cm' if length_m >= 0.01 else f'{length_m * 1000:g} mm'
+
+
+def design_marks(drawings, templates, size):
+    """
+    Return what a design changed, to draw: ``({variant: marks}, {variant: changes})``.
+
+    ``rings``: per added body (a counterweight disc, a balancing weight) a ring in its own
+    plane (the carrying body's x-y plane at the disc's centre, whose z is the plane's offset:
+    seen edge-on in 3-D, a rim in 2-D), :data:`PLANE_RING_SHARE` of the disc's radius.
+    ``stalks``: for a body of the balanced design whose mass or mass centre moved and that
+    has no added body to show it, a line from the nearest point of its outline to its new
+    mass centre; ``changes`` ``[(body index, mass change kg)]`` of those bodies.
+    """
+    marks, changes = {}, {}
+    original = {b.name: b for b in drawings['original'].bodies}
+    t = np.linspace(0.0, 2.0 * math.pi, RING_POINTS)
+    circle = np.stack([np.cos(t), np.sin(t), np.zeros_like(t)], axis=-1)
+    outlines = dict(templates)
+    for v, dr in drawings.items():
+        rings, stalks, moved = [], [], []
+        for i, b in enumerate(dr.bodies):
+            for a in b.added:
+                rings.append((b.name, np.asarray(a.centre_m, dtype=float)
+                              + PLANE_RING_SHARE * a.radius_m * circle))
+            o = original[b.name]
+            c_new = np.asarray(b.mass_centre_m, dtype=float)
+            c_old = np.asarray(o.mass_centre_m, dtype=float)
+            dm = (b.mass_kg or 0.0) - (o.mass_kg or 0.0)
+            if v == 'original' or b.added or (
+                    np.linalg.norm(c_new - c_old) <= MOVED_RTOL * size and
+                    abs(dm) <= MOVED_RTOL * max(o.mass_kg or 0.0, 1e-300)):
+                continue
+            outline = outlines[b.name]
+            foot = _nearest_on_polyline(c_new, outline)
+            stalks.append((b.name, np.stack([foot, c_new])))
+            kept = abs(dm) <= MASS_KEPT_RTOL * max(o.mass_kg or 0.0, b.mass_kg or 0.0)
+            moved.append((i, 0.0 if kept else dm))
+        marks[v] = {'rings': rings, 'stalks': stalks}
+        changes[v] = moved
+    return marks, changes
+
+
+def _nearest_on_polyline(q, strip):
+    """Return the point of polyline ``strip`` ``(k, 3)`` nearest ``q`` ``(3,)``."""
+    if len(strip) == 1:
+        return strip[0]
+    a, b = strip[:-1], strip[1:]
+    ab = b - a
+    t = np.clip(np.einsum('ij,ij->i', q - a, ab) / np.maximum(np.einsum('ij,ij->i', ab, ab),
+                                                              1e-300), 0.0, 1.0)
+    feet = a + t[:, None] * ab
+    return feet[np.argmin(np.linalg.norm(feet - q, axis=1))]
 
 
 def body_point(drawing, body, point):
@@ -240,7 +314,9 @@ def tile(motion, cycles):
                   {v: rep(a) for v, a in motion.added.items()},
                   {v: rep(a) for v, a in motion.point_masses.items()},
                   {v: TiledData(d, cycles) for v, d in motion.data.items()},
-                  rep(motion.degrees))
+                  rep(motion.degrees),
+                  {v: {k: None if a is None else rep(a) for k, a in m.items()}
+                   for v, m in (motion.marks or {}).items()})
 
 
 class TiledData:
@@ -354,6 +430,9 @@ def plan(scene, balanced, samples, balanced_source, live=False):
         scale_bar=None,
         screens={}, plots=[], labels=[], series=series, has_added=has_added,
         has_point_masses=has_pm, live=live)
+    layout.marks, layout.changes = design_marks(drawings, templates, size)
+    layout.grid_m = nice_floor(SCALE_BAR_SHARE * size)
+    layout.grid_text = length_text(layout.grid_m)
     motion = motion_of(layout, data)
     layout.pivot_name = pivot_label(layout, rig)
     place_views(layout, motion, fmax, nmax, len(series))
@@ -388,7 +467,9 @@ def concat_motions(motions):
                   {v: cat([m.added[v] for m in motions]) for v in m0.added},
                   {v: cat([m.point_masses[v] for m in motions]) for v in m0.point_masses},
                   {v: cat_data([m.data[v] for m in motions]) for v in m0.data},
-                  cat([m.degrees for m in motions]))
+                  cat([m.degrees for m in motions]),
+                  {v: {k: None if a is None else cat([m.marks[v][k] for m in motions])
+                       for k, a in marks.items()} for v, marks in (m0.marks or {}).items()})
 
 
 class MotionData:

@@ -172,7 +172,7 @@ class Label:
     color: tuple
     where: str            # 'frame', 'joint', 'centre', 'link', 'fixed'
     index: int = 0
-    members: tuple = ()   # joint indices merged into this label
+    members: tuple = ()   # the variants it belongs to (all if empty)
 
 
 @dataclass
@@ -209,6 +209,10 @@ class Layout:
     has_point_masses: bool
     text: str = ''
     live: bool = False
+    grid_m: float = 0.0          # 3-D: spacing of the grid lines
+    grid_text: str = ''
+    marks: dict = None           # variant -> {'rings': [(body, (k, 3))], 'stalks': [...]}
+    changes: dict = None         # variant -> [(body index, mass change kg)]
 
     def on(self, stream):
         """Return whether ``stream`` is logged."""
@@ -524,6 +528,16 @@ def label_specs(layout, motion):
     if layout.on('links'):
         for i, name in enumerate(layout.link_names):
             specs.append(Label(name, layout.link_colors[i], 'link', i))
+    for v in layout.variants:
+        added = [(i, a) for i, b in enumerate(layout.drawings[v].bodies) for a in b.added]
+        planes = any(abs(a.centre_m[2]) > 0.0 for _, a in added) and layout.dim == 2
+        for j, (i, a) in enumerate(added if layout.has_added else ()):
+            text = f'{a.mass_kg:.3g} kg' + (f', z {a.centre_m[2] * 1e3:+.3g} mm' if planes
+                                            else '')
+            specs.append(Label(text, layout.link_colors[i], 'added', j, (v,)))
+        if layout.on('links') and layout.on('mass_centres'):
+            for i, dm in (layout.changes or {}).get(v, []):
+                specs.append(Label(f'{dm:+.3g} kg', layout.link_colors[i], 'change', i, (v,)))
     return specs
 
 
@@ -552,8 +566,10 @@ def label_anchor(layout, motion, spec, variant, screen):
         return np.broadcast_to(layout.frame_points[spec.index], (p, 3))
     if spec.where == 'joint':
         return motion.joints[:, spec.index]
-    if spec.where == 'centre':
+    if spec.where in ('centre', 'change'):
         return motion.centres[variant][:, spec.index]
+    if spec.where == 'added':
+        return motion.added[variant][:, spec.index]
     if spec.where == 'link':
         strip = motion.links[spec.index]
         k = strip.shape[1]
@@ -564,7 +580,8 @@ def label_anchor(layout, motion, spec, variant, screen):
             return None
         return [strip[:, 0] + t * (strip[:, 1] - strip[:, 0]) for t in LINK_LABEL_ALONG]
     if spec.where == 'gauge':
-        below = np.array([0.0, layout.gauge_reach_m if layout.dim == 2 else 0.0, 0.0])
+        below = np.array([0.0, layout.gauge_reach_m, 0.0] if layout.dim == 2 else
+                         [0.0, 0.0, 1.15 * layout.gauge_reach_m])     # 3-D: under the arrows
         return np.broadcast_to(layout.gauge_m - below, (p, 3))
     if spec.where == 'scale':
         return np.broadcast_to(layout.scale_bar[2], (p, 3))
@@ -655,6 +672,8 @@ def place_labels(layout, motion, variant):
     out = []         # per spec: (p, 3) anchors, mask, texts
     h = LABEL_TEXT_PX + LABEL_PAD_PX[1]
     for spec in layout.labels:
+        if spec.members and variant not in spec.members:
+            continue                    # a label of the other design (its discs, changes)
         texts = [spec.text(d) for d in motion.degrees] if callable(spec.text) else None
         w = max(label_size_px(t)[0] for t in (texts or [spec.text]))
         if spec.where in ('readout', 'scale'):
@@ -737,7 +756,7 @@ def _nearest_own(spec, feature_px, centres, markers, links_px):
                   if i != spec.index and s.shape[1]]
         return mine + NEAR_MARGIN_PX < np.min(others, axis=0) if others else \
             np.ones(centres.shape[:2], dtype=bool)
-    if spec.where not in ('frame', 'joint', 'centre') or markers.shape[1] == 0:
+    if spec.where not in ('frame', 'joint', 'centre', 'change') or markers.shape[1] == 0:
         return np.ones(centres.shape[:2], dtype=bool)
     mine = np.linalg.norm(centres - feature_px[:, None], axis=-1)              # (p, c)
     same = np.linalg.norm(markers - feature_px[:, None], axis=-1) <= SAME_PLACE_PX

@@ -155,8 +155,11 @@ def entity_paths(layout):
         elif s in per_variant:
             out |= {f'/{v}/{per_variant[s]}' for v in layout.variants}
     if layout.has_added:
-        out |= {f'/{v}/counterweights' for v in layout.variants
-                if any(b.added for b in layout.drawings[v].bodies)}
+        for v in layout.variants:
+            if any(b.added for b in layout.drawings[v].bodies):
+                out |= {f'/{v}/counterweights', f'/{v}/counterweight_planes'}
+    if layout.on('links'):
+        out |= {f'/{v}/mass_changes' for v, moved in (layout.changes or {}).items() if moved}
     for p in layout.plots:
         out |= {f'/plots/{p.entity}/{v}' for v in layout.variants}
     return sorted(out)

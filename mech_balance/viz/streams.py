@@ -8,11 +8,12 @@ from mech_balance.viz.blueprint import blueprint
 from mech_balance.viz.drawing import DEGREE_TIMELINE
 from mech_balance.viz.layout import place_labels, plot_values
 from mech_balance.viz.style import (
-    ADDED_COLOR, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
+    ADDED_ALPHA, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
     DIAL_COLOR, DIAL_POINTS, FORCE_COLOR, FRAME_COLOR, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI,
     JOINT_COLOR, JOINT_RADIUS_3D_SHARE, JOINT_RADIUS_UI, LINE_RADIUS_UI, LINK_RADIUS_3D_SHARE,
-    MOMENT_ARC_LIMIT_DEG, MOMENT_COLOR, MOMENT_HEAD_SHARE, NEGATIVE_MASS_COLOR,
-    POINT_MASS_RADIUS_SHARE, POSITIVE_MASS_COLOR, SCALE_COLOR, SERIES_COLORS, SYSTEM_CENTRE_COLOR
+    MOMENT_ARC_LIMIT_DEG, MOMENT_COLOR, MOMENT_HEAD_SHARE, NEGATIVE_MASS_COLOR, PLANE_ALPHA,
+    POINT_MASS_RADIUS_SHARE, POSITIVE_MASS_COLOR, SCALE_COLOR, SERIES_COLORS, SERIES_WIDTHS,
+    SYSTEM_CENTRE_COLOR
 )
 import numpy as np
 import rerun as rr
@@ -120,13 +121,26 @@ def log_static(rec, layout):
                 colors=list(layout.link_colors) + [SYSTEM_CENTRE_COLOR],
                 radii=[CENTRE_RADIUS_SHARE * size] * n + [1.8 * CENTRE_RADIUS_SHARE * size]),
                 static=True)
-        added = [a for b in layout.drawings[v].bodies for a in b.added]
+        bodies = layout.drawings[v].bodies
+        added = [(i, a) for i, b in enumerate(bodies) for a in b.added]
+        behind = {'draw_order': ADDED_DRAW_ORDER} if layout.dim == 2 else {}
         if layout.has_added and added:
-            behind = {'draw_order': ADDED_DRAW_ORDER} if layout.dim == 2 else {}
+            # each disc in its link's colour, see-through so that the link under it shows
             rec.log(f'{v}/counterweights', points.from_fields(
-                radii=[a.radius_m for a in added], colors=[ADDED_COLOR],
-                labels=[f'{a.name}: {a.mass_kg:.3g} kg' for a in added], show_labels=False,
+                radii=[a.radius_m for _, a in added],
+                colors=[layout.link_colors[i] + (ADDED_ALPHA,) for i, _ in added],
+                labels=[f'{a.name}: {a.mass_kg:.3g} kg' for _, a in added], show_labels=False,
                 **behind), static=True)
+            rec.log(f'{v}/counterweight_planes', strips.from_fields(
+                colors=[layout.link_colors[i] + (PLANE_ALPHA,) for i, _ in added],
+                radii=[line_radius(layout, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI)],
+                **behind), static=True)
+        moved = (layout.changes or {}).get(v, [])
+        if layout.on('links') and moved:
+            rec.log(f'{v}/mass_changes', strips.from_fields(
+                colors=[layout.link_colors[i] for i, _ in moved],
+                radii=[line_radius(layout, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI)]),
+                static=True)
         if layout.has_point_masses:
             kg = np.array([m for b in layout.drawings[v].bodies for m, _ in b.point_masses])
             mmax = max(float(np.max(np.abs(np.array(
@@ -151,9 +165,8 @@ def log_static(rec, layout):
                     radii=[ARROW_3D_RADIUS_SHARE * size]), static=True)
     for p in layout.plots:
         for v in layout.variants:
-            rec.log(f'plots/{p.entity}/{v}', rr.SeriesLines(colors=[SERIES_COLORS[v]],
-                                                            names=[v], widths=[2.0]),
-                    static=True)
+            rec.log(f'plots/{p.entity}/{v}', rr.SeriesLines(
+                colors=[SERIES_COLORS[v]], names=[v], widths=[SERIES_WIDTHS[v]]), static=True)
 
 
 def moment_arc(centre, moment_Nm, scale_deg_per_Nm, radius):
@@ -202,6 +215,15 @@ def log_motion(rec, layout, motion, degrees, seconds, labels=None):
             rec.send_columns(f'{v}/counterweights', index, points.columns(
                 positions=view_coords(layout, a).reshape(-1, layout.dim)).partition(
                     np.full(p, a.shape[1])))
+        marks = (motion.marks or {}).get(v, {})
+        drawn = {'rings': layout.has_added, 'stalks': layout.on('links')}
+        for kind, path in (('rings', 'counterweight_planes'), ('stalks', 'mass_changes')):
+            m = marks.get(kind)
+            if m is None or not drawn[kind]:
+                continue
+            flat = [view_coords(layout, m[k, j]) for k in range(p) for j in range(m.shape[1])]
+            rec.send_columns(f'{v}/{path}', index,
+                             strips.columns(strips=flat).partition(np.full(p, m.shape[1])))
         if layout.has_point_masses:
             pm = motion.point_masses[v]
             rec.send_columns(f'{v}/point_masses', index, points.columns(

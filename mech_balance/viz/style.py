@@ -11,7 +11,7 @@ import rerun as rr
 
 FORCE_ARROW_SHARE = 0.14
 """Automatic force scale: the longest shaking-force arrow is at most this share of the rig."""
-ARROW_3D_SHARE = 0.3
+ARROW_3D_SHARE = 0.45
 """3-D: the longest shaking-force (and moment) arrow is at most this share of the rig."""
 ARROW_3D_RADIUS_SHARE = 0.012
 """3-D: radius of the gauge's arrows, as a share of the rig."""
@@ -58,8 +58,10 @@ FORCE_COLOR = (240, 70, 70)
 MOMENT_COLOR = (200, 110, 255)
 DIAL_COLOR = (90, 90, 100)
 SCALE_COLOR = (200, 200, 200)
-ADDED_COLOR = (175, 180, 195, 120)
-"""Added bodies: see-through, so that the link under a disc shows."""
+ADDED_ALPHA = 110
+"""Opacity (of 255) of an added body's disc in its link's colour."""
+PLANE_ALPHA = 200
+"""Opacity of the ring that draws an added body's plane."""
 ADDED_DRAW_ORDER = 5.0
 """2-D draw order of the added bodies: behind the links (20) and points (30)."""
 POSITIVE_MASS_COLOR = (225, 225, 225)
@@ -67,6 +69,10 @@ NEGATIVE_MASS_COLOR = (255, 105, 180)
 SYSTEM_CENTRE_COLOR = (255, 255, 255)
 READOUT_COLOR = (255, 255, 255)
 SERIES_COLORS = {'original': (255, 150, 40), 'balanced': (70, 165, 255)}
+SERIES_WIDTHS = {'original': 2.0, 'balanced': 6.0}
+"""Line widths (ui points) of the plots: the viewer draws the entities in name order, so
+the original's thin line runs on top of the balanced design's wide one and a curve that two
+designs share shows both colours (blue edges, an orange core) instead of hiding one."""
 """Orange and blue mean original and balanced in the plots, and nothing else anywhere."""
 LINK_PALETTE = ((27, 158, 119), (166, 216, 84), (255, 217, 47), (229, 196, 148),
                 (141, 211, 199), (188, 189, 34), (166, 118, 29), (178, 223, 138))

@@ -103,15 +103,31 @@ def info_text(layout, scene, data, samples, balanced_source):
     if both:
         lines.append('* Left: the original rig; right: the balanced rig. They move alike (same '
                      'geometry); only the mass distribution differs.')
-    lines.append('* Grey: the frame, its pivots, fixed axes and guides; coloured: the links; '
-                 'white dots: the joints. The bar under the rig is a length scale.')
+    if layout.dim == 2:
+        lines.append('* Grey: the frame, its pivots, fixed axes and guides; coloured: the '
+                     'links; white dots: the joints.'
+                     + (f' The bar under the rig is a length scale ({layout.scale_bar[1]}).'
+                        if layout.scale_bar is not None else ''))
+    else:
+        lines.append('* Grey: the frame, its pivots and fixed axes; coloured tubes: the links; '
+                     "white spheres: the joints. The grid lies in the frame's x-y plane "
+                     f'(z = 0, z up), one line every {layout.grid_text}.')
     if layout.on('mass_centres'):
         lines.append("* Dots in a link's colour: its mass centre; the large white dot CoM: the "
                      'mass centre of all moving links (it stands still when the rig is force '
                      'balanced).')
     if layout.has_added:
-        lines.append('* Grey-blue discs: the counterweights and balancing weights of the '
-                     'design, at true size on their links.')
+        shape = 'discs' if layout.dim == 2 else 'spheres'
+        lines.append(f"* See-through {shape} in a link's colour, labelled in kg: the "
+                     'counterweights and balancing weights of the design, at true size on '
+                     "their links; the ring around each is its plane (the link's x-y plane at "
+                     'the offset z of its centre'
+                     + (', written after the mass when not 0' if layout.dim == 2 else '')
+                     + ').')
+    if any((layout.changes or {}).values()):
+        lines.append("* A thin line in a link's colour from the link to a dot, labelled "
+                     "+/- kg: where the design moved that link's mass centre, and the mass it "
+                     'added (+) or removed (-) there.')
     if layout.on('point_masses'):
         lines.append('* Blue and red discs: the three equimomental point masses of each link '
                      '(seed 001 eqs. 13-15); disc area proportional to the mass, light '
@@ -131,9 +147,11 @@ def info_text(layout, scene, data, samples, balanced_source):
                          f'{fmt(0.01 / layout.moment_scale)} N*m).')
     if layout.plots:
         lines.append('* Plots: ' + ', '.join(p.title for p in layout.plots)
-                     + '; orange = original, blue = balanced.')
-    lines.append('* Timelines: `crank_angle` = whole degrees turned from crank angle 0 (the '
-                 'exact angle is written in each rig view), `time` = seconds at '
+                     + '; orange (thin) = original, blue (wide, under it) = balanced: where '
+                     'the two agree the orange line runs inside the blue one.')
+    lines.append('* Timelines: `crank_angle_deg` (the default; `crank_angle` holds the same) = '
+                 'whole degrees turned from crank angle 0, so `#90` is 90 deg (the exact angle '
+                 'is written in each rig view), `time` = seconds at '
                  f'{fmt(abs(scene.crank_speed_rad_s))} rad/s.')
     lines += ['', '## Design (bodies with what is fixed to them; SI)', '',
               '| body | design | mass kg | mass centre m | added bodies |',
