@@ -569,3 +569,20 @@ def test_cli_record_samples_must_be_at_least_4(capsys):
 def test_bench_section_reports_seconds_and_megabytes():
     text = bench_recording.bench_section(argparse.Namespace(repeat=1), progress=lambda s: None)
     assert 'hoeken' in text and 'file MB' in text and 'median s' in text
+
+
+def test_cli_record_with_counterweights(tmp_path, capsys):
+    out = tmp_path / 'cw.rrd'
+    assert cli.main(['record', '--scene', 'hoeken', '--counterweights', 'crank,rocker',
+                     '--samples', '36', '--out', str(out)]) == 0
+    assert 'add-only counterweights on crank,rocker' in capsys.readouterr().out
+    ent = recording.read_recording(out)
+    assert ent['/balanced/counterweights'].rows == 36
+    assert ent['/balanced/counterweight_planes'].rows == 36
+    assert '/original/counterweights' not in ent
+
+
+def test_cli_record_case_needs_balance_even_with_counterweights(tmp_path, capsys):
+    assert cli.main(['record', '--counterweights', 'crank', '--case', 'b',
+                     '--out', str(tmp_path / 'x.rrd')]) == 2
+    assert '--case applies with --balance only' in capsys.readouterr().err
