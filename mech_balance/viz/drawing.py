@@ -27,6 +27,9 @@ import numpy as np
 VARIANTS = ('original', 'balanced')
 MIN_SAMPLES = 4
 """Fewest samples per crank turn of a recording."""
+ARROW_3D_STEPS = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0)
+"""3-D: the round values of 1 cm of gauge arrow (finer than 1-2-5, so that the longest arrow
+comes out near its share of the rig: in perspective a short arrow reads as nothing)."""
 RING_POINTS = 49
 """Points of the ring that draws a counterweight's plane."""
 PLANE_RING_SHARE = 1.25
@@ -413,11 +416,12 @@ def plan(scene, balanced, samples, balanced_source, live=False):
     nmax = max((float(np.max(np.linalg.norm(d.moment_Nm, axis=1))) for d in data.values()
                 if d.moment_Nm is not None), default=0.0)
     share = FORCE_ARROW_SHARE if dim == 2 else ARROW_3D_SHARE
-    fscale = rec.force_scale_m_per_N or arrow_scale(size, fmax, share)
+    steps = (1.0, 2.0, 5.0) if dim == 2 else ARROW_3D_STEPS    # 3-D: lengths matter more
+    fscale = rec.force_scale_m_per_N or arrow_scale(size, fmax, share, steps)
     if dim == 2:
         mscale = rec.moment_scale_deg_per_Nm or arc_scale(nmax)
     else:
-        mscale = arrow_scale(size, nmax, share)
+        mscale = arrow_scale(size, nmax, share, steps)
 
     layout = Layout(
         title=scene.name, dim=dim, streams=streams, variants=tuple(rigs), rigs=rigs,

@@ -219,10 +219,10 @@ class Layout:
         return stream in self.streams
 
 
-def nice_ceil(x):
-    """Return the smallest 1, 2 or 5 times a power of ten that is >= ``x`` (``x`` > 0)."""
+def nice_ceil(x, steps=(1.0, 2.0, 5.0)):
+    """Return the smallest of ``steps`` times a power of ten that is >= ``x`` (``x`` > 0)."""
     exp = math.floor(math.log10(x))
-    for m in (1.0, 2.0, 5.0, 10.0):
+    for m in tuple(steps) + (10.0,):
         if m * 10.0 ** exp >= x * (1.0 - 1e-12):
             return m * 10.0 ** exp
     return 10.0 ** (exp + 1)
@@ -237,15 +237,16 @@ def nice_floor(x):
     return 10.0 ** (exp - 1)
 
 
-def arrow_scale(size_m, largest, share=FORCE_ARROW_SHARE):
+def arrow_scale(size_m, largest, share=FORCE_ARROW_SHARE, steps=(1.0, 2.0, 5.0)):
     """
     Return metres of arrow per unit value (m per N, or m per N*m).
 
-    1 cm of arrow is a round value and the longest arrow at most ``share`` of the rig's size.
+    1 cm of arrow is a round value (``steps`` times a power of ten) and the longest arrow at
+    most ``share`` of the rig's size.
     """
     if not largest > 0.0:
         return 1.0
-    return 0.01 / nice_ceil(largest * 0.01 / (share * size_m))
+    return 0.01 / nice_ceil(largest * 0.01 / (share * size_m), steps)
 
 
 def arc_scale(largest):
@@ -537,7 +538,8 @@ def label_specs(layout, motion):
             specs.append(Label(text, layout.link_colors[i], 'added', j, (v,)))
         if layout.on('links') and layout.on('mass_centres'):
             for i, dm in (layout.changes or {}).get(v, []):
-                specs.append(Label(f'{dm:+.3g} kg', layout.link_colors[i], 'change', i, (v,)))
+                text = f'{dm:+.3g} kg' if dm else 'moved, 0 kg'
+                specs.append(Label(text, layout.link_colors[i], 'change', i, (v,)))
     return specs
 
 

@@ -11,7 +11,7 @@ import rerun as rr
 
 FORCE_ARROW_SHARE = 0.14
 """Automatic force scale: the longest shaking-force arrow is at most this share of the rig."""
-ARROW_3D_SHARE = 0.45
+ARROW_3D_SHARE = 0.6
 """3-D: the longest shaking-force (and moment) arrow is at most this share of the rig."""
 ARROW_3D_RADIUS_SHARE = 0.012
 """3-D: radius of the gauge's arrows, as a share of the rig."""
