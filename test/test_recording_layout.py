@@ -454,3 +454,42 @@ def test_a_redistribution_design_shows_what_it_changed(recordings, name):
             assert_allclose(c, centres[k][i, :2], atol=FLOAT32_ATOL_M)   # ends at the centre
             link = links[k][i][:, :2]
             assert _segment_distance(a, link) <= FLOAT32_ATOL_M           # starts on the link
+
+
+LINE_SAMPLES = 200
+"""Points per drawn segment at which the no-line-through-a-label test looks."""
+BOX_SHRINK_PX = 0.5
+"""A line may touch a label box's edge by this much (float32 positions)."""
+
+
+@pytest.mark.parametrize('name', ALL)
+def test_no_drawn_line_passes_through_a_label(recordings, name):
+    """Issue 23 3.6: no link and no frame line crosses a label box, at any sample."""
+    _, _, _, summary, ent, blueprint = recordings[name]
+    layout = summary.layout
+    dim = layout.dim
+    views = _rig_views(blueprint)
+    links = _strip_rows(ent, '/rig/links', dim)
+    frame = []
+    if '/rig/frame' in ent:
+        comp = next(c for c in ent['/rig/frame'].static if c.endswith(':strips'))
+        frame = [np.pad(np.array(s, dtype=float).reshape(-1, dim), ((0, 0), (0, 3 - dim)))
+                 for s in ent['/rig/frame'].static[comp]]
+    t = np.linspace(0.0, 1.0, LINE_SAMPLES)[:, None]
+    for variant in layout.variants:
+        screen = _screen(views[variant], layout, variant)
+        for k, (anchors, words) in enumerate(_label_rows(ent, variant, dim)):
+            dense = []
+            for strip in links[k] + frame:
+                px = screen.px(strip)
+                for a, b in zip(px[:-1], px[1:]):
+                    dense.append(a + t * (b - a))
+            if not dense:
+                continue
+            dense = np.concatenate(dense)
+            for anchor, text in zip(screen.px(anchors), words):
+                x0, y0, x1, y1 = recording.label_box_px(anchor, text)
+                s = BOX_SHRINK_PX
+                inside = (dense[:, 0] > x0 + s) & (dense[:, 0] < x1 - s) & \
+                    (dense[:, 1] > y0 + s) & (dense[:, 1] < y1 - s)
+                assert not inside.any(), (variant, k, text)
