@@ -16,7 +16,10 @@ Entities (the stream switch of the scene's ``recording: {streams: ...}`` in brac
   the frame points;  ``/rig/links`` [links];  ``/rig/joints`` [joints];
 * ``/{variant}/mass_centres`` [mass_centres]: body mass centres, the system's last;
 * ``/{variant}/counterweights`` [links]: the design's added bodies (counterweight discs,
-  balancing weights) at true size, on their bodies;
+  balancing weights) at true size, on their bodies, in their link's colour, labelled in kg;
+  ``/{variant}/counterweight_planes``: a ring in each one's plane;
+* ``/{variant}/mass_changes`` [links]: a redistribution design's moved mass centres, a line
+  from the link to each, labelled with the mass added or removed;
 * ``/{variant}/point_masses`` [point_masses, off unless a scene asks]: the equimomental
   point masses of the bodies, where the rig has them;
 * ``/{variant}/shaking_force`` [shaking_force_arrow] and ``/{variant}/shaking_moment``
@@ -27,12 +30,13 @@ Entities (the stream switch of the scene's ``recording: {streams: ...}`` in brac
   kinetic energy, ...: :data:`mech_balance.schema.scene.SERIES`).
 
 View furniture, not switchable: ``/{variant}/labels`` (every label of that view, placed so
-that none overlaps another at the default window, :data:`WINDOW_PX`), ``/rig/scale`` (2-D
-scale bar), ``/rig/gauge`` (the moment dial).
+that none overlaps another, none is crossed by a line and each is nearer its own point than
+any other at the default window, :data:`WINDOW_PX`), ``/rig/scale`` (2-D scale bar),
+``/rig/gauge`` (the moment dial).
 
-Timelines: ``crank_angle``, the crank angle turned from 0 in whole degrees (offline: a turn
-starts at 0 deg, sample k of n at round(360 k / n), any n; live: the rig's cumulative
-angle), and ``time``, seconds (offline at the scene's crank speed; live on the rig's
+Timelines: ``crank_angle_deg`` (the default) and ``crank_angle`` (the same values), the
+crank angle turned from 0 in whole degrees (offline: a turn starts at 0 deg, sample k of n
+at round(360 k / n), any n; live: the rig's cumulative angle), and ``time``, seconds (offline at the scene's crank speed; live on the rig's
 clock).  The exact angle is written in every rig view.  Geometry and styles are static;
 whole time series go out through ``send_columns``.  :func:`record` writes a file;
 :class:`LiveRecorder` the same views sample by sample, to a file and/or to a running viewer
