@@ -37,8 +37,9 @@ any other at the default window, :data:`WINDOW_PX`), ``/rig/scale`` (2-D scale b
 Timelines: ``crank_angle_deg`` (the default) and ``crank_angle`` (the same values), the
 crank angle turned from 0 in whole degrees (offline: a turn starts at 0 deg, sample k of n
 at round(360 k / n), any n; live: the rig's cumulative angle), and ``time``, seconds
-(offline at the scene's crank speed; live on the rig's clock).  The exact angle is written in every rig view.  Geometry and styles are static;
-whole time series go out through ``send_columns``.  :func:`record` writes a file;
+(offline at the scene's crank speed; live on the rig's clock).  The exact angle is written
+in every rig view.  Geometry and styles are static; whole time series go out through
+``send_columns``.  :func:`record` writes a file;
 :class:`LiveRecorder` the same views sample by sample, to a file and/or to a running viewer
 (``url``), the viewer throttled to :data:`LIVE_MAX_RATE_HZ` on a thread of its own.
 
