@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
@@ -84,7 +85,8 @@ def _core(sc, samples=SAMPLES):
 
 def test_entity_paths_and_one_row_per_sample(hoeken):
     sc, _, path, summary, ent = hoeken
-    assert set(summary.entity_paths) == PLANAR_PATHS
+    # a redistribution design also shows where it moved each link's mass centre
+    assert set(summary.entity_paths) == PLANAR_PATHS | {'/balanced/mass_changes'}
     assert PLANAR_PATHS <= set(ent)
     assert summary.rows == SAMPLES and summary.variants == VARIANTS
     animated = PLANAR_PATHS - {'/info', '/rig/frame', '/rig/pivots'}
@@ -92,6 +94,7 @@ def test_entity_paths_and_one_row_per_sample(hoeken):
     for p in animated:
         assert ent[p].rows == SAMPLES, p
         assert_array_equal(ent[p].index['crank_angle'], np.arange(SAMPLES))  # whole degrees
+        assert_array_equal(ent[p].index['crank_angle_deg'], np.arange(SAMPLES))
         assert_allclose(ent[p].index['time'], np.arange(SAMPLES) * turn_s / SAMPLES,
                         rtol=0.0, atol=TIME_ATOL_S)
     for p in ('/info', '/rig/frame', '/rig/pivots'):
@@ -211,7 +214,7 @@ def test_switching_a_stream_off_removes_it(tmp_path):
     ent = recording.read_recording(path)
     gone = {f'/{v}/point_masses' for v in VARIANTS} | \
         {f'/plots/driving_torque/{v}' for v in VARIANTS}
-    assert set(summary.entity_paths) == PLANAR_PATHS - gone
+    assert set(summary.entity_paths) == (PLANAR_PATHS - gone) | {'/balanced/mass_changes'}
     assert not gone & set(ent)
     assert (PLANAR_PATHS - gone) <= set(ent)
     assert all('driving torque' not in n for _, n, _ in recording.read_blueprint_views(path))
@@ -397,6 +400,78 @@ def test_live_recorder_rejects_bad_samples(tmp_path):
     assert rec.closed
 
 
+RERUN_CONNECT_WAIT_S = 5.0
+"""rerun's ``connect_grpc`` and ``disconnect`` each wait this long for a viewer that is not
+there: a caller that waits for either is blocked at least this long."""
+
+
+def _dead_url():
+    from mech_balance.bench import node as bench_node
+    return f'rerun+http://127.0.0.1:{bench_node.free_port()}/proxy'
+
+
+def _wait_for(predicate, seconds):
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and not predicate():
+        time.sleep(0.02)
+    return predicate()
+
+
+def test_live_view_to_a_dead_url_never_blocks_and_says_dead(tmp_path):
+    """Issue 23 2b.1: nothing listens at the url; the caller is never held by rerun's waits."""
+    sc, url = scene_mod.load('hoeken'), _dead_url()
+    t0 = time.monotonic()
+    rec = recording.LiveRecorder(None, sc, url=url)
+    built = time.monotonic() - t0
+    assert rec.status == 'connecting' or rec.status.startswith('dead: ')
+    worst = 0.0
+    for k in range(20):
+        t1 = time.monotonic()
+        assert rec.log_sample(0.01 * k, 0.05 * k) == 1
+        worst = max(worst, time.monotonic() - t1)
+    assert _wait_for(lambda: rec.status.startswith('dead: '), RERUN_CONNECT_WAIT_S)
+    assert '127.0.0.1' in rec.status and 'retried every' in rec.status, rec.status
+    t2 = time.monotonic()
+    rec.close(timeout_s=0.5)
+    closed = time.monotonic() - t2
+    assert rec.closed and rec.log_sample(1.0, 1.0) == 0
+    # none of the calls waited for rerun's connect or disconnect
+    assert max(built, worst, closed) < 0.5 * RERUN_CONNECT_WAIT_S, (built, worst, closed)
+
+
+def test_live_view_with_a_file_and_a_dead_url_still_writes_the_file(tmp_path):
+    path = tmp_path / 'both.rrd'
+    rec = recording.LiveRecorder(path, scene_mod.load('hoeken'), url=_dead_url())
+    for k in range(5):
+        rec.log_sample(0.01 * k, 0.05 * k)
+    t0 = time.monotonic()
+    rec.close(timeout_s=1.0)
+    assert time.monotonic() - t0 < 0.5 * RERUN_CONNECT_WAIT_S
+    assert recording.read_recording(path)['/plots/shaking_force/original'].rows == 5
+
+
+def test_live_view_connects_and_says_so(tmp_path):
+    from mech_balance.bench import node as bench_node
+    port = bench_node.free_port()
+    viewer = bench_node.viewer_endpoint(tmp_path / 'got.rrd', port)
+    try:
+        rec = recording.LiveRecorder(None, scene_mod.load('hoeken'),
+                                     url=f'rerun+http://127.0.0.1:{port}/proxy')
+        for k in range(40):
+            rec.log_sample(0.05 * k, 0.05 * k)
+            time.sleep(0.01)
+        assert _wait_for(lambda: rec.status == 'connected', 4 * RERUN_CONNECT_WAIT_S), \
+            rec.status
+        rec.close(timeout_s=RERUN_CONNECT_WAIT_S)
+    finally:
+        viewer.send_signal(signal.SIGINT)
+        try:
+            viewer.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            viewer.kill()
+    assert recording.read_recording(tmp_path / 'got.rrd')['/rig/links'].rows >= 1
+
+
 LIVE_SCRIPT = textwrap.dedent("""
     import sys, time
     from mech_balance import schema as scene
@@ -494,3 +569,21 @@ def test_cli_record_samples_must_be_at_least_4(capsys):
 def test_bench_section_reports_seconds_and_megabytes():
     text = bench_recording.bench_section(argparse.Namespace(repeat=1), progress=lambda s: None)
     assert 'hoeken' in text and 'file MB' in text and 'median s' in text
+    assert 'nothing listens' in text and 'status: dead: nothing accepts' in text
+
+
+def test_cli_record_with_counterweights(tmp_path, capsys):
+    out = tmp_path / 'cw.rrd'
+    assert cli.main(['record', '--scene', 'hoeken', '--counterweights', 'crank,rocker',
+                     '--samples', '36', '--out', str(out)]) == 0
+    assert 'add-only counterweights on crank,rocker' in capsys.readouterr().out
+    ent = recording.read_recording(out)
+    assert ent['/balanced/counterweights'].rows == 36
+    assert ent['/balanced/counterweight_planes'].rows == 36
+    assert '/original/counterweights' not in ent
+
+
+def test_cli_record_case_needs_balance_even_with_counterweights(tmp_path, capsys):
+    assert cli.main(['record', '--counterweights', 'crank', '--case', 'b',
+                     '--out', str(tmp_path / 'x.rrd')]) == 2
+    assert '--case applies with --balance only' in capsys.readouterr().err

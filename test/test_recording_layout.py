@@ -25,7 +25,7 @@ from mech_balance import schema as scene_mod
 from mech_balance.cli import main as cli
 from mech_balance.cli import record as cli_record
 from mech_balance.core.rig import rig_for
-from mech_balance.viz import recording
+from mech_balance.viz import drawing, recording
 import numpy as np
 from numpy.testing import assert_allclose, assert_array_equal
 import pytest
@@ -315,3 +315,181 @@ def test_a_new_series_is_plotted_with_no_recording_change(tmp_path):
     names = [v['name'] for v in recording.read_blueprint(path) if v['kind'] == 'TimeSeries']
     assert any(n.startswith('kinetic energy') and n.endswith('(J)') for n in names), names
     assert 'kinetic energy' in ent['/info'].static['TextDocument:text'][0]
+
+
+SAME_PLACE_PX = 1.0
+"""Two drawn points closer than this on screen are one place (a joint on a frame pivot)."""
+
+
+def _label_rows(ent, variant, dim):
+    labels = ent[f'/{variant}/labels'].columns
+    texts = labels[next(c for c in labels if c.endswith(':labels'))]
+    return zip(_positions(ent, f'/{variant}/labels', dim), texts)
+
+
+def _strip_rows(ent, path, dim):
+    comp = next(c for c in ent[path].columns if c.endswith(':strips'))
+    return [[np.pad(np.array(s, dtype=float).reshape(-1, dim), ((0, 0), (0, 3 - dim)))
+             for s in row] for row in ent[path].columns[comp]]
+
+
+def _segment_distance(p, strip):
+    """Return the distance (px) from point ``p`` (2,) to a polyline ``(k, 2)``."""
+    if len(strip) == 1:
+        return float(np.linalg.norm(p - strip[0]))
+    a, b = strip[:-1], strip[1:]
+    ab = b - a
+    t = np.clip(np.einsum('ij,ij->i', p - a, ab) / np.maximum(
+        np.einsum('ij,ij->i', ab, ab), 1e-300), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(a + t[:, None] * ab - p, axis=1)))
+
+
+def _label_centre(anchor_px, text):
+    x0, y0, x1, y1 = recording.label_box_px(anchor_px, text)
+    return np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])
+
+
+@pytest.mark.parametrize('name', ALL)
+def test_every_label_is_nearer_its_own_point_than_any_other(recordings, name):
+    """
+    Issue 23 3.1: at every sample, every point label is nearer its own point than any other.
+
+    The points are everything drawn as a dot (frame pivots, joints, mass centres); a link's
+    name is nearer its own link than any other link.  Distances from the label box's centre,
+    on screen at the default window.
+    """
+    _, _, _, summary, ent, blueprint = recordings[name]
+    layout = summary.layout
+    dim = layout.dim
+    views = _rig_views(blueprint)
+    pivots = np.pad(np.array(ent['/rig/pivots'].static[f'Points{dim}D:positions'],
+                             dtype=float).reshape(-1, dim), ((0, 0), (0, 3 - dim)))
+    joints = _positions(ent, '/rig/joints', dim)
+    links = _strip_rows(ent, '/rig/links', dim)
+    point_names = {}
+    for i, n in enumerate(layout.frame_names):
+        point_names.setdefault(n, []).append(('pivot', i))
+    for i, n in enumerate(layout.joint_names):
+        point_names.setdefault(n, []).append(('joint', i))
+    checked = 0
+    for variant in layout.variants:
+        screen = _screen(views[variant], layout, variant)
+        centres = _positions(ent, f'/{variant}/mass_centres', dim)
+        for k, (anchors, words) in enumerate(_label_rows(ent, variant, dim)):
+            dots = {'pivot': screen.px(pivots), 'joint': screen.px(joints[k]),
+                    'centre': screen.px(centres[k])}
+            every = np.concatenate(list(dots.values()))
+            strips = [screen.px(s) for s in links[k]]
+            for anchor, text in zip(screen.px(anchors), words):
+                c = _label_centre(anchor, text)
+                if text in layout.link_names:
+                    i = layout.link_names.index(text)
+                    own = _segment_distance(c, strips[i])
+                    other = min([_segment_distance(c, s) for j, s in enumerate(strips)
+                                 if j != i] or [math.inf])
+                    assert own < other, (variant, k, text, own, other)
+                    checked += 1
+                    continue
+                if text == 'CoM':
+                    mine = dots['centre'][-1:]
+                else:
+                    parts = [point_names.get(t, []) for t in text.split('/')]
+                    if not all(parts):
+                        continue                  # readout, scale, gauge: no point
+                    mine = np.array([dots[kind][i] for p in parts for kind, i in p])
+                d_own = float(np.min(np.linalg.norm(mine - c, axis=1)))
+                same = np.min(np.linalg.norm(every[:, None] - mine[None], axis=-1),
+                              axis=1) <= SAME_PLACE_PX
+                others = np.linalg.norm(every[~same] - c, axis=1)
+                assert others.size == 0 or d_own < others.min(), \
+                    (variant, k, text, d_own, float(others.min()))
+                checked += 1
+    assert checked > 0
+
+
+def test_counterweights_in_their_links_colour_with_mass_labels_and_planes(recordings):
+    """Issue 23 3.2: each disc in its link's colour, its mass in kg on it, its plane drawn."""
+    sc, cw, _, summary, ent, _ = recordings['hoeken_cw']
+    layout = summary.layout
+    discs = [(lk.name, d) for lk in cw.links for d in lk.counterweights]
+    colours = ent['/balanced/counterweights'].static['Points2D:colors']
+    for (link, _), rgba in zip(discs, colours):
+        rgb = layout.link_colors[layout.link_names.index(link)]
+        assert tuple((rgba >> s) & 255 for s in (24, 16, 8)) == rgb, link
+        assert 0 < (rgba & 255) < 255                               # see-through
+    texts = {t for row in ent['/balanced/labels'].columns['Points2D:labels'] for t in row}
+    for _, d in discs:
+        assert any(t.startswith(f'{d.mass_kg:.3g} kg') for t in texts), (d.mass_kg, texts)
+    # the plane ring: around the disc's centre at PLANE_RING_SHARE of its radius, every row
+    rings = ent['/balanced/counterweight_planes'].columns['LineStrips2D:strips']
+    centres = np.array(ent['/balanced/counterweights'].columns['Points2D:positions'])
+    assert len(rings) == summary.rows
+    for k in (0, summary.rows // 3):
+        for j, (_, d) in enumerate(discs):
+            r = np.linalg.norm(np.array(rings[k][j]) - centres[k, j], axis=1)
+            assert_allclose(r, drawing.PLANE_RING_SHARE * d.radius_m, rtol=1e-5)
+    assert '/original/counterweight_planes' not in ent
+
+
+@pytest.mark.parametrize('name', ['hoeken', 'slider_crank', 'carpet_scraper'])
+def test_a_redistribution_design_shows_what_it_changed(recordings, name):
+    """Issue 23 3.2: a line from the link to its moved mass centre, labelled with the kg."""
+    sc, bal, _, summary, ent, _ = recordings[name]
+    layout = summary.layout
+    moved = layout.changes['balanced']
+    assert moved and not layout.changes['original']
+    stalks = ent['/balanced/mass_changes'].columns['LineStrips2D:strips']
+    centres = _positions(ent, '/balanced/mass_centres', 2)
+    links = _strip_rows(ent, '/rig/links', 2)
+    texts = {t for row in ent['/balanced/labels'].columns['Points2D:labels'] for t in row}
+    original = {b.name: b for b in rig_for(sc).drawing.bodies}
+    for j, (i, dm) in enumerate(moved):
+        name_i = layout.link_names[i]
+        b = next(b for b in rig_for(bal).drawing.bodies if b.name == name_i)
+        change = b.mass_kg - original[name_i].mass_kg
+        assert dm == change or (dm == 0.0 and abs(change) <= 1e-6 * b.mass_kg)
+        assert (f'{dm:+.3g} kg' if dm else 'moved, 0 kg') in texts
+        for k in (0, summary.rows // 2):
+            a, c = np.array(stalks[k][j], dtype=float)
+            assert_allclose(c, centres[k][i, :2], atol=FLOAT32_ATOL_M)   # ends at the centre
+            link = links[k][i][:, :2]
+            assert _segment_distance(a, link) <= FLOAT32_ATOL_M           # starts on the link
+
+
+LINE_SAMPLES = 200
+"""Points per drawn segment at which the no-line-through-a-label test looks."""
+BOX_SHRINK_PX = 0.5
+"""A line may touch a label box's edge by this much (float32 positions)."""
+
+
+@pytest.mark.parametrize('name', ALL)
+def test_no_drawn_line_passes_through_a_label(recordings, name):
+    """Issue 23 3.6: no link and no frame line crosses a label box, at any sample."""
+    _, _, _, summary, ent, blueprint = recordings[name]
+    layout = summary.layout
+    dim = layout.dim
+    views = _rig_views(blueprint)
+    links = _strip_rows(ent, '/rig/links', dim)
+    frame = []
+    if '/rig/frame' in ent:
+        comp = next(c for c in ent['/rig/frame'].static if c.endswith(':strips'))
+        frame = [np.pad(np.array(s, dtype=float).reshape(-1, dim), ((0, 0), (0, 3 - dim)))
+                 for s in ent['/rig/frame'].static[comp]]
+    t = np.linspace(0.0, 1.0, LINE_SAMPLES)[:, None]
+    for variant in layout.variants:
+        screen = _screen(views[variant], layout, variant)
+        for k, (anchors, words) in enumerate(_label_rows(ent, variant, dim)):
+            dense = []
+            for strip in links[k] + frame:
+                px = screen.px(strip)
+                for a, b in zip(px[:-1], px[1:]):
+                    dense.append(a + t * (b - a))
+            if not dense:
+                continue
+            dense = np.concatenate(dense)
+            for anchor, text in zip(screen.px(anchors), words):
+                x0, y0, x1, y1 = recording.label_box_px(anchor, text)
+                s = BOX_SHRINK_PX
+                inside = (dense[:, 0] > x0 + s) & (dense[:, 0] < x1 - s) & \
+                    (dense[:, 1] > y0 + s) & (dense[:, 1] < y1 - s)
+                assert not inside.any(), (variant, k, text)

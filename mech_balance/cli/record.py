@@ -54,7 +54,12 @@ def register(subparsers):
                        help='balance the scene first: seed 001 optimization for planar '
                             'scenes (mech_balance.balancing.optimize), seed 002 force '
                             'balance and minimum RMS shaking moment for the RGGR')
-    cli_balance.add_weight_and_case(p, when='with --balance (planar): ')
+    which.add_argument('--counterweights', default=None, metavar='LINK[,LINK...]',
+                       help='balance the scene first with add-only counterweight discs on '
+                            'these links (mech_balance.balancing.counterweights, its defaults; '
+                            'as `mech-balance balance --counterweights`): the recording draws '
+                            "each disc in its link's colour with its mass and its plane")
+    cli_balance.add_weight_and_case(p, when='with --balance (planar) or --counterweights: ')
     p.add_argument('--cycles', type=cli.cycles, default=1,
                    help='crank turns to record, at most conventions.MAX_CYCLES '
                         '(default: %(default)s)')
@@ -95,15 +100,24 @@ def cmd_record(args):
     from mech_balance.viz import recording
     given = {'--weights': args.weights is not None, '--case': args.case is not None}
     for option, was_given in given.items():
-        if was_given and not args.balance:
-            raise ValueError(f'{option} applies with --balance only, expected --balance or '
-                             f'no {option}')
+        allowed = args.balance or (option == '--weights' and args.counterweights is not None)
+        if was_given and not allowed:
+            also = ' or --counterweights' if option == '--weights' else ''
+            raise ValueError(f'{option} applies with --balance{also} only, expected '
+                             f'--balance{also} or no {option}')
     out = cli.writable_path('--out', args.out, OUT_SUFFIXES, create_parent=True)
     sc = scene.load(args.scene)
     balanced, source = None, None
     if args.design is not None:
         balanced = scene.load(args.design)
         source = f'scene file {balanced.source}'
+    elif args.counterweights is not None:
+        from mech_balance.balancing import counterweights as cw_mod
+        weights = defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights)
+        result = cw_mod.balance_with_counterweights(sc, args.counterweights, weights)
+        balanced = result.balanced_scene
+        source = (f'add-only counterweights on {args.counterweights}, (w1, w2) = '
+                  f'({weights[0]:g}, {weights[1]:g}) (mech_balance.balancing.counterweights)')
     elif args.balance:
         cli.requires(sc, 'mass_redistribution', **given)
         balanced, source = balanced_design(

@@ -1,0 +1,71 @@
+"""The default blueprint: rigs side by side over the RMS table, plots right."""
+
+from mech_balance.viz.drawing import DEGREE_TIMELINE
+from mech_balance.viz.layout import LEFT_SHARE, RIG_ROW_SHARE
+from mech_balance.viz.text import fmt
+import rerun as rr
+import rerun.blueprint as rrb
+
+
+DRAWN_STREAMS = ('frame', 'links', 'joints', 'mass_centres', 'point_masses',
+                 'shaking_force_arrow', 'shaking_moment_arc')
+
+
+def spatial_name(layout, variant):
+    parts = [variant] + ([f'grid {layout.grid_text}'] if layout.dim == 3 else [])
+    if layout.on('shaking_force_arrow'):
+        parts.append(f'force arrow 1 cm = {fmt(0.01 / layout.force_scale_m_per_N)} N')
+    if layout.on('shaking_moment_arc'):
+        parts.append(f'moment arc 90 deg = {fmt(90.0 / layout.moment_scale)} N*m'
+                     if layout.dim == 2 else
+                     f'moment arrow 1 cm = {fmt(0.01 / layout.moment_scale)} N*m')
+    return ' | '.join(parts)
+
+
+def blueprint(layout):
+    """Return the default blueprint: rigs side by side over the RMS table, plots right."""
+    spatial = []
+    if set(DRAWN_STREAMS) & set(layout.streams):
+        for v in layout.variants:
+            contents = ['/rig/**', f'/{v}/**']
+            screen = layout.screens[v]
+            name = spatial_name(layout, v)
+            if layout.dim == 2:
+                (x0, x1), (y0, y1) = screen.bounds
+                spatial.append(rrb.Spatial2DView(
+                    origin='/', contents=contents, name=name,
+                    visual_bounds=rrb.VisualBounds2D(x_range=[x0, x1], y_range=[-y1, -y0])))
+            else:
+                spatial.append(rrb.Spatial3DView(
+                    origin='/', contents=contents, name=name,
+                    eye_controls=rrb.EyeControls3D(
+                        kind=rrb.Eye3DKind.Orbital, position=screen.eye_m,
+                        look_target=screen.target_m, eye_up=screen.up),
+                    line_grid=rrb.LineGrid3D(visible=True, spacing=layout.grid_m,
+                                             plane=rr.components.Plane3D.XY)))
+    # the viewer's legend lists its entities in name order (balanced above original): the
+    # title says it instead, in the order of the rig views (original left, balanced right)
+    both = len(layout.variants) > 1
+    key = ': orange original, blue balanced' if both else ''
+    plots = [rrb.TimeSeriesView(origin=f'/plots/{p.entity}', name=p.title + key,
+                                axis_y=rrb.ScalarAxis(range=p.y_range, zoom_lock=False),
+                                plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop,
+                                                           visible=not both))
+             for p in layout.plots]
+    left = []
+    if spatial:
+        left.append(rrb.Horizontal(*spatial) if len(spatial) > 1 else spatial[0])
+    if layout.on('info'):
+        left.append(rrb.TextDocumentView(origin='/info', name='RMS, design, how to read'))
+    columns = []
+    if left:
+        columns.append(rrb.Vertical(*left, row_shares=[RIG_ROW_SHARE, 1.0 - RIG_ROW_SHARE])
+                       if len(left) > 1 else left[0])
+    if plots:
+        columns.append(rrb.Vertical(*plots))
+    root = rrb.Horizontal(*columns, column_shares=[LEFT_SHARE, 1.0 - LEFT_SHARE][:len(columns)])
+    return rrb.Blueprint(
+        root, rrb.BlueprintPanel(state='collapsed'), rrb.SelectionPanel(state='collapsed'),
+        rrb.TimePanel(state='collapsed', timeline='time' if layout.live else DEGREE_TIMELINE,
+                      play_state='following' if layout.live else 'playing',
+                      loop_mode='off' if layout.live else 'all'))

@@ -1,0 +1,260 @@
+"""Logging a laid-out recording to rerun: the static geometry, then the samples."""
+
+import math
+import re
+
+from mech_balance import paths
+from mech_balance.viz.blueprint import blueprint
+from mech_balance.viz.drawing import DEGREE_TIMELINE
+from mech_balance.viz.layout import place_labels, plot_values
+from mech_balance.viz.style import (
+    ADDED_ALPHA, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
+    DIAL_COLOR, DIAL_POINTS, FORCE_COLOR, FRAME_COLOR, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI,
+    JOINT_COLOR, JOINT_RADIUS_3D_SHARE, JOINT_RADIUS_UI, LINE_RADIUS_UI, LINK_RADIUS_3D_SHARE,
+    MOMENT_ARC_LIMIT_DEG, MOMENT_COLOR, MOMENT_HEAD_SHARE, NEGATIVE_MASS_COLOR, PLANE_ALPHA,
+    POINT_MASS_RADIUS_SHARE, POSITIVE_MASS_COLOR, SCALE_COLOR, SERIES_COLORS, SERIES_WIDTHS,
+    SYSTEM_CENTRE_COLOR
+)
+import numpy as np
+import rerun as rr
+
+
+APPLICATION_ID = 'mech_balance'
+"""Prefix of the rerun application id (the scene name follows, so layouts never clash)."""
+RRD_SUFFIX = '.rrd'
+"""What the name of a recording file ends in (rerun's format)."""
+Y_UP_SCALE = (1.0, -1.0, 1.0)
+"""Scale of the 2-D drawing roots that shows the scene's y axis upwards."""
+
+
+def application_id(scene):
+    """Return the rerun application id of a scene's recordings (its blueprint's key)."""
+    return f'{APPLICATION_ID}_' + re.sub(r'[^A-Za-z0-9_-]+', '_', scene.name)
+
+
+def check_output_path(path, field, create_dir=False):
+    """
+    Return the recording file ``path`` as a ``Path``, checked before anything is computed.
+
+    :func:`mech_balance.paths.check_output_path` with the suffix :data:`RRD_SUFFIX`; ``field``
+    names the caller's option or parameter (``--out``, ``recording_path``) in the error.
+    """
+    return paths.check_output_path(path, field, (RRD_SUFFIX,), create_dir=create_dir)
+
+
+def check_viewer_url(url, field='rerun_url'):
+    """Return ``url`` if it is a rerun viewer's gRPC address (:func:`paths.check_viewer_url`)."""
+    return paths.check_viewer_url(url, field)
+
+
+def time_index(degrees, seconds):
+    """Return the time columns of a batch: whole degrees turned (twice) and seconds."""
+    return [rr.TimeColumn(DEGREE_TIMELINE, sequence=degrees),
+            rr.TimeColumn('crank_angle', sequence=degrees),
+            rr.TimeColumn('time', duration=seconds)]
+
+
+def view_coords(layout, a):
+    """Return points ``(..., 3)`` as the view's coordinates (2-D: x, y)."""
+    a = np.asarray(a, dtype=float)
+    return a[..., :2] if layout.dim == 2 else a
+
+
+def archetypes(dim):
+    if dim == 2:
+        return rr.Points2D, rr.LineStrips2D, rr.Arrows2D
+    return rr.Points3D, rr.LineStrips3D, rr.Arrows3D
+
+
+def line_radius(layout, share, ui):
+    """Return a line or point radius: 2-D in ui points, 3-D in metres (tubes, spheres)."""
+    return ui if layout.dim == 2 else share * layout.size_m
+
+
+def log_static(rec, layout):
+    points, strips, arrows = archetypes(layout.dim)
+    if layout.dim == 3:
+        rec.log('/', rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    else:
+        # rerun's 2-D views draw y downwards (rerun-io/rerun#1387): mirror the drawing so
+        # that the scene's y axis points up; the logged data stay in the scene's frame.
+        for root in ('rig',) + layout.variants:
+            rec.log(root, rr.Transform3D(scale=Y_UP_SCALE), static=True)
+    if layout.on('info'):
+        rec.log('info', rr.TextDocument(layout.text, media_type=rr.MediaType.MARKDOWN),
+                static=True)
+    if layout.on('frame'):
+        if layout.frame_strips:
+            rec.log('rig/frame', strips([view_coords(layout, s) for s in layout.frame_strips],
+                                        colors=[FRAME_COLOR],
+                                        radii=[line_radius(layout, FRAME_RADIUS_3D_SHARE,
+                                                           FRAME_RADIUS_UI)]), static=True)
+        rec.log('rig/pivots', points(view_coords(layout, layout.frame_points),
+                                     colors=[FRAME_COLOR],
+                                     radii=[line_radius(layout, JOINT_RADIUS_3D_SHARE,
+                                                        JOINT_RADIUS_UI)]), static=True)
+    if layout.on('links'):
+        rec.log('rig/links', strips.from_fields(
+            colors=layout.link_colors,
+            radii=[line_radius(layout, LINK_RADIUS_3D_SHARE, LINE_RADIUS_UI)]), static=True)
+    if layout.on('joints'):
+        rec.log('rig/joints', points.from_fields(
+            colors=[JOINT_COLOR], radii=[line_radius(layout, JOINT_RADIUS_3D_SHARE,
+                                                     JOINT_RADIUS_UI)]), static=True)
+    if layout.scale_bar is not None:
+        rec.log('rig/scale', strips([view_coords(layout, layout.scale_bar[0])],
+                                    colors=[SCALE_COLOR], radii=[FRAME_RADIUS_UI]),
+                static=True)
+    if layout.dim == 2 and layout.dial_radius_m > 0.0:
+        t = np.linspace(0.0, 2.0 * math.pi, DIAL_POINTS)
+        circle = layout.gauge_m[:2] + layout.dial_radius_m * np.stack([np.cos(t), np.sin(t)],
+                                                                      axis=-1)
+        rec.log('rig/gauge', rr.LineStrips2D([circle], colors=[DIAL_COLOR],
+                                             radii=[FRAME_RADIUS_UI]), static=True)
+    size = layout.size_m
+    for v in layout.variants:
+        rec.log(f'{v}/labels', points.from_fields(radii=[0.0], show_labels=True),
+                static=True)
+        if layout.on('mass_centres'):
+            n = len(layout.link_names)
+            rec.log(f'{v}/mass_centres', points.from_fields(
+                colors=list(layout.link_colors) + [SYSTEM_CENTRE_COLOR],
+                radii=[CENTRE_RADIUS_SHARE * size] * n + [1.8 * CENTRE_RADIUS_SHARE * size]),
+                static=True)
+        bodies = layout.drawings[v].bodies
+        added = [(i, a) for i, b in enumerate(bodies) for a in b.added]
+        behind = {'draw_order': ADDED_DRAW_ORDER} if layout.dim == 2 else {}
+        if layout.has_added and added:
+            # each disc in its link's colour, see-through so that the link under it shows
+            rec.log(f'{v}/counterweights', points.from_fields(
+                radii=[a.radius_m for _, a in added],
+                colors=[layout.link_colors[i] + (ADDED_ALPHA,) for i, _ in added],
+                labels=[f'{a.name}: {a.mass_kg:.3g} kg' for _, a in added], show_labels=False,
+                **behind), static=True)
+            rec.log(f'{v}/counterweight_planes', strips.from_fields(
+                colors=[layout.link_colors[i] + (PLANE_ALPHA,) for i, _ in added],
+                radii=[line_radius(layout, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI)],
+                **behind), static=True)
+        moved = (layout.changes or {}).get(v, [])
+        if layout.on('links') and moved:
+            rec.log(f'{v}/mass_changes', strips.from_fields(
+                colors=[layout.link_colors[i] for i, _ in moved],
+                radii=[line_radius(layout, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI)]),
+                static=True)
+        if layout.has_point_masses:
+            kg = np.array([m for b in layout.drawings[v].bodies for m, _ in b.point_masses])
+            mmax = max(float(np.max(np.abs(np.array(
+                [m for dr in layout.drawings.values() for b in dr.bodies
+                 for m, _ in b.point_masses])))), 1e-300)
+            rec.log(f'{v}/point_masses', points.from_fields(
+                radii=POINT_MASS_RADIUS_SHARE * size * np.sqrt(np.abs(kg) / mmax),
+                colors=[POSITIVE_MASS_COLOR if m >= 0.0 else NEGATIVE_MASS_COLOR for m in kg],
+                labels=[f'{m * 1e3:+.4g} g' for m in kg], show_labels=False), static=True)
+        if layout.on('shaking_force_arrow'):
+            rec.log(f'{v}/shaking_force', arrows.from_fields(
+                origins=[view_coords(layout, layout.gauge_m)], colors=[FORCE_COLOR],
+                radii=[line_radius(layout, ARROW_3D_RADIUS_SHARE, LINE_RADIUS_UI)]),
+                static=True)
+        if layout.on('shaking_moment_arc'):
+            if layout.dim == 2:
+                rec.log(f'{v}/shaking_moment', rr.LineStrips2D.from_fields(
+                    colors=[MOMENT_COLOR], radii=[LINE_RADIUS_UI]), static=True)
+            else:
+                rec.log(f'{v}/shaking_moment', rr.Arrows3D.from_fields(
+                    origins=[layout.gauge_m], colors=[MOMENT_COLOR],
+                    radii=[ARROW_3D_RADIUS_SHARE * size]), static=True)
+    for p in layout.plots:
+        for v in layout.variants:
+            rec.log(f'plots/{p.entity}/{v}', rr.SeriesLines(
+                colors=[SERIES_COLORS[v]], names=[v], widths=[SERIES_WIDTHS[v]]), static=True)
+
+
+def moment_arc(centre, moment_Nm, scale_deg_per_Nm, radius):
+    """Return the arc ``(p, ARC_POINTS, 2)`` and arrow head ``(p, 3, 2)`` of planar moments."""
+    limit = math.radians(MOMENT_ARC_LIMIT_DEG)
+    sweep = np.clip(np.radians(moment_Nm * scale_deg_per_Nm), -limit, limit)
+    start = 0.5 * math.pi
+    t = np.linspace(0.0, 1.0, ARC_POINTS)
+    c = complex(centre[0], centre[1])
+    arc = c + radius * np.exp(1j * (start + sweep[:, None] * t[None, :]))
+    tip_dir = np.exp(1j * (start + sweep))
+    tangent = np.sign(sweep) * 1j * tip_dir
+    head = MOMENT_HEAD_SHARE * radius * np.minimum(1.0, np.abs(sweep) / 0.5)
+    tip = c + radius * tip_dir
+    barbs = [tip - head * tangent * np.exp(1j * math.radians(a)) for a in (30.0, -30.0)]
+
+    def c2(z):
+        return np.stack([z.real, z.imag], axis=-1)
+    return c2(arc), c2(np.stack([barbs[0], tip, barbs[1]], axis=1))
+
+
+def log_motion(rec, layout, motion, degrees, seconds, labels=None):
+    """Send the columns of a batch of samples (``labels``: precomputed per variant)."""
+    index = time_index(degrees, seconds)
+    points, strips, arrows = archetypes(layout.dim)
+    p = motion.size
+    if layout.on('links'):
+        n = len(motion.links)
+        flat = [view_coords(layout, motion.links[i][k]) for k in range(p) for i in range(n)]
+        rec.send_columns('rig/links', index,
+                         strips.columns(strips=flat).partition(np.full(p, n)))
+    if layout.on('joints') and motion.joints.shape[1]:
+        n = motion.joints.shape[1]
+        rec.send_columns('rig/joints', index, points.columns(
+            positions=view_coords(layout, motion.joints).reshape(-1, layout.dim)).partition(
+                np.full(p, n)))
+    for v in layout.variants:
+        data = motion.data[v]
+        if layout.on('mass_centres'):
+            c = motion.centres[v]
+            rec.send_columns(f'{v}/mass_centres', index, points.columns(
+                positions=view_coords(layout, c).reshape(-1, layout.dim)).partition(
+                    np.full(p, c.shape[1])))
+        if layout.has_added and motion.added[v].shape[1]:
+            a = motion.added[v]
+            rec.send_columns(f'{v}/counterweights', index, points.columns(
+                positions=view_coords(layout, a).reshape(-1, layout.dim)).partition(
+                    np.full(p, a.shape[1])))
+        marks = (motion.marks or {}).get(v, {})
+        drawn = {'rings': layout.has_added, 'stalks': layout.on('links')}
+        for kind, path in (('rings', 'counterweight_planes'), ('stalks', 'mass_changes')):
+            m = marks.get(kind)
+            if m is None or not drawn[kind]:
+                continue
+            flat = [view_coords(layout, m[k, j]) for k in range(p) for j in range(m.shape[1])]
+            rec.send_columns(f'{v}/{path}', index,
+                             strips.columns(strips=flat).partition(np.full(p, m.shape[1])))
+        if layout.has_point_masses:
+            pm = motion.point_masses[v]
+            rec.send_columns(f'{v}/point_masses', index, points.columns(
+                positions=view_coords(layout, pm).reshape(-1, layout.dim)).partition(
+                    np.full(p, pm.shape[1])))
+        if layout.on('shaking_force_arrow'):
+            rec.send_columns(f'{v}/shaking_force', index, arrows.columns(
+                vectors=view_coords(layout, data.force_N * layout.force_scale_m_per_N)))
+        if layout.on('shaking_moment_arc'):
+            if layout.dim == 2:
+                arc, head = moment_arc(layout.gauge_m, data.moment_Nm[:, 2],
+                                       layout.moment_scale, layout.dial_radius_m)
+                flat = [s for k in range(p) for s in (arc[k], head[k])]
+                rec.send_columns(f'{v}/shaking_moment', index,
+                                 rr.LineStrips2D.columns(strips=flat).partition(
+                                     np.full(p, 2)))
+            else:
+                rec.send_columns(f'{v}/shaking_moment', index, rr.Arrows3D.columns(
+                    vectors=data.moment_Nm * layout.moment_scale))
+        pos, texts, colors, counts = labels[v] if labels else place_labels(layout, motion, v)
+        rec.send_columns(f'{v}/labels', index, points.columns(
+            positions=view_coords(layout, pos).reshape(-1, layout.dim), labels=texts,
+            colors=colors).partition(counts))
+    for plot in layout.plots:
+        for v, values in plot_values(layout, motion, plot.entity):
+            rec.send_columns(f'plots/{plot.entity}/{v}', index,
+                             rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
+
+
+def start_stream(rec, scene, layout):
+    """Send the blueprint, the recording's name and the static geometry."""
+    rec.send_blueprint(blueprint(layout), make_active=True, make_default=True)
+    rec.send_recording_name(f'{scene.name}: ' + ' vs '.join(layout.variants))
+    log_static(rec, layout)
