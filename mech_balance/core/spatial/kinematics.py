@@ -91,8 +91,12 @@ def cross(a, b):
 
 
 def mv(mat, vec):
-    """Return ``mat @ vec`` over stacks: ``(..., 3, 3)`` times ``(..., 3)`` (broadcast)."""
-    return np.matmul(mat, vec[..., None])[..., 0]
+    """Return ``mat @ vec`` over stacks: ``(..., k, k)`` times ``(..., k)`` (broadcast)."""
+    vec = np.asarray(vec)
+    out = mat[..., 0] * vec[..., None, 0]
+    for j in range(1, mat.shape[-1]):
+        out += mat[..., j] * vec[..., None, j]
+    return out
 
 
 def dot(a, b):
@@ -110,12 +114,16 @@ def skew(v):
     return out
 
 
+EYE3 = np.eye(3)
+EYE3.flags.writeable = False
+
+
 def rot_axis(axis, angle):
     """Return rotations ``(n, 3, 3)`` by ``angle`` ``(n,)`` about the unit ``axis`` (3,)."""
     k = skew(axis)
     k2 = k @ k
     s, c = np.sin(angle), np.cos(angle)
-    return np.eye(3) + s[:, None, None] * k + (1.0 - c)[:, None, None] * k2
+    return EYE3 + s[:, None, None] * k + (1.0 - c)[:, None, None] * k2
 
 
 def expmap(v):
@@ -126,7 +134,7 @@ def expmap(v):
     a = np.where(small, 1.0 - th ** 2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - th ** 2 / 24.0, (1.0 - np.cos(safe)) / safe ** 2)
     k = skew(v)
-    return np.eye(3) + a[:, None, None] * k + b[:, None, None] * (k @ k)
+    return EYE3 + a[:, None, None] * k + b[:, None, None] * (k @ k)
 
 
 def min_rotation(frm, to):
@@ -250,6 +258,8 @@ class Frames:
     rot: np.ndarray       # (n, nb, 3, 3)
     origin: np.ndarray    # (n, nb, 3)
     cols: np.ndarray      # (n, ndof, 6) twist columns (omega, v at the frame origin)
+    parts: list = None    # the closure rows' world vectors (cached by Linkage._row_parts)
+    grads: tuple = None   # the rows' twist gradients (cached by Linkage.gradients)
 
 
 @dataclass
@@ -526,6 +536,12 @@ class Linkage:
     # ------------------------------------------------------------------ closure rows
 
     def _row_parts(self, fr):
+        """Return per group the world quantities the rows need (cached on ``fr``)."""
+        if fr.parts is None:
+            fr.parts = list(self._row_parts_of(fr))
+        return fr.parts
+
+    def _row_parts_of(self, fr):
         """Yield per group the world quantities the rows need."""
         for r in self.rows:
             rb, ra = fr.rot[:, r.body_b], fr.rot[:, r.body_a]
@@ -556,6 +572,11 @@ class Linkage:
 
     def gradients(self, fr):
         """Return ``(G_b, G_a)`` ``(n, m, 6)``: each row's rate per unit twist of b and a."""
+        if fr.grads is None:
+            fr.grads = self._gradients(fr)
+        return fr.grads
+
+    def _gradients(self, fr):
         gb, ga = [], []
         eye = np.eye(3)
         for r, rb, ra, vb, va in self._row_parts(fr):
