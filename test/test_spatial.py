@@ -545,7 +545,7 @@ def test_random_near_singular_cases_are_flagged():
 
 @pytest.mark.parametrize('name', BUILTINS)
 def test_urdf_fk_puts_every_joint_point_where_the_core_does(name):
-    """yourdfpy loads the URDF; FK at the published joint states meets the core's points."""
+    """The URDF loads in yourdfpy; FK at the published joint states meets the core's points."""
     yourdfpy = pytest.importorskip('yourdfpy')
     import io
     from mech_balance.ros import urdf

@@ -54,7 +54,7 @@ COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which a position is refused as singular."""
 RANK_RTOL = 1e-9
 """Singular values below this fraction of the largest count as zero (rank, null space)."""
-STEP_MAX_RAD = math.radians(5.0)
+STEP_MAX_RAD = math.radians(10.0)
 """Largest crank step between branch nodes."""
 STEP_MIN_RAD = 1e-7
 """Smallest crank step before the continuation declares the branch lost."""
