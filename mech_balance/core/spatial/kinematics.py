@@ -64,8 +64,9 @@ EVAL_TRUST = 1e-3
 """Largest scaled correction from the branch predictor before an angle is re-traced."""
 CLOSURE_TOL = 1e-7
 """Largest scaled pose mismatch after one traced turn for the branch to count as closed."""
-REFINE_STEPS = 2
-"""Iterative-refinement steps of a solve with the predictor's inverse (error ~1e-8 each)."""
+REFINE_STEPS = 1
+"""Iterative-refinement steps of a solve with the predictor's inverse (each squares the
+relative error, ~1e-8 from a dense node half a degree away, to ~1e-16)."""
 DENSE_STEP_RAD = math.radians(1.0)
 """Spacing of the dense branch nodes the batched evaluation predicts from."""
 IDLE_INERTIA_RTOL = 1e-9
@@ -231,6 +232,12 @@ class TreeJoint:
     fixed: np.ndarray     # the constant rotation Z, Rot(a, angle) Z or U (None: spherical)
     dofs: tuple           # indices into the coordinate vector
     flipped: bool         # the scene's end a is the child
+
+    def __post_init__(self):
+        """Precompute ``K Z`` and ``K^2 Z`` (K = the axis's cross matrix) for Rot(a, q) Z."""
+        if self.axis is not None:
+            k = skew(self.axis)
+            self.kz, self.k2z = k @ self.fixed, k @ k @ self.fixed
 
 
 @dataclass
@@ -485,11 +492,12 @@ class Linkage:
         n = q.shape[0]
         rot = np.empty((n, self.nb, 3, 3))
         origin = np.empty((n, self.nb, 3))
-        rot[:, 0] = np.eye(3)
+        rot[:, 0] = EYE3
         origin[:, 0] = 0.0
         cols = np.zeros((n, self.ndof, 6))
         si = 0
         for t in self.tree:
+            root = not t.parent
             rp, pp = rot[:, t.parent], origin[:, t.parent]
             d = t.dofs
             jtype = t.joint_type
@@ -497,38 +505,34 @@ class Linkage:
                 m = sph[:, si]
                 si += 1
                 off = t.s_parent
-            elif jtype == 'revolute':
-                m = rot_axis(t.axis, q[:, d[0]]) @ t.fixed
-                off = t.s_parent
-            elif jtype == 'cylindrical':
-                m = rot_axis(t.axis, q[:, d[0]]) @ t.fixed
-                off = t.s_parent + q[:, d[1], None] * t.axis
             elif jtype == 'prismatic':
-                m = np.broadcast_to(t.fixed, (n, 3, 3))
+                m = t.fixed
                 off = t.s_parent + q[:, d[0], None] * t.axis
-            else:  # universal
-                m = rot_axis(t.axis, q[:, d[0]]) @ t.fixed @ rot_axis(t.axis_child, q[:, d[1]])
-                off = t.s_parent
-            rc = rp @ m if t.parent else np.array(m)
-            r_joint = pp + np.einsum('nij,...j->ni', rp, off) if t.parent else \
-                np.broadcast_to(off, (n, 3)) + 0.0
+            else:
+                s, c = np.sin(q[:, d[0]]), np.cos(q[:, d[0]])
+                # Rot(a, theta) Z = Z + sin K Z + (1 - cos) K^2 Z (K, K^2 Z precomputed)
+                m = t.fixed + s[:, None, None] * t.kz + (1.0 - c)[:, None, None] * t.k2z
+                off = t.s_parent + q[:, d[1], None] * t.axis if jtype == 'cylindrical' \
+                    else t.s_parent
+                if jtype == 'universal':
+                    m = m @ rot_axis(t.axis_child, q[:, d[1]])
+            rc = np.broadcast_to(m, (n, 3, 3)) if root else rp @ m
+            r_joint = np.broadcast_to(off, (n, 3)) if root else pp + mv(rp, off)
             rot[:, t.child] = rc
-            origin[:, t.child] = r_joint - rc @ t.s_child
+            origin[:, t.child] = r_joint - mv(rc, t.s_child)
             if jtype == 'spherical':
-                axes = np.swapaxes(rp, 1, 2) if t.parent else \
-                    np.broadcast_to(np.eye(3), (n, 3, 3))
-                for i in range(3):
-                    cols[:, d[i], :3] = axes[:, i]
-                    cols[:, d[i], 3:] = cross(r_joint, axes[:, i])
+                axes = EYE3 if root else np.swapaxes(rp, 1, 2)
+                cols[:, d[0]:d[0] + 3, :3] = axes
+                cols[:, d[0]:d[0] + 3, 3:] = cross(r_joint[:, None, :], axes)
                 continue
-            aw = rp @ t.axis if t.parent else np.broadcast_to(t.axis, (n, 3))
-            if jtype in ('revolute', 'cylindrical', 'universal'):
+            aw = np.broadcast_to(t.axis, (n, 3)) if root else mv(rp, t.axis)
+            if jtype != 'prismatic':
                 cols[:, d[0], :3] = aw
                 cols[:, d[0], 3:] = cross(r_joint, aw)
             if jtype in ('cylindrical', 'prismatic'):
                 cols[:, d[-1], 3:] = aw
             if jtype == 'universal':
-                bw = rc @ t.axis_child
+                bw = mv(rc, t.axis_child)
                 cols[:, d[1], :3] = bw
                 cols[:, d[1], 3:] = cross(r_joint, bw)
         return Frames(rot, origin, cols)
