@@ -586,3 +586,58 @@ def test_urdf_fk_puts_every_joint_point_where_the_core_does(name):
         if n in slides:
             rate[:, i] = (plus[:, i] - minus[:, i]) / 2e-6 * sc.crank_speed_rad_s
     assert_allclose(vel, rate, rtol=0, atol=1e-6 * np.max(np.abs(vel)))
+
+
+# ----------------------------------------------------------------------------- Jacobian
+
+def _rscr():
+    """Return an R-S-C-R scene (a cylindrical joint between coupler and rocker), assembled."""
+    base = rig_for(schema.load('rssr_skew'))
+    poses = base.at(np.array([0.0]), outputs=('kinematics',)).bodies
+    r_rocker, d = poses.rotation[0, 3], poses.origin_m[0, 3]
+    b = np.array([0.03, 0.0, 0.0])
+    q = d + 0.12 * r_rocker[:, 0]
+    rc = np.stack([r_rocker[:, 0], np.cross(r_rocker[:, 2], r_rocker[:, 0]), r_rocker[:, 2]], -1)
+    b_local = rc.T @ (b - q)
+    data = copy.deepcopy(_load_data('rssr_skew'))
+    data['links']['coupler'] = {
+        'points': {'Q': [0.0, 0.0, 0.0], 'B': [float(v) for v in b_local]}, 'mass_kg': 0.25,
+        'com_m': [float(v) for v in 0.5 * b_local],
+        'inertia_com_kg_m2': [1e-4, 6e-4, 6.5e-4, 1e-5, 0.0, 2e-6]}
+    data['links']['rocker']['points'] = {'D': [0.0, 0.0, 0.0]}
+    data['joints']['C'] = {'type': 'cylindrical', 'a': 'rocker.D', 'b': 'coupler.Q',
+                           'axis': [1.0, 0.0, 0.0]}
+    data['assembly']['poses']['coupler'] = {'origin_m': [float(v) for v in q],
+                                            'rpy_deg': _rpy(rc)}
+    return spatial_from_dict(data)
+
+
+JACOBIAN_FD_STEP = 1e-6
+"""Step of the central differences of the closure residual (rad, or m / length scale)."""
+
+
+@pytest.mark.parametrize('name', BUILTINS + ('rscr', 'bennett'))
+def test_analytic_jacobian_is_the_residual_derivative(name):
+    """Every row type (point, dot, line, spin) against central differences at assembly."""
+    if name == 'rscr':
+        sc = _rscr()
+    elif name == 'bennett':
+        sc = spatial_from_dict(_bennett()[0])
+    else:
+        sc = schema.load(name)
+    lk = kinematics.Linkage(sc)
+    if name == 'rscr':
+        assert 'cylindrical' in {jt.joint_type for jt in sc.joints}
+        assert any(r.form == 'line' for r in lk.rows)
+    q, sph = lk.q0, lk.sph0
+    jac = lk.jacobian(lk.frames(q, sph))[0]
+    for dof in range(1, lk.ndof):
+        h = JACOBIAN_FD_STEP * lk.col_scale[dof]
+        delta = np.zeros((1, lk.nu))
+        delta[0, dof - 1] = h
+        g = []
+        for sign in (1.0, -1.0):
+            q2, s2 = lk._update(q, sph, sign * delta)
+            g.append(lk.residual(lk.frames(q2, s2))[0])
+        fd = (g[0] - g[1]) / (2.0 * h)   # spherical: along exp(+-h e_i) M, the same curve
+        assert_allclose(jac[:, dof], fd, rtol=0, atol=1e-7 * np.max(np.abs(jac)))
