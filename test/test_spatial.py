@@ -217,28 +217,33 @@ def test_closure_and_condition_reported(name):
             assert np.max(np.abs(xa - xb)) <= 10 * kinematics.NEWTON_TOL * lk.length_scale
 
 
-@pytest.mark.parametrize('name', BUILTINS)
-def test_reactions_balance_every_link(name):
+def _check_reactions(rig, psi):
     """Newton-Euler per link: the joint wrenches on it equal its rate of momentum."""
-    rig = rig_for(schema.load(name))
-    psi = np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False)
+    from mech_balance.core.spatial import dynamics
     sc = rig.scene
     data = rig.at(psi, outputs=('bearing_reactions',))
-    state = data.native
-    from mech_balance.core.spatial import dynamics
-    phi = dynamics.momentum_rates(state, rig.inertia)
+    phi = dynamics.momentum_rates(data.native, rig.inertia)
     for k, lk in enumerate(sc.links, start=1):
         total = np.zeros((psi.size, 6))
         for jt in sc.joints:
             if lk.name not in (jt.link_a, jt.link_b):
                 continue
             f, m = data.reactions[jt.name]
-            x = data.bodies.world(jt.link_b, sc.link(jt.link_b).points[jt.point_b])
+            local = sc.frame_points[jt.point_b] if jt.link_b == 'frame' else \
+                sc.link(jt.link_b).points[jt.point_b]
+            x = data.bodies.world(jt.link_b, local)
             sign = 1.0 if jt.link_b == lk.name else -1.0
             total[:, 3:] += sign * f
             total[:, :3] += sign * (m + np.cross(x, f))
         scale = np.max(np.abs(phi[:, k]))
         assert_allclose(total, phi[:, k], rtol=0, atol=1e-9 * scale)
+
+
+@pytest.mark.parametrize('name', BUILTINS)
+def test_reactions_balance_every_link(name):
+    """Newton-Euler per link: the joint wrenches on it equal its rate of momentum."""
+    _check_reactions(rig_for(schema.load(name)), np.linspace(0.0, 2.0 * np.pi, 12,
+                                                             endpoint=False))
 
 
 def test_rggr_spatial_matches_rggr():
@@ -375,8 +380,7 @@ def test_over_constrained_bennett_reports_non_unique_reactions():
     _check_momentum(rig, psi)
     _check_power(rig, psi)
     # the reactions are a minimum-norm choice, yet they still balance every link
-    data_r = rig.at(psi, outputs=('bearing_reactions',))
-    assert set(data_r.reactions) == {'J1', 'J2', 'J3', 'J4'}
+    _check_reactions(rig, psi)
 
 
 # ----------------------------------------------------------------------------- random RSSRs
@@ -541,7 +545,7 @@ def test_random_near_singular_cases_are_flagged():
 
 @pytest.mark.parametrize('name', BUILTINS)
 def test_urdf_fk_puts_every_joint_point_where_the_core_does(name):
-    """yourdfpy loads the URDF; FK at the published joint states meets the core's points."""
+    """The URDF loads in yourdfpy; FK at the published joint states meets the core's points."""
     yourdfpy = pytest.importorskip('yourdfpy')
     import io
     from mech_balance.ros import urdf
@@ -582,3 +586,58 @@ def test_urdf_fk_puts_every_joint_point_where_the_core_does(name):
         if n in slides:
             rate[:, i] = (plus[:, i] - minus[:, i]) / 2e-6 * sc.crank_speed_rad_s
     assert_allclose(vel, rate, rtol=0, atol=1e-6 * np.max(np.abs(vel)))
+
+
+# ----------------------------------------------------------------------------- Jacobian
+
+def _rscr():
+    """Return an R-S-C-R scene (a cylindrical joint between coupler and rocker), assembled."""
+    base = rig_for(schema.load('rssr_skew'))
+    poses = base.at(np.array([0.0]), outputs=('kinematics',)).bodies
+    r_rocker, d = poses.rotation[0, 3], poses.origin_m[0, 3]
+    b = np.array([0.03, 0.0, 0.0])
+    q = d + 0.12 * r_rocker[:, 0]
+    rc = np.stack([r_rocker[:, 0], np.cross(r_rocker[:, 2], r_rocker[:, 0]), r_rocker[:, 2]], -1)
+    b_local = rc.T @ (b - q)
+    data = copy.deepcopy(_load_data('rssr_skew'))
+    data['links']['coupler'] = {
+        'points': {'Q': [0.0, 0.0, 0.0], 'B': [float(v) for v in b_local]}, 'mass_kg': 0.25,
+        'com_m': [float(v) for v in 0.5 * b_local],
+        'inertia_com_kg_m2': [1e-4, 6e-4, 6.5e-4, 1e-5, 0.0, 2e-6]}
+    data['links']['rocker']['points'] = {'D': [0.0, 0.0, 0.0]}
+    data['joints']['C'] = {'type': 'cylindrical', 'a': 'rocker.D', 'b': 'coupler.Q',
+                           'axis': [1.0, 0.0, 0.0]}
+    data['assembly']['poses']['coupler'] = {'origin_m': [float(v) for v in q],
+                                            'rpy_deg': _rpy(rc)}
+    return spatial_from_dict(data)
+
+
+JACOBIAN_FD_STEP = 1e-6
+"""Step of the central differences of the closure residual (rad, or m / length scale)."""
+
+
+@pytest.mark.parametrize('name', BUILTINS + ('rscr', 'bennett'))
+def test_analytic_jacobian_is_the_residual_derivative(name):
+    """Every row type (point, dot, line, spin) against central differences at assembly."""
+    if name == 'rscr':
+        sc = _rscr()
+    elif name == 'bennett':
+        sc = spatial_from_dict(_bennett()[0])
+    else:
+        sc = schema.load(name)
+    lk = kinematics.Linkage(sc)
+    if name == 'rscr':
+        assert 'cylindrical' in {jt.joint_type for jt in sc.joints}
+        assert any(r.form == 'line' for r in lk.rows)
+    q, sph = lk.q0, lk.sph0
+    jac = lk.jacobian(lk.frames(q, sph))[0]
+    for dof in range(1, lk.ndof):
+        h = JACOBIAN_FD_STEP * lk.col_scale[dof]
+        delta = np.zeros((1, lk.nu))
+        delta[0, dof - 1] = h
+        g = []
+        for sign in (1.0, -1.0):
+            q2, s2 = lk._update(q, sph, sign * delta)
+            g.append(lk.residual(lk.frames(q2, s2))[0])
+        fd = (g[0] - g[1]) / (2.0 * h)   # spherical: along exp(+-h e_i) M, the same curve
+        assert_allclose(jac[:, dof], fd, rtol=0, atol=1e-7 * np.max(np.abs(jac)))

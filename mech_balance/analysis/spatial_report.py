@@ -37,13 +37,15 @@ def _rows(rig, data, normalized):
 
     if data.force_N is not None:
         add('shaking force |f|', data.force_N, 'force')
-        add(f'shaking moment |n| about {rig.moment_point}', data.moment_Nm, 'moment')
+        add('shaking moment |n| about P', data.moment_Nm, 'moment')
     for name, (label, dim) in SERIES.items():
         if name in data.series:
             add(label, data.series[name], dim)
+    types = {j.name: j.joint_type for j in rig.scene.joints}
     for joint, (force, moment) in (data.reactions or {}).items():
         add(f'bearing force |F| {joint}', force, 'force')
-        add(f'bearing moment |M| {joint}', moment, 'moment')
+        if types.get(joint) != 'spherical':   # a ball joint carries no moment
+            add(f'bearing moment |M| {joint}', moment, 'moment')
     return rows
 
 
@@ -74,7 +76,8 @@ def analyze(sc, samples=None, normalized=False, design=None):
            'idle_spins': [list(s) for s in getattr(rig.linkage, 'idle_spins', ())]}
     width = max([len(r['quantity']) for r in rows] + [10])
     lines = [f'scene {sc.name} (spatial): {psi.size} crank angles, crank speed '
-             f'{sc.crank_speed_rad_s:g} rad/s' + (' (normalized)' if normalized else ''),
+             f'{sc.crank_speed_rad_s:g} rad/s' + (' (normalized)' if normalized else '')
+             + f'; shaking moment about P, {rig.moment_point}',
              f'{"quantity":<{width}}  {"unit":<12} {"rms":>12} {"max":>12}']
     for r in rows:
         lines.append(f'{r["quantity"]:<{width}}  {r["unit"]:<12} {r["rms"]:12.6g} '

@@ -9,7 +9,7 @@ angular velocity ``R_a^T (omega_b - omega_a)`` and the relative point velocity.
 
 import math
 
-from mech_balance.core.spatial.kinematics import angle_about, cross, min_rotation, \
+from mech_balance.core.spatial.kinematics import angle_about, cross, min_rotation, mv, \
     perp_pair, rot_axis
 import numpy as np
 
@@ -48,24 +48,35 @@ def rpy_of(rot):
     return yaw, pitch, roll
 
 
+def _constants(linkage):
+    """Return (and cache on the linkage) each joint's bodies, points and axis constants."""
+    cached = getattr(linkage, '_joint_constants', None)
+    if cached is None:
+        sc = linkage.scene
+        idx = {n: i for i, n in enumerate(linkage.body_names)}
+        cached = [(jt, idx[jt.link_a], idx[jt.link_b], linkage._points[jt.link_a][jt.point_a],
+                   linkage._points[jt.link_b][jt.point_b], joint_frames(sc, jt))
+                  for jt in sc.joints]
+        linkage._joint_constants = cached
+    return cached
+
+
 def joint_values(linkage, state):
     """Return ``(names, slides, position (n, k), velocity (n, k))`` of every joint coordinate."""
-    sc = linkage.scene
-    idx = {n: i for i, n in enumerate(linkage.body_names)}
     fr, tw = state.frames, state.twist
     names, slides, pos, vel = [], [], [], []
-    for jt in sc.joints:
-        a, b = idx[jt.link_a], idx[jt.link_b]
+    for jt, a, b, pa, pb, (ax, bx, fixed) in _constants(linkage):
         ra, rb = fr.rot[:, a], fr.rot[:, b]
-        rel = np.einsum('nji,njk->nik', ra, rb)
-        xa = fr.origin[:, a] + ra @ linkage._points[jt.link_a][jt.point_a]
-        xb = fr.origin[:, b] + rb @ linkage._points[jt.link_b][jt.point_b]
-        w_rel = np.einsum('nji,nj->ni', ra, tw[:, b, :3] - tw[:, a, :3])
-        va = tw[:, a, 3:] + cross(tw[:, a, :3], xa)
+        ra_t = np.swapaxes(ra, 1, 2)
+        rel = np.matmul(ra_t, rb)
+        xa = fr.origin[:, a] + mv(ra, pa)
+        xb = fr.origin[:, b] + mv(rb, pb)
+        wa = tw[:, a, :3]
+        w_rel = mv(ra_t, tw[:, b, :3] - wa)
+        va = tw[:, a, 3:] + cross(wa, xa)
         vb = tw[:, b, 3:] + cross(tw[:, b, :3], xb)
-        d = np.einsum('nji,nj->ni', ra, xb - xa)
-        dd = np.einsum('nji,nj->ni', ra, vb - va - cross(tw[:, a, :3], xb - xa))
-        ax, bx, fixed = joint_frames(sc, jt)
+        d = mv(ra_t, xb - xa)
+        dd = mv(ra_t, vb - va - cross(wa, xb - xa))
         t = jt.joint_type
         if t == 'spherical':
             m = rel @ linkage.sph_zero[jt.name].T

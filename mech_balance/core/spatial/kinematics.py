@@ -54,7 +54,7 @@ COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which a position is refused as singular."""
 RANK_RTOL = 1e-9
 """Singular values below this fraction of the largest count as zero (rank, null space)."""
-STEP_MAX_RAD = math.radians(5.0)
+STEP_MAX_RAD = math.radians(10.0)
 """Largest crank step between branch nodes."""
 STEP_MIN_RAD = 1e-7
 """Smallest crank step before the continuation declares the branch lost."""
@@ -64,8 +64,9 @@ EVAL_TRUST = 1e-3
 """Largest scaled correction from the branch predictor before an angle is re-traced."""
 CLOSURE_TOL = 1e-7
 """Largest scaled pose mismatch after one traced turn for the branch to count as closed."""
-REFINE_STEPS = 2
-"""Iterative-refinement steps of a solve with the predictor's inverse (error ~1e-8 each)."""
+REFINE_STEPS = 1
+"""Iterative-refinement steps of a solve with the predictor's inverse (each squares the
+relative error, ~1e-8 from a dense node half a degree away, to ~1e-16)."""
 DENSE_STEP_RAD = math.radians(1.0)
 """Spacing of the dense branch nodes the batched evaluation predicts from."""
 IDLE_INERTIA_RTOL = 1e-9
@@ -91,8 +92,12 @@ def cross(a, b):
 
 
 def mv(mat, vec):
-    """Return ``mat @ vec`` over stacks: ``(..., 3, 3)`` times ``(..., 3)`` (broadcast)."""
-    return np.matmul(mat, vec[..., None])[..., 0]
+    """Return ``mat @ vec`` over stacks: ``(..., k, k)`` times ``(..., k)`` (broadcast)."""
+    vec = np.asarray(vec)
+    out = mat[..., 0] * vec[..., None, 0]
+    for j in range(1, mat.shape[-1]):
+        out += mat[..., j] * vec[..., None, j]
+    return out
 
 
 def dot(a, b):
@@ -110,12 +115,16 @@ def skew(v):
     return out
 
 
+EYE3 = np.eye(3)
+EYE3.flags.writeable = False
+
+
 def rot_axis(axis, angle):
     """Return rotations ``(n, 3, 3)`` by ``angle`` ``(n,)`` about the unit ``axis`` (3,)."""
     k = skew(axis)
     k2 = k @ k
     s, c = np.sin(angle), np.cos(angle)
-    return np.eye(3) + s[:, None, None] * k + (1.0 - c)[:, None, None] * k2
+    return EYE3 + s[:, None, None] * k + (1.0 - c)[:, None, None] * k2
 
 
 def expmap(v):
@@ -126,7 +135,7 @@ def expmap(v):
     a = np.where(small, 1.0 - th ** 2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - th ** 2 / 24.0, (1.0 - np.cos(safe)) / safe ** 2)
     k = skew(v)
-    return np.eye(3) + a[:, None, None] * k + b[:, None, None] * (k @ k)
+    return EYE3 + a[:, None, None] * k + b[:, None, None] * (k @ k)
 
 
 def min_rotation(frm, to):
@@ -224,6 +233,12 @@ class TreeJoint:
     dofs: tuple           # indices into the coordinate vector
     flipped: bool         # the scene's end a is the child
 
+    def __post_init__(self):
+        """Precompute ``K Z`` and ``K^2 Z`` (K = the axis's cross matrix) for Rot(a, q) Z."""
+        if self.axis is not None:
+            k = skew(self.axis)
+            self.kz, self.k2z = k @ self.fixed, k @ k @ self.fixed
+
 
 @dataclass
 class Rows:
@@ -250,6 +265,8 @@ class Frames:
     rot: np.ndarray       # (n, nb, 3, 3)
     origin: np.ndarray    # (n, nb, 3)
     cols: np.ndarray      # (n, ndof, 6) twist columns (omega, v at the frame origin)
+    parts: list = None    # the closure rows' world vectors (cached by Linkage._row_parts)
+    grads: tuple = None   # the rows' twist gradients (cached by Linkage.gradients)
 
 
 @dataclass
@@ -475,11 +492,12 @@ class Linkage:
         n = q.shape[0]
         rot = np.empty((n, self.nb, 3, 3))
         origin = np.empty((n, self.nb, 3))
-        rot[:, 0] = np.eye(3)
+        rot[:, 0] = EYE3
         origin[:, 0] = 0.0
         cols = np.zeros((n, self.ndof, 6))
         si = 0
         for t in self.tree:
+            root = not t.parent
             rp, pp = rot[:, t.parent], origin[:, t.parent]
             d = t.dofs
             jtype = t.joint_type
@@ -487,38 +505,34 @@ class Linkage:
                 m = sph[:, si]
                 si += 1
                 off = t.s_parent
-            elif jtype == 'revolute':
-                m = rot_axis(t.axis, q[:, d[0]]) @ t.fixed
-                off = t.s_parent
-            elif jtype == 'cylindrical':
-                m = rot_axis(t.axis, q[:, d[0]]) @ t.fixed
-                off = t.s_parent + q[:, d[1], None] * t.axis
             elif jtype == 'prismatic':
-                m = np.broadcast_to(t.fixed, (n, 3, 3))
+                m = t.fixed
                 off = t.s_parent + q[:, d[0], None] * t.axis
-            else:  # universal
-                m = rot_axis(t.axis, q[:, d[0]]) @ t.fixed @ rot_axis(t.axis_child, q[:, d[1]])
-                off = t.s_parent
-            rc = rp @ m if t.parent else np.array(m)
-            r_joint = pp + np.einsum('nij,...j->ni', rp, off) if t.parent else \
-                np.broadcast_to(off, (n, 3)) + 0.0
+            else:
+                s, c = np.sin(q[:, d[0]]), np.cos(q[:, d[0]])
+                # Rot(a, theta) Z = Z + sin K Z + (1 - cos) K^2 Z (K, K^2 Z precomputed)
+                m = t.fixed + s[:, None, None] * t.kz + (1.0 - c)[:, None, None] * t.k2z
+                off = t.s_parent + q[:, d[1], None] * t.axis if jtype == 'cylindrical' \
+                    else t.s_parent
+                if jtype == 'universal':
+                    m = m @ rot_axis(t.axis_child, q[:, d[1]])
+            rc = np.broadcast_to(m, (n, 3, 3)) if root else rp @ m
+            r_joint = np.broadcast_to(off, (n, 3)) if root else pp + mv(rp, off)
             rot[:, t.child] = rc
-            origin[:, t.child] = r_joint - rc @ t.s_child
+            origin[:, t.child] = r_joint - mv(rc, t.s_child)
             if jtype == 'spherical':
-                axes = np.swapaxes(rp, 1, 2) if t.parent else \
-                    np.broadcast_to(np.eye(3), (n, 3, 3))
-                for i in range(3):
-                    cols[:, d[i], :3] = axes[:, i]
-                    cols[:, d[i], 3:] = cross(r_joint, axes[:, i])
+                axes = EYE3 if root else np.swapaxes(rp, 1, 2)
+                cols[:, d[0]:d[0] + 3, :3] = axes
+                cols[:, d[0]:d[0] + 3, 3:] = cross(r_joint[:, None, :], axes)
                 continue
-            aw = rp @ t.axis if t.parent else np.broadcast_to(t.axis, (n, 3))
-            if jtype in ('revolute', 'cylindrical', 'universal'):
+            aw = np.broadcast_to(t.axis, (n, 3)) if root else mv(rp, t.axis)
+            if jtype != 'prismatic':
                 cols[:, d[0], :3] = aw
                 cols[:, d[0], 3:] = cross(r_joint, aw)
             if jtype in ('cylindrical', 'prismatic'):
                 cols[:, d[-1], 3:] = aw
             if jtype == 'universal':
-                bw = rc @ t.axis_child
+                bw = mv(rc, t.axis_child)
                 cols[:, d[1], :3] = bw
                 cols[:, d[1], 3:] = cross(r_joint, bw)
         return Frames(rot, origin, cols)
@@ -526,6 +540,12 @@ class Linkage:
     # ------------------------------------------------------------------ closure rows
 
     def _row_parts(self, fr):
+        """Return per group the world quantities the rows need (cached on ``fr``)."""
+        if fr.parts is None:
+            fr.parts = list(self._row_parts_of(fr))
+        return fr.parts
+
+    def _row_parts_of(self, fr):
         """Yield per group the world quantities the rows need."""
         for r in self.rows:
             rb, ra = fr.rot[:, r.body_b], fr.rot[:, r.body_a]
@@ -556,6 +576,11 @@ class Linkage:
 
     def gradients(self, fr):
         """Return ``(G_b, G_a)`` ``(n, m, 6)``: each row's rate per unit twist of b and a."""
+        if fr.grads is None:
+            fr.grads = self._gradients(fr)
+        return fr.grads
+
+    def _gradients(self, fr):
         gb, ga = [], []
         eye = np.eye(3)
         for r, rb, ra, vb, va in self._row_parts(fr):

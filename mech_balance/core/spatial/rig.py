@@ -55,7 +55,7 @@ class SpatialRig:
         self.crank_joint = scene.crank_joint
         self.crank_index = self.joint_names.index(scene.crank_joint)
         self.moment_point_m = tuple(float(x) for x in scene.moment_point_m)
-        self.moment_point = 'the point moment_point_m (%g, %g, %g) m of the frame' % \
+        self.moment_point = "the frame point (%g, %g, %g) m (the scene's moment_point_m)" % \
             self.moment_point_m
         self._drawing = None
 
