@@ -220,6 +220,7 @@ class RigNode(Node):
                 self._publisher.renew_estimator()
         if 'scene' in changed:
             self._params.declare_link_parameters(state.original)
+            self._params.clear_refuted(changed['scene'])
         if restart:
             self._publisher.apply_mode()
         elif 'frame_id' in changed:
@@ -269,7 +270,9 @@ class RigNode(Node):
                 self._switch_to(model)
                 self.get_logger().info('use_balanced: publishing the balanced design')
 
-        self.get_logger().info('use_balanced: balancing with the balance.* parameters ...')
+        self.get_logger().info(f'use_balanced: balancing scene '
+                               f'{self._state.original.scene.name!r} with the balance.* '
+                               'parameters ...')
         self._balancer.in_background(done)
 
     def _on_reset(self, request, response):
@@ -344,10 +347,19 @@ class RigNode(Node):
     def _stats_line(self):
         """Return the publishing statistics: a summary, then :data:`STATS_TAG` and JSON."""
         stats = self._publisher.stats()
-        stats['caught'] = dict(self._guard.counts)
-        return (f'published {stats["published"]} samples ({stats["skipped"]} ticks skipped, '
-                f'{stats["withheld"]} non-finite withheld, {self._guard.total()} callback '
-                'errors caught); '
+        counts = dict(self._guard.counts)
+        stats['caught'] = counts
+        stats['published_total'] = self._publisher.streamer.published_total
+        refused_parameters = counts.get('parameters', 0)
+        refused_calls = sum(v for k, v in counts.items() if k in self._triggers)
+        errors = self._guard.total() - refused_parameters - refused_calls
+        return (f'published {stats["published_total"]} samples in all, '
+                f'{stats["published"]} since publishing last (re)started (a mode, rate, '
+                f'speed or scene change; {stats["skipped"]} ticks skipped, '
+                f'{stats["withheld"]} non-finite withheld since then); '
+                f'{refused_parameters} parameter updates refused, {refused_calls} service '
+                f'calls answered with an error, {errors} other exceptions caught in callbacks '
+                'and threads; '
                 f'compute {stats["prepare_per_sample_s"] * 1e6:.1f} us per sample (core and '
                 f'serialization, batched); publishing {stats["step_median_s"] * 1e6:.1f} us '
                 f'median per sample; {STATS_TAG}{json.dumps(stats)}')
@@ -360,10 +372,17 @@ def _viz_recorder(path, url, scene, balanced):
 
 
 def main(args=None):
-    """Run the rig node until shutdown; return the exit status."""
+    """
+    Run the rig node until shutdown; return the exit status (the Jazzy idiom).
+
+    Ctrl-C or SIGTERM shuts the context down under the executor's threads: one of them may
+    then fail to build its wait set (``RCLError: failed to initialize wait set: the given
+    context is not valid``); after a shutdown that is the shutdown, not a failure (exit 0).
+    """
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     rclpy.init(args=args)
     node = None
+    status = 0
     try:
         node = RigNode()
         rclpy.spin(node, executor=MultiThreadedExecutor(num_threads=EXECUTOR_THREADS))
@@ -371,15 +390,19 @@ def main(args=None):
         pass
     except (ValueError, ParameterException) as exc:
         print(f'rig_node: error: {guards.clip(exc)}', file=sys.stderr)
-        return EXIT_BAD_PARAMETER
+        status = EXIT_BAD_PARAMETER
     except Exception as exc:  # noqa: BLE001 - a defect is one line, not a traceback
-        print(f'rig_node: error: {guards.describe(exc)}', file=sys.stderr)
-        return EXIT_FAILURE
+        if node is None or rclpy.ok():
+            print(f'rig_node: error: {guards.describe(exc)}', file=sys.stderr)
+            status = EXIT_FAILURE
     finally:
         if node is not None:
-            node.destroy_node()
+            try:
+                node.destroy_node()
+            except Exception as exc:  # noqa: BLE001 - after a shutdown: one line, exit 0
+                print(f'rig_node: while stopping: {guards.describe(exc)}', file=sys.stderr)
         rclpy.try_shutdown()
-    return 0
+    return status
 
 
 if __name__ == '__main__':

@@ -35,6 +35,32 @@ def link_names(model):
     return tuple(lk.name for lk in model.scene.links)
 
 
+SCENE_DEPENDENT = ('balance.fixed_links', 'balance.counterweight_links',
+                   'balance.mass_bounds', 'balance.distance_bounds', 'balance.method')
+"""Parameters that name links of the scene (or a method it must have): revalidated when the
+scene switches, and cleared to their default (with an info line) where they no longer hold."""
+
+
+def scene_conflicts(values, model):
+    """Return ``{name: reason}`` of the :data:`SCENE_DEPENDENT` values ``model`` refutes."""
+    links = [lk.name for lk in model.scene.links]
+    out = {}
+    for name in ('balance.fixed_links', 'balance.counterweight_links'):
+        strangers = [n for n in params.split_links(values[name]) if n not in links]
+        if strangers:
+            out[name] = f'names {", ".join(strangers)}, not a link of the scene'
+    for name, unit in (('balance.mass_bounds', 'kg'), ('balance.distance_bounds', 'm')):
+        strangers = [n for n in params.parse_link_bounds(name, values[name], unit) or ()
+                     if n not in links]
+        if strangers:
+            out[name] = f'names {", ".join(strangers)}, not a link of the scene'
+    try:
+        balance_method(values, model.rig)
+    except ValueError as exc:
+        out['balance.method'] = str(exc)
+    return out
+
+
 def check_link_options(values, model):
     """Check the per-link balancing options against the links of a redistributable rig."""
     links = link_names(model)
@@ -50,7 +76,9 @@ class NodeParameters:
     def __init__(self, node):
         self._node = node
         self.values = {}
+        self.links = ()
         self.pending_scene = None       # (name, model) checked by the on-set callback
+        self.pending_clear = {}         # {name: reason} cleared with that scene
 
     def declare_all(self):
         """Declare every parameter of the table; return ``{name: checked value}``."""
@@ -72,9 +100,14 @@ class NodeParameters:
 
     def declare_link_parameters(self, model):
         """Declare ``balance.links.<link>.*`` for the scene's links; drop the others'."""
-        wanted = {spec.name: spec for spec in params.link_specs(link_names(model))}
+        self.links = link_names(model)
+        wanted = {spec.name: spec for spec in params.link_specs(self.links)}
         for name in [n for n in self.values if n.startswith(params.LINK_PREFIX)]:
             if name not in wanted:
+                if self.values.get(name):
+                    self._node.get_logger().info(
+                        f'{name}: dropped, scene {model.scene.name!r} has no such link '
+                        f'(it had {self.values[name]})')
                 self._node.undeclare_parameter(name)
                 self.values.pop(name, None)
         for name, spec in wanted.items():
@@ -82,16 +115,38 @@ class NodeParameters:
                 self.declare(spec)
 
     def coerce(self, parameters):
-        """Pre-set: an integer becomes the declared double (rclpy stores the declared type)."""
+        """
+        Pre-set: convert to the declared type; hold per-link values of links to come.
+
+        An integer or a number as text becomes the declared double (rclpy stores the
+        declared type).  A ``balance.links.<link>.*`` value for a link the scene lacks is
+        held: declared now, checked on its own, used once a scene with that link is set --
+        so a params file loads in one go, whatever the order of ``scene`` in it
+        (``ros2 param load`` sets the parameters one by one, in the file's order).
+        """
         out = []
         for p in parameters:
             try:
                 value = conv.parameter_value(p)
                 new = params.coerced(p.name, value)
                 out.append(p if new is value else conv.ros_parameter(p.name, new))
+                self._hold(p.name, new)
             except Exception:  # noqa: BLE001 - the on-set callback names what is wrong
                 out.append(p)
         return out
+
+    def _hold(self, name, value):
+        """Declare a valid per-link option of a link the scene does not have (held)."""
+        spec = params.spec_for(name)
+        if spec is None or not name.startswith(params.LINK_PREFIX) or \
+                self._node.has_parameter(name):
+            return
+        params.check(name, [] if value is None else value)  # invalid: refused as undeclared
+        self.declare(spec)
+        link = name[len(params.LINK_PREFIX):].rpartition('.')[0]
+        self._node.get_logger().info(
+            f'{name}: held for a scene with link {link!r} (scene {self.values["scene"]!r} has '
+            'none); it applies once such a scene is set')
 
     def check(self, parameters, original):
         """
@@ -111,6 +166,15 @@ class NodeParameters:
             if p.name == 'scene' and value != self.values['scene']:
                 model = build_model(value)
                 self.pending_scene = (value, model)
+        if model is not original:  # a scene switch revalidates, and clears, never blocks
+            given = {p.name for p in parameters}
+            self.pending_clear = {k: v for k, v in scene_conflicts(candidate, model).items()
+                                  if k not in given}
+            for name in self.pending_clear:
+                candidate[name] = params.BY_NAME[name].default
+            own = {f'{params.LINK_PREFIX}{link}.' for link in link_names(model)}
+            candidate = {k: v for k, v in candidate.items() if not k.startswith(
+                params.LINK_PREFIX) or k[:k.rindex('.') + 1] in own}
         check_link_options(candidate, model)
         balance_method(candidate, model.rig)
         params.check_together(candidate)
@@ -126,3 +190,13 @@ class NodeParameters:
         """Return the model of scene ``name`` checked by the on-set callback, or None."""
         pending, self.pending_scene = self.pending_scene, None
         return pending[1] if pending is not None and pending[0] == name else None
+
+    def clear_refuted(self, scene_name):
+        """Set the scene-dependent values the new scene refutes to their defaults; log it."""
+        cleared, self.pending_clear = self.pending_clear, {}
+        for name, reason in cleared.items():
+            default = params.BY_NAME[name].default
+            self._node.get_logger().info(
+                f'scene {scene_name!r}: {name} {self.values[name]!r} {reason}: cleared to '
+                f'{default!r}')
+            self._node.set_parameters([conv.ros_parameter(name, default)])

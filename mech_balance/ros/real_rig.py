@@ -17,6 +17,7 @@ from geometry_msgs.msg import WrenchStamped
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import identify as identification
 from mech_balance.ros import conversions as conv, diagnostics, params, sensor
+import numpy as np
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.qos import QoSProfile
 import yaml
@@ -126,7 +127,11 @@ class RealRig:
                     return
                 paired = self.comparison.process(model.evaluate, schedule)
             frame_id = self._state.values['frame_id']
-            for stamp_ns, residual in zip(paired.stamps_ns, paired.residual):
+            finite = np.all(np.isfinite(paired.residual), axis=1)
+            if not finite.all():  # the last check: nothing non-finite is published
+                with self.lock:
+                    self.comparison.rejected['non-finite residual'] += int(np.sum(~finite))
+            for stamp_ns, residual in zip(paired.stamps_ns[finite], paired.residual[finite]):
                 self.residual_pub.publish(conv.fill_wrench_values(
                     WrenchStamped(), int(stamp_ns), frame_id, residual))
         except Exception as exc:  # noqa: BLE001 - counted and reported, never fatal
