@@ -44,10 +44,11 @@ def result_path(fully_qualified_name):
     """
     Return the file the balancing result of node ``fully_qualified_name`` is written to.
 
-    The namespace is part of the name (``/cell3/rig`` -> ``mech_balance_cell3_rig_balance
-    .yaml``), so that rigs in different namespaces never overwrite each other's result.
+    The namespace is part of the name, '/' written '__' (``/cell3/rig`` ->
+    ``mech_balance_cell3__rig_balance.yaml``; ROS names never repeat '_', so no two nodes
+    share a file): rigs in different namespaces never overwrite each other's result.
     """
-    name = fully_qualified_name.strip('/').replace('/', '_')
+    name = fully_qualified_name.strip('/').replace('/', '__')
     return os.path.join(tempfile.gettempdir(), f'mech_balance_{name}_balance.yaml')
 
 

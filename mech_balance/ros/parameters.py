@@ -129,10 +129,11 @@ class NodeParameters:
             try:
                 value = conv.parameter_value(p)
                 new = params.coerced(p.name, value)
-                out.append(p if new is value else conv.ros_parameter(p.name, new))
+                p = p if new is value else conv.ros_parameter(p.name, new)
                 self._hold(p.name, new)
             except Exception:  # noqa: BLE001 - the on-set callback names what is wrong
-                out.append(p)
+                pass
+            out.append(p)
         return out
 
     def _hold(self, name, value):
