@@ -155,12 +155,17 @@ class Recording:
 
     def _run(self):
         while True:
+            try:
+                self._retry_dead()
+            except Exception as exc:  # noqa: BLE001 - the recording never stops the rig
+                self._log('warning', f'recording: {type(exc).__name__}: {exc}')
             with self._cond:
                 wanted = self._wanted
                 if wanted is not None and wanted[0] == self._opened:
                     wanted = None
                 if wanted is None and not self._queue and not self._stopped:
                     self._cond.wait(IDLE_WAIT_S)
+                    continue  # look again: what woke the thread is read afresh
                 if wanted is not None:
                     self._opened = wanted[0]
                 batches = list(self._queue)
@@ -169,7 +174,6 @@ class Recording:
             try:
                 if wanted is not None:
                     self._reopen(*wanted[1:])
-                self._retry_dead()
                 for batch in batches:
                     self._log_batch(batch)
             except Exception as exc:  # noqa: BLE001 - the recording never stops the rig
