@@ -219,8 +219,8 @@ class RigNode(Node):
             if any(k.startswith('follow.') for k in changed):
                 self._publisher.renew_estimator()
         if 'scene' in changed:
+            self._params.clear_refuted(changed['scene'])  # first: the links' checks see it
             self._params.declare_link_parameters(state.original)
-            self._params.clear_refuted(changed['scene'])
         if restart:
             self._publisher.apply_mode()
         elif 'frame_id' in changed:
