@@ -235,8 +235,9 @@ def measurement_status(name, hardware_id, rms, components, units, warn_fraction,
     if rms is None:
         detail = ', '.join(f'{k} {v}' for k, v in sorted(rejected.items()))
         return Status(name, WARN, f'{received} measurements received, none paired with the '
-                      'model yet' + (f' (rejected: {detail})' if detail else ''),
-                      hardware_id, values)
+                      'model yet' + (f' (rejected: {detail})' if detail else '') +
+                      (f'; {resyncs} re-synchronizations on the incoming stamps'
+                       if resyncs else ''), hardware_id, values)
     measured = rms['measured']
     modelled = (rms['model'] > MODEL_FLOOR) & (measured > 0.0) & np.isfinite(measured) & \
         np.isfinite(rms['residual'])
