@@ -1,13 +1,13 @@
 """
 ``mech-balance bench`` section of the rig node: the publish rate it sustains, its step time.
 
-The node runs as it is deployed, in its own process (``python -m mech_balance.node``, clock
+The node runs as it is deployed, in its own process (``python -m mech_balance.ros.node``, clock
 mode), on a private ROS domain; this process subscribes to both topics and counts, from the
 stamps, the clock-mode periods whose sample never arrived.  Each rate of :data:`RATES_HZ`
 is set through the parameter service and measured over :data:`WINDOW_S` after
 :data:`SETTLE_S`.  The subscriber takes the messages serialized (``raw=True``) and reads
 only the stamp, so that it is not the bottleneck.  The node's own statistics, logged at its
-shutdown after :data:`STATS_S` at the target rate (:data:`mech_balance.node.STATS_TAG`),
+shutdown after :data:`STATS_S` at the target rate (:data:`mech_balance.ros.node.STATS_TAG`),
 give the compute per sample (the core's evaluation and the serialization of both
 messages, amortized over the batches a second thread prepares ahead of the ticks) and the
 wall time of a tick (two ``publish`` calls of prepared bytes, middleware included).
@@ -44,6 +44,14 @@ TARGET_RATE_HZ = 1000.0
 """The issue's target: sustained publish rate, and the rate of the per-callback timing."""
 TARGET_STEP_S = 100e-6
 """The issue's target: compute time per callback (sample)."""
+TARGET_FOLLOW_ALONE_S = 100e-6
+"""Issue 22 item 3: follow mode, compute for an encoder sample that arrives alone."""
+TARGET_FOLLOW_BATCHED_S = 30e-6
+"""Issue 22 item 3: follow mode, compute per sample in batches (FOLLOW_BATCH)."""
+TARGET_CLOCK_COMPUTE_S = 10e-6
+"""Issue 22 item 3: clock mode, compute per sample at TARGET_RATE_HZ."""
+TARGET_SUSTAINED_HZ = 8000.0
+"""Issue 22 item 3: the rate sustained (as today)."""
 FOLLOW_BATCH = 8
 """Follow mode: the batch size reported next to a single sample."""
 FOLLOW_REPEAT = 50
@@ -89,6 +97,15 @@ def bench_section(args, progress):
             f'{"met" if best and best >= TARGET_RATE_HZ else "NOT met"}; '
             f'<= {TARGET_STEP_S * 1e6:g} us compute per callback '
             f'{"met" if compute <= TARGET_STEP_S else "NOT met"}',
+            'issue 22 targets: ' + '; '.join(
+                f'{what} <= {limit * 1e6:g} us {"met" if value <= limit else "NOT met"}'
+                for what, value, limit in (
+                    ('follow alone', follow[0], TARGET_FOLLOW_ALONE_S),
+                    ('follow batched', follow[1], TARGET_FOLLOW_BATCHED_S),
+                    (f'clock compute at {TARGET_RATE_HZ:g} Hz', compute,
+                     TARGET_CLOCK_COMPUTE_S))) +
+            f'; >= {TARGET_SUSTAINED_HZ:g} Hz sustained '
+            f'{"met" if best and best >= TARGET_SUSTAINED_HZ else "NOT met"}',
         ]
     return '\n'.join(lines)
 

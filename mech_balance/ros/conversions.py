@@ -1,14 +1,14 @@
 """
 Message conversion for the rig node: pure functions, no node is ever created here.
 
-* :func:`fill_joint_state`, :func:`fill_wrench`: one sample of :class:`mech_balance.twin.Samples`
-  into a ``sensor_msgs/JointState`` and a ``geometry_msgs/WrenchStamped`` (SI, the frame's
+* :func:`fill_joint_state`, :func:`fill_wrench`: one sample of
+  :class:`mech_balance.ros.streaming.Samples` into a ``sensor_msgs/JointState`` and a ``geometry_msgs/WrenchStamped`` (SI, the frame's
   axes; sign convention of :mod:`mech_balance.conventions`); :class:`SampleSerializer`
   (and its reference :func:`serialized_samples`): a batch of them, serialized for publishing.
 * :func:`crank_reading`: the crank's stamp, position and velocity from an encoder's
   ``JointState``, checked (``ValueError`` naming what is wrong).
-* :func:`parameter_descriptor`, :func:`parameter_value`: a :class:`mech_balance.params.Spec`
-  as a ROS ``ParameterDescriptor``, and a ROS ``Parameter`` as a plain value.
+* :func:`parameter_descriptor`, :func:`parameter_value`: a
+  :class:`mech_balance.ros.params.Spec` as a ROS ``ParameterDescriptor``, and a ROS ``Parameter`` as a plain value.
 * :func:`stamp_from_ns`, :func:`ns_from_stamp`: ``builtin_interfaces/Time`` <-> int ns.
 * :func:`wrench_reading`, :func:`fill_wrench_values`, :func:`diagnostic_array`: the measured
   wrench read with checks, a residual wrench, the node's ``/diagnostics``.
@@ -66,7 +66,7 @@ def fill_joint_state(msg, samples, i, stamp):
     Fill ``msg`` (``sensor_msgs/JointState``, names set) with sample ``i`` of ``samples``.
 
     Position and velocity of every joint (rad, rad/s; m, m/s for prismatic joints); effort
-    (N*m) as :mod:`mech_balance.twin` defines it, or empty when the scene does not compute
+    (N*m) as :mod:`mech_balance.ros.streaming` defines it, or empty when the scene does not compute
     the driving torque (ROS convention: arrays are full length or empty).
     """
     msg.header.stamp = stamp
@@ -256,7 +256,7 @@ def crank_reading(msg, joint):
 
 def parameter_descriptor(spec):
     """
-    Return the ROS ``ParameterDescriptor`` of a :class:`mech_balance.params.Spec`.
+    Return the ROS ``ParameterDescriptor`` of a :class:`mech_balance.ros.params.Spec`.
 
     Declared with ``dynamic_typing`` and without ``floating_point_range`` /
     ``integer_range``: rclpy would check the type and the range before the node's callback

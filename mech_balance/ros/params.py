@@ -2,12 +2,12 @@
 The rig node's parameters, each declared once: type, default, description, bounds, check.
 
 In the manner of generate_parameter_library: :data:`PARAMETERS` is the single table the
-node declares from (:func:`mech_balance.ros_conversions.parameter_descriptor` turns a
+node declares from (:func:`mech_balance.ros.conversions.parameter_descriptor` turns a
 :class:`Spec` into a ROS ``ParameterDescriptor``), ``config/rig_params.yaml`` documents a
 working set and :func:`check` is the validator the node runs on every update (a
 ``ValueError`` naming the parameter, the value and what was expected becomes the ``reason``
 of ``SetParametersResult(successful=False)``).  ``scene`` is validated by the scene loader
-itself (:func:`mech_balance.scene.load`, then the twin traces the linkage's branch), the
+itself (:func:`mech_balance.schema.load`, then the twin traces the linkage's branch), the
 balancing options by the same rules as :func:`mech_balance.balancing.optimize`.  No ROS
 import here: the command line and the tests use this table too.
 """
