@@ -2,13 +2,14 @@
 Message conversion for the rig node: pure functions, no node is ever created here.
 
 * :func:`fill_joint_state`, :func:`fill_wrench`: one sample of
-  :class:`mech_balance.ros.streaming.Samples` into a ``sensor_msgs/JointState`` and a ``geometry_msgs/WrenchStamped`` (SI, the frame's
-  axes; sign convention of :mod:`mech_balance.conventions`); :class:`SampleSerializer`
+  :class:`mech_balance.ros.streaming.Samples` into a ``sensor_msgs/JointState`` and a
+  ``geometry_msgs/WrenchStamped`` (SI, the frame's axes; sign convention of :mod:`mech_balance.conventions`); :class:`SampleSerializer`
   (and its reference :func:`serialized_samples`): a batch of them, serialized for publishing.
 * :func:`crank_reading`: the crank's stamp, position and velocity from an encoder's
   ``JointState``, checked (``ValueError`` naming what is wrong).
 * :func:`parameter_descriptor`, :func:`parameter_value`: a
-  :class:`mech_balance.ros.params.Spec` as a ROS ``ParameterDescriptor``, and a ROS ``Parameter`` as a plain value.
+  :class:`mech_balance.ros.params.Spec` as a ROS ``ParameterDescriptor``, and a ROS
+  ``Parameter`` as a plain value.
 * :func:`stamp_from_ns`, :func:`ns_from_stamp`: ``builtin_interfaces/Time`` <-> int ns.
 * :func:`wrench_reading`, :func:`fill_wrench_values`, :func:`diagnostic_array`: the measured
   wrench read with checks, a residual wrench, the node's ``/diagnostics``.
