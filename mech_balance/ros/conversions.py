@@ -4,7 +4,8 @@ Message conversion for the rig node: pure functions, no node is ever created her
 * :func:`fill_joint_state`, :func:`fill_wrench`: one sample of
   :class:`mech_balance.ros.streaming.Samples` into a ``sensor_msgs/JointState`` and a
   ``geometry_msgs/WrenchStamped`` (SI, the frame's axes; sign convention of
-  :mod:`mech_balance.conventions`); :class:`SampleSerializer` (and its reference :func:`serialized_samples`): a batch of them, serialized for publishing.
+  :mod:`mech_balance.conventions`); :class:`SampleSerializer` (and its reference
+  :func:`serialized_samples`): a batch of them, serialized for publishing.
 * :func:`crank_reading`: the crank's stamp, position and velocity from an encoder's
   ``JointState``, checked (``ValueError`` naming what is wrong).
 * :func:`parameter_descriptor`, :func:`parameter_value`: a
