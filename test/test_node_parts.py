@@ -15,15 +15,19 @@ import socket
 import sys
 import threading
 
+from geometry_msgs.msg import WrenchStamped
 from mech_balance import conventions, identifiers
 from mech_balance import schema as scene_mod
-from mech_balance.ros import balance_service, diagnostics, live, parameters, params
+from mech_balance.ros import balance_service, conversions as conv, description, diagnostics
+from mech_balance.ros import live, parameters, params
 from mech_balance.ros import publisher as pub, real_rig, sensor, streaming
 from mech_balance.ros.rig_state import RigState
 import numpy as np
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
 
 sys.path.insert(0, os.path.dirname(__file__))
 import test_node as tn  # noqa: E402, I100  (the domain of this test process)
@@ -443,3 +447,21 @@ def test_streamer_tells_a_stall_from_a_clock_jump():
     finally:
         hold.set()
         streamer.stop()
+
+
+def test_serializer_reads_back_its_first_batches_only_and_stays_exact():
+    model = description.twin_for(scene_mod.load('hoeken'))
+    ser = conv.SampleSerializer(model.joint_names, model.has_effort, 'rig_frame')
+    for k in range(conv.VERIFIED_BATCHES + 3):
+        psi = np.linspace(0.1, 2.0, 1 + k % 3)
+        samples = model.evaluate(psi, 1.0, 0.0)
+        stamps = np.arange(psi.size, dtype=np.int64) + 10 ** 9 * k
+        payloads = ser.serialize(samples, stamps)
+        assert ser.fast and ser.verified == min(k + 1, conv.VERIFIED_BATCHES)
+        # every sample, verified batch or not, reads back as the filled messages
+        for i, (joints, wrench) in enumerate(payloads):
+            stamp = conv.stamp_from_ns(int(stamps[i]))
+            assert deserialize_message(joints, JointState) == conv.fill_joint_state(
+                conv.joint_state_template(JointState(), model.joint_names), samples, i, stamp)
+            assert deserialize_message(wrench, WrenchStamped) == conv.fill_wrench(
+                WrenchStamped(), samples, i, stamp, 'rig_frame')
