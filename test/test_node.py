@@ -40,8 +40,18 @@ from std_srvs.srv import Trigger
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
-DOMAIN_ID = 1 + os.getpid() % 100
-"""A ROS domain of this test process alone (other suites may run nodes meanwhile)."""
+
+
+def _domain_id():
+    """Return ROS_DOMAIN_ID if set, else a domain from the pid outside 21-28 (the helpers')."""
+    if os.environ.get('ROS_DOMAIN_ID', '').isdigit():
+        return int(os.environ['ROS_DOMAIN_ID'])
+    d = 1 + os.getpid() % 92
+    return d + 8 if d >= 21 else d
+
+
+DOMAIN_ID = _domain_id()
+"""The ROS domain of this test process (its namespaces carry the pid as well)."""
 RTOL = 1e-9
 """Published values against the core at the stamped angle (relative to the quantity's scale)."""
 DISCOVERY_TIMEOUT_S = 45.0

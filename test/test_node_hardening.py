@@ -37,8 +37,9 @@ import test_node as tn  # noqa: E402, I100  (RigProcess, Probe: the node in anot
 ROOT = Path(__file__).resolve().parent.parent
 RATE_HZ = 100.0
 PERIOD_NS = round(1e9 / RATE_HZ)
-RATE_TOL = 0.05
-"""Received ticks over the stamps' span, as a fraction of the nominal rate (issue 12)."""
+KEEPS_PUBLISHING = 150
+"""Samples that must still arrive after an attack (behaviour; the rate itself is measured by
+``mech-balance bench --section faults``, issue 19 item 6)."""
 STORM = 320
 """Invalid parameter updates in the storm (issue 12: at least 300)."""
 NESTING = 3000
@@ -280,12 +281,11 @@ def _set(probe, name, value):
     return future.result().results[0]
 
 
-def _rate_kept(probe, count=150):
-    """Return the received ticks over the stamps' span, per nominal tick (1.0: none lost)."""
+def _keeps_publishing(probe, count=KEEPS_PUBLISHING):
+    """Wait for ``count`` more samples, each on the clock-mode schedule (a period multiple)."""
     probe.collect(count)
     stamps = np.unique([j[0] for j in probe.joints])
-    assert np.all(np.diff(stamps) % PERIOD_NS == 0)
-    return stamps.size / ((stamps[-1] - stamps[0]) / PERIOD_NS + 1)
+    assert stamps.size >= count and np.all(np.diff(stamps) % PERIOD_NS == 0)
 
 
 def _deep_scene(tmp_path):
@@ -294,7 +294,7 @@ def _deep_scene(tmp_path):
     return str(path)
 
 
-def test_class1_deep_nesting_parameter_refused_and_rate_kept(clock_rig, tmp_path):
+def test_class1_deep_nesting_parameter_refused_and_publishing_goes_on(clock_rig, tmp_path):
     rig, probe = clock_rig
     result = _set(probe, 'scene', _deep_scene(tmp_path))
     assert not result.successful and result.reason.startswith('scene'), result.reason
@@ -303,13 +303,11 @@ def test_class1_deep_nesting_parameter_refused_and_rate_kept(clock_rig, tmp_path
     assert not result.successful
     assert result.reason.startswith('balance.mass_bounds'), result.reason
     assert rig.alive()
-    kept = _rate_kept(probe)
-    print(f'after the deep-nesting and bracket parameters: {kept:.4f} of the rate')
-    assert kept >= 1.0 - RATE_TOL
+    _keeps_publishing(probe)
     assert probe.get_param('scene').string_value == 'hoeken'
 
 
-def test_class1_parameter_storm_keeps_the_rate(clock_rig, tmp_path):
+def test_class1_parameter_storm_is_answered_and_publishing_goes_on(clock_rig, tmp_path):
     rig, probe = clock_rig
     deep = _deep_scene(tmp_path)
     bad = [('scene', deep), ('balance.mass_bounds', '[' * BRACKETS), ('publish_rate', math.nan),
@@ -330,12 +328,10 @@ def test_class1_parameter_storm_keeps_the_rate(clock_rig, tmp_path):
     assert not any(r.successful for r in results)
     assert all(r.reason.startswith(bad[i % len(bad)][0]) for i, r in enumerate(results))
     stamps = np.unique([j[0] for j in probe.joints])
-    assert stamps.size >= 20, 'the storm took less than 0.2 s: too short to measure'
-    kept = stamps.size / ((stamps[-1] - stamps[0]) / PERIOD_NS + 1)
-    print(f'storm: {STORM} refused updates, {stamps.size} ticks received over '
-          f'{(stamps[-1] - stamps[0]) * 1e-9:.2f} s of stamps: {kept:.4f} of the rate')
-    assert kept >= 1.0 - RATE_TOL, (kept, rig.output()[-3000:])
-    assert rig.alive() and _rate_kept(probe) >= 1.0 - RATE_TOL
+    print(f'storm: {STORM} refused updates, {stamps.size} ticks received meanwhile')
+    assert stamps.size > 0, 'nothing published during the storm'
+    assert rig.alive()
+    _keeps_publishing(probe)
 
 
 def test_integer_for_a_double_is_accepted(clock_rig):

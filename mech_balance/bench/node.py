@@ -1,13 +1,13 @@
 """
 ``mech-balance bench`` section of the rig node: the publish rate it sustains, its step time.
 
-The node runs as it is deployed, in its own process (``python -m mech_balance.node``, clock
+The node runs as it is deployed, in its own process (``python -m mech_balance.ros.node``, clock
 mode), on a private ROS domain; this process subscribes to both topics and counts, from the
 stamps, the clock-mode periods whose sample never arrived.  Each rate of :data:`RATES_HZ`
 is set through the parameter service and measured over :data:`WINDOW_S` after
 :data:`SETTLE_S`.  The subscriber takes the messages serialized (``raw=True``) and reads
 only the stamp, so that it is not the bottleneck.  The node's own statistics, logged at its
-shutdown after :data:`STATS_S` at the target rate (:data:`mech_balance.node.STATS_TAG`),
+shutdown after :data:`STATS_S` at the target rate (:data:`mech_balance.ros.node.STATS_TAG`),
 give the compute per sample (the core's evaluation and the serialization of both
 messages, amortized over the batches a second thread prepares ahead of the ticks) and the
 wall time of a tick (two ``publish`` calls of prepared bytes, middleware included).
@@ -44,6 +44,14 @@ TARGET_RATE_HZ = 1000.0
 """The issue's target: sustained publish rate, and the rate of the per-callback timing."""
 TARGET_STEP_S = 100e-6
 """The issue's target: compute time per callback (sample)."""
+TARGET_FOLLOW_ALONE_S = 100e-6
+"""Issue 22 item 3: follow mode, compute for an encoder sample that arrives alone."""
+TARGET_FOLLOW_BATCHED_S = 30e-6
+"""Issue 22 item 3: follow mode, compute per sample in batches (FOLLOW_BATCH)."""
+TARGET_CLOCK_COMPUTE_S = 10e-6
+"""Issue 22 item 3: clock mode, compute per sample at TARGET_RATE_HZ."""
+TARGET_SUSTAINED_HZ = 8000.0
+"""Issue 22 item 3: the rate sustained (as today)."""
 FOLLOW_BATCH = 8
 """Follow mode: the batch size reported next to a single sample."""
 FOLLOW_REPEAT = 50
@@ -89,6 +97,15 @@ def bench_section(args, progress):
             f'{"met" if best and best >= TARGET_RATE_HZ else "NOT met"}; '
             f'<= {TARGET_STEP_S * 1e6:g} us compute per callback '
             f'{"met" if compute <= TARGET_STEP_S else "NOT met"}',
+            'issue 22 targets: ' + '; '.join(
+                f'{what} <= {limit * 1e6:g} us {"met" if value <= limit else "NOT met"}'
+                for what, value, limit in (
+                    ('follow alone', follow[0], TARGET_FOLLOW_ALONE_S),
+                    ('follow batched', follow[1], TARGET_FOLLOW_BATCHED_S),
+                    (f'clock compute at {TARGET_RATE_HZ:g} Hz', compute,
+                     TARGET_CLOCK_COMPUTE_S))) +
+            f'; >= {TARGET_SUSTAINED_HZ:g} Hz sustained '
+            f'{"met" if best and best >= TARGET_SUSTAINED_HZ else "NOT met"}',
         ]
     return '\n'.join(lines)
 
@@ -348,4 +365,102 @@ def live_view_section(args, progress):
     ratio = runs[1][1]['rate_hz'] / runs[0][1]['rate_hz'] if runs[0][1]['rate_hz'] else 0.0
     lines.append(f'publishing rate with / without the live view: {ratio:.3f} (the view logs '
                  'at most 30 samples/s on a thread of its own)')
+    return '\n'.join(lines)
+
+
+FAULT_RATE_HZ = 1000.0
+"""The rate of the under-attack runs (the node's target rate)."""
+FAULT_WINDOW_S = 3.0
+"""Measuring window of each under-attack run."""
+FAULT_RATE_TOL = 0.05
+"""Issue 23: under attack the rate stays within this fraction of nominal."""
+STORM = 320
+"""Invalid parameter updates sent at once in the storm run."""
+SIMULTANEOUS = 50
+"""Calls sent at once to each service in the service run."""
+SERVICES = ('tare', 'identify', 'balance', 'reset')
+
+
+def _storm(probe, params, clients, seconds):
+    """Send STORM refused parameter updates at once; spin; return their futures."""
+    from rclpy.parameter import Parameter
+    bad = [('publish_rate', -1.0), ('frame_id', 'x' * 100_000), ('mode', 'dance'),
+           ('balance.weights', [0.0, 0.0]), ('balance.fixed_links', 'crank,crank')]
+    futures = [params.set_parameters([Parameter(bad[i % len(bad)][0], value=bad[i % len(bad)][1])])
+               for i in range(STORM)]
+    probe.spin_for(seconds)
+    return futures
+
+
+def _dead_viewer(probe, params, clients, seconds):
+    """Set rerun_url to a port where nothing listens, clear it half-way; return the futures."""
+    from rclpy.parameter import Parameter
+    url = f'rerun+http://127.0.0.1:{free_port()}/proxy'
+    futures = [params.set_parameters([Parameter('rerun_url', value=url)])]
+    probe.spin_for(seconds / 2)
+    futures.append(params.set_parameters([Parameter('rerun_url', value='')]))
+    probe.spin_for(seconds / 2)
+    return futures
+
+
+def _service_calls(probe, params, clients, seconds):
+    """Send SIMULTANEOUS calls to each service at once; spin; return their futures."""
+    from std_srvs.srv import Trigger
+    futures = [c.call_async(Trigger.Request()) for c in clients.values()
+               for _ in range(SIMULTANEOUS)]
+    probe.spin_for(seconds)
+    return futures
+
+
+def faults_section(args, progress):
+    """Return the node's publishing rate under attack (issue 23.2b): within 5 % of nominal."""
+    from rclpy.parameter_client import AsyncParameterClient
+    from rclpy.qos import QoSProfile
+    from std_srvs.srv import Trigger
+    name = (getattr(args, 'scene', None) or ['hoeken'])[0]
+    ns = f'/faults{os.getpid()}'
+    lines = [f'rig node under attack: {name}, clock mode at {FAULT_RATE_HZ:g} Hz, '
+             f'{FAULT_WINDOW_S:g} s per run (target: rate within {FAULT_RATE_TOL:.0%} of '
+             'nominal, every request answered)',
+             f"{'run':<44}{'rate Hz':>9}{'of nominal':>12}{'missed':>8}{'answered':>11}",
+             '-' * 84]
+    probe = NodeProbe(name, FAULT_RATE_HZ, ns, label='faults')
+    try:
+        params = AsyncParameterClient(probe.node, f'{ns}/rig',  # a deep request queue
+                                      qos_profile=QoSProfile(depth=2 * STORM))
+        clients = {s: probe.node.create_client(Trigger, f'{ns}/rig/{s}',
+                                               qos_profile=QoSProfile(depth=4 * SIMULTANEOUS))
+                   for s in SERVICES}
+        probe.spin_for(START_TIMEOUT_S, lambda: probe.publishing() and params.
+                       services_are_ready() and all(c.service_is_ready()
+                                                    for c in clients.values()))
+        if not probe.publishing():
+            return '\n'.join(lines + ['not measured: the node did not start'])
+        probe.spin_for(SETTLE_S)
+        period = round(1e9 / FAULT_RATE_HZ)
+        for label, attack in (('quiet', None),
+                              (f'parameter storm ({STORM} refused updates)', _storm),
+                              ('dead rerun_url set, cleared half-way', _dead_viewer),
+                              (f'{SIMULTANEOUS} simultaneous calls on each of 4 services',
+                               _service_calls)):
+            progress(f'  rig node: {label} ...')
+            start = probe.node.get_clock().now().nanoseconds
+            for v in probe.stamps.values():
+                v.clear()
+            futures = [] if attack is None else attack(probe, params, clients,
+                                                       FAULT_WINDOW_S)
+            if attack is None:
+                probe.spin_for(FAULT_WINDOW_S)
+            stop = probe.node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
+            missed = max(missed_fraction(v, start, stop, period)
+                         for v in probe.stamps.values())
+            got = {s for s in probe.stamps['joint_states'] if start <= s < stop}
+            rate = len(got) / ((stop - start) * 1e-9)
+            probe.spin_for(START_TIMEOUT_S, lambda: all(f.done() for f in futures))
+            answered = f'{sum(f.done() for f in futures)}/{len(futures)}' if futures else '-'
+            lines.append(f'{label:<44}{rate:>9.1f}{rate / FAULT_RATE_HZ:>12.3f}{missed:>8.2%}'
+                         f'{answered:>11}')
+            probe.spin_for(SETTLE_S)
+    finally:
+        probe.close(timeout=30)
     return '\n'.join(lines)

@@ -210,6 +210,8 @@ def _check_options(args):
     """Raise ValueError for an option the chosen method would ignore (no scene needed)."""
     import numpy as np
     if args.counterweights is not None:
+        from mech_balance import identifiers
+        identifiers.check_name_list(args.counterweights, '--counterweights')  # the node's
         if args.analytic:
             raise ValueError('--counterweights: a method of its own, expected no --analytic '
                              'with --counterweights')

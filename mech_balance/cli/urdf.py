@@ -88,7 +88,8 @@ def cmd_urdf(args):
     """Print or write the URDF of the scene (or of its design)."""
     from mech_balance.ros import urdf
     from mech_balance.cli import main as cli
-    from mech_balance import atomic, schema as scene
+    from mech_balance import atomic, identifiers, schema as scene
+    identifiers.check_frame_id(args.frame_id, '--frame-id')  # the node's frame_id check
     out = None if args.out is None else cli.writable_path('--out', args.out, OUT_SUFFIXES)
     sc = scene.load(args.scene)
     if args.design is not None:

@@ -56,9 +56,13 @@ class Status:
     values: list = field(default_factory=list)   # [(key, text)]
 
 
+NOT_MEASURED = 'n/a'
+"""The text of a figure that has no finite value (yet): no topic carries nan or inf."""
+
+
 def _fmt(value):
     if isinstance(value, float):
-        return f'{value:.6g}'
+        return f'{value:.6g}' if math.isfinite(value) else NOT_MEASURED
     return str(value)
 
 
@@ -147,10 +151,10 @@ class RateMeter:
         self._last = None     # (count, now_ns)
 
     def rate(self, count, now_ns):
-        """Return the count per second since the previous call (NaN on the first)."""
+        """Return the count per second since the previous call (None on the first)."""
         last, self._last = self._last, (count, now_ns)
         if last is None or now_ns <= last[1] or count < last[0]:
-            return math.nan
+            return None
         return (count - last[0]) / ((now_ns - last[1]) * 1e-9)
 
 
@@ -161,18 +165,21 @@ def publisher_status(name, hardware_id, mode, configured_hz, achieved_hz, publis
     if skipped_new:
         level = WARN
         notes.append(f'{skipped_new} ticks skipped in the last period')
-    if configured_hz is not None and math.isfinite(achieved_hz) and \
+    measured = achieved_hz is not None and math.isfinite(achieved_hz)
+    if configured_hz is not None and measured and \
             achieved_hz < RATE_WARN_FRACTION * configured_hz:
         level = WARN
         notes.append(f'below {RATE_WARN_FRACTION:g} x the configured rate')
     how = f'{configured_hz:g} Hz configured' if configured_hz is not None else \
         'one sample per encoder message'
-    message = f'{mode} mode, {how}, {achieved_hz:.1f} Hz achieved' + \
-        (f' ({"; ".join(notes)})' if notes else '')
+    achieved = f'{achieved_hz:.1f} Hz achieved' if measured else \
+        'achieved rate not measured yet (first period)'
+    message = f'{mode} mode, {how}, {achieved}' + (f' ({"; ".join(notes)})' if notes else '')
     return Status(name, level, message, hardware_id, [
         ('mode', mode),
         ('configured rate Hz', 'encoder' if configured_hz is None else _fmt(configured_hz)),
-        ('achieved rate Hz', _fmt(achieved_hz)), ('published', _fmt(published)),
+        ('achieved rate Hz', _fmt(float(achieved_hz)) if measured else NOT_MEASURED),
+        ('published', _fmt(published)),
         ('skipped ticks', _fmt(skipped))])
 
 
@@ -204,16 +211,20 @@ def model_status(name, hardware_id, samples, residual, condition, near_singular)
 
 
 def measurement_status(name, hardware_id, rms, components, units, warn_fraction,
-                       error_fraction, received, used, rejected, age_s, bias, model_name):
+                       error_fraction, received, used, rejected, age_s, bias, model_name,
+                       resyncs=0):
     """
     Return the measured-wrench :class:`Status`.
 
     ``rms`` is :meth:`Comparison.rms`'s dict (or None), ``age_s`` the time since the last
     measurement arrived (None: never), ``bias`` the bias in use, ``model_name`` the scene
-    compared with.
+    compared with, ``resyncs`` the re-synchronizations of the sensor's tracks (a stamp far
+    off locked one).  A component whose measured RMS is 0 (a constant channel) or whose
+    model is 0 is not judged: its fraction has no finite value.
     """
     values = [('received', _fmt(received)), ('paired', _fmt(used)),
-              ('rejected', _fmt(sum(rejected.values())))]
+              ('rejected', _fmt(sum(rejected.values()))),
+              ('re-synchronizations', _fmt(resyncs))]
     values += [(f'rejected: {k}', _fmt(v)) for k, v in sorted(rejected.items())]
     values += [('model', model_name), ('warn fraction', _fmt(warn_fraction)),
                ('error fraction', _fmt(error_fraction))]
@@ -224,12 +235,14 @@ def measurement_status(name, hardware_id, rms, components, units, warn_fraction,
     if rms is None:
         detail = ', '.join(f'{k} {v}' for k, v in sorted(rejected.items()))
         return Status(name, WARN, f'{received} measurements received, none paired with the '
-                      'model yet' + (f' (rejected: {detail})' if detail else ''),
-                      hardware_id, values)
+                      'model yet' + (f' (rejected: {detail})' if detail else '') +
+                      (f'; {resyncs} re-synchronizations on the incoming stamps'
+                       if resyncs else ''), hardware_id, values)
     measured = rms['measured']
-    with np.errstate(divide='ignore', invalid='ignore'):
-        fraction = np.where(measured > 0.0, rms['residual'] / measured, np.inf)
-    modelled = rms['model'] > MODEL_FLOOR
+    modelled = (rms['model'] > MODEL_FLOOR) & (measured > 0.0) & np.isfinite(measured) & \
+        np.isfinite(rms['residual'])
+    fraction = np.zeros(measured.shape)
+    fraction[modelled] = rms['residual'][modelled] / measured[modelled]
     per = np.where(~modelled, -1, np.where(fraction > error_fraction, ERROR,
                                            np.where(fraction > warn_fraction, WARN, OK)))
     level = int(max(per.max(), OK))
@@ -238,6 +251,8 @@ def measurement_status(name, hardware_id, rms, components, units, warn_fraction,
                'the model predicts no load: nothing to compare') + \
         f' (over {rms["samples"]} samples; warn > {warn_fraction:g}, error > ' \
         f'{error_fraction:g})'
+    if resyncs:
+        message += f'; {resyncs} re-synchronizations on the incoming stamps'
     if age_s > STALE_AFTER_S:
         level = STALE
         message = f'no measurement for {age_s:.1f} s; last: {message}'

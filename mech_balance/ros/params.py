@@ -2,12 +2,12 @@
 The rig node's parameters, each declared once: type, default, description, bounds, check.
 
 In the manner of generate_parameter_library: :data:`PARAMETERS` is the single table the
-node declares from (:func:`mech_balance.ros_conversions.parameter_descriptor` turns a
+node declares from (:func:`mech_balance.ros.conversions.parameter_descriptor` turns a
 :class:`Spec` into a ROS ``ParameterDescriptor``), ``config/rig_params.yaml`` documents a
 working set and :func:`check` is the validator the node runs on every update (a
 ``ValueError`` naming the parameter, the value and what was expected becomes the ``reason``
 of ``SetParametersResult(successful=False)``).  ``scene`` is validated by the scene loader
-itself (:func:`mech_balance.scene.load`, then the twin traces the linkage's branch), the
+itself (:func:`mech_balance.schema.load`, then the twin traces the linkage's branch), the
 balancing options by the same rules as :func:`mech_balance.balancing.optimize`.  No ROS
 import here: the command line and the tests use this table too.
 """
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import math
 import re
 
-from mech_balance import conventions, paths
+from mech_balance import conventions, identifiers, paths
 from mech_balance.balancing import defaults as balancing_defaults
 from mech_balance.balancing import socp as balancing
 from mech_balance.ros import sensor
@@ -56,7 +56,6 @@ MAX_WEIGHT = conventions.MAX_WEIGHT
 """Largest objective weight accepted."""
 MAX_MARGIN = 0.999
 """Largest realizability margin (the balancing requires margin < 1)."""
-_FRAME_ID = re.compile(r'^[A-Za-z_][A-Za-z0-9_/]*$')
 
 
 @dataclass(frozen=True)
@@ -100,20 +99,16 @@ def _scene(value):
 
 
 def _frame_id(value):
-    """Accept a TF frame name: letters, digits, '_', '/'; no leading '/' or digit."""
-    if len(value) > conventions.MAX_NAME_LENGTH:
-        raise ValueError(f'frame_id: got a name of {len(value)} characters, expected at most '
-                         f'{conventions.MAX_NAME_LENGTH} (conventions.MAX_NAME_LENGTH)')
-    if not _FRAME_ID.match(value):
-        raise ValueError(f'frame_id: got {value!r}, expected a frame name of letters, digits, '
-                         "'_' and '/', not starting with '/' or a digit (e.g. rig_frame)")
+    """Accept a TF frame name (:func:`mech_balance.identifiers.check_frame_id`)."""
+    identifiers.check_frame_id(value, 'frame_id')
 
 
 def _joint_name(value):
-    """Accept empty (the scene's crank joint) or a joint name without spaces around."""
+    """Accept empty (the scene's crank joint) or a joint name (identifiers.check_name)."""
     if value != value.strip():
         raise ValueError(f'crank_joint: got {value!r}, expected a joint name without '
                          "surrounding spaces (or empty for the scene's crank joint)")
+    identifiers.check_name(value, 'crank_joint', allow_empty=True)
 
 
 def _weights(value):
@@ -174,15 +169,8 @@ def parse_link_bounds(name, text, unit):
 
 
 def _link_list(value):
-    """Accept empty or comma-separated link names."""
-    names = split_links(value)
-    if any(not n or ' ' in n for n in names):
-        raise ValueError(f'balance.fixed_links: got {value!r}, expected comma-separated link '
-                         'names such as "crank,rocker" (or empty)')
-    twice = sorted({n for n in names if names.count(n) > 1})
-    if twice:
-        raise ValueError(f'balance.fixed_links: got {twice[0]!r} twice in {value!r}, expected '
-                         'each link once')
+    """Accept empty or comma-separated link names, each once."""
+    identifiers.check_name_list(value, 'balance.fixed_links')
 
 
 def split_links(text):
@@ -208,11 +196,8 @@ def _ranged(name, option):
 
 
 def _counterweight_links(value):
-    """Accept empty or comma-separated link names, each once."""
-    names = split_links(value)
-    if any(not n or ' ' in n for n in names) or len(set(names)) != len(names):
-        raise ValueError(f'balance.counterweight_links: got {value!r}, expected comma-separated '
-                         'link names, each once, such as "crank,rocker" (or empty)')
+    """Accept empty or comma-separated link names, each once (as ``--counterweights``)."""
+    identifiers.check_name_list(value, 'balance.counterweight_links')
 
 
 def _link_pair(name, unit):
@@ -291,6 +276,9 @@ def check_links(values, link_names):
 
 def _path(value):
     """Accept empty (no recording) or a writable .rrd file in an existing directory."""
+    if value.endswith(('/', '\\')) or value.endswith(('/.', '/..')):
+        raise ValueError(f'recording_path: got {value!r}, a directory, expected a file name '
+                         f"ending in .rrd (e.g. {value.rstrip('/')}/rig.rrd)")
     if value:
         paths.check_output_path(value, 'recording_path', ('.rrd',), create_dir=False)
 
@@ -303,7 +291,8 @@ def _viewer_url(value):
 
 # ------------------------------------------------------------------------------ table
 
-_BOUNDS_RULE = 'empty or {link: [min, max]}, 0 < min <= max, max may be null'
+_BOUNDS_RULE = ("empty or the quoted YAML '{link: [min, max]}', 0 < min <= max, max may be "
+                'null')
 
 
 PARAMETERS = (
@@ -375,12 +364,14 @@ PARAMETERS = (
          'l = sqrt(I_O/m) (eq. 50c).', check=_factors('balance.distance_factors'),
          rule='[low, high], 0 < low <= high'),
     Spec('balance.mass_bounds', STRING, '',
-         'Per-link mass bounds in kg overriding the factors, YAML text: {crank: [0.3, 1.6]} '
-         '(the older form of balance.links.<link>.mass_bounds).',
+         'Per-link mass bounds in kg overriding the factors, YAML text, quoted on the command '
+         'line: ros2 param set /rig balance.mass_bounds "\'{crank: [0.3, 1.6]}\'" (the older '
+         'form of the typed balance.links.crank.mass_bounds "[0.3, 1.6]").',
          check=_link_bounds('balance.mass_bounds', 'kg'), rule=_BOUNDS_RULE),
     Spec('balance.distance_bounds', STRING, '',
-         'Per-link point-mass distance bounds in m overriding the factors, YAML text: '
-         '{crank: [0.02, null]} (the older form of balance.links.<link>.distance_bounds).',
+         'Per-link point-mass distance bounds in m overriding the factors, YAML text, quoted '
+         'on the command line: "\'{crank: [0.02, null]}\'" (the older form of the typed '
+         'balance.links.crank.distance_bounds "[0.02]").',
          check=_link_bounds('balance.distance_bounds', 'm'),
          rule=_BOUNDS_RULE),
     Spec('balance.torque_weight', DOUBLE, 0.0,
@@ -562,18 +553,26 @@ def _show(value):
     return text if len(text) <= 80 else f'{text[:80]}... ({len(text)} characters)'
 
 
+NUMBER = re.compile(r'\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*')
+"""A decimal number as text (``1e9``, which YAML 1.1 and so ros2cli read as a string)."""
+
+
 def coerced(name, value):
     """
     Return ``value`` converted to the declared type of ``name`` where that loses nothing.
 
     An integer (or a list of integers, or an empty list of any type) becomes the double
-    (list) a ``DOUBLE`` (``DOUBLE_ARRAY``) parameter is declared with; anything else is
+    (list) a ``DOUBLE`` (``DOUBLE_ARRAY``) parameter is declared with, and so does a
+    number written as text (:data:`NUMBER`: ``'1e9'``, then checked as any double); anything
+    else is
     returned as it is (the check then names what is wrong).  The node applies it before
     rclpy stores a value, so that the stored type stays the declared one.
     """
     spec = spec_for(name)
     if spec is None:
         return value
+    if spec.value_type == DOUBLE and isinstance(value, str) and NUMBER.fullmatch(value):
+        return float(value)  # `ros2 param set /rig publish_rate 1e9`: YAML 1.1 sends text
     if spec.value_type == DOUBLE and _is_number(value) and isinstance(value, int):
         try:
             return float(value)

@@ -98,11 +98,20 @@ than the sensor's rate allows are cut to the newest samples."""
 IDENTIFY_CAPACITY = 120_000
 """Most encoder and measurement samples kept for ``~/identify`` (each; 2 min at 1 kHz,
 about 8 MB): the identification uses the newest ones."""
+IDENTIFY_SPAN_S = 120.0
+"""``~/identify`` uses at most the newest this many seconds of data (by stamp): with
+:data:`IDENTIFY_CAPACITY` the bound on its memory and time, whatever the stamps say."""
 IDENTIFY_GAP_PERIODS = 10.0
 """``~/identify`` uses the newest stretch of encoder data whose stamps are never further
 apart than this many median encoder periods."""
 REST_SPEED_RAD_S = 1e-3
 """A tare whose crank speeds stay below this is taken at rest."""
+RESYNC_AFTER = 10
+"""Consecutive readings refused for their stamp after which a track re-synchronizes on the
+incoming stream (the node passes ``follow.resync_after``)."""
+MAX_MEASUREMENT = 1e9
+"""Largest |component| of a measured wrench accepted, N and N*m (far beyond any sensor of a
+bench rig; a larger value is a corrupt reading and would overflow the running RMS)."""
 MODEL_FLOOR = 1e-12
 """A component whose model RMS is at or below this (SI) is not modelled (out of the plane
 of a planar rig; a rig at rest without gravity): its fraction is not judged."""
@@ -324,6 +333,11 @@ class Series:
         """Return the newest stamp, or None."""
         return int(self._t[self._hi - 1]) if self._hi > self._lo else None
 
+    def truncate_from(self, stamp_ns):
+        """Forget the samples stamped at or after ``stamp_ns`` (a re-synchronization)."""
+        t = self.stamps_ns
+        self._hi = self._lo + int(np.searchsorted(t, int(stamp_ns), side='left'))
+
     def since(self, stamp_ns):
         """Return ``(stamps, values)`` of the samples stamped at or after ``stamp_ns``."""
         t = self.stamps_ns
@@ -345,9 +359,12 @@ class EncoderTrack:
     those (their quantization step is exact; accumulated turned angles carry round-off).
     """
 
-    def __init__(self, window_s, capacity=IDENTIFY_CAPACITY):
+    def __init__(self, window_s, capacity=IDENTIFY_CAPACITY, resync_after=RESYNC_AFTER):
         self.set_window(window_s)
         self.series = Series(2, capacity)
+        self.resync_after = resync_after
+        self.refused_in_a_row = 0
+        self.resyncs = 0
 
     def set_window(self, window_s):
         """Set the fit's span, s."""
@@ -355,22 +372,33 @@ class EncoderTrack:
             raise ValueError(f'sensor.crank_window: got {window_s!r}, expected a span > 0 s')
         self.half_ns = int(round(0.5 * window_s * 1e9))
 
-    def add(self, stamp_ns, position_rad, turned_rad=None):
+    def add(self, stamp_ns, position_rad, turned_rad=None, resync=False):
         """
-        Add an accepted encoder sample; a stamp not after the newest is ignored.
+        Add an accepted encoder sample; return False if its stamp was refused.
 
         ``position_rad`` as the encoder sent it; ``turned_rad`` the unwrapped angle (the
-        follow-mode estimator's), or None to unwrap to the branch nearest the last.
+        follow-mode estimator's), or None to unwrap to the branch nearest the last.  A
+        stamp not after the newest is refused, unless ``resync`` (the estimator has just
+        re-synchronized on it) or it is the ``resync_after``-th refused in a row: then the
+        samples stamped at or after it are forgotten (the far-future stamp that locked the
+        track) and it is added (:attr:`resyncs` counts these).
         """
         newest = self.series.newest_ns
         raw = float(position_rad)
         turned = raw if turned_rad is None else float(turned_rad)
+        if newest is not None and int(stamp_ns) <= newest:
+            self.refused_in_a_row += 1
+            if not resync and self.refused_in_a_row < self.resync_after:
+                return False
+            self.series.truncate_from(int(stamp_ns))
+            self.resyncs += 1
+            newest = self.series.newest_ns
+        self.refused_in_a_row = 0
         if newest is not None:
-            if int(stamp_ns) <= newest:
-                return
             last = float(self.series.values[-1, 0])
             turned -= TWO_PI * round((turned - last) / TWO_PI)
         self.series.append([int(stamp_ns)], [[turned, raw]])
+        return True
 
     def clear(self):
         """Forget the encoder's history."""
@@ -507,7 +535,7 @@ class Comparison:
     :attr:`rejected`.  Not thread-safe: the node holds a lock around every call.
     """
 
-    def __init__(self, pose, point_m, crank_window_s, weight=None):
+    def __init__(self, pose, point_m, crank_window_s, weight=None, resync_after=RESYNC_AFTER):
         self.pose = pose
         self.point_m = _point(point_m)
         self.weight = weight
@@ -521,30 +549,72 @@ class Comparison:
         self.received = 0
         self.rejected = Counter()
         self.last_model_error = ''
+        self.resync_after = max(1, int(resync_after))
+        self.refused_in_a_row = 0      # measurements refused for their stamp, in a row
+        self.measurement_resyncs = 0
+        self.just_resynced = False
+        self.last_resync = ''
+
+    @property
+    def resync_after(self):
+        """Return the refusals in a row after which a track re-synchronizes."""
+        return self._resync_after
+
+    @resync_after.setter
+    def resync_after(self, count):
+        self._resync_after = max(1, int(count))
+        self.track.resync_after = self._resync_after
+
+    @property
+    def resyncs(self):
+        """Return the re-synchronizations of the encoder track and the measurements."""
+        return self.track.resyncs + self.measurement_resyncs
 
     # ------------------------------------------------------------------ input
 
     def measurement(self, stamp_ns, force_sensor, torque_sensor):
-        """Take one sensor-frame reading; raise ValueError naming what is wrong."""
+        """
+        Take one sensor-frame reading; raise ValueError naming what is wrong.
+
+        A stamp not after the newest is refused; the :attr:`resync_after`-th refused in a
+        row re-synchronizes: the measurements stamped at or after it are forgotten (one
+        stamped far in the future locked the stream) and it is taken
+        (:attr:`just_resynced`, :attr:`last_resync` say so).
+        """
         self.received += 1
+        self.just_resynced = False
         f = np.asarray(force_sensor, dtype=float)
         m = np.asarray(torque_sensor, dtype=float)
         if not (np.all(np.isfinite(f)) and np.all(np.isfinite(m))):
             raise ValueError(f'wrench: got force {f.tolist()} and torque {m.tolist()}, '
                              'expected finite values')
+        if max(np.max(np.abs(f)), np.max(np.abs(m))) > MAX_MEASUREMENT:
+            raise ValueError(f'wrench: got force {f.tolist()} and torque {m.tolist()}, '
+                             f'expected components of at most {MAX_MEASUREMENT:g} N, N*m in '
+                             'magnitude')
         newest = self.measured.newest_ns
         if newest is not None and int(stamp_ns) <= newest:
-            raise ValueError(f'stamp: {int(stamp_ns) * 1e-9:.9f} s is not after the previous '
-                             f'{newest * 1e-9:.9f} s, expected increasing stamps')
+            self.refused_in_a_row += 1
+            if self.refused_in_a_row < self.resync_after:
+                raise ValueError(f'stamp: {int(stamp_ns) * 1e-9:.9f} s is not after the '
+                                 f'previous {newest * 1e-9:.9f} s, expected increasing stamps')
+            self.last_resync = (f'{self.refused_in_a_row} consecutive measurements refused '
+                                f'for their stamp (the newest kept: {newest * 1e-9:.9f} s)')
+            for series in (self.measured, self.pending, self.paired):
+                series.truncate_from(int(stamp_ns))
+            self.measurement_resyncs += 1
+            self.just_resynced = True
+        self.refused_in_a_row = 0
         w = self.pose.to_rig(f, m, self.point_m)
         if len(self.pending) >= self.pending.capacity:
             self.rejected['no encoder data (too many waiting)'] += 1
         self.pending.append([int(stamp_ns)], w)
         self.measured.append([int(stamp_ns)], w)
 
-    def encoder(self, stamp_ns, position_rad, turned_rad=None):
+    def encoder(self, stamp_ns, position_rad, turned_rad=None, resynced=False):
         """Add an accepted encoder sample (follow mode; :meth:`EncoderTrack.add`)."""
-        self.track.add(stamp_ns, position_rad, turned_rad)
+        if not self.track.add(stamp_ns, position_rad, turned_rad, resync=resynced):
+            self.rejected['encoder stamp not after the newest'] += 1
 
     # ------------------------------------------------------------------ settings
 
@@ -682,10 +752,13 @@ class Comparison:
         measurements in the rig frame about the moment point, [f_x, f_y, n_z], bias not
         removed (the identification estimates it).
         """
-        tw = self.measured.stamps_ns
+        span_ns = int(IDENTIFY_SPAN_S * 1e9)
+        tw, w = self.measured.stamps_ns, self.measured.values
         if tw.size == 0:
             raise ValueError('identify: no measured_wrench received, expected the sensor to '
                              'stream (and the encoder, in follow mode)')
+        keep = tw >= tw[-1] - span_ns
+        tw, w = tw[keep], w[keep]
         if schedule is not None:
             te = tw
             angle = clock_crank(schedule, te)[0]
@@ -700,6 +773,13 @@ class Comparison:
             gaps = np.flatnonzero(steps > IDENTIFY_GAP_PERIODS * np.median(steps))
             if gaps.size:
                 te, angle = te[gaps[-1] + 1:], angle[gaps[-1] + 1:]
+            recent = te >= te[-1] - span_ns
+            te, angle = te[recent], angle[recent]
+            inside = (tw >= te[0]) & (tw <= te[-1])
+            tw, w = tw[inside], w[inside]
+            if tw.size == 0:
+                raise ValueError('identify: no measured_wrench stamped within the encoder '
+                                 f'data ({te[0] * 1e-9:.9f} s to {te[-1] * 1e-9:.9f} s), '
+                                 'expected both to stream on one clock')
         t0 = int(min(te[0], tw[0])) if t0_ns is None else int(t0_ns)
-        return ((te - t0) * 1e-9, angle.copy(), (tw - t0) * 1e-9,
-                self.measured.values[:, PLANAR].copy(), t0)
+        return ((te - t0) * 1e-9, angle.copy(), (tw - t0) * 1e-9, w[:, PLANAR].copy(), t0)

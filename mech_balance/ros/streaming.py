@@ -1,8 +1,9 @@
 """
 The live twin's numerics: a rig's joints and shaking wrench at given crank angles.
 
-numpy only (no ROS): the rig node (:mod:`mech_balance.node`) wires these pieces to topics,
-:mod:`mech_balance.ros_conversions` turns their arrays into messages.
+numpy only (no ROS): the rig node's publisher part (:mod:`mech_balance.ros.publisher`)
+wires these pieces to topics, :mod:`mech_balance.ros.conversions` turns their arrays into
+messages.
 
 :func:`model_for`
     A scene's :class:`TwinModel` (its :class:`~mech_balance.core.rig.Rig`, of any kind):
@@ -56,6 +57,10 @@ CLOCK_JUMP_S = 5.0
 """Clock mode: a tick later than this is a jump of the clock (``use_sim_time`` switched, a
 simulation resumed), not an overload: the schedule restarts from now and no tick is counted
 as skipped."""
+STALL_SHARE = 0.5
+"""Clock mode: a tick late by more than CLOCK_JUMP_S is a stall of the publishing thread
+(not a jump of the clock) when at least this share of the clock's advance since the last
+step also passed on the monotonic clock."""
 NO_CLOCK_WARN_S = 3.0
 """Clock mode: the node's clock reading 0 (``use_sim_time`` true and no ``/clock`` message)
 for this long is reported, and again every :data:`NO_CLOCK_REPEAT_S`."""
@@ -472,6 +477,8 @@ class Streamer:
         self._stopped = False
         self._refill = threading.Event()  # wakes the precompute thread (not every tick)
         self.stats = TickStats()
+        self.published_total = 0        # since the start, across restarts
+        self._last_step = None          # (node clock ns, monotonic s) of the last clock step
         self._threads = [threading.Thread(target=self._run_publisher, name='rig-publish',
                                           daemon=True),
                          threading.Thread(target=self._run_precompute, name='rig-precompute',
@@ -529,6 +536,7 @@ class Streamer:
                 t.join(timeout)
 
     def _restart(self, mode, model, schedule, keep_pending=False):
+        self._last_step = None
         if not keep_pending:  # a new mode, rate or speed: statistics start again
             self.stats = TickStats()
         self._generation += 1
@@ -599,6 +607,7 @@ class Streamer:
         t0 = time.perf_counter()
         self._publish(payload)
         self.stats.add(time.perf_counter() - t0)
+        self.published_total += 1
 
     # -------------------------------------------------------------- threads
 
@@ -648,6 +657,18 @@ class Streamer:
                 self._cond.wait(min((due - now) * 1e-9, MAX_WAIT_S))
                 return
             late = (now - due) * 1e-9
+            last, mono = self._last_step, time.monotonic()
+            self._last_step = (now, mono)
+            held = last is not None and mono - last[1] >= STALL_SHARE * (now - last[0]) * 1e-9
+            if late > CLOCK_JUMP_S and held:  # this thread was held, the clock ran on
+                k_now = schedule.first_index_at_or_after(now)
+                self.stats.skipped += k_now - k
+                self._next_k = k_now
+                self._batches.clear()
+                self._warn(f'clock mode: publishing was held up for {mono - last[1]:.3g} s '
+                           f'(not a clock jump: the clock advanced as much): skipped '
+                           f'{k_now - k} ticks')
+                return
             if late > CLOCK_JUMP_S:  # use_sim_time switched, a simulation resumed
                 self._schedule = schedule.rebased(now)
                 self._next_k = None

@@ -1,0 +1,131 @@
+"""
+The rig node's balancing part: ``~/balance``, ``use_balanced`` and ``~/balance_result``.
+
+:class:`Balancer` runs :func:`mech_balance.balancing.balance` with the ``balance.*``
+parameters on the state's original design, one run at a time (a second caller is told
+:data:`BUSY`), publishes the result's YAML on ``~/balance_result`` (transient local: late
+joiners get it) and writes it to a file named by the node's namespace and name.
+"""
+
+import os
+import tempfile
+import threading
+
+from mech_balance import atomic, balancing
+from mech_balance.ros import params
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_msgs.msg import String
+import yaml
+
+BUSY = 'a balancing run is in progress'
+BALANCE_RESULT = '~/balance_result'
+"""Transient-local std_msgs/String: the YAML of the last balancing run (late joiners get it)."""
+
+
+def balance_method(values, rig):
+    """
+    Return the balancing method of ``balance.method`` for ``rig``; ValueError if it has none.
+
+    The default, redistribution, on a rig that cannot be redistributed (the RGGR) is the
+    rig's own method (:func:`mech_balance.balancing.method_for`).
+    """
+    chosen = values['balance.method']
+    if chosen == params.BY_NAME['balance.method'].default and \
+            balancing.METHODS[chosen] not in rig.capabilities:
+        return balancing.method_for(rig)
+    try:
+        return balancing.method_for(rig, chosen)
+    except ValueError as exc:
+        raise ValueError(f'balance.method: got {chosen!r}, expected a method of this scene '
+                         f'({exc})') from None
+
+
+def result_path(fully_qualified_name):
+    """
+    Return the file the balancing result of node ``fully_qualified_name`` is written to.
+
+    The namespace is part of the name, '/' written '__' (``/cell3/rig`` ->
+    ``mech_balance_cell3__rig_balance.yaml``; ROS names never repeat '_', so no two nodes
+    share a file): rigs in different namespaces never overwrite each other's result.
+    """
+    name = fully_qualified_name.strip('/').replace('/', '__')
+    return os.path.join(tempfile.gettempdir(), f'mech_balance_{name}_balance.yaml')
+
+
+class Balancer:
+    """Balance the state's original design; publish and write the result."""
+
+    def __init__(self, node, state, guard):
+        self._node = node
+        self._state = state
+        self._guard = guard
+        self.lock = threading.Lock()
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.result_pub = node.create_publisher(String, BALANCE_RESULT, latched)
+
+    @property
+    def busy(self):
+        """Return whether a balancing run is in progress."""
+        return self.lock.locked()
+
+    def balance(self):
+        """
+        Return ``(model or None, answer)``: a balancing run, or why there is none.
+
+        One run at a time: while one runs, the answer is :data:`BUSY`.
+        """
+        if not self.lock.acquire(blocking=False):
+            return None, BUSY
+        try:
+            return self._run()
+        except Exception as exc:  # noqa: BLE001 - any failure is answered, never fatal
+            with self._state.lock:
+                which = 'balanced' if self._state.balanced else 'original'
+            return None, f'balancing failed: {exc}; still publishing the {which} design'
+        finally:
+            self.lock.release()
+
+    def _run(self):
+        with self._state.lock:
+            original, values = self._state.original, dict(self._state.values)
+        method = balance_method(values, original.rig)
+        design = balancing.balance(original.rig, method, **params.balance_options(values, method))
+        model = original.with_design(design.scene)
+        with self._state.lock:
+            if self._state.original is not original:
+                return None, ('the scene changed during the balancing run; still publishing '
+                              "the new scene's original design")
+        return model, self.publish_result(design)
+
+    def publish_result(self, design):
+        """
+        Publish a result on ``~/balance_result``, write it to a file; return the answer.
+
+        The answer is YAML whose first line, a comment, is :meth:`Design.summary` (one line
+        under 200 characters), the second where the full result is.
+        """
+        text = yaml.safe_dump(design.report, sort_keys=False)
+        self.result_pub.publish(String(data=text))
+        path = result_path(self._node.get_fully_qualified_name())
+        try:
+            atomic.write_text_atomic(path, text)
+            where = f'{path} and {self.result_pub.topic_name}'
+        except OSError as exc:
+            where = f'{self.result_pub.topic_name} ({path} not written: {exc.strerror})'
+        return f'# {design.summary()}\n# full result: {where} (std_msgs/String YAML)\n{text}'
+
+    def in_background(self, done):
+        """
+        Balance on a thread of its own; then call ``done(model or None, answer)``.
+
+        A run already in progress (a ``~/balance`` call) publishes its own design: nothing
+        is started then.
+        """
+        @self._guard.skipping('use_balanced')
+        def run():
+            model, text = self.balance()
+            if model is None and text == BUSY:
+                return
+            done(model, text)
+
+        threading.Thread(target=run, name='rig-balance', daemon=True).start()

@@ -1,0 +1,285 @@
+"""
+The rig node's recording part: ``recording_path`` (a file) and ``rerun_url`` (a viewer).
+
+:class:`Recording` never holds the caller: the publishing threads only queue what they
+evaluated (:meth:`Recording.push`, bounded, never blocks), the parameter callbacks only ask
+for a new recording (:meth:`Recording.start`, returns at once); a thread of its own opens,
+connects, logs and closes, each with a bounded wait.  A viewer that does not answer is
+reported (:attr:`Recording.status`, ``'dead: <reason>'``, on ``/diagnostics`` and in the
+log) and the file, if any, goes on.
+
+The viewer side follows the live-view interface agreed with :mod:`mech_balance.viz`:
+``LiveRecorder(path, scene, balanced, url=...)`` whose ``status`` is ``'connecting'``,
+``'connected'`` or ``'dead: <reason>'``, ``push`` never blocks and ``close(timeout_s)`` is
+bounded.  Until that recorder reports its own ``status``, this part checks that something
+listens at the viewer's address (a TCP connection, :data:`PROBE_TIMEOUT_S`) before it
+connects, and calls ``log_sample`` and ``close()`` from its own thread.  viz is imported by
+the node's recording hook only (the layer rule of ``ros``).
+"""
+
+from collections import deque
+import socket
+import threading
+import time
+from urllib.parse import urlsplit
+
+from mech_balance.ros import diagnostics
+
+QUEUE_BATCHES = 1024
+"""Batches waiting for the recording thread before the oldest are dropped (counted)."""
+PROBE_TIMEOUT_S = 1.0
+"""Longest wait for a viewer's address to accept a TCP connection."""
+RETRY_S = 5.0
+"""A viewer found dead is tried again after this long."""
+CLOSE_TIMEOUT_S = 5.0
+"""Longest wait for a recording to flush and close."""
+IDLE_WAIT_S = 0.05
+"""Longest sleep of the recording thread between two looks at its queue."""
+OFF, CONNECTING, CONNECTED, DEAD = 'off', 'connecting', 'connected', 'dead'
+
+
+def viewer_address(url):
+    """Return ``(host, port)`` of a viewer URL ``rerun+http://HOST:PORT/proxy``."""
+    parts = urlsplit(url.replace('rerun+', '', 1).replace('rerun://', 'http://', 1))
+    return parts.hostname or '127.0.0.1', parts.port or 9876
+
+
+def probe_viewer(url, timeout_s=PROBE_TIMEOUT_S):
+    """Return None if something accepts a TCP connection at the viewer's address, else why."""
+    host, port = viewer_address(url)
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            return None
+    except OSError as exc:
+        return f'nothing answers at {host}:{port} ({exc.strerror or exc})'
+
+
+class _Target:
+    """One recorder (the file, or the viewer) and its state, owned by the recording thread."""
+
+    def __init__(self, is_viewer, where):
+        self.is_viewer, self.where = is_viewer, where
+        self.recorder = None
+        self.status = CONNECTING
+        self.retry_at = 0.0
+
+    def state(self):
+        own = getattr(self.recorder, 'status', None)
+        return own if isinstance(own, str) else self.status
+
+
+class Recording:
+    """
+    The node's recording and live view, run on a thread of their own.
+
+    ``log(level, text)`` logs (``level`` 'info', 'warning' or 'error'); ``make(path, url,
+    scene, balanced)`` returns a recorder (the node: :class:`mech_balance.viz.recording.
+    LiveRecorder`, imported in its recording hook; tests pass their own).
+    """
+
+    def __init__(self, log, make):
+        self._log = log
+        self._make = make
+        self._cond = threading.Condition()
+        self._queue = deque(maxlen=QUEUE_BATCHES)
+        self._wanted = None        # (generation, path, url, scene, balanced) to open
+        self._generation = 0
+        self._opened = 0           # the generation opened by the thread
+        self._context = (None, None)
+        self._targets = []
+        self._stopped = False
+        self.dropped = 0
+        self.logged = 0
+        self._thread = threading.Thread(target=self._run, name='rig-recording', daemon=True)
+        self._thread.start()
+
+    # ------------------------------------------------------------------ any thread
+
+    def start(self, path, url, scene, balanced=None):
+        """Record ``scene`` (against ``balanced``) to ``path`` and/or ``url``; returns at once."""
+        with self._cond:
+            self._generation += 1
+            self._wanted = (self._generation, path or None, url or None, scene, balanced)
+            self._queue.clear()
+            self._cond.notify_all()
+
+    @property
+    def active(self):
+        """Return whether a file or a viewer is asked for."""
+        with self._cond:
+            return self._wanted is not None and (self._wanted[1] or self._wanted[2])
+
+    def push(self, samples, turned_rad, stamps_ns, original=True):
+        """Queue an evaluated batch (never blocks; the oldest batch is dropped when full)."""
+        with self._cond:
+            if not self.active:
+                return
+            if len(self._queue) == self._queue.maxlen:
+                self.dropped += 1
+            self._queue.append((stamps_ns * 1e-9, turned_rad, samples if original else None))
+            self._cond.notify_all()
+
+    @property
+    def status(self):
+        """Return the viewer's state: 'off', 'connecting', 'connected' or 'dead: <reason>'."""
+        with self._cond:
+            wanted, targets = self._wanted, list(self._targets)
+        if wanted is None or not wanted[2]:
+            return OFF
+        for t in targets:
+            if t.is_viewer:
+                return t.state()
+        return CONNECTING
+
+    def diagnostic_status(self, name, hardware_id):
+        """Return the ``live view`` :class:`~mech_balance.ros.diagnostics.Status`, or None."""
+        status = self.status
+        if status == OFF:
+            return None
+        url = self._wanted[2] if self._wanted else ''
+        level = diagnostics.OK if status == CONNECTED else \
+            diagnostics.WARN if status == CONNECTING else diagnostics.ERROR
+        return diagnostics.Status(f'{name}: live view', level, f'rerun_url {url}: {status}',
+                                  hardware_id, [('url', str(url)), ('status', status),
+                                                ('batches dropped', str(self.dropped))])
+
+    def close(self, timeout_s=CLOSE_TIMEOUT_S):
+        """Close the recording and stop the thread, waiting at most about ``timeout_s``."""
+        with self._cond:
+            self._stopped = True
+            self._cond.notify_all()
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout_s)
+
+    # ------------------------------------------------------------------ the thread
+
+    def _run(self):
+        while True:
+            try:
+                self._retry_dead()
+            except Exception as exc:  # noqa: BLE001 - the recording never stops the rig
+                self._log('warning', f'recording: {type(exc).__name__}: {exc}')
+            with self._cond:
+                wanted = self._wanted
+                if wanted is not None and wanted[0] == self._opened:
+                    wanted = None
+                if wanted is None and not self._queue and not self._stopped:
+                    self._cond.wait(IDLE_WAIT_S)
+                    continue  # look again: what woke the thread is read afresh
+                if wanted is not None:
+                    self._opened = wanted[0]
+                batches = list(self._queue)
+                self._queue.clear()
+                stopped = self._stopped
+            try:
+                if wanted is not None:
+                    self._reopen(*wanted[1:])
+                for batch in batches:
+                    self._log_batch(batch)
+            except Exception as exc:  # noqa: BLE001 - the recording never stops the rig
+                self._log('warning', f'recording: {type(exc).__name__}: {exc}')
+            if stopped:
+                self._close_all()
+                return
+
+    def _reopen(self, path, url, scene, balanced):
+        self._close_all()
+        targets = []
+        if path:
+            targets.append(_Target(False, path))
+        if url:
+            targets.append(_Target(True, url))
+        with self._cond:
+            self._targets = targets
+            self._context = (scene, balanced)
+        for t in targets:
+            self._connect(t)
+        said = [f'{"streaming the views to" if t.is_viewer else "recording to"} {t.where}'
+                for t in targets if t.recorder is not None]
+        if said:
+            self._log('info', ' and '.join(said))
+
+    def _connect(self, target):
+        scene, balanced = self._context
+        if target.is_viewer:
+            why = probe_viewer(target.where)
+            if why is not None:
+                self._mark_dead(target, why)
+                return
+        try:
+            if not target.is_viewer:
+                target.recorder = self._make(target.where, None, scene, balanced)
+                target.status = CONNECTED
+            else:
+                target.recorder = self._make(None, target.where, scene, balanced)
+                target.status = CONNECTED
+        except (ValueError, OSError) as exc:  # checked when set; the disk may change
+            if not target.is_viewer:
+                self._log('error', f'not recording: {exc}')
+                target.status = f'{DEAD}: {exc}'
+                target.retry_at = float('inf')
+            else:
+                self._mark_dead(target, str(exc))
+
+    def _mark_dead(self, target, why):
+        first = not target.status.startswith(DEAD)
+        target.status = f'{DEAD}: {why}'
+        target.recorder = None
+        target.retry_at = time.monotonic() + RETRY_S
+        if first:
+            self._log('error', f'rerun_url {target.where}: the viewer is dead: {why}; '
+                      f'publishing goes on, trying again every {RETRY_S:g} s')
+
+    def _retry_dead(self):
+        now = time.monotonic()
+        for t in list(self._targets):
+            if t.is_viewer and t.recorder is None and now >= t.retry_at:
+                self._connect(t)
+                if t.recorder is not None:
+                    self._log('info', f'rerun_url {t.where}: connected')
+
+    def _log_batch(self, batch):
+        t_s, turned, data = batch
+        for t in self._targets:
+            if t.recorder is None:
+                continue
+            try:
+                log = getattr(t.recorder, 'log_sample', None) or t.recorder.push
+                log(t_s, turned, data=data)
+                self.logged += len(t_s)
+            except Exception as exc:  # noqa: BLE001 - a full disk must not stop the rig
+                if not t.is_viewer:
+                    self._log('warning', f'recording_path: stopped recording: {exc}')
+                    self._close_one(t)
+                    t.status = f'{DEAD}: {exc}'
+                    t.retry_at = float('inf')
+                else:
+                    self._close_one(t)
+                    self._mark_dead(t, str(exc))
+
+    def _close_one(self, target):
+        rec, target.recorder = target.recorder, None
+        if rec is None:
+            return
+        done = threading.Event()
+
+        def close():
+            try:
+                try:
+                    rec.close(CLOSE_TIMEOUT_S)
+                except TypeError:  # a recorder whose close takes no timeout
+                    rec.close()
+            except Exception as exc:  # noqa: BLE001 - reported, never fatal
+                self._log('warning', f'recording: closing {target.where}: {exc}')
+            finally:
+                done.set()
+        worker = threading.Thread(target=close, name='rig-recording-close', daemon=True)
+        worker.start()
+        if not done.wait(CLOSE_TIMEOUT_S):
+            self._log('warning', f'recording: {target.where} did not close within '
+                      f'{CLOSE_TIMEOUT_S:g} s; left behind')
+
+    def _close_all(self):
+        for t in self._targets:
+            self._close_one(t)
+        self._targets = []

@@ -1,0 +1,200 @@
+"""
+The rig node's publisher part: ``joint_states`` and ``shaking_wrench``, clock or follow mode.
+
+:class:`Publisher` owns the two publishers, the publishing threads
+(:class:`mech_balance.ros.streaming.Streamer`), the follow-mode estimator and the
+``crank_joint_state`` subscription, and counts what the ``publisher``, ``encoder input`` and
+``model`` statuses of ``/diagnostics`` report.  It reads the designs and the parameters
+from the node's :class:`mech_balance.ros.rig_state.RigState`.
+"""
+
+from geometry_msgs.msg import WrenchStamped
+from mech_balance.ros import conversions as conv, diagnostics
+from mech_balance.ros import streaming
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.qos import QoSProfile
+from rclpy.qos_overriding_options import QoSOverridingOptions
+from sensor_msgs.msg import JointState
+
+JOINT_STATES = 'joint_states'
+SHAKING_WRENCH = 'shaking_wrench'
+ENCODER = 'crank_joint_state'
+PUBLISH_DEPTH = 100
+"""History of both publishers (absorbs a subscriber's jitter at kHz rates)."""
+ENCODER_DEPTH = 100
+"""History of the encoder subscription."""
+
+
+def new_estimator(values):
+    """Return the follow-mode :class:`~mech_balance.ros.streaming.CrankEstimator` of values."""
+    return streaming.CrankEstimator(values['follow.window'], values['follow.max_speed'],
+                                    values['follow.max_gap'],
+                                    values['follow.use_encoder_velocity'],
+                                    values['follow.resync_after'])
+
+
+class Publisher:
+    """
+    Publish the state's design on ``joint_states`` and ``shaking_wrench``.
+
+    ``node``: the rclpy node the entities belong to; ``state``: its RigState; ``guard``: the
+    node's :class:`~mech_balance.ros.guard.Guard`; ``warn(text)``: a throttled warning;
+    ``record(samples, turned_rad, stamps_ns)``: receives every evaluated batch (the
+    recording part); ``on_encoder(stamp_ns, position_rad, turned_rad, resynced)``: receives
+    every accepted encoder sample (the real-rig part).
+    """
+
+    def __init__(self, node, state, guard, warn, record=None, on_encoder=None):
+        self._node = node
+        self._state = state
+        self._guard = guard
+        self._warn = warn
+        self._on_encoder_sample = on_encoder
+        self._serializer = None        # conv.SampleSerializer of the published names, frame
+        self._zero_stamp_said = False
+        self.skipped_inputs = 0
+        self.encoder_input = diagnostics.InputCounter()
+        self.model_watch = diagnostics.ModelWatch()
+        self.rate_meter = diagnostics.RateMeter()
+        self._skipped_reported = 0
+        self.estimator = new_estimator(state.values)
+        qos = QoSProfile(depth=PUBLISH_DEPTH)
+        overrides = QoSOverridingOptions.with_default_policies()
+        self.joint_pub = node.create_publisher(JointState, JOINT_STATES, qos,
+                                               qos_overriding_options=overrides)
+        self.wrench_pub = node.create_publisher(WrenchStamped, SHAKING_WRENCH, qos,
+                                                qos_overriding_options=overrides)
+        self._encoder_sub = None
+        self._encoder_group = MutuallyExclusiveCallbackGroup()
+        self.streamer = streaming.Streamer(lambda: node.get_clock().now().nanoseconds,
+                                           self._prepare, self._publish, warn, record,
+                                           guard=guard)
+
+    @property
+    def encoder_topic(self):
+        """Return the resolved name of the encoder topic."""
+        ns = self._node.get_namespace().rstrip('/')
+        return f'{ns}/{ENCODER}'
+
+    @property
+    def clock_schedule(self):
+        """Return the clock-mode schedule in force, or None (follow mode)."""
+        return self.streamer.clock_schedule
+
+    def apply_mode(self):
+        """Start publishing in the current mode; subscribe the encoder when first following."""
+        values, model = self._state.values, self._state.published
+        if values['mode'] == 'clock':
+            # The encoder subscription, once made, stays: destroying it from a parameter
+            # callback races with the MultiThreadedExecutor's other threads, which may be
+            # adding it to their wait sets (rclpy raises InvalidHandle there and the node
+            # dies).  In clock mode on_encoder ignores what arrives.
+            period_ns = max(1, round(1e9 / values['publish_rate']))
+            self.streamer.clock(model, self._state.crank_speed(), period_ns)
+            return
+        self.estimator = new_estimator(values)
+        self.streamer.follow(model)
+        if self._encoder_sub is None:
+            self._encoder_sub = self._node.create_subscription(
+                JointState, ENCODER, self._guard.skipping(ENCODER)(self.on_encoder),
+                QoSProfile(depth=ENCODER_DEPTH), callback_group=self._encoder_group,
+                qos_overriding_options=QoSOverridingOptions.with_default_policies())
+
+    def set_model(self, model):
+        """Publish ``model`` from the next sample on (also: re-prepare for a new frame_id)."""
+        self.streamer.set_model(model)
+
+    def renew_estimator(self):
+        """Start the follow-mode estimator again (new ``follow.*`` parameters)."""
+        self.estimator = new_estimator(self._state.values)
+
+    def stop(self):
+        """Stop the publishing threads."""
+        self.streamer.stop()
+
+    # ------------------------------------------------------------------ the threads
+
+    def _prepare(self, samples, stamps_ns):
+        """Serialize a batch of samples (the streamer's evaluating threads)."""
+        self.model_watch.add(samples)
+        key = (samples.joint_names, samples.joint_effort is not None,
+               self._state.values['frame_id'])
+        serializer = self._serializer
+        if serializer is None or (serializer.joint_names, serializer.has_effort,
+                                  serializer.frame_id) != key:
+            serializer = self._serializer = conv.SampleSerializer(*key)
+            if not serializer.fast:
+                self._warn('publishing: serializing message by message (the fast path does '
+                           'not match this middleware)')
+        return serializer.serialize(samples, stamps_ns)
+
+    def _publish(self, payload):
+        """Publish one prepared sample on both topics (the streamer's publishing thread)."""
+        try:
+            self.joint_pub.publish(payload[0])
+            self.wrench_pub.publish(payload[1])
+        except Exception:
+            if self._node.context.ok():
+                raise
+            # Ctrl-C or SIGTERM: rclpy shut the context down before destroy_node stops
+            # this thread; the sample is dropped without a warning (rosout is gone too)
+
+    def on_encoder(self, msg):
+        """Turn one encoder message into a sample to publish; skip bad input with a warning."""
+        values = self._state.values
+        if values['mode'] != 'follow':  # subscribed by an earlier follow mode
+            self.encoder_input.reject('ignored in clock mode')
+            return
+        joint = values['crank_joint'] or self._state.original.crank_joint
+        estimator = self.estimator
+        try:
+            stamp_ns, position, velocity = conv.crank_reading(msg, joint)
+            if stamp_ns == 0:  # unset: `ros2 topic pub` sends stamp 0 (README: follow mode)
+                stamp_ns = self._node.get_clock().now().nanoseconds
+                if not self._zero_stamp_said:
+                    self._zero_stamp_said = True
+                    self._node.get_logger().info(
+                        f'{ENCODER}: a message with an unset (zero) stamp: such messages are '
+                        'stamped with their receive time')
+            sample = estimator.update(stamp_ns, position, velocity)
+        except ValueError as exc:
+            self.skipped_inputs += 1
+            self.encoder_input.reject(diagnostics.reason_of(exc))
+            self._warn(f'{ENCODER}: skipped a message ({self.skipped_inputs} so far): {exc}')
+            return
+        if estimator.just_resynced:
+            self.encoder_input.reject('re-synchronized')
+            self._node.get_logger().warning(
+                f'{ENCODER}: re-synchronized on the incoming stream at {stamp_ns * 1e-9:.9f} '
+                f's: {estimator.last_resync}')
+        self.encoder_input.use()
+        if self._on_encoder_sample is not None:
+            self._on_encoder_sample(stamp_ns, position,
+                                    None if sample is None else sample.turned_rad,
+                                    estimator.just_resynced)
+        if sample is not None and not self.streamer.push(sample):
+            self._warn(f'{ENCODER}: the core is behind the encoder; dropped the oldest sample')
+
+    # ------------------------------------------------------------------ reports
+
+    def statuses(self, name, hardware_id, now_ns):
+        """Return the ``publisher``, ``encoder input`` and ``model`` diagnostic statuses."""
+        values = self._state.values
+        stats = self.streamer.stats
+        skipped_new = max(stats.skipped - self._skipped_reported, 0)
+        self._skipped_reported = stats.skipped
+        clock = values['mode'] == 'clock'
+        used, rejected, new = self.encoder_input.snapshot()
+        return [diagnostics.publisher_status(
+                    f'{name}: publisher', hardware_id, values['mode'],
+                    values['publish_rate'] if clock else None,
+                    self.rate_meter.rate(stats.count, now_ns), stats.count, stats.skipped,
+                    skipped_new),
+                diagnostics.input_status(f'{name}: encoder input', hardware_id, ENCODER, used,
+                                         rejected, new),
+                diagnostics.model_status(f'{name}: model', hardware_id,
+                                         *self.model_watch.snapshot())]
+
+    def stats(self):
+        """Return the publishing statistics (:meth:`TickStats.summary`)."""
+        return self.streamer.stats.summary()
