@@ -987,7 +987,7 @@ def _repaired(theta, spec):
     return t.ravel()
 
 
-PULL_STEPS = (0.0, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2, 1.0)
+PULL_STEPS = (0.0,) + tuple(10.0 ** -k for k in range(12, 0, -1)) + (1.0,)
 """Fractions of the way to the interior anchor tried until a design violates nothing."""
 
 
