@@ -101,10 +101,13 @@ def register(subparsers):
                         'the link origin')
     p.add_argument('--mass-factors', nargs=2, type=float, metavar=('LO', 'HI'),
                    default=defaults.PAPER_MASS_FACTORS,
-                   help='link mass bounds as factors of the original masses')
+                   help='link mass bounds as factors of the original masses (range '
+                        f'{defaults.BOUND_RATIO_RANGE[0]:g} to {defaults.BOUND_RATIO_RANGE[1]:g})')
     p.add_argument('--distance-factors', nargs=2, type=float, metavar=('LO', 'HI'),
                    default=defaults.PAPER_DISTANCE_FACTORS,
-                   help='point-mass distance bounds as factors of the original l = sqrt(I_O/m)')
+                   help='point-mass distance bounds as factors of the original l = sqrt(I_O/m) '
+                        f'(range {defaults.DISTANCE_RATIO_RANGE[0]:g} to '
+                        f'{defaults.DISTANCE_RATIO_RANGE[1]:g})')
     p.add_argument('--torque-weight', type=cli.weight, default=0.0,
                    help='extra weight on the RMS normalized driving torque')
     p.add_argument('--reaction-weight', type=cli.weight, default=0.0,
