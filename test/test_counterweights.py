@@ -170,7 +170,7 @@ def test_hoeken_force_balance_with_least_moment(hoeken, hoeken_results):
 
 
 def test_hoeken_dual_bounds_random_feasible_discs(hoeken, hoeken_results):
-    """No feasible pair of discs has a z below the certificate's dual objective."""
+    """No feasible pair of discs has a z below the certificate's safe lower bound."""
     result = hoeken_results[(0.5, 0.5)]
     maps = balancing.linear_maps(hoeken)
     u = result.units
