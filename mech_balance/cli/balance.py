@@ -589,7 +589,16 @@ def _weights(sc, args):
     design = front.balance(rig_for(sc), 'weights', samples=args.samples)
     report = rggr_report.balance_report(sc, design.report['samples'], normalized=not args.si,
                                         result=design.result)
-    print(json.dumps(report, indent=2) if args.json else rggr_report.format_report(report))
+    opt = design.result.optimum
+    report.setdefault('optimum', {})['moment_rms_lower_bound_Nm'] = \
+        opt.moment_rms_lower_bound_Nm
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return 0
+    print(rggr_report.format_report(report))
+    print(f'certificate: RMS shaking moment {opt.moment_rms_optimal_Nm:.9g} N m, safe lower '
+          f'bound {opt.moment_rms_lower_bound_Nm:.9g} N m (least squares, seed 002 eqs. '
+          '89-95)')
     return 0
 
 
