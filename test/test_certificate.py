@@ -284,11 +284,11 @@ def test_distance_factors_beyond_the_range_are_refused_naming_them():
         params.check('balance.distance_factors', [0.5, 1e3])
 
 
-@pytest.mark.parametrize('kw', [dict(max_added_mass_kg=0.0), dict(centroidal_margin=0.999),
-                                dict(mass_factors=(1e-6, 1e6)),
-                                dict(distance_factors=(1e-2, 1e2)),
-                                dict(weights=(1.0, 0.0), torque_weight=1e6),
-                                dict(case='b', mass_factors=(1e-6, 1e6))])
+@pytest.mark.parametrize('kw', [{'max_added_mass_kg': 0.0}, {'centroidal_margin': 0.999},
+                                {'mass_factors': (1e-6, 1e6)},
+                                {'distance_factors': (1e-2, 1e2)},
+                                {'weights': (1.0, 0.0), 'torque_weight': 1e6},
+                                {'case': 'b', 'mass_factors': (1e-6, 1e6)}])
 def test_redistribution_options_at_their_range_ends_are_certified(kw):
     """Issue 19 item 3: every documented value solves (a cap of 0 ended on the anchor)."""
     res = balancing.optimize(scene.load('hoeken'), **kw)
