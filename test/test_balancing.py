@@ -21,6 +21,8 @@ import pytest
 import yaml
 
 GAP_REL = 1e-6
+ULP = 16.0 * np.finfo(float).eps
+"""The design returned meets its bounds exactly (issue 19), up to a few ulp of rounding."""
 
 
 @pytest.fixture(scope='module')
@@ -134,8 +136,9 @@ def test_extra_terms_and_mass_cap(hoeken):
     cap = 0.25
     capped = balancing.optimize(hoeken, (0.5, 0.5), max_added_mass_kg=cap)
     added = sum(d.mass_kg for d in capped.links) - sum(lk.mass_kg for lk in hoeken.links)
-    assert added <= cap * (1 + 1e-7)
-    assert capped.objective['z'] >= base.objective['z'] - 1e-9
+    assert added <= cap + ULP * sum(d.mass_kg for d in capped.links)   # exactly feasible
+    # the capped optimum is no better than the uncapped one, to their certified gaps
+    assert capped.objective['z'] >= base.certificate.lower_bound
 
 
 def test_fixed_links_and_bounds_are_kept(hoeken):
@@ -148,7 +151,7 @@ def test_fixed_links_and_bounds_are_kept(hoeken):
     assert_allclose([got['coupler'].mass_kg, *got['coupler'].com_m,
                      got['coupler'].inertia_origin_kg_m2],
                     [ref.mass_kg, *ref.com_m, ref.inertia_origin_kg_m2], rtol=1e-7, atol=1e-12)
-    assert crank_m * (1 - 1e-8) <= got['crank'].mass_kg <= 2.0 * crank_m * (1 + 1e-8)
+    assert crank_m * (1 - ULP) <= got['crank'].mass_kg <= 2.0 * crank_m * (1 + ULP)
     assert result.bounds['rocker']['distance_m'] == [0.01, None]
 
 

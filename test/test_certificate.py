@@ -273,6 +273,30 @@ def test_mass_bounds_no_solver_can_honour_are_refused():
         params.parse_link_bounds('balance.mass_bounds', '{crank: [1e-300, 1e-3]}', 'kg')
 
 
+def test_distance_factors_beyond_the_range_are_refused_naming_them():
+    sc = scene.load('hoeken')
+    with pytest.raises(ValueError, match=r'distance_factors \(0.001, 1000\) for link crank: '
+                                         r'got .* expected bounds within \[0.01, 100\]'):
+        balancing.optimize(sc, distance_factors=(1e-3, 1e3))
+    from mech_balance.ros import params
+    with pytest.raises(ValueError, match=r'balance.distance_factors: got 1000, expected a '
+                                         r'number in \[0.01, 100\]'):
+        params.check('balance.distance_factors', [0.5, 1e3])
+
+
+@pytest.mark.parametrize('kw', [{'max_added_mass_kg': 0.0}, {'centroidal_margin': 0.999},
+                                {'mass_factors': (1e-6, 1e6)},
+                                {'distance_factors': (1e-2, 1e2)},
+                                {'weights': (1.0, 0.0), 'torque_weight': 1e6},
+                                {'case': 'b', 'mass_factors': (1e-6, 1e6)}])
+def test_redistribution_options_at_their_range_ends_are_certified(kw):
+    """Issue 19 item 3: every documented value solves (a cap of 0 ended on the anchor)."""
+    res = balancing.optimize(scene.load('hoeken'), **kw)
+    cert = res.certificate
+    assert cert.certified and cert.design_violation == 0.0
+    assert cert.feasibility_pull < 1e-6
+
+
 @pytest.mark.parametrize('option, value', [('--density', '1e-30'), ('--max-thickness', '1e30'),
                                            ('--max-mass-factor', '1e-300'),
                                            ('--max-radius-factor', '1e9')])

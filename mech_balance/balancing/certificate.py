@@ -122,6 +122,8 @@ def project_dual(z, cones):
 
 REFINE_ROUNDS = 2
 """Rounds of :func:`refine_dual` tried by :func:`safe_lower_bound` (the best bound is kept)."""
+REFINE_BELOW = 1e-8
+"""No refinement when the residual term is below this fraction of max(1, |L|)."""
 REFINE_SHARE = 1e-2
 """A coordinate is refined when its residual term is at least this share of the largest."""
 
@@ -135,7 +137,7 @@ def refine_dual(a, cones, z, r, cols, frozen=None):
     :func:`project_dual`); a non-negative row or a cone's first entry stays.  The residual
     moves to the columns of those first entries (epigraph variables with a finite box).
     """
-    a = sp.csc_matrix(a)
+    a = _dense(a)
     movable = np.zeros(a.shape[0], dtype=bool)
     k = 0
     for family, dim in cones:
@@ -147,7 +149,7 @@ def refine_dual(a, cones, z, r, cols, frozen=None):
     if frozen is not None:
         movable &= ~frozen
     rows = np.flatnonzero(movable)
-    sub = a[rows][:, cols].toarray()          # (rows, cols)
+    sub = a[np.ix_(rows, cols)]               # (rows, cols)
     if not sub.size:
         return z
     step, *_ = np.linalg.lstsq(sub.T, -r[cols], rcond=None)
@@ -168,13 +170,14 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
     the better of the bounds is returned (each is a bound).
     """
     cones = cone_list(cones)
-    a = sp.csc_matrix(a)
+    a = _dense(a)
+    abs_a = np.abs(a)
     q_arr = np.asarray(q, dtype=float).ravel()
-    best = _bound(q, a, b, cones, z, lo, hi)
+    best = _bound(q, a, b, cones, z, lo, hi, abs_a)
     z_now = np.asarray(z, dtype=float)
     idle, frozen = _idle_epigraphs(a, q_arr, cones, z_now)
     if idle is not None:      # a term the objective does not weight: its cone's dual is 0
-        cand = _bound(q, a, b, cones, idle, lo, hi)
+        cand = _bound(q, a, b, cones, idle, lo, hi, abs_a)
         if cand.value > best.value:
             best, z_now = cand, idle
         else:
@@ -182,6 +185,9 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
     for _ in range(REFINE_ROUNDS):
         if best.terms is None or not np.isfinite(best.value) and not best.unbounded:
             break
+        if np.isfinite(best.value) and \
+                abs(best.residual_term) <= REFINE_BELOW * max(1.0, abs(best.value)):
+            break   # the residual costs less than the solver's own accuracy: done
         share = np.abs(best.terms)
         cols = np.flatnonzero(share >= REFINE_SHARE * share.max()) if share.max() > 0 \
             else np.array([], dtype=int)
@@ -189,7 +195,7 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
         if not cols.size:
             break
         z_now = refine_dual(a, cones, project_dual(z_now, cones), best.r, cols, frozen)
-        cand = _bound(q, a, b, cones, z_now, lo, hi)
+        cand = _bound(q, a, b, cones, z_now, lo, hi, abs_a)
         if cand.value > best.value:
             best = cand
         else:
@@ -206,14 +212,13 @@ def _idle_epigraphs(a, q, cones, z):
     not weight (q_t = 0): ``t >= ||...||`` then only bounds t, whose box is wide (a norm
     the stage does not minimize), and the solver's small dual there costs r_t times it.
     """
-    a = sp.csr_matrix(a)
     out = np.array(z, dtype=float)
     frozen = np.zeros(out.size, dtype=bool)
     k = 0
     for family, dim in cones:
         if family == 'soc':
-            row = a.getrow(k)
-            if row.nnz == 1 and q[row.indices[0]] == 0.0:
+            cols = np.flatnonzero(a[k])
+            if cols.size == 1 and q[cols[0]] == 0.0:
                 out[k:k + dim] = 0.0
                 frozen[k:k + dim] = True
         k += dim
@@ -233,13 +238,17 @@ class _Work:
     r: np.ndarray
 
 
-def _bound(q, a, b, cones, z, lo, hi):
+def _dense(a):
+    """Return ``a`` as a dense float array (the balancing programs have at most ~1e4 entries)."""
+    return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
+
+
+def _bound(q, a, b, cones, z, lo, hi, abs_a):
     """Return the bound (1) at one dual point, with its terms and residual (a _Work)."""
     q = np.asarray(q, dtype=float).ravel()
     b = np.asarray(b, dtype=float).ravel()
     lo = np.asarray(lo, dtype=float).ravel()
     hi = np.asarray(hi, dtype=float).ravel()
-    a = sp.csc_matrix(a)
     m, n = a.shape
     if q.size != n or b.size != m or lo.size != n or hi.size != n:
         raise ValueError(f'safe_lower_bound: shapes q {q.size}, A {a.shape}, b {b.size}, '
@@ -265,7 +274,7 @@ def _bound(q, a, b, cones, z, lo, hi):
                      bad, np.where(np.isfinite(terms), terms, 0.0), r)
     resid_term = float(np.sum(terms))
     box = np.maximum(np.abs(lo), np.abs(hi))
-    size = np.abs(q) + abs(a).T @ np.abs(zp)      # bounds |r_i| and its rounding error
+    size = np.abs(q) + abs_a.T @ np.abs(zp)       # bounds |r_i| and its rounding error
     blind = (~np.isfinite(box)) & (size > 0.0)
     if blind.any():   # r_i computed 0 on an unbounded coordinate: its error is unbounded
         bad = tuple(int(i) for i in np.flatnonzero(blind))

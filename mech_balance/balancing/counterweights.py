@@ -813,8 +813,9 @@ class _Problem:
         """
         Return ``y`` with each disc moved onto its constraints by the least local change.
 
-        The mass is capped at m_max, the first moment shrunk to the radius bound, and the
-        inertia clipped into [|dh|^2/dm + dm^2/c, k_max^2 dm] (the round-off violations an
+        The mass is capped at m_max, the first moment shrunk to the radius bound and to what
+        the gyration bound leaves, and the inertia clipped into [|dh|^2/dm + dm^2/c,
+        k_max^2 dm] (the round-off violations an
         interior-point solution has at active constraints), each with a margin of a few ulp.
         """
         y = np.array(y, dtype=float)
@@ -831,8 +832,13 @@ class _Problem:
                 y[im + 1:im + 3] *= h_max / h
                 h = math.hypot(y[im + 1], y[im + 2])
             kappa = self.m0[i] / (self.c_disc * self.l0[i] ** 2)
+            g2 = (self.k_max[i] / self.l0[i]) ** 2
+            room = ym * ym * (g2 - kappa * ym)   # the largest |h|^2 the gyration bound leaves
+            if room > 0.0 and h * h > room * shrink:
+                y[im + 1:im + 3] *= math.sqrt(room * shrink) / h * shrink
+                h = math.hypot(y[im + 1], y[im + 2])
             i_lo = (h * h / ym + kappa * ym * ym) / shrink
-            i_hi = (self.k_max[i] / self.l0[i]) ** 2 * ym * shrink
+            i_hi = g2 * ym * shrink
             if i_lo <= i_hi:
                 y[im + 3] = min(max(y[im + 3], i_lo), i_hi)
         return y

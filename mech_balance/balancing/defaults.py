@@ -113,6 +113,12 @@ def check_counterweight_option(option, value, name=None):
     return check_range(name or option, value, lowest, highest, unit)
 
 
+DISTANCE_RATIO_RANGE = (1e-2, 1e2)
+"""Point-mass distance bounds (and factors) of the redistribution within these factors of
+the link's original l: the inertia about the origin scales with l^2, so 1e-2..1e2 spans
+eight decades of I_O already (wider, the safe lower bound on Hoeken falls below zero)."""
+
+
 ABSOLUTE_BOUND_RANGE = {'kg': (1e-6, 1e6), 'm': (1e-6, 1e3)}
 """Where a link mass (kg) or point-mass distance (m) bound may be set without the scene at
 hand (the rig node's parameters): the redistribution checks :data:`BOUND_RATIO_RANGE`

@@ -51,7 +51,7 @@ from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import certificate
 from mech_balance.balancing.defaults import BOUND_RATIO_RANGE, CASES, CENTROIDAL_MARGIN, \
-    DEFAULT_WEIGHTS, PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
+    DEFAULT_WEIGHTS, DISTANCE_RATIO_RANGE, PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
 from mech_balance.conventions import cycle_angles, MAX_WEIGHT
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics
@@ -953,15 +953,25 @@ def _repaired(theta, spec):
     """
     Return ``theta`` with each link moved onto its bounds by the least local change.
 
-    The mass clipped into its bounds, I_O into [m l_lo^2, m l_hi^2], the first moment
+    The mass clipped into its bounds (and the cap on the added mass taken off the masses
+    above their lower bounds), I_O into [m l_lo^2, m l_hi^2], the first moment
     shrunk to the realizability cone (|h|^2 <= m (1 - margin) I_O): the round-off
     violations of an interior-point solution at active constraints.
     """
     t = np.array(theta, dtype=float).reshape(-1, 4)
-    for i in range(spec.n):
-        if spec.fixed[i]:
-            continue
-        m = min(max(t[i, 0], spec.mass_lo[i]), spec.mass_hi[i])
+    free = [i for i in range(spec.n) if not spec.fixed[i]]
+    for i in free:
+        t[i, 0] = min(max(t[i, 0], spec.mass_lo[i]), spec.mass_hi[i])
+    if spec.added_mass is not None and free:
+        # the cap on the added mass: take the excess off the masses above their lower bounds
+        excess = float(np.sum(t[:, 0]) - np.sum(spec.theta0[0::4]) - spec.added_mass)
+        room = np.array([t[i, 0] - spec.mass_lo[i] for i in free])
+        if excess > 0.0 and room.sum() > 0.0:
+            share = min(1.0, excess * (1.0 + 1e-12) / room.sum())
+            for i, r in zip(free, room):
+                t[i, 0] = max(t[i, 0] - share * r, spec.mass_lo[i])
+    for i in free:
+        m = t[i, 0]
         i_o = min(max(t[i, 3], m * spec.dist_lo[i] ** 2), m * spec.dist_hi[i] ** 2)
         t[i, 0], t[i, 3] = m, i_o
         if spec.realizable:
@@ -972,7 +982,7 @@ def _repaired(theta, spec):
     return t.ravel()
 
 
-PULL_STEPS = (0.0, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2, 1.0)
+PULL_STEPS = (0.0,) + tuple(10.0 ** -k for k in range(12, 0, -1)) + (1.0,)
 """Fractions of the way to the interior anchor tried until a design violates nothing."""
 
 
@@ -1304,6 +1314,7 @@ def _bounds(given, names, original, factors, field_name, factors_name):
                            'original with 0 < low <= high')
     lo = np.array(original, dtype=float) * f_lo
     hi = np.array(original, dtype=float) * f_hi
+    from_factors = set(names)
     if given is not None:
         if not isinstance(given, dict):
             raise BalanceError(f'{field_name}: got {_show(given)}, expected a mapping link -> '
@@ -1324,7 +1335,9 @@ def _bounds(given, names, original, factors, field_name, factors_name):
                 raise BalanceError(f'{field_name}.{key}: got {_show(pair)}, expected '
                                    '0 < min <= max')
             lo[i], hi[i] = a, b
-    low_ratio, high_ratio = BOUND_RATIO_RANGE
+            from_factors.discard(key)
+    low_ratio, high_ratio = DISTANCE_RATIO_RANGE if field_name == 'distance_bounds' else \
+        BOUND_RATIO_RANGE
     for i, name in enumerate(names):
         if not lo[i] > 0.0:   # a factor times an original of 0
             raise BalanceError(f'{field_name}.{name}: lower bound {lo[i]:g}, expected > 0 '
@@ -1332,10 +1345,13 @@ def _bounds(given, names, original, factors, field_name, factors_name):
         ref = float(original[i])
         if ref > 0.0 and not (low_ratio * ref <= lo[i] and
                               (math.isinf(hi[i]) or hi[i] <= high_ratio * ref)):
+            where = f'{factors_name} {_show(factors)} for link {name}' \
+                if name in from_factors else f'{field_name}.{name}'
             raise BalanceError(
-                f'{field_name}.{name}: got ({lo[i]:g}, {hi[i]:g}), expected bounds within '
+                f'{where}: got ({lo[i]:g}, {hi[i]:g}), expected bounds within '
                 f'[{low_ratio:g}, {high_ratio:g}] x the original {ref:g} (defaults.'
-                'BOUND_RATIO_RANGE: tighter or wider bounds no solver resolves)')
+                'BOUND_RATIO_RANGE, DISTANCE_RATIO_RANGE: tighter or wider bounds no '
+                'solver resolves)')
     return lo, hi
 
 

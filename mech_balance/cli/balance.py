@@ -111,10 +111,13 @@ def register(subparsers):
                         'the link origin')
     p.add_argument('--mass-factors', nargs=2, type=float, metavar=('LO', 'HI'),
                    default=defaults.PAPER_MASS_FACTORS,
-                   help='link mass bounds as factors of the original masses')
+                   help='link mass bounds as factors of the original masses (range '
+                        f'{defaults.BOUND_RATIO_RANGE[0]:g} to {defaults.BOUND_RATIO_RANGE[1]:g})')
     p.add_argument('--distance-factors', nargs=2, type=float, metavar=('LO', 'HI'),
                    default=defaults.PAPER_DISTANCE_FACTORS,
-                   help='point-mass distance bounds as factors of the original l = sqrt(I_O/m)')
+                   help='point-mass distance bounds as factors of the original l = sqrt(I_O/m) '
+                        f'(range {defaults.DISTANCE_RATIO_RANGE[0]:g} to '
+                        f'{defaults.DISTANCE_RATIO_RANGE[1]:g})')
     p.add_argument('--torque-weight', type=cli.weight, default=0.0,
                    help='extra weight on the RMS normalized driving torque')
     p.add_argument('--reaction-weight', type=cli.weight, default=0.0,
@@ -642,7 +645,16 @@ def _weights(sc, args):
     design = front.balance(rig_for(sc), 'weights', samples=args.samples)
     report = rggr_report.balance_report(sc, design.report['samples'], normalized=not args.si,
                                         result=design.result)
-    print(json.dumps(report, indent=2) if args.json else rggr_report.format_report(report))
+    opt = design.result.optimum
+    report.setdefault('optimum', {})['moment_rms_lower_bound_Nm'] = \
+        opt.moment_rms_lower_bound_Nm
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return 0
+    print(rggr_report.format_report(report))
+    print(f'certificate: RMS shaking moment {opt.moment_rms_optimal_Nm:.9g} N m, safe lower '
+          f'bound {opt.moment_rms_lower_bound_Nm:.9g} N m (least squares, seed 002 eqs. '
+          '89-95)')
     return 0
 
 

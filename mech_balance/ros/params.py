@@ -121,13 +121,15 @@ def _weights(value):
         raise ValueError('balance.weights: got [0, 0], expected at least one positive weight')
 
 
-def _factors(name):
+def _factors(name, ratio_range):
     def check(value):
-        """Accept [low, high] factors of the original value, 0 < low <= high."""
+        """Accept [low, high] factors of the original value, 0 < low <= high, in range."""
         if len(value) != 2 or not all(math.isfinite(v) for v in value) or \
                 not 0.0 < value[0] <= value[1]:
             raise ValueError(f'{name}: got {list(value)}, expected [low, high] with '
                              '0 < low <= high (factors of the original link value)')
+        for v in value:
+            balancing_defaults.check_range(name, v, *ratio_range)
     return check
 
 
@@ -358,11 +360,13 @@ PARAMETERS = (
          'bound options must keep their defaults.'),
     Spec('balance.mass_factors', DOUBLE_ARRAY, list(balancing.PAPER_MASS_FACTORS),
          'Link mass bounds [low, high] as factors of the original link mass (eq. 50b).',
-         check=_factors('balance.mass_factors'), rule='[low, high], 0 < low <= high'),
+         check=_factors('balance.mass_factors', balancing_defaults.BOUND_RATIO_RANGE),
+         rule='[low, high], 0 < low <= high, each in [1e-06, 1e+06]'),
     Spec('balance.distance_factors', DOUBLE_ARRAY, list(balancing.PAPER_DISTANCE_FACTORS),
          'Point-mass distance bounds [low, high] as factors of the original '
-         'l = sqrt(I_O/m) (eq. 50c).', check=_factors('balance.distance_factors'),
-         rule='[low, high], 0 < low <= high'),
+         'l = sqrt(I_O/m) (eq. 50c).',
+         check=_factors('balance.distance_factors', balancing_defaults.DISTANCE_RATIO_RANGE),
+         rule='[low, high], 0 < low <= high, each in [0.01, 100]'),
     Spec('balance.mass_bounds', STRING, '',
          'Per-link mass bounds in kg overriding the factors, YAML text, quoted on the command '
          'line: ros2 param set /rig balance.mass_bounds "\'{crank: [0.3, 1.6]}\'" (the older '
