@@ -86,6 +86,33 @@ MAX_WINDOW_TURNS = 0.5
 bias of speed variations at the rotation frequency and its harmonics).  Measured on the
 synthetic rigs: Hoeken at 1 rev/s takes 379 samples (the noise target, 0.38 turn), the
 slider-crank at 5 rev/s 99 (this cap), acceleration noise 0.034 and 0.96 rad/s^2."""
+QUANT_TOL = 0.1
+"""An increment agrees with a step q when it is within this many q of a multiple of q."""
+QUANT_FRACTION_MIN = 0.99
+"""An encoder step is accepted when at least this fraction of the nonzero increments agree
+with it (QUANT_TOL); the largest such step is the encoder's.  The confidence printed is the
+fraction that agrees (white angle noise of s = 0.03 q leaves 0.999 in, an unquantized
+encoder 2 QUANT_TOL = 0.2)."""
+QUANT_MAX_INCREMENTS = 20000
+"""Increments the step search tests at most (evenly spaced over the recording)."""
+QUANT_SPLIT_RATIO = 30.0
+"""Sorted gaps between distinct positions jump by at least this ratio from the noise floor
+(float round-off, float32 positions: below 1e-6 rad) to the encoder step (above 6e-4 rad for
+10 000 counts per turn)."""
+QUANT_GAP_QUANTILE = 0.02
+"""Candidate step: this quantile of the gaps above the noise floor (robust to a few stray
+positions between two counts)."""
+QUANT_MAX_DIVISOR = 8
+"""The candidate step may be this many encoder steps (counts missing from a short
+recording); divisors up to this are tried."""
+QUANT_REFINE_PASSES = 2
+"""Least-squares passes refining the step on the increments."""
+COUNT_SNAP = 0.05
+"""A step within this many counts of an integer number of counts per modulus is snapped."""
+MODULUS_SNAP_REL = 1e-3
+"""A wrap modulus within this fraction of 2 pi is 2 pi."""
+FIT_NOISE_WINDOW = 31
+"""Samples of the smooth fit whose residual measures the angle noise (order SG_ORDER)."""
 MIN_WINDOW = 2 * SG_ORDER + 3
 """Fewest samples in the smoothing window."""
 UNIFORM_JITTER_REL = 1e-3
@@ -128,6 +155,49 @@ class IdentifyError(ValueError):
 
 
 @dataclass
+class Quantization:
+    """
+    The encoder's quantization step and the angle noise the window choice rests on.
+
+    ``step_rad`` is 0 when the positions are not quantized (``source`` says which:
+    ``estimated``, ``stated`` by ``--counts-per-turn``, or ``not quantized``);
+    ``confidence`` the fraction of the nonzero increments within :data:`QUANT_TOL` steps of
+    a multiple of the step (:func:`_fraction_on_grid`);
+    ``noise_rad`` the standard deviation of the angle noise used for the window: the larger
+    of q / sqrt(12) and the residual of a smooth fit (:func:`fit_noise`).
+    """
+
+    step_rad: float
+    confidence: float
+    source: str
+    modulus_rad: float
+    noise_rad: float
+    fit_noise_rad: float
+
+    @property
+    def counts_per_turn(self):
+        """Return 2 pi / step, or None when not quantized."""
+        return 2.0 * math.pi / self.step_rad if self.step_rad > 0.0 else None
+
+    def describe(self):
+        """Return the step, its confidence and its source in words."""
+        if self.step_rad <= 0.0:
+            return (f'not quantized (no step has {QUANT_FRACTION_MIN:g} of the increments '
+                    f'within {QUANT_TOL:g} step of its multiples); angle noise {self.fit_noise_rad:.3g} rad '
+                    'from the residual of a smooth fit')
+        return (f'encoder step {self.step_rad:.6g} rad ({self.counts_per_turn:.6g} counts per '
+                f'turn, {self.source}; {self.confidence:.4f} of the increments on its grid), '
+                f'wrapping at {self.modulus_rad:.6g} rad')
+
+    def to_dict(self):
+        """Return the estimate as a plain dict."""
+        return {'step_rad': self.step_rad, 'counts_per_turn': self.counts_per_turn,
+                'confidence': self.confidence, 'source': self.source,
+                'modulus_rad': self.modulus_rad, 'noise_rad': self.noise_rad,
+                'fit_noise_rad': self.fit_noise_rad}
+
+
+@dataclass
 class CrankMotion:
     """
     Crank angle, speed and acceleration estimated from encoder positions (uniform grid).
@@ -149,6 +219,9 @@ class CrankMotion:
     resampled: bool
     predicted_std: dict = field(default_factory=dict)
     gain_error: dict = field(default_factory=dict)
+    quantization: Quantization = None
+    window_reason: str = ''
+    window_floor: int = 0
 
     @property
     def window_s(self):
@@ -175,20 +248,132 @@ class CrankMotion:
                 if self.quantization_rad > 0.0 else None,
                 'mean_speed_rad_s': self.mean_speed_rad_s, 'resampled': bool(self.resampled),
                 'predicted_std': dict(self.predicted_std),
-                'gain_error': dict(self.gain_error)}
+                'gain_error': dict(self.gain_error),
+                'quantization': None if self.quantization is None else
+                self.quantization.to_dict(),
+                'window_reason': self.window_reason, 'window_floor': self.window_floor}
+
+
+def unwrap_encoder(position_rad):
+    """
+    Return ``(unwrapped angle, modulus)`` of encoder positions that may wrap at any modulus.
+
+    A wrap is an increment larger than half the positions' range; the modulus M follows
+    from the wraps: a wrap of d while the crank turns by the median increment delta is
+    d = delta - M sign(rotation), so M = median(|d - delta|).  A modulus within
+    :data:`MODULUS_SNAP_REL` of 2 pi is taken as 2 pi.  Positions without a wrap keep 2 pi.
+    """
+    pos = np.asarray(position_rad, dtype=float)
+    d = np.diff(pos)
+    span = float(np.max(pos) - np.min(pos)) if pos.size else 0.0
+    jumps = np.abs(d) > 0.5 * span
+    modulus = 2.0 * math.pi
+    if jumps.any() and (~jumps).any():
+        delta = float(np.median(d[~jumps]))
+        est = float(np.median(np.abs(d[jumps] - delta)))
+        if est > 0.0 and abs(est - modulus) > MODULUS_SNAP_REL * modulus:
+            modulus = est
+    return np.unwrap(pos, period=modulus), modulus
+
+
+def _fraction_on_grid(increments, step):
+    """Return the fraction of increments within QUANT_TOL steps of a multiple of ``step``."""
+    r = increments / step
+    return float(np.mean(np.abs(r - np.round(r)) <= QUANT_TOL))
+
+
+def fit_noise(t_s, psi_rad, order=SG_ORDER):
+    """
+    Return the standard deviation of the angle noise about a smooth fit (rad).
+
+    A Savitzky-Golay fit of ``order`` over :data:`FIT_NOISE_WINDOW` samples; the residual's
+    RMS divided by sqrt(1 - h), h the fit's weight on the centre sample (the residual of a
+    least-squares smoother of white noise of standard deviation s has variance s^2 (1 - h)).
+    """
+    psi = np.asarray(psi_rad, dtype=float)
+    window = min(FIT_NOISE_WINDOW, (psi.size - 1) | 1) | 1
+    if window < order + 2:
+        return 0.0
+    period = float(np.median(np.diff(t_s)))
+    w0 = savgol_weights(window, order, period)[0]
+    smooth = oaconvolve(psi - psi[0], w0[::-1], mode='valid') + psi[0]
+    half = (window - 1) // 2
+    res = psi[half:psi.size - half] - smooth
+    h = float(w0[half])
+    return float(np.sqrt(np.mean(res ** 2) / max(1.0 - h, 1e-12)))
+
+
+def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
+    """
+    Return the :class:`Quantization` of encoder positions (rad; wrapped or not).
+
+    The robust greatest common divisor of the increments (float noise, float32 positions,
+    missing counts, either direction, any wrap): the positions are unwrapped
+    (:func:`unwrap_encoder`); the candidate step q_c is the :data:`QUANT_GAP_QUANTILE`
+    quantile of the gaps between distinct positions (wrapped onto one turn, where every
+    count of a long recording occurs), between distinct increments and of the increments
+    themselves, "distinct" meaning above the noise floor: the largest jump (a ratio of at
+    least :data:`QUANT_SPLIT_RATIO`) in the sorted gaps separates noise from steps.  The step
+    is the largest q_c j / k (j, k = 1 .. :data:`QUANT_MAX_DIVISOR`) with at least
+    :data:`QUANT_FRACTION_MIN` of the nonzero increments on its grid, refined by least squares
+    (q = sum n d / sum n^2, n = round(d / q)) and snapped to an integer number of counts per
+    modulus when within :data:`COUNT_SNAP` of one.  When no candidate agrees the positions
+    are "not quantized" and only the smooth fit's noise is used.
+    """
+    pos = np.asarray(position_rad, dtype=float).ravel()
+    psi, modulus = unwrap_encoder(pos)
+    t = np.arange(pos.size, dtype=float) if t_s is None else np.asarray(t_s, dtype=float)
+    sigma_fit = fit_noise(t, psi)
+    if counts_per_turn is not None:
+        q = 2.0 * math.pi / float(counts_per_turn)
+        inc = np.diff(psi)
+        moving = np.abs(inc)[np.abs(inc) > 0.5 * q]
+        conf = _fraction_on_grid(moving, q) if moving.size else 1.0
+        return Quantization(q, conf, 'stated', modulus,
+                            max(q / math.sqrt(12.0), sigma_fit), sigma_fit)
+    inc = np.diff(psi)
+    moving = np.abs(inc)
+    if moving.size > QUANT_MAX_INCREMENTS:
+        moving = moving[np.linspace(0, moving.size - 1, QUANT_MAX_INCREMENTS).astype(int)]
+    wrapped = np.sort(np.mod(psi - psi[0], modulus))
+    inc_gaps = np.diff(np.sort(moving))
+    gaps = np.sort(np.concatenate([np.diff(wrapped), inc_gaps]))
+    gaps = gaps[gaps > 0.0]
+    step, conf = 0.0, 0.0
+    if gaps.size >= 2:
+        ratios = gaps[1:] / gaps[:-1]
+        split = int(np.argmax(ratios))
+        floor = gaps[split] if ratios[split] >= QUANT_SPLIT_RATIO else 0.0
+        moving = moving[moving > floor]
+        candidates = [float(np.quantile(v[v > floor], QUANT_GAP_QUANTILE))
+                      for v in (inc_gaps, np.diff(wrapped), moving) if (v > floor).any()]
+        if moving.size:
+            for q_c in candidates:
+                for j in range(1, QUANT_MAX_DIVISOR + 1):
+                    for k in range(1, QUANT_MAX_DIVISOR + 1):
+                        q = q_c * j / k
+                        if q <= step * (1.0 + QUANT_TOL) or q <= floor * QUANT_SPLIT_RATIO:
+                            continue
+                        frac = _fraction_on_grid(moving, q)
+                        if frac >= QUANT_FRACTION_MIN:
+                            step, conf = q, frac
+    if step > 0.0:
+        for _ in range(QUANT_REFINE_PASSES):
+            n = np.round(moving / step)
+            step = float(np.sum(n * moving) / np.sum(n * n))
+        counts = modulus / step
+        if abs(counts - round(counts)) <= COUNT_SNAP:
+            step = modulus / round(counts)
+        conf = _fraction_on_grid(moving, step)
+    if step <= 0.0 or conf < QUANT_FRACTION_MIN:
+        return Quantization(0.0, conf, 'not quantized', modulus, sigma_fit, sigma_fit)
+    return Quantization(step, conf, 'estimated', modulus,
+                        max(step / math.sqrt(12.0), sigma_fit), sigma_fit)
 
 
 def quantization_step(position_rad):
-    """
-    Return the encoder's quantization step, rad: the least gap between recorded positions.
-
-    The positions of a quantized encoder are multiples of its step; over a few turns every
-    multiple occurs, so the smallest gap between distinct wrapped positions is the step.
-    """
-    wrapped = np.unique(np.round(np.mod(position_rad, 2.0 * math.pi), 12))
-    if wrapped.size < 2:
-        return 0.0
-    return float(np.min(np.diff(wrapped)))
+    """Return the encoder's quantization step, rad (0: not quantized); see estimate_quantization."""
+    return estimate_quantization(position_rad).step_rad
 
 
 def savgol_weights(window, order, period_s):
@@ -227,12 +412,14 @@ def _window_accuracy(window, order, period_s, sigma_q, turn_hz):
     return std, gain
 
 
-def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_rad=None):
+def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_rad=None,
+                 counts_per_turn=None):
     """
     Return the :class:`CrankMotion` of encoder samples (stamps s, positions rad).
 
     ``window`` (odd number of samples) overrides the choice of this module's docstring;
-    ``quantization_rad`` the step found by :func:`quantization_step`.
+    ``counts_per_turn`` (or ``quantization_rad``, the step) states the encoder's step instead
+    of :func:`estimate_quantization`.
     """
     t = np.asarray(t_s, dtype=float).ravel()
     pos = np.asarray(position_rad, dtype=float).ravel()
@@ -240,16 +427,21 @@ def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_ra
         raise IdentifyError(f'encoder: {t.size} stamps and {pos.size} positions, expected '
                             'one stamp per position')
     if not (np.isfinite(t).all() and np.isfinite(pos).all()):
-        raise IdentifyError('encoder: non-finite stamp or position, expected finite values')
+        bad = int(np.flatnonzero(~(np.isfinite(t) & np.isfinite(pos)))[0])
+        raise IdentifyError(f'encoder: sample {bad} has stamp {t[bad]!r} and position '
+                            f'{pos[bad]!r}, expected finite values')
     if t.size < MIN_WINDOW + 2:
         raise IdentifyError(f'encoder: {t.size} samples, expected at least {MIN_WINDOW + 2}')
     dts = np.diff(t)
     if not (dts > 0.0).all():
-        i = int(np.argmin(dts))
-        raise IdentifyError(f'encoder: stamp {t[i + 1]:.9f} s is not after {t[i]:.9f} s, '
-                            'expected increasing stamps')
+        i = int(np.flatnonzero(~(dts > 0.0))[0])
+        raise IdentifyError(f'encoder: sample {i + 1} stamp {t[i + 1]:.9f} s is not after '
+                            f'sample {i} stamp {t[i]:.9f} s, expected increasing stamps')
     period = float(np.median(dts))
-    psi = np.unwrap(pos)    # a wrapping encoder: steps taken in (-pi, pi]
+    if quantization_rad is not None and counts_per_turn is None and quantization_rad > 0.0:
+        counts_per_turn = 2.0 * math.pi / float(quantization_rad)
+    quant = estimate_quantization(pos, counts_per_turn, t)
+    psi, _ = unwrap_encoder(pos)
     if np.max(np.abs(np.diff(psi))) > MAX_STEP_RAD:
         raise IdentifyError('encoder: the crank turns by nearly half a revolution or more '
                             'between samples (or the angle jumps), expected a faster encoder '
@@ -259,22 +451,39 @@ def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_ra
         grid = t[0] + period * np.arange(int(math.floor((t[-1] - t[0]) / period)) + 1)
         psi = np.interp(grid, t, psi)
         t = grid
-    q = quantization_step(pos) if quantization_rad is None else float(quantization_rad)
-    sigma_q = q / math.sqrt(12.0)
+    q = quant.step_rad
+    sigma = quant.noise_rad
     span = t[-1] - t[0]
     speed_mean = abs(psi[-1] - psi[0]) / span
     turn_hz = speed_mean / (2.0 * math.pi)
+    cap = MAX_WINDOW_TURNS / turn_hz / period if turn_hz > 0.0 else t.size
+    cap = max(MIN_WINDOW, min(int(cap), t.size - 2)) | 1
+    target = ACCEL_NOISE_REL * speed_mean ** 2
+    floor = MIN_WINDOW
+    limit = (t.size - 2) | 1
+    while floor < limit:
+        c2 = savgol_weights(floor | 1, order, period)[2]
+        if sigma * np.linalg.norm(c2) <= target:
+            break
+        floor = int(floor * 1.1) + 2
+    floor = min(floor | 1, limit if limit <= t.size else limit - 2)
     if window is None:
-        cap = MAX_WINDOW_TURNS / turn_hz / period if turn_hz > 0.0 else t.size
-        cap = max(MIN_WINDOW, min(int(cap), t.size - 2))
-        window = MIN_WINDOW
-        target = ACCEL_NOISE_REL * speed_mean ** 2
-        while window < cap:
-            c2 = savgol_weights(window | 1, order, period)[2]
-            if sigma_q * np.linalg.norm(c2) <= target:
-                break
-            window = int(window * 1.25) + 1
-        window = min(window, cap)
+        window = max(floor, MIN_WINDOW)
+        if floor > cap:
+            rests = (f'the acceleration noise budget ({ACCEL_NOISE_REL:g} x mean speed^2 = '
+                     f'{target:.3g} rad/s^2 from angle noise {sigma:.3g} rad) needs {floor} '
+                     f'samples, above the {MAX_WINDOW_TURNS:g}-turn smoothing-bias cap of '
+                     f'{cap}: the noise floor wins')
+        else:
+            rests = (f'the shortest window whose acceleration noise (angle noise '
+                     f'{sigma:.3g} rad) is within the budget {ACCEL_NOISE_REL:g} x mean '
+                     f'speed^2 = {target:.3g} rad/s^2 (cap {MAX_WINDOW_TURNS:g} turn = {cap} '
+                     'samples)')
+    else:
+        rests = f'--window {int(window) | 1} stated'
+        if (int(window) | 1) < floor:
+            rests += (f', below the noise floor of {floor} samples: the acceleration noise '
+                      'exceeds the budget')
     window = int(window) | 1
     if not (order + 2 <= window <= t.size):
         raise IdentifyError(f'window: got {window} samples, expected an odd number from '
@@ -283,9 +492,9 @@ def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_ra
     # samples within half a window of either end have no centred fit: dropped
     psi_s, speed, accel = (oaconvolve(psi - psi[0], wd[::-1], mode='valid') for wd in weights)
     half = (window - 1) // 2
-    std, gain = _window_accuracy(window, order, period, sigma_q, turn_hz)
+    std, gain = _window_accuracy(window, order, period, sigma, turn_hz)
     return CrankMotion(t[half:t.size - half], psi_s + psi[0], speed, accel, period, window,
-                       order, q, speed_mean, resampled, std, gain)
+                       order, q, speed_mean, resampled, std, gain, quant, rests, int(floor))
 
 
 # ============================================================================ regressor
@@ -533,7 +742,7 @@ def _measurements(wrench, effort, t_wrench, t_effort, motion):
 
 
 def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, window=None,
-             quantization_rad=None):
+             quantization_rad=None, counts_per_turn=None):
     """
     Return the :class:`Identification` of a planar rig from encoder and wrench samples.
 
@@ -544,7 +753,8 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     evaluated at each wrench stamp with the crank state interpolated from the encoder.
     """
     _check_planar(scene)
-    motion = crank_motion(t_encoder, position_rad, window, quantization_rad=quantization_rad)
+    motion = crank_motion(t_encoder, position_rad, window, quantization_rad=quantization_rad,
+                          counts_per_turn=counts_per_turn)
     t_w, meas = _measurements(wrench, effort, t_wrench, t_encoder, motion)
     channels = CHANNELS + ((TORQUE_CHANNEL,) if effort is not None else ())
     nc = len(channels)
@@ -699,10 +909,8 @@ def format_report(result):
         f'crank motion: Savitzky-Golay order {m.order} over {m.window} samples '
         f'({m.window_s * 1e3:.1f} ms) at {1.0 / m.period_s:.6g} Hz'
         + (' (resampled to a uniform grid)' if m.resampled else ''),
-        f'  encoder step {m.quantization_rad:.4g} rad'
-        + (f' ({2 * math.pi / m.quantization_rad:.0f} counts per turn)'
-           if m.quantization_rad > 0 else '')
-        + f'; mean speed {m.mean_speed_rad_s:.6g} rad/s',
+        f'  {m.quantization.describe()}; mean speed {m.mean_speed_rad_s:.6g} rad/s',
+        f'  window: {m.window_reason}',
         f"  predicted noise: angle {std['angle_rad']:.2e} rad, speed "
         f"{std['speed_rad_s']:.2e} rad/s, acceleration {std['accel_rad_s2']:.2e} rad/s^2; "
         f"gain error at 1x/2x rotation: accel {m.gain_error['accel_1x']:+.1e}/"
