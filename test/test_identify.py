@@ -272,22 +272,38 @@ def test_bad_recordings_name_the_option(recordings, tmp_path, capsys, rigs):
     assert '--joint' in err and 'O, A, B' in err
 
 
-def test_unrealizable_calibration_is_reported_not_written(rigs, tmp_path, capsys):
-    """A sensor mounted upside down (wrench negated) gives negative masses: no scene."""
+def test_flipped_sensor_gives_the_constrained_least_squares(rigs, tmp_path, capsys):
+    """
+    A sensor mounted upside down (wrench negated): no consistent set has its combinations.
+
+    The constrained least squares is written, its residual growth and active constraints
+    reported, and it lies far outside the confidence region (the data contradict physics).
+    """
     nominal, _, data, _ = rigs['hoeken']
     t_s = (data.t_ns - data.t_ns[0]) * 1e-9
     path = bags.write_csv(tmp_path / 'flipped.csv', t_s, data.position_rad, -data.wrench)
     result = identify.identify(nominal, t_s, data.position_rad, t_s, -data.wrench)
-    assert not result.realizable
-    with pytest.raises(identify.IdentifyError, match=r'links\.\w+\.(mass_kg|inertia_com)'):
-        result.calibrated_scene()
+    cons = result.consistency
+    assert result.realizable and cons.stage == 'least squares'
+    assert not cons.within_confidence and cons.max_shift_se > identify.CONFIDENCE_SE
+    assert cons.residual_growth > 0.1 and cons.active
+    # the residual growth reported is the weighted residual's (recomputed independently)
+    _assert_consistent(result.calibrated_scene())
     out = tmp_path / 'cal.yaml'
     rc = cli.main(['identify', '--scene', 'hoeken', '--bag', str(path), '--output', str(out)])
     captured = capsys.readouterr()
-    assert rc == cli.EXIT_USAGE
-    assert 'NOT physically realizable' in captured.out
-    assert 'unrealizable' in captured.err
-    assert not out.exists()
+    assert rc == 0 and out.exists()
+    assert 'constrained least squares, residual grows by' in captured.out
+    assert 'OUTSIDE' in captured.out and 'active: links.' in captured.out
+
+
+def _assert_consistent(scene):
+    """Every link: m > 0 and m I_O >= |m c|^2 (planar pseudo-inertia >= 0)."""
+    for lk in scene.links:
+        assert lk.mass_kg > 0.0
+        assert lk.inertia_com_kg_m2 >= 0.0
+        h2 = lk.mass_kg ** 2 * (lk.com_m[0] ** 2 + lk.com_m[1] ** 2)
+        assert lk.mass_kg * lk.inertia_origin_kg_m2 >= h2
 
 
 def test_bad_arrays():
@@ -296,7 +312,8 @@ def test_bad_arrays():
     pos = np.mod(2.0 * math.pi * t, 2.0 * math.pi)
     with pytest.raises(identify.IdentifyError, match='wrench: got shape'):
         identify.identify(sc, t, pos, t, np.zeros((2000, 2)))
-    with pytest.raises(identify.IdentifyError, match='encoder: sample 1 stamp .* is not after sample 0'):
+    with pytest.raises(identify.IdentifyError,
+                       match='encoder: sample 1 stamp .* is not after sample 0'):
         identify.identify(sc, t[::-1], pos, t, np.zeros((2000, 3)))
     with pytest.raises(identify.IdentifyError, match='recording: the crank turns'):
         identify.identify(sc, t, np.zeros(2000), t, np.zeros((2000, 3)))

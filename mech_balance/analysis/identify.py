@@ -113,6 +113,18 @@ MODULUS_SNAP_REL = 1e-3
 """A wrap modulus within this fraction of 2 pi is 2 pi."""
 FIT_NOISE_WINDOW = 31
 """Samples of the smooth fit whose residual measures the angle noise (order SG_ORDER)."""
+MIN_MASS_REL = 1e-3
+"""Consistency: every calibrated link's mass at least this fraction of its scene mass."""
+INERTIA_MARGIN_REL = 1e-7
+"""Consistency: the centroidal inertia at least this fraction of the link's m l^2 (above the
+cone solver's feasibility tolerance, so the written inertia is >= 0 after round-off)."""
+CONFIDENCE_SE = 3.0
+"""The data's confidence region: every combination within this many standard errors."""
+LS_TIE_REL = 1e-9
+"""Constrained least squares: weight of the pull towards the scene (times the largest
+squared singular value), choosing among equally good fits in the unseen directions."""
+ACTIVE_REL = 1e-5
+"""A consistency constraint whose slack is below this (relative) is reported active."""
 MIN_WINDOW = 2 * SG_ORDER + 3
 """Fewest samples in the smoothing window."""
 UNIFORM_JITTER_REL = 1e-3
@@ -580,6 +592,153 @@ def regressor(scene, psi_rad, speed_rad_s, accel_rad_s2, torque=False, rig=None)
                      float(np.max(state.cond)))
 
 
+# ============================================================================ consistency
+
+
+@dataclass
+class Consistency:
+    """
+    How the calibrated parameters were made physically consistent (:func:`consistent`).
+
+    ``stage``: ``exact`` (the identified combinations reproduced, the consistent set closest
+    to the scene) or ``least squares`` (no consistent set reproduces them: the least
+    residual subject to consistency); ``residual_growth`` the relative growth of the
+    weighted residual norm over the unconstrained least squares (0 for ``exact``);
+    ``max_shift_se`` the largest change of a combination in its standard errors;
+    ``within_confidence`` whether that is within :data:`CONFIDENCE_SE`; ``active`` the
+    constraints at their bound (``links.NAME.inertia_com_kg_m2 >= 0``, ``... mass_kg``).
+    """
+
+    stage: str
+    residual_growth: float
+    max_shift_se: float
+    within_confidence: bool
+    active: list
+    solver_status: str
+    iterations: int
+
+    def describe(self):
+        """Return the result in words."""
+        if self.stage == 'exact':
+            text = ('physically consistent: the identified combinations reproduced exactly, '
+                    "the non-identifiable directions closest to the scene in each link's scale")
+        else:
+            text = ('no physically consistent set reproduces the identified combinations: '
+                    'constrained least squares, residual grows by '
+                    f'{100.0 * self.residual_growth:.3g}%, combinations moved by up to '
+                    f'{self.max_shift_se:.3g} standard errors ('
+                    + ('within' if self.within_confidence else 'OUTSIDE')
+                    + f' the {CONFIDENCE_SE:g}-SE confidence region)')
+        if self.active:
+            text += '; active: ' + ', '.join(self.active)
+        return text
+
+    def to_dict(self):
+        """Return the result as a plain dict."""
+        return {'stage': self.stage, 'residual_growth': self.residual_growth,
+                'max_shift_se': self.max_shift_se,
+                'within_confidence': bool(self.within_confidence),
+                'active_constraints': list(self.active), 'solver_status': self.solver_status,
+                'iterations': int(self.iterations)}
+
+
+def _cone_rows(scene, theta0, scale):
+    """
+    Return ``(A, b, cones)`` of the consistency cones on the scaled deviation u.
+
+    Per link, in its own scale (y = theta / scale: the cone is invariant under it since
+    scale_h^2 = scale_m scale_I): y_m >= MIN_MASS_REL and the rotated cone
+    y_m (y_I - INERTIA_MARGIN_REL) >= y_hx^2 + y_hy^2, written as the second-order cone
+    ||(2 y_hx, 2 y_hy, y_m - y_I')|| <= y_m + y_I' (Wensing, Kim & Slotine 2017, the planar
+    case of their LMI; Sousa & Cortesao 2014).  Clarabel's form: s = b - A u in the cone.
+    """
+    import clarabel
+    n = theta0.size
+    a0 = theta0 / scale
+    rows_a, rows_b, cones = [], [], []
+    for i in range(len(scene.links)):
+        km, kx, ky, ki = 4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3
+        row = np.zeros((1, n))
+        row[0, km] = -1.0
+        rows_a.append(row)
+        rows_b.append([a0[km] - MIN_MASS_REL])
+        cones.append(clarabel.NonnegativeConeT(1))
+        soc = np.zeros((4, n))
+        soc[0, km], soc[0, ki] = -1.0, -1.0
+        soc[1, kx] = -2.0
+        soc[2, ky] = -2.0
+        soc[3, km], soc[3, ki] = -1.0, 1.0
+        ai = a0[ki] - INERTIA_MARGIN_REL
+        rows_a.append(soc)
+        rows_b.append([a0[km] + ai, 2.0 * a0[kx], 2.0 * a0[ky], a0[km] - ai])
+        cones.append(clarabel.SecondOrderConeT(4))
+    return np.vstack(rows_a), np.concatenate(rows_b), cones
+
+
+def _solve_qp(p_mat, q_vec, a_mat, b_vec, cones):
+    import clarabel
+    import scipy.sparse as sp
+    settings = balancing.solver_settings()
+    sol = clarabel.DefaultSolver(sp.csc_matrix(np.triu(p_mat)), np.asarray(q_vec, float),
+                                 sp.csc_matrix(a_mat), np.asarray(b_vec, float), cones,
+                                 settings).solve()
+    return sol
+
+
+def _ok(status):
+    return str(status) in ('Solved', 'AlmostSolved')
+
+
+def consistent(scene, theta0, scale, v1, sv, du, chi2_ls, se_u):
+    """
+    Return ``(u, Consistency)``: the physically consistent scaled deviation from the scene.
+
+    ``v1`` ``(n, r)`` and ``sv`` ``(r,)``: the row space of the scaled, weighted regressor
+    and its singular values; ``du`` the least-squares deviation (minimum norm); ``chi2_ls``
+    its weighted residual sum of squares; ``se_u`` ``(r,)`` the standard errors of the
+    combinations v1^T u.  Stage 1: minimize ||u||^2 subject to v1^T u = v1^T du and the cones
+    of :func:`_cone_rows` (the consistent set with the identified combinations closest to
+    the scene).  If that is infeasible, stage 2: minimize
+    ||S1 v1^T (u - du)||^2 + LS_TIE_REL s_1^2 ||u||^2 (the residual growth over the
+    unconstrained fit, a tie-break towards the scene in the directions the data cannot see)
+    subject to the cones.  Raises :class:`IdentifyError` when no consistent set exists.
+    """
+    import clarabel
+    n = theta0.size
+    a_c, b_c, cones = _cone_rows(scene, theta0, scale)
+    target = v1.T @ du
+    stage = 'exact'
+    sol = _solve_qp(2.0 * np.eye(n), np.zeros(n), np.vstack([v1.T, a_c]),
+                    np.concatenate([target, b_c]),
+                    [clarabel.ZeroConeT(v1.shape[1]), *cones])
+    if not _ok(sol.status):
+        stage = 'least squares'
+        g = v1 * sv ** 2 @ v1.T
+        tie = LS_TIE_REL * float(sv[0]) ** 2
+        sol = _solve_qp(2.0 * (g + tie * np.eye(n)), -2.0 * g @ du, a_c, b_c, cones)
+        if not _ok(sol.status):
+            raise IdentifyError(f'no physically consistent parameter set found (Clarabel '
+                                f'{sol.status}): expected a positive mass and centroidal '
+                                'inertia per link to be reachable')
+    u = np.array(sol.x)
+    shift = sv * (v1.T @ (u - du))
+    growth = math.sqrt(1.0 + float(shift @ shift) / max(chi2_ls, 1e-300)) - 1.0
+    moved = np.abs(v1.T @ (u - du)) / np.where(se_u > 0.0, se_u, np.inf)
+    max_se = float(np.max(moved)) if moved.size else 0.0
+    active = []
+    y = (theta0 + scale * u) / scale
+    for i, lk in enumerate(scene.links):
+        m, hx, hy, i_o = y[4 * i:4 * i + 4]
+        if m <= MIN_MASS_REL * (1.0 + ACTIVE_REL):
+            active.append(f'links.{lk.name}.mass_kg > 0')
+        if m * (i_o - INERTIA_MARGIN_REL) - hx * hx - hy * hy <= ACTIVE_REL * m * i_o:
+            active.append(f'links.{lk.name}.inertia_com_kg_m2 >= 0')
+    if stage == 'exact':
+        growth, max_se = 0.0, 0.0
+    return u, Consistency(stage, growth, max_se, max_se <= CONFIDENCE_SE, active,
+                          str(sol.status), int(sol.iterations))
+
+
 # ============================================================================ identification
 
 
@@ -594,6 +753,7 @@ class Combination:
     std_error: float
     scene_value: float
     text: str
+    calibrated_value: float = math.nan   # of the (physically consistent) calibrated scene
 
     def value(self, theta):
         """Return the combination of a parameter vector (e.g. the truth)."""
@@ -604,7 +764,7 @@ class Combination:
         return {'base': self.base, 'unit': self.unit, 'combination': self.text,
                 'coefficients': [float(c) for c in self.coefficients],
                 'estimate': self.estimate, 'std_error': self.std_error,
-                'scene_value': self.scene_value}
+                'scene_value': self.scene_value, 'calibrated_value': self.calibrated_value}
 
 
 @dataclass
@@ -634,6 +794,8 @@ class Identification:
     kinematic_cond: float
     calibrated_links: list          # dicts per link
     problems: list                  # why the calibrated scene is not physical, if it is not
+    consistency: Consistency = None
+    theta_ls: np.ndarray = None     # the unconstrained least squares (minimum norm)
 
     @property
     def realizable(self):
@@ -643,7 +805,7 @@ class Identification:
     def bias_target(self, bias_true, theta_true):
         """Return what :attr:`bias` estimates for a true bias and parameter vector."""
         return np.asarray(bias_true, dtype=float) + self.bias_confounding @ (
-            np.asarray(theta_true, dtype=float) - self.theta_scene)
+            np.asarray(theta_true, dtype=float) - self.theta)
 
     def calibrated_scene(self):
         """
@@ -687,6 +849,7 @@ class Identification:
                 np.diag(self.covariance), 0.0))],
             'calibrated_links': self.calibrated_links, 'realizable': self.realizable,
             'problems': list(self.problems), 'crank_motion': self.motion.to_dict(),
+            'consistency': None if self.consistency is None else self.consistency.to_dict(),
             'kinematic_residual': self.kinematic_residual,
             'kinematic_condition': self.kinematic_cond}
 
@@ -808,9 +971,14 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     dof = max(p * nc - rank - nc, 1)
     s2 = float(np.sum(res_sq / sigma ** 2)) / dof
     cov_u = s2 * (v1 / sv[:rank] ** 2) @ v1.T
-    theta = theta0 + scale * du
+    theta_ls = theta0 + scale * du
     cov = cov_u * np.outer(scale, scale)
-    bias = r0_mean - ys_mean @ du
+    se_u = np.sqrt(s2) / sv[:rank]
+    u_cal, consistency = consistent(scene, theta0, scale, v1, sv[:rank], du,
+                                    float(np.sum(res_sq / sigma ** 2)), se_u)
+    theta = theta0 + scale * u_cal
+    res_sq = np.array([float(np.sum((f @ np.append(-u_cal, 1.0)) ** 2)) for f in factors])
+    bias = r0_mean - ys_mean @ u_cal
     # Cov(b) = s^2 [(B^T B)^-1 + M P1-part]: sigma_c^2 / p from the mean, plus the slope's
     m_sens = ys_mean                                # (c, n) SI per unit u
     cov_b = s2 * np.diag(sigma ** 2 / p) + m_sens @ cov_u @ m_sens.T
@@ -820,7 +988,7 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     identifiable_b = np.linalg.norm(confound_u, axis=1) <= CONFOUND_RTOL * size
     confound = np.where(identifiable_b[:, None], 0.0, confound_u / scale)
     rms_after = np.sqrt(res_sq / p)
-    combos = _combinations(vt[:rank], scale, reg.names, theta, theta0, cov)
+    combos = _combinations(vt[:rank], scale, reg.names, theta_ls, theta0, cov, theta)
     links, problems = _calibrated_links(scene, theta)
     return Identification(
         scene=scene, names=reg.names, theta_scene=theta0, theta=theta, covariance=cov,
@@ -830,10 +998,10 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         bias_confounding=confound, bias_identifiable=identifiable_b, noise_std=sigma,
         rms_before=rms_before, rms_after=rms_after, samples=p, motion=motion,
         kinematic_residual=reg.residual, kinematic_cond=reg.cond, calibrated_links=links,
-        problems=problems)
+        problems=problems, consistency=consistency, theta_ls=theta_ls)
 
 
-def _combinations(v1t, scale, names, theta, theta0, cov):
+def _combinations(v1t, scale, names, theta, theta0, cov, theta_cal):
     """Return the base-parameter form of the row space ``v1t`` (scaled coordinates)."""
     rank = v1t.shape[0]
     _, _, piv = scipy.linalg.qr(v1t, pivoting=True, mode='economic')
@@ -859,7 +1027,8 @@ def _combinations(v1t, scale, names, theta, theta0, cov):
         out.append(Combination(
             base=names[j], unit=unit, coefficients=coeff, estimate=float(coeff @ theta),
             std_error=float(math.sqrt(max(coeff @ cov @ coeff, 0.0))),
-            scene_value=float(coeff @ theta0), text=text))
+            scene_value=float(coeff @ theta0), text=text,
+            calibrated_value=float(coeff @ theta_cal)))
     return out
 
 
@@ -937,7 +1106,8 @@ def format_report(result):
         ratio = a / b if b > 0 else math.nan
         lines.append(f'{ch:<14}{CHANNEL_UNITS[ch]:>6}{b:>14.6g}{a:>14.6g}{ratio:>9.3f}')
     lines.append('(before: the scene with a fitted bias; after: the calibrated scene)')
-    lines += ['', 'calibrated links:']
+    lines += ['', 'calibrated links ('
+              + (result.consistency.describe() if result.consistency else '') + '):']
     for c in result.calibrated_links:
         lines.append(f"  {c['name']:<10} mass {c['mass_kg']:.6g} kg, centre ({c['com_m'][0]:.6g},"
                      f" {c['com_m'][1]:.6g}) m, I_C {c['inertia_com_kg_m2']:.6g} kg*m^2, I_O "
