@@ -796,6 +796,26 @@ class Identification:
     problems: list                  # why the calibrated scene is not physical, if it is not
     consistency: Consistency = None
     theta_ls: np.ndarray = None     # the unconstrained least squares (minimum norm)
+    prediction: object = None       # PredictedRms of the calibrated scene
+    source: str = ''
+
+    def summary(self):
+        """Return the one-line summary: rank, residual, consistency and the prediction."""
+        rms = ', '.join(f'{c} {b:.4g} -> {a:.4g} {CHANNEL_UNITS[c]}'
+                        for c, b, a in zip(self.channels, self.rms_before, self.rms_after))
+        out = (f'identified scene {self.scene.name!r} from {self.samples} measurements: rank '
+               f'{self.rank} of {len(self.names)}; residual RMS before -> after: {rms}')
+        if self.prediction is not None:
+            out += '; ' + self.prediction.describe()
+        return out
+
+    def identification_block(self, source=None):
+        """Return the calibrated scene's ``identification`` section (the schema's mapping)."""
+        pred = self.prediction.to_dict() if self.prediction is not None else {}
+        return {'source': self.source if source is None else source,
+                'parameters': list(self.names), 'theta': [float(v) for v in self.theta],
+                'std_directions': std_directions(self.covariance, self.rank).tolist(),
+                'predicted_rms': pred}
 
     @property
     def realizable(self):
@@ -807,9 +827,9 @@ class Identification:
         return np.asarray(bias_true, dtype=float) + self.bias_confounding @ (
             np.asarray(theta_true, dtype=float) - self.theta)
 
-    def calibrated_scene(self):
+    def calibrated_scene(self, source=None):
         """
-        Return the scene with the calibrated link inertias.
+        Return the scene with the calibrated link inertias and its ``identification``.
 
         Raises :class:`IdentifyError` naming the links whose calibrated parameters no body
         can have (a mass <= 0 or a centroidal inertia < 0).
@@ -823,7 +843,9 @@ class Identification:
         for lk, c in zip(self.scene.links, self.calibrated_links):
             links.append(replace(lk, mass_kg=c['mass_kg'], com_m=tuple(c['com_m']),
                                  inertia_com_kg_m2=c['inertia_com_kg_m2']))
-        return self.scene.with_links(links, name=f'{self.scene.name}_calibrated')
+        out = self.scene.with_links(links, name=f'{self.scene.name}_calibrated')
+        return replace(out, identification=schema.identification_from_dict(
+            schema.plain(self.identification_block(source)), [lk.name for lk in links]))
 
     def to_dict(self):
         """Return the report as a plain, JSON- and YAML-able dict."""
@@ -850,6 +872,8 @@ class Identification:
             'calibrated_links': self.calibrated_links, 'realizable': self.realizable,
             'problems': list(self.problems), 'crank_motion': self.motion.to_dict(),
             'consistency': None if self.consistency is None else self.consistency.to_dict(),
+            'summary': self.summary(),
+            'predicted_rms': None if self.prediction is None else self.prediction.to_dict(),
             'kinematic_residual': self.kinematic_residual,
             'kinematic_condition': self.kinematic_cond}
 
@@ -998,7 +1022,8 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         bias_confounding=confound, bias_identifiable=identifiable_b, noise_std=sigma,
         rms_before=rms_before, rms_after=rms_after, samples=p, motion=motion,
         kinematic_residual=reg.residual, kinematic_cond=reg.cond, calibrated_links=links,
-        problems=problems, consistency=consistency, theta_ls=theta_ls)
+        problems=problems, consistency=consistency, theta_ls=theta_ls,
+        prediction=None if problems else predicted_rms(scene, theta, cov))
 
 
 def _combinations(v1t, scale, names, theta, theta0, cov, theta_cal):
@@ -1053,12 +1078,111 @@ def _calibrated_links(scene, theta):
     return links, problems
 
 
+# ============================================================================ confidence
+
+
+@dataclass
+class PredictedRms:
+    """RMS shaking force (N) and moment (N*m) of a parameter vector, with standard errors."""
+
+    force_N: float
+    force_std_error_N: float
+    moment_Nm: float
+    moment_std_error_Nm: float
+    speed_rad_s: float
+    samples: int
+
+    def describe(self):
+        """Return the prediction in words."""
+        return (f'predicted RMS shaking force {self.force_N:.6g} +- '
+                f'{self.force_std_error_N:.2g} N, moment {self.moment_Nm:.6g} +- '
+                f'{self.moment_std_error_Nm:.2g} N*m (calibrated scene at '
+                f'{self.speed_rad_s:.6g} rad/s, {self.samples} crank angles; standard errors '
+                "from the combinations' covariance)")
+
+    def to_dict(self):
+        """Return the prediction as the scene's ``identification.predicted_rms`` mapping."""
+        return {'shaking_force_N': {'value': self.force_N,
+                                    'std_error': self.force_std_error_N},
+                'shaking_moment_Nm': {'value': self.moment_Nm,
+                                      'std_error': self.moment_std_error_Nm}}
+
+
+def _rms_maps(scene):
+    """Return (force map, moment map) in SI: RMS = ||map @ theta|| (theta SI)."""
+    units = balancing.objective_units(scene)
+    maps = balancing.linear_maps(scene, units=units)
+    m, ln, om = units.mass_kg, units.length_m, units.omega_rad_s
+    scale = np.tile([m, m * ln, m * ln, m * ln * ln], len(scene.links))
+    f_unit, n_unit = m * ln * om ** 2, m * ln * ln * om ** 2
+    return maps.force * f_unit / scale, maps.moment * n_unit / scale
+
+
+def predicted_rms(scene, theta, covariance):
+    """
+    Return the :class:`PredictedRms` of parameters ``theta`` (SI) on ``scene``'s geometry.
+
+    The RMS over :attr:`Scene.samples` crank angles at the scene's crank speed
+    (:func:`mech_balance.balancing.socp.linear_maps`, the balancing's own definition,
+    RMS = ||R theta||); the standard error by the delta method, g^T Cov g with
+    g = R^T R theta / ||R theta||.
+    """
+    theta = np.asarray(theta, dtype=float)
+    out = []
+    for r in _rms_maps(scene):
+        v = r @ theta
+        value = float(np.linalg.norm(v))
+        g = r.T @ v / value if value > 0.0 else np.zeros_like(theta)
+        out += [value, float(math.sqrt(max(g @ covariance @ g, 0.0)))]
+    return PredictedRms(*out, abs(scene.crank_speed_rad_s), int(scene.samples))
+
+
+def std_directions(covariance, rank):
+    """Return the ``(rank, n)`` factor D with D^T D = Cov (symmetric eigen-decomposition)."""
+    w, v = np.linalg.eigh(0.5 * (covariance + covariance.T))
+    keep = np.argsort(w)[::-1][:rank]
+    return (v[:, keep] * np.sqrt(np.maximum(w[keep], 0.0))).T
+
+
+def balance_confidence(scene, balanced_scene):
+    """
+    Return how a balanced design's RMS shaking force and moment vary within +-1 SE, or None.
+
+    ``scene`` is a calibrated scene (with an ``identification`` section,
+    :mod:`mech_balance.schema.identification`); ``balanced_scene`` the optimum of
+    ``mech-balance balance`` on it.  The design changes the links by known amounts, so the
+    true balanced parameters are theta_b + D^T a with the identification's factor D; for
+    ||a|| <= 1 (+-1 standard error) the RMS ||R (theta_b + D^T a)|| lies within
+    ||R theta_b|| -+ ||R D^T||_2 (the triangle inequality; a checked bound, not a linear
+    estimate: at a balanced optimum ||R theta|| is not differentiable).
+    """
+    block = getattr(scene, 'identification', None)
+    if block is None:
+        return None
+    theta_b = dynamics.parameter_vector(dynamics.Inertia.from_links(balanced_scene.links))
+    d = np.array(block['std_directions'], dtype=float).reshape(-1, theta_b.size)
+    out = {}
+    for name, r in zip(('shaking_force_N', 'shaking_moment_Nm'), _rms_maps(balanced_scene)):
+        value = float(np.linalg.norm(r @ theta_b))
+        spread = float(np.linalg.norm(r @ d.T, 2)) if d.size else 0.0
+        out[name] = {'value': value, 'low': max(value - spread, 0.0), 'high': value + spread}
+    return out
+
+
+def format_balance_confidence(conf):
+    """Return the line ``mech-balance balance`` prints for :func:`balance_confidence`."""
+    f, n = conf['shaking_force_N'], conf['shaking_moment_Nm']
+    return (f"identification confidence (+-1 SE of the calibrated inertias): the optimum's RMS "
+            f"shaking force {f['value']:.6g} N lies within [{f['low']:.6g}, {f['high']:.6g}] "
+            f"N, moment {n['value']:.6g} N*m within [{n['low']:.6g}, {n['high']:.6g}] N*m")
+
+
 # ============================================================================ output
 
 
 def calibrated_yaml(result, source=''):
     """Return the calibrated scene as YAML text (:func:`balancing.scene_to_yaml`)."""
-    sc = result.calibrated_scene()
+    sc = result.calibrated_scene(source)
     head = [f'# written by mech-balance identify from scene {result.scene.name}'
             + (f' and {source}' if source else ''),
             f'# rank {result.rank} of {len(result.names)} parameters, condition number '
@@ -1114,4 +1238,6 @@ def format_report(result):
                      f"{c['inertia_origin_kg_m2']:.6g} kg*m^2")
     if result.problems:
         lines.append('NOT physically realizable: ' + '; '.join(result.problems))
+    if result.prediction is not None:
+        lines += ['', result.prediction.describe()]
     return '\n'.join(lines)
