@@ -1,0 +1,116 @@
+"""
+Identification on recordings made as a real rig would make them (test/synthetic_rig.py).
+
+Encoders publishing round or floor of psi N / 2 pi times 2 pi / N, wrapped with a float
+modulo, in float64 and float32, N in {1024, 2048, 4096, 10000}; 5 s and 20 s; noise 0.3%
+to 3%; gravity in the plane; stamps from a real epoch.  Each goes through the verb (a CSV
+or a rosbag2 file, the calibrated scene written), and must give: the encoder step within 1%
+(or "not quantized"), a physically consistent calibrated scene, and the true RMS shaking
+force and moment within 1% (the core's cycle analysis of the true scene).
+
+The grid's corners run here; the full grid with ``MECH_BALANCE_FULL_GRID=1``.
+"""
+
+from dataclasses import replace
+import itertools
+import json
+import math
+import os
+import sys
+
+from mech_balance import schema as scene_mod
+from mech_balance.analysis import identify
+from mech_balance.cli import main as cli
+from mech_balance.ros import bags
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+import synthetic_rig as sr  # noqa: E402, I100
+
+STEP_REL_TOL = 0.01
+RMS_REL_TOL = 0.01
+GRAVITY = (0.0, -9.81)
+MIN_SPEED_RAD_S = 2.0 * math.pi
+"""The rigs turn at least 1 rev/s (a 5 s recording: 5 turns)."""
+# (scene, counts, seconds, noise, mode, dtype, gravity, storage, seed)
+CORNERS = [
+    ('hoeken', 1024, 5.0, 0.03, 'floor', 'float32', GRAVITY, 'csv', 1),
+    ('hoeken', 10000, 20.0, 0.003, 'round', 'float64', None, 'mcap', 2),
+    ('hoeken', 4096, 20.0, 0.01, 'round', 'float64', None, 'sqlite3', 3),
+    ('hoeken', 2048, 20.0, 0.03, 'floor', 'float64', GRAVITY, 'csv', 4),
+    ('hoeken', 10000, 5.0, 0.03, 'round', 'float32', None, 'csv', 5),
+    ('hoeken', 1024, 20.0, 0.003, 'round', 'float32', None, 'csv', 6),
+    ('slider_crank', 4096, 5.0, 0.01, 'floor', 'float64', GRAVITY, 'csv', 7),
+    ('slider_crank', 2048, 20.0, 0.03, 'round', 'float32', None, 'csv', 8),
+]
+FULL = [(s, n, d, e, m, t, g, 'csv', 100 + k) for k, (s, n, d, e, m, t, g) in enumerate(
+    itertools.product(('hoeken', 'slider_crank'), (1024, 2048, 4096, 10000), (5.0, 20.0),
+                      (0.003, 0.01, 0.03), ('round', 'floor'), ('float64', 'float32'),
+                      (None, GRAVITY)))]
+
+
+def _scenes(name, gravity, seed):
+    nominal = scene_mod.load(name)
+    if gravity is not None:
+        nominal = replace(nominal, gravity_m_s2=gravity)
+    return nominal, sr.perturbed(nominal, seed, gravity=gravity)
+
+
+def write_recording(path, storage, t_ns, pos, wrench):
+    """Write a recording as CSV (t_s from the epoch) or rosbag2; return the path."""
+    if storage == 'csv':
+        return bags.write_csv(path.with_suffix('.csv'), t_ns * 1e-9, pos, wrench)
+    return bags.write_bag(path, storage, t_ns, pos, wrench)
+
+
+def run_case(tmp_path, case, capsys):
+    name, counts, seconds, noise, mode, dtype, gravity, storage, seed = case
+    nominal, true = _scenes(name, gravity, seed)
+    w0 = max(abs(nominal.crank_speed_rad_s), MIN_SPEED_RAD_S)
+    t_ns, pos, wrench, _ = sr.record_real(true, seconds, counts, seed, mode=mode,
+                                          dtype=np.dtype(dtype), noise_rel=noise, w0=w0)
+    scene_file = tmp_path / 'nominal.yaml'
+    scene_file.write_text(scene_mod.to_yaml(nominal))
+    rec = write_recording(tmp_path / 'rec', storage, t_ns, pos, wrench)
+    out = tmp_path / 'cal.yaml'
+    rc = cli.main(['identify', '--scene', str(scene_file), '--bag', str(rec), '--output',
+                   str(out), '--json'])
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    report = json.loads(captured.out)
+    quant = report['crank_motion']['quantization']
+    if quant['step_rad'] > 0.0:
+        assert quant['step_rad'] == pytest.approx(2.0 * math.pi / counts, rel=STEP_REL_TOL)
+    else:
+        assert quant['source'] == 'not quantized'
+    cal = scene_mod.load(str(out))
+    for lk in cal.links:
+        assert lk.mass_kg > 0.0 and lk.inertia_com_kg_m2 >= 0.0
+        h2 = lk.mass_kg ** 2 * float(np.dot(lk.com_m, lk.com_m))
+        assert lk.mass_kg * lk.inertia_origin_kg_m2 >= h2
+    f_true, n_true = sr.true_rms(true)
+    f_cal, n_cal = sr.true_rms(cal)
+    assert f_cal == pytest.approx(f_true, rel=RMS_REL_TOL)
+    assert n_cal == pytest.approx(n_true, rel=RMS_REL_TOL)
+    pred = report['predicted_rms']
+    assert pred['shaking_force_N']['value'] == pytest.approx(f_cal, rel=1e-9)
+    assert pred['shaking_moment_Nm']['value'] == pytest.approx(n_cal, rel=1e-9)
+    # the errors are what the standard errors say (5 SE: a few cases in a grid)
+    se_f = pred['shaking_force_N']['std_error']
+    se_n = pred['shaking_moment_Nm']['std_error']
+    assert abs(f_cal - f_true) <= 5.0 * se_f + 1e-3 * f_true
+    assert abs(n_cal - n_true) <= 5.0 * se_n + 1e-3 * n_true
+    return report, cal
+
+
+@pytest.mark.parametrize('case', CORNERS, ids=lambda c: '-'.join(map(str, c[:8])))
+def test_real_recording(tmp_path, case, capsys):
+    run_case(tmp_path, case, capsys)
+
+
+@pytest.mark.skipif(not os.environ.get('MECH_BALANCE_FULL_GRID'),
+                    reason='the full grid: set MECH_BALANCE_FULL_GRID=1')
+@pytest.mark.parametrize('case', FULL, ids=lambda c: '-'.join(map(str, c[:7])))
+def test_real_recording_full_grid(tmp_path, case, capsys):
+    run_case(tmp_path, case, capsys)
