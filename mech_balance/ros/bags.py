@@ -372,13 +372,15 @@ def _sensor_tf(transforms, rig_frame, frame_ids):
 
 def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='O1',
               encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, frame_id='rig',
-              extra_joints=()):
+              extra_joints=(), tf_static=None):
     """
     Write encoder and wrench samples as a rosbag2 recording (``storage`` mcap or sqlite3).
 
     ``t_ns`` (int nanoseconds) stamps both streams; ``wrench`` is ``(n, 6)`` or ``(n, 3)``
     planar [f_x, f_y, n_z]; ``extra_joints`` are more joint names in the JointState (at
-    position 0), to exercise the joint selection.  Written atomically: into a temporary
+    position 0), to exercise the joint selection; ``tf_static`` ``(parent, (x, y, z),
+    (qx, qy, qz, qw))`` adds one /tf_static message: the pose of ``frame_id`` (the wrench's
+    frame) in ``parent``.  Written atomically: into a temporary
     directory beside ``path``, then renamed; ``path`` must not exist.
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -404,6 +406,18 @@ def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='
         with Writer(out, version=BAG_VERSION, storage_plugin=plugin) as writer:
             c_enc = writer.add_connection(encoder_topic, JOINT_STATE, typestore=store)
             c_w = writer.add_connection(wrench_topic, WRENCH_STAMPED, typestore=store)
+            if tf_static is not None:
+                parent, xyz, quat = tf_static
+                sec, nsec = divmod(int(t_ns[0]), 1_000_000_000)
+                tr = types['geometry_msgs/msg/TransformStamped'](
+                    header=header_t(stamp=time_t(sec=sec, nanosec=nsec), frame_id=parent),
+                    child_frame_id=frame_id, transform=types['geometry_msgs/msg/Transform'](
+                        translation=vec_t(x=xyz[0], y=xyz[1], z=xyz[2]),
+                        rotation=types['geometry_msgs/msg/Quaternion'](
+                            x=quat[0], y=quat[1], z=quat[2], w=quat[3])))
+                c_tf = writer.add_connection(TF_STATIC_TOPIC, TF_MESSAGE, typestore=store)
+                writer.write(c_tf, int(t_ns[0]), store.serialize_cdr(
+                    types[TF_MESSAGE](transforms=[tr]), TF_MESSAGE))
             for k, stamp in enumerate(t_ns):
                 sec, nsec = divmod(int(stamp), 1_000_000_000)
                 hdr = header_t(stamp=time_t(sec=sec, nanosec=nsec), frame_id=frame_id)
