@@ -31,6 +31,10 @@ import synthetic_rig as sr  # noqa: E402, I100
 STEP_REL_TOL = 0.01
 RMS_REL_TOL = 0.01
 GRAVITY = (0.0, -9.81)
+EIV_REL = 3e-3
+"""The standard errors are the sensor noise's alone; the crank acceleration estimated from
+a coarse encoder adds a bias (errors in the variables): measured on the full grid at most
+0.21% of the RMS (1024 counts, floor, 0.3% noise), so the bound is 5 SE plus this."""
 MIN_SPEED_RAD_S = 2.0 * math.pi
 """The rigs turn at least 1 rev/s (a 5 s recording: 5 turns)."""
 # (scene, counts, seconds, noise, mode, dtype, gravity, storage, seed)
@@ -96,11 +100,12 @@ def run_case(tmp_path, case, capsys):
     pred = report['predicted_rms']
     assert pred['shaking_force_N']['value'] == pytest.approx(f_cal, rel=1e-9)
     assert pred['shaking_moment_Nm']['value'] == pytest.approx(n_cal, rel=1e-9)
-    # the errors are what the standard errors say (5 SE: a few cases in a grid)
+    # the errors are what the standard errors say, plus the encoder's errors in the
+    # variables the standard errors leave out (EIV_REL)
     se_f = pred['shaking_force_N']['std_error']
     se_n = pred['shaking_moment_Nm']['std_error']
-    assert abs(f_cal - f_true) <= 5.0 * se_f + 1e-3 * f_true
-    assert abs(n_cal - n_true) <= 5.0 * se_n + 1e-3 * n_true
+    assert abs(f_cal - f_true) <= 5.0 * se_f + EIV_REL * f_true
+    assert abs(n_cal - n_true) <= 5.0 * se_n + EIV_REL * n_true
     return report, cal
 
 
