@@ -175,7 +175,7 @@ def _check_values(values, what, names):
     bad = ~np.isfinite(values) | (np.abs(values) > MAX_ABS_VALUE)
     if bad.any():
         k, c = (int(v[0]) for v in np.nonzero(bad))
-        raise RecordingError(f'{what} {k}: {names[c]} = {values[k, c]!r}, expected a finite '
+        raise RecordingError(f'{what} {k}: {names[c]} = {float(values[k, c])!r}, expected a finite '
                              f'value of magnitude at most {MAX_ABS_VALUE:g}')
 
 
