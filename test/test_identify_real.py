@@ -169,3 +169,153 @@ def test_mounted_sensor_options_and_tf_static(tmp_path, capsys, convention):
     rc = cli.main(['identify', '--scene', 'hoeken', '--bag', str(plain_bag), '--json'])
     wrong = np.array(json.loads(capsys.readouterr().out)['theta'])
     assert np.max(np.abs(wrong - theta['rig'])) / scale > 1e-3
+
+
+@pytest.fixture(scope='module')
+def calibrated(tmp_path_factory):
+    """Return (true scene, calibrated scene file) of a 20 s, 4096-count Hoeken recording."""
+    tmp = tmp_path_factory.mktemp('cal')
+    nominal, true = _scenes('hoeken', None, 31)
+    t_ns, pos, wrench, _ = sr.record_real(true, 20.0, 4096, 31, w0=MIN_SPEED_RAD_S)
+    rec = bags.write_bag(tmp / 'rec', 'mcap', t_ns, pos, wrench)
+    out = tmp / 'cal.yaml'
+    assert cli.main(['identify', '--scene', 'hoeken', '--bag', str(rec), '--output',
+                     str(out)]) == 0
+    return true, out
+
+
+def test_identification_section_round_trips_bit_for_bit(calibrated, tmp_path):
+    _, path = calibrated
+    text = path.read_text()
+    sc = scene_mod.load(str(path))
+    block = sc.identification
+    assert block is not None and len(block['std_directions']) > 0
+    again = tmp_path / 'again.yaml'
+    again.write_text(scene_mod.to_yaml(sc))
+    sc2 = scene_mod.load(str(again))
+    assert sc2.identification == block
+    assert scene_mod.to_yaml(sc2) == scene_mod.to_yaml(sc)
+    # the section's theta is the calibrated links' parameters
+    theta = sr.theta_of(sc)
+    np.testing.assert_allclose(block['theta'], theta, rtol=1e-12, atol=1e-15)
+    assert 'identification:' in text and 'std_directions:' in text
+
+
+@pytest.mark.parametrize('field, value, match', [
+    ('theta', [1.0, 2.0], r'identification\.theta'),
+    ('std_directions', [['x']], r'identification\.std_directions\[0\]'),
+    ('parameters', ['m[a]'], r'identification\.parameters'),
+    ('predicted_rms', {'shaking_force_N': {'value': math.inf, 'std_error': 0.0}},
+     r'identification\.predicted_rms\.shaking_force_N'),
+    ('extra', 1, r'identification\.extra: unknown key'),
+])
+def test_identification_section_refuses_bad_fields(calibrated, tmp_path, field, value, match):
+    import yaml
+    _, path = calibrated
+    data = yaml.safe_load(path.read_text())
+    data['identification'][field] = value
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text(yaml.safe_dump(data, sort_keys=False))
+    with pytest.raises(ValueError, match=match):
+        scene_mod.load(str(bad))
+
+
+def test_balance_reports_the_optimum_within_one_standard_error(calibrated, tmp_path, capsys):
+    """The +-1 SE interval bounds the RMS of the optimum over the 1-SE ellipsoid (sampled)."""
+    _, path = calibrated
+    out = tmp_path / 'balanced.yaml'
+    assert cli.main(['balance', '--scene', str(path), '--output', str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "identification confidence (+-1 SE of the calibrated inertias): the optimum's" in text
+    assert cli.main(['balance', '--scene', str(path), '--json']) == 0
+    conf = json.loads(capsys.readouterr().out)['identification_confidence']
+    cal = scene_mod.load(str(path))
+    balanced = scene_mod.load(str(out))
+    theta_b = sr.theta_of(balanced)
+    d = np.array(cal.identification['std_directions'])
+    rng = np.random.default_rng(3)
+    f0, n0 = sr.true_rms(balanced)
+    assert conf['shaking_force_N']['value'] == pytest.approx(f0, rel=1e-6, abs=1e-12)
+    assert conf['shaking_moment_Nm']['value'] == pytest.approx(n0, rel=1e-6, abs=1e-12)
+    for _ in range(12):
+        a = rng.normal(size=d.shape[0])
+        a /= np.linalg.norm(a)
+        f, n = sr.true_rms(_scene_of(balanced, theta_b + d.T @ a))
+        for value, key in ((f, 'shaking_force_N'), (n, 'shaking_moment_Nm')):
+            lo, hi = conf[key]['low'], conf[key]['high']
+            assert lo * (1.0 - 1e-6) - 1e-12 <= value <= hi * (1.0 + 1e-6) + 1e-12, key
+    assert conf['shaking_force_N']['high'] > conf['shaking_force_N']['value']
+
+
+def _scene_of(scene, theta):
+    """Return ``scene`` with the links of a parameter vector (any centroidal inertia sign)."""
+    links = []
+    for lk, (m, hx, hy, i_o) in zip(scene.links, np.asarray(theta).reshape(-1, 4)):
+        links.append(replace(lk, mass_kg=float(m), com_m=(hx / m, hy / m),
+                             inertia_com_kg_m2=float(i_o - (hx * hx + hy * hy) / m),
+                             counterweights=()))
+    return scene.with_links(links)
+
+
+def test_identify_result_carries_the_prediction(calibrated):
+    """The result object (what the node's ~/identify forwards) has the prediction."""
+    true, _ = calibrated
+    t_ns, pos, wrench, _ = sr.record_real(true, 5.0, 4096, 31, w0=MIN_SPEED_RAD_S)
+    t = (t_ns - t_ns[0]) * 1e-9
+    result = identify.identify(scene_mod.load('hoeken'), t, pos, t, wrench)
+    d = result.to_dict()
+    assert d['predicted_rms']['shaking_force_N']['std_error'] > 0.0
+    assert 'predicted RMS shaking force' in d['summary']
+    assert d['consistency']['stage'] in ('exact', 'least squares')
+    assert d['crank_motion']['quantization']['counts_per_turn'] == pytest.approx(4096)
+
+
+DOCS = os.path.join(os.path.dirname(__file__), '..', 'docs', '_drafts', 'identify.md')
+
+
+def _docs_example():
+    """Return the commands of the documented identify example (continuations joined)."""
+    import shlex
+    text = open(DOCS).read()
+    block = text.split('<!-- identify-example', 1)[1].split('```sh\n', 1)[1].split('```', 1)[0]
+    return [shlex.split(cmd) for cmd in block.replace('\\\n', ' ').splitlines() if cmd.strip()]
+
+
+def test_docs_example(tmp_path):
+    """The draft's example runs as written on a bag made here (the sensor it describes)."""
+    import subprocess
+    from mech_balance.core.rig import rig_for
+    from mech_balance.ros import sensor
+    nominal, true = _scenes('hoeken', None, 41)
+    t_ns, pos, wrench, _ = sr.record_real(true, 20.0, 4096, 41, w0=MIN_SPEED_RAD_S)
+    six = np.zeros((wrench.shape[0], 6))
+    six[:, [0, 1, 5]] = wrench
+    pose = sensor.SensorPose(0.0, 0.0, -0.12, 0.0, 0.0, 1.5708)
+    f_s, n_s = pose.to_sensor(six, rig_for(nominal).moment_point_m)
+    bags.write_bag(tmp_path / 'rig_bag', 'mcap', t_ns, pos, np.hstack([f_s, n_s]),
+                   frame_id='ft_sensor')
+    commands = _docs_example()
+    assert [c[:2] for c in commands] == [['mech-balance', 'identify'],
+                                         ['mech-balance', 'balance']]
+    env = dict(os.environ, PYTHONPATH=os.path.join(os.path.dirname(__file__), '..'))
+    for cmd in commands:
+        done = subprocess.run([sys.executable, '-m', 'mech_balance.cli', *cmd[1:]],
+                              cwd=tmp_path, env=env, capture_output=True, text=True,
+                              timeout=300)
+        assert done.returncode == 0, (cmd, done.stderr)
+    cal = scene_mod.load(str(tmp_path / 'hoeken_calibrated.yaml'))
+    assert cal.identification is not None
+    f_true, n_true = sr.true_rms(true)
+    f_cal, n_cal = sr.true_rms(cal)
+    assert f_cal == pytest.approx(f_true, rel=RMS_REL_TOL)
+    assert n_cal == pytest.approx(n_true, rel=RMS_REL_TOL)
+    assert 'identification confidence' in done.stdout
+
+
+def test_spatial_rig_refused_with_the_reason(tmp_path, capsys):
+    t_ns, pos, wrench, _ = sr.record_real(_scenes('hoeken', None, 1)[1], 2.0, 4096, 1,
+                                          w0=MIN_SPEED_RAD_S)
+    rec = bags.write_csv(tmp_path / 'r.csv', t_ns * 1e-9, pos, wrench)
+    assert cli.main(['identify', '--scene', 'rggr', '--bag', str(rec)]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert 'not implemented yet' in err and 'body_kinematics' in err

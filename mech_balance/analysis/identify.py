@@ -159,6 +159,15 @@ the link origin (kg*m^2), the order of :func:`mech_balance.dynamics.parameter_ve
 PARAMETER_UNITS = ('kg', 'kg*m', 'kg*m', 'kg*m^2')
 
 
+SPATIAL_NOT_YET = (
+    'identification of a spatial rig such as the RGGR is not implemented yet: its six wrench '
+    'components are linear in the ten inertial parameters of each body, but the RGGR rig does '
+    "not yet provide the per-sample body kinematics ('body_kinematics' capability, "
+    'core/rig.py BodyKinematics) at a varying crank speed and acceleration that the regressor '
+    'is built from')
+"""Why ``identify`` refuses a spatial scene (printed in its error)."""
+
+
 class IdentifyError(ValueError):
     """Identification input is missing, inconsistent or cannot determine the parameters."""
 
@@ -882,7 +891,7 @@ def _check_planar(scene):
     kind = schema.kind_of(scene)
     if 'identification' not in kind.rig_factory().capabilities:
         raise IdentifyError(f'scene {scene.name!r}: kind {kind.name!r}, expected a planar '
-                            'scene (identification of the RGGR is not implemented)')
+                            f'scene ({SPATIAL_NOT_YET})')
 
 
 def parameter_scales(scene):

@@ -113,7 +113,7 @@ def cmd_identify(args):
     if 'identification' not in scene_mod.kind_of(sc).rig_factory().capabilities:
         raise identify.IdentifyError(f'--scene: got {sc.name!r} of kind '
                                      f'{scene_mod.kind_of(sc).name}, expected a planar scene '
-                                     '(identification of the RGGR is not implemented)')
+                                     f'({identify.SPATIAL_NOT_YET})')
     if args.window is not None and (args.window < identify.MIN_WINDOW or args.window % 2 == 0):
         raise identify.IdentifyError(f'--window: got {args.window}, expected an odd number of '
                                      f'samples >= {identify.MIN_WINDOW}')
