@@ -269,7 +269,7 @@ def test_csv_truncations_and_bit_flips(made, tmp_path, capsys):
     rng = np.random.default_rng(SEED + 2)
     data = Path(made['csv']).read_bytes()
     lines = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == ord('\n')) + 1
-    cuts = set(int(c) for c in rng.choice(lines, MAX_CASES_PER_KIND, replace=False))
+    cuts = {int(c) for c in rng.choice(lines, MAX_CASES_PER_KIND, replace=False)}
     cuts |= {int(c) for c in rng.integers(0, len(data), MAX_CASES_PER_KIND)}
     cuts |= {0, 1, int(lines[0]), int(lines[0]) + 3}
     for k, cut in enumerate(sorted(cuts)):

@@ -204,7 +204,8 @@ class Quantization:
         """Return the step, its confidence and its source in words."""
         if self.step_rad <= 0.0:
             return (f'not quantized (no step has {QUANT_FRACTION_MIN:g} of the increments '
-                    f'within {QUANT_TOL:g} step of its multiples); angle noise {self.fit_noise_rad:.3g} rad '
+                    f'within {QUANT_TOL:g} step of its multiples); angle noise '
+                    f'{self.fit_noise_rad:.3g} rad '
                     'from the residual of a smooth fit')
         return (f'encoder step {self.step_rad:.6g} rad ({self.counts_per_turn:.6g} counts per '
                 f'turn, {self.source}; {self.confidence:.4f} of the increments on its grid), '
@@ -393,7 +394,7 @@ def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
 
 
 def quantization_step(position_rad):
-    """Return the encoder's quantization step, rad (0: not quantized); see estimate_quantization."""
+    """Return the encoder's step, rad (0: not quantized): :func:`estimate_quantization`."""
     return estimate_quantization(position_rad).step_rad
 
 

@@ -175,8 +175,8 @@ def _check_values(values, what, names):
     bad = ~np.isfinite(values) | (np.abs(values) > MAX_ABS_VALUE)
     if bad.any():
         k, c = (int(v[0]) for v in np.nonzero(bad))
-        raise RecordingError(f'{what} {k}: {names[c]} = {float(values[k, c])!r}, expected a finite '
-                             f'value of magnitude at most {MAX_ABS_VALUE:g}')
+        raise RecordingError(f'{what} {k}: {names[c]} = {float(values[k, c])!r}, expected a '
+                             f'finite value of magnitude at most {MAX_ABS_VALUE:g}')
 
 
 def _check_increasing(stamps_ns, what):
@@ -531,7 +531,7 @@ def read_csv(path, joint=None):
                 continue
             if len(row) != len(head):
                 raise RecordingError(f'{label}: line {number}: {len(row)} fields, expected '
-                                     f'{len(head)} (the header\'s columns)')
+                                     f"{len(head)} (the header's columns)")
             row = [row[i] for i in head.index]
             values = []
             for name, v in zip(head, row):
@@ -553,7 +553,7 @@ def read_csv(path, joint=None):
             stamp = int(round(values[0] * 1e9))
             if store.n and stamp <= store.stamps[store.n - 1]:
                 raise RecordingError(f'{label}: line {number}, column t_s: {values[0]!r} is '
-                                     f'not after the previous row\'s '
+                                     "not after the previous row's "
                                      f'{store.stamps[store.n - 1] * 1e-9!r}, expected '
                                      'increasing times (rows are not sorted here)')
             store.add(stamp, values[1:])
