@@ -319,3 +319,70 @@ def test_spatial_rig_refused_with_the_reason(tmp_path, capsys):
     assert cli.main(['identify', '--scene', 'rggr', '--bag', str(rec)]) == cli.EXIT_USAGE
     err = capsys.readouterr().err
     assert 'not implemented yet' in err and 'body_kinematics' in err
+
+
+def _encoder(seconds, counts, rate_hz=1000.0, direction=1.0, speed=MIN_SPEED_RAD_S,
+             mode='round', modulus=2.0 * math.pi, noise=0.0, dtype='float64', seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * rate_hz)) / rate_hz
+    psi = 0.3 + direction * (speed * t + 0.05 * np.sin(4.4 * t))
+    pos = sr.encoder_positions(psi, counts, mode, np.dtype(dtype), modulus)
+    return t, pos.astype(float) + rng.normal(size=t.size) * noise
+
+
+@pytest.mark.parametrize('kw', [
+    {'counts': 4096, 'noise': 1e-9},
+    {'counts': 10000, 'noise': 1e-9, 'dtype': 'float32'},
+    {'counts': 2048, 'direction': -1.0, 'mode': 'floor'},
+    {'counts': 4096, 'modulus': math.pi},
+    {'counts': 4096, 'modulus': 1.234},            # a modulus that is no multiple of the step
+    {'counts': 10000, 'seconds': 1.0, 'speed': 30.0},   # 48 counts a sample: counts missing
+    {'counts': 1024, 'speed': 0.5},                # slower than a count a sample
+    {'counts': 4096, 'rate_hz': 250.0, 'speed': 20.0},
+], ids=str)
+def test_encoder_step_found(kw):
+    kw = {'seconds': 5.0, **kw}
+    t, pos = _encoder(**kw)
+    quant = identify.estimate_quantization(pos, t_s=t)
+    assert quant.source == 'estimated'
+    assert quant.step_rad == pytest.approx(2.0 * math.pi / kw['counts'], rel=1e-6)
+    assert quant.confidence >= identify.QUANT_FRACTION_MIN
+    assert quant.noise_rad >= quant.step_rad / math.sqrt(12.0)
+
+
+def test_analog_encoder_is_not_quantized_and_its_noise_measured():
+    rng = np.random.default_rng(4)
+    t = np.arange(20000) / 1000.0
+    noise = 1e-3
+    psi = MIN_SPEED_RAD_S * t + 0.05 * np.sin(4.4 * t) + rng.normal(size=t.size) * noise
+    quant = identify.estimate_quantization(np.mod(psi, 2.0 * math.pi), t_s=t)
+    assert quant.step_rad == 0.0 and quant.source == 'not quantized'
+    assert quant.noise_rad == pytest.approx(noise, rel=0.05)
+    assert 'not quantized' in quant.describe()
+
+
+def test_stated_counts_and_jittered_stamps(tmp_path, capsys):
+    """--counts-per-turn states the step; jittered stamps are resampled; the window floor."""
+    nominal, true = _scenes('hoeken', None, 51)
+    t_ns, pos, wrench, _ = sr.record_real(true, 20.0, 2048, 51, w0=MIN_SPEED_RAD_S,
+                                          jitter_s=2e-5)
+    rec = bags.write_csv(tmp_path / 'j.csv', t_ns * 1e-9, pos, wrench)
+    out = tmp_path / 'cal.yaml'
+    rc = cli.main(['identify', '--scene', 'hoeken', '--bag', str(rec), '--counts-per-turn',
+                   '2048', '--output', str(out), '--json'])
+    report = json.loads(capsys.readouterr().out)
+    assert rc == 0
+    motion = report['crank_motion']
+    assert motion['quantization']['source'] == 'stated' and motion['resampled']
+    assert motion['window_samples'] >= motion['window_floor']
+    f_true, n_true = sr.true_rms(true)
+    f_cal, n_cal = sr.true_rms(scene_mod.load(str(out)))
+    assert f_cal == pytest.approx(f_true, rel=RMS_REL_TOL)
+    assert n_cal == pytest.approx(n_true, rel=RMS_REL_TOL)
+    # a window below the floor is used, and said to exceed the budget
+    rc = cli.main(['identify', '--scene', 'hoeken', '--bag', str(rec), '--window', '31'])
+    assert rc == 0 and 'below the noise floor' in capsys.readouterr().out
+    for bad in ('0', 'nan', '-5', '1e12'):
+        assert cli.main(['identify', '--scene', 'hoeken', '--bag', str(rec),
+                         '--counts-per-turn', bad]) == cli.EXIT_USAGE
+        assert '--counts-per-turn: got' in capsys.readouterr().err

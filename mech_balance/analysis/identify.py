@@ -93,6 +93,10 @@ QUANT_FRACTION_MIN = 0.99
 with it (QUANT_TOL); the largest such step is the encoder's.  The confidence printed is the
 fraction that agrees (white angle noise of s = 0.03 q leaves 0.999 in, an unquantized
 encoder 2 QUANT_TOL = 0.2)."""
+QUANT_CLUSTER_MIN = 0.005
+"""A level of the increments holding at least this fraction of them is a major level."""
+QUANT_CLUSTER_COVER = 0.9
+"""The major levels must hold this fraction of the increments (else: not quantized)."""
 QUANT_MAX_INCREMENTS = 20000
 """Increments the step search tests at most (evenly spaced over the recording)."""
 QUANT_SPLIT_RATIO = 30.0
@@ -304,6 +308,28 @@ def _fraction_on_grid(increments, step):
     return float(np.mean(np.abs(r - np.round(r)) <= QUANT_TOL))
 
 
+def _value_clusters(values, floor):
+    """
+    Return the centres of the major clusters of ``values`` (split where sorted gaps > floor).
+
+    A cluster is major when it holds at least :data:`QUANT_CLUSTER_MIN` of the values, and
+    the major ones must hold :data:`QUANT_CLUSTER_COVER` of them (else none is returned: the
+    values do not fall on a few levels, an unquantized encoder).  Two major clusters are two
+    different multiples of the step: a candidate step that puts them on one multiple (the
+    mean increment of a crank at a nearly constant 47.7 counts a sample) is refused.
+    """
+    v = np.sort(values)
+    if v.size == 0:
+        return v
+    cuts = np.flatnonzero(np.diff(v) > floor) + 1
+    sizes = np.diff(np.concatenate([[0], cuts, [v.size]]))
+    sums = np.add.reduceat(v, np.concatenate([[0], cuts]))
+    major = sizes >= QUANT_CLUSTER_MIN * v.size
+    if sizes[major].sum() < QUANT_CLUSTER_COVER * v.size:
+        return np.zeros(0)
+    return sums[major] / sizes[major]
+
+
 def fit_noise(t_s, psi_rad, order=SG_ORDER):
     """
     Return the standard deviation of the angle noise about a smooth fit (rad).
@@ -337,7 +363,8 @@ def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
     themselves, "distinct" meaning above the noise floor: the largest jump (a ratio of at
     least :data:`QUANT_SPLIT_RATIO`) in the sorted gaps separates noise from steps.  The step
     is the largest q_c j / k (j, k = 1 .. :data:`QUANT_MAX_DIVISOR`) with at least
-    :data:`QUANT_FRACTION_MIN` of the nonzero increments on its grid, refined by least squares
+    :data:`QUANT_FRACTION_MIN` of the nonzero increments on its grid and every major level of
+    the increments on its own multiple (:func:`_value_clusters`), refined by least squares
     (q = sum n d / sum n^2, n = round(d / q)) and snapped to an integer number of counts per
     modulus when within :data:`COUNT_SNAP` of one.  When no candidate agrees the positions
     are "not quantized" and only the smooth fit's noise is used.
@@ -369,7 +396,8 @@ def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
         moving = moving[moving > floor]
         candidates = [float(np.quantile(v[v > floor], QUANT_GAP_QUANTILE))
                       for v in (inc_gaps, np.diff(wrapped), moving) if (v > floor).any()]
-        if moving.size:
+        centres = _value_clusters(moving, floor)
+        if moving.size and centres.size:
             for q_c in candidates:
                 for j in range(1, QUANT_MAX_DIVISOR + 1):
                     for k in range(1, QUANT_MAX_DIVISOR + 1):
@@ -377,7 +405,9 @@ def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
                         if q <= step * (1.0 + QUANT_TOL) or q <= floor * QUANT_SPLIT_RATIO:
                             continue
                         frac = _fraction_on_grid(moving, q)
-                        if frac >= QUANT_FRACTION_MIN:
+                        n = np.round(centres / q)
+                        if frac >= QUANT_FRACTION_MIN and n.min() >= 1 and \
+                                np.unique(n).size == n.size:
                             step, conf = q, frac
     if step > 0.0:
         for _ in range(QUANT_REFINE_PASSES):
