@@ -165,10 +165,11 @@ PARAMETER_UNITS = ('kg', 'kg*m', 'kg*m', 'kg*m^2')
 
 SPATIAL_NOT_YET = (
     'identification of a spatial rig such as the RGGR is not implemented yet: its six wrench '
-    'components are linear in the ten inertial parameters of each body, but the RGGR rig does '
-    "not yet provide the per-sample body kinematics ('body_kinematics' capability, "
-    'core/rig.py BodyKinematics) at a varying crank speed and acceleration that the regressor '
-    'is built from')
+    'components are linear in the inertial parameters of its bodies, but the RGGR dynamics '
+    '(core/rggr.py, seed 002) hold at a constant crank speed only (the crank acceleration of '
+    'a real recording is ignored), and the RGGR rig does not provide the per-sample body '
+    "kinematics ('body_kinematics' capability, core/rig.py BodyKinematics) the regressor is "
+    'built from')
 """Why ``identify`` refuses a spatial scene (printed in its error)."""
 
 

@@ -31,8 +31,10 @@ from dataclasses import dataclass
 import math
 import os
 from pathlib import Path
+import re
 import shutil
 import tempfile
+import warnings
 
 from mech_balance.ros.names import DEFAULT_FRAME_ID, ENCODER_TOPIC, WRENCH_TOPIC
 from mech_balance.schema.fields import MAX_ABS_VALUE
@@ -62,6 +64,9 @@ MAX_LINE_CHARS = 4096
 """Longest CSV line (a row of numbers is under 300 characters)."""
 MAX_FIELD_CHARS = 64
 """Longest CSV field (a full-precision float is under 25 characters)."""
+_LONG_FIELD = re.compile('[^,\n]{%d,}' % (MAX_FIELD_CHARS + 1))
+CSV_CHUNK_ROWS = 20000
+"""CSV data lines parsed and checked at once (numpy), at most a few MiB of text."""
 MAX_T_S = 9.2e9
 """Largest |t_s| in a CSV (int64 nanoseconds)."""
 
@@ -165,6 +170,20 @@ class _Growing:
         self.rows[self.n] = row
         self.stamps[self.n] = stamp_ns
         self.n += 1
+
+    def extend(self, stamps_ns, rows):
+        need = self.n + len(stamps_ns)
+        if need > MAX_SAMPLES:
+            raise RecordingError(f'{self.what}: more than {MAX_SAMPLES} samples, expected '
+                                 f'at most {MAX_SAMPLES} (bags.MAX_SAMPLES, about '
+                                 f'{MAX_SAMPLES * 80 // 2 ** 20} MiB)')
+        if need > self.rows.shape[0]:
+            grow = min(max(2 * self.rows.shape[0], need), MAX_SAMPLES)
+            self.rows = np.resize(self.rows, (grow, self.rows.shape[1]))
+            self.stamps = np.resize(self.stamps, grow)
+        self.rows[self.n:need] = rows
+        self.stamps[self.n:need] = stamps_ns
+        self.n = need
 
     def arrays(self):
         return self.stamps[:self.n].copy(), self.rows[:self.n].copy()
@@ -512,51 +531,25 @@ def read_csv(path, joint=None):
         raise RecordingError(f'{label}: {size} bytes, expected at most {MAX_CSV_BYTES} '
                              f'(bags.MAX_CSV_BYTES, {MAX_SAMPLES} rows)')
     try:
-        fh = open(path, newline='', encoding='utf-8', errors='strict')
+        fh = open(path, newline='', encoding='utf-8-sig', errors='strict')
     except OSError as exc:
         raise RecordingError(f'{label}: cannot be read ({exc.strerror})') from None
     with fh:
         head, store = None, None
-        lines = _csv_lines(fh, label)
-        for number, line in lines:
+        chunk = []
+        for number, line in _csv_lines(fh, label):
             if not line.strip() or line.lstrip().startswith('#'):
                 continue
-            try:
-                row = next(csv.reader([line]))
-            except csv.Error as exc:
-                raise RecordingError(f'{label}: line {number}: {exc}, expected comma-separated '
-                                     'numbers') from None
             if head is None:
-                head, store = _csv_header(row, label, number)
+                head, store = _csv_header(_csv_split([line], [number], label)[0], label,
+                                          number)
                 continue
-            if len(row) != len(head):
-                raise RecordingError(f'{label}: line {number}: {len(row)} fields, expected '
-                                     f"{len(head)} (the header's columns)")
-            row = [row[i] for i in head.index]
-            values = []
-            for name, v in zip(head, row):
-                if len(v) > MAX_FIELD_CHARS:
-                    raise RecordingError(f'{label}: line {number}, column {name}: a field of '
-                                         f'{len(v)} characters, expected a number of at most '
-                                         f'{MAX_FIELD_CHARS} (bags.MAX_FIELD_CHARS)')
-                try:
-                    x = float(v)
-                except ValueError:
-                    raise RecordingError(f'{label}: line {number}, column {name}: got '
-                                         f'{v.strip()[:40]!r}, expected a number') from None
-                limit = MAX_T_S if name == 't_s' else MAX_ABS_VALUE
-                if not (math.isfinite(x) and abs(x) <= limit):
-                    raise RecordingError(f'{label}: line {number}, column {name}: got {x!r}, '
-                                         'expected a finite number of magnitude at most '
-                                         f'{limit:g}')
-                values.append(x)
-            stamp = int(round(values[0] * 1e9))
-            if store.n and stamp <= store.stamps[store.n - 1]:
-                raise RecordingError(f'{label}: line {number}, column t_s: {values[0]!r} is '
-                                     "not after the previous row's "
-                                     f'{store.stamps[store.n - 1] * 1e-9!r}, expected '
-                                     'increasing times (rows are not sorted here)')
-            store.add(stamp, values[1:])
+            chunk.append((number, line))
+            if len(chunk) == CSV_CHUNK_ROWS:
+                _csv_chunk(chunk, head, label, store)
+                chunk = []
+        if chunk:
+            _csv_chunk(chunk, head, label, store)
     if head is None:
         raise RecordingError(f'{label}: is empty, expected a header line with '
                              + ', '.join(CSV_REQUIRED))
@@ -568,6 +561,97 @@ def read_csv(path, joint=None):
     wrench = np.column_stack([col.get(c, np.zeros(n)) for c in WRENCH_COLUMNS])
     return _recording(t_ns, col['crank_position_rad'], col.get('crank_effort_Nm'), t_ns,
                       wrench, joint or 'crank', '', str(path))
+
+
+def _csv_split(lines, numbers, label):
+    """Return the fields of CSV lines (the csv module), naming the line of a csv error."""
+    try:
+        return list(csv.reader(lines))
+    except csv.Error:
+        for number, line in zip(numbers, lines):
+            try:
+                next(csv.reader([line]))
+            except csv.Error as exc:
+                raise RecordingError(f'{label}: line {number}: {exc}, expected '
+                                     'comma-separated numbers') from None
+        raise
+
+
+def _csv_chunk(chunk, head, label, store):
+    """
+    Parse and check a chunk of CSV data lines into ``store`` (vectorized).
+
+    numpy parses the whole chunk at once (``fromstring``); when anything is off (a ragged
+    row, a quoted, long or non-numeric field) :func:`_csv_row` parses it row by row with the
+    csv module, and names the line and the column of the first bad field.
+    """
+    numbers = [n for n, _ in chunk]
+    lines = [ln for _, ln in chunk]
+    text = ''.join(lines)
+    values = None
+    if not _LONG_FIELD.search(text) and '"' not in text and \
+            all(ln.count(',') == len(head) - 1 for ln in lines):
+        with warnings.catch_warnings():
+            warnings.simplefilter('error')
+            try:
+                flat = np.fromstring(text.replace(',', ' '), sep=' ')
+            except (ValueError, DeprecationWarning):
+                flat = None
+        if flat is not None and flat.size == len(lines) * len(head):
+            values = flat.reshape(len(lines), len(head))[:, head.index]
+    if values is None:
+        previous = store.stamps[store.n - 1] if store.n else None
+        for number, row in zip(numbers, _csv_split(lines, numbers, label)):
+            stamp, row_values = _csv_row(row, number, head, label, previous)  # raises
+            store.add(stamp, row_values)
+            previous = stamp
+        return
+    limits = np.where(np.array(head) == 't_s', MAX_T_S, MAX_ABS_VALUE)
+    bad = ~np.isfinite(values) | (np.abs(values) > limits)
+    if bad.any():
+        k, c = (int(v[0]) for v in np.nonzero(bad))
+        raise RecordingError(f'{label}: line {numbers[k]}, column {head[c]}: got '
+                             f'{float(values[k, c])!r}, expected a finite number of magnitude '
+                             f'at most {limits[c]:g}')
+    stamps = np.round(values[:, 0] * 1e9).astype(np.int64)
+    prev = np.concatenate([[store.stamps[store.n - 1]] if store.n else [np.iinfo(np.int64).min],
+                           stamps[:-1]])
+    late = stamps <= prev
+    if late.any():
+        k = int(np.flatnonzero(late)[0])
+        raise RecordingError(f'{label}: line {numbers[k]}, column t_s: {values[k, 0]!r} is not '
+                             f"after the previous row's {prev[k] * 1e-9!r}, expected "
+                             'increasing times (rows are not sorted here)')
+    store.extend(stamps, values[:, 1:])
+
+
+def _csv_row(row, number, head, label, previous):
+    """Return ``(stamp ns, values)`` of one CSV row, or raise naming its line and column."""
+    if len(row) != len(head):
+        raise RecordingError(f'{label}: line {number}: {len(row)} fields, expected '
+                             f"{len(head)} (the header's columns)")
+    values = []
+    for name, v in zip(head, (row[i] for i in head.index)):
+        if len(v) > MAX_FIELD_CHARS:
+            raise RecordingError(f'{label}: line {number}, column {name}: a field of '
+                                 f'{len(v)} characters, expected a number of at most '
+                                 f'{MAX_FIELD_CHARS} (bags.MAX_FIELD_CHARS)')
+        try:
+            x = float(v)
+        except ValueError:
+            raise RecordingError(f'{label}: line {number}, column {name}: got '
+                                 f'{v.strip()[:40]!r}, expected a number') from None
+        limit = MAX_T_S if name == 't_s' else MAX_ABS_VALUE
+        if not (math.isfinite(x) and abs(x) <= limit):
+            raise RecordingError(f'{label}: line {number}, column {name}: got {x!r}, '
+                                 f'expected a finite number of magnitude at most {limit:g}')
+        values.append(x)
+    stamp = int(round(values[0] * 1e9))
+    if previous is not None and stamp <= previous:
+        raise RecordingError(f'{label}: line {number}, column t_s: {values[0]!r} is not after '
+                             f"the previous row's {previous * 1e-9!r}, expected increasing "
+                             'times (rows are not sorted here)')
+    return stamp, values[1:]
 
 
 def _csv_header(row, label, number):
