@@ -361,8 +361,9 @@ def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
     (:func:`unwrap_encoder`); the candidate step q_c is the :data:`QUANT_GAP_QUANTILE`
     quantile of the gaps between distinct positions (wrapped onto one turn, where every
     count of a long recording occurs), between distinct increments and of the increments
-    themselves, "distinct" meaning above the noise floor: the largest jump (a ratio of at
-    least :data:`QUANT_SPLIT_RATIO`) in the sorted gaps separates noise from steps.  The step
+    themselves, "distinct" meaning above the noise floor: a jump (a ratio of at
+    least :data:`QUANT_SPLIT_RATIO`, the highest one) in the sorted gaps separates noise from
+    steps.  The step
     is the largest q_c j / k (j, k = 1 .. :data:`QUANT_MAX_DIVISOR`) with at least
     :data:`QUANT_FRACTION_MIN` of the nonzero increments on its grid and every major level of
     the increments on its own multiple (:func:`_value_clusters`), refined by least squares
@@ -392,8 +393,10 @@ def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
     step, conf = 0.0, 0.0
     if gaps.size >= 2:
         ratios = gaps[1:] / gaps[:-1]
-        split = int(np.argmax(ratios))
-        floor = gaps[split] if ratios[split] >= QUANT_SPLIT_RATIO else 0.0
+        jumps = np.flatnonzero(ratios >= QUANT_SPLIT_RATIO)
+        # the highest jump: below it float round-off (float32 positions leave increments on
+        # a grid of their own ulps, 2e-10 rad and more), above it the encoder's steps
+        floor = gaps[jumps[-1]] if jumps.size else 0.0
         moving = moving[moving > floor]
         candidates = [float(np.quantile(v[v > floor], QUANT_GAP_QUANTILE))
                       for v in (inc_gaps, np.diff(wrapped), moving) if (v > floor).any()]
