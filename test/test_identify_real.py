@@ -386,3 +386,94 @@ def test_stated_counts_and_jittered_stamps(tmp_path, capsys):
         assert cli.main(['identify', '--scene', 'hoeken', '--bag', str(rec),
                          '--counts-per-turn', bad]) == cli.EXIT_USAGE
         assert '--counts-per-turn: got' in capsys.readouterr().err
+
+
+def _direct(case):
+    """Return (nominal, result, t, wrench) of a corner case identified directly."""
+    name, counts, seconds, noise, mode, dtype, gravity, _, seed = case
+    nominal, true = _scenes(name, gravity, seed)
+    w0 = max(abs(nominal.crank_speed_rad_s), MIN_SPEED_RAD_S)
+    t_ns, pos, wrench, _ = sr.record_real(true, seconds, counts, seed, mode=mode,
+                                          dtype=np.dtype(dtype), noise_rel=noise, w0=w0)
+    t = (t_ns - t_ns[0]) * 1e-9
+    return nominal, identify.identify(nominal, t, pos, t, wrench), t, wrench
+
+
+def _cone_constraints(theta0, scale):
+    def links(u):
+        return ((theta0 + scale * u) / scale).reshape(-1, 4)
+    return [{'type': 'ineq', 'fun': lambda u: np.array(
+                [m * i - hx * hx - hy * hy for m, hx, hy, i in links(u)])},
+            {'type': 'ineq', 'fun': lambda u: links(u)[:, 0] - identify.MIN_MASS_REL}]
+
+
+@pytest.mark.parametrize('index', [0, 3])
+def test_exact_stage_with_an_active_constraint_is_the_closest(index):
+    """
+    Floor encoders with gravity: the min-norm fit gives the crank I_C < 0 (the issue's case).
+
+    The calibrated set reproduces the combinations and no consistent set with them is closer
+    to the scene (scipy's SLSQP on the nonlinear form, a second formulation).
+    """
+    from scipy.optimize import minimize
+    nominal, result, _, _ = _direct(CORNERS[index])
+    cons = result.consistency
+    assert cons.stage == 'exact' and 'links.crank.inertia_com_kg_m2 >= 0' in cons.active
+    scale = identify.parameter_scales(nominal)
+    theta0 = result.theta_scene
+    u_ls = (result.theta_ls - theta0) / scale
+    i_c = [lk['inertia_com_kg_m2'] for lk in identify._calibrated_links(
+        nominal, result.theta_ls)[0]]
+    assert min(i_c) < 0.0                      # the unconstrained fit is inconsistent
+    coeff = np.array([c.coefficients for c in result.combinations])
+    est = np.array([c.estimate for c in result.combinations])
+    size = np.abs(coeff) @ np.abs(theta0 + scale)
+    np.testing.assert_allclose(coeff @ result.theta / size, est / size, rtol=0, atol=1e-7)
+    u_cal = (result.theta - theta0) / scale
+    ref = minimize(lambda u: float(u @ u), u_ls, jac=lambda u: 2.0 * u, method='SLSQP',
+                   constraints=[{'type': 'eq',
+                                 'fun': lambda u: (coeff @ (theta0 + scale * u) - est) / size},
+                                *_cone_constraints(theta0, scale)],
+                   options={'ftol': 1e-15, 'maxiter': 1000})
+    assert ref.success, ref.message
+    assert float(u_cal @ u_cal) == pytest.approx(ref.fun, rel=1e-4)
+
+
+def test_least_squares_stage_is_the_least_residual():
+    """
+    A 5 s, 3% noise recording: no consistent set has the combinations exactly.
+
+    The constrained least squares against scipy's SLSQP on the residual (the regressor
+    evaluated here): no consistent set fits the data better; growth and shift reported.
+    """
+    from scipy.optimize import minimize
+    nominal, result, t, wrench = _direct(CORNERS[4])
+    cons = result.consistency
+    assert cons.stage == 'least squares' and cons.active and cons.residual_growth > 0.0
+    m = result.motion
+    inside = (t >= m.t_s[0]) & (t <= m.t_s[-1])
+    reg = identify.regressor(nominal, *m.at(t[inside]))
+    scale = identify.parameter_scales(nominal)
+    theta0 = result.theta_scene
+    y = reg.wrench * scale / result.noise_std[None, :, None]
+    y = y - y.mean(axis=0)
+    r0 = (wrench[inside] - reg.wrench @ theta0) / result.noise_std
+    r0 = r0 - r0.mean(axis=0)
+    a = y.reshape(-1, y.shape[2])
+    b = r0.ravel()
+    q, rr = np.linalg.qr(a)
+    qb = q.T @ b
+    const = float(b @ b - qb @ qb)
+
+    def chi2(u):
+        d = rr @ u - qb
+        return float(d @ d) + const
+
+    u_cal = (result.theta - theta0) / scale
+    u_ls = (result.theta_ls - theta0) / scale
+    ref = minimize(chi2, u_cal, jac=lambda u: 2.0 * rr.T @ (rr @ u - qb), method='SLSQP',
+                   constraints=_cone_constraints(theta0, scale),
+                   options={'ftol': 1e-15, 'maxiter': 1000})
+    assert chi2(u_cal) <= ref.fun * (1.0 + 1e-6)
+    assert math.sqrt(chi2(u_cal) / chi2(u_ls)) - 1.0 == pytest.approx(cons.residual_growth,
+                                                                      rel=1e-4)

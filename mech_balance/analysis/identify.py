@@ -743,8 +743,9 @@ def consistent(scene, theta0, scale, v1, sv, du, chi2_ls, se_u):
     combinations v1^T u.  Stage 1: minimize ||u||^2 subject to v1^T u = v1^T du and the cones
     of :func:`_cone_rows` (the consistent set with the identified combinations closest to
     the scene).  If that is infeasible, stage 2: minimize
-    ||S1 v1^T (u - du)||^2 + LS_TIE_REL s_1^2 ||u||^2 (the residual growth over the
-    unconstrained fit, a tie-break towards the scene in the directions the data cannot see)
+    ||S1 v1^T (u - du)||^2 + LS_TIE_REL s_1^2 ||(I - v1 v1^T) u||^2 (the residual growth over
+    the unconstrained fit, a tie-break towards the scene in the directions the data cannot
+    see)
     subject to the cones.  Raises :class:`IdentifyError` when no consistent set exists.
     """
     import clarabel
@@ -759,7 +760,8 @@ def consistent(scene, theta0, scale, v1, sv, du, chi2_ls, se_u):
         stage = 'least squares'
         g = v1 * sv ** 2 @ v1.T
         tie = LS_TIE_REL * float(sv[0]) ** 2
-        sol = _solve_qp(2.0 * (g + tie * np.eye(n)), -2.0 * g @ du, a_c, b_c, cones)
+        null = np.eye(n) - v1 @ v1.T               # the directions the data cannot see
+        sol = _solve_qp(2.0 * (g + tie * null), -2.0 * g @ du, a_c, b_c, cones)
         if not _ok(sol.status):
             raise IdentifyError(f'no physically consistent parameter set found (Clarabel '
                                 f'{sol.status}): expected a positive mass and centroidal '
