@@ -14,6 +14,10 @@ here).  Optional: a scene without it is a scene whose inertias are taken as exac
         shaking_force_N: {value: ..., std_error: ...}
         shaking_moment_Nm: {value: ..., std_error: ...}
 
+A design balanced from a calibrated scene (``mech-balance balance --output``) keeps the
+section as it was: ``theta`` stays the calibrated scene's, and ``std_directions`` applies to
+the design as well (its changes to the links are known exactly).
+
 ``std_directions`` holds the covariance of the identified parameters as a factor: the
 rig's true parameters lie at theta + D^T a with a of unit covariance, so a +-1 standard
 error change is ||a|| <= 1 (:func:`mech_balance.analysis.identify.balance_confidence`).
