@@ -112,3 +112,62 @@ def record(true_scene, duration_s, w0, seed, effort=False, t0_ns=1_700_000_000_0
     counts = np.mod(np.round(psi / q), COUNTS_PER_TURN)
     return RigData(t_ns, counts * q, wrench, tau, psi, speed, accel, true, std, bias,
                    theta_of(true_scene))
+
+
+def encoder_positions(psi, counts, mode='round', dtype=np.float64, modulus=2.0 * math.pi,
+                      offset_rad=0.0):
+    """
+    Return what an encoder of ``counts`` per turn publishes for true angles ``psi``.
+
+    ``mode`` ``round`` (round of psi N / 2 pi) or ``floor`` (a half-count offset), the count
+    times 2 pi / N, wrapped with a floating-point modulo at ``modulus``, cast to ``dtype``.
+    """
+    q = 2.0 * math.pi / counts
+    c = np.round(psi * counts / (2.0 * math.pi)) if mode == 'round' else \
+        np.floor(psi * counts / (2.0 * math.pi))
+    return np.mod(c * q + offset_rad, modulus).astype(dtype)
+
+
+def true_rms(scene):
+    """Return the true RMS shaking force (N) and moment (N*m) by the core's cycle analysis."""
+    rig = analysis.Rig(scene.with_outputs(('shaking_wrench',)))
+    rows = {r.quantity: r.rms for r in analysis.summarize(analysis.run_cycle(rig), False)}
+    return rows['shaking force |f_sh|'], rows['shaking moment n_sh']
+
+
+def record_real(true_scene, duration_s, counts, seed, mode='round', dtype=np.float64,
+                noise_rel=NOISE_REL, w0=None, t0_ns=1_700_000_000_123_456_789,
+                rate_hz=RATE_HZ, jitter_s=0.0, direction=1.0, modulus=2.0 * math.pi):
+    """
+    Return ``(t_ns, positions, wrench (n, 3), psi)`` of a recording made as a real rig would.
+
+    The encoder of :func:`encoder_positions`; the stamps at ``rate_hz`` from a real epoch
+    ``t0_ns``, with uniform jitter of +- ``jitter_s``; the wrench the core's forward
+    evaluation of the true scene (weight included when it has gravity in its plane), plus a
+    bias and white noise of ``noise_rel`` of the peak force and moment.
+    """
+    rng = np.random.default_rng(seed)
+    n = int(round(duration_s * rate_hz))
+    t = np.arange(n) / rate_hz
+    if jitter_s:
+        t = t + rng.uniform(-jitter_s, jitter_s, n)
+    w0 = direction * abs(true_scene.crank_speed_rad_s if w0 is None else w0)
+    psi, speed, accel = crank(t, w0)
+    rig = analysis.Rig(true_scene)
+    state, w = rig.evaluate(np.mod(psi, 2.0 * math.pi), outputs=('shaking_wrench',),
+                            speed=speed, accel=accel)
+    true = np.column_stack([w.shaking_force.real, w.shaking_force.imag, w.shaking_moment])
+    g = complex(*true_scene.gravity_m_s2)
+    if g:
+        for i, lk in enumerate(true_scene.links, 1):
+            c = state.pose.origin[i] + state.pose.rot[i] * complex(*lk.com_m)
+            weight = lk.mass_kg * g
+            arm = c - rig.linkage.pivot
+            true[:, 0] += weight.real
+            true[:, 1] += weight.imag
+            true[:, 2] += arm.real * weight.imag - arm.imag * weight.real
+    peak = np.array([np.max(np.abs(w.shaking_force))] * 2 + [np.max(np.abs(w.shaking_moment))])
+    wrench = true + np.array([0.3, -0.2, 0.25]) * peak * 0.05 + \
+        rng.normal(size=true.shape) * noise_rel * peak
+    t_ns = t0_ns + np.round(t * 1e9).astype(np.int64)
+    return t_ns, encoder_positions(psi, counts, mode, dtype, modulus), wrench, psi

@@ -272,22 +272,53 @@ def test_bad_recordings_name_the_option(recordings, tmp_path, capsys, rigs):
     assert '--joint' in err and 'O, A, B' in err
 
 
-def test_unrealizable_calibration_is_reported_not_written(rigs, tmp_path, capsys):
-    """A sensor mounted upside down (wrench negated) gives negative masses: no scene."""
+def test_flipped_sensor_gives_the_constrained_least_squares(rigs, tmp_path, capsys):
+    """
+    A sensor mounted upside down (wrench negated): no consistent set has its combinations.
+
+    The constrained least squares is written, its residual growth and active constraints
+    reported, and it lies far outside the confidence region (the data contradict physics).
+    """
     nominal, _, data, _ = rigs['hoeken']
     t_s = (data.t_ns - data.t_ns[0]) * 1e-9
     path = bags.write_csv(tmp_path / 'flipped.csv', t_s, data.position_rad, -data.wrench)
     result = identify.identify(nominal, t_s, data.position_rad, t_s, -data.wrench)
-    assert not result.realizable
-    with pytest.raises(identify.IdentifyError, match=r'links\.\w+\.(mass_kg|inertia_com)'):
-        result.calibrated_scene()
+    cons = result.consistency
+    assert result.realizable and cons.stage == 'least squares'
+    assert not cons.within_confidence and cons.max_shift_se > identify.CONFIDENCE_SE
+    assert cons.residual_growth > 0.1 and cons.active
+    # the residual growth reported is the weighted residual's (recomputed from the regressor)
+    m = result.motion
+    inside = (t_s >= m.t_s[0]) & (t_s <= m.t_s[-1])
+    reg = identify.regressor(nominal, *m.at(t_s[inside]))
+    meas = -data.wrench[inside]
+    chi2 = []
+    for theta in (result.theta_ls, result.theta):
+        r = meas - reg.wrench @ theta
+        r -= r.mean(axis=0)
+        chi2.append(float(np.sum(r ** 2 / result.noise_std ** 2)))
+    growth = math.sqrt(chi2[1] / chi2[0]) - 1.0
+    assert growth == pytest.approx(cons.residual_growth, rel=1e-6)
+    # and the constrained least squares is no worse than the scene itself
+    r = meas - reg.wrench @ result.theta_scene
+    r -= r.mean(axis=0)
+    assert chi2[1] <= float(np.sum(r ** 2 / result.noise_std ** 2))
+    _assert_consistent(result.calibrated_scene())
     out = tmp_path / 'cal.yaml'
     rc = cli.main(['identify', '--scene', 'hoeken', '--bag', str(path), '--output', str(out)])
     captured = capsys.readouterr()
-    assert rc == cli.EXIT_USAGE
-    assert 'NOT physically realizable' in captured.out
-    assert 'unrealizable' in captured.err
-    assert not out.exists()
+    assert rc == 0 and out.exists()
+    assert 'constrained least squares, residual grows by' in captured.out
+    assert 'OUTSIDE' in captured.out and 'active: links.' in captured.out
+
+
+def _assert_consistent(scene):
+    """Every link: m > 0 and m I_O >= |m c|^2 (planar pseudo-inertia >= 0)."""
+    for lk in scene.links:
+        assert lk.mass_kg > 0.0
+        assert lk.inertia_com_kg_m2 >= 0.0
+        h2 = lk.mass_kg ** 2 * (lk.com_m[0] ** 2 + lk.com_m[1] ** 2)
+        assert lk.mass_kg * lk.inertia_origin_kg_m2 >= h2
 
 
 def test_bad_arrays():
@@ -296,9 +327,45 @@ def test_bad_arrays():
     pos = np.mod(2.0 * math.pi * t, 2.0 * math.pi)
     with pytest.raises(identify.IdentifyError, match='wrench: got shape'):
         identify.identify(sc, t, pos, t, np.zeros((2000, 2)))
-    with pytest.raises(identify.IdentifyError, match='encoder: stamp'):
+    with pytest.raises(identify.IdentifyError,
+                       match='encoder: sample 1 stamp .* is not after sample 0'):
         identify.identify(sc, t[::-1], pos, t, np.zeros((2000, 3)))
     with pytest.raises(identify.IdentifyError, match='recording: the crank turns'):
         identify.identify(sc, t, np.zeros(2000), t, np.zeros((2000, 3)))
     with pytest.raises(identify.IdentifyError, match='planar'):
         identify.identify(scene_mod.load('rggr'), t, pos, t, np.zeros((2000, 3)))
+
+
+@pytest.mark.parametrize('case', list(CASES))
+def test_consistent_set_is_the_closest_to_the_scene(rigs, case):
+    """
+    The exact stage against a second formulation (scipy's SLSQP on the nonlinear form).
+
+    Among parameters with the identified combinations and m I_O >= |h|^2 per link, the
+    calibrated ones are the closest to the scene in each link's scale.
+    """
+    from scipy.optimize import minimize
+    nominal, _, _, result = rigs[case]
+    assert result.consistency.stage == 'exact'
+    scale = identify.parameter_scales(nominal)
+    theta0 = result.theta_scene
+    coeff = np.array([c.coefficients for c in result.combinations])
+    est = np.array([c.estimate for c in result.combinations])
+    size = np.abs(coeff) @ np.abs(theta0 + scale)
+    # the combinations are reproduced to the solver's tolerance
+    np.testing.assert_allclose(coeff @ result.theta, est, rtol=0, atol=1e-7 * size.max())
+    _assert_consistent(result.calibrated_scene())
+
+    def links(u):
+        y = (theta0 + scale * u) / scale
+        return y.reshape(-1, 4)
+
+    cons = [{'type': 'eq', 'fun': lambda u: (coeff @ (theta0 + scale * u) - est) / size},
+            {'type': 'ineq', 'fun': lambda u: np.array(
+                [m * i - hx * hx - hy * hy for m, hx, hy, i in links(u)])},
+            {'type': 'ineq', 'fun': lambda u: links(u)[:, 0] - identify.MIN_MASS_REL}]
+    u_cal = (result.theta - theta0) / scale
+    ref = minimize(lambda u: float(u @ u), u_cal * 0.5, jac=lambda u: 2.0 * u,
+                   constraints=cons, method='SLSQP', options={'ftol': 1e-14, 'maxiter': 500})
+    assert ref.success, ref.message
+    assert float(u_cal @ u_cal) <= ref.fun * (1.0 + 1e-4) + 1e-12

@@ -19,7 +19,7 @@ Measurement model
     parameters theta = (m, m c_x, m c_y, I_O) per link (seed 001 eqs. 25-26, 39): the
     shaking part is evaluated by the core (:func:`mech_balance.dynamics.inverse_dynamics`)
     at the 4 n unit parameter vectors on one kinematic solution at the measured crank
-    states (the idea of :func:`mech_balance.balancing.linear_maps`, here with per-sample
+    states (the idea of :func:`mech_balance.analysis.linear_maps.linear_maps`, here with per-sample
     speed and acceleration), the weight part from the link poses:
     ``(c_i - O) x m_i g = (m_i (o_i - O) + R_i h_i) x g``.  When the encoder reports effort
     (the motor torque) the driving torque tau_k = Y_tau theta + b_tau + e_k is stacked
@@ -69,6 +69,8 @@ import math
 
 from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
+from mech_balance.analysis.linear_maps import linear_maps
+from mech_balance.conic import solver_settings
 from mech_balance.core.planar import dynamics
 from mech_balance.core.planar.rig import objective_units
 from mech_balance.schema.scene import INERTIA_ROUNDOFF
@@ -86,6 +88,49 @@ MAX_WINDOW_TURNS = 0.5
 bias of speed variations at the rotation frequency and its harmonics).  Measured on the
 synthetic rigs: Hoeken at 1 rev/s takes 379 samples (the noise target, 0.38 turn), the
 slider-crank at 5 rev/s 99 (this cap), acceleration noise 0.034 and 0.96 rad/s^2."""
+QUANT_TOL = 0.1
+"""An increment agrees with a step q when it is within this many q of a multiple of q."""
+QUANT_FRACTION_MIN = 0.99
+"""An encoder step is accepted when at least this fraction of the nonzero increments agree
+with it (QUANT_TOL); the largest such step is the encoder's.  The confidence printed is the
+fraction that agrees (white angle noise of s = 0.03 q leaves 0.999 in, an unquantized
+encoder 2 QUANT_TOL = 0.2)."""
+QUANT_CLUSTER_MIN = 0.005
+"""A level of the increments holding at least this fraction of them is a major level."""
+QUANT_CLUSTER_COVER = 0.9
+"""The major levels must hold this fraction of the increments (else: not quantized)."""
+QUANT_MAX_INCREMENTS = 20000
+"""Increments the step search tests at most (evenly spaced over the recording)."""
+QUANT_SPLIT_RATIO = 30.0
+"""Sorted gaps between distinct positions jump by at least this ratio from the noise floor
+(float round-off, float32 positions: below 1e-6 rad) to the encoder step (above 6e-4 rad for
+10 000 counts per turn)."""
+QUANT_GAP_QUANTILE = 0.02
+"""Candidate step: this quantile of the gaps above the noise floor (robust to a few stray
+positions between two counts)."""
+QUANT_MAX_DIVISOR = 8
+"""The candidate step may be this many encoder steps (counts missing from a short
+recording); divisors up to this are tried."""
+QUANT_REFINE_PASSES = 2
+"""Least-squares passes refining the step on the increments."""
+COUNT_SNAP = 0.05
+"""A step within this many counts of an integer number of counts per modulus is snapped."""
+MODULUS_SNAP_REL = 1e-3
+"""A wrap modulus within this fraction of 2 pi is 2 pi."""
+FIT_NOISE_WINDOW = 31
+"""Samples of the smooth fit whose residual measures the angle noise (order SG_ORDER)."""
+MIN_MASS_REL = 1e-3
+"""Consistency: every calibrated link's mass at least this fraction of its scene mass."""
+INERTIA_MARGIN_REL = 1e-7
+"""Consistency: the centroidal inertia at least this fraction of the link's m l^2 (above the
+cone solver's feasibility tolerance, so the written inertia is >= 0 after round-off)."""
+CONFIDENCE_SE = 3.0
+"""The data's confidence region: every combination within this many standard errors."""
+LS_TIE_REL = 1e-9
+"""Constrained least squares: weight of the pull towards the scene (times the largest
+squared singular value), choosing among equally good fits in the unseen directions."""
+ACTIVE_REL = 1e-5
+"""A consistency constraint whose slack is below this (relative) is reported active."""
 MIN_WINDOW = 2 * SG_ORDER + 3
 """Fewest samples in the smoothing window."""
 UNIFORM_JITTER_REL = 1e-3
@@ -120,11 +165,65 @@ the link origin (kg*m^2), the order of :func:`mech_balance.dynamics.parameter_ve
 PARAMETER_UNITS = ('kg', 'kg*m', 'kg*m', 'kg*m^2')
 
 
+SPATIAL_NOT_YET = (
+    'identification of a spatial rig such as the RGGR is not implemented yet: its six wrench '
+    'components are linear in the inertial parameters of its bodies, but the RGGR dynamics '
+    '(core/rggr.py, seed 002) hold at a constant crank speed only (the crank acceleration of '
+    'a real recording is ignored), and the RGGR rig does not provide the per-sample body '
+    "kinematics ('body_kinematics' capability, core/rig.py BodyKinematics) the regressor is "
+    'built from')
+"""Why ``identify`` refuses a spatial scene (printed in its error)."""
+
+
 class IdentifyError(ValueError):
     """Identification input is missing, inconsistent or cannot determine the parameters."""
 
 
 # ============================================================================ crank motion
+
+
+@dataclass
+class Quantization:
+    """
+    The encoder's quantization step and the angle noise the window choice rests on.
+
+    ``step_rad`` is 0 when the positions are not quantized (``source`` says which:
+    ``estimated``, ``stated`` by ``--counts-per-turn``, or ``not quantized``);
+    ``confidence`` the fraction of the nonzero increments within :data:`QUANT_TOL` steps of
+    a multiple of the step (:func:`_fraction_on_grid`);
+    ``noise_rad`` the standard deviation of the angle noise used for the window: the larger
+    of q / sqrt(12) and the residual of a smooth fit (:func:`fit_noise`).
+    """
+
+    step_rad: float
+    confidence: float
+    source: str
+    modulus_rad: float
+    noise_rad: float
+    fit_noise_rad: float
+
+    @property
+    def counts_per_turn(self):
+        """Return 2 pi / step, or None when not quantized."""
+        return 2.0 * math.pi / self.step_rad if self.step_rad > 0.0 else None
+
+    def describe(self):
+        """Return the step, its confidence and its source in words."""
+        if self.step_rad <= 0.0:
+            return (f'not quantized (no step has {QUANT_FRACTION_MIN:g} of the increments '
+                    f'within {QUANT_TOL:g} step of its multiples); angle noise '
+                    f'{self.fit_noise_rad:.3g} rad '
+                    'from the residual of a smooth fit')
+        return (f'encoder step {self.step_rad:.6g} rad ({self.counts_per_turn:.6g} counts per '
+                f'turn, {self.source}; {self.confidence:.4f} of the increments on its grid), '
+                f'wrapping at {self.modulus_rad:.6g} rad')
+
+    def to_dict(self):
+        """Return the estimate as a plain dict."""
+        return {'step_rad': self.step_rad, 'counts_per_turn': self.counts_per_turn,
+                'confidence': self.confidence, 'source': self.source,
+                'modulus_rad': self.modulus_rad, 'noise_rad': self.noise_rad,
+                'fit_noise_rad': self.fit_noise_rad}
 
 
 @dataclass
@@ -149,6 +248,9 @@ class CrankMotion:
     resampled: bool
     predicted_std: dict = field(default_factory=dict)
     gain_error: dict = field(default_factory=dict)
+    quantization: Quantization = None
+    window_reason: str = ''
+    window_floor: int = 0
 
     @property
     def window_s(self):
@@ -175,20 +277,161 @@ class CrankMotion:
                 if self.quantization_rad > 0.0 else None,
                 'mean_speed_rad_s': self.mean_speed_rad_s, 'resampled': bool(self.resampled),
                 'predicted_std': dict(self.predicted_std),
-                'gain_error': dict(self.gain_error)}
+                'gain_error': dict(self.gain_error),
+                'quantization': None if self.quantization is None else
+                self.quantization.to_dict(),
+                'window_reason': self.window_reason, 'window_floor': self.window_floor}
+
+
+def unwrap_encoder(position_rad):
+    """
+    Return ``(unwrapped angle, modulus)`` of encoder positions that may wrap at any modulus.
+
+    A wrap is an increment larger than half the positions' range; the modulus M follows
+    from the wraps: a wrap of d while the crank turns by the median increment delta is
+    d = delta - M sign(rotation), so M = median(|d - delta|).  A modulus within
+    :data:`MODULUS_SNAP_REL` of 2 pi is taken as 2 pi.  Positions without a wrap keep 2 pi.
+    """
+    pos = np.asarray(position_rad, dtype=float)
+    d = np.diff(pos)
+    span = float(np.max(pos) - np.min(pos)) if pos.size else 0.0
+    jumps = np.abs(d) > 0.5 * span
+    modulus = 2.0 * math.pi
+    if jumps.any() and (~jumps).any():
+        delta = float(np.median(d[~jumps]))
+        est = float(np.median(np.abs(d[jumps] - delta)))
+        if est > 0.0 and abs(est - modulus) > MODULUS_SNAP_REL * modulus:
+            modulus = est
+    return np.unwrap(pos, period=modulus), modulus
+
+
+def _fraction_on_grid(increments, step):
+    """Return the fraction of increments within QUANT_TOL steps of a multiple of ``step``."""
+    r = increments / step
+    return float(np.mean(np.abs(r - np.round(r)) <= QUANT_TOL))
+
+
+def _value_clusters(values, floor):
+    """
+    Return the centres of the major clusters of ``values`` (split where sorted gaps > floor).
+
+    A cluster is major when it holds at least :data:`QUANT_CLUSTER_MIN` of the values, and
+    the major ones must hold :data:`QUANT_CLUSTER_COVER` of them (else none is returned: the
+    values do not fall on a few levels, an unquantized encoder).  Two major clusters are two
+    different multiples of the step: a candidate step that puts them on one multiple (the
+    mean increment of a crank at a nearly constant 47.7 counts a sample) is refused.
+    """
+    v = np.sort(values)
+    if v.size == 0:
+        return v
+    cuts = np.flatnonzero(np.diff(v) > floor) + 1
+    sizes = np.diff(np.concatenate([[0], cuts, [v.size]]))
+    sums = np.add.reduceat(v, np.concatenate([[0], cuts]))
+    major = sizes >= QUANT_CLUSTER_MIN * v.size
+    if sizes[major].sum() < QUANT_CLUSTER_COVER * v.size:
+        return np.zeros(0)
+    return sums[major] / sizes[major]
+
+
+def fit_noise(t_s, psi_rad, order=SG_ORDER):
+    """
+    Return the standard deviation of the angle noise about a smooth fit (rad).
+
+    A Savitzky-Golay fit of ``order`` over :data:`FIT_NOISE_WINDOW` samples; the residual's
+    RMS divided by sqrt(1 - h), h the fit's weight on the centre sample (the residual of a
+    least-squares smoother of white noise of standard deviation s has variance s^2 (1 - h)).
+    """
+    psi = np.asarray(psi_rad, dtype=float)
+    window = min(FIT_NOISE_WINDOW, (psi.size - 1) | 1) | 1
+    if window < order + 2:
+        return 0.0
+    period = float(np.median(np.diff(t_s)))
+    w0 = savgol_weights(window, order, period)[0]
+    smooth = oaconvolve(psi - psi[0], w0[::-1], mode='valid') + psi[0]
+    half = (window - 1) // 2
+    res = psi[half:psi.size - half] - smooth
+    h = float(w0[half])
+    return float(np.sqrt(np.mean(res ** 2) / max(1.0 - h, 1e-12)))
+
+
+def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
+    """
+    Return the :class:`Quantization` of encoder positions (rad; wrapped or not).
+
+    The robust greatest common divisor of the increments (float noise, float32 positions,
+    missing counts, either direction, any wrap): the positions are unwrapped
+    (:func:`unwrap_encoder`); the candidate step q_c is the :data:`QUANT_GAP_QUANTILE`
+    quantile of the gaps between distinct positions (wrapped onto one turn, where every
+    count of a long recording occurs), between distinct increments and of the increments
+    themselves, "distinct" meaning above the noise floor: a jump (a ratio of at
+    least :data:`QUANT_SPLIT_RATIO`, the highest one) in the sorted gaps separates noise from
+    steps.  The step
+    is the largest q_c j / k (j, k = 1 .. :data:`QUANT_MAX_DIVISOR`) with at least
+    :data:`QUANT_FRACTION_MIN` of the nonzero increments on its grid and every major level of
+    the increments on its own multiple (:func:`_value_clusters`), refined by least squares
+    (q = sum n d / sum n^2, n = round(d / q)) and snapped to an integer number of counts per
+    modulus when within :data:`COUNT_SNAP` of one.  When no candidate agrees the positions
+    are "not quantized" and only the smooth fit's noise is used.
+    """
+    pos = np.asarray(position_rad, dtype=float).ravel()
+    psi, modulus = unwrap_encoder(pos)
+    t = np.arange(pos.size, dtype=float) if t_s is None else np.asarray(t_s, dtype=float)
+    sigma_fit = fit_noise(t, psi)
+    if counts_per_turn is not None:
+        q = 2.0 * math.pi / float(counts_per_turn)
+        inc = np.diff(psi)
+        moving = np.abs(inc)[np.abs(inc) > 0.5 * q]
+        conf = _fraction_on_grid(moving, q) if moving.size else 1.0
+        return Quantization(q, conf, 'stated', modulus,
+                            max(q / math.sqrt(12.0), sigma_fit), sigma_fit)
+    inc = np.diff(psi)
+    moving = np.abs(inc)
+    if moving.size > QUANT_MAX_INCREMENTS:
+        moving = moving[np.linspace(0, moving.size - 1, QUANT_MAX_INCREMENTS).astype(int)]
+    wrapped = np.sort(np.mod(psi - psi[0], modulus))
+    inc_gaps = np.diff(np.sort(moving))
+    gaps = np.sort(np.concatenate([np.diff(wrapped), inc_gaps]))
+    gaps = gaps[gaps > 0.0]
+    step, conf = 0.0, 0.0
+    if gaps.size >= 2:
+        ratios = gaps[1:] / gaps[:-1]
+        jumps = np.flatnonzero(ratios >= QUANT_SPLIT_RATIO)
+        # the highest jump: below it float round-off (float32 positions leave increments on
+        # a grid of their own ulps, 2e-10 rad and more), above it the encoder's steps
+        floor = gaps[jumps[-1]] if jumps.size else 0.0
+        moving = moving[moving > floor]
+        candidates = [float(np.quantile(v[v > floor], QUANT_GAP_QUANTILE))
+                      for v in (inc_gaps, np.diff(wrapped), moving) if (v > floor).any()]
+        centres = _value_clusters(moving, floor)
+        if moving.size and centres.size:
+            for q_c in candidates:
+                for j in range(1, QUANT_MAX_DIVISOR + 1):
+                    for k in range(1, QUANT_MAX_DIVISOR + 1):
+                        q = q_c * j / k
+                        if q <= step * (1.0 + QUANT_TOL) or q <= floor * QUANT_SPLIT_RATIO:
+                            continue
+                        frac = _fraction_on_grid(moving, q)
+                        n = np.round(centres / q)
+                        if frac >= QUANT_FRACTION_MIN and n.min() >= 1 and \
+                                np.unique(n).size == n.size:
+                            step, conf = q, frac
+    if step > 0.0:
+        for _ in range(QUANT_REFINE_PASSES):
+            n = np.round(moving / step)
+            step = float(np.sum(n * moving) / np.sum(n * n))
+        counts = modulus / step
+        if abs(counts - round(counts)) <= COUNT_SNAP:
+            step = modulus / round(counts)
+        conf = _fraction_on_grid(moving, step)
+    if step <= 0.0 or conf < QUANT_FRACTION_MIN:
+        return Quantization(0.0, conf, 'not quantized', modulus, sigma_fit, sigma_fit)
+    return Quantization(step, conf, 'estimated', modulus,
+                        max(step / math.sqrt(12.0), sigma_fit), sigma_fit)
 
 
 def quantization_step(position_rad):
-    """
-    Return the encoder's quantization step, rad: the least gap between recorded positions.
-
-    The positions of a quantized encoder are multiples of its step; over a few turns every
-    multiple occurs, so the smallest gap between distinct wrapped positions is the step.
-    """
-    wrapped = np.unique(np.round(np.mod(position_rad, 2.0 * math.pi), 12))
-    if wrapped.size < 2:
-        return 0.0
-    return float(np.min(np.diff(wrapped)))
+    """Return the encoder's step, rad (0: not quantized): :func:`estimate_quantization`."""
+    return estimate_quantization(position_rad).step_rad
 
 
 def savgol_weights(window, order, period_s):
@@ -227,12 +470,14 @@ def _window_accuracy(window, order, period_s, sigma_q, turn_hz):
     return std, gain
 
 
-def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_rad=None):
+def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_rad=None,
+                 counts_per_turn=None):
     """
     Return the :class:`CrankMotion` of encoder samples (stamps s, positions rad).
 
     ``window`` (odd number of samples) overrides the choice of this module's docstring;
-    ``quantization_rad`` the step found by :func:`quantization_step`.
+    ``counts_per_turn`` (or ``quantization_rad``, the step) states the encoder's step instead
+    of :func:`estimate_quantization`.
     """
     t = np.asarray(t_s, dtype=float).ravel()
     pos = np.asarray(position_rad, dtype=float).ravel()
@@ -240,16 +485,21 @@ def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_ra
         raise IdentifyError(f'encoder: {t.size} stamps and {pos.size} positions, expected '
                             'one stamp per position')
     if not (np.isfinite(t).all() and np.isfinite(pos).all()):
-        raise IdentifyError('encoder: non-finite stamp or position, expected finite values')
+        bad = int(np.flatnonzero(~(np.isfinite(t) & np.isfinite(pos)))[0])
+        raise IdentifyError(f'encoder: sample {bad} has stamp {t[bad]!r} and position '
+                            f'{pos[bad]!r}, expected finite values')
     if t.size < MIN_WINDOW + 2:
         raise IdentifyError(f'encoder: {t.size} samples, expected at least {MIN_WINDOW + 2}')
     dts = np.diff(t)
     if not (dts > 0.0).all():
-        i = int(np.argmin(dts))
-        raise IdentifyError(f'encoder: stamp {t[i + 1]:.9f} s is not after {t[i]:.9f} s, '
-                            'expected increasing stamps')
+        i = int(np.flatnonzero(~(dts > 0.0))[0])
+        raise IdentifyError(f'encoder: sample {i + 1} stamp {t[i + 1]:.9f} s is not after '
+                            f'sample {i} stamp {t[i]:.9f} s, expected increasing stamps')
     period = float(np.median(dts))
-    psi = np.unwrap(pos)    # a wrapping encoder: steps taken in (-pi, pi]
+    if quantization_rad is not None and counts_per_turn is None and quantization_rad > 0.0:
+        counts_per_turn = 2.0 * math.pi / float(quantization_rad)
+    quant = estimate_quantization(pos, counts_per_turn, t)
+    psi, _ = unwrap_encoder(pos)
     if np.max(np.abs(np.diff(psi))) > MAX_STEP_RAD:
         raise IdentifyError('encoder: the crank turns by nearly half a revolution or more '
                             'between samples (or the angle jumps), expected a faster encoder '
@@ -259,22 +509,39 @@ def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_ra
         grid = t[0] + period * np.arange(int(math.floor((t[-1] - t[0]) / period)) + 1)
         psi = np.interp(grid, t, psi)
         t = grid
-    q = quantization_step(pos) if quantization_rad is None else float(quantization_rad)
-    sigma_q = q / math.sqrt(12.0)
+    q = quant.step_rad
+    sigma = quant.noise_rad
     span = t[-1] - t[0]
     speed_mean = abs(psi[-1] - psi[0]) / span
     turn_hz = speed_mean / (2.0 * math.pi)
+    cap = MAX_WINDOW_TURNS / turn_hz / period if turn_hz > 0.0 else t.size
+    cap = max(MIN_WINDOW, min(int(cap), t.size - 2)) | 1
+    target = ACCEL_NOISE_REL * speed_mean ** 2
+    floor = MIN_WINDOW
+    limit = (t.size - 2) | 1
+    while floor < limit:
+        c2 = savgol_weights(floor | 1, order, period)[2]
+        if sigma * np.linalg.norm(c2) <= target:
+            break
+        floor = int(floor * 1.1) + 2
+    floor = min(floor | 1, limit if limit <= t.size else limit - 2)
     if window is None:
-        cap = MAX_WINDOW_TURNS / turn_hz / period if turn_hz > 0.0 else t.size
-        cap = max(MIN_WINDOW, min(int(cap), t.size - 2))
-        window = MIN_WINDOW
-        target = ACCEL_NOISE_REL * speed_mean ** 2
-        while window < cap:
-            c2 = savgol_weights(window | 1, order, period)[2]
-            if sigma_q * np.linalg.norm(c2) <= target:
-                break
-            window = int(window * 1.25) + 1
-        window = min(window, cap)
+        window = max(floor, MIN_WINDOW)
+        if floor > cap:
+            rests = (f'the acceleration noise budget ({ACCEL_NOISE_REL:g} x mean speed^2 = '
+                     f'{target:.3g} rad/s^2 from angle noise {sigma:.3g} rad) needs {floor} '
+                     f'samples, above the {MAX_WINDOW_TURNS:g}-turn smoothing-bias cap of '
+                     f'{cap}: the noise floor wins')
+        else:
+            rests = (f'the shortest window whose acceleration noise (angle noise '
+                     f'{sigma:.3g} rad) is within the budget {ACCEL_NOISE_REL:g} x mean '
+                     f'speed^2 = {target:.3g} rad/s^2 (cap {MAX_WINDOW_TURNS:g} turn = {cap} '
+                     'samples)')
+    else:
+        rests = f'--window {int(window) | 1} stated'
+        if (int(window) | 1) < floor:
+            rests += (f', below the noise floor of {floor} samples: the acceleration noise '
+                      'exceeds the budget')
     window = int(window) | 1
     if not (order + 2 <= window <= t.size):
         raise IdentifyError(f'window: got {window} samples, expected an odd number from '
@@ -283,9 +550,9 @@ def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_ra
     # samples within half a window of either end have no centred fit: dropped
     psi_s, speed, accel = (oaconvolve(psi - psi[0], wd[::-1], mode='valid') for wd in weights)
     half = (window - 1) // 2
-    std, gain = _window_accuracy(window, order, period, sigma_q, turn_hz)
+    std, gain = _window_accuracy(window, order, period, sigma, turn_hz)
     return CrankMotion(t[half:t.size - half], psi_s + psi[0], speed, accel, period, window,
-                       order, q, speed_mean, resampled, std, gain)
+                       order, q, speed_mean, resampled, std, gain, quant, rests, int(floor))
 
 
 # ============================================================================ regressor
@@ -371,6 +638,155 @@ def regressor(scene, psi_rad, speed_rad_s, accel_rad_s2, torque=False, rig=None)
                      float(np.max(state.cond)))
 
 
+# ============================================================================ consistency
+
+
+@dataclass
+class Consistency:
+    """
+    How the calibrated parameters were made physically consistent (:func:`consistent`).
+
+    ``stage``: ``exact`` (the identified combinations reproduced, the consistent set closest
+    to the scene) or ``least squares`` (no consistent set reproduces them: the least
+    residual subject to consistency); ``residual_growth`` the relative growth of the
+    weighted residual norm over the unconstrained least squares (0 for ``exact``);
+    ``max_shift_se`` the largest change of a combination in its standard errors;
+    ``within_confidence`` whether that is within :data:`CONFIDENCE_SE`; ``active`` the
+    constraints at their bound (``links.NAME.inertia_com_kg_m2 >= 0``, ``... mass_kg``).
+    """
+
+    stage: str
+    residual_growth: float
+    max_shift_se: float
+    within_confidence: bool
+    active: list
+    solver_status: str
+    iterations: int
+
+    def describe(self):
+        """Return the result in words."""
+        if self.stage == 'exact':
+            text = ('physically consistent: the identified combinations reproduced exactly, '
+                    "the non-identifiable directions closest to the scene in each link's scale")
+        else:
+            text = ('no physically consistent set reproduces the identified combinations: '
+                    'constrained least squares, residual grows by '
+                    f'{100.0 * self.residual_growth:.3g}%, combinations moved by up to '
+                    f'{self.max_shift_se:.3g} standard errors ('
+                    + ('within' if self.within_confidence else 'OUTSIDE')
+                    + f' the {CONFIDENCE_SE:g}-SE confidence region)')
+        if self.active:
+            text += '; active: ' + ', '.join(self.active)
+        return text
+
+    def to_dict(self):
+        """Return the result as a plain dict."""
+        return {'stage': self.stage, 'residual_growth': self.residual_growth,
+                'max_shift_se': self.max_shift_se,
+                'within_confidence': bool(self.within_confidence),
+                'active_constraints': list(self.active), 'solver_status': self.solver_status,
+                'iterations': int(self.iterations)}
+
+
+def _cone_rows(scene, theta0, scale):
+    """
+    Return ``(A, b, cones)`` of the consistency cones on the scaled deviation u.
+
+    Per link, in its own scale (y = theta / scale: the cone is invariant under it since
+    scale_h^2 = scale_m scale_I): y_m >= MIN_MASS_REL and the rotated cone
+    y_m (y_I - INERTIA_MARGIN_REL) >= y_hx^2 + y_hy^2, written as the second-order cone
+    ||(2 y_hx, 2 y_hy, y_m - y_I')|| <= y_m + y_I' (Wensing, Kim & Slotine 2017, the planar
+    case of their LMI; Sousa & Cortesao 2014).  Clarabel's form: s = b - A u in the cone.
+    """
+    import clarabel
+    n = theta0.size
+    a0 = theta0 / scale
+    rows_a, rows_b, cones = [], [], []
+    for i in range(len(scene.links)):
+        km, kx, ky, ki = 4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3
+        row = np.zeros((1, n))
+        row[0, km] = -1.0
+        rows_a.append(row)
+        rows_b.append([a0[km] - MIN_MASS_REL])
+        cones.append(clarabel.NonnegativeConeT(1))
+        soc = np.zeros((4, n))
+        soc[0, km], soc[0, ki] = -1.0, -1.0
+        soc[1, kx] = -2.0
+        soc[2, ky] = -2.0
+        soc[3, km], soc[3, ki] = -1.0, 1.0
+        ai = a0[ki] - INERTIA_MARGIN_REL
+        rows_a.append(soc)
+        rows_b.append([a0[km] + ai, 2.0 * a0[kx], 2.0 * a0[ky], a0[km] - ai])
+        cones.append(clarabel.SecondOrderConeT(4))
+    return np.vstack(rows_a), np.concatenate(rows_b), cones
+
+
+def _solve_qp(p_mat, q_vec, a_mat, b_vec, cones):
+    import clarabel
+    import scipy.sparse as sp
+    settings = solver_settings()
+    sol = clarabel.DefaultSolver(sp.csc_matrix(np.triu(p_mat)), np.asarray(q_vec, float),
+                                 sp.csc_matrix(a_mat), np.asarray(b_vec, float), cones,
+                                 settings).solve()
+    return sol
+
+
+def _ok(status):
+    return str(status) in ('Solved', 'AlmostSolved')
+
+
+def consistent(scene, theta0, scale, v1, sv, du, chi2_ls, se_u):
+    """
+    Return ``(u, Consistency)``: the physically consistent scaled deviation from the scene.
+
+    ``v1`` ``(n, r)`` and ``sv`` ``(r,)``: the row space of the scaled, weighted regressor
+    and its singular values; ``du`` the least-squares deviation (minimum norm); ``chi2_ls``
+    its weighted residual sum of squares; ``se_u`` ``(r,)`` the standard errors of the
+    combinations v1^T u.  Stage 1: minimize ||u||^2 subject to v1^T u = v1^T du and the cones
+    of :func:`_cone_rows` (the consistent set with the identified combinations closest to
+    the scene).  If that is infeasible, stage 2: minimize
+    ||S1 v1^T (u - du)||^2 + LS_TIE_REL s_1^2 ||(I - v1 v1^T) u||^2 (the residual growth over
+    the unconstrained fit, a tie-break towards the scene in the directions the data cannot
+    see)
+    subject to the cones.  Raises :class:`IdentifyError` when no consistent set exists.
+    """
+    import clarabel
+    n = theta0.size
+    a_c, b_c, cones = _cone_rows(scene, theta0, scale)
+    target = v1.T @ du
+    stage = 'exact'
+    sol = _solve_qp(2.0 * np.eye(n), np.zeros(n), np.vstack([v1.T, a_c]),
+                    np.concatenate([target, b_c]),
+                    [clarabel.ZeroConeT(v1.shape[1]), *cones])
+    if not _ok(sol.status):
+        stage = 'least squares'
+        g = v1 * sv ** 2 @ v1.T
+        tie = LS_TIE_REL * float(sv[0]) ** 2
+        null = np.eye(n) - v1 @ v1.T               # the directions the data cannot see
+        sol = _solve_qp(2.0 * (g + tie * null), -2.0 * g @ du, a_c, b_c, cones)
+        if not _ok(sol.status):
+            raise IdentifyError(f'no physically consistent parameter set found (Clarabel '
+                                f'{sol.status}): expected a positive mass and centroidal '
+                                'inertia per link to be reachable')
+    u = np.array(sol.x)
+    shift = sv * (v1.T @ (u - du))
+    growth = math.sqrt(1.0 + float(shift @ shift) / max(chi2_ls, 1e-300)) - 1.0
+    moved = np.abs(v1.T @ (u - du)) / np.where(se_u > 0.0, se_u, np.inf)
+    max_se = float(np.max(moved)) if moved.size else 0.0
+    active = []
+    y = (theta0 + scale * u) / scale
+    for i, lk in enumerate(scene.links):
+        m, hx, hy, i_o = y[4 * i:4 * i + 4]
+        if m <= MIN_MASS_REL * (1.0 + ACTIVE_REL):
+            active.append(f'links.{lk.name}.mass_kg > 0')
+        if m * (i_o - INERTIA_MARGIN_REL) - hx * hx - hy * hy <= ACTIVE_REL * m * i_o:
+            active.append(f'links.{lk.name}.inertia_com_kg_m2 >= 0')
+    if stage == 'exact':
+        growth, max_se = 0.0, 0.0
+    return u, Consistency(stage, growth, max_se, max_se <= CONFIDENCE_SE, active,
+                          str(sol.status), int(sol.iterations))
+
+
 # ============================================================================ identification
 
 
@@ -385,6 +801,7 @@ class Combination:
     std_error: float
     scene_value: float
     text: str
+    calibrated_value: float = math.nan   # of the (physically consistent) calibrated scene
 
     def value(self, theta):
         """Return the combination of a parameter vector (e.g. the truth)."""
@@ -395,7 +812,7 @@ class Combination:
         return {'base': self.base, 'unit': self.unit, 'combination': self.text,
                 'coefficients': [float(c) for c in self.coefficients],
                 'estimate': self.estimate, 'std_error': self.std_error,
-                'scene_value': self.scene_value}
+                'scene_value': self.scene_value, 'calibrated_value': self.calibrated_value}
 
 
 @dataclass
@@ -425,6 +842,28 @@ class Identification:
     kinematic_cond: float
     calibrated_links: list          # dicts per link
     problems: list                  # why the calibrated scene is not physical, if it is not
+    consistency: Consistency = None
+    theta_ls: np.ndarray = None     # the unconstrained least squares (minimum norm)
+    prediction: object = None       # PredictedRms of the calibrated scene
+    source: str = ''
+
+    def summary(self):
+        """Return the one-line summary: rank, residual, consistency and the prediction."""
+        rms = ', '.join(f'{c} {b:.4g} -> {a:.4g} {CHANNEL_UNITS[c]}'
+                        for c, b, a in zip(self.channels, self.rms_before, self.rms_after))
+        out = (f'identified scene {self.scene.name!r} from {self.samples} measurements: rank '
+               f'{self.rank} of {len(self.names)}; residual RMS before -> after: {rms}')
+        if self.prediction is not None:
+            out += '; ' + self.prediction.describe()
+        return out
+
+    def identification_block(self, source=None):
+        """Return the calibrated scene's ``identification`` section (the schema's mapping)."""
+        pred = self.prediction.to_dict() if self.prediction is not None else {}
+        return {'source': self.source if source is None else source,
+                'parameters': list(self.names), 'theta': [float(v) for v in self.theta],
+                'std_directions': std_directions(self.covariance, self.rank).tolist(),
+                'predicted_rms': pred}
 
     @property
     def realizable(self):
@@ -434,11 +873,11 @@ class Identification:
     def bias_target(self, bias_true, theta_true):
         """Return what :attr:`bias` estimates for a true bias and parameter vector."""
         return np.asarray(bias_true, dtype=float) + self.bias_confounding @ (
-            np.asarray(theta_true, dtype=float) - self.theta_scene)
+            np.asarray(theta_true, dtype=float) - self.theta)
 
-    def calibrated_scene(self):
+    def calibrated_scene(self, source=None):
         """
-        Return the scene with the calibrated link inertias.
+        Return the scene with the calibrated link inertias and its ``identification``.
 
         Raises :class:`IdentifyError` naming the links whose calibrated parameters no body
         can have (a mass <= 0 or a centroidal inertia < 0).
@@ -452,7 +891,9 @@ class Identification:
         for lk, c in zip(self.scene.links, self.calibrated_links):
             links.append(replace(lk, mass_kg=c['mass_kg'], com_m=tuple(c['com_m']),
                                  inertia_com_kg_m2=c['inertia_com_kg_m2']))
-        return self.scene.with_links(links, name=f'{self.scene.name}_calibrated')
+        out = self.scene.with_links(links, name=f'{self.scene.name}_calibrated')
+        return replace(out, identification=schema.identification_from_dict(
+            schema.plain(self.identification_block(source)), [lk.name for lk in links]))
 
     def to_dict(self):
         """Return the report as a plain, JSON- and YAML-able dict."""
@@ -478,6 +919,9 @@ class Identification:
                 np.diag(self.covariance), 0.0))],
             'calibrated_links': self.calibrated_links, 'realizable': self.realizable,
             'problems': list(self.problems), 'crank_motion': self.motion.to_dict(),
+            'consistency': None if self.consistency is None else self.consistency.to_dict(),
+            'summary': self.summary(),
+            'predicted_rms': None if self.prediction is None else self.prediction.to_dict(),
             'kinematic_residual': self.kinematic_residual,
             'kinematic_condition': self.kinematic_cond}
 
@@ -486,7 +930,7 @@ def _check_planar(scene):
     kind = schema.kind_of(scene)
     if 'identification' not in kind.rig_factory().capabilities:
         raise IdentifyError(f'scene {scene.name!r}: kind {kind.name!r}, expected a planar '
-                            'scene (identification of the RGGR is not implemented)')
+                            f'scene ({SPATIAL_NOT_YET})')
 
 
 def parameter_scales(scene):
@@ -533,7 +977,7 @@ def _measurements(wrench, effort, t_wrench, t_effort, motion):
 
 
 def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, window=None,
-             quantization_rad=None):
+             quantization_rad=None, counts_per_turn=None):
     """
     Return the :class:`Identification` of a planar rig from encoder and wrench samples.
 
@@ -544,7 +988,8 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     evaluated at each wrench stamp with the crank state interpolated from the encoder.
     """
     _check_planar(scene)
-    motion = crank_motion(t_encoder, position_rad, window, quantization_rad=quantization_rad)
+    motion = crank_motion(t_encoder, position_rad, window, quantization_rad=quantization_rad,
+                          counts_per_turn=counts_per_turn)
     t_w, meas = _measurements(wrench, effort, t_wrench, t_encoder, motion)
     channels = CHANNELS + ((TORQUE_CHANNEL,) if effort is not None else ())
     nc = len(channels)
@@ -598,9 +1043,14 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     dof = max(p * nc - rank - nc, 1)
     s2 = float(np.sum(res_sq / sigma ** 2)) / dof
     cov_u = s2 * (v1 / sv[:rank] ** 2) @ v1.T
-    theta = theta0 + scale * du
+    theta_ls = theta0 + scale * du
     cov = cov_u * np.outer(scale, scale)
-    bias = r0_mean - ys_mean @ du
+    se_u = np.sqrt(s2) / sv[:rank]
+    u_cal, consistency = consistent(scene, theta0, scale, v1, sv[:rank], du,
+                                    float(np.sum(res_sq / sigma ** 2)), se_u)
+    theta = theta0 + scale * u_cal
+    res_sq = np.array([float(np.sum((f @ np.append(-u_cal, 1.0)) ** 2)) for f in factors])
+    bias = r0_mean - ys_mean @ u_cal
     # Cov(b) = s^2 [(B^T B)^-1 + M P1-part]: sigma_c^2 / p from the mean, plus the slope's
     m_sens = ys_mean                                # (c, n) SI per unit u
     cov_b = s2 * np.diag(sigma ** 2 / p) + m_sens @ cov_u @ m_sens.T
@@ -610,7 +1060,7 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     identifiable_b = np.linalg.norm(confound_u, axis=1) <= CONFOUND_RTOL * size
     confound = np.where(identifiable_b[:, None], 0.0, confound_u / scale)
     rms_after = np.sqrt(res_sq / p)
-    combos = _combinations(vt[:rank], scale, reg.names, theta, theta0, cov)
+    combos = _combinations(vt[:rank], scale, reg.names, theta_ls, theta0, cov, theta)
     links, problems = _calibrated_links(scene, theta)
     return Identification(
         scene=scene, names=reg.names, theta_scene=theta0, theta=theta, covariance=cov,
@@ -620,10 +1070,11 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         bias_confounding=confound, bias_identifiable=identifiable_b, noise_std=sigma,
         rms_before=rms_before, rms_after=rms_after, samples=p, motion=motion,
         kinematic_residual=reg.residual, kinematic_cond=reg.cond, calibrated_links=links,
-        problems=problems)
+        problems=problems, consistency=consistency, theta_ls=theta_ls,
+        prediction=None if problems else predicted_rms(scene, theta, cov))
 
 
-def _combinations(v1t, scale, names, theta, theta0, cov):
+def _combinations(v1t, scale, names, theta, theta0, cov, theta_cal):
     """Return the base-parameter form of the row space ``v1t`` (scaled coordinates)."""
     rank = v1t.shape[0]
     _, _, piv = scipy.linalg.qr(v1t, pivoting=True, mode='economic')
@@ -649,7 +1100,8 @@ def _combinations(v1t, scale, names, theta, theta0, cov):
         out.append(Combination(
             base=names[j], unit=unit, coefficients=coeff, estimate=float(coeff @ theta),
             std_error=float(math.sqrt(max(coeff @ cov @ coeff, 0.0))),
-            scene_value=float(coeff @ theta0), text=text))
+            scene_value=float(coeff @ theta0), text=text,
+            calibrated_value=float(coeff @ theta_cal)))
     return out
 
 
@@ -674,12 +1126,111 @@ def _calibrated_links(scene, theta):
     return links, problems
 
 
+# ============================================================================ confidence
+
+
+@dataclass
+class PredictedRms:
+    """RMS shaking force (N) and moment (N*m) of a parameter vector, with standard errors."""
+
+    force_N: float
+    force_std_error_N: float
+    moment_Nm: float
+    moment_std_error_Nm: float
+    speed_rad_s: float
+    samples: int
+
+    def describe(self):
+        """Return the prediction in words."""
+        return (f'predicted RMS shaking force {self.force_N:.6g} +- '
+                f'{self.force_std_error_N:.2g} N, moment {self.moment_Nm:.6g} +- '
+                f'{self.moment_std_error_Nm:.2g} N*m (calibrated scene at '
+                f'{self.speed_rad_s:.6g} rad/s, {self.samples} crank angles; standard errors '
+                "from the combinations' covariance)")
+
+    def to_dict(self):
+        """Return the prediction as the scene's ``identification.predicted_rms`` mapping."""
+        return {'shaking_force_N': {'value': self.force_N,
+                                    'std_error': self.force_std_error_N},
+                'shaking_moment_Nm': {'value': self.moment_Nm,
+                                      'std_error': self.moment_std_error_Nm}}
+
+
+def _rms_maps(scene):
+    """Return (force map, moment map) in SI: RMS = ||map @ theta|| (theta SI)."""
+    units = objective_units(scene)
+    maps = linear_maps(scene, units=units)
+    m, ln, om = units.mass_kg, units.length_m, units.omega_rad_s
+    scale = np.tile([m, m * ln, m * ln, m * ln * ln], len(scene.links))
+    f_unit, n_unit = m * ln * om ** 2, m * ln * ln * om ** 2
+    return maps.force * f_unit / scale, maps.moment * n_unit / scale
+
+
+def predicted_rms(scene, theta, covariance):
+    """
+    Return the :class:`PredictedRms` of parameters ``theta`` (SI) on ``scene``'s geometry.
+
+    The RMS over :attr:`Scene.samples` crank angles at the scene's crank speed
+    (:func:`mech_balance.analysis.linear_maps.linear_maps`, the balancing's own definition,
+    RMS = ||R theta||); the standard error by the delta method, g^T Cov g with
+    g = R^T R theta / ||R theta||.
+    """
+    theta = np.asarray(theta, dtype=float)
+    out = []
+    for r in _rms_maps(scene):
+        v = r @ theta
+        value = float(np.linalg.norm(v))
+        g = r.T @ v / value if value > 0.0 else np.zeros_like(theta)
+        out += [value, float(math.sqrt(max(g @ covariance @ g, 0.0)))]
+    return PredictedRms(*out, abs(scene.crank_speed_rad_s), int(scene.samples))
+
+
+def std_directions(covariance, rank):
+    """Return the ``(rank, n)`` factor D with D^T D = Cov (symmetric eigen-decomposition)."""
+    w, v = np.linalg.eigh(0.5 * (covariance + covariance.T))
+    keep = np.argsort(w)[::-1][:rank]
+    return (v[:, keep] * np.sqrt(np.maximum(w[keep], 0.0))).T
+
+
+def balance_confidence(scene, balanced_scene):
+    """
+    Return how a balanced design's RMS shaking force and moment vary within +-1 SE, or None.
+
+    ``scene`` is a calibrated scene (with an ``identification`` section,
+    :mod:`mech_balance.schema.identification`); ``balanced_scene`` the optimum of
+    ``mech-balance balance`` on it.  The design changes the links by known amounts, so the
+    true balanced parameters are theta_b + D^T a with the identification's factor D; for
+    ||a|| <= 1 (+-1 standard error) the RMS ||R (theta_b + D^T a)|| lies within
+    ||R theta_b|| -+ ||R D^T||_2 (the triangle inequality; a checked bound, not a linear
+    estimate: at a balanced optimum ||R theta|| is not differentiable).
+    """
+    block = getattr(scene, 'identification', None)
+    if block is None:
+        return None
+    theta_b = dynamics.parameter_vector(dynamics.Inertia.from_links(balanced_scene.links))
+    d = np.array(block['std_directions'], dtype=float).reshape(-1, theta_b.size)
+    out = {}
+    for name, r in zip(('shaking_force_N', 'shaking_moment_Nm'), _rms_maps(balanced_scene)):
+        value = float(np.linalg.norm(r @ theta_b))
+        spread = float(np.linalg.norm(r @ d.T, 2)) if d.size else 0.0
+        out[name] = {'value': value, 'low': max(value - spread, 0.0), 'high': value + spread}
+    return out
+
+
+def format_balance_confidence(conf):
+    """Return the line ``mech-balance balance`` prints for :func:`balance_confidence`."""
+    f, n = conf['shaking_force_N'], conf['shaking_moment_Nm']
+    return (f"identification confidence (+-1 SE of the calibrated inertias): the optimum's RMS "
+            f"shaking force {f['value']:.6g} N lies within [{f['low']:.6g}, {f['high']:.6g}] "
+            f"N, moment {n['value']:.6g} N*m within [{n['low']:.6g}, {n['high']:.6g}] N*m")
+
+
 # ============================================================================ output
 
 
 def calibrated_yaml(result, source=''):
     """Return the calibrated scene as YAML text (:func:`mech_balance.schema.to_yaml`)."""
-    sc = result.calibrated_scene()
+    sc = result.calibrated_scene(source)
     head = [f'# written by mech-balance identify from scene {result.scene.name}'
             + (f' and {source}' if source else ''),
             f'# rank {result.rank} of {len(result.names)} parameters, condition number '
@@ -699,10 +1250,8 @@ def format_report(result):
         f'crank motion: Savitzky-Golay order {m.order} over {m.window} samples '
         f'({m.window_s * 1e3:.1f} ms) at {1.0 / m.period_s:.6g} Hz'
         + (' (resampled to a uniform grid)' if m.resampled else ''),
-        f'  encoder step {m.quantization_rad:.4g} rad'
-        + (f' ({2 * math.pi / m.quantization_rad:.0f} counts per turn)'
-           if m.quantization_rad > 0 else '')
-        + f'; mean speed {m.mean_speed_rad_s:.6g} rad/s',
+        f'  {m.quantization.describe()}; mean speed {m.mean_speed_rad_s:.6g} rad/s',
+        f'  window: {m.window_reason}',
         f"  predicted noise: angle {std['angle_rad']:.2e} rad, speed "
         f"{std['speed_rad_s']:.2e} rad/s, acceleration {std['accel_rad_s2']:.2e} rad/s^2; "
         f"gain error at 1x/2x rotation: accel {m.gain_error['accel_1x']:+.1e}/"
@@ -729,11 +1278,14 @@ def format_report(result):
         ratio = a / b if b > 0 else math.nan
         lines.append(f'{ch:<14}{CHANNEL_UNITS[ch]:>6}{b:>14.6g}{a:>14.6g}{ratio:>9.3f}')
     lines.append('(before: the scene with a fitted bias; after: the calibrated scene)')
-    lines += ['', 'calibrated links:']
+    lines += ['', 'calibrated links ('
+              + (result.consistency.describe() if result.consistency else '') + '):']
     for c in result.calibrated_links:
         lines.append(f"  {c['name']:<10} mass {c['mass_kg']:.6g} kg, centre ({c['com_m'][0]:.6g},"
                      f" {c['com_m'][1]:.6g}) m, I_C {c['inertia_com_kg_m2']:.6g} kg*m^2, I_O "
                      f"{c['inertia_origin_kg_m2']:.6g} kg*m^2")
     if result.problems:
         lines.append('NOT physically realizable: ' + '; '.join(result.problems))
+    if result.prediction is not None:
+        lines += ['', result.prediction.describe()]
     return '\n'.join(lines)

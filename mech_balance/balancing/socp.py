@@ -49,12 +49,13 @@ import time
 import clarabel
 from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
+from mech_balance.analysis.linear_maps import linear_maps, LinearMaps, RANK_REL_TOL  # noqa: F401
 from mech_balance.balancing import certificate
 from mech_balance.balancing.defaults import BOUND_RATIO_RANGE, CASES, CENTROIDAL_MARGIN, \
     DEFAULT_WEIGHTS, DISTANCE_RATIO_RANGE, PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
-from mech_balance.conventions import cycle_angles, MAX_WEIGHT
+from mech_balance.conic import SOLVER_MAX_ITER, solver_settings, SOLVER_TOL  # noqa: F401
+from mech_balance.conventions import MAX_WEIGHT
 from mech_balance.core import equimomental
-from mech_balance.core.planar import dynamics
 from mech_balance.core.planar.rig import objective_units
 from mech_balance.schema.scene import FRAME, Normalization
 import numpy as np
@@ -63,17 +64,10 @@ import scipy.sparse as sp
 FORCE_BALANCE_REL_TOL = 1e-6
 """A stage-1 RMS shaking force below this fraction of the original's counts as complete
 force balance attainable; stage 2 then imposes it exactly (force map null space)."""
-RANK_REL_TOL = 1e-9
-"""Singular values of a compressed map below this fraction of the largest span its null
-space."""
 TIE_BREAK_SLACK = 1e-7
 """Stage 2 keeps the stage-1 objective within this fraction of max(z*, 1)."""
 GAP_FLOOR = 1.0
 """Relative gap = |primal - dual| / max(|primal|, |dual|, GAP_FLOOR) (normalized units)."""
-SOLVER_TOL = 1e-9
-"""Clarabel's relative and absolute gap and feasibility tolerances."""
-SOLVER_MAX_ITER = 200
-"""Interior-point iterations before giving up."""
 CERTIFIED_GAP_REL = 1e-5
 """A stage is certified when its safe lower bound is finite and primal - L is at most this
 fraction of max(|primal|, GAP_FLOOR) (``mech-balance balance`` exits 2 otherwise)."""
@@ -501,96 +495,6 @@ def _merged(first, second):
     return out + first[i:] + second[j:]
 
 
-# ============================================================================ linear maps
-
-
-@dataclass
-class LinearMaps:
-    """
-    The RMS quantities of a scene as compressed linear maps of its inertial parameters.
-
-    ``theta`` is the normalized ``(4 n,)`` vector [m, hx, hy, I_O] per link (mass by
-    units.mass_kg, first moment by mass*length, inertia by mass*length^2).  Each map R
-    satisfies ``RMS(quantity(theta)) = ||R theta||`` in normalized units.
-    """
-
-    force: np.ndarray                 # (k, 4n) RMS shaking force
-    moment: np.ndarray                # (k, 4n) RMS shaking moment
-    torque: np.ndarray = None         # (k, 4n) RMS driving torque
-    reactions: dict = None            # joint -> (k, 4n) RMS bearing force
-    theta_original: np.ndarray = None
-    force_rms_original: float = 0.0
-    force_row_basis: np.ndarray = None  # (r, 4n) orthonormal rows: force = 0 <=> rows theta = 0
-
-    @property
-    def force_null_projector(self):
-        """Return the projector onto the force map's row space (theta - P theta: balanced)."""
-        return self.force_row_basis.T @ self.force_row_basis
-
-    def terms(self, theta):
-        """Return [f~, n~, tau~, sum_j f~_j] of a normalized parameter vector."""
-        tau = 0.0 if self.torque is None else np.linalg.norm(self.torque @ theta)
-        react = 0.0 if self.reactions is None else sum(
-            np.linalg.norm(r @ theta) for r in self.reactions.values())
-        return np.array([np.linalg.norm(self.force @ theta),
-                         np.linalg.norm(self.moment @ theta), tau, react])
-
-
-def linear_maps(scene, samples=None, outputs=('shaking_wrench',), units=None):
-    """
-    Return the :class:`LinearMaps` of a planar scene over ``samples`` crank angles.
-
-    One kinematic solution is reused; the wrenches are evaluated at the 4 n unit parameter
-    vectors (they are linear in theta, seed 001 eqs. 25-26) and each stacked map is
-    compressed to its triangular QR factor.
-    """
-    units = objective_units(scene) if units is None else units
-    samples = scene.samples if samples is None else samples
-    rig = analysis.Rig(scene)
-    psi = cycle_angles(samples, scene.assembly_crank_angle_rad, links=len(scene.links))
-    outputs = set(outputs)
-    need = {'shaking_wrench'} | outputs
-    if 'bearing_reactions' in outputs:
-        need.add('driving_torque')
-    state = rig.linkage.solve(psi, None, None)
-    n = len(scene.links)
-    ms, ls, om = units.mass_kg, units.length_m, units.omega_rad_s
-    scale = np.tile([ms, ms * ls, ms * ls, ms * ls * ls], n)
-    f_unit, n_unit = ms * ls * om ** 2, ms * ls * ls * om ** 2
-    cols_f, cols_n, cols_t, cols_r = [], [], [], {}
-    gravity = complex(*scene.gravity_m_s2)
-    for k in range(4 * n):
-        e = np.zeros(4 * n)
-        e[k] = scale[k]
-        w = dynamics.inverse_dynamics(rig.linkage, state, dynamics.inertia_from_vector(e),
-                                      gravity, need)
-        f = w.shaking_force / f_unit
-        cols_f.append(np.concatenate([f.real, f.imag]))
-        cols_n.append(w.shaking_moment / n_unit)
-        if 'driving_torque' in outputs or 'bearing_reactions' in outputs:
-            cols_t.append(w.driving_torque / n_unit)
-        if 'bearing_reactions' in outputs:
-            for name, fr in w.reaction_force.items():
-                fr = fr / f_unit
-                cols_r.setdefault(name, []).append(np.concatenate([fr.real, fr.imag]))
-    root = math.sqrt(samples)
-
-    def compress(cols):
-        return np.linalg.qr(np.column_stack(cols) / root, mode='r')
-
-    force = compress(cols_f)
-    theta0 = dynamics.parameter_vector(rig.inertia) / scale
-    _, sv, vt = np.linalg.svd(force)
-    rank = int(np.sum(sv > RANK_REL_TOL * sv[0])) if sv.size and sv[0] > 0 else 0
-    rows = vt[:rank]
-    return LinearMaps(
-        force=force, moment=compress(cols_n),
-        torque=compress(cols_t) if cols_t else None,
-        reactions={k: compress(v) for k, v in cols_r.items()} if cols_r else None,
-        theta_original=theta0, force_rms_original=float(np.linalg.norm(force @ theta0)),
-        force_row_basis=rows)
-
-
 # ============================================================================ cone program
 
 
@@ -639,25 +543,6 @@ def _secondary(spec):
     if w1 == 0.0:
         return 'force'
     return None
-
-
-def solver_settings(**extra):
-    """
-    Return Clarabel's settings for every cone program of the balancing (quiet, tolerances).
-
-    ``extra``: settings to override (one entry of :data:`RETRY_SETTINGS`; ``tol_scale``
-    multiplies the tolerances).
-    """
-    extra = dict(extra)
-    tol = SOLVER_TOL * extra.pop('tol_scale', 1.0)
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
-    settings.max_iter = SOLVER_MAX_ITER
-    settings.tol_gap_abs = settings.tol_gap_rel = tol
-    settings.tol_feas = tol
-    for key, value in extra.items():
-        setattr(settings, key, value)
-    return settings
 
 
 @dataclass

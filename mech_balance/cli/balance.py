@@ -293,14 +293,19 @@ def cmd_balance(args):
     table12 = None
     if args.model == 'two-point':
         table12 = two_point.table12(sc, result.weights, args.samples)
+    from mech_balance.analysis import identify  # a calibrated scene: +-1 SE of its inertias
+    confidence = identify.balance_confidence(sc, result.balanced_scene)
     if args.json:
         out = result.to_dict()
+        out['identification_confidence'] = confidence
         out['cost'] = cw_mod.cost_of_balancing(sc, result.balanced_scene, result.table)
         if table12 is not None:
             out['two_point_model'] = table12.to_dict()
         print(json.dumps(out, indent=2))
         return exit_status(result.certificate)
     print(format_result(result, normalized=not args.si))
+    if confidence is not None:
+        print(identify.format_balance_confidence(confidence))
     if table12 is not None:
         print('\n' + format_table12(table12))
     if args.output:

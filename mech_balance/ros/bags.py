@@ -31,13 +31,18 @@ from dataclasses import dataclass
 import math
 import os
 from pathlib import Path
+import re
 import shutil
 import tempfile
+import warnings
 
-from mech_balance.ros.names import ENCODER_TOPIC, WRENCH_TOPIC
+from mech_balance.ros.names import DEFAULT_FRAME_ID, ENCODER_TOPIC, WRENCH_TOPIC
+from mech_balance.schema.fields import MAX_ABS_VALUE
 import numpy as np
 
 JOINT_STATE = 'sensor_msgs/msg/JointState'
+TF_MESSAGE = 'tf2_msgs/msg/TFMessage'
+TF_STATIC_TOPIC = '/tf_static'
 WRENCH_STAMPED = 'geometry_msgs/msg/WrenchStamped'
 STORAGES = ('mcap', 'sqlite3')
 """rosbag2 storage plugins written and read (both Jazzy defaults)."""
@@ -50,6 +55,20 @@ CSV_OPTIONAL = ('force_z_N', 'torque_x_Nm', 'torque_y_Nm', 'crank_effort_Nm')
 WRENCH_COLUMNS = ('force_x_N', 'force_y_N', 'force_z_N', 'torque_x_Nm', 'torque_y_Nm',
                   'torque_z_Nm')
 """Order of the six wrench components in :attr:`Recording.wrench`."""
+MAX_SAMPLES = 2_000_000
+"""Most samples per stream (33 min at 1 kHz): the arrays of a recording stay below about
+160 MiB (encoder 2, wrench 6 float64 columns, stamps int64)."""
+MAX_CSV_BYTES = 400 * 2 ** 20
+"""Largest CSV file read (MAX_SAMPLES rows of nine full-precision numbers)."""
+MAX_LINE_CHARS = 4096
+"""Longest CSV line (a row of numbers is under 300 characters)."""
+MAX_FIELD_CHARS = 64
+"""Longest CSV field (a full-precision float is under 25 characters)."""
+_LONG_FIELD = re.compile('[^,\n]{%d,}' % (MAX_FIELD_CHARS + 1))
+CSV_CHUNK_ROWS = 20000
+"""CSV data lines parsed and checked at once (numpy), at most a few MiB of text."""
+MAX_T_S = 9.2e9
+"""Largest |t_s| in a CSV (int64 nanoseconds)."""
 
 
 class RecordingError(ValueError):
@@ -69,6 +88,7 @@ class Recording:
     frame_id: str
     t0_ns: int
     source: str
+    sensor_tf: tuple = None        # (x, y, z, roll, pitch, yaw, parent, child) from /tf_static
 
     @property
     def planar_wrench(self):
@@ -82,12 +102,14 @@ def _typestore():
 
 
 def read(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint=None,
-         progress=None, default_joint=None):
+         progress=None, default_joint=None, rig_frame=DEFAULT_FRAME_ID):
     """
     Return the :class:`Recording` of a rosbag2 directory (or its file) or a CSV file.
 
     Without ``joint`` the encoder's joint is ``default_joint`` (the scene's crank joint) if
-    the JointState carries it, else its only joint.
+    the JointState carries it, else its only joint.  Every bad recording raises one
+    :class:`RecordingError` naming the file, the topic or column, the record or row and
+    what was expected (module docstring, *Refusals*).
     """
     p = Path(path)
     if not p.exists():
@@ -95,7 +117,8 @@ def read(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint=Non
                              'rosbag2 directory or a .csv file')
     if p.suffix.lower() == '.csv':
         return read_csv(p, joint=joint or default_joint)
-    return read_bag(p, encoder_topic, wrench_topic, joint, progress, default_joint)
+    return read_bag(p, encoder_topic, wrench_topic, joint, progress, default_joint,
+                    rig_frame)
 
 
 def _bag_dir(p):
@@ -108,29 +131,112 @@ def _bag_dir(p):
                          'metadata.yaml) or a .csv file')
 
 
-def _stamp_ns(header):
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+def _stamp_ns(header, topic, k):
+    sec, nsec = int(header.stamp.sec), int(header.stamp.nanosec)
+    if not 0 <= nsec < 1_000_000_000:
+        raise RecordingError(f'{topic}: message {k}: header.stamp.nanosec = {nsec}, expected '
+                             '0 <= nanosec < 1e9')
+    return sec * 1_000_000_000 + nsec
+
+
+def _check_metadata(bag):
+    """Parse metadata.yaml with the package's bounded reader before rosbags sees it."""
+    from mech_balance.schema import safe_yaml
+    label = f'--bag: {str(bag / "metadata.yaml")!r}'
+    data = safe_yaml.load_file(bag / 'metadata.yaml', label, RecordingError)
+    if not isinstance(data, dict) or not isinstance(data.get('rosbag2_bagfile_information'),
+                                                    dict):
+        raise RecordingError(f'{label}: expected a mapping with rosbag2_bagfile_information')
+
+
+class _Growing:
+    """Columns of float64 samples appended one row at a time, in doubling numpy buffers."""
+
+    def __init__(self, width, what):
+        self.rows = np.empty((1024, width))
+        self.stamps = np.empty(1024, dtype=np.int64)
+        self.n = 0
+        self.what = what
+
+    def add(self, stamp_ns, row):
+        if self.n == self.rows.shape[0]:
+            if self.n >= MAX_SAMPLES:
+                raise RecordingError(f'{self.what}: more than {MAX_SAMPLES} samples, expected '
+                                     f'at most {MAX_SAMPLES} (bags.MAX_SAMPLES, about '
+                                     f'{MAX_SAMPLES * 80 // 2 ** 20} MiB)')
+            grow = min(2 * self.n, MAX_SAMPLES)
+            self.rows = np.resize(self.rows, (grow, self.rows.shape[1]))
+            self.stamps = np.resize(self.stamps, grow)
+        self.rows[self.n] = row
+        self.stamps[self.n] = stamp_ns
+        self.n += 1
+
+    def extend(self, stamps_ns, rows):
+        need = self.n + len(stamps_ns)
+        if need > MAX_SAMPLES:
+            raise RecordingError(f'{self.what}: more than {MAX_SAMPLES} samples, expected '
+                                 f'at most {MAX_SAMPLES} (bags.MAX_SAMPLES, about '
+                                 f'{MAX_SAMPLES * 80 // 2 ** 20} MiB)')
+        if need > self.rows.shape[0]:
+            grow = min(max(2 * self.rows.shape[0], need), MAX_SAMPLES)
+            self.rows = np.resize(self.rows, (grow, self.rows.shape[1]))
+            self.stamps = np.resize(self.stamps, grow)
+        self.rows[self.n:need] = rows
+        self.stamps[self.n:need] = stamps_ns
+        self.n = need
+
+    def arrays(self):
+        return self.stamps[:self.n].copy(), self.rows[:self.n].copy()
+
+
+def _check_values(values, what, names):
+    """Refuse non-finite or implausible values, naming the record and the field."""
+    bad = ~np.isfinite(values) | (np.abs(values) > MAX_ABS_VALUE)
+    if bad.any():
+        k, c = (int(v[0]) for v in np.nonzero(bad))
+        raise RecordingError(f'{what} {k}: {names[c]} = {float(values[k, c])!r}, expected a '
+                             f'finite value of magnitude at most {MAX_ABS_VALUE:g}')
+
+
+def _check_increasing(stamps_ns, what):
+    """Refuse stamps that do not increase (never sorted silently)."""
+    d = np.diff(stamps_ns)
+    if (d <= 0).any():
+        k = int(np.flatnonzero(d <= 0)[0]) + 1
+        raise RecordingError(f'{what} {k}: stamp {stamps_ns[k] * 1e-9:.9f} s is not after '
+                             f'the previous {stamps_ns[k - 1] * 1e-9:.9f} s, expected '
+                             'increasing stamps (the recording is not sorted here)')
 
 
 def read_bag(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint=None,
-             progress=None, default_joint=None):
+             progress=None, default_joint=None, rig_frame=DEFAULT_FRAME_ID):
     """
     Return the :class:`Recording` of a rosbag2 recording (MCAP or sqlite3 storage).
 
     ``joint``: the crank's name in the JointState (None: ``default_joint`` if the message
-    carries it, else the only name it carries).
-    ``progress(text)`` is called every :data:`PROGRESS_EVERY` messages.
+    carries it, else the only name it carries).  ``progress(text)`` is called every
+    :data:`PROGRESS_EVERY` messages.  ``/tf_static`` (:data:`TF_STATIC_TOPIC`), when
+    recorded, gives the pose of the wrench's frame in ``rig_frame``
+    (:attr:`Recording.sensor_tf`).
     """
-    from rosbags.rosbag2 import Reader
-    from rosbags.rosbag2.errors import ReaderError
     bag = _bag_dir(Path(path))
-    store = _typestore()
+    _check_metadata(bag)
     try:
-        reader = Reader(bag)
-        reader.open()
-    except (ReaderError, KeyError, ValueError) as exc:
+        return _read_bag(bag, encoder_topic, wrench_topic, joint, progress, default_joint,
+                         rig_frame)
+    except RecordingError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a corrupt file: any reader error is the file's
         raise RecordingError(f'--bag: {str(bag)!r} is not a readable rosbag2 recording '
-                             f'({exc})') from None
+                             f'({type(exc).__name__}: {str(exc)[:200]}), expected an intact '
+                             'MCAP or sqlite3 bag') from None
+
+
+def _read_bag(bag, encoder_topic, wrench_topic, joint, progress, default_joint, rig_frame):
+    from rosbags.rosbag2 import Reader
+    store = _typestore()
+    reader = Reader(bag)
+    reader.open()
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
         for option, topic, msgtype in (('--encoder-topic', encoder_topic, JOINT_STATE),
@@ -142,45 +248,86 @@ def read_bag(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint
             if topics[topic] != msgtype:
                 raise RecordingError(f'{option}: topic {topic!r} carries {topics[topic]}, '
                                      f'expected {msgtype}')
-        conns = [c for c in reader.connections if c.topic in (encoder_topic, wrench_topic)]
-        total = sum(c.msgcount for c in conns)
-        enc_t, enc_pos, enc_eff, w_t, w = [], [], [], [], []
+        wanted = (encoder_topic, wrench_topic, TF_STATIC_TOPIC)
+        conns = [c for c in reader.connections if c.topic in wanted
+                 and (c.topic != TF_STATIC_TOPIC or c.msgtype == TF_MESSAGE)]
+        total = max(sum(c.msgcount for c in conns), 1)
+        enc = _Growing(2, f'{encoder_topic}: message')
+        wr = _Growing(6, f'{wrench_topic}: message')
         frame_ids = set()
-        names = None
-        index = None
-        for count, (conn, _, raw) in enumerate(reader.messages(connections=conns), 1):
-            msg = store.deserialize_cdr(raw, conn.msgtype)
-            if conn.topic == encoder_topic:
+        names, index, with_effort = None, None, None
+        tf = []
+        counts = {encoder_topic: 0, wrench_topic: 0, TF_STATIC_TOPIC: 0}
+        messages = reader.messages(connections=conns)
+        count = 0
+        while True:
+            try:
+                item = next(messages)
+            except StopIteration:
+                break
+            except Exception as exc:  # noqa: BLE001 - truncated or corrupt storage
+                raise RecordingError(
+                    f'--bag: {str(bag)!r}: unreadable after {count} messages '
+                    f'({type(exc).__name__}: {str(exc)[:200]}), expected an intact recording '
+                    '(truncated or corrupt?)') from None
+            conn, _, raw = item
+            count += 1
+            k = counts[conn.topic]
+            counts[conn.topic] += 1
+            try:
+                msg = store.deserialize_cdr(raw, conn.msgtype)
+            except Exception as exc:  # noqa: BLE001 - any undecodable payload
+                raise RecordingError(
+                    f'--bag: {str(bag)!r}: topic {conn.topic} message {k}: undecodable '
+                    f'{conn.msgtype} payload ({type(exc).__name__}: {str(exc)[:120]}), '
+                    'expected a CDR-serialized message') from None
+            if conn.topic == TF_STATIC_TOPIC:
+                tf.extend(msg.transforms)
+            elif conn.topic == encoder_topic:
                 if names != list(msg.name):
                     names = list(msg.name)
                     index = _joint_index(names, joint, encoder_topic, default_joint)
                 if len(msg.position) <= index:
-                    raise RecordingError(f'{encoder_topic}: a JointState without a position '
-                                         f'for joint {names[index]!r}, expected one')
-                enc_t.append(_stamp_ns(msg.header))
-                enc_pos.append(float(msg.position[index]))
-                enc_eff.append(float(msg.effort[index]) if len(msg.effort) > index
-                               else math.nan)
+                    raise RecordingError(f'{encoder_topic}: message {k}: no position for '
+                                         f'joint {names[index]!r}, expected one')
+                has = len(msg.effort) > index
+                if with_effort is None:
+                    with_effort = has
+                elif has != with_effort:
+                    raise RecordingError(f'{encoder_topic}: message {k}: effort '
+                                         + ('given' if has else 'missing')
+                                         + ' for the crank, expected it in every message or '
+                                           'in none')
+                enc.add(_stamp_ns(msg.header, encoder_topic, k),
+                        (float(msg.position[index]),
+                         float(msg.effort[index]) if has else 0.0))
             else:
-                wr = msg.wrench
-                w_t.append(_stamp_ns(msg.header))
-                w.append((wr.force.x, wr.force.y, wr.force.z,
-                          wr.torque.x, wr.torque.y, wr.torque.z))
+                w = msg.wrench
+                wr.add(_stamp_ns(msg.header, wrench_topic, k),
+                       (w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z))
                 frame_ids.add(msg.header.frame_id)
             if progress is not None and count % PROGRESS_EVERY == 0:
                 progress(f'  read {count} of {total} messages ({100.0 * count / total:.0f}%)')
     finally:
         reader.close()
-    for option, topic, got in (('--encoder-topic', encoder_topic, enc_t),
-                               ('--wrench-topic', wrench_topic, w_t)):
+    for option, topic, got in (('--encoder-topic', encoder_topic, enc.n),
+                               ('--wrench-topic', wrench_topic, wr.n)):
         if not got:
             raise RecordingError(f'{option}: topic {topic!r} has no messages in {bag}, '
                                  'expected the recorded samples')
-    eff = np.array(enc_eff)
-    return _recording(np.array(enc_t, dtype=np.int64), np.array(enc_pos),
-                      None if np.isnan(eff).any() else eff, np.array(w_t, dtype=np.int64),
-                      np.array(w, dtype=float).reshape(-1, 6), names[index],
-                      ','.join(sorted(frame_ids)), str(bag))
+    enc_t, enc_v = enc.arrays()
+    w_t, w_v = wr.arrays()
+    _check_values(enc_v[:, :1 + bool(with_effort)], f'{encoder_topic}: message',
+                  ('position', 'effort'))
+    _check_values(w_v, f'{wrench_topic}: message',
+                  ('force.x', 'force.y', 'force.z', 'torque.x', 'torque.y', 'torque.z'))
+    _check_increasing(enc_t, f'{encoder_topic}: message')
+    _check_increasing(w_t, f'{wrench_topic}: message')
+    frame_id = ','.join(sorted(frame_ids))
+    rec = _recording(enc_t, enc_v[:, 0], enc_v[:, 1] if with_effort else None, w_t, w_v,
+                     names[index], frame_id, str(bag))
+    rec.sensor_tf = _sensor_tf(tf, rig_frame, frame_ids)
+    return rec
 
 
 def _joint_index(names, joint, topic, default_joint=None):
@@ -198,24 +345,61 @@ def _joint_index(names, joint, topic, default_joint=None):
 
 
 def _recording(enc_ns, pos, eff, w_ns, wrench, joint, frame_id, source):
-    order = np.argsort(enc_ns, kind='stable')
-    w_order = np.argsort(w_ns, kind='stable')
+    """Return the :class:`Recording` of checked (increasing) stamps, from the earliest."""
     t0 = int(min(enc_ns.min(), w_ns.min()))
-    return Recording(encoder_t_s=(enc_ns[order] - t0) * 1e-9, position_rad=pos[order],
-                     effort_Nm=None if eff is None else eff[order],
-                     wrench_t_s=(w_ns[w_order] - t0) * 1e-9, wrench=wrench[w_order],
+    return Recording(encoder_t_s=(enc_ns - t0) * 1e-9, position_rad=pos,
+                     effort_Nm=eff, wrench_t_s=(w_ns - t0) * 1e-9, wrench=wrench,
                      joint=joint, frame_id=frame_id, t0_ns=t0, source=source)
+
+
+def _quat_rpy(x, y, z, w):
+    """Return (roll, pitch, yaw) of a unit quaternion (R = Rz(yaw) Ry(pitch) Rx(roll))."""
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not (math.isfinite(norm) and norm > 0.5):
+        raise RecordingError(f'{TF_STATIC_TOPIC}: rotation ({x}, {y}, {z}, {w}), expected a '
+                             'unit quaternion')
+    x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+def _sensor_tf(transforms, rig_frame, frame_ids):
+    """
+    Return the wrench frame's pose in ``rig_frame`` from /tf_static, or None.
+
+    ``(x, y, z, roll, pitch, yaw, parent, child)`` of the transform whose header.frame_id is
+    the rig frame and whose child_frame_id is the wrench's frame_id (one frame_id only).
+    """
+    if len(frame_ids) != 1:
+        return None
+    child = next(iter(frame_ids))
+    if not child or child == rig_frame:
+        return None
+    for tr in transforms:
+        if tr.header.frame_id == rig_frame and tr.child_frame_id == child:
+            t, r = tr.transform.translation, tr.transform.rotation
+            xyz = (float(t.x), float(t.y), float(t.z))
+            if not all(math.isfinite(v) and abs(v) <= MAX_ABS_VALUE for v in xyz):
+                raise RecordingError(f'{TF_STATIC_TOPIC}: {rig_frame} -> {child} translation '
+                                     f'{xyz}, expected finite metres')
+            return (*xyz, *_quat_rpy(float(r.x), float(r.y), float(r.z), float(r.w)),
+                    rig_frame, child)
+    return None
 
 
 def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='O1',
               encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, frame_id='rig',
-              extra_joints=()):
+              extra_joints=(), tf_static=None):
     """
     Write encoder and wrench samples as a rosbag2 recording (``storage`` mcap or sqlite3).
 
     ``t_ns`` (int nanoseconds) stamps both streams; ``wrench`` is ``(n, 6)`` or ``(n, 3)``
     planar [f_x, f_y, n_z]; ``extra_joints`` are more joint names in the JointState (at
-    position 0), to exercise the joint selection.  Written atomically: into a temporary
+    position 0), to exercise the joint selection; ``tf_static`` ``(parent, (x, y, z),
+    (qx, qy, qz, qw))`` adds one /tf_static message: the pose of ``frame_id`` (the wrench's
+    frame) in ``parent``.  Written atomically: into a temporary
     directory beside ``path``, then renamed; ``path`` must not exist.
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -241,6 +425,18 @@ def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='
         with Writer(out, version=BAG_VERSION, storage_plugin=plugin) as writer:
             c_enc = writer.add_connection(encoder_topic, JOINT_STATE, typestore=store)
             c_w = writer.add_connection(wrench_topic, WRENCH_STAMPED, typestore=store)
+            if tf_static is not None:
+                parent, xyz, quat = tf_static
+                sec, nsec = divmod(int(t_ns[0]), 1_000_000_000)
+                tr = types['geometry_msgs/msg/TransformStamped'](
+                    header=header_t(stamp=time_t(sec=sec, nanosec=nsec), frame_id=parent),
+                    child_frame_id=frame_id, transform=types['geometry_msgs/msg/Transform'](
+                        translation=vec_t(x=xyz[0], y=xyz[1], z=xyz[2]),
+                        rotation=types['geometry_msgs/msg/Quaternion'](
+                            x=quat[0], y=quat[1], z=quat[2], w=quat[3])))
+                c_tf = writer.add_connection(TF_STATIC_TOPIC, TF_MESSAGE, typestore=store)
+                writer.write(c_tf, int(t_ns[0]), store.serialize_cdr(
+                    types[TF_MESSAGE](transforms=[tr]), TF_MESSAGE))
             for k, stamp in enumerate(t_ns):
                 sec, nsec = divmod(int(stamp), 1_000_000_000)
                 hdr = header_t(stamp=time_t(sec=sec, nanosec=nsec), frame_id=frame_id)
@@ -294,28 +490,194 @@ def write_csv(path, t_s, position_rad, wrench, effort_Nm=None):
     return path
 
 
+def _csv_lines(fh, label):
+    """Yield ``(line number, text)`` of a CSV file, each line bounded by MAX_LINE_CHARS."""
+    number = 0
+    while True:
+        number += 1
+        try:
+            line = fh.readline(MAX_LINE_CHARS + 1)
+        except UnicodeDecodeError as exc:
+            raise RecordingError(f'{label}: line {number}: byte {exc.object[exc.start]:#04x} '
+                                 'is not UTF-8, expected a text file of numbers') from None
+        if not line:
+            return
+        if len(line) > MAX_LINE_CHARS and not line.endswith('\n'):
+            raise RecordingError(f'{label}: line {number}: longer than {MAX_LINE_CHARS} '
+                                 'characters, expected a row of numbers (bags.MAX_LINE_CHARS)')
+        if '\x00' in line:
+            raise RecordingError(f'{label}: line {number}: a NUL byte, expected a text file '
+                                 'of numbers (a binary file?)')
+        yield number, line
+
+
 def read_csv(path, joint=None):
-    """Return the :class:`Recording` of a CSV file (columns: this module's docstring)."""
+    """
+    Return the :class:`Recording` of a CSV file (columns: this module's docstring).
+
+    Streamed within :data:`MAX_SAMPLES` rows (the file at most :data:`MAX_CSV_BYTES`, a line
+    :data:`MAX_LINE_CHARS`, a field :data:`MAX_FIELD_CHARS` characters); every bad row,
+    column or value is refused naming the line and the column.
+    """
     path = Path(path)
-    with open(path, newline='') as fh:
-        rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith('#')]
-    if not rows:
-        raise RecordingError(f'--bag: {str(path)!r} is empty, expected a header line with '
-                             + ', '.join(CSV_REQUIRED))
-    head = [h.strip() for h in rows[0]]
-    missing = [c for c in CSV_REQUIRED if c not in head]
-    if missing:
-        raise RecordingError(f'--bag: {str(path)!r} has no column {", ".join(missing)}; '
-                             f'expected the columns {", ".join(CSV_REQUIRED)}')
+    label = f'--bag: {str(path)!r}'
     try:
-        values = np.array([[float(v) for v in r] for r in rows[1:]], dtype=float)
-    except ValueError as exc:
-        raise RecordingError(f'--bag: {str(path)!r}: {exc}, expected numbers') from None
-    if values.ndim != 2 or values.shape[0] == 0 or values.shape[1] != len(head):
-        raise RecordingError(f'--bag: {str(path)!r}: expected rows of {len(head)} numbers')
-    col = {h: values[:, i] for i, h in enumerate(head)}
+        size = path.stat().st_size
+    except OSError as exc:
+        raise RecordingError(f'{label}: cannot be read ({exc.strerror})') from None
+    if not path.is_file():
+        raise RecordingError(f'{label}: not a regular file, expected a .csv file')
+    if size > MAX_CSV_BYTES:
+        raise RecordingError(f'{label}: {size} bytes, expected at most {MAX_CSV_BYTES} '
+                             f'(bags.MAX_CSV_BYTES, {MAX_SAMPLES} rows)')
+    try:
+        fh = open(path, newline='', encoding='utf-8-sig', errors='strict')
+    except OSError as exc:
+        raise RecordingError(f'{label}: cannot be read ({exc.strerror})') from None
+    with fh:
+        head, store = None, None
+        chunk = []
+        for number, line in _csv_lines(fh, label):
+            if not line.strip() or line.lstrip().startswith('#'):
+                continue
+            if head is None:
+                head, store = _csv_header(_csv_split([line], [number], label)[0], label,
+                                          number)
+                continue
+            chunk.append((number, line))
+            if len(chunk) == CSV_CHUNK_ROWS:
+                _csv_chunk(chunk, head, label, store)
+                chunk = []
+        if chunk:
+            _csv_chunk(chunk, head, label, store)
+    if head is None:
+        raise RecordingError(f'{label}: is empty, expected a header line with '
+                             + ', '.join(CSV_REQUIRED))
+    if not store.n:
+        raise RecordingError(f'{label}: a header and no rows, expected samples')
+    t_ns, values = store.arrays()
+    col = {h: values[:, i] for i, h in enumerate(head[1:])}
     n = values.shape[0]
     wrench = np.column_stack([col.get(c, np.zeros(n)) for c in WRENCH_COLUMNS])
-    t_ns = np.round(col['t_s'] * 1e9).astype(np.int64)
     return _recording(t_ns, col['crank_position_rad'], col.get('crank_effort_Nm'), t_ns,
                       wrench, joint or 'crank', '', str(path))
+
+
+def _csv_split(lines, numbers, label):
+    """Return the fields of CSV lines (the csv module), naming the line of a csv error."""
+    try:
+        return list(csv.reader(lines))
+    except csv.Error:
+        for number, line in zip(numbers, lines):
+            try:
+                next(csv.reader([line]))
+            except csv.Error as exc:
+                raise RecordingError(f'{label}: line {number}: {exc}, expected '
+                                     'comma-separated numbers') from None
+        raise
+
+
+def _csv_chunk(chunk, head, label, store):
+    """
+    Parse and check a chunk of CSV data lines into ``store`` (vectorized).
+
+    numpy parses the whole chunk at once (``fromstring``); when anything is off (a ragged
+    row, a quoted, long or non-numeric field) :func:`_csv_row` parses it row by row with the
+    csv module, and names the line and the column of the first bad field.
+    """
+    numbers = [n for n, _ in chunk]
+    lines = [ln for _, ln in chunk]
+    text = ''.join(lines)
+    values = None
+    if not _LONG_FIELD.search(text) and '"' not in text and \
+            all(ln.count(',') == len(head) - 1 for ln in lines):
+        with warnings.catch_warnings():
+            warnings.simplefilter('error')
+            try:
+                flat = np.fromstring(text.replace(',', ' '), sep=' ')
+            except (ValueError, DeprecationWarning):
+                flat = None
+        if flat is not None and flat.size == len(lines) * len(head):
+            values = flat.reshape(len(lines), len(head))[:, head.index]
+    if values is None:
+        previous = store.stamps[store.n - 1] if store.n else None
+        for number, row in zip(numbers, _csv_split(lines, numbers, label)):
+            stamp, row_values = _csv_row(row, number, head, label, previous)  # raises
+            store.add(stamp, row_values)
+            previous = stamp
+        return
+    limits = np.where(np.array(head) == 't_s', MAX_T_S, MAX_ABS_VALUE)
+    bad = ~np.isfinite(values) | (np.abs(values) > limits)
+    if bad.any():
+        k, c = (int(v[0]) for v in np.nonzero(bad))
+        raise RecordingError(f'{label}: line {numbers[k]}, column {head[c]}: got '
+                             f'{float(values[k, c])!r}, expected a finite number of magnitude '
+                             f'at most {limits[c]:g}')
+    stamps = np.round(values[:, 0] * 1e9).astype(np.int64)
+    prev = np.concatenate([[store.stamps[store.n - 1]] if store.n else [np.iinfo(np.int64).min],
+                           stamps[:-1]])
+    late = stamps <= prev
+    if late.any():
+        k = int(np.flatnonzero(late)[0])
+        raise RecordingError(f'{label}: line {numbers[k]}, column t_s: {values[k, 0]!r} is not '
+                             f"after the previous row's {prev[k] * 1e-9!r}, expected "
+                             'increasing times (rows are not sorted here)')
+    store.extend(stamps, values[:, 1:])
+
+
+def _csv_row(row, number, head, label, previous):
+    """Return ``(stamp ns, values)`` of one CSV row, or raise naming its line and column."""
+    if len(row) != len(head):
+        raise RecordingError(f'{label}: line {number}: {len(row)} fields, expected '
+                             f"{len(head)} (the header's columns)")
+    values = []
+    for name, v in zip(head, (row[i] for i in head.index)):
+        if len(v) > MAX_FIELD_CHARS:
+            raise RecordingError(f'{label}: line {number}, column {name}: a field of '
+                                 f'{len(v)} characters, expected a number of at most '
+                                 f'{MAX_FIELD_CHARS} (bags.MAX_FIELD_CHARS)')
+        try:
+            x = float(v)
+        except ValueError:
+            raise RecordingError(f'{label}: line {number}, column {name}: got '
+                                 f'{v.strip()[:40]!r}, expected a number') from None
+        limit = MAX_T_S if name == 't_s' else MAX_ABS_VALUE
+        if not (math.isfinite(x) and abs(x) <= limit):
+            raise RecordingError(f'{label}: line {number}, column {name}: got {x!r}, '
+                                 f'expected a finite number of magnitude at most {limit:g}')
+        values.append(x)
+    stamp = int(round(values[0] * 1e9))
+    if previous is not None and stamp <= previous:
+        raise RecordingError(f'{label}: line {number}, column t_s: {values[0]!r} is not after '
+                             f"the previous row's {previous * 1e-9!r}, expected increasing "
+                             'times (rows are not sorted here)')
+    return stamp, values[1:]
+
+
+def _csv_header(row, label, number):
+    """Return (the columns with t_s first, the sample store) of a header row."""
+    head = [h.strip() for h in row]
+    known = CSV_REQUIRED + CSV_OPTIONAL
+    seen = set()
+    for h in head:
+        if h in seen:
+            raise RecordingError(f'{label}: line {number}: column {h!r} given twice, expected '
+                                 'each column once')
+        seen.add(h)
+        if h not in known:
+            raise RecordingError(f'{label}: line {number}: unknown column {h[:40]!r}, '
+                                 f'expected columns of {", ".join(known)}')
+    missing = [c for c in CSV_REQUIRED if c not in head]
+    if missing:
+        raise RecordingError(f'{label}: has no column {", ".join(missing)}; expected the '
+                             f'columns {", ".join(CSV_REQUIRED)}')
+    order = ['t_s'] + [h for h in head if h != 't_s']
+    return _Reordered(head, order), _Growing(len(order) - 1, f'{label}: row')
+
+
+class _Reordered(list):
+    """The header's columns in t_s-first order, mapping each row to that order."""
+
+    def __init__(self, head, order):
+        super().__init__(order)
+        self.index = [head.index(c) for c in order]

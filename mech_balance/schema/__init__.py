@@ -9,7 +9,8 @@ The public face of the schema layer::
 
 The planar schema is documented in the README (section *Scenes*) and enforced by
 :mod:`mech_balance.schema.scene`; the RGGR's by :mod:`mech_balance.schema.rggr`; ``drive:``
-by :mod:`mech_balance.schema.drive`; the field checks all of them share are in
+by :mod:`mech_balance.schema.drive`; ``identification:`` by
+:mod:`mech_balance.schema.identification`; the field checks all of them share are in
 :mod:`mech_balance.schema.fields`; the kinds are registered in
 :mod:`mech_balance.schema.registry`.  Every error is a :class:`SceneError` (a
 ``ValueError``) naming the field, the bad value and what was expected.
@@ -27,6 +28,9 @@ _LAZY = {
     'DriveError': 'drive',
     'FRAME': 'scene',
     'from_dict': 'registry',
+    'identification_from_dict': 'identification',
+    'identification_to_dict': 'identification',
+    'IdentificationError': 'identification',
     'INERTIA_ROUNDOFF': 'scene',
     'Joint': 'scene',
     'kind_of': 'registry',

@@ -302,6 +302,7 @@ class Scene:
     kind: str = 'planar'
     recording: Recording = Recording()
     drive: dict = None  # motor, speed loop and damping for `mech-balance simulate`
+    identification: dict = None  # what `mech-balance identify` found (schema.identification)
 
     def link(self, name):
         """Return the link called ``name``."""
@@ -391,7 +392,7 @@ def load_data(name_or_path):
 _TOP_KEYS = {
     'schema_version', 'name', 'description', 'kind', 'normalization', 'crank', 'gravity_m_s2',
     'frame', 'links', 'joints', 'assembly', 'outputs', 'samples', 'notes', 'recording',
-    'balance', 'drive',
+    'balance', 'drive', 'identification',
 }
 
 
@@ -496,6 +497,10 @@ def planar_from_dict(data, source='<dict>'):
         recording=_recording(data.get('recording', {})), drive=data.get('drive'))
     if sc.drive is not None:  # checked now, used by `mech-balance simulate`
         drive_from_dict(sc.drive, sc)
+    if 'identification' in data:  # written by `mech-balance identify --output`
+        from mech_balance.schema.identification import identification_from_dict
+        sc = replace(sc, identification=identification_from_dict(
+            data['identification'], [lk.name for lk in links]))
     return sc
 
 
@@ -555,6 +560,9 @@ def planar_to_dict(scene):
         data['recording'] = recording_to_dict(scene.recording)
     if scene.drive is not None:
         data['drive'] = scene.drive
+    if scene.identification is not None:
+        from mech_balance.schema.identification import identification_to_dict
+        data['identification'] = identification_to_dict(scene.identification)
     return data
 
 
