@@ -10,6 +10,7 @@ realizability of every printed design are checked too.
 from mech_balance import schema as scene
 from mech_balance.balancing import paper_tables as seed_tables, socp as balancing
 from mech_balance.core import equimomental
+from mech_balance.core.planar import dynamics
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -111,8 +112,8 @@ def test_certificate_bounds_random_feasible_designs(hoeken):
     m0, l0 = t0[:, 0], np.sqrt(t0[:, 3] / t0[:, 0])
     rng = np.random.default_rng(7)
     best = np.inf
-    theta_opt = balancing.dynamics.parameter_vector(
-        balancing.dynamics.Inertia.from_links(result.balanced_scene.links))
+    theta_opt = dynamics.parameter_vector(
+        dynamics.Inertia.from_links(result.balanced_scene.links))
     units = hoeken.normalization
     scale = np.tile([units.mass_kg, units.mass_kg * units.length_m,
                      units.mass_kg * units.length_m, units.mass_kg * units.length_m ** 2], 3)

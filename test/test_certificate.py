@@ -15,6 +15,7 @@ from mech_balance import schema as scene
 from mech_balance.balancing import certificate, counterweights as cw, defaults, rggr, \
     socp as balancing, two_point
 from mech_balance.cli import main as cli
+from mech_balance.core.planar import dynamics
 import numpy as np
 import pytest
 import scipy.optimize
@@ -237,8 +238,8 @@ def test_no_case_claims_a_bound_above_a_design_of_another_case(hoeken_grid):
     for (ki, ri), (kj, rj) in itertools.product(grid.items(), repeat=2):
         if ki == kj or not _satisfies(ri, rj.options, sc):
             continue
-        theta = balancing.dynamics.parameter_vector(
-            balancing.dynamics.Inertia.from_links(ri.balanced_scene.links))
+        theta = dynamics.parameter_vector(
+            dynamics.Inertia.from_links(ri.balanced_scene.links))
         u = rj.units
         theta = theta / np.tile([u.mass_kg, u.mass_kg * u.length_m, u.mass_kg * u.length_m,
                                  u.mass_kg * u.length_m ** 2], len(sc.links))
