@@ -147,7 +147,10 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
     q_u = q_gen[linkage.unknown_rows]
     if linkage.has_pri:
         q_u = q_u * linkage.col_scale[:, None]
-    lam_scaled = _matvec_t(state.jac_inv, q_u)
+    if state.jac_factors is not None:
+        lam_scaled = state.jac_factors.solve_t(q_u)
+    else:
+        lam_scaled = _matvec_t(state.jac_inv, q_u)
     lam = lam_scaled * linkage.row_scale[:, None]
     tau = q_gen[0] - np.einsum('ip,ip->p', state.jac[:, 0, :], lam_scaled)
     out.driving_torque = tau

@@ -163,6 +163,7 @@ class KinematicState:
     acc: np.ndarray = None     # (nb, p) complex acceleration of each link origin, m/s^2
     jac_inv: np.ndarray = None  # (nu, m, p) inverse of the scaled Jacobian J_u
     jac: np.ndarray = None      # (m, nt, p) scaled loop Jacobian over all tree coordinates
+    jac_factors: object = None  # smallsolve.Factored of J_u (solves without the inverse)
 
     @property
     def size(self):
@@ -533,8 +534,16 @@ class Linkage:
                 'each, which selects the assembly mode (branch)')
         cs = self.col_scale[:, None]
         if self.nu > 2:
-            self.pivots = smallsolve.pivot_order(self.jacobian(self.pose(q))[:, self.unknown, 0])
-            self.lu = smallsolve.LUPlan(self._jacobian_pattern(), self.pivots)
+            # the static order of the loop Jacobian: block triangular (the Assur groups in
+            # dependency order), pivots inside the blocks from the assembly guess
+            sample = self.jacobian(self.pose(q))[:, self.unknown, 0]
+            pattern = self._jacobian_pattern()
+            order = smallsolve.block_triangular_order(pattern, sample)
+            if order is None:
+                self.pivots, cols = smallsolve.pivot_order(sample), None
+            else:
+                self.pivots, cols = order
+            self.lu = smallsolve.LUPlan(pattern, self.pivots, cols)
         for _ in range(ASSEMBLY_MAX_ITER):
             pose = self.pose(q)
             g = self.residual(pose)
@@ -579,13 +588,15 @@ class Linkage:
         if jac is None:
             jac = self.jacobian(pose)
         unknown = self.unknown_rows
-        jinv, cond, sign = smallsolve.inverse(jac[:, unknown], self.lu, with_sign=True)
+        fac = smallsolve.Factored(jac[:, unknown], self.lu)
+        jinv, cond = fac.inverse()
+        sign = fac.sign()
         scale_d = -self.col_scale[:, None] * psi_d if self.has_pri else -psi_d
         jac_psi = jac[:, 0]
         qd = np.empty((self.nt, p))
         qd[0] = psi_d
         # q_u' = -J_u^-1 J_psi psi' (seed 000 eq. 32, generalized)
-        qd[unknown] = _matvec(jinv, jac_psi)
+        qd[unknown] = fac.solve(jac_psi)
         qd[unknown] *= scale_d
         omega = self.anc_rev @ qd
         origin, J = pose.origin, pose.joint_at
@@ -596,7 +607,7 @@ class Linkage:
         if self.has_pri:
             vel += _rmat(self.anc_pri, qd * pose.axis)
         out = {'qd': qd, 'omega': omega, 'vel': vel, 'jac_inv': jinv, 'cond': cond, 'jac': jac,
-               'det_sign': sign}
+               'det_sign': sign, 'jac_factors': fac}
         if not need_acc:
             return out
         # velocity-product part of the link accelerations (all joint accelerations zero):
@@ -617,7 +628,7 @@ class Linkage:
         qdd = np.empty((self.nt, p))
         qdd[0] = psi_dd
         # J_u q_u'' = -(gamma + J_psi psi'')
-        qdd[unknown] = _matvec(jinv, gamma)
+        qdd[unknown] = fac.solve(gamma)
         qdd[unknown] *= -self.col_scale[:, None] if self.has_pri else -1.0
         alpha = self.anc_rev @ qdd
         acc = alpha * origin
@@ -833,6 +844,7 @@ class Linkage:
         state = KinematicState(psi, speed_p, accel_p, q, pose, res, r['cond'], iters)
         if need_rates:
             state.jac_inv, state.jac = r['jac_inv'], r['jac']
+            state.jac_factors = r['jac_factors']
             state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']

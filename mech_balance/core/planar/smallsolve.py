@@ -17,8 +17,18 @@ operation is one vectorized numpy call over all p angles:
   condition number and the cut-joint multipliers) builds it from the factors, touching only
   the column ranges of ``L^-1`` and ``U^-1 L^-1`` that can be nonzero.  Matrices whose
   static pivots turn out small are handed to LAPACK (partial pivoting).
+
+Order (:func:`block_triangular_order`, worked out once per pattern)
+    Rows and columns are permuted to the block lower triangular form of the pattern
+    (Dulmage-Mendelsohn: a perfect matching of rows to columns, then the strongly connected
+    components of the matched dependency graph in dependency order), and the static pivots
+    are chosen inside each diagonal block only.  For a linkage the diagonal blocks are its
+    Assur groups (a chain of four-bars: one 2 x 2 block per loop), so the factors have no
+    fill outside the blocks and the numeric work grows linearly with the number of loops
+    instead of with the fill-in of one global pivot order (quadratic for a chain).
 """
 
+from mech_balance.core.planar.algebra import matvec as _matvec, matvec_t as _matvec_t
 import numpy as np
 
 PIVOT_FLOOR = 1e-300
@@ -47,24 +57,115 @@ def pivot_order(mat):
     return np.array(rows)
 
 
+
+def block_triangular_order(pattern, mat):
+    """
+    Return ``(row_order, col_order)``: a block lower triangular form with in-block pivots.
+
+    ``pattern`` (bool ``(k, k)``) holds every entry that can be nonzero, ``mat`` is one
+    representative matrix (its magnitudes choose the matching and the pivots).  The matched
+    rows of the diagonal blocks come in dependency order (a block only needs the unknowns of
+    the blocks before it); inside a block the rows follow partial pivoting on ``mat``.
+    Returns ``None`` if the pattern has no perfect matching (structurally singular).
+    """
+    pattern = np.asarray(pattern, dtype=bool)
+    mat = np.asarray(mat, dtype=float)
+    a = np.abs(mat)
+    k = pattern.shape[0]
+    cols_of = [sorted(np.flatnonzero(pattern[i]).tolist(), key=lambda j: -a[i, j])
+               for i in range(k)]
+    row_of = [-1] * k                      # column -> matched row
+
+    def augment(row, seen):                # Kuhn's augmenting path, largest entries first
+        for c in cols_of[row]:
+            if c not in seen:
+                seen.add(c)
+                if row_of[c] < 0 or augment(row_of[c], seen):
+                    row_of[c] = row
+                    return True
+        return False
+
+    for r in range(k):
+        if not augment(r, set()):
+            return None
+    # dependency graph on columns: column c (its matched row) needs the other columns of the row
+    needs = [[j for j in np.flatnonzero(pattern[row_of[c]]).tolist() if j != c]
+             for c in range(k)]
+    blocks = _tarjan(needs)                # dependencies first
+    row_order, col_order = [], []
+    for block in blocks:
+        rows = [row_of[c] for c in block]
+        sub = mat[np.ix_(rows, block)]
+        order = pivot_order(sub) if len(block) > 1 else [0]
+        row_order += [rows[i] for i in order]
+        col_order += list(block)
+    return np.array(row_order), np.array(col_order)
+
+
+def _tarjan(needs):
+    """Return the strongly connected components of a graph, every dependency first."""
+    n = len(needs)
+    index, low, on_stack = [-1] * n, [0] * n, [False] * n
+    stack, out, counter = [], [], [0]
+    for root in range(n):
+        if index[root] >= 0:
+            continue
+        work = [(root, 0)]
+        while work:
+            v, i = work.pop()
+            if i == 0:
+                index[v] = low[v] = counter[0]
+                counter[0] += 1
+                stack.append(v)
+                on_stack[v] = True
+            recurse = False
+            for j in range(i, len(needs[v])):
+                w = needs[v][j]
+                if index[w] < 0:
+                    work.append((v, j + 1))
+                    work.append((w, 0))
+                    recurse = True
+                    break
+                if on_stack[w]:
+                    low[v] = min(low[v], index[w])
+            if recurse:
+                continue
+            if low[v] == index[v]:
+                comp = []
+                while True:
+                    w = stack.pop()
+                    on_stack[w] = False
+                    comp.append(w)
+                    if w == v:
+                        break
+                out.append(sorted(comp))
+            if work:
+                u = work[-1][0]
+                low[u] = min(low[u], low[v])
+    return out
+
 class LUPlan:
     """
-    The symbolic LU factorization of a ``(k, k)`` sparsity pattern in a static row order.
+    The symbolic LU factorization of a ``(k, k)`` sparsity pattern in a static order.
 
-    ``pattern`` (bool ``(k, k)``, original row order) must contain every entry that can be
-    nonzero; ``row_order`` is the static pivot order (:func:`pivot_order`).  The factors
-    are stored as one ``(nnz, p)`` array of the nonzeros of L (unit diagonal, not stored)
-    and U, fill-in included; the index lists below drive the numeric phase.
+    ``pattern`` (bool ``(k, k)``, original order) must contain every entry that can be
+    nonzero; ``row_order`` is the static pivot order (:func:`pivot_order`) and ``col_order``
+    an optional column order (:func:`block_triangular_order` gives both): the factors are
+    those of ``mat[row_order][:, col_order]``.  They are stored as one ``(nnz, p)`` array
+    of the nonzeros of L (unit diagonal, not stored) and U, fill-in included; the index
+    lists below drive the numeric phase.
     """
 
-    def __init__(self, pattern, row_order=None):
+    def __init__(self, pattern, row_order=None, col_order=None):
         pattern = np.asarray(pattern, dtype=bool)
         k = pattern.shape[0]
         if pattern.shape != (k, k):
             raise ValueError(f'pattern: got shape {pattern.shape}, expected (k, k)')
         self.k = k
         self.row_order = np.arange(k) if row_order is None else np.asarray(row_order)
-        a = pattern[self.row_order] | np.eye(k, dtype=bool)
+        self.col_order = np.arange(k) if col_order is None else np.asarray(col_order)
+        self.natural_cols = bool(np.array_equal(self.col_order, np.arange(k)))
+        a = pattern[np.ix_(self.row_order, self.col_order)] | np.eye(k, dtype=bool)
         for j in range(k):  # symbolic elimination: row i gains row j's pattern
             rows = np.flatnonzero(a[j + 1:, j]) + j + 1
             a[np.ix_(rows, np.arange(j, k))] |= a[j, j:]
@@ -73,7 +174,7 @@ class LUPlan:
         slot = np.full((k, k), -1)
         slot[rr, cc] = np.arange(self.nnz)
         self.src_row = self.row_order[rr]   # where each stored entry comes from in mat
-        self.src_col = cc
+        self.src_col = self.col_order[cc]
         self.diag = slot[np.arange(k), np.arange(k)]
         self.l_rows, self.l_idx, self.u_cols, self.u_idx, self.update = [], [], [], [], []
         for j in range(k):
@@ -91,6 +192,7 @@ class LUPlan:
         self.u_pairs = [list(zip(c.tolist(), i.tolist())) for c, i in
                         zip(self.u_cols, self.u_idx)]
         self.diag_list = self.diag.tolist()
+        self.pivot_col = self.col_order.tolist()   # original column of each pivot
         # inverse: Z = U^-1 L^-1 (pivot order), whose row j is nonzero only in columns
         # lo[j]..hi[j]: L^-1 row i spans env[i]..i, and U^-1 mixes in the rows below
         env = list(range(k))
@@ -102,6 +204,15 @@ class LUPlan:
             for c in self.u_cols[j].tolist():
                 lo[j], hi[j] = min(lo[j], lo[c]), max(hi[j], hi[c])
         self.env, self.z_lo, self.z_hi = env, lo, hi
+        self.perm_sign = -1.0 if (_inversions(self.row_order)
+                                  + _inversions(self.col_order)) % 2 else 1.0
+
+
+def _inversions(order):
+    """Return the number of inversions of a permutation (its sign's parity)."""
+    order = [int(i) for i in order]
+    return sum(1 for i in range(len(order)) for j in range(i + 1, len(order))
+               if order[i] > order[j])
 
 
 def factor(mat, plan):
@@ -117,8 +228,8 @@ def factor(mat, plan):
     weak = np.zeros(p, dtype=bool)
     with np.errstate(divide='ignore', invalid='ignore'):  # weak matrices are redone
         for j in range(plan.k):
-            pivot = lu[plan.diag[j]]
-            weak |= ~(np.abs(pivot) > STATIC_PIVOT_RATIO * col_max[j])
+            pivot = lu[plan.diag_list[j]]
+            weak |= ~(np.abs(pivot) > STATIC_PIVOT_RATIO * col_max[plan.pivot_col[j]])
             li = plan.l_idx[j]
             if li.size:
                 low = lu[li] / pivot
@@ -130,7 +241,7 @@ def factor(mat, plan):
 
 
 def _substitute(lu, plan, y):
-    """Solve L U x = y in place for ``y`` ``(k, p)`` (rows already in pivot order)."""
+    """Solve L U x = y in place for ``y`` ``(k, p)`` (pivot row order in, pivot column out)."""
     tmp = np.empty(y.shape[1:])
     with np.errstate(divide='ignore', invalid='ignore'):  # singular: nan, reported by cond
         for j, pairs in enumerate(plan.l_pairs):
@@ -142,6 +253,22 @@ def _substitute(lu, plan, y):
             for c, slot in plan.u_pairs[j]:
                 yj -= np.multiply(lu[slot], y[c], out=tmp)
             yj /= lu[plan.diag_list[j]]
+    return y
+
+
+def _substitute_t(lu, plan, y):
+    """Solve (L U)^T x = y in place (pivot column order in, pivot row order out)."""
+    tmp = np.empty(y.shape[1:])
+    with np.errstate(divide='ignore', invalid='ignore'):
+        for j in range(plan.k):                      # U^T: lower triangular, by columns
+            yj = y[j]
+            yj /= lu[plan.diag_list[j]]
+            for c, slot in plan.u_pairs[j]:
+                y[c] -= np.multiply(lu[slot], yj, out=tmp)
+        for j in range(plan.k - 1, -1, -1):          # L^T: unit upper triangular, by rows
+            yj = y[j]
+            for i, slot in plan.l_pairs[j]:
+                yj -= np.multiply(lu[slot], y[i], out=tmp)
     return y
 
 
@@ -166,8 +293,98 @@ def _inverse_lu(lu, plan, p):
                 zj[a:b] -= np.multiply(lu[slot], z[c, a:b], out=tmp[:b - a])
             zj[lo[j]:hi[j] + 1] /= lu[plan.diag_list[j]]
     inv = np.empty_like(z)
-    inv[:, plan.row_order] = z                       # J^-1 = Z P
+    if plan.natural_cols:
+        inv[:, plan.row_order] = z                   # J^-1 = Z P
+    else:
+        inv[np.ix_(plan.col_order, plan.row_order)] = z   # J^-1 = Q Z P
     return inv
+
+
+class Factored:
+    """
+    One factorization of a batch-last stack ``(k, k, p)``, reused for every solve.
+
+    k <= 2 in closed form (the inverse itself); larger k by the static-order sparse LU of
+    ``plan`` (an :class:`LUPlan`, a static row order, or ``None`` for a dense plan), with
+    LAPACK for the matrices whose static pivots are weak.  :meth:`solve` and
+    :meth:`solve_t` never form the inverse; :meth:`inverse` (for the exact 1-norm condition
+    number) builds it once.  Singular matrices give ``nan``/``inf`` entries.
+    """
+
+    def __init__(self, mat, plan=None):
+        mat = np.asarray(mat, dtype=float)
+        if mat.ndim != 3 or mat.shape[0] != mat.shape[1]:
+            raise ValueError(f'mat: got shape {mat.shape}, expected (k, k, p)')
+        self.mat = mat
+        self.k, _, self.p = mat.shape
+        self._inv = self._cond = self._sign = None
+        if self.k == 2:
+            self._inv, self._cond, det = _inverse_2(mat)
+            self._sign = np.sign(det)
+        elif self.k == 1:
+            with np.errstate(divide='ignore', invalid='ignore'):
+                self._inv = 1.0 / mat
+            self._sign = np.sign(mat[0, 0])
+        elif self.k == 0:  # no unknowns (an open chain): empty, perfectly conditioned
+            self._inv, self._cond, self._sign = np.zeros((0, 0, self.p)), np.ones(self.p), \
+                np.ones(self.p)
+        else:
+            self.plan = _plan_for(self.k, plan)
+            self.lu, self.weak = factor(mat, self.plan)
+            self.any_weak = bool(self.weak.any())
+
+    def solve(self, rhs):
+        """Return ``x`` ``(k, p)`` with ``mat x = rhs``."""
+        rhs = np.asarray(rhs, dtype=float)
+        if self.k <= 2:
+            return _matvec(self._inv, rhs)
+        plan = self.plan
+        y = _substitute(self.lu, plan, rhs[plan.row_order])
+        if plan.natural_cols:
+            x = y
+        else:
+            x = np.empty_like(y)
+            x[plan.col_order] = y
+        if self.any_weak:
+            w = self.weak
+            x[:, w] = _lapack(self.mat[:, :, w], rhs[:, w])
+        return x
+
+    def solve_t(self, rhs):
+        """Return ``x`` ``(k, p)`` with ``mat^T x = rhs``."""
+        rhs = np.asarray(rhs, dtype=float)
+        if self.k <= 2:
+            return _matvec_t(self._inv, rhs)
+        plan = self.plan
+        y = _substitute_t(self.lu, plan, rhs[plan.col_order])
+        x = np.empty_like(y)
+        x[plan.row_order] = y
+        if self.any_weak:
+            w = self.weak
+            x[:, w] = _lapack(self.mat[:, :, w].transpose(1, 0, 2), rhs[:, w])
+        return x
+
+    def inverse(self):
+        """Return ``(inv, cond)``: the ``(k, k, p)`` inverses and 1-norm condition numbers."""
+        if self._inv is None:
+            inv = _inverse_lu(self.lu, self.plan, self.p)
+            if self.any_weak:
+                inv[:, :, self.weak] = np.moveaxis(_lapack_inv(self.mat[:, :, self.weak]),
+                                                   0, -1)
+            self._inv = inv
+        if self._cond is None:
+            norm = np.max(np.sum(np.abs(self.mat), axis=0), axis=0)
+            with np.errstate(invalid='ignore'):
+                norm_inv = np.max(np.sum(np.abs(self._inv), axis=0), axis=0)
+                cond = norm * norm_inv
+            self._cond = np.where(np.isfinite(cond), cond, np.inf)
+        return self._inv, self._cond
+
+    def sign(self):
+        """Return the signs of the determinants ``(p,)`` (see :func:`det_sign`)."""
+        if self._sign is None:
+            self._sign = _lu_sign(self.lu, self.plan, self.mat, self.weak)
+        return self._sign
 
 
 def solve(mat, rhs, plan=None):
@@ -195,12 +412,7 @@ def solve(mat, rhs, plan=None):
     if k == 1:
         with np.errstate(divide='ignore', invalid='ignore'):
             return rhs / mat[0]
-    plan = _plan_for(k, plan)
-    lu, weak = factor(mat, plan)
-    x = _substitute(lu, plan, rhs[plan.row_order])
-    if np.any(weak):
-        x[:, weak] = _lapack(mat[:, :, weak], rhs[:, weak])
-    return x
+    return Factored(mat, plan).solve(rhs)
 
 
 def inverse(mat, plan=None, with_sign=False):
@@ -213,33 +425,9 @@ def inverse(mat, plan=None, with_sign=False):
     small are inverted again with LAPACK's partial pivoting.  With ``with_sign`` the signs
     of the determinants come third, from the same factorization (see :func:`det_sign`).
     """
-    mat = np.asarray(mat, dtype=float)
-    if mat.ndim != 3 or mat.shape[0] != mat.shape[1]:
-        raise ValueError(f'mat: got shape {mat.shape}, expected (k, k, p)')
-    k, _, p = mat.shape
-    if k == 0:  # no unknowns (an open chain): an empty, perfectly conditioned system
-        inv, cond, sign = np.zeros((0, 0, p)), np.ones(p), np.ones(p)
-        return (inv, cond, sign) if with_sign else (inv, cond)
-    if k == 2:
-        inv, cond, det = _inverse_2(mat)
-        return (inv, cond, np.sign(det)) if with_sign else (inv, cond)
-    if k == 1:
-        with np.errstate(divide='ignore', invalid='ignore'):
-            inv = 1.0 / mat
-        sign = np.sign(mat[0, 0]) if with_sign else None
-    else:
-        plan = _plan_for(k, plan)
-        lu, weak = factor(mat, plan)
-        inv = _inverse_lu(lu, plan, p)
-        sign = _lu_sign(lu, plan, mat, weak) if with_sign else None
-        if np.any(weak):
-            inv[:, :, weak] = np.moveaxis(_lapack_inv(mat[:, :, weak]), 0, -1)
-    norm = np.max(np.sum(np.abs(mat), axis=0), axis=0)
-    with np.errstate(invalid='ignore'):
-        norm_inv = np.max(np.sum(np.abs(inv), axis=0), axis=0)
-        cond = norm * norm_inv
-    cond = np.where(np.isfinite(cond), cond, np.inf)
-    return (inv, cond, sign) if with_sign else (inv, cond)
+    fac = Factored(mat, plan)
+    inv, cond = fac.inverse()
+    return (inv, cond, fac.sign()) if with_sign else (inv, cond)
 
 
 _DENSE_PLANS = {}
@@ -249,7 +437,7 @@ def det_sign(mat, plan=None):
     """
     Return the sign of the determinant of each matrix of a batch-last ``(k, k, p)`` stack.
 
-    k <= 2 in closed form; otherwise from the static-order LU (the permutation's sign times
+    k <= 2 in closed form; otherwise from the static-order LU (the permutations' sign times
     the signs of U's diagonal), with LAPACK for the matrices whose static pivots are small.
     """
     mat = np.asarray(mat, dtype=float)
@@ -267,10 +455,7 @@ def det_sign(mat, plan=None):
 
 def _lu_sign(lu, plan, mat, weak):
     """Return det signs from static-order LU factors (LAPACK where ``weak``)."""
-    order = plan.row_order
-    k = plan.k
-    inversions = sum(1 for i in range(k) for j in range(i + 1, k) if order[i] > order[j])
-    sign = np.prod(np.sign(lu[plan.diag]), axis=0) * (-1.0 if inversions % 2 else 1.0)
+    sign = np.prod(np.sign(lu[plan.diag]), axis=0) * plan.perm_sign
     if weak.any():
         sign[weak] = np.sign(np.linalg.det(np.ascontiguousarray(
             np.moveaxis(mat[:, :, weak], -1, 0))))
