@@ -206,6 +206,31 @@ class LUPlan:
         self.env, self.z_lo, self.z_hi = env, lo, hi
         self.perm_sign = -1.0 if (_inversions(self.row_order)
                                   + _inversions(self.col_order)) % 2 else 1.0
+        self._slot = slot
+        self._pivot_row = np.argsort(self.row_order)     # original row -> pivot position
+        self._pivot_pos = np.argsort(self.col_order)     # original column -> pivot position
+        self.entries = None
+
+    def set_entries(self, rows, cols):
+        """
+        Fix the order in which :class:`Factored` gets the nonzeros of a matrix.
+
+        ``rows``, ``cols`` (original indices, every structural nonzero once): a matrix is
+        then passed as its ``(len(rows), p)`` values, never as a dense ``(k, k, p)`` stack.
+        """
+        rows, cols = np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)
+        pr, pc = self._pivot_row[rows], self._pivot_pos[cols]
+        slots = self._slot[pr, pc]
+        if np.any(slots < 0):
+            raise ValueError('rows, cols: an entry lies outside the plan\'s pattern')
+        self.entries = (rows, cols)
+        self.entry_slot = slots
+        by_col = np.argsort(pc, kind='stable')     # entries grouped by pivot column
+        self.entry_by_col = by_col
+        counts = np.bincount(pc, minlength=self.k)
+        if np.any(counts == 0):
+            raise ValueError('rows, cols: a column has no entry (structurally singular)')
+        self.entry_col_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
 
 
 def _inversions(order):
@@ -240,6 +265,40 @@ def factor(mat, plan):
     return lu, weak
 
 
+def factor_values(values, plan):
+    """Return ``(lu, weak)`` like :func:`factor`, from the nonzeros (:meth:`LUPlan.set_entries`)."""
+    p = values.shape[1]
+    if plan.nnz == values.shape[0] and np.array_equal(plan.entry_slot, np.arange(plan.nnz)):
+        lu = values.copy()
+    else:
+        lu = np.zeros((plan.nnz, p))
+        lu[plan.entry_slot] = values
+    mags = np.abs(values)[plan.entry_by_col]
+    col_max = np.maximum.reduceat(mags, plan.entry_col_start, axis=0)  # (k, p), pivot order
+    weak = np.zeros(p, dtype=bool)
+    with np.errstate(divide='ignore', invalid='ignore'):  # weak matrices are redone
+        for j in range(plan.k):
+            pivot = lu[plan.diag_list[j]]
+            weak |= ~(np.abs(pivot) > STATIC_PIVOT_RATIO * col_max[j])
+            li = plan.l_idx[j]
+            if li.size:
+                low = lu[li] / pivot
+                lu[li] = low
+                ui = plan.u_idx[j]
+                if ui.size:
+                    lu[plan.update[j]] -= (low[:, None, :] * lu[ui][None, :, :]).reshape(-1, p)
+    norm = np.add.reduceat(mags, plan.entry_col_start, axis=0).max(axis=0)   # ||A||_1
+    return lu, weak, norm
+
+
+def dense_from_values(values, plan):
+    """Return the ``(k, k, p)`` stack of the nonzeros ``values`` (:meth:`LUPlan.set_entries`)."""
+    rows, cols = plan.entries
+    mat = np.zeros((plan.k, plan.k, values.shape[1]))
+    mat[rows, cols] = values
+    return mat
+
+
 def _substitute(lu, plan, y):
     """Solve L U x = y in place for ``y`` ``(k, p)`` (pivot row order in, pivot column out)."""
     tmp = np.empty(y.shape[1:])
@@ -272,8 +331,8 @@ def _substitute_t(lu, plan, y):
     return y
 
 
-def _inverse_lu(lu, plan, p):
-    """Return the ``(k, k, p)`` inverse from the factors, working on nonzero ranges only."""
+def _inverse_z(lu, plan, p):
+    """Return ``Z = U^-1 L^-1`` ``(k, k, p)`` from the factors, on nonzero ranges only."""
     k = plan.k
     z = np.zeros((k, k, p))
     z[np.arange(k), np.arange(k)] = 1.0
@@ -292,6 +351,12 @@ def _inverse_lu(lu, plan, p):
                 a, b = lo[c], hi[c] + 1
                 zj[a:b] -= np.multiply(lu[slot], z[c, a:b], out=tmp[:b - a])
             zj[lo[j]:hi[j] + 1] /= lu[plan.diag_list[j]]
+    return z
+
+
+def _inverse_lu(lu, plan, p):
+    """Return the ``(k, k, p)`` inverse of the original matrix from the factors."""
+    z = _inverse_z(lu, plan, p)
     inv = np.empty_like(z)
     if plan.natural_cols:
         inv[:, plan.row_order] = z                   # J^-1 = Z P
@@ -311,13 +376,21 @@ class Factored:
     number) builds it once.  Singular matrices give ``nan``/``inf`` entries.
     """
 
-    def __init__(self, mat, plan=None):
+    def __init__(self, mat, plan=None, values=None):
+        self._inv = self._cond = self._sign = self._norm = None
+        if values is not None:         # the nonzeros in the order of plan.set_entries
+            if not isinstance(plan, LUPlan) or plan.entries is None:
+                raise ValueError('plan: values need an LUPlan with set_entries')
+            self._mat, self.values, self.plan = None, values, plan
+            self.k, self.p = plan.k, values.shape[1]
+            self.lu, self.weak, self._norm = factor_values(values, plan)
+            self.any_weak = bool(self.weak.any())
+            return
         mat = np.asarray(mat, dtype=float)
         if mat.ndim != 3 or mat.shape[0] != mat.shape[1]:
             raise ValueError(f'mat: got shape {mat.shape}, expected (k, k, p)')
-        self.mat = mat
+        self._mat = mat
         self.k, _, self.p = mat.shape
-        self._inv = self._cond = self._sign = None
         if self.k == 2:
             self._inv, self._cond, det = _inverse_2(mat)
             self._sign = np.sign(det)
@@ -347,8 +420,21 @@ class Factored:
             x[plan.col_order] = y
         if self.any_weak:
             w = self.weak
-            x[:, w] = _lapack(self.mat[:, :, w], rhs[:, w])
+            x[:, w] = _lapack(self._weak_mat(), rhs[:, w])
         return x
+
+    @property
+    def mat(self):
+        """Return the dense ``(k, k, p)`` stack (built from the nonzeros if given so)."""
+        if self._mat is None:
+            self._mat = dense_from_values(self.values, self.plan)
+        return self._mat
+
+    def _weak_mat(self):
+        """Return the dense matrices of the weak angles only."""
+        if self._mat is None:
+            return dense_from_values(self.values[:, self.weak], self.plan)
+        return self._mat[:, :, self.weak]
 
     def solve_t(self, rhs):
         """Return ``x`` ``(k, p)`` with ``mat^T x = rhs``."""
@@ -361,29 +447,49 @@ class Factored:
         x[plan.row_order] = y
         if self.any_weak:
             w = self.weak
-            x[:, w] = _lapack(self.mat[:, :, w].transpose(1, 0, 2), rhs[:, w])
+            x[:, w] = _lapack(self._weak_mat().transpose(1, 0, 2), rhs[:, w])
         return x
 
     def inverse(self):
         """Return ``(inv, cond)``: the ``(k, k, p)`` inverses and 1-norm condition numbers."""
         if self._inv is None:
-            inv = _inverse_lu(self.lu, self.plan, self.p)
-            if self.any_weak:
-                inv[:, :, self.weak] = np.moveaxis(_lapack_inv(self.mat[:, :, self.weak]),
-                                                   0, -1)
+            z = self._z()
+            inv = np.empty_like(z)
+            if self.plan.natural_cols:
+                inv[:, self.plan.row_order] = z              # J^-1 = Z P
+            else:
+                inv[np.ix_(self.plan.col_order, self.plan.row_order)] = z   # J^-1 = Q Z P
             self._inv = inv
+        return self._inv, self.cond()
+
+    def _z(self):
+        """Return the inverse in pivot order, ``Z = (P J Q)^-1`` (LAPACK where weak)."""
+        if getattr(self, '_zinv', None) is None:
+            z = _inverse_z(self.lu, self.plan, self.p)
+            if self.any_weak:
+                fixed = np.moveaxis(_lapack_inv(self._weak_mat()), 0, -1)   # (k, k, w)
+                z[:, :, self.weak] = fixed[np.ix_(self.plan.col_order, self.plan.row_order)]
+            self._zinv = z
+        return self._zinv
+
+    def cond(self):
+        """Return the exact 1-norm condition numbers ``(p,)`` (``inf`` where singular)."""
         if self._cond is None:
-            norm = np.max(np.sum(np.abs(self.mat), axis=0), axis=0)
+            if self._norm is None:
+                self._norm = np.max(np.sum(np.abs(self.mat), axis=0), axis=0)
+            # the 1-norm is the largest column sum of |.|: a permutation does not change it
+            inv = self._inv if self._inv is not None else self._z()
             with np.errstate(invalid='ignore'):
-                norm_inv = np.max(np.sum(np.abs(self._inv), axis=0), axis=0)
-                cond = norm * norm_inv
+                norm_inv = np.max(np.sum(np.abs(inv), axis=0), axis=0)
+                cond = self._norm * norm_inv
             self._cond = np.where(np.isfinite(cond), cond, np.inf)
-        return self._inv, self._cond
+        return self._cond
 
     def sign(self):
         """Return the signs of the determinants ``(p,)`` (see :func:`det_sign`)."""
         if self._sign is None:
-            self._sign = _lu_sign(self.lu, self.plan, self.mat, self.weak)
+            self._sign = _lu_sign(self.lu, self.plan, self._weak_mat() if self.any_weak
+                                  else None, self.weak)
         return self._sign
 
 
@@ -450,15 +556,15 @@ def det_sign(mat, plan=None):
         return np.sign(mat[0, 0] * mat[1, 1] - mat[0, 1] * mat[1, 0])
     plan = _plan_for(k, plan)
     lu, weak = factor(mat, plan)
-    return _lu_sign(lu, plan, mat, weak)
+    return _lu_sign(lu, plan, mat[:, :, weak], weak)
 
 
-def _lu_sign(lu, plan, mat, weak):
-    """Return det signs from static-order LU factors (LAPACK where ``weak``)."""
+def _lu_sign(lu, plan, weak_mat, weak):
+    """Return det signs from static-order LU factors (LAPACK on ``weak_mat`` where weak)."""
     sign = np.prod(np.sign(lu[plan.diag]), axis=0) * plan.perm_sign
     if weak.any():
         sign[weak] = np.sign(np.linalg.det(np.ascontiguousarray(
-            np.moveaxis(mat[:, :, weak], -1, 0))))
+            np.moveaxis(weak_mat, -1, 0))))
     return sign
 
 
