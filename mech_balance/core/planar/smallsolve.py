@@ -57,7 +57,6 @@ def pivot_order(mat):
     return np.array(rows)
 
 
-
 def block_triangular_order(pattern, mat):
     """
     Return ``(row_order, col_order)``: a block lower triangular form with in-block pivots.
@@ -144,6 +143,7 @@ def _tarjan(needs):
                 low[u] = min(low[u], low[v])
     return out
 
+
 class LUPlan:
     """
     The symbolic LU factorization of a ``(k, k)`` sparsity pattern in a static order.
@@ -222,7 +222,7 @@ class LUPlan:
         pr, pc = self._pivot_row[rows], self._pivot_pos[cols]
         slots = self._slot[pr, pc]
         if np.any(slots < 0):
-            raise ValueError('rows, cols: an entry lies outside the plan\'s pattern')
+            raise ValueError("rows, cols: an entry lies outside the plan's pattern")
         self.entries = (rows, cols)
         self.entry_slot = slots
         by_col = np.argsort(pc, kind='stable')     # entries grouped by pivot column
@@ -231,6 +231,13 @@ class LUPlan:
         if np.any(counts == 0):
             raise ValueError('rows, cols: a column has no entry (structurally singular)')
         self.entry_col_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        # the entries of each pivot column, padded with the column's first entry: (k, width)
+        width = int(counts.max())
+        pad = np.empty((self.k, width), dtype=int)
+        for j in range(self.k):
+            own = by_col[self.entry_col_start[j]:self.entry_col_start[j] + counts[j]]
+            pad[j] = np.concatenate([own, np.full(width - own.size, own[0])])
+        self.entry_col_pad = pad
 
 
 def _inversions(order):
@@ -266,15 +273,14 @@ def factor(mat, plan):
 
 
 def factor_values(values, plan):
-    """Return ``(lu, weak)`` like :func:`factor`, from the nonzeros (:meth:`LUPlan.set_entries`)."""
+    """Return ``(lu, weak)`` like :func:`factor`, from the nonzeros (``set_entries``)."""
     p = values.shape[1]
     if plan.nnz == values.shape[0] and np.array_equal(plan.entry_slot, np.arange(plan.nnz)):
         lu = values.copy()
     else:
         lu = np.zeros((plan.nnz, p))
         lu[plan.entry_slot] = values
-    mags = np.abs(values)[plan.entry_by_col]
-    col_max = np.maximum.reduceat(mags, plan.entry_col_start, axis=0)  # (k, p), pivot order
+    col_max = np.abs(values)[plan.entry_col_pad].max(axis=1)   # (k, p), pivot order
     weak = np.zeros(p, dtype=bool)
     with np.errstate(divide='ignore', invalid='ignore'):  # weak matrices are redone
         for j in range(plan.k):
@@ -287,8 +293,7 @@ def factor_values(values, plan):
                 ui = plan.u_idx[j]
                 if ui.size:
                     lu[plan.update[j]] -= (low[:, None, :] * lu[ui][None, :, :]).reshape(-1, p)
-    norm = np.add.reduceat(mags, plan.entry_col_start, axis=0).max(axis=0)   # ||A||_1
-    return lu, weak, norm
+    return lu, weak
 
 
 def dense_from_values(values, plan):
@@ -331,8 +336,13 @@ def _substitute_t(lu, plan, y):
     return y
 
 
-def _inverse_z(lu, plan, p):
-    """Return ``Z = U^-1 L^-1`` ``(k, k, p)`` from the factors, on nonzero ranges only."""
+def _inverse_z(lu, plan, p, colsum=None):
+    """
+    Return ``Z = U^-1 L^-1`` ``(k, k, p)`` from the factors, on nonzero ranges only.
+
+    With ``colsum`` ``(k, p)`` (zeros), also the column sums of ``|Z|`` (the 1-norm), each
+    row added as soon as it is final, on its nonzero range only.
+    """
     k = plan.k
     z = np.zeros((k, k, p))
     z[np.arange(k), np.arange(k)] = 1.0
@@ -350,7 +360,10 @@ def _inverse_z(lu, plan, p):
             for c, slot in plan.u_pairs[j]:
                 a, b = lo[c], hi[c] + 1
                 zj[a:b] -= np.multiply(lu[slot], z[c, a:b], out=tmp[:b - a])
-            zj[lo[j]:hi[j] + 1] /= lu[plan.diag_list[j]]
+            a, b = lo[j], hi[j] + 1
+            zj[a:b] /= lu[plan.diag_list[j]]
+            if colsum is not None:
+                colsum[a:b] += np.abs(zj[a:b], out=tmp[:b - a])
     return z
 
 
@@ -383,7 +396,7 @@ class Factored:
                 raise ValueError('plan: values need an LUPlan with set_entries')
             self._mat, self.values, self.plan = None, values, plan
             self.k, self.p = plan.k, values.shape[1]
-            self.lu, self.weak, self._norm = factor_values(values, plan)
+            self.lu, self.weak = factor_values(values, plan)
             self.any_weak = bool(self.weak.any())
             return
         mat = np.asarray(mat, dtype=float)
@@ -476,11 +489,27 @@ class Factored:
         """Return the exact 1-norm condition numbers ``(p,)`` (``inf`` where singular)."""
         if self._cond is None:
             if self._norm is None:
-                self._norm = np.max(np.sum(np.abs(self.mat), axis=0), axis=0)
+                if self._mat is None:
+                    mags = np.abs(self.values)[self.plan.entry_by_col]
+                    self._norm = np.add.reduceat(mags, self.plan.entry_col_start,
+                                                 axis=0).max(axis=0)
+                else:
+                    self._norm = np.max(np.sum(np.abs(self.mat), axis=0), axis=0)
             # the 1-norm is the largest column sum of |.|: a permutation does not change it
-            inv = self._inv if self._inv is not None else self._z()
             with np.errstate(invalid='ignore'):
-                norm_inv = np.max(np.sum(np.abs(inv), axis=0), axis=0)
+                if self._inv is None and getattr(self, '_zinv', None) is None:
+                    colsum = np.zeros((self.k, self.p))
+                    self._zinv = _inverse_z(self.lu, self.plan, self.p, colsum)
+                    norm_inv = colsum.max(axis=0)
+                    if self.any_weak:
+                        w = self.weak
+                        fixed = np.moveaxis(_lapack_inv(self._weak_mat()), 0, -1)
+                        self._zinv[:, :, w] = fixed[np.ix_(self.plan.col_order,
+                                                           self.plan.row_order)]
+                        norm_inv[w] = np.max(np.sum(np.abs(fixed), axis=0), axis=0)
+                else:
+                    inv = self._inv if self._inv is not None else self._z()
+                    norm_inv = np.max(np.sum(np.abs(inv), axis=0), axis=0)
                 cond = self._norm * norm_inv
             self._cond = np.where(np.isfinite(cond), cond, np.inf)
         return self._cond
