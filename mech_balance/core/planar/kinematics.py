@@ -974,16 +974,15 @@ class Linkage:
         sk = self.skeleton
         q_pred = sk.predict(psi)
         q, pose, res, iters, ok = self.newton(psi, q_pred)
-        if self.nu:  # how far Newton moved from the predictor (scaled)
+        if self.nu and iters.any():  # how far Newton moved from the predictor (scaled)
             corr = q[1:] - q_pred[1:]
             np.abs(corr, out=corr)
             if self.has_pri:
                 corr /= self.col_scale[:, None]
-            corr = corr.max(axis=0)
-        else:
-            corr = np.zeros(psi.shape)
-        bad = corr > EVAL_TRUST
-        bad |= ~ok
+            bad = corr.max(axis=0) > EVAL_TRUST
+            bad |= ~ok
+        else:  # no step taken: the predictor itself is the solution where it converged
+            bad = ~ok
         if bad.any():
             q[:, bad] = self._retrace(psi[bad])
             pose = self.pose(q)

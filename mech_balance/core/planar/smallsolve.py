@@ -231,12 +231,12 @@ class LUPlan:
         if np.any(counts == 0):
             raise ValueError('rows, cols: a column has no entry (structurally singular)')
         self.entry_col_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        # the entries of each pivot column, padded with the column's first entry: (k, width)
+        # the entries of each pivot column, padded with a zero entry (index len(rows)): (k, w)
         width = int(counts.max())
-        pad = np.empty((self.k, width), dtype=int)
+        pad = np.full((self.k, width), rows.size)
         for j in range(self.k):
             own = by_col[self.entry_col_start[j]:self.entry_col_start[j] + counts[j]]
-            pad[j] = np.concatenate([own, np.full(width - own.size, own[0])])
+            pad[j, :own.size] = own
         self.entry_col_pad = pad
 
 
@@ -280,7 +280,11 @@ def factor_values(values, plan):
     else:
         lu = np.zeros((plan.nnz, p))
         lu[plan.entry_slot] = values
-    col_max = np.abs(values)[plan.entry_col_pad].max(axis=1)   # (k, p), pivot order
+    mags = np.empty((values.shape[0] + 1, p))     # |entries| and a zero row for the padding
+    np.abs(values, out=mags[:-1])
+    mags[-1] = 0.0
+    col_mags = mags[plan.entry_col_pad]            # (k, width, p), pivot column order
+    col_max = col_mags.max(axis=1)
     weak = np.zeros(p, dtype=bool)
     with np.errstate(divide='ignore', invalid='ignore'):  # weak matrices are redone
         for j in range(plan.k):
@@ -293,7 +297,7 @@ def factor_values(values, plan):
                 ui = plan.u_idx[j]
                 if ui.size:
                     lu[plan.update[j]] -= (low[:, None, :] * lu[ui][None, :, :]).reshape(-1, p)
-    return lu, weak
+    return lu, weak, col_mags
 
 
 def dense_from_values(values, plan):
@@ -396,7 +400,7 @@ class Factored:
                 raise ValueError('plan: values need an LUPlan with set_entries')
             self._mat, self.values, self.plan = None, values, plan
             self.k, self.p = plan.k, values.shape[1]
-            self.lu, self.weak = factor_values(values, plan)
+            self.lu, self.weak, self._col_mags = factor_values(values, plan)
             self.any_weak = bool(self.weak.any())
             return
         mat = np.asarray(mat, dtype=float)
@@ -489,10 +493,8 @@ class Factored:
         """Return the exact 1-norm condition numbers ``(p,)`` (``inf`` where singular)."""
         if self._cond is None:
             if self._norm is None:
-                if self._mat is None:
-                    mags = np.abs(self.values)[self.plan.entry_by_col]
-                    self._norm = np.add.reduceat(mags, self.plan.entry_col_start,
-                                                 axis=0).max(axis=0)
+                if self._mat is None:   # ||J||_1: the largest column sum of |entries|
+                    self._norm = self._col_mags.sum(axis=1).max(axis=0)
                 else:
                     self._norm = np.max(np.sum(np.abs(self.mat), axis=0), axis=0)
             # the 1-norm is the largest column sum of |.|: a permutation does not change it
