@@ -27,12 +27,9 @@ def _momentum_model(rig, psi):
     lk = rig.linkage
     grid = (psi[None, :] + FD_STEP_RAD * _OFFSETS[:, None]).ravel()
     state = lk.solve(grid, need_rates=False)
-    # the stencils amplify position errors by ~1e6: polish the positions to round-off with
-    # two more Newton steps, whatever residual (<= NEWTON_TOL) the solve stopped at
-    _, pose, _, _, _ = lk.newton(grid, state.q, max_iter=2, tol=0.0)
     com = np.array([0j] + [complex(*link.com_m) for link in rig.scene.links])
-    c = (pose.origin + pose.rot * com[:, None]).reshape(lk.nb, _OFFSETS.size, -1)
-    phi = pose.phi.reshape(lk.nb, _OFFSETS.size, -1)
+    c = (state.pose.origin + state.pose.rot * com[:, None]).reshape(lk.nb, _OFFSETS.size, -1)
+    phi = state.pose.phi.reshape(lk.nb, _OFFSETS.size, -1)
     c1 = np.einsum('k,bkp->bp', _D1, c) / FD_STEP_RAD
     c2 = np.einsum('k,bkp->bp', _D2, c) / FD_STEP_RAD ** 2
     phi1 = np.einsum('k,bkp->bp', _D1, phi) / FD_STEP_RAD

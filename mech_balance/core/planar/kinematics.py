@@ -84,12 +84,6 @@ MIDPOINT_TRUST_FRACTION = 0.1
 """A traced segment is accepted when Newton moves its midpoint predictor by less than this
 fraction of ``EVAL_TRUST``, so that batched solves seldom need the step-by-step re-trace."""
 TWO_PI = 2.0 * math.pi
-REFINED_NODES = 720
-"""Nodes per turn of the refined branch skeleton: after the adaptive trace, one batched
-solve at this many equally spaced angles (once per geometry) makes the quintic Hermite
-predictor good to about 1e-14 (Hoeken 3e-15, the carpet scraper 2e-14, a 40-link chain
-2e-14, against 3e-9, 1e-7 and 4e-10 from the trace's 73 nodes), below ``NEWTON_TOL``: a
-cycle then needs no Newton step at all, only the residual that proves it."""
 DENSE_TREE_MAX_BODIES = 8
 """Up to this many bodies the sums over the spanning tree are one dense matrix product each
 (fewest numpy calls); above it they run level by level down or up the tree, so that their
@@ -829,35 +823,7 @@ class Linkage:
         """Return the traced branch: nodes over one crank turn (computed on first use)."""
         if self._skeleton is None:
             self._skeleton = self._trace()
-            self._skeleton = self._refine(self._skeleton)
         return self._skeleton
-
-    def _refine(self, coarse):
-        """
-        Return a skeleton of ``REFINED_NODES`` equally spaced nodes solved on ``coarse``.
-
-        One batched solve from the traced skeleton (with its branch checks) at unit crank
-        speed and zero acceleration gives q, dq/dpsi and d2q/dpsi2 at every node.  The
-        trace has already reported the near-singular angles: the refined solve adds no
-        warnings.  Should it fail, the traced skeleton is kept.
-        """
-        n = REFINED_NODES
-        if coarse.psi.size - 1 >= n:
-            return coarse
-        nodes = coarse.psi[0] + TWO_PI * np.arange(n + 1) / n
-        nodes[-1] = coarse.psi[-1]
-        reported = list(self.warnings)
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter('ignore', RuntimeWarning)
-                st = self.solve(nodes, 1.0, 0.0)
-        except BranchError:
-            return coarse
-        finally:
-            self.warnings[:] = reported
-        if not np.max(st.residual, initial=0.0) <= NEWTON_TOL:
-            return coarse
-        return Skeleton(nodes, st.q, st.qd, st.qdd, st.cond, coarse.turns)
 
     def _derivatives(self, pose):
         r = self.rates(pose, 1.0, 0.0)
