@@ -134,3 +134,25 @@ def test_chain_jacobian_is_kept_sparse_and_agrees_with_dense_lapack():
     assert_allclose(st.qd[1:], qd_u, rtol=0, atol=1e-12 * np.max(np.abs(qd_u)))
     assert_allclose(st.cond, [np.linalg.cond(m, 1) for m in ju], rtol=1e-10)
     assert_allclose(st.jac_inv, np.moveaxis(np.linalg.inv(ju), 0, -1), rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize('name', ['slider_crank', 'carpet_scraper', 'hoeken'])
+def test_tree_level_sums_agree_with_dense_ancestry_products(name, monkeypatch):
+    sc = scene.load(name).with_outputs(scene.OUTPUTS)
+    psi = cycle_angles(36) + 0.05
+    dense = analysis.Rig(sc, cache=False)
+    assert dense.linkage.dense_tree
+    monkeypatch.setattr(kinematics, 'DENSE_TREE_MAX_BODIES', 0)   # force the level sums
+    levels = analysis.Rig(sc, cache=False)
+    assert not levels.linkage.dense_tree
+    s1, w1 = dense.evaluate(psi, speed=2.3, accel=-1.1)
+    s2, w2 = levels.evaluate(psi, speed=2.3, accel=-1.1)
+    for a, b in ((s1.pose.origin, s2.pose.origin), (s1.vel, s2.vel), (s1.acc, s2.acc),
+                 (w1.shaking_force, w2.shaking_force), (w1.driving_torque, w2.driving_torque)):
+        assert_allclose(b, a, rtol=0, atol=1e-13 * np.max(np.abs(a)))
+    for joint, force in w1.reaction_force.items():
+        assert_allclose(w2.reaction_force[joint], force, rtol=0,
+                        atol=1e-13 * np.max(np.abs(force)))
+        moment = w1.reaction_moment[joint]
+        assert_allclose(w2.reaction_moment[joint], moment, rtol=0,
+                        atol=1e-13 * max(np.max(np.abs(moment)), 1.0))
