@@ -23,7 +23,7 @@ All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given
 from dataclasses import dataclass
 
 from mech_balance.core.planar.algebra import cross as _cross, dot as _dot, \
-    matvec_t as _matvec_t
+    matvec_t as _matvec_t, rmat as _rmat
 import numpy as np
 
 SPEED_FLOOR_RAD_S = 1e-300
@@ -137,8 +137,12 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         m_net = m_net - _cross(arm, weight) - _cross(world_h, gravity)
     lever = pose.joint_at - pivot
     # generalized forces of the tree coordinates, Q = N^T (w* - w^E) (seed 001 eq. 32)
-    f_sub = linkage._up(f_net)                             # net force of each subtree
-    m_sub = linkage._up(m_net)                             # and its moment about the pivot
+    if linkage.dense_tree:                                 # (nt, nb): bodies below joint t
+        f_sub = _rmat(linkage.below, f_net)                # net force of each subtree
+        m_sub = linkage.below @ m_net                      # and its moment about the pivot
+    else:                                                  # the same, level by level
+        f_sub = linkage._up(f_net)
+        m_sub = linkage._up(m_net)
     q_gen = m_sub - _cross(lever, f_sub)
     if linkage.has_pri:
         q_gen = np.where(linkage.is_prismatic[:, None], _dot(pose.axis, f_sub), q_gen)
@@ -173,8 +177,12 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         m_on_b[nr:] += cut_moment[nr:]
         m_on_a[nr:] = -m_on_b[nr:]
     # tree joint t carries what its subtree needs beyond the cut loads on that subtree
-    f_req = f_sub - linkage._up_cut(force, force)
-    m_req = m_sub - linkage._up_cut(m_on_b, -m_on_a)
+    if linkage.dense_tree:
+        f_req = f_sub - _rmat(linkage.below_cut, force)
+        m_req = m_sub - linkage.below_cut_b @ m_on_b - linkage.below_cut_a @ m_on_a
+    else:
+        f_req = f_sub - linkage._up_cut(force, force)
+        m_req = m_sub - linkage._up_cut(m_on_b, -m_on_a)
     moment = m_req - _cross(lever, f_req)                 # about each tree joint
     dev = moment[0] - tau
     worst = float(np.abs(dev, out=dev).max())

@@ -429,9 +429,7 @@ class Linkage:
     def _down(self, v):
         """Return ``(nb, ...)``: per body the sum of ``v`` ``(nt, ...)`` over the joints above."""
         if self.dense_tree:
-            if np.iscomplexobj(v):
-                return _rmat(self.anc_all, v)
-            return self.anc_all @ v
+            return _rmat(self.anc_all, v) if v.dtype.kind == 'c' else self.anc_all @ v
         s = np.empty((self.nt + 1,) + v.shape[1:], dtype=v.dtype)
         s[self.nt] = 0.0
         start, end, _ = self.levels[0]
@@ -479,7 +477,7 @@ class Linkage:
 
     def pose(self, q, rot_crank=None):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
-        phi = self._down_rev(q)
+        phi = self.anc_rev @ q if self.dense_tree else self._down_rev(q)
         if self.has_pri:
             phi += self.phi_offset
         rot = np.empty(phi.shape, dtype=complex)
@@ -494,7 +492,7 @@ class Linkage:
         if self.has_pri:
             axis = np.where(self.axis_on_par, rot_par, -rot_ch) * self.axis_local
             contrib += q * axis
-        origin = self._down(contrib)
+        origin = _rmat(self.anc_all, contrib) if self.dense_tree else self._down(contrib)
         joint_at = origin[self.ch] + arm_ch
         return Pose(phi, rot, origin, joint_at, axis)
 
@@ -626,7 +624,10 @@ class Linkage:
             if it == max_iter or not res.max(initial=0.0) > tol:  # also stops on nan
                 break
             # a Newton step for every angle: at converged ones it is a no-op to round-off
-            step = self.factored(pose)[0].solve(g)
+            if self.sparse_jac:
+                step = self.factored(pose)[0].solve(g)
+            else:  # closed form for nu <= 2, no inverse or condition number
+                step = smallsolve.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
             if self.has_pri:
                 step *= self.col_scale[:, None]
             q[unknown] -= step
@@ -740,7 +741,7 @@ class Linkage:
         # q_u' = -J_u^-1 J_psi psi' (seed 000 eq. 32, generalized)
         qd[unknown] = fac.solve(jac_psi)
         qd[unknown] *= scale_d
-        omega = self._down_rev(qd)
+        omega = self.anc_rev @ qd if self.dense_tree else self._down_rev(qd)
         origin, J = pose.origin, pose.joint_at
         # v = i (omega O - sum_t qd_t J_t)  (+ prismatic slides)
         vel = omega * origin
@@ -774,7 +775,7 @@ class Linkage:
         # J_u q_u'' = -(gamma + J_psi psi'')
         qdd[unknown] = fac.solve(gamma)
         qdd[unknown] *= -self.col_scale[:, None] if self.has_pri else -1.0
-        alpha = self._down_rev(qdd)
+        alpha = self.anc_rev @ qdd if self.dense_tree else self._down_rev(qdd)
         acc = alpha * origin
         if self.has_pri:
             acc -= self._down(qdd * J * self.rev_col + 1j * qdd * pose.axis)
