@@ -345,13 +345,20 @@ def _inverse_z(lu, plan, p, colsum=None):
     Return ``Z = U^-1 L^-1`` ``(k, k, p)`` from the factors, on nonzero ranges only.
 
     With ``colsum`` ``(k, p)`` (zeros), also the column sums of ``|Z|`` (the 1-norm), each
-    row added as soon as it is final, on its nonzero range only.
+    row added as soon as it is final, on its nonzero range only; the entries of ``Z``
+    outside the ranges are then left unset (the returned array is scratch).
     """
     k = plan.k
-    z = np.zeros((k, k, p))
+    lo, hi = plan.z_lo, plan.z_hi
+    if colsum is None:
+        z = np.zeros((k, k, p))
+    else:                      # only the ranges are ever read or written: zero just those
+        z = np.empty((k, k, p))
+        for j in range(k):
+            z[j, lo[j]:hi[j] + 1] = 0.0
     z[np.arange(k), np.arange(k)] = 1.0
     tmp = np.empty((k, p))
-    env, lo, hi = plan.env, plan.z_lo, plan.z_hi
+    env = plan.env
     with np.errstate(divide='ignore', invalid='ignore'):
         for j, pairs in enumerate(plan.l_pairs):     # Z <- L^-1 (lower triangular)
             a = env[j]
@@ -501,13 +508,11 @@ class Factored:
             with np.errstate(invalid='ignore'):
                 if self._inv is None and getattr(self, '_zinv', None) is None:
                     colsum = np.zeros((self.k, self.p))
-                    self._zinv = _inverse_z(self.lu, self.plan, self.p, colsum)
+                    _inverse_z(self.lu, self.plan, self.p, colsum)   # scratch: norms only
                     norm_inv = colsum.max(axis=0)
                     if self.any_weak:
                         w = self.weak
                         fixed = np.moveaxis(_lapack_inv(self._weak_mat()), 0, -1)
-                        self._zinv[:, :, w] = fixed[np.ix_(self.plan.col_order,
-                                                           self.plan.row_order)]
                         norm_inv[w] = np.max(np.sum(np.abs(fixed), axis=0), axis=0)
                 else:
                     inv = self._inv if self._inv is not None else self._z()
