@@ -429,7 +429,7 @@ class Linkage:
     def _down(self, v):
         """Return ``(nb, ...)``: per body the sum of ``v`` ``(nt, ...)`` over the joints above."""
         if self.dense_tree:
-            return _rmat(self.anc_all, v) if v.dtype.kind == 'c' else self.anc_all @ v
+            return _rmat(self.anc_all, v) if np.iscomplexobj(v) else self.anc_all @ v
         s = np.empty((self.nt + 1,) + v.shape[1:], dtype=v.dtype)
         s[self.nt] = 0.0
         start, end, _ = self.levels[0]
