@@ -29,7 +29,7 @@ def _relative(ours, theirs):
 # ----------------------------------------------------------------------------- the generator
 
 
-@pytest.mark.parametrize('loops', [1, 3, 4, 9])
+@pytest.mark.parametrize('loops', [1, 3, 4, 9, 19])
 def test_chain_counts_assembles_and_turns_fully(loops):
     sc = chain.dyad_chain(loops)
     moving, with_frame, joints = chain.link_counts(loops)
@@ -113,7 +113,7 @@ def _rigs(name_or_loops, bench_mujoco):
     return rig, bench_mujoco.MujocoRig(rig)
 
 
-@pytest.mark.parametrize('which', ['hoeken', 4])
+@pytest.mark.parametrize('which', ['hoeken', 4, 19])
 def test_imposed_motion_agrees_with_mujoco(which, bench_mujoco):
     rig, mjr = _rigs(which, bench_mujoco)
     psi = cycle_angles(72, rig.scene.assembly_crank_angle_rad) + 0.01

@@ -5,11 +5,18 @@ Only this module (and the command that prints it) measures time; tests never do.
 """
 
 import time
+import tracemalloc
 
 from mech_balance import schema as scene_mod
 from mech_balance.analysis.timing import DEFAULT_REPEAT, median_seconds, WARMUP  # noqa: F401
+from mech_balance.bench import chains as chain
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
+
+CHAIN_LOOPS = (19,)
+"""Generated chains timed after the built-in scenes: 19 loops = 40 links with the frame."""
+MEMORY_LIMIT_BYTES = 200 * 2 ** 20
+"""Largest peak allocation of one cycle of the 40-link chain at 360 angles (issue 22)."""
 
 SECTIONS = ('mech_balance.bench.balancing:bench_section',
             'mech_balance.bench.balancing:counterweights_section',
@@ -32,6 +39,27 @@ def section_name(entry):
     return module.rsplit('.', 1)[-1]
 
 
+def peak_bytes(fn):
+    """
+    Return the peak of the memory ``fn()`` allocates (Python and numpy), in bytes.
+
+    Measured by :mod:`tracemalloc` in a separate, untimed run (tracing slows every
+    allocation): the largest amount allocated at one time during the call beyond what was
+    allocated before it, i.e. the working memory of one cycle.
+    """
+    started = not tracemalloc.is_tracing()
+    if started:
+        tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        fn()
+        return max(tracemalloc.get_traced_memory()[1] - before, 0)
+    finally:
+        if started:
+            tracemalloc.stop()
+
+
 def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
     """
     Return timing figures of one full cycle of a scene of any kind.
@@ -40,7 +68,8 @@ def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
     its branch: it depends on the geometry only); ``cycle_s`` is the median time of the core's
     position, velocity, acceleration and inverse-dynamics analysis at ``samples`` angles (the
     rig's own ``evaluate`` where it has one, else :meth:`Rig.at`), ``at_s`` that of the Rig
-    protocol's :meth:`Rig.at`, which adds the joint coordinates and 3-vector wrench.
+    protocol's :meth:`Rig.at`, which adds the joint coordinates and 3-vector wrench;
+    ``peak_bytes`` the peak memory one :meth:`Rig.at` cycle allocates (:func:`peak_bytes`).
     """
     t0 = time.perf_counter()
     rig = rig_for(scene, cache=False)
@@ -51,13 +80,21 @@ def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
     native = getattr(rig, 'evaluate', None)  # the core's cycle, without the protocol's views
     at = median_seconds(lambda: rig.at(psi, outputs=outputs), repeat=repeat)
     cycle = median_seconds(lambda: native(psi, outputs), repeat=repeat) if native else at
+    peak = peak_bytes(lambda: rig.at(psi, outputs=outputs))
     return {'scene': scene.name, 'samples': samples, 'build_s': build, 'cycle_s': cycle,
             'us_per_angle': cycle * 1e6 / samples, 'at_us_per_angle': at * 1e6 / samples,
-            'outputs': list(outputs), 'everything': everything}
+            'outputs': list(outputs), 'everything': everything, 'peak_bytes': peak,
+            'links': len(getattr(scene, 'links', ()))}
 
 
-def run(names=None, samples=360, repeat=DEFAULT_REPEAT, progress=print):
-    """Return the bench table (list of dicts) for the given built-in scene names."""
+def run(names=None, samples=360, repeat=DEFAULT_REPEAT, progress=print, loops=CHAIN_LOOPS):
+    """
+    Return the bench table (list of dicts) for the given built-in scene names.
+
+    Without ``names``: every built-in scene, then the generated chains of ``loops`` loops
+    (:func:`mech_balance.bench.chains.dyad_chain`).
+    """
+    chains = () if names else loops
     names = names or list(scene_mod.builtin_scenes())
     rows = []
     for name in names:
@@ -69,6 +106,10 @@ def run(names=None, samples=360, repeat=DEFAULT_REPEAT, progress=print):
         if name == 'hoeken':
             rows.append(cycle_timing(full, samples, outputs=('shaking_wrench',),
                                      repeat=repeat))
+    for n in chains:
+        progress(f'  timing a generated chain of {n} loops ...')
+        sc = chain.dyad_chain(n).with_outputs(scene_mod.DEFAULT_OUTPUTS)
+        rows.append(cycle_timing(sc, samples, repeat=repeat))
     return rows
 
 
@@ -76,10 +117,18 @@ def format_rows(rows):
     """Return the bench table as text."""
     width = max([16] + [len(r['scene']) + 2 for r in rows])
     lines = [f'{"scene":<{width}}{"outputs":<30}{"us/angle":>10}{"ms/cycle":>10}'
-             f'{"build ms":>10}{"Rig.at us":>11}', '-' * (width + 71)]
+             f'{"build ms":>10}{"Rig.at us":>11}{"peak MB":>9}', '-' * (width + 80)]
     for r in rows:
         outs = 'everything' if r.get('everything') else '+'.join(r['outputs'])
         lines.append(f'{r["scene"]:<{width}}{outs:<30}{r["us_per_angle"]:>10.3f}'
                      f'{r["cycle_s"] * 1e3:>10.3f}{r["build_s"] * 1e3:>10.1f}'
-                     f'{r["at_us_per_angle"]:>11.3f}')
+                     f'{r["at_us_per_angle"]:>11.3f}{r["peak_bytes"] / 2 ** 20:>9.2f}')
+    lines.append('peak MB: the largest memory one Rig.at cycle allocates at a time '
+                 '(tracemalloc, an untimed run)')
+    for r in rows:
+        if r['scene'].startswith('dyad_chain') and r['links'] + 1 >= 40:
+            ok = r['peak_bytes'] <= MEMORY_LIMIT_BYTES
+            lines.append(f'{r["scene"]} ({r["links"] + 1} links, {r["samples"]} angles): peak '
+                         f'{r["peak_bytes"] / 2 ** 20:.1f} MB -> {"PASS" if ok else "FAIL"} '
+                         f'(<= {MEMORY_LIMIT_BYTES / 2 ** 20:.0f} MB)')
     return '\n'.join(lines)

@@ -135,11 +135,14 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         weight = inertia.mass[:, None] * gravity
         f_net = f_net - weight
         m_net = m_net - _cross(arm, weight) - _cross(world_h, gravity)
-    below = linkage.below                                  # (nt, nb): bodies below joint t
     lever = pose.joint_at - pivot
     # generalized forces of the tree coordinates, Q = N^T (w* - w^E) (seed 001 eq. 32)
-    f_sub = _rmat(below, f_net)                            # net force of each subtree
-    m_sub = below @ m_net                                  # and its moment about the pivot
+    if linkage.dense_tree:                                 # (nt, nb): bodies below joint t
+        f_sub = _rmat(linkage.below, f_net)                # net force of each subtree
+        m_sub = linkage.below @ m_net                      # and its moment about the pivot
+    else:                                                  # the same, level by level
+        f_sub = linkage._up(f_net)
+        m_sub = linkage._up(m_net)
     q_gen = m_sub - _cross(lever, f_sub)
     if linkage.has_pri:
         q_gen = np.where(linkage.is_prismatic[:, None], _dot(pose.axis, f_sub), q_gen)
@@ -147,9 +150,13 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
     q_u = q_gen[linkage.unknown_rows]
     if linkage.has_pri:
         q_u = q_u * linkage.col_scale[:, None]
-    lam_scaled = _matvec_t(state.jac_inv, q_u)
+    if state.jac_factors is not None:
+        lam_scaled = state.jac_factors.solve_t(q_u)
+    else:
+        lam_scaled = _matvec_t(state.jac_inv, q_u)
     lam = lam_scaled * linkage.row_scale[:, None]
-    tau = q_gen[0] - np.einsum('ip,ip->p', state.jac[:, 0, :], lam_scaled)
+    jac_psi = state.jac[:, 0, :] if state.jac_psi is None else state.jac_psi
+    tau = q_gen[0] - np.einsum('ip,ip->p', jac_psi, lam_scaled)
     out.driving_torque = tau
     out.multipliers = lam
     nr, npc = linkage.nr, linkage.npc
@@ -170,8 +177,12 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         m_on_b[nr:] += cut_moment[nr:]
         m_on_a[nr:] = -m_on_b[nr:]
     # tree joint t carries what its subtree needs beyond the cut loads on that subtree
-    f_req = f_sub - _rmat(linkage.below_cut, force)
-    m_req = m_sub - linkage.below_cut_b @ m_on_b - linkage.below_cut_a @ m_on_a
+    if linkage.dense_tree:
+        f_req = f_sub - _rmat(linkage.below_cut, force)
+        m_req = m_sub - linkage.below_cut_b @ m_on_b - linkage.below_cut_a @ m_on_a
+    else:
+        f_req = f_sub - linkage._up_cut(force, force)
+        m_req = m_sub - linkage._up_cut(m_on_b, -m_on_a)
     moment = m_req - _cross(lever, f_req)                 # about each tree joint
     dev = moment[0] - tau
     worst = float(np.abs(dev, out=dev).max())

@@ -84,6 +84,10 @@ MIDPOINT_TRUST_FRACTION = 0.1
 """A traced segment is accepted when Newton moves its midpoint predictor by less than this
 fraction of ``EVAL_TRUST``, so that batched solves seldom need the step-by-step re-trace."""
 TWO_PI = 2.0 * math.pi
+DENSE_TREE_MAX_BODIES = 8
+"""Up to this many bodies the sums over the spanning tree are one dense matrix product each
+(fewest numpy calls); above it they run level by level down or up the tree, so that their
+cost grows with the number of bodies, not with its square (and stays off BLAS threads)."""
 
 
 class BranchError(ValueError):
@@ -161,8 +165,14 @@ class KinematicState:
     qdd: np.ndarray = None
     alpha: np.ndarray = None   # (nb, p) rad/s^2
     acc: np.ndarray = None     # (nb, p) complex acceleration of each link origin, m/s^2
-    jac_inv: np.ndarray = None  # (nu, m, p) inverse of the scaled Jacobian J_u
-    jac: np.ndarray = None      # (m, nt, p) scaled loop Jacobian over all tree coordinates
+    jac: np.ndarray = None      # (m, nt, p) scaled loop Jacobian (None: kept sparse)
+    jac_factors: object = None  # smallsolve.Factored of J_u (solves without the inverse)
+    jac_psi: np.ndarray = None  # (m, p) its crank column, d g / d psi (scaled)
+
+    @property
+    def jac_inv(self):
+        """Return the ``(nu, m, p)`` inverse of the scaled Jacobian J_u (built on demand)."""
+        return None if self.jac_factors is None else self.jac_factors.inverse()[0]
 
     @property
     def size(self):
@@ -232,6 +242,7 @@ class Linkage:
         self._compile()
         self.pivot = self._crank_pivot(scene)
         self.branch_sign = 1.0  # sign of det J_u on the traced branch (set by the trace)
+        self.sparse_jac = False  # J_u as its nonzeros only (all-revolute, nu > 2)
         self.pivots = None  # static row order for the loop Jacobian, set at assembly
         self.lu = None      # its sparse LU plan (smallsolve.LUPlan), set at assembly
         self._skeleton = None
@@ -285,6 +296,7 @@ class Linkage:
             for t in self.anc[b]:
                 (self.anc_rev if rev[t] else self.anc_pri)[b, t] = 1.0
         self.anc_all = self.anc_rev + self.anc_pri
+        self._compile_levels()
         self.has_pri = bool(self.is_prismatic.any())
         self.p_par = np.array([tj.p_parent for tj in self.tree])[:, None]
         self.p_ch = np.array([tj.p_child for tj in self.tree])[:, None]
@@ -311,6 +323,8 @@ class Linkage:
         self.cut_inc_a[self.cut_a, np.arange(ncut)] = 1.0
         self.cut_inc_b[self.cut_b, np.arange(ncut)] = 1.0
         self.cut_names = [c.name for c in self.cuts]
+        self.cut_rounds_a = _rounds(self.cut_a)
+        self.cut_rounds_b = _rounds(self.cut_b)
         self.tree_names = [tj.name for tj in self.tree]
         joints = {j.name: j for j in self.scene.joints}
         # reactions are reported as the force on the joint's link b from its link a
@@ -349,6 +363,11 @@ class Linkage:
         unk = nz[:, 1] > 0
         self.jac_nz = (nz[:, 0], nz[:, 1], nz[:, 2], nz[:, 3])
         self.jac_nz_u = (nz[unk, 0], nz[unk, 1] - 1, nz[unk, 2], nz[unk, 3])
+        # the same, unknown columns first, then the crank column (values + J_psi in one go)
+        order = np.concatenate([np.flatnonzero(unk), np.flatnonzero(~unk)])
+        n_unk = int(unk.sum())
+        self.jac_nz_split = (nz[unk, 0], nz[unk, 1] - 1, nz[order, 2], nz[order, 3], n_unk,
+                             nz[~unk, 0])
         self.cut_angle = np.array([c.angle for c in self.cuts[self.nr:]])[:, None]
         self.cut_axis = np.array([c.axis for c in self.cuts[self.nr:]], dtype=complex)[:, None]
         # reaction recursion (dynamics): bodies below each tree joint, and the cut-joint
@@ -365,6 +384,90 @@ class Linkage:
         rows.update({n: (False, c) for c, n in enumerate(self.cut_names)})
         self.joint_rows = [(n, *rows[n]) for n in self.joint_names]
 
+    def _compile_levels(self):
+        """
+        Precompute the tree's levels for sums over ancestors and over subtrees.
+
+        The tree is breadth-first, so the joints of one depth are contiguous and siblings
+        adjacent.  ``_down`` sums joint values over the joints above each body (level by
+        level from the frame), ``_up`` sums body values over the bodies below each joint
+        (from the deepest level up, in rounds whose parent joints are distinct).
+        """
+        nb, nt = self.nb, self.nt
+        self.dense_tree = nb <= DENSE_TREE_MAX_BODIES
+        joint_of_body = [nt] * nb                 # nt: the frame (a zero row)
+        for t, tj in enumerate(self.tree):
+            joint_of_body[tj.child] = t
+        self.joint_of_body = np.array(joint_of_body)
+        parent = [joint_of_body[tj.parent] for tj in self.tree]   # nt: hangs from the frame
+        depth = [0] * nb
+        for tj in self.tree:
+            depth[tj.child] = depth[tj.parent] + 1
+        by_depth = {}
+        for t, tj in enumerate(self.tree):
+            by_depth.setdefault(depth[tj.child], []).append(t)
+        self.levels = []                          # (first joint, end, parent joints) per depth
+        self.up_rounds = []                       # (children, parents) deepest first
+        for d in sorted(by_depth):
+            ts = by_depth[d]
+            if ts != list(range(ts[0], ts[-1] + 1)):
+                raise AssertionError('spanning tree is not breadth-first')  # pragma: no cover
+            self.levels.append((ts[0], ts[-1] + 1, np.array([parent[t] for t in ts])))
+        for d in sorted(by_depth, reverse=True):
+            if d == 1:
+                continue
+            pending = list(by_depth[d])
+            while pending:
+                seen, now, later = set(), [], []
+                for t in pending:
+                    (later if parent[t] in seen else now).append(t)
+                    seen.add(parent[t])
+                self.up_rounds.append((np.array(now), np.array([parent[t] for t in now])))
+                pending = later
+        self.rev_col = (~self.is_prismatic).astype(float)[:, None]
+
+    def _down(self, v):
+        """Return ``(nb, ...)``: per body the sum of ``v`` ``(nt, ...)`` over the joints above."""
+        if self.dense_tree:
+            return _rmat(self.anc_all, v) if np.iscomplexobj(v) else self.anc_all @ v
+        s = np.empty((self.nt + 1,) + v.shape[1:], dtype=v.dtype)
+        s[self.nt] = 0.0
+        start, end, _ = self.levels[0]
+        s[start:end] = v[start:end]
+        for start, end, parents in self.levels[1:]:
+            np.add(s[parents], v[start:end], out=s[start:end])
+        return s[self.joint_of_body]
+
+    def _down_rev(self, v):
+        """Return :meth:`_down` over the revolute joints only (the link angles and rates)."""
+        if self.dense_tree:
+            return self.anc_rev @ v
+        return self._down(v * self.rev_col if self.has_pri else v)
+
+    def _up(self, x):
+        """Return ``(nt, ...)``: per tree joint the sum of ``x`` ``(nb, ...)`` below it."""
+        if self.dense_tree:
+            if np.iscomplexobj(x):
+                return _rmat(self.below, x)
+            return self.below @ x
+        sub = x[self.ch]
+        for kids, parents in self.up_rounds:
+            sub[parents] += sub[kids]
+        return sub
+
+    def _up_cut(self, load_b, load_a):
+        """Return per tree joint the sum of cut loads on the bodies below it (b minus a)."""
+        if self.dense_tree:
+            if np.iscomplexobj(load_b):
+                return _rmat(self.below_cut_b, load_b) - _rmat(self.below_cut_a, load_a)
+            return self.below_cut_b @ load_b - self.below_cut_a @ load_a
+        x = np.zeros((self.nb,) + load_b.shape[1:], dtype=load_b.dtype)
+        for cuts, bodies in self.cut_rounds_b:
+            x[bodies] += load_b[cuts]
+        for cuts, bodies in self.cut_rounds_a:
+            x[bodies] -= load_a[cuts]
+        return self._up(x)
+
     def _jacobian_pattern(self):
         """Return the structural nonzeros ``(m, nu)`` of the loop Jacobian's unknown columns."""
         touched = (self.anc_all[self.cut_a] + self.anc_all[self.cut_b]) != 0  # (ncut, nt)
@@ -374,7 +477,7 @@ class Linkage:
 
     def pose(self, q, rot_crank=None):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
-        phi = self.anc_rev @ q
+        phi = self.anc_rev @ q if self.dense_tree else self._down_rev(q)
         if self.has_pri:
             phi += self.phi_offset
         rot = np.empty(phi.shape, dtype=complex)
@@ -389,7 +492,7 @@ class Linkage:
         if self.has_pri:
             axis = np.where(self.axis_on_par, rot_par, -rot_ch) * self.axis_local
             contrib += q * axis
-        origin = _rmat(self.anc_all, contrib)
+        origin = _rmat(self.anc_all, contrib) if self.dense_tree else self._down(contrib)
         joint_at = origin[self.ch] + arm_ch
         return Pose(phi, rot, origin, joint_at, axis)
 
@@ -471,6 +574,36 @@ class Linkage:
                      + _cross(n[:, None, :], d[nr:])]
         return np.concatenate(rows) * self.row_scale[:, None, None]
 
+    def jacobian_values(self, pose):
+        """
+        Return ``(values, jac_psi)``: the nonzeros of J_u and the crank column ``(m, p)``.
+
+        All-revolute loops only (:attr:`sparse_jac`): ``values`` in the order of the LU
+        plan's entries (the x rows, then the y rows, of :attr:`jac_nz_split`), so no dense
+        ``(m, nu, p)`` stack is ever formed.
+        """
+        self.cut_points(pose)
+        _, _, i1, i2, n, crank_rows = self.jac_nz_split
+        points = np.concatenate([pose.cut_points[0], pose.cut_points[1], pose.joint_at])
+        d = points[i1]
+        d -= points[i2]
+        scale = self.row_scale[0]
+        p = d.shape[1]
+        values = np.empty((2 * n, p))
+        np.multiply(d.imag[:n], -scale, out=values[:n])
+        np.multiply(d.real[:n], scale, out=values[n:])
+        jac_psi = np.zeros((self.m, p))
+        jac_psi[crank_rows] = -scale * d.imag[n:]
+        jac_psi[self.nr + crank_rows] = scale * d.real[n:]
+        return values, jac_psi
+
+    def factored(self, pose):
+        """Return ``(Factored J_u, J_psi or None)`` at ``pose`` (sparse where possible)."""
+        if self.sparse_jac:
+            values, jac_psi = self.jacobian_values(pose)
+            return smallsolve.Factored(None, self.lu, values=values), jac_psi
+        return smallsolve.Factored(self.jacobian(pose, unknown_only=True), self.lu), None
+
     # ------------------------------------------------------------------ Newton
 
     def newton(self, psi, q, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
@@ -491,7 +624,10 @@ class Linkage:
             if it == max_iter or not res.max(initial=0.0) > tol:  # also stops on nan
                 break
             # a Newton step for every angle: at converged ones it is a no-op to round-off
-            step = smallsolve.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
+            if self.sparse_jac:
+                step = self.factored(pose)[0].solve(g)
+            else:  # closed form for nu <= 2, no inverse or condition number
+                step = smallsolve.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
             if self.has_pri:
                 step *= self.col_scale[:, None]
             q[unknown] -= step
@@ -533,8 +669,20 @@ class Linkage:
                 'each, which selects the assembly mode (branch)')
         cs = self.col_scale[:, None]
         if self.nu > 2:
-            self.pivots = smallsolve.pivot_order(self.jacobian(self.pose(q))[:, self.unknown, 0])
-            self.lu = smallsolve.LUPlan(self._jacobian_pattern(), self.pivots)
+            # the static order of the loop Jacobian: block triangular (the Assur groups in
+            # dependency order), pivots inside the blocks from the assembly guess
+            sample = self.jacobian(self.pose(q))[:, self.unknown, 0]
+            pattern = self._jacobian_pattern()
+            order = smallsolve.block_triangular_order(pattern, sample)
+            if order is None:
+                self.pivots, cols = smallsolve.pivot_order(sample), None
+            else:
+                self.pivots, cols = order
+            self.lu = smallsolve.LUPlan(pattern, self.pivots, cols)
+            self.sparse_jac = not self.has_pri and not self.npc
+            if self.sparse_jac:
+                c, t = self.jac_nz_split[0], self.jac_nz_split[1]
+                self.lu.set_entries(np.concatenate([c, self.nr + c]), np.concatenate([t, t]))
         for _ in range(ASSEMBLY_MAX_ITER):
             pose = self.pose(q)
             g = self.residual(pose)
@@ -566,7 +714,8 @@ class Linkage:
 
         ``psi_d``, ``psi_dd`` broadcast to ``(p,)``; ``jac`` is the scaled loop Jacobian at
         ``pose`` if already known.  Returns a dict with ``qd``, ``omega``, ``vel``,
-        ``jac_inv``, ``cond``, ``jac`` and, if ``need_acc``, ``qdd``, ``alpha``, ``acc``.
+        ``jac_factors`` (J_u factorized), ``cond``, ``jac`` (``None`` where J_u is kept
+        sparse), ``jac_psi`` and, if ``need_acc``, ``qdd``, ``alpha``, ``acc``.
         Every link rate is the sum over the tree joints above it (vectorized with the
         ancestry matrices): a revolute joint t turning at qd_t moves the point P at
         ``i qd_t (P - J_t)``, a prismatic one at ``qd_t * axis_t``.
@@ -576,27 +725,33 @@ class Linkage:
             psi_d = np.broadcast_to(psi_d, (p,))
         if np.ndim(psi_dd):
             psi_dd = np.broadcast_to(psi_dd, (p,))
-        if jac is None:
-            jac = self.jacobian(pose)
         unknown = self.unknown_rows
-        jinv, cond, sign = smallsolve.inverse(jac[:, unknown], self.lu, with_sign=True)
+        if self.sparse_jac and jac is None:
+            fac, jac_psi = self.factored(pose)
+        else:
+            if jac is None:
+                jac = self.jacobian(pose)
+            fac = smallsolve.Factored(jac[:, unknown], self.lu)
+            jac_psi = jac[:, 0]
+        cond = fac.cond()
+        sign = fac.sign()
         scale_d = -self.col_scale[:, None] * psi_d if self.has_pri else -psi_d
-        jac_psi = jac[:, 0]
         qd = np.empty((self.nt, p))
         qd[0] = psi_d
         # q_u' = -J_u^-1 J_psi psi' (seed 000 eq. 32, generalized)
-        qd[unknown] = _matvec(jinv, jac_psi)
+        qd[unknown] = fac.solve(jac_psi)
         qd[unknown] *= scale_d
-        omega = self.anc_rev @ qd
+        omega = self.anc_rev @ qd if self.dense_tree else self._down_rev(qd)
         origin, J = pose.origin, pose.joint_at
         # v = i (omega O - sum_t qd_t J_t)  (+ prismatic slides)
         vel = omega * origin
-        vel -= _rmat(self.anc_rev, qd * J)
-        vel *= 1j
         if self.has_pri:
-            vel += _rmat(self.anc_pri, qd * pose.axis)
-        out = {'qd': qd, 'omega': omega, 'vel': vel, 'jac_inv': jinv, 'cond': cond, 'jac': jac,
-               'det_sign': sign}
+            vel -= self._down(qd * J * self.rev_col + 1j * qd * pose.axis)
+        else:
+            vel -= self._down(qd * J)
+        vel *= 1j
+        out = {'qd': qd, 'omega': omega, 'vel': vel, 'cond': cond, 'jac': jac,
+               'jac_psi': jac_psi, 'det_sign': sign, 'jac_factors': fac}
         if not need_acc:
             return out
         # velocity-product part of the link accelerations (all joint accelerations zero):
@@ -607,25 +762,27 @@ class Linkage:
         v_joint *= 1j * omega_par
         v_joint += vel[par]
         acc_v = omega * vel
-        acc_v -= _rmat(self.anc_rev, qd * v_joint)
-        acc_v *= 1j
         if self.has_pri:
-            acc_v += _rmat(self.anc_pri, 1j * qd * omega_par * pose.axis)
+            acc_v -= self._down(qd * v_joint * self.rev_col - qd * omega_par * pose.axis)
+        else:
+            acc_v -= self._down(qd * v_joint)
+        acc_v *= 1j
         gamma = self._cut_bias(pose, omega, vel, acc_v)
         if np.ndim(psi_dd) or psi_dd != 0.0:
             gamma += jac_psi * psi_dd
         qdd = np.empty((self.nt, p))
         qdd[0] = psi_dd
         # J_u q_u'' = -(gamma + J_psi psi'')
-        qdd[unknown] = _matvec(jinv, gamma)
+        qdd[unknown] = fac.solve(gamma)
         qdd[unknown] *= -self.col_scale[:, None] if self.has_pri else -1.0
-        alpha = self.anc_rev @ qdd
+        alpha = self.anc_rev @ qdd if self.dense_tree else self._down_rev(qdd)
         acc = alpha * origin
-        acc -= _rmat(self.anc_rev, qdd * J)
+        if self.has_pri:
+            acc -= self._down(qdd * J * self.rev_col + 1j * qdd * pose.axis)
+        else:
+            acc -= self._down(qdd * J)
         acc *= 1j
         acc += acc_v
-        if self.has_pri:
-            acc += _rmat(self.anc_pri, qdd * pose.axis)
         out.update(qdd=qdd, alpha=alpha, acc=acc)
         return out
 
@@ -671,7 +828,7 @@ class Linkage:
 
     def _derivatives(self, pose):
         r = self.rates(pose, 1.0, 0.0)
-        return r['qd'], r['qdd'], r['cond'], r['jac_inv']
+        return r['qd'], r['qdd'], r['cond'], r['jac_factors']
 
     def _trace(self):
         psi0 = self.scene.assembly_crank_angle_rad
@@ -761,7 +918,9 @@ class Linkage:
     def _det_sign(self, pose):
         if not self.nu:
             return 1.0
-        return float(smallsolve.det_sign(self.jacobian(pose, unknown_only=True), self.lu)[0])
+        if self.nu <= 2:  # closed form, without the inverse and condition number
+            return float(smallsolve.det_sign(self.jacobian(pose, unknown_only=True))[0])
+        return float(self.factored(pose)[0].sign()[0])
 
     def _warn(self, text):
         if text not in self.warnings:
@@ -782,16 +941,15 @@ class Linkage:
         sk = self.skeleton
         q_pred = sk.predict(psi)
         q, pose, res, iters, ok = self.newton(psi, q_pred)
-        if self.nu:  # how far Newton moved from the predictor (scaled)
+        if self.nu and iters.any():  # how far Newton moved from the predictor (scaled)
             corr = q[1:] - q_pred[1:]
             np.abs(corr, out=corr)
             if self.has_pri:
                 corr /= self.col_scale[:, None]
-            corr = corr.max(axis=0)
-        else:
-            corr = np.zeros(psi.shape)
-        bad = corr > EVAL_TRUST
-        bad |= ~ok
+            bad = corr.max(axis=0) > EVAL_TRUST
+            bad |= ~ok
+        else:  # no step taken: the predictor itself is the solution where it converged
+            bad = ~ok
         if bad.any():
             q[:, bad] = self._retrace(psi[bad])
             pose = self.pose(q)
@@ -808,9 +966,8 @@ class Linkage:
                 return self.rates(pose, speed if np.ndim(speed) == 0 else speed_p,
                                   accel if np.ndim(accel) == 0 else accel_p,
                                   need_acc=need_acc)
-            _, cond, sign = smallsolve.inverse(self.jacobian(pose, unknown_only=True),
-                                               self.lu, with_sign=True)
-            return {'cond': cond, 'det_sign': sign}
+            fac = self.factored(pose)[0]
+            return {'cond': fac.cond(), 'det_sign': fac.sign()}
 
         r = at(pose)
         # The branch is the set of solutions where det J_u keeps the sign it has at the
@@ -832,7 +989,8 @@ class Linkage:
                     'linkage is too close to a singular position here to follow its branch')
         state = KinematicState(psi, speed_p, accel_p, q, pose, res, r['cond'], iters)
         if need_rates:
-            state.jac_inv, state.jac = r['jac_inv'], r['jac']
+            state.jac, state.jac_psi = r['jac'], r['jac_psi']
+            state.jac_factors = r['jac_factors']
             state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
@@ -873,6 +1031,20 @@ class Linkage:
                 qd, qdd, _, _ = self._derivatives(pose_new)
             out[:, i] = q[:, 0]
         return out
+
+
+def _rounds(targets):
+    """Return ``[(items, targets)]``: the items in rounds whose targets are distinct."""
+    pending = list(range(len(targets)))
+    out = []
+    while pending:
+        seen, now, later = set(), [], []
+        for i in pending:
+            (later if int(targets[i]) in seen else now).append(i)
+            seen.add(int(targets[i]))
+        out.append((np.array(now, dtype=int), np.array([targets[i] for i in now], dtype=int)))
+        pending = later
+    return out
 
 
 class Skeleton:

@@ -17,8 +17,18 @@ operation is one vectorized numpy call over all p angles:
   condition number and the cut-joint multipliers) builds it from the factors, touching only
   the column ranges of ``L^-1`` and ``U^-1 L^-1`` that can be nonzero.  Matrices whose
   static pivots turn out small are handed to LAPACK (partial pivoting).
+
+Order (:func:`block_triangular_order`, worked out once per pattern)
+    Rows and columns are permuted to the block lower triangular form of the pattern
+    (Dulmage-Mendelsohn: a perfect matching of rows to columns, then the strongly connected
+    components of the matched dependency graph in dependency order), and the static pivots
+    are chosen inside each diagonal block only.  For a linkage the diagonal blocks are its
+    Assur groups (a chain of four-bars: one 2 x 2 block per loop), so the factors have no
+    fill outside the blocks and the numeric work grows linearly with the number of loops
+    instead of with the fill-in of one global pivot order (quadratic for a chain).
 """
 
+from mech_balance.core.planar.algebra import matvec as _matvec, matvec_t as _matvec_t
 import numpy as np
 
 PIVOT_FLOOR = 1e-300
@@ -47,24 +57,115 @@ def pivot_order(mat):
     return np.array(rows)
 
 
+def block_triangular_order(pattern, mat):
+    """
+    Return ``(row_order, col_order)``: a block lower triangular form with in-block pivots.
+
+    ``pattern`` (bool ``(k, k)``) holds every entry that can be nonzero, ``mat`` is one
+    representative matrix (its magnitudes choose the matching and the pivots).  The matched
+    rows of the diagonal blocks come in dependency order (a block only needs the unknowns of
+    the blocks before it); inside a block the rows follow partial pivoting on ``mat``.
+    Returns ``None`` if the pattern has no perfect matching (structurally singular).
+    """
+    pattern = np.asarray(pattern, dtype=bool)
+    mat = np.asarray(mat, dtype=float)
+    a = np.abs(mat)
+    k = pattern.shape[0]
+    cols_of = [sorted(np.flatnonzero(pattern[i]).tolist(), key=lambda j: -a[i, j])
+               for i in range(k)]
+    row_of = [-1] * k                      # column -> matched row
+
+    def augment(row, seen):                # Kuhn's augmenting path, largest entries first
+        for c in cols_of[row]:
+            if c not in seen:
+                seen.add(c)
+                if row_of[c] < 0 or augment(row_of[c], seen):
+                    row_of[c] = row
+                    return True
+        return False
+
+    for r in range(k):
+        if not augment(r, set()):
+            return None
+    # dependency graph on columns: column c (its matched row) needs the other columns of the row
+    needs = [[j for j in np.flatnonzero(pattern[row_of[c]]).tolist() if j != c]
+             for c in range(k)]
+    blocks = _tarjan(needs)                # dependencies first
+    row_order, col_order = [], []
+    for block in blocks:
+        rows = [row_of[c] for c in block]
+        sub = mat[np.ix_(rows, block)]
+        order = pivot_order(sub) if len(block) > 1 else [0]
+        row_order += [rows[i] for i in order]
+        col_order += list(block)
+    return np.array(row_order), np.array(col_order)
+
+
+def _tarjan(needs):
+    """Return the strongly connected components of a graph, every dependency first."""
+    n = len(needs)
+    index, low, on_stack = [-1] * n, [0] * n, [False] * n
+    stack, out, counter = [], [], [0]
+    for root in range(n):
+        if index[root] >= 0:
+            continue
+        work = [(root, 0)]
+        while work:
+            v, i = work.pop()
+            if i == 0:
+                index[v] = low[v] = counter[0]
+                counter[0] += 1
+                stack.append(v)
+                on_stack[v] = True
+            recurse = False
+            for j in range(i, len(needs[v])):
+                w = needs[v][j]
+                if index[w] < 0:
+                    work.append((v, j + 1))
+                    work.append((w, 0))
+                    recurse = True
+                    break
+                if on_stack[w]:
+                    low[v] = min(low[v], index[w])
+            if recurse:
+                continue
+            if low[v] == index[v]:
+                comp = []
+                while True:
+                    w = stack.pop()
+                    on_stack[w] = False
+                    comp.append(w)
+                    if w == v:
+                        break
+                out.append(sorted(comp))
+            if work:
+                u = work[-1][0]
+                low[u] = min(low[u], low[v])
+    return out
+
+
 class LUPlan:
     """
-    The symbolic LU factorization of a ``(k, k)`` sparsity pattern in a static row order.
+    The symbolic LU factorization of a ``(k, k)`` sparsity pattern in a static order.
 
-    ``pattern`` (bool ``(k, k)``, original row order) must contain every entry that can be
-    nonzero; ``row_order`` is the static pivot order (:func:`pivot_order`).  The factors
-    are stored as one ``(nnz, p)`` array of the nonzeros of L (unit diagonal, not stored)
-    and U, fill-in included; the index lists below drive the numeric phase.
+    ``pattern`` (bool ``(k, k)``, original order) must contain every entry that can be
+    nonzero; ``row_order`` is the static pivot order (:func:`pivot_order`) and ``col_order``
+    an optional column order (:func:`block_triangular_order` gives both): the factors are
+    those of ``mat[row_order][:, col_order]``.  They are stored as one ``(nnz, p)`` array
+    of the nonzeros of L (unit diagonal, not stored) and U, fill-in included; the index
+    lists below drive the numeric phase.
     """
 
-    def __init__(self, pattern, row_order=None):
+    def __init__(self, pattern, row_order=None, col_order=None):
         pattern = np.asarray(pattern, dtype=bool)
         k = pattern.shape[0]
         if pattern.shape != (k, k):
             raise ValueError(f'pattern: got shape {pattern.shape}, expected (k, k)')
         self.k = k
         self.row_order = np.arange(k) if row_order is None else np.asarray(row_order)
-        a = pattern[self.row_order] | np.eye(k, dtype=bool)
+        self.col_order = np.arange(k) if col_order is None else np.asarray(col_order)
+        self.natural_cols = bool(np.array_equal(self.col_order, np.arange(k)))
+        a = pattern[np.ix_(self.row_order, self.col_order)] | np.eye(k, dtype=bool)
         for j in range(k):  # symbolic elimination: row i gains row j's pattern
             rows = np.flatnonzero(a[j + 1:, j]) + j + 1
             a[np.ix_(rows, np.arange(j, k))] |= a[j, j:]
@@ -73,7 +174,7 @@ class LUPlan:
         slot = np.full((k, k), -1)
         slot[rr, cc] = np.arange(self.nnz)
         self.src_row = self.row_order[rr]   # where each stored entry comes from in mat
-        self.src_col = cc
+        self.src_col = self.col_order[cc]
         self.diag = slot[np.arange(k), np.arange(k)]
         self.l_rows, self.l_idx, self.u_cols, self.u_idx, self.update = [], [], [], [], []
         for j in range(k):
@@ -91,6 +192,7 @@ class LUPlan:
         self.u_pairs = [list(zip(c.tolist(), i.tolist())) for c, i in
                         zip(self.u_cols, self.u_idx)]
         self.diag_list = self.diag.tolist()
+        self.pivot_col = self.col_order.tolist()   # original column of each pivot
         # inverse: Z = U^-1 L^-1 (pivot order), whose row j is nonzero only in columns
         # lo[j]..hi[j]: L^-1 row i spans env[i]..i, and U^-1 mixes in the rows below
         env = list(range(k))
@@ -102,6 +204,47 @@ class LUPlan:
             for c in self.u_cols[j].tolist():
                 lo[j], hi[j] = min(lo[j], lo[c]), max(hi[j], hi[c])
         self.env, self.z_lo, self.z_hi = env, lo, hi
+        self.perm_sign = -1.0 if (_inversions(self.row_order)
+                                  + _inversions(self.col_order)) % 2 else 1.0
+        self._slot = slot
+        self._pivot_row = np.argsort(self.row_order)     # original row -> pivot position
+        self._pivot_pos = np.argsort(self.col_order)     # original column -> pivot position
+        self.entries = None
+
+    def set_entries(self, rows, cols):
+        """
+        Fix the order in which :class:`Factored` gets the nonzeros of a matrix.
+
+        ``rows``, ``cols`` (original indices, every structural nonzero once): a matrix is
+        then passed as its ``(len(rows), p)`` values, never as a dense ``(k, k, p)`` stack.
+        """
+        rows, cols = np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)
+        pr, pc = self._pivot_row[rows], self._pivot_pos[cols]
+        slots = self._slot[pr, pc]
+        if np.any(slots < 0):
+            raise ValueError("rows, cols: an entry lies outside the plan's pattern")
+        self.entries = (rows, cols)
+        self.entry_slot = slots
+        by_col = np.argsort(pc, kind='stable')     # entries grouped by pivot column
+        self.entry_by_col = by_col
+        counts = np.bincount(pc, minlength=self.k)
+        if np.any(counts == 0):
+            raise ValueError('rows, cols: a column has no entry (structurally singular)')
+        self.entry_col_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        # the entries of each pivot column, padded with a zero entry (index len(rows)): (k, w)
+        width = int(counts.max())
+        pad = np.full((self.k, width), rows.size)
+        for j in range(self.k):
+            own = by_col[self.entry_col_start[j]:self.entry_col_start[j] + counts[j]]
+            pad[j, :own.size] = own
+        self.entry_col_pad = pad
+
+
+def _inversions(order):
+    """Return the number of inversions of a permutation (its sign's parity)."""
+    order = [int(i) for i in order]
+    return sum(1 for i in range(len(order)) for j in range(i + 1, len(order))
+               if order[i] > order[j])
 
 
 def factor(mat, plan):
@@ -117,8 +260,8 @@ def factor(mat, plan):
     weak = np.zeros(p, dtype=bool)
     with np.errstate(divide='ignore', invalid='ignore'):  # weak matrices are redone
         for j in range(plan.k):
-            pivot = lu[plan.diag[j]]
-            weak |= ~(np.abs(pivot) > STATIC_PIVOT_RATIO * col_max[j])
+            pivot = lu[plan.diag_list[j]]
+            weak |= ~(np.abs(pivot) > STATIC_PIVOT_RATIO * col_max[plan.pivot_col[j]])
             li = plan.l_idx[j]
             if li.size:
                 low = lu[li] / pivot
@@ -129,8 +272,44 @@ def factor(mat, plan):
     return lu, weak
 
 
+def factor_values(values, plan):
+    """Return ``(lu, weak)`` like :func:`factor`, from the nonzeros (``set_entries``)."""
+    p = values.shape[1]
+    if plan.nnz == values.shape[0] and np.array_equal(plan.entry_slot, np.arange(plan.nnz)):
+        lu = values.copy()
+    else:
+        lu = np.zeros((plan.nnz, p))
+        lu[plan.entry_slot] = values
+    mags = np.empty((values.shape[0] + 1, p))     # |entries| and a zero row for the padding
+    np.abs(values, out=mags[:-1])
+    mags[-1] = 0.0
+    col_mags = mags[plan.entry_col_pad]            # (k, width, p), pivot column order
+    col_max = col_mags.max(axis=1)
+    weak = np.zeros(p, dtype=bool)
+    with np.errstate(divide='ignore', invalid='ignore'):  # weak matrices are redone
+        for j in range(plan.k):
+            pivot = lu[plan.diag_list[j]]
+            weak |= ~(np.abs(pivot) > STATIC_PIVOT_RATIO * col_max[j])
+            li = plan.l_idx[j]
+            if li.size:
+                low = lu[li] / pivot
+                lu[li] = low
+                ui = plan.u_idx[j]
+                if ui.size:
+                    lu[plan.update[j]] -= (low[:, None, :] * lu[ui][None, :, :]).reshape(-1, p)
+    return lu, weak, col_mags
+
+
+def dense_from_values(values, plan):
+    """Return the ``(k, k, p)`` stack of the nonzeros ``values`` (:meth:`LUPlan.set_entries`)."""
+    rows, cols = plan.entries
+    mat = np.zeros((plan.k, plan.k, values.shape[1]))
+    mat[rows, cols] = values
+    return mat
+
+
 def _substitute(lu, plan, y):
-    """Solve L U x = y in place for ``y`` ``(k, p)`` (rows already in pivot order)."""
+    """Solve L U x = y in place for ``y`` ``(k, p)`` (pivot row order in, pivot column out)."""
     tmp = np.empty(y.shape[1:])
     with np.errstate(divide='ignore', invalid='ignore'):  # singular: nan, reported by cond
         for j, pairs in enumerate(plan.l_pairs):
@@ -145,13 +324,41 @@ def _substitute(lu, plan, y):
     return y
 
 
-def _inverse_lu(lu, plan, p):
-    """Return the ``(k, k, p)`` inverse from the factors, working on nonzero ranges only."""
+def _substitute_t(lu, plan, y):
+    """Solve (L U)^T x = y in place (pivot column order in, pivot row order out)."""
+    tmp = np.empty(y.shape[1:])
+    with np.errstate(divide='ignore', invalid='ignore'):
+        for j in range(plan.k):                      # U^T: lower triangular, by columns
+            yj = y[j]
+            yj /= lu[plan.diag_list[j]]
+            for c, slot in plan.u_pairs[j]:
+                y[c] -= np.multiply(lu[slot], yj, out=tmp)
+        for j in range(plan.k - 1, -1, -1):          # L^T: unit upper triangular, by rows
+            yj = y[j]
+            for i, slot in plan.l_pairs[j]:
+                yj -= np.multiply(lu[slot], y[i], out=tmp)
+    return y
+
+
+def _inverse_z(lu, plan, p, colsum=None):
+    """
+    Return ``Z = U^-1 L^-1`` ``(k, k, p)`` from the factors, on nonzero ranges only.
+
+    With ``colsum`` ``(k, p)`` (zeros), also the column sums of ``|Z|`` (the 1-norm), each
+    row added as soon as it is final, on its nonzero range only; the entries of ``Z``
+    outside the ranges are then left unset (the returned array is scratch).
+    """
     k = plan.k
-    z = np.zeros((k, k, p))
+    lo, hi = plan.z_lo, plan.z_hi
+    if colsum is None:
+        z = np.zeros((k, k, p))
+    else:                      # only the ranges are ever read or written: zero just those
+        z = np.empty((k, k, p))
+        for j in range(k):
+            z[j, lo[j]:hi[j] + 1] = 0.0
     z[np.arange(k), np.arange(k)] = 1.0
     tmp = np.empty((k, p))
-    env, lo, hi = plan.env, plan.z_lo, plan.z_hi
+    env = plan.env
     with np.errstate(divide='ignore', invalid='ignore'):
         for j, pairs in enumerate(plan.l_pairs):     # Z <- L^-1 (lower triangular)
             a = env[j]
@@ -164,10 +371,162 @@ def _inverse_lu(lu, plan, p):
             for c, slot in plan.u_pairs[j]:
                 a, b = lo[c], hi[c] + 1
                 zj[a:b] -= np.multiply(lu[slot], z[c, a:b], out=tmp[:b - a])
-            zj[lo[j]:hi[j] + 1] /= lu[plan.diag_list[j]]
+            a, b = lo[j], hi[j] + 1
+            zj[a:b] /= lu[plan.diag_list[j]]
+            if colsum is not None:
+                colsum[a:b] += np.abs(zj[a:b], out=tmp[:b - a])
+    return z
+
+
+def _inverse_lu(lu, plan, p):
+    """Return the ``(k, k, p)`` inverse of the original matrix from the factors."""
+    z = _inverse_z(lu, plan, p)
     inv = np.empty_like(z)
-    inv[:, plan.row_order] = z                       # J^-1 = Z P
+    if plan.natural_cols:
+        inv[:, plan.row_order] = z                   # J^-1 = Z P
+    else:
+        inv[np.ix_(plan.col_order, plan.row_order)] = z   # J^-1 = Q Z P
     return inv
+
+
+class Factored:
+    """
+    One factorization of a batch-last stack ``(k, k, p)``, reused for every solve.
+
+    k <= 2 in closed form (the inverse itself); larger k by the static-order sparse LU of
+    ``plan`` (an :class:`LUPlan`, a static row order, or ``None`` for a dense plan), with
+    LAPACK for the matrices whose static pivots are weak.  :meth:`solve` and
+    :meth:`solve_t` never form the inverse; :meth:`inverse` (for the exact 1-norm condition
+    number) builds it once.  Singular matrices give ``nan``/``inf`` entries.
+    """
+
+    def __init__(self, mat, plan=None, values=None):
+        self._inv = self._cond = self._sign = self._norm = None
+        if values is not None:         # the nonzeros in the order of plan.set_entries
+            if not isinstance(plan, LUPlan) or plan.entries is None:
+                raise ValueError('plan: values need an LUPlan with set_entries')
+            self._mat, self.values, self.plan = None, values, plan
+            self.k, self.p = plan.k, values.shape[1]
+            self.lu, self.weak, self._col_mags = factor_values(values, plan)
+            self.any_weak = bool(self.weak.any())
+            return
+        mat = np.asarray(mat, dtype=float)
+        if mat.ndim != 3 or mat.shape[0] != mat.shape[1]:
+            raise ValueError(f'mat: got shape {mat.shape}, expected (k, k, p)')
+        self._mat = mat
+        self.k, _, self.p = mat.shape
+        if self.k == 2:
+            self._inv, self._cond, det = _inverse_2(mat)
+            self._sign = np.sign(det)
+        elif self.k == 1:
+            with np.errstate(divide='ignore', invalid='ignore'):
+                self._inv = 1.0 / mat
+            self._sign = np.sign(mat[0, 0])
+        elif self.k == 0:  # no unknowns (an open chain): empty, perfectly conditioned
+            self._inv, self._cond, self._sign = np.zeros((0, 0, self.p)), np.ones(self.p), \
+                np.ones(self.p)
+        else:
+            self.plan = _plan_for(self.k, plan)
+            self.lu, self.weak = factor(mat, self.plan)
+            self.any_weak = bool(self.weak.any())
+
+    def solve(self, rhs):
+        """Return ``x`` ``(k, p)`` with ``mat x = rhs``."""
+        rhs = np.asarray(rhs, dtype=float)
+        if self.k <= 2:
+            return _matvec(self._inv, rhs)
+        plan = self.plan
+        y = _substitute(self.lu, plan, rhs[plan.row_order])
+        if plan.natural_cols:
+            x = y
+        else:
+            x = np.empty_like(y)
+            x[plan.col_order] = y
+        if self.any_weak:
+            w = self.weak
+            x[:, w] = _lapack(self._weak_mat(), rhs[:, w])
+        return x
+
+    @property
+    def mat(self):
+        """Return the dense ``(k, k, p)`` stack (built from the nonzeros if given so)."""
+        if self._mat is None:
+            self._mat = dense_from_values(self.values, self.plan)
+        return self._mat
+
+    def _weak_mat(self):
+        """Return the dense matrices of the weak angles only."""
+        if self._mat is None:
+            return dense_from_values(self.values[:, self.weak], self.plan)
+        return self._mat[:, :, self.weak]
+
+    def solve_t(self, rhs):
+        """Return ``x`` ``(k, p)`` with ``mat^T x = rhs``."""
+        rhs = np.asarray(rhs, dtype=float)
+        if self.k <= 2:
+            return _matvec_t(self._inv, rhs)
+        plan = self.plan
+        y = _substitute_t(self.lu, plan, rhs[plan.col_order])
+        x = np.empty_like(y)
+        x[plan.row_order] = y
+        if self.any_weak:
+            w = self.weak
+            x[:, w] = _lapack(self._weak_mat().transpose(1, 0, 2), rhs[:, w])
+        return x
+
+    def inverse(self):
+        """Return ``(inv, cond)``: the ``(k, k, p)`` inverses and 1-norm condition numbers."""
+        if self._inv is None:
+            z = self._z()
+            inv = np.empty_like(z)
+            if self.plan.natural_cols:
+                inv[:, self.plan.row_order] = z              # J^-1 = Z P
+            else:
+                inv[np.ix_(self.plan.col_order, self.plan.row_order)] = z   # J^-1 = Q Z P
+            self._inv = inv
+        return self._inv, self.cond()
+
+    def _z(self):
+        """Return the inverse in pivot order, ``Z = (P J Q)^-1`` (LAPACK where weak)."""
+        if getattr(self, '_zinv', None) is None:
+            z = _inverse_z(self.lu, self.plan, self.p)
+            if self.any_weak:
+                fixed = np.moveaxis(_lapack_inv(self._weak_mat()), 0, -1)   # (k, k, w)
+                z[:, :, self.weak] = fixed[np.ix_(self.plan.col_order, self.plan.row_order)]
+            self._zinv = z
+        return self._zinv
+
+    def cond(self):
+        """Return the exact 1-norm condition numbers ``(p,)`` (``inf`` where singular)."""
+        if self._cond is None:
+            if self._norm is None:
+                if self._mat is None:   # ||J||_1: the largest column sum of |entries|
+                    self._norm = self._col_mags.sum(axis=1).max(axis=0)
+                else:
+                    self._norm = np.max(np.sum(np.abs(self.mat), axis=0), axis=0)
+            # the 1-norm is the largest column sum of |.|: a permutation does not change it
+            with np.errstate(invalid='ignore'):
+                if self._inv is None and getattr(self, '_zinv', None) is None:
+                    colsum = np.zeros((self.k, self.p))
+                    _inverse_z(self.lu, self.plan, self.p, colsum)   # scratch: norms only
+                    norm_inv = colsum.max(axis=0)
+                    if self.any_weak:
+                        w = self.weak
+                        fixed = np.moveaxis(_lapack_inv(self._weak_mat()), 0, -1)
+                        norm_inv[w] = np.max(np.sum(np.abs(fixed), axis=0), axis=0)
+                else:
+                    inv = self._inv if self._inv is not None else self._z()
+                    norm_inv = np.max(np.sum(np.abs(inv), axis=0), axis=0)
+                cond = self._norm * norm_inv
+            self._cond = np.where(np.isfinite(cond), cond, np.inf)
+        return self._cond
+
+    def sign(self):
+        """Return the signs of the determinants ``(p,)`` (see :func:`det_sign`)."""
+        if self._sign is None:
+            self._sign = _lu_sign(self.lu, self.plan, self._weak_mat() if self.any_weak
+                                  else None, self.weak)
+        return self._sign
 
 
 def solve(mat, rhs, plan=None):
@@ -195,12 +554,7 @@ def solve(mat, rhs, plan=None):
     if k == 1:
         with np.errstate(divide='ignore', invalid='ignore'):
             return rhs / mat[0]
-    plan = _plan_for(k, plan)
-    lu, weak = factor(mat, plan)
-    x = _substitute(lu, plan, rhs[plan.row_order])
-    if np.any(weak):
-        x[:, weak] = _lapack(mat[:, :, weak], rhs[:, weak])
-    return x
+    return Factored(mat, plan).solve(rhs)
 
 
 def inverse(mat, plan=None, with_sign=False):
@@ -213,33 +567,9 @@ def inverse(mat, plan=None, with_sign=False):
     small are inverted again with LAPACK's partial pivoting.  With ``with_sign`` the signs
     of the determinants come third, from the same factorization (see :func:`det_sign`).
     """
-    mat = np.asarray(mat, dtype=float)
-    if mat.ndim != 3 or mat.shape[0] != mat.shape[1]:
-        raise ValueError(f'mat: got shape {mat.shape}, expected (k, k, p)')
-    k, _, p = mat.shape
-    if k == 0:  # no unknowns (an open chain): an empty, perfectly conditioned system
-        inv, cond, sign = np.zeros((0, 0, p)), np.ones(p), np.ones(p)
-        return (inv, cond, sign) if with_sign else (inv, cond)
-    if k == 2:
-        inv, cond, det = _inverse_2(mat)
-        return (inv, cond, np.sign(det)) if with_sign else (inv, cond)
-    if k == 1:
-        with np.errstate(divide='ignore', invalid='ignore'):
-            inv = 1.0 / mat
-        sign = np.sign(mat[0, 0]) if with_sign else None
-    else:
-        plan = _plan_for(k, plan)
-        lu, weak = factor(mat, plan)
-        inv = _inverse_lu(lu, plan, p)
-        sign = _lu_sign(lu, plan, mat, weak) if with_sign else None
-        if np.any(weak):
-            inv[:, :, weak] = np.moveaxis(_lapack_inv(mat[:, :, weak]), 0, -1)
-    norm = np.max(np.sum(np.abs(mat), axis=0), axis=0)
-    with np.errstate(invalid='ignore'):
-        norm_inv = np.max(np.sum(np.abs(inv), axis=0), axis=0)
-        cond = norm * norm_inv
-    cond = np.where(np.isfinite(cond), cond, np.inf)
-    return (inv, cond, sign) if with_sign else (inv, cond)
+    fac = Factored(mat, plan)
+    inv, cond = fac.inverse()
+    return (inv, cond, fac.sign()) if with_sign else (inv, cond)
 
 
 _DENSE_PLANS = {}
@@ -249,7 +579,7 @@ def det_sign(mat, plan=None):
     """
     Return the sign of the determinant of each matrix of a batch-last ``(k, k, p)`` stack.
 
-    k <= 2 in closed form; otherwise from the static-order LU (the permutation's sign times
+    k <= 2 in closed form; otherwise from the static-order LU (the permutations' sign times
     the signs of U's diagonal), with LAPACK for the matrices whose static pivots are small.
     """
     mat = np.asarray(mat, dtype=float)
@@ -262,18 +592,15 @@ def det_sign(mat, plan=None):
         return np.sign(mat[0, 0] * mat[1, 1] - mat[0, 1] * mat[1, 0])
     plan = _plan_for(k, plan)
     lu, weak = factor(mat, plan)
-    return _lu_sign(lu, plan, mat, weak)
+    return _lu_sign(lu, plan, mat[:, :, weak], weak)
 
 
-def _lu_sign(lu, plan, mat, weak):
-    """Return det signs from static-order LU factors (LAPACK where ``weak``)."""
-    order = plan.row_order
-    k = plan.k
-    inversions = sum(1 for i in range(k) for j in range(i + 1, k) if order[i] > order[j])
-    sign = np.prod(np.sign(lu[plan.diag]), axis=0) * (-1.0 if inversions % 2 else 1.0)
+def _lu_sign(lu, plan, weak_mat, weak):
+    """Return det signs from static-order LU factors (LAPACK on ``weak_mat`` where weak)."""
+    sign = np.prod(np.sign(lu[plan.diag]), axis=0) * plan.perm_sign
     if weak.any():
         sign[weak] = np.sign(np.linalg.det(np.ascontiguousarray(
-            np.moveaxis(mat[:, :, weak], -1, 0))))
+            np.moveaxis(weak_mat, -1, 0))))
     return sign
 
 
