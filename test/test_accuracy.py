@@ -83,11 +83,11 @@ def test_position_study_reports_residual_iterations_condition():
 
 
 def test_balancing_gap_tightens_with_the_solver_tolerance():
-    from mech_balance.balancing import socp as balancing
-    saved = balancing.SOLVER_TOL
+    from mech_balance import conic
+    saved = conic.SOLVER_TOL
     sc, _ = simulate.load('hoeken')
     study = accuracy.balancing_study(sc, tolerances=(1e-3, 1e-6, 1e-9))
-    assert balancing.SOLVER_TOL == saved
+    assert conic.SOLVER_TOL == saved
     assert study['available']
     gaps = [r['gap_rel'] for r in study['rows']]
     assert gaps[0] > gaps[1] > gaps[2]

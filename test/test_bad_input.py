@@ -92,7 +92,8 @@ _DELETE = object()
      r"^frame\.points\.O3: got '0\.0893, 0', expected \[x, y\]$"),
     ('hoeken', ('samples',), 10.5, r'^samples: got 10\.5, expected an integer >= 4$'),
     ('hoeken', ('outputs',), 5, r'^outputs: got 5, expected a list from'),
-    ('hoeken', ('kind',), 'cam', r"^kind: got 'cam', expected \"planar\" or \"rggr\" or \"spatial\"$"),
+    ('hoeken', ('kind',), 'cam',
+     r"^kind: got 'cam', expected \"planar\" or \"rggr\" or \"spatial\"$"),
     ('hoeken', ('crank', 'joint'), 3, r'^crank\.joint: got 3, expected a non-empty name$'),
     # missing keys
     ('hoeken', ('links', 'coupler', 'mass_kg'), _DELETE,

@@ -316,9 +316,11 @@ def test_spatial_rig_refused_with_the_reason(tmp_path, capsys):
     t_ns, pos, wrench, _ = sr.record_real(_scenes('hoeken', None, 1)[1], 2.0, 4096, 1,
                                           w0=MIN_SPEED_RAD_S)
     rec = bags.write_csv(tmp_path / 'r.csv', t_ns * 1e-9, pos, wrench)
-    assert cli.main(['identify', '--scene', 'rggr', '--bag', str(rec)]) == cli.EXIT_USAGE
-    err = capsys.readouterr().err
-    assert 'not implemented yet' in err and 'body_kinematics' in err
+    for spatial in ('rggr', 'rssr_skew'):
+        assert cli.main(['identify', '--scene', spatial, '--bag', str(rec)]) == cli.EXIT_USAGE
+        err = capsys.readouterr().err
+        assert 'not implemented yet' in err and 'core/regressor.py' in err
+        assert len(err.strip().splitlines()) == 1, err
 
 
 def _encoder(seconds, counts, rate_hz=1000.0, direction=1.0, speed=MIN_SPEED_RAD_S,

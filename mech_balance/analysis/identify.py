@@ -166,12 +166,12 @@ PARAMETER_UNITS = ('kg', 'kg*m', 'kg*m', 'kg*m^2')
 
 
 SPATIAL_NOT_YET = (
-    'identification of a spatial rig such as the RGGR is not implemented yet: its six wrench '
-    'components are linear in the inertial parameters of its bodies, but the RGGR dynamics '
-    '(core/rggr.py, seed 002) hold at a constant crank speed only (the crank acceleration of '
-    'a real recording is ignored), and the RGGR rig does not provide the per-sample body '
-    "kinematics ('body_kinematics' capability, core/rig.py BodyKinematics) the regressor is "
-    'built from')
+    'identification of a spatial rig (kind rggr or spatial) is not implemented yet: the '
+    'encoder model, the base-parameter fit and the physically consistent calibration are '
+    'written for planar links (4 parameters each: m, m c_x, m c_y, I_O); a spatial body has 10 '
+    '(m, m c, the inertia tensor), and the pieces a spatial identification would stand on '
+    "exist (the rigs' body kinematics and core/regressor.py, the six-component wrench as a "
+    'linear map of them) but are not wired into identify yet')
 """Why ``identify`` refuses a spatial scene (printed in its error)."""
 
 

@@ -22,7 +22,6 @@ depend on the machine; errors and evaluation counts do not.
 """
 
 from dataclasses import dataclass
-import inspect
 import math
 import statistics
 
@@ -254,35 +253,30 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
     """
     Return the certificate gap against solve time, or a note if balancing is unavailable.
 
-    ``balancing.optimize`` has no tolerance argument yet: the study sets the module's
-    ``SOLVER_TOL`` for the duration of each call and restores it (a ``solver_tol`` keyword
-    is used instead as soon as ``optimize`` accepts one).
+    ``balancing.optimize`` has no tolerance argument: the study sets the one Clarabel
+    tolerance of the package (:data:`mech_balance.conic.SOLVER_TOL`, which every cone
+    program's settings read) for the duration of each call and restores it.
     """
     try:
+        from mech_balance import conic
         from mech_balance.balancing import socp as balancing
     except ImportError as exc:
         return {'available': False, 'note': f'balancing not available ({exc})'}
-    if not hasattr(balancing, 'optimize'):
-        return {'available': False, 'note': 'balancing.optimize not available yet'}
-    keyword = 'solver_tol' in inspect.signature(balancing.optimize).parameters
     rows = []
     for tol in tolerances:
-        saved = balancing.SOLVER_TOL
+        saved = conic.SOLVER_TOL
         try:
-            if keyword:
-                res = balancing.optimize(scene, weights=weights, solver_tol=tol)
-            else:
-                balancing.SOLVER_TOL = tol
-                res = balancing.optimize(scene, weights=weights)
+            conic.SOLVER_TOL = tol
+            res = balancing.optimize(scene, weights=weights)
         finally:
-            balancing.SOLVER_TOL = saved
+            conic.SOLVER_TOL = saved
         c = res.certificate
         rows.append({'tolerance': tol, 'status': c.status, 'iterations': c.iterations,
                      'primal': c.primal, 'lower_bound': c.lower_bound, 'dual': c.lower_bound,
                      'gap_abs': c.gap_abs, 'gap_rel': c.gap_rel, 'certified': c.certified,
                      'conic_seconds': res.conic_time_s, 'solve_seconds': res.solve_time_s})
     return {'available': True, 'weights': list(weights), 'rows': rows,
-            'tolerance_via': 'solver_tol keyword' if keyword else 'balancing.SOLVER_TOL'}
+            'tolerance_via': 'mech_balance.conic.SOLVER_TOL'}
 
 
 # ============================================================================ all of it
