@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import math
 import warnings
 
+from mech_balance.core.planar import smallsolve
 from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
 from mech_balance.schema.scene import FRAME
 import numpy as np
@@ -84,7 +85,8 @@ def cross(a, b):
     """Return ``a x b`` over the last axis (broadcast); numpy's cross without its overhead."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
+    sa, sb = np.shape(a), np.shape(b)
+    out = np.empty(sa if sa == sb else np.broadcast_shapes(sa, sb))
     np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
     np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
     np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
@@ -689,20 +691,32 @@ class Linkage:
                 sph[:, i] = expmap(delta[:, d]) @ sph[:, i]
         return q, sph
 
+    def _lu_plan(self, js):
+        """
+        Return the :class:`~smallsolve.LUPlan` of the scaled square Jacobian (built once).
+
+        The pattern is structural: row r can depend on coordinate d only if d moves one of
+        the row's two bodies (``mask_b``, ``mask_a``); the static pivot order comes from the
+        first Jacobian met (the assembly's).
+        """
+        plan = getattr(self, '_plan', None)
+        if plan is None or plan[0] != self.m:
+            pattern = ((self.mask_b + self.mask_a) > 0)[:, self.unknown]
+            order = smallsolve.pivot_order(np.where(pattern, js[0], 0.0))
+            plan = (self.m, smallsolve.LUPlan(pattern, order))
+            self._plan = plan
+        return plan[1]
+
     def _solver(self, js):
         """Return ``(solver, cond, rank, sign)`` of scaled Jacobians ``(n, m, nu)``."""
         n = js.shape[0]
         if self.nu == 0:
             return np.zeros((n, 0, self.m)), np.ones(n), np.zeros(n, dtype=int), np.ones(n)
         if self.square:
-            with np.errstate(all='ignore'):
-                inv = np.linalg.inv(js)
-            norm = np.max(np.sum(np.abs(js), axis=1), axis=1)
-            ninv = np.max(np.sum(np.abs(inv), axis=1), axis=1)
-            cond = norm * ninv
-            sign = np.sign(np.linalg.det(js))
-            return inv, np.where(np.isfinite(cond), cond, np.inf), \
-                np.full(n, self.nu, dtype=int), sign
+            # static-pivot sparse LU over the batch (planar smallsolve), LAPACK where weak
+            inv, cond, sign = smallsolve.inverse(np.moveaxis(js, 0, -1), self._lu_plan(js),
+                                                 with_sign=True)
+            return np.moveaxis(inv, -1, 0), cond, np.full(n, self.nu, dtype=int), sign
         u, s, vt = np.linalg.svd(js, full_matrices=False)
         keep = s > RANK_RTOL * s[:, :1]
         sinv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
