@@ -178,6 +178,17 @@ def perp_pair(axis):
     return e1, cross(axis, e1)
 
 
+def _point_gradient(x):
+    """Return ``(..., 3, 6)``: row i is ``(x x e_i, e_i)``, the rate of ``x_i`` per twist."""
+    g = np.zeros(x.shape + (6,))
+    x0, x1, x2 = x[..., 0], x[..., 1], x[..., 2]
+    g[..., 0, 1], g[..., 0, 2] = x2, -x1
+    g[..., 1, 0], g[..., 1, 2] = -x2, x0
+    g[..., 2, 0], g[..., 2, 1] = x1, -x0
+    g[..., 3:] = EYE3
+    return g
+
+
 def _spatial_cross(t, s):
     """Return the motion cross product ``t x s`` of twists ``(..., 6)`` (omega, v)."""
     w, v = t[..., :3], t[..., 3:]
@@ -486,6 +497,11 @@ class Linkage:
         self.mask_b = self.path[:, self.row_b].T  # (m, ndof)
         self.mask_a = self.path[:, self.row_a].T
         self.square = self.m == self.nu
+        self.js_scale = self.row_scale[:, None] * self.col_scale[self.unknown]
+
+    def scaled(self, jac):
+        """Return the scaled Jacobian of the unknowns ``(n, m, nu)`` (rows and columns)."""
+        return jac[:, :, self.unknown] * self.js_scale
 
     # ------------------------------------------------------------------ forward kinematics
 
@@ -584,15 +600,11 @@ class Linkage:
 
     def _gradients(self, fr):
         gb, ga = [], []
-        eye = np.eye(3)
         for r, rb, ra, vb, va in self._row_parts(fr):
             n, k = vb.shape[:2]
             if r.form == 'point':
-                wb = cross(vb[:, :, None, :], eye)          # x_b x e_i
-                wa = cross(va[:, :, None, :], eye)
-                lin = np.broadcast_to(eye, (n, k, 3, 3))
-                gb.append(np.concatenate([wb, lin], -1).reshape(n, 3 * k, 6))
-                ga.append(-np.concatenate([wa, lin], -1).reshape(n, 3 * k, 6))
+                gb.append(_point_gradient(vb).reshape(n, 3 * k, 6))
+                ga.append(np.negative(_point_gradient(va)).reshape(n, 3 * k, 6))
             elif r.form == 'dot':
                 c = cross(vb, va)
                 z = np.zeros_like(c)
@@ -736,8 +748,7 @@ class Linkage:
             res = np.max(np.abs(g), axis=1) if self.m else np.zeros(q.shape[0])
             if np.all(res <= tol) or _ == max_iter or not self.nu:
                 break
-            js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
-                self.col_scale[self.unknown]
+            js = self.scaled(self.jacobian(fr))
             solver, _, _, _ = self._solver(js)
             delta = -np.einsum('nij,nj->ni', solver, g) * self.col_scale[self.unknown]
             bad = ~np.isfinite(delta).all(axis=1)
@@ -760,8 +771,7 @@ class Linkage:
             return q, sph, fr, res, ok, None
         fr = self.frames(q, sph)
         g = self.residual(fr) * self.row_scale
-        js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
-            self.col_scale[self.unknown]
+        js = self.scaled(self.jacobian(fr))
         factor = self._solver(js)
         solver = factor[0]
         cu = self.col_scale[self.unknown]
@@ -846,8 +856,7 @@ class Linkage:
         for _ in range(ASSEMBLY_MAX_ITER):
             if not self.m or np.max(np.abs(g)) <= NEWTON_TOL:
                 break
-            js = (self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None]
-                  * self.col_scale[self.unknown])[0]
+            js = self.scaled(self.jacobian(fr))[0]
             a = js.T @ js
             rhs = js.T @ g[0]
             while True:
@@ -877,8 +886,7 @@ class Linkage:
             raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
         self.q0, self.sph0 = q, sph
         self.sph_zero = spherical_zeros(self, fr)
-        js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
-            self.col_scale[self.unknown]
+        js = self.scaled(self.jacobian(fr))
         _, cond, rank, sign = self._solver(js)
         self.rank = int(rank[0])
         self.redundant = self.m - self.rank
@@ -894,8 +902,7 @@ class Linkage:
         """Detect idle spins from the Jacobian's null space; add the spin rows (or refuse)."""
         if not self.nu:
             return
-        js = (self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None]
-              * self.col_scale[self.unknown])[0] if self.m else np.zeros((0, self.nu))
+        js = self.scaled(self.jacobian(fr))[0] if self.m else np.zeros((0, self.nu))
         if js.shape[0]:
             _, s, vt = np.linalg.svd(js)
             s_full = np.zeros(self.nu)
@@ -1011,7 +1018,7 @@ class Linkage:
         """
         n = q.shape[0]
         jac = self.jacobian(fr) if self.m else np.zeros((n, 0, self.ndof))
-        js = jac[:, :, self.unknown] * self.row_scale[:, None] * self.col_scale[self.unknown]
+        js = self.scaled(jac)
         if factor is None or not self.square:
             solver, cond, rank, sign = self._solver(js)
             refine = None
