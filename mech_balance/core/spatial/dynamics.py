@@ -126,19 +126,30 @@ def _body_motion(state, inertia):
     return xc, vc, a_c, iw, w, al
 
 
+def _spin_momentum(state, inertia):
+    """Return ``I_w omega`` ``(n, nb, 3)`` of every body (cached with :func:`body_motion`)."""
+    cached = getattr(state, '_spin', None)
+    if cached is not None and cached[0] is inertia:
+        return cached[1]
+    _, _, _, iw, w, _ = body_motion(state, inertia)
+    h = mv(iw, w)
+    state._spin = (inertia, h)
+    return h
+
+
 def momentum_rates(state, inertia):
     """Return ``Phi`` ``(n, nb, 6)`` = (N about the origin, F) of every body."""
     xc, _, a_c, iw, w, al = body_motion(state, inertia)
     f = inertia.mass[:, None] * a_c
-    dh = mv(iw, al) + cross(w, mv(iw, w))
+    dh = mv(iw, al) + cross(w, _spin_momentum(state, inertia))
     return np.concatenate([dh + cross(xc, f), f], -1)
 
 
 def kinetic_energy(state, inertia):
     """Return T = sum (m |v_c|^2 + omega . I_w omega) / 2, ``(n,)`` J."""
-    _, vc, _, iw, w, _ = body_motion(state, inertia)
-    return 0.5 * (np.einsum('k,nki,nki->n', inertia.mass, vc, vc)
-                  + np.einsum('nki,nkij,nkj->n', w, iw, w))
+    _, vc, _, _, w, _ = body_motion(state, inertia)
+    h = _spin_momentum(state, inertia)
+    return 0.5 * (np.matmul((vc * vc).sum(-1), inertia.mass) + (w * h).sum(-1).sum(-1))
 
 
 def inverse_dynamics(linkage, state, inertia, moment_point, need):

@@ -77,6 +77,10 @@ SPIN_ROW_MIN = 1e-3
 TWO_PI = 2.0 * math.pi
 
 
+_CONSTANT_ROOT_COLUMNS = ('revolute', 'prismatic', 'spherical', 'universal')
+"""Joint types whose twist columns are constant when their parent is the frame."""
+
+
 class SpatialError(ValueError):
     """The spatial linkage cannot be assembled, is singular, or would leave its branch."""
 
@@ -505,6 +509,31 @@ class Linkage:
 
     # ------------------------------------------------------------------ forward kinematics
 
+    def _col_template(self):
+        """
+        Return ``(ndof, 6)`` (built once): the constant twist columns of the frame's joints.
+
+        A revolute, prismatic, spherical or universal (first axis) joint on the frame has a
+        fixed axis through a fixed point: its columns do not depend on the coordinates.
+        """
+        tpl = getattr(self, '_cols_tpl', None)
+        if tpl is None:
+            tpl = np.zeros((self.ndof, 6))
+            for t in self.tree:
+                if t.parent or t.joint_type not in _CONSTANT_ROOT_COLUMNS:
+                    continue
+                d = t.dofs
+                if t.joint_type == 'spherical':
+                    tpl[d[0]:d[0] + 3, :3] = EYE3
+                    tpl[d[0]:d[0] + 3, 3:] = cross(t.s_parent[None, :], EYE3)
+                elif t.joint_type == 'prismatic':
+                    tpl[d[0], 3:] = t.axis
+                else:
+                    tpl[d[0], :3] = t.axis
+                    tpl[d[0], 3:] = cross(t.s_parent, t.axis)
+            self._cols_tpl = tpl
+        return tpl
+
     def frames(self, q, sph):
         """Return the :class:`Frames` of coordinates ``q`` (n, ndof) and ``sph`` rotations."""
         n = q.shape[0]
@@ -512,7 +541,8 @@ class Linkage:
         origin = np.empty((n, self.nb, 3))
         rot[:, 0] = EYE3
         origin[:, 0] = 0.0
-        cols = np.zeros((n, self.ndof, 6))
+        cols = np.empty((n, self.ndof, 6))
+        cols[:] = self._col_template()  # the frame joints' constant columns, zeros elsewhere
         si = 0
         for t in self.tree:
             root = not t.parent
@@ -538,6 +568,12 @@ class Linkage:
             r_joint = np.broadcast_to(off, (n, 3)) if root else pp + mv(rp, off)
             rot[:, t.child] = rc
             origin[:, t.child] = r_joint - mv(rc, t.s_child)
+            if root and jtype in _CONSTANT_ROOT_COLUMNS:
+                if jtype == 'universal':
+                    bw = mv(rc, t.axis_child)
+                    cols[:, d[1], :3] = bw
+                    cols[:, d[1], 3:] = cross(r_joint, bw)
+                continue
             if jtype == 'spherical':
                 axes = EYE3 if root else np.swapaxes(rp, 1, 2)
                 cols[:, d[0]:d[0] + 3, :3] = axes
@@ -1077,7 +1113,7 @@ class Linkage:
     def _sph_corr(self, sph, sphp):
         if not self.sph_index:
             return np.zeros(sph.shape[0])
-        diff = np.einsum('nsij,nsik->nsjk', sphp, sph) - np.eye(3)
+        diff = np.matmul(np.swapaxes(sphp, -1, -2), sph) - EYE3
         return np.max(np.abs(diff), axis=(1, 2, 3))
 
     def _advance(self, q, sph, qd, qdd, sign, h_goal, strict=True):
