@@ -54,9 +54,17 @@ def _constants(linkage):
     if cached is None:
         sc = linkage.scene
         idx = {n: i for i, n in enumerate(linkage.body_names)}
-        cached = [(jt, idx[jt.link_a], idx[jt.link_b], linkage._points[jt.link_a][jt.point_a],
-                   linkage._points[jt.link_b][jt.point_b], joint_frames(sc, jt))
-                  for jt in sc.joints]
+        per_joint = [(jt, idx[jt.link_a], idx[jt.link_b],
+                      linkage._points[jt.link_a][jt.point_a],
+                      linkage._points[jt.link_b][jt.point_b], joint_frames(sc, jt))
+                     for jt in sc.joints]
+        # the same as stacked index arrays: every joint's relative pose in one pass
+        stacked = (np.array([c[1] for c in per_joint], dtype=int),
+                   np.array([c[2] for c in per_joint], dtype=int),
+                   np.array([c[3] for c in per_joint]).reshape(-1, 3),
+                   np.array([c[4] for c in per_joint]).reshape(-1, 3),
+                   any(jt.joint_type in ('prismatic', 'cylindrical') for jt in sc.joints))
+        cached = (per_joint, stacked)
         linkage._joint_constants = cached
     return cached
 
@@ -65,19 +73,25 @@ def joint_values(linkage, state):
     """Return ``(names, slides, position (n, k), velocity (n, k))`` of every joint coordinate."""
     fr, tw = state.frames, state.twist
     names, slides, pos, vel = [], [], [], []
-    for jt, a, b, pa, pb, (ax, bx, fixed) in _constants(linkage):
-        ra, rb = fr.rot[:, a], fr.rot[:, b]
-        ra_t = np.swapaxes(ra, 1, 2)
-        rel = np.matmul(ra_t, rb)
-        xa = fr.origin[:, a] + mv(ra, pa)
-        xb = fr.origin[:, b] + mv(rb, pb)
-        wa = tw[:, a, :3]
-        w_rel = mv(ra_t, tw[:, b, :3] - wa)
-        va = tw[:, a, 3:] + cross(wa, xa)
-        vb = tw[:, b, 3:] + cross(tw[:, b, :3], xb)
-        d = mv(ra_t, xb - xa)
-        dd = mv(ra_t, vb - va - cross(wa, xb - xa))
+    per_joint, (ia, ib, pa, pb, slide) = _constants(linkage)
+    # every joint at once (n, nj, ...): relative rotation, angular velocity, point offsets
+    ra, rb = fr.rot[:, ia], fr.rot[:, ib]
+    ra_t = np.swapaxes(ra, -1, -2)
+    rels = np.matmul(ra_t, rb)
+    wa = tw[:, ia, :3]
+    w_rels = mv(ra_t, tw[:, ib, :3] - wa)
+    if slide:
+        xa = fr.origin[:, ia] + mv(ra, pa)
+        xb = fr.origin[:, ib] + mv(rb, pb)
+        va = tw[:, ia, 3:] + cross(wa, xa)
+        vb = tw[:, ib, 3:] + cross(tw[:, ib, :3], xb)
+        ds = mv(ra_t, xb - xa)
+        dds = mv(ra_t, vb - va - cross(wa, xb - xa))
+    for i, (jt, _, _, _, _, (ax, bx, fixed)) in enumerate(per_joint):
+        rel, w_rel = rels[:, i], w_rels[:, i]
         t = jt.joint_type
+        if t in ('prismatic', 'cylindrical'):
+            d, dd = ds[:, i], dds[:, i]
         if t == 'spherical':
             m = rel @ linkage.sph_zero[jt.name].T
             yaw, pitch, roll = rpy_of(m)

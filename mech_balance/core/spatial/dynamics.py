@@ -62,8 +62,57 @@ class SpatialWrenches:
     spin_moment: np.ndarray = None
 
 
+@dataclass
+class _ReactionConstants:
+    """Per linkage: the index and incidence arrays of the bearing reactions (built once)."""
+
+    inc_b: np.ndarray     # (nb, m): row r acts on body row_b[r]
+    inc_a: np.ndarray
+    below: np.ndarray     # (nt, nb): the bodies below each tree joint
+    cut_rows: np.ndarray  # (nc, m): the rows of each cut joint
+    order: np.ndarray     # scene joint i -> its index in [tree..., cuts...]
+    sign: np.ndarray      # -1 for a flipped tree joint
+    body: np.ndarray      # (nj,) each joint's link b
+    point: np.ndarray     # (nj, 3) its joint point in b's axes
+
+
+def _reaction_constants(lk):
+    cached = getattr(lk, '_reaction_constants', None)
+    if cached is not None and cached[0] == lk.m:
+        return cached[1]
+    sc = lk.scene
+    m = lk.m
+    inc_b, inc_a = np.zeros((lk.nb, m)), np.zeros((lk.nb, m))
+    inc_b[lk.row_b, np.arange(m)] = 1.0
+    inc_a[lk.row_a, np.arange(m)] = 1.0
+    below = np.array([lk.path[t.dofs[0]] for t in lk.tree]).reshape(len(lk.tree), lk.nb)
+    cut_rows = np.zeros((len(lk.cut_joints), m))
+    for i, ji in enumerate(lk.cut_joints):
+        cut_rows[i] = [j == sc.joints[ji].name for j in lk.row_joint]
+    where = {t.joint: (i, -1.0 if t.flipped else 1.0) for i, t in enumerate(lk.tree)}
+    where.update({ji: (len(lk.tree) + i, 1.0) for i, ji in enumerate(lk.cut_joints)})
+    idx = {name: i for i, name in enumerate(lk.body_names)}
+    out = _ReactionConstants(
+        inc_b, inc_a, below, cut_rows,
+        np.array([where[i][0] for i in range(len(sc.joints))], dtype=int),
+        np.array([where[i][1] for i in range(len(sc.joints))]),
+        np.array([idx[jt.link_b] for jt in sc.joints], dtype=int),
+        np.array([lk._points[jt.link_b][jt.point_b] for jt in sc.joints]).reshape(-1, 3))
+    lk._reaction_constants = (m, out)
+    return out
+
+
 def body_motion(state, inertia):
-    """Return ``(x_c, v_c, a_c, I_w, omega, alpha)`` of every body, batch-first."""
+    """Return ``(x_c, v_c, a_c, I_w, omega, alpha)`` of every body, batch-first (cached)."""
+    cached = getattr(state, '_motion', None)
+    if cached is not None and cached[0] is inertia:
+        return cached[1]
+    out = _body_motion(state, inertia)
+    state._motion = (inertia, out)
+    return out
+
+
+def _body_motion(state, inertia):
     fr, tw, ac = state.frames, state.twist, state.accel
     xc = fr.origin + mv(fr.rot, inertia.com)
     w, v = tw[..., :3], tw[..., 3:]
@@ -77,19 +126,30 @@ def body_motion(state, inertia):
     return xc, vc, a_c, iw, w, al
 
 
+def _spin_momentum(state, inertia):
+    """Return ``I_w omega`` ``(n, nb, 3)`` of every body (cached with :func:`body_motion`)."""
+    cached = getattr(state, '_spin', None)
+    if cached is not None and cached[0] is inertia:
+        return cached[1]
+    _, _, _, iw, w, _ = body_motion(state, inertia)
+    h = mv(iw, w)
+    state._spin = (inertia, h)
+    return h
+
+
 def momentum_rates(state, inertia):
     """Return ``Phi`` ``(n, nb, 6)`` = (N about the origin, F) of every body."""
     xc, _, a_c, iw, w, al = body_motion(state, inertia)
     f = inertia.mass[:, None] * a_c
-    dh = mv(iw, al) + cross(w, mv(iw, w))
+    dh = mv(iw, al) + cross(w, _spin_momentum(state, inertia))
     return np.concatenate([dh + cross(xc, f), f], -1)
 
 
 def kinetic_energy(state, inertia):
     """Return T = sum (m |v_c|^2 + omega . I_w omega) / 2, ``(n,)`` J."""
-    _, vc, _, iw, w, _ = body_motion(state, inertia)
-    return 0.5 * (np.einsum('k,nki,nki->n', inertia.mass, vc, vc)
-                  + np.einsum('nki,nkij,nkj->n', w, iw, w))
+    _, vc, _, _, w, _ = body_motion(state, inertia)
+    h = _spin_momentum(state, inertia)
+    return 0.5 * (np.matmul((vc * vc).sum(-1), inertia.mass) + (w * h).sum(-1).sum(-1))
 
 
 def inverse_dynamics(linkage, state, inertia, moment_point, need):
@@ -123,30 +183,15 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
         out.spin_moment = lam[:, spin]
     if 'bearing_reactions' not in need:
         return out
-    on_body = np.zeros((n, lk.nb, 6))
-    np.add.at(on_body, (slice(None), lk.row_b), wb)
-    np.add.at(on_body, (slice(None), lk.row_a), wa)
-    sc = lk.scene
-    idx = {name: i for i, name in enumerate(lk.body_names)}
-    reactions = {}
-    below = np.zeros((lk.nb, lk.nb))
-    for t in lk.tree:
-        below[t.child] = lk.path[t.dofs[0]]
-    for t in lk.tree:
-        w = np.einsum('nks,k->ns', phi - on_body, below[t.child])
-        if t.flipped:
-            w = -w
-        reactions[t.name] = w
-    for ji in lk.cut_joints:
-        jt = sc.joints[ji]
-        rows = [i for i, j in enumerate(lk.row_joint) if j == jt.name]
-        reactions[jt.name] = wb[:, rows].sum(axis=1)
-    res = {}
-    for jt in sc.joints:
-        w = reactions[jt.name]
-        b = idx[jt.link_b]
-        x = state.frames.origin[:, b] + state.frames.rot[:, b] @ lk._points[jt.link_b][
-            jt.point_b]
-        res[jt.name] = (w[:, 3:], w[:, :3] - cross(x, w[:, 3:]))
+    c = _reaction_constants(lk)
+    on_body = np.matmul(c.inc_b, wb) + np.matmul(c.inc_a, wa)   # the rows' wrenches per body
+    # tree joints: the bodies below minus the cut-joint wrenches on them; cut joints: on b
+    w = np.concatenate([np.matmul(c.below, phi - on_body), np.matmul(c.cut_rows, wb)], 1)
+    w = w[:, c.order] * c.sign[:, None]
+    fr = state.frames
+    x = fr.origin[:, c.body] + mv(fr.rot[:, c.body], c.point)   # joint points (n, nj, 3)
+    force = w[..., 3:]
+    moment = w[..., :3] - cross(x, force)
+    res = {jt.name: (force[:, i], moment[:, i]) for i, jt in enumerate(lk.scene.joints)}
     out.reactions = res
     return out

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import math
 import warnings
 
+from mech_balance.core.planar import smallsolve
 from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
 from mech_balance.schema.scene import FRAME
 import numpy as np
@@ -76,6 +77,10 @@ SPIN_ROW_MIN = 1e-3
 TWO_PI = 2.0 * math.pi
 
 
+_CONSTANT_ROOT_COLUMNS = ('revolute', 'prismatic', 'spherical', 'universal')
+"""Joint types whose twist columns are constant when their parent is the frame."""
+
+
 class SpatialError(ValueError):
     """The spatial linkage cannot be assembled, is singular, or would leave its branch."""
 
@@ -84,7 +89,8 @@ def cross(a, b):
     """Return ``a x b`` over the last axis (broadcast); numpy's cross without its overhead."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
+    sa, sb = np.shape(a), np.shape(b)
+    out = np.empty(sa if sa == sb else np.broadcast_shapes(sa, sb))
     np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
     np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
     np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
@@ -174,6 +180,17 @@ def perp_pair(axis):
     e1 = cross(axis, helper)
     e1 /= np.linalg.norm(e1)
     return e1, cross(axis, e1)
+
+
+def _point_gradient(x):
+    """Return ``(..., 3, 6)``: row i is ``(x x e_i, e_i)``, the rate of ``x_i`` per twist."""
+    g = np.zeros(x.shape + (6,))
+    x0, x1, x2 = x[..., 0], x[..., 1], x[..., 2]
+    g[..., 0, 1], g[..., 0, 2] = x2, -x1
+    g[..., 1, 0], g[..., 1, 2] = -x2, x0
+    g[..., 2, 0], g[..., 2, 1] = x1, -x0
+    g[..., 3:] = EYE3
+    return g
 
 
 def _spatial_cross(t, s):
@@ -484,8 +501,38 @@ class Linkage:
         self.mask_b = self.path[:, self.row_b].T  # (m, ndof)
         self.mask_a = self.path[:, self.row_a].T
         self.square = self.m == self.nu
+        self.js_scale = self.row_scale[:, None] * self.col_scale[self.unknown]
+
+    def scaled(self, jac):
+        """Return the scaled Jacobian of the unknowns ``(n, m, nu)`` (rows and columns)."""
+        return jac[:, :, self.unknown] * self.js_scale
 
     # ------------------------------------------------------------------ forward kinematics
+
+    def _col_template(self):
+        """
+        Return ``(ndof, 6)`` (built once): the constant twist columns of the frame's joints.
+
+        A revolute, prismatic, spherical or universal (first axis) joint on the frame has a
+        fixed axis through a fixed point: its columns do not depend on the coordinates.
+        """
+        tpl = getattr(self, '_cols_tpl', None)
+        if tpl is None:
+            tpl = np.zeros((self.ndof, 6))
+            for t in self.tree:
+                if t.parent or t.joint_type not in _CONSTANT_ROOT_COLUMNS:
+                    continue
+                d = t.dofs
+                if t.joint_type == 'spherical':
+                    tpl[d[0]:d[0] + 3, :3] = EYE3
+                    tpl[d[0]:d[0] + 3, 3:] = cross(t.s_parent[None, :], EYE3)
+                elif t.joint_type == 'prismatic':
+                    tpl[d[0], 3:] = t.axis
+                else:
+                    tpl[d[0], :3] = t.axis
+                    tpl[d[0], 3:] = cross(t.s_parent, t.axis)
+            self._cols_tpl = tpl
+        return tpl
 
     def frames(self, q, sph):
         """Return the :class:`Frames` of coordinates ``q`` (n, ndof) and ``sph`` rotations."""
@@ -494,7 +541,8 @@ class Linkage:
         origin = np.empty((n, self.nb, 3))
         rot[:, 0] = EYE3
         origin[:, 0] = 0.0
-        cols = np.zeros((n, self.ndof, 6))
+        cols = np.empty((n, self.ndof, 6))
+        cols[:] = self._col_template()  # the frame joints' constant columns, zeros elsewhere
         si = 0
         for t in self.tree:
             root = not t.parent
@@ -520,6 +568,12 @@ class Linkage:
             r_joint = np.broadcast_to(off, (n, 3)) if root else pp + mv(rp, off)
             rot[:, t.child] = rc
             origin[:, t.child] = r_joint - mv(rc, t.s_child)
+            if root and jtype in _CONSTANT_ROOT_COLUMNS:
+                if jtype == 'universal':
+                    bw = mv(rc, t.axis_child)
+                    cols[:, d[1], :3] = bw
+                    cols[:, d[1], 3:] = cross(r_joint, bw)
+                continue
             if jtype == 'spherical':
                 axes = EYE3 if root else np.swapaxes(rp, 1, 2)
                 cols[:, d[0]:d[0] + 3, :3] = axes
@@ -582,15 +636,11 @@ class Linkage:
 
     def _gradients(self, fr):
         gb, ga = [], []
-        eye = np.eye(3)
         for r, rb, ra, vb, va in self._row_parts(fr):
             n, k = vb.shape[:2]
             if r.form == 'point':
-                wb = cross(vb[:, :, None, :], eye)          # x_b x e_i
-                wa = cross(va[:, :, None, :], eye)
-                lin = np.broadcast_to(eye, (n, k, 3, 3))
-                gb.append(np.concatenate([wb, lin], -1).reshape(n, 3 * k, 6))
-                ga.append(-np.concatenate([wa, lin], -1).reshape(n, 3 * k, 6))
+                gb.append(_point_gradient(vb).reshape(n, 3 * k, 6))
+                ga.append(np.negative(_point_gradient(va)).reshape(n, 3 * k, 6))
             elif r.form == 'dot':
                 c = cross(vb, va)
                 z = np.zeros_like(c)
@@ -689,20 +739,32 @@ class Linkage:
                 sph[:, i] = expmap(delta[:, d]) @ sph[:, i]
         return q, sph
 
+    def _lu_plan(self, js):
+        """
+        Return the :class:`~smallsolve.LUPlan` of the scaled square Jacobian (built once).
+
+        The pattern is structural: row r can depend on coordinate d only if d moves one of
+        the row's two bodies (``mask_b``, ``mask_a``); the static pivot order comes from the
+        first Jacobian met (the assembly's).
+        """
+        plan = getattr(self, '_plan', None)
+        if plan is None or plan[0] != self.m:
+            pattern = ((self.mask_b + self.mask_a) > 0)[:, self.unknown]
+            order = smallsolve.pivot_order(np.where(pattern, js[0], 0.0))
+            plan = (self.m, smallsolve.LUPlan(pattern, order))
+            self._plan = plan
+        return plan[1]
+
     def _solver(self, js):
         """Return ``(solver, cond, rank, sign)`` of scaled Jacobians ``(n, m, nu)``."""
         n = js.shape[0]
         if self.nu == 0:
             return np.zeros((n, 0, self.m)), np.ones(n), np.zeros(n, dtype=int), np.ones(n)
         if self.square:
-            with np.errstate(all='ignore'):
-                inv = np.linalg.inv(js)
-            norm = np.max(np.sum(np.abs(js), axis=1), axis=1)
-            ninv = np.max(np.sum(np.abs(inv), axis=1), axis=1)
-            cond = norm * ninv
-            sign = np.sign(np.linalg.det(js))
-            return inv, np.where(np.isfinite(cond), cond, np.inf), \
-                np.full(n, self.nu, dtype=int), sign
+            # static-pivot sparse LU over the batch (planar smallsolve), LAPACK where weak
+            batch_last = np.ascontiguousarray(np.moveaxis(js, 0, -1))  # contiguous: faster
+            inv, cond, sign = smallsolve.inverse(batch_last, self._lu_plan(js), with_sign=True)
+            return np.moveaxis(inv, -1, 0), cond, np.full(n, self.nu, dtype=int), sign
         u, s, vt = np.linalg.svd(js, full_matrices=False)
         keep = s > RANK_RTOL * s[:, :1]
         sinv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
@@ -722,8 +784,7 @@ class Linkage:
             res = np.max(np.abs(g), axis=1) if self.m else np.zeros(q.shape[0])
             if np.all(res <= tol) or _ == max_iter or not self.nu:
                 break
-            js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
-                self.col_scale[self.unknown]
+            js = self.scaled(self.jacobian(fr))
             solver, _, _, _ = self._solver(js)
             delta = -np.einsum('nij,nj->ni', solver, g) * self.col_scale[self.unknown]
             bad = ~np.isfinite(delta).all(axis=1)
@@ -746,8 +807,7 @@ class Linkage:
             return q, sph, fr, res, ok, None
         fr = self.frames(q, sph)
         g = self.residual(fr) * self.row_scale
-        js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
-            self.col_scale[self.unknown]
+        js = self.scaled(self.jacobian(fr))
         factor = self._solver(js)
         solver = factor[0]
         cu = self.col_scale[self.unknown]
@@ -832,8 +892,7 @@ class Linkage:
         for _ in range(ASSEMBLY_MAX_ITER):
             if not self.m or np.max(np.abs(g)) <= NEWTON_TOL:
                 break
-            js = (self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None]
-                  * self.col_scale[self.unknown])[0]
+            js = self.scaled(self.jacobian(fr))[0]
             a = js.T @ js
             rhs = js.T @ g[0]
             while True:
@@ -863,8 +922,7 @@ class Linkage:
             raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
         self.q0, self.sph0 = q, sph
         self.sph_zero = spherical_zeros(self, fr)
-        js = self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None] * \
-            self.col_scale[self.unknown]
+        js = self.scaled(self.jacobian(fr))
         _, cond, rank, sign = self._solver(js)
         self.rank = int(rank[0])
         self.redundant = self.m - self.rank
@@ -880,8 +938,7 @@ class Linkage:
         """Detect idle spins from the Jacobian's null space; add the spin rows (or refuse)."""
         if not self.nu:
             return
-        js = (self.jacobian(fr)[:, :, self.unknown] * self.row_scale[:, None]
-              * self.col_scale[self.unknown])[0] if self.m else np.zeros((0, self.nu))
+        js = self.scaled(self.jacobian(fr))[0] if self.m else np.zeros((0, self.nu))
         if js.shape[0]:
             _, s, vt = np.linalg.svd(js)
             s_full = np.zeros(self.nu)
@@ -997,7 +1054,7 @@ class Linkage:
         """
         n = q.shape[0]
         jac = self.jacobian(fr) if self.m else np.zeros((n, 0, self.ndof))
-        js = jac[:, :, self.unknown] * self.row_scale[:, None] * self.col_scale[self.unknown]
+        js = self.scaled(jac)
         if factor is None or not self.square:
             solver, cond, rank, sign = self._solver(js)
             refine = None
@@ -1056,7 +1113,7 @@ class Linkage:
     def _sph_corr(self, sph, sphp):
         if not self.sph_index:
             return np.zeros(sph.shape[0])
-        diff = np.einsum('nsij,nsik->nsjk', sphp, sph) - np.eye(3)
+        diff = np.matmul(np.swapaxes(sphp, -1, -2), sph) - EYE3
         return np.max(np.abs(diff), axis=(1, 2, 3))
 
     def _advance(self, q, sph, qd, qdd, sign, h_goal, strict=True):
