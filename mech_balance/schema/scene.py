@@ -278,8 +278,32 @@ class Recording:
         return stream in self.streams
 
 
+class SceneDesigns:
+    """
+    What every kind's scene dataclass offers: its links by name and its other designs.
+
+    A mixin of :class:`Scene` and of the spatial kind's scene (fields ``links``, ``name``,
+    ``outputs``): one definition of a design (other inertias, same geometry).
+    """
+
+    def link(self, name):
+        """Return the link called ``name``."""
+        for lk in self.links:
+            if lk.name == name:
+                return lk
+        raise KeyError(name)
+
+    def with_links(self, links, name=None):
+        """Return a copy with other link inertias (same geometry), e.g. a balanced design."""
+        return replace(self, links=tuple(links), name=name or self.name)
+
+    def with_outputs(self, outputs):
+        """Return a copy that asks for other outputs (validated)."""
+        return replace(self, outputs=parse_outputs(list(outputs), 'outputs'))
+
+
 @dataclass(frozen=True)
-class Scene:
+class Scene(SceneDesigns):
     """A validated planar rig (SI units throughout)."""
 
     name: str
@@ -303,21 +327,6 @@ class Scene:
     recording: Recording = Recording()
     drive: dict = None  # motor, speed loop and damping for `mech-balance simulate`
     identification: dict = None  # what `mech-balance identify` found (schema.identification)
-
-    def link(self, name):
-        """Return the link called ``name``."""
-        for lk in self.links:
-            if lk.name == name:
-                return lk
-        raise KeyError(name)
-
-    def with_links(self, links, name=None):
-        """Return a copy with other link inertias (same geometry), e.g. a balanced design."""
-        return replace(self, links=tuple(links), name=name or self.name)
-
-    def with_outputs(self, outputs):
-        """Return a copy that asks for other outputs (validated)."""
-        return replace(self, outputs=_outputs(list(outputs), 'outputs'))
 
 
 def needs(outputs):
@@ -473,7 +482,7 @@ def planar_from_dict(data, source='<dict>'):
                       'normalization.omega_rad_s'))
 
     gravity = _vector(data.get('gravity_m_s2', [0.0, 0.0]), 'gravity_m_s2')
-    outputs = _outputs(data.get('outputs', list(DEFAULT_OUTPUTS)), 'outputs')
+    outputs = parse_outputs(data.get('outputs', list(DEFAULT_OUTPUTS)), 'outputs')
     samples = data.get('samples', 360)
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 4:
         raise SceneError(f'samples: got {samples!r}, expected an integer >= 4')
@@ -736,7 +745,8 @@ def _joint(name, spec, all_points):
     return Joint(name, jtype, ends[0][0], ends[0][1], ends[1][0], ends[1][1], axis, angle)
 
 
-def _outputs(value, where):
+def parse_outputs(value, where):
+    """Return a validated ``outputs:`` list as a tuple in :data:`OUTPUTS` order."""
     if value == 'all':
         return OUTPUTS
     if not isinstance(value, (list, tuple)) or not value:

@@ -39,13 +39,14 @@ round trip is exact; the core normalizes.  The joint conventions (zero of each j
 coordinate, the spin convention of an S-S link) are in :mod:`mech_balance.core.spatial`.
 """
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 import math
 
 from mech_balance import conventions
 from mech_balance.schema import fields
 from mech_balance.schema.fields import SceneError
-from mech_balance.schema.scene import DEFAULT_OUTPUTS, FRAME, Normalization, OUTPUTS
+from mech_balance.schema.scene import DEFAULT_OUTPUTS, FRAME, Normalization, \
+    parse_outputs, SceneDesigns
 
 KIND = 'spatial'
 """Value of the top-level ``kind`` field of a spatial scene."""
@@ -117,7 +118,7 @@ class Pose:
 
 
 @dataclass(frozen=True)
-class SpatialScene:
+class SpatialScene(SceneDesigns):
     """A validated spatial scene (values as given, SI; see the module docstring)."""
 
     name: str
@@ -142,21 +143,6 @@ class SpatialScene:
     def assembly_crank_angle_rad(self):
         """Return the assembly crank coordinate in rad (the cycle's start)."""
         return math.radians(self.assembly_crank_angle_deg)
-
-    def link(self, name):
-        """Return the link called ``name``."""
-        for lk in self.links:
-            if lk.name == name:
-                return lk
-        raise KeyError(name)
-
-    def with_links(self, links, name=None):
-        """Return a copy with other link inertias (same geometry), e.g. a balanced design."""
-        return replace(self, links=tuple(links), name=name or self.name)
-
-    def with_outputs(self, outputs):
-        """Return a copy that asks for other outputs (validated)."""
-        return replace(self, outputs=_outputs(list(outputs), 'outputs'))
 
 
 _TOP_KEYS = {'kind', 'schema_version', 'name', 'description', 'normalization', 'frame',
@@ -268,17 +254,6 @@ def _joint(name, spec, all_points):
                         axis_b, angle)
 
 
-def _outputs(value, where):
-    if value == 'all':
-        return OUTPUTS
-    if not isinstance(value, (list, tuple)) or not value:
-        raise SceneError(f'{where}: got {value!r}, expected a list from {", ".join(OUTPUTS)}')
-    for v in value:
-        if v not in OUTPUTS:
-            raise SceneError(f'{where}: got {v!r}, expected one of {", ".join(OUTPUTS)}')
-    return tuple(o for o in OUTPUTS if o in value)
-
-
 def _connected(links, joints):
     adj = {lk.name: set() for lk in links}
     adj[FRAME] = set()
@@ -376,7 +351,7 @@ def spatial_from_dict(data, source='<dict>'):
         normalization = Normalization(*(
             fields.positive(fields.require(nd, k, 'normalization'), f'normalization.{k}')
             for k in ('mass_kg', 'length_m', 'omega_rad_s')))
-    outputs = _outputs(data.get('outputs', list(DEFAULT_OUTPUTS)), 'outputs')
+    outputs = parse_outputs(data.get('outputs', list(DEFAULT_OUTPUTS)), 'outputs')
     samples = fields.integer(data.get('samples', conventions.DEFAULT_SAMPLES), 'samples',
                              MIN_SAMPLES)
     try:
