@@ -599,13 +599,27 @@ def link_segments_px(motion, screen):
     return out
 
 
-def segments_px(layout, motion, screen):
-    """Return every drawn line segment of the rig ``(p, m, 2, 2)`` on screen (links, frame)."""
+def segments_px(layout, motion, screen, variant=None):
+    """
+    Return every drawn line segment of a view ``(p, m, 2, 2)`` on screen.
+
+    The links and the frame; with ``variant``, also that design's marks as drawn: the
+    counterweight plane rings and the stalks to moved mass centres (:func:`design_marks`).
+    """
     segs = [s for s in link_segments_px(motion, screen) if s.shape[1]]
     for strip in layout.frame_strips:
         px = screen.px(strip)
         seg = np.stack([px[:-1], px[1:]], axis=1)
         segs.append(np.broadcast_to(seg, (motion.size,) + seg.shape))
+    marks = (motion.marks or {}).get(variant, {}) if variant is not None else {}
+    drawn = {'rings': layout.has_added, 'stalks': layout.on('links')}
+    for kind in ('rings', 'stalks'):
+        m = marks.get(kind)
+        if m is None or not drawn[kind] or not np.size(m):
+            continue
+        px = screen.px(np.asarray(m, dtype=float))                  # (p, r, k, 2)
+        seg = np.stack([px[:, :, :-1], px[:, :, 1:]], axis=3)       # (p, r, k - 1, 2, 2)
+        segs.append(seg.reshape(motion.size, -1, 2, 2))
     if not segs:
         return np.zeros((motion.size, 0, 2, 2))
     return np.concatenate(segs, axis=1)
@@ -668,7 +682,7 @@ def place_labels(layout, motion, variant):
     if layout.on('mass_centres'):
         points.append(screen.px(motion.centres[variant]))
     markers = np.concatenate(points, axis=1) if points else np.zeros((p, 0, 2))
-    lines = segments_px(layout, motion, screen)
+    lines = segments_px(layout, motion, screen, variant)
     links_px = link_segments_px(motion, screen)
     placed = []      # (p, 4) boxes with (p,) masks
     out = []         # per spec: (p, 3) anchors, mask, texts
