@@ -12,13 +12,24 @@ DRAWN_STREAMS = ('frame', 'links', 'joints', 'mass_centres', 'point_masses',
 
 
 def spatial_name(layout, variant):
-    parts = [variant] + ([f'grid {layout.grid_text}'] if layout.dim == 3 else [])
-    if layout.on('shaking_force_arrow'):
+    """
+    Return a rig view's title: the design, then the scales of what it draws.
+
+    2-D: ``force arrow 1 cm = .. N | moment arc 90 deg = .. N*m``; 3-D, whose views are
+    narrower, says the grid and the arrows in short (``grid 5 cm | 1 cm: .. N, .. N*m``) so
+    that the title fits its view at the default window.
+    """
+    force, moment = layout.on('shaking_force_arrow'), layout.on('shaking_moment_arc')
+    if layout.dim == 3:
+        scales = ([f'{fmt(0.01 / layout.force_scale_m_per_N)} N'] if force else []) + \
+            ([f'{fmt(0.01 / layout.moment_scale)} N*m'] if moment else [])
+        return ' | '.join([variant, f'grid {layout.grid_text}']
+                          + ([f'arrows 1 cm: {", ".join(scales)}'] if scales else []))
+    parts = [variant]
+    if force:
         parts.append(f'force arrow 1 cm = {fmt(0.01 / layout.force_scale_m_per_N)} N')
-    if layout.on('shaking_moment_arc'):
-        parts.append(f'moment arc 90 deg = {fmt(90.0 / layout.moment_scale)} N*m'
-                     if layout.dim == 2 else
-                     f'moment arrow 1 cm = {fmt(0.01 / layout.moment_scale)} N*m')
+    if moment:
+        parts.append(f'moment arc 90 deg = {fmt(90.0 / layout.moment_scale)} N*m')
     return ' | '.join(parts)
 
 
