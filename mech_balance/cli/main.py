@@ -191,10 +191,10 @@ def build_parser():
                    help='timed runs per figure, an integer >= 1 (default: %(default)s)')
     p.add_argument('--section', action='append', default=None, metavar='NAME',
                    help='print only this table (repeatable): core, or a section of the bench '
-                        '(balancing, counterweights, recording, node, identify, cell; '
-                        'default: every table)')
+                        '(balancing, counterweights, recording, node, live_view, faults, '
+                        'identify_stamps, cell, identify, spatial; default: every table)')
     p.add_argument('--compare', choices=['mujoco'], default=None,
-                   help='instead, run Hoeken and generated 4-20 link chains through this '
+                   help='instead, run Hoeken and generated 4-40 link chains through this '
                         'package and through MuJoCo side by side: agreement, us per angle, '
                         'scaling (needs the optional mujoco package: make bench-mujoco)')
     p.set_defaults(func=cmd_bench)
