@@ -12,7 +12,7 @@ simulated; the same objects feed the ROS 2 node and the recordings::
     design = mb.balance(rig)                     # certified optimum (method by capability)
     report = mb.simulate('slider_crank_stiff', 0.4)
 
-Layers (README, *Design*): ``schema`` (the scene file) < ``core`` (numpy/scipy only) <
+Layers (docs/design.md): ``schema`` (the scene file) < ``core`` (numpy/scipy only) <
 ``analysis`` < ``balancing`` < ``ros`` (rclpy), ``viz`` (rerun) < ``cli``, ``bench``.
 Names are imported on first use, so ``import mech_balance`` costs nothing.
 """

@@ -31,7 +31,7 @@ DEFAULT_SAMPLES = 360
 """Crank angles per revolution when a caller does not say (one per degree)."""
 
 # Bounds on work and input, checked before the work starts; every error names the field and
-# the limit (README, section Limits).  The YAML reader's limits are in safe_yaml.py.
+# the limit (docs/scenes.md, Limits).  The YAML reader's limits are in safe_yaml.py.
 MAX_SAMPLES = 100_000
 """Most crank angles per revolution (scene ``samples:``, ``--samples``, ``balance.samples``)."""
 MAX_LINK_SAMPLES = 1_000_000

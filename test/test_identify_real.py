@@ -270,7 +270,7 @@ def test_identify_result_carries_the_prediction(calibrated):
     assert d['crank_motion']['quantization']['counts_per_turn'] == pytest.approx(4096)
 
 
-DOCS = os.path.join(os.path.dirname(__file__), '..', 'docs', '_drafts', 'identify.md')
+DOCS = os.path.join(os.path.dirname(__file__), '..', 'docs', 'identification.md')
 
 
 def _docs_example():

@@ -135,7 +135,7 @@ def dyad_chain(loops, crank_m=0.05, density_kg_m=2.0, speed_rad_s=1.0, skew=DEFA
         'outputs': list(scene_mod.OUTPUTS),
         'samples': 360,
     }
-    return scene_mod.from_dict(data, source=f'<mech_balance.chain.dyad_chain({loops})>')
+    return scene_mod.from_dict(data, source=f'<mech_balance.bench.chains.dyad_chain({loops})>')
 
 
 def _dyad_angles(start, pivot, coupler, rocker):

@@ -479,7 +479,7 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
         f'{"PASS" if us["ours_dyn"] <= us["mj_inverse"] else "FAIL"} (no slower than '
         'mj_inverse)',
         '',
-        'scaling: generated chains (mech_balance.chain.dyad_chain: a crank-rocker and '
+        'scaling: generated chains (mech_balance.bench.chains.dyad_chain: a crank-rocker and '
         'near-parallelogram stages)',
         f'  {"links":>5}{"moving":>7}{"loops":>6} |{"mech_balance us/angle":>22}'
         f'{"":>6}|{"MuJoCo us/angle":>17}{"":>12}|{"ratio":>7} |{"agreement":>10}'

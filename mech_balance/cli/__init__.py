@@ -1,5 +1,5 @@
 """
 The cli layer of mech_balance.
 
-See the README's design section for what lives here and what it may import.
+See docs/design.md for what lives here and what it may import.
 """

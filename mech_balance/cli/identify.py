@@ -37,7 +37,7 @@ def register(subparsers):
                    help='the rig: built-in scene name (see `mech-balance scenes`) or YAML file')
     p.add_argument('--bag', required=True, metavar='PATH',
                    help='rosbag2 directory (or a file in it) or a .csv file (columns: see '
-                        'README, section Identification)')
+                        'docs/identification.md)')
     p.add_argument('--encoder-topic', default=names.ENCODER_TOPIC, metavar='TOPIC',
                    help=f'JointState topic of the crank encoder (default: {names.ENCODER_TOPIC})')
     p.add_argument('--wrench-topic', default=names.WRENCH_TOPIC, metavar='TOPIC',

@@ -29,8 +29,9 @@ def register(subparsers):
                     'where the joint swings (continuous where it turns fully). The joints '
                     'that close the loops are listed in a comment. The RGGR is written in 3-D '
                     'with its real axes; its coupler hangs from the crank by two revolute '
-                    'joints (coupler_yaw, coupler_pitch). Zero convention: README section '
-                    '"RViz, robot_state_publisher and launch" and mech_balance/urdf.py.')
+                    'joints (coupler_yaw, coupler_pitch); spatial rigs write a spherical joint as '
+                    'three revolute joints on massless links. Zero convention: '
+                    'docs/rviz_launch.md and mech_balance/ros/urdf.py.')
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
                         'file (default: %(default)s)')

@@ -1,7 +1,7 @@
 """
 The ROS names of the rig: topics, frames and defaults, in one place (no imports).
 
-The README's node section documents them; the node, the bag reader, the URDF and the
+docs/node.md documents them; the node, the bag reader, the URDF and the
 command line read them here, so that a name is spelled once.
 """
 

@@ -149,7 +149,7 @@ class Publisher:
         estimator = self.estimator
         try:
             stamp_ns, position, velocity = conv.crank_reading(msg, joint)
-            if stamp_ns == 0:  # unset: `ros2 topic pub` sends stamp 0 (README: follow mode)
+            if stamp_ns == 0:  # unset: `ros2 topic pub` sends stamp 0 (docs/node.md: follow mode)
                 stamp_ns = self._node.get_clock().now().nanoseconds
                 if not self._zero_stamp_said:
                     self._zero_stamp_said = True

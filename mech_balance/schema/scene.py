@@ -406,7 +406,7 @@ _TOP_KEYS = {
 
 
 def planar_from_dict(data, source='<dict>'):
-    """Validate a parsed planar scene mapping (README, section *Scenes*)."""
+    """Validate a parsed planar scene mapping (docs/scenes.md)."""
     _known_keys(data, _TOP_KEYS, '')
     version = data.get('schema_version', SCHEMA_VERSION)
     if version != SCHEMA_VERSION:
