@@ -31,6 +31,7 @@ import threading
 
 from mech_balance.ros import streaming, urdf
 import numpy as np
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
@@ -122,8 +123,9 @@ class DescriptionPublisher:
 
     :meth:`show` is called whenever what is published may have changed (any thread); it
     publishes only when the design (the scene object) or ``frame_id`` differs from the last
-    one published, creates the publisher when enabled and destroys it when disabled (a
-    publisher is in no wait set, so this is safe from a parameter callback).  A scene the
+    one published, creates the publisher when enabled and destroys it when disabled (the publisher
+    has no event handlers, so it is in no wait set and this is safe from a parameter
+    callback of a multi-threaded executor).  A scene the
     URDF cannot describe (e.g. a ``frame_id`` that names one of its links) is logged, never
     raised.
     """
@@ -151,7 +153,12 @@ class DescriptionPublisher:
             if self._pub is None:
                 qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                                  reliability=ReliabilityPolicy.RELIABLE)
-                self._pub = self._node.create_publisher(String, ROBOT_DESCRIPTION, qos)
+                # no QoS event handlers: they would be waitables of the (multi-threaded)
+                # executor, and destroying the publisher from a parameter callback while
+                # another executor thread waits on them raises InvalidHandle there
+                self._pub = self._node.create_publisher(
+                    String, ROBOT_DESCRIPTION, qos,
+                    event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
             shown = self._shown
             if shown is not None and shown[0] is model.scene and shown[1] == frame_id:
                 return
