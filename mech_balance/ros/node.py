@@ -257,12 +257,22 @@ class RigNode(Node):
 
     def _balance_in_background(self):
         """use_balanced is true but no design is known: balance, then publish the design."""
+        original = self._state.original
+
         def done(model, text):
+            with self._state.lock:
+                stale = self._state.original is not original
+            if stale:   # the scene changed meanwhile: its own run publishes its design
+                self.get_logger().info(f'use_balanced: the design of {original.scene.name!r} '
+                                       'is not published (the scene has changed)')
+                return
             if model is None:
                 self.get_logger().error(f'use_balanced: {text}; publishing the original')
                 self.set_parameters([Parameter('use_balanced', value=False)])
                 return
             with self._state.lock:
+                if self._state.original is not original:
+                    return
                 self._state.balanced = model
                 wanted = self._state.values['use_balanced']
             self._open_recording()
