@@ -129,6 +129,8 @@ def test_mcap_truncations_and_bit_flips(made, tmp_path, capsys):
         flipped = bytearray(data)
         flipped[pos] ^= 1 << int(rng.integers(8))
         run(_mutate(made['mcap'], tmp_path, f'flip{k}', bytes(flipped)), f'mcap flip {pos}')
+    assert run(_mutate(made['mcap'], tmp_path, 'eight', data[:8]), '8 bytes')[0] == cli.EXIT_USAGE
+    assert run.codes.get(cli.EXIT_USAGE, 0) >= len(cuts) // 2, run.codes
 
 
 def test_sqlite_truncations_bit_flips_and_bad_payload(made, tmp_path, capsys):
@@ -278,6 +280,8 @@ def test_csv_truncations_and_bit_flips(made, tmp_path, capsys):
         flipped = bytearray(data)
         flipped[pos] ^= 1 << int(rng.integers(8))
         run(_write(tmp_path, f'flip{k}', bytes(flipped), 'wb'), f'csv flip {pos}')
+    assert run(_write(tmp_path, 'empty', b'', 'wb'), 'empty csv')[0] == cli.EXIT_USAGE
+    assert run.codes.get(cli.EXIT_USAGE, 0) > 0, run.codes
 
 
 def test_output_never_touched_on_failure_without_a_recording(tmp_path, capsys):
