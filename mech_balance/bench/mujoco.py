@@ -32,6 +32,11 @@ What MuJoCo's inverse dynamics gives for a closed loop, and the rigid forces
     is the load on the frame.  The shaking wrench is its reaction about the crank pivot
     (:mod:`mech_balance.conventions`).
 
+The spatial built-ins (printed after the planar part)
+    :mod:`mech_balance.bench.mujoco_spatial`: the same comparison for ``kind: spatial``
+    (the rig's spanning tree of hinges, slides and balls, ``connect`` at its spherical cut
+    joints, the package's S-S spin convention), bearing reactions included.
+
 What is timed, per crank angle (printed with the results)
     full pipeline
         this package: :meth:`~mech_balance.analysis.Rig.evaluate` of all angles at once
@@ -556,4 +561,7 @@ def cmd_compare(args):
     progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     hoeken, chains, extras, version = run(args.samples, args.repeat, progress)
     print(format_report(hoeken, chains, version, extras), flush=True)
+    from mech_balance.bench import mujoco_spatial
+    spatial = mujoco_spatial.run(args.samples, args.repeat, progress)
+    print(mujoco_spatial.format_report(spatial, AGREEMENT_TOL), flush=True)
     return 0

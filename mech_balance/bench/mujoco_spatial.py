@@ -51,9 +51,8 @@ Rigid multipliers, driving torque, reactions, shaking wrench (as the planar comp
     ``moment_point_m``.
 """
 
-import math
-
 from mech_balance import schema as scene_mod
+from mech_balance.bench import mujoco as bench_mujoco
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import dynamics as sdyn
@@ -102,10 +101,7 @@ class SpatialMujocoRig:
     """A spatial rig as a MuJoCo model: its spanning tree plus ``connect`` loop closures."""
 
     def __init__(self, rig, mj=None):
-        if mj is None:
-            from mech_balance.bench.mujoco import import_mujoco
-            mj = import_mujoco()
-        self.mj = mj
+        mj = self.mj = bench_mujoco.import_mujoco() if mj is None else mj
         self.rig = rig
         lk = self.linkage = rig.linkage
         sc = rig.scene
@@ -469,7 +465,8 @@ class SpatialMujocoRig:
 
         Newton on the connect and spin rows from a Taylor predictor off the previous angle
         (the first from ``qpos_start``), velocities and accelerations from the same rows,
-        ``mj_inverse`` and the rigid multipliers.  Returns ``(tau, force, moment, qpos,
+        ``mj_inverse``, the rigid multipliers and every bearing reaction (the package's
+        full cycle computes them too).  Returns ``(tau, force, moment, qpos,
         residual, iterations)``.
         """
         mj, m, d = self.mj, self.model, self.data
@@ -507,7 +504,7 @@ class SpatialMujocoRig:
             qacc[passive] = np.linalg.solve(j_u, -accel * j_c - self._bias(qvel))
             d.qacc[:] = qacc
             mj.mj_inverse(m, d)
-            tau[i], _, fsh[i], nsh[i], _ = self._rigid()
+            tau[i], _, fsh[i], nsh[i], _, _ = self._rigid(reactions=True)
             q_out[i] = qpos
             slope[:] = qvel / speed
             curve[:] = (qacc - slope * accel) / speed ** 2
@@ -547,7 +544,6 @@ def compare(scene, samples=360, repeat=50, progress=None, mj=None):
     slides / length scale, ball rotation matrices), ``us`` (microseconds per angle), the
     spin residual, the inertia check, Newton figures, and the counts of the model.
     """
-    from mech_balance.bench.mujoco import _interleaved_medians, MUJOCO_REPEAT_DIVISOR
     sc = scene_mod.load(scene) if isinstance(scene, str) else scene
     sc = sc.with_outputs(scene_mod.OUTPUTS)
     rig = rig_for(sc)
@@ -597,7 +593,7 @@ def compare(scene, samples=360, repeat=50, progress=None, mj=None):
     }
     if progress:
         progress(f'  timing {sc.name} ({len(sc.links)} moving links, spatial) ...')
-    slow = max(5, repeat // MUJOCO_REPEAT_DIVISOR)
+    slow = max(5, repeat // bench_mujoco.MUJOCO_REPEAT_DIVISOR)
     fns = [
         (lambda: rig.evaluate(psi), repeat),
         (lambda: _fresh_dynamics(rig, state, need), repeat),
@@ -606,7 +602,7 @@ def compare(scene, samples=360, repeat=50, progress=None, mj=None):
         (lambda: mjr.inverse_rigid(qpos, qvel, qacc), slow),
     ]
     names = ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse', 'mj_dyn')
-    secs = _interleaved_medians(fns)
+    secs = bench_mujoco._interleaved_medians(fns)
     out['us'] = {n: s * 1e6 / samples for n, s in zip(names, secs)}
     out['repeats'] = (repeat, slow)
     return out
