@@ -201,7 +201,7 @@ def _spatial_worst(rig, w, state, res, mujoco_spatial):
 
 
 def test_spatial_builtins_are_compared():
-    """The compared list is the registry's spatial built-ins (none left out)."""
+    """Compare every spatial built-in of the registry (none left out)."""
     from mech_balance.schema import registry
     spatial = registry.KINDS['spatial']
     names = {n for n in scene.builtin_scenes() if registry.kind_of(scene.load(n)) is spatial}
@@ -258,8 +258,8 @@ def test_spatial_idle_rod_has_exactly_zero_moment_in_mujoco(mujoco_spatial):
 
 @pytest.mark.parametrize('name, link, change', [
     ('rssr_skew', 'rocker', lambda lk: {'mass_kg': lk.mass_kg * (1 + 1e-6)}),
-    ('rssr_skew', 'crank', lambda lk: {'com_m': (lk.com_m[0], lk.com_m[1] + 1e-7,
-                                                  lk.com_m[2])}),
+    ('rssr_skew', 'crank', lambda lk: {
+        'com_m': (lk.com_m[0], lk.com_m[1] + 1e-7, lk.com_m[2])}),
     ('spatial_two_loop', 'rocker2', lambda lk: {'inertia_com_kg_m2': (
         lk.inertia_com_kg_m2[:4] + (lk.inertia_com_kg_m2[4] + 1e-9,)
         + lk.inertia_com_kg_m2[5:])}),
@@ -267,7 +267,7 @@ def test_spatial_idle_rod_has_exactly_zero_moment_in_mujoco(mujoco_spatial):
 ])
 def test_spatial_check_fails_for_a_perturbed_mass_property(name, link, change,
                                                            mujoco_spatial):
-    """MuJoCo built from a slightly different design disagrees: the check can fail."""
+    """Build MuJoCo from a slightly different design: it disagrees, so the check can fail."""
     from dataclasses import replace
     rig, _ = _spatial(name, mujoco_spatial)
     sc = rig.scene
@@ -279,6 +279,7 @@ def test_spatial_check_fails_for_a_perturbed_mass_property(name, link, change,
 
 
 def test_spatial_model_refuses_a_non_spherical_cut(mujoco_spatial):
+    """An RSUR (the tree cuts the universal joint C) is refused with the joint named."""
     from mech_balance.core.rig import rig_for
     from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
     d = spatial_to_dict(scene.load('rssr_skew'))

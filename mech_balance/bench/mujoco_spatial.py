@@ -38,10 +38,11 @@ Idle freedoms (an S-S coupler's spin about the line through its balls)
 
 Rigid multipliers, driving torque, reactions, shaking wrench (as the planar comparison)
     ``gen = qfrc_inverse + qfrc_constraint = M qacc + c``; the passive dofs carry no applied
-    force, so ``J_u^T lambda = gen_u`` over ``efc_J``'s passive columns (least squares: the
-    spin column of a ball is a zero row, and its equation ``0 = gen_spin`` holds to
-    round-off because the inertia about the line is zero; :func:`compare` reports that
-    residual), ``tau = gen_crank - J_crank^T lambda``.  ``lambda`` written to ``efc_force``
+    force, so ``J_u^T lambda = gen_u`` over the passive columns of ``efc_J`` with the spin
+    convention's rows below it (square, as the package's system: the spin row's multiplier
+    ``mu`` is the moment the convention would have to exert about the S-S line, zero for a
+    link without inertia about it; :func:`compare` reports its largest value),
+    ``tau = gen_crank - J_crank^T (lambda, mu)``.  ``lambda`` written to ``efc_force``
     feeds ``mj_rnePostConstraint``: ``cfrc_int`` of a body is the wrench on it from its tree
     parent (about the subtree centre of mass of its root), which gives the tree joints'
     reactions (moment moved to the joint anchor ``xanchor``; negated for a tree joint whose
@@ -128,8 +129,8 @@ class SpatialMujocoRig:
         self.tree_jnt = []
         self.dof_of = np.zeros(lk.ndof, dtype=int)
         for i, t in enumerate(lk.tree):
-            ids = [m.joint(f't{i}_{k}').id for k in range(1 if t.joint_type == 'spherical'
-                                                           else len(t.dofs))]
+            count = 1 if t.joint_type == 'spherical' else len(t.dofs)
+            ids = [m.joint(f't{i}_{k}').id for k in range(count)]
             self.tree_jnt.append(ids)
             if t.joint_type == 'spherical':
                 self.dof_of[list(t.dofs)] = m.jnt_dofadr[ids[0]] + np.arange(3)
@@ -332,10 +333,15 @@ class SpatialMujocoRig:
         nefc = d.nefc
         jac = d.efc_J[:nefc * m.nv].reshape(nefc, m.nv)
         gen = d.qfrc_inverse + d.qfrc_constraint
-        ju_t = jac[:, self.passive].T
-        lam = np.linalg.lstsq(ju_t, gen[self.passive], rcond=None)[0]
-        resid = float(np.max(np.abs(ju_t @ lam - gen[self.passive]), initial=0.0))
-        tau = float(gen[self.crank] - jac[:, self.crank] @ lam)
+        rows = self._spin_rows(jac) if self.spins else jac
+        ju_t = rows[:, self.passive].T
+        if ju_t.shape[0] == ju_t.shape[1]:
+            sol = np.linalg.solve(ju_t, gen[self.passive])
+        else:
+            sol = np.linalg.lstsq(ju_t, gen[self.passive], rcond=None)[0]
+        lam = sol[:nefc]
+        resid = float(np.max(np.abs(sol[nefc:]), initial=0.0))
+        tau = float(gen[self.crank] - rows[:, self.crank] @ sol)
         d.efc_force[:nefc] = lam
         d.qfrc_constraint[:] = jac.T @ lam
         mj.mj_rnePostConstraint(m, d)
@@ -361,6 +367,17 @@ class SpatialMujocoRig:
             react[name] = (self.cut_sign[k] * lam[3 * k:3 * k + 3], np.zeros(3))
         return out + (react,)
 
+    def _spin_rows(self, jac):
+        """Return ``efc_J`` with the spin convention's rows below it (rad per dof rate)."""
+        mj, m, d = self.mj, self.model, self.data
+        rows = np.empty((jac.shape[0] + len(self.spins), m.nv))
+        rows[:jac.shape[0]] = jac
+        for s, (b, v, nref) in enumerate(self.spins):
+            rv = d.xmat[b].reshape(3, 3) @ v
+            mj.mj_jacBody(m, d, None, self._jacr, b)
+            rows[jac.shape[0] + s] = np.cross(rv, nref) @ self._jacr
+        return rows
+
     def _motion(self):
         """Return the bodies' poses, twists and accelerations (frame origin, world axes)."""
         m, d = self.model, self.data
@@ -378,7 +395,7 @@ class SpatialMujocoRig:
         Return MuJoCo's results for the package's motion ``state`` (dict of ``(n, ...)``).
 
         Keys: ``driving_torque``, ``force``, ``moment``, ``reactions`` (joint -> (force,
-        moment)), ``spin_residual`` (largest ``|J_u^T lambda - gen_u|``, N m), ``origin``,
+        moment)), ``spin_residual`` (the spin rows' largest multiplier, N m), ``origin``,
         ``rot``, ``twist``, ``accel`` (MuJoCo's bodies, for the motion check).
         """
         mj, m, d = self.mj, self.model, self.data
@@ -428,14 +445,10 @@ class SpatialMujocoRig:
         mj.mj_makeConstraint(m, d)
         nc = d.nefc
         r = np.empty(self.nrow)
-        jac = np.empty((self.nrow, m.nv))
         r[:nc] = d.efc_pos[:nc] / self.length
-        jac[:nc] = d.efc_J[:nc * m.nv].reshape(nc, m.nv) / self.length
         for s, (b, v, nref) in enumerate(self.spins):
-            rv = d.xmat[b].reshape(3, 3) @ v
-            r[nc + s] = rv @ nref
-            mj.mj_jacBody(m, d, None, self._jacr, b)
-            jac[nc + s] = np.cross(rv, nref) @ self._jacr
+            r[nc + s] = (d.xmat[b].reshape(3, 3) @ v) @ nref
+        jac = self._spin_rows(d.efc_J[:nc * m.nv].reshape(nc, m.nv) / self.length)
         return r, jac
 
     def _bias(self, qvel):
@@ -656,7 +669,7 @@ def format_report(results, tol):
         w = worst(r)
         lines += [
             f'  -> {"PASS" if w <= tol else "FAIL"} (worst {w:.1e}, limit {tol:.0e}); '
-            f'inertia as compiled {r["inertia_error"]:.1e}; spin equation residual '
+            f'inertia as compiled {r["inertia_error"]:.1e}; spin-row moment '
             f'{r["spin_residual"]:.1e} of the peak torque; MuJoCo Newton residual '
             f'{r["mujoco_residual"]:.1e}, {r["mujoco_iterations"]:.2f} iterations/angle',
             f'  us per crank angle: {"":<4}{"mech_balance":>14}{"MuJoCo":>12}{"ratio":>10}',
