@@ -236,7 +236,7 @@ def test_spatial_mujoco_own_kinematics_agrees(name, mujoco_spatial):
     psi = cycle_angles(90, sc.assembly_crank_angle_rad)
     st, w = rig.evaluate(psi, speed=speed, accel=accel)
     qpos = mjr.to_mujoco(st)[0]
-    tau, fsh, nsh, q, res, iters = mjr.full(psi, speed, accel, qpos[0])
+    tau, fsh, nsh, react, q, res, iters = mjr.full(psi, speed, accel, qpos[0])
     assert np.max(res) <= mujoco_spatial.NEWTON_TOL and np.max(iters) <= 3
     q_tree, sph = mjr.tree_coordinates(q)
     assert_allclose(q_tree[:, lk.scalar_dofs], st.q[:, lk.scalar_dofs], rtol=0, atol=1e-12)
@@ -245,6 +245,7 @@ def test_spatial_mujoco_own_kinematics_agrees(name, mujoco_spatial):
     assert rel(w.driving_torque, tau) < AGREEMENT
     assert rel(w.force_N, fsh) < AGREEMENT
     assert rel(w.moment_Nm, nsh) < AGREEMENT
+    assert max(mujoco_spatial.reaction_differences(w.reactions, react)) < AGREEMENT
 
 
 def test_spatial_idle_rod_has_exactly_zero_moment_in_mujoco(mujoco_spatial):

@@ -479,8 +479,8 @@ class SpatialMujocoRig:
         Newton on the connect and spin rows from a Taylor predictor off the previous angle
         (the first from ``qpos_start``), velocities and accelerations from the same rows,
         ``mj_inverse``, the rigid multipliers and every bearing reaction (the package's
-        full cycle computes them too).  Returns ``(tau, force, moment, qpos,
-        residual, iterations)``.
+        full cycle computes them too).  Returns ``(tau, force, moment, reactions, qpos,
+        residual, iterations)``, ``reactions`` as in :meth:`dynamics`.
         """
         mj, m, d = self.mj, self.model, self.data
         p = psi.size
@@ -492,6 +492,9 @@ class SpatialMujocoRig:
         slope, curve, step = np.zeros(m.nv), np.zeros(m.nv), np.zeros(m.nv)
         qvel, qacc = np.zeros(m.nv), np.zeros(m.nv)
         qvel[crank], qacc[crank] = speed, accel
+        react = {name: (np.empty((p, 3)), np.empty((p, 3))) for name, *_ in
+                 self.tree_reactions}
+        react.update({name: (np.empty((p, 3)), np.zeros((p, 3))) for name in self.cut_names})
         for i in range(p):
             if i:
                 h = psi[i] - psi[i - 1]
@@ -517,11 +520,14 @@ class SpatialMujocoRig:
             qacc[passive] = np.linalg.solve(j_u, -accel * j_c - self._bias(qvel))
             d.qacc[:] = qacc
             mj.mj_inverse(m, d)
-            tau[i], _, fsh[i], nsh[i], _, _ = self._rigid(reactions=True)
+            tau[i], _, fsh[i], nsh[i], _, rc = self._rigid(reactions=True)
+            for name, (f, mom) in rc.items():
+                react[name][0][i] = f
+                react[name][1][i] = mom
             q_out[i] = qpos
             slope[:] = qvel / speed
             curve[:] = (qacc - slope * accel) / speed ** 2
-        return tau, fsh, nsh, q_out, res_out, iters
+        return tau, fsh, nsh, react, q_out, res_out, iters
 
 
 # ---------------------------------------------------------------------------- comparison
@@ -580,7 +586,7 @@ def compare(scene, samples=360, repeat=50, progress=None, mj=None):
         imposed['bearing forces'], imposed['bearing moments'] = reaction_differences(
             w.reactions, res['reactions'])
     qpos, qvel, qacc = mjr.to_mujoco(state)
-    tau2, f2, n2, q2, res2, it2 = mjr.full(psi, speed, accel, qpos[0])
+    tau2, f2, n2, react2, q2, res2, it2 = mjr.full(psi, speed, accel, qpos[0])
     q_own, sph_own = mjr.tree_coordinates(q2)
     scalar = lk.scalar_dofs
     positions = float(np.max(np.abs(q_own[:, scalar] - state.q[:, scalar])
@@ -591,6 +597,9 @@ def compare(scene, samples=360, repeat=50, progress=None, mj=None):
            'driving torque': relative_difference(w.driving_torque, tau2),
            'shaking force': relative_difference(w.force_N, f2),
            'shaking moment': relative_difference(w.moment_Nm, n2)}
+    if rig.reactions_unique:
+        own['bearing forces'], own['bearing moments'] = reaction_differences(
+            w.reactions, react2)
     out = {
         'scene': sc.name, 'links': len(sc.links), 'joints': len(sc.joints),
         'cuts': tuple(sc.joints[ji].name for ji in lk.cut_joints),
