@@ -293,9 +293,9 @@ def test_spatial_model_refuses_a_non_spherical_cut(mujoco_spatial):
         mujoco_spatial.SpatialMujocoRig(rig)
 
 
-def test_spatial_compare_report_passes(mujoco_spatial):
+def test_spatial_compare_report_passes(mujoco_spatial, bench_mujoco):
     """One small run of the spatial comparison: PASS printed per built-in (timings unchecked)."""
-    results = mujoco_spatial.run(24, 2, progress=None)
+    results = mujoco_spatial.run(bench_mujoco._interleaved_medians, 24, 2, 2, progress=None)
     text = mujoco_spatial.format_report(results, AGREEMENT)
     assert text.count('-> PASS (worst') == len(SPATIAL) and 'FAIL' not in text
     assert text.splitlines()[-1].endswith('-> PASS (limit 1e-09)')

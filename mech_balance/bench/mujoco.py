@@ -1,9 +1,9 @@
 """
 ``mech-balance bench --compare mujoco``: this package against MuJoCo, side by side.
 
-Only this module imports :mod:`mujoco` (an optional benchmark dependency: ``make
-bench-mujoco`` installs a pinned version); without it the command prints how to install it
-and exits with status 2.
+Only this module and :mod:`.mujoco_spatial` import :mod:`mujoco` (an optional benchmark
+dependency: ``make bench-mujoco`` installs a pinned version); without it the command prints
+how to install it and exits with status 2.
 
 The MuJoCo model of a planar rig (:class:`MujocoRig`)
     The linkage's own spanning tree (:class:`~mech_balance.kinematics.Linkage`): one body per
@@ -562,6 +562,8 @@ def cmd_compare(args):
     hoeken, chains, extras, version = run(args.samples, args.repeat, progress)
     print(format_report(hoeken, chains, version, extras), flush=True)
     from mech_balance.bench import mujoco_spatial
-    spatial = mujoco_spatial.run(args.samples, args.repeat, progress)
+    spatial = mujoco_spatial.run(_interleaved_medians, args.samples, args.repeat,
+                                 max(5, args.repeat // MUJOCO_REPEAT_DIVISOR), progress,
+                                 mj=import_mujoco())
     print(mujoco_spatial.format_report(spatial, AGREEMENT_TOL), flush=True)
     return 0

@@ -29,8 +29,9 @@ Idle freedoms (an S-S coupler's spin about the line through its balls)
     inertia about the line to be zero (a slender rod).  MuJoCo's compiler refuses a moving
     body with a zero principal moment, so such a link is compiled with a placeholder
     ``fullinertia = I + delta u u^T`` (u the principal axis of the zero moment) and the
-    compiled ``body_inertia`` entry of that axis is then set back to the scene's value
-    (``body_iquat`` is unchanged: u is an eigenvector of both); :attr:`inertia_error`
+    compiled ``body_inertia`` is then set to the scene's tensor in MuJoCo's principal axes
+    ``body_iquat`` (which also diagonalize the scene's: u is an eigenvector of both, the
+    zero moment comes back exactly); :attr:`inertia_error`
     reports the largest difference between MuJoCo's inertia tensor and the scene's.  The
     mass matrix is then singular in the spin direction, which ``mj_inverse`` does not need
     (``M qacc`` is a product).  With imposed motion the spin is the package's; MuJoCo's own
@@ -50,10 +51,20 @@ Rigid multipliers, driving torque, reactions, shaking wrench (as the planar comp
     on the frame is ``cfrc_int`` of the bodies hinged to the world plus the connect forces of
     cuts to the world; the shaking wrench is its reaction, the moment about the scene's
     ``moment_point_m``.
+
+What is timed, per crank angle (as the planar comparison)
+    mech_balance: the full pipeline is :meth:`SpatialRig.evaluate` of all angles at once
+    (every output: kinematics, shaking wrench, driving torque, bearing reactions); dynamics
+    alone is :func:`~mech_balance.core.spatial.dynamics.inverse_dynamics` of the solved
+    state (its per-state caches cleared before each run).  MuJoCo: the full pipeline is a
+    Python loop over the angles (Newton on the connect and spin rows from a Taylor
+    predictor, velocities, accelerations with ``mj_comVel`` and ``mj_jacDot``,
+    ``mj_inverse``, the multipliers, ``mj_rnePostConstraint``, every reaction and the
+    frame load); ``mj_inverse`` alone with the package's motion copied in; and the same
+    plus the multipliers, reactions and frame load (the same outputs).
 """
 
 from mech_balance import schema as scene_mod
-from mech_balance.bench import mujoco as bench_mujoco
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import dynamics as sdyn
@@ -102,7 +113,9 @@ class SpatialMujocoRig:
     """A spatial rig as a MuJoCo model: its spanning tree plus ``connect`` loop closures."""
 
     def __init__(self, rig, mj=None):
-        mj = self.mj = bench_mujoco.import_mujoco() if mj is None else mj
+        if mj is None:
+            import mujoco as mj  # the optional dependency (bench.mujoco tells how to get it)
+        self.mj = mj
         self.rig = rig
         lk = self.linkage = rig.linkage
         sc = rig.scene
@@ -115,12 +128,12 @@ class SpatialMujocoRig:
         self.xml, placeholders = self._mjcf(sc)
         self.model = mj.MjModel.from_xml_string(self.xml)
         m = self.model
-        for name, axis, delta in placeholders:   # zero principal moments (module docstring)
+        for name, tensor in placeholders:   # zero principal moments (module docstring)
             body = m.body(name).id
             frame = np.empty(9)
             mj.mju_quat2Mat(frame, m.body_iquat[body])
-            j = int(np.argmax(np.abs(frame.reshape(3, 3).T @ axis)))
-            m.body_inertia[body, j] -= delta
+            frame = frame.reshape(3, 3)
+            m.body_inertia[body] = np.maximum(np.diag(frame.T @ tensor @ frame), 0.0)
         self.data = mj.MjData(self.model)
         self.warnings = self._first_inverse()
         self.length = lk.length_scale
@@ -189,12 +202,12 @@ class SpatialMujocoRig:
             values, vectors = np.linalg.eigh(tensor)
             trace = float(np.trace(tensor))
             six = list(link.inertia_com_kg_m2)
-            if values[0] <= ZERO_MOMENT_RTOL * trace:
-                delta = IDLE_PLACEHOLDER_RTOL * trace
-                u = vectors[:, 0]
-                t2 = tensor + delta * np.outer(u, u)
+            zero = values <= ZERO_MOMENT_RTOL * trace
+            if zero.any():
+                u = vectors[:, zero]
+                t2 = tensor + IDLE_PLACEHOLDER_RTOL * trace * (u @ u.T)
                 six = [t2[0, 0], t2[1, 1], t2[2, 2], t2[0, 1], t2[0, 2], t2[1, 2]]
-                placeholders.append((name, u, delta))
+                placeholders.append((name, tensor))
             return (f'<inertial pos="{_vec(link.com_m)}" mass="{_f(link.mass_kg)}" '
                     f'fullinertia="{_vec(six)}"/>')
 
@@ -554,9 +567,13 @@ def reaction_differences(ours, theirs):
     return forces, moments / (peak if peak > 0.0 else 1.0)
 
 
-def compare(scene, samples=360, repeat=50, progress=None, mj=None):
+def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=None):
     """
     Return the agreement and timing figures of one spatial scene (name or scene), one process.
+
+    ``timer(fns)`` returns the median seconds of each ``(function, runs)`` pair, timed in
+    turn (the planar comparison's); the package's figures take ``repeat`` runs, MuJoCo's
+    ``slow``.
 
     Keys: ``agreement_imposed`` and ``agreement_own`` (quantity -> worst relative
     difference), ``positions`` (MuJoCo's own joint coordinates against the package's: rad,
@@ -615,7 +632,6 @@ def compare(scene, samples=360, repeat=50, progress=None, mj=None):
     }
     if progress:
         progress(f'  timing {sc.name} ({len(sc.links)} moving links, spatial) ...')
-    slow = max(5, repeat // bench_mujoco.MUJOCO_REPEAT_DIVISOR)
     fns = [
         (lambda: rig.evaluate(psi), repeat),
         (lambda: _fresh_dynamics(rig, state, need), repeat),
@@ -624,7 +640,7 @@ def compare(scene, samples=360, repeat=50, progress=None, mj=None):
         (lambda: mjr.inverse_rigid(qpos, qvel, qacc), slow),
     ]
     names = ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse', 'mj_dyn')
-    secs = bench_mujoco._interleaved_medians(fns)
+    secs = timer(fns)
     out['us'] = {n: s * 1e6 / samples for n, s in zip(names, secs)}
     out['repeats'] = (repeat, slow)
     return out
@@ -695,11 +711,12 @@ def format_report(results, tol):
     return '\n'.join(lines)
 
 
-def run(samples=360, repeat=50, progress=print, names=SPATIAL_BUILTINS, mj=None):
-    """Return :func:`compare` of every spatial built-in."""
+def run(timer, samples=360, repeat=50, slow=10, progress=print, names=SPATIAL_BUILTINS,
+        mj=None):
+    """Return :func:`compare` of every spatial built-in (arguments as there)."""
     out = []
     for name in names:
         if progress:
             progress(f'  comparing {name} (spatial) ...')
-        out.append(compare(name, samples, repeat, progress, mj))
+        out.append(compare(name, timer, samples, repeat, slow, progress, mj))
     return out
