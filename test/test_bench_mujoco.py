@@ -302,3 +302,41 @@ def test_spatial_compare_report_passes(mujoco_spatial, bench_mujoco):
     for r in results:
         assert set(r['agreement_imposed']) == set(mujoco_spatial.QUANTITIES)
         assert mujoco_spatial.worst(r) < AGREEMENT
+
+
+def _rscr():
+    """Return an RSCR: rssr_skew with C cylindrical (normal to BC), listed before B."""
+    from mech_balance.core.rig import rig_for
+    from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
+    base = rig_for(scene.load('rssr_skew')).linkage
+    fr = base.frames(base.q0, base.sph0)
+    ic, ir = base.body_names.index('coupler'), base.body_names.index('rocker')
+    y_rocker = fr.rot[0, ir].T @ fr.rot[0, ic] @ np.array([0.0, 1.0, 0.0])
+    d = spatial_to_dict(scene.load('rssr_skew'))
+    d['name'] = 'rscr'
+    j = d['joints']
+    d['joints'] = {'A': j['A'], 'C': {'type': 'cylindrical', 'a': 'coupler.C', 'b': 'rocker.C',
+                                      'axis': [0.0, 1.0, 0.0],
+                                      'axis_b': [float(x) for x in y_rocker]},
+                   'B': j['B'], 'D': j['D']}
+    d['links']['coupler']['inertia_com_kg_m2'] = [2e-6, 6.75e-4, 6.75e-4, 1e-6, 0.0, 0.0]
+    return spatial_from_dict(d)
+
+
+def test_spatial_cylindrical_flipped_tree_joint_agrees(mujoco_spatial):
+    """A cylindrical tree joint whose child is its link a (hinge + slide), no idle spin."""
+    rig, mjr = _spatial(None, mujoco_spatial, _rscr())
+    lk = rig.linkage
+    last = lk.tree[-1]
+    assert (last.name, last.joint_type, last.flipped) == ('C', 'cylindrical', True)
+    assert [rig.scene.joints[i].name for i in lk.cut_joints] == ['B'] and not mjr.spins
+    psi = cycle_angles(72) + 0.01
+    st, w = rig.evaluate(psi, speed=1.7, accel=0.9)
+    slide = st.q[:, lk.tree[-1].dofs[1]]
+    assert np.ptp(slide) > 1e-3                   # the slide moves: the two C points part
+    res = mjr.dynamics(st)
+    assert rig.reactions_unique
+    assert _spatial_worst(rig, w, st, res, mujoco_spatial) < AGREEMENT
+    tau, fsh, nsh, react, q, r, iters = mjr.full(psi, 1.7, 0.9, mjr.to_mujoco(st)[0][0])
+    assert max(mujoco_spatial.relative_difference(w.driving_torque, tau),
+               *mujoco_spatial.reaction_differences(w.reactions, react)) < AGREEMENT

@@ -46,8 +46,10 @@ Rigid multipliers, driving torque, reactions, shaking wrench (as the planar comp
     ``tau = gen_crank - J_crank^T (lambda, mu)``.  ``lambda`` written to ``efc_force``
     feeds ``mj_rnePostConstraint``: ``cfrc_int`` of a body is the wrench on it from its tree
     parent (about the subtree centre of mass of its root), which gives the tree joints'
-    reactions (moment moved to the joint anchor ``xanchor``; negated for a tree joint whose
-    child is the scene's link a); the connect forces are the cut joints' reactions.  The load
+    reactions (moment moved to the joint point on the scene's link b, as the package
+    reports it - a cylindrical or prismatic joint's two points part along its axis, and
+    ``xanchor`` is a slide's zero position; negated for a tree joint whose child is the
+    scene's link a); the connect forces are the cut joints' reactions.  The load
     on the frame is ``cfrc_int`` of the bodies hinged to the world plus the connect forces of
     cuts to the world; the shaking wrench is its reaction, the moment about the scene's
     ``moment_point_m``.
@@ -163,11 +165,15 @@ class SpatialMujocoRig:
         self.spins = [(m.body(lk.body_names[int(r.body_b[0])]).id, r.vec_b[0].copy(),
                        r.vec_a[0].copy()) for r in lk.rows if r.form == 'spin']
         self.nrow = 3 * ncut + len(self.spins)
-        self.tree_reactions = []    # name, body, root body, joint point in the body, sign
+        # per tree joint: name, child body, its root, the body of the scene's link b and its
+        # joint point there (the moment's point: C and P joints' two points differ), sign
+        self.tree_reactions = []
         for t in lk.tree:
-            b = m.body(lk.body_names[t.child]).id
-            self.tree_reactions.append((t.name, b, int(m.body_rootid[b]), t.s_child,
-                                        -1.0 if t.flipped else 1.0))
+            c = m.body(lk.body_names[t.child]).id
+            on_b = (m.body(lk.body_names[t.parent]).id, t.s_parent) if t.flipped else \
+                (c, t.s_child)
+            self.tree_reactions.append((t.name, c, int(m.body_rootid[c])) + on_b
+                                       + (-1.0 if t.flipped else 1.0,))
         self.cut_names = [sc.joints[ji].name for ji in lk.cut_joints]
         self._jac1 = np.zeros((3, m.nv))
         self._jac2 = np.zeros((3, m.nv))
@@ -372,10 +378,10 @@ class SpatialMujocoRig:
         if not reactions:
             return out
         react = {}
-        for name, b, root, s_child, sign in self.tree_reactions:
-            f = cfrc[b, 3:]
-            x = d.xpos[b] + d.xmat[b].reshape(3, 3) @ s_child  # (xanchor: a slide's zero)
-            react[name] = (sign * f, sign * (cfrc[b, :3] + np.cross(com[root] - x, f)))
+        for name, c, root, b, point, sign in self.tree_reactions:
+            f = cfrc[c, 3:]
+            x = d.xpos[b] + d.xmat[b].reshape(3, 3) @ point   # (xanchor: a slide's zero)
+            react[name] = (sign * f, sign * (cfrc[c, :3] + np.cross(com[root] - x, f)))
         for k, name in enumerate(self.cut_names):
             react[name] = (self.cut_sign[k] * lam[3 * k:3 * k + 3], np.zeros(3))
         return out + (react,)
