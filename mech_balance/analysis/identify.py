@@ -1059,6 +1059,68 @@ def _measurements(wrench, effort, t_wrench, t_effort, motion):
     return t_w[inside], meas
 
 
+REDUCE_CHUNK = 4096
+"""Samples per regressor evaluation in :func:`_reduce`: the working memory of an
+identification is that of this many samples, whatever the recording's length."""
+
+
+@dataclass
+class _Reduction:
+    """What the weighted least squares needs of all samples (:func:`_reduce`)."""
+
+    samples: int
+    names: tuple
+    factors: list           # per channel: R factor (n+1, n+1) of the centred [Y_c | r_c]
+    ys_mean: np.ndarray     # (c, n) per channel mean of the scaled columns
+    r0_mean: np.ndarray     # (c,) mean of measured minus the scene's model
+    rms_before: np.ndarray  # (c,) RMS of the centred r0
+    sigma: np.ndarray       # (c,) standard deviation of the measurements
+    size: np.ndarray        # (c,) RMS over samples of the scaled regressor row norm
+    residual: float
+    cond: float
+
+
+def _reduce(scene, psi, speed, accel, meas, torque, theta0, scale, chunk=REDUCE_CHUNK):
+    """
+    Return the :class:`_Reduction` of the samples, ``chunk`` samples at a time.
+
+    Per channel c one orthogonal (QR) reduction of ``[1 | Y_c | r_c | w_c]`` (scaled
+    regressor, measured minus the scene's model, measured), updated chunk by chunk: the
+    trailing block of its R factor is the R factor of the centred columns (the bias-free
+    problem), its first row divided by sqrt(p) their means.  So the regressor of the whole
+    recording is never held at once.
+    """
+    nc = meas.shape[1]
+    stacks = [None] * nc
+    names, residual, cond, sq = (), 0.0, 0.0, np.zeros(nc)
+    rig = analysis.Rig(scene)                       # built (its branch traced) once
+    for a in range(0, psi.size, chunk):
+        k = slice(a, a + chunk)
+        reg = regressor(scene, psi[k], speed[k], accel[k], torque=torque, rig=rig)
+        y = reg.wrench if reg.torque is None else np.concatenate(
+            [reg.wrench, reg.torque[:, None, :]], axis=1)
+        names, residual, cond = reg.names, max(residual, reg.residual), max(cond, reg.cond)
+        ys = y * scale                              # scaled columns: theta = scale * u
+        r0 = meas[k] - y @ theta0                   # measured minus the scene's model
+        sq += np.sum(ys ** 2, axis=(0, 2))
+        for c in range(nc):
+            block = np.column_stack([np.ones(ys.shape[0]), ys[:, c, :], r0[:, c],
+                                     meas[k, c]])
+            if stacks[c] is not None:
+                block = np.vstack([stacks[c], block])
+            stacks[c] = np.linalg.qr(block, mode='r')
+    p, n = psi.size, theta0.size
+    first = np.array([st[0, 1:] / st[0, 0] for st in stacks])     # (c, n + 2) means
+    tail = [st[1:, 1:] for st in stacks]
+    return _Reduction(
+        samples=p, names=names, factors=[t[:n + 1, :n + 1] for t in tail],
+        ys_mean=first[:, :n], r0_mean=first[:, n],
+        rms_before=np.array([np.linalg.norm(t[:, n]) for t in tail]) / math.sqrt(p),
+        sigma=np.array([np.linalg.norm(t[:, n + 1]) for t in tail]) / math.sqrt(p),
+        size=np.sqrt(sq / p),
+        residual=residual, cond=cond)
+
+
 def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, window=None,
              quantization_rad=None, counts_per_turn=None):
     """
@@ -1095,30 +1157,16 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         raise IdentifyError(f'recording: the crank turns {turns:.3g} revolutions in the usable '
                             f'span of {span:.3g} s, expected at least {MIN_TURNS:g}'
                             ' (a longer recording)')
-    reg = regressor(scene, psi, speed, accel, torque=effort is not None)
-    y = reg.wrench if reg.torque is None else np.concatenate([reg.wrench,
-                                                              reg.torque[:, None, :]], axis=1)
-    p, _, nparam = y.shape
+    theta0 = dynamics.parameter_vector(dynamics.Inertia.from_links(scene.links))
+    scale = parameter_scales(scene)
+    red = _reduce(scene, psi, speed, accel, meas, effort is not None, theta0, scale)
+    p, nparam = red.samples, theta0.size
     if p * nc <= nparam + nc:
         raise IdentifyError(f'recording: {p} samples, expected more than {nparam + nc} '
                             'measurements for the parameters and the bias')
-    theta0 = dynamics.parameter_vector(dynamics.Inertia.from_links(scene.links))
-    scale = parameter_scales(scene)
-    ys = y * scale                                  # scaled columns: theta = scale * u
-    r0 = meas - y @ theta0                          # measured minus the scene's model
-    # bias free: remove the per-channel mean of the data and of every column
-    ys_mean = ys.mean(axis=0)                       # (c, n): bias sensitivity M (SI per u)
-    r0_mean = r0.mean(axis=0)
-    ysc = ys - ys_mean
-    r0c = r0 - r0_mean
-    rms_before = np.sqrt(np.mean(r0c ** 2, axis=0))
-    sigma = np.sqrt(np.mean((meas - meas.mean(axis=0)) ** 2, axis=0))
-    sigma = np.where(sigma > 0.0, sigma, 1.0)
-    # one orthogonal (QR) reduction per channel of [Y_c | r_c] to its (n+1, n+1) R factor:
-    # every weighted pass below is then exact on the small stacked factors, residual norms
-    # included (||[Y_c r_c] [-du; 1]|| = ||R_c [-du; 1]||)
-    factors = [np.linalg.qr(np.column_stack([ysc[:, c, :], r0c[:, c]]), mode='r')
-               for c in range(nc)]
+    ys_mean, r0_mean, rms_before, factors = red.ys_mean, red.r0_mean, red.rms_before, \
+        red.factors
+    sigma = np.where(red.sigma > 0.0, red.sigma, 1.0)
     for _ in range(WEIGHT_PASSES):
         stacked = np.vstack([f / s for f, s in zip(factors, sigma)])
         u_mat, sv, vt = np.linalg.svd(stacked[:, :nparam], full_matrices=False)
@@ -1148,20 +1196,20 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     cov_b = s2 * np.diag(sigma ** 2 / p) + m_sens @ cov_u @ m_sens.T
     v0 = vt[rank:].T
     confound_u = m_sens @ v0 @ v0.T                 # (c, n) per unit of u
-    size = np.sqrt(np.mean(np.sum(ys ** 2, axis=2), axis=0))
+    size = red.size
     identifiable_b = np.linalg.norm(confound_u, axis=1) <= CONFOUND_RTOL * size
     confound = np.where(identifiable_b[:, None], 0.0, confound_u / scale)
     rms_after = np.sqrt(res_sq / p)
-    combos = _combinations(vt[:rank], scale, reg.names, theta_ls, theta0, cov, theta)
+    combos = _combinations(vt[:rank], scale, red.names, theta_ls, theta0, cov, theta)
     links, problems = _calibrated_links(scene, theta)
     return Identification(
-        scene=scene, names=reg.names, theta_scene=theta0, theta=theta, covariance=cov,
+        scene=scene, names=red.names, theta_scene=theta0, theta=theta, covariance=cov,
         rank=rank, singular_values=sv,
         condition_number=float(sv[0] / sv[rank - 1]), combinations=combos,
         channels=channels, bias=bias, bias_std_error=np.sqrt(np.diag(cov_b)),
         bias_confounding=confound, bias_identifiable=identifiable_b, noise_std=sigma,
         rms_before=rms_before, rms_after=rms_after, samples=p, motion=motion,
-        kinematic_residual=reg.residual, kinematic_cond=reg.cond, calibrated_links=links,
+        kinematic_residual=red.residual, kinematic_cond=red.cond, calibrated_links=links,
         problems=problems, consistency=consistency, theta_ls=theta_ls,
         prediction=None if problems else predicted_rms(scene, theta, cov),
         segments=[seg for _, seg in stretches])
