@@ -311,21 +311,27 @@ def test_messages_carry_the_samples_and_the_encoder_is_read_with_checks():
     ('carpet_scraper', False, 'x'), ('rggr', True, 'rig_frame')])
 def test_batch_serializer_reads_back_as_the_filled_messages(name, effort, frame_id):
     model = twin.model_for(scene_mod.load(name))
-    samples = model.evaluate(np.linspace(0.0, 6.0, 9), 1.7, -0.4)
-    if not effort:
-        samples.joint_effort = None
-    stamps = 1_700_000_000_999_999_000 + 333_333 * np.arange(9, dtype=np.int64)
-    ser = conv.SampleSerializer(model.joint_names, effort, frame_id)
-    reference = conv.serialized_samples(samples, stamps, frame_id)
+    # sample by sample (follow mode's small batches) and with numpy (clock mode's)
+    for n in (9, conv.SMALL_BATCH + 8):
+        samples = model.evaluate(np.linspace(0.0, 6.0, n), 1.7, -0.4)
+        if not effort:
+            samples.joint_effort = None
+        stamps = 1_700_000_000_999_999_000 + 333_333 * np.arange(n, dtype=np.int64)
+        ser = conv.SampleSerializer(model.joint_names, effort, frame_id)
+        reference = conv.serialized_samples(samples, stamps, frame_id)
 
-    def same(payloads):  # read back: CDR leaves the alignment padding unspecified
-        return len(payloads) == len(reference) and all(
-            deserialize_message(fj, JointState) == deserialize_message(rj, JointState) and
-            deserialize_message(fw, WrenchStamped) == deserialize_message(rw, WrenchStamped)
-            for (fj, fw), (rj, rw) in zip(payloads, reference))
-    assert same(ser.serialize(samples, stamps)) and ser.fast
-    ser._joint.index = ser._joint.index[::-1].copy()  # a wrong layout is caught, not sent
-    assert same(ser.serialize(samples, stamps)) and not ser.fast
+        def same(payloads):  # read back: CDR leaves the alignment padding unspecified
+            return len(payloads) == len(reference) and all(
+                deserialize_message(fj, JointState) == deserialize_message(rj, JointState)
+                and deserialize_message(fw, WrenchStamped) ==
+                deserialize_message(rw, WrenchStamped)
+                for (fj, fw), (rj, rw) in zip(payloads, reference))
+        assert same(ser.serialize(samples, stamps)) and ser.fast
+        # a wrong layout is caught, not sent (both forms of it: byte indices, value runs)
+        ser._joint.index = ser._joint.index[::-1].copy()
+        (p0, e0, k0, at0), (p1, e1, k1, at1) = ser._joint.runs[:2]  # positions, velocities
+        ser._joint.runs[:2] = [(p0, e0, k0, at1), (p1, e1, k1, at0)]
+        assert same(ser.serialize(samples, stamps)) and not ser.fast
 
 
 # ------------------------------------------------------------------------------ processes

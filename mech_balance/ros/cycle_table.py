@@ -99,7 +99,8 @@ class CycleTable:
     Build with :meth:`build`; :meth:`evaluate` returns the published samples at angles,
     speeds and accelerations: a :class:`RigData` with the exact model's joint values,
     efforts and shaking wrench (within :attr:`accuracy`), the solver diagnostics of the grid
-    cell (the worse of its two ends) and neither series nor body poses.
+    cell (the worse of its two ends) and neither series nor body poses (the caller may set
+    ``poses``).
     """
 
     def __init__(self, template, joints, angular, turns, coef, harmonics, interval, report):

@@ -21,7 +21,9 @@ messages.
     the checks that reject input the rig cannot have produced.
 :class:`Streamer`
     The two threads that publish: clock-mode ticks on schedule from precomputed batches,
-    or follow-mode samples evaluated in batches as encoder messages arrive.
+    or follow-mode samples evaluated in batches as encoder messages arrive (by the
+    design's verified cycle table, :mod:`mech_balance.ros.cycle_table`, once it is built,
+    unless ``follow.exact``).
 
 Joint values and efforts: the rig's own (:mod:`mech_balance.core.planar.rig`,
 :class:`mech_balance.core.rggr.RggrRig`).
@@ -34,6 +36,7 @@ the two axes), all six components.
 
 from collections import deque
 from dataclasses import dataclass
+from functools import partial
 import math
 import threading
 import time
@@ -147,7 +150,14 @@ class TwinModel:
         table = self._table
         if table is None:
             return self.evaluate(psi, speed, accel)
-        return table.evaluate(psi, speed, accel)
+        s = table.evaluate(psi, speed, accel)
+        # the body poses (the recording's) from the core, only when they are read
+        s.poses = partial(self._poses, s.crank_angle_rad, s.crank_speed_rad_s,
+                          s.crank_accel_rad_s2)
+        return s
+
+    def _poses(self, psi, speed, accel):
+        return self.rig.at(psi, speed, accel, outputs=self.outputs).bodies
 
     def evaluate(self, psi, speed, accel=0.0):
         """
