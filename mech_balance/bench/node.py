@@ -11,6 +11,12 @@ shutdown after :data:`STATS_S` at the target rate (:data:`mech_balance.ros.node.
 give the compute per sample (the core's evaluation and the serialization of both
 messages, amortized over the batches a second thread prepares ahead of the ticks) and the
 wall time of a tick (two ``publish`` calls of prepared bytes, middleware included).
+
+Follow mode is timed in this process on the node's own objects (:class:`FollowPath`): per
+encoder message the subscription callback (reading, estimator, the real rig's crank
+track, the queue), per batch the follow step's evaluation (the design's cycle table, and
+again with ``follow.exact``: the core) and preparation of both messages; only the rclpy
+``publish`` calls are left out.
 """
 
 import json

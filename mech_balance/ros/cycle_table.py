@@ -60,6 +60,10 @@ class TableRefused(ValueError):
     """The cycle table does not reproduce the exact model within its bound (the reason)."""
 
 
+class _TooCoarse(TableRefused):
+    """The accuracy on this grid exceeds the bound (a finer grid may meet it)."""
+
+
 @dataclass(frozen=True)
 class TableReport:
     """What a build found: grid angles, harmonics kept, accuracy, build time."""
@@ -103,7 +107,7 @@ class CycleTable:
     ``poses``).
     """
 
-    def __init__(self, template, joints, angular, turns, coef, harmonics, interval, report):
+    def __init__(self, template, joints, angular, coef, harmonics, interval, report):
         self._names = template.joint_names
         self._effort = template.joint_effort is not None
         self._j = joints
@@ -135,14 +139,10 @@ class CycleTable:
         last = None
         for n in grids:
             try:
-                table = cls._build(evaluate, angular, n, bound, t0)
-            except TableRefused as exc:
+                return cls._build(evaluate, angular, n, bound, t0)
+            except _TooCoarse as exc:
                 last = exc
-                if 'accuracy' not in str(exc):
-                    raise
-                continue
-            return table
-        raise last
+        raise TableRefused(str(last))
 
     @classmethod
     def _build(cls, evaluate, angular, n, bound, t0):
@@ -167,9 +167,10 @@ class CycleTable:
         y0, yp, ym, ya = y
         sets = [y0, 0.5 * (yp - ym), 0.5 * (yp + ym) - y0, ya - y0]
         # positions: independent of the speed and acceleration; unwrapped, less whole turns
-        pos = np.unwrap(y0[:, :j], axis=0)
+        pos = y0[:, :j].copy()
+        pos[:, angular] = np.unwrap(pos[:, angular], axis=0)
         turns = np.where(angular, np.round((pos[-1] - pos[0]) / TWO_PI), 0.0)
-        pos = pos - psi_with_end(psi)[:, None] * turns
+        pos -= np.concatenate([psi, [TWO_PI]])[:, None] * turns
         if np.any(np.abs(pos[-1] - pos[0]) > 1e-9 * np.maximum(1.0, np.abs(pos[0]))):
             raise TableRefused('a joint position is not periodic over one crank turn')
         sets[0] = np.hstack([pos, y0[:, j:]])
@@ -192,17 +193,17 @@ class CycleTable:
             blocks.append(np.vstack([c[:1].real, 2.0 * c[1:harmonics + 1].real,
                                      -2.0 * c[1:harmonics + 1].imag, per_turn]))
         coef = np.vstack(blocks)
-        cells = _cells(template, runs, n)
+        cells = _cells(runs, n)
         report = TableReport(n, harmonics, float('nan'), bound, 0.0,
                              float(np.max(cells[1])) if cells[1].size else float('nan'))
-        table = cls(template, j, angular, turns, coef, harmonics, cells, report)
+        table = cls(template, j, angular, coef, harmonics, cells, report)
         accuracy = table._verify(evaluate, n)
         report = TableReport(n, harmonics, accuracy, bound, time.perf_counter() - t0,
                              report.condition)
         table.report, table.accuracy = report, accuracy
         if not accuracy <= bound:
-            raise TableRefused(f'verified accuracy {accuracy:.2e} exceeds the bound '
-                               f'{bound:.0e} on {n} angles per turn')
+            raise _TooCoarse(f'verified accuracy {accuracy:.2e} exceeds the bound '
+                             f'{bound:.0e} on {n} angles per turn')
         return table
 
     def _verify(self, evaluate, n):
@@ -281,12 +282,7 @@ def _floored(scale, joints, effort):
     return np.maximum(scale, 1e-300)
 
 
-def psi_with_end(psi):
-    """Return the grid angles and 2 pi (the end of the turn)."""
-    return np.concatenate([psi, [TWO_PI]])
-
-
-def _cells(template, runs, n):
+def _cells(runs, n):
     """Return ``(residual, condition)`` per grid cell: the worse of its two ends."""
     out = []
     for name in ('residual', 'condition'):
