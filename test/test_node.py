@@ -261,6 +261,37 @@ def test_estimator_recovers_speed_and_acceleration_from_positions_only():
     assert s.speed_rad_s == pytest.approx(4.0, rel=1e-9)
 
 
+def test_estimator_is_the_least_squares_fit_on_noisy_uneven_samples():
+    # the estimator's plain-Python fit against numpy's least squares (the definition)
+    rng = np.random.default_rng(7)
+    for window in (3, 7, 25):
+        for with_velocity in (False, True):
+            est = twin.CrankEstimator(window=window)
+            stamps = 1_000_000_000 + np.cumsum(rng.integers(200_000, 3_000_000, 60))
+            t = (stamps - stamps[0]) * 1e-9
+            turned = 0.4 + 20.0 * t - 35.0 * t * t + rng.normal(0.0, 1e-3, t.size)
+            velocity = 20.0 - 70.0 * t + rng.normal(0.0, 0.05, t.size)
+            for k, stamp in enumerate(stamps):
+                s = est.update(int(stamp), math.remainder(turned[k], 2 * math.pi),
+                               velocity[k] if with_velocity else None)
+                lo = max(0, k - window + 1)
+                if k - lo < 2:
+                    continue
+                tau = (stamps[lo:k + 1] - stamp) * 1e-9
+                if with_velocity:
+                    slope = np.polyfit(tau, velocity[lo:k + 1], 1)[0]
+                    assert s.speed_rad_s == velocity[k]
+                    assert s.accel_rad_s2 == pytest.approx(slope, rel=1e-9, abs=1e-9)
+                    continue
+                span = -tau[0]
+                x = tau / span
+                coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(x.size), x, x * x]),
+                                           turned[lo:k + 1] - turned[k], rcond=None)
+                assert s.speed_rad_s == pytest.approx(coef[1] / span, rel=1e-9, abs=1e-9)
+                assert s.accel_rad_s2 == pytest.approx(2.0 * coef[2] / span ** 2, rel=1e-7,
+                                                       abs=1e-6)
+
+
 def test_estimator_rejects_input_the_rig_cannot_produce():
     est = twin.CrankEstimator(window=5, max_speed=100.0, max_gap_s=0.5)
     est.update(1_000_000_000, 0.0)

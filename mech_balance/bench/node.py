@@ -161,7 +161,7 @@ class FollowPath:
     Encoder messages (positions only: the estimator's least-squares fit) are made ahead.
     """
 
-    def __init__(self, scene_name, exact=False, messages=4096):
+    def __init__(self, scene_name, exact=False, messages=None):
         import math
         import rclpy
         from sensor_msgs.msg import JointState
@@ -169,7 +169,9 @@ class FollowPath:
         from mech_balance.ros import parameters as node_params, publisher, real_rig
         from mech_balance.ros.rig_state import RigState
         self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=(101 - os.getpid() % 50))
+        domain = os.environ.get('ROS_DOMAIN_ID', '')
+        rclpy.init(context=self.ctx, domain_id=int(domain) if domain.isdigit() else
+                   101 - os.getpid() % 50)   # nothing is published: discovery only
         self.node = rclpy.create_node(f'bench_follow_{os.getpid()}', context=self.ctx)
         values = dict(params.defaults(), scene=scene_name, mode='follow')
         values['follow.exact'] = bool(exact)
@@ -197,6 +199,9 @@ class FollowPath:
         self.model = model
         speed = model.scene.crank_speed_rad_s or 2.0 * math.pi
         crank = values['crank_joint'] or model.crank_joint
+        from mech_balance.analysis.timing import WARMUP
+        if messages is None:  # what _follow_costs delivers (stamps never go back)
+            messages = (FOLLOW_REPEAT + WARMUP + 1) * (1 + FOLLOW_BATCH) + 16
         self.messages = []
         for k in range(messages):
             msg = JointState(name=[crank], position=[(0.3 + speed * k * 1e-3) % (2 * math.pi)])
@@ -207,9 +212,12 @@ class FollowPath:
     def run(self, n):
         """Deliver the next ``n`` encoder messages, then evaluate and prepare the batch."""
         streamer = self.publisher.streamer
-        for _ in range(n):
-            self.publisher.on_encoder(self.messages[self._next % len(self.messages)])
-            self._next += 1
+        if self._next + n > len(self.messages):
+            raise RuntimeError(f'FollowPath: the {len(self.messages)} encoder messages made '
+                               'ahead are used up')
+        for msg in self.messages[self._next:self._next + n]:
+            self.publisher.on_encoder(msg)
+        self._next += n
         batch = list(streamer._pending)
         streamer._pending.clear()
         return streamer._evaluate_follow(self.model, batch) if batch else []

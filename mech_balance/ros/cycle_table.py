@@ -235,6 +235,8 @@ class CycleTable:
         """Return the published samples at crank angles ``psi`` ``(n,)``, rad/s, rad/s^2."""
         psi = np.array(psi, dtype=float, ndmin=1)
         n = psi.shape[0]
+        if n == 1:
+            return self._one(psi, _column(speed, 1), _column(accel, 1))
         w, a = _column(speed, n), _column(accel, n)
         x = np.mod(psi, TWO_PI)
         m = self._m.shape[0]
@@ -264,6 +266,35 @@ class CycleTable:
                        out[:, e + 3:e + 6], joint_names=self._names,
                        residual=self._cells[0][cell], condition=self._cells[1][cell],
                        near_singular=np.zeros(n, dtype=bool))
+
+    def _one(self, psi, w, a):
+        """Return :meth:`evaluate` of one sample (follow mode's usual case), in fewer calls."""
+        x = float(psi[0]) % TWO_PI
+        m = self._m.shape[0]
+        g = np.empty((4, 2 * m + 2))
+        basis = g[0]
+        cos, sin = basis[1:m + 1], basis[m + 1:2 * m + 1]
+        np.multiply(self._m, x, out=cos)
+        np.sin(cos, out=sin)
+        np.cos(cos, out=cos)
+        basis[0], basis[-1] = 1.0, x
+        speed, accel = float(w[0]), float(a[0])
+        np.multiply(basis, np.array(((speed,), (speed * speed,), (accel,))), out=g[1:])
+        out = (g.reshape(1, -1) @ self._coef)
+        sel = self._wrapped
+        if sel is not None:
+            v = math.pi - np.mod(math.pi - out[:, sel], TWO_PI)
+            out[:, sel] = np.where(v <= -math.pi, v + TWO_PI, v)  # mod may round up
+        out += 0.0
+        cell = int(x * self._cell)
+        j = self._j
+        e = 3 * j if self._effort else 2 * j
+        return RigData(psi, w, a, out[:, :j], out[:, j:2 * j],
+                       out[:, 2 * j:e] if self._effort else None, out[:, e:e + 3],
+                       out[:, e + 3:e + 6], joint_names=self._names,
+                       residual=self._cells[0][cell:cell + 1],
+                       condition=self._cells[1][cell:cell + 1],
+                       near_singular=np.zeros(1, dtype=bool))
 
 
 def _column(value, n):

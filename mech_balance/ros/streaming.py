@@ -40,6 +40,7 @@ from functools import partial
 import math
 import threading
 import time
+from typing import NamedTuple
 
 from mech_balance.core.rig import rig_for, RigData
 from mech_balance.ros import cycle_table
@@ -286,8 +287,7 @@ class StreamRejected(ValueError):
     """An encoder reading that contradicts the accepted history (its stamp or its step)."""
 
 
-@dataclass(frozen=True)
-class CrankSample:
+class CrankSample(NamedTuple):
     """One accepted encoder sample: the angle as sent, the turned angle, speed, accel."""
 
     stamp_ns: int
@@ -429,22 +429,29 @@ class CrankEstimator:
         if n < 2:
             return None, None
         psi_new = self._psi[-1]
-        psi = [p - psi_new for p in self._psi]
         if n == 2:
-            return float(psi[0] / tau[0]), 0.0
+            return float((self._psi[0] - psi_new) / tau[0]), 0.0
         # least-squares quadratic psi(tau) about the newest stamp, tau scaled by the window
-        # span, in the polynomials orthogonal on the samples (1, u, u^2 - alpha u - beta)
+        # span (x = tau / span in [-1, 0]), in the polynomials orthogonal on the samples:
+        # 1, u = x - mean, u^2 - alpha u - beta
         span = -tau[0]
         x = [t / span for t in tau]
         mean = sum(x) / n
-        u = [v - mean for v in x]
-        uu = [v * v for v in u]
-        s2 = sum(uu)
-        alpha = sum(a * b for a, b in zip(uu, u)) / s2
-        beta = s2 / n
-        p2 = [a - alpha * b - beta for a, b in zip(uu, u)]
-        d1 = sum(a * b for a, b in zip(u, psi)) / s2
-        d2 = sum(a * b for a, b in zip(p2, psi)) / sum(v * v for v in p2)
+        s2 = s3 = 0.0
+        for v in x:
+            u = v - mean
+            uu = u * u
+            s2 += uu
+            s3 += uu * u
+        alpha, beta = s3 / s2, s2 / n
+        d1 = d2 = p2p2 = 0.0
+        for v, p in zip(x, self._psi):
+            u, y = v - mean, p - psi_new
+            p2 = u * u - alpha * u - beta
+            d1 += u * y
+            d2 += p2 * y
+            p2p2 += p2 * p2
+        d1, d2 = d1 / s2, d2 / p2p2
         slope = d1 + d2 * (-2.0 * mean - alpha)   # d psi / dx at the newest stamp (x = 0)
         return float(slope / span), float(2.0 * d2 / span ** 2)
 
@@ -640,8 +647,8 @@ class Streamer:
         evaluate = model.evaluate if self.follow_exact else \
             getattr(model, 'follow_evaluate', model.evaluate)
         try:
-            groups = [(evaluate([s.angle_rad for s in batch], [s.speed_rad_s for s in batch],
-                                [s.accel_rad_s2 for s in batch]), batch)]
+            _, angle, _, speed, accel = zip(*batch)   # the CrankSample fields, as columns
+            groups = [(evaluate(angle, speed, accel), batch)]
         except ValueError:
             groups = []
             for s in batch:
@@ -653,10 +660,11 @@ class Streamer:
                                f'{s.stamp_ns * 1e-9:.9f} s: {exc}')
         out = []
         for samples, group in groups:
-            stamps = np.array([s.stamp_ns for s in group], dtype=np.int64)
+            stamp, _, turned, _, _ = zip(*group)
+            stamps = np.array(stamp, dtype=np.int64)
             out.append(self._prepared(samples, stamps))
             if self._record is not None:
-                self._record(samples, np.array([s.turned_rad for s in group]), stamps)
+                self._record(samples, np.array(turned), stamps)
         self.stats.batch_seconds.append(time.perf_counter() - t0)
         self.stats.batch_sizes.append(len(batch))
         return [p for payloads in out for p in payloads]
