@@ -280,11 +280,15 @@ class CycleTable:
         basis[0], basis[-1] = 1.0, x
         speed, accel = float(w[0]), float(a[0])
         np.multiply(basis, np.array(((speed,), (speed * speed,), (accel,))), out=g[1:])
-        out = (g.reshape(1, -1) @ self._coef)
+        out = g.reshape(1, -1) @ self._coef
         sel = self._wrapped
-        if sel is not None:
-            v = math.pi - np.mod(math.pi - out[:, sel], TWO_PI)
-            out[:, sel] = np.where(v <= -math.pi, v + TWO_PI, v)  # mod may round up
+        if sel is not None:  # as _wrap, in plain Python for the few angles of one sample
+            row = out[0]
+            wrapped = []
+            for v in row[sel].tolist():
+                v = math.pi - (math.pi - v) % TWO_PI
+                wrapped.append(v + TWO_PI if v <= -math.pi else v)   # mod may round up
+            row[sel] = wrapped
         out += 0.0
         cell = int(x * self._cell)
         j = self._j
