@@ -1,7 +1,8 @@
 """
-Test-session set-up: the suite's process limits numpy's BLAS pool as the package's entry
-points do (:mod:`mech_balance.threads`), so a loaded CI machine does not stall the small
-LAPACK calls of the tests that call the library directly.
+Test-session set-up: numpy's BLAS pool limited as by the package's entry points.
+
+The suite's process limits it as :mod:`mech_balance.threads` does, so that a loaded CI
+machine does not stall the small LAPACK calls of the tests that call the library directly.
 """
 
 from mech_balance import threads

@@ -1,6 +1,4 @@
-"""
-The BLAS thread limit of the package's processes (:mod:`mech_balance.threads`).
-"""
+"""The BLAS thread limit of the package's processes (:mod:`mech_balance.threads`)."""
 
 import os
 import subprocess
