@@ -9,8 +9,8 @@ angular velocity ``R_a^T (omega_b - omega_a)`` and the relative point velocity.
 
 import math
 
-from mech_balance.core.spatial.kinematics import angle_about, cross, min_rotation, mv, \
-    perp_pair, rot_axis
+from mech_balance.core.spatial.kinematics import cross, min_rotation, mv, perp_pair, \
+    rot_axis, skew
 import numpy as np
 
 SUFFIXES = {'revolute': ('',), 'prismatic': ('',), 'cylindrical': ('_turn', '_slide'),
@@ -48,22 +48,69 @@ def rpy_of(rot):
     return yaw, pitch, roll
 
 
+def _functionals(jt, ax, bx, fixed, zero):
+    """
+    Return the ``(9, k)`` linear functionals of a joint's relative rotation it reads.
+
+    Every published angle is an ``arctan2`` of linear functionals of ``M = R_a^T R_b``
+    (``sum(M * W)``): revolute and cylindrical ``vee(M Z^T) . a`` and ``tr(M Z^T)``
+    (:func:`~kinematics.angle_about`); spherical the five entries of ``M A^T`` that
+    :func:`rpy_of` reads; universal ``b_in_a = M b`` against ``e`` and ``a x e``, then the
+    second angle's ``vee`` and trace terms of ``U^T Rot(a, -theta1) M``, each split into its
+    ``M``, ``K M`` and ``K^2 M`` parts (K the cross matrix of a).  Built once per joint.
+    """
+    t = jt.joint_type
+    if t == 'prismatic':
+        return np.zeros((9, 0))
+    if t == 'spherical':
+        # m = M A^T: m_ij = sum_k M_ik A_jk
+        cols = []
+        for i, j in ((1, 0), (0, 0), (2, 0), (2, 1), (2, 2)):
+            w = np.zeros((3, 3))
+            w[i] = zero[j]
+            cols.append(w)
+        return np.stack(cols, -1).reshape(9, -1)
+    if t in ('revolute', 'cylindrical'):
+        return np.stack([0.5 * skew(ax) @ fixed, fixed], -1).reshape(9, -1)
+    e = fixed @ bx
+    k = skew(ax)
+    cb = 0.5 * skew(bx)
+    # b_in_a . (a x e) (= cross(e, b_in_a) . a) and b_in_a . e; b_in_a = M b
+    cols = [np.outer(cross(ax, e), bx), np.outer(e, bx)]
+    # rest = U^T (M - s K M + (1 - c) K^2 M): sum(rest * G) = sum(M * (K^p)^T U G), p = 0, 1, 2
+    for g in (cb, np.eye(3)):
+        ug = fixed @ g
+        cols += [ug, k.T @ ug, k.T @ k.T @ ug]
+    return np.stack(cols, -1).reshape(9, -1)
+
+
 def _constants(linkage):
-    """Return (and cache on the linkage) each joint's bodies, points and axis constants."""
+    """Return (and cache on the linkage) each joint's bodies, points and functionals."""
     cached = getattr(linkage, '_joint_constants', None)
     if cached is None:
         sc = linkage.scene
         idx = {n: i for i, n in enumerate(linkage.body_names)}
-        per_joint = [(jt, idx[jt.link_a], idx[jt.link_b],
-                      linkage._points[jt.link_a][jt.point_a],
-                      linkage._points[jt.link_b][jt.point_b], joint_frames(sc, jt))
-                     for jt in sc.joints]
-        # the same as stacked index arrays: every joint's relative pose in one pass
-        stacked = (np.array([c[1] for c in per_joint], dtype=int),
-                   np.array([c[2] for c in per_joint], dtype=int),
-                   np.array([c[3] for c in per_joint]).reshape(-1, 3),
-                   np.array([c[4] for c in per_joint]).reshape(-1, 3),
-                   any(jt.joint_type in ('prismatic', 'cylindrical') for jt in sc.joints))
+        per_joint, blocks, at = [], [], 0
+        for jt in sc.joints:
+            ax, bx, fixed = joint_frames(sc, jt)
+            w = _functionals(jt, ax, bx, fixed, linkage.sph_zero.get(jt.name))
+            per_joint.append((jt, ax, bx, fixed, at))
+            blocks.append(w)
+            at += w.shape[1]
+        # every joint's functionals as one block-diagonal (9 nj, K) matrix: one product
+        big = np.zeros((9 * len(blocks), at))
+        col = 0
+        for i, w in enumerate(blocks):
+            big[9 * i:9 * i + 9, col:col + w.shape[1]] = w
+            col += w.shape[1]
+        stacked = (np.array([idx[jt.link_a] for jt in sc.joints], dtype=int),
+                   np.array([idx[jt.link_b] for jt in sc.joints], dtype=int),
+                   np.array([linkage._points[jt.link_a][jt.point_a]
+                             for jt in sc.joints]).reshape(-1, 3),
+                   np.array([linkage._points[jt.link_b][jt.point_b]
+                             for jt in sc.joints]).reshape(-1, 3),
+                   any(jt.joint_type in ('prismatic', 'cylindrical') for jt in sc.joints),
+                   big)
         cached = (per_joint, stacked)
         linkage._joint_constants = cached
     return cached
@@ -73,48 +120,53 @@ def joint_values(linkage, state):
     """Return ``(names, slides, position (n, k), velocity (n, k))`` of every joint coordinate."""
     fr, tw = state.frames, state.twist
     names, slides, pos, vel = [], [], [], []
-    per_joint, (ia, ib, pa, pb, slide) = _constants(linkage)
+    per_joint, (ia, ib, pa, pb, slide, big) = _constants(linkage)
     # every joint at once (n, nj, ...): relative rotation, angular velocity, point offsets
-    ra, rb = fr.rot[:, ia], fr.rot[:, ib]
+    n = fr.rot.shape[0]
+    ra = fr.rot[:, ia]
     ra_t = np.swapaxes(ra, -1, -2)
-    rels = np.matmul(ra_t, rb)
+    f = np.matmul(ra_t, fr.rot[:, ib]).reshape(n, -1) @ big   # every functional at once
     wa = tw[:, ia, :3]
     w_rels = mv(ra_t, tw[:, ib, :3] - wa)
     if slide:
+        rb = fr.rot[:, ib]
         xa = fr.origin[:, ia] + mv(ra, pa)
         xb = fr.origin[:, ib] + mv(rb, pb)
         va = tw[:, ia, 3:] + cross(wa, xa)
         vb = tw[:, ib, 3:] + cross(tw[:, ib, :3], xb)
         ds = mv(ra_t, xb - xa)
         dds = mv(ra_t, vb - va - cross(wa, xb - xa))
-    for i, (jt, _, _, _, _, (ax, bx, fixed)) in enumerate(per_joint):
-        rel, w_rel = rels[:, i], w_rels[:, i]
+    for i, (jt, ax, bx, fixed, c) in enumerate(per_joint):
+        w_rel = w_rels[:, i]
         t = jt.joint_type
         if t in ('prismatic', 'cylindrical'):
             d, dd = ds[:, i], dds[:, i]
         if t == 'spherical':
-            m = rel @ linkage.sph_zero[jt.name].T
-            yaw, pitch, roll = rpy_of(m)
+            m10, m00, m20, m21, m22 = (f[:, c + k] for k in range(5))
+            yaw = np.arctan2(m10, m00)
+            pitch = np.arctan2(-m20, np.hypot(m00, m10))
+            roll = np.arctan2(m21, m22)
             cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
             # omega = yaw' z + pitch' Rz y + roll' Rz Ry x (a's axes), solved in closed form
             wx, wy, wz = w_rel[:, 0], w_rel[:, 1], w_rel[:, 2]
             roll_rate = (cy * wx + sy * wy) / cp
-            rates = np.stack([wz + sp * roll_rate, cy * wy - sy * wx, roll_rate], -1)
-            vals, rts = [yaw, pitch, roll], [rates[:, 0], rates[:, 1], rates[:, 2]]
+            vals = [yaw, pitch, roll]
+            rts = [wz + sp * roll_rate, cy * wy - sy * wx, roll_rate]
         elif t == 'prismatic':
             vals, rts = [d @ ax], [dd @ ax]
         elif t in ('revolute', 'cylindrical'):
-            vals = [angle_about(ax, rel @ fixed.T)]
+            vals = [np.arctan2(f[:, c], 0.5 * (f[:, c + 1] - 1.0))]
             rts = [w_rel @ ax]
             if t == 'cylindrical':
                 vals.append(d @ ax)
                 rts.append(dd @ ax)
         else:
-            e = fixed @ bx
-            bia = rel @ bx
-            th1 = np.arctan2(cross(e, bia) @ ax, bia @ e)
-            rest = np.einsum('ij,njk->nik', fixed.T, rot_axis(ax, -th1) @ rel)
-            th2 = angle_about(bx, rest)
+            th1 = np.arctan2(f[:, c], f[:, c + 1])
+            s1, c1 = np.sin(th1), 1.0 - np.cos(th1)
+            vee = f[:, c + 2] - s1 * f[:, c + 3] + c1 * f[:, c + 4]
+            tr = f[:, c + 5] - s1 * f[:, c + 6] + c1 * f[:, c + 7]
+            th2 = np.arctan2(vee, 0.5 * (tr - 1.0))
+            bia = mv(np.matmul(ra_t[:, i], fr.rot[:, ib[i]]), bx)
             vals, rts = [th1, th2], [w_rel @ ax, np.einsum('ni,ni->n', w_rel, bia)]
         for sfx, sl, v, r in zip(SUFFIXES[t], SLIDES[t], vals, rts):
             names.append(jt.name + sfx)

@@ -800,15 +800,20 @@ class Linkage:
         The Jacobian is factorized once, at the predictor; the iteration is then a chord
         method (linear convergence with the factor ~1e-8 of the predictor's error, so one or
         two steps).  ``factor`` is ``(solver, cond, rank, sign)`` (None: not square, the
-        full Newton of :meth:`newton` was used).
+        full Newton of :meth:`newton` was used), with a fifth entry, the Jacobian at the
+        predictor, when every predictor residual is already within ``tol`` (no iteration:
+        the predictor is the solution, its factor exact, :meth:`rates` needs no refinement).
         """
         if not self.square or not self.nu:
             q, sph, fr, res, ok = self.newton(q, sph, max_iter, tol)
             return q, sph, fr, res, ok, None
         fr = self.frames(q, sph)
         g = self.residual(fr) * self.row_scale
-        js = self.scaled(self.jacobian(fr))
-        factor = self._solver(js)
+        jac = self.jacobian(fr)
+        factor = self._solver(self.scaled(jac))
+        res = np.max(np.abs(g), axis=1)
+        if np.all(res <= tol):  # the predictor has converged: its Jacobian and factor are exact
+            return q, sph, fr, res, np.isfinite(res), factor + (jac,)
         solver = factor[0]
         cu = self.col_scale[self.unknown]
         for _ in range(max_iter):
@@ -1050,17 +1055,20 @@ class Linkage:
         Return ``(qd, qdd, twist, accel, jac, solver, cond, rank, sign, js)`` at ``fr``.
 
         ``factor`` ``(solver, cond, rank, sign)`` from a nearby position (the predictor's)
-        is refined against this position's Jacobian instead of factorizing it anew.
+        is refined against this position's Jacobian instead of factorizing it anew;
+        ``(solver, cond, rank, sign, jac)`` is the factor of this very position (exact).
         """
         n = q.shape[0]
-        jac = self.jacobian(fr) if self.m else np.zeros((n, 0, self.ndof))
-        js = self.scaled(jac)
+        if factor is not None and len(factor) > 4:
+            jac = factor[4]  # the factor's own Jacobian, at this very position
+        else:
+            jac = self.jacobian(fr) if self.m else np.zeros((n, 0, self.ndof))
         if factor is None or not self.square:
-            solver, cond, rank, sign = self._solver(js)
+            solver, cond, rank, sign = self._solver(self.scaled(jac))
             refine = None
         else:
-            solver, cond, rank, sign = factor
-            refine = js
+            solver, cond, rank, sign = factor[:4]
+            refine = None if len(factor) > 4 else self.scaled(jac)
         rs = self.row_scale
         cu = self.col_scale[self.unknown]
         qd = np.zeros((n, self.ndof))
