@@ -124,7 +124,7 @@ def joint_values(linkage, state):
     # every joint at once (n, nj, ...): relative rotation, angular velocity, point offsets
     n = fr.rot.shape[0]
     ra = fr.rot[:, ia]
-    ra_t = np.swapaxes(ra, -1, -2)
+    ra_t = np.ascontiguousarray(np.swapaxes(ra, -1, -2))   # matmul is slow on transposed views
     f = np.matmul(ra_t, fr.rot[:, ib]).reshape(n, -1) @ big   # every functional at once
     wa = tw[:, ia, :3]
     w_rels = mv(ra_t, tw[:, ib, :3] - wa)

@@ -103,7 +103,12 @@ def _reaction_constants(lk):
 
 
 def body_motion(state, inertia):
-    """Return ``(x_c, v_c, a_c, I_w, omega, alpha)`` of every body, batch-first (cached)."""
+    """
+    Return ``(x_c, v_c, a_c, I_w, omega, alpha, I_w omega, I_w alpha)`` (cached).
+
+    Of the moving bodies only (bodies 1..; the frame is at rest), batch-first ``(n, nb - 1,
+    ...)``; ``a_c``, ``alpha`` and ``I_w alpha`` are None without accelerations.
+    """
     cached = getattr(state, '_motion', None)
     if cached is not None and cached[0] is inertia:
         return cached[1]
@@ -114,42 +119,39 @@ def body_motion(state, inertia):
 
 def _body_motion(state, inertia):
     fr, tw, ac = state.frames, state.twist, state.accel
-    xc = fr.origin + mv(fr.rot, inertia.com)
-    w, v = tw[..., :3], tw[..., 3:]
-    vc = v + cross(w, xc)
+    rot = fr.rot[:, 1:]
+    xc = fr.origin[:, 1:] + mv(rot, inertia.com[1:])
+    w = tw[:, 1:, :3]
+    vc = tw[:, 1:, 3:] + cross(w, xc)
+    # R I R^T; numpy's matmul is several times slower on a transposed view: copy R^T first
+    iw = np.matmul(rot, inertia.inertia[1:]) @ np.ascontiguousarray(np.swapaxes(rot, -1, -2))
     if ac is None:  # kinematics only (kinetic energy)
-        al = a_c = None
-    else:
-        al, ao = ac[..., :3], ac[..., 3:]
-        a_c = ao + cross(al, xc) + cross(w, vc)
-    iw = fr.rot @ inertia.inertia @ np.swapaxes(fr.rot, -1, -2)
-    return xc, vc, a_c, iw, w, al
-
-
-def _spin_momentum(state, inertia):
-    """Return ``I_w omega`` ``(n, nb, 3)`` of every body (cached with :func:`body_motion`)."""
-    cached = getattr(state, '_spin', None)
-    if cached is not None and cached[0] is inertia:
-        return cached[1]
-    _, _, _, iw, w, _ = body_motion(state, inertia)
-    h = mv(iw, w)
-    state._spin = (inertia, h)
-    return h
+        return xc, vc, None, iw, w, None, mv(iw, w), None
+    al = ac[:, 1:, :3]
+    a_c = ac[:, 1:, 3:] + cross(al, xc)
+    a_c += cross(w, vc)
+    both = np.matmul(iw, np.stack([w, al], -1))   # I_w omega and I_w alpha in one product
+    return xc, vc, a_c, iw, w, al, both[..., 0], both[..., 1]
 
 
 def momentum_rates(state, inertia):
-    """Return ``Phi`` ``(n, nb, 6)`` = (N about the origin, F) of every body."""
-    xc, _, a_c, iw, w, al = body_motion(state, inertia)
-    f = inertia.mass[:, None] * a_c
-    dh = mv(iw, al) + cross(w, _spin_momentum(state, inertia))
-    return np.concatenate([dh + cross(xc, f), f], -1)
+    """Return ``Phi`` ``(n, nb, 6)`` = (N about the origin, F) of every body (frame: 0)."""
+    xc, _, a_c, _, w, _, h, i_al = body_motion(state, inertia)
+    n, nb = state.frames.origin.shape[:2]
+    phi = np.zeros((n, nb, 6))
+    f = phi[:, 1:, 3:]
+    np.multiply(inertia.mass[1:, None], a_c, out=f)
+    dh = i_al + cross(w, h)
+    dh += cross(xc, f)
+    phi[:, 1:, :3] = dh
+    return phi
 
 
 def kinetic_energy(state, inertia):
     """Return T = sum (m |v_c|^2 + omega . I_w omega) / 2, ``(n,)`` J."""
-    _, vc, _, _, w, _ = body_motion(state, inertia)
-    h = _spin_momentum(state, inertia)
-    return 0.5 * (np.matmul((vc * vc).sum(-1), inertia.mass) + (w * h).sum(-1).sum(-1))
+    _, vc, _, _, w, _, h, _ = body_motion(state, inertia)
+    return 0.5 * (np.einsum('nbi,nbi,b->n', vc, vc, inertia.mass[1:])
+                  + np.einsum('nbi,nbi->n', w, h))
 
 
 def inverse_dynamics(linkage, state, inertia, moment_point, need):

@@ -428,6 +428,7 @@ class Linkage:
                 t = below[node]
                 self.path[list(t.dofs), k] = 1.0
                 node = t.parent
+        self.path_t = np.ascontiguousarray(self.path.T)  # (nb, ndof): matmul wants it so
         self.dof_owner = np.zeros(dof, dtype=int)  # the body each column is fixed in
         for t in self.tree:
             for i, d in enumerate(t.dofs):
@@ -663,7 +664,7 @@ class Linkage:
     def jacobian(self, fr, grads=None):
         """Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate)."""
         gb, ga = self.gradients(fr) if grads is None else grads
-        cols_t = np.swapaxes(fr.cols, 1, 2)
+        cols_t = np.ascontiguousarray(np.swapaxes(fr.cols, 1, 2))  # matmul: slow on a view
         jb = np.matmul(gb, cols_t)
         ja = np.matmul(ga, cols_t)
         return jb * self.mask_b + ja * self.mask_a
@@ -716,7 +717,7 @@ class Linkage:
 
     def twists(self, fr, qd):
         """Return the body twists ``(n, nb, 6)`` of coordinate rates ``qd`` (n, ndof)."""
-        return np.matmul(self.path.T, fr.cols * qd[:, :, None])
+        return np.matmul(self.path_t, fr.cols * qd[:, :, None])
 
     def accelerations(self, fr, twist, qd, qdd):
         """Return the body spatial accelerations ``(n, nb, 6)`` (tree recursion in sums)."""
@@ -725,7 +726,7 @@ class Linkage:
         total = dcols * qd[:, :, None]
         if qdd is not None:
             total = total + fr.cols * qdd[:, :, None]
-        return np.matmul(self.path.T, total)
+        return np.matmul(self.path_t, total)
 
     # ------------------------------------------------------------------ Newton
 
@@ -1099,6 +1100,8 @@ class Linkage:
 
     def _step(self, q, sph, qd, qdd, h):
         """Return the predictor ``h`` rad along the branch from one node (batch of 1+)."""
+        if not np.any(h):  # every angle is a node: the predictor is the node itself
+            return q.copy(), sph.copy()
         qp = q + qd * h[:, None] + 0.5 * qdd * (h * h)[:, None]
         qp[:, 0] = q[:, 0] + h
         if self.sph_index:
@@ -1192,7 +1195,10 @@ class Linkage:
         k, h = sk.nearest(psi)
         qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
         q, sph, fr, res, ok, factor = self._chord(qp, sphp)
-        bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp)) > EVAL_TRUST)
+        if q is qp:  # the predictor had converged: no correction
+            bad = ~ok
+        else:
+            bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp)) > EVAL_TRUST)
         if bad.any():
             q, sph = q.copy(), sph.copy()
             cs = self.skeleton
