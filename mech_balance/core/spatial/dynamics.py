@@ -64,19 +64,22 @@ class SpatialWrenches:
 
 @dataclass
 class _ReactionConstants:
-    """Per linkage: the index and incidence arrays of the bearing reactions (built once)."""
+    """Per linkage: the incidence matrix and index arrays of the bearing reactions (once)."""
 
-    inc_b: np.ndarray     # (nb, m): row r acts on body row_b[r]
-    inc_a: np.ndarray
-    below: np.ndarray     # (nt, nb): the bodies below each tree joint
-    cut_rows: np.ndarray  # (nc, m): the rows of each cut joint
-    order: np.ndarray     # scene joint i -> its index in [tree..., cuts...]
-    sign: np.ndarray      # -1 for a flipped tree joint
+    mix: np.ndarray       # (nj, nb + 2 m): joint wrenches from [Phi, G_b lambda, G_a lambda]
     body: np.ndarray      # (nj,) each joint's link b
     point: np.ndarray     # (nj, 3) its joint point in b's axes
 
 
 def _reaction_constants(lk):
+    """
+    Return the :class:`_ReactionConstants` of a linkage (cached while its rows stand).
+
+    A tree joint carries the rates of momentum of the bodies below it minus the row wrenches
+    on them (``below (Phi - inc_b W_b - inc_a W_a)``), a cut joint its rows' wrenches on b
+    (``cut_rows W_b``); both in scene order with a flipped tree joint's sign, folded into one
+    matrix applied to the stacked ``[Phi, W_b, W_a]``.
+    """
     cached = getattr(lk, '_reaction_constants', None)
     if cached is not None and cached[0] == lk.m:
         return cached[1]
@@ -89,13 +92,17 @@ def _reaction_constants(lk):
     cut_rows = np.zeros((len(lk.cut_joints), m))
     for i, ji in enumerate(lk.cut_joints):
         cut_rows[i] = [j == sc.joints[ji].name for j in lk.row_joint]
+    tree = np.concatenate([below, -below @ inc_b, -below @ inc_a], 1)
+    cuts = np.concatenate([np.zeros((len(lk.cut_joints), lk.nb)), cut_rows,
+                           np.zeros((len(lk.cut_joints), m))], 1)
+    stacked = np.concatenate([tree, cuts], 0)
     where = {t.joint: (i, -1.0 if t.flipped else 1.0) for i, t in enumerate(lk.tree)}
     where.update({ji: (len(lk.tree) + i, 1.0) for i, ji in enumerate(lk.cut_joints)})
+    order = [where[i][0] for i in range(len(sc.joints))]
+    sign = np.array([where[i][1] for i in range(len(sc.joints))])
     idx = {name: i for i, name in enumerate(lk.body_names)}
     out = _ReactionConstants(
-        inc_b, inc_a, below, cut_rows,
-        np.array([where[i][0] for i in range(len(sc.joints))], dtype=int),
-        np.array([where[i][1] for i in range(len(sc.joints))]),
+        np.ascontiguousarray(stacked[order] * sign[:, None]),
         np.array([idx[jt.link_b] for jt in sc.joints], dtype=int),
         np.array([lk._points[jt.link_b][jt.point_b] for jt in sc.joints]).reshape(-1, 3))
     lk._reaction_constants = (m, out)
@@ -104,10 +111,12 @@ def _reaction_constants(lk):
 
 def body_motion(state, inertia):
     """
-    Return ``(x_c, v_c, a_c, I_w, omega, alpha, I_w omega, I_w alpha)`` (cached).
+    Return ``(x_c, v_c, a_c, omega, I_w omega, I_w alpha)`` of the moving bodies (cached).
 
-    Of the moving bodies only (bodies 1..; the frame is at rest), batch-first ``(n, nb - 1,
-    ...)``; ``a_c``, ``alpha`` and ``I_w alpha`` are None without accelerations.
+    Component-major ``(3, nb - 1, n)`` (contiguous components: every product below is one
+    vectorized call over all bodies and angles); the frame, at rest, is left out; ``a_c``
+    and ``I_w alpha`` are None without accelerations.  ``I_w x = R (I (R^T x))``
+    elementwise, without forming ``R I R^T``.
     """
     cached = getattr(state, '_motion', None)
     if cached is not None and cached[0] is inertia:
@@ -117,41 +126,84 @@ def body_motion(state, inertia):
     return out
 
 
+def _component_major(a):
+    """Return ``(n, nb, k...)`` of the moving bodies as a contiguous ``(k..., nb - 1, n)``."""
+    return np.ascontiguousarray(np.moveaxis(a[:, 1:], (0, 1), (-1, -2)))
+
+
+def _cross_c(a, b):
+    """Return ``a x b`` of component-major vectors ``(3, ...)`` (broadcast)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    np.multiply(a[1], b[2], out=out[0])
+    out[0] -= a[2] * b[1]
+    np.multiply(a[2], b[0], out=out[1])
+    out[1] -= a[0] * b[2]
+    np.multiply(a[0], b[1], out=out[2])
+    out[2] -= a[1] * b[0]
+    return out
+
+
+def _body_constants(inertia):
+    """Return the component-major mass centres, masses and inertia of the moving bodies."""
+    cached = getattr(inertia, '_component_major', None)
+    if cached is None:
+        cached = (np.ascontiguousarray(inertia.com[1:].T)[:, :, None],
+                  inertia.mass[1:, None].copy(),
+                  np.ascontiguousarray(inertia.inertia[1:].transpose(1, 2, 0))[:, :, :, None])
+        inertia._component_major = cached
+    return cached
+
+
 def _body_motion(state, inertia):
     fr, tw, ac = state.frames, state.twist, state.accel
-    rot = fr.rot[:, 1:]
-    xc = fr.origin[:, 1:] + mv(rot, inertia.com[1:])
-    w = tw[:, 1:, :3]
-    vc = tw[:, 1:, 3:] + cross(w, xc)
-    # R I R^T; numpy's matmul is several times slower on a transposed view: copy R^T first
-    iw = np.matmul(rot, inertia.inertia[1:]) @ np.ascontiguousarray(np.swapaxes(rot, -1, -2))
+    com, _, inl = _body_constants(inertia)
+    rot = _component_major(fr.rot)                 # (3, 3, b, n)
+    t = _component_major(tw)                       # (6, b, n)
+    xc = _component_major(fr.origin)
+    xc += rot[:, 0] * com[0]
+    xc += rot[:, 1] * com[1]
+    xc += rot[:, 2] * com[2]
+    w = t[:3]
+    vc = t[3:] + _cross_c(w, xc)
     if ac is None:  # kinematics only (kinetic energy)
-        return xc, vc, None, iw, w, None, mv(iw, w), None
-    al = ac[:, 1:, :3]
-    a_c = ac[:, 1:, 3:] + cross(al, xc)
-    a_c += cross(w, vc)
-    both = np.matmul(iw, np.stack([w, al], -1))   # I_w omega and I_w alpha in one product
-    return xc, vc, a_c, iw, w, al, both[..., 0], both[..., 1]
+        x = w
+    else:
+        a = _component_major(ac)
+        al = a[:3]
+        a_c = a[3:] + _cross_c(al, xc)
+        a_c += _cross_c(w, vc)
+        x = np.stack([w, al], 1)                   # (3, 2, b, n): both in one pass
+    loc = rot[0] * x[0] + rot[1] * x[1] + rot[2] * x[2] if ac is None else \
+        rot[0, :, None] * x[0] + rot[1, :, None] * x[1] + rot[2, :, None] * x[2]
+    if ac is not None:
+        inl = inl[:, :, None]
+    hl = inl[:, 0] * loc[0] + inl[:, 1] * loc[1] + inl[:, 2] * loc[2]      # I R^T x
+    if ac is None:
+        h = rot[:, 0] * hl[0] + rot[:, 1] * hl[1] + rot[:, 2] * hl[2]
+        return xc, vc, None, w, h, None
+    hw = rot[:, 0, None] * hl[0] + rot[:, 1, None] * hl[1] + rot[:, 2, None] * hl[2]
+    return xc, vc, a_c, w, hw[:, 0], hw[:, 1]
 
 
 def momentum_rates(state, inertia):
     """Return ``Phi`` ``(n, nb, 6)`` = (N about the origin, F) of every body (frame: 0)."""
-    xc, _, a_c, _, w, _, h, i_al = body_motion(state, inertia)
+    xc, _, a_c, w, h, i_al = body_motion(state, inertia)
+    _, mass, _ = _body_constants(inertia)
     n, nb = state.frames.origin.shape[:2]
+    f = mass * a_c
+    dh = i_al + _cross_c(w, h)
+    dh += _cross_c(xc, f)
     phi = np.zeros((n, nb, 6))
-    f = phi[:, 1:, 3:]
-    np.multiply(inertia.mass[1:, None], a_c, out=f)
-    dh = i_al + cross(w, h)
-    dh += cross(xc, f)
-    phi[:, 1:, :3] = dh
+    phi[:, 1:, :3] = dh.T
+    phi[:, 1:, 3:] = f.T
     return phi
 
 
 def kinetic_energy(state, inertia):
     """Return T = sum (m |v_c|^2 + omega . I_w omega) / 2, ``(n,)`` J."""
-    _, vc, _, _, w, _, h, _ = body_motion(state, inertia)
-    return 0.5 * (np.einsum('nbi,nbi,b->n', vc, vc, inertia.mass[1:])
-                  + np.einsum('nbi,nbi->n', w, h))
+    _, vc, _, w, h, _ = body_motion(state, inertia)
+    _, mass, _ = _body_constants(inertia)
+    return 0.5 * (((vc * vc).sum(0) * mass).sum(0) + (w * h).sum(0).sum(0))
 
 
 def inverse_dynamics(linkage, state, inertia, moment_point, need):
@@ -176,20 +228,19 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
     out.multipliers = lam
     out.driving_torque = q_gen[:, 0] - np.einsum('nm,nm->n', jac[:, :, 0], lam)
     out.reactions_unique = lk.redundant == 0
-    if 'bearing_reactions' not in need and not lk.m:
-        return out
-    gb, ga = lk.gradients(state.frames)
-    wb, wa = gb * lam[:, :, None], ga * lam[:, :, None]
     spin = [i for i, j in enumerate(lk.row_joint) if j.startswith('spin:')]
     if spin:
         out.spin_moment = lam[:, spin]
     if 'bearing_reactions' not in need:
         return out
+    gb, ga = lk.gradients(state.frames)
     c = _reaction_constants(lk)
-    on_body = np.matmul(c.inc_b, wb) + np.matmul(c.inc_a, wa)   # the rows' wrenches per body
-    # tree joints: the bodies below minus the cut-joint wrenches on them; cut joints: on b
-    w = np.concatenate([np.matmul(c.below, phi - on_body), np.matmul(c.cut_rows, wb)], 1)
-    w = w[:, c.order] * c.sign[:, None]
+    nb, m = lk.nb, lk.m
+    stack = np.empty((n, nb + 2 * m, 6))   # [Phi, W_b, W_a]: every joint in one product
+    stack[:, :nb] = phi
+    np.multiply(gb, lam[:, :, None], out=stack[:, nb:nb + m])
+    np.multiply(ga, lam[:, :, None], out=stack[:, nb + m:])
+    w = np.matmul(c.mix, stack)
     fr = state.frames
     x = fr.origin[:, c.body] + mv(fr.rot[:, c.body], c.point)   # joint points (n, nj, 3)
     force = w[..., 3:]
