@@ -125,49 +125,52 @@ def joint_values(linkage, state):
     n = fr.rot.shape[0]
     ra = fr.rot[:, ia]
     ra_t = np.ascontiguousarray(np.swapaxes(ra, -1, -2))   # matmul is slow on transposed views
-    f = np.matmul(ra_t, fr.rot[:, ib]).reshape(n, -1) @ big   # every functional at once
+    # every functional at once, component-major (K, n): contiguous rows for the finishing
+    f = big.T @ np.matmul(ra_t, fr.rot[:, ib]).reshape(n, -1).T
     wa = tw[:, ia, :3]
-    w_rels = mv(ra_t, tw[:, ib, :3] - wa)
+    w_rels = np.ascontiguousarray(mv(ra_t, tw[:, ib, :3] - wa).T)   # (3, nj, n)
     if slide:
         rb = fr.rot[:, ib]
         xa = fr.origin[:, ia] + mv(ra, pa)
         xb = fr.origin[:, ib] + mv(rb, pb)
         va = tw[:, ia, 3:] + cross(wa, xa)
         vb = tw[:, ib, 3:] + cross(tw[:, ib, :3], xb)
-        ds = mv(ra_t, xb - xa)
-        dds = mv(ra_t, vb - va - cross(wa, xb - xa))
+        ds = np.ascontiguousarray(mv(ra_t, xb - xa).T)
+        dds = np.ascontiguousarray(mv(ra_t, vb - va - cross(wa, xb - xa)).T)
     for i, (jt, ax, bx, fixed, c) in enumerate(per_joint):
-        w_rel = w_rels[:, i]
+        wx, wy, wz = w_rels[:, i]
         t = jt.joint_type
         if t in ('prismatic', 'cylindrical'):
-            d, dd = ds[:, i], dds[:, i]
+            d = ds[0, i] * ax[0] + ds[1, i] * ax[1] + ds[2, i] * ax[2]
+            dd = dds[0, i] * ax[0] + dds[1, i] * ax[1] + dds[2, i] * ax[2]
         if t == 'spherical':
-            m10, m00, m20, m21, m22 = (f[:, c + k] for k in range(5))
+            m10, m00, m20, m21, m22 = f[c:c + 5]
             yaw = np.arctan2(m10, m00)
             pitch = np.arctan2(-m20, np.hypot(m00, m10))
             roll = np.arctan2(m21, m22)
             cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
             # omega = yaw' z + pitch' Rz y + roll' Rz Ry x (a's axes), solved in closed form
-            wx, wy, wz = w_rel[:, 0], w_rel[:, 1], w_rel[:, 2]
             roll_rate = (cy * wx + sy * wy) / cp
             vals = [yaw, pitch, roll]
             rts = [wz + sp * roll_rate, cy * wy - sy * wx, roll_rate]
         elif t == 'prismatic':
-            vals, rts = [d @ ax], [dd @ ax]
+            vals, rts = [d], [dd]
         elif t in ('revolute', 'cylindrical'):
-            vals = [np.arctan2(f[:, c], 0.5 * (f[:, c + 1] - 1.0))]
-            rts = [w_rel @ ax]
+            vals = [np.arctan2(f[c], 0.5 * (f[c + 1] - 1.0))]
+            rts = [wx * ax[0] + wy * ax[1] + wz * ax[2]]
             if t == 'cylindrical':
-                vals.append(d @ ax)
-                rts.append(dd @ ax)
+                vals.append(d)
+                rts.append(dd)
         else:
-            th1 = np.arctan2(f[:, c], f[:, c + 1])
+            th1 = np.arctan2(f[c], f[c + 1])
             s1, c1 = np.sin(th1), 1.0 - np.cos(th1)
-            vee = f[:, c + 2] - s1 * f[:, c + 3] + c1 * f[:, c + 4]
-            tr = f[:, c + 5] - s1 * f[:, c + 6] + c1 * f[:, c + 7]
+            vee = f[c + 2] - s1 * f[c + 3] + c1 * f[c + 4]
+            tr = f[c + 5] - s1 * f[c + 6] + c1 * f[c + 7]
             th2 = np.arctan2(vee, 0.5 * (tr - 1.0))
             bia = mv(np.matmul(ra_t[:, i], fr.rot[:, ib[i]]), bx)
-            vals, rts = [th1, th2], [w_rel @ ax, np.einsum('ni,ni->n', w_rel, bia)]
+            vals = [th1, th2]
+            rts = [wx * ax[0] + wy * ax[1] + wz * ax[2],
+                   wx * bia[:, 0] + wy * bia[:, 1] + wz * bia[:, 2]]
         for sfx, sl, v, r in zip(SUFFIXES[t], SLIDES[t], vals, rts):
             names.append(jt.name + sfx)
             slides.append(sl)
