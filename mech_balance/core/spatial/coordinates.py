@@ -55,8 +55,8 @@ def _functionals(jt, ax, bx, fixed, zero):
     Every published angle is an ``arctan2`` of linear functionals of ``M = R_a^T R_b``
     (``sum(M * W)``): revolute and cylindrical ``vee(M Z^T) . a`` and ``tr(M Z^T)``
     (:func:`~kinematics.angle_about`); spherical the five entries of ``M A^T`` that
-    :func:`rpy_of` reads; universal ``b_in_a = M b`` against ``e`` and ``a x e``, then the
-    second angle's ``vee`` and trace terms of ``U^T Rot(a, -theta1) M``, each split into its
+    :func:`rpy_of` reads; universal ``b_in_a = M b`` against ``e`` and ``a x e`` and
+    itself (the second rate), then the second angle's ``vee`` and trace terms of ``U^T Rot(a, -theta1) M``, each split into its
     ``M``, ``K M`` and ``K^2 M`` parts (K the cross matrix of a).  Built once per joint.
     """
     t = jt.joint_type
@@ -77,6 +77,7 @@ def _functionals(jt, ax, bx, fixed, zero):
     cb = 0.5 * skew(bx)
     # b_in_a . (a x e) (= cross(e, b_in_a) . a) and b_in_a . e; b_in_a = M b
     cols = [np.outer(cross(ax, e), bx), np.outer(e, bx)]
+    cols += [np.outer(np.eye(3)[i], bx) for i in range(3)]   # b_in_a itself (the rate)
     # rest = U^T (M - s K M + (1 - c) K^2 M): sum(rest * G) = sum(M * (K^p)^T U G), p = 0, 1, 2
     for g in (cb, np.eye(3)):
         ug = fixed @ g
@@ -84,99 +85,137 @@ def _functionals(jt, ax, bx, fixed, zero):
     return np.stack(cols, -1).reshape(9, -1)
 
 
+_GROUPS = ('angle', 'slide', 'spherical', 'universal')
+"""The joint coordinate groups evaluated together (:func:`joint_values`)."""
+
+
+def _group_of(joint_type):
+    """Return the groups of a joint type's coordinates (published order)."""
+    return {'revolute': ('angle',), 'prismatic': ('slide',), 'cylindrical': ('angle', 'slide'),
+            'spherical': ('spherical',), 'universal': ('universal',)}[joint_type]
+
+
 def _constants(linkage):
-    """Return (and cache on the linkage) each joint's bodies, points and functionals."""
+    """
+    Return (and cache on the linkage) the joints' bodies, points, functionals and groups.
+
+    The joints of one group (revolute and cylindrical angles, slides, spherical, universal)
+    are evaluated together, one numpy call per step for all of them: their functionals'
+    columns are laid out functional-major (``(k, count)`` blocks) in one block-diagonal
+    ``(9 nj, K)`` matrix, so one product gives every functional of every joint.
+    """
     cached = getattr(linkage, '_joint_constants', None)
-    if cached is None:
-        sc = linkage.scene
-        idx = {n: i for i, n in enumerate(linkage.body_names)}
-        per_joint, blocks, at = [], [], 0
-        for jt in sc.joints:
-            ax, bx, fixed = joint_frames(sc, jt)
-            w = _functionals(jt, ax, bx, fixed, linkage.sph_zero.get(jt.name))
-            per_joint.append((jt, ax, bx, fixed, at))
-            blocks.append(w)
-            at += w.shape[1]
-        # every joint's functionals as one block-diagonal (9 nj, K) matrix: one product
-        big = np.zeros((9 * len(blocks), at))
-        col = 0
-        for i, w in enumerate(blocks):
-            big[9 * i:9 * i + 9, col:col + w.shape[1]] = w
-            col += w.shape[1]
-        stacked = (np.array([idx[jt.link_a] for jt in sc.joints], dtype=int),
-                   np.array([idx[jt.link_b] for jt in sc.joints], dtype=int),
-                   np.array([linkage._points[jt.link_a][jt.point_a]
-                             for jt in sc.joints]).reshape(-1, 3),
-                   np.array([linkage._points[jt.link_b][jt.point_b]
-                             for jt in sc.joints]).reshape(-1, 3),
-                   any(jt.joint_type in ('prismatic', 'cylindrical') for jt in sc.joints),
-                   big)
-        cached = (per_joint, stacked)
-        linkage._joint_constants = cached
-    return cached
+    if cached is not None:
+        return cached
+    sc = linkage.scene
+    idx = {n: i for i, n in enumerate(linkage.body_names)}
+    frames = [joint_frames(sc, jt) for jt in sc.joints]
+    members = {g: [] for g in _GROUPS}        # (joint index, published column)
+    col = 0
+    for i, jt in enumerate(sc.joints):
+        for g in _group_of(jt.joint_type):
+            members[g].append((i, col))
+            col += 3 if g == 'spherical' else 2 if g == 'universal' else 1
+    blocks = []
+    at = 0
+    groups = {}
+    for g in _GROUPS:
+        mem = members[g]
+        if not mem:
+            continue
+        ji = np.array([m[0] for m in mem], dtype=int)
+        cols = np.array([m[1] for m in mem], dtype=int)
+        zero = np.zeros(3)   # spherical joints have no axes
+        ax = np.array([zero if frames[i][0] is None else frames[i][0] for i in ji])
+        bx = np.array([zero if frames[i][1] is None else frames[i][1] for i in ji])
+        k = 0
+        if g != 'slide':
+            ws = [_functionals(sc.joints[i], *frames[i], linkage.sph_zero.get(sc.joints[i].name))
+                  for i in ji]
+            k = ws[0].shape[1]
+            for f_idx in range(k):            # functional-major: f_idx * count + member
+                for i, w in zip(ji, ws):
+                    blocks.append((i, at, w[:, f_idx]))
+                    at += 1
+        groups[g] = (ji, cols, ax.T[:, :, None].copy(), bx.T[:, :, None].copy(),
+                     at - k * len(ji), k)
+    big = np.zeros((9 * len(sc.joints), at))
+    for i, c, w in blocks:
+        big[9 * i:9 * i + 9, c] = w
+    out = {
+        'ia': np.array([idx[jt.link_a] for jt in sc.joints], dtype=int),
+        'ib': np.array([idx[jt.link_b] for jt in sc.joints], dtype=int),
+        'pa': np.array([linkage._points[jt.link_a][jt.point_a]
+                        for jt in sc.joints]).reshape(-1, 3),
+        'pb': np.array([linkage._points[jt.link_b][jt.point_b]
+                        for jt in sc.joints]).reshape(-1, 3),
+        'big_t': np.ascontiguousarray(big.T), 'groups': groups, 'size': col,
+        'names': joint_names(sc)}
+    linkage._joint_constants = out
+    return out
 
 
 def joint_values(linkage, state):
     """Return ``(names, slides, position (n, k), velocity (n, k))`` of every joint coordinate."""
     fr, tw = state.frames, state.twist
-    names, slides, pos, vel = [], [], [], []
-    per_joint, (ia, ib, pa, pb, slide, big) = _constants(linkage)
-    # every joint at once (n, nj, ...): relative rotation, angular velocity, point offsets
+    c = _constants(linkage)
+    ia, ib, groups = c['ia'], c['ib'], c['groups']
     n = fr.rot.shape[0]
     ra = fr.rot[:, ia]
     ra_t = np.ascontiguousarray(np.swapaxes(ra, -1, -2))   # matmul is slow on transposed views
-    # every functional at once, component-major (K, n): contiguous rows for the finishing
-    f = big.T @ np.matmul(ra_t, fr.rot[:, ib]).reshape(n, -1).T
+    # every functional at once, component-major (K, n): contiguous rows
+    f = c['big_t'] @ np.matmul(ra_t, fr.rot[:, ib]).reshape(n, -1).T
     wa = tw[:, ia, :3]
-    w_rels = np.ascontiguousarray(mv(ra_t, tw[:, ib, :3] - wa).T)   # (3, nj, n)
-    if slide:
-        rb = fr.rot[:, ib]
-        xa = fr.origin[:, ia] + mv(ra, pa)
-        xb = fr.origin[:, ib] + mv(rb, pb)
-        va = tw[:, ia, 3:] + cross(wa, xa)
-        vb = tw[:, ib, 3:] + cross(tw[:, ib, :3], xb)
-        ds = np.ascontiguousarray(mv(ra_t, xb - xa).T)
-        dds = np.ascontiguousarray(mv(ra_t, vb - va - cross(wa, xb - xa)).T)
-    for i, (jt, ax, bx, fixed, c) in enumerate(per_joint):
-        wx, wy, wz = w_rels[:, i]
-        t = jt.joint_type
-        if t in ('prismatic', 'cylindrical'):
-            d = ds[0, i] * ax[0] + ds[1, i] * ax[1] + ds[2, i] * ax[2]
-            dd = dds[0, i] * ax[0] + dds[1, i] * ax[1] + dds[2, i] * ax[2]
-        if t == 'spherical':
-            m10, m00, m20, m21, m22 = f[c:c + 5]
-            yaw = np.arctan2(m10, m00)
-            pitch = np.arctan2(-m20, np.hypot(m00, m10))
-            roll = np.arctan2(m21, m22)
+    w_rels = np.ascontiguousarray(mv(ra_t, tw[:, ib, :3] - wa).T)   # (3, nj, n) in a's axes
+    pos, vel = np.empty((c['size'], n)), np.empty((c['size'], n))
+    if 'slide' in groups:
+        ji, cols, ax, _, _, _ = groups['slide']
+        pa, pb = c['pa'][ji], c['pb'][ji]
+        ra_s, rb, ra_ts = ra[:, ji], fr.rot[:, ib[ji]], ra_t[:, ji]
+        wa_s = wa[:, ji]
+        xa = fr.origin[:, ia[ji]] + mv(ra_s, pa)
+        xb = fr.origin[:, ib[ji]] + mv(rb, pb)
+        va = tw[:, ia[ji], 3:] + cross(wa_s, xa)
+        vb = tw[:, ib[ji], 3:] + cross(tw[:, ib[ji], :3], xb)
+        pos[cols] = (mv(ra_ts, xb - xa).T * ax).sum(0)
+        vel[cols] = (mv(ra_ts, vb - va - cross(wa_s, xb - xa)).T * ax).sum(0)
+    if 'angle' in groups:
+        ji, cols, ax, _, at, _ = groups['angle']
+        k = ji.size
+        pos[cols] = np.arctan2(f[at:at + k], 0.5 * (f[at + k:at + 2 * k] - 1.0))
+        vel[cols] = (w_rels[:, ji] * ax).sum(0)
+    if 'spherical' in groups:
+        ji, cols, _, _, at, _ = groups['spherical']
+        k = ji.size
+        m10, m00, m20, m21, m22 = f[at:at + 5 * k].reshape(5, k, n)
+        r = np.hypot(m00, m10)
+        yaw = np.arctan2(m10, m00)
+        pitch = np.arctan2(-m20, r)
+        if r.all():  # their cosines and sines algebraically (no transcendental calls)
+            cy, sy = m00 / r, m10 / r
+            rp = np.hypot(r, m20)
+            cp, sp = r / rp, -m20 / rp
+        else:        # pitch +-90 deg somewhere: yaw there is 0 by arctan2's convention
             cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
-            # omega = yaw' z + pitch' Rz y + roll' Rz Ry x (a's axes), solved in closed form
-            roll_rate = (cy * wx + sy * wy) / cp
-            vals = [yaw, pitch, roll]
-            rts = [wz + sp * roll_rate, cy * wy - sy * wx, roll_rate]
-        elif t == 'prismatic':
-            vals, rts = [d], [dd]
-        elif t in ('revolute', 'cylindrical'):
-            vals = [np.arctan2(f[c], 0.5 * (f[c + 1] - 1.0))]
-            rts = [wx * ax[0] + wy * ax[1] + wz * ax[2]]
-            if t == 'cylindrical':
-                vals.append(d)
-                rts.append(dd)
-        else:
-            th1 = np.arctan2(f[c], f[c + 1])
-            s1, c1 = np.sin(th1), 1.0 - np.cos(th1)
-            vee = f[c + 2] - s1 * f[c + 3] + c1 * f[c + 4]
-            tr = f[c + 5] - s1 * f[c + 6] + c1 * f[c + 7]
-            th2 = np.arctan2(vee, 0.5 * (tr - 1.0))
-            bia = mv(np.matmul(ra_t[:, i], fr.rot[:, ib[i]]), bx)
-            vals = [th1, th2]
-            rts = [wx * ax[0] + wy * ax[1] + wz * ax[2],
-                   wx * bia[:, 0] + wy * bia[:, 1] + wz * bia[:, 2]]
-        for sfx, sl, v, r in zip(SUFFIXES[t], SLIDES[t], vals, rts):
-            names.append(jt.name + sfx)
-            slides.append(sl)
-            pos.append(v)
-            vel.append(r)
-    return tuple(names), tuple(slides), np.stack(pos, -1), np.stack(vel, -1)
+        # omega = yaw' z + pitch' Rz y + roll' Rz Ry x (a's axes), solved in closed form
+        wx, wy, wz = w_rels[:, ji]
+        roll_rate = (cy * wx + sy * wy) / cp
+        pos[cols], pos[cols + 1], pos[cols + 2] = yaw, pitch, np.arctan2(m21, m22)
+        vel[cols], vel[cols + 1], vel[cols + 2] = wz + sp * roll_rate, cy * wy - sy * wx, \
+            roll_rate
+    if 'universal' in groups:
+        ji, cols, ax, _, at, k_f = groups['universal']
+        k = ji.size
+        g = f[at:at + k_f * k].reshape(k_f, k, n)
+        th1 = np.arctan2(g[0], g[1])
+        s1, c1 = np.sin(th1), 1.0 - np.cos(th1)
+        vee = g[5] - s1 * g[6] + c1 * g[7]
+        tr = g[8] - s1 * g[9] + c1 * g[10]
+        w = w_rels[:, ji]
+        pos[cols], pos[cols + 1] = th1, np.arctan2(vee, 0.5 * (tr - 1.0))
+        vel[cols], vel[cols + 1] = (w * ax).sum(0), (w * g[2:5]).sum(0)
+    names, slides = c['names']
+    return names, slides, np.ascontiguousarray(pos.T), np.ascontiguousarray(vel.T)
 
 
 def joint_names(scene):
