@@ -100,9 +100,9 @@ def _constants(linkage):
     Return (and cache on the linkage) the joints' bodies, points, functionals and groups.
 
     The joints of one group (revolute and cylindrical angles, slides, spherical, universal)
-    are evaluated together, one numpy call per step for all of them: their functionals'
-    columns are laid out functional-major (``(k, count)`` blocks) in one block-diagonal
-    ``(9 nj, K)`` matrix, so one product gives every functional of every joint.
+    are evaluated together, one numpy call per step for all of them; each group's
+    functionals are one ``(count, 9, k)`` stack (one batched product of small matrices:
+    a single large product would run multi-threaded BLAS, slow on a loaded machine).
     """
     cached = getattr(linkage, '_joint_constants', None)
     if cached is not None:
@@ -116,8 +116,6 @@ def _constants(linkage):
         for g in _group_of(jt.joint_type):
             members[g].append((i, col))
             col += 3 if g == 'spherical' else 2 if g == 'universal' else 1
-    blocks = []
-    at = 0
     groups = {}
     for g in _GROUPS:
         mem = members[g]
@@ -128,20 +126,11 @@ def _constants(linkage):
         zero = np.zeros(3)   # spherical joints have no axes
         ax = np.array([zero if frames[i][0] is None else frames[i][0] for i in ji])
         bx = np.array([zero if frames[i][1] is None else frames[i][1] for i in ji])
-        k = 0
+        w = None
         if g != 'slide':
-            ws = [_functionals(sc.joints[i], *frames[i], linkage.sph_zero.get(sc.joints[i].name))
-                  for i in ji]
-            k = ws[0].shape[1]
-            for f_idx in range(k):            # functional-major: f_idx * count + member
-                for i, w in zip(ji, ws):
-                    blocks.append((i, at, w[:, f_idx]))
-                    at += 1
-        groups[g] = (ji, cols, ax.T[:, :, None].copy(), bx.T[:, :, None].copy(),
-                     at - k * len(ji), k)
-    big = np.zeros((9 * len(sc.joints), at))
-    for i, c, w in blocks:
-        big[9 * i:9 * i + 9, c] = w
+            w = np.array([_functionals(sc.joints[i], *frames[i],
+                                       linkage.sph_zero.get(sc.joints[i].name)) for i in ji])
+        groups[g] = (ji, cols, ax.T[:, :, None].copy(), bx.T[:, :, None].copy(), w)
     out = {
         'ia': np.array([idx[jt.link_a] for jt in sc.joints], dtype=int),
         'ib': np.array([idx[jt.link_b] for jt in sc.joints], dtype=int),
@@ -149,7 +138,7 @@ def _constants(linkage):
                         for jt in sc.joints]).reshape(-1, 3),
         'pb': np.array([linkage._points[jt.link_b][jt.point_b]
                         for jt in sc.joints]).reshape(-1, 3),
-        'big_t': np.ascontiguousarray(big.T), 'groups': groups, 'size': col,
+        'groups': groups, 'size': col,
         'names': joint_names(sc)}
     linkage._joint_constants = out
     return out
@@ -161,33 +150,39 @@ def joint_values(linkage, state):
     c = _constants(linkage)
     ia, ib, groups = c['ia'], c['ib'], c['groups']
     n = fr.rot.shape[0]
-    ra = fr.rot[:, ia]
+    # joint-major (nj, n, ...): relative rotations, rates and offsets of every joint at once
+    rot = fr.rot.transpose(1, 0, 2, 3)
+    ra = rot[ia]
     ra_t = np.ascontiguousarray(np.swapaxes(ra, -1, -2))   # matmul is slow on transposed views
-    # every functional at once, component-major (K, n): contiguous rows
-    f = c['big_t'] @ np.matmul(ra_t, fr.rot[:, ib]).reshape(n, -1).T
-    wa = tw[:, ia, :3]
-    w_rels = np.ascontiguousarray(mv(ra_t, tw[:, ib, :3] - wa).T)   # (3, nj, n) in a's axes
+    rel = np.matmul(ra_t, rot[ib]).reshape(ia.size, n, 9)
+    t_j = tw.transpose(1, 0, 2)
+    wa = t_j[ia, :, :3]
+    w_rels = np.ascontiguousarray(np.moveaxis(mv(ra_t, t_j[ib, :, :3] - wa), -1, 0))  # (3, nj, n)
+
+    def functionals(ji, w):
+        """Return the group's functionals ``(k, count, n)``: small products, no BLAS threads."""
+        return np.ascontiguousarray(np.moveaxis(np.matmul(rel[ji], w), -1, 0))
+
     pos, vel = np.empty((c['size'], n)), np.empty((c['size'], n))
     if 'slide' in groups:
-        ji, cols, ax, _, _, _ = groups['slide']
-        pa, pb = c['pa'][ji], c['pb'][ji]
-        ra_s, rb, ra_ts = ra[:, ji], fr.rot[:, ib[ji]], ra_t[:, ji]
-        wa_s = wa[:, ji]
-        xa = fr.origin[:, ia[ji]] + mv(ra_s, pa)
-        xb = fr.origin[:, ib[ji]] + mv(rb, pb)
-        va = tw[:, ia[ji], 3:] + cross(wa_s, xa)
-        vb = tw[:, ib[ji], 3:] + cross(tw[:, ib[ji], :3], xb)
-        pos[cols] = (mv(ra_ts, xb - xa).T * ax).sum(0)
-        vel[cols] = (mv(ra_ts, vb - va - cross(wa_s, xb - xa)).T * ax).sum(0)
+        ji, cols, ax, _, _ = groups['slide']
+        pa, pb = c['pa'][ji, None], c['pb'][ji, None]
+        ra_s, rb, ra_ts = ra[ji], rot[ib[ji]], ra_t[ji]
+        wa_s = wa[ji]
+        xa = fr.origin.transpose(1, 0, 2)[ia[ji]] + mv(ra_s, pa)
+        xb = fr.origin.transpose(1, 0, 2)[ib[ji]] + mv(rb, pb)
+        va = t_j[ia[ji], :, 3:] + cross(wa_s, xa)
+        vb = t_j[ib[ji], :, 3:] + cross(t_j[ib[ji], :, :3], xb)
+        pos[cols] = (np.moveaxis(mv(ra_ts, xb - xa), -1, 0) * ax).sum(0)
+        vel[cols] = (np.moveaxis(mv(ra_ts, vb - va - cross(wa_s, xb - xa)), -1, 0) * ax).sum(0)
     if 'angle' in groups:
-        ji, cols, ax, _, at, _ = groups['angle']
-        k = ji.size
-        pos[cols] = np.arctan2(f[at:at + k], 0.5 * (f[at + k:at + 2 * k] - 1.0))
+        ji, cols, ax, _, w = groups['angle']
+        f = functionals(ji, w)
+        pos[cols] = np.arctan2(f[0], 0.5 * (f[1] - 1.0))
         vel[cols] = (w_rels[:, ji] * ax).sum(0)
     if 'spherical' in groups:
-        ji, cols, _, _, at, _ = groups['spherical']
-        k = ji.size
-        m10, m00, m20, m21, m22 = f[at:at + 5 * k].reshape(5, k, n)
+        ji, cols, _, _, w = groups['spherical']
+        m10, m00, m20, m21, m22 = functionals(ji, w)
         r = np.hypot(m00, m10)
         yaw = np.arctan2(m10, m00)
         pitch = np.arctan2(-m20, r)
@@ -204,16 +199,15 @@ def joint_values(linkage, state):
         vel[cols], vel[cols + 1], vel[cols + 2] = wz + sp * roll_rate, cy * wy - sy * wx, \
             roll_rate
     if 'universal' in groups:
-        ji, cols, ax, _, at, k_f = groups['universal']
-        k = ji.size
-        g = f[at:at + k_f * k].reshape(k_f, k, n)
+        ji, cols, ax, _, w = groups['universal']
+        g = functionals(ji, w)
         th1 = np.arctan2(g[0], g[1])
         s1, c1 = np.sin(th1), 1.0 - np.cos(th1)
         vee = g[5] - s1 * g[6] + c1 * g[7]
         tr = g[8] - s1 * g[9] + c1 * g[10]
-        w = w_rels[:, ji]
+        wr = w_rels[:, ji]
         pos[cols], pos[cols + 1] = th1, np.arctan2(vee, 0.5 * (tr - 1.0))
-        vel[cols], vel[cols + 1] = (w * ax).sum(0), (w * g[2:5]).sum(0)
+        vel[cols], vel[cols + 1] = (wr * ax).sum(0), (wr * g[2:5]).sum(0)
     names, slides = c['names']
     return names, slides, np.ascontiguousarray(pos.T), np.ascontiguousarray(vel.T)
 
