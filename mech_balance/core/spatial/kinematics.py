@@ -133,6 +133,16 @@ def rot_axis(axis, angle):
     return EYE3 + s[:, None, None] * k + (1.0 - c)[:, None, None] * k2
 
 
+def _sin_vers_one(q):
+    """Return ``(n, 3)`` rows ``[sin q, 1 - cos q, 1]`` (the weights of a rotation basis)."""
+    out = np.empty((q.shape[0], 3))
+    np.sin(q, out=out[:, 0])
+    np.cos(q, out=out[:, 1])
+    np.subtract(1.0, out[:, 1], out=out[:, 1])
+    out[:, 2] = 1.0
+    return out
+
+
 def expmap(v):
     """Return the rotations ``exp(v^)`` ``(n, 3, 3)`` of rotation vectors ``(n, 3)``."""
     th = np.sqrt(np.einsum('ni,ni->n', v, v))
@@ -255,6 +265,10 @@ class TreeJoint:
         if self.axis is not None:
             k = skew(self.axis)
             self.kz, self.k2z = k @ self.fixed, k @ k @ self.fixed
+            # [sin, 1 - cos, 1] @ rot_basis = Rot(a, q) Z: one small product per joint
+            self.rot_basis = np.stack([self.kz, self.k2z, self.fixed]).reshape(3, 9)
+            kc = skew(self.axis_child)   # a universal's second turn Rot(b, q2) likewise
+            self.rot_basis_child = np.stack([kc, kc @ kc, EYE3]).reshape(3, 9)
 
 
 @dataclass
@@ -558,17 +572,19 @@ class Linkage:
                 m = t.fixed
                 off = t.s_parent + q[:, d[0], None] * t.axis
             else:
-                s, c = np.sin(q[:, d[0]]), np.cos(q[:, d[0]])
                 # Rot(a, theta) Z = Z + sin K Z + (1 - cos) K^2 Z (K, K^2 Z precomputed)
-                m = t.fixed + s[:, None, None] * t.kz + (1.0 - c)[:, None, None] * t.k2z
+                m = (_sin_vers_one(q[:, d[0]]) @ t.rot_basis).reshape(n, 3, 3)
                 off = t.s_parent + q[:, d[1], None] * t.axis if jtype == 'cylindrical' \
                     else t.s_parent
                 if jtype == 'universal':
-                    m = m @ rot_axis(t.axis_child, q[:, d[1]])
+                    m = m @ (_sin_vers_one(q[:, d[1]]) @ t.rot_basis_child).reshape(n, 3, 3)
             rc = np.broadcast_to(m, (n, 3, 3)) if root else rp @ m
             r_joint = np.broadcast_to(off, (n, 3)) if root else pp + mv(rp, off)
             rot[:, t.child] = rc
-            origin[:, t.child] = r_joint - mv(rc, t.s_child)
+            if rc.flags.c_contiguous:  # one matrix-vector product over the stack
+                origin[:, t.child] = r_joint - (rc.reshape(-1, 3) @ t.s_child).reshape(n, 3)
+            else:
+                origin[:, t.child] = r_joint - mv(rc, t.s_child)
             if root and jtype in _CONSTANT_ROOT_COLUMNS:
                 if jtype == 'universal':
                     bw = mv(rc, t.axis_child)
@@ -745,14 +761,19 @@ class Linkage:
         Return the :class:`~smallsolve.LUPlan` of the scaled square Jacobian (built once).
 
         The pattern is structural: row r can depend on coordinate d only if d moves one of
-        the row's two bodies (``mask_b``, ``mask_a``); the static pivot order comes from the
-        first Jacobian met (the assembly's).
+        the row's two bodies (``mask_b``, ``mask_a``); the static order is block lower
+        triangular (the loops in dependency order, :func:`smallsolve.block_triangular_order`,
+        so that the factors have no fill between loops and the work grows linearly with
+        them), pivots inside the blocks from the first Jacobian met (the assembly's).
         """
         plan = getattr(self, '_plan', None)
         if plan is None or plan[0] != self.m:
             pattern = ((self.mask_b + self.mask_a) > 0)[:, self.unknown]
-            order = smallsolve.pivot_order(np.where(pattern, js[0], 0.0))
-            plan = (self.m, smallsolve.LUPlan(pattern, order))
+            sample = np.where(pattern, js[0], 0.0)
+            order = smallsolve.block_triangular_order(pattern, sample)
+            if order is None:
+                order = (smallsolve.pivot_order(sample), None)
+            plan = (self.m, smallsolve.LUPlan(pattern, *order))
             self._plan = plan
         return plan[1]
 
