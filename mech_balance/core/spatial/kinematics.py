@@ -447,6 +447,8 @@ class Linkage:
         for t in self.tree:
             for i, d in enumerate(t.dofs):
                 self.dof_owner[d] = t.child if self.dof_child_fixed[d] else t.parent
+        self._moving_cols = np.flatnonzero(self.dof_owner != 0)   # columns that turn
+        self._path_t_moving = np.ascontiguousarray(self.path_t[:, self._moving_cols])
         self.cut_joints = cuts
         self._build_rows(body, cuts)
 
@@ -691,43 +693,47 @@ class Linkage:
 
         Body point acceleration ``a_O + alpha x x + omega x (v_O + omega x x)``; a vector u
         fixed in a body: ``u' = omega x u``, ``u'' = alpha x u + omega x (omega x u)``.
+        The b and a ends of a group are evaluated together (one stacked pass).
         """
         out = []
+        n = twist.shape[0]
 
-        def point_acc(k, x):
-            w, v = twist[:, k, :3], twist[:, k, 3:]
-            al, ao = acc0[:, k, :3], acc0[:, k, 3:]
-            return ao + cross(al, x) + cross(w, v + cross(w, x))
-
-        def point_vel(k, x):
-            return twist[:, k, 3:] + cross(twist[:, k, :3], x)
-
-        def vec_rates(k, u):
-            w, al = twist[:, k, :3], acc0[:, k, :3]
-            du = cross(w, u)
-            return du, cross(al, u) + cross(w, du)
+        def ends(r, xb, xa):
+            """Return the stacked b-then-a twists, accelerations and vectors of a group."""
+            k = np.concatenate([r.body_b, r.body_a])
+            return twist[:, k], acc0[:, k], np.concatenate([xb, xa], axis=1)
 
         for r, rb, ra, vb, va in self._row_parts(fr):
+            k = r.body_b.size
             if r.form == 'point':
-                out.append((point_acc(r.body_b, vb) - point_acc(r.body_a, va)).reshape(
-                    vb.shape[0], -1))
+                t, a, x = ends(r, vb, va)
+                w = t[..., :3]
+                acc = a[..., 3:] + cross(a[..., :3], x)
+                acc += cross(w, t[..., 3:] + cross(w, x))
+                out.append((acc[:, :k] - acc[:, k:]).reshape(n, -1))
             elif r.form == 'dot':
-                dub, ddub = vec_rates(r.body_b, vb)
-                dua, ddua = vec_rates(r.body_a, va)
-                out.append(dot(ddub, va)
-                           + 2.0 * dot(dub, dua)
-                           + dot(vb, ddua))
+                t, a, u = ends(r, vb, va)
+                w = t[..., :3]
+                du = cross(w, u)
+                ddu = cross(a[..., :3], u) + cross(w, du)
+                out.append(dot(ddu[:, :k], va) + 2.0 * dot(du[:, :k], du[:, k:])
+                           + dot(vb, ddu[:, k:]))
             elif r.form == 'line':
-                w = mv(ra, r.extra)
-                dw, ddw = vec_rates(r.body_a, w)
-                d = vb - va
-                dd = point_vel(r.body_b, vb) - point_vel(r.body_a, va)
-                ddd = point_acc(r.body_b, vb) - point_acc(r.body_a, va)
-                out.append(dot(ddd, w)
-                           + 2.0 * dot(dd, dw)
-                           + dot(d, ddw))
+                wl = mv(ra, r.extra)
+                t, a, x = ends(r, vb, va)
+                w = t[..., :3]
+                vel = t[..., 3:] + cross(w, x)
+                acc = a[..., 3:] + cross(a[..., :3], x)
+                acc += cross(w, vel)
+                wa, ala = w[:, k:], a[:, k:, :3]
+                dw = cross(wa, wl)
+                ddw = cross(ala, wl) + cross(wa, dw)
+                out.append(dot(acc[:, :k] - acc[:, k:], wl)
+                           + 2.0 * dot(vel[:, :k] - vel[:, k:], dw)
+                           + dot(vb - va, ddw))
             else:
-                _, ddu = vec_rates(r.body_b, vb)
+                w, al = twist[:, r.body_b, :3], acc0[:, r.body_b, :3]
+                ddu = cross(al, vb) + cross(w, cross(w, vb))
                 out.append(dot(ddu, va))
         return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
 
@@ -736,13 +742,22 @@ class Linkage:
         return np.matmul(self.path_t, fr.cols * qd[:, :, None])
 
     def accelerations(self, fr, twist, qd, qdd):
-        """Return the body spatial accelerations ``(n, nb, 6)`` (tree recursion in sums)."""
-        owner = twist[:, self.dof_owner]                      # (n, ndof, 6)
-        dcols = _spatial_cross(owner, fr.cols)                # S' = T_owner x S
-        total = dcols * qd[:, :, None]
+        """
+        Return the body spatial accelerations ``(n, nb, 6)`` (tree recursion in sums).
+
+        ``S' = T_owner x S`` only for the columns fixed in a moving body (a frame joint's
+        columns are constant).
+        """
+        moving = self._moving_cols
+        if moving.size:
+            dcols = _spatial_cross(twist[:, self.dof_owner[moving]], fr.cols[:, moving])
+            dcols *= qd[:, moving, None]
+            total = np.matmul(self._path_t_moving, dcols)
+        else:
+            total = np.zeros(twist.shape)
         if qdd is not None:
-            total = total + fr.cols * qdd[:, :, None]
-        return np.matmul(self.path_t, total)
+            total = total + self.twists(fr, qdd)
+        return total
 
     # ------------------------------------------------------------------ Newton
 
