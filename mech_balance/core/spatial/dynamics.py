@@ -70,6 +70,10 @@ class _ReactionConstants:
     body: np.ndarray      # (nj,) each joint's link b
     point: np.ndarray     # (nj, 3) its joint point in b's axes
 
+    def __post_init__(self):
+        """Keep the points component-major too, ``(3, nj, 1)``."""
+        self.point_c = np.ascontiguousarray(self.point.T)[:, :, None]
+
 
 def _reaction_constants(lk):
     """
@@ -127,8 +131,17 @@ def body_motion(state, inertia):
 
 
 def _component_major(a):
-    """Return ``(n, nb, k...)`` of the moving bodies as a contiguous ``(k..., nb - 1, n)``."""
-    return np.ascontiguousarray(np.moveaxis(a[:, 1:], (0, 1), (-1, -2)))
+    """Return a batch-first ``(n, nb, k...)`` array as a contiguous ``(k..., nb, n)``."""
+    return np.ascontiguousarray(np.moveaxis(a, (0, 1), (-1, -2)))
+
+
+def _poses_c(state):
+    """Return the component-major rotations ``(3, 3, nb, n)`` and origins (cached)."""
+    cached = getattr(state, '_poses_c', None)
+    if cached is None:
+        cached = (_component_major(state.frames.rot), _component_major(state.frames.origin))
+        state._poses_c = cached
+    return cached
 
 
 def _cross_c(a, b):
@@ -157,10 +170,10 @@ def _body_constants(inertia):
 def _body_motion(state, inertia):
     fr, tw, ac = state.frames, state.twist, state.accel
     com, _, inl = _body_constants(inertia)
-    rot = _component_major(fr.rot)                 # (3, 3, b, n)
-    t = _component_major(tw)                       # (6, b, n)
-    xc = _component_major(fr.origin)
-    xc += rot[:, 0] * com[0]
+    rot, org = _poses_c(state)
+    rot = rot[:, :, 1:]                            # (3, 3, b, n): the moving bodies
+    t = _component_major(tw[:, 1:])                # (6, b, n)
+    xc = org[:, 1:] + rot[:, 0] * com[0]
     xc += rot[:, 1] * com[1]
     xc += rot[:, 2] * com[2]
     w = t[:3]
@@ -168,7 +181,7 @@ def _body_motion(state, inertia):
     if ac is None:  # kinematics only (kinetic energy)
         x = w
     else:
-        a = _component_major(ac)
+        a = _component_major(ac[:, 1:])
         al = a[:3]
         a_c = a[3:] + _cross_c(al, xc)
         a_c += _cross_c(w, vc)
@@ -185,18 +198,27 @@ def _body_motion(state, inertia):
     return xc, vc, a_c, w, hw[:, 0], hw[:, 1]
 
 
-def momentum_rates(state, inertia):
-    """Return ``Phi`` ``(n, nb, 6)`` = (N about the origin, F) of every body (frame: 0)."""
+def _momentum_rates_c(state, inertia):
+    """Return ``Phi`` component-major ``(6, nb, n)`` (N about the origin, F; frame: 0)."""
+    cached = getattr(state, '_phi_c', None)
+    if cached is not None and cached[0] is inertia:
+        return cached[1]
     xc, _, a_c, w, h, i_al = body_motion(state, inertia)
     _, mass, _ = _body_constants(inertia)
-    n, nb = state.frames.origin.shape[:2]
-    f = mass * a_c
-    dh = i_al + _cross_c(w, h)
+    phi = np.empty((6,) + state.frames.origin.shape[1::-1])
+    phi[:, 0] = 0.0
+    f = phi[3:, 1:]
+    np.multiply(mass, a_c, out=f)
+    dh = phi[:3, 1:]
+    np.add(i_al, _cross_c(w, h), out=dh)
     dh += _cross_c(xc, f)
-    phi = np.zeros((n, nb, 6))
-    phi[:, 1:, :3] = dh.T
-    phi[:, 1:, 3:] = f.T
+    state._phi_c = (inertia, phi)
     return phi
+
+
+def momentum_rates(state, inertia):
+    """Return ``Phi`` ``(n, nb, 6)`` = (N about the origin, F) of every body (frame: 0)."""
+    return np.ascontiguousarray(_momentum_rates_c(state, inertia).T)
 
 
 def kinetic_energy(state, inertia):
@@ -206,18 +228,28 @@ def kinetic_energy(state, inertia):
     return 0.5 * (((vc * vc).sum(0) * mass).sum(0) + (w * h).sum(0).sum(0))
 
 
+def _cols_c(state):
+    """Return the twist columns component-major ``(6, ndof, n)`` (cached)."""
+    cached = getattr(state, '_cols_c', None)
+    if cached is None:
+        cached = np.ascontiguousarray(state.frames.cols.T)
+        state._cols_c = cached
+    return cached
+
+
 def inverse_dynamics(linkage, state, inertia, moment_point, need):
     """Return the :class:`SpatialWrenches` the outputs in ``need`` require."""
-    phi = momentum_rates(state, inertia)
-    total = phi.sum(axis=1)
+    phi = _momentum_rates_c(state, inertia)         # (6, nb, n)
+    total = phi.sum(axis=1)                          # (6, n)
     p = np.asarray(moment_point, dtype=float)
-    force = -total[:, 3:]
-    moment = -(total[:, :3] - cross(p, total[:, 3:]))
+    force = -total[3:].T
+    moment = -(total[:3] - _cross_c(p[:, None], total[3:])).T
     out = SpatialWrenches(force, moment)
     if 'driving_torque' not in need:
         return out
     lk = linkage
-    q_gen = (np.matmul(lk.path, phi) * state.frames.cols).sum(-1)
+    # generalized forces: the rates of momentum of the bodies below each coordinate
+    q_gen = (np.matmul(lk.path, phi) * _cols_c(state)).sum(0).T    # (n, ndof)
     jac = state.jac
     n = state.size
     if lk.nu:
@@ -236,15 +268,20 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
     gb, ga = lk.gradients(state.frames)
     c = _reaction_constants(lk)
     nb, m = lk.nb, lk.m
-    stack = np.empty((n, nb + 2 * m, 6))   # [Phi, W_b, W_a]: every joint in one product
+    stack = np.empty((6, nb + 2 * m, n))   # [Phi, W_b, W_a]: every joint in one product
     stack[:, :nb] = phi
-    np.multiply(gb, lam[:, :, None], out=stack[:, nb:nb + m])
-    np.multiply(ga, lam[:, :, None], out=stack[:, nb + m:])
-    w = np.matmul(c.mix, stack)
-    fr = state.frames
-    x = fr.origin[:, c.body] + mv(fr.rot[:, c.body], c.point)   # joint points (n, nj, 3)
-    force = w[..., 3:]
-    moment = w[..., :3] - cross(x, force)
+    lam_t = lam.T
+    np.multiply(gb.T, lam_t, out=stack[:, nb:nb + m])
+    np.multiply(ga.T, lam_t, out=stack[:, nb + m:])
+    w = np.matmul(c.mix, stack)                      # (6, nj, n)
+    rot, org = _poses_c(state)
+    body = c.body
+    x = org[:, body] + rot[:, 0, body] * c.point_c[0]    # joint points (3, nj, n)
+    x += rot[:, 1, body] * c.point_c[1]
+    x += rot[:, 2, body] * c.point_c[2]
+    force = w[3:]
+    moment = w[:3] - _cross_c(x, force)
+    force, moment = np.ascontiguousarray(force.T), np.ascontiguousarray(moment.T)  # (n, nj, 3)
     res = {jt.name: (force[:, i], moment[:, i]) for i, jt in enumerate(lk.scene.joints)}
     out.reactions = res
     return out
