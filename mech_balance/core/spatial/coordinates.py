@@ -9,7 +9,7 @@ angular velocity ``R_a^T (omega_b - omega_a)`` and the relative point velocity.
 
 import math
 
-from mech_balance.core.spatial.kinematics import cross, min_rotation, mv, perp_pair, \
+from mech_balance.core.spatial.kinematics import cross, cross_c, min_rotation, perp_pair, \
     rot_axis, skew
 import numpy as np
 
@@ -130,6 +130,7 @@ def _constants(linkage):
         if g != 'slide':
             w = np.array([_functionals(sc.joints[i], *frames[i],
                                        linkage.sph_zero.get(sc.joints[i].name)) for i in ji])
+            w = np.ascontiguousarray(w.transpose(0, 2, 1))   # (count, k, 9)
         groups[g] = (ji, cols, ax.T[:, :, None].copy(), bx.T[:, :, None].copy(), w)
     out = {
         'ia': np.array([idx[jt.link_a] for jt in sc.joints], dtype=int),
@@ -138,6 +139,11 @@ def _constants(linkage):
                         for jt in sc.joints]).reshape(-1, 3),
         'pb': np.array([linkage._points[jt.link_b][jt.point_b]
                         for jt in sc.joints]).reshape(-1, 3),
+        'pa_c': np.array([linkage._points[jt.link_a][jt.point_a]
+                          for jt in sc.joints]).reshape(-1, 3).T[:, :, None].copy(),
+        'pb_c': np.array([linkage._points[jt.link_b][jt.point_b]
+                          for jt in sc.joints]).reshape(-1, 3).T[:, :, None].copy(),
+        'off_frame': np.flatnonzero([idx[jt.link_a] != 0 for jt in sc.joints]),
         'groups': groups, 'size': col,
         'names': joint_names(sc)}
     linkage._joint_constants = out
@@ -146,35 +152,42 @@ def _constants(linkage):
 
 def joint_values(linkage, state):
     """Return ``(names, slides, position (n, k), velocity (n, k))`` of every joint coordinate."""
-    fr, tw = state.frames, state.twist
     c = _constants(linkage)
     ia, ib, groups = c['ia'], c['ib'], c['groups']
-    n = fr.rot.shape[0]
-    # joint-major (nj, n, ...): relative rotations, rates and offsets of every joint at once
-    rot = fr.rot.transpose(1, 0, 2, 3)
-    ra = rot[ia]
-    ra_t = np.ascontiguousarray(np.swapaxes(ra, -1, -2))   # matmul is slow on transposed views
-    rel = np.matmul(ra_t, rot[ib]).reshape(ia.size, n, 9)
-    t_j = tw.transpose(1, 0, 2)
-    wa = t_j[ia, :, :3]
-    w_rels = np.ascontiguousarray(np.moveaxis(mv(ra_t, t_j[ib, :, :3] - wa), -1, 0))  # (3, nj, n)
+    rot, org, tw = state.component_major()     # (3, 3, nb, n), (3, nb, n), (6, nb, n)
+    n = rot.shape[-1]
+    # component-major (.., nj, n): every joint's relative rotation and rate at once
+    ra, rb = rot[:, :, ia], rot[:, :, ib]
+    rel = rb.copy()                          # R_a = I for a joint on the frame
+    w_rels = tw[:3, ib]                      # R_a^T (omega_b - omega_a), in a's axes
+    on = c['off_frame']                      # the joints whose a is a moving link
+    if on.size:
+        ro = ra[:, :, on]
+        # (R_a^T R_b)_ij = sum_k R_a,ki R_b,kj: one broadcast product and one sum
+        rel[:, :, on] = (ro[:, :, None] * rb[:, None, :, on]).sum(0)
+        w_rels[:, on] = (ro * (w_rels[:, on] - tw[:3, ia[on]])[:, None]).sum(0)
+    rel9 = rel.reshape(9, ia.size, n)
 
     def functionals(ji, w):
         """Return the group's functionals ``(k, count, n)``: small products, no BLAS threads."""
-        return np.ascontiguousarray(np.moveaxis(np.matmul(rel[ji], w), -1, 0))
+        return np.matmul(w, rel9[:, ji].transpose(1, 0, 2)).transpose(1, 0, 2)
 
     pos, vel = np.empty((c['size'], n)), np.empty((c['size'], n))
     if 'slide' in groups:
         ji, cols, ax, _, _ = groups['slide']
-        pa, pb = c['pa'][ji, None], c['pb'][ji, None]
-        ra_s, rb, ra_ts = ra[ji], rot[ib[ji]], ra_t[ji]
-        wa_s = wa[ji]
-        xa = fr.origin.transpose(1, 0, 2)[ia[ji]] + mv(ra_s, pa)
-        xb = fr.origin.transpose(1, 0, 2)[ib[ji]] + mv(rb, pb)
-        va = t_j[ia[ji], :, 3:] + cross(wa_s, xa)
-        vb = t_j[ib[ji], :, 3:] + cross(t_j[ib[ji], :, :3], xb)
-        pos[cols] = (np.moveaxis(mv(ra_ts, xb - xa), -1, 0) * ax).sum(0)
-        vel[cols] = (np.moveaxis(mv(ra_ts, vb - va - cross(wa_s, xb - xa)), -1, 0) * ax).sum(0)
+        pa, pb = c['pa_c'][:, ji], c['pb_c'][:, ji]
+        ra_s, rb_s = ra[:, :, ji], rb[:, :, ji]
+        xa = org[:, ia[ji]] + ra_s[:, 0] * pa[0] + ra_s[:, 1] * pa[1] + ra_s[:, 2] * pa[2]
+        xb = org[:, ib[ji]] + rb_s[:, 0] * pb[0] + rb_s[:, 1] * pb[1] + rb_s[:, 2] * pb[2]
+        ta, tb = tw[:, ia[ji]], tw[:, ib[ji]]
+        va = ta[3:] + cross_c(ta[:3], xa)
+        vb = tb[3:] + cross_c(tb[:3], xb)
+        d = xb - xa
+        dd = vb - va - cross_c(ta[:3], d)
+        # along the a-axis in a's axes: (R_a^T d) . a = d . (R_a a)
+        axw = ra_s[:, 0] * ax[0] + ra_s[:, 1] * ax[1] + ra_s[:, 2] * ax[2]
+        pos[cols] = (d * axw).sum(0)
+        vel[cols] = (dd * axw).sum(0)
     if 'angle' in groups:
         ji, cols, ax, _, w = groups['angle']
         f = functionals(ji, w)

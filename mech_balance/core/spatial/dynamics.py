@@ -26,7 +26,7 @@ Driving torque and reactions (virtual power in tree coordinates)
 
 from dataclasses import dataclass
 
-from mech_balance.core.spatial.kinematics import cross, mv
+from mech_balance.core.spatial.kinematics import component_major, cross_c as _cross_c
 import numpy as np
 
 
@@ -130,32 +130,6 @@ def body_motion(state, inertia):
     return out
 
 
-def _component_major(a):
-    """Return a batch-first ``(n, nb, k...)`` array as a contiguous ``(k..., nb, n)``."""
-    return np.ascontiguousarray(np.moveaxis(a, (0, 1), (-1, -2)))
-
-
-def _poses_c(state):
-    """Return the component-major rotations ``(3, 3, nb, n)`` and origins (cached)."""
-    cached = getattr(state, '_poses_c', None)
-    if cached is None:
-        cached = (_component_major(state.frames.rot), _component_major(state.frames.origin))
-        state._poses_c = cached
-    return cached
-
-
-def _cross_c(a, b):
-    """Return ``a x b`` of component-major vectors ``(3, ...)`` (broadcast)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    np.multiply(a[1], b[2], out=out[0])
-    out[0] -= a[2] * b[1]
-    np.multiply(a[2], b[0], out=out[1])
-    out[1] -= a[0] * b[2]
-    np.multiply(a[0], b[1], out=out[2])
-    out[2] -= a[1] * b[0]
-    return out
-
-
 def _body_constants(inertia):
     """Return the component-major mass centres, masses and inertia of the moving bodies."""
     cached = getattr(inertia, '_component_major', None)
@@ -168,11 +142,11 @@ def _body_constants(inertia):
 
 
 def _body_motion(state, inertia):
-    fr, tw, ac = state.frames, state.twist, state.accel
+    ac = state.accel
     com, _, inl = _body_constants(inertia)
-    rot, org = _poses_c(state)
+    rot, org, t = state.component_major()
     rot = rot[:, :, 1:]                            # (3, 3, b, n): the moving bodies
-    t = _component_major(tw[:, 1:])                # (6, b, n)
+    t = t[:, 1:]                                   # (6, b, n)
     xc = org[:, 1:] + rot[:, 0] * com[0]
     xc += rot[:, 1] * com[1]
     xc += rot[:, 2] * com[2]
@@ -181,7 +155,7 @@ def _body_motion(state, inertia):
     if ac is None:  # kinematics only (kinetic energy)
         x = w
     else:
-        a = _component_major(ac[:, 1:])
+        a = component_major(ac[:, 1:])
         al = a[:3]
         a_c = a[3:] + _cross_c(al, xc)
         a_c += _cross_c(w, vc)
@@ -274,7 +248,7 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
     np.multiply(gb.T, lam_t, out=stack[:, nb:nb + m])
     np.multiply(ga.T, lam_t, out=stack[:, nb + m:])
     w = np.matmul(c.mix, stack)                      # (6, nj, n)
-    rot, org = _poses_c(state)
+    rot, org, _ = state.component_major()
     body = c.body
     x = org[:, body] + rot[:, 0, body] * c.point_c[0]    # joint points (3, nj, n)
     x += rot[:, 1, body] * c.point_c[1]

@@ -85,6 +85,23 @@ class SpatialError(ValueError):
     """The spatial linkage cannot be assembled, is singular, or would leave its branch."""
 
 
+def component_major(a):
+    """Return a batch-first ``(n, nb, k...)`` array as a contiguous ``(k..., nb, n)``."""
+    return np.ascontiguousarray(np.moveaxis(a, (0, 1), (-1, -2)))
+
+
+def cross_c(a, b):
+    """Return ``a x b`` of component-major vectors ``(3, ...)`` (broadcast)."""
+    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
+    np.multiply(a[1], b[2], out=out[0])
+    out[0] -= a[2] * b[1]
+    np.multiply(a[2], b[0], out=out[1])
+    out[1] -= a[0] * b[2]
+    np.multiply(a[0], b[1], out=out[2])
+    out[2] -= a[1] * b[0]
+    return out
+
+
 def cross(a, b):
     """Return ``a x b`` over the last axis (broadcast); numpy's cross without its overhead."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
@@ -325,6 +342,21 @@ class SpatialState:
     def size(self):
         """Return the number of samples."""
         return self.psi.shape[0]
+
+    def component_major(self):
+        """
+        Return ``(rot (3, 3, nb, n), origin (3, nb, n), twist (6, nb, n))`` (cached).
+
+        The poses and twists component-major (contiguous ``(nb, n)`` blocks), converted once
+        per state for the joint values and the inverse dynamics; twist None if not solved.
+        """
+        cached = getattr(self, '_component_major', None)
+        if cached is None:
+            fr = self.frames
+            cached = (component_major(fr.rot), component_major(fr.origin),
+                      None if self.twist is None else component_major(self.twist))
+            self._component_major = cached
+        return cached
 
 
 class Linkage:
