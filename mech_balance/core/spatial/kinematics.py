@@ -87,12 +87,13 @@ class SpatialError(ValueError):
 
 def component_major(a):
     """Return a batch-first ``(n, nb, k...)`` array as a contiguous ``(k..., nb, n)``."""
-    return np.ascontiguousarray(np.moveaxis(a, (0, 1), (-1, -2)))
+    nd = a.ndim
+    return np.ascontiguousarray(a.transpose(tuple(range(2, nd)) + (1, 0)))
 
 
 def cross_c(a, b):
     """Return ``a x b`` of component-major vectors ``(3, ...)`` (broadcast)."""
-    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
+    out = np.empty(a.shape if np.shape(a) == np.shape(b) else np.broadcast(a, b).shape)
     np.multiply(a[1], b[2], out=out[0])
     out[0] -= a[2] * b[1]
     np.multiply(a[2], b[0], out=out[1])
@@ -106,8 +107,8 @@ def cross(a, b):
     """Return ``a x b`` over the last axis (broadcast); numpy's cross without its overhead."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    sa, sb = np.shape(a), np.shape(b)
-    out = np.empty(sa if sa == sb else np.broadcast_shapes(sa, sb))
+    sa = np.shape(a)
+    out = np.empty(sa if sa == np.shape(b) else np.broadcast(a, b).shape)
     np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
     np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
     np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
@@ -831,9 +832,9 @@ class Linkage:
             return np.zeros((n, 0, self.m)), np.ones(n), np.zeros(n, dtype=int), np.ones(n)
         if self.square:
             # static-pivot sparse LU over the batch (planar smallsolve), LAPACK where weak
-            batch_last = np.ascontiguousarray(np.moveaxis(js, 0, -1))  # contiguous: faster
+            batch_last = np.ascontiguousarray(js.transpose(1, 2, 0))  # contiguous: faster
             inv, cond, sign = smallsolve.inverse(batch_last, self._lu_plan(js), with_sign=True)
-            return np.moveaxis(inv, -1, 0), cond, np.full(n, self.nu, dtype=int), sign
+            return inv.transpose(2, 0, 1), cond, np.full(n, self.nu, dtype=int), sign
         u, s, vt = np.linalg.svd(js, full_matrices=False)
         keep = s > RANK_RTOL * s[:, :1]
         sinv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
