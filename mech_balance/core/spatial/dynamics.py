@@ -147,28 +147,25 @@ def _body_motion(state, inertia):
     rot, org, t = state.component_major()
     rot = rot[:, :, 1:]                            # (3, 3, b, n): the moving bodies
     t = t[:, 1:]                                   # (6, b, n)
-    xc = org[:, 1:] + rot[:, 0] * com[0]
-    xc += rot[:, 1] * com[1]
-    xc += rot[:, 2] * com[2]
+    # matrix-vector products as one broadcast product and one sum each (few numpy calls)
+    xc = org[:, 1:] + (rot * com).sum(1)
     w = t[:3]
     vc = t[3:] + _cross_c(w, xc)
     if ac is None:  # kinematics only (kinetic energy)
-        x = w
+        x = w[:, None]
+        a_c = None
     else:
         a = component_major(ac[:, 1:])
         al = a[:3]
         a_c = a[3:] + _cross_c(al, xc)
         a_c += _cross_c(w, vc)
         x = np.stack([w, al], 1)                   # (3, 2, b, n): both in one pass
-    loc = rot[0] * x[0] + rot[1] * x[1] + rot[2] * x[2] if ac is None else \
-        rot[0, :, None] * x[0] + rot[1, :, None] * x[1] + rot[2, :, None] * x[2]
-    if ac is not None:
-        inl = inl[:, :, None]
-    hl = inl[:, 0] * loc[0] + inl[:, 1] * loc[1] + inl[:, 2] * loc[2]      # I R^T x
+    rot = rot[:, :, None]                          # (3, 3, 1, b, n)
+    loc = (rot * x[:, None]).sum(0)                # R^T x
+    hl = (inl[:, :, None] * loc).sum(1)            # I R^T x
+    hw = (rot * hl).sum(1)                         # R I R^T x
     if ac is None:
-        h = rot[:, 0] * hl[0] + rot[:, 1] * hl[1] + rot[:, 2] * hl[2]
-        return xc, vc, None, w, h, None
-    hw = rot[:, 0, None] * hl[0] + rot[:, 1, None] * hl[1] + rot[:, 2, None] * hl[2]
+        return xc, vc, None, w, hw[:, 0], None
     return xc, vc, a_c, w, hw[:, 0], hw[:, 1]
 
 

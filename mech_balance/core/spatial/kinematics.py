@@ -464,7 +464,7 @@ class Linkage:
         for t in self.sph_index:
             self.is_sph_dof[list(self.tree[t].dofs)] = True
         self.scalar_dofs = np.flatnonzero(~self.is_sph_dof)
-        self.unknown = np.arange(1, dof)
+        self.unknown = slice(1, dof)   # every coordinate but the crank (a slice: views)
         self.nu = dof - 1
         # path[d, k]: coordinate d moves body k (k below d's tree joint)
         self.path = np.zeros((dof, self.nb))
