@@ -155,7 +155,7 @@ def _body_motion(state, inertia):
         x = w[:, None]
         a_c = None
     else:
-        a = component_major(ac[:, 1:])
+        a = component_major(ac)[:, 1:]            # a view when ac is one already
         al = a[:3]
         a_c = a[3:] + _cross_c(al, xc)
         a_c += _cross_c(w, vc)

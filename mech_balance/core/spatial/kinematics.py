@@ -103,6 +103,14 @@ def cross_c(a, b):
     return out
 
 
+def _dot_c(a, b):
+    """Return the dot products of component-major vectors ``(3, ...)`` (broadcast)."""
+    out = a[0] * b[0]
+    out += a[1] * b[1]
+    out += a[2] * b[2]
+    return out
+
+
 def cross(a, b):
     """Return ``a x b`` over the last axis (broadcast); numpy's cross without its overhead."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
@@ -221,13 +229,6 @@ def _point_gradient(x):
     return g
 
 
-def _spatial_cross(t, s):
-    """Return the motion cross product ``t x s`` of twists ``(..., 6)`` (omega, v)."""
-    w, v = t[..., :3], t[..., 3:]
-    w2, v2 = s[..., :3], s[..., 3:]
-    return np.concatenate([cross(w, w2), cross(w, v2) + cross(v, w2)], axis=-1)
-
-
 def angle_about(axis, rot):
     """Return the angle ``(n,)`` of rotations ``rot`` ``(n, 3, 3)`` about the unit ``axis``."""
     skw = rot - np.swapaxes(rot, -1, -2)
@@ -316,6 +317,14 @@ class Frames:
     cols: np.ndarray      # (n, ndof, 6) twist columns (omega, v at the frame origin)
     parts: list = None    # the closure rows' world vectors (cached by Linkage._row_parts)
     grads: tuple = None   # the rows' twist gradients (cached by Linkage.gradients)
+
+    @property
+    def cols_c(self):
+        """Return the twist columns component-major ``(6, ndof, n)`` (cached)."""
+        c = getattr(self, '_cols_c', None)
+        if c is None:
+            c = self._cols_c = np.ascontiguousarray(self.cols.T)
+        return c
 
 
 @dataclass
@@ -722,75 +731,78 @@ class Linkage:
 
     def bias(self, fr, twist, acc0):
         """
-        Return the rows' second time derivatives ``(n, m)`` at body accelerations ``acc0``.
+        Return the rows' second time derivatives ``(m, n)`` at body accelerations ``acc0``.
 
-        Body point acceleration ``a_O + alpha x x + omega x (v_O + omega x x)``; a vector u
-        fixed in a body: ``u' = omega x u``, ``u'' = alpha x u + omega x (omega x u)``.
-        The b and a ends of a group are evaluated together (one stacked pass).
+        Component-major throughout (``twist`` and ``acc0`` ``(6, nb, n)``).  Body point
+        acceleration ``a_O + alpha x x + omega x (v_O + omega x x)``; a vector u fixed in a
+        body: ``u' = omega x u``, ``u'' = alpha x u + omega x (omega x u)``.  The b and a
+        ends of a group are evaluated together (one stacked pass).
         """
         out = []
-        n = twist.shape[0]
-
-        def ends(r, xb, xa):
-            """Return the stacked b-then-a twists, accelerations and vectors of a group."""
-            k = np.concatenate([r.body_b, r.body_a])
-            return twist[:, k], acc0[:, k], np.concatenate([xb, xa], axis=1)
-
+        n = twist.shape[-1]
+        dot_c = _dot_c
         for r, rb, ra, vb, va in self._row_parts(fr):
             k = r.body_b.size
+            vb = vb.transpose(2, 1, 0)                    # (3, k, n) views
+            if r.form == 'spin':
+                w, al = twist[:3, r.body_b], acc0[:3, r.body_b]
+                ddu = cross_c(al, vb)
+                ddu += cross_c(w, cross_c(w, vb))
+                out.append(dot_c(ddu, r.vec_a.T[:, :, None]))
+                continue
+            va = va.transpose(2, 1, 0)
+            both = np.concatenate([r.body_b, r.body_a])
+            t, a = twist[:, both], acc0[:, both]           # (6, 2k, n): b ends, then a ends
+            x = np.concatenate([vb, va], axis=1)
+            w = t[:3]
             if r.form == 'point':
-                t, a, x = ends(r, vb, va)
-                w = t[..., :3]
-                acc = a[..., 3:] + cross(a[..., :3], x)
-                acc += cross(w, t[..., 3:] + cross(w, x))
-                out.append((acc[:, :k] - acc[:, k:]).reshape(n, -1))
+                acc = a[3:] + cross_c(a[:3], x)
+                acc += cross_c(w, t[3:] + cross_c(w, x))
+                out.append((acc[:, :k] - acc[:, k:]).transpose(1, 0, 2).reshape(3 * k, n))
             elif r.form == 'dot':
-                t, a, u = ends(r, vb, va)
-                w = t[..., :3]
-                du = cross(w, u)
-                ddu = cross(a[..., :3], u) + cross(w, du)
-                out.append(dot(ddu[:, :k], va) + 2.0 * dot(du[:, :k], du[:, k:])
-                           + dot(vb, ddu[:, k:]))
-            elif r.form == 'line':
-                wl = mv(ra, r.extra)
-                t, a, x = ends(r, vb, va)
-                w = t[..., :3]
-                vel = t[..., 3:] + cross(w, x)
-                acc = a[..., 3:] + cross(a[..., :3], x)
-                acc += cross(w, vel)
-                wa, ala = w[:, k:], a[:, k:, :3]
-                dw = cross(wa, wl)
-                ddw = cross(ala, wl) + cross(wa, dw)
-                out.append(dot(acc[:, :k] - acc[:, k:], wl)
-                           + 2.0 * dot(vel[:, :k] - vel[:, k:], dw)
-                           + dot(vb - va, ddw))
+                du = cross_c(w, x)
+                ddu = cross_c(a[:3], x)
+                ddu += cross_c(w, du)
+                out.append(dot_c(ddu[:, :k], va) + 2.0 * dot_c(du[:, :k], du[:, k:])
+                           + dot_c(vb, ddu[:, k:]))
             else:
-                w, al = twist[:, r.body_b, :3], acc0[:, r.body_b, :3]
-                ddu = cross(al, vb) + cross(w, cross(w, vb))
-                out.append(dot(ddu, va))
-        return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
+                wl = mv(ra, r.extra).transpose(2, 1, 0)
+                vel = t[3:] + cross_c(w, x)
+                acc = a[3:] + cross_c(a[:3], x)
+                acc += cross_c(w, vel)
+                wa, ala = w[:, k:], a[:3, k:]
+                dw = cross_c(wa, wl)
+                ddw = cross_c(ala, wl)
+                ddw += cross_c(wa, dw)
+                out.append(dot_c(acc[:, :k] - acc[:, k:], wl)
+                           + 2.0 * dot_c(vel[:, :k] - vel[:, k:], dw)
+                           + dot_c(vb - va, ddw))
+        return np.concatenate(out, axis=0) if out else np.zeros((0, n))
 
     def twists(self, fr, qd):
-        """Return the body twists ``(n, nb, 6)`` of coordinate rates ``qd`` (n, ndof)."""
-        return np.matmul(self.path_t, fr.cols * qd[:, :, None])
+        """Return the body twists ``(6, nb, n)`` (component-major) of rates ``qd`` (n, ndof)."""
+        return np.matmul(self.path_t, fr.cols_c * qd.T)
 
-    def accelerations(self, fr, twist, qd, qdd):
+    def accelerations(self, fr, twist, qd):
         """
-        Return the body spatial accelerations ``(n, nb, 6)`` (tree recursion in sums).
+        Return the body spatial accelerations ``(6, nb, n)`` at zero coordinate accelerations.
 
-        ``S' = T_owner x S`` only for the columns fixed in a moving body (a frame joint's
-        columns are constant).
+        Component-major (``twist`` ``(6, nb, n)``): the sum over the tree of
+        ``S' q' = (T_owner x S) q'``, only for the columns fixed in a moving body (a frame
+        joint's columns are constant).
         """
         moving = self._moving_cols
-        if moving.size:
-            dcols = _spatial_cross(twist[:, self.dof_owner[moving]], fr.cols[:, moving])
-            dcols *= qd[:, moving, None]
-            total = np.matmul(self._path_t_moving, dcols)
-        else:
-            total = np.zeros(twist.shape)
-        if qdd is not None:
-            total = total + self.twists(fr, qdd)
-        return total
+        if not moving.size:
+            return np.zeros(twist.shape)
+        t = twist[:, self.dof_owner[moving]]
+        c = fr.cols_c[:, moving]
+        w = t[:3]
+        dcols = np.empty(c.shape)                 # the motion cross product T x S
+        dcols[:3] = cross_c(w, c[:3])
+        dcols[3:] = cross_c(w, c[3:])
+        dcols[3:] += cross_c(t[3:], c[:3])
+        dcols *= qd.T[moving]
+        return np.matmul(self._path_t_moving, dcols)
 
     # ------------------------------------------------------------------ Newton
 
@@ -1146,17 +1158,20 @@ class Linkage:
         if self.nu:
             rhs = jac[:, :, 0] * psi_d[:, None] * rs
             qd[:, self.unknown] = -self.solve_u(solver, refine, rhs) * cu
-        twist = self.twists(fr, qd)
+        # component-major (6, nb, n) inside; the batch-first results are views of them
+        twist_c = self.twists(fr, qd)
         qdd = accel = None
         if need_acc:
-            acc0 = self.accelerations(fr, twist, qd, None)
+            acc0 = self.accelerations(fr, twist_c, qd)
             qdd = np.zeros((n, self.ndof))
             qdd[:, 0] = psi_dd
             if self.nu:
-                gam = self.bias(fr, twist, acc0) + jac[:, :, 0] * psi_dd[:, None]
+                gam = self.bias(fr, twist_c, acc0).T + jac[:, :, 0] * psi_dd[:, None]
                 qdd[:, self.unknown] = -self.solve_u(solver, refine, gam * rs) * cu
-            accel = acc0 + self.twists(fr, qdd)
-        return qd, qdd, twist, accel, jac, solver, cond, rank, sign, refine
+            acc0 += self.twists(fr, qdd)
+            accel = acc0.transpose(2, 1, 0)
+        return qd, qdd, twist_c.transpose(2, 1, 0), accel, jac, solver, cond, rank, sign, \
+            refine
 
     # ------------------------------------------------------------------ branch
 
