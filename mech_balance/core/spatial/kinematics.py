@@ -559,6 +559,9 @@ class Linkage:
         self.row_a = np.array(bodies_a, dtype=int)
         self.mask_b = self.path[:, self.row_b].T  # (m, ndof)
         self.mask_a = self.path[:, self.row_a].T
+        # per group, per joint (k, ndof, 1): which coordinates move its b and its a body
+        self._row_masks = [self.path[:, r.body_b].T[:, :, None] for r in self.rows]
+        self._row_masks_a = [self.path[:, r.body_a].T[:, :, None] for r in self.rows]
         self.square = self.m == self.nu
         self.js_scale = self.row_scale[:, None] * self.col_scale[self.unknown]
 
@@ -721,13 +724,50 @@ class Linkage:
             return empty, empty
         return np.concatenate(gb, axis=1), np.concatenate(ga, axis=1)
 
-    def jacobian(self, fr, grads=None):
-        """Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate)."""
-        gb, ga = self.gradients(fr) if grads is None else grads
-        cols_t = np.ascontiguousarray(np.swapaxes(fr.cols, 1, 2))  # matmul: slow on a view
-        jb = np.matmul(gb, cols_t)
-        ja = np.matmul(ga, cols_t)
-        return jb * self.mask_b + ja * self.mask_a
+    def jacobian(self, fr):
+        """
+        Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate).
+
+        Computed component-major, ``(m, ndof, n)`` (the batch-last stack the LU takes as
+        it is), and returned as a batch-first view of it.  A row's rate per coordinate d is
+        its twist gradient (:meth:`gradients`) applied to d's column on the row's bodies
+        that d moves: for a point x ``omega_d x x + v_d``, for a dot row ``(u_b x w_a) .
+        omega_d``, for a line row ``(x_b x w) . omega_d + w . v_d`` on b and ``(w x d - x_a
+        x w) . omega_d - w . v_d`` on a.
+        """
+        n = fr.rot.shape[0]
+        if not self.m:
+            return np.zeros((n, 0, self.ndof))
+        c = fr.cols_c
+        om, vel = c[:3, None], c[3:, None]           # (3, 1, ndof, n)
+        out = []
+        at = 0
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            k, size = r.body_b.size, r.size
+            mb, ma = self._row_masks[at], self._row_masks_a[at]
+            at += 1
+            xb = vb.transpose(2, 1, 0)[:, :, None]     # (3, k, 1, n)
+            if r.form == 'point':
+                jb = cross_c(om, xb)
+                jb += vel
+                ja = cross_c(om, va.transpose(2, 1, 0)[:, :, None])
+                ja += vel
+                j = jb * mb - ja * ma                    # (3, k, ndof, n)
+                out.append(j.transpose(1, 0, 2, 3).reshape(size, self.ndof, n))
+                continue
+            if r.form == 'spin':
+                g = cross_c(xb, r.vec_a.T[:, :, None, None])
+                out.append(_dot_c(g, om) * mb)
+                continue
+            xa = va.transpose(2, 1, 0)[:, :, None]
+            if r.form == 'dot':
+                out.append(_dot_c(cross_c(xb, xa), om) * (mb - ma))
+                continue
+            w = mv(ra, r.extra).transpose(2, 1, 0)[:, :, None]
+            jb = _dot_c(cross_c(xb, w), om) + _dot_c(w, vel)
+            ja = _dot_c(cross_c(w, xb - xa) - cross_c(xa, w), om) - _dot_c(w, vel)
+            out.append(jb * mb + ja * ma)
+        return np.concatenate(out, axis=0).transpose(2, 0, 1)
 
     def bias(self, fr, twist, acc0):
         """
