@@ -66,7 +66,7 @@ class SpatialWrenches:
 class _ReactionConstants:
     """Per linkage: the incidence matrix and index arrays of the bearing reactions (once)."""
 
-    mix: np.ndarray       # (nj, nb + 2 m): joint wrenches from [Phi, G_b lambda, G_a lambda]
+    mix: np.ndarray       # (nj, nb + 2 q): joint wrenches from [Phi, W_b, W_a] (q wrenches)
     body: np.ndarray      # (nj,) each joint's link b
     point: np.ndarray     # (nj, 3) its joint point in b's axes
 
@@ -82,7 +82,8 @@ def _reaction_constants(lk):
     A tree joint carries the rates of momentum of the bodies below it minus the row wrenches
     on them (``below (Phi - inc_b W_b - inc_a W_a)``), a cut joint its rows' wrenches on b
     (``cut_rows W_b``); both in scene order with a flipped tree joint's sign, folded into one
-    matrix applied to the stacked ``[Phi, W_b, W_a]``.
+    matrix applied to the stacked ``[Phi, W_b, W_a]`` (the row wrenches of
+    :meth:`~kinematics.Linkage.row_wrenches`, a coincident point's three rows as one).
     """
     cached = getattr(lk, '_reaction_constants', None)
     if cached is not None and cached[0] == lk.m:
@@ -96,9 +97,12 @@ def _reaction_constants(lk):
     cut_rows = np.zeros((len(lk.cut_joints), m))
     for i, ji in enumerate(lk.cut_joints):
         cut_rows[i] = [j == sc.joints[ji].name for j in lk.row_joint]
+    # on the row wrenches of Linkage.row_wrenches (a point's three rows as one): their columns
+    rep = lk.wrench_rows
+    inc_b, inc_a, cut_rows = inc_b[:, rep], inc_a[:, rep], cut_rows[:, rep]
     tree = np.concatenate([below, -below @ inc_b, -below @ inc_a], 1)
     cuts = np.concatenate([np.zeros((len(lk.cut_joints), lk.nb)), cut_rows,
-                           np.zeros((len(lk.cut_joints), m))], 1)
+                           np.zeros((len(lk.cut_joints), rep.size))], 1)
     stacked = np.concatenate([tree, cuts], 0)
     where = {t.joint: (i, -1.0 if t.flipped else 1.0) for i, t in enumerate(lk.tree)}
     where.update({ji: (len(lk.tree) + i, 1.0) for i, ji in enumerate(lk.cut_joints)})
@@ -236,15 +240,10 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
         out.spin_moment = lam[:, spin]
     if 'bearing_reactions' not in need:
         return out
-    gb, ga = lk.gradients(state.frames)
     c = _reaction_constants(lk)
-    nb, m = lk.nb, lk.m
-    stack = np.empty((6, nb + 2 * m, n))   # [Phi, W_b, W_a]: every joint in one product
-    stack[:, :nb] = phi
-    lam_t = lam.T
-    np.multiply(gb.T, lam_t, out=stack[:, nb:nb + m])
-    np.multiply(ga.T, lam_t, out=stack[:, nb + m:])
-    w = np.matmul(c.mix, stack)                      # (6, nj, n)
+    wb, wa = lk.row_wrenches(state.frames, lam)
+    # [Phi, W_b, W_a]: every joint's wrench in one product
+    w = np.matmul(c.mix, np.concatenate([phi, wb, wa], axis=1))    # (6, nj, n)
     rot, org, _ = state.component_major()
     body = c.body
     x = org[:, body] + rot[:, 0, body] * c.point_c[0]    # joint points (3, nj, n)

@@ -724,6 +724,65 @@ class Linkage:
             return empty, empty
         return np.concatenate(gb, axis=1), np.concatenate(ga, axis=1)
 
+    @property
+    def wrench_rows(self):
+        """
+        Return the first row of each row wrench of :meth:`row_wrenches` (built once).
+
+        A coincident-point joint's three rows act as one force at its point (one wrench);
+        every other row is a wrench of its own.
+        """
+        cached = getattr(self, '_wrench_rows', None)
+        if cached is None or cached[0] != self.m:
+            rows, at = [], 0
+            for r in self.rows:
+                step = 3 if r.form == 'point' else 1
+                rows += list(range(at, at + r.size, step))
+                at += r.size
+            cached = (self.m, np.array(rows, dtype=int))
+            self._wrench_rows = cached
+        return cached[1]
+
+    def row_wrenches(self, fr, lam):
+        """
+        Return ``(W_b, W_a)`` ``(6, q, n)``: the closure rows' wrenches on their b and a bodies.
+
+        Component-major (moment about the frame origin, force) for multipliers ``lam``
+        ``(n, m)``: ``lambda_r G(r)`` per row, the three rows of a coincident point merged
+        into the force ``F`` at the point (``(x x F, F)``), in :attr:`wrench_rows` order.
+        """
+        n = lam.shape[0]
+        lam_t = lam.T
+        wb, wa = [], []
+        at = 0
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            k = r.body_b.size
+            xb = vb.transpose(2, 1, 0)                     # (3, k, n)
+            l = lam_t[at:at + r.size]
+            at += r.size
+            if r.form == 'point':
+                f = l.reshape(k, 3, n).transpose(1, 0, 2)  # (3, k, n): the force on b
+                wb.append(np.concatenate([cross_c(xb, f), f]))
+                wa.append(-np.concatenate([cross_c(va.transpose(2, 1, 0), f), f]))
+                continue
+            zero = np.zeros((3, k, n))
+            if r.form == 'spin':
+                wb.append(np.concatenate([cross_c(xb, r.vec_a.T[:, :, None]) * l, zero]))
+                wa.append(np.zeros((6, k, n)))
+                continue
+            xa = va.transpose(2, 1, 0)
+            if r.form == 'dot':
+                c = cross_c(xb, xa) * l
+                wb.append(np.concatenate([c, zero]))
+                wa.append(np.concatenate([-c, zero]))
+                continue
+            w = mv(ra, r.extra).transpose(2, 1, 0) * l
+            wb.append(np.concatenate([cross_c(xb, w), w]))
+            wa.append(np.concatenate([cross_c(w, xb - xa) - cross_c(xa, w), -w]))
+        if not wb:
+            return np.zeros((6, 0, n)), np.zeros((6, 0, n))
+        return np.concatenate(wb, axis=1), np.concatenate(wa, axis=1)
+
     def jacobian(self, fr):
         """
         Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate).
