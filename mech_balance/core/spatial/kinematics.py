@@ -1376,7 +1376,10 @@ class Linkage:
         psi = np.asarray(psi, dtype=float)
         sk = self.dense
         k, h = sk.nearest(psi)
-        qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
+        if h.any():
+            qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
+        else:  # every angle is a node: the predictor is the node itself (gathered copies)
+            qp, sphp = sk.q[k], sk.sph[k]
         q, sph, fr, res, ok, factor = self._chord(qp, sphp)
         if q is qp:  # the predictor had converged: no correction
             bad = ~ok
