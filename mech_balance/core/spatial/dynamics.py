@@ -69,6 +69,7 @@ class _ReactionConstants:
     mix: np.ndarray       # (nj, nb + 2 q): joint wrenches from [Phi, W_b, W_a] (q wrenches)
     body: np.ndarray      # (nj,) each joint's link b
     point: np.ndarray     # (nj, 3) its joint point in b's axes
+    spin_rows: np.ndarray  # the rows of the idle-spin convention
 
     def __post_init__(self):
         """Keep the points component-major too, ``(3, nj, 1)``."""
@@ -112,7 +113,8 @@ def _reaction_constants(lk):
     out = _ReactionConstants(
         np.ascontiguousarray(stacked[order] * sign[:, None]),
         np.array([idx[jt.link_b] for jt in sc.joints], dtype=int),
-        np.array([lk._points[jt.link_b][jt.point_b] for jt in sc.joints]).reshape(-1, 3))
+        np.array([lk._points[jt.link_b][jt.point_b] for jt in sc.joints]).reshape(-1, 3),
+        np.array([i for i, j in enumerate(lk.row_joint) if j.startswith('spin:')], dtype=int))
     lk._reaction_constants = (m, out)
     return out
 
@@ -235,20 +237,18 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
     out.multipliers = lam
     out.driving_torque = q_gen[:, 0] - np.einsum('nm,nm->n', jac[:, :, 0], lam)
     out.reactions_unique = lk.redundant == 0
-    spin = [i for i, j in enumerate(lk.row_joint) if j.startswith('spin:')]
-    if spin:
+    c = _reaction_constants(lk)
+    spin = c.spin_rows
+    if spin.size:
         out.spin_moment = lam[:, spin]
     if 'bearing_reactions' not in need:
         return out
-    c = _reaction_constants(lk)
     wb, wa = lk.row_wrenches(state.frames, lam)
     # [Phi, W_b, W_a]: every joint's wrench in one product
     w = np.matmul(c.mix, np.concatenate([phi, wb, wa], axis=1))    # (6, nj, n)
     rot, org, _ = state.component_major()
     body = c.body
-    x = org[:, body] + rot[:, 0, body] * c.point_c[0]    # joint points (3, nj, n)
-    x += rot[:, 1, body] * c.point_c[1]
-    x += rot[:, 2, body] * c.point_c[2]
+    x = org[:, body] + (rot[:, :, body] * c.point_c).sum(1)     # joint points (3, nj, n)
     force = w[3:]
     moment = w[:3] - _cross_c(x, force)
     force, moment = np.ascontiguousarray(force.T), np.ascontiguousarray(moment.T)  # (n, nj, 3)
