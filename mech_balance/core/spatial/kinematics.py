@@ -307,6 +307,14 @@ class Rows:
         """Return the number of rows."""
         return self.body_b.size * (3 if self.form == 'point' else 1)
 
+    @property
+    def ends(self):
+        """Return the b bodies then the a bodies (the stacked passes over both ends)."""
+        both = getattr(self, '_ends', None)
+        if both is None:
+            both = self._ends = np.concatenate([self.body_b, self.body_a])
+        return both
+
 
 @dataclass
 class Frames:
@@ -850,8 +858,7 @@ class Linkage:
                 out.append(dot_c(ddu, r.vec_a.T[:, :, None]))
                 continue
             va = va.transpose(2, 1, 0)
-            both = np.concatenate([r.body_b, r.body_a])
-            t, a = twist[:, both], acc0[:, both]           # (6, 2k, n): b ends, then a ends
+            t, a = twist[:, r.ends], acc0[:, r.ends]       # (6, 2k, n): b ends, then a ends
             x = np.concatenate([vb, va], axis=1)
             w = t[:3]
             if r.form == 'point':
