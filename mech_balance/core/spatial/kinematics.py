@@ -766,25 +766,25 @@ class Linkage:
         for r, rb, ra, vb, va in self._row_parts(fr):
             k = r.body_b.size
             xb = vb.transpose(2, 1, 0)                     # (3, k, n)
-            l = lam_t[at:at + r.size]
+            lr = lam_t[at:at + r.size]
             at += r.size
             if r.form == 'point':
-                f = l.reshape(k, 3, n).transpose(1, 0, 2)  # (3, k, n): the force on b
+                f = lr.reshape(k, 3, n).transpose(1, 0, 2)  # (3, k, n): the force on b
                 wb.append(np.concatenate([cross_c(xb, f), f]))
                 wa.append(-np.concatenate([cross_c(va.transpose(2, 1, 0), f), f]))
                 continue
             zero = np.zeros((3, k, n))
             if r.form == 'spin':
-                wb.append(np.concatenate([cross_c(xb, r.vec_a.T[:, :, None]) * l, zero]))
+                wb.append(np.concatenate([cross_c(xb, r.vec_a.T[:, :, None]) * lr, zero]))
                 wa.append(np.zeros((6, k, n)))
                 continue
             xa = va.transpose(2, 1, 0)
             if r.form == 'dot':
-                c = cross_c(xb, xa) * l
+                c = cross_c(xb, xa) * lr
                 wb.append(np.concatenate([c, zero]))
                 wa.append(np.concatenate([-c, zero]))
                 continue
-            w = mv(ra, r.extra).transpose(2, 1, 0) * l
+            w = mv(ra, r.extra).transpose(2, 1, 0) * lr
             wb.append(np.concatenate([cross_c(xb, w), w]))
             wa.append(np.concatenate([cross_c(w, xb - xa) - cross_c(xa, w), -w]))
         if not wb:
@@ -810,7 +810,7 @@ class Linkage:
         out = []
         at = 0
         for r, rb, ra, vb, va in self._row_parts(fr):
-            k, size = r.body_b.size, r.size
+            size = r.size
             mb, ma = self._row_masks[at], self._row_masks_a[at]
             at += 1
             xb = vb.transpose(2, 1, 0)[:, :, None]     # (3, k, 1, n)
