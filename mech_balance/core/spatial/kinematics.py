@@ -633,10 +633,13 @@ class Linkage:
                     else t.s_parent
                 if jtype == 'universal':
                     m = m @ (_sin_vers_one(q[:, d[1]]) @ t.rot_basis_child).reshape(n, 3, 3)
-            rc = np.broadcast_to(m, (n, 3, 3)) if root else rp @ m
-            r_joint = np.broadcast_to(off, (n, 3)) if root else pp + mv(rp, off)
+            # on the frame: m and off as they are ((3, 3) and (3,) when constant: broadcast)
+            rc = m if root else rp @ m
+            r_joint = off if root else pp + mv(rp, off)
             rot[:, t.child] = rc
-            if rc.flags.c_contiguous:  # one matrix-vector product over the stack
+            if rc.ndim == 2:
+                origin[:, t.child] = r_joint - rc @ t.s_child
+            elif rc.flags.c_contiguous:  # one matrix-vector product over the stack
                 origin[:, t.child] = r_joint - (rc.reshape(-1, 3) @ t.s_child).reshape(n, 3)
             else:
                 origin[:, t.child] = r_joint - mv(rc, t.s_child)
