@@ -55,3 +55,23 @@ def test_the_cli_refuses_a_bad_count_with_status_2():
                          'sys.exit(main(["scenes"]))')
     assert out.returncode == 2
     assert "MECH_BALANCE_BLAS_THREADS: got 'many'" in out.stderr
+
+
+def test_release_memory_returns_freed_heap_to_the_system():
+    code = ('import numpy as np; from mech_balance import threads\n'
+            'def rss():\n'
+            '    return next(int(l.split()[1]) for l in open("/proc/self/status")'
+            ' if l.startswith("VmRSS"))\n'
+            'base = rss()\n'
+            'blocks = [np.ones(8192) for _ in range(20000)]\n'   # 1.3 GB in 64 kB blocks
+            'keep = np.ones(8192)\n'        # above them: free() alone cannot shrink the heap
+            'grown = rss()\n'
+            'blocks.clear()\n'
+            'kept = rss()\n'
+            'ok = threads.release_memory()\n'
+            'print(ok, grown - base, kept - base, rss() - base)')
+    out = _pool_in_child({}, code)
+    assert out.returncode == 0, out.stderr
+    ok, grown, kept, after = out.stdout.split()
+    assert int(grown) > 500_000 and int(kept) > 0.9 * int(grown)   # freed, yet resident
+    assert ok == 'True' and int(after) < 0.1 * int(grown)

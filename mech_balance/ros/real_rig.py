@@ -14,7 +14,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
-from mech_balance import schema as scene_mod
+from mech_balance import schema as scene_mod, threads
 from mech_balance.analysis import identify as identification
 from mech_balance.ros import conversions as conv, diagnostics, params, sensor
 import numpy as np
@@ -189,6 +189,8 @@ class RealRig:
             calibrated = base.with_design(result.calibrated_scene())
         except Exception as exc:  # noqa: BLE001 - any failure is answered, never fatal
             return False, f'identify failed: {exc}', None, None
+        finally:
+            threads.release_memory()    # its working memory back to the system
         with self.lock:
             old_bias = self.comparison.bias.copy()
             bias = old_bias.copy()
