@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import math
 import warnings
 
-from mech_balance.core.planar import smallsolve
+from mech_balance.core.planar import dyads, smallsolve
 from mech_balance.core.planar.algebra import cross as _cross, matvec as _matvec, \
     rmat as _rmat
 from mech_balance.schema.scene import FRAME
@@ -246,6 +246,7 @@ class Linkage:
         self.pivots = None  # static row order for the loop Jacobian, set at assembly
         self.lu = None      # its sparse LU plan (smallsolve.LUPlan), set at assembly
         self._skeleton = None
+        self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
         self.warnings = []
 
     # ------------------------------------------------------------------ construction
@@ -635,6 +636,22 @@ class Linkage:
         ok = res <= tol
         return q, pose, res, iters, ok
 
+    def closed_form(self, psi, q_pred, tol=NEWTON_TOL):
+        """
+        Return :meth:`newton`'s ``(q, pose, residual, iterations, converged)`` from the dyads.
+
+        The positions of a linkage that decomposes into RRR dyads (:mod:`dyads`) by circle
+        intersections on the traced branch; the residual is that of the result.  Where it is
+        above ``tol`` (or a circle pair does not meet), Newton takes over from there.
+        """
+        q, ok = self.dyads.solve(psi, q_pred)
+        pose = self.pose(q)
+        res = np.abs(self.residual(pose)).max(axis=0)
+        ok &= res <= tol
+        if not ok.all():
+            return self.newton(psi, np.where(ok, q, q_pred))
+        return q, pose, res, np.zeros(psi.shape[0], dtype=int), ok
+
     def assemble(self):
         """
         Return the tree coordinates at the scene's assembly angle, from its guess.
@@ -823,7 +840,9 @@ class Linkage:
     def skeleton(self):
         """Return the traced branch: nodes over one crank turn (computed on first use)."""
         if self._skeleton is None:
-            self._skeleton = self._trace()
+            sk = self._trace()
+            self.dyads = dyads.attach_signs(dyads.plan(self), self, sk)
+            self._skeleton = sk
         return self._skeleton
 
     def _derivatives(self, pose):
@@ -940,8 +959,12 @@ class Linkage:
             raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
         sk = self.skeleton
         q_pred = sk.predict(psi)
-        q, pose, res, iters, ok = self.newton(psi, q_pred)
-        if self.nu and iters.any():  # how far Newton moved from the predictor (scaled)
+        if self.dyads is not None:
+            q, pose, res, iters, ok = self.closed_form(psi, q_pred)
+        else:
+            q, pose, res, iters, ok = self.newton(psi, q_pred)
+        if self.nu and (iters.any() or self.dyads is not None):
+            # how far the solution lies from the predictor (scaled)
             corr = q[1:] - q_pred[1:]
             np.abs(corr, out=corr)
             if self.has_pri:

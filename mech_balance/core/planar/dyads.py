@@ -1,0 +1,252 @@
+"""
+Closed-form positions of planar linkages that decompose into RRR dyads (Assur groups of class II).
+
+Worked out once per linkage (:func:`plan`, symbolic): the loops are taken in an order in which
+each one, given the tree joints already known, has exactly two unknown revolute tree joints
+and closes with a revolute cut joint.  The three free joints of such a loop are the corners of
+a triangle whose two outer corners P and Q lie on bodies already placed and whose middle
+corner X is found by intersecting two circles (radii fixed by the link geometry); the branch
+sign of each dyad (on which side of P Q the corner X lies) is the one of the traced branch and
+is checked to be the same at every node of the branch skeleton (a sign change would be a
+folded dyad, i.e. a singular position, which the trace refuses to cross).  Two cases:
+
+* the two unknown joints are the last tree joints above the cut's two bodies (the cut point is
+  X, each body turns about its own tree joint: a four-bar's coupler and rocker);
+* both are on one side, one above the other (X is the lower joint) and the cut's other body is
+  already placed.
+
+A chain of four-bars is a sequence of such dyads, so its positions cost a fixed number of
+vectorized operations per loop (no Newton iteration, no factorization).  Linkages with a
+prismatic joint, or loops that are not dyads in this sense, keep the Newton path of
+:mod:`mech_balance.core.planar.kinematics`.
+"""
+
+import numpy as np
+
+TWO_PI = 2.0 * np.pi
+NODE_AGREEMENT = 1e-8
+"""Largest difference (rad) between the closed form and the traced nodes for the plan to be
+used: a plan that does not reproduce the skeleton is dropped (Newton stays)."""
+
+
+class Step:
+    """
+    One dyad: ``alpha`` turns about P and carries X, ``beta`` carries X and Q.
+
+    ``p_src``/``q_src`` are ``(body, local point)`` of P and Q on bodies already placed;
+    ``c_alpha``, ``c_beta`` the constants that turn ``X - P`` and ``X - Q`` into the
+    rotations of the two bodies; ``rel`` the rows ``(tree joint, child body, parent body)``
+    whose relative rotation gives the tree coordinate.
+    """
+
+    def __init__(self, cut, joints, p_src, q_src, alpha, beta, lp, lx_a, lx_b, lq, x_on):
+        self.cut, self.joints = cut, joints
+        self.p_src, self.q_src = p_src, q_src
+        self.alpha, self.beta = alpha, beta
+        va, vb = lx_a - lp, lx_b - lq
+        self.r1, self.r2 = abs(va), abs(vb)
+        self.c_alpha = np.conj(va) / (self.r1 * self.r1)
+        self.c_beta = np.conj(vb) / (self.r2 * self.r2)
+        d2 = 0.5 * (self.r1 * self.r1 - self.r2 * self.r2)
+        self.half_k, self.r1_sq = d2, self.r1 * self.r1
+        self.anchor_alpha = lp          # alpha's point at P (its anchor)
+        self.anchor_beta = lx_b if x_on == 'beta_anchor' else lq
+        self.beta_at_x = x_on == 'beta_anchor'   # beta is anchored at X (else at Q)
+        self.sign = 0.0
+
+
+class DyadPlan:
+    """The dyads of a linkage in solving order, with the branch sign of each."""
+
+    def __init__(self, linkage, steps):
+        self.steps = steps
+        self.nt = linkage.nt
+        crank = linkage.tree[0]
+        self.crank_body = crank.child
+        self.crank_anchor_world = crank.p_parent     # on the frame: world coordinates
+        self.crank_anchor_local = crank.p_child
+        self.rows = []       # (tree joint, child body, parent body) in solving order
+        for s in steps:
+            self.rows += s.rel
+        self.row_joint = np.array([r[0] for r in self.rows])
+        self.row_order = np.argsort(self.row_joint)   # solving order -> tree order
+        self.is_identity = bool(np.array_equal(self.row_joint, np.arange(1, self.nt)))
+
+    def _place(self, psi):
+        """Return ``(rot, anchor, local)`` dicts of the placed bodies, and the dyads' signs."""
+        rot = {0: None}
+        anchor = {0: 0j}
+        local = {0: 0j}
+        r = np.empty(psi.shape, dtype=complex)
+        np.cos(psi, out=r.real)
+        np.sin(psi, out=r.imag)
+        c = self.crank_body
+        rot[c], anchor[c], local[c] = r, self.crank_anchor_world, self.crank_anchor_local
+        return rot, anchor, local
+
+    @staticmethod
+    def _world(rot, anchor, local, src):
+        body, point = src
+        if rot[body] is None:            # the frame
+            return point
+        out = rot[body] * (point - local[body])
+        out += anchor[body]
+        return out
+
+    def solve(self, psi, q_pred, signs=None):
+        """
+        Return ``(q, ok)``: tree coordinates ``(nt, p)`` and where the circles intersect.
+
+        ``q_pred`` (the skeleton's predictor) only fixes the whole turns of each revolute
+        coordinate; ``signs`` (one per dyad) defaults to the traced branch's.
+        """
+        rot, anchor, local = self._place(psi)
+        p = psi.shape[0]
+        rel = np.empty((len(self.rows), p), dtype=complex)
+        row = 0
+        w = np.empty(p, dtype=complex)
+        tmp = np.empty(p)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            for k, s in enumerate(self.steps):
+                sign = s.sign if signs is None else signs[k]
+                big_p = self._world(rot, anchor, local, s.p_src)
+                big_q = self._world(rot, anchor, local, s.q_src)
+                d = big_q - big_p
+                inv = np.multiply(d.real, d.real, out=tmp)
+                inv += d.imag * d.imag
+                np.divide(1.0, inv, out=inv)
+                # X - P = d (u + i sign h) with u = 1/2 + k/(2 D^2), h^2 = r1^2/D^2 - u^2
+                u = np.multiply(inv, s.half_k, out=w.real)
+                u += 0.5
+                h = np.multiply(inv, s.r1_sq, out=w.imag)
+                h -= u * u
+                np.sqrt(h, out=h)
+                if sign < 0.0:
+                    np.negative(h, out=h)
+                dw = d * w
+                rot_a = dw * s.c_alpha
+                d -= dw                       # now P - X... (Q - P) - (X - P) = Q - X
+                rot_b = np.multiply(d, -s.c_beta, out=d)   # (X - Q) conj(v_b) / r2^2
+                rot[s.alpha], anchor[s.alpha], local[s.alpha] = rot_a, big_p, s.anchor_alpha
+                if s.beta_at_x:
+                    dw += big_p                # X
+                    rot[s.beta], anchor[s.beta], local[s.beta] = rot_b, dw, s.anchor_beta
+                else:
+                    rot[s.beta], anchor[s.beta], local[s.beta] = rot_b, big_q, s.anchor_beta
+                for _, child, parent in s.rel:
+                    if rot[parent] is None:
+                        rel[row] = rot[child]
+                    else:
+                        np.multiply(rot[child], rot[parent].conjugate(), out=rel[row])
+                    row += 1
+        ang = np.angle(rel)
+        if not self.is_identity:
+            ang = ang[self.row_order]
+        # whole turns from the predictor: q = angle + 2 pi round((q_pred - angle) / 2 pi)
+        turns = np.subtract(q_pred[1:], ang)
+        turns *= 1.0 / TWO_PI
+        np.rint(turns, out=turns)
+        turns *= TWO_PI
+        q = np.empty((self.nt, p))
+        q[0] = psi
+        np.add(ang, turns, out=q[1:])
+        ok = np.isfinite(q[1:]).all(axis=0)
+        return q, ok
+
+    def signs_at(self, linkage, pose):
+        """Return ``(n_dyads, p)``: the side of P Q on which each dyad's X lies, at ``pose``."""
+        out = []
+        for s in self.steps:
+            pts = []
+            for body, point in (s.p_src, s.q_src, s.x_src):
+                pts.append(pose.origin[body] + pose.rot[body] * point)
+            d = pts[1] - pts[0]
+            out.append(np.sign((np.conj(d) * (pts[2] - pts[0])).imag))
+        return np.array(out)
+
+
+def plan(linkage):
+    """
+    Return the :class:`DyadPlan` of a linkage, or ``None`` if it does not decompose.
+
+    All-revolute linkages only; the signs are not set here (:func:`attach_signs`).
+    """
+    lk = linkage
+    if lk.has_pri or lk.npc or not lk.nu:
+        return None
+    known = {0}
+    pj = lk.parent_joint
+    pending = list(range(len(lk.cuts)))
+    steps = []
+    while pending:
+        for c in pending:
+            step = _dyad(lk, c, known, pj)
+            if step is not None:
+                steps.append(step)
+                known.update(step.joints)
+                pending.remove(c)
+                break
+        else:
+            return None
+    if known != set(range(lk.nt)):
+        return None
+    return DyadPlan(lk, steps)
+
+
+def _dyad(lk, c, known, pj):
+    """Return the :class:`Step` closing cut ``c`` given the ``known`` tree joints, or None."""
+    cut = lk.cuts[c]
+    a, b = cut.a, cut.b
+    anc_a, anc_b = lk.anc[a], lk.anc[b]
+    if not (anc_a & anc_b) <= known:
+        return None
+    unk = [t for t in (anc_a ^ anc_b) if t not in known]
+    if len(unk) != 2:
+        return None
+    tree = lk.tree
+    ta, tb = pj[a], pj[b]
+    if ta in unk and tb in unk:        # X = the cut point; a turns about J_ta, b about J_tb
+        step = Step(c, (ta, tb), (tree[ta].parent, tree[ta].p_parent),
+                    (tree[tb].parent, tree[tb].p_parent), a, b,
+                    tree[ta].p_child, cut.p_a, cut.p_b, tree[tb].p_child, 'q')
+        step.rel = [(ta, a, tree[ta].parent), (tb, b, tree[tb].parent)]
+        step.x_src = (a, cut.p_a)
+        return step
+    for low, p_low, other, p_other in ((a, cut.p_a, b, cut.p_b), (b, cut.p_b, a, cut.p_a)):
+        t2 = pj[low]
+        if t2 is None or t2 not in unk:
+            continue
+        u = tree[t2].parent
+        t1 = pj[u]
+        if t1 is None or t1 not in unk:
+            continue
+        # alpha = u turns about J_t1 and carries X = J_t2; beta = low carries X and Q
+        step = Step(c, (t1, t2), (tree[t1].parent, tree[t1].p_parent), (other, p_other),
+                    u, low, tree[t1].p_child, tree[t2].p_parent, tree[t2].p_child, p_low,
+                    'beta_anchor')
+        step.rel = [(t1, u, tree[t1].parent), (t2, low, u)]
+        step.x_src = (u, tree[t2].p_parent)
+        return step
+    return None
+
+
+def attach_signs(dyad_plan, linkage, skeleton):
+    """
+    Set each dyad's branch sign from the skeleton; return the plan, or ``None`` if unusable.
+
+    Unusable: a dyad whose sign is not the same nonzero value at every node, or a closed form
+    that does not reproduce the nodes to :data:`NODE_AGREEMENT`.
+    """
+    if dyad_plan is None:
+        return None
+    pose = linkage.pose(skeleton.q)
+    signs = dyad_plan.signs_at(linkage, pose)
+    first = signs[:, :1]
+    if not (np.all(signs == first) and np.all(first != 0.0)):
+        return None
+    for s, sign in zip(dyad_plan.steps, first[:, 0]):
+        s.sign = float(sign)
+    q, ok = dyad_plan.solve(skeleton.q[0], skeleton.q)
+    if not ok.all() or not np.max(np.abs(q - skeleton.q)) <= NODE_AGREEMENT:
+        return None
+    return dyad_plan
