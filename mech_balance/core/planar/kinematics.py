@@ -247,6 +247,7 @@ class Linkage:
         self.lu = None      # its sparse LU plan (smallsolve.LUPlan), set at assembly
         self._skeleton = None
         self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
+        self.block = None   # its J_u as 2 x 2 diagonal blocks (smallsolve.BlockPlan), likewise
         self.warnings = []
 
     # ------------------------------------------------------------------ construction
@@ -600,6 +601,9 @@ class Linkage:
 
     def factored(self, pose):
         """Return ``(Factored J_u, J_psi or None)`` at ``pose`` (sparse where possible)."""
+        if self.block is not None:
+            values, jac_psi = self.jacobian_values(pose)
+            return smallsolve.BlockFactored(self.block, values), jac_psi
         if self.sparse_jac:
             values, jac_psi = self.jacobian_values(pose)
             return smallsolve.Factored(None, self.lu, values=values), jac_psi
@@ -625,7 +629,7 @@ class Linkage:
             if it == max_iter or not res.max(initial=0.0) > tol:  # also stops on nan
                 break
             # a Newton step for every angle: at converged ones it is a no-op to round-off
-            if self.sparse_jac:
+            if self.sparse_jac or self.block is not None:
                 step = self.factored(pose)[0].solve(g)
             else:  # closed form for nu <= 2, no inverse or condition number
                 step = smallsolve.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
@@ -743,7 +747,7 @@ class Linkage:
         if np.ndim(psi_dd):
             psi_dd = np.broadcast_to(psi_dd, (p,))
         unknown = self.unknown_rows
-        if self.sparse_jac and jac is None:
+        if (self.sparse_jac or self.block is not None) and jac is None:
             fac, jac_psi = self.factored(pose)
         else:
             if jac is None:
@@ -842,8 +846,21 @@ class Linkage:
         if self._skeleton is None:
             sk = self._trace()
             self.dyads = dyads.attach_signs(dyads.plan(self), self, sk)
+            if self.dyads is not None:
+                self.block = self._block_plan()
             self._skeleton = sk
         return self._skeleton
+
+    def _block_plan(self):
+        """Return J_u as the dyads' 2 x 2 diagonal blocks (:class:`smallsolve.BlockPlan`)."""
+        c, t = self.jac_nz_split[0], self.jac_nz_split[1]
+        blocks = [((s.cut, self.nr + s.cut), (s.joints[0] - 1, s.joints[1] - 1))
+                  for s in self.dyads.steps]
+        try:
+            return smallsolve.BlockPlan(self.nu, np.concatenate([c, self.nr + c]),
+                                        np.concatenate([t, t]), blocks)
+        except ValueError:  # pragma: no cover - a dyad order is block triangular
+            return None
 
     def _derivatives(self, pose):
         r = self.rates(pose, 1.0, 0.0)

@@ -653,3 +653,236 @@ def _inverse_2(mat):
     np.multiply(c, -r, out=inv[1, 0])
     np.multiply(a, r, out=inv[1, 1])
     return inv, cond, det
+
+
+class BlockPlan:
+    """
+    A block lower triangular pattern with 2 x 2 diagonal blocks (a linkage of RRR dyads).
+
+    ``rows``, ``cols`` (original indices) list the structural nonzeros in the order a
+    matrix's values come in (as :meth:`LUPlan.set_entries`); ``blocks`` the diagonal blocks
+    ``((row, row), (col, col))`` in dependency order: an entry outside the blocks must lie
+    in an earlier block's columns.  Each diagonal block is inverted in closed form, all blocks
+    at once (:class:`BlockFactored`), and the solves run block by block: no pivoting, no
+    fill-in, no LAPACK fallback (a singular block gives ``inf`` in the condition number).
+    Raises ``ValueError`` if the pattern is not of that form.
+    """
+
+    def __init__(self, k, rows, cols, blocks):
+        rows, cols = np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)
+        self.k, self.n = k, rows.size
+        self.blocks = [(tuple(int(r) for r in rs), tuple(int(c) for c in cs))
+                       for rs, cs in blocks]
+        where_row = {r: (i, a) for i, (rs, _) in enumerate(self.blocks) for a, r in enumerate(rs)}
+        where_col = {c: (i, b) for i, (_, cs) in enumerate(self.blocks) for b, c in enumerate(cs)}
+        if sorted(where_row) != list(range(k)) or sorted(where_col) != list(range(k)):
+            raise ValueError('blocks: every row and column must lie in exactly one block')
+        nb = len(self.blocks)
+        diag = np.full((2, 2, nb), -1)
+        self.off = [([], []) for _ in range(nb)]      # per block row: (entry, col) earlier
+        self.off_t = [([], []) for _ in range(nb)]    # per block column: (entry, row) later
+        for e, (r, c) in enumerate(zip(rows.tolist(), cols.tolist())):
+            (i, a), (j, b) = where_row[r], where_col[c]
+            if i == j:
+                diag[a, b, i] = e
+            elif j < i:
+                self.off[i][a].append((e, c))
+                self.off_t[j][b].append((e, r))
+            else:
+                raise ValueError('rows, cols: an entry lies above the diagonal blocks')
+        if np.any(diag < 0):
+            raise ValueError('rows, cols: a diagonal block entry is missing')
+        # (4, nb): entries of [[a, b], [c, d]] per block, and of its adjugate [[d, b], [c, a]]
+        self.diag = diag.reshape(4, nb)
+        self.adj = self.diag[[3, 1, 2, 0]]
+        self.row_order = [r for rs, _ in self.blocks for r in rs]
+        self.col_order = [c for _, cs in self.blocks for c in cs]
+        self.perm_sign = -1.0 if (_inversions(self.row_order)
+                                  + _inversions(self.col_order)) % 2 else 1.0
+        self.entries = (rows, cols)
+        # Z = J^-1 with its columns in block row order: block i's rows of Z are nonzero only
+        # in the columns of block i and the blocks it depends on (all before it)
+        pos_row = {r: p for p, r in enumerate(self.row_order)}
+        self.block_of_col = where_col
+        self.pos_row = pos_row
+        reach = []
+        for i in range(nb):
+            lo = 2 * i
+            for a in (0, 1):
+                for _, c in self.off[i][a]:
+                    lo = min(lo, reach[where_col[c][0]])
+            reach.append(lo)
+        self.reach = reach                            # first Z column of each block's rows
+        # column sums of |J| (its 1-norm): the entries of each column, padded (k, w)
+        counts = np.bincount(cols, minlength=k)
+        pad = np.full((k, int(counts.max())), rows.size)
+        fill = [0] * k
+        for e, c in enumerate(cols.tolist()):
+            pad[c, fill[c]] = e
+            fill[c] += 1
+        self.col_pad = pad
+        self.single = nb == 1 and rows.size == 4        # one dyad: closed form throughout
+        self.row_back = np.argsort(self.row_order)     # original row -> block order position
+        self.col_back = np.argsort(self.col_order)
+
+
+class BlockFactored:
+    """
+    The closed-form block factorization of a :class:`BlockPlan` matrix given by its values.
+
+    The same interface as :class:`Factored`: :meth:`solve`, :meth:`solve_t`, :meth:`cond`
+    (exact 1-norm), :meth:`sign`, :meth:`inverse`, :attr:`mat`.
+    """
+
+    def __init__(self, plan, values):
+        self.plan, self.values = plan, values
+        self.k, self.p = plan.k, values.shape[1]
+        dv = values[plan.diag]                         # (4, nb, p): a, b, c, d
+        det = dv[0] * dv[3]
+        det -= dv[1] * dv[2]
+        self.det = det
+        with np.errstate(divide='ignore', invalid='ignore'):
+            inv = values[plan.adj]                     # d, b, c, a
+            inv /= det
+        inv[1:3] *= -1.0                               # d, -b, -c, a over det
+        self.inv = inv
+        self._cond = self._inv = self._z = None
+
+    def _solve_2(self, rhs, inv):
+        """Return the solution of one 2 x 2 block system (``inv``: its inverse entries)."""
+        x = np.empty(rhs.shape)
+        np.multiply(inv[0, 0], rhs[0], out=x[0])
+        x[0] += inv[1, 0] * rhs[1]
+        np.multiply(inv[2, 0], rhs[0], out=x[1])
+        x[1] += inv[3, 0] * rhs[1]
+        return x
+
+    def solve(self, rhs):
+        """Return ``x`` ``(k, p)`` with ``mat x = rhs`` (block forward substitution)."""
+        rhs = np.asarray(rhs, dtype=float)
+        plan, v, inv = self.plan, self.values, self.inv
+        if plan.single:
+            return self._solve_2(rhs[plan.row_order], inv)[plan.col_back]
+        x = np.empty((self.k, rhs.shape[1]))
+        tmp = np.empty(rhs.shape[1])
+        with np.errstate(divide='ignore', invalid='ignore'):
+            for i, ((r0, r1), (c0, c1)) in enumerate(plan.blocks):
+                y = []
+                for r, off in ((r0, plan.off[i][0]), (r1, plan.off[i][1])):
+                    if not off:
+                        y.append(rhs[r])
+                        continue
+                    e, c = off[0]
+                    acc = rhs[r] - np.multiply(v[e], x[c], out=tmp)
+                    for e, c in off[1:]:
+                        acc -= np.multiply(v[e], x[c], out=tmp)
+                    y.append(acc)
+                np.multiply(inv[0, i], y[0], out=x[c0])
+                x[c0] += np.multiply(inv[1, i], y[1], out=tmp)
+                np.multiply(inv[2, i], y[0], out=x[c1])
+                x[c1] += np.multiply(inv[3, i], y[1], out=tmp)
+        return x
+
+    def solve_t(self, rhs):
+        """Return ``x`` ``(k, p)`` with ``mat^T x = rhs`` (block back substitution)."""
+        rhs = np.asarray(rhs, dtype=float)
+        plan, v, inv = self.plan, self.values, self.inv
+        if plan.single:   # D^-T: the inverse's entries transposed
+            return self._solve_2(rhs[plan.col_order], inv[[0, 2, 1, 3]])[plan.row_back]
+        x = np.empty((self.k, rhs.shape[1]))
+        tmp = np.empty(rhs.shape[1])
+        with np.errstate(divide='ignore', invalid='ignore'):
+            for i in range(len(plan.blocks) - 1, -1, -1):
+                (r0, r1), (c0, c1) = plan.blocks[i]
+                y = []
+                for c, off in ((c0, plan.off_t[i][0]), (c1, plan.off_t[i][1])):
+                    if not off:
+                        y.append(rhs[c])
+                        continue
+                    e, r = off[0]
+                    acc = rhs[c] - np.multiply(v[e], x[r], out=tmp)
+                    for e, r in off[1:]:
+                        acc -= np.multiply(v[e], x[r], out=tmp)
+                    y.append(acc)
+                # D^-T = [[d, -c], [-b, a]] / det
+                np.multiply(inv[0, i], y[0], out=x[r0])
+                x[r0] += np.multiply(inv[2, i], y[1], out=tmp)
+                np.multiply(inv[1, i], y[0], out=x[r1])
+                x[r1] += np.multiply(inv[3, i], y[1], out=tmp)
+        return x
+
+    def _inverse_blocks(self, colsum=None):
+        """Return ``Z = J^-1`` ``(k, k, p)``, columns in block row order (ranges only)."""
+        plan, v, inv = self.plan, self.values, self.inv
+        k, p = self.k, self.p
+        z = np.empty((k, k, p)) if colsum is not None else np.zeros((k, k, p))
+        tmp = np.empty((k, p))
+        with np.errstate(divide='ignore', invalid='ignore'):
+            for i, (_, (c0, c1)) in enumerate(plan.blocks):
+                lo, hi = plan.reach[i], 2 * i + 2
+                y = []
+                for a in (0, 1):
+                    acc = np.zeros((hi - lo, p))
+                    acc[2 * i + a - lo] = 1.0
+                    for e, c in plan.off[i][a]:
+                        clo = plan.reach[plan.block_of_col[c][0]]
+                        chi = 2 * plan.block_of_col[c][0] + 2
+                        t = tmp[:chi - clo]
+                        acc[clo - lo:chi - lo] -= np.multiply(v[e], z[c, clo:chi], out=t)
+                    y.append(acc)
+                for c, (u, w) in ((c0, (0, 1)), (c1, (2, 3))):
+                    out = z[c, lo:hi]
+                    np.multiply(inv[u, i], y[0], out=out)
+                    out += np.multiply(inv[w, i], y[1], out=tmp[:hi - lo])
+                    if colsum is not None:
+                        colsum[lo:hi] += np.abs(out, out=tmp[:hi - lo])
+                    elif lo:
+                        z[c, :lo] = 0.0
+                if colsum is None and hi < k:
+                    z[c0, hi:] = 0.0
+                    z[c1, hi:] = 0.0
+        return z
+
+    def cond(self):
+        """Return the exact 1-norm condition numbers ``(p,)`` (``inf`` where singular)."""
+        if self._cond is None and self.plan.single:
+            # the 1-norm of the inverse is that of the adjugate over |det|
+            m = np.abs(self.values[self.plan.diag[:, 0]])     # |a|, |b|, |c|, |d|
+            n1 = np.maximum(m[0] + m[2], m[1] + m[3])
+            n1 *= np.maximum(m[3] + m[2], m[1] + m[0])
+            with np.errstate(divide='ignore', invalid='ignore'):
+                n1 /= np.abs(self.det[0])
+            self._cond = np.where(np.isfinite(n1), n1, np.inf)
+        if self._cond is None:
+            plan = self.plan
+            mags = np.empty((plan.n + 1, self.p))
+            np.abs(self.values, out=mags[:-1])
+            mags[-1] = 0.0
+            norm = mags[plan.col_pad].sum(axis=1).max(axis=0)
+            colsum = np.zeros((self.k, self.p))
+            self._inverse_blocks(colsum)
+            with np.errstate(invalid='ignore'):
+                cond = norm * colsum.max(axis=0)
+            self._cond = np.where(np.isfinite(cond), cond, np.inf)
+        return self._cond
+
+    def sign(self):
+        """Return the signs of the determinants ``(p,)``."""
+        return np.prod(np.sign(self.det), axis=0) * self.plan.perm_sign
+
+    def inverse(self):
+        """Return ``(inv, cond)``: the ``(k, k, p)`` inverses and 1-norm condition numbers."""
+        if self._inv is None:
+            z = self._inverse_blocks()
+            inv = np.empty_like(z)
+            inv[:, self.plan.row_order] = z           # Z's columns are in block row order
+            self._inv = inv
+        return self._inv, self.cond()
+
+    @property
+    def mat(self):
+        """Return the dense ``(k, k, p)`` stack."""
+        rows, cols = self.plan.entries
+        mat = np.zeros((self.k, self.k, self.p))
+        mat[rows, cols] = self.values
+        return mat
