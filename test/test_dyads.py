@@ -205,10 +205,10 @@ def test_closed_form_falls_back_to_newton_where_it_fails(monkeypatch):
     solve = lk.dyads.solve
 
     def broken(psi, q_pred, signs=None):
-        q, ok = solve(psi, q_pred, signs)
+        q, rot, origin, joint_at = solve(psi, q_pred, signs)
         q[1:, 7] = np.nan                        # one angle without an intersection
-        ok[7] = False
-        return q, ok
+        rot[1:, 7] = origin[1:, 7] = joint_at[1:, 7] = np.nan
+        return q, rot, origin, joint_at
 
     monkeypatch.setattr(lk.dyads, 'solve', broken)
     state, _ = rig.evaluate(psi, ('kinematics',))

@@ -71,37 +71,37 @@ class DyadPlan:
         self.row_joint = np.array([r[0] for r in self.rows])
         self.row_order = np.argsort(self.row_joint)   # solving order -> tree order
         self.is_identity = bool(np.array_equal(self.row_joint, np.arange(1, self.nt)))
-
-    def _place(self, psi):
-        """Return ``(rot, anchor, local)`` dicts of the placed bodies, and the dyads' signs."""
-        rot = {0: None}
-        anchor = {0: 0j}
-        local = {0: 0j}
-        r = np.empty(psi.shape, dtype=complex)
-        np.cos(psi, out=r.real)
-        np.sin(psi, out=r.imag)
-        c = self.crank_body
-        rot[c], anchor[c], local[c] = r, self.crank_anchor_world, self.crank_anchor_local
-        return rot, anchor, local
-
-    @staticmethod
-    def _world(rot, anchor, local, src):
-        body, point = src
-        if rot[body] is None:            # the frame
-            return point
-        out = rot[body] * (point - local[body])
-        out += anchor[body]
-        return out
+        self.nb = linkage.nb
+        self.children = linkage.ch
+        # each moving body's anchor (its parent tree joint) in its own frame
+        local = np.zeros(linkage.nb, dtype=complex)
+        for tj in linkage.tree:
+            local[tj.child] = tj.p_child
+        self.anchor_local = local[:, None]
+        # the points P and Q read from placed bodies, relative to the body's anchor
+        self.from_anchor = {}
+        for st in steps:
+            for body, point in (st.p_src, st.q_src):
+                self.from_anchor[(body, point)] = point - local[body]
 
     def solve(self, psi, q_pred, signs=None):
         """
-        Return ``(q, ok)``: tree coordinates ``(nt, p)`` and where the circles intersect.
+        Return ``(q, rot, origin, joint_at)``: tree coordinates ``(nt, p)`` and the poses.
 
         ``q_pred`` (the skeleton's predictor) only fixes the whole turns of each revolute
-        coordinate; ``signs`` (one per dyad) defaults to the traced branch's.
+        coordinate; ``signs`` (one per dyad) defaults to the traced branch's.  Where two
+        circles do not meet the results are ``nan``.  ``rot`` and ``origin`` ``(nb, p)`` are
+        the bodies' rotations and origins, ``joint_at`` ``(nt, p)`` the tree joints.
         """
-        rot, anchor, local = self._place(psi)
         p = psi.shape[0]
+        rot = np.empty((self.nb, p), dtype=complex)
+        anchor = np.empty((self.nb, p), dtype=complex)   # each body's parent tree joint
+        rot[0] = 1.0
+        anchor[0] = 0.0
+        c = self.crank_body
+        np.cos(psi, out=rot.real[c])
+        np.sin(psi, out=rot.imag[c])
+        anchor[c] = self.crank_anchor_world
         rel = np.empty((len(self.rows), p), dtype=complex)
         row = 0
         w = np.empty(p, dtype=complex)
@@ -109,8 +109,8 @@ class DyadPlan:
         with np.errstate(invalid='ignore', divide='ignore'):
             for k, s in enumerate(self.steps):
                 sign = s.sign if signs is None else signs[k]
-                big_p = self._world(rot, anchor, local, s.p_src)
-                big_q = self._world(rot, anchor, local, s.q_src)
+                big_p = self._world(rot, anchor, s.p_src)
+                big_q = self._world(rot, anchor, s.q_src)
                 d = big_q - big_p
                 inv = np.multiply(d.real, d.real, out=tmp)
                 inv += d.imag * d.imag
@@ -123,23 +123,22 @@ class DyadPlan:
                 np.sqrt(h, out=h)
                 if sign < 0.0:
                     np.negative(h, out=h)
-                dw = d * w
-                rot_a = dw * s.c_alpha
-                d -= dw                       # now P - X... (Q - P) - (X - P) = Q - X
-                rot_b = np.multiply(d, -s.c_beta, out=d)   # (X - Q) conj(v_b) / r2^2
-                rot[s.alpha], anchor[s.alpha], local[s.alpha] = rot_a, big_p, s.anchor_alpha
+                dw = d * w                                 # X - P
+                np.multiply(dw, s.c_alpha, out=rot[s.alpha])
+                d -= dw                                    # Q - X
+                np.multiply(d, -s.c_beta, out=rot[s.beta])  # (X - Q) conj(v_b) / r2^2
+                anchor[s.alpha] = big_p
                 if s.beta_at_x:
-                    dw += big_p                # X
-                    rot[s.beta], anchor[s.beta], local[s.beta] = rot_b, dw, s.anchor_beta
+                    np.add(dw, big_p, out=anchor[s.beta])  # X
                 else:
-                    rot[s.beta], anchor[s.beta], local[s.beta] = rot_b, big_q, s.anchor_beta
+                    anchor[s.beta] = big_q
                 for _, child, parent in s.rel:
-                    if rot[parent] is None:
+                    if parent == 0:
                         rel[row] = rot[child]
                     else:
                         np.multiply(rot[child], rot[parent].conjugate(), out=rel[row])
                     row += 1
-        ang = np.angle(rel)
+        ang = np.arctan2(rel.imag, rel.real)
         if not self.is_identity:
             ang = ang[self.row_order]
         # whole turns from the predictor: q = angle + 2 pi round((q_pred - angle) / 2 pi)
@@ -150,8 +149,18 @@ class DyadPlan:
         q = np.empty((self.nt, p))
         q[0] = psi
         np.add(ang, turns, out=q[1:])
-        ok = np.isfinite(q[1:]).all(axis=0)
-        return q, ok
+        origin = rot * self.anchor_local
+        np.subtract(anchor, origin, out=origin)
+        return q, rot, origin, anchor[self.children]
+
+    def _world(self, rot, anchor, src):
+        """Return the world position of ``src = (body, local point)`` (a constant on the frame)."""
+        body, point = src
+        if body == 0:
+            return point
+        out = rot[body] * self.from_anchor[src]
+        out += anchor[body]
+        return out
 
     def signs_at(self, linkage, pose):
         """Return ``(n_dyads, p)``: the side of P Q on which each dyad's X lies, at ``pose``."""
@@ -246,7 +255,7 @@ def attach_signs(dyad_plan, linkage, skeleton):
         return None
     for s, sign in zip(dyad_plan.steps, first[:, 0]):
         s.sign = float(sign)
-    q, ok = dyad_plan.solve(skeleton.q[0], skeleton.q)
-    if not ok.all() or not np.max(np.abs(q - skeleton.q)) <= NODE_AGREEMENT:
+    q = dyad_plan.solve(skeleton.q[0], skeleton.q)[0]
+    if not np.max(np.abs(q - skeleton.q)) <= NODE_AGREEMENT:   # also False on nan
         return None
     return dyad_plan

@@ -648,10 +648,11 @@ class Linkage:
         intersections on the traced branch; the residual is that of the result.  Where it is
         above ``tol`` (or a circle pair does not meet), Newton takes over from there.
         """
-        q, ok = self.dyads.solve(psi, q_pred)
-        pose = self.pose(q)
+        q, rot, origin, joint_at = self.dyads.solve(psi, q_pred)
+        phi = self.anc_rev @ q if self.dense_tree else self._down_rev(q)
+        pose = Pose(phi, rot, origin, joint_at, None)
         res = np.abs(self.residual(pose)).max(axis=0)
-        ok &= res <= tol
+        ok = res <= tol                                   # False where nan
         if not ok.all():
             return self.newton(psi, np.where(ok, q, q_pred))
         return q, pose, res, np.zeros(psi.shape[0], dtype=int), ok
@@ -742,9 +743,9 @@ class Linkage:
         ``i qd_t (P - J_t)``, a prismatic one at ``qd_t * axis_t``.
         """
         p = pose.phi.shape[1]
-        if np.ndim(psi_d):
+        if not isinstance(psi_d, float) and np.ndim(psi_d):
             psi_d = np.broadcast_to(psi_d, (p,))
-        if np.ndim(psi_dd):
+        if not isinstance(psi_dd, float) and np.ndim(psi_dd):
             psi_dd = np.broadcast_to(psi_dd, (p,))
         unknown = self.unknown_rows
         if (self.sparse_jac or self.block is not None) and jac is None:
@@ -760,8 +761,7 @@ class Linkage:
         qd = np.empty((self.nt, p))
         qd[0] = psi_d
         # q_u' = -J_u^-1 J_psi psi' (seed 000 eq. 32, generalized)
-        qd[unknown] = fac.solve(jac_psi)
-        qd[unknown] *= scale_d
+        np.multiply(fac.solve(jac_psi), scale_d, out=qd[unknown])
         omega = self.anc_rev @ qd if self.dense_tree else self._down_rev(qd)
         origin, J = pose.origin, pose.joint_at
         # v = i (omega O - sum_t qd_t J_t)  (+ prismatic slides)
@@ -789,7 +789,7 @@ class Linkage:
             acc_v -= self._down(qd * v_joint)
         acc_v *= 1j
         gamma = self._cut_bias(pose, omega, vel, acc_v)
-        if np.ndim(psi_dd) or psi_dd != 0.0:
+        if not isinstance(psi_dd, float) or psi_dd != 0.0:
             gamma += jac_psi * psi_dd
         qdd = np.empty((self.nt, p))
         qdd[0] = psi_dd
@@ -980,31 +980,35 @@ class Linkage:
             q, pose, res, iters, ok = self.closed_form(psi, q_pred)
         else:
             q, pose, res, iters, ok = self.newton(psi, q_pred)
-        if self.nu and (iters.any() or self.dyads is not None):
+        bad = None
+        if self.nu and (self.dyads is not None or iters.any()):
             # how far the solution lies from the predictor (scaled)
             corr = q[1:] - q_pred[1:]
             np.abs(corr, out=corr)
             if self.has_pri:
                 corr /= self.col_scale[:, None]
-            bad = corr.max(axis=0) > EVAL_TRUST
-            bad |= ~ok
-        else:  # no step taken: the predictor itself is the solution where it converged
+            if corr.max() > EVAL_TRUST or not ok.all():   # (nan: not ok)
+                bad = corr.max(axis=0) > EVAL_TRUST
+                bad |= ~ok
+        elif not ok.all():  # no step taken: the predictor is the solution where it converged
             bad = ~ok
-        if bad.any():
+        if bad is not None and bad.any():
             q[:, bad] = self._retrace(psi[bad])
             pose = self.pose(q)
             res = np.max(np.abs(self.residual(pose)), axis=0) if self.m else res
         speed = self.scene.crank_speed_rad_s if psi_d is None else psi_d
         accel = self.scene.crank_acceleration_rad_s2 if psi_dd is None else psi_dd
-        speed_p = np.full(psi.shape, speed) if np.ndim(speed) == 0 else \
+        scalar_speed = isinstance(speed, (int, float)) or np.ndim(speed) == 0
+        scalar_accel = isinstance(accel, (int, float)) or np.ndim(accel) == 0
+        speed_p = np.full(psi.shape, speed) if scalar_speed else \
             np.broadcast_to(np.asarray(speed, dtype=float), psi.shape)
-        accel_p = np.full(psi.shape, accel) if np.ndim(accel) == 0 else \
+        accel_p = np.full(psi.shape, accel) if scalar_accel else \
             np.broadcast_to(np.asarray(accel, dtype=float), psi.shape)
 
         def at(pose):
             if need_rates:
-                return self.rates(pose, speed if np.ndim(speed) == 0 else speed_p,
-                                  accel if np.ndim(accel) == 0 else accel_p,
+                return self.rates(pose, float(speed) if scalar_speed else speed_p,
+                                  float(accel) if scalar_accel else accel_p,
                                   need_acc=need_acc)
             fac = self.factored(pose)[0]
             return {'cond': fac.cond(), 'det_sign': fac.sign()}
@@ -1034,7 +1038,7 @@ class Linkage:
             state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
-        if (state.cond > COND_WARN).any():
+        if state.cond.max(initial=0.0) > COND_WARN:
             worst = int(np.argmax(state.cond))
             self._warn(f'crank angle {math.degrees(psi[worst]):.3f} deg: near-singular '
                        f'position (Jacobian condition number {state.cond[worst]:.3g})')
