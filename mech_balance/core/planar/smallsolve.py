@@ -713,6 +713,19 @@ class BlockPlan:
                     lo = min(lo, reach[where_col[c][0]])
             reach.append(lo)
         self.reach = reach                            # first Z column of each block's rows
+        # per block: the earlier columns its rows reach, (col, entry row 0, entry row 1,
+        # first and end Z column of that column's row), None where a row has no entry
+        self.off_cols = []
+        for i in range(nb):
+            by_col = {}
+            for a in (0, 1):
+                for e, c in self.off[i][a]:
+                    by_col.setdefault(c, [None, None])[a] = e
+            cols_i = []
+            for c, (e0, e1) in sorted(by_col.items()):
+                j = where_col[c][0]
+                cols_i.append((c, e0, e1, reach[j], 2 * j + 2))
+            self.off_cols.append(cols_i)
         # column sums of |J| (its 1-norm): the entries of each column, padded (k, w)
         counts = np.bincount(cols, minlength=k)
         pad = np.full((k, int(counts.max())), rows.size)
@@ -812,36 +825,57 @@ class BlockFactored:
         return x
 
     def _inverse_blocks(self, colsum=None):
-        """Return ``Z = J^-1`` ``(k, k, p)``, columns in block row order (ranges only)."""
+        """
+        Return ``Z = J^-1`` ``(k, k, p)``, columns in block row order (ranges only).
+
+        Block i's rows: ``Z_i = D_i^-1 E_i - sum_c (D_i^-1 J_ic) Z_c`` over the earlier
+        columns c its rows reach, each ``D_i^-1 J_ic`` a 2-vector per angle.  With
+        ``colsum`` ``(k, p)`` (zeros) the column sums of ``|Z|`` are added row by row and
+        the entries outside the ranges are left unset.
+        """
         plan, v, inv = self.plan, self.values, self.inv
         k, p = self.k, self.p
         z = np.empty((k, k, p)) if colsum is not None else np.zeros((k, k, p))
         tmp = np.empty((k, p))
-        with np.errstate(divide='ignore', invalid='ignore'):
-            for i, (_, (c0, c1)) in enumerate(plan.blocks):
-                lo, hi = plan.reach[i], 2 * i + 2
-                y = []
-                for a in (0, 1):
-                    acc = np.zeros((hi - lo, p))
-                    acc[2 * i + a - lo] = 1.0
-                    for e, c in plan.off[i][a]:
-                        clo = plan.reach[plan.block_of_col[c][0]]
-                        chi = 2 * plan.block_of_col[c][0] + 2
-                        t = tmp[:chi - clo]
-                        acc[clo - lo:chi - lo] -= np.multiply(v[e], z[c, clo:chi], out=t)
-                    y.append(acc)
-                for c, (u, w) in ((c0, (0, 1)), (c1, (2, 3))):
-                    out = z[c, lo:hi]
-                    np.multiply(inv[u, i], y[0], out=out)
-                    out += np.multiply(inv[w, i], y[1], out=tmp[:hi - lo])
-                    if colsum is not None:
-                        colsum[lo:hi] += np.abs(out, out=tmp[:hi - lo])
-                    elif lo:
-                        z[c, :lo] = 0.0
-                if colsum is None and hi < k:
-                    z[c0, hi:] = 0.0
-                    z[c1, hi:] = 0.0
+        m = np.empty((2, p))
+        with np.errstate(invalid='ignore', over='ignore'):   # singular blocks: inf, nan
+            self._fill_z(z, tmp, m, colsum)
         return z
+
+    def _fill_z(self, z, tmp, m, colsum):
+        """Fill in the rows of ``Z`` block by block (:meth:`_inverse_blocks`)."""
+        plan, v, inv = self.plan, self.values, self.inv
+        for i, (_, (c0, c1)) in enumerate(plan.blocks):
+            lo, own = plan.reach[i], 2 * i
+            z[c0, own], z[c0, own + 1] = inv[0, i], inv[1, i]
+            z[c1, own], z[c1, own + 1] = inv[2, i], inv[3, i]
+            cols = plan.off_cols[i]
+            covered = len(cols) == 1 and cols[0][3] == lo and cols[0][4] == own
+            if lo < own and not covered:
+                z[c0, lo:own] = 0.0
+                z[c1, lo:own] = 0.0
+            for c, e0, e1, clo, chi in cols:
+                # m = -(D_i^-1 J_ic): the weights of row c of Z in the two rows of block i
+                for row, (u, w) in ((0, (0, 1)), (1, (2, 3))):
+                    out = m[row]
+                    if e0 is not None and e1 is not None:
+                        np.multiply(inv[u, i], v[e0], out=out)
+                        out += inv[w, i] * v[e1]
+                    elif e0 is not None:
+                        np.multiply(inv[u, i], v[e0], out=out)
+                    else:
+                        np.multiply(inv[w, i], v[e1], out=out)
+                    np.negative(out, out=out)
+                src = z[c, clo:chi]
+                for row, ci in ((0, c0), (1, c1)):
+                    if covered:
+                        np.multiply(m[row], src, out=z[ci, clo:chi])
+                    else:
+                        z[ci, clo:chi] += np.multiply(m[row], src, out=tmp[:chi - clo])
+            if colsum is not None:
+                b = own + 2
+                colsum[lo:b] += np.abs(z[c0, lo:b], out=tmp[:b - lo])
+                colsum[lo:b] += np.abs(z[c1, lo:b], out=tmp[:b - lo])
 
     def cond(self):
         """Return the exact 1-norm condition numbers ``(p,)`` (``inf`` where singular)."""
