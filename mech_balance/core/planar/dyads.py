@@ -36,22 +36,22 @@ class Step:
     ``p_src``/``q_src`` are ``(body, local point)`` of P and Q on bodies already placed;
     ``c_alpha``, ``c_beta`` the constants that turn ``X - P`` and ``X - Q`` into the
     rotations of the two bodies; ``rel`` the rows ``(tree joint, child body, parent body)``
-    whose relative rotation gives the tree coordinate.
+    whose relative rotation gives the tree coordinate; ``x_src`` (body, local point) of X;
+    ``sign`` the branch (+1: X to the left of P -> Q), set from the skeleton.
     """
 
-    def __init__(self, cut, joints, p_src, q_src, alpha, beta, lp, lx_a, lx_b, lq, x_on):
+    def __init__(self, cut, joints, ends, bodies, local, beta_at_x, rel, x_src):
         self.cut, self.joints = cut, joints
-        self.p_src, self.q_src = p_src, q_src
-        self.alpha, self.beta = alpha, beta
+        self.p_src, self.q_src = ends
+        self.alpha, self.beta = bodies
+        lp, lx_a, lx_b, lq = local
         va, vb = lx_a - lp, lx_b - lq
-        self.r1, self.r2 = abs(va), abs(vb)
-        self.c_alpha = np.conj(va) / (self.r1 * self.r1)
-        self.c_beta = np.conj(vb) / (self.r2 * self.r2)
-        d2 = 0.5 * (self.r1 * self.r1 - self.r2 * self.r2)
-        self.half_k, self.r1_sq = d2, self.r1 * self.r1
-        self.anchor_alpha = lp          # alpha's point at P (its anchor)
-        self.anchor_beta = lx_b if x_on == 'beta_anchor' else lq
-        self.beta_at_x = x_on == 'beta_anchor'   # beta is anchored at X (else at Q)
+        r1, r2 = abs(va), abs(vb)
+        self.c_alpha = np.conj(va) / (r1 * r1)
+        self.c_beta = np.conj(vb) / (r2 * r2)
+        self.half_k, self.r1_sq = 0.5 * (r1 * r1 - r2 * r2), r1 * r1
+        self.beta_at_x = beta_at_x       # beta hangs from its tree joint at X (else at Q)
+        self.rel, self.x_src = rel, x_src
         self.sign = 0.0
 
 
@@ -64,7 +64,6 @@ class DyadPlan:
         crank = linkage.tree[0]
         self.crank_body = crank.child
         self.crank_anchor_world = crank.p_parent     # on the frame: world coordinates
-        self.crank_anchor_local = crank.p_child
         self.rows = []       # (tree joint, child body, parent body) in solving order
         for s in steps:
             self.rows += s.rel
@@ -215,12 +214,10 @@ def _dyad(lk, c, known, pj):
     tree = lk.tree
     ta, tb = pj[a], pj[b]
     if ta in unk and tb in unk:        # X = the cut point; a turns about J_ta, b about J_tb
-        step = Step(c, (ta, tb), (tree[ta].parent, tree[ta].p_parent),
-                    (tree[tb].parent, tree[tb].p_parent), a, b,
-                    tree[ta].p_child, cut.p_a, cut.p_b, tree[tb].p_child, 'q')
-        step.rel = [(ta, a, tree[ta].parent), (tb, b, tree[tb].parent)]
-        step.x_src = (a, cut.p_a)
-        return step
+        return Step(c, (ta, tb), ((tree[ta].parent, tree[ta].p_parent),
+                                  (tree[tb].parent, tree[tb].p_parent)), (a, b),
+                    (tree[ta].p_child, cut.p_a, cut.p_b, tree[tb].p_child), False,
+                    [(ta, a, tree[ta].parent), (tb, b, tree[tb].parent)], (a, cut.p_a))
     for low, p_low, other, p_other in ((a, cut.p_a, b, cut.p_b), (b, cut.p_b, a, cut.p_a)):
         t2 = pj[low]
         if t2 is None or t2 not in unk:
@@ -230,12 +227,9 @@ def _dyad(lk, c, known, pj):
         if t1 is None or t1 not in unk:
             continue
         # alpha = u turns about J_t1 and carries X = J_t2; beta = low carries X and Q
-        step = Step(c, (t1, t2), (tree[t1].parent, tree[t1].p_parent), (other, p_other),
-                    u, low, tree[t1].p_child, tree[t2].p_parent, tree[t2].p_child, p_low,
-                    'beta_anchor')
-        step.rel = [(t1, u, tree[t1].parent), (t2, low, u)]
-        step.x_src = (u, tree[t2].p_parent)
-        return step
+        return Step(c, (t1, t2), ((tree[t1].parent, tree[t1].p_parent), (other, p_other)),
+                    (u, low), (tree[t1].p_child, tree[t2].p_parent, tree[t2].p_child, p_low),
+                    True, [(t1, u, tree[t1].parent), (t2, low, u)], (u, tree[t2].p_parent))
     return None
 
 

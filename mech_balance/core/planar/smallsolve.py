@@ -833,7 +833,6 @@ class BlockFactored:
         ``colsum`` ``(k, p)`` (zeros) the column sums of ``|Z|`` are added row by row and
         the entries outside the ranges are left unset.
         """
-        plan, v, inv = self.plan, self.values, self.inv
         k, p = self.k, self.p
         z = np.empty((k, k, p)) if colsum is not None else np.zeros((k, k, p))
         tmp = np.empty((k, p))
