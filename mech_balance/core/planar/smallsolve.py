@@ -735,8 +735,12 @@ class BlockPlan:
             fill[c] += 1
         self.col_pad = pad
         self.single = nb == 1 and rows.size == 4        # one dyad: closed form throughout
-        self.row_back = np.argsort(self.row_order)     # original row -> block order position
-        self.col_back = np.argsort(self.col_order)
+        if self.single:
+            # inv holds D^-1 = [[0, 1], [2, 3]] in block order (col j, row a); J^-1[c, r] of
+            # the original order is D^-1[position of c, position of r]
+            (r0, r1), (c0, c1) = self.blocks[0]
+            pos_r, pos_c = {r0: 0, r1: 1}, {c0: 0, c1: 1}
+            self.inv_at = [[2 * pos_c[c] + pos_r[r] for r in (0, 1)] for c in (0, 1)]
 
 
 class BlockFactored:
@@ -761,13 +765,17 @@ class BlockFactored:
         self.inv = inv
         self._cond = self._inv = self._z = None
 
-    def _solve_2(self, rhs, inv):
-        """Return the solution of one 2 x 2 block system (``inv``: its inverse entries)."""
+    def _solve_2(self, rhs, transposed):
+        """Return the solution of a single 2 x 2 system (or of its transpose)."""
+        (a, b), (c, d) = self.plan.inv_at
+        if transposed:
+            b, c = c, b
+        inv = self.inv
         x = np.empty(rhs.shape)
-        np.multiply(inv[0, 0], rhs[0], out=x[0])
-        x[0] += inv[1, 0] * rhs[1]
-        np.multiply(inv[2, 0], rhs[0], out=x[1])
-        x[1] += inv[3, 0] * rhs[1]
+        np.multiply(inv[a, 0], rhs[0], out=x[0])
+        x[0] += inv[b, 0] * rhs[1]
+        np.multiply(inv[c, 0], rhs[0], out=x[1])
+        x[1] += inv[d, 0] * rhs[1]
         return x
 
     def solve(self, rhs):
@@ -775,7 +783,7 @@ class BlockFactored:
         rhs = np.asarray(rhs, dtype=float)
         plan, v, inv = self.plan, self.values, self.inv
         if plan.single:
-            return self._solve_2(rhs[plan.row_order], inv)[plan.col_back]
+            return self._solve_2(rhs, False)
         x = np.empty((self.k, rhs.shape[1]))
         tmp = np.empty(rhs.shape[1])
         with np.errstate(divide='ignore', invalid='ignore'):
@@ -800,8 +808,8 @@ class BlockFactored:
         """Return ``x`` ``(k, p)`` with ``mat^T x = rhs`` (block back substitution)."""
         rhs = np.asarray(rhs, dtype=float)
         plan, v, inv = self.plan, self.values, self.inv
-        if plan.single:   # D^-T: the inverse's entries transposed
-            return self._solve_2(rhs[plan.col_order], inv[[0, 2, 1, 3]])[plan.row_back]
+        if plan.single:
+            return self._solve_2(rhs, True)
         x = np.empty((self.k, rhs.shape[1]))
         tmp = np.empty(rhs.shape[1])
         with np.errstate(divide='ignore', invalid='ignore'):
