@@ -735,6 +735,21 @@ class BlockPlan:
             fill[c] += 1
         self.col_pad = pad
         self.single = nb == 1 and rows.size == 4        # one dyad: closed form throughout
+        # the (block, earlier column) pairs in block order, with their entries (rows.size:
+        # none, a zero row) and each block's range of pairs
+        pairs = [(i, c, e0, e1) for i in range(nb) for c, e0, e1, _, _ in self.off_cols[i]]
+        pad = rows.size
+        self.pair_block = np.array([q[0] for q in pairs], dtype=int)
+        self.pair_entries = np.array([[pad if q[2] is None else q[2] for q in pairs],
+                                      [pad if q[3] is None else q[3] for q in pairs]],
+                                     dtype=int).reshape(2, -1)
+        starts = np.searchsorted(self.pair_block, np.arange(nb + 1))
+        self.block_pairs = [[(int(q), pairs[q][1]) for q in range(starts[i], starts[i + 1])]
+                            for i in range(nb)]
+        self.rows01 = np.array([[rs[0] for rs, _ in self.blocks],
+                                [rs[1] for rs, _ in self.blocks]], dtype=int)
+        self.cols01 = np.array([[cs[0] for _, cs in self.blocks],
+                                [cs[1] for _, cs in self.blocks]], dtype=int)
         if self.single:
             # inv holds D^-1 = [[0, 1], [2, 3]] in block order (col j, row a); J^-1[c, r] of
             # the original order is D^-1[position of c, position of r]
@@ -747,8 +762,11 @@ class BlockFactored:
     """
     The closed-form block factorization of a :class:`BlockPlan` matrix given by its values.
 
-    The same interface as :class:`Factored`: :meth:`solve`, :meth:`solve_t`, :meth:`cond`
-    (exact 1-norm), :meth:`sign`, :meth:`inverse`, :attr:`mat`.
+    ``J = D (I + N)``: D the diagonal blocks (inverted in closed form, all at once), N the
+    weights ``D_i^-1 J_ic`` of each earlier column c in block i's unknowns (a 2-vector per
+    angle and pair, all pairs at once).  The same interface as :class:`Factored`:
+    :meth:`solve`, :meth:`solve_t`, :meth:`cond` (exact 1-norm), :meth:`sign`,
+    :meth:`inverse`, :attr:`mat`.
     """
 
     def __init__(self, plan, values):
@@ -758,11 +776,24 @@ class BlockFactored:
         det = dv[0] * dv[3]
         det -= dv[1] * dv[2]
         self.det = det
-        with np.errstate(divide='ignore', invalid='ignore'):
+        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
             inv = values[plan.adj]                     # d, b, c, a
             inv /= det
-        inv[1:3] *= -1.0                               # d, -b, -c, a over det
-        self.inv = inv
+            inv[1:3] *= -1.0                           # d, -b, -c, a over det
+            self.inv = inv
+            self.weights = None
+            if not plan.single and plan.pair_block.size:
+                padded = np.empty((plan.n + 1, self.p))
+                padded[:-1] = values
+                padded[-1] = 0.0
+                v0, v1 = padded[plan.pair_entries[0]], padded[plan.pair_entries[1]]
+                ip = inv[:, plan.pair_block]              # (4, pairs, p)
+                w = np.empty((2,) + v0.shape)
+                np.multiply(ip[0], v0, out=w[0])
+                w[0] += ip[1] * v1
+                np.multiply(ip[2], v0, out=w[1])
+                w[1] += ip[3] * v1
+                self.weights = w                           # (2, pairs, p): D_i^-1 J_ic
         self._cond = self._inv = self._z = None
 
     def _solve_2(self, rhs, transposed):
@@ -779,57 +810,52 @@ class BlockFactored:
         return x
 
     def solve(self, rhs):
-        """Return ``x`` ``(k, p)`` with ``mat x = rhs`` (block forward substitution)."""
+        """Return ``x`` ``(k, p)`` with ``mat x = rhs``: ``(I + N) x = D^-1 rhs``."""
         rhs = np.asarray(rhs, dtype=float)
-        plan, v, inv = self.plan, self.values, self.inv
+        plan = self.plan
         if plan.single:
             return self._solve_2(rhs, False)
+        inv, w = self.inv, self.weights
+        r0, r1 = rhs[plan.rows01[0]], rhs[plan.rows01[1]]
         x = np.empty((self.k, rhs.shape[1]))
         tmp = np.empty(rhs.shape[1])
-        with np.errstate(divide='ignore', invalid='ignore'):
-            for i, ((r0, r1), (c0, c1)) in enumerate(plan.blocks):
-                y = []
-                for r, off in ((r0, plan.off[i][0]), (r1, plan.off[i][1])):
-                    if not off:
-                        y.append(rhs[r])
-                        continue
-                    e, c = off[0]
-                    acc = rhs[r] - np.multiply(v[e], x[c], out=tmp)
-                    for e, c in off[1:]:
-                        acc -= np.multiply(v[e], x[c], out=tmp)
-                    y.append(acc)
-                np.multiply(inv[0, i], y[0], out=x[c0])
-                x[c0] += np.multiply(inv[1, i], y[1], out=tmp)
-                np.multiply(inv[2, i], y[0], out=x[c1])
-                x[c1] += np.multiply(inv[3, i], y[1], out=tmp)
+        with np.errstate(invalid='ignore', over='ignore'):
+            y = inv[0] * r0
+            y += inv[1] * r1
+            x[plan.cols01[0]] = y
+            np.multiply(inv[2], r0, out=y)
+            y += inv[3] * r1
+            x[plan.cols01[1]] = y
+            for i, ((_, _), (c0, c1)) in enumerate(plan.blocks):
+                for q, c in plan.block_pairs[i]:
+                    xc = x[c]
+                    x[c0] -= np.multiply(w[0, q], xc, out=tmp)
+                    x[c1] -= np.multiply(w[1, q], xc, out=tmp)
         return x
 
     def solve_t(self, rhs):
-        """Return ``x`` ``(k, p)`` with ``mat^T x = rhs`` (block back substitution)."""
+        """Return ``x`` ``(k, p)`` with ``mat^T x = rhs``: ``(I + N^T) z = rhs``, ``D^T x = z``."""
         rhs = np.asarray(rhs, dtype=float)
-        plan, v, inv = self.plan, self.values, self.inv
+        plan = self.plan
         if plan.single:
             return self._solve_2(rhs, True)
-        x = np.empty((self.k, rhs.shape[1]))
+        inv, w = self.inv, self.weights
+        z = np.array(rhs)
         tmp = np.empty(rhs.shape[1])
-        with np.errstate(divide='ignore', invalid='ignore'):
+        with np.errstate(invalid='ignore', over='ignore'):
             for i in range(len(plan.blocks) - 1, -1, -1):
-                (r0, r1), (c0, c1) = plan.blocks[i]
-                y = []
-                for c, off in ((c0, plan.off_t[i][0]), (c1, plan.off_t[i][1])):
-                    if not off:
-                        y.append(rhs[c])
-                        continue
-                    e, r = off[0]
-                    acc = rhs[c] - np.multiply(v[e], x[r], out=tmp)
-                    for e, r in off[1:]:
-                        acc -= np.multiply(v[e], x[r], out=tmp)
-                    y.append(acc)
-                # D^-T = [[d, -c], [-b, a]] / det
-                np.multiply(inv[0, i], y[0], out=x[r0])
-                x[r0] += np.multiply(inv[2, i], y[1], out=tmp)
-                np.multiply(inv[1, i], y[0], out=x[r1])
-                x[r1] += np.multiply(inv[3, i], y[1], out=tmp)
+                _, (c0, c1) = plan.blocks[i]
+                for q, c in plan.block_pairs[i]:
+                    z[c] -= np.multiply(w[0, q], z[c0], out=tmp)
+                    z[c] -= np.multiply(w[1, q], z[c1], out=tmp)
+            z0, z1 = z[plan.cols01[0]], z[plan.cols01[1]]
+            x = np.empty((self.k, rhs.shape[1]))
+            y = inv[0] * z0                             # D^-T = [[d, -c], [-b, a]] / det
+            y += inv[2] * z1
+            x[plan.rows01[0]] = y
+            np.multiply(inv[1], z0, out=y)
+            y += inv[3] * z1
+            x[plan.rows01[1]] = y
         return x
 
     def _inverse_blocks(self, colsum=None):
@@ -851,7 +877,7 @@ class BlockFactored:
 
     def _fill_z(self, z, tmp, m, colsum):
         """Fill in the rows of ``Z`` block by block (:meth:`_inverse_blocks`)."""
-        plan, v, inv = self.plan, self.values, self.inv
+        plan, inv = self.plan, self.inv
         for i, (_, (c0, c1)) in enumerate(plan.blocks):
             lo, own = plan.reach[i], 2 * i
             z[c0, own], z[c0, own + 1] = inv[0, i], inv[1, i]
@@ -861,18 +887,8 @@ class BlockFactored:
             if lo < own and not covered:
                 z[c0, lo:own] = 0.0
                 z[c1, lo:own] = 0.0
-            for c, e0, e1, clo, chi in cols:
-                # m = -(D_i^-1 J_ic): the weights of row c of Z in the two rows of block i
-                for row, (u, w) in ((0, (0, 1)), (1, (2, 3))):
-                    out = m[row]
-                    if e0 is not None and e1 is not None:
-                        np.multiply(inv[u, i], v[e0], out=out)
-                        out += inv[w, i] * v[e1]
-                    elif e0 is not None:
-                        np.multiply(inv[u, i], v[e0], out=out)
-                    else:
-                        np.multiply(inv[w, i], v[e1], out=out)
-                    np.negative(out, out=out)
+            for (q, c), (_, _, _, clo, chi) in zip(plan.block_pairs[i], cols):
+                np.negative(self.weights[:, q], out=m)   # the weights of row c of Z
                 src = z[c, clo:chi]
                 for row, ci in ((0, c0), (1, c1)):
                     if covered:
