@@ -232,9 +232,15 @@ def test_a_dyad_whose_sign_changes_on_the_skeleton_drops_the_plan():
     assert dyads.attach_signs(None, lk, sk) is None
 
 
-def test_block_factored_agrees_with_lapack():
-    rig = PlanarRig(chain.dyad_chain(6), cache=False)
+@pytest.mark.parametrize('name, tree_like', [('chain', True), ('chain', False),
+                                              ('carpet_scraper', False)])
+def test_block_factored_agrees_with_lapack(name, tree_like, monkeypatch):
+    sc = chain.dyad_chain(6) if name == 'chain' else scene.load(name)
+    rig = PlanarRig(sc, cache=False)
     lk = rig.linkage
+    assert lk.block.tree_like == (name == 'chain')
+    # the linear-time norm of the inverse (one earlier unknown per block) or the full one
+    monkeypatch.setattr(lk.block, 'tree_like', tree_like)
     st, _ = rig.evaluate(cycle_angles(12) + 0.4, ('kinematics',))
     values, _ = lk.jacobian_values(st.pose)
     rng = np.random.default_rng(3)

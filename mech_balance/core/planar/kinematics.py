@@ -90,6 +90,30 @@ DENSE_TREE_MAX_BODIES = 8
 cost grows with the number of bodies, not with its square (and stays off BLAS threads)."""
 
 
+ALLOCATOR_SETTLE_BYTES = 8 * 2 ** 20
+"""Size of the block allocated and freed once per process (:func:`settle_allocator`)."""
+_ALLOCATOR_SETTLED = []
+
+
+def settle_allocator():
+    """
+    Allocate and free one 8 MiB block, once per process, before the first cycle.
+
+    glibc's malloc serves blocks above its mmap threshold (128 KiB at start) straight from
+    the kernel and returns them at ``free``, and it trims the top of its heap beyond twice
+    that threshold: a cycle's larger temporaries (a 40-link chain's complex ``(39, 360)``
+    stacks are 225 KiB) would then be page-faulted in afresh at every call (about a third
+    of that chain's cycle).  Freeing a block from the kernel raises both thresholds to its
+    size (glibc's documented dynamic threshold, ``mallopt(3)``), so the temporaries are
+    reused from the heap; settings made with ``MALLOC_MMAP_THRESHOLD_`` and the like switch
+    that adjustment off and are left alone.  Nothing is touched (no memory is committed).
+    """
+    if not _ALLOCATOR_SETTLED:
+        _ALLOCATOR_SETTLED.append(True)
+        block = np.empty(ALLOCATOR_SETTLE_BYTES, dtype=np.uint8)
+        del block
+
+
 class BranchError(ValueError):
     """The linkage cannot be assembled, is singular, or would leave its branch."""
 
@@ -184,6 +208,7 @@ class Linkage:
     """The geometry and topology of a planar scene, compiled for batched analysis."""
 
     def __init__(self, scene):
+        settle_allocator()
         self.scene = scene
         self.body_names = [FRAME] + [lk.name for lk in scene.links]
         index = {n: i for i, n in enumerate(self.body_names)}
