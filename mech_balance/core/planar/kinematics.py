@@ -407,6 +407,7 @@ class Linkage:
         rev[0] = False
         self.rev_passive = np.flatnonzero(rev)     # revolute tree joints other than the crank
         self.tree_flip = np.flatnonzero(self.tree_sign < 0)  # reported from child to parent
+        self.tree_sign_col = self.tree_sign[:, None]
         rows = {n: (True, t) for t, n in enumerate(self.tree_names)}
         rows.update({n: (False, c) for c, n in enumerate(self.cut_names)})
         self.joint_rows = [(n, *rows[n]) for n in self.joint_names]
