@@ -172,3 +172,171 @@ def test_compare_report_passes(bench_mujoco):
     line = next(x for x in text.splitlines() if 'rigs (both motions' in x)
     assert line.endswith('-> PASS'), line
     assert max(hoeken['agreement_own'].values()) < AGREEMENT
+
+
+# ----------------------------------------------------------------------------- spatial built-ins
+
+SPATIAL = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop')
+
+
+@pytest.fixture(scope='module')
+def mujoco_spatial(bench_mujoco):
+    from mech_balance.bench import mujoco_spatial
+    return mujoco_spatial
+
+
+def _spatial(name, mujoco_spatial, scene_=None):
+    from mech_balance.core.rig import rig_for
+    sc = (scene.load(name) if scene_ is None else scene_).with_outputs(scene.OUTPUTS)
+    rig = rig_for(sc)
+    return rig, mujoco_spatial.SpatialMujocoRig(rig)
+
+
+def _spatial_worst(rig, w, state, res, mujoco_spatial):
+    """Return the worst relative difference of MuJoCo's results (torque, wrench, reactions)."""
+    rel = mujoco_spatial.relative_difference
+    forces, moments = mujoco_spatial.reaction_differences(w.reactions, res['reactions'])
+    return max(rel(w.driving_torque, res['driving_torque']), rel(w.force_N, res['force']),
+               rel(w.moment_Nm, res['moment']), forces, moments)
+
+
+def test_spatial_builtins_are_compared():
+    """Compare every spatial built-in of the registry (none left out)."""
+    from mech_balance.schema import registry
+    spatial = registry.KINDS['spatial']
+    names = {n for n in scene.builtin_scenes() if registry.kind_of(scene.load(n)) is spatial}
+    assert names == set(SPATIAL)
+
+
+@pytest.mark.parametrize('name', SPATIAL)
+def test_spatial_imposed_motion_agrees_with_mujoco(name, mujoco_spatial):
+    rig, mjr = _spatial(name, mujoco_spatial)
+    psi = cycle_angles(72, rig.scene.assembly_crank_angle_rad) + 0.01
+    st, w = rig.evaluate(psi, speed=1.7, accel=0.9)
+    res = mjr.dynamics(st)
+    rel = mujoco_spatial.relative_difference
+    # MuJoCo's forward kinematics of the imposed joints reproduces the package's bodies
+    length = rig.linkage.length_scale
+    assert np.max(np.abs(res['origin'] - st.frames.origin[:, 1:])) < 1e-12 * length
+    assert np.max(np.abs(res['rot'] - st.frames.rot[:, 1:])) < 1e-12
+    assert rel(st.twist[:, 1:], res['twist']) < 1e-12
+    assert rel(st.accel[:, 1:], res['accel']) < 1e-12
+    assert rig.reactions_unique
+    assert _spatial_worst(rig, w, st, res, mujoco_spatial) < AGREEMENT
+    # the spin equations (zero inertia about the S-S line) hold without a multiplier
+    assert np.max(res['spin_residual']) < AGREEMENT * np.max(np.abs(w.driving_torque))
+
+
+@pytest.mark.parametrize('name', SPATIAL)
+def test_spatial_mujoco_own_kinematics_agrees(name, mujoco_spatial):
+    rig, mjr = _spatial(name, mujoco_spatial)
+    sc = rig.scene
+    lk = rig.linkage
+    speed, accel = sc.crank_speed_rad_s, 25.0
+    psi = cycle_angles(90, sc.assembly_crank_angle_rad)
+    st, w = rig.evaluate(psi, speed=speed, accel=accel)
+    qpos = mjr.to_mujoco(st)[0]
+    tau, fsh, nsh, react, q, res, iters = mjr.full(psi, speed, accel, qpos[0])
+    assert np.max(res) <= mujoco_spatial.NEWTON_TOL and np.max(iters) <= 3
+    q_tree, sph = mjr.tree_coordinates(q)
+    assert_allclose(q_tree[:, lk.scalar_dofs], st.q[:, lk.scalar_dofs], rtol=0, atol=1e-12)
+    assert_allclose(sph, st.sph, rtol=0, atol=1e-12)     # the same spin convention
+    rel = mujoco_spatial.relative_difference
+    assert rel(w.driving_torque, tau) < AGREEMENT
+    assert rel(w.force_N, fsh) < AGREEMENT
+    assert rel(w.moment_Nm, nsh) < AGREEMENT
+    assert max(mujoco_spatial.reaction_differences(w.reactions, react)) < AGREEMENT
+
+
+def test_spatial_idle_rod_has_exactly_zero_moment_in_mujoco(mujoco_spatial):
+    """The coupler's placeholder moment is removed after compiling; MuJoCo's warning caught."""
+    rig, mjr = _spatial('rssr_skew', mujoco_spatial)
+    b = mjr.model.body('coupler').id
+    assert np.min(mjr.model.body_inertia[b]) == 0.0
+    assert mjr.inertia_error < 1e-13
+    assert any('singular' in w for w in mjr.warnings)
+
+
+@pytest.mark.parametrize('name, link, change', [
+    ('rssr_skew', 'rocker', lambda lk: {'mass_kg': lk.mass_kg * (1 + 1e-6)}),
+    ('rssr_skew', 'crank', lambda lk: {
+        'com_m': (lk.com_m[0], lk.com_m[1] + 1e-7, lk.com_m[2])}),
+    ('spatial_two_loop', 'rocker2', lambda lk: {'inertia_com_kg_m2': (
+        lk.inertia_com_kg_m2[:4] + (lk.inertia_com_kg_m2[4] + 1e-9,)
+        + lk.inertia_com_kg_m2[5:])}),
+    ('rssp_slider', 'slider', lambda lk: {'mass_kg': lk.mass_kg * (1 - 1e-6)}),
+])
+def test_spatial_check_fails_for_a_perturbed_mass_property(name, link, change,
+                                                           mujoco_spatial):
+    """Build MuJoCo from a slightly different design: it disagrees, so the check can fail."""
+    from dataclasses import replace
+    rig, _ = _spatial(name, mujoco_spatial)
+    sc = rig.scene
+    links = tuple(replace(lk, **change(lk)) if lk.name == link else lk for lk in sc.links)
+    _, mjr_bad = _spatial(name, mujoco_spatial, replace(sc, links=links))
+    st, w = rig.evaluate(cycle_angles(36, sc.assembly_crank_angle_rad))
+    res = mjr_bad.dynamics(st)
+    assert _spatial_worst(rig, w, st, res, mujoco_spatial) > 10 * AGREEMENT
+
+
+def test_spatial_model_refuses_a_non_spherical_cut(mujoco_spatial):
+    """An RSUR (the tree cuts the universal joint C) is refused with the joint named."""
+    from mech_balance.core.rig import rig_for
+    from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
+    d = spatial_to_dict(scene.load('rssr_skew'))
+    d['name'] = 'rsur'
+    d['joints']['C'] = {'type': 'universal', 'a': 'coupler.C', 'b': 'rocker.C',
+                        'axis': [0.0, 1.0, 0.0], 'axis_b': [0.0, 0.0, 1.0]}
+    d['links']['coupler']['inertia_com_kg_m2'] = [1e-6, 6.75e-4, 6.75e-4, 0.0, 0.0, 0.0]
+    rig = rig_for(spatial_from_dict(d))
+    with pytest.raises(ValueError, match=r'spherical cut joints only .* cuts C \(universal\)'):
+        mujoco_spatial.SpatialMujocoRig(rig)
+
+
+def test_spatial_compare_report_passes(mujoco_spatial, bench_mujoco):
+    """One small run of the spatial comparison: PASS printed per built-in (timings unchecked)."""
+    results = mujoco_spatial.run(bench_mujoco._interleaved_medians, 24, 2, 2, progress=None)
+    text = mujoco_spatial.format_report(results, AGREEMENT)
+    assert text.count('-> PASS (worst') == len(SPATIAL) and 'FAIL' not in text
+    assert text.splitlines()[-1].endswith('-> PASS (limit 1e-09)')
+    for r in results:
+        assert set(r['agreement_imposed']) == set(mujoco_spatial.QUANTITIES)
+        assert mujoco_spatial.worst(r) < AGREEMENT
+
+
+def _rscr():
+    """Return an RSCR: rssr_skew with C cylindrical (normal to BC), listed before B."""
+    from mech_balance.core.rig import rig_for
+    from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
+    base = rig_for(scene.load('rssr_skew')).linkage
+    fr = base.frames(base.q0, base.sph0)
+    ic, ir = base.body_names.index('coupler'), base.body_names.index('rocker')
+    y_rocker = fr.rot[0, ir].T @ fr.rot[0, ic] @ np.array([0.0, 1.0, 0.0])
+    d = spatial_to_dict(scene.load('rssr_skew'))
+    d['name'] = 'rscr'
+    j = d['joints']
+    d['joints'] = {'A': j['A'], 'C': {'type': 'cylindrical', 'a': 'coupler.C', 'b': 'rocker.C',
+                                      'axis': [0.0, 1.0, 0.0],
+                                      'axis_b': [float(x) for x in y_rocker]},
+                   'B': j['B'], 'D': j['D']}
+    d['links']['coupler']['inertia_com_kg_m2'] = [2e-6, 6.75e-4, 6.75e-4, 1e-6, 0.0, 0.0]
+    return spatial_from_dict(d)
+
+
+def test_spatial_cylindrical_flipped_tree_joint_agrees(mujoco_spatial):
+    """A cylindrical tree joint whose child is its link a (hinge + slide), no idle spin."""
+    rig, mjr = _spatial(None, mujoco_spatial, _rscr())
+    lk = rig.linkage
+    last = lk.tree[-1]
+    assert (last.name, last.joint_type, last.flipped) == ('C', 'cylindrical', True)
+    assert [rig.scene.joints[i].name for i in lk.cut_joints] == ['B'] and not mjr.spins
+    psi = cycle_angles(72) + 0.01
+    st, w = rig.evaluate(psi, speed=1.7, accel=0.9)
+    slide = st.q[:, lk.tree[-1].dofs[1]]
+    assert np.ptp(slide) > 1e-3                   # the slide moves: the two C points part
+    res = mjr.dynamics(st)
+    assert rig.reactions_unique
+    assert _spatial_worst(rig, w, st, res, mujoco_spatial) < AGREEMENT
+    tau, fsh, nsh, react, q, r, iters = mjr.full(psi, 1.7, 0.9, mjr.to_mujoco(st)[0][0])
+    assert max(mujoco_spatial.relative_difference(w.driving_torque, tau),
+               *mujoco_spatial.reaction_differences(w.reactions, react)) < AGREEMENT

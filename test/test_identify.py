@@ -369,3 +369,49 @@ def test_consistent_set_is_the_closest_to_the_scene(rigs, case):
                    constraints=cons, method='SLSQP', options={'ftol': 1e-14, 'maxiter': 500})
     assert ref.success, ref.message
     assert float(u_cal @ u_cal) <= ref.fun * (1.0 + 1e-4) + 1e-12
+
+
+def test_dropped_encoder_bursts_split_the_data_and_lose_only_the_gaps(rigs):
+    """Every stretch between encoder gaps is fitted on its own; only the gaps are lost."""
+    nominal, _, data, whole = rigs['hoeken']
+    t = (data.t_ns - data.t_ns[0]) * 1e-9
+    n = t.size
+    keep = np.ones(n, dtype=bool)
+    bursts = [(int(f * n), width) for f, width in ((0.2, 40), (0.5, 200), (0.8, 15))]
+    for start, width in bursts:
+        keep[start:start + width] = False              # dropped encoder messages
+    short = int(0.9 * n)
+    keep[short - 30:short] = False                     # a stretch of 8 samples between two
+    keep[short + 8:short + 38] = False                 # gaps: shorter than any window
+    result = identify.identify(nominal, t[keep], data.position_rad[keep], t, data.wrench)
+    segs = result.segments
+    assert len(segs) == 6 and sum(g.used for g in segs) == 5
+    (skipped,) = [g for g in segs if not g.used]
+    assert skipped.encoder_samples == 8 and 'shorter than' in skipped.reason
+    assert skipped.reason in identify.format_report(result)
+    assert [g['encoder_samples'] for g in result.to_dict()['encoder_segments']] == \
+        [g.encoder_samples for g in segs]
+    # lost: the wrench samples inside the gaps (and the skipped stretch) and, per stretch
+    # used, the half window at either end that has no centred fit
+    lost = n - result.samples
+    gap_samples = int(np.sum(~keep)) + 8
+    window = whole.motion.window
+    assert gap_samples + 5 * (window - 1) - 5 <= lost <= gap_samples + 5 * window
+    assert result.samples == sum(g.wrench_samples for g in segs)
+    assert result.rank == whole.rank
+    # the newest stretch alone (what ~/identify used before) has a fraction of the samples
+    newest = identify.identify(nominal, t[short + 38:], data.position_rad[short + 38:], t,
+                               data.wrench)
+    assert newest.samples < 0.1 * result.samples
+    assert [c.base for c in newest.combinations] == [c.base for c in result.combinations]
+    for c, c_new in zip(result.combinations, newest.combinations):
+        err = c.estimate - c.value(data.theta_true)
+        assert abs(err) <= SE_BOUND * c.std_error, (c.text, err, c.std_error)
+        assert c.std_error < 0.5 * c_new.std_error, c.text   # far better determined
+
+
+def test_a_recording_without_gaps_is_one_stretch(rigs):
+    _, _, _, result = rigs['hoeken']
+    assert len(result.segments) == 1 and result.segments[0].used
+    assert result.segments[0].wrench_samples == result.samples
+    assert 'encoder gaps' not in identify.format_report(result)

@@ -394,6 +394,33 @@ def test_balancer_answers_busy_while_a_run_is_in_progress(node):
     assert model is not None and text.startswith('# ')
 
 
+def test_a_background_run_queues_behind_a_running_one_and_balances_its_own_scene(node):
+    """A scene switched to during a run is balanced once that run ends (not 'busy')."""
+    from mech_balance.ros.guard import Guard
+    state = _state_of(params.defaults())
+    part = balance_service.Balancer(node, state, Guard(lambda text: None))
+    answers = []
+
+    def done(model, text):
+        answers.append((model, text))
+
+    with part.lock:                                   # a run of the previous scene
+        thread = part.in_background(done)
+        thread.join(0.2)
+        assert thread.is_alive() and not answers      # queued, not answered 'busy'
+    thread.join()
+    (model, text), = answers
+    assert model is not None and text.startswith('# '), text
+    assert model.scene.name.startswith(state.original.scene.name)
+    # a run whose design another run has published meanwhile is not repeated
+    with part.lock:
+        thread = part.in_background(done)
+        with state.lock:
+            state.balanced = model
+    thread.join()
+    assert len(answers) == 1
+
+
 def test_publisher_and_real_rig_statuses_are_finite_from_the_first(node):
     from mech_balance.ros.guard import Guard
     values = params.defaults()

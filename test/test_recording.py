@@ -473,7 +473,11 @@ def test_live_view_connects_and_says_so(tmp_path):
 
 
 LIVE_SCRIPT = textwrap.dedent("""
-    import sys, time
+    import signal, sys, time
+    # Ctrl-C as in a terminal: a parent started in the background without job control (a
+    # CI job under `nohup ... &`) passes SIGINT on as ignored, and Python then never raises
+    # KeyboardInterrupt (the test waited 60 s for an exit that never came)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     from mech_balance import schema as scene
     from mech_balance.viz import recording
     rec = recording.LiveRecorder(sys.argv[1], scene.load('hoeken'))

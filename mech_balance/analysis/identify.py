@@ -140,6 +140,12 @@ MAX_STEP_RAD = 0.9 * math.pi
 """Largest crank step between encoder samples that unwraps unambiguously."""
 MIN_TURNS = 1.0
 """A recording must turn the crank at least this many revolutions in its usable span."""
+GAP_PERIODS = 10.0
+"""The encoder data is split into stretches where two stamps are further apart than this
+many median encoder periods (dropped messages, a stopped encoder): each stretch gets its own
+crank-motion fit, and the wrench samples inside a gap, whose motion is unknown, are not
+used (:func:`encoder_segments`)."""
+
 RANK_RTOL = 1e-7
 """Singular values of the scaled, weighted, bias-free regressor at or below this fraction of
 the largest span its null space: structurally non-identifiable combinations sit at
@@ -846,6 +852,7 @@ class Identification:
     theta_ls: np.ndarray = None     # the unconstrained least squares (minimum norm)
     prediction: object = None       # PredictedRms of the calibrated scene
     source: str = ''
+    segments: list = None           # per encoder stretch: EncoderSegment (see identify)
 
     def summary(self):
         """Return the one-line summary: rank, residual, consistency and the prediction."""
@@ -919,6 +926,7 @@ class Identification:
                 np.diag(self.covariance), 0.0))],
             'calibrated_links': self.calibrated_links, 'realizable': self.realizable,
             'problems': list(self.problems), 'crank_motion': self.motion.to_dict(),
+            'encoder_segments': [g.to_dict() for g in self.segments or ()],
             'consistency': None if self.consistency is None else self.consistency.to_dict(),
             'summary': self.summary(),
             'predicted_rms': None if self.prediction is None else self.prediction.to_dict(),
@@ -953,6 +961,81 @@ def parameter_scales(scene):
     return np.array(out)
 
 
+@dataclass
+class EncoderSegment:
+    """
+    One stretch of encoder data between gaps (:data:`GAP_PERIODS`) and what it gave.
+
+    ``used`` is False with ``reason`` when the stretch is too short for the crank-motion
+    window (or its fit failed); ``wrench_samples`` counts the measurements inside its fitted
+    span (0 when not used).
+    """
+
+    start_s: float
+    end_s: float
+    encoder_samples: int
+    wrench_samples: int = 0
+    used: bool = True
+    reason: str = ''
+
+    def to_dict(self):
+        """Return the stretch as a plain dict."""
+        return {'start_s': float(self.start_s), 'end_s': float(self.end_s),
+                'encoder_samples': int(self.encoder_samples),
+                'wrench_samples': int(self.wrench_samples), 'used': bool(self.used),
+                'reason': self.reason}
+
+
+def encoder_segments(t_s, position_rad, gap_periods=GAP_PERIODS):
+    """
+    Return the encoder data split at its gaps: a list of ``(t, position)`` arrays.
+
+    A gap is a step between stamps above ``gap_periods`` median steps.  Data that cannot
+    be split (mismatched shapes, non-finite or non-increasing stamps, too few samples) is
+    returned whole, for :func:`crank_motion` to refuse with its own message.
+    """
+    t = np.asarray(t_s, dtype=float).ravel()
+    pos = np.asarray(position_rad, dtype=float).ravel()
+    if t.shape != pos.shape or t.size < 3 or not np.isfinite(t).all():
+        return [(t, pos)]
+    steps = np.diff(t)
+    if not (steps > 0.0).all():
+        return [(t, pos)]
+    cut = np.flatnonzero(steps > gap_periods * np.median(steps)) + 1
+    bounds = np.concatenate([[0], cut, [t.size]])
+    return [(t[a:b], pos[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def _segment_motions(t_encoder, position_rad, window, quantization_rad, counts_per_turn):
+    """
+    Return ``(main motion, [(motion or None, EncoderSegment)])`` over the encoder's stretches.
+
+    The longest stretch chooses the window and the quantization (:func:`crank_motion`); the
+    others are fitted with the same ones, or skipped (with the reason) when shorter than
+    the window or when their fit fails.
+    """
+    pieces = encoder_segments(t_encoder, position_rad)
+    main = max(range(len(pieces)), key=lambda k: pieces[k][0].size)
+    motion = crank_motion(*pieces[main], window, quantization_rad=quantization_rad,
+                          counts_per_turn=counts_per_turn)
+    out = []
+    for k, (t, pos) in enumerate(pieces):
+        seg = EncoderSegment(float(t[0]), float(t[-1]), int(t.size))
+        fitted = motion if k == main else None
+        if k != main:
+            if t.size < motion.window + 2:
+                seg.used, seg.reason = False, (f'{t.size} samples, shorter than the '
+                                               f'{motion.window}-sample window + 2')
+            else:
+                try:
+                    fitted = crank_motion(t, pos, motion.window,
+                                          counts_per_turn=motion.quantization.counts_per_turn)
+                except IdentifyError as exc:
+                    seg.used, seg.reason = False, str(exc)
+        out.append((fitted, seg))
+    return motion, out
+
+
 def _measurements(wrench, effort, t_wrench, t_effort, motion):
     """Return the (p, c) measurement matrix at the wrench stamps inside the valid span."""
     wrench = np.asarray(wrench, dtype=float)
@@ -976,6 +1059,68 @@ def _measurements(wrench, effort, t_wrench, t_effort, motion):
     return t_w[inside], meas
 
 
+REDUCE_CHUNK = 4096
+"""Samples per regressor evaluation in :func:`_reduce`: the working memory of an
+identification is that of this many samples, whatever the recording's length."""
+
+
+@dataclass
+class _Reduction:
+    """What the weighted least squares needs of all samples (:func:`_reduce`)."""
+
+    samples: int
+    names: tuple
+    factors: list           # per channel: R factor (n+1, n+1) of the centred [Y_c | r_c]
+    ys_mean: np.ndarray     # (c, n) per channel mean of the scaled columns
+    r0_mean: np.ndarray     # (c,) mean of measured minus the scene's model
+    rms_before: np.ndarray  # (c,) RMS of the centred r0
+    sigma: np.ndarray       # (c,) standard deviation of the measurements
+    size: np.ndarray        # (c,) RMS over samples of the scaled regressor row norm
+    residual: float
+    cond: float
+
+
+def _reduce(scene, psi, speed, accel, meas, torque, theta0, scale, chunk=REDUCE_CHUNK):
+    """
+    Return the :class:`_Reduction` of the samples, ``chunk`` samples at a time.
+
+    Per channel c one orthogonal (QR) reduction of ``[1 | Y_c | r_c | w_c]`` (scaled
+    regressor, measured minus the scene's model, measured), updated chunk by chunk: the
+    trailing block of its R factor is the R factor of the centred columns (the bias-free
+    problem), its first row divided by sqrt(p) their means.  So the regressor of the whole
+    recording is never held at once.
+    """
+    nc = meas.shape[1]
+    stacks = [None] * nc
+    names, residual, cond, sq = (), 0.0, 0.0, np.zeros(nc)
+    rig = analysis.Rig(scene)                       # built (its branch traced) once
+    for a in range(0, psi.size, chunk):
+        k = slice(a, a + chunk)
+        reg = regressor(scene, psi[k], speed[k], accel[k], torque=torque, rig=rig)
+        y = reg.wrench if reg.torque is None else np.concatenate(
+            [reg.wrench, reg.torque[:, None, :]], axis=1)
+        names, residual, cond = reg.names, max(residual, reg.residual), max(cond, reg.cond)
+        ys = y * scale                              # scaled columns: theta = scale * u
+        r0 = meas[k] - y @ theta0                   # measured minus the scene's model
+        sq += np.sum(ys ** 2, axis=(0, 2))
+        for c in range(nc):
+            block = np.column_stack([np.ones(ys.shape[0]), ys[:, c, :], r0[:, c],
+                                     meas[k, c]])
+            if stacks[c] is not None:
+                block = np.vstack([stacks[c], block])
+            stacks[c] = np.linalg.qr(block, mode='r')
+    p, n = psi.size, theta0.size
+    first = np.array([st[0, 1:] / st[0, 0] for st in stacks])     # (c, n + 2) means
+    tail = [st[1:, 1:] for st in stacks]
+    return _Reduction(
+        samples=p, names=names, factors=[t[:n + 1, :n + 1] for t in tail],
+        ys_mean=first[:, :n], r0_mean=first[:, n],
+        rms_before=np.array([np.linalg.norm(t[:, n]) for t in tail]) / math.sqrt(p),
+        sigma=np.array([np.linalg.norm(t[:, n + 1]) for t in tail]) / math.sqrt(p),
+        size=np.sqrt(sq / p),
+        residual=residual, cond=cond)
+
+
 def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, window=None,
              quantization_rad=None, counts_per_turn=None):
     """
@@ -988,45 +1133,40 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     evaluated at each wrench stamp with the crank state interpolated from the encoder.
     """
     _check_planar(scene)
-    motion = crank_motion(t_encoder, position_rad, window, quantization_rad=quantization_rad,
-                          counts_per_turn=counts_per_turn)
-    t_w, meas = _measurements(wrench, effort, t_wrench, t_encoder, motion)
+    motion, stretches = _segment_motions(t_encoder, position_rad, window, quantization_rad,
+                                         counts_per_turn)
+    parts, turns, span = [], 0.0, 0.0
+    for fitted, seg in stretches:
+        if fitted is None:
+            continue
+        t_k, meas_k = _measurements(wrench, effort, t_wrench, t_encoder, fitted)
+        seg.wrench_samples = int(t_k.size)
+        if t_k.size:
+            parts.append((t_k, meas_k) + tuple(fitted.at(t_k)))
+            turns += abs(parts[-1][2][-1] - parts[-1][2][0]) / (2.0 * math.pi)
+            span += t_k[-1] - t_k[0]
     channels = CHANNELS + ((TORQUE_CHANNEL,) if effort is not None else ())
     nc = len(channels)
-    if t_w.size < 2:
-        raise IdentifyError(f'wrench: {t_w.size} samples inside the encoder span '
-                            f'{motion.t_s[0]:.3f}..{motion.t_s[-1]:.3f} s, expected the '
-                            'sensor and the encoder to record the same time')
-    psi, speed, accel = motion.at(t_w)
-    turns = abs(psi[-1] - psi[0]) / (2.0 * math.pi)
+    if sum(part[0].size for part in parts) < 2:
+        raise IdentifyError(f'wrench: {sum(part[0].size for part in parts)} samples inside the '
+                            f'encoder span {motion.t_s[0]:.3f}..{motion.t_s[-1]:.3f} s, '
+                            'expected the sensor and the encoder to record the same time')
+    t_w, meas, psi, speed, accel = (np.concatenate([part[i] for part in parts])
+                                    for i in range(5))
     if turns < MIN_TURNS:
         raise IdentifyError(f'recording: the crank turns {turns:.3g} revolutions in the usable '
-                            f'span of {t_w[-1] - t_w[0]:.3g} s, expected at least {MIN_TURNS:g}'
+                            f'span of {span:.3g} s, expected at least {MIN_TURNS:g}'
                             ' (a longer recording)')
-    reg = regressor(scene, psi, speed, accel, torque=effort is not None)
-    y = reg.wrench if reg.torque is None else np.concatenate([reg.wrench,
-                                                              reg.torque[:, None, :]], axis=1)
-    p, _, nparam = y.shape
+    theta0 = dynamics.parameter_vector(dynamics.Inertia.from_links(scene.links))
+    scale = parameter_scales(scene)
+    red = _reduce(scene, psi, speed, accel, meas, effort is not None, theta0, scale)
+    p, nparam = red.samples, theta0.size
     if p * nc <= nparam + nc:
         raise IdentifyError(f'recording: {p} samples, expected more than {nparam + nc} '
                             'measurements for the parameters and the bias')
-    theta0 = dynamics.parameter_vector(dynamics.Inertia.from_links(scene.links))
-    scale = parameter_scales(scene)
-    ys = y * scale                                  # scaled columns: theta = scale * u
-    r0 = meas - y @ theta0                          # measured minus the scene's model
-    # bias free: remove the per-channel mean of the data and of every column
-    ys_mean = ys.mean(axis=0)                       # (c, n): bias sensitivity M (SI per u)
-    r0_mean = r0.mean(axis=0)
-    ysc = ys - ys_mean
-    r0c = r0 - r0_mean
-    rms_before = np.sqrt(np.mean(r0c ** 2, axis=0))
-    sigma = np.sqrt(np.mean((meas - meas.mean(axis=0)) ** 2, axis=0))
-    sigma = np.where(sigma > 0.0, sigma, 1.0)
-    # one orthogonal (QR) reduction per channel of [Y_c | r_c] to its (n+1, n+1) R factor:
-    # every weighted pass below is then exact on the small stacked factors, residual norms
-    # included (||[Y_c r_c] [-du; 1]|| = ||R_c [-du; 1]||)
-    factors = [np.linalg.qr(np.column_stack([ysc[:, c, :], r0c[:, c]]), mode='r')
-               for c in range(nc)]
+    ys_mean, r0_mean, rms_before, factors = red.ys_mean, red.r0_mean, red.rms_before, \
+        red.factors
+    sigma = np.where(red.sigma > 0.0, red.sigma, 1.0)
     for _ in range(WEIGHT_PASSES):
         stacked = np.vstack([f / s for f, s in zip(factors, sigma)])
         u_mat, sv, vt = np.linalg.svd(stacked[:, :nparam], full_matrices=False)
@@ -1056,22 +1196,23 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     cov_b = s2 * np.diag(sigma ** 2 / p) + m_sens @ cov_u @ m_sens.T
     v0 = vt[rank:].T
     confound_u = m_sens @ v0 @ v0.T                 # (c, n) per unit of u
-    size = np.sqrt(np.mean(np.sum(ys ** 2, axis=2), axis=0))
+    size = red.size
     identifiable_b = np.linalg.norm(confound_u, axis=1) <= CONFOUND_RTOL * size
     confound = np.where(identifiable_b[:, None], 0.0, confound_u / scale)
     rms_after = np.sqrt(res_sq / p)
-    combos = _combinations(vt[:rank], scale, reg.names, theta_ls, theta0, cov, theta)
+    combos = _combinations(vt[:rank], scale, red.names, theta_ls, theta0, cov, theta)
     links, problems = _calibrated_links(scene, theta)
     return Identification(
-        scene=scene, names=reg.names, theta_scene=theta0, theta=theta, covariance=cov,
+        scene=scene, names=red.names, theta_scene=theta0, theta=theta, covariance=cov,
         rank=rank, singular_values=sv,
         condition_number=float(sv[0] / sv[rank - 1]), combinations=combos,
         channels=channels, bias=bias, bias_std_error=np.sqrt(np.diag(cov_b)),
         bias_confounding=confound, bias_identifiable=identifiable_b, noise_std=sigma,
         rms_before=rms_before, rms_after=rms_after, samples=p, motion=motion,
-        kinematic_residual=reg.residual, kinematic_cond=reg.cond, calibrated_links=links,
+        kinematic_residual=red.residual, kinematic_cond=red.cond, calibrated_links=links,
         problems=problems, consistency=consistency, theta_ls=theta_ls,
-        prediction=None if problems else predicted_rms(scene, theta, cov))
+        prediction=None if problems else predicted_rms(scene, theta, cov),
+        segments=[seg for _, seg in stretches])
 
 
 def _combinations(v1t, scale, names, theta, theta0, cov, theta_cal):
@@ -1240,6 +1381,19 @@ def calibrated_yaml(result, source=''):
     return '\n'.join(head) + '\n' + schema.to_yaml(sc)
 
 
+def _segment_lines(segments):
+    """Return the report's lines on the encoder's stretches (none for one stretch)."""
+    if not segments or len(segments) == 1:
+        return []
+    used = [g for g in segments if g.used]
+    lines = [f'  encoder gaps (> {GAP_PERIODS:g} periods): {len(segments)} stretches, '
+             f'{len(used)} used ({sum(g.wrench_samples for g in used)} wrench samples); '
+             'the wrench samples inside a gap are not used']
+    lines += [f'    skipped {g.start_s:.3f}..{g.end_s:.3f} s: {g.reason}'
+              for g in segments if not g.used]
+    return lines
+
+
 def format_report(result):
     """Return the identification report as text."""
     m = result.motion
@@ -1252,6 +1406,7 @@ def format_report(result):
         + (' (resampled to a uniform grid)' if m.resampled else ''),
         f'  {m.quantization.describe()}; mean speed {m.mean_speed_rad_s:.6g} rad/s',
         f'  window: {m.window_reason}',
+        *_segment_lines(result.segments),
         f"  predicted noise: angle {std['angle_rad']:.2e} rad, speed "
         f"{std['speed_rad_s']:.2e} rad/s, acceleration {std['accel_rad_s2']:.2e} rad/s^2; "
         f"gain error at 1x/2x rotation: accel {m.gain_error['accel_1x']:+.1e}/"

@@ -1,9 +1,9 @@
 """
 ``mech-balance bench --compare mujoco``: this package against MuJoCo, side by side.
 
-Only this module imports :mod:`mujoco` (an optional benchmark dependency: ``make
-bench-mujoco`` installs a pinned version); without it the command prints how to install it
-and exits with status 2.
+Only this module and :mod:`.mujoco_spatial` import :mod:`mujoco` (an optional benchmark
+dependency: ``make bench-mujoco`` installs a pinned version); without it the command prints
+how to install it and exits with status 2.
 
 The MuJoCo model of a planar rig (:class:`MujocoRig`)
     The linkage's own spanning tree (:class:`~mech_balance.kinematics.Linkage`): one body per
@@ -31,6 +31,11 @@ What MuJoCo's inverse dynamics gives for a closed loop, and the rigid forces
     tree parent) of the bodies hinged to the world, plus the connect forces to the world,
     is the load on the frame.  The shaking wrench is its reaction about the crank pivot
     (:mod:`mech_balance.conventions`).
+
+The spatial built-ins (printed after the planar part)
+    :mod:`mech_balance.bench.mujoco_spatial`: the same comparison for ``kind: spatial``
+    (the rig's spanning tree of hinges, slides and balls, ``connect`` at its spherical cut
+    joints, the package's S-S spin convention), bearing reactions included.
 
 What is timed, per crank angle (printed with the results)
     full pipeline
@@ -556,4 +561,9 @@ def cmd_compare(args):
     progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     hoeken, chains, extras, version = run(args.samples, args.repeat, progress)
     print(format_report(hoeken, chains, version, extras), flush=True)
+    from mech_balance.bench import mujoco_spatial
+    spatial = mujoco_spatial.run(_interleaved_medians, args.samples, args.repeat,
+                                 max(5, args.repeat // MUJOCO_REPEAT_DIVISOR), progress,
+                                 mj=import_mujoco())
+    print(mujoco_spatial.format_report(spatial, AGREEMENT_TOL), flush=True)
     return 0

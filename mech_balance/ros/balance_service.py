@@ -68,15 +68,19 @@ class Balancer:
         """Return whether a balancing run is in progress."""
         return self.lock.locked()
 
-    def balance(self):
+    def balance(self, wait=False, still_wanted=None):
         """
         Return ``(model or None, answer)``: a balancing run, or why there is none.
 
-        One run at a time: while one runs, the answer is :data:`BUSY`.
+        One run at a time: while one runs, the answer is :data:`BUSY`, unless ``wait``: then
+        the call queues behind the running one and, once it may start, runs only if
+        ``still_wanted()`` (when given) is true, else answers ``(None, None)``.
         """
-        if not self.lock.acquire(blocking=False):
+        if not self.lock.acquire(blocking=wait):
             return None, BUSY
         try:
+            if still_wanted is not None and not still_wanted():
+                return None, None
             return self._run()
         except Exception as exc:  # noqa: BLE001 - any failure is answered, never fatal
             with self._state.lock:
@@ -116,16 +120,27 @@ class Balancer:
 
     def in_background(self, done):
         """
-        Balance on a thread of its own; then call ``done(model or None, answer)``.
+        Balance on a thread of its own (returned); then call ``done(model or None, answer)``.
 
-        A run already in progress (a ``~/balance`` call) publishes its own design: nothing
-        is started then.
+        A run already in progress (a ``~/balance`` call, or the background run of a scene
+        switched away from) is waited for; this one then starts only if the state still
+        has no balanced design of the same original design (the run waited for may have
+        published it), so a scene switch during a run is balanced in its turn.
         """
+        with self._state.lock:
+            original = self._state.original
+
+        def still_wanted():
+            with self._state.lock:
+                return self._state.original is original and self._state.balanced is None
+
         @self._guard.skipping('use_balanced')
         def run():
-            model, text = self.balance()
-            if model is None and text == BUSY:
+            model, text = self.balance(wait=True, still_wanted=still_wanted)
+            if model is None and text is None:
                 return
             done(model, text)
 
-        threading.Thread(target=run, name='rig-balance', daemon=True).start()
+        thread = threading.Thread(target=run, name='rig-balance', daemon=True)
+        thread.start()
+        return thread

@@ -33,9 +33,9 @@ MAX_FRACTION = 1000.0
 """Largest diagnostics threshold (residual RMS / measured RMS)."""
 CASES = ('a', 'b')
 METHODS = ('redistribution', 'counterweights', 'analytic')
-"""``balance.method``: :func:`mech_balance.balancing.balance`'s methods a planar rig takes (a
-rig that cannot be redistributed, the RGGR, is balanced by its own method when the method
-is the default, redistribution)."""
+"""``balance.method``: :func:`mech_balance.balancing.balance`'s methods the node offers (a
+rig that cannot be redistributed, the closed-form ``rggr`` scene, is balanced by its own
+method when the method is the default, redistribution; spatial scenes are redistributed)."""
 LINK_PREFIX = 'balance.links.'
 """Per-link balancing options are ``balance.links.<link>.<option>``, declared from the scene."""
 LINK_OPTIONS = {'mass_bounds': ('kg', 'balance.mass_bounds', 'link mass bounds'),
@@ -397,8 +397,9 @@ PARAMETERS = (
          'redistribution: the certified optimal mass redistribution (seed 001); '
          'counterweights: add-only discs on balance.counterweight_links (certified); '
          'analytic: complete force balance in closed form (slider-crank: seed 000, '
-         'four-bar: seed 001 eq. 48). A scene that cannot be redistributed (RGGR) is '
-         'balanced by its own method with the default.', choices=METHODS),
+         'four-bar: seed 001 eq. 48). A scene that cannot be redistributed (the closed-form '
+         'rggr scene) is balanced by its own method (weights) with the default; spatial '
+         'scenes, rggr_spatial included, are redistributed.', choices=METHODS),
     Spec('balance.counterweight_links', STRING, '',
          'Counterweights: comma-separated links that each gain one disc (e.g. '
          '"crank,rocker"); needed by balance.method counterweights.',

@@ -101,9 +101,6 @@ about 8 MB): the identification uses the newest ones."""
 IDENTIFY_SPAN_S = 120.0
 """``~/identify`` uses at most the newest this many seconds of data (by stamp): with
 :data:`IDENTIFY_CAPACITY` the bound on its memory and time, whatever the stamps say."""
-IDENTIFY_GAP_PERIODS = 10.0
-"""``~/identify`` uses the newest stretch of encoder data whose stamps are never further
-apart than this many median encoder periods."""
 REST_SPEED_RAD_S = 1e-3
 """A tare whose crank speeds stay below this is taken at rest."""
 RESYNC_AFTER = 10
@@ -747,7 +744,8 @@ class Comparison:
         """
         Return ``(t_encoder_s, angle_rad, t_wrench_s, planar_wrench (n, 3), t0_ns)``.
 
-        The buffered encoder since its last gap (:data:`IDENTIFY_GAP_PERIODS`; follow mode)
+        The buffered encoder (follow mode; the identification splits it at its gaps and fits
+        each stretch on its own, :func:`mech_balance.analysis.identify.encoder_segments`)
         or, with a clock-mode ``schedule``, the node's crank at the measurement stamps; the
         measurements in the rig frame about the moment point, [f_x, f_y, n_z], bias not
         removed (the identification estimates it).
@@ -768,11 +766,6 @@ class Comparison:
             if te.size < 2:
                 raise ValueError('identify: no crank_joint_state received, expected the '
                                  'encoder to stream (follow mode)')
-            # the newest stretch without a gap (the crank may have stopped, or the encoder)
-            steps = np.diff(te)
-            gaps = np.flatnonzero(steps > IDENTIFY_GAP_PERIODS * np.median(steps))
-            if gaps.size:
-                te, angle = te[gaps[-1] + 1:], angle[gaps[-1] + 1:]
             recent = te >= te[-1] - span_ns
             te, angle = te[recent], angle[recent]
             inside = (tw >= te[0]) & (tw <= te[-1])
