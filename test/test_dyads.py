@@ -232,8 +232,8 @@ def test_a_dyad_whose_sign_changes_on_the_skeleton_drops_the_plan():
     assert dyads.attach_signs(None, lk, sk) is None
 
 
-@pytest.mark.parametrize('name, tree_like', [('chain', True), ('chain', False),
-                                              ('carpet_scraper', False)])
+@pytest.mark.parametrize('name, tree_like',
+                         [('chain', True), ('chain', False), ('carpet_scraper', False)])
 def test_block_factored_agrees_with_lapack(name, tree_like, monkeypatch):
     sc = chain.dyad_chain(6) if name == 'chain' else scene.load(name)
     rig = PlanarRig(sc, cache=False)

@@ -110,8 +110,7 @@ def settle_allocator():
     """
     if not _ALLOCATOR_SETTLED:
         _ALLOCATOR_SETTLED.append(True)
-        block = np.empty(ALLOCATOR_SETTLE_BYTES, dtype=np.uint8)
-        del block
+        np.empty(ALLOCATOR_SETTLE_BYTES, dtype=np.uint8)   # freed at once
 
 
 class BranchError(ValueError):
