@@ -11,6 +11,7 @@ from mech_balance import schema
 from mech_balance.bench import core, node
 from mech_balance.ros import sensor
 import numpy as np
+import pytest
 
 
 def test_section_is_registered_under_its_name():
@@ -35,3 +36,31 @@ def test_rig_stream_is_a_quantized_wrapped_encoder_and_a_planar_wrench():
     np.testing.assert_allclose(counts, np.round(counts), atol=1e-6)
     assert np.all(force[:, 2] == 0.0) and np.all(torque[:, :2] == 0.0)
     assert np.all(np.isfinite(force)) and np.ptp(force[:, 0]) > 0.0
+
+
+def test_follow_path_times_the_nodes_own_follow_path():
+    # the bench's follow figures: the node's Publisher and Streamer on encoder messages,
+    # one payload (both messages serialized) per accepted message, the table or the core
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import JointState
+    from geometry_msgs.msg import WrenchStamped
+    for exact in (False, True):
+        path = node.FollowPath('slider_crank', exact=exact, messages=40)
+        try:
+            assert path.run(1) == []              # the first position primes the fit
+            payloads = path.run(1) + path.run(node.FOLLOW_BATCH)
+            assert len(payloads) == 1 + node.FOLLOW_BATCH
+            assert path.evaluation().startswith(
+                'exact core per sample (follow.exact)' if exact else 'cycle table of ')
+            joints = [deserialize_message(p[0], JointState) for p in payloads]
+            wrench = [deserialize_message(p[1], WrenchStamped) for p in payloads]
+            psi = np.array([j.position[path.model.crank_index] for j in joints])
+            speed = np.array([j.velocity[path.model.crank_index] for j in joints])
+            ref = path.model.evaluate(psi, speed, 0.0)   # constant speed: accel ~ 0
+            got = np.array([[w.wrench.force.x, w.wrench.force.y] for w in wrench])
+            scale = np.max(np.abs(ref.force_N[:, :2]))
+            assert np.max(np.abs(got - ref.force_N[:, :2])) <= 1e-9 * scale
+            with pytest.raises(RuntimeError, match='used up'):
+                path.run(40)
+        finally:
+            path.close()

@@ -177,6 +177,7 @@ def test_counterweight_bound_on_random_rigs_and_slsqp(seed, weights, thickness, 
     # a feasible point's z is above the certified bound (up to SLSQP's 1e-12 constraint
     # slack, whose effect on z is bounded by the map norms times it)
     slack = 1e-12 * sum(np.linalg.norm(g) for g, _ in prob.norms) * 10.0
+    assert best < math.inf, 'SLSQP reached no feasible design from any start'
     assert best >= cert.lower_bound - slack
 
 

@@ -426,7 +426,7 @@ def test_exact_stage_with_an_active_constraint_is_the_closest(index):
     The calibrated set reproduces the combinations and no consistent set with them is closer
     to the scene (scipy's SLSQP on the nonlinear form, a second formulation).
     """
-    from scipy.optimize import minimize
+    import scipy.optimize
     nominal, result, _, _ = _direct(CORNERS[index])
     cons = result.consistency
     assert cons.stage == 'exact' and 'links.crank.inertia_com_kg_m2 >= 0' in cons.active
@@ -441,12 +441,19 @@ def test_exact_stage_with_an_active_constraint_is_the_closest(index):
     size = np.abs(coeff) @ np.abs(theta0 + scale)
     np.testing.assert_allclose(coeff @ result.theta / size, est / size, rtol=0, atol=1e-7)
     u_cal = (result.theta - theta0) / scale
-    ref = minimize(lambda u: float(u @ u), u_ls, jac=lambda u: 2.0 * u, method='SLSQP',
-                   constraints=[{'type': 'eq',
-                                 'fun': lambda u: (coeff @ (theta0 + scale * u) - est) / size},
-                                *_cone_constraints(theta0, scale)],
-                   options={'ftol': 1e-15, 'maxiter': 1000})
-    assert ref.success, ref.message
+    # trust-constr, feasible end point checked: SLSQP from u_ls stopped with status 8
+    # ('positive directional derivative') once u_ls moved by 1e-11 (a chunked reduction)
+    cones = _cone_constraints(theta0, scale)
+
+    def combos(u):
+        return (coeff @ (theta0 + scale * u) - est) / size
+
+    ref = scipy.optimize.minimize(
+        lambda u: float(u @ u), u_ls, jac=lambda u: 2.0 * u, method='trust-constr',
+        constraints=[{'type': 'eq', 'fun': combos}, *cones],
+        options={'gtol': 1e-12, 'xtol': 1e-14, 'maxiter': 3000})
+    assert np.all(np.abs(combos(ref.x)) <= 1e-7), 'the reference misses the combinations'
+    assert all(np.all(c['fun'](ref.x) >= -1e-9) for c in cones), 'the reference is infeasible'
     assert float(u_cal @ u_cal) == pytest.approx(ref.fun, rel=1e-4)
 
 

@@ -261,6 +261,37 @@ def test_estimator_recovers_speed_and_acceleration_from_positions_only():
     assert s.speed_rad_s == pytest.approx(4.0, rel=1e-9)
 
 
+def test_estimator_is_the_least_squares_fit_on_noisy_uneven_samples():
+    # the estimator's plain-Python fit against numpy's least squares (the definition)
+    rng = np.random.default_rng(7)
+    for window in (3, 7, 25):
+        for with_velocity in (False, True):
+            est = twin.CrankEstimator(window=window)
+            stamps = 1_000_000_000 + np.cumsum(rng.integers(200_000, 3_000_000, 60))
+            t = (stamps - stamps[0]) * 1e-9
+            turned = 0.4 + 20.0 * t - 35.0 * t * t + rng.normal(0.0, 1e-3, t.size)
+            velocity = 20.0 - 70.0 * t + rng.normal(0.0, 0.05, t.size)
+            for k, stamp in enumerate(stamps):
+                s = est.update(int(stamp), math.remainder(turned[k], 2 * math.pi),
+                               velocity[k] if with_velocity else None)
+                lo = max(0, k - window + 1)
+                if k - lo < 2:
+                    continue
+                tau = (stamps[lo:k + 1] - stamp) * 1e-9
+                if with_velocity:
+                    slope = np.polyfit(tau, velocity[lo:k + 1], 1)[0]
+                    assert s.speed_rad_s == velocity[k]
+                    assert s.accel_rad_s2 == pytest.approx(slope, rel=1e-9, abs=1e-9)
+                    continue
+                span = -tau[0]
+                x = tau / span
+                coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(x.size), x, x * x]),
+                                           turned[lo:k + 1] - turned[k], rcond=None)
+                assert s.speed_rad_s == pytest.approx(coef[1] / span, rel=1e-9, abs=1e-9)
+                assert s.accel_rad_s2 == pytest.approx(2.0 * coef[2] / span ** 2, rel=1e-7,
+                                                       abs=1e-6)
+
+
 def test_estimator_rejects_input_the_rig_cannot_produce():
     est = twin.CrankEstimator(window=5, max_speed=100.0, max_gap_s=0.5)
     est.update(1_000_000_000, 0.0)
@@ -311,21 +342,27 @@ def test_messages_carry_the_samples_and_the_encoder_is_read_with_checks():
     ('carpet_scraper', False, 'x'), ('rggr', True, 'rig_frame')])
 def test_batch_serializer_reads_back_as_the_filled_messages(name, effort, frame_id):
     model = twin.model_for(scene_mod.load(name))
-    samples = model.evaluate(np.linspace(0.0, 6.0, 9), 1.7, -0.4)
-    if not effort:
-        samples.joint_effort = None
-    stamps = 1_700_000_000_999_999_000 + 333_333 * np.arange(9, dtype=np.int64)
-    ser = conv.SampleSerializer(model.joint_names, effort, frame_id)
-    reference = conv.serialized_samples(samples, stamps, frame_id)
+    # sample by sample (follow mode's small batches) and with numpy (clock mode's)
+    for n in (9, conv.SMALL_BATCH + 8):
+        samples = model.evaluate(np.linspace(0.0, 6.0, n), 1.7, -0.4)
+        if not effort:
+            samples.joint_effort = None
+        stamps = 1_700_000_000_999_999_000 + 333_333 * np.arange(n, dtype=np.int64)
+        ser = conv.SampleSerializer(model.joint_names, effort, frame_id)
+        reference = conv.serialized_samples(samples, stamps, frame_id)
 
-    def same(payloads):  # read back: CDR leaves the alignment padding unspecified
-        return len(payloads) == len(reference) and all(
-            deserialize_message(fj, JointState) == deserialize_message(rj, JointState) and
-            deserialize_message(fw, WrenchStamped) == deserialize_message(rw, WrenchStamped)
-            for (fj, fw), (rj, rw) in zip(payloads, reference))
-    assert same(ser.serialize(samples, stamps)) and ser.fast
-    ser._joint.index = ser._joint.index[::-1].copy()  # a wrong layout is caught, not sent
-    assert same(ser.serialize(samples, stamps)) and not ser.fast
+        def same(payloads):  # read back: CDR leaves the alignment padding unspecified
+            return len(payloads) == len(reference) and all(
+                deserialize_message(fj, JointState) == deserialize_message(rj, JointState)
+                and deserialize_message(fw, WrenchStamped) ==
+                deserialize_message(rw, WrenchStamped)
+                for (fj, fw), (rj, rw) in zip(payloads, reference))
+        assert same(ser.serialize(samples, stamps)) and ser.fast
+        # a wrong layout is caught, not sent (both forms of it: byte indices, value runs)
+        ser._joint.index = ser._joint.index[::-1].copy()
+        (p0, e0, k0, at0), (p1, e1, k1, at1) = ser._joint.runs[:2]  # positions, velocities
+        ser._joint.runs[:2] = [(p0, e0, k0, at1), (p1, e1, k1, at0)]
+        assert same(ser.serialize(samples, stamps)) and not ser.fast
 
 
 # ------------------------------------------------------------------------------ processes

@@ -116,17 +116,21 @@ def test_class6_estimator_resynchronizes_after_consecutive_rejections():
 def test_class4_streamer_withholds_a_non_finite_sample():
     """The last check before publishing: a NaN row is counted and warned, never sent."""
     model = twin.model_for(scene_mod.load('hoeken'))
+    assert model.cycle_table() is not None  # follow mode evaluates by the table
 
     class Poisoned:
-        """The twin, but its shaking force at crank angle 0.2 rad is NaN."""
+        """The twin, but its shaking force at crank angle 0.2 rad is NaN (both paths)."""
 
         def __getattr__(self, name):
             return getattr(model, name)
 
-        def evaluate(self, psi, speed, accel=0.0):
-            s = model.evaluate(psi, speed, accel)
+        def evaluate(self, psi, speed, accel=0.0, how=model.evaluate):
+            s = how(psi, speed, accel)
             s.force_N[np.isclose(np.asarray(psi, dtype=float), 0.2), 0] = math.nan
             return s
+
+        def follow_evaluate(self, psi, speed, accel=0.0):  # follow mode's (cycle table)
+            return self.evaluate(psi, speed, accel, how=model.follow_evaluate)
 
     sent, warned, done = [], [], threading.Event()
 

@@ -584,6 +584,10 @@ def test_node_compares_tares_identifies_and_diagnoses(context, tmp_path):
         enc = {kv.key: kv.value for kv in latest['encoder input'].values}
         assert int(enc['used']) == n_rest + t_all.size and enc['rejected: name'] == '1'
         assert latest['model'].level == bytes([diagnostics.OK])
+        # follow mode publishes from the calibrated design's cycle table, verified
+        evaluation = {kv.key: kv.value for kv in latest['model'].values}['evaluation']
+        assert evaluation.startswith('cycle table of '), evaluation
+        assert 'verified accuracy' in evaluation
         assert values_b['rejected: wrench.force'] == '1'
         assert 'follow mode' in latest['publisher'].message
         # ---- ~reset returns to the scene
@@ -595,3 +599,5 @@ def test_node_compares_tares_identifies_and_diagnoses(context, tmp_path):
         logs = [rig.stop() for rig in rigs]
     for log in logs:
         assert 'Traceback' not in log, log
+        # a table for the scene, another for the calibrated design (~/identify)
+        assert log.count("': cycle table of ") >= 2, log

@@ -11,6 +11,12 @@ shutdown after :data:`STATS_S` at the target rate (:data:`mech_balance.ros.node.
 give the compute per sample (the core's evaluation and the serialization of both
 messages, amortized over the batches a second thread prepares ahead of the ticks) and the
 wall time of a tick (two ``publish`` calls of prepared bytes, middleware included).
+
+Follow mode is timed in this process on the node's own objects (:class:`FollowPath`): per
+encoder message the subscription callback (reading, estimator, the real rig's crank
+track, the queue), per batch the follow step's evaluation (the design's cycle table, and
+again with ``follow.exact``: the core) and preparation of both messages; only the rclpy
+``publish`` calls are left out.
 """
 
 import json
@@ -75,6 +81,7 @@ def bench_section(args, progress):
             continue
         lines += ['', head, '-' * len(head)]
         follow = _follow_costs(name)
+        exact = _follow_costs(name, exact=True)
         best = None
         for rate, joint, wrench in rows:
             ok = joint < MISSED_MAX and wrench < MISSED_MAX
@@ -90,9 +97,13 @@ def bench_section(args, progress):
             f'publishing {step * 1e6:.1f} us median, p99 '
             f'{stats.get("step_p99_s", float("nan")) * 1e6:.1f} us (the tick: two rclpy '
             'publish calls of the prepared bytes, middleware delivery included)',
-            f'follow mode (evaluated as encoder messages arrive): {follow[0] * 1e6:.0f} us for '
-            f'a sample alone, {follow[1] * 1e6:.0f} us per sample in batches of '
-            f'{FOLLOW_BATCH} (the node batches what arrived during the last evaluation)',
+            f'follow mode (compute per encoder message, as the node does it: the encoder '
+            f'callback, then the evaluation and both messages serialized): '
+            f'{follow[0] * 1e6:.0f} us for a sample alone, {follow[1] * 1e6:.0f} us per sample '
+            f'in batches of {FOLLOW_BATCH} (the node batches what arrived during the last '
+            f'evaluation); {follow[2]}',
+            f'follow mode with follow.exact (the core per sample): {exact[0] * 1e6:.0f} us '
+            f'alone, {exact[1] * 1e6:.0f} us per sample in batches of {FOLLOW_BATCH}',
             f'target: >= {TARGET_RATE_HZ:g} Hz sustained '
             f'{"met" if best and best >= TARGET_RATE_HZ else "NOT met"}; '
             f'<= {TARGET_STEP_S * 1e6:g} us compute per callback '
@@ -110,23 +121,117 @@ def bench_section(args, progress):
     return '\n'.join(lines)
 
 
-def _follow_costs(scene_name):
-    """Return the compute per sample in follow mode: alone, and in a batch."""
-    from mech_balance.bench import core as bench
-    from mech_balance.ros import conversions as conv, description
-    from mech_balance import schema as scene_mod
-    import numpy as np
-    model = description.twin_for(scene_mod.load(scene_name))  # what the node publishes
-    ser = conv.SampleSerializer(model.joint_names, model.has_effort, 'rig_frame')
-    times = []
-    for n in (1, FOLLOW_BATCH):
-        psi = np.linspace(0.1, 0.2, n)
-        stamps = np.arange(n, dtype=np.int64) + 1
+def _follow_costs(scene_name, exact=False):
+    """
+    Return the compute per encoder message in follow mode: alone, and in a batch.
 
-        def run(psi=psi, stamps=stamps):
-            ser.serialize(model.evaluate(psi, 1.0, 0.0), stamps)
-        times.append(bench.median_seconds(run, repeat=FOLLOW_REPEAT) / n)
-    return times
+    The node's own code on its own objects, in this process (:class:`FollowPath`): per
+    message the encoder callback (:meth:`Publisher.on_encoder`: the reading, the estimator,
+    the real rig's crank track, the queue), then per batch the follow step's evaluation and
+    preparation (:meth:`Streamer._evaluate_follow`: the cycle table or, with ``exact``, the
+    core; the model watch, the non-finite check, both messages serialized, the recording
+    hook); only the two rclpy ``publish`` calls are left out.  Also returns what follow mode
+    evaluates (the model's table status).
+    """
+    path = FollowPath(scene_name, exact)
+    try:
+        times = []
+        for n in (1, FOLLOW_BATCH):
+            path.run(n)
+            times.append(bench_core_median(lambda n=n: path.run(n)) / n)
+        return times[0], times[1], path.evaluation()
+    finally:
+        path.close()
+
+
+def bench_core_median(fn):
+    """Return the median seconds of ``fn()`` over :data:`FOLLOW_REPEAT` runs."""
+    from mech_balance.bench import core as bench
+    return bench.median_seconds(fn, repeat=FOLLOW_REPEAT)
+
+
+class FollowPath:
+    """
+    The rig node's follow-mode objects in this process, its threads stopped (for timing).
+
+    A :class:`~mech_balance.ros.publisher.Publisher` and a
+    :class:`~mech_balance.ros.real_rig.RealRig` on an rclpy node that is never spun, with
+    the parameter defaults, ``mode`` follow and ``follow.exact`` as given; the
+    streamer's threads are stopped so that :meth:`run` drives the follow path itself.
+    Encoder messages (positions only: the estimator's least-squares fit) are made ahead.
+    """
+
+    def __init__(self, scene_name, exact=False, messages=None):
+        import math
+        import rclpy
+        from sensor_msgs.msg import JointState
+        from mech_balance.ros import conversions as conv, guard, live, params
+        from mech_balance.ros import parameters as node_params, publisher, real_rig
+        from mech_balance.ros.rig_state import RigState
+        self.ctx = rclpy.Context()
+        domain = os.environ.get('ROS_DOMAIN_ID', '')
+        rclpy.init(context=self.ctx, domain_id=int(domain) if domain.isdigit() else
+                   101 - os.getpid() % 50)   # nothing is published: discovery only
+        self.node = rclpy.create_node(f'bench_follow_{os.getpid()}', context=self.ctx)
+        values = dict(params.defaults(), scene=scene_name, mode='follow')
+        values['follow.exact'] = bool(exact)
+        model = node_params.build_model(scene_name)
+        self.state = state = RigState(values, model)
+
+        def warn(text):
+            self.node.get_logger().warning(text, throttle_duration_sec=2.0)
+        self.guard = guard.Guard(warn)
+        self.recording = live.Recording(lambda level, text: None, make=None)
+
+        def record(samples, turned_rad, stamps_ns):  # the node's recording hook (inactive)
+            self.recording.push(samples, turned_rad, stamps_ns,
+                                original=state.published is state.original)
+        parts = {}
+        self.publisher = publisher.Publisher(
+            self.node, state, self.guard, warn, record,
+            on_encoder=lambda *a: parts['rig'].on_encoder(*a))
+        parts['rig'] = self.rig = real_rig.RealRig(self.node, state, self.guard, warn,
+                                                   self.publisher)
+        self.publisher.streamer.stop()
+        self.publisher.apply_mode()
+        if not exact:
+            model.cycle_table()  # built (the node builds it in a thread of its own)
+        self.model = model
+        speed = model.scene.crank_speed_rad_s or 2.0 * math.pi
+        crank = values['crank_joint'] or model.crank_joint
+        from mech_balance.analysis.timing import WARMUP
+        if messages is None:  # what _follow_costs delivers (stamps never go back)
+            messages = (FOLLOW_REPEAT + WARMUP + 1) * (1 + FOLLOW_BATCH) + 16
+        self.messages = []
+        for k in range(messages):
+            msg = JointState(name=[crank], position=[(0.3 + speed * k * 1e-3) % (2 * math.pi)])
+            msg.header.stamp = conv.stamp_from_ns(1_000_000_000_000 + k * 1_000_000)
+            self.messages.append(msg)
+        self._next = 0
+
+    def run(self, n):
+        """Deliver the next ``n`` encoder messages, then evaluate and prepare the batch."""
+        streamer = self.publisher.streamer
+        if self._next + n > len(self.messages):
+            raise RuntimeError(f'FollowPath: the {len(self.messages)} encoder messages made '
+                               'ahead are used up')
+        for msg in self.messages[self._next:self._next + n]:
+            self.publisher.on_encoder(msg)
+        self._next += n
+        batch = list(streamer._pending)
+        streamer._pending.clear()
+        return streamer._evaluate_follow(self.model, batch) if batch else []
+
+    def evaluation(self):
+        """Return what follow mode evaluates (the model status's ``evaluation``)."""
+        return self.publisher.follow_evaluation()
+
+    def close(self):
+        """Stop the parts and the node."""
+        import rclpy
+        self.recording.close()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
 
 
 class NodeProbe:

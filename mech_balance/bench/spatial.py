@@ -6,6 +6,11 @@ full cycle (every output: kinematics, shaking wrench, driving torque, bearing re
 kinetic energy) at the bench's crank angles, in us per angle, with the spatial issue's
 targets (skew RSSR <= 5 us, two-loop <= 10 us) and the machine's load average, which the
 figures depend on.  Also the agreement of ``rggr_spatial`` with the closed-form ``rggr``.
+
+The cycle's angles (1 degree apart from the assembly angle) are the branch's dense nodes,
+where the predictor has already converged and the Newton step is skipped; the ``off-node``
+column is the same cycle shifted by half a node spacing (every angle takes the chord Newton
+step and the refined rates), the cost of arbitrary angles.
 """
 
 import os
@@ -15,6 +20,7 @@ from mech_balance import schema
 from mech_balance.analysis.timing import median_seconds
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
+from mech_balance.core.spatial import kinematics
 from mech_balance.schema import registry
 from mech_balance.schema.scene import OUTPUTS
 import numpy as np
@@ -43,7 +49,8 @@ def bench_section(args, progress):
     lines = [f'spatial kind: full cycle ({", ".join(OUTPUTS)}), {samples} crank angles, '
              f'median of {repeat}; load average {os.getloadavg()[0]:.2f} on '
              f'{os.cpu_count()} cores (figures on a loaded machine are upper bounds)',
-             f'{"scene":<18} {"links":>5} {"build ms":>9} {"us/angle":>9} {"target":>7}']
+             f'{"scene":<18} {"links":>5} {"build ms":>9} {"us/angle":>9} {"target":>7} '
+             f'{"off-node":>9}']
     for name in sorted(names):
         progress(f'bench spatial: {name}')
         sc = schema.load(name)
@@ -52,10 +59,13 @@ def bench_section(args, progress):
         build = time.perf_counter() - t0
         psi = cycle_angles(samples, sc.assembly_crank_angle_rad)
         seconds = median_seconds(lambda: rig.at(psi, outputs=OUTPUTS), repeat=repeat)
+        off = psi + 0.5 * kinematics.DENSE_STEP_RAD
+        off_seconds = median_seconds(lambda: rig.at(off, outputs=OUTPUTS), repeat=repeat)
         target = TARGETS_US.get(name)
         lines.append(f'{name:<18} {len(sc.links):>5} {build * 1e3:9.1f} '
                      f'{seconds * 1e6 / samples:9.2f} '
-                     f'{"" if target is None else f"<= {target:g}":>7}')
+                     f'{"" if target is None else f"<= {target:g}":>7} '
+                     f'{off_seconds * 1e6 / samples:9.2f}')
     lines.append(f'rggr_spatial vs rggr (force, moment, torque), worst relative difference: '
                  f'{_agreement(samples):.2e}')
     return '\n'.join(lines)

@@ -12,7 +12,7 @@ import os
 import sys
 import textwrap
 
-from mech_balance import conventions, paths
+from mech_balance import conventions, paths, threads
 from mech_balance.schema.fields import MAX_ABS_VALUE
 
 EXIT_USAGE = 2
@@ -264,6 +264,7 @@ def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        threads.limit_blas_threads()
         with warnings.catch_warnings():
             warnings.simplefilter('ignore', RuntimeWarning)  # reported in the tables
             return args.func(args)

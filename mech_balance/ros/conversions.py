@@ -115,6 +115,10 @@ def serialized_samples(samples, stamps_ns, frame_id):
 VERIFIED_BATCHES = 4
 """Batches of a :class:`SampleSerializer` read back with rclpy before it is trusted (the
 serialized layout is fixed by the names, the frame and the array lengths)."""
+SMALL_BATCH = 32
+"""Batches of at most this many samples are written sample by sample with ``struct`` (the
+follow mode's: numpy's per-call overhead would dominate), larger ones with numpy."""
+_INT, _UINT = struct.Struct('<i'), struct.Struct('<I')
 _PROBE_SEC, _PROBE_NANOSEC = 0x1A2B3C4D, 0x05060708
 """Distinctive stamp of the probe messages (found by value in their bytes)."""
 
@@ -164,10 +168,18 @@ class SampleSerializer:
         parts = [samples.joint_position, samples.joint_velocity]
         if self.has_effort:
             parts.append(samples.joint_effort)
-        joints = self._joint.fill(sec, nanosec, np.hstack(parts))
-        wrench = self._wrench.fill(sec, nanosec, np.hstack([samples.force_N,
-                                                            samples.moment_Nm]))
-        out = [(joints[i].tobytes(), wrench[i].tobytes()) for i in range(stamps_ns.size)]
+        if stamps_ns.size <= SMALL_BATCH:  # sample by sample: no numpy call overhead
+            joints = np.concatenate(parts, axis=1).tolist()
+            wrench = np.concatenate([samples.force_N, samples.moment_Nm], axis=1).tolist()
+            sec, nanosec = sec.tolist(), nanosec.tolist()
+            out = [(self._joint.pack(sec[i], nanosec[i], joints[i]),
+                    self._wrench.pack(sec[i], nanosec[i], wrench[i]))
+                   for i in range(stamps_ns.size)]
+        else:
+            joints = self._joint.fill(sec, nanosec, np.hstack(parts))
+            wrench = self._wrench.fill(sec, nanosec, np.hstack([samples.force_N,
+                                                                samples.moment_Nm]))
+            out = [(joints[i].tobytes(), wrench[i].tobytes()) for i in range(stamps_ns.size)]
         if out and self.verified < VERIFIED_BATCHES:
             if not self._same_as_rclpy(samples, stamps_ns[0], out[0]):
                 self.fast = False
@@ -196,6 +208,26 @@ class _Template:
         self.ok = None not in offsets and None not in (self.sec, self.nanosec)
         if self.ok:
             self.index = (np.array(offsets)[:, None] + np.arange(8)).ravel()
+            # runs of consecutive doubles: (first value, count, byte offset) for pack
+            self.runs = []
+            for k, at in enumerate(offsets):
+                if self.runs and at == self.runs[-1][2] + 8 * self.runs[-1][1]:
+                    first, count, start = self.runs[-1]
+                    self.runs[-1] = (first, count + 1, start)
+                else:
+                    self.runs.append((k, 1, at))
+            self.runs = [(first, first + count, struct.Struct(f'<{count}d'), start)
+                         for first, count, start in self.runs]
+            self._bytes = bytes(data)
+
+    def pack(self, sec, nanosec, values):
+        """Return the bytes of one message: the template with ``values`` (a list) written."""
+        out = bytearray(self._bytes)
+        _INT.pack_into(out, self.sec, sec)
+        _UINT.pack_into(out, self.nanosec, nanosec)
+        for first, end, packer, start in self.runs:
+            packer.pack_into(out, start, *values[first:end])
+        return bytes(out)
 
     def fill(self, sec, nanosec, values):
         """Return ``(n, size)`` bytes: the template with ``values`` ``(n, m)`` written in."""

@@ -68,6 +68,19 @@ class JointLayout:
         self._wrap_twin = np.array([cut_types.get(n, 'revolute') in ANGULAR and
                                     n not in tree.names for n in self.twin_names], dtype=bool)
 
+    def angular(self, samples, twin_angular):
+        """
+        Return ``(n_published,)``: which published positions are angles (wrapped).
+
+        ``samples``: a RigData of the rig (the URDF joints' kinds are read from its state);
+        ``twin_angular``: the same for the rig's own joints.
+        """
+        tree = self.tree
+        _, _, tree_angular = tree.coordinates(tree, tree.state_of(samples))
+        both = np.concatenate([np.asarray(tree_angular, dtype=bool),
+                               np.asarray(twin_angular, dtype=bool)])
+        return both[self._value_index]
+
     def apply(self, samples):
         """Return ``samples`` (RigData of the rig) with the published joints' values."""
         _, position, velocity = urdf.rig_joint_positions(self.tree, samples)
@@ -105,6 +118,11 @@ class UrdfTwin(streaming.TwinModel):
     def evaluate(self, psi, speed, accel=0.0):
         """Return the published :class:`Samples` at crank angles ``psi`` ``(n,)``."""
         return self.layout.apply(super().evaluate(psi, speed, accel))
+
+    def published_angular(self):
+        """Return which published joint positions are angles (wrapped to (-pi, pi])."""
+        sample = self.rig.at(np.zeros(1), 1.0, 0.0, outputs=self.outputs)
+        return self.layout.angular(sample, self.angular)
 
 
 def twin_for(scene):

@@ -126,15 +126,15 @@ class ModelWatch:
 
     def add(self, data):
         """Take the ``residual``, ``condition`` and ``near_singular`` of a RigData batch."""
-        res, cond, near = data.residual, data.condition, data.near_singular
+        res, cond = _worst(data.residual), _worst(data.condition)
+        near = 0 if data.near_singular is None else int(np.count_nonzero(data.near_singular))
         with self._lock:
             self.samples += len(data)
-            if res is not None and np.size(res):
-                self.residual = max(self.residual, float(np.max(res)))
-            if cond is not None and np.size(cond):
-                self.condition = max(self.condition, float(np.max(cond)))
-            if near is not None:
-                self.near_singular += int(np.count_nonzero(near))
+            if res is not None:
+                self.residual = max(self.residual, res)
+            if cond is not None:
+                self.condition = max(self.condition, cond)
+            self.near_singular += near
 
     def snapshot(self):
         """Return ``(samples, worst residual, worst condition, near-singular)`` and restart."""
@@ -142,6 +142,14 @@ class ModelWatch:
             out = (self.samples, self.residual, self.condition, self.near_singular)
             self._reset()
         return out
+
+
+def _worst(values):
+    """Return the largest of ``values`` as a float, or None (None or empty)."""
+    if values is None:
+        return None
+    values = np.asarray(values)
+    return float(values.max()) if values.size else None
 
 
 class RateMeter:
@@ -194,11 +202,18 @@ def input_status(name, hardware_id, topic, used, rejected, rejected_new):
     return Status(name, level, message, hardware_id, values)
 
 
-def model_status(name, hardware_id, samples, residual, condition, near_singular):
-    """Return the model :class:`Status` from a :class:`ModelWatch` snapshot."""
+def model_status(name, hardware_id, samples, residual, condition, near_singular,
+                 evaluation=None):
+    """
+    Return the model :class:`Status` from a :class:`ModelWatch` snapshot.
+
+    ``evaluation`` says how the samples are evaluated (follow mode: the cycle table and its
+    verified accuracy, or the exact core and why), the ``evaluation`` value.
+    """
+    extra = [] if evaluation is None else [('evaluation', str(evaluation))]
     if samples == 0:
         return Status(name, OK, 'no samples evaluated in the last period', hardware_id,
-                      [('samples', '0')])
+                      [('samples', '0')] + extra)
     level = ERROR if residual > RESIDUAL_ERROR else WARN if near_singular else OK
     message = (f'{samples} samples: worst Newton residual {residual:.2e}, worst condition '
                f'number {condition:.4g}' + (f', {near_singular} near-singular'
@@ -207,7 +222,7 @@ def model_status(name, hardware_id, samples, residual, condition, near_singular)
         ('samples', _fmt(samples)), ('worst residual', _fmt(residual)),
         ('worst condition number', _fmt(condition)),
         ('near singular', 'true' if near_singular else 'false'),
-        ('near-singular samples', _fmt(near_singular))])
+        ('near-singular samples', _fmt(near_singular))] + extra)
 
 
 def measurement_status(name, hardware_id, rms, components, units, warn_fraction,

@@ -36,6 +36,7 @@ calls of the parts and their results into answers.
 import json
 import sys
 
+from mech_balance import threads
 from mech_balance.ros import description, guard as guards, live
 from mech_balance.ros import parameters as node_params, params, publisher as pub, real_rig
 from mech_balance.ros.balance_service import Balancer, BUSY
@@ -390,6 +391,11 @@ def main(args=None):
     context is not valid``); after a shutdown that is the shutdown, not a failure (exit 0).
     """
     sys.setswitchinterval(SWITCH_INTERVAL_S)
+    try:
+        threads.limit_blas_threads()
+    except ValueError as exc:      # names MECH_BALANCE_BLAS_THREADS and its value
+        print(f'rig_node: error: {exc}', file=sys.stderr)
+        return 2
     rclpy.init(args=args)
     node = None
     status = 0

@@ -342,6 +342,11 @@ PARAMETERS = (
          '(not after the last accepted) or their step (a jump), the node re-synchronizes on '
          'the incoming stream (one message stamped far in the future cannot lock it out).',
          bounds=(1, 100000)),
+    Spec('follow.exact', BOOL, False,
+         'Follow mode: evaluate the core exactly at every encoder sample; false (default) '
+         "uses the design's cycle table, verified against the core when it is built (its "
+         'accuracy is logged and on /diagnostics; where it cannot be trusted the core is '
+         'evaluated per sample anyway).'),
     Spec('balance.weights', DOUBLE_ARRAY, list(balancing.DEFAULT_WEIGHTS),
          'Weights [w1, w2] of the RMS shaking force and moment in the balancing objective '
          '(seed 001 eq. 43; mech-balance balance --weights).', check=_weights,

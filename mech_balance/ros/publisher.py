@@ -8,6 +8,8 @@ The rig node's publisher part: ``joint_states`` and ``shaking_wrench``, clock or
 from the node's :class:`mech_balance.ros.rig_state.RigState`.
 """
 
+import threading
+
 from geometry_msgs.msg import WrenchStamped
 from mech_balance.ros import conversions as conv, diagnostics
 from mech_balance.ros import streaming
@@ -93,7 +95,9 @@ class Publisher:
             self.streamer.clock(model, self._state.crank_speed(), period_ns)
             return
         self.estimator = new_estimator(values)
+        self.streamer.follow_exact = values['follow.exact']
         self.streamer.follow(model)
+        self._build_table(model)
         if self._encoder_sub is None:
             self._encoder_sub = self._node.create_subscription(
                 JointState, ENCODER, self._guard.skipping(ENCODER)(self.on_encoder),
@@ -103,10 +107,45 @@ class Publisher:
     def set_model(self, model):
         """Publish ``model`` from the next sample on (also: re-prepare for a new frame_id)."""
         self.streamer.set_model(model)
+        if self._state.values['mode'] == 'follow':
+            self._build_table(model)
 
     def renew_estimator(self):
         """Start the follow-mode estimator again (new ``follow.*`` parameters)."""
-        self.estimator = new_estimator(self._state.values)
+        values = self._state.values
+        self.estimator = new_estimator(values)
+        self.streamer.follow_exact = values['follow.exact']
+        if values['mode'] == 'follow':
+            self._build_table(self._state.published)
+
+    def _build_table(self, model):
+        """
+        Build ``model``'s cycle table in a thread of its own (follow mode), then log it.
+
+        Until it is built the exact core is evaluated; nothing is built with follow.exact.
+        """
+        if self._state.values['follow.exact'] or not hasattr(model, 'cycle_table'):
+            return
+
+        def build():
+            try:
+                model.cycle_table()
+                if self._node.context.ok():
+                    self._node.get_logger().info(
+                        f'follow mode, scene {model.scene.name!r}: {model.table_status}')
+            except Exception as exc:  # noqa: BLE001 - the exact core is used instead
+                self._guard.caught('follow mode: building the cycle table', exc)
+        threading.Thread(target=build, name='rig-cycle-table', daemon=True).start()
+
+    def follow_evaluation(self):
+        """Return what follow mode evaluates per sample (for the model status)."""
+        values, model = self._state.values, self._state.published
+        if values['mode'] != 'follow':
+            return 'clock mode: the exact core at the tick angles'
+        if values['follow.exact']:
+            return 'exact core per sample (follow.exact)'
+        status = getattr(model, 'table_status', None)
+        return status or 'exact core per sample (the cycle table is being built)'
 
     def stop(self):
         """Stop the publishing threads."""
@@ -193,7 +232,8 @@ class Publisher:
                 diagnostics.input_status(f'{name}: encoder input', hardware_id, ENCODER, used,
                                          rejected, new),
                 diagnostics.model_status(f'{name}: model', hardware_id,
-                                         *self.model_watch.snapshot())]
+                                         *self.model_watch.snapshot(),
+                                         evaluation=self.follow_evaluation())]
 
     def stats(self):
         """Return the publishing statistics (:meth:`TickStats.summary`)."""

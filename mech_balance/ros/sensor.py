@@ -315,6 +315,23 @@ class Series:
         self._hi += t.size
         self._lo = max(self._lo, self._hi - self.capacity)
 
+    def append_one(self, stamp_ns, row):
+        """Append one sample (after the newest kept): :meth:`append` without the batch."""
+        if self._hi == self._t.size:
+            keep = min(len(self), self.capacity - 1)
+            self._t[:keep] = self._t[self._hi - keep:self._hi]
+            self._v[:keep] = self._v[self._hi - keep:self._hi]
+            self._lo, self._hi = 0, keep
+        self._t[self._hi] = stamp_ns
+        self._v[self._hi] = row
+        self._hi += 1
+        if self._hi - self._lo > self.capacity:
+            self._lo = self._hi - self.capacity
+
+    def newest_value(self, column):
+        """Return the newest sample's value in ``column`` (a float; the series is not empty)."""
+        return float(self._v[self._hi - 1, column])
+
     @property
     def stamps_ns(self):
         """Return the stamps, ns, oldest first."""
@@ -392,9 +409,9 @@ class EncoderTrack:
             newest = self.series.newest_ns
         self.refused_in_a_row = 0
         if newest is not None:
-            last = float(self.series.values[-1, 0])
+            last = self.series.newest_value(0)
             turned -= TWO_PI * round((turned - last) / TWO_PI)
-        self.series.append([int(stamp_ns)], [[turned, raw]])
+        self.series.append_one(int(stamp_ns), (turned, raw))
         return True
 
     def clear(self):

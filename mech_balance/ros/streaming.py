@@ -21,7 +21,9 @@ messages.
     the checks that reject input the rig cannot have produced.
 :class:`Streamer`
     The two threads that publish: clock-mode ticks on schedule from precomputed batches,
-    or follow-mode samples evaluated in batches as encoder messages arrive.
+    or follow-mode samples evaluated in batches as encoder messages arrive (by the
+    design's verified cycle table, :mod:`mech_balance.ros.cycle_table`, once it is built,
+    unless ``follow.exact``).
 
 Joint values and efforts: the rig's own (:mod:`mech_balance.core.planar.rig`,
 :class:`mech_balance.core.rggr.RggrRig`).
@@ -34,11 +36,14 @@ the two axes), all six components.
 
 from collections import deque
 from dataclasses import dataclass
+from functools import partial
 import math
 import threading
 import time
+from typing import NamedTuple
 
 from mech_balance.core.rig import rig_for, RigData
+from mech_balance.ros import cycle_table
 from mech_balance.ros.guard import Guard
 from mech_balance.schema import registry
 import numpy as np
@@ -104,10 +109,56 @@ class TwinModel:
         self.outputs = ('shaking_wrench', 'driving_torque') if self.has_effort else \
             ('shaking_wrench',)
         self.angular = ~np.array(rig.joint_prismatic, dtype=bool)
+        self._table_lock = threading.Lock()
+        self._table = None          # the CycleTable, once built and verified
+        self.table_status = None    # None: not built yet; else what follow mode evaluates
 
     def with_design(self, scene):
         """Return the twin of another design (inertia) of the same geometry."""
         return TwinModel(self.rig.with_scene(scene))
+
+    def published_angular(self):
+        """Return which published joint positions are angles (wrapped to (-pi, pi])."""
+        return self.angular
+
+    # ------------------------------------------------------------------ follow mode
+
+    def cycle_table(self):
+        """
+        Return the verified :class:`~mech_balance.ros.cycle_table.CycleTable`, or None.
+
+        Built on the first call (any thread; later calls wait for it, then return it at
+        once); None when the table was refused (:attr:`table_status` says why: follow mode
+        then evaluates the core per sample).
+        """
+        with self._table_lock:
+            if self.table_status is None:
+                try:
+                    self._table = cycle_table.CycleTable.build(self.evaluate,
+                                                               self.published_angular())
+                    self.table_status = self._table.report.summary()
+                except cycle_table.TableRefused as exc:
+                    self.table_status = f'exact core per sample (no cycle table: {exc})'
+            return self._table
+
+    def follow_evaluate(self, psi, speed, accel=0.0):
+        """
+        Return the :class:`Samples` of follow mode: the cycle table's once it is built.
+
+        The exact :meth:`evaluate` until then (never waits for the build) and where the
+        table was refused.
+        """
+        table = self._table
+        if table is None:
+            return self.evaluate(psi, speed, accel)
+        s = table.evaluate(psi, speed, accel)
+        # the body poses (the recording's) from the core, only when they are read
+        s.poses = partial(self._poses, s.crank_angle_rad, s.crank_speed_rad_s,
+                          s.crank_accel_rad_s2)
+        return s
+
+    def _poses(self, psi, speed, accel):
+        return self.rig.at(psi, speed, accel, outputs=self.outputs).bodies
 
     def evaluate(self, psi, speed, accel=0.0):
         """
@@ -136,7 +187,7 @@ def finite_rows(samples):
     parts = [samples.joint_position, samples.joint_velocity, samples.force_N, samples.moment_Nm]
     if samples.joint_effort is not None:
         parts.append(samples.joint_effort)
-    return np.all(np.isfinite(np.hstack(parts)), axis=1)
+    return np.isfinite(np.concatenate(parts, axis=1)).all(axis=1)
 
 
 def withhold_nonfinite(samples):
@@ -236,8 +287,7 @@ class StreamRejected(ValueError):
     """An encoder reading that contradicts the accepted history (its stamp or its step)."""
 
 
-@dataclass(frozen=True)
-class CrankSample:
+class CrankSample(NamedTuple):
     """One accepted encoder sample: the angle as sent, the turned angle, speed, accel."""
 
     stamp_ns: int
@@ -366,34 +416,56 @@ class CrankEstimator:
         return CrankSample(stamp_ns, position, turned, speed, accel)
 
     def _estimate(self, velocity):
+        # plain Python on the few samples of the window (numpy's call overhead would be
+        # most of the cost: this runs once per encoder message)
         n = len(self._t)
         t_new = self._t[-1]
-        tau = np.array([(t - t_new) * 1e-9 for t in self._t])
+        tau = [(t - t_new) * 1e-9 for t in self._t]
         if velocity is not None and self.use_encoder_velocity:
             vel = [v for v in self._vel if v is not None]
             if len(vel) < 2 or len(vel) != n:
                 return velocity, 0.0
-            return velocity, _slope(tau, np.array(vel))
+            return velocity, _slope(tau, vel)
         if n < 2:
             return None, None
-        psi = np.array(self._psi) - self._psi[-1]
+        psi_new = self._psi[-1]
         if n == 2:
-            return float(psi[0] / tau[0]), 0.0
-        # least-squares quadratic psi(tau) = c0 + c1 tau + c2 tau^2 about the newest stamp,
-        # tau scaled by the window span so the Vandermonde matrix is well conditioned
+            return float((self._psi[0] - psi_new) / tau[0]), 0.0
+        # least-squares quadratic psi(tau) about the newest stamp, tau scaled by the window
+        # span (x = tau / span in [-1, 0]), in the polynomials orthogonal on the samples:
+        # 1, u = x - mean, u^2 - alpha u - beta
         span = -tau[0]
-        x = tau / span
-        coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(n), x, x * x]), psi, rcond=None)
-        return float(coef[1] / span), float(2.0 * coef[2] / span ** 2)
+        x = [t / span for t in tau]
+        mean = sum(x) / n
+        s2 = s3 = 0.0
+        for v in x:
+            u = v - mean
+            uu = u * u
+            s2 += uu
+            s3 += uu * u
+        alpha, beta = s3 / s2, s2 / n
+        d1 = d2 = p2p2 = 0.0
+        for v, p in zip(x, self._psi):
+            u, y = v - mean, p - psi_new
+            p2 = u * u - alpha * u - beta
+            d1 += u * y
+            d2 += p2 * y
+            p2p2 += p2 * p2
+        d1, d2 = d1 / s2, d2 / p2p2
+        slope = d1 + d2 * (-2.0 * mean - alpha)   # d psi / dx at the newest stamp (x = 0)
+        return float(slope / span), float(2.0 * d2 / span ** 2)
+
+
+def _slope(x, y):
+    """Return the least-squares slope of ``y`` against ``x`` (plain sequences)."""
+    n = len(x)
+    xm, ym = sum(x) / n, sum(y) / n
+    xc = [v - xm for v in x]
+    return float(sum(a * (b - ym) for a, b in zip(xc, y)) / sum(v * v for v in xc))
 
 
 def _wrap_pi(x):
     return (x + math.pi) % TWO_PI - math.pi
-
-
-def _slope(x, y):
-    xc = x - x.mean()
-    return float(np.dot(xc, y - y.mean()) / np.dot(xc, xc))
 
 
 # ------------------------------------------------------------------------------ streamer
@@ -474,6 +546,7 @@ class Streamer:
         self._batches = deque()        # (k0, payloads), contiguous, ascending
         self._next_k = None
         self._pending = deque()        # CrankSample, follow mode
+        self.follow_exact = False      # follow mode: the exact core, never the cycle table
         self._stopped = False
         self._refill = threading.Event()  # wakes the precompute thread (not every tick)
         self.stats = TickStats()
@@ -564,27 +637,34 @@ class Streamer:
         return payloads
 
     def _evaluate_follow(self, model, batch):
-        """Evaluate queued encoder samples; on a core error, one by one (skipping bad ones)."""
+        """
+        Evaluate queued encoder samples; on a core error, one by one (skipping bad ones).
+
+        The model's cycle table once built (``follow_evaluate``), unless
+        :attr:`follow_exact`; the exact ``evaluate`` otherwise.
+        """
         t0 = time.perf_counter()
+        evaluate = model.evaluate if self.follow_exact else \
+            getattr(model, 'follow_evaluate', model.evaluate)
         try:
-            groups = [(model.evaluate([s.angle_rad for s in batch],
-                                      [s.speed_rad_s for s in batch],
-                                      [s.accel_rad_s2 for s in batch]), batch)]
+            _, angle, _, speed, accel = zip(*batch)   # the CrankSample fields, as columns
+            groups = [(evaluate(angle, speed, accel), batch)]
         except ValueError:
             groups = []
             for s in batch:
                 try:
-                    groups.append((model.evaluate([s.angle_rad], [s.speed_rad_s],
-                                                  [s.accel_rad_s2]), [s]))
+                    groups.append((evaluate([s.angle_rad], [s.speed_rad_s],
+                                            [s.accel_rad_s2]), [s]))
                 except ValueError as exc:
                     self._warn(f'crank_joint_state: skipped the sample at '
                                f'{s.stamp_ns * 1e-9:.9f} s: {exc}')
         out = []
         for samples, group in groups:
-            stamps = np.array([s.stamp_ns for s in group], dtype=np.int64)
+            stamp, _, turned, _, _ = zip(*group)
+            stamps = np.array(stamp, dtype=np.int64)
             out.append(self._prepared(samples, stamps))
             if self._record is not None:
-                self._record(samples, np.array([s.turned_rad for s in group]), stamps)
+                self._record(samples, np.array(turned), stamps)
         self.stats.batch_seconds.append(time.perf_counter() - t0)
         self.stats.batch_sizes.append(len(batch))
         return [p for payloads in out for p in payloads]
@@ -593,8 +673,9 @@ class Streamer:
         """Prepare a batch; a sample with a non-finite value gets the payload None."""
         samples, ok = withhold_nonfinite(samples)
         payloads = list(self._prepare(samples, stamps))
-        for i in np.flatnonzero(~ok):
-            payloads[i] = None
+        if not ok.all():
+            for i in np.flatnonzero(~ok):
+                payloads[i] = None
         return payloads
 
     def _send(self, payload):

@@ -85,12 +85,38 @@ class SpatialError(ValueError):
     """The spatial linkage cannot be assembled, is singular, or would leave its branch."""
 
 
+def component_major(a):
+    """Return a batch-first ``(n, nb, k...)`` array as a contiguous ``(k..., nb, n)``."""
+    nd = a.ndim
+    return np.ascontiguousarray(a.transpose(tuple(range(2, nd)) + (1, 0)))
+
+
+def cross_c(a, b):
+    """Return ``a x b`` of component-major vectors ``(3, ...)`` (broadcast)."""
+    out = np.empty(a.shape if np.shape(a) == np.shape(b) else np.broadcast(a, b).shape)
+    np.multiply(a[1], b[2], out=out[0])
+    out[0] -= a[2] * b[1]
+    np.multiply(a[2], b[0], out=out[1])
+    out[1] -= a[0] * b[2]
+    np.multiply(a[0], b[1], out=out[2])
+    out[2] -= a[1] * b[0]
+    return out
+
+
+def _dot_c(a, b):
+    """Return the dot products of component-major vectors ``(3, ...)`` (broadcast)."""
+    out = a[0] * b[0]
+    out += a[1] * b[1]
+    out += a[2] * b[2]
+    return out
+
+
 def cross(a, b):
     """Return ``a x b`` over the last axis (broadcast); numpy's cross without its overhead."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    sa, sb = np.shape(a), np.shape(b)
-    out = np.empty(sa if sa == sb else np.broadcast_shapes(sa, sb))
+    sa = np.shape(a)
+    out = np.empty(sa if sa == np.shape(b) else np.broadcast(a, b).shape)
     np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
     np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
     np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
@@ -131,6 +157,16 @@ def rot_axis(axis, angle):
     k2 = k @ k
     s, c = np.sin(angle), np.cos(angle)
     return EYE3 + s[:, None, None] * k + (1.0 - c)[:, None, None] * k2
+
+
+def _sin_vers_one(q):
+    """Return ``(n, 3)`` rows ``[sin q, 1 - cos q, 1]`` (the weights of a rotation basis)."""
+    out = np.empty((q.shape[0], 3))
+    np.sin(q, out=out[:, 0])
+    np.cos(q, out=out[:, 1])
+    np.subtract(1.0, out[:, 1], out=out[:, 1])
+    out[:, 2] = 1.0
+    return out
 
 
 def expmap(v):
@@ -193,13 +229,6 @@ def _point_gradient(x):
     return g
 
 
-def _spatial_cross(t, s):
-    """Return the motion cross product ``t x s`` of twists ``(..., 6)`` (omega, v)."""
-    w, v = t[..., :3], t[..., 3:]
-    w2, v2 = s[..., :3], s[..., 3:]
-    return np.concatenate([cross(w, w2), cross(w, v2) + cross(v, w2)], axis=-1)
-
-
 def angle_about(axis, rot):
     """Return the angle ``(n,)`` of rotations ``rot`` ``(n, 3, 3)`` about the unit ``axis``."""
     skw = rot - np.swapaxes(rot, -1, -2)
@@ -255,6 +284,10 @@ class TreeJoint:
         if self.axis is not None:
             k = skew(self.axis)
             self.kz, self.k2z = k @ self.fixed, k @ k @ self.fixed
+            # [sin, 1 - cos, 1] @ rot_basis = Rot(a, q) Z: one small product per joint
+            self.rot_basis = np.stack([self.kz, self.k2z, self.fixed]).reshape(3, 9)
+            kc = skew(self.axis_child)   # a universal's second turn Rot(b, q2) likewise
+            self.rot_basis_child = np.stack([kc, kc @ kc, EYE3]).reshape(3, 9)
 
 
 @dataclass
@@ -274,6 +307,14 @@ class Rows:
         """Return the number of rows."""
         return self.body_b.size * (3 if self.form == 'point' else 1)
 
+    @property
+    def ends(self):
+        """Return the b bodies then the a bodies (the stacked passes over both ends)."""
+        both = getattr(self, '_ends', None)
+        if both is None:
+            both = self._ends = np.concatenate([self.body_b, self.body_a])
+        return both
+
 
 @dataclass
 class Frames:
@@ -284,6 +325,14 @@ class Frames:
     cols: np.ndarray      # (n, ndof, 6) twist columns (omega, v at the frame origin)
     parts: list = None    # the closure rows' world vectors (cached by Linkage._row_parts)
     grads: tuple = None   # the rows' twist gradients (cached by Linkage.gradients)
+
+    @property
+    def cols_c(self):
+        """Return the twist columns component-major ``(6, ndof, n)`` (cached)."""
+        c = getattr(self, '_cols_c', None)
+        if c is None:
+            c = self._cols_c = np.ascontiguousarray(self.cols.T)
+        return c
 
 
 @dataclass
@@ -311,6 +360,21 @@ class SpatialState:
     def size(self):
         """Return the number of samples."""
         return self.psi.shape[0]
+
+    def component_major(self):
+        """
+        Return ``(rot (3, 3, nb, n), origin (3, nb, n), twist (6, nb, n))`` (cached).
+
+        The poses and twists component-major (contiguous ``(nb, n)`` blocks), converted once
+        per state for the joint values and the inverse dynamics; twist None if not solved.
+        """
+        cached = getattr(self, '_component_major', None)
+        if cached is None:
+            fr = self.frames
+            cached = (component_major(fr.rot), component_major(fr.origin),
+                      None if self.twist is None else component_major(self.twist))
+            self._component_major = cached
+        return cached
 
 
 class Linkage:
@@ -417,7 +481,7 @@ class Linkage:
         for t in self.sph_index:
             self.is_sph_dof[list(self.tree[t].dofs)] = True
         self.scalar_dofs = np.flatnonzero(~self.is_sph_dof)
-        self.unknown = np.arange(1, dof)
+        self.unknown = slice(1, dof)   # every coordinate but the crank (a slice: views)
         self.nu = dof - 1
         # path[d, k]: coordinate d moves body k (k below d's tree joint)
         self.path = np.zeros((dof, self.nb))
@@ -428,10 +492,13 @@ class Linkage:
                 t = below[node]
                 self.path[list(t.dofs), k] = 1.0
                 node = t.parent
+        self.path_t = np.ascontiguousarray(self.path.T)  # (nb, ndof): matmul wants it so
         self.dof_owner = np.zeros(dof, dtype=int)  # the body each column is fixed in
         for t in self.tree:
             for i, d in enumerate(t.dofs):
                 self.dof_owner[d] = t.child if self.dof_child_fixed[d] else t.parent
+        self._moving_cols = np.flatnonzero(self.dof_owner != 0)   # columns that turn
+        self._path_t_moving = np.ascontiguousarray(self.path_t[:, self._moving_cols])
         self.cut_joints = cuts
         self._build_rows(body, cuts)
 
@@ -500,6 +567,9 @@ class Linkage:
         self.row_a = np.array(bodies_a, dtype=int)
         self.mask_b = self.path[:, self.row_b].T  # (m, ndof)
         self.mask_a = self.path[:, self.row_a].T
+        # per group, per joint (k, ndof, 1): which coordinates move its b and its a body
+        self._row_masks = [self.path[:, r.body_b].T[:, :, None] for r in self.rows]
+        self._row_masks_a = [self.path[:, r.body_a].T[:, :, None] for r in self.rows]
         self.square = self.m == self.nu
         self.js_scale = self.row_scale[:, None] * self.col_scale[self.unknown]
 
@@ -557,17 +627,22 @@ class Linkage:
                 m = t.fixed
                 off = t.s_parent + q[:, d[0], None] * t.axis
             else:
-                s, c = np.sin(q[:, d[0]]), np.cos(q[:, d[0]])
                 # Rot(a, theta) Z = Z + sin K Z + (1 - cos) K^2 Z (K, K^2 Z precomputed)
-                m = t.fixed + s[:, None, None] * t.kz + (1.0 - c)[:, None, None] * t.k2z
+                m = (_sin_vers_one(q[:, d[0]]) @ t.rot_basis).reshape(n, 3, 3)
                 off = t.s_parent + q[:, d[1], None] * t.axis if jtype == 'cylindrical' \
                     else t.s_parent
                 if jtype == 'universal':
-                    m = m @ rot_axis(t.axis_child, q[:, d[1]])
-            rc = np.broadcast_to(m, (n, 3, 3)) if root else rp @ m
-            r_joint = np.broadcast_to(off, (n, 3)) if root else pp + mv(rp, off)
+                    m = m @ (_sin_vers_one(q[:, d[1]]) @ t.rot_basis_child).reshape(n, 3, 3)
+            # on the frame: m and off as they are ((3, 3) and (3,) when constant: broadcast)
+            rc = m if root else rp @ m
+            r_joint = off if root else pp + mv(rp, off)
             rot[:, t.child] = rc
-            origin[:, t.child] = r_joint - mv(rc, t.s_child)
+            if rc.ndim == 2:
+                origin[:, t.child] = r_joint - rc @ t.s_child
+            elif rc.flags.c_contiguous:  # one matrix-vector product over the stack
+                origin[:, t.child] = r_joint - (rc.reshape(-1, 3) @ t.s_child).reshape(n, 3)
+            else:
+                origin[:, t.child] = r_joint - mv(rc, t.s_child)
             if root and jtype in _CONSTANT_ROOT_COLUMNS:
                 if jtype == 'universal':
                     bw = mv(rc, t.axis_child)
@@ -660,72 +735,183 @@ class Linkage:
             return empty, empty
         return np.concatenate(gb, axis=1), np.concatenate(ga, axis=1)
 
-    def jacobian(self, fr, grads=None):
-        """Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate)."""
-        gb, ga = self.gradients(fr) if grads is None else grads
-        cols_t = np.swapaxes(fr.cols, 1, 2)
-        jb = np.matmul(gb, cols_t)
-        ja = np.matmul(ga, cols_t)
-        return jb * self.mask_b + ja * self.mask_a
+    @property
+    def wrench_rows(self):
+        """
+        Return the first row of each row wrench of :meth:`row_wrenches` (built once).
+
+        A coincident-point joint's three rows act as one force at its point (one wrench);
+        every other row is a wrench of its own.
+        """
+        cached = getattr(self, '_wrench_rows', None)
+        if cached is None or cached[0] != self.m:
+            rows, at = [], 0
+            for r in self.rows:
+                step = 3 if r.form == 'point' else 1
+                rows += list(range(at, at + r.size, step))
+                at += r.size
+            cached = (self.m, np.array(rows, dtype=int))
+            self._wrench_rows = cached
+        return cached[1]
+
+    def row_wrenches(self, fr, lam):
+        """
+        Return ``(W_b, W_a)`` ``(6, q, n)``: the closure rows' wrenches on their b and a bodies.
+
+        Component-major (moment about the frame origin, force) for multipliers ``lam``
+        ``(n, m)``: ``lambda_r G(r)`` per row, the three rows of a coincident point merged
+        into the force ``F`` at the point (``(x x F, F)``), in :attr:`wrench_rows` order.
+        """
+        n = lam.shape[0]
+        lam_t = lam.T
+        wb, wa = [], []
+        at = 0
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            k = r.body_b.size
+            xb = vb.transpose(2, 1, 0)                     # (3, k, n)
+            lr = lam_t[at:at + r.size]
+            at += r.size
+            if r.form == 'point':
+                f = lr.reshape(k, 3, n).transpose(1, 0, 2)  # (3, k, n): the force on b
+                wb.append(np.concatenate([cross_c(xb, f), f]))
+                wa.append(-np.concatenate([cross_c(va.transpose(2, 1, 0), f), f]))
+                continue
+            zero = np.zeros((3, k, n))
+            if r.form == 'spin':
+                wb.append(np.concatenate([cross_c(xb, r.vec_a.T[:, :, None]) * lr, zero]))
+                wa.append(np.zeros((6, k, n)))
+                continue
+            xa = va.transpose(2, 1, 0)
+            if r.form == 'dot':
+                c = cross_c(xb, xa) * lr
+                wb.append(np.concatenate([c, zero]))
+                wa.append(np.concatenate([-c, zero]))
+                continue
+            w = mv(ra, r.extra).transpose(2, 1, 0) * lr
+            wb.append(np.concatenate([cross_c(xb, w), w]))
+            wa.append(np.concatenate([cross_c(w, xb - xa) - cross_c(xa, w), -w]))
+        if not wb:
+            return np.zeros((6, 0, n)), np.zeros((6, 0, n))
+        return np.concatenate(wb, axis=1), np.concatenate(wa, axis=1)
+
+    def jacobian(self, fr):
+        """
+        Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate).
+
+        Computed component-major, ``(m, ndof, n)`` (the batch-last stack the LU takes as
+        it is), and returned as a batch-first view of it.  A row's rate per coordinate d is
+        its twist gradient (:meth:`gradients`) applied to d's column on the row's bodies
+        that d moves: for a point x ``omega_d x x + v_d``, for a dot row ``(u_b x w_a) .
+        omega_d``, for a line row ``(x_b x w) . omega_d + w . v_d`` on b and ``(w x d - x_a
+        x w) . omega_d - w . v_d`` on a.
+        """
+        n = fr.rot.shape[0]
+        if not self.m:
+            return np.zeros((n, 0, self.ndof))
+        c = fr.cols_c
+        om, vel = c[:3, None], c[3:, None]           # (3, 1, ndof, n)
+        out = []
+        at = 0
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            size = r.size
+            mb, ma = self._row_masks[at], self._row_masks_a[at]
+            at += 1
+            xb = vb.transpose(2, 1, 0)[:, :, None]     # (3, k, 1, n)
+            if r.form == 'point':
+                jb = cross_c(om, xb)
+                jb += vel
+                ja = cross_c(om, va.transpose(2, 1, 0)[:, :, None])
+                ja += vel
+                j = jb * mb - ja * ma                    # (3, k, ndof, n)
+                out.append(j.transpose(1, 0, 2, 3).reshape(size, self.ndof, n))
+                continue
+            if r.form == 'spin':
+                g = cross_c(xb, r.vec_a.T[:, :, None, None])
+                out.append(_dot_c(g, om) * mb)
+                continue
+            xa = va.transpose(2, 1, 0)[:, :, None]
+            if r.form == 'dot':
+                out.append(_dot_c(cross_c(xb, xa), om) * (mb - ma))
+                continue
+            w = mv(ra, r.extra).transpose(2, 1, 0)[:, :, None]
+            jb = _dot_c(cross_c(xb, w), om) + _dot_c(w, vel)
+            ja = _dot_c(cross_c(w, xb - xa) - cross_c(xa, w), om) - _dot_c(w, vel)
+            out.append(jb * mb + ja * ma)
+        return np.concatenate(out, axis=0).transpose(2, 0, 1)
 
     def bias(self, fr, twist, acc0):
         """
-        Return the rows' second time derivatives ``(n, m)`` at body accelerations ``acc0``.
+        Return the rows' second time derivatives ``(m, n)`` at body accelerations ``acc0``.
 
-        Body point acceleration ``a_O + alpha x x + omega x (v_O + omega x x)``; a vector u
-        fixed in a body: ``u' = omega x u``, ``u'' = alpha x u + omega x (omega x u)``.
+        Component-major throughout (``twist`` and ``acc0`` ``(6, nb, n)``).  Body point
+        acceleration ``a_O + alpha x x + omega x (v_O + omega x x)``; a vector u fixed in a
+        body: ``u' = omega x u``, ``u'' = alpha x u + omega x (omega x u)``.  The b and a
+        ends of a group are evaluated together (one stacked pass).
         """
         out = []
-
-        def point_acc(k, x):
-            w, v = twist[:, k, :3], twist[:, k, 3:]
-            al, ao = acc0[:, k, :3], acc0[:, k, 3:]
-            return ao + cross(al, x) + cross(w, v + cross(w, x))
-
-        def point_vel(k, x):
-            return twist[:, k, 3:] + cross(twist[:, k, :3], x)
-
-        def vec_rates(k, u):
-            w, al = twist[:, k, :3], acc0[:, k, :3]
-            du = cross(w, u)
-            return du, cross(al, u) + cross(w, du)
-
+        n = twist.shape[-1]
+        dot_c = _dot_c
         for r, rb, ra, vb, va in self._row_parts(fr):
+            k = r.body_b.size
+            vb = vb.transpose(2, 1, 0)                    # (3, k, n) views
+            if r.form == 'spin':
+                w, al = twist[:3, r.body_b], acc0[:3, r.body_b]
+                ddu = cross_c(al, vb)
+                ddu += cross_c(w, cross_c(w, vb))
+                out.append(dot_c(ddu, r.vec_a.T[:, :, None]))
+                continue
+            va = va.transpose(2, 1, 0)
+            t, a = twist[:, r.ends], acc0[:, r.ends]       # (6, 2k, n): b ends, then a ends
+            x = np.concatenate([vb, va], axis=1)
+            w = t[:3]
             if r.form == 'point':
-                out.append((point_acc(r.body_b, vb) - point_acc(r.body_a, va)).reshape(
-                    vb.shape[0], -1))
+                acc = a[3:] + cross_c(a[:3], x)
+                acc += cross_c(w, t[3:] + cross_c(w, x))
+                out.append((acc[:, :k] - acc[:, k:]).transpose(1, 0, 2).reshape(3 * k, n))
             elif r.form == 'dot':
-                dub, ddub = vec_rates(r.body_b, vb)
-                dua, ddua = vec_rates(r.body_a, va)
-                out.append(dot(ddub, va)
-                           + 2.0 * dot(dub, dua)
-                           + dot(vb, ddua))
-            elif r.form == 'line':
-                w = mv(ra, r.extra)
-                dw, ddw = vec_rates(r.body_a, w)
-                d = vb - va
-                dd = point_vel(r.body_b, vb) - point_vel(r.body_a, va)
-                ddd = point_acc(r.body_b, vb) - point_acc(r.body_a, va)
-                out.append(dot(ddd, w)
-                           + 2.0 * dot(dd, dw)
-                           + dot(d, ddw))
+                du = cross_c(w, x)
+                ddu = cross_c(a[:3], x)
+                ddu += cross_c(w, du)
+                out.append(dot_c(ddu[:, :k], va) + 2.0 * dot_c(du[:, :k], du[:, k:])
+                           + dot_c(vb, ddu[:, k:]))
             else:
-                _, ddu = vec_rates(r.body_b, vb)
-                out.append(dot(ddu, va))
-        return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
+                wl = mv(ra, r.extra).transpose(2, 1, 0)
+                vel = t[3:] + cross_c(w, x)
+                acc = a[3:] + cross_c(a[:3], x)
+                acc += cross_c(w, vel)
+                wa, ala = w[:, k:], a[:3, k:]
+                dw = cross_c(wa, wl)
+                ddw = cross_c(ala, wl)
+                ddw += cross_c(wa, dw)
+                out.append(dot_c(acc[:, :k] - acc[:, k:], wl)
+                           + 2.0 * dot_c(vel[:, :k] - vel[:, k:], dw)
+                           + dot_c(vb - va, ddw))
+        return np.concatenate(out, axis=0) if out else np.zeros((0, n))
 
     def twists(self, fr, qd):
-        """Return the body twists ``(n, nb, 6)`` of coordinate rates ``qd`` (n, ndof)."""
-        return np.matmul(self.path.T, fr.cols * qd[:, :, None])
+        """Return the body twists ``(6, nb, n)`` (component-major) of rates ``qd`` (n, ndof)."""
+        return np.matmul(self.path_t, fr.cols_c * qd.T)
 
-    def accelerations(self, fr, twist, qd, qdd):
-        """Return the body spatial accelerations ``(n, nb, 6)`` (tree recursion in sums)."""
-        owner = twist[:, self.dof_owner]                      # (n, ndof, 6)
-        dcols = _spatial_cross(owner, fr.cols)                # S' = T_owner x S
-        total = dcols * qd[:, :, None]
-        if qdd is not None:
-            total = total + fr.cols * qdd[:, :, None]
-        return np.matmul(self.path.T, total)
+    def accelerations(self, fr, twist, qd):
+        """
+        Return the body spatial accelerations ``(6, nb, n)`` at zero coordinate accelerations.
+
+        Component-major (``twist`` ``(6, nb, n)``): the sum over the tree of
+        ``S' q' = (T_owner x S) q'``, only for the columns fixed in a moving body (a frame
+        joint's columns are constant).
+        """
+        moving = self._moving_cols
+        if not moving.size:
+            return np.zeros(twist.shape)
+        t = twist[:, self.dof_owner[moving]]
+        c = fr.cols_c[:, moving]
+        w = t[:3]
+        dcols = np.empty(c.shape)                 # the motion cross product T x S
+        dcols[:3] = cross_c(w, c[:3])
+        dcols[3:] = cross_c(w, c[3:])
+        dcols[3:] += cross_c(t[3:], c[:3])
+        dcols *= qd.T[moving]
+        return np.matmul(self._path_t_moving, dcols)
 
     # ------------------------------------------------------------------ Newton
 
@@ -744,14 +930,19 @@ class Linkage:
         Return the :class:`~smallsolve.LUPlan` of the scaled square Jacobian (built once).
 
         The pattern is structural: row r can depend on coordinate d only if d moves one of
-        the row's two bodies (``mask_b``, ``mask_a``); the static pivot order comes from the
-        first Jacobian met (the assembly's).
+        the row's two bodies (``mask_b``, ``mask_a``); the static order is block lower
+        triangular (the loops in dependency order, :func:`smallsolve.block_triangular_order`,
+        so that the factors have no fill between loops and the work grows linearly with
+        them), pivots inside the blocks from the first Jacobian met (the assembly's).
         """
         plan = getattr(self, '_plan', None)
         if plan is None or plan[0] != self.m:
             pattern = ((self.mask_b + self.mask_a) > 0)[:, self.unknown]
-            order = smallsolve.pivot_order(np.where(pattern, js[0], 0.0))
-            plan = (self.m, smallsolve.LUPlan(pattern, order))
+            sample = np.where(pattern, js[0], 0.0)
+            order = smallsolve.block_triangular_order(pattern, sample)
+            if order is None:
+                order = (smallsolve.pivot_order(sample), None)
+            plan = (self.m, smallsolve.LUPlan(pattern, *order))
             self._plan = plan
         return plan[1]
 
@@ -762,9 +953,9 @@ class Linkage:
             return np.zeros((n, 0, self.m)), np.ones(n), np.zeros(n, dtype=int), np.ones(n)
         if self.square:
             # static-pivot sparse LU over the batch (planar smallsolve), LAPACK where weak
-            batch_last = np.ascontiguousarray(np.moveaxis(js, 0, -1))  # contiguous: faster
+            batch_last = np.ascontiguousarray(js.transpose(1, 2, 0))  # contiguous: faster
             inv, cond, sign = smallsolve.inverse(batch_last, self._lu_plan(js), with_sign=True)
-            return np.moveaxis(inv, -1, 0), cond, np.full(n, self.nu, dtype=int), sign
+            return inv.transpose(2, 0, 1), cond, np.full(n, self.nu, dtype=int), sign
         u, s, vt = np.linalg.svd(js, full_matrices=False)
         keep = s > RANK_RTOL * s[:, :1]
         sinv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
@@ -800,15 +991,20 @@ class Linkage:
         The Jacobian is factorized once, at the predictor; the iteration is then a chord
         method (linear convergence with the factor ~1e-8 of the predictor's error, so one or
         two steps).  ``factor`` is ``(solver, cond, rank, sign)`` (None: not square, the
-        full Newton of :meth:`newton` was used).
+        full Newton of :meth:`newton` was used), with a fifth entry, the Jacobian at the
+        predictor, when every predictor residual is already within ``tol`` (no iteration:
+        the predictor is the solution, its factor exact, :meth:`rates` needs no refinement).
         """
         if not self.square or not self.nu:
             q, sph, fr, res, ok = self.newton(q, sph, max_iter, tol)
             return q, sph, fr, res, ok, None
         fr = self.frames(q, sph)
         g = self.residual(fr) * self.row_scale
-        js = self.scaled(self.jacobian(fr))
-        factor = self._solver(js)
+        jac = self.jacobian(fr)
+        factor = self._solver(self.scaled(jac))
+        res = np.max(np.abs(g), axis=1)
+        if np.all(res <= tol):  # the predictor has converged: its Jacobian and factor are exact
+            return q, sph, fr, res, np.isfinite(res), factor + (jac,)
         solver = factor[0]
         cu = self.col_scale[self.unknown]
         for _ in range(max_iter):
@@ -1050,17 +1246,20 @@ class Linkage:
         Return ``(qd, qdd, twist, accel, jac, solver, cond, rank, sign, js)`` at ``fr``.
 
         ``factor`` ``(solver, cond, rank, sign)`` from a nearby position (the predictor's)
-        is refined against this position's Jacobian instead of factorizing it anew.
+        is refined against this position's Jacobian instead of factorizing it anew;
+        ``(solver, cond, rank, sign, jac)`` is the factor of this very position (exact).
         """
         n = q.shape[0]
-        jac = self.jacobian(fr) if self.m else np.zeros((n, 0, self.ndof))
-        js = self.scaled(jac)
+        if factor is not None and len(factor) > 4:
+            jac = factor[4]  # the factor's own Jacobian, at this very position
+        else:
+            jac = self.jacobian(fr) if self.m else np.zeros((n, 0, self.ndof))
         if factor is None or not self.square:
-            solver, cond, rank, sign = self._solver(js)
+            solver, cond, rank, sign = self._solver(self.scaled(jac))
             refine = None
         else:
-            solver, cond, rank, sign = factor
-            refine = js
+            solver, cond, rank, sign = factor[:4]
+            refine = None if len(factor) > 4 else self.scaled(jac)
         rs = self.row_scale
         cu = self.col_scale[self.unknown]
         qd = np.zeros((n, self.ndof))
@@ -1068,17 +1267,20 @@ class Linkage:
         if self.nu:
             rhs = jac[:, :, 0] * psi_d[:, None] * rs
             qd[:, self.unknown] = -self.solve_u(solver, refine, rhs) * cu
-        twist = self.twists(fr, qd)
+        # component-major (6, nb, n) inside; the batch-first results are views of them
+        twist_c = self.twists(fr, qd)
         qdd = accel = None
         if need_acc:
-            acc0 = self.accelerations(fr, twist, qd, None)
+            acc0 = self.accelerations(fr, twist_c, qd)
             qdd = np.zeros((n, self.ndof))
             qdd[:, 0] = psi_dd
             if self.nu:
-                gam = self.bias(fr, twist, acc0) + jac[:, :, 0] * psi_dd[:, None]
+                gam = self.bias(fr, twist_c, acc0).T + jac[:, :, 0] * psi_dd[:, None]
                 qdd[:, self.unknown] = -self.solve_u(solver, refine, gam * rs) * cu
-            accel = acc0 + self.twists(fr, qdd)
-        return qd, qdd, twist, accel, jac, solver, cond, rank, sign, refine
+            acc0 += self.twists(fr, qdd)
+            accel = acc0.transpose(2, 1, 0)
+        return qd, qdd, twist_c.transpose(2, 1, 0), accel, jac, solver, cond, rank, sign, \
+            refine
 
     # ------------------------------------------------------------------ branch
 
@@ -1091,6 +1293,8 @@ class Linkage:
 
     def _step(self, q, sph, qd, qdd, h):
         """Return the predictor ``h`` rad along the branch from one node (batch of 1+)."""
+        if not np.any(h):  # every angle is a node: the predictor is the node itself
+            return q.copy(), sph.copy()
         qp = q + qd * h[:, None] + 0.5 * qdd * (h * h)[:, None]
         qp[:, 0] = q[:, 0] + h
         if self.sph_index:
@@ -1182,9 +1386,15 @@ class Linkage:
         psi = np.asarray(psi, dtype=float)
         sk = self.dense
         k, h = sk.nearest(psi)
-        qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
+        if h.any():
+            qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
+        else:  # every angle is a node: the predictor is the node itself (gathered copies)
+            qp, sphp = sk.q[k], sk.sph[k]
         q, sph, fr, res, ok, factor = self._chord(qp, sphp)
-        bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp)) > EVAL_TRUST)
+        if q is qp:  # the predictor had converged: no correction
+            bad = ~ok
+        else:
+            bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp)) > EVAL_TRUST)
         if bad.any():
             q, sph = q.copy(), sph.copy()
             cs = self.skeleton

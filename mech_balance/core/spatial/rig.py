@@ -80,10 +80,14 @@ class SpatialRig:
 
     def evaluate(self, psi, outputs=None, speed=None, accel=None):
         """Return the core's ``(state, wrenches)`` at crank angles ``psi`` (rad)."""
-        need = needs(self.scene.outputs if outputs is None else outputs)
         speed = self.scene.crank_speed_rad_s if speed is None else speed
         accel = self.scene.crank_acceleration_rad_s2 if accel is None else accel
         psi, speed, accel = batch(psi, speed, accel)
+        return self._evaluate(psi, outputs, speed, accel)
+
+    def _evaluate(self, psi, outputs, speed, accel):
+        """Return :meth:`evaluate` of already checked ``(n,)`` arrays (:func:`batch`)."""
+        need = needs(self.scene.outputs if outputs is None else outputs)
         state = self.linkage.solve(psi, speed, accel, need_acc='accelerations' in need)
         if 'accelerations' not in need:
             return state, None
@@ -97,7 +101,7 @@ class SpatialRig:
         psi, speed, accel = batch(psi, speed, accel)
         outputs = self.scene.outputs if outputs is None else tuple(outputs)
         want = set(outputs)
-        state, w = self.evaluate(psi, tuple(outputs) or ('kinematics',), speed, accel)
+        state, w = self._evaluate(psi, tuple(outputs) or ('kinematics',), speed, accel)
         _, _, position, velocity = coordinates.joint_values(self.linkage, state)
         position[:, self.crank_index] = psi
         velocity[:, self.crank_index] = speed

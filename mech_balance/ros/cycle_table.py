@@ -1,0 +1,330 @@
+"""
+Follow mode's cycle table: a rig's published values at any crank angle, built once per design.
+
+numpy only (no ROS).  A single-input rigid linkage with ideal joints publishes, at crank
+angle psi, speed w and acceleration a:
+
+* joint positions q(psi) (independent of w and a);
+* joint velocities q'(psi) w;
+* efforts and the shaking wrench, affine in (w, w^2, a):
+  ``Y0(psi) + Yw(psi) w + Y2(psi) w^2 + Ya(psi) a`` (Y0: gravity and springs, Yw: viscous
+  terms, zero for the built-ins).
+
+:meth:`CycleTable.build` evaluates the exact model (the node's own ``evaluate``, through the
+Rig protocol: any kind) on a uniform grid of N angles at (w, a) = (0, 0), (1, 0), (-1, 0),
+(0, 1), separates the four coefficient functions of every published channel, and keeps
+their Fourier series up to the highest harmonic that matters (every coefficient function
+is periodic over one turn; a revolute position is tabulated unwrapped, less its whole turns
+per cycle).  Angles off the grid then cost one small matrix product, whatever the rig.
+
+The table is verified when it is built, against the exact model at the N mid-grid angles
+(shifted by whole turns, to check periodicity too) and speeds and accelerations of both signs
+and several magnitudes: its :attr:`~CycleTable.accuracy` is the largest difference there,
+relative to each channel's scale (its largest magnitude in the check, at least
+:data:`FLOOR` of its group's: positions, velocities, efforts, force, moment).  The build
+refuses (:class:`TableRefused`, the reason said) when that exceeds ``bound`` (finer grids,
+up to :data:`GRIDS` [-1], are tried first), when the core fails or is near-singular at a
+grid angle, or when a value is not finite: the caller then evaluates the exact model per
+sample.
+"""
+
+from dataclasses import dataclass
+import math
+import time
+
+from mech_balance.core.rig import RigData
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+
+BOUND = 1e-10
+"""Largest accepted accuracy (relative, see the module docstring): the node tests compare
+the published values with the core to 1e-9 of each quantity's scale."""
+GRIDS = (256, 1024, 4096)
+"""Grid sizes tried in turn (angles per turn) until the verified accuracy meets the bound."""
+FLOOR = 1e-6
+"""A channel's scale is at least this fraction of its group's (channels that are nearly
+zero, such as rounding noise in a component the rig does not have, are not over-weighed)."""
+HARMONIC_KEEP = 1e-3
+"""Harmonics smaller than this fraction of the bound (relative to the channel's scale) are
+dropped."""
+CHECK_SPEEDS = (0.5, -3.7, 12.0, -41.0, 150.0)
+"""Crank speeds of the check (rad/s), cycled over the check angles."""
+CHECK_ACCELS = (0.0, 25.0, -180.0, 3.0, -900.0, 1.0e3)
+"""Crank accelerations of the check (rad/s^2), cycled over the check angles."""
+SETS = ('1', 'w', 'w^2', 'a')
+"""The coefficient functions of every channel, in the order the table stores them."""
+
+
+class TableRefused(ValueError):
+    """The cycle table does not reproduce the exact model within its bound (the reason)."""
+
+
+class _TooCoarse(TableRefused):
+    """The accuracy on this grid exceeds the bound (a finer grid may meet it)."""
+
+
+@dataclass(frozen=True)
+class TableReport:
+    """What a build found: grid angles, harmonics kept, accuracy, build time."""
+
+    grid: int
+    harmonics: int
+    accuracy: float
+    bound: float
+    seconds: float
+    condition: float
+
+    def summary(self):
+        """Return the one-line description logged by the node."""
+        return (f'cycle table of {self.grid} angles per turn, {self.harmonics} harmonics, '
+                f'verified accuracy {self.accuracy:.1e} relative (bound {self.bound:.0e}), '
+                f'built in {self.seconds * 1e3:.0f} ms')
+
+
+def _stack(samples):
+    """Return ``(n, C)``: positions, velocities, efforts (if any), force, moment."""
+    parts = [samples.joint_position, samples.joint_velocity]
+    if samples.joint_effort is not None:
+        parts.append(samples.joint_effort)
+    parts += [samples.force_N, samples.moment_Nm]
+    return np.hstack(parts).astype(float)
+
+
+def _wrap(x):
+    w = math.pi - np.mod(math.pi - x, TWO_PI)
+    return np.where(w <= -math.pi, w + TWO_PI, w) + 0.0
+
+
+class CycleTable:
+    """
+    A design's published values as Fourier series in the crank angle (module docstring).
+
+    Build with :meth:`build`; :meth:`evaluate` returns the published samples at angles,
+    speeds and accelerations: a :class:`RigData` with the exact model's joint values,
+    efforts and shaking wrench (within :attr:`accuracy`), the solver diagnostics of the grid
+    cell (the worse of its two ends) and neither series nor body poses (the caller may set
+    ``poses``).
+    """
+
+    def __init__(self, template, joints, angular, coef, harmonics, interval, report):
+        self._names = template.joint_names
+        self._effort = template.joint_effort is not None
+        self._j = joints
+        self._angular = angular
+        # the positions wrapped: all of them (a slice), some (indices) or none
+        self._wrapped = slice(0, joints) if angular.all() else \
+            np.flatnonzero(angular) if angular.any() else None
+        self._coef = coef                          # (4 (2 M + 2), C)
+        self._m = np.arange(1, harmonics + 1, dtype=float)
+        # per grid cell: residual, condition (one more: x n / 2 pi may round up to n)
+        self._cells = tuple(np.append(v, v[:1]) for v in interval)
+        self._cell = len(interval[0]) / TWO_PI
+        self.report = report
+        self.accuracy = report.accuracy
+
+    # ------------------------------------------------------------------ build
+
+    @classmethod
+    def build(cls, evaluate, angular, bound=BOUND, grids=GRIDS):
+        """
+        Return the verified table of ``evaluate(psi, speed, accel)`` (the exact model).
+
+        ``angular`` ``(n_joints,)``: which published positions are angles (wrapped to
+        (-pi, pi]).  Raises :class:`TableRefused` (the reason) where the table cannot be
+        trusted.
+        """
+        t0 = time.perf_counter()
+        angular = np.asarray(angular, dtype=bool)
+        last = None
+        for n in grids:
+            try:
+                return cls._build(evaluate, angular, n, bound, t0)
+            except _TooCoarse as exc:
+                last = exc
+        raise TableRefused(str(last))
+
+    @classmethod
+    def _build(cls, evaluate, angular, n, bound, t0):
+        psi = np.arange(n) * (TWO_PI / n)
+        combos = ((0.0, 0.0), (1.0, 0.0), (-1.0, 0.0), (0.0, 1.0))
+        try:
+            runs = [evaluate(np.concatenate([psi, [TWO_PI]]), w, a) for w, a in combos]
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            raise TableRefused(f'the core fails at a grid angle: {exc}') from None
+        template = runs[0]
+        j = template.joint_position.shape[1]
+        if angular.shape != (j,):
+            raise TableRefused(f'angular: got shape {angular.shape}, expected ({j},)')
+        for r in runs:
+            near = r.near_singular
+            if near is not None and np.any(near):
+                at = float(r.crank_angle_rad[np.flatnonzero(near)[0]])
+                raise TableRefused(f'the rig is near-singular at crank angle {at:.6g} rad')
+        y = [_stack(r) for r in runs]
+        if not all(np.all(np.isfinite(v)) for v in y):
+            raise TableRefused('a published value is not finite at a grid angle')
+        y0, yp, ym, ya = y
+        sets = [y0, 0.5 * (yp - ym), 0.5 * (yp + ym) - y0, ya - y0]
+        # positions: independent of the speed and acceleration; unwrapped, less whole turns
+        pos = y0[:, :j].copy()
+        pos[:, angular] = np.unwrap(pos[:, angular], axis=0)
+        turns = np.where(angular, np.round((pos[-1] - pos[0]) / TWO_PI), 0.0)
+        pos -= np.concatenate([psi, [TWO_PI]])[:, None] * turns
+        if np.any(np.abs(pos[-1] - pos[0]) > 1e-9 * np.maximum(1.0, np.abs(pos[0]))):
+            raise TableRefused('a joint position is not periodic over one crank turn')
+        sets[0] = np.hstack([pos, y0[:, j:]])
+        for s in sets[1:]:
+            s[:, :j] = 0.0  # positions do not move with (w, a): checked below
+        # Fourier coefficients (real basis: 1, cos m psi, sin m psi) of every set
+        spectra = [np.fft.rfft(s[:-1], axis=0) / n for s in sets]
+        # each channel's scale: its largest published magnitude (positions as published)
+        scale = _floored(np.max([np.max(np.abs(v), axis=0) for v in y], axis=0), j,
+                         template.joint_effort is not None)
+        amp = np.max([np.abs(c) for c in spectra], axis=0)[1:] / scale   # (n/2, C)
+        big = np.flatnonzero(np.max(amp, axis=1) > HARMONIC_KEEP * bound)
+        harmonics = int(big[-1]) + 1 if big.size else 0
+        harmonics = min(harmonics, n // 2 - 1)
+        blocks = []
+        for k, c in enumerate(spectra):   # rows: 1, cos m psi, sin m psi, psi (whole turns)
+            per_turn = np.zeros((1, c.shape[1]))
+            if k == 0:
+                per_turn[0, :j] = turns
+            blocks.append(np.vstack([c[:1].real, 2.0 * c[1:harmonics + 1].real,
+                                     -2.0 * c[1:harmonics + 1].imag, per_turn]))
+        coef = np.vstack(blocks)
+        cells = _cells(runs, n)
+        report = TableReport(n, harmonics, float('nan'), bound, 0.0,
+                             float(np.max(cells[1])) if cells[1].size else float('nan'))
+        table = cls(template, j, angular, coef, harmonics, cells, report)
+        accuracy = table._verify(evaluate, n)
+        report = TableReport(n, harmonics, accuracy, bound, time.perf_counter() - t0,
+                             report.condition)
+        table.report, table.accuracy = report, accuracy
+        if not accuracy <= bound:
+            raise _TooCoarse(f'verified accuracy {accuracy:.2e} exceeds the bound '
+                             f'{bound:.0e} on {n} angles per turn')
+        return table
+
+    def _verify(self, evaluate, n):
+        """Return the largest relative difference from ``evaluate`` off the grid."""
+        k = np.arange(n)
+        psi = (k + 0.5) * (TWO_PI / n) + TWO_PI * (k % 3 - 1)   # mid-grid, whole turns off
+        speed = np.array(CHECK_SPEEDS)[k % len(CHECK_SPEEDS)]
+        accel = np.array(CHECK_ACCELS)[k % len(CHECK_ACCELS)]
+        try:
+            exact = evaluate(psi, speed, accel)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            raise TableRefused(f'the core fails at a check angle: {exc}') from None
+        want, got = _stack(exact), _stack(self.evaluate(psi, speed, accel))
+        if not np.all(np.isfinite(want)):
+            raise TableRefused('a published value is not finite at a check angle')
+        diff = np.abs(got - want)
+        j = self._j
+        diff[:, :j] = np.where(self._angular, np.abs(_wrap(got[:, :j] - want[:, :j])),
+                               diff[:, :j])
+        scale = _floored(np.max(np.abs(want), axis=0), j, self._effort)
+        rel = np.max(diff, axis=0) / np.maximum(scale, 1e-300)
+        rel[scale == 0.0] = np.where(np.max(diff[:, scale == 0.0], axis=0) > 0.0,
+                                     math.inf, 0.0)
+        return float(np.max(rel))
+
+    # ------------------------------------------------------------------ evaluation
+
+    def evaluate(self, psi, speed, accel=0.0):
+        """Return the published samples at crank angles ``psi`` ``(n,)``, rad/s, rad/s^2."""
+        psi = np.array(psi, dtype=float, ndmin=1)
+        n = psi.shape[0]
+        if n == 1:
+            return self._one(psi, _column(speed, 1), _column(accel, 1))
+        w, a = _column(speed, n), _column(accel, n)
+        x = np.mod(psi, TWO_PI)
+        m = self._m.shape[0]
+        # g[i, k, :] = factor k of sample i (1, w, w^2, a) times the basis at psi_i:
+        # 1, cos m x (m = 1 .. M), sin m x, x (x = psi reduced to [0, 2 pi))
+        g = np.empty((n, 4, 2 * m + 2))
+        basis = g[:, 0, :]
+        cos, sin = basis[:, 1:m + 1], basis[:, m + 1:2 * m + 1]
+        np.multiply.outer(x, self._m, out=cos)
+        np.sin(cos, out=sin)
+        np.cos(cos, out=cos)
+        basis[:, 0], basis[:, -1] = 1.0, x   # whole turns: x, not psi (no large angles)
+        f = np.empty((n, 3, 1))
+        f[:, 0, 0], f[:, 1, 0], f[:, 2, 0] = w, w * w, a
+        np.multiply(basis[:, None, :], f, out=g[:, 1:, :])
+        out = g.reshape(n, -1) @ self._coef
+        sel = self._wrapped
+        if sel is not None:
+            v = math.pi - np.mod(math.pi - out[:, sel], TWO_PI)
+            out[:, sel] = np.where(v <= -math.pi, v + TWO_PI, v)  # mod may round up
+        out += 0.0
+        cell = (x * self._cell).astype(np.intp)
+        j = self._j
+        e = 3 * j if self._effort else 2 * j
+        return RigData(psi, w, a, out[:, :j], out[:, j:2 * j],
+                       out[:, 2 * j:e] if self._effort else None, out[:, e:e + 3],
+                       out[:, e + 3:e + 6], joint_names=self._names,
+                       residual=self._cells[0][cell], condition=self._cells[1][cell],
+                       near_singular=np.zeros(n, dtype=bool))
+
+    def _one(self, psi, w, a):
+        """Return :meth:`evaluate` of one sample (follow mode's usual case), in fewer calls."""
+        x = float(psi[0]) % TWO_PI
+        m = self._m.shape[0]
+        g = np.empty((4, 2 * m + 2))
+        basis = g[0]
+        cos, sin = basis[1:m + 1], basis[m + 1:2 * m + 1]
+        np.multiply(self._m, x, out=cos)
+        np.sin(cos, out=sin)
+        np.cos(cos, out=cos)
+        basis[0], basis[-1] = 1.0, x
+        speed, accel = float(w[0]), float(a[0])
+        np.multiply(basis, np.array(((speed,), (speed * speed,), (accel,))), out=g[1:])
+        out = g.reshape(1, -1) @ self._coef
+        sel = self._wrapped
+        if sel is not None:  # as _wrap, in plain Python for the few angles of one sample
+            row = out[0]
+            wrapped = []
+            for v in row[sel].tolist():
+                v = math.pi - (math.pi - v) % TWO_PI
+                wrapped.append(v + TWO_PI if v <= -math.pi else v)   # mod may round up
+            row[sel] = wrapped
+        out += 0.0
+        cell = int(x * self._cell)
+        j = self._j
+        e = 3 * j if self._effort else 2 * j
+        return RigData(psi, w, a, out[:, :j], out[:, j:2 * j],
+                       out[:, 2 * j:e] if self._effort else None, out[:, e:e + 3],
+                       out[:, e + 3:e + 6], joint_names=self._names,
+                       residual=self._cells[0][cell:cell + 1],
+                       condition=self._cells[1][cell:cell + 1],
+                       near_singular=np.zeros(1, dtype=bool))
+
+
+def _column(value, n):
+    """Return ``value`` (a number or ``(n,)``) as a fresh ``(n,)`` float array."""
+    v = np.array(value, dtype=float, ndmin=1)
+    return v if v.shape == (n,) else np.broadcast_to(v.reshape(-1), (n,)).copy()
+
+
+def _floored(scale, joints, effort):
+    """Return channel scales, each at least FLOOR of its group's (module docstring)."""
+    scale = np.array(scale, dtype=float)
+    bounds = np.cumsum([0, joints, joints] + ([joints] if effort else []) + [3, 3])
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        if hi > lo:
+            scale[lo:hi] = np.maximum(scale[lo:hi], FLOOR * np.max(scale[lo:hi]))
+    return np.maximum(scale, 1e-300)
+
+
+def _cells(runs, n):
+    """Return ``(residual, condition)`` per grid cell: the worse of its two ends."""
+    out = []
+    for name in ('residual', 'condition'):
+        values = [getattr(r, name) for r in runs]
+        if any(v is None or np.size(v) != n + 1 for v in values):
+            out.append(np.zeros(n))
+            continue
+        v = np.max(values, axis=0)
+        out.append(np.maximum(v[:-1], v[1:]))
+    return tuple(out)
