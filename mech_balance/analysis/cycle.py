@@ -157,7 +157,9 @@ def format_table(cycle, rows, normalized=False):
            f'{2.0 * np.max(st.cond) ** 2 * kinematics.NEWTON_TOL:.1e} relative)'
            if np.max(st.cond) > kinematics.COND_WARN else ''),
         f'Newton iterations per angle: max {int(np.max(st.iterations))}, '
-        f'mean {np.mean(st.iterations):.2f}',
+        f'mean {np.mean(st.iterations):.2f}'
+        + ('  (positions in closed form: the loops are RRR dyads)'
+           if getattr(cycle.rig.linkage, 'dyads', None) is not None else ''),
     ]
     if cycle.wrenches is not None and cycle.wrenches.consistency is not None:
         lines.append(f'reaction recursion consistency: {cycle.wrenches.consistency:.3e} N*m')

@@ -90,8 +90,9 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
     omega, alpha, acc = state.omega, state.alpha, state.acc
     world_h = pose.rot * inertia.first_moment[:, None]
     # seed 001 eq. 26: f* = m a + (i alpha - omega^2) R h,  n* = I_O alpha + cross(R h, a)
-    f_star = 1j * alpha
-    f_star -= omega * omega
+    f_star = np.empty(world_h.shape, dtype=complex)
+    np.multiply(omega, -omega, out=f_star.real)
+    np.copyto(f_star.imag, alpha)
     f_star *= world_h
     f_star += inertia.mass[:, None] * acc
     n_star = _cross(world_h, acc)
@@ -171,18 +172,21 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         force[nr:] = nu * (1j * pose.rot[ia] * linkage.cut_axis)   # along the normal
         cut_moment[nr:] = mu
     m_on_b = _cross(pb - pivot, force)                    # about the pivot
-    m_on_a = _cross(pa - pivot, force)
-    np.negative(m_on_a, out=m_on_a)
     if npc:
+        m_on_a = _cross(pa - pivot, force)
+        np.negative(m_on_a, out=m_on_a)
         m_on_b[nr:] += cut_moment[nr:]
         m_on_a[nr:] = -m_on_b[nr:]
     # tree joint t carries what its subtree needs beyond the cut loads on that subtree
+    # (all-revolute cuts: the moment of the pair about the pivot with the common point
+    # taken on b, the two points agreeing to the loop residual)
     if linkage.dense_tree:
         f_req = f_sub - _rmat(linkage.below_cut, force)
-        m_req = m_sub - linkage.below_cut_b @ m_on_b - linkage.below_cut_a @ m_on_a
+        m_req = m_sub - linkage.below_cut_b @ m_on_b - linkage.below_cut_a @ m_on_a if npc \
+            else m_sub - linkage.below_cut @ m_on_b
     else:
         f_req = f_sub - linkage._up_cut(force, force)
-        m_req = m_sub - linkage._up_cut(m_on_b, -m_on_a)
+        m_req = m_sub - linkage._up_cut(m_on_b, -m_on_a if npc else m_on_b)
     moment = m_req - _cross(lever, f_req)                 # about each tree joint
     dev = moment[0] - tau
     worst = float(np.abs(dev, out=dev).max())
@@ -191,8 +195,8 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         worst = max(worst, float(np.abs(moment[rev]).max()))
         moment[rev] = 0.0
     if linkage.tree_flip.size:
-        f_req[linkage.tree_flip] *= -1.0
-        moment[linkage.tree_flip] *= -1.0
+        f_req *= linkage.tree_sign_col
+        moment *= linkage.tree_sign_col
     # joint order of the scene: (tree row or cut row) of each joint
     out.reaction_force = {n: (f_req[i] if tree else force[i])
                           for n, tree, i in linkage.joint_rows}

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import math
 import warnings
 
-from mech_balance.core.planar import smallsolve
+from mech_balance.core.planar import dyads, smallsolve
 from mech_balance.core.planar.algebra import cross as _cross, matvec as _matvec, \
     rmat as _rmat
 from mech_balance.schema.scene import FRAME
@@ -88,6 +88,29 @@ DENSE_TREE_MAX_BODIES = 8
 """Up to this many bodies the sums over the spanning tree are one dense matrix product each
 (fewest numpy calls); above it they run level by level down or up the tree, so that their
 cost grows with the number of bodies, not with its square (and stays off BLAS threads)."""
+
+
+ALLOCATOR_SETTLE_BYTES = 8 * 2 ** 20
+"""Size of the block allocated and freed once per process (:func:`settle_allocator`)."""
+_ALLOCATOR_SETTLED = []
+
+
+def settle_allocator():
+    """
+    Allocate and free one 8 MiB block, once per process, before the first cycle.
+
+    glibc's malloc serves blocks above its mmap threshold (128 KiB at start) straight from
+    the kernel and returns them at ``free``, and it trims the top of its heap beyond twice
+    that threshold: a cycle's larger temporaries (a 40-link chain's complex ``(39, 360)``
+    stacks are 225 KiB) would then be page-faulted in afresh at every call (about a third
+    of that chain's cycle).  Freeing a block from the kernel raises both thresholds to its
+    size (glibc's documented dynamic threshold, ``mallopt(3)``), so the temporaries are
+    reused from the heap; settings made with ``MALLOC_MMAP_THRESHOLD_`` and the like switch
+    that adjustment off and are left alone.  Nothing is touched (no memory is committed).
+    """
+    if not _ALLOCATOR_SETTLED:
+        _ALLOCATOR_SETTLED.append(True)
+        np.empty(ALLOCATOR_SETTLE_BYTES, dtype=np.uint8)   # freed at once
 
 
 class BranchError(ValueError):
@@ -184,6 +207,7 @@ class Linkage:
     """The geometry and topology of a planar scene, compiled for batched analysis."""
 
     def __init__(self, scene):
+        settle_allocator()
         self.scene = scene
         self.body_names = [FRAME] + [lk.name for lk in scene.links]
         index = {n: i for i, n in enumerate(self.body_names)}
@@ -246,6 +270,8 @@ class Linkage:
         self.pivots = None  # static row order for the loop Jacobian, set at assembly
         self.lu = None      # its sparse LU plan (smallsolve.LUPlan), set at assembly
         self._skeleton = None
+        self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
+        self.block = None   # its J_u as 2 x 2 diagonal blocks (smallsolve.BlockPlan), likewise
         self.warnings = []
 
     # ------------------------------------------------------------------ construction
@@ -380,6 +406,7 @@ class Linkage:
         rev[0] = False
         self.rev_passive = np.flatnonzero(rev)     # revolute tree joints other than the crank
         self.tree_flip = np.flatnonzero(self.tree_sign < 0)  # reported from child to parent
+        self.tree_sign_col = self.tree_sign[:, None]
         rows = {n: (True, t) for t, n in enumerate(self.tree_names)}
         rows.update({n: (False, c) for c, n in enumerate(self.cut_names)})
         self.joint_rows = [(n, *rows[n]) for n in self.joint_names]
@@ -599,6 +626,9 @@ class Linkage:
 
     def factored(self, pose):
         """Return ``(Factored J_u, J_psi or None)`` at ``pose`` (sparse where possible)."""
+        if self.block is not None:
+            values, jac_psi = self.jacobian_values(pose)
+            return smallsolve.BlockFactored(self.block, values), jac_psi
         if self.sparse_jac:
             values, jac_psi = self.jacobian_values(pose)
             return smallsolve.Factored(None, self.lu, values=values), jac_psi
@@ -624,7 +654,7 @@ class Linkage:
             if it == max_iter or not res.max(initial=0.0) > tol:  # also stops on nan
                 break
             # a Newton step for every angle: at converged ones it is a no-op to round-off
-            if self.sparse_jac:
+            if self.sparse_jac or self.block is not None:
                 step = self.factored(pose)[0].solve(g)
             else:  # closed form for nu <= 2, no inverse or condition number
                 step = smallsolve.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
@@ -634,6 +664,23 @@ class Linkage:
             iters += res > tol
         ok = res <= tol
         return q, pose, res, iters, ok
+
+    def closed_form(self, psi, q_pred, tol=NEWTON_TOL):
+        """
+        Return :meth:`newton`'s ``(q, pose, residual, iterations, converged)`` from the dyads.
+
+        The positions of a linkage that decomposes into RRR dyads (:mod:`dyads`) by circle
+        intersections on the traced branch; the residual is that of the result.  Where it is
+        above ``tol`` (or a circle pair does not meet), Newton takes over from there.
+        """
+        q, rot, origin, joint_at = self.dyads.solve(psi, q_pred)
+        phi = self.anc_rev @ q if self.dense_tree else self._down_rev(q)
+        pose = Pose(phi, rot, origin, joint_at, None)
+        res = np.abs(self.residual(pose)).max(axis=0)
+        ok = res <= tol                                   # False where nan
+        if not ok.all():
+            return self.newton(psi, np.where(ok, q, q_pred))
+        return q, pose, res, np.zeros(psi.shape[0], dtype=int), ok
 
     def assemble(self):
         """
@@ -721,12 +768,12 @@ class Linkage:
         ``i qd_t (P - J_t)``, a prismatic one at ``qd_t * axis_t``.
         """
         p = pose.phi.shape[1]
-        if np.ndim(psi_d):
+        if not isinstance(psi_d, float) and np.ndim(psi_d):
             psi_d = np.broadcast_to(psi_d, (p,))
-        if np.ndim(psi_dd):
+        if not isinstance(psi_dd, float) and np.ndim(psi_dd):
             psi_dd = np.broadcast_to(psi_dd, (p,))
         unknown = self.unknown_rows
-        if self.sparse_jac and jac is None:
+        if (self.sparse_jac or self.block is not None) and jac is None:
             fac, jac_psi = self.factored(pose)
         else:
             if jac is None:
@@ -739,8 +786,7 @@ class Linkage:
         qd = np.empty((self.nt, p))
         qd[0] = psi_d
         # q_u' = -J_u^-1 J_psi psi' (seed 000 eq. 32, generalized)
-        qd[unknown] = fac.solve(jac_psi)
-        qd[unknown] *= scale_d
+        np.multiply(fac.solve(jac_psi), scale_d, out=qd[unknown])
         omega = self.anc_rev @ qd if self.dense_tree else self._down_rev(qd)
         origin, J = pose.origin, pose.joint_at
         # v = i (omega O - sum_t qd_t J_t)  (+ prismatic slides)
@@ -768,7 +814,7 @@ class Linkage:
             acc_v -= self._down(qd * v_joint)
         acc_v *= 1j
         gamma = self._cut_bias(pose, omega, vel, acc_v)
-        if np.ndim(psi_dd) or psi_dd != 0.0:
+        if not isinstance(psi_dd, float) or psi_dd != 0.0:
             gamma += jac_psi * psi_dd
         qdd = np.empty((self.nt, p))
         qdd[0] = psi_dd
@@ -823,8 +869,23 @@ class Linkage:
     def skeleton(self):
         """Return the traced branch: nodes over one crank turn (computed on first use)."""
         if self._skeleton is None:
-            self._skeleton = self._trace()
+            sk = self._trace()
+            self.dyads = dyads.attach_signs(dyads.plan(self), self, sk)
+            if self.dyads is not None:
+                self.block = self._block_plan()
+            self._skeleton = sk
         return self._skeleton
+
+    def _block_plan(self):
+        """Return J_u as the dyads' 2 x 2 diagonal blocks (:class:`smallsolve.BlockPlan`)."""
+        c, t = self.jac_nz_split[0], self.jac_nz_split[1]
+        blocks = [((s.cut, self.nr + s.cut), (s.joints[0] - 1, s.joints[1] - 1))
+                  for s in self.dyads.steps]
+        try:
+            return smallsolve.BlockPlan(self.nu, np.concatenate([c, self.nr + c]),
+                                        np.concatenate([t, t]), blocks)
+        except ValueError:  # pragma: no cover - a dyad order is block triangular
+            return None
 
     def _derivatives(self, pose):
         r = self.rates(pose, 1.0, 0.0)
@@ -940,31 +1001,39 @@ class Linkage:
             raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
         sk = self.skeleton
         q_pred = sk.predict(psi)
-        q, pose, res, iters, ok = self.newton(psi, q_pred)
-        if self.nu and iters.any():  # how far Newton moved from the predictor (scaled)
+        if self.dyads is not None:
+            q, pose, res, iters, ok = self.closed_form(psi, q_pred)
+        else:
+            q, pose, res, iters, ok = self.newton(psi, q_pred)
+        bad = None
+        if self.nu and (self.dyads is not None or iters.any()):
+            # how far the solution lies from the predictor (scaled)
             corr = q[1:] - q_pred[1:]
             np.abs(corr, out=corr)
             if self.has_pri:
                 corr /= self.col_scale[:, None]
-            bad = corr.max(axis=0) > EVAL_TRUST
-            bad |= ~ok
-        else:  # no step taken: the predictor itself is the solution where it converged
+            if corr.max() > EVAL_TRUST or not ok.all():   # (nan: not ok)
+                bad = corr.max(axis=0) > EVAL_TRUST
+                bad |= ~ok
+        elif not ok.all():  # no step taken: the predictor is the solution where it converged
             bad = ~ok
-        if bad.any():
+        if bad is not None and bad.any():
             q[:, bad] = self._retrace(psi[bad])
             pose = self.pose(q)
             res = np.max(np.abs(self.residual(pose)), axis=0) if self.m else res
         speed = self.scene.crank_speed_rad_s if psi_d is None else psi_d
         accel = self.scene.crank_acceleration_rad_s2 if psi_dd is None else psi_dd
-        speed_p = np.full(psi.shape, speed) if np.ndim(speed) == 0 else \
+        scalar_speed = isinstance(speed, (int, float)) or np.ndim(speed) == 0
+        scalar_accel = isinstance(accel, (int, float)) or np.ndim(accel) == 0
+        speed_p = np.full(psi.shape, speed) if scalar_speed else \
             np.broadcast_to(np.asarray(speed, dtype=float), psi.shape)
-        accel_p = np.full(psi.shape, accel) if np.ndim(accel) == 0 else \
+        accel_p = np.full(psi.shape, accel) if scalar_accel else \
             np.broadcast_to(np.asarray(accel, dtype=float), psi.shape)
 
         def at(pose):
             if need_rates:
-                return self.rates(pose, speed if np.ndim(speed) == 0 else speed_p,
-                                  accel if np.ndim(accel) == 0 else accel_p,
+                return self.rates(pose, float(speed) if scalar_speed else speed_p,
+                                  float(accel) if scalar_accel else accel_p,
                                   need_acc=need_acc)
             fac = self.factored(pose)[0]
             return {'cond': fac.cond(), 'det_sign': fac.sign()}
@@ -994,7 +1063,7 @@ class Linkage:
             state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
-        if (state.cond > COND_WARN).any():
+        if state.cond.max(initial=0.0) > COND_WARN:
             worst = int(np.argmax(state.cond))
             self._warn(f'crank angle {math.degrees(psi[worst]):.3f} deg: near-singular '
                        f'position (Jacobian condition number {state.cond[worst]:.3g})')

@@ -1,0 +1,255 @@
+"""
+Closed-form positions of planar linkages that decompose into RRR dyads (Assur groups of class II).
+
+Worked out once per linkage (:func:`plan`, symbolic): the loops are taken in an order in which
+each one, given the tree joints already known, has exactly two unknown revolute tree joints
+and closes with a revolute cut joint.  The three free joints of such a loop are the corners of
+a triangle whose two outer corners P and Q lie on bodies already placed and whose middle
+corner X is found by intersecting two circles (radii fixed by the link geometry); the branch
+sign of each dyad (on which side of P Q the corner X lies) is the one of the traced branch and
+is checked to be the same at every node of the branch skeleton (a sign change would be a
+folded dyad, i.e. a singular position, which the trace refuses to cross).  Two cases:
+
+* the two unknown joints are the last tree joints above the cut's two bodies (the cut point is
+  X, each body turns about its own tree joint: a four-bar's coupler and rocker);
+* both are on one side, one above the other (X is the lower joint) and the cut's other body is
+  already placed.
+
+A chain of four-bars is a sequence of such dyads, so its positions cost a fixed number of
+vectorized operations per loop (no Newton iteration, no factorization).  Linkages with a
+prismatic joint, or loops that are not dyads in this sense, keep the Newton path of
+:mod:`mech_balance.core.planar.kinematics`.
+"""
+
+import numpy as np
+
+TWO_PI = 2.0 * np.pi
+NODE_AGREEMENT = 1e-8
+"""Largest difference (rad) between the closed form and the traced nodes for the plan to be
+used: a plan that does not reproduce the skeleton is dropped (Newton stays)."""
+
+
+class Step:
+    """
+    One dyad: ``alpha`` turns about P and carries X, ``beta`` carries X and Q.
+
+    ``p_src``/``q_src`` are ``(body, local point)`` of P and Q on bodies already placed;
+    ``c_alpha``, ``c_beta`` the constants that turn ``X - P`` and ``X - Q`` into the
+    rotations of the two bodies; ``rel`` the rows ``(tree joint, child body, parent body)``
+    whose relative rotation gives the tree coordinate; ``x_src`` (body, local point) of X;
+    ``sign`` the branch (+1: X to the left of P -> Q), set from the skeleton.
+    """
+
+    def __init__(self, cut, joints, ends, bodies, local, beta_at_x, rel, x_src):
+        self.cut, self.joints = cut, joints
+        self.p_src, self.q_src = ends
+        self.alpha, self.beta = bodies
+        lp, lx_a, lx_b, lq = local
+        va, vb = lx_a - lp, lx_b - lq
+        r1, r2 = abs(va), abs(vb)
+        self.c_alpha = np.conj(va) / (r1 * r1)
+        self.c_beta = np.conj(vb) / (r2 * r2)
+        self.half_k, self.r1_sq = 0.5 * (r1 * r1 - r2 * r2), r1 * r1
+        self.beta_at_x = beta_at_x       # beta hangs from its tree joint at X (else at Q)
+        self.rel, self.x_src = rel, x_src
+        self.sign = 0.0
+
+
+class DyadPlan:
+    """The dyads of a linkage in solving order, with the branch sign of each."""
+
+    def __init__(self, linkage, steps):
+        self.steps = steps
+        self.nt = linkage.nt
+        crank = linkage.tree[0]
+        self.crank_body = crank.child
+        self.crank_anchor_world = crank.p_parent     # on the frame: world coordinates
+        self.rows = []       # (tree joint, child body, parent body) in solving order
+        for s in steps:
+            self.rows += s.rel
+        self.row_joint = np.array([r[0] for r in self.rows])
+        self.row_order = np.argsort(self.row_joint)   # solving order -> tree order
+        self.is_identity = bool(np.array_equal(self.row_joint, np.arange(1, self.nt)))
+        self.nb = linkage.nb
+        self.children = linkage.ch
+        # each moving body's anchor (its parent tree joint) in its own frame
+        local = np.zeros(linkage.nb, dtype=complex)
+        for tj in linkage.tree:
+            local[tj.child] = tj.p_child
+        self.anchor_local = local[:, None]
+        # the points P and Q read from placed bodies, relative to the body's anchor
+        self.from_anchor = {}
+        for st in steps:
+            for body, point in (st.p_src, st.q_src):
+                self.from_anchor[(body, point)] = point - local[body]
+
+    def solve(self, psi, q_pred, signs=None):
+        """
+        Return ``(q, rot, origin, joint_at)``: tree coordinates ``(nt, p)`` and the poses.
+
+        ``q_pred`` (the skeleton's predictor) only fixes the whole turns of each revolute
+        coordinate; ``signs`` (one per dyad) defaults to the traced branch's.  Where two
+        circles do not meet the results are ``nan``.  ``rot`` and ``origin`` ``(nb, p)`` are
+        the bodies' rotations and origins, ``joint_at`` ``(nt, p)`` the tree joints.
+        """
+        p = psi.shape[0]
+        rot = np.empty((self.nb, p), dtype=complex)
+        anchor = np.empty((self.nb, p), dtype=complex)   # each body's parent tree joint
+        rot[0] = 1.0
+        anchor[0] = 0.0
+        c = self.crank_body
+        np.cos(psi, out=rot.real[c])
+        np.sin(psi, out=rot.imag[c])
+        anchor[c] = self.crank_anchor_world
+        rel = np.empty((len(self.rows), p), dtype=complex)
+        row = 0
+        w = np.empty(p, dtype=complex)
+        tmp = np.empty(p)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            for k, s in enumerate(self.steps):
+                sign = s.sign if signs is None else signs[k]
+                big_p = self._world(rot, anchor, s.p_src)
+                big_q = self._world(rot, anchor, s.q_src)
+                d = big_q - big_p
+                inv = np.multiply(d.real, d.real, out=tmp)
+                inv += d.imag * d.imag
+                np.divide(1.0, inv, out=inv)
+                # X - P = d (u + i sign h) with u = 1/2 + k/(2 D^2), h^2 = r1^2/D^2 - u^2
+                u = np.multiply(inv, s.half_k, out=w.real)
+                u += 0.5
+                h = np.multiply(inv, s.r1_sq, out=w.imag)
+                h -= u * u
+                np.sqrt(h, out=h)
+                if sign < 0.0:
+                    np.negative(h, out=h)
+                dw = d * w                                 # X - P
+                np.multiply(dw, s.c_alpha, out=rot[s.alpha])
+                d -= dw                                    # Q - X
+                np.multiply(d, -s.c_beta, out=rot[s.beta])  # (X - Q) conj(v_b) / r2^2
+                anchor[s.alpha] = big_p
+                if s.beta_at_x:
+                    np.add(dw, big_p, out=anchor[s.beta])  # X
+                else:
+                    anchor[s.beta] = big_q
+                for _, child, parent in s.rel:
+                    if parent == 0:
+                        rel[row] = rot[child]
+                    else:
+                        np.multiply(rot[child], rot[parent].conjugate(), out=rel[row])
+                    row += 1
+        ang = np.arctan2(rel.imag, rel.real)
+        if not self.is_identity:
+            ang = ang[self.row_order]
+        # whole turns from the predictor: q = angle + 2 pi round((q_pred - angle) / 2 pi)
+        turns = np.subtract(q_pred[1:], ang)
+        turns *= 1.0 / TWO_PI
+        np.rint(turns, out=turns)
+        turns *= TWO_PI
+        q = np.empty((self.nt, p))
+        q[0] = psi
+        np.add(ang, turns, out=q[1:])
+        origin = rot * self.anchor_local
+        np.subtract(anchor, origin, out=origin)
+        return q, rot, origin, anchor[self.children]
+
+    def _world(self, rot, anchor, src):
+        """Return the world position of ``src = (body, local point)`` (a constant on the frame)."""
+        body, point = src
+        if body == 0:
+            return point
+        out = rot[body] * self.from_anchor[src]
+        out += anchor[body]
+        return out
+
+    def signs_at(self, linkage, pose):
+        """Return ``(n_dyads, p)``: the side of P Q on which each dyad's X lies, at ``pose``."""
+        out = []
+        for s in self.steps:
+            pts = []
+            for body, point in (s.p_src, s.q_src, s.x_src):
+                pts.append(pose.origin[body] + pose.rot[body] * point)
+            d = pts[1] - pts[0]
+            out.append(np.sign((np.conj(d) * (pts[2] - pts[0])).imag))
+        return np.array(out)
+
+
+def plan(linkage):
+    """
+    Return the :class:`DyadPlan` of a linkage, or ``None`` if it does not decompose.
+
+    All-revolute linkages only; the signs are not set here (:func:`attach_signs`).
+    """
+    lk = linkage
+    if lk.has_pri or lk.npc or not lk.nu:
+        return None
+    known = {0}
+    pj = lk.parent_joint
+    pending = list(range(len(lk.cuts)))
+    steps = []
+    while pending:
+        for c in pending:
+            step = _dyad(lk, c, known, pj)
+            if step is not None:
+                steps.append(step)
+                known.update(step.joints)
+                pending.remove(c)
+                break
+        else:
+            return None
+    if known != set(range(lk.nt)):
+        return None
+    return DyadPlan(lk, steps)
+
+
+def _dyad(lk, c, known, pj):
+    """Return the :class:`Step` closing cut ``c`` given the ``known`` tree joints, or None."""
+    cut = lk.cuts[c]
+    a, b = cut.a, cut.b
+    anc_a, anc_b = lk.anc[a], lk.anc[b]
+    if not (anc_a & anc_b) <= known:
+        return None
+    unk = [t for t in (anc_a ^ anc_b) if t not in known]
+    if len(unk) != 2:
+        return None
+    tree = lk.tree
+    ta, tb = pj[a], pj[b]
+    if ta in unk and tb in unk:        # X = the cut point; a turns about J_ta, b about J_tb
+        return Step(c, (ta, tb), ((tree[ta].parent, tree[ta].p_parent),
+                                  (tree[tb].parent, tree[tb].p_parent)), (a, b),
+                    (tree[ta].p_child, cut.p_a, cut.p_b, tree[tb].p_child), False,
+                    [(ta, a, tree[ta].parent), (tb, b, tree[tb].parent)], (a, cut.p_a))
+    for low, p_low, other, p_other in ((a, cut.p_a, b, cut.p_b), (b, cut.p_b, a, cut.p_a)):
+        t2 = pj[low]
+        if t2 is None or t2 not in unk:
+            continue
+        u = tree[t2].parent
+        t1 = pj[u]
+        if t1 is None or t1 not in unk:
+            continue
+        # alpha = u turns about J_t1 and carries X = J_t2; beta = low carries X and Q
+        return Step(c, (t1, t2), ((tree[t1].parent, tree[t1].p_parent), (other, p_other)),
+                    (u, low), (tree[t1].p_child, tree[t2].p_parent, tree[t2].p_child, p_low),
+                    True, [(t1, u, tree[t1].parent), (t2, low, u)], (u, tree[t2].p_parent))
+    return None
+
+
+def attach_signs(dyad_plan, linkage, skeleton):
+    """
+    Set each dyad's branch sign from the skeleton; return the plan, or ``None`` if unusable.
+
+    Unusable: a dyad whose sign is not the same nonzero value at every node, or a closed form
+    that does not reproduce the nodes to :data:`NODE_AGREEMENT`.
+    """
+    if dyad_plan is None:
+        return None
+    pose = linkage.pose(skeleton.q)
+    signs = dyad_plan.signs_at(linkage, pose)
+    first = signs[:, :1]
+    if not (np.all(signs == first) and np.all(first != 0.0)):
+        return None
+    for s, sign in zip(dyad_plan.steps, first[:, 0]):
+        s.sign = float(sign)
+    q = dyad_plan.solve(skeleton.q[0], skeleton.q)[0]
+    if not np.max(np.abs(q - skeleton.q)) <= NODE_AGREEMENT:   # also False on nan
+        return None
+    return dyad_plan
