@@ -75,3 +75,29 @@ def test_release_memory_returns_freed_heap_to_the_system():
     ok, grown, kept, after = out.stdout.split()
     assert int(grown) > 500_000 and int(kept) > 0.9 * int(grown)   # freed, yet resident
     assert ok == 'True' and int(after) < 0.1 * int(grown)
+
+
+def test_the_node_fixes_the_mmap_threshold_so_big_temporaries_return_at_free():
+    code = ('import sys; import numpy as np; from mech_balance import threads\n'
+            'def rss():\n'
+            '    return next(int(l.split()[1]) for l in open("/proc/self/status")'
+            ' if l.startswith("VmRSS"))\n'
+            'ok = threads.return_large_blocks() if sys.argv[1] == "fix" else None\n'
+            'np.ones(2 ** 20)\n'                # 8 MB, freed: glibc would raise its threshold
+            'base = rss()\n'
+            'arrays = [np.ones(2 ** 17) for _ in range(20)]\n'    # 20 MB of 1 MB temporaries
+            'keep = np.ones(16)\n'
+            'del arrays\n'
+            'print(ok, rss() - base)')
+
+    def run(arg, env=None):
+        out = subprocess.run([sys.executable, '-c', code, arg], capture_output=True, text=True,
+                             timeout=120, env=dict(os.environ, PYTHONPATH=ROOT, **(env or {})))
+        assert out.returncode == 0, out.stderr
+        ok, grown = out.stdout.split()
+        return ok, int(grown)
+
+    assert run('dynamic')[1] > 2048                  # kB kept with glibc's dynamic threshold
+    ok, grown = run('fix')
+    assert ok == 'True' and grown < 1024             # returned at free
+    assert run('fix', {'MALLOC_MMAP_THRESHOLD_': '65536'})[0] == 'False'   # the user's own

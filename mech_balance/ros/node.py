@@ -391,6 +391,7 @@ def main(args=None):
     context is not valid``); after a shutdown that is the shutdown, not a failure (exit 0).
     """
     sys.setswitchinterval(SWITCH_INTERVAL_S)
+    threads.return_large_blocks()  # a long-running node: big temporaries back at free
     try:
         threads.limit_blas_threads()
     except ValueError as exc:      # names MECH_BALANCE_BLAS_THREADS and its value
