@@ -2,6 +2,8 @@
 
 import cmath
 import math
+import os
+import sys
 import warnings
 
 from mech_balance import schema as scene
@@ -12,6 +14,9 @@ from mech_balance.core.planar.rig import PlanarRig
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+import test_extreme as extreme  # noqa: E402, I100
 
 OUTPUTS = ('shaking_wrench', 'driving_torque', 'bearing_reactions')
 
@@ -150,7 +155,7 @@ def test_prismatic_rigs_keep_newton():
 def test_near_singular_four_bar_is_flagged_on_the_closed_form_path(monkeypatch):
     # a stretched change point 1e-8 away: the condition number passes COND_WARN near 180 deg
     a, b, c, d = 1.0, 3.0, 2.5, 4.5 - 1e-8
-    sc = _four_bar(a, b, c, d)
+    sc = extreme.four_bar(a, b, c, d)              # the change-point tests' four-bar
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', RuntimeWarning)
         fast, slow = _pair(sc, monkeypatch)
@@ -165,36 +170,6 @@ def test_near_singular_four_bar_is_flagged_on_the_closed_form_path(monkeypatch):
     kappa = float(np.max(s2.cond))
     assert_allclose(s1.pose.origin, s2.pose.origin, rtol=0, atol=1e-13 * kappa * d)
     assert_allclose(s1.cond, s2.cond, rtol=1e-13 * kappa * kappa)
-
-
-def _four_bar(a, b, c, d):
-    """Return a four-bar on the x axis (crank a at O1, rocker c at O3 = (d, 0)), B above."""
-    psi0 = math.radians(90.0)
-    pa = a * cmath.exp(1j * psi0)
-    v = d - pa
-    dist = abs(v)
-    x = (b * b - c * c + dist * dist) / (2.0 * dist)
-    pb = pa + v / dist * complex(x, math.sqrt(b * b - x * x))
-    data = {
-        'name': f'four_bar_{d!r}', 'kind': 'planar', 'crank': {'joint': 'O1', 'speed_rad_s': 1.0},
-        'frame': {'points': {'O1': [0.0, 0.0], 'O3': [d, 0.0]}},
-        'links': {
-            'crank': {'points': {'O1': [0.0, 0.0], 'A': [a, 0.0]}, 'mass_kg': 1.0,
-                      'com_m': [0.5 * a, 0.0], 'inertia_com_kg_m2': 0.1},
-            'coupler': {'points': {'A': [0.0, 0.0], 'B': [b, 0.0]}, 'mass_kg': 2.0,
-                        'com_m': [0.5 * b, 0.1], 'inertia_com_kg_m2': 0.5},
-            'rocker': {'points': {'O3': [0.0, 0.0], 'B': [c, 0.0]}, 'mass_kg': 1.5,
-                       'com_m': [0.4 * c, 0.0], 'inertia_com_kg_m2': 0.3}},
-        'joints': {'O1': {'type': 'revolute', 'a': 'frame.O1', 'b': 'crank.O1'},
-                   'A': {'type': 'revolute', 'a': 'crank.A', 'b': 'coupler.A'},
-                   'B': {'type': 'revolute', 'a': 'coupler.B', 'b': 'rocker.B'},
-                   'O3': {'type': 'revolute', 'a': 'frame.O3', 'b': 'rocker.O3'}},
-        'assembly': {'crank_angle_deg': 90.0, 'link_angles_deg': {
-            'coupler': math.degrees(cmath.phase(pb - pa)),
-            'rocker': math.degrees(cmath.phase(pb - d))}},
-        'outputs': ['shaking_wrench'],
-    }
-    return scene.from_dict(data, source='test')
 
 
 def test_closed_form_falls_back_to_newton_where_it_fails(monkeypatch):
