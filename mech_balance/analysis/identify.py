@@ -76,7 +76,6 @@ from mech_balance.core.planar.rig import objective_units
 from mech_balance.schema.scene import INERTIA_ROUNDOFF
 import numpy as np
 import scipy.linalg
-from scipy.signal import oaconvolve
 
 SG_ORDER = 6
 """Order of the Savitzky-Golay polynomial fitted to the unwrapped encoder angle."""
@@ -186,6 +185,17 @@ class IdentifyError(ValueError):
 
 
 # ============================================================================ crank motion
+
+
+def oaconvolve(*args, **kwargs):
+    """
+    Return :func:`scipy.signal.oaconvolve` (imported on first use).
+
+    Importing ``scipy.signal`` costs about 0.6 s, and this module is imported by every
+    ``balance`` call (a calibrated scene's +-1 SE); only the crank-motion fit convolves.
+    """
+    from scipy.signal import oaconvolve as convolve
+    return convolve(*args, **kwargs)
 
 
 @dataclass

@@ -35,6 +35,7 @@ calls of the parts and their results into answers.
 
 import json
 import sys
+import threading
 
 from mech_balance import threads
 from mech_balance.ros import description, guard as guards, live
@@ -108,6 +109,8 @@ class RigNode(Node):
         # samples then finds nothing left to log to rosout)
         self._announce()
         self._publisher.apply_mode()
+        threading.Thread(target=self._guard.skipping('warm-up')(_import_solvers),
+                         name='rig-warm-up', daemon=True).start()
         self.add_pre_set_parameters_callback(self._params.coerce)
         self.add_on_set_parameters_callback(self._guard.refusing(
             'parameters', lambda exc, ps: SetParametersResult(
@@ -380,6 +383,20 @@ def _viz_recorder(path, url, scene, balanced):
     """Return the viz recorder of a file (``path``) or a viewer (``url``): the recording hook."""
     from mech_balance.viz import recording
     return recording.LiveRecorder(path, scene, balanced, field='recording_path', url=url)
+
+
+def _import_solvers():
+    """
+    Import the balancing and identification solvers (the node's warm-up thread).
+
+    Their imports (scipy.sparse, clarabel, scipy.signal) cost about 0.8 s: done at start,
+    the first ``~/balance`` or ``~/identify`` call does not pay them.
+    """
+    import importlib
+    for name in ('mech_balance.balancing.socp', 'mech_balance.balancing.counterweights',
+                 'mech_balance.balancing.certificate', 'mech_balance.analysis.identify',
+                 'scipy.signal'):
+        importlib.import_module(name)
 
 
 def main(args=None):
