@@ -11,6 +11,7 @@ reason and follow mode evaluates the core.
 
 from dataclasses import replace
 import math
+import re
 
 from mech_balance import schema as scene_mod
 from mech_balance.ros import cycle_table, description, streaming
@@ -95,8 +96,17 @@ def test_a_new_design_gets_a_new_table():
 
 
 def _refused(evaluate, model, match):
-    with pytest.raises(cycle_table.TableRefused, match=match):
+    """Return the reason the table of ``evaluate`` is refused (it must be, naming ``match``)."""
+    with pytest.raises(cycle_table.TableRefused, match=match) as info:
         cycle_table.CycleTable.build(evaluate, model.published_angular())
+    return str(info.value)
+
+
+def _accuracy_in(reason):
+    """Return the verified accuracy and the grid a 'too coarse' refusal names."""
+    m = re.search(r'verified accuracy (\S+) exceeds the bound \S+ on (\d+) angles', reason)
+    assert m, reason
+    return float(m.group(1)), int(m.group(2))
 
 
 def test_refused_where_the_outputs_are_not_affine_in_speed_and_acceleration():
@@ -107,7 +117,11 @@ def test_refused_where_the_outputs_are_not_affine_in_speed_and_acceleration():
         w = np.broadcast_to(np.asarray(speed, dtype=float), s.force_N.shape[:1])
         s.joint_effort = s.joint_effort + 0.3 * np.sign(w)[:, None]
         return s
-    _refused(coulomb, model, 'accuracy')
+    assert cycle_table.CycleTable.build(model.evaluate, model.published_angular()).accuracy \
+        <= cycle_table.BOUND                     # the same rig without the friction: built
+    accuracy, grid = _accuracy_in(_refused(coulomb, model, 'accuracy'))
+    assert accuracy > 1e3 * cycle_table.BOUND    # the sign term is an O(1) error
+    assert grid == max(cycle_table.GRIDS)        # refused after the finest grid was tried
 
 
 def test_refused_where_the_rig_is_near_singular_or_the_core_fails():
@@ -141,14 +155,15 @@ def test_refused_where_a_position_is_not_periodic_or_too_sharp_for_the_bound():
         s.joint_position = s.joint_position.copy()
         s.joint_position[:, 2] = streaming.wrap_angle(0.5 * np.asarray(s.crank_angle_rad))
         return s
-    _refused(half_turn, model, 'not periodic')
+    assert 'joint position' in _refused(half_turn, model, 'not periodic')
 
     def sharp(psi, speed, accel=0.0):  # a force spike no grid of GRIDS resolves to 1e-10
         s = model.evaluate(psi, speed, accel)
         d = np.mod(s.crank_angle_rad, 2 * math.pi) - 1.0
         s.force_N = s.force_N + (1.0 / (1.0 + (d / 1e-4) ** 2))[:, None]
         return s
-    _refused(sharp, model, 'accuracy')
+    accuracy, grid = _accuracy_in(_refused(sharp, model, 'accuracy'))
+    assert accuracy > cycle_table.BOUND and grid == max(cycle_table.GRIDS)
 
 
 def test_follow_mode_evaluates_the_core_when_the_table_is_refused():

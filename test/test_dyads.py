@@ -131,7 +131,10 @@ def test_both_assembly_modes_give_mirror_branches(monkeypatch):
 def test_builtin_dyad_rigs_agree_with_newton(name, monkeypatch):
     sc = scene.load(name).with_outputs(scene.OUTPUTS)
     fast, slow = _pair(sc, monkeypatch)
-    _agree(fast, slow, np.concatenate([cycle_angles(360), np.linspace(-9.0, 15.0, 77)]))
+    s1, _ = _agree(fast, slow, np.concatenate([cycle_angles(360), np.linspace(-9.0, 15.0, 77)]))
+    # every loop a dyad, solved in closed form (no Newton iteration) at every angle
+    assert len(fast.linkage.dyads.steps) == {'hoeken': 1, 'carpet_scraper': 3}[name]
+    assert s1.iterations.shape == (437,) and np.all(s1.iterations == 0)
 
 
 @pytest.mark.parametrize('loops, skew', [(1, 0.0), (4, 0.03), (9, 0.11)])

@@ -110,24 +110,26 @@ def run_case(tmp_path, case, capsys):
     return report, cal
 
 
-def _consistent(cal):
-    """Check that every calibrated link is a body: m > 0 and a centroidal inertia >= 0."""
-    for link in cal.links:
-        assert link.mass_kg > 0.0 and link.inertia_com_kg_m2 >= 0.0, link
+def _not_bodies(cal):
+    """Return the calibrated links that are not bodies (m <= 0 or a centroidal inertia < 0)."""
+    return [link.name for link in cal.links
+            if not (link.mass_kg > 0.0 and link.inertia_com_kg_m2 >= 0.0)]
 
 
 @pytest.mark.parametrize('case', CORNERS, ids=lambda c: '-'.join(map(str, c[:8])))
 def test_real_recording(tmp_path, case, capsys):
-    _, cal = run_case(tmp_path, case, capsys)
-    _consistent(cal)
+    report, cal = run_case(tmp_path, case, capsys)
+    assert report['realizable'] and _not_bodies(cal) == []
+    assert len(cal.links) == len(report['calibrated_links'])
 
 
 @pytest.mark.skipif(not os.environ.get('MECH_BALANCE_FULL_GRID'),
                     reason='the full grid: set MECH_BALANCE_FULL_GRID=1')
 @pytest.mark.parametrize('case', FULL, ids=lambda c: '-'.join(map(str, c[:7])))
 def test_real_recording_full_grid(tmp_path, case, capsys):
-    _, cal = run_case(tmp_path, case, capsys)
-    _consistent(cal)
+    report, cal = run_case(tmp_path, case, capsys)
+    assert report['realizable'] and _not_bodies(cal) == []
+    assert len(cal.links) == len(report['calibrated_links'])
 
 
 def _quaternion(roll, pitch, yaw):
