@@ -78,8 +78,8 @@ def release_memory():
     import ctypes
     import ctypes.util
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library('c') or 'libc.so.6')
-        return bool(libc.malloc_trim(0)) or True
+        ctypes.CDLL(ctypes.util.find_library('c') or 'libc.so.6').malloc_trim(0)
+        return True
     except (OSError, AttributeError):
         return False
 

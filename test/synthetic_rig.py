@@ -72,6 +72,19 @@ def crank(t, w0, psi0=0.3):
     return psi, speed, accel
 
 
+def _add_weight(true, true_scene, rig, state):
+    """Add the links' weight on the frame (at their mass centres, about the crank pivot)."""
+    g = complex(*true_scene.gravity_m_s2)
+    if g:
+        for i, lk in enumerate(true_scene.links, 1):
+            c = state.pose.origin[i] + state.pose.rot[i] * complex(*lk.com_m)
+            weight = lk.mass_kg * g
+            arm = c - rig.linkage.pivot
+            true[:, 0] += weight.real
+            true[:, 1] += weight.imag
+            true[:, 2] += arm.real * weight.imag - arm.imag * weight.real
+
+
 def record(true_scene, duration_s, w0, seed, effort=False, t0_ns=1_700_000_000_000_000_000):
     """Return the :class:`RigData` of ``duration_s`` seconds of the true rig at 1 kHz."""
     rng = np.random.default_rng(seed + 1000)
@@ -89,16 +102,7 @@ def record(true_scene, duration_s, w0, seed, effort=False, t0_ns=1_700_000_000_0
     true = np.column_stack([w.shaking_force.real, w.shaking_force.imag, w.shaking_moment])
     peak_f = np.max(np.abs(w.shaking_force))
     peak_n = np.max(np.abs(w.shaking_moment))
-    g = complex(*true_scene.gravity_m_s2)
-    if g:
-        # the links' weight on the frame, at their mass centres, about the crank pivot
-        for i, lk in enumerate(true_scene.links, 1):
-            c = state.pose.origin[i] + state.pose.rot[i] * complex(*lk.com_m)
-            weight = lk.mass_kg * g
-            arm = c - rig.linkage.pivot
-            true[:, 0] += weight.real
-            true[:, 1] += weight.imag
-            true[:, 2] += arm.real * weight.imag - arm.imag * weight.real
+    _add_weight(true, true_scene, rig, state)
     std = np.array([NOISE_REL * peak_f, NOISE_REL * peak_f, NOISE_REL * peak_n])
     bias = np.array([0.3, -0.2, 0.25]) * std * 10.0
     wrench = true + bias + rng.normal(size=true.shape) * std
@@ -157,15 +161,7 @@ def record_real(true_scene, duration_s, counts, seed, mode='round', dtype=np.flo
     state, w = rig.evaluate(np.mod(psi, 2.0 * math.pi), outputs=('shaking_wrench',),
                             speed=speed, accel=accel)
     true = np.column_stack([w.shaking_force.real, w.shaking_force.imag, w.shaking_moment])
-    g = complex(*true_scene.gravity_m_s2)
-    if g:
-        for i, lk in enumerate(true_scene.links, 1):
-            c = state.pose.origin[i] + state.pose.rot[i] * complex(*lk.com_m)
-            weight = lk.mass_kg * g
-            arm = c - rig.linkage.pivot
-            true[:, 0] += weight.real
-            true[:, 1] += weight.imag
-            true[:, 2] += arm.real * weight.imag - arm.imag * weight.real
+    _add_weight(true, true_scene, rig, state)
     peak = np.array([np.max(np.abs(w.shaking_force))] * 2 + [np.max(np.abs(w.shaking_moment))])
     wrench = true + np.array([0.3, -0.2, 0.25]) * peak * 0.05 + \
         rng.normal(size=true.shape) * noise_rel * peak

@@ -130,23 +130,24 @@ def test_day_ahead_stamps_never_lock_the_sensor_path(context, tmp_path):
         probe.encoder.publish(ts._encoder_msg(t_all[a] + DAY_NS, pos_all[a]))
         play(a, b)
         half = int(0.5 * params.BY_NAME['sensor.crank_window'].default * 1e9)
-        # resumed within resync_after messages: every measurement a crank window after the
-        # re-synchronizing message (and before the last half window) has its residual
-        after = t_all[a + resync] + 2 * half
-        expected = [t for t in t_all[a:b] if after <= t <= t_all[b - 1] - half]
-        spin(lambda: all(t in probe.residuals for t in expected[-5:]), 'the residuals')
-        missing = [t for t in expected if t not in probe.residuals]
-        assert not missing, f'{len(missing)} of {len(expected)} residuals missing'
+
+        def missing_residuals(start, stop):
+            # resumed within resync_after messages: every measurement a crank window after
+            # the re-synchronizing message (and before the last half window) has its residual
+            after = t_all[start + resync] + 2 * half
+            expected = [t for t in t_all[start:stop] if after <= t <= t_all[stop - 1] - half]
+            spin(lambda: all(t in probe.residuals for t in expected[-5:]), 'the residuals')
+            return [t for t in expected if t not in probe.residuals], len(expected)
+
+        missing, expected = missing_residuals(a, b)
+        assert not missing, f'{len(missing)} of {expected} residuals missing'
         answer, _ = identify()
         assert answer.success, answer.message[:600]
         # ---- one measured_wrench message a day ahead, then the normal stream
         probe.measured.publish(ts._wrench_msg(t_all[b] + DAY_NS, force[b], torque[b]))
         play(b, n)
-        after = t_all[b + resync] + 2 * half
-        expected = [t for t in t_all[b:n] if after <= t <= t_all[n - 1] - half]
-        spin(lambda: all(t in probe.residuals for t in expected[-5:]), 'the residuals')
-        missing = [t for t in expected if t not in probe.residuals]
-        assert not missing, f'{len(missing)} of {len(expected)} residuals missing'
+        missing, expected = missing_residuals(b, n)
+        assert not missing, f'{len(missing)} of {expected} residuals missing'
         answer, grown = identify()
         assert answer.success, answer.message[:600]
         assert grown <= IDENTIFY_MEMORY_BOUND_B, grown
