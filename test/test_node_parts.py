@@ -439,6 +439,40 @@ def test_publisher_and_real_rig_statuses_are_finite_from_the_first(node):
         publisher.stop()
 
 
+def test_zero_stamps_take_the_middleware_stamp_so_a_burst_keeps_its_spacing(node):
+    from mech_balance.ros.guard import Guard
+    values = dict(params.defaults(), scene='slider_crank', mode='follow')
+    state = _state_of(values)
+    warned = []
+    publisher = pub.Publisher(node, state, Guard(warned.append), warned.append)
+    try:
+        publisher.streamer.stop()
+        publisher.apply_mode()
+        sub = publisher._encoder_sub
+        assert sub._callback_type is type(sub).CallbackType.WithMessageInfo
+        crank = state.original.crank_joint
+        sent = node.get_clock().now().nanoseconds - 10 ** 9
+        for k in range(20):   # written 10 ms apart, re-sent in a burst, taken back to back
+            info = {'source_timestamp': sent + k * 10 ** 7,
+                    'received_timestamp': sent + 10 ** 8 + k * 1000}
+            sub.callback(tn._encoder([crank], 0, [0.5 + 0.01 * k]), info)
+        for k in range(20, 25):   # no source stamp: the reception stamp
+            info = {'source_timestamp': 0, 'received_timestamp': sent + k * 10 ** 7}
+            sub.callback(tn._encoder([crank], 0, [0.5 + 0.01 * k]), info)
+        pending = list(publisher.streamer._pending)
+        assert publisher.skipped_inputs == 0, warned
+        assert [s.stamp_ns for s in pending] == [sent + k * 10 ** 7 for k in range(1, 25)]
+        assert np.allclose([s.speed_rad_s for s in pending], 1.0)   # 0.01 rad per 10 ms
+        publisher.estimator.reset()
+        publisher.streamer._pending.clear()
+        before = node.get_clock().now().nanoseconds
+        publisher.on_encoder(tn._encoder([crank], 0, [0.5]))   # no message info (a direct
+        after = node.get_clock().now().nanoseconds               # call): the node's clock
+        assert before <= publisher.estimator._last[0] <= after
+    finally:
+        publisher.stop()
+
+
 def test_streamer_tells_a_stall_from_a_clock_jump():
     model = streaming.model_for(scene_mod.load('hoeken'))
     clock = {'now': 10_000_000_000}

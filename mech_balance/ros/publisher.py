@@ -99,8 +99,10 @@ class Publisher:
         self.streamer.follow(model)
         self._build_table(model)
         if self._encoder_sub is None:
+            guarded = self._guard.skipping(ENCODER)(self.on_encoder)
+            # two required arguments: rclpy then passes the message info (its reception stamp)
             self._encoder_sub = self._node.create_subscription(
-                JointState, ENCODER, self._guard.skipping(ENCODER)(self.on_encoder),
+                JointState, ENCODER, lambda msg, info: guarded(msg, info),
                 QoSProfile(depth=ENCODER_DEPTH), callback_group=self._encoder_group,
                 qos_overriding_options=QoSOverridingOptions.with_default_policies())
 
@@ -178,8 +180,14 @@ class Publisher:
             # Ctrl-C or SIGTERM: rclpy shut the context down before destroy_node stops
             # this thread; the sample is dropped without a warning (rosout is gone too)
 
-    def on_encoder(self, msg):
-        """Turn one encoder message into a sample to publish; skip bad input with a warning."""
+    def on_encoder(self, msg, info=None):
+        """
+        Turn one encoder message into a sample to publish; skip bad input with a warning.
+
+        ``info``: rclpy's message info (a subscription callback of two arguments receives
+        it); its middleware stamps stand in for a message's unset stamp
+        (:meth:`_receive_time`).
+        """
         values = self._state.values
         if values['mode'] != 'follow':  # subscribed by an earlier follow mode
             self.encoder_input.reject('ignored in clock mode')
@@ -189,7 +197,7 @@ class Publisher:
         try:
             stamp_ns, position, velocity = conv.crank_reading(msg, joint)
             if stamp_ns == 0:  # unset: `ros2 topic pub` sends stamp 0 (docs/node.md: follow mode)
-                stamp_ns = self._node.get_clock().now().nanoseconds
+                stamp_ns = self._receive_time(info)
                 if not self._zero_stamp_said:
                     self._zero_stamp_said = True
                     self._node.get_logger().info(
@@ -213,6 +221,27 @@ class Publisher:
                                     estimator.just_resynced)
         if sample is not None and not self.streamer.push(sample):
             self._warn(f'{ENCODER}: the core is behind the encoder; dropped the oldest sample')
+
+    def _receive_time(self, info):
+        """
+        Return the time of an encoder message whose stamp is unset, ns on the node's clock.
+
+        The middleware's stamp of the message where it is on the node's clock (system time,
+        no simulated time): its ``source_timestamp``, the time the sender wrote it (as if
+        the sender had stamped it), else its ``received_timestamp``.  Messages that arrive
+        in a burst - queued while the executor was busy, or re-sent by a reliable writer
+        once discovery completes - keep their spacing, where the callback's own time would
+        bunch them and their steps would look like a crank faster than
+        ``follow.max_speed``.  Otherwise (simulated time, no message info) the node's clock
+        at the callback.
+        """
+        clock = self._node.get_clock()
+        if isinstance(info, dict) and not getattr(clock, 'ros_time_is_active', False):
+            for key in ('source_timestamp', 'received_timestamp'):
+                stamp = info.get(key)
+                if isinstance(stamp, int) and stamp > 0:
+                    return stamp
+        return clock.now().nanoseconds
 
     # ------------------------------------------------------------------ reports
 
