@@ -461,8 +461,27 @@ def _follow_rig(context, tag, *args):
     probe.wait_for_rig(rig)
     probe.spin_until(lambda: probe.encoder.get_subscription_count() >= 1,
                      tn.DISCOVERY_TIMEOUT_S, 'the node to subscribe to the encoder')
-    probe.after_ns = -1
+    # Matched on our side is not matched on the node's: until its encoder reader and its
+    # wrench writer know our endpoints, messages are dropped or re-sent in a burst.  Send
+    # stamped readings (with a velocity: each one is a sample) until a wrench comes back,
+    # then ignore everything stamped up to the last of them (the tests' stamps are later).
+    stamp = HANDSHAKE_STAMP_NS
+    deadline = time.monotonic() + tn.DISCOVERY_TIMEOUT_S
+    while not probe.wrenches:
+        assert time.monotonic() < deadline, 'no wrench for an encoder message: ' + rig.output()
+        stamp += 1_000_000
+        probe.encoder.publish(tn._encoder(['O'], stamp, [0.3], [1.0]))
+        due = time.monotonic() + 0.05
+        while not probe.wrenches and time.monotonic() < due:
+            probe.executor.spin_once(timeout_sec=0.01)
+    probe.after_ns = stamp
+    probe.joints.clear()
+    probe.wrenches.clear()
     return rig, probe
+
+
+HANDSHAKE_STAMP_NS = 1_000 * 10 ** 9
+"""Stamps of :func:`_follow_rig`'s handshake readings (before every test's own stamps)."""
 
 
 def _send(probe, msgs):
