@@ -80,6 +80,9 @@ STEP_TRUST = 0.05
 """Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
 EVAL_TRUST = 1e-4
 """Largest scaled correction from the skeleton predictor before an angle is re-traced."""
+CHORD_TRUST = 0.5
+"""Largest distance (rad) of the skeleton's turn table from its predictor for the dyads'
+closed form to take the whole turns from the table (an error below pi is what that needs)."""
 MIDPOINT_TRUST_FRACTION = 0.1
 """A traced segment is accepted when Newton moves its midpoint predictor by less than this
 fraction of ``EVAL_TRUST``, so that batched solves seldom need the step-by-step re-trace."""
@@ -272,6 +275,7 @@ class Linkage:
         self._skeleton = None
         self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
         self.block = None   # its J_u as 2 x 2 diagonal blocks (smallsolve.BlockPlan), likewise
+        self.turn_table_ok = False  # the closed form's whole turns from the skeleton's table
         self.warnings = []
 
     # ------------------------------------------------------------------ construction
@@ -665,22 +669,34 @@ class Linkage:
         ok = res <= tol
         return q, pose, res, iters, ok
 
-    def closed_form(self, psi, q_pred, tol=NEWTON_TOL):
+    def closed_form(self, psi, tol=NEWTON_TOL):
         """
-        Return :meth:`newton`'s ``(q, pose, residual, iterations, converged)`` from the dyads.
+        Return :meth:`newton`'s ``(q, pose, residual, iterations, converged)`` and ``q_pred``.
 
         The positions of a linkage that decomposes into RRR dyads (:mod:`dyads`) by circle
-        intersections on the traced branch; the residual is that of the result.  Where it is
-        above ``tol`` (or a circle pair does not meet), Newton takes over from there.
+        intersections on the traced branch, each revolute coordinate's whole turns from the
+        skeleton's table (:meth:`Skeleton.turn_reference`, or its predictor where the table
+        strays more than :data:`CHORD_TRUST` from it); the residual is that of the result.
+        Where it is above ``tol`` (or a circle pair does not meet), Newton takes over from
+        the predictor, returned as ``q_pred`` (``None`` where it was not needed).
         """
-        q, rot, origin, joint_at = self.dyads.solve(psi, q_pred)
+        sk = self.skeleton
+        q_pred = None
+        if self.turn_table_ok:
+            ref = sk.turn_reference(psi)
+        else:
+            q_pred = sk.predict(psi)
+            ref = q_pred[1:]
+        q, rot, origin, joint_at = self.dyads.solve(psi, ref)
         phi = self.anc_rev @ q if self.dense_tree else self._down_rev(q)
         pose = Pose(phi, rot, origin, joint_at, None)
         res = np.abs(self.residual(pose)).max(axis=0)
         ok = res <= tol                                   # False where nan
         if not ok.all():
-            return self.newton(psi, np.where(ok, q, q_pred))
-        return q, pose, res, np.zeros(psi.shape[0], dtype=int), ok
+            if q_pred is None:
+                q_pred = sk.predict(psi)
+            return self.newton(psi, np.where(ok, q, q_pred)) + (q_pred,)
+        return q, pose, res, np.zeros(psi.shape[0], dtype=int), ok, q_pred
 
     def assemble(self):
         """
@@ -873,6 +889,7 @@ class Linkage:
             self.dyads = dyads.attach_signs(dyads.plan(self), self, sk)
             if self.dyads is not None:
                 self.block = self._block_plan()
+                self.turn_table_ok = sk.turn_table_error() <= CHORD_TRUST
             self._skeleton = sk
         return self._skeleton
 
@@ -1000,13 +1017,17 @@ class Linkage:
         if not np.isfinite(psi).all():
             raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
         sk = self.skeleton
-        q_pred = sk.predict(psi)
         if self.dyads is not None:
-            q, pose, res, iters, ok = self.closed_form(psi, q_pred)
+            # the closed form needs the whole turns only; where it did not close, Newton
+            # from the predictor (q_pred), and the predictor's check below
+            q, pose, res, iters, ok, q_pred = self.closed_form(psi)
         else:
+            q_pred = sk.predict(psi)
             q, pose, res, iters, ok = self.newton(psi, q_pred)
         bad = None
-        if self.nu and (self.dyads is not None or iters.any()):
+        if q_pred is None:
+            pass   # the dyads on the traced branch, closed to tolerance everywhere
+        elif self.nu and (self.dyads is not None or iters.any()):
             # how far the solution lies from the predictor (scaled)
             corr = q[1:] - q_pred[1:]
             np.abs(corr, out=corr)
@@ -1142,6 +1163,56 @@ class Skeleton:
         # the crank row is the crank angle itself: only the other rows are interpolated
         self.coef_u = np.ascontiguousarray(self.coef[:, 1:])
         self.wrap_step_u = (TWO_PI * turns[1:])[:, None] if np.any(turns[1:]) else None
+        self._turn_table = None
+
+    TURN_TABLE_SIZE = 256
+    """Angles per turn of :meth:`turn_reference`'s table (the coordinates, nearest angle)."""
+
+    def turn_table_error(self):
+        """
+        Return the largest distance of :meth:`turn_reference` from :meth:`predict`.
+
+        Sampled 16 times per table interval over the turn, plus the largest slope times a
+        sixteenth of the interval (what lies between the samples): rad for revolute rows.
+        """
+        table = self._table()
+        n = self.TURN_TABLE_SIZE
+        psi = self.psi[0] + np.arange(16 * n) * (TWO_PI / (16 * n))
+        err = np.abs(self.turn_reference(psi) - self.predict(psi)[1:])
+        slope = np.abs(np.diff(table, axis=1)).max(initial=0.0)
+        return float(err.max(initial=0.0) + slope / 16.0)
+
+    def _table(self):
+        if self._turn_table is None:
+            n = self.TURN_TABLE_SIZE
+            psi = self.psi[0] + np.arange(n + 1) * (TWO_PI / n)
+            psi[-1] = self.psi[0] + TWO_PI
+            q = self.predict(psi[:-1])[1:]
+            # the last column is the first one turn on (the coordinates' whole turns added)
+            end = q[:, :1] + (0.0 if self.wrap_step_u is None else self.wrap_step_u)
+            self._turn_table = np.ascontiguousarray(np.concatenate([q, end], axis=1))
+        return self._turn_table
+
+    def turn_reference(self, psi):
+        """
+        Return ``(nt - 1, p)``: the tree coordinates but the crank's at the nearest table angle.
+
+        Within :meth:`turn_table_error` of :meth:`predict` at a fraction of its cost (no
+        search, no interpolation): enough to tell the whole turns of an angle known up to a
+        multiple of 2 pi (the dyads' closed form) when that error is well below pi.
+        """
+        table, n = self._table(), self.TURN_TABLE_SIZE
+        u = np.subtract(psi, self.psi[0])
+        u *= n / TWO_PI
+        turns = np.multiply(u, 1.0 / n)
+        np.floor(turns, out=turns)
+        u -= turns * n
+        np.rint(u, out=u)
+        np.clip(u, 0, n, out=u)     # rounding at the turn's ends
+        out = table.take(u.astype(np.intp), axis=1)
+        if self.wrap_step_u is not None:
+            out += self.wrap_step_u * turns
+        return out
 
     def wraps(self, psi):
         """Return how many whole turns ``psi`` lies beyond the skeleton's start."""
@@ -1154,8 +1225,13 @@ class Skeleton:
 
     def _locate(self, psi):
         """Return the interval index, the offset into the turn and the whole turns."""
-        turns, x = np.divmod(psi - self.psi[0], TWO_PI)
-        # offset[0] = 0 <= x, so the index is >= 0; x may round up to 2 pi: cap at the last
+        x = np.subtract(psi, self.psi[0])
+        turns = np.multiply(x, 1.0 / TWO_PI)
+        np.floor(turns, out=turns)
+        x -= turns * TWO_PI
+        # x >= 0 = offset[0] (rounding can leave -0.5 ulp), so the index is >= 0; x may
+        # round up to 2 pi: cap at the last
+        np.maximum(x, 0.0, out=x)
         k = np.searchsorted(self.offset, x, side='right')
         k -= 1
         return np.minimum(k, self.last, out=k), x, turns
@@ -1168,7 +1244,7 @@ class Skeleton:
         x /= self.h[k]                   # t in [0, 1] along the segment
         q = np.empty((self.q.shape[0], psi.size))
         q[0] = psi                       # the crank joint's coordinate is the crank angle
-        c = self.coef_u[:, :, k]
+        c = self.coef_u.take(k, axis=2)   # (take: a third of the fancy index's cost)
         qu = np.multiply(c[5], x, out=q[1:])
         for j in (4, 3, 2, 1):           # Horner, in place
             qu += c[j]

@@ -914,7 +914,8 @@ class BlockFactored:
             n1 *= np.maximum(m[3] + m[2], m[1] + m[0])
             with np.errstate(divide='ignore', invalid='ignore'):
                 n1 /= np.abs(self.det[0])
-            self._cond = np.where(np.isfinite(n1), n1, np.inf)
+            n1[np.isnan(n1)] = np.inf           # 0/0: singular (x/0 is inf already)
+            self._cond = n1
         if self._cond is None:
             plan = self.plan
             mags = np.empty((plan.n + 1, self.p))
@@ -964,6 +965,11 @@ class BlockFactored:
 
     def sign(self):
         """Return the signs of the determinants ``(p,)``."""
+        if self.det.shape[0] == 1:
+            out = np.sign(self.det[0])
+            if self.plan.perm_sign != 1:
+                out *= self.plan.perm_sign
+            return out
         return np.prod(np.sign(self.det), axis=0) * self.plan.perm_sign
 
     def inverse(self):
