@@ -140,7 +140,7 @@ class DyadPlan:
                     row += 1
         ang = np.arctan2(rel.imag, rel.real)
         if not self.is_identity:
-            ang = ang[self.row_order]
+            ang = ang.take(self.row_order, axis=0)
         # whole turns from the predictor: q = angle + 2 pi round((q_pred - angle) / 2 pi)
         turns = np.subtract(ref, ang)
         turns *= 1.0 / TWO_PI

@@ -197,7 +197,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
     worst = float(np.abs(dev, out=dev).max())
     rev = linkage.rev_passive
     if rev.size:
-        worst = max(worst, float(np.abs(moment[rev]).max()))
+        worst = max(worst, float(np.abs(moment.take(rev, axis=0)).max()))
         moment[rev] = 0.0
     if linkage.tree_flip.size:
         f_req *= linkage.tree_sign_col

@@ -460,7 +460,7 @@ class Linkage:
     def _down(self, v):
         """Return ``(nb, ...)``: per body the sum of ``v`` ``(nt, ...)`` over the joints above."""
         if self.dense_tree:
-            return _rmat(self.anc_all, v) if np.iscomplexobj(v) else self.anc_all @ v
+            return _rmat(self.anc_all, v) if v.dtype.kind == 'c' else self.anc_all @ v
         s = np.empty((self.nt + 1,) + v.shape[1:], dtype=v.dtype)
         s[self.nt] = 0.0
         start, end, _ = self.levels[0]
@@ -531,8 +531,11 @@ class Linkage:
         """Return the world points ``(pa, pb)`` of the cut joints (cached on the pose)."""
         if pose.cut_points is None:
             # both ends of every cut in one go: rows (a ends, b ends)
-            arms = pose.rot[self.cut_ab] * self.cut_p_ab
-            points = pose.origin[self.cut_ab] + arms
+            # (ndarray.take: half the cost of a fancy index on these few rows)
+            arms = pose.rot.take(self.cut_ab, axis=0)
+            arms *= self.cut_p_ab
+            points = pose.origin.take(self.cut_ab, axis=0)
+            points += arms
             n = len(self.cuts)
             pose.cut_points = (points[:n], points[n:], arms[:n], arms[n:], arms)
         return pose.cut_points[:2]
@@ -616,8 +619,8 @@ class Linkage:
         self.cut_points(pose)
         _, _, i1, i2, n, crank_rows = self.jac_nz_split
         points = np.concatenate([pose.cut_points[0], pose.cut_points[1], pose.joint_at])
-        d = points[i1]
-        d -= points[i2]
+        d = points.take(i1, axis=0)
+        d -= points.take(i2, axis=0)
         scale = self.row_scale[0]
         p = d.shape[1]
         values = np.empty((2 * n, p))
@@ -819,10 +822,10 @@ class Linkage:
         # velocity-product part of the link accelerations (all joint accelerations zero):
         # each joint's point moves at v_J = v_parent + i omega_parent (J - O_parent)
         par = self.par
-        omega_par = omega[par]
-        v_joint = J - origin[par]
+        omega_par = omega.take(par, axis=0)
+        v_joint = J - origin.take(par, axis=0)
         v_joint *= 1j * omega_par
-        v_joint += vel[par]
+        v_joint += vel.take(par, axis=0)
         acc_v = omega * vel
         if self.has_pri:
             acc_v -= self._down(qd * v_joint * self.rev_col - qd * omega_par * pose.axis)
@@ -857,9 +860,9 @@ class Linkage:
         ia, ib = self.cut_a, self.cut_b
         # acceleration of each cut end: a_O - omega^2 r (no angular acceleration here)
         n = len(self.cuts)
-        w = omega[self.cut_ab]
+        w = omega.take(self.cut_ab, axis=0)
         w *= w
-        ends = acc_v[self.cut_ab]
+        ends = acc_v.take(self.cut_ab, axis=0)
         ends -= w * pose.cut_points[4]
         d = ends[n:] - ends[:n]
         nr = self.nr
@@ -1013,7 +1016,8 @@ class Linkage:
 
         ``psi_d`` and ``psi_dd`` default to the scene's crank speed and acceleration.
         """
-        psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
+        if not (type(psi) is np.ndarray and psi.ndim == 1 and psi.dtype == np.float64):
+            psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
         if not np.isfinite(psi).all():
             raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
         sk = self.skeleton
@@ -1204,12 +1208,9 @@ class Skeleton:
         table, n = self._table(), self.TURN_TABLE_SIZE
         u = np.subtract(psi, self.psi[0])
         u *= n / TWO_PI
-        turns = np.multiply(u, 1.0 / n)
-        np.floor(turns, out=turns)
-        u -= turns * n
         np.rint(u, out=u)
-        np.clip(u, 0, n, out=u)     # rounding at the turn's ends
-        out = table.take(u.astype(np.intp), axis=1)
+        turns, index = np.divmod(u.astype(np.int64), n)   # index in [0, n) whatever psi
+        out = table.take(index, axis=1)
         if self.wrap_step_u is not None:
             out += self.wrap_step_u * turns
         return out
