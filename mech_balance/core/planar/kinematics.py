@@ -460,7 +460,7 @@ class Linkage:
     def _down(self, v):
         """Return ``(nb, ...)``: per body the sum of ``v`` ``(nt, ...)`` over the joints above."""
         if self.dense_tree:
-            return _rmat(self.anc_all, v) if v.dtype.kind == 'c' else self.anc_all @ v
+            return _rmat(self.anc_all, v) if v.dtype == np.complex128 else self.anc_all @ v
         s = np.empty((self.nt + 1,) + v.shape[1:], dtype=v.dtype)
         s[self.nt] = 0.0
         start, end, _ = self.levels[0]
@@ -693,7 +693,8 @@ class Linkage:
         q, rot, origin, joint_at = self.dyads.solve(psi, ref)
         phi = self.anc_rev @ q if self.dense_tree else self._down_rev(q)
         pose = Pose(phi, rot, origin, joint_at, None)
-        res = np.abs(self.residual(pose)).max(axis=0)
+        res = np.abs(self.residual(pose))
+        res = _MAX(res, axis=0)                           # (ufunc reduce: no wrapper)
         ok = res <= tol                                   # False where nan
         if not ok.all():
             if q_pred is None:
@@ -1050,9 +1051,9 @@ class Linkage:
         accel = self.scene.crank_acceleration_rad_s2 if psi_dd is None else psi_dd
         scalar_speed = isinstance(speed, (int, float)) or np.ndim(speed) == 0
         scalar_accel = isinstance(accel, (int, float)) or np.ndim(accel) == 0
-        speed_p = np.full(psi.shape, speed) if scalar_speed else \
+        speed_p = _filled(psi.shape, speed) if scalar_speed else \
             np.broadcast_to(np.asarray(speed, dtype=float), psi.shape)
-        accel_p = np.full(psi.shape, accel) if scalar_accel else \
+        accel_p = _filled(psi.shape, accel) if scalar_accel else \
             np.broadcast_to(np.asarray(accel, dtype=float), psi.shape)
 
         def at(pose):
@@ -1088,7 +1089,7 @@ class Linkage:
             state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
-        if state.cond.max(initial=0.0) > COND_WARN:
+        if state.size and _MAX(state.cond) > COND_WARN:
             worst = int(np.argmax(state.cond))
             self._warn(f'crank angle {math.degrees(psi[worst]):.3f} deg: near-singular '
                        f'position (Jacobian condition number {state.cond[worst]:.3g})')
@@ -1125,6 +1126,16 @@ class Linkage:
                 qd, qdd, _, _ = self._derivatives(pose_new)
             out[:, i] = q[:, 0]
         return out
+
+
+_MAX = np.maximum.reduce
+
+
+def _filled(shape, value):
+    """Return ``np.full(shape, value)`` of floats (without np.full's Python wrapper)."""
+    out = np.empty(shape)
+    out.fill(value)
+    return out
 
 
 def _rounds(targets):

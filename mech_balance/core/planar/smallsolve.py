@@ -761,13 +761,16 @@ class BlockPlan:
             (r0, r1), (c0, c1) = self.blocks[0]
             pos_r, pos_c = {r0: 0, r1: 1}, {c0: 0, c1: 1}
             self.inv_at = [[2 * pos_c[c] + pos_r[r] for r in (0, 1)] for c in (0, 1)]
+            (a, b), (c, d) = self.inv_at
+            # BlockFactored._solve_2: the inverse's columns (and its transpose's) as views
+            self.column_slices = ((_pair(a, c), _pair(b, d)), (_pair(a, b), _pair(c, d)))
 
 
-def _pair(stack, i, j):
-    """Return ``stack[[i, j], 0]`` as a view (a slice of step ``j - i``), ``i != j``."""
+def _pair(i, j):
+    """Return the index of ``stack[[i, j], 0]`` as a view: a slice of step ``j - i``."""
     step = j - i
     stop = j + (1 if step > 0 else -1)
-    return stack[i:stop if stop >= 0 else None:step, 0]
+    return slice(i, stop if stop >= 0 else None, step), 0
 
 
 class BlockFactored:
@@ -808,23 +811,14 @@ class BlockFactored:
                 w[1] += ip[3] * v1
                 self.weights = w                           # (2, pairs, p): D_i^-1 J_ic
         self._inv = self._z = None
-        self._cols = self._cols_t = None   # single 2 x 2: the inverse's columns (_solve_2)
 
     def _solve_2(self, rhs, transposed):
         """Return the solution of a single 2 x 2 system (or of its transpose)."""
-        cols = self._cols_t if transposed else self._cols
-        if cols is None:
-            # the inverse's two columns, each a (2, p) stack: x = col0 rhs0 + col1 rhs1
-            (a, b), (c, d) = self.plan.inv_at
-            if transposed:
-                b, c = c, b
-            cols = (_pair(self.inv, a, c), _pair(self.inv, b, d))
-            if transposed:
-                self._cols_t = cols
-            else:
-                self._cols = cols
-        x = np.multiply(cols[0], rhs[0])
-        x += np.multiply(cols[1], rhs[1])
+        # the inverse's two columns, each a (2, p) view: x = col0 rhs0 + col1 rhs1
+        s0, s1 = self.plan.column_slices[transposed]
+        inv = self.inv
+        x = np.multiply(inv[s0], rhs[0])
+        x += np.multiply(inv[s1], rhs[1])
         return x
 
     def solve(self, rhs):
