@@ -9,6 +9,7 @@ expected.  Values are SI; the papers' normalization is recorded, never applied t
 """
 
 from dataclasses import dataclass, field, replace
+import functools
 import math
 import os
 from pathlib import Path
@@ -331,18 +332,25 @@ class Scene(SceneDesigns):
 
 def needs(outputs):
     """
-    Return the set of computations the given outputs require.
+    Return the set of computations the given outputs require (a frozenset).
 
     ``kinematics`` < ``shaking_wrench`` (accelerations) < ``driving_torque`` (NOC projection)
     < ``bearing_reactions`` (cut-joint multipliers and the recursion through the tree).
     """
+    if isinstance(outputs, tuple):
+        return _needs_of(outputs)   # the core asks once per evaluation: remembered
+    return _needs_of.__wrapped__(outputs)
+
+
+@functools.lru_cache(maxsize=64)
+def _needs_of(outputs):
     out = set(outputs)
     if 'bearing_reactions' in out:
         out |= {'driving_torque'}
     if 'driving_torque' in out or 'shaking_wrench' in out:
         out |= {'accelerations'}
     out |= {'kinematics'}
-    return out
+    return frozenset(out)
 
 
 # ----------------------------------------------------------------------------- loading

@@ -83,11 +83,12 @@ class DyadPlan:
             for body, point in (st.p_src, st.q_src):
                 self.from_anchor[(body, point)] = point - local[body]
 
-    def solve(self, psi, q_pred, signs=None):
+    def solve(self, psi, ref, signs=None):
         """
         Return ``(q, rot, origin, joint_at)``: tree coordinates ``(nt, p)`` and the poses.
 
-        ``q_pred`` (the skeleton's predictor) only fixes the whole turns of each revolute
+        ``ref`` ``(nt - 1, p)``, the tree coordinates but the crank's within less than pi
+        (the skeleton's chords or predictor), only fixes the whole turns of each revolute
         coordinate; ``signs`` (one per dyad) defaults to the traced branch's.  Where two
         circles do not meet the results are ``nan``.  ``rot`` and ``origin`` ``(nb, p)`` are
         the bodies' rotations and origins, ``joint_at`` ``(nt, p)`` the tree joints.
@@ -139,9 +140,9 @@ class DyadPlan:
                     row += 1
         ang = np.arctan2(rel.imag, rel.real)
         if not self.is_identity:
-            ang = ang[self.row_order]
+            ang = ang.take(self.row_order, axis=0)
         # whole turns from the predictor: q = angle + 2 pi round((q_pred - angle) / 2 pi)
-        turns = np.subtract(q_pred[1:], ang)
+        turns = np.subtract(ref, ang)
         turns *= 1.0 / TWO_PI
         np.rint(turns, out=turns)
         turns *= TWO_PI
@@ -249,7 +250,7 @@ def attach_signs(dyad_plan, linkage, skeleton):
         return None
     for s, sign in zip(dyad_plan.steps, first[:, 0]):
         s.sign = float(sign)
-    q = dyad_plan.solve(skeleton.q[0], skeleton.q)[0]
+    q = dyad_plan.solve(skeleton.q[0], skeleton.q[1:])[0]
     if not np.max(np.abs(q - skeleton.q)) <= NODE_AGREEMENT:   # also False on nan
         return None
     return dyad_plan

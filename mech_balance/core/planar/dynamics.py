@@ -157,7 +157,12 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         lam_scaled = _matvec_t(state.jac_inv, q_u)
     lam = lam_scaled * linkage.row_scale[:, None]
     jac_psi = state.jac[:, 0, :] if state.jac_psi is None else state.jac_psi
-    tau = q_gen[0] - np.einsum('ip,ip->p', jac_psi, lam_scaled)
+    if jac_psi.shape[0] <= 4:   # a few loop rows: row by row beats einsum's set-up
+        tau = q_gen[0].copy()
+        for i in range(jac_psi.shape[0]):
+            tau -= jac_psi[i] * lam_scaled[i]
+    else:
+        tau = q_gen[0] - np.einsum('ip,ip->p', jac_psi, lam_scaled)
     out.driving_torque = tau
     out.multipliers = lam
     nr, npc = linkage.nr, linkage.npc
@@ -192,7 +197,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
     worst = float(np.abs(dev, out=dev).max())
     rev = linkage.rev_passive
     if rev.size:
-        worst = max(worst, float(np.abs(moment[rev]).max()))
+        worst = max(worst, float(np.abs(moment.take(rev, axis=0)).max()))
         moment[rev] = 0.0
     if linkage.tree_flip.size:
         f_req *= linkage.tree_sign_col

@@ -80,6 +80,9 @@ STEP_TRUST = 0.05
 """Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
 EVAL_TRUST = 1e-4
 """Largest scaled correction from the skeleton predictor before an angle is re-traced."""
+CHORD_TRUST = 0.5
+"""Largest distance (rad) of the skeleton's turn table from its predictor for the dyads'
+closed form to take the whole turns from the table (an error below pi is what that needs)."""
 MIDPOINT_TRUST_FRACTION = 0.1
 """A traced segment is accepted when Newton moves its midpoint predictor by less than this
 fraction of ``EVAL_TRUST``, so that batched solves seldom need the step-by-step re-trace."""
@@ -272,6 +275,7 @@ class Linkage:
         self._skeleton = None
         self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
         self.block = None   # its J_u as 2 x 2 diagonal blocks (smallsolve.BlockPlan), likewise
+        self.turn_table_ok = False  # the closed form's whole turns from the skeleton's table
         self.warnings = []
 
     # ------------------------------------------------------------------ construction
@@ -456,7 +460,7 @@ class Linkage:
     def _down(self, v):
         """Return ``(nb, ...)``: per body the sum of ``v`` ``(nt, ...)`` over the joints above."""
         if self.dense_tree:
-            return _rmat(self.anc_all, v) if np.iscomplexobj(v) else self.anc_all @ v
+            return _rmat(self.anc_all, v) if v.dtype == np.complex128 else self.anc_all @ v
         s = np.empty((self.nt + 1,) + v.shape[1:], dtype=v.dtype)
         s[self.nt] = 0.0
         start, end, _ = self.levels[0]
@@ -527,8 +531,11 @@ class Linkage:
         """Return the world points ``(pa, pb)`` of the cut joints (cached on the pose)."""
         if pose.cut_points is None:
             # both ends of every cut in one go: rows (a ends, b ends)
-            arms = pose.rot[self.cut_ab] * self.cut_p_ab
-            points = pose.origin[self.cut_ab] + arms
+            # (ndarray.take: half the cost of a fancy index on these few rows)
+            arms = pose.rot.take(self.cut_ab, axis=0)
+            arms *= self.cut_p_ab
+            points = pose.origin.take(self.cut_ab, axis=0)
+            points += arms
             n = len(self.cuts)
             pose.cut_points = (points[:n], points[n:], arms[:n], arms[n:], arms)
         return pose.cut_points[:2]
@@ -612,8 +619,8 @@ class Linkage:
         self.cut_points(pose)
         _, _, i1, i2, n, crank_rows = self.jac_nz_split
         points = np.concatenate([pose.cut_points[0], pose.cut_points[1], pose.joint_at])
-        d = points[i1]
-        d -= points[i2]
+        d = points.take(i1, axis=0)
+        d -= points.take(i2, axis=0)
         scale = self.row_scale[0]
         p = d.shape[1]
         values = np.empty((2 * n, p))
@@ -665,22 +672,35 @@ class Linkage:
         ok = res <= tol
         return q, pose, res, iters, ok
 
-    def closed_form(self, psi, q_pred, tol=NEWTON_TOL):
+    def closed_form(self, psi, tol=NEWTON_TOL):
         """
-        Return :meth:`newton`'s ``(q, pose, residual, iterations, converged)`` from the dyads.
+        Return :meth:`newton`'s ``(q, pose, residual, iterations, converged)`` and ``q_pred``.
 
         The positions of a linkage that decomposes into RRR dyads (:mod:`dyads`) by circle
-        intersections on the traced branch; the residual is that of the result.  Where it is
-        above ``tol`` (or a circle pair does not meet), Newton takes over from there.
+        intersections on the traced branch, each revolute coordinate's whole turns from the
+        skeleton's table (:meth:`Skeleton.turn_reference`, or its predictor where the table
+        strays more than :data:`CHORD_TRUST` from it); the residual is that of the result.
+        Where it is above ``tol`` (or a circle pair does not meet), Newton takes over from
+        the predictor, returned as ``q_pred`` (``None`` where it was not needed).
         """
-        q, rot, origin, joint_at = self.dyads.solve(psi, q_pred)
+        sk = self.skeleton
+        q_pred = None
+        if self.turn_table_ok:
+            ref = sk.turn_reference(psi)
+        else:
+            q_pred = sk.predict(psi)
+            ref = q_pred[1:]
+        q, rot, origin, joint_at = self.dyads.solve(psi, ref)
         phi = self.anc_rev @ q if self.dense_tree else self._down_rev(q)
         pose = Pose(phi, rot, origin, joint_at, None)
-        res = np.abs(self.residual(pose)).max(axis=0)
+        res = np.abs(self.residual(pose))
+        res = _MAX(res, axis=0)                           # (ufunc reduce: no wrapper)
         ok = res <= tol                                   # False where nan
         if not ok.all():
-            return self.newton(psi, np.where(ok, q, q_pred))
-        return q, pose, res, np.zeros(psi.shape[0], dtype=int), ok
+            if q_pred is None:
+                q_pred = sk.predict(psi)
+            return self.newton(psi, np.where(ok, q, q_pred)) + (q_pred,)
+        return q, pose, res, np.zeros(psi.shape[0], dtype=int), ok, q_pred
 
     def assemble(self):
         """
@@ -803,10 +823,10 @@ class Linkage:
         # velocity-product part of the link accelerations (all joint accelerations zero):
         # each joint's point moves at v_J = v_parent + i omega_parent (J - O_parent)
         par = self.par
-        omega_par = omega[par]
-        v_joint = J - origin[par]
+        omega_par = omega.take(par, axis=0)
+        v_joint = J - origin.take(par, axis=0)
         v_joint *= 1j * omega_par
-        v_joint += vel[par]
+        v_joint += vel.take(par, axis=0)
         acc_v = omega * vel
         if self.has_pri:
             acc_v -= self._down(qd * v_joint * self.rev_col - qd * omega_par * pose.axis)
@@ -841,9 +861,9 @@ class Linkage:
         ia, ib = self.cut_a, self.cut_b
         # acceleration of each cut end: a_O - omega^2 r (no angular acceleration here)
         n = len(self.cuts)
-        w = omega[self.cut_ab]
+        w = omega.take(self.cut_ab, axis=0)
         w *= w
-        ends = acc_v[self.cut_ab]
+        ends = acc_v.take(self.cut_ab, axis=0)
         ends -= w * pose.cut_points[4]
         d = ends[n:] - ends[:n]
         nr = self.nr
@@ -873,6 +893,7 @@ class Linkage:
             self.dyads = dyads.attach_signs(dyads.plan(self), self, sk)
             if self.dyads is not None:
                 self.block = self._block_plan()
+                self.turn_table_ok = sk.turn_table_error() <= CHORD_TRUST
             self._skeleton = sk
         return self._skeleton
 
@@ -996,17 +1017,22 @@ class Linkage:
 
         ``psi_d`` and ``psi_dd`` default to the scene's crank speed and acceleration.
         """
-        psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
+        if not (type(psi) is np.ndarray and psi.ndim == 1 and psi.dtype == np.float64):
+            psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
         if not np.isfinite(psi).all():
             raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
         sk = self.skeleton
-        q_pred = sk.predict(psi)
         if self.dyads is not None:
-            q, pose, res, iters, ok = self.closed_form(psi, q_pred)
+            # the closed form needs the whole turns only; where it did not close, Newton
+            # from the predictor (q_pred), and the predictor's check below
+            q, pose, res, iters, ok, q_pred = self.closed_form(psi)
         else:
+            q_pred = sk.predict(psi)
             q, pose, res, iters, ok = self.newton(psi, q_pred)
         bad = None
-        if self.nu and (self.dyads is not None or iters.any()):
+        if q_pred is None:
+            pass   # the dyads on the traced branch, closed to tolerance everywhere
+        elif self.nu and (self.dyads is not None or iters.any()):
             # how far the solution lies from the predictor (scaled)
             corr = q[1:] - q_pred[1:]
             np.abs(corr, out=corr)
@@ -1025,9 +1051,9 @@ class Linkage:
         accel = self.scene.crank_acceleration_rad_s2 if psi_dd is None else psi_dd
         scalar_speed = isinstance(speed, (int, float)) or np.ndim(speed) == 0
         scalar_accel = isinstance(accel, (int, float)) or np.ndim(accel) == 0
-        speed_p = np.full(psi.shape, speed) if scalar_speed else \
+        speed_p = _filled(psi.shape, speed) if scalar_speed else \
             np.broadcast_to(np.asarray(speed, dtype=float), psi.shape)
-        accel_p = np.full(psi.shape, accel) if scalar_accel else \
+        accel_p = _filled(psi.shape, accel) if scalar_accel else \
             np.broadcast_to(np.asarray(accel, dtype=float), psi.shape)
 
         def at(pose):
@@ -1063,7 +1089,7 @@ class Linkage:
             state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
-        if state.cond.max(initial=0.0) > COND_WARN:
+        if state.size and _MAX(state.cond) > COND_WARN:
             worst = int(np.argmax(state.cond))
             self._warn(f'crank angle {math.degrees(psi[worst]):.3f} deg: near-singular '
                        f'position (Jacobian condition number {state.cond[worst]:.3g})')
@@ -1100,6 +1126,16 @@ class Linkage:
                 qd, qdd, _, _ = self._derivatives(pose_new)
             out[:, i] = q[:, 0]
         return out
+
+
+_MAX = np.maximum.reduce
+
+
+def _filled(shape, value):
+    """Return ``np.full(shape, value)`` of floats (without np.full's Python wrapper)."""
+    out = np.empty(shape)
+    out.fill(value)
+    return out
 
 
 def _rounds(targets):
@@ -1142,6 +1178,53 @@ class Skeleton:
         # the crank row is the crank angle itself: only the other rows are interpolated
         self.coef_u = np.ascontiguousarray(self.coef[:, 1:])
         self.wrap_step_u = (TWO_PI * turns[1:])[:, None] if np.any(turns[1:]) else None
+        self._turn_table = None
+
+    TURN_TABLE_SIZE = 256
+    """Angles per turn of :meth:`turn_reference`'s table (the coordinates, nearest angle)."""
+
+    def turn_table_error(self):
+        """
+        Return the largest distance of :meth:`turn_reference` from :meth:`predict`.
+
+        Sampled 16 times per table interval over the turn, plus the largest slope times a
+        sixteenth of the interval (what lies between the samples): rad for revolute rows.
+        """
+        table = self._table()
+        n = self.TURN_TABLE_SIZE
+        psi = self.psi[0] + np.arange(16 * n) * (TWO_PI / (16 * n))
+        err = np.abs(self.turn_reference(psi) - self.predict(psi)[1:])
+        slope = np.abs(np.diff(table, axis=1)).max(initial=0.0)
+        return float(err.max(initial=0.0) + slope / 16.0)
+
+    def _table(self):
+        if self._turn_table is None:
+            n = self.TURN_TABLE_SIZE
+            psi = self.psi[0] + np.arange(n + 1) * (TWO_PI / n)
+            psi[-1] = self.psi[0] + TWO_PI
+            q = self.predict(psi[:-1])[1:]
+            # the last column is the first one turn on (the coordinates' whole turns added)
+            end = q[:, :1] + (0.0 if self.wrap_step_u is None else self.wrap_step_u)
+            self._turn_table = np.ascontiguousarray(np.concatenate([q, end], axis=1))
+        return self._turn_table
+
+    def turn_reference(self, psi):
+        """
+        Return ``(nt - 1, p)``: the tree coordinates but the crank's at the nearest table angle.
+
+        Within :meth:`turn_table_error` of :meth:`predict` at a fraction of its cost (no
+        search, no interpolation): enough to tell the whole turns of an angle known up to a
+        multiple of 2 pi (the dyads' closed form) when that error is well below pi.
+        """
+        table, n = self._table(), self.TURN_TABLE_SIZE
+        u = np.subtract(psi, self.psi[0])
+        u *= n / TWO_PI
+        np.rint(u, out=u)
+        turns, index = np.divmod(u.astype(np.int64), n)   # index in [0, n) whatever psi
+        out = table.take(index, axis=1)
+        if self.wrap_step_u is not None:
+            out += self.wrap_step_u * turns
+        return out
 
     def wraps(self, psi):
         """Return how many whole turns ``psi`` lies beyond the skeleton's start."""
@@ -1154,8 +1237,13 @@ class Skeleton:
 
     def _locate(self, psi):
         """Return the interval index, the offset into the turn and the whole turns."""
-        turns, x = np.divmod(psi - self.psi[0], TWO_PI)
-        # offset[0] = 0 <= x, so the index is >= 0; x may round up to 2 pi: cap at the last
+        x = np.subtract(psi, self.psi[0])
+        turns = np.multiply(x, 1.0 / TWO_PI)
+        np.floor(turns, out=turns)
+        x -= turns * TWO_PI
+        # x >= 0 = offset[0] (rounding can leave -0.5 ulp), so the index is >= 0; x may
+        # round up to 2 pi: cap at the last
+        np.maximum(x, 0.0, out=x)
         k = np.searchsorted(self.offset, x, side='right')
         k -= 1
         return np.minimum(k, self.last, out=k), x, turns
@@ -1168,7 +1256,7 @@ class Skeleton:
         x /= self.h[k]                   # t in [0, 1] along the segment
         q = np.empty((self.q.shape[0], psi.size))
         q[0] = psi                       # the crank joint's coordinate is the crank angle
-        c = self.coef_u[:, :, k]
+        c = self.coef_u.take(k, axis=2)   # (take: a third of the fancy index's cost)
         qu = np.multiply(c[5], x, out=q[1:])
         for j in (4, 3, 2, 1):           # Horner, in place
             qu += c[j]

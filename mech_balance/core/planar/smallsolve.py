@@ -761,6 +761,16 @@ class BlockPlan:
             (r0, r1), (c0, c1) = self.blocks[0]
             pos_r, pos_c = {r0: 0, r1: 1}, {c0: 0, c1: 1}
             self.inv_at = [[2 * pos_c[c] + pos_r[r] for r in (0, 1)] for c in (0, 1)]
+            (a, b), (c, d) = self.inv_at
+            # BlockFactored._solve_2: the inverse's columns (and its transpose's) as views
+            self.column_slices = ((_pair(a, c), _pair(b, d)), (_pair(a, b), _pair(c, d)))
+
+
+def _pair(i, j):
+    """Return the index of ``stack[[i, j], 0]`` as a view: a slice of step ``j - i``."""
+    step = j - i
+    stop = j + (1 if step > 0 else -1)
+    return slice(i, stop if stop >= 0 else None, step), 0
 
 
 class BlockFactored:
@@ -777,16 +787,17 @@ class BlockFactored:
     def __init__(self, plan, values):
         self.plan, self.values = plan, values
         self.k, self.p = plan.k, values.shape[1]
-        dv = values[plan.diag]                         # (4, nb, p): a, b, c, d
+        dv = values.take(plan.diag, axis=0)            # (4, nb, p): a, b, c, d
         det = dv[0] * dv[3]
         det -= dv[1] * dv[2]
         self.det = det
         with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
-            inv = values[plan.adj]                     # d, b, c, a
+            inv = values.take(plan.adj, axis=0)        # d, b, c, a
             inv /= det
             inv[1:3] *= -1.0                           # d, -b, -c, a over det
             self.inv = inv
             self.weights = None
+            self._cond = self._single_cond(dv[:, 0], det[0]) if plan.single else None
             if not plan.single and plan.pair_block.size:
                 padded = np.empty((plan.n + 1, self.p))
                 padded[:-1] = values
@@ -799,19 +810,15 @@ class BlockFactored:
                 np.multiply(ip[2], v0, out=w[1])
                 w[1] += ip[3] * v1
                 self.weights = w                           # (2, pairs, p): D_i^-1 J_ic
-        self._cond = self._inv = self._z = None
+        self._inv = self._z = None
 
     def _solve_2(self, rhs, transposed):
         """Return the solution of a single 2 x 2 system (or of its transpose)."""
-        (a, b), (c, d) = self.plan.inv_at
-        if transposed:
-            b, c = c, b
+        # the inverse's two columns, each a (2, p) view: x = col0 rhs0 + col1 rhs1
+        s0, s1 = self.plan.column_slices[transposed]
         inv = self.inv
-        x = np.empty(rhs.shape)
-        np.multiply(inv[a, 0], rhs[0], out=x[0])
-        x[0] += inv[b, 0] * rhs[1]
-        np.multiply(inv[c, 0], rhs[0], out=x[1])
-        x[1] += inv[d, 0] * rhs[1]
+        x = np.multiply(inv[s0], rhs[0])
+        x += np.multiply(inv[s1], rhs[1])
         return x
 
     def solve(self, rhs):
@@ -905,16 +912,23 @@ class BlockFactored:
                 colsum[lo:b] += np.abs(z[c0, lo:b], out=tmp[:b - lo])
                 colsum[lo:b] += np.abs(z[c1, lo:b], out=tmp[:b - lo])
 
+    @staticmethod
+    def _single_cond(entries, det):
+        """
+        Return the 1-norm condition numbers of one 2 x 2 block (under the caller's errstate).
+
+        ``entries`` ``(4, p)``: a, b, c, d; the 1-norm of the inverse is that of the
+        adjugate over ``|det|``.
+        """
+        m = np.abs(entries)
+        n1 = np.maximum(m[0] + m[2], m[1] + m[3])
+        n1 *= np.maximum(m[3] + m[2], m[1] + m[0])
+        n1 /= np.abs(det)
+        n1[np.isnan(n1)] = np.inf           # 0/0: singular (x/0 is inf already)
+        return n1
+
     def cond(self):
         """Return the exact 1-norm condition numbers ``(p,)`` (``inf`` where singular)."""
-        if self._cond is None and self.plan.single:
-            # the 1-norm of the inverse is that of the adjugate over |det|
-            m = np.abs(self.values[self.plan.diag[:, 0]])     # |a|, |b|, |c|, |d|
-            n1 = np.maximum(m[0] + m[2], m[1] + m[3])
-            n1 *= np.maximum(m[3] + m[2], m[1] + m[0])
-            with np.errstate(divide='ignore', invalid='ignore'):
-                n1 /= np.abs(self.det[0])
-            self._cond = np.where(np.isfinite(n1), n1, np.inf)
         if self._cond is None:
             plan = self.plan
             mags = np.empty((plan.n + 1, self.p))
@@ -964,6 +978,11 @@ class BlockFactored:
 
     def sign(self):
         """Return the signs of the determinants ``(p,)``."""
+        if self.det.shape[0] == 1:
+            out = np.sign(self.det[0])
+            if self.plan.perm_sign != 1:
+                out *= self.plan.perm_sign
+            return out
         return np.prod(np.sign(self.det), axis=0) * self.plan.perm_sign
 
     def inverse(self):
