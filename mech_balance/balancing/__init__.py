@@ -199,11 +199,13 @@ def balance(rig, method='auto', **options):
         return _spatial(rig, method, options)
     if method == 'redistribution':
         from mech_balance.balancing import counterweights, socp
-        from mech_balance.analysis import identify   # a calibrated scene: +-1 SE
         result = socp.optimize(sc, **options)
         report = result.to_dict()
-        report['identification_confidence'] = identify.balance_confidence(
-            sc, result.balanced_scene)
+        report['identification_confidence'] = None
+        if getattr(sc, 'identification', None) is not None:   # a calibrated scene: +-1 SE
+            from mech_balance.analysis import identify   # (and scipy.linalg: only then)
+            report['identification_confidence'] = identify.balance_confidence(
+                sc, result.balanced_scene)
         report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
                                                           result.table)
         return Design(result.balanced_scene, report, method, result, _table_figures(
