@@ -264,3 +264,36 @@ def test_block_plan_refuses_what_is_not_block_triangular():
         smallsolve.BlockPlan(2, [0, 1, 0], [0, 0, 1], [((0, 1), (0, 1))])
     with pytest.raises(ValueError, match='exactly one block'):
         smallsolve.BlockPlan(2, [0, 1, 0, 1], [0, 0, 1, 1], [((0, 0), (0, 1))])
+
+
+@pytest.mark.parametrize('case', ['hoeken', 'carpet_scraper', 'chain', 0, 1, 2, 3])
+def test_whole_turns_from_the_line_the_table_and_the_predictor_agree(case):
+    if case == 'chain':
+        sc = chain.dyad_chain(6)
+    elif isinstance(case, str):
+        sc = scene.load(case)
+    else:
+        sc = random_four_bar(np.random.default_rng(case), case % 2 == 0, f'turns_{case}')
+    lk = PlanarRig(sc, cache=False).linkage
+    sk = lk.skeleton
+    rng = np.random.default_rng(7)
+    psi = np.concatenate([cycle_angles(360), rng.uniform(-60.0, 60.0, 200),
+                          sk.psi[0] + np.arange(-3, 4) * 2 * math.pi])   # the turn's ends
+    results = {}
+    line, table = lk.turn_line, lk.turn_table_ok
+    try:
+        for name, settings in (('line', (line, False)), ('table', (None, True)),
+                               ('predictor', (None, False))):
+            if name == 'line' and line is None or name == 'table' and not table:
+                continue   # this rig's references stray too far: not used (below)
+            lk.turn_line, lk.turn_table_ok = settings
+            q, _, res, iters, ok, _ = lk.closed_form(psi)
+            assert ok.all() and not iters.any()
+            results[name] = q
+    finally:
+        lk.turn_line, lk.turn_table_ok = line, table
+    for name, q in results.items():
+        assert np.array_equal(q, results['predictor']), name
+    # a reference is used only within CHORD_TRUST of the predictor (well below pi)
+    assert (line is not None) == (sk.affine_reference()[2] <= kinematics.CHORD_TRUST)
+    assert table == (sk.turn_table_error() <= kinematics.CHORD_TRUST)

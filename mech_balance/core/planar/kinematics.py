@@ -80,7 +80,7 @@ STEP_TRUST = 0.05
 """Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
 EVAL_TRUST = 1e-4
 """Largest scaled correction from the skeleton predictor before an angle is re-traced."""
-CHORD_TRUST = 0.5
+CHORD_TRUST = 1.0
 """Largest distance (rad) of the skeleton's turn table from its predictor for the dyads'
 closed form to take the whole turns from the table (an error below pi is what that needs)."""
 MIDPOINT_TRUST_FRACTION = 0.1
@@ -276,6 +276,8 @@ class Linkage:
         self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
         self.block = None   # its J_u as 2 x 2 diagonal blocks (smallsolve.BlockPlan), likewise
         self.turn_table_ok = False  # the closed form's whole turns from the skeleton's table
+        self.turn_line = None       # or from a line in psi (Skeleton.affine_reference)
+        self._crank_row_slices = None   # jacobian_values: the crank's rows, as slices
         self.warnings = []
 
     # ------------------------------------------------------------------ construction
@@ -627,8 +629,15 @@ class Linkage:
         np.multiply(d.imag[:n], -scale, out=values[:n])
         np.multiply(d.real[:n], scale, out=values[n:])
         jac_psi = np.zeros((self.m, p))
-        jac_psi[crank_rows] = -scale * d.imag[n:]
-        jac_psi[self.nr + crank_rows] = scale * d.real[n:]
+        rows = self._crank_row_slices
+        if rows is None:   # the crank's loop rows as slices where they are a range
+            rows = self._crank_row_slices = _as_slices(crank_rows, self.nr)
+        if rows:
+            np.multiply(d.imag[n:], -scale, out=jac_psi[rows[0]])
+            np.multiply(d.real[n:], scale, out=jac_psi[rows[1]])
+        else:
+            jac_psi[crank_rows] = -scale * d.imag[n:]
+            jac_psi[self.nr + crank_rows] = scale * d.real[n:]
         return values, jac_psi
 
     def factored(self, pose):
@@ -678,14 +687,19 @@ class Linkage:
 
         The positions of a linkage that decomposes into RRR dyads (:mod:`dyads`) by circle
         intersections on the traced branch, each revolute coordinate's whole turns from the
-        skeleton's table (:meth:`Skeleton.turn_reference`, or its predictor where the table
-        strays more than :data:`CHORD_TRUST` from it); the residual is that of the result.
+        skeleton's straight line (:meth:`Skeleton.affine_reference`) or table
+        (:meth:`Skeleton.turn_reference`), whichever stays within :data:`CHORD_TRUST` of its
+        predictor (else the predictor itself); the residual is that of the result.
         Where it is above ``tol`` (or a circle pair does not meet), Newton takes over from
         the predictor, returned as ``q_pred`` (``None`` where it was not needed).
         """
         sk = self.skeleton
         q_pred = None
-        if self.turn_table_ok:
+        if self.turn_line is not None:
+            slope, offset = self.turn_line
+            ref = np.multiply(slope, psi)
+            ref += offset
+        elif self.turn_table_ok:
             ref = sk.turn_reference(psi)
         else:
             q_pred = sk.predict(psi)
@@ -893,6 +907,8 @@ class Linkage:
             self.dyads = dyads.attach_signs(dyads.plan(self), self, sk)
             if self.dyads is not None:
                 self.block = self._block_plan()
+                slope, offset, err = sk.affine_reference()
+                self.turn_line = (slope, offset) if err <= CHORD_TRUST else None
                 self.turn_table_ok = sk.turn_table_error() <= CHORD_TRUST
             self._skeleton = sk
         return self._skeleton
@@ -1131,6 +1147,15 @@ class Linkage:
 _MAX = np.maximum.reduce
 
 
+def _as_slices(rows, shift):
+    """Return ``(slice of rows, slice of rows + shift)`` if ``rows`` is a range, else ``()``."""
+    rows = np.asarray(rows)
+    if rows.size and np.array_equal(rows, np.arange(rows[0], rows[0] + rows.size)):
+        lo, hi = int(rows[0]), int(rows[0]) + rows.size
+        return slice(lo, hi), slice(lo + shift, hi + shift)
+    return ()
+
+
 def _filled(shape, value):
     """Return ``np.full(shape, value)`` of floats (without np.full's Python wrapper)."""
     out = np.empty(shape)
@@ -1196,6 +1221,29 @@ class Skeleton:
         err = np.abs(self.turn_reference(psi) - self.predict(psi)[1:])
         slope = np.abs(np.diff(table, axis=1)).max(initial=0.0)
         return float(err.max(initial=0.0) + slope / 16.0)
+
+    def affine_reference(self):
+        """
+        Return ``(slope, offset, error)``: the straight line in psi nearest each coordinate.
+
+        ``slope`` ``(nt - 1, 1)`` is each coordinate's whole turns per crank turn, ``offset``
+        ``(nt - 1, 1)`` centres what remains (periodic in psi) between its extremes, and
+        ``error`` is the largest distance of ``slope * psi + offset`` from :meth:`predict`
+        (sampled as in :meth:`turn_table_error`, plus the largest step between the
+        samples).  Where that is well below pi, the line alone tells the whole turns of a
+        coordinate known up to 2 pi (a rocker that swings, a coupler that turns with the
+        crank), at two operations per evaluation.
+        """
+        n = 16 * self.TURN_TABLE_SIZE
+        psi = self.psi[0] + np.arange(n + 1) * (TWO_PI / n)
+        q = self.predict(psi)[1:]
+        slope = (np.zeros((q.shape[0], 1)) if self.wrap_step_u is None
+                 else self.wrap_step_u / TWO_PI)
+        rest = q - slope * psi
+        offset = 0.5 * (rest.max(axis=1) + rest.min(axis=1))[:, None]
+        err = np.abs(rest - offset).max(initial=0.0)
+        step = np.abs(np.diff(q, axis=1)).max(initial=0.0)
+        return slope, offset, float(err + step)
 
     def _table(self):
         if self._turn_table is None:
