@@ -96,6 +96,20 @@ def test_compare_without_mujoco_exits_2(monkeypatch, capsys):
     assert '"mujoco" is not installed' in err and 'make bench-mujoco' in err
 
 
+@pytest.mark.parametrize('worst, status', [(1e-13, 0), (1e-6, 1), (float('nan'), 1)])
+def test_compare_exits_1_when_the_models_disagree(worst, status, monkeypatch, capsys):
+    from mech_balance.bench import mujoco as bench_mujoco, mujoco_spatial
+    monkeypatch.setattr(bench_mujoco, 'import_mujoco', lambda: None)
+    result = {'agreement_imposed': {'shaking force': 1e-15},
+              'agreement_own': {'shaking force': worst}}
+    monkeypatch.setattr(bench_mujoco, 'run', lambda *a, **k: (result, [result], [], 'x'))
+    monkeypatch.setattr(bench_mujoco, 'format_report', lambda *a, **k: 'report')
+    monkeypatch.setattr(mujoco_spatial, 'run', lambda *a, **k: [])
+    monkeypatch.setattr(mujoco_spatial, 'format_report', lambda *a, **k: '')
+    assert cli.main(['bench', '--compare', 'mujoco']) == status
+    assert ('the models disagree' in capsys.readouterr().err) == bool(status)
+
+
 # ----------------------------------------------------------------------------- with MuJoCo
 
 

@@ -85,6 +85,8 @@ NEWTON_MAX_ITER = kinematics.NEWTON_MAX_ITER
 NEWTON_TOL = kinematics.NEWTON_TOL
 """MuJoCo's Newton stops where this package's does (residual / characteristic length)."""
 EXIT_MISSING = 2
+EXIT_DISAGREE = 1
+"""Exit status of ``--compare mujoco`` when an agreement figure is above AGREEMENT_TOL."""
 INSTALL_HINT = (f'mech-balance bench --compare mujoco: the optional benchmark dependency '
                 f'"mujoco" is not installed; install it with `make bench-mujoco` (or '
                 f'`pip install mujoco=={MUJOCO_PIN}`)')
@@ -425,7 +427,8 @@ def compare(sc, samples=360, repeat=50, progress=None):
 
 
 def _worst(r):
-    return max(max(r['agreement_imposed'].values()), max(r['agreement_own'].values()))
+    # np.max, not max: a nan figure is the worst (max() would skip it by order)
+    return float(np.max([*r['agreement_imposed'].values(), *r['agreement_own'].values()]))
 
 
 def format_report(hoeken, chains, mujoco_version, extras=()):
@@ -501,7 +504,7 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
                      f'{r.get("peak_bytes", 0) / 2 ** 20:>9.2f}'
                      + ('' if r['scene'].startswith('dyad_chain') else f'  {r["scene"]}'))
     every = [hoeken] + list(chains) + list(extras)
-    worst_all = max(_worst(r) for r in every)
+    worst_all = float(np.max([_worst(r) for r in every]))
     lines.append(f'  agreement over all {len(every)} rigs (both motions, torque, shaking force '
                  f'and moment): worst {worst_all:.1e} -> '
                  f'{"PASS" if worst_all <= AGREEMENT_TOL else "FAIL"}')
@@ -566,4 +569,12 @@ def cmd_compare(args):
                                  max(5, args.repeat // MUJOCO_REPEAT_DIVISOR), progress,
                                  mj=import_mujoco())
     print(mujoco_spatial.format_report(spatial, AGREEMENT_TOL), flush=True)
+    # exit 1 when the two disagree (a correctness failure); the timing targets' PASS/FAIL
+    # lines are figures of this machine, printed, not an exit status
+    worst = float(np.max([_worst(r) for r in [hoeken, *chains, *extras]]
+                         + [mujoco_spatial.worst(r) for r in spatial]))
+    if not worst <= AGREEMENT_TOL:
+        print(f'mech-balance bench --compare mujoco: the models disagree (worst relative '
+              f'difference {worst:.1e} > {AGREEMENT_TOL:.0e})', file=sys.stderr)
+        return EXIT_DISAGREE
     return 0

@@ -654,7 +654,8 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
 
 def worst(r):
     """Return the worst agreement figure of one :func:`compare` result."""
-    return max(max(r['agreement_imposed'].values()), max(r['agreement_own'].values()))
+    # np.max, not max: a nan figure is the worst (max() would skip it by order)
+    return float(np.max([*r['agreement_imposed'].values(), *r['agreement_own'].values()]))
 
 
 QUANTITIES = ('joint motion', 'driving torque', 'shaking force', 'shaking moment',
@@ -711,7 +712,7 @@ def format_report(results, tol):
             f'  {"dynamics, same outputs":<24}{us["ours_dyn"]:>14.3f}{us["mj_dyn"]:>12.2f}'
             f'{us["mj_dyn"] / us["ours_dyn"]:>9.1f}x   (mj_inverse + rigid + reactions)',
         ]
-    w = max(worst(r) for r in results)
+    w = float(np.max([worst(r) for r in results]))
     lines.append(f'agreement over the {len(results)} spatial built-ins: worst {w:.1e} -> '
                  f'{"PASS" if w <= tol else "FAIL"} (limit {tol:.0e})')
     return '\n'.join(lines)
