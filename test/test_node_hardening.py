@@ -465,16 +465,18 @@ def _follow_rig(context, tag, *args):
     # wrench writer know our endpoints, messages are dropped or re-sent in a burst.  Send
     # stamped readings (with a velocity: each one is a sample) until a wrench comes back,
     # then ignore everything stamped up to the last of them (the tests' stamps are later).
-    stamp = HANDSHAKE_STAMP_NS
-    deadline = time.monotonic() + tn.DISCOVERY_TIMEOUT_S
-    while not probe.wrenches:
-        assert time.monotonic() < deadline, 'no wrench for an encoder message: ' + rig.output()
-        stamp += 1_000_000
-        probe.encoder.publish(tn._encoder(['O'], stamp, [0.3], [1.0]))
-        due = time.monotonic() + 0.05
-        while not probe.wrenches and time.monotonic() < due:
-            probe.executor.spin_once(timeout_sec=0.01)
-    probe.after_ns = stamp
+    sent = {'stamp': HANDSHAKE_STAMP_NS, 'next': 0.0}
+
+    def answered():   # one more reading every 50 ms until a wrench comes back
+        if probe.wrenches:
+            return True
+        if time.monotonic() >= sent['next']:
+            sent['stamp'] += 1_000_000
+            sent['next'] = time.monotonic() + 0.05
+            probe.encoder.publish(tn._encoder(['O'], sent['stamp'], [0.3], [1.0]))
+        return False
+    probe.spin_until(answered, tn.DISCOVERY_TIMEOUT_S, 'a wrench for a handshake reading')
+    probe.after_ns = sent['stamp']
     probe.joints.clear()
     probe.wrenches.clear()
     return rig, probe

@@ -62,6 +62,7 @@ from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import chains as chain
 from mech_balance.bench.core import peak_bytes
+from mech_balance.bench.mujoco_spatial import worst as _worst
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import dynamics, kinematics
 import numpy as np
@@ -426,11 +427,6 @@ def compare(sc, samples=360, repeat=50, progress=None):
     return out
 
 
-def _worst(r):
-    # np.max, not max: a nan figure is the worst (max() would skip it by order)
-    return float(np.max([*r['agreement_imposed'].values(), *r['agreement_own'].values()]))
-
-
 def format_report(hoeken, chains, mujoco_version, extras=()):
     """Return the printed comparison (``extras``: more scenes for the scaling table)."""
     rep, slow = hoeken['repeats']
@@ -571,8 +567,7 @@ def cmd_compare(args):
     print(mujoco_spatial.format_report(spatial, AGREEMENT_TOL), flush=True)
     # exit 1 when the two disagree (a correctness failure); the timing targets' PASS/FAIL
     # lines are figures of this machine, printed, not an exit status
-    worst = float(np.max([_worst(r) for r in [hoeken, *chains, *extras]]
-                         + [mujoco_spatial.worst(r) for r in spatial]))
+    worst = float(np.max([_worst(r) for r in [hoeken, *chains, *extras, *spatial]]))
     if not worst <= AGREEMENT_TOL:
         print(f'mech-balance bench --compare mujoco: the models disagree (worst relative '
               f'difference {worst:.1e} > {AGREEMENT_TOL:.0e})', file=sys.stderr)

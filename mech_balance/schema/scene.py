@@ -337,9 +337,7 @@ def needs(outputs):
     ``kinematics`` < ``shaking_wrench`` (accelerations) < ``driving_torque`` (NOC projection)
     < ``bearing_reactions`` (cut-joint multipliers and the recursion through the tree).
     """
-    if isinstance(outputs, tuple):
-        return _needs_of(outputs)   # the core asks once per evaluation: remembered
-    return _needs_of.__wrapped__(outputs)
+    return _needs_of(frozenset(outputs))   # the core asks once per evaluation: remembered
 
 
 @functools.lru_cache(maxsize=64)

@@ -88,7 +88,7 @@ class DyadPlan:
         Return ``(q, rot, origin, joint_at)``: tree coordinates ``(nt, p)`` and the poses.
 
         ``ref`` ``(nt - 1, p)``, the tree coordinates but the crank's within less than pi
-        (the skeleton's chords or predictor), only fixes the whole turns of each revolute
+        (the skeleton's line, table or predictor), only fixes the whole turns of each revolute
         coordinate; ``signs`` (one per dyad) defaults to the traced branch's.  Where two
         circles do not meet the results are ``nan``.  ``rot`` and ``origin`` ``(nb, p)`` are
         the bodies' rotations and origins, ``joint_at`` ``(nt, p)`` the tree joints.
@@ -141,7 +141,7 @@ class DyadPlan:
         ang = np.arctan2(rel.imag, rel.real)
         if not self.is_identity:
             ang = ang.take(self.row_order, axis=0)
-        # whole turns from the predictor: q = angle + 2 pi round((q_pred - angle) / 2 pi)
+        # whole turns from the reference: q = angle + 2 pi round((ref - angle) / 2 pi)
         turns = np.subtract(ref, ang)
         turns *= 1.0 / TWO_PI
         np.rint(turns, out=turns)

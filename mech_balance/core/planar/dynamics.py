@@ -157,12 +157,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         lam_scaled = _matvec_t(state.jac_inv, q_u)
     lam = lam_scaled * linkage.row_scale[:, None]
     jac_psi = state.jac[:, 0, :] if state.jac_psi is None else state.jac_psi
-    if jac_psi.shape[0] <= 4:   # a few loop rows: row by row beats einsum's set-up
-        tau = q_gen[0].copy()
-        for i in range(jac_psi.shape[0]):
-            tau -= jac_psi[i] * lam_scaled[i]
-    else:
-        tau = q_gen[0] - np.einsum('ip,ip->p', jac_psi, lam_scaled)
+    tau = q_gen[0] - np.add.reduce(jac_psi * lam_scaled, axis=0)   # (einsum: slower set-up)
     out.driving_torque = tau
     out.multipliers = lam
     nr, npc = linkage.nr, linkage.npc

@@ -81,8 +81,9 @@ STEP_TRUST = 0.05
 EVAL_TRUST = 1e-4
 """Largest scaled correction from the skeleton predictor before an angle is re-traced."""
 CHORD_TRUST = 1.0
-"""Largest distance (rad) of the skeleton's turn table from its predictor for the dyads'
-closed form to take the whole turns from the table (an error below pi is what that needs)."""
+"""Largest distance (rad) of the skeleton's straight line or turn table from its predictor
+for the dyads' closed form to take the whole turns from it (an error below pi is what that
+needs)."""
 MIDPOINT_TRUST_FRACTION = 0.1
 """A traced segment is accepted when Newton moves its midpoint predictor by less than this
 fraction of ``EVAL_TRUST``, so that batched solves seldom need the step-by-step re-trace."""
@@ -277,7 +278,6 @@ class Linkage:
         self.block = None   # its J_u as 2 x 2 diagonal blocks (smallsolve.BlockPlan), likewise
         self.turn_table_ok = False  # the closed form's whole turns from the skeleton's table
         self.turn_line = None       # or from a line in psi (Skeleton.affine_reference)
-        self._crank_row_slices = None   # jacobian_values: the crank's rows, as slices
         self.warnings = []
 
     # ------------------------------------------------------------------ construction
@@ -400,6 +400,8 @@ class Linkage:
         n_unk = int(unk.sum())
         self.jac_nz_split = (nz[unk, 0], nz[unk, 1] - 1, nz[order, 2], nz[order, 3], n_unk,
                              nz[~unk, 0])
+        # jacobian_values: the crank column's x and y rows as slices where they are a range
+        self.crank_row_slices = _as_slices(nz[~unk, 0], self.nr)
         self.cut_angle = np.array([c.angle for c in self.cuts[self.nr:]])[:, None]
         self.cut_axis = np.array([c.axis for c in self.cuts[self.nr:]], dtype=complex)[:, None]
         # reaction recursion (dynamics): bodies below each tree joint, and the cut-joint
@@ -629,9 +631,7 @@ class Linkage:
         np.multiply(d.imag[:n], -scale, out=values[:n])
         np.multiply(d.real[:n], scale, out=values[n:])
         jac_psi = np.zeros((self.m, p))
-        rows = self._crank_row_slices
-        if rows is None:   # the crank's loop rows as slices where they are a range
-            rows = self._crank_row_slices = _as_slices(crank_rows, self.nr)
+        rows = self.crank_row_slices
         if rows:
             np.multiply(d.imag[n:], -scale, out=jac_psi[rows[0]])
             np.multiply(d.real[n:], scale, out=jac_psi[rows[1]])
@@ -1046,9 +1046,8 @@ class Linkage:
             q_pred = sk.predict(psi)
             q, pose, res, iters, ok = self.newton(psi, q_pred)
         bad = None
-        if q_pred is None:
-            pass   # the dyads on the traced branch, closed to tolerance everywhere
-        elif self.nu and (self.dyads is not None or iters.any()):
+        # q_pred is None: the dyads on the traced branch, closed to tolerance everywhere
+        if q_pred is not None and self.nu and (self.dyads is not None or iters.any()):
             # how far the solution lies from the predictor (scaled)
             corr = q[1:] - q_pred[1:]
             np.abs(corr, out=corr)
@@ -1204,6 +1203,7 @@ class Skeleton:
         self.coef_u = np.ascontiguousarray(self.coef[:, 1:])
         self.wrap_step_u = (TWO_PI * turns[1:])[:, None] if np.any(turns[1:]) else None
         self._turn_table = None
+        self._dense = None     # (_dense_prediction: shared by the two checks at build)
 
     TURN_TABLE_SIZE = 256
     """Angles per turn of :meth:`turn_reference`'s table (the coordinates, nearest angle)."""
@@ -1216,11 +1216,18 @@ class Skeleton:
         sixteenth of the interval (what lies between the samples): rad for revolute rows.
         """
         table = self._table()
-        n = self.TURN_TABLE_SIZE
-        psi = self.psi[0] + np.arange(16 * n) * (TWO_PI / (16 * n))
-        err = np.abs(self.turn_reference(psi) - self.predict(psi)[1:])
+        psi, q = self._dense_prediction()
+        err = np.abs(self.turn_reference(psi) - q)
         slope = np.abs(np.diff(table, axis=1)).max(initial=0.0)
         return float(err.max(initial=0.0) + slope / 16.0)
+
+    def _dense_prediction(self):
+        """Return ``(psi, q)``: the predictor's coordinates but the crank's, 16 per table step."""
+        if self._dense is None:
+            n = 16 * self.TURN_TABLE_SIZE
+            psi = self.psi[0] + np.arange(n + 1) * (TWO_PI / n)
+            self._dense = (psi, self.predict(psi)[1:])
+        return self._dense
 
     def affine_reference(self):
         """
@@ -1234,9 +1241,7 @@ class Skeleton:
         coordinate known up to 2 pi (a rocker that swings, a coupler that turns with the
         crank), at two operations per evaluation.
         """
-        n = 16 * self.TURN_TABLE_SIZE
-        psi = self.psi[0] + np.arange(n + 1) * (TWO_PI / n)
-        q = self.predict(psi)[1:]
+        psi, q = self._dense_prediction()
         slope = (np.zeros((q.shape[0], 1)) if self.wrap_step_u is None
                  else self.wrap_step_u / TWO_PI)
         rest = q - slope * psi

@@ -978,11 +978,8 @@ class BlockFactored:
 
     def sign(self):
         """Return the signs of the determinants ``(p,)``."""
-        if self.det.shape[0] == 1:
-            out = np.sign(self.det[0])
-            if self.plan.perm_sign != 1:
-                out *= self.plan.perm_sign
-            return out
+        if self.det.shape[0] == 1:   # one block: no product to form
+            return np.sign(self.det[0]) * self.plan.perm_sign
         return np.prod(np.sign(self.det), axis=0) * self.plan.perm_sign
 
     def inverse(self):
