@@ -339,19 +339,21 @@ class RigNode(Node):
 
     # ------------------------------------------------------------------ shutdown
 
-    def destroy_node(self):
+    def destroy_node(self, signalled=False):
         """
         Stop the publishing threads, close the recording, destroy the node, log the stats.
 
-        After Ctrl-C or SIGTERM rclpy has already shut the context down, so the node's
-        rosout publisher is invalid: the statistics are then logged once the node (and its
-        rosout registration) is gone, to the console only, instead of failing to reach
-        rosout ("Failed to publish log message to rosout").
+        After Ctrl-C or SIGTERM (``signalled``) rclpy shuts the context down, on its own
+        signal thread: the node's rosout publisher is then invalid, or becomes so while a
+        line is being logged. The statistics are then logged once the node (and its rosout
+        registration) is gone, to the console only, instead of failing to reach rosout
+        ("Failed to publish log message to rosout"). ``context.ok()`` alone cannot decide
+        it: the signal thread may shut the context down right after it answered True.
         """
         self._publisher.stop()
         self._recording.close()
         logger, line = self.get_logger(), self._stats_line()
-        if self.context.ok():
+        if self.context.ok() and not signalled:
             logger.info(line)
             return super().destroy_node()
         destroyed = super().destroy_node()
@@ -417,11 +419,12 @@ def main(args=None):
     rclpy.init(args=args)
     node = None
     status = 0
+    signalled = False
     try:
         node = RigNode()
         rclpy.spin(node, executor=MultiThreadedExecutor(num_threads=EXECUTOR_THREADS))
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        signalled = True
     except (ValueError, ParameterException) as exc:
         print(f'rig_node: error: {guards.clip(exc)}', file=sys.stderr)
         status = EXIT_BAD_PARAMETER
@@ -432,7 +435,7 @@ def main(args=None):
     finally:
         if node is not None:
             try:
-                node.destroy_node()
+                node.destroy_node(signalled=signalled or not rclpy.ok())
             except Exception as exc:  # noqa: BLE001 - after a shutdown: one line, exit 0
                 print(f'rig_node: while stopping: {guards.describe(exc)}', file=sys.stderr)
         rclpy.try_shutdown()
