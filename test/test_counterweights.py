@@ -138,7 +138,8 @@ def test_hoeken_certified_and_reproduced(hoeken, hoeken_results, weights):
 def test_hoeken_force_balance_with_least_moment(hoeken, hoeken_results):
     result = hoeken_results[(1.0, 0.0)]
     obj = result.objective
-    assert obj['shaking_force_rms'] <= 1e-8 * obj['shaking_force_rms_original']
+    # the optimum is 0 (complete force balance), so the certified gap bounds the force
+    assert obj['shaking_force_rms'] <= result.certificate.gap_abs
     assert result.certificate.stage2['exact_force_balance']
     # force balance fixes both first moments; the moment depends on the rocker's inertia
     # (the crank turns uniformly): no other feasible rocker disc with the same first
@@ -359,7 +360,7 @@ def test_table12_two_point_model(name):
     r = two_point.table12(sc, (0.5, 0.5))
     paper = seed_tables.TABLE12[name]
     assert r.lower_bound_gap_rel <= GAP_REL
-    assert r.lower_bound_z <= r.upper_bound_z * (1 + 1e-9)
+    assert r.lower_bound_z <= r.upper_bound_z     # a bound below a design found: exactly
     # the upper design is a real two-point design: rebuild it and evaluate with the core
     u = sc.normalization
     theta = []
@@ -373,7 +374,8 @@ def test_table12_two_point_model(name):
     c = analysis.run_cycle(rig)
     f = rms(u.force(np.abs(c.wrenches.shaking_force)))
     n = rms(u.moment(c.wrenches.shaking_moment))
-    assert_allclose(0.5 * f + 0.5 * n, r.upper_bound_z, rtol=1e-7, atol=1e-9)
+    # the upper bound is the core's z of that design (issue 19: to 1e-9), not the solver's
+    assert_allclose(0.5 * f + 0.5 * n, r.upper_bound_z, rtol=REPRO_REL, atol=0.0)
     t0 = np.array(_theta(sc)).reshape(-1, 4)
     t = (np.array(theta) * scale).reshape(-1, 4)
     # the bounds hold to the tolerance the result reports: the round-off of rebuilding the
