@@ -537,14 +537,15 @@ def test_clock_mode_topics_parameters_and_balancing_across_processes(context):
         sc = scene_mod.load('hoeken')
         original = twin.model_for(sc)
 
-        # both topics at the configured rate: consecutive stamps one period apart
+        # stamped on the configured rate's schedule: every step a whole number of periods,
+        # the period itself among them (a tick later than MAX_LAG_S is skipped under load:
+        # how many is a rate, measured by `mech-balance bench --section node`, not asserted)
         probe.collect(int(rate))
         stamps = np.array(sorted(j[0] for j in probe.joints))
         period_ns = round(1e9 / rate)
         steps = np.diff(stamps)
-        assert np.all(steps % period_ns == 0)
-        assert np.median(steps) == period_ns
-        assert np.mean(steps == period_ns) > 0.9
+        assert np.all(steps > 0) and np.all(steps % period_ns == 0)
+        assert np.min(steps) == period_ns
         _check_against_core(probe, original, 'rig_frame')
 
         # invalid updates are rejected with a reason, the node keeps publishing
