@@ -301,7 +301,8 @@ def test_redistribution_options_at_their_range_ends_are_certified(kw):
 
 @pytest.mark.parametrize('option, value', [('--density', '1e-30'), ('--max-thickness', '1e30'),
                                            ('--max-mass-factor', '1e-300'),
-                                           ('--max-radius-factor', '1e9')])
+                                           ('--max-radius-factor', '1e9'),
+                                           ('--max-rim-radius-factor', '1e9')])
 def test_counterweight_options_out_of_range_are_refused(option, value, capsys, tmp_path):
     """Issue 23 item 2b.6: --density 1e-30 --max-thickness 1e30 wrote a scene analyze refused."""
     out = tmp_path / 'x.yaml'
@@ -326,6 +327,35 @@ def test_a_written_scene_at_the_range_corners_loads(extreme, tmp_path, capsys):
     loaded = scene.load(str(out))
     assert any(lk.counterweights for lk in loaded.links)
     assert cli.main(['analyze', '--scene', str(out)]) == 0
+
+
+WIDE_ENDS = {'density_kg_m3': 1.0, 'max_thickness_m': 1.0, 'max_mass_factor': 100.0,
+             'max_radius_factor': 10.0, 'max_gyration_factor': 100.0}
+"""The counterweight options at the wide ends of their ranges."""
+
+
+@pytest.mark.parametrize('rim', [1e-3, 1e-2, 10.0])
+@pytest.mark.parametrize('wide', [False, True], ids=['defaults', 'wide-ends'])
+@pytest.mark.parametrize('name, links', [('slider_crank', 'crank'), ('hoeken', 'crank,rocker')])
+def test_rim_bound_over_its_range_is_feasible_and_certified(name, links, wide, rim):
+    """
+    Issue 19 items 1 and 3: the rim bound at its range ends, every weight.
+
+    At 1e-2 x the reach the solver's absolute accuracy moved a light disc's centre by more
+    than the rim, the repair ignored the rim and the pull ended on an anchor disc twice the
+    reach outside it (design_violation 2.0, exit 2, z of that disc as the primal); at 10 x
+    with the other options at their wide ends the box ignored the rim cuts (gap 1.3e-4).
+    """
+    sc = scene.load(name)
+    for weights in WEIGHTS[:3]:
+        res = cw.balance_with_counterweights(sc, links, weights, max_rim_radius_factor=rim,
+                                             **(WIDE_ENDS if wide else {}))
+        cert = res.certificate
+        assert cert.design_violation == 0.0, (weights, cert.design_violation)
+        assert cert.certified, (weights, cert.gap_rel)
+        assert cert.lower_bound <= cert.primal
+        for d in res.designs:   # the disc as built lies inside the rim
+            assert math.hypot(*d.centre_m) + d.radius_m <= rim * cw.joint_reach_m(sc, d.link)
 
 
 # ------------------------------------------------------------------ stages that fail

@@ -174,7 +174,7 @@ def check_options(scene, options):
         tie_break=bool(options.tie_break), planes=plane_list(options.planes, options.links,
                                                              scene),
         max_rim_radius_factor=None if options.max_rim_radius_factor is None else
-        positive(options.max_rim_radius_factor, 'max_rim_radius_factor'))
+        _ranged(options.max_rim_radius_factor, 'max_rim_radius_factor'))
 
 
 def plane_list(planes, links, scene, name='planes'):
@@ -761,8 +761,10 @@ class _Problem:
         Return (lo, hi): bounds on every variable that the constraints imply (link units).
 
         ``0 <= y_m <= m_max/m0``, ``|y_h| <= (r_max/l0) y_m``, ``0 <= y_s <= y_I <=
-        (k_max/l0)^2 y_m``; an epigraph t at most its norm's bound over that box, and at
-        most ``level / w`` when the stage's weighted objective is at most ``level``.  When
+        (k_max/l0)^2 y_m`` (and, with the rim bound, ``y_I <= b y_m`` and ``|y_h| <= (b/a)
+        y_m`` from each cut ``y_I + a |y_h| <= b y_m``); an epigraph t at most its norm's
+        bound over that box, and at most ``level / w`` when the stage's weighted objective
+        is at most ``level``.  When
         a link's inertia enters none of the norms that the objective ``q`` weights (exactly
         zero columns: the RMS force alone), an optimal point with the least inertia the
         disc allows exists, ``y_I = |y_h|^2/y_m + kappa y_m^2``, which bounds y_I instead.
@@ -775,6 +777,12 @@ class _Problem:
             m_hi = self.m_max[i] / self.m0[i]
             h_hi = self.r_max[i] / self.l0[i] * m_hi
             i_hi = (self.k_max[i] / self.l0[i]) ** 2 * m_hi
+            # the rim cuts y_I + a |y_h| <= b y_m (a >= 0, y_I >= 0) bound both
+            margin = 1.0 + 8.0 * certificate.UNIT_ROUNDOFF
+            for a, b in self._rim_cuts(i):
+                i_hi = min(i_hi, b * m_hi * margin)
+                if a > 0.0:
+                    h_hi = min(h_hi, b / a * m_hi * margin)
             if used is not None and all(not np.any(self.norms[k][0][:, 4 * i + 3])
                                         for k in used):
                 kappa = self.m0[i] / (self.c_disc * self.l0[i] ** 2)
@@ -798,11 +806,24 @@ class _Problem:
         lo, hi = self.box(level, run.q if level is not None else None)
         return certificate.safe_lower_bound(run.q, run.a, run.b, run.cones, run.sol.z, lo, hi)
 
+    def _rim_cuts(self, i):
+        """Return the rim cuts of listed link i in link units, ``y_I + a |y_h| <= b y_m``."""
+        if self.rho is None:
+            return []
+        l0 = self.l0[i]
+        return [(c_h / l0, c_m / (l0 * l0)) for c_h, c_m in clearance_mod.rim_cuts(self.rho[i])]
+
     def anchor(self):
-        """Return a strictly feasible point of the disc constraints (centred small discs)."""
+        """
+        Return a strictly feasible point of the disc constraints (centred small discs).
+
+        Centred (y_h = 0), a disc's y_I lies between ``kappa y_m^2`` (the thickest disc) and
+        ``g2 y_m``, g2 the least of the gyration bound and the rim cuts' ``b`` (the rim bound
+        leaves a centred disc a radius of gyration up to rho / sqrt(3)).
+        """
         y = np.zeros(self.ny)
         for i in range(self.nl):
-            g2 = (self.k_max[i] / self.l0[i]) ** 2
+            g2 = min([(self.k_max[i] / self.l0[i]) ** 2] + [b for _, b in self._rim_cuts(i)])
             kappa = self.m0[i] / (self.c_disc * self.l0[i] ** 2)
             a = min(0.5 * self.m_max[i] / self.m0[i], 0.5 * g2 / kappa)
             y[4 * i] = a
@@ -814,9 +835,11 @@ class _Problem:
         Return ``y`` with each disc moved onto its constraints by the least local change.
 
         The mass is capped at m_max, the first moment shrunk to the radius bound and to what
-        the gyration bound leaves, and the inertia clipped into [|dh|^2/dm + dm^2/c,
-        k_max^2 dm] (the round-off violations an
-        interior-point solution has at active constraints), each with a margin of a few ulp.
+        the gyration bound and the rim cuts leave, and the inertia clipped into
+        [|dh|^2/dm + dm^2/c, min(k_max^2 dm, c_m dm - c_h |dh|)] (the violations an
+        interior-point solution has at active constraints; with a small rim bound the
+        solver's absolute accuracy moves a light disc's centre by more than the rim), each
+        with a margin of a few ulp.
         """
         y = np.array(y, dtype=float)
         shrink = 1.0 - 16.0 * certificate.UNIT_ROUNDOFF
@@ -837,8 +860,16 @@ class _Problem:
             if room > 0.0 and h * h > room * shrink:
                 y[im + 1:im + 3] *= math.sqrt(room * shrink) / h * shrink
                 h = math.hypot(y[im + 1], y[im + 2])
+            cuts = self._rim_cuts(i)
+            for a, b in cuts:   # the rim: h^2/ym + a h + kappa ym^2 - b ym <= 0 leaves h <= root
+                c0 = kappa * ym * ym - b * ym
+                disc = a * a - 4.0 * c0 / ym
+                root = 0.5 * ym * (math.sqrt(disc) - a) if disc >= 0.0 else -1.0
+                if 0.0 <= root < h:
+                    y[im + 1:im + 3] *= root * shrink / h
+                    h = math.hypot(y[im + 1], y[im + 2])
             i_lo = (h * h / ym + kappa * ym * ym) / shrink
-            i_hi = g2 * ym * shrink
+            i_hi = min([g2 * ym] + [b * ym - a * h for a, b in cuts]) * shrink
             if i_lo <= i_hi:
                 y[im + 3] = min(max(y[im + 3], i_lo), i_hi)
         return y

@@ -169,7 +169,7 @@ def register(subparsers):
     p.add_argument('--max-rim-radius-factor', type=float, default=None, metavar='F',
                    help="--counterweights: the whole disc inside F x the link's joint reach "
                         "of the link's origin (a convex constraint of the program; default: "
-                        'no bound)')
+                        'no bound)' + _range('max_rim_radius_factor'))
     p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
                    help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
                         'with two point masses per link at 0 and 90 deg, and print the '
@@ -230,6 +230,10 @@ def _check_options(args):
             if not (np.isfinite(value) and value > 0.0):
                 raise ValueError(f'{option}: got {value:g}, expected a finite number > 0')
             defaults.check_counterweight_option(COUNTERWEIGHT_KEYS[option], value, option)
+        if args.max_rim_radius_factor is not None:
+            defaults.check_counterweight_option('max_rim_radius_factor',
+                                                args.max_rim_radius_factor,
+                                                '--max-rim-radius-factor')
         return
     given_cw = _given(args, COUNTERWEIGHT_OPTIONS + COUNTERWEIGHT_PLACEMENT)
     if given_cw:
