@@ -461,10 +461,13 @@ def solve(scene, options):
     gap, gap_rel = certificate.relative_gap(primal, lower, balancing.GAP_FLOOR)
     s2 = None
     if stage2 is not None:
+        # its own safe bound (the box of the disc constraints holds an optimal point: every
+        # t at its norm); min with the solver's objective keeps it a bound, never above it
+        lb2 = min(prob.lower_bound(stage2, None).value, stage2.objective)
         s2 = {'minimized': f"RMS shaking {('force', 'moment')[secondary]}",
               'status': stage2.status, 'objective': stage2.objective,
-              'iterations': stage2.iterations, 'attempts': list(stage2.solve.attempts),
-              'exact_force_balance': bool(exact)}
+              'lower_bound': lb2, 'iterations': stage2.iterations,
+              'attempts': list(stage2.solve.attempts), 'exact_force_balance': bool(exact)}
     cert = balancing.Certificate(
         solver=f'clarabel {clarabel.__version__}', status=stage1.status, primal=primal,
         dual=lower, gap_abs=gap, gap_rel=gap_rel,

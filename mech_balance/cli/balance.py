@@ -421,7 +421,8 @@ def format_counterweights(result, normalized=True):
         s2 = cert.stage2
         lines.append(f"tie-break: minimized {s2['minimized']} among optimal designs"
                      + (' with the shaking force exactly zero' if s2['exact_force_balance']
-                        else '') + f": {s2['objective']:.6g} ({s2['status']})")
+                        else '') + f": {s2['objective']:.6g} (lower bound "
+                     f"{s2['lower_bound']:.6g}; {s2['status']})")
     if result.least_mass is not None:
         lm = result.least_mass
         lines.append(f"tie-break: least total added mass {lm['objective_kg']:.6g} kg "
