@@ -417,6 +417,31 @@ def test_no_output_prints_a_lower_bound_above_its_primal(argv, capsys):
     assert cert['lower_bound'] <= cert['primal'] and cert['dual'] == cert['lower_bound']
 
 
+@pytest.mark.parametrize('name', ['hoeken', 'slider_crank', 'carpet_scraper'])
+@pytest.mark.parametrize('weights', [(1.0, 0.0), (0.0, 1.0)], ids=['force', 'moment'])
+@pytest.mark.parametrize('kw', [{}, {'case': 'b'}, {'paper_constraints': True}],
+                         ids=['realizable', 'case-b', 'paper'])
+def test_tie_break_stage_has_its_own_bound(name, weights, kw, capsys):
+    """
+    Issue 19 item 1: the redistribution's tie-break is a cone program too; its bound.
+
+    Finite and certified where the constraints bound the links (realizable, case b); with the
+    paper's free first moments no direction is assumed null: -inf (no bound), never a number
+    that is not one.
+    """
+    res = balancing.optimize(scene.load(name), weights, **kw)
+    s2 = res.certificate.stage2
+    assert s2 is not None
+    assert s2['lower_bound'] <= s2['objective']
+    if not kw.get('paper_constraints'):
+        gap = s2['objective'] - s2['lower_bound']
+        assert gap <= balancing.CERTIFIED_GAP_REL * max(abs(s2['objective']), 1.0), gap
+    # the secondary objective of the returned design is within the cap's slack of the
+    # stage's, so no more than the bound below it
+    secondary = s2['minimized'].split()[-1]
+    assert res.objective[f'shaking_{secondary}_rms'] >= s2['lower_bound']
+
+
 def test_two_point_and_rggr_bounds():
     r = two_point.table12(scene.load('hoeken'))
     assert r.lower_bound_z <= r.relaxation_z <= r.upper_bound_z

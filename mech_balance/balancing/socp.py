@@ -230,7 +230,8 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
         iterations=stage1.iterations,
         stage2=None if stage2 is None else {
             'minimized': f'RMS shaking {secondary}', 'status': stage2.status,
-            'objective': stage2.objective, 'iterations': stage2.iterations,
+            'objective': stage2.objective, 'lower_bound': _tie_break_bound(stage2, exact),
+            'iterations': stage2.iterations,
             'attempts': list(stage2.run.attempts),
             'exact_force_balance': bool(exact)},
         max_violation=violation, lower_bound=lower, attempts=list(stage1.run.attempts),
@@ -789,6 +790,21 @@ def _certify(stage, level, centre_theta=None):
     run = stage.run
     bound = certificate.safe_lower_bound(run.q, run.a, run.b, run.cones, run.sol.z, lo, hi)
     return bound, nulls
+
+
+def _tie_break_bound(stage, exact):
+    """
+    Return the safe lower bound of a tie-break stage, never above its solver objective.
+
+    Every feasible point of the stage keeps the primary objective at most its cap
+    (``radius_scale``), or, with the exact force balance, the force zero: that level bounds
+    the coordinates as in :func:`_certify` (no null direction is assumed: the force rows or
+    the cap constrain the first moments).  The min with the solver's objective keeps a bound.
+    """
+    level = stage.radius_scale if stage.radius_scale is not None else \
+        (0.0 if exact else math.inf)
+    bound, _ = _certify(stage, level)
+    return min(bound.value, stage.objective)
 
 
 def _row(nx, entries):

@@ -501,8 +501,8 @@ def format_result(result, normalized=True):
         lines.append(f"tie-break (optimum not unique): minimized {s2['minimized']} among "
                      'optimal designs' + (' with the shaking force exactly zero'
                                           if s2['exact_force_balance'] else '')
-                     + f": {s2['objective']:.6g} ({s2['status']}, {s2['iterations']} "
-                     'iterations)')
+                     + f": {s2['objective']:.6g} (lower bound {s2['lower_bound']:.6g}; "
+                     f"{s2['status']}, {s2['iterations']} iterations)")
     lines.append('design realizable: ' + ('yes' if result.realizable else 'NO ('
                  + ', '.join(d.name for d in result.links if not d.realizable) + ')'))
     lines.append(cw_mod.format_cost(cw_mod.cost_of_balancing(sc, result.balanced_scene,
