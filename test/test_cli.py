@@ -10,7 +10,7 @@ from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import socp as balancing
 from mech_balance.bench import balancing as bench_balancing
-from mech_balance.cli import balance as cli_balance, main as cli
+from mech_balance.cli import balance as cli_balance, jsonout, main as cli
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -54,6 +54,30 @@ def test_analyze_json_and_design(capsys):
     rows = {r['quantity']: r['rms'] for r in report['rows']}
     assert report['samples'] == 180
     assert abs(rows['shaking moment n_sh'] - 3.4903) < 0.02
+
+
+def _strict_json(text):
+    """Parse ``text`` as strict JSON: NaN and Infinity (Python's extensions) are refused."""
+    def refuse(token):
+        raise ValueError(f'not strict JSON: {token}')
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_json_output_is_strict_with_a_missing_bound(capsys):
+    """
+    A tie-break stage without a lower bound (paper constraints) is null, not -Infinity.
+
+    The redistribution's tie-break under seed 001's constraints has no finite lower bound
+    (free first moments): Python's json wrote ``-Infinity``, which jq and JSON.parse refuse.
+    """
+    assert cli.main(['balance', '--scene', 'hoeken', '--paper-constraints', '--weights', '1',
+                     '0', '--json']) == 0
+    report = _strict_json(capsys.readouterr().out)
+    stage2 = report['certificate']['stage2']
+    assert stage2['lower_bound'] is None
+    assert stage2['status'] == 'Solved' and stage2['objective'] > 0.0
+    assert jsonout.finite({'a': [float('nan'), 1.0, (float('-inf'),)]}) == \
+        {'a': [None, 1.0, [None]]}
 
 
 @pytest.mark.parametrize('argv, message', [

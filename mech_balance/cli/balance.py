@@ -8,13 +8,12 @@ reference values printed next to the results are the papers' tables
 """
 
 import argparse
-import json
 import sys
 
 from mech_balance import atomic, conventions
 from mech_balance.balancing import defaults, paper_tables as seed_tables
 from mech_balance.balancing.defaults import DEFAULT_CASE
-from mech_balance.cli import main as cli
+from mech_balance.cli import jsonout, main as cli
 
 TABLE3_MASS_FACTORS = (1.0, 2.0, 5.0)
 """Seed 001 Table 3 cases (1)-(3): crank and rocker masses 1x, 2x, 5x the original."""
@@ -305,7 +304,7 @@ def cmd_balance(args):
         out['cost'] = cw_mod.cost_of_balancing(sc, result.balanced_scene, result.table)
         if table12 is not None:
             out['two_point_model'] = table12.to_dict()
-        print(json.dumps(out, indent=2))
+        print(jsonout.dumps(out))
         return exit_status(result.certificate)
     print(format_result(result, normalized=not args.si))
     if confidence is not None:
@@ -371,7 +370,7 @@ def _counterweights(sc, args):
     for text in result.clearance.warnings():
         print(f'warning: {text}', file=sys.stderr)
     if args.json:
-        print(json.dumps(result.to_dict(), indent=2))
+        print(jsonout.dumps(result.to_dict()))
         return exit_status(result.certificate)
     print(format_counterweights(result, normalized=not args.si))
     if args.output:
@@ -624,7 +623,7 @@ def _analytic(sc, args):
                {'source_scene': sc.name, 'method': results[0].method,
                 'parameters': results[0].parameters})
     if args.json:
-        print(json.dumps([r.to_dict() for r in results], indent=2))
+        print(jsonout.dumps([r.to_dict() for r in results]))
         return 0
     view = not args.si and sc.normalization is not None
     blocks = []
@@ -659,7 +658,7 @@ def _weights(sc, args):
     report.setdefault('optimum', {})['moment_rms_lower_bound_Nm'] = \
         opt.moment_rms_lower_bound_Nm
     if args.json:
-        print(json.dumps(report, indent=2))
+        print(jsonout.dumps(report))
         return 0
     print(rggr_report.format_report(report))
     print(f'certificate: RMS shaking moment {opt.moment_rms_optimal_Nm:.9g} N m, safe lower '
@@ -706,7 +705,7 @@ def _spatial(sc, args):
     if args.output:
         spatial.write_scene(design.result, args.output)
     if args.json:
-        print(json.dumps(design.report, indent=2))
+        print(jsonout.dumps(design.report))
     else:
         print(format_spatial(design))
         if args.output:

@@ -6,7 +6,6 @@ A thin verb over :mod:`mech_balance.bags` (rosbag2 MCAP or sqlite3, or CSV) and
 scene).  The calibrated scene it writes loads in every other command and in the node.
 """
 
-import json
 import math
 import sys
 import time
@@ -106,7 +105,7 @@ def cmd_identify(args):
     from mech_balance.ros import bags
     from mech_balance import atomic, schema as scene_mod
     from mech_balance.analysis import identify
-    from mech_balance.cli import main as cli
+    from mech_balance.cli import jsonout, main as cli
     if args.output:
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
     sc = scene_mod.load(args.scene)
@@ -151,7 +150,7 @@ def cmd_identify(args):
         report.update(source=rec.source, joint=rec.joint, read_time_s=read_s,
                       identify_time_s=solve_s, sensor_pose=pose_text,
                       output=args.output if args.output and result.realizable else None)
-        print(json.dumps(_finite(report), indent=2))
+        print(jsonout.dumps(report))
     else:
         print(f'sensor: {pose_text}')
         print(identify.format_report(result))
@@ -162,17 +161,6 @@ def cmd_identify(args):
         if not args.json:
             print(f'calibrated scene written to {args.output}')
     return 0
-
-
-def _finite(obj):
-    """Return ``obj`` with NaN and infinities as None (JSON has neither)."""
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 if __name__ == '__main__':  # pragma: no cover - use `mech-balance identify`

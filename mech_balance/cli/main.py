@@ -6,13 +6,13 @@ line naming the field, the value and what was expected, and exits with status 2.
 """
 
 import argparse
-import json
 import math
 import os
 import sys
 import textwrap
 
 from mech_balance import conventions, paths, threads
+from mech_balance.cli import jsonout
 from mech_balance.schema.fields import MAX_ABS_VALUE
 
 EXIT_USAGE = 2
@@ -224,7 +224,7 @@ def cmd_analyze(args):
     requires(sc, 'mass_redistribution', **{'--design': args.design is not None})
     report = scene.kind_of(sc).implementation('analyze')(sc, args.samples, args.normalized,
                                                          args.design)
-    print(json.dumps(report.data, indent=2) if args.json else report.text)
+    print(jsonout.dumps(report.data) if args.json else report.text)
     for text in report.warnings:
         print(f'warning: {text}', file=sys.stderr)
     return 0

@@ -6,13 +6,12 @@ Thin: parse, call :mod:`mech_balance.analysis.simulation` or
 """
 
 import argparse
-import json
 import math
 import sys
 
 from mech_balance import conventions
 from mech_balance.analysis import studies
-from mech_balance.cli import main as cli
+from mech_balance.cli import jsonout, main as cli
 from mech_balance.core import integrators
 
 
@@ -93,7 +92,7 @@ def cmd_simulate(args):
     rep = simulation.simulate(args.scene, args.duration, method=args.method, rtol=args.rtol,
                               rhs=args.rhs)
     if args.json:
-        print(json.dumps(rep.summary, indent=2))
+        print(jsonout.dumps(rep.summary))
     else:
         print(simulation.format_report(rep, rows=args.rows))
     for text in rep.simulation.model.rig.linkage.warnings:
@@ -107,7 +106,7 @@ def cmd_accuracy(args):
     progress = (lambda s: print(s, file=sys.stderr, flush=True))  # noqa: E731
     result = accuracy.run(args.scene, args.sections, args.duration, progress=progress)
     if args.json:
-        print(json.dumps(accuracy.to_jsonable(result), indent=2))
+        print(jsonout.dumps(accuracy.to_jsonable(result)))
     else:
         print(accuracy.format_tables(result))
     return 0
