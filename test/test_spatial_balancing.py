@@ -11,7 +11,7 @@ import math
 
 from mech_balance import balancing, schema
 from mech_balance.analysis import rggr_report
-from mech_balance.balancing import rggr as rggr_balancing, spatial
+from mech_balance.balancing import defaults, rggr as rggr_balancing, spatial
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import regressor
 from mech_balance.core.rig import rig_for
@@ -318,17 +318,20 @@ def test_bad_options_are_named(rggr_rig, call, match):
 
 
 def test_tight_bounds_are_met_to_the_reported_violation(rggr_rig):
-    # the crank's mass fixed and its extent tiny: both bounds active at the optimum
+    # the crank's mass fixed and its extent at the least the range allows: both bounds
+    # active at the optimum
     sc = rggr_rig.scene
     tight = {'crank': (sc.crank.mass_kg, sc.crank.mass_kg)}
+    radius = defaults.EXTENT_FACTOR_RANGE[0] * sc.geometry.a1_m
     result = spatial.redistribute(rggr_rig, samples=SAMPLES, mass_bounds=tight,
-                                  extent_bounds={'crank': 1e-4})
+                                  extent_bounds={'crank': radius})
     k = 0
     m = result.theta[0]
     assert m == pytest.approx(sc.crank.mass_kg, rel=1e-7)
     # the extent bound holds: tr(Sigma) <= m r^2
     t = result.theta[10 * k:10 * k + 10]
-    excess = (0.5 * (t[4] + t[6] + t[9]) - m * 1e-8) / (sc.crank.mass_kg * sc.geometry.a1_m ** 2)
+    excess = (0.5 * (t[4] + t[6] + t[9]) - m * radius ** 2) / \
+        (sc.crank.mass_kg * sc.geometry.a1_m ** 2)
     assert excess <= 1e-15               # the returned design meets the bound
     assert result.certificate.max_violation <= 1e-8   # the solver's point, before the pull
     assert result.certificate.lower_bound <= result.certificate.primal
@@ -414,9 +417,9 @@ def test_spatial_written_scene_analyze_reproduces(tmp_path):
 
 
 @pytest.mark.parametrize('scene_name,mass_factors,extent_factor,weights', [
-    ('rggr', (1.0, 1.0), 1.5, (0.0, 1.0)), ('rggr', (1.0, 1.0), 5.0, (0.5, 0.5)),
+    ('rggr', (1.0, 1.0), 1.5, (0.0, 1.0)), ('rggr', (1.0, 1.0), 2.0, (0.5, 0.5)),
     ('rssr_skew', (1.0, 1.0), 0.3, (0.5, 0.5)), ('rssr_skew', (0.5, 10.0), 0.3, (1.0, 0.0)),
-    ('spatial_two_loop', (1.0, 1.0), 5.0, (0.5, 0.5))])
+    ('spatial_two_loop', (1.0, 1.0), 2.0, (0.5, 0.5))])
 def test_redistribution_over_the_option_range(scene_name, mass_factors, extent_factor, weights):
     # equal mass bounds and extreme extents: the design meets them, the bound holds, certified
     rig = rig_for(schema.load(scene_name))

@@ -39,8 +39,9 @@ import time
 import clarabel
 from mech_balance import schema
 from mech_balance.balancing import certificate, socp
-from mech_balance.balancing.defaults import DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_MASS_FACTOR, \
-    DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_WEIGHTS, PAPER_MASS_FACTORS
+from mech_balance.balancing.defaults import check_range, DEFAULT_DENSITY_KG_M3, \
+    DEFAULT_MAX_MASS_FACTOR, DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_WEIGHTS, EXTENT_FACTOR_RANGE, \
+    PAPER_MASS_FACTORS, SPATIAL_MASS_FACTOR_RANGE
 from mech_balance.conventions import cycle_angles, DEFAULT_SAMPLES, MAX_WEIGHT, rms
 from mech_balance.core import regressor
 from mech_balance.core.rig import rig_for
@@ -592,7 +593,10 @@ def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAP
         if prog.balanceable:
             theta = prog.project_null(theta)
         violation = checks.violation(theta)
-        theta, pull = checks.repair(theta, keep_force=bool(prog.balanceable))
+        theta, pull = checks.repair(
+            theta, keep_force=bool(prog.balanceable),
+            objective=lambda t: w[0] * np.linalg.norm(maps.force @ t) / units.force_N
+            + w[1] * np.linalg.norm(maps.moment @ t) / units.moment_Nm)
         options['violation_after_pull'] = checks.violation(theta)
         return _finish(rig, model, units, maps, prog, run, theta, model.build(theta), w,
                        samples, violation, pull, t_start,
@@ -617,7 +621,9 @@ def _best(prog, run, design):
 def _redistribution_program(model, maps, units, free_idx, w, mlo, mhi, extent, force_balanced):
     """Return the :class:`_Program` of a redistribution (variables per body: its basis)."""
     basis, orders, where = _design_columns(model, free_idx)
-    body_scale = _body_scales(model, free_idx, units)
+    units_k = {k: _program_units(model, k, mlo[k], mhi[k], extent[k]) for k in free_idx}
+    body_scale = np.concatenate([[units_k[k][0] * units_k[k][1] ** o
+                                  for o in model.bodies[k].orders] for k in sorted(free_idx)])
     offset = model.theta.copy()
     for k in free_idx:
         offset[10 * k:10 * k + 10] = 0.0
@@ -627,10 +633,10 @@ def _redistribution_program(model, maps, units, free_idx, w, mlo, mhi, extent, f
         body = model.bodies[k]
         cols = where[k]
         b_k = body.basis * body_scale[cols]
-        m0, r0 = _ref(model, k)
-        prog.mass_rows(cols, b_k, mlo[k], mhi[k], m0)
-        prog.psd(cols, b_k, m0, r0)
-        prog.extent(cols, b_k, extent[k], m0, r0)
+        m_k, r_k = units_k[k]
+        prog.mass_rows(cols, b_k, mlo[k], mhi[k], m_k)
+        prog.psd(cols, b_k, m_k, r_k)
+        prog.extent(cols, b_k, extent[k], m_k, r_k)
         # the box of every feasible point: lo <= m <= hi, |h_i| <= m r, |I_ij| <= m r^2 (on a
         # line from the point a: s <= |p| + |a|, so int s^2 dm <= m (r + |a|)^2 and
         # |int s dm| <= m (r + |a|), Cauchy-Schwarz with int |p|^2 dm <= m r^2)
@@ -641,6 +647,23 @@ def _redistribution_program(model, maps, units, free_idx, w, mlo, mhi, extent, f
             prog.box_hi[j] = size
     prog.balanceable = prog.force_null(maps) if force_balanced else None
     return prog
+
+
+def _program_units(model, k, m_lo, m_hi, radius):
+    """
+    Return (M, R): the units of body k's variables in the redistribution and its checks.
+
+    The rig's own units (the original mass m0 and reach r0, :func:`_ref`) moved into the
+    bounds: M = m0 clipped into [m_lo, m_hi], R = min(r0, radius) (on a line, radius plus the
+    line's offset from the origin).  A body whose mass is fixed at 1e3 m0 or must lie within
+    0.1 r0 of its origin then still has variables of order one at the optimum and a PSD
+    block ``D J D`` (D = diag(1/(sqrt(M) R) 1, 1/sqrt(M))) with entries of order one, and
+    its constraints are checked to round-off of its own size.  (In units of a wide bound,
+    1e6 m0, the solver stalls on the designs near m0 that the objective prefers.)
+    """
+    m0, r0 = _ref(model, k)
+    return (float(min(max(m0, m_lo), m_hi)),
+            float(min(r0, radius + model.bodies[k].line_offset_m)))
 
 
 # ============================================================================ (c) counterweights
@@ -1056,10 +1079,156 @@ def _fold_cones(run, lo, hi):
     bound; power: the dual cone {(u, v, w): (u/a)^a (v/(1-a))^(1-a) >= |w|} reached by
     scaling u, v up) and folded into the objective: for z_P in K*, q'x >= (q + A_P'z_P)'x -
     b_P'z_P on every feasible x, so a safe bound of the rest (zero, nonneg, soc) with q' =
-    q + A_P'z_P, minus b_P'z_P and its rounding bound, bounds the program.
+    q + A_P'z_P, minus b_P'z_P and its rounding bound, bounds the program.  Every dual point
+    gives a bound: the solver's and those of :func:`_refine_dual` are tried, the best kept.
     """
-    q, a, b = run.q, sp.csr_matrix(run.a), run.b
     z = np.asarray(run.sol.z, dtype=float)
+    best = _fold_at(run, z, lo, hi)
+    if not (math.isfinite(best[0]) and
+            abs(best[1].residual_term) <= certificate.REFINE_BELOW * max(1.0, abs(best[0]))):
+        for cand in _refine_dual(run, z):
+            out = _fold_at(run, cand, lo, hi)
+            if out[0] > best[0]:
+                best = out
+    return best
+
+
+REFINE_ROUNDS = 3
+"""Rounds of :func:`_refine_dual` (each re-projects onto K* and corrects what that undid)."""
+REFINE_WEIGHT_FLOOR = 1e-10
+"""The least weight of a dual entry in :func:`_refine_dual`, relative to the largest slack
+(the entries of active constraints, slack 0, move almost freely)."""
+
+
+def _refine_dual(run, z):
+    """
+    Return dual points whose residual ``r = q + A'z`` is removed where it costs least.
+
+    The bound (1) of :mod:`.certificate` pays each residual r_i with the box of x_i, which a
+    mass bound of 1e6 x the original makes wide.  A correction Delta with A'Delta = -r removes
+    it instead; at the solver's primal point (x, s = b - A x) the dual objective changes by
+    ``-b'Delta = r'x - s'Delta``: the residual at the point the solver found (not at the box's
+    corner) less ``s'Delta``, small when Delta lives on the active constraints.  So Delta is
+    the least ``sum w_i Delta_i^2`` with w_i the slack of row i (a PSD block in the eigenbasis
+    of its slack matrix S: entry (i, j) weighted (lambda_i + lambda_j)/2, the diagonal ones
+    being exactly <S, Delta Z>), plus a floor.  Projecting z + Delta back onto K* may undo a
+    little of it; a few rounds.  Only a heuristic for choosing z: each point is certified by
+    :func:`_fold_at` as any other (any z in K* gives a bound).
+    """
+    a = sp.csr_matrix(run.a).toarray()
+    m = a.shape[0]
+    s = np.asarray(run.sol.s, dtype=float)
+    if s.size != m or not np.all(np.isfinite(s)) or not np.all(np.isfinite(z)):
+        return []
+    floor = REFINE_WEIGHT_FLOOR * max(float(np.abs(s).max(initial=0.0)), 1e-300)
+    rot = np.eye(m)
+    weight = np.full(m, floor)
+    start = 0
+    for kind, n in run.layout:
+        rows = slice(start, start + n)
+        blk = s[rows]
+        if kind == 'nonneg':
+            weight[rows] += np.maximum(blk, 0.0)
+        elif kind == 'psd':
+            vals, vecs = np.linalg.eigh(_smat(blk))
+            vals = np.maximum(vals, 0.0)
+            basis = np.zeros((n, n))
+            for col, (i, j) in enumerate(SVEC):
+                e = np.outer(vecs[:, i], vecs[:, j])
+                e = e if i == j else (e + e.T) / math.sqrt(2.0)
+                basis[:, col] = _svec(e)
+                weight[start + col] += 0.5 * (vals[i] + vals[j])
+            rot[rows, rows] = basis
+        elif kind != 'zero':
+            weight[rows] += float(np.linalg.norm(blk))
+        start += n
+    root = np.sqrt(weight)
+    scaled = (rot.T @ a) / root[:, None]          # rows of A' in the rotated, weighted entries
+    out = []
+    for _ in range(REFINE_ROUNDS):
+        zp = _project_all(z, run)
+        r = run.q + a.T @ zp
+        u, *_ = np.linalg.lstsq(scaled.T, -r, rcond=None)
+        z = zp + rot @ (u / root)
+        if not np.all(np.isfinite(z)):
+            break
+        out.append(z)
+    return out
+
+
+def _project_all(z, run):
+    """Return z with every block moved into its dual cone (as the certificate does)."""
+    out = _compress(np.array(z, dtype=float), run)
+    start = 0
+    for kind, n in run.layout:
+        rows = slice(start, start + n)
+        out[rows] = DUAL_CONES[kind](out[rows]) if kind in DUAL_CONES else \
+            certificate.project_dual(out[rows], [(kind, n)])
+        start += n
+    return out
+
+
+STRUCTURAL_RANK_REL = 1e-12
+"""Singular values of a PSD block's matrices below this fraction of the largest span no
+direction of its structural range (:func:`_psd_ranges`)."""
+
+
+def _psd_ranges(run):
+    """
+    Return ``{first row: P}``: the projector onto the range every J(y) of a PSD block spans.
+
+    A body on a line (:func:`line_basis`) has J(y) of rank 2 for every y: the dual entries in
+    the other directions enter no residual, and the solver leaves them large (1e4 where the
+    dual objective is 1e-10).  Compressed onto the range (P Z P, PSD when Z is), they no
+    longer scale the rounding shift of :func:`_dual_psd`.  None for a full-rank block.
+    """
+    cached = getattr(run, 'psd_ranges', None)
+    if cached is not None:
+        return cached
+    a = sp.csc_matrix(run.a)
+    out, start = {}, 0
+    for kind, n in run.layout:
+        if kind == 'psd':
+            blk = a[start:start + n].toarray()
+            mats = [_smat(col) for col in blk.T if np.any(col)]
+            if mats:
+                u, sv, _ = np.linalg.svd(np.hstack(mats))
+                rank = int(np.sum(sv > STRUCTURAL_RANK_REL * sv[0])) if sv[0] > 0 else 0
+                if rank < 4:
+                    out[start] = u[:, :rank] @ u[:, :rank].T
+        start += n
+    run.psd_ranges = out
+    return out
+
+
+def _compress(z, run):
+    """Return z with each rank-deficient PSD block's dual compressed onto its range."""
+    ranges = _psd_ranges(run)
+    if not ranges:
+        return z
+    z = np.array(z, dtype=float)
+    for start, proj in ranges.items():
+        z[start:start + 10] = _svec(proj @ _smat(z[start:start + 10]) @ proj)
+    return z
+
+
+def _smat(v):
+    """Return the symmetric 4x4 matrix of a Clarabel svec (off-diagonals over sqrt(2))."""
+    m = np.zeros((4, 4))
+    for x, (i, j) in zip(v, SVEC):
+        m[i, j] = m[j, i] = x if i == j else x / math.sqrt(2.0)
+    return m
+
+
+def _svec(m):
+    """Return Clarabel's svec of a symmetric 4x4 matrix (off-diagonals times sqrt(2))."""
+    return np.array([m[i, j] if i == j else m[i, j] * math.sqrt(2.0) for i, j in SVEC])
+
+
+def _fold_at(run, z, lo, hi):
+    """Return (value, LowerBound, fold rounding) of :func:`_fold_cones` at one dual point."""
+    q, a, b = run.q, sp.csr_matrix(run.a), run.b
+    z = _compress(z, run)
     keep, rest_cones, fold_rows, fold_z = [], [], [], []
     start = 0
     for kind, n in run.layout:
@@ -1264,7 +1433,7 @@ class _RealizableChecks:
 
     def _body(self, theta, k):
         t = theta[10 * k:10 * k + 10]
-        m0, r0 = _ref(self.model, k)
+        m0, r0 = _program_units(self.model, k, self.mlo[k], self.mhi[k], self.extent[k])
         d = np.array([1.0 / (math.sqrt(m0) * r0)] * 3 + [1.0 / math.sqrt(m0)])
         j = regressor.pseudo_inertia(t) * np.outer(d, d)
         eig = np.linalg.eigvalsh(j)
@@ -1276,47 +1445,95 @@ class _RealizableChecks:
         """Return the worst constraint violation, >= 0 (units of each body's mass and reach)."""
         return float(max([0.0] + [max(self._body(theta, k)) for k in self.free]))
 
-    def anchor(self):
-        """Return a design strictly inside every bound (mass mid-range, spread m r^2 / 6)."""
+    def anchor(self, near=None):
+        """
+        Return a design strictly inside every bound.
+
+        Without ``near``: each body's mass mid-range, first moment 0, spread m r^2 / 6.
+        With it (the design being repaired), each body keeps its mass clipped into its bounds
+        and (a full body) its first moment h, shrunk to |h| <= m r / 2, with the spread
+        ``Sigma = h h^T / m + c 1``, ``c = (m r^2 - |h|^2 / m) / 6``: J is then positive
+        definite and tr Sigma < m r^2.  The shaking force depends on m and h only, so a pull
+        towards this anchor leaves it as the solver made it (a complete force balance of 1e3
+        x heavier bodies stays one), and moves the rest by the fraction pulled of its size.
+        """
         theta = self.model.theta.copy()
         for k in self.free:
             body = self.model.bodies[k]
-            m = 0.5 * (self.mlo[k] + self.mhi[k])
+            m = 0.5 * (self.mlo[k] + self.mhi[k]) if near is None else \
+                min(max(float(near[10 * k]), self.mlo[k]), self.mhi[k])
             r2 = self.extent[k] ** 2
             if body.basis.shape[1] == 10:
-                target = np.array([m, 0, 0, 0, m * r2 / 3, 0, m * r2 / 3, 0, 0, m * r2 / 3])
+                h = np.zeros(3) if near is None else np.array(near[10 * k + 1:10 * k + 4])
+                size = float(np.linalg.norm(h))
+                if size > 0.5 * m * math.sqrt(r2):
+                    h = h * (0.5 * m * math.sqrt(r2) / size)
+                sigma = np.outer(h, h) / m + (m * r2 - float(h @ h) / m) / 6.0 * np.eye(3)
+                i_o = np.trace(sigma) * np.eye(3) - sigma
+                target = np.array([m, *h, i_o[0, 0], i_o[0, 1], i_o[1, 1], i_o[0, 2],
+                                   i_o[1, 2], i_o[2, 2]])
                 theta[10 * k:10 * k + 10] = target
-            else:   # a body on a line: its first-moment column 0, its second moment m r^2/4
-                y = np.zeros(body.basis.shape[1])
-                y[0], y[-1] = m, 0.0
-                base = body.basis @ y
-                room = r2 - 0.5 * (base[4] + base[6] + base[9]) / m
-                y[-1] = m * max(room, 0.0) / 2.0
-                theta[10 * k:10 * k + 10] = body.basis @ y
+            else:   # a body on a line (m, its first and second moment along it)
+                theta[10 * k:10 * k + 10] = body.basis @ self._line_anchor(body, m, r2, near, k)
         return theta
+
+    @staticmethod
+    def _line_anchor(body, m, r2, near, k):
+        """
+        Return y = (m, mu1, mu2) of a body on a line strictly inside its bounds.
+
+        J is PSD exactly when [[m, mu1], [mu1, mu2]] is: mu2 = mu1^2 / m + c with c > 0 half
+        the room the extent bound leaves (tr Sigma is linear in y); mu1 is the design's
+        (``near``), halved until there is room (0: the anchor without a design).
+        """
+        def spread(y):
+            t = body.basis @ y
+            return 0.5 * (t[4] + t[6] + t[9])
+        mu1 = 0.0 if near is None else float(_coordinates(body, near[10 * k:10 * k + 10])[1])
+        for _ in range(60):
+            y = np.array([m, mu1, mu1 * mu1 / m])
+            unit = spread(np.array([0.0, 0.0, 1.0]))
+            room = m * r2 - spread(y)
+            if room > 0.0 and unit > 0.0:
+                y[2] += 0.5 * room / unit
+                return y
+            mu1 = 0.0 if abs(mu1) < 1e-300 else 0.5 * mu1
+        return np.array([m, 0.0, 0.0])
 
     def feasible(self, theta):
         """Return True if theta meets every constraint to :data:`VIOLATION_TOL`."""
         return self.violation(theta) <= VIOLATION_TOL
 
     def clip_masses(self, theta):
-        """Return theta with each free body scaled into its mass bounds (keeps J PSD, extent)."""
+        """
+        Return theta with each free body's mass clipped into its bounds.
+
+        A full body: the mass alone (its first moment, which the shaking force sees with it,
+        stays; J and the extent are the pull's to restore).  A body on a line: scaled (its
+        mass column carries first and second moments too; keeps J PSD and the extent).
+        """
         theta = theta.copy()
         for k in self.free:
             m = theta[10 * k]
             target = min(max(m, self.mlo[k]), self.mhi[k])
             if m > 0.0 and target != m:
-                theta[10 * k:10 * k + 10] *= target / m
+                if self.model.bodies[k].basis.shape[1] == 10:
+                    theta[10 * k] = target
+                else:
+                    theta[10 * k:10 * k + 10] *= target / m
         return theta
 
-    def repair(self, theta, keep_force=False):
+    def repair(self, theta, keep_force=False, objective=None):
         """
         Return (theta, pull): theta moved onto the feasible set where round-off left it.
 
-        Without equality constraints: each body scaled into its mass bounds, then the least
-        fraction ``pull`` of the way to the :meth:`anchor` (a convex set holds the segment;
-        bisection).  With the force balance imposed: spread along the inertia only (which the
-        force map does not see).
+        First each body's mass clipped into its bounds, then the least spread along the
+        inertia (which the force map does not see) that makes each J PSD; ``pull`` is then
+        that spread (units of the body's M R^2, :func:`_program_units`).  Where that breaks
+        the extent bound (without equality constraints): the least fraction ``pull`` of the
+        way to the :meth:`anchor` (a convex set holds the segment; bisection).  A solver
+        point 1e-9 outside a PSD cone of a body 1e3 x heavier than the original is thus moved
+        by 1e-9 of its own inertia, not towards an anchor whose inertia is m r^2.
         """
         if self.feasible(theta):
             return theta, 0.0
@@ -1324,23 +1541,37 @@ class _RealizableChecks:
             theta = self.clip_masses(theta)
             if self.feasible(theta):
                 return theta, 0.0
+        spread, worst = self._spread(theta)
+        if keep_force:
+            return spread, worst
+        found = [(spread, worst)] if self.feasible(spread) else []
+        anchor = self.anchor(theta)
+        if not self.feasible(anchor):
             anchor = self.anchor()
-            if self.feasible(anchor):
-                lo, hi = 0.0, 1.0
-                for _ in range(REPAIR_STEPS):
-                    mid = 0.5 * (lo + hi)
-                    if self.feasible((1 - mid) * theta + mid * anchor):
-                        hi = mid
-                    else:
-                        lo = mid
-                return (1 - hi) * theta + hi * anchor, hi
+        if self.feasible(anchor):
+            lo, hi = 0.0, 1.0
+            for _ in range(REPAIR_STEPS):
+                mid = 0.5 * (lo + hi)
+                if self.feasible((1 - mid) * theta + mid * anchor):
+                    hi = mid
+                else:
+                    lo = mid
+            found.append(((1 - hi) * theta + hi * anchor, hi))
+        if not found:
+            return spread, worst
+        if objective is None:
+            return found[0]
+        return min(found, key=lambda pair: objective(pair[0]))   # both feasible: the better
+
+    def _spread(self, theta):
+        """Return (theta, step): each body's least isotropic spread that makes J PSD."""
         theta = theta.copy()
         worst = 0.0
         for k in self.free:
             if self._body(theta, k)[2] <= VIOLATION_TOL:
                 continue
             body = self.model.bodies[k]
-            m0, r0 = _ref(self.model, k)
+            m0, r0 = _program_units(self.model, k, self.mlo[k], self.mhi[k], self.extent[k])
             spread = body.basis @ _coordinates(body, np.array([0, 0, 0, 0, 2, 0, 2, 0, 0, 2.0]))
             step = max(self._body(theta, k)[2], np.finfo(float).eps) * m0 * r0 * r0
             for _ in range(REPAIR_STEPS):
@@ -1410,11 +1641,21 @@ def _weights(weights):
     return w1, w2
 
 
+def _checked(name, value, lowest, highest, unit=''):
+    """Return :func:`defaults.check_range` of a value, its ValueError a SpatialBalanceError."""
+    try:
+        return check_range(name, value, lowest, highest, unit)
+    except ValueError as err:
+        raise SpatialBalanceError(str(err)) from None
+
+
 def _mass_bounds(model, free_idx, given, factors):
     lo_f, hi_f = (float(x) for x in factors)
     if not (0.0 < lo_f <= hi_f and math.isfinite(hi_f)):
         raise SpatialBalanceError(f'mass_factors: got {factors!r}, expected 0 < lo <= hi, '
                                   'finite')
+    for value in (lo_f, hi_f):
+        _checked('mass_factors', value, *SPATIAL_MASS_FACTOR_RANGE)
     given = dict(given or {})
     mlo, mhi = {}, {}
     for k in free_idx:
@@ -1425,6 +1666,13 @@ def _mass_bounds(model, free_idx, given, factors):
         if not (0.0 < lo <= hi and math.isfinite(hi)):
             raise SpatialBalanceError(f'mass_bounds.{name}: got ({lo:g}, {hi:g}), expected '
                                       '0 < lo <= hi, finite (kg)')
+        low, high = SPATIAL_MASS_FACTOR_RANGE
+        for value in (lo, hi):
+            if not low * m0 * (1 - 1e-12) <= value <= high * m0 * (1 + 1e-12):
+                raise SpatialBalanceError(
+                    f'mass_bounds.{name}: got {value:g} kg, expected a mass in [{low:g}, '
+                    f'{high:g}] x its original {m0:g} kg (defaults.SPATIAL_MASS_FACTOR_RANGE:'
+                    ' the range in which the program certifies)')
         mlo[k], mhi[k] = lo, hi
     if given:
         raise SpatialBalanceError(f'mass_bounds: got {sorted(given)[0]!r}, expected a free '
@@ -1433,17 +1681,22 @@ def _mass_bounds(model, free_idx, given, factors):
 
 
 def _extent_bounds(model, free_idx, given, factor):
-    factor = float(factor)
-    if not (math.isfinite(factor) and factor > 0.0):
-        raise SpatialBalanceError(f'extent_factor: got {factor!r}, expected a finite number > 0')
+    factor = _checked('extent_factor', factor, *EXTENT_FACTOR_RANGE)
     given = dict(given or {})
     out = {}
+    low, high = EXTENT_FACTOR_RANGE
     for k in free_idx:
         name = model.bodies[k].name
-        r = float(given.pop(name, factor * model.bodies[k].reach_m))
+        reach = model.bodies[k].reach_m
+        r = float(given.pop(name, factor * reach))
         if not (math.isfinite(r) and r > 0.0):
             raise SpatialBalanceError(f'extent_bounds.{name}: got {r!r}, expected a finite '
                                       'radius > 0 (m)')
+        if not low * reach * (1 - 1e-12) <= r <= high * reach * (1 + 1e-12):
+            raise SpatialBalanceError(
+                f'extent_bounds.{name}: got {r:g} m, expected a radius in [{low:g}, {high:g}] '
+                f'x its reach {reach:g} m (defaults.EXTENT_FACTOR_RANGE: the range in which '
+                'the program certifies)')
         out[k] = r
     if given:
         raise SpatialBalanceError(f'extent_bounds: got {sorted(given)[0]!r}, expected a free '

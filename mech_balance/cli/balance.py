@@ -111,7 +111,10 @@ def register(subparsers):
     p.add_argument('--mass-factors', nargs=2, type=float, metavar=('LO', 'HI'),
                    default=defaults.PAPER_MASS_FACTORS,
                    help='link mass bounds as factors of the original masses (range '
-                        f'{defaults.BOUND_RATIO_RANGE[0]:g} to {defaults.BOUND_RATIO_RANGE[1]:g})')
+                        f'{defaults.BOUND_RATIO_RANGE[0]:g} to {defaults.BOUND_RATIO_RANGE[1]:g}; '
+                        'spatial redistribution '
+                        f'{defaults.SPATIAL_MASS_FACTOR_RANGE[0]:g} to '
+                        f'{defaults.SPATIAL_MASS_FACTOR_RANGE[1]:g})')
     p.add_argument('--distance-factors', nargs=2, type=float, metavar=('LO', 'HI'),
                    default=defaults.PAPER_DISTANCE_FACTORS,
                    help='point-mass distance bounds as factors of the original l = sqrt(I_O/m) '
@@ -182,7 +185,9 @@ def register(subparsers):
                         '--counterweights LINKS)')
     p.add_argument('--extent-factor', type=float, default=1.5, metavar='F',
                    help="spatial redistribution: RMS distance of each body's mass from its "
-                        'origin at most F x its reach (farthest drawn point), F > 0')
+                        'origin at most F x its reach (farthest drawn point); range '
+                        f'{defaults.EXTENT_FACTOR_RANGE[0]:g} to '
+                        f'{defaults.EXTENT_FACTOR_RANGE[1]:g}')
     p.add_argument('--force-balanced', action='store_true',
                    help='spatial redistribution: impose complete force balance (falls back '
                         'to the least RMS shaking force, with a note, when impossible)')
@@ -685,6 +690,11 @@ def _spatial(sc, args):
     if method == 'force_balance':
         options['free'] = tuple(args.free) or None
     elif method == 'redistribution':
+        # checked where read, before the solve (spatial.redistribute checks them again)
+        defaults.check_range('--extent-factor', args.extent_factor,
+                             *defaults.EXTENT_FACTOR_RANGE)
+        for value in args.mass_factors:
+            defaults.check_range('--mass-factors', value, *defaults.SPATIAL_MASS_FACTOR_RANGE)
         options.update(weights=weights, mass_factors=tuple(args.mass_factors),
                        fixed_links=tuple(args.fix), extent_factor=args.extent_factor,
                        force_balanced=args.force_balanced)
