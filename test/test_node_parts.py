@@ -16,7 +16,7 @@ import sys
 import threading
 
 from geometry_msgs.msg import WrenchStamped
-from mech_balance import conventions, identifiers
+from mech_balance import balancing, conventions, identifiers
 from mech_balance import schema as scene_mod
 from mech_balance.ros import balance_service, conversions as conv, description, diagnostics
 from mech_balance.ros import live, parameters, params
@@ -346,6 +346,27 @@ def test_scene_switch_conflicts_name_the_refuted_options():
     assert parameters.scene_conflicts(params.defaults(), model) == {}
 
 
+def test_spatial_mass_factors_are_checked_against_the_spatial_range():
+    """
+    Check balance.mass_factors against the range of the scene's redistribution.
+
+    Up to 1e6 holds for a planar rig; a spatial one's redistribution certifies up to 100
+    (defaults.SPATIAL_MASS_FACTOR_RANGE): refused where set, cleared on a switch to a
+    spatial scene.
+    """
+    values = params.defaults()
+    values['balance.mass_factors'] = [1.0, 1e6]
+    assert parameters.scene_conflicts(values, parameters.build_model('hoeken')) == {}
+    spatial = parameters.build_model('rssr_skew')
+    out = parameters.scene_conflicts(values, spatial)
+    assert set(out) == {'balance.mass_factors'}
+    assert '1e+06, outside [1e-06, 100]' in out['balance.mass_factors']
+    values['balance.mass_factors'] = [1.0, 100.0]
+    assert parameters.scene_conflicts(values, spatial) == {}
+    assert balancing.option_ranges(spatial.rig, 'counterweights') == {}
+    assert balancing.option_ranges(parameters.build_model('hoeken').rig, 'redistribution') == {}
+
+
 # ------------------------------------------------------------------------------ with a node
 
 
@@ -381,6 +402,13 @@ def test_parameters_hold_a_link_of_the_scene_to_come(node):
     # an invalid held value is not declared (rclpy then refuses it as undeclared)
     part.coerce([Parameter('balance.links.slide.mass_bounds', value=[3.0, 1.0])])
     assert not node.has_parameter('balance.links.slide.mass_bounds')
+    # a spatial scene's redistribution refuses mass factors above its certified range
+    rssr = parameters.build_model('rssr_skew')
+    with pytest.raises(ValueError, match=r'balance.mass_factors: got \[1.0, 1000.0\].*'
+                       r'outside \[1e-06, 100\]'):
+        part.check([Parameter('balance.mass_factors', value=[1.0, 1e3])], rssr)
+    assert part.check([Parameter('balance.mass_factors', value=[1.0, 1e3])],
+                      parameters.build_model('hoeken')).successful
 
 
 def test_balancer_answers_busy_while_a_run_is_in_progress(node):

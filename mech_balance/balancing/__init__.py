@@ -31,7 +31,8 @@ The defaults of every option are :mod:`mech_balance.balancing.defaults`'s.
 from dataclasses import dataclass
 
 from mech_balance.balancing.defaults import CENTROIDAL_MARGIN, DEFAULT_MAX_GYRATION_FACTOR, \
-    DEFAULT_MAX_THICKNESS_M, DEFAULT_WEIGHTS, PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS
+    DEFAULT_MAX_THICKNESS_M, DEFAULT_WEIGHTS, PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS, \
+    SPATIAL_MASS_FACTOR_RANGE
 
 METHODS = {
     'redistribution': 'mass_redistribution',
@@ -109,6 +110,25 @@ def _table_figures(table, certificate):
 
 def _supports(method, caps):
     return METHODS[method] in caps or ALTERNATIVES.get(method) in caps
+
+
+SPATIAL_RANGES = {'redistribution': {'mass_factors': SPATIAL_MASS_FACTOR_RANGE}}
+"""Options whose range is narrower in the spatial implementation of a method (measured where
+it certifies: :data:`mech_balance.balancing.defaults.SPATIAL_MASS_FACTOR_RANGE`)."""
+
+
+def option_ranges(rig, method):
+    """
+    Return ``{option: (low, high)}``: the ranges of ``method`` on ``rig`` narrower than usual.
+
+    Empty but where the rig is balanced by the spatial implementation of the method (it has
+    the method through :data:`ALTERNATIVES` only): the node checks these where a parameter
+    is set, as the command line does where it reads the option.
+    """
+    caps = rig.capabilities
+    if METHODS.get(method) in caps or ALTERNATIVES.get(method) not in caps:
+        return {}
+    return dict(SPATIAL_RANGES.get(method, {}))
 
 
 def _certificate_text(cert):

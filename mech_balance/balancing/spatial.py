@@ -1124,12 +1124,12 @@ def _refine_dual(run, z):
     rot = np.eye(m)
     weight = np.full(m, floor)
     start = 0
-    for kind, n in run.layout:
+    for cone, n in run.layout:
         rows = slice(start, start + n)
         blk = s[rows]
-        if kind == 'nonneg':
+        if cone == 'nonneg':
             weight[rows] += np.maximum(blk, 0.0)
-        elif kind == 'psd':
+        elif cone == 'psd':
             vals, vecs = np.linalg.eigh(_smat(blk))
             vals = np.maximum(vals, 0.0)
             basis = np.zeros((n, n))
@@ -1139,7 +1139,7 @@ def _refine_dual(run, z):
                 basis[:, col] = _svec(e)
                 weight[start + col] += 0.5 * (vals[i] + vals[j])
             rot[rows, rows] = basis
-        elif kind != 'zero':
+        elif cone != 'zero':
             weight[rows] += float(np.linalg.norm(blk))
         start += n
     root = np.sqrt(weight)
@@ -1160,10 +1160,10 @@ def _project_all(z, run):
     """Return z with every block moved into its dual cone (as the certificate does)."""
     out = _compress(np.array(z, dtype=float), run)
     start = 0
-    for kind, n in run.layout:
+    for cone, n in run.layout:
         rows = slice(start, start + n)
-        out[rows] = DUAL_CONES[kind](out[rows]) if kind in DUAL_CONES else \
-            certificate.project_dual(out[rows], [(kind, n)])
+        out[rows] = DUAL_CONES[cone](out[rows]) if cone in DUAL_CONES else \
+            certificate.project_dual(out[rows], [(cone, n)])
         start += n
     return out
 
@@ -1187,8 +1187,8 @@ def _psd_ranges(run):
         return cached
     a = sp.csc_matrix(run.a)
     out, start = {}, 0
-    for kind, n in run.layout:
-        if kind == 'psd':
+    for cone, n in run.layout:
+        if cone == 'psd':
             blk = a[start:start + n].toarray()
             mats = [_smat(col) for col in blk.T if np.any(col)]
             if mats:

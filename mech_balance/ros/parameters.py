@@ -10,7 +10,7 @@ naming the parameter, the value and what was expected.  Applying an accepted upd
 node's (it wires the parts).
 """
 
-from mech_balance import schema as scene_mod
+from mech_balance import balancing, schema as scene_mod
 from mech_balance.ros import conversions as conv, description, params
 from mech_balance.ros.balance_service import balance_method
 from rcl_interfaces.msg import SetParametersResult
@@ -36,7 +36,8 @@ def link_names(model):
 
 
 SCENE_DEPENDENT = ('balance.fixed_links', 'balance.counterweight_links',
-                   'balance.mass_bounds', 'balance.distance_bounds', 'balance.method')
+                   'balance.mass_bounds', 'balance.distance_bounds', 'balance.method',
+                   'balance.mass_factors')
 """Parameters that name links of the scene (or a method it must have): revalidated when the
 scene switches, and cleared to their default (with an info line) where they no longer hold."""
 
@@ -55,9 +56,29 @@ def scene_conflicts(values, model):
         if strangers:
             out[name] = f'names {", ".join(strangers)}, not a link of the scene'
     try:
-        balance_method(values, model.rig)
+        method = balance_method(values, model.rig)
     except ValueError as exc:
         out['balance.method'] = str(exc)
+        return out
+    for name, reason in range_conflicts(values, model, method).items():
+        out[name] = reason
+    return out
+
+
+def range_conflicts(values, model, method):
+    """
+    Return ``{name: reason}`` of the ``balance.*`` values outside ``method``'s ranges here.
+
+    The ranges are :func:`mech_balance.balancing.option_ranges` of the rig: the spatial
+    redistribution's mass factors.
+    """
+    out = {}
+    for option, (low, high) in balancing.option_ranges(model.rig, method).items():
+        name = f'balance.{option}'
+        outside = [v for v in values[name] if not low <= v <= high]
+        if outside:
+            out[name] = (f'has {outside[0]:g}, outside [{low:g}, {high:g}] for the '
+                         f'{method} of scene {model.scene.name!r}')
     return out
 
 
@@ -177,7 +198,10 @@ class NodeParameters:
             candidate = {k: v for k, v in candidate.items() if not k.startswith(
                 params.LINK_PREFIX) or k[:k.rindex('.') + 1] in own}
         check_link_options(candidate, model)
-        balance_method(candidate, model.rig)
+        method = balance_method(candidate, model.rig)
+        for name, reason in range_conflicts(candidate, model, method).items():
+            raise ValueError(f'{name}: got {list(candidate[name])}, which {reason} '
+                             '(balancing.defaults.SPATIAL_MASS_FACTOR_RANGE)')
         params.check_together(candidate)
         return SetParametersResult(successful=True)
 
