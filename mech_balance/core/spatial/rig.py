@@ -10,8 +10,8 @@ joint, 0 on every other (frictionless joints).  The driving effort is a torque a
 revolute input's axis (N m, series ``driving_torque``) or a force along a prismatic input's
 axis (N, series ``driving_force``); :attr:`SpatialRig.driving_series` names the one a rig
 reports (:data:`mech_balance.schema.scene.SERIES` holds its label and dimension).  The
-shaking wrench is reduced to the scene's ``moment_point_m``.  ``body_kinematics`` returns :class:`~mech_balance.core.rig.BodyKinematics`
-for spatial balancing and identification.
+shaking wrench is reduced to the scene's ``moment_point_m``.  ``body_kinematics`` returns
+:class:`~mech_balance.core.rig.BodyKinematics` for spatial balancing and identification.
 """
 
 from mech_balance.core.rig import batch, BodyKinematics, BodyPoses, Drawing, DrawingBody, \
