@@ -434,8 +434,8 @@ class Linkage:
         s, s1, s2 = stroke_law(self.stroke_m, psi)
         return s, s1 * psi_d, s2 * psi_d * psi_d + s1 * psi_dd
 
-    def _input_coordinate(self, psi, psi_d, psi_dd):
-        """Return :meth:`input_motion` as tree coordinate 0 and its rates."""
+    def input_coordinate(self, psi, psi_d, psi_dd):
+        """Return :meth:`input_motion` as tree coordinate 0 and its rates (the solver's)."""
         x, xd, xdd = self.input_motion(psi, psi_d, psi_dd)
         if self.input_sign < 0.0:
             return -x, -xd, -xdd
@@ -1077,7 +1077,7 @@ class Linkage:
             if self.periodic:
                 psi = sk.psi[0] + TWO_PI * np.arange(count + 1) / count
             else:  # the stroke at the yoke's angles of half a turn, ascending in x
-                psi = np.sort(self._input_coordinate(
+                psi = np.sort(self.input_coordinate(
                     math.pi * np.arange(count // 2 + 1) / (count // 2), 0.0, 0.0)[0])
             k, h = sk.nearest(psi)
             qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
@@ -1123,7 +1123,7 @@ class Linkage:
                 continue
             vals = tree_values(t, rel, d)
             q[0, list(t.dofs)] = vals
-        q[0, 0] = self._input_coordinate(sc.assembly_crank_angle_rad, 0.0, 0.0)[0]
+        q[0, 0] = self.input_coordinate(sc.assembly_crank_angle_rad, 0.0, 0.0)[0]
         return q, sph
 
     def _assemble(self):
@@ -1426,7 +1426,7 @@ class Linkage:
 
     def _trace_stroke(self, start):
         """Return the branch of a prismatic input over its stroke, from the assembly out."""
-        ends = sorted(self._input_coordinate(np.array([0.0, math.pi]), 0.0, 0.0)[0])
+        ends = sorted(self.input_coordinate(np.array([0.0, math.pi]), 0.0, 0.0)[0])
         x0 = start[0][0, 0]
         q, sph, qd, qdd, _ = start
         below = list(self._advance(q, sph, qd, qdd, self.branch_sign, ends[0] - x0))
@@ -1445,7 +1445,7 @@ class Linkage:
         psi = np.asarray(psi, dtype=float)
         psi_d = np.broadcast_to(np.asarray(psi_d, dtype=float), psi.shape)
         psi_dd = np.broadcast_to(np.asarray(psi_dd, dtype=float), psi.shape)
-        x, x_d, x_dd = self._input_coordinate(psi, psi_d, psi_dd)
+        x, x_d, x_dd = self.input_coordinate(psi, psi_d, psi_dd)
         sk = self.dense
         k, h = sk.nearest(x)
         if h.any():
