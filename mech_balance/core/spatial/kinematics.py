@@ -1374,7 +1374,7 @@ class Linkage:
         return np.max(np.abs(diff), axis=(1, 2, 3))
 
     def _advance(self, q, sph, qd, qdd, sign, h_goal, strict=True):
-        """Follow the branch from one state by ``h_goal`` rad; return the new node."""
+        """Follow the branch from one state by ``h_goal`` (rad, or m for a slide); yield nodes."""
         done = 0.0
         h = min(self.step_max, abs(h_goal)) * np.sign(h_goal)
         while abs(h_goal - done) > 1e-13:
@@ -1394,7 +1394,7 @@ class Linkage:
                     raise SpatialError(
                         f'{self._where(q[0, 0])}: cannot continue the '
                         f'assembly branch (Newton residual {res[0]:.2e}); the linkage cannot '
-                        'be assembled beyond this angle, or reaches a singular position '
+                        'be assembled beyond this position, or reaches a singular position '
                         'where its branch is not unique')
                 continue
             done += h
