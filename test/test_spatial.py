@@ -10,6 +10,7 @@ so that the acceleration terms are exercised too.
 
 import copy
 import math
+import re
 import warnings
 
 from mech_balance import schema
@@ -773,3 +774,28 @@ def test_stroke_round_trips_bit_for_bit():
     again = schema.from_dict(yaml.safe_load(schema.to_yaml(sc)), source=sc.source)
     assert again == sc
     assert again.crank_stroke_m == (math.pi / 1000.0, 0.1 + 0.2 - 0.24)
+
+
+def test_prismatic_input_near_its_reach_is_flagged_naming_the_slide():
+    """Grow the stroke towards the linkage's reach: the slide there is flagged near-singular."""
+    data = copy.deepcopy(_load_data('pssr_skew'))
+    lo, hi = data['crank']['stroke_m'][1], 0.3
+    best = None
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        data['crank']['stroke_m'][1] = mid
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter('always', RuntimeWarning)
+            try:
+                rig = rig_for(spatial_from_dict(data), cache=False)
+                d = rig.at(np.linspace(0.0, 2.0 * np.pi, 360, endpoint=False))
+            except SpatialError:
+                hi = mid
+                continue
+        lo = mid
+        best = (d, [str(w.message) for w in caught])
+    d, messages = best
+    assert np.array_equal(d.near_singular, d.condition > kinematics.COND_WARN)
+    assert d.near_singular.any() and d.near_singular[180]   # psi = 180 deg: s = s_max
+    assert any(re.match(r'input slide 0\.\d+ m: near-singular', m) for m in messages)
+    assert np.all(d.residual <= kinematics.NEWTON_TOL)
