@@ -190,7 +190,7 @@ def test_compare_report_passes(bench_mujoco):
 
 # ----------------------------------------------------------------------------- spatial built-ins
 
-SPATIAL = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop')
+SPATIAL = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop', 'pssr_skew')
 
 
 @pytest.fixture(scope='module')

@@ -8,6 +8,7 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.cli import main as cli
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
+from mech_balance.schema.scene import SERIES
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -23,7 +24,7 @@ def rig(request):
 
 def test_every_built_in_scene_builds_a_rig_with_the_protocol(rig):
     for attr in ('scene', 'name', 'joint_names', 'crank_joint', 'moment_point',
-                 'capabilities', 'outputs', 'drawing'):
+                 'capabilities', 'driving_series', 'outputs', 'drawing'):
         assert getattr(rig, attr) is not None, attr
     assert rig.crank_joint in rig.joint_names
     assert schema.kind_of(rig) is schema.kind_of(rig.scene)
@@ -31,7 +32,9 @@ def test_every_built_in_scene_builds_a_rig_with_the_protocol(rig):
     n, nj = 12, len(rig.joint_names)
     assert data.joint_position.shape == (n, nj) and data.joint_velocity.shape == (n, nj)
     assert data.force_N.shape == (n, 3) and data.moment_Nm.shape == (n, 3)
-    assert data.series['driving_torque'].shape == (n,)
+    # the driving effort under the series the rig names (a prismatic input's: a force)
+    assert set(data.series) == {rig.driving_series} and rig.driving_series in SERIES
+    assert data.series[rig.driving_series].shape == (n,)
     assert data.residual.shape == (n,) and data.near_singular.dtype == bool
     bodies = data.bodies
     assert bodies.names[0] == 'frame' and bodies.origin_m.shape[:2] == (n, len(bodies.names))
@@ -46,7 +49,7 @@ def test_outputs_not_asked_for_are_not_computed(rig):
     kin = rig.at(psi, outputs=('kinematics',))
     assert kin.force_N is None and kin.joint_effort is None and not kin.series
     wrench = rig.at(psi, outputs=('shaking_wrench',))
-    assert wrench.force_N is not None and 'driving_torque' not in wrench.series
+    assert wrench.force_N is not None and rig.driving_series not in wrench.series
     assert 'kinetic_energy' not in wrench.series and wrench.reactions is None
     energy = rig.at(psi, outputs=('kinematics', 'kinetic_energy'))
     assert set(energy.series) == {'kinetic_energy'} and energy.force_N is None

@@ -3,12 +3,14 @@ Tests of the spatial kind (``kind: spatial``): schema, physics, the RGGR, random
 
 The physics checks differentiate the body poses the rig publishes (``RigData.bodies``) by
 finite differences in time: shaking force = -dp/dt, shaking moment = -dH_P/dt, and the
-power balance driving torque x speed = dT/dt, each at a crank acceleration other than zero
+power balance driving effort x input rate = dT/dt (torque x crank speed, or a prismatic
+input's force x slide rate), each at a crank acceleration other than zero
 so that the acceleration terms are exercised too.
 """
 
 import copy
 import math
+import re
 import warnings
 
 from mech_balance import schema
@@ -23,7 +25,7 @@ from numpy.testing import assert_allclose
 import pytest
 import yaml
 
-BUILTINS = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop')
+BUILTINS = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop', 'pssr_skew')
 FD_STEP_RAD = 2e-3
 """Crank-angle step of the finite differences (their time step is this over the speed)."""
 FD_WEIGHTS = np.array([1 / 280, -4 / 105, 1 / 5, -4 / 5, 0.0, 4 / 5, -1 / 5, 4 / 105, -1 / 280])
@@ -97,14 +99,16 @@ def _check_power(rig, psi):
     speed = rig.scene.crank_speed_rad_s
     accel = ACCEL_FRACTION * speed ** 2
     data = rig.at(psi, speed, accel, outputs=('driving_torque',))
+    assert set(data.series) == {rig.driving_series}
     dt = FD_STEP_RAD / abs(speed)
     t = ((np.arange(9) - 4) * dt)[:, None] + 0.0 * psi[None, :]
     ang = psi[None, :] + speed * t + 0.5 * accel * t ** 2
     energy = rig.at(ang.ravel(), (speed + accel * t).ravel(), accel,
                     outputs=('kinetic_energy',)).series['kinetic_energy'].reshape(t.shape)
     dT = _fd(energy, dt)
-    power = data.series['driving_torque'] * speed
+    power = data.series[rig.driving_series] * data.joint_velocity[:, rig.crank_index]
     assert_allclose(power, dT, rtol=0, atol=POWER_RTOL * np.max(np.abs(dT)))
+    return float(np.max(np.abs(power - dT)) / np.max(np.abs(dT)))
 
 
 # ----------------------------------------------------------------------------- schema
@@ -641,3 +645,157 @@ def test_analytic_jacobian_is_the_residual_derivative(name):
             g.append(lk.residual(lk.frames(q2, s2))[0])
         fd = (g[0] - g[1]) / (2.0 * h)   # spherical: along exp(+-h e_i) M, the same curve
         assert_allclose(jac[:, dof], fd, rtol=0, atol=1e-7 * np.max(np.abs(jac)))
+
+
+# ----------------------------------------------------------------------------- prismatic input
+
+PSSR_OTHER_POSES = {
+    'coupler': {'origin_m': [0.0, 0.0, 0.0], 'rpy_deg': [0.0, -12.59, 75.74]},
+    'rocker': {'origin_m': [0.073, 0.137, 0.052], 'rpy_deg': [3.26, 28.25, -161.42]}}
+"""Approximate poses of pssr_skew's other assembly branch at s = s_min (the rocker's other
+circle intersection)."""
+STROKE_ATOL_M = 1e-12
+"""The carriage's slide read from its pose against the Scotch-yoke law, m."""
+
+
+def _pssr_branches():
+    """Return the two rigs of pssr_skew's geometry: its own branch and the other one."""
+    data = copy.deepcopy(_load_data('pssr_skew'))
+    data['assembly']['poses'].update(copy.deepcopy(PSSR_OTHER_POSES))
+    return rig_for(schema.load('pssr_skew')), rig_for(spatial_from_dict(data), cache=False)
+
+
+def test_prismatic_input_both_branches_physics():
+    """Momentum, power balance and closure on both branches of a prismatic-input rig."""
+    own, other = _pssr_branches()
+    psi = 0.05 + np.linspace(0.0, 2.0 * np.pi, 18, endpoint=False)
+    d_own, d_other = own.at(psi), other.at(psi)
+    rocker = own.joint_names.index('D')
+    # two branches: the same slide, different rocker angles
+    assert_allclose(d_own.joint_position[:, own.crank_index],
+                    d_other.joint_position[:, other.crank_index], rtol=0, atol=1e-15)
+    assert np.min(np.abs(np.angle(np.exp(1j * (d_own.joint_position[:, rocker]
+                                               - d_other.joint_position[:, rocker]))))) > 0.1
+    for rig, data in ((own, d_own), (other, d_other)):
+        assert rig.driving_series == 'driving_force'
+        _check_momentum(rig, psi)
+        _check_power(rig, psi)
+        assert np.all(data.residual <= kinematics.NEWTON_TOL)
+        assert np.array_equal(data.near_singular, data.condition > kinematics.COND_WARN)
+        _check_reactions(rig, psi[:6])
+
+
+def test_prismatic_input_follows_the_scotch_yoke_law():
+    """The carriage's pose slides s(psi) = mid - half stroke cos(psi); rates by the chain rule."""
+    rig = rig_for(schema.load('pssr_skew'))
+    sc = rig.scene
+    s_min, s_max = sc.crank_stroke_m
+    speed = sc.crank_speed_rad_s
+    accel = ACCEL_FRACTION * speed ** 2
+    psi = np.linspace(0.0, 2.0 * np.pi, 73)
+    data = rig.at(psi, speed, accel, outputs=('kinematics',))
+    guide = np.array(sc.joints[0].axis) / np.linalg.norm(sc.joints[0].axis)
+    slide = (data.bodies.world('carriage', sc.link('carriage').points['B'])
+             - np.array(sc.frame_points['G'])) @ guide
+    expected = 0.5 * (s_min + s_max) - 0.5 * (s_max - s_min) * np.cos(psi)
+    assert_allclose(slide, expected, rtol=0, atol=STROKE_ATOL_M)
+    assert_allclose(slide[[0, 36, 72]], [s_min, s_max, s_min], rtol=0, atol=STROKE_ATOL_M)
+    i = rig.crank_index
+    assert_allclose(data.joint_position[:, i], slide, rtol=0, atol=STROKE_ATOL_M)
+    # the slide rate against finite differences of the poses in time (crank accelerating)
+    dt = FD_STEP_RAD / speed
+    t = (np.arange(9) - 4)[:, None] * dt
+    ang = psi[None, :] + speed * t + 0.5 * accel * t ** 2
+    moved = rig.at(ang.ravel(), outputs=('kinematics',)).bodies.world(
+        'carriage', sc.link('carriage').points['B']).reshape(9, psi.size, 3) @ guide
+    rate = _fd(moved, dt)
+    assert_allclose(data.joint_velocity[:, i], rate, rtol=0,
+                    atol=FD_RTOL * 0.5 * (s_max - s_min) * speed)
+    half = 0.5 * (s_max - s_min)
+    assert_allclose(data.joint_velocity[:, i], half * np.sin(psi) * speed, rtol=0,
+                    atol=1e-12 * half * speed)
+
+
+def test_prismatic_input_reports_a_driving_force():
+    """The driving effort of a prismatic input is a force (N): series, effort and report."""
+    from mech_balance.analysis.spatial_report import analyze
+    rig = rig_for(schema.load('pssr_skew'))
+    data = rig.at(np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False))
+    assert 'driving_torque' not in data.series
+    assert_allclose(data.joint_effort[:, rig.crank_index], data.series['driving_force'],
+                    rtol=0, atol=0)
+    rows = {r['quantity']: r for r in analyze(rig.scene).data['rows']}
+    assert 'driving torque' not in rows
+    assert rows['driving force']['unit'] == 'N'
+    assert rig_for(schema.load('rssr_skew')).driving_series == 'driving_torque'
+
+
+def test_prismatic_input_beyond_its_reach_is_refused_naming_the_slide():
+    """A stroke the linkage cannot follow is refused at the slide where the branch ends."""
+    data = copy.deepcopy(_load_data('pssr_skew'))
+    data['crank']['stroke_m'] = [0.0, 0.3]
+    with pytest.raises(SpatialError, match=r'input slide 0\.\d+ m: cannot continue'):
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', RuntimeWarning)
+            rig_for(spatial_from_dict(data), cache=False)
+
+
+@pytest.mark.parametrize('scene, stroke, match', [
+    ('pssr_skew', None, r'^crank\.stroke_m: missing for the prismatic input joint .P.; '
+                        r'expected \[s_min, s_max\]'),
+    ('rssr_skew', [0.0, 0.06], r'^crank\.stroke_m: got \[0\.0, 0\.06\] for the revolute '
+                               r'input joint .A.; expected no stroke_m'),
+    ('pssr_skew', [0.06, 0.0], r'^crank\.stroke_m: got \[0\.06, 0\.0\], expected \[s_min, '
+                               r's_max\] with s_min < s_max'),
+    ('pssr_skew', [0.03, 0.03], r's_min < s_max'),
+    ('pssr_skew', [0.0, float('nan')], r'^crank\.stroke_m\[1\]: got nan, expected a finite'),
+    ('pssr_skew', [float('-inf'), 0.06], r'^crank\.stroke_m\[0\]: got -inf, expected a '
+                                         r'finite'),
+    ('pssr_skew', [0.0, 0.03, 0.06], r'^crank\.stroke_m: got \[0\.0, 0\.03, 0\.06\], '
+                                     r'expected \[s_min, s_max\]'),
+    ('pssr_skew', 0.06, r'^crank\.stroke_m: got 0\.06, expected \[s_min, s_max\]'),
+    ('pssr_skew', ['a', 0.06], r'^crank\.stroke_m\[0\]: got .a., expected a number'),
+])
+def test_stroke_refusals_are_named(scene, stroke, match):
+    data = copy.deepcopy(_load_data(scene))
+    if stroke is None:
+        del data['crank']['stroke_m']
+    else:
+        data['crank']['stroke_m'] = stroke
+    with pytest.raises(SceneError, match=match):
+        spatial_from_dict(data)
+
+
+def test_stroke_round_trips_bit_for_bit():
+    """A stroke that is not a short decimal comes back from the writer bit for bit."""
+    data = copy.deepcopy(_load_data('pssr_skew'))
+    data['crank']['stroke_m'] = [math.pi / 1000.0, 0.1 + 0.2 - 0.24]
+    sc = spatial_from_dict(data)
+    again = schema.from_dict(yaml.safe_load(schema.to_yaml(sc)), source=sc.source)
+    assert again == sc
+    assert again.crank_stroke_m == (math.pi / 1000.0, 0.1 + 0.2 - 0.24)
+
+
+def test_prismatic_input_near_its_reach_is_flagged_naming_the_slide():
+    """Grow the stroke towards the linkage's reach: the slide there is flagged near-singular."""
+    data = copy.deepcopy(_load_data('pssr_skew'))
+    lo, hi = data['crank']['stroke_m'][1], 0.3
+    best = None
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        data['crank']['stroke_m'][1] = mid
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter('always', RuntimeWarning)
+            try:
+                rig = rig_for(spatial_from_dict(data), cache=False)
+                d = rig.at(np.linspace(0.0, 2.0 * np.pi, 360, endpoint=False))
+            except SpatialError:
+                hi = mid
+                continue
+        lo = mid
+        best = (d, [str(w.message) for w in caught])
+    d, messages = best
+    assert np.array_equal(d.near_singular, d.condition > kinematics.COND_WARN)
+    assert d.near_singular.any() and d.near_singular[180]   # psi = 180 deg: s = s_max
+    assert any(re.match(r'input slide 0\.\d+ m: near-singular', m) for m in messages)
+    assert np.all(d.residual <= kinematics.NEWTON_TOL)

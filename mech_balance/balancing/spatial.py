@@ -46,6 +46,7 @@ from mech_balance.conventions import cycle_angles, DEFAULT_SAMPLES, MAX_WEIGHT, 
 from mech_balance.core import regressor
 from mech_balance.core.rig import rig_for
 from mech_balance.schema import registry
+from mech_balance.schema.scene import SERIES
 import numpy as np
 import scipy.sparse as sp
 
@@ -1392,7 +1393,11 @@ def _bodies(model, theta):
 
 def before_after(rig, balanced, samples, units, data=None):
     """
-    Return the before/after rows of RMS shaking force, moment and driving torque.
+    Return the before/after rows of RMS shaking force, moment and driving effort.
+
+    The driving effort is the rig's :attr:`~mech_balance.core.rig.Rig.driving_series` under
+    its label of :data:`~mech_balance.schema.scene.SERIES` (a driving torque, N m, or a
+    prismatic input's driving force, N).
 
     The planar rows' shape (:func:`mech_balance.balancing.socp.before_after`): quantity,
     unit/before/after normalized (SI when the scene records no normalization), change_percent,
@@ -1404,18 +1409,21 @@ def before_after(rig, balanced, samples, units, data=None):
         data = (rig.at(psi), rig2.at(psi))
     normalized = units.source == 'scene'
     rows = []
-    for name, get, unit, unit_si in (
-            ('shaking force', lambda d: d.force_N, units.force_N, 'N'),
-            ('shaking moment', lambda d: d.moment_Nm, units.moment_Nm, 'N m'),
-            ('driving torque', lambda d: d.series.get('driving_torque'), units.moment_Nm,
-             'N m')):
+    # the driving effort under the rig's own series: a torque, or a prismatic input's force
+    effort = rig.driving_series
+    label, dim = SERIES[effort]
+    for name, get, force in (
+            ('shaking force', lambda d: d.force_N, True),
+            ('shaking moment', lambda d: d.moment_Nm, False),
+            (label, lambda d: d.series.get(effort), dim == 'force')):
         values = [get(d) for d in data]
         if any(v is None for v in values):
             continue
         before_si, after_si = (float(rms(v)) for v in values)
-        scale = unit if normalized else 1.0
+        unit_si = 'N' if force else 'N m'
+        scale = (units.force_N if force else units.moment_Nm) if normalized else 1.0
         rows.append({'quantity': name,
-                     'unit': ('m l omega^2' if name == 'shaking force' else 'm l^2 omega^2')
+                     'unit': ('m l omega^2' if force else 'm l^2 omega^2')
                      if normalized else unit_si,
                      'before': before_si / scale, 'after': after_si / scale,
                      'change_percent': (after_si - before_si) / before_si * 100.0

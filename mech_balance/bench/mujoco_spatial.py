@@ -73,7 +73,8 @@ from mech_balance.core.spatial import dynamics as sdyn
 from mech_balance.core.spatial.kinematics import NEWTON_TOL
 import numpy as np
 
-SPATIAL_BUILTINS = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop')
+SPATIAL_BUILTINS = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop',
+                    'pssr_skew')
 """The spatial built-ins compared (``mech-balance scenes``)."""
 NEWTON_MAX_ITER = 10
 """MuJoCo's Newton iterations per angle (stops at the package's NEWTON_TOL, scaled)."""
@@ -510,7 +511,10 @@ class SpatialMujocoRig:
         qpos = np.array(qpos_start, dtype=float)
         slope, curve, step = np.zeros(m.nv), np.zeros(m.nv), np.zeros(m.nv)
         qvel, qacc = np.zeros(m.nv), np.zeros(m.nv)
-        qvel[crank], qacc[crank] = speed, accel
+        # the input's coordinate and rates at each angle (a prismatic input: its Scotch-yoke
+        # slide, Linkage.input_motion); the predictor's slope and curve stay d/dpsi
+        x, xd, xdd = (np.broadcast_to(v, psi.shape) for v in
+                      self.linkage.input_coordinate(psi, speed, accel))
         react = {name: (np.empty((p, 3)), np.empty((p, 3))) for name, *_ in
                  self.tree_reactions}
         react.update({name: (np.empty((p, 3)), np.zeros((p, 3))) for name in self.cut_names})
@@ -520,7 +524,7 @@ class SpatialMujocoRig:
                 step[:] = h * slope + 0.5 * h * h * curve
                 step[crank] = 0.0
                 mj.mj_integratePos(m, qpos, step, 1.0)
-            qpos[crank_adr] = psi[i]
+            qpos[crank_adr] = x[i]
             for it in range(NEWTON_MAX_ITER + 1):
                 d.qpos[:] = qpos
                 r, jac = self._closure()
@@ -533,10 +537,11 @@ class SpatialMujocoRig:
                 iters[i] += 1
             res_out[i] = res
             j_u, j_c = jac[:, passive], jac[:, crank]
-            qvel[passive] = np.linalg.solve(j_u, -speed * j_c)
+            qvel[crank], qacc[crank] = xd[i], xdd[i]
+            qvel[passive] = np.linalg.solve(j_u, -xd[i] * j_c)
             d.qvel[:] = qvel
             mj.mj_comVel(m, d)
-            qacc[passive] = np.linalg.solve(j_u, -accel * j_c - self._bias(qvel))
+            qacc[passive] = np.linalg.solve(j_u, -xdd[i] * j_c - self._bias(qvel))
             d.qacc[:] = qacc
             mj.mj_inverse(m, d)
             tau[i], _, fsh[i], nsh[i], _, rc = self._rigid(reactions=True)

@@ -454,6 +454,7 @@ class RggrRig:
 
     moment_point = 'the origin O of the RGGR frame'
     moment_point_m = (0.0, 0.0, 0.0)
+    driving_series = 'driving_torque'
     capabilities = CAPABILITIES
     joint_names = JOINTS
     joint_prismatic = (False,) * len(JOINTS)

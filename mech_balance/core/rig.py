@@ -78,7 +78,8 @@ class RigData:
     values; the implementations document their coordinates); ``joint_effort`` is None when
     no torque was asked for.  ``force_N`` and ``moment_Nm`` are the shaking wrench ``(n, 3)``
     (None for kinematics only).  ``series`` holds the scalar outputs that were asked for
-    (``driving_torque``, ``kinetic_energy``, ...: :data:`mech_balance.schema.scene.SERIES`),
+    (``driving_torque`` or ``driving_force``, ``kinetic_energy``, ...:
+    :data:`mech_balance.schema.scene.SERIES`),
     ``reactions`` the bearing loads ``{joint: (force (n, 3), moment (n, 3))}`` when asked for.
     ``residual`` (loop closure, relative), ``condition`` (Jacobian condition number) and
     ``near_singular`` are the per-angle diagnostics of the position solution.  ``poses`` is
@@ -190,7 +191,11 @@ class Rig(Protocol):
     turn, rad); ``moment_point`` says in words where the shaking moment is reduced and
     ``moment_point_m`` is that point ``(x, y, z)`` in the frame, m; ``capabilities`` what the
     rig can compute or be balanced by; ``outputs`` what its scene asks for; ``drawing`` its
-    :class:`Drawing`.
+    :class:`Drawing`.  ``driving_series`` names the series of :attr:`RigData.series` that
+    holds the driving effort when it is asked for (output ``driving_torque``):
+    ``'driving_torque'`` (N m about a revolute input's axis) or ``'driving_force'`` (N along
+    a prismatic input's axis); its label and dimension are in
+    :data:`mech_balance.schema.scene.SERIES`.
     """
 
     scene: object
@@ -201,6 +206,7 @@ class Rig(Protocol):
     moment_point: str
     moment_point_m: tuple
     capabilities: frozenset
+    driving_series: str
     outputs: tuple
     drawing: Drawing
 

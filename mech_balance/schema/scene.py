@@ -30,11 +30,15 @@ DEFAULT_OUTPUTS = OUTPUTS[:4]
 """What a scene without an ``outputs:`` key asks for (``all``: every one of :data:`OUTPUTS`)."""
 SERIES = {
     'driving_torque': ('driving torque', 'moment'),
+    'driving_force': ('driving force', 'force'),
     'kinetic_energy': ('kinetic energy T', 'energy'),
 }
 """The scalar series among the outputs: name -> (label, dimension 'force' | 'moment' |
 'energy').  Reports, JSON and recording plots show every series a rig computes from this
-table; a new scalar output is one entry here plus its computation in each rig."""
+table; a new scalar output is one entry here plus its computation in each rig.  The output
+``driving_torque`` asks for the driving effort, which a rig reports under the series its
+:attr:`~mech_balance.core.rig.Rig.driving_series` names: ``driving_torque`` (N m) for a
+revolute input, ``driving_force`` (N, along the axis) for a prismatic input."""
 
 JOINT_TYPES = ('revolute', 'prismatic')
 FRAME = 'frame'

@@ -22,7 +22,8 @@ Schema (``config/rssr_skew.yaml`` is a commented example)::
              axis_b: [x, y, z],    # the same axis in b's axes (default: the numbers of axis);
                                    # universal: b's own cross axis (required)
              angle_deg: <number>}  # prismatic only: b's fixed turn about the axis (default 0)
-    crank: {joint: NAME, speed_rad_s: <nonzero>, acceleration_rad_s2: 0}
+    crank: {joint: NAME, speed_rad_s: <nonzero>, acceleration_rad_s2: 0,
+            stroke_m: [s_min, s_max]}   # stroke_m: a prismatic input only (required there)
     moment_point_m: [x, y, z]      # the point the shaking moment is reduced to (frame axes)
     assembly:
       crank_angle_deg: <number>    # the crank coordinate at which the poses below hold
@@ -35,7 +36,13 @@ off-diagonal entry, minus the product of inertia integral), validated here: a ri
 tensor is positive semi-definite and its principal moments satisfy the triangle inequality
 (each <= the sum of the other two).  Values are stored as given (axes are not normalized,
 angles stay in degrees), so that the writer :func:`spatial_to_dict` reproduces them and a
-round trip is exact; the core normalizes.  The joint conventions (zero of each joint
+round trip is exact; the core normalizes.
+
+The input joint is revolute or prismatic.  A revolute input turns with the crank angle psi.
+A prismatic input is driven by an ideal Scotch yoke over the same cycle: psi turns at
+``speed_rad_s`` (and ``acceleration_rad_s2``) as a crank would, and the joint's slide is
+:func:`stroke_law`, ``s(psi) = (s_min + s_max) / 2 - (s_max - s_min) / 2 cos(psi)``: s_min at
+psi = 0, s_max at psi = 180 deg.  The joint conventions (zero of each joint
 coordinate, the spin convention of an S-S link) are in :mod:`mech_balance.core.spatial`.
 """
 
@@ -66,6 +73,27 @@ AXIS_MIN = 1e-9
 """Smallest norm of a joint axis (relative to its largest component's scale 1)."""
 MIN_SAMPLES = 4
 """Fewest crank angles per revolution of ``samples``."""
+CRANK_KEYS = {'joint', 'speed_rad_s', 'acceleration_rad_s2', 'stroke_m'}
+"""The fields of ``crank:`` (``stroke_m``: a prismatic input only)."""
+
+
+def stroke_law(stroke_m, psi):
+    """
+    Return ``(s, ds/dpsi, d2s/dpsi2)`` of a prismatic input at cycle angles ``psi`` (rad).
+
+    The ideal Scotch yoke of the module docstring: ``s = c - a cos(psi)`` with the centre
+    ``c = (s_min + s_max) / 2`` and the half stroke ``a = (s_max - s_min) / 2`` (m), so
+    ``ds/dpsi = a sin(psi)`` and ``d2s/dpsi2 = a cos(psi)``.  ``psi`` may be a float or a
+    numpy array (the results have its shape).
+    """
+    s_min, s_max = stroke_m
+    centre, half = 0.5 * (s_min + s_max), 0.5 * (s_max - s_min)
+    if isinstance(psi, (int, float)):
+        cos, sin = math.cos(psi), math.sin(psi)
+    else:
+        import numpy as np  # on first use: the command line parsers need none
+        cos, sin = np.cos(psi), np.sin(psi)
+    return centre - half * cos, half * sin, half * cos
 
 
 @dataclass(frozen=True)
@@ -132,6 +160,7 @@ class SpatialScene(SceneDesigns):
     moment_point_m: tuple
     assembly_crank_angle_deg: float
     assembly_poses: dict
+    crank_stroke_m: tuple = None   # (s_min, s_max), m: a prismatic input only
     outputs: tuple = DEFAULT_OUTPUTS
     samples: int = conventions.DEFAULT_SAMPLES
     normalization: Normalization = None
@@ -143,6 +172,11 @@ class SpatialScene(SceneDesigns):
     def assembly_crank_angle_rad(self):
         """Return the assembly crank coordinate in rad (the cycle's start)."""
         return math.radians(self.assembly_crank_angle_deg)
+
+    @property
+    def prismatic_input(self):
+        """Return True when the input joint slides (driven by :func:`stroke_law`)."""
+        return self.crank_stroke_m is not None
 
 
 _TOP_KEYS = {'kind', 'schema_version', 'name', 'description', 'normalization', 'frame',
@@ -254,6 +288,29 @@ def _joint(name, spec, all_points):
                         axis_b, angle)
 
 
+def _stroke(crank, cj):
+    """Return ``crank.stroke_m`` as ``(s_min, s_max)`` for a prismatic input, else None."""
+    where = 'crank.stroke_m'
+    if not cj.prismatic:
+        if 'stroke_m' in crank:
+            raise SceneError(f'{where}: got {crank["stroke_m"]!r} for the {cj.joint_type} '
+                             f'input joint {cj.name!r}; expected no stroke_m (a stroke '
+                             'applies to a prismatic input only)')
+        return None
+    if 'stroke_m' not in crank:
+        raise SceneError(f'{where}: missing for the prismatic input joint {cj.name!r}; '
+                         'expected [s_min, s_max], the slide range (m) the Scotch-yoke '
+                         'drive covers over one cycle')
+    raw = crank['stroke_m']
+    if not isinstance(raw, (list, tuple)) or len(raw) != 2:
+        raise SceneError(f'{where}: got {raw!r}, expected [s_min, s_max] (m)')
+    s_min, s_max = (fields.number(v, f'{where}[{i}]') for i, v in enumerate(raw))
+    if not s_min < s_max:
+        raise SceneError(f'{where}: got {list(raw)!r}, expected [s_min, s_max] with '
+                         's_min < s_max (m)')
+    return (s_min, s_max)
+
+
 def _connected(links, joints):
     adj = {lk.name: set() for lk in links}
     adj[FRAME] = set()
@@ -311,7 +368,7 @@ def spatial_from_dict(data, source='<dict>'):
     _connected(links, joints)
 
     crank = fields.mapping(fields.require(data, 'crank', ''), 'crank')
-    fields.known_keys(crank, {'joint', 'speed_rad_s', 'acceleration_rad_s2'}, 'crank')
+    fields.known_keys(crank, CRANK_KEYS, 'crank')
     crank_joint = fields.string(fields.require(crank, 'joint', 'crank'), 'crank.joint')
     by_name = {j.name: j for j in joints}
     if crank_joint not in by_name:
@@ -323,11 +380,7 @@ def spatial_from_dict(data, source='<dict>'):
             f'crank.joint: got {crank_joint!r} ({cj.joint_type} between {cj.link_a} and '
             f'{cj.link_b}), expected a revolute or prismatic joint between the frame and a '
             'moving link')
-    if cj.joint_type == 'prismatic':
-        raise SceneError(
-            f'crank.joint: got the prismatic joint {crank_joint!r}; a spatial scene is '
-            'analyzed over a full crank revolution, expected a revolute input joint (a '
-            'prismatic input has no cycle of crank angles)')
+    stroke = _stroke(crank, cj)
     speed = fields.nonzero(crank.get('speed_rad_s', 1.0), 'crank.speed_rad_s')
     accel = fields.number(crank.get('acceleration_rad_s2', 0.0), 'crank.acceleration_rad_s2')
     moment_point = _vec3(fields.require(data, 'moment_point_m', ''), 'moment_point_m')
@@ -365,7 +418,8 @@ def spatial_from_dict(data, source='<dict>'):
         name=name, description=description.strip(), frame_points=frame_points, links=links,
         joints=joints, crank_joint=crank_joint, crank_speed_rad_s=speed,
         crank_acceleration_rad_s2=accel, moment_point_m=moment_point,
-        assembly_crank_angle_deg=crank_angle, assembly_poses=poses, outputs=outputs,
+        assembly_crank_angle_deg=crank_angle, assembly_poses=poses, crank_stroke_m=stroke,
+        outputs=outputs,
         samples=samples, normalization=normalization,
         notes=notes if isinstance(notes, dict) else {'text': notes}, source=str(source))
 
@@ -396,6 +450,8 @@ def spatial_to_dict(scene):
     data['joints'] = {jt.name: _joint_dict(jt) for jt in scene.joints}
     data['crank'] = {'joint': scene.crank_joint, 'speed_rad_s': scene.crank_speed_rad_s,
                      'acceleration_rad_s2': scene.crank_acceleration_rad_s2}
+    if scene.crank_stroke_m is not None:
+        data['crank']['stroke_m'] = list(scene.crank_stroke_m)
     data['moment_point_m'] = list(scene.moment_point_m)
     assembly = {'crank_angle_deg': scene.assembly_crank_angle_deg}
     if scene.assembly_poses:
@@ -412,5 +468,6 @@ def spatial_to_dict(scene):
 def geometry(scene):
     """Return what a design of a spatial scene may not change, and its name in words."""
     return ((scene.frame_points, [(lk.name, lk.points) for lk in scene.links], scene.joints,
-             scene.crank_joint, scene.assembly_crank_angle_deg, scene.assembly_poses),
-            'frame points, link points, joints and assembly')
+             scene.crank_joint, scene.crank_stroke_m, scene.assembly_crank_angle_deg,
+             scene.assembly_poses),
+            'frame points, link points, joints, input stroke and assembly')

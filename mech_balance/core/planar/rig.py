@@ -74,6 +74,7 @@ class PlanarRig:
 
     moment_point = 'the crank pivot'
     capabilities = CAPABILITIES
+    driving_series = 'driving_torque'
 
     def __init__(self, scene, linkage=None, cache=True):
         self.scene = scene

@@ -26,6 +26,17 @@ Joint coordinates (zero convention, also the URDF's)
     b onto the unit vector of b normal to a; spherical: ``M = Rz(yaw) Ry(pitch) Rx(roll) A``
     with ``A`` the relative rotation at the assembly (the URDF's three revolute joints).
 
+The input and the cycle
+    The crank joint is tree coordinate 0.  A revolute input is the crank angle psi itself;
+    a prismatic input is its slide ``s(psi)`` (:func:`mech_balance.schema.spatial.stroke_law`,
+    the ideal Scotch yoke: ``s_min`` at psi = 0, ``s_max`` at psi = 180 deg), with rates by
+    the chain rule, ``s' = ds/dpsi psi'`` and ``s'' = d2s/dpsi2 psi'^2 + ds/dpsi psi''``
+    (:meth:`Linkage.input_motion`).  Everything inside the linkage (the branch trace, the
+    nodes, the predictor, Newton) works in tree coordinate 0: a revolute input's branch is
+    traced over one turn and must close; a prismatic input's over its stroke, from the
+    assembly to both ends, refusing a singular position on the way as for a turn, and a
+    cycle of psi runs it forth and back.
+
 Idle freedoms and redundancy
     A link held only by two spherical joints spins freely about the line through them; the
     assembled Jacobian's null space shows it.  Convention (:data:`IDLE_INERTIA_RTOL`): its
@@ -45,6 +56,7 @@ import warnings
 from mech_balance.core.planar import smallsolve
 from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
 from mech_balance.schema.scene import FRAME
+from mech_balance.schema.spatial import stroke_law
 import numpy as np
 
 NEWTON_MAX_ITER = 10
@@ -56,9 +68,11 @@ COND_LIMIT = 1e10
 RANK_RTOL = 1e-9
 """Singular values below this fraction of the largest count as zero (rank, null space)."""
 STEP_MAX_RAD = math.radians(10.0)
-"""Largest crank step between branch nodes."""
+"""Largest crank step between branch nodes (a prismatic input: this angle of its Scotch
+yoke at mid-stroke, i.e. times the half stroke, m)."""
 STEP_MIN_RAD = 1e-7
-"""Smallest crank step before the continuation declares the branch lost."""
+"""Smallest crank step before the continuation declares the branch lost (prismatic input:
+times the half stroke, m)."""
 STEP_TRUST = 0.05
 """Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
 EVAL_TRUST = 1e-3
@@ -395,8 +409,43 @@ class Linkage:
                         for k, pts in points.items()}
         self.length_scale = self._length_scale()
         self._compile(body)
+        self.stroke_m = getattr(scene, 'crank_stroke_m', None)
+        self.periodic = self.stroke_m is None
+        # tree coordinate 0 against the input joint's own coordinate: a prismatic tree joint
+        # hung from its scene end b slides the other way (coordinates.joint_values)
+        self.input_sign = -1.0 if self.tree[0].flipped and not self.periodic else 1.0
+        half = 1.0 if self.periodic else 0.5 * (self.stroke_m[1] - self.stroke_m[0])
+        self.step_max, self.step_min = STEP_MAX_RAD * half, STEP_MIN_RAD * half
         self._assemble()
         self._skeleton = None
+
+    # ------------------------------------------------------------------ the input
+
+    def input_motion(self, psi, psi_d, psi_dd):
+        """
+        Return the input joint's ``(x, x', x'')`` at cycle angles ``psi`` (rad, rad/s, rad/s^2).
+
+        A revolute input: ``psi`` and its rates as they are (no copy); a prismatic input: the
+        slide of :func:`~mech_balance.schema.spatial.stroke_law` (m) and its rates by the
+        chain rule, in the joint's own convention (b's point from a's along a's axis).
+        """
+        if self.periodic:
+            return psi, psi_d, psi_dd
+        s, s1, s2 = stroke_law(self.stroke_m, psi)
+        return s, s1 * psi_d, s2 * psi_d * psi_d + s1 * psi_dd
+
+    def input_coordinate(self, psi, psi_d, psi_dd):
+        """Return :meth:`input_motion` as tree coordinate 0 and its rates (the solver's)."""
+        x, xd, xdd = self.input_motion(psi, psi_d, psi_dd)
+        if self.input_sign < 0.0:
+            return -x, -xd, -xdd
+        return x, xd, xdd
+
+    def _where(self, x, digits=4):
+        """Return where tree coordinate 0 is ``x``, in words (a crank angle or a slide)."""
+        if self.periodic:
+            return f'crank angle {math.degrees(x):.{digits}f} deg'
+        return f'input slide {self.input_sign * x:.{digits + 3}f} m'
 
     # ------------------------------------------------------------------ compile
 
@@ -1025,7 +1074,11 @@ class Linkage:
         if getattr(self, '_dense', None) is None:
             sk = self.skeleton
             count = max(int(math.ceil(TWO_PI / DENSE_STEP_RAD)), 4)
-            psi = sk.psi[0] + TWO_PI * np.arange(count + 1) / count
+            if self.periodic:
+                psi = sk.psi[0] + TWO_PI * np.arange(count + 1) / count
+            else:  # the stroke at the yoke's angles of half a turn, ascending in x
+                psi = np.sort(self.input_coordinate(
+                    math.pi * np.arange(count // 2 + 1) / (count // 2), 0.0, 0.0)[0])
             k, h = sk.nearest(psi)
             qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
             q, sph, fr, res, ok = self.newton(qp, sphp)
@@ -1039,7 +1092,7 @@ class Linkage:
             if self.square and np.any(sign != self.branch_sign):
                 self._dense = sk
                 return sk
-            self._dense = Skeleton(psi, q, sph, qd, qdd, cond)
+            self._dense = Skeleton(psi, q, sph, qd, qdd, cond, self.periodic)
         return self._dense
 
     # ------------------------------------------------------------------ assembly
@@ -1070,7 +1123,7 @@ class Linkage:
                 continue
             vals = tree_values(t, rel, d)
             q[0, list(t.dofs)] = vals
-        q[0, 0] = sc.assembly_crank_angle_rad
+        q[0, 0] = self.input_coordinate(sc.assembly_crank_angle_rad, 0.0, 0.0)[0]
         return q, sph
 
     def _assemble(self):
@@ -1321,9 +1374,9 @@ class Linkage:
         return np.max(np.abs(diff), axis=(1, 2, 3))
 
     def _advance(self, q, sph, qd, qdd, sign, h_goal, strict=True):
-        """Follow the branch from one state by ``h_goal`` rad; return the new node."""
+        """Follow the branch from one state by ``h_goal`` (rad, or m for a slide); yield nodes."""
         done = 0.0
-        h = min(STEP_MAX_RAD, abs(h_goal)) * np.sign(h_goal)
+        h = min(self.step_max, abs(h_goal)) * np.sign(h_goal)
         while abs(h_goal - done) > 1e-13:
             if abs(h) > abs(h_goal - done):
                 h = h_goal - done
@@ -1337,26 +1390,28 @@ class Linkage:
                             and (not self.square or sign1[0] == sign))
             if not good:
                 h *= 0.5
-                if abs(h) < STEP_MIN_RAD:
+                if abs(h) < self.step_min:
                     raise SpatialError(
-                        f'crank angle {math.degrees(q[0, 0]):.4f} deg: cannot continue the '
+                        f'{self._where(q[0, 0])}: cannot continue the '
                         f'assembly branch (Newton residual {res[0]:.2e}); the linkage cannot '
-                        'be assembled beyond this angle, or reaches a singular position '
+                        'be assembled beyond this position, or reaches a singular position '
                         'where its branch is not unique')
                 continue
             done += h
             q, sph, qd, qdd = q1, sph1, qd1, qdd1
             if cond1[0] > COND_WARN:
-                self._warn(f'crank angle {math.degrees(q[0, 0]):.3f} deg: near-singular '
+                self._warn(f'{self._where(q[0, 0], 3)}: near-singular '
                            f'position (Jacobian condition number {cond1[0]:.3g} > '
                            f'{COND_WARN:.4g})')
-            h = min(1.5 * abs(h), STEP_MAX_RAD) * np.sign(h_goal)
+            h = min(1.5 * abs(h), self.step_max) * np.sign(h_goal)
             yield q, sph, qd, qdd, cond1[0]
 
     def _trace(self):
         fr = self.frames(self.q0, self.sph0)
         qd, qdd, cond, sign = self._derivs(fr, self.q0)
         nodes = [(self.q0, self.sph0, qd, qdd, cond[0])]
+        if not self.periodic:
+            return self._trace_stroke(nodes[0])
         for node in self._advance(self.q0, self.sph0, qd, qdd, self.branch_sign, TWO_PI):
             nodes.append(node)
         start, end = self.frames(self.q0, self.sph0), self.frames(nodes[-1][0], nodes[-1][1])
@@ -1367,12 +1422,16 @@ class Linkage:
                 'assembly: after one full crank turn the linkage does not return to its '
                 f'start (largest pose mismatch {gap:.3e}); the crank cannot turn fully on '
                 'this branch')
-        return Skeleton(np.array([n[0][0, 0] for n in nodes]),
-                        np.concatenate([n[0] for n in nodes]),
-                        np.concatenate([n[1] for n in nodes]),
-                        np.concatenate([n[2] for n in nodes]),
-                        np.concatenate([n[3] for n in nodes]),
-                        np.array([n[4] for n in nodes]))
+        return _skeleton_of(nodes, True)
+
+    def _trace_stroke(self, start):
+        """Return the branch of a prismatic input over its stroke, from the assembly out."""
+        ends = sorted(self.input_coordinate(np.array([0.0, math.pi]), 0.0, 0.0)[0])
+        x0 = start[0][0, 0]
+        q, sph, qd, qdd, _ = start
+        below = list(self._advance(q, sph, qd, qdd, self.branch_sign, ends[0] - x0))
+        above = list(self._advance(q, sph, qd, qdd, self.branch_sign, ends[1] - x0))
+        return _skeleton_of(below[::-1] + [start] + above, False)
 
     def _warn(self, text):
         if text not in self.warnings:
@@ -1384,8 +1443,11 @@ class Linkage:
     def solve(self, psi, psi_d, psi_dd, need_rates=True, need_acc=True):
         """Return the :class:`SpatialState` at crank angles ``psi`` (n,), rad/s, rad/s^2."""
         psi = np.asarray(psi, dtype=float)
+        psi_d = np.broadcast_to(np.asarray(psi_d, dtype=float), psi.shape)
+        psi_dd = np.broadcast_to(np.asarray(psi_dd, dtype=float), psi.shape)
+        x, x_d, x_dd = self.input_coordinate(psi, psi_d, psi_dd)
         sk = self.dense
-        k, h = sk.nearest(psi)
+        k, h = sk.nearest(x)
         if h.any():
             qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
         else:  # every angle is a node: the predictor is the node itself (gathered copies)
@@ -1398,7 +1460,7 @@ class Linkage:
         if bad.any():
             q, sph = q.copy(), sph.copy()
             cs = self.skeleton
-            kc, hc = cs.nearest(psi[bad])
+            kc, hc = cs.nearest(x[bad])
             for i, kk, hh in zip(np.flatnonzero(bad), kc, hc):
                 qi, si = cs.q[kk:kk + 1], cs.sph[kk:kk + 1]
                 for qi, si, _, _, _ in self._advance(qi, si, cs.qd[kk:kk + 1],
@@ -1408,10 +1470,8 @@ class Linkage:
                 q[i], sph[i] = qi[0], si[0]
             q, sph, fr, res, ok = self.newton(q, sph)
             factor = None
-        psi_d = np.broadcast_to(np.asarray(psi_d, dtype=float), psi.shape)
-        psi_dd = np.broadcast_to(np.asarray(psi_dd, dtype=float), psi.shape)
         qd, qdd, twist, accel, jac, solver, cond, rank, sign, refine = self.rates(
-            fr, q, psi_d, psi_dd, need_acc, factor)
+            fr, q, x_d, x_dd, need_acc, factor)
         if self.square:
             wrong = sign != self.branch_sign
             if wrong.any():
@@ -1428,15 +1488,38 @@ class Linkage:
                             refine, qd, qdd, twist, accel)
 
 
-class Skeleton:
-    """Branch nodes over one crank turn; a second-order predictor from the nearest node."""
+def _skeleton_of(nodes, periodic):
+    """Return the :class:`Skeleton` of traced nodes ``(q, sph, qd, qdd, cond)``."""
+    return Skeleton(np.array([n[0][0, 0] for n in nodes]),
+                    np.concatenate([n[0] for n in nodes]),
+                    np.concatenate([n[1] for n in nodes]),
+                    np.concatenate([n[2] for n in nodes]),
+                    np.concatenate([n[3] for n in nodes]),
+                    np.array([n[4] for n in nodes]), periodic)
 
-    def __init__(self, psi, q, sph, qd, qdd, cond):
+
+class Skeleton:
+    """
+    Branch nodes in tree coordinate 0; a second-order predictor from the nearest node.
+
+    ``psi`` are the nodes' input coordinates, ascending: one crank turn (``periodic``: the
+    last node is the first turned once) or a prismatic input's stroke (not periodic: a
+    coordinate beyond an end is predicted from that end).
+    """
+
+    def __init__(self, psi, q, sph, qd, qdd, cond, periodic=True):
         self.psi, self.q, self.sph, self.qd, self.qdd, self.cond = psi, q, sph, qd, qdd, cond
         self.offset = psi - psi[0]
+        self.periodic = periodic
 
     def nearest(self, psi):
-        """Return the nearest node's index and the signed crank step from it, per angle."""
+        """Return the nearest node's index and the signed step from it, per coordinate."""
+        if not self.periodic:
+            x = psi - self.psi[0]
+            k = np.searchsorted(self.offset, x, side='right') - 1
+            k = np.clip(k, 0, self.psi.size - 2)
+            k = np.where((self.offset[k + 1] - x) < (x - self.offset[k]), k + 1, k)
+            return k, x - self.offset[k]
         x = np.mod(psi - self.psi[0], TWO_PI)
         k = np.searchsorted(self.offset, x, side='right') - 1
         k = np.clip(k, 0, self.psi.size - 2)

@@ -4,10 +4,14 @@ The spatial rig: a ``kind: spatial`` scene behind the Rig protocol (:mod:`mech_b
 :class:`SpatialRig` binds a scene's compiled :class:`~kinematics.Linkage` (built and its
 branch traced once per geometry, shared by every design through :func:`linkage_for`) to one
 design's inertia.  Joint values: every joint's coordinates (:mod:`.coordinates`), the crank
-first as given (psi, rad); effort: the driving torque on the crank coordinate, 0 on every
-other (frictionless joints).  The shaking wrench is reduced to the scene's
-``moment_point_m``.  ``body_kinematics`` returns :class:`~mech_balance.core.rig.BodyKinematics`
-for spatial balancing and identification.
+first as given (psi, rad; a prismatic input: its slide s(psi), m, and the rates by the chain
+rule, :meth:`~kinematics.Linkage.input_motion`); effort: the driving effort on the input
+joint, 0 on every other (frictionless joints).  The driving effort is a torque about a
+revolute input's axis (N m, series ``driving_torque``) or a force along a prismatic input's
+axis (N, series ``driving_force``); :attr:`SpatialRig.driving_series` names the one a rig
+reports (:data:`mech_balance.schema.scene.SERIES` holds its label and dimension).  The
+shaking wrench is reduced to the scene's ``moment_point_m``.  ``body_kinematics`` returns
+:class:`~mech_balance.core.rig.BodyKinematics` for spatial balancing and identification.
 """
 
 from mech_balance.core.rig import batch, BodyKinematics, BodyPoses, Drawing, DrawingBody, \
@@ -54,6 +58,7 @@ class SpatialRig:
         self.joint_names, self.joint_prismatic = coordinates.joint_names(scene)
         self.crank_joint = scene.crank_joint
         self.crank_index = self.joint_names.index(scene.crank_joint)
+        self.driving_series = 'driving_torque' if self.linkage.periodic else 'driving_force'
         self.moment_point_m = tuple(float(x) for x in scene.moment_point_m)
         self.moment_point = "the frame point (%g, %g, %g) m (the scene's moment_point_m)" % \
             self.moment_point_m
@@ -103,15 +108,19 @@ class SpatialRig:
         want = set(outputs)
         state, w = self._evaluate(psi, tuple(outputs) or ('kinematics',), speed, accel)
         _, _, position, velocity = coordinates.joint_values(self.linkage, state)
-        position[:, self.crank_index] = psi
-        velocity[:, self.crank_index] = speed
+        x, x_d, _ = self.linkage.input_motion(psi, speed, accel)
+        position[:, self.crank_index] = x
+        velocity[:, self.crank_index] = x_d
         series, effort, reactions, force, moment = {}, None, None, None, None
         if w is not None:
             force, moment = w.force_N, w.moment_Nm
             if w.driving_torque is not None:
-                series['driving_torque'] = w.driving_torque
+                # the effort on tree coordinate 0, in the input joint's own sense
+                driving = w.driving_torque if self.linkage.input_sign > 0.0 else \
+                    -w.driving_torque
+                series[self.driving_series] = driving
                 effort = np.zeros_like(position)
-                effort[:, self.crank_index] = w.driving_torque
+                effort[:, self.crank_index] = driving
             if w.reactions is not None and 'bearing_reactions' in want:
                 reactions = w.reactions
         if 'kinetic_energy' in want:
