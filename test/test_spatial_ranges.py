@@ -17,7 +17,7 @@ from mech_balance.cli import main as cli
 from mech_balance.core.rig import rig_for
 import pytest
 
-SCENES = ('rssr_skew', 'rggr_spatial', 'spatial_two_loop', 'rssp_slider')
+SCENES = ('rssr_skew', 'rggr_spatial', 'spatial_two_loop', 'rssp_slider', 'pssr_skew')
 """The spatial built-ins (kind spatial and the RGGR as a spatial scene)."""
 LOW_MASS, HIGH_MASS = defaults.SPATIAL_MASS_FACTOR_RANGE
 LOW_EXTENT, HIGH_EXTENT = defaults.EXTENT_FACTOR_RANGE
