@@ -100,6 +100,38 @@ def test_force_balance_conditions_are_the_null_space(rssr_rig):
     assert result.nullity == basis.shape[1] - result.rank
 
 
+@pytest.mark.parametrize('scene_name, body, reason', [
+    ('rssp_slider', 'slider', 'mass -'),
+    ('pssr_skew', 'carriage', 'mass -'),
+    ('rggr_spatial', 'coupler', 'pseudo-inertia eigenvalue -'),
+])
+def test_an_unrealizable_least_change_force_balance_says_so(scene_name, body, reason, tmp_path):
+    """
+    The least-change force balance knows neither positive masses nor PSD pseudo-inertias.
+
+    Where it leaves a body no physical body realizes, the result says which and why (not
+    "attained" alone), the text points to the realizable route, and --output writes nothing
+    (the scene loader refuses the design before the file is written).
+    """
+    from mech_balance.cli import main as cli
+    rig = rig_for(schema.load(scene_name))
+    result = spatial.force_balance(rig, samples=SAMPLES)
+    assert result.attainable and not result.realizable
+    assert result.unrealizable[body].startswith(reason)
+    theta = result.theta
+    model = spatial.parameter_model(rig)
+    k = [b.name for b in model.bodies].index(body)
+    t = theta[10 * k:10 * k + 10]
+    assert t[0] <= 0.0 or np.linalg.eigvalsh(regressor.pseudo_inertia(t))[0] < 0.0
+    assert result.to_dict()['realizable'] is False
+    out = tmp_path / 'fb.yaml'
+    assert cli.main(['balance', '--scene', scene_name, '--method', 'force-balance',
+                     '--samples', str(SAMPLES), '--output', str(out)]) == 2
+    assert not out.exists()
+    assert cli.main(['balance', '--scene', scene_name, '--method', 'force-balance',
+                     '--samples', str(SAMPLES)]) == 0
+
+
 def test_skew_rssr_force_balanced_and_realizable(rssr_rig):
     result = spatial.redistribute(rssr_rig, weights=(0.5, 0.5), samples=SAMPLES,
                                   force_balanced=True)

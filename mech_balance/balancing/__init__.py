@@ -187,9 +187,11 @@ def _spatial(rig, method, options):
     if method == 'force_balance':
         result = spatial.force_balance(rig, **options)
         ratio = result.force_rms_N[1] / max(result.force_rms_N[0], 1e-300)
+        unbuilt = '' if result.realizable else \
+            f', NOT realizable ({", ".join(result.unrealizable)})'
         return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
             result.table, f'null space (rank {result.rank}), RMS shaking force after/before '
-                          f'{ratio:.1e}'))
+                          f'{ratio:.1e}{unbuilt}'))
     if method == 'redistribution':
         result = spatial.redistribute(rig, **options)
     else:

@@ -435,7 +435,13 @@ class ForceBalance:
     added_mass_kg: dict
     free: tuple
     samples: int
+    unrealizable: dict = field(default_factory=dict)
     table: list = field(default_factory=list)
+
+    @property
+    def realizable(self):
+        """Return whether every body of the design is a body (:func:`unrealizable_bodies`)."""
+        return not self.unrealizable
 
     def to_dict(self):
         """Return the result as a plain dict."""
@@ -443,7 +449,8 @@ class ForceBalance:
             'scene': self.scene.name, 'method': 'complete force balance (null space)',
             'samples': self.samples, 'free': list(self.free), 'rank': self.rank,
             'nullity': self.nullity, 'conditions': self.conditions,
-            'attainable': self.attainable,
+            'attainable': self.attainable, 'realizable': self.realizable,
+            'unrealizable': self.unrealizable,
             'added_first_moment_kg_m': self.added_first_moment_kg_m,
             'added_mass_kg': self.added_mass_kg, 'table': self.table})
 
@@ -501,9 +508,31 @@ def force_balance(rig, free=None, samples=None):
         attainable=force[1] <= FORCE_BALANCED_REL * max(force[0], 1e-300),
         force_rms_N=force, moment_rms_Nm=moment, added_first_moment_kg_m=added_h,
         added_mass_kg=added_m, free=tuple(model.bodies[k].name for k in free_idx),
-        samples=samples)
+        samples=samples, unrealizable=unrealizable_bodies(model, theta, free_idx))
     result.table = before_after(rig, balanced, samples, units)
     return result
+
+
+def unrealizable_bodies(model, theta, indices):
+    """
+    Return ``{body: reason}`` of the bodies among ``indices`` that no physical body realizes.
+
+    A body is realizable when its mass is positive and its pseudo-inertia is PSD (down to
+    :data:`PSD_ROUNDOFF` of its largest eigenvalue): the least-change force balance is a
+    least-squares step that knows neither, and may ask for a negative mass.
+    """
+    out = {}
+    for k in indices:
+        t = theta[10 * k:10 * k + 10]
+        name = model.bodies[k].name
+        if not t[0] > 0.0:
+            out[name] = f'mass {t[0]:.6g} kg (not positive)'
+            continue
+        eig = np.linalg.eigvalsh(regressor.pseudo_inertia(t))
+        if eig[0] < -PSD_ROUNDOFF * float(np.abs(eig).max()):
+            out[name] = (f'pseudo-inertia eigenvalue {eig[0]:.3g} < 0 (a mass distribution '
+                         'no body has)')
+    return out
 
 
 def _conditions(rows, scale, names):
@@ -1738,6 +1767,9 @@ def write_scene(result, path):
         comment = yaml.safe_dump(provenance, sort_keys=False, width=95)
         text = ''.join(f'# {line}\n' for line in comment.splitlines()) + \
             schema.to_yaml(result.balanced_scene)
+        # the design itself must load (a force balance may ask for a negative mass): checked
+        # before anything is written, so a refused design leaves no file behind
+        schema.from_dict(yaml.safe_load(text), source=str(path))
     atomic.write_text_atomic(path, f'# written by mech-balance balance from scene '
                                    f'{result.scene.name}\n' + text)
     return schema.load(str(path))

@@ -739,6 +739,12 @@ def format_spatial(design):
             lines.append(f'  {name}: first moment change (body axes) '
                          + ' '.join(f'{x:.6g}' for x in h) + ' kg m, mass change '
                          f"{rep['added_mass_kg'][name]:.6g} kg")
+        for name, reason in rep['unrealizable'].items():
+            lines.append(f'  NOT realizable: {name}: {reason}')
+        if rep['unrealizable']:
+            lines.append('  the least change is no buildable design; a realizable one with zero '
+                         'shaking force, if any: balance --method redistribution '
+                         '--force-balanced')
     else:
         cert = rep['certificate']
         lines.append(f"{rep['method']}, weights {rep['weights'][0]:g} {rep['weights'][1]:g}")

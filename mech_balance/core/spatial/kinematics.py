@@ -1258,7 +1258,9 @@ class Linkage:
             c = np.array(lk.com_m) - x0
             inertia = np.array(lk.inertia_matrix())
             about = float(ul @ inertia @ ul + lk.mass_kg * np.sum(cross(c, ul) ** 2))
-            scale = lk.mass_kg * self.length_scale ** 2 + float(np.trace(inertia))
+            # the magnitudes: a design that is no body (a least-change force balance may
+            # give a negative-definite inertia) must not make the scale vanish or go negative
+            scale = abs(lk.mass_kg) * self.length_scale ** 2 + float(np.abs(inertia).sum())
             if about > IDLE_INERTIA_RTOL * max(scale, 1e-300):
                 raise SpatialError(
                     f'links.{name}: held only by the spherical joints {j1} and {j2}, it '
