@@ -132,6 +132,26 @@ def test_an_unrealizable_least_change_force_balance_says_so(scene_name, body, re
                      '--samples', str(SAMPLES)]) == 0
 
 
+@pytest.mark.parametrize('scene_name, body', [('pssr_skew', 'carriage'),
+                                              ('rssp_slider', 'slider')])
+def test_a_link_without_span_gets_the_rigs_smallest_span(scene_name, body):
+    """
+    Give a slider whose points sit at its origin the smallest span of the other links.
+
+    Its reach sets its extent bound and its counterweight's distance: a metre, as before,
+    put a 3.8 g sphere 1 m off the rig.
+    """
+    rig = rig_for(schema.load(scene_name))
+    model = spatial.parameter_model(rig)
+    reach = {b.name: b.reach_m for b in model.bodies}
+    spans = [max(float(np.linalg.norm(p)) for p in lk.points.values())
+             for lk in rig.scene.links if lk.name != body]
+    assert max(np.linalg.norm(p) for p in rig.scene.link(body).points.values()) == 0.0
+    assert reach[body] == pytest.approx(max(min(spans),
+                                            np.linalg.norm(rig.scene.link(body).com_m)))
+    assert reach[body] < 0.2
+
+
 def test_skew_rssr_force_balanced_and_realizable(rssr_rig):
     result = spatial.redistribute(rssr_rig, weights=(0.5, 0.5), samples=SAMPLES,
                                   force_balanced=True)

@@ -244,12 +244,19 @@ def spatial_model(rig):
     idle = {name: (ja, jb) for name, ja, jb in getattr(rig.linkage, 'idle_spins', ())}
     joints = {j.name: j for j in sc.joints}
     names = [b.name for b in rig.drawing.bodies]
+    reaches = {name: max([float(np.linalg.norm(p)) for p in sc.link(name).points.values()]
+                         + [0.0]) for name in names}
+    # a link whose points all sit at its origin (a slider carriage) has no span of its own:
+    # it is given the smallest span of the rig's other links (the size of its parts), not a
+    # metre, so its extent bound and its counterweight's distance stay within the rig
+    spans = [r for r in reaches.values() if r > 0.0]
+    least_span = min(spans) if spans else 1.0
     bodies, thetas = [], []
     for name in names:
         lk = sc.link(name)
-        reach = max([float(np.linalg.norm(p)) for p in lk.points.values()] + [0.0])
+        reach = reaches[name]
         if reach <= 0.0:
-            reach = max(float(np.linalg.norm(lk.com_m)), 1.0)
+            reach = max(float(np.linalg.norm(lk.com_m)), least_span)
         thetas.append(regressor.parameters(lk.mass_kg, lk.com_m, lk.inertia_matrix()))
         if name in idle:
             ends = [lk.points[j.point_a if j.link_a == name else j.point_b]
