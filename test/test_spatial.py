@@ -21,6 +21,7 @@ from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
+from scipy.optimize import minimize_scalar
 import yaml
 
 BUILTINS = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop')
@@ -36,8 +37,12 @@ RGGR_RTOL = 1e-12
 """rggr_spatial against the closed-form rggr kind, relative to each quantity's scale."""
 ACCEL_FRACTION = 0.3
 """Crank acceleration of the physics checks, as a fraction of speed^2 (rad/s^2)."""
-N_RANDOM = 100
-"""Random RSSR geometries; each is checked on both assembly branches (200 rigs)."""
+N_RANDOM = 200
+"""Random RSSR geometries, each checked on both assembly branches (400 rigs)."""
+ROTATION_MARGIN = 0.02
+"""Least ``rotation_margin`` of a random RSSR kept: its crank turns fully on both branches."""
+N_NEAR_SINGULAR = 8
+"""Random RSSRs taken to the limit of full rotation (flagged before it, refused beyond)."""
 
 
 def _load_data(name):
@@ -462,23 +467,85 @@ def random_rssr(rng, branch):
         'samples': 36}
 
 
+def _rssr_closure(data):
+    """
+    Return ``ratio(psi)`` = |K| / hypot(P, Q) of a random RSSR mapping, from its geometry alone.
+
+    With the crank's ball B(psi) and the rocker's ball C(phi) = D + r3 (cos phi f1 + sin phi
+    f2) (f1, f2 normal to the rocker's axis), the coupler's length L closes the loop where
+    P cos phi + Q sin phi = K, with w = D - B, P = 2 r3 w.f1, Q = 2 r3 w.f2 and
+    K = L^2 - |w|^2 - r3^2: two rocker angles (the two branches) while the ratio is below 1,
+    one (a singular position, the branches meet) at 1, none above.
+    """
+    frame, joints, links = data['frame']['points'], data['joints'], data['links']
+    a0, d0 = np.array(frame['A']), np.array(frame['D'])
+    r1 = np.linalg.norm(links['crank']['points']['B'])
+    r3 = np.linalg.norm(links['rocker']['points']['C'])
+    length = np.linalg.norm(links['coupler']['points']['C'])
+    e = _frame_z(np.array(joints['A']['axis']), np.array([1.0, 0.3, 0.2]))
+    f = _frame_z(np.array(joints['D']['axis']), np.array([0.2, 1.0, 0.3]))
+
+    def ratio(psi):
+        psi = np.asarray(psi, dtype=float)[..., None]
+        w = d0 - a0 - r1 * (np.cos(psi) * e[:, 0] + np.sin(psi) * e[:, 1])
+        k = length ** 2 - np.sum(w * w, -1) - r3 ** 2
+        return np.abs(k) / np.hypot(2 * r3 * (w @ f[:, 0]), 2 * r3 * (w @ f[:, 1]))
+    return ratio
+
+
+def rotation_margin(data, grid=3600):
+    """
+    Return 1 - max over the crank turn of ``_rssr_closure``'s ratio (the maximum refined).
+
+    Positive: the crank turns fully on both branches, which stay apart; negative: some crank
+    angle has no assembly, so the crank cannot turn fully.
+    """
+    ratio = _rssr_closure(data)
+    psi = np.linspace(0.0, 2.0 * np.pi, grid, endpoint=False)
+    values = ratio(psi)
+    i, h = int(np.argmax(values)), 2.0 * np.pi / grid
+    best = minimize_scalar(lambda x: -ratio(x), bounds=(psi[i] - h, psi[i] + h),
+                           method='bounded', options={'xatol': 1e-12})
+    return 1.0 - max(float(values[i]), -float(best.fun))
+
+
+def _with_crank(data, length_m):
+    trial = copy.deepcopy(data)
+    trial['links']['crank']['points']['B'][0] = float(length_m)
+    return trial
+
+
+def _crank_limit(data):
+    """Return the crank length at which the crank stops turning fully (margin 0), bisected."""
+    lo = hi = data['links']['crank']['points']['B'][0]
+    while rotation_margin(_with_crank(data, hi)) > 0.0:
+        hi *= 1.25
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if rotation_margin(_with_crank(data, mid)) > 0.0 else (lo, mid)
+    return lo
+
+
+def _random_geometries(seed, count, keep):
+    """Return ``count`` random RSSR seeds whose rotation margin passes ``keep``."""
+    rng = np.random.default_rng(seed)
+    seeds = []
+    while len(seeds) < count:
+        s = int(rng.integers(1 << 31))
+        if keep(rotation_margin(random_rssr(np.random.default_rng(s), 1))):
+            seeds.append(s)
+    return seeds
+
+
 def _random_rigs():
-    rng = np.random.default_rng(20261201)
-    rigs, tries = [], 0
-    while len(rigs) < 2 * N_RANDOM and tries < 20 * N_RANDOM:
-        tries += 1
-        seed = rng.integers(1 << 31)
-        pair = []
+    """Return N_RANDOM geometries' rigs, each on both branches: all must build."""
+    rigs = []
+    for s in _random_geometries(20261201, N_RANDOM, lambda m: m >= ROTATION_MARGIN):
         for branch in (1, -1):
-            data = random_rssr(np.random.default_rng(seed), branch)
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter('ignore', RuntimeWarning)
-                    pair.append(rig_for(spatial_from_dict(data), cache=False))
-            except SpatialError:
-                break
-        if len(pair) == 2:
-            rigs += pair
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore', RuntimeWarning)
+                rigs.append(rig_for(spatial_from_dict(random_rssr(np.random.default_rng(s),
+                                                                  branch)), cache=False))
     return rigs
 
 
@@ -497,6 +564,10 @@ def test_random_rssrs_both_branches(random_rigs):
         out = a.joint_names.index('D')
         assert np.max(np.abs(np.angle(np.exp(1j * (da.joint_position[:, out]
                                                    - db.joint_position[:, out]))))) > 1e-6
+        for d in (da, db):   # the closure residual and the condition number, per angle
+            assert np.all(d.residual <= kinematics.NEWTON_TOL)
+            assert np.all(np.isfinite(d.condition)) and np.all(d.condition >= 1.0)
+            assert np.array_equal(d.near_singular, d.condition > kinematics.COND_WARN)
     for rig in random_rigs:
         with warnings.catch_warnings():
             warnings.simplefilter('ignore', RuntimeWarning)
@@ -505,40 +576,39 @@ def test_random_rssrs_both_branches(random_rigs):
 
 
 def test_random_near_singular_cases_are_flagged():
-    """Grow the crank of random RSSRs towards the limit of full rotation: flagged there."""
-    rng = np.random.default_rng(7)
-    flagged = 0
-    for _ in range(6):
-        seed = rng.integers(1 << 31)
-        data = random_rssr(np.random.default_rng(seed), 1)
-        try:
-            rig_for(spatial_from_dict(data), cache=False)
-        except SpatialError:
-            continue
-        lo, hi = data['links']['crank']['points']['B'][0], 0.5
-        best = None
-        for _ in range(30):
-            mid = 0.5 * (lo + hi)
-            trial = copy.deepcopy(data)
-            trial['links']['crank']['points']['B'][0] = mid
+    """
+    Grow the crank of random RSSRs towards the limit of full rotation: flagged, then refused.
+
+    The limit comes from the closure equation alone (``_crank_limit``).  Approaching it the
+    branches meet, so the condition number grows without bound: every geometry must be
+    flagged (a warning naming the crank angle; ``near_singular`` where ``rig.at`` evaluates
+    that angle) before the solver refuses it, and just beyond the limit it must be refused
+    with the crank angle named, never assembled through the gap.
+    """
+    for s in _random_geometries(7, N_NEAR_SINGULAR, lambda m: m >= ROTATION_MARGIN):
+        data = random_rssr(np.random.default_rng(s), 1)
+        limit = _crank_limit(data)
+        for digits in range(2, 9):
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter('always', RuntimeWarning)
-                try:
-                    rig = rig_for(spatial_from_dict(trial), cache=False)
-                    d = rig.at(np.linspace(0.0, 2.0 * np.pi, 720, endpoint=False))
-                except SpatialError:
-                    hi = mid
-                    continue
-            lo = mid
-            best = (rig, d, [str(w.message) for w in caught])
-        if best is None:
-            continue
-        rig, d, messages = best
-        assert np.array_equal(d.near_singular, d.condition > kinematics.COND_WARN)
-        if d.near_singular.any():
-            flagged += 1
-            assert any('near-singular' in m for m in messages)
-    assert flagged >= 1
+                rig = rig_for(spatial_from_dict(_with_crank(data, limit * (1 - 10.0 ** -digits))),
+                              cache=False)
+            sk = rig.linkage.skeleton
+            if np.max(sk.cond) > kinematics.COND_WARN:
+                break
+        else:
+            pytest.fail(f'seed {s}: 1e-8 from its rotation limit and never near-singular')
+        # the trace warns at its worst node, naming the crank angle and the condition number
+        worst = int(np.argmax(sk.cond))
+        assert (f'crank angle {math.degrees(sk.psi[worst]):.3f} deg: near-singular position '
+                f'(Jacobian condition number {sk.cond[worst]:.3g} > {kinematics.COND_WARN:.4g})'
+                in [str(w.message) for w in caught])
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', RuntimeWarning)   # warned already (once per text)
+            d = rig.at(sk.psi[worst:worst + 1])
+            assert d.near_singular[0] and d.condition[0] > kinematics.COND_WARN
+            with pytest.raises(SpatialError, match=r'crank angle -?[0-9.]+ deg: cannot continue'):
+                rig_for(spatial_from_dict(_with_crank(data, limit * (1 + 1e-3))), cache=False)
 
 
 # ----------------------------------------------------------------------------- URDF
