@@ -1,5 +1,5 @@
 """
-Tests of the spatial kind (``kind: spatial``): schema, physics, the RGGR, random RSSRs.
+Tests of the spatial kind (``kind: spatial``): schema, physics, the RGGR, random RSSRs, an RSCR.
 
 The physics checks differentiate the body poses the rig publishes (``RigData.bodies``) by
 finite differences in time: shaking force = -dp/dt, shaking moment = -dH_P/dt, and the
@@ -661,26 +661,98 @@ def test_urdf_fk_puts_every_joint_point_where_the_core_does(name):
 
 # ----------------------------------------------------------------------------- Jacobian
 
-def _rscr():
-    """Return an R-S-C-R scene (a cylindrical joint between coupler and rocker), assembled."""
-    base = rig_for(schema.load('rssr_skew'))
-    poses = base.at(np.array([0.0]), outputs=('kinematics',)).bodies
-    r_rocker, d = poses.rotation[0, 3], poses.origin_m[0, 3]
-    b = np.array([0.03, 0.0, 0.0])
-    q = d + 0.12 * r_rocker[:, 0]
-    rc = np.stack([r_rocker[:, 0], np.cross(r_rocker[:, 2], r_rocker[:, 0]), r_rocker[:, 2]], -1)
-    b_local = rc.T @ (b - q)
+RSCR_SLEEVE_M = 0.15
+"""The RSCR's coupler: distance from its ball B to the axis of its sleeve on the rocker."""
+
+
+def _rscr(cut=True):
+    """
+    Return an R-S-C-R: rssr_skew's crank and rocker, the coupler a sleeve on the rocker.
+
+    The cylindrical joint C sits at the rocker's tip with its axis parallel to the rocker's
+    shaft, so that projected along that shaft the linkage is a planar four-bar whose coupler
+    is ``RSCR_SLEEVE_M`` long (a crank-rocker: the crank turns fully); the sleeve turns and
+    slides on its axis over the cycle.  One freedom, no idle spin.  ``cut``: C is the cut
+    joint (its line and dot rows close the loop); else it is a tree joint and the spherical
+    B is cut.
+    """
     data = copy.deepcopy(_load_data('rssr_skew'))
+    frame, joints = data['frame']['points'], data['joints']
+    u3 = _unit(np.array(joints['D']['axis']))
+    zero = min_rotation(joints['D']['axis_b'], joints['D']['axis'])   # rocker axes at angle 0
+    r3 = data['links']['rocker']['points']['C'][0]
+    b = np.array(data['links']['crank']['points']['B'])   # at crank angle 0 (crank axes)
+    w = b - np.array(frame['D'])
+    w -= (w @ u3) * u3
+    # the sleeve's axis at distance RSCR_SLEEVE_M from B: P cos phi + Q sin phi = K
+    p, q = 2 * r3 * (w @ zero[:, 0]), 2 * r3 * (w @ zero[:, 1])
+    k = r3 ** 2 + w @ w - RSCR_SLEEVE_M ** 2
+    phi = math.atan2(q, p) + math.acos(k / math.hypot(p, q))
+    rocker = zero @ np.array([[math.cos(phi), -math.sin(phi), 0.0],
+                              [math.sin(phi), math.cos(phi), 0.0], [0.0, 0.0, 1.0]])
+    c = np.array(frame['D']) + r3 * rocker[:, 0]
+    foot = c + ((b - c) @ u3) * u3                    # the sleeve's point Q, on the C axis
+    x = _unit(b - foot)
+    coupler = np.stack([x, np.cross(u3, x), u3], -1)
     data['links']['coupler'] = {
-        'points': {'Q': [0.0, 0.0, 0.0], 'B': [float(v) for v in b_local]}, 'mass_kg': 0.25,
-        'com_m': [float(v) for v in 0.5 * b_local],
-        'inertia_com_kg_m2': [1e-4, 6e-4, 6.5e-4, 1e-5, 0.0, 2e-6]}
-    data['links']['rocker']['points'] = {'D': [0.0, 0.0, 0.0]}
-    data['joints']['C'] = {'type': 'cylindrical', 'a': 'rocker.D', 'b': 'coupler.Q',
-                           'axis': [1.0, 0.0, 0.0]}
-    data['assembly']['poses']['coupler'] = {'origin_m': [float(v) for v in q],
-                                            'rpy_deg': _rpy(rc)}
+        'points': {'Q': [0.0, 0.0, 0.0], 'B': [RSCR_SLEEVE_M, 0.0, 0.0]}, 'mass_kg': 0.25,
+        'com_m': [0.45 * RSCR_SLEEVE_M, 0.004, -0.01],
+        'inertia_com_kg_m2': [1e-4, 6e-4, 6.5e-4, 1e-5, -4e-6, 2e-6]}
+    cyl = {'type': 'cylindrical', 'a': 'rocker.C', 'b': 'coupler.Q', 'axis': [0.0, 0.0, 1.0]}
+    order = ('A', 'B', 'C', 'D') if cut else ('A', 'C', 'B', 'D')
+    data['joints'] = {n: cyl if n == 'C' else joints[n] for n in order}
+    data['assembly']['poses']['coupler'] = {'origin_m': [float(v) for v in foot],
+                                            'rpy_deg': _rpy(coupler)}
+    data['assembly']['poses']['rocker'] = {'origin_m': frame['D'], 'rpy_deg': _rpy(rocker)}
+    data['name'] = 'rscr'
     return spatial_from_dict(data)
+
+
+@pytest.mark.parametrize('cut', [True, False], ids=['C_cut', 'C_tree'])
+def test_cylindrical_joint_in_a_closed_loop(cut):
+    """
+    The RSCR over a full turn: momentum, power, Newton-Euler per link, closure, joint loads.
+
+    A frictionless cylindrical joint passes no force along its axis and no moment about it;
+    the passive revolute D no moment about its axis; the spherical B no moment at all.
+    """
+    sc = _rscr(cut)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error', RuntimeWarning)    # not near-singular anywhere
+        rig = rig_for(sc, cache=False)
+        lk = rig.linkage
+        cuts = [sc.joints[i].name for i in lk.cut_joints]
+        assert cuts == (['C'] if cut else ['B'])
+        assert not getattr(lk, 'idle_spins', ()) and rig.reactions_unique
+        assert (lk.m, lk.nu) == ((4, 4) if cut else (3, 3))   # C: 2 dot + 2 line rows; B: 3
+        psi = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+        _check_momentum(rig, psi)
+        _check_power(rig, psi)
+        _check_reactions(rig, psi)
+        data = rig.at(np.linspace(0.0, 2.0 * np.pi, 360, endpoint=False))
+    assert np.all(data.residual <= kinematics.NEWTON_TOL)
+    assert np.array_equal(data.near_singular, data.condition > kinematics.COND_WARN)
+    names = data.joint_names
+    for joint, moves in (('C_turn', 0.1), ('C_slide', 0.01)):   # the sleeve turns and slides
+        assert np.ptp(data.joint_position[:, names.index(joint)]) > moves
+    poses = data.bodies
+    crank_b = poses.world('crank', sc.link('crank').points['B'])
+    tip = poses.world('rocker', sc.link('rocker').points['C'])
+    axis = np.einsum('nij,j->ni', poses.rotation[:, poses.names.index('rocker')], [0.0, 0.0, 1.0])
+    sleeve = poses.world('coupler', sc.link('coupler').points['Q'])
+    off = (sleeve - tip) - np.sum((sleeve - tip) * axis, -1)[:, None] * axis
+    length = lk.length_scale
+    assert np.max(np.abs(off)) <= 10 * kinematics.NEWTON_TOL * length    # Q on the C axis
+    assert_allclose(np.linalg.norm(crank_b - poses.world('coupler', sc.link('coupler').points[
+        'B']), axis=-1), 0.0, atol=10 * kinematics.NEWTON_TOL * length)
+    force_c, moment_c = data.reactions['C']
+    load = max(np.max(np.abs(force_c)), np.max(np.abs(data.reactions['A'][0])))
+    torque = max(np.max(np.abs(moment_c)), np.max(np.abs(data.reactions['A'][1])))
+    assert np.max(np.abs(np.sum(force_c * axis, -1))) <= 1e-12 * load
+    assert np.max(np.abs(np.sum(moment_c * axis, -1))) <= 1e-12 * torque
+    shaft = _unit(np.array(next(j for j in sc.joints if j.name == 'D').axis))   # frame axes
+    assert np.max(np.abs(data.reactions['D'][1] @ shaft)) <= 1e-12 * torque
+    assert np.max(np.abs(data.reactions['B'][1])) <= 1e-12 * torque
 
 
 JACOBIAN_FD_STEP = 1e-6
