@@ -317,6 +317,28 @@ def test_universal_instead_of_spherical_holds_the_spin():
     _check_power(rig, np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False))
 
 
+@pytest.mark.parametrize('name', BUILTINS)
+def test_idle_spin_is_fixed_by_convention_without_load(name):
+    """
+    Every built-in's S-S coupler: its spin fixed by the convention row, reported by analyze.
+
+    The row holds a link with no inertia about the S-S line, so its multiplier (the moment it
+    would exert about the line) is round-off against the driving torque.
+    """
+    from mech_balance.analysis import spatial_report
+    sc = schema.load(name)
+    rig = rig_for(sc)
+    assert rig.linkage.idle_spins == (('coupler', 'B', 'C'),)
+    assert sum(r.form == 'spin' for r in rig.linkage.rows) == 1
+    _, w = rig.evaluate(np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False))
+    assert w.spin_moment.shape == (72, 1)
+    assert np.max(np.abs(w.spin_moment)) <= 1e-12 * np.max(np.abs(w.driving_torque))
+    report = spatial_report.analyze(sc)
+    assert report.data['idle_spins'] == [['coupler', 'B', 'C']]
+    assert 'idle spin of coupler about the line B-C: fixed by convention (slender rod)' in \
+        report.text.splitlines()
+
+
 def _bennett(alpha_deg=30.0, a_m=0.1, theta_deg=60.0):
     """Return a Bennett linkage scene (over-constrained RRRR; lengths a, b, twists a, b)."""
     alpha = math.radians(alpha_deg)
@@ -386,6 +408,23 @@ def test_over_constrained_bennett_reports_non_unique_reactions():
     _check_power(rig, psi)
     # the reactions are a minimum-norm choice, yet they still balance every link
     _check_reactions(rig, psi)
+    # minimum norm: the scaled multipliers solve J_u^T y = Q_u with no component in the null
+    # space of J_u^T (3 directions here: the redundant rows' self-stress), which is where the
+    # other solutions differ
+    state, w = rig.evaluate(psi)
+    js = lk.scaled(state.jac)                          # (n, 5, 2)
+    y = w.multipliers / lk.row_scale
+    u, sv, _ = np.linalg.svd(js)
+    assert np.all(sv[:, -1] > 1e-3 * sv[:, 0])         # rank 2 at every angle
+    stress = u[:, :, lk.rank:]                         # (n, 5, 3)
+    assert np.max(np.abs(np.einsum('nmk,nm->nk', stress, y))) <= \
+        1e-12 * np.max(np.abs(y))
+    # analyze says so (the figures it shows are the minimum-norm ones)
+    from mech_balance.analysis import spatial_report
+    report = spatial_report.analyze(rig.scene)
+    assert report.data['reactions_unique'] is False
+    assert 'over-constrained (3 redundant closure rows): bearing reactions are not unique; ' \
+        'the minimum-norm ones are shown' in report.text.splitlines()
 
 
 # ----------------------------------------------------------------------------- random RSSRs
