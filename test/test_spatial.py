@@ -252,9 +252,23 @@ def test_reactions_balance_every_link(name):
 
 
 def test_rggr_spatial_matches_rggr():
+    """The joints, every body's motion, the shaking wrench and the torque over the cycle."""
     psi = np.linspace(0.0, 2.0 * np.pi, 360, endpoint=False)
-    general = rig_for(schema.load('rggr_spatial')).at(psi)
-    closed = rggr.RggrRig(schema.load('rggr')).at(psi)
+    general_rig, closed_rig = rig_for(schema.load('rggr_spatial')), rggr.RggrRig(
+        schema.load('rggr'))
+    general, closed = general_rig.at(psi), closed_rig.at(psi)
+    # the bodies: origins and x axes (crank and output: their frames; coupler: its line BC,
+    # its other axes follow each kind's own convention), rates and accelerations
+    assert general.bodies.names == closed.bodies.names
+    length = closed_rig.scene.normalization['length_m']
+    assert_allclose(general.bodies.origin_m, closed.bodies.origin_m, rtol=0,
+                    atol=RGGR_RTOL * length)
+    assert_allclose(general.bodies.rotation[..., 0], closed.bodies.rotation[..., 0], rtol=0,
+                    atol=RGGR_RTOL)
+    mine, theirs = general_rig.body_kinematics(psi), closed_rig.body_kinematics(psi)
+    for field in ('omega_rad_s', 'alpha_rad_s2', 'accel_origin_m_s2'):
+        a, b = getattr(mine, field), getattr(theirs, field)
+        assert_allclose(a, b, rtol=0, atol=RGGR_RTOL * np.max(np.abs(b)), err_msg=field)
     out = general.joint_names.index('output')
     dphi = np.angle(np.exp(1j * (general.joint_position[:, out]
                                  - closed.joint_position[:, 1])))
