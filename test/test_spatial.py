@@ -1,5 +1,5 @@
 """
-Tests of the spatial kind (``kind: spatial``): schema, physics, the RGGR, random RSSRs.
+Tests of the spatial kind (``kind: spatial``): schema, physics, the RGGR, random RSSRs, an RSCR.
 
 The physics checks differentiate the body poses the rig publishes (``RigData.bodies``) by
 finite differences in time: shaking force = -dp/dt, shaking moment = -dH_P/dt, and the
@@ -23,6 +23,7 @@ from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
+from scipy.optimize import minimize_scalar
 import yaml
 
 BUILTINS = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop', 'pssr_skew')
@@ -38,8 +39,12 @@ RGGR_RTOL = 1e-12
 """rggr_spatial against the closed-form rggr kind, relative to each quantity's scale."""
 ACCEL_FRACTION = 0.3
 """Crank acceleration of the physics checks, as a fraction of speed^2 (rad/s^2)."""
-N_RANDOM = 100
-"""Random RSSR geometries; each is checked on both assembly branches (200 rigs)."""
+N_RANDOM = 200
+"""Random RSSR geometries, each checked on both assembly branches (400 rigs)."""
+ROTATION_MARGIN = 0.02
+"""Least ``rotation_margin`` of a random RSSR kept: its crank turns fully on both branches."""
+N_NEAR_SINGULAR = 8
+"""Random RSSRs taken to the limit of full rotation (flagged before it, refused beyond)."""
 
 
 def _load_data(name):
@@ -251,9 +256,23 @@ def test_reactions_balance_every_link(name):
 
 
 def test_rggr_spatial_matches_rggr():
+    """The joints, every body's motion, the shaking wrench and the torque over the cycle."""
     psi = np.linspace(0.0, 2.0 * np.pi, 360, endpoint=False)
-    general = rig_for(schema.load('rggr_spatial')).at(psi)
-    closed = rggr.RggrRig(schema.load('rggr')).at(psi)
+    general_rig, closed_rig = rig_for(schema.load('rggr_spatial')), rggr.RggrRig(
+        schema.load('rggr'))
+    general, closed = general_rig.at(psi), closed_rig.at(psi)
+    # the bodies: origins and x axes (crank and output: their frames; coupler: its line BC,
+    # its other axes follow each kind's own convention), rates and accelerations
+    assert general.bodies.names == closed.bodies.names
+    length = closed_rig.scene.normalization['length_m']
+    assert_allclose(general.bodies.origin_m, closed.bodies.origin_m, rtol=0,
+                    atol=RGGR_RTOL * length)
+    assert_allclose(general.bodies.rotation[..., 0], closed.bodies.rotation[..., 0], rtol=0,
+                    atol=RGGR_RTOL)
+    mine, theirs = general_rig.body_kinematics(psi), closed_rig.body_kinematics(psi)
+    for field in ('omega_rad_s', 'alpha_rad_s2', 'accel_origin_m_s2'):
+        a, b = getattr(mine, field), getattr(theirs, field)
+        assert_allclose(a, b, rtol=0, atol=RGGR_RTOL * np.max(np.abs(b)), err_msg=field)
     out = general.joint_names.index('output')
     dphi = np.angle(np.exp(1j * (general.joint_position[:, out]
                                  - closed.joint_position[:, 1])))
@@ -314,6 +333,28 @@ def test_universal_instead_of_spherical_holds_the_spin():
     assert not getattr(rig.linkage, 'idle_spins', ())
     _check_momentum(rig, np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False))
     _check_power(rig, np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False))
+
+
+@pytest.mark.parametrize('name', BUILTINS)
+def test_idle_spin_is_fixed_by_convention_without_load(name):
+    """
+    Every built-in's S-S coupler: its spin fixed by the convention row, reported by analyze.
+
+    The row holds a link with no inertia about the S-S line, so its multiplier (the moment it
+    would exert about the line) is round-off against the driving torque.
+    """
+    from mech_balance.analysis import spatial_report
+    sc = schema.load(name)
+    rig = rig_for(sc)
+    assert rig.linkage.idle_spins == (('coupler', 'B', 'C'),)
+    assert sum(r.form == 'spin' for r in rig.linkage.rows) == 1
+    _, w = rig.evaluate(np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False))
+    assert w.spin_moment.shape == (72, 1)
+    assert np.max(np.abs(w.spin_moment)) <= 1e-12 * np.max(np.abs(w.driving_torque))
+    report = spatial_report.analyze(sc)
+    assert report.data['idle_spins'] == [['coupler', 'B', 'C']]
+    assert 'idle spin of coupler about the line B-C: fixed by convention (slender rod)' in \
+        report.text.splitlines()
 
 
 def _bennett(alpha_deg=30.0, a_m=0.1, theta_deg=60.0):
@@ -385,6 +426,23 @@ def test_over_constrained_bennett_reports_non_unique_reactions():
     _check_power(rig, psi)
     # the reactions are a minimum-norm choice, yet they still balance every link
     _check_reactions(rig, psi)
+    # minimum norm: the scaled multipliers solve J_u^T y = Q_u with no component in the null
+    # space of J_u^T (3 directions here: the redundant rows' self-stress), which is where the
+    # other solutions differ
+    state, w = rig.evaluate(psi)
+    js = lk.scaled(state.jac)                          # (n, 5, 2)
+    y = w.multipliers / lk.row_scale
+    u, sv, _ = np.linalg.svd(js)
+    assert np.all(sv[:, -1] > 1e-3 * sv[:, 0])         # rank 2 at every angle
+    stress = u[:, :, lk.rank:]                         # (n, 5, 3)
+    assert np.max(np.abs(np.einsum('nmk,nm->nk', stress, y))) <= \
+        1e-12 * np.max(np.abs(y))
+    # analyze says so (the figures it shows are the minimum-norm ones)
+    from mech_balance.analysis import spatial_report
+    report = spatial_report.analyze(rig.scene)
+    assert report.data['reactions_unique'] is False
+    assert 'over-constrained (3 redundant closure rows): bearing reactions are not unique; ' \
+        'the minimum-norm ones are shown' in report.text.splitlines()
 
 
 # ----------------------------------------------------------------------------- random RSSRs
@@ -466,23 +524,85 @@ def random_rssr(rng, branch):
         'samples': 36}
 
 
+def _rssr_closure(data):
+    """
+    Return ``ratio(psi)`` = |K| / hypot(P, Q) of a random RSSR mapping, from its geometry alone.
+
+    With the crank's ball B(psi) and the rocker's ball C(phi) = D + r3 (cos phi f1 + sin phi
+    f2) (f1, f2 normal to the rocker's axis), the coupler's length L closes the loop where
+    P cos phi + Q sin phi = K, with w = D - B, P = 2 r3 w.f1, Q = 2 r3 w.f2 and
+    K = L^2 - |w|^2 - r3^2: two rocker angles (the two branches) while the ratio is below 1,
+    one (a singular position, the branches meet) at 1, none above.
+    """
+    frame, joints, links = data['frame']['points'], data['joints'], data['links']
+    a0, d0 = np.array(frame['A']), np.array(frame['D'])
+    r1 = np.linalg.norm(links['crank']['points']['B'])
+    r3 = np.linalg.norm(links['rocker']['points']['C'])
+    length = np.linalg.norm(links['coupler']['points']['C'])
+    e = _frame_z(np.array(joints['A']['axis']), np.array([1.0, 0.3, 0.2]))
+    f = _frame_z(np.array(joints['D']['axis']), np.array([0.2, 1.0, 0.3]))
+
+    def ratio(psi):
+        psi = np.asarray(psi, dtype=float)[..., None]
+        w = d0 - a0 - r1 * (np.cos(psi) * e[:, 0] + np.sin(psi) * e[:, 1])
+        k = length ** 2 - np.sum(w * w, -1) - r3 ** 2
+        return np.abs(k) / np.hypot(2 * r3 * (w @ f[:, 0]), 2 * r3 * (w @ f[:, 1]))
+    return ratio
+
+
+def rotation_margin(data, grid=3600):
+    """
+    Return 1 - max over the crank turn of ``_rssr_closure``'s ratio (the maximum refined).
+
+    Positive: the crank turns fully on both branches, which stay apart; negative: some crank
+    angle has no assembly, so the crank cannot turn fully.
+    """
+    ratio = _rssr_closure(data)
+    psi = np.linspace(0.0, 2.0 * np.pi, grid, endpoint=False)
+    values = ratio(psi)
+    i, h = int(np.argmax(values)), 2.0 * np.pi / grid
+    best = minimize_scalar(lambda x: -ratio(x), bounds=(psi[i] - h, psi[i] + h),
+                           method='bounded', options={'xatol': 1e-12})
+    return 1.0 - max(float(values[i]), -float(best.fun))
+
+
+def _with_crank(data, length_m):
+    trial = copy.deepcopy(data)
+    trial['links']['crank']['points']['B'][0] = float(length_m)
+    return trial
+
+
+def _crank_limit(data):
+    """Return the crank length at which the crank stops turning fully (margin 0), bisected."""
+    lo = hi = data['links']['crank']['points']['B'][0]
+    while rotation_margin(_with_crank(data, hi)) > 0.0:
+        hi *= 1.25
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if rotation_margin(_with_crank(data, mid)) > 0.0 else (lo, mid)
+    return lo
+
+
+def _random_geometries(seed, count, keep):
+    """Return ``count`` random RSSR seeds whose rotation margin passes ``keep``."""
+    rng = np.random.default_rng(seed)
+    seeds = []
+    while len(seeds) < count:
+        s = int(rng.integers(1 << 31))
+        if keep(rotation_margin(random_rssr(np.random.default_rng(s), 1))):
+            seeds.append(s)
+    return seeds
+
+
 def _random_rigs():
-    rng = np.random.default_rng(20261201)
-    rigs, tries = [], 0
-    while len(rigs) < 2 * N_RANDOM and tries < 20 * N_RANDOM:
-        tries += 1
-        seed = rng.integers(1 << 31)
-        pair = []
+    """Return N_RANDOM geometries' rigs, each on both branches: all must build."""
+    rigs = []
+    for s in _random_geometries(20261201, N_RANDOM, lambda m: m >= ROTATION_MARGIN):
         for branch in (1, -1):
-            data = random_rssr(np.random.default_rng(seed), branch)
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter('ignore', RuntimeWarning)
-                    pair.append(rig_for(spatial_from_dict(data), cache=False))
-            except SpatialError:
-                break
-        if len(pair) == 2:
-            rigs += pair
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore', RuntimeWarning)
+                rigs.append(rig_for(spatial_from_dict(random_rssr(np.random.default_rng(s),
+                                                                  branch)), cache=False))
     return rigs
 
 
@@ -501,6 +621,10 @@ def test_random_rssrs_both_branches(random_rigs):
         out = a.joint_names.index('D')
         assert np.max(np.abs(np.angle(np.exp(1j * (da.joint_position[:, out]
                                                    - db.joint_position[:, out]))))) > 1e-6
+        for d in (da, db):   # the closure residual and the condition number, per angle
+            assert np.all(d.residual <= kinematics.NEWTON_TOL)
+            assert np.all(np.isfinite(d.condition)) and np.all(d.condition >= 1.0)
+            assert np.array_equal(d.near_singular, d.condition > kinematics.COND_WARN)
     for rig in random_rigs:
         with warnings.catch_warnings():
             warnings.simplefilter('ignore', RuntimeWarning)
@@ -509,40 +633,39 @@ def test_random_rssrs_both_branches(random_rigs):
 
 
 def test_random_near_singular_cases_are_flagged():
-    """Grow the crank of random RSSRs towards the limit of full rotation: flagged there."""
-    rng = np.random.default_rng(7)
-    flagged = 0
-    for _ in range(6):
-        seed = rng.integers(1 << 31)
-        data = random_rssr(np.random.default_rng(seed), 1)
-        try:
-            rig_for(spatial_from_dict(data), cache=False)
-        except SpatialError:
-            continue
-        lo, hi = data['links']['crank']['points']['B'][0], 0.5
-        best = None
-        for _ in range(30):
-            mid = 0.5 * (lo + hi)
-            trial = copy.deepcopy(data)
-            trial['links']['crank']['points']['B'][0] = mid
+    """
+    Grow the crank of random RSSRs towards the limit of full rotation: flagged, then refused.
+
+    The limit comes from the closure equation alone (``_crank_limit``).  Approaching it the
+    branches meet, so the condition number grows without bound: every geometry must be
+    flagged (a warning naming the crank angle; ``near_singular`` where ``rig.at`` evaluates
+    that angle) before the solver refuses it, and just beyond the limit it must be refused
+    with the crank angle named, never assembled through the gap.
+    """
+    for s in _random_geometries(7, N_NEAR_SINGULAR, lambda m: m >= ROTATION_MARGIN):
+        data = random_rssr(np.random.default_rng(s), 1)
+        limit = _crank_limit(data)
+        for digits in range(2, 9):
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter('always', RuntimeWarning)
-                try:
-                    rig = rig_for(spatial_from_dict(trial), cache=False)
-                    d = rig.at(np.linspace(0.0, 2.0 * np.pi, 720, endpoint=False))
-                except SpatialError:
-                    hi = mid
-                    continue
-            lo = mid
-            best = (rig, d, [str(w.message) for w in caught])
-        if best is None:
-            continue
-        rig, d, messages = best
-        assert np.array_equal(d.near_singular, d.condition > kinematics.COND_WARN)
-        if d.near_singular.any():
-            flagged += 1
-            assert any('near-singular' in m for m in messages)
-    assert flagged >= 1
+                rig = rig_for(spatial_from_dict(_with_crank(data, limit * (1 - 10.0 ** -digits))),
+                              cache=False)
+            sk = rig.linkage.skeleton
+            if np.max(sk.cond) > kinematics.COND_WARN:
+                break
+        else:
+            pytest.fail(f'seed {s}: 1e-8 from its rotation limit and never near-singular')
+        # the trace warns at its worst node, naming the crank angle and the condition number
+        worst = int(np.argmax(sk.cond))
+        assert (f'crank angle {math.degrees(sk.psi[worst]):.3f} deg: near-singular position '
+                f'(Jacobian condition number {sk.cond[worst]:.3g} > {kinematics.COND_WARN:.4g})'
+                in [str(w.message) for w in caught])
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', RuntimeWarning)   # warned already (once per text)
+            d = rig.at(sk.psi[worst:worst + 1])
+            assert d.near_singular[0] and d.condition[0] > kinematics.COND_WARN
+            with pytest.raises(SpatialError, match=r'crank angle -?[0-9.]+ deg: cannot continue'):
+                rig_for(spatial_from_dict(_with_crank(data, limit * (1 + 1e-3))), cache=False)
 
 
 # ----------------------------------------------------------------------------- URDF
@@ -580,6 +703,7 @@ def test_urdf_fk_puts_every_joint_point_where_the_core_does(name):
                 t = robot.get_transform(ul, root)
                 worst = max(worst, float(np.max(np.abs(t[:3, :3] @ pins[(ul, point)]
                                                        + t[:3, 3] - core))))
+    print(f'{name}: worst joint-point mismatch over {psi.size} angles {worst:.2e} m')
     assert worst <= 1e-12
     # the published velocities are the rates of the published positions
     _, plus, _ = urdf.rig_joint_positions(sc, rig.at(psi + 1e-6, outputs=('kinematics',)))
@@ -594,26 +718,98 @@ def test_urdf_fk_puts_every_joint_point_where_the_core_does(name):
 
 # ----------------------------------------------------------------------------- Jacobian
 
-def _rscr():
-    """Return an R-S-C-R scene (a cylindrical joint between coupler and rocker), assembled."""
-    base = rig_for(schema.load('rssr_skew'))
-    poses = base.at(np.array([0.0]), outputs=('kinematics',)).bodies
-    r_rocker, d = poses.rotation[0, 3], poses.origin_m[0, 3]
-    b = np.array([0.03, 0.0, 0.0])
-    q = d + 0.12 * r_rocker[:, 0]
-    rc = np.stack([r_rocker[:, 0], np.cross(r_rocker[:, 2], r_rocker[:, 0]), r_rocker[:, 2]], -1)
-    b_local = rc.T @ (b - q)
+RSCR_SLEEVE_M = 0.15
+"""The RSCR's coupler: distance from its ball B to the axis of its sleeve on the rocker."""
+
+
+def _rscr(cut=True):
+    """
+    Return an R-S-C-R: rssr_skew's crank and rocker, the coupler a sleeve on the rocker.
+
+    The cylindrical joint C sits at the rocker's tip with its axis parallel to the rocker's
+    shaft, so that projected along that shaft the linkage is a planar four-bar whose coupler
+    is ``RSCR_SLEEVE_M`` long (a crank-rocker: the crank turns fully); the sleeve turns and
+    slides on its axis over the cycle.  One freedom, no idle spin.  ``cut``: C is the cut
+    joint (its line and dot rows close the loop); else it is a tree joint and the spherical
+    B is cut.
+    """
     data = copy.deepcopy(_load_data('rssr_skew'))
+    frame, joints = data['frame']['points'], data['joints']
+    u3 = _unit(np.array(joints['D']['axis']))
+    zero = min_rotation(joints['D']['axis_b'], joints['D']['axis'])   # rocker axes at angle 0
+    r3 = data['links']['rocker']['points']['C'][0]
+    b = np.array(data['links']['crank']['points']['B'])   # at crank angle 0 (crank axes)
+    w = b - np.array(frame['D'])
+    w -= (w @ u3) * u3
+    # the sleeve's axis at distance RSCR_SLEEVE_M from B: P cos phi + Q sin phi = K
+    p, q = 2 * r3 * (w @ zero[:, 0]), 2 * r3 * (w @ zero[:, 1])
+    k = r3 ** 2 + w @ w - RSCR_SLEEVE_M ** 2
+    phi = math.atan2(q, p) + math.acos(k / math.hypot(p, q))
+    rocker = zero @ np.array([[math.cos(phi), -math.sin(phi), 0.0],
+                              [math.sin(phi), math.cos(phi), 0.0], [0.0, 0.0, 1.0]])
+    c = np.array(frame['D']) + r3 * rocker[:, 0]
+    foot = c + ((b - c) @ u3) * u3                    # the sleeve's point Q, on the C axis
+    x = _unit(b - foot)
+    coupler = np.stack([x, np.cross(u3, x), u3], -1)
     data['links']['coupler'] = {
-        'points': {'Q': [0.0, 0.0, 0.0], 'B': [float(v) for v in b_local]}, 'mass_kg': 0.25,
-        'com_m': [float(v) for v in 0.5 * b_local],
-        'inertia_com_kg_m2': [1e-4, 6e-4, 6.5e-4, 1e-5, 0.0, 2e-6]}
-    data['links']['rocker']['points'] = {'D': [0.0, 0.0, 0.0]}
-    data['joints']['C'] = {'type': 'cylindrical', 'a': 'rocker.D', 'b': 'coupler.Q',
-                           'axis': [1.0, 0.0, 0.0]}
-    data['assembly']['poses']['coupler'] = {'origin_m': [float(v) for v in q],
-                                            'rpy_deg': _rpy(rc)}
+        'points': {'Q': [0.0, 0.0, 0.0], 'B': [RSCR_SLEEVE_M, 0.0, 0.0]}, 'mass_kg': 0.25,
+        'com_m': [0.45 * RSCR_SLEEVE_M, 0.004, -0.01],
+        'inertia_com_kg_m2': [1e-4, 6e-4, 6.5e-4, 1e-5, -4e-6, 2e-6]}
+    cyl = {'type': 'cylindrical', 'a': 'rocker.C', 'b': 'coupler.Q', 'axis': [0.0, 0.0, 1.0]}
+    order = ('A', 'B', 'C', 'D') if cut else ('A', 'C', 'B', 'D')
+    data['joints'] = {n: cyl if n == 'C' else joints[n] for n in order}
+    data['assembly']['poses']['coupler'] = {'origin_m': [float(v) for v in foot],
+                                            'rpy_deg': _rpy(coupler)}
+    data['assembly']['poses']['rocker'] = {'origin_m': frame['D'], 'rpy_deg': _rpy(rocker)}
+    data['name'] = 'rscr'
     return spatial_from_dict(data)
+
+
+@pytest.mark.parametrize('cut', [True, False], ids=['C_cut', 'C_tree'])
+def test_cylindrical_joint_in_a_closed_loop(cut):
+    """
+    The RSCR over a full turn: momentum, power, Newton-Euler per link, closure, joint loads.
+
+    A frictionless cylindrical joint passes no force along its axis and no moment about it;
+    the passive revolute D no moment about its axis; the spherical B no moment at all.
+    """
+    sc = _rscr(cut)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error', RuntimeWarning)    # not near-singular anywhere
+        rig = rig_for(sc, cache=False)
+        lk = rig.linkage
+        cuts = [sc.joints[i].name for i in lk.cut_joints]
+        assert cuts == (['C'] if cut else ['B'])
+        assert not getattr(lk, 'idle_spins', ()) and rig.reactions_unique
+        assert (lk.m, lk.nu) == ((4, 4) if cut else (3, 3))   # C: 2 dot + 2 line rows; B: 3
+        psi = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+        _check_momentum(rig, psi)
+        _check_power(rig, psi)
+        _check_reactions(rig, psi)
+        data = rig.at(np.linspace(0.0, 2.0 * np.pi, 360, endpoint=False))
+    assert np.all(data.residual <= kinematics.NEWTON_TOL)
+    assert np.array_equal(data.near_singular, data.condition > kinematics.COND_WARN)
+    names = data.joint_names
+    for joint, moves in (('C_turn', 0.1), ('C_slide', 0.01)):   # the sleeve turns and slides
+        assert np.ptp(data.joint_position[:, names.index(joint)]) > moves
+    poses = data.bodies
+    crank_b = poses.world('crank', sc.link('crank').points['B'])
+    tip = poses.world('rocker', sc.link('rocker').points['C'])
+    axis = np.einsum('nij,j->ni', poses.rotation[:, poses.names.index('rocker')], [0.0, 0.0, 1.0])
+    sleeve = poses.world('coupler', sc.link('coupler').points['Q'])
+    off = (sleeve - tip) - np.sum((sleeve - tip) * axis, -1)[:, None] * axis
+    length = lk.length_scale
+    assert np.max(np.abs(off)) <= 10 * kinematics.NEWTON_TOL * length    # Q on the C axis
+    assert_allclose(np.linalg.norm(crank_b - poses.world('coupler', sc.link('coupler').points[
+        'B']), axis=-1), 0.0, atol=10 * kinematics.NEWTON_TOL * length)
+    force_c, moment_c = data.reactions['C']
+    load = max(np.max(np.abs(force_c)), np.max(np.abs(data.reactions['A'][0])))
+    torque = max(np.max(np.abs(moment_c)), np.max(np.abs(data.reactions['A'][1])))
+    assert np.max(np.abs(np.sum(force_c * axis, -1))) <= 1e-12 * load
+    assert np.max(np.abs(np.sum(moment_c * axis, -1))) <= 1e-12 * torque
+    shaft = _unit(np.array(next(j for j in sc.joints if j.name == 'D').axis))   # frame axes
+    assert np.max(np.abs(data.reactions['D'][1] @ shaft)) <= 1e-12 * torque
+    assert np.max(np.abs(data.reactions['B'][1])) <= 1e-12 * torque
 
 
 JACOBIAN_FD_STEP = 1e-6
