@@ -693,8 +693,9 @@ def _spatial(sc, args):
         # checked where read, before the solve (spatial.redistribute checks them again)
         defaults.check_range('--extent-factor', args.extent_factor,
                              *defaults.EXTENT_FACTOR_RANGE)
-        for value in args.mass_factors:
-            defaults.check_range('--mass-factors', value, *defaults.SPATIAL_MASS_FACTOR_RANGE)
+        for option, (low, high) in front.option_ranges(rig, method).items():
+            for value in getattr(args, option):
+                defaults.check_range(f'--{option.replace("_", "-")}', value, low, high)
         options.update(weights=weights, mass_factors=tuple(args.mass_factors),
                        fixed_links=tuple(args.fix), extent_factor=args.extent_factor,
                        force_balanced=args.force_balanced)
