@@ -24,6 +24,10 @@ prismatic joint, or loops that are not dyads in this sense, keep the Newton path
 import numpy as np
 
 TWO_PI = 2.0 * np.pi
+_TWO_PI, _INV_TWO_PI, _HALF = np.array(TWO_PI), np.array(1.0 / TWO_PI), np.array(0.5)
+_TINY = 1e-150
+"""Smallest squared distance P Q divided by without an errstate (its inverse stays finite)."""
+"""The constants as 0-d arrays: a ufunc takes those a third quicker than Python scalars."""
 NODE_AGREEMENT = 1e-8
 """Largest difference (rad) between the closed form and the traced nodes for the plan to be
 used: a plan that does not reproduce the skeleton is dropped (Newton stays)."""
@@ -47,9 +51,10 @@ class Step:
         lp, lx_a, lx_b, lq = local
         va, vb = lx_a - lp, lx_b - lq
         r1, r2 = abs(va), abs(vb)
-        self.c_alpha = np.conj(va) / (r1 * r1)
-        self.c_beta = np.conj(vb) / (r2 * r2)
-        self.half_k, self.r1_sq = 0.5 * (r1 * r1 - r2 * r2), r1 * r1
+        # (0-d arrays: quicker as ufunc operands than Python scalars)
+        self.c_alpha = np.array(np.conj(va) / (r1 * r1))
+        self.neg_c_beta = np.array(-np.conj(vb) / (r2 * r2))
+        self.half_k, self.r1_sq = np.array(0.5 * (r1 * r1 - r2 * r2)), np.array(r1 * r1)
         self.beta_at_x = beta_at_x       # beta hangs from its tree joint at X (else at Q)
         self.rel, self.x_src = rel, x_src
         self.sign = 0.0
@@ -64,12 +69,13 @@ class DyadPlan:
         crank = linkage.tree[0]
         self.crank_body = crank.child
         self.crank_anchor_world = crank.p_parent     # on the frame: world coordinates
-        self.rows = []       # (tree joint, child body, parent body) in solving order
+        # (tree joint, child body, parent body) in solving order: every tree joint but the
+        # crank's once (plan() checks it), so each lands on the row of its joint, minus one
+        self.rows = []
         for s in steps:
             self.rows += s.rel
-        self.row_joint = np.array([r[0] for r in self.rows])
-        self.row_order = np.argsort(self.row_joint)   # solving order -> tree order
-        self.is_identity = bool(np.array_equal(self.row_joint, np.arange(1, self.nt)))
+        if sorted(r[0] for r in self.rows) != list(range(1, self.nt)):
+            raise ValueError('dyad plan: the dyads do not cover each tree joint once')
         self.nb = linkage.nb
         self.children = linkage.ch
         # each moving body's anchor (its parent tree joint) in its own frame
@@ -77,6 +83,10 @@ class DyadPlan:
         for tj in linkage.tree:
             local[tj.child] = tj.p_child
         self.anchor_local = local[:, None]
+        # the bodies whose origin is not at their anchor (often none: links drawn from
+        # their parent joint), so the origins cost nothing where every anchor is the origin
+        self.offset_bodies = np.flatnonzero(local != 0.0)
+        self.offset_local = local[self.offset_bodies][:, None]
         # the points P and Q read from placed bodies, relative to the body's anchor
         self.from_anchor = {}
         for st in steps:
@@ -93,6 +103,38 @@ class DyadPlan:
         circles do not meet the results are ``nan``.  ``rot`` and ``origin`` ``(nb, p)`` are
         the bodies' rotations and origins, ``joint_at`` ``(nt, p)`` the tree joints.
         """
+        # the circle intersections without an errstate (a third of their cost): unless two
+        # circles fail to meet or a dyad folds flat somewhere, redone under one if they do
+        placed = self._place(psi, signs, checked=True)
+        if placed is None:
+            with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
+                placed = self._place(psi, signs, checked=False)
+        rot, anchor, rel = placed
+        p = psi.shape[0]
+        ang = np.arctan2(rel.imag, rel.real)
+        # whole turns from the reference: q = angle + 2 pi round((ref - angle) / 2 pi)
+        turns = np.subtract(ref, ang)
+        turns *= _INV_TWO_PI
+        np.rint(turns, out=turns)
+        turns *= _TWO_PI
+        q = np.empty((self.nt, p))
+        q[0] = psi
+        np.add(ang, turns, out=q[1:])
+        joint_at = anchor.take(self.children, axis=0)
+        origin = anchor
+        if self.offset_bodies.size:
+            rows = self.offset_bodies
+            origin[rows] -= rot.take(rows, axis=0) * self.offset_local
+        return q, rot, origin, joint_at
+
+    def _place(self, psi, signs, checked):
+        """
+        Return ``(rot, anchor, rel)`` of :meth:`solve`, or ``None`` where a check fails.
+
+        With ``checked``, ``None`` as soon as a division by zero or the square root of a
+        negative number lies ahead: the caller then places again under an errstate, where
+        those give ``nan`` (circles that do not meet).
+        """
         p = psi.shape[0]
         rot = np.empty((self.nb, p), dtype=complex)
         anchor = np.empty((self.nb, p), dtype=complex)   # each body's parent tree joint
@@ -102,56 +144,44 @@ class DyadPlan:
         np.cos(psi, out=rot.real[c])
         np.sin(psi, out=rot.imag[c])
         anchor[c] = self.crank_anchor_world
-        rel = np.empty((len(self.rows), p), dtype=complex)
-        row = 0
+        rel = np.empty((len(self.rows), p), dtype=complex)   # every joint but the crank's
         w = np.empty(p, dtype=complex)
         tmp = np.empty(p)
-        with np.errstate(invalid='ignore', divide='ignore'):
-            for k, s in enumerate(self.steps):
-                sign = s.sign if signs is None else signs[k]
-                big_p = self._world(rot, anchor, s.p_src)
-                big_q = self._world(rot, anchor, s.q_src)
-                d = big_q - big_p
-                inv = np.multiply(d.real, d.real, out=tmp)
-                inv += d.imag * d.imag
-                np.divide(1.0, inv, out=inv)
-                # X - P = d (u + i sign h) with u = 1/2 + k/(2 D^2), h^2 = r1^2/D^2 - u^2
-                u = np.multiply(inv, s.half_k, out=w.real)
-                u += 0.5
-                h = np.multiply(inv, s.r1_sq, out=w.imag)
-                h -= u * u
-                np.sqrt(h, out=h)
-                if sign < 0.0:
-                    np.negative(h, out=h)
-                dw = d * w                                 # X - P
-                np.multiply(dw, s.c_alpha, out=rot[s.alpha])
-                d -= dw                                    # Q - X
-                np.multiply(d, -s.c_beta, out=rot[s.beta])  # (X - Q) conj(v_b) / r2^2
-                anchor[s.alpha] = big_p
-                if s.beta_at_x:
-                    np.add(dw, big_p, out=anchor[s.beta])  # X
+        for k, s in enumerate(self.steps):
+            sign = s.sign if signs is None else signs[k]
+            big_p = self._world(rot, anchor, s.p_src)
+            big_q = self._world(rot, anchor, s.q_src)
+            d = big_q - big_p
+            inv = np.multiply(d.real, d.real, out=tmp)
+            inv += d.imag * d.imag
+            if checked and np.count_nonzero(inv >= _TINY) != p:
+                return None                            # P on Q (or nan): not here
+            np.divide(1.0, inv, out=inv)
+            # X - P = d (u + i sign h) with u = 1/2 + k/(2 D^2), h^2 = r1^2/D^2 - u^2
+            u = np.multiply(inv, s.half_k, out=w.real)
+            u += _HALF
+            h = np.multiply(inv, s.r1_sq, out=w.imag)
+            h -= u * u
+            if checked and np.count_nonzero(h < 0.0):
+                return None                            # circles that do not meet
+            np.sqrt(h, out=h)
+            if sign < 0.0:
+                np.negative(h, out=h)
+            dw = d * w                                 # X - P
+            np.multiply(dw, s.c_alpha, out=rot[s.alpha])
+            d -= dw                                    # Q - X
+            np.multiply(d, s.neg_c_beta, out=rot[s.beta])  # (X - Q) conj(v_b) / r2^2
+            anchor[s.alpha] = big_p
+            if s.beta_at_x:
+                np.add(dw, big_p, out=anchor[s.beta])  # X
+            else:
+                anchor[s.beta] = big_q
+            for joint, child, parent in s.rel:    # row joint - 1: the tree order
+                if parent == 0:
+                    rel[joint - 1] = rot[child]
                 else:
-                    anchor[s.beta] = big_q
-                for _, child, parent in s.rel:
-                    if parent == 0:
-                        rel[row] = rot[child]
-                    else:
-                        np.multiply(rot[child], rot[parent].conjugate(), out=rel[row])
-                    row += 1
-        ang = np.arctan2(rel.imag, rel.real)
-        if not self.is_identity:
-            ang = ang.take(self.row_order, axis=0)
-        # whole turns from the reference: q = angle + 2 pi round((ref - angle) / 2 pi)
-        turns = np.subtract(ref, ang)
-        turns *= 1.0 / TWO_PI
-        np.rint(turns, out=turns)
-        turns *= TWO_PI
-        q = np.empty((self.nt, p))
-        q[0] = psi
-        np.add(ang, turns, out=q[1:])
-        origin = rot * self.anchor_local
-        np.subtract(anchor, origin, out=origin)
-        return q, rot, origin, anchor[self.children]
+                    np.multiply(rot[child], rot[parent].conjugate(), out=rel[joint - 1])
+        return rot, anchor, rel
 
     def _world(self, rot, anchor, src):
         """Return the world position of ``src = (body, local point)`` (a constant on the frame)."""

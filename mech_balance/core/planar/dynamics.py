@@ -30,6 +30,7 @@ SPEED_FLOOR_RAD_S = 1e-300
 """Crank speeds at or below this magnitude take the torque path that does not divide by it."""
 PARAMS_PER_LINK = 4
 """Inertial parameters per link: m, m*c_x, m*c_y (link frame), I about the link origin."""
+_MAX = np.maximum.reduce   # (ufunc reduce: without ndarray.max's Python wrapper)
 
 
 @dataclass
@@ -97,7 +98,7 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
     f_star += inertia.mass[:, None] * acc
     n_star = _cross(world_h, acc)
     n_star += inertia.inertia_origin[:, None] * alpha
-    arm = pose.origin - linkage.pivot
+    arm = pose.origin - linkage.pivot if linkage.pivot else pose.origin   # (read only)
     m_net = _cross(arm, f_star)                # inertia moments about the crank pivot
     m_net += n_star
     # seed 001 eq. 39: the reaction of the resultant inertia wrench, about the crank pivot
@@ -136,7 +137,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         weight = inertia.mass[:, None] * gravity
         f_net = f_net - weight
         m_net = m_net - _cross(arm, weight) - _cross(world_h, gravity)
-    lever = pose.joint_at - pivot
+    lever = pose.joint_at - pivot if pivot else pose.joint_at
     # generalized forces of the tree coordinates, Q = N^T (w* - w^E) (seed 001 eq. 32)
     if linkage.dense_tree:                                 # (nt, nb): bodies below joint t
         f_sub = _rmat(linkage.below, f_net)                # net force of each subtree
@@ -155,7 +156,8 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         lam_scaled = state.jac_factors.solve_t(q_u)
     else:
         lam_scaled = _matvec_t(state.jac_inv, q_u)
-    lam = lam_scaled * linkage.row_scale[:, None]
+    scale = linkage.row_scale_uniform
+    lam = lam_scaled * (linkage.row_scale[:, None] if scale is None else scale)
     jac_psi = state.jac[:, 0, :] if state.jac_psi is None else state.jac_psi
     tau = q_gen[0] - np.add.reduce(jac_psi * lam_scaled, axis=0)   # (einsum: slower set-up)
     out.driving_torque = tau
@@ -171,7 +173,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         mu, nu = lam[2 * nr:2 * nr + npc], lam[2 * nr + npc:]
         force[nr:] = nu * (1j * pose.rot[ia] * linkage.cut_axis)   # along the normal
         cut_moment[nr:] = mu
-    m_on_b = _cross(pb - pivot, force)                    # about the pivot
+    m_on_b = _cross(pb - pivot if pivot else pb, force)   # about the pivot
     if npc:
         m_on_a = _cross(pa - pivot, force)
         np.negative(m_on_a, out=m_on_a)
@@ -188,22 +190,26 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         f_req = f_sub - linkage._up_cut(force, force)
         m_req = m_sub - linkage._up_cut(m_on_b, -m_on_a if npc else m_on_b)
     moment = m_req - _cross(lever, f_req)                 # about each tree joint
-    dev = moment[0] - tau
-    worst = float(np.abs(dev, out=dev).max())
-    rev = linkage.rev_passive
-    if rev.size:
-        worst = max(worst, float(np.abs(moment.take(rev, axis=0)).max()))
-        moment[rev] = 0.0
+    # consistency: the crank joint's moment against tau, and the passive revolute joints'
+    # moments (zero up to round-off), in one stacked reduction (nan propagates)
+    check = moment.take(linkage.check_rows, axis=0)
+    check[0] -= tau
+    np.abs(check, out=check)
+    worst = float(_MAX(check, axis=None))
+    if linkage.rev_passive.size:
+        moment[linkage.rev_passive_rows] = 0.0
     if linkage.tree_flip.size:
         f_req *= linkage.tree_sign_col
         moment *= linkage.tree_sign_col
     # joint order of the scene: (tree row or cut row) of each joint
-    out.reaction_force = {n: (f_req[i] if tree else force[i])
-                          for n, tree, i in linkage.joint_rows}
-    out.reaction_moment = {n: (moment[i] if tree else cut_moment[i])
-                           for n, tree, i in linkage.joint_rows}
-    out.reaction_point = {n: (pose.joint_at[i] if tree else pb[i])
-                          for n, tree, i in linkage.joint_rows}
+    rf, rm, rp = {}, {}, {}
+    joint_at = pose.joint_at
+    for n, tree, i in linkage.joint_rows:
+        if tree:
+            rf[n], rm[n], rp[n] = f_req[i], moment[i], joint_at[i]
+        else:
+            rf[n], rm[n], rp[n] = force[i], cut_moment[i], pb[i]
+    out.reaction_force, out.reaction_moment, out.reaction_point = rf, rm, rp
     out.consistency = worst
 
 

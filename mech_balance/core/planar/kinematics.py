@@ -413,6 +413,17 @@ class Linkage:
         rev = ~self.is_prismatic
         rev[0] = False
         self.rev_passive = np.flatnonzero(rev)     # revolute tree joints other than the crank
+        # the rows the dynamics' consistency figure reads: the crank's, then those joints
+        # (a slice where they are a range: no fancy indexing per call)
+        self.check_rows = np.concatenate([[0], self.rev_passive]).astype(np.intp)
+        self.rev_passive_rows = (_as_slices(self.rev_passive, 0) or (self.rev_passive,))[0]
+        # the uniform row scale of all-revolute loops as a float (no (m, 1) broadcast)
+        self.row_scale_uniform = float(self.row_scale[0]) \
+            if self.row_scale.size and not self.npc and not self.has_pri else None
+        # the first row scale and its negative as 0-d arrays: a ufunc takes those a third
+        # quicker than a Python or NumPy scalar (these multiply every cycle's rows)
+        first = float(self.row_scale[0]) if self.row_scale.size else 1.0
+        self.scale0, self.neg_scale0 = np.array(first), np.array(-first)
         self.tree_flip = np.flatnonzero(self.tree_sign < 0)  # reported from child to parent
         self.tree_sign_col = self.tree_sign[:, None]
         rows = {n: (True, t) for t, n in enumerate(self.tree_names)}
@@ -553,8 +564,8 @@ class Linkage:
         nr = self.nr
         if not self.npc:
             out = np.empty((self.m, d.shape[1]))
-            np.multiply(d.real, self.row_scale[0], out=out[:nr])
-            np.multiply(d.imag, self.row_scale[0], out=out[nr:])
+            np.multiply(d.real, self.scale0, out=out[:nr])
+            np.multiply(d.imag, self.scale0, out=out[nr:])
             return out
         rows = [d.real[:nr], d.imag[:nr]]
         ia, ib = self.cut_a[nr:], self.cut_b[nr:]
@@ -595,8 +606,8 @@ class Linkage:
         nr = self.nr
         if not self.has_pri and not self.npc:
             out = np.empty((self.m,) + d.shape[1:])
-            np.multiply(d.imag, -self.row_scale[0], out=out[:nr])
-            np.multiply(d.real, self.row_scale[0], out=out[nr:])
+            np.multiply(d.imag, self.neg_scale0, out=out[:nr])
+            np.multiply(d.real, self.scale0, out=out[nr:])
             return out
         d = 1j * d
         if self.has_pri:
@@ -625,15 +636,15 @@ class Linkage:
         points = np.concatenate([pose.cut_points[0], pose.cut_points[1], pose.joint_at])
         d = points.take(i1, axis=0)
         d -= points.take(i2, axis=0)
-        scale = self.row_scale[0]
+        scale, neg = self.scale0, self.neg_scale0
         p = d.shape[1]
         values = np.empty((2 * n, p))
-        np.multiply(d.imag[:n], -scale, out=values[:n])
+        np.multiply(d.imag[:n], neg, out=values[:n])
         np.multiply(d.real[:n], scale, out=values[n:])
         jac_psi = np.zeros((self.m, p))
         rows = self.crank_row_slices
         if rows:
-            np.multiply(d.imag[n:], -scale, out=jac_psi[rows[0]])
+            np.multiply(d.imag[n:], neg, out=jac_psi[rows[0]])
             np.multiply(d.real[n:], scale, out=jac_psi[rows[1]])
         else:
             jac_psi[crank_rows] = -scale * d.imag[n:]
@@ -710,7 +721,7 @@ class Linkage:
         res = np.abs(self.residual(pose))
         res = _MAX(res, axis=0)                           # (ufunc reduce: no wrapper)
         ok = res <= tol                                   # False where nan
-        if not ok.all():
+        if not _all(ok):
             if q_pred is None:
                 q_pred = sk.predict(psi)
             return self.newton(psi, np.where(ok, q, q_pred)) + (q_pred,)
@@ -829,7 +840,7 @@ class Linkage:
             vel -= self._down(qd * J * self.rev_col + 1j * qd * pose.axis)
         else:
             vel -= self._down(qd * J)
-        vel *= 1j
+        vel *= _1J
         out = {'qd': qd, 'omega': omega, 'vel': vel, 'cond': cond, 'jac': jac,
                'jac_psi': jac_psi, 'det_sign': sign, 'jac_factors': fac}
         if not need_acc:
@@ -839,14 +850,14 @@ class Linkage:
         par = self.par
         omega_par = omega.take(par, axis=0)
         v_joint = J - origin.take(par, axis=0)
-        v_joint *= 1j * omega_par
+        v_joint *= _1J * omega_par
         v_joint += vel.take(par, axis=0)
         acc_v = omega * vel
         if self.has_pri:
             acc_v -= self._down(qd * v_joint * self.rev_col - qd * omega_par * pose.axis)
         else:
             acc_v -= self._down(qd * v_joint)
-        acc_v *= 1j
+        acc_v *= _1J
         gamma = self._cut_bias(pose, omega, vel, acc_v)
         if not isinstance(psi_dd, float) or psi_dd != 0.0:
             gamma += jac_psi * psi_dd
@@ -861,7 +872,7 @@ class Linkage:
             acc -= self._down(qdd * J * self.rev_col + 1j * qdd * pose.axis)
         else:
             acc -= self._down(qdd * J)
-        acc *= 1j
+        acc *= _1J
         acc += acc_v
         out.update(qdd=qdd, alpha=alpha, acc=acc)
         return out
@@ -883,8 +894,8 @@ class Linkage:
         nr = self.nr
         if not self.npc:
             out = np.empty((self.m, d.shape[1]))
-            np.multiply(d.real, self.row_scale[0], out=out[:nr])
-            np.multiply(d.imag, self.row_scale[0], out=out[nr:])
+            np.multiply(d.real, self.scale0, out=out[:nr])
+            np.multiply(d.imag, self.scale0, out=out[nr:])
             return out
         rows = [d.real[:nr], d.imag[:nr]]
         ia, ib = ia[nr:], ib[nr:]
@@ -1035,7 +1046,8 @@ class Linkage:
         """
         if not (type(psi) is np.ndarray and psi.ndim == 1 and psi.dtype == np.float64):
             psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
-        if not np.isfinite(psi).all():
+        # (a dot product is finite only if every angle is: one cheap pass, exact check after)
+        if not math.isfinite(psi.dot(psi)) and not np.isfinite(psi).all():
             raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
         sk = self.skeleton
         if self.dyads is not None:
@@ -1056,7 +1068,7 @@ class Linkage:
             if corr.max() > EVAL_TRUST or not ok.all():   # (nan: not ok)
                 bad = corr.max(axis=0) > EVAL_TRUST
                 bad |= ~ok
-        elif not ok.all():  # no step taken: the predictor is the solution where it converged
+        elif not _all(ok):  # no step taken: the predictor is the solution where it converged
             bad = ~ok
         if bad is not None and bad.any():
             q[:, bad] = self._retrace(psi[bad])
@@ -1085,7 +1097,7 @@ class Linkage:
         # branches can be closer than EVAL_TRUST, so the correction size alone does not tell
         # them apart; the sign (a by-product of the factorization the rates need) does.
         wrong = r['det_sign'] != self.branch_sign
-        if wrong.any():
+        if np.count_nonzero(wrong):
             q[:, wrong] = self._retrace(psi[wrong])
             pose = self.pose(q)
             res = np.max(np.abs(self.residual(pose)), axis=0) if self.m else res
@@ -1144,6 +1156,12 @@ class Linkage:
 
 
 _MAX = np.maximum.reduce
+_1J = np.array(1j)   # (0-d: quicker as a ufunc operand than the Python scalar)
+
+
+def _all(flags):
+    """Return ``flags.all()`` of a boolean array (a quarter of its cost on a cycle's worth)."""
+    return np.count_nonzero(flags) == flags.size
 
 
 def _as_slices(rows, shift):

@@ -28,9 +28,14 @@ Order (:func:`block_triangular_order`, worked out once per pattern)
     instead of with the fill-in of one global pivot order (quadratic for a chain).
 """
 
+import math
+
 from mech_balance.core.planar.algebra import matvec as _matvec, matvec_t as _matvec_t
 import numpy as np
 
+_MINUS_ONE = np.array(-1.0)   # (0-d: quicker as a ufunc operand than a Python scalar)
+_TINY_DET = 1e-150
+"""Smallest |det| of a 2 x 2 block inverted without an errstate (its inverse stays finite)."""
 PIVOT_FLOOR = 1e-300
 """A pivot smaller than this (in magnitude) is treated as exactly singular."""
 STATIC_PIVOT_RATIO = 1e-3
@@ -791,26 +796,35 @@ class BlockFactored:
         det = dv[0] * dv[3]
         det -= dv[1] * dv[2]
         self.det = det
-        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
-            inv = values.take(plan.adj, axis=0)        # d, b, c, a
-            inv /= det
-            inv[1:3] *= -1.0                           # d, -b, -c, a over det
-            self.inv = inv
-            self.weights = None
-            self._cond = self._single_cond(dv[:, 0], det[0]) if plan.single else None
-            if not plan.single and plan.pair_block.size:
-                padded = np.empty((plan.n + 1, self.p))
-                padded[:-1] = values
-                padded[-1] = 0.0
-                v0, v1 = padded[plan.pair_entries[0]], padded[plan.pair_entries[1]]
-                ip = inv[:, plan.pair_block]              # (4, pairs, p)
-                w = np.empty((2,) + v0.shape)
-                np.multiply(ip[0], v0, out=w[0])
-                w[0] += ip[1] * v1
-                np.multiply(ip[2], v0, out=w[1])
-                w[1] += ip[3] * v1
-                self.weights = w                           # (2, pairs, p): D_i^-1 J_ic
         self._inv = self._z = None
+        adet = np.abs(det)
+        if np.count_nonzero(adet >= _TINY_DET) == adet.size:
+            self._factor(values, dv, adet)   # no errstate needed: a third of the cost
+        else:                                # singular somewhere (or nan): inf and nan there
+            with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+                self._factor(values, dv, adet)
+
+    def _factor(self, values, dv, adet):
+        """Set the inverted blocks, the weights and (one block) the condition numbers."""
+        plan, det = self.plan, self.det
+        inv = values.take(plan.adj, axis=0)        # d, b, c, a
+        inv /= det
+        inv[1:3] *= _MINUS_ONE                     # d, -b, -c, a over det
+        self.inv = inv
+        self.weights = None
+        self._cond = self._single_cond(dv[:, 0], adet[0]) if plan.single else None
+        if not plan.single and plan.pair_block.size:
+            padded = np.empty((plan.n + 1, self.p))
+            padded[:-1] = values
+            padded[-1] = 0.0
+            v0, v1 = padded[plan.pair_entries[0]], padded[plan.pair_entries[1]]
+            ip = inv[:, plan.pair_block]              # (4, pairs, p)
+            w = np.empty((2,) + v0.shape)
+            np.multiply(ip[0], v0, out=w[0])
+            w[0] += ip[1] * v1
+            np.multiply(ip[2], v0, out=w[1])
+            w[1] += ip[3] * v1
+            self.weights = w                           # (2, pairs, p): D_i^-1 J_ic
 
     def _solve_2(self, rhs, transposed):
         """Return the solution of a single 2 x 2 system (or of its transpose)."""
@@ -913,18 +927,21 @@ class BlockFactored:
                 colsum[lo:b] += np.abs(z[c1, lo:b], out=tmp[:b - lo])
 
     @staticmethod
-    def _single_cond(entries, det):
+    def _single_cond(entries, adet):
         """
         Return the 1-norm condition numbers of one 2 x 2 block (under the caller's errstate).
 
-        ``entries`` ``(4, p)``: a, b, c, d; the 1-norm of the inverse is that of the
-        adjugate over ``|det|``.
+        ``entries`` ``(4, p)``: a, b, c, d; ``adet`` ``|det|``; the 1-norm of the inverse is
+        that of the adjugate over ``|det|``.
         """
         m = np.abs(entries)
-        n1 = np.maximum(m[0] + m[2], m[1] + m[3])
-        n1 *= np.maximum(m[3] + m[2], m[1] + m[0])
-        n1 /= np.abs(det)
-        n1[np.isnan(n1)] = np.inf           # 0/0: singular (x/0 is inf already)
+        cols = m[:2] + m[2:]                # |a| + |c|, |b| + |d|: the column sums
+        rows = m[::2] + m[1::2]             # |a| + |b|, |c| + |d|: those of the adjugate
+        n1 = np.maximum(cols[0], cols[1])
+        n1 *= np.maximum(rows[0], rows[1])
+        n1 /= adet
+        if math.isnan(n1.dot(n1)):          # (a dot product: one cheap pass to find a nan)
+            n1[np.isnan(n1)] = np.inf       # 0/0: singular (x/0 is inf already)
         return n1
 
     def cond(self):
