@@ -5,6 +5,8 @@ Units
     SI everywhere inside: m, kg, s, rad, N, N*m, kg*m^2.  The papers' normalized quantities
     (by the original crank mass m_1, crank length a_1 and crank speed omega) are a view
     computed by :func:`normalize_force` and :func:`normalize_moment`, never stored.
+    A message (warning or error) names a crank angle in degrees wrapped into one turn,
+    [0, 360) (:func:`crank_angle_text`), whatever turn the solver counts it in.
 
 Shaking wrench (seed 001 eq. 39)
     The wrench that the moving links exert on the frame, reduced to the crank pivot O and
@@ -25,6 +27,8 @@ RMS over a cycle
     quantity at angle k.  Seed 001 eq. 42 prints ``(1/p) sqrt(sum f^2)``; its tables were
     computed with the true RMS (checked against Table 4), so that is the one used here.
 """
+
+import math
 
 
 DEFAULT_SAMPLES = 360
@@ -90,6 +94,17 @@ def cycle_angles(samples, start_rad=0.0, links=1):
     import numpy as np  # on first use: the command line parsers need none
     samples = check_samples(samples, links=links)
     return start_rad + 2.0 * np.pi * np.arange(samples) / samples
+
+
+def crank_angle_text(angle_rad, digits):
+    """
+    Return crank angle ``angle_rad`` as a message prints it: degrees in [0, 360), ``digits``.
+
+    Wrapped into one turn after rounding to ``digits`` decimals, so that an angle a hair
+    below a whole turn prints as 0, never as 360.
+    """
+    deg = round(math.degrees(angle_rad) % 360.0, digits) % 360.0
+    return f'{deg:.{digits}f}'
 
 
 def rms(values, axis=0):

@@ -110,6 +110,32 @@ def test_compare_exits_1_when_the_models_disagree(worst, status, monkeypatch, ca
     assert ('the models disagree' in capsys.readouterr().err) == bool(status)
 
 
+def _spatial_result(name, driving_series):
+    """Return a :func:`mujoco_spatial.compare` result of made-up figures (no MuJoCo run)."""
+    quantities = ('joint motion', 'driving torque', 'shaking force', 'shaking moment')
+    return {'scene': name, 'links': 3, 'joints': 4, 'cuts': ('C',), 'idle': ('coupler',),
+            'nv': 7, 'samples': 24, 'repeats': (2, 1), 'driving_series': driving_series,
+            'agreement_imposed': dict.fromkeys(quantities, 1e-14),
+            'agreement_own': dict.fromkeys(quantities, 2e-14),
+            'inertia_error': 0.0, 'spin_residual': 1e-16, 'mujoco_residual': 1e-15,
+            'mujoco_iterations': 1.0, 'us': dict.fromkeys(
+                ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse', 'mj_dyn'), 1.0)}
+
+
+def test_spatial_report_labels_the_effort_by_the_inputs_kind():
+    """A prismatic input's effort is printed as the driving force, a revolute's as the torque."""
+    from mech_balance.bench import mujoco_spatial
+    from mech_balance.core.rig import rig_for
+    for name, effort, other in (('pssr_skew', 'driving force', 'driving torque'),
+                                ('rssr_skew', 'driving torque', 'driving force')):
+        series = rig_for(scene.load(name)).driving_series
+        assert mujoco_spatial.effort_label(series) == effort
+        text = mujoco_spatial.format_report([_spatial_result(name, series)], 1e-9)
+        rows = [x.split()[:2] for x in text.splitlines() if x.startswith('  driving ')]
+        assert rows == [effort.split()], text
+        assert f'of the peak {effort.split()[1]};' in text and other not in text
+
+
 # ----------------------------------------------------------------------------- with MuJoCo
 
 

@@ -21,6 +21,7 @@ cache, and a NaN driving torque at rest.
 import copy
 import itertools
 import math
+import re
 import warnings
 
 from mech_balance import schema as scene
@@ -176,6 +177,30 @@ def test_assembly_where_the_rod_cannot_reach_names_the_angle():
     with pytest.raises(kinematics.BranchError,
                        match=r'does not close at crank angle 90\.000 deg'):
         analysis.Rig(slider_crank(0.9 * R_CRANK, assembly_deg=90.0))
+
+
+def _printed_angles(messages):
+    """Return the crank angles (deg) named in ``messages``."""
+    return [float(a) for m in messages for a in re.findall(r'crank angle (-?[\d.]+) deg', m)]
+
+
+def test_crank_angles_in_messages_are_wrapped_into_one_turn():
+    """A warning or an error names its crank angle in [0, 360) deg, whatever turn it is in."""
+    with pytest.raises(kinematics.BranchError,
+                       match=r'does not close at crank angle 90\.000 deg'):
+        analysis.Rig(slider_crank(0.9 * R_CRANK, assembly_deg=810.0))
+    with pytest.raises(kinematics.BranchError,
+                       match=r'crank angle (90|270)\.0+ deg: the linkage passes a singular '
+                             r'position'):
+        analysis.Rig(slider_crank(R_CRANK, assembly_deg=720.0))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always', RuntimeWarning)
+        rig = analysis.Rig(slider_crank(R_CRANK * (1.0 + 1e-8), assembly_deg=720.0))
+        traced = _printed_angles(str(w.message) for w in caught)
+        rig.linkage.solve(cycle_angles(360) + 6.0 * np.pi, need_rates=True, need_acc=False)
+        evaluated = _printed_angles(str(w.message) for w in caught[len(traced):])
+    assert traced and all(0.0 <= a < 360.0 for a in traced)
+    assert evaluated and all(0.0 <= a < 360.0 for a in evaluated)
 
 
 # ----------------------------------------------------------------------------- four-bar

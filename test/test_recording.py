@@ -221,6 +221,35 @@ def test_switching_a_stream_off_removes_it(tmp_path):
     assert 'Blue and red discs' not in ent['/info'].static['TextDocument:text'][0]
 
 
+@pytest.mark.parametrize('name, series, label', [
+    ('hoeken', 'driving_torque', 'driving torque'),
+    ('pssr_skew', 'driving_force', 'driving force')])
+def test_driving_torque_plot_switches_the_input_effort_of_either_kind(tmp_path, name, series,
+                                                                      label):
+    """
+    ``driving_torque_plot`` switches the driving effort's plot: torque or force alike.
+
+    A spatial scene has no ``recording:`` key (yet): pssr_skew's switches are attached to
+    the loaded scene, where the recording reads them (``getattr(scene, 'recording')``).
+    """
+    for on in (True, False):
+        if name == 'hoeken':
+            sc = _scene_with(recording={'streams': {'driving_torque_plot': on}})
+        else:
+            sc = scene_mod.load(name)
+            streams = scene_mod.Recording().streams
+            object.__setattr__(sc, 'recording', scene_mod.Recording(
+                streams if on else tuple(s for s in streams if s != 'driving_torque_plot')))
+        rrd = tmp_path / f'{name}_{on}.rrd'
+        summary = recording.record(rrd, sc, samples=24)
+        plotted = {p for p in summary.entity_paths if p.startswith('/plots/')}
+        views = [n for _, n, _ in recording.read_blueprint_views(rrd)]
+        assert (f'/plots/{series}/original' in plotted) == on
+        assert any(label in n for n in views) == on
+        if not on:
+            assert not {p for p in recording.read_recording(rrd) if series in p}
+
+
 def test_kinematics_only_scene_computes_no_dynamics(tmp_path, monkeypatch):
     sc = _scene_with(outputs=['kinematics'])
 

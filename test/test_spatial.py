@@ -655,17 +655,62 @@ def test_random_near_singular_cases_are_flagged():
                 break
         else:
             pytest.fail(f'seed {s}: 1e-8 from its rotation limit and never near-singular')
-        # the trace warns at its worst node, naming the crank angle and the condition number
+        # the trace warns at its worst node, naming the crank angle (wrapped into one turn,
+        # [0, 360) deg) and the condition number
         worst = int(np.argmax(sk.cond))
-        assert (f'crank angle {math.degrees(sk.psi[worst]):.3f} deg: near-singular position '
-                f'(Jacobian condition number {sk.cond[worst]:.3g} > {kinematics.COND_WARN:.4g})'
-                in [str(w.message) for w in caught])
+        assert (f'crank angle {math.degrees(sk.psi[worst]) % 360.0:.3f} deg: near-singular '
+                f'position (Jacobian condition number {sk.cond[worst]:.3g} > '
+                f'{kinematics.COND_WARN:.4g})' in [str(w.message) for w in caught])
         with warnings.catch_warnings():
             warnings.simplefilter('ignore', RuntimeWarning)   # warned already (once per text)
             d = rig.at(sk.psi[worst:worst + 1])
             assert d.near_singular[0] and d.condition[0] > kinematics.COND_WARN
             with pytest.raises(SpatialError, match=r'crank angle -?[0-9.]+ deg: cannot continue'):
                 rig_for(spatial_from_dict(_with_crank(data, limit * (1 + 1e-3))), cache=False)
+
+
+def _printed_angles(messages):
+    """Return the crank angles (deg) named in ``messages``."""
+    return [float(a) for m in messages for a in re.findall(r'crank angle (-?[0-9.]+) deg', m)]
+
+
+def test_crank_angles_in_messages_are_wrapped_into_one_turn():
+    """
+    A warning or an error names its crank angle in [0, 360) deg, whatever turn it falls in.
+
+    One near-singular random RSSR of ``test_random_near_singular_cases_are_flagged``,
+    assembled two turns on (the trace's warnings), evaluated three turns on (the
+    evaluation's warnings) and grown just beyond its rotation limit (the refusal).
+    """
+    s = _random_geometries(7, 1, lambda m: m >= ROTATION_MARGIN)[0]
+    data = random_rssr(np.random.default_rng(s), 1)
+    data['assembly']['crank_angle_deg'] += 720.0
+    limit = _crank_limit(data)
+    for digits in range(2, 9):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter('always', RuntimeWarning)
+            rig = rig_for(spatial_from_dict(_with_crank(data, limit * (1 - 10.0 ** -digits))),
+                          cache=False)
+        sk = rig.linkage.skeleton
+        if np.max(sk.cond) > kinematics.COND_WARN:
+            break
+    else:
+        pytest.fail(f'seed {s}: 1e-8 from its rotation limit and never near-singular')
+    worst = int(np.argmax(sk.cond))
+    assert np.all(sk.psi >= 2.0 * np.pi)                 # the whole trace beyond one turn
+    traced = _printed_angles(str(w.message) for w in caught)
+    assert traced and all(0.0 <= a < 360.0 for a in traced)
+    assert f'crank angle {math.degrees(sk.psi[worst]) % 360.0:.3f} deg' in ' '.join(
+        str(w.message) for w in caught)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always', RuntimeWarning)
+        rig.at(sk.psi[worst:worst + 1] + 2.0 * np.pi)
+    evaluated = _printed_angles(str(w.message) for w in caught)
+    assert evaluated and all(0.0 <= a < 360.0 for a in evaluated)
+    with pytest.raises(SpatialError, match=r'crank angle [0-9.]+ deg: cannot continue') as exc:
+        rig_for(spatial_from_dict(_with_crank(data, limit * (1 + 1e-3))), cache=False)
+    refused = _printed_angles([str(exc.value)])
+    assert refused and all(0.0 <= a < 360.0 for a in refused)
 
 
 # ----------------------------------------------------------------------------- URDF

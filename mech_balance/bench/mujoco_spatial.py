@@ -37,7 +37,7 @@ Idle freedoms (an S-S coupler's spin about the line through its balls)
     (``M qacc`` is a product).  With imposed motion the spin is the package's; MuJoCo's own
     kinematics adds the same row (its vectors read from the compiled linkage).
 
-Rigid multipliers, driving torque, reactions, shaking wrench (as the planar comparison)
+Rigid multipliers, driving effort, reactions, shaking wrench (as the planar comparison)
     ``gen = qfrc_inverse + qfrc_constraint = M qacc + c``; the passive dofs carry no applied
     force, so ``J_u^T lambda = gen_u`` over the passive columns of ``efc_J`` with the spin
     convention's rows below it (square, as the package's system: the spin row's multiplier
@@ -56,7 +56,7 @@ Rigid multipliers, driving torque, reactions, shaking wrench (as the planar comp
 
 What is timed, per crank angle (as the planar comparison)
     mech_balance: the full pipeline is :meth:`SpatialRig.evaluate` of all angles at once
-    (every output: kinematics, shaking wrench, driving torque, bearing reactions); dynamics
+    (every output: kinematics, shaking wrench, driving effort, bearing reactions); dynamics
     alone is :func:`~mech_balance.core.spatial.dynamics.inverse_dynamics` of the solved
     state (its per-state caches cleared before each run).  MuJoCo: the full pipeline is a
     Python loop over the angles (Newton on the connect and spin rows from a Taylor
@@ -71,6 +71,7 @@ from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import dynamics as sdyn
 from mech_balance.core.spatial.kinematics import NEWTON_TOL
+from mech_balance.schema.scene import SERIES
 import numpy as np
 
 SPATIAL_BUILTINS = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop',
@@ -587,9 +588,11 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
     ``slow``.
 
     Keys: ``agreement_imposed`` and ``agreement_own`` (quantity -> worst relative
-    difference), ``positions`` (MuJoCo's own joint coordinates against the package's: rad,
-    slides / length scale, ball rotation matrices), ``us`` (microseconds per angle), the
-    spin residual, the inertia check, Newton figures, and the counts of the model.
+    difference; ``driving torque`` is the driving effort of either kind), ``positions``
+    (MuJoCo's own joint coordinates against the package's: rad, slides / length scale, ball
+    rotation matrices), ``us`` (microseconds per angle), the spin residual, the inertia
+    check, Newton figures, the counts of the model, and ``driving_series`` (the rig's
+    :attr:`~mech_balance.core.rig.Rig.driving_series`, which names the effort printed).
     """
     sc = scene_mod.load(scene) if isinstance(scene, str) else scene
     sc = sc.with_outputs(scene_mod.OUTPUTS)
@@ -639,7 +642,7 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
         'inertia_error': mjr.inertia_error,
         'mujoco_residual': float(np.max(res2)), 'mujoco_iterations': float(np.mean(it2)),
         'ours_residual': float(np.max(state.residual)), 'ours_cond': float(np.max(state.cond)),
-        'reactions_unique': rig.reactions_unique,
+        'reactions_unique': rig.reactions_unique, 'driving_series': rig.driving_series,
     }
     if progress:
         progress(f'  timing {sc.name} ({len(sc.links)} moving links, spatial) ...')
@@ -665,6 +668,18 @@ def worst(r):
 
 QUANTITIES = ('joint motion', 'driving torque', 'shaking force', 'shaking moment',
               'bearing forces', 'bearing moments')
+"""The agreement figures' keys; ``driving torque`` is the driving effort of either kind,
+printed as :func:`effort_label` says."""
+
+
+def effort_label(series):
+    """
+    Return the printed name of a rig's driving effort, its series ``series``' label.
+
+    ``series`` is :attr:`~mech_balance.core.rig.Rig.driving_series`: ``driving torque`` for a
+    revolute input, ``driving force`` for a prismatic one (:data:`SERIES`).
+    """
+    return SERIES[series][0]
 
 
 def format_report(results, tol):
@@ -690,6 +705,8 @@ def format_report(results, tol):
     for r in results:
         us = r['us']
         idle = ', '.join(r['idle']) or 'none'
+        effort = effort_label(r.get('driving_series', 'driving_torque'))
+        peak = effort.split()[-1]                     # the spin row's scale: torque or force
         lines += [
             '',
             f'{r["scene"]}: {r["links"]} moving links, {r["joints"]} joints, cut '
@@ -699,15 +716,16 @@ def format_report(results, tol):
         for q in QUANTITIES:
             a = r['agreement_imposed'].get(q)
             b = r['agreement_own'].get(q)
-            lines.append(f'  {q:<18}' + (f'{a:>16.1e}' if a is not None else
-                                         f'{"not unique":>16}' if q.startswith('bearing')
-                                         else f'{"-":>16}')
+            label = effort if q == 'driving torque' else q
+            lines.append(f'  {label:<18}' + (f'{a:>16.1e}' if a is not None else
+                                             f'{"not unique":>16}' if q.startswith('bearing')
+                                             else f'{"-":>16}')
                          + (f'{b:>20.1e}' if b is not None else f'{"-":>20}'))
         w = worst(r)
         lines += [
             f'  -> {"PASS" if w <= tol else "FAIL"} (worst {w:.1e}, limit {tol:.0e}); '
             f'inertia as compiled {r["inertia_error"]:.1e}; spin-row moment '
-            f'{r["spin_residual"]:.1e} of the peak torque; MuJoCo Newton residual '
+            f'{r["spin_residual"]:.1e} of the peak {peak}; MuJoCo Newton residual '
             f'{r["mujoco_residual"]:.1e}, {r["mujoco_iterations"]:.2f} iterations/angle',
             f'  us per crank angle: {"":<4}{"mech_balance":>14}{"MuJoCo":>12}{"ratio":>10}',
             f'  {"full pipeline":<24}{us["ours_full"]:>14.3f}{us["mj_full"]:>12.2f}'

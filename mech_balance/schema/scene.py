@@ -39,6 +39,9 @@ table; a new scalar output is one entry here plus its computation in each rig.  
 ``driving_torque`` asks for the driving effort, which a rig reports under the series its
 :attr:`~mech_balance.core.rig.Rig.driving_series` names: ``driving_torque`` (N m) for a
 revolute input, ``driving_force`` (N, along the axis) for a prismatic input."""
+SERIES_OUTPUTS = {'driving_force': 'driving_torque'}
+"""The output a series of :data:`SERIES` answers where their names differ: a prismatic input's
+``driving_force`` is the output ``driving_torque`` (the driving effort, of either kind)."""
 
 JOINT_TYPES = ('revolute', 'prismatic')
 FRAME = 'frame'
@@ -62,6 +65,19 @@ DEFAULT_OFF_STREAMS = ('point_masses',)
 """Streams a scene must switch on (``recording: {streams: {point_masses: true}}``); every
 other stream is on unless switched off."""
 DEFAULT_STREAMS = tuple(s for s in RECORDING_STREAMS if s not in DEFAULT_OFF_STREAMS)
+
+
+def series_stream(name):
+    """
+    Return the recording stream that switches the plot of series ``name``: ``OUTPUT_plot``.
+
+    ``OUTPUT`` is the output the series answers (:data:`SERIES_OUTPUTS`), so that
+    ``driving_torque_plot`` switches the driving effort's plot whatever the input's kind:
+    a revolute input's driving torque or a prismatic input's driving force.  A series whose
+    stream is not in :data:`RECORDING_STREAMS` is always plotted.
+    """
+    return f'{SERIES_OUTPUTS.get(name, name)}_plot'
+
 
 _CONFIG_DIRS = (
     Path(__file__).resolve().parents[2] / 'config',

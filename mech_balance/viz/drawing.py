@@ -12,7 +12,8 @@ import math
 from mech_balance import conventions
 from mech_balance.core.rig import rig_for
 from mech_balance.schema import registry
-from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS, SERIES
+from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS, SERIES, \
+    series_stream
 from mech_balance.viz.layout import (
     arc_scale, arrow_scale, label_specs, Layout, nice_floor, place_views, plot_specs
 )
@@ -105,8 +106,13 @@ def streams_for(scene, rig):
 
 
 def series_on(name, streams):
-    """Return whether the plot of series ``name`` is switched on."""
-    stream = f'{name}_plot'
+    """
+    Return whether the plot of series ``name`` is switched on.
+
+    Its switch is :func:`~mech_balance.schema.scene.series_stream`'s: ``driving_torque_plot``
+    for the driving effort of either kind (``driving_torque`` or ``driving_force``).
+    """
+    stream = series_stream(name)
     return stream not in RECORDING_STREAMS or stream in streams
 
 

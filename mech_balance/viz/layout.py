@@ -9,6 +9,7 @@ place, the 2-D bounds or 3-D eye fitted to the drawing, and the y ranges of the 
 from dataclasses import dataclass
 import math
 
+from mech_balance.schema.scene import series_stream
 from mech_balance.viz.style import (
     CENTRE_RADIUS_SHARE, DIAL_OVER_ARROW, DIAL_SHARE, FORCE_ARROW_SHARE, FRAME_COLOR,
     GAUGE_GAP_SHARE, JOINT_COLOR, MOMENT_ARC_MAX_DEG, MOMENT_COLOR, MOMENT_HEAD_SHARE,
@@ -484,7 +485,7 @@ def plot_specs(layout, motion):
         specs.append(('shaking_moment_plot', 'shaking_moment', title, 'N*m'))
     for k in layout.series:
         label, unit, _ = series_label(k)
-        specs.append((f'{k}_plot', k, label + (f' ({unit})' if unit else ''), unit))
+        specs.append((series_stream(k), k, label + (f' ({unit})' if unit else ''), unit))
     plots = []
     _, plot_px = window_px(len(layout.variants), len(specs), layout.on('info'))
     for stream, entity, title, unit in specs:

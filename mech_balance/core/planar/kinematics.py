@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import math
 import warnings
 
+from mech_balance.conventions import crank_angle_text
 from mech_balance.core.planar import dyads, smallsolve
 from mech_balance.core.planar.algebra import cross as _cross, matvec as _matvec, \
     rmat as _rmat
@@ -794,9 +795,10 @@ class Linkage:
                 lam *= 0.5
             q = trial
         raise BranchError(
-            f'assembly: the linkage does not close at crank angle {math.degrees(psi0):.3f} deg '
-            f'from the given link angles (loop residual {norm * self.length_scale:.3e} m after '
-            f'{ASSEMBLY_MAX_ITER} damped Newton steps); check the joint points and lengths')
+            f'assembly: the linkage does not close at crank angle {crank_angle_text(psi0, 3)} '
+            f'deg from the given link angles (loop residual {norm * self.length_scale:.3e} m '
+            f'after {ASSEMBLY_MAX_ITER} damped Newton steps); check the joint points and '
+            'lengths')
 
     # ------------------------------------------------------------------ rates
 
@@ -966,15 +968,15 @@ class Linkage:
                 good = False
                 if h <= 2 * STEP_MIN_RAD:
                     raise BranchError(
-                        f'crank angle {math.degrees(psi + h):.4f} deg: the linkage passes a '
-                        'singular position here (the loop Jacobian changes sign); beyond it '
+                        f'crank angle {crank_angle_text(psi + h, 4)} deg: the linkage passes '
+                        'a singular position here (the loop Jacobian changes sign); beyond it '
                         'the assembly branch is not unique, so the cycle cannot be followed')
             if not good:
                 h *= 0.5
                 if h < STEP_MIN_RAD:
                     c = cond_new[0] if 'cond_new' in locals() else float('inf')
                     raise BranchError(
-                        f'crank angle {math.degrees(psi):.4f} deg: cannot continue the '
+                        f'crank angle {crank_angle_text(psi, 4)} deg: cannot continue the '
                         f'assembly branch (Newton residual {res[0]:.2e}, Jacobian condition '
                         f'{c:.3g}); the linkage cannot be assembled beyond this angle or '
                         'reaches a singular position')
@@ -987,8 +989,9 @@ class Linkage:
             nodes_qdd.append(qdd[:, 0])
             nodes_cond.append(cond_new[0])
             if cond_new[0] > COND_WARN:
-                self._warn(f'crank angle {math.degrees(psi):.3f} deg: near-singular position '
-                           f'(Jacobian condition number {cond_new[0]:.3g} > {COND_WARN:.4g})')
+                self._warn(f'crank angle {crank_angle_text(psi, 3)} deg: near-singular '
+                           f'position (Jacobian condition number {cond_new[0]:.3g} > '
+                           f'{COND_WARN:.4g})')
             if iters[0] <= 2:
                 h = min(1.5 * h, STEP_MAX_RAD)
         q_start, q_end = nodes_q[0], nodes_q[-1]
@@ -1104,9 +1107,9 @@ class Linkage:
             r = at(pose)
             wrong = r['det_sign'] != self.branch_sign
             if wrong.any():
-                angle = math.degrees(psi[np.flatnonzero(wrong)[0]])
+                angle = crank_angle_text(psi[np.flatnonzero(wrong)[0]], 4)
                 raise BranchError(
-                    f'crank angle {angle:.4f} deg: the solution found is on the other '
+                    f'crank angle {angle} deg: the solution found is on the other '
                     'assembly branch (the loop Jacobian determinant changed sign); the '
                     'linkage is too close to a singular position here to follow its branch')
         state = KinematicState(psi, speed_p, accel_p, q, pose, res, r['cond'], iters)
@@ -1118,7 +1121,7 @@ class Linkage:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
         if state.size and _MAX(state.cond) > COND_WARN:
             worst = int(np.argmax(state.cond))
-            self._warn(f'crank angle {math.degrees(psi[worst]):.3f} deg: near-singular '
+            self._warn(f'crank angle {crank_angle_text(psi[worst], 3)} deg: near-singular '
                        f'position (Jacobian condition number {state.cond[worst]:.3g})')
         return state
 
@@ -1145,8 +1148,8 @@ class Linkage:
                     h *= 0.5
                     if h < STEP_MIN_RAD:
                         raise BranchError(
-                            f'crank angle {math.degrees(psi_now):.4f} deg: cannot follow the '
-                            f'assembly branch (Newton residual {res[0]:.2e})')
+                            f'crank angle {crank_angle_text(psi_now, 4)} deg: cannot follow '
+                            f'the assembly branch (Newton residual {res[0]:.2e})')
                     continue
                 psi_now += h
                 q = q_new

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import math
 import warnings
 
+from mech_balance.conventions import crank_angle_text
 from mech_balance.core.planar import smallsolve
 from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
 from mech_balance.schema.scene import FRAME
@@ -444,7 +445,7 @@ class Linkage:
     def _where(self, x, digits=4):
         """Return where tree coordinate 0 is ``x``, in words (a crank angle or a slide)."""
         if self.periodic:
-            return f'crank angle {math.degrees(x):.{digits}f} deg'
+            return f'crank angle {crank_angle_text(x, digits)} deg'
         return f'input slide {self.input_sign * x:.{digits + 3}f} m'
 
     # ------------------------------------------------------------------ compile
@@ -1479,13 +1480,13 @@ class Linkage:
             if wrong.any():
                 i = int(np.flatnonzero(wrong)[0])
                 raise SpatialError(
-                    f'crank angle {math.degrees(psi[i]):.4f} deg: the solution found is on '
-                    'the other assembly branch (the loop Jacobian determinant changed sign); '
-                    'the linkage is too close to a singular position here to follow it')
+                    f'crank angle {crank_angle_text(psi[i], 4)} deg: the solution found is '
+                    'on the other assembly branch (the loop Jacobian determinant changed '
+                    'sign); the linkage is too close to a singular position here to follow it')
         if np.any(cond > COND_WARN):
             i = int(np.argmax(cond))
-            self._warn(f'crank angle {math.degrees(psi[i]):.3f} deg: near-singular position '
-                       f'(Jacobian condition number {cond[i]:.3g} > {COND_WARN:.4g})')
+            self._warn(f'crank angle {crank_angle_text(psi[i], 3)} deg: near-singular '
+                       f'position (Jacobian condition number {cond[i]:.3g} > {COND_WARN:.4g})')
         return SpatialState(psi, psi_d, psi_dd, q, sph, fr, res, cond, rank, jac, solver,
                             refine, qd, qdd, twist, accel)
 
