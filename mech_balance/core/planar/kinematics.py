@@ -403,11 +403,15 @@ class Linkage:
                              nz[~unk, 0])
         # jacobian_values: the crank column's x and y rows as slices where they are a range
         self.crank_row_slices = _as_slices(nz[~unk, 0], self.nr)
+        # ... and whether they are every row (then J_psi needs no zeros first)
+        self.crank_rows_all = bool(self.crank_row_slices) and \
+            np.array_equal(np.sort(nz[~unk, 0]), np.arange(self.nr)) and not self.npc
         self.cut_angle = np.array([c.angle for c in self.cuts[self.nr:]])[:, None]
         self.cut_axis = np.array([c.axis for c in self.cuts[self.nr:]], dtype=complex)[:, None]
         # reaction recursion (dynamics): bodies below each tree joint, and the cut-joint
         # loads summed over those bodies
         self.below = np.ascontiguousarray(self.anc_all.T)                  # (nt, nb)
+        self.minus_ones = np.full(self.nb, -1.0)   # minus the sum over the bodies
         self.below_cut_a = self.below @ self.cut_inc_a                     # (nt, ncut)
         self.below_cut_b = self.below @ self.cut_inc_b
         self.below_cut = self.below_cut_b - self.below_cut_a
@@ -524,7 +528,7 @@ class Linkage:
 
     def pose(self, q, rot_crank=None):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
-        phi = self.anc_rev @ q if self.dense_tree else self._down_rev(q)
+        phi = np.dot(self.anc_rev, q) if self.dense_tree else self._down_rev(q)
         if self.has_pri:
             phi += self.phi_offset
         rot = np.empty(phi.shape, dtype=complex)
@@ -642,7 +646,7 @@ class Linkage:
         values = np.empty((2 * n, p))
         np.multiply(d.imag[:n], neg, out=values[:n])
         np.multiply(d.real[:n], scale, out=values[n:])
-        jac_psi = np.zeros((self.m, p))
+        jac_psi = np.empty((self.m, p)) if self.crank_rows_all else np.zeros((self.m, p))
         rows = self.crank_row_slices
         if rows:
             np.multiply(d.imag[n:], neg, out=jac_psi[rows[0]])
@@ -717,7 +721,7 @@ class Linkage:
             q_pred = sk.predict(psi)
             ref = q_pred[1:]
         q, rot, origin, joint_at = self.dyads.solve(psi, ref)
-        phi = self.anc_rev @ q if self.dense_tree else self._down_rev(q)
+        phi = np.dot(self.anc_rev, q) if self.dense_tree else self._down_rev(q)
         pose = Pose(phi, rot, origin, joint_at, None)
         res = np.abs(self.residual(pose))
         res = _MAX(res, axis=0)                           # (ufunc reduce: no wrapper)
@@ -834,7 +838,7 @@ class Linkage:
         qd[0] = psi_d
         # q_u' = -J_u^-1 J_psi psi' (seed 000 eq. 32, generalized)
         np.multiply(fac.solve(jac_psi), scale_d, out=qd[unknown])
-        omega = self.anc_rev @ qd if self.dense_tree else self._down_rev(qd)
+        omega = np.dot(self.anc_rev, qd) if self.dense_tree else self._down_rev(qd)
         origin, J = pose.origin, pose.joint_at
         # v = i (omega O - sum_t qd_t J_t)  (+ prismatic slides)
         vel = omega * origin
@@ -868,7 +872,7 @@ class Linkage:
         # J_u q_u'' = -(gamma + J_psi psi'')
         qdd[unknown] = fac.solve(gamma)
         qdd[unknown] *= -self.col_scale[:, None] if self.has_pri else -1.0
-        alpha = self.anc_rev @ qdd if self.dense_tree else self._down_rev(qdd)
+        alpha = np.dot(self.anc_rev, qdd) if self.dense_tree else self._down_rev(qdd)
         acc = alpha * origin
         if self.has_pri:
             acc -= self._down(qdd * J * self.rev_col + 1j * qdd * pose.axis)
