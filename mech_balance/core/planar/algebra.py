@@ -44,3 +44,43 @@ def matvec_t(mat, vec):
         out += mat[1] * vec[1]
         return out
     return np.einsum('kip,kp->ip', mat, vec)
+
+
+TILE_LIMIT = 1 << 16
+"""Largest ``k * p`` a :class:`Tiles` materializes (beyond it the columns broadcast)."""
+
+
+class Tiles:
+    """
+    Constant columns ``(k, 1)`` materialized as ``(k, p)`` arrays for the last batch size.
+
+    A ufunc that broadcasts a column over a batch runs a strided inner loop, two to three
+    times slower than on two arrays of one shape (a complex column: the complex loop with a
+    stride of zero).  The columns of a compiled linkage or of an inertia are constants, so
+    their tiles are made once per batch size and reused (read-only) while it stays the same;
+    beyond :data:`TILE_LIMIT` elements the columns themselves are returned (memory stays
+    linear in the batch; the loop is long enough there for the difference not to matter).
+    """
+
+    def __init__(self, **columns):
+        self.columns = {name: _frozen(np.array(col)) for name, col in columns.items()}
+        self.rows = max((c.shape[0] for c in self.columns.values()), default=0)
+        self._last = (None, self.columns)
+
+    def at(self, p):
+        """Return ``{name: (k, p) array}`` (or the ``(k, 1)`` columns for large batches)."""
+        last, tiles = self._last           # (one read: another thread may replace it)
+        if last == p:
+            return tiles
+        if self.rows * p > TILE_LIMIT:
+            return self.columns
+        tiles = {name: _frozen(np.ascontiguousarray(np.broadcast_to(col, (col.shape[0], p))))
+                 for name, col in self.columns.items()}
+        self._last = (p, tiles)
+        return tiles
+
+
+def _frozen(a):
+    """Return ``a`` marked read-only (a shared constant)."""
+    a.setflags(write=False)
+    return a

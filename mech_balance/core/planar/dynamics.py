@@ -23,7 +23,7 @@ All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given
 from dataclasses import dataclass
 
 from mech_balance.core.planar.algebra import cross as _cross, dot as _dot, \
-    matvec_t as _matvec_t, rmat as _rmat
+    matvec_t as _matvec_t, rmat as _rmat, Tiles as _Tiles
 import numpy as np
 
 SPEED_FLOOR_RAD_S = 1e-300
@@ -31,6 +31,7 @@ SPEED_FLOOR_RAD_S = 1e-300
 PARAMS_PER_LINK = 4
 """Inertial parameters per link: m, m*c_x, m*c_y (link frame), I about the link origin."""
 _MAX = np.maximum.reduce   # (ufunc reduce: without ndarray.max's Python wrapper)
+_INERTIA_DTYPE = {'mass': float, 'first_moment': complex, 'inertia_origin': float}
 
 
 @dataclass
@@ -40,6 +41,28 @@ class Inertia:
     mass: np.ndarray            # (nb,) kg
     first_moment: np.ndarray    # (nb,) complex, m*c in the link frame, kg*m
     inertia_origin: np.ndarray  # (nb,) kg*m^2 about the link origin
+
+    def __setattr__(self, name, value):
+        """Store the fields as read-only float (``first_moment``: complex) copies."""
+        if name in _INERTIA_DTYPE:
+            value = np.array(value, dtype=_INERTIA_DTYPE[name])
+            value.setflags(write=False)     # changed by replacing, never in place: the
+        object.__setattr__(self, name, value)   # tiles below stay those of the fields
+
+    def tiles(self, p):
+        """
+        Return the columns ``h``, ``m``, ``I_O`` as ``(nb, p)`` arrays (:class:`Tiles`).
+
+        ``h`` and ``m`` complex (their products with complex stacks then run the plain complex
+        loop), ``I_O`` real; made again when a field is replaced.
+        """
+        m, h, i_o = self.mass, self.first_moment, self.inertia_origin
+        cached = self.__dict__.get('_tiles')
+        if cached is None or not (cached[0] is m and cached[1] is h and cached[2] is i_o):
+            cached = (m, h, i_o, _Tiles(h=h[:, None], m=m.astype(complex)[:, None],
+                                        i_o=i_o[:, None]))
+            self.__dict__['_tiles'] = cached
+        return cached[3].at(p)
 
     @classmethod
     def from_links(cls, links):
@@ -89,15 +112,16 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
     """
     pose = state.pose
     omega, alpha, acc = state.omega, state.alpha, state.acc
-    world_h = pose.rot * inertia.first_moment[:, None]
+    tiles = inertia.tiles(omega.shape[1])
+    world_h = pose.rot * tiles['h']
     # seed 001 eq. 26: f* = m a + (i alpha - omega^2) R h,  n* = I_O alpha + cross(R h, a)
     f_star = np.empty(world_h.shape, dtype=complex)
     np.multiply(omega, -omega, out=f_star.real)
     np.copyto(f_star.imag, alpha)
     f_star *= world_h
-    f_star += inertia.mass[:, None] * acc
+    f_star += tiles['m'] * acc
     n_star = _cross(world_h, acc)
-    n_star += inertia.inertia_origin[:, None] * alpha
+    n_star += tiles['i_o'] * alpha
     arm = pose.origin - linkage.pivot if linkage.pivot else pose.origin   # (read only)
     m_net = _cross(arm, f_star)                # inertia moments about the crank pivot
     m_net += n_star

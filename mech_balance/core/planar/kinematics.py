@@ -33,7 +33,7 @@ import warnings
 from mech_balance.conventions import crank_angle_text
 from mech_balance.core.planar import dyads, smallsolve
 from mech_balance.core.planar.algebra import cross as _cross, matvec as _matvec, \
-    rmat as _rmat
+    rmat as _rmat, Tiles
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
@@ -278,7 +278,8 @@ class Linkage:
         self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
         self.block = None   # its J_u as 2 x 2 diagonal blocks (smallsolve.BlockPlan), likewise
         self.turn_table_ok = False  # the closed form's whole turns from the skeleton's table
-        self.turn_line = None       # or from a line in psi (Skeleton.affine_reference)
+        self.turn_line = None       # or from a line in psi (Skeleton.affine_reference;
+        #                             its slope and offset as algebra.Tiles)
         self.warnings = []
 
     # ------------------------------------------------------------------ construction
@@ -350,6 +351,7 @@ class Linkage:
         self.cut_pb = np.array([c.p_b for c in self.cuts])[:, None]
         self.cut_ab = np.concatenate([self.cut_a, self.cut_b])
         self.cut_p_ab = np.concatenate([self.cut_pa, self.cut_pb]).astype(complex)
+        self.cut_tiles = Tiles(p_ab=self.cut_p_ab)   # (the same, per batch size)
         ncut = len(self.cuts)
         self.cut_inc_a = np.zeros((nb, ncut))
         self.cut_inc_b = np.zeros((nb, ncut))
@@ -553,7 +555,7 @@ class Linkage:
             # both ends of every cut in one go: rows (a ends, b ends)
             # (ndarray.take: half the cost of a fancy index on these few rows)
             arms = pose.rot.take(self.cut_ab, axis=0)
-            arms *= self.cut_p_ab
+            arms *= self.cut_tiles.at(arms.shape[1])['p_ab']
             points = pose.origin.take(self.cut_ab, axis=0)
             points += arms
             n = len(self.cuts)
@@ -712,9 +714,9 @@ class Linkage:
         sk = self.skeleton
         q_pred = None
         if self.turn_line is not None:
-            slope, offset = self.turn_line
-            ref = np.multiply(slope, psi)
-            ref += offset
+            line = self.turn_line.at(psi.shape[0])     # (slope, offset) per batch size
+            ref = np.multiply(line['slope'], psi)
+            ref += line['offset']
         elif self.turn_table_ok:
             ref = sk.turn_reference(psi)
         else:
@@ -925,7 +927,8 @@ class Linkage:
             if self.dyads is not None:
                 self.block = self._block_plan()
                 slope, offset, err = sk.affine_reference()
-                self.turn_line = (slope, offset) if err <= CHORD_TRUST else None
+                self.turn_line = Tiles(slope=slope, offset=offset) if err <= CHORD_TRUST \
+                    else None
                 self.turn_table_ok = sk.turn_table_error() <= CHORD_TRUST
             self._skeleton = sk
         return self._skeleton
