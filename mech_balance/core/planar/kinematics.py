@@ -842,13 +842,17 @@ class Linkage:
         np.multiply(fac.solve(jac_psi), scale_d, out=qd[unknown])
         omega = np.dot(self.anc_rev, qd) if self.dense_tree else self._down_rev(qd)
         origin, J = pose.origin, pose.joint_at
-        # v = i (omega O - sum_t qd_t J_t)  (+ prismatic slides)
-        vel = omega * origin
+        # v = i V, V = omega O - S with S the sum over the joints above of qd_t J_t
+        # (+ prismatic slides)
         if self.has_pri:
+            vel = omega * origin
             vel -= self._down(qd * J * self.rev_col + 1j * qd * pose.axis)
+            vel *= _1J
         else:
-            vel -= self._down(qd * J)
-        vel *= _1J
+            s_v = self._down(qd * J)
+            v_rel = omega * origin
+            v_rel -= s_v
+            vel = _1J * v_rel
         out = {'qd': qd, 'omega': omega, 'vel': vel, 'cond': cond, 'jac': jac,
                'jac_psi': jac_psi, 'det_sign': sign, 'jac_factors': fac}
         if not need_acc:
@@ -857,23 +861,30 @@ class Linkage:
         # each joint's point moves at v_J = v_parent + i omega_parent (J - O_parent)
         par = self.par
         omega_par = omega.take(par, axis=0)
-        v_joint = J - origin.take(par, axis=0)
-        v_joint *= _1J * omega_par
-        v_joint += vel.take(par, axis=0)
-        acc_v = omega * vel
         if self.has_pri:
+            v_joint = J - origin.take(par, axis=0)
+            v_joint *= _1J * omega_par
+            v_joint += vel.take(par, axis=0)
+            acc_v = omega * vel
             acc_v -= self._down(qd * v_joint * self.rev_col - qd * omega_par * pose.axis)
+            acc_v *= _1J
         else:
-            acc_v -= self._down(qd * v_joint)
-        acc_v *= _1J
+            # revolute only: v_J = i W with W = omega_parent J - S_parent, so
+            # a_v = i (omega v - sum qd_t v_J) = sum qd_t W_t - omega V: no products with i
+            w_rel = omega_par * J
+            w_rel -= s_v.take(par, axis=0)
+            acc_v = self._down(qd * w_rel)
+            acc_v -= omega * v_rel
         gamma = self._cut_bias(pose, omega, vel, acc_v)
         if not isinstance(psi_dd, float) or psi_dd != 0.0:
             gamma += jac_psi * psi_dd
         qdd = np.empty((self.nt, p))
         qdd[0] = psi_dd
         # J_u q_u'' = -(gamma + J_psi psi'')
-        qdd[unknown] = fac.solve(gamma)
-        qdd[unknown] *= -self.col_scale[:, None] if self.has_pri else -1.0
+        if self.has_pri:
+            np.multiply(fac.solve(gamma), -self.col_scale[:, None], out=qdd[unknown])
+        else:
+            np.negative(fac.solve(gamma), out=qdd[unknown])
         alpha = np.dot(self.anc_rev, qdd) if self.dense_tree else self._down_rev(qdd)
         acc = alpha * origin
         if self.has_pri:
