@@ -172,7 +172,7 @@ class Pose:
     origin: np.ndarray    # (nb, p) complex, link origins, m
     joint_at: np.ndarray  # (nt, p) complex, world location of each tree joint, m
     axis: np.ndarray      # (nt, p) complex, world slide direction (prismatic tree joints)
-    cut_points: tuple = None  # cached (pa, pb, arm_a, arm_b, arms) of the cut joints
+    cut_points: tuple = None  # cached (pa, pb, arm_a, arm_b, arms, [pa; pb; joint_at])
 
 
 @dataclass
@@ -554,12 +554,16 @@ class Linkage:
         if pose.cut_points is None:
             # both ends of every cut in one go: rows (a ends, b ends)
             # (ndarray.take: half the cost of a fancy index on these few rows)
+            # (the cut points sit above the tree joints in one buffer: the Jacobian's
+            # differences take from both without a concatenation)
             arms = pose.rot.take(self.cut_ab, axis=0)
             arms *= self.cut_tiles.at(arms.shape[1])['p_ab']
-            points = pose.origin.take(self.cut_ab, axis=0)
-            points += arms
             n = len(self.cuts)
-            pose.cut_points = (points[:n], points[n:], arms[:n], arms[n:], arms)
+            buf = np.empty((2 * n + self.nt, arms.shape[1]), dtype=complex)
+            points = buf[:2 * n]
+            np.add(pose.origin.take(self.cut_ab, axis=0), arms, out=points)
+            buf[2 * n:] = pose.joint_at
+            pose.cut_points = (points[:n], points[n:], arms[:n], arms[n:], arms, buf)
         return pose.cut_points[:2]
 
     def residual(self, pose):
@@ -593,7 +597,7 @@ class Linkage:
         cols = self.unknown_rows if unknown_only else slice(None)
         if not self.has_pri and not self.npc:
             c, t, i1, i2 = self.jac_nz_u if unknown_only else self.jac_nz
-            points = np.concatenate([pose.cut_points[0], pose.cut_points[1], pose.joint_at])
+            points = pose.cut_points[5]   # (pa, pb, joint_at)
             d = points[i1]
             d -= points[i2]
             scale = self.row_scale[0] if self.m else 1.0
@@ -640,7 +644,7 @@ class Linkage:
         """
         self.cut_points(pose)
         _, _, i1, i2, n, crank_rows = self.jac_nz_split
-        points = np.concatenate([pose.cut_points[0], pose.cut_points[1], pose.joint_at])
+        points = pose.cut_points[5]   # (pa, pb, joint_at)
         d = points.take(i1, axis=0)
         d -= points.take(i2, axis=0)
         scale, neg = self.scale0, self.neg_scale0
@@ -901,7 +905,7 @@ class Linkage:
         if not self.m:
             return np.zeros((0, pose.phi.shape[1]))
         self.cut_points(pose)
-        pa, pb, ra, rb, _ = pose.cut_points
+        pa, pb, ra, rb = pose.cut_points[:4]
         ia, ib = self.cut_a, self.cut_b
         # acceleration of each cut end: a_O - omega^2 r (no angular acceleration here)
         n = len(self.cuts)
@@ -1137,7 +1141,7 @@ class Linkage:
             state.qd, state.omega, state.vel = r['qd'], r['omega'], r['vel']
             if need_acc:
                 state.qdd, state.alpha, state.acc = r['qdd'], r['alpha'], r['acc']
-        if state.size and _MAX(state.cond) > COND_WARN:
+        if np.count_nonzero(state.cond > COND_WARN):
             worst = int(np.argmax(state.cond))
             self._warn(f'crank angle {crank_angle_text(psi[worst], 3)} deg: near-singular '
                        f'position (Jacobian condition number {state.cond[worst]:.3g})')

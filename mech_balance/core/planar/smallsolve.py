@@ -996,7 +996,8 @@ class BlockFactored:
     def sign(self):
         """Return the signs of the determinants ``(p,)``."""
         if self.det.shape[0] == 1:   # one block: no product to form
-            return np.sign(self.det[0]) * self.plan.perm_sign
+            sign = np.sign(self.det[0])
+            return sign if self.plan.perm_sign > 0.0 else np.negative(sign, out=sign)
         return np.prod(np.sign(self.det), axis=0) * self.plan.perm_sign
 
     def inverse(self):
