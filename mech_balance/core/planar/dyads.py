@@ -149,8 +149,8 @@ class DyadPlan:
         tmp = np.empty(p)
         for k, s in enumerate(self.steps):
             sign = s.sign if signs is None else signs[k]
-            big_p = self._world(rot, anchor, s.p_src)
-            big_q = self._world(rot, anchor, s.q_src)
+            big_p = s.p_src[1] if s.p_src[0] == 0 else self._world(rot, anchor, s.p_src)
+            big_q = s.q_src[1] if s.q_src[0] == 0 else self._world(rot, anchor, s.q_src)
             d = big_q - big_p
             inv = np.multiply(d.real, d.real, out=tmp)
             inv += d.imag * d.imag

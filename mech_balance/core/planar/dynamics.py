@@ -115,11 +115,13 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
     tiles = inertia.tiles(omega.shape[1])
     world_h = pose.rot * tiles['h']
     # seed 001 eq. 26: f* = m a + (i alpha - omega^2) R h,  n* = I_O alpha + cross(R h, a)
-    f_star = np.empty(world_h.shape, dtype=complex)
-    np.multiply(omega, -omega, out=f_star.real)
-    np.copyto(f_star.imag, alpha)
-    f_star *= world_h
-    f_star += tiles['m'] * acc
+    # (as m a - (omega^2 - i alpha) R h: no negation of its own)
+    spin = np.empty(world_h.shape, dtype=complex)
+    np.multiply(omega, omega, out=spin.real)
+    np.negative(alpha, out=spin.imag)
+    spin *= world_h
+    f_star = tiles['m'] * acc
+    f_star -= spin
     n_star = _cross(world_h, acc)
     n_star += tiles['i_o'] * alpha
     arm = pose.origin - linkage.pivot if linkage.pivot else pose.origin   # (read only)
@@ -189,9 +191,13 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
     out.multipliers = lam
     nr, npc = linkage.nr, linkage.npc
     pa, pb = linkage.cut_points(pose)
-    force = np.empty((nr + npc, state.size), dtype=complex)  # on b from a
-    force.real[:nr] = lam[:nr]                            # at the common point
-    force.imag[:nr] = lam[nr:2 * nr]
+    if npc:
+        force = np.empty((nr + npc, state.size), dtype=complex)  # on b from a
+        force.real[:nr] = lam[:nr]                        # at the common point
+        force.imag[:nr] = lam[nr:2 * nr]
+    else:   # (x rows, y rows) interleaved into complex in one copy
+        force = np.ascontiguousarray(lam.reshape(2, nr, -1).transpose(1, 2, 0)).view(
+            np.complex128)[:, :, 0]
     cut_moment = np.zeros((nr + npc, state.size))
     if npc:
         ia = linkage.cut_a[nr:]

@@ -799,12 +799,12 @@ class BlockFactored:
         self._inv = self._z = None
         adet = np.abs(det)
         if np.count_nonzero(adet >= _TINY_DET) == adet.size:
-            self._factor(values, dv, adet)   # no errstate needed: a third of the cost
+            self._factor(values, dv, adet, True)   # no errstate needed: a third of the cost
         else:                                # singular somewhere (or nan): inf and nan there
             with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
-                self._factor(values, dv, adet)
+                self._factor(values, dv, adet, False)
 
-    def _factor(self, values, dv, adet):
+    def _factor(self, values, dv, adet, checked):
         """Set the inverted blocks, the weights and (one block) the condition numbers."""
         plan, det = self.plan, self.det
         inv = values.take(plan.adj, axis=0)        # d, b, c, a
@@ -812,7 +812,7 @@ class BlockFactored:
         inv[1:3] *= _MINUS_ONE                     # d, -b, -c, a over det
         self.inv = inv
         self.weights = None
-        self._cond = self._single_cond(dv[:, 0], adet[0]) if plan.single else None
+        self._cond = self._single_cond(dv[:, 0], adet[0], checked) if plan.single else None
         if not plan.single and plan.pair_block.size:
             padded = np.empty((plan.n + 1, self.p))
             padded[:-1] = values
@@ -927,20 +927,22 @@ class BlockFactored:
                 colsum[lo:b] += np.abs(z[c1, lo:b], out=tmp[:b - lo])
 
     @staticmethod
-    def _single_cond(entries, adet):
+    def _single_cond(entries, adet, checked=False):
         """
         Return the 1-norm condition numbers of one 2 x 2 block (under the caller's errstate).
 
         ``entries`` ``(4, p)``: a, b, c, d; ``adet`` ``|det|``; the 1-norm of the inverse is
-        that of the adjugate over ``|det|``.
+        that of the adjugate over ``|det|``.  ``checked``: every ``|det|`` is at least
+        :data:`_TINY_DET` (so no 0/0 to look for).
         """
         m = np.abs(entries)
-        cols = m[:2] + m[2:]                # |a| + |c|, |b| + |d|: the column sums
-        rows = m[::2] + m[1::2]             # |a| + |b|, |c| + |d|: those of the adjugate
-        n1 = np.maximum(cols[0], cols[1])
-        n1 *= np.maximum(rows[0], rows[1])
+        sums = np.empty((2, 2, m.shape[1]))   # (column sums, row sums): one maximum
+        np.add(m[:2], m[2:], out=sums[0])   # |a| + |c|, |b| + |d|: the column sums
+        np.add(m[::2], m[1::2], out=sums[1])   # |a| + |b|, |c| + |d|: those of the adjugate
+        norms = np.maximum(sums[:, 0], sums[:, 1])
+        n1 = np.multiply(norms[0], norms[1])
         n1 /= adet
-        if math.isnan(n1.dot(n1)):          # (a dot product: one cheap pass to find a nan)
+        if not checked and math.isnan(n1.dot(n1)):   # (a dot product: one pass finds a nan)
             n1[np.isnan(n1)] = np.inf       # 0/0: singular (x/0 is inf already)
         return n1
 
