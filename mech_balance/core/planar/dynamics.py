@@ -196,7 +196,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         force.real[:nr] = lam[:nr]                        # at the common point
         force.imag[:nr] = lam[nr:2 * nr]
     else:   # (x rows, y rows) interleaved into complex in one copy
-        force = np.ascontiguousarray(lam.reshape(2, nr, -1).transpose(1, 2, 0)).view(
+        force = np.ascontiguousarray(lam.reshape(2, nr, state.size).transpose(1, 2, 0)).view(
             np.complex128)[:, :, 0]
     cut_moment = np.zeros((nr + npc, state.size))
     if npc:
