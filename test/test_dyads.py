@@ -297,3 +297,64 @@ def test_whole_turns_from_the_line_the_table_and_the_predictor_agree(case):
     # a reference is used only within CHORD_TRUST of the predictor (well below pi)
     assert (line is not None) == (sk.affine_reference()[2] <= kinematics.CHORD_TRUST)
     assert table == (sk.turn_table_error() <= kinematics.CHORD_TRUST)
+
+
+def test_single_block_takes_an_errstate_only_where_a_block_is_singular(monkeypatch):
+    lk = PlanarRig(scene.load('hoeken'), cache=False).linkage
+    rng = np.random.default_rng(11)
+    entered = []
+    real = np.errstate
+
+    def counting(**kw):
+        entered.append(kw)
+        return real(**kw)
+
+    monkeypatch.setattr(smallsolve.np, 'errstate', counting)
+    values = rng.normal(size=(4, 9))
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')                # no RuntimeWarning either way
+        fac = smallsolve.BlockFactored(lk.block, values)
+        assert not entered                            # nonsingular: no errstate
+        stack = np.moveaxis(fac.mat, -1, 0)
+        assert_allclose(fac.cond(), [np.linalg.cond(m, 1) for m in stack], rtol=1e-12)
+        values[:, 6] = [1.0, 2.0, 2.0, 4.0 * (1.0 + 1e-15)]   # nearly singular
+        fac = smallsolve.BlockFactored(lk.block, values)
+        assert not entered and 1e14 < fac.cond()[6] < np.inf
+        values[:, 2] = 0.0                            # 0/0
+        values[:, 5] = [1e-80, 0.0, 0.0, 1e-80]       # |det| below the threshold, fine
+        fac = smallsolve.BlockFactored(lk.block, values)
+        assert entered
+    cond = fac.cond()
+    assert cond[2] == np.inf and cond[5] == 1.0 and 1e14 < cond[6] < np.inf
+    ok = ~np.isin(np.arange(9), [2, 5, 6])
+    stack = np.moveaxis(fac.mat, -1, 0)
+    assert_allclose(cond[ok], [np.linalg.cond(m, 1) for m in stack[ok]], rtol=1e-12)
+
+
+def test_dyads_that_do_not_close_give_nan_without_warnings():
+    lk = PlanarRig(scene.load('hoeken'), cache=False).linkage
+    plan, psi = lk.dyads, cycle_angles(8)
+    ref = np.zeros((lk.nt - 1, psi.size))
+    step = plan.steps[0]
+    saved = step.r1_sq
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        assert plan._place(psi, None, checked=True) is not None
+        assert np.isfinite(plan.solve(psi, ref)[0]).all()
+        try:
+            step.r1_sq = np.array(0.0)     # a link of no length: the circles never meet
+            assert plan._place(psi, None, checked=True) is None
+            q, rot, origin, joint_at = plan.solve(psi, ref)
+        finally:
+            step.r1_sq = saved
+    assert np.isnan(q[1:]).all() and np.isnan(rot[step.alpha]).all()
+    assert np.array_equal(q[0], psi)
+
+
+@pytest.mark.parametrize('name', ['hoeken', 'carpet_scraper', 'slider_crank'])
+def test_the_core_evaluates_an_empty_batch(name):
+    rig = PlanarRig(scene.load(name), cache=False)
+    state, w = rig.evaluate(np.array([]))
+    assert state.q.shape == (rig.linkage.nt, 0) and state.cond.shape == (0,)
+    assert w.shaking_force.shape == (0,) and w.consistency == 0.0
+    assert all(f.shape == (0,) for f in w.reaction_force.values())

@@ -227,7 +227,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
     check = moment.take(linkage.check_rows, axis=0)
     check[0] -= tau
     np.abs(check, out=check)
-    worst = float(_MAX(check, axis=None))
+    worst = float(_MAX(check, axis=None, initial=0.0))   # (0.0: an empty batch)
     if linkage.rev_passive.size:
         moment[linkage.rev_passive_rows] = 0.0
     if linkage.tree_flip.size:
