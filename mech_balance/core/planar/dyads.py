@@ -88,10 +88,11 @@ class DyadPlan:
         self.offset_bodies = np.flatnonzero(local != 0.0)
         self.offset_local = local[self.offset_bodies][:, None]
         # the points P and Q read from placed bodies, relative to the body's anchor
-        self.from_anchor = {}
+        # (per step: (body, its offset from the body's anchor as a 0-d array), or (0, the
+        # world point) on the frame)
         for st in steps:
-            for body, point in (st.p_src, st.q_src):
-                self.from_anchor[(body, point)] = point - local[body]
+            st.p_at, st.q_at = ((body, point if body == 0 else np.array(point - local[body]))
+                                for body, point in (st.p_src, st.q_src))
 
     def solve(self, psi, ref, signs=None):
         """
@@ -103,9 +104,10 @@ class DyadPlan:
         circles do not meet the results are ``nan``.  ``rot`` and ``origin`` ``(nb, p)`` are
         the bodies' rotations and origins, ``joint_at`` ``(nt, p)`` the tree joints.
         """
-        # the circle intersections without an errstate (a third of their cost): unless two
-        # circles fail to meet or a dyad folds flat somewhere, redone under one if they do
-        placed = self._place(psi, signs, checked=True)
+        # one or two dyads: the circle intersections checked instead of an errstate (a third
+        # of their cost), redone under one where two circles fail to meet or a dyad folds
+        # flat; more: one errstate (the checks of two dyads cost as much)
+        placed = self._place(psi, signs, checked=True) if len(self.steps) <= 2 else None
         if placed is None:
             with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
                 placed = self._place(psi, signs, checked=False)
@@ -149,8 +151,18 @@ class DyadPlan:
         tmp = np.empty(p)
         for k, s in enumerate(self.steps):
             sign = s.sign if signs is None else signs[k]
-            big_p = s.p_src[1] if s.p_src[0] == 0 else self._world(rot, anchor, s.p_src)
-            big_q = s.q_src[1] if s.q_src[0] == 0 else self._world(rot, anchor, s.q_src)
+            body, at = s.p_at
+            if body:                                   # (else a world point on the frame)
+                big_p = np.multiply(rot[body], at)
+                big_p += anchor[body]
+            else:
+                big_p = at
+            body, at = s.q_at
+            if body:
+                big_q = np.multiply(rot[body], at)
+                big_q += anchor[body]
+            else:
+                big_q = at
             d = big_q - big_p
             inv = np.multiply(d.real, d.real, out=tmp)
             inv += d.imag * d.imag
@@ -182,15 +194,6 @@ class DyadPlan:
                 else:
                     np.multiply(rot[child], rot[parent].conjugate(), out=rel[joint - 1])
         return rot, anchor, rel
-
-    def _world(self, rot, anchor, src):
-        """Return the world position of ``src = (body, local point)`` (a constant on the frame)."""
-        body, point = src
-        if body == 0:
-            return point
-        out = rot[body] * self.from_anchor[src]
-        out += anchor[body]
-        return out
 
     def signs_at(self, linkage, pose):
         """Return ``(n_dyads, p)``: the side of P Q on which each dyad's X lies, at ``pose``."""

@@ -28,11 +28,13 @@ Order (:func:`block_triangular_order`, worked out once per pattern)
     instead of with the fill-in of one global pivot order (quadratic for a chain).
 """
 
+import contextlib
 import math
 
 from mech_balance.core.planar.algebra import matvec as _matvec, matvec_t as _matvec_t
 import numpy as np
 
+_NO_ERRSTATE = contextlib.nullcontext()   # (reusable: it keeps no state)
 _MINUS_ONE = np.array(-1.0)   # (0-d: quicker as a ufunc operand than a Python scalar)
 _TINY_DET = 1e-150
 """Smallest |det| of a 2 x 2 block inverted without an errstate (its inverse stays finite)."""
@@ -754,6 +756,13 @@ class BlockPlan:
         # blocks that read one earlier unknown only: (pair, child block, row, parent block)
         # from the last block back (the condition number in linear time)
         self.tree_like = all(len(self.off_cols[i]) <= 1 for i in range(nb))
+        # the substitutions of BlockFactored.solve and solve_t as (dst, weight row, pair, src)
+        # steps in order: x[c0] -= w0 x[c], x[c1] -= w1 x[c] block by block; z[c] -= w0 z[c0]
+        # + w1 z[c1] from the last block back
+        self.forward = [(cs[a], a, q, c) for i, (_, cs) in enumerate(self.blocks)
+                        for q, c in self.block_pairs[i] for a in (0, 1)]
+        self.backward = [(c, a, q, cs[a]) for i, (_, cs) in reversed(list(enumerate(self.blocks)))
+                         for q, c in self.block_pairs[i] for a in (0, 1)]
         self.tree_edges = [(q, (i, where_col[c][1], where_col[c][0]))
                            for i in range(nb - 1, -1, -1) for q, c in self.block_pairs[i]]
         self.rows01 = np.array([[rs[0] for rs, _ in self.blocks],
@@ -796,10 +805,13 @@ class BlockFactored:
         det = dv[0] * dv[3]
         det -= dv[1] * dv[2]
         self.det = det
-        self._inv = self._z = None
+        self._inv = self._z = self._weight_rows = None
         adet = np.abs(det)
-        if np.count_nonzero(adet >= _TINY_DET) == adet.size:
-            self._factor(values, dv, adet, True)   # no errstate needed: a third of the cost
+        # clean: every block well away from singular, so nothing below can divide by zero,
+        # overflow or meet inf and nan (no errstate needed: a third of the cost)
+        self.clean = np.count_nonzero(adet >= _TINY_DET) == adet.size
+        if self.clean:
+            self._factor(values, dv, adet, True)
         else:                                # singular somewhere (or nan): inf and nan there
             with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
                 self._factor(values, dv, adet, False)
@@ -841,22 +853,17 @@ class BlockFactored:
         plan = self.plan
         if plan.single:
             return self._solve_2(rhs, False)
-        inv, w = self.inv, self.weights
-        r0, r1 = rhs[plan.rows01[0]], rhs[plan.rows01[1]]
-        x = np.empty((self.k, rhs.shape[1]))
-        tmp = np.empty(rhs.shape[1])
-        with np.errstate(invalid='ignore', over='ignore'):
+        with self._quiet():
+            inv = self.inv
+            r0, r1 = rhs[plan.rows01[0]], rhs[plan.rows01[1]]
+            x = np.empty((self.k, rhs.shape[1]))
             y = inv[0] * r0
             y += inv[1] * r1
             x[plan.cols01[0]] = y
             np.multiply(inv[2], r0, out=y)
             y += inv[3] * r1
             x[plan.cols01[1]] = y
-            for i, ((_, _), (c0, c1)) in enumerate(plan.blocks):
-                for q, c in plan.block_pairs[i]:
-                    xc = x[c]
-                    x[c0] -= np.multiply(w[0, q], xc, out=tmp)
-                    x[c1] -= np.multiply(w[1, q], xc, out=tmp)
+            self._substitute(list(x), plan.forward, np.empty(rhs.shape[1]))
         return x
 
     def solve_t(self, rhs):
@@ -865,15 +872,10 @@ class BlockFactored:
         plan = self.plan
         if plan.single:
             return self._solve_2(rhs, True)
-        inv, w = self.inv, self.weights
+        inv = self.inv
         z = np.array(rhs)
-        tmp = np.empty(rhs.shape[1])
-        with np.errstate(invalid='ignore', over='ignore'):
-            for i in range(len(plan.blocks) - 1, -1, -1):
-                _, (c0, c1) = plan.blocks[i]
-                for q, c in plan.block_pairs[i]:
-                    z[c] -= np.multiply(w[0, q], z[c0], out=tmp)
-                    z[c] -= np.multiply(w[1, q], z[c1], out=tmp)
+        with self._quiet():
+            self._substitute(list(z), plan.backward, np.empty(rhs.shape[1]))
             z0, z1 = z[plan.cols01[0]], z[plan.cols01[1]]
             x = np.empty((self.k, rhs.shape[1]))
             y = inv[0] * z0                             # D^-T = [[d, -c], [-b, a]] / det
@@ -883,6 +885,28 @@ class BlockFactored:
             y += inv[3] * z1
             x[plan.rows01[1]] = y
         return x
+
+    def _quiet(self):
+        """Return an errstate for inf and nan where a block is singular, else a no-op."""
+        return _NO_ERRSTATE if self.clean else np.errstate(invalid='ignore', over='ignore')
+
+    def _substitute(self, rows, steps, tmp):
+        """
+        Subtract the weighted rows in place: ``rows[dst] -= w[a][q] rows[src]`` per step.
+
+        ``rows`` are views of one stack's rows (no indexing, no copy back per step);
+        ``steps`` :attr:`BlockPlan.forward` (solve) or :attr:`BlockPlan.backward` (solve_t).
+        """
+        w = self.weight_rows
+        for dst, a, q, src in steps:
+            np.subtract(rows[dst], np.multiply(w[a][q], rows[src], out=tmp), out=rows[dst])
+
+    @property
+    def weight_rows(self):
+        """Return the weights ``(w_0 rows, w_1 rows)`` as lists of row views (made once)."""
+        if self._weight_rows is None:
+            self._weight_rows = (list(self.weights[0]), list(self.weights[1]))
+        return self._weight_rows
 
     def _inverse_blocks(self, colsum=None):
         """
@@ -978,15 +1002,18 @@ class BlockFactored:
         plan = self.plan
         nb = len(plan.blocks)
         u = np.ones((2, nb, self.p))                      # 1 + U per unknown, block order
-        with np.errstate(invalid='ignore', over='ignore'):
+        with self._quiet():
             if self.weights is not None:
                 aw = np.abs(self.weights)                 # (2, pairs, p)
-                tmp = np.empty(self.p)
+                aw0, aw1, u0, u1 = list(aw[0]), list(aw[1]), list(u[0]), list(u[1])
+                ur = (u0, u1)
+                tmp, tmp2 = np.empty(self.p), np.empty(self.p)
                 for q, (child, row, parent) in plan.tree_edges:
                     # sum over the child's own rows and everything below them, per |Z[row]|
-                    t = np.multiply(aw[0, q], u[0, child], out=tmp)
-                    t += aw[1, q] * u[1, child]
-                    u[row, parent] += t
+                    t = np.multiply(aw0[q], u0[child], out=tmp)
+                    t += np.multiply(aw1[q], u1[child], out=tmp2)
+                    dst = ur[row][parent]
+                    np.add(dst, t, out=dst)
             ai = np.abs(self.inv)                          # (4, nb, p): |D^-1| entries
             col0 = ai[0] * u[0]
             col0 += ai[2] * u[1]
