@@ -76,6 +76,13 @@ class DyadPlan:
             self.rows += s.rel
         if sorted(r[0] for r in self.rows) != list(range(1, self.nt)):
             raise ValueError('dyad plan: the dyads do not cover each tree joint once')
+        # one dyad: its two relative rotations directly (fewest operations); more: every
+        # body's angle at once, the relative angles as differences in tree order (a dyad's
+        # rotations then cost nothing more than its placement)
+        self.per_step_rel = len(steps) == 1
+        by_joint = sorted(self.rows)
+        self.rel_child = np.array([c for _, c, _ in by_joint], dtype=np.intp)
+        self.rel_parent = np.array([par for _, _, par in by_joint], dtype=np.intp)
         self.nb = linkage.nb
         self.children = linkage.ch
         # each moving body's anchor (its parent tree joint) in its own frame
@@ -113,7 +120,14 @@ class DyadPlan:
                 placed = self._place(psi, signs, checked=False)
         rot, anchor, rel = placed
         p = psi.shape[0]
-        ang = np.arctan2(rel.imag, rel.real)
+        if rel is not None:
+            ang = np.arctan2(rel.imag, rel.real)
+        else:
+            body_ang = np.empty((self.nb, p))
+            body_ang[0] = 0.0                          # the frame
+            np.arctan2(rot.imag[1:], rot.real[1:], out=body_ang[1:])
+            ang = body_ang.take(self.rel_child, axis=0)
+            ang -= body_ang.take(self.rel_parent, axis=0)
         # whole turns from the reference: q = angle + 2 pi round((ref - angle) / 2 pi)
         turns = np.subtract(ref, ang)
         turns *= _INV_TWO_PI
@@ -133,6 +147,9 @@ class DyadPlan:
         """
         Return ``(rot, anchor, rel)`` of :meth:`solve`, or ``None`` where a check fails.
 
+        ``rel`` ``(nt - 1, p)`` the relative rotations of the tree joints but the crank's in
+        tree order (one dyad), else ``None`` (:meth:`solve` takes differences of angles).
+
         With ``checked``, ``None`` as soon as a division by zero or the square root of a
         negative number lies ahead: the caller then places again under an errstate, where
         those give ``nan`` (circles that do not meet).
@@ -146,7 +163,8 @@ class DyadPlan:
         np.cos(psi, out=rot.real[c])
         np.sin(psi, out=rot.imag[c])
         anchor[c] = self.crank_anchor_world
-        rel = np.empty((len(self.rows), p), dtype=complex)   # every joint but the crank's
+        per_step = self.per_step_rel
+        rel = np.empty((len(self.rows), p), dtype=complex) if per_step else None
         w = np.empty(p, dtype=complex)
         tmp = np.empty(p)
         for k, s in enumerate(self.steps):
@@ -188,6 +206,8 @@ class DyadPlan:
                 np.add(dw, big_p, out=anchor[s.beta])  # X
             else:
                 anchor[s.beta] = big_q
+            if not per_step:
+                continue
             for joint, child, parent in s.rel:    # row joint - 1: the tree order
                 if parent == 0:
                     rel[joint - 1] = rot[child]

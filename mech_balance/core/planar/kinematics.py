@@ -488,8 +488,8 @@ class Linkage:
         start, end, _ = self.levels[0]
         s[start:end] = v[start:end]
         for start, end, parents in self.levels[1:]:
-            np.add(s[parents], v[start:end], out=s[start:end])
-        return s[self.joint_of_body]
+            np.add(s.take(parents, axis=0), v[start:end], out=s[start:end])
+        return s.take(self.joint_of_body, axis=0)   # (take: quicker than an index array)
 
     def _down_rev(self, v):
         """Return :meth:`_down` over the revolute joints only (the link angles and rates)."""
@@ -503,9 +503,9 @@ class Linkage:
             if np.iscomplexobj(x):
                 return _rmat(self.below, x)
             return self.below @ x
-        sub = x[self.ch]
+        sub = x.take(self.ch, axis=0)
         for kids, parents in self.up_rounds:
-            sub[parents] += sub[kids]
+            sub[parents] += sub.take(kids, axis=0)
         return sub
 
     def _up_cut(self, load_b, load_a):
@@ -516,9 +516,9 @@ class Linkage:
             return self.below_cut_b @ load_b - self.below_cut_a @ load_a
         x = np.zeros((self.nb,) + load_b.shape[1:], dtype=load_b.dtype)
         for cuts, bodies in self.cut_rounds_b:
-            x[bodies] += load_b[cuts]
+            x[bodies] += load_b.take(cuts, axis=0)
         for cuts, bodies in self.cut_rounds_a:
-            x[bodies] -= load_a[cuts]
+            x[bodies] -= load_a.take(cuts, axis=0)
         return self._up(x)
 
     def _jacobian_pattern(self):
