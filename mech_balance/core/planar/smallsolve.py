@@ -35,6 +35,7 @@ from mech_balance.core.planar.algebra import matvec as _matvec, matvec_t as _mat
 import numpy as np
 
 _NO_ERRSTATE = contextlib.nullcontext()   # (reusable: it keeps no state)
+_MAX = np.maximum.reduce
 _MINUS_ONE = np.array(-1.0)   # (0-d: quicker as a ufunc operand than a Python scalar)
 _TINY_DET = 1e-150
 """Smallest |det| of a 2 x 2 block inverted without an errstate (its inverse stays finite)."""
@@ -829,8 +830,9 @@ class BlockFactored:
             padded = np.empty((plan.n + 1, self.p))
             padded[:-1] = values
             padded[-1] = 0.0
-            v0, v1 = padded[plan.pair_entries[0]], padded[plan.pair_entries[1]]
-            ip = inv[:, plan.pair_block]              # (4, pairs, p)
+            v0 = padded.take(plan.pair_entries[0], axis=0)
+            v1 = padded.take(plan.pair_entries[1], axis=0)
+            ip = inv.take(plan.pair_block, axis=1)    # (4, pairs, p)
             w = np.empty((2,) + v0.shape)
             np.multiply(ip[0], v0, out=w[0])
             w[0] += ip[1] * v1
@@ -977,7 +979,7 @@ class BlockFactored:
             mags = np.empty((plan.n + 1, self.p))
             np.abs(self.values, out=mags[:-1])
             mags[-1] = 0.0
-            norm = mags[plan.col_pad].sum(axis=1).max(axis=0)
+            norm = _MAX(np.add.reduce(mags.take(plan.col_pad, axis=0), axis=1), axis=0)
             if plan.tree_like:
                 norm_inv = self._norm_inv_tree()
             else:
