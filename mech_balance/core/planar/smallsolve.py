@@ -757,13 +757,17 @@ class BlockPlan:
         # blocks that read one earlier unknown only: (pair, child block, row, parent block)
         # from the last block back (the condition number in linear time)
         self.tree_like = all(len(self.off_cols[i]) <= 1 for i in range(nb))
-        # the substitutions of BlockFactored.solve and solve_t as (dst, weight row, pair, src)
-        # steps in order: x[c0] -= w0 x[c], x[c1] -= w1 x[c] block by block; z[c] -= w0 z[c0]
-        # + w1 z[c1] from the last block back
-        self.forward = [(cs[a], a, q, c) for i, (_, cs) in enumerate(self.blocks)
-                        for q, c in self.block_pairs[i] for a in (0, 1)]
-        self.backward = [(c, a, q, cs[a]) for i, (_, cs) in reversed(list(enumerate(self.blocks)))
-                         for q, c in self.block_pairs[i] for a in (0, 1)]
+        # the solves work on the unknowns in block order, block j's two as rows 2 j, 2 j + 1
+        # (``flat``): each substitution then updates a block's two rows at once.  The
+        # column of each flat row, and the flat row of each column:
+        self.col_of_flat = np.array([cs[a] for _, cs in self.blocks for a in (0, 1)],
+                                    dtype=np.intp)
+        self.flat_of_col = np.argsort(self.col_of_flat).astype(np.intp)
+        # BlockFactored.solve: block i's rows -= w_q x[flat f] (f: the earlier unknown c);
+        # solve_t, from the last block back: z[flat f] -= w_q . block i's rows
+        self.forward = [(i, q, 2 * where_col[c][0] + where_col[c][1])
+                        for i in range(nb) for q, c in self.block_pairs[i]]
+        self.backward = [(i, q, f) for i, q, f in reversed(self.forward)]
         self.tree_edges = [(q, (i, where_col[c][1], where_col[c][0]))
                            for i in range(nb - 1, -1, -1) for q, c in self.block_pairs[i]]
         self.rows01 = np.array([[rs[0] for rs, _ in self.blocks],
@@ -806,7 +810,7 @@ class BlockFactored:
         det = dv[0] * dv[3]
         det -= dv[1] * dv[2]
         self.det = det
-        self._inv = self._z = self._weight_rows = None
+        self._inv = self._z = self._pair_weights = self._pair_weight_rows = None
         adet = np.abs(det)
         # clean: every block well away from singular, so nothing below can divide by zero,
         # overflow or meet inf and nan (no errstate needed: a third of the cost)
@@ -833,7 +837,8 @@ class BlockFactored:
             v0 = padded.take(plan.pair_entries[0], axis=0)
             v1 = padded.take(plan.pair_entries[1], axis=0)
             ip = inv.take(plan.pair_block, axis=1)    # (4, pairs, p)
-            w = np.empty((2,) + v0.shape)
+            # pair-major (pairs, 2, p): each pair's two weights one contiguous (2, p) block
+            w = np.empty((v0.shape[0], 2, v0.shape[1])).transpose(1, 0, 2)
             np.multiply(ip[0], v0, out=w[0])
             w[0] += ip[1] * v1
             np.multiply(ip[2], v0, out=w[1])
@@ -855,18 +860,26 @@ class BlockFactored:
         plan = self.plan
         if plan.single:
             return self._solve_2(rhs, False)
+        p = rhs.shape[1]
         with self._quiet():
             inv = self.inv
-            r0, r1 = rhs[plan.rows01[0]], rhs[plan.rows01[1]]
-            x = np.empty((self.k, rhs.shape[1]))
-            y = inv[0] * r0
+            r0, r1 = rhs.take(plan.rows01[0], axis=0), rhs.take(plan.rows01[1], axis=0)
+            xb = np.empty((len(plan.blocks), 2, p))       # block order: D^-1 rhs
+            y = np.multiply(inv[0], r0, out=xb[:, 0])
             y += inv[1] * r1
-            x[plan.cols01[0]] = y
-            np.multiply(inv[2], r0, out=y)
+            y = np.multiply(inv[2], r0, out=xb[:, 1])
             y += inv[3] * r1
-            x[plan.cols01[1]] = y
-            self._substitute(list(x), plan.forward, np.empty(rhs.shape[1]))
-        return x
+            blocks, flat, w = list(xb), list(xb.reshape(self.k, p)), self.pair_weight_rows
+            tmp = np.empty((2, p))
+            t0, t1 = tmp
+            # (I + N) x = D^-1 rhs, block by block (each product of one shape: a broadcast
+            # would take numpy's general iterator, slower than the two)
+            for i, q, f in plan.forward:
+                (w0, w1), xf = w[q], flat[f]
+                np.multiply(w0, xf, out=t0)
+                np.multiply(w1, xf, out=t1)
+                np.subtract(blocks[i], tmp, out=blocks[i])
+        return xb.reshape(self.k, p).take(plan.flat_of_col, axis=0)
 
     def solve_t(self, rhs):
         """Return ``x`` ``(k, p)`` with ``mat^T x = rhs``: ``(I + N^T) z = rhs``, ``D^T x = z``."""
@@ -874,12 +887,18 @@ class BlockFactored:
         plan = self.plan
         if plan.single:
             return self._solve_2(rhs, True)
+        p = rhs.shape[1]
         inv = self.inv
-        z = np.array(rhs)
+        zb = rhs.take(plan.col_of_flat, axis=0).reshape(len(plan.blocks), 2, p)   # blocks
         with self._quiet():
-            self._substitute(list(z), plan.backward, np.empty(rhs.shape[1]))
-            z0, z1 = z[plan.cols01[0]], z[plan.cols01[1]]
-            x = np.empty((self.k, rhs.shape[1]))
+            blocks, flat, w = list(zb), list(zb.reshape(self.k, p)), self.pair_weights
+            tmp, t = np.empty((2, p)), np.empty(p)
+            for i, q, f in plan.backward:                # from the last block back
+                np.multiply(w[q], blocks[i], out=tmp)
+                np.add(tmp[0], tmp[1], out=t)
+                np.subtract(flat[f], t, out=flat[f])
+            z0, z1 = zb[:, 0], zb[:, 1]
+            x = np.empty((self.k, p))
             y = inv[0] * z0                             # D^-T = [[d, -c], [-b, a]] / det
             y += inv[2] * z1
             x[plan.rows01[0]] = y
@@ -892,23 +911,19 @@ class BlockFactored:
         """Return an errstate for inf and nan where a block is singular, else a no-op."""
         return _NO_ERRSTATE if self.clean else np.errstate(invalid='ignore', over='ignore')
 
-    def _substitute(self, rows, steps, tmp):
-        """
-        Subtract the weighted rows in place: ``rows[dst] -= w[a][q] rows[src]`` per step.
-
-        ``rows`` are views of one stack's rows (no indexing, no copy back per step);
-        ``steps`` :attr:`BlockPlan.forward` (solve) or :attr:`BlockPlan.backward` (solve_t).
-        """
-        w = self.weight_rows
-        for dst, a, q, src in steps:
-            np.subtract(rows[dst], np.multiply(w[a][q], rows[src], out=tmp), out=rows[dst])
+    @property
+    def pair_weight_rows(self):
+        """Return each pair's weights as a tuple of two ``(p,)`` row views (made once)."""
+        if self._pair_weight_rows is None:
+            self._pair_weight_rows = [tuple(pw) for pw in self.pair_weights]
+        return self._pair_weight_rows
 
     @property
-    def weight_rows(self):
-        """Return the weights ``(w_0 rows, w_1 rows)`` as lists of row views (made once)."""
-        if self._weight_rows is None:
-            self._weight_rows = (list(self.weights[0]), list(self.weights[1]))
-        return self._weight_rows
+    def pair_weights(self):
+        """Return each pair's weights ``(w_0, w_1)`` as a list of ``(2, p)`` views (made once)."""
+        if self._pair_weights is None:
+            self._pair_weights = list(self.weights.transpose(1, 0, 2))
+        return self._pair_weights
 
     def _inverse_blocks(self, colsum=None):
         """
@@ -1003,18 +1018,18 @@ class BlockFactored:
         """
         plan = self.plan
         nb = len(plan.blocks)
-        u = np.ones((2, nb, self.p))                      # 1 + U per unknown, block order
+        ub = np.ones((nb, 2, self.p))                     # 1 + U per unknown, block order
+        u = ub.transpose(1, 0, 2)                         # (2, nb, p)
         with self._quiet():
             if self.weights is not None:
-                aw = np.abs(self.weights)                 # (2, pairs, p)
-                aw0, aw1, u0, u1 = list(aw[0]), list(aw[1]), list(u[0]), list(u[1])
-                ur = (u0, u1)
-                tmp, tmp2 = np.empty(self.p), np.empty(self.p)
+                aw = list(np.abs(self.weights.transpose(1, 0, 2)))   # per pair (2, p)
+                blocks, flat = list(ub), list(ub.reshape(self.k, self.p))
+                tmp, t = np.empty((2, self.p)), np.empty(self.p)
                 for q, (child, row, parent) in plan.tree_edges:
                     # sum over the child's own rows and everything below them, per |Z[row]|
-                    t = np.multiply(aw0[q], u0[child], out=tmp)
-                    t += np.multiply(aw1[q], u1[child], out=tmp2)
-                    dst = ur[row][parent]
+                    np.multiply(aw[q], blocks[child], out=tmp)
+                    np.add(tmp[0], tmp[1], out=t)
+                    dst = flat[2 * parent + row]
                     np.add(dst, t, out=dst)
             ai = np.abs(self.inv)                          # (4, nb, p): |D^-1| entries
             col0 = ai[0] * u[0]
