@@ -234,13 +234,14 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         f_req *= linkage.tree_sign_col
         moment *= linkage.tree_sign_col
     # joint order of the scene: (tree row or cut row) of each joint
-    # (row views of tree rows then cut rows, picked per joint: no Python loop per joint)
-    names, pick = linkage.joint_names, linkage.joint_row_pick
-    out.reaction_force = dict(zip(names, map((list(f_req) + list(force)).__getitem__, pick)))
-    out.reaction_moment = dict(zip(names, map((list(moment) + list(cut_moment)).__getitem__,
-                                              pick)))
-    out.reaction_point = dict(zip(names, map((list(pose.joint_at) + list(pb)).__getitem__,
-                                             pick)))
+    rf, rm, rp = {}, {}, {}
+    joint_at = pose.joint_at
+    for n, tree, i in linkage.joint_rows:
+        if tree:
+            rf[n], rm[n], rp[n] = f_req[i], moment[i], joint_at[i]
+        else:
+            rf[n], rm[n], rp[n] = force[i], cut_moment[i], pb[i]
+    out.reaction_force, out.reaction_moment, out.reaction_point = rf, rm, rp
     out.consistency = worst
 
 

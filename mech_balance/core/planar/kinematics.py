@@ -436,8 +436,6 @@ class Linkage:
         rows = {n: (True, t) for t, n in enumerate(self.tree_names)}
         rows.update({n: (False, c) for c, n in enumerate(self.cut_names)})
         self.joint_rows = [(n, *rows[n]) for n in self.joint_names]
-        # each joint's row among the tree rows followed by the cut rows
-        self.joint_row_pick = [i if tree else self.nt + i for _, tree, i in self.joint_rows]
 
     def _compile_levels(self):
         """
