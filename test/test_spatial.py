@@ -645,16 +645,7 @@ def test_random_near_singular_cases_are_flagged():
     for s in _random_geometries(7, N_NEAR_SINGULAR, lambda m: m >= ROTATION_MARGIN):
         data = random_rssr(np.random.default_rng(s), 1)
         limit = _crank_limit(data)
-        for digits in range(2, 9):
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter('always', RuntimeWarning)
-                rig = rig_for(spatial_from_dict(_with_crank(data, limit * (1 - 10.0 ** -digits))),
-                              cache=False)
-            sk = rig.linkage.skeleton
-            if np.max(sk.cond) > kinematics.COND_WARN:
-                break
-        else:
-            pytest.fail(f'seed {s}: 1e-8 from its rotation limit and never near-singular')
+        rig, sk, caught = _near_singular(data, limit, s)
         # the trace warns at its worst node, naming the crank angle (wrapped into one turn,
         # [0, 360) deg) and the condition number
         worst = int(np.argmax(sk.cond))
@@ -667,6 +658,23 @@ def test_random_near_singular_cases_are_flagged():
             assert d.near_singular[0] and d.condition[0] > kinematics.COND_WARN
             with pytest.raises(SpatialError, match=r'crank angle -?[0-9.]+ deg: cannot continue'):
                 rig_for(spatial_from_dict(_with_crank(data, limit * (1 + 1e-3))), cache=False)
+
+
+def _near_singular(data, limit, seed):
+    """
+    Return ``(rig, skeleton, warnings caught)``: the crank grown towards ``limit`` until flagged.
+
+    Fails the test if even 1e-8 from its rotation limit it is never near-singular.
+    """
+    for digits in range(2, 9):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter('always', RuntimeWarning)
+            rig = rig_for(spatial_from_dict(_with_crank(data, limit * (1 - 10.0 ** -digits))),
+                          cache=False)
+        sk = rig.linkage.skeleton
+        if np.max(sk.cond) > kinematics.COND_WARN:
+            return rig, sk, caught
+    pytest.fail(f'seed {seed}: 1e-8 from its rotation limit and never near-singular')
 
 
 def _printed_angles(messages):
@@ -686,16 +694,7 @@ def test_crank_angles_in_messages_are_wrapped_into_one_turn():
     data = random_rssr(np.random.default_rng(s), 1)
     data['assembly']['crank_angle_deg'] += 720.0
     limit = _crank_limit(data)
-    for digits in range(2, 9):
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter('always', RuntimeWarning)
-            rig = rig_for(spatial_from_dict(_with_crank(data, limit * (1 - 10.0 ** -digits))),
-                          cache=False)
-        sk = rig.linkage.skeleton
-        if np.max(sk.cond) > kinematics.COND_WARN:
-            break
-    else:
-        pytest.fail(f'seed {s}: 1e-8 from its rotation limit and never near-singular')
+    rig, sk, caught = _near_singular(data, limit, s)
     worst = int(np.argmax(sk.cond))
     assert np.all(sk.psi >= 2.0 * np.pi)                 # the whole trace beyond one turn
     traced = _printed_angles(str(w.message) for w in caught)
