@@ -21,6 +21,10 @@ def dot(a, b):
     return (a.conjugate() * b).real
 
 
+max_reduce = np.maximum.reduce
+"""``np.maximum.reduce``: the ufunc's own reduction, without ``ndarray.max``'s Python wrapper."""
+
+
 def rmat(mat, z):
     """Return ``mat @ z`` for a real matrix and a complex batch-last stack ``z``."""
     # numpy has no BLAS path for real @ complex (it loops in C, ~50x slower): multiply the

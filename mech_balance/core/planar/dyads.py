@@ -25,9 +25,9 @@ import numpy as np
 
 TWO_PI = 2.0 * np.pi
 _TWO_PI, _INV_TWO_PI, _HALF = np.array(TWO_PI), np.array(1.0 / TWO_PI), np.array(0.5)
+"""The constants as 0-d arrays: a ufunc takes those a third quicker than Python scalars."""
 _TINY = 1e-150
 """Smallest squared distance P Q divided by without an errstate (its inverse stays finite)."""
-"""The constants as 0-d arrays: a ufunc takes those a third quicker than Python scalars."""
 NODE_AGREEMENT = 1e-8
 """Largest difference (rad) between the closed form and the traced nodes for the plan to be
 used: a plan that does not reproduce the skeleton is dropped (Newton stays)."""
@@ -89,7 +89,6 @@ class DyadPlan:
         local = np.zeros(linkage.nb, dtype=complex)
         for tj in linkage.tree:
             local[tj.child] = tj.p_child
-        self.anchor_local = local[:, None]
         # the bodies whose origin is not at their anchor (often none: links drawn from
         # their parent joint), so the origins cost nothing where every anchor is the origin
         self.offset_bodies = np.flatnonzero(local != 0.0)

@@ -23,14 +23,13 @@ All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given
 from dataclasses import dataclass
 
 from mech_balance.core.planar.algebra import cross as _cross, dot as _dot, \
-    matvec_t as _matvec_t, rmat as _rmat, Tiles as _Tiles
+    matvec_t as _matvec_t, max_reduce as _MAX, rmat as _rmat, Tiles as _Tiles
 import numpy as np
 
 SPEED_FLOOR_RAD_S = 1e-300
 """Crank speeds at or below this magnitude take the torque path that does not divide by it."""
 PARAMS_PER_LINK = 4
 """Inertial parameters per link: m, m*c_x, m*c_y (link frame), I about the link origin."""
-_MAX = np.maximum.reduce   # (ufunc reduce: without ndarray.max's Python wrapper)
 _INERTIA_DTYPE = {'mass': float, 'first_moment': complex, 'inertia_origin': float}
 
 
@@ -183,8 +182,8 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
         lam_scaled = state.jac_factors.solve_t(q_u)
     else:
         lam_scaled = _matvec_t(state.jac_inv, q_u)
-    scale = linkage.row_scale_uniform
-    lam = lam_scaled * (linkage.row_scale[:, None] if scale is None else scale)
+    lam = lam_scaled * (linkage.row_scale[:, None] if linkage.npc or linkage.has_pri
+                        else linkage.scale0)   # (uniform: one 0-d factor)
     jac_psi = state.jac[:, 0, :] if state.jac_psi is None else state.jac_psi
     tau = q_gen[0] - np.add.reduce(jac_psi * lam_scaled, axis=0)   # (einsum: slower set-up)
     out.driving_torque = tau

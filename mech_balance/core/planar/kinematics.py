@@ -33,7 +33,7 @@ import warnings
 from mech_balance.conventions import crank_angle_text
 from mech_balance.core.planar import dyads, smallsolve
 from mech_balance.core.planar.algebra import cross as _cross, matvec as _matvec, \
-    rmat as _rmat, Tiles
+    max_reduce as _MAX, rmat as _rmat, Tiles
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
@@ -424,11 +424,9 @@ class Linkage:
         # (a slice where they are a range: no fancy indexing per call)
         self.check_rows = np.concatenate([[0], self.rev_passive]).astype(np.intp)
         self.rev_passive_rows = (_as_slices(self.rev_passive, 0) or (self.rev_passive,))[0]
-        # the uniform row scale of all-revolute loops as a float (no (m, 1) broadcast)
-        self.row_scale_uniform = float(self.row_scale[0]) \
-            if self.row_scale.size and not self.npc and not self.has_pri else None
-        # the first row scale and its negative as 0-d arrays: a ufunc takes those a third
-        # quicker than a Python or NumPy scalar (these multiply every cycle's rows)
+        # the first row scale and its negative as 0-d arrays (all the rows' scale without
+        # point-contact cuts or prismatic joints): a ufunc takes those a third quicker than
+        # a Python or NumPy scalar (these multiply every cycle's rows)
         first = float(self.row_scale[0]) if self.row_scale.size else 1.0
         self.scale0, self.neg_scale0 = np.array(first), np.array(-first)
         self.tree_flip = np.flatnonzero(self.tree_sign < 0)  # reported from child to parent
@@ -1180,7 +1178,6 @@ class Linkage:
         return out
 
 
-_MAX = np.maximum.reduce
 _1J = np.array(1j)   # (0-d: quicker as a ufunc operand than the Python scalar)
 
 

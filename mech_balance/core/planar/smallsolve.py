@@ -31,11 +31,11 @@ Order (:func:`block_triangular_order`, worked out once per pattern)
 import contextlib
 import math
 
-from mech_balance.core.planar.algebra import matvec as _matvec, matvec_t as _matvec_t
+from mech_balance.core.planar.algebra import matvec as _matvec, matvec_t as _matvec_t, \
+    max_reduce as _MAX
 import numpy as np
 
 _NO_ERRSTATE = contextlib.nullcontext()   # (reusable: it keeps no state)
-_MAX = np.maximum.reduce
 _MINUS_ONE = np.array(-1.0)   # (0-d: quicker as a ufunc operand than a Python scalar)
 _TINY_DET = 1e-150
 """Smallest |det| of a 2 x 2 block inverted without an errstate (its inverse stays finite)."""
@@ -810,18 +810,18 @@ class BlockFactored:
         det = dv[0] * dv[3]
         det -= dv[1] * dv[2]
         self.det = det
-        self._inv = self._z = self._pair_weights = self._pair_weight_rows = None
+        self._inv = self._pair_weights = self._pair_weight_rows = None
         adet = np.abs(det)
         # clean: every block well away from singular, so nothing below can divide by zero,
         # overflow or meet inf and nan (no errstate needed: a third of the cost)
         self.clean = np.count_nonzero(adet >= _TINY_DET) == adet.size
         if self.clean:
-            self._factor(values, dv, adet, True)
+            self._factor(values, dv, adet)
         else:                                # singular somewhere (or nan): inf and nan there
             with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
-                self._factor(values, dv, adet, False)
+                self._factor(values, dv, adet)
 
-    def _factor(self, values, dv, adet, checked):
+    def _factor(self, values, dv, adet):
         """Set the inverted blocks, the weights and (one block) the condition numbers."""
         plan, det = self.plan, self.det
         inv = values.take(plan.adj, axis=0)        # d, b, c, a
@@ -829,7 +829,7 @@ class BlockFactored:
         inv[1:3] *= _MINUS_ONE                     # d, -b, -c, a over det
         self.inv = inv
         self.weights = None
-        self._cond = self._single_cond(dv[:, 0], adet[0], checked) if plan.single else None
+        self._cond = self._single_cond(dv[:, 0], adet[0], self.clean) if plan.single else None
         if not plan.single and plan.pair_block.size:
             padded = np.empty((plan.n + 1, self.p))
             padded[:-1] = values
