@@ -6,7 +6,8 @@ from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import chains as chain
 from mech_balance.conventions import cycle_angles
-from mech_balance.core.planar import kinematics, smallsolve
+from mech_balance.core.planar import algebra, kinematics, smallsolve
+from mech_balance.core.planar.rig import PlanarRig
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -156,3 +157,21 @@ def test_tree_level_sums_agree_with_dense_ancestry_products(name, monkeypatch):
         moment = w1.reaction_moment[joint]
         assert_allclose(w2.reaction_moment[joint], moment, rtol=0,
                         atol=1e-13 * max(np.max(np.abs(moment)), 1.0))
+
+
+@pytest.mark.parametrize('name', ['hoeken', 'carpet_scraper', 'slider_crank'])
+def test_batch_size_changes_and_large_batches_give_the_same_figures(name):
+    """The constant columns are tiled per batch size (``algebra.Tiles``), up to a limit."""
+    rig = PlanarRig(scene.load(name), cache=False)
+    nb = rig.linkage.nb
+    p_large = algebra.TILE_LIMIT // nb + 7               # beyond the limit: the columns
+    psi = np.linspace(-7.0, 7.0, p_large)
+    whole, w_whole = rig.evaluate(psi)
+    for part in (psi[:5], psi[5:360], psi[:5], psi[-1:]):   # the batch size changing back
+        state, w = rig.evaluate(part)
+        at = np.searchsorted(psi, part)
+        assert_allclose(state.q, whole.q[:, at], rtol=0, atol=1e-12)
+        scale = np.max(np.abs(w_whole.shaking_force))
+        assert_allclose(w.shaking_force, w_whole.shaking_force[at], rtol=0, atol=1e-12 * scale)
+        assert_allclose(w.driving_torque, w_whole.driving_torque[at], rtol=0,
+                        atol=1e-12 * np.max(np.abs(w_whole.driving_torque)))
