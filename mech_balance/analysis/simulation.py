@@ -1,10 +1,11 @@
 """
 The report of a forward-dynamics run (``mech-balance simulate``): time series and figures.
 
-:func:`simulate` integrates a scene with its drive (:mod:`mech_balance.core.forward`) and
-returns a :class:`Report`: the run resampled on a uniform time grid, the core's shaking
-wrench and driving torque along it, the start-up time, the steady-state figures (RMS over
-time), the energy balance and the inverse-dynamics check; :func:`format_report` prints it.
+:func:`simulate` integrates a scene or rig of any kind with its drive
+(:mod:`mech_balance.core.forward`) and returns a :class:`Report`: the run resampled on a
+uniform time grid, the rig's shaking wrench and driving effort along it, the start-up time,
+the steady-state figures (RMS over time), the energy balance, the model error of the tables
+and the inverse-dynamics check; :func:`format_report` prints it.
 """
 
 from dataclasses import dataclass
@@ -116,6 +117,9 @@ def report(sim, samples_per_turn=72, max_samples=20000):
         'inverse_dynamics_check_Nm': check,
         'inverse_dynamics_check_rel': check / torque_scale,
         'rotor_moment_included': bool(axis is not None or not spin),
+        # a rig that evaluates no crank acceleration gives its wrench and effort at zero
+        'rig_takes_accelerations': bool(np.allclose(data.crank_accel_rad_s2, acc, rtol=1e-12,
+                                                    atol=0.0)),
         'worst_condition': float(np.max(data.condition)),
     }
     summary.update(_steady(t, y[0], y[1], tau_m, data.force_N, moment, model))
@@ -162,7 +166,7 @@ def format_report(rep, rows=20):
     d = model.drive
     lines = [f'scene: {s["scene"]} (kind {s["kind"]}, {model.scene.source})']
     if d.motor is None:
-        lines.append('drive: none (no drive: section) - the rig coasts from '
+        lines.append('drive: no motor - the rig coasts from '
                      f'{model.initial_speed():g} rad/s, no damping unless configured')
     else:
         m = d.motor
@@ -185,6 +189,10 @@ def format_report(rep, rows=20):
                         " (its reaction moment is not in the shaking moment: a prismatic "
                         "input's yoke axis is not part of the scene)"))
     errors = s['table_errors'] or {}
+    if not s['rig_takes_accelerations']:
+        lines.append(f'warning: the rig of kind {s["kind"]} evaluates no crank acceleration: the '
+                     'motion is exact (inertia from its kinetic energy), but its shaking wrench '
+                     'and driving effort below are those at zero crank acceleration')
     lines += [
         f'method: {s["method"]} (rtol {s["rtol"]:g}) - {s["why"]}',
         'right-hand side: ' + (

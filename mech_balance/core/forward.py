@@ -19,7 +19,8 @@ so three batched evaluations give the functions of the ODE (:func:`rig_functions
 ``tau_G = -Q(psi, 0, 0)``, ``I = (Q(psi, 0, a0) - Q(psi, 0, 0)) / a0`` and
 ``c1 = -(Q(psi, w0, 0) - Q(psi, 0, 0)) / w0^2`` (w0 the scene's crank speed, a0 = w0^2: the
 three torques of one size).  For any one-dof system ``c1 = -I'(psi) / 2`` (tested), and a
-fourth evaluation at (w0, -a0) checks the affine-quadratic form (``structure`` error).
+fourth evaluation at (2 w0, -a0) checks the affine-quadratic form and the rig's kinetic energy
+checks I (``I = 2 T / psi'^2``): the ``structure`` and ``energy`` errors of the tables.
 
 * ``tau_A = N tau_m`` is the motor torque through a gear of ratio N (motor speed N psi');
   ``J_r`` is the rotor inertia, ``J_in`` a flywheel on the input shaft
@@ -182,29 +183,38 @@ def rig_functions(rig, psi, damping=None, check=False):
     Return the ``(4, p)`` array of I, c1, tau_G, c_eff at crank angles ``psi`` (rad).
 
     From the rig's inverse dynamics (module docstring): one batched :meth:`Rig.at` of the
-    three (or, with ``check``, four) speed-acceleration pairs.  With ``check`` also return
-    the ``(p,)`` residual of ``Q(psi, w0, -a0)`` against the affine-quadratic form (N*m).
+    speed-acceleration pairs (0, 0), (0, a0), (w0, 0).  A rig whose inverse dynamics does
+    not take a crank acceleration (its :attr:`RigData.crank_accel_rad_s2` is not the one
+    asked for) gives I through its kinetic energy instead, ``I = 2 T(psi, w0) / w0^2``, and
+    is refused without the capability ``kinetic_energy``.  With ``check`` also return the
+    ``(p,)`` residuals (N*m) of the two checks of the model error: ``structure``, the effort
+    at (2 w0, -a0) against the affine-quadratic form (at (2 w0, 0) without accelerations),
+    and ``energy``, ``(I - 2 T / w0^2) a0`` (where both formulations exist).
     """
     psi = np.atleast_1d(np.asarray(psi, dtype=float))
     p = psi.size
     w0 = _reference_speed(rig)
     a0 = w0 * w0
-    speeds = [0.0, 0.0, w0] + ([w0] if check else [])
+    speeds = [0.0, 0.0, w0] + ([2.0 * w0] if check else [])
     accels = [0.0, a0, 0.0] + ([-a0] if check else [])
     k = len(speeds)
+    energy = 'kinetic_energy' in rig.capabilities
     accel = np.repeat(accels, p)
     data = rig.at(np.tile(psi, k), speed=np.repeat(speeds, p), accel=accel,
-                  outputs=('driving_torque',))
-    if not np.allclose(data.crank_accel_rad_s2, accel, rtol=1e-12, atol=0.0):
+                  outputs=('driving_torque', 'kinetic_energy') if energy else
+                  ('driving_torque',))
+    honoured = np.allclose(data.crank_accel_rad_s2, accel, rtol=1e-12, atol=0.0)
+    if not (honoured or energy):
         raise ValueError(
-            f'simulate: rig {rig.name!r} of kind {scene_mod.kind_of(rig).name!r} does not '
-            'evaluate crank accelerations (RigData.crank_accel_rad_s2 is not the one asked '
-            'for); the forward dynamics needs the driving effort at an acceleration')
+            f'simulate: rig {rig.name!r} of kind {scene_mod.kind_of(rig).name!r} evaluates no '
+            'crank acceleration and lacks the capability kinetic_energy; the forward '
+            'dynamics needs one of them for the generalized inertia')
     ci = rig.joint_names.index(rig.crank_joint)
     unit = data.joint_velocity[2 * p:3 * p] / w0       # joint rates per unit crank speed
     effort = data.series[rig.driving_series].reshape(k, p) * unit[:, ci]   # Q = e dx/dpsi
     out = np.zeros((4, p))
-    out[0] = (effort[1] - effort[0]) / a0
+    by_energy = 2.0 * data.series['kinetic_energy'][2 * p:3 * p] / a0 if energy else None
+    out[0] = (effort[1] - effort[0]) / a0 if honoured else by_energy
     out[1] = -(effort[2] - effort[0]) / a0
     out[2] = -effort[0]
     for name, c in (damping or {}).items():
@@ -213,8 +223,11 @@ def rig_functions(rig, psi, damping=None, check=False):
             out[3] += c * rate * rate
     if not check:
         return out
-    model = -out[0] * a0 - out[1] * a0 - out[2]
-    return out, effort[3] - model
+    model = -4.0 * out[1] * a0 - out[2] - (out[0] * a0 if honoured else 0.0)
+    residuals = {'structure': effort[3] - model}
+    if honoured and energy:       # two formulations of I: Newton-Euler and the energy
+        residuals['energy'] = (out[0] - by_energy) * a0
+    return out, residuals
 
 
 class RigTables:
@@ -224,9 +237,9 @@ class RigTables:
     ``values(psi)`` returns the five functions and their psi-derivatives at one angle.
     ``samples`` is the number of tabulated angles per turn, ``harmonics`` the kept series
     length, ``errors`` the largest relative deviation of each function from the rig at the
-    mid-points (``potential``: the bound 2 pi times tau_G's; ``structure``: the rig's effort
-    at (w0, -a0) against the affine-quadratic form, relative to the torque scale), ``error``
-    the largest of them, ``ok`` whether it is within ``TABLE_CHECK_TOL``.
+    mid-points (``potential``: the bound 2 pi times tau_G's; ``structure`` and ``energy``:
+    the checks of :func:`rig_functions`, relative to the torque scale), ``error`` the largest
+    of them, ``ok`` whether it is within ``TABLE_CHECK_TOL``.
     """
 
     def __init__(self, rig, damping=None, tol=TABLE_TOL):
@@ -238,7 +251,7 @@ class RigTables:
             spec = np.fft.rfft(vals, axis=1) / n
             tail = float(np.max(np.abs(spec[:, n // 4:]) / scale[:, None]))
             mid = psi + math.pi / n
-            direct, structure = rig_functions(rig, mid, damping, check=True)
+            direct, checks = rig_functions(rig, mid, damping, check=True)
             if tail < tol or n >= TABLE_MAX_SAMPLES:
                 break
             # the mid-points are the next level's odd samples
@@ -258,13 +271,14 @@ class RigTables:
         self.samples, self.harmonics, self.tail = n, k_max, tail
         table = np.array([self.values(x)[0] for x in mid]).T
         err = np.max(np.abs(table[:4] - direct), axis=1) / scale
-        torque = max(scale[0], scale[1]) * _reference_speed(rig) ** 2 + scale[2]
+        torque = 4.0 * max(scale[0], scale[1]) * _reference_speed(rig) ** 2 + scale[2]
         self.gravity_mean = float(abs(spec[2, 0]))
         errors = dict(zip(FUNCTIONS, err.tolist()))
         v_scale = float(np.ptp(table[4])) if np.any(vals[2]) else 0.0
         errors['potential'] = 2.0 * math.pi * (errors['tau_gravity'] * scale[2] +
                                                self.gravity_mean) / v_scale if v_scale else 0.0
-        errors['structure'] = float(np.max(np.abs(structure))) / torque
+        for name, residual in checks.items():
+            errors[name] = float(np.max(np.abs(residual))) / torque
         self.scale = np.append(scale, v_scale or 1.0)
         self.errors = errors
         self.error = float(max(errors.values()))
@@ -474,11 +488,15 @@ class ForwardDynamics:
             return d.initial_speed_rad_s
         return 0.0 if d.motor is not None else self.scene.crank_speed_rad_s
 
+    def start_angle(self):
+        """Return the scene's assembly crank angle (rad; 0 for a scene that states none)."""
+        return float(getattr(self.scene, 'assembly_crank_angle_rad', 0.0))
+
     def initial_state(self):
         """Return the state vector at t = 0."""
         y = np.zeros(len(self.names))
         d = self.drive
-        y[0] = self.scene.assembly_crank_angle_rad if d.initial_crank_angle_deg is None \
+        y[0] = self.start_angle() if d.initial_crank_angle_deg is None \
             else math.radians(d.initial_crank_angle_deg)
         y[1] = self.initial_speed()
         return y
@@ -486,7 +504,7 @@ class ForwardDynamics:
     def atol(self, rtol):
         """Return the absolute tolerances per state (scaled by the rig's own units)."""
         w = self.omega_ref
-        f0 = self.functions.values(self.scene.assembly_crank_angle_rad)[0]
+        f0 = self.functions.values(self.start_angle())[0]
         energy = 0.5 * (abs(f0[0]) + self.added) * w * w
         scales = {'psi': 1.0, 'speed': w, 'pi_integral': 1.0,
                   'motor_torque': self.motor.stall_torque_Nm if self.motor else 1.0,
