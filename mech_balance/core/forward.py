@@ -143,8 +143,13 @@ def load(name_or_path):
 
 
 def drive_of(sc, joint_names=None):
-    """Return the validated :class:`Drive` of a scene's ``drive`` key (empty without one)."""
-    return drive_from_dict(getattr(sc, 'drive', None), sc, joint_names)
+    """
+    Return the validated :class:`Drive` of a scene's ``drive`` key (empty without one).
+
+    ``joint_names``: the rig's joint coordinates to check ``joint_damping`` against (the
+    scene's loader checked a planar scene's already; a rig checks the rest when built).
+    """
+    return drive_from_dict(getattr(sc, 'drive', None), joint_names=joint_names)
 
 
 def rig_of(scene_or_rig):
