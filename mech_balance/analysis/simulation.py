@@ -186,8 +186,8 @@ def format_report(rep, rows=20):
     if d.input_inertia_kg_m2:
         lines.append(f'input flywheel: {d.input_inertia_kg_m2:g} kg*m^2'
                      + ('' if s['rotor_moment_included'] else
-                        " (its reaction moment is not in the shaking moment: a prismatic "
-                        "input's yoke axis is not part of the scene)"))
+                        ' (its reaction moment is not in the shaking moment: the axis of a '
+                        'yoke crank of a prismatic input is not part of the scene)'))
     errors = s['table_errors'] or {}
     if not s['rig_takes_accelerations']:
         lines.append(f'warning: the rig of kind {s["kind"]} evaluates no crank acceleration: the '
@@ -196,11 +196,11 @@ def format_report(rep, rows=20):
     lines += [
         f'method: {s["method"]} (rtol {s["rtol"]:g}) - {s["why"]}',
         'right-hand side: ' + (
-            f'Fourier tables of I, C, tau_G, c_eff, V from the rig\'s inverse dynamics, '
+            'Fourier tables of I, C, tau_G, c_eff, V from the inverse dynamics of the rig, '
             f'{s["table_harmonics"]} harmonics; model error (largest relative deviation from '
             f'the rig at the mid-points) {s["table_error"]:.1e}: '
             + ', '.join(f'{k} {v:.1e}' for k, v in errors.items())
-            if s['rhs'] == 'table' else 'the rig\'s inverse dynamics evaluated at every call'),
+            if s['rhs'] == 'table' else 'the inverse dynamics of the rig at every call'),
         f'cost: {s["steps"]} steps, {s["nfev"]} right-hand-side evaluations, {s["njev"]} '
         f'Jacobians, {s["nlu"]} LU decompositions, {s["seconds"] * 1e3:.1f} ms',
         '',
@@ -222,8 +222,8 @@ def format_report(rep, rows=20):
         f'steady state (last {s["steady_window_turns"]:.3g} turns, t = '
         f'{s["steady_window_s"][0]:.4g}..{s["steady_window_s"][1]:.4g} s): mean speed '
         f'{s["speed_mean_rad_s"]:.6g} rad/s, ripple (max - min)/mean = {s["speed_ripple"]:.4g}',
-        f'motor torque on the input shaft: time-RMS {s["motor_torque_rms_Nm"]:.5g} N*m (steady), max '
-        f'{s["motor_torque_max_Nm"]:.5g} N*m',
+        f'motor torque on the input shaft: time-RMS {s["motor_torque_rms_Nm"]:.5g} N*m '
+        f'(steady), max {s["motor_torque_max_Nm"]:.5g} N*m',
         f'shaking force: time-RMS {s["shaking_force_rms_N"]:.5g} N (steady), max '
         f'{s["shaking_force_max_N"]:.5g} N; shaking moment: time-RMS '
         f'{s["shaking_moment_rms_Nm"]:.5g} N*m, max {s["shaking_moment_max_Nm"]:.5g} N*m',

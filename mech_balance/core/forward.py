@@ -451,8 +451,8 @@ class ForwardDynamics:
                 f'drive.input_inertia_kg_m2: got {self.drive.input_inertia_kg_m2!r} and a '
                 f'rotor of {self.rotor:g} kg*m^2, but the generalized inertia of '
                 f'{self.rig.name!r} falls to {total[low]:.3g} kg*m^2 near psi = {where:.4g} '
-                f'deg (largest {peak:.3g}): psi\'\' is not defined there (a prismatic '
-                "input's dead centre: the ideal yoke is massless); expected a flywheel "
+                f'deg (largest {peak:.3g}): the acceleration is not defined there (the dead '
+                'centre of a prismatic input: the ideal yoke is massless); expected a flywheel '
                 '(drive.input_inertia_kg_m2 > 0) or a motor with rotor_inertia_kg_m2 > 0')
 
     def _omega_ref(self):

@@ -151,7 +151,7 @@ def drive_from_dict(data, scene=None, joint_names=None):
         for name in data_drive.joint_damping:
             if name not in joint_names:
                 raise DriveError(
-                    f'drive.joint_damping.{name}: no such joint coordinate, expected one of '
+                    f'drive.joint_damping.{name}: no such joint, expected one of '
                     f'{", ".join(joint_names)}')
     return data_drive
 
