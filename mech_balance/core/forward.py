@@ -242,9 +242,10 @@ class RigTables:
     ``values(psi)`` returns the five functions and their psi-derivatives at one angle.
     ``samples`` is the number of tabulated angles per turn, ``harmonics`` the kept series
     length, ``errors`` the largest relative deviation of each function from the rig at the
-    mid-points (``potential``: the bound 2 pi times tau_G's; ``structure`` and ``energy``:
-    the checks of :func:`rig_functions`, relative to the torque scale), ``error`` the largest
-    of them, ``ok`` whether it is within ``TABLE_CHECK_TOL``.
+    mid-points (``potential``: the bound 2 pi times tau_G's; ``inertia_slope``: the series'
+    I'(psi) against the rig's -2 c1, seed 000 eq. 41; ``structure`` and ``energy``: the
+    checks of :func:`rig_functions`, relative to the torque scale), ``error`` the largest of
+    them, ``ok`` whether it is within ``TABLE_CHECK_TOL``.
     """
 
     def __init__(self, rig, damping=None, tol=TABLE_TOL):
@@ -274,7 +275,7 @@ class RigTables:
         coef = np.vstack([coef, pot])
         self._stack = np.vstack([coef, coef * 1j * self.k])    # values, then d/dpsi
         self.samples, self.harmonics, self.tail = n, k_max, tail
-        table = np.array([self.values(x)[0] for x in mid]).T
+        table, slope = (np.array(v).T for v in zip(*(self.values(x) for x in mid)))
         err = np.max(np.abs(table[:4] - direct), axis=1) / scale
         torque = 4.0 * max(scale[0], scale[1]) * _reference_speed(rig) ** 2 + scale[2]
         self.gravity_mean = float(abs(spec[2, 0]))
@@ -282,6 +283,8 @@ class RigTables:
         v_scale = float(np.ptp(table[4])) if np.any(vals[2]) else 0.0
         errors['potential'] = 2.0 * math.pi * (errors['tau_gravity'] * scale[2] +
                                                self.gravity_mean) / v_scale if v_scale else 0.0
+        # I'(psi) of the series against the rig's c1 (seed 000 eq. 41: c1 = -I'/2)
+        errors['inertia_slope'] = float(np.max(np.abs(slope[0] + 2.0 * direct[1]))) / scale[0]
         for name, residual in checks.items():
             errors[name] = float(np.max(np.abs(residual))) / torque
         self.scale = np.append(scale, v_scale or 1.0)
