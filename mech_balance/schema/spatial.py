@@ -30,6 +30,8 @@ Schema (``config/rssr_skew.yaml`` is a commented example)::
       poses: {LINK: {origin_m: [x, y, z], rpy_deg: [roll, pitch, yaw]}}  # approximate
     outputs: [kinematics, shaking_wrench, driving_torque, bearing_reactions, kinetic_energy]
     samples: <int >= 4>
+    drive: {...}                   # optional: motor, speed loop, damping, input flywheel
+                                   # (mech_balance.core.forward, docs/simulation.md)
 
 The inertia tensor's six numbers are the matrix entries in URDF order (``ixy`` is the
 off-diagonal entry, minus the product of inertia integral), validated here: a rigid body's
@@ -51,6 +53,7 @@ import math
 
 from mech_balance import conventions
 from mech_balance.schema import fields
+from mech_balance.schema.drive import drive_from_dict
 from mech_balance.schema.fields import SceneError
 from mech_balance.schema.scene import DEFAULT_OUTPUTS, FRAME, Normalization, \
     parse_outputs, SceneDesigns
@@ -167,6 +170,7 @@ class SpatialScene(SceneDesigns):
     notes: dict = field(default_factory=dict)
     source: str = '<dict>'
     kind: str = KIND
+    drive: dict = None  # motor, speed loop, damping, flywheel for `mech-balance simulate`
 
     @property
     def assembly_crank_angle_rad(self):
@@ -181,7 +185,7 @@ class SpatialScene(SceneDesigns):
 
 _TOP_KEYS = {'kind', 'schema_version', 'name', 'description', 'normalization', 'frame',
              'links', 'joints', 'crank', 'moment_point_m', 'assembly', 'outputs', 'samples',
-             'notes', 'balance'}
+             'notes', 'balance', 'drive'}
 
 
 def _vec3(value, where):
@@ -421,7 +425,20 @@ def spatial_from_dict(data, source='<dict>'):
         assembly_crank_angle_deg=crank_angle, assembly_poses=poses, crank_stroke_m=stroke,
         outputs=outputs,
         samples=samples, normalization=normalization,
-        notes=notes if isinstance(notes, dict) else {'text': notes}, source=str(source))
+        notes=notes if isinstance(notes, dict) else {'text': notes}, source=str(source),
+        drive=_drive(data.get('drive')))
+
+
+def _drive(data):
+    """
+    Return the ``drive`` mapping as given, its fields checked.
+
+    The names in ``joint_damping`` are the rig's joint coordinates, checked when a
+    simulation builds the rig (:func:`mech_balance.core.forward.ForwardDynamics`).
+    """
+    if data is not None:
+        drive_from_dict(data)
+    return data
 
 
 def _joint_dict(jt):
@@ -462,6 +479,8 @@ def spatial_to_dict(scene):
     data['samples'] = int(scene.samples)
     if scene.notes:
         data['notes'] = scene.notes
+    if scene.drive is not None:
+        data['drive'] = scene.drive
     return data
 
 
