@@ -78,6 +78,27 @@ def _table_figures(table, certificate):
             'certificate': certificate}
 
 
+LINK_OPTIONS = ('mass_bounds', 'distance_bounds')
+"""Per-link options of the redistribution (``{link: (min, max)}``; the node's
+``balance.links.<link>.<option>``)."""
+
+
+def link_options(rig):
+    """
+    Return the per-link options (:data:`LINK_OPTIONS`) the redistribution of ``rig`` takes.
+
+    Both for a rig redistributed by seed 001; those the spatial implementation takes
+    (:data:`SPATIAL_OPTIONS`) for a rig with body kinematics; none for a rig without the
+    redistribution.
+    """
+    caps = rig.capabilities
+    if METHODS['redistribution'] in caps:
+        return LINK_OPTIONS
+    if ALTERNATIVES['redistribution'] in caps:
+        return tuple(o for o in LINK_OPTIONS if o in SPATIAL_OPTIONS['redistribution'])
+    return ()
+
+
 def _supports(method, caps):
     return METHODS[method] in caps or ALTERNATIVES.get(method) in caps
 
@@ -245,4 +266,5 @@ def balance(rig, method='auto', **options):
     return Design(result.design.scene, report, method, result, figures)
 
 
-__all__ = ['ALTERNATIVES', 'balance', 'DEFAULT_WEIGHTS', 'Design', 'method_for', 'METHODS']
+__all__ = ['ALTERNATIVES', 'balance', 'DEFAULT_WEIGHTS', 'Design', 'link_options', 'method_for',
+           'METHODS']

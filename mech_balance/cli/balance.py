@@ -83,6 +83,8 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     def _get_help_string(self, action):
         if action.default is None or action.default is False or action.default == []:
             return action.help
+        if isinstance(action.default, tuple):   # the values as they are typed
+            return f'{action.help} (default: {" ".join(f"{v:g}" for v in action.default)})'
         return super()._get_help_string(action)
 
 
@@ -616,7 +618,9 @@ def _weights(sc, args):
     report.setdefault('optimum', {})['moment_rms_lower_bound_Nm'] = \
         opt.moment_rms_lower_bound_Nm
     if args.json:
-        print(jsonout.dumps(report))
+        out = design.to_dict(args.normalized)
+        out['report'] = report   # the seed 002 report in the units asked for
+        print(jsonout.dumps(out))
         return 0
     print(rggr_report.format_report(report))
     print(f'certificate: RMS shaking moment {opt.moment_rms_optimal_Nm:.9g} N m, safe lower '

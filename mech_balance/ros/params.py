@@ -126,9 +126,9 @@ def link_spec(link, option):
                 rule=f'[], [min] or [min, max] in {unit}, 0 < min <= max')
 
 
-def link_specs(link_names):
+def link_specs(link_names, link_options=tuple(LINK_OPTIONS)):
     """Return the per-link :class:`Spec` of every link and option, in declaration order."""
-    return [link_spec(link, option) for link in link_names for option in LINK_OPTIONS]
+    return [link_spec(link, option) for link in link_names for option in link_options]
 
 
 def spec_for(name):
