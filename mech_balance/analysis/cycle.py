@@ -14,7 +14,7 @@ reactions and round-off floor); any other rig is evaluated through the protocol
 from dataclasses import dataclass
 import time
 
-from mech_balance.analysis.report import Report
+from mech_balance.analysis.report import ANALYSIS_KEYS, analysis_dict, Report  # noqa: F401
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics, kinematics
@@ -186,27 +186,6 @@ def format_table(cycle, rows, normalized=False):
                  f'({cycle.seconds * 1e6 / cycle.psi.size:.2f} us per angle), one cold run; warm '
                  'medians: `mech-balance bench`')
     return '\n'.join(lines)
-
-
-ANALYSIS_KEYS = ('scene', 'kind', 'samples', 'crank_speed_rad_s', 'crank_acceleration_rad_s2',
-                 'moment_point_m', 'outputs', 'normalized', 'rows', 'worst_residual',
-                 'worst_condition', 'near_singular', 'near_singular_condition', 'extras')
-"""The top-level keys of ``mech-balance analyze --json``, for every kind (docs/cli.md); a row
-is ``{quantity, unit, rms, max_abs, kind}``; what only one kind reports is under ``extras``."""
-
-
-def analysis_dict(sc, rig, samples, normalized, rows, worst_residual, worst_condition,
-                  near_singular, near_singular_condition, extras):
-    """Return the ``analyze --json`` mapping (:data:`ANALYSIS_KEYS`), the same for every kind."""
-    from mech_balance.schema import registry
-    return {'scene': sc.name, 'kind': registry.kind_of(sc).name, 'samples': samples,
-            'crank_speed_rad_s': sc.crank_speed_rad_s,
-            'crank_acceleration_rad_s2': sc.crank_acceleration_rad_s2,
-            'moment_point_m': [float(x) for x in rig.moment_point_m],
-            'outputs': list(sc.outputs), 'normalized': bool(normalized), 'rows': rows,
-            'worst_residual': worst_residual, 'worst_condition': worst_condition,
-            'near_singular': near_singular, 'near_singular_condition': near_singular_condition,
-            'extras': extras}
 
 
 def analyze(sc, samples=None, normalized=False, design=None):

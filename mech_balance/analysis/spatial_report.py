@@ -7,8 +7,7 @@ scalar series (:data:`mech_balance.schema.scene.SERIES`) and the bearing loads o
 joint, SI or in the papers' normalized units when the scene records a normalization.
 """
 
-from mech_balance.analysis.cycle import analysis_dict
-from mech_balance.analysis.report import Report
+from mech_balance.analysis.report import analysis_dict, Report
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial.kinematics import COND_WARN

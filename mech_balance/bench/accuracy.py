@@ -304,8 +304,9 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
         out = {'scene': sc.name, 'source': sc.source}
         if 'rms' in sections:
             say('RMS against p ...')
-            out['rms'] = rggr_rms_convergence(sc) if kind.name == 'rggr' else \
-                rms_convergence(rig_for(sc))   # (the rggr kind's own: deleted with it)
+            rig = rig_for(sc)   # (balancing weights: the rggr kind's own study)
+            out['rms'] = rggr_rms_convergence(sc) if 'balancing_weights' in rig.capabilities \
+                else rms_convergence(rig)
         out['notes'] = [f'{name}: needs the capability accuracy_study, which kind '
                         f'{kind.name} lacks' for name in sections if name != 'rms']
         return out

@@ -67,16 +67,6 @@ TYPES = {'weights': cli.weight, 'torque_weight': cli.weight, 'reaction_weight': 
 """The command line's number parsers of some options (the rest: float, int, str)."""
 
 
-def add_units(p):
-    """Add ``--normalized`` and ``--si`` (SI is the default; ``--si`` stays accepted)."""
-    g = p.add_mutually_exclusive_group()
-    g.add_argument('--normalized', action='store_true',
-                   help="print in the papers' normalized units (m1, a1, omega) where the scene "
-                        'records a normalization (default: SI)')
-    g.add_argument('--si', action='store_true',
-                   help='print SI values (the default; kept for scripts that pass it)')
-
-
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Append ``(default: ...)`` unless the default is None or False (said in words, or off)."""
 
@@ -151,7 +141,7 @@ def register(subparsers):
                         'default of kind spatial), counterweights (add-only spheres, with '
                         '--counterweights LINKS)')
     options.add_arguments(p, TABLE_KEYS[TABLE_KEYS.index('extent_factor'):], TYPES)
-    add_units(p)
+    cli.add_units(p)
     p.add_argument('--json', action='store_true', help='print the result as JSON')
     p.add_argument('--output', default=None, metavar='FILE.yaml',
                    help='write the balanced scene (loadable by every other command) to a '
