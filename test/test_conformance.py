@@ -23,7 +23,6 @@ import mech_balance as mb
 from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import result as balance_result
-from mech_balance.schema.spatial import spatial_from_dict
 import numpy as np
 import pytest
 
@@ -48,7 +47,7 @@ def _load_data(name):
 
 
 def _planar_variant():
-    """Hoeken with a longer crank and a heavier rocker: a planar scene no file holds."""
+    """Return Hoeken with a heavier rocker and no normalization: a planar scene no file holds."""
     data = _load_data('hoeken')
     data['name'] = 'hoeken_variant'
     data.pop('normalization', None)
@@ -57,7 +56,7 @@ def _planar_variant():
 
 
 def _spatial_universal():
-    """rssr_skew with a universal joint at the crank pin (a U in the tree)."""
+    """Return rssr_skew with a universal joint at the crank pin (a U in the tree)."""
     data = _load_data('rssr_skew')
     data['name'] = 'rssr_universal'
     data['links']['coupler']['inertia_com_kg_m2'] = [1e-6, 6.75e-4, 6.75e-4, 0.0, 0.0, 0.0]
@@ -67,7 +66,7 @@ def _spatial_universal():
 
 
 def _spatial_cylindrical():
-    """The RSCR of test_spatial: a cylindrical joint in the tree, S, R (generated)."""
+    """Return the RSCR of test_spatial: a cylindrical joint in the tree, S, R (generated)."""
     from test_spatial import _rscr
     return schema.to_dict(_rscr(cut=False))
 
@@ -176,7 +175,7 @@ def _check_design(design, sc):
 def test_a_verb_a_kind_cannot_do_says_so_in_one_line():
     sc = schema.load('rssr_skew')
     from mech_balance.core.rig import CapabilityError, require
-    with pytest.raises(CapabilityError, match=r"^accuracy: needs the capability "
+    with pytest.raises(CapabilityError, match=r'^accuracy: needs the capability '
                                               r"'accuracy_study', which scene 'rssr_skew' "
                                               r'of kind spatial lacks; expected a scene of '
                                               r'kind planar$'):

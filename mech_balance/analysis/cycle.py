@@ -14,7 +14,7 @@ reactions and round-off floor); any other rig is evaluated through the protocol
 from dataclasses import dataclass
 import time
 
-from mech_balance.analysis.report import ANALYSIS_KEYS, analysis_dict, Report  # noqa: F401
+from mech_balance.analysis.report import analysis_dict, ANALYSIS_KEYS, Report  # noqa: F401
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics, kinematics
