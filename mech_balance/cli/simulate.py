@@ -108,7 +108,14 @@ def cmd_simulate(args):
 
 def cmd_accuracy(args):
     """Run the accuracy studies and print their tables."""
+    from mech_balance import schema
     from mech_balance.bench import accuracy
+    from mech_balance.core.rig import require
+    if args.sections != studies.SECTIONS:   # sections asked for by name: refused up front
+        sc = schema.load(args.scene)
+        for name in args.sections:
+            if name in accuracy.SECTION_CAPABILITY:
+                require(sc, accuracy.SECTION_CAPABILITY[name], f'accuracy --sections {name}')
     progress = (lambda s: print(s, file=sys.stderr, flush=True))  # noqa: E731
     result = accuracy.run(args.scene, args.sections, args.duration, progress=progress)
     if args.json:
