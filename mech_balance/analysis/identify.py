@@ -69,6 +69,7 @@ import math
 
 from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
+from mech_balance.analysis import recording_checks as checks
 from mech_balance.analysis.linear_maps import linear_maps
 from mech_balance.conic import solver_settings
 from mech_balance.core.planar import dynamics
@@ -863,6 +864,13 @@ class Identification:
     prediction: object = None       # PredictedRms of the calibrated scene
     source: str = ''
     segments: list = None           # per encoder stretch: EncoderSegment (see identify)
+    findings: list = field(default_factory=list)   # recording_checks.Finding
+    noise_floor: np.ndarray = None  # per channel: the recording's sample-to-sample noise
+
+    @property
+    def refusals(self):
+        """Return the findings that refuse the calibration (recording_checks)."""
+        return checks.refusals(self.findings)
 
     def summary(self):
         """Return the one-line summary: rank, residual, consistency and the prediction."""
@@ -899,6 +907,9 @@ class Identification:
         Raises :class:`IdentifyError` naming the links whose calibrated parameters no body
         can have (a mass <= 0 or a centroidal inertia < 0).
         """
+        if self.refusals:
+            raise IdentifyError('refused, no calibrated scene: '
+                                + ' | '.join(f.describe() for f in self.refusals))
         if self.problems:
             raise IdentifyError('calibrated parameters are physically unrealizable: '
                                 + '; '.join(self.problems)
@@ -941,7 +952,11 @@ class Identification:
             'summary': self.summary(),
             'predicted_rms': None if self.prediction is None else self.prediction.to_dict(),
             'kinematic_residual': self.kinematic_residual,
-            'kinematic_condition': self.kinematic_cond}
+            'kinematic_condition': self.kinematic_cond,
+            'findings': [f.to_dict() for f in self.findings],
+            'refused': bool(self.refusals),
+            'noise_floor': None if self.noise_floor is None else
+            {c: float(v) for c, v in zip(self.channels, self.noise_floor)}}
 
 
 def _check_planar(scene):
@@ -1131,8 +1146,75 @@ def _reduce(scene, psi, speed, accel, meas, torque, theta0, scale, chunk=REDUCE_
         residual=residual, cond=cond)
 
 
+def _checkable(t, values):
+    """Return True when stamps and values are arrays the checks can read (else crank_motion
+    or _measurements refuses them with their own message)."""
+    t = np.asarray(t, dtype=float)
+    v = np.asarray(values, dtype=float)
+    return (t.ndim == 1 and v.shape[:1] == t.shape and t.size >= 4 * (checks.DIFF_ORDER + 2)
+            and np.isfinite(t).all() and np.isfinite(v).all() and (np.diff(t) > 0.0).all())
+
+
+def _check_data(t_encoder, position_rad, t_wrench, wrench, effort, encoder_unit):
+    """
+    Return the encoder data after the data checks, and their findings.
+
+    The encoder's unit (converted), two interleaved encoders or sensors (raises
+    :class:`IdentifyError` naming the finding), a stuck encoder (its repeated samples
+    dropped): :mod:`mech_balance.analysis.recording_checks`.
+    """
+    findings = []
+    if _checkable(t_encoder, position_rad):
+        t_encoder = np.asarray(t_encoder, dtype=float)
+        pos = np.asarray(position_rad, dtype=float)
+        _, modulus = unwrap_encoder(pos)
+        pos, found = checks.encoder_unit(pos, modulus, encoder_unit)
+        findings += [found] if found else []
+        psi, modulus = unwrap_encoder(pos)
+        found = checks.check_interleaved_encoder(psi)
+        if found:
+            raise IdentifyError(f'encoder: {found.evidence}; {found.way_out}')
+        keep, found = checks.stuck_runs(t_encoder, psi, modulus)
+        if found:
+            findings.append(found)
+            t_encoder, pos = t_encoder[keep], pos[keep]
+            effort = None if effort is None else np.asarray(effort, dtype=float)[keep]
+        position_rad = pos
+    if _checkable(t_wrench, wrench) and np.ndim(wrench) == 2:
+        found = checks.check_interleaved_wrench(wrench, CHANNELS)
+        if found:
+            raise IdentifyError(f'wrench: {found.evidence}; {found.way_out}')
+    return t_encoder, position_rad, effort, findings
+
+
+def _check_pose_and_time(scene, motion, t_wrench, wrench, floor, theta0, scale):
+    """
+    Return ``(wrench stamps, findings)``: the sensor frame judged, a time offset corrected.
+
+    Both on the longest stretch (``motion``), against the scene's model
+    (:func:`mech_balance.analysis.recording_checks.frame_check`, ``time_offset``).
+    """
+    t_w = np.asarray(t_wrench, dtype=float)
+    w = np.asarray(wrench, dtype=float)
+    inside = np.flatnonzero((t_w >= motion.t_s[0]) & (t_w <= motion.t_s[-1]))
+    if inside.size < 50:
+        return t_wrench, []
+    pick = inside[np.linspace(0, inside.size - 1, min(checks.OFFSET_SAMPLES, inside.size))
+                  .astype(int)]
+    rig = analysis.Rig(scene)
+    model = regressor(scene, *motion.at(t_w[pick]), rig=rig).wrench @ theta0
+    found = checks.frame_check(w[pick], model, floor, CHANNELS)
+    if found:
+        return t_wrench, [found]
+    tau, found = checks.time_offset(
+        lambda *state: regressor(scene, *state, rig=rig).wrench * scale, motion, t_w, w,
+        floor[:3])
+    return (t_w - tau if tau else t_wrench), ([found] if found else [])
+
+
 def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, window=None,
-             quantization_rad=None, counts_per_turn=None):
+             quantization_rad=None, counts_per_turn=None, check=True, encoder_unit='auto',
+             max_residual_ratio=checks.FIT_RATIO_MAX):
     """
     Return the :class:`Identification` of a planar rig from encoder and wrench samples.
 
@@ -1141,10 +1223,32 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     (rig frame, about the crank pivot, what the rig exerts on its frame, N and N*m);
     ``effort``: the encoder's motor torque at its stamps (N*m) or None.  The model is
     evaluated at each wrench stamp with the crank state interpolated from the encoder.
+
+    ``check``: run the checks of :mod:`mech_balance.analysis.recording_checks` (the
+    encoder's unit, ``encoder_unit`` ``auto``, ``rad`` or ``deg``; interleaved sources; a
+    stuck encoder; the sensor's frame; a time offset; the fit against the noise floor,
+    refused above ``max_residual_ratio`` floors): their findings are
+    :attr:`Identification.findings`, and a refused one keeps :meth:`calibrated_scene` from
+    being made.
     """
     _check_planar(scene)
+    findings = []
+    if check:
+        t_encoder, position_rad, effort, findings = _check_data(
+            t_encoder, position_rad, t_wrench, wrench, effort, encoder_unit)
     motion, stretches = _segment_motions(t_encoder, position_rad, window, quantization_rad,
                                          counts_per_turn)
+    theta0 = dynamics.parameter_vector(dynamics.Inertia.from_links(scene.links))
+    scale = parameter_scales(scene)
+    floor = None
+    if check and _checkable(t_wrench, wrench) and np.ndim(wrench) == 2 and \
+            np.shape(wrench)[1] == 3:
+        floor = checks.noise_floor(wrench)
+        if effort is not None:
+            floor = np.append(floor, checks.noise_floor(effort))
+        t_wrench, found = _check_pose_and_time(scene, motion, t_wrench, wrench, floor,
+                                               theta0, scale)
+        findings += found
     parts, turns, span = [], 0.0, 0.0
     for fitted, seg in stretches:
         if fitted is None:
@@ -1167,8 +1271,6 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         raise IdentifyError(f'recording: the crank turns {turns:.3g} revolutions in the usable '
                             f'span of {span:.3g} s, expected at least {MIN_TURNS:g}'
                             ' (a longer recording)')
-    theta0 = dynamics.parameter_vector(dynamics.Inertia.from_links(scene.links))
-    scale = parameter_scales(scene)
     red = _reduce(scene, psi, speed, accel, meas, effort is not None, theta0, scale)
     p, nparam = red.samples, theta0.size
     if p * nc <= nparam + nc:
@@ -1212,6 +1314,10 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     rms_after = np.sqrt(res_sq / p)
     combos = _combinations(vt[:rank], scale, red.names, theta_ls, theta0, cov, theta)
     links, problems = _calibrated_links(scene, theta)
+    if floor is not None:
+        findings += checks.judge_fit(channels, rms_after, floor, motion.quantization,
+                                     motion.predicted_std,
+                                     [CHANNEL_UNITS[c] for c in channels], max_residual_ratio)
     return Identification(
         scene=scene, names=red.names, theta_scene=theta0, theta=theta, covariance=cov,
         rank=rank, singular_values=sv,
@@ -1222,7 +1328,8 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         kinematic_residual=red.residual, kinematic_cond=red.cond, calibrated_links=links,
         problems=problems, consistency=consistency, theta_ls=theta_ls,
         prediction=None if problems else predicted_rms(scene, theta, cov),
-        segments=[seg for _, seg in stretches])
+        segments=[seg for _, seg in stretches], findings=findings,
+        noise_floor=floor)
 
 
 def _combinations(v1t, scale, names, theta, theta0, cov, theta_cal):
@@ -1453,4 +1560,11 @@ def format_report(result):
         lines.append('NOT physically realizable: ' + '; '.join(result.problems))
     if result.prediction is not None:
         lines += ['', result.prediction.describe()]
+    if result.noise_floor is not None:
+        lines += ['', 'noise floor (sample-to-sample) against the residual after: ' + ', '.join(
+            f'{c} {f:.3g} / {a:.3g} {CHANNEL_UNITS[c]}'
+            for c, f, a in zip(result.channels, result.noise_floor, result.rms_after))]
+    if result.findings:
+        lines += ['', 'findings (the recording and the fit checked):']
+        lines += [f'  {f.describe()}' for f in result.findings]
     return '\n'.join(lines)
