@@ -24,7 +24,7 @@ COUNTS = 4096
 SPEED_RAD_S = 1.5 * math.pi
 """0.75 rev/s: an encoder stuck for 0.5 s misses 0.375 turn (less than half a turn: the
 jump unwraps and went unnoticed)."""
-SECONDS = 5.0
+SECONDS = 3.0
 SEED = 61
 LATE_NS = 50_000_000
 """The sensor 50 ms late."""

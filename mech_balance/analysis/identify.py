@@ -1249,6 +1249,23 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         t_wrench, found = _check_pose_and_time(scene, motion, t_wrench, wrench, floor,
                                                theta0, scale)
         findings += found
+    if check:
+        found = checks.encoder_smoothing(motion, MAX_WINDOW_TURNS)
+        findings += [found] if found else []
+    try:
+        return _fit(scene, motion, stretches, t_encoder, t_wrench, wrench, effort, theta0,
+                    scale, floor, findings, max_residual_ratio)
+    except IdentifyError as exc:
+        refused = checks.refusals(findings)
+        if not refused:
+            raise
+        raise IdentifyError(' | '.join(f.describe() for f in refused)
+                            + f' (and then: {exc})') from None
+
+
+def _fit(scene, motion, stretches, t_encoder, t_wrench, wrench, effort, theta0, scale, floor,
+         findings, max_residual_ratio):
+    """Return the :class:`Identification` of :func:`identify` once the data is checked."""
     parts, turns, span = [], 0.0, 0.0
     for fitted, seg in stretches:
         if fitted is None:
@@ -1315,8 +1332,7 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     combos = _combinations(vt[:rank], scale, red.names, theta_ls, theta0, cov, theta)
     links, problems = _calibrated_links(scene, theta)
     if floor is not None:
-        findings += checks.judge_fit(channels, rms_after, floor, motion.quantization,
-                                     motion.predicted_std,
+        findings += checks.judge_fit(channels, rms_after, floor, motion,
                                      [CHANNEL_UNITS[c] for c in channels], max_residual_ratio)
     return Identification(
         scene=scene, names=red.names, theta_scene=theta0, theta=theta, covariance=cov,

@@ -11,6 +11,8 @@ no calibrated scene is written).  The checks, in the order they run:
   converted to rad (corrected);
 * two encoders interleaved on one topic (:func:`interleaved`): the even and the odd
   samples each form a smooth track, the sequence does not (refused);
+* an encoder so noisy that the window holding its acceleration noise to the budget
+  smooths the crank's motion away (:func:`encoder_smoothing`, refused);
 * a stuck encoder (:func:`stuck_runs`): a run of one repeated position followed by a jump
   no sample-to-sample motion explains; the repeated samples are dropped, so the stretch is
   a gap (corrected);
@@ -73,6 +75,10 @@ FIT_RATIO_MAX = 1.5
 recordings of the tests: 0.99-1.06)."""
 FIT_RATIO_WARN = 1.15
 """Warn above this many noise floors."""
+ACCEL_GAIN_MAX = 0.02
+"""Refuse an encoder whose smoothing window loses more than this fraction of the crank
+acceleration at once or twice the rotation frequency (the half-turn cap loses 8e-3 at
+twice)."""
 ENCODER_NOISE_STEPS = 3.0
 """An encoder whose angle noise (smooth-fit residual) is above this many quantization
 steps / sqrt(12) (or, unquantized, whose acceleration noise is over budget) is named as the
@@ -230,6 +236,37 @@ def stuck_runs(t_s, psi_unwrapped, modulus=2.0 * math.pi):
         'samples in it unused (check the encoder driver if this recurs)',
         {'runs': len(runs), 'dropped_samples': int(np.sum(~keep)), 'longest_s':
          float(t[b] - t[a]), 'jump_rad': jump})
+
+
+def encoder_smoothing(motion, cap_turns):
+    """
+    Return a Finding when the encoder's noise needs a window that smooths the motion away.
+
+    ``motion`` the :class:`~mech_balance.analysis.identify.CrankMotion`; ``cap_turns`` the
+    window's cap in turns.  Above the cap the window's gain error at once and twice the
+    rotation frequency (:attr:`CrankMotion.gain_error`) is the fraction of the crank
+    acceleration lost: above :data:`ACCEL_GAIN_MAX` refused, else not reported.
+    """
+    gain = motion.gain_error
+    worst = max(abs(gain.get('accel_1x', 0.0)), abs(gain.get('accel_2x', 0.0)))
+    if worst <= ACCEL_GAIN_MAX:
+        return None
+    q = motion.quantization
+    turns = motion.window_s * motion.mean_speed_rad_s / (2.0 * math.pi)
+    noise = (f'{q.fit_noise_rad:.3g} rad ('
+             + (f'{q.fit_noise_rad / q.step_rad:.3g} steps of {q.step_rad:.3g} rad'
+                if q.step_rad > 0.0 else 'not quantized') + ')')
+    return Finding(
+        'encoder_noise', 'refused',
+        f"the encoder's angle noise {noise} needs a smoothing window of {motion.window} "
+        f'samples ({turns:.3g} turns, the cap is {cap_turns:g}) to hold the crank '
+        'acceleration\'s noise to its budget, and that window smooths the motion away: gain '
+        f"error {gain['accel_1x']:+.2g} at the rotation frequency, {gain['accel_2x']:+.2g} "
+        'at twice it',
+        'a quantized encoder (its step with --counts-per-turn) or one with less angle noise, '
+        'or a higher encoder rate',
+        {'fit_noise_rad': q.fit_noise_rad, 'window': int(motion.window),
+         'gain_error_accel_1x': gain['accel_1x'], 'gain_error_accel_2x': gain['accel_2x']})
 
 
 # ============================================================================ wrench
@@ -412,15 +449,14 @@ def time_offset(regress, motion, t_w, meas, floor):
 # ============================================================================ the fit
 
 
-def judge_fit(channels, rms_after, floor, quantization, motion_std, units,
-              ratio_max=FIT_RATIO_MAX):
+def judge_fit(channels, rms_after, floor, motion, units, ratio_max=FIT_RATIO_MAX):
     """
     Return the Findings on the calibrated fit's residual against the noise floor.
 
-    ``rms_after`` and ``floor`` per channel; ``quantization`` the encoder's
-    :class:`~mech_balance.analysis.identify.Quantization`; ``motion_std`` its predicted
-    noise; ``units`` per channel; ``ratio_max`` the refusal's threshold
-    (:data:`FIT_RATIO_MAX`).
+    ``rms_after`` and ``floor`` per channel; ``motion`` the encoder's
+    :class:`~mech_balance.analysis.identify.CrankMotion` (its angle noise and window are
+    named when they are the likely cause); ``units`` per channel; ``ratio_max`` the
+    refusal's threshold (:data:`FIT_RATIO_MAX`).
     """
     ratio = np.asarray(rms_after, dtype=float) / np.where(floor > 0.0, floor, np.inf)
     worst = int(np.argmax(ratio))
@@ -429,23 +465,27 @@ def judge_fit(channels, rms_after, floor, quantization, motion_std, units,
     values = {'ratio': [float(r) for r in ratio], 'noise_floor': [float(f) for f in floor]}
     if ratio[worst] <= FIT_RATIO_WARN:
         return []
-    q = quantization
+    q = motion.quantization
     grid_noise = q.step_rad / math.sqrt(12.0) if q.step_rad > 0.0 else 0.0
     noisy = q.fit_noise_rad > ENCODER_NOISE_STEPS * grid_noise if grid_noise > 0.0 else \
         True
+    short = motion.window < motion.window_floor
     cause = ''
-    if noisy:
+    if noisy or short:
         cause = (f'; the encoder\'s angle noise is {q.fit_noise_rad:.3g} rad ('
                  + (f'{q.fit_noise_rad / q.step_rad:.3g} steps' if q.step_rad > 0.0 else
-                    'not quantized') + f'), the crank acceleration\'s '
-                 f'{motion_std["accel_rad_s2"]:.3g} rad/s^2: its errors enter the model')
+                    'not quantized') + f') and the crank acceleration\'s '
+                 f'{motion.predicted_std["accel_rad_s2"]:.3g} rad/s^2'
+                 + (f' (the window of {motion.window} samples is below the noise floor\'s '
+                    f'{motion.window_floor})' if short else '') + ': its errors enter the model')
     evidence = (f'the calibrated fit\'s residual RMS is above the recording\'s noise floor '
                 f'(sample-to-sample, per channel): {text}{cause}')
     if ratio[worst] <= ratio_max:
         return [Finding('fit_residual', 'warned', evidence,
                         'the model explains the data nearly to the noise: check the sensor '
                         'pose and the scene\'s geometry if the residual matters', values)]
-    way = ('a better encoder (or its stated --counts-per-turn), ' if noisy else '') + \
+    way = ('a better encoder (or its stated --counts-per-turn), no --window below the floor, '
+           if noisy or short else '') + \
         ('the sensor pose and convention, the encoder\'s zero and unit, the scene\'s '
          'geometry; a sensor whose noise is filtered (correlated over many samples) has a '
          f'lower floor: --max-residual-ratio R accepts a residual up to R floors '
