@@ -1147,8 +1147,11 @@ def _reduce(scene, psi, speed, accel, meas, torque, theta0, scale, chunk=REDUCE_
 
 
 def _checkable(t, values):
-    """Return True when stamps and values are arrays the checks can read (else crank_motion
-    or _measurements refuses them with their own message)."""
+    """
+    Return True when stamps and values are arrays the checks can read.
+
+    Else :func:`crank_motion` or :func:`_measurements` refuses them with their own message.
+    """
     t = np.asarray(t, dtype=float)
     v = np.asarray(values, dtype=float)
     return (t.ndim == 1 and v.shape[:1] == t.shape and t.size >= 4 * (checks.DIFF_ORDER + 2)

@@ -69,7 +69,7 @@ def register(subparsers):
                    help="the encoder positions' unit (default auto: rad, or degrees when "
                         'they wrap at 360)')
     p.add_argument('--wrench-frame-id', default=None, metavar='FRAME',
-                   help="use only the wrench messages of this frame_id (a bag whose "
+                   help='use only the wrench messages of this frame_id (a bag whose '
                         '--wrench-topic carries several sensors is refused without it)')
     p.add_argument('--max-residual-ratio', type=float, default=None, metavar='R',
                    help="refuse a fit whose residual RMS is above R times the recording's "

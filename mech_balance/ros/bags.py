@@ -352,7 +352,7 @@ def _check_counts(bag, conns, counts):
         expected = sum(c.msgcount for c in conns if c.topic == topic)
         if got < expected:
             raise RecordingError(
-                f'--bag: {str(bag)!r}: topic {topic}: {got} messages read, the bag\'s '
+                f"--bag: {str(bag)!r}: topic {topic}: {got} messages read, the bag's "
                 f'metadata counts {expected} ({expected - got} missing, '
                 f'{100.0 * (expected - got) / expected:.0f}%), expected all of them: the '
                 'storage is damaged (a lost or zeroed block reads without an error); record '
