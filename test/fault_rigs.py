@@ -62,12 +62,12 @@ def clean(seconds=SECONDS, seed=SEED):
 
 
 def degrees(s):
-    """Return the streams with the encoder in degrees (wrapping at 360)."""
+    """Return the streams with the encoder's positions in degrees, wrapping at 360."""
     return replace(s, position=np.degrees(s.position))
 
 
 def negated(s):
-    """Return the streams with the wrench negated (a sensor mounted upside down)."""
+    """Return the streams with the wrench negated: a sensor mounted upside down."""
     return replace(s, wrench=-s.wrench)
 
 

@@ -1,8 +1,9 @@
 """
 Checks of a recording and of its fit: the identification knows when it is wrong.
 
-Pure functions on numpy arrays (numpy only), called by
-:func:`mech_balance.analysis.identify.identify`.  Each returns :class:`Finding` objects:
+Pure functions on numpy arrays (numpy only; the wiring at the end calls back into
+:mod:`mech_balance.analysis.identify` for the encoder's unwrapping and the regressor),
+called by :func:`mech_balance.analysis.identify.identify`.  Each returns :class:`Finding` objects:
 what was found, the evidence (measured numbers), the way out, and what was done about it
 (``corrected``: the data were repaired and the fit used the repair; ``warned``; ``refused``:
 no calibrated scene is written).  The checks, in the order they run:
@@ -502,3 +503,79 @@ def judge_fit(channels, rms_after, floor, motion, units, ratio_max=FIT_RATIO_MAX
          f'(default {FIT_RATIO_MAX:g})')
     return [Finding('fit_residual', 'refused', evidence + f'; more than {ratio_max:g} '
                     'floors: the noise does not explain the fit', way, values)]
+
+
+# ============================================================================ wiring
+
+
+def checkable(t, values):
+    """
+    Return True when stamps and values are arrays the checks can read.
+
+    Else :func:`~mech_balance.analysis.identify.crank_motion` refuses them with its own
+    message.
+    """
+    t = np.asarray(t, dtype=float)
+    v = np.asarray(values, dtype=float)
+    return (t.ndim == 1 and v.shape[:1] == t.shape and t.size >= 4 * (DIFF_ORDER + 2)
+            and np.isfinite(t).all() and np.isfinite(v).all() and (np.diff(t) > 0.0).all())
+
+
+def check_data(t_encoder, position_rad, t_wrench, wrench, effort, unit):
+    """
+    Return the encoder data after the data checks, and their findings.
+
+    The encoder's unit (``unit``: auto, rad, deg; converted), two interleaved encoders or
+    sensors (raises :class:`~mech_balance.analysis.identify.IdentifyError` naming the
+    finding), a stuck encoder (its repeated samples dropped).
+    """
+    from mech_balance.analysis.identify import CHANNELS, IdentifyError, unwrap_encoder
+    findings = []
+    if checkable(t_encoder, position_rad):
+        t_encoder = np.asarray(t_encoder, dtype=float)
+        pos = np.asarray(position_rad, dtype=float)
+        _, modulus = unwrap_encoder(pos)
+        pos, found = encoder_unit(pos, modulus, unit)
+        findings += [found] if found else []
+        psi, modulus = unwrap_encoder(pos)
+        found = check_interleaved_encoder(psi)
+        if found:
+            raise IdentifyError(f'encoder: {found.evidence}; {found.way_out}')
+        keep, found = stuck_runs(t_encoder, psi, modulus)
+        if found:
+            findings.append(found)
+            t_encoder, pos = t_encoder[keep], pos[keep]
+            effort = None if effort is None else np.asarray(effort, dtype=float)[keep]
+        position_rad = pos
+    if checkable(t_wrench, wrench) and np.ndim(wrench) == 2:
+        found = check_interleaved_wrench(wrench, CHANNELS)
+        if found:
+            raise IdentifyError(f'wrench: {found.evidence}; {found.way_out}')
+    return t_encoder, position_rad, effort, findings
+
+
+def check_pose_and_time(scene, motion, t_wrench, wrench, floor, theta0, scale):
+    """
+    Return ``(wrench stamps, findings)``: the sensor frame judged, a time offset corrected.
+
+    Both on the longest stretch (``motion``), against the scene's model
+    (:func:`frame_check`, :func:`time_offset`).
+    """
+    from mech_balance.analysis import cycle as analysis
+    from mech_balance.analysis.identify import CHANNELS, regressor
+    t_w = np.asarray(t_wrench, dtype=float)
+    w = np.asarray(wrench, dtype=float)
+    inside = np.flatnonzero((t_w >= motion.t_s[0]) & (t_w <= motion.t_s[-1]))
+    if inside.size < 50:
+        return t_wrench, []
+    pick = inside[np.linspace(0, inside.size - 1, min(OFFSET_SAMPLES, inside.size))
+                  .astype(int)]
+    rig = analysis.Rig(scene)
+    model = regressor(scene, *motion.at(t_w[pick]), rig=rig).wrench @ theta0
+    found = frame_check(w[pick], model, floor, CHANNELS)
+    if found:
+        return t_wrench, [found]
+    tau, found = time_offset(
+        lambda *state: regressor(scene, *state, rig=rig).wrench * scale, motion, t_w, w,
+        floor[:3])
+    return (t_w - tau if tau else t_wrench), ([found] if found else [])
