@@ -57,6 +57,11 @@ STUCK_MIN_SAMPLES = 3
 FRAME_ANGLE_MAX_DEG = 45.0
 """The measured force may differ from the scene's model by a rotation up to this angle (a
 scene off by tens of percent in its inertias shifts the phase of the force)."""
+FRAME_GAIN_MIN = 0.3
+"""The frame is judged only where the model explains the measurement: the force's gain
+matrix with both singular values, the moment's gain in magnitude, at least this (a sign or
+an axis off gives about 1; a model that does not explain the data, about 0, is left to the
+fit's judgement)."""
 FRAME_SNR_MIN = 3.0
 """The frame is judged only when the model's force (moment) RMS is this many noise
 floors."""
@@ -317,15 +322,17 @@ def frame_check(meas, model, floor, channels):
     if force_ok:
         a, *_ = np.linalg.lstsq(x[:, :2], y[:, :2], rcond=None)
         a = a.T                                  # f_meas = A f_model
-        u, _, vt = np.linalg.svd(a)
+        u, sv, vt = np.linalg.svd(a)
         r = u @ vt
+        force_ok = sv[-1] >= FRAME_GAIN_MIN
+    if force_ok:
         values['force_gain'] = a.tolist()
         gain = '[[%.3g, %.3g], [%.3g, %.3g]]' % tuple(a.ravel())
         if np.linalg.det(r) < 0.0:
             # a reflection about the axis at angle phi: [[cos 2phi, sin 2phi], [sin, -cos]]
             phi = 0.5 * math.degrees(math.atan2(r[0, 1], r[0, 0]))
-            what = ('x and y swapped' if abs(phi - 45.0) < 22.5 or abs(phi + 135.0) < 22.5
-                    else 'mirrored')
+            what = ('x and y swapped' if abs(phi - 45.0) < 22.5 else
+                    'x and y swapped and negated' if abs(phi + 45.0) < 22.5 else 'mirrored')
             parts.append(f"the measured force is the model's mirrored about the axis at "
                          f'{phi:.1f} deg ({what}; gain matrix {gain})')
             values['reflection_axis_deg'] = phi
@@ -339,7 +346,7 @@ def frame_check(meas, model, floor, channels):
     if rms[2] > FRAME_SNR_MIN * max(float(floor[2]), 1e-300):
         g = float(x[:, 2] @ y[:, 2] / (x[:, 2] @ x[:, 2]))
         values['moment_gain'] = g
-        if g < 0.0:
+        if g < -FRAME_GAIN_MIN:
             parts.append(f"the measured {channels[2]} is the model's negated (gain {g:.3g})")
     if not parts:
         return None
