@@ -76,10 +76,12 @@ OFFSET_GRID = 41
 OFFSET_F = 25.0
 """A shift is significant when the residual drops by this many residual variances (a 5
 standard-error change of a one-parameter fit)."""
-FIT_RATIO_MAX = 1.5
-"""Refuse a fit whose residual RMS is above this many noise floors in any channel (good
-recordings of the tests: 0.99-1.06)."""
-FIT_RATIO_WARN = 1.15
+FIT_RATIO_MAX = 2.0
+"""Refuse a fit whose residual RMS is above this many noise floors in any channel.  Good
+recordings: 0.99-1.06 at 1% noise and 4096 counts; up to 1.37 in 96 of test_identify_real's
+384-recording grid (0.3% noise with a 1024-count encoder: its errors enter the model), all
+of them within 1%; the misconfigured recordings of test_identify_faults: 2.4 and more."""
+FIT_RATIO_WARN = 1.25
 """Warn above this many noise floors."""
 ACCEL_GAIN_WARN = 0.02
 """Warn of an encoder whose smoothing window loses more than this fraction of the crank

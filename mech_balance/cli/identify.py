@@ -14,7 +14,7 @@ import time
 MAX_COUNTS_PER_TURN = 1e9
 """``--counts-per-turn``: at most this many counts (a step of 6e-9 rad)."""
 OUTPUT_SUFFIXES = ('.yaml', '.yml')
-RATIO_DEFAULT = 1.5
+RATIO_DEFAULT = 2.0
 """``--max-residual-ratio``'s default (``recording_checks.FIT_RATIO_MAX``, not imported here
 so that the parser stays light; a test holds them equal)."""
 MAX_RATIO = 1e6
