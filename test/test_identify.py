@@ -276,8 +276,9 @@ def test_flipped_sensor_gives_the_constrained_least_squares(rigs, tmp_path, caps
     """
     A sensor mounted upside down (wrench negated): no consistent set has its combinations.
 
-    The constrained least squares is written, its residual growth and active constraints
-    reported, and it lies far outside the confidence region (the data contradict physics).
+    The constrained least squares is found, its residual growth and active constraints
+    reported, and it lies far outside the confidence region (the data contradict physics);
+    the checks refuse it (the sensor's frame, the fit against the noise): nothing written.
     """
     nominal, _, data, _ = rigs['hoeken']
     t_s = (data.t_ns - data.t_ns[0]) * 1e-9
@@ -303,13 +304,18 @@ def test_flipped_sensor_gives_the_constrained_least_squares(rigs, tmp_path, caps
     r = meas - reg.wrench @ result.theta_scene
     r -= r.mean(axis=0)
     assert chi2[1] <= float(np.sum(r ** 2 / result.noise_std ** 2))
-    _assert_consistent(result.calibrated_scene())
+    # the checks name the cause, and no calibrated scene is made of it
+    assert [f.code for f in result.refusals] == ['sensor_frame', 'fit_residual']
+    with pytest.raises(identify.IdentifyError, match=r"refused, .*model's negated"):
+        result.calibrated_scene()
+    _assert_consistent(replace(result, findings=[]).calibrated_scene())
     out = tmp_path / 'cal.yaml'
     rc = cli.main(['identify', '--scene', 'hoeken', '--bag', str(path), '--output', str(out)])
     captured = capsys.readouterr()
-    assert rc == 0 and out.exists()
+    assert rc == 2 and not out.exists()
     assert 'constrained least squares, residual grows by' in captured.out
     assert 'OUTSIDE' in captured.out and 'active: links.' in captured.out
+    assert '--sensor-convention reaction' in captured.err
 
 
 def _assert_consistent(scene):

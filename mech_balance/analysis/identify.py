@@ -69,6 +69,7 @@ import math
 
 from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
+from mech_balance.analysis import recording_checks as checks
 from mech_balance.analysis.linear_maps import linear_maps
 from mech_balance.conic import solver_settings
 from mech_balance.core.planar import dynamics
@@ -863,6 +864,13 @@ class Identification:
     prediction: object = None       # PredictedRms of the calibrated scene
     source: str = ''
     segments: list = None           # per encoder stretch: EncoderSegment (see identify)
+    findings: list = field(default_factory=list)   # recording_checks.Finding
+    noise_floor: np.ndarray = None  # per channel: the recording's sample-to-sample noise
+
+    @property
+    def refusals(self):
+        """Return the findings that refuse the calibration (recording_checks)."""
+        return checks.refusals(self.findings)
 
     def summary(self):
         """Return the one-line summary: rank, residual, consistency and the prediction."""
@@ -899,6 +907,9 @@ class Identification:
         Raises :class:`IdentifyError` naming the links whose calibrated parameters no body
         can have (a mass <= 0 or a centroidal inertia < 0).
         """
+        if self.refusals:
+            raise IdentifyError('refused, no calibrated scene: '
+                                + ' | '.join(f.describe() for f in self.refusals))
         if self.problems:
             raise IdentifyError('calibrated parameters are physically unrealizable: '
                                 + '; '.join(self.problems)
@@ -941,7 +952,11 @@ class Identification:
             'summary': self.summary(),
             'predicted_rms': None if self.prediction is None else self.prediction.to_dict(),
             'kinematic_residual': self.kinematic_residual,
-            'kinematic_condition': self.kinematic_cond}
+            'kinematic_condition': self.kinematic_cond,
+            'findings': [f.to_dict() for f in self.findings],
+            'refused': bool(self.refusals),
+            'noise_floor': None if self.noise_floor is None else
+            {c: float(v) for c, v in zip(self.channels, self.noise_floor)}}
 
 
 def check_identifiable(scene):
@@ -1134,7 +1149,8 @@ def _reduce(scene, psi, speed, accel, meas, torque, theta0, scale, chunk=REDUCE_
 
 
 def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, window=None,
-             quantization_rad=None, counts_per_turn=None):
+             quantization_rad=None, counts_per_turn=None, check=True, encoder_unit='auto',
+             max_residual_ratio=checks.FIT_RATIO_MAX):
     """
     Return the :class:`Identification` of a planar rig from encoder and wrench samples.
 
@@ -1143,10 +1159,49 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     (rig frame, about the crank pivot, what the rig exerts on its frame, N and N*m);
     ``effort``: the encoder's motor torque at its stamps (N*m) or None.  The model is
     evaluated at each wrench stamp with the crank state interpolated from the encoder.
+
+    ``check``: run the checks of :mod:`mech_balance.analysis.recording_checks` (the
+    encoder's unit, ``encoder_unit`` ``auto``, ``rad`` or ``deg``; interleaved sources; a
+    stuck encoder; the sensor's frame; a time offset; the fit against the noise floor,
+    refused above ``max_residual_ratio`` floors): their findings are
+    :attr:`Identification.findings`, and a refused one keeps :meth:`calibrated_scene` from
+    being made.
     """
     check_identifiable(scene)
+    findings = []
+    if check:
+        t_encoder, position_rad, effort, findings = checks.check_data(
+            t_encoder, position_rad, t_wrench, wrench, effort, encoder_unit)
     motion, stretches = _segment_motions(t_encoder, position_rad, window, quantization_rad,
                                          counts_per_turn)
+    theta0 = dynamics.parameter_vector(dynamics.Inertia.from_links(scene.links))
+    scale = parameter_scales(scene)
+    floor = None
+    if check and checks.checkable(t_wrench, wrench) and np.ndim(wrench) == 2 and \
+            np.shape(wrench)[1] == 3:
+        floor = checks.noise_floor(wrench)
+        if effort is not None:
+            floor = np.append(floor, checks.noise_floor(effort))
+        t_wrench, found = checks.check_pose_and_time(scene, motion, t_wrench, wrench, floor,
+                                                     theta0, scale)
+        findings += found
+    if check:
+        found = checks.encoder_smoothing(motion, MAX_WINDOW_TURNS)
+        findings += [found] if found else []
+    try:
+        return _fit(scene, motion, stretches, t_encoder, t_wrench, wrench, effort, theta0,
+                    scale, floor, findings, max_residual_ratio)
+    except IdentifyError as exc:
+        refused = checks.refusals(findings)
+        if not refused:
+            raise
+        raise IdentifyError(' | '.join(f.describe() for f in refused)
+                            + f' (and then: {exc})') from None
+
+
+def _fit(scene, motion, stretches, t_encoder, t_wrench, wrench, effort, theta0, scale, floor,
+         findings, max_residual_ratio):
+    """Return the :class:`Identification` of :func:`identify` once the data is checked."""
     parts, turns, span = [], 0.0, 0.0
     for fitted, seg in stretches:
         if fitted is None:
@@ -1169,8 +1224,6 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         raise IdentifyError(f'recording: the crank turns {turns:.3g} revolutions in the usable '
                             f'span of {span:.3g} s, expected at least {MIN_TURNS:g}'
                             ' (a longer recording)')
-    theta0 = dynamics.parameter_vector(dynamics.Inertia.from_links(scene.links))
-    scale = parameter_scales(scene)
     red = _reduce(scene, psi, speed, accel, meas, effort is not None, theta0, scale)
     p, nparam = red.samples, theta0.size
     if p * nc <= nparam + nc:
@@ -1214,6 +1267,9 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     rms_after = np.sqrt(res_sq / p)
     combos = _combinations(vt[:rank], scale, red.names, theta_ls, theta0, cov, theta)
     links, problems = _calibrated_links(scene, theta)
+    if floor is not None:
+        findings += checks.judge_fit(channels, rms_after, floor, motion,
+                                     [CHANNEL_UNITS[c] for c in channels], max_residual_ratio)
     return Identification(
         scene=scene, names=red.names, theta_scene=theta0, theta=theta, covariance=cov,
         rank=rank, singular_values=sv,
@@ -1224,7 +1280,8 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         kinematic_residual=red.residual, kinematic_cond=red.cond, calibrated_links=links,
         problems=problems, consistency=consistency, theta_ls=theta_ls,
         prediction=None if problems else predicted_rms(scene, theta, cov),
-        segments=[seg for _, seg in stretches])
+        segments=[seg for _, seg in stretches], findings=findings,
+        noise_floor=floor)
 
 
 def _combinations(v1t, scale, names, theta, theta0, cov, theta_cal):
@@ -1455,4 +1512,11 @@ def format_report(result):
         lines.append('NOT physically realizable: ' + '; '.join(result.problems))
     if result.prediction is not None:
         lines += ['', result.prediction.describe()]
+    if result.noise_floor is not None:
+        lines += ['', 'noise floor (sample-to-sample) against the residual after: ' + ', '.join(
+            f'{c} {f:.3g} / {a:.3g} {CHANNEL_UNITS[c]}'
+            for c, f, a in zip(result.channels, result.noise_floor, result.rms_after))]
+    if result.findings:
+        lines += ['', 'findings (the recording and the fit checked):']
+        lines += [f'  {f.describe()}' for f in result.findings]
     return '\n'.join(lines)

@@ -14,6 +14,11 @@ import time
 MAX_COUNTS_PER_TURN = 1e9
 """``--counts-per-turn``: at most this many counts (a step of 6e-9 rad)."""
 OUTPUT_SUFFIXES = ('.yaml', '.yml')
+RATIO_DEFAULT = 2.0
+"""``--max-residual-ratio``'s default (``recording_checks.FIT_RATIO_MAX``, not imported here
+so that the parser stays light; a test holds them equal)."""
+MAX_RATIO = 1e6
+"""``--max-residual-ratio``: at most this."""
 """``--output``: what the calibrated scene's file name ends in (so that it loads as a scene)."""
 
 
@@ -60,6 +65,15 @@ def register(subparsers):
     p.add_argument('--sensor-convention', default=None, choices=('load_on_sensor', 'reaction'),
                    help='what the sensor reports: the load the rig exerts on it '
                         '(load_on_sensor, the default) or the support reaction on the rig')
+    p.add_argument('--encoder-unit', default='auto', choices=('auto', 'rad', 'deg'),
+                   help="the encoder positions' unit (default auto: rad, or degrees when "
+                        'they wrap at 360)')
+    p.add_argument('--wrench-frame-id', default=None, metavar='FRAME',
+                   help='use only the wrench messages of this frame_id (a bag whose '
+                        '--wrench-topic carries several sensors is refused without it)')
+    p.add_argument('--max-residual-ratio', type=float, default=None, metavar='R',
+                   help="refuse a fit whose residual RMS is above R times the recording's "
+                        'noise floor in any channel (default: %g)' % RATIO_DEFAULT)
     p.add_argument('--rig-frame', default=names.DEFAULT_FRAME_ID, metavar='FRAME',
                    help='the rig frame in /tf_static (default: %(default)s)')
     p.add_argument('--output', default=None, metavar='CALIBRATED.yaml',
@@ -120,10 +134,15 @@ def cmd_identify(args):
     for option, values in (('--sensor-xyz', args.sensor_xyz), ('--sensor-rpy', args.sensor_rpy)):
         if values is not None and not all(math.isfinite(v) for v in values):
             raise identify.IdentifyError(f'{option}: got {values}, expected finite numbers')
+    ratio = RATIO_DEFAULT if args.max_residual_ratio is None else args.max_residual_ratio
+    if not (math.isfinite(ratio) and 1.0 <= ratio <= MAX_RATIO):
+        raise identify.IdentifyError(f'--max-residual-ratio: got {ratio!r}, expected a number '
+                                     f'from 1 to {MAX_RATIO:g}')
     _progress(f'mech-balance identify: reading {args.bag} ...')
     t0 = time.perf_counter()
     rec = bags.read(args.bag, args.encoder_topic, args.wrench_topic, args.joint,
-                    progress=_progress, default_joint=sc.crank_joint, rig_frame=args.rig_frame)
+                    progress=_progress, default_joint=sc.crank_joint, rig_frame=args.rig_frame,
+                    wrench_frame_id=args.wrench_frame_id)
     read_s = time.perf_counter() - t0
     _progress(f'  {rec.position_rad.size} encoder and {rec.wrench_t_s.size} wrench samples '
               f'(joint {rec.joint!r}) in {read_s:.2f} s; identifying ...')
@@ -137,7 +156,8 @@ def cmd_identify(args):
     try:
         result = identify.identify(sc, rec.encoder_t_s, rec.position_rad, rec.wrench_t_s,
                                    wrench, effort=rec.effort_Nm, window=args.window,
-                                   counts_per_turn=cpt)
+                                   counts_per_turn=cpt, encoder_unit=args.encoder_unit,
+                                   max_residual_ratio=ratio)
     except identify.IdentifyError as exc:
         raise identify.IdentifyError(f'--bag {args.bag}: {exc}') from None
     result.source = rec.source
@@ -146,12 +166,18 @@ def cmd_identify(args):
         report = result.to_dict()
         report.update(source=rec.source, joint=rec.joint, read_time_s=read_s,
                       identify_time_s=solve_s, sensor_pose=pose_text,
-                      output=args.output if args.output and result.realizable else None)
+                      output=args.output if args.output and result.realizable
+                      and not result.refusals else None)
         print(jsonout.dumps(report))
     else:
         print(f'sensor: {pose_text}')
         print(identify.format_report(result))
         print(f'\nread {read_s:.2f} s, identified in {solve_s:.2f} s')
+    if result.refusals:
+        raise identify.IdentifyError(
+            f'--bag {args.bag}: refused, ' + ('no calibrated scene written (' + args.output
+                                              + ' untouched): ' if args.output else '')
+            + ' | '.join(f.describe() for f in result.refusals))
     if args.output:
         text = identify.calibrated_yaml(result, source=rec.source)   # raises if unrealizable
         atomic.write_text_atomic(args.output, text)

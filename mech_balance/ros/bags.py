@@ -65,6 +65,10 @@ MAX_LINE_CHARS = 4096
 MAX_FIELD_CHARS = 64
 """Longest CSV field (a full-precision float is under 25 characters)."""
 _LONG_FIELD = re.compile('[^,\n]{%d,}' % (MAX_FIELD_CHARS + 1))
+_EMPTY_OR_SPLIT_FIELD = re.compile(r'(^|,)[ \t\r]*(,|$)|[^\s,][ \t]+[^\s,]', re.M)
+"""An empty field, or two numbers in one field: numpy's parse of the whole chunk would
+count them as one field less or more, and a row with one of each would be read shifted by
+a column; the row-by-row parse names them."""
 CSV_CHUNK_ROWS = 20000
 """CSV data lines parsed and checked at once (numpy), at most a few MiB of text."""
 MAX_T_S = 9.2e9
@@ -102,12 +106,13 @@ def _typestore():
 
 
 def read(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint=None,
-         progress=None, default_joint=None, rig_frame=DEFAULT_FRAME_ID):
+         progress=None, default_joint=None, rig_frame=DEFAULT_FRAME_ID, wrench_frame_id=None):
     """
     Return the :class:`Recording` of a rosbag2 directory (or its file) or a CSV file.
 
     Without ``joint`` the encoder's joint is ``default_joint`` (the scene's crank joint) if
-    the JointState carries it, else its only joint.  Every bad recording raises one
+    the JointState carries it, else its only joint; ``wrench_frame_id`` selects the wrench
+    messages of one frame_id (a rosbag2 recording).  Every bad recording raises one
     :class:`RecordingError` naming the file, the topic or column, the record or row and
     what was expected (module docstring, *Refusals*).
     """
@@ -118,7 +123,7 @@ def read(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint=Non
     if p.suffix.lower() == '.csv':
         return read_csv(p, joint=joint or default_joint)
     return read_bag(p, encoder_topic, wrench_topic, joint, progress, default_joint,
-                    rig_frame)
+                    rig_frame, wrench_frame_id)
 
 
 def _bag_dir(p):
@@ -209,7 +214,8 @@ def _check_increasing(stamps_ns, what):
 
 
 def read_bag(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint=None,
-             progress=None, default_joint=None, rig_frame=DEFAULT_FRAME_ID):
+             progress=None, default_joint=None, rig_frame=DEFAULT_FRAME_ID,
+             wrench_frame_id=None):
     """
     Return the :class:`Recording` of a rosbag2 recording (MCAP or sqlite3 storage).
 
@@ -218,12 +224,16 @@ def read_bag(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint
     :data:`PROGRESS_EVERY` messages.  ``/tf_static`` (:data:`TF_STATIC_TOPIC`), when
     recorded, gives the pose of the wrench's frame in ``rig_frame``
     (:attr:`Recording.sensor_tf`).
+
+    Refused besides: fewer messages of a topic than the bag's own metadata counts (a
+    damaged storage that reads without an error), and wrench messages of several
+    ``frame_id`` s (two sensors on one topic) unless ``wrench_frame_id`` selects one.
     """
     bag = _bag_dir(Path(path))
     _check_metadata(bag)
     try:
         return _read_bag(bag, encoder_topic, wrench_topic, joint, progress, default_joint,
-                         rig_frame)
+                         rig_frame, wrench_frame_id)
     except RecordingError:
         raise
     except Exception as exc:  # noqa: BLE001 - a corrupt file: any reader error is the file's
@@ -232,7 +242,8 @@ def read_bag(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint
                              'MCAP or sqlite3 bag') from None
 
 
-def _read_bag(bag, encoder_topic, wrench_topic, joint, progress, default_joint, rig_frame):
+def _read_bag(bag, encoder_topic, wrench_topic, joint, progress, default_joint, rig_frame,
+              wrench_frame_id=None):
     from rosbags.rosbag2 import Reader
     store = _typestore()
     reader = Reader(bag)
@@ -254,7 +265,7 @@ def _read_bag(bag, encoder_topic, wrench_topic, joint, progress, default_joint, 
         total = max(sum(c.msgcount for c in conns), 1)
         enc = _Growing(2, f'{encoder_topic}: message')
         wr = _Growing(6, f'{wrench_topic}: message')
-        frame_ids = set()
+        frame_ids = {}
         names, index, with_effort = None, None, None
         tf = []
         counts = {encoder_topic: 0, wrench_topic: 0, TF_STATIC_TOPIC: 0}
@@ -302,14 +313,19 @@ def _read_bag(bag, encoder_topic, wrench_topic, joint, progress, default_joint, 
                         (float(msg.position[index]),
                          float(msg.effort[index]) if has else 0.0))
             else:
-                w = msg.wrench
-                wr.add(_stamp_ns(msg.header, wrench_topic, k),
-                       (w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z))
-                frame_ids.add(msg.header.frame_id)
+                frame = msg.header.frame_id
+                frame_ids[frame] = frame_ids.get(frame, 0) + 1
+                if wrench_frame_id is None or frame == wrench_frame_id:
+                    w = msg.wrench
+                    wr.add(_stamp_ns(msg.header, wrench_topic, k),
+                           (w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y,
+                            w.torque.z))
             if progress is not None and count % PROGRESS_EVERY == 0:
                 progress(f'  read {count} of {total} messages ({100.0 * count / total:.0f}%)')
     finally:
         reader.close()
+    _check_counts(bag, conns, counts)
+    frame_ids = _check_frame_ids(wrench_topic, frame_ids, wrench_frame_id)
     for option, topic, got in (('--encoder-topic', encoder_topic, enc.n),
                                ('--wrench-topic', wrench_topic, wr.n)):
         if not got:
@@ -328,6 +344,34 @@ def _read_bag(bag, encoder_topic, wrench_topic, joint, progress, default_joint, 
                      names[index], frame_id, str(bag))
     rec.sensor_tf = _sensor_tf(tf, rig_frame, frame_ids)
     return rec
+
+
+def _check_counts(bag, conns, counts):
+    """Refuse a topic with fewer messages read than the bag's metadata counts."""
+    for topic, got in counts.items():
+        expected = sum(c.msgcount for c in conns if c.topic == topic)
+        if got < expected:
+            raise RecordingError(
+                f"--bag: {str(bag)!r}: topic {topic}: {got} messages read, the bag's "
+                f'metadata counts {expected} ({expected - got} missing, '
+                f'{100.0 * (expected - got) / expected:.0f}%), expected all of them: the '
+                'storage is damaged (a lost or zeroed block reads without an error); record '
+                'again, or `ros2 bag reindex` the bag to accept what is readable')
+
+
+def _check_frame_ids(topic, frame_ids, wanted):
+    """Return the wrench's frame_ids (one), refusing several unless one is selected."""
+    have = ', '.join(f'{f!r} ({n} messages)' for f, n in sorted(frame_ids.items()))
+    if wanted is not None:
+        if wanted not in frame_ids:
+            raise RecordingError(f'--wrench-frame-id: got {wanted!r}, not among the frame_ids '
+                                 f'of {topic}: {have or "none"}')
+        return {wanted}
+    if len(frame_ids) > 1:
+        raise RecordingError(f'{topic}: messages of {len(frame_ids)} frame_ids: {have}, '
+                             'expected one sensor (two sensors publishing on one topic?); '
+                             '--wrench-frame-id FRAME uses the messages of one')
+    return set(frame_ids)
 
 
 def _joint_index(names, joint, topic, default_joint=None):
@@ -391,15 +435,17 @@ def _sensor_tf(transforms, rig_frame, frame_ids):
 
 def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='O1',
               encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, frame_id='rig',
-              extra_joints=(), tf_static=None):
+              extra_joints=(), tf_static=None, wrench_t_ns=None):
     """
     Write encoder and wrench samples as a rosbag2 recording (``storage`` mcap or sqlite3).
 
-    ``t_ns`` (int nanoseconds) stamps both streams; ``wrench`` is ``(n, 6)`` or ``(n, 3)``
-    planar [f_x, f_y, n_z]; ``extra_joints`` are more joint names in the JointState (at
-    position 0), to exercise the joint selection; ``tf_static`` ``(parent, (x, y, z),
-    (qx, qy, qz, qw))`` adds one /tf_static message: the pose of ``frame_id`` (the wrench's
-    frame) in ``parent``.  Written atomically: into a temporary
+    ``t_ns`` (int nanoseconds) stamps the encoder's messages, and the wrench's too unless
+    ``wrench_t_ns`` gives their own stamps (the messages are then written in stamp order);
+    ``wrench`` is ``(m, 6)`` or ``(m, 3)`` planar [f_x, f_y, n_z]; ``frame_id`` the wrench's
+    frame, or a sequence of one per wrench message; ``extra_joints`` are more joint names in
+    the JointState (at position 0), to exercise the joint selection; ``tf_static``
+    ``(parent, (x, y, z), (qx, qy, qz, qw))`` adds one /tf_static message: the pose of
+    ``frame_id`` (the wrench's frame) in ``parent``.  Written atomically: into a temporary
     directory beside ``path``, then renamed; ``path`` must not exist.
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -437,19 +483,28 @@ def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='
                 c_tf = writer.add_connection(TF_STATIC_TOPIC, TF_MESSAGE, typestore=store)
                 writer.write(c_tf, int(t_ns[0]), store.serialize_cdr(
                     types[TF_MESSAGE](transforms=[tr]), TF_MESSAGE))
-            for k, stamp in enumerate(t_ns):
-                sec, nsec = divmod(int(stamp), 1_000_000_000)
-                hdr = header_t(stamp=time_t(sec=sec, nanosec=nsec), frame_id=frame_id)
-                eff = empty if effort_Nm is None else \
-                    np.array([float(effort_Nm[k]), *zeros])
-                js = joint_t(header=hdr, name=names,
-                             position=np.array([float(position_rad[k]), *zeros]),
-                             velocity=empty, effort=eff)
+            w_ns = t_ns if wrench_t_ns is None else np.asarray(wrench_t_ns, dtype=np.int64)
+            frames = [frame_id] * len(w_ns) if isinstance(frame_id, str) else list(frame_id)
+            # (stamp, stream, index): encoder before wrench at equal stamps, as before
+            order = sorted([(int(s), 0, k) for k, s in enumerate(t_ns)]
+                           + [(int(s), 1, k) for k, s in enumerate(w_ns)])
+            for stamp, stream, k in order:
+                sec, nsec = divmod(stamp, 1_000_000_000)
+                if stream == 0:
+                    hdr = header_t(stamp=time_t(sec=sec, nanosec=nsec),
+                                   frame_id=frames[0] if frames else '')
+                    eff = empty if effort_Nm is None else \
+                        np.array([float(effort_Nm[k]), *zeros])
+                    js = joint_t(header=hdr, name=names,
+                                 position=np.array([float(position_rad[k]), *zeros]),
+                                 velocity=empty, effort=eff)
+                    writer.write(c_enc, stamp, store.serialize_cdr(js, JOINT_STATE))
+                    continue
+                hdr = header_t(stamp=time_t(sec=sec, nanosec=nsec), frame_id=frames[k])
                 f, m = wrench[k, :3], wrench[k, 3:]
                 ws = wrench_t(header=hdr, wrench=wr_t(force=vec_t(x=f[0], y=f[1], z=f[2]),
                                                       torque=vec_t(x=m[0], y=m[1], z=m[2])))
-                writer.write(c_enc, int(stamp), store.serialize_cdr(js, JOINT_STATE))
-                writer.write(c_w, int(stamp), store.serialize_cdr(ws, WRENCH_STAMPED))
+                writer.write(c_w, stamp, store.serialize_cdr(ws, WRENCH_STAMPED))
         os.replace(out, path)
     finally:
         shutil.rmtree(tmp_dir, ignore_errors=True)
@@ -590,6 +645,7 @@ def _csv_chunk(chunk, head, label, store):
     text = ''.join(lines)
     values = None
     if not _LONG_FIELD.search(text) and '"' not in text and \
+            not _EMPTY_OR_SPLIT_FIELD.search(text) and \
             all(ln.count(',') == len(head) - 1 for ln in lines):
         with warnings.catch_warnings():
             warnings.simplefilter('error')
