@@ -29,7 +29,7 @@ _PUBLIC = {
     'RigData': ('mech_balance.core.rig', 'RigData'),
     'rig_for': ('mech_balance.core.rig', 'rig_for'),
     'PlanarRig': ('mech_balance.core.planar.rig', 'PlanarRig'),
-    'RggrRig': ('mech_balance.core.rggr', 'RggrRig'),
+    'SpatialRig': ('mech_balance.core.spatial.rig', 'SpatialRig'),
     'run_cycle': ('mech_balance.analysis.cycle', 'run_cycle'),
     'summarize': ('mech_balance.analysis.cycle', 'summarize'),
     'balance': ('mech_balance.balancing', 'balance'),

@@ -82,19 +82,19 @@ def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
                           for r in ref]}
 
 
-def rggr_rms_convergence(sc, p_values=P_LADDER, p_ref=P_REFERENCE,
-                         repeat=RMS_TIMING_REPEAT):
+def report_rms_convergence(sc, p_values=P_LADDER, p_ref=P_REFERENCE,
+                           repeat=RMS_TIMING_REPEAT):
     """
-    Return the RMS study of an RGGR scene (seed 002) from :func:`rggr_report.analyze_report`.
+    Return the RMS study of a scene of any kind from its ``analyze`` report (its kind's).
 
-    Same rows as :func:`rms_convergence`; the quantities are the report's RMS metrics
-    (shaking force and moment magnitudes, driving torque), normalized.
+    Same rows as :func:`rms_convergence`; the quantities are the report's rows (RMS),
+    normalized when the scene records a normalization.
     """
-    from mech_balance.analysis import rggr_report
+    analyze = scene_mod.kind_of(sc).implementation('analyze')
+    normalized = sc.normalization is not None
 
     def metrics(p):
-        m = rggr_report.analyze_report(sc, p, True)['metrics']
-        return {k[:-4]: v for k, v in m.items() if k.endswith('_rms')}
+        return {r['quantity']: r['rms'] for r in analyze(sc, p, normalized).data['rows']}
     ref = metrics(p_ref)
     names = sorted(ref)
     ref_rms = np.array([ref[k] for k in names])
@@ -104,11 +104,12 @@ def rggr_rms_convergence(sc, p_values=P_LADDER, p_ref=P_REFERENCE,
         got = metrics(p)
         err = np.abs(np.array([got[k] for k in names]) - ref_rms) / scale
         k = int(np.argmax(err))
-        seconds = _median(lambda: rggr_report.analyze_report(sc, p, True), repeat)
+        seconds = _median(lambda: analyze(sc, p, normalized), repeat)
         rows.append({'p': int(p), 'max_rel_error': float(err[k]), 'worst': names[k],
                      'seconds': seconds})
-    return {'p_reference': p_ref, 'normalized': True, 'rows': rows,
-            'reference': [{'quantity': k, 'unit': 'normalized', 'rms': ref[k]}
+    return {'p_reference': p_ref, 'normalized': normalized, 'rows': rows,
+            'reference': [{'quantity': k, 'unit': 'normalized' if normalized else 'SI',
+                           'rms': ref[k]}
                           for k in names]}
 
 
@@ -286,7 +287,7 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
     """
     Return every requested study of a scene as a dict.
 
-    RGGR (spatial) scenes have the RMS study only; the other sections say so.
+    Spatial scenes have the RMS study only; the other sections say so.
     """
     say = progress or (lambda text: None)
     sc = scene_mod.load(name_or_path)
@@ -294,8 +295,8 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
         out = {'scene': sc.name, 'source': sc.source}
         if 'rms' in sections:
             say('RMS against p ...')
-            out['rms'] = rggr_rms_convergence(sc)
-        out['notes'] = [f'{name}: not available for RGGR (spatial) scenes'
+            out['rms'] = report_rms_convergence(sc)
+        out['notes'] = [f'{name}: not available for spatial scenes'
                         for name in sections if name != 'rms']
         return out
     drive = simulate.drive_of(sc)

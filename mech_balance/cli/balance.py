@@ -95,7 +95,8 @@ def register(subparsers):
                     'to a certified global optimum, or (--analytic) balance the shaking force '
                     'completely (seed 000 eqs. 44-75, seed 001 eq. 48). Prints the design per '
                     'link, the before/after RMS table, the duality-gap certificate and the '
-                    'solve time. Scenes that list balancing_weights (the RGGR) print the seed-002 report.',
+                    'solve time. Scenes that list balancing_weights (the RGGR) print the '
+                    'seed-002 report.',
         formatter_class=_HelpFormatter)
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML file')
@@ -177,7 +178,7 @@ def register(subparsers):
                         'with two point masses per link at 0 and 90 deg, and print the '
                         "certified bounds next to the paper's rows")
     p.add_argument('--method', choices=SPATIAL_METHODS, default='auto',
-                   help='spatial rigs (kind spatial): weights (seed 002, the scene\'s '
+                   help="spatial rigs (kind spatial): weights (seed 002, the scene's "
                         'balancing_weights; the default where listed, e.g. rggr), '
                         'force-balance (the null space of the shaking force: conditions and '
                         'the least-change design), '

@@ -34,8 +34,9 @@ MAX_FRACTION = 1000.0
 CASES = ('a', 'b')
 METHODS = ('redistribution', 'counterweights', 'analytic')
 """``balance.method``: :func:`mech_balance.balancing.balance`'s methods the node offers (a
-rig that cannot be redistributed, the closed-form ``rggr`` scene, is balanced by its own
-method when the method is the default, redistribution; spatial scenes are redistributed)."""
+spatial scene that lists ``balancing_weights``, the RGGR, is balanced by its own method,
+weights, when the method is the default, redistribution; other spatial scenes are
+redistributed)."""
 LINK_PREFIX = 'balance.links.'
 """Per-link balancing options are ``balance.links.<link>.<option>``, declared from the scene."""
 LINK_OPTIONS = {'mass_bounds': ('kg', 'balance.mass_bounds', 'link mass bounds'),
@@ -323,7 +324,7 @@ PARAMETERS = (
          'file).'),
     Spec('crank_joint', STRING, '',
          "Follow mode: the crank's name in the encoder's JointState; empty: the scene's "
-         'crank joint (RGGR: crank).', check=_joint_name, rule='no surrounding spaces'),
+         'crank joint.', check=_joint_name, rule='no surrounding spaces'),
     Spec('follow.window', INTEGER, 7,
          'Follow mode: encoder samples in the least-squares fit that estimates the crank '
          'speed and acceleration.', bounds=(2, 1000)),
@@ -396,15 +397,15 @@ PARAMETERS = (
          check=_link_list, rule='links of the scene'),
     Spec('balance.samples', INTEGER, 0,
          "Crank angles per revolution in the balancing objective; 0: the scene's samples "
-         '(RGGR: 360).', bounds=(0, MAX_SAMPLES), check=_samples,
+         '(usually 360).', bounds=(0, MAX_SAMPLES), check=_samples,
          rule='0 or >= 4'),
     Spec('balance.method', STRING, 'redistribution',
          'redistribution: the certified optimal mass redistribution (seed 001); '
          'counterweights: add-only discs on balance.counterweight_links (certified); '
          'analytic: complete force balance in closed form (slider-crank: seed 000, '
-         'four-bar: seed 001 eq. 48). A scene that cannot be redistributed (the closed-form '
-         'rggr scene) is balanced by its own method (weights) with the default; spatial '
-         'scenes, rggr_spatial included, are redistributed.', choices=METHODS),
+         'four-bar: seed 001 eq. 48). A spatial scene that lists balancing_weights (rggr) is '
+         'balanced by its own method (weights, seed 002) with the default; other spatial '
+         'scenes are redistributed.', choices=METHODS),
     Spec('balance.counterweight_links', STRING, '',
          'Counterweights: comma-separated links that each gain one disc (e.g. '
          '"crank,rocker"); needed by balance.method counterweights.',
@@ -608,7 +609,7 @@ def balance_options(values, method='redistribution'):
 
     ``values`` maps parameter names to checked values (at least the ``balance.*`` ones);
     the same call as ``mech-balance balance`` with the matching options.  ``method`` is the
-    balancing method (:func:`mech_balance.balancing.method_for`): the RGGR's ``weights``
+    balancing method (:func:`mech_balance.balancing.method_for`): ``weights`` (seed 002)
     and ``analytic`` take the sample count only, ``counterweights`` the ``balance.*``
     counterweight options; the per-link ``balance.links.<link>.*_bounds`` join the text
     ``balance.*_bounds`` (a link in both is refused by :func:`check_links`).
