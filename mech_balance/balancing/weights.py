@@ -499,15 +499,18 @@ def format_report(report):
     lines.append('')
     lines.append('weights (about the pivot, link axes u towards the pin, w the axis):')
     for link, w in report['weights'].items():
-        text = (f"  {link}: mass {w['mass']:.5g}, centre (u, v, w) "
-                + ' '.join(f'{x:.5g}' for x in w['centre_uvw'])
-                + f", r {w['radius']:.5g}, I_ww {w['inertia_ww']:.5g}, I_wu "
-                f"{w['product_wu']:.5g}, I_vw {w['product_vw']:.5g}")
+        lines.append(f"  {link}: mass {w['mass']:.5g}, centre (u, v, w) "
+                     + ' '.join(f'{x:.5g}' for x in w['centre_uvw'])
+                     + f", r {w['radius']:.5g}, I_ww {w['inertia_ww']:.5g}")
+        text = f"    products I_wu {w['product_wu']:.5g}, I_vw {w['product_vw']:.5g}"
         if w['cylinder']:
-            text += f",\n    alpha {w['alpha_deg']:.3f} deg, gamma {w['gamma_deg']:.3f} deg"
+            text += f"; end faces alpha {w['alpha_deg']:.3f} deg, gamma {w['gamma_deg']:.3f} deg"
         lines.append(text)
-    lines.append('optimal products (links with weights): '
-                 + '   '.join(f'{k} {v:.5g}' for k, v in report['link_products'].items()))
+    products = report['link_products']
+    lines.append('optimal products J (links with weights, about their pivots):')
+    for link in report['weights']:
+        lines.append(f"  {link}: I_wu {products[f'{link}.I_wu']:.5g}, I_vw "
+                     f"{products[f'{link}.I_vw']:.5g}")
     opt = report['optimum']
     lines.append(f"least-squares optimum: |n| rms {opt['shaking_moment_rms']:.6g} (safe lower "
                  f"bound {opt['shaking_moment_rms_lower_bound']:.6g}), normal-equation "
