@@ -680,6 +680,11 @@ def _spatial(sc, args):
         args.method.replace('-', '_')
     method = front.method_for(rig, method)
     if method == 'weights':
+        ignored = [o for o in _given(args, SPATIAL_SHARED + SPATIAL_OPTIONS) if o != '--method']
+        if ignored:
+            raise ValueError(f'{ignored[0]}: not an option of the method weights (seed 002, '
+                             f'which takes --samples only); expected no {ignored[0]}, or '
+                             '--method redistribution, force-balance or counterweights')
         return _weights(sc, args)
     if args.output:
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
