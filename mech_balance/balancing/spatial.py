@@ -163,7 +163,7 @@ def spatial_model(rig):
     folded into their link's (the scene has no counterweight field; the spheres are in the
     report and the provenance).
     """
-    from mech_balance.schema.spatial import SpatialLink
+    from mech_balance.schema.spatial import INERTIA_RTOL, SpatialLink
     sc = rig.scene
     idle = {name: (ja, jb) for name, ja, jb in getattr(rig.linkage, 'idle_spins', ())}
     joints = {j.name: j for j in sc.joints}
@@ -205,8 +205,15 @@ def spatial_model(rig):
             tk = t[names.index(lk.name)]
             m = float(tk[0])
             c = tk[1:4] / m
-            i_c = regressor.inertia_matrix(tk[4:10]) - m * (np.dot(c, c) * np.eye(3)
-                                                            - np.outer(c, c))
+            i_o = regressor.inertia_matrix(tk[4:10])
+            i_c = i_o - m * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+            # a thin rod's zero moments come out of the solver and the parallel-axis step as
+            # +-round-off: principal moments above -INERTIA_RTOL m reach^2 (the scene
+            # check's relative slack, of the body's own scale) are written as zero
+            eig, vec = np.linalg.eigh(i_c)
+            floor = INERTIA_RTOL * max(abs(m), float(lk.mass_kg)) * reaches[lk.name] ** 2
+            if -floor <= eig[0] < 0.0:
+                i_c = (vec * np.maximum(eig, 0.0)) @ vec.T
             links.append(SpatialLink(lk.name, lk.points, m, tuple(float(x) for x in c),
                                      tuple(float(x) for x in (i_c[0, 0], i_c[1, 1], i_c[2, 2],
                                                               i_c[0, 1], i_c[0, 2],
