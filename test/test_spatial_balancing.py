@@ -453,7 +453,7 @@ def test_command_line_balance_and_analyze(tmp_path, capsys):
     status = cli.main(['balance', '--scene', 'rggr', '--method', 'force-balance',
                        '--free', 'crank', '--free', 'output'])
     text = capsys.readouterr().out
-    assert status == 0 and 'output.h_x = - 0.666667 coupler.h_x' in text
+    assert status == 0 and 'output.h_x = - 0.666667 coupler.m s' in text
     assert cli.main(['balance', '--scene', 'hoeken', '--force-balanced']) == cli.EXIT_USAGE
     assert '--force-balanced applies to' in capsys.readouterr().err
     assert cli.main(['balance', '--scene', 'rggr', '--method', 'force-balance',
