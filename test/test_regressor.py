@@ -2,8 +2,9 @@
 Tests of the spatial regressor (core/regressor.py) and of the RGGR's body kinematics.
 
 Three independent references: the RGGR rig's own shaking wrench (the spatial kind's
-Newton-Euler, core/spatial/dynamics.py) against seed 002's parameters, finite differences of the total momenta of a random spatial motion given in closed
-form, and finite differences of the RGGR's drawn body poses.
+Newton-Euler, core/spatial/dynamics.py) against seed 002's parameters, finite differences
+of the total momenta of a random spatial motion given in closed form, and finite
+differences of the RGGR's drawn body poses.
 """
 
 import math

@@ -2,8 +2,9 @@
 Tests of spatial balancing (balancing/spatial.py) on the RGGR and on the kind: spatial built-ins.
 
 Each claim against an independent computation: seed 002's force balance (its closed form,
-eqs. 4-14, and the paper's printed 8.5 / 1.645), the core's wrench of the written and reloaded scene, random
-feasible designs that no lower bound may exceed, and the pseudo-inertia PSD test of each body.
+eqs. 4-14, and the paper's printed 8.5 / 1.645), the core's wrench of the written and
+reloaded scene, random feasible designs that no lower bound may exceed, and the
+pseudo-inertia PSD test of each body.
 """
 
 import dataclasses

@@ -196,7 +196,7 @@ def test_planar_joint_names_are_those_of_joint_states():
 
 @pytest.fixture(scope='module')
 def rggr_designs():
-    """The RGGR (kind spatial) and its seed-002 design: weights with products, folded in."""
+    """Return the RGGR (kind spatial) and its seed-002 design (weights folded in)."""
     from mech_balance.balancing import weights
     sc = scene.load('rggr')
     return {False: sc, True: weights.balance_weights(rig_for(sc)).balanced_scene}

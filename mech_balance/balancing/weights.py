@@ -1,9 +1,10 @@
 """
-Balancing weights (seed 002): complete force balance by one weight on each link pivoted on
-the frame, then their products of inertia for the least RMS shaking moment.
+Balancing weights (seed 002): force balance, then the least RMS shaking moment.
 
-The method ``weights`` of :func:`mech_balance.balancing.balance` for a spatial rig whose
-scene lists ``balancing_weights`` (:class:`mech_balance.schema.spatial.WeightSpec`; the
+Complete force balance by one weight on each link pivoted on the frame, then their products
+of inertia for the least RMS shaking moment: the method ``weights`` of
+:func:`mech_balance.balancing.balance` for a spatial rig whose scene lists
+``balancing_weights`` (:class:`mech_balance.schema.spatial.WeightSpec`; the
 RGGR of seed 002 is ``config/rggr.yaml``).  Every quantity comes from the general kind: the
 shaking wrench is linear in each body's ten inertial parameters
 (:func:`mech_balance.core.regressor.wrench_regressor` over the rig's body kinematics), so
@@ -397,7 +398,7 @@ class ReportView:
         return float(x) / self.mass_kg if self.normalized else float(x)
 
     def length(self, x):
-        """Return a length (or a vector of them, as a list) in the view's unit."""
+        """Return lengths in the view's unit (a vector as a list)."""
         x = np.asarray(x, dtype=float)
         out = x / self.length_m if self.normalized else x
         return out.tolist() if out.ndim else float(out)

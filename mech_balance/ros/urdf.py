@@ -384,9 +384,9 @@ def joint_positions(model, state):
     ``model``: a scene, a planar :class:`~mech_balance.kinematics.Linkage` or a
     :class:`TreeModel` (:func:`tree_model`; pass it to avoid the cache lookup).  ``state``:
     the tree's state (:meth:`TreeModel.state_of` of a rig's evaluation; planar: a
-    :class:`~mech_balance.kinematics.KinematicState` with rates).  ``positions`` and ``velocities`` are
-    ``(n, n_joints)`` (rad or m; rad/s or m/s) in the zero convention of the module
-    docstring: revolute positions wrapped to (-pi, pi], no -0.0 anywhere.
+    :class:`~mech_balance.kinematics.KinematicState` with rates).  ``positions`` and
+    ``velocities`` are ``(n, n_joints)`` (rad or m; rad/s or m/s) in the zero convention of
+    the module docstring: revolute positions wrapped to (-pi, pi], no -0.0 anywhere.
     """
     tree = tree_model(model)
     names = tree.names
