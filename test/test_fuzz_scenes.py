@@ -12,7 +12,8 @@ on load to its spatial scene) is fuzzed as a scene of its own.  Every outcome mu
 result with finite numbers or one of the package's own ``ValueError`` subclasses with a
 one-line message that starts with the field (or the file) it is about.  Any other
 exception (``KeyError``, ``TypeError``, ``RecursionError``, ``MemoryError``,
-``OverflowError``, a bare ``ValueError``) or a silent NaN fails the test.  Run with ``pytest -s`` to see the counts per outcome.
+``OverflowError``, a bare ``ValueError``) or a silent NaN fails the test.  Run with
+``pytest -s`` to see the counts per outcome.
 """
 
 import collections
