@@ -8,9 +8,16 @@ simulated; the same objects feed the ROS 2 node and the recordings::
     sc = mb.load_scene('hoeken')                 # config/hoeken.yaml, or any path
     rig = mb.rig_for(sc)                         # the Rig protocol, any kind of rig
     data = rig.at([0.0, 0.1], speed=10.0)        # RigData: joints, shaking wrench, ...
-    cycle = mb.run_cycle(mb.PlanarRig(sc))        # one revolution, planar core results
     design = mb.balance(rig)                     # certified optimum (method by capability)
-    report = mb.simulate('slider_crank_stiff', 0.4)
+    print(design.masses_kg)                      # the balanced design, per link, kg
+
+The same five lines run on every built-in (``examples/quickstart.py``).  Every verb takes a
+rig or a scene of any kind: ``mb.run_cycle(rig)`` and ``mb.summarize(cycle)`` (one
+revolution, the table's rows), ``mb.balance(sc)`` (one result type, :class:`Design`:
+``success``, ``status``, ``message``, ``objective``, ``lower_bound``, ``certified``,
+``masses_kg``, ``mass_centres_m``, ``inertias_kg_m2``, ``report``), ``mb.identify``,
+``mb.simulate('slider_crank_stiff', 0.4)``; where a kind lacks a capability the verb says
+which, in one line, before any work (:class:`CapabilityError`).
 
 Layers (docs/design.md): ``schema`` (the scene file) < ``core`` (numpy/scipy only) <
 ``analysis`` < ``balancing`` < ``ros`` (rclpy), ``viz`` (rerun) < ``cli``, ``bench``.
@@ -28,6 +35,7 @@ _PUBLIC = {
     'Rig': ('mech_balance.core.rig', 'Rig'),
     'RigData': ('mech_balance.core.rig', 'RigData'),
     'rig_for': ('mech_balance.core.rig', 'rig_for'),
+    'CapabilityError': ('mech_balance.core.rig', 'CapabilityError'),
     'PlanarRig': ('mech_balance.core.planar.rig', 'PlanarRig'),
     'SpatialRig': ('mech_balance.core.spatial.rig', 'SpatialRig'),
     'run_cycle': ('mech_balance.analysis.cycle', 'run_cycle'),

@@ -139,6 +139,6 @@ def test_rggr_scene_has_the_rms_study(capsys):
     assert cli.main(['accuracy', '--scene', 'rggr']) == 0
     out = capsys.readouterr().out
     assert 'RMS against crank samples p' in out
-    assert 'integrators: not available for spatial scenes' in out
+    assert 'integrators: needs the capability accuracy_study, which kind ' in out
     p = int(out.split('error < 1e-10 from p = ')[1].split()[0])
     assert p <= 72

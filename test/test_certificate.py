@@ -415,7 +415,7 @@ def test_no_output_prints_a_lower_bound_above_its_primal(argv, capsys):
     assert cli.main(argv) == 0
     _no_bound_above_primal(capsys.readouterr().out)
     assert cli.main(argv + ['--json']) == 0
-    cert = json.loads(capsys.readouterr().out)['certificate']
+    cert = json.loads(capsys.readouterr().out)['report']['certificate']
     assert cert['lower_bound'] <= cert['primal'] and cert['dual'] == cert['lower_bound']
 
 

@@ -331,7 +331,7 @@ def test_cli_planes_and_rim_in_json(capsys):
                      '--planes', 'crank=-0.030,rocker=-0.0376', '--max-rim-radius-factor',
                      '0.5', '--json']) == 0
     out, err = capsys.readouterr()
-    report = json.loads(out)
+    report = json.loads(out)['report']
     assert report['clearance']['least_clearance_m'] > 0.0 and report['warnings'] == []
     assert report['options']['planes'] == {'crank': -0.03, 'rocker': -0.0376}
     assert 'collision' not in err

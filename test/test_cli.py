@@ -72,7 +72,7 @@ def test_json_output_is_strict_with_a_missing_bound(capsys):
     """
     assert cli.main(['balance', '--scene', 'hoeken', '--paper-constraints', '--weights', '1',
                      '0', '--json']) == 0
-    report = _strict_json(capsys.readouterr().out)
+    report = _strict_json(capsys.readouterr().out)['report']
     stage2 = report['certificate']['stage2']
     assert stage2['lower_bound'] is None
     assert stage2['status'] == 'Solved' and stage2['objective'] > 0.0

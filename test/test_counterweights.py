@@ -331,7 +331,7 @@ def test_cli_counterweights_output_and_json(tmp_path, capsys):
     assert [len(lk.counterweights) for lk in written.links] == [1, 0, 1]
     assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank,rocker',
                      '--json']) == 0
-    report = json.loads(capsys.readouterr().out)
+    report = json.loads(capsys.readouterr().out)['report']
     assert set(report['counterweights']) == {'crank', 'rocker'}
     assert set(report['counterweights']['crank'][0]) == {
         'mass_kg', 'centre_m', 'radius_m', 'thickness_m', 'density_kg_m3'}

@@ -37,8 +37,10 @@ RGGR_CASES = 500
 SAMPLES = 6
 """Crank angles per evaluated cycle: the fuzzer tests the handling, not the accuracy."""
 FIELD_FIRST = re.compile(
-    r'^(scene [^:\n]+|scene|[A-Za-z_][\w]*(\.[\w-]+|\[\d+\])*|crank angle -?[\d.]+ deg): \S')
-"""An error message starts with the field path, the scene file or the crank angle."""
+    r'^(scene [^:\n]+|scene|[A-Za-z_][\w]*(\.[\w-]+|\[\d+\])*|crank angle -?[\d.]+ deg|'
+    r'input slide -?[\d.]+ m): \S')
+"""An error message starts with the field path, the scene file, the crank angle or a
+prismatic input's slide (the position where a spatial linkage stops)."""
 BUILTINS = scene.builtin_scenes()
 TEXTS = {name: path.read_text(encoding='utf-8') for name, path in BUILTINS.items()}
 DATA = {name: scene.load_data(path)[0] for name, path in BUILTINS.items()}

@@ -239,7 +239,7 @@ def test_balance_reports_the_optimum_within_one_standard_error(calibrated, tmp_p
     text = capsys.readouterr().out
     assert "identification confidence (+-1 SE of the calibrated inertias): the optimum's" in text
     assert cli.main(['balance', '--scene', str(path), '--json']) == 0
-    conf = json.loads(capsys.readouterr().out)['identification_confidence']
+    conf = json.loads(capsys.readouterr().out)['report']['identification_confidence']
     cal = scene_mod.load(str(path))
     balanced = scene_mod.load(str(out))
     theta_b = sr.theta_of(balanced)

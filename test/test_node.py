@@ -586,7 +586,8 @@ def test_clock_mode_topics_parameters_and_balancing_across_processes(context):
                              env=dict(os.environ, PYTHONPATH=str(ROOT)))
         assert cli.returncode == 0, cli.stderr
         _same_report(got, yaml.safe_load(cli.stdout))
-        assert got['realizable'] is True and got['certificate']['status']
+        assert got['success'] and got['report']['realizable'] is True
+        assert got['report']['certificate']['status']
         assert probe.get_param('use_balanced').bool_value
 
         # the balanced design is published

@@ -378,7 +378,7 @@ def test_typed_per_link_bounds_through_the_parameter_service(clock_rig):
     assert not result.successful and 'no second bound' in result.reason
     answer = probe.call(probe.balance, 120.0)
     assert answer.success, answer.message
-    report = yaml.safe_load(answer.message)
+    report = yaml.safe_load(answer.message)['report']   # Design.to_dict(): the method's
     assert report['bounds']['crank']['mass_kg'] == [0.3, 1.6]
     assert report['bounds']['rocker']['mass_kg'] == [1.0, 3.0]
     assert _set(probe, name, []).successful and probe.call(probe.reset).success
@@ -417,7 +417,7 @@ def test_balance_method_counterweights_answer_carries_counterweights(clock_rig):
         answer = probe.call(probe.balance, 120.0)
         assert answer.success, answer.message
         assert answer.message.startswith('# balanced hoeken (counterweights): ')
-        report = yaml.safe_load(answer.message)
+        report = yaml.safe_load(answer.message)['report']
         expected = balancing.balance(rig_for(scene_mod.load('hoeken')), 'counterweights',
                                      links=('crank', 'rocker'), weights=(1.0, 0.0)).report
         assert set(report['counterweights']) == {'crank', 'rocker'}

@@ -67,7 +67,8 @@ def test_planar_rig_data_is_the_core_evaluation():
     for name, (force, moment) in data.reactions.items():
         assert_allclose(force[:, 0] + 1j * force[:, 1], w.reaction_force[name], rtol=1e-13)
         assert_allclose(moment[:, 2], w.reaction_moment[name], rtol=1e-13)
-    assert_allclose(data.residual, state.residual) and not data.near_singular.any()
+    assert_allclose(data.residual, state.residual)
+    assert not data.near_singular.any()
 
 
 @pytest.mark.parametrize('name', SCENES)

@@ -338,7 +338,7 @@ def test_idle_spin_is_fixed_by_convention_without_load(name):
     assert w.spin_moment.shape == (72, 1)
     assert np.max(np.abs(w.spin_moment)) <= 1e-12 * np.max(np.abs(w.driving_torque))
     report = spatial_report.analyze(sc)
-    assert report.data['idle_spins'] == [['coupler', 'B', 'C']]
+    assert report.data['extras']['idle_spins'] == [['coupler', 'B', 'C']]
     assert 'idle spin of coupler about the line B-C: fixed by convention (slender rod)' in \
         report.text.splitlines()
 
@@ -426,7 +426,7 @@ def test_over_constrained_bennett_reports_non_unique_reactions():
     # analyze says so (the figures it shows are the minimum-norm ones)
     from mech_balance.analysis import spatial_report
     report = spatial_report.analyze(rig.scene)
-    assert report.data['reactions_unique'] is False
+    assert report.data['extras']['reactions_unique'] is False
     assert 'over-constrained (3 redundant closure rows): bearing reactions are not unique; ' \
         'the minimum-norm ones are shown' in report.text.splitlines()
 

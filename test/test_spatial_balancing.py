@@ -444,7 +444,7 @@ def test_command_line_balance_and_analyze(tmp_path, capsys):
     status = cli.main(['balance', '--scene', 'rssr_skew', '--force-balanced', '--samples', '90',
                        '--output', str(out), '--json'])
     assert status == 0
-    report = json.loads(capsys.readouterr().out)
+    report = json.loads(capsys.readouterr().out)['report']
     assert report['certificate']['certified']
     rows = {r['quantity']: r for r in report['table']}
     assert rows['shaking force']['after_si'] <= 1e-9 * rows['shaking force']['before_si']
@@ -527,7 +527,7 @@ def test_command_line_output_reloads_and_analyze_reproduces(tmp_path, capsys, ar
     from mech_balance.cli import main as cli
     out = tmp_path / 'balanced.yaml'
     assert cli.main(['balance', *args, '--output', str(out), '--json']) == 0
-    report = json.loads(capsys.readouterr().out)
+    report = json.loads(capsys.readouterr().out)['report']
     cert = report['certificate']
     assert cert['certified'] and cert['lower_bound'] < cert['primal']
     assert cli.main(['analyze', '--scene', str(out), '--json']) == 0

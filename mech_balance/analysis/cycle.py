@@ -1,15 +1,20 @@
 """
-Cycle analysis of a planar rig: the table of RMS and extreme values, SI or normalized.
+Cycle analysis of a rig of any kind: the table of RMS and extreme values, SI or normalized.
 
-:class:`Rig` binds a scene's geometry (compiled once, its branch traced once) to an
-inertia; :func:`run_cycle` evaluates one revolution at p equally spaced crank angles and
-computes only what the scene's outputs need.
+:func:`run_cycle` evaluates one revolution of a :class:`~mech_balance.core.rig.Rig` (or a
+scene) at p equally spaced crank angles and computes only what the scene's outputs need;
+:func:`summarize` turns it into the table's rows.  A planar rig (:class:`Rig`, which binds
+a scene's geometry, compiled once and its branch traced once, to an inertia) keeps its own
+kinematic state and wrenches (:attr:`Cycle.state`, :attr:`Cycle.wrenches`: its bearing
+reactions and round-off floor); any other rig is evaluated through the protocol
+(:meth:`~mech_balance.core.rig.Rig.at`, :attr:`Cycle.data`), its rows those of
+:mod:`mech_balance.analysis.spatial_report`.
 """
 
 from dataclasses import dataclass
 import time
 
-from mech_balance.analysis.report import Report
+from mech_balance.analysis.report import analysis_dict, ANALYSIS_KEYS, Report  # noqa: F401
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics, kinematics
@@ -37,11 +42,21 @@ class Cycle:
     wrenches: dynamics.Wrenches
     seconds: float
     series: dict = None   # the scalar series from the kinematics alone (kinetic energy, ...)
+    data: object = None   # the RigData of a rig evaluated through the protocol (else None)
 
 
 def run_cycle(rig, samples=None, outputs=None):
-    """Evaluate one revolution at ``samples`` equally spaced crank angles."""
+    """Evaluate one revolution of a rig (or a scene) at ``samples`` equally spaced angles."""
+    from mech_balance.core.rig import as_rig
+    rig = as_rig(rig)
     samples = rig.scene.samples if samples is None else samples
+    if not isinstance(rig, Rig):   # every other rig: through the protocol
+        psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
+                           links=len(rig.scene.links))
+        outputs = rig.scene.outputs if outputs is None else outputs
+        t0 = time.perf_counter()
+        data = rig.at(psi, outputs=outputs)
+        return Cycle(rig, psi, None, None, time.perf_counter() - t0, dict(data.series), data)
     psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
                        links=len(rig.scene.links))
     rig.linkage.skeleton  # noqa: B018 - trace the branch outside the timed section
@@ -71,6 +86,10 @@ def summarize(cycle, normalized=False):
     if normalized and norm is None:
         raise ValueError(f'--normalized: scene {cycle.rig.scene.name!r} records no '
                          'normalization (mass_kg, length_m, omega_rad_s)')
+    if cycle.data is not None:
+        from mech_balance.analysis import spatial_report
+        return [Row(r['quantity'], r['unit'], r['rms'], r['max_abs'], r['kind'])
+                for r in spatial_report.rows(cycle.rig, cycle.data, normalized)]
 
     def add(name, values, dimension):
         values = np.abs(values)
@@ -181,14 +200,11 @@ def analyze(sc, samples=None, normalized=False, design=None):
     rig = Rig(sc)
     cycle = run_cycle(rig, samples)
     rows = summarize(cycle, normalized)
-    data = {'scene': sc.name, 'samples': int(cycle.psi.size),
-            'crank_speed_rad_s': sc.crank_speed_rad_s,
-            'crank_acceleration_rad_s2': sc.crank_acceleration_rad_s2,
-            'outputs': list(sc.outputs),
-            'normalized': bool(normalized),
-            'rows': [r.__dict__ for r in rows],
-            'worst_residual': float(np.max(cycle.state.residual)),
-            'worst_condition': float(np.max(cycle.state.cond)),
-            'near_singular': bool(np.max(cycle.state.cond) > kinematics.COND_WARN),
-            'near_singular_condition': kinematics.COND_WARN}
+    data = analysis_dict(
+        sc, rig, int(cycle.psi.size), normalized, [r.__dict__ for r in rows],
+        float(np.max(cycle.state.residual)), float(np.max(cycle.state.cond)),
+        bool(np.max(cycle.state.cond) > kinematics.COND_WARN), kinematics.COND_WARN,
+        {'newton_iterations_max': int(np.max(cycle.state.iterations)),
+         'reaction_consistency_Nm': None if cycle.wrenches is None else
+         cycle.wrenches.consistency})
     return Report(format_table(cycle, rows, normalized), data, list(rig.linkage.warnings))

@@ -614,7 +614,7 @@ def regressor(scene, psi_rad, speed_rad_s, accel_rad_s2, torque=False, rig=None)
     shaking wrench (and driving torque) at the 4 n unit parameter vectors (seed 001 eqs.
     25-26, 39; linear in theta); the links' weight from their poses.
     """
-    _check_planar(scene)
+    check_identifiable(scene)
     rig = analysis.Rig(scene) if rig is None else rig
     # the kinematics is periodic in the crank angle: solve at the wrapped angle (the solver
     # loses the branch at large unwrapped angles on some scenes)
@@ -944,11 +944,13 @@ class Identification:
             'kinematic_condition': self.kinematic_cond}
 
 
-def _check_planar(scene):
-    kind = schema.kind_of(scene)
-    if 'identification' not in kind.rig_factory().capabilities:
-        raise IdentifyError(f'scene {scene.name!r}: kind {kind.name!r}, expected a planar '
-                            f'scene ({SPATIAL_NOT_YET})')
+def check_identifiable(scene):
+    """Raise IdentifyError (one line: capability, kind, why) unless ``scene`` can be identified."""
+    from mech_balance.core.rig import CapabilityError, require
+    try:
+        require(scene, 'identification', 'identify')
+    except CapabilityError as exc:
+        raise IdentifyError(f'{exc} ({SPATIAL_NOT_YET})') from None
 
 
 def parameter_scales(scene):
@@ -1142,7 +1144,7 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     ``effort``: the encoder's motor torque at its stamps (N*m) or None.  The model is
     evaluated at each wrench stamp with the crank state interpolated from the encoder.
     """
-    _check_planar(scene)
+    check_identifiable(scene)
     motion, stretches = _segment_motions(t_encoder, position_rad, window, quantization_rad,
                                          counts_per_turn)
     parts, turns, span = [], 0.0, 0.0

@@ -1,18 +1,21 @@
 """
 The report of a forward-dynamics run (``mech-balance simulate``): time series and figures.
 
-:func:`simulate` integrates a scene with its drive (:mod:`mech_balance.core.forward`) and
-returns a :class:`Report`: the run resampled on a uniform time grid, the core's shaking
-wrench and driving torque along it, the start-up time, the steady-state figures (RMS over
-time), the energy balance and the inverse-dynamics check; :func:`format_report` prints it.
+:func:`simulate` integrates a scene or rig of any kind with its drive
+(:mod:`mech_balance.core.forward`) and returns a :class:`Report`: the run resampled on a
+uniform time grid, the rig's shaking wrench and driving effort along it, the start-up time,
+the steady-state figures (RMS over time), the energy balance, the model error of the tables
+and the inverse-dynamics check; :func:`format_report` prints it.
 """
 
 from dataclasses import dataclass
 import math
 
+from mech_balance import schema as scene_mod
 from mech_balance.conventions import rms
 from mech_balance.core import forward
 from mech_balance.core.integrators import DEFAULT_RTOL
+from mech_balance.schema import FRAME
 import numpy as np
 
 STARTUP_FRACTION = 0.95
@@ -30,11 +33,30 @@ class Report:
     psi: np.ndarray            # rad
     speed: np.ndarray          # rad/s
     accel: np.ndarray          # rad/s^2
-    motor_torque: np.ndarray   # N*m on the crank (through the gear)
-    joint_torque: np.ndarray   # N*m, the core's driving torque at (psi, psi', psi'')
-    shaking_force: np.ndarray  # complex N
-    shaking_moment: np.ndarray  # N*m about the crank pivot, incl. the rotor's reaction
+    motor_torque: np.ndarray   # N*m on the input shaft (through the gear)
+    driving_effort: np.ndarray  # the rig's driving effort at (psi, psi', psi''): N*m or N
+    shaking_force: np.ndarray  # (k, 3) N, frame axes
+    shaking_moment: np.ndarray  # (k, 3) N*m about the rig's moment point, incl. the rotor's
     summary: dict
+
+
+def input_axis(rig):
+    """
+    Return the unit axis ``(3,)`` in the frame about which psi turns the input, or None.
+
+    A revolute input on the frame: its joint axis from the rig's drawing (turned round when
+    the frame is the joint's link b); a planar rig (a 2-D drawing): z.  None for a prismatic
+    input (its Scotch-yoke crank's axis is not part of the scene).
+    """
+    if rig.joint_prismatic[rig.joint_names.index(rig.crank_joint)]:
+        return None
+    drawing = rig.drawing
+    for name, _, direction in drawing.axes:
+        if name == rig.crank_joint:
+            flip = any(j == name and body == FRAME for j, body, _ in drawing.joints)
+            axis = np.asarray(direction, dtype=float)
+            return -axis if flip else axis
+    return np.array([0.0, 0.0, 1.0]) if drawing.dimension == 2 else None
 
 
 def report(sim, samples_per_turn=72, max_samples=20000):
@@ -42,10 +64,13 @@ def report(sim, samples_per_turn=72, max_samples=20000):
     Return the :class:`Report` of a simulation on a uniform time grid.
 
     The grid has ``samples_per_turn`` points per crank turn at the operating speed.  The
-    shaking wrench and driving torque come from the core at the simulated (psi, psi',
-    psi''); the driving torque it computes must equal the motor torque minus the joint
-    damping and the rotor's inertia torque (seed 000 eq. 39 read backwards): the largest
-    difference is reported as ``inverse_dynamics_check_Nm``.
+    shaking wrench and driving effort come from the rig at the simulated (psi, psi',
+    psi''); its generalized force (the effort times dx/dpsi) must equal the motor torque
+    minus the joint damping and the inertia torque of the rotor and the input flywheel
+    (seed 000 eq. 39 read backwards): the largest difference is reported as
+    ``inverse_dynamics_check_Nm``, the model error of the tables as ``table_error``.  The
+    rotor and flywheel turn about the input axis (:func:`input_axis`); their reaction
+    moment is in the shaking moment where that axis is known.
     """
     model = sim.model
     t_end = float(sim.t[-1])
@@ -61,32 +86,44 @@ def report(sim, samples_per_turn=72, max_samples=20000):
     for i in range(k):
         acc[i], tau_m[i] = model.accel(y[:, i])
     rig = model.rig
-    # the bearing-reaction path: the NOC path divides by the crank speed (NaN at rest)
-    state, w = rig.evaluate(y[0], ('bearing_reactions',), speed=y[1], accel=acc)
+    data = rig.at(y[0], speed=y[1], accel=acc, outputs=('shaking_wrench', 'driving_torque'))
+    effort = data.series[rig.driving_series]
+    ci = rig.joint_names.index(rig.crank_joint)
+    rate = rig.at(y[0], speed=1.0, accel=0.0, outputs=()).joint_velocity[:, ci]  # dx/dpsi
+    generalized = effort * rate
     f = np.array([model.functions.values(p)[0] for p in y[0]]).T
-    expected = tau_m - f[3] * y[1] - model.rotor * acc
-    torque_scale = max(np.max(np.abs(w.driving_torque)), np.max(np.abs(tau_m)),
+    expected = tau_m - f[3] * y[1] - model.added * acc
+    torque_scale = max(np.max(np.abs(generalized)), np.max(np.abs(tau_m)),
                        np.max(np.abs(f[0] * acc)), np.max(np.abs(f[1] * y[1] ** 2)),
                        np.finfo(float).tiny)
-    check = float(np.max(np.abs(w.driving_torque - expected)))
-    moment = w.shaking_moment - model.rotor / model.gear * acc if model.motor else \
-        w.shaking_moment
+    check = float(np.max(np.abs(generalized - expected)))
+    spin = model.rotor / model.gear + model.drive.input_inertia_kg_m2   # H = spin psi'
+    axis = input_axis(rig)
+    moment = data.moment_Nm.copy()
+    if axis is not None and spin:
+        moment -= spin * acc[:, None] * axis
+    tables = model.tables
     summary = {
-        'scene': model.scene.name, 'method': sim.method, 'why': sim.reason,
+        'scene': model.scene.name, 'kind': scene_mod.kind_of(rig).name,
+        'method': sim.method, 'why': sim.reason,
         'rtol': sim.rtol, 'rhs': model.rhs_kind,
-        'table_harmonics': None if model.tables is None else model.tables.harmonics,
-        'table_error': None if model.tables is None else model.tables.error,
+        'table_harmonics': None if tables is None else tables.harmonics,
+        'table_error': None if tables is None else tables.error,
+        'table_errors': None if tables is None else dict(tables.errors),
         'duration_s': t_end, 'steps': sim.steps, 'nfev': sim.nfev, 'njev': sim.njev,
         'nlu': sim.nlu, 'seconds': sim.seconds,
         'energy_residual_J': sim.energy_residual()[0],
         'energy_residual_rel': sim.energy_residual()[1],
         'inverse_dynamics_check_Nm': check,
         'inverse_dynamics_check_rel': check / torque_scale,
-        'worst_condition': float(np.max(state.cond)),
+        'rotor_moment_included': bool(axis is not None or not spin),
+        # a rig that evaluates no crank acceleration gives its wrench and effort at zero
+        'rig_takes_accelerations': bool(np.allclose(data.crank_accel_rad_s2, acc, rtol=1e-12,
+                                                    atol=0.0)),
+        'worst_condition': float(np.max(data.condition)),
     }
-    summary.update(_steady(t, y[0], y[1], tau_m, w.shaking_force, moment, model))
-    return Report(sim, t, y[0], y[1], acc, tau_m, w.driving_torque, w.shaking_force,
-                  moment, summary)
+    summary.update(_steady(t, y[0], y[1], tau_m, data.force_N, moment, model))
+    return Report(sim, t, y[0], y[1], acc, tau_m, effort, data.force_N, moment, summary)
 
 
 def _steady(t, psi, speed, tau, force, moment, model):
@@ -114,10 +151,11 @@ def _steady(t, psi, speed, tau, force, moment, model):
     # over p crank angles: in a simulation the crank speed is not constant)
     out['motor_torque_rms_Nm'] = float(rms(tau[window]))
     out['motor_torque_max_Nm'] = float(np.max(np.abs(tau)))
-    out['shaking_force_rms_N'] = float(rms(np.abs(force[window])))
-    out['shaking_force_max_N'] = float(np.max(np.abs(force)))
+    force, moment = np.linalg.norm(force, axis=1), np.linalg.norm(moment, axis=1)
+    out['shaking_force_rms_N'] = float(rms(force[window]))
+    out['shaking_force_max_N'] = float(np.max(force))
     out['shaking_moment_rms_Nm'] = float(rms(moment[window]))
-    out['shaking_moment_max_Nm'] = float(np.max(np.abs(moment)))
+    out['shaking_moment_max_Nm'] = float(np.max(moment))
     return out
 
 
@@ -126,9 +164,9 @@ def format_report(rep, rows=20):
     s = rep.summary
     model = rep.simulation.model
     d = model.drive
-    lines = [f'scene: {s["scene"]} ({model.scene.source})']
+    lines = [f'scene: {s["scene"]} (kind {s["kind"]}, {model.scene.source})']
     if d.motor is None:
-        lines.append('drive: none (no drive: section) - the rig coasts from '
+        lines.append('drive: no motor - the rig coasts from '
                      f'{model.initial_speed():g} rad/s, no damping unless configured')
     else:
         m = d.motor
@@ -145,24 +183,37 @@ def format_report(rep, rows=20):
     if d.joint_damping:
         lines.append('joint damping: ' + ', '.join(f'{k} {v:g}' for k, v in
                                                    d.joint_damping.items()))
+    if d.input_inertia_kg_m2:
+        lines.append(f'input flywheel: {d.input_inertia_kg_m2:g} kg*m^2'
+                     + ('' if s['rotor_moment_included'] else
+                        ' (its reaction moment is not in the shaking moment: the axis of a '
+                        'yoke crank of a prismatic input is not part of the scene)'))
+    errors = s['table_errors'] or {}
+    if not s['rig_takes_accelerations']:
+        lines.append(f'warning: the rig of kind {s["kind"]} evaluates no crank acceleration: the '
+                     'motion is exact (inertia from its kinetic energy), but its shaking wrench '
+                     'and driving effort below are those at zero crank acceleration')
     lines += [
         f'method: {s["method"]} (rtol {s["rtol"]:g}) - {s["why"]}',
         'right-hand side: ' + (
-            f'Fourier tables of I, C, tau_G, c_eff, V with {s["table_harmonics"]} harmonics '
-            f'(max deviation from the core {s["table_error"]:.1e} relative)'
-            if s['rhs'] == 'table' else 'the core evaluated at every call'),
+            'Fourier tables of I, C, tau_G, c_eff, V from the inverse dynamics of the rig, '
+            f'{s["table_harmonics"]} harmonics; model error (largest relative deviation from '
+            f'the rig at the mid-points) {s["table_error"]:.1e}: '
+            + ', '.join(f'{k} {v:.1e}' for k, v in errors.items())
+            if s['rhs'] == 'table' else 'the inverse dynamics of the rig at every call'),
         f'cost: {s["steps"]} steps, {s["nfev"]} right-hand-side evaluations, {s["njev"]} '
         f'Jacobians, {s["nlu"]} LU decompositions, {s["seconds"] * 1e3:.1f} ms',
         '',
         f'{"t s":>10}{"psi deg":>12}{"speed rad/s":>14}{"motor N*m":>12}'
-        f'{"|f_sh| N":>12}{"n_sh N*m":>12}',
+        f'{"|f_sh| N":>12}{"|n_sh| N*m":>12}',
         '-' * 72,
     ]
     idx = np.unique(np.linspace(0, rep.t.size - 1, rows).round().astype(int))
     for i in idx:
         lines.append(f'{rep.t[i]:>10.4g}{math.degrees(rep.psi[i]):>12.2f}'
                      f'{rep.speed[i]:>14.6g}{rep.motor_torque[i]:>12.5g}'
-                     f'{abs(rep.shaking_force[i]):>12.5g}{rep.shaking_moment[i]:>12.5g}')
+                     f'{np.linalg.norm(rep.shaking_force[i]):>12.5g}'
+                     f'{np.linalg.norm(rep.shaking_moment[i]):>12.5g}')
     lines += ['-' * 72]
     start = s['startup_time_s']
     lines += [
@@ -171,14 +222,14 @@ def format_report(rep, rows=20):
         f'steady state (last {s["steady_window_turns"]:.3g} turns, t = '
         f'{s["steady_window_s"][0]:.4g}..{s["steady_window_s"][1]:.4g} s): mean speed '
         f'{s["speed_mean_rad_s"]:.6g} rad/s, ripple (max - min)/mean = {s["speed_ripple"]:.4g}',
-        f'motor torque on the crank: time-RMS {s["motor_torque_rms_Nm"]:.5g} N*m (steady), max '
-        f'{s["motor_torque_max_Nm"]:.5g} N*m',
+        f'motor torque on the input shaft: time-RMS {s["motor_torque_rms_Nm"]:.5g} N*m '
+        f'(steady), max {s["motor_torque_max_Nm"]:.5g} N*m',
         f'shaking force: time-RMS {s["shaking_force_rms_N"]:.5g} N (steady), max '
         f'{s["shaking_force_max_N"]:.5g} N; shaking moment: time-RMS '
         f'{s["shaking_moment_rms_Nm"]:.5g} N*m, max {s["shaking_moment_max_Nm"]:.5g} N*m',
         f'energy balance: motor work - dissipation - change of energy = '
         f'{s["energy_residual_J"]:.3e} J ({s["energy_residual_rel"]:.1e} relative)',
-        f'inverse-dynamics check: core driving torque vs motor - damping - rotor: '
+        f'inverse-dynamics check: rig driving effort vs motor - damping - rotor: '
         f'{s["inverse_dynamics_check_Nm"]:.3e} N*m ({s["inverse_dynamics_check_rel"]:.1e} '
         'relative)',
         f'worst Jacobian condition number on the path: {s["worst_condition"]:.4g}',
@@ -188,8 +239,12 @@ def format_report(rep, rows=20):
 
 def simulate(name_or_scene, duration_s, method='auto', rtol=DEFAULT_RTOL, rhs='table',
              drive=None):
-    """Load a scene, integrate with its drive (or ``drive``), and return the :class:`Report`."""
+    """
+    Integrate a scene or rig of any kind with its drive (or ``drive``); return the report.
+
+    ``name_or_scene``: a built-in name, a path, a scene or a :class:`~mech_balance.core.rig.Rig`.
+    """
     sc = forward.load(name_or_scene)[0] if isinstance(name_or_scene, str) else name_or_scene
-    model = forward.ForwardDynamics(sc, drive, rhs=rhs)  # refuses a scene that is not planar
+    model = forward.ForwardDynamics(sc, drive, rhs=rhs)  # a scene or a rig of any kind
     sim = model.simulate(duration_s, method=method, rtol=rtol, dense_output=True)
     return report(sim)

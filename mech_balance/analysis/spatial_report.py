@@ -7,7 +7,7 @@ scalar series (:data:`mech_balance.schema.scene.SERIES`) and the bearing loads o
 joint, SI or in the papers' normalized units when the scene records a normalization.
 """
 
-from mech_balance.analysis.report import Report
+from mech_balance.analysis.report import analysis_dict, Report
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial.kinematics import COND_WARN
@@ -18,7 +18,13 @@ SI_UNITS = {'force': 'N', 'moment': 'N*m', 'energy': 'J'}
 NORMALIZED_UNITS = {'force': 'm1*a1*w^2', 'moment': 'm1*a1^2*w^2', 'energy': 'm1*a1^2*w^2'}
 
 
-def _rows(rig, data, normalized):
+def rows(rig, data, normalized):
+    """
+    Return the table rows ``{quantity, unit, rms, max_abs, kind}`` of a rig evaluated by ``at``.
+
+    The shaking force and moment magnitudes, the scalar series and the bearing loads, SI or
+    normalized (``normalized``: by the scene's normalization).
+    """
     norm = rig.scene.normalization if normalized else None
 
     def scaled(values, dim):
@@ -27,13 +33,13 @@ def _rows(rig, data, normalized):
         return norm.force(values) if dim == 'force' else norm.moment(values)
 
     units = NORMALIZED_UNITS if norm is not None else SI_UNITS
-    rows = []
+    out = []
 
     def add(quantity, values, dim):
         v = scaled(np.asarray(values, dtype=float), dim)
         mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
-        rows.append({'quantity': quantity, 'unit': units[dim], 'rms': float(rms(v)),
-                     'max': float(np.max(mag))})
+        out.append({'quantity': quantity, 'unit': units[dim], 'rms': float(rms(v)),
+                    'max_abs': float(np.max(mag)), 'kind': dim})
 
     if data.force_N is not None:
         add('shaking force |f|', data.force_N, 'force')
@@ -46,7 +52,7 @@ def _rows(rig, data, normalized):
         add(f'bearing force |F| {joint}', force, 'force')
         if types.get(joint) != 'spherical':   # a ball joint carries no moment
             add(f'bearing moment |M| {joint}', moment, 'moment')
-    return rows
+    return out
 
 
 def analyze(sc, samples=None, normalized=False, design=None):
@@ -61,31 +67,25 @@ def analyze(sc, samples=None, normalized=False, design=None):
     samples = sc.samples if samples is None else samples
     psi = cycle_angles(samples, sc.assembly_crank_angle_rad, links=len(sc.links))
     data = rig.at(psi)
-    rows = _rows(rig, data, normalized)
+    table = rows(rig, data, normalized)
     unique = rig.reactions_unique
-    out = {'scene': sc.name, 'kind': sc.kind, 'samples': int(psi.size),
-           'crank_speed_rad_s': sc.crank_speed_rad_s,
-           'crank_acceleration_rad_s2': sc.crank_acceleration_rad_s2,
-           'moment_point_m': list(rig.moment_point_m), 'outputs': list(sc.outputs),
-           'normalized': bool(normalized), 'rows': rows,
-           'worst_residual': float(np.max(data.residual)),
-           'worst_condition': float(np.max(data.condition)),
-           'near_singular': bool(np.any(data.near_singular)),
-           'near_singular_condition': COND_WARN,
-           'reactions_unique': bool(unique),
-           'idle_spins': [list(s) for s in getattr(rig.linkage, 'idle_spins', ())]}
-    width = max([len(r['quantity']) for r in rows] + [10])
+    idle = [list(s) for s in getattr(rig.linkage, 'idle_spins', ())]
+    out = analysis_dict(sc, rig, int(psi.size), normalized, table,
+                        float(np.max(data.residual)), float(np.max(data.condition)),
+                        bool(np.any(data.near_singular)), COND_WARN,
+                        {'reactions_unique': bool(unique), 'idle_spins': idle})
+    width = max([len(r['quantity']) for r in table] + [10])
     lines = [f'scene {sc.name} (spatial): {psi.size} crank angles, crank speed '
              f'{sc.crank_speed_rad_s:g} rad/s' + (' (normalized)' if normalized else '')
              + f'; shaking moment about P, {rig.moment_point}',
              f'{"quantity":<{width}}  {"unit":<12} {"rms":>12} {"max":>12}']
-    for r in rows:
+    for r in table:
         lines.append(f'{r["quantity"]:<{width}}  {r["unit"]:<12} {r["rms"]:12.6g} '
-                     f'{r["max"]:12.6g}')
+                     f'{r["max_abs"]:12.6g}')
     lines.append(f'worst loop residual {out["worst_residual"]:.3e} (relative), worst '
                  f'Jacobian condition {out["worst_condition"]:.4g}'
                  + (' - NEAR-SINGULAR' if out['near_singular'] else ''))
-    for name, j1, j2 in out['idle_spins']:
+    for name, j1, j2 in idle:
         lines.append(f'idle spin of {name} about the line {j1}-{j2}: fixed by convention '
                      '(slender rod)')
     if not unique:

@@ -1,9 +1,12 @@
 """
 Balancing: one entry point, :func:`balance`, for the command line, the node and recordings.
 
-``balance(rig, method=..., **options)`` returns a :class:`Design`: the balanced scene, its
-report (a plain mapping, the same one ``mech-balance balance --json`` prints and the node's
-``~/balance`` answers) and the method's own result.  The method is chosen from what the rig
+``balance(rig, method=..., **options)`` returns a :class:`Design` for every method and kind
+(:mod:`mech_balance.balancing.result`): ``success``, ``status``, ``message``, the objective,
+its lower bound, ``certified``, the per-link masses, mass centres and inertias, the balanced
+scene, the method's report and its own result; :meth:`Design.to_dict` is what
+``mech-balance balance --json`` prints and the node's ``~/balance`` answers.  ``rig`` may be
+a scene (its rig is built).  The method is chosen from what the rig
 can be balanced by (:attr:`mech_balance.core.rig.Rig.capabilities`), never from its kind:
 
 * ``redistribution``: the certified optimal mass redistribution of seed 001 (planar rigs,
@@ -29,11 +32,10 @@ The modules that solve are imported when a method runs, so importing this packag
 The defaults of every option are :mod:`mech_balance.balancing.defaults`'s.
 """
 
-from dataclasses import dataclass
-
 from mech_balance.balancing.defaults import CENTROIDAL_MARGIN, DEFAULT_MAX_GYRATION_FACTOR, \
     DEFAULT_MAX_THICKNESS_M, DEFAULT_WEIGHTS, PAPER_DISTANCE_FACTORS, PAPER_MASS_FACTORS, \
     SPATIAL_MASS_FACTOR_RANGE
+from mech_balance.balancing.result import Design
 
 METHODS = {
     'redistribution': 'mass_redistribution',
@@ -68,38 +70,6 @@ PLANAR_DEFAULTS = {'case': 'a', 'realizable': True, 'paper_constraints': False,
 node passes every option); any other value is refused, naming the option."""
 
 
-SUMMARY_NAME_CHARS = 40
-"""Longest scene name in :meth:`Design.summary` (the line stays under 200 characters)."""
-
-
-@dataclass
-class Design:
-    """A balanced design: its scene, its report (plain mapping) and the method's result."""
-
-    scene: object
-    report: dict
-    method: str
-    result: object
-    figures: dict = None   # RMS shaking force (N) and moment (N m) before/after, certificate
-
-    def summary(self):
-        """
-        Return one line a person reads in a terminal: method, RMS before -> after, certificate.
-
-        ``balanced hoeken (redistribution): RMS shaking force 0.143 -> 0.0168 N, moment
-        0.0173 -> 0.00603 N m; certificate Solved, gap 1.0e-09``.
-        """
-        f = self.figures or {}
-        name = str(self.report.get('scene', ''))
-        name = name if len(name) <= SUMMARY_NAME_CHARS else name[:SUMMARY_NAME_CHARS] + '...'
-        parts = [f'balanced {name} ({self.method})']
-        if 'force_N' in f:
-            parts.append(f'RMS shaking force {f["force_N"][0]:.4g} -> {f["force_N"][1]:.4g} N, '
-                         f'moment {f["moment_Nm"][0]:.4g} -> {f["moment_Nm"][1]:.4g} N m')
-        parts.append(f'certificate {f.get("certificate", "none")}')
-        return '; '.join(parts[:1]) + ': ' + '; '.join(parts[1:])
-
-
 def _table_figures(table, certificate):
     """Return :attr:`Design.figures` from before/after rows (``before_si``, ``after_si``)."""
     rows = {r['quantity'].split()[1]: r for r in table
@@ -107,6 +77,27 @@ def _table_figures(table, certificate):
     return {'force_N': (rows['force']['before_si'], rows['force']['after_si']),
             'moment_Nm': (rows['moment']['before_si'], rows['moment']['after_si']),
             'certificate': certificate}
+
+
+LINK_OPTIONS = ('mass_bounds', 'distance_bounds')
+"""Per-link options of the redistribution (``{link: (min, max)}``; the node's
+``balance.links.<link>.<option>``)."""
+
+
+def link_options(rig):
+    """
+    Return the per-link options (:data:`LINK_OPTIONS`) the redistribution of ``rig`` takes.
+
+    Both for a rig redistributed by seed 001; those the spatial implementation takes
+    (:data:`SPATIAL_OPTIONS`) for a rig with body kinematics; none for a rig without the
+    redistribution.
+    """
+    caps = rig.capabilities
+    if METHODS['redistribution'] in caps:
+        return LINK_OPTIONS
+    if ALTERNATIVES['redistribution'] in caps:
+        return tuple(o for o in LINK_OPTIONS if o in SPATIAL_OPTIONS['redistribution'])
+    return ()
 
 
 def _supports(method, caps):
@@ -216,6 +207,8 @@ def balance(rig, method='auto', **options):
     ``counterweights`` (``links`` first); ``samples`` (and for a four-bar ``mass_factor``,
     ``inertia``) for ``analytic``; ``samples`` for ``weights``.
     """
+    from mech_balance.core.rig import as_rig
+    rig = as_rig(rig)
     method = method_for(rig, method)
     sc = rig.scene
     if method == 'force_balance' or METHODS[method] not in rig.capabilities:
@@ -269,4 +262,5 @@ def balance(rig, method='auto', **options):
     return Design(result.balanced_scene, report, method, result, figures)
 
 
-__all__ = ['ALTERNATIVES', 'balance', 'DEFAULT_WEIGHTS', 'Design', 'method_for', 'METHODS']
+__all__ = ['ALTERNATIVES', 'balance', 'DEFAULT_WEIGHTS', 'Design', 'link_options', 'method_for',
+           'METHODS']

@@ -32,6 +32,7 @@ from mech_balance.analysis.studies import ACCURACY_TURNS, SECTIONS
 from mech_balance.conventions import cycle_angles
 from mech_balance.core import forward as simulate
 from mech_balance.core.planar import kinematics
+from mech_balance.core.rig import rig_for
 import numpy as np
 
 P_LADDER = (8, 12, 16, 24, 36, 48, 60, 72, 96, 120, 180, 360)
@@ -74,52 +75,13 @@ def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
         err = np.abs(np.array([r.rms for r in rows_p]) - ref_rms) / scale
         k = int(np.argmax(err))
         psi = cycle_angles(p, rig.scene.assembly_crank_angle_rad)
-        seconds = _median(lambda: rig.evaluate(psi), repeat)
+        evaluate = getattr(rig, 'evaluate', rig.at)   # a planar rig's own, else the protocol
+        seconds = _median(lambda: evaluate(psi), repeat)
         rows.append({'p': int(p), 'max_rel_error': float(err[k]), 'worst': ref[k].quantity,
                      'seconds': seconds})
     return {'p_reference': p_ref, 'normalized': bool(normalized), 'rows': rows,
             'reference': [{'quantity': r.quantity, 'unit': r.unit, 'rms': r.rms}
                           for r in ref]}
-
-
-def report_rms_convergence(sc, p_values=P_LADDER, p_ref=P_REFERENCE,
-                           repeat=RMS_TIMING_REPEAT):
-    """
-    Return the RMS study of a scene of any kind from its ``analyze`` report (its kind's).
-
-    Same rows as :func:`rms_convergence`; the quantities are the report's rows (RMS),
-    normalized when the scene records a normalization.
-    """
-    analyze = scene_mod.kind_of(sc).implementation('analyze')
-    normalized = sc.normalization is not None
-
-    def metrics(p):
-        return {r['quantity']: r['rms'] for r in analyze(sc, p, normalized).data['rows']}
-    ref = metrics(p_ref)
-    names = sorted(ref)
-    ref_rms = np.array([ref[k] for k in names])
-    scale = np.where(ref_rms > 0.0, ref_rms, max(float(np.max(ref_rms)), 1e-300))
-    rows = []
-    for p in p_values:
-        got = metrics(p)
-        err = np.abs(np.array([got[k] for k in names]) - ref_rms) / scale
-        k = int(np.argmax(err))
-        seconds = _median(lambda: analyze(sc, p, normalized), repeat)
-        rows.append({'p': int(p), 'max_rel_error': float(err[k]), 'worst': names[k],
-                     'seconds': seconds})
-    return {'p_reference': p_ref, 'normalized': normalized, 'rows': rows,
-            'reference': [{'quantity': k, 'unit': 'normalized' if normalized else 'SI',
-                           'rms': ref[k]}
-                          for k in names]}
-
-
-def first_p_below(study, tol):
-    """Return the smallest p of the study from which on every error is below ``tol``."""
-    rows = study['rows']
-    for i, row in enumerate(rows):
-        if all(r['max_rel_error'] < tol for r in rows[i:]):
-            return row['p']
-    return None
 
 
 # ============================================================================ integrators
@@ -283,21 +245,29 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
 # ============================================================================ all of it
 
 
+SECTION_CAPABILITY = {'integrators': 'accuracy_study', 'position': 'accuracy_study',
+                      'balancing': 'accuracy_study'}
+"""The rig capability each study needs beyond the protocol (the RMS study needs none)."""
+
+
 def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
     """
     Return every requested study of a scene as a dict.
 
-    Spatial scenes have the RMS study only; the other sections say so.
+    A rig without the ``accuracy_study`` capability (the spatial kind) has the RMS study
+    only, through the Rig protocol; each other section is a note naming the capability and
+    the kind (:data:`SECTION_CAPABILITY`; the verb refuses such a section asked for by name).
     """
     say = progress or (lambda text: None)
     sc = scene_mod.load(name_or_path)
-    if 'accuracy_study' not in scene_mod.kind_of(sc).rig_factory().capabilities:
+    kind = scene_mod.kind_of(sc)
+    if 'accuracy_study' not in kind.rig_factory().capabilities:
         out = {'scene': sc.name, 'source': sc.source}
         if 'rms' in sections:
             say('RMS against p ...')
-            out['rms'] = report_rms_convergence(sc)
-        out['notes'] = [f'{name}: not available for spatial scenes'
-                        for name in sections if name != 'rms']
+            out['rms'] = rms_convergence(rig_for(sc))
+        out['notes'] = [f'{name}: needs the capability accuracy_study, which kind '
+                        f'{kind.name} lacks' for name in sections if name != 'rms']
         return out
     drive = simulate.drive_of(sc)
     rig = analysis.Rig(sc)

@@ -11,7 +11,7 @@ import argparse
 import sys
 
 from mech_balance import atomic, conventions
-from mech_balance.balancing import defaults, paper_tables as seed_tables
+from mech_balance.balancing import defaults, options, paper_tables as seed_tables
 from mech_balance.balancing.defaults import DEFAULT_CASE
 from mech_balance.cli import jsonout, main as cli
 
@@ -51,12 +51,30 @@ SPATIAL_METHODS = ('auto', 'weights', 'force-balance', 'redistribution', 'counte
 """``--method`` values (auto: the scene's balancing weights, else the redistribution)."""
 
 
+TABLE_KEYS = tuple(opt.key for opt in options.OPTIONS if opt.flag is not None)
+"""The options of :data:`mech_balance.balancing.options.OPTIONS` this verb offers, in order."""
+PLANAR_KEYS = tuple(k for k in TABLE_KEYS if k not in ('extent_factor', 'force_balanced',
+                                                       'free'))
+"""Those the planar methods take (the rest are the spatial implementation's)."""
+SPATIAL_KEYS = {'redistribution': ('weights', 'mass_factors', 'fixed_links', 'extent_factor',
+                                   'force_balanced', 'samples'),
+                'counterweights': ('links', 'weights', 'density_kg_m3', 'max_mass_factor',
+                                   'max_radius_factor', 'samples'),
+                'force_balance': ('free', 'samples')}
+"""The options of each spatial method (:data:`mech_balance.balancing.SPATIAL_OPTIONS`)."""
+TYPES = {'weights': cli.weight, 'torque_weight': cli.weight, 'reaction_weight': cli.weight,
+         'samples': cli.int_at_least(4, conventions.MAX_SAMPLES, 'conventions.MAX_SAMPLES')}
+"""The command line's number parsers of some options (the rest: float, int, str)."""
+
+
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Append ``(default: ...)`` unless the default is None or False (said in words, or off)."""
 
     def _get_help_string(self, action):
-        if action.default is None or action.default is False:
+        if action.default is None or action.default is False or action.default == []:
             return action.help
+        if isinstance(action.default, tuple):   # the values as they are typed
+            return f'{action.help} (default: {" ".join(f"{v:g}" for v in action.default)})'
         return super()._get_help_string(action)
 
 
@@ -100,38 +118,7 @@ def register(subparsers):
         formatter_class=_HelpFormatter)
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML file')
-    add_weight_and_case(p)
-    p.add_argument('--paper-constraints', action='store_true',
-                   help="reproduce seed 001's problem exactly (eqs. 50/53: masses in [1, 5] x "
-                        'original, l in [0.5, 1.5] x original, no realizability constraint)')
-    p.add_argument('--no-realizable', action='store_true',
-                   help='drop the realizability constraint (centroidal inertia >= margin x I_O)')
-    p.add_argument('--margin', type=float, default=defaults.CENTROIDAL_MARGIN,
-                   help='realizability margin: centroidal inertia >= MARGIN x inertia about '
-                        'the link origin')
-    p.add_argument('--mass-factors', nargs=2, type=float, metavar=('LO', 'HI'),
-                   default=defaults.PAPER_MASS_FACTORS,
-                   help='link mass bounds as factors of the original masses (range '
-                        f'{defaults.BOUND_RATIO_RANGE[0]:g} to {defaults.BOUND_RATIO_RANGE[1]:g}; '
-                        'spatial redistribution '
-                        f'{defaults.SPATIAL_MASS_FACTOR_RANGE[0]:g} to '
-                        f'{defaults.SPATIAL_MASS_FACTOR_RANGE[1]:g})')
-    p.add_argument('--distance-factors', nargs=2, type=float, metavar=('LO', 'HI'),
-                   default=defaults.PAPER_DISTANCE_FACTORS,
-                   help='point-mass distance bounds as factors of the original l = sqrt(I_O/m) '
-                        f'(range {defaults.DISTANCE_RATIO_RANGE[0]:g} to '
-                        f'{defaults.DISTANCE_RATIO_RANGE[1]:g})')
-    p.add_argument('--torque-weight', type=cli.weight, default=0.0,
-                   help='extra weight on the RMS normalized driving torque')
-    p.add_argument('--reaction-weight', type=cli.weight, default=0.0,
-                   help='extra weight on the sum of the RMS normalized bearing forces')
-    p.add_argument('--max-added-mass', type=float, default=None, metavar='KG',
-                   help='cap on the total added mass (kg, over the original total)')
-    p.add_argument('--fix', action='append', default=[], metavar='LINK',
-                   help='keep this link as it is (repeatable)')
-    p.add_argument('--samples', type=cli.int_at_least(4, conventions.MAX_SAMPLES,
-                                                      'conventions.MAX_SAMPLES'), default=None,
-                   help="crank angles per revolution (default: the scene's, usually 360)")
+    options.add_arguments(p, TABLE_KEYS[:TABLE_KEYS.index('links')], TYPES)
     p.add_argument('--analytic', action='store_true',
                    help='analytic complete force balance instead: slider-crank (seed 000 eqs. '
                         '44-75) or four-bar (Berkof-Lowen, seed 001 eq. 48)')
@@ -141,38 +128,8 @@ def register(subparsers):
     p.add_argument('--keep-centroidal', action='store_true',
                    help='--analytic four-bar: keep the centroidal inertias (always realizable) '
                         'instead of the point-mass distance l (the paper)')
-    p.add_argument('--counterweights', default=None, metavar='LINK[,LINK...]',
-                   help='add-only counterweights instead: each listed link keeps its mass, '
-                        'mass centre and inertia and gains one solid disc (certified SOCP); '
-                        'every other link is untouched')
-    p.add_argument('--density', type=float, default=defaults.DEFAULT_DENSITY_KG_M3,
-                   metavar='KG_M3', help='--counterweights: disc material density (kg/m^3; '
-                                         'steel)' + _range('density_kg_m3'))
-    p.add_argument('--max-thickness', type=float, default=defaults.DEFAULT_MAX_THICKNESS_M,
-                   metavar='M', help='--counterweights: thickest disc (m)'
-                   + _range('max_thickness_m'))
-    p.add_argument('--max-radius-factor', type=float,
-                   default=defaults.DEFAULT_MAX_RADIUS_FACTOR, metavar='F',
-                   help="--counterweights: disc centre at most F x the distance from the link's "
-                        'origin to its farthest joint point' + _range('max_radius_factor'))
-    p.add_argument('--max-mass-factor', type=float, default=defaults.DEFAULT_MAX_MASS_FACTOR,
-                   metavar='F', help="--counterweights: disc mass at most F x the link's mass"
-                   + _range('max_mass_factor'))
-    p.add_argument('--max-gyration-factor', type=float,
-                   default=defaults.DEFAULT_MAX_GYRATION_FACTOR, metavar='F',
-                   help="--counterweights: the disc's radius of gyration about the link origin "
-                        "at most F x the link's farthest joint distance (keeps a vanishing disc "
-                        'from carrying inertia; above 100 the program is ill-posed)'
-                        + _range('max_gyration_factor'))
-    p.add_argument('--planes', default='', metavar='LINK=Z[,LINK=Z...]',
-                   help="--counterweights: a disc's plane, its mid-plane's offset along z from "
-                        "its link's plane in m (default: each link's own plane, 0); bodies "
-                        'whose slabs along z overlap share a plane and are checked for '
-                        'clearance over the cycle')
-    p.add_argument('--max-rim-radius-factor', type=float, default=None, metavar='F',
-                   help="--counterweights: the whole disc inside F x the link's joint reach "
-                        "of the link's origin (a convex constraint of the program; default: "
-                        'no bound)' + _range('max_rim_radius_factor'))
+    options.add_arguments(p, TABLE_KEYS[TABLE_KEYS.index('links'):
+                                        TABLE_KEYS.index('extent_factor')], TYPES)
     p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
                    help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
                         'with two point masses per link at 0 and 90 deg, and print the '
@@ -185,20 +142,8 @@ def register(subparsers):
                         'redistribution (certified, every body a PSD pseudo-inertia; the '
                         'default of kind spatial), counterweights (add-only spheres, with '
                         '--counterweights LINKS)')
-    p.add_argument('--extent-factor', type=float, default=1.5, metavar='F',
-                   help="spatial redistribution: RMS distance of each body's mass from its "
-                        'origin at most F x its reach (farthest drawn point); range '
-                        f'{defaults.EXTENT_FACTOR_RANGE[0]:g} to '
-                        f'{defaults.EXTENT_FACTOR_RANGE[1]:g}')
-    p.add_argument('--force-balanced', action='store_true',
-                   help='spatial redistribution: impose complete force balance (falls back '
-                        'to the least RMS shaking force, with a note, when impossible)')
-    p.add_argument('--free', action='append', default=[], metavar='LINK',
-                   help='--method force-balance: a body that may change (repeatable; '
-                        'default all)')
-    p.add_argument('--si', action='store_true',
-                   help="print SI values (default: the papers' normalized units when the scene "
-                        'records a normalization)')
+    options.add_arguments(p, TABLE_KEYS[TABLE_KEYS.index('extent_factor'):], TYPES)
+    cli.add_units(p)
     p.add_argument('--json', action='store_true', help='print the result as JSON')
     p.add_argument('--output', default=None, metavar='FILE.yaml',
                    help='write the balanced scene (loadable by every other command) to a '
@@ -261,8 +206,9 @@ def _check_options(args):
 
 def cmd_balance(args):
     """Balance a scene and print the design, the before/after table and the certificate."""
-    from mech_balance import schema as scene_mod
-    from mech_balance.balancing import counterweights as cw_mod, socp as balancing, two_point
+    from mech_balance import balancing as front, schema as scene_mod
+    from mech_balance.balancing import two_point
+    from mech_balance.core.rig import rig_for
     if args.samples is not None and args.samples < 4:
         raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
     _check_options(args)
@@ -285,32 +231,24 @@ def cmd_balance(args):
         return _analytic(sc, args)
     if args.counterweights is not None:
         return _counterweights(sc, args)
-    paper = args.paper_constraints
-    result = balancing.optimize(
-        sc, weights=defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
-        case=DEFAULT_CASE if args.case is None else args.case,
-        realizable=not args.no_realizable, paper_constraints=paper,
-        samples=args.samples, torque_weight=args.torque_weight,
-        reaction_weight=args.reaction_weight, max_added_mass_kg=args.max_added_mass,
-        fixed_links=tuple(args.fix), mass_factors=tuple(args.mass_factors),
-        distance_factors=tuple(args.distance_factors), centroidal_margin=args.margin)
+    design = front.balance(rig_for(sc), 'redistribution',
+                           **options.from_args(args, 'redistribution', PLANAR_KEYS))
+    result = design.result
     if args.output:
         _write(result.balanced_scene, args.output, result.summary())
     table12 = None
     if args.model == 'two-point':
         table12 = two_point.table12(sc, result.weights, args.samples)
-    from mech_balance.analysis import identify  # a calibrated scene: +-1 SE of its inertias
-    confidence = identify.balance_confidence(sc, result.balanced_scene)
     if args.json:
-        out = result.to_dict()
-        out['identification_confidence'] = confidence
-        out['cost'] = cw_mod.cost_of_balancing(sc, result.balanced_scene, result.table)
+        out = design.to_dict(args.normalized)
         if table12 is not None:
-            out['two_point_model'] = table12.to_dict()
+            out['report']['two_point_model'] = table12.to_dict()
         print(jsonout.dumps(out))
         return exit_status(result.certificate)
-    print(format_result(result, normalized=not args.si))
+    print(format_result(result, normalized=args.normalized, cost=design.report['cost']))
+    confidence = design.report.get('identification_confidence')
     if confidence is not None:
+        from mech_balance.analysis import identify
         print(identify.format_balance_confidence(confidence))
     if table12 is not None:
         print('\n' + format_table12(table12))
@@ -359,30 +297,26 @@ def _certified_gap():
 
 
 def _counterweights(sc, args):
-    from mech_balance.balancing import counterweights as cw_mod
-    result = cw_mod.balance_with_counterweights(
-        sc, args.counterweights,
-        defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
-        density_kg_m3=args.density, max_thickness_m=args.max_thickness,
-        max_radius_factor=args.max_radius_factor, max_mass_factor=args.max_mass_factor,
-        max_gyration_factor=args.max_gyration_factor, torque_weight=args.torque_weight,
-        reaction_weight=args.reaction_weight, samples=args.samples, planes=args.planes,
-        max_rim_radius_factor=args.max_rim_radius_factor)
+    from mech_balance import balancing as front
+    from mech_balance.core.rig import rig_for
+    design = front.balance(rig_for(sc), 'counterweights',
+                           **options.from_args(args, 'counterweights', PLANAR_KEYS))
+    result = design.result
     if args.output:
         _write(result.balanced_scene, args.output, result.summary())
     for text in result.clearance.warnings():
         print(f'warning: {text}', file=sys.stderr)
     if args.json:
-        print(jsonout.dumps(result.to_dict()))
+        print(jsonout.dumps(design.to_dict(args.normalized)))
         return exit_status(result.certificate)
-    print(format_counterweights(result, normalized=not args.si))
+    print(format_counterweights(result, normalized=args.normalized))
     if args.output:
         print(f'scene with counterweights written to {args.output}')
     _warn(result.certificate)
     return exit_status(result.certificate)
 
 
-def format_counterweights(result, normalized=True):
+def format_counterweights(result, normalized=False):
     """Return a :class:`~mech_balance.counterweights.CounterweightResult` as readable text."""
     from mech_balance.balancing import counterweights as cw_mod
     sc, opt = result.scene, result.options
@@ -469,8 +403,12 @@ def format_table12(r):
 # ============================================================================ text output
 
 
-def format_result(result, normalized=True):
-    """Return a :class:`~mech_balance.balancing.BalanceResult` as readable text."""
+def format_result(result, normalized=False, cost=None):
+    """
+    Return a :class:`~mech_balance.balancing.socp.BalanceResult` as readable text.
+
+    ``cost`` is the design's cost of balancing (the report's; computed when None).
+    """
     from mech_balance.balancing import counterweights as cw_mod
     sc = result.scene
     view = normalized and sc.normalization is not None
@@ -507,8 +445,9 @@ def format_result(result, normalized=True):
                      f"{s2['status']}, {s2['iterations']} iterations)")
     lines.append('design realizable: ' + ('yes' if result.realizable else 'NO ('
                  + ', '.join(d.name for d in result.links if not d.realizable) + ')'))
-    lines.append(cw_mod.format_cost(cw_mod.cost_of_balancing(sc, result.balanced_scene,
-                                                             result.table)))
+    if cost is None:
+        cost = cw_mod.cost_of_balancing(sc, result.balanced_scene, result.table)
+    lines.append(cw_mod.format_cost(cost))
     lines.append(f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
                  f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
                  f'{result.conic_time_s * 1e3:.1f} ms)')
@@ -611,33 +550,39 @@ def _paper_design_links(sc, x, counterweights):
 
 
 def _analytic(sc, args):
-    from mech_balance.balancing import counterweights as cw_mod, socp as balancing
+    from mech_balance import balancing as front
+    from mech_balance.balancing import counterweights as cw_mod
+    from mech_balance.core.rig import rig_for
+    rig = rig_for(sc)
     kinds = {j.joint_type for j in sc.joints}
     if 'prismatic' in kinds:
-        results = [balancing.slider_crank_balance(sc, samples=args.samples),
-                   balancing.slider_crank_balance(sc, printed_eq75=True, samples=args.samples)]
+        designs = [front.balance(rig, 'analytic', samples=args.samples),
+                   front.balance(rig, 'analytic', printed_eq75=True, samples=args.samples)]
     else:
         factors = args.mass_factor or list(TABLE3_MASS_FACTORS)
         inertia = 'centroidal' if args.keep_centroidal else 'distance'
-        results = [balancing.four_bar_balance(sc, k, inertia, samples=args.samples)
-                   for k in factors]
+        designs = [front.balance(rig, 'analytic', mass_factor=k, inertia=inertia,
+                                 samples=args.samples) for k in factors]
+    results = [d.result for d in designs]
     if args.output:
         _write(results[0].balanced_scene, args.output,
                {'source_scene': sc.name, 'method': results[0].method,
                 'parameters': results[0].parameters})
     if args.json:
-        print(jsonout.dumps([r.to_dict() for r in results]))
+        out = designs[0].to_dict(args.normalized)
+        out['report']['variants'] = [d.to_dict(args.normalized) for d in designs[1:]]
+        print(jsonout.dumps(out))
         return 0
-    view = not args.si and sc.normalization is not None
+    view = args.normalized and sc.normalization is not None
     blocks = []
-    for r in results:
+    for d, r in zip(designs, results):
         params = ', '.join(f'{k} = {v:.6g}' if isinstance(v, float) else f'{k} = {v}'
                            for k, v in r.parameters.items())
         blocks.append('\n'.join([
             f'{r.method}', f'parameters: {params}', '',
             _links_table(r.links, view, sc), '', _before_after_text(r.table, not view), '',
             f'RMS shaking force after / before: {r.force_rms_ratio:.3e}',
-            cw_mod.format_cost(cw_mod.cost_of_balancing(sc, r.balanced_scene, r.table))]))
+            cw_mod.format_cost(d.report['cost'])]))
     text = ('\n\n' + '=' * 99 + '\n\n').join(blocks)
     print(f'scene: {sc.name} ({sc.source})\n\n{text}')
     if args.output:
@@ -657,9 +602,11 @@ def _weights(sc, args):
     result = design.result
     if args.output:
         spatial.write_scene(result, args.output)
-    report = weights.balance_report(rig, result, normalized=not args.si)
+    report = weights.balance_report(rig, result, normalized=args.normalized)
     if args.json:
-        print(jsonout.dumps(report))
+        out = design.to_dict(args.normalized)
+        out['report'] = report   # the seed 002 report in the units asked for
+        print(jsonout.dumps(out))
         return 0
     print(weights.format_report(report))
     print(f'certificate: RMS shaking moment {result.moment_rms_optimal_Nm:.9g} N m, safe '
@@ -688,47 +635,39 @@ def _spatial(sc, args):
         return _weights(sc, args)
     if args.output:
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
-    options = {'samples': args.samples}
-    weights = defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights)
-    if method == 'force_balance':
-        options['free'] = tuple(args.free) or None
-    elif method == 'redistribution':
+    keys = SPATIAL_KEYS.get(method, ('samples',))
+    if method == 'redistribution':
         # checked where read, before the solve (spatial.redistribute checks them again)
         defaults.check_range('--extent-factor', args.extent_factor,
                              *defaults.EXTENT_FACTOR_RANGE)
         for option, (low, high) in front.option_ranges(rig, method).items():
             for value in getattr(args, option):
                 defaults.check_range(f'--{option.replace("_", "-")}', value, low, high)
-        options.update(weights=weights, mass_factors=tuple(args.mass_factors),
-                       fixed_links=tuple(args.fix), extent_factor=args.extent_factor,
-                       force_balanced=args.force_balanced)
-    else:
-        if not args.counterweights:
-            raise ValueError('--method counterweights: expected --counterweights LINK[,LINK...]')
-        options.update(links=args.counterweights, weights=weights,
-                       density_kg_m3=args.density, max_mass_factor=args.max_mass_factor,
-                       max_radius_factor=args.max_radius_factor)
+    elif method == 'counterweights' and not args.counterweights:
+        raise ValueError('--method counterweights: expected --counterweights LINK[,LINK...]')
+    extent = options.BY_KEY['extent_factor'].default
     for option, value in (('--free', args.free), ('--force-balanced', args.force_balanced),
-                          ('--extent-factor', args.extent_factor != 1.5)):
+                          ('--extent-factor', args.extent_factor != extent)):
         wanted = {'--free': 'force_balance', '--force-balanced': 'redistribution',
                   '--extent-factor': 'redistribution'}[option]
         if value and method != wanted:
             raise ValueError(f'{option}: applies to --method {wanted.replace("_", "-")}, got '
                              f'method {method}; expected no {option}')
-    design = front.balance(rig, method, **options)
+    opts = options.from_args(args, method, keys)
+    design = front.balance(rig, method, **opts)
     if args.output:
         spatial.write_scene(design.result, args.output)
     if args.json:
-        print(jsonout.dumps(design.report))
+        print(jsonout.dumps(design.to_dict(args.normalized)))
     else:
-        print(format_spatial(design))
+        print(format_spatial(design, args.normalized))
         if args.output:
             print(f'balanced scene written to {args.output}')
     cert = getattr(design.result, 'certificate', None)
     return 0 if cert is None or cert.certified else 2
 
 
-def format_spatial(design):
+def format_spatial(design, normalized=False):
     """Return a spatial design (:mod:`mech_balance.balancing.spatial`) as readable text."""
     from mech_balance.balancing import spatial
     rep = design.report
@@ -771,7 +710,7 @@ def format_spatial(design):
                      f"{cert['gap_rel']:.2e}), max violation {cert['max_violation']:.1e}, "
                      f"{'certified' if cert['certified'] else 'NOT certified'}")
     lines += ['', f"{'quantity':<18}{'unit':<16}{'before':>12}{'after':>12}{'change %':>10}"]
-    for r in rep['table']:
+    for r in design.table_in(normalized):
         change = 'n/a' if r['change_percent'] is None else f"{r['change_percent']:.1f}"
         lines.append(f"{r['quantity']:<18}{r['unit']:<16}{r['before']:>12.5g}"
                      f"{r['after']:>12.5g}{change:>10}")

@@ -109,10 +109,7 @@ def cmd_identify(args):
     if args.output:
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
     sc = scene_mod.load(args.scene)
-    if 'identification' not in scene_mod.kind_of(sc).rig_factory().capabilities:
-        raise identify.IdentifyError(f'--scene: got {sc.name!r} of kind '
-                                     f'{scene_mod.kind_of(sc).name}, expected a planar scene '
-                                     f'({identify.SPATIAL_NOT_YET})')
+    identify.check_identifiable(sc)   # before the recording is read
     if args.window is not None and (args.window < identify.MIN_WINDOW or args.window % 2 == 0):
         raise identify.IdentifyError(f'--window: got {args.window}, expected an odd number of '
                                      f'samples >= {identify.MIN_WINDOW}')

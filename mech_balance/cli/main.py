@@ -125,6 +125,16 @@ def requires(sc, capability, **given):
                              f'of kind {kind.name}; expected no {option}')
 
 
+def add_units(p):
+    """Add ``--normalized`` and ``--si`` (SI is the default of every verb; ``--si`` accepted)."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument('--normalized', action='store_true',
+                   help="print in the papers' normalized units (m1, a1, omega) recorded in the "
+                        'scene (default: SI)')
+    g.add_argument('--si', action='store_true',
+                   help='print SI values (the default; kept for scripts that pass it)')
+
+
 def _add_scene(p):
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
@@ -164,8 +174,7 @@ def build_parser():
                                    'driving torque, shaking force and moment (RMS and max), '
                                    'worst Newton residual and Jacobian condition number.')
     _add_scene(p)
-    p.add_argument('--normalized', action='store_true',
-                   help="print in the papers' units (m1, a1, omega) recorded in the scene")
+    add_units(p)
     p.add_argument('--samples', type=_samples, default=None,
                    help="crank angles per revolution (default: the scene's, usually 360)")
     p.add_argument('--design', type=_design, default=None, metavar='X1,X2,...',

@@ -90,6 +90,9 @@ def balanced_design(sc, weights=defaults.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
                 'seed 002 complete force balance with the minimum RMS shaking moment '
                 '(mech_balance.balancing.weights)')
     design = front.balance(rig, method, weights=tuple(weights), case=case)
+    if front.METHODS[method] not in rig.capabilities:   # the spatial implementation
+        return (design.scene, f'{design.report["method"]}, (w1, w2) = ({weights[0]:g}, '
+                f'{weights[1]:g}) (mech_balance.balancing.spatial)')
     return (design.scene,
             f'seed 001 optimum, (w1, w2) = ({weights[0]:g}, {weights[1]:g}), case {case} '
             '(mech_balance.balancing.optimize)')
@@ -114,10 +117,10 @@ def cmd_record(args):
         balanced = scene.load(args.design)
         source = f'scene file {balanced.source}'
     elif args.counterweights is not None:
-        from mech_balance.balancing import counterweights as cw_mod
+        from mech_balance import balancing as front
         weights = defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights)
-        result = cw_mod.balance_with_counterweights(sc, args.counterweights, weights)
-        balanced = result.balanced_scene
+        balanced = front.balance(sc, 'counterweights', links=args.counterweights,
+                                 weights=weights).scene
         source = (f'add-only counterweights on {args.counterweights}, (w1, w2) = '
                   f'({weights[0]:g}, {weights[1]:g}) (mech_balance.balancing.counterweights)')
     elif args.balance:

@@ -42,11 +42,13 @@ def register(sub):
     """Add the ``simulate`` and ``accuracy`` parsers to the ``mech-balance`` subparsers."""
     p = sub.add_parser(
         'simulate', help='forward dynamics: start-up and steady state with motor and damping',
-        description='Integrate the equation of motion of a planar rig (seed 000 eq. 39) with '
-                    "the scene's drive: section (DC motor line, PI speed controller, joint "
-                    'damping; gravity from gravity_m_s2). Prints the method used and why, '
-                    'crank speed ripple, driving torque and shaking wrench over time, and '
-                    'the energy balance. A scene without a drive coasts from its crank speed.')
+        description='Integrate the equation of motion of a rig of any kind (seed 000 eq. 39, '
+                    "built from the rig's own inverse dynamics) with the scene's drive: "
+                    'section (DC motor line, PI speed controller, joint damping, input '
+                    'flywheel; gravity from gravity_m_s2). Prints the method used and why, '
+                    'the model error, crank speed ripple, driving effort and shaking wrench '
+                    'over time, and the energy balance. A scene without a drive coasts from '
+                    'its crank speed.')
     p.add_argument('--scene', default='slider_crank',
                    help='built-in scene name or path to a YAML file (default: %(default)s)')
     p.add_argument('--duration', type=_positive_float, required=True, metavar='T',
@@ -58,8 +60,8 @@ def register(sub):
                    help='relative tolerance (absolute tolerances scale with the rig; '
                         'default: %(default)g)')
     p.add_argument('--rhs', default='table', choices=('table', 'direct'),
-                   help='right-hand side from checked Fourier tables of the core (fast) or '
-                        'the core at every call (default: %(default)s)')
+                   help="right-hand side from checked Fourier tables of the rig's inverse "
+                        'dynamics (fast) or the rig at every call (default: %(default)s)')
     p.add_argument('--rows', type=_rows, default=20,
                    help='rows of the time table (default: %(default)s)')
     p.add_argument('--json', action='store_true', help='print the summary as JSON')
@@ -95,14 +97,25 @@ def cmd_simulate(args):
         print(jsonout.dumps(rep.summary))
     else:
         print(simulation.format_report(rep, rows=args.rows))
-    for text in rep.simulation.model.rig.linkage.warnings:
+    rig = rep.simulation.model.rig
+    # the rig's own warnings (spatial rigs), else its linkage's (planar)
+    texts = getattr(rig, 'warnings', None) or getattr(getattr(rig, 'linkage', None),
+                                                      'warnings', ())
+    for text in texts:
         print(f'warning: {text}', file=sys.stderr)
     return 0
 
 
 def cmd_accuracy(args):
     """Run the accuracy studies and print their tables."""
+    from mech_balance import schema
     from mech_balance.bench import accuracy
+    from mech_balance.core.rig import require
+    if args.sections != studies.SECTIONS:   # sections asked for by name: refused up front
+        sc = schema.load(args.scene)
+        for name in args.sections:
+            if name in accuracy.SECTION_CAPABILITY:
+                require(sc, accuracy.SECTION_CAPABILITY[name], f'accuracy --sections {name}')
     progress = (lambda s: print(s, file=sys.stderr, flush=True))  # noqa: E731
     result = accuracy.run(args.scene, args.sections, args.duration, progress=progress)
     if args.json:

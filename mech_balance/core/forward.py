@@ -1,35 +1,58 @@
 """
-Forward dynamics of a planar rig: DC motor, PI speed controller, joint damping, gravity.
+Forward dynamics of any single-input rig, from its own inverse dynamics.
 
-Equation of motion (seed 000 eqs. 39 and 43, generalized to every single-input planar scene)
+Equation of motion (seed 000 eqs. 39 and 43, for every rig of the Rig protocol)
 
-    (I(psi) + N^2 J_r) psi'' = C(psi, psi') psi' + tau_A + tau_D + tau_G
+    (I(psi) + J_in + N^2 J_r) psi'' = c1(psi) psi'^2 + tau_A + tau_D + tau_G
 
-* ``I(psi) = u^T M u`` and ``C psi' = -u^T M u' psi'`` come from the core
-  (:func:`mech_balance.dynamics.generalized_inertia` and ``coriolis_term``).
-  ``C psi'`` is quadratic in the crank speed: ``C psi' = c1(psi) psi'^2`` with ``c1`` the
-  core's ``C psi'`` at unit speed (and, for any one-degree-of-freedom system,
-  ``c1 = -I'(psi) / 2``; tested).
+psi is the input's cycle coordinate: the crank angle, or for a prismatic input the angle of
+its Scotch-yoke crank (the slide is x(psi), :attr:`Rig.joint_prismatic`).  The rig's own
+inverse dynamics (:meth:`Rig.at` with the output ``driving_torque``) gives the effort e on
+the input joint (N*m about a revolute input, N along a slide: :attr:`Rig.driving_series`) at
+(psi, psi', psi''); its generalized force on psi is ``Q = e dx/dpsi`` (virtual work; dx/dpsi
+is the input joint's rate at unit crank speed, 1 for a crank).  For rigid bodies with one
+degree of freedom Q is affine in the acceleration and quadratic in the speed,
+
+    Q(psi, w, a) = I(psi) a - c1(psi) w^2 - tau_G(psi),
+
+so three batched evaluations give the functions of the ODE (:func:`rig_functions`):
+``tau_G = -Q(psi, 0, 0)``, ``I = (Q(psi, 0, a0) - Q(psi, 0, 0)) / a0`` and
+``c1 = -(Q(psi, w0, 0) - Q(psi, 0, 0)) / w0^2`` (w0 the scene's crank speed, a0 = w0^2: the
+three torques of one size).  For any one-dof system ``c1 = -I'(psi) / 2`` (tested), and a
+fourth evaluation at (2 w0, -a0) checks the affine-quadratic form and the rig's kinetic energy
+checks I (``I = 2 T / psi'^2``): the ``structure`` and ``energy`` errors of the tables.
+
 * ``tau_A = N tau_m`` is the motor torque through a gear of ratio N (motor speed N psi');
-  ``J_r`` is the rotor inertia.  The motor is a DC motor on its torque-speed line,
+  ``J_r`` is the rotor inertia, ``J_in`` a flywheel on the input shaft
+  (``drive.input_inertia_kg_m2``).  The motor is a DC motor on its torque-speed line,
   ``tau_line = tau_stall (u - N psi' / omega_0)`` at the voltage fraction u (u = 1: the
   rated line), optionally with an electrical lag ``T_e tau_m' = tau_line - tau_m`` (T_e = L/R).
   u is constant, or set by a PI speed controller ``u = kp e + ki integral(e)``,
   ``e = setpoint - psi'``, clipped to ``|u| <= voltage_limit`` with conditional integration
   (the integral stops while the output is saturated and the error drives it further).
-* ``tau_D = -c_eff(psi) psi'``, ``c_eff = sum_j c_j (dq_j/dpsi)^2``: viscous damping of every
-  joint j on its relative rate q_j' (revolute: relative angle, N*m*s/rad; prismatic: slide,
-  N*s/m), i.e. the generalized force of the dissipation ``sum_j c_j q_j'^2``.
-* ``tau_G = sum_i m_i g . v_ci / psi'``: the scene's ``gravity_m_s2``; potential energy
-  ``V(psi) = -sum_i m_i g . c_i``.
+* ``tau_D = -c_eff(psi) psi'``, ``c_eff = sum_j c_j (dq_j/dpsi)^2``: viscous damping on the
+  rig's published joint coordinates q_j (:attr:`Rig.joint_names`; revolute: relative angle,
+  N*m*s/rad; prismatic: slide, N*s/m), the generalized force of the dissipation
+  ``sum_j c_j q_j'^2``.
+* ``tau_G``: the weights (a planar scene's ``gravity_m_s2``; spatial scenes have none), with
+  the potential ``V(psi) = -integral tau_G dpsi``.
+
+A prismatic input's I(psi) vanishes where dx/dpsi = 0 (the yoke's dead centres: the ideal
+yoke is massless); the motion through them needs a rotor or a flywheel on the yoke's crank,
+and :class:`ForwardDynamics` refuses a total inertia that is not positive over the turn.
 
 The right-hand side needs I, c1, tau_G, c_eff (and V for the energy balance) at one crank
-angle.  They depend on psi only, are 2 pi-periodic and analytic on a branch that turns
-fully, so they are tabulated once as Fourier series from one batched core evaluation
-(:class:`RigTables`; the series is truncated where the coefficients fall below
-``TABLE_TOL`` and checked against the core at the mid-points between the samples).  One
-table lookup costs a few microseconds against about 0.5 ms for a direct core evaluation;
-``rhs='direct'`` evaluates the core at every call instead (the check of the tables).
+angle.  They depend on psi only, are 2 pi-periodic and analytic on a branch that turns fully,
+so they are tabulated once as Fourier series (:class:`RigTables`): sampled at n angles per
+turn, n doubled from ``TABLE_MIN_SAMPLES`` until the upper quarter of the spectrum falls
+below ``TABLE_TOL``, the series truncated there, and checked against the rig at the n
+mid-points between the samples (where a trigonometric interpolant is furthest from its
+samples).  The largest relative deviation there is the model error the simulation reports
+(``table_error``, per function in ``table_errors``); above ``TABLE_CHECK_TOL`` the simulation
+evaluates the rig at every call instead.  V is the exact integral of the tau_G series, so
+its error is at most 2 pi times tau_G's.  One table lookup costs microseconds against 0.5
+(planar) to 5 ms (spatial) for an evaluation of the rig; ``rhs='direct'`` evaluates the rig at
+every call (the check of the tables).
 
 Stiffness: the Jacobian of the ODE is known analytically (table derivatives are exact
 Fourier derivatives).  Its largest eigenvalue modulus over a turn at the operating speed,
@@ -56,7 +79,8 @@ Drive schema (the scene's optional top-level ``drive:`` key; :func:`drive_from_d
         ki_per_rad: 0.5                   # >= 0, voltage fraction per rad of integrated error
         setpoint_rad_s: 31.4              # default: crank.speed_rad_s
         voltage_limit: 1.0                # > 0, |u| <= limit, default 1
-      joint_damping: {O: 1.0e-4, S: 0.5}  # >= 0 per joint name, default none
+      joint_damping: {O: 1.0e-4, S: 0.5}  # >= 0 per joint coordinate, default none
+      input_inertia_kg_m2: 0.0            # >= 0, flywheel on the input shaft, default 0
       initial_speed_rad_s: 0.0            # default: 0 with a motor, crank.speed_rad_s without
       initial_crank_angle_deg: 0.0        # default: assembly.crank_angle_deg
 """
@@ -68,8 +92,7 @@ import time
 from mech_balance import schema as scene_mod
 from mech_balance.core.integrators import DEFAULT_RTOL, EXPLICIT_METHODS, IMPLICIT_METHODS, \
     METHODS, REFERENCE_RTOL  # noqa: F401 - read as forward.EXPLICIT_METHODS, ...
-from mech_balance.core.planar import dynamics
-from mech_balance.core.planar.rig import PlanarRig
+from mech_balance.core.rig import rig_for
 from mech_balance.schema import fields
 from mech_balance.schema.drive import Drive, drive_from_dict, DriveError, Motor, SpeedController
 import numpy as np
@@ -84,11 +107,18 @@ cost per step the measured break-even is near 100 (see ``mech-balance accuracy``
 TABLE_TOL = 1e-14
 """Fourier coefficients below this fraction of a function's scale are dropped."""
 TABLE_CHECK_TOL = 1e-11
-"""Largest relative deviation of a table from the core (mid-point check) that is accepted;
-beyond it (or beyond ``TABLE_MAX_SAMPLES``) the simulation evaluates the core directly."""
+"""Largest relative deviation of a table from the rig (mid-point check) that is accepted;
+beyond it (or beyond ``TABLE_MAX_SAMPLES``) the simulation evaluates the rig directly."""
 TABLE_MIN_SAMPLES = 64
 TABLE_MAX_SAMPLES = 4096
 """Samples per turn when tabulating; doubled from the minimum until the series converges."""
+INERTIA_FLOOR_REL = 1e-9
+"""Smallest total generalized inertia over a turn, relative to its largest, that is accepted
+(below it psi'' is not defined where the inertia vanishes: a yoke's dead centre)."""
+POTENTIAL_NODES = 16
+"""Gauss-Legendre nodes per panel of the direct path's potential quadrature."""
+POTENTIAL_PANEL_RAD = math.pi / 4.0
+"""Widest panel of that quadrature (the integrand is analytic: 16 nodes reach round-off)."""
 STIFFNESS_PROBE_ANGLES = 16
 """Crank angles per turn at which the ODE Jacobian's eigenvalues are computed."""
 OMEGA_FLOOR_REL = 1e-9
@@ -107,106 +137,165 @@ class _TooManyEvaluations(Exception):
 
 
 def load(name_or_path):
-    """Return ``(scene, drive)`` of a planar scene by built-in name or path."""
-    sc = _planar(scene_mod.load(name_or_path))
+    """Return ``(scene, drive)`` of a scene of any kind by built-in name or path."""
+    sc = scene_mod.load(name_or_path)
     return sc, drive_of(sc)
 
 
-def drive_of(sc):
-    """Return the validated :class:`Drive` of a scene's ``drive`` key (empty without one)."""
-    return drive_from_dict(getattr(sc, 'drive', None), sc)
+def drive_of(sc, joint_names=None):
+    """
+    Return the validated :class:`Drive` of a scene's ``drive`` key (empty without one).
+
+    ``joint_names``: the rig's joint coordinates to check ``joint_damping`` against (the
+    scene's loader checked a planar scene's already; a rig checks the rest when built).
+    """
+    return drive_from_dict(getattr(sc, 'drive', None), joint_names=joint_names)
 
 
-def _planar(sc):
-    kind = scene_mod.kind_of(sc)
-    if 'forward_dynamics' not in kind.rig_factory().capabilities:
-        raise ValueError(f'scene: got {sc.name!r} of kind {kind.name!r}, expected a planar '
-                         'scene (the forward dynamics covers planar rigs)')
-    return sc
+def rig_of(scene_or_rig):
+    """
+    Return the rig to simulate: a rig as given, a scene's through :func:`rig_for`.
+
+    Refuses, in one line and before any work, a rig without the capability the forward
+    dynamics is built from (``driving_torque``, the inverse dynamics).
+    """
+    rig = scene_or_rig if hasattr(scene_or_rig, 'at') else rig_for(scene_or_rig)
+    if 'driving_torque' not in rig.capabilities:
+        raise ValueError(
+            f'simulate: rig {rig.name!r} of kind {scene_mod.kind_of(rig).name!r} lacks the '
+            'capability driving_torque (its inverse dynamics), which the forward dynamics '
+            'is built from')
+    return rig
 
 
 # ============================================================================ rig functions
 
 
 FUNCTIONS = ('inertia', 'c1', 'tau_gravity', 'damping', 'potential')
-"""What :func:`rig_functions` returns per crank angle, in this order (SI, unit crank speed):
-I (kg*m^2), c1 = C psi' at psi' = 1 (kg*m^2), tau_G (N*m), c_eff (N*m*s/rad), V (J)."""
+"""The functions of the ODE per crank angle, in this order (SI): I (kg*m^2), c1 = C psi' at
+psi' = 1 (kg*m^2), tau_G (N*m), c_eff (N*m*s/rad), V (J); :func:`rig_functions` returns the
+first four, :class:`RigTables` all five."""
 
 
-def rig_functions(rig, psi, damping=None):
+def _reference_speed(rig):
+    """Return w0 (rad/s) of :func:`rig_functions`: the scene's crank speed, else 1."""
+    w0 = abs(float(rig.scene.crank_speed_rad_s))
+    return w0 if math.isfinite(w0) and w0 > 0.0 else 1.0
+
+
+def rig_functions(rig, psi, damping=None, check=False):
     """
-    Return the ``(5, p)`` array of :data:`FUNCTIONS` at crank angles ``psi`` (rad).
+    Return the ``(4, p)`` array of I, c1, tau_G, c_eff at crank angles ``psi`` (rad).
 
-    One batched core evaluation at unit crank speed and zero crank acceleration: then
-    ``u = t`` (the twists per unit crank speed) and ``C psi' = -u^T M u'`` is the core's
-    Coriolis term (seed 000 eq. 39).
+    From the rig's inverse dynamics (module docstring): one batched :meth:`Rig.at` of the
+    speed-acceleration pairs (0, 0), (0, a0), (w0, 0).  A rig whose inverse dynamics does
+    not take a crank acceleration (its :attr:`RigData.crank_accel_rad_s2` is not the one
+    asked for) gives I through its kinetic energy instead, ``I = 2 T(psi, w0) / w0^2``, and
+    is refused without the capability ``kinetic_energy``.  With ``check`` also return the
+    ``(p,)`` residuals (N*m) of the two checks of the model error: ``structure``, the effort
+    at (2 w0, -a0) against the affine-quadratic form (at (2 w0, 0) without accelerations),
+    and ``energy``, ``(I - 2 T / w0^2) a0`` (where both formulations exist).
     """
     psi = np.atleast_1d(np.asarray(psi, dtype=float))
-    data = rig.at(psi, speed=1.0, accel=0.0, outputs=('shaking_wrench',))
-    state, wrenches = data.native
-    inertia = rig.inertia
-    out = np.zeros((len(FUNCTIONS), psi.size))
-    out[0] = dynamics.generalized_inertia(state, inertia)
-    out[1] = dynamics.coriolis_term(state, inertia, wrenches)
-    g = complex(*rig.scene.gravity_m_s2)
-    if g:
-        # seed 000 eq. 43, tau^G = u^T w^G: power of the weights per unit crank speed
-        out[2] = dynamics.gravity_power(state, inertia, g)
-        out[4] = dynamics.potential_energy(state, inertia, g)
-    if damping:
-        # sum_j c_j (dq_j/dpsi)^2: the joint rates at unit crank speed are dq_j/dpsi
-        names = list(data.joint_names)
-        for name, c in damping.items():
-            if c:
-                rate = data.joint_velocity[:, names.index(name)]
-                out[3] += c * rate * rate
-    return out
+    p = psi.size
+    w0 = _reference_speed(rig)
+    a0 = w0 * w0
+    speeds = [0.0, 0.0, w0] + ([2.0 * w0] if check else [])
+    accels = [0.0, a0, 0.0] + ([-a0] if check else [])
+    k = len(speeds)
+    energy = 'kinetic_energy' in rig.capabilities
+    accel = np.repeat(accels, p)
+    data = rig.at(np.tile(psi, k), speed=np.repeat(speeds, p), accel=accel,
+                  outputs=('driving_torque', 'kinetic_energy') if energy else
+                  ('driving_torque',))
+    honoured = np.allclose(data.crank_accel_rad_s2, accel, rtol=1e-12, atol=0.0)
+    if not (honoured or energy):
+        raise ValueError(
+            f'simulate: rig {rig.name!r} of kind {scene_mod.kind_of(rig).name!r} evaluates no '
+            'crank acceleration and lacks the capability kinetic_energy; the forward '
+            'dynamics needs one of them for the generalized inertia')
+    ci = rig.joint_names.index(rig.crank_joint)
+    unit = data.joint_velocity[2 * p:3 * p] / w0       # joint rates per unit crank speed
+    effort = data.series[rig.driving_series].reshape(k, p) * unit[:, ci]   # Q = e dx/dpsi
+    out = np.zeros((4, p))
+    by_energy = 2.0 * data.series['kinetic_energy'][2 * p:3 * p] / a0 if energy else None
+    out[0] = (effort[1] - effort[0]) / a0 if honoured else by_energy
+    out[1] = -(effort[2] - effort[0]) / a0
+    out[2] = -effort[0]
+    for name, c in (damping or {}).items():
+        if c:
+            rate = unit[:, rig.joint_names.index(name)]
+            out[3] += c * rate * rate
+    if not check:
+        return out
+    model = -4.0 * out[1] * a0 - out[2] - (out[0] * a0 if honoured else 0.0)
+    residuals = {'structure': effort[3] - model}
+    if honoured and energy:       # two formulations of I: Newton-Euler and the energy
+        residuals['energy'] = (out[0] - by_energy) * a0
+    return out, residuals
 
 
 class RigTables:
     """
-    Fourier series of :data:`FUNCTIONS` over one crank turn, checked against the core.
+    Fourier series of :data:`FUNCTIONS` over one crank turn, checked against the rig.
 
     ``values(psi)`` returns the five functions and their psi-derivatives at one angle.
     ``samples`` is the number of tabulated angles per turn, ``harmonics`` the kept series
-    length, ``error`` the largest relative deviation from the core at the mid-points.
+    length, ``errors`` the largest relative deviation of each function from the rig at the
+    mid-points (``potential``: the bound 2 pi times tau_G's; ``inertia_slope``: the series'
+    I'(psi) against the rig's -2 c1, seed 000 eq. 41; ``structure`` and ``energy``: the
+    checks of :func:`rig_functions`, relative to the torque scale), ``error`` the largest of
+    them, ``ok`` whether it is within ``TABLE_CHECK_TOL``.
     """
 
     def __init__(self, rig, damping=None, tol=TABLE_TOL):
         n = TABLE_MIN_SAMPLES
+        psi = 2.0 * math.pi * np.arange(n) / n
+        vals = rig_functions(rig, psi, damping)
         while True:
-            psi = 2.0 * math.pi * np.arange(n) / n
-            vals = rig_functions(rig, psi, damping)
             scale = self._scales(vals)
             spec = np.fft.rfft(vals, axis=1) / n
-            tail = np.max(np.abs(spec[:, n // 4:]) / scale[:, None])
+            tail = float(np.max(np.abs(spec[:, n // 4:]) / scale[:, None]))
+            mid = psi + math.pi / n
+            direct, checks = rig_functions(rig, mid, damping, check=True)
             if tail < tol or n >= TABLE_MAX_SAMPLES:
                 break
+            # the mid-points are the next level's odd samples
+            psi = np.column_stack([psi, mid]).ravel()
+            vals = np.stack([vals, direct], axis=2).reshape(vals.shape[0], -1)
             n *= 2
         keep = np.abs(spec[:, :n // 4 + 1]) >= tol * scale[:, None]
         k_max = max(int(np.max(np.nonzero(keep.any(axis=0))[0], initial=0)), 1)
         coef = spec[:, :k_max + 1].copy()
         coef[:, 1:] *= 2.0
         self.k = np.arange(k_max + 1)
+        # V = -integral tau_G: term by term; the mean of tau_G (zero for weights) is left out
+        pot = np.zeros(k_max + 1, dtype=complex)
+        pot[1:] = -coef[2, 1:] / (1j * self.k[1:])
+        coef = np.vstack([coef, pot])
         self._stack = np.vstack([coef, coef * 1j * self.k])    # values, then d/dpsi
-        self.samples, self.harmonics, self.tail = n, k_max, float(tail)
-        self.scale = scale
-        mid = psi + math.pi / n
-        direct = rig_functions(rig, mid, damping)
-        table = np.array([self.values(x)[0] for x in mid]).T
-        err = np.max(np.abs(table - direct), axis=1) / scale
-        if np.any(vals[4]):       # the potential's constant is irrelevant
-            err[4] = np.max(np.abs(np.diff(table[4] - direct[4]))) / scale[4]
-        self.errors = dict(zip(FUNCTIONS, err.tolist()))
-        self.error = float(np.max(err))
+        self.samples, self.harmonics, self.tail = n, k_max, tail
+        table, slope = (np.array(v).T for v in zip(*(self.values(x) for x in mid)))
+        err = np.max(np.abs(table[:4] - direct), axis=1) / scale
+        torque = 4.0 * max(scale[0], scale[1]) * _reference_speed(rig) ** 2 + scale[2]
+        self.gravity_mean = float(abs(spec[2, 0]))
+        errors = dict(zip(FUNCTIONS, err.tolist()))
+        v_scale = float(np.ptp(table[4])) if np.any(vals[2]) else 0.0
+        errors['potential'] = 2.0 * math.pi * (errors['tau_gravity'] * scale[2] +
+                                               self.gravity_mean) / v_scale if v_scale else 0.0
+        # I'(psi) of the series against the rig's c1 (seed 000 eq. 41: c1 = -I'/2)
+        errors['inertia_slope'] = float(np.max(np.abs(slope[0] + 2.0 * direct[1]))) / scale[0]
+        for name, residual in checks.items():
+            errors[name] = float(np.max(np.abs(residual))) / torque
+        self.scale = np.append(scale, v_scale or 1.0)
+        self.errors = errors
+        self.error = float(max(errors.values()))
         self.ok = self.error <= TABLE_CHECK_TOL
 
     @staticmethod
     def _scales(vals):
         scale = np.max(np.abs(vals), axis=1)
         scale[1] = max(scale[1], scale[0])          # c1 has the units of I
-        if scale[4] > 0.0:
-            scale[4] = max(np.ptp(vals[4]), np.finfo(float).tiny)
         return np.where(scale > 0.0, scale, 1.0)
 
     def values(self, psi):
@@ -215,22 +304,40 @@ class RigTables:
         out = (self._stack @ z).real
         return out[:5], out[5:]
 
+    def potential(self, psi):
+        """Return V(psi), J (zero mean over the turn)."""
+        return float(self.values(psi)[0][4])
+
 
 class _DirectFunctions:
-    """The rig functions evaluated by the core at every call (``rhs='direct'``)."""
+    """The rig functions evaluated by the rig at every call (``rhs='direct'``)."""
 
     SLOPE_STEP_RAD = 1e-6
 
     def __init__(self, rig, damping):
         self.rig, self.damping = rig, damping
+        x, w = np.polynomial.legendre.leggauss(POTENTIAL_NODES)
+        self._nodes, self._weights = 0.5 * (x + 1.0), 0.5 * w
 
     def values(self, psi):
+        """Return ``(f, df/dpsi)`` (V left 0: :meth:`potential` computes it)."""
         h = self.SLOPE_STEP_RAD
         f = rig_functions(self.rig, np.array([psi - h, psi, psi + h]), self.damping)
-        return f[:, 1], (f[:, 2] - f[:, 0]) / (2.0 * h)
+        df = (f[:, 2] - f[:, 0]) / (2.0 * h)
+        return np.append(f[:, 1], 0.0), np.append(df, -f[2, 1])
 
     def values_only(self, psi):
-        return rig_functions(self.rig, np.array([psi]), self.damping)[:, 0]
+        return np.append(rig_functions(self.rig, np.array([psi]), self.damping)[:, 0], 0.0)
+
+    def potential(self, psi):
+        """Return V(psi) = -integral of tau_G from 0 to psi (Gauss-Legendre panels), J."""
+        x = math.remainder(psi, 2.0 * math.pi)
+        panels = max(int(math.ceil(abs(x) / POTENTIAL_PANEL_RAD)), 1)
+        edges = np.linspace(0.0, x, panels + 1)
+        width = np.diff(edges)
+        nodes = (edges[:-1, None] + width[:, None] * self._nodes).ravel()
+        tau = rig_functions(self.rig, nodes)[2].reshape(panels, -1)
+        return -float(np.sum(width[:, None] * self._weights * tau))
 
 
 # ============================================================================ the ODE
@@ -286,12 +393,11 @@ class ForwardDynamics:
     """
 
     def __init__(self, scene_or_rig, drive=None, rhs='table'):
-        rig = scene_or_rig if isinstance(scene_or_rig, PlanarRig) else \
-            PlanarRig(_planar(scene_or_rig))
-        self.rig = rig
+        self.rig = rig = rig_of(scene_or_rig)
         self.scene = sc = rig.scene
         # no drive given: the scene's own (``drive:`` key); Drive() means none at all
-        self.drive = drive = drive_of(sc) if drive is None else drive_from_dict(drive, sc)
+        drive = getattr(sc, 'drive', None) if drive is None else drive
+        self.drive = drive = drive_from_dict(drive, joint_names=rig.joint_names)
         if rhs not in ('table', 'direct'):
             raise ValueError(f'rhs: got {rhs!r}, expected "table" or "direct"')
         damping = {k: v for k, v in drive.joint_damping.items() if v}
@@ -308,6 +414,7 @@ class ForwardDynamics:
         n_gear = motor.gear_ratio if motor else 1.0
         self.gear = n_gear
         self.rotor = n_gear ** 2 * motor.rotor_inertia_kg_m2 if motor else 0.0
+        self.added = self.rotor + drive.input_inertia_kg_m2   # turns with psi
         self.lag = bool(motor and motor.electrical_time_constant_s > 0.0)
         self.setpoint = None
         if pi is not None:
@@ -327,8 +434,29 @@ class ForwardDynamics:
         self.omega_ref = self._omega_ref()
         self.rhs_calls = 0
         self.max_evaluations = MAX_RHS_EVALUATIONS
+        self._check_inertia()
 
     # ------------------------------------------------------------------ set-up
+
+    def _check_inertia(self):
+        """Refuse a total generalized inertia that is not positive over the turn."""
+        grid = 2.0 * math.pi * np.arange(TABLE_MIN_SAMPLES) / TABLE_MIN_SAMPLES
+        if self.tables is not None:
+            inertia = np.array([self.tables.values(x)[0][0] for x in grid])
+        else:
+            inertia = rig_functions(self.rig, grid)[0]
+        total = inertia + self.added
+        peak = float(np.max(np.abs(total)))
+        low = int(np.argmin(total))
+        if not peak > 0.0 or total[low] <= INERTIA_FLOOR_REL * peak:
+            where = math.degrees(grid[low])
+            raise DriveError(
+                f'drive.input_inertia_kg_m2: got {self.drive.input_inertia_kg_m2!r} and a '
+                f'rotor of {self.rotor:g} kg*m^2, but the generalized inertia of '
+                f'{self.rig.name!r} falls to {total[low]:.3g} kg*m^2 near psi = {where:.4g} '
+                f'deg (largest {peak:.3g}): the acceleration is not defined there (the dead '
+                'centre of a prismatic input: the ideal yoke is massless); expected a flywheel '
+                '(drive.input_inertia_kg_m2 > 0) or a motor with rotor_inertia_kg_m2 > 0')
 
     def _omega_ref(self):
         """Return the operating crank speed: setpoint, motor speed, initial or scene speed."""
@@ -350,7 +478,7 @@ class ForwardDynamics:
         motor brakes beyond its no-load speed at the largest voltage it may apply.
         """
         grid = 2.0 * math.pi * np.arange(64) / 64
-        inertia = np.array([self.functions.values(x)[0][0] for x in grid]) + self.rotor
+        inertia = np.array([self.functions.values(x)[0][0] for x in grid]) + self.added
         bound = abs(self.initial_speed()) * math.sqrt(np.max(inertia) / np.min(inertia))
         bound = max(bound, self.omega_ref)
         if self.motor is not None:
@@ -368,11 +496,15 @@ class ForwardDynamics:
             return d.initial_speed_rad_s
         return 0.0 if d.motor is not None else self.scene.crank_speed_rad_s
 
+    def start_angle(self):
+        """Return the scene's assembly crank angle (rad; 0 for a scene that states none)."""
+        return float(getattr(self.scene, 'assembly_crank_angle_rad', 0.0))
+
     def initial_state(self):
         """Return the state vector at t = 0."""
         y = np.zeros(len(self.names))
         d = self.drive
-        y[0] = self.scene.assembly_crank_angle_rad if d.initial_crank_angle_deg is None \
+        y[0] = self.start_angle() if d.initial_crank_angle_deg is None \
             else math.radians(d.initial_crank_angle_deg)
         y[1] = self.initial_speed()
         return y
@@ -380,8 +512,8 @@ class ForwardDynamics:
     def atol(self, rtol):
         """Return the absolute tolerances per state (scaled by the rig's own units)."""
         w = self.omega_ref
-        f0 = self.functions.values(self.scene.assembly_crank_angle_rad)[0]
-        energy = 0.5 * (abs(f0[0]) + self.rotor) * w * w
+        f0 = self.functions.values(self.start_angle())[0]
+        energy = 0.5 * (abs(f0[0]) + self.added) * w * w
         scales = {'psi': 1.0, 'speed': w, 'pi_integral': 1.0,
                   'motor_torque': self.motor.stall_torque_Nm if self.motor else 1.0,
                   'motor_work': energy, 'damping_loss': energy}
@@ -436,7 +568,7 @@ class ForwardDynamics:
             self.functions.values_only(y[0])
         tau, _, dy = self._parts(y, f)
         w = y[1]
-        i_tot = f[0] + self.rotor
+        i_tot = f[0] + self.added
         dy[0] = w
         dy[1] = (f[1] * w * w + tau + f[2] - f[3] * w) / i_tot
         dy[self.i_w] = tau * w
@@ -448,7 +580,7 @@ class ForwardDynamics:
         f = self.functions.values(y[0])[0]
         tau, _, _ = self._parts(y, f)
         w = y[1]
-        return (f[1] * w * w + tau + f[2] - f[3] * w) / (f[0] + self.rotor), tau
+        return (f[1] * w * w + tau + f[2] - f[3] * w) / (f[0] + self.added), tau
 
     def jac(self, t, y, saturate=True):
         """Return the analytic Jacobian d(dy/dt)/dy (table derivatives are exact)."""
@@ -457,7 +589,7 @@ class ForwardDynamics:
         w = y[1]
         n = len(self.names)
         jm = np.zeros((n, n))
-        i_tot = f[0] + self.rotor
+        i_tot = f[0] + self.added
         acc = (f[1] * w * w + tau + f[2] - f[3] * w) / i_tot
         jm[0, 1] = 1.0
         jm[1, 0] = (df[1] * w * w + df[2] - df[3] * w - acc * df[0]) / i_tot
@@ -589,7 +721,7 @@ class ForwardDynamics:
     def energy(self, y):
         """Return the kinetic plus potential energy at state ``y``, in J."""
         f = self.functions.values(y[0])[0]
-        return 0.5 * (f[0] + self.rotor) * y[1] ** 2 + f[4]
+        return 0.5 * (f[0] + self.added) * y[1] ** 2 + self.functions.potential(y[0])
 
     def energy_residual(self, y0, y1):
         """
@@ -601,12 +733,13 @@ class ForwardDynamics:
         de = self.energy(y1) - self.energy(y0)
         work, loss = y1[self.i_w] - y0[self.i_w], y1[self.i_d] - y0[self.i_d]
         f0 = self.functions.values(y0[0])[0]
-        scale = max(abs(work), abs(loss), abs(de), self.energy(y0) - f0[4],
-                    0.5 * (f0[0] + self.rotor) * self.omega_ref ** 2, np.finfo(float).tiny)
+        kinetic = 0.5 * (f0[0] + self.added) * y0[1] ** 2
+        scale = max(abs(work), abs(loss), abs(de), kinetic,
+                    0.5 * (f0[0] + self.added) * self.omega_ref ** 2, np.finfo(float).tiny)
         res = work - loss - de
         return float(res), float(abs(res) / scale)
 
 
 __all__ = ['Drive', 'DriveError', 'ForwardDynamics', 'Motor', 'RigTables', 'Simulation',
            'SpeedController', 'Stiffness', 'drive_from_dict', 'drive_of', 'load',
-           'rig_functions']
+           'rig_functions', 'rig_of']

@@ -239,3 +239,35 @@ def batch(psi, speed, accel):
         raise ValueError('crank speed and acceleration: got non-finite values, expected '
                          'finite rad/s and rad/s^2')
     return psi, speed, accel
+
+
+class CapabilityError(ValueError):
+    """A verb asked of a rig whose kind lacks the capability it needs (one line)."""
+
+
+def as_rig(rig_or_scene):
+    """Return a :class:`Rig`: ``rig_or_scene`` itself if it is one, else its scene's rig."""
+    if hasattr(rig_or_scene, 'at') and hasattr(rig_or_scene, 'capabilities'):
+        return rig_or_scene
+    return rig_for(rig_or_scene)
+
+
+def require(rig_or_scene, capability, verb):
+    """
+    Raise :class:`CapabilityError` unless the rig (or a scene's kind) has ``capability``.
+
+    The message is one line naming the verb, the capability, the scene and its kind, and the
+    kinds that have it; verbs call this before doing any work.
+    """
+    kind = registry.kind_of(rig_or_scene)
+    caps = getattr(rig_or_scene, 'capabilities', None)
+    if caps is None:
+        caps = kind.rig_factory().capabilities
+    if capability in caps:
+        return
+    able = [k.name for k in registry.KINDS.values()
+            if capability in k.rig_factory().capabilities]
+    sc = getattr(rig_or_scene, 'scene', rig_or_scene)
+    raise CapabilityError(f'{verb}: needs the capability {capability!r}, which scene '
+                          f'{getattr(sc, "name", "?")!r} of kind {kind.name} lacks; expected '
+                          f'a scene of kind {" or ".join(able) or "(none yet)"}')

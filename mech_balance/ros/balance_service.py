@@ -106,9 +106,10 @@ class Balancer:
         Publish a result on ``~/balance_result``, write it to a file; return the answer.
 
         The answer is YAML whose first line, a comment, is :meth:`Design.summary` (one line
-        under 200 characters), the second where the full result is.
+        under 200 characters), the second where the full result is; the YAML is
+        :meth:`Design.to_dict` in SI, what ``mech-balance balance --json`` prints.
         """
-        text = yaml.safe_dump(design.report, sort_keys=False)
+        text = yaml.safe_dump(design.to_dict(), sort_keys=False)
         self.result_pub.publish(String(data=text))
         path = result_path(self._node.get_fully_qualified_name())
         try:

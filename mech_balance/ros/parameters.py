@@ -29,8 +29,13 @@ def build_model(name):
 
 
 def link_names(model):
-    """Return the links with ``balance.links.<link>.*`` options (redistributable rigs)."""
-    if 'mass_redistribution' not in model.rig.capabilities:
+    """
+    Return the links with ``balance.links.<link>.*`` options (redistributable rigs).
+
+    Every kind whose redistribution takes per-link options
+    (:func:`mech_balance.balancing.link_options`): planar and spatial scenes alike.
+    """
+    if not balancing.link_options(model.rig):
         return ()
     return tuple(lk.name for lk in model.scene.links)
 
@@ -122,7 +127,8 @@ class NodeParameters:
     def declare_link_parameters(self, model):
         """Declare ``balance.links.<link>.*`` for the scene's links; drop the others'."""
         self.links = link_names(model)
-        wanted = {spec.name: spec for spec in params.link_specs(self.links)}
+        wanted = {spec.name: spec for spec in params.link_specs(
+            self.links, balancing.link_options(model.rig) if self.links else ())}
         for name in [n for n in self.values if n.startswith(params.LINK_PREFIX)]:
             if name not in wanted:
                 if self.values.get(name):

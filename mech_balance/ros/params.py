@@ -18,9 +18,10 @@ import re
 
 from mech_balance import conventions, identifiers, paths
 from mech_balance.balancing import defaults as balancing_defaults
-from mech_balance.balancing import socp as balancing
+from mech_balance.balancing import options
+from mech_balance.balancing.options import LINK_OPTIONS, LINK_PREFIX, \
+    MAX_COUNTERWEIGHT_VALUE, MAX_MARGIN, parse_link_bounds, split_links  # noqa: F401
 from mech_balance.ros import sensor
-from mech_balance.schema import safe_yaml
 
 STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
     'double_array'
@@ -37,14 +38,6 @@ METHODS = ('redistribution', 'counterweights', 'analytic')
 spatial scene that lists ``balancing_weights``, the RGGR, is balanced by its own method,
 weights, when the method is the default, redistribution; other spatial scenes are
 redistributed)."""
-LINK_PREFIX = 'balance.links.'
-"""Per-link balancing options are ``balance.links.<link>.<option>``, declared from the scene."""
-LINK_OPTIONS = {'mass_bounds': ('kg', 'balance.mass_bounds', 'link mass bounds'),
-                'distance_bounds': ('m', 'balance.distance_bounds',
-                                    'point-mass distance bounds')}
-"""Per-link options: unit, the older text parameter they replace, what they bound."""
-MAX_COUNTERWEIGHT_VALUE = 1e6
-"""Largest counterweight density (kg/m^3), thickness (m) or factor accepted (a finite cap)."""
 MAX_CRANK_SPEED = 1000.0
 """Largest |crank_speed| accepted, rad/s (about 9500 rpm)."""
 MIN_PUBLISH_RATE = 0.1
@@ -55,8 +48,6 @@ MAX_SAMPLES = conventions.MAX_SAMPLES
 """Most crank angles per revolution in a balancing run."""
 MAX_WEIGHT = conventions.MAX_WEIGHT
 """Largest objective weight accepted."""
-MAX_MARGIN = 0.999
-"""Largest realizability margin (the balancing requires margin < 1)."""
 
 
 @dataclass(frozen=True)
@@ -112,97 +103,6 @@ def _joint_name(value):
     identifiers.check_name(value, 'crank_joint', allow_empty=True)
 
 
-def _weights(value):
-    """Accept [w1, w2] >= 0, not both 0 (weights of the RMS shaking force and moment)."""
-    if len(value) != 2 or not all(math.isfinite(v) and 0.0 <= v <= MAX_WEIGHT for v in value):
-        raise ValueError(f'balance.weights: got {list(value)}, expected [w1, w2] with '
-                         f'0 <= w1, w2 <= {MAX_WEIGHT:g} (seed 001 eq. 43; '
-                         'conventions.MAX_WEIGHT)')
-    if value[0] + value[1] == 0.0:
-        raise ValueError('balance.weights: got [0, 0], expected at least one positive weight')
-
-
-def _factors(name, ratio_range):
-    def check(value):
-        """Accept [low, high] factors of the original value, 0 < low <= high, in range."""
-        if len(value) != 2 or not all(math.isfinite(v) for v in value) or \
-                not 0.0 < value[0] <= value[1]:
-            raise ValueError(f'{name}: got {list(value)}, expected [low, high] with '
-                             '0 < low <= high (factors of the original link value)')
-        for v in value:
-            balancing_defaults.check_range(name, v, *ratio_range)
-    return check
-
-
-def _link_bounds(name, unit):
-    def check(value):
-        """Accept empty or a YAML mapping link: [min, max] in SI (max may be null)."""
-        parse_link_bounds(name, value, unit)
-    return check
-
-
-def parse_link_bounds(name, text, unit):
-    """
-    Return ``{link: (min, max)}`` from a ``balance.*_bounds`` text, or None when empty.
-
-    The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in
-    ``unit``, parsed as scenes are (:func:`mech_balance.safe_yaml.loads`: YAML 1.2 floats,
-    ``1e-1`` is a number); link names are checked against the scene when the balancing
-    runs.
-    """
-    if not text.strip():
-        return None
-    data = safe_yaml.loads(text, name)  # bounded: depth, size, aliases (a YamlError)
-    if not isinstance(data, dict) or not data:
-        raise ValueError(f'{name}: got {text!r}, expected a mapping link: [min, max] in {unit}')
-    out = {}
-    for link, pair in data.items():
-        ok = isinstance(link, str) and isinstance(pair, (list, tuple)) and len(pair) == 2
-        if ok:
-            lo, hi = pair
-            ok = all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)
-                                   and math.isfinite(v)) for v in (lo, hi))
-            ok = ok and lo is not None and lo > 0.0 and (hi is None or hi >= lo)
-        if not ok:
-            raise ValueError(f'{name}.{link}: got {pair!r}, expected [min, max] in {unit} with '
-                             '0 < min <= max (max may be null: no upper bound)')
-        balancing_defaults.check_bound_pair(f'{name}.{link}', lo, hi, unit)
-        out[link] = (float(lo), None if hi is None else float(hi))
-    return out
-
-
-def _link_list(value):
-    """Accept empty or comma-separated link names, each once."""
-    identifiers.check_name_list(value, 'balance.fixed_links')
-
-
-def split_links(text):
-    """Return the link names of a comma-separated ``balance.fixed_links`` text."""
-    return [n.strip() for n in text.split(',')] if text.strip() else []
-
-
-def _positive(name, option=None):
-    def check(value):
-        """Accept a number in the option's range (as ``mech-balance balance --counterweights``)."""
-        if not 0.0 < value <= MAX_COUNTERWEIGHT_VALUE:
-            raise ValueError(f'{name}: got {value!r}, expected a number > 0 and at most '
-                             f'{MAX_COUNTERWEIGHT_VALUE:g}')
-        if option is not None:
-            balancing_defaults.check_counterweight_option(option, value, name)
-    return check
-
-
-def _ranged(name, option):
-    """Return the check and rule of a counterweight option (balancing's documented range)."""
-    lowest, highest = balancing_defaults.COUNTERWEIGHT_RANGES[option]
-    return {'check': _positive(name, option), 'rule': f'in [{lowest:g}, {highest:g}]'}
-
-
-def _counterweight_links(value):
-    """Accept empty or comma-separated link names, each once (as ``--counterweights``)."""
-    identifiers.check_name_list(value, 'balance.counterweight_links')
-
-
 def _link_pair(name, unit):
     def check(value):
         """Accept [] (the factors), [min] (no upper bound) or [min, max], 0 < min <= max."""
@@ -227,9 +127,9 @@ def link_spec(link, option):
                 rule=f'[], [min] or [min, max] in {unit}, 0 < min <= max')
 
 
-def link_specs(link_names):
+def link_specs(link_names, link_options=tuple(LINK_OPTIONS)):
     """Return the per-link :class:`Spec` of every link and option, in declaration order."""
-    return [link_spec(link, option) for link in link_names for option in LINK_OPTIONS]
+    return [link_spec(link, option) for link in link_names for option in link_options]
 
 
 def spec_for(name):
@@ -240,13 +140,6 @@ def spec_for(name):
         if link and option in LINK_OPTIONS:
             spec = link_spec(link, option)
     return spec
-
-
-def _samples(value):
-    """Accept 0 (the scene's samples) or an integer >= 4."""
-    if 0 < value < 4:
-        raise ValueError(f"balance.samples: got {value}, expected 0 (the scene's) or an "
-                         'integer >= 4')
 
 
 def check_links(values, link_names):
@@ -292,11 +185,37 @@ def _viewer_url(value):
         paths.check_viewer_url(value, 'rerun_url')
 
 
+def _option_spec(opt):
+    """Return the :class:`Spec` of a balancing option's parameter (its one declaration)."""
+    check = None if opt.check is None else (lambda value, o=opt: o.check(o.param, value))
+    return Spec(opt.param, opt.value_type, options.param_default(opt), opt.description,
+                bounds=opt.bounds, choices=opt.choices, check=check, rule=opt.rule)
+
+
+def _balance_specs():
+    """Return the ``balance.*`` specs: :data:`mech_balance.balancing.options.OPTIONS`."""
+    out = []
+    for opt in options.OPTIONS:
+        if opt.param is None:
+            continue
+        out.append(_option_spec(opt))
+        if opt.param == 'balance.samples':
+            out.append(METHOD_SPEC)
+    return out
+
+
+METHOD_SPEC = Spec(
+    'balance.method', STRING, 'redistribution',
+    'redistribution: the certified optimal mass redistribution (seed 001); '
+    'counterweights: add-only discs on balance.counterweight_links (certified); '
+    'analytic: complete force balance in closed form (slider-crank: seed 000, '
+    'four-bar: seed 001 eq. 48). A spatial scene that lists balancing_weights (rggr) is '
+    'balanced by its own method (weights, seed 002) with the default; other spatial '
+    'scenes are redistributed.', choices=METHODS)
+"""``balance.method``: the node's own (the command line chooses by its flags)."""
+
+
 # ------------------------------------------------------------------------------ table
-
-_BOUNDS_RULE = ("empty or the quoted YAML '{link: [min, max]}', 0 < min <= max, max may be "
-                'null')
-
 
 PARAMETERS = (
     Spec('scene', STRING, 'hoeken',
@@ -348,86 +267,7 @@ PARAMETERS = (
          "uses the design's cycle table, verified against the core when it is built (its "
          'accuracy is logged and on /diagnostics; where it cannot be trusted the core is '
          'evaluated per sample anyway).'),
-    Spec('balance.weights', DOUBLE_ARRAY, list(balancing.DEFAULT_WEIGHTS),
-         'Weights [w1, w2] of the RMS shaking force and moment in the balancing objective '
-         '(seed 001 eq. 43; mech-balance balance --weights).', check=_weights,
-         rule='two numbers >= 0, not both 0'),
-    Spec('balance.case', STRING, 'a',
-         'a: point masses of any sign; b: non-negative point masses (counterweights).',
-         choices=CASES),
-    Spec('balance.realizable', BOOL, True,
-         'Require every balanced link to be a realizable body (centroidal inertia >= '
-         'balance.margin x I_O); false is --no-realizable.'),
-    Spec('balance.margin', DOUBLE, balancing.CENTROIDAL_MARGIN,
-         'Realizability margin: centroidal inertia >= margin x inertia about the link '
-         'origin.', bounds=(0.0, MAX_MARGIN)),
-    Spec('balance.paper_constraints', BOOL, False,
-         "Solve exactly seed 001 eqs. 50/53 (the paper's bounds, no realizability); other "
-         'bound options must keep their defaults.'),
-    Spec('balance.mass_factors', DOUBLE_ARRAY, list(balancing.PAPER_MASS_FACTORS),
-         'Link mass bounds [low, high] as factors of the original link mass (eq. 50b).',
-         check=_factors('balance.mass_factors', balancing_defaults.BOUND_RATIO_RANGE),
-         rule='[low, high], 0 < low <= high, each in [1e-06, 1e+06]'),
-    Spec('balance.distance_factors', DOUBLE_ARRAY, list(balancing.PAPER_DISTANCE_FACTORS),
-         'Point-mass distance bounds [low, high] as factors of the original '
-         'l = sqrt(I_O/m) (eq. 50c).',
-         check=_factors('balance.distance_factors', balancing_defaults.DISTANCE_RATIO_RANGE),
-         rule='[low, high], 0 < low <= high, each in [0.01, 100]'),
-    Spec('balance.mass_bounds', STRING, '',
-         'Per-link mass bounds in kg overriding the factors, YAML text, quoted on the command '
-         'line: ros2 param set /rig balance.mass_bounds "\'{crank: [0.3, 1.6]}\'" (the older '
-         'form of the typed balance.links.crank.mass_bounds "[0.3, 1.6]").',
-         check=_link_bounds('balance.mass_bounds', 'kg'), rule=_BOUNDS_RULE),
-    Spec('balance.distance_bounds', STRING, '',
-         'Per-link point-mass distance bounds in m overriding the factors, YAML text, quoted '
-         'on the command line: "\'{crank: [0.02, null]}\'" (the older form of the typed '
-         'balance.links.crank.distance_bounds "[0.02]").',
-         check=_link_bounds('balance.distance_bounds', 'm'),
-         rule=_BOUNDS_RULE),
-    Spec('balance.torque_weight', DOUBLE, 0.0,
-         'Extra weight on the RMS normalized driving torque.', bounds=(0.0, MAX_WEIGHT)),
-    Spec('balance.reaction_weight', DOUBLE, 0.0,
-         'Extra weight on the sum of the RMS normalized bearing forces.',
-         bounds=(0.0, MAX_WEIGHT)),
-    Spec('balance.max_added_mass', DOUBLE, -1.0,
-         'Cap on the total added mass, kg (over the original total); negative: no cap.',
-         bounds=(-1.0, 1e6)),
-    Spec('balance.fixed_links', STRING, '',
-         'Comma-separated links kept as they are (e.g. "crank,rocker"); empty: none.',
-         check=_link_list, rule='links of the scene'),
-    Spec('balance.samples', INTEGER, 0,
-         "Crank angles per revolution in the balancing objective; 0: the scene's samples "
-         '(usually 360).', bounds=(0, MAX_SAMPLES), check=_samples,
-         rule='0 or >= 4'),
-    Spec('balance.method', STRING, 'redistribution',
-         'redistribution: the certified optimal mass redistribution (seed 001); '
-         'counterweights: add-only discs on balance.counterweight_links (certified); '
-         'analytic: complete force balance in closed form (slider-crank: seed 000, '
-         'four-bar: seed 001 eq. 48). A spatial scene that lists balancing_weights (rggr) is '
-         'balanced by its own method (weights, seed 002) with the default; other spatial '
-         'scenes are redistributed.', choices=METHODS),
-    Spec('balance.counterweight_links', STRING, '',
-         'Counterweights: comma-separated links that each gain one disc (e.g. '
-         '"crank,rocker"); needed by balance.method counterweights.',
-         check=_counterweight_links, rule='links of the scene, each once'),
-    Spec('balance.density', DOUBLE, balancing_defaults.DEFAULT_DENSITY_KG_M3,
-         'Counterweights: disc material density, kg/m^3 (steel).',
-         **_ranged('balance.density', 'density_kg_m3')),
-    Spec('balance.max_thickness', DOUBLE, balancing_defaults.DEFAULT_MAX_THICKNESS_M,
-         'Counterweights: thickest disc, m.',
-         **_ranged('balance.max_thickness', 'max_thickness_m')),
-    Spec('balance.max_radius_factor', DOUBLE, balancing_defaults.DEFAULT_MAX_RADIUS_FACTOR,
-         "Counterweights: disc centre at most this factor times the distance from the link's "
-         'origin to its farthest joint point.',
-         **_ranged('balance.max_radius_factor', 'max_radius_factor')),
-    Spec('balance.max_mass_factor', DOUBLE, balancing_defaults.DEFAULT_MAX_MASS_FACTOR,
-         "Counterweights: disc mass at most this factor times the link's own mass.",
-         **_ranged('balance.max_mass_factor', 'max_mass_factor')),
-    Spec('balance.max_gyration_factor', DOUBLE,
-         balancing_defaults.DEFAULT_MAX_GYRATION_FACTOR,
-         "Counterweights: the disc's radius of gyration about the link origin at most this "
-         "factor times the link's joint reach.",
-         **_ranged('balance.max_gyration_factor', 'max_gyration_factor')),
+    *_balance_specs(),
     Spec('use_balanced', BOOL, False,
          'Publish the balanced rig instead of the original; true runs the balancing with '
          'the balance.* options if no design is known for them (~/balance sets it, '
@@ -608,46 +448,7 @@ def balance_options(values, method='redistribution'):
     Return the options of :func:`mech_balance.balancing.balance` for ``values``.
 
     ``values`` maps parameter names to checked values (at least the ``balance.*`` ones);
-    the same call as ``mech-balance balance`` with the matching options.  ``method`` is the
-    balancing method (:func:`mech_balance.balancing.method_for`): ``weights`` (seed 002)
-    and ``analytic`` take the sample count only, ``counterweights`` the ``balance.*``
-    counterweight options; the per-link ``balance.links.<link>.*_bounds`` join the text
-    ``balance.*_bounds`` (a link in both is refused by :func:`check_links`).
+    the same call as ``mech-balance balance`` with the matching options, by the one table
+    :data:`mech_balance.balancing.options.OPTIONS` (:func:`~.options.from_params`).
     """
-    if method == 'weights':
-        return {'samples': values['balance.samples'] or None}
-    if method == 'analytic':
-        return {'samples': values['balance.samples'] or None}
-    if method == 'counterweights':
-        return {'links': tuple(split_links(values['balance.counterweight_links'])),
-                'weights': tuple(values['balance.weights']),
-                'density_kg_m3': values['balance.density'],
-                'max_thickness_m': values['balance.max_thickness'],
-                'max_radius_factor': values['balance.max_radius_factor'],
-                'max_mass_factor': values['balance.max_mass_factor'],
-                'max_gyration_factor': values['balance.max_gyration_factor'],
-                'torque_weight': values['balance.torque_weight'],
-                'reaction_weight': values['balance.reaction_weight'],
-                'samples': values['balance.samples'] or None}
-    bounds = {}
-    for key, unit in (('mass_bounds', 'kg'), ('distance_bounds', 'm')):
-        merged = dict(parse_link_bounds(f'balance.{key}', values[f'balance.{key}'], unit) or {})
-        for name, value in values.items():
-            if name.startswith(LINK_PREFIX) and name.endswith(f'.{key}') and value:
-                link = name[len(LINK_PREFIX):-len(key) - 1]
-                merged[link] = (float(value[0]), float(value[1]) if len(value) == 2 else None)
-        bounds[key] = merged or None
-    cap = values['balance.max_added_mass']
-    return {'weights': tuple(values['balance.weights']), 'case': values['balance.case'],
-            'realizable': values['balance.realizable'],
-            'paper_constraints': values['balance.paper_constraints'],
-            'mass_bounds': bounds['mass_bounds'],
-            'distance_bounds': bounds['distance_bounds'],
-            'samples': values['balance.samples'] or None,
-            'torque_weight': values['balance.torque_weight'],
-            'reaction_weight': values['balance.reaction_weight'],
-            'max_added_mass_kg': None if cap < 0.0 else cap,
-            'fixed_links': tuple(split_links(values['balance.fixed_links'])),
-            'mass_factors': tuple(values['balance.mass_factors']),
-            'distance_factors': tuple(values['balance.distance_factors']),
-            'centroidal_margin': values['balance.margin']}
+    return options.from_params(values, method)

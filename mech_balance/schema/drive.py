@@ -44,17 +44,23 @@ class SpeedController:
 
 @dataclass(frozen=True)
 class Drive:
-    """Motor, speed controller, joint damping and initial state of a simulation."""
+    """
+    Motor, speed controller, joint damping, input inertia and initial state of a simulation.
+
+    ``input_inertia_kg_m2`` is a flywheel on the input shaft (the crank; a prismatic
+    input's Scotch-yoke crank), turning with psi.
+    """
 
     motor: Motor = None
     speed_controller: SpeedController = None
     joint_damping: dict = field(default_factory=dict)
     initial_speed_rad_s: float = None
     initial_crank_angle_deg: float = None
+    input_inertia_kg_m2: float = 0.0
 
 
 _DRIVE_KEYS = {'motor', 'speed_controller', 'joint_damping', 'initial_speed_rad_s',
-               'initial_crank_angle_deg'}
+               'initial_crank_angle_deg', 'input_inertia_kg_m2'}
 
 
 _MOTOR_KEYS = {'stall_torque_Nm', 'no_load_speed_rad_s', 'rotor_inertia_kg_m2', 'gear_ratio',
@@ -64,13 +70,15 @@ _MOTOR_KEYS = {'stall_torque_Nm', 'no_load_speed_rad_s', 'rotor_inertia_kg_m2', 
 _PI_KEYS = {'kp_per_rad_s', 'ki_per_rad', 'setpoint_rad_s', 'voltage_limit'}
 
 
-def drive_from_dict(data, scene=None):
+def drive_from_dict(data, scene=None, joint_names=None):
     """
     Return the validated :class:`Drive` of a scene's ``drive`` mapping.
 
     Every error is a :class:`DriveError` naming the field (``drive.motor.gear_ratio``), the
-    value and what was expected.  With ``scene`` the joint names of ``joint_damping`` are
-    checked against the scene's joints.
+    value and what was expected.  The keys of ``joint_damping`` are checked against
+    ``joint_names`` (a rig's published joint coordinates,
+    :attr:`~mech_balance.core.rig.Rig.joint_names`) or, without them, the joints of
+    ``scene`` (a planar scene's joints are its coordinates).
     """
     if data is None:
         return Drive()
@@ -134,14 +142,17 @@ def drive_from_dict(data, scene=None):
             initial_speed_rad_s=None if speed is None else _number(
                 speed, 'drive.initial_speed_rad_s'),
             initial_crank_angle_deg=None if angle is None else _number(
-                angle, 'drive.initial_crank_angle_deg'))
-    if scene is not None:
-        joints = [j.name for j in scene.joints]
+                angle, 'drive.initial_crank_angle_deg'),
+            input_inertia_kg_m2=_nonneg(data.get('input_inertia_kg_m2', 0.0),
+                                        'drive.input_inertia_kg_m2'))
+    if joint_names is None and scene is not None:
+        joint_names = [j.name for j in scene.joints]
+    if joint_names is not None:
         for name in data_drive.joint_damping:
-            if name not in joints:
+            if name not in joint_names:
                 raise DriveError(
                     f'drive.joint_damping.{name}: no such joint, expected one of '
-                    f'{", ".join(joints)}')
+                    f'{", ".join(joint_names)}')
     return data_drive
 
 

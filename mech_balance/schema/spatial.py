@@ -33,6 +33,8 @@ Schema (``config/rssr_skew.yaml`` is a commented example)::
     balancing_weights:             # optional: seed 002's method ``weights`` (balancing.weights)
       LINK: {mass_kg: <number > 0>}                  # a weight of this mass, or
       LINK: {density_length_kg_m2: <number > 0>}     # a cylinder, its mass by seed 002 eq. 13
+    drive: {...}                   # optional: motor, speed loop, damping, input flywheel
+                                   # (mech_balance.core.forward, docs/simulation.md)
 
 The inertia tensor's six numbers are the matrix entries in URDF order (``ixy`` is the
 off-diagonal entry, minus the product of inertia integral), validated here: a rigid body's
@@ -54,6 +56,7 @@ import math
 
 from mech_balance import conventions
 from mech_balance.schema import fields
+from mech_balance.schema.drive import drive_from_dict
 from mech_balance.schema.fields import SceneError
 from mech_balance.schema.scene import DEFAULT_OUTPUTS, FRAME, Normalization, \
     parse_outputs, SceneDesigns
@@ -186,6 +189,7 @@ class SpatialScene(SceneDesigns):
     source: str = '<dict>'
     kind: str = KIND
     balancing_weights: tuple = ()   # WeightSpec per link (seed 002's method ``weights``)
+    drive: dict = None  # motor, speed loop, damping, flywheel for `mech-balance simulate`
 
     @property
     def assembly_crank_angle_rad(self):
@@ -200,7 +204,7 @@ class SpatialScene(SceneDesigns):
 
 _TOP_KEYS = {'kind', 'schema_version', 'name', 'description', 'normalization', 'frame',
              'links', 'joints', 'crank', 'moment_point_m', 'assembly', 'outputs', 'samples',
-             'notes', 'balance', 'balancing_weights'}
+             'notes', 'balance', 'balancing_weights', 'drive'}
 WEIGHT_KEYS = ('mass_kg', 'density_length_kg_m2')
 """The fields of one ``balancing_weights`` entry (exactly one of them)."""
 
@@ -444,7 +448,7 @@ def spatial_from_dict(data, source='<dict>'):
         outputs=outputs,
         samples=samples, normalization=normalization,
         notes=notes if isinstance(notes, dict) else {'text': notes}, source=str(source),
-        balancing_weights=weights)
+        balancing_weights=weights, drive=_drive(data.get('drive')))
 
 
 def _weights(data, joints):
@@ -468,6 +472,18 @@ def _weights(data, joints):
         value = fields.positive(spec[given[0]], f'{where}.{given[0]}')
         out.append(WeightSpec(link, pivots[0].name, **{given[0]: value}))
     return tuple(out)
+
+
+def _drive(data):
+    """
+    Return the ``drive`` mapping as given, its fields checked.
+
+    The names in ``joint_damping`` are the rig's joint coordinates, checked when a
+    simulation builds the rig (:func:`mech_balance.core.forward.ForwardDynamics`).
+    """
+    if data is not None:
+        drive_from_dict(data)
+    return data
 
 
 def _joint_dict(jt):
@@ -513,6 +529,8 @@ def spatial_to_dict(scene):
             for w in scene.balancing_weights}
     if scene.notes:
         data['notes'] = scene.notes
+    if scene.drive is not None:
+        data['drive'] = scene.drive
     return data
 
 
