@@ -84,6 +84,15 @@ def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
                           for r in ref]}
 
 
+def first_p_below(study, tol):
+    """Return the smallest p of the study from which on every error is below ``tol``."""
+    rows = study['rows']
+    for i, row in enumerate(rows):
+        if all(r['max_rel_error'] < tol for r in rows[i:]):
+            return row['p']
+    return None
+
+
 # ============================================================================ integrators
 
 
