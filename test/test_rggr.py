@@ -236,7 +236,7 @@ def test_momentum_offset_centres_and_negative_speed():
     # the products the scene was given, about the pivots, are the links' own J before
     j0 = [1e-4, -2e-4, -2e-3, 1e-3]
     fb = weights.balance_report(rig, result)
-    assert fb['table'][1]['shaking_force_rms'] <= 1e-9 * fb['table'][0]['shaking_force_rms']
+    assert fb['rigs'][1]['shaking_force_rms'] <= 1e-9 * fb['rigs'][0]['shaking_force_rms']
     assert_allclose(result.link_products_kg_m2 - [w for wt in result.weights
                                                   for w in (wt.product_wu_kg_m2,
                                                             wt.product_vw_kg_m2)],
@@ -299,14 +299,14 @@ def test_force_balancing_reproduces_paper(report):
     assert cw['mass'] == pytest.approx(2.0, rel=1e-12)
     # the weights' v and w components: zero up to the least squares' round-off
     assert_allclose(cw['centre_uvw'][1:] + ow['centre_uvw'][1:], 0.0, atol=1e-13)
-    unbalanced, forced, optimized = report['table']
+    unbalanced, forced, optimized = report['rigs']
     assert forced['shaking_force_rms'] <= 1e-12 * unbalanced['shaking_force_rms']
     assert optimized['shaking_force_rms'] <= 1e-12 * unbalanced['shaking_force_rms']
     assert report['force_residual_rel'] <= weights.FORCE_BALANCED_REL
 
 
 def test_optimized_rms_shaking_moment_within_1pct_of_paper(report, balanced):
-    optimized = report['table'][2]['shaking_moment_rms']
+    optimized = report['rigs'][2]['shaking_moment_rms']
     assert optimized == pytest.approx(14.25, rel=PAPER_TOL)
     assert report['optimum']['shaking_moment_rms'] == pytest.approx(optimized, rel=1e-12)
     assert report['optimum']['normal_equation_residual'] < 1e-12
@@ -321,8 +321,8 @@ def test_our_figures_for_the_paper_example(report):
     # Regression values of this implementation next to the paper's (report, not acceptance):
     # before optimization 19.137 (paper 22.38), I_1wu -5.975 (-59.94), I_1vw -11.143
     # (-55.75), alpha 25.11 deg (28.5), gamma 204.26 deg (226.6).
-    assert report['table'][0]['shaking_moment_rms'] == pytest.approx(25.550, abs=1e-3)
-    assert report['table'][1]['shaking_moment_rms'] == pytest.approx(19.137, abs=1e-3)
+    assert report['rigs'][0]['shaking_moment_rms'] == pytest.approx(25.550, abs=1e-3)
+    assert report['rigs'][1]['shaking_moment_rms'] == pytest.approx(19.137, abs=1e-3)
     j = report['link_products']
     assert_allclose([j['crank.I_wu'], j['crank.I_vw'], j['output.I_wu'], j['output.I_vw']],
                     [-5.975, -11.143, 11.202, 5.049], atol=1e-3)
@@ -335,8 +335,8 @@ def test_other_branch_figures():
     """Branch -1: the same procedure; its optimum 14.94 is further from the paper's 14.25."""
     rig = _branch_rig(-1)
     rep = weights.balance_report(rig, weights.balance_weights(rig), normalized=True)
-    assert rep['table'][1]['shaking_force_rms'] <= 1e-12 * rep['table'][0]['shaking_force_rms']
-    assert rep['table'][2]['shaking_moment_rms'] == pytest.approx(14.94, abs=5e-3)
+    assert rep['rigs'][1]['shaking_force_rms'] <= 1e-12 * rep['rigs'][0]['shaking_force_rms']
+    assert rep['rigs'][2]['shaking_moment_rms'] == pytest.approx(14.94, abs=5e-3)
     assert rep['optimum']['rank'] == 4
     # the force balance does not depend on the branch (seed 002 eqs. 4-14)
     assert rep['weights']['output']['mass'] == pytest.approx(8.5075, abs=1e-4)
@@ -460,7 +460,7 @@ def test_reports_are_plain_and_formatted(rig, scene):
         assert 'seed 002' in text and 'least-squares optimum' in text
         assert max(len(line) for line in text.splitlines()) <= 120
         _assert_plain(rep)
-        assert set(rep['table'][0]) == {'rig', *weights.METRIC_KEYS}
+        assert set(rep['rigs'][0]) == {'rig', *weights.METRIC_KEYS}
     assert rep['units']['moment'] == 'N m'
     assert rep['samples'] == 72
 

@@ -252,7 +252,7 @@ def balance(rig, method='auto', **options):
                          'samples)')
     result = weights.balance_weights(rig, options.get('samples'))
     report = weights.balance_report(rig, result)
-    rows = {r['rig']: r for r in report['table']}
+    rows = {r['rig']: r for r in report['rigs']}
     before, after = rows['unbalanced'], rows['optimized']
     figures = {'force_N': (before['shaking_force_rms'], after['shaking_force_rms']),
                'moment_Nm': (before['shaking_moment_rms'], after['shaking_moment_rms']),

@@ -438,7 +438,9 @@ def balance_report(rig, result, normalized=False):
 
     The weights (mass, centre, radius, I_ww about the axis, products about the pivot and, for
     a cylinder, alpha and gamma), the links' optimal products J, a table of the unbalanced,
-    force-balanced and optimized rigs, and the least-squares optimum with its lower bound.
+    force-balanced and optimized rigs (``rigs``), the before/after rows of every balancing
+    result (``table``, :func:`mech_balance.balancing.spatial.before_after`), and the
+    least-squares optimum with its lower bound.
     """
     sc = rig.scene
     view = ReportView(sc, normalized)
@@ -470,7 +472,9 @@ def balance_report(rig, result, normalized=False):
         'samples': int(result.samples), 'normalized': view.normalized, 'units': view.units(),
         'normalization': None if norm is None else dict(norm.items()),
         'crank_speed_rad_s': sc.crank_speed_rad_s,
-        'weights': weights, 'link_products': products, 'table': rows,
+        'weights': weights, 'link_products': products, 'rigs': rows,
+        'table': spatial.before_after(rig, result.balanced_scene, result.samples,
+                                      spatial.units_of(rig, spatial.parameter_model(rig))),
         'optimum': {'shaking_moment_rms': float(view.moment(result.moment_rms_optimal_Nm)),
                     'shaking_moment_rms_lower_bound':
                         float(view.moment(result.moment_rms_lower_bound_Nm)),
@@ -495,7 +499,7 @@ def format_report(report):
     head = (f"{'rig':<16}{'|f| rms':>12}{'|f| max':>12}{'|n| rms':>12}{'|n| max':>12}"
             f"{'tau rms':>12}{'|tau| max':>12}")
     lines += ['', head, '-' * len(head)]
-    for row in report['table']:
+    for row in report['rigs']:
         lines.append(f"{row['rig']:<16}" + ''.join(f'{row[k]:>12.5g}' for k in METRIC_KEYS))
     lines.append('')
     lines.append('weights (about the pivot, link axes u towards the pin, w the axis):')
