@@ -37,7 +37,7 @@ _PUBLIC = {
     'rig_for': ('mech_balance.core.rig', 'rig_for'),
     'CapabilityError': ('mech_balance.core.rig', 'CapabilityError'),
     'PlanarRig': ('mech_balance.core.planar.rig', 'PlanarRig'),
-    'RggrRig': ('mech_balance.core.rggr', 'RggrRig'),
+    'SpatialRig': ('mech_balance.core.spatial.rig', 'SpatialRig'),
     'run_cycle': ('mech_balance.analysis.cycle', 'run_cycle'),
     'summarize': ('mech_balance.analysis.cycle', 'summarize'),
     'balance': ('mech_balance.balancing', 'balance'),

@@ -93,7 +93,7 @@ _DELETE = object()
     ('hoeken', ('samples',), 10.5, r'^samples: got 10\.5, expected an integer >= 4$'),
     ('hoeken', ('outputs',), 5, r'^outputs: got 5, expected a list from'),
     ('hoeken', ('kind',), 'cam',
-     r"^kind: got 'cam', expected \"planar\" or \"rggr\" or \"spatial\"$"),
+     r"^kind: got 'cam', expected \"planar\" or \"spatial\"$"),
     ('hoeken', ('crank', 'joint'), 3, r'^crank\.joint: got 3, expected a non-empty name$'),
     # missing keys
     ('hoeken', ('links', 'coupler', 'mass_kg'), _DELETE,

@@ -12,10 +12,12 @@ import math
 
 from hypothesis import given, HealthCheck, settings, strategies as st
 from mech_balance import schema as scene
-from mech_balance.balancing import certificate, counterweights as cw, defaults, rggr, \
+from mech_balance.balancing import certificate, counterweights as cw, defaults, \
     socp as balancing, two_point
+from mech_balance.balancing import weights as seed002_weights
 from mech_balance.cli import main as cli
 from mech_balance.core.planar import dynamics
+from mech_balance.core.rig import rig_for
 import numpy as np
 import pytest
 import scipy.optimize
@@ -446,7 +448,7 @@ def test_two_point_and_rggr_bounds():
     r = two_point.table12(scene.load('hoeken'))
     assert r.lower_bound_z <= r.relaxation_z <= r.upper_bound_z
     assert r.lower_bound_gap_rel <= balancing.CERTIFIED_GAP_REL
-    opt = rggr.balance_scene(scene.load('rggr')).optimum
+    opt = seed002_weights.balance_weights(rig_for(scene.load('rggr')))
     assert opt.moment_rms_lower_bound_Nm <= opt.moment_rms_optimal_Nm
     # the least-squares optimum is exact to its normal equations: the bound is tight
     assert opt.moment_rms_lower_bound_Nm >= opt.moment_rms_optimal_Nm * (1 - 1e-9)

@@ -160,7 +160,7 @@ def _usage_cases(tmp):
                        '--out', str(tmp / 'r.rrd')], 'record',
                       '--case applies to planar scenes only'),
         'rggr balance weights': (['balance', '--scene', 'rggr', '--weights', '1', '0'],
-                                 'balance', '--weights applies to planar scenes only'),
+                                 'balance', '--weights: not an option of the method weights'),
         'yaml': (['analyze', '--scene', str(bad_yaml)], 'analyze',
                  "scene bad.yaml: not valid YAML at line 3, column 5: expected ',' or ']', "
                  "but got ':'"),

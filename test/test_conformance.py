@@ -34,13 +34,6 @@ CLI_TIMEOUT_S = 300
 NODE_TIMEOUT_S = 60.0
 
 
-def _special(name):
-    """Return why a built-in is left out (the special rggr kind, being replaced), or ''."""
-    sc = schema.load(name)
-    return 'the special rggr kind becomes a spatial scene (issue 28 item 2)' \
-        if schema.kind_of(sc).name == 'rggr' else ''
-
-
 def _load_data(name):
     data, _ = schema.load_data(schema.builtin_scenes()[name])
     return copy.deepcopy(data)
@@ -92,9 +85,6 @@ def scene_files(tmp_path_factory):
 
 
 def _scene(name, files):
-    reason = _special(name) if name in BUILTINS else ''
-    if reason:
-        pytest.skip(reason)
     return schema.load(files[name])
 
 
@@ -235,8 +225,6 @@ def test_analyze_and_balance_units_si_by_default():
 
 @pytest.mark.parametrize('name', BUILTINS)
 def test_quickstart_runs_unchanged_on_every_built_in(name):
-    if _special(name):
-        pytest.skip(_special(name))
     proc = subprocess.run([sys.executable, str(ROOT / 'examples' / 'quickstart.py'), name],
                           capture_output=True, text=True, timeout=CLI_TIMEOUT_S,
                           env=dict(os.environ, PYTHONPATH=str(ROOT)))
@@ -304,8 +292,6 @@ def test_node_switches_to_every_built_in_and_lists_per_link_parameters():
             assert time.monotonic() < deadline, 'the rig node was not discovered'
             executor.spin_once(timeout_sec=0.05)
         for name in BUILTINS:
-            if _special(name):
-                continue
             result = wait(client.set_parameters([Parameter('scene', value=name)]),
                           f'scene {name}')
             assert result.results[0].successful, (name, result.results[0].reason)

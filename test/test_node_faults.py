@@ -311,6 +311,17 @@ def test_a_scene_switch_clears_what_the_new_scene_refutes(clock_rig):
     assert _set(probe, use_balanced=False).successful
 
 
+def test_a_switch_to_the_rggr_at_run_time_publishes_it(clock_rig):
+    """Issue 28: the RGGR (kind spatial) is a scene like the others for a switch."""
+    rig, probe, diag = clock_rig
+    assert _set(probe, scene='rggr').successful
+    probe.spin_until(lambda: "scene 'rggr'" in rig.output(), what='the switch to rggr')
+    probe.collect(5, 'samples of rggr')
+    assert _set(probe, scene='hoeken').successful
+    probe.collect(5, 'samples of hoeken again')
+    assert 'Traceback' not in rig.output() and rig.alive()
+
+
 def test_a_number_as_text_for_a_double_is_accepted_with_the_same_checks(clock_rig):
     """23.2.3: ros2cli (YAML 1.1) sends `1e3` as text."""
     rig, probe, diag = clock_rig

@@ -346,6 +346,17 @@ def test_scene_switch_conflicts_name_the_refuted_options():
     assert parameters.scene_conflicts(params.defaults(), model) == {}
 
 
+def test_a_switch_to_the_rggr_has_no_conflict_and_balances_by_its_weights():
+    """The RGGR is a spatial scene: links, per-link options and its own method (issue 28)."""
+    model = parameters.build_model('rggr')
+    assert [lk.name for lk in model.scene.links] == ['crank', 'coupler', 'output']
+    assert parameters.scene_conflicts(params.defaults(), model) == {}
+    assert balance_service.balance_method(params.defaults(), model.rig) == 'weights'
+    values = params.defaults()
+    values['balance.fixed_links'] = 'rocker'
+    assert set(parameters.scene_conflicts(values, model)) == {'balance.fixed_links'}
+
+
 def test_spatial_mass_factors_are_checked_against_the_spatial_range():
     """
     Check balance.mass_factors against the range of the scene's redistribution.

@@ -18,12 +18,13 @@ import time
 
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
-from mech_balance.balancing import rggr as rggr_balancing
+from mech_balance.balancing import weights
 from mech_balance.bench import recording as bench_recording
 from mech_balance.cli import main as cli
 from mech_balance.conventions import cycle_angles, rms
-from mech_balance.core import equimomental, rggr
+from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics
+from mech_balance.core.rig import rig_for
 from mech_balance.viz import recording
 import numpy as np
 from numpy.testing import assert_allclose, assert_array_equal
@@ -309,7 +310,7 @@ def test_bad_design_and_path(tmp_path):
     sc = scene_mod.load('hoeken')
     with pytest.raises(ValueError, match='design: scene .* has another geometry'):
         recording.record(tmp_path / 'x.rrd', sc, scene_mod.load('carpet_scraper'))
-    with pytest.raises(ValueError, match='design: got a rggr scene'):
+    with pytest.raises(ValueError, match='design: got a spatial scene'):
         recording.record(tmp_path / 'x.rrd', sc, scene_mod.load('rggr'))
     with pytest.raises(ValueError, match='path: got .*expected a file name ending in .rrd'):
         recording.record(tmp_path / 'x.txt', sc)
@@ -362,7 +363,7 @@ def test_recording_schema_errors_name_the_field(value, message):
 
 def test_rggr_recording_is_3d(tmp_path):
     sc = scene_mod.load('rggr')
-    bal = rggr_balancing.balance_scene(sc).design.scene
+    bal = weights.balance_weights(rig_for(sc)).balanced_scene
     path = tmp_path / 'rggr.rrd'
     summary = recording.record(path, sc, bal)
     ent = recording.read_recording(path)
@@ -373,13 +374,16 @@ def test_rggr_recording_is_3d(tmp_path):
     assert 'Arrows3D:vectors' in ent['/balanced/shaking_moment'].columns
     psi = cycle_angles(SAMPLES)
     for v, s in zip(VARIANTS, (sc, bal)):
-        d = rggr.dynamics(s, psi)
+        d = rig_for(s).at(psi)
         assert_allclose(_series(ent, f'/plots/shaking_moment/{v}'),
-                        np.linalg.norm(d.shaking_moment_Nm, axis=1), rtol=EXACT_RTOL)
-        assert_allclose(_series(ent, f'/plots/driving_torque/{v}'), d.driving_torque_Nm,
+                        np.linalg.norm(d.moment_Nm, axis=1), rtol=EXACT_RTOL)
+        assert_allclose(_series(ent, f'/plots/driving_torque/{v}'), d.joint_effort[:, 0],
                         rtol=EXACT_RTOL, atol=1e-15)
+    # the crank's strip ends at the pin B, the coupler's origin
     b = np.array([row[0][1] for row in ent['/rig/links'].columns['LineStrips3D:strips']])
-    assert_allclose(b, rggr.kinematics(sc, psi).pin_b_m, rtol=0.0, atol=FLOAT32_ATOL_M)
+    poses = rig_for(sc).at(psi).bodies
+    pin_b = poses.origin_m[:, poses.names.index('coupler')]
+    assert_allclose(b, pin_b, rtol=0.0, atol=FLOAT32_ATOL_M)
     # seed 002: complete force balance, and the system mass centre stands still
     assert rms(_series(ent, '/plots/shaking_force/balanced')) < \
         1e-9 * rms(_series(ent, '/plots/shaking_force/original'))

@@ -1,9 +1,10 @@
 """
 Tests of the spatial regressor (core/regressor.py) and of the RGGR's body kinematics.
 
-Three independent references: the RGGR rig's own shaking wrench (core/rggr.py, formulas of
-seed 002), finite differences of the total momenta of a random spatial motion given in closed
-form, and finite differences of the RGGR's drawn body poses.
+Three independent references: the RGGR rig's own shaking wrench (the spatial kind's
+Newton-Euler, core/spatial/dynamics.py) against seed 002's parameters, finite differences
+of the total momenta of a random spatial motion given in closed form, and finite
+differences of the RGGR's drawn body poses.
 """
 
 import math
@@ -24,28 +25,34 @@ FD_RTOL = 1e-7
 """Finite-difference checks (issue 21): relative to the quantity's scale over the samples."""
 CORE_RTOL = 1e-12
 """Regressor against the RGGR rig's own wrench, relative to its largest value."""
+SEED_002 = {'crank': (0.5, (0.025, 0.0, 0.0), 4.1666666666666667e-4, 0.0, 0.0),
+            'coupler': (1.5, 0.15, 0.01125),
+            'output': (2.0, (0.10, 0.0, 0.0), 0.0275, 0.0, 0.0)}
+"""Seed 002's example in SI (config/rggr.yaml): pivot links (m, centre (u, v, w), I_ww, I_wu,
+I_vw about the pivot) and the coupler rod (m, distance of its centre from B, I about it)."""
 
 
-def rggr_theta(sc, spare=(0.7, 1.3)):
+def rggr_theta(spare=(0.7, 1.3)):
     """
-    Return theta (30,) of an RGGR scene, built here from the seed-002 parameters.
+    Return theta (30,) of the RGGR, built here from the seed-002 parameters (:data:`SEED_002`).
 
     I_uu, I_vv, I_uv of the pivot links do not enter a fixed-axis rotation: ``spare`` sets
     I_uu and I_vv (the tests prove they change nothing).
     """
     def pivot(body, extra):
+        m, centre, i_ww, i_wu, i_vw = body
         t = np.zeros(10)
-        t[0] = body.mass_kg
-        t[1:4] = body.mass_kg * np.asarray(body.centre_uvw_m)
+        t[0] = m
+        t[1:4] = m * np.asarray(centre)
         t[4], t[6] = extra, 2.0 * extra
-        t[7], t[8] = -body.product_wu_kg_m2, -body.product_vw_kg_m2   # tensor entries
-        t[9] = body.inertia_ww_kg_m2
+        t[7], t[8] = -i_wu, -i_vw   # tensor entries
+        t[9] = i_ww
         return t
-    c = sc.coupler
-    i_b = c.transverse_inertia_kg_m2 + c.mass_kg * c.centre_from_b_m ** 2
-    coupler = np.array([c.mass_kg, c.mass_kg * c.centre_from_b_m, 0, 0, 0, 0, i_b, 0, 0, i_b])
-    return np.concatenate([pivot(sc.crank_total(), spare[0]), coupler,
-                           pivot(sc.output_total(), spare[1])])
+    m2, c2, i2 = SEED_002['coupler']
+    i_b = i2 + m2 * c2 ** 2
+    coupler = np.array([m2, m2 * c2, 0, 0, 0, 0, i_b, 0, 0, i_b])
+    return np.concatenate([pivot(SEED_002['crank'], spare[0]), coupler,
+                           pivot(SEED_002['output'], spare[1])])
 
 
 @pytest.fixture(scope='module')
@@ -57,7 +64,7 @@ def rggr_rig():
 def test_regressor_reproduces_the_rggr_wrench(rggr_rig, spare):
     psi = np.linspace(0.0, 2.0 * math.pi, 73)[:-1]
     kin = rggr_rig.body_kinematics(psi)
-    force, moment = regressor.wrench(kin, rggr_theta(rggr_rig.scene, spare),
+    force, moment = regressor.wrench(kin, rggr_theta(spare),
                                      rggr_rig.moment_point_m)
     data = rggr_rig.at(psi)
     assert_allclose(force, data.force_N, rtol=0, atol=CORE_RTOL * np.abs(data.force_N).max())
@@ -69,7 +76,7 @@ def test_rggr_body_kinematics_at_several_speeds(rggr_rig):
     psi = np.array([0.1, 0.2, 0.3])
     speed = np.array([5.0, -10.0, 5.0])
     kin = rggr_rig.body_kinematics(psi, speed)
-    force, _ = regressor.wrench(kin, rggr_theta(rggr_rig.scene))
+    force, _ = regressor.wrench(kin, rggr_theta())
     assert_allclose(force, rggr_rig.at(psi, speed).force_N, rtol=1e-12, atol=1e-12)
     assert kin.names == tuple(b.name for b in rggr_rig.drawing.bodies)
 

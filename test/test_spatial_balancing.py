@@ -1,17 +1,17 @@
 """
 Tests of spatial balancing (balancing/spatial.py) on the RGGR and on the kind: spatial built-ins.
 
-Each claim against an independent computation: seed 002's force balance (balancing/rggr.py and
-the paper's printed 8.5 / 1.645), the core's wrench of the written and reloaded scene, random
-feasible designs that no lower bound may exceed, and the pseudo-inertia PSD test of each body.
+Each claim against an independent computation: seed 002's force balance (its closed form,
+eqs. 4-14, and the paper's printed 8.5 / 1.645), the core's wrench of the written and
+reloaded scene, random feasible designs that no lower bound may exceed, and the
+pseudo-inertia PSD test of each body.
 """
 
 import dataclasses
 import math
 
 from mech_balance import balancing, schema
-from mech_balance.analysis import rggr_report
-from mech_balance.balancing import defaults, rggr as rggr_balancing, spatial
+from mech_balance.balancing import defaults, spatial
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import regressor
 from mech_balance.core.rig import rig_for
@@ -56,18 +56,24 @@ def test_rggr_complete_force_balance_through_the_general_route(scene_name):
     rig = rig_for(sc)
     result = spatial.force_balance(rig, free=('crank', 'output'))
     paper = schema.load('rggr')
-    ref = rggr_balancing.force_balance(paper)
-    for body, weight in (('crank', ref.crank_weight), ('output', ref.output_weight)):
-        expected = weight.mass_kg * np.asarray(weight.centre_uvw_m)
+    # seed 002 eqs. 4-11 in closed form: m_b1 (u, v, w)_b1 = -m_o1 (u, v, w)_o1
+    # - m2 a1 (1 - mu) e_u and m_b3 (u, v, w)_b3 = -m_o3 (u, v, w)_o3 - m2 a3 mu e_u, with
+    # the example's m_o1 u_o1 = 0.5 x 0.025, m_o3 u_o3 = 2 x 0.1, m2 = 1.5, a1 = 0.05,
+    # a3 = 0.2, mu = c2 / a2 = 0.15 / 0.3 (config/rggr.yaml)
+    mu = 0.15 / 0.30
+    closed = {'crank': [-0.5 * 0.025 - 1.5 * 0.05 * (1 - mu), 0.0, 0.0],
+              'output': [-2.0 * 0.10 - 1.5 * 0.20 * mu, 0.0, 0.0]}
+    for body, expected in closed.items():
         assert_allclose(result.added_first_moment_kg_m[body], expected, rtol=0,
                         atol=1e-12 * np.abs(expected).max())
     # seed 002 eq. 13: the cylinder m_b3^3 = rho L pi |m_b3 (u, v)_b3|^2, eq. 14: its radius
     h3 = np.asarray(result.added_first_moment_kg_m['output'])
     radial = math.hypot(h3[0], h3[1])
-    mb3 = (paper.design.output_weight_density_length_kg_m2 * math.pi * radial ** 2) ** (1 / 3)
+    rho_l = next(w.density_length_kg_m2 for w in paper.balancing_weights if w.link == 'output')
+    mb3 = (rho_l * math.pi * radial ** 2) ** (1 / 3)
     norm = paper.normalization
-    assert abs(mb3 / norm['mass_kg'] - 8.5075) < 5e-5
-    assert abs(radial / mb3 / norm['length_m'] - 1.6456) < 5e-5
+    assert abs(mb3 / norm.mass_kg - 8.5075) < 5e-5
+    assert abs(radial / mb3 / norm.length_m - 1.6456) < 5e-5
     assert result.attainable
     assert result.force_rms_N[1] <= 1e-12 * result.force_rms_N[0]
     # the written design is force balanced when the core evaluates it
@@ -212,13 +218,15 @@ def test_redistribution_certified_and_reproduced(tmp_path, scene_name, fixed, we
 def test_rggr_written_scene_analyze_reproduces(tmp_path, rggr_rig):
     result = spatial.redistribute(rggr_rig, samples=360, fixed=('coupler',))
     reloaded = spatial.write_scene(result, tmp_path / 'rggr_balanced.yaml')
-    report = rggr_report.analyze_report(reloaded, 360)
+    data = rig_for(reloaded).at(cycle_angles(360))
     rows = {r['quantity']: r for r in result.table}
-    assert report['metrics']['shaking_force_rms'] == pytest.approx(
+    assert rms(data.force_N) == pytest.approx(
         rows['shaking force']['after_si'], rel=REPRODUCE_RTOL, abs=1e-12)
-    assert report['metrics']['shaking_moment_rms'] == pytest.approx(
+    assert rms(data.moment_Nm) == pytest.approx(
         rows['shaking moment']['after_si'], rel=REPRODUCE_RTOL)
-    assert reloaded.crank_weight is None and reloaded.output_weight is None
+    cpl, orig = reloaded.link('coupler'), rggr_rig.scene.link('coupler')   # fixed: kept
+    assert cpl.mass_kg == pytest.approx(orig.mass_kg, rel=1e-12)
+    assert_allclose(cpl.com_m, orig.com_m, rtol=0, atol=1e-15)
 
 
 def _random_feasible(model, free, mlo, mhi, extent, rng):
@@ -360,7 +368,7 @@ def test_dispatch_through_capabilities(rggr_rig, rssr_rig):
     (lambda r: spatial.redistribute(r, extent_bounds={'output': -1.0}),
      'extent_bounds.output'),
     (lambda r: spatial.redistribute(r, samples=3), 'samples: got 3'),
-    (lambda r: spatial.counterweights(r, 'coupler'), 'thin rod'),
+    (lambda r: spatial.counterweights(r, 'coupler'), 'coupler is held only by'),
     (lambda r: spatial.counterweights(r, ''), 'links: got none'),
     (lambda r: spatial.counterweights(r, 'crank', density_kg_m3=0.0), 'density_kg_m3'),
     (lambda r: spatial.force_balance(r, free=('x',)), "free: got 'x'")])
@@ -372,18 +380,19 @@ def test_bad_options_are_named(rggr_rig, call, match):
 def test_tight_bounds_are_met_to_the_reported_violation(rggr_rig):
     # the crank's mass fixed and its extent at the least the range allows: both bounds
     # active at the optimum
-    sc = rggr_rig.scene
-    tight = {'crank': (sc.crank.mass_kg, sc.crank.mass_kg)}
-    radius = defaults.EXTENT_FACTOR_RANGE[0] * sc.geometry.a1_m
+    crank = rggr_rig.scene.link('crank')
+    a1 = float(np.linalg.norm(crank.points['B']))        # the crank's reach, seed 002's a1
+    tight = {'crank': (crank.mass_kg, crank.mass_kg)}
+    radius = defaults.EXTENT_FACTOR_RANGE[0] * a1
     result = spatial.redistribute(rggr_rig, samples=SAMPLES, mass_bounds=tight,
                                   extent_bounds={'crank': radius})
     k = 0
     m = result.theta[0]
-    assert m == pytest.approx(sc.crank.mass_kg, rel=1e-7)
+    assert m == pytest.approx(crank.mass_kg, rel=1e-7)
     # the extent bound holds: tr(Sigma) <= m r^2
     t = result.theta[10 * k:10 * k + 10]
     excess = (0.5 * (t[4] + t[6] + t[9]) - m * radius ** 2) / \
-        (sc.crank.mass_kg * sc.geometry.a1_m ** 2)
+        (crank.mass_kg * a1 ** 2)
     assert excess <= 1e-15               # the returned design meets the bound
     assert result.certificate.max_violation <= 1e-8   # the solver's point, before the pull
     assert result.certificate.lower_bound <= result.certificate.primal
@@ -445,7 +454,7 @@ def test_command_line_balance_and_analyze(tmp_path, capsys):
     status = cli.main(['balance', '--scene', 'rggr', '--method', 'force-balance',
                        '--free', 'crank', '--free', 'output'])
     text = capsys.readouterr().out
-    assert status == 0 and 'output.h_x = - 0.666667 coupler.h_x' in text
+    assert status == 0 and 'output.h_x = - 0.666667 coupler.m s' in text
     assert cli.main(['balance', '--scene', 'hoeken', '--force-balanced']) == cli.EXIT_USAGE
     assert '--force-balanced applies to' in capsys.readouterr().err
     assert cli.main(['balance', '--scene', 'rggr', '--method', 'force-balance',
@@ -497,9 +506,8 @@ def test_counterweights_over_the_option_range(rggr_rig, density, mass_factor, ra
     cert = result.certificate
     assert cert.lower_bound <= cert.primal and cert.certified, cert
     for name, total in result.options['added_mass_kg'].items():
-        k = spatial.parameter_model(rggr_rig).index(name, 'links')
-        assert total <= mass_factor * rggr_rig.scene.crank.mass_kg * (1 + 1e-9) if k == 0 \
-            else total <= mass_factor * rggr_rig.scene.output.mass_kg * (1 + 1e-9)
+        spatial.parameter_model(rggr_rig).index(name, 'links')   # a body of the rig
+        assert total <= mass_factor * rggr_rig.scene.link(name).mass_kg * (1 + 1e-9)
 
 
 @pytest.mark.parametrize('args', [

@@ -15,10 +15,8 @@ from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.cli import main as cli
 from mech_balance.conventions import cycle_angles
-from mech_balance.core import rggr
 from mech_balance.core.rig import rig_for
 from mech_balance.ros import params, urdf
-from mech_balance.schema import rggr as rggr_schema
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -145,10 +143,7 @@ def test_positions_wrapped_within_limits_and_velocities_are_their_rates(name):
     sc = scene.load(name)
     model = urdf.tree_model(sc)
     psi = cycle_angles(720, CYCLE_START)
-    if sc.kind == 'rggr':
-        def solve(p):
-            return rggr.kinematics(sc, p)
-    elif sc.kind == 'spatial':   # through the Rig protocol (the node's path)
+    if sc.kind == 'spatial':   # through the Rig protocol (the node's path)
         rig = rig_for(sc)
 
         def solve(p):
@@ -196,97 +191,61 @@ def test_planar_joint_names_are_those_of_joint_states():
             assert f'{c}: revolute, closes' in text or f'{c}: prismatic, closes' in text
 
 
-# ----------------------------------------------------------------------------- RGGR
+# ----------------------------------------------------------------------------- RGGR (spatial)
 
 
-def test_rggr_fk_puts_every_joint_point_and_frame_where_the_core_does():
+@pytest.fixture(scope='module')
+def rggr_designs():
+    """Return the RGGR (kind spatial) and its seed-002 design (weights folded in)."""
+    from mech_balance.balancing import weights
     sc = scene.load('rggr')
-    g = sc.geometry
-    robot = _robot(sc)
-    root = urdf.DEFAULT_FRAME_ID
-    assert set(robot.link_map) == {root, 'crank', 'coupler_yaw_link', 'coupler', 'output'}
-    pins = _pins(robot)
-    kin = rggr.kinematics(sc, _angles())
-    names, pos, _ = urdf.joint_positions(sc, kin)
-    assert names == urdf.RGGR_JOINT_ORDER
-    q1 = np.array([0.0, g.l2_m, g.l1_m])
-    q3 = g.l3_m * np.array([math.sin(g.beta_rad), 0.0, math.cos(g.beta_rad)])
-    frames = rggr.coupler_frame(kin)
-    worst = worst_axes = 0.0
-    for k in range(kin.crank_angle_rad.size):
-        robot.update_cfg(dict(zip(names, pos[k])))
-        core = {(root, 'Q1'): q1, (root, 'Q3'): q3, ('crank', 'Q1'): q1,
-                ('crank', 'B'): kin.pin_b_m[k], ('coupler', 'B'): kin.pin_b_m[k],
-                ('coupler', 'C'): kin.pin_c_m[k],  # the cut joint C: both of its points
-                ('output', 'C'): kin.pin_c_m[k], ('output', 'Q3'): q3}
-        assert set(core) == set(pins)
-        for (link, point), where in core.items():
-            got = _world(robot, link, root, pins[(link, point)])
-            worst = max(worst, np.abs(got - where).max())
-        axes = {'crank': kin.crank_axes[k], 'output': kin.output_axes[k],
-                'coupler': frames[k]}   # seed 002 eqs. 27, 19, 42-44
-        for link, r in axes.items():
-            got = robot.get_transform(link, root)[:3, :3]
-            worst_axes = max(worst_axes, np.abs(got - r).max())
-    print(f'rggr: worst joint-point mismatch {worst:.2e} m, link axes {worst_axes:.2e}')
-    assert worst < POINT_TOL_M
-    assert worst_axes < 1e-12
-
-
-def _rggr_with_weights():
-    sc = scene.load('rggr')
-    weight = rggr_schema.PivotBody(0.7, (-0.02, 0.01, 0.015), 6e-4, 2e-5, -1e-5)
-    return replace(sc, crank_weight=weight,
-                   output_weight=rggr_schema.PivotBody(1.1, (-0.05, 0.0, -0.01), 4e-3, -3e-5, 0.0))
+    return {False: sc, True: weights.balance_weights(rig_for(sc)).balanced_scene}
 
 
 @pytest.mark.parametrize('with_weights', [False, True])
-def test_rggr_inertials_carry_mass_centre_and_the_given_inertia(with_weights):
-    sc = _rggr_with_weights() if with_weights else scene.load('rggr')
+def test_rggr_inertials_carry_mass_centre_and_the_pivot_inertia(rggr_designs, with_weights):
+    """The links' mass, centre and I_ww, I_wu, I_vw about the pivot (seed 002's J)."""
+    sc = rggr_designs[with_weights]
     robot = _robot(sc)
     root = urdf.DEFAULT_FRAME_ID
-    bodies = {'crank': sc.crank_total(), 'output': sc.output_total()}
-    total = bodies['crank'].mass_kg + sc.coupler.mass_kg + bodies['output'].mass_kg
+    rig = rig_for(sc)
+    total = sum(lk.mass_kg for lk in sc.links)
     masses = {n: link.inertial.mass for n, link in robot.link_map.items()
               if link.inertial is not None}
     assert_allclose(sum(masses.values()), total, rtol=MASS_REL_TOL)
-    for name, body in bodies.items():  # the scene's I_ww, I_wu, I_vw about the pivot
-        inertial = robot.link_map[name].inertial
-        c = inertial.origin[:3, 3]
-        pivot = inertial.inertia + body.mass_kg * (c @ c * np.eye(3) - np.outer(c, c))
-        assert_allclose([pivot[2, 2], -pivot[0, 2], -pivot[1, 2]],
-                        [body.inertia_ww_kg_m2, body.product_wu_kg_m2,
-                         body.product_vw_kg_m2], rtol=1e-12, atol=1e-18)
-        eig = np.linalg.eigvalsh(inertial.inertia)
-        assert eig.min() >= -1e-15 and 2 * eig.max() <= eig.sum() * (1 + 1e-12)
-    kin = rggr.kinematics(sc, _angles())
-    names, pos, _ = urdf.joint_positions(sc, kin)
-    core = (bodies['crank'].mass_kg * kin.crank_centre_m
-            + sc.coupler.mass_kg * kin.coupler_centre_m
-            + bodies['output'].mass_kg * kin.output_centre_m) / total
-    worst = 0.0
-    for k in range(kin.crank_angle_rad.size):
+    data = rig.at(_angles(), outputs=('kinematics',))
+    names, pos, _ = urdf.rig_joint_positions(sc, data)
+    poses = data.bodies
+    core = sum(lk.mass_kg * poses.world(lk.name, lk.com_m) for lk in sc.links) / total
+    worst = worst_pivot = 0.0
+    for k in range(pos.shape[0]):
         robot.update_cfg(dict(zip(names, pos[k])))
         centre = np.zeros(3)
         for name, mass in masses.items():
             t = robot.get_transform(name, root) @ robot.link_map[name].inertial.origin
             centre += mass * t[:3, 3]
         worst = max(worst, np.abs(centre / total - core[k]).max())
-    print(f'rggr (weights {with_weights}): total mass {sum(masses.values())!r} kg (scene '
-          f'{total!r}); worst mass centre mismatch {worst:.2e} m')
+        for name in ('crank', 'output'):   # the inertia about the pivot, in frame axes
+            t = robot.get_transform(name, root) @ robot.link_map[name].inertial.origin
+            lk = sc.link(name)
+            rot = poses.rotation[k, poses.names.index(name)]
+            mine = t[:3, :3] @ robot.link_map[name].inertial.inertia @ t[:3, :3].T
+            theirs = rot @ np.array(lk.inertia_matrix()) @ rot.T
+            worst_pivot = max(worst_pivot, np.abs(mine - theirs).max())
+    print(f'rggr (weights {with_weights}): worst mass centre mismatch {worst:.2e} m, '
+          f'inertia {worst_pivot:.2e} kg m^2')
     assert worst < CENTRE_TOL_M
-    if with_weights:
-        assert sum(v.name == 'weight' for n in ('crank', 'output')
-                   for v in robot.link_map[n].visuals) == 2
+    assert worst_pivot < 1e-15
 
 
-def test_rggr_limits_are_the_swing_of_the_output_and_pitch():
+def test_rggr_output_limits_are_its_swing():
     sc = scene.load('rggr')
     model = urdf.tree_model(sc)
     types = {j.name: j.joint_type for j in model.joints}
-    assert types == {'crank': 'continuous', 'output': 'revolute',
-                     'coupler_yaw': 'continuous', 'coupler_pitch': 'revolute'}
-    phi3 = rggr.kinematics(sc, cycle_angles(36000)).output_angle_rad
+    assert types['crank'] == 'continuous' and types['output'] == 'revolute'
+    data = rig_for(sc).at(cycle_angles(36000), outputs=('kinematics',))
+    names, pos, _ = urdf.rig_joint_positions(sc, data)
+    phi3 = pos[:, names.index('output')]
     out = next(j for j in model.joints if j.name == 'output')
     assert abs(out.lower - phi3.min()) < 1e-8 and abs(out.upper - phi3.max()) < 1e-8
 
@@ -408,12 +367,8 @@ def test_bad_input_names_the_field():
         urdf.urdf_xml(sc, frame_id='')
     with pytest.raises(urdf.UrdfError, match='without rates'):
         urdf.joint_positions(lk, lk.solve([0.1], need_rates=False))
-    with pytest.raises(urdf.UrdfError, match='RggrKinematics'):
-        urdf.joint_positions(scene.load('rggr'), lk.solve([0.1]))
-    with pytest.raises(urdf.UrdfError, match='expected a planar scene'):
+    with pytest.raises(urdf.UrdfError, match='expected a planar or spatial scene'):
         urdf.tree_model(42)
-    with pytest.raises(urdf.UrdfError, match='inertia_about_pivot_kg_m2'):
-        urdf.pivot_body_inertia(rggr_schema.PivotBody(1.0, (0.1, 0.0, 0.0), 0.01, 0.003, 0.0))
 
 
 def test_default_frame_id_is_the_nodes():

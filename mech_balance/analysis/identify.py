@@ -172,7 +172,7 @@ PARAMETER_UNITS = ('kg', 'kg*m', 'kg*m', 'kg*m^2')
 
 
 SPATIAL_NOT_YET = (
-    'identification of a spatial rig (kind rggr or spatial) is not implemented yet: the '
+    'identification of a spatial rig (kind spatial) is not implemented yet: the '
     'encoder model, the base-parameter fit and the physically consistent calibration are '
     'written for planar links (4 parameters each: m, m c_x, m c_y, I_O); a spatial body has 10 '
     '(m, m c, the inertia tensor), and the pieces a spatial identification would stand on '

@@ -11,8 +11,9 @@ can be balanced by (:attr:`mech_balance.core.rig.Rig.capabilities`), never from 
 
 * ``redistribution``: the certified optimal mass redistribution of seed 001 (planar rigs,
   :func:`mech_balance.balancing.socp.optimize`);
-* ``weights``: the RGGR's complete force balance and minimum RMS shaking moment by two
-  balancing weights (seed 002, :mod:`mech_balance.balancing.rggr`);
+* ``weights``: the complete force balance and minimum RMS shaking moment by balancing
+  weights on the links pivoted on the frame (seed 002's RGGR, any spatial scene that lists
+  ``balancing_weights``: :mod:`mech_balance.balancing.weights`);
 * ``counterweights``: add-only discs on listed links, to a certified optimum
   (:func:`mech_balance.balancing.counterweights.balance_with_counterweights`; its report
   carries ``counterweights`` in the scene's form, ``{link: [disc entry]}``);
@@ -244,26 +245,21 @@ def balance(rig, method='auto', **options):
         return Design(result.balanced_scene, report, method, result, _table_figures(
             result.table, f'closed form, RMS shaking force after/before '
                           f'{result.force_rms_ratio:.1e}'))
-    from mech_balance.balancing import rggr as rggr_balancing, rggr_report
-    from mech_balance.conventions import DEFAULT_SAMPLES
+    from mech_balance.balancing import weights
     unknown = sorted(set(options) - {'samples'})
     if unknown:
         raise ValueError(f'{unknown[0]}: not an option of the {method} method (it takes '
                          'samples)')
-    samples = options.get('samples') or DEFAULT_SAMPLES
-    result = rggr_balancing.balance_scene(sc, samples)
-    report = rggr_report.balance_report(sc, samples, result=result)
-    report.setdefault('optimum', {})['moment_rms_lower_bound_Nm'] = \
-        result.optimum.moment_rms_lower_bound_Nm
-    rows = {r['rig']: r for r in report['table']}
+    result = weights.balance_weights(rig, options.get('samples'))
+    report = weights.balance_report(rig, result)
+    rows = {r['rig']: r for r in report['rigs']}
     before, after = rows['unbalanced'], rows['optimized']
     figures = {'force_N': (before['shaking_force_rms'], after['shaking_force_rms']),
                'moment_Nm': (before['shaking_moment_rms'], after['shaking_moment_rms']),
                'certificate': 'least squares, normal-equation residual '
-                              f'{report["optimum"]["normal_equation_residual"]:.1e}, RMS '
-                              'moment lower bound '
-                              f'{result.optimum.moment_rms_lower_bound_Nm:.6g} N m'}
-    return Design(result.design.scene, report, method, result, figures)
+                              f'{result.normal_equation_residual:.1e}, RMS moment lower bound '
+                              f'{result.moment_rms_lower_bound_Nm:.6g} N m'}
+    return Design(result.balanced_scene, report, method, result, figures)
 
 
 __all__ = ['ALTERNATIVES', 'balance', 'DEFAULT_WEIGHTS', 'Design', 'link_options', 'method_for',

@@ -258,7 +258,7 @@ OPTIONS = (
            flag_help='keep this link as it is (repeatable)'),
     Option('samples', 'balance.samples', '--samples', INTEGER, None,
            "Crank angles per revolution in the balancing objective; 0: the scene's samples "
-           '(RGGR: 360).', methods=ALL_METHODS, bounds=(0, conventions.MAX_SAMPLES),
+           '(usually 360).', methods=ALL_METHODS, bounds=(0, conventions.MAX_SAMPLES),
            check=_samples, rule='0 or >= 4', param_default=0, to_option=_none_if_zero,
            flag_help="crank angles per revolution (default: the scene's, usually 360)"),
     Option('links', 'balance.counterweight_links', '--counterweights', STRING, (),

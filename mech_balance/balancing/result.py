@@ -65,8 +65,8 @@ class Design:
             self.certified = bool(cert.certified)
             failed = bool(cert.failed_stages)
             realizable = bool(getattr(res, 'realizable', True))
-        elif getattr(res, 'optimum', None) is not None:   # least squares (balancing weights)
-            opt = res.optimum
+        elif hasattr(res, 'moment_rms_lower_bound_Nm'):   # least squares (balancing weights)
+            opt = res
             self.objective_name = 'RMS shaking moment, N m (least squares)'
             self.objective = float(opt.moment_rms_optimal_Nm)
             self.lower_bound = float(opt.moment_rms_lower_bound_Nm)

@@ -1,9 +1,9 @@
 """
 Balancing of spatial rigs: complete force balance, certified redistribution, counterweights.
 
-Generic over every rig with the ``'body_kinematics'`` capability (the RGGR of seed 002 and
-the general ``kind: spatial``): the shaking wrench is linear in the ten inertial parameters
-of each moving body (:mod:`mech_balance.core.regressor`), so
+Generic over every rig with the ``'body_kinematics'`` capability (the general ``kind:
+spatial``, the RGGR of seed 002 among its scenes): the shaking wrench is linear in the ten
+inertial parameters of each moving body (:mod:`mech_balance.core.regressor`), so
 
 * **complete force balance** (:func:`force_balance`): the shaking force over the cycle is
   ``F theta``; its zero set is the null space of F (in the masses and first moments: the
@@ -32,7 +32,7 @@ parameters of each body its scene can hold (a basis), how to write a design back
 how to fit counterweights.  The derivations: docs/_drafts/spatialbal.md.
 """
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 import math
 import time
 
@@ -131,82 +131,6 @@ def _full_body(name, reach):
     return BodyModel(name, np.eye(10), (0, 1, 1, 1, 2, 2, 2, 2, 2, 2), reach)
 
 
-def _pivot_theta(body):
-    """Return theta of an RGGR pivot body; its I_xx, I_xy, I_yy (no load) the least PSD fill."""
-    m = body.mass_kg
-    h = body.mass_kg * np.asarray(body.centre_uvw_m, dtype=float)
-    izz = body.inertia_ww_kg_m2
-    # Sigma_xx + Sigma_yy = I_zz; Sigma_xz = I_wu, Sigma_yz = I_vw (tensor entries -I_wu, -I_vw)
-    spread = max(izz - (h[0] ** 2 + h[1] ** 2) / m, 0.0)
-    sxx, syy, sxy = h[0] ** 2 / m + spread / 2, h[1] ** 2 / m + spread / 2, h[0] * h[1] / m
-    bx = body.product_wu_kg_m2 - h[0] * h[2] / m
-    by = body.product_vw_kg_m2 - h[1] * h[2] / m
-    szz = h[2] ** 2 / m + ((bx * bx + by * by) / (spread / 2) if spread > 0.0 else 0.0)
-    return np.array([m, *h, syy + szz, -sxy, sxx + szz, -body.product_wu_kg_m2,
-                     -body.product_vw_kg_m2, izz])
-
-
-def _pivot_body(theta):
-    from mech_balance.schema.rggr import PivotBody
-    m = float(theta[0])
-    return PivotBody(mass_kg=m, centre_uvw_m=tuple(float(x) for x in theta[1:4] / m),
-                     inertia_ww_kg_m2=float(theta[9]), product_wu_kg_m2=float(-theta[7]),
-                     product_vw_kg_m2=float(-theta[8]))
-
-
-ROD_BASIS = np.zeros((10, 3))
-ROD_BASIS[0, 0] = ROD_BASIS[1, 1] = ROD_BASIS[6, 2] = ROD_BASIS[9, 2] = 1.0
-"""The thin-rod coupler of the RGGR (axis x of its frame): m, h_x and I_yy = I_zz."""
-
-
-def rggr_model(rig):
-    """
-    Return the :class:`ParameterModel` of an RGGR rig (seed 002).
-
-    Crank and output turn about fixed axes: all ten parameters are design variables, but only
-    m, h, I_zz, I_xz, I_yz enter the dynamics; I_xx, I_xy, I_yy are the scene's unknowns that
-    the PSD constraint only requires to exist.  The coupler is the scene's thin rod: m,
-    h_x = m c2 and I_yy = I_zz about B (ROD_BASIS).  A design is written with the bodies as
-    links (no balancing weights); counterweights go into the scene's balancing weights.
-    """
-    sc = rig.scene
-    g = sc.geometry
-    cpl = sc.coupler
-    i_b = cpl.transverse_inertia_kg_m2 + cpl.mass_kg * cpl.centre_from_b_m ** 2
-    theta = np.concatenate([
-        _pivot_theta(sc.crank_total()),
-        [cpl.mass_kg, cpl.mass_kg * cpl.centre_from_b_m, 0, 0, 0, 0, i_b, 0, 0, i_b],
-        _pivot_theta(sc.output_total())])
-    bodies = (_full_body('crank', g.a1_m),
-              BodyModel('coupler', ROD_BASIS, (0, 1, 2), g.a2_m,
-                        'the RGGR coupler is a thin rod in its scene; expected crank or '
-                        'output', ('m', 'h_x', 'I_yy=I_zz')),
-              _full_body('output', g.a3_m))
-
-    def build(t, name=None):
-        from mech_balance.schema.rggr import Coupler
-        t = np.asarray(t, dtype=float).reshape(3, 10)
-        m2 = float(t[1, 0])
-        c2 = float(t[1, 1] / m2)
-        coupler = Coupler(mass_kg=m2, centre_from_b_m=c2,
-                          transverse_inertia_kg_m2=max(float(t[1, 6] - m2 * c2 * c2), 0.0))
-        return replace(sc, name=name or f'{sc.name}_balanced', crank=_pivot_body(t[0]),
-                       coupler=coupler, output=_pivot_body(t[2]), crank_weight=None,
-                       output_weight=None)
-
-    def add(added, spheres, name=None):
-        from mech_balance.schema.rggr import combine_bodies
-        out = {}
-        for key, weight in (('crank', sc.crank_weight), ('output', sc.output_weight)):
-            if key in added:
-                extra = _pivot_body(added[key])
-                weight = extra if weight is None else combine_bodies(weight, extra)
-            out[f'{key}_weight'] = weight
-        return replace(sc, name=name or f'{sc.name}_counterweights', **out)
-
-    return ParameterModel(bodies, theta, build, add)
-
-
 def line_basis(point_a, point_b):
     """
     Return the (10, 3) basis of mass distributions on the line through two points (body axes).
@@ -239,7 +163,7 @@ def spatial_model(rig):
     folded into their link's (the scene has no counterweight field; the spheres are in the
     report and the provenance).
     """
-    from mech_balance.schema.spatial import SpatialLink
+    from mech_balance.schema.spatial import INERTIA_RTOL, SpatialLink
     sc = rig.scene
     idle = {name: (ja, jb) for name, ja, jb in getattr(rig.linkage, 'idle_spins', ())}
     joints = {j.name: j for j in sc.joints}
@@ -281,8 +205,15 @@ def spatial_model(rig):
             tk = t[names.index(lk.name)]
             m = float(tk[0])
             c = tk[1:4] / m
-            i_c = regressor.inertia_matrix(tk[4:10]) - m * (np.dot(c, c) * np.eye(3)
-                                                            - np.outer(c, c))
+            i_o = regressor.inertia_matrix(tk[4:10])
+            i_c = i_o - m * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+            # a thin rod's zero moments come out of the solver and the parallel-axis step as
+            # +-round-off: principal moments above -INERTIA_RTOL m reach^2 (the scene
+            # check's relative slack, of the body's own scale) are written as zero
+            eig, vec = np.linalg.eigh(i_c)
+            floor = INERTIA_RTOL * max(abs(m), float(lk.mass_kg)) * reaches[lk.name] ** 2
+            if -floor <= eig[0] < 0.0:
+                i_c = (vec * np.maximum(eig, 0.0)) @ vec.T
             links.append(SpatialLink(lk.name, lk.points, m, tuple(float(x) for x in c),
                                      tuple(float(x) for x in (i_c[0, 0], i_c[1, 1], i_c[2, 2],
                                                               i_c[0, 1], i_c[0, 2],
@@ -301,7 +232,7 @@ def spatial_model(rig):
     return ParameterModel(tuple(bodies), theta, build, add)
 
 
-PARAMETER_MODELS = {'rggr': rggr_model, 'spatial': spatial_model}
+PARAMETER_MODELS = {'spatial': spatial_model}
 """The parameter model of each kind of rig that this module balances (kind name -> factory)."""
 
 

@@ -84,36 +84,6 @@ def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
                           for r in ref]}
 
 
-def rggr_rms_convergence(sc, p_values=P_LADDER, p_ref=P_REFERENCE,
-                         repeat=RMS_TIMING_REPEAT):
-    """
-    Return the RMS study of an RGGR scene (seed 002) from :func:`rggr_report.analyze_report`.
-
-    Same rows as :func:`rms_convergence`; the quantities are the report's RMS metrics
-    (shaking force and moment magnitudes, driving torque), normalized.
-    """
-    from mech_balance.analysis import rggr_report
-
-    def metrics(p):
-        m = rggr_report.analyze_report(sc, p, True)['metrics']
-        return {k[:-4]: v for k, v in m.items() if k.endswith('_rms')}
-    ref = metrics(p_ref)
-    names = sorted(ref)
-    ref_rms = np.array([ref[k] for k in names])
-    scale = np.where(ref_rms > 0.0, ref_rms, max(float(np.max(ref_rms)), 1e-300))
-    rows = []
-    for p in p_values:
-        got = metrics(p)
-        err = np.abs(np.array([got[k] for k in names]) - ref_rms) / scale
-        k = int(np.argmax(err))
-        seconds = _median(lambda: rggr_report.analyze_report(sc, p, True), repeat)
-        rows.append({'p': int(p), 'max_rel_error': float(err[k]), 'worst': names[k],
-                     'seconds': seconds})
-    return {'p_reference': p_ref, 'normalized': True, 'rows': rows,
-            'reference': [{'quantity': k, 'unit': 'normalized', 'rms': ref[k]}
-                          for k in names]}
-
-
 def first_p_below(study, tol):
     """Return the smallest p of the study from which on every error is below ``tol``."""
     rows = study['rows']
@@ -304,9 +274,7 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
         out = {'scene': sc.name, 'source': sc.source}
         if 'rms' in sections:
             say('RMS against p ...')
-            rig = rig_for(sc)   # (balancing weights: the rggr kind's own study)
-            out['rms'] = rggr_rms_convergence(sc) if 'balancing_weights' in rig.capabilities \
-                else rms_convergence(rig)
+            out['rms'] = rms_convergence(rig_for(sc))
         out['notes'] = [f'{name}: needs the capability accuracy_study, which kind '
                         f'{kind.name} lacks' for name in sections if name != 'rms']
         return out

@@ -5,7 +5,7 @@ Per spatial built-in: the one-off build (compile, assemble, trace the branch) an
 full cycle (every output: kinematics, shaking wrench, driving torque, bearing reactions,
 kinetic energy) at the bench's crank angles, in us per angle, with the spatial issue's
 targets (skew RSSR <= 5 us, two-loop <= 10 us) and the machine's load average, which the
-figures depend on.  Also the agreement of ``rggr_spatial`` with the closed-form ``rggr``.
+figures depend on.
 
 The cycle's angles (1 degree apart from the assembly angle) are the branch's dense nodes,
 where the predictor has already converged and the Newton step is skipped; the ``off-node``
@@ -23,21 +23,9 @@ from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import kinematics
 from mech_balance.schema import registry
 from mech_balance.schema.scene import OUTPUTS
-import numpy as np
 
 TARGETS_US = {'rssr_skew': 5.0, 'spatial_two_loop': 10.0}
 """The spatial issue's targets, us per crank angle for the full cycle."""
-
-
-def _agreement(samples):
-    psi = cycle_angles(samples)
-    mine = rig_for(schema.load('rggr_spatial')).at(psi)
-    theirs = rig_for(schema.load('rggr')).at(psi)
-    worst = 0.0
-    for a, b in ((mine.force_N, theirs.force_N), (mine.moment_Nm, theirs.moment_Nm),
-                 (mine.joint_effort[:, 0], theirs.joint_effort[:, 0])):
-        worst = max(worst, float(np.max(np.abs(a - b)) / np.max(np.abs(b))))
-    return worst
 
 
 def bench_section(args, progress):
@@ -66,6 +54,4 @@ def bench_section(args, progress):
                      f'{seconds * 1e6 / samples:9.2f} '
                      f'{"" if target is None else f"<= {target:g}":>7} '
                      f'{off_seconds * 1e6 / samples:9.2f}')
-    lines.append(f'rggr_spatial vs rggr (force, moment, torque), worst relative difference: '
-                 f'{_agreement(samples):.2e}')
     return '\n'.join(lines)

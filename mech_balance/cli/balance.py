@@ -1,8 +1,8 @@
 """
 ``mech-balance balance``: optimal mass redistribution and analytic force balance of a scene.
 
-A thin verb over :mod:`mech_balance.balancing` (planar scenes) and
-:func:`mech_balance.balancing.rggr_report.balance_report` (RGGR scenes).  The seed-001
+A thin verb over :mod:`mech_balance.balancing` (its seed-002 weights report:
+:func:`mech_balance.balancing.weights.balance_report`).  The seed-001
 reference values printed next to the results are the papers' tables
 (:mod:`mech_balance.seed_tables`).
 """
@@ -24,7 +24,7 @@ OUTPUT_SUFFIXES = ('.yaml', '.yml')
 OPTIMIZE_OPTIONS = ('--weights', '--case', '--paper-constraints', '--no-realizable',
                     '--margin', '--mass-factors', '--distance-factors', '--torque-weight',
                     '--reaction-weight', '--max-added-mass', '--fix')
-"""Options of the seed-001 optimization: rejected with --analytic and for RGGR scenes."""
+"""Options of the seed-001 optimization: rejected with --analytic and for spatial rigs."""
 ANALYTIC_OPTIONS = ('--mass-factor', '--keep-centroidal')
 """Options of --analytic alone: rejected without it."""
 COUNTERWEIGHT_OPTIONS = ('--density', '--max-thickness', '--max-radius-factor',
@@ -41,14 +41,14 @@ COUNTERWEIGHT_SHARED = ('--weights', '--torque-weight', '--reaction-weight')
 """Options of the optimization that --counterweights uses too (the rest it rejects)."""
 PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + \
     COUNTERWEIGHT_PLACEMENT + ('--analytic', '--counterweights', '--model')
-"""Options RGGR scenes reject: their balancing (seed 002) has no such choices."""
+"""Options of the planar balancing (spatial rigs take only :data:`SPATIAL_SHARED` of them)."""
 SPATIAL_SHARED = ('--weights', '--mass-factors', '--fix', '--counterweights', '--density',
                   '--max-mass-factor', '--max-radius-factor')
 """Options of the planar balancing that spatial rigs (body kinematics) take too."""
 SPATIAL_OPTIONS = ('--method', '--extent-factor', '--force-balanced', '--free')
 """Options of spatial rigs alone (mech_balance.balancing.spatial)."""
 SPATIAL_METHODS = ('auto', 'weights', 'force-balance', 'redistribution', 'counterweights')
-"""``--method`` values (auto: the rig's own, the RGGR's weights, else the redistribution)."""
+"""``--method`` values (auto: the scene's balancing weights, else the redistribution)."""
 
 
 TABLE_KEYS = tuple(opt.key for opt in options.OPTIONS if opt.flag is not None)
@@ -113,7 +113,8 @@ def register(subparsers):
                     'to a certified global optimum, or (--analytic) balance the shaking force '
                     'completely (seed 000 eqs. 44-75, seed 001 eq. 48). Prints the design per '
                     'link, the before/after RMS table, the duality-gap certificate and the '
-                    'solve time. RGGR scenes print the seed-002 balancing report.',
+                    'solve time. Scenes that list balancing_weights (the RGGR) print the '
+                    'seed-002 report.',
         formatter_class=_HelpFormatter)
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML file')
@@ -134,9 +135,10 @@ def register(subparsers):
                         'with two point masses per link at 0 and 90 deg, and print the '
                         "certified bounds next to the paper's rows")
     p.add_argument('--method', choices=SPATIAL_METHODS, default='auto',
-                   help='spatial rigs (body kinematics: the RGGR, kind spatial): weights (the '
-                        "RGGR's seed-002 weights, its default), force-balance (the null space "
-                        'of the shaking force: conditions and the least-change design), '
+                   help="spatial rigs (kind spatial): weights (seed 002, the scene's "
+                        'balancing_weights; the default where listed, e.g. rggr), '
+                        'force-balance (the null space of the shaking force: conditions and '
+                        'the least-change design), '
                         'redistribution (certified, every body a PSD pseudo-inertia; the '
                         'default of kind spatial), counterweights (add-only spheres, with '
                         '--counterweights LINKS)')
@@ -213,17 +215,13 @@ def cmd_balance(args):
     sc = scene_mod.load(args.scene)
     caps = scene_mod.kind_of(sc).rig_factory().capabilities
     spatial_given = _given(args, SPATIAL_OPTIONS)
-    if 'mass_redistribution' not in caps and 'body_kinematics' in caps and (
-            spatial_given or args.counterweights is not None
-            or 'balancing_weights' not in caps):
+    if 'mass_redistribution' not in caps and 'body_kinematics' in caps:
         cli.requires(sc, 'mass_redistribution', **dict.fromkeys(
             [o for o in _given(args, PLANAR_OPTIONS) if o not in SPATIAL_SHARED], True))
         return _spatial(sc, args)
     cli.requires(sc, 'body_kinematics', **dict.fromkeys(spatial_given, True))
     cli.requires(sc, 'mass_redistribution',
                  **dict.fromkeys(_given(args, PLANAR_OPTIONS), True))
-    if 'mass_redistribution' not in caps:
-        return _weights(sc, args)
     if spatial_given:
         raise ValueError(f'{spatial_given[0]}: applies to spatial rigs (body kinematics), got '
                          f'the planar scene {sc.name!r}; expected no {spatial_given[0]}')
@@ -548,7 +546,7 @@ def _paper_design_links(sc, x, counterweights):
             for lk in design.links]
 
 
-# ============================================================================ analytic, RGGR
+# ============================================================================ analytic, weights
 
 
 def _analytic(sc, args):
@@ -593,34 +591,34 @@ def _analytic(sc, args):
 
 
 def _weights(sc, args):
-    """Balance by balancing weights (the RGGR, seed 002) and print its report."""
+    """Balance by balancing weights (seed 002, the scene's ``balancing_weights``); report."""
     from mech_balance import balancing as front
-    from mech_balance.balancing import rggr_report
+    from mech_balance.balancing import spatial, weights
     from mech_balance.core.rig import rig_for
     if args.output:
-        raise ValueError('--output: the balancing weights of seed 002 are reported, not '
-                         'written as a scene; expected no --output for a scene balanced by '
-                         'weights')
-    design = front.balance(rig_for(sc), 'weights', samples=args.samples)
-    report = rggr_report.balance_report(sc, design.report['samples'], normalized=args.normalized,
-                                        result=design.result)
-    opt = design.result.optimum
-    report.setdefault('optimum', {})['moment_rms_lower_bound_Nm'] = \
-        opt.moment_rms_lower_bound_Nm
+        cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
+    rig = rig_for(sc)
+    design = front.balance(rig, 'weights', samples=args.samples)
+    result = design.result
+    if args.output:
+        spatial.write_scene(result, args.output)
+    report = weights.balance_report(rig, result, normalized=args.normalized)
     if args.json:
         out = design.to_dict(args.normalized)
         out['report'] = report   # the seed 002 report in the units asked for
         print(jsonout.dumps(out))
         return 0
-    print(rggr_report.format_report(report))
-    print(f'certificate: RMS shaking moment {opt.moment_rms_optimal_Nm:.9g} N m, safe lower '
-          f'bound {opt.moment_rms_lower_bound_Nm:.9g} N m (least squares, seed 002 eqs. '
-          '89-95)')
+    print(weights.format_report(report))
+    print(f'certificate: RMS shaking moment {result.moment_rms_optimal_Nm:.9g} N m, safe '
+          f'lower bound {result.moment_rms_lower_bound_Nm:.9g} N m (least squares, seed 002 '
+          'eqs. 89-95)')
+    if args.output:
+        print(f'balanced scene written to {args.output}')
     return 0
 
 
 def _spatial(sc, args):
-    """Balance a rig with body kinematics (the RGGR, kind spatial) and print its result."""
+    """Balance a rig with body kinematics (kind spatial) and print its result."""
     from mech_balance import balancing as front
     from mech_balance.balancing import spatial
     from mech_balance.core.rig import rig_for
@@ -629,6 +627,11 @@ def _spatial(sc, args):
         args.method.replace('-', '_')
     method = front.method_for(rig, method)
     if method == 'weights':
+        ignored = [o for o in _given(args, SPATIAL_SHARED + SPATIAL_OPTIONS) if o != '--method']
+        if ignored:
+            raise ValueError(f'{ignored[0]}: not an option of the method weights (seed 002, '
+                             f'which takes --samples only); expected no {ignored[0]}, or '
+                             '--method redistribution, force-balance or counterweights')
         return _weights(sc, args)
     if args.output:
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)

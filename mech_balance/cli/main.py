@@ -186,6 +186,10 @@ def build_parser():
 
     p = sub.add_parser('scenes', help='list the built-in scenes',
                        description='List the scenes shipped in config/.')
+    p.add_argument('--convert', default=None, metavar='OLD.yaml',
+                   help='instead, write this scene as its kind reads it now (a former kind: '
+                        'rggr file as its kind: spatial scene) to --out')
+    p.add_argument('--out', default=None, metavar='NEW.yaml', help='--convert: the file')
     p.set_defaults(func=cmd_scenes)
 
     p = sub.add_parser('bench', help='timings of the core (median of repeated runs)',
@@ -214,8 +218,18 @@ def build_parser():
 
 
 def cmd_scenes(args):
-    """List the built-in scenes."""
+    """List the built-in scenes (or convert one scene file: ``--convert``)."""
     from mech_balance import schema as scene
+    if (args.convert is None) != (args.out is None):
+        raise ValueError('--convert and --out: got one of them, expected both or neither')
+    if args.convert is not None:
+        from mech_balance import atomic
+        writable_path('--out', args.out, ('.yaml', '.yml'))
+        text = scene.to_yaml(scene.load(args.convert))
+        atomic.write_text_atomic(args.out, f'# converted by mech-balance scenes from '
+                                           f'{args.convert}\n' + text)
+        print(f'scene written to {args.out}')
+        return 0
     indent = ' ' * (SCENE_NAME_WIDTH + 1)
     for name, path in scene.builtin_scenes().items():
         data, _ = scene.load_data(path)

@@ -2,7 +2,7 @@
 The ``mech-balance record`` verb: a rerun recording of a rig, original against balanced.
 
 The verb is thin: it loads the scenes, finds the balanced design (a scene file, or the
-balancing of :mod:`mech_balance.balancing` / :mod:`mech_balance.rggr`) and hands both to
+balancing of :mod:`mech_balance.balancing`) and hands both to
 :func:`mech_balance.recording.record`.  Its bench section times that call.
 """
 
@@ -53,7 +53,8 @@ def register(subparsers):
     which.add_argument('--balance', action='store_true',
                        help='balance the scene first: seed 001 optimization for planar '
                             'scenes (mech_balance.balancing.optimize), seed 002 force '
-                            'balance and minimum RMS shaking moment for the RGGR')
+                            'balance and minimum RMS shaking moment for a scene with '
+                            'balancing_weights')
     which.add_argument('--counterweights', default=None, metavar='LINK[,LINK...]',
                        help='balance the scene first with add-only counterweight discs on '
                             'these links (mech_balance.balancing.counterweights, its defaults; '
@@ -76,8 +77,9 @@ def balanced_design(sc, weights=defaults.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     Return ``(balanced_scene, description)`` for ``--balance``.
 
     Planar scenes use :func:`mech_balance.balancing.optimize` with ``weights`` and ``case``;
-    RGGR scenes :func:`mech_balance.rggr_balancing.balance_scene` (force balance, then minimum RMS
-    moment), which takes neither.
+    a scene that lists ``balancing_weights`` (the RGGR) the method ``weights`` of seed 002
+    (:mod:`mech_balance.balancing.weights`: force balance, then minimum RMS moment), which
+    takes neither.
     """
     from mech_balance import balancing as front
     from mech_balance.core.rig import rig_for
@@ -86,7 +88,7 @@ def balanced_design(sc, weights=defaults.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     if method == 'weights':
         return (front.balance(rig, method).scene,
                 'seed 002 complete force balance with the minimum RMS shaking moment '
-                '(mech_balance.balancing.rggr.balance_scene)')
+                '(mech_balance.balancing.weights)')
     design = front.balance(rig, method, weights=tuple(weights), case=case)
     if front.METHODS[method] not in rig.capabilities:   # the spatial implementation
         return (design.scene, f'{design.report["method"]}, (w1, w2) = ({weights[0]:g}, '

@@ -27,10 +27,9 @@ def register(subparsers):
                     'blocks as visuals and collisions, and one joint per joint of the '
                     'spanning tree the core solves, named as on joint_states, with limits '
                     'where the joint swings (continuous where it turns fully). The joints '
-                    'that close the loops are listed in a comment. The RGGR is written in 3-D '
-                    'with its real axes; its coupler hangs from the crank by two revolute '
-                    'joints (coupler_yaw, coupler_pitch); spatial rigs write a spherical joint as '
-                    'three revolute joints on massless links. Zero convention: '
+                    'that close the loops are listed in a comment. Spatial rigs are written in '
+                    '3-D with their real axes, a spherical joint as three revolute joints on '
+                    'massless links. Zero convention: '
                     'docs/rviz_launch.md and mech_balance/ros/urdf.py.')
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML '

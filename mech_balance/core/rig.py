@@ -11,7 +11,8 @@ and :func:`rig_for` builds the rig of any scene from the kind registry of
 :mod:`mech_balance.schema.registry`.
 
 Implementations: :class:`mech_balance.core.planar.rig.PlanarRig` (every single-input planar
-linkage) and :class:`mech_balance.core.rggr.RggrRig` (the RGGR spatial four-bar, seed 002).
+linkage) and :class:`mech_balance.core.spatial.rig.SpatialRig` (every single-input spatial
+linkage, the RGGR of seed 002 among them).
 
 Frames, units and signs: :mod:`mech_balance.conventions`.  The shaking wrench is always a pair
 of 3-vectors in the frame's axes (planar rigs: force z = 0, moment x = y = 0), reduced to the

@@ -26,7 +26,7 @@ def balance_method(values, rig):
     """
     Return the balancing method of ``balance.method`` for ``rig``; ValueError if it has none.
 
-    The default, redistribution, on a rig that cannot be redistributed (the RGGR) is the
+    The default, redistribution, on a rig that cannot be redistributed (a spatial rig) is the
     rig's own method (:func:`mech_balance.balancing.method_for`).
     """
     chosen = values['balance.method']

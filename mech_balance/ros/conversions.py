@@ -84,7 +84,8 @@ def fill_wrench(msg, samples, i, stamp, frame_id):
     Fill ``msg`` (``geometry_msgs/WrenchStamped``) with the shaking wrench of sample ``i``.
 
     Force (N) and moment (N*m) that the rig exerts on its frame, in the frame's axes, about
-    the crank pivot (RGGR: about O); planar rigs have force z = moment x = moment y = 0.
+    the crank pivot (spatial rigs: about the scene's moment_point_m); planar rigs have
+    force z = moment x = moment y = 0.
     """
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id

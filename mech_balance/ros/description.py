@@ -5,8 +5,8 @@ What the rig node tells robot_state_publisher: the URDF joints on ``joint_states
 
 * first every joint of the scene, in the rig's order (:attr:`Rig.joint_names`; the crank's
   index is unchanged);
-* then the URDF joints the scene does not have (the RGGR's ``coupler_yaw`` and
-  ``coupler_pitch``, which carry the coupler's spherical joint at B).
+* then the URDF joints the scene does not have (a spatial rig's spherical joint is three
+  revolute URDF joints, ``<name>_yaw``, ``_pitch``, ``_roll``, on massless links).
 
 Positions and velocities are those of the URDF (:func:`mech_balance.ros.urdf.joint_positions`,
 its zero convention: revolute joints wrapped to (-pi, pi], measured from the joint origin)

@@ -37,7 +37,7 @@ def link_names(model):
     """
     if not balancing.link_options(model.rig):
         return ()
-    return tuple(lk.name for lk in getattr(model.scene, 'links', ()))   # (the rggr kind: none)
+    return tuple(lk.name for lk in model.scene.links)
 
 
 SCENE_DEPENDENT = ('balance.fixed_links', 'balance.counterweight_links',

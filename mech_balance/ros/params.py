@@ -35,8 +35,9 @@ MAX_FRACTION = 1000.0
 CASES = ('a', 'b')
 METHODS = ('redistribution', 'counterweights', 'analytic')
 """``balance.method``: :func:`mech_balance.balancing.balance`'s methods the node offers (a
-rig that cannot be redistributed, the closed-form ``rggr`` scene, is balanced by its own
-method when the method is the default, redistribution; spatial scenes are redistributed)."""
+spatial scene that lists ``balancing_weights``, the RGGR, is balanced by its own method,
+weights, when the method is the default, redistribution; other spatial scenes are
+redistributed)."""
 MAX_CRANK_SPEED = 1000.0
 """Largest |crank_speed| accepted, rad/s (about 9500 rpm)."""
 MIN_PUBLISH_RATE = 0.1
@@ -208,9 +209,9 @@ METHOD_SPEC = Spec(
     'redistribution: the certified optimal mass redistribution (seed 001); '
     'counterweights: add-only discs on balance.counterweight_links (certified); '
     'analytic: complete force balance in closed form (slider-crank: seed 000, '
-    'four-bar: seed 001 eq. 48). A scene that cannot be redistributed (the closed-form '
-    'rggr scene) is balanced by its own method (weights) with the default; spatial '
-    'scenes, rggr_spatial included, are redistributed.', choices=METHODS)
+    'four-bar: seed 001 eq. 48). A spatial scene that lists balancing_weights (rggr) is '
+    'balanced by its own method (weights, seed 002) with the default; other spatial '
+    'scenes are redistributed.', choices=METHODS)
 """``balance.method``: the node's own (the command line chooses by its flags)."""
 
 
@@ -242,7 +243,7 @@ PARAMETERS = (
          'file).'),
     Spec('crank_joint', STRING, '',
          "Follow mode: the crank's name in the encoder's JointState; empty: the scene's "
-         'crank joint (RGGR: crank).', check=_joint_name, rule='no surrounding spaces'),
+         'crank joint.', check=_joint_name, rule='no surrounding spaces'),
     Spec('follow.window', INTEGER, 7,
          'Follow mode: encoder samples in the least-squares fit that estimates the crank '
          'speed and acceleration.', bounds=(2, 1000)),

@@ -26,12 +26,12 @@ messages.
     unless ``follow.exact``).
 
 Joint values and efforts: the rig's own (:mod:`mech_balance.core.planar.rig`,
-:class:`mech_balance.core.rggr.RggrRig`).
+:mod:`mech_balance.core.spatial.rig`).
 
 Shaking wrench: :mod:`mech_balance.conventions` (force and moment the rig exerts on its
-frame, frame axes); planar rigs about the crank pivot (force x, y, moment z), the RGGR about
-the origin O of its frame (seed 002: on the output axis, the foot of the common normal of
-the two axes), all six components.
+frame, frame axes); planar rigs about the crank pivot (force x, y, moment z), spatial rigs
+about their scene's ``moment_point_m`` (the RGGR: the origin O of its frame, seed 002's foot
+of the common normal on the output axis), all six components.
 """
 
 from collections import deque

@@ -15,9 +15,8 @@ Link frames (the URDF's own, SI)
     and y in the plane of motion, z out of it.  The URDF link of a moving link b is the
     scene's link frame of b (axes turned by phi_b) moved to b's point of the tree joint
     that holds b, so a point p of b (link coordinates) is at ``(p - p_j, 0)`` in the URDF
-    frame.  RGGR (seed 002): the root is Oxyz; ``crank`` is Q1uvw, ``output`` is Q3uvw
-    (module docstring of :mod:`mech_balance.rggr`); ``coupler`` has its origin at the pin B
-    and the axes U, V, W of seed 002 eqs. 38, 42-44 (U along BC, V parallel to the xy-plane).
+    frame.  Spatial rigs (the RGGR of seed 002 among them): the frames of the section
+    *spatial kind* below.
 
 Joint zero convention (:func:`joint_positions`)
     * Revolute joint of a planar rig: the relative angle phi_child - phi_parent of the two
@@ -28,14 +27,6 @@ Joint zero convention (:func:`joint_positions`)
       joint reads the crank angle psi, wrapped.
     * Prismatic joint: the slide of the child's joint point from the parent's along the
       joint axis (the core's tree coordinate), 0 where the two points coincide.
-    * RGGR: ``crank`` = phi1 and ``output`` = phi3 (seed 002 eqs. 16-23), wrapped (with the
-      same offset rule).  The coupler hangs from the crank through a spherical joint at B,
-      carried by two revolute joints: ``coupler_yaw`` about the crank's w axis, the angle
-      from u to the projection of BC on the crank's uv-plane, and ``coupler_pitch``, the
-      elevation of BC above that plane (towards +w).  The third rotation of a spherical
-      joint, the coupler's spin about BC, is seed 002's idle spin (a thin rod has no inertia
-      about its axis); it is fixed by the paper's choice V parallel to the xy-plane (eq. 42),
-      so it has no joint.  The frame is undefined where BC is parallel to the crank axis.
     Velocities are the time derivatives of the positions (rad/s, m/s).
 
 Joint limits
@@ -52,9 +43,8 @@ Inertials
     moments along x and y, ixx = iyy = izz / 2 (ixx + iyy = izz for a thin plate).  A link
     whose scene entry lists ``counterweights`` (discs: ``mass_kg``, ``centre_m``,
     ``radius_m``, ``thickness_m``, included in the link's totals) adds each disc's
-    out-of-plane inertia to ixx, iyy and ixy and draws it.  RGGR: the scene gives I_ww,
-    I_wu and I_vw about the pivot only; the others do not enter its dynamics (rggr.py), so
-    the URDF takes the thinnest body that has the given ones (:func:`pivot_body_inertia`).
+    out-of-plane inertia to ixx, iyy and ixy and draws it.  Spatial rigs: the scene's
+    mass, mass centre and inertia tensor.
 """
 
 from dataclasses import dataclass, field, replace
@@ -81,14 +71,10 @@ LIMIT_MARGIN = 1e-9
 linkage's length scale, m), so that round-off never puts a published position outside."""
 FULL_TURN_FRACTION = 1.0 - 1e-9
 """A swing wider than this fraction of 2 pi is treated as a full turn (``continuous``)."""
-RGGR_ROD_RADIUS = 0.08
-"""RGGR: rod radius of the links and axes as a fraction of the crank radius a1."""
-RGGR_PIN_RADIUS = 0.16
-"""RGGR: sphere radius of the coupler's spherical joints as a fraction of a1."""
-WEIGHT_DENSITY = 7850.0
-"""RGGR balancing weights are drawn as steel spheres of their mass (kg/m^3; drawing only)."""
-COUPLER_FRAME_MIN = 1e-9
-"""h / a2 (the coupler's horizontal extent) below which the coupler frame is undefined."""
+ROD_RADIUS = 0.01
+"""Spatial rigs: rod radius of the drawn links as a fraction of the linkage's length scale."""
+PIN_RADIUS_3D = 0.02
+"""Spatial rigs: sphere radius of the drawn joint points as a fraction of the length scale."""
 PALETTE = (
     (0.95, 0.55, 0.10, 1.0), (0.20, 0.45, 0.85, 1.0), (0.25, 0.70, 0.30, 1.0),
     (0.80, 0.25, 0.25, 1.0), (0.60, 0.35, 0.75, 1.0), (0.10, 0.70, 0.70, 1.0),
@@ -97,10 +83,6 @@ PALETTE = (
 """Link colours (rgba), in body order; the frame is grey."""
 FRAME_COLOUR = (0.6, 0.6, 0.6, 1.0)
 WEIGHT_COLOUR = (0.25, 0.25, 0.25, 1.0)
-RGGR_COUPLER_JOINTS = ('coupler_yaw', 'coupler_pitch')
-"""The two revolute joints that carry the RGGR coupler's spherical joint at B."""
-RGGR_JOINT_ORDER = ('crank', 'output') + RGGR_COUPLER_JOINTS
-"""Joint order of an RGGR's :func:`joint_positions` (the twin's crank and output first)."""
 TWO_PI = 2.0 * math.pi
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
@@ -296,7 +278,7 @@ _MODELS_MAX = 64
 
 def tree_model(scene_or_linkage):
     """
-    Return the :class:`TreeModel` of a planar scene, a compiled Linkage or an RGGR scene.
+    Return the :class:`TreeModel` of a scene of any kind or a compiled planar Linkage.
 
     Built once per object (cached): the joint ranges need one cycle of the kinematics.
     A :class:`TreeModel` passed in is returned as it is.
@@ -314,7 +296,7 @@ def tree_model(scene_or_linkage):
             kind = schema.kind_of(scene_or_linkage)
         except TypeError:
             raise UrdfError(f'scene: got {type(scene_or_linkage).__name__}, expected a planar '
-                            'scene, a kinematics.Linkage, an RGGR scene or a TreeModel') from None
+                            'or spatial scene, a kinematics.Linkage or a TreeModel') from None
         model = kind.implementation('urdf_tree')(scene_or_linkage)
     if len(_MODELS) >= _MODELS_MAX:
         _MODELS.clear()
@@ -392,126 +374,6 @@ def _planar_state(data):
     return state
 
 
-@dataclass(frozen=True)
-class RggrTreeState:
-    """The part of :class:`~mech_balance.core.rggr.RggrKinematics` the RGGR's joints need."""
-
-    crank_angle_rad: np.ndarray
-    crank_speed_rad_s: np.ndarray
-    output_angle_rad: np.ndarray
-    output_rate_rad_s: np.ndarray
-    crank_axes: np.ndarray
-    coupler_m: np.ndarray
-    coupler_vel_m_s: np.ndarray
-
-
-def _rggr_state(scene, data):
-    """
-    Return the :class:`RggrTreeState` of an RGGR :class:`RigData` (no kinematics again).
-
-    From the rig's body poses (``frame, crank, coupler, output``: the crank axes Q1uvw, the
-    pin B, the output axes Q3uvw) and its ``output`` joint: C = Q3 + a3 u3 (seed 002 eq. 20),
-    A2 = C - B (eq. 21) and dA2/dt = a3 phi3' v3 - a1 omega v1 (eq. 34), each sample at its
-    own crank speed.
-    """
-    g = scene.geometry
-    poses = data.bodies
-    crank, coupler, output = (poses.names.index(n) for n in ('crank', 'coupler', 'output'))
-    j = data.joint_names.index('output')
-    crank_axes, output_axes = poses.rotation[:, crank], poses.rotation[:, output]
-    speed = np.asarray(data.crank_speed_rad_s, dtype=float)
-    rate = data.joint_velocity[:, j]
-    pin_c = poses.origin_m[:, output] + g.a3_m * output_axes[:, :, 0]
-    coupler_vel = g.a3_m * rate[:, None] * output_axes[:, :, 1] - \
-        g.a1_m * speed[:, None] * crank_axes[:, :, 1]
-    return RggrTreeState(data.crank_angle_rad, speed, data.joint_position[:, j], rate,
-                         crank_axes, pin_c - poses.origin_m[:, coupler], coupler_vel)
-
-
-def _rggr_angles(scene, psi):
-    """Return the RGGR's tree coordinates ``(4, n)`` (output, coupler yaw, pitch unwrapped)."""
-    from mech_balance.core import rggr
-    kin = rggr.kinematics(scene, psi)
-    yaw, pitch, _, _ = _coupler_angles(kin)
-    return np.stack([kin.crank_angle_rad, kin.output_angle_rad, yaw, pitch])
-
-
-def _coupler_angles(kin):
-    """
-    Return ``(yaw, pitch, yaw_rate, pitch_rate)`` of the coupler relative to the crank.
-
-    U = BC / a2 in the crank's axes, u_c = R1^T U: yaw = atan2(u_c,y, u_c,x), pitch =
-    atan2(u_c,z, h) with h = |(u_c,x, u_c,y)|.  Rates from du_c/dt = R1^T (dU/dt - w1 x U),
-    w1 = omega z (the crank turns about z).
-    """
-    a = kin.coupler_m
-    a2 = np.linalg.norm(a, axis=1)
-    u = a / a2[:, None]
-    du = kin.coupler_vel_m_s / a2[:, None]
-    omega = np.asarray(kin.crank_speed_rad_s, dtype=float)
-    du = du - np.stack([-omega * u[:, 1], omega * u[:, 0], np.zeros(u.shape[0])], -1)
-    r1 = kin.crank_axes
-    uc = np.einsum('nji,nj->ni', r1, u)
-    duc = np.einsum('nji,nj->ni', r1, du)
-    h = np.hypot(uc[:, 0], uc[:, 1])
-    bad = h < COUPLER_FRAME_MIN
-    if np.any(bad):
-        k = int(np.argmax(bad))
-        raise UrdfError(
-            f'crank angle {math.degrees(kin.crank_angle_rad[k]):.6g} deg: coupler parallel to '
-            f'the crank axis (h / a2 = {h[k]:.3g}, expected >= {COUPLER_FRAME_MIN:g}), where '
-            'its yaw and the frame of seed 002 eq. 42 are undefined')
-    yaw = np.arctan2(uc[:, 1], uc[:, 0])
-    pitch = np.arctan2(uc[:, 2], h)
-    yaw_rate = (uc[:, 0] * duc[:, 1] - uc[:, 1] * duc[:, 0]) / (h * h)
-    pitch_rate = duc[:, 2] * h - uc[:, 2] * (uc[:, 0] * duc[:, 0] + uc[:, 1] * duc[:, 1]) / h
-    return yaw, pitch, yaw_rate, pitch_rate
-
-
-def rggr_tree(scene):
-    from mech_balance.core import rggr
-    rggr.check_full_rotation(scene)
-    g = scene.geometry
-    lower, upper, turns = cycle_ranges(lambda p: _rggr_angles(scene, p), 0.0,
-                                       np.ones(4, dtype=bool))
-    kin = rggr.kinematics(scene, cycle_angles(RANGE_SAMPLES))
-    _, _, yaw_rate, pitch_rate = _coupler_angles(kin)
-    rate_max = [abs(scene.crank_speed_rad_s), np.max(np.abs(kin.output_rate_rad_s)),
-                np.max(np.abs(yaw_rate)), np.max(np.abs(pitch_rate))]
-    z = (0.0, 0.0, 1.0)
-    q1 = (0.0, g.l2_m, g.l1_m)                                       # seed 002, eq. 15
-    q3 = (g.l3_m * math.sin(g.beta_rad), 0.0, g.l3_m * math.cos(g.beta_rad))  # eqs. 17, 19
-    specs = [
-        ('crank', 'crank', q1, (0.0, 0.0, 0.0), z),
-        ('output', 'output', q3, (0.0, g.beta_rad, 0.0), z),         # Q3uvw = Ry(beta) Rz
-        # the spherical joint at B: yaw about the crank's w, then pitch about the turned v;
-        # the roll of pi makes the coupler frame seed 002's U, V, W (V parallel to xy)
-        ('coupler_yaw', 'coupler_yaw_link', (g.a1_m, 0.0, 0.0), (0.0, 0.0, 0.0), z),
-        ('coupler_pitch', 'coupler', (0.0, 0.0, 0.0), (math.pi, 0.0, 0.0), (0.0, 1.0, 0.0)),
-    ]
-    parents = {'crank': None, 'output': None, 'coupler_yaw': 'crank',
-               'coupler_pitch': 'coupler_yaw_link'}
-    joints = []
-    for i, (name, child, xyz, rpy, axis) in enumerate(specs):
-        joints.append(_revolute_spec(name, parents[name], child, xyz, rpy, axis, lower[i],
-                                     upper[i], 1.0 if name == 'crank' else turns[i],
-                                     float(rate_max[i])))
-    return TreeModel(_rggr_coordinates, tuple(joints), None, (('C', 'spherical'),),
-                     lambda data: _rggr_state(scene, data))
-
-
-def _rggr_coordinates(tree, state):
-    if not hasattr(state, 'coupler_m'):
-        raise UrdfError(f'state: got {type(state).__name__}, expected the RggrKinematics '
-                        'of an RGGR scene (rggr.kinematics)')
-    yaw, pitch, yaw_rate, pitch_rate = _coupler_angles(state)
-    n = state.crank_angle_rad.shape[0]
-    q = np.stack([state.crank_angle_rad, state.output_angle_rad, yaw, pitch])
-    speed = np.broadcast_to(np.asarray(state.crank_speed_rad_s, dtype=float), (n,))
-    qd = np.stack([speed, state.output_rate_rad_s, yaw_rate, pitch_rate])
-    return q, qd, np.ones(4, dtype=bool)
-
-
 # ----------------------------------------------------------------------------- positions
 
 
@@ -519,12 +381,12 @@ def joint_positions(model, state):
     """
     Return ``(names, positions, velocities)`` of the URDF joints at the core's state.
 
-    ``model``: a planar scene, its :class:`~mech_balance.kinematics.Linkage`, an RGGR scene
-    or a :class:`TreeModel` (:func:`tree_model`; pass it to avoid the cache lookup).
-    ``state``: a :class:`~mech_balance.kinematics.KinematicState` with rates (planar) or a
-    :class:`~mech_balance.rggr.RggrKinematics`.  ``positions`` and ``velocities`` are
-    ``(n, n_joints)`` (rad or m; rad/s or m/s) in the zero convention of the module
-    docstring: revolute positions wrapped to (-pi, pi], no -0.0 anywhere.
+    ``model``: a scene, a planar :class:`~mech_balance.kinematics.Linkage` or a
+    :class:`TreeModel` (:func:`tree_model`; pass it to avoid the cache lookup).  ``state``:
+    the tree's state (:meth:`TreeModel.state_of` of a rig's evaluation; planar: a
+    :class:`~mech_balance.kinematics.KinematicState` with rates).  ``positions`` and
+    ``velocities`` are ``(n, n_joints)`` (rad or m; rad/s or m/s) in the zero convention of
+    the module docstring: revolute positions wrapped to (-pi, pi], no -0.0 anywhere.
     """
     tree = tree_model(model)
     names = tree.names
@@ -574,37 +436,6 @@ def thin_plate_inertia(link):
         iyy += i_y + m * dx * dx
         ixy -= m * dx * dy
     return mass, com, (ixx, iyy, izz, ixy)
-
-
-def pivot_body_inertia(body):
-    """
-    Return ``(mass, centre_uvw, inertia_3x3)`` of an RGGR pivot body about its mass centre.
-
-    The scene gives I_ww, I_wu = int(w u dm) and I_vw = int(v w dm) about the pivot
-    (rggr.py).  About the mass centre the second moments S = int(r r^T dm) then have
-    S_uu + S_vv = K = I_ww - m (u^2 + v^2), S_wu = I_wu - m w u, S_vw = I_vw - m v w; the URDF
-    takes S_uu = S_vv = K / 2, S_uv = 0 and the smallest S_ww that makes S positive
-    semi-definite, (S_wu^2 + S_vw^2) / (K / 2) (a flat body when the products vanish).  The
-    inertia is trace(S) 1 - S, whose off-diagonal terms carry -I_wu, -I_vw (seed 002 eq. 53).
-    """
-    m = float(body.mass_kg)
-    c = np.asarray(body.centre_uvw_m, dtype=float)
-    k = max(body.inertia_ww_kg_m2 - m * (c[0] ** 2 + c[1] ** 2), 0.0)
-    x = body.product_wu_kg_m2 - m * c[2] * c[0]
-    y = body.product_vw_kg_m2 - m * c[1] * c[2]
-    a = 0.5 * k
-    scale = max(abs(body.inertia_ww_kg_m2), 1e-300)
-    if a > 0.0:
-        z = (x * x + y * y) / a
-    elif max(abs(x), abs(y)) <= 1e-12 * scale:
-        z = 0.0
-    else:
-        raise UrdfError(
-            f'inertia_about_pivot_kg_m2: I_ww = {body.inertia_ww_kg_m2!r} equals m (u^2 + v^2) '
-            f'but the products about the mass centre are ({x:.6g}, {y:.6g}) kg m^2; no body '
-            'has that (expected zero products for a body on its axis)')
-    s = np.array([[a, 0.0, x], [0.0, a, y], [x, y, z]])
-    return m, c, np.trace(s) * np.eye(3) - s
 
 
 # ----------------------------------------------------------------------------- XML
@@ -694,7 +525,7 @@ def _header(robot, text):
 
 def urdf_xml(scene, frame_id=DEFAULT_FRAME_ID, linkage=None):
     """
-    Return the URDF (text) of a planar or RGGR scene's spanning tree.
+    Return the URDF (text) of a scene's spanning tree (any kind).
 
     ``frame_id`` names the root link (the frame); ``linkage`` is the scene's compiled
     linkage if at hand (planar).  Links, joints, zero convention: module docstring.
@@ -796,80 +627,6 @@ def _rod(parent, name, material, start, end, radius):
     yaw = math.atan2(d[1], d[0])
     _shape(parent, name, material, tuple(0.5 * (start + end)), (0.0, pitch, yaw),
            _cylinder(radius, length))
-
-
-def _weight(parent, name, body, material):
-    """Draw a balancing weight as a steel sphere of its mass at its centre (if any)."""
-    if body is None or body.mass_kg <= 0.0:
-        return
-    radius = (3.0 * body.mass_kg / (4.0 * math.pi * WEIGHT_DENSITY)) ** (1.0 / 3.0)
-    _shape(parent, name, material, tuple(body.centre_uvw_m), (0.0, 0.0, 0.0), _sphere(radius))
-
-
-def rggr_robot(sc, frame_id, linkage=None):
-    """Return the URDF element tree of an RGGR scene (the kind registry's ``urdf``)."""
-    model = tree_model(sc)
-    g = sc.geometry
-    links = ('crank', 'coupler_yaw_link', 'coupler', 'output')
-    _check_names(frame_id, links)
-    robot = ET.Element('robot', name=sc.name)
-    _header(robot, f'Generated by mech_balance.urdf from RGGR scene {sc.name!r} ({_source(sc)}) '
-                   '(seed 002): crank about the crank axis, output about the output axis, the '
-                   'coupler hung from the crank by its spherical joint at B as two revolute '
-                   'joints (coupler_yaw, coupler_pitch; its idle spin about BC has no joint). '
-                   'SI units; zero convention in mech_balance.urdf.')
-    _header(robot, f'Cut joint (closed by the core, not part of the URDF tree): C: spherical, '
-                   f'closes coupler.C ({_num(g.a2_m)}, 0.0, 0.0) with output.C '
-                   f'({_num(g.a3_m)}, 0.0, 0.0) (points in the URDF frames of their links)')
-    colours = [(f'{sc.name}/{FRAME}', FRAME_COLOUR), (f'{sc.name}/crank', PALETTE[0]),
-               (f'{sc.name}/coupler', PALETTE[1]), (f'{sc.name}/output', PALETTE[2]),
-               (f'{sc.name}/weight', WEIGHT_COLOUR)]
-    _materials(robot, colours)
-    rod, pin = RGGR_ROD_RADIUS * g.a1_m, RGGR_PIN_RADIUS * g.a1_m
-    sb, cb = math.sin(g.beta_rad), math.cos(g.beta_rad)
-    q1 = (0.0, g.l2_m, g.l1_m)
-    q3 = (g.l3_m * sb, 0.0, g.l3_m * cb)
-    root = ET.SubElement(robot, 'link', name=frame_id)
-    frame_mat = f'{sc.name}/{FRAME}'
-    _rod(root, 'axis_crank', frame_mat, (0.0, g.l2_m, 0.0), q1, 0.5 * rod)      # E to Q1
-    _rod(root, 'axis_output', frame_mat, (0.0, 0.0, 0.0), q3, 0.5 * rod)        # O to Q3
-    if g.l2_m != 0.0:
-        _rod(root, 'common_normal', frame_mat, (0.0, 0.0, 0.0), (0.0, g.l2_m, 0.0), 0.5 * rod)
-    _shape(root, 'pin_Q1', frame_mat, q1, (0.0, 0.0, 0.0), _cylinder(pin, 2.0 * pin),
-           collide=False)
-    _shape(root, 'pin_Q3', frame_mat, q3, (0.0, g.beta_rad, 0.0), _cylinder(pin, 2.0 * pin),
-           collide=False)
-    for name, total, own, weight in (('crank', sc.crank_total(), sc.crank, sc.crank_weight),
-                                     ('output', sc.output_total(), sc.output,
-                                      sc.output_weight)):
-        el = ET.SubElement(robot, 'link', name=name)
-        mass, centre, inertia = pivot_body_inertia(total)
-        _inertial(el, mass, tuple(centre), (inertia[0, 0], inertia[1, 1], inertia[2, 2],
-                                            inertia[0, 1], inertia[0, 2], inertia[1, 2]))
-        radius = g.a1_m if name == 'crank' else g.a3_m
-        pin_name = 'B' if name == 'crank' else 'C'
-        mat = f'{sc.name}/{name}'
-        _rod(el, f'bar_{"Q1" if name == "crank" else "Q3"}_{pin_name}', mat, (0.0, 0.0, 0.0),
-             (radius, 0.0, 0.0), rod)
-        _shape(el, f'pin_{"Q1" if name == "crank" else "Q3"}', mat, (0.0, 0.0, 0.0),
-               (0.0, 0.0, 0.0), _cylinder(0.8 * pin, 2.5 * pin), collide=False)
-        _shape(el, f'pin_{pin_name}', mat, (radius, 0.0, 0.0), (0.0, 0.0, 0.0), _sphere(pin),
-               collide=False)
-        _weight(el, 'weight', weight, f'{sc.name}/weight')
-    ET.SubElement(robot, 'link', name='coupler_yaw_link')
-    el = ET.SubElement(robot, 'link', name='coupler')
-    cp = sc.coupler
-    _inertial(el, cp.mass_kg, (cp.centre_from_b_m, 0.0, 0.0),     # thin rod: seed 002 eq. 60
-              (0.0, cp.transverse_inertia_kg_m2, cp.transverse_inertia_kg_m2, 0.0, 0.0, 0.0))
-    mat = f'{sc.name}/coupler'
-    _rod(el, 'bar_B_C', mat, (0.0, 0.0, 0.0), (g.a2_m, 0.0, 0.0), rod)
-    _shape(el, 'pin_B', mat, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), _sphere(0.8 * pin),
-           collide=False)
-    _shape(el, 'pin_C', mat, (g.a2_m, 0.0, 0.0), (0.0, 0.0, 0.0), _sphere(0.8 * pin),
-           collide=False)
-    for spec in model.joints:
-        _joint_element(robot, replace(spec, parent=spec.parent or frame_id))
-    return robot
 
 
 # ----------------------------------------------------------------------------- spatial kind
@@ -1037,8 +794,8 @@ def spatial_robot(sc, frame_id, linkage=None):
         (f'{sc.name}/{n}', PALETTE[(i - 1) % len(PALETTE)]) for i, n in enumerate(names)
         if i > 0]
     _materials(robot, colours)
-    rod = RGGR_ROD_RADIUS * 0.5 * lk.length_scale * 0.25
-    pin = RGGR_PIN_RADIUS * 0.5 * lk.length_scale * 0.25
+    rod = ROD_RADIUS * lk.length_scale
+    pin = PIN_RADIUS_3D * lk.length_scale
     for bi, body in enumerate(names):
         el = ET.SubElement(robot, 'link', name=frame_id if bi == 0 else body)
         material = f'{sc.name}/{body}'

@@ -8,7 +8,8 @@ The public face of the schema layer::
     text = schema.to_yaml(sc)             # what load() reads back, bit for bit
 
 The planar schema is documented in the README (section *Scenes*) and enforced by
-:mod:`mech_balance.schema.scene`; the RGGR's by :mod:`mech_balance.schema.rggr`; ``drive:``
+:mod:`mech_balance.schema.scene`; the spatial one by :mod:`mech_balance.schema.spatial` (a
+former ``kind: rggr`` file is translated by :mod:`mech_balance.schema.rggr_legacy`); ``drive:``
 by :mod:`mech_balance.schema.drive`; ``identification:`` by
 :mod:`mech_balance.schema.identification`; the field checks all of them share are in
 :mod:`mech_balance.schema.fields`; the kinds are registered in
@@ -45,7 +46,6 @@ _LAZY = {
     'Recording': 'scene',
     'RECORDING_STREAMS': 'scene',
     'resolve': 'scene',
-    'RggrScene': 'rggr',
     'Scene': 'scene',
     'SceneError': 'fields',
     'SCHEMA_VERSION': 'scene',

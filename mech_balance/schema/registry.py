@@ -21,7 +21,7 @@ through :func:`mech_balance.core.rig.rig_for`.
 from dataclasses import dataclass
 import importlib
 
-from mech_balance.schema import rggr, scene, spatial
+from mech_balance.schema import rggr_legacy, scene, spatial
 from mech_balance.schema.fields import SceneError
 
 
@@ -52,11 +52,6 @@ KINDS = {
         'analyze': 'mech_balance.analysis.cycle:analyze',
         'urdf': 'mech_balance.ros.urdf:planar_robot',
         'urdf_tree': 'mech_balance.ros.urdf:planar_tree'}, scene.geometry),
-    'rggr': Kind('rggr', rggr.RggrScene, rggr.load_rggr_scene, rggr.rggr_to_dict, {
-        'rig': 'mech_balance.core.rggr:RggrRig',
-        'analyze': 'mech_balance.analysis.rggr_report:analyze',
-        'urdf': 'mech_balance.ros.urdf:rggr_robot',
-        'urdf_tree': 'mech_balance.ros.urdf:rggr_tree'}, rggr.geometry),
     'spatial': Kind('spatial', spatial.SpatialScene, spatial.spatial_from_dict,
                     spatial.spatial_to_dict, {
                         'rig': 'mech_balance.core.spatial.rig:SpatialRig',
@@ -91,6 +86,8 @@ def from_dict(data, source='<dict>'):
     """Validate a parsed scene mapping with the loader of its ``kind`` (default planar)."""
     if not isinstance(data, dict):
         raise SceneError(f'scene: got {type(data).__name__}, expected a mapping')
+    if data.get('kind') == rggr_legacy.KIND:   # the former closed-form RGGR: its spatial scene
+        data = rggr_legacy.translate(data, source)
     return kind_named(data.get('kind', DEFAULT_KIND)).load(data, source=source)
 
 

@@ -1,8 +1,8 @@
 """
 Scenes: the YAML description of a rig, its one schema, and its validation.
 
-A scene describes a single-degree-of-freedom planar linkage (``kind: planar``) or the RGGR
-spatial four-bar (``kind: rggr``, see :mod:`mech_balance.rggr`).  The planar schema is
+A scene describes a single-degree-of-freedom planar linkage (``kind: planar``, this module)
+or a spatial one (``kind: spatial``, :mod:`mech_balance.schema.spatial`).  The planar schema is
 documented in README.md (section *Scenes*) and enforced here; every error is a
 :class:`SceneError` (a ``ValueError``) that names the field, the bad value and what was
 expected.  Values are SI; the papers' normalization is recorded, never applied to storage.

@@ -30,6 +30,9 @@ Schema (``config/rssr_skew.yaml`` is a commented example)::
       poses: {LINK: {origin_m: [x, y, z], rpy_deg: [roll, pitch, yaw]}}  # approximate
     outputs: [kinematics, shaking_wrench, driving_torque, bearing_reactions, kinetic_energy]
     samples: <int >= 4>
+    balancing_weights:             # optional: seed 002's method ``weights`` (balancing.weights)
+      LINK: {mass_kg: <number > 0>}                  # a weight of this mass, or
+      LINK: {density_length_kg_m2: <number > 0>}     # a cylinder, its mass by seed 002 eq. 13
     drive: {...}                   # optional: motor, speed loop, damping, input flywheel
                                    # (mech_balance.core.forward, docs/simulation.md)
 
@@ -149,6 +152,21 @@ class Pose:
 
 
 @dataclass(frozen=True)
+class WeightSpec:
+    """
+    A balancing weight of seed 002's method on a link pivoted on the frame (revolute joint).
+
+    Its mass is ``mass_kg``, or follows from the cylinder law of seed 002 eq. 13 with
+    ``density_length_kg_m2`` (density times length); its place is the force balance's.
+    """
+
+    link: str
+    joint: str
+    mass_kg: float = None
+    density_length_kg_m2: float = None
+
+
+@dataclass(frozen=True)
 class SpatialScene(SceneDesigns):
     """A validated spatial scene (values as given, SI; see the module docstring)."""
 
@@ -170,6 +188,7 @@ class SpatialScene(SceneDesigns):
     notes: dict = field(default_factory=dict)
     source: str = '<dict>'
     kind: str = KIND
+    balancing_weights: tuple = ()   # WeightSpec per link (seed 002's method ``weights``)
     drive: dict = None  # motor, speed loop, damping, flywheel for `mech-balance simulate`
 
     @property
@@ -185,7 +204,9 @@ class SpatialScene(SceneDesigns):
 
 _TOP_KEYS = {'kind', 'schema_version', 'name', 'description', 'normalization', 'frame',
              'links', 'joints', 'crank', 'moment_point_m', 'assembly', 'outputs', 'samples',
-             'notes', 'balance', 'drive'}
+             'notes', 'balance', 'balancing_weights', 'drive'}
+WEIGHT_KEYS = ('mass_kg', 'density_length_kg_m2')
+"""The fields of one ``balancing_weights`` entry (exactly one of them)."""
 
 
 def _vec3(value, where):
@@ -415,6 +436,7 @@ def spatial_from_dict(data, source='<dict>'):
         conventions.check_samples(samples, 'samples', links=len(links))
     except ValueError as exc:
         raise SceneError(str(exc)) from None
+    weights = _weights(data.get('balancing_weights', {}) or {}, joints)
     notes = data.get('notes', {})
     if 'balance' in data:
         fields.mapping(data['balance'], 'balance')
@@ -426,7 +448,30 @@ def spatial_from_dict(data, source='<dict>'):
         outputs=outputs,
         samples=samples, normalization=normalization,
         notes=notes if isinstance(notes, dict) else {'text': notes}, source=str(source),
-        drive=_drive(data.get('drive')))
+        balancing_weights=weights, drive=_drive(data.get('drive')))
+
+
+def _weights(data, joints):
+    """Return the :class:`WeightSpec` tuple of ``balancing_weights`` (module docstring)."""
+    data = fields.mapping(data, 'balancing_weights')
+    out = []
+    for link, spec in data.items():
+        where = f'balancing_weights.{link}'
+        pivots = [j for j in joints if j.joint_type == 'revolute'
+                  and {j.link_a, j.link_b} == {FRAME, link}]
+        if len(pivots) != 1:
+            raise SceneError(f'{where}: link {link!r} has {len(pivots)} revolute joints with '
+                             'the frame, expected one (a weight of seed 002 turns about a '
+                             'fixed axis)')
+        spec = fields.mapping(spec, where)
+        fields.known_keys(spec, set(WEIGHT_KEYS), where)
+        given = [k for k in WEIGHT_KEYS if k in spec]
+        if len(given) != 1:
+            raise SceneError(f'{where}: got {", ".join(given) or "neither"}, expected exactly '
+                             f'one of {" or ".join(WEIGHT_KEYS)}')
+        value = fields.positive(spec[given[0]], f'{where}.{given[0]}')
+        out.append(WeightSpec(link, pivots[0].name, **{given[0]: value}))
+    return tuple(out)
 
 
 def _drive(data):
@@ -477,6 +522,11 @@ def spatial_to_dict(scene):
     data['assembly'] = assembly
     data['outputs'] = list(scene.outputs)
     data['samples'] = int(scene.samples)
+    if scene.balancing_weights:
+        data['balancing_weights'] = {
+            w.link: ({'mass_kg': w.mass_kg} if w.mass_kg is not None else
+                     {'density_length_kg_m2': w.density_length_kg_m2})
+            for w in scene.balancing_weights}
     if scene.notes:
         data['notes'] = scene.notes
     if scene.drive is not None:

@@ -51,6 +51,8 @@ class SpatialRig:
     def __init__(self, scene, linkage=None, cache=True):
         self.scene = scene
         self.name = scene.name
+        if getattr(scene, 'balancing_weights', ()):   # seed 002's method (balancing.weights)
+            self.capabilities = CAPABILITIES | {'balancing_weights'}
         self.linkage = linkage if linkage is not None else linkage_for(scene, cache)
         self.linkage.skeleton  # noqa: B018 - trace the branch now: fail early
         self.linkage.check_idle_inertia(scene)  # a design of the geometry keeps its rods
