@@ -19,7 +19,7 @@ from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import kinematics
 from mech_balance.core.spatial.kinematics import min_rotation, SpatialError
 from mech_balance.schema.fields import SceneError
-from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
+from mech_balance.schema.spatial import Pose, spatial_from_dict, spatial_to_dict
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -326,9 +326,13 @@ def test_idle_spin_off_the_line_is_refused():
 def test_universal_instead_of_spherical_holds_the_spin():
     data = copy.deepcopy(_load_data('rssr_skew'))
     data['links']['coupler']['inertia_com_kg_m2'] = [1e-6, 6.75e-4, 6.75e-4, 0.0, 0.0, 0.0]
-    # a U at B: cross axis normal to the crank axis in the crank, the coupler's z in it
+    # a U at B: cross axis normal to the crank axis in the crank (its y), the coupler's
+    # cross axis normal to its line BC and to the crank's y at the stated poses
+    coupler = Pose(**data['assembly']['poses']['coupler']).rotation()
     data['joints']['B'] = {'type': 'universal', 'a': 'crank.B', 'b': 'coupler.B',
-                           'axis': [0.0, 1.0, 0.0], 'axis_b': [0.0, 0.0, 1.0]}
+                           'axis': [0.0, 1.0, 0.0],
+                           'axis_b': [float(v) for v in np.cross([1.0, 0.0, 0.0],
+                                                                 coupler[1])]}
     rig = rig_for(spatial_from_dict(data), cache=False)
     assert not getattr(rig.linkage, 'idle_spins', ())
     _check_momentum(rig, np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False))
@@ -411,7 +415,7 @@ def _bennett(alpha_deg=30.0, a_m=0.1, theta_deg=60.0):
             'frame': {'points': {'O': [0.0, 0.0, 0.0], 'E': [float(x) for x in t3[:3, 3]]}},
             'links': links, 'joints': joints, 'crank': {'joint': 'J1', 'speed_rad_s': 10.0},
             'moment_point_m': [0.0, 0.0, 0.0],
-            'assembly': {'crank_angle_deg': 0.0, 'poses': poses}}, t3
+            'assembly': {'crank_angle_deg': theta_deg, 'poses': poses}}, t3
 
 
 def test_over_constrained_bennett_reports_non_unique_reactions():
@@ -567,8 +571,31 @@ def rotation_margin(data, grid=3600):
 
 
 def _with_crank(data, length_m):
+    """
+    Return ``data`` with the crank ``length_m`` long, its poses restated where it closes.
+
+    The rocker turns about its axis to the angle of the closure equation (``_rssr_closure``)
+    nearest its stated one, and the coupler runs from the crank's new ball to the rocker's;
+    beyond the reach the rocker goes where the two come nearest.
+    """
     trial = copy.deepcopy(data)
     trial['links']['crank']['points']['B'][0] = float(length_m)
+    poses = trial['assembly']['poses']
+    rk, ro = (Pose(**poses[k]).rotation() for k in ('crank', 'rocker'))
+    b = rk[:, 0] * length_m
+    d0 = np.array(poses['rocker']['origin_m'])
+    r3 = np.linalg.norm(data['links']['rocker']['points']['C'])
+    length = np.linalg.norm(data['links']['coupler']['points']['C'])
+    w = d0 - b
+    p, q = 2 * r3 * (w @ ro[:, 0]), 2 * r3 * (w @ ro[:, 1])
+    k = length ** 2 - w @ w - r3 ** 2
+    base, half = math.atan2(q, p), math.acos(max(-1.0, min(1.0, k / math.hypot(p, q))))
+    phi = min((base + half, base - half), key=lambda t: abs(math.remainder(t, 2 * math.pi)))
+    ro = ro @ min_rotation([1.0, 0.0, 0.0], [math.cos(phi), math.sin(phi), 0.0])
+    rc = Pose(**poses['coupler']).rotation()
+    rc = min_rotation(rc[:, 0], _unit(d0 + r3 * ro[:, 0] - b)) @ rc
+    poses['rocker']['rpy_deg'] = _rpy(ro)
+    poses['coupler'] = {'origin_m': [float(v) for v in b], 'rpy_deg': _rpy(rc)}
     return trial
 
 

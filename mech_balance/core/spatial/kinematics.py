@@ -211,15 +211,6 @@ def min_rotation(frm, to):
     return rot_axis(axis / s, np.array([math.atan2(s, c)]))[0]
 
 
-def rpy_matrix(rpy_rad):
-    """Return Rz(yaw) Ry(pitch) Rx(roll) (3, 3) (URDF order) of (roll, pitch, yaw) in rad."""
-    r, p, y = rpy_rad
-    rx = rot_axis(np.array([1.0, 0.0, 0.0]), np.array([r]))[0]
-    ry = rot_axis(np.array([0.0, 1.0, 0.0]), np.array([p]))[0]
-    rz = rot_axis(np.array([0.0, 0.0, 1.0]), np.array([y]))[0]
-    return rz @ ry @ rx
-
-
 def _unit(v, where):
     v = np.asarray(v, dtype=float)
     return v / np.linalg.norm(v)
@@ -250,20 +241,6 @@ def angle_about(axis, rot):
     vee = 0.5 * np.stack([skw[..., 2, 1], skw[..., 0, 2], skw[..., 1, 0]], -1)
     cos = 0.5 * (np.trace(rot, axis1=-2, axis2=-1) - 1.0)
     return np.arctan2(vee @ axis, cos)
-
-
-def tree_values(t, rel, d):
-    """Return the coordinates of a (non-spherical) tree joint from a guessed relative pose."""
-    jt = t.joint_type
-    if jt == 'prismatic':
-        return [float(d @ t.axis)]
-    theta = float(angle_about(t.axis, (rel @ t.fixed.T)[None])[0])
-    if jt == 'revolute':
-        return [theta]
-    if jt == 'cylindrical':
-        return [theta, float(d @ t.axis)]
-    rest = t.fixed.T @ rot_axis(t.axis, np.array([-theta]))[0] @ rel
-    return [theta, float(angle_about(t.axis_child, rest[None])[0])]
 
 
 def spherical_zeros(linkage, fr):
@@ -1100,32 +1077,8 @@ class Linkage:
 
     def _initial(self):
         """Return tree coordinates ``(1, ndof)`` and rotations from the scene's poses."""
-        sc = self.scene
-        rot = [np.eye(3)]
-        org = [np.zeros(3)]
-        for lk in sc.links:
-            pose = sc.assembly_poses.get(lk.name)
-            if pose is None:
-                rot.append(np.eye(3))
-                org.append(np.zeros(3))
-            else:
-                rot.append(rpy_matrix(np.radians(pose.rpy_deg)))
-                org.append(np.array(pose.origin_m, dtype=float))
-        q = np.zeros((1, self.ndof))
-        sph = np.zeros((1, len(self.sph_index), 3, 3))
-        si = 0
-        for t in self.tree:
-            rel = rot[t.parent].T @ rot[t.child]
-            d = rot[t.parent].T @ (org[t.child] + rot[t.child] @ t.s_child - org[t.parent]) \
-                - t.s_parent
-            if t.joint_type == 'spherical':
-                sph[0, si] = rel
-                si += 1
-                continue
-            vals = tree_values(t, rel, d)
-            q[0, list(t.dofs)] = vals
-        q[0, 0] = self.input_coordinate(sc.assembly_crank_angle_rad, 0.0, 0.0)[0]
-        return q, sph
+        from mech_balance.core.spatial import assembly  # it builds on this module
+        return assembly.initial(self)
 
     def _assemble(self):
         """Assemble the linkage (Levenberg-Marquardt), find idle spins and redundancy."""
@@ -1170,6 +1123,8 @@ class Linkage:
         q, sph, fr, res, ok = self.newton(q, sph)
         if not ok[0]:
             raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
+        from mech_balance.core.spatial import assembly  # it builds on this module
+        assembly.check_poses(self, fr)
         self.q0, self.sph0 = q, sph
         self.sph_zero = spherical_zeros(self, fr)
         js = self.scaled(self.jacobian(fr))
