@@ -381,7 +381,7 @@ def _check_axes_at_poses(joints, poses):
             if off > POSE_TOL_DEG:
                 raise SceneError(
                     f'{where}: got {list(jt.axis_b)}, which is {90.0 - off:.4g} deg (not 90) '
-                    'from the joint\'s axis at the stated poses (assembly.poses of '
+                    "from the joint's axis at the stated poses (assembly.poses of "
                     f'{jt.link_a} and {jt.link_b}); expected the cross axis fixed in link '
                     f'{jt.link_b}, normal to axis at those poses (to {POSE_TOL_DEG:g} deg), or '
                     'poses that make them normal')
@@ -393,9 +393,9 @@ def _check_axes_at_poses(joints, poses):
         got = (f'missing, and its default (the numbers of axis, {list(jt.axis)}) is'
                if jt.axis_b is None else f'got {list(jt.axis_b)}, which is')
         raise SceneError(
-            f'{where}: {got} {off:.4g} deg from the joint\'s axis at the stated poses '
+            f"{where}: {got} {off:.4g} deg from the joint's axis at the stated poses "
             f'(assembly.poses of {jt.link_a} and {jt.link_b}); expected the same line in '
-            f'link {jt.link_b}\'s axes, {implied} at those poses (to {POSE_TOL_DEG:g} deg), '
+            f"link {jt.link_b}'s axes, {implied} at those poses (to {POSE_TOL_DEG:g} deg), "
             'or poses that align the two')
 
 
