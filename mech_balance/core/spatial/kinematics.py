@@ -37,6 +37,12 @@ The input and the cycle
     assembly to both ends, refusing a singular position on the way as for a turn, and a
     cycle of psi runs it forth and back.
 
+The assembly
+    The tree coordinates are read from the scene's ``assembly.poses``, the loops closed
+    from there (Levenberg-Marquardt) and every stated link's solved pose compared with its
+    stated one, refused beyond the tolerances (:mod:`.assembly`): the branch analysed is
+    always the one the scene states.
+
 Idle freedoms and redundancy
     A link held only by two spherical joints spins freely about the line through them; the
     assembled Jacobian's null space shows it.  Convention (:data:`IDLE_INERTIA_RTOL`): its
