@@ -188,8 +188,16 @@ class SpatialScene(SceneDesigns):
 
     @property
     def assembly_crank_angle_rad(self):
-        """Return the assembly crank coordinate in rad (the cycle's start)."""
-        return math.radians(self.assembly_crank_angle_deg)
+        """
+        Return the assembly crank coordinate in rad (the cycle's start), within one turn.
+
+        ``assembly.crank_angle_deg`` reduced into (-360, 360) deg by ``math.fmod``, which is
+        exact for every float: an angle of any magnitude the scene admits (up to
+        :data:`~mech_balance.schema.fields.MAX_ABS_VALUE`) is the angle it denotes, and the
+        cycle's crank angles keep their resolution (a start of 1e18 deg taken as it is would
+        make every angle of a cycle one float).  A value within one turn is kept unchanged.
+        """
+        return math.radians(math.fmod(self.assembly_crank_angle_deg, 360.0))
 
     @property
     def prismatic_input(self):

@@ -80,6 +80,9 @@ yoke at mid-stroke, i.e. times the half stroke, m)."""
 STEP_MIN_RAD = 1e-7
 """Smallest crank step before the continuation declares the branch lost (prismatic input:
 times the half stroke, m)."""
+STEP_DONE = 1e-13
+"""What is left of a continuation's goal when it counts as reached (rad; a prismatic input:
+times the half stroke, m)."""
 STEP_TRUST = 0.05
 """Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
 EVAL_TRUST = 1e-3
@@ -399,6 +402,9 @@ class Linkage:
         # hung from its scene end b slides the other way (coordinates.joint_values)
         self.input_sign = -1.0 if self.tree[0].flipped and not self.periodic else 1.0
         half = 1.0 if self.periodic else 0.5 * (self.stroke_m[1] - self.stroke_m[0])
+        # the input coordinate's own scale (rad, or the half stroke in m): every step and
+        # tolerance in it is relative to this, so the figures do not depend on the unit
+        self.input_scale = half
         self.step_max, self.step_min = STEP_MAX_RAD * half, STEP_MIN_RAD * half
         self._assemble()
         self._skeleton = None
@@ -1122,7 +1128,8 @@ class Linkage:
         if self.m and np.max(np.abs(g)) > 1e-10:
             raise SpatialError(
                 f'assembly: the linkage cannot be closed at crank angle '
-                f'{self.scene.assembly_crank_angle_deg:g} deg from assembly.poses (largest '
+                f'{crank_angle_text(self.scene.assembly_crank_angle_rad, 4)} deg from '
+                f'assembly.poses (largest '
                 f'scaled closure residual {np.max(np.abs(g)):.3e} after '
                 f'{ASSEMBLY_MAX_ITER} iterations); expected poses near an assembled position')
         self._find_idle(q, sph, fr)
@@ -1341,7 +1348,7 @@ class Linkage:
         """Follow the branch from one state by ``h_goal`` (rad, or m for a slide); yield nodes."""
         done = 0.0
         h = min(self.step_max, abs(h_goal)) * np.sign(h_goal)
-        while abs(h_goal - done) > 1e-13:
+        while abs(h_goal - done) > STEP_DONE * self.input_scale:
             if abs(h) > abs(h_goal - done):
                 h = h_goal - done
             qp, sphp = self._step(q, sph, qd, qdd, np.array([h]))
