@@ -714,8 +714,9 @@ def test_crank_angles_in_messages_are_wrapped_into_one_turn():
     A warning or an error names its crank angle in [0, 360) deg, whatever turn it falls in.
 
     One near-singular random RSSR of ``test_random_near_singular_cases_are_flagged``,
-    assembled two turns on (the trace's warnings), evaluated three turns on (the
-    evaluation's warnings) and grown just beyond its rotation limit (the refusal).
+    assembled two turns on (the angle it denotes: the trace starts within one turn, issue
+    32), evaluated three turns on (the evaluation's warnings) and grown just beyond its
+    rotation limit (the refusal).
     """
     s = _random_geometries(7, 1, lambda m: m >= ROTATION_MARGIN)[0]
     data = random_rssr(np.random.default_rng(s), 1)
@@ -723,7 +724,9 @@ def test_crank_angles_in_messages_are_wrapped_into_one_turn():
     limit = _crank_limit(data)
     rig, sk, caught = _near_singular(data, limit, s)
     worst = int(np.argmax(sk.cond))
-    assert np.all(sk.psi >= 2.0 * np.pi)                 # the whole trace beyond one turn
+    # the scene keeps its 720 + x deg; the linkage starts at x, reduced exactly
+    assert rig.scene.assembly_crank_angle_deg >= 720.0
+    assert sk.psi[0] == math.radians(math.fmod(rig.scene.assembly_crank_angle_deg, 360.0))
     traced = _printed_angles(str(w.message) for w in caught)
     assert traced and all(0.0 <= a < 360.0 for a in traced)
     assert f'crank angle {math.degrees(sk.psi[worst]) % 360.0:.3f} deg' in ' '.join(
