@@ -6,7 +6,7 @@ A scene's ``assembly.poses`` state, approximately, where every link is at the cr
 assemblies at one crank angle: a rocker on either side, a coupler flipped about its line
 through a universal joint).  :func:`initial` reads the tree coordinates from them (the
 inverse of the zero convention of :mod:`.kinematics`), Levenberg-Marquardt closes the loops
-from there (:meth:`~kinematics.Linkage._assemble`), and :func:`check_poses` compares every
+from there (:meth:`~kinematics.Linkage._assemble`), and :func:`pose_mismatch` compares every
 stated link's solved pose with its stated one: a link off by more than
 :data:`~mech_balance.schema.spatial.POSE_TOL_DEG` or
 :data:`~mech_balance.schema.spatial.POSE_TOL_REL` of the linkage's size is refused, naming
@@ -18,9 +18,21 @@ describes an assembly the scene did not state.  A link held only by two spherica
 import math
 
 from mech_balance.conventions import crank_angle_text
-from mech_balance.core.spatial.kinematics import cross, perp_pair, rot_axis, SpatialError
 from mech_balance.schema.spatial import POSE_TOL_DEG, POSE_TOL_REL
 import numpy as np
+
+
+def _turn(axis, angle):
+    """Return the rotation (3, 3) by ``angle`` (rad) about the unit ``axis`` (Rodrigues)."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                  [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+def _normal(axis):
+    """Return a unit vector normal to the unit ``axis``."""
+    v = np.cross(axis, np.eye(3)[int(np.argmin(np.abs(axis)))])
+    return v / np.linalg.norm(v)
 
 
 def twist_about(axis, rot):
@@ -33,9 +45,9 @@ def twist_about(axis, rot):
     about ``axis`` that best explains it; the rotation vector (``kinematics.angle_about``)
     would mix in any turn about another axis.
     """
-    ref = perp_pair(axis)[0]
+    ref = _normal(axis)
     v = rot @ ref
-    return math.atan2(float(axis @ cross(ref, v)), float(ref @ v))
+    return math.atan2(float(axis @ np.cross(ref, v)), float(ref @ v))
 
 
 def tree_values(t, rel, d):
@@ -55,8 +67,8 @@ def tree_values(t, rel, d):
     if jt == 'universal':
         e = t.fixed @ t.axis_child
         v = rel @ t.axis_child
-        theta = math.atan2(float(t.axis @ cross(e, v)), float(e @ v))
-        rest = t.fixed.T @ rot_axis(t.axis, np.array([-theta]))[0] @ rel
+        theta = math.atan2(float(t.axis @ np.cross(e, v)), float(e @ v))
+        rest = t.fixed.T @ _turn(t.axis, -theta) @ rel
         return [theta, twist_about(t.axis_child, rest)]
     theta = twist_about(t.axis, rel @ t.fixed.T)
     if jt == 'revolute':
@@ -134,7 +146,7 @@ def pose_errors(linkage, fr):
         if name in idle:
             ul, x0 = idle[name]
             u, us = rot @ ul, rot_s @ ul
-            angle = math.atan2(float(np.linalg.norm(cross(u, us))), float(u @ us))
+            angle = math.atan2(float(np.linalg.norm(np.cross(u, us))), float(u @ us))
             dist = float(np.linalg.norm(org + rot @ x0 - org_s - rot_s @ x0))
         else:
             angle = _angle(rot_s, rot)
@@ -143,18 +155,19 @@ def pose_errors(linkage, fr):
     return out
 
 
-def check_poses(linkage, fr):
+def pose_mismatch(linkage, fr):
     """
-    Refuse an assembly whose solved poses are not the stated ones (module docstring).
+    Return why an assembly's solved poses are not the stated ones, or None if they are.
 
-    The error names every link off by more than the tolerances, the angle and the distance,
-    and the pose the linkage closed at (to state it, if it is the intended assembly).
+    The text (the linkage raises it) names every link off by more than the tolerances, the
+    angle and the distance, and the pose the linkage closed at (to state it, if it is the
+    intended assembly).
     """
     tol_m = POSE_TOL_REL * linkage.length_scale
     bad = [(name, a, d) for name, a, d in pose_errors(linkage, fr)
            if math.degrees(a) > POSE_TOL_DEG or d > tol_m]
     if not bad:
-        return
+        return None
     parts = []
     for name, angle, dist in bad:
         k = linkage.body_names.index(name)
@@ -163,7 +176,7 @@ def check_poses(linkage, fr):
         parts.append(f'{name} closed {math.degrees(angle):.3g} deg and {dist:.3g} m from '
                      f'assembly.poses.{name} (there: origin_m {origin}, rpy_deg {rpy})')
     angle = crank_angle_text(linkage.scene.assembly_crank_angle_rad, 4)
-    raise SpatialError(
+    return (
         f'assembly: at crank angle {angle} deg the linkage does not close at the stated '
         f'poses: {"; ".join(parts)}; expected every stated link within {POSE_TOL_DEG:g} deg '
         f'and {tol_m:.3g} m ({POSE_TOL_REL:g} x the linkage size) of its solved pose: the '

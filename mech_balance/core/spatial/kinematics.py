@@ -62,6 +62,7 @@ import warnings
 from mech_balance.conventions import crank_angle_text
 from mech_balance.core.planar import smallsolve
 from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
+from mech_balance.core.spatial import assembly
 from mech_balance.schema.scene import FRAME
 from mech_balance.schema.spatial import stroke_law
 import numpy as np
@@ -1089,7 +1090,6 @@ class Linkage:
 
     def _initial(self):
         """Return tree coordinates ``(1, ndof)`` and rotations from the scene's poses."""
-        from mech_balance.core.spatial import assembly  # it builds on this module
         return assembly.initial(self)
 
     def _assemble(self):
@@ -1136,8 +1136,9 @@ class Linkage:
         q, sph, fr, res, ok = self.newton(q, sph)
         if not ok[0]:
             raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
-        from mech_balance.core.spatial import assembly  # it builds on this module
-        assembly.check_poses(self, fr)
+        mismatch = assembly.pose_mismatch(self, fr)
+        if mismatch:
+            raise SpatialError(mismatch)
         self.q0, self.sph0 = q, sph
         self.sph_zero = spherical_zeros(self, fr)
         js = self.scaled(self.jacobian(fr))
