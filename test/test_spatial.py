@@ -18,7 +18,7 @@ from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import kinematics
 from mech_balance.core.spatial.kinematics import min_rotation, SpatialError
 from mech_balance.schema.fields import SceneError
-from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
+from mech_balance.schema.spatial import Pose, spatial_from_dict, spatial_to_dict
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -312,9 +312,13 @@ def test_idle_spin_off_the_line_is_refused():
 def test_universal_instead_of_spherical_holds_the_spin():
     data = copy.deepcopy(_load_data('rssr_skew'))
     data['links']['coupler']['inertia_com_kg_m2'] = [1e-6, 6.75e-4, 6.75e-4, 0.0, 0.0, 0.0]
-    # a U at B: cross axis normal to the crank axis in the crank, the coupler's z in it
+    # a U at B: cross axis normal to the crank axis in the crank (its y), the coupler's
+    # cross axis normal to its line BC and to the crank's y at the stated poses
+    coupler = Pose(**data['assembly']['poses']['coupler']).rotation()
     data['joints']['B'] = {'type': 'universal', 'a': 'crank.B', 'b': 'coupler.B',
-                           'axis': [0.0, 1.0, 0.0], 'axis_b': [0.0, 0.0, 1.0]}
+                           'axis': [0.0, 1.0, 0.0],
+                           'axis_b': [float(v) for v in np.cross([1.0, 0.0, 0.0],
+                                                                 coupler[1])]}
     rig = rig_for(spatial_from_dict(data), cache=False)
     assert not getattr(rig.linkage, 'idle_spins', ())
     _check_momentum(rig, np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False))
@@ -397,7 +401,7 @@ def _bennett(alpha_deg=30.0, a_m=0.1, theta_deg=60.0):
             'frame': {'points': {'O': [0.0, 0.0, 0.0], 'E': [float(x) for x in t3[:3, 3]]}},
             'links': links, 'joints': joints, 'crank': {'joint': 'J1', 'speed_rad_s': 10.0},
             'moment_point_m': [0.0, 0.0, 0.0],
-            'assembly': {'crank_angle_deg': 0.0, 'poses': poses}}, t3
+            'assembly': {'crank_angle_deg': theta_deg, 'poses': poses}}, t3
 
 
 def test_over_constrained_bennett_reports_non_unique_reactions():
@@ -553,8 +557,31 @@ def rotation_margin(data, grid=3600):
 
 
 def _with_crank(data, length_m):
+    """
+    Return ``data`` with the crank ``length_m`` long, its poses restated where it closes.
+
+    The rocker turns about its axis to the angle of the closure equation (``_rssr_closure``)
+    nearest its stated one, and the coupler runs from the crank's new ball to the rocker's;
+    beyond the reach the rocker goes where the two come nearest.
+    """
     trial = copy.deepcopy(data)
     trial['links']['crank']['points']['B'][0] = float(length_m)
+    poses = trial['assembly']['poses']
+    rk, ro = (Pose(**poses[k]).rotation() for k in ('crank', 'rocker'))
+    b = rk[:, 0] * length_m
+    d0 = np.array(poses['rocker']['origin_m'])
+    r3 = np.linalg.norm(data['links']['rocker']['points']['C'])
+    length = np.linalg.norm(data['links']['coupler']['points']['C'])
+    w = d0 - b
+    p, q = 2 * r3 * (w @ ro[:, 0]), 2 * r3 * (w @ ro[:, 1])
+    k = length ** 2 - w @ w - r3 ** 2
+    base, half = math.atan2(q, p), math.acos(max(-1.0, min(1.0, k / math.hypot(p, q))))
+    phi = min((base + half, base - half), key=lambda t: abs(math.remainder(t, 2 * math.pi)))
+    ro = ro @ min_rotation([1.0, 0.0, 0.0], [math.cos(phi), math.sin(phi), 0.0])
+    rc = Pose(**poses['coupler']).rotation()
+    rc = min_rotation(rc[:, 0], _unit(d0 + r3 * ro[:, 0] - b)) @ rc
+    poses['rocker']['rpy_deg'] = _rpy(ro)
+    poses['coupler'] = {'origin_m': [float(v) for v in b], 'rpy_deg': _rpy(rc)}
     return trial
 
 
@@ -673,8 +700,9 @@ def test_crank_angles_in_messages_are_wrapped_into_one_turn():
     A warning or an error names its crank angle in [0, 360) deg, whatever turn it falls in.
 
     One near-singular random RSSR of ``test_random_near_singular_cases_are_flagged``,
-    assembled two turns on (the trace's warnings), evaluated three turns on (the
-    evaluation's warnings) and grown just beyond its rotation limit (the refusal).
+    assembled two turns on (the angle it denotes: the trace starts within one turn, issue
+    32), evaluated three turns on (the evaluation's warnings) and grown just beyond its
+    rotation limit (the refusal).
     """
     s = _random_geometries(7, 1, lambda m: m >= ROTATION_MARGIN)[0]
     data = random_rssr(np.random.default_rng(s), 1)
@@ -682,7 +710,9 @@ def test_crank_angles_in_messages_are_wrapped_into_one_turn():
     limit = _crank_limit(data)
     rig, sk, caught = _near_singular(data, limit, s)
     worst = int(np.argmax(sk.cond))
-    assert np.all(sk.psi >= 2.0 * np.pi)                 # the whole trace beyond one turn
+    # the scene keeps its 720 + x deg; the linkage starts at x, reduced exactly
+    assert rig.scene.assembly_crank_angle_deg >= 720.0
+    assert sk.psi[0] == math.radians(math.fmod(rig.scene.assembly_crank_angle_deg, 360.0))
     traced = _printed_angles(str(w.message) for w in caught)
     assert traced and all(0.0 <= a < 360.0 for a in traced)
     assert f'crank angle {math.degrees(sk.psi[worst]) % 360.0:.3f} deg' in ' '.join(

@@ -98,10 +98,10 @@ EXTENT_FACTOR_RANGE = (0.1, 2.0)
 this factor times its reach.  Both ends certified (relative gap <= 1e-5) on the spatial
 built-ins with the mass factors at the ends of :data:`SPATIAL_MASS_FACTOR_RANGE` and weights
 (0.5, 0.5), (1, 0), (0, 1) (largest 5.6e-6).  Outside: at 1e-2 the gap on spatial_two_loop
-with mass factors (1, 1e6) was 9e-3; at 3 with (100, 100) and weights (0, 1) 1.0e-5 on
-rssr_skew and 1.3e-5 on rggr, at 5 1.9e-5; at 100 and 1e3 8e-4 and 9e-2 (the certificate's
-box grows with the square of the extent), at 1e9 the lower bound was -2e9 (spatial_two_loop)
-and -5e14 (rssr_skew)."""
+with mass factors (1, 1e6) was 5e-2; at 3 with (100, 100) and weights (0, 1) 1.0e-5 on
+rssr_skew and 1.3e-5 on rggr, at 5 1.9e-5; at 100 and 1e3 on spatial_two_loop 1.1e-4 and
+8.3e-3 (the certificate's box grows with the square of the extent), at 1e9 the lower bound
+was -3.8e16 (spatial_two_loop) and -5e14 (rssr_skew)."""
 
 
 SPATIAL_MASS_FACTOR_RANGE = (1e-6, 1e2)
@@ -110,7 +110,7 @@ original mass) of the spatial redistribution: narrower than :data:`BOUND_RATIO_R
 top.  Both ends certified on the spatial built-ins at the ends of :data:`EXTENT_FACTOR_RANGE`
 (largest gap 5.6e-6).  Above 100, measured: (1e-6, 1e6) certified with the weights (0.5, 0.5)
 (largest 1.3e-6) but not at extent 2 with weights (0, 1) on rggr_spatial (7.2e-3); (100,
-1e6) on spatial_two_loop 6.7e-4, (10, 1e6) at extent 0.1 there 5.1e-5; (1e3, 1e3) on
+1e6) on spatial_two_loop 5.4e-5, (10, 1e6) at extent 0.1 there 4.4e-5; (1e3, 1e3) on
 rggr_spatial at extent 5 1.1e-5 (the complete balance of bodies 1e3 x heavier is met to the
 solver's 1e-9 of their size: 1e-5 of the objective's unit); (1e6, 1e6) gap 1 on rssr_skew
 and a solver failure on rggr_spatial."""

@@ -70,6 +70,9 @@ VIOLATION_TOL = 16.0 * np.finfo(float).eps
 """A design meets a constraint when it violates it by at most this (units of its body's mass
 and reach): the rounding of evaluating the constraint (equal mass bounds are met exactly
 otherwise only by luck)."""
+INERTIA_CLIP_RTOL = 1e-12
+"""A designed body's principal moment of inertia below zero by at most this fraction of its
+m reach^2 is round-off (the design at the edge of the PSD set) and is written as 0."""
 TIGHT_TOL_SCALE = 1e-3
 """A program whose first solve is not certified is solved again with Clarabel's tolerances
 this factor tighter (its dual residual, paid with the box, shrinks with them)."""
@@ -163,7 +166,7 @@ def spatial_model(rig):
     folded into their link's (the scene has no counterweight field; the spheres are in the
     report and the provenance).
     """
-    from mech_balance.schema.spatial import INERTIA_RTOL, SpatialLink
+    from mech_balance.schema.spatial import SpatialLink
     sc = rig.scene
     idle = {name: (ja, jb) for name, ja, jb in getattr(rig.linkage, 'idle_spins', ())}
     joints = {j.name: j for j in sc.joints}
@@ -202,18 +205,13 @@ def spatial_model(rig):
             if lk.name not in names:
                 links.append(lk)
                 continue
-            tk = t[names.index(lk.name)]
+            k = names.index(lk.name)
+            tk = t[k]
             m = float(tk[0])
             c = tk[1:4] / m
-            i_o = regressor.inertia_matrix(tk[4:10])
-            i_c = i_o - m * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
-            # a thin rod's zero moments come out of the solver and the parallel-axis step as
-            # +-round-off: principal moments above -INERTIA_RTOL m reach^2 (the scene
-            # check's relative slack, of the body's own scale) are written as zero
-            eig, vec = np.linalg.eigh(i_c)
-            floor = INERTIA_RTOL * max(abs(m), float(lk.mass_kg)) * reaches[lk.name] ** 2
-            if -floor <= eig[0] < 0.0:
-                i_c = (vec * np.maximum(eig, 0.0)) @ vec.T
+            i_c = regressor.inertia_matrix(tk[4:10]) - m * (np.dot(c, c) * np.eye(3)
+                                                            - np.outer(c, c))
+            i_c = _clip_roundoff(i_c, abs(m) * bodies[k].reach_m ** 2)
             links.append(SpatialLink(lk.name, lk.points, m, tuple(float(x) for x in c),
                                      tuple(float(x) for x in (i_c[0, 0], i_c[1, 1], i_c[2, 2],
                                                               i_c[0, 1], i_c[0, 2],
@@ -230,6 +228,23 @@ def spatial_model(rig):
         return build(t, name or f'{sc.name}_counterweights')
 
     return ParameterModel(tuple(bodies), theta, build, add)
+
+
+def _clip_roundoff(inertia, scale):
+    """
+    Return an inertia tensor (3, 3) with its round-off negative principal moments set to 0.
+
+    A design at the edge of the feasible set (a rod's transverse inertia driven to zero)
+    comes out of ``I_O - m (|c|^2 1 - c c^T)`` a few 1e-15 below zero, which the scene's
+    loader would refuse although the design is a body; principal moments below zero by at
+    most :data:`INERTIA_CLIP_RTOL` of the body's ``m reach^2`` (``scale``) are that
+    round-off and are clipped, the tensor rebuilt from its eigenvectors.  A larger negative
+    one (a design that is no body) is kept, so the loader names it.
+    """
+    eig, vec = np.linalg.eigh(0.5 * (inertia + inertia.T))
+    if eig[0] >= 0.0 or eig[0] < -INERTIA_CLIP_RTOL * scale:
+        return inertia
+    return (vec * np.maximum(eig, 0.0)) @ vec.T
 
 
 PARAMETER_MODELS = {'spatial': spatial_model}

@@ -81,6 +81,14 @@ MIN_SAMPLES = 4
 """Fewest crank angles per revolution of ``samples``."""
 CRANK_KEYS = {'joint', 'speed_rad_s', 'acceleration_rad_s2', 'stroke_m'}
 """The fields of ``crank:`` (``stroke_m``: a prismatic input only)."""
+POSE_TOL_DEG = 5.0
+"""How far (deg) the stated assembly poses may be from the assembly: the angle between a
+link's stated and solved rotation, and between a joint's two axes at the stated poses
+(aligned; a universal's: normal).  The poses are approximate, but no nearer assembly branch
+of a linkage sound enough to turn fully lies this close (core.spatial.assembly)."""
+POSE_TOL_REL = 0.05
+"""How far a link's stated origin may be from its solved one, relative to the linkage's size
+(the largest distance between two of its points)."""
 
 
 def stroke_law(stroke_m, psi):
@@ -150,6 +158,16 @@ class Pose:
     origin_m: tuple = (0.0, 0.0, 0.0)
     rpy_deg: tuple = (0.0, 0.0, 0.0)
 
+    def rotation(self):
+        """Return the rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (3, 3) of ``rpy_deg`` (URDF)."""
+        import numpy as np  # on first use: the command line parsers need none
+        r, p, y = (math.radians(v) for v in self.rpy_deg)
+        cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), \
+            math.cos(y), math.sin(y)
+        return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                         [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                         [-sp, cp * sr, cp * cr]])
+
 
 @dataclass(frozen=True)
 class WeightSpec:
@@ -193,8 +211,16 @@ class SpatialScene(SceneDesigns):
 
     @property
     def assembly_crank_angle_rad(self):
-        """Return the assembly crank coordinate in rad (the cycle's start)."""
-        return math.radians(self.assembly_crank_angle_deg)
+        """
+        Return the assembly crank coordinate in rad (the cycle's start), within one turn.
+
+        ``assembly.crank_angle_deg`` reduced into (-360, 360) deg by ``math.fmod``, which is
+        exact for every float: an angle of any magnitude the scene admits (up to
+        :data:`~mech_balance.schema.fields.MAX_ABS_VALUE`) is the angle it denotes, and the
+        cycle's crank angles keep their resolution (a start of 1e18 deg taken as it is would
+        make every angle of a cycle one float).  A value within one turn is kept unchanged.
+        """
+        return math.radians(math.fmod(self.assembly_crank_angle_deg, 360.0))
 
     @property
     def prismatic_input(self):
@@ -361,6 +387,51 @@ def _pose(spec, where):
                 _vec3(spec.get('rpy_deg', [0.0, 0.0, 0.0]), f'{where}.rpy_deg'))
 
 
+def _check_axes_at_poses(joints, poses):
+    """
+    Refuse a joint whose two axes disagree at the stated poses, naming it and ``axis_b``.
+
+    ``axis`` (in a's axes) and ``axis_b`` (in b's; when left out, the numbers of ``axis``)
+    are one line of the joint (a universal: its two cross axes, normal to each other); at
+    the stated poses of both links (the frame's is the identity) they must be so within
+    :data:`POSE_TOL_DEG`.  The message gives the ``axis_b`` the poses imply.  Joints with a
+    link whose pose is not stated are not checked.
+    """
+    import numpy as np  # on first use: the command line parsers need none
+    eye = np.eye(3)
+    for jt in joints:
+        if jt.axis is None or (jt.link_a != FRAME and jt.link_a not in poses) or \
+                (jt.link_b != FRAME and jt.link_b not in poses):
+            continue
+        rot_a = eye if jt.link_a == FRAME else poses[jt.link_a].rotation()
+        rot_b = eye if jt.link_b == FRAME else poses[jt.link_b].rotation()
+        a = np.array(jt.axis, dtype=float)
+        b = np.array(jt.axis if jt.axis_b is None else jt.axis_b, dtype=float)
+        wa, wb = rot_a @ (a / np.linalg.norm(a)), rot_b @ (b / np.linalg.norm(b))
+        where = f'joints.{jt.name}.axis_b'
+        if jt.joint_type == 'universal':
+            off = math.degrees(math.asin(min(1.0, abs(float(wa @ wb)))))
+            if off > POSE_TOL_DEG:
+                raise SceneError(
+                    f'{where}: got {list(jt.axis_b)}, which is {90.0 - off:.4g} deg (not 90) '
+                    "from the joint's axis at the stated poses (assembly.poses of "
+                    f'{jt.link_a} and {jt.link_b}); expected the cross axis fixed in link '
+                    f'{jt.link_b}, normal to axis at those poses (to {POSE_TOL_DEG:g} deg), or '
+                    'poses that make them normal')
+            continue
+        off = math.degrees(math.atan2(float(np.linalg.norm(np.cross(wa, wb))), float(wa @ wb)))
+        if off <= POSE_TOL_DEG:
+            continue
+        implied = [float(f'{v:.6g}') for v in rot_b.T @ wa]
+        got = (f'missing, and its default (the numbers of axis, {list(jt.axis)}) is'
+               if jt.axis_b is None else f'got {list(jt.axis_b)}, which is')
+        raise SceneError(
+            f"{where}: {got} {off:.4g} deg from the joint's axis at the stated poses "
+            f'(assembly.poses of {jt.link_a} and {jt.link_b}); expected the same line in '
+            f"link {jt.link_b}'s axes, {implied} at those poses (to {POSE_TOL_DEG:g} deg), "
+            'or poses that align the two')
+
+
 def spatial_from_dict(data, source='<dict>'):
     """Validate a parsed spatial scene mapping (module docstring) into a SpatialScene."""
     data = fields.mapping(data, 'scene')
@@ -421,6 +492,7 @@ def spatial_from_dict(data, source='<dict>'):
             raise SceneError(f'assembly.poses.{k}: no such link, expected one of '
                              f'{", ".join(sorted(names))}')
         poses[k] = _pose(v, f'assembly.poses.{k}')
+    _check_axes_at_poses(joints, poses)
 
     normalization = None
     if 'normalization' in data:

@@ -37,6 +37,12 @@ The input and the cycle
     assembly to both ends, refusing a singular position on the way as for a turn, and a
     cycle of psi runs it forth and back.
 
+The assembly
+    The tree coordinates are read from the scene's ``assembly.poses``, the loops closed
+    from there (Levenberg-Marquardt) and every stated link's solved pose compared with its
+    stated one, refused beyond the tolerances (:mod:`.assembly`): the branch analysed is
+    always the one the scene states.
+
 Idle freedoms and redundancy
     A link held only by two spherical joints spins freely about the line through them; the
     assembled Jacobian's null space shows it.  Convention (:data:`IDLE_INERTIA_RTOL`): its
@@ -56,6 +62,7 @@ import warnings
 from mech_balance.conventions import crank_angle_text
 from mech_balance.core.planar import smallsolve
 from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
+from mech_balance.core.spatial import assembly
 from mech_balance.schema.scene import FRAME
 from mech_balance.schema.spatial import stroke_law
 import numpy as np
@@ -73,6 +80,9 @@ STEP_MAX_RAD = math.radians(10.0)
 yoke at mid-stroke, i.e. times the half stroke, m)."""
 STEP_MIN_RAD = 1e-7
 """Smallest crank step before the continuation declares the branch lost (prismatic input:
+times the half stroke, m)."""
+STEP_DONE = 1e-13
+"""What is left of a continuation's goal when it counts as reached (rad; a prismatic input:
 times the half stroke, m)."""
 STEP_TRUST = 0.05
 """Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
@@ -211,15 +221,6 @@ def min_rotation(frm, to):
     return rot_axis(axis / s, np.array([math.atan2(s, c)]))[0]
 
 
-def rpy_matrix(rpy_rad):
-    """Return Rz(yaw) Ry(pitch) Rx(roll) (3, 3) (URDF order) of (roll, pitch, yaw) in rad."""
-    r, p, y = rpy_rad
-    rx = rot_axis(np.array([1.0, 0.0, 0.0]), np.array([r]))[0]
-    ry = rot_axis(np.array([0.0, 1.0, 0.0]), np.array([p]))[0]
-    rz = rot_axis(np.array([0.0, 0.0, 1.0]), np.array([y]))[0]
-    return rz @ ry @ rx
-
-
 def _unit(v, where):
     v = np.asarray(v, dtype=float)
     return v / np.linalg.norm(v)
@@ -250,20 +251,6 @@ def angle_about(axis, rot):
     vee = 0.5 * np.stack([skw[..., 2, 1], skw[..., 0, 2], skw[..., 1, 0]], -1)
     cos = 0.5 * (np.trace(rot, axis1=-2, axis2=-1) - 1.0)
     return np.arctan2(vee @ axis, cos)
-
-
-def tree_values(t, rel, d):
-    """Return the coordinates of a (non-spherical) tree joint from a guessed relative pose."""
-    jt = t.joint_type
-    if jt == 'prismatic':
-        return [float(d @ t.axis)]
-    theta = float(angle_about(t.axis, (rel @ t.fixed.T)[None])[0])
-    if jt == 'revolute':
-        return [theta]
-    if jt == 'cylindrical':
-        return [theta, float(d @ t.axis)]
-    rest = t.fixed.T @ rot_axis(t.axis, np.array([-theta]))[0] @ rel
-    return [theta, float(angle_about(t.axis_child, rest[None])[0])]
 
 
 def spherical_zeros(linkage, fr):
@@ -416,6 +403,9 @@ class Linkage:
         # hung from its scene end b slides the other way (coordinates.joint_values)
         self.input_sign = -1.0 if self.tree[0].flipped and not self.periodic else 1.0
         half = 1.0 if self.periodic else 0.5 * (self.stroke_m[1] - self.stroke_m[0])
+        # the input coordinate's own scale (rad, or the half stroke in m): every step and
+        # tolerance in it is relative to this, so the figures do not depend on the unit
+        self.input_scale = half
         self.step_max, self.step_min = STEP_MAX_RAD * half, STEP_MIN_RAD * half
         self._assemble()
         self._skeleton = None
@@ -1100,32 +1090,7 @@ class Linkage:
 
     def _initial(self):
         """Return tree coordinates ``(1, ndof)`` and rotations from the scene's poses."""
-        sc = self.scene
-        rot = [np.eye(3)]
-        org = [np.zeros(3)]
-        for lk in sc.links:
-            pose = sc.assembly_poses.get(lk.name)
-            if pose is None:
-                rot.append(np.eye(3))
-                org.append(np.zeros(3))
-            else:
-                rot.append(rpy_matrix(np.radians(pose.rpy_deg)))
-                org.append(np.array(pose.origin_m, dtype=float))
-        q = np.zeros((1, self.ndof))
-        sph = np.zeros((1, len(self.sph_index), 3, 3))
-        si = 0
-        for t in self.tree:
-            rel = rot[t.parent].T @ rot[t.child]
-            d = rot[t.parent].T @ (org[t.child] + rot[t.child] @ t.s_child - org[t.parent]) \
-                - t.s_parent
-            if t.joint_type == 'spherical':
-                sph[0, si] = rel
-                si += 1
-                continue
-            vals = tree_values(t, rel, d)
-            q[0, list(t.dofs)] = vals
-        q[0, 0] = self.input_coordinate(sc.assembly_crank_angle_rad, 0.0, 0.0)[0]
-        return q, sph
+        return assembly.initial(self)
 
     def _assemble(self):
         """Assemble the linkage (Levenberg-Marquardt), find idle spins and redundancy."""
@@ -1163,13 +1128,17 @@ class Linkage:
         if self.m and np.max(np.abs(g)) > 1e-10:
             raise SpatialError(
                 f'assembly: the linkage cannot be closed at crank angle '
-                f'{self.scene.assembly_crank_angle_deg:g} deg from assembly.poses (largest '
+                f'{crank_angle_text(self.scene.assembly_crank_angle_rad, 4)} deg from '
+                f'assembly.poses (largest '
                 f'scaled closure residual {np.max(np.abs(g)):.3e} after '
                 f'{ASSEMBLY_MAX_ITER} iterations); expected poses near an assembled position')
         self._find_idle(q, sph, fr)
         q, sph, fr, res, ok = self.newton(q, sph)
         if not ok[0]:
             raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
+        mismatch = assembly.pose_mismatch(self, fr)
+        if mismatch:
+            raise SpatialError(mismatch)
         self.q0, self.sph0 = q, sph
         self.sph_zero = spherical_zeros(self, fr)
         js = self.scaled(self.jacobian(fr))
@@ -1380,7 +1349,7 @@ class Linkage:
         """Follow the branch from one state by ``h_goal`` (rad, or m for a slide); yield nodes."""
         done = 0.0
         h = min(self.step_max, abs(h_goal)) * np.sign(h_goal)
-        while abs(h_goal - done) > 1e-13:
+        while abs(h_goal - done) > STEP_DONE * self.input_scale:
             if abs(h) > abs(h_goal - done):
                 h = h_goal - done
             qp, sphp = self._step(q, sph, qd, qdd, np.array([h]))

@@ -1,0 +1,169 @@
+"""
+Bounded spatial inputs (issue 32): huge crank angles, the length scale, a design at round-off.
+
+``assembly.crank_angle_deg`` of any magnitude the scene admits is the angle it denotes
+(reduced exactly), so 1e12..1e18 deg either assembles there or is refused for the reason that
+holds (the poses do not fit that angle); every figure of every spatial built-in scales
+exactly with its lengths from 1e-12 to 1e3 m; and ``balance --output`` writes the design it
+prints where the optimum puts a rod's transverse inertia at zero.
+"""
+
+import copy
+import math
+
+from mech_balance import schema
+from mech_balance.balancing import spatial
+from mech_balance.core.rig import rig_for
+from mech_balance.core.spatial import assembly
+from mech_balance.core.spatial.kinematics import SpatialError
+from mech_balance.schema.spatial import spatial_from_dict
+import numpy as np
+from numpy.testing import assert_allclose
+import pytest
+
+SPATIAL = ('rssr_skew', 'rssp_slider', 'spatial_two_loop', 'pssr_skew', 'rggr_spatial')
+SCALES = (1e-12, 1e-9, 1e-6, 1e-3, 1e3)
+"""Length factors of the scale-invariance test (the built-ins' own lengths are ~0.1 m)."""
+SCALE_RTOL = 1e-9
+"""Every figure, relative to its family's largest value (issue 32's acceptance)."""
+
+
+def _data(name):
+    data, _ = schema.load_data(name)
+    return copy.deepcopy(data)
+
+
+# ----------------------------------------------------------------------------- crank angle
+
+@pytest.mark.parametrize('angle_deg', [1e12, 1e16, 1e18, -1e18])
+def test_huge_crank_angle_is_the_angle_it_denotes(angle_deg):
+    """The poses hold at 0 deg; 1e12 deg is 280 deg: refused there, for that reason."""
+    data = _data('rssr_skew')
+    data['assembly']['crank_angle_deg'] = angle_deg
+    sc = spatial_from_dict(data)
+    assert sc.assembly_crank_angle_deg == angle_deg          # kept as written
+    reduced = math.fmod(angle_deg, 360.0) % 360.0
+    assert math.degrees(sc.assembly_crank_angle_rad) % 360.0 == pytest.approx(reduced, abs=1e-9)
+    with pytest.raises(SpatialError, match=rf'assembly: at crank angle {reduced:.4f} deg the '
+                                           r'linkage does not close at the stated poses: '
+                                           r'crank closed'):
+        rig_for(sc, cache=False)
+
+
+def test_huge_crank_angle_whole_turns_give_the_same_figures():
+    """360 x 2^40 deg (exact) is 0 deg: the same cycle figures, bit for bit in the wrench."""
+    base = rig_for(schema.load('rssr_skew'))
+    data = _data('rssr_skew')
+    data['assembly']['crank_angle_deg'] = 360.0 * 2.0 ** 40
+    rig = rig_for(spatial_from_dict(data), cache=False)
+    psi = np.linspace(0.0, 2.0 * np.pi, 36, endpoint=False)
+    a, b = base.at(psi), rig.at(psi)
+    assert_allclose(b.force_N, a.force_N, rtol=0, atol=1e-12 * np.max(np.abs(a.force_N)))
+    assert_allclose(b.moment_Nm, a.moment_Nm, rtol=0, atol=1e-12 * np.max(np.abs(a.moment_Nm)))
+
+
+# ----------------------------------------------------------------------------- length scale
+
+def _scaled(data, s):
+    """Return a spatial mapping with every length times ``s`` (inertias times s^2)."""
+    data = copy.deepcopy(data)
+    data['frame']['points'] = {k: [v * s for v in p] for k, p in data['frame']['points'].items()}
+    for lk in data['links'].values():
+        lk['points'] = {k: [v * s for v in p] for k, p in lk['points'].items()}
+        lk['com_m'] = [v * s for v in lk.get('com_m', [0.0, 0.0, 0.0])]
+        lk['inertia_com_kg_m2'] = [v * s * s for v in lk['inertia_com_kg_m2']]
+    for pose in data.get('assembly', {}).get('poses', {}).values():
+        pose['origin_m'] = [v * s for v in pose['origin_m']]
+    data['moment_point_m'] = [v * s for v in data['moment_point_m']]
+    if 'stroke_m' in data['crank']:
+        data['crank']['stroke_m'] = [v * s for v in data['crank']['stroke_m']]
+    data.pop('normalization', None)
+    return data
+
+
+def _figures(data):
+    """Return ``{family: (power of the length, [arrays])}`` of a cycle of 36 angles."""
+    sc = spatial_from_dict(data)
+    rig = rig_for(sc, cache=False)
+    psi = sc.assembly_crank_angle_rad + np.linspace(0.0, 2.0 * np.pi, 36, endpoint=False)
+    outputs = ('kinematics', 'shaking_wrench', 'driving_torque', 'bearing_reactions',
+               'kinetic_energy')
+    d = rig.at(psi, speed=7.0, accel=3.0, outputs=outputs)
+    slides = np.array(rig.joint_prismatic)
+    effort = 1 if rig.driving_series == 'driving_force' else 2
+    return {'force': (1, [d.force_N] + [f for f, _ in d.reactions.values()]),
+            'moment': (2, [d.moment_Nm] + [m for _, m in d.reactions.values()]),
+            'effort': (effort, [d.joint_effort[:, rig.crank_index]]),
+            'energy': (2, [d.series['kinetic_energy']]),
+            'angles': (0, [d.joint_position[:, ~slides], d.joint_velocity[:, ~slides]]),
+            'slides': (1, [d.joint_position[:, slides], d.joint_velocity[:, slides]]),
+            'origins': (1, [d.bodies.origin_m]), 'rotations': (0, [d.bodies.rotation])}
+
+
+@pytest.mark.parametrize('name', SPATIAL)
+def test_every_figure_scales_with_the_lengths(name):
+    """
+    Lengths x s (1e-12 to 1e3), inertias x s^2: every figure x s^p to 1e-9 of its family.
+
+    Forces and slides go as s, moments, torques and energies as s^2, angles not at all;
+    each array is compared relative to the largest value of its family (a spherical joint's
+    reaction moment is zero up to round-off).
+    """
+    data = _data(name)
+    base = _figures(_scaled(data, 1.0))
+    for s in SCALES:
+        got = _figures(_scaled(data, s))
+        for family, (power, arrays) in base.items():
+            scale = max([float(np.max(np.abs(a))) for a in arrays if a.size] + [0.0])
+            for ref, new in zip(arrays, got[family][1]):
+                if not ref.size:
+                    continue
+                err = float(np.max(np.abs(new / s ** power - ref)))
+                assert err <= SCALE_RTOL * scale, (name, s, family, err / scale)
+
+
+# ----------------------------------------------------------------------------- round-off design
+
+def _restated(name, delta_deg):
+    """Return ``name`` assembled ``delta_deg`` further on, its poses restated there."""
+    sc = schema.load(name)
+    rig = rig_for(sc)
+    data = _data(name)
+    bodies = rig.at([sc.assembly_crank_angle_rad + math.radians(delta_deg)],
+                    outputs=('kinematics',)).bodies
+    data['assembly']['crank_angle_deg'] = sc.assembly_crank_angle_deg + delta_deg
+    for n in data['assembly']['poses']:
+        k = bodies.names.index(n)
+        data['assembly']['poses'][n] = {
+            'origin_m': [float(v) for v in bodies.origin_m[0, k]],
+            'rpy_deg': assembly.rpy_deg(bodies.rotation[0, k])}
+    return data
+
+
+@pytest.mark.parametrize('delta_deg', [45.0, 90.0, 180.0])
+def test_balanced_design_at_round_off_is_written_and_reproduced(tmp_path, delta_deg):
+    """
+    rggr_spatial assembled at another crank angle: the design is written, as printed.
+
+    Its optimum puts the coupler rod's transverse inertia at zero, which came out of the
+    parameters a few 1e-15 kg m^2 below it and was refused on writing (exit 2).
+    """
+    rig = rig_for(spatial_from_dict(_restated('rggr_spatial', delta_deg)), cache=False)
+    result = spatial.redistribute(rig, samples=72)
+    inertia = np.array(result.balanced_scene.link('coupler').inertia_matrix())
+    assert np.min(np.linalg.eigvalsh(inertia)) >= 0.0
+    path = tmp_path / 'balanced.yaml'
+    reloaded = spatial.write_scene(result, path)
+    assert reloaded.link('coupler').inertia_com_kg_m2 == \
+        result.balanced_scene.link('coupler').inertia_com_kg_m2
+
+
+def test_round_off_clip_leaves_a_design_that_is_no_body():
+    """Only round-off is clipped: -1e-15 of m reach^2 goes, -1e-6 stays (the loader names it)."""
+    clip = spatial._clip_roundoff
+    tiny = np.diag([0.0, -1e-15, -1e-15])
+    assert np.array_equal(clip(tiny, 1.0), np.zeros((3, 3)))
+    bad = np.diag([1.0, -1e-6, 1.0])
+    assert np.array_equal(clip(bad, 1.0), bad)
+    fine = np.diag([1.0, 2.0, 2.5])
+    assert np.array_equal(clip(fine, 1.0), fine)
