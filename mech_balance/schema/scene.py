@@ -17,6 +17,7 @@ from pathlib import Path
 from mech_balance import conventions
 from mech_balance.schema import safe_yaml
 from mech_balance.schema.drive import drive_from_dict
+from mech_balance.schema.build import build_from_dict
 from mech_balance.schema.fields import at_most as _at_most, known_keys as _known_keys, \
     mapping as _mapping, number as _number, points as _points, positive as _positive, \
     require as _require, SceneError, string as _string, vector as _vector
@@ -348,6 +349,7 @@ class Scene(SceneDesigns):
     recording: Recording = Recording()
     drive: dict = None  # motor, speed loop and damping for `mech-balance simulate`
     identification: dict = None  # what `mech-balance identify` found (schema.identification)
+    build: dict = None  # the rig as built, layer by layer (schema.build; None: drawn sizes)
 
 
 def needs(outputs):
@@ -427,7 +429,7 @@ def load_data(name_or_path):
 _TOP_KEYS = {
     'schema_version', 'name', 'description', 'kind', 'normalization', 'crank', 'gravity_m_s2',
     'frame', 'links', 'joints', 'assembly', 'outputs', 'samples', 'notes', 'recording',
-    'balance', 'drive', 'identification',
+    'balance', 'drive', 'identification', 'build',
 }
 
 
@@ -529,7 +531,8 @@ def planar_from_dict(data, source='<dict>'):
         assembly_link_angles_rad=link_angles, assembly_displacements_m=displacements,
         outputs=outputs, samples=samples, gravity_m_s2=gravity, normalization=normalization,
         notes=notes if isinstance(notes, dict) else {'text': notes}, source=source,
-        recording=_recording(data.get('recording', {})), drive=data.get('drive'))
+        recording=_recording(data.get('recording', {})), drive=data.get('drive'),
+        build=build_from_dict(data.get('build'), [FRAME] + [lk.name for lk in links]))
     if sc.drive is not None:  # checked now, used by `mech-balance simulate`
         drive_from_dict(sc.drive, sc)
     if 'identification' in data:  # written by `mech-balance identify --output`
@@ -595,6 +598,8 @@ def planar_to_dict(scene):
         data['recording'] = recording_to_dict(scene.recording)
     if scene.drive is not None:
         data['drive'] = scene.drive
+    if scene.build is not None:
+        data['build'] = scene.build
     if scene.identification is not None:
         from mech_balance.schema.identification import identification_to_dict
         data['identification'] = identification_to_dict(scene.identification)
