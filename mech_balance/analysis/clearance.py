@@ -220,10 +220,13 @@ def bodies(rig, layers=None):
             out.append(Body(label, link.name, c, c, float(cw.radius_m), zc, t, 'disc'))
             if cw.plane_m == 0.0:
                 continue
-            key, m = layer_model.mount_point(link, cw.centre_m)
-            near = zc - math.copysign(0.5 * t, cw.plane_m)
-            out.append(Body(f'{label} shaft', link.name, m, m, pin_r, 0.5 * (z + near),
-                            abs(near - z), 'shaft', _through(sc, lk, link.name, key, points)))
+            key, m = layer_model.mount_point(link, cw.centre_m, cw.mount)
+            # the shaft: from the link's face towards the disc to the disc's near face
+            side = math.copysign(1.0, cw.plane_m)
+            near, face = zc - side * 0.5 * t, z + side * 0.5 * lay.layers[link.name].thickness_m
+            out.append(Body(f'{label} shaft', link.name, m, m, pin_r, 0.5 * (face + near),
+                            max(side * (near - face), 0.0), 'shaft',
+                            _through(sc, lk, link.name, key, points)))
             if abs(c - m) > 0.0:
                 out.append(Body(f'{label} web', link.name, m, c, 0.5 * width, zc, t, 'web'))
     return out
@@ -238,9 +241,13 @@ def _through(sc, lk, link, key, points):
             continue
         other, q = ends[1] if ends[0] == (link, key) else ends[0]
         out.add(f'pin {jt.name}')
-        out.add(f'{other} boss {q}')
+        # the partner's bearing: its bosses and bar ends at the joint (by position: two
+        # points of one body may coincide, a slider's guide point on a pivot)
         local = {k: complex(*v) for k, v in points[other].items()}
-        out.update(f'{other} bar {a}-{b}' for a, b in drawn.bar_edges(local) if q in (a, b))
+        at = {k for k, v in local.items() if v == local[q]}
+        out.update(f'{other} boss {k}' for k in at)
+        out.update(f'{other} bar {a}-{b}' for a, b in drawn.bar_edges(local)
+                   if a in at or b in at)
     return frozenset(out)
 
 

@@ -14,7 +14,7 @@ one's, boss ends included).  Every value is a field of the scene's ``build:`` se
 
 A counterweight disc off its link's plane (``plane_m`` != 0) is carried as built: a shaft of
 the pin radius at its mount (the link's joint nearest the disc centre) runs along z from the
-link's plane to the disc's, and a web (a bar of the link's width, as thick as the disc) joins
+link's face towards the disc to the disc's near face, and a web (a bar of the link's width, as thick as the disc) joins
 the shaft to the disc in the disc's layer.  The shaft and the web are clearance bodies; their
 mass is not in the dynamics (docs/build.md).  A disc in its link's plane is bolted to the
 link: no shaft, no web.
@@ -22,6 +22,10 @@ link: no shaft, no web.
 
 from dataclasses import dataclass
 from mech_balance.core.planar import drawn
+
+STACK_EXTRA_M = 1e-6
+"""Discs are stacked this much beyond the margin along z (m): round-off in the planes' sums
+then never brings two layers closer than the margin."""
 
 
 @dataclass(frozen=True)
@@ -89,12 +93,14 @@ class Layers:
                            for k, v in self.layers.items()}}
 
 
-def mount_point(link, centre_m):
+def mount_point(link, centre_m, mount=''):
     """
-    Return ``(name, point)``: the joint point of ``link`` nearest a disc centre (link frame).
+    Return ``(name, point)``: a disc's mount, ``mount`` or the link's point nearest its centre.
 
-    Ties go to the first point in the link's order; ``point`` is complex (m).
+    Ties go to the first point in the link's order; ``point`` is complex (m, link frame).
     """
+    if mount:
+        return mount, complex(*link.points[mount])
     c = complex(*centre_m)
     best = min(link.points.items(), key=lambda kv: abs(complex(*kv[1]) - c))
     return best[0], complex(*best[1])
@@ -105,9 +111,10 @@ def stack(layers, items, side, margin_m):
     Return ``{key: z_mid}``: discs stacked beyond the linkage on ``side`` (+1 above, -1 below).
 
     ``items``: ``[(key, thickness_m), ...]`` innermost first; each disc ``margin_m`` clear of
-    the linkage's extent (or of the disc inside it) along z.
+    the linkage's extent (or of the disc inside it) along z (plus :data:`STACK_EXTRA_M`).
     """
     lo, hi = layers.extent()
+    margin_m = margin_m + STACK_EXTRA_M
     face = hi if side > 0 else lo
     out = {}
     for key, t in items:

@@ -30,7 +30,8 @@ ANALYTIC_OPTIONS = ('--mass-factor', '--keep-centroidal')
 COUNTERWEIGHT_OPTIONS = ('--density', '--max-thickness', '--max-radius-factor',
                          '--max-mass-factor', '--max-gyration-factor')
 """Options of --counterweights alone: rejected without it."""
-COUNTERWEIGHT_PLACEMENT = ('--planes', '--max-rim-radius-factor')
+COUNTERWEIGHT_PLACEMENT = ('--planes', '--max-rim-radius-factor', '--clearance-margin',
+                           '--no-clearance', '--disc-side', '--max-overhang', '--build-sheet')
 """Options of --counterweights alone that have no number default (checked by the solver)."""
 COUNTERWEIGHT_KEYS = {'--density': 'density_kg_m3', '--max-thickness': 'max_thickness_m',
                       '--max-radius-factor': 'max_radius_factor',
@@ -172,6 +173,23 @@ def register(subparsers):
                    help="--counterweights: the whole disc inside F x the link's joint reach "
                         "of the link's origin (a convex constraint of the program; default: "
                         'no bound)' + _range('max_rim_radius_factor'))
+    p.add_argument('--clearance-margin', type=float, default=None, metavar='M',
+                   help='--counterweights: the least clearance between a counterweight (disc, '
+                        'shaft, web) and any other body over the cycle, in m (default '
+                        f'{_default_margin():g}); the discs go to layers of their own beyond '
+                        'the linkage and the price of clearance is printed (docs/build.md)')
+    p.add_argument('--no-clearance', action='store_true',
+                   help='--counterweights: the certified convex optimum as is (discs in their '
+                        "links' planes or --planes), no collision-free design")
+    p.add_argument('--disc-side', choices=('auto', 'above', 'below'), default='auto',
+                   help='--counterweights: the side of the linkage the discs go to (+z above, '
+                        '-z below; auto: the side with room, per disc)')
+    p.add_argument('--max-overhang', type=float, default=None, metavar='M',
+                   help="--counterweights: a disc's outer face at most M beyond its link's "
+                        'plane (m; default: no bound but the scene\'s plane_m limit)')
+    p.add_argument('--build-sheet', default=None, metavar='FILE.svg',
+                   help='--counterweights: write the build sheet (each link as built with its '
+                        'disc to scale, dimensions, material and mass; SVG)')
     p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
                    help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
                         'with two point masses per link at 0 and 90 deg, and print the '
@@ -355,6 +373,15 @@ def _warn(cert):
               f'{cert.gap_rel:.1e} > {_certified_gap():.0e}); exit status 2', file=sys.stderr)
 
 
+def _default_margin():
+    from mech_balance.balancing import clearance_design
+    return clearance_design.DEFAULT_CLEARANCE_MARGIN_M
+
+
+EXIT_NO_CLEAR_DESIGN = 3
+"""Exit status of --counterweights when no collision-free design exists within the bounds."""
+
+
 def _certified_gap():
     from mech_balance.balancing import socp as balancing
     return balancing.CERTIFIED_GAP_REL
@@ -369,15 +396,32 @@ def _counterweights(sc, args):
         max_radius_factor=args.max_radius_factor, max_mass_factor=args.max_mass_factor,
         max_gyration_factor=args.max_gyration_factor, torque_weight=args.torque_weight,
         reaction_weight=args.reaction_weight, samples=args.samples, planes=args.planes,
-        max_rim_radius_factor=args.max_rim_radius_factor)
+        max_rim_radius_factor=args.max_rim_radius_factor,
+        clearance_margin_m=None if args.no_clearance else
+        (_default_margin() if args.clearance_margin is None else args.clearance_margin),
+        disc_side=args.disc_side, max_overhang_m=args.max_overhang)
+    if not result.answered:   # no collision-free design: say why, give none
+        report = result.clearance_design
+        if args.json:
+            print(jsonout.dumps(result.to_dict()))
+        else:
+            print('\n'.join(report.lines()))
+        print('error: no collision-free counterweight design within the bounds (see above); '
+              'none given (--no-clearance gives the convex optimum as is)', file=sys.stderr)
+        return EXIT_NO_CLEAR_DESIGN
     if args.output:
         _write(result.balanced_scene, args.output, result.summary())
-    for text in result.clearance.warnings():
+    if args.build_sheet:
+        from mech_balance.viz import build_sheet
+        build_sheet.write(result, args.build_sheet)
+    for text in result.clearance.warnings():   # once, here only
         print(f'warning: {text}', file=sys.stderr)
     if args.json:
         print(jsonout.dumps(result.to_dict()))
         return exit_status(result.certificate)
     print(format_counterweights(result, normalized=not args.si))
+    if args.build_sheet:
+        print(f'build sheet written to {args.build_sheet}')
     if args.output:
         print(f'scene with counterweights written to {args.output}')
     _warn(result.certificate)
@@ -416,6 +460,8 @@ def format_counterweights(result, normalized=True):
     lines.append(f'total added mass {result.added_mass_kg:.6g} kg')
     if result.clearance is not None:
         lines += result.clearance.lines()
+    if result.clearance_design is not None:
+        lines += result.clearance_design.lines()
     lines += ['', _before_after_text(result.table, si=not view), '']
     obj, cert = result.objective, result.certificate
     lines += [f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "

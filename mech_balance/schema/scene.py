@@ -143,7 +143,9 @@ class Counterweight:
     ``plane_m`` is the disc's plane: the z of its mid-plane relative to its link's plane (m,
     along the normal, +z towards the viewer; 0, the default: the link's own plane).  It moves
     no mass property of a planar rig; it decides which bodies the disc can collide with
-    (:mod:`mech_balance.analysis.clearance`).
+    (:mod:`mech_balance.analysis.clearance`).  ``mount`` names the link's point whose shaft
+    carries a disc off the link's plane (empty, the default: the point nearest the centre;
+    :mod:`mech_balance.analysis.layers`).
     """
 
     mass_kg: float
@@ -152,6 +154,7 @@ class Counterweight:
     thickness_m: float
     density_kg_m3: float
     plane_m: float = 0.0
+    mount: str = ''
 
     @property
     def inertia_com_kg_m2(self):
@@ -165,6 +168,8 @@ class Counterweight:
                'density_kg_m3': float(self.density_kg_m3)}
         if self.plane_m != 0.0:   # the link's own plane is the default, not written
             out['plane_m'] = float(self.plane_m)
+        if self.mount:
+            out['mount'] = self.mount
         return out
 
 
@@ -714,13 +719,17 @@ def _link(name, spec):
         raise SceneError(f'{where}.counterweights: got {discs!r}, expected a list of discs '
                          '{mass_kg, centre_m, radius_m, thickness_m, density_kg_m3}')
     discs = [_counterweight(d, f'{where}.counterweights[{k}]') for k, d in enumerate(discs)]
+    for k, d in enumerate(discs):
+        if d.mount and d.mount not in points:
+            raise SceneError(f'{where}.counterweights[{k}].mount: got {d.mount!r}, expected a '
+                             f'point of the link ({", ".join(points)})')
     return add_counterweights(link, discs) if discs else link
 
 
 def _counterweight(spec, where):
     spec = _mapping(spec, where)
     keys = ('mass_kg', 'centre_m', 'radius_m', 'thickness_m', 'density_kg_m3')
-    _known_keys(spec, set(keys) | {'plane_m'}, where)
+    _known_keys(spec, set(keys) | {'plane_m', 'mount'}, where)
     for key in keys:
         _require(spec, key, where)
     mass = _positive(spec['mass_kg'], f'{where}.mass_kg')
@@ -738,7 +747,10 @@ def _counterweight(spec, where):
     if abs(plane) > MAX_PLANE_OFFSET_M:
         raise SceneError(f'{where}.plane_m: got {plane!r}, expected a z offset from the '
                          f"link's plane within +-{MAX_PLANE_OFFSET_M:g} m")
-    return Counterweight(mass, centre, radius, thickness, density, plane)
+    mount = spec.get('mount', '')
+    if mount != '':
+        _string(mount, f'{where}.mount')
+    return Counterweight(mass, centre, radius, thickness, density, plane, mount)
 
 
 def _joint(name, spec, all_points):
