@@ -270,3 +270,51 @@ def test_build_section_is_validated():
     data['build'] = {'layer_pitch_m': 0.01, 'layers': {'crank': {'thickness_m': 0.004}}}
     sc = planar_from_dict(data)
     assert planar_from_dict(planar_to_dict(sc)).build == sc.build
+
+
+# ------------------------------------------------------------------ the build sheet
+
+
+def test_build_sheet_numbers_are_the_clis(tmp_path, capsys):
+    """The sheet's numbers, read back from the SVG, are the CLI's JSON to the printed digits."""
+    import json
+    import shutil
+    import subprocess
+    from mech_balance.viz import build_sheet
+    sheet = tmp_path / 'sheet.svg'
+    assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank,rocker',
+                     '--json', '--build-sheet', str(sheet)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    values = build_sheet.read_values(sheet.read_text())
+    sc = scene.load('hoeken')
+    for d in report['designs']:
+        name = d['link']
+        link = sc.link(name)
+        j, u, _ = build_sheet.link_axis(link, d['mount'])
+        rel = (complex(*d['centre_m']) - j) / u
+        expected = {'diameter-mm': 2e3 * d['radius_m'], 'thickness-mm': 1e3 * d['thickness_m'],
+                    'along-mm': 1e3 * rel.real, 'across-mm': 1e3 * rel.imag,
+                    'layer-mm': 1e3 * d['plane_m'], 'mass-kg': d['mass_kg']}
+        for key, value in expected.items():
+            shown, stored = values[f'{name}-{key}']
+            assert stored == pytest.approx(value, rel=1e-12, abs=1e-12)
+            # the printed digits: the number in the text, as the CLI's value rounded
+            number = float(shown)
+            digits = 0.05 if key.endswith('mm') else abs(value) * 5e-4
+            assert abs(number - value) <= digits, (key, shown, value)
+    assert values['total-added-mass-kg'][1] == pytest.approx(report['added_mass_kg'])
+    cost = report['cost']
+    assert values['force-before-N'][1] == pytest.approx(cost['shaking_force']['before'])
+    assert values['moment-after-Nm'][1] == pytest.approx(cost['shaking_moment']['after'])
+    assert values['least-clearance-mm'][1] == pytest.approx(
+        1e3 * report['clearance']['least_clearance_m'])
+    if shutil.which('rsvg-convert'):   # a real renderer reads it
+        png = tmp_path / 'sheet.png'
+        subprocess.run(['rsvg-convert', str(sheet), '-o', str(png)], check=True, timeout=60)
+        assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_build_sheet_needs_svg_name(tmp_path, capsys):
+    assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank',
+                     '--build-sheet', str(tmp_path / 'sheet.pdf')]) == 2
+    assert '--build-sheet' in capsys.readouterr().err
