@@ -87,6 +87,8 @@ def sheet_rows(result):
 
 def _text(x, y, ident, label, value, fmt, unit, size=13, weight='normal'):
     shown = format(value, fmt)
+    if float(shown) == 0.0:   # no '-0.0'
+        shown = format(0.0, fmt)
     return (f'<text x="{x:.1f}" y="{y:.1f}" {FONT} font-size="{size}" '
             f'font-weight="{weight}" id="{ident}" data-value="{value!r}">'
             f'{_esc(label)}<tspan class="value">{shown}</tspan>{_esc(unit)}</text>')
@@ -121,7 +123,7 @@ def render(result):
     span_x = max((e[1] - e[0] for e in extents), default=1.0) + 2 * pad
     span_y = max((e[3] - e[2] for e in extents), default=1.0) + 2 * pad
     px_per_m = min((DRAW_W - 2 * MARGIN_PX) / span_x, (PANEL_H - 60) / span_y)
-    head_h, foot_h = 70, 110
+    head_h, foot_h = 70, 110 + SIDE_H
     height = head_h + PANEL_H * len(rows) + foot_h
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{PAGE_W}" height="{height}" '
            f'viewBox="0 0 {PAGE_W} {height}">',
@@ -156,6 +158,7 @@ def render(result):
         out.append(_text(MARGIN_PX, y + 72, 'least-clearance-mm', 'least clearance over the '
                          'cycle ', clear.least.clearance_m * 1e3, '.3g',
                          f' mm (margin {clear.margin_m * 1e3:g} mm)', 12))
+    out += side_view(result, MARGIN_PX, y + 90, PAGE_W - 2 * MARGIN_PX, SIDE_H - 20)
     out.append('</svg>')
     return '\n'.join(out) + '\n'
 
@@ -233,6 +236,57 @@ def _panel(sc, lay, r, extent, top, k, pad):
         _text(tx, ty + 7 * step, f'{name}-mass-kg', 'mass ', r['mass_kg'], '.4g', ' kg', 13,
               'bold')]
     return out + lines
+
+
+SIDE_H = 300
+"""Height of the side view (px)."""
+
+
+def side_view(result, x0, top, width, height):
+    """
+    Return the SVG elements of the stack along the joint axes, seen from the side (x, z).
+
+    At crank angle 0: each body's plate over its x extent, each pin through the layers it
+    joins, each disc with its shaft; z upwards (m, to one scale of its own, printed).
+    """
+    from mech_balance.analysis import clearance as clearance_mod
+    from mech_balance.core.planar.rig import PlanarRig
+    sc = result.balanced_scene
+    rig = PlanarRig(result.scene).with_scene(sc)
+    lay = layer_model.Layers.of(sc, rig.linkage)
+    sweep = clearance_mod.Sweep(rig, [0.0])
+    boxes = []
+    for b in clearance_mod.bodies(rig, lay):
+        k = sweep.index[b.link]
+        o, r = sweep.origin[k, 0], sweep.rot[k, 0]
+        xs = [(o + r * b.a).real, (o + r * b.b).real]
+        boxes.append((b, min(xs) - b.radius_m, max(xs) + b.radius_m,
+                      b.z_m - 0.5 * b.thickness_m, b.z_m + 0.5 * b.thickness_m))
+    x_lo, x_hi = min(v[1] for v in boxes), max(v[2] for v in boxes)
+    z_lo, z_hi = min(v[3] for v in boxes), max(v[4] for v in boxes)
+    kx = (width - 180) / (x_hi - x_lo)
+    kz = min((height - 50) / (z_hi - z_lo), kx * 4.0)
+    colour = {'bar': '#9aa7b8', 'boss': '#6c7a8c', 'block': '#9aa7b8', 'pin': '#333',
+              'disc': '#e8b04a', 'shaft': '#8a5a00', 'web': '#c98b4a'}
+    out = [_plain(x0, top + 16, 'the stack along the joint axes at crank angle 0 (side view; '
+                  f'x 1 mm = {kx / 1e3:.3g} px, z 1 mm = {kz / 1e3:.3g} px)', 13, 'bold')]
+    order = {'bar': 0, 'block': 0, 'web': 1, 'disc': 2, 'boss': 3, 'pin': 4, 'shaft': 5}
+    for b, xa, xb, za, zb in sorted(boxes, key=lambda v: order[v[0].kind]):
+        y = top + 30 + (z_hi - zb) * kz
+        out.append(f'<rect x="{x0 + (xa - x_lo) * kx:.1f}" y="{y:.1f}" '
+                   f'width="{max((xb - xa) * kx, 1.0):.1f}" height="{max((zb - za) * kz, 1.0):.1f}" '
+                   f'fill="{colour[b.kind]}" fill-opacity="{0.6 if b.kind == "disc" else 0.9}" '
+                   'stroke="#333" stroke-width="0.5"/>')
+    for name, layer in lay.layers.items():
+        y = top + 30 + (z_hi - layer.z_m) * kz
+        out.append(_plain(x0 + (x_hi - x_lo) * kx + 8, y + 4, f'{name} z {layer.z_m * 1e3:.1f}',
+                          11, fill='#333'))
+    for d in result.designs:
+        z = lay.z_m(d.link) + d.plane_m
+        y = top + 30 + (z_hi - z) * kz
+        out.append(_plain(x0 + (x_hi - x_lo) * kx + 8, y + 4,
+                          f'{d.link} disc z {z * 1e3:.1f}', 11, fill='#8a5a00'))
+    return out
 
 
 def write(result, path):
