@@ -237,6 +237,10 @@ def balance(rig, method='auto', **options):
         options = dict(options)
         links = options.pop('links', ())
         result = counterweights.balance_with_counterweights(sc, links, **options)
+        report = result.clearance_design
+        if not result.answered:   # never a colliding design as the answer
+            raise counterweights.CounterweightError('; '.join(report.lines()))
+        # the price of clearance and the least clearance: in the report (clearance_design)
         return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
             result.table, _certificate_text(result.certificate)))
     if method == 'analytic':
