@@ -318,3 +318,30 @@ def test_build_sheet_needs_svg_name(tmp_path, capsys):
     assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank',
                      '--build-sheet', str(tmp_path / 'sheet.pdf')]) == 2
     assert '--build-sheet' in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ the recording
+
+
+def test_record_draws_the_printed_design_and_marks_collisions(tmp_path, capsys):
+    """record --counterweights: the design balance prints; a colliding given design warned."""
+    assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank,rocker']) == 0
+    printed = capsys.readouterr().out
+    line = next(x for x in printed.splitlines() if x.startswith('least clearance'))
+    assert cli.main(['record', '--scene', 'hoeken', '--counterweights', 'crank,rocker',
+                     '--samples', '12', '--out', str(tmp_path / 'a.rrd')]) == 0
+    out, err = capsys.readouterr()
+    # the same design: the same least clearance, pair and angle as balance printed
+    assert line in out
+    assert 'warning' not in err
+    # a user-given colliding design (the convex optimum in the links' planes)
+    given = tmp_path / 'colliding.yaml'
+    assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank,rocker',
+                     '--no-clearance', '--output', str(given)]) == 0
+    capsys.readouterr()
+    assert cli.main(['record', '--scene', 'hoeken', '--design', str(given), '--samples', '12',
+                     '--out', str(tmp_path / 'b.rrd')]) == 0
+    out, err = capsys.readouterr()
+    assert 'COLLISION: crank counterweight 1 and rocker counterweight 1' in out
+    warnings = [x for x in err.splitlines() if x.startswith('warning: collision')]
+    assert warnings and len(warnings) == len(set(warnings))   # each once

@@ -111,13 +111,24 @@ def cmd_record(args):
     if args.design is not None:
         balanced = scene.load(args.design)
         source = f'scene file {balanced.source}'
+        if getattr(balanced, 'kind', 'planar') == 'planar' and \
+                any(lk.counterweights for lk in balanced.links):
+            from mech_balance.analysis import clearance
+            source += clearance_note(clearance.of_design(sc, balanced, args.samples))
     elif args.counterweights is not None:
         from mech_balance.balancing import counterweights as cw_mod
         weights = defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights)
+        # the design `mech-balance balance --counterweights LINKS --weights W1 W2` prints
         result = cw_mod.balance_with_counterweights(sc, args.counterweights, weights)
+        if not result.answered:
+            print('\n'.join(result.clearance_design.lines()), file=sys.stderr)
+            print('error: no collision-free counterweight design within the bounds; nothing '
+                  'recorded', file=sys.stderr)
+            return 3
         balanced = result.balanced_scene
         source = (f'add-only counterweights on {args.counterweights}, (w1, w2) = '
-                  f'({weights[0]:g}, {weights[1]:g}) (mech_balance.balancing.counterweights)')
+                  f'({weights[0]:g}, {weights[1]:g}) (mech_balance.balancing.counterweights)'
+                  + clearance_note(result.clearance))
     elif args.balance:
         cli.requires(sc, 'mass_redistribution', **given)
         balanced, source = balanced_design(
@@ -136,6 +147,21 @@ def cmd_record(args):
     print('  (the viewer comes with rerun-sdk; it plays the crank_angle timeline in a loop)')
     sys.stdout.flush()
     return 0
+
+
+def clearance_note(clear):
+    """
+    Print a design's least clearance (and each collision, once, as a warning) and return it
+    as the text the recording's info panel shows after the design's source.
+    """
+    text = clear.lines()[0]   # the line `mech-balance balance` prints
+    print(f'  {text}')
+    for line in clear.warnings():
+        print(f'warning: {line}', file=sys.stderr)
+    marks = ''.join(f'; COLLISION: {c.body_a} and {c.body_b} overlap by '
+                    f'{-c.clearance_m * 1e3:.3g} mm at crank angle {c.crank_angle_deg:.2f} deg'
+                    for c in clear.collisions)
+    return f'; {text}{marks}'
 
 
 def _viewer():
