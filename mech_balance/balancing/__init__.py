@@ -182,7 +182,9 @@ def _spatial_options(method, options):
 
 def _spatial(rig, method, options):
     """Balance a rig with body kinematics (:mod:`mech_balance.balancing.spatial`)."""
-    from mech_balance.balancing import spatial
+    from mech_balance.balancing import clearance_design, spatial
+    options = dict(options)   # the counterweights' clearance margin (None: the check off)
+    margin = options.pop('clearance_margin_m', clearance_design.DEFAULT_CLEARANCE_MARGIN_M)
     options = _spatial_options(method, options)
     if method == 'force_balance':
         result = spatial.force_balance(rig, **options)
@@ -202,7 +204,11 @@ def _spatial(rig, method, options):
     # shorter than _certificate_text: a spatial optimum is often ~0 (e-notation on both sides)
     text = (f'{cert.status}, {"certified" if cert.certified else "NOT certified"}, '
             f'L {cert.lower_bound:.4g} <= z {cert.primal:.4g}, gap {cert.gap_rel:.1e}')
-    return Design(result.balanced_scene, result.to_dict(), method, result,
+    report = result.to_dict()
+    if method == 'counterweights':   # the spheres against every body over the cycle
+        report.update(clearance_design.spatial_report(
+            rig, result.options['counterweights'], options.get('samples'), margin, cert))
+    return Design(result.balanced_scene, report, method, result,
                   _table_figures(result.table, text))
 
 
@@ -233,13 +239,12 @@ def balance(rig, method='auto', **options):
         return Design(result.balanced_scene, report, method, result, _table_figures(
             result.table, _certificate_text(result.certificate)))
     if method == 'counterweights':
-        from mech_balance.balancing import counterweights
+        from mech_balance.balancing import clearance_design, counterweights
         options = dict(options)
         links = options.pop('links', ())
         result = counterweights.balance_with_counterweights(sc, links, **options)
-        report = result.clearance_design
         if not result.answered:   # never a colliding design as the answer
-            raise counterweights.CounterweightError('; '.join(report.lines()))
+            raise clearance_design.NoClearDesign('; '.join(result.clearance_design.lines()))
         # the price of clearance and the least clearance: in the report (clearance_design)
         return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
             result.table, _certificate_text(result.certificate)))

@@ -28,6 +28,7 @@ import itertools
 import math
 
 from mech_balance.analysis import clearance as clearance_mod, layers as layer_model
+from mech_balance.balancing.socp import BalanceError
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar.rig import PlanarRig
 from mech_balance.schema.scene import add_counterweights, MAX_PLANE_OFFSET_M
@@ -56,8 +57,8 @@ BOUND_ACTIVE_REL = 1e-4
 """A disc bound is reported active when met within this fraction."""
 
 
-class NoClearDesign(ValueError):
-    """No collision-free counterweight design within the bounds (the report says why)."""
+class NoClearDesign(BalanceError):
+    """No collision-free counterweight design within the bounds (the message says why)."""
 
 
 @dataclass
@@ -437,3 +438,31 @@ def y_of(prob, designs):
         y[4 * i:4 * i + 4] = (dm / ms, dm * c.real / (ms * ls), dm * c.imag / (ms * ls),
                               d_i / (ms * ls * ls))
     return y / prob.dsc
+
+
+def spatial_report(rig, spheres, samples, margin_m, cert):
+    """
+    Return ``{'clearance', 'clearance_design'}`` of a spatial rig's sphere counterweights.
+
+    The spheres of the certified optimum are checked against every body over the cycle
+    (:func:`mech_balance.analysis.spatial_clearance.check`); there is no search for spatial
+    rigs (moving a sphere changes its body's inertia), so the design is clear or none: with
+    a margin (not None) and a least clearance below it, :class:`NoClearDesign` names the
+    pair, the least clearance and the bound.
+    """
+    from mech_balance.analysis import spatial_clearance
+    margin = check_margin(margin_m)
+    clear = spatial_clearance.check(rig, spheres, samples, margin or 0.0)
+    least = clear.least_clearance_m
+    status = 'off' if margin is None else 'collision-free' if least >= margin else 'none'
+    report = ClearanceReport(status, margin or 0.0, 'spheres', cert.primal, cert.primal,
+                             cert.lower_bound, least,
+                             () if clear.least is None else (clear.least.body_a,
+                                                             clear.least.body_b))
+    if status == 'none':
+        report.binding = ['the certified optimum (no placement search for spatial spheres: '
+                          "moving a sphere changes its body's inertia)"]
+        raise NoClearDesign('; '.join(report.lines()) + f' ({len(clear.collisions)} '
+                            'colliding pairs, clearance_margin_m None gives the optimum as is)')
+    return {'clearance': clear.to_dict(), 'warnings': clear.warnings(),
+            'clearance_design': report.to_dict()}

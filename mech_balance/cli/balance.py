@@ -44,7 +44,8 @@ PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + \
     COUNTERWEIGHT_PLACEMENT + ('--analytic', '--counterweights', '--model')
 """Options RGGR scenes reject: their balancing (seed 002) has no such choices."""
 SPATIAL_SHARED = ('--weights', '--mass-factors', '--fix', '--counterweights', '--density',
-                  '--max-mass-factor', '--max-radius-factor')
+                  '--max-mass-factor', '--max-radius-factor', '--clearance-margin',
+                  '--no-clearance')
 """Options of the planar balancing that spatial rigs (body kinematics) take too."""
 SPATIAL_OPTIONS = ('--method', '--extent-factor', '--force-balanced', '--free')
 """Options of spatial rigs alone (mech_balance.balancing.spatial)."""
@@ -750,7 +751,10 @@ def _spatial(sc, args):
             raise ValueError('--method counterweights: expected --counterweights LINK[,LINK...]')
         options.update(links=args.counterweights, weights=weights,
                        density_kg_m3=args.density, max_mass_factor=args.max_mass_factor,
-                       max_radius_factor=args.max_radius_factor)
+                       max_radius_factor=args.max_radius_factor,
+                       clearance_margin_m=None if args.no_clearance else
+                       (_default_margin() if args.clearance_margin is None
+                        else args.clearance_margin))
     for option, value in (('--free', args.free), ('--force-balanced', args.force_balanced),
                           ('--extent-factor', args.extent_factor != 1.5)):
         wanted = {'--free': 'force_balance', '--force-balanced': 'redistribution',
@@ -758,7 +762,16 @@ def _spatial(sc, args):
         if value and method != wanted:
             raise ValueError(f'{option}: applies to --method {wanted.replace("_", "-")}, got '
                              f'method {method}; expected no {option}')
-    design = front.balance(rig, method, **options)
+    from mech_balance.balancing.clearance_design import NoClearDesign
+    try:
+        design = front.balance(rig, method, **options)
+    except NoClearDesign as exc:   # the spheres collide: say why, give no design
+        print(str(exc).replace('; ', '\n'))
+        print('error: no collision-free counterweight design (see above); none given '
+              '(--no-clearance gives the certified optimum as is)', file=sys.stderr)
+        return EXIT_NO_CLEAR_DESIGN
+    for text in design.report.get('warnings', []) if method == 'counterweights' else ():
+        print(f'warning: {text}', file=sys.stderr)
     if args.output:
         spatial.write_scene(design.result, args.output)
     if args.json:
