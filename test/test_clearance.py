@@ -39,7 +39,7 @@ def hoeken():
 
 @pytest.fixture(scope='module')
 def default_planes(hoeken):
-    """The certified convex optimum as is (clearance off): the discs in their links' planes."""
+    """Return the certified convex optimum as is (clearance off): discs in their links' planes."""
     return cw.balance_with_counterweights(hoeken, 'crank,rocker', clearance_margin_m=None)
 
 

@@ -12,10 +12,10 @@ import math
 
 from mech_balance import schema as scene
 from mech_balance.balancing import clearance_design, counterweights as cw
-from mech_balance.schema.scene import planar_from_dict, planar_to_dict
 from mech_balance.cli import main as cli
 from mech_balance.core.planar import drawn
 from mech_balance.core.rig import rig_for
+from mech_balance.schema.scene import planar_from_dict, planar_to_dict
 import numpy as np
 import pytest
 
@@ -121,8 +121,10 @@ def _solids(sc):
 
 def least_clearance_3d(sc, margin):
     """
-    Return ``(clearance, pair)``: the least 3-D clearance of a counterweight body over 3600
-    angles (pairs whose slabs lie ``margin`` or more apart along z are clear by that much).
+    Return ``(clearance, pair)``: the least 3-D clearance of a counterweight body.
+
+    Over 3600 angles; pairs whose slabs lie ``margin`` or more apart along z are clear by
+    that much.
     """
     solids = _solids(sc)
     psi = np.linspace(0.0, 2.0 * np.pi, ANGLES, endpoint=False)
@@ -324,7 +326,7 @@ def test_build_sheet_needs_svg_name(tmp_path, capsys):
 
 
 def test_record_draws_the_printed_design_and_marks_collisions(tmp_path, capsys):
-    """record --counterweights: the design balance prints; a colliding given design warned."""
+    """Record the design balance prints; warn and mark a colliding given design."""
     assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank,rocker']) == 0
     printed = capsys.readouterr().out
     line = next(x for x in printed.splitlines() if x.startswith('least clearance'))
@@ -356,7 +358,7 @@ SPATIAL_CASES = (('rssr_skew', 'crank,rocker'), ('spatial_two_loop', 'crank,rock
 
 
 def _spatial_least_brute(rig, spheres, angles=ANGLES):
-    """The least clearance of spheres to the other bodies: 3-D point samples along tubes."""
+    """Return the least clearance of spheres to the other bodies (3-D points along tubes)."""
     from mech_balance.analysis import spatial_clearance
     psi = np.linspace(0.0, 2.0 * np.pi, angles, endpoint=False)
     poses = rig.at(psi).bodies

@@ -13,14 +13,16 @@ one's, boss ends included).  Every value is a field of the scene's ``build:`` se
 ``PIN_RADIUS L``, boss length ``PIN_LENGTH t``.
 
 A counterweight disc off its link's plane (``plane_m`` != 0) is carried as built: a shaft of
-the pin radius at its mount (the link's joint nearest the disc centre) runs along z from the
-link's face towards the disc to the disc's near face, and a web (a bar of the link's width, as thick as the disc) joins
-the shaft to the disc in the disc's layer.  The shaft and the web are clearance bodies; their
-mass is not in the dynamics (docs/build.md).  A disc in its link's plane is bolted to the
-link: no shaft, no web.
+the pin radius at its mount (its ``mount`` point, default the link's point nearest the disc
+centre) runs along z from the link's face towards the disc to the disc's near face, and a
+web (a bar of the link's width, as thick as the disc) joins the shaft to the disc in the
+disc's layer.  The shaft and the web are clearance bodies; their mass is not in the
+dynamics (docs/build.md).  A disc in its link's plane is bolted to the link: no shaft, no
+web.
 """
 
 from dataclasses import dataclass
+
 from mech_balance.core.planar import drawn
 
 STACK_EXTRA_M = 1e-6

@@ -70,8 +70,10 @@ def _segment_distance(p, a, b):
 
 def check(rig, spheres, samples=None, margin_m=0.0):
     """
-    Return the :class:`Clearance` of sphere counterweights ``{body: [sphere, ...]}`` over the
-    cycle (each sphere: ``centre_m`` in its body's axes, ``outer_radius_m``).
+    Return the :class:`Clearance` of sphere counterweights over the cycle.
+
+    ``spheres``: ``{body: [sphere, ...]}``, each sphere with ``centre_m`` in its body's axes
+    and ``outer_radius_m``.
     """
     p = int(getattr(rig.scene, 'samples', 360) if samples is None else samples)
     psi = cycle_angles(p)

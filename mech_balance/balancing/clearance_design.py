@@ -116,8 +116,8 @@ class ClearanceReport:
                     f'{clear} < margin {self.margin_m * 1e3:.3g} mm'
                     + (f' ({self.least_pair[0]} and {self.least_pair[1]})'
                        if self.least_pair else ''),
-                    'bounds active at the best attempt: ' + (', '.join(self.binding) or
-                                                            'none (a local optimum)'), head]
+                    'bounds active at the best attempt: '
+                    + (', '.join(self.binding) or 'none (a local optimum)'), head]
         out = [f'collision-free: least clearance {clear} >= margin {self.margin_m * 1e3:.3g} '
                'mm over the cycle' + (' (discs moved in the plane)' if self.moved_in_plane
                                       else ' (layers only; the convex optimum kept)'), head]
@@ -196,8 +196,10 @@ class _Search:
 
     def mount(self, k, side):
         """
-        Return the mount of disc k on a side: the link's point whose shaft and web keep
-        clearest of the linkage with the disc alone, innermost (the nearest point on a tie).
+        Return the mount of disc k on a side (+1 above, -1 below).
+
+        The link's point whose shaft and web keep clearest of the linkage with the disc
+        alone, innermost (the nearest point on a tie).
         """
         key = (k, side)
         if key not in self._mounts:
@@ -244,7 +246,7 @@ class _Search:
         return scored
 
     def stuck(self, designs):
-        """Return the first 'a shaft meets the linkage or a shaft' closer than the margin, or ''."""
+        """Return the first 'shaft meets the linkage or a shaft' within the margin, or ''."""
         g, body_list, todo = self.gaps(designs)
         for value, (i, j) in sorted(zip(g, todo)):
             if value >= self.margin:
@@ -278,7 +280,7 @@ class _Search:
 
     def local(self, template):
         """Return (designs, least sampled clearance): SLSQP in the plane, layers fixed."""
-        prob, opt = self.prob, self.prob.opt
+        prob = self.prob
         slots = [d.thickness_m for d in template]
         x0 = self._params(template)
         z0 = max(prob.z(y_of(prob, template)), 1e-300)

@@ -187,7 +187,7 @@ def register(subparsers):
                         '-z below; auto: the side with room, per disc)')
     p.add_argument('--max-overhang', type=float, default=None, metavar='M',
                    help="--counterweights: a disc's outer face at most M beyond its link's "
-                        'plane (m; default: no bound but the scene\'s plane_m limit)')
+                        "plane (m; default: no bound but the scene's plane_m limit)")
     p.add_argument('--build-sheet', default=None, metavar='FILE.svg',
                    help='--counterweights: write the build sheet (each link as built with its '
                         'disc to scale, dimensions, material and mass; SVG)')

@@ -151,8 +151,9 @@ def cmd_record(args):
 
 def clearance_note(clear):
     """
-    Print a design's least clearance (and each collision, once, as a warning) and return it
-    as the text the recording's info panel shows after the design's source.
+    Print a design's least clearance (each collision once, as a warning) and return it.
+
+    The text returned is what the recording's info panel shows after the design's source.
     """
     text = clear.lines()[0]   # the line `mech-balance balance` prints
     print(f'  {text}')

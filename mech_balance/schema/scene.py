@@ -16,8 +16,8 @@ from pathlib import Path
 
 from mech_balance import conventions
 from mech_balance.schema import safe_yaml
-from mech_balance.schema.drive import drive_from_dict
 from mech_balance.schema.build import build_from_dict
+from mech_balance.schema.drive import drive_from_dict
 from mech_balance.schema.fields import at_most as _at_most, known_keys as _known_keys, \
     mapping as _mapping, number as _number, points as _points, positive as _positive, \
     require as _require, SceneError, string as _string, vector as _vector

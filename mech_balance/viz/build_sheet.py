@@ -229,7 +229,7 @@ def _panel(sc, lay, r, extent, top, k, pad):
         _text(tx, ty + 3 * step, f'{name}-across-mm', 'across (left of the axis) ',
               r['across_mm'], '.1f', ' mm'),
         _text(tx, ty + 4 * step, f'{name}-layer-mm', 'layer offset ', r['layer_mm'], '+.1f',
-              f" mm ({side} the linkage)"),
+              f' mm ({side} the linkage)'),
         _plain(tx, ty + 5 * step, f'mounted on a shaft at {r["mount"]}, with a web'
                if d.plane_m != 0.0 else 'bolted to the link in its plane', 12, fill='#333'),
         _plain(tx, ty + 6 * step, f'material {r["material"]}', 13),
@@ -274,7 +274,8 @@ def side_view(result, x0, top, width, height):
     for b, xa, xb, za, zb in sorted(boxes, key=lambda v: order[v[0].kind]):
         y = top + 30 + (z_hi - zb) * kz
         out.append(f'<rect x="{x0 + (xa - x_lo) * kx:.1f}" y="{y:.1f}" '
-                   f'width="{max((xb - xa) * kx, 1.0):.1f}" height="{max((zb - za) * kz, 1.0):.1f}" '
+                   f'width="{max((xb - xa) * kx, 1.0):.1f}" '
+                   f'height="{max((zb - za) * kz, 1.0):.1f}" '
                    f'fill="{colour[b.kind]}" fill-opacity="{0.6 if b.kind == "disc" else 0.9}" '
                    'stroke="#333" stroke-width="0.5"/>')
     for name, layer in lay.layers.items():
