@@ -316,10 +316,16 @@ def test_build_sheet_numbers_are_the_clis(tmp_path, capsys):
         assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
-def test_build_sheet_needs_svg_name(tmp_path, capsys):
+def test_build_sheet_file_types(tmp_path, capsys):
+    import shutil
     assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank',
-                     '--build-sheet', str(tmp_path / 'sheet.pdf')]) == 2
-    assert '--build-sheet' in capsys.readouterr().err
+                     '--build-sheet', str(tmp_path / 'sheet.txt')]) == 2
+    assert '--build-sheet' in capsys.readouterr().err and not (tmp_path / 'sheet.txt').exists()
+    if shutil.which('rsvg-convert'):
+        for name, magic in (('sheet.pdf', b'%PDF'), ('sheet.png', b'\x89PNG')):
+            assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank',
+                             '--build-sheet', str(tmp_path / name)]) == 0
+            assert (tmp_path / name).read_bytes().startswith(magic)
 
 
 # ------------------------------------------------------------------ the recording

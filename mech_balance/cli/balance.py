@@ -189,7 +189,8 @@ def register(subparsers):
                    help="--counterweights: a disc's outer face at most M beyond its link's "
                         "plane (m; default: no bound but the scene's plane_m limit)")
     p.add_argument('--build-sheet', default=None, metavar='FILE.svg',
-                   help='--counterweights: write the build sheet (each link as built with its '
+                   help='--counterweights: write the build sheet (.svg; .png or .pdf by '
+                        'rsvg-convert; each link as built with its '
                         'disc to scale, dimensions, material and mass; SVG)')
     p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
                    help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
@@ -390,6 +391,9 @@ def _certified_gap():
 
 def _counterweights(sc, args):
     from mech_balance.balancing import counterweights as cw_mod
+    from mech_balance.viz import build_sheet
+    if args.build_sheet:   # checked before the solve
+        build_sheet.check_path(args.build_sheet)
     result = cw_mod.balance_with_counterweights(
         sc, args.counterweights,
         defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
@@ -413,7 +417,6 @@ def _counterweights(sc, args):
     if args.output:
         _write(result.balanced_scene, args.output, result.summary())
     if args.build_sheet:
-        from mech_balance.viz import build_sheet
         build_sheet.write(result, args.build_sheet)
     for text in result.clearance.warnings():   # once, here only
         print(f'warning: {text}', file=sys.stderr)

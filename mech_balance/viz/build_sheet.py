@@ -12,13 +12,17 @@ added mass and the predicted RMS shaking force and moment before and after (SI).
 Every number is also an SVG ``<text>`` with an ``id`` (``crank-diameter-mm``, ...) and a
 ``data-value`` attribute holding the value at full precision in the printed unit, so a test
 or a script reads the sheet back (:func:`read_values`).  Plain SVG 1.1, no dependency; a
-PNG is one ``rsvg-convert`` away (docs/build.md).
+``.png`` or ``.pdf`` name is rendered by ``rsvg-convert`` (Debian ``librsvg2-bin``) when it
+is on PATH.
 """
 
+import os
+import shutil
+import subprocess
 import xml.etree.ElementTree as ET
 
 from mech_balance.analysis import layers as layer_model
-from mech_balance.atomic import write_text_atomic
+from mech_balance.atomic import write_bytes_atomic, write_text_atomic
 from mech_balance.core.planar import drawn
 from mech_balance.core.planar.kinematics import Linkage
 
@@ -290,12 +294,39 @@ def side_view(result, x0, top, width, height):
     return out
 
 
-def write(result, path):
-    """Write the build sheet of ``result`` to ``path`` (SVG, atomically)."""
+FORMATS = ('.svg', '.png', '.pdf')
+"""The build sheet's file types: SVG written here, PNG and PDF rendered by ``rsvg-convert``."""
+RENDER_TIMEOUT_S = 120.0
+"""Longest wait for ``rsvg-convert`` (s)."""
+
+
+def check_path(path, field='--build-sheet'):
+    """Return ``path`` as text if it names a sheet type this machine can write, else raise."""
     path = str(path)
-    if not path.lower().endswith('.svg'):
-        raise ValueError(f'--build-sheet: got {path!r}, expected a file name ending in .svg')
-    write_text_atomic(path, render(result))
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix not in FORMATS:
+        raise ValueError(f'{field}: got {path!r}, expected a file name ending in '
+                         f'{", ".join(FORMATS)}')
+    if suffix != '.svg' and shutil.which('rsvg-convert') is None:
+        raise ValueError(f'{field}: got {path!r}: {suffix[1:].upper()} needs rsvg-convert '
+                         '(Debian librsvg2-bin), not found on PATH; expected FILE.svg')
+    return path
+
+
+def write(result, path):
+    """Write the build sheet of ``result`` to ``path`` (SVG, or PNG/PDF by rsvg-convert)."""
+    path = check_path(path)
+    svg = render(result)
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix == '.svg':
+        write_text_atomic(path, svg)
+        return
+    run = subprocess.run(['rsvg-convert', '-f', suffix[1:]], input=svg.encode('utf-8'),
+                         capture_output=True, timeout=RENDER_TIMEOUT_S, check=False)
+    if run.returncode != 0 or not run.stdout:
+        raise ValueError(f'--build-sheet: rsvg-convert failed on {path!r} (status '
+                         f'{run.returncode}): {run.stderr.decode(errors="replace").strip()}')
+    write_bytes_atomic(path, run.stdout)
 
 
 def read_values(svg_text):
