@@ -423,16 +423,21 @@ def test_balance_method_counterweights_answer_carries_counterweights(clock_rig):
         assert set(report['counterweights']) == {'crank', 'rocker'}
         for link, discs in report['counterweights'].items():
             (disc,) = discs
+            # collision-free by default (issue 29): each disc in its layer, on its mount
             assert set(disc) == {'mass_kg', 'centre_m', 'radius_m', 'thickness_m',
-                                 'density_kg_m3'}
+                                 'density_kg_m3', 'plane_m', 'mount'}
             ref = expected['counterweights'][link][0]
+            assert disc['plane_m'] == ref['plane_m'] and disc['mount'] == ref['mount']
             assert disc['mass_kg'] == pytest.approx(ref['mass_kg'], rel=1e-6)
         assert report['certificate']['gap_rel'] <= 1e-7
-        # the clearance over the cycle (issue 19 item 5): in their own planes, they collide
+        design = report['clearance_design']
+        assert design['status'] == 'collision-free'
+        assert design['lower_bound'] <= design['objective']
+        assert design['least_clearance_m'] >= design['margin_m']
+        # the clearance over the cycle (issue 19 item 5; issue 29: clear by default)
         least = report['clearance']['least_clearance_m']
         assert least == pytest.approx(expected['clearance']['least_clearance_m'], abs=1e-6)
-        assert least < 0.0
-        assert any('crank counterweight 1' in w for w in report['warnings'])
+        assert least >= design['margin_m'] and report['warnings'] == []
     finally:
         for name, value in (('balance.method', 'redistribution'),
                             ('balance.counterweight_links', ''), ('balance.weights', [0.5, 0.5])):
