@@ -286,7 +286,7 @@ def test_build_sheet_numbers_are_the_clis(tmp_path, capsys):
     sheet = tmp_path / 'sheet.svg'
     assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank,rocker',
                      '--json', '--build-sheet', str(sheet)]) == 0
-    report = json.loads(capsys.readouterr().out)
+    report = json.loads(capsys.readouterr().out)['report']   # Design.to_dict: the method's
     values = build_sheet.read_values(sheet.read_text())
     sc = scene.load('hoeken')
     for d in report['designs']:

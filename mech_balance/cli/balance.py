@@ -325,12 +325,12 @@ def _counterweights(sc, args):
                                **options.from_args(args, 'counterweights', PLANAR_KEYS))
     except NoClearDesign as exc:   # no collision-free design: say why, give none
         result = exc.result
-        if args.json:
-            print(jsonout.dumps(result.to_dict()))
+        if args.json:   # the Design's keys that exist without a design; why: in the report
+            print(jsonout.dumps(no_design_dict(sc, result)))
         else:
             print('\n'.join(result.clearance_design.lines()))
-        print('error: no collision-free counterweight design within the bounds (see above); '
-              'none given (--no-clearance gives the convex optimum as is)', file=sys.stderr)
+        print(f'error: {NO_CLEAR_MESSAGE} (see above); none given (--no-clearance gives the '
+              'convex optimum as is)', file=sys.stderr)
         return EXIT_NO_CLEAR_DESIGN
     result = design.result
     if args.output:
@@ -349,6 +349,22 @@ def _counterweights(sc, args):
         print(f'scene with counterweights written to {args.output}')
     _warn(result.certificate)
     return exit_status(result.certificate)
+
+
+def no_design_dict(sc, result):
+    """
+    Return ``balance --json`` of a counterweight problem with no collision-free design.
+
+    The keys of :meth:`mech_balance.balancing.result.Design.to_dict` that exist without a
+    design (``success`` false); ``report`` is the solver's, its ``clearance_design`` says why.
+    """
+    from mech_balance.schema import registry
+    return {'scene': sc.name, 'kind': registry.kind_of(sc).name, 'method': 'counterweights',
+            'success': False, 'message': NO_CLEAR_MESSAGE, 'report': result.to_dict()}
+
+
+NO_CLEAR_MESSAGE = 'no collision-free counterweight design within the bounds'
+"""What ``balance --counterweights`` says when :class:`.clearance_design.NoClearDesign`."""
 
 
 def format_counterweights(result, normalized=False):
