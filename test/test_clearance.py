@@ -29,7 +29,7 @@ CLOUD_POINTS = 4000
 """Points sampled on each body of the brute force."""
 APART = {'crank': -0.030, 'rocker': -0.0376}
 """Hoeken disc planes with both discs at z = -26.2 mm, below every link: they share a plane
-with each other only."""
+with each other (and their shafts cross the layers above them)."""
 
 
 @pytest.fixture(scope='module')
@@ -39,13 +39,14 @@ def hoeken():
 
 @pytest.fixture(scope='module')
 def default_planes(hoeken):
-    return cw.balance_with_counterweights(hoeken, 'crank,rocker')
+    """Return the certified convex optimum as is (clearance off): discs in their links' planes."""
+    return cw.balance_with_counterweights(hoeken, 'crank,rocker', clearance_margin_m=None)
 
 
 @pytest.fixture(scope='module')
 def rim_bounded(hoeken):
     return cw.balance_with_counterweights(hoeken, 'crank,rocker', planes=APART,
-                                          max_rim_radius_factor=0.5)
+                                          max_rim_radius_factor=0.5, clearance_margin_m=None)
 
 
 def _cloud(centre, radius, rng, n=CLOUD_POINTS):
@@ -178,7 +179,9 @@ def test_hoeken_default_planes_collide_with_the_links(default_planes):
 
 def test_planes_apart_and_rim_bound_give_positive_clearance(hoeken, rim_bounded):
     result = rim_bounded.clearance
-    assert result.pairs == 1 and not result.collisions and not result.warnings()
+    assert not result.collisions and not result.warnings()
+    assert {result.least.body_a, result.least.body_b} == {'crank counterweight 1',
+                                                          'rocker counterweight 1'}
     assert result.least.clearance_m > 0.0
     # the same from point clouds of the two discs over the cycle
     sc = rim_bounded.balanced_scene
@@ -205,11 +208,13 @@ def test_planes_apart_and_rim_bound_give_positive_clearance(hoeken, rim_bounded)
 
 
 def test_planes_far_apart_share_no_plane(hoeken):
+    """Discs on opposite sides: only their shafts cross layers, well clear of everything."""
     result = cw.balance_with_counterweights(hoeken, 'crank,rocker',
-                                            planes='crank=-0.05, rocker=0.05')
-    assert result.clearance.least is None and result.clearance.pairs == 0
-    assert result.to_dict()['clearance']['least_clearance_m'] is None
-    assert 'no two bodies share a plane' in result.clearance.lines()[0]
+                                            planes='crank=-0.05, rocker=0.05',
+                                            clearance_margin_m=None)
+    names = {n for c in [result.clearance.least] for n in (c.body_a, c.body_b)}
+    assert not result.clearance.collisions and 'crank counterweight 1 shaft' in names
+    assert result.to_dict()['clearance']['least_clearance_m'] > 0.05
 
 
 # ------------------------------------------------------------------ the rim bound
@@ -226,7 +231,8 @@ def test_rim_cuts_lie_below_the_exact_rim_set():
 
 
 def test_rim_bound_is_enforced_and_certified(hoeken, rim_bounded):
-    free = cw.balance_with_counterweights(hoeken, 'crank,rocker', planes=APART)
+    free = cw.balance_with_counterweights(hoeken, 'crank,rocker', planes=APART,
+                                          clearance_margin_m=None)
     cert = rim_bounded.certificate
     assert cert.status == 'Solved' and cert.gap_rel <= GAP_REL
     assert cert.max_violation <= 1e-6
@@ -320,10 +326,13 @@ def test_bad_rim_factor_is_refused(hoeken):
 
 
 def test_cli_reports_clearance_and_warns(capsys):
-    assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank,rocker']) == 0
+    assert cli.main(['balance', '--scene', 'hoeken', '--counterweights', 'crank,rocker',
+                     '--no-clearance']) == 0
     out, err = capsys.readouterr()
     assert 'least clearance' in out
-    assert 'warning: collision: crank counterweight 1 and rocker counterweight 1 overlap' in err
+    line = 'warning: collision: crank counterweight 1 and rocker counterweight 1 overlap'
+    assert line in err and (out + err).count(line) == 1   # once
+    assert 'collision: ' not in out
 
 
 def test_cli_planes_and_rim_in_json(capsys):

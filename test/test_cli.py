@@ -365,3 +365,52 @@ def test_scenes_wraps_descriptions_at_word_boundaries(capsys):
     for name, path in scene.builtin_scenes().items():
         data, _ = scene.load_data(path)
         assert ' '.join(str(data.get('description', '')).split()) in text, name
+
+
+def test_no_flags_of_the_options_table_turn_their_option_off():
+    """``--no-realizable`` / ``--no-clearance`` reach balance() (and the node's false)."""
+    from mech_balance.balancing import defaults, options
+    parser = cli.build_parser()
+    plain = parser.parse_args(['balance'])
+    given = parser.parse_args(['balance', '--no-realizable', '--counterweights', 'crank',
+                               '--no-clearance', '--disc-side', 'below',
+                               '--max-overhang', '0.05'])
+    assert options.from_args(plain, 'redistribution')['realizable'] is True
+    assert options.from_args(given, 'redistribution')['realizable'] is False
+    on, off = (options.from_args(a, 'counterweights') for a in (plain, given))
+    assert 'clearance' not in on and 'clearance' not in off   # not a balance() keyword
+    assert on['clearance_margin_m'] == defaults.DEFAULT_CLEARANCE_MARGIN_M
+    assert on['disc_side'] == 'auto' and on['max_overhang_m'] is None
+    assert off['clearance_margin_m'] is None
+    assert off['disc_side'] == 'below' and off['max_overhang_m'] == 0.05
+    values = {opt.param: options.param_default(opt) for opt in options.OPTIONS if opt.param}
+    both = {k: v for k, v in on.items() if options.BY_KEY[k].param}   # not --planes, ...
+    assert options.from_params(values, 'counterweights') == both
+    values.update({'balance.clearance': False, 'balance.max_overhang': 0.05,
+                   'balance.disc_side': 'below'})
+    got = options.from_params(values, 'counterweights')
+    assert got['clearance_margin_m'] is None and got['max_overhang_m'] == 0.05
+    assert got['disc_side'] == 'below'
+
+
+@pytest.mark.parametrize('argv, reason', [
+    (['--clearance-margin', '-0.001'], '--clearance-margin: got -0.001, expected 0 <= value'),
+    (['--max-overhang', '0'], '--max-overhang: got 0.0, expected a number of metres > 0'),
+    (['--clearance-margin', '0.01', '--no-clearance'], '--clearance-margin: no clearance'),
+])
+def test_clearance_flags_are_checked_before_the_solve(argv, reason, capsys):
+    assert cli.main(['balance', '--counterweights', 'crank', *argv]) == 2
+    assert reason in capsys.readouterr().err
+
+
+def test_no_clear_design_json_is_the_designs_shape_without_a_design(capsys):
+    from mech_balance.balancing import result
+    assert cli.main(['balance', '--counterweights', 'crank,rocker', '--max-overhang', '0.001',
+                     '--json']) == cli_balance.EXIT_NO_CLEAR_DESIGN
+    out, err = capsys.readouterr()
+    got = json.loads(out)
+    assert list(got) == [k for k in result.SCHEMA_KEYS if k in got]   # its keys, its order
+    assert got['success'] is False and got['method'] == 'counterweights'
+    why = got['report']['clearance_design']
+    assert why['status'] == 'none' and 'max overhang 0.001 m' in why['binding_bounds'][0]
+    assert 'none given' in err

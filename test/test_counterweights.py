@@ -333,8 +333,9 @@ def test_cli_counterweights_output_and_json(tmp_path, capsys):
                      '--json']) == 0
     report = json.loads(capsys.readouterr().out)['report']
     assert set(report['counterweights']) == {'crank', 'rocker'}
+    # the collision-free default: each disc in a layer of its own, on a shaft at its mount
     assert set(report['counterweights']['crank'][0]) == {
-        'mass_kg', 'centre_m', 'radius_m', 'thickness_m', 'density_kg_m3'}
+        'mass_kg', 'centre_m', 'radius_m', 'thickness_m', 'density_kg_m3', 'plane_m', 'mount'}
     assert report['certificate']['gap_rel'] <= GAP_REL
 
 

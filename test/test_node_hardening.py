@@ -356,7 +356,9 @@ def test_integer_for_a_double_is_accepted(clock_rig):
     ('balance.links.crank.mass_bounds', [0.0, 1.0]),
     ('balance.links.crank.mass_bounds', ['a']), ('balance.fixed_links', 'wheel'),
     ('balance.counterweight_links', 'crank,crank'), ('balance.density', 0.0),
-    ('balance.method', 'magic'), ('use_balanced', 'yes'), ('scene', 'no_such_scene'),
+    ('balance.clearance_margin', -0.001), ('balance.disc_side', 'left'),
+    ('balance.max_overhang', -1.0), ('balance.method', 'magic'), ('use_balanced', 'yes'),
+    ('scene', 'no_such_scene'),
 ])
 def test_every_refusal_reason_starts_with_the_parameter_name(clock_rig, name, value):
     rig, probe = clock_rig
@@ -423,19 +425,48 @@ def test_balance_method_counterweights_answer_carries_counterweights(clock_rig):
         assert set(report['counterweights']) == {'crank', 'rocker'}
         for link, discs in report['counterweights'].items():
             (disc,) = discs
+            # collision-free by default (issue 29): each disc in its layer, on its mount
             assert set(disc) == {'mass_kg', 'centre_m', 'radius_m', 'thickness_m',
-                                 'density_kg_m3'}
+                                 'density_kg_m3', 'plane_m', 'mount'}
             ref = expected['counterweights'][link][0]
+            assert disc['plane_m'] == ref['plane_m'] and disc['mount'] == ref['mount']
             assert disc['mass_kg'] == pytest.approx(ref['mass_kg'], rel=1e-6)
         assert report['certificate']['gap_rel'] <= 1e-7
-        # the clearance over the cycle (issue 19 item 5): in their own planes, they collide
+        design = report['clearance_design']
+        assert design['status'] == 'collision-free'
+        assert design['lower_bound'] <= design['objective']
+        assert design['least_clearance_m'] >= design['margin_m']
+        # the clearance over the cycle (issue 19 item 5; issue 29: clear by default)
         least = report['clearance']['least_clearance_m']
         assert least == pytest.approx(expected['clearance']['least_clearance_m'], abs=1e-6)
-        assert least < 0.0
-        assert any('crank counterweight 1' in w for w in report['warnings'])
+        assert least >= design['margin_m'] and report['warnings'] == []
     finally:
         for name, value in (('balance.method', 'redistribution'),
                             ('balance.counterweight_links', ''), ('balance.weights', [0.5, 0.5])):
+            assert _set(probe, name, value).successful
+        probe.call(probe.reset)
+
+
+def test_balance_with_no_clear_counterweights_fails_with_the_reason(clock_rig):
+    """No collision-free design: the call fails naming why, the node publishes none."""
+    rig, probe = clock_rig
+    for name, value in (('balance.method', 'counterweights'),
+                        ('balance.counterweight_links', 'crank,rocker'),
+                        ('balance.max_overhang', 0.001)):
+        assert _set(probe, name, value).successful
+    try:
+        answer = probe.call(probe.balance, 120.0)
+        assert not answer.success
+        assert answer.message.startswith('balancing failed: ') and \
+            'max overhang 0.001 m' in answer.message, answer.message
+        assert _set(probe, 'balance.clearance', False).successful   # the convex optimum
+        answer = probe.call(probe.balance, 120.0)
+        assert answer.success, answer.message
+        report = yaml.safe_load(answer.message)['report']
+        assert report['clearance_design'] is None and report['warnings']
+    finally:
+        for name, value in (('balance.method', 'redistribution'), ('balance.clearance', True),
+                            ('balance.counterweight_links', ''), ('balance.max_overhang', 0.0)):
             assert _set(probe, name, value).successful
         probe.call(probe.reset)
 

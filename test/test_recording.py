@@ -669,3 +669,17 @@ def test_cli_record_case_needs_balance_even_with_counterweights(tmp_path, capsys
     assert cli.main(['record', '--counterweights', 'crank', '--case', 'b',
                      '--out', str(tmp_path / 'x.rrd')]) == 2
     assert '--case applies with --balance only' in capsys.readouterr().err
+
+
+def test_record_counterweights_with_no_clear_design_records_nothing(tmp_path, capsys):
+    """The carpet scraper's crank and rocker discs have no clear design: exit 3, no file."""
+    from mech_balance.cli import balance as cli_balance
+    out = tmp_path / 'cw.rrd'
+    argv = ['--scene', 'carpet_scraper', '--counterweights', 'crank,rocker']
+    assert cli.main(['balance', *argv]) == cli_balance.EXIT_NO_CLEAR_DESIGN   # as balance
+    capsys.readouterr()
+    assert cli.main(['record', *argv, '--out', str(out)]) == \
+        cli_balance.EXIT_NO_CLEAR_DESIGN
+    err = capsys.readouterr().err
+    assert 'NO collision-free design' in err and 'nothing recorded' in err
+    assert not out.exists()

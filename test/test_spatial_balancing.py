@@ -344,8 +344,13 @@ def test_dispatch_through_capabilities(rggr_rig, rssr_rig):
     assert design.figures['force_N'][1] < design.figures['force_N'][0]
     assert 'L ' in design.summary() and len(design.summary()) < 200
     assert design.report['certificate']['lower_bound'] <= design.report['certificate']['primal']
-    design = balancing.balance(rggr_rig, 'counterweights', links=('crank',), samples=SAMPLES)
+    # the certified spheres as they are (their clearance checked, issue 29: they collide)
+    with pytest.raises(ValueError, match='NO collision-free design'):
+        balancing.balance(rggr_rig, 'counterweights', links=('crank',), samples=SAMPLES)
+    design = balancing.balance(rggr_rig, 'counterweights', links=('crank',), samples=SAMPLES,
+                               clearance_margin_m=None)
     assert set(design.report['options']['counterweights']) == {'crank'}
+    assert design.report['clearance_design']['status'] == 'off'
     design = balancing.balance(rggr_rig, 'force_balance', free=('crank', 'output'))
     assert design.report['attainable'] and design.figures['force_N'][1] < 1e-9
     with pytest.raises(ValueError, match='case: not an option of the spatial redistribution'):

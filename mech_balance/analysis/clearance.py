@@ -32,6 +32,7 @@ x0 = rho / 3).  Their intersection keeps every disc inside the circle; it admits
 from dataclasses import dataclass
 import math
 
+from mech_balance.analysis import layers as layer_model
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import drawn
 from mech_balance.core.planar.rig import PlanarRig
@@ -49,15 +50,20 @@ RIM_CUT_POINTS = (0.0, 1.0 / 6.0, 1.0 / 3.0)
 TOUCH_TOL_M = 1e-12
 """Two slabs along z overlap when they share more than this thickness (m): touching faces
 are no collision."""
+ADDED_KINDS = ('disc', 'shaft', 'web')
+"""The kinds of body a counterweight adds; only pairs with one of them are checked (the
+linkage's own bodies are the rig's business, not the design's)."""
 
 
 @dataclass(frozen=True)
 class Body:
     """
-    One drawn body: a capsule fixed to ``link`` (``frame`` for the frame), in its link frame.
+    One body as built: a capsule fixed to ``link`` (``frame`` for the frame), in its link frame.
 
     ``a``, ``b`` are the segment's ends (complex, m; equal for a disc), ``radius_m`` its
-    half-width, ``z_m`` the mid-plane and ``thickness_m`` the slab's thickness along z.
+    half-width, ``z_m`` the mid-plane and ``thickness_m`` the slab's thickness along z;
+    ``kind`` one of bar, boss, block, pin, disc, shaft, web; ``exempt`` the names of the
+    bodies it passes through by design (a counterweight's shaft through its joint's bearing).
     """
 
     name: str
@@ -67,11 +73,21 @@ class Body:
     radius_m: float
     z_m: float
     thickness_m: float
+    kind: str = 'bar'
+    exempt: frozenset = frozenset()
+
+    @property
+    def added(self):
+        """Return whether the body is part of a counterweight (disc, its shaft or web)."""
+        return self.kind in ADDED_KINDS
+
+    def z_gap(self, other):
+        """Return the gap between the two slabs along z (m; negative: they overlap)."""
+        return abs(self.z_m - other.z_m) - 0.5 * (self.thickness_m + other.thickness_m)
 
     def shares_plane(self, other):
         """Return whether the two slabs along z overlap (more than :data:`TOUCH_TOL_M`)."""
-        gap = abs(self.z_m - other.z_m) - 0.5 * (self.thickness_m + other.thickness_m)
-        return gap < -TOUCH_TOL_M
+        return self.z_gap(other) < -TOUCH_TOL_M
 
 
 @dataclass
@@ -93,7 +109,7 @@ class Contact:
         """Return the collision line: the two bodies, the crank angle and the overlap."""
         return (f'collision: {self.body_a} and {self.body_b} overlap by '
                 f'{-self.clearance_m * 1e3:.3g} mm at crank angle {self.crank_angle_deg:.2f} '
-                'deg (they share a plane; give a counterweight another plane_m)')
+                'deg')
 
 
 @dataclass
@@ -114,6 +130,7 @@ class Clearance:
     samples: int
     planes_m: dict
     rims_m: dict
+    margin_m: float = 0.0
 
     @property
     def least_clearance_m(self):
@@ -132,37 +149,46 @@ class Clearance:
                 'collisions': [c.to_dict() for c in self.collisions],
                 'pairs_sharing_a_plane': int(self.pairs), 'samples': int(self.samples),
                 'disc_planes_m': {k: float(v) for k, v in self.planes_m.items()},
-                'disc_rims_m': {k: float(v) for k, v in self.rims_m.items()}}
+                'disc_rims_m': {k: float(v) for k, v in self.rims_m.items()},
+                'margin_m': float(self.margin_m)}
 
     def lines(self):
         """Return the clearance as text: the least pair, the disc planes, each collision."""
         if self.least is None:
-            lines = ['clearance: no two bodies share a plane (nothing can collide)']
+            lines = ['clearance: no counterweight can come near another body (no pair within '
+                     f'{self.margin_m * 1e3:.3g} mm along z)']
         else:
             c = self.least
             lines = [f'least clearance {c.clearance_m * 1e3:.4g} mm over the cycle: {c.body_a} '
                      f'and {c.body_b} at crank angle {c.crank_angle_deg:.2f} deg ({self.pairs} '
-                     f'pair{"" if self.pairs == 1 else "s"} of bodies in a shared plane)']
+                     f'pair{"" if self.pairs == 1 else "s"} of bodies checked; margin '
+                     f'{self.margin_m * 1e3:.3g} mm)']
         if self.planes_m:
             lines.append('disc planes (z of the mid-plane, mm): ' + ', '.join(
                 f'{k} {v * 1e3:.4g}' for k, v in self.planes_m.items()))
-        return lines + [f'warning: {w}' for w in self.warnings()]
+        if self.collisions:
+            lines.append(f'COLLISIONS: {len(self.collisions)} pairs overlap (listed as '
+                         'warnings)')
+        return lines
 
 
 # ============================================================================ bodies
 
 
-def bodies(rig):
-    """Return every drawn :class:`Body` of a planar rig (frame, links, bosses, discs)."""
+def bodies(rig, layers=None):
+    """
+    Return every :class:`Body` of a planar rig as built (frame, links, bosses, pins, discs).
+
+    ``layers``: the :class:`~mech_balance.analysis.layers.Layers` (default: the scene's).
+    """
     sc, lk = rig.scene, rig.linkage
-    scale = lk.length_scale
-    half_bar = 0.5 * drawn.BAR_WIDTH * scale
-    bar_t = drawn.BAR_THICKNESS * scale
-    pin_r, pin_t = drawn.PIN_RADIUS * scale, drawn.PIN_LENGTH * bar_t
+    lay = layers or layer_model.Layers.of(sc, lk)
+    pin_r, boss = lay.pin_radius_m, lay.boss_length_m
     points = {FRAME: sc.frame_points, **{link.name: link.points for link in sc.links}}
     out = []
     for name in lk.body_names:
-        z = drawn.plane_z_m(lk, name)
+        own = lay.layers[name]
+        z, bar_t, half_bar = own.z_m, own.thickness_m, 0.5 * own.bar_width_m
         local = {k: complex(*v) for k, v in points[name].items()}
         for a, b in drawn.bar_edges(local):
             if local[a] != local[b]:
@@ -170,27 +196,79 @@ def bodies(rig):
                                 bar_t))
         if name != FRAME and len(local) == 1:
             (p,) = local.values()
-            length, width = (v * scale for v in drawn.BLOCK_SIZE)
+            length, width = (v * lk.length_scale for v in drawn.BLOCK_SIZE)
             # the capsule that holds the block's box: its corners on the end caps
             half = 0.5 * max(length - width, 0.0)
             out.append(Body(f'{name} block', name, p - half, p + half,
-                            width / math.sqrt(2.0), z, bar_t))
+                            width / math.sqrt(2.0), z, bar_t, 'block'))
         for k, p in local.items():
-            out.append(Body(f'{name} boss {k}', name, p, p, pin_r, z, pin_t))
+            out.append(Body(f'{name} boss {k}', name, p, p, pin_r, z, boss, 'boss'))
+    for jt in sc.joints:
+        if jt.prismatic:
+            continue
+        lo, hi = lay.pin_span(jt.link_a, jt.link_b)
+        p = complex(*points[jt.link_a][jt.point_a])
+        out.append(Body(f'pin {jt.name}', jt.link_a, p, p, pin_r, 0.5 * (lo + hi), hi - lo,
+                        'pin'))
     for link in sc.links:
-        z = drawn.plane_z_m(lk, link.name)
+        z = lay.z_m(link.name)
+        width = lay.layers[link.name].bar_width_m
         for i, cw in enumerate(link.counterweights):
             c = complex(*cw.centre_m)
-            out.append(Body(f'{link.name} counterweight {i + 1}', link.name, c, c,
-                            float(cw.radius_m), z + float(cw.plane_m), float(cw.thickness_m)))
+            label = f'{link.name} counterweight {i + 1}'
+            zc, t = z + float(cw.plane_m), float(cw.thickness_m)
+            out.append(Body(label, link.name, c, c, float(cw.radius_m), zc, t, 'disc'))
+            if cw.plane_m == 0.0:
+                continue
+            key, m = layer_model.mount_point(link, cw.centre_m, cw.mount)
+            # the shaft: from the link's face towards the disc to the disc's near face
+            side = math.copysign(1.0, cw.plane_m)
+            near, face = zc - side * 0.5 * t, z + side * 0.5 * lay.layers[link.name].thickness_m
+            out.append(Body(f'{label} shaft', link.name, m, m, pin_r, 0.5 * (face + near),
+                            max(side * (near - face), 0.0), 'shaft',
+                            _through(sc, lk, link.name, key, points)))
+            if abs(c - m) > 0.0:
+                out.append(Body(f'{label} web', link.name, m, c, 0.5 * width, zc, t, 'web'))
     return out
 
 
-def pairs(body_list):
-    """Return the pairs ``(i, j)`` of bodies of different links that share a plane."""
-    return [(i, j) for i in range(len(body_list)) for j in range(i + 1, len(body_list))
-            if body_list[i].link != body_list[j].link
-            and body_list[i].shares_plane(body_list[j])]
+def _through(sc, lk, link, key, points):
+    """Return the bodies a shaft at joint point ``link.key`` runs through by design."""
+    out = set()
+    for jt in sc.joints:
+        ends = ((jt.link_a, jt.point_a), (jt.link_b, jt.point_b))
+        if (link, key) not in ends or jt.prismatic:
+            continue
+        other, q = ends[1] if ends[0] == (link, key) else ends[0]
+        out.add(f'pin {jt.name}')
+        # the partner's bearing: its bosses and bar ends at the joint (by position: two
+        # points of one body may coincide, a slider's guide point on a pivot)
+        local = {k: complex(*v) for k, v in points[other].items()}
+        at = {k for k, v in local.items() if v == local[q]}
+        out.update(f'{other} boss {k}' for k in at)
+        out.update(f'{other} bar {a}-{b}' for a, b in drawn.bar_edges(local)
+                   if a in at or b in at)
+    return frozenset(out)
+
+
+def pairs(body_list, gap_m=0.0):
+    """
+    Return the pairs ``(i, j)`` that can meet: a counterweight's body and one of another link.
+
+    Two bodies can meet when their slabs along z overlap (``gap_m`` 0) or lie less than
+    ``gap_m`` apart (a margin), and neither runs through the other by design.
+    """
+    out = []
+    for i, bi in enumerate(body_list):
+        for j in range(i + 1, len(body_list)):
+            bj = body_list[j]
+            if bi.link == bj.link or not (bi.added or bj.added) or bj.name in bi.exempt \
+                    or bi.name in bj.exempt:
+                continue
+            gap = bi.z_gap(bj)
+            if (gap < -TOUCH_TOL_M) if gap_m <= 0.0 else (gap < gap_m):
+                out.append((i, j))
+    return out
 
 
 # ============================================================================ geometry
@@ -226,48 +304,88 @@ def segment_distance(a1, b1, a2, b2):
     return np.where(crossing, 0.0, dist)
 
 
-def _world(state, body_index, local):
-    """Return a link-fixed point in the frame at every sample of ``state`` (complex)."""
-    return state.pose.origin[body_index] + state.pose.rot[body_index] * local
+class Sweep:
+    """The poses of a rig's bodies at crank angles ``psi`` (one batched core evaluation)."""
+
+    def __init__(self, rig, psi):
+        self.psi = np.atleast_1d(np.asarray(psi, dtype=float))
+        state, _ = rig.evaluate(np.ravel(self.psi), ('kinematics',))
+        self.origin, self.rot = state.pose.origin, state.pose.rot
+        self.index = {n: k for k, n in enumerate(rig.linkage.body_names)}
+
+    def gaps(self, body_list, todo, cols=None):
+        """
+        Return the clearance ``(pairs, k)`` of each pair of ``todo`` (m).
+
+        ``cols``: the sample columns, ``(k,)`` for every pair or ``(pairs, k)`` (default all).
+        Bodies whose slabs lie apart along z by g >= 0 are clear by ``hypot(d, g)`` (d >= 0
+        their distance in the plane; the bodies are prisms along z), else by ``d`` (negative:
+        the overlap).
+        """
+        if cols is None:
+            cols = np.arange(self.origin.shape[1])
+        cols = np.asarray(cols)
+        if cols.ndim == 1:
+            cols = np.broadcast_to(cols, (len(todo), cols.size))
+        ka = np.array([self.index[body_list[i].link] for i, _ in todo])[:, None]
+        kb = np.array([self.index[body_list[j].link] for _, j in todo])[:, None]
+        local = np.array([[body_list[i].a, body_list[i].b, body_list[j].a, body_list[j].b]
+                          for i, j in todo])
+        radii = np.array([body_list[i].radius_m + body_list[j].radius_m for i, j in todo])
+        dz = np.array([body_list[i].z_gap(body_list[j]) for i, j in todo])
+        origin, rot = self.origin, self.rot
+        oa, ra, ob, rb = origin[ka, cols], rot[ka, cols], origin[kb, cols], rot[kb, cols]
+        a1, b1 = oa + ra * local[:, 0, None], oa + ra * local[:, 1, None]
+        a2, b2 = ob + rb * local[:, 2, None], ob + rb * local[:, 3, None]
+        # a disc or a boss is a point: spare the segment arithmetic where a body has none
+        seg1, seg2 = local[:, 0] != local[:, 1], local[:, 2] != local[:, 3]
+        out = np.abs(a1 - a2)
+        for rows, dist in ((seg1 & seg2,
+                            lambda r: segment_distance(a1[r], b1[r], a2[r], b2[r])),
+                           (seg1 & ~seg2, lambda r: _point_segment(a2[r], a1[r], b1[r])),
+                           (~seg1 & seg2, lambda r: _point_segment(a1[r], a2[r], b2[r]))):
+            if np.any(rows):
+                out[rows] = dist(rows)
+        plane = out - radii[:, None]
+        apart = dz > TOUCH_TOL_M
+        if np.any(apart):
+            plane[apart] = np.hypot(np.maximum(plane[apart], 0.0), dz[apart, None])
+        return plane
 
 
 def pair_clearance(rig, body_a, body_b, psi):
     """Return the clearance (m) of two bodies at crank angles ``psi`` (rad), ``(n,)``."""
-    psi = np.atleast_1d(np.asarray(psi, dtype=float))
-    state, _ = rig.evaluate(psi, ('kinematics',))
-    index = {n: k for k, n in enumerate(rig.linkage.body_names)}
-    ka, kb = index[body_a.link], index[body_b.link]
-    d = segment_distance(_world(state, ka, body_a.a), _world(state, ka, body_a.b),
-                         _world(state, kb, body_b.a), _world(state, kb, body_b.b))
-    return d - body_a.radius_m - body_b.radius_m
+    return Sweep(rig, psi).gaps([body_a, body_b], [(0, 1)])[0]
 
 
 # ============================================================================ the check
 
 
-def clearance(scene_or_rig, samples=None):
+def clearance(scene_or_rig, samples=None, margin_m=0.0, sweep=None):
     """
     Return the :class:`Clearance` of a planar scene (or rig) over its cycle.
 
-    ``samples`` crank angles (default: the scene's) in one batched evaluation of the core;
-    the minimum of the least pair is then refined between its neighbouring samples (the
-    other pairs, collisions included, keep their sampled minimum).
+    ``samples`` crank angles (default: the scene's) in one batched evaluation of the core
+    (or the given :class:`Sweep` of them); the minimum of the least pair is then refined
+    between its neighbouring samples (the other pairs, collisions included, keep their
+    sampled minimum).  Pairs whose slabs lie ``margin_m`` apart or more along z are clear.
     """
     rig = scene_or_rig if isinstance(scene_or_rig, PlanarRig) else PlanarRig(scene_or_rig)
     sc = rig.scene
     p = int(sc.samples if samples is None else samples)
     psi = cycle_angles(p)
     body_list = bodies(rig)
-    planes = {b.name: b.z_m for b in body_list if ' counterweight ' in b.name}
+    planes = {b.name: b.z_m for b in body_list if b.kind == 'disc'}
     rims = {}
     for link in sc.links:
         for i, cw in enumerate(link.counterweights):
             rims[f'{link.name} counterweight {i + 1}'] = \
                 math.hypot(*cw.centre_m) + float(cw.radius_m)
-    todo = pairs(body_list)
+    todo = pairs(body_list, margin_m)
     if not todo:
-        return Clearance(None, [], 0, p, planes, rims)
-    gap = _gaps(rig, body_list, todo, psi)   # (pairs, p)
+        return Clearance(None, [], 0, p, planes, rims, margin_m)
+    sweep = sweep if sweep is not None and sweep.psi.size == p else Sweep(rig, psi)
+    gap = sweep.gaps(body_list, todo)   # (pairs, p)
     worst_k = np.argmin(gap, axis=1)
     worst = gap[np.arange(len(todo)), worst_k]
     step = 2.0 * math.pi / p
@@ -277,7 +395,8 @@ def clearance(scene_or_rig, samples=None):
     angles = psi[worst_k].copy()
     for _ in range(REFINE_PASSES):
         grid = angles[refine, None] + step * np.linspace(-1.0, 1.0, REFINE_POINTS)[None, :]
-        local = _gaps(rig, body_list, [todo[n] for n in refine], grid)
+        local = Sweep(rig, grid.ravel()).gaps(
+            body_list, [todo[n] for n in refine], np.arange(grid.size).reshape(grid.shape))
         best = np.argmin(local, axis=1)
         for row, n in enumerate(refine):
             if local[row, best[row]] < worst[n]:
@@ -289,38 +408,7 @@ def clearance(scene_or_rig, samples=None):
     least = min(contacts, key=lambda c: c.clearance_m)
     collisions = sorted((c for c in contacts if c.clearance_m < 0.0),
                         key=lambda c: c.clearance_m)
-    return Clearance(least, collisions, len(todo), p, planes, rims)
-
-
-def _gaps(rig, body_list, todo, grid):
-    """
-    Return the clearance ``(pairs, k)`` of each pair of ``todo`` at angles ``grid`` (rad).
-
-    ``grid``: ``(k,)`` angles for every pair, or ``(pairs, k)``, a row per pair.
-    """
-    state, _ = rig.evaluate(np.ravel(grid), ('kinematics',))
-    index = {n: k for k, n in enumerate(rig.linkage.body_names)}
-    cols = np.arange(np.size(grid)).reshape(np.shape(grid))
-    if cols.ndim == 1:
-        cols = np.broadcast_to(cols, (len(todo), cols.size))
-    ka = np.array([index[body_list[i].link] for i, _ in todo])[:, None]
-    kb = np.array([index[body_list[j].link] for _, j in todo])[:, None]
-    local = np.array([[body_list[i].a, body_list[i].b, body_list[j].a, body_list[j].b]
-                      for i, j in todo])
-    radii = np.array([body_list[i].radius_m + body_list[j].radius_m for i, j in todo])
-    origin, rot = state.pose.origin, state.pose.rot
-    oa, ra, ob, rb = origin[ka, cols], rot[ka, cols], origin[kb, cols], rot[kb, cols]
-    a1, b1 = oa + ra * local[:, 0, None], oa + ra * local[:, 1, None]
-    a2, b2 = ob + rb * local[:, 2, None], ob + rb * local[:, 3, None]
-    # a disc or a boss is a point: spare the segment arithmetic where a body has none
-    seg1, seg2 = local[:, 0] != local[:, 1], local[:, 2] != local[:, 3]
-    out = np.abs(a1 - a2)
-    for rows, dist in ((seg1 & seg2, lambda r: segment_distance(a1[r], b1[r], a2[r], b2[r])),
-                       (seg1 & ~seg2, lambda r: _point_segment(a2[r], a1[r], b1[r])),
-                       (~seg1 & seg2, lambda r: _point_segment(a1[r], a2[r], b2[r]))):
-        if np.any(rows):
-            out[rows] = dist(rows)
-    return out - radii[:, None]
+    return Clearance(least, collisions, len(todo), p, planes, rims, margin_m)
 
 
 # ============================================================================ convex bounds
@@ -342,6 +430,6 @@ def rim_cuts(rho_m):
     return out
 
 
-def of_design(original, design, samples=None):
+def of_design(original, design, samples=None, margin_m=0.0, sweep=None):
     """Return the :class:`Clearance` of ``design``, a design of ``original``'s geometry."""
-    return clearance(PlanarRig(original).with_scene(design), samples)
+    return clearance(PlanarRig(original).with_scene(design), samples, margin_m, sweep)

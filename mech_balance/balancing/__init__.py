@@ -65,7 +65,8 @@ PLANAR_DEFAULTS = {'case': 'a', 'realizable': True, 'paper_constraints': False,
                    'max_gyration_factor': DEFAULT_MAX_GYRATION_FACTOR,
                    'distance_factors': PAPER_DISTANCE_FACTORS, 'tie_break': True,
                    'centroidal_margin': CENTROIDAL_MARGIN, 'mass_factors': PAPER_MASS_FACTORS,
-                   'mass_bounds': None, 'fixed_links': ()}
+                   'mass_bounds': None, 'fixed_links': (), 'disc_side': 'auto',
+                   'max_overhang_m': None}
 """Planar options a spatial method that does not take them ignores at these values (the
 node passes every option); any other value is refused, naming the option."""
 
@@ -174,7 +175,9 @@ def _spatial_options(method, options):
 
 def _spatial(rig, method, options):
     """Balance a rig with body kinematics (:mod:`mech_balance.balancing.spatial`)."""
-    from mech_balance.balancing import spatial
+    from mech_balance.balancing import clearance_design, spatial
+    options = dict(options)   # the counterweights' clearance margin (None: the check off)
+    margin = options.pop('clearance_margin_m', clearance_design.DEFAULT_CLEARANCE_MARGIN_M)
     options = _spatial_options(method, options)
     if method == 'force_balance':
         result = spatial.force_balance(rig, **options)
@@ -194,7 +197,11 @@ def _spatial(rig, method, options):
     # shorter than _certificate_text: a spatial optimum is often ~0 (e-notation on both sides)
     text = (f'{cert.status}, {"certified" if cert.certified else "NOT certified"}, '
             f'L {cert.lower_bound:.4g} <= z {cert.primal:.4g}, gap {cert.gap_rel:.1e}')
-    return Design(result.balanced_scene, result.to_dict(), method, result,
+    report = result.to_dict()
+    if method == 'counterweights':   # the spheres against every body over the cycle
+        report.update(clearance_design.spatial_report(
+            rig, result.options['counterweights'], options.get('samples'), margin, cert))
+    return Design(result.balanced_scene, report, method, result,
                   _table_figures(result.table, text))
 
 
@@ -227,10 +234,14 @@ def balance(rig, method='auto', **options):
         return Design(result.balanced_scene, report, method, result, _table_figures(
             result.table, _certificate_text(result.certificate)))
     if method == 'counterweights':
-        from mech_balance.balancing import counterweights
+        from mech_balance.balancing import clearance_design, counterweights
         options = dict(options)
         links = options.pop('links', ())
         result = counterweights.balance_with_counterweights(sc, links, **options)
+        if not result.answered:   # never a colliding design as the answer
+            raise clearance_design.NoClearDesign(
+                '; '.join(result.clearance_design.lines()), result)
+        # the price of clearance and the least clearance: in the report (clearance_design)
         return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
             result.table, _certificate_text(result.certificate)))
     if method == 'analytic':

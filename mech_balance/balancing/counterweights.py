@@ -44,7 +44,7 @@ import time
 import clarabel
 from mech_balance import schema
 from mech_balance.analysis import clearance as clearance_mod
-from mech_balance.balancing import certificate, socp as balancing
+from mech_balance.balancing import certificate, clearance_design, socp as balancing
 from mech_balance.balancing.defaults import check_counterweight_option, \
     DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR, \
     DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_MAX_THICKNESS_M
@@ -92,6 +92,9 @@ class CounterweightOptions:
     tie_break: bool = True
     planes: tuple = ()                  # ((link, plane_m), ...): a disc's plane (clearance)
     max_rim_radius_factor: float = None  # disc inside F x joint reach of its link's origin
+    clearance_margin_m: float = clearance_design.DEFAULT_CLEARANCE_MARGIN_M  # None: off
+    disc_side: str = 'auto'             # where the discs' layers go (clearance_design.SIDES)
+    max_overhang_m: float = None        # a disc's outer face at most this beyond the linkage
 
     def to_dict(self):
         """Return the options as a plain dict."""
@@ -174,7 +177,20 @@ def check_options(scene, options):
         tie_break=bool(options.tie_break), planes=plane_list(options.planes, options.links,
                                                              scene),
         max_rim_radius_factor=None if options.max_rim_radius_factor is None else
-        _ranged(options.max_rim_radius_factor, 'max_rim_radius_factor'))
+        _ranged(options.max_rim_radius_factor, 'max_rim_radius_factor'),
+        **_clearance_options(options))
+
+
+def _clearance_options(options):
+    """Return the checked clearance options (errors name the option)."""
+    try:
+        over = options.max_overhang_m
+        return {'clearance_margin_m': clearance_design.check_margin(options.clearance_margin_m),
+                'disc_side': clearance_design.check_side(options.disc_side),
+                'max_overhang_m': None if over is None else
+                min(positive(over, 'max_overhang_m'), MAX_PLANE_OFFSET_M)}
+    except ValueError as exc:
+        raise CounterweightError(str(exc)) from None
 
 
 def plane_list(planes, links, scene, name='planes'):
@@ -256,11 +272,12 @@ class CounterweightDesign:
     max_centre_radius_m: float
     max_mass_kg: float
     plane_m: float = 0.0        # the disc's plane: offset along z from its link's plane
+    mount: str = ''             # the link's point whose shaft carries it ('' nearest)
 
     def counterweight(self):
         """Return the scene's :class:`~mech_balance.scene.Counterweight` of this disc."""
         return Counterweight(self.mass_kg, tuple(self.centre_m), self.radius_m,
-                             self.thickness_m, self.density_kg_m3, self.plane_m)
+                             self.thickness_m, self.density_kg_m3, self.plane_m, self.mount)
 
     def to_dict(self):
         """Return the design as a plain dict."""
@@ -287,6 +304,12 @@ class CounterweightResult:
     conic_time_s: float
     solve_time_s: float
     clearance: object = None  # analysis.clearance.Clearance of the balanced scene
+    clearance_design: object = None  # clearance_design.ClearanceReport (None: design off)
+
+    @property
+    def answered(self):
+        """Return whether there is a design to give (not 'no collision-free design')."""
+        return self.clearance_design is None or self.clearance_design.status != 'none'
 
     @property
     def counterweights(self):
@@ -308,6 +331,8 @@ class CounterweightResult:
             'certified': self.certificate.certified,
             'failed_stages': self.certificate.failed_stages or [],
             'added_mass_kg': self.added_mass_kg,
+            **({} if self.clearance_design is None else
+               {'clearance_design': self.clearance_design.to_dict()}),
             **({} if self.clearance is None else
                {'least_clearance_m': self.clearance.to_dict()['least_clearance_m'],
                 'collisions': len(self.clearance.collisions)})})
@@ -327,6 +352,8 @@ class CounterweightResult:
             'maps_time_s': self.maps_time_s, 'conic_time_s': self.conic_time_s,
             'solve_time_s': self.solve_time_s,
             'clearance': None if self.clearance is None else self.clearance.to_dict(),
+            'clearance_design': None if self.clearance_design is None else
+            self.clearance_design.to_dict(),
             'warnings': [] if self.clearance is None else self.clearance.warnings()})
 
 
@@ -340,7 +367,9 @@ def balance_with_counterweights(scene, links, weights=balancing.DEFAULT_WEIGHTS,
                                 max_mass_factor=DEFAULT_MAX_MASS_FACTOR,
                                 max_gyration_factor=DEFAULT_MAX_GYRATION_FACTOR,
                                 torque_weight=0.0, reaction_weight=0.0, samples=None,
-                                tie_break=True, planes=(), max_rim_radius_factor=None):
+                                tie_break=True, planes=(), max_rim_radius_factor=None,
+                                clearance_margin_m=clearance_design.DEFAULT_CLEARANCE_MARGIN_M,
+                                disc_side='auto', max_overhang_m=None):
     """
     Return the optimal add-only counterweights of ``links`` (a :class:`CounterweightResult`).
 
@@ -353,7 +382,8 @@ def balance_with_counterweights(scene, links, weights=balancing.DEFAULT_WEIGHTS,
         max_mass_factor=max_mass_factor, max_gyration_factor=max_gyration_factor,
         torque_weight=torque_weight,
         reaction_weight=reaction_weight, samples=samples, tie_break=tie_break, planes=planes,
-        max_rim_radius_factor=max_rim_radius_factor))
+        max_rim_radius_factor=max_rim_radius_factor, clearance_margin_m=clearance_margin_m,
+        disc_side=disc_side, max_overhang_m=max_overhang_m))
 
 
 def solve(scene, options):
@@ -445,13 +475,7 @@ def solve(scene, options):
     designs, omitted, worst = prob.discs(y)
     y, pull = prob.feasible(y, worst)
     designs, omitted, final_violation = prob.discs(y)
-    balanced_links = []
-    by_link = {d.link: d for d in designs}
-    for lk in scene.links:
-        d = by_link.get(lk.name)
-        balanced_links.append(lk if d is None else add_counterweights(lk, [d.counterweight()]))
-    balanced = scene.with_links(balanced_links, name=f'{scene.name}_counterweights')
-    clear = clearance_mod.of_design(scene, balanced, opt.samples)
+    balanced = _balanced(scene, designs)
     theta = dynamics.parameter_vector(dynamics.Inertia.from_links(balanced.links)) / prob.scale
     terms = maps.terms(theta)
     w = prob.weights4
@@ -487,6 +511,16 @@ def solve(scene, options):
                  'objective_kg': mass * units.mass_kg, 'lower_bound_kg': lb3 * units.mass_kg,
                  'dual_kg': lb3 * units.mass_kg, 'iterations': stage3.iterations,
                  'attempts': list(stage3.solve.attempts)}
+    report = None
+    if opt.clearance_margin_m is not None:   # the convex optimum made collision-free
+        designs, report = clearance_design.design(
+            scene, prob, designs, lower, opt.clearance_margin_m, opt.disc_side,
+            opt.max_overhang_m, fixed_planes=bool(opt.planes))
+        balanced = _balanced(scene, designs)
+        terms = maps.terms(dynamics.parameter_vector(
+            dynamics.Inertia.from_links(balanced.links)) / prob.scale)
+    clear = clearance_mod.of_design(scene, balanced, opt.samples,
+                                    opt.clearance_margin_m or 0.0)
     table = balancing.before_after(scene, balanced, opt.samples)
     conic_s = sum(s.seconds for s in (stage1, stage2, stage3) if s is not None)
     totals = {lk.name: {'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),
@@ -498,7 +532,8 @@ def solve(scene, options):
     return CounterweightResult(
         scene=scene, balanced_scene=balanced, options=opt, units=units,
         designs=tuple(designs), omitted=tuple(omitted), link_totals=totals,
-        objective={'z': primal, 'shaking_force_rms': float(terms[0]),
+        objective={'z': float(np.dot(w, terms)), 'z_convex': primal,
+                   'shaking_force_rms': float(terms[0]),
                    'shaking_moment_rms': float(terms[1]),
                    'driving_torque_rms': float(terms[2]) if opt.torque_weight else None,
                    'bearing_force_rms_sum': float(terms[3]) if opt.reaction_weight else None,
@@ -507,7 +542,16 @@ def solve(scene, options):
                    'shaking_moment_rms_original': float(t_orig[1])},
         certificate=cert, least_mass=least, table=table,
         cost=cost_of_balancing(scene, balanced, table), maps_time_s=maps_s,
-        conic_time_s=conic_s, solve_time_s=time.perf_counter() - t_start, clearance=clear)
+        conic_time_s=conic_s, solve_time_s=time.perf_counter() - t_start, clearance=clear,
+        clearance_design=report)
+
+
+def _balanced(scene, designs):
+    """Return the scene with the discs of ``designs`` added to their links."""
+    by_link = {d.link: d for d in designs}
+    return scene.with_links([lk if lk.name not in by_link else
+                             add_counterweights(lk, [by_link[lk.name].counterweight()])
+                             for lk in scene.links], name=f'{scene.name}_counterweights')
 
 
 def cost_of_balancing(original, balanced, table):

@@ -64,6 +64,15 @@ of the disc set holds an inertia without mass (dm -> 0, R -> infinity, dI > 0), 
 optima use (the carpet scraper's links 5-7 at (0.5, 0.5)); with it dm = 0 forces dI = 0."""
 
 
+DEFAULT_CLEARANCE_MARGIN_M = 0.003
+"""Default least clearance between a counterweight and any other body over the cycle (m)."""
+MAX_CLEARANCE_MARGIN_M = 1.0
+"""Largest margin accepted (m)."""
+SIDES = ('auto', 'above', 'below')
+"""Where the discs go along z: ``auto`` (the side with room, per disc), ``above`` (+z beyond
+the linkage) or ``below`` (-z)."""
+
+
 COUNTERWEIGHT_RANGES = {
     'density_kg_m3': (1.0, 1e5),
     'max_thickness_m': (1e-4, 1.0),

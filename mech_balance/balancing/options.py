@@ -8,7 +8,9 @@ adds its argparse option from the entry), its type, default, texts, bounds, choi
 (a ``ValueError`` naming the parameter or flag given, the value and what was expected), and
 the methods that take it.  :func:`from_params` and :func:`from_args` turn the node's values
 and the parsed command line into ``balance()``'s keyword arguments by the same entries: the
-two surfaces cannot drift apart.  No ROS import here.
+two surfaces cannot drift apart (``clearance`` off, ``--no-clearance``, becomes
+``clearance_margin_m`` None: the one option that is not a keyword of ``balance()``).
+No ROS import here.
 """
 
 from dataclasses import dataclass
@@ -17,6 +19,7 @@ import math
 from mech_balance import conventions, identifiers
 from mech_balance.balancing import defaults as d
 from mech_balance.schema import safe_yaml
+from mech_balance.schema.scene import MAX_PLANE_OFFSET_M
 
 STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
     'double_array'
@@ -169,6 +172,13 @@ def _range_text(key):
     return f'; range {lowest:g} to {highest:g}'
 
 
+def _overhang(name, value):
+    """Accept a positive overhang (m); a parameter's 0 is no bound, a flag's is refused."""
+    if value <= 0.0 and (name.startswith('--') or value < 0.0):
+        raise ValueError(f'{name}: got {value!r}, expected a number of metres > 0'
+                         + ('' if name.startswith('--') else ' or 0 (no bound)'))
+
+
 _BOUNDS_RULE = ("empty or the quoted YAML '{link: [min, max]}', 0 < min <= max, max may be "
                 'null')
 _tuple = tuple   # parameter arrays become the tuples balance() takes
@@ -301,6 +311,34 @@ OPTIONS = (
                      "most F x the link's farthest joint distance (keeps a vanishing disc from "
                      'carrying inertia; above 100 the program is ill-posed)'
                      + _range_text('max_gyration_factor')),
+    Option('clearance_margin_m', 'balance.clearance_margin', '--clearance-margin', DOUBLE,
+           d.DEFAULT_CLEARANCE_MARGIN_M,
+           'Counterweights: the least clearance between a counterweight (disc, shaft, web) and '
+           'any other body over the cycle, m; the discs go to layers of their own beyond the '
+           'linkage and the price of clearance is reported (docs/build.md).',
+           methods=COUNTERWEIGHTS, bounds=(0.0, d.MAX_CLEARANCE_MARGIN_M), cli={'metavar': 'M'},
+           flag_help='--counterweights: the least clearance between a counterweight (disc, '
+                     'shaft, web) and any other body over the cycle, in m; the discs go to '
+                     'layers of their own beyond the linkage and the price of clearance is '
+                     'printed (docs/build.md)'),
+    Option('clearance', 'balance.clearance', '--no-clearance', BOOL, True,
+           'Counterweights: a collision-free design (balance.clearance_margin); false is '
+           "--no-clearance: the certified convex optimum as is, discs in their links' planes.",
+           methods=COUNTERWEIGHTS, cli={'action': 'store_false'},
+           flag_help='--counterweights: the certified convex optimum as is (discs in their '
+                     "links' planes or --planes), no collision-free design"),
+    Option('disc_side', 'balance.disc_side', '--disc-side', STRING, 'auto',
+           'Counterweights: the side of the linkage the discs go to (above: +z, below: -z; '
+           'auto: the side with room, per disc).', methods=COUNTERWEIGHTS, choices=d.SIDES,
+           flag_help='--counterweights: the side of the linkage the discs go to (+z above, '
+                     '-z below; auto: the side with room, per disc)'),
+    Option('max_overhang_m', 'balance.max_overhang', '--max-overhang', DOUBLE, None,
+           "Counterweights: a disc's outer face at most this beyond its link's plane, m; 0: "
+           "no bound but the scene's plane_m limit.", methods=COUNTERWEIGHTS,
+           bounds=(0.0, MAX_PLANE_OFFSET_M), check=_overhang, rule='0 (no bound) or > 0',
+           param_default=0.0, to_option=_none_if_zero, cli={'metavar': 'M'},
+           flag_help="--counterweights: a disc's outer face at most M beyond its link's "
+                     "plane (m; default: no bound but the scene's plane_m limit)"),
     Option('extent_factor', None, '--extent-factor', DOUBLE, 1.5,
            "Spatial redistribution: RMS distance of each body's mass from its origin at most "
            'this factor times its reach (farthest drawn point).', methods=REDISTRIBUTION,
@@ -364,6 +402,8 @@ def add_arguments(parser, keys, types=None):
         opt = BY_KEY[key]
         kw = dict(opt.cli or {})
         default = kw.pop('default', flag_default(opt))
+        if kw.get('action') == 'store_false':   # a --no-X flag: True when given (from_args)
+            kw['action'] = 'store_true'
         if kw.get('action') not in ('store_true', 'store_false'):
             kw['type'] = (types or {}).get(key, base[opt.value_type])
         if opt.choices is not None:
@@ -396,7 +436,7 @@ def from_params(values, method):
                 link = name[len(LINK_PREFIX):-len(key) - 1]
                 merged[link] = (float(value[0]), float(value[1]) if len(value) == 2 else None)
         out[key] = merged or None
-    return out
+    return _clearance(out)
 
 
 def from_args(args, method, keys=None):
@@ -420,6 +460,13 @@ def from_args(args, method, keys=None):
         elif isinstance(value, list):
             value = tuple(value) or opt.default
         out[opt.key] = opt.default if value is None else value
+    return _clearance(out)
+
+
+def _clearance(out):
+    """Turn ``clearance`` off (``--no-clearance``) into ``clearance_margin_m`` None."""
+    if not out.pop('clearance', True):
+        out['clearance_margin_m'] = None
     return out
 
 

@@ -30,7 +30,8 @@ ANALYTIC_OPTIONS = ('--mass-factor', '--keep-centroidal')
 COUNTERWEIGHT_OPTIONS = ('--density', '--max-thickness', '--max-radius-factor',
                          '--max-mass-factor', '--max-gyration-factor')
 """Options of --counterweights alone: rejected without it."""
-COUNTERWEIGHT_PLACEMENT = ('--planes', '--max-rim-radius-factor')
+COUNTERWEIGHT_PLACEMENT = ('--planes', '--max-rim-radius-factor', '--clearance-margin',
+                           '--no-clearance', '--disc-side', '--max-overhang', '--build-sheet')
 """Options of --counterweights alone that have no number default (checked by the solver)."""
 COUNTERWEIGHT_KEYS = {'--density': 'density_kg_m3', '--max-thickness': 'max_thickness_m',
                       '--max-radius-factor': 'max_radius_factor',
@@ -43,7 +44,8 @@ PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + \
     COUNTERWEIGHT_PLACEMENT + ('--analytic', '--counterweights', '--model')
 """Options of the planar balancing (spatial rigs take only :data:`SPATIAL_SHARED` of them)."""
 SPATIAL_SHARED = ('--weights', '--mass-factors', '--fix', '--counterweights', '--density',
-                  '--max-mass-factor', '--max-radius-factor')
+                  '--max-mass-factor', '--max-radius-factor', '--clearance-margin',
+                  '--no-clearance')
 """Options of the planar balancing that spatial rigs (body kinematics) take too."""
 SPATIAL_OPTIONS = ('--method', '--extent-factor', '--force-balanced', '--free')
 """Options of spatial rigs alone (mech_balance.balancing.spatial)."""
@@ -59,7 +61,8 @@ PLANAR_KEYS = tuple(k for k in TABLE_KEYS if k not in ('extent_factor', 'force_b
 SPATIAL_KEYS = {'redistribution': ('weights', 'mass_factors', 'fixed_links', 'extent_factor',
                                    'force_balanced', 'samples'),
                 'counterweights': ('links', 'weights', 'density_kg_m3', 'max_mass_factor',
-                                   'max_radius_factor', 'samples'),
+                                   'max_radius_factor', 'samples', 'clearance_margin_m',
+                                   'clearance'),
                 'force_balance': ('free', 'samples')}
 """The options of each spatial method (:data:`mech_balance.balancing.SPATIAL_OPTIONS`)."""
 TYPES = {'weights': cli.weight, 'torque_weight': cli.weight, 'reaction_weight': cli.weight,
@@ -130,6 +133,10 @@ def register(subparsers):
                         'instead of the point-mass distance l (the paper)')
     options.add_arguments(p, TABLE_KEYS[TABLE_KEYS.index('links'):
                                         TABLE_KEYS.index('extent_factor')], TYPES)
+    p.add_argument('--build-sheet', default=None, metavar='FILE.svg',
+                   help='--counterweights: write the build sheet (.svg; .png or .pdf by '
+                        'rsvg-convert; each link as built with its '
+                        'disc to scale, dimensions, material and mass; SVG)')
     p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
                    help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
                         'with two point masses per link at 0 and 90 deg, and print the '
@@ -181,6 +188,10 @@ def _check_options(args):
             if not (np.isfinite(value) and value > 0.0):
                 raise ValueError(f'{option}: got {value:g}, expected a finite number > 0')
             defaults.check_counterweight_option(COUNTERWEIGHT_KEYS[option], value, option)
+        if args.no_clearance and _given(args, ('--clearance-margin',)):
+            raise ValueError('--clearance-margin: no clearance is asked for with '
+                             '--no-clearance; expected one of them')
+        options.check_args(args, ('clearance_margin_m', 'max_overhang_m'))
         if args.max_rim_radius_factor is not None:
             defaults.check_counterweight_option('max_rim_radius_factor',
                                                 args.max_rim_radius_factor,
@@ -291,6 +302,10 @@ def _warn(cert):
               f'{cert.gap_rel:.1e} > {_certified_gap():.0e}); exit status 2', file=sys.stderr)
 
 
+EXIT_NO_CLEAR_DESIGN = 3
+"""Exit status of --counterweights when no collision-free design exists within the bounds."""
+
+
 def _certified_gap():
     from mech_balance.balancing import socp as balancing
     return balancing.CERTIFIED_GAP_REL
@@ -298,22 +313,56 @@ def _certified_gap():
 
 def _counterweights(sc, args):
     from mech_balance import balancing as front
+    from mech_balance.balancing.clearance_design import NoClearDesign
     from mech_balance.core.rig import rig_for
-    design = front.balance(rig_for(sc), 'counterweights',
-                           **options.from_args(args, 'counterweights', PLANAR_KEYS))
+    from mech_balance.viz import build_sheet
+    if args.build_sheet:   # checked before the solve
+        build_sheet.check_path(args.build_sheet)
+    try:
+        design = front.balance(rig_for(sc), 'counterweights',
+                               **options.from_args(args, 'counterweights', PLANAR_KEYS))
+    except NoClearDesign as exc:   # no collision-free design: say why, give none
+        result = exc.result
+        if args.json:   # the Design's keys that exist without a design; why: in the report
+            print(jsonout.dumps(no_design_dict(sc, result)))
+        else:
+            print('\n'.join(result.clearance_design.lines()))
+        print(f'error: {NO_CLEAR_MESSAGE} (see above); none given (--no-clearance gives the '
+              'convex optimum as is)', file=sys.stderr)
+        return EXIT_NO_CLEAR_DESIGN
     result = design.result
     if args.output:
         _write(result.balanced_scene, args.output, result.summary())
-    for text in result.clearance.warnings():
+    if args.build_sheet:
+        build_sheet.write(result, args.build_sheet)
+    for text in result.clearance.warnings():   # once, here only
         print(f'warning: {text}', file=sys.stderr)
     if args.json:
         print(jsonout.dumps(design.to_dict(args.normalized)))
         return exit_status(result.certificate)
     print(format_counterweights(result, normalized=args.normalized))
+    if args.build_sheet:
+        print(f'build sheet written to {args.build_sheet}')
     if args.output:
         print(f'scene with counterweights written to {args.output}')
     _warn(result.certificate)
     return exit_status(result.certificate)
+
+
+def no_design_dict(sc, result):
+    """
+    Return ``balance --json`` of a counterweight problem with no collision-free design.
+
+    The keys of :meth:`mech_balance.balancing.result.Design.to_dict` that exist without a
+    design (``success`` false); ``report`` is the solver's, its ``clearance_design`` says why.
+    """
+    from mech_balance.schema import registry
+    return {'scene': sc.name, 'kind': registry.kind_of(sc).name, 'method': 'counterweights',
+            'success': False, 'message': NO_CLEAR_MESSAGE, 'report': result.to_dict()}
+
+
+NO_CLEAR_MESSAGE = 'no collision-free counterweight design within the bounds'
+"""What ``balance --counterweights`` says when :class:`.clearance_design.NoClearDesign`."""
 
 
 def format_counterweights(result, normalized=False):
@@ -348,6 +397,8 @@ def format_counterweights(result, normalized=False):
     lines.append(f'total added mass {result.added_mass_kg:.6g} kg')
     if result.clearance is not None:
         lines += result.clearance.lines()
+    if result.clearance_design is not None:
+        lines += result.clearance_design.lines()
     lines += ['', _before_after_text(result.table, si=not view), '']
     obj, cert = result.objective, result.certificate
     lines += [f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
@@ -653,8 +704,16 @@ def _spatial(sc, args):
         if value and method != wanted:
             raise ValueError(f'{option}: applies to --method {wanted.replace("_", "-")}, got '
                              f'method {method}; expected no {option}')
-    opts = options.from_args(args, method, keys)
-    design = front.balance(rig, method, **opts)
+    from mech_balance.balancing.clearance_design import NoClearDesign
+    try:
+        design = front.balance(rig, method, **options.from_args(args, method, keys))
+    except NoClearDesign as exc:   # the spheres collide: say why, give no design
+        print(str(exc).replace('; ', '\n'))
+        print('error: no collision-free counterweight design (see above); none given '
+              '(--no-clearance gives the certified optimum as is)', file=sys.stderr)
+        return EXIT_NO_CLEAR_DESIGN
+    for text in design.report.get('warnings', []) if method == 'counterweights' else ():
+        print(f'warning: {text}', file=sys.stderr)
     if args.output:
         spatial.write_scene(design.result, args.output)
     if args.json:

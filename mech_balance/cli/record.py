@@ -116,13 +116,32 @@ def cmd_record(args):
     if args.design is not None:
         balanced = scene.load(args.design)
         source = f'scene file {balanced.source}'
+        if getattr(balanced, 'kind', 'planar') == 'planar' and \
+                any(lk.counterweights for lk in balanced.links):
+            from mech_balance.analysis import clearance
+            source += clearance_note(clearance.of_design(sc, balanced, args.samples))
     elif args.counterweights is not None:
         from mech_balance import balancing as front
+        from mech_balance.balancing import options
+        from mech_balance.balancing.clearance_design import NoClearDesign
         weights = defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights)
-        balanced = front.balance(sc, 'counterweights', links=args.counterweights,
-                                 weights=weights).scene
+        # the design `mech-balance balance --counterweights LINKS --weights W1 W2` prints:
+        # the same options by the same table (balancing.options), the clearance on
+        try:
+            design = front.balance(sc, 'counterweights', **options.from_args(
+                args, 'counterweights', ('links', 'weights')))
+        except NoClearDesign as exc:
+            why = exc.result.clearance_design.lines() if exc.result is not None else \
+                str(exc).split('; ')
+            print('\n'.join(why), file=sys.stderr)
+            print('error: no collision-free counterweight design within the bounds; nothing '
+                  'recorded', file=sys.stderr)
+            return cli_balance.EXIT_NO_CLEAR_DESIGN
+        balanced = design.scene
+        clear = getattr(design.result, 'clearance', None)   # planar: over the cycle
         source = (f'add-only counterweights on {args.counterweights}, (w1, w2) = '
-                  f'({weights[0]:g}, {weights[1]:g}) (mech_balance.balancing.counterweights)')
+                  f'({weights[0]:g}, {weights[1]:g}) (mech_balance.balancing.counterweights)'
+                  + ('' if clear is None else clearance_note(clear)))
     elif args.balance:
         cli.requires(sc, 'mass_redistribution', **given)
         balanced, source = balanced_design(
@@ -141,6 +160,22 @@ def cmd_record(args):
     print('  (the viewer comes with rerun-sdk; it plays the crank_angle timeline in a loop)')
     sys.stdout.flush()
     return 0
+
+
+def clearance_note(clear):
+    """
+    Print a design's least clearance (each collision once, as a warning) and return it.
+
+    The text returned is what the recording's info panel shows after the design's source.
+    """
+    text = clear.lines()[0]   # the line `mech-balance balance` prints
+    print(f'  {text}')
+    for line in clear.warnings():
+        print(f'warning: {line}', file=sys.stderr)
+    marks = ''.join(f'; COLLISION: {c.body_a} and {c.body_b} overlap by '
+                    f'{-c.clearance_m * 1e3:.3g} mm at crank angle {c.crank_angle_deg:.2f} deg'
+                    for c in clear.collisions)
+    return f'; {text}{marks}'
 
 
 def _viewer():

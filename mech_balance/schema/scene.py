@@ -16,6 +16,7 @@ from pathlib import Path
 
 from mech_balance import conventions
 from mech_balance.schema import safe_yaml
+from mech_balance.schema.build import build_from_dict
 from mech_balance.schema.drive import drive_from_dict
 from mech_balance.schema.fields import at_most as _at_most, known_keys as _known_keys, \
     mapping as _mapping, number as _number, points as _points, positive as _positive, \
@@ -142,7 +143,9 @@ class Counterweight:
     ``plane_m`` is the disc's plane: the z of its mid-plane relative to its link's plane (m,
     along the normal, +z towards the viewer; 0, the default: the link's own plane).  It moves
     no mass property of a planar rig; it decides which bodies the disc can collide with
-    (:mod:`mech_balance.analysis.clearance`).
+    (:mod:`mech_balance.analysis.clearance`).  ``mount`` names the link's point whose shaft
+    carries a disc off the link's plane (empty, the default: the point nearest the centre;
+    :mod:`mech_balance.analysis.layers`).
     """
 
     mass_kg: float
@@ -151,6 +154,7 @@ class Counterweight:
     thickness_m: float
     density_kg_m3: float
     plane_m: float = 0.0
+    mount: str = ''
 
     @property
     def inertia_com_kg_m2(self):
@@ -164,6 +168,8 @@ class Counterweight:
                'density_kg_m3': float(self.density_kg_m3)}
         if self.plane_m != 0.0:   # the link's own plane is the default, not written
             out['plane_m'] = float(self.plane_m)
+        if self.mount:
+            out['mount'] = self.mount
         return out
 
 
@@ -348,6 +354,7 @@ class Scene(SceneDesigns):
     recording: Recording = Recording()
     drive: dict = None  # motor, speed loop and damping for `mech-balance simulate`
     identification: dict = None  # what `mech-balance identify` found (schema.identification)
+    build: dict = None  # the rig as built, layer by layer (schema.build; None: drawn sizes)
 
 
 def needs(outputs):
@@ -427,7 +434,7 @@ def load_data(name_or_path):
 _TOP_KEYS = {
     'schema_version', 'name', 'description', 'kind', 'normalization', 'crank', 'gravity_m_s2',
     'frame', 'links', 'joints', 'assembly', 'outputs', 'samples', 'notes', 'recording',
-    'balance', 'drive', 'identification',
+    'balance', 'drive', 'identification', 'build',
 }
 
 
@@ -529,7 +536,8 @@ def planar_from_dict(data, source='<dict>'):
         assembly_link_angles_rad=link_angles, assembly_displacements_m=displacements,
         outputs=outputs, samples=samples, gravity_m_s2=gravity, normalization=normalization,
         notes=notes if isinstance(notes, dict) else {'text': notes}, source=source,
-        recording=_recording(data.get('recording', {})), drive=data.get('drive'))
+        recording=_recording(data.get('recording', {})), drive=data.get('drive'),
+        build=build_from_dict(data.get('build'), [FRAME] + [lk.name for lk in links]))
     if sc.drive is not None:  # checked now, used by `mech-balance simulate`
         drive_from_dict(sc.drive, sc)
     if 'identification' in data:  # written by `mech-balance identify --output`
@@ -595,6 +603,8 @@ def planar_to_dict(scene):
         data['recording'] = recording_to_dict(scene.recording)
     if scene.drive is not None:
         data['drive'] = scene.drive
+    if scene.build is not None:
+        data['build'] = scene.build
     if scene.identification is not None:
         from mech_balance.schema.identification import identification_to_dict
         data['identification'] = identification_to_dict(scene.identification)
@@ -709,13 +719,17 @@ def _link(name, spec):
         raise SceneError(f'{where}.counterweights: got {discs!r}, expected a list of discs '
                          '{mass_kg, centre_m, radius_m, thickness_m, density_kg_m3}')
     discs = [_counterweight(d, f'{where}.counterweights[{k}]') for k, d in enumerate(discs)]
+    for k, d in enumerate(discs):
+        if d.mount and d.mount not in points:
+            raise SceneError(f'{where}.counterweights[{k}].mount: got {d.mount!r}, expected a '
+                             f'point of the link ({", ".join(points)})')
     return add_counterweights(link, discs) if discs else link
 
 
 def _counterweight(spec, where):
     spec = _mapping(spec, where)
     keys = ('mass_kg', 'centre_m', 'radius_m', 'thickness_m', 'density_kg_m3')
-    _known_keys(spec, set(keys) | {'plane_m'}, where)
+    _known_keys(spec, set(keys) | {'plane_m', 'mount'}, where)
     for key in keys:
         _require(spec, key, where)
     mass = _positive(spec['mass_kg'], f'{where}.mass_kg')
@@ -733,7 +747,10 @@ def _counterweight(spec, where):
     if abs(plane) > MAX_PLANE_OFFSET_M:
         raise SceneError(f'{where}.plane_m: got {plane!r}, expected a z offset from the '
                          f"link's plane within +-{MAX_PLANE_OFFSET_M:g} m")
-    return Counterweight(mass, centre, radius, thickness, density, plane)
+    mount = spec.get('mount', '')
+    if mount != '':
+        _string(mount, f'{where}.mount')
+    return Counterweight(mass, centre, radius, thickness, density, plane, mount)
 
 
 def _joint(name, spec, all_points):
