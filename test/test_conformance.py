@@ -25,6 +25,7 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import result as balance_result
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 ROOT = Path(__file__).resolve().parent.parent
 BUILTINS = tuple(schema.builtin_scenes())
@@ -53,8 +54,14 @@ def _spatial_universal():
     data = _load_data('rssr_skew')
     data['name'] = 'rssr_universal'
     data['links']['coupler']['inertia_com_kg_m2'] = [1e-6, 6.75e-4, 6.75e-4, 0.0, 0.0, 0.0]
+    # the cross axis fixed in the coupler, normal to the crank's y axis and to the coupler's
+    # line at the stated poses (the loader refuses an axis_b the poses contradict)
+    pose = data['assembly']['poses']['coupler']
+    rot = Rotation.from_euler('xyz', pose['rpy_deg'], degrees=True).as_matrix()
+    cross = np.cross([0.0, 1.0, 0.0], rot[:, 0])
+    axis_b = rot.T @ (cross / np.linalg.norm(cross))
     data['joints']['B'] = {'type': 'universal', 'a': 'crank.B', 'b': 'coupler.B',
-                           'axis': [0.0, 1.0, 0.0], 'axis_b': [0.0, 0.0, 1.0]}
+                           'axis': [0.0, 1.0, 0.0], 'axis_b': [float(x) for x in axis_b]}
     return data
 
 

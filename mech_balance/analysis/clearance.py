@@ -50,8 +50,8 @@ RIM_CUT_POINTS = (0.0, 1.0 / 6.0, 1.0 / 3.0)
 TOUCH_TOL_M = 1e-12
 """Two slabs along z overlap when they share more than this thickness (m): touching faces
 are no collision."""
-ADDED_KINDS = ('disc', 'shaft', 'web')
-"""The kinds of body a counterweight adds; only pairs with one of them are checked (the
+ADDED_SHAPES = ('disc', 'shaft', 'web')
+"""The shapes of body a counterweight adds; only pairs with one of them are checked (the
 linkage's own bodies are the rig's business, not the design's)."""
 
 
@@ -62,7 +62,7 @@ class Body:
 
     ``a``, ``b`` are the segment's ends (complex, m; equal for a disc), ``radius_m`` its
     half-width, ``z_m`` the mid-plane and ``thickness_m`` the slab's thickness along z;
-    ``kind`` one of bar, boss, block, pin, disc, shaft, web; ``exempt`` the names of the
+    ``shape`` one of bar, boss, block, pin, disc, shaft, web; ``exempt`` the names of the
     bodies it passes through by design (a counterweight's shaft through its joint's bearing).
     """
 
@@ -73,13 +73,13 @@ class Body:
     radius_m: float
     z_m: float
     thickness_m: float
-    kind: str = 'bar'
+    shape: str = 'bar'
     exempt: frozenset = frozenset()
 
     @property
     def added(self):
         """Return whether the body is part of a counterweight (disc, its shaft or web)."""
-        return self.kind in ADDED_KINDS
+        return self.shape in ADDED_SHAPES
 
     def z_gap(self, other):
         """Return the gap between the two slabs along z (m; negative: they overlap)."""
@@ -375,7 +375,7 @@ def clearance(scene_or_rig, samples=None, margin_m=0.0, sweep=None):
     p = int(sc.samples if samples is None else samples)
     psi = cycle_angles(p)
     body_list = bodies(rig)
-    planes = {b.name: b.z_m for b in body_list if b.kind == 'disc'}
+    planes = {b.name: b.z_m for b in body_list if b.shape == 'disc'}
     rims = {}
     for link in sc.links:
         for i, cw in enumerate(link.counterweights):

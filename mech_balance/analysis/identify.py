@@ -959,6 +959,63 @@ class Identification:
             {c: float(v) for c, v in zip(self.channels, self.noise_floor)}}
 
 
+def check_data(t_encoder, position_rad, t_wrench, wrench, effort, unit):
+    """
+    Return the encoder data after the data checks, and their findings.
+
+    The encoder's unit (``unit``: auto, rad, deg; converted), two interleaved encoders or
+    sensors (raises :class:`IdentifyError` naming the
+    finding), a stuck encoder (its repeated samples dropped).
+    """
+    findings = []
+    if checks.checkable(t_encoder, position_rad):
+        t_encoder = np.asarray(t_encoder, dtype=float)
+        pos = np.asarray(position_rad, dtype=float)
+        _, modulus = unwrap_encoder(pos)
+        pos, found = checks.encoder_unit(pos, modulus, unit)
+        findings += [found] if found else []
+        psi, modulus = unwrap_encoder(pos)
+        found = checks.check_interleaved_encoder(psi)
+        if found:
+            raise IdentifyError(f'encoder: {found.evidence}; {found.way_out}')
+        keep, found = checks.stuck_runs(t_encoder, psi, modulus)
+        if found:
+            findings.append(found)
+            t_encoder, pos = t_encoder[keep], pos[keep]
+            effort = None if effort is None else np.asarray(effort, dtype=float)[keep]
+        position_rad = pos
+    if checks.checkable(t_wrench, wrench) and np.ndim(wrench) == 2:
+        found = checks.check_interleaved_wrench(wrench, CHANNELS)
+        if found:
+            raise IdentifyError(f'wrench: {found.evidence}; {found.way_out}')
+    return t_encoder, position_rad, effort, findings
+
+
+def check_pose_and_time(scene, motion, t_wrench, wrench, floor, theta0, scale):
+    """
+    Return ``(wrench stamps, findings)``: the sensor frame judged, a time offset corrected.
+
+    Both on the longest stretch (``motion``), against the scene's model
+    (:func:`~.recording_checks.frame_check`, :func:`~.recording_checks.time_offset`).
+    """
+    t_w = np.asarray(t_wrench, dtype=float)
+    w = np.asarray(wrench, dtype=float)
+    inside = np.flatnonzero((t_w >= motion.t_s[0]) & (t_w <= motion.t_s[-1]))
+    if inside.size < 50:
+        return t_wrench, []
+    pick = inside[np.linspace(0, inside.size - 1, min(checks.OFFSET_SAMPLES, inside.size))
+                  .astype(int)]
+    rig = analysis.Rig(scene)
+    model = regressor(scene, *motion.at(t_w[pick]), rig=rig).wrench @ theta0
+    found = checks.frame_check(w[pick], model, floor, CHANNELS)
+    if found:
+        return t_wrench, [found]
+    tau, found = checks.time_offset(
+        lambda *state: regressor(scene, *state, rig=rig).wrench * scale, motion, t_w, w,
+        floor[:3])
+    return (t_w - tau if tau else t_wrench), ([found] if found else [])
+
+
 def check_identifiable(scene):
     """Raise IdentifyError (one line: capability, kind, why) unless ``scene`` can be identified."""
     from mech_balance.core.rig import CapabilityError, require
@@ -1170,7 +1227,7 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     check_identifiable(scene)
     findings = []
     if check:
-        t_encoder, position_rad, effort, findings = checks.check_data(
+        t_encoder, position_rad, effort, findings = check_data(
             t_encoder, position_rad, t_wrench, wrench, effort, encoder_unit)
     motion, stretches = _segment_motions(t_encoder, position_rad, window, quantization_rad,
                                          counts_per_turn)
@@ -1182,8 +1239,8 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
         floor = checks.noise_floor(wrench)
         if effort is not None:
             floor = np.append(floor, checks.noise_floor(effort))
-        t_wrench, found = checks.check_pose_and_time(scene, motion, t_wrench, wrench, floor,
-                                                     theta0, scale)
+        t_wrench, found = check_pose_and_time(scene, motion, t_wrench, wrench, floor,
+                                              theta0, scale)
         findings += found
     if check:
         found = checks.encoder_smoothing(motion, MAX_WINDOW_TURNS)

@@ -257,9 +257,9 @@ class _Search:
             if value >= self.margin:
                 break
             a, b = body_list[i], body_list[j]
-            kinds = {a.kind, b.kind}
-            if 'shaft' in kinds and (not (a.added and b.added) or kinds == {'shaft'}):
-                shaft, other = (a, b) if a.kind == 'shaft' else (b, a)
+            shapes = {a.shape, b.shape}
+            if 'shaft' in shapes and (not (a.added and b.added) or shapes == {'shaft'}):
+                shaft, other = (a, b) if a.shape == 'shaft' else (b, a)
                 return (f'{shaft.name} crosses the layer of {other.name} '
                         f'(clearance {value * 1e3:.3g} mm)')
         return ''

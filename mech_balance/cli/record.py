@@ -116,8 +116,7 @@ def cmd_record(args):
     if args.design is not None:
         balanced = scene.load(args.design)
         source = f'scene file {balanced.source}'
-        if getattr(balanced, 'kind', 'planar') == 'planar' and \
-                any(lk.counterweights for lk in balanced.links):
+        if any(getattr(lk, 'counterweights', ()) for lk in balanced.links):
             from mech_balance.analysis import clearance
             source += clearance_note(clearance.of_design(sc, balanced, args.samples))
     elif args.counterweights is not None:

@@ -275,12 +275,12 @@ def side_view(result, x0, top, width, height):
     out = [_plain(x0, top + 16, 'the stack along the joint axes at crank angle 0 (side view; '
                   f'x 1 mm = {kx / 1e3:.3g} px, z 1 mm = {kz / 1e3:.3g} px)', 13, 'bold')]
     order = {'bar': 0, 'block': 0, 'web': 1, 'disc': 2, 'boss': 3, 'pin': 4, 'shaft': 5}
-    for b, xa, xb, za, zb in sorted(boxes, key=lambda v: order[v[0].kind]):
+    for b, xa, xb, za, zb in sorted(boxes, key=lambda v: order[v[0].shape]):
         y = top + 30 + (z_hi - zb) * kz
         out.append(f'<rect x="{x0 + (xa - x_lo) * kx:.1f}" y="{y:.1f}" '
                    f'width="{max((xb - xa) * kx, 1.0):.1f}" '
                    f'height="{max((zb - za) * kz, 1.0):.1f}" '
-                   f'fill="{colour[b.kind]}" fill-opacity="{0.6 if b.kind == "disc" else 0.9}" '
+                   f'fill="{colour[b.shape]}" fill-opacity="{0.6 if b.shape == "disc" else 0.9}" '
                    'stroke="#333" stroke-width="0.5"/>')
     for name, layer in lay.layers.items():
         y = top + 30 + (z_hi - layer.z_m) * kz
