@@ -134,7 +134,21 @@ class RigNode(Node):
         self.get_logger().warning(text, throttle_duration_sec=WARN_THROTTLE_S)
 
     def _log(self, level, text):
-        getattr(self.get_logger(), level)(text)
+        """
+        Log ``text`` at ``level`` ('info', 'warning' or 'error'), one call site per level.
+
+        rclpy ties a logging call site (file, function, line) to the severity of its first
+        call and raises ``ValueError: Logger severity cannot be changed between calls`` when
+        the same line logs at another severity; one line dispatching every level killed the
+        recording thread (issue 32 item 0).
+        """
+        logger = self.get_logger()
+        if level == 'error':
+            logger.error(text)
+        elif level == 'warning':
+            logger.warning(text)
+        else:
+            logger.info(text)
 
     def _service_name(self, name):
         return self._triggers[name].service_name
@@ -152,8 +166,7 @@ class RigNode(Node):
         self._rig.on_encoder(stamp_ns, position_rad, turned_rad, resynced)
 
     def _live_statuses(self, name, hardware_id):
-        status = self._recording.diagnostic_status(name, hardware_id)
-        return [] if status is None else [status]
+        return self._recording.diagnostic_statuses(name, hardware_id)
 
     def _open_recording(self):
         """(Re)open the recording: the original against the balanced design, if known."""
@@ -366,6 +379,9 @@ class RigNode(Node):
         counts = dict(self._guard.counts)
         stats['caught'] = counts
         stats['published_total'] = self._publisher.streamer.published_total
+        rec = self._recording
+        stats['recording'] = {'file': rec.file_status(), 'queued': rec.queued,
+                              'logged': rec.logged, 'batches_dropped': rec.dropped}
         refused_parameters = counts.get('parameters', 0)
         refused_calls = sum(v for k, v in counts.items() if k in self._triggers)
         errors = self._guard.total() - refused_parameters - refused_calls
