@@ -185,8 +185,13 @@ class Recording:
                                   hardware_id, [('url', str(url)), ('status', status),
                                                 ('batches dropped', str(self.dropped))])
 
-    def close(self, timeout_s=CLOSE_TIMEOUT_S):
-        """Close the recording and stop the thread, waiting at most about ``timeout_s``."""
+    def close(self, timeout_s=2.0 * CLOSE_TIMEOUT_S):
+        """
+        Close the recording and stop the thread, waiting at most about ``timeout_s``.
+
+        The thread first logs what is queued, then closes the file (itself bounded by
+        :data:`CLOSE_TIMEOUT_S`): the default waits for both.
+        """
         with self._cond:
             self._stopped = True
             self._cond.notify_all()

@@ -33,9 +33,11 @@ The node holds no numerics and no logic of its own: it declares the parameters
 calls of the parts and their results into answers.
 """
 
+from collections import deque
 import json
 import sys
 import threading
+import time
 
 from mech_balance import threads
 from mech_balance.ros import description, guard as guards, live
@@ -50,6 +52,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
+from rclpy.service import Service
 from std_srvs.srv import Trigger
 
 NODE_NAME = 'rig'
@@ -58,6 +61,17 @@ EXECUTOR_THREADS = 4
 SERVICE_DEPTH = 1000
 """Request and answer history of every service: a burst of calls is queued, never lost (the
 default, 10, drops the eleventh simultaneous request in the middleware)."""
+ANSWER_BURST = 1
+"""Answers sent back to back at most; then :data:`ANSWER_GAP_S` passes before the next ones.
+Fast DDS sends a service's answer to the answer reader of every client of the service (each
+client keeps its own and drops the others when it takes them), and a client's reader keeps
+only its last ``depth`` (default 10) answers: a burst of 50 answers overwrote the answer of
+a client that had not taken it yet -- lost without an error on either side (issue 32 item
+1; a client with depth 100 got all 50).  Paced at one answer per :data:`ANSWER_GAP_S`, 50
+clients in one single-threaded rclpy process got all 50 (4 per 10 ms: 19 of 50).  A
+single call is answered at once."""
+ANSWER_GAP_S = 0.01
+"""Pause after :data:`ANSWER_BURST` answers (see there)."""
 SWITCH_INTERVAL_S = 1e-4
 """Python's thread switch interval in the node process: bounds how long a core evaluation
 in one thread delays the publishing thread (the default, 5 ms, would delay kHz ticks)."""
@@ -95,10 +109,13 @@ class RigNode(Node):
         self._identify_busy = False
         qos = QoSProfile(depth=SERVICE_DEPTH)
         either = ReentrantCallbackGroup()  # each refuses with "busy" what it cannot run now
-        self._triggers = {name: self.create_service(
+        self._answers = _PacedAnswers(self._guard)
+        # ~/balance callers queue (one executor thread at most waits for a run; the others
+        # serve parameters and the other services) and share the result of the same request
+        self._triggers = {name: self._answers.pace(self.create_service(
             Trigger, name, self._refusing(name, callback), qos_profile=qos,
-            callback_group=group) for name, callback, group in (
-                ('~/balance', self._on_balance, either),
+            callback_group=group)) for name, callback, group in (
+                ('~/balance', self._on_balance, MutuallyExclusiveCallbackGroup()),
                 ('~/reset', self._on_reset, either),
                 ('~/tare', self._on_tare, MutuallyExclusiveCallbackGroup()),
                 ('~/identify', self._on_identify, either))}
@@ -177,11 +194,20 @@ class RigNode(Node):
                                   state.original.scene, balanced)
 
     def _switch_to(self, model):
-        """Publish ``model`` (the original or a balanced design) from the next sample on."""
+        """
+        Publish ``model`` (the original or a balanced design) from the next sample on.
+
+        Only a design of the current scene: the state's original or its balanced design
+        (both replaced together when the scene changes); another (a run of a scene switched
+        away from) is not published.  Returns whether it is.
+        """
         with self._state.lock:
+            if model is not self._state.original and model is not self._state.balanced:
+                return False
             self._state.published = model
             self._publisher.set_model(model)
         self._describe()
+        return True
 
     def _describe(self):
         """Publish the URDF of the published design on robot_description (if enabled)."""
@@ -259,18 +285,34 @@ class RigNode(Node):
     # ------------------------------------------------------------------ services
 
     def _on_balance(self, request, response):
-        """Balance with the current options, publish the design, answer its YAML."""
-        model, response.message = self._balancer.balance()
+        """
+        Balance with the current options, publish the design, answer its YAML.
+
+        A run in progress is waited for (its result answered if it was the same request);
+        a design whose scene was switched away from meanwhile is not published.
+        """
+        model, response.message = self._balancer.balance(wait=True)
         response.success = model is not None
-        if model is not None:
-            self._use_balanced(model)
+        if model is not None and not self._use_balanced(model,
+                                                        self._balancer.original_of(model)):
+            response.success = False
+            response.message = ('the scene changed during the balancing run; its design is '
+                                "not published; call again to balance the new scene\n"
+                                f'{response.message}')
         return response
 
-    def _use_balanced(self, model):
+    def _use_balanced(self, model, original):
+        """Make ``model``, computed for ``original``, the balanced design; False if stale."""
         with self._state.lock:
+            if original is None or self._state.original is not original:
+                return False
             self._state.balanced = model
         self._open_recording()  # the recording shows the original against the new design
-        self.set_parameters([Parameter('use_balanced', value=True)])
+        if self._state.values['use_balanced']:
+            self._switch_to(model)  # set again: no parameter event, the design is new
+        else:
+            self.set_parameters([Parameter('use_balanced', value=True)])
+        return True
 
     def _balance_in_background(self):
         """use_balanced is true but no design is known: balance, then publish the design."""
@@ -293,8 +335,7 @@ class RigNode(Node):
                 self._state.balanced = model
                 wanted = self._state.values['use_balanced']
             self._open_recording()
-            if wanted:
-                self._switch_to(model)
+            if wanted and self._switch_to(model):
                 self.get_logger().info('use_balanced: publishing the balanced design')
 
         self.get_logger().info(f'use_balanced: balancing scene '
@@ -305,7 +346,9 @@ class RigNode(Node):
     def _on_reset(self, request, response):
         """Return to the scene's original design (from a calibrated scene: to the scene)."""
         if self._balancer.busy:
-            response.success, response.message = False, BUSY
+            response.success = False
+            response.message = (f'{BUSY}; call ~/reset again when it ends '
+                                f'({self._balancer.result_pub.topic_name} announces it)')
             return response
         state, note = self._state, ''
         with state.lock:
@@ -395,6 +438,50 @@ class RigNode(Node):
                 f'compute {stats["prepare_per_sample_s"] * 1e6:.1f} us per sample (core and '
                 f'serialization, batched); publishing {stats["step_median_s"] * 1e6:.1f} us '
                 f'median per sample; {STATS_TAG}{json.dumps(stats)}')
+
+
+class _PacedAnswers:
+    """
+    Send the services' answers from a thread of their own, :data:`ANSWER_BURST` at a time.
+
+    :meth:`pace` replaces a service's ``send_response`` (what rclpy's executor calls with
+    the callback's answer) by a queue: the executor's thread returns at once, this thread
+    sends the answers in order, pausing :data:`ANSWER_GAP_S` after each burst.
+    """
+
+    def __init__(self, guard):
+        self._guard = guard
+        self._cond = threading.Condition()
+        self._queue = deque()
+        self.sent = 0
+        threading.Thread(target=self._run, name='rig-answers', daemon=True).start()
+
+    def pace(self, service):
+        """Route ``service``'s answers through the queue; return the service."""
+        def send_response(response, header):
+            with self._cond:
+                self._queue.append((service, response, header))
+                self._cond.notify()
+        service.send_response = send_response
+        return service
+
+    def _run(self):
+        burst = 0
+        while True:
+            with self._cond:
+                while not self._queue:
+                    burst = 0
+                    self._cond.wait()
+                service, response, header = self._queue.popleft()
+            try:
+                Service.send_response(service, response, header)
+                self.sent += 1
+            except Exception as exc:  # noqa: BLE001 - a destroyed service: counted, go on
+                self._guard.caught('answering a service call', exc)
+            burst += 1
+            if burst >= ANSWER_BURST:
+                burst = 0
+                time.sleep(ANSWER_GAP_S)
 
 
 def _viz_recorder(path, url, scene, balanced):
