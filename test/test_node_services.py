@@ -17,7 +17,7 @@ import random
 import sys
 import time
 
-from mech_balance.ros import balance_service, description
+from mech_balance.ros import description
 from mech_balance.ros import parameters as node_params
 import pytest
 import rclpy
@@ -31,9 +31,11 @@ import test_node as tn  # noqa: E402, I100
 
 CLIENTS = 50
 """Concurrent callers of each service (issue 32 item 1: 15-35 of 50 were answered)."""
-RACES = 12
+RACES = 20
 """Seeded scene-switch races against a running ``~/balance``."""
 SEED = 32
+RACE_WINDOW_S = 0.3
+"""The scene is switched this long after the call at most (a hoeken run takes ~0.1-0.2 s)."""
 
 
 @pytest.fixture(scope='module')
@@ -108,18 +110,22 @@ def test_a_scene_switch_during_balance_never_publishes_another_scenes_design(rig
     names = {s: node_params.build_model(s) for s in scenes}
     joint_names = {s: tuple(description.urdf_twin(m).joint_names) for s, m in names.items()}
     stale = 0
+    outcomes = {'stale answer': 0, 'design': 0, 'other': 0}
     for race in range(RACES):
         a, b = scenes[race % 2], scenes[(race + 1) % 2]
-        assert probe.set_params(scene=a, use_balanced=False)[0].successful
+        w = round(rng.uniform(0.2, 0.8), 3)    # new options: a run, not the kept answer
+        assert all(r.successful for r in probe.set_params(
+            scene=a, use_balanced=False, balance__weights=[w, 1.0 - w]))
         future = probe.balance.call_async(Trigger.Request())
-        delay = rng.uniform(0.0, 1.5)
+        delay = rng.uniform(0.0, RACE_WINDOW_S)   # mostly within the run, now and then after
         deadline = time.monotonic() + delay
-        probe.spin_until(lambda: future.done() or time.monotonic() >= deadline,
-                         what='the seeded moment')
+        probe.spin_until(lambda: time.monotonic() >= deadline, what='the seeded moment')
         assert probe.set_params(scene=b)[0].successful
         probe.spin_until(future.done, 120.0, '~/balance to answer')
         answer = future.result()
         assert answer.message
+        outcomes['stale answer' if not answer.success and 'scene changed' in answer.message
+                 else 'design' if answer.success else 'other'] += 1
         probe.collect(5, f'samples after race {race}')
         got = {tuple(j[1]) for j in probe.joints}
         if got != {joint_names[b]}:
@@ -132,4 +138,4 @@ def test_a_scene_switch_during_balance_never_publishes_another_scenes_design(rig
         print(f'race {race}: {a} -> {b} after {delay:.2f} s: success={answer.success} '
               f'{answer.message.splitlines()[0][:70]!r}; joints {sorted(got)}')
     assert stale == 0
-    assert balance_service.BUSY not in ''
+    assert outcomes['stale answer'] > 0, outcomes   # the race was run, not only sequenced
