@@ -422,6 +422,12 @@ class RigNode(Node):
         counts = dict(self._guard.counts)
         stats['caught'] = counts
         stats['published_total'] = self._publisher.streamer.published_total
+        follow = stats['follow'] = self._publisher.follow_counts()
+        unanswered = sum(follow['unanswered'].values())
+        said_follow = '' if not follow['received'] else (
+            f'follow mode: {follow["received"]} encoder samples received, {unanswered} not '
+            'answered (' + (', '.join(f'{k}: {v}' for k, v in follow['unanswered'].items())
+                            or 'none') + '); ')
         rec = self._recording
         stats['recording'] = {'file': rec.file_status(), 'queued': rec.queued,
                               'logged': rec.logged, 'batches_dropped': rec.dropped}
@@ -434,7 +440,7 @@ class RigNode(Node):
                 f'{stats["withheld"]} non-finite withheld since then); '
                 f'{refused_parameters} parameter updates refused, {refused_calls} service '
                 f'calls answered with an error, {errors} other exceptions caught in callbacks '
-                'and threads; '
+                f'and threads; {said_follow}'
                 f'compute {stats["prepare_per_sample_s"] * 1e6:.1f} us per sample (core and '
                 f'serialization, batched); publishing {stats["step_median_s"] * 1e6:.1f} us '
                 f'median per sample; {STATS_TAG}{json.dumps(stats)}')

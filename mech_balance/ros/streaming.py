@@ -34,7 +34,7 @@ the origin O of its frame (seed 002: on the output axis, the foot of the common 
 the two axes), all six components.
 """
 
-from collections import deque
+from collections import Counter, deque
 from dataclasses import dataclass
 from functools import partial
 import math
@@ -551,6 +551,7 @@ class Streamer:
         self._refill = threading.Event()  # wakes the precompute thread (not every tick)
         self.stats = TickStats()
         self.published_total = 0        # since the start, across restarts
+        self.unanswered = Counter()     # follow mode: samples queued, never published, why
         self._last_step = None          # (node clock ns, monotonic s) of the last clock step
         self._threads = [threading.Thread(target=self._run_publisher, name='rig-publish',
                                           daemon=True),
@@ -594,6 +595,7 @@ class Streamer:
             dropped = len(self._pending) >= MAX_PENDING
             if dropped:
                 self._pending.popleft()
+                self.unanswered['queue full (the core fell behind)'] += 1
             self._pending.append(sample)
             self._cond.notify_all()
         return not dropped
@@ -616,7 +618,8 @@ class Streamer:
         self._mode, self._model, self._schedule = mode, model, schedule
         self._batches.clear()
         self._next_k = None
-        if not keep_pending:
+        if not keep_pending and self._pending:
+            self.unanswered['discarded by a mode, rate or scene change'] += len(self._pending)
             self._pending.clear()
         self._cond.notify_all()
 
@@ -656,6 +659,8 @@ class Streamer:
                     groups.append((evaluate([s.angle_rad], [s.speed_rad_s],
                                             [s.accel_rad_s2]), [s]))
                 except ValueError as exc:
+                    with self._cond:
+                        self.unanswered['refused by the core'] += 1
                     self._warn(f'crank_joint_state: skipped the sample at '
                                f'{s.stamp_ns * 1e-9:.9f} s: {exc}')
         out = []
@@ -850,8 +855,11 @@ class Streamer:
             gen, model = self._generation, self._model
             batch = [self._pending.popleft()
                      for _ in range(min(len(self._pending), MAX_FOLLOW_BATCH))]
-        for payload in self._evaluate_follow(model, batch):
+        payloads = self._evaluate_follow(model, batch)
+        for i, payload in enumerate(payloads):
             with self._cond:
                 if gen != self._generation or self._stopped:
+                    self.unanswered['evaluated for a design switched away from'] += \
+                        len(payloads) - i
                     return
             self._send(payload)
