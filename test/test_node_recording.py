@@ -71,7 +71,7 @@ def test_a_dead_viewer_never_costs_the_recording(context, tmp_path, rate, order)
     assert 'the viewer is dead' in log, log
     assert 'recording thread stopped' not in log, log
     stats = _stats(log)['recording']
-    assert stats["batches_dropped"] == 0 and stats["file"] == "closed", log[-3000:]
+    assert stats['batches_dropped'] == 0 and stats['file'] == 'closed', log[-3000:]
     rows = readback.read_recording(path)[PER_SAMPLE].rows
     print(f'{order} at {rate:g} Hz: {rows} rows recorded, {stats["queued"]} queued, '
           f'{received} received by the probe')

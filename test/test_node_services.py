@@ -21,9 +21,8 @@ from mech_balance.ros import description
 from mech_balance.ros import parameters as node_params
 import pytest
 import rclpy
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
-from rclpy.qos import DurabilityPolicy
 from std_srvs.srv import Trigger
 
 sys.path.insert(0, os.path.dirname(__file__))

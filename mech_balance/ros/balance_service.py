@@ -2,8 +2,9 @@
 The rig node's balancing part: ``~/balance``, ``use_balanced`` and ``~/balance_result``.
 
 :class:`Balancer` runs :func:`mech_balance.balancing.balance` with the ``balance.*``
-parameters on the state's original design, one run at a time, publishes the result's YAML on ``~/balance_result`` (transient local: late
-joiners get it) and writes it to a file named by the node's namespace and name.
+parameters on the state's original design, one run at a time (callers of the same request
+share its answer), publishes the result's YAML on ``~/balance_result`` (transient local:
+late joiners get it) and writes it to a file named by the node's namespace and name.
 """
 
 import os

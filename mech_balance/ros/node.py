@@ -297,7 +297,7 @@ class RigNode(Node):
                                                         self._balancer.original_of(model)):
             response.success = False
             response.message = ('the scene changed during the balancing run; its design is '
-                                "not published; call again to balance the new scene\n"
+                                'not published; call again to balance the new scene\n'
                                 f'{response.message}')
         return response
 
