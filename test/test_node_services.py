@@ -72,8 +72,12 @@ def test_fifty_concurrent_callers_are_all_answered(rig, service):
     clients = _clients(probe, service, CLIENTS)
     try:
         futures = [c.call_async(Trigger.Request()) for c in clients]
-        probe.spin_until(lambda: all(f.done() for f in futures), 180.0,
-                         f'{CLIENTS} answers of ~/{service}')
+        try:
+            probe.spin_until(lambda: all(f.done() for f in futures), 120.0,
+                             f'{CLIENTS} answers of ~/{service}')
+        except AssertionError as exc:
+            raise AssertionError(f'{exc}: {sum(f.done() for f in futures)} of {CLIENTS} '
+                                 'answered') from None
         answers = [f.result() for f in futures]
         assert all(a is not None and a.message for a in answers)
         refused = {a.message.splitlines()[0][:80] for a in answers if not a.success}

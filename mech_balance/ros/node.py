@@ -61,17 +61,18 @@ EXECUTOR_THREADS = 4
 SERVICE_DEPTH = 1000
 """Request and answer history of every service: a burst of calls is queued, never lost (the
 default, 10, drops the eleventh simultaneous request in the middleware)."""
-ANSWER_BURST = 1
-"""Answers sent back to back at most; then :data:`ANSWER_GAP_S` passes before the next ones.
-Fast DDS sends a service's answer to the answer reader of every client of the service (each
-client keeps its own and drops the others when it takes them), and a client's reader keeps
-only its last ``depth`` (default 10) answers: a burst of 50 answers overwrote the answer of
-a client that had not taken it yet -- lost without an error on either side (issue 32 item
-1; a client with depth 100 got all 50).  Paced at one answer per :data:`ANSWER_GAP_S`, 50
-clients in one single-threaded rclpy process got all 50 (4 per 10 ms: 19 of 50).  A
-single call is answered at once."""
 ANSWER_GAP_S = 0.01
-"""Pause after :data:`ANSWER_BURST` answers (see there)."""
+"""Shortest pause between two answers of a service while more are waiting (a single call is
+answered at once).  Fast DDS sends a service's answer to the answer reader of *every*
+client of the service (each client keeps its own and drops the others when it takes them),
+and a client's reader keeps only its last ``depth`` (default 10) answers: a burst of 50
+answers overwrote the answer of a client that had not taken it yet -- lost without an error
+on either side (issue 32 item 1; a client with depth 100 got all 50)."""
+ANSWER_GAP_PER_CLIENT_S = 0.002
+"""The pause grows with the service's clients (:data:`ANSWER_GAP_S` at least): a process
+holding many clients takes one sample per client reader per executor round, so each answer
+costs every reader of that process a take; 50 clients in one single-threaded rclpy process
+under load lost answers at 10 ms (all answered at 100 ms)."""
 SWITCH_INTERVAL_S = 1e-4
 """Python's thread switch interval in the node process: bounds how long a core evaluation
 in one thread delays the publishing thread (the default, 5 ms, would delay kHz ticks)."""
@@ -109,7 +110,7 @@ class RigNode(Node):
         self._identify_busy = False
         qos = QoSProfile(depth=SERVICE_DEPTH)
         either = ReentrantCallbackGroup()  # each refuses with "busy" what it cannot run now
-        self._answers = _PacedAnswers(self._guard)
+        self._answers = _PacedAnswers(self, self._guard)
         # ~/balance callers queue (one executor thread at most waits for a run; the others
         # serve parameters and the other services) and share the result of the same request
         self._triggers = {name: self._answers.pace(self.create_service(
@@ -448,14 +449,16 @@ class RigNode(Node):
 
 class _PacedAnswers:
     """
-    Send the services' answers from a thread of their own, :data:`ANSWER_BURST` at a time.
+    Send the services' answers from a thread of their own, paced.
 
     :meth:`pace` replaces a service's ``send_response`` (what rclpy's executor calls with
     the callback's answer) by a queue: the executor's thread returns at once, this thread
-    sends the answers in order, pausing :data:`ANSWER_GAP_S` after each burst.
+    sends the answers in order, pausing between two while more are waiting
+    (:data:`ANSWER_GAP_S`, :data:`ANSWER_GAP_PER_CLIENT_S`).
     """
 
-    def __init__(self, guard):
+    def __init__(self, node, guard):
+        self._node = node
         self._guard = guard
         self._cond = threading.Condition()
         self._queue = deque()
@@ -472,22 +475,20 @@ class _PacedAnswers:
         return service
 
     def _run(self):
-        burst = 0
         while True:
             with self._cond:
                 while not self._queue:
-                    burst = 0
                     self._cond.wait()
                 service, response, header = self._queue.popleft()
+                more = bool(self._queue)
             try:
                 Service.send_response(service, response, header)
                 self.sent += 1
+                if more:
+                    clients = self._node.count_clients(service.service_name)
+                    time.sleep(max(ANSWER_GAP_S, ANSWER_GAP_PER_CLIENT_S * clients))
             except Exception as exc:  # noqa: BLE001 - a destroyed service: counted, go on
                 self._guard.caught('answering a service call', exc)
-            burst += 1
-            if burst >= ANSWER_BURST:
-                burst = 0
-                time.sleep(ANSWER_GAP_S)
 
 
 def _viz_recorder(path, url, scene, balanced):

@@ -484,6 +484,9 @@ class TickStats:
         self.skipped = 0
         self.withheld = 0   # samples with a non-finite value, never published
         self.late_max_s = 0.0
+        self.first_tick = None  # clock mode: the first tick index sent, the last one passed
+        self.last_tick = None
+        self.rebased = 0        # clock mode: schedules started again (a clock jump)
         self._times = deque(maxlen=STATS_WINDOW)
         self.batch_seconds = deque(maxlen=64)
         self.batch_sizes = deque(maxlen=64)
@@ -507,6 +510,8 @@ class TickStats:
                 'step_median_s': float(np.median(times)),
                 'step_p99_s': float(np.percentile(times, 99)),
                 'late_max_s': self.late_max_s,
+                'ticks_due': 0 if self.first_tick is None else
+                self.last_tick - self.first_tick + 1, 'rebased': self.rebased,
                 'prepare_per_sample_s': per_tick}
 
 
@@ -614,10 +619,12 @@ class Streamer:
         self._last_step = None
         if not keep_pending:  # a new mode, rate or speed: statistics start again
             self.stats = TickStats()
+        same_ticks = keep_pending and schedule is not None and schedule is self._schedule
         self._generation += 1
         self._mode, self._model, self._schedule = mode, model, schedule
         self._batches.clear()
-        self._next_k = None
+        if not same_ticks:   # a design switch goes on from the next tick: none left out
+            self._next_k = None
         if not keep_pending and self._pending:
             self.unanswered['discarded by a mode, rate or scene change'] += len(self._pending)
             self._pending.clear()
@@ -734,6 +741,7 @@ class Streamer:
             if due > now + schedule.period_ns + int(MAX_LAG_S * 1e9):
                 # the clock went back (e.g. a simulation restarted): start again from now
                 self._schedule = schedule.rebased(now)
+                self.stats.rebased += 1
                 self._next_k = None
                 self._batches.clear()
                 self._generation += 1
@@ -757,6 +765,7 @@ class Streamer:
                 return
             if late > CLOCK_JUMP_S:  # use_sim_time switched, a simulation resumed
                 self._schedule = schedule.rebased(now)
+                self.stats.rebased += 1
                 self._next_k = None
                 self._batches.clear()
                 self._generation += 1
@@ -782,6 +791,9 @@ class Streamer:
                 self._batches.append((k, payloads))
                 found = payloads[0]
         self._send(found)
+        if self.stats.first_tick is None:
+            self.stats.first_tick = k - self.stats.skipped   # skips before the first send
+        self.stats.last_tick = k
         self.stats.late_max_s = max(self.stats.late_max_s, late)
         with self._cond:
             if gen == self._generation:
