@@ -12,13 +12,14 @@ Real rclpy across processes (the helpers of ``test_node.py``); endpoints and ser
 waited for, never slept on; counts, never a rate or a time.
 """
 
+import json
 import os
 import random
 import sys
 import time
 
 from mech_balance.ros import description
-from mech_balance.ros import parameters as node_params
+from mech_balance.ros import node as rig_node, parameters as node_params
 import pytest
 import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -57,6 +58,10 @@ def rig(context):
         probe.destroy()
         log = process.stop()
         assert 'Traceback' not in log, log
+        line = [x for x in log.splitlines() if rig_node.STATS_TAG in x][-1]
+        answers = json.loads(line.split(rig_node.STATS_TAG, 1)[1])['answers']
+        print(f'answers: {answers}')
+        assert 'answering a service call' not in line.split(rig_node.STATS_TAG)[1]
 
 
 def _clients(probe, service, count):

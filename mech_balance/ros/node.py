@@ -38,6 +38,7 @@ import json
 import sys
 import threading
 import time
+import warnings
 
 from mech_balance import threads
 from mech_balance.ros import description, guard as guards, live
@@ -73,6 +74,13 @@ ANSWER_GAP_PER_CLIENT_S = 0.002
 holding many clients takes one sample per client reader per executor round, so each answer
 costs every reader of that process a take; 50 clients in one single-threaded rclpy process
 under load lost answers at 10 ms (all answered at 100 ms)."""
+ANSWER_TRIES = 100
+"""Sends of one answer before it is given up (counted): rmw_fastrtps waits 100 ms for the
+server to match a new client's answer reader, then rclpy only warns ``failed to send
+response (timeout)`` and drops the answer; the node turns that warning into an error
+(:data:`NOT_SENT`) and sends again later, so a client discovered late is still answered."""
+NOT_SENT = (RuntimeWarning, SystemError)
+"""What a send whose answer was dropped raises, once the warning is an error (``main``)."""
 SWITCH_INTERVAL_S = 1e-4
 """Python's thread switch interval in the node process: bounds how long a core evaluation
 in one thread delays the publishing thread (the default, 5 ms, would delay kHz ticks)."""
@@ -429,6 +437,7 @@ class RigNode(Node):
             f'follow mode: {follow["received"]} encoder samples received, {unanswered} not '
             'answered (' + (', '.join(f'{k}: {v}' for k, v in follow['unanswered'].items())
                             or 'none') + '); ')
+        stats['answers'] = {'sent': self._answers.sent, 'retried': self._answers.retried}
         rec = self._recording
         stats['recording'] = {'file': rec.file_status(), 'queued': rec.queued,
                               'logged': rec.logged, 'batches_dropped': rec.dropped}
@@ -463,13 +472,14 @@ class _PacedAnswers:
         self._cond = threading.Condition()
         self._queue = deque()
         self.sent = 0
+        self.retried = 0
         threading.Thread(target=self._run, name='rig-answers', daemon=True).start()
 
     def pace(self, service):
         """Route ``service``'s answers through the queue; return the service."""
         def send_response(response, header):
             with self._cond:
-                self._queue.append((service, response, header))
+                self._queue.append((service, response, header, 0))
                 self._cond.notify()
         service.send_response = send_response
         return service
@@ -479,16 +489,27 @@ class _PacedAnswers:
             with self._cond:
                 while not self._queue:
                     self._cond.wait()
-                service, response, header = self._queue.popleft()
+                service, response, header, tries = self._queue.popleft()
                 more = bool(self._queue)
             try:
                 Service.send_response(service, response, header)
                 self.sent += 1
-                if more:
-                    clients = self._node.count_clients(service.service_name)
-                    time.sleep(max(ANSWER_GAP_S, ANSWER_GAP_PER_CLIENT_S * clients))
+            except NOT_SENT as exc:  # the client's reader not matched yet: again, later
+                if tries + 1 >= ANSWER_TRIES:
+                    self._guard.caught('answering a service call', exc)
+                else:
+                    self.retried += 1
+                    with self._cond:
+                        self._queue.append((service, response, header, tries + 1))
+                    more = True
             except Exception as exc:  # noqa: BLE001 - a destroyed service: counted, go on
                 self._guard.caught('answering a service call', exc)
+            if more:
+                try:
+                    clients = self._node.count_clients(service.service_name)
+                except Exception:  # noqa: BLE001 - shutting down: the shortest pause
+                    clients = 0
+                time.sleep(max(ANSWER_GAP_S, ANSWER_GAP_PER_CLIENT_S * clients))
 
 
 def _viz_recorder(path, url, scene, balanced):
@@ -520,6 +541,8 @@ def main(args=None):
     context is not valid``); after a shutdown that is the shutdown, not a failure (exit 0).
     """
     sys.setswitchinterval(SWITCH_INTERVAL_S)
+    # an answer rclpy could not send (a client's reader not matched yet) raises: sent again
+    warnings.filterwarnings('error', message='failed to send response', category=RuntimeWarning)
     threads.return_large_blocks()  # a long-running node: big temporaries back at free
     try:
         threads.limit_blas_threads()
