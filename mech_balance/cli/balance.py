@@ -79,9 +79,10 @@ def add_weight_and_case(p, when=''):
     w1, w2 = defaults.DEFAULT_WEIGHTS
     p.add_argument('--weights', nargs=2, type=cli.weight, default=None, metavar=('W1', 'W2'),
                    help=f'{when}weights on the RMS normalized shaking force and shaking '
-                        f'moment, seed 001 eq. 43 (default: {w1:g} {w2:g}, seed 001 case (2))')
+                        f'moment, Chaudhary & Saha eq. 43 (default: {w1:g} {w2:g}, their '
+                        'case (2))')
     p.add_argument('--case', choices=defaults.CASES, default=None,
-                   help=f'{when}seed 001 sec. 4.1.2: a = point masses of any sign, b = '
+                   help=f'{when}Chaudhary & Saha sec. 4.1.2: a = point masses of any sign, b = '
                         f'non-negative point masses (counterweights) (default: {DEFAULT_CASE})')
 
 
@@ -91,18 +92,20 @@ def register(subparsers):
         'balance', help='optimal mass redistribution (SOCP, certified) or analytic force '
                         'balance of a scene',
         description='Redistribute the link masses of a planar scene to minimize '
-                    'w1 * RMS shaking force + w2 * RMS shaking moment (seed 001 eqs. 42-53) '
-                    'to a certified global optimum, or (--analytic) balance the shaking force '
-                    'completely (seed 000 eqs. 44-75, seed 001 eq. 48). Prints the design per '
-                    'link, the before/after RMS table, the duality-gap certificate and the '
-                    'solve time. RGGR scenes print the seed-002 balancing report.',
+                    'w1 * RMS shaking force + w2 * RMS shaking moment (Chaudhary & Saha '
+                    'eqs. 42-53) to a certified global optimum, or (--analytic) balance the '
+                    'shaking force completely (Sinatra & Angeles eqs. 44-75, Chaudhary & Saha '
+                    'eq. 48). Prints the design per link, the before/after RMS table, the '
+                    'duality-gap certificate and the solve time. RGGR scenes print the '
+                    'balancing-weight report of Hedaya. Papers: see README.md, "The papers".',
         formatter_class=_HelpFormatter)
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML file')
     add_weight_and_case(p)
     p.add_argument('--paper-constraints', action='store_true',
-                   help="reproduce seed 001's problem exactly (eqs. 50/53: masses in [1, 5] x "
-                        'original, l in [0.5, 1.5] x original, no realizability constraint)')
+                   help="reproduce Chaudhary & Saha's problem exactly (eqs. 50/53: masses "
+                        'in [1, 5] x original, l in [0.5, 1.5] x original, no realizability '
+                        'constraint)')
     p.add_argument('--no-realizable', action='store_true',
                    help='drop the realizability constraint (centroidal inertia >= margin x I_O)')
     p.add_argument('--margin', type=float, default=defaults.CENTROIDAL_MARGIN,
@@ -132,11 +135,12 @@ def register(subparsers):
                                                       'conventions.MAX_SAMPLES'), default=None,
                    help="crank angles per revolution (default: the scene's, usually 360)")
     p.add_argument('--analytic', action='store_true',
-                   help='analytic complete force balance instead: slider-crank (seed 000 eqs. '
-                        '44-75) or four-bar (Berkof-Lowen, seed 001 eq. 48)')
+                   help='analytic complete force balance instead: slider-crank (Sinatra & '
+                        'Angeles eqs. 44-75) or four-bar (Berkof-Lowen, Chaudhary & Saha '
+                        'eq. 48)')
     p.add_argument('--mass-factor', type=float, action='append', default=None, metavar='K',
                    help='--analytic four-bar: crank and rocker masses K x original '
-                        '(repeatable; default 1, 2 and 5 as in seed 001 Table 3)')
+                        '(repeatable; default 1, 2 and 5 as in Chaudhary & Saha Table 3)')
     p.add_argument('--keep-centroidal', action='store_true',
                    help='--analytic four-bar: keep the centroidal inertias (always realizable) '
                         'instead of the point-mass distance l (the paper)')
@@ -173,15 +177,15 @@ def register(subparsers):
                         "of the link's origin (a convex constraint of the program; default: "
                         'no bound)' + _range('max_rim_radius_factor'))
     p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
-                   help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
-                        'with two point masses per link at 0 and 90 deg, and print the '
+                   help='two-point: also solve Chaudhary & Saha Appendix B (eqs. B.1-B.3, '
+                        'Table 12) with two point masses per link at 0 and 90 deg, and print the '
                         "certified bounds next to the paper's rows")
     p.add_argument('--method', choices=SPATIAL_METHODS, default='auto',
                    help='spatial rigs (body kinematics: the RGGR, kind spatial): weights (the '
-                        "RGGR's seed-002 weights, its default), force-balance (the null space "
-                        'of the shaking force: conditions and the least-change design), '
-                        'redistribution (certified, every body a PSD pseudo-inertia; the '
-                        'default of kind spatial), counterweights (add-only spheres, with '
+                        "RGGR's balancing weights of Hedaya, its default), force-balance (the "
+                        'null space of the shaking force: conditions and the least-change '
+                        'design), redistribution (certified, every body a PSD pseudo-inertia; '
+                        'the default of kind spatial), counterweights (add-only spheres, with '
                         '--counterweights LINKS)')
     p.add_argument('--extent-factor', type=float, default=1.5, metavar='F',
                    help="spatial redistribution: RMS distance of each body's mass from its "
@@ -245,9 +249,9 @@ def _check_options(args):
                          f'--counterweights LINK[,LINK...] or no {given_cw[0]}')
     if args.model != 'three-point' and (args.analytic or args.paper_constraints or
                                         args.torque_weight or args.reaction_weight):
-        raise ValueError('--model two-point: seed 001 eqs. B.1-B.3 have their own bounds and '
-                         'weights w1, w2 only; expected no --analytic, --paper-constraints, '
-                         '--torque-weight or --reaction-weight with it')
+        raise ValueError('--model two-point: Chaudhary & Saha eqs. B.1-B.3 have their own '
+                         'bounds and weights w1, w2 only; expected no --analytic, '
+                         '--paper-constraints, --torque-weight or --reaction-weight with it')
     ignored = _given(args, OPTIMIZE_OPTIONS if args.analytic else ANALYTIC_OPTIONS)
     if ignored and args.analytic:
         raise ValueError(f'{ignored[0]} applies to the optimization, not to --analytic; '
@@ -653,7 +657,7 @@ def _weights(sc, args):
     from mech_balance.balancing import rggr_report
     from mech_balance.core.rig import rig_for
     if args.output:
-        raise ValueError('--output: the balancing weights of seed 002 are reported, not '
+        raise ValueError('--output: the balancing weights (Hedaya) are reported, not '
                          'written as a scene; expected no --output for a scene balanced by '
                          'weights')
     design = front.balance(rig_for(sc), 'weights', samples=args.samples)

@@ -169,8 +169,8 @@ def build_parser():
     p.add_argument('--samples', type=_samples, default=None,
                    help="crank angles per revolution (default: the scene's, usually 360)")
     p.add_argument('--design', type=_design, default=None, metavar='X1,X2,...',
-                   help='evaluate a seed-001 design vector [m_i1,m_i2,m_i3,l_i1 per link]; '
-                        'normalized units if the scene records a normalization, else SI; '
+                   help='evaluate a Chaudhary & Saha design vector [m_i1,m_i2,m_i3,l_i1 per '
+                        'link]; normalized units if the scene records a normalization, else SI; '
                         'write --design=-3.5,2.3,... when it starts with a minus sign')
     p.add_argument('--json', action='store_true', help='print the table as JSON')
     p.set_defaults(func=cmd_analyze)

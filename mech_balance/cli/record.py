@@ -51,8 +51,8 @@ def register(subparsers):
                        help='balanced scene file: the same geometry with other inertias '
                             '(e.g. written by `mech-balance balance --output`)')
     which.add_argument('--balance', action='store_true',
-                       help='balance the scene first: seed 001 optimization for planar '
-                            'scenes (mech_balance.balancing.optimize), seed 002 force '
+                       help='balance the scene first: Chaudhary & Saha optimization for planar '
+                            'scenes (mech_balance.balancing.optimize), Hedaya force '
                             'balance and minimum RMS shaking moment for the RGGR')
     which.add_argument('--counterweights', default=None, metavar='LINK[,LINK...]',
                        help='balance the scene first with add-only counterweight discs on '
@@ -85,11 +85,11 @@ def balanced_design(sc, weights=defaults.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     method = front.method_for(rig)
     if method == 'weights':
         return (front.balance(rig, method).scene,
-                'seed 002 complete force balance with the minimum RMS shaking moment '
+                'Hedaya complete force balance with the minimum RMS shaking moment '
                 '(mech_balance.balancing.rggr.balance_scene)')
     design = front.balance(rig, method, weights=tuple(weights), case=case)
     return (design.scene,
-            f'seed 001 optimum, (w1, w2) = ({weights[0]:g}, {weights[1]:g}), case {case} '
+            f'Chaudhary & Saha optimum, (w1, w2) = ({weights[0]:g}, {weights[1]:g}), case {case} '
             '(mech_balance.balancing.optimize)')
 
 

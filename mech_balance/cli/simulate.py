@@ -42,11 +42,12 @@ def register(sub):
     """Add the ``simulate`` and ``accuracy`` parsers to the ``mech-balance`` subparsers."""
     p = sub.add_parser(
         'simulate', help='forward dynamics: start-up and steady state with motor and damping',
-        description='Integrate the equation of motion of a planar rig (seed 000 eq. 39) with '
-                    "the scene's drive: section (DC motor line, PI speed controller, joint "
-                    'damping; gravity from gravity_m_s2). Prints the method used and why, '
-                    'crank speed ripple, driving torque and shaking wrench over time, and '
-                    'the energy balance. A scene without a drive coasts from its crank speed.')
+        description='Integrate the equation of motion of a planar rig (Sinatra & Angeles '
+                    "eq. 39) with the scene's drive: section (DC motor line, PI speed "
+                    'controller, joint damping; gravity from gravity_m_s2). Prints the '
+                    'method used and why, crank speed ripple, driving torque and shaking '
+                    'wrench over time, and the energy balance. A scene without a drive coasts '
+                    'from its crank speed.')
     p.add_argument('--scene', default='slider_crank',
                    help='built-in scene name or path to a YAML file (default: %(default)s)')
     p.add_argument('--duration', type=_positive_float, required=True, metavar='T',
