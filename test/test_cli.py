@@ -38,6 +38,31 @@ def test_every_verb_has_help(capsys):
         assert out.startswith(f'usage: mech-balance {verb}'), verb
 
 
+def test_help_texts_say_what_the_code_does(capsys):
+    """record: --case is refused with --counterweights, the timeline the viewer opens."""
+    from mech_balance.viz.drawing import DEGREE_TIMELINE
+    with pytest.raises(SystemExit):
+        cli.main(['record', '--help'])
+    text = ' '.join(capsys.readouterr().out.split())
+    case_help = text.split('--case {a,b}', 2)[2].split('--cycles')[0].strip()
+    assert case_help.startswith('with --balance (planar) only:') and \
+        '--counterweights' not in case_help
+    assert f'timelines {DEGREE_TIMELINE} ' in text
+    assert 'seed 00' not in text and 'conventions.' not in text
+    assert cli.main(['record', '--scene', 'hoeken', '--counterweights', 'crank', '--case', 'b',
+                     '--out', 'x.rrd']) == cli.EXIT_USAGE
+    assert '--case applies with --balance only' in capsys.readouterr().err
+
+
+def test_option_limits_are_said_without_internal_names(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['record', '--cycles', '1000', '--out', 'x.rrd'])
+    assert exc.value.code == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert 'expected an integer <= 100 (a fixed limit of mech_balance)' in err
+    assert 'conventions' not in err
+
+
 def test_analyze_normalized_prints_table4_row(capsys):
     assert cli.main(['analyze', '--scene', 'hoeken', '--normalized']) == 0
     out = capsys.readouterr().out

@@ -69,21 +69,24 @@ def _dest(option):
     return option.lstrip('-').replace('-', '_')
 
 
-def add_weight_and_case(p, when=''):
+def add_weight_and_case(p, when='', case_when=None):
     """
     Add ``--weights W1 W2`` and ``--case a|b`` (default None: the caller applies the defaults).
 
-    ``when`` prefixes the help texts (e.g. ``'with --balance (planar): '``).  The weights
+    ``when`` prefixes the help texts (e.g. ``'with --balance (planar): '``), ``case_when``
+    the help of ``--case`` when it applies in fewer cases (default: ``when``).  The weights
     are checked where they are used, by :func:`mech_balance.balancing.optimize`.
     """
+    case_when = when if case_when is None else case_when
     w1, w2 = defaults.DEFAULT_WEIGHTS
     p.add_argument('--weights', nargs=2, type=cli.weight, default=None, metavar=('W1', 'W2'),
                    help=f'{when}weights on the RMS normalized shaking force and shaking '
                         f'moment, Chaudhary & Saha eq. 43 (default: {w1:g} {w2:g}, their '
                         'case (2))')
     p.add_argument('--case', choices=defaults.CASES, default=None,
-                   help=f'{when}Chaudhary & Saha sec. 4.1.2: a = point masses of any sign, b = '
-                        f'non-negative point masses (counterweights) (default: {DEFAULT_CASE})')
+                   help=f'{case_when}Chaudhary & Saha sec. 4.1.2: a = point masses of any '
+                        'sign, b = non-negative point masses (counterweights) (default: '
+                        f'{DEFAULT_CASE})')
 
 
 def register(subparsers):
@@ -132,7 +135,7 @@ def register(subparsers):
     p.add_argument('--fix', action='append', default=[], metavar='LINK',
                    help='keep this link as it is (repeatable)')
     p.add_argument('--samples', type=cli.int_at_least(4, conventions.MAX_SAMPLES,
-                                                      'conventions.MAX_SAMPLES'), default=None,
+                                                      cli.FIXED_LIMIT), default=None,
                    help="crank angles per revolution (default: the scene's, usually 360)")
     p.add_argument('--analytic', action='store_true',
                    help='analytic complete force balance instead: slider-crank (Sinatra & '

@@ -91,13 +91,15 @@ def number_between(lowest, highest, limit=None):
     return parse
 
 
+FIXED_LIMIT = 'a fixed limit of mech_balance'
+"""What an option's range error says of a limit no option or field raises."""
 positive_int = int_at_least(1)
 """An argparse ``type``: an integer >= 1."""
-cycles = int_at_least(1, conventions.MAX_CYCLES, 'conventions.MAX_CYCLES')
+cycles = int_at_least(1, conventions.MAX_CYCLES, FIXED_LIMIT)
 """An argparse ``type``: crank turns, 1 <= n <= MAX_CYCLES."""
-repeats = int_at_least(1, conventions.MAX_REPEAT, 'conventions.MAX_REPEAT')
+repeats = int_at_least(1, conventions.MAX_REPEAT, FIXED_LIMIT)
 """An argparse ``type``: timed runs of a benchmark, 1 <= n <= MAX_REPEAT."""
-weight = number_between(0.0, conventions.MAX_WEIGHT, 'conventions.MAX_WEIGHT')
+weight = number_between(0.0, conventions.MAX_WEIGHT, FIXED_LIMIT)
 """An argparse ``type``: an objective weight, 0 <= w <= MAX_WEIGHT."""
 
 
@@ -131,7 +133,7 @@ def _add_scene(p):
                         'file (default: %(default)s)')
 
 
-_samples = int_at_least(4, conventions.MAX_SAMPLES, 'conventions.MAX_SAMPLES')
+_samples = int_at_least(4, conventions.MAX_SAMPLES, FIXED_LIMIT)
 
 
 def _design(text):
@@ -145,7 +147,7 @@ def _design(text):
     if max(abs(v) for v in values) > MAX_ABS_VALUE:  # the magnitude limit of scene files
         raise argparse.ArgumentTypeError(
             f'got {text!r}, expected numbers of magnitude <= {MAX_ABS_VALUE:g} '
-            '(scene.MAX_ABS_VALUE)')
+            '(the limit of numbers in scene files)')
     return values
 
 

@@ -25,7 +25,7 @@ def _positive_float(text):
     return value
 
 
-_rows = cli.int_at_least(2, conventions.MAX_TABLE_ROWS, 'conventions.MAX_TABLE_ROWS')
+_rows = cli.int_at_least(2, conventions.MAX_TABLE_ROWS, cli.FIXED_LIMIT)
 
 
 def _sections(text):

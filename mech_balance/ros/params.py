@@ -115,8 +115,8 @@ def _weights(value):
     """Accept [w1, w2] >= 0, not both 0 (weights of the RMS shaking force and moment)."""
     if len(value) != 2 or not all(math.isfinite(v) and 0.0 <= v <= MAX_WEIGHT for v in value):
         raise ValueError(f'balance.weights: got {list(value)}, expected [w1, w2] with '
-                         f'0 <= w1, w2 <= {MAX_WEIGHT:g} (seed 001 eq. 43; '
-                         'conventions.MAX_WEIGHT)')
+                         f'0 <= w1, w2 <= {MAX_WEIGHT:g} (Chaudhary & Saha '
+                         'eq. 43; the upper bound is fixed)')
     if value[0] + value[1] == 0.0:
         raise ValueError('balance.weights: got [0, 0], expected at least one positive weight')
 
