@@ -16,6 +16,8 @@ from mech_balance.cli import jsonout
 from mech_balance.schema.fields import MAX_ABS_VALUE
 
 EXIT_USAGE = 2
+EXIT_BENCH_FAILED = 3
+"""Exit status of ``mech-balance bench`` when a table printed a FAIL verdict."""
 EXIT_INTERRUPTED = 130
 SCENE_NAME_WIDTH = 18
 """``mech-balance scenes``: width of the name column; the description wraps after it."""
@@ -244,19 +246,31 @@ def cmd_bench(args):
     if unknown:
         raise ValueError(f'--section: got {unknown[0]!r}, expected core or one of '
                          f'{", ".join(names)}')
+    from mech_balance.bench import settle
     progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
+    printed = []
     if wanted is None or 'core' in wanted:
         print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} '
               f'warm-up runs, {args.samples} crank angles per cycle', flush=True)
         rows = bench.run(args.scene, args.samples, args.repeat, progress=progress)
-        print(bench.format_rows(rows), flush=True)
+        printed.append(bench.format_rows(rows))
+        print(printed[-1], flush=True)
     import importlib
     for short, name in names.items():
         if wanted is not None and short not in wanted:
             continue
         module, _, function = name.partition(':')
         print()
-        print(getattr(importlib.import_module(module), function)(args, progress), flush=True)
+        if printed:   # not in the wake of the previous section
+            print(f'{short}: {settle.settle()}', flush=True)
+        printed.append(getattr(importlib.import_module(module), function)(args, progress))
+        print(printed[-1], flush=True)
+    failed = settle.failures('\n'.join(printed))
+    if failed:
+        print(f'mech-balance bench: {len(failed)} target(s) FAILED:', file=sys.stderr)
+        for line in failed:
+            print(f'  {line}', file=sys.stderr)
+        return EXIT_BENCH_FAILED
     return 0
 
 
