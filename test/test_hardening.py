@@ -334,7 +334,8 @@ def test_class7_design_values_have_the_scene_magnitude_limit(capsys):
             cli.main(['analyze', f'--design={value},' + ','.join(['1'] * 11)])
         assert exc.value.code == cli.EXIT_USAGE
         err = capsys.readouterr().err
-        assert 'argument --design:' in err and 'magnitude <= 1e+18 (the limit of numbers in scene files)' in err
+        assert 'argument --design:' in err and \
+            'magnitude <= 1e+18 (the limit of numbers in scene files)' in err
     sc = scene.load('hoeken')
     with pytest.raises(ValueError, match=r'^design: got 1e\+200, expected magnitudes <= 1e\+18'):
         equimomental.apply_design(sc, [1e200] + [1.0] * 11, normalized=True)
