@@ -162,7 +162,7 @@ def test_yaml_file_errors(tmp_path):
                                             ('Carpet_Scraper', 'carpet_scraper')])
 def test_a_misspelled_scene_name_suggests_the_nearest(typed, nearest):
     with pytest.raises(scene.SceneError, match=f"got '{typed}', expected a built-in scene "
-                                               rf".* or a path to a \.yaml file; did you mean "
+                                               r'.* or a path to a \.yaml file; did you mean '
                                                f"'{nearest}'\\?$"):
         scene.load(typed)
 
