@@ -127,7 +127,8 @@ def info_text(layout, scene, data, samples, balanced_source):
     if any((layout.changes or {}).values()):
         lines.append("* A thin line in a link's colour from the link to a dot, labelled "
                      "+/- kg: where the design moved that link's mass centre, and the mass it "
-                     "added (+) or removed (-) there ('moved, 0 kg': its mass kept).")
+                     "added (+) or removed (-) there ('moved 214 mm': its mass kept, only moved "
+                     'that far).')
     if layout.on('point_masses'):
         lines.append('* Blue and red discs: the three equimomental point masses of each link '
                      '(seed 001 eqs. 13-15); disc area proportional to the mass, light '
