@@ -349,7 +349,7 @@ PARAMETERS = (
          'evaluated per sample anyway).'),
     Spec('balance.weights', DOUBLE_ARRAY, list(balancing.DEFAULT_WEIGHTS),
          'Weights [w1, w2] of the RMS shaking force and moment in the balancing objective '
-         '(seed 001 eq. 43; mech-balance balance --weights).', check=_weights,
+         '(Chaudhary & Saha eq. 43; mech-balance balance --weights).', check=_weights,
          rule='two numbers >= 0, not both 0'),
     Spec('balance.case', STRING, 'a',
          'a: point masses of any sign; b: non-negative point masses (counterweights).',
@@ -361,7 +361,7 @@ PARAMETERS = (
          'Realizability margin: centroidal inertia >= margin x inertia about the link '
          'origin.', bounds=(0.0, MAX_MARGIN)),
     Spec('balance.paper_constraints', BOOL, False,
-         "Solve exactly seed 001 eqs. 50/53 (the paper's bounds, no realizability); other "
+         "Solve exactly Chaudhary & Saha eqs. 50/53 (the paper's bounds, no realizability); other "
          'bound options must keep their defaults.'),
     Spec('balance.mass_factors', DOUBLE_ARRAY, list(balancing.PAPER_MASS_FACTORS),
          'Link mass bounds [low, high] as factors of the original link mass (eq. 50b).',
@@ -399,12 +399,12 @@ PARAMETERS = (
          '(RGGR: 360).', bounds=(0, MAX_SAMPLES), check=_samples,
          rule='0 or >= 4'),
     Spec('balance.method', STRING, 'redistribution',
-         'redistribution: the certified optimal mass redistribution (seed 001); '
+         'redistribution: the certified optimal mass redistribution (Chaudhary & Saha); '
          'counterweights: add-only discs on balance.counterweight_links (certified); '
-         'analytic: complete force balance in closed form (slider-crank: seed 000, '
-         'four-bar: seed 001 eq. 48). A scene that cannot be redistributed (the closed-form '
-         'rggr scene) is balanced by its own method (weights) with the default; spatial '
-         'scenes, rggr_spatial included, are redistributed.', choices=METHODS),
+         'analytic: complete force balance in closed form (slider-crank: Sinatra & Angeles, '
+         'four-bar: Chaudhary & Saha eq. 48). A scene that cannot be redistributed (the '
+         'closed-form rggr scene) is balanced by its own method (weights) with the default; '
+         'spatial scenes, rggr_spatial included, are redistributed.', choices=METHODS),
     Spec('balance.counterweight_links', STRING, '',
          'Counterweights: comma-separated links that each gain one disc (e.g. '
          '"crank,rocker"); needed by balance.method counterweights.',

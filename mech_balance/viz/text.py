@@ -87,7 +87,7 @@ def info_text(layout, scene, data, samples, balanced_source):
                     text += f' {fmt(float(f(r["balanced"])))} |'
             lines.append(text)
         lines += ['', 'True RMS (mech_balance.conventions); normalized by m1, a1, omega '
-                  '(seed 001 sec. 3.4).' if norm is not None else
+                  '(Chaudhary & Saha sec. 3.4).' if norm is not None else
                   'True RMS (mech_balance.conventions).']
     else:
         lines.append('No RMS table: the scene asks for kinematics only.')
@@ -131,7 +131,7 @@ def info_text(layout, scene, data, samples, balanced_source):
                      'that far).')
     if layout.on('point_masses'):
         lines.append('* Blue and red discs: the three equimomental point masses of each link '
-                     '(seed 001 eqs. 13-15); disc area proportional to the mass, light '
+                     '(Chaudhary & Saha eqs. 13-15); disc area proportional to the mass, light '
                      'positive, pink negative.')
     if layout.on('shaking_force_arrow'):
         lines.append(f'* Red arrow in the gauge beside the rig: the shaking force on the frame; '
