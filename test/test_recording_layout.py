@@ -560,3 +560,23 @@ def test_a_3d_rig_is_framed_on_its_own_grid(tmp_path):
     px = screen.px(drawn)
     w, h = screen.size_px
     assert np.all((px >= -EDGE_TOL_PX) & (px <= np.array([w, h]) + EDGE_TOL_PX))
+
+
+def test_a_prismatic_input_reads_its_slide_and_driving_force(tmp_path):
+    """pssr_skew's input slides: each view reads the slide (mm) and its design's force."""
+    from mech_balance.schema.spatial import stroke_law
+    sc = scene_mod.load('pssr_skew')
+    bal, source = cli_record.balanced_design(sc)
+    path = tmp_path / 'pssr.rrd'
+    recording.record(path, sc, bal, samples=36, balanced_source=source)
+    ent = recording.read_recording(path)
+    psi = recording.turn_angles(36, sc.crank_speed_rad_s)
+    for v, design in (('original', sc), ('balanced', bal)):
+        force = rig_for(design).at(psi, outputs=('driving_torque',)).series['driving_force']
+        labels = ent[f'/{v}/labels'].columns
+        rows = labels[next(c for c in labels if c.endswith(':labels'))]
+        for k, row in enumerate(rows):
+            slide = stroke_law(sc.crank_stroke_m, psi[k])[0]
+            want = f'slide {slide * 1e3:.1f} mm, force {force[k]:+.3g} N'
+            assert want in row, (v, k, row)
+            assert not any(t.startswith('crank ') for t in row)

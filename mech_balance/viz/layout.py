@@ -536,9 +536,34 @@ def moved_text(layout, variant, i):
     return f'moved {moved * 1e3:.0f} mm'
 
 
+def slide_readout(stroke_m, motion, variant):
+    """
+    Return the readout of a prismatic input: ``deg -> 'slide 30.0 mm, force +12.3 N'``.
+
+    The slide follows the input's stroke law at the cycle angle; the driving force is the
+    design's at the recorded samples (a live view's new angles show the slide alone).
+    """
+    from mech_balance.schema.spatial import stroke_law
+    data = (motion.data or {}).get(variant)
+    force = getattr(data, 'series', {}).get('driving_force') if data is not None else None
+    at = {} if force is None else {round(float(d), 9): float(f)
+                                   for d, f in zip(motion.degrees, force)}
+
+    def text(deg):
+        slide = float(stroke_law(stroke_m, math.radians(deg))[0])
+        f = at.get(round(float(deg), 9))
+        return f'slide {slide * 1e3:.1f} mm' + ('' if f is None else f', force {f:+.3g} N')
+    return text
+
+
 def label_specs(layout, motion):
     """Return the labels of a rig view, most important first."""
-    specs = [Label(lambda deg: f'crank {deg:.1f} deg', READOUT_COLOR, 'readout')]
+    stroke = getattr(layout.rigs['original'].scene, 'crank_stroke_m', None)
+    if stroke is None:
+        specs = [Label(lambda deg: f'crank {deg:.1f} deg', READOUT_COLOR, 'readout')]
+    else:   # a prismatic input: its slide and the driving force of each design
+        specs = [Label(slide_readout(stroke, motion, v), READOUT_COLOR, 'readout', 0, (v,))
+                 for v in layout.variants]
     if layout.scale_bar is not None:
         specs.append(Label(layout.scale_bar[1], SCALE_COLOR, 'scale'))
     if layout.on('shaking_force_arrow') or layout.on('shaking_moment_arc'):
