@@ -189,7 +189,7 @@ OPTIONS = (
            rule='two numbers >= 0, not both 0', to_option=_tuple,
            cli={'nargs': 2, 'metavar': ('W1', 'W2')},
            flag_help='weights on the RMS normalized shaking force and shaking moment, '
-                     'Chaudhary & Saha eq. 43 (the default is their case (2))'),
+                     'Chaudhary & Saha eq. 43; their case (2) is the default'),
     Option('case', 'balance.case', '--case', STRING, d.DEFAULT_CASE,
            'a: point masses of any sign; b: non-negative point masses (counterweights).',
            methods=REDISTRIBUTION, choices=d.CASES,
