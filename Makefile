@@ -20,18 +20,27 @@ venv: $(STAMP)  ## Create .venv with the pinned requirements and the package (ed
 # --use-pep517 makes the editable install a PEP 660 wheel, so pip puts the console scripts
 # (mech-balance, rig_node) in .venv/bin whatever setup.cfg says for `setup.py develop`.
 # --no-build-isolation builds with the pinned setuptools/wheel already in .venv.
+# pip prints each package as it collects and installs it (the first install fills .venv with
+# about 1.3 GB and takes a few minutes).
 $(STAMP): requirements.txt setup.py
+	@echo '== creating $(VENV) and installing the pinned requirements (first time: a few minutes)'
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(PIP) install --quiet -r requirements.txt
-	$(PIP) install --quiet --no-deps --no-build-isolation --use-pep517 -e .
+	$(PIP) install --progress-bar on -r requirements.txt
+	@echo '== installing mech_balance (editable) into $(VENV)'
+	$(PIP) install --progress-bar on --no-deps --no-build-isolation --use-pep517 -e .
 	touch $@
+	@echo '== $(VENV) is ready'
 
 # The main job: the analysis table of the default scene, an original-vs-balanced recording,
-# then the rig node on the default scene (it says what it publishes; Ctrl-C stops it).
+# then the rig node on the default scene (it logs what it publishes; the line printed before
+# it says that Ctrl-C stops it).
 run: export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 run: venv  ## Install everything and run the main job.
+	@echo "== 1/3 the shaking of Hoeken's four-bar over one revolution"
 	$(BIN)/mech-balance analyze --scene hoeken
+	@echo '== 2/3 an original-vs-balanced recording (open it with: rerun recordings/hoeken.rrd)'
 	$(BIN)/mech-balance record --scene hoeken --balance --out recordings/hoeken.rrd
+	@echo '== 3/3 the rig node on hoeken, publishing until you press Ctrl-C'
 	$(BIN)/rig_node --ros-args --params-file config/rig_params.yaml
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST

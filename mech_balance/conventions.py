@@ -76,11 +76,11 @@ def check_samples(samples, field='samples', links=1):
         raise ValueError(f'{field}: got {count}, expected an integer >= 1')
     if count > MAX_SAMPLES:
         raise ValueError(f'{field}: got {count}, expected at most {MAX_SAMPLES} crank angles '
-                         'per revolution (conventions.MAX_SAMPLES)')
+                         'per revolution (a fixed limit of mech_balance)')
     if count * max(int(links), 1) > MAX_LINK_SAMPLES:
         raise ValueError(f'{field}: got {count} crank angles x {int(links)} moving links = '
                          f'{count * int(links)}, expected at most {MAX_LINK_SAMPLES} '
-                         '(conventions.MAX_LINK_SAMPLES); use fewer samples')
+                         '(a fixed limit of mech_balance); use fewer samples')
     return count
 
 

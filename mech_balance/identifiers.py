@@ -30,7 +30,7 @@ def _length(value, field):
         raise ValueError(f'{field}: got {_show(value)}, expected text')
     if len(value) > MAX_NAME_LENGTH:
         raise ValueError(f'{field}: got a name of {len(value)} characters, expected at most '
-                         f'{MAX_NAME_LENGTH} (conventions.MAX_NAME_LENGTH)')
+                         f'{MAX_NAME_LENGTH} (a fixed limit of mech_balance)')
 
 
 def check_frame_id(value, field='frame_id'):

@@ -110,6 +110,54 @@ def test_compare_exits_1_when_the_models_disagree(worst, status, monkeypatch, ca
     assert ('the models disagree' in capsys.readouterr().err) == bool(status)
 
 
+@pytest.mark.parametrize('report, status', [('growth -> PASS', 0), ('growth -> FAIL', 3)])
+def test_compare_exits_non_zero_on_a_failed_target(report, status, monkeypatch, capsys):
+    from mech_balance.bench import mujoco as bench_mujoco, mujoco_spatial
+    monkeypatch.setattr(bench_mujoco, 'import_mujoco', lambda: None)
+    result = {'agreement_imposed': {'shaking force': 1e-15},
+              'agreement_own': {'shaking force': 1e-15}}
+    monkeypatch.setattr(bench_mujoco, 'run', lambda *a, **k: (result, [result], [], 'x'))
+    monkeypatch.setattr(bench_mujoco, 'format_report', lambda *a, **k: report)
+    monkeypatch.setattr(mujoco_spatial, 'run', lambda *a, **k: [])
+    monkeypatch.setattr(mujoco_spatial, 'format_report', lambda *a, **k: '')
+    assert cli.main(['bench', '--compare', 'mujoco']) == status
+    assert ('target(s) FAILED:\n  growth -> FAIL' in capsys.readouterr().err) == bool(status)
+
+
+def test_interleaved_rounds_time_every_function_in_each_round():
+    from mech_balance.bench import mujoco as bench_mujoco
+    calls = []
+    fns = [(lambda: calls.append('a'), 10), (lambda: calls.append('b'), 5)]
+    rounds = bench_mujoco.interleaved_rounds(fns, rounds=5, warmup=1)
+    assert [len(r) for r in rounds] == [5, 5]
+    # warm-up, then per round: a (1 warm + 2 timed), b (1 warm + 1 timed), alternating
+    assert calls[:2] == ['a', 'b']
+    assert calls[2:] == (['a'] * 3 + ['b'] * 2) * 5
+    assert bench_mujoco.spread([1.0, 2.0, 3.0]) == 1.0
+
+
+def test_growth_exponent_prints_its_rounds():
+    from mech_balance.bench import mujoco as bench_mujoco
+    keys = ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse', 'mj_dyn')
+    quantities = ('driving torque', 'shaking force', 'shaking moment')
+
+    def result(links, us):
+        rounds = [us * f for f in (0.9, 1.0, 1.0, 1.1, 1.0)]
+        return {'scene': f'dyad_chain_{links}', 'links': links, 'joints': links + 1,
+                'loops': 1, 'samples': 24, 'repeats': (5, 5),
+                'agreement_imposed': dict.fromkeys(quantities, 1e-15),
+                'agreement_own': dict.fromkeys(quantities, 1e-15), 'cut_forces': 1e-15,
+                'positions': 0.0, 'mujoco_residual': 0.0, 'mujoco_iterations': 1.0,
+                'ours_residual': 0.0, 'ours_cond': 1.0, 'ours_iterations': 1.0,
+                'us': dict.fromkeys(keys, us),
+                'us_rounds': dict.fromkeys(keys, rounds)}
+    small, large = result(3, 1.0), result(39, 9.0)
+    text = bench_mujoco.format_report(small, [small, large], 'test')
+    assert 'growth exponent 4 -> 40 links (cost ~ links^e): mech_balance full 0.95' in text
+    assert 'median of 5 round medians' in text and 'its 5 rounds 0.95 to 0.95' in text
+    assert 'timings spread up to 20 %' in text
+
+
 def _spatial_result(name, driving_series):
     """Return a :func:`mujoco_spatial.compare` result of made-up figures (no MuJoCo run)."""
     quantities = ('joint motion', 'driving torque', 'shaking force', 'shaking moment')

@@ -38,6 +38,31 @@ def test_every_verb_has_help(capsys):
         assert out.startswith(f'usage: mech-balance {verb}'), verb
 
 
+def test_help_texts_say_what_the_code_does(capsys):
+    """record: --case is refused with --counterweights, the timeline the viewer opens."""
+    from mech_balance.viz.drawing import DEGREE_TIMELINE
+    with pytest.raises(SystemExit):
+        cli.main(['record', '--help'])
+    text = ' '.join(capsys.readouterr().out.split())
+    case_help = text.split('--case {a,b}', 2)[2].split('--cycles')[0].strip()
+    assert case_help.startswith('with --balance (planar) only:') and \
+        '--counterweights' not in case_help
+    assert f'timelines {DEGREE_TIMELINE} ' in text
+    assert 'seed 00' not in text and 'conventions.' not in text
+    assert cli.main(['record', '--scene', 'hoeken', '--counterweights', 'crank', '--case', 'b',
+                     '--out', 'x.rrd']) == cli.EXIT_USAGE
+    assert '--case applies with --balance only' in capsys.readouterr().err
+
+
+def test_option_limits_are_said_without_internal_names(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['record', '--cycles', '1000', '--out', 'x.rrd'])
+    assert exc.value.code == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert 'expected an integer <= 100 (a fixed limit of mech_balance)' in err
+    assert 'conventions' not in err
+
+
 def test_analyze_normalized_prints_table4_row(capsys):
     assert cli.main(['analyze', '--scene', 'hoeken', '--normalized']) == 0
     out = capsys.readouterr().out
@@ -295,6 +320,41 @@ def test_balance_and_record_share_the_default_weights(monkeypatch, tmp_path, cap
 
 
 # ----------------------------------------------------------------------------- bench
+
+
+@pytest.mark.parametrize('tables, status', [
+    (('a -> PASS', 'b: 1.0 us'), 0), (('a -> PASS', 'b -> FAIL (1.1 s > 1 s)'), 3)])
+def test_bench_exits_non_zero_on_a_fail_and_settles_between_sections(tables, status,
+                                                                     monkeypatch, capsys):
+    """Every section after the first is measured once the machine settled; a FAIL exits 3."""
+    from mech_balance.bench import core as bench_core, recording, settle, spatial
+    monkeypatch.setattr(bench_core, 'SECTIONS', ('mech_balance.bench.recording:bench_section',
+                                                 'mech_balance.bench.spatial:bench_section'))
+    monkeypatch.setattr(recording, 'bench_section', lambda args, progress: tables[0])
+    monkeypatch.setattr(spatial, 'bench_section', lambda args, progress: tables[1])
+    monkeypatch.setattr(settle, 'settle', lambda: '[settled: test]')
+    assert cli.main(['bench', '--section', 'recording', '--section', 'spatial']) == status
+    out, err = capsys.readouterr()
+    assert out.split('\n\n')[-1].startswith('spatial: [settled: test]\n' + tables[1])
+    assert 'recording: [settled' not in out    # the first section follows nothing
+    assert ('1 target(s) FAILED:\n  b -> FAIL (1.1 s > 1 s)' in err) == bool(status)
+
+
+def test_settle_waits_for_children_and_says_what_it_found():
+    import subprocess
+    from mech_balance.bench import settle
+    child = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(30)'])
+    try:
+        assert child.pid in settle.children()
+        line = settle.settle(timeout_s=1.5)
+        assert line.startswith('[not settled after 1.5 s (1 child processes left')
+    finally:
+        child.kill()
+        child.wait()
+    assert child.pid not in settle.children()
+    share = settle.busy_share(0.2)
+    assert share is None or 0.0 <= share <= 1.0
+    assert settle.failures('x -> PASS\ny FAIL: z\nFAILED stage\n') == ['y FAIL: z']
 
 
 def test_bench_balance_section_honours_repeat():

@@ -4,15 +4,22 @@ launch/rig.launch.py and config/rig.rviz checked against the package.
 The launch file names an executable, a params file and an RViz file: they must be what
 setup.py installs, and its arguments must be documented in docs/rviz_launch.md.  launch and
 launch_ros are not on PyPI, so the file is read as source here (its constants are plain
-literals); where launch_ros is importable the test also builds its LaunchDescription.
+literals) and run against a stand-in of the few launch classes it uses (:func:`stub_launch`:
+they record what they are given), which holds its checks before starting anything, its
+arguments and which nodes it starts; where launch_ros is importable the test also builds its
+real LaunchDescription.
 """
 
 import ast
 import importlib
 import importlib.util
 import math
+import os
 from pathlib import Path
+import re
 import runpy
+import sys
+import types
 import xml.etree.ElementTree as ET
 
 from mech_balance import schema as scene
@@ -48,7 +55,6 @@ def _constants():
 @pytest.fixture(scope='module')
 def setup_kwargs():
     """Return the keyword arguments setup.py passes to setuptools.setup."""
-    import os
     import setuptools
     captured = {}
     original, cwd = setuptools.setup, os.getcwd()
@@ -104,7 +110,8 @@ def test_params_rviz_and_launch_files_are_installed(setup_kwargs):
 def test_launch_arguments_are_documented_in_the_readme():
     c = _constants()
     names = [a[0] for a in c['ARGUMENTS']]
-    assert names == ['scene', 'namespace', 'use_rviz', 'params_file']
+    assert names == ['scene', 'namespace', 'use_robot_state_publisher', 'use_rviz',
+                     'params_file']
     text = README.read_text()
     assert README_SECTION in text
     section = text.split(README_SECTION, 1)[1].split('\n## ', 1)[0]
@@ -116,18 +123,6 @@ def test_launch_arguments_are_documented_in_the_readme():
             assert f'`{default}`' in documented[name], (name, default)
     assert 'ros2 launch mech_balance rig.launch.py scene:=hoeken use_rviz:=true' in section
     assert 'mech-balance urdf' in section
-
-
-def test_robot_state_publisher_alone_publishes_robot_description():
-    """The launch starts the rig node with publish_robot_description false (one publisher)."""
-    assert params.BY_NAME['publish_robot_description'].default is True
-    settings = {}
-    for node in ast.walk(ast.parse(LAUNCH_FILE.read_text())):
-        if isinstance(node, ast.Dict):
-            for key, value in zip(node.keys, node.values):
-                if isinstance(key, ast.Constant) and isinstance(value, ast.Constant):
-                    settings.setdefault(key.value, []).append(value.value)
-    assert settings.get('publish_robot_description') == [False]
 
 
 def test_the_default_scene_and_frame_id_are_the_nodes():
@@ -194,3 +189,146 @@ def test_launch_description_builds():
     assert isinstance(description, LaunchDescription)
     declared = [e.name for e in description.entities if isinstance(e, DeclareLaunchArgument)]
     assert declared == [a[0] for a in module.ARGUMENTS]
+
+
+class _Recorded:
+    """A stand-in launch class: keeps its arguments; Node instances are counted."""
+
+    created = []
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+        type(self).created.append(self)
+
+
+class _Configuration:
+    """A stand-in LaunchConfiguration: perform(context) reads the context dict."""
+
+    def __init__(self, name):
+        self.name = name
+
+    def perform(self, context):
+        return context[self.name]
+
+
+@pytest.fixture()
+def stub_launch(monkeypatch, tmp_path):
+    """
+    Load launch/rig.launch.py against stand-ins of launch and launch_ros.
+
+    Return (module, install): ``install(*packages)`` makes those packages' executables
+    exist (in a fake install prefix under tmp_path); any other package is not found.
+    """
+    node = type('Node', (_Recorded,), {'created': []})
+    classes = {'launch': {'LaunchDescription': type('LaunchDescription', (_Recorded,), {})},
+               'launch.actions': {n: type(n, (_Recorded,), {}) for n in
+                                  ('DeclareLaunchArgument', 'OpaqueFunction', 'Shutdown')},
+               'launch.substitutions': {'LaunchConfiguration': _Configuration},
+               'launch_ros': {},
+               'launch_ros.actions': {'Node': node},
+               'launch_ros.parameter_descriptions': {
+                   'ParameterValue': lambda value, value_type: value_type(value)}}
+    for name, attributes in classes.items():
+        monkeypatch.setitem(sys.modules, name, types.SimpleNamespace(**attributes))
+    spec = importlib.util.spec_from_file_location('rig_launch_stubbed', LAUNCH_FILE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    present = set()
+
+    def prefix(package):
+        if package not in present:
+            raise module.PackageNotFoundError(package)
+        return str(tmp_path)
+
+    def install(*packages):
+        for package in packages:
+            present.add(package)
+            path = tmp_path / 'lib' / package / module.REQUIRED[package][0]
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text('#!/bin/sh\n')
+            path.chmod(0o755)
+
+    monkeypatch.setattr(module, 'get_package_prefix', prefix)
+    monkeypatch.setattr(module, 'get_package_share_directory', lambda package: str(ROOT))
+    return module, install
+
+
+def _context(module, **values):
+    """Return the launch arguments' values: the defaults, overridden by ``values``."""
+    out = {name: module._share(module.PARAMS_FILE) if default is None else default
+           for name, default, _ in module.ARGUMENTS}
+    out.update(values)
+    return out
+
+
+def _started(nodes):
+    """Return the packages of the nodes, in order."""
+    return [n.kwargs['package'] for n in nodes]
+
+
+def test_the_default_launch_starts_the_node_and_robot_state_publisher(stub_launch):
+    module, install = stub_launch
+    install('mech_balance', 'robot_state_publisher')
+    description = module.generate_launch_description()
+    declared = [e for e in description.args[0] if type(e).__name__ == 'DeclareLaunchArgument']
+    assert [d.args[0] for d in declared] == [a[0] for a in module.ARGUMENTS]
+    opaque = description.args[0][-1]
+    nodes = opaque.kwargs['function'](_context(module))
+    assert _started(nodes) == ['mech_balance', 'robot_state_publisher']
+    rig, rsp = nodes
+    assert rig.kwargs['parameters'][1] == {'scene': 'hoeken', 'publish_robot_description': False}
+    assert rsp.kwargs['parameters'][0]['robot_description'] == \
+        urdf.urdf_xml(scene.load('hoeken'), frame_id=urdf.DEFAULT_FRAME_ID)
+    for required in nodes:   # either one exiting stops the launch: nothing is left behind
+        assert type(required.kwargs['on_exit']).__name__ == 'Shutdown'
+
+
+def test_arguments_choose_what_is_started(stub_launch, tmp_path):
+    module, install = stub_launch
+    install('mech_balance', 'rviz2')
+    params_file = tmp_path / 'p.yaml'
+    params_file.write_text('/**:\n  ros__parameters:\n    frame_id: cell_a\n')
+    nodes = module.nodes(module.check(_context(
+        module, use_robot_state_publisher='False', use_rviz='1', namespace='/cell/',
+        scene='slider_crank', params_file=str(params_file))))
+    assert _started(nodes) == ['mech_balance', 'rviz2']
+    rig, rviz = nodes
+    assert rig.kwargs['namespace'] == rviz.kwargs['namespace'] == 'cell'
+    assert rig.kwargs['parameters'] == [
+        str(params_file), {'scene': 'slider_crank', 'publish_robot_description': True}]
+    assert dict(rviz.kwargs['remappings']) == {t: '/cell' + t for t in module.RVIZ_TOPICS}
+    assert rviz.kwargs['arguments'] == ['-d', str(ROOT / module.RVIZ_FILE)]
+
+
+@pytest.mark.parametrize('values, installed, expected', [
+    ({}, ('mech_balance',),
+     [r"package 'robot_state_publisher' not found \(sudo apt install "
+      r'ros-jazzy-robot-state-publisher, or use_robot_state_publisher:=false\)']),
+    ({'use_rviz': 'true'}, ('mech_balance', 'robot_state_publisher'),
+     [r"package 'rviz2' not found \(.*use_rviz:=false\)"]),
+    ({}, ('robot_state_publisher',), [r"package 'mech_balance' not found \(build and source"]),
+    ({'use_rviz': 'yes', 'scene': 'hoekn', 'use_robot_state_publisher': 'false'},
+     ('mech_balance',),
+     [r"use_rviz:='yes': expected true or false", r'scene:=hoekn: .*hoeken']),
+    ({'params_file': '/nonexistent/p.yaml'}, ('mech_balance', 'robot_state_publisher'),
+     [r'params_file: got .*nonexistent.*cannot read it']),
+])
+def test_a_launch_that_cannot_run_starts_nothing(stub_launch, values, installed, expected):
+    """Every problem is reported at once, before any process (Node) is created."""
+    module, install = stub_launch
+    install(*installed)
+    node_class = sys.modules['launch_ros.actions'].Node
+    with pytest.raises(RuntimeError, match='nothing was started') as error:
+        module._nodes(_context(module, **values))
+    for pattern in expected:
+        assert re.search(pattern, str(error.value)), (pattern, str(error.value))
+    assert str(error.value).count('\n  - ') == len(expected)
+    assert node_class.created == []
+
+
+def test_an_executable_missing_from_an_installed_package_is_named(stub_launch, tmp_path):
+    module, install = stub_launch
+    install('mech_balance', 'robot_state_publisher')
+    os.remove(tmp_path / 'lib' / 'robot_state_publisher' / 'robot_state_publisher')
+    with pytest.raises(RuntimeError, match="no executable 'robot_state_publisher' in package"):
+        module.check(_context(module))

@@ -152,6 +152,19 @@ def test_yaml_file_errors(tmp_path):
         scene.load(str(tmp_path / 'none.yaml'))
     with pytest.raises(scene.SceneError, match="got 'nosuchscene', expected a built-in scene"):
         scene.load('nosuchscene')
+    with pytest.raises(scene.SceneError) as error:
+        scene.load('nosuchscene')
+    assert 'did you mean' not in str(error.value)   # nothing near: no suggestion
+
+
+@pytest.mark.parametrize('typed, nearest', [('hoekn', 'hoeken'), ('slidercrank', 'slider_crank'),
+                                            ('spatial_two_lop', 'spatial_two_loop'),
+                                            ('Carpet_Scraper', 'carpet_scraper')])
+def test_a_misspelled_scene_name_suggests_the_nearest(typed, nearest):
+    with pytest.raises(scene.SceneError, match=f"got '{typed}', expected a built-in scene "
+                                               r'.* or a path to a \.yaml file; did you mean '
+                                               f"'{nearest}'\\?$"):
+        scene.load(typed)
 
 
 def test_scene_round_trips_through_a_file(tmp_path, hoeken_data):

@@ -149,7 +149,7 @@ def format_table(cycle, rows, normalized=False):
         f'crank speed {sc.crank_speed_rad_s:g} rad/s and acceleration '
         f'{sc.crank_acceleration_rad_s2:g} rad/s^2 at every angle',
         'RMS = sqrt(mean(x^2)) over the cycle; units: '
-        + ('normalized by m1, a1, omega (seed 001 sec. 3.4)' if normalized else 'SI'),
+        + ('normalized by m1, a1, omega (Chaudhary & Saha sec. 3.4)' if normalized else 'SI'),
     ]
     if sc.crank_acceleration_rad_s2:
         lines += ['note: crank.acceleration_rad_s2 is not 0: every angle is evaluated at this '

@@ -86,7 +86,8 @@ def check_weights(name, value):
     top = conventions.MAX_WEIGHT
     if len(value) != 2 or not all(math.isfinite(v) and 0.0 <= v <= top for v in value):
         raise ValueError(f'{name}: got {list(value)}, expected [w1, w2] with '
-                         f'0 <= w1, w2 <= {top:g} (seed 001 eq. 43; conventions.MAX_WEIGHT)')
+                         f'0 <= w1, w2 <= {top:g} (Chaudhary & Saha eq. 43; the upper bound is '
+                         'fixed)')
     if value[0] + value[1] == 0.0:
         raise ValueError(f'{name}: got [0, 0], expected at least one positive weight')
 
@@ -193,16 +194,17 @@ def _none_if_zero(value):
 OPTIONS = (
     Option('weights', 'balance.weights', '--weights', DOUBLE_ARRAY, d.DEFAULT_WEIGHTS,
            'Weights [w1, w2] of the RMS shaking force and moment in the balancing objective '
-           '(seed 001 eq. 43; mech-balance balance --weights).', check=check_weights,
+           '(Chaudhary & Saha eq. 43; mech-balance balance --weights).',
+           check=check_weights,
            rule='two numbers >= 0, not both 0', to_option=_tuple,
            cli={'nargs': 2, 'metavar': ('W1', 'W2')},
-           flag_help='weights on the RMS normalized shaking force and shaking moment, seed 001 '
-                     'eq. 43 (seed 001 case (2))'),
+           flag_help='weights on the RMS normalized shaking force and shaking moment, '
+                     'Chaudhary & Saha eq. 43; their case (2) is the default'),
     Option('case', 'balance.case', '--case', STRING, d.DEFAULT_CASE,
            'a: point masses of any sign; b: non-negative point masses (counterweights).',
            methods=REDISTRIBUTION, choices=d.CASES,
-           flag_help='seed 001 sec. 4.1.2: a = point masses of any sign, b = non-negative point '
-                     'masses (counterweights)'),
+           flag_help='Chaudhary & Saha sec. 4.1.2: a = point masses of any sign, b = '
+                     'non-negative point masses (counterweights)'),
     Option('realizable', 'balance.realizable', '--no-realizable', BOOL, True,
            'Require every balanced link to be a realizable body (centroidal inertia >= '
            'balance.margin x I_O); false is --no-realizable.', methods=REDISTRIBUTION,
@@ -214,11 +216,12 @@ OPTIONS = (
            flag_help='realizability margin: centroidal inertia >= MARGIN x inertia about the link '
                      'origin'),
     Option('paper_constraints', 'balance.paper_constraints', '--paper-constraints', BOOL,
-           False, "Solve exactly seed 001 eqs. 50/53 (the paper's bounds, no realizability); "
-           'other bound options must keep their defaults.', methods=REDISTRIBUTION,
+           False, "Solve exactly Chaudhary & Saha eqs. 50/53 (the paper's bounds, no "
+           'realizability); other bound options must keep their defaults.', methods=REDISTRIBUTION,
            cli={'action': 'store_true'},
-           flag_help="reproduce seed 001's problem exactly (eqs. 50/53: masses in [1, 5] x "
-                     'original, l in [0.5, 1.5] x original, no realizability constraint)'),
+           flag_help="reproduce Chaudhary & Saha's problem exactly (eqs. 50/53: masses in "
+                     '[1, 5] x original, l in [0.5, 1.5] x original, no realizability '
+                     'constraint)'),
     Option('mass_factors', 'balance.mass_factors', '--mass-factors', DOUBLE_ARRAY,
            d.PAPER_MASS_FACTORS,
            'Link mass bounds [low, high] as factors of the original link mass (eq. 50b).',

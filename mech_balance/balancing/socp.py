@@ -1166,7 +1166,7 @@ def _weights(weights):
             raise BalanceError(f'weights: {name} = {v:g}, expected a finite number >= 0')
         if v > MAX_WEIGHT:
             raise BalanceError(f'weights: {name} = {v:g}, expected at most {MAX_WEIGHT:g} '
-                               '(conventions.MAX_WEIGHT)')
+                               '(the fixed range of the weights)')
     return w1, w2
 
 
@@ -1179,7 +1179,7 @@ def _nonneg(value, name, highest=None):
         raise BalanceError(f'{name}: got {v:g}, expected a finite number >= 0')
     if highest is not None and v > highest:
         raise BalanceError(f'{name}: got {v:g}, expected at most {highest:g} '
-                           '(conventions.MAX_WEIGHT)')
+                           '(the fixed range of the weights)')
     return v
 
 

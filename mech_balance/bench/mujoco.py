@@ -77,6 +77,8 @@ MUJOCO_REPEAT_DIVISOR = 5
 """MuJoCo's per-angle Python loop is timed ``repeat / this`` times (at least 5)."""
 CHAIN_LOOPS = (1, 3, 4, 9, 19)
 """Generated chains of the scaling table: 4, 8, 10, 20 and 40 links counting the frame."""
+TIMING_ROUNDS = 5
+"""Rounds of interleaved warm blocks per timed figure (:func:`interleaved_rounds`)."""
 GROWTH_LIMIT = 1.0
 """Largest growth exponent of this package's full pipeline from the smallest to the largest
 chain (cost ~ links^e): linear in the number of links (issue 22)."""
@@ -88,6 +90,8 @@ NEWTON_TOL = kinematics.NEWTON_TOL
 EXIT_MISSING = 2
 EXIT_DISAGREE = 1
 """Exit status of ``--compare mujoco`` when an agreement figure is above AGREEMENT_TOL."""
+EXIT_TARGET_FAILED = 3
+"""Exit status of ``--compare mujoco`` when a timing target printed FAIL (as ``bench``)."""
 INSTALL_HINT = (f'mech-balance bench --compare mujoco: the optional benchmark dependency '
                 f'"mujoco" is not installed; install it with `make bench-mujoco` (or '
                 f'`pip install mujoco=={MUJOCO_PIN}`)')
@@ -356,19 +360,41 @@ def relative_difference(ours, theirs):
     return float(np.max(np.abs(theirs - ours))) / (scale if scale > 0.0 else 1.0)
 
 
-def _interleaved_medians(fns, warmup=2):
-    """Return the median wall time of each function, timing them in turn (shared load)."""
+def interleaved_rounds(fns, rounds=TIMING_ROUNDS, warmup=2):
+    """
+    Return, per ``(function, runs)``, its round medians of wall time (a list of ``rounds``).
+
+    The functions are timed in interleaved warm blocks: each round runs every function in
+    turn, one untimed call (it warms the caches the others used) and then a block of
+    ``ceil(runs / rounds)`` timed calls, whose median is the round's.  Both engines so see
+    the same load; the figure is the median of the round medians (:func:`_interleaved_medians`)
+    and the rounds' spread says how steady the machine was.
+    """
     for fn, _ in fns:
         for _ in range(warmup):
             fn()
-    times = [[] for _ in fns]
-    for r in range(max(n for _, n in fns)):
-        for (fn, n), acc in zip(fns, times):
-            if r < n:
+    per_round = [[] for _ in fns]
+    for _ in range(rounds):
+        for (fn, n), acc in zip(fns, per_round):
+            fn()
+            block = []
+            for _ in range(max(1, math.ceil(n / rounds))):
                 t0 = time.perf_counter()
                 fn()
-                acc.append(time.perf_counter() - t0)
-    return [statistics.median(t) for t in times]
+                block.append(time.perf_counter() - t0)
+            acc.append(statistics.median(block))
+    return per_round
+
+
+def _interleaved_medians(fns, warmup=2):
+    """Return the median of the round medians of each function (:func:`interleaved_rounds`)."""
+    return [statistics.median(r) for r in interleaved_rounds(fns, warmup=warmup)]
+
+
+def spread(values):
+    """Return (max - min) / median of ``values`` (the rounds' relative spread)."""
+    mid = statistics.median(values)
+    return (max(values) - min(values)) / mid if mid else 0.0
 
 
 def compare(sc, samples=360, repeat=50, progress=None):
@@ -420,8 +446,9 @@ def compare(sc, samples=360, repeat=50, progress=None):
         (lambda: mjr.dynamics(state.q, state.qd, state.qdd), slow),
     ]
     names = ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse', 'mj_dyn')
-    secs = _interleaved_medians(fns)
-    out['us'] = {n: s * 1e6 / samples for n, s in zip(names, secs)}
+    rounds = interleaved_rounds(fns)
+    out['us'] = {n: statistics.median(r) * 1e6 / samples for n, r in zip(names, rounds)}
+    out['us_rounds'] = {n: [x * 1e6 / samples for x in r] for n, r in zip(names, rounds)}
     out['repeats'] = (repeat, slow)
     out['peak_bytes'] = peak_bytes(lambda: rig.evaluate(psi))
     return out
@@ -434,7 +461,8 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
     lines = [
         f'mech-balance bench --compare mujoco: mech_balance vs MuJoCo {mujoco_version}, '
         f'{hoeken["samples"]} crank angles per cycle, one process; median wall time of '
-        f'{rep} runs (MuJoCo: {slow}), timed in turn after warm-up',
+        f'{rep} runs (MuJoCo: {slow}): the median of {TIMING_ROUNDS} round medians, the '
+        'engines timed in interleaved warm blocks',
         '',
         'timed, per crank angle:',
         '  full pipeline   mech_balance: Rig.evaluate on all angles at once (Newton from the '
@@ -509,6 +537,15 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
         ratio = (b['links'] + 1) / (a['links'] + 1)
         grow = {k: math.log(b['us'][k] / a['us'][k]) / math.log(ratio)
                 for k in ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse')}
+        # the exponent of each round (round k of the small rig against round k of the large)
+        per_round = [math.log(y / x) / math.log(ratio) for x, y in
+                     zip(a.get('us_rounds', {}).get('ours_full', ()),
+                         b.get('us_rounds', {}).get('ours_full', ()))]
+        rounds_text = ''
+        if per_round:
+            widest = max(spread(r['us_rounds']['ours_full']) for r in (a, b))
+            rounds_text = (f'; its {len(per_round)} rounds {min(per_round):.2f} to '
+                           f'{max(per_round):.2f}, timings spread up to {100 * widest:.0f} %')
         lines += [
             f'  growth exponent {a["links"] + 1} -> {b["links"] + 1} links '
             f'(cost ~ links^e): mech_balance full {grow["ours_full"]:.2f}, dynamics '
@@ -516,6 +553,8 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
             f'{grow["mj_inverse"]:.2f}  '
             f'({"PASS" if grow["ours_full"] <= GROWTH_LIMIT else "FAIL"}: mech_balance full '
             f'<= {GROWTH_LIMIT:g}, linear)',
+            f'  (median of {TIMING_ROUNDS} round medians, the engines in interleaved warm '
+            f'blocks{rounds_text})',
             '  links count the frame.  A single-input planar chain of revolute joints has an '
             'odd number of moving',
             '  links (Gruebler: 3 n - 2 j = 1), so 7 links with the frame cannot exist: '
@@ -559,17 +598,25 @@ def cmd_compare(args):
         return EXIT_MISSING
     progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     hoeken, chains, extras, version = run(args.samples, args.repeat, progress)
-    print(format_report(hoeken, chains, version, extras), flush=True)
-    from mech_balance.bench import mujoco_spatial
+    printed = [format_report(hoeken, chains, version, extras)]
+    print(printed[-1], flush=True)
+    from mech_balance.bench import mujoco_spatial, settle
     spatial = mujoco_spatial.run(_interleaved_medians, args.samples, args.repeat,
                                  max(5, args.repeat // MUJOCO_REPEAT_DIVISOR), progress,
                                  mj=import_mujoco())
-    print(mujoco_spatial.format_report(spatial, AGREEMENT_TOL), flush=True)
-    # exit 1 when the two disagree (a correctness failure); the timing targets' PASS/FAIL
-    # lines are figures of this machine, printed, not an exit status
+    printed.append(mujoco_spatial.format_report(spatial, AGREEMENT_TOL))
+    print(printed[-1], flush=True)
+    # exit 1 when the two disagree (a correctness failure), 3 when a timing target FAILs
     worst = float(np.max([_worst(r) for r in [hoeken, *chains, *extras, *spatial]]))
     if not worst <= AGREEMENT_TOL:
         print(f'mech-balance bench --compare mujoco: the models disagree (worst relative '
               f'difference {worst:.1e} > {AGREEMENT_TOL:.0e})', file=sys.stderr)
         return EXIT_DISAGREE
+    failed = settle.failures('\n'.join(printed))
+    if failed:
+        print(f'mech-balance bench --compare mujoco: {len(failed)} target(s) FAILED:',
+              file=sys.stderr)
+        for line in failed:
+            print(f'  {line}', file=sys.stderr)
+        return EXIT_TARGET_FAILED
     return 0

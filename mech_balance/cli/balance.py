@@ -66,7 +66,7 @@ SPATIAL_KEYS = {'redistribution': ('weights', 'mass_factors', 'fixed_links', 'ex
                 'force_balance': ('free', 'samples')}
 """The options of each spatial method (:data:`mech_balance.balancing.SPATIAL_OPTIONS`)."""
 TYPES = {'weights': cli.weight, 'torque_weight': cli.weight, 'reaction_weight': cli.weight,
-         'samples': cli.int_at_least(4, conventions.MAX_SAMPLES, 'conventions.MAX_SAMPLES')}
+         'samples': cli.int_at_least(4, conventions.MAX_SAMPLES, cli.FIXED_LIMIT)}
 """The command line's number parsers of some options (the rest: float, int, str)."""
 
 
@@ -90,20 +90,24 @@ def _dest(option):
     return option.lstrip('-').replace('-', '_')
 
 
-def add_weight_and_case(p, when=''):
+def add_weight_and_case(p, when='', case_when=None):
     """
     Add ``--weights W1 W2`` and ``--case a|b`` (default None: the caller applies the defaults).
 
-    ``when`` prefixes the help texts (e.g. ``'with --balance (planar): '``).  The weights
+    ``when`` prefixes the help texts (e.g. ``'with --balance (planar): '``), ``case_when``
+    the help of ``--case`` when it applies in fewer cases (default: ``when``).  The weights
     are checked where they are used, by :func:`mech_balance.balancing.optimize`.
     """
+    case_when = when if case_when is None else case_when
     w1, w2 = defaults.DEFAULT_WEIGHTS
     p.add_argument('--weights', nargs=2, type=cli.weight, default=None, metavar=('W1', 'W2'),
                    help=f'{when}weights on the RMS normalized shaking force and shaking '
-                        f'moment, seed 001 eq. 43 (default: {w1:g} {w2:g}, seed 001 case (2))')
+                        f'moment, Chaudhary & Saha eq. 43 (default: {w1:g} {w2:g}, their '
+                        'case (2))')
     p.add_argument('--case', choices=defaults.CASES, default=None,
-                   help=f'{when}seed 001 sec. 4.1.2: a = point masses of any sign, b = '
-                        f'non-negative point masses (counterweights) (default: {DEFAULT_CASE})')
+                   help=f'{case_when}Chaudhary & Saha sec. 4.1.2: a = point masses of any '
+                        'sign, b = non-negative point masses (counterweights) (default: '
+                        f'{DEFAULT_CASE})')
 
 
 def register(subparsers):
@@ -112,22 +116,24 @@ def register(subparsers):
         'balance', help='optimal mass redistribution (SOCP, certified) or analytic force '
                         'balance of a scene',
         description='Redistribute the link masses of a planar scene to minimize '
-                    'w1 * RMS shaking force + w2 * RMS shaking moment (seed 001 eqs. 42-53) '
-                    'to a certified global optimum, or (--analytic) balance the shaking force '
-                    'completely (seed 000 eqs. 44-75, seed 001 eq. 48). Prints the design per '
-                    'link, the before/after RMS table, the duality-gap certificate and the '
-                    'solve time. Scenes that list balancing_weights (the RGGR) print the '
-                    'seed-002 report.',
+                    'w1 * RMS shaking force + w2 * RMS shaking moment (Chaudhary & Saha '
+                    'eqs. 42-53) to a certified global optimum, or (--analytic) balance the '
+                    'shaking force completely (Sinatra & Angeles eqs. 44-75, Chaudhary & Saha '
+                    'eq. 48). Prints the design per link, the before/after RMS table, the '
+                    'duality-gap certificate and the solve time. Scenes that list '
+                    'balancing_weights (the RGGR) print the balancing-weight report of Hedaya. '
+                    'Papers: see README.md, "The papers".',
         formatter_class=_HelpFormatter)
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML file')
     options.add_arguments(p, TABLE_KEYS[:TABLE_KEYS.index('links')], TYPES)
     p.add_argument('--analytic', action='store_true',
-                   help='analytic complete force balance instead: slider-crank (seed 000 eqs. '
-                        '44-75) or four-bar (Berkof-Lowen, seed 001 eq. 48)')
+                   help='analytic complete force balance instead: slider-crank (Sinatra & '
+                        'Angeles eqs. 44-75) or four-bar (Berkof-Lowen, Chaudhary & Saha '
+                        'eq. 48)')
     p.add_argument('--mass-factor', type=float, action='append', default=None, metavar='K',
                    help='--analytic four-bar: crank and rocker masses K x original '
-                        '(repeatable; default 1, 2 and 5 as in seed 001 Table 3)')
+                        '(repeatable; default 1, 2 and 5 as in Chaudhary & Saha Table 3)')
     p.add_argument('--keep-centroidal', action='store_true',
                    help='--analytic four-bar: keep the centroidal inertias (always realizable) '
                         'instead of the point-mass distance l (the paper)')
@@ -138,11 +144,11 @@ def register(subparsers):
                         'rsvg-convert; each link as built with its '
                         'disc to scale, dimensions, material and mass; SVG)')
     p.add_argument('--model', choices=('three-point', 'two-point'), default='three-point',
-                   help='two-point: also solve seed 001 Appendix B (eqs. B.1-B.3, Table 12) '
-                        'with two point masses per link at 0 and 90 deg, and print the '
+                   help='two-point: also solve Chaudhary & Saha Appendix B (eqs. B.1-B.3, '
+                        'Table 12) with two point masses per link at 0 and 90 deg, and print the '
                         "certified bounds next to the paper's rows")
     p.add_argument('--method', choices=SPATIAL_METHODS, default='auto',
-                   help="spatial rigs (kind spatial): weights (seed 002, the scene's "
+                   help="spatial rigs (kind spatial): weights (Hedaya, the scene's "
                         'balancing_weights; the default where listed, e.g. rggr), '
                         'force-balance (the null space of the shaking force: conditions and '
                         'the least-change design), '
@@ -203,9 +209,9 @@ def _check_options(args):
                          f'--counterweights LINK[,LINK...] or no {given_cw[0]}')
     if args.model != 'three-point' and (args.analytic or args.paper_constraints or
                                         args.torque_weight or args.reaction_weight):
-        raise ValueError('--model two-point: seed 001 eqs. B.1-B.3 have their own bounds and '
-                         'weights w1, w2 only; expected no --analytic, --paper-constraints, '
-                         '--torque-weight or --reaction-weight with it')
+        raise ValueError('--model two-point: Chaudhary & Saha eqs. B.1-B.3 have their own '
+                         'bounds and weights w1, w2 only; expected no --analytic, '
+                         '--paper-constraints, --torque-weight or --reaction-weight with it')
     ignored = _given(args, OPTIMIZE_OPTIONS if args.analytic else ANALYTIC_OPTIONS)
     if ignored and args.analytic:
         raise ValueError(f'{ignored[0]} applies to the optimization, not to --analytic; '
@@ -661,7 +667,7 @@ def _weights(sc, args):
         return 0
     print(weights.format_report(report))
     print(f'certificate: RMS shaking moment {result.moment_rms_optimal_Nm:.9g} N m, safe '
-          f'lower bound {result.moment_rms_lower_bound_Nm:.9g} N m (least squares, seed 002 '
+          f'lower bound {result.moment_rms_lower_bound_Nm:.9g} N m (least squares, Hedaya '
           'eqs. 89-95)')
     if args.output:
         print(f'balanced scene written to {args.output}')
@@ -680,7 +686,7 @@ def _spatial(sc, args):
     if method == 'weights':
         ignored = [o for o in _given(args, SPATIAL_SHARED + SPATIAL_OPTIONS) if o != '--method']
         if ignored:
-            raise ValueError(f'{ignored[0]}: not an option of the method weights (seed 002, '
+            raise ValueError(f'{ignored[0]}: not an option of the method weights (Hedaya, '
                              f'which takes --samples only); expected no {ignored[0]}, or '
                              '--method redistribution, force-balance or counterweights')
         return _weights(sc, args)

@@ -16,6 +16,8 @@ from mech_balance.cli import jsonout
 from mech_balance.schema.fields import MAX_ABS_VALUE
 
 EXIT_USAGE = 2
+EXIT_BENCH_FAILED = 3
+"""Exit status of ``mech-balance bench`` when a table printed a FAIL verdict."""
 EXIT_INTERRUPTED = 130
 SCENE_NAME_WIDTH = 18
 """``mech-balance scenes``: width of the name column; the description wraps after it."""
@@ -91,13 +93,15 @@ def number_between(lowest, highest, limit=None):
     return parse
 
 
+FIXED_LIMIT = 'a fixed limit of mech_balance'
+"""What an option's range error says of a limit no option or field raises."""
 positive_int = int_at_least(1)
 """An argparse ``type``: an integer >= 1."""
-cycles = int_at_least(1, conventions.MAX_CYCLES, 'conventions.MAX_CYCLES')
+cycles = int_at_least(1, conventions.MAX_CYCLES, FIXED_LIMIT)
 """An argparse ``type``: crank turns, 1 <= n <= MAX_CYCLES."""
-repeats = int_at_least(1, conventions.MAX_REPEAT, 'conventions.MAX_REPEAT')
+repeats = int_at_least(1, conventions.MAX_REPEAT, FIXED_LIMIT)
 """An argparse ``type``: timed runs of a benchmark, 1 <= n <= MAX_REPEAT."""
-weight = number_between(0.0, conventions.MAX_WEIGHT, 'conventions.MAX_WEIGHT')
+weight = number_between(0.0, conventions.MAX_WEIGHT, FIXED_LIMIT)
 """An argparse ``type``: an objective weight, 0 <= w <= MAX_WEIGHT."""
 
 
@@ -141,7 +145,7 @@ def _add_scene(p):
                         'file (default: %(default)s)')
 
 
-_samples = int_at_least(4, conventions.MAX_SAMPLES, 'conventions.MAX_SAMPLES')
+_samples = int_at_least(4, conventions.MAX_SAMPLES, FIXED_LIMIT)
 
 
 def _design(text):
@@ -155,7 +159,7 @@ def _design(text):
     if max(abs(v) for v in values) > MAX_ABS_VALUE:  # the magnitude limit of scene files
         raise argparse.ArgumentTypeError(
             f'got {text!r}, expected numbers of magnitude <= {MAX_ABS_VALUE:g} '
-            '(scene.MAX_ABS_VALUE)')
+            '(the limit of numbers in scene files)')
     return values
 
 
@@ -178,8 +182,8 @@ def build_parser():
     p.add_argument('--samples', type=_samples, default=None,
                    help="crank angles per revolution (default: the scene's, usually 360)")
     p.add_argument('--design', type=_design, default=None, metavar='X1,X2,...',
-                   help='evaluate a seed-001 design vector [m_i1,m_i2,m_i3,l_i1 per link]; '
-                        'normalized units if the scene records a normalization, else SI; '
+                   help='evaluate a Chaudhary & Saha design vector [m_i1,m_i2,m_i3,l_i1 per '
+                        'link]; normalized units if the scene records a normalization, else SI; '
                         'write --design=-3.5,2.3,... when it starts with a minus sign')
     p.add_argument('--json', action='store_true', help='print the table as JSON')
     p.set_defaults(func=cmd_analyze)
@@ -265,19 +269,31 @@ def cmd_bench(args):
     if unknown:
         raise ValueError(f'--section: got {unknown[0]!r}, expected core or one of '
                          f'{", ".join(names)}')
+    from mech_balance.bench import settle
     progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
+    printed = []
     if wanted is None or 'core' in wanted:
         print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} '
               f'warm-up runs, {args.samples} crank angles per cycle', flush=True)
         rows = bench.run(args.scene, args.samples, args.repeat, progress=progress)
-        print(bench.format_rows(rows), flush=True)
+        printed.append(bench.format_rows(rows))
+        print(printed[-1], flush=True)
     import importlib
     for short, name in names.items():
         if wanted is not None and short not in wanted:
             continue
         module, _, function = name.partition(':')
         print()
-        print(getattr(importlib.import_module(module), function)(args, progress), flush=True)
+        if printed:   # not in the wake of the previous section
+            print(f'{short}: {settle.settle()}', flush=True)
+        printed.append(getattr(importlib.import_module(module), function)(args, progress))
+        print(printed[-1], flush=True)
+    failed = settle.failures('\n'.join(printed))
+    if failed:
+        print(f'mech-balance bench: {len(failed)} target(s) FAILED:', file=sys.stderr)
+        for line in failed:
+            print(f'  {line}', file=sys.stderr)
+        return EXIT_BENCH_FAILED
     return 0
 
 

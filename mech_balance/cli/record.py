@@ -11,6 +11,7 @@ from pathlib import Path
 import shutil
 import sys
 
+from mech_balance import conventions
 from mech_balance.balancing import defaults
 from mech_balance.balancing.defaults import DEFAULT_CASE
 from mech_balance.cli import balance as cli_balance
@@ -39,9 +40,10 @@ def register(subparsers):
                     'joints, mass centres, counterweights at true size), a gauge of the '
                     'shaking force and moment, and time series of |shaking force|, shaking '
                     'moment and every scalar output (driving torque, ...) for the original '
-                    'and the balanced design, on the timelines crank_angle (degrees from 0) '
-                    'and time (s). The point masses are off unless the scene switches them '
-                    'on (recording: {streams: {point_masses: true}}). '
+                    'and the balanced design, on the timelines crank_angle_deg (degrees from '
+                    '0, the one the viewer opens) and time (s). The point masses are off '
+                    'unless the scene switches them on (recording: {streams: {point_masses: '
+                    'true}}). '
                     'Open the file with `rerun FILE.rrd`.')
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
@@ -51,18 +53,20 @@ def register(subparsers):
                        help='balanced scene file: the same geometry with other inertias '
                             '(e.g. written by `mech-balance balance --output`)')
     which.add_argument('--balance', action='store_true',
-                       help='balance the scene first: seed 001 optimization for planar '
-                            'scenes (mech_balance.balancing.optimize), seed 002 force '
+                       help='balance the scene first: Chaudhary & Saha optimization for '
+                            'planar scenes (mech_balance.balancing.optimize), Hedaya force '
                             'balance and minimum RMS shaking moment for a scene with '
-                            'balancing_weights')
+                            'balancing_weights, the certified spatial redistribution for the '
+                            'other spatial scenes (mech_balance.balancing.spatial)')
     which.add_argument('--counterweights', default=None, metavar='LINK[,LINK...]',
                        help='balance the scene first with add-only counterweight discs on '
                             'these links (mech_balance.balancing.counterweights, its defaults; '
                             'as `mech-balance balance --counterweights`): the recording draws '
                             "each disc in its link's colour with its mass and its plane")
-    cli_balance.add_weight_and_case(p, when='with --balance (planar) or --counterweights: ')
+    cli_balance.add_weight_and_case(p, when='with --balance (planar) or --counterweights: ',
+                                    case_when='with --balance (planar) only: ')
     p.add_argument('--cycles', type=cli.cycles, default=1,
-                   help='crank turns to record, at most conventions.MAX_CYCLES '
+                   help=f'crank turns to record, at most {conventions.MAX_CYCLES} '
                         '(default: %(default)s)')
     p.add_argument('--samples', type=_samples, default=None,
                    help="samples per crank turn, any count >= 4 (default: the scene's, "
@@ -87,14 +91,14 @@ def balanced_design(sc, weights=defaults.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     method = front.method_for(rig)
     if method == 'weights':
         return (front.balance(rig, method).scene,
-                'seed 002 complete force balance with the minimum RMS shaking moment '
+                'Hedaya complete force balance with the minimum RMS shaking moment '
                 '(mech_balance.balancing.weights)')
     design = front.balance(rig, method, weights=tuple(weights), case=case)
     if front.METHODS[method] not in rig.capabilities:   # the spatial implementation
         return (design.scene, f'{design.report["method"]}, (w1, w2) = ({weights[0]:g}, '
                 f'{weights[1]:g}) (mech_balance.balancing.spatial)')
     return (design.scene,
-            f'seed 001 optimum, (w1, w2) = ({weights[0]:g}, {weights[1]:g}), case {case} '
+            f'Chaudhary & Saha optimum, (w1, w2) = ({weights[0]:g}, {weights[1]:g}), case {case} '
             '(mech_balance.balancing.optimize)')
 
 
@@ -156,7 +160,8 @@ def cmd_record(args):
     if source:
         print(f'  balanced design: {source}')
     print(f'open it with:  {_viewer()} {path}')
-    print('  (the viewer comes with rerun-sdk; it plays the crank_angle timeline in a loop)')
+    print('  (the viewer comes with rerun-sdk; it plays the crank_angle_deg timeline in a '
+          'loop)')
     sys.stdout.flush()
     return 0
 

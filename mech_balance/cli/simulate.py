@@ -25,7 +25,7 @@ def _positive_float(text):
     return value
 
 
-_rows = cli.int_at_least(2, conventions.MAX_TABLE_ROWS, 'conventions.MAX_TABLE_ROWS')
+_rows = cli.int_at_least(2, conventions.MAX_TABLE_ROWS, cli.FIXED_LIMIT)
 
 
 def _sections(text):
@@ -42,8 +42,9 @@ def register(sub):
     """Add the ``simulate`` and ``accuracy`` parsers to the ``mech-balance`` subparsers."""
     p = sub.add_parser(
         'simulate', help='forward dynamics: start-up and steady state with motor and damping',
-        description='Integrate the equation of motion of a rig of any kind (seed 000 eq. 39, '
-                    "built from the rig's own inverse dynamics) with the scene's drive: "
+        description='Integrate the equation of motion of a rig of any kind (Sinatra & '
+                    "Angeles eq. 39, built from the rig's own inverse dynamics) with the "
+                    "scene's drive: "
                     'section (DC motor line, PI speed controller, joint damping, input '
                     'flywheel; gravity from gravity_m_s2). Prints the method used and why, '
                     'the model error, crank speed ripple, driving effort and shaking wrench '

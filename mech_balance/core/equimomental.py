@@ -154,7 +154,7 @@ def split_design(values, n_links):
         raise ValueError(f'design: got {x.tolist()}, expected finite numbers')
     if x.size and np.max(np.abs(x)) > MAX_ABS_VALUE:
         raise ValueError(f'design: got {float(x[np.argmax(np.abs(x))])!r}, expected magnitudes '
-                         f'<= {MAX_ABS_VALUE:g} (scene.MAX_ABS_VALUE, as in scene files)')
+                         f'<= {MAX_ABS_VALUE:g} (the limit of numbers in scene files)')
     out = []
     for i in range(n_links):
         m1, m2, m3, dist = x[4 * i:4 * i + 4]

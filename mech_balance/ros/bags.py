@@ -167,7 +167,7 @@ class _Growing:
         if self.n == self.rows.shape[0]:
             if self.n >= MAX_SAMPLES:
                 raise RecordingError(f'{self.what}: more than {MAX_SAMPLES} samples, expected '
-                                     f'at most {MAX_SAMPLES} (bags.MAX_SAMPLES, about '
+                                     f'at most {MAX_SAMPLES} (a fixed limit, about '
                                      f'{MAX_SAMPLES * 80 // 2 ** 20} MiB)')
             grow = min(2 * self.n, MAX_SAMPLES)
             self.rows = np.resize(self.rows, (grow, self.rows.shape[1]))
@@ -180,7 +180,7 @@ class _Growing:
         need = self.n + len(stamps_ns)
         if need > MAX_SAMPLES:
             raise RecordingError(f'{self.what}: more than {MAX_SAMPLES} samples, expected '
-                                 f'at most {MAX_SAMPLES} (bags.MAX_SAMPLES, about '
+                                 f'at most {MAX_SAMPLES} (a fixed limit, about '
                                  f'{MAX_SAMPLES * 80 // 2 ** 20} MiB)')
         if need > self.rows.shape[0]:
             grow = min(max(2 * self.rows.shape[0], need), MAX_SAMPLES)
@@ -559,7 +559,7 @@ def _csv_lines(fh, label):
             return
         if len(line) > MAX_LINE_CHARS and not line.endswith('\n'):
             raise RecordingError(f'{label}: line {number}: longer than {MAX_LINE_CHARS} '
-                                 'characters, expected a row of numbers (bags.MAX_LINE_CHARS)')
+                                 'characters, expected a row of numbers (a fixed limit)')
         if '\x00' in line:
             raise RecordingError(f'{label}: line {number}: a NUL byte, expected a text file '
                                  'of numbers (a binary file?)')
@@ -584,7 +584,7 @@ def read_csv(path, joint=None):
         raise RecordingError(f'{label}: not a regular file, expected a .csv file')
     if size > MAX_CSV_BYTES:
         raise RecordingError(f'{label}: {size} bytes, expected at most {MAX_CSV_BYTES} '
-                             f'(bags.MAX_CSV_BYTES, {MAX_SAMPLES} rows)')
+                             f'(a fixed limit: {MAX_SAMPLES} rows)')
     try:
         fh = open(path, newline='', encoding='utf-8-sig', errors='strict')
     except OSError as exc:
@@ -691,7 +691,7 @@ def _csv_row(row, number, head, label, previous):
         if len(v) > MAX_FIELD_CHARS:
             raise RecordingError(f'{label}: line {number}, column {name}: a field of '
                                  f'{len(v)} characters, expected a number of at most '
-                                 f'{MAX_FIELD_CHARS} (bags.MAX_FIELD_CHARS)')
+                                 f'{MAX_FIELD_CHARS} (a fixed limit)')
         try:
             x = float(v)
         except ValueError:

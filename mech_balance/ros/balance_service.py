@@ -2,14 +2,15 @@
 The rig node's balancing part: ``~/balance``, ``use_balanced`` and ``~/balance_result``.
 
 :class:`Balancer` runs :func:`mech_balance.balancing.balance` with the ``balance.*``
-parameters on the state's original design, one run at a time (a second caller is told
-:data:`BUSY`), publishes the result's YAML on ``~/balance_result`` (transient local: late
-joiners get it) and writes it to a file named by the node's namespace and name.
+parameters on the state's original design, one run at a time (callers of the same request
+share its answer), publishes the result's YAML on ``~/balance_result`` (transient local:
+late joiners get it) and writes it to a file named by the node's namespace and name.
 """
 
 import os
 import tempfile
 import threading
+import weakref
 
 from mech_balance import atomic, balancing
 from mech_balance.ros import params
@@ -18,6 +19,9 @@ from std_msgs.msg import String
 import yaml
 
 BUSY = 'a balancing run is in progress'
+WAIT_S = 600.0
+"""Longest wait of a ``~/balance`` caller for the run in progress before it is told to call
+again (runs are bounded by the solvers; this only bounds a caller's wait)."""
 BALANCE_RESULT = '~/balance_result'
 """Transient-local std_msgs/String: the YAML of the last balancing run (late joiners get it)."""
 
@@ -52,14 +56,29 @@ def result_path(fully_qualified_name):
     return os.path.join(tempfile.gettempdir(), f'mech_balance_{name}_balance.yaml')
 
 
+def request_key(values):
+    """Return what decides a balancing run besides the design: the ``balance.*`` values."""
+    return tuple(sorted((k, repr(v)) for k, v in values.items() if k.startswith('balance.')))
+
+
 class Balancer:
-    """Balance the state's original design; publish and write the result."""
+    """
+    Balance the state's original design; publish and write the result.
+
+    The last answer is kept with the design it was computed for (the original model object,
+    its content included) and the ``balance.*`` values: a caller asking the same again --
+    while the run is in progress (it waits for it) or after -- gets that answer, not a run
+    of its own and not :data:`BUSY`.  :attr:`last_original` names the design a returned
+    model belongs to.
+    """
 
     def __init__(self, node, state, guard):
         self._node = node
         self._state = state
         self._guard = guard
         self.lock = threading.Lock()
+        self._last = None          # (original, request key, model, answer)
+        self._origins = weakref.WeakKeyDictionary()   # balanced model -> its original
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.result_pub = node.create_publisher(String, BALANCE_RESULT, latched)
 
@@ -68,19 +87,30 @@ class Balancer:
         """Return whether a balancing run is in progress."""
         return self.lock.locked()
 
-    def balance(self, wait=False, still_wanted=None):
+    def balance(self, wait=False, still_wanted=None, timeout_s=WAIT_S):
         """
         Return ``(model or None, answer)``: a balancing run, or why there is none.
 
         One run at a time: while one runs, the answer is :data:`BUSY`, unless ``wait``: then
-        the call queues behind the running one and, once it may start, runs only if
-        ``still_wanted()`` (when given) is true, else answers ``(None, None)``.
+        the call queues behind the running one (at most ``timeout_s``, then it is told to
+        call again) and, once it may start, answers the result of the run it waited for if
+        that was the same request (same design, same options), else runs -- only if
+        ``still_wanted()`` (when given) is true, else answers ``(None, None)``.  The model
+        returned belongs to :meth:`original_of`.
         """
-        if not self.lock.acquire(blocking=wait):
-            return None, BUSY
+        if not self.lock.acquire(timeout=timeout_s) if wait else \
+                not self.lock.acquire(blocking=False):
+            return None, BUSY if not wait else (
+                f'{BUSY} (waited {timeout_s:g} s); call again when it ends: '
+                f'{self.result_pub.topic_name} announces its result')
         try:
             if still_wanted is not None and not still_wanted():
                 return None, None
+            with self._state.lock:
+                original, values = self._state.original, dict(self._state.values)
+            last = self._last
+            if last is not None and last[0] is original and last[1] == request_key(values):
+                return last[2], last[3]
             return self._run()
         except Exception as exc:  # noqa: BLE001 - any failure is answered, never fatal
             with self._state.lock:
@@ -88,6 +118,10 @@ class Balancer:
             return None, f'balancing failed: {exc}; still publishing the {which} design'
         finally:
             self.lock.release()
+
+    def original_of(self, model):
+        """Return the original design ``model`` (a returned balanced design) was computed for."""
+        return self._origins.get(model)
 
     def _run(self):
         with self._state.lock:
@@ -98,8 +132,11 @@ class Balancer:
         with self._state.lock:
             if self._state.original is not original:
                 return None, ('the scene changed during the balancing run; still publishing '
-                              "the new scene's original design")
-        return model, self.publish_result(design)
+                              "the new scene's original design; call again for it")
+        answer = self.publish_result(design)
+        self._last = (original, request_key(values), model, answer)
+        self._origins[model] = original
+        return model, answer
 
     def publish_result(self, design):
         """

@@ -19,6 +19,7 @@ the node's recording hook only (the layer rule of ``ros``).
 
 from collections import deque
 import socket
+import sys
 import threading
 import time
 from urllib.parse import urlsplit
@@ -90,7 +91,10 @@ class Recording:
         self._stopped = False
         self.dropped = 0
         self.logged = 0
-        self._thread = threading.Thread(target=self._run, name='rig-recording', daemon=True)
+        self.queued = 0            # samples pushed for the recording now asked for
+        self.died = None           # why the recording thread stopped on an error, if it did
+        self._thread = threading.Thread(target=self._run_guarded, name='rig-recording',
+                                        daemon=True)
         self._thread.start()
 
     # ------------------------------------------------------------------ any thread
@@ -101,6 +105,7 @@ class Recording:
             self._generation += 1
             self._wanted = (self._generation, path or None, url or None, scene, balanced)
             self._queue.clear()
+            self.queued = 0
             self._cond.notify_all()
 
     @property
@@ -116,6 +121,7 @@ class Recording:
                 return
             if len(self._queue) == self._queue.maxlen:
                 self.dropped += 1
+            self.queued += len(stamps_ns)
             self._queue.append((stamps_ns * 1e-9, turned_rad, samples if original else None))
             self._cond.notify_all()
 
@@ -131,6 +137,42 @@ class Recording:
                 return t.state()
         return CONNECTING
 
+    def file_status(self):
+        """
+        Return the file's state: 'off', 'recording', 'opening', 'closed' or 'dead: <reason>'.
+
+        'dead' also when the recording thread itself stopped on an error (:attr:`died`).
+        """
+        with self._cond:
+            wanted, targets = self._wanted, list(self._targets)
+        if self.died is not None:
+            return f'{DEAD}: the recording thread stopped: {self.died}'
+        if wanted is None or not wanted[1]:
+            return OFF
+        if self._stopped and not self._thread.is_alive():
+            return 'closed'
+        for t in targets:
+            if not t.is_viewer:
+                return 'recording' if t.status == CONNECTED else t.status
+        return 'opening'
+
+    def diagnostic_statuses(self, name, hardware_id):
+        """Return the ``recording`` and ``live view`` statuses that apply (a list)."""
+        out = []
+        state = self.file_status()
+        if state != OFF:
+            path = self._wanted[1] if self._wanted else ''
+            level = diagnostics.ERROR if state.startswith(DEAD) else diagnostics.OK
+            out.append(diagnostics.Status(
+                f'{name}: recording', level, f'recording_path {path}: {state}', hardware_id,
+                [('path', str(path)), ('status', state), ('samples queued', str(self.queued)),
+                 ('samples logged', str(self.logged)),
+                 ('batches dropped', str(self.dropped))]))
+        live_view = self.diagnostic_status(name, hardware_id)
+        if live_view is not None:
+            out.append(live_view)
+        return out
+
     def diagnostic_status(self, name, hardware_id):
         """Return the ``live view`` :class:`~mech_balance.ros.diagnostics.Status`, or None."""
         status = self.status
@@ -143,8 +185,13 @@ class Recording:
                                   hardware_id, [('url', str(url)), ('status', status),
                                                 ('batches dropped', str(self.dropped))])
 
-    def close(self, timeout_s=CLOSE_TIMEOUT_S):
-        """Close the recording and stop the thread, waiting at most about ``timeout_s``."""
+    def close(self, timeout_s=2.0 * CLOSE_TIMEOUT_S):
+        """
+        Close the recording and stop the thread, waiting at most about ``timeout_s``.
+
+        The thread first logs what is queued, then closes the file (itself bounded by
+        :data:`CLOSE_TIMEOUT_S`): the default waits for both.
+        """
         with self._cond:
             self._stopped = True
             self._cond.notify_all()
@@ -153,12 +200,29 @@ class Recording:
 
     # ------------------------------------------------------------------ the thread
 
+    def _say(self, level, text):
+        """Log through the node; if even that fails, to stderr (never raises)."""
+        try:
+            self._log(level, text)
+        except Exception as exc:  # noqa: BLE001 - the log itself failed: the console
+            print(f'rig_node: recording: {text} (and logging failed: {exc})',
+                  file=sys.stderr, flush=True)
+
+    def _run_guarded(self):
+        """Run the thread; if it stops on an error, say so (log, /diagnostics)."""
+        try:
+            self._run()
+        except BaseException as exc:  # noqa: BLE001 - reported, and the rig goes on
+            self.died = f'{type(exc).__name__}: {exc}'
+            self._say('error', f'recording: the recording thread stopped: {self.died}; '
+                      'nothing more is recorded (the rig goes on publishing)')
+
     def _run(self):
         while True:
             try:
                 self._retry_dead()
             except Exception as exc:  # noqa: BLE001 - the recording never stops the rig
-                self._log('warning', f'recording: {type(exc).__name__}: {exc}')
+                self._say('warning', f'recording: {type(exc).__name__}: {exc}')
             with self._cond:
                 wanted = self._wanted
                 if wanted is not None and wanted[0] == self._opened:
@@ -177,7 +241,7 @@ class Recording:
                 for batch in batches:
                     self._log_batch(batch)
             except Exception as exc:  # noqa: BLE001 - the recording never stops the rig
-                self._log('warning', f'recording: {type(exc).__name__}: {exc}')
+                self._say('warning', f'recording: {type(exc).__name__}: {exc}')
             if stopped:
                 self._close_all()
                 return
@@ -197,7 +261,7 @@ class Recording:
         said = [f'{"streaming the views to" if t.is_viewer else "recording to"} {t.where}'
                 for t in targets if t.recorder is not None]
         if said:
-            self._log('info', ' and '.join(said))
+            self._say('info', ' and '.join(said))
 
     def _connect(self, target):
         scene, balanced = self._context
@@ -215,7 +279,7 @@ class Recording:
                 target.status = CONNECTED
         except (ValueError, OSError) as exc:  # checked when set; the disk may change
             if not target.is_viewer:
-                self._log('error', f'not recording: {exc}')
+                self._say('error', f'not recording: {exc}')
                 target.status = f'{DEAD}: {exc}'
                 target.retry_at = float('inf')
             else:
@@ -227,7 +291,7 @@ class Recording:
         target.recorder = None
         target.retry_at = time.monotonic() + RETRY_S
         if first:
-            self._log('error', f'rerun_url {target.where}: the viewer is dead: {why}; '
+            self._say('error', f'rerun_url {target.where}: the viewer is dead: {why}; '
                       f'publishing goes on, trying again every {RETRY_S:g} s')
 
     def _retry_dead(self):
@@ -236,7 +300,7 @@ class Recording:
             if t.is_viewer and t.recorder is None and now >= t.retry_at:
                 self._connect(t)
                 if t.recorder is not None:
-                    self._log('info', f'rerun_url {t.where}: connected')
+                    self._say('info', f'rerun_url {t.where}: connected')
 
     def _log_batch(self, batch):
         t_s, turned, data = batch
@@ -249,7 +313,7 @@ class Recording:
                 self.logged += len(t_s)
             except Exception as exc:  # noqa: BLE001 - a full disk must not stop the rig
                 if not t.is_viewer:
-                    self._log('warning', f'recording_path: stopped recording: {exc}')
+                    self._say('warning', f'recording_path: stopped recording: {exc}')
                     self._close_one(t)
                     t.status = f'{DEAD}: {exc}'
                     t.retry_at = float('inf')
@@ -270,13 +334,13 @@ class Recording:
                 except TypeError:  # a recorder whose close takes no timeout
                     rec.close()
             except Exception as exc:  # noqa: BLE001 - reported, never fatal
-                self._log('warning', f'recording: closing {target.where}: {exc}')
+                self._say('warning', f'recording: closing {target.where}: {exc}')
             finally:
                 done.set()
         worker = threading.Thread(target=close, name='rig-recording-close', daemon=True)
         worker.start()
         if not done.wait(CLOSE_TIMEOUT_S):
-            self._log('warning', f'recording: {target.where} did not close within '
+            self._say('warning', f'recording: {target.where} did not close within '
                       f'{CLOSE_TIMEOUT_S:g} s; left behind')
 
     def _close_all(self):

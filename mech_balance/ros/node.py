@@ -33,9 +33,12 @@ The node holds no numerics and no logic of its own: it declares the parameters
 calls of the parts and their results into answers.
 """
 
+from collections import deque
 import json
 import sys
 import threading
+import time
+import warnings
 
 from mech_balance import threads
 from mech_balance.ros import description, guard as guards, live
@@ -50,6 +53,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
+from rclpy.service import Service
 from std_srvs.srv import Trigger
 
 NODE_NAME = 'rig'
@@ -58,6 +62,25 @@ EXECUTOR_THREADS = 4
 SERVICE_DEPTH = 1000
 """Request and answer history of every service: a burst of calls is queued, never lost (the
 default, 10, drops the eleventh simultaneous request in the middleware)."""
+ANSWER_GAP_S = 0.01
+"""Shortest pause between two answers of a service while more are waiting (a single call is
+answered at once).  Fast DDS sends a service's answer to the answer reader of *every*
+client of the service (each client keeps its own and drops the others when it takes them),
+and a client's reader keeps only its last ``depth`` (default 10) answers: a burst of 50
+answers overwrote the answer of a client that had not taken it yet -- lost without an error
+on either side (issue 32 item 1; a client with depth 100 got all 50)."""
+ANSWER_GAP_PER_CLIENT_S = 0.002
+"""The pause grows with the service's clients (:data:`ANSWER_GAP_S` at least): a process
+holding many clients takes one sample per client reader per executor round, so each answer
+costs every reader of that process a take; 50 clients in one single-threaded rclpy process
+under load lost answers at 10 ms (all answered at 100 ms)."""
+ANSWER_TRIES = 100
+"""Sends of one answer before it is given up (counted): rmw_fastrtps waits 100 ms for the
+server to match a new client's answer reader, then rclpy only warns ``failed to send
+response (timeout)`` and drops the answer; the node turns that warning into an error
+(:data:`NOT_SENT`) and sends again later, so a client discovered late is still answered."""
+NOT_SENT = (RuntimeWarning, SystemError)
+"""What a send whose answer was dropped raises, once the warning is an error (``main``)."""
 SWITCH_INTERVAL_S = 1e-4
 """Python's thread switch interval in the node process: bounds how long a core evaluation
 in one thread delays the publishing thread (the default, 5 ms, would delay kHz ticks)."""
@@ -95,10 +118,13 @@ class RigNode(Node):
         self._identify_busy = False
         qos = QoSProfile(depth=SERVICE_DEPTH)
         either = ReentrantCallbackGroup()  # each refuses with "busy" what it cannot run now
-        self._triggers = {name: self.create_service(
+        self._answers = _PacedAnswers(self, self._guard)
+        # ~/balance callers queue (one executor thread at most waits for a run; the others
+        # serve parameters and the other services) and share the result of the same request
+        self._triggers = {name: self._answers.pace(self.create_service(
             Trigger, name, self._refusing(name, callback), qos_profile=qos,
-            callback_group=group) for name, callback, group in (
-                ('~/balance', self._on_balance, either),
+            callback_group=group)) for name, callback, group in (
+                ('~/balance', self._on_balance, MutuallyExclusiveCallbackGroup()),
                 ('~/reset', self._on_reset, either),
                 ('~/tare', self._on_tare, MutuallyExclusiveCallbackGroup()),
                 ('~/identify', self._on_identify, either))}
@@ -134,7 +160,21 @@ class RigNode(Node):
         self.get_logger().warning(text, throttle_duration_sec=WARN_THROTTLE_S)
 
     def _log(self, level, text):
-        getattr(self.get_logger(), level)(text)
+        """
+        Log ``text`` at ``level`` ('info', 'warning' or 'error'), one call site per level.
+
+        rclpy ties a logging call site (file, function, line) to the severity of its first
+        call and raises ``ValueError: Logger severity cannot be changed between calls`` when
+        the same line logs at another severity; one line dispatching every level killed the
+        recording thread (issue 32 item 0).
+        """
+        logger = self.get_logger()
+        if level == 'error':
+            logger.error(text)
+        elif level == 'warning':
+            logger.warning(text)
+        else:
+            logger.info(text)
 
     def _service_name(self, name):
         return self._triggers[name].service_name
@@ -152,8 +192,7 @@ class RigNode(Node):
         self._rig.on_encoder(stamp_ns, position_rad, turned_rad, resynced)
 
     def _live_statuses(self, name, hardware_id):
-        status = self._recording.diagnostic_status(name, hardware_id)
-        return [] if status is None else [status]
+        return self._recording.diagnostic_statuses(name, hardware_id)
 
     def _open_recording(self):
         """(Re)open the recording: the original against the balanced design, if known."""
@@ -164,11 +203,20 @@ class RigNode(Node):
                                   state.original.scene, balanced)
 
     def _switch_to(self, model):
-        """Publish ``model`` (the original or a balanced design) from the next sample on."""
+        """
+        Publish ``model`` (the original or a balanced design) from the next sample on.
+
+        Only a design of the current scene: the state's original or its balanced design
+        (both replaced together when the scene changes); another (a run of a scene switched
+        away from) is not published.  Returns whether it is.
+        """
         with self._state.lock:
+            if model is not self._state.original and model is not self._state.balanced:
+                return False
             self._state.published = model
             self._publisher.set_model(model)
         self._describe()
+        return True
 
     def _describe(self):
         """Publish the URDF of the published design on robot_description (if enabled)."""
@@ -246,18 +294,34 @@ class RigNode(Node):
     # ------------------------------------------------------------------ services
 
     def _on_balance(self, request, response):
-        """Balance with the current options, publish the design, answer its YAML."""
-        model, response.message = self._balancer.balance()
+        """
+        Balance with the current options, publish the design, answer its YAML.
+
+        A run in progress is waited for (its result answered if it was the same request);
+        a design whose scene was switched away from meanwhile is not published.
+        """
+        model, response.message = self._balancer.balance(wait=True)
         response.success = model is not None
-        if model is not None:
-            self._use_balanced(model)
+        if model is not None and not self._use_balanced(model,
+                                                        self._balancer.original_of(model)):
+            response.success = False
+            response.message = ('the scene changed during the balancing run; its design is '
+                                'not published; call again to balance the new scene\n'
+                                f'{response.message}')
         return response
 
-    def _use_balanced(self, model):
+    def _use_balanced(self, model, original):
+        """Make ``model``, computed for ``original``, the balanced design; False if stale."""
         with self._state.lock:
+            if original is None or self._state.original is not original:
+                return False
             self._state.balanced = model
         self._open_recording()  # the recording shows the original against the new design
-        self.set_parameters([Parameter('use_balanced', value=True)])
+        if self._state.values['use_balanced']:
+            self._switch_to(model)  # set again: no parameter event, the design is new
+        else:
+            self.set_parameters([Parameter('use_balanced', value=True)])
+        return True
 
     def _balance_in_background(self):
         """use_balanced is true but no design is known: balance, then publish the design."""
@@ -280,8 +344,7 @@ class RigNode(Node):
                 self._state.balanced = model
                 wanted = self._state.values['use_balanced']
             self._open_recording()
-            if wanted:
-                self._switch_to(model)
+            if wanted and self._switch_to(model):
                 self.get_logger().info('use_balanced: publishing the balanced design')
 
         self.get_logger().info(f'use_balanced: balancing scene '
@@ -292,7 +355,9 @@ class RigNode(Node):
     def _on_reset(self, request, response):
         """Return to the scene's original design (from a calibrated scene: to the scene)."""
         if self._balancer.busy:
-            response.success, response.message = False, BUSY
+            response.success = False
+            response.message = (f'{BUSY}; call ~/reset again when it ends '
+                                f'({self._balancer.result_pub.topic_name} announces it)')
             return response
         state, note = self._state, ''
         with state.lock:
@@ -366,6 +431,16 @@ class RigNode(Node):
         counts = dict(self._guard.counts)
         stats['caught'] = counts
         stats['published_total'] = self._publisher.streamer.published_total
+        follow = stats['follow'] = self._publisher.follow_counts()
+        unanswered = sum(follow['unanswered'].values())
+        said_follow = '' if not follow['received'] else (
+            f'follow mode: {follow["received"]} encoder samples received, {unanswered} not '
+            'answered (' + (', '.join(f'{k}: {v}' for k, v in follow['unanswered'].items())
+                            or 'none') + '); ')
+        stats['answers'] = {'sent': self._answers.sent, 'retried': self._answers.retried}
+        rec = self._recording
+        stats['recording'] = {'file': rec.file_status(), 'queued': rec.queued,
+                              'logged': rec.logged, 'batches_dropped': rec.dropped}
         refused_parameters = counts.get('parameters', 0)
         refused_calls = sum(v for k, v in counts.items() if k in self._triggers)
         errors = self._guard.total() - refused_parameters - refused_calls
@@ -375,10 +450,66 @@ class RigNode(Node):
                 f'{stats["withheld"]} non-finite withheld since then); '
                 f'{refused_parameters} parameter updates refused, {refused_calls} service '
                 f'calls answered with an error, {errors} other exceptions caught in callbacks '
-                'and threads; '
+                f'and threads; {said_follow}'
                 f'compute {stats["prepare_per_sample_s"] * 1e6:.1f} us per sample (core and '
                 f'serialization, batched); publishing {stats["step_median_s"] * 1e6:.1f} us '
                 f'median per sample; {STATS_TAG}{json.dumps(stats)}')
+
+
+class _PacedAnswers:
+    """
+    Send the services' answers from a thread of their own, paced.
+
+    :meth:`pace` replaces a service's ``send_response`` (what rclpy's executor calls with
+    the callback's answer) by a queue: the executor's thread returns at once, this thread
+    sends the answers in order, pausing between two while more are waiting
+    (:data:`ANSWER_GAP_S`, :data:`ANSWER_GAP_PER_CLIENT_S`).
+    """
+
+    def __init__(self, node, guard):
+        self._node = node
+        self._guard = guard
+        self._cond = threading.Condition()
+        self._queue = deque()
+        self.sent = 0
+        self.retried = 0
+        threading.Thread(target=self._run, name='rig-answers', daemon=True).start()
+
+    def pace(self, service):
+        """Route ``service``'s answers through the queue; return the service."""
+        def send_response(response, header):
+            with self._cond:
+                self._queue.append((service, response, header, 0))
+                self._cond.notify()
+        service.send_response = send_response
+        return service
+
+    def _run(self):
+        while True:
+            with self._cond:
+                while not self._queue:
+                    self._cond.wait()
+                service, response, header, tries = self._queue.popleft()
+                more = bool(self._queue)
+            try:
+                Service.send_response(service, response, header)
+                self.sent += 1
+            except NOT_SENT as exc:  # the client's reader not matched yet: again, later
+                if tries + 1 >= ANSWER_TRIES:
+                    self._guard.caught('answering a service call', exc)
+                else:
+                    self.retried += 1
+                    with self._cond:
+                        self._queue.append((service, response, header, tries + 1))
+                    more = True
+            except Exception as exc:  # noqa: BLE001 - a destroyed service: counted, go on
+                self._guard.caught('answering a service call', exc)
+            if more:
+                try:
+                    clients = self._node.count_clients(service.service_name)
+                except Exception:  # noqa: BLE001 - shutting down: the shortest pause
+                    clients = 0
+                time.sleep(max(ANSWER_GAP_S, ANSWER_GAP_PER_CLIENT_S * clients))
 
 
 def _viz_recorder(path, url, scene, balanced):
@@ -410,6 +541,8 @@ def main(args=None):
     context is not valid``); after a shutdown that is the shutdown, not a failure (exit 0).
     """
     sys.setswitchinterval(SWITCH_INTERVAL_S)
+    # an answer rclpy could not send (a client's reader not matched yet) raises: sent again
+    warnings.filterwarnings('error', message='failed to send response', category=RuntimeWarning)
     threads.return_large_blocks()  # a long-running node: big temporaries back at free
     try:
         threads.limit_blas_threads()

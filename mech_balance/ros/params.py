@@ -206,12 +206,12 @@ def _balance_specs():
 
 METHOD_SPEC = Spec(
     'balance.method', STRING, 'redistribution',
-    'redistribution: the certified optimal mass redistribution (seed 001); '
+    'redistribution: the certified optimal mass redistribution (Chaudhary & Saha); '
     'counterweights: add-only discs on balance.counterweight_links (certified); '
-    'analytic: complete force balance in closed form (slider-crank: seed 000, '
-    'four-bar: seed 001 eq. 48). A spatial scene that lists balancing_weights (rggr) is '
-    'balanced by its own method (weights, seed 002) with the default; other spatial '
-    'scenes are redistributed.', choices=METHODS)
+    'analytic: complete force balance in closed form (slider-crank: Sinatra & Angeles, '
+    'four-bar: Chaudhary & Saha eq. 48). A spatial scene that lists balancing_weights '
+    '(rggr) is balanced by its own method (weights, Hedaya) with the default; other '
+    'spatial scenes are redistributed.', choices=METHODS)
 """``balance.method``: the node's own (the command line chooses by its flags)."""
 
 

@@ -8,6 +8,7 @@ The rig node's publisher part: ``joint_states`` and ``shaking_wrench``, clock or
 from the node's :class:`mech_balance.ros.rig_state.RigState`.
 """
 
+from collections import Counter, deque
 import threading
 
 from geometry_msgs.msg import WrenchStamped
@@ -23,8 +24,15 @@ SHAKING_WRENCH = 'shaking_wrench'
 ENCODER = 'crank_joint_state'
 PUBLISH_DEPTH = 100
 """History of both publishers (absorbs a subscriber's jitter at kHz rates)."""
-ENCODER_DEPTH = 100
-"""History of the encoder subscription."""
+ENCODER_DEPTH = 1000
+"""History of the encoder subscription (1 s at 1 kHz: the executor may be held that long
+before the middleware overwrites a sample; one it overwrote is counted from the stamps'
+gap, :data:`GAP_FACTOR`)."""
+GAP_FACTOR = 1.5
+"""A step between two encoder stamps longer than this many typical steps (the median of the
+recent ones) counts the samples missing in it: never received, so never answered."""
+GAP_WINDOW = 64
+"""Recent encoder steps whose median is the typical step."""
 
 
 def new_estimator(values):
@@ -55,6 +63,10 @@ class Publisher:
         self._serializer = None        # conv.SampleSerializer of the published names, frame
         self._zero_stamp_said = False
         self.skipped_inputs = 0
+        self.received = 0                  # encoder messages received in follow mode
+        self.unanswered = Counter()        # of them (or missing): never published, why
+        self._last_stamp = None
+        self._steps = deque(maxlen=GAP_WINDOW)
         self.encoder_input = diagnostics.InputCounter()
         self.model_watch = diagnostics.ModelWatch()
         self.rate_meter = diagnostics.RateMeter()
@@ -194,6 +206,7 @@ class Publisher:
             return
         joint = values['crank_joint'] or self._state.original.crank_joint
         estimator = self.estimator
+        self.received += 1
         try:
             stamp_ns, position, velocity = conv.crank_reading(msg, joint)
             if stamp_ns == 0:  # unset: `ros2 topic pub` sends stamp 0 (docs/node.md: follow mode)
@@ -206,6 +219,7 @@ class Publisher:
             sample = estimator.update(stamp_ns, position, velocity)
         except ValueError as exc:
             self.skipped_inputs += 1
+            self.unanswered['rejected (bad input, see the encoder input status)'] += 1
             self.encoder_input.reject(diagnostics.reason_of(exc))
             self._warn(f'{ENCODER}: skipped a message ({self.skipped_inputs} so far): {exc}')
             return
@@ -215,12 +229,37 @@ class Publisher:
                 f'{ENCODER}: re-synchronized on the incoming stream at {stamp_ns * 1e-9:.9f} '
                 f's: {estimator.last_resync}')
         self.encoder_input.use()
+        self._count_gap(stamp_ns)
+        if sample is None:
+            self.unanswered['priming or re-synchronizing the estimator'] += 1
         if self._on_encoder_sample is not None:
             self._on_encoder_sample(stamp_ns, position,
                                     None if sample is None else sample.turned_rad,
                                     estimator.just_resynced)
         if sample is not None and not self.streamer.push(sample):
             self._warn(f'{ENCODER}: the core is behind the encoder; dropped the oldest sample')
+
+    def _count_gap(self, stamp_ns):
+        """Count the samples missing before ``stamp_ns`` (a gap of the encoder's stamps)."""
+        last, self._last_stamp = self._last_stamp, stamp_ns
+        if last is None or stamp_ns <= last:
+            return
+        step = stamp_ns - last
+        if len(self._steps) >= 8:
+            typical = sorted(self._steps)[len(self._steps) // 2]
+            if step > GAP_FACTOR * typical:
+                self.unanswered['missing (gaps in the encoder stamps)'] += \
+                    max(int(round(step / typical)) - 1, 0)
+                return   # a gap is not a step of the encoder
+        self._steps.append(step)
+
+    def follow_counts(self):
+        """Return ``{'received': n, 'unanswered': {why: n}}`` of follow mode (since start)."""
+        both = Counter(self.unanswered)
+        with self.streamer._cond:
+            both.update(self.streamer.unanswered)
+        both['non-finite, withheld'] = self.streamer.stats.withheld
+        return {'received': self.received, 'unanswered': {k: v for k, v in both.items() if v}}
 
     def _receive_time(self, info):
         """
@@ -253,13 +292,17 @@ class Publisher:
         self._skipped_reported = stats.skipped
         clock = values['mode'] == 'clock'
         used, rejected, new = self.encoder_input.snapshot()
+        encoder = diagnostics.input_status(f'{name}: encoder input', hardware_id, ENCODER, used,
+                                           rejected, new)
+        counts = self.follow_counts()
+        encoder.values += [('received (follow mode)', str(counts['received']))] + \
+            [(f'not answered: {k}', str(v)) for k, v in sorted(counts['unanswered'].items())]
         return [diagnostics.publisher_status(
                     f'{name}: publisher', hardware_id, values['mode'],
                     values['publish_rate'] if clock else None,
                     self.rate_meter.rate(stats.count, now_ns), stats.count, stats.skipped,
                     skipped_new),
-                diagnostics.input_status(f'{name}: encoder input', hardware_id, ENCODER, used,
-                                         rejected, new),
+                encoder,
                 diagnostics.model_status(f'{name}: model', hardware_id,
                                          *self.model_watch.snapshot(),
                                          evaluation=self.follow_evaluation())]

@@ -34,7 +34,7 @@ about their scene's ``moment_point_m`` (the RGGR: the origin O of its frame, see
 of the common normal on the output axis), all six components.
 """
 
-from collections import deque
+from collections import Counter, deque
 from dataclasses import dataclass
 from functools import partial
 import math
@@ -484,6 +484,9 @@ class TickStats:
         self.skipped = 0
         self.withheld = 0   # samples with a non-finite value, never published
         self.late_max_s = 0.0
+        self.first_tick = None  # clock mode: the first tick index sent, the last one passed
+        self.last_tick = None
+        self.rebased = 0        # clock mode: schedules started again (a clock jump)
         self._times = deque(maxlen=STATS_WINDOW)
         self.batch_seconds = deque(maxlen=64)
         self.batch_sizes = deque(maxlen=64)
@@ -507,6 +510,8 @@ class TickStats:
                 'step_median_s': float(np.median(times)),
                 'step_p99_s': float(np.percentile(times, 99)),
                 'late_max_s': self.late_max_s,
+                'ticks_due': 0 if self.first_tick is None else
+                self.last_tick - self.first_tick + 1, 'rebased': self.rebased,
                 'prepare_per_sample_s': per_tick}
 
 
@@ -551,6 +556,7 @@ class Streamer:
         self._refill = threading.Event()  # wakes the precompute thread (not every tick)
         self.stats = TickStats()
         self.published_total = 0        # since the start, across restarts
+        self.unanswered = Counter()     # follow mode: samples queued, never published, why
         self._last_step = None          # (node clock ns, monotonic s) of the last clock step
         self._threads = [threading.Thread(target=self._run_publisher, name='rig-publish',
                                           daemon=True),
@@ -594,6 +600,7 @@ class Streamer:
             dropped = len(self._pending) >= MAX_PENDING
             if dropped:
                 self._pending.popleft()
+                self.unanswered['queue full (the core fell behind)'] += 1
             self._pending.append(sample)
             self._cond.notify_all()
         return not dropped
@@ -612,11 +619,14 @@ class Streamer:
         self._last_step = None
         if not keep_pending:  # a new mode, rate or speed: statistics start again
             self.stats = TickStats()
+        same_ticks = keep_pending and schedule is not None and schedule is self._schedule
         self._generation += 1
         self._mode, self._model, self._schedule = mode, model, schedule
         self._batches.clear()
-        self._next_k = None
-        if not keep_pending:
+        if not same_ticks:   # a design switch goes on from the next tick: none left out
+            self._next_k = None
+        if not keep_pending and self._pending:
+            self.unanswered['discarded by a mode, rate or scene change'] += len(self._pending)
             self._pending.clear()
         self._cond.notify_all()
 
@@ -656,6 +666,8 @@ class Streamer:
                     groups.append((evaluate([s.angle_rad], [s.speed_rad_s],
                                             [s.accel_rad_s2]), [s]))
                 except ValueError as exc:
+                    with self._cond:
+                        self.unanswered['refused by the core'] += 1
                     self._warn(f'crank_joint_state: skipped the sample at '
                                f'{s.stamp_ns * 1e-9:.9f} s: {exc}')
         out = []
@@ -729,6 +741,7 @@ class Streamer:
             if due > now + schedule.period_ns + int(MAX_LAG_S * 1e9):
                 # the clock went back (e.g. a simulation restarted): start again from now
                 self._schedule = schedule.rebased(now)
+                self.stats.rebased += 1
                 self._next_k = None
                 self._batches.clear()
                 self._generation += 1
@@ -752,6 +765,7 @@ class Streamer:
                 return
             if late > CLOCK_JUMP_S:  # use_sim_time switched, a simulation resumed
                 self._schedule = schedule.rebased(now)
+                self.stats.rebased += 1
                 self._next_k = None
                 self._batches.clear()
                 self._generation += 1
@@ -777,6 +791,9 @@ class Streamer:
                 self._batches.append((k, payloads))
                 found = payloads[0]
         self._send(found)
+        if self.stats.first_tick is None:
+            self.stats.first_tick = k - self.stats.skipped   # skips before the first send
+        self.stats.last_tick = k
         self.stats.late_max_s = max(self.stats.late_max_s, late)
         with self._cond:
             if gen == self._generation:
@@ -850,8 +867,11 @@ class Streamer:
             gen, model = self._generation, self._model
             batch = [self._pending.popleft()
                      for _ in range(min(len(self._pending), MAX_FOLLOW_BATCH))]
-        for payload in self._evaluate_follow(model, batch):
+        payloads = self._evaluate_follow(model, batch)
+        for i, payload in enumerate(payloads):
             with self._cond:
                 if gen != self._generation or self._stopped:
+                    self.unanswered['evaluated for a design switched away from'] += \
+                        len(payloads) - i
                     return
             self._send(payload)

@@ -129,7 +129,12 @@ def integer(value, where, minimum=None, maximum=None, error=SceneError):
 
 
 def at_most(items, limit, where, what, name, error=SceneError):
-    """Refuse more than ``limit`` entries (``name``: the limit's constant in conventions)."""
+    """
+    Refuse more than ``limit`` entries.
+
+    ``name`` is the limit's constant in conventions, for the reader of the code; the message
+    says the limit is fixed (no scene field or option raises it).
+    """
     if len(items) > limit:
         raise error(f'{where}: got {len(items)} {what}, expected at most {limit} '
-                    f'(conventions.{name})')
+                    '(a fixed limit of mech_balance)')

@@ -110,7 +110,7 @@ class Loader(_Base):
             if target is not None:
                 self._aliases += 1
                 if self._aliases > MAX_ALIASES:
-                    self._refuse(f'more than {MAX_ALIASES} aliases (safe_yaml.MAX_ALIASES)',
+                    self._refuse(f'more than {MAX_ALIASES} aliases (a fixed limit)',
                                  event.start_mark)
                 if id(target) not in self._extent:
                     self._refuse(f'alias *{event.anchor} refers to a node that contains it '
@@ -118,7 +118,7 @@ class Loader(_Base):
             return super().compose_node(parent, index)
         self._depth += 1
         if self._depth > MAX_DEPTH:
-            self._refuse(f'nesting deeper than {MAX_DEPTH} levels (safe_yaml.MAX_DEPTH)',
+            self._refuse(f'nesting deeper than {MAX_DEPTH} levels (a fixed limit)',
                          self.peek_event().start_mark)
         self._path.append(_segment(parent, index))
         try:
@@ -141,10 +141,10 @@ class Loader(_Base):
         depth += not isinstance(node, ScalarNode)
         if depth > MAX_DEPTH:
             self._refuse(f'nesting deeper than {MAX_DEPTH} levels through aliases '
-                         '(safe_yaml.MAX_DEPTH)', node.start_mark)
+                         '(a fixed limit)', node.start_mark)
         if count > MAX_NODES:
             self._refuse(f'more than {MAX_NODES} nodes with its aliases expanded '
-                         '(safe_yaml.MAX_NODES; a "billion laughs" document?)', node.start_mark)
+                         '(a fixed limit; a "billion laughs" document?)', node.start_mark)
         self._extent[id(node)] = (count, depth)
         return node
 
@@ -176,7 +176,7 @@ class Loader(_Base):
         text = self.construct_scalar(node)
         if len(text.replace('_', '').lstrip('+-')) > MAX_INT_DIGITS:
             self._refuse(f'an integer of {len(text)} characters, expected at most '
-                         f'{MAX_INT_DIGITS} (safe_yaml.MAX_INT_DIGITS)', node.start_mark)
+                         f'{MAX_INT_DIGITS} (a fixed limit)', node.start_mark)
         return super().construct_yaml_int(node)
 
     def _refuse(self, what, mark):
@@ -223,7 +223,7 @@ def loads(text, label='YAML', error=YamlError):
         raise error(f'{label}: got {type(text).__name__}, expected YAML text')
     if len(text) > MAX_BYTES or len(text.encode('utf-8', 'surrogatepass')) > MAX_BYTES:
         raise error(f'{label}: got more than {MAX_BYTES} bytes of YAML, expected at most '
-                    f'{MAX_BYTES} (safe_yaml.MAX_BYTES)')
+                    f'{MAX_BYTES} (a fixed limit)')
     loader = None
     try:
         loader = Loader(text)  # its reader refuses control characters at once
@@ -235,7 +235,7 @@ def loads(text, label='YAML', error=YamlError):
         raise error(f'{label}: {_syntax_error(text, exc)}') from None
     except RecursionError:  # cannot happen below MAX_DEPTH; never let it escape
         raise error(f'{label}: nesting too deep to read, expected at most {MAX_DEPTH} levels '
-                    '(safe_yaml.MAX_DEPTH)') from None
+                    '(a fixed limit)') from None
     except (ValueError, TypeError, OverflowError) as exc:  # e.g. a timestamp 2001-02-30
         raise error(f'{label}: a value cannot be read ({exc})') from None
     finally:
@@ -299,7 +299,7 @@ def check_file(path, label, error=YamlError):
         raise error(f'{label}: file {text!r} is empty, expected a YAML mapping')
     if info.st_size > MAX_BYTES:
         raise error(f'{label}: file {text!r} has {info.st_size} bytes, expected at most '
-                    f'{MAX_BYTES} (safe_yaml.MAX_BYTES)')
+                    f'{MAX_BYTES} (a fixed limit)')
     return path
 
 
@@ -330,5 +330,5 @@ def load_file(path, label=None, error=YamlError):
         raise error(f'{label}: cannot be read ({exc.strerror})') from None
     if len(data) > MAX_BYTES:
         raise error(f'{label}: has more than {MAX_BYTES} bytes, expected at most {MAX_BYTES} '
-                    '(safe_yaml.MAX_BYTES)')
+                    '(a fixed limit)')
     return loads(decode(data, label, error), label, error)

@@ -9,6 +9,7 @@ expected.  Values are SI; the papers' normalization is recorded, never applied t
 """
 
 from dataclasses import dataclass, field, replace
+import difflib
 import functools
 import math
 import os
@@ -402,6 +403,10 @@ def _config_dirs():
     return [d for d in dirs if d.is_dir()]
 
 
+SCENE_NAME_CUTOFF = 0.6
+"""difflib similarity above which a misspelled scene name is answered with the nearest one."""
+
+
 def resolve(name_or_path):
     """Return the path of a built-in scene name or of a YAML file."""
     text = str(name_or_path)
@@ -410,9 +415,10 @@ def resolve(name_or_path):
         return safe_yaml.check_file(text, 'scene', error=SceneError)
     scenes = builtin_scenes()
     if text not in scenes:
+        near = difflib.get_close_matches(text, scenes, n=1, cutoff=SCENE_NAME_CUTOFF)
         raise SceneError(
             f'scene: got {text!r}, expected a built-in scene ({", ".join(sorted(scenes))}) '
-            'or a path to a .yaml file')
+            'or a path to a .yaml file' + (f'; did you mean {near[0]!r}?' if near else ''))
     return scenes[text]
 
 

@@ -3,10 +3,13 @@
 from mech_balance.viz.drawing import DEGREE_TIMELINE
 from mech_balance.viz.layout import LEFT_SHARE, RIG_ROW_SHARE
 from mech_balance.viz.text import fmt
-import rerun as rr
 import rerun.blueprint as rrb
 
 
+X_AXIS_NOTE = ' | x: crank angle, deg'
+"""Said by the bottom plot's title: its x axis (the timeline crank_angle_deg) in degrees."""
+X_AXIS_LIVE = ' | x: time, s'
+"""The same for a live view, which follows the time timeline."""
 DRAWN_STREAMS = ('frame', 'links', 'joints', 'mass_centres', 'point_masses',
                  'shaking_force_arrow', 'shaking_moment_arc')
 
@@ -52,17 +55,21 @@ def blueprint(layout):
                     eye_controls=rrb.EyeControls3D(
                         kind=rrb.Eye3DKind.Orbital, position=screen.eye_m,
                         look_target=screen.target_m, eye_up=screen.up),
-                    line_grid=rrb.LineGrid3D(visible=True, spacing=layout.grid_m,
-                                             plane=rr.components.Plane3D.XY)))
+                    # the rig's own grid (rig/grid, sized to it) instead of the endless one
+                    line_grid=rrb.LineGrid3D(visible=False)))
     # the viewer's legend lists its entities in name order (balanced above original): the
     # title says it instead, in the order of the rig views (original left, balanced right)
     both = len(layout.variants) > 1
     key = ': orange original, blue balanced' if both else ''
-    plots = [rrb.TimeSeriesView(origin=f'/plots/{p.entity}', name=p.title + key,
+    # the x axis shows a sequence timeline as `#90`: the bottom plot says what it counts
+    x_note = [''] * len(layout.plots)
+    if x_note:
+        x_note[-1] = X_AXIS_LIVE if layout.live else X_AXIS_NOTE
+    plots = [rrb.TimeSeriesView(origin=f'/plots/{p.entity}', name=p.title + key + x,
                                 axis_y=rrb.ScalarAxis(range=p.y_range, zoom_lock=False),
                                 plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop,
                                                            visible=not both))
-             for p in layout.plots]
+             for p, x in zip(layout.plots, x_note)]
     left = []
     if spatial:
         left.append(rrb.Horizontal(*spatial) if len(spatial) > 1 else spatial[0])

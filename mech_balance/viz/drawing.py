@@ -59,7 +59,7 @@ def check_samples(samples, cycles, links=1):
         raise ValueError(f'cycles: got {cycles!r}, expected an integer >= 1')
     if cycles > conventions.MAX_CYCLES:
         raise ValueError(f'cycles: got {cycles}, expected at most {conventions.MAX_CYCLES} '
-                         'crank turns (conventions.MAX_CYCLES)')
+                         'crank turns (a fixed limit of mech_balance)')
 
 
 DEGREE_TIMELINE = 'crank_angle_deg'

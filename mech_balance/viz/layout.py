@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import math
 
 from mech_balance.schema.scene import series_stream
+from mech_balance.viz.hits import distance_to_segments, first_passing, segments_hit_boxes
 from mech_balance.viz.style import (
     CENTRE_RADIUS_SHARE, DIAL_OVER_ARROW, DIAL_SHARE, FORCE_ARROW_SHARE, FRAME_COLOR,
     GAUGE_GAP_SHARE, JOINT_COLOR, MOMENT_ARC_MAX_DEG, MOMENT_COLOR, MOMENT_HEAD_SHARE,
@@ -64,7 +65,9 @@ FOV_Y_RAD = math.radians(55.0)
 """Vertical field of view of the viewer's 3-D eye (rerun's default)."""
 EYE_DIRECTION = (1.0, -1.7, 0.9)
 """Direction from the look target towards the 3-D eye (frame axes, z up): front right above."""
-EYE_FIT = 1.15
+GRID_MARGIN_LINES = 1
+"""The 3-D grid reaches this many spacings beyond everything drawn."""
+EYE_FIT = 1.05
 """The 3-D eye stands this much further than the distance that just fits the drawing."""
 LEGEND_HEADROOM = 0.24
 """Share of a plot's height kept free above the curves for the legend (top right)."""
@@ -212,6 +215,7 @@ class Layout:
     live: bool = False
     grid_m: float = 0.0          # 3-D: spacing of the grid lines
     grid_text: str = ''
+    grid_box: tuple = None       # 3-D: (x0, x1, y0, y1) of the grid drawn on z = 0
     marks: dict = None           # variant -> {'rings': [(body, (k, 3))], 'stalks': [...]}
     changes: dict = None         # variant -> [(body index, mass change kg)]
 
@@ -401,6 +405,7 @@ def place_views(layout, motion, fmax, nmax, n_series):
             layout.gauge_reach_m = reach
             lo = np.minimum(lo, layout.gauge_m - reach)
             hi = np.maximum(hi, layout.gauge_m + reach)
+        layout.grid_box = grid_box(lo, hi, layout.grid_m)
         target = 0.5 * (lo + hi)
         drawn = pts[::max(1, len(pts) // 4000)]
         if layout.gauge_reach_m:
@@ -408,6 +413,22 @@ def place_views(layout, motion, fmax, nmax, n_series):
                 [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])])
         screen = fit_eye(view_px, target, d, drawn)
     layout.screens = {v: screen for v in layout.variants}
+
+
+def grid_box(lo, hi, spacing):
+    """
+    Return the 3-D grid's ``(x0, x1, y0, y1)``: what is drawn, one line beyond, on the lines.
+
+    The grid lies on z = 0 under (or through) the rig and covers its extent over the turn and
+    the gauge plus :data:`GRID_MARGIN_LINES` spacings, so that it frames the rig instead of
+    filling the view to the horizon.
+    """
+    if not spacing > 0.0:
+        return None
+    m = GRID_MARGIN_LINES * spacing
+    x0, y0 = (np.floor((lo[:2] - m) / spacing) * spacing).tolist()
+    x1, y1 = (np.ceil((hi[:2] + m) / spacing) * spacing).tolist()
+    return (x0, x1, y0, y1)
 
 
 def _scale_2d(lo, hi, view_px):
@@ -508,9 +529,41 @@ def plot_values(layout, motion, entity):
             yield v, d.series[entity]
 
 
+def moved_text(layout, variant, i):
+    """Return the label of a body whose mass is kept and whose mass centre moved: how far."""
+    moved = np.linalg.norm(np.subtract(layout.drawings[variant].bodies[i].mass_centre_m,
+                                       layout.drawings['original'].bodies[i].mass_centre_m))
+    return f'moved {moved * 1e3:.0f} mm'
+
+
+def slide_readout(stroke_m, motion, variant):
+    """
+    Return the readout of a prismatic input: ``deg -> 'slide 30.0 mm, force +12.3 N'``.
+
+    The slide follows the input's stroke law at the cycle angle; the driving force is the
+    design's at the recorded samples (a live view's new angles show the slide alone).
+    """
+    from mech_balance.schema.spatial import stroke_law
+    data = (motion.data or {}).get(variant)
+    force = getattr(data, 'series', {}).get('driving_force') if data is not None else None
+    at = {} if force is None else {round(float(d), 9): float(f)
+                                   for d, f in zip(motion.degrees, force)}
+
+    def text(deg):
+        slide = float(stroke_law(stroke_m, math.radians(deg))[0])
+        f = at.get(round(float(deg), 9))
+        return f'slide {slide * 1e3:.1f} mm' + ('' if f is None else f', force {f:+.3g} N')
+    return text
+
+
 def label_specs(layout, motion):
     """Return the labels of a rig view, most important first."""
-    specs = [Label(lambda deg: f'crank {deg:.1f} deg', READOUT_COLOR, 'readout')]
+    stroke = getattr(layout.rigs['original'].scene, 'crank_stroke_m', None)
+    if stroke is None:
+        specs = [Label(lambda deg: f'crank {deg:.1f} deg', READOUT_COLOR, 'readout')]
+    else:   # a prismatic input: its slide and the driving force of each design
+        specs = [Label(slide_readout(stroke, motion, v), READOUT_COLOR, 'readout', 0, (v,))
+                 for v in layout.variants]
     if layout.scale_bar is not None:
         specs.append(Label(layout.scale_bar[1], SCALE_COLOR, 'scale'))
     if layout.on('shaking_force_arrow') or layout.on('shaking_moment_arc'):
@@ -539,7 +592,7 @@ def label_specs(layout, motion):
             specs.append(Label(text, layout.link_colors[i], 'added', j, (v,)))
         if layout.on('links') and layout.on('mass_centres'):
             for i, dm in (layout.changes or {}).get(v, []):
-                text = f'{dm:+.3g} kg' if dm else 'moved, 0 kg'
+                text = f'{dm:+.3g} kg' if dm else moved_text(layout, v, i)
                 specs.append(Label(text, layout.link_colors[i], 'change', i, (v,)))
     return specs
 
@@ -626,40 +679,6 @@ def segments_px(layout, motion, screen, variant=None):
     return np.concatenate(segs, axis=1)
 
 
-def segments_hit_boxes(segments, boxes):
-    """
-    Return ``(p, c)``: whether any segment ``(p, m, 2, 2)`` crosses box ``(p, c, 4)``.
-
-    Liang-Barsky clipping of each segment against each box (x0, y0, x1, y1).
-    """
-    if segments.shape[1] == 0:
-        return np.zeros(boxes.shape[:2], dtype=bool)
-    a = segments[:, None, :, 0, :]                                  # (p, 1, m, 2)
-    d = segments[:, None, :, 1, :] - a
-    lo, hi = boxes[:, :, None, 0:2], boxes[:, :, None, 2:4]         # (p, c, 1, 2)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        ta, tb = (lo - a) / d, (hi - a) / d
-    flat = d == 0.0
-    inside = (a >= lo) & (a <= hi)
-    t_in = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
-    t_out = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
-    t0 = np.maximum(np.max(t_in, axis=-1), 0.0)
-    t1 = np.minimum(np.min(t_out, axis=-1), 1.0)
-    return (t0 <= t1).any(axis=-1)
-
-
-def distance_to_segments(points, segments):
-    """Return ``(p, c)``: the distance of points ``(p, c, 2)`` to segments ``(p, m, 2, 2)``."""
-    if segments.shape[1] == 0:
-        return np.full(points.shape[:2], np.inf)
-    a = segments[:, None, :, 0, :]
-    ab = segments[:, None, :, 1, :] - a
-    q = points[:, :, None, :]
-    t = np.clip(np.sum((q - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300),
-                0.0, 1.0)
-    return np.min(np.linalg.norm(a + t[..., None] * ab - q, axis=-1), axis=-1)
-
-
 def place_labels(layout, motion, variant):
     """
     Return ``(positions (q, 3), texts, colours, counts (p,))``: the labels of one view.
@@ -733,8 +752,12 @@ def place_labels(layout, motion, variant):
             hit = (mx > boxes[..., 0, None] - m) & (mx < boxes[..., 2, None] + m) & \
                 (my > boxes[..., 1, None] - m) & (my < boxes[..., 3, None] + m)
             ok &= ~hit.any(axis=-1)
-        ok &= ~segments_hit_boxes(lines, boxes)     # no line crosses a label
-        ok &= _nearest_own(spec, f_px[:, 0], centres, markers, links_px)
+        # no line crosses a label, and it names its own feature: the costly tests, run only
+        # where the cheap ones passed and only until each sample's first place is found
+        ok = first_passing(ok, lambda rows, cols: ~segments_hit_boxes(
+            lines[rows], boxes[rows, cols]) & _nearest_own(
+            spec, f_px[rows, 0], centres[rows, cols], markers[rows],
+            [s[rows] for s in links_px]))
         found = ok.any(axis=1)
         first = np.argmax(ok, axis=1)
         rows = np.arange(p)

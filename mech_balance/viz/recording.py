@@ -32,7 +32,8 @@ Entities (the stream switch of the scene's ``recording: {streams: ...}`` in brac
 View furniture, not switchable: ``/{variant}/labels`` (every label of that view, placed so
 that none overlaps another, none is crossed by a line and each is nearer its own point than
 any other at the default window, :data:`WINDOW_PX`), ``/rig/scale`` (2-D scale bar),
-``/rig/gauge`` (the moment dial).
+``/rig/gauge`` (the moment dial), ``/rig/grid`` (3-D: the grid on z = 0, sized to the rig
+and its gauge; the viewer's endless grid is off).
 
 Timelines: ``crank_angle_deg`` (the default) and ``crank_angle`` (the same values), the
 crank angle turned from 0 in whole degrees (offline: a turn starts at 0 deg, sample k of n
@@ -177,4 +178,6 @@ def furniture_paths(layout):
         out.add('/rig/scale')
     if layout.dim == 2 and layout.dial_radius_m > 0.0:
         out.add('/rig/gauge')
+    if layout.grid_box is not None:
+        out.add('/rig/grid')
     return sorted(out)

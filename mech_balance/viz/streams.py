@@ -10,10 +10,10 @@ from mech_balance.viz.layout import place_labels, plot_values
 from mech_balance.viz.style import (
     ADDED_ALPHA, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
     DIAL_COLOR, DIAL_POINTS, FORCE_COLOR, FRAME_COLOR, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI,
-    JOINT_COLOR, JOINT_RADIUS_3D_SHARE, JOINT_RADIUS_UI, LINE_RADIUS_UI, LINK_RADIUS_3D_SHARE,
-    MOMENT_ARC_LIMIT_DEG, MOMENT_COLOR, MOMENT_HEAD_SHARE, NEGATIVE_MASS_COLOR, PLANE_ALPHA,
-    POINT_MASS_RADIUS_SHARE, POSITIVE_MASS_COLOR, SCALE_COLOR, SERIES_COLORS, SERIES_WIDTHS,
-    SYSTEM_CENTRE_COLOR
+    GRID_COLOR, GRID_RADIUS_UI, JOINT_COLOR, JOINT_RADIUS_3D_SHARE, JOINT_RADIUS_UI,
+    LINE_RADIUS_UI, LINK_RADIUS_3D_SHARE, MOMENT_ARC_LIMIT_DEG, MOMENT_COLOR, MOMENT_HEAD_SHARE,
+    NEGATIVE_MASS_COLOR, PLANE_ALPHA, POINT_MASS_RADIUS_SHARE, POSITIVE_MASS_COLOR, SCALE_COLOR,
+    SERIES_COLORS, SERIES_WIDTHS, SYSTEM_CENTRE_COLOR
 )
 import numpy as np
 import rerun as rr
@@ -54,6 +54,15 @@ def time_index(degrees, seconds):
             rr.TimeColumn('time', duration=seconds)]
 
 
+def grid_strips(box, spacing):
+    """Return the lines ``[(2, 3)]`` of a grid on z = 0 over ``box`` (x0, x1, y0, y1)."""
+    x0, x1, y0, y1 = box
+    xs = x0 + spacing * np.arange(round((x1 - x0) / spacing) + 1)
+    ys = y0 + spacing * np.arange(round((y1 - y0) / spacing) + 1)
+    return [np.array([[x, y0, 0.0], [x, y1, 0.0]]) for x in xs] + \
+        [np.array([[x0, y, 0.0], [x1, y, 0.0]]) for y in ys]
+
+
 def view_coords(layout, a):
     """Return points ``(..., 3)`` as the view's coordinates (2-D: x, y)."""
     a = np.asarray(a, dtype=float)
@@ -80,6 +89,9 @@ def log_static(rec, layout):
         # that the scene's y axis points up; the logged data stay in the scene's frame.
         for root in ('rig',) + layout.variants:
             rec.log(root, rr.Transform3D(scale=Y_UP_SCALE), static=True)
+    if layout.grid_box is not None:
+        rec.log('rig/grid', strips(grid_strips(layout.grid_box, layout.grid_m),
+                                   colors=[GRID_COLOR], radii=[GRID_RADIUS_UI]), static=True)
     if layout.on('info'):
         rec.log('info', rr.TextDocument(layout.text, media_type=rr.MediaType.MARKDOWN),
                 static=True)

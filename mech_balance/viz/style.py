@@ -53,6 +53,10 @@ LINE_RADIUS_UI = rr.components.Radius.ui_points(2.0)
 FRAME_RADIUS_UI = rr.components.Radius.ui_points(1.5)
 JOINT_RADIUS_UI = rr.components.Radius.ui_points(4.5)
 FRAME_COLOR = (150, 150, 150)
+GRID_COLOR = (70, 70, 70)
+"""The 3-D grid's lines: darker than the frame, so that the rig stands out."""
+GRID_RADIUS_UI = rr.components.Radius.ui_points(0.5)
+"""Radius of the 3-D grid's lines."""
 JOINT_COLOR = (235, 235, 235)
 FORCE_COLOR = (240, 70, 70)
 MOMENT_COLOR = (200, 110, 255)

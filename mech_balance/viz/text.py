@@ -59,35 +59,45 @@ def rms_rows(layout, data):
     return rows
 
 
+def rms_table(rows, title, both, norm):
+    """Return the markdown lines of an RMS table of ``rows`` (:func:`rms_rows`)."""
+    more = ' balanced | balanced / original |' if both else ''
+    head = f'| {title} | SI | original |' + more
+    sep = '|---|---|---:|' + ('---:|---:|' if both else '')
+    if norm is not None:
+        head += ' normalized | original |' + (' balanced |' if both else '')
+        sep += '---|---:|' + ('---:|' if both else '')
+    lines = [head, sep]
+    for quantity, unit, dimension, values in rows:
+        r = {v: float(rms(x)) for v, x in values.items()}
+        text = f'| {table_cell(quantity)} | {unit or "-"} | {fmt(r["original"])} |'
+        if both:
+            ratio = r['balanced'] / r['original'] if r['original'] > 0 else float('nan')
+            text += f' {fmt(r["balanced"])} | {fmt(ratio)} |'
+        if norm is not None:
+            f = norm.force if dimension == 'force' else norm.moment
+            nunit = 'm1*a1*w^2' if dimension == 'force' else 'm1*a1^2*w^2'
+            text += f' {nunit} | {fmt(float(f(r["original"])))} |'
+            if both:
+                text += f' {fmt(float(f(r["balanced"])))} |'
+        lines.append(text)
+    return lines
+
+
 def info_text(layout, scene, data, samples, balanced_source):
     both = 'balanced' in data
     norm = getattr(scene, 'normalization', None)
     rig = layout.rigs['original']
     lines = [f'# {scene.name}: ' + ('original vs balanced' if both else 'original'), '']
     rows = rms_rows(layout, data)
+    # the shaking wrench and the driving effort first, where the panel opens; the bearing
+    # loads in a table of their own after the design (below the fold at the default window)
+    main = [r for r in rows if not r[0].startswith('bearing ')]
+    bearings = [r for r in rows if r[0].startswith('bearing ')]
     if rows:
-        more = ' balanced | balanced / original |' if both else ''
-        head = '| RMS over one turn | SI | original |' + more
-        sep = '|---|---|---:|' + ('---:|---:|' if both else '')
-        if norm is not None:
-            head += ' normalized | original |' + (' balanced |' if both else '')
-            sep += '---|---:|' + ('---:|' if both else '')
-        lines += [head, sep]
-        for quantity, unit, dimension, values in rows:
-            r = {v: float(rms(x)) for v, x in values.items()}
-            text = f'| {table_cell(quantity)} | {unit or "-"} | {fmt(r["original"])} |'
-            if both:
-                ratio = r['balanced'] / r['original'] if r['original'] > 0 else float('nan')
-                text += f' {fmt(r["balanced"])} | {fmt(ratio)} |'
-            if norm is not None:
-                f = norm.force if dimension == 'force' else norm.moment
-                nunit = 'm1*a1*w^2' if dimension == 'force' else 'm1*a1^2*w^2'
-                text += f' {nunit} | {fmt(float(f(r["original"])))} |'
-                if both:
-                    text += f' {fmt(float(f(r["balanced"])))} |'
-            lines.append(text)
+        lines += rms_table(main or bearings, 'RMS over one turn', both, norm)
         lines += ['', 'True RMS (mech_balance.conventions); normalized by m1, a1, omega '
-                  '(seed 001 sec. 3.4).' if norm is not None else
+                  '(Chaudhary & Saha sec. 3.4).' if norm is not None else
                   'True RMS (mech_balance.conventions).']
     else:
         lines.append('No RMS table: the scene asks for kinematics only.')
@@ -99,6 +109,8 @@ def info_text(layout, scene, data, samples, balanced_source):
     if both:
         src = balanced_source or getattr(layout.rigs['balanced'].scene, 'source', '?')
         lines.append(f'Balanced design: {src}.')
+    if main and bearings:
+        lines += [''] + rms_table(bearings, 'bearing loads, RMS', both, norm)
     lines += ['', '## How to read the views', '']
     if both:
         lines.append('* Left: the original rig; right: the balanced rig. They move alike (same '
@@ -127,10 +139,11 @@ def info_text(layout, scene, data, samples, balanced_source):
     if any((layout.changes or {}).values()):
         lines.append("* A thin line in a link's colour from the link to a dot, labelled "
                      "+/- kg: where the design moved that link's mass centre, and the mass it "
-                     "added (+) or removed (-) there ('moved, 0 kg': its mass kept).")
+                     "added (+) or removed (-) there ('moved 214 mm': its mass kept, only moved "
+                     'that far).')
     if layout.on('point_masses'):
         lines.append('* Blue and red discs: the three equimomental point masses of each link '
-                     '(seed 001 eqs. 13-15); disc area proportional to the mass, light '
+                     '(Chaudhary & Saha eqs. 13-15); disc area proportional to the mass, light '
                      'positive, pink negative.')
     if layout.on('shaking_force_arrow'):
         lines.append(f'* Red arrow in the gauge beside the rig: the shaking force on the frame; '

@@ -1,0 +1,70 @@
+"""
+Screen-space tests of the label placement: segments against boxes, points to segments.
+
+Vectorized over the samples of a turn (``p``) and the candidate places of a label (``c``);
+:func:`first_passing` runs a costly test only where it can still change a label's place.
+"""
+
+import numpy as np
+
+LABEL_CHUNK = 4
+"""Candidate places of a label tested at once by the costly tests (:func:`first_passing`)."""
+
+
+def segments_hit_boxes(segments, boxes):
+    """
+    Return ``(p, c)``: whether any segment ``(p, m, 2, 2)`` crosses box ``(p, c, 4)``.
+
+    Liang-Barsky clipping of each segment against each box (x0, y0, x1, y1).
+    """
+    if segments.shape[1] == 0:
+        return np.zeros(boxes.shape[:2], dtype=bool)
+    a = segments[:, None, :, 0, :]                                  # (p, 1, m, 2)
+    d = segments[:, None, :, 1, :] - a
+    lo, hi = boxes[:, :, None, 0:2], boxes[:, :, None, 2:4]         # (p, c, 1, 2)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        ta, tb = (lo - a) / d, (hi - a) / d
+    flat = d == 0.0
+    inside = (a >= lo) & (a <= hi)
+    t_in = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
+    t_out = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
+    t0 = np.maximum(np.max(t_in, axis=-1), 0.0)
+    t1 = np.minimum(np.min(t_out, axis=-1), 1.0)
+    return (t0 <= t1).any(axis=-1)
+
+
+def distance_to_segments(points, segments):
+    """Return ``(p, c)``: the distance of points ``(p, c, 2)`` to segments ``(p, m, 2, 2)``."""
+    if segments.shape[1] == 0:
+        return np.full(points.shape[:2], np.inf)
+    a = segments[:, None, :, 0, :]
+    ab = segments[:, None, :, 1, :] - a
+    q = points[:, :, None, :]
+    t = np.clip(np.sum((q - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300),
+                0.0, 1.0)
+    return np.min(np.linalg.norm(a + t[..., None] * ab - q, axis=-1), axis=-1)
+
+
+def first_passing(ok, test, chunk=LABEL_CHUNK):
+    """
+    Return ``ok (p, c)`` narrowed by ``test``, exact up to each row's first passing column.
+
+    ``test(rows, cols)`` returns the costly test's ``(len(rows), cols)`` mask.  It is run in
+    column chunks of ``chunk``, on the rows still without a passing column and that pass the
+    cheap mask somewhere in the chunk; a row stops at the chunk of its first passing column
+    (later columns are left False), so ``argmax`` of the result is that of the full test.
+    """
+    out = np.zeros_like(ok)
+    pending = np.flatnonzero(ok.any(axis=1))
+    for start in range(0, ok.shape[1], chunk):
+        if not len(pending):
+            break
+        cols = slice(start, start + chunk)
+        sub = ok[pending, cols]
+        need = sub.any(axis=1)
+        rows = pending[need]
+        if len(rows):
+            passed = sub[need] & test(rows, cols)
+            out[rows, cols] = passed
+            pending = np.concatenate([pending[~need], rows[~passed.any(axis=1)]])
+    return out
