@@ -264,7 +264,7 @@ def test_compare_report_passes(bench_mujoco):
 
 # ----------------------------------------------------------------------------- spatial built-ins
 
-SPATIAL = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop', 'pssr_skew')
+SPATIAL = ('rggr', 'rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop', 'pssr_skew')
 
 
 @pytest.fixture(scope='module')
@@ -373,8 +373,16 @@ def test_spatial_model_refuses_a_non_spherical_cut(mujoco_spatial):
     from mech_balance.schema.spatial import spatial_from_dict, spatial_to_dict
     d = spatial_to_dict(scene.load('rssr_skew'))
     d['name'] = 'rsur'
+    # the cross axis fixed in the rocker, normal to the coupler's y axis and to the rocker's
+    # line at the stated poses (the loader refuses an axis_b the poses contradict)
+    from scipy.spatial.transform import Rotation
+    poses = d['assembly']['poses']
+    rot_c, rot_r = (Rotation.from_euler('xyz', poses[k]['rpy_deg'], degrees=True).as_matrix()
+                    for k in ('coupler', 'rocker'))
+    cross = np.cross(rot_c[:, 1], rot_r[:, 0])
+    axis_b = rot_r.T @ (cross / np.linalg.norm(cross))
     d['joints']['C'] = {'type': 'universal', 'a': 'coupler.C', 'b': 'rocker.C',
-                        'axis': [0.0, 1.0, 0.0], 'axis_b': [0.0, 0.0, 1.0]}
+                        'axis': [0.0, 1.0, 0.0], 'axis_b': [float(x) for x in axis_b]}
     d['links']['coupler']['inertia_com_kg_m2'] = [1e-6, 6.75e-4, 6.75e-4, 0.0, 0.0, 0.0]
     rig = rig_for(spatial_from_dict(d))
     with pytest.raises(ValueError, match=r'spherical cut joints only .* cuts C \(universal\)'):

@@ -74,7 +74,7 @@ from mech_balance.core.spatial.kinematics import NEWTON_TOL
 from mech_balance.schema.scene import SERIES
 import numpy as np
 
-SPATIAL_BUILTINS = ('rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop',
+SPATIAL_BUILTINS = ('rggr', 'rggr_spatial', 'rssr_skew', 'rssp_slider', 'spatial_two_loop',
                     'pssr_skew')
 """The spatial built-ins compared (``mech-balance scenes``)."""
 NEWTON_MAX_ITER = 10
