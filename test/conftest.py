@@ -20,9 +20,8 @@ the node tests' namespaces, probe names and log files carry its pid (``test_node
 files go to pytest's per-worker temporary directories.
 """
 
-import pytest
-
 from mech_balance import threads
+import pytest
 
 threads.limit_blas_threads()
 
