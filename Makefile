@@ -41,13 +41,13 @@ $(TEST_STAMP): requirements-test.txt $(STAMP)
 	$(PIP) install --quiet -r requirements-test.txt
 	touch $@
 
-# The suite runs on TEST_WORKERS processes (pytest-xdist): test/conftest.py groups the tests
-# that share a costly fixture on one worker and orders the groups longest first, which
-# `--dist loadgroup --no-loadscope-reorder` keeps (README "Tests").
+# The suite runs on TEST_WORKERS processes (pytest-xdist), each module whole on one worker
+# (its module-scoped fixtures built once), the longest modules first: test/conftest.py
+# orders them, `--no-loadscope-reorder` keeps that order (README "Tests").
 TEST_WORKERS ?= 2
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
 test: $(TEST_STAMP)  ## Install everything (MuJoCo too) and run all tests (flake8, pep257, colcon, suite).
-	$(BIN)/python -m pytest test -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder
+	$(BIN)/python -m pytest test -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 bench: venv  ## Print the timing tables (core, balancing, recording, node).
 	$(BIN)/mech-balance bench
