@@ -20,7 +20,6 @@ each takes one from its pid), which the namespaces make harmless.
 """
 
 from mech_balance import threads
-import pytest
 
 threads.limit_blas_threads()
 
