@@ -7,6 +7,8 @@ BIN := $(VENV)/bin
 # Touched once requirements and the package are installed; lives in .venv, so removing
 # .venv also forgets it.
 STAMP := $(VENV)/.mech_balance-installed
+# Touched once the optional test dependencies (requirements-test.txt: MuJoCo) are installed.
+TEST_STAMP := $(VENV)/.mech_balance-test-installed
 PIP := $(BIN)/python -m pip --disable-pip-version-check
 
 .DEFAULT_GOAL := help
@@ -43,17 +45,24 @@ run: venv  ## Install everything and run the main job.
 	@echo '== 3/3 the rig node on hoeken, publishing until you press Ctrl-C'
 	$(BIN)/rig_node --ros-args --params-file config/rig_params.yaml
 
+# The optional test dependencies go in after the pinned environment (they share numpy).
+$(TEST_STAMP): requirements-test.txt $(STAMP)
+	$(PIP) install --quiet -r requirements-test.txt
+	touch $@
+
+# The suite runs on TEST_WORKERS processes (pytest-xdist), each module whole on one worker
+# (its module-scoped fixtures built once), the longest modules first: test/conftest.py
+# orders them, `--no-loadscope-reorder` keeps that order (README "Tests").
+TEST_WORKERS ?= 2
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
-test: venv  ## Install everything and run all tests (ament flake8, pep257, colcon build, suite).
-	$(BIN)/python -m pytest test
+test: $(TEST_STAMP)  ## Install everything (MuJoCo too) and run all tests (flake8, pep257, colcon, suite).
+	$(BIN)/python -m pytest test -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 bench: venv  ## Print the timing tables (core, balancing, recording, node).
 	$(BIN)/mech-balance bench
 
-# MuJoCo is an optional benchmark dependency: only this target installs it (pinned).
-MUJOCO_VERSION ?= 4.0.0
-bench-mujoco: venv  ## Install MuJoCo (optional, pinned) and compare it with this package.
-	$(PIP) install --quiet mujoco==$(MUJOCO_VERSION)
+# MuJoCo is an optional dependency of the tests and this benchmark (requirements-test.txt).
+bench-mujoco: $(TEST_STAMP)  ## Install MuJoCo (optional, pinned) and compare it with this package.
 	$(BIN)/mech-balance bench --compare mujoco
 
 clean:  ## Remove .venv and build leftovers.

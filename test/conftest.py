@@ -1,10 +1,50 @@
 """
-Test-session set-up: numpy's BLAS pool limited as by the package's entry points.
+Test-session set-up: numpy's BLAS pool limited, and the suite's modules ordered for xdist.
 
-The suite's process limits it as :mod:`mech_balance.threads` does, so that a loaded CI
-machine does not stall the small LAPACK calls of the tests that call the library directly.
+The suite's process limits BLAS threads as :mod:`mech_balance.threads` does, so that a loaded
+CI machine does not stall the small LAPACK calls of the tests that call the library directly.
+
+``make test`` runs the suite on two workers (``pytest -n 2 --dist loadfile
+--no-loadscope-reorder``; README "Tests"): every module goes whole to one worker, so a costly
+module-scoped fixture (a recording of every scene, a node process, twenty random rigs) is
+built once.  (``xdist_group`` marks would not help: pytest-xdist 3.8 writes the group into
+``item._nodeid``, which pytest 9 no longer reads, so ``--dist loadgroup`` ignores them.)
+The workers take the modules in collection order, which
+:func:`pytest_collection_modifyitems` makes longest first (:data:`SLOW_MODULES`), so that
+no long module starts last; a serial run keeps the files' order.
+
+Every worker is its own process: the node tests' namespaces, probe names and log files carry
+its pid (``test_node``), result files carry the namespace, and files go to pytest's
+per-worker temporary directories.  Both workers share ``ROS_DOMAIN_ID`` when it is set (else
+each takes one from its pid), which the namespaces make harmless.
 """
 
 from mech_balance import threads
 
 threads.limit_blas_threads()
+
+SLOW_MODULES = (
+    'test_spatial.py', 'test_node.py', 'test_recording.py', 'test_recording_layout.py',
+    'test_cli.py', 'test_flake8.py', 'test_node_faults.py', 'test_identify_real.py',
+    'test_hardening.py', 'test_recording_fuzz.py', 'test_node_hardening.py',
+    'test_description.py', 'test_layers.py', 'test_accuracy.py', 'test_fuzz_scenes.py',
+    'test_bench_mujoco.py', 'test_bad_input.py', 'test_pep257.py', 'test_forward_generic.py',
+    'test_clearance.py', 'test_twin_sensor.py', 'test_certificate.py', 'test_extreme.py',
+    'test_identify.py', 'test_cycle_table.py',
+)
+"""
+The modules of over 10 s in a serial run, longest first (the sum of their tests' durations,
+``--junitxml``, 2026-12-06; the MuJoCo checks estimated): the others follow in file order.
+"""
+
+
+def _rank(item):
+    """Return the start rank of an item's module: the measured slow ones first."""
+    module = item.path.name
+    return SLOW_MODULES.index(module) if module in SLOW_MODULES else len(SLOW_MODULES)
+
+
+def pytest_collection_modifyitems(config, items):
+    """On an xdist worker, put the slow modules first (the order within a module is kept)."""
+    if hasattr(config, 'workerinput'):
+        items.sort(key=_rank)

@@ -2,7 +2,7 @@
 The MuJoCo comparison and the generated chains it scales over.
 
 The chain tests run everywhere; the agreement tests need the optional ``mujoco`` package and
-are skipped without it (``make bench-mujoco`` installs it).  No timings here.
+are skipped without it (``make test`` and ``make bench-mujoco`` install it).  No timings here.
 """
 
 import math
@@ -189,7 +189,8 @@ def test_spatial_report_labels_the_effort_by_the_inputs_kind():
 
 @pytest.fixture(scope='module')
 def bench_mujoco():
-    pytest.importorskip('mujoco')
+    pytest.importorskip('mujoco', reason='MuJoCo is not installed (optional, pinned in '
+                                         'requirements-test.txt, which `make test` installs)')
     from mech_balance.bench import mujoco as bench_mujoco
     return bench_mujoco
 

@@ -124,7 +124,8 @@ def test_real_recording(tmp_path, case, capsys):
 
 
 @pytest.mark.skipif(not os.environ.get('MECH_BALANCE_FULL_GRID'),
-                    reason='the full grid: set MECH_BALANCE_FULL_GRID=1')
+                    reason='the full grid, set MECH_BALANCE_FULL_GRID=1 to run it '
+                           '(test_real_recording runs its corners)')
 @pytest.mark.parametrize('case', FULL, ids=lambda c: '-'.join(map(str, c[:7])))
 def test_real_recording_full_grid(tmp_path, case, capsys):
     report, cal = run_case(tmp_path, case, capsys)
