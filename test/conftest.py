@@ -20,6 +20,7 @@ each takes one from its pid), which the namespaces make harmless.
 """
 
 from mech_balance import threads
+import pytest
 
 threads.limit_blas_threads()
 
@@ -48,3 +49,14 @@ def pytest_collection_modifyitems(config, items):
     """On an xdist worker, put the slow modules first (the order within a module is kept)."""
     if hasattr(config, 'workerinput'):
         items.sort(key=_rank)
+
+
+@pytest.fixture(scope='module')
+def context():
+    """Return an rclpy context of the module's own on the node tests' domain (then shut down)."""
+    import rclpy
+    from test_node import DOMAIN_ID
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)

@@ -20,7 +20,6 @@ from mech_balance.ros import description, streaming as twin, urdf
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
-import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from test_node import DISCOVERY_TIMEOUT_S, DOMAIN_ID, Probe, RigProcess
@@ -190,14 +189,6 @@ def test_cell_bench_is_a_section_and_reads_process_cpu():
 
 
 # ----------------------------------------------------------------------------- node
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 class LateListener:

@@ -487,14 +487,6 @@ class Probe:
         self.executor.shutdown()
 
 
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
 def _namespace(tag):
     return f'/t{os.getpid()}_{tag}'
 

@@ -26,7 +26,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from mech_balance.ros import balance_service, params
 import numpy as np
 import pytest
-import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from std_srvs.srv import Trigger
@@ -46,14 +45,6 @@ IDENTIFY_MEMORY_BOUND_B = 256 * 2 ** 20
 (the buffers themselves are allocated when the node starts; issue 20: 155 MB -> 2.15 GB)."""
 SIGINT_RUNS = 5
 """Starts and SIGINT stops of the node (issue 23.2b.5: 2 of 25 exited with status 1)."""
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=tn.DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _rss_bytes(pid):

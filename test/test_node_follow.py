@@ -14,8 +14,6 @@ import sys
 
 from mech_balance import schema as scene_mod
 from mech_balance.ros import node as rig_node
-import pytest
-import rclpy
 
 sys.path.insert(0, os.path.dirname(__file__))
 import test_node as tn  # noqa: E402, I100
@@ -25,14 +23,6 @@ LEFT_OUT = (100, 101, 102, 300, 450)
 """Indices of the 1 kHz stream never sent (the middleware lost them, say)."""
 BAD_AFTER = (200, 400)
 """A message without the crank joint follows these indices."""
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=tn.DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def test_every_encoder_sample_is_answered_or_counted(context):

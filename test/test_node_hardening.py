@@ -25,7 +25,6 @@ from mech_balance.ros import params, streaming as twin
 import numpy as np
 import pytest
 from rcl_interfaces.msg import ParameterType
-import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
@@ -255,14 +254,6 @@ def test_per_link_typed_parameters_and_integers_are_checked():
 
 
 # ------------------------------------------------------------------------------ processes
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=tn.DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 @pytest.fixture(scope='module')

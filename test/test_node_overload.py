@@ -15,8 +15,6 @@ import os
 import sys
 
 from mech_balance.ros import node as rig_node
-import pytest
-import rclpy
 
 sys.path.insert(0, os.path.dirname(__file__))
 import test_node as tn  # noqa: E402, I100
@@ -28,14 +26,6 @@ LOADERS = 3
 def _spin_forever():
     while True:
         pass
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=tn.DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def test_every_tick_is_published_or_counted_on_a_loaded_machine(context):

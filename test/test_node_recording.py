@@ -16,7 +16,6 @@ import sys
 from mech_balance.ros import node as rig_node
 from mech_balance.viz import readback
 import pytest
-import rclpy
 
 sys.path.insert(0, os.path.dirname(__file__))
 import test_node as tn  # noqa: E402, I100
@@ -25,14 +24,6 @@ SAMPLES = 300
 """Samples the probe receives while both the file and the dead viewer are set."""
 PER_SAMPLE = '/plots/shaking_force/original'
 """An entity of the recording with one row per recorded sample."""
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=tn.DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _dead_url():

@@ -21,7 +21,6 @@ import time
 from mech_balance.ros import description
 from mech_balance.ros import node as rig_node, parameters as node_params
 import pytest
-import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
@@ -36,14 +35,6 @@ RACES = 20
 SEED = 32
 RACE_WINDOW_S = 0.3
 """The scene is switched this long after the call at most (a hoeken run takes ~0.1-0.2 s)."""
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=tn.DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 @pytest.fixture(scope='module')

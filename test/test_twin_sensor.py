@@ -22,7 +22,6 @@ from mech_balance.ros import diagnostics, params, sensor, streaming
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
-import rclpy
 from rclpy.qos import QoSProfile
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
@@ -31,7 +30,7 @@ import yaml
 
 sys.path.insert(0, os.path.dirname(__file__))
 import synthetic_rig as sr  # noqa: E402, I100
-from test_node import DISCOVERY_TIMEOUT_S, DOMAIN_ID, Probe, RigProcess  # noqa: E402, I100
+from test_node import DISCOVERY_TIMEOUT_S, Probe, RigProcess  # noqa: E402, I100
 
 SE_BOUND = 3.0
 """A tare within this many of its standard errors of the injected bias."""
@@ -342,14 +341,6 @@ def test_statuses_and_reasons():
 
 
 # ------------------------------------------------------------------------------ the node
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _scene_file(tmp_path):

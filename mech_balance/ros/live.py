@@ -100,12 +100,22 @@ class Recording:
     # ------------------------------------------------------------------ any thread
 
     def start(self, path, url, scene, balanced=None):
-        """Record ``scene`` (against ``balanced``) to ``path`` and/or ``url``; returns at once."""
+        """
+        Record ``scene`` (against ``balanced``) to ``path`` and/or ``url``; returns at once.
+
+        The batches queued for the same scene and design stay queued (a file set after the
+        viewer, or the viewer after the file: the samples evaluated ahead of publishing were
+        pushed already, and are published after this call); another scene or design starts
+        an empty queue.
+        """
         with self._cond:
+            same = self._wanted is not None and self._wanted[3] is scene and \
+                self._wanted[4] is balanced
             self._generation += 1
             self._wanted = (self._generation, path or None, url or None, scene, balanced)
-            self._queue.clear()
-            self.queued = 0
+            if not same:
+                self._queue.clear()
+            self.queued = sum(len(batch[0]) for batch in self._queue)
             self._cond.notify_all()
 
     @property
@@ -115,9 +125,14 @@ class Recording:
             return self._wanted is not None and (self._wanted[1] or self._wanted[2])
 
     def push(self, samples, turned_rad, stamps_ns, original=True):
-        """Queue an evaluated batch (never blocks; the oldest batch is dropped when full)."""
+        """
+        Queue an evaluated batch (never blocks; the oldest batch is dropped when full).
+
+        Nothing is queued once the recording is closing: a batch evaluated ahead while the
+        publisher stops is never published.
+        """
         with self._cond:
-            if not self.active:
+            if self._stopped or not self.active:
                 return
             if len(self._queue) == self._queue.maxlen:
                 self.dropped += 1

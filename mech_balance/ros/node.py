@@ -137,7 +137,7 @@ class RigNode(Node):
                 ('~/tare', self._on_tare, MutuallyExclusiveCallbackGroup()),
                 ('~/identify', self._on_identify, either))}
 
-        self._open_recording()
+        self._open_recording(publishing=False)
         self._describe()
         # say what the node publishes before it starts to (a signal right after the first
         # samples then finds nothing left to log to rosout)
@@ -202,13 +202,22 @@ class RigNode(Node):
     def _live_statuses(self, name, hardware_id):
         return self._recording.diagnostic_statuses(name, hardware_id)
 
-    def _open_recording(self):
-        """(Re)open the recording: the original against the balanced design, if known."""
+    def _open_recording(self, publishing=True):
+        """
+        (Re)open the recording: the original against the balanced design, if known.
+
+        ``publishing``: the publisher runs (not at start-up), so ticks may be evaluated ahead.
+        """
         state = self._state
         with state.lock:
             balanced = None if state.balanced is None else state.balanced.scene
+            was_active = self._recording.active
             self._recording.start(state.values['recording_path'], state.values['rerun_url'],
                                   state.original.scene, balanced)
+            if publishing and self._recording.active and not was_active:
+                # the ticks evaluated ahead were not pushed (nothing recorded then): evaluate
+                # them again, so every sample published from now on is in the recording
+                self._publisher.set_model(state.published)
 
     def _switch_to(self, model):
         """
