@@ -310,6 +310,9 @@ def tree_model(scene_or_linkage):
     if len(_MODELS) >= _MODELS_MAX:
         _MODELS.clear()
     _MODELS[key] = (scene_or_linkage, model)
+    linkage = getattr(model, 'linkage', None)
+    if linkage is not None:   # the URDF of a planar twin asks by its linkage: no second cycle
+        _MODELS[id(linkage)] = (linkage, model)
     return model
 
 
