@@ -1,6 +1,8 @@
 """
-The ``scene switch`` row of the rig node's bench: how long ``ros2 param set /rig scene``
-takes before the node publishes the new rig (issue 31 item 3).
+The ``scene switch`` rows of the rig node's bench: a scene switch until the new rig publishes.
+
+How long ``ros2 param set /rig scene <name>`` takes before the node publishes the new rig
+(issue 31 item 3).
 
 The node runs in its own process (:class:`mech_balance.bench.node.NodeProbe`, clock mode);
 this process sets ``scene`` through the parameter service and times, per built-in scene,
