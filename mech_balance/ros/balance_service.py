@@ -13,6 +13,7 @@ import threading
 import weakref
 
 from mech_balance import atomic, balancing
+from mech_balance.balancing.result import STATUS
 from mech_balance.ros import params
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
@@ -54,6 +55,37 @@ def result_path(fully_qualified_name):
     """
     name = fully_qualified_name.strip('/').replace('/', '__')
     return os.path.join(tempfile.gettempdir(), f'mech_balance_{name}_balance.yaml')
+
+
+def headline(design):
+    """
+    Return the first line of an answer: scene, method, RMS before -> after, certified or not.
+
+    :meth:`Design.summary` up to its certificate, then ``certified`` or the status in words:
+    short enough (about 120 characters) for ``ros2 topic echo``'s 128-character cut.
+    """
+    summary = design.summary()
+    cut = summary.rfind('certificate ')
+    head = summary[:cut].rstrip(' ;:') if cut > 0 else summary
+    verdict = 'certified' if design.success else STATUS[design.status]
+    return f'{head}; {verdict}'
+
+
+def answer_text(design, where, topic):
+    """
+    Return the text of a balancing result: three comment lines, then the YAML.
+
+    ``# <headline>``, ``# full result: <where> ...`` (how to read it whole), ``# <the
+    certificate in words>``, then :meth:`Design.to_dict` as block YAML (one key a line).
+    """
+    summary = design.summary()
+    cut = summary.rfind('certificate ')
+    certificate = summary[cut:] if cut > 0 else STATUS[design.status]
+    return (f'# {headline(design)}\n'
+            f'# full result: {where} (std_msgs/String YAML; whole: ros2 topic echo --once '
+            f'--full-length {topic})\n'
+            f'# {certificate}\n'
+            + yaml.safe_dump(design.to_dict(), sort_keys=False))
 
 
 def request_key(values):
@@ -142,19 +174,22 @@ class Balancer:
         """
         Publish a result on ``~/balance_result``, write it to a file; return the answer.
 
-        The answer is YAML whose first line, a comment, is :meth:`Design.summary` (one line
-        under 200 characters), the second where the full result is; the YAML is
-        :meth:`Design.to_dict` in SI, what ``mech-balance balance --json`` prints.
+        The answer, the topic's message and the file carry the same text
+        (:func:`answer_text`): three comment lines a person reads first -- the summary, where
+        the full result is, the certificate -- then the YAML of :meth:`Design.to_dict` in SI,
+        what ``mech-balance balance --json`` prints (the comments leave it YAML).
         """
-        text = yaml.safe_dump(design.to_dict(), sort_keys=False)
-        self.result_pub.publish(String(data=text))
         path = result_path(self._node.get_fully_qualified_name())
+        topic = self.result_pub.topic_name
+        where = f'{path} and {topic}'
+        text = answer_text(design, where, topic)
         try:
             atomic.write_text_atomic(path, text)
-            where = f'{path} and {self.result_pub.topic_name}'
         except OSError as exc:
-            where = f'{self.result_pub.topic_name} ({path} not written: {exc.strerror})'
-        return f'# {design.summary()}\n# full result: {where} (std_msgs/String YAML)\n{text}'
+            where = f'{topic} ({path} not written: {exc.strerror})'
+            text = answer_text(design, where, topic)
+        self.result_pub.publish(String(data=text))
+        return text
 
     def in_background(self, done):
         """

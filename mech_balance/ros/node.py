@@ -287,13 +287,16 @@ class RigNode(Node):
                 'use_sim_time' in {p.name for p in parameters}  # a new clock: start again
             if any(k.startswith('follow.') for k in changed):
                 self._publisher.renew_estimator()
-        if 'scene' in changed:
-            self._params.clear_refuted(changed['scene'])  # first: the links' checks see it
-            self._params.declare_link_parameters(state.original)
+        # publishing first: a new scene's first sample needs only its model (built by the
+        # on-set check); its parameters, URDF and announcement follow, the follow-mode cycle
+        # table and the recording are built on threads of their own (docs/node.md)
         if restart:
             self._publisher.apply_mode()
         elif 'frame_id' in changed:
             self._publisher.set_model(state.published)  # prepared messages carry the old one
+        if 'scene' in changed:
+            self._params.clear_refuted(changed['scene'])  # first: the links' checks see it
+            self._params.declare_link_parameters(state.original)
         if 'use_balanced' in changed or 'scene' in changed:
             wanted = state.wanted_design()
             if wanted is not None:
