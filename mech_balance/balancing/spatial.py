@@ -207,6 +207,9 @@ def spatial_model(rig):
                 continue
             k = names.index(lk.name)
             tk = t[k]
+            if not np.any(tk):   # a massless link left massless (fixed): as the scene says
+                links.append(lk)
+                continue
             m = float(tk[0])
             c = tk[1:4] / m
             i_c = regressor.inertia_matrix(tk[4:10]) - m * (np.dot(c, c) * np.eye(3)
@@ -1651,6 +1654,12 @@ def _mass_bounds(model, free_idx, given, factors):
     for k in free_idx:
         name = model.bodies[k].name
         m0 = float(model.theta[10 * k])
+        if m0 <= 0.0:
+            raise SpatialBalanceError(
+                f'links.{name}.mass_kg: got {m0:g}, a massless link, which the redistribution '
+                'cannot scale (its mass bounds are mass_factors x the original mass), expected '
+                f'a mass > 0 kg for it or the link fixed (--fix {name}, or '
+                f'balance.fixed_links: [{name}])')
         lo, hi = given.pop(name, (lo_f * m0, hi_f * m0))
         lo, hi = float(lo), float(hi)
         if not (0.0 < lo <= hi and math.isfinite(hi)):

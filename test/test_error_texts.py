@@ -1,0 +1,76 @@
+"""
+Error texts of issue 32 item 10: plain numbers and the scene's own names.
+
+A CSV recording's errors print plain numbers (never ``np.float64(...)``), in the vectorized
+and in the row-by-row parse; a massless link in a spatial redistribution is named as the
+scene's link with the way out (fix it or give it a mass), not an internal ``mass_bounds``.
+"""
+
+import copy
+
+from mech_balance import schema
+from mech_balance.balancing import spatial
+from mech_balance.cli.main import main
+from mech_balance.core.rig import rig_for
+from mech_balance.ros import bags
+from mech_balance.schema.spatial import spatial_from_dict
+import pytest
+
+HEADER = 't_s,crank_position_rad,force_x_N,force_y_N,torque_z_Nm'
+
+
+def _csv(path, rows, late, trailing_newline):
+    lines = [HEADER]
+    for k in range(rows):
+        t = 0.1 if k == late else k * 0.001
+        lines.append(f'{t},{k * 0.01},0.5,0.25,0.0')
+    path.write_text('\n'.join(lines) + ('\n' if trailing_newline else ''))
+    return path
+
+
+@pytest.mark.parametrize('rows, late, trailing_newline', [
+    (1000, 500, False),                                   # numpy's parse of the whole chunk
+    (1000, 500, True),                                    # row by row
+    (bags.CSV_CHUNK_ROWS + 10, bags.CSV_CHUNK_ROWS, True),  # row by row after a chunk
+])
+def test_csv_errors_print_plain_numbers(tmp_path, rows, late, trailing_newline):
+    """An unsorted row: its time and the previous one as plain numbers, with the line."""
+    path = _csv(tmp_path / 'late.csv', rows, late, trailing_newline)
+    with pytest.raises(bags.RecordingError) as err:
+        bags.read_csv(path)
+    text = str(err.value)
+    assert 'np.' not in text, text
+    previous = f'{(late - 1) / 1000:.3f}'
+    assert f"line {late + 2}, column t_s: 0.1 is not after the previous row's {previous}" in text
+
+
+def _massless(name='rssr_skew', link='coupler'):
+    data, _ = schema.load_data(name)
+    data = copy.deepcopy(data)
+    data['links'][link]['mass_kg'] = 0.0
+    data['links'][link]['inertia_com_kg_m2'] = [0.0] * 6
+    return data
+
+
+def test_massless_link_is_named_with_the_way_out():
+    """A free massless link: its scene field, its value and what to do."""
+    rig = rig_for(spatial_from_dict(_massless()))
+    with pytest.raises(spatial.SpatialBalanceError) as err:
+        spatial.redistribute(rig)
+    text = str(err.value)
+    assert 'mass_bounds' not in text
+    assert 'links.coupler.mass_kg: got 0, a massless link' in text
+    assert '--fix coupler' in text and 'balance.fixed_links: [coupler]' in text
+
+
+def test_massless_link_fixed_is_balanced_and_stays_massless(tmp_path, capsys):
+    """The way out works: fixed, the massless link stays as it is and the rest is balanced."""
+    path = tmp_path / 'massless.yaml'
+    import yaml
+    path.write_text(yaml.safe_dump(_massless()))
+    out = tmp_path / 'balanced.yaml'
+    assert main(['balance', '--scene', str(path), '--fix', 'coupler',
+                 '--output', str(out)]) == 0, capsys.readouterr().err
+    written = yaml.safe_load(out.read_text().split('\n', 1)[1])
+    assert written['links']['coupler']['mass_kg'] == 0.0
+    assert written['links']['coupler']['inertia_com_kg_m2'] == [0.0] * 6
