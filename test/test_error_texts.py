@@ -74,3 +74,27 @@ def test_massless_link_fixed_is_balanced_and_stays_massless(tmp_path, capsys):
     written = yaml.safe_load(out.read_text().split('\n', 1)[1])
     assert written['links']['coupler']['mass_kg'] == 0.0
     assert written['links']['coupler']['inertia_com_kg_m2'] == [0.0] * 6
+
+
+def _spatial(name='rssr_skew', **changes):
+    data, _ = schema.load_data(name)
+    data = copy.deepcopy(data)
+    for key, value in changes.items():
+        section, field = key.split('__')
+        data[section][field] = value
+    return rig_for(spatial_from_dict(data))
+
+
+def test_ill_scaled_program_names_the_crank_speed():
+    """Issue 32 item 8: a crank speed of 1e12 rad/s against its normalization is named."""
+    with pytest.raises(spatial.SpatialBalanceError) as err:
+        spatial.redistribute(_spatial(crank__speed_rad_s=1e12))
+    text = str(err.value)
+    assert 'crank.speed_rad_s = 1e+12 is 1.59e+10 x normalization.omega_rad_s = 62.8319' in text
+    assert f'expected a crank speed at most {spatial.SPEED_UNIT_RATIO_MAX:g} x' in text
+
+
+def test_the_same_speed_in_its_own_units_solves_certified():
+    """The way out the error gives: normalization near the crank speed, certified."""
+    rig = _spatial(crank__speed_rad_s=1e12, normalization__omega_rad_s=1e12)
+    assert spatial.redistribute(rig).certificate.certified

@@ -76,6 +76,9 @@ m reach^2 is round-off (the design at the edge of the PSD set) and is written as
 TIGHT_TOL_SCALE = 1e-3
 """A program whose first solve is not certified is solved again with Clarabel's tolerances
 this factor tighter (its dual residual, paid with the box, shrinks with them)."""
+SPEED_UNIT_RATIO_MAX = 10.0
+"""A crank speed above this many times ``normalization.omega_rad_s`` is named when a cone
+program fails (:func:`_scale_blame`; the figures measured are in its docstring)."""
 REPAIR_GROWTH = 2.0
 """The realizability repair multiplies its step by this factor until the body is PSD."""
 REPAIR_STEPS = 60
@@ -567,7 +570,7 @@ def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAP
         prog = _redistribution_program(model, maps, units, free_idx, w, mlo, mhi, extent,
                                        False)
         run = prog.solve()
-    _check_run(run)
+    _check_run(run, rig, units)
     checks = _RealizableChecks(model, free_idx, mlo, mhi, extent)
     options = {'mass_bounds_kg': {model.bodies[k].name: [mlo[k], mhi[k]] for k in free_idx},
                'extent_bounds_m': {model.bodies[k].name: extent[k] for k in free_idx},
@@ -728,7 +731,7 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
     prog = _counterweight_program(model, maps, units, idx, w, max_mass_factor,
                                   max_radius_factor, k_sphere)
     run = prog.solve()
-    _check_run(run)
+    _check_run(run, rig, units)
 
     def design(run):
         x = np.asarray(run.sol.x)
@@ -1703,13 +1706,36 @@ def _extent_bounds(model, free_idx, given, factor):
     return out
 
 
-def _check_run(run):
+def _check_run(run, rig, units):
     if run.status in socp.INFEASIBLE:
         raise SpatialBalanceError(
             f'constraints: the balancing problem is infeasible (solver status {run.status}); '
             'widen mass_bounds / extent_bounds')
     if not run.ok:
-        raise SpatialBalanceError(f'solver: {run.why()}')
+        raise SpatialBalanceError(f'solver: {run.why()}{_scale_blame(rig, units)}')
+
+
+def _scale_blame(rig, units):
+    """
+    Return the scene values that make a failed program ill-scaled ('' when none is).
+
+    The objective is in units of the scene's ``normalization`` (force m l omega^2, moment
+    m l^2 omega^2); a crank speed far above ``normalization.omega_rad_s`` makes the data of
+    the cone program (~ (speed / omega)^2) span more decades than the solver resolves.
+    Measured on rssr_skew: certified up to 16 x, uncertified at 48 x, NumericalError from
+    about 5e3 x; below the unit (slower) it certifies down to 1e-13 x.
+    """
+    if units.source != 'scene':
+        return ''   # the units are the crank speed's own
+    speed = abs(float(rig.at([0.0], outputs=('kinematics',)).crank_speed_rad_s[0]))
+    ratio = speed / units.omega_rad_s
+    if not ratio > SPEED_UNIT_RATIO_MAX:
+        return ''
+    return (f'; the scene makes it ill-scaled: crank.speed_rad_s = {speed:g} is {ratio:.3g} x '
+            f'normalization.omega_rad_s = {units.omega_rad_s:g}, the unit of the objective '
+            f'(its data goes as the square, {ratio ** 2:.3g}), expected a crank speed at most '
+            f'{SPEED_UNIT_RATIO_MAX:g} x normalization.omega_rad_s (set it near the crank '
+            'speed, or drop the normalization block)')
 
 
 def write_scene(result, path):
