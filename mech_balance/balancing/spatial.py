@@ -76,9 +76,6 @@ m reach^2 is round-off (the design at the edge of the PSD set) and is written as
 TIGHT_TOL_SCALE = 1e-3
 """A program whose first solve is not certified is solved again with Clarabel's tolerances
 this factor tighter (its dual residual, paid with the box, shrinks with them)."""
-SPEED_UNIT_RATIO_MAX = 10.0
-"""A crank speed above this many times ``normalization.omega_rad_s`` is named when a cone
-program fails (:func:`_scale_blame`; the figures measured are in its docstring)."""
 REPAIR_GROWTH = 2.0
 """The realizability repair multiplies its step by this factor until the body is PSD."""
 REPAIR_STEPS = 60
@@ -1716,26 +1713,11 @@ def _check_run(run, rig, units):
 
 
 def _scale_blame(rig, units):
-    """
-    Return the scene values that make a failed program ill-scaled ('' when none is).
-
-    The objective is in units of the scene's ``normalization`` (force m l omega^2, moment
-    m l^2 omega^2); a crank speed far above ``normalization.omega_rad_s`` makes the data of
-    the cone program (~ (speed / omega)^2) span more decades than the solver resolves.
-    Measured on rssr_skew: certified up to 16 x, uncertified at 48 x, NumericalError from
-    about 5e3 x; below the unit (slower) it certifies down to 1e-13 x.
-    """
+    """Return the scene values that make a failed program ill-scaled ('' when none is)."""
     if units.source != 'scene':
         return ''   # the units are the crank speed's own
     speed = abs(float(rig.at([0.0], outputs=('kinematics',)).crank_speed_rad_s[0]))
-    ratio = speed / units.omega_rad_s
-    if not ratio > SPEED_UNIT_RATIO_MAX:
-        return ''
-    return (f'; the scene makes it ill-scaled: crank.speed_rad_s = {speed:g} is {ratio:.3g} x '
-            f'normalization.omega_rad_s = {units.omega_rad_s:g}, the unit of the objective '
-            f'(its data goes as the square, {ratio ** 2:.3g}), expected a crank speed at most '
-            f'{SPEED_UNIT_RATIO_MAX:g} x normalization.omega_rad_s (set it near the crank '
-            'speed, or drop the normalization block)')
+    return socp.speed_blame(speed, units.omega_rad_s)
 
 
 def write_scene(result, path):
