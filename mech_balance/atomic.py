@@ -7,7 +7,13 @@ recognisably incomplete, flushed to disk (``fsync``) and renamed over the target
 (``os.replace``, atomic on POSIX) only once it is complete; the directory is then synced so
 that the rename survives a power loss.  On an exception the temporary file is removed and
 an existing target keeps its bytes; a process killed by SIGKILL may leave a ``.partial``
-file next to the target, never a truncated target.
+file next to the target, never a truncated target.  Every temporary file not yet committed
+or discarded is listed (:func:`discard_pending` removes them all: the command line does on
+SIGINT and SIGTERM) and every commit and discard is logged (:func:`written_since`,
+:func:`discarded_since`), so an
+interrupted process can say whether its file was written completely; a handler of SIGINT
+or SIGTERM that asks :func:`defer_signal` first is held back while a temporary file is
+created and listed and while a target is renamed and logged, so no file escapes the list.
 
 Three ways in: :func:`write_text_atomic` and :func:`write_bytes_atomic` for data in memory,
 :func:`atomic_path` (a context manager yielding the temporary path) for writers that want a
@@ -15,15 +21,24 @@ path, and :func:`partial_path` / :func:`commit` / :func:`discard` for a writer w
 outlives one block (the rig node's live recording).
 """
 
+import collections
 from contextlib import contextmanager
 import os
 from pathlib import Path
+import signal
 import tempfile
+import threading
 
 PARTIAL_MARK = '.partial-'
 """What the name of a temporary file contains: ``.NAME.partial-XXXXXXXX``."""
 DEFAULT_MODE = 0o666
 """Permissions of a new file before the umask (as ``open(path, 'w')`` gives)."""
+
+_lock = threading.Lock()
+_pending = set()      # temporary files neither committed nor discarded
+_log = collections.deque(maxlen=64)   # (sequence number, 'written' or 'discarded', target)
+_count = [0]          # commits and discards so far
+_held = {'depth': 0, 'deferred': None}   # the main thread's held block (_signals_held)
 
 
 def partial_path(path):
@@ -34,7 +49,10 @@ def partial_path(path):
     umask.  Hand it to :func:`commit` when complete or to :func:`discard` on failure.
     """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}{PARTIAL_MARK}')
+    with _signals_held():
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}{PARTIAL_MARK}')
+        with _lock:
+            _pending.add(Path(tmp))
     try:
         os.fchmod(fd, _mode_for(path))
     finally:
@@ -46,7 +64,9 @@ def commit(tmp, path):
     """Flush ``tmp`` to disk and rename it over ``path``; sync the directory."""
     with open(tmp, 'rb+') as f:
         os.fsync(f.fileno())
-    os.replace(tmp, path)
+    with _signals_held():   # renamed and logged as written, or neither
+        os.replace(tmp, path)
+        _note(tmp, 'written', path)
     _fsync_dir(Path(path).parent)
 
 
@@ -56,6 +76,48 @@ def discard(tmp):
         os.unlink(tmp)
     except FileNotFoundError:
         pass
+    _note(tmp, 'discarded', target_of(tmp))
+
+
+def _note(tmp, what, target):
+    with _lock:
+        if Path(tmp) in _pending:
+            _pending.discard(Path(tmp))
+            _count[0] += 1
+            _log.append((_count[0], what, Path(target)))
+
+
+def discard_pending():
+    """Remove every temporary file not yet committed or discarded; return their paths."""
+    with _lock:
+        pending = sorted(_pending)
+    for tmp in pending:
+        discard(tmp)
+    return pending
+
+
+def target_of(tmp):
+    """Return the target a temporary file of :func:`partial_path` was made for."""
+    tmp = Path(tmp)
+    return tmp.parent / tmp.name[1:].rpartition(PARTIAL_MARK)[0]
+
+
+def write_count():
+    """Return how many temporary files were committed or discarded so far (a mark)."""
+    with _lock:
+        return _count[0]
+
+
+def written_since(mark):
+    """Return the targets committed after :func:`write_count` returned ``mark``."""
+    with _lock:
+        return [path for n, what, path in _log if n > mark and what == 'written']
+
+
+def discarded_since(mark):
+    """Return the targets whose temporary file was discarded after ``mark`` (not written)."""
+    with _lock:
+        return [path for n, what, path in _log if n > mark and what == 'discarded']
 
 
 @contextmanager
@@ -88,6 +150,42 @@ def write_bytes_atomic(path, data):
 def write_text_atomic(path, text, encoding='utf-8'):
     """Write ``text`` to ``path`` atomically, encoded as ``encoding`` (UTF-8)."""
     write_bytes_atomic(path, text.encode(encoding))
+
+
+@contextmanager
+def _signals_held():
+    """
+    Hold SIGINT and SIGTERM back in the main thread for the block; deliver them after it.
+
+    A Python signal handler runs between bytecodes of the main thread, so a handler raising
+    between ``mkstemp`` and the listing of its file would leave the file behind.  A handler
+    that calls :func:`defer_signal` first (the command line's does) returns at once inside
+    the block, and the signal is raised again when the block ends.  (Blocking the signal
+    with ``pthread_sigmask`` would not do: the kernel hands it to another thread.)
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _held['depth'] += 1
+    try:
+        yield
+    finally:
+        _held['depth'] -= 1
+        if _held['depth'] == 0 and _held['deferred']:
+            signum, _held['deferred'] = _held['deferred'], None
+            signal.raise_signal(signum)
+
+
+def defer_signal(signum):
+    """
+    For a signal handler: return True if ``signum`` is held back (raised again later).
+
+    Inside :func:`_signals_held` the handler should return without acting.
+    """
+    if _held['depth'] > 0:
+        _held['deferred'] = _held['deferred'] or signum
+        return True
+    return False
 
 
 def _mode_for(path):

@@ -404,7 +404,7 @@ def solve(scene, options):
     failed = []
     if not stage1.solve.ok:
         failed.append(balancing.failed_stage(
-            'primary (z)', stage1.solve, "the design is the solver's last iterate, made "
+            'primary (z)', stage1.solve, "the solver's last iterate, made "
             'feasible; its lower bound is safe'))
     y, stage2, stage3, exact = stage1.y, None, None, False
     secondary = prob.secondary()

@@ -191,9 +191,11 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
                  else max_added_mass_kg / units.mass_kg)
     stage1 = _solve(maps, spec)
     failed = []
+    blame = '' if scene.normalization is None else \
+        speed_blame(abs(scene.crank_speed_rad_s), abs(units.omega_rad_s))
     if not stage1.run.ok:
-        failed.append(failed_stage('primary (z)', stage1.run, "the design is the solver's "
-                                   'last iterate, made feasible; its lower bound is safe'))
+        failed.append(failed_stage('primary (z)', stage1.run, "the solver's last iterate, "
+                                   'made feasible; its lower bound is safe', blame))
     theta, stage2, exact = stage1.theta, None, False
     secondary = _secondary(spec)
     if tie_break and secondary is not None and stage1.run.ok:
@@ -210,7 +212,7 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
             stage2, exact = None, False
         if stage2 is not None and not stage2.run.ok:
             failed.append(failed_stage(f'tie-break (least RMS shaking {secondary})',
-                                       stage2.run, "the primary stage's optimum"))
+                                       stage2.run, "the primary stage's optimum", blame))
             stage2, exact = None, False
         if stage2 is not None:
             theta = stage2.theta
@@ -316,9 +318,41 @@ class Certificate:
         return schema.plain(self.__dict__)
 
 
-def failed_stage(stage, run, design):
-    """Return the report entry of a stage whose solve failed (name, status, why, design)."""
-    return {'stage': stage, 'status': run.status, 'reason': run.why(), 'design': design}
+def failed_stage(stage, run, design, blame=''):
+    """
+    Return the report entry of a stage whose solve failed (name, status, why, design).
+
+    ``blame``: the scene values that make the program ill-scaled (:func:`speed_blame`).
+    """
+    return {'stage': stage, 'status': run.status, 'reason': run.why() + blame,
+            'design': design}
+
+
+SPEED_UNIT_RATIO_MAX = 10.0
+"""A crank speed above this many times ``normalization.omega_rad_s`` is named when a cone
+program fails (:func:`speed_blame`)."""
+
+
+def speed_blame(speed, omega):
+    """
+    Return the text naming a crank speed far above the objective's unit ('' when it is not).
+
+    The balancing's objective is in units of the scene's ``normalization`` (force
+    m l omega^2, moment m l^2 omega^2); a crank speed far above ``normalization.omega_rad_s``
+    makes the cone program's data (~ (speed / omega)^2) span more decades than the solver
+    resolves.  Measured on rssr_skew (spatial): certified up to 16 x, not at 48 x,
+    NumericalError from about 5e3 x; hoeken (planar): certified up to 1e6 x, not from
+    1e7 x.  Slower than the unit certifies (1e-13 x, 1e-9 x).  The limit stated is the
+    spatial one, where both certify.
+    """
+    ratio = speed / omega
+    if not ratio > SPEED_UNIT_RATIO_MAX:
+        return ''
+    return (f'; the scene makes it ill-scaled: crank.speed_rad_s = {speed:g} is {ratio:.3g} x '
+            f'normalization.omega_rad_s = {omega:g}, the unit of the objective (its data goes '
+            f'as the square, {ratio ** 2:.3g}), expected a crank speed at most '
+            f'{SPEED_UNIT_RATIO_MAX:g} x normalization.omega_rad_s (set it near the crank '
+            'speed, or drop the normalization block)')
 
 
 def _bound_detail(bound):

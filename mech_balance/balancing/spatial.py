@@ -207,6 +207,9 @@ def spatial_model(rig):
                 continue
             k = names.index(lk.name)
             tk = t[k]
+            if not np.any(tk):   # a massless link left massless (fixed): as the scene says
+                links.append(lk)
+                continue
             m = float(tk[0])
             c = tk[1:4] / m
             i_c = regressor.inertia_matrix(tk[4:10]) - m * (np.dot(c, c) * np.eye(3)
@@ -564,7 +567,7 @@ def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAP
         prog = _redistribution_program(model, maps, units, free_idx, w, mlo, mhi, extent,
                                        False)
         run = prog.solve()
-    _check_run(run)
+    _check_run(run, rig, units)
     checks = _RealizableChecks(model, free_idx, mlo, mhi, extent)
     options = {'mass_bounds_kg': {model.bodies[k].name: [mlo[k], mhi[k]] for k in free_idx},
                'extent_bounds_m': {model.bodies[k].name: extent[k] for k in free_idx},
@@ -725,7 +728,7 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
     prog = _counterweight_program(model, maps, units, idx, w, max_mass_factor,
                                   max_radius_factor, k_sphere)
     run = prog.solve()
-    _check_run(run)
+    _check_run(run, rig, units)
 
     def design(run):
         x = np.asarray(run.sol.x)
@@ -1651,6 +1654,12 @@ def _mass_bounds(model, free_idx, given, factors):
     for k in free_idx:
         name = model.bodies[k].name
         m0 = float(model.theta[10 * k])
+        if m0 <= 0.0:
+            raise SpatialBalanceError(
+                f'links.{name}.mass_kg: got {m0:g}, a massless link, which the redistribution '
+                'cannot scale (its mass bounds are mass_factors x the original mass), expected '
+                f'a mass > 0 kg for it or the link fixed (--fix {name}, or '
+                f'balance.fixed_links: [{name}])')
         lo, hi = given.pop(name, (lo_f * m0, hi_f * m0))
         lo, hi = float(lo), float(hi)
         if not (0.0 < lo <= hi and math.isfinite(hi)):
@@ -1694,13 +1703,21 @@ def _extent_bounds(model, free_idx, given, factor):
     return out
 
 
-def _check_run(run):
+def _check_run(run, rig, units):
     if run.status in socp.INFEASIBLE:
         raise SpatialBalanceError(
             f'constraints: the balancing problem is infeasible (solver status {run.status}); '
             'widen mass_bounds / extent_bounds')
     if not run.ok:
-        raise SpatialBalanceError(f'solver: {run.why()}')
+        raise SpatialBalanceError(f'solver: {run.why()}{_scale_blame(rig, units)}')
+
+
+def _scale_blame(rig, units):
+    """Return the scene values that make a failed program ill-scaled ('' when none is)."""
+    if units.source != 'scene':
+        return ''   # the units are the crank speed's own
+    speed = abs(float(rig.at([0.0], outputs=('kinematics',)).crank_speed_rad_s[0]))
+    return socp.speed_blame(speed, units.omega_rad_s)
 
 
 def write_scene(result, path):

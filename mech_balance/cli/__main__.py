@@ -1,11 +1,24 @@
 """
 Run ``python -m mech_balance.cli``, the ``mech-balance`` command.
 
-The same entry point as the console script.
+The same entry point as the console script.  SIGINT and SIGTERM before the command line's
+own handlers are in place (while the modules load) end the process quietly with 128 + the
+signal's number: nothing is written yet.
 """
 
+import os
+import signal
 import sys
 
-from mech_balance.cli.main import main
+
+def _quit(signum, frame):
+    os._exit(128 + signum)
+
+
+for _signum in (signal.SIGINT, signal.SIGTERM):
+    if signal.getsignal(_signum) is not signal.SIG_IGN:   # a background job's stays ignored
+        signal.signal(_signum, _quit)
+
+from mech_balance.cli.main import main  # noqa: E402 (after the handlers)
 
 sys.exit(main())

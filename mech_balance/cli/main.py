@@ -8,17 +8,20 @@ line naming the field, the value and what was expected, and exits with status 2.
 import argparse
 import math
 import os
+import signal
 import sys
 import textwrap
 
-from mech_balance import conventions, paths, threads
+from mech_balance import atomic, conventions, paths, threads
 from mech_balance.cli import jsonout
 from mech_balance.schema.fields import MAX_ABS_VALUE
 
 EXIT_USAGE = 2
 EXIT_BENCH_FAILED = 3
 """Exit status of ``mech-balance bench`` when a table printed a FAIL verdict."""
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = 128 + signal.SIGINT
+"""Exit status after SIGINT when a file being written was not complete (128 + the signal);
+SIGTERM gives 128 + 15 = 143; a verb whose files were all written exits 0 (:func:`main`)."""
 SCENE_NAME_WIDTH = 18
 """``mech-balance scenes``: width of the name column; the description wraps after it."""
 LINE_WIDTH = 99
@@ -28,6 +31,63 @@ EXTENSIONS = ('mech_balance.cli.balance', 'mech_balance.cli.record', 'mech_balan
               'mech_balance.cli.identify', 'mech_balance.cli.urdf')
 """Modules that add verbs: each has ``register(subparsers)`` adding its parser(s) with
 ``set_defaults(func=...)``; a verb module owns its parser, handler and help text."""
+
+
+INTERRUPTING_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM received while a verb runs (a KeyboardInterrupt, as Ctrl-C is)."""
+
+    def __init__(self, signum):
+        """Keep the signal's number."""
+        super().__init__(signum)
+        self.signum = signum
+
+    def __str__(self):
+        """Return the signal's name."""
+        return signal.Signals(self.signum).name
+
+
+FINALIZER_RESEND_S = 0.05
+"""A signal arriving in a ``__del__`` (where an exception is printed and dropped) is sent
+again after this many seconds instead of raised there."""
+
+
+def _raise_interrupted(signum, frame):
+    if atomic.defer_signal(signum):   # raised again once the file is listed or renamed
+        return
+    while frame is not None:
+        if frame.f_code.co_name == '__del__':
+            import threading
+            timer = threading.Timer(FINALIZER_RESEND_S, os.kill, (os.getpid(), signum))
+            timer.daemon = True
+            timer.start()
+            return
+        frame = frame.f_back
+    raise Interrupted(signum)
+
+
+def _interrupted(verb, exc, mark):
+    """
+    Report an interrupted verb on stderr; return its exit status.
+
+    Temporary files still being written are removed; if none was and every file the verb
+    wrote is complete, it says so and the status is 0, else 128 + the signal's number.
+    """
+    signum = getattr(exc, 'signum', signal.SIGINT)
+    name = signal.Signals(signum).name
+    atomic.discard_pending()
+    written = [os.fsdecode(p) for p in atomic.written_since(mark)]
+    removed = [os.fsdecode(p) for p in atomic.discarded_since(mark)]
+    line = f'mech-balance{" " + verb if verb else ""}: interrupted ({name})'
+    if written:
+        line += f'; written completely: {", ".join(written)}'
+    if removed:
+        line += ('; not written, its partial file removed: '
+                 f'{", ".join(removed)}')
+    print(line, file=sys.stderr)
+    return 0 if written and not removed else 128 + signum
 
 
 class Parser(argparse.ArgumentParser):
@@ -298,8 +358,38 @@ def cmd_bench(args):
 
 
 def main(argv=None):
-    """Run ``mech-balance``; return the exit status."""
+    """
+    Run ``mech-balance``; return the exit status.
+
+    SIGINT and SIGTERM interrupt the verb: a file being written is removed (never left as
+    ``.partial``) and the status is 130 or 143; a verb interrupted after all its files were
+    written says so and exits 0 (:func:`_interrupted`).  Run as the process (``argv`` None),
+    a signal after the verb has finished is ignored (its status stands); called with
+    ``argv``, the previous handlers are restored on return.
+    """
     import warnings
+    mark = atomic.write_count()
+    previous = _install_signal_handlers()
+    try:
+        return _run(argv, warnings, mark)
+    except KeyboardInterrupt as exc:   # in parsing, before a verb runs
+        return _interrupted(None, exc, mark)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, signal.SIG_IGN if argv is None else handler)
+
+
+def _install_signal_handlers():
+    """Make SIGINT and SIGTERM raise :class:`Interrupted`; return the previous handlers."""
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return {}   # only the main thread can set handlers
+    return {s: signal.signal(s, _raise_interrupted) for s in INTERRUPTING_SIGNALS
+            if signal.getsignal(s) is not signal.SIG_IGN}   # a background job's stays ignored
+
+
+def _run(argv, warnings, mark):
+    """Parse ``argv`` and run its verb; return the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -316,9 +406,8 @@ def main(argv=None):
             reason = f'{os.fsdecode(exc.filename)}: {reason}'
         print(f'mech-balance {args.command}: error: {reason}', file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print('mech-balance: interrupted', file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:
+        return _interrupted(args.command, exc, mark)
 
 
 if __name__ == '__main__':

@@ -675,8 +675,8 @@ def _csv_chunk(chunk, head, label, store):
     late = stamps <= prev
     if late.any():
         k = int(np.flatnonzero(late)[0])
-        raise RecordingError(f'{label}: line {numbers[k]}, column t_s: {values[k, 0]!r} is not '
-                             f"after the previous row's {prev[k] * 1e-9!r}, expected "
+        raise RecordingError(f'{label}: line {numbers[k]}, column t_s: {float(values[k, 0])!r} '
+                             f"is not after the previous row's {int(prev[k]) * 1e-9!r}, expected "
                              'increasing times (rows are not sorted here)')
     store.extend(stamps, values[:, 1:])
 
@@ -705,7 +705,7 @@ def _csv_row(row, number, head, label, previous):
     stamp = int(round(values[0] * 1e9))
     if previous is not None and stamp <= previous:
         raise RecordingError(f'{label}: line {number}, column t_s: {values[0]!r} is not after '
-                             f"the previous row's {previous * 1e-9!r}, expected increasing "
+                             f"the previous row's {int(previous) * 1e-9!r}, expected increasing "
                              'times (rows are not sorted here)')
     return stamp, values[1:]
 
