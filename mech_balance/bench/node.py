@@ -18,9 +18,7 @@ track, the queue), per batch the follow step's evaluation (the design's cycle ta
 again with ``follow.exact``: the core) and preparation of both messages; only the rclpy
 ``publish`` calls are left out.
 
-The ``scene switch`` rows (:mod:`mech_balance.bench.switch`): per built-in, the time from
-``ros2 param set /rig scene <name>`` (the parameter service, from this process) to its
-answer and to the first ``joint_states`` with the new scene's joints (issue 31 item 3).
+The ``scene switch`` rows are a section of their own: :mod:`mech_balance.bench.switch`.
 """
 
 import json
@@ -122,9 +120,6 @@ def bench_section(args, progress):
             f'; >= {TARGET_SUSTAINED_HZ:g} Hz sustained '
             f'{"met" if best and best >= TARGET_SUSTAINED_HZ else "NOT met"}',
         ]
-    from mech_balance.bench import switch
-    from mech_balance.schema.scene import builtin_scenes
-    lines += switch.switch_lines(sorted(builtin_scenes()), progress)  # issue 31 item 3
     return '\n'.join(lines)
 
 

@@ -118,6 +118,12 @@ def switch_lines(names, progress=print):
     return lines
 
 
+def switch_section(args, progress):
+    """Return the ``scene switch`` table of every built-in (a ``mech-balance bench`` section)."""
+    from mech_balance.schema.scene import builtin_scenes
+    return '\n'.join(switch_lines(sorted(builtin_scenes()), progress))
+
+
 if __name__ == '__main__':
     import sys
     from mech_balance.schema.scene import builtin_scenes

@@ -211,12 +211,12 @@ class RigNode(Node):
         state = self._state
         with state.lock:
             balanced = None if state.balanced is None else state.balanced.scene
-            was_active = self._recording.active
             self._recording.start(state.values['recording_path'], state.values['rerun_url'],
                                   state.original.scene, balanced)
-            if publishing and self._recording.active and not was_active:
-                # the ticks evaluated ahead were not pushed (nothing recorded then): evaluate
-                # them again, so every sample published from now on is in the recording
+            if publishing and self._recording.active:
+                # the ticks evaluated ahead went to the recording's old targets, or nowhere:
+                # evaluated again, every sample published from now on reaches the new ones (a
+                # sample of the window may be recorded twice, never left out)
                 self._publisher.set_model(state.published)
 
     def _switch_to(self, model):
