@@ -7,6 +7,7 @@ and the parameter service.  Discovery is waited for (matched endpoints, services
 slept on.
 """
 
+import contextlib
 import math
 import os
 from pathlib import Path
@@ -398,6 +399,25 @@ class RigProcess:
         text = self.output()
         self.log.close()
         return text
+
+
+@contextlib.contextmanager
+def matched_rig(context, namespace, *ros_args, logs=None):
+    """
+    Start a rig node in ``namespace`` and its probe, wait until matched, yield ``(rig, probe)``.
+
+    Both are stopped afterwards; ``logs`` (a list), if given, receives the node's log.
+    """
+    rig = RigProcess(namespace, *ros_args)
+    probe = Probe(context, namespace)
+    try:
+        probe.wait_for_rig(rig)
+        yield rig, probe
+    finally:
+        probe.destroy()
+        log = rig.stop()
+        if logs is not None:
+            logs.append(log)
 
 
 class Probe:

@@ -587,14 +587,8 @@ def test_class5_zero_stamps_are_followed_at_their_receive_time(context):
 
 
 def test_use_sim_time_without_clock_is_reported(context):
-    ns = tn._namespace('noclock')
-    rig = tn.RigProcess(ns, '-p', 'use_sim_time:=true')
-    probe = tn.Probe(context, ns)
-    try:
-        probe.wait_for_rig(rig)
+    with tn.matched_rig(context, tn._namespace('noclock'), '-p', 'use_sim_time:=true') as \
+            (rig, probe):
         probe.spin_until(lambda: 'no /clock message has arrived' in rig.output(),
                          what='the warning about a missing /clock')
         assert not probe.joints and rig.alive()
-    finally:
-        probe.destroy()
-        rig.stop()

@@ -39,20 +39,16 @@ RACE_WINDOW_S = 0.3
 
 @pytest.fixture(scope='module')
 def rig(context):
-    ns = tn._namespace('services')
-    process = tn.RigProcess(ns, '-p', 'publish_rate:=200.0')
-    probe = tn.Probe(context, ns)
-    try:
-        probe.wait_for_rig(process)
-        yield process, probe
-    finally:
-        probe.destroy()
-        log = process.stop()
-        assert 'Traceback' not in log, log
-        line = [x for x in log.splitlines() if rig_node.STATS_TAG in x][-1]
-        answers = json.loads(line.split(rig_node.STATS_TAG, 1)[1])['answers']
-        print(f'answers: {answers}')
-        assert 'answering a service call' not in line.split(rig_node.STATS_TAG)[1]
+    logs = []
+    with tn.matched_rig(context, tn._namespace('services'), '-p', 'publish_rate:=200.0',
+                        logs=logs) as running:
+        yield running
+    log = logs[0]
+    assert 'Traceback' not in log, log
+    line = [x for x in log.splitlines() if rig_node.STATS_TAG in x][-1]
+    answers = json.loads(line.split(rig_node.STATS_TAG, 1)[1])['answers']
+    print(f'answers: {answers}')
+    assert 'answering a service call' not in line.split(rig_node.STATS_TAG)[1]
 
 
 def _clients(probe, service, count):

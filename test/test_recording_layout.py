@@ -515,11 +515,11 @@ def test_first_passing_finds_the_first_place_of_the_full_test(chunk):
         costly = rng.random((200, 37)) < share
         calls = []
 
-        def test(rows, cols):
+        def costly_check(rows, cols):
             calls.append(len(rows) * len(range(37)[cols]))
             return costly[rows, cols]
 
-        lazy = hits.first_passing(cheap, test, chunk=chunk)
+        lazy = hits.first_passing(cheap, costly_check, chunk=chunk)
         full = cheap & costly
         assert np.array_equal(lazy.any(axis=1), full.any(axis=1))
         found = full.any(axis=1)

@@ -28,7 +28,7 @@ import numpy as np
 
 CAPABILITIES = frozenset({'kinematics', 'shaking_wrench', 'driving_torque',
                           'bearing_reactions', 'kinetic_energy', 'gravity',
-                          'forward_dynamics', 'mass_redistribution', 'counterweights',
+                          'mass_redistribution', 'counterweights',
                           'analytic_balance', 'accuracy_study', 'identification'})
 """What a planar rig computes and how it can be balanced (:attr:`Rig.capabilities`)."""
 
