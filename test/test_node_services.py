@@ -34,7 +34,11 @@ RACES = 20
 """Seeded scene-switch races against a running ``~/balance``."""
 SEED = 32
 RACE_WINDOW_S = 0.3
-"""The scene is switched this long after the call at most (a hoeken run takes ~0.1-0.2 s)."""
+"""The scene is switched this long after the call at most."""
+RACE_SAMPLES = 50_000
+"""Crank angles of each race's balancing run: a run of the scene's 360 takes ~5 ms, so a
+switch within the window mostly came after it and a seed could run no race at all; at this
+count a run lasts ~0.2 s, most of the window."""
 
 
 @pytest.fixture(scope='module')
@@ -110,7 +114,8 @@ def test_a_scene_switch_during_balance_never_publishes_another_scenes_design(rig
         a, b = scenes[race % 2], scenes[(race + 1) % 2]
         w = round(rng.uniform(0.2, 0.8), 3)    # new options: a run, not the kept answer
         assert all(r.successful for r in probe.set_params(
-            scene=a, use_balanced=False, balance__weights=[w, 1.0 - w]))
+            scene=a, use_balanced=False, balance__weights=[w, 1.0 - w],
+            balance__samples=RACE_SAMPLES))
         future = probe.balance.call_async(Trigger.Request())
         delay = rng.uniform(0.0, RACE_WINDOW_S)   # mostly within the run, now and then after
         deadline = time.monotonic() + delay
