@@ -23,6 +23,7 @@ from mech_balance import schema as scene  # noqa: E402
 from mech_balance.cli import main as cli  # noqa: E402
 from mech_balance.schema.scene import builtin_scenes  # noqa: E402
 
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
 FIXTURE = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'fixtures',
                        'cli_snapshot.json')
 
@@ -104,6 +105,8 @@ def strip(value):
         return [strip(v) for v in value]
     if isinstance(value, str) and 'cli_snapshot_' in value:   # the recording's temporary path
         return re.sub(r'\S*cli_snapshot_\w+/', '', value)
+    if isinstance(value, str) and value.startswith(_ROOT):    # the checkout's path
+        return os.path.relpath(value, _ROOT)
     return value
 
 
