@@ -37,13 +37,13 @@ from mech_balance.analysis.identify.consistency import (
 from mech_balance.analysis.identify.encoder import (
     crank_motion, CrankMotion, encoder_segments, EncoderSegment, GAP_PERIODS, MIN_WINDOW)
 from mech_balance.analysis.identify.estimate import (
-    calibrated_links, identify, Identification)
+    calibrated_links, Identification, identify)
 from mech_balance.analysis.identify.least_squares import Combination, RANK_RTOL
 from mech_balance.analysis.identify.model import (
     CHANNEL_UNITS, CHANNELS, check_identifiable, IdentifyError, parameter_names,
-    parameter_scales, PARAMETERS, regressor, Regressor)
+    parameter_scales, PARAMETERS, Regressor, regressor)
 from mech_balance.analysis.identify.quantization import (
-    estimate_quantization, Quantization, QUANT_FRACTION_MIN, unwrap_encoder)
+    estimate_quantization, QUANT_FRACTION_MIN, Quantization, unwrap_encoder)
 from mech_balance.analysis.identify.report import calibrated_yaml, format_report
 
 __all__ = [

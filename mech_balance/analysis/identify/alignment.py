@@ -130,13 +130,14 @@ def time_offset(regress, motion, t_w, meas, floor):
     """
     Return ``(offset s or 0, Finding or None)``: the sensor's lag behind the encoder.
 
-    ``regress(psi, speed, accel)`` returns the ``(p, c, n)`` regressor (scaled); ``motion``
-    the longest stretch's :class:`~mech_balance.analysis.identify.encoder.CrankMotion`;
-    ``t_w`` and ``meas`` the wrench stamps and measurements; ``floor`` the channels' noise floors.  The
-    weighted, bias-free least squares is fitted at the wrench stamps minus a shift tau (the
-    sample stamped t taken at t - tau) over a grid of :data:`OFFSET_GRID` shifts within the
-    limits of :data:`OFFSET_MAX_S`, refined around the best and by a parabola.  A drop of
-    the residual by more than :data:`OFFSET_F` residual variances from tau = 0 is an offset
+    ``regress(psi, speed, accel)`` returns the ``(p, c, n)`` regressor (scaled);
+    ``motion`` the longest stretch's
+    :class:`~mech_balance.analysis.identify.encoder.CrankMotion`; ``t_w`` and ``meas`` the
+    wrench stamps and measurements; ``floor`` the channels' noise floors.  The weighted,
+    bias-free least squares is fitted at the wrench stamps minus a shift tau (the sample
+    stamped t taken at t - tau) over a grid of :data:`OFFSET_GRID` shifts within the limits
+    of :data:`OFFSET_MAX_S`, refined around the best and by a parabola.  A drop of the
+    residual by more than :data:`OFFSET_F` residual variances from tau = 0 is an offset
     (corrected: the wrench stamps moved by -tau); a best shift at the edge of the search is
     refused.
     """

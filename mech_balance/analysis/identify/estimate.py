@@ -15,7 +15,7 @@ from mech_balance import schema
 from mech_balance.analysis.identify import checks
 from mech_balance.analysis.identify.alignment import check_pose_and_time
 from mech_balance.analysis.identify.confidence import predicted_rms, std_directions
-from mech_balance.analysis.identify.consistency import consistent, Consistency
+from mech_balance.analysis.identify.consistency import Consistency, consistent
 from mech_balance.analysis.identify.encoder import (
     CrankMotion, MAX_WINDOW_TURNS, segment_motions)
 from mech_balance.analysis.identify.least_squares import (

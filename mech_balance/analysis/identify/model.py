@@ -21,7 +21,8 @@ TORQUE_CHANNEL = 'torque'
 CHANNEL_UNITS = {'force_x': 'N', 'force_y': 'N', 'moment_z': 'N*m', 'torque': 'N*m'}
 PARAMETERS = ('m', 'hx', 'hy', 'I_O')
 """Per link: mass (kg), first moment m c_x and m c_y in the link frame (kg*m), inertia about
-the link origin (kg*m^2), the order of :func:`mech_balance.core.planar.dynamics.parameter_vector`."""
+the link origin (kg*m^2): the order of
+:func:`mech_balance.core.planar.dynamics.parameter_vector`."""
 PARAMETER_UNITS = ('kg', 'kg*m', 'kg*m', 'kg*m^2')
 
 SPATIAL_NOT_YET = (

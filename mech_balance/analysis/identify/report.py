@@ -1,5 +1,7 @@
 """
 The identification as text: the report ``mech-balance identify`` prints, the calibrated YAML.
+
+Both read an :class:`~mech_balance.analysis.identify.estimate.Identification`.
 """
 
 import math
