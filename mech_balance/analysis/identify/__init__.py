@@ -3,27 +3,8 @@ Identification of a planar rig's inertial parameters from its encoder and force 
 
 Pure functions on numpy arrays (numpy, scipy, clarabel): the ``identify`` command feeds them
 the arrays of a recording (:mod:`mech_balance.ros.bags`), the rig node its buffered
-samples.  The method, its derivation and the figures behind the constants are in
-docs/identification.md (*How identify computes*).  The modules, in the order the data
-passes through them:
-
-* :mod:`~mech_balance.analysis.identify.checks`: the recording checked (unit, interleaved
-  sources, a stuck or noisy encoder, the fit against the noise), :class:`Finding`;
-* :mod:`~mech_balance.analysis.identify.alignment`: the sensor's frame and clock against the
-  scene's model;
-* :mod:`~mech_balance.analysis.identify.quantization`,
-  :mod:`~mech_balance.analysis.identify.smoothing`,
-  :mod:`~mech_balance.analysis.identify.encoder`: the encoder's step, the Savitzky-Golay
-  smoothing, the crank's angle, speed and acceleration per stretch between gaps;
-* :mod:`~mech_balance.analysis.identify.model`: channels, parameters, the regressor;
-* :mod:`~mech_balance.analysis.identify.least_squares`: the weighted least squares, rank,
-  base parameters;
-* :mod:`~mech_balance.analysis.identify.consistency`: the physically consistent calibration;
-* :mod:`~mech_balance.analysis.identify.confidence`: the predicted RMS and its standard
-  errors, a balanced design's range;
-* :mod:`~mech_balance.analysis.identify.estimate`: :func:`identify` and its
-  :class:`Identification`;
-* :mod:`~mech_balance.analysis.identify.report`: the printed report and the calibrated YAML.
+samples.  Its modules, in the order the data passes through them, and the method with the
+figures behind the constants: docs/identification.md, *How identify computes*.
 """
 
 from mech_balance.analysis.identify.alignment import FRAME_ANGLE_MAX_DEG, frame_check

@@ -51,7 +51,12 @@ likely cause of a fit the noise does not explain."""
 
 @dataclass
 class Finding:
-    """One thing a check found: its evidence, the way out, and what was done (``action``)."""
+    """
+    One thing a check found: its evidence, the way out, and what was done.
+
+    ``action`` is ``corrected`` (the data repaired, the fit made on the repair), ``warned``
+    or ``refused`` (no calibrated scene).
+    """
 
     code: str
     action: str

@@ -262,12 +262,12 @@ def _fit(scene, motion, stretches, t_encoder, t_wrench, wrench, effort, theta0, 
         raise IdentifyError(f'recording: the crank turns {turns:.3g} revolutions in the usable '
                             f'span of {span:.3g} s, expected at least {MIN_TURNS:g}'
                             ' (a longer recording)')
-    red = reduce_samples(scene, psi, speed, accel, meas, effort is not None, theta0, scale)
-    p, nparam = red.samples, theta0.size
+    reduction = reduce_samples(scene, psi, speed, accel, meas, effort is not None, theta0, scale)
+    p, nparam = reduction.samples, theta0.size
     if p * nc <= nparam + nc:
         raise IdentifyError(f'recording: {p} samples, expected more than {nparam + nc} '
                             'measurements for the parameters and the bias')
-    fit = weighted_fit(red, nparam, nc)
+    fit = weighted_fit(reduction, nparam, nc)
     rank, sv, v1, sigma = fit.rank, fit.singular_values, fit.row_space, fit.sigma
     cov_u = fit.s2 * (v1 / sv[:rank] ** 2) @ v1.T
     theta_ls = theta0 + scale * fit.du
@@ -277,29 +277,29 @@ def _fit(scene, motion, stretches, t_encoder, t_wrench, wrench, effort, theta0, 
                                     float(np.sum(fit.res_sq / sigma ** 2)), se_u)
     theta = theta0 + scale * u_cal
     res_sq = np.array([float(np.sum((f @ np.append(-u_cal, 1.0)) ** 2))
-                       for f in red.factors])
-    bias = red.r0_mean - red.ys_mean @ u_cal
+                       for f in reduction.factors])
+    bias = reduction.r0_mean - reduction.ys_mean @ u_cal
     # Cov(b): sigma_c^2 / p from the mean, plus the slope's through the mean regressor row
-    cov_b = fit.s2 * np.diag(sigma ** 2 / p) + red.ys_mean @ cov_u @ red.ys_mean.T
+    cov_b = fit.s2 * np.diag(sigma ** 2 / p) + reduction.ys_mean @ cov_u @ reduction.ys_mean.T
     unseen = fit.vt[rank:].T
-    confound_u = red.ys_mean @ unseen @ unseen.T     # (c, n) per unit of u
-    identifiable_b = np.linalg.norm(confound_u, axis=1) <= CONFOUND_RTOL * red.size
+    confound_u = reduction.ys_mean @ unseen @ unseen.T     # (c, n) per unit of u
+    identifiable_b = np.linalg.norm(confound_u, axis=1) <= CONFOUND_RTOL * reduction.size
     confound = np.where(identifiable_b[:, None], 0.0, confound_u / scale)
     rms_after = np.sqrt(res_sq / p)
-    combos = base_parameters(fit.vt[:rank], scale, red.names, theta_ls, theta0, cov, theta)
+    combos = base_parameters(fit.vt[:rank], scale, reduction.names, theta_ls, theta0, cov, theta)
     links, problems = calibrated_links(scene, theta)
     if floor is not None:
         findings += checks.judge_fit(channels, rms_after, floor, motion,
                                      [CHANNEL_UNITS[c] for c in channels], max_residual_ratio)
     return Identification(
-        scene=scene, names=red.names, theta_scene=theta0, theta=theta, covariance=cov,
+        scene=scene, names=reduction.names, theta_scene=theta0, theta=theta, covariance=cov,
         rank=rank, singular_values=sv,
         condition_number=float(sv[0] / sv[rank - 1]), combinations=combos,
         channels=channels, bias=bias, bias_std_error=np.sqrt(np.diag(cov_b)),
         bias_confounding=confound, bias_identifiable=identifiable_b, noise_std=sigma,
-        rms_before=red.rms_before, rms_after=rms_after, samples=p, motion=motion,
-        kinematic_residual=red.residual, kinematic_cond=red.cond, calibrated_links=links,
-        problems=problems, consistency=consistency, theta_ls=theta_ls,
+        rms_before=reduction.rms_before, rms_after=rms_after, samples=p, motion=motion,
+        kinematic_residual=reduction.residual, kinematic_cond=reduction.cond,
+        calibrated_links=links, problems=problems, consistency=consistency, theta_ls=theta_ls,
         prediction=None if problems else predicted_rms(scene, theta, cov),
         segments=[segment for _, segment in stretches], findings=findings,
         noise_floor=floor)
