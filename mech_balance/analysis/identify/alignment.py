@@ -106,6 +106,11 @@ def frame_check(meas, model, floor, channels):
     return Finding('sensor_frame', 'refused', '; '.join(parts), way, values)
 
 
+def _evenly_spaced(indices, count):
+    """Return at most ``count`` of ``indices``, evenly spaced, the first and last included."""
+    return indices[np.linspace(0, indices.size - 1, min(count, indices.size)).astype(int)]
+
+
 def _interp_rows(t_grid, rows, t):
     """Return ``rows`` (grid first) linearly interpolated at ``t`` (inside the grid)."""
     k = np.clip(np.searchsorted(t_grid, t) - 1, 0, t_grid.size - 2)
@@ -150,8 +155,7 @@ def time_offset(regress, motion, t_w, meas, floor):
     inside = np.flatnonzero((t_w >= lo + limit) & (t_w <= hi - limit))
     if limit <= 0.0 or inside.size < MIN_ALIGNMENT_SAMPLES:
         return 0.0, None
-    pick = inside[np.linspace(0, inside.size - 1, min(OFFSET_SAMPLES, inside.size))
-                  .astype(int)]
+    pick = _evenly_spaced(inside, OFFSET_SAMPLES)
     ts, ms = t_w[pick], meas[pick]
     step = max(1, int((hi - lo) / motion.period_s / 2000))
     grid = t_m[(t_m >= lo) & (t_m <= hi)][::step]
@@ -214,8 +218,7 @@ def check_pose_and_time(scene, motion, t_wrench, wrench, floor, theta0, scale):
     inside = np.flatnonzero((t_w >= motion.t_s[0]) & (t_w <= motion.t_s[-1]))
     if inside.size < MIN_ALIGNMENT_SAMPLES:
         return t_wrench, []
-    pick = inside[np.linspace(0, inside.size - 1, min(OFFSET_SAMPLES, inside.size))
-                  .astype(int)]
+    pick = _evenly_spaced(inside, OFFSET_SAMPLES)
     rig = analysis.Rig(scene)
     model = regressor(scene, *motion.at(t_w[pick]), rig=rig).wrench @ theta0
     found = frame_check(w[pick], model, floor, CHANNELS)
