@@ -15,7 +15,7 @@ import os
 import sys
 
 from mech_balance import schema as scene_mod
-from mech_balance.analysis import recording_checks as checks
+from mech_balance.analysis import identify
 from mech_balance.cli import identify as cli_identify
 from mech_balance.cli import main as cli
 import numpy as np
@@ -183,9 +183,9 @@ def test_noise_floor_is_the_white_noise_under_a_signal():
     t = np.arange(20000) * 1e-3
     signal = np.column_stack([10.0 * np.sin(2 * math.pi * 2.0 * t + k) for k in range(3)])
     noise = rng.normal(size=signal.shape) * [0.1, 0.01, 1.0]
-    floor = checks.noise_floor(signal + noise)
+    floor = identify.noise_floor(signal + noise)
     np.testing.assert_allclose(floor, np.std(noise, axis=0), rtol=0.03)
-    np.testing.assert_allclose(checks.interleaved(signal + noise), 1.0, atol=0.05)
+    np.testing.assert_allclose(identify.interleaved(signal + noise), 1.0, atol=0.05)
 
 
 @pytest.mark.parametrize('angle_deg', [0.0, 30.0, 90.0, 180.0])
@@ -198,8 +198,8 @@ def test_frame_check_names_the_rotation(angle_deg):
     meas = model.copy()
     meas[:, :2] = model[:, :2] @ rot.T
     meas += rng.normal(size=meas.shape) * 0.01
-    found = checks.frame_check(meas, model, np.full(3, 0.01), ('fx', 'fy', 'nz'))
-    if angle_deg <= checks.FRAME_ANGLE_MAX_DEG:
+    found = identify.frame_check(meas, model, np.full(3, 0.01), ('fx', 'fy', 'nz'))
+    if angle_deg <= identify.FRAME_ANGLE_MAX_DEG:
         assert found is None
         return
     assert found.action == 'refused'
@@ -208,7 +208,7 @@ def test_frame_check_names_the_rotation(angle_deg):
 
 
 def test_the_cli_default_ratio_is_the_checks():
-    assert cli_identify.RATIO_DEFAULT == checks.FIT_RATIO_MAX
+    assert cli_identify.RATIO_DEFAULT == identify.FIT_RATIO_MAX
 
 
 def test_good_recordings_have_no_findings(rig, tmp_path, capsys):
@@ -220,5 +220,5 @@ def test_good_recordings_have_no_findings(rig, tmp_path, capsys):
     assert report['findings'] == [] and not report['refused']
     ratio = np.array([report['residual_rms'][c]['after'] / report['noise_floor'][c]
                       for c in ('force_x', 'force_y', 'moment_z')])
-    assert np.all(ratio < checks.FIT_RATIO_WARN)
+    assert np.all(ratio < identify.FIT_RATIO_WARN)
     _within(cal, f_true, n_true)

@@ -441,7 +441,7 @@ def test_exact_stage_with_an_active_constraint_is_the_closest(index):
     scale = identify.parameter_scales(nominal)
     theta0 = result.theta_scene
     u_ls = (result.theta_ls - theta0) / scale
-    i_c = [lk['inertia_com_kg_m2'] for lk in identify._calibrated_links(
+    i_c = [lk['inertia_com_kg_m2'] for lk in identify.calibrated_links(
         nominal, result.theta_ls)[0]]
     assert min(i_c) < 0.0                      # the unconstrained fit is inconsistent
     coeff = np.array([c.coefficients for c in result.combinations])

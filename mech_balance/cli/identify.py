@@ -1,9 +1,10 @@
 """
 ``mech-balance identify``: a rig's inertial parameters from a recording of its sensors.
 
-A thin verb over :mod:`mech_balance.bags` (rosbag2 MCAP or sqlite3, or CSV) and
-:mod:`mech_balance.identify` (encoder smoothing, regressor, base parameters, calibrated
-scene).  The calibrated scene it writes loads in every other command and in the node.
+A thin verb over :mod:`mech_balance.ros.bags` (rosbag2 MCAP or sqlite3, or CSV) and
+:mod:`mech_balance.analysis.identify` (encoder smoothing, regressor, base parameters,
+calibrated scene).  The calibrated scene it writes loads in every other command and in the
+node.
 """
 
 import math
@@ -14,12 +15,12 @@ import time
 MAX_COUNTS_PER_TURN = 1e9
 """``--counts-per-turn``: at most this many counts (a step of 6e-9 rad)."""
 OUTPUT_SUFFIXES = ('.yaml', '.yml')
+"""``--output``: what the calibrated scene's file name ends in (so that it loads as a scene)."""
 RATIO_DEFAULT = 2.0
-"""``--max-residual-ratio``'s default (``recording_checks.FIT_RATIO_MAX``, not imported here
-so that the parser stays light; a test holds them equal)."""
+"""``--max-residual-ratio``'s default (``identify.FIT_RATIO_MAX``, not imported here so that
+the parser stays light; a test holds them equal)."""
 MAX_RATIO = 1e6
 """``--max-residual-ratio``: at most this."""
-"""``--output``: what the calibrated scene's file name ends in (so that it loads as a scene)."""
 
 
 def register(subparsers):

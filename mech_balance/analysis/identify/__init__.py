@@ -1,0 +1,48 @@
+"""
+Identification of a planar rig's inertial parameters from its encoder and force sensor.
+
+Pure functions on numpy arrays (numpy, scipy, clarabel): the ``identify`` command feeds them
+the arrays of a recording (:mod:`mech_balance.ros.bags`), the rig node its buffered
+samples.  Its modules, in the order the data passes through them, and the method with the
+figures behind the constants: docs/identification.md, *How identify computes*.
+"""
+
+from mech_balance.analysis.identify.alignment import FRAME_ANGLE_MAX_DEG, frame_check
+from mech_balance.analysis.identify.checks import (
+    Finding, FIT_RATIO_MAX, FIT_RATIO_WARN, interleaved, noise_floor)
+from mech_balance.analysis.identify.confidence import (
+    balance_confidence, format_balance_confidence, predicted_rms, PredictedRms,
+    std_directions)
+from mech_balance.analysis.identify.consistency import (
+    CONFIDENCE_SE, Consistency, INERTIA_MARGIN_REL, LS_TIE_REL, MIN_MASS_REL)
+from mech_balance.analysis.identify.encoder import (
+    crank_motion, CrankMotion, encoder_segments, EncoderSegment, GAP_PERIODS, MIN_WINDOW)
+from mech_balance.analysis.identify.estimate import (
+    calibrated_links, Identification, identify)
+from mech_balance.analysis.identify.least_squares import Combination, RANK_RTOL
+from mech_balance.analysis.identify.model import (
+    CHANNEL_UNITS, CHANNELS, check_identifiable, IdentifyError, parameter_names,
+    parameter_scales, PARAMETERS, Regressor, regressor)
+from mech_balance.analysis.identify.quantization import (
+    estimate_quantization, QUANT_FRACTION_MIN, Quantization, unwrap_encoder)
+from mech_balance.analysis.identify.report import calibrated_yaml, format_report
+
+__all__ = [
+    # the identification and its result
+    'identify', 'Identification', 'IdentifyError', 'check_identifiable', 'Combination',
+    'Consistency', 'calibrated_links', 'PredictedRms', 'predicted_rms', 'std_directions',
+    # the printed forms
+    'format_report', 'calibrated_yaml', 'balance_confidence', 'format_balance_confidence',
+    # the measurement model
+    'CHANNELS', 'CHANNEL_UNITS', 'PARAMETERS', 'parameter_names', 'parameter_scales',
+    'regressor', 'Regressor',
+    # the encoder
+    'crank_motion', 'CrankMotion', 'encoder_segments', 'EncoderSegment',
+    'estimate_quantization', 'Quantization', 'unwrap_encoder', 'GAP_PERIODS', 'MIN_WINDOW',
+    'QUANT_FRACTION_MIN',
+    # the fit's and the consistency's thresholds
+    'RANK_RTOL', 'CONFIDENCE_SE', 'INERTIA_MARGIN_REL', 'LS_TIE_REL', 'MIN_MASS_REL',
+    # the checks
+    'Finding', 'noise_floor', 'interleaved', 'frame_check', 'FIT_RATIO_MAX',
+    'FIT_RATIO_WARN', 'FRAME_ANGLE_MAX_DEG',
+]
