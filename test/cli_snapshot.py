@@ -65,7 +65,10 @@ def cases():
                     '--counterweights', first])
     for name in ('hoeken', 'slider_crank'):
         yield f'{name}/identify', ['identify', '--scene', name, '--json', '--bag',
-                                   _recording(name)]
+                                   RECORDING]
+
+
+RECORDING = '@recording'   # in an argv: the path of :func:`_recording` of the case's scene
 
 
 def _recording(name):
@@ -83,6 +86,9 @@ def _recording(name):
 
 def run(argv):
     """Run one command in this process; return (exit code, parsed JSON or the text)."""
+    if RECORDING in argv:
+        argv = [_recording(argv[argv.index('--scene') + 1]) if a == RECORDING else a
+                for a in argv]
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         try:
@@ -115,8 +121,7 @@ def snapshot():
     result = {}
     for name, argv in cases():
         code, doc = run(argv)
-        result[name] = {'argv': [a for a in argv if not a.endswith('.csv')], 'exit': code,
-                        'json': strip(doc)}
+        result[name] = {'argv': argv, 'exit': code, 'json': strip(doc)}
         print(f'{name}: exit {code}', file=sys.stderr)
     return result
 

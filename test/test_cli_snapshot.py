@@ -45,7 +45,8 @@ def _compare(old, new, where, problems, accuracy=False):
         problems.append(f'{where}: {old!r} now {new!r}')
 
 
-@pytest.mark.parametrize('name,argv', list(cli_snapshot.cases()), ids=lambda v: str(v))
+@pytest.mark.parametrize('name,argv', list(cli_snapshot.cases()),
+                         ids=[name for name, _ in cli_snapshot.cases()])
 def test_cli_numbers_unchanged(name, argv):
     assert name in FIXTURE, f'{name}: not in the fixture; run test/cli_snapshot.py --write'
     code, doc = cli_snapshot.run(argv)
