@@ -131,3 +131,25 @@ def analytic_variants(rig, mass_factors=None, keep_centroidal=False, samples=Non
     inertia = 'centroidal' if keep_centroidal else 'distance'
     return [balancing.balance(rig, 'analytic', mass_factor=k, inertia=inertia, samples=samples)
             for k in mass_factors or TABLE3_MASS_FACTORS]
+
+
+def table12_rows(table12):
+    """
+    Return the rows of seed 001 Table 12's comparison: label, torque, force, moment and z.
+
+    ``table12`` is :func:`mech_balance.balancing.two_point.table12`'s result; the paper's
+    two rows come first where the paper has them (its scene, weights 0.5 0.5), then the
+    certified relaxation and the best two-point design; z = w1 f~ + w2 n~ (eq. 43).
+    """
+    w1, w2 = table12.weights
+    rows = []
+    paper = TABLE12.get(table12.scene)
+    if paper is not None and tuple(table12.weights) == (0.5, 0.5):
+        rows += [('paper, two point masses', *paper['two']),
+                 ('paper, three point masses', *paper['three'])]
+    for label, terms in (('three point masses = relaxation (certified)', table12.lower_terms),
+                         ('two point masses, best design found', table12.upper_terms)):
+        rows.append((label, terms['driving_torque'], terms['shaking_force'],
+                     terms['shaking_moment']))
+    return [(label, torque, force, moment, w1 * force + w2 * moment)
+            for label, torque, force, moment in rows]

@@ -19,7 +19,7 @@ def format_result(design, normalized=False):
     balancing, the solve time, the comparison with seed 001's tables where one applies and
     the identification confidence of a calibrated scene.
     """
-    from mech_balance.balancing import counterweights as cw_mod
+    from mech_balance.balancing import counterweights
     result = design.result
     sc = result.scene
     view = normalized and sc.normalization is not None
@@ -48,15 +48,15 @@ def format_result(design, normalized=False):
         lines.append(f"FAILED stage '{f['stage']}': {f['reason']}; the design is "
                      f"{f['design']}")
     if cert.stage2 is not None:
-        s2 = cert.stage2
-        lines.append(f"tie-break (optimum not unique): minimized {s2['minimized']} among "
+        stage2 = cert.stage2
+        lines.append(f"tie-break (optimum not unique): minimized {stage2['minimized']} among "
                      'optimal designs' + (' with the shaking force exactly zero'
-                                          if s2['exact_force_balance'] else '')
-                     + f": {s2['objective']:.6g} (lower bound {s2['lower_bound']:.6g}; "
-                     f"{s2['status']}, {s2['iterations']} iterations)")
+                                          if stage2['exact_force_balance'] else '')
+                     + f": {stage2['objective']:.6g} (lower bound {stage2['lower_bound']:.6g}; "
+                     f"{stage2['status']}, {stage2['iterations']} iterations)")
     lines.append('design realizable: ' + ('yes' if result.realizable else 'NO ('
                  + ', '.join(d.name for d in result.links if not d.realizable) + ')'))
-    lines.append(cw_mod.format_cost(design.report['cost']))
+    lines.append(counterweights.format_cost(design.report['cost']))
     lines.append(f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
                  f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
                  f'{result.conic_time_s * 1e3:.1f} ms)')
@@ -151,7 +151,7 @@ def format_counterweights(result, normalized=False):
     ``result`` is a :class:`~mech_balance.balancing.counterweights.CounterweightResult`
     (:attr:`Design.result <mech_balance.balancing.result.Design.result>`).
     """
-    from mech_balance.balancing import counterweights as cw_mod
+    from mech_balance.balancing import counterweights
     sc, opt = result.scene, result.options
     view = normalized and sc.normalization is not None
     w1, w2 = opt.weights
@@ -171,11 +171,11 @@ def format_counterweights(result, normalized=False):
     lines += ['counterweights (centre in the link frame; disc radius R and thickness t as '
               'built)', head, '-' * len(head)]
     for d in result.designs:
-        tot = result.link_totals[d.link]
+        totals = result.link_totals[d.link]
         lines.append(f'{d.link:<10}{d.mass_kg:>10.5g}{d.centre_radius_m:>10.5g}'
                      f'{d.centre_angle_deg:>9.2f} {d.centre_m[0]:>10.4g} {d.centre_m[1]:>10.4g}'
-                     f'{d.radius_m:>10.5g}{d.thickness_m * 1e3:>8.3g}{tot["mass_kg"]:>10.5g}'
-                     f'{tot["inertia_com_kg_m2"]:>11.4g}')
+                     f'{d.radius_m:>10.5g}{d.thickness_m * 1e3:>8.3g}{totals["mass_kg"]:>10.5g}'
+                     f'{totals["inertia_com_kg_m2"]:>11.4g}')
     for name in result.omitted:
         lines.append(f'{name:<10}  no counterweight (the optimal disc mass is zero)')
     lines.append(f'total added mass {result.added_mass_kg:.6g} kg')
@@ -189,49 +189,38 @@ def format_counterweights(result, normalized=False):
               f"f~ = {obj['shaking_force_rms']:.6g}, n~ = {obj['shaking_moment_rms']:.6g}",
               *certificate_lines(cert)]
     if cert.stage2 is not None:
-        s2 = cert.stage2
-        lines.append(f"tie-break: minimized {s2['minimized']} among optimal designs"
-                     + (' with the shaking force exactly zero' if s2['exact_force_balance']
-                        else '') + f": {s2['objective']:.6g} (lower bound "
-                     f"{s2['lower_bound']:.6g}; {s2['status']})")
+        stage2 = cert.stage2
+        lines.append(f"tie-break: minimized {stage2['minimized']} among optimal designs"
+                     + (' with the shaking force exactly zero' if stage2['exact_force_balance']
+                        else '') + f": {stage2['objective']:.6g} (lower bound "
+                     f"{stage2['lower_bound']:.6g}; {stage2['status']})")
     if result.least_mass is not None:
-        lm = result.least_mass
-        lines.append(f"tie-break: least total added mass {lm['objective_kg']:.6g} kg "
-                     f"(lower bound {lm['lower_bound_kg']:.6g} kg; {lm['status']})")
+        least = result.least_mass
+        lines.append(f"tie-break: least total added mass {least['objective_kg']:.6g} kg "
+                     f"(lower bound {least['lower_bound_kg']:.6g} kg; {least['status']})")
     for f in cert.failed_stages or ():
         lines.append(f"FAILED stage '{f['stage']}': {f['reason']}; the design is "
                      f"{f['design']}")
-    lines.append(cw_mod.format_cost(result.cost))
+    lines.append(counterweights.format_cost(result.cost))
     lines.append(f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
                  f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
                  f'{result.conic_time_s * 1e3:.1f} ms)')
     return '\n'.join(lines)
 
 
-def format_table12(r):
+def format_table12(table12):
     """Return seed 001 Table 12's comparison (:func:`mech_balance.balancing.two_point.table12`)."""
-    paper = paper_tables.TABLE12.get(r.scene)
+    w1, w2 = table12.weights
     head = f"{'seed 001 eqs. B.1-B.5':<44}{'torque':>10}{'force':>10}{'moment':>10}{'z':>10}"
-    lines = [f'two-point-mass model (seed 001 Appendix B), weights ({r.weights[0]:g}, '
-             f'{r.weights[1]:g}), normalized RMS', head, '-' * len(head)]
-
-    def row(label, tau, f, n):
-        z = r.weights[0] * f + r.weights[1] * n
-        return f'{label:<44}{tau:>10.4g}{f:>10.4g}{n:>10.4g}{z:>10.5g}'
-
-    if paper is not None and tuple(r.weights) == (0.5, 0.5):
-        for key, label in (('two', 'paper, two point masses'),
-                           ('three', 'paper, three point masses')):
-            lines.append(row(label, *paper[key]))
-    lo, up = r.lower_terms, r.upper_terms
-    lines.append(row('three point masses = relaxation (certified)', lo['driving_torque'],
-                     lo['shaking_force'], lo['shaking_moment']))
-    lines.append(row('two point masses, best design found', up['driving_torque'],
-                     up['shaking_force'], up['shaking_moment']))
-    lines.append(f'certified: {r.lower_bound_z:.6g} <= two-point optimum <= '
-                 f'{r.upper_bound_z:.6g} (bounds {r.gap_rel * 100:.2f}% apart; relaxation '
-                 f'gap {r.lower_bound_gap_rel:.1e}); links the relaxation leaves outside the '
-                 f'two-point set: {", ".join(r.band_links) or "none"}')
+    lines = [f'two-point-mass model (seed 001 Appendix B), weights ({w1:g}, {w2:g}), '
+             'normalized RMS', head, '-' * len(head)]
+    for label, torque, force, moment, z in paper_tables.table12_rows(table12):
+        lines.append(f'{label:<44}{torque:>10.4g}{force:>10.4g}{moment:>10.4g}{z:>10.5g}')
+    lines.append(f'certified: {table12.lower_bound_z:.6g} <= two-point optimum <= '
+                 f'{table12.upper_bound_z:.6g} (bounds {table12.gap_rel * 100:.2f}% apart; '
+                 f'relaxation gap {table12.lower_bound_gap_rel:.1e}); links the relaxation '
+                 'leaves outside the two-point set: '
+                 f'{", ".join(table12.band_links) or "none"}')
     return '\n'.join(lines)
 
 
@@ -287,7 +276,7 @@ def format_spatial(design, normalized=False):
 
 def format_analytic(sc, designs, normalized=False):
     """Return the analytic designs of a scene (one block each) as readable text."""
-    from mech_balance.balancing import counterweights as cw_mod
+    from mech_balance.balancing import counterweights
     view = normalized and sc.normalization is not None
     blocks = []
     for d in designs:
@@ -298,7 +287,7 @@ def format_analytic(sc, designs, normalized=False):
             f'{r.method}', f'parameters: {params}', '',
             links_table(r.links, view, sc), '', before_after_text(r.table, not view), '',
             f'RMS shaking force after / before: {r.force_rms_ratio:.3e}',
-            cw_mod.format_cost(d.report['cost'])]))
+            counterweights.format_cost(d.report['cost'])]))
     text = ('\n\n' + '=' * 99 + '\n\n').join(blocks)
     return f'scene: {sc.name} ({sc.source})\n\n{text}'
 
