@@ -24,12 +24,9 @@ EXIT_NO_CLEAR_DESIGN = 3
 """Exit status of --counterweights when no collision-free design exists within the bounds."""
 TABLE_KEYS = tuple(opt.key for opt in options.OPTIONS if opt.flag is not None)
 """The options of :data:`mech_balance.balancing.options.OPTIONS` this verb offers, in order."""
-PLANAR_KEYS = tuple(k for k in TABLE_KEYS if k not in ('extent_factor', 'force_balanced',
-                                                       'free'))
+PLANAR_KEYS = tuple(opt.key for opt in options.OPTIONS
+                    if opt.flag is not None and opt.flag not in flags.SPATIAL_OPTIONS)
 """Those the planar methods take (the rest are the spatial implementation's)."""
-CLEARANCE_KEYS = ('clearance_margin_m', 'clearance')
-"""Options of the spatial counterweights that :func:`mech_balance.balancing.balance` reads
-besides :data:`mech_balance.balancing.SPATIAL_OPTIONS` (the clearance check of the spheres)."""
 TYPES = {'weights': cli.weight, 'torque_weight': cli.weight, 'reaction_weight': cli.weight,
          'samples': cli.int_at_least(4, conventions.MAX_SAMPLES, cli.FIXED_LIMIT)}
 """The command line's number parsers of some options (the rest: float, int, str)."""
@@ -244,7 +241,7 @@ def _spatial(sc, args):
     if args.output:
         cli.writable_path('--output', args.output, OUTPUT_SUFFIXES)
     flags.check_spatial(args, rig, method)
-    keys = balancing.SPATIAL_OPTIONS.get(method, ('samples',)) + CLEARANCE_KEYS
+    keys = balancing.SPATIAL_OPTIONS.get(method, ('samples',)) + flags.CLEARANCE_KEYS
     try:
         design = balancing.balance(rig, method, **options.from_args(args, method, keys))
     except NoClearDesign as exc:   # the spheres collide: say why, give no design

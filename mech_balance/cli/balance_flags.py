@@ -12,29 +12,48 @@ import argparse
 from mech_balance.balancing import defaults, options
 from mech_balance.balancing.defaults import DEFAULT_CASE
 
-OPTIMIZE_OPTIONS = ('--weights', '--case', '--paper-constraints', '--no-realizable',
-                    '--margin', '--mass-factors', '--distance-factors', '--torque-weight',
-                    '--reaction-weight', '--max-added-mass', '--fix')
+SPATIAL_OPTIONS = ('--method', '--extent-factor', '--force-balanced', '--free')
+"""Options of spatial rigs alone (mech_balance.balancing.spatial)."""
+
+
+def _flags(wanted):
+    """Return the flags of the options of :data:`.options.OPTIONS` that ``wanted`` accepts."""
+    return tuple(opt.flag for opt in options.OPTIONS
+                 if opt.flag and opt.flag not in SPATIAL_OPTIONS and opt.key != 'samples'
+                 and wanted(opt))
+
+
+OPTIMIZE_OPTIONS = _flags(lambda opt: 'redistribution' in opt.methods)
 """Options of the seed-001 optimization: rejected with --analytic and for spatial rigs."""
 ANALYTIC_OPTIONS = ('--mass-factor', '--keep-centroidal')
-"""Options of --analytic alone: rejected without it."""
-COUNTERWEIGHT_OPTIONS = ('--density', '--max-thickness', '--max-radius-factor',
-                         '--max-mass-factor', '--max-gyration-factor')
-"""Options of --counterweights alone, with a number default in a range of their own."""
-COUNTERWEIGHT_PLACEMENT = ('--planes', '--max-rim-radius-factor', '--clearance-margin',
-                           '--no-clearance', '--disc-side', '--max-overhang', '--build-sheet')
+"""Options of --analytic alone: rejected without it (the command line's own)."""
+COUNTERWEIGHT_OPTIONS = _flags(lambda opt: opt.methods == options.COUNTERWEIGHTS and
+                               opt.key in defaults.COUNTERWEIGHT_RANGES and
+                               opt.default is not None)
+"""Options of --counterweights alone with a number default, each in a range of its own."""
+COUNTERWEIGHT_PLACEMENT = _flags(lambda opt: opt.methods == options.COUNTERWEIGHTS and
+                                 opt.key != 'links' and
+                                 opt.flag not in COUNTERWEIGHT_OPTIONS) + ('--build-sheet',)
 """Options of --counterweights alone that have no number default (checked by the solver)."""
-COUNTERWEIGHT_SHARED = ('--weights', '--torque-weight', '--reaction-weight')
+COUNTERWEIGHT_SHARED = _flags(lambda opt: set(options.OPTIMIZERS) <= set(opt.methods))
 """Options of the optimization that --counterweights uses too (the rest it rejects)."""
 PLANAR_OPTIONS = OPTIMIZE_OPTIONS + ANALYTIC_OPTIONS + COUNTERWEIGHT_OPTIONS + \
     COUNTERWEIGHT_PLACEMENT + ('--analytic', '--counterweights', '--model')
 """Options of the planar balancing (spatial rigs take only :data:`SPATIAL_SHARED` of them)."""
-SPATIAL_SHARED = ('--weights', '--mass-factors', '--fix', '--counterweights', '--density',
-                  '--max-mass-factor', '--max-radius-factor', '--clearance-margin',
-                  '--no-clearance')
-"""Options of the planar balancing that spatial rigs (body kinematics) take too."""
-SPATIAL_OPTIONS = ('--method', '--extent-factor', '--force-balanced', '--free')
-"""Options of spatial rigs alone (mech_balance.balancing.spatial)."""
+CLEARANCE_KEYS = ('clearance_margin_m', 'clearance')
+"""Options of the spatial counterweights that :func:`mech_balance.balancing.balance` reads
+besides :data:`mech_balance.balancing.SPATIAL_OPTIONS` (the clearance check of the spheres)."""
+
+
+def _spatial_shared():
+    from mech_balance import balancing
+    keys = set(CLEARANCE_KEYS).union(*balancing.SPATIAL_OPTIONS.values())
+    return _flags(lambda opt: opt.key in keys)
+
+
+SPATIAL_SHARED = _spatial_shared()
+"""Options of the planar balancing that spatial rigs (body kinematics) take too: those of
+:data:`mech_balance.balancing.SPATIAL_OPTIONS` and the clearance."""
 SPATIAL_ONLY_FOR = {'--free': 'force_balance', '--force-balanced': 'redistribution',
                     '--extent-factor': 'redistribution'}
 """The spatial method each of the spatial options applies to."""
