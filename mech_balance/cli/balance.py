@@ -176,7 +176,7 @@ def _counterweights(sc, args):
     if args.json:
         print(jsonout.dumps(design.to_dict(args.normalized)))
         return exit_status(result.certificate)
-    print(text.format_counterweights(result, normalized=args.normalized))
+    print(text.format_counterweights(design, normalized=args.normalized))
     if args.build_sheet:
         print(f'build sheet written to {args.build_sheet}')
     if args.output:

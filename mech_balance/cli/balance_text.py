@@ -144,14 +144,15 @@ def certificate_lines(cert):
     return lines
 
 
-def format_counterweights(result, normalized=False):
+def format_counterweights(design, normalized=False):
     """
-    Return a counterweight design as readable text.
+    Return a counterweight :class:`~mech_balance.balancing.result.Design` as readable text.
 
-    ``result`` is a :class:`~mech_balance.balancing.counterweights.CounterweightResult`
-    (:attr:`Design.result <mech_balance.balancing.result.Design.result>`).
+    The problem, the discs as built, the clearance, the before/after table, the
+    certificate and its tie-breaks, the cost of balancing and the solve time.
     """
     from mech_balance.balancing import counterweights
+    result = design.result
     sc, opt = result.scene, result.options
     view = normalized and sc.normalization is not None
     w1, w2 = opt.weights
