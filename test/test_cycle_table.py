@@ -201,7 +201,7 @@ def test_the_streamer_uses_the_table_unless_follow_exact():
             return self.inner.follow_evaluate(psi, speed, accel)
 
     streamer = streaming_threads.Streamer(lambda: 1, lambda samples, stamps: list(stamps),
-                                  lambda payload: None, lambda text: None)
+                                          lambda payload: None, lambda text: None)
     try:
         streamer.stop()
         model = Model()

@@ -526,7 +526,7 @@ def test_streamer_tells_a_stall_from_a_clock_jump():
 
     period = 10_000_000
     streamer = streaming_threads.Streamer(lambda: clock['now'], lambda s, t: list(t), publish,
-                                  warned.append)
+                                          warned.append)
     stall = streaming_threads.CLOCK_JUMP_S + 1.0
     try:
         streamer.clock(model, 1.0, period)

@@ -81,8 +81,8 @@ class Publisher:
         self._encoder_sub = None
         self._encoder_group = MutuallyExclusiveCallbackGroup()
         self.streamer = streamer.Streamer(lambda: node.get_clock().now().nanoseconds,
-                                           self._prepare, self._publish, warn, record,
-                                           guard=guard)
+                                          self._prepare, self._publish, warn, record,
+                                          guard=guard)
 
     @property
     def encoder_topic(self):

@@ -48,7 +48,8 @@ INERTIA_ROUNDOFF = 1e-12
 """Relative slack of the check inertia about the mass centre >= 0 (parallel-axis round-off).
 
 Loading rejects what no body can have (I_c < 0); whether a link is *buildable* (I_c > 0 by a
-design margin, non-negative counterweights) is :func:`mech_balance.core.equimomental.is_realizable`."""
+design margin, non-negative counterweights) is
+:func:`mech_balance.core.equimomental.is_realizable`."""
 COUNTERWEIGHT_MASS_REL_TOL = 1e-6
 """A counterweight's mass_kg must equal density * pi * R^2 * t to this relative tolerance (the
 writer stores shortest-exact floats, so a written disc meets it to round-off, ~1e-16)."""
@@ -420,7 +421,7 @@ def resolve(name_or_path):
 
 
 def parse_yaml(text, label='YAML'):
-    """Parse YAML text as scenes are parsed (:mod:`mech_balance.schema.safe_yaml`: safe, bounded)."""
+    """Parse YAML text as scenes are parsed (:mod:`mech_balance.schema.safe_yaml`: bounded)."""
     return safe_yaml.loads(text, label, error=SceneError)
 
 
