@@ -31,8 +31,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from mech_balance import schema as scene
-from mech_balance.cli import urdf as cli_urdf
-from mech_balance.ros import urdf
+from mech_balance.ros import params, urdf
 
 PACKAGE = 'mech_balance'
 EXECUTABLE = 'rig_node'
@@ -113,7 +112,7 @@ def check(values):
     problems += [p for p in map(_missing_executable, packages) if p]
     frame_id = sc = None
     try:
-        frame_id = cli_urdf.frame_id_from_params_file(values['params_file'])
+        frame_id = params.frame_id_from_params_file(values['params_file'])
     except ValueError as exc:
         problems.append(str(exc))
     try:

@@ -8,7 +8,7 @@ the bound it reports against, never a time.
 import math
 
 from mech_balance import schema
-from mech_balance.bench import core, node
+from mech_balance.bench import core, identify_stamps, node
 from mech_balance.ros import sensor
 import numpy as np
 import pytest
@@ -17,18 +17,20 @@ import pytest
 def test_section_is_registered_under_its_name():
     names = [core.section_name(s) for s in core.SECTIONS]
     assert 'identify_stamps' in names
-    assert node.ID_SECONDS * node.ID_RATE_HZ >= sensor.IDENTIFY_CAPACITY  # fills the buffer
+    fills = identify_stamps.ID_SECONDS * identify_stamps.ID_RATE_HZ   # fills the buffer
+    assert fills >= sensor.IDENTIFY_CAPACITY
 
 
 def test_buffer_bound_is_the_sensor_series_at_twice_their_capacity():
     # encoder track (stamp + 2 columns), pending (stamp + 6), measured (6), paired (13)
     by_hand = 2 * 8 * (sensor.IDENTIFY_CAPACITY * (1 + 2) + sensor.PENDING_CAPACITY * (1 + 6)
                        + sensor.IDENTIFY_CAPACITY * (1 + 6) + sensor.PAIRED_CAPACITY * (1 + 13))
-    assert node.identify_buffer_bytes() == by_hand
+    assert identify_stamps.identify_buffer_bytes() == by_hand
 
 
 def test_rig_stream_is_a_quantized_wrapped_encoder_and_a_planar_wrench():
-    t_ns, pos, force, torque = node.rig_stream(schema.load('hoeken'), 0.05, counts=4096)
+    t_ns, pos, force, torque = identify_stamps.rig_stream(schema.load('hoeken'), 0.05,
+                                                          counts=4096)
     assert t_ns.shape == (50,) and force.shape == torque.shape == (50, 3)
     assert np.all(np.diff(t_ns) == 1_000_000)
     assert np.all((pos >= 0.0) & (pos < 2.0 * math.pi))

@@ -15,7 +15,7 @@ from mech_balance.balancing import clearance_design, counterweights as cw
 from mech_balance.cli import main as cli
 from mech_balance.core.planar import drawn
 from mech_balance.core.rig import rig_for
-from mech_balance.schema.scene import planar_from_dict, planar_to_dict
+from mech_balance.schema.planar import planar_from_dict, planar_to_dict
 import numpy as np
 import pytest
 

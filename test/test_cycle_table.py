@@ -14,7 +14,7 @@ import math
 import re
 
 from mech_balance import schema as scene_mod
-from mech_balance.ros import cycle_table, description, streaming
+from mech_balance.ros import cycle_table, description, streamer as streaming_threads, streaming
 from mech_balance.schema import scene as scenes
 import numpy as np
 import pytest
@@ -200,8 +200,8 @@ def test_the_streamer_uses_the_table_unless_follow_exact():
             self.used.append('table')
             return self.inner.follow_evaluate(psi, speed, accel)
 
-    streamer = streaming.Streamer(lambda: 1, lambda samples, stamps: list(stamps),
-                                  lambda payload: None, lambda text: None)
+    streamer = streaming_threads.Streamer(lambda: 1, lambda samples, stamps: list(stamps),
+                                          lambda payload: None, lambda text: None)
     try:
         streamer.stop()
         model = Model()

@@ -24,8 +24,7 @@ import xml.etree.ElementTree as ET
 
 from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
-from mech_balance.cli import urdf as cli_urdf
-from mech_balance.ros import params, urdf
+from mech_balance.ros import names as ros_names, params, urdf
 import numpy as np
 import pytest
 import yaml
@@ -129,7 +128,7 @@ def test_the_default_scene_and_frame_id_are_the_nodes():
     c = _constants()
     spec = {s.name: s for s in params.PARAMETERS}
     assert {a[0]: a[1] for a in c['ARGUMENTS']}['scene'] == spec['scene'].default
-    assert cli_urdf.frame_id_from_params_file(ROOT / c['PARAMS_FILE']) == \
+    assert params.frame_id_from_params_file(ROOT / c['PARAMS_FILE']) == \
         spec['frame_id'].default == urdf.DEFAULT_FRAME_ID
 
 
@@ -138,19 +137,19 @@ def test_frame_id_from_a_params_file(tmp_path):
     path.write_text('/**:\n  ros__parameters:\n    frame_id: a\n'
                     '/cell/rig:\n  ros__parameters:\n    frame_id: b\n'
                     '/other:\n  ros__parameters:\n    frame_id: c\n')
-    assert cli_urdf.frame_id_from_params_file(path) == 'b'   # later sections win, as in ROS
+    assert params.frame_id_from_params_file(path) == 'b'   # later sections win, as in ROS
     path.write_text('/**:\n  ros__parameters:\n    scene: hoeken\n')
-    assert cli_urdf.frame_id_from_params_file(path) == urdf.DEFAULT_FRAME_ID
+    assert params.frame_id_from_params_file(path) == urdf.DEFAULT_FRAME_ID
     with pytest.raises(ValueError, match='params_file: got .*cannot read it'):
-        cli_urdf.frame_id_from_params_file(tmp_path / 'missing.yaml')
+        params.frame_id_from_params_file(tmp_path / 'missing.yaml')
     path.write_text('/**:\n  ros__parameters:\n    frame_id: ""\n')
     with pytest.raises(ValueError, match='params_file: frame_id: got'):
-        cli_urdf.frame_id_from_params_file(path)
+        params.frame_id_from_params_file(path)
 
 
 def test_rig_node_name_matches():
     node = pytest.importorskip('mech_balance.ros.node')
-    assert cli_urdf.RIG_NODE_NAME == node.NODE_NAME
+    assert ros_names.NODE_NAME == node.NODE_NAME
 
 
 def test_rviz_file_shows_the_rig_and_a_readable_wrench():

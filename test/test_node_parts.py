@@ -20,7 +20,8 @@ from mech_balance import balancing, conventions, identifiers
 from mech_balance import schema as scene_mod
 from mech_balance.ros import balance_service, conversions as conv, description, diagnostics
 from mech_balance.ros import live, parameters, params
-from mech_balance.ros import publisher as pub, real_rig, sensor, streaming
+from mech_balance.ros import publisher as pub, real_rig, sensor, streamer as streaming_threads
+from mech_balance.ros import streaming
 from mech_balance.ros.rig_state import RigState
 import numpy as np
 import pytest
@@ -524,9 +525,9 @@ def test_streamer_tells_a_stall_from_a_clock_jump():
         sent.append(payload)
 
     period = 10_000_000
-    streamer = streaming.Streamer(lambda: clock['now'], lambda s, t: list(t), publish,
-                                  warned.append)
-    stall = streaming.CLOCK_JUMP_S + 1.0
+    streamer = streaming_threads.Streamer(lambda: clock['now'], lambda s, t: list(t), publish,
+                                          warned.append)
+    stall = streaming_threads.CLOCK_JUMP_S + 1.0
     try:
         streamer.clock(model, 1.0, period)
         while len(sent) < 3:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import math
 
 from mech_balance import conventions, identifiers
-from mech_balance.balancing import defaults as d
+from mech_balance.balancing import defaults
 from mech_balance.schema import safe_yaml
 from mech_balance.schema.scene import MAX_PLANE_OFFSET_M
 
@@ -100,7 +100,7 @@ def _factors(ratio_range):
             raise ValueError(f'{name}: got {list(value)}, expected [low, high] with '
                              '0 < low <= high (factors of the original link value)')
         for v in value:
-            d.check_range(name, v, *ratio_range)
+            defaults.check_range(name, v, *ratio_range)
     return check
 
 
@@ -129,7 +129,7 @@ def parse_link_bounds(name, text, unit):
         if not ok:
             raise ValueError(f'{name}.{link}: got {pair!r}, expected [min, max] in {unit} with '
                              '0 < min <= max (max may be null: no upper bound)')
-        d.check_bound_pair(f'{name}.{link}', lo, hi, unit)
+        defaults.check_bound_pair(f'{name}.{link}', lo, hi, unit)
         out[link] = (float(lo), None if hi is None else float(hi))
     return out
 
@@ -157,8 +157,8 @@ def _counterweight(option):
         if not 0.0 < value <= MAX_COUNTERWEIGHT_VALUE:
             raise ValueError(f'{name}: got {value!r}, expected a number > 0 and at most '
                              f'{MAX_COUNTERWEIGHT_VALUE:g}')
-        d.check_counterweight_option(option, value, name)
-    lowest, highest = d.COUNTERWEIGHT_RANGES[option]
+        defaults.check_counterweight_option(option, value, name)
+    lowest, highest = defaults.COUNTERWEIGHT_RANGES[option]
     return {'check': check, 'rule': f'in [{lowest:g}, {highest:g}]'}
 
 
@@ -169,7 +169,7 @@ def _samples(name, value):
 
 
 def _range_text(key):
-    lowest, highest = d.COUNTERWEIGHT_RANGES[key]
+    lowest, highest = defaults.COUNTERWEIGHT_RANGES[key]
     return f'; range {lowest:g} to {highest:g}'
 
 
@@ -192,7 +192,7 @@ def _none_if_zero(value):
 # ------------------------------------------------------------------------------ table
 
 OPTIONS = (
-    Option('weights', 'balance.weights', '--weights', DOUBLE_ARRAY, d.DEFAULT_WEIGHTS,
+    Option('weights', 'balance.weights', '--weights', DOUBLE_ARRAY, defaults.DEFAULT_WEIGHTS,
            'Weights [w1, w2] of the RMS shaking force and moment in the balancing objective '
            '(Chaudhary & Saha eq. 43; mech-balance balance --weights).',
            check=check_weights,
@@ -200,9 +200,9 @@ OPTIONS = (
            cli={'nargs': 2, 'metavar': ('W1', 'W2')},
            flag_help='weights on the RMS normalized shaking force and shaking moment, '
                      'Chaudhary & Saha eq. 43; their case (2) is the default'),
-    Option('case', 'balance.case', '--case', STRING, d.DEFAULT_CASE,
+    Option('case', 'balance.case', '--case', STRING, defaults.DEFAULT_CASE,
            'a: point masses of any sign; b: non-negative point masses (counterweights).',
-           methods=REDISTRIBUTION, choices=d.CASES,
+           methods=REDISTRIBUTION, choices=defaults.CASES,
            flag_help='Chaudhary & Saha sec. 4.1.2: a = point masses of any sign, b = '
                      'non-negative point masses (counterweights)'),
     Option('realizable', 'balance.realizable', '--no-realizable', BOOL, True,
@@ -210,7 +210,7 @@ OPTIONS = (
            'balance.margin x I_O); false is --no-realizable.', methods=REDISTRIBUTION,
            cli={'action': 'store_false'},
            flag_help='drop the realizability constraint (centroidal inertia >= margin x I_O)'),
-    Option('centroidal_margin', 'balance.margin', '--margin', DOUBLE, d.CENTROIDAL_MARGIN,
+    Option('centroidal_margin', 'balance.margin', '--margin', DOUBLE, defaults.CENTROIDAL_MARGIN,
            'Realizability margin: centroidal inertia >= margin x inertia about the link '
            'origin.', methods=REDISTRIBUTION, bounds=(0.0, MAX_MARGIN),
            flag_help='realizability margin: centroidal inertia >= MARGIN x inertia about the link '
@@ -223,24 +223,25 @@ OPTIONS = (
                      '[1, 5] x original, l in [0.5, 1.5] x original, no realizability '
                      'constraint)'),
     Option('mass_factors', 'balance.mass_factors', '--mass-factors', DOUBLE_ARRAY,
-           d.PAPER_MASS_FACTORS,
+           defaults.PAPER_MASS_FACTORS,
            'Link mass bounds [low, high] as factors of the original link mass (eq. 50b).',
-           methods=REDISTRIBUTION, check=_factors(d.BOUND_RATIO_RANGE),
+           methods=REDISTRIBUTION, check=_factors(defaults.BOUND_RATIO_RANGE),
            rule='[low, high], 0 < low <= high, each in [1e-06, 1e+06]', to_option=_tuple,
            cli={'nargs': 2, 'metavar': ('LO', 'HI')},
            flag_help='link mass bounds as factors of the original masses (range '
-                     f'{d.BOUND_RATIO_RANGE[0]:g} to {d.BOUND_RATIO_RANGE[1]:g}; spatial '
-                     f'redistribution {d.SPATIAL_MASS_FACTOR_RANGE[0]:g} to '
-                     f'{d.SPATIAL_MASS_FACTOR_RANGE[1]:g})'),
+                     f'{defaults.BOUND_RATIO_RANGE[0]:g} to {defaults.BOUND_RATIO_RANGE[1]:g}; '
+                     f'spatial redistribution {defaults.SPATIAL_MASS_FACTOR_RANGE[0]:g} to '
+                     f'{defaults.SPATIAL_MASS_FACTOR_RANGE[1]:g})'),
     Option('distance_factors', 'balance.distance_factors', '--distance-factors', DOUBLE_ARRAY,
-           d.PAPER_DISTANCE_FACTORS,
+           defaults.PAPER_DISTANCE_FACTORS,
            'Point-mass distance bounds [low, high] as factors of the original '
            'l = sqrt(I_O/m) (eq. 50c).', methods=REDISTRIBUTION,
-           check=_factors(d.DISTANCE_RATIO_RANGE),
+           check=_factors(defaults.DISTANCE_RATIO_RANGE),
            rule='[low, high], 0 < low <= high, each in [0.01, 100]', to_option=_tuple,
            cli={'nargs': 2, 'metavar': ('LO', 'HI')},
            flag_help='point-mass distance bounds as factors of the original l = sqrt(I_O/m) '
-                     f'(range {d.DISTANCE_RATIO_RANGE[0]:g} to {d.DISTANCE_RATIO_RANGE[1]:g})'),
+                     f'(range {defaults.DISTANCE_RATIO_RANGE[0]:g} to '
+                     f'{defaults.DISTANCE_RATIO_RANGE[1]:g})'),
     Option('mass_bounds', 'balance.mass_bounds', None, STRING, None,
            'Per-link mass bounds in kg overriding the factors, YAML text, quoted on the command '
            'line: ros2 param set /rig balance.mass_bounds "\'{crank: [0.3, 1.6]}\'" (the older '
@@ -283,30 +284,30 @@ OPTIONS = (
            flag_help='add-only counterweights instead: each listed link keeps its mass, mass '
                      'centre and inertia and gains one solid disc (certified SOCP); every other '
                      'link is untouched'),
-    Option('density_kg_m3', 'balance.density', '--density', DOUBLE, d.DEFAULT_DENSITY_KG_M3,
+    Option('density_kg_m3', 'balance.density', '--density', DOUBLE, defaults.DEFAULT_DENSITY_KG_M3,
            'Counterweights: disc material density, kg/m^3 (steel).', methods=COUNTERWEIGHTS,
            **_counterweight('density_kg_m3'), cli={'metavar': 'KG_M3'},
            flag_help='--counterweights: disc material density (kg/m^3; steel)'
                      + _range_text('density_kg_m3')),
     Option('max_thickness_m', 'balance.max_thickness', '--max-thickness', DOUBLE,
-           d.DEFAULT_MAX_THICKNESS_M, 'Counterweights: thickest disc, m.',
+           defaults.DEFAULT_MAX_THICKNESS_M, 'Counterweights: thickest disc, m.',
            methods=COUNTERWEIGHTS, **_counterweight('max_thickness_m'), cli={'metavar': 'M'},
            flag_help='--counterweights: thickest disc (m)' + _range_text('max_thickness_m')),
     Option('max_radius_factor', 'balance.max_radius_factor', '--max-radius-factor', DOUBLE,
-           d.DEFAULT_MAX_RADIUS_FACTOR,
+           defaults.DEFAULT_MAX_RADIUS_FACTOR,
            "Counterweights: disc centre at most this factor times the distance from the link's "
            'origin to its farthest joint point.', methods=COUNTERWEIGHTS,
            **_counterweight('max_radius_factor'), cli={'metavar': 'F'},
            flag_help="--counterweights: disc centre at most F x the distance from the link's "
                      'origin to its farthest joint point' + _range_text('max_radius_factor')),
     Option('max_mass_factor', 'balance.max_mass_factor', '--max-mass-factor', DOUBLE,
-           d.DEFAULT_MAX_MASS_FACTOR,
+           defaults.DEFAULT_MAX_MASS_FACTOR,
            "Counterweights: disc mass at most this factor times the link's own mass.",
            methods=COUNTERWEIGHTS, **_counterweight('max_mass_factor'), cli={'metavar': 'F'},
            flag_help="--counterweights: disc mass at most F x the link's mass"
                      + _range_text('max_mass_factor')),
     Option('max_gyration_factor', 'balance.max_gyration_factor', '--max-gyration-factor',
-           DOUBLE, d.DEFAULT_MAX_GYRATION_FACTOR,
+           DOUBLE, defaults.DEFAULT_MAX_GYRATION_FACTOR,
            "Counterweights: the disc's radius of gyration about the link origin at most this "
            "factor times the link's joint reach.", methods=COUNTERWEIGHTS,
            **_counterweight('max_gyration_factor'), cli={'metavar': 'F'},
@@ -315,11 +316,12 @@ OPTIONS = (
                      'carrying inertia; above 100 the program is ill-posed)'
                      + _range_text('max_gyration_factor')),
     Option('clearance_margin_m', 'balance.clearance_margin', '--clearance-margin', DOUBLE,
-           d.DEFAULT_CLEARANCE_MARGIN_M,
+           defaults.DEFAULT_CLEARANCE_MARGIN_M,
            'Counterweights: the least clearance between a counterweight (disc, shaft, web) and '
            'any other body over the cycle, m; the discs go to layers of their own beyond the '
            'linkage and the price of clearance is reported (docs/build.md).',
-           methods=COUNTERWEIGHTS, bounds=(0.0, d.MAX_CLEARANCE_MARGIN_M), cli={'metavar': 'M'},
+           methods=COUNTERWEIGHTS, bounds=(0.0, defaults.MAX_CLEARANCE_MARGIN_M),
+           cli={'metavar': 'M'},
            flag_help='--counterweights: the least clearance between a counterweight (disc, '
                      'shaft, web) and any other body over the cycle, in m; the discs go to '
                      'layers of their own beyond the linkage and the price of clearance is '
@@ -332,7 +334,7 @@ OPTIONS = (
                      "links' planes or --planes), no collision-free design"),
     Option('disc_side', 'balance.disc_side', '--disc-side', STRING, 'auto',
            'Counterweights: the side of the linkage the discs go to (above: +z, below: -z; '
-           'auto: the side with room, per disc).', methods=COUNTERWEIGHTS, choices=d.SIDES,
+           'auto: the side with room, per disc).', methods=COUNTERWEIGHTS, choices=defaults.SIDES,
            flag_help='--counterweights: the side of the linkage the discs go to (+z above, '
                      '-z below; auto: the side with room, per disc)'),
     Option('max_overhang_m', 'balance.max_overhang', '--max-overhang', DOUBLE, None,
@@ -345,10 +347,11 @@ OPTIONS = (
     Option('extent_factor', None, '--extent-factor', DOUBLE, 1.5,
            "Spatial redistribution: RMS distance of each body's mass from its origin at most "
            'this factor times its reach (farthest drawn point).', methods=REDISTRIBUTION,
-           bounds=d.EXTENT_FACTOR_RANGE, cli={'metavar': 'F'},
+           bounds=defaults.EXTENT_FACTOR_RANGE, cli={'metavar': 'F'},
            flag_help="spatial redistribution: RMS distance of each body's mass from its origin at "
                      'most F x its reach (farthest drawn point); range '
-                     f'{d.EXTENT_FACTOR_RANGE[0]:g} to {d.EXTENT_FACTOR_RANGE[1]:g}'),
+                     f'{defaults.EXTENT_FACTOR_RANGE[0]:g} to '
+                     f'{defaults.EXTENT_FACTOR_RANGE[1]:g}'),
     Option('planes', None, '--planes', STRING, '',
            "Counterweights: a disc's plane, its mid-plane's offset along z from its link's plane "
            'in m.', methods=COUNTERWEIGHTS, cli={'metavar': 'LINK=Z[,LINK=Z...]'},

@@ -1,8 +1,9 @@
 """
 Seed 001's printed tables that the code compares itself with (data, normalized units).
 
-The ``balance`` verb prints its optima next to these numbers, and the tests use the same
-design vectors as inputs; the expected results stay in the tests.  Damaged entries of the
+The ``balance`` verb prints its optima next to these numbers (:func:`compare_optimum`) and
+its analytic designs for the papers' variants (:func:`analytic_variants`); the tests use the
+same design vectors as inputs, the expected results stay in the tests.  Damaged entries of the
 extracted text are reconstructed where noted.
 """
 
@@ -54,3 +55,101 @@ TABLE12 = {
     'carpet_scraper': {'original': (1192.30, 182.40, 413.50), 'two': (519.37, 55.19, 14.50),
                        'three': (230.47, 51.14, 25.30)},
 }
+TABLE3_MASS_FACTORS = (1.0, 2.0, 5.0)
+"""Seed 001 Table 3 cases (1)-(3): crank and rocker masses 1x, 2x, 5x the original."""
+
+
+def weight_case(weights):
+    """Return the case (1)-(3) of :data:`WEIGHT_CASES` that ``weights`` are, or None."""
+    import numpy as np
+    for k, w in enumerate(WEIGHT_CASES, 1):
+        if np.allclose(weights, w):
+            return k
+    return None
+
+
+def compare_optimum(result):
+    """
+    Return how a redistribution optimum compares with seed 001's, or None where none applies.
+
+    ``result`` is a :class:`mech_balance.balancing.socp.BalanceResult` of the Hoeken linkage
+    (Tables 5 and 7) or the carpet scraper (case a: Tables 9 and 10) at one of the paper's
+    weightings without driving-torque or bearing weights.  The mapping holds the table's
+    label, its RMS normalized shaking force ``f`` and moment ``n``, its ``z_paper`` = w1 f +
+    w2 n, this optimum's ``z``, their difference in percent, whether the paper's
+    constraints were solved, and ``unrealizable``: ``{link: reason}`` of the paper's own
+    design vector where a link of it is no body.
+    """
+    k = weight_case(result.weights)
+    name = result.scene.name
+    if k is None or result.torque_weight or result.reaction_weight or \
+            name not in ('hoeken', 'carpet_scraper'):
+        return None
+    if name == 'hoeken':
+        f, n = TABLE7[(result.case, k)]
+        x = TABLE5[(result.case, k)]
+        label = f'Table 7 case {result.case}({k})'
+    elif result.case != 'a':
+        return None
+    else:
+        _, f, n = TABLE10[k]
+        x = TABLE9[k]
+        label = f'Table 10 case ({k})'
+    w1, w2 = result.weights
+    z_paper = w1 * f + w2 * n
+    z = result.objective['z']
+    links = _design_links(result.scene, x, result.case == 'b')
+    return {'label': label, 'f': f, 'n': n, 'z_paper': z_paper, 'z': z,
+            'change_percent': (z - z_paper) / z_paper * 100.0,
+            'paper_constraints': result.paper_constraints,
+            'unrealizable': {d.name: d.reason for d in links if not d.realizable}}
+
+
+def _design_links(sc, x, counterweights):
+    """Return the per-link designs of a table's normalized design vector ``x`` on ``sc``."""
+    from mech_balance.balancing import socp
+    from mech_balance.core import equimomental
+    design = equimomental.apply_design(sc, x, normalized=True)
+    return [socp.link_design(lk, counterweights, sc.normalization) for lk in design.links]
+
+
+def analytic_variants(rig, mass_factors=None, keep_centroidal=False, samples=None):
+    """
+    Return the :class:`~mech_balance.balancing.result.Design` of each analytic variant.
+
+    A slider-crank (a prismatic joint): seed 000's force balance, then with eq. 75 as
+    printed; a four-bar: seed 001 eq. 48 for each crank and rocker mass factor (default
+    :data:`TABLE3_MASS_FACTORS`), with the paper's point-mass distance l or, with
+    ``keep_centroidal``, the centroidal inertias kept.
+    """
+    from mech_balance import balancing
+    from mech_balance.core.rig import as_rig
+    rig = as_rig(rig)
+    if any(j.joint_type == 'prismatic' for j in rig.scene.joints):
+        return [balancing.balance(rig, 'analytic', samples=samples),
+                balancing.balance(rig, 'analytic', printed_eq75=True, samples=samples)]
+    inertia = 'centroidal' if keep_centroidal else 'distance'
+    return [balancing.balance(rig, 'analytic', mass_factor=k, inertia=inertia, samples=samples)
+            for k in mass_factors or TABLE3_MASS_FACTORS]
+
+
+def table12_rows(table12):
+    """
+    Return the rows of seed 001 Table 12's comparison: label, torque, force, moment and z.
+
+    ``table12`` is :func:`mech_balance.balancing.two_point.table12`'s result; the paper's
+    two rows come first where the paper has them (its scene, weights 0.5 0.5), then the
+    certified relaxation and the best two-point design; z = w1 f~ + w2 n~ (eq. 43).
+    """
+    w1, w2 = table12.weights
+    rows = []
+    paper = TABLE12.get(table12.scene)
+    if paper is not None and tuple(table12.weights) == (0.5, 0.5):
+        rows += [('paper, two point masses', *paper['two']),
+                 ('paper, three point masses', *paper['three'])]
+    for label, terms in (('three point masses = relaxation (certified)', table12.lower_terms),
+                         ('two point masses, best design found', table12.upper_terms)):
+        rows.append((label, terms['driving_torque'], terms['shaking_force'],
+                     terms['shaking_moment']))
+    return [(label, torque, force, moment, w1 * force + w2 * moment)
+            for label, torque, force, moment in rows]

@@ -88,7 +88,7 @@ class Design:
     @property
     def message(self):
         """Return the verdict in one line: :data:`STATUS` and the certificate in words."""
-        return f'{STATUS[self.status]}: {(self.figures or {}).get("certificate", "none")}'
+        return f'{STATUS[self.status]}: {self.certificate_text}'
 
     @property
     def links(self):
@@ -159,12 +159,18 @@ class Design:
                 'normalized': bool(normalized), 'links': self.links,
                 'table': self.table_in(normalized), 'report': self.report}
 
-    def summary(self):
+    @property
+    def certificate_text(self):
+        """Return the certificate in words (``figures['certificate']``), or ``none``."""
+        return (self.figures or {}).get('certificate', 'none')
+
+    def summary(self, certificate=True):
         """
         Return one line a person reads in a terminal: method, RMS before -> after, certificate.
 
         ``balanced hoeken (redistribution): RMS shaking force 0.143 -> 0.0168 N, moment
-        0.0173 -> 0.00603 N m; certificate Solved, gap 1.0e-09``.
+        0.0173 -> 0.00603 N m; certificate Solved, gap 1.0e-09`` (without the certificate
+        when ``certificate`` is false).
         """
         f = self.figures or {}
         name = str(self.report.get('scene', ''))
@@ -173,5 +179,6 @@ class Design:
         if 'force_N' in f:
             parts.append(f'RMS shaking force {f["force_N"][0]:.4g} -> {f["force_N"][1]:.4g} N, '
                          f'moment {f["moment_Nm"][0]:.4g} -> {f["moment_Nm"][1]:.4g} N m')
-        parts.append(f'certificate {f.get("certificate", "none")}')
+        if certificate:
+            parts.append(f'certificate {self.certificate_text}')
         return '; '.join(parts[:1]) + ': ' + '; '.join(parts[1:])

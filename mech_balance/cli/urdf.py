@@ -2,18 +2,15 @@
 The ``mech-balance urdf`` verb: the URDF of a rig's spanning tree, for robot_state_publisher.
 
 The verb is thin: it loads the scene (and a balanced design of the same geometry, if given)
-and prints or writes :func:`mech_balance.urdf.urdf_xml`.  The file is written atomically
-(a temporary file in the same directory, then ``os.replace``).
+and prints or writes :func:`mech_balance.ros.urdf.urdf_xml`, atomically
+(:mod:`mech_balance.atomic`).
 """
 
-from pathlib import Path
 import sys
 
 
 OUT_SUFFIXES = ('.urdf', '.xml')
 """``--out``: what the URDF's file name ends in."""
-RIG_NODE_NAME = 'rig'
-"""The rig node's name (mech_balance.node.NODE_NAME), as params files address it."""
 
 
 def register(subparsers):
@@ -47,54 +44,18 @@ def register(subparsers):
     p.set_defaults(func=cmd_urdf)
 
 
-def same_geometry(base, design):
-    """Raise ValueError unless ``design`` has the geometry of ``base`` (only inertias differ)."""
-    from mech_balance.schema import registry
-    registry.same_geometry(base, design, '--design')
-
-
-def frame_id_from_params_file(path):
-    """
-    Return the rig node's ``frame_id`` in a ROS params file (the URDF's root link name).
-
-    Sections apply in file order, as ROS applies them: ``/**`` and any section whose last
-    name is ``*``, ``**`` or the node's name (``rig``, ``/cell/rig``).  Without a
-    ``frame_id`` the node's default, :data:`mech_balance.ros.names.DEFAULT_FRAME_ID`.
-    """
-    from mech_balance.ros import names
-    from mech_balance.schema.scene import parse_yaml
-    try:
-        data = parse_yaml(Path(path).read_text())
-    except OSError as exc:
-        raise ValueError(f'params_file: got {str(path)!r}, cannot read it '
-                         f'({exc.strerror}); expected a ROS params file') from None
-    if not isinstance(data, dict):
-        raise ValueError(f'params_file: got {str(path)!r}, expected a mapping of node names '
-                         'to ros__parameters')
-    frame_id = names.DEFAULT_FRAME_ID
-    for key, section in data.items():
-        if str(key).rstrip('/').split('/')[-1] not in ('*', '**', RIG_NODE_NAME):
-            continue
-        values = section.get('ros__parameters', {}) if isinstance(section, dict) else {}
-        if isinstance(values, dict) and 'frame_id' in values:
-            frame_id = values['frame_id']
-    if not isinstance(frame_id, str) or not frame_id:
-        raise ValueError(f'params_file: frame_id: got {frame_id!r} in {str(path)!r}, expected '
-                         'a frame name')
-    return frame_id
-
-
 def cmd_urdf(args):
     """Print or write the URDF of the scene (or of its design)."""
-    from mech_balance.ros import urdf
-    from mech_balance.cli import main as cli
     from mech_balance import atomic, identifiers, schema as scene
+    from mech_balance.cli import main as cli
+    from mech_balance.ros import urdf
+    from mech_balance.schema import registry
     identifiers.check_frame_id(args.frame_id, '--frame-id')  # the node's frame_id check
     out = None if args.out is None else cli.writable_path('--out', args.out, OUT_SUFFIXES)
     sc = scene.load(args.scene)
     if args.design is not None:
         design = scene.load(args.design)
-        same_geometry(sc, design)
+        registry.same_geometry(sc, design, '--design')
         sc = design
     text = urdf.urdf_xml(sc, frame_id=args.frame_id)
     if out is None:

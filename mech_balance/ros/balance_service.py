@@ -61,12 +61,10 @@ def headline(design):
     """
     Return the first line of an answer: scene, method, RMS before -> after, certified or not.
 
-    :meth:`Design.summary` up to its certificate, then ``certified`` or the status in words:
-    short enough (about 120 characters) for ``ros2 topic echo``'s 128-character cut.
+    :meth:`Design.summary` without its certificate, then ``certified`` or the status in
+    words: short enough (about 120 characters) for ``ros2 topic echo``'s 128-character cut.
     """
-    summary = design.summary()
-    cut = summary.rfind('certificate ')
-    head = summary[:cut].rstrip(' ;:') if cut > 0 else summary
+    head = design.summary(certificate=False).rstrip(' ;:')
     verdict = 'certified' if design.success else STATUS[design.status]
     return f'{head}; {verdict}'
 
@@ -78,13 +76,10 @@ def answer_text(design, where, topic):
     ``# <headline>``, ``# full result: <where> ...`` (how to read it whole), ``# <the
     certificate in words>``, then :meth:`Design.to_dict` as block YAML (one key a line).
     """
-    summary = design.summary()
-    cut = summary.rfind('certificate ')
-    certificate = summary[cut:] if cut > 0 else STATUS[design.status]
     return (f'# {headline(design)}\n'
             f'# full result: {where} (std_msgs/String YAML; whole: ros2 topic echo --once '
             f'--full-length {topic})\n'
-            f'# {certificate}\n'
+            f'# certificate {design.certificate_text}\n'
             + yaml.safe_dump(design.to_dict(), sort_keys=False))
 
 

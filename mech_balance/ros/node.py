@@ -44,6 +44,7 @@ from mech_balance import threads
 from mech_balance.ros import description, guard as guards, live
 from mech_balance.ros import parameters as node_params, params, publisher as pub, real_rig
 from mech_balance.ros.balance_service import Balancer, BUSY
+from mech_balance.ros.names import NODE_NAME
 from mech_balance.ros.rig_state import RigState
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -56,7 +57,6 @@ from rclpy.qos import QoSProfile
 from rclpy.service import Service
 from std_srvs.srv import Trigger
 
-NODE_NAME = 'rig'
 EXECUTOR_THREADS = 4
 """Threads serving parameters, services and the inputs (a balancing run holds one)."""
 SERVICE_DEPTH = 1000

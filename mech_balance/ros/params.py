@@ -8,23 +8,22 @@ working set and :func:`check` is the validator the node runs on every update (a
 ``ValueError`` naming the parameter, the value and what was expected becomes the ``reason``
 of ``SetParametersResult(successful=False)``).  ``scene`` is validated by the scene loader
 itself (:func:`mech_balance.schema.load`, then the twin traces the linkage's branch), the
-balancing options by the same rules as :func:`mech_balance.balancing.optimize`.  No ROS
-import here: the command line and the tests use this table too.
+``balance.*`` options are built from the one options table of the command line and the node
+(:data:`mech_balance.balancing.options.OPTIONS`).  No ROS import here: the tests use this
+table too.
 """
 
 from dataclasses import dataclass
 import math
 import re
 
-from mech_balance import conventions, identifiers, paths
+from mech_balance import identifiers, paths
 from mech_balance.balancing import defaults as balancing_defaults
 from mech_balance.balancing import options
-from mech_balance.balancing.options import LINK_OPTIONS, LINK_PREFIX, \
-    MAX_COUNTERWEIGHT_VALUE, MAX_MARGIN, parse_link_bounds, split_links  # noqa: F401
+from mech_balance.balancing.options import BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, LINK_OPTIONS, \
+    LINK_PREFIX, parse_link_bounds, split_links, STRING
 from mech_balance.ros import sensor
 
-STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = 'string', 'double', 'integer', 'bool', \
-    'double_array'
 MODES = ('clock', 'follow')
 MAX_SENSOR_OFFSET_M = 100.0
 """Largest |sensor.x|, |sensor.y|, |sensor.z| accepted, m."""
@@ -32,7 +31,6 @@ MAX_ANGLE_RAD = 2.0 * math.pi
 """Largest |sensor.roll|, |sensor.pitch|, |sensor.yaw| accepted, rad."""
 MAX_FRACTION = 1000.0
 """Largest diagnostics threshold (residual RMS / measured RMS)."""
-CASES = ('a', 'b')
 METHODS = ('redistribution', 'counterweights', 'analytic')
 """``balance.method``: :func:`mech_balance.balancing.balance`'s methods the node offers (a
 spatial scene that lists ``balancing_weights``, the RGGR, is balanced by its own method,
@@ -44,10 +42,6 @@ MIN_PUBLISH_RATE = 0.1
 """Slowest clock-mode publish rate, Hz."""
 MAX_PUBLISH_RATE = 20000.0
 """Fastest clock-mode publish rate, Hz (see ``mech-balance bench`` for what is sustained)."""
-MAX_SAMPLES = conventions.MAX_SAMPLES
-"""Most crank angles per revolution in a balancing run."""
-MAX_WEIGHT = conventions.MAX_WEIGHT
-"""Largest objective weight accepted."""
 
 
 @dataclass(frozen=True)
@@ -441,6 +435,39 @@ def coerced(name, value):
 def defaults():
     """Return ``{name: default}`` of every parameter."""
     return {spec.name: spec.default for spec in PARAMETERS}
+
+
+def frame_id_from_params_file(path):
+    """
+    Return the rig node's ``frame_id`` in a ROS params file (the URDF's root link name).
+
+    Sections apply in file order, as ROS applies them: ``/**`` and any section whose last
+    name is ``*``, ``**`` or the node's name (:data:`mech_balance.ros.names.NODE_NAME`:
+    ``rig``, ``/cell/rig``).  Without a ``frame_id`` the node's default,
+    :data:`mech_balance.ros.names.DEFAULT_FRAME_ID`.
+    """
+    from pathlib import Path
+    from mech_balance.ros import names
+    from mech_balance.schema.scene import parse_yaml
+    try:
+        data = parse_yaml(Path(path).read_text())
+    except OSError as exc:
+        raise ValueError(f'params_file: got {str(path)!r}, cannot read it '
+                         f'({exc.strerror}); expected a ROS params file') from None
+    if not isinstance(data, dict):
+        raise ValueError(f'params_file: got {str(path)!r}, expected a mapping of node names '
+                         'to ros__parameters')
+    frame_id = names.DEFAULT_FRAME_ID
+    for key, section in data.items():
+        if str(key).rstrip('/').split('/')[-1] not in ('*', '**', names.NODE_NAME):
+            continue
+        values = section.get('ros__parameters', {}) if isinstance(section, dict) else {}
+        if isinstance(values, dict) and 'frame_id' in values:
+            frame_id = values['frame_id']
+    if not isinstance(frame_id, str) or not frame_id:
+        raise ValueError(f'params_file: frame_id: got {frame_id!r} in {str(path)!r}, expected '
+                         'a frame name')
+    return frame_id
 
 
 def balance_options(values, method='redistribution'):

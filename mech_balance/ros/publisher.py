@@ -2,7 +2,7 @@
 The rig node's publisher part: ``joint_states`` and ``shaking_wrench``, clock or follow mode.
 
 :class:`Publisher` owns the two publishers, the publishing threads
-(:class:`mech_balance.ros.streaming.Streamer`), the follow-mode estimator and the
+(:class:`mech_balance.ros.streamer.Streamer`), the follow-mode estimator and the
 ``crank_joint_state`` subscription, and counts what the ``publisher``, ``encoder input`` and
 ``model`` statuses of ``/diagnostics`` report.  It reads the designs and the parameters
 from the node's :class:`mech_balance.ros.rig_state.RigState`.
@@ -13,7 +13,7 @@ import threading
 
 from geometry_msgs.msg import WrenchStamped
 from mech_balance.ros import conversions as conv, diagnostics
-from mech_balance.ros import streaming
+from mech_balance.ros import streamer, streaming
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.qos import QoSProfile
 from rclpy.qos_overriding_options import QoSOverridingOptions
@@ -80,9 +80,9 @@ class Publisher:
                                                 qos_overriding_options=overrides)
         self._encoder_sub = None
         self._encoder_group = MutuallyExclusiveCallbackGroup()
-        self.streamer = streaming.Streamer(lambda: node.get_clock().now().nanoseconds,
-                                           self._prepare, self._publish, warn, record,
-                                           guard=guard)
+        self.streamer = streamer.Streamer(lambda: node.get_clock().now().nanoseconds,
+                                          self._prepare, self._publish, warn, record,
+                                          guard=guard)
 
     @property
     def encoder_topic(self):

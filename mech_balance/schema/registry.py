@@ -21,7 +21,7 @@ through :func:`mech_balance.core.rig.rig_for`.
 from dataclasses import dataclass
 import importlib
 
-from mech_balance.schema import rggr_legacy, scene, spatial
+from mech_balance.schema import planar, rggr_legacy, scene, spatial
 from mech_balance.schema.fields import SceneError
 
 
@@ -47,11 +47,11 @@ class Kind:
 
 
 KINDS = {
-    'planar': Kind('planar', scene.Scene, scene.planar_from_dict, scene.planar_to_dict, {
+    'planar': Kind('planar', scene.Scene, planar.planar_from_dict, planar.planar_to_dict, {
         'rig': 'mech_balance.core.planar.rig:PlanarRig',
         'analyze': 'mech_balance.analysis.cycle:analyze',
         'urdf': 'mech_balance.ros.urdf:planar_robot',
-        'urdf_tree': 'mech_balance.ros.urdf:planar_tree'}, scene.geometry),
+        'urdf_tree': 'mech_balance.ros.urdf:planar_tree'}, planar.geometry),
     'spatial': Kind('spatial', spatial.SpatialScene, spatial.spatial_from_dict,
                     spatial.spatial_to_dict, {
                         'rig': 'mech_balance.core.spatial.rig:SpatialRig',
