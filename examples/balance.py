@@ -22,7 +22,8 @@ print(design.summary())
 print(f'method: {design.method}')
 print(f'objective: {design.objective:.9g}  ({design.objective_name})')
 print(f'lower bound: {design.lower_bound:.9g}')
-print(f'gap: {design.objective - design.lower_bound:.3g} (the design is at most this far from the optimum)')
+gap = design.objective - design.lower_bound
+print(f'gap: {gap:.3g} (the design is at most this far from the optimum)')
 print(f'certified: {design.certified}, status {design.status}: {design.message}')
 for link in design.links:
     print(f'link {link["name"]}: mass {link["mass_kg"]:.6g} kg, mass centre',
