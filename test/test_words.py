@@ -1,10 +1,11 @@
 """
 Every module, attribute and file the words name exists (issue 30 item 3).
 
-A dotted ``mech_balance.<module>.<name>`` or a ``mech_balance/<dir>/<module>.py`` path in a docstring, a
-comment or any other string of the package, the tests, the examples and the launch file, in
-README.md, docs/*.md and config/*.yaml, must be a module, a module's attribute (a class's
-attribute: defined on it, annotated in it, or set on ``self`` in its code) or a file.
+A dotted ``mech_balance.<module>.<name>`` or a ``mech_balance/<dir>/<module>.py`` path in a
+docstring, a comment or any other string of the package, the tests, the examples and the
+launch file, in README.md, docs/*.md and config/*.yaml, must be a module, a module's
+attribute (a class's attribute: defined on it, annotated in it, or set on ``self`` in its
+code) or a file.
 
 Marked ``words``: written while the modules are being split on other branches, it passes
 once they are all merged (``pytest test/test_words.py -m words``).
