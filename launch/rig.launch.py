@@ -3,7 +3,7 @@ Launch the rig node, robot_state_publisher with the rig's URDF and, optionally, 
 
     ros2 launch mech_balance rig.launch.py scene:=hoeken use_rviz:=true
 
-The URDF is generated here, at launch, by :func:`mech_balance.urdf.urdf_xml` for the
+The URDF is generated here, at launch, by :func:`mech_balance.ros.urdf.urdf_xml` for the
 launched scene, with the root link named after the node's ``frame_id`` from the params
 file, and handed to robot_state_publisher as its ``robot_description`` parameter;
 robot_state_publisher then owns the ``robot_description`` topic, so the rig node is started

@@ -2,7 +2,7 @@
 Regression tests of issue 12, one or more per class of failure (loaders, files, CLI).
 
 class 1: input that killed the node or gave a traceback (deep nesting, aliases, sizes) is
-refused by the one YAML reader (mech_balance.safe_yaml) with an error naming the limit;
+refused by the one YAML reader (mech_balance.schema.safe_yaml) with an error naming the limit;
 class 2: work is bounded (samples, links x samples, cycles, rows) before it starts;
 class 3: every write is atomic (mech_balance.atomic): a write error or SIGKILL leaves an
 existing target byte-identical; class 7: silently accepted input is refused (duplicate

@@ -1,7 +1,7 @@
 """
 The rig node: its parameters, the twin against the core, and real rclpy across processes.
 
-The node runs in a second process (``python -m mech_balance.node``) on a private ROS domain
+The node runs in a second process (``python -m mech_balance.ros.node``) on a private ROS domain
 and namespace; this process subscribes, publishes encoder messages and calls the services
 and the parameter service.  Discovery is waited for (matched endpoints, services), never
 slept on.

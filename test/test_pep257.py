@@ -21,7 +21,7 @@ import pytest
 # the result does not depend on where pytest starts and .venv/ is never linted.
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 LINTED_PATHS = [str(PACKAGE_ROOT / name)
-                for name in ('mech_balance', 'test', 'launch', 'setup.py')]
+                for name in ('mech_balance', 'test', 'launch', 'examples', 'setup.py')]
 
 
 @pytest.mark.linter

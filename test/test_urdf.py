@@ -2,7 +2,7 @@
 The URDF of the spanning tree, checked with an independent URDF library (yourdfpy).
 
 Forward kinematics of the generated URDF at the joint positions of
-:func:`mech_balance.urdf.joint_positions` must put every joint point, both points of each
+:func:`mech_balance.ros.urdf.joint_positions` must put every joint point, both points of each
 cut joint included, where the core puts them, over a full cycle; the inertials must carry
 the scene's mass and mass centre.
 """

@@ -24,9 +24,9 @@ PAPER_DISTANCE_FACTORS = (0.5, 1.5)
 CENTROIDAL_MARGIN = 1e-2
 """Design margin of the realizability constraint: each link keeps a centroidal moment of
 inertia >= this fraction of I_O (a lump of radius of gyration >= 0.1 l).  It is a requirement
-of the design, not the definition of a body (:func:`mech_balance.equimomental.is_realizable`,
+of the design, not the definition of a body (:func:`mech_balance.core.equimomental.is_realizable`,
 which only needs I_c above round-off): any margin above
-:data:`mech_balance.equimomental.REALIZABLE_TOL` makes the design buildable.  Between 1e-2
+:data:`mech_balance.core.equimomental.REALIZABLE_TOL` makes the design buildable.  Between 1e-2
 and 0 the optimum moves by 0.3-0.7% on Hoeken and 0.4-3% on the carpet scraper; at 0 it is
 the infimum over realizable designs, attained only by a point-mass link."""
 

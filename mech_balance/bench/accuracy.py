@@ -4,7 +4,7 @@ Error against run time: the numbers behind ``mech-balance accuracy``.
 Four studies of one planar scene, each against a converged reference:
 
 * **RMS against the number of crank samples p**: the RMS figures of the analysis table
-  (:func:`mech_balance.analysis.summarize`) at p equally spaced angles against p = 2880.
+  (:func:`mech_balance.analysis.cycle.summarize`) at p equally spaced angles against p = 2880.
   The p-point mean of a periodic analytic function is exact for its harmonics below p, so
   the error falls geometrically with p (and the table shows how fast for each rig).
 * **Forward dynamics** (:mod:`mech_balance.simulate`): the error of the final state after a
@@ -131,7 +131,7 @@ def state_error(model, y, y_ref):
 def integrator_study(model, duration_s=None, methods=STUDY_METHODS, rtols=RTOL_LADDER,
                      progress=None):
     """
-    Return the forward-dynamics study of a :class:`~mech_balance.simulate.ForwardDynamics`.
+    Return the forward-dynamics study of a :class:`~mech_balance.core.forward.ForwardDynamics`.
 
     The reference is the method ``auto`` would choose at ``REFERENCE_RTOL``; a second
     reference (LSODA, or DOP853 when LSODA is the first) at the same tolerance bounds its

@@ -68,7 +68,7 @@ def _fourbar_angles(a, b, c, d, psi):
 
 def dyad_chain(loops, crank_m=0.05, density_kg_m=2.0, speed_rad_s=1.0, skew=DEFAULT_SKEW):
     """
-    Return a planar :class:`~mech_balance.scene.Scene` with ``loops`` closed loops.
+    Return a planar :class:`~mech_balance.schema.scene.Scene` with ``loops`` closed loops.
 
     ``2 loops + 1`` moving links, ``3 loops + 1`` revolute joints, one input (joint ``O1``).
     The assembly guess (link angles at crank angle 0) is computed from the stage geometry.

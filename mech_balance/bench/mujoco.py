@@ -6,9 +6,10 @@ dependency: ``make bench-mujoco`` installs a pinned version); without it the com
 how to install it and exits with status 2.
 
 The MuJoCo model of a planar rig (:class:`MujocoRig`)
-    The linkage's own spanning tree (:class:`~mech_balance.kinematics.Linkage`): one body per
-    link with a hinge about z to its tree parent (body frame at that joint, so hinge angle =
-    this package's relative joint coordinate), mass properties as ``inertial`` (mass, centre
+    The linkage's own spanning tree
+    (:class:`~mech_balance.core.planar.kinematics.Linkage`): one body per link with a hinge
+    about z to its tree parent (body frame at that joint, so hinge angle = this package's
+    relative joint coordinate), mass properties as ``inertial`` (mass, centre
     of mass, ``diaginertia`` about it: the planar moment about z; the x and y moments only
     matter for out-of-plane motion, which never happens), no geoms (no contacts), no joint
     limits, gravity off.  Every cut joint closes its loop with a ``connect`` equality between
@@ -39,7 +40,7 @@ The spatial built-ins (printed after the planar part)
 
 What is timed, per crank angle (printed with the results)
     full pipeline
-        this package: :meth:`~mech_balance.analysis.Rig.evaluate` of all angles at once
+        this package: :meth:`~mech_balance.analysis.cycle.Rig.evaluate` of all angles at once
         (Newton from the branch predictor with its residual and condition number per angle,
         velocities, accelerations, driving torque, every bearing reaction, shaking wrench);
         MuJoCo: a Python loop over the angles: Newton on the connect residual (``mj_kinematics``,
@@ -48,9 +49,10 @@ What is timed, per crank angle (printed with the results)
         ``mj_comVel`` and ``mj_jacDot``, ``mj_inverse``, the rigid multipliers (numpy solve),
         ``mj_rnePostConstraint`` and the frame load.
     dynamics alone (positions, velocities and accelerations imposed from this package)
-        this package: :func:`~mech_balance.dynamics.inverse_dynamics`; MuJoCo: ``mj_inverse``
-        per angle (qpos, qvel, qacc copied in), and separately the same plus what it takes to
-        get the same outputs (rigid multipliers, ``mj_rnePostConstraint``, frame load).
+        this package: :func:`~mech_balance.core.planar.dynamics.inverse_dynamics`; MuJoCo:
+        ``mj_inverse`` per angle (qpos, qvel, qacc copied in), and separately the same plus
+        what it takes to get the same outputs (rigid multipliers, ``mj_rnePostConstraint``,
+        frame load).
 """
 
 import math

@@ -18,7 +18,7 @@ wants ``1.0e-3``) and refuses, with one error naming the file or field, the limi
 
 No ``RecursionError``, ``MemoryError`` or decoding error escapes: every refusal is the
 caller's error class (``error=``, a ``ValueError``; :class:`YamlError` by default,
-:class:`mech_balance.scene.SceneError` for scenes).
+:class:`mech_balance.schema.fields.SceneError` for scenes).
 """
 
 import os
