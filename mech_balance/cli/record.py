@@ -65,15 +65,15 @@ def register(subparsers):
                             "each disc in its link's colour with its mass and its plane")
     cli_balance.add_weight_and_case(p, when='with --balance (planar) or --counterweights: ',
                                     case_when='with --balance (planar) only: ')
-    # the clearance of a counterweight design (--counterweights, --design): its collisions
-    # are marked where the clearance is below the margin (mech_balance.viz.collisions)
-    options.add_arguments(p, ('clearance_margin_m', 'clearance'))
     p.add_argument('--cycles', type=cli.cycles, default=1,
                    help=f'crank turns to record, at most {conventions.MAX_CYCLES} '
                         '(default: %(default)s)')
     p.add_argument('--samples', type=_samples, default=None,
                    help="samples per crank turn, any count >= 4 (default: the scene's, "
                         'usually 360)')
+    # the clearance of a counterweight design (--counterweights, --design): its collisions
+    # are marked where the clearance is below the margin (mech_balance.viz.collisions)
+    options.add_arguments(p, ('clearance_margin_m', 'clearance'))
     p.add_argument('--out', required=True, metavar='FILE.rrd',
                    help='the recording to write (its directory is created if needed)')
     p.set_defaults(func=cmd_record)
