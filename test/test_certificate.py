@@ -162,7 +162,7 @@ def test_counterweight_bound_on_random_rigs_and_slsqp(seed, weights, thickness, 
                                              for f in cert.failed_stages)
     # independent check: a second formulation, minimized from many starts
     maps = balancing.linear_maps(sc, res.options.samples)
-    prob = cw._Problem(sc, maps, res.options, res.units)
+    prob = cw.Problem(sc, maps, res.options, res.units)
     rng = np.random.default_rng(seed)
     best = math.inf
     cons = _disc_constraints(prob)

@@ -92,18 +92,31 @@ class Body:
 
 @dataclass
 class Contact:
-    """The least clearance of one pair over the cycle: where and how much (SI, deg)."""
+    """
+    The least clearance of one pair over the cycle: where and how much (SI, deg).
+
+    ``point_a_m`` and ``point_b_m`` are the witness points (x, y, z in the world frame at
+    ``crank_angle_deg``, m): the point of body a nearest body b and of b nearest a, on their
+    surfaces.  Where the bodies overlap each lies inside the other, and their distance is
+    the overlap's depth; None where not computed.
+    """
 
     body_a: str
     body_b: str
     clearance_m: float
     crank_angle_deg: float
+    point_a_m: tuple = None
+    point_b_m: tuple = None
 
     def to_dict(self):
         """Return the contact as a plain dict."""
-        return {'body_a': self.body_a, 'body_b': self.body_b,
-                'clearance_m': float(self.clearance_m),
-                'crank_angle_deg': float(self.crank_angle_deg)}
+        out = {'body_a': self.body_a, 'body_b': self.body_b,
+               'clearance_m': float(self.clearance_m),
+               'crank_angle_deg': float(self.crank_angle_deg)}
+        if self.point_a_m is not None:
+            out['point_a_m'] = [float(v) for v in self.point_a_m]
+            out['point_b_m'] = [float(v) for v in self.point_b_m]
+        return out
 
     def warning(self):
         """Return the collision line: the two bodies, the crank angle and the overlap."""
@@ -286,6 +299,42 @@ def _cross(u, v):
     return (np.conj(u) * v).imag
 
 
+def _project(p, a, b):
+    """Return the points of segments ``a``-``b`` nearest the points ``p`` (complex arrays)."""
+    d = b - a
+    den = (d * np.conj(d)).real
+    t = np.where(den > 0.0, ((p - a) * np.conj(d)).real / np.where(den > 0.0, den, 1.0), 0.0)
+    return a + np.clip(t, 0.0, 1.0) * d
+
+
+def segment_witness(a1, b1, a2, b2):
+    """
+    Return ``(q1, q2)``: the nearest points of segments ``a1``-``b1`` and ``a2``-``b2``.
+
+    Complex, broadcast.  Where the segments cross, both are the crossing point; otherwise the
+    nearest pair is an end of one segment and its projection on the other (the closest
+    points of two disjoint segments in the plane include an end of one of them).
+    """
+    a1, b1, a2, b2 = np.broadcast_arrays(*(np.asarray(v, dtype=complex) for v in
+                                           (a1, b1, a2, b2)))
+    cands = [(a1, _project(a1, a2, b2)), (b1, _project(b1, a2, b2)),
+             (_project(a2, a1, b1), a2), (_project(b2, a1, b1), b2)]
+    dist = np.stack([np.abs(p - q) for p, q in cands])
+    k = np.argmin(dist, axis=0)
+    q1 = np.choose(k, [p for p, _ in cands])
+    q2 = np.choose(k, [q for _, q in cands])
+    d1, d2 = b1 - a1, b2 - a2
+    s1, s2 = _cross(d1, a2 - a1), _cross(d1, b2 - a1)
+    s3, s4 = _cross(d2, a1 - a2), _cross(d2, b1 - a2)
+    crossing = (s1 * s2 < 0.0) & (s3 * s4 < 0.0)
+    if np.any(crossing):
+        den = _cross(d1, d2)
+        t = _cross(a2 - a1, d2) / np.where(crossing, den, 1.0)
+        x = a1 + t * d1
+        q1, q2 = np.where(crossing, x, q1), np.where(crossing, x, q2)
+    return q1, q2
+
+
 def segment_distance(a1, b1, a2, b2):
     """
     Return the distance between segments ``a1``-``b1`` and ``a2``-``b2`` (complex, broadcast).
@@ -313,15 +362,8 @@ class Sweep:
         self.origin, self.rot = state.pose.origin, state.pose.rot
         self.index = {n: k for k, n in enumerate(rig.linkage.body_names)}
 
-    def gaps(self, body_list, todo, cols=None):
-        """
-        Return the clearance ``(pairs, k)`` of each pair of ``todo`` (m).
-
-        ``cols``: the sample columns, ``(k,)`` for every pair or ``(pairs, k)`` (default all).
-        Bodies whose slabs lie apart along z by g >= 0 are clear by ``hypot(d, g)`` (d >= 0
-        their distance in the plane; the bodies are prisms along z), else by ``d`` (negative:
-        the overlap).
-        """
+    def _ends(self, body_list, todo, cols):
+        """Return the pairs' segment ends in the world ``(4, pairs, k)`` (complex, m)."""
         if cols is None:
             cols = np.arange(self.origin.shape[1])
         cols = np.asarray(cols)
@@ -331,12 +373,75 @@ class Sweep:
         kb = np.array([self.index[body_list[j].link] for _, j in todo])[:, None]
         local = np.array([[body_list[i].a, body_list[i].b, body_list[j].a, body_list[j].b]
                           for i, j in todo])
+        oa, ra, ob, rb = self.origin[ka, cols], self.rot[ka, cols], self.origin[kb, cols], \
+            self.rot[kb, cols]
+        return (oa + ra * local[:, 0, None], oa + ra * local[:, 1, None],
+                ob + rb * local[:, 2, None], ob + rb * local[:, 3, None])
+
+    def witness(self, body_list, todo, cols=None):
+        """
+        Return the witness points ``(pa, pb)`` of each pair of ``todo``, ``(pairs, k, 3)`` (m).
+
+        In the plane: the nearest points of the two capsules' segments moved out by each
+        radius towards the other (where the segments cross, both at the crossing); along z:
+        where the slabs overlap, both at the middle of the overlap, else each on its face
+        towards the other.  ``cols`` as :meth:`gaps`.
+        """
+        a1, b1, a2, b2 = self._ends(body_list, todo, cols)
+        q1, q2 = segment_witness(a1, b1, a2, b2)
+        d = q2 - q1
+        size = np.abs(d)
+        u = np.where(size > 0.0, d / np.where(size > 0.0, size, 1.0), 0.0)
+        ra = np.array([body_list[i].radius_m for i, _ in todo])[:, None]
+        rb = np.array([body_list[j].radius_m for _, j in todo])[:, None]
+        pa, pb = q1 + ra * u, q2 - rb * u
+        za, zb = [], []
+        for i, j in todo:
+            a, b = body_list[i], body_list[j]
+            lo_a, hi_a = a.z_m - 0.5 * a.thickness_m, a.z_m + 0.5 * a.thickness_m
+            lo_b, hi_b = b.z_m - 0.5 * b.thickness_m, b.z_m + 0.5 * b.thickness_m
+            lo, hi = max(lo_a, lo_b), min(hi_a, hi_b)
+            if lo <= hi:
+                za.append(0.5 * (lo + hi))
+                zb.append(0.5 * (lo + hi))
+            elif a.z_m < b.z_m:
+                za.append(hi_a)
+                zb.append(lo_b)
+            else:
+                za.append(lo_a)
+                zb.append(hi_b)
+        za = np.broadcast_to(np.array(za)[:, None], pa.shape)
+        zb = np.broadcast_to(np.array(zb)[:, None], pb.shape)
+        return (np.stack([pa.real, pa.imag, za], axis=-1),
+                np.stack([pb.real, pb.imag, zb], axis=-1))
+
+    def outline(self, body, k, points=32):
+        """Return the outline ``(n, 2)`` of a body's capsule at sample ``k`` in the world (m)."""
+        t = np.linspace(0.0, 2.0 * math.pi, points, endpoint=False)
+        o, r = self.origin[self.index[body.link], k], self.rot[self.index[body.link], k]
+        a, b = o + r * body.a, o + r * body.b
+        u = (b - a) / abs(b - a) if b != a else 1.0 + 0.0j
+        ring = body.radius_m * np.exp(1j * t) * u
+        half = points // 2
+        # the cap around b on the far side of a, then the cap around a (closed by the caller)
+        z = np.concatenate([b + ring[(np.arange(half) - points // 4) % points],
+                            a + ring[(np.arange(half) + points // 4) % points]])
+        return np.column_stack([z.real, z.imag])
+
+    def gaps(self, body_list, todo, cols=None):
+        """
+        Return the clearance ``(pairs, k)`` of each pair of ``todo`` (m).
+
+        ``cols``: the sample columns, ``(k,)`` for every pair or ``(pairs, k)`` (default all).
+        Bodies whose slabs lie apart along z by g >= 0 are clear by ``hypot(d, g)`` (d >= 0
+        their distance in the plane; the bodies are prisms along z), else by ``d`` (negative:
+        the overlap).
+        """
+        local = np.array([[body_list[i].a, body_list[i].b, body_list[j].a, body_list[j].b]
+                          for i, j in todo])
         radii = np.array([body_list[i].radius_m + body_list[j].radius_m for i, j in todo])
         dz = np.array([body_list[i].z_gap(body_list[j]) for i, j in todo])
-        origin, rot = self.origin, self.rot
-        oa, ra, ob, rb = origin[ka, cols], rot[ka, cols], origin[kb, cols], rot[kb, cols]
-        a1, b1 = oa + ra * local[:, 0, None], oa + ra * local[:, 1, None]
-        a2, b2 = ob + rb * local[:, 2, None], ob + rb * local[:, 3, None]
+        a1, b1, a2, b2 = self._ends(body_list, todo, cols)
         # a disc or a boss is a point: spare the segment arithmetic where a body has none
         seg1, seg2 = local[:, 0] != local[:, 1], local[:, 2] != local[:, 3]
         out = np.abs(a1 - a2)
@@ -351,6 +456,35 @@ class Sweep:
         if np.any(apart):
             plane[apart] = np.hypot(np.maximum(plane[apart], 0.0), dz[apart, None])
         return plane
+
+
+def contacts_at(scene_or_rig, psi, margin_m=0.0):
+    """
+    Return, per crank angle of ``psi`` (rad), the pairs closer than ``margin_m`` there.
+
+    ``[[(Contact, body_a, body_b), ...] per angle]``: each :class:`Contact` with its
+    clearance and witness points at that angle, beside the two :class:`Body` (to draw them);
+    and the :class:`Sweep` of ``psi`` (its :meth:`Sweep.outline` poses a body).  Pairs as
+    :func:`clearance` checks them (slabs less than ``margin_m`` apart along z).
+    """
+    rig = scene_or_rig if isinstance(scene_or_rig, PlanarRig) else PlanarRig(scene_or_rig)
+    psi = np.atleast_1d(np.asarray(psi, dtype=float))
+    body_list = bodies(rig)
+    todo = pairs(body_list, margin_m)
+    sweep = Sweep(rig, psi)
+    out = [[] for _ in range(psi.size)]
+    if not todo:
+        return out, sweep
+    gap = sweep.gaps(body_list, todo)
+    rows, cols = np.nonzero(gap < margin_m)
+    if rows.size:
+        pa, pb = sweep.witness(body_list, [todo[n] for n in rows], cols[:, None])
+        for m, (n, k) in enumerate(zip(rows, cols)):
+            i, j = todo[n]
+            out[k].append((Contact(body_list[i].name, body_list[j].name, float(gap[n, k]),
+                                   math.degrees(float(psi[k])) % 360.0, tuple(pa[m, 0]),
+                                   tuple(pb[m, 0])), body_list[i], body_list[j]))
+    return out, sweep
 
 
 def pair_clearance(rig, body_a, body_b, psi):
@@ -402,8 +536,11 @@ def clearance(scene_or_rig, samples=None, margin_m=0.0, sweep=None):
             if local[row, best[row]] < worst[n]:
                 worst[n], angles[n] = local[row, best[row]], grid[row, best[row]]
         step *= 2.0 / (REFINE_POINTS - 1)
+    # the witness points of every pair at its least angle (one batched evaluation)
+    pa, pb = Sweep(rig, angles).witness(body_list, todo, np.arange(len(todo))[:, None])
     contacts = [Contact(body_list[i].name, body_list[j].name, float(worst[n]),
-                        math.degrees(float(angles[n])) % 360.0)
+                        math.degrees(float(angles[n])) % 360.0, tuple(pa[n, 0]),
+                        tuple(pb[n, 0]))
                 for n, (i, j) in enumerate(todo)]
     least = min(contacts, key=lambda c: c.clearance_m)
     collisions = sorted((c for c in contacts if c.clearance_m < 0.0),

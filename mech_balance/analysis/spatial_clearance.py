@@ -60,12 +60,20 @@ def solids(rig):
     return out
 
 
-def _segment_distance(p, a, b):
-    """Return the distance from points ``p (..., 3)`` to segments a-b ``(..., 3)``."""
+def _nearest(p, a, b):
+    """Return the points of segments a-b ``(..., 3)`` nearest the points ``p (..., 3)``."""
     d = b - a
     den = np.sum(d * d, axis=-1)
     t = np.where(den > 0.0, np.sum((p - a) * d, axis=-1) / np.where(den > 0.0, den, 1.0), 0.0)
-    return np.linalg.norm(p - (a + np.clip(t, 0.0, 1.0)[..., None] * d), axis=-1)
+    return a + np.clip(t, 0.0, 1.0)[..., None] * d
+
+
+def _witness(p, q, r_p, r_q):
+    """Return the surface points of balls (or capsules) about ``p`` and ``q`` facing each other."""
+    d = q - p
+    size = float(np.linalg.norm(d))
+    u = d / size if size > 0.0 else np.zeros(3)
+    return tuple(float(v) for v in p + r_p * u), tuple(float(v) for v in q - r_q * u)
 
 
 def check(rig, spheres, samples=None, margin_m=0.0):
@@ -95,15 +103,18 @@ def check(rig, spheres, samples=None, margin_m=0.0):
         for n2, b2, a, b, r2 in others:
             if b2 == body:
                 continue
-            gap = _segment_distance(c, a, b) - r - r2
+            q = _nearest(c, a, b)
+            gap = np.linalg.norm(c - q, axis=-1) - r - r2
             k = int(np.argmin(gap))
-            contacts.append(Contact(n2, name, float(gap[k]), math.degrees(psi[k]) % 360.0))
+            contacts.append(Contact(n2, name, float(gap[k]), math.degrees(psi[k]) % 360.0,
+                                    *_witness(q[k], c[k], r2, r)))
         for name2, body2, c2, r2 in balls[i + 1:]:
             if body2 == body:
                 continue
             gap = np.linalg.norm(c - c2, axis=-1) - r - r2
             k = int(np.argmin(gap))
-            contacts.append(Contact(name, name2, float(gap[k]), math.degrees(psi[k]) % 360.0))
+            contacts.append(Contact(name, name2, float(gap[k]), math.degrees(psi[k]) % 360.0,
+                                    *_witness(c[k], c2[k], r, r2)))
     rims = {name: float(r) for name, _, _, r in balls}
     if not contacts:
         return Clearance(None, [], 0, p, {}, rims, margin_m)

@@ -197,10 +197,11 @@ def _spatial(rig, method, options):
     # shorter than _certificate_text: a spatial optimum is often ~0 (e-notation on both sides)
     text = (f'{cert.status}, {"certified" if cert.certified else "NOT certified"}, '
             f'L {cert.lower_bound:.4g} <= z {cert.primal:.4g}, gap {cert.gap_rel:.1e}')
-    report = result.to_dict()
-    if method == 'counterweights':   # the spheres against every body over the cycle
-        report.update(clearance_design.spatial_report(
-            rig, result.options['counterweights'], options.get('samples'), margin, cert))
+    entries = {}
+    if method == 'counterweights':   # the spheres clear of every body (sphere_clearance)
+        from mech_balance.balancing import sphere_clearance
+        result, entries = sphere_clearance.design(rig, result, options.get('samples'), margin)
+    report = dict(result.to_dict(), **entries)
     return Design(result.balanced_scene, report, method, result,
                   _table_figures(result.table, text))
 

@@ -123,9 +123,13 @@ class ClearanceReport:
                        if self.least_pair else ''),
                     'bounds active at the best attempt: '
                     + (', '.join(self.binding) or 'none (a local optimum)'), head]
+        spheres = self.side == 'spheres'   # a spatial design (balancing.sphere_clearance)
+        kept = ' (the convex optimum kept)' if spheres else \
+            ' (layers only; the convex optimum kept)'
         out = [f'collision-free: least clearance {clear} >= margin {self.margin_m * 1e3:.3g} '
-               'mm over the cycle' + (' (discs moved in the plane)' if self.moved_in_plane
-                                      else ' (layers only; the convex optimum kept)'), head]
+               'mm over the cycle' + ((' (spheres moved)' if spheres else
+                                       ' (discs moved in the plane)')
+                                      if self.moved_in_plane else kept), head]
         for e in self.layers:
             out.append(f"  {e['link']} disc: {e['side']} the linkage, mid-plane z "
                        f"{e['z_m'] * 1e3:.4g} mm (plane_m {e['plane_m'] * 1e3:+.4g} mm), on "
@@ -445,31 +449,3 @@ def y_of(prob, designs):
         y[4 * i:4 * i + 4] = (dm / ms, dm * c.real / (ms * ls), dm * c.imag / (ms * ls),
                               d_i / (ms * ls * ls))
     return y / prob.dsc
-
-
-def spatial_report(rig, spheres, samples, margin_m, cert):
-    """
-    Return ``{'clearance', 'clearance_design'}`` of a spatial rig's sphere counterweights.
-
-    The spheres of the certified optimum are checked against every body over the cycle
-    (:func:`mech_balance.analysis.spatial_clearance.check`); there is no search for spatial
-    rigs (moving a sphere changes its body's inertia), so the design is clear or none: with
-    a margin (not None) and a least clearance below it, :class:`NoClearDesign` names the
-    pair, the least clearance and the bound.
-    """
-    from mech_balance.analysis import spatial_clearance
-    margin = check_margin(margin_m)
-    clear = spatial_clearance.check(rig, spheres, samples, margin or 0.0)
-    least = clear.least_clearance_m
-    status = 'off' if margin is None else 'collision-free' if least >= margin else 'none'
-    report = ClearanceReport(status, margin or 0.0, 'spheres', cert.primal, cert.primal,
-                             cert.lower_bound, least,
-                             () if clear.least is None else (clear.least.body_a,
-                                                             clear.least.body_b))
-    if status == 'none':
-        report.binding = ['the certified optimum (no placement search for spatial spheres: '
-                          "moving a sphere changes its body's inertia)"]
-        raise NoClearDesign('; '.join(report.lines()) + f' ({len(clear.collisions)} '
-                            'colliding pairs, clearance_margin_m None gives the optimum as is)')
-    return {'clearance': clear.to_dict(), 'warnings': clear.warnings(),
-            'clearance_design': report.to_dict()}

@@ -245,7 +245,10 @@ def _spatial(sc, args):
     try:
         design = balancing.balance(rig, method, **options.from_args(args, method, keys))
     except NoClearDesign as exc:   # the spheres collide: say why, give no design
-        print(str(exc).replace('; ', '\n'))
+        if args.json:   # every outcome JSON (balancing.sphere_clearance.NoSphereDesign)
+            print(jsonout.dumps(no_design_dict(rig.scene, exc.result)))
+        else:
+            print(str(exc).replace('; ', '\n'))
         print('error: no collision-free counterweight design (see above); none given '
               '(--no-clearance gives the certified optimum as is)', file=sys.stderr)
         return EXIT_NO_CLEAR_DESIGN

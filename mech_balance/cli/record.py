@@ -12,7 +12,7 @@ import shutil
 import sys
 
 from mech_balance import conventions
-from mech_balance.balancing import defaults
+from mech_balance.balancing import defaults, options
 from mech_balance.balancing.defaults import DEFAULT_CASE
 from mech_balance.cli import balance as cli_balance
 
@@ -71,6 +71,9 @@ def register(subparsers):
     p.add_argument('--samples', type=_samples, default=None,
                    help="samples per crank turn, any count >= 4 (default: the scene's, "
                         'usually 360)')
+    # the clearance of a counterweight design (--counterweights, --design): its collisions
+    # are marked where the clearance is below the margin (mech_balance.viz.collisions)
+    options.add_arguments(p, ('clearance_margin_m', 'clearance'))
     p.add_argument('--out', required=True, metavar='FILE.rrd',
                    help='the recording to write (its directory is created if needed)')
     p.set_defaults(func=cmd_record)
@@ -108,6 +111,7 @@ def cmd_record(args):
     from mech_balance import schema as scene
     from mech_balance.viz import recording
     given = {'--weights': args.weights is not None, '--case': args.case is not None}
+    margin = _margin(args)
     for option, was_given in given.items():
         allowed = args.balance or (option == '--weights' and args.counterweights is not None)
         if was_given and not allowed:
@@ -122,17 +126,18 @@ def cmd_record(args):
         source = f'scene file {balanced.source}'
         if any(getattr(lk, 'counterweights', ()) for lk in balanced.links):
             from mech_balance.analysis import clearance
-            source += clearance_note(clearance.of_design(sc, balanced, args.samples))
+            source += clearance_note(clearance.of_design(sc, balanced, args.samples,
+                                                         margin))
     elif args.counterweights is not None:
         from mech_balance import balancing as front
-        from mech_balance.balancing import options
         from mech_balance.balancing.clearance_design import NoClearDesign
         weights = defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights)
         # the design `mech-balance balance --counterweights LINKS --weights W1 W2` prints:
         # the same options by the same table (balancing.options), the clearance on
         try:
             design = front.balance(sc, 'counterweights', **options.from_args(
-                args, 'counterweights', ('links', 'weights')))
+                args, 'counterweights', ('links', 'weights', 'clearance_margin_m',
+                                         'clearance')))
         except NoClearDesign as exc:
             why = exc.result.clearance_design.lines() if exc.result is not None else \
                 str(exc).split('; ')
@@ -142,6 +147,7 @@ def cmd_record(args):
             return cli_balance.EXIT_NO_CLEAR_DESIGN
         balanced = design.scene
         clear = getattr(design.result, 'clearance', None)   # planar: over the cycle
+        margin = margin if clear is None else clear.margin_m
         source = (f'add-only counterweights on {args.counterweights}, (w1, w2) = '
                   f'({weights[0]:g}, {weights[1]:g}) (mech_balance.balancing.counterweights)'
                   + ('' if clear is None else clearance_note(clear)))
@@ -151,7 +157,8 @@ def cmd_record(args):
             sc, defaults.DEFAULT_WEIGHTS if args.weights is None else tuple(args.weights),
             DEFAULT_CASE if args.case is None else args.case)
     summary = recording.record(out, sc, balanced, cycles=args.cycles, samples=args.samples,
-                               balanced_source=source, field='--out')
+                               balanced_source=source, field='--out',
+                               clearance_margin_m=margin)
     path = summary.path.resolve()
     print(f'wrote {path}')
     print(f'  {sc.name}: {" vs ".join(summary.variants)}; {summary.samples_per_cycle} '
@@ -164,6 +171,21 @@ def cmd_record(args):
           'loop)')
     sys.stdout.flush()
     return 0
+
+
+def _margin(args):
+    """Return the clearance margin of a design (m; 0 with --no-clearance), checked."""
+    if args.no_clearance:
+        if args.clearance_margin != options.BY_KEY['clearance_margin_m'].default:
+            raise ValueError('--clearance-margin: no clearance is asked for with '
+                             '--no-clearance; expected one of them')
+        return 0.0
+    if args.counterweights is None and args.design is None and \
+            args.clearance_margin != options.BY_KEY['clearance_margin_m'].default:
+        raise ValueError('--clearance-margin applies with --counterweights or --design only, '
+                         'expected one of them or no --clearance-margin')
+    options.check_args(args, ('clearance_margin_m',))
+    return float(args.clearance_margin)
 
 
 def clearance_note(clear):

@@ -25,6 +25,8 @@ Entities (the stream switch of the scene's ``recording: {streams: ...}`` in brac
 * ``/{variant}/shaking_force`` [shaking_force_arrow] and ``/{variant}/shaking_moment``
   [shaking_moment_arc]: a gauge beside the rig (2-D: an arrow inside a dial whose arc is
   the moment; 3-D: two arrows);
+* ``/balanced/collisions``, ``/balanced/collision_bodies``: where and when a counterweight
+  design's bodies collide (:mod:`.collisions`);
 * ``/plots/{quantity}/{variant}`` [``{quantity}_plot``]: |shaking force| (N), shaking
   moment (N*m, 3-D: its norm) and every series of ``RigData.series`` (driving torque,
   kinetic energy, ...: :data:`mech_balance.schema.scene.SERIES`).
@@ -57,6 +59,7 @@ import time
 
 from mech_balance import atomic, conventions
 from mech_balance.core.rig import rig_for
+from mech_balance.viz import collisions
 from mech_balance.viz.blueprint import blueprint
 from mech_balance.viz.drawing import (
     align_design, check_samples, plan, tile, turn_angles, turn_ticks, VARIANTS
@@ -102,7 +105,7 @@ class RecordingSummary:
 
 
 def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=None, *,
-           field='path'):
+           field='path', clearance_margin_m=0.0):
     """
     Write an offline recording of ``scene`` (and ``balanced``) to ``path`` (``.rrd``).
 
@@ -110,8 +113,9 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
     original alone); ``samples`` per crank turn (any count >= 4, default the scene's) over
     ``cycles`` turns from crank angle 0.  One turn is computed and repeated, since the rig's
     motion is periodic in the crank angle.  ``path`` is checked first by
-    :func:`check_output_path` (its errors name ``field``).  Returns a
-    :class:`RecordingSummary`.
+    :func:`check_output_path` (its errors name ``field``).  A counterweight design's bodies
+    closer than ``clearance_margin_m`` are marked where and when (:mod:`.collisions`).
+    Returns a :class:`RecordingSummary`.
     """
     t0 = time.perf_counter()
     path = check_output_path(path, field)
@@ -134,6 +138,8 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
     try:
         start_stream(rec, scene, layout)
         log_motion(rec, layout, motion, degrees, seconds, labels)
+        marked = collisions.log_collisions(rec, scene, balanced, samples, cycles, degrees,
+                                           seconds, clearance_margin_m)
         data = stream.read(flush=True) or b''
     finally:
         rec.disconnect()
@@ -141,7 +147,7 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
     return RecordingSummary(
         path=Path(path), size_bytes=os.path.getsize(path), samples_per_cycle=int(samples),
         cycles=int(cycles), rows=int(samples) * int(cycles),
-        entity_paths=tuple(entity_paths(layout)), variants=layout.variants,
+        entity_paths=tuple(sorted(set(entity_paths(layout)) | marked)), variants=layout.variants,
         seconds=time.perf_counter() - t0, layout=layout)
 
 

@@ -1,0 +1,97 @@
+"""
+The collisions of a counterweight design, drawn where and when they happen.
+
+At every recorded crank angle where two bodies of the balanced design come closer than the
+margin (a counterweight's disc, shaft or web against another body:
+:func:`mech_balance.analysis.clearance.contacts_at`, the check ``balance`` prints), the
+balanced view shows
+
+* ``/balanced/collisions``: a red point at the contact, midway between the two witness
+  points (the nearest points of the two bodies), labelled with the pair and the overlap
+  (hover: the labels are not shown, so that the view's own labels stay readable);
+* ``/balanced/collision_bodies``: the outlines of the two offending bodies in red and the
+  segment between the witness points (its length is the overlap, or the clearance).
+
+At every other angle both are empty; a collision-free design logs neither entity.  Only a
+planar design with counterweights has this clearance model; for any other design nothing is
+drawn.  The hook is :func:`log_collisions`, called by :func:`mech_balance.viz.recording.record`.
+"""
+
+from mech_balance.analysis import clearance
+from mech_balance.core.planar.rig import PlanarRig
+from mech_balance.core.rig import rig_for
+from mech_balance.viz.drawing import turn_angles
+from mech_balance.viz.streams import time_index
+import numpy as np
+import rerun as rr
+
+COLLISION_COLOR = (255, 40, 40)
+"""The colour of a collision's point, its bodies' outlines and its witness segment."""
+COLLISION_POINT_UI = rr.components.Radius.ui_points(7.0)
+"""The radius of a collision's point on screen."""
+COLLISION_LINE_UI = rr.components.Radius.ui_points(2.5)
+"""The width of the outlines and of the witness segment on screen."""
+OUTLINE_POINTS = 32
+"""Points on the outline of a highlighted body."""
+VARIANT = 'balanced'
+"""The view a design's collisions are drawn in."""
+POINTS_PATH = f'/{VARIANT}/collisions'
+BODIES_PATH = f'/{VARIANT}/collision_bodies'
+
+
+def marks(scene, balanced, samples, margin_m=0.0):
+    """
+    Return the collision marks of one recorded turn, or None (nothing to check).
+
+    ``(points (n, 2), labels, counts (samples,), strips [(m, 2)], strip_counts (samples,))``:
+    per sample its contacts' points and the outlines and witness segments of their bodies.
+    """
+    if balanced is None or not any(getattr(lk, 'counterweights', ()) for lk in
+                                   getattr(balanced, 'links', ())):
+        return None
+    rig = rig_for(scene)
+    if not isinstance(rig, PlanarRig):
+        return None
+    psi = turn_angles(samples, scene.crank_speed_rad_s)
+    per_sample, sweep = clearance.contacts_at(rig.with_scene(balanced), psi, margin_m)
+    points, labels, counts, strips, strip_counts = [], [], [], [], []
+    for k, contacts in enumerate(per_sample):
+        counts.append(len(contacts))
+        before = len(strips)
+        for contact, body_a, body_b in contacts:
+            pa, pb = np.asarray(contact.point_a_m), np.asarray(contact.point_b_m)
+            points.append(0.5 * (pa[:2] + pb[:2]))
+            what = 'overlap' if contact.clearance_m < 0.0 else 'clearance'
+            labels.append(f'{contact.body_a} / {contact.body_b}: {what} '
+                          f'{abs(contact.clearance_m) * 1e3:.3g} mm')
+            for body in (body_a, body_b):
+                ring = sweep.outline(body, k, OUTLINE_POINTS)
+                strips.append(np.vstack([ring, ring[:1]]))
+            strips.append(np.array([pa[:2], pb[:2]]))
+        strip_counts.append(len(strips) - before)
+    if not points:
+        return None
+    return (np.array(points), labels, np.array(counts), strips, np.array(strip_counts))
+
+
+def log_collisions(rec, scene, balanced, samples, cycles, degrees, seconds, margin_m=0.0):
+    """
+    Log the collision marks of a recording; return the entity paths logged (a set).
+
+    ``degrees``, ``seconds``: the recording's ticks (``samples`` x ``cycles``).
+    """
+    found = marks(scene, balanced, int(samples), margin_m)
+    if found is None:
+        return set()
+    points, labels, counts, strips, strip_counts = found
+    rec.log(POINTS_PATH, rr.Points2D.from_fields(
+        colors=[COLLISION_COLOR], radii=[COLLISION_POINT_UI], show_labels=False), static=True)
+    rec.log(BODIES_PATH, rr.LineStrips2D.from_fields(
+        colors=[COLLISION_COLOR], radii=[COLLISION_LINE_UI]), static=True)
+    index = time_index(degrees, seconds)
+    rec.send_columns(POINTS_PATH, index, rr.Points2D.columns(
+        positions=np.concatenate([points] * int(cycles)),
+        labels=labels * int(cycles)).partition(np.tile(counts, int(cycles))))
+    rec.send_columns(BODIES_PATH, index, rr.LineStrips2D.columns(
+        strips=strips * int(cycles)).partition(np.tile(strip_counts, int(cycles))))
+    return {POINTS_PATH, BODIES_PATH}

@@ -1,0 +1,187 @@
+"""
+Collision-free sphere counterweights of spatial rigs (issue 29, item 3).
+
+Every spatial built-in that takes sphere counterweights: the default design is clear of every
+other body by the margin over 3600 crank angles by an independent check (the rig's solids
+rebuilt here from its drawing and the drawn sizes, each tube sampled as points, the spheres
+posed by the rig's own body poses), its objective is the core's and lies above the convex
+program's certified lower bound (the price of clearance), and it keeps the convex program's
+bounds.  Where none is clear, ``balance --json`` answers in JSON and exits 3.
+"""
+
+import json
+import math
+
+from mech_balance import balancing, schema as scene
+from mech_balance.balancing import clearance_design, spatial
+from mech_balance.cli import main as cli
+from mech_balance.conventions import rms
+from mech_balance.core.planar import drawn
+from mech_balance.core.rig import rig_for
+import numpy as np
+import pytest
+
+ANGLES = 3600
+"""Crank angles of the independent check."""
+TUBE_POINTS = 401
+"""Points along each tube of the independent check."""
+MARGIN = clearance_design.DEFAULT_CLEARANCE_MARGIN_M
+CASES = (('rssr_skew', 'crank,rocker'), ('rssp_slider', 'crank'), ('pssr_skew', 'rocker'),
+         ('spatial_two_loop', 'crank,rocker'), ('rggr_spatial', 'crank,output'))
+"""The spatial built-ins with the bodies their sphere counterweights go on."""
+WEIGHTS = ((0.5, 0.5), (0.0, 1.0))
+"""Weights of every case; (1, 0) on the fast ones (:data:`FORCE_CASES`)."""
+FORCE_CASES = ('rssp_slider', 'pssr_skew', 'rssr_skew')
+
+
+def _solids(rig):
+    """Return ``(body, a, b, radius)`` of the rig as built: tubes, joint balls, bearings."""
+    crank = next(j for j in rig.scene.joints if j.name == rig.crank_joint)
+
+    def span(points):
+        pts = [np.asarray(p, float) for p in points.values()]
+        return max(float(np.linalg.norm(p - q)) for p in pts for q in pts)
+
+    ends = (crank.link_a, crank.link_b)
+    spans = [span(b.points) for b in rig.drawing.bodies if b.name in ends]
+    scale = max(spans) if spans and max(spans) > 0.0 else \
+        max(span(b.points) for b in rig.drawing.bodies)
+    tube, ball = 0.5 * drawn.BAR_WIDTH * scale, drawn.PIN_RADIUS * scale
+    out = [('frame', np.asarray(p, float), np.asarray(p, float), ball)
+           for p in rig.drawing.frame.values()]
+    for body in rig.drawing.bodies:
+        pts = {k: np.asarray(v, float) for k, v in body.points.items()}
+        chain = list(body.outline)
+        out += [(body.name, pts[a], pts[b], tube) for a, b in zip(chain, chain[1:])]
+        out += [(body.name, p, p, ball) for p in pts.values()]
+    return out
+
+
+def least_clearance(rig, spheres, angles=ANGLES):
+    """Return the least clearance of the spheres to every other body over ``angles``."""
+    psi = np.linspace(0.0, 2.0 * np.pi, angles, endpoint=False)
+    poses = rig.at(psi).bodies
+    k_of = {n: i for i, n in enumerate(poses.names)}
+
+    def world(body, local):
+        k = k_of[body]
+        local = np.asarray(local, float)
+        origin = poses.origin_m[:, k].reshape((-1,) + (1,) * (local.ndim - 1) + (3,))
+        return origin + np.einsum('nij,...j->n...i', poses.rotation[:, k], local)
+
+    t = np.linspace(0.0, 1.0, TUBE_POINTS)
+    balls = [(body, world(body, s['centre_m']), s['outer_radius_m'])
+             for body, cluster in spheres.items() for s in cluster]
+    best = math.inf
+    for i, (body, c, r) in enumerate(balls):
+        for other, a, b, r2 in _solids(rig):
+            if other == body:
+                continue
+            pts = world(other, a[None] + t[:, None] * (b - a)[None])      # (n, T, 3)
+            d = np.linalg.norm(pts - c[:, None], axis=-1).min()
+            # the axis's nearest point lies within half a step h of a sample, along the axis:
+            # d_sampled^2 <= d^2 + h^2 (the nearest point is an end, sampled, or the foot of
+            # the perpendicular)
+            h = 0.5 * np.linalg.norm(b - a) / (t.size - 1)
+            best = min(best, math.sqrt(max(d * d - h * h, 0.0)) - r - r2)
+        for body2, c2, r2 in balls[i + 1:]:
+            if body2 != body:
+                best = min(best, np.linalg.norm(c - c2, axis=-1).min() - r - r2)
+    return best
+
+
+def _runs():
+    for name, links in CASES:
+        for w in WEIGHTS + (((1.0, 0.0),) if name in FORCE_CASES else ()):
+            yield name, links, w
+
+
+@pytest.fixture(scope='module', params=list(_runs()), ids=lambda p: f'{p[0]}-{p[2]}')
+def run(request):
+    name, links, w = request.param
+    rig = rig_for(scene.load(name))
+    return rig, links, w, balancing.balance(rig, 'counterweights', links=links, weights=w)
+
+
+def test_default_design_is_clear_over_3600_angles(run):
+    rig, _, _, design = run
+    report = design.report['clearance_design']
+    assert report['status'] == 'collision-free'
+    assert report['least_clearance_m'] >= MARGIN
+    spheres = design.report['options']['counterweights']
+    # the independent check: conservative along the tubes, sampled at 3600 angles
+    assert least_clearance(rig, spheres) >= MARGIN, report
+
+
+def test_price_of_clearance_beside_the_certified_bound(run):
+    rig, _, w, design = run
+    report = design.report['clearance_design']
+    cert = design.result.certificate
+    assert report['lower_bound'] == cert.lower_bound
+    assert report['lower_bound'] <= report['objective']
+    assert report['price_of_clearance'] == pytest.approx(report['objective']
+                                                         - report['lower_bound'])
+    # the design's objective is the core's value of the design written
+    psi = np.linspace(0.0, 2.0 * np.pi, design.result.samples, endpoint=False) + \
+        getattr(rig.scene, 'assembly_crank_angle_rad', 0.0)
+    data = rig.with_scene(design.scene).at(psi)
+    units = design.result.units
+    z = w[0] * rms(data.force_N) / units.force_N + w[1] * rms(data.moment_Nm) / units.moment_Nm
+    assert report['objective'] == pytest.approx(z, rel=1e-6, abs=1e-9)
+    assert design.report['objective']['z'] == pytest.approx(z, rel=1e-6, abs=1e-9)
+
+
+def test_design_keeps_the_convex_programs_bounds(run):
+    rig, _, _, design = run
+    options = design.report['options']
+    model = spatial.parameter_model(rig)
+    for body, cluster in options['counterweights'].items():
+        k = [b.name for b in model.bodies].index(body)
+        dm = sum(s['mass_kg'] for s in cluster)
+        assert dm <= options['max_mass_factor'] * model.theta[10 * k] * (1 + 1e-6)
+        # the added mass's RMS distance from the body origin
+        trace = sum(s['mass_kg'] * np.dot(s['centre_m'], s['centre_m'])
+                    + 3.0 * s['spread_kg_m2'] for s in cluster)
+        reach = options['max_radius_factor'] * model.bodies[k].reach_m
+        assert trace <= dm * reach ** 2 * (1 + 1e-6)
+        for s in cluster:   # each a hollow sphere of its density
+            shell = 4.0 / 3.0 * math.pi * (s['outer_radius_m'] ** 3 - s['inner_radius_m'] ** 3)
+            assert s['mass_kg'] == pytest.approx(shell * options['density_kg_m3'], rel=1e-9)
+
+
+def test_clearance_off_is_the_convex_optimum():
+    rig = rig_for(scene.load('rssp_slider'))
+    off = balancing.balance(rig, 'counterweights', links='crank', clearance_margin_m=None)
+    report = off.report['clearance_design']
+    assert report['status'] == 'off'
+    assert off.report['objective']['z'] == off.result.certificate.primal
+    assert report['least_clearance_m'] < MARGIN   # the optimum collides: the search moves it
+    on = balancing.balance(rig, 'counterweights', links='crank')
+    assert on.report['clearance_design']['moved_in_plane']
+    assert on.report['objective']['z_convex'] == off.report['objective']['z']
+
+
+def test_no_clear_design_answers_json_and_exits_3(capsys):
+    argv = ['balance', '--scene', 'rssp_slider', '--method', 'counterweights',
+            '--counterweights', 'crank', '--clearance-margin', '0.5']
+    assert cli.main(argv + ['--json']) == 3
+    out, err = capsys.readouterr()
+    doc = json.loads(out)
+    assert doc['success'] is False and doc['method'] == 'counterweights'
+    report = doc['report']['clearance_design']
+    assert report['status'] == 'none' and report['margin_m'] == 0.5
+    assert report['least_clearance_m'] < 0.5 and report['binding_bounds']
+    assert report['best_attempt'] and report['lower_bound'] == doc['report']['certificate'][
+        'lower_bound']   # the best attempt need not keep the bounds: no claim on its z
+    assert 'none given' in err
+    assert cli.main(argv) == 3
+    out, _ = capsys.readouterr()
+    assert 'NO collision-free design within the bounds' in out
+
+
+def test_witness_points_of_a_sphere_contact():
+    rig = rig_for(scene.load('rssp_slider'))
+    off = balancing.balance(rig, 'counterweights', links='crank', clearance_margin_m=None)
+    least = off.report['clearance']['least']
+    pa, pb = np.array(least['point_a_m']), np.array(least['point_b_m'])
+    assert np.linalg.norm(pa - pb) == pytest.approx(abs(least['clearance_m']), rel=1e-9)
