@@ -246,7 +246,7 @@ def _spatial(sc, args):
         design = balancing.balance(rig, method, **options.from_args(args, method, keys))
     except NoClearDesign as exc:   # the spheres collide: say why, give no design
         if args.json:   # every outcome JSON (balancing.sphere_clearance.NoSphereDesign)
-            print(jsonout.dumps(no_design_dict(rig.scene, exc.result)))
+            print(jsonout.dumps(text.no_design_dict(rig.scene, exc.result)))
         else:
             print(str(exc).replace('; ', '\n'))
         print('error: no collision-free counterweight design (see above); none given '
