@@ -14,9 +14,9 @@ from mech_balance.core.rig import rig_for
 from mech_balance.schema import registry
 from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS, SERIES, \
     series_stream
-from mech_balance.viz.layout import (
-    arc_scale, arrow_scale, label_specs, Layout, nice_floor, place_views, plot_specs
-)
+from mech_balance.viz.labels import label_specs
+from mech_balance.viz.layout import arc_scale, arrow_scale, Layout, nice_floor, place_views
+from mech_balance.viz.plots import plot_specs
 from mech_balance.viz.style import (
     ARROW_3D_SHARE, AXIS_MARGIN_SHARE, BLOCK_SHARE, FORCE_ARROW_SHARE, LINK_PALETTE,
     SAME_POINT_RTOL, SCALE_BAR_SHARE

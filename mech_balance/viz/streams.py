@@ -6,7 +6,8 @@ import re
 from mech_balance import paths
 from mech_balance.viz.blueprint import blueprint
 from mech_balance.viz.drawing import DEGREE_TIMELINE
-from mech_balance.viz.layout import place_labels, plot_values
+from mech_balance.viz.labels import place_labels
+from mech_balance.viz.plots import plot_values
 from mech_balance.viz.style import (
     ADDED_ALPHA, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
     DIAL_COLOR, DIAL_POINTS, FORCE_COLOR, FRAME_COLOR, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI,
