@@ -8,11 +8,12 @@ every drawn point and line, and that names its own feature.
 """
 
 from dataclasses import dataclass
+import functools
 import math
 
-from mech_balance.viz.hits import distance_to_segments, first_passing, segments_hit_boxes
+from mech_balance.viz.hits import first_passing, segment_distances, segments_hit_boxes
 from mech_balance.viz.style import (
-    FRAME_COLOR, JOINT_COLOR, MOMENT_COLOR, READOUT_COLOR, SAME_POINT_RTOL, SCALE_COLOR,
+    FRAME_COLOR, GAUGE_LABEL_DROP, JOINT_COLOR, MOMENT_COLOR, READOUT_COLOR, SAME_POINT_RTOL, SCALE_COLOR,
     SYSTEM_CENTRE_COLOR
 )
 import numpy as np
@@ -43,6 +44,7 @@ MARKER_PX = 6.0
 """Radius kept free around a drawn point (pivot, joint, mass centre) by the labels."""
 
 
+@functools.lru_cache(maxsize=4096)
 def label_size_px(text):
     """Return the (width, height) in pixels of the box of a label with ``text``."""
     w = sum(LABEL_CHAR_PX['upper'] if c.isupper() else LABEL_CHAR_PX['digit'] if c.isdigit()
@@ -196,8 +198,8 @@ def label_anchor(layout, motion, spec, variant, screen):
             return None
         return [strip[:, 0] + t * (strip[:, 1] - strip[:, 0]) for t in LINK_LABEL_ALONG]
     if spec.where == 'gauge':
-        below = np.array([0.0, layout.gauge_reach_m, 0.0] if layout.dim == 2 else
-                         [0.0, 0.0, 1.15 * layout.gauge_reach_m])     # 3-D: under the arrows
+        below = np.array([0.0, layout.gauge_reach_m, 0.0] if layout.dim == 2 else   # 3-D:
+                         [0.0, 0.0, GAUGE_LABEL_DROP * layout.gauge_reach_m])   # under arrows
         return np.broadcast_to(layout.gauge_m - below, (p, 3))
     if spec.where == 'scale':
         return np.broadcast_to(layout.scale_bar[2], (p, 3))
@@ -328,15 +330,19 @@ def place_labels(layout, motion, variant):
         base = unproject(screen, centre_px - [0.0, LABEL_DROP_PX + 0.5 * h], layout, motion,
                          chosen)
         out.append((base, found, texts or [spec.text] * p, spec.color))
-    positions, labels, colors, counts = [], [], [], np.zeros(p, dtype=np.int64)
-    for k in range(p):
-        for base, mask, texts, color in out:
-            if mask[k]:
-                positions.append(base[k])
-                labels.append(texts[k])
-                colors.append(color)
-                counts[k] += 1
-    return (np.array(positions).reshape(-1, 3), labels, colors, counts)
+    if not out:
+        return np.zeros((0, 3)), [], [], np.zeros(p, dtype=np.int64)
+    # sample by sample, each sample's labels in the order of importance
+    mask = np.stack([m for _, m, _, _ in out], axis=1)                  # (p, s)
+    bases = np.stack([b for b, _, _, _ in out], axis=1)                 # (p, s, 3)
+    texts = np.empty((p, len(out)), dtype=object)
+    for j, (_, _, t, _) in enumerate(out):
+        texts[:, j] = t
+    colors = np.empty((p, len(out)), dtype=object)
+    for j, (_, _, _, c) in enumerate(out):
+        colors[:, j] = [c] * p
+    return (bases[mask].reshape(-1, 3), texts[mask].tolist(), colors[mask].tolist(),
+            mask.sum(axis=1).astype(np.int64))
 
 
 def _nearest_own(spec, feature_px, centres, markers, links_px):
@@ -349,13 +355,13 @@ def _nearest_own(spec, feature_px, centres, markers, links_px):
     """
     if spec.where == 'link':
         own = links_px[spec.index]
-        if own.shape[1] == 0:
+        others = [s for i, s in enumerate(links_px) if i != spec.index and s.shape[1]]
+        if own.shape[1] == 0 or not others:
             return np.ones(centres.shape[:2], dtype=bool)
-        mine = distance_to_segments(centres, own)
-        others = [distance_to_segments(centres, s) for i, s in enumerate(links_px)
-                  if i != spec.index and s.shape[1]]
-        return mine + NEAR_MARGIN_PX < np.min(others, axis=0) if others else \
-            np.ones(centres.shape[:2], dtype=bool)
+        # one distance computation over every link's segments, then the least per link
+        d = segment_distances(centres, np.concatenate([own] + others, axis=1))   # (p, c, m)
+        mine = d[..., :own.shape[1]].min(axis=-1)
+        return mine + NEAR_MARGIN_PX < d[..., own.shape[1]:].min(axis=-1)
     if spec.where not in ('frame', 'joint', 'centre', 'change') or markers.shape[1] == 0:
         return np.ones(centres.shape[:2], dtype=bool)
     mine = np.linalg.norm(centres - feature_px[:, None], axis=-1)              # (p, c)

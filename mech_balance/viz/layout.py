@@ -8,11 +8,14 @@ the drawing.  The labels are placed by :mod:`.labels`, the plots' ranges chosen 
 """
 
 from dataclasses import dataclass
+import functools
+import itertools
 import math
 
 from mech_balance.viz.labels import LABEL_PAD_PX, LABEL_TEXT_PX
 from mech_balance.viz.style import (
     CENTRE_RADIUS_SHARE, DIAL_OVER_ARROW, DIAL_SHARE, FORCE_ARROW_SHARE, GAUGE_GAP_SHARE,
+    GAUGE_LABEL_DROP,
     MOMENT_ARC_MAX_DEG, MOMENT_HEAD_SHARE, POINT_MASS_RADIUS_SHARE, SCALE_BAR_SHARE
 )
 import numpy as np
@@ -40,10 +43,12 @@ FOV_Y_RAD = math.radians(55.0)
 """Vertical field of view of the viewer's 3-D eye (rerun's default)."""
 EYE_DIRECTION = (1.0, -1.7, 0.9)
 """Direction from the look target towards the 3-D eye (frame axes, z up): front right above."""
-GRID_MARGIN_LINES = 1
-"""The 3-D grid reaches this many spacings beyond everything drawn."""
-EYE_FIT = 1.05
+GRID_MARGIN_LINES = 0
+"""The 3-D grid reaches this many spacings beyond the rig (besides rounding out to a line)."""
+EYE_FIT = 1.03
 """The 3-D eye stands this much further than the distance that just fits the drawing."""
+EYE_CENTRING = 3
+"""Times the look target is moved to centre the picture before the last fit."""
 
 
 @dataclass(frozen=True)
@@ -68,7 +73,9 @@ class Screen:
         (x0, x1), _ = self.bounds
         return (x1 - x0) / self.size_px[0]
 
-    def _axes(self):
+    @functools.cached_property
+    def axes(self):
+        """Return the 3-D eye's ``(eye, forward, right, up)`` unit vectors (frame axes)."""
         eye, target = np.asarray(self.eye_m), np.asarray(self.target_m)
         fwd = target - eye
         fwd = fwd / np.linalg.norm(fwd)
@@ -84,7 +91,7 @@ class Screen:
             (x0, _), (_, y1) = self.bounds
             s = self.metres_per_px
             return np.stack([(p[..., 0] - x0) / s, (y1 - p[..., 1]) / s], axis=-1)
-        eye, fwd, right, up = self._axes()
+        eye, fwd, right, up = self.axes
         v = p - eye
         depth = np.maximum(v @ fwd, 1e-12)
         f = 0.5 * h / math.tan(0.5 * FOV_Y_RAD)
@@ -97,7 +104,7 @@ class Screen:
         if self.bounds is not None:
             s = self.metres_per_px
             return np.stack([d[..., 0] * s, -d[..., 1] * s, np.zeros(d.shape[:-1])], axis=-1)
-        eye, fwd, right, up = self._axes()
+        eye, fwd, right, up = self.axes
         depth = (np.asarray(points, dtype=float) - eye) @ fwd
         s = depth * 2.0 * math.tan(0.5 * FOV_Y_RAD) / self.size_px[1]
         return (d[..., 0:1] * right - d[..., 1:2] * up) * s[..., None]
@@ -262,34 +269,19 @@ def place_views(layout, motion, fmax, nmax, n_series):
     else:
         reach = max(arrow, nmax * layout.moment_scale if layout.on('shaking_moment_arc')
                     else 0.0)
-        d = np.asarray(EYE_DIRECTION, dtype=float)
-        d = d / np.linalg.norm(d)
-        right = np.cross(-d, (0.0, 0.0, 1.0))
-        right = right / np.linalg.norm(right)
-        centre = 0.5 * (lo + hi)
-        if gauge and reach > 0.0:
-            half = 0.5 * np.abs(hi - lo) @ np.abs(right)
-            layout.gauge_m = centre + right * (half + gap + reach)
-            layout.gauge_reach_m = reach
-            lo = np.minimum(lo, layout.gauge_m - reach)
-            hi = np.maximum(hi, layout.gauge_m + reach)
+        # the grid under the rig alone (the gauge stands beside it, off the grid)
         layout.grid_box = grid_box(lo, hi, layout.grid_m)
-        target = 0.5 * (lo + hi)
-        drawn = pts[::max(1, len(pts) // 4000)]
-        if layout.gauge_reach_m:
-            drawn = np.concatenate([drawn, layout.gauge_m + layout.gauge_reach_m * np.array(
-                [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])])
-        screen = fit_eye(view_px, target, d, drawn)
+        screen = _frame_3d(layout, motion, pts, lo, hi, reach if gauge else 0.0, gap, view_px)
     layout.screens = {v: screen for v in layout.variants}
 
 
 def grid_box(lo, hi, spacing):
     """
-    Return the 3-D grid's ``(x0, x1, y0, y1)``: what is drawn, one line beyond, on the lines.
+    Return the 3-D grid's ``(x0, x1, y0, y1)``: the rig's extent rounded out to the lines.
 
-    The grid lies on z = 0 under (or through) the rig and covers its extent over the turn and
-    the gauge plus :data:`GRID_MARGIN_LINES` spacings, so that it frames the rig instead of
-    filling the view to the horizon.
+    The grid lies on z = 0 under (or through) the rig and covers its extent over the turn,
+    rounded out to the grid's lines, plus :data:`GRID_MARGIN_LINES` spacings, so that it
+    frames the rig instead of filling the view to the horizon.
     """
     if not spacing > 0.0:
         return None
@@ -332,11 +324,16 @@ def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
     xs = np.linspace(lo[0] + reach, hi[0] - reach, GAUGE_GRID)
     ys = np.linspace(lo[1] + reach, hi[1] - reach, GAUGE_GRID)
     if hi[0] - lo[0] > 2 * reach and hi[1] - lo[1] > 2 * reach:
-        for y in ys[::-1]:
-            for x in xs:
-                d = np.linalg.norm(cloud - [x, y], axis=1) - pad
-                if d.min() >= reach + gap:
-                    places.append((x, y))
+        from scipy.spatial import cKDTree
+        grid = np.array([(x, y) for y in ys[::-1] for x in xs])
+        free = np.ones(len(grid), dtype=bool)
+        padded = pad > 0.0
+        if not padded.all():          # the nearest bare point, by a tree
+            free &= cKDTree(cloud[~padded]).query(grid)[0] >= reach + gap
+        if padded.any():              # points drawn with a radius (mass centres, discs)
+            d = np.linalg.norm(grid[:, None] - cloud[padded][None], axis=-1) - pad[padded]
+            free &= d.min(axis=1) >= reach + gap
+        places += [tuple(g) for g in grid[free]]
     best, best_s = None, math.inf
     for x, y in places:
         c = np.array([x, y, 0.0])
@@ -346,17 +343,101 @@ def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
     return best
 
 
+def _gauge_tips(layout, motion):
+    """Return the 3-D gauge's drawn points relative to its centre: arrow tips, label, centre."""
+    tips = [np.zeros((1, 3))]
+    for d in motion.data.values():
+        if layout.on('shaking_force_arrow') and d.force_N is not None:
+            tips.append(d.force_N * layout.force_scale_m_per_N)
+        if layout.on('shaking_moment_arc') and d.moment_Nm is not None:
+            tips.append(d.moment_Nm * layout.moment_scale)
+    tips = np.concatenate(tips)
+    return np.concatenate([tips, [[0.0, 0.0, -GAUGE_LABEL_DROP * layout.gauge_reach_m]]])
+
+
+def _hull(points):
+    """Return the points of ``points`` ``(m, 3)`` that can be extreme on any screen."""
+    points = np.asarray(points, dtype=float)
+    if len(points) <= 8:
+        return points
+    from scipy.spatial import ConvexHull
+    try:
+        return points[ConvexHull(points, qhull_options='QJ').vertices]
+    except Exception:   # qhull refuses a degenerate cloud: keep every point
+        return points
+
+
+def _frame_3d(layout, motion, pts, lo, hi, reach, gap, view_px):
+    """
+    Return the 3-D screen: the eye fitted to the rig and its gauge, the gauge's place chosen.
+
+    The gauge goes beside the rig, to its right, left or above it as seen from
+    :data:`EYE_DIRECTION`, level with it, in front of it or behind it, where its arrows over
+    the turn keep off the rig's picture and the eye that sees both stands nearest (the rig
+    comes out largest); the eye looks at the middle of what it sees (:func:`fit_eye`).
+    """
+    d = np.asarray(EYE_DIRECTION, dtype=float)
+    d = d / np.linalg.norm(d)
+    right = np.cross(-d, (0.0, 0.0, 1.0))
+    right = right / np.linalg.norm(right)
+    back = np.cross(right, (0.0, 0.0, 1.0))
+    up = np.array([0.0, 0.0, 1.0])
+    rig = _hull(pts)
+    centre = 0.5 * (lo + hi)
+    if not reach > 0.0:
+        return fit_eye(view_px, centre, d, rig)
+    layout.gauge_reach_m = reach
+    offsets = _hull(_gauge_tips(layout, motion))
+
+    def beside(axis):
+        return 0.5 * np.abs(hi - lo) @ np.abs(axis) + gap + reach
+    best = None
+    for a, b, c in itertools.product((1, -1, 0), (0, 1), (0, 1, -1)):
+        if a == 0 and b == 0:
+            continue            # in front of the rig or behind it
+        gauge = centre + a * right * beside(right) + b * up * beside(up) + \
+            c * back * beside(back)
+        tips = gauge + offsets
+        screen = fit_eye(view_px, centre, d, np.concatenate([rig, tips]))
+        r, g = screen.px(rig), screen.px(tips)
+        clear = np.any(g.min(axis=0) > r.max(axis=0)) or np.any(g.max(axis=0) < r.min(axis=0))
+        dist = np.linalg.norm(np.subtract(screen.eye_m, screen.target_m))
+        key = (not clear, dist)
+        if best is None or key < best[0]:
+            best = (key, gauge, screen)
+    layout.gauge_m = best[1]
+    return best[2]
+
+
 def fit_eye(view_px, target, direction, corners):
-    """Return a 3-D :class:`Screen` whose eye sees every corner inside the view's margins."""
-    dist = 0.3 * float(np.max(np.linalg.norm(corners - target, axis=1))) or 1.0
-    for _ in range(80):
-        screen = Screen(view_px, eye_m=tuple(target + direction * dist),
-                        target_m=tuple(target))
+    """
+    Return a 3-D :class:`Screen` whose eye sees every corner inside the view's margins.
+
+    The eye looks along ``-direction`` from the nearest distance at which every corner is
+    inside :data:`VIEW_PAD_PX` of the edges (in closed form: a corner at ``x`` right of the
+    line of sight and ``z`` in front of the target is inside when the distance is at least
+    ``f |x| / half_width - z``, ``f`` the focal length in pixels); the look target is moved
+    so that the corners' picture is centred, :data:`EYE_CENTRING` times, and the eye stands
+    :data:`EYE_FIT` times further than that.
+    """
+    target = np.asarray(target, dtype=float)
+    corners = np.asarray(corners, dtype=float)
+    d = np.asarray(direction, dtype=float)
+    d = d / np.linalg.norm(d)
+    w, h = view_px
+    focal = 0.5 * h / math.tan(0.5 * FOV_Y_RAD)
+    half = np.array([0.5 * w - VIEW_PAD_PX, 0.5 * h - VIEW_PAD_PX])
+    probe = Screen(view_px, eye_m=tuple(target + d), target_m=tuple(target))
+    _, fwd, right, up = probe.axes
+    for step in range(EYE_CENTRING + 1):
+        v = corners - target
+        across = np.abs(np.stack([v @ right, v @ up], axis=-1))              # (m, 2)
+        dist = float(np.max(np.max(focal * across / half, axis=1) - v @ fwd))
+        dist = max(dist, float(np.max(-(v @ fwd))) + 1e-9, 1e-9)
+        screen = Screen(view_px, eye_m=tuple(target + d * dist), target_m=tuple(target))
+        if step == EYE_CENTRING:
+            break
         px = screen.px(corners)
-        pad = VIEW_PAD_PX
-        if np.all(px[:, 0] >= pad) and np.all(px[:, 0] <= view_px[0] - pad) and \
-                np.all(px[:, 1] >= pad) and np.all(px[:, 1] <= view_px[1] - pad):
-            return Screen(view_px, eye_m=tuple(target + direction * dist * EYE_FIT),
-                          target_m=tuple(target))
-        dist *= 1.05
-    return screen
+        mid = 0.5 * (px.min(axis=0) + px.max(axis=0)) - [0.5 * w, 0.5 * h]
+        target = target + screen.offset_m(target, mid)
+    return Screen(view_px, eye_m=tuple(target + d * dist * EYE_FIT), target_m=tuple(target))
