@@ -13,8 +13,8 @@ import math
 
 from mech_balance.viz.hits import first_passing, segment_distances, segments_hit_boxes
 from mech_balance.viz.style import (
-    FRAME_COLOR, GAUGE_LABEL_DROP, JOINT_COLOR, MOMENT_COLOR, READOUT_COLOR, SAME_POINT_RTOL, SCALE_COLOR,
-    SYSTEM_CENTRE_COLOR
+    FRAME_COLOR, GAUGE_LABEL_DROP, JOINT_COLOR, MOMENT_COLOR, READOUT_COLOR, SAME_POINT_RTOL,
+    SCALE_COLOR, SYSTEM_CENTRE_COLOR
 )
 import numpy as np
 

@@ -64,8 +64,8 @@ from mech_balance.viz.drawing import (
 )
 from mech_balance.viz.labels import label_box_px, label_size_px, LABEL_TEXT_PX, place_labels
 from mech_balance.viz.layout import Screen, WINDOW_PX, window_px
-from mech_balance.viz.plots import LEGEND_HEADROOM, plot_range, PLOT_TICK_PX
 from mech_balance.viz.live import LIVE_MAX_RATE_HZ, LiveRecorder
+from mech_balance.viz.plots import LEGEND_HEADROOM, plot_range, PLOT_TICK_PX
 from mech_balance.viz.readback import (
     EntityData, read_blueprint, read_blueprint_views, read_recording
 )
