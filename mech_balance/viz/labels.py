@@ -39,7 +39,8 @@ NEAR_MARGIN_PX = 2.0
 SAME_PLACE_PX = 1.0
 """Drawn points closer than this on screen are one place (a joint on a frame pivot)."""
 LINK_LABEL_ALONG = (0.3, 0.7, 0.15, 0.85)
-"""Besides its middle, a link's name may sit at these fractions of its first segment."""
+"""Besides its middle, a link's name may sit at these fractions of its first segment (at
+the first two of them on its other segments)."""
 MARKER_PX = 6.0
 """Radius kept free around a drawn point (pivot, joint, mass centre) by the labels."""
 
@@ -196,7 +197,11 @@ def label_anchor(layout, motion, spec, variant, screen):
         strip = motion.links[spec.index]
         if strip.shape[1] < 2:
             return None
-        return [strip[:, 0] + t * (strip[:, 1] - strip[:, 0]) for t in LINK_LABEL_ALONG]
+        # along its first segment, then along the others (a coupler's far arm, a plate's
+        # edges): a link crossed where its first segment lies may be free further on
+        return [strip[:, j] + t * (strip[:, j + 1] - strip[:, j])
+                for j in range(strip.shape[1] - 1)
+                for t in (LINK_LABEL_ALONG if j == 0 else LINK_LABEL_ALONG[:2])]
     if spec.where == 'gauge':
         below = np.array([0.0, layout.gauge_reach_m, 0.0] if layout.dim == 2 else   # 3-D:
                          [0.0, 0.0, GAUGE_LABEL_DROP * layout.gauge_reach_m])   # under arrows
