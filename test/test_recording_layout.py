@@ -527,8 +527,14 @@ def test_first_passing_finds_the_first_place_of_the_full_test(chunk):
         assert sum(calls) <= cheap.size
 
 
+RIG_VIEW_SHARE = 0.6
+"""A 3-D rig's picture spans at least this share of its view's width or height."""
+CRANK_PX = 40.0
+"""rssr_skew's 30 mm crank is at least this long on screen at every sample."""
+
+
 def test_a_3d_rig_is_framed_on_its_own_grid(tmp_path):
-    """Read back: the grid on z = 0 covers the rig and its gauge, no more than a line beyond."""
+    """Read back: the grid on z = 0 covers the rig, no more than a line beyond; the eye fills."""
     sc = scene_mod.load('rssr_skew')
     path = tmp_path / 'rssr.rrd'
     summary = recording.record(path, sc, samples=60)
@@ -541,17 +547,16 @@ def test_a_3d_rig_is_framed_on_its_own_grid(tmp_path):
     assert_allclose(lines[..., :2] / spacing, np.round(lines[..., :2] / spacing), atol=1e-4)
     x0, y0 = lines[..., :2].reshape(-1, 2).min(axis=0)
     x1, y1 = lines[..., :2].reshape(-1, 2).max(axis=0)
-    drawn = np.concatenate([np.concatenate(row) for row in _strip_rows(ent, '/rig/links', 3)])
-    reach = layout.gauge_reach_m
-    lo = np.minimum(drawn.min(axis=0), layout.gauge_m - reach)
-    hi = np.maximum(drawn.max(axis=0), layout.gauge_m + reach)
+    rows = _strip_rows(ent, '/rig/links', 3)
+    drawn = np.concatenate([np.concatenate(row) for row in rows])
+    lo, hi = drawn.min(axis=0), drawn.max(axis=0)
     margin = FLOAT32_ATOL_M
-    assert x0 <= lo[0] + margin and y0 <= lo[1] + margin     # covers the rig and the gauge
+    assert x0 <= lo[0] + margin and y0 <= lo[1] + margin     # covers the rig
     assert x1 >= hi[0] - margin and y1 >= hi[1] - margin
-    # ... and ends within a margin line and a rounding step of them (not to the horizon);
-    # the drawn extent also holds the frame's axes and the mass centres, hence the slack
+    # ... and ends within a margin line and a rounding step of it (not to the horizon, not
+    # under the gauge); the rig's extent also holds the frame's axes and the mass centres
     beyond = max(lo[0] - x0, lo[1] - y0, x1 - hi[0], y1 - hi[1])
-    assert beyond <= (layout_mod.GRID_MARGIN_LINES + 1) * spacing + 0.5 * layout.size_m
+    assert beyond <= (layout_mod.GRID_MARGIN_LINES + 1) * spacing + 0.25 * layout.size_m
     view = next(v for v in recording.read_blueprint(path) if v['kind'] == '3D')
     target = np.array(view['eye']['look_target'])
     assert x0 <= target[0] <= x1 and y0 <= target[1] <= y1   # the camera looks at the rig
@@ -559,6 +564,18 @@ def test_a_3d_rig_is_framed_on_its_own_grid(tmp_path):
     px = screen.px(drawn)
     w, h = screen.size_px
     assert np.all((px >= -EDGE_TOL_PX) & (px <= np.array([w, h]) + EDGE_TOL_PX))
+    # the rig fills its view (it filled about 40 % of it, beside a gauge as large as itself)
+    span = np.ptp(px, axis=0) / np.array([w, h])
+    assert span.max() >= RIG_VIEW_SHARE, span
+    # the 30 mm crank (A-B, the first link) reads at every sample
+    crank = [screen.px(np.asarray(row[0], dtype=float)) for row in rows]
+    assert min(float(np.linalg.norm(c[-1] - c[0])) for c in crank) >= CRANK_PX
+    # the gauge's arrows stand beside the rig's picture, never over it
+    tips = np.concatenate([layout.gauge_m + np.array(a, dtype=float).reshape(-1, 3)
+                           for a in ent['/original/shaking_force'].columns[
+                               'Arrows3D:vectors']])
+    g = screen.px(tips)
+    assert np.any(g.min(axis=0) > px.max(axis=0)) or np.any(g.max(axis=0) < px.min(axis=0))
 
 
 def test_a_prismatic_input_reads_its_slide_and_driving_force(tmp_path):

@@ -1,10 +1,16 @@
 """
 The recording bench section of ``mech-balance bench``.
 
-One Hoeken recording, original against seed 001's a(2) design, written to a temporary file.
+One Hoeken recording, original against seed 001's a(2) design, written to a temporary file;
+then ``mech-balance record`` of every built-in as a user runs it (``--balance``, and the
+carpet scraper and Hoeken with ``--counterweights``), each a process of its own whose whole
+CPU time (imports, balancing, recording) is held against :data:`RECORD_CPU_LIMIT_S`.
 """
 
 from pathlib import Path
+import resource
+import subprocess
+import sys
 import tempfile
 import time
 
@@ -22,6 +28,13 @@ DEAD_STATUS_WAIT_S = 10.0
 """The bench waits at most this long for the recorder to call a dead viewer dead."""
 BENCH_REPEAT_MAX = 20
 """The bench records at most this many times (each run writes a file)."""
+RECORD_CPU_LIMIT_S = 2.0
+"""``mech-balance record`` of a built-in takes at most this much CPU time, whole process."""
+RECORD_EXTRA_RUNS = (('carpet_scraper', ('--counterweights', 'crank')),
+                     ('hoeken', ('--counterweights', 'crank,rocker')))
+"""Besides every built-in with ``--balance``: these counterweight recordings."""
+RECORD_TIMEOUT_S = 300.0
+"""A ``record`` process is stopped after this long (a hang is a FAIL, not a wait)."""
 
 
 def bench_section(args, progress):
@@ -55,8 +68,55 @@ def bench_section(args, progress):
              '5 s to connect and 5 s to disconnect):',
              f'  constructor {dead["init_s"] * 1e3:.2f} ms, log_sample worst of '
              f'{DEAD_SAMPLES} {dead["log_worst_s"] * 1e3:.2f} ms, close(timeout_s=1) '
-             f'{dead["close_s"] * 1e3:.2f} ms; status: {dead["status"]}']
+             f'{dead["close_s"] * 1e3:.2f} ms; status: {dead["status"]}', '']
+    lines += record_cpu_table(progress)
     return '\n'.join(lines)
+
+
+def record_runs():
+    """Return the ``mech-balance record`` runs timed: ``[(label, scene, extra argv)]``."""
+    runs = [(f'{name} --balance', name, ('--balance',)) for name in scene.builtin_scenes()]
+    runs += [(f'{name} {" ".join(extra)}', name, extra) for name, extra in RECORD_EXTRA_RUNS]
+    return runs
+
+
+def record_cpu(name, extra, out):
+    """
+    Return ``(cpu_s, wall_s, returncode)`` of one ``mech-balance record`` process.
+
+    The CPU time is the child's user + system time (``getrusage(RUSAGE_CHILDREN)`` before
+    and after): the whole process, the interpreter's start and the imports included.
+    """
+    argv = [sys.executable, '-m', 'mech_balance.cli', 'record', '--scene', name, *extra,
+            '--out', str(out)]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    try:
+        code = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              timeout=RECORD_TIMEOUT_S).returncode
+    except subprocess.TimeoutExpired:
+        code = None
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return cpu, wall, code
+
+
+def record_cpu_table(progress):
+    """Return the lines of the table of ``mech-balance record`` CPU times, one run each."""
+    lines = [f'mech-balance record, one process each (CPU s = user + system of the whole '
+             f'process; limit {RECORD_CPU_LIMIT_S:g} s):',
+             f'{"run":<44}{"CPU s":>8}{"wall s":>9}  verdict', '-' * 70]
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, name, extra in record_runs():
+            progress(f'  timing record {label} ...')
+            cpu, wall, code = record_cpu(name, extra, Path(tmp) / f'{name}.rrd')
+            if code != 0:
+                verdict = f'FAIL (exit {code})'
+            else:
+                verdict = 'PASS' if cpu <= RECORD_CPU_LIMIT_S else 'FAIL'
+            lines.append(f'{label:<44}{cpu:>8.2f}{wall:>9.2f}  {verdict}')
+    return lines
 
 
 def dead_viewer_timings(sc):

@@ -14,9 +14,9 @@ from mech_balance.core.rig import rig_for
 from mech_balance.schema import registry
 from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS, SERIES, \
     series_stream
-from mech_balance.viz.layout import (
-    arc_scale, arrow_scale, label_specs, Layout, nice_floor, place_views, plot_specs
-)
+from mech_balance.viz.labels import label_specs
+from mech_balance.viz.layout import arc_scale, arrow_scale, Layout, nice_floor, place_views
+from mech_balance.viz.plots import plot_specs
 from mech_balance.viz.style import (
     ARROW_3D_SHARE, AXIS_MARGIN_SHARE, BLOCK_SHARE, FORCE_ARROW_SHARE, LINK_PALETTE,
     SAME_POINT_RTOL, SCALE_BAR_SHARE
@@ -45,6 +45,8 @@ GEOMETRY_ANGLES = 8
 """Crank angles at which a balanced design's poses are compared with the original's."""
 GEOMETRY_RTOL = 1e-7
 """Poses of two designs of one geometry agree to this share of the rig."""
+AXIS_NEAR_SHARE = 0.25
+"""A fixed axis or guide is drawn over the points within this share of the rig from it."""
 SHAKING_STREAMS = ('shaking_force_arrow', 'shaking_moment_arc', 'shaking_force_plot',
                    'shaking_moment_plot')
 
@@ -339,7 +341,12 @@ class TiledData:
 
 
 def frame_strips_of(drawing, moving, size):
-    """Return the frame's polylines: the ground link, and each fixed axis or guide."""
+    """
+    Return the frame's polylines: the ground link, and each fixed axis or guide.
+
+    An axis or guide spans the points of the rig near it (:data:`AXIS_NEAR_SHARE`) over the
+    turn, and :data:`~mech_balance.viz.style.AXIS_MARGIN_SHARE` beyond.
+    """
     frame = {n: np.asarray(p, dtype=float) for n, p in drawing.frame.items()}
     tol = SAME_POINT_RTOL * size
     on_axis = set()
@@ -351,7 +358,10 @@ def frame_strips_of(drawing, moving, size):
         for n, q in frame.items():
             if np.linalg.norm(np.cross(q - p, d)) <= tol:
                 on_axis.add(n)
-        t = (cloud - p) @ d
+        # over what moves along it (a slider's travel) or turns about it (a shaft's joint),
+        # not the projection of the whole rig: far points are left out
+        near = np.linalg.norm(np.cross(cloud - p, d), axis=1) <= AXIS_NEAR_SHARE * size
+        t = np.append((cloud[near] - p) @ d, 0.0)
         margin = AXIS_MARGIN_SHARE * size
         lines.append(p + np.outer([t.min() - margin, t.max() + margin], d))
     ground = []

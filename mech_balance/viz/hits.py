@@ -15,34 +15,34 @@ def segments_hit_boxes(segments, boxes):
     """
     Return ``(p, c)``: whether any segment ``(p, m, 2, 2)`` crosses box ``(p, c, 4)``.
 
-    Liang-Barsky clipping of each segment against each box (x0, y0, x1, y1).
+    Liang-Barsky clipping of each segment against each box (x0, y0, x1, y1): the segment's
+    parameter interval inside both slabs is not empty.  A segment parallel to an axis has an
+    infinite inverse slope there, so its slab is everything or nothing (``fmin``/``fmax``
+    skip the 0 * inf of a segment that starts exactly on the slab's edge).
     """
     if segments.shape[1] == 0:
         return np.zeros(boxes.shape[:2], dtype=bool)
     a = segments[:, None, :, 0, :]                                  # (p, 1, m, 2)
-    d = segments[:, None, :, 1, :] - a
-    lo, hi = boxes[:, :, None, 0:2], boxes[:, :, None, 2:4]         # (p, c, 1, 2)
     with np.errstate(divide='ignore', invalid='ignore'):
-        ta, tb = (lo - a) / d, (hi - a) / d
-    flat = d == 0.0
-    inside = (a >= lo) & (a <= hi)
-    t_in = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
-    t_out = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
-    t0 = np.maximum(np.max(t_in, axis=-1), 0.0)
-    t1 = np.minimum(np.min(t_out, axis=-1), 1.0)
+        inv = 1.0 / (segments[:, None, :, 1, :] - a)
+        ta = (boxes[:, :, None, 0:2] - a) * inv                     # (p, c, m, 2)
+        tb = (boxes[:, :, None, 2:4] - a) * inv
+    t_in = np.fmin(ta, tb)
+    t_out = np.fmax(ta, tb)
+    t0 = np.maximum(np.fmax(t_in[..., 0], t_in[..., 1]), 0.0)
+    t1 = np.minimum(np.fmin(t_out[..., 0], t_out[..., 1]), 1.0)
     return (t0 <= t1).any(axis=-1)
 
 
-def distance_to_segments(points, segments):
-    """Return ``(p, c)``: the distance of points ``(p, c, 2)`` to segments ``(p, m, 2, 2)``."""
-    if segments.shape[1] == 0:
-        return np.full(points.shape[:2], np.inf)
+def segment_distances(points, segments):
+    """Return ``(p, c, m)``: the distance of points ``(p, c, 2)`` to segments ``(p, m, 2, 2)``."""
     a = segments[:, None, :, 0, :]
     ab = segments[:, None, :, 1, :] - a
-    q = points[:, :, None, :]
-    t = np.clip(np.sum((q - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300),
-                0.0, 1.0)
-    return np.min(np.linalg.norm(a + t[..., None] * ab - q, axis=-1), axis=-1)
+    q = points[:, :, None, :] - a
+    t = np.clip(np.einsum('...k,...k->...', q, ab)
+                / np.maximum(np.einsum('...k,...k->...', ab, ab), 1e-300), 0.0, 1.0)
+    r = q - t[..., None] * ab
+    return np.sqrt(np.einsum('...k,...k->...', r, r))
 
 
 def first_passing(ok, test, chunk=LABEL_CHUNK):

@@ -47,7 +47,8 @@ in every rig view.  Geometry and styles are static; whole time series go out thr
 (``url``), the viewer throttled to :data:`LIVE_MAX_RATE_HZ` on a thread of its own.
 
 The package's face; the work is split by concern: :mod:`.style` (sizes, colours),
-:mod:`.layout` (the screen, labels, ranges, ticks), :mod:`.drawing` (the drawing adapter of
+:mod:`.layout` (the screen, the views, the eye), :mod:`.labels` (label
+placement), :mod:`.plots` (the plots' ranges and ticks), :mod:`.drawing` (the drawing adapter of
 the Rig protocol), :mod:`.text` (the info panel), :mod:`.blueprint`, :mod:`.streams`
 (logging to rerun), :mod:`.live` (the live stream) and :mod:`.readback` (reading back).
 """
@@ -64,11 +65,10 @@ from mech_balance.viz.blueprint import blueprint
 from mech_balance.viz.drawing import (
     align_design, check_samples, plan, tile, turn_angles, turn_ticks, VARIANTS
 )
-from mech_balance.viz.layout import (
-    label_box_px, label_size_px, LABEL_TEXT_PX, LEGEND_HEADROOM, place_labels, plot_range,
-    PLOT_TICK_PX, Screen, WINDOW_PX, window_px
-)
+from mech_balance.viz.labels import label_box_px, label_size_px, LABEL_TEXT_PX, place_labels
+from mech_balance.viz.layout import Screen, WINDOW_PX, window_px
 from mech_balance.viz.live import LIVE_MAX_RATE_HZ, LiveRecorder
+from mech_balance.viz.plots import LEGEND_HEADROOM, plot_range, PLOT_TICK_PX
 from mech_balance.viz.readback import (
     EntityData, read_blueprint, read_blueprint_views, read_recording
 )

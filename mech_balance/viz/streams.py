@@ -6,7 +6,8 @@ import re
 from mech_balance import paths
 from mech_balance.viz.blueprint import blueprint
 from mech_balance.viz.drawing import DEGREE_TIMELINE
-from mech_balance.viz.layout import place_labels, plot_values
+from mech_balance.viz.labels import place_labels
+from mech_balance.viz.plots import plot_values
 from mech_balance.viz.style import (
     ADDED_ALPHA, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
     DIAL_COLOR, DIAL_POINTS, FORCE_COLOR, FRAME_COLOR, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI,
@@ -67,6 +68,20 @@ def view_coords(layout, a):
     """Return points ``(..., 3)`` as the view's coordinates (2-D: x, y)."""
     a = np.asarray(a, dtype=float)
     return a[..., :2] if layout.dim == 2 else a
+
+
+def uniform_strips(strips):
+    """
+    Return polylines per sample ``[(p, k_i, d)]`` as one array ``(p * n, max k_i, d)``.
+
+    Each polyline is padded with its end point (a repeated point draws nothing more), so that
+    rerun converts one array at once instead of each polyline on its own (its list path cost
+    more than the rest of a recording).
+    """
+    k = max(s.shape[1] for s in strips)
+    out = np.stack([np.concatenate([s, np.repeat(s[:, -1:], k - s.shape[1], axis=1)], axis=1)
+                    for s in strips], axis=1)                     # (p, n, k, d)
+    return out.reshape((-1,) + out.shape[2:])
 
 
 def archetypes(dim):
@@ -207,9 +222,8 @@ def log_motion(rec, layout, motion, degrees, seconds, labels=None):
     p = motion.size
     if layout.on('links'):
         n = len(motion.links)
-        flat = [view_coords(layout, motion.links[i][k]) for k in range(p) for i in range(n)]
-        rec.send_columns('rig/links', index,
-                         strips.columns(strips=flat).partition(np.full(p, n)))
+        flat = uniform_strips([view_coords(layout, s) for s in motion.links])
+        rec.send_columns('rig/links', index, strips.columns(strips=flat).partition(np.full(p, n)))
     if layout.on('joints') and motion.joints.shape[1]:
         n = motion.joints.shape[1]
         rec.send_columns('rig/joints', index, points.columns(
@@ -233,7 +247,7 @@ def log_motion(rec, layout, motion, degrees, seconds, labels=None):
             m = marks.get(kind)
             if m is None or not drawn[kind]:
                 continue
-            flat = [view_coords(layout, m[k, j]) for k in range(p) for j in range(m.shape[1])]
+            flat = view_coords(layout, m).reshape((-1,) + m.shape[2:3] + (layout.dim,))
             rec.send_columns(f'{v}/{path}', index,
                              strips.columns(strips=flat).partition(np.full(p, m.shape[1])))
         if layout.has_point_masses:
@@ -248,10 +262,9 @@ def log_motion(rec, layout, motion, degrees, seconds, labels=None):
             if layout.dim == 2:
                 arc, head = moment_arc(layout.gauge_m, data.moment_Nm[:, 2],
                                        layout.moment_scale, layout.dial_radius_m)
-                flat = [s for k in range(p) for s in (arc[k], head[k])]
+                flat = uniform_strips([arc, head])
                 rec.send_columns(f'{v}/shaking_moment', index,
-                                 rr.LineStrips2D.columns(strips=flat).partition(
-                                     np.full(p, 2)))
+                                 rr.LineStrips2D.columns(strips=flat).partition(np.full(p, 2)))
             else:
                 rec.send_columns(f'{v}/shaking_moment', index, rr.Arrows3D.columns(
                     vectors=data.moment_Nm * layout.moment_scale))

@@ -11,7 +11,7 @@ import rerun as rr
 
 FORCE_ARROW_SHARE = 0.14
 """Automatic force scale: the longest shaking-force arrow is at most this share of the rig."""
-ARROW_3D_SHARE = 0.6
+ARROW_3D_SHARE = 0.35
 """3-D: the longest shaking-force (and moment) arrow is at most this share of the rig."""
 ARROW_3D_RADIUS_SHARE = 0.012
 """3-D: radius of the gauge's arrows, as a share of the rig."""
@@ -31,6 +31,8 @@ DIAL_POINTS = 65
 """Points of the dial circle."""
 GAUGE_GAP_SHARE = 0.12
 """Gap between the rig and its gauge, as a share of the rig's size."""
+GAUGE_LABEL_DROP = 1.15
+"""3-D: the gauge's label stands this many reaches (longest arrow) under the gauge's centre."""
 BLOCK_SHARE = 0.035
 """Half-size of the square drawn for a one-point link (a slider), as a share of the rig."""
 POINT_MASS_RADIUS_SHARE = 0.03
