@@ -96,7 +96,7 @@ def add_weight_and_case(p, when='', case_when=None):
 
     ``when`` prefixes the help texts (e.g. ``'with --balance (planar): '``), ``case_when``
     the help of ``--case`` when it applies in fewer cases (default: ``when``).  The weights
-    are checked where they are used, by :func:`mech_balance.balancing.optimize`.
+    are checked where they are used, by :func:`mech_balance.balancing.redistribution.optimize`.
     """
     case_when = when if case_when is None else case_when
     w1, w2 = defaults.DEFAULT_WEIGHTS
@@ -313,8 +313,8 @@ EXIT_NO_CLEAR_DESIGN = 3
 
 
 def _certified_gap():
-    from mech_balance.balancing import socp as balancing
-    return balancing.CERTIFIED_GAP_REL
+    from mech_balance.balancing.certificate import CERTIFIED_GAP_REL
+    return CERTIFIED_GAP_REL
 
 
 def _counterweights(sc, args):
@@ -462,7 +462,7 @@ def format_table12(r):
 
 def format_result(result, normalized=False, cost=None):
     """
-    Return a :class:`~mech_balance.balancing.socp.BalanceResult` as readable text.
+    Return a :class:`~mech_balance.balancing.redistribution.BalanceResult` as readable text.
 
     ``cost`` is the design's cost of balancing (the report's; computed when None).
     """
@@ -596,10 +596,10 @@ def _paper_comparison(result):
 
 
 def _paper_design_links(sc, x, counterweights):
-    from mech_balance.balancing import socp as balancing
+    from mech_balance.balancing import tables
     from mech_balance.core import equimomental
     design = equimomental.apply_design(sc, x, normalized=True)
-    return [balancing.link_design(lk, counterweights, sc.normalization)
+    return [tables.link_design(lk, counterweights, sc.normalization)
             for lk in design.links]
 
 
@@ -784,10 +784,10 @@ def format_spatial(design, normalized=False):
 
 def _write(balanced, path, summary):
     from mech_balance import schema
-    from mech_balance.balancing import socp as balancing
+    from mech_balance.balancing import redistribution
     from mech_balance.schema.registry import from_dict
     from mech_balance.schema.scene import parse_yaml
-    text = balancing.scene_to_yaml(balanced, balance=summary)
+    text = redistribution.scene_to_yaml(balanced, balance=summary)
     try:   # a written scene always loads: check it as the loader will, before writing
         from_dict(parse_yaml(text, f'--output {path}'), source=str(path))
     except (ValueError, schema.SceneError) as exc:
