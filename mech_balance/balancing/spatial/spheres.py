@@ -80,8 +80,8 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
             body = model.bodies[k]
             dm, dh, sigma, s = prog.counterweight(x, j)
             hi = max_mass_factor * model.theta[10 * k]
-            viol, (dm, dh, sigma, s) = _cw_check(dm, dh, sigma, s, k_sphere, hi,
-                                                 (max_radius_factor * body.reach_m) ** 2)
+            viol, (dm, dh, sigma, s) = _repaired_counterweight(
+                dm, dh, sigma, s, k_sphere, hi, (max_radius_factor * body.reach_m) ** 2)
             violation = max(violation, viol / max(model.theta[10 * k], 1e-300))
             if dm <= MIN_COUNTERWEIGHT_REL * model.theta[10 * k]:
                 continue
@@ -144,10 +144,11 @@ def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radi
         ext[[c + 4, c + 6, c + 9]] = 1.0            # tr(Sigma) <= dm (f r0)^2
         ext[c] = -fr2
         prog.rows('nonneg', [ext], [0.0])
-        # s >= k dm^(5/3)  <=>  (s / kk, 1, dm) in K_pow(3/5): (s/kk)^(3/5) >= |dm|
-        kk = k_sphere * m0 ** (5.0 / 3.0) / (m0 * r0 * r0)
+        # s >= k dm^(5/3)  <=>  (s / u, 1, dm) in K_pow(3/5): (s / u)^(3/5) >= |dm|, u the
+        # spread of a solid sphere of mass m0 (units m0 r0^2)
+        spread_unit = k_sphere * m0 ** (5.0 / 3.0) / (m0 * r0 * r0)
         pw = np.zeros((3, prog.nx))
-        pw[0, c + 10] = -1.0 / kk
+        pw[0, c + 10] = -1.0 / spread_unit
         pw[2, c] = -1.0
         prog.rows('pow', pw, [0.0, 1.0, 0.0])
         # the box every feasible point lies in (module docstring of certificate):
@@ -159,7 +160,7 @@ def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radi
     return prog
 
 
-def _cw_check(dm, dh, sigma, s, k_sphere, mass_hi, radius2):
+def _repaired_counterweight(dm, dh, sigma, s, k_sphere, mass_hi, radius2):
     """Return (worst violation in kg-units, repaired (dm, dh, Sigma, s)) of a counterweight."""
     viol = max(-dm, dm - mass_hi, 0.0)
     dm = min(max(dm, 0.0), mass_hi)
