@@ -41,7 +41,7 @@ import time
 import clarabel
 from mech_balance import conic, schema
 from mech_balance.analysis import linear_maps
-from mech_balance.balancing import certificate, checks
+from mech_balance.balancing import certificate, checks, conditioning
 import numpy as np
 
 PAPER_MASS_FACTORS = (1.0, 5.0)
@@ -120,7 +120,11 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
     n = theta0.shape[0]
     m0, i0 = theta0[:, 0], theta0[:, 3]
     dsc = np.column_stack([m0, np.sqrt(m0 * i0), np.sqrt(m0 * i0), i0]).ravel()
-    lower = _program(maps, dsc, w, n, ['free'] * n, None)
+    blame = conditioning.blame(scene, scene.normalization, scene.crank_speed_rad_s)
+    try:
+        lower = _program(maps, dsc, w, n, ['free'] * n, None)
+    except checks.BalanceError as exc:
+        raise checks.BalanceError(f'{exc}{blame}') from None
     programs, failed = 1, []
     y_r = lower['theta']
     band = [i for i, ok in enumerate(representable(y_r)) if not ok]
@@ -149,7 +153,8 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
                 z_prev = sol['z']
     if best is None:
         raise checks.BalanceError('two-point model: no sequential cone program found a '
-                                  'two-point design (every piece failed or left the set)')
+                                  'two-point design (every piece failed or left the set)'
+                                  f'{blame}')
     t, feas_tol = _clipped(best['theta'].reshape(-1, 4), m0, i0, best['feasibility_tol'])
     pm = {lk.name: dict(zip(('m_1', 'm_2', 'l_1', 'l_2'), point_masses(*row)))
           for lk, row in zip(scene.links, t)}
