@@ -11,10 +11,11 @@ import json
 import math
 
 from mech_balance import schema as scene
-from mech_balance.analysis import cycle as analysis
-from mech_balance.balancing import socp as balancing
+from mech_balance.analysis import cycle as analysis, linear_maps
+from mech_balance.balancing import defaults, redistribution, tables
 from mech_balance.cli import main as cli
 from mech_balance.core import equimomental
+from mech_balance.core.planar import rig as planar_rig
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -43,8 +44,8 @@ def _with_theta(sc, theta_si):
 def test_linear_maps_give_the_rms_of_the_core(name):
     """||R theta|| equals the RMS of the full analysis for random inertial parameters."""
     sc = scene.load(name)
-    units = balancing.objective_units(sc)
-    maps = balancing.linear_maps(sc, 90, ('bearing_reactions',), units)
+    units = planar_rig.objective_units(sc)
+    maps = linear_maps.linear_maps(sc, 90, ('bearing_reactions',), units)
     rng = np.random.default_rng(3)
     scale = np.tile([units.mass_kg, units.mass_kg * units.length_m,
                      units.mass_kg * units.length_m, units.mass_kg * units.length_m ** 2],
@@ -76,7 +77,7 @@ def test_point_masses_have_one_definition(hoeken):
     for lk, row, d in zip(links, masses, dist):
         pm = equimomental.from_link(lk.mass_kg, lk.com_m, lk.inertia_origin_kg_m2)
         assert pm.masses_kg == tuple(row) and pm.distance_m == d
-        design = balancing.link_design(lk)
+        design = tables.link_design(lk)
         assert design.point_masses_kg == pm.masses_kg and design.distance_m == d
     assert_allclose(masses.sum(axis=1), m, rtol=1e-14)
     assert_allclose(dist * (masses @ equimomental.UNIT), h, rtol=1e-12)
@@ -93,13 +94,13 @@ def test_balancing_reports_realizability_as_equimomental_defines_it(masses, real
     pm = equimomental.PointMasses(masses, 0.1)
     m, com, i_o = equimomental.link_properties(pm)
     link = scene.Link('x', {'O': (0.0, 0.0)}, m, com, i_o - m * (com[0] ** 2 + com[1] ** 2))
-    design = balancing.link_design(link, counterweights=True)
+    design = tables.link_design(link, counterweights=True)
     assert design.realizable is equimomental.is_realizable(pm, counterweights=True)[0]
     assert design.realizable is realizable, design.reason
 
 
 def test_result_maps_back_to_consistent_links(hoeken):
-    result = balancing.optimize(hoeken, (0.5, 0.5), 'b')
+    result = redistribution.optimize(hoeken, (0.5, 0.5), 'b')
     assert result.certificate.gap_rel <= GAP_REL
     for d, lk in zip(result.links, result.balanced_scene.links):
         # eqs. 19-22: the point masses reproduce mass, first moment and inertia
@@ -121,9 +122,9 @@ def test_result_maps_back_to_consistent_links(hoeken):
 
 
 def test_extra_terms_and_mass_cap(hoeken):
-    base = balancing.optimize(hoeken, (0.5, 0.5))
-    torque = balancing.optimize(hoeken, (0.5, 0.5), torque_weight=1.0)
-    react = balancing.optimize(hoeken, (0.5, 0.5), reaction_weight=0.25)
+    base = redistribution.optimize(hoeken, (0.5, 0.5))
+    torque = redistribution.optimize(hoeken, (0.5, 0.5), torque_weight=1.0)
+    react = redistribution.optimize(hoeken, (0.5, 0.5), reaction_weight=0.25)
     for r in (torque, react):
         assert r.certificate.status == 'Solved' and r.certificate.gap_rel <= GAP_REL
     assert torque.objective['driving_torque_rms'] < \
@@ -135,7 +136,7 @@ def test_extra_terms_and_mass_cap(hoeken):
     # the objective is the core's evaluation of the design (issue 19: to 1e-9)
     assert_allclose(react.objective['bearing_force_rms_sum'], bearings(react), rtol=1e-9)
     cap = 0.25
-    capped = balancing.optimize(hoeken, (0.5, 0.5), max_added_mass_kg=cap)
+    capped = redistribution.optimize(hoeken, (0.5, 0.5), max_added_mass_kg=cap)
     added = sum(d.mass_kg for d in capped.links) - sum(lk.mass_kg for lk in hoeken.links)
     assert added <= cap + ULP * sum(d.mass_kg for d in capped.links)   # exactly feasible
     # the capped optimum is no better than the uncapped one, to their certified gaps
@@ -144,9 +145,9 @@ def test_extra_terms_and_mass_cap(hoeken):
 
 def test_fixed_links_and_bounds_are_kept(hoeken):
     crank_m = hoeken.link('crank').mass_kg
-    result = balancing.optimize(hoeken, (0.5, 0.5), fixed_links=('coupler',),
-                                mass_bounds={'crank': (crank_m, 2.0 * crank_m)},
-                                distance_bounds={'rocker': (0.01, None)})
+    result = redistribution.optimize(hoeken, (0.5, 0.5), fixed_links=('coupler',),
+                                     mass_bounds={'crank': (crank_m, 2.0 * crank_m)},
+                                     distance_bounds={'rocker': (0.01, None)})
     got = {lk.name: lk for lk in result.balanced_scene.links}
     ref = hoeken.link('coupler')
     # a fixed link is kept, not solved for: its parameters to the rounding of the units
@@ -162,21 +163,21 @@ def test_scene_without_normalization_uses_crank_units():
     data, _ = scene.load_data('slider_crank')
     del data['normalization']
     bare = scene.from_dict(data, 'bare')
-    units = balancing.objective_units(bare)
+    units = planar_rig.objective_units(bare)
     assert (units.mass_kg, units.length_m) == (0.8, pytest.approx(0.04))
-    result = balancing.optimize(bare, (1.0, 0.0))
+    result = redistribution.optimize(bare, (1.0, 0.0))
     assert result.certificate.gap_rel <= GAP_REL
     assert result.objective['shaking_force_rms'] <= 1e-12 * result.objective['z_original']
     assert result.table[0]['unit'] == 'N'
-    assert balancing.optimize(sc, (1.0, 0.0)).realizable
+    assert redistribution.optimize(sc, (1.0, 0.0)).realizable
 
 
 @pytest.mark.parametrize('name', ['hoeken', 'slider_crank', 'carpet_scraper'])
 def test_scene_yaml_round_trip(tmp_path, name):
     sc = scene.load(name)
-    result = balancing.optimize(sc, (0.5, 0.5), samples=72)
+    result = redistribution.optimize(sc, (0.5, 0.5), samples=72)
     path = tmp_path / 'balanced.yaml'
-    path.write_text(balancing.scene_to_yaml(result.balanced_scene, result.summary()))
+    path.write_text(redistribution.scene_to_yaml(result.balanced_scene, result.summary()))
     back = scene.load(str(path))
     assert back.links == result.balanced_scene.links
     assert back.joints == sc.joints and back.frame_points == sc.frame_points
@@ -197,9 +198,9 @@ def test_scene_yaml_keeps_every_section_the_design_leaves_alone(tmp_path):
     data['recording'] = {'streams': {'info': False, 'point_masses': False},
                          'force_scale_m_per_N': 1e-3}
     sc = scene.from_dict(data, 'source')
-    result = balancing.optimize(sc, samples=72)
+    result = redistribution.optimize(sc, samples=72)
     path = tmp_path / 'balanced.yaml'
-    path.write_text(balancing.scene_to_yaml(result.balanced_scene, result.summary()))
+    path.write_text(redistribution.scene_to_yaml(result.balanced_scene, result.summary()))
     back = scene.load(str(path))
     written = yaml.safe_load(path.read_text())
     assert set(written) == set(data) | {'name', 'schema_version', 'balance'}
@@ -218,7 +219,7 @@ def test_scene_yaml_keeps_every_section_the_design_leaves_alone(tmp_path):
             (ref.mass_kg, ref.com_m, ref.inertia_com_kg_m2)
     # a default recording stays implicit and loads back as the default
     plain = scene.load('slider_crank')
-    assert 'recording' not in yaml.safe_load(balancing.scene_to_yaml(plain))
+    assert 'recording' not in yaml.safe_load(redistribution.scene_to_yaml(plain))
 
 
 def _slider_off_axis(sc, offset_m):
@@ -232,7 +233,7 @@ def test_change_of_a_negligible_baseline_is_not_a_percentage(offset_m):
     on_axis = scene.load('slider_crank')
     off_axis = _slider_off_axis(on_axis, offset_m)
     for before, after in ((on_axis, off_axis), (off_axis, on_axis)):
-        table = balancing.before_after(before, after, 72)
+        table = tables.before_after(before, after, 72)
         rows = {r['quantity']: r for r in table}
         # rows are matched by name although the analysis omits a zero moment on one side
         assert list(rows) == ['bearing O |f|', 'bearing A |f|', 'bearing B |f|',
@@ -242,7 +243,7 @@ def test_change_of_a_negligible_baseline_is_not_a_percentage(offset_m):
         moment = rows['bearing S moment']
         scale = max(r[k] for r in table if r['unit'] == moment['unit']
                     for k in ('before', 'after'))
-        if moment['before'] <= balancing.CHANGE_BASELINE_REL_TOL * scale:
+        if moment['before'] <= tables.CHANGE_BASELINE_REL_TOL * scale:
             assert moment['change_percent'] is None       # 0 or ~1e-11 of the scale: n/a
         else:
             assert moment['change_percent'] == pytest.approx(-100.0)
@@ -251,10 +252,10 @@ def test_change_of_a_negligible_baseline_is_not_a_percentage(offset_m):
 
 
 def test_unrealizable_design_cannot_be_saved(hoeken):
-    result = balancing.optimize(hoeken, (0.5, 0.5), paper_constraints=True)
+    result = redistribution.optimize(hoeken, (0.5, 0.5), paper_constraints=True)
     assert not result.realizable
     with pytest.raises(ValueError, match='unrealizable'):
-        balancing.scene_to_yaml(result.balanced_scene)
+        redistribution.scene_to_yaml(result.balanced_scene)
 
 
 @pytest.mark.parametrize('kwargs, match', [
@@ -282,15 +283,15 @@ def test_unrealizable_design_cannot_be_saved(hoeken):
 ])
 def test_bad_input(hoeken, kwargs, match):
     with pytest.raises(ValueError, match=match) as exc:
-        balancing.optimize(hoeken, **kwargs)
+        redistribution.optimize(hoeken, **kwargs)
     assert 'np.' not in str(exc.value)
 
 
 def test_equal_bounds_fix_the_value(hoeken):
     """Equal bounds are meaningful (a fixed mass or distance), unlike a zero lower bound."""
     m = hoeken.link('crank').mass_kg
-    result = balancing.optimize(hoeken, mass_bounds={'crank': (m, m)},
-                                distance_factors=(1.0, 1.0), samples=72)
+    result = redistribution.optimize(hoeken, mass_bounds={'crank': (m, m)},
+                                     distance_factors=(1.0, 1.0), samples=72)
     assert result.realizable
     crank = result.balanced_scene.link('crank')
     # equal bounds are met exactly (issue 19: the design is repaired into its bounds)
@@ -302,20 +303,20 @@ def test_equal_bounds_fix_the_value(hoeken):
 def test_infeasible_constraints_are_reported(hoeken):
     m = hoeken.link('crank').mass_kg
     with pytest.raises(ValueError, match='infeasible'):
-        balancing.optimize(hoeken, (1.0, 0.0), mass_bounds={'crank': (3.0 * m, 4.0 * m)},
-                           max_added_mass_kg=0.0)
+        redistribution.optimize(hoeken, (1.0, 0.0), mass_bounds={'crank': (3.0 * m, 4.0 * m)},
+                                max_added_mass_kg=0.0)
 
 
 def test_default_weights_are_the_papers_compromise():
     """Seed 001 cases a(2)/b(2): equal weights, the one default of every entry point."""
-    assert balancing.DEFAULT_WEIGHTS == (0.5, 0.5)
-    default = inspect.signature(balancing.optimize).parameters['weights'].default
-    assert default == balancing.DEFAULT_WEIGHTS
+    assert defaults.DEFAULT_WEIGHTS == (0.5, 0.5)
+    default = inspect.signature(redistribution.optimize).parameters['weights'].default
+    assert default == defaults.DEFAULT_WEIGHTS
 
 
 def test_rggr_scene_is_not_planar():
     with pytest.raises(ValueError, match='planar'):
-        balancing.optimize(scene.load('rggr'))
+        redistribution.optimize(scene.load('rggr'))
 
 
 # ------------------------------------------------------------------------ command line

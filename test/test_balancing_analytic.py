@@ -15,7 +15,7 @@ import math
 
 from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
-from mech_balance.balancing import socp as balancing
+from mech_balance.balancing import analytic, redistribution
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -81,7 +81,7 @@ def _skewed_four_bar():
                          ids=['in-line', 'offset'])
 def test_slider_crank_balance_makes_shaking_force_vanish(make):
     sc = make()
-    result = balancing.slider_crank_balance(sc)
+    result = analytic.slider_crank_balance(sc)
     assert result.force_rms_ratio <= BALANCED_REL
     force = _rows(result)['shaking force |f_sh|']
     assert force['after_si'] <= BALANCED_REL * force['before_si']
@@ -92,7 +92,7 @@ def test_slider_crank_balance_makes_shaking_force_vanish(make):
 
 def test_slider_crank_conditions_of_seed000():
     sc = scene.load('slider_crank')
-    p = balancing.slider_crank_balance(sc).parameters
+    p = analytic.slider_crank_balance(sc).parameters
     mu1, mu2, xi1, xi2 = p['mu_1'], p['mu_2'], p['xi_1'], p['xi_2']
     assert_allclose([mu1, mu2], [0.8 / 0.6, 0.35 / 0.6], rtol=1e-15)   # eq. 59
     assert p['eta_1'] == 0.0 and p['eta_2'] == 0.0                      # eq. 74
@@ -111,7 +111,7 @@ def test_printed_eq75_does_not_balance():
     instead of cancelling: the RMS shaking force stays at > 99% of the original.
     """
     sc = scene.load('slider_crank')
-    printed = balancing.slider_crank_balance(sc, printed_eq75=True)
+    printed = analytic.slider_crank_balance(sc, printed_eq75=True)
     p = printed.parameters
     assert p['xi_2'] == pytest.approx(1.0 / p['mu_2'])
     assert abs(p['mu_1'] * p['xi_1'] + p['mu_2'] - p['mu_2'] * p['xi_2']) > 1.0   # eq. 67
@@ -121,7 +121,7 @@ def test_printed_eq75_does_not_balance():
 
 def test_slider_crank_with_given_mass_ratios():
     sc = scene.load('slider_crank')
-    result = balancing.slider_crank_balance(sc, mass_ratios=(2.0, 0.4))
+    result = analytic.slider_crank_balance(sc, mass_ratios=(2.0, 0.4))
     masses = {d.name: d.mass_kg for d in result.links}
     assert_allclose([masses['crank'], masses['rod'], masses['slider']], [1.2, 0.24, 0.6])
     assert result.force_rms_ratio <= BALANCED_REL
@@ -130,7 +130,7 @@ def test_slider_crank_with_given_mass_ratios():
 
 def test_force_balance_costs_moment_torque_and_bearings():
     """Seed 001 sec. 1, Lowen et al.: the other dynamic quantities grow."""
-    rows = _rows(balancing.slider_crank_balance(scene.load('slider_crank')))
+    rows = _rows(analytic.slider_crank_balance(scene.load('slider_crank')))
     for name in ('shaking moment n_sh', 'driving torque', 'bearing O |f|', 'bearing A |f|'):
         assert rows[name]['after'] > rows[name]['before'], name
 
@@ -139,7 +139,7 @@ def test_force_balance_costs_moment_torque_and_bearings():
 
 
 def test_berkof_lowen_products_match_table3():
-    result = balancing.four_bar_balance(scene.load('hoeken'))
+    result = analytic.four_bar_balance(scene.load('hoeken'))
     p = result.parameters
     assert round(p['m1_d1'], 4) == 0.3762 and round(p['m3_d3'], 4) == 20.3060
     assert_allclose([p['theta_1_deg'], p['theta_3_deg']], [180.0, 180.0], atol=1e-9)
@@ -148,7 +148,7 @@ def test_berkof_lowen_products_match_table3():
 
 @pytest.mark.parametrize('factor', sorted(TABLE4))
 def test_table4_rows_of_force_balanced_hoeken(factor):
-    result = balancing.four_bar_balance(scene.load('hoeken'), factor)
+    result = analytic.four_bar_balance(scene.load('hoeken'), factor)
     rows = _rows(result)
     got = [rows[c]['after'] for c in TABLE4_COLUMNS]
     assert_allclose(got, TABLE4[factor], rtol=TABLE4_REL)
@@ -166,7 +166,7 @@ def test_table3_point_masses(factor):
     mass' column: a misprint.  Eqs. 13-15 with m = 1.9, l = 1.7517, m d = 20.306 give
     (-7.0949, 4.4974, 4.4974); Table 4's case (1) row is reproduced with those.
     """
-    result = balancing.four_bar_balance(scene.load('hoeken'), factor)
+    result = analytic.four_bar_balance(scene.load('hoeken'), factor)
     links = {d.name: d.normalized for d in result.links}
     crank_pm, rocker_pm, d1, d3 = TABLE3[factor]
     assert_allclose(links['crank']['point_masses'], crank_pm, atol=TABLE3_POINT_MASS_TOL)
@@ -186,18 +186,18 @@ def test_table3_designs_are_not_realizable_but_centroidal_ones_are():
     """With l kept at l^o (the paper) the rocker's d_3 > l_3: negative centroidal inertia."""
     sc = scene.load('hoeken')
     for factor in sorted(TABLE3):
-        paper = {d.name: d for d in balancing.four_bar_balance(sc, factor).links}
+        paper = {d.name: d for d in analytic.four_bar_balance(sc, factor).links}
         assert paper['crank'].realizable and paper['coupler'].realizable
         assert not paper['rocker'].realizable
         assert paper['rocker'].inertia_com_kg_m2 < 0.0
-        kept = balancing.four_bar_balance(sc, factor, inertia='centroidal')
+        kept = analytic.four_bar_balance(sc, factor, inertia='centroidal')
         assert all(d.realizable for d in kept.links)
         assert kept.force_rms_ratio <= BALANCED_REL
 
 
 def test_general_four_bar_balance():
     """Mass centre off the coupler line, rocker frame not along O3 B: still balanced."""
-    result = balancing.four_bar_balance(_skewed_four_bar(), 2.0, inertia='centroidal')
+    result = analytic.four_bar_balance(_skewed_four_bar(), 2.0, inertia='centroidal')
     assert result.force_rms_ratio <= BALANCED_REL
     path = _mass_centre_path(result.balanced_scene)
     assert np.ptp(path.real) < 1e-15 and np.ptp(path.imag) < 1e-15
@@ -208,12 +208,12 @@ def test_optimizer_reproduces_berkof_lowen():
     sc = scene.load('hoeken')
     l0 = {lk.name: math.sqrt(lk.inertia_origin_kg_m2 / lk.mass_kg) for lk in sc.links}
     fixed = ('crank', 'rocker')
-    result = balancing.optimize(
+    result = redistribution.optimize(
         sc, (1.0, 0.0), realizable=False, fixed_links=('coupler',),
         mass_bounds={n: (sc.link(n).mass_kg,) * 2 for n in fixed},
         distance_bounds={n: (l0[n],) * 2 for n in fixed})
-    analytic = balancing.four_bar_balance(sc, 1.0)
-    for got, ref in zip(result.balanced_scene.links, analytic.balanced_scene.links):
+    closed_form = analytic.four_bar_balance(sc, 1.0)
+    for got, ref in zip(result.balanced_scene.links, closed_form.balanced_scene.links):
         assert_allclose(got.first_moment_kg_m, ref.first_moment_kg_m, rtol=1e-7, atol=1e-10)
     assert result.objective['shaking_force_rms'] <= BALANCED_REL * 11.5
 
@@ -223,14 +223,14 @@ def test_optimizer_reproduces_berkof_lowen():
 
 def test_analytic_balance_rejects_the_wrong_linkage():
     with pytest.raises(ValueError, match='slider-crank'):
-        balancing.slider_crank_balance(scene.load('hoeken'))
+        analytic.slider_crank_balance(scene.load('hoeken'))
     with pytest.raises(ValueError, match='four-bar'):
-        balancing.four_bar_balance(scene.load('slider_crank'))
+        analytic.four_bar_balance(scene.load('slider_crank'))
     with pytest.raises(ValueError, match='four-bar'):
-        balancing.four_bar_balance(scene.load('carpet_scraper'))
+        analytic.four_bar_balance(scene.load('carpet_scraper'))
     with pytest.raises(ValueError, match='mass_factor'):
-        balancing.four_bar_balance(scene.load('hoeken'), -1.0)
+        analytic.four_bar_balance(scene.load('hoeken'), -1.0)
     with pytest.raises(ValueError, match='inertia'):
-        balancing.four_bar_balance(scene.load('hoeken'), 1.0, inertia='mass')
+        analytic.four_bar_balance(scene.load('hoeken'), 1.0, inertia='mass')
     with pytest.raises(ValueError, match='mass_ratios'):
-        balancing.slider_crank_balance(scene.load('slider_crank'), mass_ratios=(0.0, 1.0))
+        analytic.slider_crank_balance(scene.load('slider_crank'), mass_ratios=(0.0, 1.0))

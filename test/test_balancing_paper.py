@@ -8,7 +8,9 @@ realizability of every printed design are checked too.
 """
 
 from mech_balance import schema as scene
-from mech_balance.balancing import paper_tables as seed_tables, socp as balancing
+from mech_balance.analysis import linear_maps
+from mech_balance.balancing import certificate, defaults, paper_tables as seed_tables, \
+    redistribution, tables
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics
 import numpy as np
@@ -53,7 +55,7 @@ def _check_certificate(result):
     # the safe lower bound's gap (issue 19) certifies the optimum: with the paper's free
     # first moments the bound pays the dual residual over their level-set box, up to 2e-6 on
     # the carpet scraper at (1, 0), so the certificate's own criterion is the requirement
-    assert cert.certified and cert.gap_rel <= balancing.CERTIFIED_GAP_REL
+    assert cert.certified and cert.gap_rel <= certificate.CERTIFIED_GAP_REL
     assert cert.lower_bound <= cert.primal
     # the design returned satisfies every constraint (issue 19: repaired when the solver's
     # point, whose violation max_violation reports, does not)
@@ -70,7 +72,7 @@ def _check_certificate(result):
 @pytest.mark.parametrize('case', CASES, ids=[f'{c}({k})' for c, k in CASES])
 def test_paper_problem_no_worse_than_table7(hoeken, case):
     c, k = case
-    result = balancing.optimize(hoeken, WEIGHTS[k], c, paper_constraints=True)
+    result = redistribution.optimize(hoeken, WEIGHTS[k], c, paper_constraints=True)
     _check_certificate(result)
     z_paper = _z(WEIGHTS[k], *TABLE7[case])
     assert result.objective['z'] <= z_paper * (1.0 + Z_SLACK)
@@ -88,12 +90,12 @@ def test_paper_problem_no_worse_than_table7(hoeken, case):
 @pytest.mark.parametrize('case', CASES, ids=[f'{c}({k})' for c, k in CASES])
 def test_realizable_optimum(hoeken, case):
     c, k = case
-    paper = balancing.optimize(hoeken, WEIGHTS[k], c, paper_constraints=True)
-    result = balancing.optimize(hoeken, WEIGHTS[k], c)
+    paper = redistribution.optimize(hoeken, WEIGHTS[k], c, paper_constraints=True)
+    result = redistribution.optimize(hoeken, WEIGHTS[k], c)
     _check_certificate(result)
     assert result.realizable
     for d in result.links:
-        assert d.inertia_com_kg_m2 >= (balancing.CENTROIDAL_MARGIN - 1e-6) * \
+        assert d.inertia_com_kg_m2 >= (defaults.CENTROIDAL_MARGIN - 1e-6) * \
             d.inertia_origin_kg_m2
     # realizability is a constraint more: never better than the paper's problem (its safe
     # lower bound is below every feasible z, this design's included)
@@ -103,15 +105,15 @@ def test_realizable_optimum(hoeken, case):
 @pytest.mark.parametrize('case', CASES, ids=[f'{c}({k})' for c, k in CASES])
 def test_realizability_of_table5_designs(hoeken, case):
     design = equimomental.apply_design(hoeken, TABLE5[case], normalized=True)
-    links = [balancing.link_design(lk, case[0] == 'b', hoeken.normalization)
+    links = [tables.link_design(lk, case[0] == 'b', hoeken.normalization)
              for lk in design.links]
     assert {d.name for d in links if not d.realizable} == TABLE5_UNREALIZABLE[case]
 
 
 def test_certificate_bounds_random_feasible_designs(hoeken):
     """The safe lower bound is a bound: no feasible design (case a) is below it."""
-    result = balancing.optimize(hoeken, (0.5, 0.5), 'a', paper_constraints=True)
-    maps = balancing.linear_maps(hoeken)
+    result = redistribution.optimize(hoeken, (0.5, 0.5), 'a', paper_constraints=True)
+    maps = linear_maps.linear_maps(hoeken)
     t0 = maps.theta_original.reshape(-1, 4)
     m0, l0 = t0[:, 0], np.sqrt(t0[:, 3] / t0[:, 0])
     rng = np.random.default_rng(7)
@@ -139,16 +141,16 @@ def test_certificate_bounds_random_feasible_designs(hoeken):
 
 def test_force_balanced_optimum_has_least_moment(hoeken):
     """w2 = 0 and complete balance attainable: among balanced designs, the least moment."""
-    tied = balancing.optimize(hoeken, (1.0, 0.0), 'a', paper_constraints=True)
-    plain = balancing.optimize(hoeken, (1.0, 0.0), 'a', paper_constraints=True,
-                               tie_break=False)
+    tied = redistribution.optimize(hoeken, (1.0, 0.0), 'a', paper_constraints=True)
+    plain = redistribution.optimize(hoeken, (1.0, 0.0), 'a', paper_constraints=True,
+                                    tie_break=False)
     assert tied.certificate.stage2['exact_force_balance']
     assert tied.objective['shaking_force_rms'] <= 1e-12 * tied.objective['z_original']
     assert tied.objective['shaking_moment_rms'] <= plain.objective['shaking_moment_rms']
     assert tied.objective['shaking_moment_rms'] < TABLE7[('a', 1)][1]
     # the moment is minimal over force-balanced designs: compare with the (0.5, 0.5)
     # optimum, which is force-balanced too and whose moment can be no smaller
-    both = balancing.optimize(hoeken, (0.5, 0.5), 'a', paper_constraints=True)
+    both = redistribution.optimize(hoeken, (0.5, 0.5), 'a', paper_constraints=True)
     assert tied.objective['shaking_moment_rms'] <= both.objective['shaking_moment_rms'] + 1e-6
 
 
@@ -156,10 +158,10 @@ def test_carpet_scraper_table10_cases():
     """All three weightings solved with a certificate; better than Table 10 in every case."""
     sc = scene.load('carpet_scraper')
     for k, w in WEIGHTS.items():
-        result = balancing.optimize(sc, w, 'a', paper_constraints=True)
+        result = redistribution.optimize(sc, w, 'a', paper_constraints=True)
         _check_certificate(result)
         _, f, n = TABLE10[k]
         assert result.objective['z'] <= _z(w, f, n)
-        real = balancing.optimize(sc, w, 'a')
+        real = redistribution.optimize(sc, w, 'a')
         _check_certificate(real)
         assert real.realizable

@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 
 from mech_balance import schema as scene
 from mech_balance.analysis import clearance
-from mech_balance.balancing import counterweights as cw, socp as balancing
+from mech_balance.balancing import counterweights as cw, redistribution
 from mech_balance.cli import main as cli
 from mech_balance.core.planar import drawn
 from mech_balance.core.rig import rig_for
@@ -260,7 +260,7 @@ def test_rim_bound_is_enforced_and_certified(hoeken, rim_bounded):
 
 
 def test_plane_round_trips_bit_for_bit(rim_bounded):
-    text = balancing.scene_to_yaml(rim_bounded.balanced_scene)
+    text = redistribution.scene_to_yaml(rim_bounded.balanced_scene)
     back = scene.from_dict(scene.parse_yaml(text), source='<written>')
     for a, b in zip(rim_bounded.balanced_scene.links, back.links):
         assert [cw_.to_dict() for cw_ in a.counterweights] == \
@@ -273,7 +273,7 @@ def test_plane_round_trips_bit_for_bit(rim_bounded):
 
 
 def test_default_plane_is_not_written(default_planes):
-    text = balancing.scene_to_yaml(default_planes.balanced_scene)
+    text = redistribution.scene_to_yaml(default_planes.balanced_scene)
     assert 'plane_m' not in text
     back = scene.from_dict(scene.parse_yaml(text), source='<written>')
     assert all(c.plane_m == 0.0 for lk in back.links for c in lk.counterweights)

@@ -8,7 +8,7 @@ import sys
 
 from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
-from mech_balance.balancing import socp as balancing
+from mech_balance.balancing import defaults, redistribution
 from mech_balance.bench import balancing as bench_balancing
 from mech_balance.cli import balance as cli_balance, jsonout, main as cli
 import numpy as np
@@ -250,7 +250,7 @@ def test_key_error_is_a_bug_not_a_usage_error(monkeypatch):
 def test_output_paths_are_checked_before_the_solve(monkeypatch, tmp_path, capsys):
     def solve(*args, **kwargs):
         pytest.fail('solved before the output path was checked')
-    monkeypatch.setattr(balancing, 'optimize', solve)
+    monkeypatch.setattr(redistribution, 'optimize', solve)
     blocker = tmp_path / 'a_file'
     blocker.write_text('')
     (tmp_path / 'dir.rrd').mkdir()
@@ -300,16 +300,16 @@ def test_balance_and_record_share_the_default_weights(monkeypatch, tmp_path, cap
     def solve(scene, weights, case, **kwargs):
         calls.append((tuple(weights), case))
         raise ValueError('stop here')
-    monkeypatch.setattr(balancing, 'optimize', solve)
+    monkeypatch.setattr(redistribution, 'optimize', solve)
     assert cli.main(['balance']) == 2
     assert cli.main(['record', '--balance', '--out', str(tmp_path / 'x.rrd')]) == 2
     assert cli.main(['balance', '--weights', '1', '0', '--case', 'b']) == 2
     assert cli.main(['record', '--balance', '--weights', '1', '0', '--case', 'b',
                      '--out', str(tmp_path / 'x.rrd')]) == 2
-    default = (tuple(balancing.DEFAULT_WEIGHTS), cli_balance.DEFAULT_CASE)
+    default = (tuple(defaults.DEFAULT_WEIGHTS), cli_balance.DEFAULT_CASE)
     assert calls == [default, default, ((1.0, 0.0), 'b'), ((1.0, 0.0), 'b')]
     capsys.readouterr()
-    w1, w2 = balancing.DEFAULT_WEIGHTS
+    w1, w2 = defaults.DEFAULT_WEIGHTS
     for verb in ('balance', 'record'):
         with pytest.raises(SystemExit):
             cli.main([verb, '--help'])

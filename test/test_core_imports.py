@@ -7,7 +7,8 @@ import sys
 BLOCKED = ('rclpy', 'rerun', 'sensor_msgs', 'geometry_msgs', 'std_srvs', 'std_msgs')
 CORE = ('conventions', 'schema.scene', 'core.planar.smallsolve', 'core.planar.kinematics',
         'core.planar.dynamics', 'core.equimomental', 'analysis.cycle', 'core.spatial.rig',
-        'balancing.socp', 'balancing.weights', 'analysis.identify', 'ros.bags', 'ros.urdf')
+        'balancing.redistribution', 'balancing.spatial', 'balancing.weights', 'analysis.identify',
+        'ros.bags', 'ros.urdf')
 
 SCRIPT = f"""
 import importlib.abc, sys

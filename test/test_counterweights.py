@@ -10,10 +10,10 @@ from dataclasses import replace
 import json
 import math
 
-from mech_balance import schema as scene
-from mech_balance.analysis import cycle as analysis
+from mech_balance import conic, schema as scene
+from mech_balance.analysis import cycle as analysis, linear_maps
 from mech_balance.balancing import counterweights as cw, paper_tables as seed_tables, \
-    socp as balancing, two_point
+    redistribution, two_point
 from mech_balance.cli import main as cli
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core.planar import dynamics
@@ -42,8 +42,8 @@ def hoeken_results(hoeken):
 
 
 def _reload(sc):
-    """Return the scene written by balancing.scene_to_yaml and loaded back."""
-    return scene.from_dict(scene.parse_yaml(balancing.scene_to_yaml(sc)), source='<written>')
+    """Return the scene written by redistribution.scene_to_yaml and loaded back."""
+    return scene.from_dict(scene.parse_yaml(redistribution.scene_to_yaml(sc)), source='<written>')
 
 
 def _rms_wrench(sc):
@@ -177,7 +177,7 @@ def test_hoeken_force_balance_with_least_moment(hoeken, hoeken_results):
 def test_hoeken_dual_bounds_random_feasible_discs(hoeken, hoeken_results):
     """No feasible pair of discs has a z below the certificate's safe lower bound."""
     result = hoeken_results[(0.5, 0.5)]
-    maps = balancing.linear_maps(hoeken)
+    maps = linear_maps.linear_maps(hoeken)
     u = result.units
     rng = np.random.default_rng(5)
     best = math.inf
@@ -386,7 +386,7 @@ def test_table12_two_point_model(name):
     # the bounds hold to the tolerance the result reports: the round-off of rebuilding the
     # point masses once the design is clipped into the bounds, else the solver's (issue 19)
     tol = r.upper_feasibility_tol
-    assert tol <= balancing.SOLVER_TOL * 1e3
+    assert tol <= conic.SOLVER_TOL * 1e3
     assert np.all(t[:, 0] >= t0[:, 0] * (1 - tol))
     assert np.all(t[:, 0] <= 5 * t0[:, 0] * (1 + tol))
     assert np.all(t[:, 3] >= 0.25 * t0[:, 3] * (1 - tol))

@@ -14,7 +14,7 @@ import math
 import os
 
 from mech_balance import schema as scene_mod
-from mech_balance.balancing import socp as balancing
+from mech_balance.balancing import redistribution
 from mech_balance.core.rig import rig_for
 from mech_balance.ros import description, streaming as twin, urdf
 import numpy as np
@@ -163,7 +163,7 @@ def test_spatial_velocities_are_the_rates_of_the_joint_angles(name):
 def test_a_balanced_design_shares_the_layout():
     sc = scene_mod.load('hoeken')
     model = description.twin_for(sc)
-    design = balancing.optimize(sc, weights=(0.5, 0.5)).balanced_scene
+    design = redistribution.optimize(sc, weights=(0.5, 0.5)).balanced_scene
     balanced = model.with_design(design)
     assert isinstance(balanced, description.UrdfTwin) and balanced.layout is model.layout
     psi = np.linspace(0.0, 6.0, 7)
@@ -253,7 +253,7 @@ def test_node_urdf_late_joiner_and_forward_kinematics_hoeken(context):
         answer = probe.call(probe.balance)
         assert answer.success, answer.message
         text = late.wait(probe, 3, 'the URDF of the balanced design')
-        design = balancing.optimize(sc, weights=(0.5, 0.5)).balanced_scene
+        design = redistribution.optimize(sc, weights=(0.5, 0.5)).balanced_scene
         robot = _robot(text)
         for link in design.links:
             assert_allclose(robot.link_map[link.name].inertial.mass, link.mass_kg, rtol=1e-9)

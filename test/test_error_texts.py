@@ -9,7 +9,7 @@ scene's link with the way out (fix it or give it a mass), not an internal ``mass
 import copy
 
 from mech_balance import schema
-from mech_balance.balancing import socp, spatial
+from mech_balance.balancing import conditioning, redistribution, spatial
 from mech_balance.cli.main import main
 from mech_balance.core.rig import rig_for
 from mech_balance.ros import bags
@@ -91,7 +91,7 @@ def test_ill_scaled_program_names_the_crank_speed():
         spatial.redistribute(_spatial(crank__speed_rad_s=1e12))
     text = str(err.value)
     assert 'crank.speed_rad_s = 1e+12 is 1.59e+10 x normalization.omega_rad_s = 62.8319' in text
-    assert f'expected a crank speed at most {socp.SPEED_UNIT_RATIO_MAX:g} x' in text
+    assert f'expected a crank speed at most {conditioning.SPEED_UNIT_RATIO_MAX:g} x' in text
 
 
 def test_the_same_speed_in_its_own_units_solves_certified():
@@ -106,7 +106,7 @@ def test_planar_failed_stage_names_the_crank_speed():
     data, _ = schema.load_data('hoeken')
     data = copy.deepcopy(data)
     data['crank']['speed_rad_s'] = 1e12
-    cert = socp.optimize(from_dict(data)).certificate
+    cert = redistribution.optimize(from_dict(data)).certificate
     assert not cert.certified
     reasons = ' '.join(f['reason'] for f in cert.failed_stages)
     assert 'crank.speed_rad_s = 1e+12 is 1e+12 x normalization.omega_rad_s = 1' in reasons

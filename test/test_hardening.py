@@ -21,7 +21,7 @@ import time
 
 from mech_balance import atomic, conventions
 from mech_balance import schema as scene
-from mech_balance.balancing import socp as balancing
+from mech_balance.balancing import checks, redistribution
 from mech_balance.cli import main as cli
 from mech_balance.core import equimomental
 from mech_balance.ros import params
@@ -344,12 +344,12 @@ def test_class7_design_values_have_the_scene_magnitude_limit(capsys):
 def test_class7_fixed_links_duplicates_blanks_and_all_are_refused():
     sc = scene.load('hoeken')
     names = [lk.name for lk in sc.links]
-    with pytest.raises(balancing.BalanceError, match=r"^fixed_links: got 'crank' twice"):
-        balancing.optimize(sc, fixed_links=('crank', 'crank'))
-    with pytest.raises(balancing.BalanceError, match=r"^fixed_links: got ''"):
-        balancing.optimize(sc, fixed_links=('',))
-    with pytest.raises(balancing.BalanceError, match=r'^fixed_links: got every link'):
-        balancing.optimize(sc, fixed_links=tuple(names))
+    with pytest.raises(checks.BalanceError, match=r"^fixed_links: got 'crank' twice"):
+        redistribution.optimize(sc, fixed_links=('crank', 'crank'))
+    with pytest.raises(checks.BalanceError, match=r"^fixed_links: got ''"):
+        redistribution.optimize(sc, fixed_links=('',))
+    with pytest.raises(checks.BalanceError, match=r'^fixed_links: got every link'):
+        redistribution.optimize(sc, fixed_links=tuple(names))
     with pytest.raises(ValueError, match=r"^balance\.fixed_links: got 'crank' twice"):
         params.check('balance.fixed_links', 'crank,crank')
     with pytest.raises(ValueError, match=r'^balance\.fixed_links: got .*expected comma'):
@@ -404,9 +404,9 @@ def test_class8_weights_1e308_names_the_option(capsys):
     err = capsys.readouterr().err
     assert err.startswith("mech-balance balance: error: argument --weights: got '1e308', "
                           'expected a number 0 <= x <= 1e+06 (a fixed limit of mech_balance)')
-    with pytest.raises(balancing.BalanceError, match=r'^weights: w1 = 1e\+308, expected at '
-                                                     r'most 1e\+06'):
-        balancing.optimize(scene.load('hoeken'), (1e308, 1e308))
+    with pytest.raises(checks.BalanceError, match=r'^weights: w1 = 1e\+308, expected at '
+                       r'most 1e\+06'):
+        redistribution.optimize(scene.load('hoeken'), (1e308, 1e308))
     with pytest.raises(ValueError, match=r'^balance\.weights: got \[1e\+308, 1\.0\]'):
         params.check('balance.weights', [1e308, 1.0])
 

@@ -14,9 +14,10 @@ import sys
 
 from mech_balance import atomic
 from mech_balance import schema as scene_mod
-from mech_balance.analysis import identify
-from mech_balance.balancing import socp as balancing
+from mech_balance.analysis import identify, linear_maps
+from mech_balance.balancing import defaults, redistribution
 from mech_balance.cli import main as cli
+from mech_balance.core.planar import rig as planar_rig
 from mech_balance.ros import bags
 import numpy as np
 import pytest
@@ -60,10 +61,10 @@ def rigs():
     return out
 
 
-def _z_on(true, theta, weights=balancing.DEFAULT_WEIGHTS):
+def _z_on(true, theta, weights=defaults.DEFAULT_WEIGHTS):
     """Return z = w1 f~ + w2 n~ of parameters ``theta`` (SI) on the true rig's geometry."""
-    units = balancing.objective_units(true)
-    maps = balancing.linear_maps(true, units=units)
+    units = planar_rig.objective_units(true)
+    maps = linear_maps.linear_maps(true, units=units)
     m, ln = units.mass_kg, units.length_m
     scale = np.tile([m, m * ln, m * ln, m * ln * ln], len(true.links))
     return float(np.dot(weights, maps.terms(np.asarray(theta) / scale)[:2]))
@@ -152,10 +153,10 @@ def test_residual_after_calibration_is_the_noise(rigs, case):
 def test_calibrated_design_balances_the_true_rig(rigs, case):
     """The optimum of the calibrated scene, built on the true rig, is near its own optimum."""
     nominal, true, data, result = rigs[case]
-    z_true = balancing.optimize(true).objective['z']
+    z_true = redistribution.optimize(true).objective['z']
     z_applied = {}
     for label, sc in (('calibrated', result.calibrated_scene()), ('nominal', nominal)):
-        design = balancing.optimize(sc).balanced_scene
+        design = redistribution.optimize(sc).balanced_scene
         change = sr.theta_of(design) - sr.theta_of(sc)     # what is built onto the rig
         z_applied[label] = _z_on(true, data.theta_true + change)
     assert abs(z_applied['calibrated'] - z_true) <= Z_REL_TOL * z_true, (z_applied, z_true)

@@ -20,7 +20,7 @@ import time
 from geometry_msgs.msg import WrenchStamped
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
-from mech_balance.balancing import socp as balancing, weights
+from mech_balance.balancing import defaults, redistribution, weights
 from mech_balance.core.rig import rig_for
 from mech_balance.ros import conversions as conv, description
 from mech_balance.ros import node as rig_node
@@ -107,9 +107,9 @@ def test_params_file_documents_a_working_set():
     for name, value in flat.items():
         params.check(name, value)
     assert 'rig_params' not in scene_mod.builtin_scenes()
-    # one default objective: the file, the node's declaration and balancing.optimize agree
+    # one default objective: the file, the node's declaration and redistribution.optimize agree
     assert flat['balance.weights'] == params.defaults()['balance.weights'] == \
-        list(balancing.DEFAULT_WEIGHTS)
+        list(defaults.DEFAULT_WEIGHTS)
 
 
 @pytest.mark.parametrize('name, value, reason', [
@@ -603,7 +603,7 @@ def test_clock_mode_topics_parameters_and_balancing_across_processes(context):
         assert probe.get_param('use_balanced').bool_value
 
         # the balanced design is published
-        result = balancing.optimize(sc, weights=(0.5, 0.5))
+        result = redistribution.optimize(sc, weights=(0.5, 0.5))
         balanced = original.with_design(result.balanced_scene)
         probe.collect(40)
         _check_against_core(probe, balanced, 'cell_frame')

@@ -11,7 +11,9 @@ import dataclasses
 import math
 
 from mech_balance import balancing, schema
-from mech_balance.balancing import defaults, spatial
+from mech_balance.balancing import certificate, defaults, spatial
+from mech_balance.balancing.spatial import model as spatial_model, \
+    program as spatial_program, repair as spatial_repair, spheres
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import regressor
 from mech_balance.core.rig import rig_for
@@ -40,7 +42,7 @@ def rssr_rig():
 def _psd_min(theta, model):
     out = []
     for k, body in enumerate(model.bodies):
-        m0, r0 = spatial._ref(model, k)
+        m0, r0 = spatial_model.reference_units(model, k)
         d = np.array([1 / (math.sqrt(m0) * r0)] * 3 + [1 / math.sqrt(m0)])
         j = regressor.pseudo_inertia(theta[10 * k:10 * k + 10]) * np.outer(d, d)
         out.append(float(np.linalg.eigvalsh(j)[0]))
@@ -87,11 +89,11 @@ def test_rggr_complete_force_balance_through_the_general_route(scene_name):
 def test_force_balance_conditions_are_the_null_space(rssr_rig):
     result = spatial.force_balance(rssr_rig, samples=SAMPLES)
     model = spatial.parameter_model(rssr_rig)
-    maps = spatial.maps_of(rssr_rig, SAMPLES)
+    maps = spatial_model.maps_of(rssr_rig, SAMPLES)
     # every design that meets the conditions has zero shaking force: random ones
     rng = np.random.default_rng(4)
     names = [f'{b.name}.{lab}' for b in model.bodies for lab in b.labels]
-    basis, _, _ = spatial._design_columns(model, set(range(len(model.bodies))))
+    basis, _, _ = spatial_model.design_columns(model, set(range(len(model.bodies))))
     for _ in range(5):
         y = rng.normal(size=basis.shape[1])
         for cond in result.conditions:
@@ -258,7 +260,7 @@ def test_no_lower_bound_above_a_feasible_design(scene_name):
     free = list(range(len(model.bodies)))
     result = spatial.redistribute(rig, weights=(0.5, 0.5), samples=SAMPLES,
                                   mass_factors=(1.0, 2.0), extent_factor=1.0)
-    maps = spatial.maps_of(rig, SAMPLES)
+    maps = spatial_model.maps_of(rig, SAMPLES)
     mlo = {k: model.theta[10 * k] for k in free}
     mhi = {k: 2 * model.theta[10 * k] for k in free}
     ext = {k: model.bodies[k].reach_m for k in free}
@@ -266,7 +268,7 @@ def test_no_lower_bound_above_a_feasible_design(scene_name):
     u = result.units
     for _ in range(20):
         theta = _random_feasible(model, free, mlo, mhi, ext, rng)
-        checks = spatial._RealizableChecks(model, free, mlo, mhi, ext)
+        checks = spatial_repair.RealizableChecks(model, free, mlo, mhi, ext)
         assert checks.violation(theta) <= 1e-12
         z = 0.5 * np.linalg.norm(maps.force @ theta) / u.force_N + \
             0.5 * np.linalg.norm(maps.moment @ theta) / u.moment_Nm
@@ -288,7 +290,7 @@ def test_counterweights_add_only_spheres(tmp_path, scene_name, links):
     assert cert.primal <= result.objective['z_original'] * (1 + 1e-12)
     for name, cluster in result.options['counterweights'].items():
         k = model.index(name, 'links')
-        added = spatial.cluster_theta(cluster)
+        added = spheres.cluster_theta(cluster)
         # add-only: the body is its original plus the spheres, and the spheres exist
         assert_allclose(result.theta[10 * k:10 * k + 10], model.theta[10 * k:10 * k + 10]
                         + added, rtol=1e-13, atol=1e-15)
@@ -313,7 +315,7 @@ def test_hollow_sphere_has_the_mass_and_spread():
     for spread_factor in (1.0, 1.5, 30.0):
         mass, rho = 0.7, 7850.0
         solid = 3.0 / 5.0 * (3 * mass / (4 * math.pi * rho)) ** (2 / 3) * mass / 3.0
-        outer, inner = spatial.hollow_sphere(mass, solid * spread_factor, rho)
+        outer, inner = spheres.hollow_sphere(mass, solid * spread_factor, rho)
         m = rho * 4 / 3 * math.pi * (outer ** 3 - inner ** 3)
         spread = rho * 4 / 15 * math.pi * (outer ** 5 - inner ** 5)
         assert m == pytest.approx(mass, rel=1e-12)
@@ -326,8 +328,8 @@ def test_clarabel_triangle_map_is_the_pseudo_inertia():
     rng = np.random.default_rng(2)
     theta = rng.normal(size=10)
     j = regressor.pseudo_inertia(theta)
-    svec = spatial.J_MAP @ theta
-    expected = [j[a, b] * (1.0 if a == b else math.sqrt(2.0)) for a, b in spatial.SVEC]
+    svec = spatial_program.J_MAP @ theta
+    expected = [j[a, b] * (1.0 if a == b else math.sqrt(2.0)) for a, b in certificate.SVEC]
     assert_allclose(svec, expected, rtol=1e-14, atol=1e-14)
 
 
@@ -438,7 +440,7 @@ def test_parameter_model_reproduces_the_spatial_rigs_wrench(scene_name):
     # every body's scene parameters lie in its basis (an S-S rod on its line)
     for k, body in enumerate(model.bodies):
         t = model.theta[10 * k:10 * k + 10]
-        assert_allclose(body.basis @ spatial._coordinates(body, t), t, rtol=0,
+        assert_allclose(body.basis @ spatial_model.coordinates(body, t), t, rtol=0,
                         atol=1e-12 * np.abs(t).max())
     # the model writes the scene back as it was
     again = spatial.parameter_model(rig.with_scene(model.build(model.theta)))
@@ -497,12 +499,12 @@ def test_redistribution_over_the_option_range(scene_name, mass_factors, extent_f
                                   extent_factor=extent_factor)
     cert = result.certificate
     assert cert.lower_bound <= cert.primal and cert.certified, cert
-    assert result.options['violation_after_pull'] <= spatial.VIOLATION_TOL
+    assert result.options['violation_after_pull'] <= spatial_repair.VIOLATION_TOL
     for k in range(len(model.bodies)):
         m, m0 = result.theta[10 * k], model.theta[10 * k]
         # met to the design's stated accuracy (VIOLATION_TOL, units of the body's mass): the
         # rounding of the maps reaches the last few bits of an equal-bound mass
-        tol = spatial.VIOLATION_TOL
+        tol = spatial_repair.VIOLATION_TOL
         assert mass_factors[0] * m0 * (1 - tol) <= m <= mass_factors[1] * m0 * (1 + tol)
 
 

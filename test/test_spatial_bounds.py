@@ -13,6 +13,7 @@ import math
 
 from mech_balance import schema
 from mech_balance.balancing import spatial
+from mech_balance.balancing.spatial import model as spatial_model
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import assembly
 from mech_balance.core.spatial.kinematics import SpatialError
@@ -160,7 +161,7 @@ def test_balanced_design_at_round_off_is_written_and_reproduced(tmp_path, delta_
 
 def test_round_off_clip_leaves_a_design_that_is_no_body():
     """Only round-off is clipped: -1e-15 of m reach^2 goes, -1e-6 stays (the loader names it)."""
-    clip = spatial._clip_roundoff
+    clip = spatial_model.clip_roundoff
     tiny = np.diag([0.0, -1e-15, -1e-15])
     assert np.array_equal(clip(tiny, 1.0), np.zeros((3, 3)))
     bad = np.diag([1.0, -1e-6, 1.0])

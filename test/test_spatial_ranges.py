@@ -4,7 +4,7 @@ The spatial redistribution over its documented option ranges (issue 19 item 3).
 Every end of ``--mass-factors`` (defaults.SPATIAL_MASS_FACTOR_RANGE) and ``--extent-factor``
 (defaults.EXTENT_FACTOR_RANGE) solves to a certified optimum on each spatial built-in: the
 safe lower bound lies below the design's objective and within the package's certification
-threshold of it (socp.CERTIFIED_GAP_REL), and the design meets every constraint to its
+threshold of it (certificate.CERTIFIED_GAP_REL), and the design meets every constraint to its
 stated accuracy.  A value outside a range is refused where it is read (library and command
 line), naming the option, its value and the range; ``--help`` shows the ranges.
 """
@@ -12,7 +12,9 @@ line), naming the option, its value and the range; ``--help`` shows the ranges.
 import math
 
 from mech_balance import schema
-from mech_balance.balancing import defaults, socp, spatial
+from mech_balance.balancing import certificate, defaults, spatial
+from mech_balance.balancing.spatial import redistribution as spatial_redistribution, \
+    repair as spatial_repair
 from mech_balance.cli import main as cli
 from mech_balance.core.rig import rig_for
 import pytest
@@ -23,7 +25,7 @@ LOW_MASS, HIGH_MASS = defaults.SPATIAL_MASS_FACTOR_RANGE
 LOW_EXTENT, HIGH_EXTENT = defaults.EXTENT_FACTOR_RANGE
 MASS_ENDS = ((LOW_MASS, LOW_MASS), (LOW_MASS, HIGH_MASS), (HIGH_MASS, HIGH_MASS))
 """Every pair of ends of the mass-factor range (lo <= hi)."""
-EXTENT_ENDS = (LOW_EXTENT, spatial.EXTENT_FACTOR, HIGH_EXTENT)
+EXTENT_ENDS = (LOW_EXTENT, spatial_redistribution.EXTENT_FACTOR, HIGH_EXTENT)
 """Both ends of the extent range, and its default."""
 WEIGHTS = ((0.5, 0.5), (1.0, 0.0), (0.0, 1.0))
 """The default weights and the two single-term objectives (force alone: the hardest)."""
@@ -47,10 +49,10 @@ def test_range_ends_solve_certified(rigs, scene_name, mass_factors, weights):
                  f'{extent_factor}')
         assert math.isfinite(cert.lower_bound), where
         assert cert.lower_bound <= cert.primal, (where, cert)
-        assert cert.gap_rel <= socp.CERTIFIED_GAP_REL, (where, cert.gap_rel)
+        assert cert.gap_rel <= certificate.CERTIFIED_GAP_REL, (where, cert.gap_rel)
         assert cert.certified, where
         # the design returned meets every bound (units of each body's mass and reach)
-        assert result.options['violation_after_pull'] <= spatial.VIOLATION_TOL, where
+        assert result.options['violation_after_pull'] <= spatial_repair.VIOLATION_TOL, where
 
 
 @pytest.mark.parametrize('kwargs,match', [

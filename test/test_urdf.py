@@ -394,11 +394,11 @@ def test_cli_writes_atomically_and_prints_without_out(tmp_path, capsys):
 
 def test_cli_design_takes_the_inertias_of_the_same_geometry(tmp_path, capsys):
     sc = scene.load('hoeken')
-    from mech_balance.balancing import socp as balancing
+    from mech_balance.balancing import redistribution
     heavier = [replace(lk, mass_kg=2 * lk.mass_kg, inertia_com_kg_m2=2 * lk.inertia_com_kg_m2)
                for lk in sc.links]
     path = tmp_path / 'heavy.yaml'
-    path.write_text(balancing.scene_to_yaml(sc.with_links(heavier, name='heavy')))
+    path.write_text(redistribution.scene_to_yaml(sc.with_links(heavier, name='heavy')))
     assert cli.main(['urdf', '--scene', 'hoeken', '--design', str(path)]) == 0
     robot = yourdfpy.URDF.load(io.StringIO(capsys.readouterr().out), load_meshes=False,
                                build_collision_scene_graph=False)

@@ -6,7 +6,7 @@ A spatial rig as built: each moving body a chain of tubes along its drawn outlin
 at each of its points, and each frame point a bearing housing of the same radius; L is the
 span of the crank body's points (the planar rule, :mod:`mech_balance.core.planar.drawn`
 sizes).  A counterweight is a cluster of spheres fixed to its body
-(:func:`mech_balance.balancing.spatial.sphere_cluster`, outer radii).  Every sphere is
+(:func:`mech_balance.balancing.spatial.spheres.sphere_cluster`, outer radii).  Every sphere is
 checked against every body of another body (and the frame) at each crank sample: the
 distance between a sphere and a capsule is the distance from its centre to the capsule's
 segment minus both radii (exact in 3-D).  The answer is a

@@ -10,7 +10,7 @@ a scene (its rig is built).  The method is chosen from what the rig
 can be balanced by (:attr:`mech_balance.core.rig.Rig.capabilities`), never from its kind:
 
 * ``redistribution``: the certified optimal mass redistribution of seed 001 (planar rigs,
-  :func:`mech_balance.balancing.socp.optimize`);
+  :func:`mech_balance.balancing.redistribution.optimize`);
 * ``weights``: the complete force balance and minimum RMS shaking moment by balancing
   weights on the links pivoted on the frame (seed 002's RGGR, any spatial scene that lists
   ``balancing_weights``: :mod:`mech_balance.balancing.weights`);
@@ -18,8 +18,8 @@ can be balanced by (:attr:`mech_balance.core.rig.Rig.capabilities`), never from 
   (:func:`mech_balance.balancing.counterweights.balance_with_counterweights`; its report
   carries ``counterweights`` in the scene's form, ``{link: [disc entry]}``);
 * ``analytic``: the complete force balance in closed form, the slider-crank's (seed 000,
-  :func:`mech_balance.balancing.socp.slider_crank_balance`) for a rig with a prismatic
-  joint, else the four-bar's (seed 001 eq. 48, :func:`~.socp.four_bar_balance`);
+  :func:`mech_balance.balancing.analytic.slider_crank_balance`) for a rig with a prismatic
+  joint, else the four-bar's (seed 001 eq. 48, :func:`~.analytic.four_bar_balance`);
 * ``force_balance``: the complete force balance of a spatial rig (null space of its force
   map, :func:`mech_balance.balancing.spatial.force_balance`);
 * ``auto`` (the default): the first of those the rig supports.
@@ -210,10 +210,11 @@ def balance(rig, method='auto', **options):
     """
     Balance a rig and return its :class:`Design` (module docstring: methods).
 
-    ``options`` are the method's: those of :func:`mech_balance.balancing.socp.optimize` for
-    ``redistribution``; of :func:`~.counterweights.balance_with_counterweights` for
-    ``counterweights`` (``links`` first); ``samples`` (and for a four-bar ``mass_factor``,
-    ``inertia``) for ``analytic``; ``samples`` for ``weights``.
+    ``options`` are the method's: those of
+    :func:`mech_balance.balancing.redistribution.optimize` for ``redistribution``; of
+    :func:`~.counterweights.balance_with_counterweights` for ``counterweights`` (``links``
+    first); ``samples`` (and for a four-bar ``mass_factor``, ``inertia``) for ``analytic``;
+    ``samples`` for ``weights``.
     """
     from mech_balance.core.rig import as_rig
     rig = as_rig(rig)
@@ -222,8 +223,8 @@ def balance(rig, method='auto', **options):
     if method == 'force_balance' or METHODS[method] not in rig.capabilities:
         return _spatial(rig, method, options)
     if method == 'redistribution':
-        from mech_balance.balancing import counterweights, socp
-        result = socp.optimize(sc, **options)
+        from mech_balance.balancing import counterweights, redistribution
+        result = redistribution.optimize(sc, **options)
         report = result.to_dict()
         report['identification_confidence'] = None
         if getattr(sc, 'identification', None) is not None:   # a calibrated scene: +-1 SE
@@ -246,11 +247,11 @@ def balance(rig, method='auto', **options):
         return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
             result.table, _certificate_text(result.certificate)))
     if method == 'analytic':
-        from mech_balance.balancing import counterweights, socp
+        from mech_balance.balancing import analytic, counterweights
         if any(j.prismatic for j in sc.joints):
-            result = socp.slider_crank_balance(sc, **options)
+            result = analytic.slider_crank_balance(sc, **options)
         else:
-            result = socp.four_bar_balance(sc, **options)
+            result = analytic.four_bar_balance(sc, **options)
         report = result.to_dict()
         report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
                                                           result.table)

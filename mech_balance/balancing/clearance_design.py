@@ -28,9 +28,9 @@ import itertools
 import math
 
 from mech_balance.analysis import clearance as clearance_mod, layers as layer_model
+from mech_balance.balancing.checks import BalanceError
 from mech_balance.balancing.defaults import DEFAULT_CLEARANCE_MARGIN_M, \
     MAX_CLEARANCE_MARGIN_M, SIDES  # the options' home (balancing.options); read here too
-from mech_balance.balancing.socp import BalanceError
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar.rig import PlanarRig
 from mech_balance.schema.scene import add_counterweights, MAX_PLANE_OFFSET_M

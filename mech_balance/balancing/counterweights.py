@@ -42,8 +42,8 @@ import time
 
 import clarabel
 from mech_balance import schema
-from mech_balance.analysis import clearance as clearance_mod
-from mech_balance.balancing import certificate, clearance_design, socp as balancing
+from mech_balance.analysis import clearance as clearance_mod, linear_maps
+from mech_balance.balancing import certificate, clearance_design, redistribution, tables
 from mech_balance.balancing.counterweight_options import (
     check_options, CounterweightError, CounterweightOptions, joint_reach_m, link_list,
     nonnegative, plane_list, positive)
@@ -51,8 +51,8 @@ from mech_balance.balancing.counterweight_program import (
     CounterweightDesign, MIN_MASS_REL, Problem)
 from mech_balance.balancing.defaults import (
     DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR,
-    DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_MAX_THICKNESS_M)
-from mech_balance.core.planar import dynamics
+    DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_MAX_THICKNESS_M, DEFAULT_WEIGHTS)
+from mech_balance.core.planar import dynamics, rig as planar_rig
 from mech_balance.schema.scene import add_counterweights
 import numpy as np
 
@@ -83,9 +83,9 @@ class CounterweightResult:
     omitted: tuple          # listed links whose optimal disc is none (dm -> 0)
     link_totals: dict       # link -> {mass_kg, com_m, inertia_com_kg_m2, inertia_origin_kg_m2}
     objective: dict
-    certificate: balancing.Certificate
+    certificate: certificate.Certificate
     least_mass: dict        # the least-added-mass stage (None if not solved)
-    table: list             # balancing.before_after rows
+    table: list             # tables.before_after rows
     cost: dict              # cost_of_balancing
     maps_time_s: float
     conic_time_s: float
@@ -147,7 +147,7 @@ class CounterweightResult:
 # ============================================================================ public API
 
 
-def balance_with_counterweights(scene, links, weights=balancing.DEFAULT_WEIGHTS, *,
+def balance_with_counterweights(scene, links, weights=DEFAULT_WEIGHTS, *,
                                 density_kg_m3=DEFAULT_DENSITY_KG_M3,
                                 max_thickness_m=DEFAULT_MAX_THICKNESS_M,
                                 max_radius_factor=DEFAULT_MAX_RADIUS_FACTOR,
@@ -177,22 +177,23 @@ def solve(scene, options):
     """Solve the counterweight problem of :class:`CounterweightOptions` ``options``."""
     t_start = time.perf_counter()
     opt = check_options(scene, options)
-    units = balancing.objective_units(scene)
+    units = planar_rig.objective_units(scene)
     need = ['shaking_wrench']
     if opt.torque_weight:
         need.append('driving_torque')
     if opt.reaction_weight:
         need.append('bearing_reactions')
     t0 = time.perf_counter()
-    maps = balancing.linear_maps(scene, opt.samples, need, units)
+    maps = linear_maps.linear_maps(scene, opt.samples, need, units)
     maps_s = time.perf_counter() - t0
     prob = Problem(scene, maps, opt, units)
+    blame = prob.blame()
     stage1 = prob.run(prob.weights_vector(), [])
     failed = []
     if not stage1.solve.ok:
-        failed.append(balancing.failed_stage(
+        failed.append(certificate.failed_stage(
             'primary (z)', stage1.solve, "the solver's last iterate, made "
-            'feasible; its lower bound is safe'))
+            'feasible; its lower bound is safe', blame))
     y, stage2, stage3, exact = stage1.y, None, None, False
     secondary = prob.secondary()
     pins = []
@@ -200,7 +201,7 @@ def solve(scene, options):
         name2 = f"tie-break (least RMS shaking {('force', 'moment')[secondary]})"
         primary = 0 if secondary == 1 else 1
         exact = (secondary == 1 and
-                 prob.norm(0, y) <= balancing.FORCE_BALANCE_REL_TOL * maps.force_rms_original)
+                 prob.norm(0, y) <= redistribution.FORCE_BALANCE_REL_TOL * maps.force_rms_original)
         pins = [prob.pin(primary, y, exact)]
         stage2 = prob.run(prob.unit(secondary), pins)
         tried = list(stage2.solve.attempts)
@@ -209,7 +210,7 @@ def solve(scene, options):
             # primary norm instead (z <= z* + slack), as the mass stage does
             z_p = prob.norm(primary, y)
             for slack in MASS_STAGE_SLACKS[1:]:
-                cap = [(prob.unit(primary), z_p + slack * max(z_p, balancing.GAP_FLOOR))]
+                cap = [(prob.unit(primary), z_p + slack * max(z_p, certificate.GAP_FLOOR))]
                 stage2 = prob.run(prob.unit(secondary), [], None, cap)
                 tried.extend(stage2.solve.attempts)
                 if stage2.solve.ok:
@@ -217,8 +218,8 @@ def solve(scene, options):
                     break
         stage2.solve.attempts = tuple(tried)
         if not stage2.solve.ok:
-            failed.append(balancing.failed_stage(name2, stage2.solve,
-                                                 "the primary stage's optimum"))
+            failed.append(certificate.failed_stage(name2, stage2.solve,
+                                                   "the primary stage's optimum", blame))
             stage2, exact, pins = None, False, []
         else:
             y = stage2.y
@@ -235,13 +236,13 @@ def solve(scene, options):
             bound, caps, keep = None, [], []
             if stage2 is None:
                 z1 = prob.z(y)
-                bound = z1 + slack * max(z1, balancing.GAP_FLOOR)
+                bound = z1 + slack * max(z1, certificate.GAP_FLOOR)
             else:
                 if exact and pins and slack == MASS_STAGE_SLACKS[0]:
                     keep = pins[:1]
                 for k in ([secondary] if keep else [primary, secondary]):
                     zk = prob.norm(k, y)
-                    caps.append((prob.unit(k), zk + slack * max(zk, balancing.GAP_FLOOR)))
+                    caps.append((prob.unit(k), zk + slack * max(zk, certificate.GAP_FLOOR)))
             variants.append((keep, bound, caps))
         tried = []
         for keep, bound, caps in variants:
@@ -251,9 +252,9 @@ def solve(scene, options):
                 break
         stage3.solve.attempts = tuple(tried)
         if not stage3.solve.ok:
-            failed.append(balancing.failed_stage(
+            failed.append(certificate.failed_stage(
                 'least added mass', stage3.solve, "the previous stage's optimum (its "
-                'added mass is not the least)'))
+                'added mass is not the least)', blame))
             stage3 = None
         else:
             y = stage3.y
@@ -269,7 +270,7 @@ def solve(scene, options):
     primal = float(np.dot(w, terms))
     bound1 = prob.lower_bound(stage1, primal)
     lower = min(bound1.value, primal)
-    gap, gap_rel = certificate.relative_gap(primal, lower, balancing.GAP_FLOOR)
+    gap, gap_rel = certificate.relative_gap(primal, lower, certificate.GAP_FLOOR)
     s2 = None
     if stage2 is not None:
         # its own safe bound (the box of the disc constraints holds an optimal point: every
@@ -279,15 +280,15 @@ def solve(scene, options):
               'status': stage2.status, 'objective': stage2.objective,
               'lower_bound': lb2, 'iterations': stage2.iterations,
               'attempts': list(stage2.solve.attempts), 'exact_force_balance': bool(exact)}
-    cert = balancing.Certificate(
+    cert = certificate.Certificate(
         solver=f'clarabel {clarabel.__version__}', status=stage1.status, primal=primal,
         dual=lower, gap_abs=gap, gap_rel=gap_rel,
         residual_primal=stage1.r_prim, residual_dual=stage1.r_dual,
         iterations=stage1.iterations, stage2=s2, max_violation=worst, lower_bound=lower,
         attempts=list(stage1.solve.attempts),
-        bound_detail=dict(balancing._bound_detail(bound1), null_directions_assumed=0),
+        bound_detail=dict(certificate.bound_detail(bound1), null_directions_assumed=0),
         feasibility_pull=pull, failed_stages=failed,
-        certified=bool(np.isfinite(lower) and gap_rel <= balancing.CERTIFIED_GAP_REL
+        certified=bool(np.isfinite(lower) and gap_rel <= certificate.CERTIFIED_GAP_REL
                        and final_violation == 0.0),
         design_violation=final_violation)
     least = None
@@ -308,7 +309,7 @@ def solve(scene, options):
             dynamics.Inertia.from_links(balanced.links)) / prob.scale)
     clear = clearance_mod.of_design(scene, balanced, opt.samples,
                                     opt.clearance_margin_m or 0.0)
-    table = balancing.before_after(scene, balanced, opt.samples)
+    table = tables.before_after(scene, balanced, opt.samples)
     conic_s = sum(s.seconds for s in (stage1, stage2, stage3) if s is not None)
     totals = {lk.name: {'mass_kg': lk.mass_kg, 'com_m': list(lk.com_m),
                         'inertia_com_kg_m2': lk.inertia_com_kg_m2,
@@ -345,7 +346,7 @@ def cost_of_balancing(original, balanced, table):
     """
     Return what a balance did to the shaking moment, torque, bearing loads and total mass.
 
-    From the before/after rows of :func:`mech_balance.balancing.before_after` (SI RMS
+    From the before/after rows of :func:`mech_balance.tables.before_after` (SI RMS
     values): ``{quantity: {before, after, change_percent}}`` for the shaking force, shaking
     moment, driving torque, the sum of the RMS bearing forces and the total moving mass
     (kg).  ``change_percent`` is None when the before value is zero.

@@ -14,7 +14,7 @@ What ``objective`` and ``lower_bound`` are depends on the method, never on the k
 * a cone program (``redistribution``, ``counterweights``): the weighted normalized objective
   z of seed 001 eq. 43 of the design returned and the certificate's safe lower bound on every
   feasible z; ``certified`` is the certificate's (gap within
-  :data:`mech_balance.balancing.socp.CERTIFIED_GAP_REL`);
+  :data:`mech_balance.balancing.certificate.CERTIFIED_GAP_REL`);
 * a complete force balance in closed form (``analytic``, ``force_balance``): the RMS shaking
   force after / before (dimensionless), lower bound 0; ``certified`` when the ratio is
   round-off (:data:`FORCE_BALANCE_ROUNDOFF`);

@@ -39,8 +39,9 @@ import math
 import time
 
 import clarabel
-from mech_balance import schema
-from mech_balance.balancing import certificate, socp as balancing
+from mech_balance import conic, schema
+from mech_balance.analysis import linear_maps
+from mech_balance.balancing import certificate, checks, conditioning
 import numpy as np
 
 PAPER_MASS_FACTORS = (1.0, 5.0)
@@ -114,12 +115,16 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
     """Return the :class:`TwoPointResult` of seed 001 eqs. B.1-B.5 for a planar scene."""
     t_start = time.perf_counter()
     w = np.array([float(weights[0]), float(weights[1])])
-    maps = balancing.linear_maps(scene, samples, ('shaking_wrench', 'driving_torque'))
+    maps = linear_maps.linear_maps(scene, samples, ('shaking_wrench', 'driving_torque'))
     theta0 = maps.theta_original.reshape(-1, 4)
     n = theta0.shape[0]
     m0, i0 = theta0[:, 0], theta0[:, 3]
     dsc = np.column_stack([m0, np.sqrt(m0 * i0), np.sqrt(m0 * i0), i0]).ravel()
-    lower = _program(maps, dsc, w, n, ['free'] * n, None)
+    blame = conditioning.blame(scene, scene.normalization, scene.crank_speed_rad_s)
+    try:
+        lower = _program(maps, dsc, w, n, ['free'] * n, None)
+    except checks.BalanceError as exc:
+        raise checks.BalanceError(f'{exc}{blame}') from None
     programs, failed = 1, []
     y_r = lower['theta']
     band = [i for i, ok in enumerate(representable(y_r)) if not ok]
@@ -136,7 +141,7 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
             for _ in range(SCP_ITERATIONS):
                 try:
                     sol = _program(maps, dsc, w, n, pieces, theta)
-                except balancing.BalanceError as exc:
+                except checks.BalanceError as exc:
                     failed.append(f'pieces {choice}: {exc}')
                     break
                 programs += 1
@@ -147,8 +152,9 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
                     break
                 z_prev = sol['z']
     if best is None:
-        raise balancing.BalanceError('two-point model: no sequential cone program found a '
-                                     'two-point design (every piece failed or left the set)')
+        raise checks.BalanceError('two-point model: no sequential cone program found a '
+                                  'two-point design (every piece failed or left the set)'
+                                  f'{blame}')
     t, feas_tol = _clipped(best['theta'].reshape(-1, 4), m0, i0, best['feasibility_tol'])
     pm = {lk.name: dict(zip(('m_1', 'm_2', 'l_1', 'l_2'), point_masses(*row)))
           for lk, row in zip(scene.links, t)}
@@ -157,7 +163,7 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
     for p in pm.values():
         rebuilt += [p['m_1'] + p['m_2'], p['m_1'] * p['l_1'], p['m_2'] * p['l_2'],
                     p['m_1'] * p['l_1'] ** 2 + p['m_2'] * p['l_2'] ** 2]
-    if feas_tol < balancing.SOLVER_TOL:   # clipped: repair the rebuild's round-off
+    if feas_tol < conic.SOLVER_TOL:   # clipped: repair the rebuild's round-off
         pm, rebuilt = _repaired(pm, m0, i0)
     upper_terms = _terms(maps, np.array(rebuilt))
     lower_terms = _terms(maps, lower['theta'])
@@ -313,16 +319,16 @@ def _program(maps, dsc, w, n, pieces, theta_at):
         add(clarabel.SecondOrderConeT, a, np.zeros(a.shape[0]))
     q = np.zeros(nx)
     q[nv:nv + 2] = w
-    run = balancing.run_solver(q, np.vstack([b[1] for b in blocks]),
-                               np.concatenate([b[2] for b in blocks]),
-                               [b[0](b[1].shape[0]) for b in blocks])
+    run = conic.run_solver(q, np.vstack([b[1] for b in blocks]),
+                           np.concatenate([b[2] for b in blocks]),
+                           [b[0](b[1].shape[0]) for b in blocks])
     status = run.status
     if not run.ok:
-        raise balancing.BalanceError(f'two-point model: {run.why()}')
+        raise checks.BalanceError(f'two-point model: {run.why()}')
     x = np.array(run.sol.x)
     y = x[:nv]
     out = {'status': status, 'attempts': list(run.attempts),
-           'feasibility_tol': balancing.SOLVER_TOL * max(1.0, float(np.max(np.abs(x))))}
+           'feasibility_tol': conic.SOLVER_TOL * max(1.0, float(np.max(np.abs(x))))}
     if all(p == 'free' for p in pieces):
         # the relaxation's constraints are bounds only: clip the design into them exactly
         # (a feasible design), then the safe lower bound (certificate.safe_lower_bound)
@@ -362,12 +368,12 @@ def _relaxation_bound(run, maps, dsc, w, n, y, level):
     lo[nv + 2:], hi[nv + 2:] = 0.0, 0.0     # the P pieces' auxiliaries: unused here
     radius = level / min(w[w > 0])
     lo[:nv], hi[:nv] = certificate.polytope_bounds(np.vstack(used), radius, lo[:nv], hi[:nv],
-                                                   balancing.RANK_REL_TOL)
+                                                   linear_maps.RANK_REL_TOL)
     # what stays unbounded is first moments along null directions of the objective: they
     # enter no constraint of the relaxation, so an optimal point shares the design's
     # component there (certificate.level_set_bounds, centre)
     lo[:nv], hi[:nv], _ = certificate.level_set_bounds(np.vstack(used), radius, lo[:nv],
-                                                       hi[:nv], y, balancing.RANK_REL_TOL)
+                                                       hi[:nv], y, linear_maps.RANK_REL_TOL)
     for k, wk in enumerate(w):
         lo[nv + k] = 0.0
         hi[nv + k] = certificate.norm_bound(mats[k], np.zeros(mats[k].shape[0]), lo[:nv],

@@ -229,12 +229,12 @@ def _fold(rig, model, pivots, weights, where):
 
 def balance_weights(rig, samples=None):
     """Return the :class:`WeightsResult` of a rig whose scene lists balancing weights."""
-    from mech_balance.balancing import spatial
+    from mech_balance.balancing.spatial import model as spatial_model
     start = time.perf_counter()
-    samples = spatial._samples(samples, rig)
+    samples = spatial_model.check_samples(samples, rig)
     pivots = pivots_of(rig)
-    model = spatial.parameter_model(rig)
-    psi = spatial.cycle_of(rig, samples)
+    model = spatial_model.parameter_model(rig)
+    psi = spatial_model.cycle_of(rig, samples)
     y = _regressor(rig, psi)
     n = psi.size
     force = y[:, :3].reshape(3 * n, -1)
@@ -439,13 +439,13 @@ def balance_report(rig, result, normalized=False):
     The weights (mass, centre, radius, I_ww about the axis, products about the pivot and, for
     a cylinder, alpha and gamma), the links' optimal products J, a table of the unbalanced,
     force-balanced and optimized rigs (``rigs``), the before/after rows of every balancing
-    result (``table``, :func:`mech_balance.balancing.spatial.before_after`), and the
+    result (``table``, :func:`mech_balance.balancing.spatial.result.before_after`), and the
     least-squares optimum with its lower bound.
     """
     sc = rig.scene
     view = ReportView(sc, normalized)
-    from mech_balance.balancing import spatial
-    psi = spatial.cycle_of(rig, result.samples)
+    from mech_balance.balancing.spatial import model as spatial_model, result as spatial_result
+    psi = spatial_model.cycle_of(rig, result.samples)
     rows = []
     for label, scene in zip(ROWS, (sc, result.force_balanced_scene, result.balanced_scene)):
         data = rig.with_scene(scene).at(psi)
@@ -473,8 +473,9 @@ def balance_report(rig, result, normalized=False):
         'normalization': None if norm is None else dict(norm.items()),
         'crank_speed_rad_s': sc.crank_speed_rad_s,
         'weights': weights, 'link_products': products, 'rigs': rows,
-        'table': spatial.before_after(rig, result.balanced_scene, result.samples,
-                                      spatial.units_of(rig, spatial.parameter_model(rig))),
+        'table': spatial_result.before_after(
+            rig, result.balanced_scene, result.samples,
+            spatial_model.units_of(rig, spatial_model.parameter_model(rig))),
         'optimum': {'shaking_moment_rms': float(view.moment(result.moment_rms_optimal_Nm)),
                     'shaking_moment_rms_lower_bound':
                         float(view.moment(result.moment_rms_lower_bound_Nm)),

@@ -225,13 +225,13 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
     """
     Return the certificate gap against solve time, or a note if balancing is unavailable.
 
-    ``balancing.optimize`` has no tolerance argument: the study sets the one Clarabel
+    ``redistribution.optimize`` has no tolerance argument: the study sets the one Clarabel
     tolerance of the package (:data:`mech_balance.conic.SOLVER_TOL`, which every cone
     program's settings read) for the duration of each call and restores it.
     """
     try:
         from mech_balance import conic
-        from mech_balance.balancing import socp as balancing
+        from mech_balance.balancing import redistribution
     except ImportError as exc:
         return {'available': False, 'note': f'balancing not available ({exc})'}
     rows = []
@@ -239,7 +239,7 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
         saved = conic.SOLVER_TOL
         try:
             conic.SOLVER_TOL = tol
-            res = balancing.optimize(scene, weights=weights)
+            res = redistribution.optimize(scene, weights=weights)
         finally:
             conic.SOLVER_TOL = saved
         c = res.certificate

@@ -7,7 +7,7 @@ the paper's weight cases.
 
 from mech_balance import schema as scene_mod
 from mech_balance.balancing import counterweights as cw_mod, paper_tables as seed_tables, \
-    socp as balancing
+    redistribution
 from mech_balance.bench import core as bench
 
 BENCH_REPEAT_MAX = 20
@@ -19,7 +19,11 @@ COUNTERWEIGHT_BENCH = {'hoeken': (('crank', 'rocker'), 20.0), 'carpet_scraper': 
 
 
 def bench_section(args, progress):
-    """Return the bench table of :func:`balancing.optimize`: median wall time per case."""
+    """
+    Return the bench table of the redistribution: median wall time per case.
+
+    :func:`mech_balance.balancing.redistribution.optimize` over the paper's weight cases.
+    """
     names = args.scene or ['hoeken', 'carpet_scraper']
     repeat = min(int(args.repeat), BENCH_REPEAT_MAX)
     head = (f"{'balance: scene':<18}{'case':<6}{'weights':<12}{'constraints':<13}"
@@ -43,8 +47,8 @@ def bench_section(args, progress):
                     last = {}
 
                     def run(w=w, case=case, paper=paper, last=last):
-                        last['r'] = balancing.optimize(sc, w, case, paper_constraints=paper,
-                                                       samples=args.samples)
+                        last['r'] = redistribution.optimize(sc, w, case, paper_constraints=paper,
+                                                            samples=args.samples)
                     sec = bench.median_seconds(run, repeat=repeat)
                     r = last['r']
                     lines.append(f"{name:<18}{case:<6}{f'({w[0]:g}, {w[1]:g})':<12}"

@@ -269,10 +269,10 @@ def _spatial(sc, args):
 def _write(balanced, path, summary):
     """Write a balanced scene to ``path`` atomically, after checking that it loads."""
     from mech_balance import schema
-    from mech_balance.balancing import socp
+    from mech_balance.balancing import redistribution
     from mech_balance.schema.registry import from_dict
     from mech_balance.schema.scene import parse_yaml
-    scene_text = socp.scene_to_yaml(balanced, balance=summary)
+    scene_text = redistribution.scene_to_yaml(balanced, balance=summary)
     try:   # a written scene always loads: check it as the loader will, before writing
         from_dict(parse_yaml(scene_text, f'--output {path}'), source=str(path))
     except (ValueError, schema.SceneError) as exc:

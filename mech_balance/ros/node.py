@@ -578,9 +578,9 @@ def _import_solvers():
     the first ``~/balance`` or ``~/identify`` call does not pay them.
     """
     import importlib
-    for name in ('mech_balance.balancing.socp', 'mech_balance.balancing.counterweights',
-                 'mech_balance.balancing.certificate', 'mech_balance.analysis.identify',
-                 'scipy.signal'):
+    for name in ('mech_balance.balancing.redistribution',
+                 'mech_balance.balancing.counterweights', 'mech_balance.balancing.certificate',
+                 'mech_balance.analysis.identify', 'scipy.signal'):
         importlib.import_module(name)
 
 
