@@ -10,15 +10,15 @@ from dataclasses import dataclass
 import math
 
 from mech_balance import schema
-from mech_balance.balancing import clearance_design, socp as balancing
+from mech_balance.balancing import checks, clearance_design
 from mech_balance.balancing.defaults import check_counterweight_option, \
     DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR, \
-    DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_MAX_THICKNESS_M
+    DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_MAX_THICKNESS_M, DEFAULT_WEIGHTS
 from mech_balance.schema.scene import MAX_PLANE_OFFSET_M
 import numpy as np
 
 
-class CounterweightError(balancing.BalanceError):
+class CounterweightError(checks.BalanceError):
     """A counterweight problem has a bad option or cannot be solved."""
 
 
@@ -27,7 +27,7 @@ class CounterweightOptions:
     """The plain options of :func:`balance_with_counterweights` (what a node passes)."""
 
     links: tuple
-    weights: tuple = balancing.DEFAULT_WEIGHTS
+    weights: tuple = DEFAULT_WEIGHTS
     density_kg_m3: float = DEFAULT_DENSITY_KG_M3
     max_thickness_m: float = DEFAULT_MAX_THICKNESS_M
     max_radius_factor: float = DEFAULT_MAX_RADIUS_FACTOR

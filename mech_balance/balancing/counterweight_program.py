@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 import math
 
 import clarabel
-from mech_balance import schema
-from mech_balance.analysis import clearance as clearance_mod
-from mech_balance.balancing import certificate, socp as balancing
+from mech_balance import conic, schema
+from mech_balance.analysis import clearance as clearance_mod, linear_maps
+from mech_balance.balancing import certificate, conditioning, redistribution
 from mech_balance.balancing.counterweight_options import CounterweightError, \
     CounterweightOptions, joint_reach_m
 from mech_balance.schema.scene import Counterweight
@@ -68,7 +68,7 @@ class Stage:
     r_prim: float
     r_dual: float
     seconds: float
-    solve: object = None      # balancing.Solve: the data and statuses of the program
+    solve: object = None      # conic.Solve: the data and statuses of the program
 
 
 @dataclass
@@ -148,6 +148,12 @@ class Problem:
         q[0:self.ny:4] = self.m0
         return q
 
+    def blame(self):
+        """Return the scene values that make the program ill-posed (:mod:`.conditioning`)."""
+        sc = self.scene
+        return conditioning.blame(sc, None if sc.normalization is None else self.units,
+                                  sc.crank_speed_rad_s)
+
     def norm(self, k, y):
         g, c = self.norms[k]
         return float(np.linalg.norm(g @ y + c))
@@ -168,7 +174,7 @@ class Problem:
         u, sv, vt = np.linalg.svd(g, full_matrices=False)
         if not sv.size or sv[0] == 0.0:
             return u[:, :0], sv[:0], vt[:0]
-        r = int(np.sum(sv > balancing.RANK_REL_TOL * sv[0]))
+        r = int(np.sum(sv > linear_maps.RANK_REL_TOL * sv[0]))
         return u[:, :r], sv[:r], vt[:r]
 
     def pin(self, k, y, exact):
@@ -251,10 +257,11 @@ class Problem:
                           format='csc')
         b_all = np.concatenate(b_blocks[:dynamic] + [b_static])
         cones = cones[:dynamic] + [clarabel.SecondOrderConeT(k) for k in sizes]
-        run = balancing.run_solver(q, a_all, b_all, cones)
+        run = conic.run_solver(q, a_all, b_all, cones)
         status = run.status
         if not np.all(np.isfinite(np.asarray(run.sol.x))):
-            raise CounterweightError(f'solver: {run.why()} (counterweight problem); no design')
+            raise CounterweightError(f'solver: {run.why()} (counterweight problem); no '
+                                     f'design{self.blame()}')
         x = np.array(run.sol.x)
         return Stage(y=x[:ny], objective=float(q @ x), dual=float(run.sol.obj_val_dual),
                      status=status, iterations=int(run.sol.iterations),
@@ -392,7 +399,7 @@ class Problem:
         if self.discs(y)[2] <= 0.0:
             return y, 0.0
         anchor = self.anchor()
-        for lam in balancing.PULL_STEPS[1:]:
+        for lam in redistribution.PULL_STEPS[1:]:
             cand = (1.0 - lam) * y + lam * anchor
             if self.discs(cand)[2] <= 0.0:
                 return cand, lam

@@ -72,7 +72,8 @@ def compare_optimum(result):
     """
     Return how a redistribution optimum compares with seed 001's, or None where none applies.
 
-    ``result`` is a :class:`mech_balance.balancing.socp.BalanceResult` of the Hoeken linkage
+    ``result`` is a :class:`mech_balance.balancing.redistribution.BalanceResult` of the Hoeken
+    linkage
     (Tables 5 and 7) or the carpet scraper (case a: Tables 9 and 10) at one of the paper's
     weightings without driving-torque or bearing weights.  The mapping holds the table's
     label, its RMS normalized shaking force ``f`` and moment ``n``, its ``z_paper`` = w1 f +
@@ -107,10 +108,10 @@ def compare_optimum(result):
 
 def _design_links(sc, x, counterweights):
     """Return the per-link designs of a table's normalized design vector ``x`` on ``sc``."""
-    from mech_balance.balancing import socp
+    from mech_balance.balancing import tables
     from mech_balance.core import equimomental
     design = equimomental.apply_design(sc, x, normalized=True)
-    return [socp.link_design(lk, counterweights, sc.normalization) for lk in design.links]
+    return [tables.link_design(lk, counterweights, sc.normalization) for lk in design.links]
 
 
 def analytic_variants(rig, mass_factors=None, keep_centroidal=False, samples=None):

@@ -34,6 +34,8 @@ from mech_balance.analysis import spatial_clearance
 from mech_balance.balancing import spatial
 from mech_balance.balancing.clearance_design import check_margin, ClearanceReport, \
     NoClearDesign
+from mech_balance.balancing.spatial import model as spatial_model, result as spatial_result, \
+    spheres as sphere_clusters
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import regressor
 import numpy as np
@@ -115,8 +117,8 @@ class _Search:
         opts = result.options
         self.density = float(opts['density_kg_m3'])
         self.model = spatial.parameter_model(rig)
-        self.units = spatial.units_of(rig, self.model)
-        self.maps = spatial.maps_of(rig, result.samples)
+        self.units = spatial_model.units_of(rig, self.model)
+        self.maps = spatial_model.maps_of(rig, result.samples)
         self.w = tuple(result.weights)
         names = [b.name for b in self.model.bodies]
         self.spheres = [(body, dict(s)) for body, cluster in opts['counterweights'].items()
@@ -354,7 +356,7 @@ class _Search:
 def _evaluate(rig, result, search, spheres):
     """Return a :class:`~.spatial.SpatialResult` of the moved spheres (the core's figures)."""
     clusters = search.clusters(spheres)
-    added = {b: spatial.cluster_theta(cl) for b, cl in clusters.items()}
+    added = {b: sphere_clusters.cluster_theta(cl) for b, cl in clusters.items()}
     balanced = search.model.add(added, clusters)
     theta = search.theta(spheres)
     data = rig.with_scene(balanced).at(search.maps.angles)
@@ -368,7 +370,7 @@ def _evaluate(rig, result, search, spheres):
     options = dict(result.options, counterweights=clusters,
                    added_mass_kg={b: float(sum(s['mass_kg'] for s in cl))
                                   for b, cl in clusters.items()},
-                   sphere_overlap_m={b: spatial.cluster_overlap_m(cl)
+                   sphere_overlap_m={b: sphere_clusters.cluster_overlap_m(cl)
                                      for b, cl in clusters.items()})
     bodies = []
     for entry, k in zip(result.bodies, range(len(search.model.bodies))):
@@ -383,8 +385,8 @@ def _evaluate(rig, result, search, spheres):
                                np.linalg.eigvalsh(regressor.pseudo_inertia(t))[0])))
     return replace(result, balanced_scene=balanced, objective=objective, options=options,
                    bodies=bodies, theta=theta,
-                   table=spatial.before_after(rig, balanced, result.samples, units,
-                                              (base, data)))
+                   table=spatial_result.before_after(rig, balanced, result.samples, units,
+                                                     (base, data)))
 
 
 def design(rig, result, samples, margin_m):

@@ -305,7 +305,7 @@ def format_weights(design, report):
 
 def warning_lines(cert):
     """Return one warning per failed stage, and one if the objective is not certified."""
-    from mech_balance.balancing.socp import CERTIFIED_GAP_REL
+    from mech_balance.balancing.certificate import CERTIFIED_GAP_REL
     lines = [f"warning: stage '{f['stage']}' failed: {f['reason']}; the design is "
              f"{f['design']}" for f in cert.failed_stages or ()]
     if not cert.certified:
