@@ -31,9 +31,10 @@ import math
 import warnings
 
 from mech_balance.conventions import crank_angle_text
-from mech_balance.core.planar import dyads, smallsolve
-from mech_balance.core.planar.algebra import cross as _cross, matvec as _matvec, \
-    max_reduce as _MAX, rmat as _rmat, Tiles
+from mech_balance.core import linalg
+from mech_balance.core.planar import dyads
+from mech_balance.core.planar.algebra import cross as _cross, max_reduce as _MAX, \
+    rmat as _rmat, Tiles
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
@@ -194,7 +195,7 @@ class KinematicState:
     alpha: np.ndarray = None   # (nb, p) rad/s^2
     acc: np.ndarray = None     # (nb, p) complex acceleration of each link origin, m/s^2
     jac: np.ndarray = None      # (m, nt, p) scaled loop Jacobian (None: kept sparse)
-    jac_factors: object = None  # smallsolve.Factored of J_u (solves without the inverse)
+    jac_factors: object = None  # linalg.Factored of J_u (solves without the inverse)
     jac_psi: np.ndarray = None  # (m, p) its crank column, d g / d psi (scaled)
 
     @property
@@ -273,10 +274,10 @@ class Linkage:
         self.branch_sign = 1.0  # sign of det J_u on the traced branch (set by the trace)
         self.sparse_jac = False  # J_u as its nonzeros only (all-revolute, nu > 2)
         self.pivots = None  # static row order for the loop Jacobian, set at assembly
-        self.lu = None      # its sparse LU plan (smallsolve.LUPlan), set at assembly
+        self.lu = None      # its sparse LU plan (linalg.LUPlan), set at assembly
         self._skeleton = None
         self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
-        self.block = None   # its J_u as 2 x 2 diagonal blocks (smallsolve.BlockPlan), likewise
+        self.block = None   # its J_u as 2 x 2 diagonal blocks (linalg.BlockPlan), likewise
         self.turn_table_ok = False  # the closed form's whole turns from the skeleton's table
         self.turn_line = None       # or from a line in psi (Skeleton.affine_reference;
         #                             its slope and offset as algebra.Tiles)
@@ -664,11 +665,11 @@ class Linkage:
         """Return ``(Factored J_u, J_psi or None)`` at ``pose`` (sparse where possible)."""
         if self.block is not None:
             values, jac_psi = self.jacobian_values(pose)
-            return smallsolve.BlockFactored(self.block, values), jac_psi
+            return linalg.BlockFactored(self.block, values), jac_psi
         if self.sparse_jac:
             values, jac_psi = self.jacobian_values(pose)
-            return smallsolve.Factored(None, self.lu, values=values), jac_psi
-        return smallsolve.Factored(self.jacobian(pose, unknown_only=True), self.lu), None
+            return linalg.Factored(None, self.lu, values=values), jac_psi
+        return linalg.Factored(self.jacobian(pose, unknown_only=True), self.lu), None
 
     # ------------------------------------------------------------------ Newton
 
@@ -693,7 +694,7 @@ class Linkage:
             if self.sparse_jac or self.block is not None:
                 step = self.factored(pose)[0].solve(g)
             else:  # closed form for nu <= 2, no inverse or condition number
-                step = smallsolve.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
+                step = linalg.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
             if self.has_pri:
                 step *= self.col_scale[:, None]
             q[unknown] -= step
@@ -774,12 +775,12 @@ class Linkage:
             # dependency order), pivots inside the blocks from the assembly guess
             sample = self.jacobian(self.pose(q))[:, self.unknown, 0]
             pattern = self._jacobian_pattern()
-            order = smallsolve.block_triangular_order(pattern, sample)
+            order = linalg.block_triangular_order(pattern, sample)
             if order is None:
-                self.pivots, cols = smallsolve.pivot_order(sample), None
+                self.pivots, cols = linalg.pivot_order(sample), None
             else:
                 self.pivots, cols = order
-            self.lu = smallsolve.LUPlan(pattern, self.pivots, cols)
+            self.lu = linalg.LUPlan(pattern, self.pivots, cols)
             self.sparse_jac = not self.has_pri and not self.npc
             if self.sparse_jac:
                 c, t = self.jac_nz_split[0], self.jac_nz_split[1]
@@ -790,10 +791,10 @@ class Linkage:
             norm = float(np.max(np.abs(g))) if self.m else 0.0
             if norm <= NEWTON_TOL:
                 return q
-            jinv, cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown], self.lu)
+            jinv, cond = linalg.inverse(self.jacobian(pose)[:, self.unknown], self.lu)
             if not np.isfinite(cond[0]):
                 break
-            step = -_matvec(jinv, g) * cs
+            step = -linalg.matvec(jinv, g) * cs
             lam = 1.0
             while lam > LINE_SEARCH_MIN:  # backtracking line search on the residual norm
                 trial = q.copy()
@@ -833,7 +834,7 @@ class Linkage:
         else:
             if jac is None:
                 jac = self.jacobian(pose)
-            fac = smallsolve.Factored(jac[:, unknown], self.lu)
+            fac = linalg.Factored(jac[:, unknown], self.lu)
             jac_psi = jac[:, 0]
         cond = fac.cond()
         sign = fac.sign()
@@ -947,12 +948,12 @@ class Linkage:
         return self._skeleton
 
     def _block_plan(self):
-        """Return J_u as the dyads' 2 x 2 diagonal blocks (:class:`smallsolve.BlockPlan`)."""
+        """Return J_u as the dyads' 2 x 2 diagonal blocks (:class:`linalg.BlockPlan`)."""
         c, t = self.jac_nz_split[0], self.jac_nz_split[1]
         blocks = [((s.cut, self.nr + s.cut), (s.joints[0] - 1, s.joints[1] - 1))
                   for s in self.dyads.steps]
         try:
-            return smallsolve.BlockPlan(self.nu, np.concatenate([c, self.nr + c]),
+            return linalg.BlockPlan(self.nu, np.concatenate([c, self.nr + c]),
                                         np.concatenate([t, t]), blocks)
         except ValueError:  # pragma: no cover - a dyad order is block triangular
             return None
@@ -1051,7 +1052,7 @@ class Linkage:
         if not self.nu:
             return 1.0
         if self.nu <= 2:  # closed form, without the inverse and condition number
-            return float(smallsolve.det_sign(self.jacobian(pose, unknown_only=True))[0])
+            return float(linalg.det_sign(self.jacobian(pose, unknown_only=True))[0])
         return float(self.factored(pose)[0].sign()[0])
 
     def _warn(self, text):

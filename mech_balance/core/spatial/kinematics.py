@@ -60,7 +60,7 @@ import math
 import warnings
 
 from mech_balance.conventions import crank_angle_text
-from mech_balance.core.planar import smallsolve
+from mech_balance.core import linalg
 from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
 from mech_balance.core.spatial import assembly
 from mech_balance.schema.scene import FRAME
@@ -967,11 +967,11 @@ class Linkage:
 
     def _lu_plan(self, js):
         """
-        Return the :class:`~smallsolve.LUPlan` of the scaled square Jacobian (built once).
+        Return the :class:`~linalg.LUPlan` of the scaled square Jacobian (built once).
 
         The pattern is structural: row r can depend on coordinate d only if d moves one of
         the row's two bodies (``mask_b``, ``mask_a``); the static order is block lower
-        triangular (the loops in dependency order, :func:`smallsolve.block_triangular_order`,
+        triangular (the loops in dependency order, :func:`linalg.block_triangular_order`,
         so that the factors have no fill between loops and the work grows linearly with
         them), pivots inside the blocks from the first Jacobian met (the assembly's).
         """
@@ -979,10 +979,10 @@ class Linkage:
         if plan is None or plan[0] != self.m:
             pattern = ((self.mask_b + self.mask_a) > 0)[:, self.unknown]
             sample = np.where(pattern, js[0], 0.0)
-            order = smallsolve.block_triangular_order(pattern, sample)
+            order = linalg.block_triangular_order(pattern, sample)
             if order is None:
-                order = (smallsolve.pivot_order(sample), None)
-            plan = (self.m, smallsolve.LUPlan(pattern, *order))
+                order = (linalg.pivot_order(sample), None)
+            plan = (self.m, linalg.LUPlan(pattern, *order))
             self._plan = plan
         return plan[1]
 
@@ -992,9 +992,9 @@ class Linkage:
         if self.nu == 0:
             return np.zeros((n, 0, self.m)), np.ones(n), np.zeros(n, dtype=int), np.ones(n)
         if self.square:
-            # static-pivot sparse LU over the batch (planar smallsolve), LAPACK where weak
+            # static-pivot sparse LU over the batch (planar linalg), LAPACK where weak
             batch_last = np.ascontiguousarray(js.transpose(1, 2, 0))  # contiguous: faster
-            inv, cond, sign = smallsolve.inverse(batch_last, self._lu_plan(js), with_sign=True)
+            inv, cond, sign = linalg.inverse(batch_last, self._lu_plan(js), with_sign=True)
             return inv.transpose(2, 0, 1), cond, np.full(n, self.nu, dtype=int), sign
         u, s, vt = np.linalg.svd(js, full_matrices=False)
         keep = s > RANK_RTOL * s[:, :1]
