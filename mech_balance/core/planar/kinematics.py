@@ -31,7 +31,7 @@ import math
 import warnings
 
 from mech_balance.conventions import crank_angle_text
-from mech_balance.core import linalg
+from mech_balance.core import continuation, linalg
 from mech_balance.core.planar import dyads
 from mech_balance.core.planar.algebra import cross as _cross, max_reduce as _MAX, \
     rmat as _rmat, Tiles
@@ -90,6 +90,15 @@ MIDPOINT_TRUST_FRACTION = 0.1
 """A traced segment is accepted when Newton moves its midpoint predictor by less than this
 fraction of ``EVAL_TRUST``, so that batched solves seldom need the step-by-step re-trace."""
 TWO_PI = 2.0 * math.pi
+TRACE_LIMITS = continuation.Limits(
+    step_max=STEP_MAX_RAD, step_min=STEP_MIN_RAD, step_done=ANGLE_EPS_RAD,
+    step_trust=STEP_TRUST, cond_limit=COND_LIMIT, cond_warn=COND_WARN,
+    grow_max_iterations=2)
+"""The trace of the skeleton: the step grows after a step that Newton took in two."""
+RETRACE_LIMITS = continuation.Limits(
+    step_max=STEP_MAX_RAD, step_min=STEP_MIN_RAD, step_done=ANGLE_EPS_RAD,
+    step_trust=STEP_TRUST, cond_limit=COND_LIMIT, first_step=STEP_MAX_RAD / 4, growth=1.0)
+"""A re-trace from a skeleton node to one angle: quarter steps that do not grow."""
 DENSE_TREE_MAX_BODIES = 8
 """Up to this many bodies the sums over the spanning tree are one dense matrix product each
 (fewest numpy calls); above it they run level by level down or up the tree, so that their
@@ -958,64 +967,16 @@ class Linkage:
         except ValueError:  # pragma: no cover - a dyad order is block triangular
             return None
 
-    def _derivatives(self, pose):
-        r = self.rates(pose, 1.0, 0.0)
-        return r['qd'], r['qdd'], r['cond'], r['jac_factors']
-
     def _trace(self):
+        """Return the :class:`Skeleton`: the branch followed once round from the assembly."""
         psi0 = self.scene.assembly_crank_angle_rad
         q = self.assemble()
-        pose = self.pose(q)
-        qd, qdd, cond, _ = self._derivatives(pose)
-        det0 = self._det_sign(pose)
-        self.branch_sign = det0
-        nodes_psi, nodes_q, nodes_qd, nodes_qdd, nodes_cond = [psi0], [q[:, 0]], [qd[:, 0]], \
-            [qdd[:, 0]], [cond[0]]
-        psi, h = psi0, STEP_MAX_RAD
-        end = psi0 + TWO_PI
-        while psi < end - ANGLE_EPS_RAD:
-            h = min(h, end - psi)
-            pred = q + qd * h + 0.5 * qdd * h * h
-            q_new, pose_new, res, iters, ok = self.newton(np.array([psi + h]), pred)
-            corr = np.max(np.abs((q_new - pred)[self.unknown]) / self.col_scale[:, None]) \
-                if self.nu else 0.0
-            good = bool(ok[0]) and corr <= STEP_TRUST
-            if good:
-                qd_new, qdd_new, cond_new, _ = self._derivatives(pose_new)
-                good = np.isfinite(cond_new[0]) and cond_new[0] <= COND_LIMIT
-            if good and self._det_sign(pose_new) == det0:
-                good = self._midpoint_ok(psi, h, q, qd, qdd, q_new, qd_new, qdd_new, det0)
-            elif good:
-                good = False
-                if h <= 2 * STEP_MIN_RAD:
-                    raise BranchError(
-                        f'crank angle {crank_angle_text(psi + h, 4)} deg: the linkage passes '
-                        'a singular position here (the loop Jacobian changes sign); beyond it '
-                        'the assembly branch is not unique, so the cycle cannot be followed')
-            if not good:
-                h *= 0.5
-                if h < STEP_MIN_RAD:
-                    c = cond_new[0] if 'cond_new' in locals() else float('inf')
-                    raise BranchError(
-                        f'crank angle {crank_angle_text(psi, 4)} deg: cannot continue the '
-                        f'assembly branch (Newton residual {res[0]:.2e}, Jacobian condition '
-                        f'{c:.3g}); the linkage cannot be assembled beyond this angle or '
-                        'reaches a singular position')
-                continue
-            psi += h
-            q, qd, qdd = q_new, qd_new, qdd_new
-            nodes_psi.append(psi)
-            nodes_q.append(q[:, 0])
-            nodes_qd.append(qd[:, 0])
-            nodes_qdd.append(qdd[:, 0])
-            nodes_cond.append(cond_new[0])
-            if cond_new[0] > COND_WARN:
-                self._warn(f'crank angle {crank_angle_text(psi, 3)} deg: near-singular '
-                           f'position (Jacobian condition number {cond_new[0]:.3g} > '
-                           f'{COND_WARN:.4g})')
-            if iters[0] <= 2:
-                h = min(1.5 * h, STEP_MAX_RAD)
-        q_start, q_end = nodes_q[0], nodes_q[-1]
+        branch = _PlanarBranch(self, midpoint_check=True)
+        start = branch.node(continuation.Trial((q, self.pose(q)), True, 0.0, 0.0), psi0)
+        self.branch_sign = start.sign
+        nodes = [start] + list(continuation.advance(branch, start, TWO_PI, TRACE_LIMITS,
+                                                    start.sign))
+        q_start, q_end = nodes[0].state[0][:, 0], nodes[-1].state[0][:, 0]
         turns = np.zeros(self.nt)
         rev = ~self.is_prismatic
         turns[rev] = np.round((q_end[rev] - q_start[rev]) / TWO_PI)
@@ -1026,27 +987,15 @@ class Linkage:
                 'assembly: after one full crank turn the linkage does not return to its start '
                 f'(largest joint mismatch {np.max(gap):.3e}); the crank cannot turn fully on '
                 'this branch')
-        return Skeleton(np.array(nodes_psi), np.array(nodes_q).T, np.array(nodes_qd).T,
-                        np.array(nodes_qdd).T, np.array(nodes_cond), turns)
+        q, qd, qdd = (np.concatenate([n.state[i] for n in nodes], axis=1) for i in range(3))
+        return Skeleton(np.array([n.x for n in nodes]), q, qd, qdd,
+                        np.array([n.cond for n in nodes]), turns)
 
-    def _midpoint_ok(self, psi, h, q0, qd0, qdd0, q1, qd1, qdd1, det0):
-        """
-        Return whether the quintic Hermite predictor holds at the middle of a new segment.
-
-        The batched solve starts Newton from that predictor, so a segment is accepted only
-        if, at its midpoint, Newton moves less than a tenth of ``EVAL_TRUST`` and stays on
-        the branch (same sign of det J_u).  Near a change point this shortens the steps
-        until the two nearby branches can no longer be confused.
-        """
+    def scaled_change(self, q, q_ref):
+        """Return the largest change ``|q - q_ref|`` of the unknowns (scaled; 0 if none)."""
         if not self.nu:
-            return True
-        # quintic Hermite basis at t = 1/2: 1/2, 5/32, 1/64 (and mirrored for the end)
-        pred = (0.5 * (q0 + q1) + 0.15625 * h * (qd0 - qd1)
-                + 0.015625 * h * h * (qdd0 + qdd1))
-        q_mid, pose_mid, _, _, ok = self.newton(np.array([psi + 0.5 * h]), pred)
-        corr = np.max(np.abs((q_mid - pred)[self.unknown]) / self.col_scale[:, None])
-        return (bool(ok[0]) and corr <= MIDPOINT_TRUST_FRACTION * EVAL_TRUST
-                and self._det_sign(pose_mid) == det0)
+            return 0.0
+        return float(np.max(np.abs((q - q_ref)[self.unknown]) / self.col_scale[:, None]))
 
     def _det_sign(self, pose):
         if not self.nu:
@@ -1149,34 +1098,86 @@ class Linkage:
     def _retrace(self, psi):
         """Follow the branch from the nearest skeleton node to each angle, step by step."""
         sk = self.skeleton
+        branch = _PlanarBranch(self, midpoint_check=False)
         out = np.empty((self.nt, psi.size))
         for i, target in enumerate(psi):
             k, x = sk.locate(np.array([target]))
             base = sk.psi[k[0]] + (target - sk.psi[0] - x[0])
             q = sk.q[:, k[0]:k[0] + 1] + np.where(
                 self.is_prismatic, 0.0, TWO_PI * sk.turns * sk.wraps(target))[:, None]
-            qd = sk.qd[:, k[0]:k[0] + 1]
-            qdd = sk.qdd[:, k[0]:k[0] + 1]
-            psi_now, goal = base, target
-            h = min(STEP_MAX_RAD / 4, goal - psi_now) if goal > psi_now else 0.0
-            while goal - psi_now > ANGLE_EPS_RAD:
-                h = min(h, goal - psi_now)
-                pred = q + qd * h + 0.5 * qdd * h * h
-                q_new, pose_new, res, _, ok = self.newton(np.array([psi_now + h]), pred)
-                corr = np.max(np.abs((q_new - pred)[self.unknown]) / self.col_scale[:, None])
-                if not ok[0] or corr > STEP_TRUST or \
-                        self._det_sign(pose_new) != self.branch_sign:
-                    h *= 0.5
-                    if h < STEP_MIN_RAD:
-                        raise BranchError(
-                            f'crank angle {crank_angle_text(psi_now, 4)} deg: cannot follow '
-                            f'the assembly branch (Newton residual {res[0]:.2e})')
-                    continue
-                psi_now += h
-                q = q_new
-                qd, qdd, _, _ = self._derivatives(pose_new)
-            out[:, i] = q[:, 0]
+            node = continuation.Node(base, (q, sk.qd[:, k[0]:k[0] + 1],
+                                            sk.qdd[:, k[0]:k[0] + 1]), 1.0, self.branch_sign)
+            for node in continuation.advance(branch, node, target - base, RETRACE_LIMITS,
+                                             self.branch_sign):
+                pass
+            out[:, i] = node.state[0][:, 0]
         return out
+
+
+class _PlanarBranch(continuation.Branch):
+    """The planar linkage's hooks for :func:`continuation.advance` (state: q, qd, qdd)."""
+
+    error = BranchError
+
+    def __init__(self, linkage, midpoint_check):
+        self.linkage, self.midpoint_check = linkage, midpoint_check
+
+    def where(self, x, digits=4):
+        """Return the crank angle ``x`` in words."""
+        return f'crank angle {crank_angle_text(x, digits)} deg'
+
+    def predict(self, node, h):
+        """Return the second-order Taylor predictor of the tree coordinates ``(nt, 1)``."""
+        q, qd, qdd = node.state
+        return q + qd * h + 0.5 * qdd * h * h
+
+    def correct(self, prediction, x):
+        """Return Newton's :class:`continuation.Trial` from ``prediction`` at angle ``x``."""
+        lk = self.linkage
+        q, pose, res, iters, ok = lk.newton(np.array([x]), prediction)
+        return continuation.Trial((q, pose), bool(ok[0]), float(res[0]),
+                                  lk.scaled_change(q, prediction), int(iters[0]))
+
+    def node(self, trial, x):
+        """Return the :class:`continuation.Node` with the rates at unit crank speed."""
+        lk = self.linkage
+        q, pose = trial.solution
+        rates = lk.rates(pose, 1.0, 0.0)
+        return continuation.Node(x, (q, rates['qd'], rates['qdd']), float(rates['cond'][0]),
+                                 lk._det_sign(pose))
+
+    def sign_changed(self, x, h):
+        """Refuse a sign change that persists down to the smallest steps: a singular crossing."""
+        if abs(h) <= 2 * STEP_MIN_RAD:
+            raise BranchError(
+                f'crank angle {crank_angle_text(x, 4)} deg: the linkage passes '
+                'a singular position here (the loop Jacobian changes sign); beyond it '
+                'the assembly branch is not unique, so the cycle cannot be followed')
+
+    def accept(self, start, node, h):
+        """
+        Return whether the quintic Hermite predictor holds at the middle of a new segment.
+
+        The batched solve starts Newton from that predictor, so a segment is accepted only
+        if, at its midpoint, Newton moves less than ``MIDPOINT_TRUST_FRACTION`` of
+        ``EVAL_TRUST`` and stays on the branch (same sign of det J_u).  Near a change point
+        this shortens the steps until the two nearby branches can no longer be confused.
+        """
+        lk = self.linkage
+        if not self.midpoint_check or not lk.nu:
+            return True
+        (q0, qd0, qdd0), (q1, qd1, qdd1) = start.state, node.state
+        # quintic Hermite basis at t = 1/2: 1/2, 5/32, 1/64 (and mirrored for the end)
+        pred = (0.5 * (q0 + q1) + 0.15625 * h * (qd0 - qd1)
+                + 0.015625 * h * h * (qdd0 + qdd1))
+        q_mid, pose_mid, _, _, ok = lk.newton(np.array([start.x + 0.5 * h]), pred)
+        return (bool(ok[0]) and lk.scaled_change(q_mid, pred)
+                <= MIDPOINT_TRUST_FRACTION * EVAL_TRUST
+                and lk._det_sign(pose_mid) == node.sign)
+
+    def warn(self, text):
+        """Record the warning on the linkage."""
+        self.linkage._warn(text)
 
 
 _1J = np.array(1j)   # (0-d: quicker as a ufunc operand than the Python scalar)

@@ -57,10 +57,11 @@ Idle freedoms and redundancy
 
 from dataclasses import dataclass
 import math
+from typing import NamedTuple
 import warnings
 
 from mech_balance.conventions import crank_angle_text
-from mech_balance.core import linalg
+from mech_balance.core import continuation, linalg
 from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
 from mech_balance.core.spatial import assembly
 from mech_balance.schema.scene import FRAME
@@ -377,6 +378,21 @@ class SpatialState:
                       None if self.twist is None else component_major(self.twist))
             self._component_major = cached
         return cached
+
+
+class Rates(NamedTuple):
+    """The rates :meth:`Linkage.rates` solves at a batch of positions (batch-first)."""
+
+    qd: np.ndarray        # (n, ndof) coordinate rates
+    qdd: np.ndarray       # (n, ndof) coordinate accelerations (None: not asked for)
+    twist: np.ndarray     # (n, nb, 6) body twists
+    accel: np.ndarray     # (n, nb, 6) spatial accelerations (None: not asked for)
+    jac: np.ndarray       # (n, m, ndof) closure Jacobian
+    solver: np.ndarray    # (n, nu, m) (pseudo-)inverse of the scaled J_u
+    cond: np.ndarray      # (n,) its condition number
+    rank: np.ndarray      # (n,) its rank
+    sign: np.ndarray      # (n,) sign of its determinant (square systems; else 1)
+    refine: np.ndarray    # scaled J_u when ``solver`` is a nearby position's (else None)
 
 
 class Linkage:
@@ -1073,16 +1089,16 @@ class Linkage:
             k, h = sk.nearest(psi)
             qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
             q, sph, fr, res, ok = self.newton(qp, sphp)
-            bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp))
-                         > STEP_TRUST)
+            bad = ~ok | (self.change(q, sph, qp, sphp) > STEP_TRUST)
             if bad.any():  # keep the traced nodes only: no dense node off the branch
                 self._dense = sk
                 return sk
             q[:, 0] = psi
-            qd, qdd, cond, sign = self._derivs(fr, q)
-            if self.square and np.any(sign != self.branch_sign):
+            rates = self.unit_rates(fr, q)
+            if self.square and np.any(rates.sign != self.branch_sign):
                 self._dense = sk
                 return sk
+            qd, qdd, cond = rates.qd, rates.qdd, rates.cond
             self._dense = Skeleton(psi, q, sph, qd, qdd, cond, self.periodic)
         return self._dense
 
@@ -1268,7 +1284,7 @@ class Linkage:
 
     def rates(self, fr, q, psi_d, psi_dd, need_acc=True, factor=None):
         """
-        Return ``(qd, qdd, twist, accel, jac, solver, cond, rank, sign, js)`` at ``fr``.
+        Return the :class:`Rates` at ``fr``.
 
         ``factor`` ``(solver, cond, rank, sign)`` from a nearby position (the predictor's)
         is refined against this position's Jacobian instead of factorizing it anew;
@@ -1304,8 +1320,8 @@ class Linkage:
                 qdd[:, self.unknown] = -self.solve_u(solver, refine, gam * rs) * cu
             acc0 += self.twists(fr, qdd)
             accel = acc0.transpose(2, 1, 0)
-        return qd, qdd, twist_c.transpose(2, 1, 0), accel, jac, solver, cond, rank, sign, \
-            refine
+        return Rates(qd, qdd, twist_c.transpose(2, 1, 0), accel, jac, solver, cond, rank, sign,
+                     refine)
 
     # ------------------------------------------------------------------ branch
 
@@ -1330,65 +1346,54 @@ class Linkage:
                     @ sph[:, i]
         return qp, sph
 
-    def _derivs(self, fr, q):
+    def unit_rates(self, fr, q):
+        """Return the :class:`Rates` at unit input speed and zero acceleration (branch nodes)."""
         one = np.ones(q.shape[0])
-        qd, qdd, _, _, _, _, cond, _, sign, _ = self.rates(fr, q, one, 0.0 * one)
-        return qd, qdd, cond, sign
+        return self.rates(fr, q, one, 0.0 * one)
 
-    def _corr(self, q, qp):
-        return np.max(np.abs(q - qp)[:, self.scalar_dofs[1:]]
+    def coordinate_change(self, q, q_ref):
+        """Return per sample the largest scaled change of the scalar coordinates but the input."""
+        return np.max(np.abs(q - q_ref)[:, self.scalar_dofs[1:]]
                       / self.col_scale[self.scalar_dofs[1:]], axis=1, initial=0.0)
 
-    def _sph_corr(self, sph, sphp):
+    def rotation_change(self, sph, sph_ref):
+        """Return per sample the largest entry of ``sph_ref^T sph - I`` (spherical joints)."""
         if not self.sph_index:
             return np.zeros(sph.shape[0])
-        diff = np.matmul(np.swapaxes(sphp, -1, -2), sph) - EYE3
+        diff = np.matmul(np.swapaxes(sph_ref, -1, -2), sph) - EYE3
         return np.max(np.abs(diff), axis=(1, 2, 3))
 
-    def _advance(self, q, sph, qd, qdd, sign, h_goal, strict=True):
-        """Follow the branch from one state by ``h_goal`` (rad, or m for a slide); yield nodes."""
-        done = 0.0
-        h = min(self.step_max, abs(h_goal)) * np.sign(h_goal)
-        while abs(h_goal - done) > STEP_DONE * self.input_scale:
-            if abs(h) > abs(h_goal - done):
-                h = h_goal - done
-            qp, sphp = self._step(q, sph, qd, qdd, np.array([h]))
-            q1, sph1, fr1, res, ok = self.newton(qp, sphp)
-            good = bool(ok[0]) and max(self._corr(q1, qp)[0],
-                                       self._sph_corr(sph1, sphp)[0]) <= STEP_TRUST
-            if good:
-                qd1, qdd1, cond1, sign1 = self._derivs(fr1, q1)
-                good = bool(np.isfinite(cond1[0]) and cond1[0] <= COND_LIMIT
-                            and (not self.square or sign1[0] == sign))
-            if not good:
-                h *= 0.5
-                if abs(h) < self.step_min:
-                    raise SpatialError(
-                        f'{self._where(q[0, 0])}: cannot continue the '
-                        f'assembly branch (Newton residual {res[0]:.2e}); the linkage cannot '
-                        'be assembled beyond this position, or reaches a singular position '
-                        'where its branch is not unique')
-                continue
-            done += h
-            q, sph, qd, qdd = q1, sph1, qd1, qdd1
-            if cond1[0] > COND_WARN:
-                self._warn(f'{self._where(q[0, 0], 3)}: near-singular '
-                           f'position (Jacobian condition number {cond1[0]:.3g} > '
-                           f'{COND_WARN:.4g})')
-            h = min(1.5 * abs(h), self.step_max) * np.sign(h_goal)
-            yield q, sph, qd, qdd, cond1[0]
+    def change(self, q, sph, q_ref, sph_ref):
+        """Return per sample the largest scaled change of ``(q, sph)`` from a reference."""
+        return np.maximum(self.coordinate_change(q, q_ref), self.rotation_change(sph, sph_ref))
+
+    def _limits(self):
+        """Return the :class:`continuation.Limits` of this linkage's input (rad, or m)."""
+        return continuation.Limits(
+            step_max=self.step_max, step_min=self.step_min,
+            step_done=STEP_DONE * self.input_scale, step_trust=STEP_TRUST,
+            cond_limit=COND_LIMIT, cond_warn=COND_WARN)
+
+    def _advance(self, start, goal):
+        """Yield the nodes from ``start`` to ``goal`` along the input (:mod:`continuation`)."""
+        return continuation.advance(_SpatialBranch(self), start, goal, self._limits(),
+                                    self.branch_sign if self.square else None)
+
+    def _node(self, q, sph, qd, qdd, cond=1.0):
+        """Return a :class:`continuation.Node` of one sample (batch of 1)."""
+        return continuation.Node(float(q[0, 0]), (q, sph, qd, qdd), cond, self.branch_sign)
 
     def _trace(self):
-        fr = self.frames(self.q0, self.sph0)
-        qd, qdd, cond, sign = self._derivs(fr, self.q0)
-        nodes = [(self.q0, self.sph0, qd, qdd, cond[0])]
+        """Return the :class:`Skeleton` of the branch (one turn, or the stroke)."""
+        rates = self.unit_rates(self.frames(self.q0, self.sph0), self.q0)
+        start = self._node(self.q0, self.sph0, rates.qd, rates.qdd, float(rates.cond[0]))
         if not self.periodic:
-            return self._trace_stroke(nodes[0])
-        for node in self._advance(self.q0, self.sph0, qd, qdd, self.branch_sign, TWO_PI):
-            nodes.append(node)
-        start, end = self.frames(self.q0, self.sph0), self.frames(nodes[-1][0], nodes[-1][1])
-        gap = max(np.max(np.abs(start.rot - end.rot)),
-                  np.max(np.abs(start.origin - end.origin)) / self.length_scale)
+            return self._trace_stroke(start)
+        nodes = [start] + list(self._advance(start, TWO_PI))
+        end = nodes[-1].state
+        start_fr, end_fr = self.frames(self.q0, self.sph0), self.frames(end[0], end[1])
+        gap = max(np.max(np.abs(start_fr.rot - end_fr.rot)),
+                  np.max(np.abs(start_fr.origin - end_fr.origin)) / self.length_scale)
         if gap > CLOSURE_TOL:
             raise SpatialError(
                 'assembly: after one full crank turn the linkage does not return to its '
@@ -1399,10 +1404,8 @@ class Linkage:
     def _trace_stroke(self, start):
         """Return the branch of a prismatic input over its stroke, from the assembly out."""
         ends = sorted(self.input_coordinate(np.array([0.0, math.pi]), 0.0, 0.0)[0])
-        x0 = start[0][0, 0]
-        q, sph, qd, qdd, _ = start
-        below = list(self._advance(q, sph, qd, qdd, self.branch_sign, ends[0] - x0))
-        above = list(self._advance(q, sph, qd, qdd, self.branch_sign, ends[1] - x0))
+        below = list(self._advance(start, ends[0] - start.x))
+        above = list(self._advance(start, ends[1] - start.x))
         return _skeleton_of(below[::-1] + [start] + above, False)
 
     def _warn(self, text):
@@ -1428,22 +1431,21 @@ class Linkage:
         if q is qp:  # the predictor had converged: no correction
             bad = ~ok
         else:
-            bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp)) > EVAL_TRUST)
+            bad = ~ok | (self.change(q, sph, qp, sphp) > EVAL_TRUST)
         if bad.any():
             q, sph = q.copy(), sph.copy()
             cs = self.skeleton
             kc, hc = cs.nearest(x[bad])
             for i, kk, hh in zip(np.flatnonzero(bad), kc, hc):
-                qi, si = cs.q[kk:kk + 1], cs.sph[kk:kk + 1]
-                for qi, si, _, _, _ in self._advance(qi, si, cs.qd[kk:kk + 1],
-                                                     cs.qdd[kk:kk + 1], self.branch_sign,
-                                                     float(hh)):
+                node = self._node(cs.q[kk:kk + 1], cs.sph[kk:kk + 1], cs.qd[kk:kk + 1],
+                                  cs.qdd[kk:kk + 1])
+                for node in self._advance(node, float(hh)):
                     pass
-                q[i], sph[i] = qi[0], si[0]
+                q[i], sph[i] = node.state[0][0], node.state[1][0]
             q, sph, fr, res, ok = self.newton(q, sph)
             factor = None
-        qd, qdd, twist, accel, jac, solver, cond, rank, sign, refine = self.rates(
-            fr, q, x_d, x_dd, need_acc, factor)
+        rates = self.rates(fr, q, x_d, x_dd, need_acc, factor)
+        cond, sign = rates.cond, rates.sign
         if self.square:
             wrong = sign != self.branch_sign
             if wrong.any():
@@ -1456,18 +1458,53 @@ class Linkage:
             i = int(np.argmax(cond))
             self._warn(f'crank angle {crank_angle_text(psi[i], 3)} deg: near-singular '
                        f'position (Jacobian condition number {cond[i]:.3g} > {COND_WARN:.4g})')
-        return SpatialState(psi, psi_d, psi_dd, q, sph, fr, res, cond, rank, jac, solver,
-                            refine, qd, qdd, twist, accel)
+        return SpatialState(psi, psi_d, psi_dd, q, sph, fr, res, cond, rates.rank, rates.jac,
+                            rates.solver, rates.refine, rates.qd, rates.qdd, rates.twist,
+                            rates.accel)
 
 
 def _skeleton_of(nodes, periodic):
-    """Return the :class:`Skeleton` of traced nodes ``(q, sph, qd, qdd, cond)``."""
-    return Skeleton(np.array([n[0][0, 0] for n in nodes]),
-                    np.concatenate([n[0] for n in nodes]),
-                    np.concatenate([n[1] for n in nodes]),
-                    np.concatenate([n[2] for n in nodes]),
-                    np.concatenate([n[3] for n in nodes]),
-                    np.array([n[4] for n in nodes]), periodic)
+    """Return the :class:`Skeleton` of traced nodes (states ``(q, sph, qd, qdd)``)."""
+    q, sph, qd, qdd = (np.concatenate([n.state[i] for n in nodes]) for i in range(4))
+    return Skeleton(np.array([n.x for n in nodes]), q, sph, qd, qdd,
+                    np.array([n.cond for n in nodes]), periodic)
+
+
+class _SpatialBranch(continuation.Branch):
+    """The spatial linkage's hooks for :func:`continuation.advance` (q, sph, qd, qdd)."""
+
+    error = SpatialError
+
+    def __init__(self, linkage):
+        self.linkage = linkage
+
+    def where(self, x, digits=4):
+        """Return where tree coordinate 0 is ``x``, in words."""
+        return self.linkage._where(x, digits)
+
+    def predict(self, node, h):
+        """Return the predicted ``(q, sph)`` ``h`` along the input from ``node``."""
+        q, sph, qd, qdd = node.state
+        return self.linkage._step(q, sph, qd, qdd, np.array([h]))
+
+    def correct(self, prediction, x):
+        """Return Newton's :class:`continuation.Trial` from the predicted ``(q, sph)``."""
+        lk = self.linkage
+        qp, sphp = prediction
+        q, sph, fr, res, ok = lk.newton(qp, sphp)
+        return continuation.Trial((q, sph, fr), bool(ok[0]), float(res[0]),
+                                  float(lk.change(q, sph, qp, sphp)[0]))
+
+    def node(self, trial, x):
+        """Return the :class:`continuation.Node` with the rates at unit input speed."""
+        q, sph, fr = trial.solution
+        rates = self.linkage.unit_rates(fr, q)
+        return continuation.Node(x, (q, sph, rates.qd, rates.qdd), float(rates.cond[0]),
+                                 float(rates.sign[0]))
+
+    def warn(self, text):
+        """Record the warning on the linkage."""
+        self.linkage._warn(text)
 
 
 class Skeleton:
