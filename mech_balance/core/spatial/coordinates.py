@@ -9,8 +9,8 @@ angular velocity ``R_a^T (omega_b - omega_a)`` and the relative point velocity.
 
 import math
 
-from mech_balance.core.spatial.kinematics import cross, cross_c, min_rotation, perp_pair, \
-    rot_axis, skew
+from mech_balance.core.spatial.vectors import cross, cross_c, perp_pair
+from mech_balance.rotations import min_rotation, rot_axis, skew
 import numpy as np
 
 SUFFIXES = {'revolute': ('',), 'prismatic': ('',), 'cylindrical': ('_turn', '_slide'),
