@@ -7,13 +7,14 @@ Convention
     pitch, yaw))``).  The columns of ``R`` are the rotated frame's axes in the fixed one.
 
 Set-up and evaluation
-    Set-up work, done once per scene, file or mount (a pose's or a URDF joint's
-    roll-pitch-yaw, a fixed turn about an axis), is built on
-    :class:`scipy.spatial.transform.Rotation` (:func:`rpy_matrix`, :func:`axis_angle_matrix`).
-    The forms the kinematics evaluate at every crank angle are plain numpy over whole stacks
-    (:func:`rot_axis`, :func:`expmap`, :func:`matrix_rpy`): a Rotation object per call costs
-    more than the cycle's arithmetic.  Base layer: numpy and scipy only, so that the scene
-    schema, the core and the ROS side all import it.
+    scipy's :class:`~scipy.spatial.transform.Rotation` is the reference: one-off set-up
+    (a URDF joint's fixed turn, an assembly guess) uses it (:func:`axis_angle_matrix`), and
+    ``test/test_rotations.py`` holds every form here to it.  Two kinds stay written out in
+    numpy: the forms the kinematics evaluate at every crank angle, over whole stacks
+    (:func:`rot_axis`, :func:`expmap`, :func:`matrix_rpy`: a Rotation object per call costs
+    more than the cycle's arithmetic), and the forms whose exact bits are scene geometry
+    (:func:`rpy_matrix`, :func:`min_rotation`: the link frames and joint zeros).  Base
+    layer: numpy and scipy only, so the scene schema, the core and the ROS side import it.
 """
 
 import math
@@ -35,9 +36,20 @@ EYE3.flags.writeable = False
 
 
 def rpy_matrix(rpy, degrees=False):
-    """Return the rotation ``(3, 3)`` (or ``(n, 3, 3)``) of roll-pitch-yaw ``(3,)``/``(n, 3)``."""
-    from scipy.spatial.transform import Rotation
-    return Rotation.from_euler('xyz', np.asarray(rpy, dtype=float), degrees=degrees).as_matrix()
+    """
+    Return the rotation ``(3, 3)`` of one roll-pitch-yaw ``(3,)`` (rad, or deg).
+
+    ``Rotation.from_euler('xyz', rpy).as_matrix()`` written out: the same matrix to
+    round-off, but these exact bits are the scenes' link frames, and the balanced designs
+    of the spatial built-ins move by more than their printed digits when the frames move by
+    round-off (their optimum is not unique); ``test_rotations`` holds it to scipy's.
+    """
+    r, p, y = (math.radians(v) for v in rpy) if degrees else (float(v) for v in rpy)
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), \
+        math.cos(y), math.sin(y)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
 
 
 def axis_angle_matrix(axis, angle_rad):
@@ -46,13 +58,14 @@ def axis_angle_matrix(axis, angle_rad):
     return Rotation.from_rotvec(np.asarray(axis, dtype=float) * float(angle_rad)).as_matrix()
 
 
-def matrix_rpy(rot):
+def matrix_rpy(rot, degrees=False):
     """
-    Return ``(roll, pitch, yaw)`` (rad) of rotations ``(..., 3, 3)``: arrays of shape ``(...)``.
+    Return ``(roll, pitch, yaw)`` of rotations ``(..., 3, 3)``: arrays of shape ``(...)``, rad.
 
     The inverse of :func:`rpy_matrix`, vectorized (the published angles of spherical joints
     at every crank angle).  At gimbal lock (``|cos pitch| <`` :data:`GIMBAL_LOCK_COS`) the
-    whole turn about the vertical is put into the roll and the yaw is 0.
+    whole turn about the vertical is put into the roll and the yaw is 0.  Degrees with
+    ``degrees``.
     """
     rot = np.asarray(rot, dtype=float)
     cos_pitch = np.hypot(rot[..., 0, 0], rot[..., 1, 0])
@@ -63,6 +76,8 @@ def matrix_rpy(rot):
     if np.any(lock):
         roll = np.where(lock, np.arctan2(-rot[..., 1, 2], rot[..., 1, 1]), roll)
         yaw = np.where(lock, 0.0, yaw)
+    if degrees:
+        return np.degrees(roll), np.degrees(pitch), np.degrees(yaw)
     return roll, pitch, yaw
 
 

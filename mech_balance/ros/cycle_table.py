@@ -33,6 +33,7 @@ import math
 import time
 
 from mech_balance.core.rig import RigData
+from mech_balance.rotations import wrap_angle
 import numpy as np
 
 TWO_PI = 2.0 * math.pi
@@ -89,11 +90,6 @@ def _stack(samples):
         parts.append(samples.joint_effort)
     parts += [samples.force_N, samples.moment_Nm]
     return np.hstack(parts).astype(float)
-
-
-def _wrap(x):
-    w = math.pi - np.mod(math.pi - x, TWO_PI)
-    return np.where(w <= -math.pi, w + TWO_PI, w) + 0.0
 
 
 class CycleTable:
@@ -221,7 +217,7 @@ class CycleTable:
             raise TableRefused('a published value is not finite at a check angle')
         diff = np.abs(got - want)
         j = self._j
-        diff[:, :j] = np.where(self._angular, np.abs(_wrap(got[:, :j] - want[:, :j])),
+        diff[:, :j] = np.where(self._angular, np.abs(wrap_angle(got[:, :j] - want[:, :j])),
                                diff[:, :j])
         scale = _floored(np.max(np.abs(want), axis=0), j, self._effort)
         rel = np.max(diff, axis=0) / np.maximum(scale, 1e-300)

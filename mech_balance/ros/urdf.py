@@ -59,6 +59,7 @@ from mech_balance.core.planar.drawn import bar_edges, BAR_THICKNESS, BAR_WIDTH, 
     LAYER, PIN_LENGTH, PIN_RADIUS
 from mech_balance.core.planar.rig import linkage_for
 from mech_balance.ros.names import DEFAULT_FRAME_ID
+from mech_balance.rotations import axis_angle_matrix, matrix_rpy, rpy_matrix, wrap_angle
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
@@ -143,14 +144,6 @@ class TreeModel:
 
 
 # ----------------------------------------------------------------------------- helpers
-
-
-def wrap_angle(angle_rad):
-    """Return angles wrapped to (-pi, pi], with no -0.0 (array in, array out)."""
-    a = np.asarray(angle_rad, dtype=float)
-    w = math.pi - np.mod(math.pi - a, TWO_PI)
-    w = np.where(w <= -math.pi, w + TWO_PI, w)  # mod may round up to 2 pi
-    return w + 0.0
 
 
 def _golden_extremes(f, centres, rows, half_width, sign):
@@ -239,28 +232,9 @@ def angle_limits(lower, upper):
     return float(wrap_angle(mid)), -half, half
 
 
-def rotation(axis, angle_rad):
-    """Return the 3x3 rotation by ``angle_rad`` about the unit vector ``axis`` (Rodrigues)."""
-    k = np.asarray(axis, dtype=float)
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(angle_rad) * kx + (1.0 - math.cos(angle_rad)) * (kx @ kx)
-
-
-def rpy_matrix(rpy):
-    """Return the rotation of a URDF ``rpy``: Rz(yaw) Ry(pitch) Rx(roll)."""
-    r, p, y = rpy
-    return (rotation((0.0, 0.0, 1.0), y) @ rotation((0.0, 1.0, 0.0), p)
-            @ rotation((1.0, 0.0, 0.0), r))
-
-
-def matrix_rpy(matrix):
-    """Return the URDF ``(roll, pitch, yaw)`` of a rotation matrix (inverse of rpy_matrix)."""
-    m = np.asarray(matrix, dtype=float)
-    cos_pitch = math.hypot(m[0, 0], m[1, 0])
-    pitch = math.atan2(-m[2, 0], cos_pitch)
-    if cos_pitch < 1e-12:  # gimbal lock: put the whole turn about z into the roll
-        return (math.atan2(-m[1, 2], m[1, 1]), pitch, 0.0)
-    return (math.atan2(m[2, 1], m[2, 2]), pitch, math.atan2(m[1, 0], m[0, 0]))
+def urdf_rpy(matrix):
+    """Return the URDF ``(roll, pitch, yaw)`` floats of one rotation matrix (3, 3)."""
+    return tuple(float(v) for v in matrix_rpy(matrix))
 
 
 def _revolute_spec(name, parent, child, xyz, rpy, axis, lower, upper, turns, rate_max):
@@ -273,7 +247,7 @@ def _revolute_spec(name, parent, child, xyz, rpy, axis, lower, upper, turns, rat
         if rpy[:2] == (0.0, 0.0) and tuple(axis) == (0.0, 0.0, 1.0):
             rpy = (0.0, 0.0, rpy[2] + offset)
         else:
-            rpy = matrix_rpy(rpy_matrix(rpy) @ rotation(axis, offset))
+            rpy = urdf_rpy(rpy_matrix(rpy) @ axis_angle_matrix(axis, offset))
     return UrdfJoint(name, 'revolute', parent, child, xyz, rpy, axis, offset, lo, hi,
                      rate_max)
 
@@ -677,12 +651,12 @@ def _spatial_parts(sc):
         sign = -1.0 if t.flipped else 1.0
         kp, sp = k_of[t.parent], s_of[t.parent]
         xyz = tuple(float(v) for v in kp @ (t.s_parent - sp))
-        rpy = matrix_rpy(kp)
+        rpy = urdf_rpy(kp)
         parent, child = names[t.parent], names[t.child]
         if t.joint_type == 'spherical':
             a_rot = lk.sph_zero[t.name]
             if t.flipped:   # M_pc = A^T Rx(-r) Ry(-p) Rz(-y)
-                rpy = matrix_rpy(kp @ a_rot.T)
+                rpy = urdf_rpy(kp @ a_rot.T)
                 order = (('_roll', (-1.0, 0.0, 0.0)), ('_pitch', (0.0, -1.0, 0.0)),
                          ('_yaw', (0.0, 0.0, -1.0)))
                 k_child = np.eye(3)
@@ -714,7 +688,7 @@ def _spatial_parts(sc):
                 mid = f'{t.name}_link'
                 chains.append((t.name + '_1', 'revolute', parent, mid, xyz, rpy, axis))
                 chains.append((t.name + '_2', 'revolute', mid, child, (0.0, 0.0, 0.0),
-                               matrix_rpy(t.fixed), tuple(float(v) for v in t.axis_child)))
+                               urdf_rpy(t.fixed), tuple(float(v) for v in t.axis_child)))
                 k_child = np.eye(3)
         k_of[t.child] = k_child
         s_of[t.child] = t.s_child

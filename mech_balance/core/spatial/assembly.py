@@ -123,7 +123,7 @@ def initial(linkage):
 
 def rpy_deg(rot):
     """Return the URDF ``[roll, pitch, yaw]`` (deg) of a rotation (3, 3): Rz Ry Rx."""
-    return [math.degrees(float(v)) for v in matrix_rpy(rot)]
+    return [float(v) for v in matrix_rpy(rot, degrees=True)]
 
 
 def _angle(rot_a, rot_b):
