@@ -7,7 +7,7 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import chains as chain
 from mech_balance.conventions import cycle_angles
 from mech_balance.core import linalg
-from mech_balance.core.planar import algebra, kinematics
+from mech_balance.core.planar import algebra, kinematics, tree
 from mech_balance.core.planar.rig import PlanarRig
 import numpy as np
 from numpy.testing import assert_allclose
@@ -144,7 +144,7 @@ def test_tree_level_sums_agree_with_dense_ancestry_products(name, monkeypatch):
     psi = cycle_angles(36) + 0.05
     dense = analysis.Rig(sc, cache=False)
     assert dense.linkage.dense_tree
-    monkeypatch.setattr(kinematics, 'DENSE_TREE_MAX_BODIES', 0)   # force the level sums
+    monkeypatch.setattr(tree, 'DENSE_TREE_MAX_BODIES', 0)   # force the level sums
     levels = analysis.Rig(sc, cache=False)
     assert not levels.linkage.dense_tree
     s1, w1 = dense.evaluate(psi, speed=2.3, accel=-1.1)

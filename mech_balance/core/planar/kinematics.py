@@ -30,11 +30,15 @@ from dataclasses import dataclass
 import math
 import warnings
 
+from mech_balance import threads
 from mech_balance.conventions import crank_angle_text
 from mech_balance.core import continuation, linalg
 from mech_balance.core.planar import dyads
 from mech_balance.core.planar.algebra import cross as _cross, max_reduce as _MAX, \
     rmat as _rmat, Tiles
+from mech_balance.core.planar.rates import RateAnalysis
+from mech_balance.core.planar.skeleton import Skeleton
+from mech_balance.core.planar.tree import SpanningTree
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
@@ -49,23 +53,8 @@ PRINTED_RTOL = 5e-7
 half a unit of the 6th digit is 5e-7 of a figure that starts with 9 (5e-6 of one with 1)."""
 COND_WARN = math.sqrt(PRINTED_RTOL / (2.0 * NEWTON_TOL))
 """Scaled Jacobian condition number (1-norm) above which the position is reported
-near-singular: where the error bound of the rates reaches the printed resolution (~1581).
-
-Derivation.  Newton stops with a scaled loop residual ``|g| <= NEWTON_TOL`` (= tau), so the
-positions err by ``|dq| <= |J_u^-1| tau ~ kappa tau`` (the scaled Jacobian has ``|J_u| ~ 1``).
-The rates solve ``J_u q' = -J_psi``; both matrices are evaluated at the erring positions,
-and their derivatives with respect to q are of their own size (the closure equations are
-sums of rotations of scaled lengths), so ``|dJ|/|J| ~ kappa tau``.  The perturbation bound
-of a linear system, ``|dq'|/|q'| <= kappa (|dJ_u|/|J_u| + |dJ_psi|/|J_psi|)``, gives the
-relative error bound of the velocities (and of every figure linear in them, the shaking
-wrench and the driving torque at constant speed)
-
-    e_rates = 2 kappa^2 tau   (+ kappa u, round-off u = 1.1e-16: negligible here).
-
-It reaches ``PRINTED_RTOL`` at ``kappa = sqrt(PRINTED_RTOL / (2 tau))`` = 1581: from there on
-the printed figures may be wrong in their last digit.  (Hoeken's worst is 5.6, the carpet
-scraper's 255; a Hoeken-like four-bar with rocker = a + b - d + 1e-8, 1e-8 m from a change
-point, reaches 7.5e3.)"""
+near-singular: where the error bound of the rates, ``2 kappa^2 NEWTON_TOL``, reaches the
+printed resolution (~1581; derivation in docs/core.md, "The near-singular threshold")."""
 COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which the position is refused as singular."""
 STEP_MAX_RAD = math.radians(5.0)
@@ -99,78 +88,11 @@ RETRACE_LIMITS = continuation.Limits(
     step_max=STEP_MAX_RAD, step_min=STEP_MIN_RAD, step_done=ANGLE_EPS_RAD,
     step_trust=STEP_TRUST, cond_limit=COND_LIMIT, first_step=STEP_MAX_RAD / 4, growth=1.0)
 """A re-trace from a skeleton node to one angle: quarter steps that do not grow."""
-DENSE_TREE_MAX_BODIES = 8
-"""Up to this many bodies the sums over the spanning tree are one dense matrix product each
-(fewest numpy calls); above it they run level by level down or up the tree, so that their
-cost grows with the number of bodies, not with its square (and stays off BLAS threads)."""
 
-
-ALLOCATOR_SETTLE_BYTES = 8 * 2 ** 20
-"""Size of the block allocated and freed once per process (:func:`settle_allocator`)."""
-_ALLOCATOR_SETTLED = []
-
-
-def settle_allocator():
-    """
-    Allocate and free one 8 MiB block, once per process, before the first cycle.
-
-    glibc's malloc serves blocks above its mmap threshold (128 KiB at start) straight from
-    the kernel and returns them at ``free``, and it trims the top of its heap beyond twice
-    that threshold: a cycle's larger temporaries (a 40-link chain's complex ``(39, 360)``
-    stacks are 225 KiB) would then be page-faulted in afresh at every call (about a third
-    of that chain's cycle).  Freeing a block from the kernel raises both thresholds to its
-    size (glibc's documented dynamic threshold, ``mallopt(3)``), so the temporaries are
-    reused from the heap; settings made with ``MALLOC_MMAP_THRESHOLD_`` and the like switch
-    that adjustment off and are left alone.  Nothing is touched (no memory is committed).
-    """
-    if not _ALLOCATOR_SETTLED:
-        _ALLOCATOR_SETTLED.append(True)
-        np.empty(ALLOCATOR_SETTLE_BYTES, dtype=np.uint8)   # freed at once
 
 
 class BranchError(ValueError):
     """The linkage cannot be assembled, is singular, or would leave its branch."""
-
-
-@dataclass
-class TreeJoint:
-    """A joint of the spanning tree: ``child`` hangs from ``parent``."""
-
-    joint: int
-    name: str
-    joint_type: str
-    parent: int
-    child: int
-    p_parent: complex
-    p_child: complex
-    axis: complex
-    axis_on_parent: bool
-    angle: float
-
-    @property
-    def prismatic(self):
-        """Return whether the joint slides (else it turns)."""
-        return self.joint_type == 'prismatic'
-
-
-@dataclass
-class CutJoint:
-    """A joint closing a loop: two equations g = 0 between bodies ``a`` and ``b``."""
-
-    joint: int
-    name: str
-    joint_type: str
-    a: int
-    b: int
-    p_a: complex
-    p_b: complex
-    axis: complex
-    angle: float
-
-    @property
-    def prismatic(self):
-        """Return whether the joint slides (else it turns)."""
-        return self.joint_type == 'prismatic'
 
 
 @dataclass
@@ -218,11 +140,11 @@ class KinematicState:
         return self.psi.shape[0]
 
 
-class Linkage:
+class Linkage(SpanningTree, RateAnalysis):
     """The geometry and topology of a planar scene, compiled for batched analysis."""
 
     def __init__(self, scene):
-        settle_allocator()
+        threads.settle_allocator()   # the allocator's policy: mech_balance/threads.py
         self.scene = scene
         self.body_names = [FRAME] + [lk.name for lk in scene.links]
         index = {n: i for i, n in enumerate(self.body_names)}
@@ -294,18 +216,6 @@ class Linkage:
 
     # ------------------------------------------------------------------ construction
 
-    @staticmethod
-    def _tree(ji, jt, parent, child, index, pts):
-        a_is_parent = index[jt.link_a] == parent
-        pa, pb = pts[jt.link_a][jt.point_a], pts[jt.link_b][jt.point_b]
-        p_parent, p_child = (pa, pb) if a_is_parent else (pb, pa)
-        return TreeJoint(ji, jt.name, jt.joint_type, parent, child, p_parent, p_child,
-                         complex(*jt.axis), a_is_parent, jt.angle_rad)
-
-    @staticmethod
-    def _cut(ji, jt, ia, ib, pts):
-        return CutJoint(ji, jt.name, jt.joint_type, ia, ib, pts[jt.link_a][jt.point_a],
-                        pts[jt.link_b][jt.point_b], complex(*jt.axis), jt.angle_rad)
 
     @staticmethod
     def _length_scale(scene, pts):
@@ -328,213 +238,6 @@ class Linkage:
 
     # ------------------------------------------------------------------ position level
 
-    def _compile(self):
-        """Precompute the incidence and ancestry matrices that vectorize over bodies."""
-        nb, nt = self.nb, self.nt
-        self.par = np.array([tj.parent for tj in self.tree])
-        self.ch = np.array([tj.child for tj in self.tree])
-        rev = ~self.is_prismatic
-        self.anc_rev = np.zeros((nb, nt))
-        self.anc_pri = np.zeros((nb, nt))
-        for b in range(nb):
-            for t in self.anc[b]:
-                (self.anc_rev if rev[t] else self.anc_pri)[b, t] = 1.0
-        self.anc_all = self.anc_rev + self.anc_pri
-        self._compile_levels()
-        self.has_pri = bool(self.is_prismatic.any())
-        self.p_par = np.array([tj.p_parent for tj in self.tree])[:, None]
-        self.p_ch = np.array([tj.p_child for tj in self.tree])[:, None]
-        self.axis_local = np.where(self.is_prismatic,
-                                   np.array([tj.axis for tj in self.tree]), 0)[:, None]
-        self.axis_on_par = np.array([tj.axis_on_parent for tj in self.tree])[:, None]
-        offset = np.array([(tj.angle if tj.axis_on_parent else -tj.angle)
-                           if tj.prismatic else 0.0 for tj in self.tree])
-        self.phi_offset = (self.anc_pri @ offset)[:, None]
-        # subtree sums (for the reaction recursion): sub[b, c] = 1 if c hangs below b or is b
-        rc = [c for c in self.cuts if not c.prismatic]
-        pc = [c for c in self.cuts if c.prismatic]
-        self.cuts = rc + pc
-        self.nr, self.npc = len(rc), len(pc)
-        self.cut_a = np.array([c.a for c in self.cuts], dtype=int)
-        self.cut_b = np.array([c.b for c in self.cuts], dtype=int)
-        self.cut_pa = np.array([c.p_a for c in self.cuts])[:, None]
-        self.cut_pb = np.array([c.p_b for c in self.cuts])[:, None]
-        self.cut_ab = np.concatenate([self.cut_a, self.cut_b])
-        self.cut_p_ab = np.concatenate([self.cut_pa, self.cut_pb]).astype(complex)
-        self.cut_tiles = Tiles(p_ab=self.cut_p_ab)   # (the same, per batch size)
-        ncut = len(self.cuts)
-        self.cut_inc_a = np.zeros((nb, ncut))
-        self.cut_inc_b = np.zeros((nb, ncut))
-        self.cut_inc_a[self.cut_a, np.arange(ncut)] = 1.0
-        self.cut_inc_b[self.cut_b, np.arange(ncut)] = 1.0
-        self.cut_names = [c.name for c in self.cuts]
-        self.cut_rounds_a = _rounds(self.cut_a)
-        self.cut_rounds_b = _rounds(self.cut_b)
-        self.tree_names = [tj.name for tj in self.tree]
-        joints = {j.name: j for j in self.scene.joints}
-        # reactions are reported as the force on the joint's link b from its link a
-        self.tree_sign = np.array([1.0 if joints[tj.name].link_b == self.body_names[tj.child]
-                                   else -1.0 for tj in self.tree])
-        L = self.length_scale
-        self.row_scale = np.concatenate([np.full(2 * self.nr, 1.0 / L),
-                                         np.ones(self.npc), np.full(self.npc, 1.0 / L)])
-        self.col_scale_all = np.where(self.is_prismatic, L, 1.0)
-        self.col_scale = self.col_scale_all[self.unknown]
-        # d(point on body b)/dq_t selectors for the cut ends: (ncut, nt)
-        self.sel_rev = self.anc_rev[self.cut_b] - self.anc_rev[self.cut_a]
-        self.sel_rev_a, self.sel_rev_b = self.anc_rev[self.cut_a], self.anc_rev[self.cut_b]
-        self.sel_pri = self.anc_pri[self.cut_b] - self.anc_pri[self.cut_a]
-        # the same as broadcastable (ncut, cols, 1) stacks, all columns and unknown ones only
-        sel = (self.sel_rev_a, self.sel_rev_b, self.sel_rev)
-        self.sel_rev_a3, self.sel_rev_b3, self.sel_rev3 = (
-            np.ascontiguousarray(x[:, :, None]) for x in sel)
-        self.sel_rev_a_u, self.sel_rev_b_u, self.sel_rev_u = (
-            np.ascontiguousarray(x[:, self.unknown, None]) for x in sel)
-        # all-revolute loops: the Jacobian's structural nonzeros (cut c, tree joint t) are
-        # differences of two points of S = [pa; pb; J]: pb - J_t (t above b only), J_t - pa
-        # (t above a only) or pb - pa (above both); i times that is the entry
-        ncut = len(self.cuts)
-        nz = []
-        for c in range(ncut):
-            for t in range(nt):
-                above_b, above_a = self.anc_rev[self.cut_b[c], t], self.anc_rev[self.cut_a[c], t]
-                if above_b and above_a:
-                    nz.append((c, t, ncut + c, c))
-                elif above_b:
-                    nz.append((c, t, ncut + c, 2 * ncut + t))
-                elif above_a:
-                    nz.append((c, t, 2 * ncut + t, c))
-        nz = np.array(nz, dtype=int).reshape(-1, 4)
-        unk = nz[:, 1] > 0
-        self.jac_nz = (nz[:, 0], nz[:, 1], nz[:, 2], nz[:, 3])
-        self.jac_nz_u = (nz[unk, 0], nz[unk, 1] - 1, nz[unk, 2], nz[unk, 3])
-        # the same, unknown columns first, then the crank column (values + J_psi in one go)
-        order = np.concatenate([np.flatnonzero(unk), np.flatnonzero(~unk)])
-        n_unk = int(unk.sum())
-        self.jac_nz_split = (nz[unk, 0], nz[unk, 1] - 1, nz[order, 2], nz[order, 3], n_unk,
-                             nz[~unk, 0])
-        # jacobian_values: the crank column's x and y rows as slices where they are a range
-        self.crank_row_slices = _as_slices(nz[~unk, 0], self.nr)
-        # ... and whether they are every row (then J_psi needs no zeros first)
-        self.crank_rows_all = bool(self.crank_row_slices) and \
-            np.array_equal(np.sort(nz[~unk, 0]), np.arange(self.nr)) and not self.npc
-        self.cut_angle = np.array([c.angle for c in self.cuts[self.nr:]])[:, None]
-        self.cut_axis = np.array([c.axis for c in self.cuts[self.nr:]], dtype=complex)[:, None]
-        # reaction recursion (dynamics): bodies below each tree joint, and the cut-joint
-        # loads summed over those bodies
-        self.below = np.ascontiguousarray(self.anc_all.T)                  # (nt, nb)
-        self.minus_ones = np.full(self.nb, -1.0)   # minus the sum over the bodies
-        self.below_cut_a = self.below @ self.cut_inc_a                     # (nt, ncut)
-        self.below_cut_b = self.below @ self.cut_inc_b
-        self.below_cut = self.below_cut_b - self.below_cut_a
-        rev = ~self.is_prismatic
-        rev[0] = False
-        self.rev_passive = np.flatnonzero(rev)     # revolute tree joints other than the crank
-        # the rows the dynamics' consistency figure reads: the crank's, then those joints
-        # (a slice where they are a range: no fancy indexing per call)
-        self.check_rows = np.concatenate([[0], self.rev_passive]).astype(np.intp)
-        self.rev_passive_rows = (_as_slices(self.rev_passive, 0) or (self.rev_passive,))[0]
-        # the first row scale and its negative as 0-d arrays (all the rows' scale without
-        # point-contact cuts or prismatic joints): a ufunc takes those a third quicker than
-        # a Python or NumPy scalar (these multiply every cycle's rows)
-        first = float(self.row_scale[0]) if self.row_scale.size else 1.0
-        self.scale0, self.neg_scale0 = np.array(first), np.array(-first)
-        self.tree_flip = np.flatnonzero(self.tree_sign < 0)  # reported from child to parent
-        self.tree_sign_col = self.tree_sign[:, None]
-        rows = {n: (True, t) for t, n in enumerate(self.tree_names)}
-        rows.update({n: (False, c) for c, n in enumerate(self.cut_names)})
-        self.joint_rows = [(n, *rows[n]) for n in self.joint_names]
-
-    def _compile_levels(self):
-        """
-        Precompute the tree's levels for sums over ancestors and over subtrees.
-
-        The tree is breadth-first, so the joints of one depth are contiguous and siblings
-        adjacent.  ``_down`` sums joint values over the joints above each body (level by
-        level from the frame), ``_up`` sums body values over the bodies below each joint
-        (from the deepest level up, in rounds whose parent joints are distinct).
-        """
-        nb, nt = self.nb, self.nt
-        self.dense_tree = nb <= DENSE_TREE_MAX_BODIES
-        joint_of_body = [nt] * nb                 # nt: the frame (a zero row)
-        for t, tj in enumerate(self.tree):
-            joint_of_body[tj.child] = t
-        self.joint_of_body = np.array(joint_of_body)
-        parent = [joint_of_body[tj.parent] for tj in self.tree]   # nt: hangs from the frame
-        depth = [0] * nb
-        for tj in self.tree:
-            depth[tj.child] = depth[tj.parent] + 1
-        by_depth = {}
-        for t, tj in enumerate(self.tree):
-            by_depth.setdefault(depth[tj.child], []).append(t)
-        self.levels = []                          # (first joint, end, parent joints) per depth
-        self.up_rounds = []                       # (children, parents) deepest first
-        for d in sorted(by_depth):
-            ts = by_depth[d]
-            if ts != list(range(ts[0], ts[-1] + 1)):
-                raise AssertionError('spanning tree is not breadth-first')  # pragma: no cover
-            self.levels.append((ts[0], ts[-1] + 1, np.array([parent[t] for t in ts])))
-        for d in sorted(by_depth, reverse=True):
-            if d == 1:
-                continue
-            pending = list(by_depth[d])
-            while pending:
-                seen, now, later = set(), [], []
-                for t in pending:
-                    (later if parent[t] in seen else now).append(t)
-                    seen.add(parent[t])
-                self.up_rounds.append((np.array(now), np.array([parent[t] for t in now])))
-                pending = later
-        self.rev_col = (~self.is_prismatic).astype(float)[:, None]
-
-    def _down(self, v):
-        """Return ``(nb, ...)``: per body the sum of ``v`` ``(nt, ...)`` over the joints above."""
-        if self.dense_tree:
-            return _rmat(self.anc_all, v) if v.dtype == np.complex128 else self.anc_all @ v
-        s = np.empty((self.nt + 1,) + v.shape[1:], dtype=v.dtype)
-        s[self.nt] = 0.0
-        start, end, _ = self.levels[0]
-        s[start:end] = v[start:end]
-        for start, end, parents in self.levels[1:]:
-            np.add(s.take(parents, axis=0), v[start:end], out=s[start:end])
-        return s.take(self.joint_of_body, axis=0)   # (take: quicker than an index array)
-
-    def _down_rev(self, v):
-        """Return :meth:`_down` over the revolute joints only (the link angles and rates)."""
-        if self.dense_tree:
-            return self.anc_rev @ v
-        return self._down(v * self.rev_col if self.has_pri else v)
-
-    def _up(self, x):
-        """Return ``(nt, ...)``: per tree joint the sum of ``x`` ``(nb, ...)`` below it."""
-        if self.dense_tree:
-            if np.iscomplexobj(x):
-                return _rmat(self.below, x)
-            return self.below @ x
-        sub = x.take(self.ch, axis=0)
-        for kids, parents in self.up_rounds:
-            sub[parents] += sub.take(kids, axis=0)
-        return sub
-
-    def _up_cut(self, load_b, load_a):
-        """Return per tree joint the sum of cut loads on the bodies below it (b minus a)."""
-        if self.dense_tree:
-            if np.iscomplexobj(load_b):
-                return _rmat(self.below_cut_b, load_b) - _rmat(self.below_cut_a, load_a)
-            return self.below_cut_b @ load_b - self.below_cut_a @ load_a
-        x = np.zeros((self.nb,) + load_b.shape[1:], dtype=load_b.dtype)
-        for cuts, bodies in self.cut_rounds_b:
-            x[bodies] += load_b.take(cuts, axis=0)
-        for cuts, bodies in self.cut_rounds_a:
-            x[bodies] -= load_a.take(cuts, axis=0)
-        return self._up(x)
-
-    def _jacobian_pattern(self):
-        """Return the structural nonzeros ``(m, nu)`` of the loop Jacobian's unknown columns."""
-        touched = (self.anc_all[self.cut_a] + self.anc_all[self.cut_b]) != 0  # (ncut, nt)
-        nr = self.nr
-        rows = [touched[:nr], touched[:nr], touched[nr:], touched[nr:]]
-        return np.concatenate(rows)[:, self.unknown]
 
     def pose(self, q, rot_crank=None):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
@@ -818,127 +521,6 @@ class Linkage:
             f'after {ASSEMBLY_MAX_ITER} damped Newton steps); check the joint points and '
             'lengths')
 
-    # ------------------------------------------------------------------ rates
-
-    def rates(self, pose, psi_d, psi_dd, jac=None, need_acc=True):
-        """
-        Return joint and link rates at a solved pose (seed 000 eqs. 28-36).
-
-        ``psi_d``, ``psi_dd`` broadcast to ``(p,)``; ``jac`` is the scaled loop Jacobian at
-        ``pose`` if already known.  Returns a dict with ``qd``, ``omega``, ``vel``,
-        ``jac_factors`` (J_u factorized), ``cond``, ``jac`` (``None`` where J_u is kept
-        sparse), ``jac_psi`` and, if ``need_acc``, ``qdd``, ``alpha``, ``acc``.
-        Every link rate is the sum over the tree joints above it (vectorized with the
-        ancestry matrices): a revolute joint t turning at qd_t moves the point P at
-        ``i qd_t (P - J_t)``, a prismatic one at ``qd_t * axis_t``.
-        """
-        p = pose.phi.shape[1]
-        if not isinstance(psi_d, float) and np.ndim(psi_d):
-            psi_d = np.broadcast_to(psi_d, (p,))
-        if not isinstance(psi_dd, float) and np.ndim(psi_dd):
-            psi_dd = np.broadcast_to(psi_dd, (p,))
-        unknown = self.unknown_rows
-        if (self.sparse_jac or self.block is not None) and jac is None:
-            fac, jac_psi = self.factored(pose)
-        else:
-            if jac is None:
-                jac = self.jacobian(pose)
-            fac = linalg.Factored(jac[:, unknown], self.lu)
-            jac_psi = jac[:, 0]
-        cond = fac.cond()
-        sign = fac.sign()
-        scale_d = -self.col_scale[:, None] * psi_d if self.has_pri else -psi_d
-        qd = np.empty((self.nt, p))
-        qd[0] = psi_d
-        # q_u' = -J_u^-1 J_psi psi' (seed 000 eq. 32, generalized)
-        np.multiply(fac.solve(jac_psi), scale_d, out=qd[unknown])
-        omega = np.dot(self.anc_rev, qd) if self.dense_tree else self._down_rev(qd)
-        origin, J = pose.origin, pose.joint_at
-        # v = i V, V = omega O - S with S the sum over the joints above of qd_t J_t
-        # (+ prismatic slides)
-        if self.has_pri:
-            vel = omega * origin
-            vel -= self._down(qd * J * self.rev_col + 1j * qd * pose.axis)
-            vel *= _1J
-        else:
-            s_v = self._down(qd * J)
-            v_rel = omega * origin
-            v_rel -= s_v
-            vel = _1J * v_rel
-        out = {'qd': qd, 'omega': omega, 'vel': vel, 'cond': cond, 'jac': jac,
-               'jac_psi': jac_psi, 'det_sign': sign, 'jac_factors': fac}
-        if not need_acc:
-            return out
-        # velocity-product part of the link accelerations (all joint accelerations zero):
-        # each joint's point moves at v_J = v_parent + i omega_parent (J - O_parent)
-        par = self.par
-        omega_par = omega.take(par, axis=0)
-        if self.has_pri:
-            v_joint = J - origin.take(par, axis=0)
-            v_joint *= _1J * omega_par
-            v_joint += vel.take(par, axis=0)
-            acc_v = omega * vel
-            acc_v -= self._down(qd * v_joint * self.rev_col - qd * omega_par * pose.axis)
-            acc_v *= _1J
-        else:
-            # revolute only: v_J = i W with W = omega_parent J - S_parent, so
-            # a_v = i (omega v - sum qd_t v_J) = sum qd_t W_t - omega V: no products with i
-            w_rel = omega_par * J
-            w_rel -= s_v.take(par, axis=0)
-            acc_v = self._down(qd * w_rel)
-            acc_v -= omega * v_rel
-        gamma = self._cut_bias(pose, omega, vel, acc_v)
-        if not isinstance(psi_dd, float) or psi_dd != 0.0:
-            gamma += jac_psi * psi_dd
-        qdd = np.empty((self.nt, p))
-        qdd[0] = psi_dd
-        # J_u q_u'' = -(gamma + J_psi psi'')
-        if self.has_pri:
-            np.multiply(fac.solve(gamma), -self.col_scale[:, None], out=qdd[unknown])
-        else:
-            np.negative(fac.solve(gamma), out=qdd[unknown])
-        alpha = np.dot(self.anc_rev, qdd) if self.dense_tree else self._down_rev(qdd)
-        acc = alpha * origin
-        if self.has_pri:
-            acc -= self._down(qdd * J * self.rev_col + 1j * qdd * pose.axis)
-        else:
-            acc -= self._down(qdd * J)
-        acc *= _1J
-        acc += acc_v
-        out.update(qdd=qdd, alpha=alpha, acc=acc)
-        return out
-
-    def _cut_bias(self, pose, omega, vel, acc_v):
-        """Return the scaled loop-equation accelerations with all joint accelerations zero."""
-        if not self.m:
-            return np.zeros((0, pose.phi.shape[1]))
-        self.cut_points(pose)
-        pa, pb, ra, rb = pose.cut_points[:4]
-        ia, ib = self.cut_a, self.cut_b
-        # acceleration of each cut end: a_O - omega^2 r (no angular acceleration here)
-        n = len(self.cuts)
-        w = omega.take(self.cut_ab, axis=0)
-        w *= w
-        ends = acc_v.take(self.cut_ab, axis=0)
-        ends -= w * pose.cut_points[4]
-        d = ends[n:] - ends[:n]
-        nr = self.nr
-        if not self.npc:
-            out = np.empty((self.m, d.shape[1]))
-            np.multiply(d.real, self.scale0, out=out[:nr])
-            np.multiply(d.imag, self.scale0, out=out[nr:])
-            return out
-        rows = [d.real[:nr], d.imag[:nr]]
-        ia, ib = ia[nr:], ib[nr:]
-        n = pose.rot[ia] * self.cut_axis
-        dist = pb[nr:] - pa[nr:]
-        dist_d = (vel[ib] + 1j * omega[ib] * rb[nr:]) - (vel[ia] + 1j * omega[ia] * ra[nr:])
-        n_d = 1j * omega[ia] * n
-        n_dd = -omega[ia] ** 2 * n
-        rows += [np.zeros((self.npc, d.shape[1])),
-                 _cross(n_dd, dist) + 2.0 * _cross(n_d, dist_d) + _cross(n, d[nr:])]
-        return np.concatenate(rows) * self.row_scale[:, None]
-
     # ------------------------------------------------------------------ branch skeleton
 
     @property
@@ -1180,21 +762,9 @@ class _PlanarBranch(continuation.Branch):
         self.linkage._warn(text)
 
 
-_1J = np.array(1j)   # (0-d: quicker as a ufunc operand than the Python scalar)
-
-
 def _all(flags):
     """Return ``flags.all()`` of a boolean array (a quarter of its cost on a cycle's worth)."""
     return np.count_nonzero(flags) == flags.size
-
-
-def _as_slices(rows, shift):
-    """Return ``(slice of rows, slice of rows + shift)`` if ``rows`` is a range, else ``()``."""
-    rows = np.asarray(rows)
-    if rows.size and np.array_equal(rows, np.arange(rows[0], rows[0] + rows.size)):
-        lo, hi = int(rows[0]), int(rows[0]) + rows.size
-        return slice(lo, hi), slice(lo + shift, hi + shift)
-    return ()
 
 
 def _filled(shape, value):
@@ -1204,159 +774,3 @@ def _filled(shape, value):
     return out
 
 
-def _rounds(targets):
-    """Return ``[(items, targets)]``: the items in rounds whose targets are distinct."""
-    pending = list(range(len(targets)))
-    out = []
-    while pending:
-        seen, now, later = set(), [], []
-        for i in pending:
-            (later if int(targets[i]) in seen else now).append(i)
-            seen.add(int(targets[i]))
-        out.append((np.array(now, dtype=int), np.array([targets[i] for i in now], dtype=int)))
-        pending = later
-    return out
-
-
-class Skeleton:
-    """Branch nodes over one crank turn and a quintic Hermite predictor between them."""
-
-    # quintic Hermite basis in powers of t: rows (value0, slope0, curv0, value1, slope1, curv1)
-    _BASIS = np.array([
-        [1, 0, 0, -10, 15, -6],
-        [0, 1, 0, -6, 8, -3],
-        [0, 0, 0.5, -1.5, 1.5, -0.5],
-        [0, 0, 0, 10, -15, 6],
-        [0, 0, 0, -4, 7, -3],
-        [0, 0, 0, 0.5, -1, 0.5],
-    ])
-
-    def __init__(self, psi, q, qd, qdd, cond, turns):
-        self.psi, self.q, self.qd, self.qdd, self.cond, self.turns = psi, q, qd, qdd, cond, turns
-        self.h = np.diff(psi)
-        self.offset = psi - psi[0]
-        h = self.h
-        data = np.stack([q[:, :-1], qd[:, :-1] * h, qdd[:, :-1] * h * h,
-                         q[:, 1:], qd[:, 1:] * h, qdd[:, 1:] * h * h], axis=-1)
-        # (6, nt, segments) power-series coefficients of each segment in t in [0, 1]
-        self.coef = np.ascontiguousarray(np.moveaxis(data @ self._BASIS, -1, 0))
-        self.last = self.h.size - 1
-        # the crank row is the crank angle itself: only the other rows are interpolated
-        self.coef_u = np.ascontiguousarray(self.coef[:, 1:])
-        self.wrap_step_u = (TWO_PI * turns[1:])[:, None] if np.any(turns[1:]) else None
-        self._turn_table = None
-        self._dense = None     # (_dense_prediction: shared by the two checks at build)
-
-    TURN_TABLE_SIZE = 256
-    """Angles per turn of :meth:`turn_reference`'s table (the coordinates, nearest angle)."""
-
-    def turn_table_error(self):
-        """
-        Return the largest distance of :meth:`turn_reference` from :meth:`predict`.
-
-        Sampled 16 times per table interval over the turn, plus the largest slope times a
-        sixteenth of the interval (what lies between the samples): rad for revolute rows.
-        """
-        table = self._table()
-        psi, q = self._dense_prediction()
-        err = np.abs(self.turn_reference(psi) - q)
-        slope = np.abs(np.diff(table, axis=1)).max(initial=0.0)
-        return float(err.max(initial=0.0) + slope / 16.0)
-
-    def _dense_prediction(self):
-        """Return ``(psi, q)``: the predictor's coordinates but the crank's, 16 per table step."""
-        if self._dense is None:
-            n = 16 * self.TURN_TABLE_SIZE
-            psi = self.psi[0] + np.arange(n + 1) * (TWO_PI / n)
-            self._dense = (psi, self.predict(psi)[1:])
-        return self._dense
-
-    def affine_reference(self):
-        """
-        Return ``(slope, offset, error)``: the straight line in psi nearest each coordinate.
-
-        ``slope`` ``(nt - 1, 1)`` is each coordinate's whole turns per crank turn, ``offset``
-        ``(nt - 1, 1)`` centres what remains (periodic in psi) between its extremes, and
-        ``error`` is the largest distance of ``slope * psi + offset`` from :meth:`predict`
-        (sampled as in :meth:`turn_table_error`, plus the largest step between the
-        samples).  Where that is well below pi, the line alone tells the whole turns of a
-        coordinate known up to 2 pi (a rocker that swings, a coupler that turns with the
-        crank), at two operations per evaluation.
-        """
-        psi, q = self._dense_prediction()
-        slope = (np.zeros((q.shape[0], 1)) if self.wrap_step_u is None
-                 else self.wrap_step_u / TWO_PI)
-        rest = q - slope * psi
-        offset = 0.5 * (rest.max(axis=1) + rest.min(axis=1))[:, None]
-        err = np.abs(rest - offset).max(initial=0.0)
-        step = np.abs(np.diff(q, axis=1)).max(initial=0.0)
-        return slope, offset, float(err + step)
-
-    def _table(self):
-        if self._turn_table is None:
-            n = self.TURN_TABLE_SIZE
-            psi = self.psi[0] + np.arange(n + 1) * (TWO_PI / n)
-            psi[-1] = self.psi[0] + TWO_PI
-            q = self.predict(psi[:-1])[1:]
-            # the last column is the first one turn on (the coordinates' whole turns added)
-            end = q[:, :1] + (0.0 if self.wrap_step_u is None else self.wrap_step_u)
-            self._turn_table = np.ascontiguousarray(np.concatenate([q, end], axis=1))
-        return self._turn_table
-
-    def turn_reference(self, psi):
-        """
-        Return ``(nt - 1, p)``: the tree coordinates but the crank's at the nearest table angle.
-
-        Within :meth:`turn_table_error` of :meth:`predict` at a fraction of its cost (no
-        search, no interpolation): enough to tell the whole turns of an angle known up to a
-        multiple of 2 pi (the dyads' closed form) when that error is well below pi.
-        """
-        table, n = self._table(), self.TURN_TABLE_SIZE
-        u = np.subtract(psi, self.psi[0])
-        u *= n / TWO_PI
-        np.rint(u, out=u)
-        turns, index = np.divmod(u.astype(np.int64), n)   # index in [0, n) whatever psi
-        out = table.take(index, axis=1)
-        if self.wrap_step_u is not None:
-            out += self.wrap_step_u * turns
-        return out
-
-    def wraps(self, psi):
-        """Return how many whole turns ``psi`` lies beyond the skeleton's start."""
-        return np.floor((np.asarray(psi) - self.psi[0]) / TWO_PI)
-
-    def locate(self, psi):
-        """Return the interval index and the offset into one turn for each angle."""
-        k, x, _ = self._locate(psi)
-        return k, x
-
-    def _locate(self, psi):
-        """Return the interval index, the offset into the turn and the whole turns."""
-        x = np.subtract(psi, self.psi[0])
-        turns = np.multiply(x, 1.0 / TWO_PI)
-        np.floor(turns, out=turns)
-        x -= turns * TWO_PI
-        # x >= 0 = offset[0] (rounding can leave -0.5 ulp), so the index is >= 0; x may
-        # round up to 2 pi: cap at the last
-        np.maximum(x, 0.0, out=x)
-        k = np.searchsorted(self.offset, x, side='right')
-        k -= 1
-        return np.minimum(k, self.last, out=k), x, turns
-
-    def predict(self, psi):
-        """Return predicted tree coordinates ``(nt, p)`` at crank angles ``psi``."""
-        psi = np.asarray(psi, dtype=float)
-        k, x, turns = self._locate(psi)
-        x -= self.offset[k]
-        x /= self.h[k]                   # t in [0, 1] along the segment
-        q = np.empty((self.q.shape[0], psi.size))
-        q[0] = psi                       # the crank joint's coordinate is the crank angle
-        c = self.coef_u.take(k, axis=2)   # (take: a third of the fancy index's cost)
-        qu = np.multiply(c[5], x, out=q[1:])
-        for j in (4, 3, 2, 1):           # Horner, in place
-            qu += c[j]
-            qu *= x
-        qu += c[0]
-        if self.wrap_step_u is not None:
-            qu += self.wrap_step_u * turns
-        return q
