@@ -261,7 +261,7 @@ def test_single_block_agrees_with_lapack_and_singular_is_infinite():
 def test_block_plan_refuses_what_is_not_block_triangular():
     with pytest.raises(ValueError, match='above the diagonal blocks'):
         linalg.BlockPlan(4, [0, 1, 0, 1, 2, 3, 2, 3, 0], [0, 0, 1, 1, 2, 2, 3, 3, 2],
-                             [((0, 1), (0, 1)), ((2, 3), (2, 3))])
+                         [((0, 1), (0, 1)), ((2, 3), (2, 3))])
     with pytest.raises(ValueError, match='diagonal block entry is missing'):
         linalg.BlockPlan(2, [0, 1, 0], [0, 0, 1], [((0, 1), (0, 1))])
     with pytest.raises(ValueError, match='exactly one block'):

@@ -15,6 +15,7 @@ Order (:func:`block_triangular_order`)
 
 import numpy as np
 
+
 def pivot_order(mat):
     """
     Return a row order for elimination without row swaps, from one ``(k, k)`` matrix.

@@ -90,7 +90,6 @@ RETRACE_LIMITS = continuation.Limits(
 """A re-trace from a skeleton node to one angle: quarter steps that do not grow."""
 
 
-
 class BranchError(ValueError):
     """The linkage cannot be assembled, is singular, or would leave its branch."""
 
@@ -216,7 +215,6 @@ class Linkage(SpanningTree, RateAnalysis):
 
     # ------------------------------------------------------------------ construction
 
-
     @staticmethod
     def _length_scale(scene, pts):
         if scene.normalization is not None:
@@ -237,7 +235,6 @@ class Linkage(SpanningTree, RateAnalysis):
         return complex(*scene.frame_points[point])
 
     # ------------------------------------------------------------------ position level
-
 
     def pose(self, q, rot_crank=None):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
@@ -285,16 +282,20 @@ class Linkage(SpanningTree, RateAnalysis):
         d = pb - pa
         nr = self.nr
         if not self.npc:
-            out = np.empty((self.m, d.shape[1]))
-            np.multiply(d.real, self.scale0, out=out[:nr])
-            np.multiply(d.imag, self.scale0, out=out[nr:])
-            return out
+            return self.scaled_rows(d)
         rows = [d.real[:nr], d.imag[:nr]]
         ia, ib = self.cut_a[nr:], self.cut_b[nr:]
         dphi = pose.phi[ib] - pose.phi[ia] - self.cut_angle
         n = pose.rot[ia] * self.cut_axis
         rows += [np.remainder(dphi + math.pi, TWO_PI) - math.pi, _cross(n, d[nr:])]
         return np.concatenate(rows) * self.row_scale[:, None]
+
+    def scaled_rows(self, d):
+        """Return the scaled loop rows ``(m, p)`` of revolute cuts' differences ``d`` (x, y)."""
+        out = np.empty((self.m, d.shape[1]))
+        np.multiply(d.real, self.scale0, out=out[:self.nr])
+        np.multiply(d.imag, self.scale0, out=out[self.nr:])
+        return out
 
     def jacobian(self, pose, unknown_only=False):
         """
@@ -545,7 +546,7 @@ class Linkage(SpanningTree, RateAnalysis):
                   for s in self.dyads.steps]
         try:
             return linalg.BlockPlan(self.nu, np.concatenate([c, self.nr + c]),
-                                        np.concatenate([t, t]), blocks)
+                                    np.concatenate([t, t]), blocks)
         except ValueError:  # pragma: no cover - a dyad order is block triangular
             return None
 
@@ -772,5 +773,3 @@ def _filled(shape, value):
     out = np.empty(shape)
     out.fill(value)
     return out
-
-

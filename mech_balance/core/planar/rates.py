@@ -120,10 +120,7 @@ class RateAnalysis:
         d = ends[n:] - ends[:n]
         nr = self.nr
         if not self.npc:
-            out = np.empty((self.m, d.shape[1]))
-            np.multiply(d.real, self.scale0, out=out[:nr])
-            np.multiply(d.imag, self.scale0, out=out[nr:])
-            return out
+            return self.scaled_rows(d)
         rows = [d.real[:nr], d.imag[:nr]]
         ia, ib = ia[nr:], ib[nr:]
         n = pose.rot[ia] * self.cut_axis

@@ -6,7 +6,7 @@ A scene's ``assembly.poses`` state, approximately, where every link is at the cr
 assemblies at one crank angle: a rocker on either side, a coupler flipped about its line
 through a universal joint).  :func:`initial` reads the tree coordinates from them (the
 inverse of the zero convention of :mod:`.kinematics`), Levenberg-Marquardt closes the loops
-from there (:meth:`~kinematics.Linkage._assemble`), and :func:`pose_mismatch` compares every
+from there (:meth:`Assembling._assemble`), and :func:`pose_mismatch` compares every
 stated link's solved pose with its stated one: a link off by more than
 :data:`~mech_balance.schema.spatial.POSE_TOL_DEG` or
 :data:`~mech_balance.schema.spatial.POSE_TOL_REL` of the linkage's size is refused, naming
@@ -47,7 +47,8 @@ def twist_about(axis, rot):
     The twist of the swing-twist split: the signed angle about ``axis`` from a unit vector
     ``r`` normal to it to ``rot r`` (its part normal to ``axis``).  Exact for a rotation
     about ``axis`` whatever its angle, and for an approximate one (a guessed pose) the turn
-    about ``axis`` that best explains it; the rotation vector (``kinematics.angle_about``)
+    about ``axis`` that best explains it; the rotation vector
+    (:func:`mech_balance.rotations.angle_about`)
     would mix in any turn about another axis.
     """
     ref = _normal(axis)

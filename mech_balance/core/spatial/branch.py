@@ -10,7 +10,7 @@ import math
 
 from mech_balance.core import continuation
 from mech_balance.core.planar.kinematics import COND_WARN
-from mech_balance.rotations import EYE3, expmap, TWO_PI
+from mech_balance.rotations import expmap, EYE3, TWO_PI
 import numpy as np
 
 COND_LIMIT = 1e10
@@ -156,7 +156,6 @@ class BranchFollowing:
             qd, qdd, cond = rates.qd, rates.qdd, rates.cond
             self._dense = Skeleton(psi, q, sph, qd, qdd, cond, self.periodic)
         return self._dense
-
 
 
 def _skeleton_of(nodes, periodic):

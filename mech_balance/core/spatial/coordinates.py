@@ -54,7 +54,7 @@ def _functionals(jt, ax, bx, fixed, zero):
 
     Every published angle is an ``arctan2`` of linear functionals of ``M = R_a^T R_b``
     (``sum(M * W)``): revolute and cylindrical ``vee(M Z^T) . a`` and ``tr(M Z^T)``
-    (:func:`~kinematics.angle_about`); spherical the five entries of ``M A^T`` that
+    (:func:`~mech_balance.rotations.angle_about`); spherical the five entries of ``M A^T`` that
     :func:`rpy_of` reads; universal ``b_in_a = M b`` against ``e`` and ``a x e`` and
     itself (the second rate), then the second angle's ``vee`` and trace terms of
     ``U^T Rot(a, -theta1) M``, each split into its ``M``, ``K M`` and ``K^2 M`` parts (K the

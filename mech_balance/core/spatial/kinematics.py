@@ -69,7 +69,7 @@ from mech_balance.core.spatial.branch import BranchFollowing, EVAL_TRUST, Spatia
 from mech_balance.core.spatial.closure import ClosureRows
 from mech_balance.core.spatial.vectors import component_major, cross, cross_c, mv, perp_pair, \
     sin_vers_one, unit
-from mech_balance.rotations import EYE3, expmap, min_rotation, rot_axis, skew
+from mech_balance.rotations import expmap, EYE3, min_rotation, rot_axis, skew
 from mech_balance.schema.scene import FRAME
 from mech_balance.schema.spatial import stroke_law
 import numpy as np
@@ -352,7 +352,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         self.cut_joints = cuts
         self._build_rows(body, cuts)
 
-
     def scaled(self, jac):
         """Return the scaled Jacobian of the unknowns ``(n, m, nu)`` (rows and columns)."""
         return jac[:, :, self.unknown] * self.js_scale
@@ -577,8 +576,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         ok = (res <= tol) & np.isfinite(res)
         return q, sph, fr, res, ok, factor
 
-
-
     # ------------------------------------------------------------------ refined solves
 
     def solve_u(self, solver, js, rhs):
@@ -700,5 +697,3 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return SpatialState(psi, psi_d, psi_dd, q, sph, fr, res, cond, rates.rank, rates.jac,
                             rates.solver, rates.refine, rates.qd, rates.qdd, rates.twist,
                             rates.accel)
-
-
