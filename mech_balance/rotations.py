@@ -8,7 +8,8 @@ Convention
 
 Set-up and evaluation
     scipy's :class:`~scipy.spatial.transform.Rotation` is the reference: one-off set-up
-    (a URDF joint's fixed turn, an assembly guess) uses it (:func:`axis_angle_matrix`), and
+    (a URDF joint's fixed turn, an assembly guess, a recorded mount's quaternion) uses it
+    (:func:`axis_angle_matrix`, :func:`quaternion_matrix`), and
     ``test/test_rotations.py`` holds every form here to it.  Two kinds stay written out in
     numpy: the forms the kinematics evaluate at every crank angle, over whole stacks
     (:func:`rot_axis`, :func:`expmap`, :func:`matrix_rpy`: a Rotation object per call costs
@@ -22,7 +23,8 @@ import math
 import numpy as np
 
 __all__ = ['EYE3', 'GIMBAL_LOCK_COS', 'TWO_PI', 'angle_about', 'axis_angle_matrix', 'expmap',
-           'matrix_rpy', 'min_rotation', 'rot_axis', 'rpy_matrix', 'skew', 'wrap_angle']
+           'matrix_rpy', 'min_rotation', 'quaternion_matrix', 'rot_axis', 'rpy_matrix', 'skew',
+           'wrap_angle']
 
 TWO_PI = 2.0 * math.pi
 GIMBAL_LOCK_COS = 1e-12
@@ -56,6 +58,12 @@ def axis_angle_matrix(axis, angle_rad):
     """Return the rotation ``(3, 3)`` by ``angle_rad`` about the unit vector ``axis``."""
     from scipy.spatial.transform import Rotation
     return Rotation.from_rotvec(np.asarray(axis, dtype=float) * float(angle_rad)).as_matrix()
+
+
+def quaternion_matrix(xyzw):
+    """Return the rotation ``(3, 3)`` of a quaternion ``(x, y, z, w)`` (normalized first)."""
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_quat(np.asarray(xyzw, dtype=float)).as_matrix()
 
 
 def matrix_rpy(rot, degrees=False):

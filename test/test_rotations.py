@@ -79,3 +79,10 @@ def test_wrap_angle_range_no_negative_zero_and_the_scalar_path():
         s = rotations.wrap_angle(float(v))
         assert type(s) is float
         assert s == float(rotations.wrap_angle(np.array(v)))
+
+
+def test_quaternion_matrix_is_scipys_and_normalizes():
+    rng = np.random.default_rng(RNG_SEED)
+    for q in rng.normal(size=(20, 4)):
+        want = Rotation.from_quat(q / np.linalg.norm(q)).as_matrix()
+        assert_allclose(rotations.quaternion_matrix(3.0 * q), want, atol=1e-14)

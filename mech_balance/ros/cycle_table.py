@@ -251,8 +251,7 @@ class CycleTable:
         out = g.reshape(n, -1) @ self._coef
         sel = self._wrapped
         if sel is not None:
-            v = math.pi - np.mod(math.pi - out[:, sel], TWO_PI)
-            out[:, sel] = np.where(v <= -math.pi, v + TWO_PI, v)  # mod may round up
+            out[:, sel] = wrap_angle(out[:, sel])
         out += 0.0
         cell = (x * self._cell).astype(np.intp)
         j = self._j
@@ -278,13 +277,9 @@ class CycleTable:
         np.multiply(basis, np.array(((speed,), (speed * speed,), (accel,))), out=g[1:])
         out = g.reshape(1, -1) @ self._coef
         sel = self._wrapped
-        if sel is not None:  # as _wrap, in plain Python for the few angles of one sample
+        if sel is not None:  # the few angles of one sample: wrap_angle's float path
             row = out[0]
-            wrapped = []
-            for v in row[sel].tolist():
-                v = math.pi - (math.pi - v) % TWO_PI
-                wrapped.append(v + TWO_PI if v <= -math.pi else v)   # mod may round up
-            row[sel] = wrapped
+            row[sel] = [wrap_angle(v) for v in row[sel].tolist()]
         out += 0.0
         cell = int(x * self._cell)
         j = self._j
