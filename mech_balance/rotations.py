@@ -7,15 +7,18 @@ Convention
     pitch, yaw))``).  The columns of ``R`` are the rotated frame's axes in the fixed one.
 
 Set-up and evaluation
-    scipy's :class:`~scipy.spatial.transform.Rotation` is the reference: one-off set-up
-    (a URDF joint's fixed turn, an assembly guess, a recorded mount's quaternion) uses it
-    (:func:`axis_angle_matrix`, :func:`quaternion_matrix`), and
-    ``test/test_rotations.py`` holds every form here to it.  Two kinds stay written out in
-    numpy: the forms the kinematics evaluate at every crank angle, over whole stacks
-    (:func:`rot_axis`, :func:`expmap`, :func:`matrix_rpy`: a Rotation object per call costs
-    more than the cycle's arithmetic), and the forms whose exact bits are scene geometry
-    (:func:`rpy_matrix`, :func:`min_rotation`: the link frames and joint zeros).  Base
-    layer: numpy and scipy only, so the scene schema, the core and the ROS side import it.
+    scipy's :class:`~scipy.spatial.transform.Rotation` is the reference:
+    ``test/test_rotations.py`` holds every form here to it, and a recorded mount's
+    quaternion is read through it (:func:`quaternion_matrix`).  The other forms are written
+    out in numpy, for three measured reasons: the kinematics evaluate them at every crank
+    angle over whole stacks (:func:`rot_axis`, :func:`expmap`, :func:`matrix_rpy`: a
+    Rotation object per call costs more than the cycle's arithmetic); the exact bits of
+    :func:`rpy_matrix` and :func:`min_rotation` are scene geometry (the link frames and joint
+    zeros: through Rotation they move by round-off, and the balanced designs of the spatial
+    built-ins, whose optimum is not unique, then move by more than their printed digits);
+    and importing ``scipy.spatial.transform`` costs a quarter of a second that building a
+    spatial rig would otherwise not pay.  Base layer: numpy (and scipy) only, so the scene
+    schema, the core and the ROS side all import it.
 """
 
 import math
@@ -56,8 +59,7 @@ def rpy_matrix(rpy, degrees=False):
 
 def axis_angle_matrix(axis, angle_rad):
     """Return the rotation ``(3, 3)`` by ``angle_rad`` about the unit vector ``axis``."""
-    from scipy.spatial.transform import Rotation
-    return Rotation.from_rotvec(np.asarray(axis, dtype=float) * float(angle_rad)).as_matrix()
+    return rot_axis(np.asarray(axis, dtype=float), np.array([float(angle_rad)]))[0]
 
 
 def quaternion_matrix(xyzw):
