@@ -2,7 +2,7 @@
 The BLAS thread pool and glibc's allocator of the package's processes: one home for both.
 
 glibc's allocator, one policy, set here and nowhere else
-    Computing favours speed: the first linkage a process builds calls
+    Computing favours speed: the first linkage a process builds (planar or spatial) calls
     :func:`settle_allocator`, which lets glibc raise its mmap threshold once, so that a
     cycle's larger temporaries are reused from the heap instead of being mapped afresh at
     every call.  The one exception is the long-running rig node, which favours bounded

@@ -60,6 +60,7 @@ import math
 from typing import NamedTuple
 import warnings
 
+from mech_balance import threads
 from mech_balance.conventions import crank_angle_text
 from mech_balance.core import linalg
 from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL
@@ -197,6 +198,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
     """
 
     def __init__(self, scene):
+        threads.settle_allocator()   # the allocator's policy: mech_balance/threads.py
         self.scene = scene
         self.warnings = []
         self.body_names = (FRAME,) + tuple(lk.name for lk in scene.links)
