@@ -213,10 +213,9 @@ class BlockFactored:
     def solve(self, rhs):
         """Return ``x`` ``(k, p)`` with ``mat x = rhs``: ``(I + N) x = D^-1 rhs``."""
         rhs = np.asarray(rhs, dtype=float)
-        plan = self.plan
-        if plan.single:
+        if self.plan.single:
             return self._solve_2(rhs, False)
-        p = rhs.shape[1]
+        plan, p = self.plan, rhs.shape[1]
         with self._quiet():
             inv = self.inv
             r0, r1 = rhs.take(plan.rows01[0], axis=0), rhs.take(plan.rows01[1], axis=0)
@@ -240,11 +239,9 @@ class BlockFactored:
     def solve_t(self, rhs):
         """Return ``x`` ``(k, p)`` with ``mat^T x = rhs``: ``(I + N^T) z = rhs``, ``D^T x = z``."""
         rhs = np.asarray(rhs, dtype=float)
-        plan = self.plan
-        if plan.single:
+        if self.plan.single:
             return self._solve_2(rhs, True)
-        p = rhs.shape[1]
-        inv = self.inv
+        inv, plan, p = self.inv, self.plan, rhs.shape[1]
         zb = rhs.take(plan.col_of_flat, axis=0).reshape(len(plan.blocks), 2, p)   # blocks
         with self._quiet():
             blocks, flat, w = list(zb), list(zb.reshape(self.k, p)), self.pair_weights

@@ -227,9 +227,14 @@ class Factored:
         else:
             x = np.empty_like(y)
             x[plan.col_order] = y
+        return self._redo_weak(x, rhs, False)
+
+    def _redo_weak(self, x, rhs, transposed):
+        """Return ``x`` with the weak angles' solutions replaced by LAPACK's."""
         if self.any_weak:
             w = self.weak
-            x[:, w] = _lapack(self._weak_mat(), rhs[:, w])
+            mat = self._weak_mat()
+            x[:, w] = _lapack(mat.transpose(1, 0, 2) if transposed else mat, rhs[:, w])
         return x
 
     @property
@@ -250,14 +255,9 @@ class Factored:
         rhs = np.asarray(rhs, dtype=float)
         if self.k <= 2:
             return matvec_t(self._inv, rhs)
-        plan = self.plan
-        y = _substitute_t(self.lu, plan, rhs[plan.col_order])
-        x = np.empty_like(y)
-        x[plan.row_order] = y
-        if self.any_weak:
-            w = self.weak
-            x[:, w] = _lapack(self._weak_mat().transpose(1, 0, 2), rhs[:, w])
-        return x
+        x = np.empty(rhs.shape)                      # pivot row order back to the original
+        x[self.plan.row_order] = _substitute_t(self.lu, self.plan, rhs[self.plan.col_order])
+        return self._redo_weak(x, rhs, True)
 
     def inverse(self):
         """Return ``(inv, cond)``: the ``(k, k, p)`` inverses and 1-norm condition numbers."""
