@@ -1,8 +1,18 @@
 """
-The BLAS thread pool of the package's own processes, and freed memory given back.
+The BLAS thread pool and glibc's allocator of the package's processes: one home for both.
 
-:func:`release_memory` returns freed heap memory to the system after a large one-off
-computation.  The BLAS pool of ``mech-balance`` and ``rig_node``:
+glibc's allocator, one policy, set here and nowhere else
+    Computing favours speed: the first linkage a process builds (planar or spatial) calls
+    :func:`settle_allocator`, which lets glibc raise its mmap threshold once, so that a
+    cycle's larger temporaries are reused from the heap instead of being mapped afresh at
+    every call.  The one exception is the long-running rig node, which favours bounded
+    memory: its ``main`` calls :func:`return_large_blocks` before anything is computed,
+    fixing the threshold at :data:`MMAP_THRESHOLD_BYTES` (large temporaries go back to the
+    kernel at free), and :func:`settle_allocator` then does nothing.  ``MALLOC_*`` settings
+    in the environment win over both.  :func:`release_memory` returns freed heap memory to
+    the system after a large one-off computation.
+
+The BLAS pool of ``mech-balance`` and ``rig_node``
 
 numpy's OpenBLAS starts one thread per core and hands every LAPACK call to them, also the
 package's small ones (identification's 4096 x 19 QR reductions, the cone programs' factors).
@@ -84,6 +94,31 @@ def release_memory():
         return False
 
 
+ALLOCATOR_SETTLE_BYTES = 8 * 2 ** 20
+"""Size of the block :func:`settle_allocator` allocates and frees once per process."""
+_ALLOCATOR = {'settled': False, 'fixed': False}
+
+
+def settle_allocator():
+    """
+    Allocate and free one 8 MiB block, once per process, before the first cycle.
+
+    glibc's malloc serves blocks above its mmap threshold (128 KiB at start) straight from
+    the kernel and returns them at ``free``, and it trims the top of its heap beyond twice
+    that threshold: a cycle's larger temporaries (a 40-link chain's complex ``(39, 360)``
+    stacks are 225 KiB) would then be page-faulted in afresh at every call (about a third
+    of that chain's cycle).  Freeing a block from the kernel raises both thresholds to its
+    size (glibc's documented dynamic threshold, ``mallopt(3)``), so the temporaries are
+    reused from the heap.  Does nothing after :func:`return_large_blocks` (the node's
+    policy) or where ``MALLOC_MMAP_THRESHOLD_`` and the like switch that adjustment off.
+    Nothing is committed (the block is never touched).
+    """
+    if not (_ALLOCATOR['settled'] or _ALLOCATOR['fixed']):
+        import numpy   # (on first use: the command line parsers need none)
+        _ALLOCATOR['settled'] = True
+        numpy.empty(ALLOCATOR_SETTLE_BYTES, dtype=numpy.uint8)   # freed at once
+
+
 MMAP_THRESHOLD_BYTES = 128 * 1024
 """Blocks from this size up are mapped and unmapped by the kernel in the rig node (glibc's
 initial default, kept fixed: see :func:`return_large_blocks`)."""
@@ -111,6 +146,7 @@ def return_large_blocks(threshold=MMAP_THRESHOLD_BYTES):
         libc = ctypes.CDLL(ctypes.util.find_library('c') or 'libc.so.6')
         ok = libc.mallopt(_M_MMAP_THRESHOLD, int(threshold))
         libc.mallopt(_M_TRIM_THRESHOLD, 2 * int(threshold))
+        _ALLOCATOR['fixed'] = bool(ok)
         return bool(ok)
     except (OSError, AttributeError):
         return False

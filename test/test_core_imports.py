@@ -5,7 +5,7 @@ import subprocess
 import sys
 
 BLOCKED = ('rclpy', 'rerun', 'sensor_msgs', 'geometry_msgs', 'std_srvs', 'std_msgs')
-CORE = ('conventions', 'schema.scene', 'core.planar.smallsolve', 'core.planar.kinematics',
+CORE = ('conventions', 'schema.scene', 'core.linalg', 'core.planar.kinematics',
         'core.planar.dynamics', 'core.equimomental', 'analysis.cycle', 'core.spatial.rig',
         'balancing.redistribution', 'balancing.spatial', 'balancing.weights', 'analysis.identify',
         'ros.bags', 'ros.urdf')

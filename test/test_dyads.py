@@ -9,7 +9,9 @@ import warnings
 from mech_balance import schema as scene
 from mech_balance.bench import chains as chain
 from mech_balance.conventions import cycle_angles
-from mech_balance.core.planar import dyads, kinematics, smallsolve
+from mech_balance.core import linalg
+from mech_balance.core.linalg import blocks
+from mech_balance.core.planar import dyads, kinematics
 from mech_balance.core.planar.rig import PlanarRig
 import numpy as np
 from numpy.testing import assert_allclose
@@ -223,7 +225,7 @@ def test_block_factored_agrees_with_lapack(name, tree_like, monkeypatch):
     values, _ = lk.jacobian_values(st.pose)
     rng = np.random.default_rng(3)
     values = values * rng.uniform(0.5, 1.5, values.shape)    # other matrices, same pattern
-    fac = smallsolve.BlockFactored(lk.block, values)
+    fac = linalg.BlockFactored(lk.block, values)
     stack = np.moveaxis(fac.mat, -1, 0)
     b = rng.normal(size=(lk.nu, values.shape[1]))
     x = np.linalg.solve(stack, b.T[:, :, None])[:, :, 0].T
@@ -242,7 +244,7 @@ def test_single_block_agrees_with_lapack_and_singular_is_infinite():
     rng = np.random.default_rng(5)
     values = rng.normal(size=(4, 20))
     values[:, 3] = [1.0, 2.0, 2.0, 4.0]          # singular
-    fac = smallsolve.BlockFactored(lk.block, values)
+    fac = linalg.BlockFactored(lk.block, values)
     stack = np.moveaxis(fac.mat, -1, 0)
     ok = np.arange(20) != 3
     b = rng.normal(size=(2, 20))
@@ -258,12 +260,12 @@ def test_single_block_agrees_with_lapack_and_singular_is_infinite():
 
 def test_block_plan_refuses_what_is_not_block_triangular():
     with pytest.raises(ValueError, match='above the diagonal blocks'):
-        smallsolve.BlockPlan(4, [0, 1, 0, 1, 2, 3, 2, 3, 0], [0, 0, 1, 1, 2, 2, 3, 3, 2],
-                             [((0, 1), (0, 1)), ((2, 3), (2, 3))])
+        linalg.BlockPlan(4, [0, 1, 0, 1, 2, 3, 2, 3, 0], [0, 0, 1, 1, 2, 2, 3, 3, 2],
+                         [((0, 1), (0, 1)), ((2, 3), (2, 3))])
     with pytest.raises(ValueError, match='diagonal block entry is missing'):
-        smallsolve.BlockPlan(2, [0, 1, 0], [0, 0, 1], [((0, 1), (0, 1))])
+        linalg.BlockPlan(2, [0, 1, 0], [0, 0, 1], [((0, 1), (0, 1))])
     with pytest.raises(ValueError, match='exactly one block'):
-        smallsolve.BlockPlan(2, [0, 1, 0, 1], [0, 0, 1, 1], [((0, 0), (0, 1))])
+        linalg.BlockPlan(2, [0, 1, 0, 1], [0, 0, 1, 1], [((0, 0), (0, 1))])
 
 
 @pytest.mark.parametrize('case', ['hoeken', 'carpet_scraper', 'chain', 0, 1, 2, 3])
@@ -309,20 +311,20 @@ def test_single_block_takes_an_errstate_only_where_a_block_is_singular(monkeypat
         entered.append(kw)
         return real(**kw)
 
-    monkeypatch.setattr(smallsolve.np, 'errstate', counting)
+    monkeypatch.setattr(blocks.np, 'errstate', counting)
     values = rng.normal(size=(4, 9))
     with warnings.catch_warnings():
         warnings.simplefilter('error')                # no RuntimeWarning either way
-        fac = smallsolve.BlockFactored(lk.block, values)
+        fac = linalg.BlockFactored(lk.block, values)
         assert not entered                            # nonsingular: no errstate
         stack = np.moveaxis(fac.mat, -1, 0)
         assert_allclose(fac.cond(), [np.linalg.cond(m, 1) for m in stack], rtol=1e-12)
         values[:, 6] = [1.0, 2.0, 2.0, 4.0 * (1.0 + 1e-15)]   # nearly singular
-        fac = smallsolve.BlockFactored(lk.block, values)
+        fac = linalg.BlockFactored(lk.block, values)
         assert not entered and 1e14 < fac.cond()[6] < np.inf
         values[:, 2] = 0.0                            # 0/0
         values[:, 5] = [1e-80, 0.0, 0.0, 1e-80]       # |det| below the threshold, fine
-        fac = smallsolve.BlockFactored(lk.block, values)
+        fac = linalg.BlockFactored(lk.block, values)
         assert entered
     cond = fac.cond()
     assert cond[2] == np.inf and cond[5] == 1.0 and 1e14 < cond[6] < np.inf

@@ -6,7 +6,8 @@ from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import chains as chain
 from mech_balance.conventions import cycle_angles
-from mech_balance.core.planar import algebra, kinematics, smallsolve
+from mech_balance.core import linalg
+from mech_balance.core.planar import algebra, kinematics, tree
 from mech_balance.core.planar.rig import PlanarRig
 import numpy as np
 from numpy.testing import assert_allclose
@@ -79,34 +80,34 @@ def _block_bidiagonal(rng, blocks, p, width=2):
 def test_block_triangular_order_finds_the_blocks_without_fill():
     rng = np.random.default_rng(7)
     pattern, mat = _block_bidiagonal(rng, 12, 1)
-    rows, cols = smallsolve.block_triangular_order(pattern, mat[:, :, 0])
+    rows, cols = linalg.block_triangular_order(pattern, mat[:, :, 0])
     permuted = pattern[rows][:, cols]
     # block lower triangular with 2 x 2 diagonal blocks: nothing right of each block
     for b in range(12):
         assert not permuted[2 * b:2 * b + 2, 2 * b + 2:].any()
-    plan = smallsolve.LUPlan(pattern, rows, cols)
+    plan = linalg.LUPlan(pattern, rows, cols)
     assert plan.nnz <= pattern.sum() + 12           # at most one fill-in per block coupling
     # a structurally singular pattern has no perfect matching
     singular = pattern.copy()
     singular[:, cols[0]] = False
-    assert smallsolve.block_triangular_order(singular, mat[:, :, 0]) is None
+    assert linalg.block_triangular_order(singular, mat[:, :, 0]) is None
 
 
 @pytest.mark.parametrize('from_values', [False, True])
 def test_factored_agrees_with_lapack(from_values):
     rng = np.random.default_rng(11)
     pattern, mat = _block_bidiagonal(rng, 7, 50)
-    rows, cols = smallsolve.block_triangular_order(pattern, mat[:, :, 0])
-    plan = smallsolve.LUPlan(pattern, rows, cols)
+    rows, cols = linalg.block_triangular_order(pattern, mat[:, :, 0])
+    plan = linalg.LUPlan(pattern, rows, cols)
     # make the static pivot of one angle vanish: that angle must go to LAPACK (weak)
     first = (rows[0], cols[0])
     mat[first[0], first[1], 3] = 1e-9
     if from_values:
         r, c = np.nonzero(pattern)
         plan.set_entries(r, c)
-        fac = smallsolve.Factored(None, plan, values=mat[r, c])
+        fac = linalg.Factored(None, plan, values=mat[r, c])
     else:
-        fac = smallsolve.Factored(mat, plan)
+        fac = linalg.Factored(mat, plan)
     assert fac.weak[3] and fac.weak.sum() < 5
     b = rng.normal(size=(14, 50))
     stack = np.moveaxis(mat, -1, 0)
@@ -143,7 +144,7 @@ def test_tree_level_sums_agree_with_dense_ancestry_products(name, monkeypatch):
     psi = cycle_angles(36) + 0.05
     dense = analysis.Rig(sc, cache=False)
     assert dense.linkage.dense_tree
-    monkeypatch.setattr(kinematics, 'DENSE_TREE_MAX_BODIES', 0)   # force the level sums
+    monkeypatch.setattr(tree, 'DENSE_TREE_MAX_BODIES', 0)   # force the level sums
     levels = analysis.Rig(sc, cache=False)
     assert not levels.linkage.dense_tree
     s1, w1 = dense.evaluate(psi, speed=2.3, accel=-1.1)

@@ -16,7 +16,8 @@ import warnings
 from mech_balance import schema
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import kinematics
-from mech_balance.core.spatial.kinematics import min_rotation, SpatialError
+from mech_balance.core.spatial.kinematics import SpatialError
+from mech_balance.rotations import min_rotation
 from mech_balance.schema.fields import SceneError
 from mech_balance.schema.spatial import Pose, spatial_from_dict, spatial_to_dict
 import numpy as np

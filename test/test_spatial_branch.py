@@ -16,7 +16,7 @@ against the stated poses at load.
 import copy
 import math
 
-from mech_balance import schema
+from mech_balance import rotations, schema
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import kinematics
 from mech_balance.core.spatial.kinematics import SpatialError
@@ -113,7 +113,7 @@ def _joint(kind, ends, poses, x, rng):
         spec.update(axis=[float(v) for v in ra.T @ w], axis_b=[float(v) for v in rb.T @ w])
     if kind == 'prismatic':
         a, b = np.array(spec['axis']), np.array(spec['axis_b'])
-        z = kinematics.min_rotation(b, a)
+        z = rotations.min_rotation(b, a)
         m = ra.T @ rb @ z.T   # a turn about a
         r = _unit(np.cross(a, [0.3, -0.5, 0.8]))
         spec['angle_deg'] = math.degrees(math.atan2(a @ np.cross(r, m @ r), r @ m @ r))

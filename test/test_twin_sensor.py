@@ -16,7 +16,7 @@ import sys
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
-from mech_balance import schema
+from mech_balance import rotations, schema
 from mech_balance.ros import conversions as conv
 from mech_balance.ros import diagnostics, params, sensor, streaming
 import numpy as np
@@ -83,12 +83,12 @@ def _six(planar):
 def test_rotation_is_ros_fixed_axis_roll_pitch_yaw():
     rng = np.random.default_rng(1)
     for roll, pitch, yaw in rng.uniform(-math.pi, math.pi, (20, 3)):
-        r = sensor.rotation_rpy(roll, pitch, yaw)
+        r = rotations.rpy_matrix((roll, pitch, yaw))
         assert_allclose(r @ r.T, np.eye(3), atol=1e-14)
         assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-14)
         assert_allclose(r, _rotation(roll, pitch, yaw), atol=1e-14)
     # yaw a quarter turn: the sensor's x axis is the rig's y axis
-    assert_allclose(sensor.rotation_rpy(0.0, 0.0, math.pi / 2) @ [1, 0, 0], [0, 1, 0],
+    assert_allclose(rotations.rpy_matrix((0.0, 0.0, math.pi / 2)) @ [1, 0, 0], [0, 1, 0],
                     atol=1e-15)
 
 

@@ -20,7 +20,7 @@ from mech_balance import schema
 from mech_balance.analysis.timing import median_seconds
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
-from mech_balance.core.spatial import kinematics
+from mech_balance.core.spatial import branch
 from mech_balance.schema import registry
 from mech_balance.schema.scene import OUTPUTS
 
@@ -47,7 +47,7 @@ def bench_section(args, progress):
         build = time.perf_counter() - t0
         psi = cycle_angles(samples, sc.assembly_crank_angle_rad)
         seconds = median_seconds(lambda: rig.at(psi, outputs=OUTPUTS), repeat=repeat)
-        off = psi + 0.5 * kinematics.DENSE_STEP_RAD
+        off = psi + 0.5 * branch.DENSE_STEP_RAD
         off_seconds = median_seconds(lambda: rig.at(off, outputs=OUTPUTS), repeat=repeat)
         target = TARGETS_US.get(name)
         lines.append(f'{name:<18} {len(sc.links):>5} {build * 1e3:9.1f} '

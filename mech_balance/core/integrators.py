@@ -10,7 +10,7 @@ DEFAULT_RTOL = 1e-8
 
 
 REFERENCE_RTOL = 1e-12
-"""Relative tolerance of the reference solutions of :mod:`mech_balance.accuracy`."""
+"""Relative tolerance of the reference solutions of :mod:`mech_balance.bench.accuracy`."""
 
 
 EXPLICIT_METHODS = ('RK45', 'DOP853')

@@ -37,6 +37,7 @@ import tempfile
 import warnings
 
 from mech_balance.ros.names import DEFAULT_FRAME_ID, ENCODER_TOPIC, WRENCH_TOPIC
+from mech_balance.rotations import matrix_rpy, quaternion_matrix
 from mech_balance.schema.fields import MAX_ABS_VALUE
 import numpy as np
 
@@ -402,11 +403,7 @@ def _quat_rpy(x, y, z, w):
     if not (math.isfinite(norm) and norm > 0.5):
         raise RecordingError(f'{TF_STATIC_TOPIC}: rotation ({x}, {y}, {z}, {w}), expected a '
                              'unit quaternion')
-    x, y, z, w = x / norm, y / norm, z / norm, w / norm
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return roll, pitch, yaw
+    return tuple(float(v) for v in matrix_rpy(quaternion_matrix((x, y, z, w))))
 
 
 def _sensor_tf(transforms, rig_frame, frame_ids):

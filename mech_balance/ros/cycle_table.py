@@ -33,6 +33,7 @@ import math
 import time
 
 from mech_balance.core.rig import RigData
+from mech_balance.rotations import wrap_angle
 import numpy as np
 
 TWO_PI = 2.0 * math.pi
@@ -89,11 +90,6 @@ def _stack(samples):
         parts.append(samples.joint_effort)
     parts += [samples.force_N, samples.moment_Nm]
     return np.hstack(parts).astype(float)
-
-
-def _wrap(x):
-    w = math.pi - np.mod(math.pi - x, TWO_PI)
-    return np.where(w <= -math.pi, w + TWO_PI, w) + 0.0
 
 
 class CycleTable:
@@ -221,7 +217,7 @@ class CycleTable:
             raise TableRefused('a published value is not finite at a check angle')
         diff = np.abs(got - want)
         j = self._j
-        diff[:, :j] = np.where(self._angular, np.abs(_wrap(got[:, :j] - want[:, :j])),
+        diff[:, :j] = np.where(self._angular, np.abs(wrap_angle(got[:, :j] - want[:, :j])),
                                diff[:, :j])
         scale = _floored(np.max(np.abs(want), axis=0), j, self._effort)
         rel = np.max(diff, axis=0) / np.maximum(scale, 1e-300)
@@ -255,8 +251,7 @@ class CycleTable:
         out = g.reshape(n, -1) @ self._coef
         sel = self._wrapped
         if sel is not None:
-            v = math.pi - np.mod(math.pi - out[:, sel], TWO_PI)
-            out[:, sel] = np.where(v <= -math.pi, v + TWO_PI, v)  # mod may round up
+            out[:, sel] = wrap_angle(out[:, sel])
         out += 0.0
         cell = (x * self._cell).astype(np.intp)
         j = self._j
@@ -282,13 +277,9 @@ class CycleTable:
         np.multiply(basis, np.array(((speed,), (speed * speed,), (accel,))), out=g[1:])
         out = g.reshape(1, -1) @ self._coef
         sel = self._wrapped
-        if sel is not None:  # as _wrap, in plain Python for the few angles of one sample
+        if sel is not None:  # the few angles of one sample: wrap_angle's float path
             row = out[0]
-            wrapped = []
-            for v in row[sel].tolist():
-                v = math.pi - (math.pi - v) % TWO_PI
-                wrapped.append(v + TWO_PI if v <= -math.pi else v)   # mod may round up
-            row[sel] = wrapped
+            row[sel] = [wrap_angle(v) for v in row[sel].tolist()]
         out += 0.0
         cell = int(x * self._cell)
         j = self._j

@@ -72,6 +72,7 @@ from collections import Counter
 from dataclasses import dataclass
 import math
 
+from mech_balance.rotations import rpy_matrix
 import numpy as np
 
 TWO_PI = 2.0 * math.pi
@@ -112,16 +113,6 @@ bench rig; a larger value is a corrupt reading and would overflow the running RM
 MODEL_FLOOR = 1e-12
 """A component whose model RMS is at or below this (SI) is not modelled (out of the plane
 of a planar rig; a rig at rest without gravity): its fraction is not judged."""
-
-
-def rotation_rpy(roll, pitch, yaw):
-    """Return R = Rz(yaw) Ry(pitch) Rx(roll) (ROS fixed axes; columns: the rotated axes)."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
 
 
 def _wrench_pair(force, moment, what):
@@ -178,7 +169,7 @@ class SensorPose:
     @property
     def rotation(self):
         """Return the ``(3, 3)`` rotation from the sensor's axes to the rig's."""
-        return rotation_rpy(self.roll, self.pitch, self.yaw)
+        return rpy_matrix((self.roll, self.pitch, self.yaw))
 
     @property
     def sign(self):

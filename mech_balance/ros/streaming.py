@@ -42,6 +42,7 @@ from typing import NamedTuple
 
 from mech_balance.core.rig import rig_for, RigData
 from mech_balance.ros import cycle_table
+from mech_balance.rotations import wrap_angle
 from mech_balance.schema import registry
 import numpy as np
 
@@ -148,12 +149,6 @@ class TwinModel:
         if s.joint_effort is not None:
             s.joint_effort = s.joint_effort + 0.0
         return s
-
-
-def wrap_angle(angle_rad):
-    """Return angles wrapped to (-pi, pi], with no -0.0 (array in, array out)."""
-    w = math.pi - np.mod(math.pi - np.asarray(angle_rad, dtype=float), TWO_PI)
-    return np.where(w <= -math.pi, w + TWO_PI, w) + 0.0  # mod may round up to 2 pi
 
 
 def finite_rows(samples):
@@ -372,7 +367,7 @@ class CrankEstimator:
             dt = (stamp_ns - t_prev) * 1e-9
             guess = 0.0 if speed_prev is None else speed_prev * dt
             # the turn since the last sample: the 2 pi branch nearest the prediction
-            step = guess + _wrap_pi(position - raw_prev - guess)
+            step = guess + wrap_angle(position - raw_prev - guess)
             if abs(step) > self.max_speed * dt:
                 raise StreamRejected(
                     f'position: {position:.6g} rad after {raw_prev:.6g} rad in {dt:.3g} s '
@@ -436,10 +431,6 @@ def _slope(x, y):
     xm, ym = sum(x) / n, sum(y) / n
     xc = [v - xm for v in x]
     return float(sum(a * (b - ym) for a, b in zip(xc, y)) / sum(v * v for v in xc))
-
-
-def _wrap_pi(x):
-    return (x + math.pi) % TWO_PI - math.pi
 
 
 # the publishing threads that use these: mech_balance.ros.streamer

@@ -6,8 +6,9 @@ to robot_state_publisher, and the rig node publishes :func:`joint_positions` on
 ``joint_states``, so that RViz draws the rig where the core puts it.
 
 URDF is a tree.  A closed linkage is opened into the spanning tree the core itself solves
-(:class:`mech_balance.kinematics.Linkage`: ``tree`` and ``cuts``); the core closes the loops
-exactly, so every tree joint gets its exact value and no ``<mimic>`` approximation is needed.
+(:class:`mech_balance.core.planar.kinematics.Linkage`: ``tree`` and ``cuts``); the core
+closes the loops exactly, so every tree joint gets its exact value and no ``<mimic>``
+approximation is needed.
 The cut joints are listed in an XML comment with the two points each one closes.
 
 Link frames (the URDF's own, SI)
@@ -32,7 +33,8 @@ Joint zero convention (:func:`joint_positions`)
 Joint limits
     A joint whose coordinate returns to its start after one crank turn is ``revolute`` (or
     ``prismatic``) with ``<limit>`` at the extremes over the cycle (golden-section refined,
-    widened by :data:`LIMIT_MARGIN`); one that turns fully is ``continuous``.  A limit's
+    widened by :data:`~mech_balance.ros.joint_ranges.LIMIT_MARGIN`, :mod:`.joint_ranges`); one
+    that turns fully is ``continuous``.  A limit's
     ``velocity`` is the largest rate over the cycle at the scene's crank speed; ``effort``
     is 0: every limited joint is passive (the crank, the driven joint, turns fully).
 
@@ -58,22 +60,13 @@ from mech_balance.core.planar import kinematics
 from mech_balance.core.planar.drawn import bar_edges, BAR_THICKNESS, BAR_WIDTH, BLOCK_SIZE, \
     LAYER, PIN_LENGTH, PIN_RADIUS
 from mech_balance.core.planar.rig import linkage_for
+from mech_balance.ros.joint_ranges import angle_limits, cycle_ranges, LIMIT_MARGIN, \
+    RANGE_SAMPLES
 from mech_balance.ros.names import DEFAULT_FRAME_ID
+from mech_balance.rotations import axis_angle_matrix, matrix_rpy, rpy_matrix, wrap_angle
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
-RANGE_SAMPLES = 720
-"""Crank angles per turn at which each joint's range over a cycle is first located."""
-GOLDEN_ITERATIONS = 36
-"""Golden-section steps refining each extreme: the bracket shrinks to ~3e-8 of its width
-(~3e-10 rad of crank angle), where the value at a smooth extreme is off by far less than its
-rounding (the error is quadratic in the angle); more steps only compare rounding noise and
-cost a kinematics evaluation each (a scene switch of the node waits for them)."""
-LIMIT_MARGIN = 1e-9
-"""Joint limits lie this far outside the cycle's extremes (rad; prismatic: times the
-linkage's length scale, m), so that round-off never puts a published position outside."""
-FULL_TURN_FRACTION = 1.0 - 1e-9
-"""A swing wider than this fraction of 2 pi is treated as a full turn (``continuous``)."""
 ROD_RADIUS = 0.01
 """Spatial rigs: rod radius of the drawn links as a fraction of the linkage's length scale."""
 PIN_RADIUS_3D = 0.02
@@ -87,7 +80,6 @@ PALETTE = (
 FRAME_COLOUR = (0.6, 0.6, 0.6, 1.0)
 WEIGHT_COLOUR = (0.25, 0.25, 0.25, 1.0)
 TWO_PI = 2.0 * math.pi
-_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 class UrdfError(ValueError):
@@ -145,122 +137,9 @@ class TreeModel:
 # ----------------------------------------------------------------------------- helpers
 
 
-def wrap_angle(angle_rad):
-    """Return angles wrapped to (-pi, pi], with no -0.0 (array in, array out)."""
-    a = np.asarray(angle_rad, dtype=float)
-    w = math.pi - np.mod(math.pi - a, TWO_PI)
-    w = np.where(w <= -math.pi, w + TWO_PI, w)  # mod may round up to 2 pi
-    return w + 0.0
-
-
-def _golden_extremes(f, centres, rows, half_width, sign):
-    """
-    Return refined extreme values of ``f`` near ``centres``.
-
-    ``f(psi)`` returns ``(n_rows, len(psi))``; candidate i looks at row ``rows[i]`` within
-    ``centres[i] +- half_width``, for a minimum (``sign[i]`` +1) or a maximum (-1).  All
-    candidates share one evaluation of ``f`` per step.
-    """
-    cols = np.arange(len(centres))
-    sign = np.broadcast_to(np.asarray(sign, dtype=float), cols.shape)
-    a, b = centres - half_width, centres + half_width
-    c, d = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
-
-    def value(psi):
-        return sign * f(psi)[rows, cols]
-
-    fc, fd = value(c), value(d)
-    for _ in range(GOLDEN_ITERATIONS):
-        left = fc < fd
-        b = np.where(left, d, b)
-        a = np.where(left, a, c)
-        c_new = b - _GOLDEN * (b - a)
-        d_new = a + _GOLDEN * (b - a)
-        c, d = np.where(left, c_new, d), np.where(left, c, d_new)
-        fresh = np.where(left, c, d)
-        fv = value(fresh)
-        fc, fd = np.where(left, fv, fd), np.where(left, fc, fv)
-    return sign * np.minimum(fc, fd)
-
-
-def cycle_ranges(f, start_rad, angular):
-    """
-    Return ``(lower, upper, turns)`` of each row of ``f(psi)`` over one crank turn.
-
-    ``f`` returns ``(n_rows, len(psi))`` joint coordinates; ``angular`` ``(n_rows,)`` says
-    which rows are angles (compared modulo 2 pi about the middle of their sampled swing).
-    ``turns`` is the number of full turns a row makes per crank turn (0: a limited swing);
-    its lower/upper are then nan.  Extremes: :data:`RANGE_SAMPLES` samples, then a
-    golden-section search about the best sample.
-    """
-    angular = np.asarray(angular, dtype=bool)
-    psi = start_rad + TWO_PI * np.arange(RANGE_SAMPLES + 1) / RANGE_SAMPLES
-    values = np.asarray(f(psi), dtype=float)
-    values = np.where(angular[:, None], np.unwrap(values, axis=1), values)
-    turns = np.where(angular, np.round((values[:, -1] - values[:, 0]) / TWO_PI), 0.0)
-    span = values.max(axis=1) - values.min(axis=1)
-    turns = np.where(angular & (span >= FULL_TURN_FRACTION * TWO_PI) & (turns == 0),
-                     np.nan, turns)  # swings a full turn and back: continuous as well
-    mid = 0.5 * (values.max(axis=1) + values.min(axis=1))
-
-    def centred(p):
-        v = np.asarray(f(p), dtype=float) - mid[:, None]
-        return np.where(angular[:, None], wrap_angle(v), v)
-
-    rows = np.arange(values.shape[0])
-    sampled = centred(psi[:-1])
-    h = TWO_PI / RANGE_SAMPLES
-    n = len(rows)   # the minima and maxima of every row refined together
-    both = _golden_extremes(centred, np.concatenate([psi[np.argmin(sampled, axis=1)],
-                                                     psi[np.argmax(sampled, axis=1)]]),
-                            np.concatenate([rows, rows]), h,
-                            np.concatenate([np.ones(n), -np.ones(n)]))
-    low, high = both[:n], both[n:]
-    low = np.minimum(low, sampled.min(axis=1)) + mid
-    high = np.maximum(high, sampled.max(axis=1)) + mid
-    limited = turns == 0
-    return np.where(limited, low, np.nan), np.where(limited, high, np.nan), turns
-
-
-def angle_limits(lower, upper):
-    """
-    Return ``(offset, lower, upper)`` of a limited revolute joint (module docstring).
-
-    Offset 0 (a whole number of turns) when the swing fits in (-pi, pi] as it is, else the
-    middle of the swing; the limits are widened by :data:`LIMIT_MARGIN`.
-    """
-    k = math.ceil((upper + LIMIT_MARGIN - math.pi) / TWO_PI)
-    if lower - LIMIT_MARGIN - k * TWO_PI > -math.pi:
-        offset = k * TWO_PI
-        lo, hi = lower - offset, upper - offset
-        return 0.0, lo - LIMIT_MARGIN, hi + LIMIT_MARGIN
-    mid = 0.5 * (lower + upper)
-    half = 0.5 * (upper - lower) + LIMIT_MARGIN
-    return float(wrap_angle(mid)), -half, half
-
-
-def rotation(axis, angle_rad):
-    """Return the 3x3 rotation by ``angle_rad`` about the unit vector ``axis`` (Rodrigues)."""
-    k = np.asarray(axis, dtype=float)
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(angle_rad) * kx + (1.0 - math.cos(angle_rad)) * (kx @ kx)
-
-
-def rpy_matrix(rpy):
-    """Return the rotation of a URDF ``rpy``: Rz(yaw) Ry(pitch) Rx(roll)."""
-    r, p, y = rpy
-    return (rotation((0.0, 0.0, 1.0), y) @ rotation((0.0, 1.0, 0.0), p)
-            @ rotation((1.0, 0.0, 0.0), r))
-
-
-def matrix_rpy(matrix):
-    """Return the URDF ``(roll, pitch, yaw)`` of a rotation matrix (inverse of rpy_matrix)."""
-    m = np.asarray(matrix, dtype=float)
-    cos_pitch = math.hypot(m[0, 0], m[1, 0])
-    pitch = math.atan2(-m[2, 0], cos_pitch)
-    if cos_pitch < 1e-12:  # gimbal lock: put the whole turn about z into the roll
-        return (math.atan2(-m[1, 2], m[1, 1]), pitch, 0.0)
-    return (math.atan2(m[2, 1], m[2, 2]), pitch, math.atan2(m[1, 0], m[0, 0]))
+def urdf_rpy(matrix):
+    """Return the URDF ``(roll, pitch, yaw)`` floats of one rotation matrix (3, 3)."""
+    return tuple(float(v) for v in matrix_rpy(matrix))
 
 
 def _revolute_spec(name, parent, child, xyz, rpy, axis, lower, upper, turns, rate_max):
@@ -273,7 +152,7 @@ def _revolute_spec(name, parent, child, xyz, rpy, axis, lower, upper, turns, rat
         if rpy[:2] == (0.0, 0.0) and tuple(axis) == (0.0, 0.0, 1.0):
             rpy = (0.0, 0.0, rpy[2] + offset)
         else:
-            rpy = matrix_rpy(rpy_matrix(rpy) @ rotation(axis, offset))
+            rpy = urdf_rpy(rpy_matrix(rpy) @ axis_angle_matrix(axis, offset))
     return UrdfJoint(name, 'revolute', parent, child, xyz, rpy, axis, offset, lo, hi,
                      rate_max)
 
@@ -393,10 +272,10 @@ def joint_positions(model, state):
     """
     Return ``(names, positions, velocities)`` of the URDF joints at the core's state.
 
-    ``model``: a scene, a planar :class:`~mech_balance.kinematics.Linkage` or a
+    ``model``: a scene, a planar :class:`~mech_balance.core.planar.kinematics.Linkage` or a
     :class:`TreeModel` (:func:`tree_model`; pass it to avoid the cache lookup).  ``state``:
     the tree's state (:meth:`TreeModel.state_of` of a rig's evaluation; planar: a
-    :class:`~mech_balance.kinematics.KinematicState` with rates).  ``positions`` and
+    :class:`~mech_balance.core.planar.kinematics.KinematicState` with rates).  ``positions`` and
     ``velocities`` are ``(n, n_joints)`` (rad or m; rad/s or m/s) in the zero convention of
     the module docstring: revolute positions wrapped to (-pi, pi], no -0.0 anywhere.
     """
@@ -557,9 +436,10 @@ def planar_robot(sc, frame_id, linkage=None):
     offset = _frame_offsets(linkage)
     urdf_name = {FRAME: frame_id, **{n: n for n in names[1:]}}
     robot = ET.Element('robot', name=sc.name)
-    _header(robot, f'Generated by mech_balance.urdf from scene {sc.name!r} ({_source(sc)}): the '
-                   'spanning tree of the linkage the core solves; joint positions in the zero '
-                   'convention of mech_balance.urdf (revolute: relative angle of the link '
+    _header(robot, f'Generated by mech_balance.ros.urdf from scene {sc.name!r} '
+                   f'({_source(sc)}): the spanning tree of the linkage the core solves; joint '
+                   'positions in the zero '
+                   'convention of mech_balance.ros.urdf (revolute: relative angle of the link '
                    'frames minus the joint origin yaw, wrapped to (-pi, pi]; prismatic: slide '
                    'from the parent point). SI units, z out of the plane of motion.')
     cut_lines = []
@@ -677,12 +557,12 @@ def _spatial_parts(sc):
         sign = -1.0 if t.flipped else 1.0
         kp, sp = k_of[t.parent], s_of[t.parent]
         xyz = tuple(float(v) for v in kp @ (t.s_parent - sp))
-        rpy = matrix_rpy(kp)
+        rpy = urdf_rpy(kp)
         parent, child = names[t.parent], names[t.child]
         if t.joint_type == 'spherical':
             a_rot = lk.sph_zero[t.name]
             if t.flipped:   # M_pc = A^T Rx(-r) Ry(-p) Rz(-y)
-                rpy = matrix_rpy(kp @ a_rot.T)
+                rpy = urdf_rpy(kp @ a_rot.T)
                 order = (('_roll', (-1.0, 0.0, 0.0)), ('_pitch', (0.0, -1.0, 0.0)),
                          ('_yaw', (0.0, 0.0, -1.0)))
                 k_child = np.eye(3)
@@ -714,7 +594,7 @@ def _spatial_parts(sc):
                 mid = f'{t.name}_link'
                 chains.append((t.name + '_1', 'revolute', parent, mid, xyz, rpy, axis))
                 chains.append((t.name + '_2', 'revolute', mid, child, (0.0, 0.0, 0.0),
-                               matrix_rpy(t.fixed), tuple(float(v) for v in t.axis_child)))
+                               urdf_rpy(t.fixed), tuple(float(v) for v in t.axis_child)))
                 k_child = np.eye(3)
         k_of[t.child] = k_child
         s_of[t.child] = t.s_child
@@ -787,7 +667,7 @@ def spatial_robot(sc, frame_id, linkage=None):
     helpers = sorted({c[3] for c in chains if c[3] not in names})
     _check_names(frame_id, list(names[1:]) + helpers)
     robot = ET.Element('robot', name=sc.name)
-    _header(robot, f'Generated by mech_balance.urdf from spatial scene {sc.name!r} '
+    _header(robot, f'Generated by mech_balance.ros.urdf from spatial scene {sc.name!r} '
                    f'({_source(sc)}): the spanning tree of the linkage the core solves; '
                    'spherical joints as three revolute joints (z, y, x) on massless links, '
                    "universal and cylindrical joints as two; joint values are the rig's "

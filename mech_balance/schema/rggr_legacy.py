@@ -92,14 +92,6 @@ def _link(name, body, pin_name, pin_m):
             'mass_kg': m, 'com_m': [u, v, w], 'inertia_com_kg_m2': inertia}
 
 
-def _rpy_deg(rot):
-    """Return [roll, pitch, yaw] (deg) of a 3x3 rotation, rot = Rz(yaw) Ry(pitch) Rx(roll)."""
-    yaw = math.atan2(rot[1][0], rot[0][0])
-    pitch = math.atan2(-rot[2][0], math.hypot(rot[0][0], rot[1][0]))
-    roll = math.atan2(rot[2][1], rot[2][2])
-    return [math.degrees(roll), math.degrees(pitch), math.degrees(yaw)]
-
-
 def _cross(a, b):
     return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
@@ -138,9 +130,10 @@ def _poses(g, branch):
     y = _unit(_cross([0.0, 0.0, 1.0], x)) if abs(x[2]) < 0.99 else _unit(_cross(ey, x))
     z = _cross(x, y)
     cpl_rot = [[x[i], y[i], z[i]] for i in range(3)]
+    from mech_balance.rotations import matrix_rpy   # on first use: the parsers need no numpy
     return {'crank': {'origin_m': q1, 'rpy_deg': [0.0, 0.0, 0.0]},
-            'coupler': {'origin_m': b, 'rpy_deg': _rpy_deg(cpl_rot)},
-            'output': {'origin_m': q3, 'rpy_deg': _rpy_deg(out_rot)}}
+            'coupler': {'origin_m': b, 'rpy_deg': [float(v) for v in matrix_rpy(cpl_rot, True)]},
+            'output': {'origin_m': q3, 'rpy_deg': [float(v) for v in matrix_rpy(out_rot, True)]}}
 
 
 def translate(data, source='<dict>'):

@@ -160,13 +160,8 @@ class Pose:
 
     def rotation(self):
         """Return the rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (3, 3) of ``rpy_deg`` (URDF)."""
-        import numpy as np  # on first use: the command line parsers need none
-        r, p, y = (math.radians(v) for v in self.rpy_deg)
-        cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), \
-            math.cos(y), math.sin(y)
-        return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                         [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                         [-sp, cp * sr, cp * cr]])
+        from mech_balance.rotations import rpy_matrix  # on first use: the parsers need no numpy
+        return rpy_matrix(self.rpy_deg, degrees=True)
 
 
 @dataclass(frozen=True)

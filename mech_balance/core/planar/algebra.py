@@ -33,23 +33,6 @@ def rmat(mat, z):
     return np.dot(mat, z.view(np.float64)).view(np.complex128)
 
 
-def matvec(mat, vec):
-    """Return mat @ vec for batch-last (m, k, p) and (k, p) stacks."""
-    if mat.shape[0] == 2 and mat.shape[1] == 2:
-        return np.array([mat[0, 0] * vec[0] + mat[0, 1] * vec[1],
-                         mat[1, 0] * vec[0] + mat[1, 1] * vec[1]])
-    return np.einsum('ikp,kp->ip', mat, vec)
-
-
-def matvec_t(mat, vec):
-    """Return mat^T @ vec for batch-last (k, m, p) and (k, p) stacks."""
-    if mat.shape[0] == 2 and mat.shape[1] == 2:
-        out = mat[0] * vec[0]
-        out += mat[1] * vec[1]
-        return out
-    return np.einsum('kip,kp->ip', mat, vec)
-
-
 TILE_LIMIT = 1 << 16
 """Largest ``k * p`` a :class:`Tiles` materializes (beyond it the columns broadcast)."""
 

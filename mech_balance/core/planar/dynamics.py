@@ -22,8 +22,9 @@ All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given
 
 from dataclasses import dataclass
 
+from mech_balance.core.linalg import matvec_t as _matvec_t
 from mech_balance.core.planar.algebra import cross as _cross, dot as _dot, \
-    matvec_t as _matvec_t, max_reduce as _MAX, rmat as _rmat, Tiles as _Tiles
+    max_reduce as _MAX, rmat as _rmat, Tiles as _Tiles
 import numpy as np
 
 SPEED_FLOOR_RAD_S = 1e-300

@@ -30,10 +30,15 @@ from dataclasses import dataclass
 import math
 import warnings
 
+from mech_balance import threads
 from mech_balance.conventions import crank_angle_text
-from mech_balance.core.planar import dyads, smallsolve
-from mech_balance.core.planar.algebra import cross as _cross, matvec as _matvec, \
-    max_reduce as _MAX, rmat as _rmat, Tiles
+from mech_balance.core import continuation, linalg
+from mech_balance.core.planar import dyads
+from mech_balance.core.planar.algebra import cross as _cross, max_reduce as _MAX, \
+    rmat as _rmat, Tiles
+from mech_balance.core.planar.rates import RateAnalysis
+from mech_balance.core.planar.skeleton import Skeleton
+from mech_balance.core.planar.tree import SpanningTree
 from mech_balance.schema.scene import FRAME
 import numpy as np
 
@@ -48,23 +53,8 @@ PRINTED_RTOL = 5e-7
 half a unit of the 6th digit is 5e-7 of a figure that starts with 9 (5e-6 of one with 1)."""
 COND_WARN = math.sqrt(PRINTED_RTOL / (2.0 * NEWTON_TOL))
 """Scaled Jacobian condition number (1-norm) above which the position is reported
-near-singular: where the error bound of the rates reaches the printed resolution (~1581).
-
-Derivation.  Newton stops with a scaled loop residual ``|g| <= NEWTON_TOL`` (= tau), so the
-positions err by ``|dq| <= |J_u^-1| tau ~ kappa tau`` (the scaled Jacobian has ``|J_u| ~ 1``).
-The rates solve ``J_u q' = -J_psi``; both matrices are evaluated at the erring positions,
-and their derivatives with respect to q are of their own size (the closure equations are
-sums of rotations of scaled lengths), so ``|dJ|/|J| ~ kappa tau``.  The perturbation bound
-of a linear system, ``|dq'|/|q'| <= kappa (|dJ_u|/|J_u| + |dJ_psi|/|J_psi|)``, gives the
-relative error bound of the velocities (and of every figure linear in them, the shaking
-wrench and the driving torque at constant speed)
-
-    e_rates = 2 kappa^2 tau   (+ kappa u, round-off u = 1.1e-16: negligible here).
-
-It reaches ``PRINTED_RTOL`` at ``kappa = sqrt(PRINTED_RTOL / (2 tau))`` = 1581: from there on
-the printed figures may be wrong in their last digit.  (Hoeken's worst is 5.6, the carpet
-scraper's 255; a Hoeken-like four-bar with rocker = a + b - d + 1e-8, 1e-8 m from a change
-point, reaches 7.5e3.)"""
+near-singular: where the error bound of the rates, ``2 kappa^2 NEWTON_TOL``, reaches the
+printed resolution (~1581; derivation in docs/core.md, "The near-singular threshold")."""
 COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which the position is refused as singular."""
 STEP_MAX_RAD = math.radians(5.0)
@@ -89,78 +79,19 @@ MIDPOINT_TRUST_FRACTION = 0.1
 """A traced segment is accepted when Newton moves its midpoint predictor by less than this
 fraction of ``EVAL_TRUST``, so that batched solves seldom need the step-by-step re-trace."""
 TWO_PI = 2.0 * math.pi
-DENSE_TREE_MAX_BODIES = 8
-"""Up to this many bodies the sums over the spanning tree are one dense matrix product each
-(fewest numpy calls); above it they run level by level down or up the tree, so that their
-cost grows with the number of bodies, not with its square (and stays off BLAS threads)."""
-
-
-ALLOCATOR_SETTLE_BYTES = 8 * 2 ** 20
-"""Size of the block allocated and freed once per process (:func:`settle_allocator`)."""
-_ALLOCATOR_SETTLED = []
-
-
-def settle_allocator():
-    """
-    Allocate and free one 8 MiB block, once per process, before the first cycle.
-
-    glibc's malloc serves blocks above its mmap threshold (128 KiB at start) straight from
-    the kernel and returns them at ``free``, and it trims the top of its heap beyond twice
-    that threshold: a cycle's larger temporaries (a 40-link chain's complex ``(39, 360)``
-    stacks are 225 KiB) would then be page-faulted in afresh at every call (about a third
-    of that chain's cycle).  Freeing a block from the kernel raises both thresholds to its
-    size (glibc's documented dynamic threshold, ``mallopt(3)``), so the temporaries are
-    reused from the heap; settings made with ``MALLOC_MMAP_THRESHOLD_`` and the like switch
-    that adjustment off and are left alone.  Nothing is touched (no memory is committed).
-    """
-    if not _ALLOCATOR_SETTLED:
-        _ALLOCATOR_SETTLED.append(True)
-        np.empty(ALLOCATOR_SETTLE_BYTES, dtype=np.uint8)   # freed at once
+TRACE_LIMITS = continuation.Limits(
+    step_max=STEP_MAX_RAD, step_min=STEP_MIN_RAD, step_done=ANGLE_EPS_RAD,
+    step_trust=STEP_TRUST, cond_limit=COND_LIMIT, cond_warn=COND_WARN,
+    grow_max_iterations=2)
+"""The trace of the skeleton: the step grows after a step that Newton took in two."""
+RETRACE_LIMITS = continuation.Limits(
+    step_max=STEP_MAX_RAD, step_min=STEP_MIN_RAD, step_done=ANGLE_EPS_RAD,
+    step_trust=STEP_TRUST, cond_limit=COND_LIMIT, first_step=STEP_MAX_RAD / 4, growth=1.0)
+"""A re-trace from a skeleton node to one angle: quarter steps that do not grow."""
 
 
 class BranchError(ValueError):
     """The linkage cannot be assembled, is singular, or would leave its branch."""
-
-
-@dataclass
-class TreeJoint:
-    """A joint of the spanning tree: ``child`` hangs from ``parent``."""
-
-    joint: int
-    name: str
-    joint_type: str
-    parent: int
-    child: int
-    p_parent: complex
-    p_child: complex
-    axis: complex
-    axis_on_parent: bool
-    angle: float
-
-    @property
-    def prismatic(self):
-        """Return whether the joint slides (else it turns)."""
-        return self.joint_type == 'prismatic'
-
-
-@dataclass
-class CutJoint:
-    """A joint closing a loop: two equations g = 0 between bodies ``a`` and ``b``."""
-
-    joint: int
-    name: str
-    joint_type: str
-    a: int
-    b: int
-    p_a: complex
-    p_b: complex
-    axis: complex
-    angle: float
-
-    @property
-    def prismatic(self):
-        """Return whether the joint slides (else it turns)."""
-        return self.joint_type == 'prismatic'
 
 
 @dataclass
@@ -194,7 +125,7 @@ class KinematicState:
     alpha: np.ndarray = None   # (nb, p) rad/s^2
     acc: np.ndarray = None     # (nb, p) complex acceleration of each link origin, m/s^2
     jac: np.ndarray = None      # (m, nt, p) scaled loop Jacobian (None: kept sparse)
-    jac_factors: object = None  # smallsolve.Factored of J_u (solves without the inverse)
+    jac_factors: object = None  # linalg.Factored of J_u (solves without the inverse)
     jac_psi: np.ndarray = None  # (m, p) its crank column, d g / d psi (scaled)
 
     @property
@@ -208,11 +139,11 @@ class KinematicState:
         return self.psi.shape[0]
 
 
-class Linkage:
+class Linkage(SpanningTree, RateAnalysis):
     """The geometry and topology of a planar scene, compiled for batched analysis."""
 
     def __init__(self, scene):
-        settle_allocator()
+        threads.settle_allocator()   # the allocator's policy: mech_balance/threads.py
         self.scene = scene
         self.body_names = [FRAME] + [lk.name for lk in scene.links]
         index = {n: i for i, n in enumerate(self.body_names)}
@@ -273,29 +204,16 @@ class Linkage:
         self.branch_sign = 1.0  # sign of det J_u on the traced branch (set by the trace)
         self.sparse_jac = False  # J_u as its nonzeros only (all-revolute, nu > 2)
         self.pivots = None  # static row order for the loop Jacobian, set at assembly
-        self.lu = None      # its sparse LU plan (smallsolve.LUPlan), set at assembly
+        self.lu = None      # its sparse LU plan (linalg.LUPlan), set at assembly
         self._skeleton = None
         self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
-        self.block = None   # its J_u as 2 x 2 diagonal blocks (smallsolve.BlockPlan), likewise
+        self.block = None   # its J_u as 2 x 2 diagonal blocks (linalg.BlockPlan), likewise
         self.turn_table_ok = False  # the closed form's whole turns from the skeleton's table
         self.turn_line = None       # or from a line in psi (Skeleton.affine_reference;
         #                             its slope and offset as algebra.Tiles)
         self.warnings = []
 
     # ------------------------------------------------------------------ construction
-
-    @staticmethod
-    def _tree(ji, jt, parent, child, index, pts):
-        a_is_parent = index[jt.link_a] == parent
-        pa, pb = pts[jt.link_a][jt.point_a], pts[jt.link_b][jt.point_b]
-        p_parent, p_child = (pa, pb) if a_is_parent else (pb, pa)
-        return TreeJoint(ji, jt.name, jt.joint_type, parent, child, p_parent, p_child,
-                         complex(*jt.axis), a_is_parent, jt.angle_rad)
-
-    @staticmethod
-    def _cut(ji, jt, ia, ib, pts):
-        return CutJoint(ji, jt.name, jt.joint_type, ia, ib, pts[jt.link_a][jt.point_a],
-                        pts[jt.link_b][jt.point_b], complex(*jt.axis), jt.angle_rad)
 
     @staticmethod
     def _length_scale(scene, pts):
@@ -317,214 +235,6 @@ class Linkage:
         return complex(*scene.frame_points[point])
 
     # ------------------------------------------------------------------ position level
-
-    def _compile(self):
-        """Precompute the incidence and ancestry matrices that vectorize over bodies."""
-        nb, nt = self.nb, self.nt
-        self.par = np.array([tj.parent for tj in self.tree])
-        self.ch = np.array([tj.child for tj in self.tree])
-        rev = ~self.is_prismatic
-        self.anc_rev = np.zeros((nb, nt))
-        self.anc_pri = np.zeros((nb, nt))
-        for b in range(nb):
-            for t in self.anc[b]:
-                (self.anc_rev if rev[t] else self.anc_pri)[b, t] = 1.0
-        self.anc_all = self.anc_rev + self.anc_pri
-        self._compile_levels()
-        self.has_pri = bool(self.is_prismatic.any())
-        self.p_par = np.array([tj.p_parent for tj in self.tree])[:, None]
-        self.p_ch = np.array([tj.p_child for tj in self.tree])[:, None]
-        self.axis_local = np.where(self.is_prismatic,
-                                   np.array([tj.axis for tj in self.tree]), 0)[:, None]
-        self.axis_on_par = np.array([tj.axis_on_parent for tj in self.tree])[:, None]
-        offset = np.array([(tj.angle if tj.axis_on_parent else -tj.angle)
-                           if tj.prismatic else 0.0 for tj in self.tree])
-        self.phi_offset = (self.anc_pri @ offset)[:, None]
-        # subtree sums (for the reaction recursion): sub[b, c] = 1 if c hangs below b or is b
-        rc = [c for c in self.cuts if not c.prismatic]
-        pc = [c for c in self.cuts if c.prismatic]
-        self.cuts = rc + pc
-        self.nr, self.npc = len(rc), len(pc)
-        self.cut_a = np.array([c.a for c in self.cuts], dtype=int)
-        self.cut_b = np.array([c.b for c in self.cuts], dtype=int)
-        self.cut_pa = np.array([c.p_a for c in self.cuts])[:, None]
-        self.cut_pb = np.array([c.p_b for c in self.cuts])[:, None]
-        self.cut_ab = np.concatenate([self.cut_a, self.cut_b])
-        self.cut_p_ab = np.concatenate([self.cut_pa, self.cut_pb]).astype(complex)
-        self.cut_tiles = Tiles(p_ab=self.cut_p_ab)   # (the same, per batch size)
-        ncut = len(self.cuts)
-        self.cut_inc_a = np.zeros((nb, ncut))
-        self.cut_inc_b = np.zeros((nb, ncut))
-        self.cut_inc_a[self.cut_a, np.arange(ncut)] = 1.0
-        self.cut_inc_b[self.cut_b, np.arange(ncut)] = 1.0
-        self.cut_names = [c.name for c in self.cuts]
-        self.cut_rounds_a = _rounds(self.cut_a)
-        self.cut_rounds_b = _rounds(self.cut_b)
-        self.tree_names = [tj.name for tj in self.tree]
-        joints = {j.name: j for j in self.scene.joints}
-        # reactions are reported as the force on the joint's link b from its link a
-        self.tree_sign = np.array([1.0 if joints[tj.name].link_b == self.body_names[tj.child]
-                                   else -1.0 for tj in self.tree])
-        L = self.length_scale
-        self.row_scale = np.concatenate([np.full(2 * self.nr, 1.0 / L),
-                                         np.ones(self.npc), np.full(self.npc, 1.0 / L)])
-        self.col_scale_all = np.where(self.is_prismatic, L, 1.0)
-        self.col_scale = self.col_scale_all[self.unknown]
-        # d(point on body b)/dq_t selectors for the cut ends: (ncut, nt)
-        self.sel_rev = self.anc_rev[self.cut_b] - self.anc_rev[self.cut_a]
-        self.sel_rev_a, self.sel_rev_b = self.anc_rev[self.cut_a], self.anc_rev[self.cut_b]
-        self.sel_pri = self.anc_pri[self.cut_b] - self.anc_pri[self.cut_a]
-        # the same as broadcastable (ncut, cols, 1) stacks, all columns and unknown ones only
-        sel = (self.sel_rev_a, self.sel_rev_b, self.sel_rev)
-        self.sel_rev_a3, self.sel_rev_b3, self.sel_rev3 = (
-            np.ascontiguousarray(x[:, :, None]) for x in sel)
-        self.sel_rev_a_u, self.sel_rev_b_u, self.sel_rev_u = (
-            np.ascontiguousarray(x[:, self.unknown, None]) for x in sel)
-        # all-revolute loops: the Jacobian's structural nonzeros (cut c, tree joint t) are
-        # differences of two points of S = [pa; pb; J]: pb - J_t (t above b only), J_t - pa
-        # (t above a only) or pb - pa (above both); i times that is the entry
-        ncut = len(self.cuts)
-        nz = []
-        for c in range(ncut):
-            for t in range(nt):
-                above_b, above_a = self.anc_rev[self.cut_b[c], t], self.anc_rev[self.cut_a[c], t]
-                if above_b and above_a:
-                    nz.append((c, t, ncut + c, c))
-                elif above_b:
-                    nz.append((c, t, ncut + c, 2 * ncut + t))
-                elif above_a:
-                    nz.append((c, t, 2 * ncut + t, c))
-        nz = np.array(nz, dtype=int).reshape(-1, 4)
-        unk = nz[:, 1] > 0
-        self.jac_nz = (nz[:, 0], nz[:, 1], nz[:, 2], nz[:, 3])
-        self.jac_nz_u = (nz[unk, 0], nz[unk, 1] - 1, nz[unk, 2], nz[unk, 3])
-        # the same, unknown columns first, then the crank column (values + J_psi in one go)
-        order = np.concatenate([np.flatnonzero(unk), np.flatnonzero(~unk)])
-        n_unk = int(unk.sum())
-        self.jac_nz_split = (nz[unk, 0], nz[unk, 1] - 1, nz[order, 2], nz[order, 3], n_unk,
-                             nz[~unk, 0])
-        # jacobian_values: the crank column's x and y rows as slices where they are a range
-        self.crank_row_slices = _as_slices(nz[~unk, 0], self.nr)
-        # ... and whether they are every row (then J_psi needs no zeros first)
-        self.crank_rows_all = bool(self.crank_row_slices) and \
-            np.array_equal(np.sort(nz[~unk, 0]), np.arange(self.nr)) and not self.npc
-        self.cut_angle = np.array([c.angle for c in self.cuts[self.nr:]])[:, None]
-        self.cut_axis = np.array([c.axis for c in self.cuts[self.nr:]], dtype=complex)[:, None]
-        # reaction recursion (dynamics): bodies below each tree joint, and the cut-joint
-        # loads summed over those bodies
-        self.below = np.ascontiguousarray(self.anc_all.T)                  # (nt, nb)
-        self.minus_ones = np.full(self.nb, -1.0)   # minus the sum over the bodies
-        self.below_cut_a = self.below @ self.cut_inc_a                     # (nt, ncut)
-        self.below_cut_b = self.below @ self.cut_inc_b
-        self.below_cut = self.below_cut_b - self.below_cut_a
-        rev = ~self.is_prismatic
-        rev[0] = False
-        self.rev_passive = np.flatnonzero(rev)     # revolute tree joints other than the crank
-        # the rows the dynamics' consistency figure reads: the crank's, then those joints
-        # (a slice where they are a range: no fancy indexing per call)
-        self.check_rows = np.concatenate([[0], self.rev_passive]).astype(np.intp)
-        self.rev_passive_rows = (_as_slices(self.rev_passive, 0) or (self.rev_passive,))[0]
-        # the first row scale and its negative as 0-d arrays (all the rows' scale without
-        # point-contact cuts or prismatic joints): a ufunc takes those a third quicker than
-        # a Python or NumPy scalar (these multiply every cycle's rows)
-        first = float(self.row_scale[0]) if self.row_scale.size else 1.0
-        self.scale0, self.neg_scale0 = np.array(first), np.array(-first)
-        self.tree_flip = np.flatnonzero(self.tree_sign < 0)  # reported from child to parent
-        self.tree_sign_col = self.tree_sign[:, None]
-        rows = {n: (True, t) for t, n in enumerate(self.tree_names)}
-        rows.update({n: (False, c) for c, n in enumerate(self.cut_names)})
-        self.joint_rows = [(n, *rows[n]) for n in self.joint_names]
-
-    def _compile_levels(self):
-        """
-        Precompute the tree's levels for sums over ancestors and over subtrees.
-
-        The tree is breadth-first, so the joints of one depth are contiguous and siblings
-        adjacent.  ``_down`` sums joint values over the joints above each body (level by
-        level from the frame), ``_up`` sums body values over the bodies below each joint
-        (from the deepest level up, in rounds whose parent joints are distinct).
-        """
-        nb, nt = self.nb, self.nt
-        self.dense_tree = nb <= DENSE_TREE_MAX_BODIES
-        joint_of_body = [nt] * nb                 # nt: the frame (a zero row)
-        for t, tj in enumerate(self.tree):
-            joint_of_body[tj.child] = t
-        self.joint_of_body = np.array(joint_of_body)
-        parent = [joint_of_body[tj.parent] for tj in self.tree]   # nt: hangs from the frame
-        depth = [0] * nb
-        for tj in self.tree:
-            depth[tj.child] = depth[tj.parent] + 1
-        by_depth = {}
-        for t, tj in enumerate(self.tree):
-            by_depth.setdefault(depth[tj.child], []).append(t)
-        self.levels = []                          # (first joint, end, parent joints) per depth
-        self.up_rounds = []                       # (children, parents) deepest first
-        for d in sorted(by_depth):
-            ts = by_depth[d]
-            if ts != list(range(ts[0], ts[-1] + 1)):
-                raise AssertionError('spanning tree is not breadth-first')  # pragma: no cover
-            self.levels.append((ts[0], ts[-1] + 1, np.array([parent[t] for t in ts])))
-        for d in sorted(by_depth, reverse=True):
-            if d == 1:
-                continue
-            pending = list(by_depth[d])
-            while pending:
-                seen, now, later = set(), [], []
-                for t in pending:
-                    (later if parent[t] in seen else now).append(t)
-                    seen.add(parent[t])
-                self.up_rounds.append((np.array(now), np.array([parent[t] for t in now])))
-                pending = later
-        self.rev_col = (~self.is_prismatic).astype(float)[:, None]
-
-    def _down(self, v):
-        """Return ``(nb, ...)``: per body the sum of ``v`` ``(nt, ...)`` over the joints above."""
-        if self.dense_tree:
-            return _rmat(self.anc_all, v) if v.dtype == np.complex128 else self.anc_all @ v
-        s = np.empty((self.nt + 1,) + v.shape[1:], dtype=v.dtype)
-        s[self.nt] = 0.0
-        start, end, _ = self.levels[0]
-        s[start:end] = v[start:end]
-        for start, end, parents in self.levels[1:]:
-            np.add(s.take(parents, axis=0), v[start:end], out=s[start:end])
-        return s.take(self.joint_of_body, axis=0)   # (take: quicker than an index array)
-
-    def _down_rev(self, v):
-        """Return :meth:`_down` over the revolute joints only (the link angles and rates)."""
-        if self.dense_tree:
-            return self.anc_rev @ v
-        return self._down(v * self.rev_col if self.has_pri else v)
-
-    def _up(self, x):
-        """Return ``(nt, ...)``: per tree joint the sum of ``x`` ``(nb, ...)`` below it."""
-        if self.dense_tree:
-            if np.iscomplexobj(x):
-                return _rmat(self.below, x)
-            return self.below @ x
-        sub = x.take(self.ch, axis=0)
-        for kids, parents in self.up_rounds:
-            sub[parents] += sub.take(kids, axis=0)
-        return sub
-
-    def _up_cut(self, load_b, load_a):
-        """Return per tree joint the sum of cut loads on the bodies below it (b minus a)."""
-        if self.dense_tree:
-            if np.iscomplexobj(load_b):
-                return _rmat(self.below_cut_b, load_b) - _rmat(self.below_cut_a, load_a)
-            return self.below_cut_b @ load_b - self.below_cut_a @ load_a
-        x = np.zeros((self.nb,) + load_b.shape[1:], dtype=load_b.dtype)
-        for cuts, bodies in self.cut_rounds_b:
-            x[bodies] += load_b.take(cuts, axis=0)
-        for cuts, bodies in self.cut_rounds_a:
-            x[bodies] -= load_a.take(cuts, axis=0)
-        return self._up(x)
-
-    def _jacobian_pattern(self):
-        """Return the structural nonzeros ``(m, nu)`` of the loop Jacobian's unknown columns."""
-        touched = (self.anc_all[self.cut_a] + self.anc_all[self.cut_b]) != 0  # (ncut, nt)
-        nr = self.nr
-        rows = [touched[:nr], touched[:nr], touched[nr:], touched[nr:]]
-        return np.concatenate(rows)[:, self.unknown]
 
     def pose(self, q, rot_crank=None):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
@@ -572,16 +282,20 @@ class Linkage:
         d = pb - pa
         nr = self.nr
         if not self.npc:
-            out = np.empty((self.m, d.shape[1]))
-            np.multiply(d.real, self.scale0, out=out[:nr])
-            np.multiply(d.imag, self.scale0, out=out[nr:])
-            return out
+            return self.scaled_rows(d)
         rows = [d.real[:nr], d.imag[:nr]]
         ia, ib = self.cut_a[nr:], self.cut_b[nr:]
         dphi = pose.phi[ib] - pose.phi[ia] - self.cut_angle
         n = pose.rot[ia] * self.cut_axis
         rows += [np.remainder(dphi + math.pi, TWO_PI) - math.pi, _cross(n, d[nr:])]
         return np.concatenate(rows) * self.row_scale[:, None]
+
+    def scaled_rows(self, d):
+        """Return the scaled loop rows ``(m, p)`` of revolute cuts' differences ``d`` (x, y)."""
+        out = np.empty((self.m, d.shape[1]))
+        np.multiply(d.real, self.scale0, out=out[:self.nr])
+        np.multiply(d.imag, self.scale0, out=out[self.nr:])
+        return out
 
     def jacobian(self, pose, unknown_only=False):
         """
@@ -664,11 +378,11 @@ class Linkage:
         """Return ``(Factored J_u, J_psi or None)`` at ``pose`` (sparse where possible)."""
         if self.block is not None:
             values, jac_psi = self.jacobian_values(pose)
-            return smallsolve.BlockFactored(self.block, values), jac_psi
+            return linalg.BlockFactored(self.block, values), jac_psi
         if self.sparse_jac:
             values, jac_psi = self.jacobian_values(pose)
-            return smallsolve.Factored(None, self.lu, values=values), jac_psi
-        return smallsolve.Factored(self.jacobian(pose, unknown_only=True), self.lu), None
+            return linalg.Factored(None, self.lu, values=values), jac_psi
+        return linalg.Factored(self.jacobian(pose, unknown_only=True), self.lu), None
 
     # ------------------------------------------------------------------ Newton
 
@@ -693,7 +407,7 @@ class Linkage:
             if self.sparse_jac or self.block is not None:
                 step = self.factored(pose)[0].solve(g)
             else:  # closed form for nu <= 2, no inverse or condition number
-                step = smallsolve.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
+                step = linalg.solve(self.jacobian(pose, unknown_only=True), g, self.lu)
             if self.has_pri:
                 step *= self.col_scale[:, None]
             q[unknown] -= step
@@ -774,12 +488,12 @@ class Linkage:
             # dependency order), pivots inside the blocks from the assembly guess
             sample = self.jacobian(self.pose(q))[:, self.unknown, 0]
             pattern = self._jacobian_pattern()
-            order = smallsolve.block_triangular_order(pattern, sample)
+            order = linalg.block_triangular_order(pattern, sample)
             if order is None:
-                self.pivots, cols = smallsolve.pivot_order(sample), None
+                self.pivots, cols = linalg.pivot_order(sample), None
             else:
                 self.pivots, cols = order
-            self.lu = smallsolve.LUPlan(pattern, self.pivots, cols)
+            self.lu = linalg.LUPlan(pattern, self.pivots, cols)
             self.sparse_jac = not self.has_pri and not self.npc
             if self.sparse_jac:
                 c, t = self.jac_nz_split[0], self.jac_nz_split[1]
@@ -790,10 +504,10 @@ class Linkage:
             norm = float(np.max(np.abs(g))) if self.m else 0.0
             if norm <= NEWTON_TOL:
                 return q
-            jinv, cond = smallsolve.inverse(self.jacobian(pose)[:, self.unknown], self.lu)
+            jinv, cond = linalg.inverse(self.jacobian(pose)[:, self.unknown], self.lu)
             if not np.isfinite(cond[0]):
                 break
-            step = -_matvec(jinv, g) * cs
+            step = -linalg.matvec(jinv, g) * cs
             lam = 1.0
             while lam > LINE_SEARCH_MIN:  # backtracking line search on the residual norm
                 trial = q.copy()
@@ -807,127 +521,6 @@ class Linkage:
             f'deg from the given link angles (loop residual {norm * self.length_scale:.3e} m '
             f'after {ASSEMBLY_MAX_ITER} damped Newton steps); check the joint points and '
             'lengths')
-
-    # ------------------------------------------------------------------ rates
-
-    def rates(self, pose, psi_d, psi_dd, jac=None, need_acc=True):
-        """
-        Return joint and link rates at a solved pose (seed 000 eqs. 28-36).
-
-        ``psi_d``, ``psi_dd`` broadcast to ``(p,)``; ``jac`` is the scaled loop Jacobian at
-        ``pose`` if already known.  Returns a dict with ``qd``, ``omega``, ``vel``,
-        ``jac_factors`` (J_u factorized), ``cond``, ``jac`` (``None`` where J_u is kept
-        sparse), ``jac_psi`` and, if ``need_acc``, ``qdd``, ``alpha``, ``acc``.
-        Every link rate is the sum over the tree joints above it (vectorized with the
-        ancestry matrices): a revolute joint t turning at qd_t moves the point P at
-        ``i qd_t (P - J_t)``, a prismatic one at ``qd_t * axis_t``.
-        """
-        p = pose.phi.shape[1]
-        if not isinstance(psi_d, float) and np.ndim(psi_d):
-            psi_d = np.broadcast_to(psi_d, (p,))
-        if not isinstance(psi_dd, float) and np.ndim(psi_dd):
-            psi_dd = np.broadcast_to(psi_dd, (p,))
-        unknown = self.unknown_rows
-        if (self.sparse_jac or self.block is not None) and jac is None:
-            fac, jac_psi = self.factored(pose)
-        else:
-            if jac is None:
-                jac = self.jacobian(pose)
-            fac = smallsolve.Factored(jac[:, unknown], self.lu)
-            jac_psi = jac[:, 0]
-        cond = fac.cond()
-        sign = fac.sign()
-        scale_d = -self.col_scale[:, None] * psi_d if self.has_pri else -psi_d
-        qd = np.empty((self.nt, p))
-        qd[0] = psi_d
-        # q_u' = -J_u^-1 J_psi psi' (seed 000 eq. 32, generalized)
-        np.multiply(fac.solve(jac_psi), scale_d, out=qd[unknown])
-        omega = np.dot(self.anc_rev, qd) if self.dense_tree else self._down_rev(qd)
-        origin, J = pose.origin, pose.joint_at
-        # v = i V, V = omega O - S with S the sum over the joints above of qd_t J_t
-        # (+ prismatic slides)
-        if self.has_pri:
-            vel = omega * origin
-            vel -= self._down(qd * J * self.rev_col + 1j * qd * pose.axis)
-            vel *= _1J
-        else:
-            s_v = self._down(qd * J)
-            v_rel = omega * origin
-            v_rel -= s_v
-            vel = _1J * v_rel
-        out = {'qd': qd, 'omega': omega, 'vel': vel, 'cond': cond, 'jac': jac,
-               'jac_psi': jac_psi, 'det_sign': sign, 'jac_factors': fac}
-        if not need_acc:
-            return out
-        # velocity-product part of the link accelerations (all joint accelerations zero):
-        # each joint's point moves at v_J = v_parent + i omega_parent (J - O_parent)
-        par = self.par
-        omega_par = omega.take(par, axis=0)
-        if self.has_pri:
-            v_joint = J - origin.take(par, axis=0)
-            v_joint *= _1J * omega_par
-            v_joint += vel.take(par, axis=0)
-            acc_v = omega * vel
-            acc_v -= self._down(qd * v_joint * self.rev_col - qd * omega_par * pose.axis)
-            acc_v *= _1J
-        else:
-            # revolute only: v_J = i W with W = omega_parent J - S_parent, so
-            # a_v = i (omega v - sum qd_t v_J) = sum qd_t W_t - omega V: no products with i
-            w_rel = omega_par * J
-            w_rel -= s_v.take(par, axis=0)
-            acc_v = self._down(qd * w_rel)
-            acc_v -= omega * v_rel
-        gamma = self._cut_bias(pose, omega, vel, acc_v)
-        if not isinstance(psi_dd, float) or psi_dd != 0.0:
-            gamma += jac_psi * psi_dd
-        qdd = np.empty((self.nt, p))
-        qdd[0] = psi_dd
-        # J_u q_u'' = -(gamma + J_psi psi'')
-        if self.has_pri:
-            np.multiply(fac.solve(gamma), -self.col_scale[:, None], out=qdd[unknown])
-        else:
-            np.negative(fac.solve(gamma), out=qdd[unknown])
-        alpha = np.dot(self.anc_rev, qdd) if self.dense_tree else self._down_rev(qdd)
-        acc = alpha * origin
-        if self.has_pri:
-            acc -= self._down(qdd * J * self.rev_col + 1j * qdd * pose.axis)
-        else:
-            acc -= self._down(qdd * J)
-        acc *= _1J
-        acc += acc_v
-        out.update(qdd=qdd, alpha=alpha, acc=acc)
-        return out
-
-    def _cut_bias(self, pose, omega, vel, acc_v):
-        """Return the scaled loop-equation accelerations with all joint accelerations zero."""
-        if not self.m:
-            return np.zeros((0, pose.phi.shape[1]))
-        self.cut_points(pose)
-        pa, pb, ra, rb = pose.cut_points[:4]
-        ia, ib = self.cut_a, self.cut_b
-        # acceleration of each cut end: a_O - omega^2 r (no angular acceleration here)
-        n = len(self.cuts)
-        w = omega.take(self.cut_ab, axis=0)
-        w *= w
-        ends = acc_v.take(self.cut_ab, axis=0)
-        ends -= w * pose.cut_points[4]
-        d = ends[n:] - ends[:n]
-        nr = self.nr
-        if not self.npc:
-            out = np.empty((self.m, d.shape[1]))
-            np.multiply(d.real, self.scale0, out=out[:nr])
-            np.multiply(d.imag, self.scale0, out=out[nr:])
-            return out
-        rows = [d.real[:nr], d.imag[:nr]]
-        ia, ib = ia[nr:], ib[nr:]
-        n = pose.rot[ia] * self.cut_axis
-        dist = pb[nr:] - pa[nr:]
-        dist_d = (vel[ib] + 1j * omega[ib] * rb[nr:]) - (vel[ia] + 1j * omega[ia] * ra[nr:])
-        n_d = 1j * omega[ia] * n
-        n_dd = -omega[ia] ** 2 * n
-        rows += [np.zeros((self.npc, d.shape[1])),
-                 _cross(n_dd, dist) + 2.0 * _cross(n_d, dist_d) + _cross(n, d[nr:])]
-        return np.concatenate(rows) * self.row_scale[:, None]
 
     # ------------------------------------------------------------------ branch skeleton
 
@@ -947,74 +540,26 @@ class Linkage:
         return self._skeleton
 
     def _block_plan(self):
-        """Return J_u as the dyads' 2 x 2 diagonal blocks (:class:`smallsolve.BlockPlan`)."""
+        """Return J_u as the dyads' 2 x 2 diagonal blocks (:class:`linalg.BlockPlan`)."""
         c, t = self.jac_nz_split[0], self.jac_nz_split[1]
         blocks = [((s.cut, self.nr + s.cut), (s.joints[0] - 1, s.joints[1] - 1))
                   for s in self.dyads.steps]
         try:
-            return smallsolve.BlockPlan(self.nu, np.concatenate([c, self.nr + c]),
-                                        np.concatenate([t, t]), blocks)
+            return linalg.BlockPlan(self.nu, np.concatenate([c, self.nr + c]),
+                                    np.concatenate([t, t]), blocks)
         except ValueError:  # pragma: no cover - a dyad order is block triangular
             return None
 
-    def _derivatives(self, pose):
-        r = self.rates(pose, 1.0, 0.0)
-        return r['qd'], r['qdd'], r['cond'], r['jac_factors']
-
     def _trace(self):
+        """Return the :class:`Skeleton`: the branch followed once round from the assembly."""
         psi0 = self.scene.assembly_crank_angle_rad
         q = self.assemble()
-        pose = self.pose(q)
-        qd, qdd, cond, _ = self._derivatives(pose)
-        det0 = self._det_sign(pose)
-        self.branch_sign = det0
-        nodes_psi, nodes_q, nodes_qd, nodes_qdd, nodes_cond = [psi0], [q[:, 0]], [qd[:, 0]], \
-            [qdd[:, 0]], [cond[0]]
-        psi, h = psi0, STEP_MAX_RAD
-        end = psi0 + TWO_PI
-        while psi < end - ANGLE_EPS_RAD:
-            h = min(h, end - psi)
-            pred = q + qd * h + 0.5 * qdd * h * h
-            q_new, pose_new, res, iters, ok = self.newton(np.array([psi + h]), pred)
-            corr = np.max(np.abs((q_new - pred)[self.unknown]) / self.col_scale[:, None]) \
-                if self.nu else 0.0
-            good = bool(ok[0]) and corr <= STEP_TRUST
-            if good:
-                qd_new, qdd_new, cond_new, _ = self._derivatives(pose_new)
-                good = np.isfinite(cond_new[0]) and cond_new[0] <= COND_LIMIT
-            if good and self._det_sign(pose_new) == det0:
-                good = self._midpoint_ok(psi, h, q, qd, qdd, q_new, qd_new, qdd_new, det0)
-            elif good:
-                good = False
-                if h <= 2 * STEP_MIN_RAD:
-                    raise BranchError(
-                        f'crank angle {crank_angle_text(psi + h, 4)} deg: the linkage passes '
-                        'a singular position here (the loop Jacobian changes sign); beyond it '
-                        'the assembly branch is not unique, so the cycle cannot be followed')
-            if not good:
-                h *= 0.5
-                if h < STEP_MIN_RAD:
-                    c = cond_new[0] if 'cond_new' in locals() else float('inf')
-                    raise BranchError(
-                        f'crank angle {crank_angle_text(psi, 4)} deg: cannot continue the '
-                        f'assembly branch (Newton residual {res[0]:.2e}, Jacobian condition '
-                        f'{c:.3g}); the linkage cannot be assembled beyond this angle or '
-                        'reaches a singular position')
-                continue
-            psi += h
-            q, qd, qdd = q_new, qd_new, qdd_new
-            nodes_psi.append(psi)
-            nodes_q.append(q[:, 0])
-            nodes_qd.append(qd[:, 0])
-            nodes_qdd.append(qdd[:, 0])
-            nodes_cond.append(cond_new[0])
-            if cond_new[0] > COND_WARN:
-                self._warn(f'crank angle {crank_angle_text(psi, 3)} deg: near-singular '
-                           f'position (Jacobian condition number {cond_new[0]:.3g} > '
-                           f'{COND_WARN:.4g})')
-            if iters[0] <= 2:
-                h = min(1.5 * h, STEP_MAX_RAD)
-        q_start, q_end = nodes_q[0], nodes_q[-1]
+        branch = _PlanarBranch(self, midpoint_check=True)
+        start = branch.node(continuation.Trial((q, self.pose(q)), True, 0.0, 0.0), psi0)
+        self.branch_sign = start.sign
+        nodes = [start] + list(continuation.advance(branch, start, TWO_PI, TRACE_LIMITS,
+                                                    start.sign))
+        q_start, q_end = nodes[0].state[0][:, 0], nodes[-1].state[0][:, 0]
         turns = np.zeros(self.nt)
         rev = ~self.is_prismatic
         turns[rev] = np.round((q_end[rev] - q_start[rev]) / TWO_PI)
@@ -1025,33 +570,21 @@ class Linkage:
                 'assembly: after one full crank turn the linkage does not return to its start '
                 f'(largest joint mismatch {np.max(gap):.3e}); the crank cannot turn fully on '
                 'this branch')
-        return Skeleton(np.array(nodes_psi), np.array(nodes_q).T, np.array(nodes_qd).T,
-                        np.array(nodes_qdd).T, np.array(nodes_cond), turns)
+        q, qd, qdd = (np.concatenate([n.state[i] for n in nodes], axis=1) for i in range(3))
+        return Skeleton(np.array([n.x for n in nodes]), q, qd, qdd,
+                        np.array([n.cond for n in nodes]), turns)
 
-    def _midpoint_ok(self, psi, h, q0, qd0, qdd0, q1, qd1, qdd1, det0):
-        """
-        Return whether the quintic Hermite predictor holds at the middle of a new segment.
-
-        The batched solve starts Newton from that predictor, so a segment is accepted only
-        if, at its midpoint, Newton moves less than a tenth of ``EVAL_TRUST`` and stays on
-        the branch (same sign of det J_u).  Near a change point this shortens the steps
-        until the two nearby branches can no longer be confused.
-        """
+    def scaled_change(self, q, q_ref):
+        """Return the largest change ``|q - q_ref|`` of the unknowns (scaled; 0 if none)."""
         if not self.nu:
-            return True
-        # quintic Hermite basis at t = 1/2: 1/2, 5/32, 1/64 (and mirrored for the end)
-        pred = (0.5 * (q0 + q1) + 0.15625 * h * (qd0 - qd1)
-                + 0.015625 * h * h * (qdd0 + qdd1))
-        q_mid, pose_mid, _, _, ok = self.newton(np.array([psi + 0.5 * h]), pred)
-        corr = np.max(np.abs((q_mid - pred)[self.unknown]) / self.col_scale[:, None])
-        return (bool(ok[0]) and corr <= MIDPOINT_TRUST_FRACTION * EVAL_TRUST
-                and self._det_sign(pose_mid) == det0)
+            return 0.0
+        return float(np.max(np.abs((q - q_ref)[self.unknown]) / self.col_scale[:, None]))
 
     def _det_sign(self, pose):
         if not self.nu:
             return 1.0
         if self.nu <= 2:  # closed form, without the inverse and condition number
-            return float(smallsolve.det_sign(self.jacobian(pose, unknown_only=True))[0])
+            return float(linalg.det_sign(self.jacobian(pose, unknown_only=True))[0])
         return float(self.factored(pose)[0].sign()[0])
 
     def _warn(self, text):
@@ -1148,37 +681,86 @@ class Linkage:
     def _retrace(self, psi):
         """Follow the branch from the nearest skeleton node to each angle, step by step."""
         sk = self.skeleton
+        branch = _PlanarBranch(self, midpoint_check=False)
         out = np.empty((self.nt, psi.size))
         for i, target in enumerate(psi):
             k, x = sk.locate(np.array([target]))
             base = sk.psi[k[0]] + (target - sk.psi[0] - x[0])
             q = sk.q[:, k[0]:k[0] + 1] + np.where(
                 self.is_prismatic, 0.0, TWO_PI * sk.turns * sk.wraps(target))[:, None]
-            qd = sk.qd[:, k[0]:k[0] + 1]
-            qdd = sk.qdd[:, k[0]:k[0] + 1]
-            psi_now, goal = base, target
-            h = min(STEP_MAX_RAD / 4, goal - psi_now) if goal > psi_now else 0.0
-            while goal - psi_now > ANGLE_EPS_RAD:
-                h = min(h, goal - psi_now)
-                pred = q + qd * h + 0.5 * qdd * h * h
-                q_new, pose_new, res, _, ok = self.newton(np.array([psi_now + h]), pred)
-                corr = np.max(np.abs((q_new - pred)[self.unknown]) / self.col_scale[:, None])
-                if not ok[0] or corr > STEP_TRUST or \
-                        self._det_sign(pose_new) != self.branch_sign:
-                    h *= 0.5
-                    if h < STEP_MIN_RAD:
-                        raise BranchError(
-                            f'crank angle {crank_angle_text(psi_now, 4)} deg: cannot follow '
-                            f'the assembly branch (Newton residual {res[0]:.2e})')
-                    continue
-                psi_now += h
-                q = q_new
-                qd, qdd, _, _ = self._derivatives(pose_new)
-            out[:, i] = q[:, 0]
+            node = continuation.Node(base, (q, sk.qd[:, k[0]:k[0] + 1],
+                                            sk.qdd[:, k[0]:k[0] + 1]), 1.0, self.branch_sign)
+            for node in continuation.advance(branch, node, target - base, RETRACE_LIMITS,
+                                             self.branch_sign):
+                pass
+            out[:, i] = node.state[0][:, 0]
         return out
 
 
-_1J = np.array(1j)   # (0-d: quicker as a ufunc operand than the Python scalar)
+class _PlanarBranch(continuation.Branch):
+    """The planar linkage's hooks for :func:`continuation.advance` (state: q, qd, qdd)."""
+
+    error = BranchError
+
+    def __init__(self, linkage, midpoint_check):
+        self.linkage, self.midpoint_check = linkage, midpoint_check
+
+    def where(self, x, digits=4):
+        """Return the crank angle ``x`` in words."""
+        return f'crank angle {crank_angle_text(x, digits)} deg'
+
+    def predict(self, node, h):
+        """Return the second-order Taylor predictor of the tree coordinates ``(nt, 1)``."""
+        q, qd, qdd = node.state
+        return q + qd * h + 0.5 * qdd * h * h
+
+    def correct(self, prediction, x):
+        """Return Newton's :class:`continuation.Trial` from ``prediction`` at angle ``x``."""
+        lk = self.linkage
+        q, pose, res, iters, ok = lk.newton(np.array([x]), prediction)
+        return continuation.Trial((q, pose), bool(ok[0]), float(res[0]),
+                                  lk.scaled_change(q, prediction), int(iters[0]))
+
+    def node(self, trial, x):
+        """Return the :class:`continuation.Node` with the rates at unit crank speed."""
+        lk = self.linkage
+        q, pose = trial.solution
+        rates = lk.rates(pose, 1.0, 0.0)
+        return continuation.Node(x, (q, rates['qd'], rates['qdd']), float(rates['cond'][0]),
+                                 lk._det_sign(pose))
+
+    def sign_changed(self, x, h):
+        """Refuse a sign change that persists down to the smallest steps: a singular crossing."""
+        if abs(h) <= 2 * STEP_MIN_RAD:
+            raise BranchError(
+                f'crank angle {crank_angle_text(x, 4)} deg: the linkage passes '
+                'a singular position here (the loop Jacobian changes sign); beyond it '
+                'the assembly branch is not unique, so the cycle cannot be followed')
+
+    def accept(self, start, node, h):
+        """
+        Return whether the quintic Hermite predictor holds at the middle of a new segment.
+
+        The batched solve starts Newton from that predictor, so a segment is accepted only
+        if, at its midpoint, Newton moves less than ``MIDPOINT_TRUST_FRACTION`` of
+        ``EVAL_TRUST`` and stays on the branch (same sign of det J_u).  Near a change point
+        this shortens the steps until the two nearby branches can no longer be confused.
+        """
+        lk = self.linkage
+        if not self.midpoint_check or not lk.nu:
+            return True
+        (q0, qd0, qdd0), (q1, qd1, qdd1) = start.state, node.state
+        # quintic Hermite basis at t = 1/2: 1/2, 5/32, 1/64 (and mirrored for the end)
+        pred = (0.5 * (q0 + q1) + 0.15625 * h * (qd0 - qd1)
+                + 0.015625 * h * h * (qdd0 + qdd1))
+        q_mid, pose_mid, _, _, ok = lk.newton(np.array([start.x + 0.5 * h]), pred)
+        return (bool(ok[0]) and lk.scaled_change(q_mid, pred)
+                <= MIDPOINT_TRUST_FRACTION * EVAL_TRUST
+                and lk._det_sign(pose_mid) == node.sign)
+
+    def warn(self, text):
+        """Record the warning on the linkage."""
+        self.linkage._warn(text)
 
 
 def _all(flags):
@@ -1186,175 +768,8 @@ def _all(flags):
     return np.count_nonzero(flags) == flags.size
 
 
-def _as_slices(rows, shift):
-    """Return ``(slice of rows, slice of rows + shift)`` if ``rows`` is a range, else ``()``."""
-    rows = np.asarray(rows)
-    if rows.size and np.array_equal(rows, np.arange(rows[0], rows[0] + rows.size)):
-        lo, hi = int(rows[0]), int(rows[0]) + rows.size
-        return slice(lo, hi), slice(lo + shift, hi + shift)
-    return ()
-
-
 def _filled(shape, value):
     """Return ``np.full(shape, value)`` of floats (without np.full's Python wrapper)."""
     out = np.empty(shape)
     out.fill(value)
     return out
-
-
-def _rounds(targets):
-    """Return ``[(items, targets)]``: the items in rounds whose targets are distinct."""
-    pending = list(range(len(targets)))
-    out = []
-    while pending:
-        seen, now, later = set(), [], []
-        for i in pending:
-            (later if int(targets[i]) in seen else now).append(i)
-            seen.add(int(targets[i]))
-        out.append((np.array(now, dtype=int), np.array([targets[i] for i in now], dtype=int)))
-        pending = later
-    return out
-
-
-class Skeleton:
-    """Branch nodes over one crank turn and a quintic Hermite predictor between them."""
-
-    # quintic Hermite basis in powers of t: rows (value0, slope0, curv0, value1, slope1, curv1)
-    _BASIS = np.array([
-        [1, 0, 0, -10, 15, -6],
-        [0, 1, 0, -6, 8, -3],
-        [0, 0, 0.5, -1.5, 1.5, -0.5],
-        [0, 0, 0, 10, -15, 6],
-        [0, 0, 0, -4, 7, -3],
-        [0, 0, 0, 0.5, -1, 0.5],
-    ])
-
-    def __init__(self, psi, q, qd, qdd, cond, turns):
-        self.psi, self.q, self.qd, self.qdd, self.cond, self.turns = psi, q, qd, qdd, cond, turns
-        self.h = np.diff(psi)
-        self.offset = psi - psi[0]
-        h = self.h
-        data = np.stack([q[:, :-1], qd[:, :-1] * h, qdd[:, :-1] * h * h,
-                         q[:, 1:], qd[:, 1:] * h, qdd[:, 1:] * h * h], axis=-1)
-        # (6, nt, segments) power-series coefficients of each segment in t in [0, 1]
-        self.coef = np.ascontiguousarray(np.moveaxis(data @ self._BASIS, -1, 0))
-        self.last = self.h.size - 1
-        # the crank row is the crank angle itself: only the other rows are interpolated
-        self.coef_u = np.ascontiguousarray(self.coef[:, 1:])
-        self.wrap_step_u = (TWO_PI * turns[1:])[:, None] if np.any(turns[1:]) else None
-        self._turn_table = None
-        self._dense = None     # (_dense_prediction: shared by the two checks at build)
-
-    TURN_TABLE_SIZE = 256
-    """Angles per turn of :meth:`turn_reference`'s table (the coordinates, nearest angle)."""
-
-    def turn_table_error(self):
-        """
-        Return the largest distance of :meth:`turn_reference` from :meth:`predict`.
-
-        Sampled 16 times per table interval over the turn, plus the largest slope times a
-        sixteenth of the interval (what lies between the samples): rad for revolute rows.
-        """
-        table = self._table()
-        psi, q = self._dense_prediction()
-        err = np.abs(self.turn_reference(psi) - q)
-        slope = np.abs(np.diff(table, axis=1)).max(initial=0.0)
-        return float(err.max(initial=0.0) + slope / 16.0)
-
-    def _dense_prediction(self):
-        """Return ``(psi, q)``: the predictor's coordinates but the crank's, 16 per table step."""
-        if self._dense is None:
-            n = 16 * self.TURN_TABLE_SIZE
-            psi = self.psi[0] + np.arange(n + 1) * (TWO_PI / n)
-            self._dense = (psi, self.predict(psi)[1:])
-        return self._dense
-
-    def affine_reference(self):
-        """
-        Return ``(slope, offset, error)``: the straight line in psi nearest each coordinate.
-
-        ``slope`` ``(nt - 1, 1)`` is each coordinate's whole turns per crank turn, ``offset``
-        ``(nt - 1, 1)`` centres what remains (periodic in psi) between its extremes, and
-        ``error`` is the largest distance of ``slope * psi + offset`` from :meth:`predict`
-        (sampled as in :meth:`turn_table_error`, plus the largest step between the
-        samples).  Where that is well below pi, the line alone tells the whole turns of a
-        coordinate known up to 2 pi (a rocker that swings, a coupler that turns with the
-        crank), at two operations per evaluation.
-        """
-        psi, q = self._dense_prediction()
-        slope = (np.zeros((q.shape[0], 1)) if self.wrap_step_u is None
-                 else self.wrap_step_u / TWO_PI)
-        rest = q - slope * psi
-        offset = 0.5 * (rest.max(axis=1) + rest.min(axis=1))[:, None]
-        err = np.abs(rest - offset).max(initial=0.0)
-        step = np.abs(np.diff(q, axis=1)).max(initial=0.0)
-        return slope, offset, float(err + step)
-
-    def _table(self):
-        if self._turn_table is None:
-            n = self.TURN_TABLE_SIZE
-            psi = self.psi[0] + np.arange(n + 1) * (TWO_PI / n)
-            psi[-1] = self.psi[0] + TWO_PI
-            q = self.predict(psi[:-1])[1:]
-            # the last column is the first one turn on (the coordinates' whole turns added)
-            end = q[:, :1] + (0.0 if self.wrap_step_u is None else self.wrap_step_u)
-            self._turn_table = np.ascontiguousarray(np.concatenate([q, end], axis=1))
-        return self._turn_table
-
-    def turn_reference(self, psi):
-        """
-        Return ``(nt - 1, p)``: the tree coordinates but the crank's at the nearest table angle.
-
-        Within :meth:`turn_table_error` of :meth:`predict` at a fraction of its cost (no
-        search, no interpolation): enough to tell the whole turns of an angle known up to a
-        multiple of 2 pi (the dyads' closed form) when that error is well below pi.
-        """
-        table, n = self._table(), self.TURN_TABLE_SIZE
-        u = np.subtract(psi, self.psi[0])
-        u *= n / TWO_PI
-        np.rint(u, out=u)
-        turns, index = np.divmod(u.astype(np.int64), n)   # index in [0, n) whatever psi
-        out = table.take(index, axis=1)
-        if self.wrap_step_u is not None:
-            out += self.wrap_step_u * turns
-        return out
-
-    def wraps(self, psi):
-        """Return how many whole turns ``psi`` lies beyond the skeleton's start."""
-        return np.floor((np.asarray(psi) - self.psi[0]) / TWO_PI)
-
-    def locate(self, psi):
-        """Return the interval index and the offset into one turn for each angle."""
-        k, x, _ = self._locate(psi)
-        return k, x
-
-    def _locate(self, psi):
-        """Return the interval index, the offset into the turn and the whole turns."""
-        x = np.subtract(psi, self.psi[0])
-        turns = np.multiply(x, 1.0 / TWO_PI)
-        np.floor(turns, out=turns)
-        x -= turns * TWO_PI
-        # x >= 0 = offset[0] (rounding can leave -0.5 ulp), so the index is >= 0; x may
-        # round up to 2 pi: cap at the last
-        np.maximum(x, 0.0, out=x)
-        k = np.searchsorted(self.offset, x, side='right')
-        k -= 1
-        return np.minimum(k, self.last, out=k), x, turns
-
-    def predict(self, psi):
-        """Return predicted tree coordinates ``(nt, p)`` at crank angles ``psi``."""
-        psi = np.asarray(psi, dtype=float)
-        k, x, turns = self._locate(psi)
-        x -= self.offset[k]
-        x /= self.h[k]                   # t in [0, 1] along the segment
-        q = np.empty((self.q.shape[0], psi.size))
-        q[0] = psi                       # the crank joint's coordinate is the crank angle
-        c = self.coef_u.take(k, axis=2)   # (take: a third of the fancy index's cost)
-        qu = np.multiply(c[5], x, out=q[1:])
-        for j in (4, 3, 2, 1):           # Horner, in place
-            qu += c[j]
-            qu *= x
-        qu += c[0]
-        if self.wrap_step_u is not None:
-            qu += self.wrap_step_u * turns
-        return q

@@ -6,7 +6,7 @@ A scene's ``assembly.poses`` state, approximately, where every link is at the cr
 assemblies at one crank angle: a rocker on either side, a coupler flipped about its line
 through a universal joint).  :func:`initial` reads the tree coordinates from them (the
 inverse of the zero convention of :mod:`.kinematics`), Levenberg-Marquardt closes the loops
-from there (:meth:`~kinematics.Linkage._assemble`), and :func:`pose_mismatch` compares every
+from there (:meth:`Assembling._assemble`), and :func:`pose_mismatch` compares every
 stated link's solved pose with its stated one: a link off by more than
 :data:`~mech_balance.schema.spatial.POSE_TOL_DEG` or
 :data:`~mech_balance.schema.spatial.POSE_TOL_REL` of the linkage's size is refused, naming
@@ -18,15 +18,20 @@ describes an assembly the scene did not state.  A link held only by two spherica
 import math
 
 from mech_balance.conventions import crank_angle_text
+from mech_balance.core.planar.kinematics import NEWTON_TOL
+from mech_balance.core.spatial.branch import SpatialError
+from mech_balance.core.spatial.closure import Rows
+from mech_balance.core.spatial.vectors import cross
+from mech_balance.rotations import axis_angle_matrix, matrix_rpy
 from mech_balance.schema.spatial import POSE_TOL_DEG, POSE_TOL_REL
 import numpy as np
 
-
-def _turn(axis, angle):
-    """Return the rotation (3, 3) by ``angle`` (rad) about the unit ``axis`` (Rodrigues)."""
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
-                  [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+RANK_RTOL = 1e-9
+"""Singular values below this fraction of the largest count as zero (rank, null space)."""
+ASSEMBLY_MAX_ITER = 200
+"""Levenberg-Marquardt iterations allowed to assemble the linkage from the scene's poses."""
+IDLE_INERTIA_RTOL = 1e-9
+"""Inertia about an S-S line, relative to m L^2 + trace(I), below which it counts as zero."""
 
 
 def _normal(axis):
@@ -42,7 +47,8 @@ def twist_about(axis, rot):
     The twist of the swing-twist split: the signed angle about ``axis`` from a unit vector
     ``r`` normal to it to ``rot r`` (its part normal to ``axis``).  Exact for a rotation
     about ``axis`` whatever its angle, and for an approximate one (a guessed pose) the turn
-    about ``axis`` that best explains it; the rotation vector (``kinematics.angle_about``)
+    about ``axis`` that best explains it; the rotation vector
+    (:func:`mech_balance.rotations.angle_about`)
     would mix in any turn about another axis.
     """
     ref = _normal(axis)
@@ -68,7 +74,7 @@ def tree_values(t, rel, d):
         e = t.fixed @ t.axis_child
         v = rel @ t.axis_child
         theta = math.atan2(float(t.axis @ np.cross(e, v)), float(e @ v))
-        rest = t.fixed.T @ _turn(t.axis, -theta) @ rel
+        rest = t.fixed.T @ axis_angle_matrix(t.axis, -theta) @ rel
         return [theta, twist_about(t.axis_child, rest)]
     theta = twist_about(t.axis, rel @ t.fixed.T)
     if jt == 'revolute':
@@ -118,9 +124,7 @@ def initial(linkage):
 
 def rpy_deg(rot):
     """Return the URDF ``[roll, pitch, yaw]`` (deg) of a rotation (3, 3): Rz Ry Rx."""
-    return [math.degrees(math.atan2(rot[2, 1], rot[2, 2])),
-            math.degrees(math.atan2(-rot[2, 0], math.hypot(rot[0, 0], rot[1, 0]))),
-            math.degrees(math.atan2(rot[1, 0], rot[0, 0]))]
+    return [float(v) for v in matrix_rpy(rot, degrees=True)]
 
 
 def _angle(rot_a, rot_b):
@@ -184,3 +188,174 @@ def pose_mismatch(linkage, fr):
         'or do not fit the joints (axes, angle_deg, link points); state the poses of the '
         'intended assembly more closely, or, if the pose reached is the intended one, '
         'state it')
+
+
+def spherical_zeros(linkage, fr):
+    """Return ``{joint name: A}``, the relative rotation of each spherical joint at assembly."""
+    idx = {n: i for i, n in enumerate(linkage.body_names)}
+    out = {}
+    for jt in linkage.scene.joints:
+        if jt.joint_type == 'spherical':
+            ra, rb = fr.rot[0, idx[jt.link_a]], fr.rot[0, idx[jt.link_b]]
+            out[jt.name] = ra.T @ rb
+    return out
+
+
+class Assembling:
+    """
+    The assembly of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin).
+
+    From the stated poses (:func:`initial`), Levenberg-Marquardt, then the idle spins of
+    S-S links (fixed by one row each) and the redundant rows (the rank).
+    """
+
+    def _initial(self):
+        """Return tree coordinates ``(1, ndof)`` and rotations from the scene's poses."""
+        return initial(self)
+
+    def _assemble(self):
+        """Assemble the linkage (Levenberg-Marquardt), find idle spins and redundancy."""
+        if not self.m and self.nu:
+            raise SpatialError(
+                f'joints: the linkage is an open chain (no closed loop) with {self.nu} '
+                f'degree(s) of freedom besides the crank joint {self.scene.crank_joint!r}; '
+                'expected a single-input linkage')
+        q, sph = self._initial()
+        lam = 1e-3
+        fr = self.frames(q, sph)
+        g = self.residual(fr) * self.row_scale
+        cost = float(np.sum(g * g))
+        for _ in range(ASSEMBLY_MAX_ITER):
+            if not self.m or np.max(np.abs(g)) <= NEWTON_TOL:
+                break
+            js = self.scaled(self.jacobian(fr))[0]
+            a = js.T @ js
+            rhs = js.T @ g[0]
+            while True:
+                step = -np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-12), rhs)
+                q2, sph2 = self._update(q, sph, (step * self.col_scale[self.unknown])[None])
+                fr2 = self.frames(q2, sph2)
+                g2 = self.residual(fr2) * self.row_scale
+                cost2 = float(np.sum(g2 * g2))
+                if cost2 < cost:
+                    q, sph, fr, g, cost = q2, sph2, fr2, g2, cost2
+                    lam = max(lam / 3.0, 1e-12)
+                    break
+                lam *= 4.0
+                if lam > 1e12:
+                    break
+            if lam > 1e12:
+                break
+        if self.m and np.max(np.abs(g)) > 1e-10:
+            raise SpatialError(
+                f'assembly: the linkage cannot be closed at crank angle '
+                f'{crank_angle_text(self.scene.assembly_crank_angle_rad, 4)} deg from '
+                f'assembly.poses (largest '
+                f'scaled closure residual {np.max(np.abs(g)):.3e} after '
+                f'{ASSEMBLY_MAX_ITER} iterations); expected poses near an assembled position')
+        self._find_idle(q, sph, fr)
+        q, sph, fr, res, ok = self.newton(q, sph)
+        if not ok[0]:
+            raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
+        mismatch = pose_mismatch(self, fr)
+        if mismatch:
+            raise SpatialError(mismatch)
+        self.q0, self.sph0 = q, sph
+        self.sph_zero = spherical_zeros(self, fr)
+        js = self.scaled(self.jacobian(fr))
+        _, cond, rank, sign = self._solver(js)
+        self.rank = int(rank[0])
+        self.redundant = self.m - self.rank
+        self.branch_sign = float(sign[0])
+        if self.rank < self.nu:
+            raise SpatialError(
+                f'joints: the linkage has {self.nu - self.rank} degree(s) of freedom besides '
+                f'the crank joint {self.scene.crank_joint!r} (Jacobian rank {self.rank} of '
+                f'{self.nu} unknown coordinates) that are not idle spins of S-S links; '
+                'expected a single-input linkage')
+
+    def _find_idle(self, q, sph, fr):
+        """Detect idle spins from the Jacobian's null space; add the spin rows (or refuse)."""
+        if not self.nu:
+            return
+        js = self.scaled(self.jacobian(fr))[0] if self.m else np.zeros((0, self.nu))
+        if js.shape[0]:
+            _, s, vt = np.linalg.svd(js)
+            s_full = np.zeros(self.nu)
+            s_full[:s.size] = s
+            null = vt[s_full <= RANK_RTOL * max(s_full[0], 1.0)] if s.size else vt
+        else:
+            null = np.eye(self.nu)
+        if not null.shape[0]:
+            return
+        # the body twists of each null direction
+        qd = np.zeros((null.shape[0], self.ndof))
+        qd[:, self.unknown] = null * self.col_scale[self.unknown]
+        cols = np.broadcast_to(fr.cols[0], (null.shape[0],) + fr.cols.shape[1:])
+        tw = np.einsum('nds,nd,dk->nks', cols, qd, self.path).reshape(null.shape[0], -1)
+        spins = []
+        sc = self.scene
+        for k in range(1, self.nb):
+            name = self.body_names[k]
+            mine = [j for j in sc.joints if name in (j.link_a, j.link_b)]
+            sph_j = [j for j in mine if j.joint_type == 'spherical']
+            if len(mine) != 2 or len(sph_j) != 2:
+                continue
+            x = [fr.origin[0, k] + fr.rot[0, k] @ self._points[name][
+                j.point_a if j.link_a == name else j.point_b] for j in sph_j]
+            line = x[1] - x[0]
+            if np.linalg.norm(line) < 1e-12 * self.length_scale:
+                continue
+            u = line / np.linalg.norm(line)
+            e = np.zeros((self.nb, 6))
+            e[k, :3], e[k, 3:] = u, cross(x[0], u)
+            e = e.ravel()
+            coef, *_ = np.linalg.lstsq(tw.T, e, rcond=None)
+            if np.linalg.norm(tw.T @ coef - e) > 1e-6 * np.linalg.norm(e):
+                continue
+            spins.append((k, sph_j, x, u))
+        if len(spins) < null.shape[0]:
+            return  # the rank check after assembly names the extra freedoms
+        self.idle_lines = []
+        for k, sph_j, x, u in spins:
+            name = self.body_names[k]
+            rl = fr.rot[0, k]
+            x0 = self._points[name][sph_j[0].point_a if sph_j[0].link_a == name
+                                    else sph_j[0].point_b]
+            self.idle_lines.append((name, sph_j[0].name, sph_j[1].name, rl.T @ u, x0))
+        self.check_idle_inertia(self.scene)
+        for k, sph_j, x, u in spins:
+            name = self.body_names[k]
+            rl = fr.rot[0, k]
+            n_ref = np.eye(3)[int(np.argmin(np.abs(u)))]
+            v = cross(u, n_ref)
+            v /= np.linalg.norm(v)
+            self.rows.append(Rows('spin', np.array([k]), np.array([0]), (rl.T @ v)[None],
+                                  n_ref[None], None, (f'spin:{name}',)))
+            self.idle_spins = getattr(self, 'idle_spins', ()) + (
+                (name, sph_j[0].name, sph_j[1].name),)
+        self._finish_rows()
+
+    def check_idle_inertia(self, scene):
+        """
+        Refuse a design whose S-S link has inertia about its S-S line (the spin convention).
+
+        The inertia about the line through the two spherical joints, ``u.I_c u + m |(c - x0)
+        x u|^2``, must be zero to :data:`IDLE_INERTIA_RTOL`; the message names the link,
+        the two joints and the way out.
+        """
+        for name, j1, j2, ul, x0 in getattr(self, 'idle_lines', ()):
+            lk = scene.link(name)
+            c = np.array(lk.com_m) - x0
+            inertia = np.array(lk.inertia_matrix())
+            about = float(ul @ inertia @ ul + lk.mass_kg * np.sum(cross(c, ul) ** 2))
+            # the magnitudes: a design that is no body (a least-change force balance may
+            # give a negative-definite inertia) must not make the scale vanish or go negative
+            scale = abs(lk.mass_kg) * self.length_scale ** 2 + float(np.abs(inertia).sum())
+            if about > IDLE_INERTIA_RTOL * max(scale, 1e-300):
+                raise SpatialError(
+                    f'links.{name}: held only by the spherical joints {j1} and {j2}, it '
+                    'spins freely about the line through them (an idle freedom of the '
+                    f'Jacobian), and its inertia about that line is {about:.6g} kg m^2; '
+                    'expected 0 (a slender rod on that line, whose spin is then fixed by '
+                    'convention) - or replace one S by a U (universal joint) to hold the spin')

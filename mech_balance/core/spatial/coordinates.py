@@ -9,8 +9,8 @@ angular velocity ``R_a^T (omega_b - omega_a)`` and the relative point velocity.
 
 import math
 
-from mech_balance.core.spatial.kinematics import cross, cross_c, min_rotation, perp_pair, \
-    rot_axis, skew
+from mech_balance.core.spatial.vectors import cross, cross_c, perp_pair
+from mech_balance.rotations import min_rotation, rot_axis, skew
 import numpy as np
 
 SUFFIXES = {'revolute': ('',), 'prismatic': ('',), 'cylindrical': ('_turn', '_slide'),
@@ -40,25 +40,17 @@ def joint_frames(scene, jt):
     return a, b, fixed
 
 
-def rpy_of(rot):
-    """Return (yaw, pitch, roll) ``(n,)`` each with ``rot = Rz(yaw) Ry(pitch) Rx(roll)``."""
-    yaw = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
-    pitch = np.arctan2(-rot[:, 2, 0], np.hypot(rot[:, 0, 0], rot[:, 1, 0]))
-    roll = np.arctan2(rot[:, 2, 1], rot[:, 2, 2])
-    return yaw, pitch, roll
-
-
 def _functionals(jt, ax, bx, fixed, zero):
     """
     Return the ``(9, k)`` linear functionals of a joint's relative rotation it reads.
 
     Every published angle is an ``arctan2`` of linear functionals of ``M = R_a^T R_b``
     (``sum(M * W)``): revolute and cylindrical ``vee(M Z^T) . a`` and ``tr(M Z^T)``
-    (:func:`~kinematics.angle_about`); spherical the five entries of ``M A^T`` that
-    :func:`rpy_of` reads; universal ``b_in_a = M b`` against ``e`` and ``a x e`` and
-    itself (the second rate), then the second angle's ``vee`` and trace terms of
-    ``U^T Rot(a, -theta1) M``, each split into its ``M``, ``K M`` and ``K^2 M`` parts (K the
-    cross matrix of a).  Built once per joint.
+    (:func:`~mech_balance.rotations.angle_about`); spherical the five entries of ``M A^T``
+    that :func:`~mech_balance.rotations.matrix_rpy` reads; universal ``b_in_a = M b`` against
+    ``e`` and ``a x e`` and itself (the second rate), then the second angle's ``vee`` and
+    trace terms of ``U^T Rot(a, -theta1) M``, each split into its ``M``, ``K M`` and
+    ``K^2 M`` parts (K the cross matrix of a).  Built once per joint.
     """
     t = jt.joint_type
     if t == 'prismatic':

@@ -26,7 +26,7 @@ Driving torque and reactions (virtual power in tree coordinates)
 
 from dataclasses import dataclass
 
-from mech_balance.core.spatial.kinematics import component_major, cross_c as _cross_c
+from mech_balance.core.spatial.vectors import component_major, cross_c as _cross_c
 import numpy as np
 
 

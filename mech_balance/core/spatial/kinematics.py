@@ -57,211 +57,33 @@ Idle freedoms and redundancy
 
 from dataclasses import dataclass
 import math
+from typing import NamedTuple
 import warnings
 
+from mech_balance import threads
 from mech_balance.conventions import crank_angle_text
-from mech_balance.core.planar import smallsolve
-from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL, PRINTED_RTOL  # noqa
-from mech_balance.core.spatial import assembly
+from mech_balance.core import linalg
+from mech_balance.core.planar.kinematics import COND_WARN, NEWTON_TOL
+from mech_balance.core.spatial.assembly import Assembling, RANK_RTOL
+from mech_balance.core.spatial.branch import BranchFollowing, EVAL_TRUST, SpatialError, \
+    STEP_MAX_RAD, STEP_MIN_RAD
+from mech_balance.core.spatial.closure import ClosureRows
+from mech_balance.core.spatial.vectors import component_major, cross, cross_c, mv, perp_pair, \
+    sin_vers_one, unit
+from mech_balance.rotations import expmap, EYE3, min_rotation, rot_axis, skew
 from mech_balance.schema.scene import FRAME
 from mech_balance.schema.spatial import stroke_law
 import numpy as np
 
 NEWTON_MAX_ITER = 10
 """Newton iterations per batched evaluation or continuation step."""
-ASSEMBLY_MAX_ITER = 200
-"""Levenberg-Marquardt iterations allowed to assemble the linkage from the scene's poses."""
-COND_LIMIT = 1e10
-"""Scaled Jacobian condition number above which a position is refused as singular."""
-RANK_RTOL = 1e-9
-"""Singular values below this fraction of the largest count as zero (rank, null space)."""
-STEP_MAX_RAD = math.radians(10.0)
-"""Largest crank step between branch nodes (a prismatic input: this angle of its Scotch
-yoke at mid-stroke, i.e. times the half stroke, m)."""
-STEP_MIN_RAD = 1e-7
-"""Smallest crank step before the continuation declares the branch lost (prismatic input:
-times the half stroke, m)."""
-STEP_DONE = 1e-13
-"""What is left of a continuation's goal when it counts as reached (rad; a prismatic input:
-times the half stroke, m)."""
-STEP_TRUST = 0.05
-"""Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
-EVAL_TRUST = 1e-3
-"""Largest scaled correction from the branch predictor before an angle is re-traced."""
-CLOSURE_TOL = 1e-7
-"""Largest scaled pose mismatch after one traced turn for the branch to count as closed."""
 REFINE_STEPS = 1
 """Iterative-refinement steps of a solve with the predictor's inverse (each squares the
 relative error, ~1e-8 from a dense node half a degree away, to ~1e-16)."""
-DENSE_STEP_RAD = math.radians(1.0)
-"""Spacing of the dense branch nodes the batched evaluation predicts from."""
-IDLE_INERTIA_RTOL = 1e-9
-"""Inertia about an S-S line, relative to m L^2 + trace(I), below which it counts as zero."""
-SPIN_ROW_MIN = 1e-3
-"""|u x n| below which the spin convention's reference axis n is too close to the S-S line."""
-TWO_PI = 2.0 * math.pi
 
 
 _CONSTANT_ROOT_COLUMNS = ('revolute', 'prismatic', 'spherical', 'universal')
 """Joint types whose twist columns are constant when their parent is the frame."""
-
-
-class SpatialError(ValueError):
-    """The spatial linkage cannot be assembled, is singular, or would leave its branch."""
-
-
-def component_major(a):
-    """Return a batch-first ``(n, nb, k...)`` array as a contiguous ``(k..., nb, n)``."""
-    nd = a.ndim
-    return np.ascontiguousarray(a.transpose(tuple(range(2, nd)) + (1, 0)))
-
-
-def cross_c(a, b):
-    """Return ``a x b`` of component-major vectors ``(3, ...)`` (broadcast)."""
-    out = np.empty(a.shape if np.shape(a) == np.shape(b) else np.broadcast(a, b).shape)
-    np.multiply(a[1], b[2], out=out[0])
-    out[0] -= a[2] * b[1]
-    np.multiply(a[2], b[0], out=out[1])
-    out[1] -= a[0] * b[2]
-    np.multiply(a[0], b[1], out=out[2])
-    out[2] -= a[1] * b[0]
-    return out
-
-
-def _dot_c(a, b):
-    """Return the dot products of component-major vectors ``(3, ...)`` (broadcast)."""
-    out = a[0] * b[0]
-    out += a[1] * b[1]
-    out += a[2] * b[2]
-    return out
-
-
-def cross(a, b):
-    """Return ``a x b`` over the last axis (broadcast); numpy's cross without its overhead."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    sa = np.shape(a)
-    out = np.empty(sa if sa == np.shape(b) else np.broadcast(a, b).shape)
-    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
-    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
-    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
-    return out
-
-
-def mv(mat, vec):
-    """Return ``mat @ vec`` over stacks: ``(..., k, k)`` times ``(..., k)`` (broadcast)."""
-    vec = np.asarray(vec)
-    out = mat[..., 0] * vec[..., None, 0]
-    for j in range(1, mat.shape[-1]):
-        out += mat[..., j] * vec[..., None, j]
-    return out
-
-
-def dot(a, b):
-    """Return the dot products over the last axis (broadcast)."""
-    return (a * b).sum(-1)
-
-
-def skew(v):
-    """Return the cross-product matrices ``(..., 3, 3)`` of vectors ``(..., 3)``."""
-    v = np.asarray(v, dtype=float)
-    out = np.zeros(v.shape + (3,))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
-
-
-EYE3 = np.eye(3)
-EYE3.flags.writeable = False
-
-
-def rot_axis(axis, angle):
-    """Return rotations ``(n, 3, 3)`` by ``angle`` ``(n,)`` about the unit ``axis`` (3,)."""
-    k = skew(axis)
-    k2 = k @ k
-    s, c = np.sin(angle), np.cos(angle)
-    return EYE3 + s[:, None, None] * k + (1.0 - c)[:, None, None] * k2
-
-
-def _sin_vers_one(q):
-    """Return ``(n, 3)`` rows ``[sin q, 1 - cos q, 1]`` (the weights of a rotation basis)."""
-    out = np.empty((q.shape[0], 3))
-    np.sin(q, out=out[:, 0])
-    np.cos(q, out=out[:, 1])
-    np.subtract(1.0, out[:, 1], out=out[:, 1])
-    out[:, 2] = 1.0
-    return out
-
-
-def expmap(v):
-    """Return the rotations ``exp(v^)`` ``(n, 3, 3)`` of rotation vectors ``(n, 3)``."""
-    th = np.sqrt(np.einsum('ni,ni->n', v, v))
-    small = th < 1e-8
-    safe = np.where(small, 1.0, th)
-    a = np.where(small, 1.0 - th ** 2 / 6.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - th ** 2 / 24.0, (1.0 - np.cos(safe)) / safe ** 2)
-    k = skew(v)
-    return EYE3 + a[:, None, None] * k + b[:, None, None] * (k @ k)
-
-
-def min_rotation(frm, to):
-    """Return the smallest rotation (3, 3) taking the unit vector ``frm`` onto ``to``."""
-    frm, to = np.asarray(frm, dtype=float), np.asarray(to, dtype=float)
-    c = float(frm @ to)
-    axis = cross(frm, to)
-    s = float(np.linalg.norm(axis))
-    if s < 1e-15:
-        if c > 0.0:
-            return np.eye(3)
-        helper = np.eye(3)[int(np.argmin(np.abs(frm)))]
-        axis = cross(frm, helper)
-        axis /= np.linalg.norm(axis)
-        return rot_axis(axis, np.array([math.pi]))[0]
-    return rot_axis(axis / s, np.array([math.atan2(s, c)]))[0]
-
-
-def _unit(v, where):
-    v = np.asarray(v, dtype=float)
-    return v / np.linalg.norm(v)
-
-
-def perp_pair(axis):
-    """Return two unit vectors normal to ``axis`` and to each other (deterministic)."""
-    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-    e1 = cross(axis, helper)
-    e1 /= np.linalg.norm(e1)
-    return e1, cross(axis, e1)
-
-
-def _point_gradient(x):
-    """Return ``(..., 3, 6)``: row i is ``(x x e_i, e_i)``, the rate of ``x_i`` per twist."""
-    g = np.zeros(x.shape + (6,))
-    x0, x1, x2 = x[..., 0], x[..., 1], x[..., 2]
-    g[..., 0, 1], g[..., 0, 2] = x2, -x1
-    g[..., 1, 0], g[..., 1, 2] = -x2, x0
-    g[..., 2, 0], g[..., 2, 1] = x1, -x0
-    g[..., 3:] = EYE3
-    return g
-
-
-def angle_about(axis, rot):
-    """Return the angle ``(n,)`` of rotations ``rot`` ``(n, 3, 3)`` about the unit ``axis``."""
-    skw = rot - np.swapaxes(rot, -1, -2)
-    vee = 0.5 * np.stack([skw[..., 2, 1], skw[..., 0, 2], skw[..., 1, 0]], -1)
-    cos = 0.5 * (np.trace(rot, axis1=-2, axis2=-1) - 1.0)
-    return np.arctan2(vee @ axis, cos)
-
-
-def spherical_zeros(linkage, fr):
-    """Return ``{joint name: A}``, the relative rotation of each spherical joint at assembly."""
-    idx = {n: i for i, n in enumerate(linkage.body_names)}
-    out = {}
-    for jt in linkage.scene.joints:
-        if jt.joint_type == 'spherical':
-            ra, rb = fr.rot[0, idx[jt.link_a]], fr.rot[0, idx[jt.link_b]]
-            out[jt.name] = ra.T @ rb
-    return out
 
 
 @dataclass
@@ -290,32 +112,6 @@ class TreeJoint:
             self.rot_basis = np.stack([self.kz, self.k2z, self.fixed]).reshape(3, 9)
             kc = skew(self.axis_child)   # a universal's second turn Rot(b, q2) likewise
             self.rot_basis_child = np.stack([kc, kc @ kc, EYE3]).reshape(3, 9)
-
-
-@dataclass
-class Rows:
-    """The closure rows of one group, as index and local-vector arrays (module docstring)."""
-
-    form: str
-    body_b: np.ndarray
-    body_a: np.ndarray
-    vec_b: np.ndarray     # points: s_b; dots: u_b; lines: s_b; spin: v
-    vec_a: np.ndarray     # points: s_a; dots: w_a; lines: s_a; spin: n (world)
-    extra: np.ndarray     # lines: w_a; others: unused
-    joint: tuple          # the joint name of each row (spin rows: 'spin:<link>')
-
-    @property
-    def size(self):
-        """Return the number of rows."""
-        return self.body_b.size * (3 if self.form == 'point' else 1)
-
-    @property
-    def ends(self):
-        """Return the b bodies then the a bodies (the stacked passes over both ends)."""
-        both = getattr(self, '_ends', None)
-        if both is None:
-            both = self._ends = np.concatenate([self.body_b, self.body_a])
-        return both
 
 
 @dataclass
@@ -379,7 +175,22 @@ class SpatialState:
         return cached
 
 
-class Linkage:
+class Rates(NamedTuple):
+    """The rates :meth:`Linkage.rates` solves at a batch of positions (batch-first)."""
+
+    qd: np.ndarray        # (n, ndof) coordinate rates
+    qdd: np.ndarray       # (n, ndof) coordinate accelerations (None: not asked for)
+    twist: np.ndarray     # (n, nb, 6) body twists
+    accel: np.ndarray     # (n, nb, 6) spatial accelerations (None: not asked for)
+    jac: np.ndarray       # (n, m, ndof) closure Jacobian
+    solver: np.ndarray    # (n, nu, m) (pseudo-)inverse of the scaled J_u
+    cond: np.ndarray      # (n,) its condition number
+    rank: np.ndarray      # (n,) its rank
+    sign: np.ndarray      # (n,) sign of its determinant (square systems; else 1)
+    refine: np.ndarray    # scaled J_u when ``solver`` is a nearby position's (else None)
+
+
+class Linkage(Assembling, ClosureRows, BranchFollowing):
     """
     A spatial scene's compiled spanning tree, closure rows, assembly and traced branch.
 
@@ -387,6 +198,7 @@ class Linkage:
     """
 
     def __init__(self, scene):
+        threads.settle_allocator()   # the allocator's policy: mech_balance/threads.py
         self.scene = scene
         self.warnings = []
         self.body_names = (FRAME,) + tuple(lk.name for lk in scene.links)
@@ -489,8 +301,8 @@ class Linkage:
             scp = self._points[cn][jt.point_a if rev else jt.point_b]
             axis = axis_c = fixed = None
             if jt.axis is not None:
-                a_ax = _unit(jt.axis, 'axis')
-                b_ax = _unit(jt.axis if jt.axis_b is None else jt.axis_b, 'axis_b')
+                a_ax = unit(jt.axis)
+                b_ax = unit(jt.axis if jt.axis_b is None else jt.axis_b)
                 axis, axis_c = (b_ax, a_ax) if rev else (a_ax, b_ax)
                 if jt.joint_type == 'universal':
                     e = axis_c - (axis_c @ axis) * axis
@@ -541,77 +353,6 @@ class Linkage:
         self._path_t_moving = np.ascontiguousarray(self.path_t[:, self._moving_cols])
         self.cut_joints = cuts
         self._build_rows(body, cuts)
-
-    def _build_rows(self, body, cuts):
-        sc = self.scene
-        pts, dots, lines = [], [], []
-        for ji in cuts:
-            jt = sc.joints[ji]
-            a, b = body[jt.link_a], body[jt.link_b]
-            sa = self._points[jt.link_a][jt.point_a]
-            sb = self._points[jt.link_b][jt.point_b]
-            t = jt.joint_type
-            if t in ('revolute', 'universal', 'spherical'):
-                pts.append((b, a, sb, sa, jt.name))
-            if t == 'spherical':
-                continue
-            ax = _unit(jt.axis, 'axis')
-            bx = _unit(jt.axis if jt.axis_b is None else jt.axis_b, 'axis_b')
-            if t == 'universal':
-                dots.append((b, bx, a, ax, jt.name))
-                continue
-            e1, e2 = perp_pair(ax)
-            dots.append((b, bx, a, e1, jt.name))
-            dots.append((b, bx, a, e2, jt.name))
-            if t in ('cylindrical', 'prismatic'):
-                lines.append((b, a, sb, sa, e1, jt.name))
-                lines.append((b, a, sb, sa, e2, jt.name))
-            if t == 'prismatic':
-                fixed = rot_axis(ax, np.array([math.radians(jt.angle_deg or 0.0)]))[0] @ \
-                    min_rotation(bx, ax)
-                dots.append((b, fixed.T @ e1, a, e2, jt.name))
-        self.rows = []
-        if pts:
-            self.rows.append(Rows('point', np.array([p[0] for p in pts]),
-                                  np.array([p[1] for p in pts]), np.array([p[2] for p in pts]),
-                                  np.array([p[3] for p in pts]), None,
-                                  tuple(p[4] for p in pts for _ in range(3))))
-        if dots:
-            self.rows.append(Rows('dot', np.array([p[0] for p in dots]),
-                                  np.array([p[2] for p in dots]),
-                                  np.array([p[1] for p in dots]),
-                                  np.array([p[3] for p in dots]), None,
-                                  tuple(p[4] for p in dots)))
-        if lines:
-            self.rows.append(Rows('line', np.array([p[0] for p in lines]),
-                                  np.array([p[1] for p in lines]),
-                                  np.array([p[2] for p in lines]),
-                                  np.array([p[3] for p in lines]),
-                                  np.array([p[4] for p in lines]), tuple(p[5] for p in lines)))
-        self._finish_rows()
-
-    def _finish_rows(self):
-        self.m = sum(r.size for r in self.rows)
-        scale = []
-        for r in self.rows:
-            scale += [1.0 / self.length_scale if r.form in ('point', 'line') else 1.0] * r.size
-        self.row_scale = np.array(scale)
-        self.col_scale = np.where(self.dof_slide, self.length_scale, 1.0)
-        self.row_joint = tuple(j for r in self.rows for j in r.joint)
-        bodies_b, bodies_a = [], []
-        for r in self.rows:
-            rep = 3 if r.form == 'point' else 1
-            bodies_b += list(np.repeat(r.body_b, rep))
-            bodies_a += list(np.repeat(r.body_a, rep))
-        self.row_b = np.array(bodies_b, dtype=int)
-        self.row_a = np.array(bodies_a, dtype=int)
-        self.mask_b = self.path[:, self.row_b].T  # (m, ndof)
-        self.mask_a = self.path[:, self.row_a].T
-        # per group, per joint (k, ndof, 1): which coordinates move its b and its a body
-        self._row_masks = [self.path[:, r.body_b].T[:, :, None] for r in self.rows]
-        self._row_masks_a = [self.path[:, r.body_a].T[:, :, None] for r in self.rows]
-        self.square = self.m == self.nu
-        self.js_scale = self.row_scale[:, None] * self.col_scale[self.unknown]
 
     def scaled(self, jac):
         """Return the scaled Jacobian of the unknowns ``(n, m, nu)`` (rows and columns)."""
@@ -668,11 +409,11 @@ class Linkage:
                 off = t.s_parent + q[:, d[0], None] * t.axis
             else:
                 # Rot(a, theta) Z = Z + sin K Z + (1 - cos) K^2 Z (K, K^2 Z precomputed)
-                m = (_sin_vers_one(q[:, d[0]]) @ t.rot_basis).reshape(n, 3, 3)
+                m = (sin_vers_one(q[:, d[0]]) @ t.rot_basis).reshape(n, 3, 3)
                 off = t.s_parent + q[:, d[1], None] * t.axis if jtype == 'cylindrical' \
                     else t.s_parent
                 if jtype == 'universal':
-                    m = m @ (_sin_vers_one(q[:, d[1]]) @ t.rot_basis_child).reshape(n, 3, 3)
+                    m = m @ (sin_vers_one(q[:, d[1]]) @ t.rot_basis_child).reshape(n, 3, 3)
             # on the frame: m and off as they are ((3, 3) and (3,) when constant: broadcast)
             rc = m if root else rp @ m
             r_joint = off if root else pp + mv(rp, off)
@@ -705,228 +446,6 @@ class Linkage:
                 cols[:, d[1], :3] = bw
                 cols[:, d[1], 3:] = cross(r_joint, bw)
         return Frames(rot, origin, cols)
-
-    # ------------------------------------------------------------------ closure rows
-
-    def _row_parts(self, fr):
-        """Return per group the world quantities the rows need (cached on ``fr``)."""
-        if fr.parts is None:
-            fr.parts = list(self._row_parts_of(fr))
-        return fr.parts
-
-    def _row_parts_of(self, fr):
-        """Yield per group the world quantities the rows need."""
-        for r in self.rows:
-            rb, ra = fr.rot[:, r.body_b], fr.rot[:, r.body_a]
-            if r.form == 'spin':
-                yield r, rb, ra, mv(rb, r.vec_b), r.vec_a
-                continue
-            vb = mv(rb, r.vec_b)
-            va = mv(ra, r.vec_a)
-            if r.form in ('point', 'line'):
-                vb = vb + fr.origin[:, r.body_b]
-                va = va + fr.origin[:, r.body_a]
-            yield r, rb, ra, vb, va
-
-    def residual(self, fr):
-        """Return the closure residuals ``(n, m)`` (SI: m for point and line rows)."""
-        out = []
-        for r, rb, ra, vb, va in self._row_parts(fr):
-            if r.form == 'point':
-                out.append((vb - va).reshape(vb.shape[0], -1))
-            elif r.form == 'dot':
-                out.append(dot(vb, va))
-            elif r.form == 'line':
-                w = mv(ra, r.extra)
-                out.append(dot(vb - va, w))
-            else:
-                out.append(dot(vb, va))
-        return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
-
-    def gradients(self, fr):
-        """Return ``(G_b, G_a)`` ``(n, m, 6)``: each row's rate per unit twist of b and a."""
-        if fr.grads is None:
-            fr.grads = self._gradients(fr)
-        return fr.grads
-
-    def _gradients(self, fr):
-        gb, ga = [], []
-        for r, rb, ra, vb, va in self._row_parts(fr):
-            n, k = vb.shape[:2]
-            if r.form == 'point':
-                gb.append(_point_gradient(vb).reshape(n, 3 * k, 6))
-                ga.append(np.negative(_point_gradient(va)).reshape(n, 3 * k, 6))
-            elif r.form == 'dot':
-                c = cross(vb, va)
-                z = np.zeros_like(c)
-                gb.append(np.concatenate([c, z], -1))
-                ga.append(np.concatenate([-c, z], -1))
-            elif r.form == 'line':
-                w = mv(ra, r.extra)
-                d = vb - va
-                gb.append(np.concatenate([cross(vb, w), w], -1))
-                ga.append(np.concatenate([-cross(va, w) + cross(w, d), -w], -1))
-            else:
-                c = cross(vb, np.broadcast_to(va, vb.shape))
-                gb.append(np.concatenate([c, np.zeros_like(c)], -1))
-                ga.append(np.zeros((n, k, 6)))
-        if not gb:
-            empty = np.zeros((fr.rot.shape[0], 0, 6))
-            return empty, empty
-        return np.concatenate(gb, axis=1), np.concatenate(ga, axis=1)
-
-    @property
-    def wrench_rows(self):
-        """
-        Return the first row of each row wrench of :meth:`row_wrenches` (built once).
-
-        A coincident-point joint's three rows act as one force at its point (one wrench);
-        every other row is a wrench of its own.
-        """
-        cached = getattr(self, '_wrench_rows', None)
-        if cached is None or cached[0] != self.m:
-            rows, at = [], 0
-            for r in self.rows:
-                step = 3 if r.form == 'point' else 1
-                rows += list(range(at, at + r.size, step))
-                at += r.size
-            cached = (self.m, np.array(rows, dtype=int))
-            self._wrench_rows = cached
-        return cached[1]
-
-    def row_wrenches(self, fr, lam):
-        """
-        Return ``(W_b, W_a)`` ``(6, q, n)``: the closure rows' wrenches on their b and a bodies.
-
-        Component-major (moment about the frame origin, force) for multipliers ``lam``
-        ``(n, m)``: ``lambda_r G(r)`` per row, the three rows of a coincident point merged
-        into the force ``F`` at the point (``(x x F, F)``), in :attr:`wrench_rows` order.
-        """
-        n = lam.shape[0]
-        lam_t = lam.T
-        wb, wa = [], []
-        at = 0
-        for r, rb, ra, vb, va in self._row_parts(fr):
-            k = r.body_b.size
-            xb = vb.transpose(2, 1, 0)                     # (3, k, n)
-            lr = lam_t[at:at + r.size]
-            at += r.size
-            if r.form == 'point':
-                f = lr.reshape(k, 3, n).transpose(1, 0, 2)  # (3, k, n): the force on b
-                wb.append(np.concatenate([cross_c(xb, f), f]))
-                wa.append(-np.concatenate([cross_c(va.transpose(2, 1, 0), f), f]))
-                continue
-            zero = np.zeros((3, k, n))
-            if r.form == 'spin':
-                wb.append(np.concatenate([cross_c(xb, r.vec_a.T[:, :, None]) * lr, zero]))
-                wa.append(np.zeros((6, k, n)))
-                continue
-            xa = va.transpose(2, 1, 0)
-            if r.form == 'dot':
-                c = cross_c(xb, xa) * lr
-                wb.append(np.concatenate([c, zero]))
-                wa.append(np.concatenate([-c, zero]))
-                continue
-            w = mv(ra, r.extra).transpose(2, 1, 0) * lr
-            wb.append(np.concatenate([cross_c(xb, w), w]))
-            wa.append(np.concatenate([cross_c(w, xb - xa) - cross_c(xa, w), -w]))
-        if not wb:
-            return np.zeros((6, 0, n)), np.zeros((6, 0, n))
-        return np.concatenate(wb, axis=1), np.concatenate(wa, axis=1)
-
-    def jacobian(self, fr):
-        """
-        Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate).
-
-        Computed component-major, ``(m, ndof, n)`` (the batch-last stack the LU takes as
-        it is), and returned as a batch-first view of it.  A row's rate per coordinate d is
-        its twist gradient (:meth:`gradients`) applied to d's column on the row's bodies
-        that d moves: for a point x ``omega_d x x + v_d``, for a dot row ``(u_b x w_a) .
-        omega_d``, for a line row ``(x_b x w) . omega_d + w . v_d`` on b and ``(w x d - x_a
-        x w) . omega_d - w . v_d`` on a.
-        """
-        n = fr.rot.shape[0]
-        if not self.m:
-            return np.zeros((n, 0, self.ndof))
-        c = fr.cols_c
-        om, vel = c[:3, None], c[3:, None]           # (3, 1, ndof, n)
-        out = []
-        at = 0
-        for r, rb, ra, vb, va in self._row_parts(fr):
-            size = r.size
-            mb, ma = self._row_masks[at], self._row_masks_a[at]
-            at += 1
-            xb = vb.transpose(2, 1, 0)[:, :, None]     # (3, k, 1, n)
-            if r.form == 'point':
-                jb = cross_c(om, xb)
-                jb += vel
-                ja = cross_c(om, va.transpose(2, 1, 0)[:, :, None])
-                ja += vel
-                j = jb * mb - ja * ma                    # (3, k, ndof, n)
-                out.append(j.transpose(1, 0, 2, 3).reshape(size, self.ndof, n))
-                continue
-            if r.form == 'spin':
-                g = cross_c(xb, r.vec_a.T[:, :, None, None])
-                out.append(_dot_c(g, om) * mb)
-                continue
-            xa = va.transpose(2, 1, 0)[:, :, None]
-            if r.form == 'dot':
-                out.append(_dot_c(cross_c(xb, xa), om) * (mb - ma))
-                continue
-            w = mv(ra, r.extra).transpose(2, 1, 0)[:, :, None]
-            jb = _dot_c(cross_c(xb, w), om) + _dot_c(w, vel)
-            ja = _dot_c(cross_c(w, xb - xa) - cross_c(xa, w), om) - _dot_c(w, vel)
-            out.append(jb * mb + ja * ma)
-        return np.concatenate(out, axis=0).transpose(2, 0, 1)
-
-    def bias(self, fr, twist, acc0):
-        """
-        Return the rows' second time derivatives ``(m, n)`` at body accelerations ``acc0``.
-
-        Component-major throughout (``twist`` and ``acc0`` ``(6, nb, n)``).  Body point
-        acceleration ``a_O + alpha x x + omega x (v_O + omega x x)``; a vector u fixed in a
-        body: ``u' = omega x u``, ``u'' = alpha x u + omega x (omega x u)``.  The b and a
-        ends of a group are evaluated together (one stacked pass).
-        """
-        out = []
-        n = twist.shape[-1]
-        dot_c = _dot_c
-        for r, rb, ra, vb, va in self._row_parts(fr):
-            k = r.body_b.size
-            vb = vb.transpose(2, 1, 0)                    # (3, k, n) views
-            if r.form == 'spin':
-                w, al = twist[:3, r.body_b], acc0[:3, r.body_b]
-                ddu = cross_c(al, vb)
-                ddu += cross_c(w, cross_c(w, vb))
-                out.append(dot_c(ddu, r.vec_a.T[:, :, None]))
-                continue
-            va = va.transpose(2, 1, 0)
-            t, a = twist[:, r.ends], acc0[:, r.ends]       # (6, 2k, n): b ends, then a ends
-            x = np.concatenate([vb, va], axis=1)
-            w = t[:3]
-            if r.form == 'point':
-                acc = a[3:] + cross_c(a[:3], x)
-                acc += cross_c(w, t[3:] + cross_c(w, x))
-                out.append((acc[:, :k] - acc[:, k:]).transpose(1, 0, 2).reshape(3 * k, n))
-            elif r.form == 'dot':
-                du = cross_c(w, x)
-                ddu = cross_c(a[:3], x)
-                ddu += cross_c(w, du)
-                out.append(dot_c(ddu[:, :k], va) + 2.0 * dot_c(du[:, :k], du[:, k:])
-                           + dot_c(vb, ddu[:, k:]))
-            else:
-                wl = mv(ra, r.extra).transpose(2, 1, 0)
-                vel = t[3:] + cross_c(w, x)
-                acc = a[3:] + cross_c(a[:3], x)
-                acc += cross_c(w, vel)
-                wa, ala = w[:, k:], a[:3, k:]
-                dw = cross_c(wa, wl)
-                ddw = cross_c(ala, wl)
-                ddw += cross_c(wa, dw)
-                out.append(dot_c(acc[:, :k] - acc[:, k:], wl)
-                           + 2.0 * dot_c(vel[:, :k] - vel[:, k:], dw)
-                           + dot_c(vb - va, ddw))
-        return np.concatenate(out, axis=0) if out else np.zeros((0, n))
 
     def twists(self, fr, qd):
         """Return the body twists ``(6, nb, n)`` (component-major) of rates ``qd`` (n, ndof)."""
@@ -967,11 +486,11 @@ class Linkage:
 
     def _lu_plan(self, js):
         """
-        Return the :class:`~smallsolve.LUPlan` of the scaled square Jacobian (built once).
+        Return the :class:`~linalg.LUPlan` of the scaled square Jacobian (built once).
 
         The pattern is structural: row r can depend on coordinate d only if d moves one of
         the row's two bodies (``mask_b``, ``mask_a``); the static order is block lower
-        triangular (the loops in dependency order, :func:`smallsolve.block_triangular_order`,
+        triangular (the loops in dependency order, :func:`linalg.block_triangular_order`,
         so that the factors have no fill between loops and the work grows linearly with
         them), pivots inside the blocks from the first Jacobian met (the assembly's).
         """
@@ -979,10 +498,10 @@ class Linkage:
         if plan is None or plan[0] != self.m:
             pattern = ((self.mask_b + self.mask_a) > 0)[:, self.unknown]
             sample = np.where(pattern, js[0], 0.0)
-            order = smallsolve.block_triangular_order(pattern, sample)
+            order = linalg.block_triangular_order(pattern, sample)
             if order is None:
-                order = (smallsolve.pivot_order(sample), None)
-            plan = (self.m, smallsolve.LUPlan(pattern, *order))
+                order = (linalg.pivot_order(sample), None)
+            plan = (self.m, linalg.LUPlan(pattern, *order))
             self._plan = plan
         return plan[1]
 
@@ -992,9 +511,9 @@ class Linkage:
         if self.nu == 0:
             return np.zeros((n, 0, self.m)), np.ones(n), np.zeros(n, dtype=int), np.ones(n)
         if self.square:
-            # static-pivot sparse LU over the batch (planar smallsolve), LAPACK where weak
+            # static-pivot sparse LU over the batch (planar linalg), LAPACK where weak
             batch_last = np.ascontiguousarray(js.transpose(1, 2, 0))  # contiguous: faster
-            inv, cond, sign = smallsolve.inverse(batch_last, self._lu_plan(js), with_sign=True)
+            inv, cond, sign = linalg.inverse(batch_last, self._lu_plan(js), with_sign=True)
             return inv.transpose(2, 0, 1), cond, np.full(n, self.nu, dtype=int), sign
         u, s, vt = np.linalg.svd(js, full_matrices=False)
         keep = s > RANK_RTOL * s[:, :1]
@@ -1059,186 +578,6 @@ class Linkage:
         ok = (res <= tol) & np.isfinite(res)
         return q, sph, fr, res, ok, factor
 
-    @property
-    def dense(self):
-        """Return the branch at nodes every DENSE_STEP_RAD (solved in one batch, cached)."""
-        if getattr(self, '_dense', None) is None:
-            sk = self.skeleton
-            count = max(int(math.ceil(TWO_PI / DENSE_STEP_RAD)), 4)
-            if self.periodic:
-                psi = sk.psi[0] + TWO_PI * np.arange(count + 1) / count
-            else:  # the stroke at the yoke's angles of half a turn, ascending in x
-                psi = np.sort(self.input_coordinate(
-                    math.pi * np.arange(count // 2 + 1) / (count // 2), 0.0, 0.0)[0])
-            k, h = sk.nearest(psi)
-            qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
-            q, sph, fr, res, ok = self.newton(qp, sphp)
-            bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp))
-                         > STEP_TRUST)
-            if bad.any():  # keep the traced nodes only: no dense node off the branch
-                self._dense = sk
-                return sk
-            q[:, 0] = psi
-            qd, qdd, cond, sign = self._derivs(fr, q)
-            if self.square and np.any(sign != self.branch_sign):
-                self._dense = sk
-                return sk
-            self._dense = Skeleton(psi, q, sph, qd, qdd, cond, self.periodic)
-        return self._dense
-
-    # ------------------------------------------------------------------ assembly
-
-    def _initial(self):
-        """Return tree coordinates ``(1, ndof)`` and rotations from the scene's poses."""
-        return assembly.initial(self)
-
-    def _assemble(self):
-        """Assemble the linkage (Levenberg-Marquardt), find idle spins and redundancy."""
-        if not self.m and self.nu:
-            raise SpatialError(
-                f'joints: the linkage is an open chain (no closed loop) with {self.nu} '
-                f'degree(s) of freedom besides the crank joint {self.scene.crank_joint!r}; '
-                'expected a single-input linkage')
-        q, sph = self._initial()
-        lam = 1e-3
-        fr = self.frames(q, sph)
-        g = self.residual(fr) * self.row_scale
-        cost = float(np.sum(g * g))
-        for _ in range(ASSEMBLY_MAX_ITER):
-            if not self.m or np.max(np.abs(g)) <= NEWTON_TOL:
-                break
-            js = self.scaled(self.jacobian(fr))[0]
-            a = js.T @ js
-            rhs = js.T @ g[0]
-            while True:
-                step = -np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-12), rhs)
-                q2, sph2 = self._update(q, sph, (step * self.col_scale[self.unknown])[None])
-                fr2 = self.frames(q2, sph2)
-                g2 = self.residual(fr2) * self.row_scale
-                cost2 = float(np.sum(g2 * g2))
-                if cost2 < cost:
-                    q, sph, fr, g, cost = q2, sph2, fr2, g2, cost2
-                    lam = max(lam / 3.0, 1e-12)
-                    break
-                lam *= 4.0
-                if lam > 1e12:
-                    break
-            if lam > 1e12:
-                break
-        if self.m and np.max(np.abs(g)) > 1e-10:
-            raise SpatialError(
-                f'assembly: the linkage cannot be closed at crank angle '
-                f'{crank_angle_text(self.scene.assembly_crank_angle_rad, 4)} deg from '
-                f'assembly.poses (largest '
-                f'scaled closure residual {np.max(np.abs(g)):.3e} after '
-                f'{ASSEMBLY_MAX_ITER} iterations); expected poses near an assembled position')
-        self._find_idle(q, sph, fr)
-        q, sph, fr, res, ok = self.newton(q, sph)
-        if not ok[0]:
-            raise SpatialError(f'assembly: Newton did not converge (residual {res[0]:.3e})')
-        mismatch = assembly.pose_mismatch(self, fr)
-        if mismatch:
-            raise SpatialError(mismatch)
-        self.q0, self.sph0 = q, sph
-        self.sph_zero = spherical_zeros(self, fr)
-        js = self.scaled(self.jacobian(fr))
-        _, cond, rank, sign = self._solver(js)
-        self.rank = int(rank[0])
-        self.redundant = self.m - self.rank
-        self.branch_sign = float(sign[0])
-        if self.rank < self.nu:
-            raise SpatialError(
-                f'joints: the linkage has {self.nu - self.rank} degree(s) of freedom besides '
-                f'the crank joint {self.scene.crank_joint!r} (Jacobian rank {self.rank} of '
-                f'{self.nu} unknown coordinates) that are not idle spins of S-S links; '
-                'expected a single-input linkage')
-
-    def _find_idle(self, q, sph, fr):
-        """Detect idle spins from the Jacobian's null space; add the spin rows (or refuse)."""
-        if not self.nu:
-            return
-        js = self.scaled(self.jacobian(fr))[0] if self.m else np.zeros((0, self.nu))
-        if js.shape[0]:
-            _, s, vt = np.linalg.svd(js)
-            s_full = np.zeros(self.nu)
-            s_full[:s.size] = s
-            null = vt[s_full <= RANK_RTOL * max(s_full[0], 1.0)] if s.size else vt
-        else:
-            null = np.eye(self.nu)
-        if not null.shape[0]:
-            return
-        # the body twists of each null direction
-        qd = np.zeros((null.shape[0], self.ndof))
-        qd[:, self.unknown] = null * self.col_scale[self.unknown]
-        cols = np.broadcast_to(fr.cols[0], (null.shape[0],) + fr.cols.shape[1:])
-        tw = np.einsum('nds,nd,dk->nks', cols, qd, self.path).reshape(null.shape[0], -1)
-        spins = []
-        sc = self.scene
-        for k in range(1, self.nb):
-            name = self.body_names[k]
-            mine = [j for j in sc.joints if name in (j.link_a, j.link_b)]
-            sph_j = [j for j in mine if j.joint_type == 'spherical']
-            if len(mine) != 2 or len(sph_j) != 2:
-                continue
-            x = [fr.origin[0, k] + fr.rot[0, k] @ self._points[name][
-                j.point_a if j.link_a == name else j.point_b] for j in sph_j]
-            line = x[1] - x[0]
-            if np.linalg.norm(line) < 1e-12 * self.length_scale:
-                continue
-            u = line / np.linalg.norm(line)
-            e = np.zeros((self.nb, 6))
-            e[k, :3], e[k, 3:] = u, cross(x[0], u)
-            e = e.ravel()
-            coef, *_ = np.linalg.lstsq(tw.T, e, rcond=None)
-            if np.linalg.norm(tw.T @ coef - e) > 1e-6 * np.linalg.norm(e):
-                continue
-            spins.append((k, sph_j, x, u))
-        if len(spins) < null.shape[0]:
-            return  # the rank check after assembly names the extra freedoms
-        self.idle_lines = []
-        for k, sph_j, x, u in spins:
-            name = self.body_names[k]
-            rl = fr.rot[0, k]
-            x0 = self._points[name][sph_j[0].point_a if sph_j[0].link_a == name
-                                    else sph_j[0].point_b]
-            self.idle_lines.append((name, sph_j[0].name, sph_j[1].name, rl.T @ u, x0))
-        self.check_idle_inertia(self.scene)
-        for k, sph_j, x, u in spins:
-            name = self.body_names[k]
-            rl = fr.rot[0, k]
-            n_ref = np.eye(3)[int(np.argmin(np.abs(u)))]
-            v = cross(u, n_ref)
-            v /= np.linalg.norm(v)
-            self.rows.append(Rows('spin', np.array([k]), np.array([0]), (rl.T @ v)[None],
-                                  n_ref[None], None, (f'spin:{name}',)))
-            self.idle_spins = getattr(self, 'idle_spins', ()) + (
-                (name, sph_j[0].name, sph_j[1].name),)
-        self._finish_rows()
-
-    def check_idle_inertia(self, scene):
-        """
-        Refuse a design whose S-S link has inertia about its S-S line (the spin convention).
-
-        The inertia about the line through the two spherical joints, ``u.I_c u + m |(c - x0)
-        x u|^2``, must be zero to :data:`IDLE_INERTIA_RTOL`; the message names the link,
-        the two joints and the way out.
-        """
-        for name, j1, j2, ul, x0 in getattr(self, 'idle_lines', ()):
-            lk = scene.link(name)
-            c = np.array(lk.com_m) - x0
-            inertia = np.array(lk.inertia_matrix())
-            about = float(ul @ inertia @ ul + lk.mass_kg * np.sum(cross(c, ul) ** 2))
-            # the magnitudes: a design that is no body (a least-change force balance may
-            # give a negative-definite inertia) must not make the scale vanish or go negative
-            scale = abs(lk.mass_kg) * self.length_scale ** 2 + float(np.abs(inertia).sum())
-            if about > IDLE_INERTIA_RTOL * max(scale, 1e-300):
-                raise SpatialError(
-                    f'links.{name}: held only by the spherical joints {j1} and {j2}, it '
-                    'spins freely about the line through them (an idle freedom of the '
-                    f'Jacobian), and its inertia about that line is {about:.6g} kg m^2; '
-                    'expected 0 (a slender rod on that line, whose spin is then fixed by '
-                    'convention) - or replace one S by a U (universal joint) to hold the spin')
-
     # ------------------------------------------------------------------ refined solves
 
     def solve_u(self, solver, js, rhs):
@@ -1268,7 +607,7 @@ class Linkage:
 
     def rates(self, fr, q, psi_d, psi_dd, need_acc=True, factor=None):
         """
-        Return ``(qd, qdd, twist, accel, jac, solver, cond, rank, sign, js)`` at ``fr``.
+        Return the :class:`Rates` at ``fr``.
 
         ``factor`` ``(solver, cond, rank, sign)`` from a nearby position (the predictor's)
         is refined against this position's Jacobian instead of factorizing it anew;
@@ -1304,106 +643,8 @@ class Linkage:
                 qdd[:, self.unknown] = -self.solve_u(solver, refine, gam * rs) * cu
             acc0 += self.twists(fr, qdd)
             accel = acc0.transpose(2, 1, 0)
-        return qd, qdd, twist_c.transpose(2, 1, 0), accel, jac, solver, cond, rank, sign, \
-            refine
-
-    # ------------------------------------------------------------------ branch
-
-    @property
-    def skeleton(self):
-        """Return the traced branch: nodes over one crank turn (computed on first use)."""
-        if self._skeleton is None:
-            self._skeleton = self._trace()
-        return self._skeleton
-
-    def _step(self, q, sph, qd, qdd, h):
-        """Return the predictor ``h`` rad along the branch from one node (batch of 1+)."""
-        if not np.any(h):  # every angle is a node: the predictor is the node itself
-            return q.copy(), sph.copy()
-        qp = q + qd * h[:, None] + 0.5 * qdd * (h * h)[:, None]
-        qp[:, 0] = q[:, 0] + h
-        if self.sph_index:
-            sph = sph.copy()
-            for i, t in enumerate(self.sph_index):
-                d = list(self.tree[t].dofs)
-                sph[:, i] = expmap(qd[:, d] * h[:, None] + 0.5 * qdd[:, d] * (h * h)[:, None]) \
-                    @ sph[:, i]
-        return qp, sph
-
-    def _derivs(self, fr, q):
-        one = np.ones(q.shape[0])
-        qd, qdd, _, _, _, _, cond, _, sign, _ = self.rates(fr, q, one, 0.0 * one)
-        return qd, qdd, cond, sign
-
-    def _corr(self, q, qp):
-        return np.max(np.abs(q - qp)[:, self.scalar_dofs[1:]]
-                      / self.col_scale[self.scalar_dofs[1:]], axis=1, initial=0.0)
-
-    def _sph_corr(self, sph, sphp):
-        if not self.sph_index:
-            return np.zeros(sph.shape[0])
-        diff = np.matmul(np.swapaxes(sphp, -1, -2), sph) - EYE3
-        return np.max(np.abs(diff), axis=(1, 2, 3))
-
-    def _advance(self, q, sph, qd, qdd, sign, h_goal, strict=True):
-        """Follow the branch from one state by ``h_goal`` (rad, or m for a slide); yield nodes."""
-        done = 0.0
-        h = min(self.step_max, abs(h_goal)) * np.sign(h_goal)
-        while abs(h_goal - done) > STEP_DONE * self.input_scale:
-            if abs(h) > abs(h_goal - done):
-                h = h_goal - done
-            qp, sphp = self._step(q, sph, qd, qdd, np.array([h]))
-            q1, sph1, fr1, res, ok = self.newton(qp, sphp)
-            good = bool(ok[0]) and max(self._corr(q1, qp)[0],
-                                       self._sph_corr(sph1, sphp)[0]) <= STEP_TRUST
-            if good:
-                qd1, qdd1, cond1, sign1 = self._derivs(fr1, q1)
-                good = bool(np.isfinite(cond1[0]) and cond1[0] <= COND_LIMIT
-                            and (not self.square or sign1[0] == sign))
-            if not good:
-                h *= 0.5
-                if abs(h) < self.step_min:
-                    raise SpatialError(
-                        f'{self._where(q[0, 0])}: cannot continue the '
-                        f'assembly branch (Newton residual {res[0]:.2e}); the linkage cannot '
-                        'be assembled beyond this position, or reaches a singular position '
-                        'where its branch is not unique')
-                continue
-            done += h
-            q, sph, qd, qdd = q1, sph1, qd1, qdd1
-            if cond1[0] > COND_WARN:
-                self._warn(f'{self._where(q[0, 0], 3)}: near-singular '
-                           f'position (Jacobian condition number {cond1[0]:.3g} > '
-                           f'{COND_WARN:.4g})')
-            h = min(1.5 * abs(h), self.step_max) * np.sign(h_goal)
-            yield q, sph, qd, qdd, cond1[0]
-
-    def _trace(self):
-        fr = self.frames(self.q0, self.sph0)
-        qd, qdd, cond, sign = self._derivs(fr, self.q0)
-        nodes = [(self.q0, self.sph0, qd, qdd, cond[0])]
-        if not self.periodic:
-            return self._trace_stroke(nodes[0])
-        for node in self._advance(self.q0, self.sph0, qd, qdd, self.branch_sign, TWO_PI):
-            nodes.append(node)
-        start, end = self.frames(self.q0, self.sph0), self.frames(nodes[-1][0], nodes[-1][1])
-        gap = max(np.max(np.abs(start.rot - end.rot)),
-                  np.max(np.abs(start.origin - end.origin)) / self.length_scale)
-        if gap > CLOSURE_TOL:
-            raise SpatialError(
-                'assembly: after one full crank turn the linkage does not return to its '
-                f'start (largest pose mismatch {gap:.3e}); the crank cannot turn fully on '
-                'this branch')
-        return _skeleton_of(nodes, True)
-
-    def _trace_stroke(self, start):
-        """Return the branch of a prismatic input over its stroke, from the assembly out."""
-        ends = sorted(self.input_coordinate(np.array([0.0, math.pi]), 0.0, 0.0)[0])
-        x0 = start[0][0, 0]
-        q, sph, qd, qdd, _ = start
-        below = list(self._advance(q, sph, qd, qdd, self.branch_sign, ends[0] - x0))
-        above = list(self._advance(q, sph, qd, qdd, self.branch_sign, ends[1] - x0))
-        return _skeleton_of(below[::-1] + [start] + above, False)
+        return Rates(qd, qdd, twist_c.transpose(2, 1, 0), accel, jac, solver, cond, rank, sign,
+                     refine)
 
     def _warn(self, text):
         if text not in self.warnings:
@@ -1428,22 +669,21 @@ class Linkage:
         if q is qp:  # the predictor had converged: no correction
             bad = ~ok
         else:
-            bad = ~ok | (np.maximum(self._corr(q, qp), self._sph_corr(sph, sphp)) > EVAL_TRUST)
+            bad = ~ok | (self.change(q, sph, qp, sphp) > EVAL_TRUST)
         if bad.any():
             q, sph = q.copy(), sph.copy()
             cs = self.skeleton
             kc, hc = cs.nearest(x[bad])
             for i, kk, hh in zip(np.flatnonzero(bad), kc, hc):
-                qi, si = cs.q[kk:kk + 1], cs.sph[kk:kk + 1]
-                for qi, si, _, _, _ in self._advance(qi, si, cs.qd[kk:kk + 1],
-                                                     cs.qdd[kk:kk + 1], self.branch_sign,
-                                                     float(hh)):
+                node = self._node(cs.q[kk:kk + 1], cs.sph[kk:kk + 1], cs.qd[kk:kk + 1],
+                                  cs.qdd[kk:kk + 1])
+                for node in self._advance(node, float(hh)):
                     pass
-                q[i], sph[i] = qi[0], si[0]
+                q[i], sph[i] = node.state[0][0], node.state[1][0]
             q, sph, fr, res, ok = self.newton(q, sph)
             factor = None
-        qd, qdd, twist, accel, jac, solver, cond, rank, sign, refine = self.rates(
-            fr, q, x_d, x_dd, need_acc, factor)
+        rates = self.rates(fr, q, x_d, x_dd, need_acc, factor)
+        cond, sign = rates.cond, rates.sign
         if self.square:
             wrong = sign != self.branch_sign
             if wrong.any():
@@ -1456,47 +696,6 @@ class Linkage:
             i = int(np.argmax(cond))
             self._warn(f'crank angle {crank_angle_text(psi[i], 3)} deg: near-singular '
                        f'position (Jacobian condition number {cond[i]:.3g} > {COND_WARN:.4g})')
-        return SpatialState(psi, psi_d, psi_dd, q, sph, fr, res, cond, rank, jac, solver,
-                            refine, qd, qdd, twist, accel)
-
-
-def _skeleton_of(nodes, periodic):
-    """Return the :class:`Skeleton` of traced nodes ``(q, sph, qd, qdd, cond)``."""
-    return Skeleton(np.array([n[0][0, 0] for n in nodes]),
-                    np.concatenate([n[0] for n in nodes]),
-                    np.concatenate([n[1] for n in nodes]),
-                    np.concatenate([n[2] for n in nodes]),
-                    np.concatenate([n[3] for n in nodes]),
-                    np.array([n[4] for n in nodes]), periodic)
-
-
-class Skeleton:
-    """
-    Branch nodes in tree coordinate 0; a second-order predictor from the nearest node.
-
-    ``psi`` are the nodes' input coordinates, ascending: one crank turn (``periodic``: the
-    last node is the first turned once) or a prismatic input's stroke (not periodic: a
-    coordinate beyond an end is predicted from that end).
-    """
-
-    def __init__(self, psi, q, sph, qd, qdd, cond, periodic=True):
-        self.psi, self.q, self.sph, self.qd, self.qdd, self.cond = psi, q, sph, qd, qdd, cond
-        self.offset = psi - psi[0]
-        self.periodic = periodic
-
-    def nearest(self, psi):
-        """Return the nearest node's index and the signed step from it, per coordinate."""
-        if not self.periodic:
-            x = psi - self.psi[0]
-            k = np.searchsorted(self.offset, x, side='right') - 1
-            k = np.clip(k, 0, self.psi.size - 2)
-            k = np.where((self.offset[k + 1] - x) < (x - self.offset[k]), k + 1, k)
-            return k, x - self.offset[k]
-        x = np.mod(psi - self.psi[0], TWO_PI)
-        k = np.searchsorted(self.offset, x, side='right') - 1
-        k = np.clip(k, 0, self.psi.size - 2)
-        right = (self.offset[k + 1] - x) < (x - self.offset[k])
-        k = np.where(right, k + 1, k)
-        h = x - self.offset[k]
-        k = np.where(k == self.psi.size - 1, 0, k)  # the last node is the first turned once
-        return k, h
+        return SpatialState(psi, psi_d, psi_dd, q, sph, fr, res, cond, rates.rank, rates.jac,
+                            rates.solver, rates.refine, rates.qd, rates.qdd, rates.twist,
+                            rates.accel)

@@ -17,7 +17,7 @@ shaking wrench is reduced to the scene's ``moment_point_m``.  ``body_kinematics`
 from mech_balance.core.rig import batch, BodyKinematics, BodyPoses, Drawing, DrawingBody, \
     RigData
 from mech_balance.core.spatial import coordinates, dynamics, kinematics
-from mech_balance.core.spatial.kinematics import cross
+from mech_balance.core.spatial.vectors import cross
 from mech_balance.schema.scene import FRAME, needs
 import numpy as np
 

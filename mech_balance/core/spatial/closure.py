@@ -1,0 +1,343 @@
+"""
+The closure rows of a spatial linkage: residual, gradients, Jacobian, bias and wrenches.
+
+Each cut joint contributes rows g = 0 in groups of one form (the kinematics module
+docstring): ``point`` (three rows: the joint points coincide), ``dot`` (an a-vector normal
+to a b-vector), ``line`` (the b-point on the a-line) and ``spin`` (an idle S-S link's spin
+fixed by convention).  Every row's gradient with respect to a body's twist is analytic, so
+one formula gives Newton's Jacobian, the velocities and the accelerations.
+"""
+
+from dataclasses import dataclass
+import math
+
+from mech_balance.core.spatial.vectors import cross, cross_c, dot, dot_c, mv, perp_pair, \
+    point_gradient, unit
+from mech_balance.rotations import min_rotation, rot_axis
+import numpy as np
+
+
+@dataclass
+class Rows:
+    """The closure rows of one group, as index and local-vector arrays (module docstring)."""
+
+    form: str
+    body_b: np.ndarray
+    body_a: np.ndarray
+    vec_b: np.ndarray     # points: s_b; dots: u_b; lines: s_b; spin: v
+    vec_a: np.ndarray     # points: s_a; dots: w_a; lines: s_a; spin: n (world)
+    extra: np.ndarray     # lines: w_a; others: unused
+    joint: tuple          # the joint name of each row (spin rows: 'spin:<link>')
+
+    @property
+    def size(self):
+        """Return the number of rows."""
+        return self.body_b.size * (3 if self.form == 'point' else 1)
+
+    @property
+    def ends(self):
+        """Return the b bodies then the a bodies (the stacked passes over both ends)."""
+        both = getattr(self, '_ends', None)
+        if both is None:
+            both = self._ends = np.concatenate([self.body_b, self.body_a])
+        return both
+
+
+class ClosureRows:
+    """
+    The closure rows of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin).
+
+    Built from the cut joints (:meth:`_build_rows`), evaluated on :class:`Frames`: the
+    residual, the rows' twist gradients, the Jacobian over the tree coordinates, the bias
+    accelerations and the wrenches of the rows' multipliers.
+    """
+
+    def _build_rows(self, body, cuts):
+        sc = self.scene
+        pts, dots, lines = [], [], []
+        for ji in cuts:
+            jt = sc.joints[ji]
+            a, b = body[jt.link_a], body[jt.link_b]
+            sa = self._points[jt.link_a][jt.point_a]
+            sb = self._points[jt.link_b][jt.point_b]
+            t = jt.joint_type
+            if t in ('revolute', 'universal', 'spherical'):
+                pts.append((b, a, sb, sa, jt.name))
+            if t == 'spherical':
+                continue
+            ax = unit(jt.axis)
+            bx = unit(jt.axis if jt.axis_b is None else jt.axis_b)
+            if t == 'universal':
+                dots.append((b, bx, a, ax, jt.name))
+                continue
+            e1, e2 = perp_pair(ax)
+            dots.append((b, bx, a, e1, jt.name))
+            dots.append((b, bx, a, e2, jt.name))
+            if t in ('cylindrical', 'prismatic'):
+                lines.append((b, a, sb, sa, e1, jt.name))
+                lines.append((b, a, sb, sa, e2, jt.name))
+            if t == 'prismatic':
+                fixed = rot_axis(ax, np.array([math.radians(jt.angle_deg or 0.0)]))[0] @ \
+                    min_rotation(bx, ax)
+                dots.append((b, fixed.T @ e1, a, e2, jt.name))
+        self.rows = []
+        if pts:
+            self.rows.append(Rows('point', np.array([p[0] for p in pts]),
+                                  np.array([p[1] for p in pts]), np.array([p[2] for p in pts]),
+                                  np.array([p[3] for p in pts]), None,
+                                  tuple(p[4] for p in pts for _ in range(3))))
+        if dots:
+            self.rows.append(Rows('dot', np.array([p[0] for p in dots]),
+                                  np.array([p[2] for p in dots]),
+                                  np.array([p[1] for p in dots]),
+                                  np.array([p[3] for p in dots]), None,
+                                  tuple(p[4] for p in dots)))
+        if lines:
+            self.rows.append(Rows('line', np.array([p[0] for p in lines]),
+                                  np.array([p[1] for p in lines]),
+                                  np.array([p[2] for p in lines]),
+                                  np.array([p[3] for p in lines]),
+                                  np.array([p[4] for p in lines]), tuple(p[5] for p in lines)))
+        self._finish_rows()
+
+    def _finish_rows(self):
+        self.m = sum(r.size for r in self.rows)
+        scale = []
+        for r in self.rows:
+            scale += [1.0 / self.length_scale if r.form in ('point', 'line') else 1.0] * r.size
+        self.row_scale = np.array(scale)
+        self.col_scale = np.where(self.dof_slide, self.length_scale, 1.0)
+        self.row_joint = tuple(j for r in self.rows for j in r.joint)
+        bodies_b, bodies_a = [], []
+        for r in self.rows:
+            rep = 3 if r.form == 'point' else 1
+            bodies_b += list(np.repeat(r.body_b, rep))
+            bodies_a += list(np.repeat(r.body_a, rep))
+        self.row_b = np.array(bodies_b, dtype=int)
+        self.row_a = np.array(bodies_a, dtype=int)
+        self.mask_b = self.path[:, self.row_b].T  # (m, ndof)
+        self.mask_a = self.path[:, self.row_a].T
+        # per group, per joint (k, ndof, 1): which coordinates move its b and its a body
+        self._row_masks = [self.path[:, r.body_b].T[:, :, None] for r in self.rows]
+        self._row_masks_a = [self.path[:, r.body_a].T[:, :, None] for r in self.rows]
+        self.square = self.m == self.nu
+        self.js_scale = self.row_scale[:, None] * self.col_scale[self.unknown]
+
+    def _row_parts(self, fr):
+        """Return per group the world quantities the rows need (cached on ``fr``)."""
+        if fr.parts is None:
+            fr.parts = list(self._row_parts_of(fr))
+        return fr.parts
+
+    def _row_parts_of(self, fr):
+        """Yield per group the world quantities the rows need."""
+        for r in self.rows:
+            rb, ra = fr.rot[:, r.body_b], fr.rot[:, r.body_a]
+            if r.form == 'spin':
+                yield r, rb, ra, mv(rb, r.vec_b), r.vec_a
+                continue
+            vb = mv(rb, r.vec_b)
+            va = mv(ra, r.vec_a)
+            if r.form in ('point', 'line'):
+                vb = vb + fr.origin[:, r.body_b]
+                va = va + fr.origin[:, r.body_a]
+            yield r, rb, ra, vb, va
+
+    def residual(self, fr):
+        """Return the closure residuals ``(n, m)`` (SI: m for point and line rows)."""
+        out = []
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            if r.form == 'point':
+                out.append((vb - va).reshape(vb.shape[0], -1))
+            elif r.form == 'dot':
+                out.append(dot(vb, va))
+            elif r.form == 'line':
+                w = mv(ra, r.extra)
+                out.append(dot(vb - va, w))
+            else:
+                out.append(dot(vb, va))
+        return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
+
+    def gradients(self, fr):
+        """Return ``(G_b, G_a)`` ``(n, m, 6)``: each row's rate per unit twist of b and a."""
+        if fr.grads is None:
+            fr.grads = self._gradients(fr)
+        return fr.grads
+
+    def _gradients(self, fr):
+        gb, ga = [], []
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            n, k = vb.shape[:2]
+            if r.form == 'point':
+                gb.append(point_gradient(vb).reshape(n, 3 * k, 6))
+                ga.append(np.negative(point_gradient(va)).reshape(n, 3 * k, 6))
+            elif r.form == 'dot':
+                c = cross(vb, va)
+                z = np.zeros_like(c)
+                gb.append(np.concatenate([c, z], -1))
+                ga.append(np.concatenate([-c, z], -1))
+            elif r.form == 'line':
+                w = mv(ra, r.extra)
+                d = vb - va
+                gb.append(np.concatenate([cross(vb, w), w], -1))
+                ga.append(np.concatenate([-cross(va, w) + cross(w, d), -w], -1))
+            else:
+                c = cross(vb, np.broadcast_to(va, vb.shape))
+                gb.append(np.concatenate([c, np.zeros_like(c)], -1))
+                ga.append(np.zeros((n, k, 6)))
+        if not gb:
+            empty = np.zeros((fr.rot.shape[0], 0, 6))
+            return empty, empty
+        return np.concatenate(gb, axis=1), np.concatenate(ga, axis=1)
+
+    @property
+    def wrench_rows(self):
+        """
+        Return the first row of each row wrench of :meth:`row_wrenches` (built once).
+
+        A coincident-point joint's three rows act as one force at its point (one wrench);
+        every other row is a wrench of its own.
+        """
+        cached = getattr(self, '_wrench_rows', None)
+        if cached is None or cached[0] != self.m:
+            rows, at = [], 0
+            for r in self.rows:
+                step = 3 if r.form == 'point' else 1
+                rows += list(range(at, at + r.size, step))
+                at += r.size
+            cached = (self.m, np.array(rows, dtype=int))
+            self._wrench_rows = cached
+        return cached[1]
+
+    def row_wrenches(self, fr, lam):
+        """
+        Return ``(W_b, W_a)`` ``(6, q, n)``: the closure rows' wrenches on their b and a bodies.
+
+        Component-major (moment about the frame origin, force) for multipliers ``lam``
+        ``(n, m)``: ``lambda_r G(r)`` per row, the three rows of a coincident point merged
+        into the force ``F`` at the point (``(x x F, F)``), in :attr:`wrench_rows` order.
+        """
+        n = lam.shape[0]
+        lam_t = lam.T
+        wb, wa = [], []
+        at = 0
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            k = r.body_b.size
+            xb = vb.transpose(2, 1, 0)                     # (3, k, n)
+            lr = lam_t[at:at + r.size]
+            at += r.size
+            if r.form == 'point':
+                f = lr.reshape(k, 3, n).transpose(1, 0, 2)  # (3, k, n): the force on b
+                wb.append(np.concatenate([cross_c(xb, f), f]))
+                wa.append(-np.concatenate([cross_c(va.transpose(2, 1, 0), f), f]))
+                continue
+            zero = np.zeros((3, k, n))
+            if r.form == 'spin':
+                wb.append(np.concatenate([cross_c(xb, r.vec_a.T[:, :, None]) * lr, zero]))
+                wa.append(np.zeros((6, k, n)))
+                continue
+            xa = va.transpose(2, 1, 0)
+            if r.form == 'dot':
+                c = cross_c(xb, xa) * lr
+                wb.append(np.concatenate([c, zero]))
+                wa.append(np.concatenate([-c, zero]))
+                continue
+            w = mv(ra, r.extra).transpose(2, 1, 0) * lr
+            wb.append(np.concatenate([cross_c(xb, w), w]))
+            wa.append(np.concatenate([cross_c(w, xb - xa) - cross_c(xa, w), -w]))
+        if not wb:
+            return np.zeros((6, 0, n)), np.zeros((6, 0, n))
+        return np.concatenate(wb, axis=1), np.concatenate(wa, axis=1)
+
+    def jacobian(self, fr):
+        """
+        Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate).
+
+        Computed component-major, ``(m, ndof, n)`` (the batch-last stack the LU takes as
+        it is), and returned as a batch-first view of it.  A row's rate per coordinate d is
+        its twist gradient (:meth:`gradients`) applied to d's column on the row's bodies
+        that d moves: for a point x ``omega_d x x + v_d``, for a dot row ``(u_b x w_a) .
+        omega_d``, for a line row ``(x_b x w) . omega_d + w . v_d`` on b and ``(w x d - x_a
+        x w) . omega_d - w . v_d`` on a.
+        """
+        n = fr.rot.shape[0]
+        if not self.m:
+            return np.zeros((n, 0, self.ndof))
+        c = fr.cols_c
+        om, vel = c[:3, None], c[3:, None]           # (3, 1, ndof, n)
+        out = []
+        at = 0
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            size = r.size
+            mb, ma = self._row_masks[at], self._row_masks_a[at]
+            at += 1
+            xb = vb.transpose(2, 1, 0)[:, :, None]     # (3, k, 1, n)
+            if r.form == 'point':
+                jb = cross_c(om, xb)
+                jb += vel
+                ja = cross_c(om, va.transpose(2, 1, 0)[:, :, None])
+                ja += vel
+                j = jb * mb - ja * ma                    # (3, k, ndof, n)
+                out.append(j.transpose(1, 0, 2, 3).reshape(size, self.ndof, n))
+                continue
+            if r.form == 'spin':
+                g = cross_c(xb, r.vec_a.T[:, :, None, None])
+                out.append(dot_c(g, om) * mb)
+                continue
+            xa = va.transpose(2, 1, 0)[:, :, None]
+            if r.form == 'dot':
+                out.append(dot_c(cross_c(xb, xa), om) * (mb - ma))
+                continue
+            w = mv(ra, r.extra).transpose(2, 1, 0)[:, :, None]
+            jb = dot_c(cross_c(xb, w), om) + dot_c(w, vel)
+            ja = dot_c(cross_c(w, xb - xa) - cross_c(xa, w), om) - dot_c(w, vel)
+            out.append(jb * mb + ja * ma)
+        return np.concatenate(out, axis=0).transpose(2, 0, 1)
+
+    def bias(self, fr, twist, acc0):
+        """
+        Return the rows' second time derivatives ``(m, n)`` at body accelerations ``acc0``.
+
+        Component-major throughout (``twist`` and ``acc0`` ``(6, nb, n)``).  Body point
+        acceleration ``a_O + alpha x x + omega x (v_O + omega x x)``; a vector u fixed in a
+        body: ``u' = omega x u``, ``u'' = alpha x u + omega x (omega x u)``.  The b and a
+        ends of a group are evaluated together (one stacked pass).
+        """
+        out = []
+        n = twist.shape[-1]
+        for r, rb, ra, vb, va in self._row_parts(fr):
+            k = r.body_b.size
+            vb = vb.transpose(2, 1, 0)                    # (3, k, n) views
+            if r.form == 'spin':
+                w, al = twist[:3, r.body_b], acc0[:3, r.body_b]
+                ddu = cross_c(al, vb)
+                ddu += cross_c(w, cross_c(w, vb))
+                out.append(dot_c(ddu, r.vec_a.T[:, :, None]))
+                continue
+            va = va.transpose(2, 1, 0)
+            t, a = twist[:, r.ends], acc0[:, r.ends]       # (6, 2k, n): b ends, then a ends
+            x = np.concatenate([vb, va], axis=1)
+            w = t[:3]
+            if r.form == 'point':
+                acc = a[3:] + cross_c(a[:3], x)
+                acc += cross_c(w, t[3:] + cross_c(w, x))
+                out.append((acc[:, :k] - acc[:, k:]).transpose(1, 0, 2).reshape(3 * k, n))
+            elif r.form == 'dot':
+                du = cross_c(w, x)
+                ddu = cross_c(a[:3], x)
+                ddu += cross_c(w, du)
+                out.append(dot_c(ddu[:, :k], va) + 2.0 * dot_c(du[:, :k], du[:, k:])
+                           + dot_c(vb, ddu[:, k:]))
+            else:
+                wl = mv(ra, r.extra).transpose(2, 1, 0)
+                vel = t[3:] + cross_c(w, x)
+                acc = a[3:] + cross_c(a[:3], x)
+                acc += cross_c(w, vel)
+                wa, ala = w[:, k:], a[:3, k:]
+                dw = cross_c(wa, wl)
+                ddw = cross_c(ala, wl)
+                ddw += cross_c(wa, dw)
+                out.append(dot_c(acc[:, :k] - acc[:, k:], wl)
+                           + 2.0 * dot_c(vel[:, :k] - vel[:, k:], dw)
+                           + dot_c(vb - va, ddw))
+        return np.concatenate(out, axis=0) if out else np.zeros((0, n))
