@@ -129,6 +129,7 @@ def test_recording_reports_a_dead_viewer_and_keeps_the_file(tmp_path):
 
 def test_recording_close_is_bounded_when_the_recorder_hangs(tmp_path, monkeypatch):
     monkeypatch.setattr(live, 'CLOSE_TIMEOUT_S', 0.2)
+    monkeypatch.setattr(live, 'FILE_CLOSE_TIMEOUT_S', 0.2)     # a stuck disk, not a load
     monkeypatch.setattr(_Recorder, 'made', [])
     release, first, logs = threading.Event(), threading.Event(), []
     first.set()
