@@ -172,6 +172,23 @@ def test_series_truncate_from_forgets_the_newer_samples():
     assert s.newest_ns == 3
 
 
+def test_series_is_allocated_whole_at_its_first_sample():
+    """Nothing before the first sample, then both arrays whole, never allocated again."""
+    s = sensor.Series(2, 50)
+    assert s._t.size == 0 and len(s) == 0 and s.newest_ns is None
+    s.append_one(1, (0.5, 0.25))
+    arrays = (s._t, s._v)
+    assert s._t.shape == (100,) and s._v.shape == (100, 2) and s.nbytes == 100 * 24
+    for k in range(2, 400):                   # compacted several times over
+        if k % 2:
+            s.append([2 * k, 2 * k + 1], [[k, 0.0], [k, 1.0]])
+        else:
+            s.append_one(2 * k, (k, 0.0))
+    assert s._t is arrays[0] and s._v is arrays[1]
+    assert len(s) == 50 and s.newest_ns == 2 * 399 + 1
+    assert np.all(np.diff(s.stamps_ns) > 0)
+
+
 def test_encoder_track_resynchronizes_after_a_day_ahead_stamp():
     track = sensor.EncoderTrack(0.2, resync_after=5)
     t = 10 ** 9 + np.arange(40) * 4_000_000
