@@ -49,6 +49,10 @@ MAX_POINTS = 64
 MAX_CYCLES = 100
 """Most crank turns of a recording (``record --cycles``; at 360 samples per turn about
 25 MB of .rrd and 0.3 GB of memory while it is encoded)."""
+MAX_RECORD_ROWS = 36_000
+"""Most rows of a recording, samples per turn x turns (``record --samples`` x ``--cycles``;
+360 x :data:`MAX_CYCLES`): logging costs per row, and 100 000 samples of one turn of
+spatial_two_loop against its balanced design ran past 300 s and 3 GB (issue 32)."""
 MAX_WEIGHT = 1e6
 """Largest objective weight (``--weights``, ``--torque-weight``, ``balance.*weight*``)."""
 MAX_NAME_LENGTH = 256

@@ -130,6 +130,7 @@ def test_recording_reports_a_dead_viewer_and_keeps_the_file(tmp_path):
 
 def test_recording_close_is_bounded_when_the_recorder_hangs(tmp_path, monkeypatch):
     monkeypatch.setattr(live, 'CLOSE_TIMEOUT_S', 0.2)
+    monkeypatch.setattr(live, 'FILE_CLOSE_TIMEOUT_S', 0.2)     # a stuck disk, not a load
     monkeypatch.setattr(_Recorder, 'made', [])
     release, first, logs = threading.Event(), threading.Event(), []
     first.set()
@@ -170,6 +171,23 @@ def test_series_truncate_from_forgets_the_newer_samples():
     assert s.stamps_ns.tolist() == [1, 2] and s.values[:, 0].tolist() == [1.0, 2.0]
     s.append([3], [[5.0]])
     assert s.newest_ns == 3
+
+
+def test_series_is_allocated_whole_at_its_first_sample():
+    """Nothing before the first sample, then both arrays whole, never allocated again."""
+    s = sensor.Series(2, 50)
+    assert s._t.size == 0 and len(s) == 0 and s.newest_ns is None
+    s.append_one(1, (0.5, 0.25))
+    arrays = (s._t, s._v)
+    assert s._t.shape == (100,) and s._v.shape == (100, 2) and s.nbytes == 100 * 24
+    for k in range(2, 400):                   # compacted several times over
+        if k % 2:
+            s.append([2 * k, 2 * k + 1], [[k, 0.0], [k, 1.0]])
+        else:
+            s.append_one(2 * k, (k, 0.0))
+    assert s._t is arrays[0] and s._v is arrays[1]
+    assert len(s) == 50 and s.newest_ns == 2 * 399 + 1
+    assert np.all(np.diff(s.stamps_ns) > 0)
 
 
 def test_encoder_track_resynchronizes_after_a_day_ahead_stamp():

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.testing import assert_allclose
 import pytest
 
-SPATIAL = ('rssr_skew', 'rssp_slider', 'spatial_two_loop', 'pssr_skew', 'rggr_spatial')
+SPATIAL = ('rssr_skew', 'rssp_slider', 'spatial_two_loop', 'pssr_skew', 'rggr_spatial', 'rggr')
 SCALES = (1e-12, 1e-9, 1e-6, 1e-3, 1e3)
 """Length factors of the scale-invariance test (the built-ins' own lengths are ~0.1 m)."""
 SCALE_RTOL = 1e-9
@@ -121,6 +121,50 @@ def test_every_figure_scales_with_the_lengths(name):
                     continue
                 err = float(np.max(np.abs(new / s ** power - ref)))
                 assert err <= SCALE_RTOL * scale, (name, s, family, err / scale)
+
+
+UNIT_POWER = {'N': 1, 'N*m': 2, 'm': 1, 'm/s': 1, 'rad': 0, 'rad/s': 0, 'J': 2, 'W': 2}
+"""The power of the length scale each unit of ``analyze``'s rows goes with."""
+
+
+def _analyze_rows(data, tmp_path):
+    """Return ``analyze --json``'s rows of the scene ``data`` (run as the command line)."""
+    import contextlib
+    import io
+    import json
+    import yaml
+    from mech_balance.cli import main as cli
+    path = tmp_path / 'scaled.yaml'
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding='utf-8')
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert cli.main(['analyze', '--json', '--scene', str(path)]) == 0
+    return json.loads(out.getvalue())['rows']
+
+
+@pytest.mark.parametrize('name', SPATIAL)
+def test_every_printed_figure_scales_with_the_lengths(name, tmp_path):
+    """
+    ``mech-balance analyze``'s every RMS and peak, lengths x 1e-12..1e3: x s^p to 1e-9.
+
+    Each figure relative to the largest of its unit (the command line's own path: loader,
+    rig, summary), at the scene's 36 angles.
+    """
+    data = _data(name)
+    data['samples'] = 36
+    base = _analyze_rows(_scaled(data, 1.0), tmp_path)
+    for s in SCALES:
+        rows = _analyze_rows(_scaled(data, s), tmp_path)
+        assert [r['quantity'] for r in rows] == [r['quantity'] for r in base]
+        for unit in {r['unit'] for r in base}:
+            power = UNIT_POWER[unit]
+            pairs = [(r, q) for r, q in zip(base, rows) if r['unit'] == unit]
+            scale = max(max(r['rms'], r['max_abs']) for r, _ in pairs)
+            for r, q in pairs:
+                for key in ('rms', 'max_abs'):
+                    err = abs(q[key] / s ** power - r[key])
+                    assert err <= SCALE_RTOL * scale, (name, s, r['quantity'], key,
+                                                       err / scale)
 
 
 # ----------------------------------------------------------------------------- round-off design

@@ -26,6 +26,7 @@ SECTIONS = ('mech_balance.bench.balancing:bench_section',
             'mech_balance.bench.node:live_view_section',
             'mech_balance.bench.node:faults_section',
             'mech_balance.bench.identify_stamps:identify_stamps_section',
+            'mech_balance.bench.follow_memory:follow_memory_section',
             'mech_balance.bench.cell:bench_section',
             'mech_balance.bench.identify:bench_section',
             'mech_balance.bench.spatial:bench_section')

@@ -46,7 +46,7 @@ def identify_buffer_bytes():
     comparison = sensor.Comparison(sensor.SensorPose(), (0.0, 0.0, 0.0), 0.1)
     series = [comparison.track.series, comparison.pending, comparison.measured,
               comparison.paired]
-    return sum(s._t.nbytes + s._v.nbytes for s in series)
+    return sum(s.nbytes for s in series)
 
 
 def rig_stream(scene, seconds, rate_hz=ID_RATE_HZ, seed=20, counts=4096, noise_rel=0.01,

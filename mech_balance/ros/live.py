@@ -33,7 +33,11 @@ PROBE_TIMEOUT_S = 1.0
 RETRY_S = 5.0
 """A viewer found dead is tried again after this long."""
 CLOSE_TIMEOUT_S = 5.0
-"""Longest wait for a recording to flush and close."""
+"""Longest wait for a viewer's stream to close (rerun itself waits 5 s for a dead one)."""
+FILE_CLOSE_TIMEOUT_S = 120.0
+"""Longest wait for the file to be written whole and closed: a disk that has not taken a
+recording in this long is stuck (the file is then left ``.partial``).  Load only slows a
+flush down; the wait is for the flush to end, never a guess at how long it takes."""
 IDLE_WAIT_S = 0.05
 """Longest sleep of the recording thread between two looks at its queue."""
 OFF, CONNECTING, CONNECTED, DEAD = 'off', 'connecting', 'connected', 'dead'
@@ -111,11 +115,13 @@ class Recording:
         with self._cond:
             same = self._wanted is not None and self._wanted[3] is scene and \
                 self._wanted[4] is balanced
+            same_file = same and self._wanted[1] == (path or None)
             self._generation += 1
             self._wanted = (self._generation, path or None, url or None, scene, balanced)
             if not same:
                 self._queue.clear()
-            self.queued = sum(len(batch[0]) for batch in self._queue)
+            if not same_file:   # the same file goes on (only the viewer changed): its count too
+                self.queued = sum(len(batch[0]) for batch in self._queue)
             self._cond.notify_all()
 
     @property
@@ -200,12 +206,15 @@ class Recording:
                                   hardware_id, [('url', str(url)), ('status', status),
                                                 ('batches dropped', str(self.dropped))])
 
-    def close(self, timeout_s=2.0 * CLOSE_TIMEOUT_S):
+    def close(self, timeout_s=None):
         """
-        Close the recording and stop the thread, waiting at most about ``timeout_s``.
+        Close the recording and stop the thread; wait for it (at most ``timeout_s`` if given).
 
-        The thread first logs what is queued, then closes the file (itself bounded by
-        :data:`CLOSE_TIMEOUT_S`): the default waits for both.
+        The thread first logs every batch queued (at most :data:`QUEUE_BATCHES`), then
+        closes the file (written whole: :data:`FILE_CLOSE_TIMEOUT_S` is only for a stuck
+        disk) and the viewer (at most :data:`CLOSE_TIMEOUT_S`).  The default waits for all
+        of it, so the last batch is in the file and the counts are final when this returns,
+        however loaded the machine.
         """
         with self._cond:
             self._stopped = True
@@ -262,9 +271,18 @@ class Recording:
                 return
 
     def _reopen(self, path, url, scene, balanced):
-        self._close_all()
-        targets = []
-        if path:
+        # a file of the same scene and design goes on as it is (only the viewer changed):
+        # closed and opened again, it would be replaced by one without its first samples
+        kept = [t for t in self._targets if not t.is_viewer and t.where == path and
+                t.recorder is not None and self._context[0] is scene and
+                self._context[1] is balanced]
+        for t in self._targets:
+            if t not in kept:
+                self._close_one(t)
+        if not kept:
+            self.logged = 0
+        targets = list(kept)
+        if path and not kept:
             targets.append(_Target(False, path))
         if url:
             targets.append(_Target(True, url))
@@ -272,9 +290,10 @@ class Recording:
             self._targets = targets
             self._context = (scene, balanced)
         for t in targets:
-            self._connect(t)
+            if t not in kept:
+                self._connect(t)
         said = [f'{"streaming the views to" if t.is_viewer else "recording to"} {t.where}'
-                for t in targets if t.recorder is not None]
+                for t in targets if t.recorder is not None and t not in kept]
         if said:
             self._say('info', ' and '.join(said))
 
@@ -319,13 +338,15 @@ class Recording:
 
     def _log_batch(self, batch):
         t_s, turned, data = batch
+        counted = self._targets[0] if self._targets else None   # the file if any, else the view
         for t in self._targets:
             if t.recorder is None:
                 continue
             try:
                 log = getattr(t.recorder, 'log_sample', None) or t.recorder.push
-                log(t_s, turned, data=data)
-                self.logged += len(t_s)
+                taken = log(t_s, turned, data=data)
+                if t is counted:    # what the recorder says it took (a count), else the batch
+                    self.logged += taken if isinstance(taken, int) else len(t_s)
             except Exception as exc:  # noqa: BLE001 - a full disk must not stop the rig
                 if not t.is_viewer:
                     self._say('warning', f'recording_path: stopped recording: {exc}')
@@ -354,9 +375,10 @@ class Recording:
                 done.set()
         worker = threading.Thread(target=close, name='rig-recording-close', daemon=True)
         worker.start()
-        if not done.wait(CLOSE_TIMEOUT_S):
+        limit = CLOSE_TIMEOUT_S if target.is_viewer else FILE_CLOSE_TIMEOUT_S
+        if not done.wait(limit):
             self._say('warning', f'recording: {target.where} did not close within '
-                      f'{CLOSE_TIMEOUT_S:g} s; left behind')
+                      f'{limit:g} s; left behind')
 
     def _close_all(self):
         for t in self._targets:

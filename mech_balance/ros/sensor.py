@@ -271,14 +271,29 @@ class Series:
     Samples in stamp order, at most ``capacity`` (the oldest dropped), appended in batches.
 
     Kept in one array of twice the capacity, compacted when full (amortized O(1)):
-    :attr:`stamps_ns` and :attr:`values` are views of the newest samples, oldest first.
+    :attr:`stamps_ns` and :attr:`values` are views of the newest samples, oldest first.  The
+    arrays are allocated whole, every page written, at the first sample (:meth:`_allocate`):
+    numpy's zeros are mapped lazily, page by page as samples arrive, so the node's memory
+    grew for minutes of follow mode (issue 32 item 3; 2 x 120000 encoder samples are 5.8 MB)
+    and is flat after the first sample now.  A series never fed costs nothing.
     """
 
     def __init__(self, columns, capacity):
         self.capacity = int(capacity)
-        self._t = np.zeros(2 * self.capacity, dtype=np.int64)
-        self._v = np.zeros((2 * self.capacity, columns))
+        self.columns = int(columns)
+        self._t = np.zeros(0, dtype=np.int64)
+        self._v = np.zeros((0, self.columns))
         self._lo = self._hi = 0
+
+    @property
+    def nbytes(self):
+        """Return the bytes the series holds once fed (twice the capacity, stamps and values)."""
+        return 2 * self.capacity * (8 + 8 * self.columns)
+
+    def _allocate(self):
+        """Allocate both arrays whole and write every page (``np.full``, not lazy zeros)."""
+        self._t = np.full(2 * self.capacity, 0, dtype=np.int64)
+        self._v = np.full((2 * self.capacity, self.columns), 0.0)
 
     def __len__(self):
         """Return the number of samples kept."""
@@ -294,6 +309,8 @@ class Series:
         if t.size == 0:
             return
         v = np.asarray(values, dtype=float).reshape(t.size, -1)
+        if not self._t.size:
+            self._allocate()
         if t.size > self.capacity:
             t, v = t[-self.capacity:], v[-self.capacity:]
         if self._hi + t.size > self._t.size:
@@ -308,6 +325,8 @@ class Series:
 
     def append_one(self, stamp_ns, row):
         """Append one sample (after the newest kept): :meth:`append` without the batch."""
+        if not self._t.size:
+            self._allocate()
         if self._hi == self._t.size:
             keep = min(len(self), self.capacity - 1)
             self._t[:keep] = self._t[self._hi - keep:self._hi]

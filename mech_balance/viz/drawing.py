@@ -62,6 +62,11 @@ def check_samples(samples, cycles, links=1):
     if cycles > conventions.MAX_CYCLES:
         raise ValueError(f'cycles: got {cycles}, expected at most {conventions.MAX_CYCLES} '
                          'crank turns (a fixed limit of mech_balance)')
+    if int(samples) * int(cycles) > conventions.MAX_RECORD_ROWS:
+        raise ValueError(f'samples: got {int(samples)} per turn x {int(cycles)} turns = '
+                         f'{int(samples) * int(cycles)} rows, expected at most '
+                         f'{conventions.MAX_RECORD_ROWS} (a fixed limit of mech_balance); '
+                         'use fewer samples or turns')
 
 
 DEGREE_TIMELINE = 'crank_angle_deg'

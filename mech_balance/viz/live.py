@@ -17,7 +17,7 @@ import rerun as rr
 
 
 CLOSE_TIMEOUT_S = 5.0
-"""How long :meth:`LiveRecorder.close` waits for a logging call on another thread."""
+"""How long :meth:`LiveRecorder.close` gives the viewer (the file is waited for, not timed)."""
 LIVE_MAX_RATE_HZ = 30.0
 """The live view logs at most this many samples per second of the rig's clock."""
 LIVE_FLUSH_HZ = 5.0
@@ -204,9 +204,12 @@ class LiveRecorder:
     from one reference turn (``scene.samples`` angles).  The viewer part never blocks the
     caller: the constructor returns at once and connects on the view's thread,
     :attr:`status` says whether the viewer answers, :meth:`log_sample` only queues for it.
-    :meth:`log_sample` appends samples (the file gets every one); :meth:`close` (also run at
-    interpreter exit) flushes and closes within ``timeout_s``, is idempotent and safe to call
-    from a signal handler or another thread.  Until
+    :meth:`log_sample` appends samples (the file gets every one: a call waits for a
+    :meth:`close` on another thread to finish, and after it takes nothing, returning 0);
+    :meth:`close` (also run at interpreter exit) gives the viewer at most ``timeout_s``, waits
+    for the file to be written whole (a flush without a timeout: what was logged before it
+    is in the file, whatever the load), is idempotent and safe to call from a signal
+    handler or another thread.  Until
     then the file's samples go to ``.NAME.partial-XXXXXXXX`` next to ``path``
     (:mod:`mech_balance.atomic`); :meth:`close` renames it over ``path``, so an existing
     recording is replaced only by a complete one.
@@ -225,6 +228,7 @@ class LiveRecorder:
             self._layout, _ = plan(scene, balanced, samples, balanced_source, live=True)
         self._lock = threading.Lock()
         self._owner = None
+        self._logging = threading.local()   # set before the lock is taken: see close()
         self._closed = False
         self._close_requested = False
         self.samples_logged = 0
@@ -302,19 +306,21 @@ class LiveRecorder:
             return psi.size
         motion = live_motion(self.layout, psi, data)
         degrees = np.round(np.degrees(psi)).astype(np.int64)
-        if not self._lock.acquire(timeout=CLOSE_TIMEOUT_S):
-            return 0
-        self._owner = threading.get_ident()
+        self._logging.active = True
         try:
-            if self._closed:
-                return 0
-            if self._t0 is None:
-                self._t0 = float(t[0])
-            log_motion(self._rec, self.layout, motion, degrees, t - self._t0)
-            self.samples_logged += psi.size
+            with self._lock:        # held by a close at most: the file's flush, then closed
+                self._owner = threading.get_ident()
+                try:
+                    if self._closed:
+                        return 0
+                    if self._t0 is None:
+                        self._t0 = float(t[0])
+                    log_motion(self._rec, self.layout, motion, degrees, t - self._t0)
+                    self.samples_logged += psi.size
+                finally:
+                    self._owner = None
         finally:
-            self._owner = None
-            self._lock.release()
+            self._logging.active = False
         if self._close_requested:
             self.close()
         return psi.size
@@ -323,18 +329,21 @@ class LiveRecorder:
         """
         Flush and close the file and the viewer stream (idempotent; signal-safe).
 
-        Returns within about ``timeout_s`` seconds whatever the viewer does: the view's
-        thread is given what is left of it to send its last samples and disconnects on its
-        own (rerun waits up to 5 s for a viewer that is not there).
+        The viewer gets at most ``timeout_s`` seconds whatever it does: the view's thread is
+        given that to send its last samples and disconnects on its own (rerun waits up to
+        5 s for a viewer that is not there).  The file is not timed: a log call on another
+        thread is waited for, then the file is flushed to the disk whole and renamed over
+        the target, so every sample logged before is in it, however loaded the machine (a
+        timed flush under load once left the last batch out).  Called on a thread inside
+        :meth:`log_sample` (a signal handler), it only asks: that call closes when done.
         """
         if self._closed:
             return
         deadline = time.monotonic() + max(0.0, float(timeout_s))
         self._close_requested = True
-        if self._owner == threading.get_ident():
+        if self._owner == threading.get_ident() or getattr(self._logging, 'active', False):
             return  # interrupted a log call on this thread: it closes the file when done
-        if not self._lock.acquire(timeout=max(0.0, float(timeout_s))):
-            return
+        self._lock.acquire()        # a log call on another thread: waited for, then closed
         try:
             if not self._closed:
                 self._closed = True
@@ -347,7 +356,7 @@ class LiveRecorder:
                     atexit.unregister(self.close)
                     if self._rec is not None:
                         try:
-                            self._rec.flush(timeout_sec=max(0.1, deadline - time.monotonic()))
+                            self._rec.flush()       # blocks until the file has every row
                         finally:
                             self._rec.disconnect()
                         # complete: replace the target (a failed flush leaves the .partial)

@@ -1,0 +1,129 @@
+"""
+The ``follow_memory`` section of ``mech-balance bench``: the node's memory over a long follow run.
+
+A rig node in follow mode in its own process (:class:`mech_balance.bench.node.NodeProbe`)
+is fed a 1 kHz crank encoder and a 1 kHz measured wrench (the sensor path's identification
+buffers: the encoder track, the pending, measured and paired series of
+:class:`mech_balance.ros.sensor.Comparison`) in real time for :data:`SECONDS`, and its
+resident memory (``VmRSS`` of /proc/PID/status) is sampled every :data:`SAMPLE_EVERY_S`.
+The buffers are allocated whole at their first sample (issue 32 item 3), so the RSS after
+the first seconds stays flat while they fill (2 min of samples at 1 kHz each); before, it
+grew page by page as numpy's lazily mapped zeros were written (6 MB in 300 s, encoder alone).
+"""
+
+import math
+import os
+import time
+
+SECONDS = 90.0
+"""Length of the run, s of wall time (the identify buffers hold 120 s at 1 kHz)."""
+RATE_HZ = 1000.0
+"""Encoder and measured-wrench rate."""
+SAMPLE_EVERY_S = 5.0
+"""RSS sampling period."""
+SETTLED_S = 5.0
+"""The growth is judged from this long after the stream starts (every buffer fed by then)."""
+CHUNK_S = 0.01
+"""Messages are published in chunks of this much of the rig's clock, paced by wall time."""
+SPEED_RAD_S = 2.0 * math.pi
+"""The fed crank's speed (one turn a second)."""
+
+
+def rss_bytes(pid):
+    """Return the resident set size (``VmRSS``) of process ``pid`` in bytes."""
+    with open(f'/proc/{pid}/status') as f:
+        for line in f:
+            if line.startswith('VmRSS:'):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError(f'/proc/{pid}/status has no VmRSS')
+
+
+def follow_rss(scene_name='hoeken', seconds=SECONDS, rate_hz=RATE_HZ, progress=print):
+    """
+    Return ``(samples, counts)``: ``[(s since the stream began, RSS bytes)]`` and the stats.
+
+    ``counts`` is the node's ``follow`` statistics of its shutdown line (received, not
+    answered) or ``{}``.  Returns ``(None, why)`` when the node did not start.
+    """
+    from geometry_msgs.msg import WrenchStamped
+    from mech_balance.bench.node import node_stats, NodeProbe, START_TIMEOUT_S
+    from mech_balance.ros import conversions as conv
+    from rclpy.qos import QoSProfile
+    from sensor_msgs.msg import JointState
+
+    probe = NodeProbe(scene_name, 100.0, f'/followmem{os.getpid()}', ('mode:=follow',),
+                      label='followmem')
+    log = ''
+    try:
+        qos = QoSProfile(depth=1000)
+        enc = probe.node.create_publisher(JointState, f'{probe.ns}/crank_joint_state', qos)
+        wr = probe.node.create_publisher(WrenchStamped, f'{probe.ns}/measured_wrench', qos)
+        probe.spin_for(START_TIMEOUT_S, lambda: probe.proc.poll() is not None or (
+            enc.get_subscription_count() >= 1 and wr.get_subscription_count() >= 1))
+        if probe.proc.poll() is not None or not enc.get_subscription_count():
+            return None, 'the node did not start or its endpoints did not match'
+        pid = probe.proc.pid
+        samples = [(0.0, rss_bytes(pid))]
+        period_ns = int(round(1e9 / rate_hz))
+        per_chunk = max(1, int(round(CHUNK_S * rate_hz)))
+        t0_ns = probe.node.get_clock().now().nanoseconds
+        start = time.monotonic()
+        k = 0
+        next_sample = SAMPLE_EVERY_S
+        progress(f'    streaming {seconds:g} s of encoder and wrench at {rate_hz:g} Hz ...')
+        while True:
+            elapsed = time.monotonic() - start
+            if elapsed >= seconds:
+                break
+            due = int(elapsed * rate_hz) + per_chunk
+            while k < due:
+                stamp = conv.stamp_from_ns(t0_ns + k * period_ns)
+                angle = math.fmod(SPEED_RAD_S * k / rate_hz, 2.0 * math.pi)
+                e = JointState(name=['O1'], position=[angle])
+                e.header.stamp = stamp
+                enc.publish(e)
+                w = WrenchStamped()
+                w.header.stamp, w.header.frame_id = stamp, 'sensor'
+                w.wrench.force.x = math.cos(angle)
+                w.wrench.force.y = math.sin(angle)
+                wr.publish(w)
+                k += 1
+            if elapsed >= next_sample:
+                samples.append((elapsed, rss_bytes(pid)))
+                next_sample += SAMPLE_EVERY_S
+            probe.spin_for(CHUNK_S)
+        samples.append((time.monotonic() - start, rss_bytes(pid)))
+    finally:
+        log = probe.close(timeout=60)
+    return samples, node_stats(log).get('follow', {})
+
+
+def follow_memory_section(args, progress):
+    """Return the ``follow_memory`` table (a ``mech-balance bench`` section)."""
+    name = (getattr(args, 'scene', None) or ['hoeken'])[0]
+    head = (f'rig node memory in follow mode: {name}, encoder and measured wrench at '
+            f'{RATE_HZ:g} Hz for {SECONDS:g} s (RSS, /proc/PID/status VmRSS), the identify '
+            'buffers allocated at their first sample (issue 32 item 3)')
+    progress('  rig node memory in follow mode ...')
+    samples, counts = follow_rss(name, seconds=SECONDS, progress=progress)
+    if samples is None:
+        return '\n'.join([head, f'not measured: {counts}'])
+    lines = [head, f'{"t (s)":>8}{"RSS (MB)":>12}']
+    lines += [f'{t:>8.1f}{rss / 2 ** 20:>12.2f}' for t, rss in samples]
+    settled = [rss for t, rss in samples if t >= SETTLED_S]
+    if len(settled) >= 2:
+        lines.append(f'growth from {SETTLED_S:g} s to the end: '
+                     f'{(settled[-1] - settled[0]) / 2 ** 20:+.2f} MB (largest step '
+                     f'{max(b - a for a, b in zip(settled, settled[1:])) / 2 ** 20:+.2f} MB, '
+                     f'range {(max(settled) - min(settled)) / 2 ** 20:.2f} MB); from the '
+                     f'start: {(samples[-1][1] - samples[0][1]) / 2 ** 20:+.2f} MB')
+    if counts:
+        lines.append(f'encoder samples received {counts.get("received")}, not answered '
+                     f'{counts.get("unanswered")}')
+    return '\n'.join(lines)
+
+
+if __name__ == '__main__':
+    import sys
+    SECONDS = float(sys.argv[1]) if len(sys.argv) > 1 else SECONDS
+    print(follow_memory_section(None, print))
