@@ -5,7 +5,7 @@ Each case mutates one built-in scene (``config/``) at the level of its data (del
 wrong types, extreme and non-finite numbers, broken references and topology, plausible
 perturbations that reach the core) or of its text (duplicated keys, deep nesting, aliases and
 "billion laughs", bad encodings, truncation), writes it to a file and runs it through
-:func:`mech_balance.scene.load` and one cycle: ``analysis.run_cycle(analysis.Rig(scene))``
+:func:`mech_balance.schema.load` and one cycle: ``analysis.run_cycle(analysis.Rig(scene))``
 for planar scenes, the kind's ``analyze`` for spatial ones (as ``mech-balance analyze``
 does), both at a few samples.  A former ``kind: rggr`` file (test_rggr.LEGACY, translated
 on load to its spatial scene) is fuzzed as a scene of its own.  Every outcome must be a

@@ -625,7 +625,7 @@ def test_cli_record_balance_runs_the_optimizer(tmp_path, capsys):
     out = tmp_path / 'bal.rrd'
     assert cli.main(['record', '--scene', 'hoeken', '--balance', '--samples', '90',
                      '--out', str(out)]) == 0
-    assert 'mech_balance.balancing.optimize' in capsys.readouterr().out
+    assert 'mech_balance.balancing.redistribution.optimize' in capsys.readouterr().out
     ent = recording.read_recording(out)
     assert rms(_series(ent, '/plots/shaking_moment/balanced')) < \
         rms(_series(ent, '/plots/shaking_moment/original'))

@@ -171,3 +171,16 @@ def test_the_public_face_resolves_every_name():
         assert getattr(mech_balance, name) is not None, name
     with pytest.raises(AttributeError, match='no attribute'):
         mech_balance.no_such_name  # noqa: B018 - the lookup itself is the test
+
+
+def test_a_scene_differing_only_in_crank_speed_gets_its_own_linkage():
+    # the compiled linkage is cached by geometry; the solve's default speed and acceleration
+    # are the scene's, so they belong to the key (else balancing a scene whose speed changed,
+    # e.g. the node's crank_speed, used the first scene's speed through the linear maps)
+    import dataclasses
+    from mech_balance import balance
+    slow = schema.load('hoeken')
+    fast = dataclasses.replace(slow, crank_speed_rad_s=3.0 * slow.crank_speed_rad_s)
+    z_slow = balance(rig_for(slow), 'redistribution').report['objective']['z_original']
+    z_fast = balance(rig_for(fast), 'redistribution').report['objective']['z_original']
+    assert z_fast == pytest.approx(9.0 * z_slow, rel=1e-9)   # the wrench goes with speed^2

@@ -47,7 +47,7 @@ class CounterweightDesign:
     mount: str = ''             # the link's point whose shaft carries it ('' nearest)
 
     def counterweight(self):
-        """Return the scene's :class:`~mech_balance.scene.Counterweight` of this disc."""
+        """Return the scene's :class:`~mech_balance.schema.scene.Counterweight` of this disc."""
         return Counterweight(self.mass_kg, tuple(self.centre_m), self.radius_m,
                              self.thickness_m, self.density_kg_m3, self.plane_m, self.mount)
 

@@ -22,10 +22,10 @@ auxiliary s it is two rotated second-order cones, ``|dh|^2 <= dm (dI - s)`` and
 ``dm^2 <= c s`` (c = 2 pi rho t_max), plus the cone ``|dh| <= r_max dm``.  The link
 parameters theta = (m, m c, I_O) become theta_0 + (dm, dh, dI), and every RMS quantity of
 the objective is the norm of an affine map of them (seed 001 eqs. 25-26, 39;
-:func:`mech_balance.balancing.linear_maps`), so the whole problem is a second-order cone
+:func:`mech_balance.analysis.linear_maps.linear_maps`), so the whole problem is a second-order cone
 program, solved by Clarabel with its duality gap as the certificate.
 
-Objective and ties as :func:`mech_balance.balancing.optimize`: ``z = w1 f~ + w2 n~
+Objective and ties as :func:`mech_balance.balancing.redistribution.optimize`: ``z = w1 f~ + w2 n~
 [+ torque_weight tau~ + reaction_weight sum f~_j]``.  With exactly one of w1, w2 non-zero the
 optimum is generally not unique: stage 2 minimizes the other RMS among the optimal designs
 (with complete force balance imposed exactly when w2 = 0 and it is attainable), and stage 3
@@ -346,7 +346,7 @@ def cost_of_balancing(original, balanced, table):
     """
     Return what a balance did to the shaking moment, torque, bearing loads and total mass.
 
-    From the before/after rows of :func:`mech_balance.tables.before_after` (SI RMS
+    From the before/after rows of :func:`mech_balance.balancing.tables.before_after` (SI RMS
     values): ``{quantity: {before, after, change_percent}}`` for the shaking force, shaking
     moment, driving torque, the sum of the RMS bearing forces and the total moving mass
     (kg).  ``change_percent`` is None when the before value is zero.

@@ -3,7 +3,7 @@ The ``mech-balance record`` verb: a rerun recording of a rig, original against b
 
 The verb is thin: it loads the scenes, finds the balanced design (a scene file, or the
 balancing of :mod:`mech_balance.balancing`) and hands both to
-:func:`mech_balance.recording.record`.  Its bench section times that call.
+:func:`mech_balance.viz.recording.record`.  Its bench section times that call.
 """
 
 import argparse
@@ -54,8 +54,8 @@ def register(subparsers):
                             '(e.g. written by `mech-balance balance --output`)')
     which.add_argument('--balance', action='store_true',
                        help='balance the scene first: Chaudhary & Saha optimization for '
-                            'planar scenes (mech_balance.balancing.optimize), Hedaya force '
-                            'balance and minimum RMS shaking moment for a scene with '
+                            'planar scenes (mech_balance.balancing.redistribution), Hedaya '
+                            'force balance and minimum RMS shaking moment for a scene with '
                             'balancing_weights, the certified spatial redistribution for the '
                             'other spatial scenes (mech_balance.balancing.spatial)')
     which.add_argument('--counterweights', default=None, metavar='LINK[,LINK...]',
@@ -83,7 +83,7 @@ def balanced_design(sc, weights=defaults.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     """
     Return ``(balanced_scene, description)`` for ``--balance``.
 
-    Planar scenes use :func:`mech_balance.balancing.optimize` with ``weights`` and ``case``;
+    Planar scenes use :func:`mech_balance.balancing.redistribution.optimize` with ``weights`` and ``case``;
     a scene that lists ``balancing_weights`` (the RGGR) the method ``weights`` of seed 002
     (:mod:`mech_balance.balancing.weights`: force balance, then minimum RMS moment), which
     takes neither.
@@ -102,7 +102,7 @@ def balanced_design(sc, weights=defaults.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
                 f'{weights[1]:g}) (mech_balance.balancing.spatial)')
     return (design.scene,
             f'Chaudhary & Saha optimum, (w1, w2) = ({weights[0]:g}, {weights[1]:g}), case {case} '
-            '(mech_balance.balancing.optimize)')
+            '(mech_balance.balancing.redistribution.optimize)')
 
 
 def cmd_record(args):
