@@ -21,7 +21,7 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.core.planar import kinematics
 from mech_balance.core.rig import rig_for
 from mech_balance.ros import guard as guards
-from mech_balance.ros import params, streaming as twin
+from mech_balance.ros import params, streamer as streamer_mod, streaming as twin
 import numpy as np
 import pytest
 from rcl_interfaces.msg import ParameterType
@@ -138,7 +138,7 @@ def test_class4_streamer_withholds_a_non_finite_sample():
         if len(sent) >= 7:
             done.set()
 
-    streamer = twin.Streamer(lambda: 5_000_000_000, lambda s, t: [
+    streamer = streamer_mod.Streamer(lambda: 5_000_000_000, lambda s, t: [
         (int(ti), s.force_N[i].copy()) for i, ti in enumerate(t)], publish, warned.append)
     try:
         for k in range(4):
@@ -159,8 +159,8 @@ def test_streamer_treats_a_clock_jump_as_a_jump_not_as_skipped_ticks():
     model = twin.model_for(scene_mod.load('hoeken'))
     clock = {'now': 10_000_000_000}
     sent, warned = [], []
-    streamer = twin.Streamer(lambda: clock['now'], lambda s, t: list(t), sent.append,
-                             warned.append)
+    streamer = streamer_mod.Streamer(lambda: clock['now'], lambda s, t: list(t), sent.append,
+                                     warned.append)
     try:
         streamer.clock(model, 1.0, PERIOD_NS)
         while len(sent) < 3:

@@ -83,7 +83,8 @@ def balanced_design(sc, weights=defaults.DEFAULT_WEIGHTS, case=DEFAULT_CASE):
     """
     Return ``(balanced_scene, description)`` for ``--balance``.
 
-    Planar scenes use :func:`mech_balance.balancing.redistribution.optimize` with ``weights`` and ``case``;
+    Planar scenes use :func:`mech_balance.balancing.redistribution.optimize` with ``weights``
+    and ``case``;
     a scene that lists ``balancing_weights`` (the RGGR) the method ``weights`` of seed 002
     (:mod:`mech_balance.balancing.weights`: force balance, then minimum RMS moment), which
     takes neither.

@@ -17,21 +17,11 @@ Sensor pose (:class:`SensorPose`)
 
     with s = +1 or -1 by the sign convention.
 
-Sign convention (``sensor.convention``), a picture in words
-    Stand the rig on the sensor, rig and sensor axes parallel, z up, and hold the crank
-    still: the rig presses down on the sensor with its weight.
-
-    * ``load_on_sensor`` (s = +1): the sensor reports the wrench the rig exerts ON the
-      sensor, and reads f_z = -(the rig's weight), pointing down.  When the crank turns and
-      the links' momentum grows towards +x, the links push the frame (and the sensor) the
-      other way: f_x < 0.  This is the sign of the shaking wrench of
-      :mod:`mech_balance.conventions` (the wrench the moving links exert on the frame,
-      f_sh = -dp/dt): the frame is rigid and at rest, so what it passes on to the sensor
-      is the shaking wrench plus the static weights (links and frame) plus nothing else.
-    * ``reaction`` (s = -1): the sensor reports the wrench it exerts on the rig, the
-      support reaction (a force plate's "ground reaction force"): the rig at rest reads
-      f_z = +(its weight), pointing up, and the turning links read +x.  The node negates
-      it before comparing.
+Sign convention (``sensor.convention``)
+    ``load_on_sensor`` (s = +1): the wrench the rig exerts on the sensor, the sign of the
+    shaking wrench (:mod:`mech_balance.conventions`); ``reaction`` (s = -1): the support
+    reaction, negated before comparing.  A picture in words: docs/node.md, "The sensor's sign
+    convention".
 
 Model of a measurement (:class:`Comparison`)
     In the rig frame about O, at the measurement's crank state (psi, psi', psi''):
@@ -50,9 +40,8 @@ Crank state at a measurement's stamp
     encoder angles within +- ``window / 2`` of the stamp, centred on it (the encoder
     "interpolated" to the stamp and smoothed: its value, slope and curvature are the angle,
     speed and acceleration).  A measurement is paired once the encoder has passed its stamp
-    by half a window.  The quantization noise of the acceleration falls as window^-2.5
-    (4096 counts per turn at 250 Hz: 0.24 rad/s^2 over 0.1 s) and its smoothing error grows
-    as (omega_v window)^2 for speed variations at omega_v (1% at omega_v window / 2 = 0.2).
+    by half a window (the noise and smoothing error against the window: docs/node.md, "The
+    sensor's sign convention").
     Clock mode (:func:`clock_crank`): the node's own crank, psi = psi_0 + omega (t - t_0).
 
 Running RMS (:meth:`Comparison.rms`)
