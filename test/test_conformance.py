@@ -10,7 +10,9 @@ kind; ``balance`` returns one result type.  ``examples/quickstart.py`` (the five
 ``mech_balance``'s docstring) runs unchanged on every built-in.
 """
 
+import contextlib
 import copy
+import io
 import json
 import math
 import os
@@ -23,6 +25,7 @@ import mech_balance as mb
 from mech_balance import schema
 from mech_balance.analysis import cycle as analysis
 from mech_balance.balancing import result as balance_result
+from mech_balance.cli import main as cli_main
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -95,16 +98,31 @@ def _scene(name, files):
     return schema.load(files[name])
 
 
-def _cli(*argv, ok=(0,)):
-    """Run ``mech-balance ARGV`` in a subprocess; return (status, stdout, stderr)."""
-    proc = subprocess.run([sys.executable, '-m', 'mech_balance.cli', *argv],
-                          capture_output=True, text=True, timeout=CLI_TIMEOUT_S,
-                          env=dict(os.environ, PYTHONPATH=str(ROOT)), cwd=str(ROOT))
-    assert 'Traceback' not in proc.stderr + proc.stdout, proc.stderr
-    assert proc.returncode in ok, (argv, proc.stderr)
-    if proc.returncode:   # a refusal is one line naming what is wrong
-        assert len([ln for ln in proc.stderr.splitlines() if 'error' in ln]) == 1, proc.stderr
-    return proc.returncode, proc.stdout, proc.stderr
+def _cli(*argv, ok=(0,), process=False):
+    """
+    Run ``mech-balance ARGV``; return (status, stdout, stderr).
+
+    In this process (:func:`mech_balance.cli.main.main`, what the console script calls) unless
+    ``process``: then in a fresh interpreter, as a user runs it.
+    """
+    if process:
+        proc = subprocess.run([sys.executable, '-m', 'mech_balance.cli', *argv],
+                              capture_output=True, text=True, timeout=CLI_TIMEOUT_S,
+                              env=dict(os.environ, PYTHONPATH=str(ROOT)), cwd=str(ROOT))
+        status, out, err = proc.returncode, proc.stdout, proc.stderr
+    else:
+        out_io, err_io = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out_io), contextlib.redirect_stderr(err_io):
+            try:
+                status = cli_main.main(list(argv))
+            except SystemExit as exc:   # argparse's usage errors
+                status = exc.code
+        status, out, err = status or 0, out_io.getvalue(), err_io.getvalue()
+    assert 'Traceback' not in err + out, err
+    assert status in ok, (argv, err)
+    if status:   # a refusal is one line naming what is wrong
+        assert len([ln for ln in err.splitlines() if 'error' in ln]) == 1, err
+    return status, out, err
 
 
 # ------------------------------------------------------------------------------ Python API
@@ -190,7 +208,10 @@ ANALYZE_KEYS = analysis.ANALYSIS_KEYS
 def test_every_verb_through_the_command_line(name, scene_files, tmp_path):
     sc = _scene(name, scene_files)
     path = scene_files[name]
-    _, out, _ = _cli('analyze', '--scene', path, '--samples', str(SAMPLES), '--json')
+    # in this process (the same argv and exits as the console script); a fresh process for
+    # the first verb of one built-in per kind, as a user's shell runs it
+    _, out, _ = _cli('analyze', '--scene', path, '--samples', str(SAMPLES), '--json',
+                     process=name in ('hoeken', 'rssr_skew'))
     report = json.loads(out)
     assert tuple(report) == ANALYZE_KEYS and report['kind'] == schema.kind_of(sc).name
     assert report['normalized'] is False and report['rows']

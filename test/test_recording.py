@@ -649,8 +649,11 @@ def test_cli_record_samples_must_be_at_least_4(capsys):
 
 
 def test_bench_section_reports_seconds_and_megabytes():
-    text = bench_recording.bench_section(argparse.Namespace(repeat=1), progress=lambda s: None)
+    text = bench_recording.bench_section(argparse.Namespace(repeat=1, scene=['hoeken']),
+                                         progress=lambda s: None)
     assert 'hoeken' in text and 'file MB' in text and 'median s' in text
+    assert 'hoeken --balance' in text and 'carpet_scraper' not in text   # bench --scene
+    assert ' PASS' in text or ' FAIL' in text
     assert 'nothing listens' in text and 'status: dead: nothing accepts' in text
 
 

@@ -69,15 +69,19 @@ def bench_section(args, progress):
              f'  constructor {dead["init_s"] * 1e3:.2f} ms, log_sample worst of '
              f'{DEAD_SAMPLES} {dead["log_worst_s"] * 1e3:.2f} ms, close(timeout_s=1) '
              f'{dead["close_s"] * 1e3:.2f} ms; status: {dead["status"]}', '']
-    lines += record_cpu_table(progress)
+    lines += record_cpu_table(progress, getattr(args, 'scene', None))
     return '\n'.join(lines)
 
 
-def record_runs():
-    """Return the ``mech-balance record`` runs timed: ``[(label, scene, extra argv)]``."""
+def record_runs(scenes=None):
+    """
+    Return the ``mech-balance record`` runs timed: ``[(label, scene, extra argv)]``.
+
+    ``scenes``: only these built-ins (``bench --scene``); None or empty: every one.
+    """
     runs = [(f'{name} --balance', name, ('--balance',)) for name in scene.builtin_scenes()]
     runs += [(f'{name} {" ".join(extra)}', name, extra) for name, extra in RECORD_EXTRA_RUNS]
-    return runs
+    return [r for r in runs if not scenes or r[1] in scenes]
 
 
 def record_cpu(name, extra, out):
@@ -102,13 +106,13 @@ def record_cpu(name, extra, out):
     return cpu, wall, code
 
 
-def record_cpu_table(progress):
+def record_cpu_table(progress, scenes=None):
     """Return the lines of the table of ``mech-balance record`` CPU times, one run each."""
     lines = [f'mech-balance record, one process each (CPU s = user + system of the whole '
              f'process; limit {RECORD_CPU_LIMIT_S:g} s):',
              f'{"run":<44}{"CPU s":>8}{"wall s":>9}  verdict', '-' * 70]
     with tempfile.TemporaryDirectory() as tmp:
-        for label, name, extra in record_runs():
+        for label, name, extra in record_runs(scenes):
             progress(f'  timing record {label} ...')
             cpu, wall, code = record_cpu(name, extra, Path(tmp) / f'{name}.rrd')
             if code != 0:
