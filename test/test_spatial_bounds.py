@@ -212,3 +212,28 @@ def test_round_off_clip_leaves_a_design_that_is_no_body():
     assert np.array_equal(clip(bad, 1.0), bad)
     fine = np.diag([1.0, 2.0, 2.5])
     assert np.array_equal(clip(fine, 1.0), fine)
+
+
+@pytest.mark.parametrize('name', SPATIAL[:5])
+def test_the_balanced_optimum_scales_with_the_lengths(name):
+    """
+    The certified redistribution, lengths x 1e-12..1e3: the same optimum in the rig's units.
+
+    The objective z is dimensionless (units from the rig's own mass, length and speed), so
+    the optimum z* of every scaled rig is the same number; each solve brackets it by its
+    certified lower bound and its design's z (the core's evaluation).  The brackets must
+    overlap: every z of one scale at least every lower bound of another, to round-off.  The
+    original's figures (z before balancing) scale exactly, to 1e-9.
+    """
+    from mech_balance import balance
+    data = _data(name)
+    runs = []
+    for s in (1.0,) + SCALES:
+        sc = spatial_from_dict(dict(_scaled(data, s), samples=36))
+        design = balance(rig_for(sc, cache=False), 'redistribution')
+        runs.append((s, design.report['objective'], design.result.certificate.lower_bound))
+    z0 = runs[0][1]['z_original']
+    for s, objective, lower in runs:
+        assert objective['z_original'] == pytest.approx(z0, rel=SCALE_RTOL), s
+        for _, other, _ in runs:   # z* lies in every bracket: lower <= z* <= z
+            assert lower <= other['z'] * (1.0 + SCALE_RTOL) + 1e-12, (name, s, lower, other)
