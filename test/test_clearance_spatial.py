@@ -191,3 +191,36 @@ def test_witness_points_of_a_sphere_contact():
     least = off.report['clearance']['least']
     pa, pb = np.array(least['point_a_m']), np.array(least['point_b_m'])
     assert np.linalg.norm(pa - pb) == pytest.approx(abs(least['clearance_m']), rel=1e-9)
+
+
+def test_recording_marks_a_colliding_sphere_design_in_3d(tmp_path, capsys):
+    """``record --no-clearance``: the convex optimum's spheres collide; drawn and warned."""
+    from mech_balance.analysis import spatial_clearance
+    from mech_balance.viz import collisions, recording
+    samples = 72
+    out = tmp_path / 'colliding.rrd'
+    argv = ['record', '--scene', 'rssp_slider', '--counterweights', 'crank', '--samples',
+            str(samples), '--out', str(out)]
+    assert cli.main(argv + ['--no-clearance']) == 0
+    err = capsys.readouterr().err
+    warned = [x for x in err.splitlines() if x.startswith('warning: collision')]
+    assert warned and len(warned) == len(set(warned))   # each once
+    rig = rig_for(scene.load('rssp_slider'))
+    off = balancing.balance(rig, 'counterweights', links='crank', clearance_margin_m=None)
+    spheres = off.report['options']['counterweights']
+    psi = np.linspace(0.0, 2.0 * np.pi, samples, endpoint=False)
+    expected = spatial_clearance.contacts_at(rig, spheres, psi, 0.0)
+    marks = recording.read_recording(out)[collisions.POINTS_PATH]
+    positions = marks.columns['Points3D:positions']
+    for k, contacts in enumerate(expected):   # a point midway between the witnesses, in 3-D
+        got = np.asarray(positions[k] if positions[k] is not None else np.zeros((0, 3)))
+        assert got.shape == (len(contacts), 3), k
+        for point, (_, _, gap, pa, pb) in zip(got, contacts):
+            assert gap < 0.0
+            # rerun stores positions as float32: 6e-8 of the rig's ~0.2 m
+            assert np.linalg.norm(point - 0.5 * (np.array(pa) + np.array(pb))) <= 1e-6
+    assert any(expected)
+    clear_out = tmp_path / 'clear.rrd'   # the default design is clear: nothing marked
+    assert cli.main(argv[:-2] + ['--out', str(clear_out)]) == 0
+    assert 'warning: collision' not in capsys.readouterr().err
+    assert collisions.POINTS_PATH not in recording.read_recording(clear_out)

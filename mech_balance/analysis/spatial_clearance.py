@@ -76,15 +76,13 @@ def _witness(p, q, r_p, r_q):
     return tuple(float(v) for v in p + r_p * u), tuple(float(v) for v in q - r_q * u)
 
 
-def check(rig, spheres, samples=None, margin_m=0.0):
+def _pairs(rig, spheres, psi):
     """
-    Return the :class:`Clearance` of sphere counterweights over the cycle.
+    Yield ``(name_a, name_b, gap (n,), centre_a (n, 3), centre_b (n, 3), r_a, r_b)`` per pair.
 
-    ``spheres``: ``{body: [sphere, ...]}``, each sphere with ``centre_m`` in its body's axes
-    and ``outer_radius_m``.
+    Each sphere against every solid of another body (``centre_a`` the solid's nearest point)
+    and against every sphere of another body, at the crank angles ``psi``.
     """
-    p = int(getattr(rig.scene, 'samples', 360) if samples is None else samples)
-    psi = cycle_angles(p)
     poses = rig.at(psi).bodies
     index = {n: k for k, n in enumerate(poses.names)}
 
@@ -98,24 +96,48 @@ def check(rig, spheres, samples=None, margin_m=0.0):
             balls.append((f'{body} counterweight sphere {i + 1}', body,
                           world(body, s['centre_m']), float(s['outer_radius_m'])))
     others = [(n, body, world(body, a), world(body, b), r) for n, body, a, b, r in solids(rig)]
-    contacts = []
     for i, (name, body, c, r) in enumerate(balls):
         for n2, b2, a, b, r2 in others:
-            if b2 == body:
-                continue
-            q = _nearest(c, a, b)
-            gap = np.linalg.norm(c - q, axis=-1) - r - r2
-            k = int(np.argmin(gap))
-            contacts.append(Contact(n2, name, float(gap[k]), math.degrees(psi[k]) % 360.0,
-                                    *_witness(q[k], c[k], r2, r)))
+            if b2 != body:
+                q = _nearest(c, a, b)
+                yield n2, name, np.linalg.norm(c - q, axis=-1) - r - r2, q, c, r2, r
         for name2, body2, c2, r2 in balls[i + 1:]:
-            if body2 == body:
-                continue
-            gap = np.linalg.norm(c - c2, axis=-1) - r - r2
-            k = int(np.argmin(gap))
-            contacts.append(Contact(name, name2, float(gap[k]), math.degrees(psi[k]) % 360.0,
-                                    *_witness(c[k], c2[k], r, r2)))
-    rims = {name: float(r) for name, _, _, r in balls}
+            if body2 != body:
+                yield name, name2, np.linalg.norm(c - c2, axis=-1) - r - r2, c, c2, r, r2
+
+
+def contacts_at(rig, spheres, psi, margin_m=0.0):
+    """
+    Return, per crank angle of ``psi``, the pairs closer than ``margin_m``.
+
+    A list (one entry per angle) of ``[(name_a, name_b, clearance_m, point_a, point_b)]``,
+    the points the two bodies' witness points (m, rig frame).
+    """
+    psi = np.asarray(psi, dtype=float)
+    per_angle = [[] for _ in psi]
+    for name_a, name_b, gap, ca, cb, ra, rb in _pairs(rig, spheres, psi):
+        for k in np.flatnonzero(gap < margin_m):
+            per_angle[k].append((name_a, name_b, float(gap[k]),
+                                 *_witness(ca[k], cb[k], ra, rb)))
+    return per_angle
+
+
+def check(rig, spheres, samples=None, margin_m=0.0):
+    """
+    Return the :class:`Clearance` of sphere counterweights over the cycle.
+
+    ``spheres``: ``{body: [sphere, ...]}``, each sphere with ``centre_m`` in its body's axes
+    and ``outer_radius_m``.
+    """
+    p = int(getattr(rig.scene, 'samples', 360) if samples is None else samples)
+    psi = cycle_angles(p)
+    contacts = []
+    for name_a, name_b, gap, ca, cb, ra, rb in _pairs(rig, spheres, psi):
+        k = int(np.argmin(gap))
+        contacts.append(Contact(name_a, name_b, float(gap[k]), math.degrees(psi[k]) % 360.0,
+                                *_witness(ca[k], cb[k], ra, rb)))
+    rims = {f'{body} counterweight sphere {i + 1}': float(sph['outer_radius_m'])
+            for body, cluster in spheres.items() for i, sph in enumerate(cluster)}
     if not contacts:
         return Clearance(None, [], 0, p, {}, rims, margin_m)
     least = min(contacts, key=lambda c: c.clearance_m)

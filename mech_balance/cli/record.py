@@ -122,6 +122,7 @@ def cmd_record(args):
     out = cli.writable_path('--out', args.out, OUT_SUFFIXES, create_parent=True)
     sc = scene.load(args.scene)
     balanced, source = None, None
+    spheres = None   # a spatial counterweight design's spheres (their collisions drawn)
     if args.design is not None:
         balanced = scene.load(args.design)
         source = f'scene file {balanced.source}'
@@ -148,6 +149,12 @@ def cmd_record(args):
             return cli_balance.EXIT_NO_CLEAR_DESIGN
         balanced = design.scene
         clear = getattr(design.result, 'clearance', None)   # planar: over the cycle
+        if clear is None and isinstance(design.report.get('options'), dict):
+            spheres = design.report['options'].get('counterweights') or None
+            if spheres:   # a spatial design's spheres, checked at the recorded angles
+                from mech_balance.analysis import spatial_clearance
+                from mech_balance.core.rig import rig_for
+                clear = spatial_clearance.check(rig_for(sc), spheres, args.samples, margin)
         margin = margin if clear is None else clear.margin_m
         source = (f'add-only counterweights on {args.counterweights}, (w1, w2) = '
                   f'({weights[0]:g}, {weights[1]:g}) (mech_balance.balancing.counterweights)'
@@ -159,7 +166,7 @@ def cmd_record(args):
             DEFAULT_CASE if args.case is None else args.case)
     summary = recording.record(out, sc, balanced, cycles=args.cycles, samples=args.samples,
                                balanced_source=source, field='--out',
-                               clearance_margin_m=margin)
+                               clearance_margin_m=margin, spheres=spheres)
     path = summary.path.resolve()
     print(f'wrote {path}')
     print(f'  {sc.name}: {" vs ".join(summary.variants)}; {summary.samples_per_cycle} '

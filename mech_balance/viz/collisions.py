@@ -12,12 +12,15 @@ balanced view shows
 * ``/balanced/collision_bodies``: the outlines of the two offending bodies in red and the
   segment between the witness points (its length is the overlap, or the clearance).
 
-At every other angle both are empty; a collision-free design logs neither entity.  Only a
-planar design with counterweights has this clearance model; for any other design nothing is
-drawn.  The hook is :func:`log_collisions`, called by :func:`mech_balance.viz.recording.record`.
+At every other angle both are empty; a collision-free design logs neither entity.  A planar
+design's discs, shafts and webs (:mod:`mech_balance.analysis.clearance`) and a spatial
+design's sphere counterweights (``spheres``, :func:`mech_balance.analysis.spatial_clearance.
+contacts_at`: the point and the witness segment in 3-D) are checked; for any other design
+nothing is drawn.  The hook is :func:`log_collisions`, called by
+:func:`mech_balance.viz.recording.record`.
 """
 
-from mech_balance.analysis import clearance
+from mech_balance.analysis import clearance, spatial_clearance
 from mech_balance.core.planar.rig import PlanarRig
 from mech_balance.core.rig import rig_for
 from mech_balance.viz.drawing import turn_angles
@@ -39,13 +42,16 @@ POINTS_PATH = f'/{VARIANT}/collisions'
 BODIES_PATH = f'/{VARIANT}/collision_bodies'
 
 
-def marks(scene, balanced, samples, margin_m=0.0):
+def marks(scene, balanced, samples, margin_m=0.0, spheres=None):
     """
     Return the collision marks of one recorded turn, or None (nothing to check).
 
-    ``(points (n, 2), labels, counts (samples,), strips [(m, 2)], strip_counts (samples,))``:
-    per sample its contacts' points and the outlines and witness segments of their bodies.
+    ``(points (n, d), labels, counts (samples,), strips [(m, d)], strip_counts (samples,))``:
+    per sample its contacts' points and the outlines and witness segments of their bodies
+    (d = 2 for a planar design, 3 for a spatial one's ``spheres``).
     """
+    if spheres:
+        return _sphere_marks(scene, samples, margin_m, spheres)
     if balanced is None or not any(getattr(lk, 'counterweights', ()) for lk in
                                    getattr(balanced, 'links', ())):
         return None
@@ -74,24 +80,46 @@ def marks(scene, balanced, samples, margin_m=0.0):
     return (np.array(points), labels, np.array(counts), strips, np.array(strip_counts))
 
 
-def log_collisions(rec, scene, balanced, samples, cycles, degrees, seconds, margin_m=0.0):
+def _sphere_marks(scene, samples, margin_m, spheres):
+    """Return :func:`marks` of a spatial design's sphere counterweights (3-D), or None."""
+    psi = turn_angles(samples, scene.crank_speed_rad_s)
+    per_angle = spatial_clearance.contacts_at(rig_for(scene), spheres, psi, margin_m)
+    points, labels, counts, strips = [], [], [], []
+    for contacts in per_angle:
+        counts.append(len(contacts))
+        for name_a, name_b, gap, pa, pb in contacts:
+            pa, pb = np.asarray(pa), np.asarray(pb)
+            points.append(0.5 * (pa + pb))
+            what = 'overlap' if gap < 0.0 else 'clearance'
+            labels.append(f'{name_a} / {name_b}: {what} {abs(gap) * 1e3:.3g} mm')
+            strips.append(np.array([pa, pb]))
+    if not points:
+        return None
+    return (np.array(points), labels, np.array(counts), strips, np.array(counts))
+
+
+def log_collisions(rec, scene, balanced, samples, cycles, degrees, seconds, margin_m=0.0,
+                   spheres=None):
     """
     Log the collision marks of a recording; return the entity paths logged (a set).
 
-    ``degrees``, ``seconds``: the recording's ticks (``samples`` x ``cycles``).
+    ``degrees``, ``seconds``: the recording's ticks (``samples`` x ``cycles``); ``spheres``:
+    a spatial design's sphere counterweights (``{body: [sphere, ...]}``), else None.
     """
-    found = marks(scene, balanced, int(samples), margin_m)
+    found = marks(scene, balanced, int(samples), margin_m, spheres)
     if found is None:
         return set()
     points, labels, counts, strips, strip_counts = found
-    rec.log(POINTS_PATH, rr.Points2D.from_fields(
+    point_type, strip_type = (rr.Points3D, rr.LineStrips3D) if points.shape[1] == 3 else \
+        (rr.Points2D, rr.LineStrips2D)
+    rec.log(POINTS_PATH, point_type.from_fields(
         colors=[COLLISION_COLOR], radii=[COLLISION_POINT_UI], show_labels=False), static=True)
-    rec.log(BODIES_PATH, rr.LineStrips2D.from_fields(
+    rec.log(BODIES_PATH, strip_type.from_fields(
         colors=[COLLISION_COLOR], radii=[COLLISION_LINE_UI]), static=True)
     index = time_index(degrees, seconds)
-    rec.send_columns(POINTS_PATH, index, rr.Points2D.columns(
+    rec.send_columns(POINTS_PATH, index, point_type.columns(
         positions=np.concatenate([points] * int(cycles)),
         labels=labels * int(cycles)).partition(np.tile(counts, int(cycles))))
-    rec.send_columns(BODIES_PATH, index, rr.LineStrips2D.columns(
+    rec.send_columns(BODIES_PATH, index, strip_type.columns(
         strips=strips * int(cycles)).partition(np.tile(strip_counts, int(cycles))))
     return {POINTS_PATH, BODIES_PATH}

@@ -105,7 +105,7 @@ class RecordingSummary:
 
 
 def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=None, *,
-           field='path', clearance_margin_m=0.0):
+           field='path', clearance_margin_m=0.0, spheres=None):
     """
     Write an offline recording of ``scene`` (and ``balanced``) to ``path`` (``.rrd``).
 
@@ -114,7 +114,8 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
     ``cycles`` turns from crank angle 0.  One turn is computed and repeated, since the rig's
     motion is periodic in the crank angle.  ``path`` is checked first by
     :func:`check_output_path` (its errors name ``field``).  A counterweight design's bodies
-    closer than ``clearance_margin_m`` are marked where and when (:mod:`.collisions`).
+    closer than ``clearance_margin_m`` are marked where and when (:mod:`.collisions`; a
+    spatial design's sphere counterweights ``{body: [sphere, ...]}`` given as ``spheres``).
     Returns a :class:`RecordingSummary`.
     """
     t0 = time.perf_counter()
@@ -139,7 +140,7 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
         start_stream(rec, scene, layout)
         log_motion(rec, layout, motion, degrees, seconds, labels)
         marked = collisions.log_collisions(rec, scene, balanced, samples, cycles, degrees,
-                                           seconds, clearance_margin_m)
+                                           seconds, clearance_margin_m, spheres)
         data = stream.read(flush=True) or b''
     finally:
         rec.disconnect()
