@@ -27,6 +27,7 @@ from mech_balance import schema as scene
 from mech_balance.analysis import cycle as analysis
 import numpy as np
 import pytest
+import scene_paths
 from test_rggr import LEGACY
 import yaml
 
@@ -65,68 +66,52 @@ SAMPLE_VALUES = [0, 3, 4, 5, 10 ** 6, 5_000_000, 2 ** 31, -5, 4.5, '360', 100_00
 # ------------------------------------------------------------------------------ data level
 
 
-def _paths(node, prefix=()):
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield prefix + (k,)
-            yield from _paths(v, prefix + (k,))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield prefix + (i,)
-            yield from _paths(v, prefix + (i,))
-
-
-def _get(data, path):
-    for key in path:
-        data = data[key]
-    return data
-
-
 def _is_number(value):
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _mutate_data(rng, data):
     """Apply one structural mutation to ``data`` in place; return its description."""
-    paths = sorted(_paths(data), key=repr)
-    numbers = [p for p in paths if _is_number(_get(data, p))]
+    paths = sorted(scene_paths.paths(data), key=repr)
+    numbers = [p for p in paths if _is_number(scene_paths.get(data, p))]
     op = rng.choice(['delete', 'type', 'extreme', 'nonfinite', 'reference', 'topology',
                      'samples', 'unknown', 'perturb', 'perturb', 'perturb', 'rename'])
     if op in ('extreme', 'nonfinite', 'perturb') and not numbers:
         op = 'type'
     if op == 'delete':
         path = rng.choice(paths)
-        del _get(data, path[:-1])[path[-1]]
+        del scene_paths.get(data, path[:-1])[path[-1]]
     elif op == 'type':
         path = rng.choice(paths)
-        _get(data, path[:-1])[path[-1]] = copy.deepcopy(rng.choice(WRONG_TYPES))
+        scene_paths.get(data, path[:-1])[path[-1]] = copy.deepcopy(rng.choice(WRONG_TYPES))
     elif op == 'extreme':
         path = rng.choice(numbers)
-        _get(data, path[:-1])[path[-1]] = rng.choice(EXTREMES)
+        scene_paths.get(data, path[:-1])[path[-1]] = rng.choice(EXTREMES)
     elif op == 'nonfinite':
         path = rng.choice(numbers)
-        _get(data, path[:-1])[path[-1]] = rng.choice(NON_FINITE)
+        scene_paths.get(data, path[:-1])[path[-1]] = rng.choice(NON_FINITE)
     elif op == 'perturb':  # plausible values: these reach the kinematics and dynamics
         path = rng.choice(numbers)
-        old = _get(data, path)
-        _get(data, path[:-1])[path[-1]] = old * rng.choice([0.0, 0.5, 0.9, 1.1, 2.0, -1.0]) \
-            + rng.choice([0.0, 1e-3, -0.02])
+        old = scene_paths.get(data, path)
+        scene_paths.get(data, path[:-1])[path[-1]] = \
+            old * rng.choice([0.0, 0.5, 0.9, 1.1, 2.0, -1.0]) + rng.choice([0.0, 1e-3, -0.02])
     elif op == 'reference':
-        refs = [p for p in paths if isinstance(_get(data, p), str) and
-                (p[-1] in ('a', 'b', 'joint') or '.' in _get(data, p))]
+        refs = [p for p in paths if isinstance(scene_paths.get(data, p), str) and
+                (p[-1] in ('a', 'b', 'joint') or '.' in scene_paths.get(data, p))]
         path = rng.choice(refs or paths)
-        _get(data, path[:-1])[path[-1]] = rng.choice(BAD_REFS)
+        scene_paths.get(data, path[:-1])[path[-1]] = rng.choice(BAD_REFS)
     elif op == 'topology':
         op = _topology(rng, data)
     elif op == 'samples':
         data['samples'] = rng.choice(SAMPLE_VALUES)
     elif op == 'unknown':
-        path = rng.choice([p for p in paths if isinstance(_get(data, p), dict)] or [()])
-        _get(data, path)['extra_field'] = 1.0
+        path = rng.choice([p for p in paths if isinstance(scene_paths.get(data, p), dict)] or [()])
+        scene_paths.get(data, path)['extra_field'] = 1.0
     elif op == 'rename':  # a key renamed: what referred to it breaks
-        dicts = [p for p in paths if isinstance(_get(data, p), dict) and _get(data, p)]
+        dicts = [p for p in paths
+                 if isinstance(scene_paths.get(data, p), dict) and scene_paths.get(data, p)]
         path = rng.choice(dicts) if dicts else ()
-        node = _get(data, path)
+        node = scene_paths.get(data, path)
         key = rng.choice(sorted(node))
         node[f'{key}_x' if rng.random() < 0.5 else 'frame'] = node.pop(key)
     return op

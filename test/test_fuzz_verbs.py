@@ -41,6 +41,7 @@ import time
 from mech_balance.cli import main as cli
 from mech_balance.conventions import MAX_SAMPLES
 from mech_balance.schema import load_data
+import scene_paths
 from test_fuzz_scenes import FIELD_FIRST
 from test_spatial_bounds import _scaled
 import yaml
@@ -110,25 +111,8 @@ VERB_NAMES = tuple(_verbs('x'))
 
 # ------------------------------------------------------------------------------ mutations
 
-def _paths(node, prefix=()):
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield prefix + (k,)
-            yield from _paths(v, prefix + (k,))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield prefix + (i,)
-            yield from _paths(v, prefix + (i,))
-
-
-def _get(data, path):
-    for key in path:
-        data = data[key]
-    return data
-
-
 def _set(data, path, value):
-    _get(data, path[:-1])[path[-1]] = value
+    scene_paths.get(data, path[:-1])[path[-1]] = value
 
 
 def _is_number(v):
@@ -137,8 +121,8 @@ def _is_number(v):
 
 def _mutate(rng, data):
     """Apply one mutation to ``data`` (a spatial scene mapping) in place; return its name."""
-    paths = sorted(_paths(data), key=repr)
-    numbers = [p for p in paths if _is_number(_get(data, p))]
+    paths = sorted(scene_paths.paths(data), key=repr)
+    numbers = [p for p in paths if _is_number(scene_paths.get(data, p))]
     links = sorted(data['links'])
     joints = sorted(data['joints'])
     op = rng.choice(['extreme', 'nonfinite', 'type', 'delete', 'extra', 'scale', 'scale',
@@ -152,10 +136,10 @@ def _mutate(rng, data):
         _set(data, rng.choice(paths), copy.deepcopy(rng.choice(WRONG_TYPES)))
     elif op == 'delete':
         path = rng.choice(paths)
-        del _get(data, path[:-1])[path[-1]]
+        del scene_paths.get(data, path[:-1])[path[-1]]
     elif op == 'extra':
-        dicts = [p for p in paths if isinstance(_get(data, p), dict)] + [()]
-        _get(data, rng.choice(dicts))['extra_field'] = 1.0
+        dicts = [p for p in paths if isinstance(scene_paths.get(data, p), dict)] + [()]
+        scene_paths.get(data, rng.choice(dicts))['extra_field'] = 1.0
     elif op == 'scale':
         s = rng.choice(LENGTH_SCALES)
         data.update(_scaled(data, s))

@@ -138,3 +138,22 @@ def at_most(items, limit, where, what, name, error=SceneError):
     if len(items) > limit:
         raise error(f'{where}: got {len(items)} {what}, expected at most {limit} '
                     '(a fixed limit of mech_balance)')
+
+
+def check_connected(links, joints, frame):
+    """Raise :class:`SceneError` naming the moving links no chain of joints joins to ``frame``."""
+    adj = {lk.name: set() for lk in links}
+    adj[frame] = set()
+    for jt in joints:
+        adj[jt.link_a].add(jt.link_b)
+        adj[jt.link_b].add(jt.link_a)
+    seen, todo = {frame}, [frame]
+    while todo:
+        for nb in adj[todo.pop()]:
+            if nb not in seen:
+                seen.add(nb)
+                todo.append(nb)
+    loose = [lk.name for lk in links if lk.name not in seen]
+    if loose:
+        raise SceneError(f'joints: link(s) {", ".join(loose)} are not connected to the frame, '
+                         'expected every moving link joined to the frame through other links')

@@ -15,9 +15,9 @@ import math
 from mech_balance import conventions
 from mech_balance.schema.build import build_from_dict
 from mech_balance.schema.drive import drive_from_dict
-from mech_balance.schema.fields import at_most as _at_most, known_keys as _known_keys, \
-    mapping as _mapping, number as _number, points as _points, positive as _positive, \
-    require as _require, SceneError, string as _string, vector as _vector
+from mech_balance.schema.fields import at_most as _at_most, check_connected, \
+    known_keys as _known_keys, mapping as _mapping, number as _number, points as _points, \
+    positive as _positive, require as _require, SceneError, string as _string, vector as _vector
 from mech_balance.schema.scene import add_counterweights, Counterweight, \
     COUNTERWEIGHT_MASS_REL_TOL, DEFAULT_OFF_STREAMS, DEFAULT_OUTPUTS, FRAME, \
     INERTIA_ROUNDOFF, Joint, JOINT_TYPES, Link, MAX_PLANE_OFFSET_M, Normalization, \
@@ -251,22 +251,7 @@ def _check_mobility(links, joints):
         raise SceneError(
             f'joints: {n} moving links and {j} joints give mobility 3*{n} - 2*{j} = '
             f'{mobility}, expected a single-degree-of-freedom linkage (mobility 1)')
-    adj = {lk.name: set() for lk in links}
-    adj[FRAME] = set()
-    for jt in joints:
-        adj[jt.link_a].add(jt.link_b)
-        adj[jt.link_b].add(jt.link_a)
-    seen, todo = {FRAME}, [FRAME]
-    while todo:
-        for nb in adj[todo.pop()]:
-            if nb not in seen:
-                seen.add(nb)
-                todo.append(nb)
-    loose = [lk.name for lk in links if lk.name not in seen]
-    if loose:
-        raise SceneError(
-            f'joints: link(s) {", ".join(loose)} are not connected to the frame, expected '
-            'every moving link to be joined to the frame through other links')
+    check_connected(links, joints, FRAME)
 
 
 def _link(name, spec):

@@ -357,24 +357,6 @@ def _stroke(crank, cj):
     return (s_min, s_max)
 
 
-def _connected(links, joints):
-    adj = {lk.name: set() for lk in links}
-    adj[FRAME] = set()
-    for jt in joints:
-        adj[jt.link_a].add(jt.link_b)
-        adj[jt.link_b].add(jt.link_a)
-    seen, todo = {FRAME}, [FRAME]
-    while todo:
-        for nb in adj[todo.pop()]:
-            if nb not in seen:
-                seen.add(nb)
-                todo.append(nb)
-    loose = [lk.name for lk in links if lk.name not in seen]
-    if loose:
-        raise SceneError(f'joints: link(s) {", ".join(loose)} are not connected to the frame, '
-                         'expected every moving link joined to the frame through other links')
-
-
 def _pose(spec, where):
     spec = fields.mapping(spec, where)
     fields.known_keys(spec, {'origin_m', 'rpy_deg'}, where)
@@ -456,7 +438,7 @@ def spatial_from_dict(data, source='<dict>'):
     fields.at_most(joints_data, conventions.MAX_JOINTS, 'joints', 'joints', 'MAX_JOINTS')
     all_points = {FRAME: frame_points, **{lk.name: lk.points for lk in links}}
     joints = tuple(_joint(n, spec, all_points) for n, spec in joints_data.items())
-    _connected(links, joints)
+    fields.check_connected(links, joints, FRAME)
 
     crank = fields.mapping(fields.require(data, 'crank', ''), 'crank')
     fields.known_keys(crank, CRANK_KEYS, 'crank')
