@@ -27,6 +27,7 @@ threads.limit_blas_threads()
 SLOW_MODULES = (
     'test_spatial.py', 'test_spatial_branch.py', 'test_node_recording.py',
     'test_node_services.py', 'test_flake8.py', 'test_node.py', 'test_node_faults.py',
+    'test_clearance_spatial.py', 'test_conformance.py', 'test_fuzz_verbs.py',
     'test_recording_layout.py', 'test_hardening.py', 'test_identify_real.py',
     'test_identify_faults.py', 'test_examples.py', 'test_node_overload.py', 'test_cli.py',
     'test_recording.py', 'test_recording_fuzz.py', 'test_node_hardening.py',
