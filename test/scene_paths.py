@@ -1,4 +1,4 @@
-"""The paths into a scene's YAML mapping that the fuzz tests mutate (one home for both)."""
+"""The paths into a scene's YAML mapping and the numbers in a report: the fuzz tests' helpers."""
 
 
 def paths(node, prefix=()):
@@ -18,3 +18,20 @@ def get(data, path):
     for key in path:
         data = data[key]
     return data
+
+
+def is_number(value):
+    """Return whether ``value`` is an int or a float (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def numbers(obj):
+    """Yield every number of a nested mapping or sequence."""
+    if isinstance(obj, dict):
+        for v in obj.values():
+            yield from numbers(v)
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            yield from numbers(v)
+    elif is_number(obj):
+        yield obj

@@ -66,14 +66,10 @@ SAMPLE_VALUES = [0, 3, 4, 5, 10 ** 6, 5_000_000, 2 ** 31, -5, 4.5, '360', 100_00
 # ------------------------------------------------------------------------------ data level
 
 
-def _is_number(value):
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _mutate_data(rng, data):
     """Apply one structural mutation to ``data`` in place; return its description."""
     paths = sorted(scene_paths.paths(data), key=repr)
-    numbers = [p for p in paths if _is_number(scene_paths.get(data, p))]
+    numbers = [p for p in paths if scene_paths.is_number(scene_paths.get(data, p))]
     op = rng.choice(['delete', 'type', 'extreme', 'nonfinite', 'reference', 'topology',
                      'samples', 'unknown', 'perturb', 'perturb', 'perturb', 'rename'])
     if op in ('extreme', 'nonfinite', 'perturb') and not numbers:
@@ -217,23 +213,12 @@ def _finite(values):
     return True
 
 
-def _numbers(obj):
-    """Yield every number of a nested report."""
-    if isinstance(obj, dict):
-        for v in obj.values():
-            yield from _numbers(v)
-    elif isinstance(obj, (list, tuple)):
-        for v in obj:
-            yield from _numbers(v)
-    elif _is_number(obj):
-        yield obj
-
-
 def _evaluate(path):
     """Load and evaluate one scene file; return the result's numbers."""
     sc = scene.load(path)
     if sc.kind == 'spatial':  # the registry's analyze (through the Rig protocol)
-        return list(_numbers(scene.kind_of(sc).implementation('analyze')(sc, SAMPLES).data))
+        result = scene.kind_of(sc).implementation('analyze')(sc, SAMPLES)
+        return list(scene_paths.numbers(result.data))
     cycle = analysis.run_cycle(analysis.Rig(sc), SAMPLES)
     st = cycle.state
     out = [st.residual, st.cond, st.omega]

@@ -101,7 +101,7 @@ def _duration(data):
     """
     crank = data.get('crank') if isinstance(data, dict) else None
     speed = crank.get('speed_rad_s') if isinstance(crank, dict) else None
-    if _is_number(speed) and math.isfinite(speed) and abs(speed) > 80.0 * math.pi:
+    if scene_paths.is_number(speed) and math.isfinite(speed) and abs(speed) > 80.0 * math.pi:
         return f'{4.0 * math.pi / abs(speed):.3g}'
     return '0.05'
 
@@ -115,14 +115,10 @@ def _set(data, path, value):
     scene_paths.get(data, path[:-1])[path[-1]] = value
 
 
-def _is_number(v):
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
 def _mutate(rng, data):
     """Apply one mutation to ``data`` (a spatial scene mapping) in place; return its name."""
     paths = sorted(scene_paths.paths(data), key=repr)
-    numbers = [p for p in paths if _is_number(scene_paths.get(data, p))]
+    numbers = [p for p in paths if scene_paths.is_number(scene_paths.get(data, p))]
     links = sorted(data['links'])
     joints = sorted(data['joints'])
     op = rng.choice(['extreme', 'nonfinite', 'type', 'delete', 'extra', 'scale', 'scale',
@@ -190,17 +186,6 @@ def _cases():
 
 # ------------------------------------------------------------------------------ running
 
-def _numbers(obj):
-    if isinstance(obj, dict):
-        for v in obj.values():
-            yield from _numbers(v)
-    elif isinstance(obj, (list, tuple)):
-        for v in obj:
-            yield from _numbers(v)
-    elif _is_number(obj):
-        yield obj
-
-
 def _run(argv):
     """Run one command in this process; return ``(exit, stdout, stderr, seconds, grown)``."""
     out, err = io.StringIO(), io.StringIO()
@@ -227,7 +212,7 @@ def _judge(verb, code, out, err, path):
                 doc = json.loads(out)
             except ValueError:
                 return 'exit 0', f'not JSON: {out[-200:]!r}'
-            bad = [v for v in _numbers(doc) if not math.isfinite(v)]
+            bad = [v for v in scene_paths.numbers(doc) if not math.isfinite(v)]
             if bad:
                 return 'exit 0', f'{len(bad)} non-finite figures, e.g. {bad[0]!r}'
         elif path is not None and not path.exists():
@@ -238,7 +223,7 @@ def _judge(verb, code, out, err, path):
             doc = json.loads(out)
         except ValueError:
             return 'exit 2', f'exit 2, no error line and no JSON: {err[-300:]!r}'
-        bad = [v for v in _numbers(doc) if not math.isfinite(v)]
+        bad = [v for v in scene_paths.numbers(doc) if not math.isfinite(v)]
         if doc.get('certified') is not False or bad or 'NOT certified' not in doc['message']:
             return 'exit 2', f'exit 2 without an error line: {out[-300:]!r}'
         return 'not certified', None

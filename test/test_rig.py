@@ -173,10 +173,10 @@ def test_the_public_face_resolves_every_name():
         mech_balance.no_such_name  # noqa: B018 - the lookup itself is the test
 
 
-def test_a_scene_differing_only_in_crank_speed_gets_its_own_linkage():
-    # the compiled linkage is cached by geometry; the solve's default speed and acceleration
-    # are the scene's, so they belong to the key (else balancing a scene whose speed changed,
-    # e.g. the node's crank_speed, used the first scene's speed through the linear maps)
+def test_a_scene_differing_only_in_crank_speed_is_balanced_at_its_speed():
+    # the compiled linkage is shared by geometry; its users pass their own scene's speed
+    # (else balancing a scene whose speed changed, e.g. the node's crank_speed, used the first
+    # scene's speed through the linear maps)
     import dataclasses
     from mech_balance import balance
     slow = schema.load('hoeken')

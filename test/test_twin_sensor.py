@@ -406,13 +406,7 @@ def _encoder_msg(stamp_ns, angle):
 
 
 def _wrench_msg(stamp_ns, force, torque):
-    msg = WrenchStamped()
-    msg.header.stamp = conv.stamp_from_ns(int(stamp_ns))
-    msg.header.frame_id = 'sensor'
-    f, m = msg.wrench.force, msg.wrench.torque
-    f.x, f.y, f.z = (float(v) for v in force)
-    m.x, m.y, m.z = (float(v) for v in torque)
-    return msg
+    return conv.fill_wrench_values(WrenchStamped(), int(stamp_ns), 'sensor', [*force, *torque])
 
 
 CHUNK = 25

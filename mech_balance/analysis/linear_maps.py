@@ -71,7 +71,8 @@ def linear_maps(scene, samples=None, outputs=('shaking_wrench',), units=None):
     need = {'shaking_wrench'} | outputs
     if 'bearing_reactions' in outputs:
         need.add('driving_torque')
-    state = rig.linkage.solve(psi, None, None)
+    # this scene's crank speed, not that of the scene the shared linkage was compiled from
+    state = rig.linkage.solve(psi, scene.crank_speed_rad_s, scene.crank_acceleration_rad_s2)
     n = len(scene.links)
     ms, ls, om = units.mass_kg, units.length_m, units.omega_rad_s
     scale = np.tile([ms, ms * ls, ms * ls, ms * ls * ls], n)

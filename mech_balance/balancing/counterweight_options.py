@@ -64,12 +64,9 @@ def positive(value, name):
 def nonnegative(value, name):
     """Return ``value`` as a finite float >= 0, else :class:`CounterweightError` naming it."""
     try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise CounterweightError(f'{name}: got {value!r}, expected a number >= 0') from None
-    if not (math.isfinite(v) and v >= 0.0):
-        raise CounterweightError(f'{name}: got {v:g}, expected a finite number >= 0')
-    return v
+        return checks.check_nonneg(value, name)
+    except checks.BalanceError as exc:
+        raise CounterweightError(str(exc)) from None
 
 
 def link_list(links, scene, name='counterweight_links'):

@@ -139,13 +139,8 @@ class _SensorFeed:
     def wrench_msg(self, stamp_ns, force, torque):
         """Return a measured_wrench message."""
         from mech_balance.ros import conversions as conv
-        msg = self._wrench()
-        msg.header.stamp = conv.stamp_from_ns(int(stamp_ns))
-        msg.header.frame_id = 'sensor'
-        f, m = msg.wrench.force, msg.wrench.torque
-        f.x, f.y, f.z = (float(v) for v in force)
-        m.x, m.y, m.z = (float(v) for v in torque)
-        return msg
+        return conv.fill_wrench_values(self._wrench(), int(stamp_ns), 'sensor',
+                                       [*force, *torque])
 
     def play(self, t_ns, angles, force, torque):
         """

@@ -43,8 +43,7 @@ def linkage_for(scene):
            scene.crank_joint, scene.assembly_crank_angle_rad,
            repr(sorted(scene.assembly_link_angles_rad.items())),
            repr(sorted(scene.assembly_displacements_m.items())),
-           None if scene.normalization is None else scene.normalization.length_m,
-           scene.crank_speed_rad_s, scene.crank_acceleration_rad_s2)   # the solve's defaults
+           None if scene.normalization is None else scene.normalization.length_m)
     linkage = _LINKAGES.get(key)
     if linkage is None:
         linkage = kinematics.Linkage(scene)
