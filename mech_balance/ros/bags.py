@@ -1,29 +1,11 @@
 """
 Recordings of a real rig: rosbag2 (MCAP or sqlite3) and CSV, read and written.
 
-No ROS install is needed: rosbag2 files are read and written with the pure-Python
-``rosbags`` library, messages converted with its typestore for ROS 2 Jazzy
-(``rosbags.typesys.Stores.ROS2_JAZZY``).  A recording holds two streams:
-
-* the crank encoder, ``sensor_msgs/msg/JointState`` (default topic
-  :data:`ENCODER_TOPIC`): the position of one joint (rad), and its effort (the motor
-  torque, N*m) when the message carries one;
-* the force sensor, ``geometry_msgs/msg/WrenchStamped`` (default topic
-  :data:`WRENCH_TOPIC`): force (N) and torque (N*m) in the rig frame about the crank pivot,
-  the load the rig exerts on its frame (:mod:`mech_balance.conventions`).
-
-Both streams are stamped by their messages' ``header.stamp`` (not the recording time);
-times are returned in seconds from the earliest stamp of either stream (``t0_ns``).
-
-CSV alternative (:func:`read_csv`, :func:`write_csv`): one row per sample, encoder and
-sensor sampled together, a header line naming the columns (any order; ``#`` lines are
-comments):
-
-    ``t_s``                  stamp, s (increasing)
-    ``crank_position_rad``   encoder angle of the crank joint, rad
-    ``force_x_N``, ``force_y_N``, ``torque_z_Nm``       required
-    ``force_z_N``, ``torque_x_Nm``, ``torque_y_Nm``     optional (0 when absent)
-    ``crank_effort_Nm``      optional: the motor torque
+No ROS install is needed (the pure-Python ``rosbags`` library, Jazzy typestore).  Two
+streams, stamped by their messages' ``header.stamp``: the crank encoder (JointState on
+:data:`ENCODER_TOPIC`) and the force sensor (WrenchStamped on :data:`WRENCH_TOPIC`); times in
+seconds from the earliest stamp of either.  The CSV columns (:data:`CSV_REQUIRED`,
+:data:`CSV_OPTIONAL`) and the recording: `docs/identification.md` (*Recording*).
 """
 
 import csv
@@ -57,8 +39,7 @@ WRENCH_COLUMNS = ('force_x_N', 'force_y_N', 'force_z_N', 'torque_x_Nm', 'torque_
                   'torque_z_Nm')
 """Order of the six wrench components in :attr:`Recording.wrench`."""
 MAX_SAMPLES = 2_000_000
-"""Most samples per stream (33 min at 1 kHz): the arrays of a recording stay below about
-160 MiB (encoder 2, wrench 6 float64 columns, stamps int64)."""
+"""Most samples per stream (33 min at 1 kHz; the arrays below about 160 MiB)."""
 MAX_CSV_BYTES = 400 * 2 ** 20
 """Largest CSV file read (MAX_SAMPLES rows of nine full-precision numbers)."""
 MAX_LINE_CHARS = 4096
@@ -67,9 +48,7 @@ MAX_FIELD_CHARS = 64
 """Longest CSV field (a full-precision float is under 25 characters)."""
 _LONG_FIELD = re.compile('[^,\n]{%d,}' % (MAX_FIELD_CHARS + 1))
 _EMPTY_OR_SPLIT_FIELD = re.compile(r'(^|,)[ \t\r]*(,|$)|[^\s,][ \t]+[^\s,]', re.M)
-"""An empty field, or two numbers in one field: numpy's parse of the whole chunk would
-count them as one field less or more, and a row with one of each would be read shifted by
-a column; the row-by-row parse names them."""
+"""An empty field, or two numbers in one field: left to the row-by-row parse, which names them."""
 CSV_CHUNK_ROWS = 20000
 """CSV data lines parsed and checked at once (numpy), at most a few MiB of text."""
 MAX_T_S = 9.2e9
@@ -111,11 +90,8 @@ def read(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint=Non
     """
     Return the :class:`Recording` of a rosbag2 directory (or its file) or a CSV file.
 
-    Without ``joint`` the encoder's joint is ``default_joint`` (the scene's crank joint) if
-    the JointState carries it, else its only joint; ``wrench_frame_id`` selects the wrench
-    messages of one frame_id (a rosbag2 recording).  Every bad recording raises one
-    :class:`RecordingError` naming the file, the topic or column, the record or row and
-    what was expected (module docstring, *Refusals*).
+    Options: :func:`read_bag`.  Every bad recording raises one :class:`RecordingError`
+    naming the file, the topic or column, the record or row and what was expected.
     """
     p = Path(path)
     if not p.exists():
@@ -164,21 +140,7 @@ class _Growing:
         self.n = 0
         self.what = what
 
-    def add(self, stamp_ns, row):
-        if self.n == self.rows.shape[0]:
-            if self.n >= MAX_SAMPLES:
-                raise RecordingError(f'{self.what}: more than {MAX_SAMPLES} samples, expected '
-                                     f'at most {MAX_SAMPLES} (a fixed limit, about '
-                                     f'{MAX_SAMPLES * 80 // 2 ** 20} MiB)')
-            grow = min(2 * self.n, MAX_SAMPLES)
-            self.rows = np.resize(self.rows, (grow, self.rows.shape[1]))
-            self.stamps = np.resize(self.stamps, grow)
-        self.rows[self.n] = row
-        self.stamps[self.n] = stamp_ns
-        self.n += 1
-
-    def extend(self, stamps_ns, rows):
-        need = self.n + len(stamps_ns)
+    def _reserve(self, need):
         if need > MAX_SAMPLES:
             raise RecordingError(f'{self.what}: more than {MAX_SAMPLES} samples, expected '
                                  f'at most {MAX_SAMPLES} (a fixed limit, about '
@@ -187,6 +149,16 @@ class _Growing:
             grow = min(max(2 * self.rows.shape[0], need), MAX_SAMPLES)
             self.rows = np.resize(self.rows, (grow, self.rows.shape[1]))
             self.stamps = np.resize(self.stamps, grow)
+
+    def add(self, stamp_ns, row):
+        self._reserve(self.n + 1)
+        self.rows[self.n] = row
+        self.stamps[self.n] = stamp_ns
+        self.n += 1
+
+    def extend(self, stamps_ns, rows):
+        need = self.n + len(stamps_ns)
+        self._reserve(need)
         self.rows[self.n:need] = rows
         self.stamps[self.n:need] = stamps_ns
         self.n = need
@@ -221,14 +193,10 @@ def read_bag(path, encoder_topic=ENCODER_TOPIC, wrench_topic=WRENCH_TOPIC, joint
     Return the :class:`Recording` of a rosbag2 recording (MCAP or sqlite3 storage).
 
     ``joint``: the crank's name in the JointState (None: ``default_joint`` if the message
-    carries it, else the only name it carries).  ``progress(text)`` is called every
-    :data:`PROGRESS_EVERY` messages.  ``/tf_static`` (:data:`TF_STATIC_TOPIC`), when
-    recorded, gives the pose of the wrench's frame in ``rig_frame``
-    (:attr:`Recording.sensor_tf`).
-
-    Refused besides: fewer messages of a topic than the bag's own metadata counts (a
-    damaged storage that reads without an error), and wrench messages of several
-    ``frame_id`` s (two sensors on one topic) unless ``wrench_frame_id`` selects one.
+    carries it, else its only name).  ``progress(text)`` is called every
+    :data:`PROGRESS_EVERY` messages.  A recorded ``/tf_static`` gives
+    :attr:`Recording.sensor_tf`.  Refused besides: fewer messages than the metadata counts,
+    and several wrench ``frame_id`` s unless ``wrench_frame_id`` selects one.
     """
     bag = _bag_dir(Path(path))
     _check_metadata(bag)
@@ -407,12 +375,7 @@ def _quat_rpy(x, y, z, w):
 
 
 def _sensor_tf(transforms, rig_frame, frame_ids):
-    """
-    Return the wrench frame's pose in ``rig_frame`` from /tf_static, or None.
-
-    ``(x, y, z, roll, pitch, yaw, parent, child)`` of the transform whose header.frame_id is
-    the rig frame and whose child_frame_id is the wrench's frame_id (one frame_id only).
-    """
+    """Return ``(x, y, z, roll, pitch, yaw, parent, child)`` of rig -> wrench frame, or None."""
     if len(frame_ids) != 1:
         return None
     child = next(iter(frame_ids))
@@ -436,14 +399,11 @@ def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='
     """
     Write encoder and wrench samples as a rosbag2 recording (``storage`` mcap or sqlite3).
 
-    ``t_ns`` (int nanoseconds) stamps the encoder's messages, and the wrench's too unless
-    ``wrench_t_ns`` gives their own stamps (the messages are then written in stamp order);
-    ``wrench`` is ``(m, 6)`` or ``(m, 3)`` planar [f_x, f_y, n_z]; ``frame_id`` the wrench's
-    frame, or a sequence of one per wrench message; ``extra_joints`` are more joint names in
-    the JointState (at position 0), to exercise the joint selection; ``tf_static``
-    ``(parent, (x, y, z), (qx, qy, qz, qw))`` adds one /tf_static message: the pose of
-    ``frame_id`` (the wrench's frame) in ``parent``.  Written atomically: into a temporary
-    directory beside ``path``, then renamed; ``path`` must not exist.
+    ``t_ns`` (int ns) stamps the encoder's messages, and the wrench's unless ``wrench_t_ns``
+    is given; ``wrench`` is ``(m, 6)`` or ``(m, 3)`` [f_x, f_y, n_z]; ``frame_id`` one, or
+    one per wrench message; ``extra_joints`` more JointState names (at 0); ``tf_static``
+    ``(parent, (x, y, z), (qx, qy, qz, qw))`` adds the pose of ``frame_id`` in ``parent``.
+    Written atomically; ``path`` must not exist.
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
     if storage not in STORAGES:
@@ -519,7 +479,7 @@ def _six(wrench):
 
 
 def write_csv(path, t_s, position_rad, wrench, effort_Nm=None):
-    """Write samples as the CSV of this module's docstring (atomically)."""
+    """Write samples as the CSV :func:`read_csv` reads (atomically)."""
     wrench = _six(np.asarray(wrench, dtype=float))
     cols = ['t_s', 'crank_position_rad', *WRENCH_COLUMNS]
     data = [np.asarray(t_s, dtype=float), np.asarray(position_rad, dtype=float),
@@ -565,11 +525,10 @@ def _csv_lines(fh, label):
 
 def read_csv(path, joint=None):
     """
-    Return the :class:`Recording` of a CSV file (columns: this module's docstring).
+    Return the :class:`Recording` of a CSV file (columns: module docstring).
 
-    Streamed within :data:`MAX_SAMPLES` rows (the file at most :data:`MAX_CSV_BYTES`, a line
-    :data:`MAX_LINE_CHARS`, a field :data:`MAX_FIELD_CHARS` characters); every bad row,
-    column or value is refused naming the line and the column.
+    Bounded by :data:`MAX_SAMPLES` rows and :data:`MAX_CSV_BYTES`; every bad row, column or
+    value is refused naming the line and the column.
     """
     path = Path(path)
     label = f'--bag: {str(path)!r}'
@@ -630,13 +589,7 @@ def _csv_split(lines, numbers, label):
 
 
 def _csv_chunk(chunk, head, label, store):
-    """
-    Parse and check a chunk of CSV data lines into ``store`` (vectorized).
-
-    numpy parses the whole chunk at once (``fromstring``); when anything is off (a ragged
-    row, a quoted, long or non-numeric field) :func:`_csv_row` parses it row by row with the
-    csv module, and names the line and the column of the first bad field.
-    """
+    """Parse and check CSV data lines into ``store``: numpy at once, else row by row."""
     numbers = [n for n, _ in chunk]
     lines = [ln for _, ln in chunk]
     text = ''.join(lines)

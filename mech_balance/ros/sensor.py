@@ -1,60 +1,11 @@
 """
 The twin against the real rig: a force sensor's wrench compared with the model (numpy only).
 
-No ROS here (the rig node wires it to ``measured_wrench``, ``wrench_residual``, ``~/tare``
-and ``~/identify``); every array is SI, sample-first, wrenches as six columns
-:data:`COMPONENTS` (force x, y, z in N, torque x, y, z in N*m).
-
-Sensor pose (:class:`SensorPose`)
-    The sensor's frame in the rig frame (``frame_id``, the frame of the shaking wrench):
-    origin ``(x, y, z)`` m and orientation ``roll, pitch, yaw`` rad, the ROS fixed-axis
-    convention (REP 103, tf2 ``setRPY``): R = Rz(yaw) Ry(pitch) Rx(roll), whose columns are
-    the sensor's axes in rig coordinates.  A measurement (force f_s and torque n_s in the
-    sensor's axes, about the sensor's origin p) becomes, in the rig's axes about the rig's
-    moment point O (the crank pivot of a planar rig, :attr:`Rig.moment_point_m`)
-
-        f = s R f_s,        n_O = s R n_s + (p - O) x f
-
-    with s = +1 or -1 by the sign convention.
-
-Sign convention (``sensor.convention``)
-    ``load_on_sensor`` (s = +1): the wrench the rig exerts on the sensor, the sign of the
-    shaking wrench (:mod:`mech_balance.conventions`); ``reaction`` (s = -1): the support
-    reaction, negated before comparing.  A picture in words: docs/node.md, "The sensor's sign
-    convention".
-
-Model of a measurement (:class:`Comparison`)
-    In the rig frame about O, at the measurement's crank state (psi, psi', psi''):
-
-        w_measured = w_shaking(psi, psi', psi'') + w_weight(psi) + b + noise
-
-    ``w_shaking`` is the core's (:mod:`mech_balance.conventions`), ``w_weight`` the static
-    weight of the moving links that the conventions leave out of the shaking wrench but a
-    sensor measures when the rig's plane is not horizontal (:class:`WeightModel`:
-    sum m_i g and sum (c_i - O) x m_i g from the mass centres c_i at the current pose; the
-    frame's own weight is constant and goes into the bias), b the sensor bias (any constant:
-    the sensor's offset, the frame's weight).  The residual is ``w_measured - w_model - b``.
-
-Crank state at a measurement's stamp
-    Follow mode (:class:`EncoderTrack`): a least-squares quadratic in time through the
-    encoder angles within +- ``window / 2`` of the stamp, centred on it (the encoder
-    "interpolated" to the stamp and smoothed: its value, slope and curvature are the angle,
-    speed and acceleration).  A measurement is paired once the encoder has passed its stamp
-    by half a window (the noise and smoothing error against the window: docs/node.md, "The
-    sensor's sign convention").
-    Clock mode (:func:`clock_crank`): the node's own crank, psi = psi_0 + omega (t - t_0).
-
-Running RMS (:meth:`Comparison.rms`)
-    Per component over the paired measurements of the last ``window`` seconds (by their
-    stamps), of the residual, of the measurement less the bias and of the model.
-
-Bias (:func:`estimate_bias`, ``~/tare``)
-    The least-squares constant of ``measured - model`` over the last seconds: its mean, with
-    standard error std / sqrt(samples) (white noise).  At rest the model is the static
-    weight alone and this is the sensor's offset (plus any error of the modelled weight);
-    while turning the estimate is as good as the model (after ``~/identify``, the calibrated
-    one; :mod:`mech_balance.analysis.identify` estimates the bias jointly with the inertial
-    parameters).
+No ROS here (:mod:`mech_balance.ros.real_rig` wires it to the node).  Every array is SI,
+sample-first, wrenches as six columns :data:`COMPONENTS` in the rig frame about the moment
+point.  The sensor's pose and sign convention, the model of a measurement (shaking wrench plus
+the links' weight plus a bias), the crank state at a stamp, the running RMS and the tare:
+`docs/identification.md#the-twin-against-the-real-rig`.
 """
 
 from collections import Counter
@@ -66,7 +17,7 @@ import numpy as np
 
 TWO_PI = 2.0 * math.pi
 CONVENTIONS = ('load_on_sensor', 'reaction')
-"""``sensor.convention``: what the sensor reports (module docstring, the picture)."""
+"""``sensor.convention``: what the sensor reports (s = +1, -1: :data:`SIGN`)."""
 SIGN = {'load_on_sensor': 1.0, 'reaction': -1.0}
 COMPONENTS = ('force_x', 'force_y', 'force_z', 'torque_x', 'torque_y', 'torque_z')
 """The six columns of every wrench array here, rig frame about the moment point."""
@@ -78,30 +29,23 @@ MIN_FIT_SAMPLES = 5
 MIN_SIDE_SAMPLES = 2
 """Fewest encoder samples on each side of a measurement's stamp in its fit."""
 PAIR_TIMEOUT_S = 2.0
-"""A measurement still without encoder data this long (by the stamps of later measurements,
-plus half the crank window) after its stamp is rejected."""
+"""A measurement without encoder data this long (plus half the crank window) is rejected."""
 PENDING_CAPACITY = 20_000
 """Most measurements waiting for encoder data (the oldest are rejected beyond)."""
 PAIRED_CAPACITY = 120_000
-"""Most paired measurements kept for the RMS and the tare (2 min at 1 kHz): windows longer
-than the sensor's rate allows are cut to the newest samples."""
+"""Most paired measurements kept for the RMS and the tare (2 min at 1 kHz)."""
 IDENTIFY_CAPACITY = 120_000
-"""Most encoder and measurement samples kept for ``~/identify`` (each; 2 min at 1 kHz,
-about 8 MB): the identification uses the newest ones."""
+"""Most encoder and measurement samples kept for ``~/identify`` (each; 2 min at 1 kHz)."""
 IDENTIFY_SPAN_S = 120.0
-"""``~/identify`` uses at most the newest this many seconds of data (by stamp): with
-:data:`IDENTIFY_CAPACITY` the bound on its memory and time, whatever the stamps say."""
+"""``~/identify`` uses at most the newest this many seconds of data (by stamp)."""
 REST_SPEED_RAD_S = 1e-3
 """A tare whose crank speeds stay below this is taken at rest."""
 RESYNC_AFTER = 10
-"""Consecutive readings refused for their stamp after which a track re-synchronizes on the
-incoming stream (the node passes ``follow.resync_after``)."""
+"""Refusals for the stamp in a row after which a track re-synchronizes (default)."""
 MAX_MEASUREMENT = 1e9
-"""Largest |component| of a measured wrench accepted, N and N*m (far beyond any sensor of a
-bench rig; a larger value is a corrupt reading and would overflow the running RMS)."""
+"""Largest |component| of a measured wrench accepted, N and N*m (beyond: corrupt)."""
 MODEL_FLOOR = 1e-12
-"""A component whose model RMS is at or below this (SI) is not modelled (out of the plane
-of a planar rig; a rig at rest without gravity): its fraction is not judged."""
+"""A component whose model RMS is at or below this (SI) is not modelled, nor judged."""
 
 
 def _wrench_pair(force, moment, what):
@@ -193,13 +137,7 @@ class SensorPose:
 
 @dataclass(frozen=True)
 class WeightModel:
-    """
-    The static weight of the moving links: masses, local mass centres, gravity.
-
-    ``bodies`` names the links (as in :class:`~mech_balance.core.rig.BodyPoses`),
-    ``mass_kg`` ``(nb,)``, ``centre_m`` ``(nb, 3)`` in each link's own frame, ``gravity``
-    ``(3,)`` m/s^2 in the rig frame.
-    """
+    """The moving links' static weight: ``mass_kg (nb,)``, ``centre_m (nb, 3)`` (link frames)."""
 
     bodies: tuple
     mass_kg: np.ndarray
@@ -208,12 +146,7 @@ class WeightModel:
 
     @classmethod
     def of(cls, rig):
-        """
-        Return the weight model of a rig, or None when its model has no gravity.
-
-        A rig with the ``gravity`` capability has a scene with ``gravity_m_s2`` and links
-        with ``mass_kg``; the mass centres come from the rig's drawing.
-        """
+        """Return the weight model of a rig, or None when its model has no gravity."""
         if 'gravity' not in rig.capabilities:
             return None
         g = np.zeros(3)
@@ -226,12 +159,7 @@ class WeightModel:
                    np.array([b.mass_centre_m for b in bodies], dtype=float), g)
 
     def wrench(self, poses, point_m):
-        """
-        Return ``(n, 6)``: the links' weight on the frame at ``poses``, about ``point_m``.
-
-        ``poses`` is a :class:`~mech_balance.core.rig.BodyPoses`: per link m g at its mass
-        centre c = o + R c_local; force sum m g, moment sum (c - O) x m g.
-        """
+        """Return ``(n, 6)``: the links' weight at ``poses`` (BodyPoses), about ``point_m``."""
         point = _point(point_m)
         n = poses.origin_m.shape[0]
         out = np.zeros((n, 6))
@@ -257,14 +185,10 @@ def model_wrench(data, weight, point_m):
 
 class Series:
     """
-    Samples in stamp order, at most ``capacity`` (the oldest dropped), appended in batches.
+    Samples in stamp order, at most ``capacity`` (the oldest dropped).
 
-    Kept in one array of twice the capacity, compacted when full (amortized O(1)):
-    :attr:`stamps_ns` and :attr:`values` are views of the newest samples, oldest first.  The
-    arrays are allocated whole, every page written, at the first sample (:meth:`_allocate`):
-    numpy's zeros are mapped lazily, page by page as samples arrive, so the node's memory
-    grew for minutes of follow mode (issue 32 item 3; 2 x 120000 encoder samples are 5.8 MB)
-    and is flat after the first sample now.  A series never fed costs nothing.
+    One array of twice the capacity, compacted when full; allocated whole, every page written,
+    at the first sample, so the node's memory stays flat while it fills.
     """
 
     def __init__(self, columns, capacity):
@@ -298,29 +222,27 @@ class Series:
         if t.size == 0:
             return
         v = np.asarray(values, dtype=float).reshape(t.size, -1)
-        if not self._t.size:
-            self._allocate()
         if t.size > self.capacity:
             t, v = t[-self.capacity:], v[-self.capacity:]
-        if self._hi + t.size > self._t.size:
-            keep = min(len(self), self.capacity - t.size)
-            self._t[:keep] = self._t[self._hi - keep:self._hi]
-            self._v[:keep] = self._v[self._hi - keep:self._hi]
-            self._lo, self._hi = 0, keep
+        self._make_room(t.size)
         self._t[self._hi:self._hi + t.size] = t
         self._v[self._hi:self._hi + t.size] = v
         self._hi += t.size
         self._lo = max(self._lo, self._hi - self.capacity)
 
-    def append_one(self, stamp_ns, row):
-        """Append one sample (after the newest kept): :meth:`append` without the batch."""
+    def _make_room(self, count):
+        """Allocate at the first sample; move the newest to the front when full."""
         if not self._t.size:
             self._allocate()
-        if self._hi == self._t.size:
-            keep = min(len(self), self.capacity - 1)
+        if self._hi + count > self._t.size:
+            keep = min(len(self), self.capacity - count)
             self._t[:keep] = self._t[self._hi - keep:self._hi]
             self._v[:keep] = self._v[self._hi - keep:self._hi]
             self._lo, self._hi = 0, keep
+
+    def append_one(self, stamp_ns, row):
+        """Append one sample (after the newest kept): :meth:`append` without the batch."""
+        self._make_room(1)
         self._t[self._hi] = stamp_ns
         self._v[self._hi] = row
         self._hi += 1
@@ -365,11 +287,8 @@ class EncoderTrack:
     """
     The encoder's turned angle over time, and the crank state at any stamp inside it.
 
-    ``window_s``: span of the centred least-squares quadratic (module docstring).  Angles are
-    kept continuous: a new angle is moved by whole turns to the branch nearest the last
-    (an estimator restarted after a gap may send the angle as the encoder reports it).  The
-    raw position as the encoder sent it is kept too (column 1): the identification smooths
-    those (their quantization step is exact; accumulated turned angles carry round-off).
+    Column 0 the turned angle (unwrapped to the branch nearest the last), column 1 the
+    position as sent (what the identification smooths).
     """
 
     def __init__(self, window_s, capacity=IDENTIFY_CAPACITY, resync_after=RESYNC_AFTER):
@@ -389,12 +308,9 @@ class EncoderTrack:
         """
         Add an accepted encoder sample; return False if its stamp was refused.
 
-        ``position_rad`` as the encoder sent it; ``turned_rad`` the unwrapped angle (the
-        follow-mode estimator's), or None to unwrap to the branch nearest the last.  A
-        stamp not after the newest is refused, unless ``resync`` (the estimator has just
-        re-synchronized on it) or it is the ``resync_after``-th refused in a row: then the
-        samples stamped at or after it are forgotten (the far-future stamp that locked the
-        track) and it is added (:attr:`resyncs` counts these).
+        ``turned_rad``: the estimator's unwrapped angle, or None.  A stamp not after the
+        newest is refused unless ``resync`` or it is the ``resync_after``-th in a row: then
+        the samples stamped at or after it are forgotten (counted in :attr:`resyncs`).
         """
         newest = self.series.newest_ns
         raw = float(position_rad)
@@ -413,17 +329,12 @@ class EncoderTrack:
         self.series.append_one(int(stamp_ns), (turned, raw))
         return True
 
-    def clear(self):
-        """Forget the encoder's history."""
-        self.series.clear()
-
     def state_at(self, stamps_ns):
         """
-        Return ``(psi, speed, accel, status)`` at ``stamps_ns`` ``(n,)``.
+        Return ``(psi, speed, accel, status)`` at ``stamps_ns`` ``(n,)`` (NaN unless ok).
 
-        ``status`` per stamp: ``'ok'``; ``'wait'`` (the encoder has not passed the stamp by
-        half a window yet); or the reason it can never be paired: ``'before the encoder
-        data'`` or ``'encoder gap at the stamp'``.  psi, speed, accel are NaN unless ok.
+        ``status`` per stamp: ``'ok'``, ``'wait'`` (not passed by half a window yet), or
+        why it can never be paired (``'before the encoder data'``, ``'encoder gap ...'``).
         """
         stamps = np.atleast_1d(np.asarray(stamps_ns, dtype=np.int64))
         n = stamps.size
@@ -468,12 +379,7 @@ class EncoderTrack:
 
 
 def clock_crank(schedule, stamps_ns):
-    """
-    Return ``(psi, speed, accel)`` of a clock-mode schedule at ``stamps_ns`` (turned angle).
-
-    ``schedule`` is a :class:`mech_balance.ros.streaming.ClockSchedule`: psi = angle0 +
-    speed (t - epoch), constant speed, zero acceleration.
-    """
+    """Return ``(psi, speed, accel)`` of a :class:`~.streaming.ClockSchedule` at stamps."""
     t = np.atleast_1d(np.asarray(stamps_ns, dtype=np.int64))
     psi = schedule.angle0_rad + schedule.speed_rad_s * ((t - schedule.epoch_ns) * 1e-9)
     return psi, np.full(t.size, schedule.speed_rad_s), np.zeros(t.size)
@@ -512,8 +418,7 @@ def estimate_bias(measured, model, speed_rad_s=None, span_s=0.0):
     """
     Return the :class:`BiasEstimate` of ``measured - model = bias + noise`` (``(n, 6)`` each).
 
-    The least-squares constant is the mean; its standard error std / sqrt(n) (ddof 1, white
-    noise).  ``speed_rad_s`` (the crank speeds) says whether the crank was at rest.
+    The mean, with standard error std / sqrt(n); ``speed_rad_s`` says whether at rest.
     """
     r = np.asarray(measured, dtype=float) - np.asarray(model, dtype=float)
     n = r.shape[0]
@@ -540,12 +445,8 @@ class Comparison:
     """
     The measured wrench against the model: pairing, residual, RMS, tare, identification data.
 
-    ``pose`` (:class:`SensorPose`) and ``point_m`` (the rig's moment point, rig frame) turn
-    each measurement into the rig's wrench about the moment point on arrival
-    (:meth:`measurement`); encoder samples (:meth:`encoder`) feed the crank track and the
-    identification buffer.  :meth:`process` pairs what can be paired with the model (one core
-    call per batch) and returns the residuals.  Rejected input is counted by reason in
-    :attr:`rejected`.  Not thread-safe: the node holds a lock around every call.
+    Rejected input is counted by reason in :attr:`rejected`.  Not thread-safe: the node holds
+    a lock around every call.
     """
 
     def __init__(self, pose, point_m, crank_window_s, weight=None, resync_after=RESYNC_AFTER):
@@ -561,7 +462,6 @@ class Comparison:
         self.used = 0
         self.received = 0
         self.rejected = Counter()
-        self.last_model_error = ''
         self.resync_after = max(1, int(resync_after))
         self.refused_in_a_row = 0      # measurements refused for their stamp, in a row
         self.measurement_resyncs = 0
@@ -589,10 +489,8 @@ class Comparison:
         """
         Take one sensor-frame reading; raise ValueError naming what is wrong.
 
-        A stamp not after the newest is refused; the :attr:`resync_after`-th refused in a
-        row re-synchronizes: the measurements stamped at or after it are forgotten (one
-        stamped far in the future locked the stream) and it is taken
-        (:attr:`just_resynced`, :attr:`last_resync` say so).
+        A stamp not after the newest is refused; the :attr:`resync_after`-th in a row
+        re-synchronizes (the later measurements forgotten; :attr:`just_resynced`).
         """
         self.received += 1
         self.just_resynced = False
@@ -632,11 +530,7 @@ class Comparison:
     # ------------------------------------------------------------------ settings
 
     def configure(self, pose=None, crank_window_s=None):
-        """
-        Change the sensor's pose and convention, or the crank window.
-
-        A new pose forgets the bias and every buffered measurement (taken in the old frame).
-        """
+        """Change the sensor's pose (forgets the bias and the measurements) or crank window."""
         if pose is not None and pose != self.pose:
             self.pose = pose
             self._forget_measurements()
@@ -645,10 +539,9 @@ class Comparison:
 
     def new_model(self, weight, point_m):
         """
-        Compare with another model from now on: forget the paired measurements.
+        Compare with another model (``weight``, ``point_m``): forget the paired measurements.
 
-        ``weight`` (a :class:`WeightModel` or None) and ``point_m`` (its moment point) are
-        the new model's; another moment point forgets the bias and the measurements too.
+        Another moment point forgets the bias and the measurements too.
         """
         self.weight = weight
         self.paired.clear()
@@ -669,10 +562,8 @@ class Comparison:
         """
         Pair the waiting measurements that can be paired; return their :class:`Paired`.
 
-        ``evaluate(psi, speed, accel)`` returns the model's RigData (shaking wrench and body
-        poses) at wrapped crank angles; ``schedule``: the clock-mode schedule, None in
-        follow mode (the encoder track).  Measurements that can never be paired are
-        rejected (counted by reason); a model evaluation that fails rejects its samples.
+        ``evaluate(psi, speed, accel)`` returns the model's RigData; ``schedule``: clock
+        mode's, None in follow mode.  What can never be paired is rejected (by reason).
         """
         t, w = self.pending.stamps_ns.copy(), self.pending.values.copy()
         if t.size == 0:
@@ -717,9 +608,8 @@ class Comparison:
                 data = evaluate(wrapped[i:i + 1], speed[i:i + 1], accel[i:i + 1])
                 out[i] = model_wrench(data, self.weight, self.point_m)[0]
                 good[i] = True
-            except ValueError as exc:
+            except ValueError:
                 self.rejected['model evaluation failed'] += 1
-                self.last_model_error = str(exc)
         return out, good
 
     # ------------------------------------------------------------------ statistics
@@ -760,11 +650,8 @@ class Comparison:
         """
         Return ``(t_encoder_s, angle_rad, t_wrench_s, planar_wrench (n, 3), t0_ns)``.
 
-        The buffered encoder (follow mode; the identification splits it at its gaps and fits
-        each stretch on its own, :func:`mech_balance.analysis.identify.encoder_segments`)
-        or, with a clock-mode ``schedule``, the node's crank at the measurement stamps; the
-        measurements in the rig frame about the moment point, [f_x, f_y, n_z], bias not
-        removed (the identification estimates it).
+        The buffered encoder (with a clock-mode ``schedule``: the node's crank at the
+        measurement stamps) and the measurements [f_x, f_y, n_z], bias not removed.
         """
         span_ns = int(IDENTIFY_SPAN_S * 1e9)
         tw, w = self.measured.stamps_ns, self.measured.values

@@ -3,50 +3,9 @@ URDF of a rig's spanning tree and the tree's joint positions from the core's sta
 
 numpy only (no ROS): ``mech-balance urdf`` writes :func:`urdf_xml`, the launch file gives it
 to robot_state_publisher, and the rig node publishes :func:`joint_positions` on
-``joint_states``, so that RViz draws the rig where the core puts it.
-
-URDF is a tree.  A closed linkage is opened into the spanning tree the core itself solves
-(:class:`mech_balance.core.planar.kinematics.Linkage`: ``tree`` and ``cuts``); the core
-closes the loops exactly, so every tree joint gets its exact value and no ``<mimic>``
-approximation is needed.
-The cut joints are listed in an XML comment with the two points each one closes.
-
-Link frames (the URDF's own, SI)
-    Planar rigs: the root link (named after the node's ``frame_id``) is the scene's frame: x
-    and y in the plane of motion, z out of it.  The URDF link of a moving link b is the
-    scene's link frame of b (axes turned by phi_b) moved to b's point of the tree joint
-    that holds b, so a point p of b (link coordinates) is at ``(p - p_j, 0)`` in the URDF
-    frame.  Spatial rigs (the RGGR of seed 002 among them): the frames of the section
-    *spatial kind* below.
-
-Joint zero convention (:func:`joint_positions`)
-    * Revolute joint of a planar rig: the relative angle phi_child - phi_parent of the two
-      link frames minus the joint's offset, wrapped to (-pi, pi].  The offset is 0 (the link
-      frames are parallel at 0) except for a joint with a limited swing that passes through
-      the wrap point +-pi over a cycle: its offset is the middle of the swing (the joint
-      origin's yaw), so that its position stays continuous and inside its limits.  The crank
-      joint reads the crank angle psi, wrapped.
-    * Prismatic joint: the slide of the child's joint point from the parent's along the
-      joint axis (the core's tree coordinate), 0 where the two points coincide.
-    Velocities are the time derivatives of the positions (rad/s, m/s).
-
-Joint limits
-    A joint whose coordinate returns to its start after one crank turn is ``revolute`` (or
-    ``prismatic``) with ``<limit>`` at the extremes over the cycle (golden-section refined,
-    widened by :data:`~mech_balance.ros.joint_ranges.LIMIT_MARGIN`, :mod:`.joint_ranges`); one
-    that turns fully is ``continuous``.  A limit's
-    ``velocity`` is the largest rate over the cycle at the scene's crank speed; ``effort``
-    is 0: every limited joint is passive (the crank, the driven joint, turns fully).
-
-Inertials
-    Mass, mass centre and inertia about the mass centre of each moving link.  Planar rigs
-    (z out of the plane): izz is the scene's centroidal moment of inertia; ixx and iyy do
-    not enter planar dynamics and are those of a thin plate in the plane with equal second
-    moments along x and y, ixx = iyy = izz / 2 (ixx + iyy = izz for a thin plate).  A link
-    whose scene entry lists ``counterweights`` (discs: ``mass_kg``, ``centre_m``,
-    ``radius_m``, ``thickness_m``, included in the link's totals) adds each disc's
-    out-of-plane inertia to ixx, iyy and ixy and draws it.  Spatial rigs: the scene's
-    mass, mass centre and inertia tensor.
+``joint_states``.  A closed linkage is opened into the spanning tree the core solves (the cut
+joints are listed in an XML comment).  Link frames, the joint zero convention, limits and
+inertials: `docs/rviz_launch.md` (*Links*, *Zero convention*, *URDF frames of spatial rigs*).
 """
 
 from dataclasses import dataclass, field, replace
@@ -91,9 +50,8 @@ class UrdfJoint:
     """
     One URDF joint: where it sits on its parent, how it moves, its zero and its limits.
 
-    ``xyz`` and ``rpy`` place the joint frame in the parent link's frame; ``axis`` is in the
-    joint frame.  ``offset`` (rad) is subtracted from the core's coordinate before wrapping
-    (revolute joints; module docstring).  ``lower``/``upper`` are None for ``continuous``.
+    ``xyz``, ``rpy``: the joint frame in the parent's; ``axis`` in the joint frame; ``offset``
+    (rad) subtracted before wrapping; ``lower``/``upper`` None for ``continuous``.
     """
 
     name: str
@@ -114,12 +72,9 @@ class TreeModel:
     """
     The URDF's joints of one scene geometry, built once (:func:`tree_model`).
 
-    ``coordinates(tree, state)`` returns the tree joints' ``(q, qd, angular)`` of a solved
-    state (each kind's own, registered as its ``urdf_tree``); ``joints`` are in
-    :func:`joint_positions` order; ``linkage`` is the compiled planar linkage (or None).
-    ``cuts`` are the ``(name, joint_type)`` of the joints the core closes (not in the URDF);
-    ``state_of(data)`` returns the core state :func:`joint_positions` reads from a
-    :class:`~mech_balance.core.rig.RigData` of the scene's rig (:func:`rig_joint_positions`).
+    ``coordinates(tree, state)`` returns the tree joints' ``(q, qd, angular)``; ``linkage``
+    the compiled planar linkage (or None); ``cuts`` the ``(name, joint_type)`` the core closes;
+    ``state_of(data)`` the state :func:`joint_positions` reads from a rig's RigData.
     """
 
     coordinates: object
@@ -165,12 +120,7 @@ _MODELS_MAX = 64
 
 
 def tree_model(scene_or_linkage):
-    """
-    Return the :class:`TreeModel` of a scene of any kind or a compiled planar Linkage.
-
-    Built once per object (cached): the joint ranges need one cycle of the kinematics.
-    A :class:`TreeModel` passed in is returned as it is.
-    """
+    """Return the (cached) :class:`TreeModel` of a scene, a planar Linkage or a TreeModel."""
     if isinstance(scene_or_linkage, TreeModel):
         return scene_or_linkage
     key = id(scene_or_linkage)
@@ -272,12 +222,9 @@ def joint_positions(model, state):
     """
     Return ``(names, positions, velocities)`` of the URDF joints at the core's state.
 
-    ``model``: a scene, a planar :class:`~mech_balance.core.planar.kinematics.Linkage` or a
-    :class:`TreeModel` (:func:`tree_model`; pass it to avoid the cache lookup).  ``state``:
-    the tree's state (:meth:`TreeModel.state_of` of a rig's evaluation; planar: a
-    :class:`~mech_balance.core.planar.kinematics.KinematicState` with rates).  ``positions`` and
-    ``velocities`` are ``(n, n_joints)`` (rad or m; rad/s or m/s) in the zero convention of
-    the module docstring: revolute positions wrapped to (-pi, pi], no -0.0 anywhere.
+    ``model``: as :func:`tree_model` takes; ``state``: :meth:`TreeModel.state_of` of a rig's
+    evaluation (planar: a KinematicState with rates).  ``(n, n_joints)`` arrays, rad or m,
+    revolute positions wrapped to (-pi, pi], no -0.0.
     """
     tree = tree_model(model)
     names = tree.names
@@ -288,13 +235,7 @@ def joint_positions(model, state):
 
 
 def rig_joint_positions(model, data):
-    """
-    Return ``(names, positions, velocities)`` of the URDF joints at a rig's evaluation.
-
-    ``data`` is the :class:`~mech_balance.core.rig.RigData` of the scene's rig (``rig.at``,
-    any design of the geometry of ``model``); the values are those of
-    :func:`joint_positions`, vectorized over the batch.
-    """
+    """Return :func:`joint_positions` at ``data``, a RigData of the scene's rig (any design)."""
     tree = tree_model(model)
     return joint_positions(tree, tree.state_of(data))
 
@@ -306,9 +247,7 @@ def thin_plate_inertia(link):
     """
     Return ``(mass, com_xy, (ixx, iyy, izz, ixy))`` of a planar link about its mass centre.
 
-    Mass, mass centre and izz are the link's (totals, counterweights included); ixx, iyy
-    and ixy those of a thin plate with ixx = iyy (module docstring), plus the discs of
-    ``link.counterweights`` (if the link has any) with their own thickness.
+    A thin plate with ixx = iyy = izz / 2, plus the link's counterweight discs.
     """
     mass, com, izz = float(link.mass_kg), tuple(link.com_m), float(link.inertia_com_kg_m2)
     discs = tuple(getattr(link, 'counterweights', ()) or ())
@@ -392,6 +331,13 @@ def _joint_element(robot, spec):
     return el
 
 
+def _link_colours(scene_name, names):
+    """Return ``(material, rgba)`` of the frame and each moving link, in body order."""
+    return [(f'{scene_name}/{FRAME}', FRAME_COLOUR)] + [
+        (f'{scene_name}/{n}', PALETTE[(i - 1) % len(PALETTE)]) for i, n in enumerate(names)
+        if i > 0]
+
+
 def _materials(robot, colours):
     for name, rgba in colours:
         ET.SubElement(ET.SubElement(robot, 'material', name=name), 'color', rgba=_vec(rgba))
@@ -415,12 +361,7 @@ def _header(robot, text):
 
 
 def urdf_xml(scene, frame_id=DEFAULT_FRAME_ID, linkage=None):
-    """
-    Return the URDF (text) of a scene's spanning tree (any kind).
-
-    ``frame_id`` names the root link (the frame); ``linkage`` is the scene's compiled
-    linkage if at hand (planar).  Links, joints, zero convention: module docstring.
-    """
+    """Return the URDF (text) of a scene (any kind); ``frame_id`` names the root link."""
     robot = schema.kind_of(scene).implementation('urdf')(scene, frame_id, linkage)
     ET.indent(robot, space='  ')
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding='unicode') + '\n'
@@ -452,9 +393,7 @@ def planar_robot(sc, frame_id, linkage=None):
             f'{_num(pb.imag)})')
     _header(robot, 'Cut joints (closed by the core, not part of the URDF tree; points in '
                    'the URDF frames of their links): ' + ('; '.join(cut_lines) or 'none'))
-    colours = [(f'{sc.name}/{FRAME}', FRAME_COLOUR)] + [
-        (f'{sc.name}/{n}', PALETTE[(i - 1) % len(PALETTE)]) for i, n in enumerate(names)
-        if i > 0]
+    colours = _link_colours(sc.name, names)
     if any(getattr(lk, 'counterweights', ()) for lk in sc.links):
         colours.append((f'{sc.name}/counterweight', WEIGHT_COLOUR))
     _materials(robot, colours)
@@ -522,21 +461,8 @@ def _rod(parent, name, material, start, end, radius):
 
 
 # ----------------------------------------------------------------------------- spatial kind
-#
-# Spatial scenes (kind: spatial, mech_balance.core.spatial): the URDF of the core's spanning
-# tree.  Each moving link b has the URDF frame of its tree joint: origin at b's point of that
-# joint, axes R_b K_b^T with a constant K_b (the joint's fixed rotation: revolute, prismatic,
-# cylindrical Z or Rot(a, angle) Z; universal I; spherical its assembly rotation A), so that
-# a point s of b is at K_b (s - s_b) in its URDF frame.  A joint frame has the parent's scene
-# axes at the parent's joint point.  A revolute joint is one URDF revolute (or continuous)
-# joint about its axis; prismatic one prismatic joint; cylindrical a revolute then a prismatic
-# joint on a massless link (``<name>_turn``, ``<name>_slide``); universal two revolute joints
-# (``<name>_1`` about the parent's axis, ``<name>_2`` about the child's); spherical three
-# revolute joints about z, y, x on two massless links (``<name>_yaw``, ``_pitch``, ``_roll``),
-# the common substitute for the ball joint URDF lacks.  The joint values are the rig's own
-# joint coordinates of the same names (mech_balance.core.spatial.coordinates), so the node's
-# joint_states are the rig's; a tree joint whose scene end ``a`` hangs below ``b`` has its
-# axes negated (revolute, prismatic, cylindrical, spherical; universal: refused).
+# The URDF frames and joints of spatial scenes: docs/rviz_launch.md, "URDF frames of spatial
+# rigs".
 
 def _spatial_parts(sc):
     """Return the linkage, ``K`` and ``s_b`` of every body, and the URDF joint specs."""
@@ -682,9 +608,7 @@ def spatial_robot(sc, frame_id, linkage=None):
                          f'({_vec(pa)}) with {jt.link_b}.{jt.point_b} ({_vec(pb)})')
     _header(robot, 'Cut joints (closed by the core, not part of the URDF tree; points in '
                    'the URDF frames of their links): ' + ('; '.join(cut_lines) or 'none'))
-    colours = [(f'{sc.name}/{FRAME}', FRAME_COLOUR)] + [
-        (f'{sc.name}/{n}', PALETTE[(i - 1) % len(PALETTE)]) for i, n in enumerate(names)
-        if i > 0]
+    colours = _link_colours(sc.name, names)
     _materials(robot, colours)
     rod = ROD_RADIUS * lk.length_scale
     pin = PIN_RADIUS_3D * lk.length_scale
