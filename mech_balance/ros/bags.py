@@ -419,6 +419,11 @@ def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='
     joint_t, wrench_t = types[JOINT_STATE], types[WRENCH_STAMPED]
     vec_t, wr_t = types['geometry_msgs/msg/Vector3'], types['geometry_msgs/msg/Wrench']
     plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
+
+    def header(stamp_ns, frame):
+        sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
+        return header_t(stamp=time_t(sec=sec, nanosec=nsec), frame_id=frame)
+
     tmp_dir = Path(tempfile.mkdtemp(dir=path.parent, prefix=f'.{path.name}.'))
     try:
         out = tmp_dir / path.name
@@ -430,9 +435,8 @@ def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='
             c_w = writer.add_connection(wrench_topic, WRENCH_STAMPED, typestore=store)
             if tf_static is not None:
                 parent, xyz, quat = tf_static
-                sec, nsec = divmod(int(t_ns[0]), 1_000_000_000)
                 tr = types['geometry_msgs/msg/TransformStamped'](
-                    header=header_t(stamp=time_t(sec=sec, nanosec=nsec), frame_id=parent),
+                    header=header(t_ns[0], parent),
                     child_frame_id=frame_id, transform=types['geometry_msgs/msg/Transform'](
                         translation=vec_t(x=xyz[0], y=xyz[1], z=xyz[2]),
                         rotation=types['geometry_msgs/msg/Quaternion'](
@@ -446,10 +450,8 @@ def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='
             order = sorted([(int(s), 0, k) for k, s in enumerate(t_ns)]
                            + [(int(s), 1, k) for k, s in enumerate(w_ns)])
             for stamp, stream, k in order:
-                sec, nsec = divmod(stamp, 1_000_000_000)
                 if stream == 0:
-                    hdr = header_t(stamp=time_t(sec=sec, nanosec=nsec),
-                                   frame_id=frames[0] if frames else '')
+                    hdr = header(stamp, frames[0] if frames else '')
                     eff = empty if effort_Nm is None else \
                         np.array([float(effort_Nm[k]), *zeros])
                     js = joint_t(header=hdr, name=names,
@@ -457,7 +459,7 @@ def write_bag(path, storage, t_ns, position_rad, wrench, effort_Nm=None, joint='
                                  velocity=empty, effort=eff)
                     writer.write(c_enc, stamp, store.serialize_cdr(js, JOINT_STATE))
                     continue
-                hdr = header_t(stamp=time_t(sec=sec, nanosec=nsec), frame_id=frames[k])
+                hdr = header(stamp, frames[k])
                 f, m = wrench[k, :3], wrench[k, 3:]
                 ws = wrench_t(header=hdr, wrench=wr_t(force=vec_t(x=f[0], y=f[1], z=f[2]),
                                                       torque=vec_t(x=m[0], y=m[1], z=m[2])))

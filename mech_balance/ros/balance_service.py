@@ -1,10 +1,8 @@
 """
 The rig node's balancing part: ``~/balance``, ``use_balanced`` and ``~/balance_result``.
 
-:class:`Balancer` runs :func:`mech_balance.balancing.balance` with the ``balance.*``
-parameters on the state's original design, one run at a time (callers of the same request
-share its answer), publishes the result's YAML on ``~/balance_result`` (transient local:
-late joiners get it) and writes it to a file named by the node's namespace and name.
+One run of :func:`mech_balance.balancing.balance` at a time; the answer's text:
+`docs/node.md#the-balance-answer`.
 """
 
 import os
@@ -21,8 +19,7 @@ import yaml
 
 BUSY = 'a balancing run is in progress'
 WAIT_S = 600.0
-"""Longest wait of a ``~/balance`` caller for the run in progress before it is told to call
-again (runs are bounded by the solvers; this only bounds a caller's wait)."""
+"""Longest wait of a ``~/balance`` caller for the run in progress (then: call again)."""
 BALANCE_RESULT = '~/balance_result'
 """Transient-local std_msgs/String: the YAML of the last balancing run (late joiners get it)."""
 
@@ -31,8 +28,7 @@ def balance_method(values, rig):
     """
     Return the balancing method of ``balance.method`` for ``rig``; ValueError if it has none.
 
-    The default, redistribution, on a rig that cannot be redistributed (a spatial rig) is the
-    rig's own method (:func:`mech_balance.balancing.method_for`).
+    The default on a rig that cannot be redistributed is the rig's own method.
     """
     chosen = values['balance.method']
     if chosen == params.BY_NAME['balance.method'].default and \
@@ -49,33 +45,21 @@ def result_path(fully_qualified_name):
     """
     Return the file the balancing result of node ``fully_qualified_name`` is written to.
 
-    The namespace is part of the name, '/' written '__' (``/cell3/rig`` ->
-    ``mech_balance_cell3__rig_balance.yaml``; ROS names never repeat '_', so no two nodes
-    share a file): rigs in different namespaces never overwrite each other's result.
+    '/' written '__' (``/cell3/rig`` -> ``mech_balance_cell3__rig_balance.yaml``).
     """
     name = fully_qualified_name.strip('/').replace('/', '__')
     return os.path.join(tempfile.gettempdir(), f'mech_balance_{name}_balance.yaml')
 
 
 def headline(design):
-    """
-    Return the first line of an answer: scene, method, RMS before -> after, certified or not.
-
-    :meth:`Design.summary` without its certificate, then ``certified`` or the status in
-    words: short enough (about 120 characters) for ``ros2 topic echo``'s 128-character cut.
-    """
+    """Return the first line of an answer (about 120 characters): summary, certified or not."""
     head = design.summary(certificate=False).rstrip(' ;:')
     verdict = 'certified' if design.success else STATUS[design.status]
     return f'{head}; {verdict}'
 
 
 def answer_text(design, where, topic):
-    """
-    Return the text of a balancing result: three comment lines, then the YAML.
-
-    ``# <headline>``, ``# full result: <where> ...`` (how to read it whole), ``# <the
-    certificate in words>``, then :meth:`Design.to_dict` as block YAML (one key a line).
-    """
+    """Return the text of a balancing result: three comment lines, then the YAML."""
     return (f'# {headline(design)}\n'
             f'# full result: {where} (std_msgs/String YAML; whole: ros2 topic echo --once '
             f'--full-length {topic})\n'
@@ -92,11 +76,8 @@ class Balancer:
     """
     Balance the state's original design; publish and write the result.
 
-    The last answer is kept with the design it was computed for (the original model object,
-    its content included) and the ``balance.*`` values: a caller asking the same again --
-    while the run is in progress (it waits for it) or after -- gets that answer, not a run
-    of its own and not :data:`BUSY`.  :attr:`last_original` names the design a returned
-    model belongs to.
+    A caller asking the same as the last run (same original model object, same
+    ``balance.*`` values) gets its answer; :meth:`original_of` names a model's design.
     """
 
     def __init__(self, node, state, guard):
@@ -118,12 +99,8 @@ class Balancer:
         """
         Return ``(model or None, answer)``: a balancing run, or why there is none.
 
-        One run at a time: while one runs, the answer is :data:`BUSY`, unless ``wait``: then
-        the call queues behind the running one (at most ``timeout_s``, then it is told to
-        call again) and, once it may start, answers the result of the run it waited for if
-        that was the same request (same design, same options), else runs -- only if
-        ``still_wanted()`` (when given) is true, else answers ``(None, None)``.  The model
-        returned belongs to :meth:`original_of`.
+        While one runs: :data:`BUSY`, or with ``wait`` queue behind it (``timeout_s``).  Runs
+        only if ``still_wanted()`` (when given), else answers ``(None, None)``.
         """
         if not self.lock.acquire(timeout=timeout_s) if wait else \
                 not self.lock.acquire(blocking=False):
@@ -166,14 +143,7 @@ class Balancer:
         return model, answer
 
     def publish_result(self, design):
-        """
-        Publish a result on ``~/balance_result``, write it to a file; return the answer.
-
-        The answer, the topic's message and the file carry the same text
-        (:func:`answer_text`): three comment lines a person reads first -- the summary, where
-        the full result is, the certificate -- then the YAML of :meth:`Design.to_dict` in SI,
-        what ``mech-balance balance --json`` prints (the comments leave it YAML).
-        """
+        """Publish a result on ``~/balance_result``, write it to a file; return the text."""
         path = result_path(self._node.get_fully_qualified_name())
         topic = self.result_pub.topic_name
         where = f'{path} and {topic}'
@@ -190,10 +160,7 @@ class Balancer:
         """
         Balance on a thread of its own (returned); then call ``done(model or None, answer)``.
 
-        A run already in progress (a ``~/balance`` call, or the background run of a scene
-        switched away from) is waited for; this one then starts only if the state still
-        has no balanced design of the same original design (the run waited for may have
-        published it), so a scene switch during a run is balanced in its turn.
+        Waits for a run in progress, then runs only if the state has no balanced design yet.
         """
         with self._state.lock:
             original = self._state.original

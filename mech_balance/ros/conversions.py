@@ -1,19 +1,9 @@
 """
 Message conversion for the rig node: pure functions, no node is ever created here.
 
-* :func:`fill_joint_state`, :func:`fill_wrench`: one sample of
-  :class:`mech_balance.ros.streaming.Samples` into a ``sensor_msgs/JointState`` and a
-  ``geometry_msgs/WrenchStamped`` (SI, the frame's axes; sign convention of
-  :mod:`mech_balance.conventions`); :class:`SampleSerializer` (and its reference
-  :func:`serialized_samples`): a batch of them, serialized for publishing.
-* :func:`crank_reading`: the crank's stamp, position and velocity from an encoder's
-  ``JointState``, checked (``ValueError`` naming what is wrong).
-* :func:`parameter_descriptor`, :func:`parameter_value`: a
-  :class:`mech_balance.ros.params.Spec` as a ROS ``ParameterDescriptor``, and a ROS
-  ``Parameter`` as a plain value.
-* :func:`stamp_from_ns`, :func:`ns_from_stamp`: ``builtin_interfaces/Time`` <-> int ns.
-* :func:`wrench_reading`, :func:`fill_wrench_values`, :func:`diagnostic_array`: the measured
-  wrench read with checks, a residual wrench, the node's ``/diagnostics``.
+Samples (a RigData) into JointState and WrenchStamped messages and their serialized bytes;
+an encoder's JointState and a measured WrenchStamped read with checks; parameter
+descriptors and values; stamps; the ``/diagnostics`` array.
 """
 
 from array import array
@@ -67,9 +57,7 @@ def fill_joint_state(msg, samples, i, stamp):
     """
     Fill ``msg`` (``sensor_msgs/JointState``, names set) with sample ``i`` of ``samples``.
 
-    Position and velocity of every joint (rad, rad/s; m, m/s for prismatic joints); effort
-    (N*m) as :mod:`mech_balance.ros.streaming` defines it, or empty when the scene does not compute
-    the driving torque (ROS convention: arrays are full length or empty).
+    SI positions, velocities and efforts; effort empty when the scene computes none.
     """
     msg.header.stamp = stamp
     msg.position = _doubles(samples.joint_position[i])
@@ -80,13 +68,7 @@ def fill_joint_state(msg, samples, i, stamp):
 
 
 def fill_wrench(msg, samples, i, stamp, frame_id):
-    """
-    Fill ``msg`` (``geometry_msgs/WrenchStamped``) with the shaking wrench of sample ``i``.
-
-    Force (N) and moment (N*m) that the rig exerts on its frame, in the frame's axes, about
-    the crank pivot (spatial rigs: about the scene's moment_point_m); planar rigs have
-    force z = moment x = moment y = 0.
-    """
+    """Fill ``msg`` (``geometry_msgs/WrenchStamped``) with the shaking wrench of sample ``i``."""
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
     f, m = samples.force_N[i], samples.moment_Nm[i]
@@ -97,12 +79,7 @@ def fill_wrench(msg, samples, i, stamp, frame_id):
 
 
 def serialized_samples(samples, stamps_ns, frame_id):
-    """
-    Return ``[(joint_state_bytes, wrench_bytes)]``, one pair per sample, CDR-serialized.
-
-    Message by message with rclpy's serializer (the reference :class:`SampleSerializer`
-    checks itself against).  Publishing the bytes is what a clock-mode tick does.
-    """
+    """Return ``[(joint_state_bytes, wrench_bytes)]`` per sample, by rclpy's serializer."""
     joints = joint_state_template(JointState(), samples.joint_names)
     wrench = WrenchStamped()
     out = []
@@ -114,11 +91,9 @@ def serialized_samples(samples, stamps_ns, frame_id):
 
 
 VERIFIED_BATCHES = 4
-"""Batches of a :class:`SampleSerializer` read back with rclpy before it is trusted (the
-serialized layout is fixed by the names, the frame and the array lengths)."""
+"""Batches of a :class:`SampleSerializer` read back with rclpy before it is trusted."""
 SMALL_BATCH = 32
-"""Batches of at most this many samples are written sample by sample with ``struct`` (the
-follow mode's: numpy's per-call overhead would dominate), larger ones with numpy."""
+"""Batches of at most this many samples are packed with ``struct``, larger ones with numpy."""
 _INT, _UINT = struct.Struct('<i'), struct.Struct('<I')
 _PROBE_SEC, _PROBE_NANOSEC = 0x1A2B3C4D, 0x05060708
 """Distinctive stamp of the probe messages (found by value in their bytes)."""
@@ -128,16 +103,10 @@ class SampleSerializer:
     """
     Serialize batches of samples to JointState and WrenchStamped bytes, vectorized.
 
-    With the joint names, the frame and the array lengths fixed, the serialized layout of
-    a message does not depend on its values.  One probe message per type, serialized by
-    rclpy with distinctive values, is the template; the offsets of its stamp and doubles
-    are found by value, and a batch is written into copies of the template with numpy.  The
-    first sample of every batch is read back with rclpy and compared with the message
-    filled by :func:`fill_joint_state` / :func:`fill_wrench` (the bytes themselves may differ
-    in the alignment padding, which CDR leaves unspecified) until :data:`VERIFIED_BATCHES`
-    batches agreed -- the layout is fixed, so later batches cannot differ; on any
-    difference (another middleware or encoding) this serializer falls back to
-    :func:`serialized_samples` for good (``fast`` becomes False).
+    The layout is fixed by the names, frame and lengths: a probe message serialized by rclpy
+    is the template, its values found by their bytes.  The first sample of each of the first
+    :data:`VERIFIED_BATCHES` batches is read back with rclpy; on a difference it falls back
+    to :func:`serialized_samples` for good (``fast`` False).
     """
 
     def __init__(self, joint_names, has_effort, frame_id):
@@ -262,9 +231,7 @@ def crank_reading(msg, joint):
     """
     Return ``(stamp_ns, position_rad, velocity_rad_s or None)`` of ``joint`` in a JointState.
 
-    Position is required; velocity is used when the message has one per joint (else
-    None).  Raises ``ValueError`` naming the problem: joint missing, arrays of the wrong
-    length, a non-finite position or velocity.
+    Raises ``ValueError`` naming the problem (a missing joint, wrong lengths, non-finite).
     """
     names = list(msg.name)
     if joint not in names:
@@ -293,14 +260,8 @@ def parameter_descriptor(spec):
     """
     Return the ROS ``ParameterDescriptor`` of a :class:`mech_balance.ros.params.Spec`.
 
-    Declared with ``dynamic_typing`` and without ``floating_point_range`` /
-    ``integer_range``: rclpy would check the type and the range before the node's callback
-    and refuse with reasons of its own (``Wrong parameter type, expected 'Type.DOUBLE' got
-    'Type.INTEGER'``, naming no parameter).  The node checks both instead
-    (:func:`mech_balance.ros.params.check`), accepts an integer for a double, and refuses
-    with ``name: got <value>, expected ...``; the type and range are in
-    ``additional_constraints`` (``ros2 param describe``), and the node's pre-set callback
-    keeps the stored type the declared one (:func:`mech_balance.ros.params.coerced`).
+    ``dynamic_typing``, no rclpy ranges: the node checks type and range itself
+    (:func:`mech_balance.ros.params.check`; `docs/node.md#parameters`, *Typing*).
     """
     constraints = f'type {spec.value_type}; {spec.constraints}' if spec.constraints else \
         f'type {spec.value_type}'
@@ -328,11 +289,7 @@ def parameter_value(parameter):
 
 
 def wrench_reading(msg):
-    """
-    Return ``(stamp_ns, force (3,), torque (3,))`` of a measured ``WrenchStamped``.
-
-    Raises ``ValueError`` naming the problem: a non-finite force or torque component.
-    """
+    """Return ``(stamp_ns, force (3,), torque (3,))`` of a ``WrenchStamped`` (ValueError: NaN)."""
     force, torque = wrench_values(msg)
     for name, values in (('force', force), ('torque', torque)):
         if not all(math.isfinite(v) for v in values):

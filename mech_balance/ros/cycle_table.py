@@ -1,31 +1,10 @@
 """
 Follow mode's cycle table: a rig's published values at any crank angle, built once per design.
 
-numpy only (no ROS).  A single-input rigid linkage with ideal joints publishes, at crank
-angle psi, speed w and acceleration a:
-
-* joint positions q(psi) (independent of w and a);
-* joint velocities q'(psi) w;
-* efforts and the shaking wrench, affine in (w, w^2, a):
-  ``Y0(psi) + Yw(psi) w + Y2(psi) w^2 + Ya(psi) a`` (Y0: gravity and springs, Yw: viscous
-  terms, zero for the built-ins).
-
-:meth:`CycleTable.build` evaluates the exact model (the node's own ``evaluate``, through the
-Rig protocol: any kind) on a uniform grid of N angles at (w, a) = (0, 0), (1, 0), (-1, 0),
-(0, 1), separates the four coefficient functions of every published channel, and keeps
-their Fourier series up to the highest harmonic that matters (every coefficient function
-is periodic over one turn; a revolute position is tabulated unwrapped, less its whole turns
-per cycle).  Angles off the grid then cost one small matrix product, whatever the rig.
-
-The table is verified when it is built, against the exact model at the N mid-grid angles
-(shifted by whole turns, to check periodicity too) and speeds and accelerations of both signs
-and several magnitudes: its :attr:`~CycleTable.accuracy` is the largest difference there,
-relative to each channel's scale (its largest magnitude in the check, at least
-:data:`FLOOR` of its group's: positions, velocities, efforts, force, moment).  The build
-refuses (:class:`TableRefused`, the reason said) when that exceeds ``bound`` (finer grids,
-up to :data:`GRIDS` [-1], are tried first), when the core fails or is near-singular at a
-grid angle, or when a value is not finite: the caller then evaluates the exact model per
-sample.
+numpy only (no ROS).  Positions q(psi), velocities q'(psi) w, and efforts and shaking wrench
+``Y0(psi) + Yw(psi) w + Y2(psi) w^2 + Ya(psi) a`` kept as Fourier series from a grid of
+exact evaluations, verified off the grid when built, refused (:class:`TableRefused`) when
+they cannot be trusted: `docs/node.md#follow-mode` (*The cycle table*).
 """
 
 from dataclasses import dataclass
@@ -39,22 +18,17 @@ import numpy as np
 TWO_PI = 2.0 * math.pi
 
 BOUND = 1e-10
-"""Largest accepted accuracy (relative, see the module docstring): the node tests compare
-the published values with the core to 1e-9 of each quantity's scale."""
+"""Largest accepted accuracy, relative to each channel's scale (the node tests ask 1e-9)."""
 GRIDS = (256, 1024, 4096)
 """Grid sizes tried in turn (angles per turn) until the verified accuracy meets the bound."""
 FLOOR = 1e-6
-"""A channel's scale is at least this fraction of its group's (channels that are nearly
-zero, such as rounding noise in a component the rig does not have, are not over-weighed)."""
+"""A channel's scale is at least this fraction of its group's (near-zero channels)."""
 HARMONIC_KEEP = 1e-3
-"""Harmonics smaller than this fraction of the bound (relative to the channel's scale) are
-dropped."""
+"""Harmonics below this fraction of the bound (relative to the channel's scale) are dropped."""
 CHECK_SPEEDS = (0.5, -3.7, 12.0, -41.0, 150.0)
 """Crank speeds of the check (rad/s), cycled over the check angles."""
 CHECK_ACCELS = (0.0, 25.0, -180.0, 3.0, -900.0, 1.0e3)
 """Crank accelerations of the check (rad/s^2), cycled over the check angles."""
-SETS = ('1', 'w', 'w^2', 'a')
-"""The coefficient functions of every channel, in the order the table stores them."""
 
 
 class TableRefused(ValueError):
@@ -94,13 +68,10 @@ def _stack(samples):
 
 class CycleTable:
     """
-    A design's published values as Fourier series in the crank angle (module docstring).
+    A design's published values as Fourier series in the crank angle (:meth:`build`).
 
-    Build with :meth:`build`; :meth:`evaluate` returns the published samples at angles,
-    speeds and accelerations: a :class:`RigData` with the exact model's joint values,
-    efforts and shaking wrench (within :attr:`accuracy`), the solver diagnostics of the grid
-    cell (the worse of its two ends) and neither series nor body poses (the caller may set
-    ``poses``).
+    :meth:`evaluate` returns a :class:`RigData` within :attr:`accuracy`, with the solver
+    diagnostics of the grid cell and no body poses (the caller may set ``poses``).
     """
 
     def __init__(self, template, joints, angular, coef, harmonics, interval, report):
@@ -126,9 +97,8 @@ class CycleTable:
         """
         Return the verified table of ``evaluate(psi, speed, accel)`` (the exact model).
 
-        ``angular`` ``(n_joints,)``: which published positions are angles (wrapped to
-        (-pi, pi]).  Raises :class:`TableRefused` (the reason) where the table cannot be
-        trusted.
+        ``angular`` ``(n_joints,)``: which positions are angles.  Raises
+        :class:`TableRefused` (the reason) where the table cannot be trusted.
         """
         t0 = time.perf_counter()
         angular = np.asarray(angular, dtype=bool)
@@ -253,14 +223,7 @@ class CycleTable:
         if sel is not None:
             out[:, sel] = wrap_angle(out[:, sel])
         out += 0.0
-        cell = (x * self._cell).astype(np.intp)
-        j = self._j
-        e = 3 * j if self._effort else 2 * j
-        return RigData(psi, w, a, out[:, :j], out[:, j:2 * j],
-                       out[:, 2 * j:e] if self._effort else None, out[:, e:e + 3],
-                       out[:, e + 3:e + 6], joint_names=self._names,
-                       residual=self._cells[0][cell], condition=self._cells[1][cell],
-                       near_singular=np.zeros(n, dtype=bool))
+        return self._data(psi, w, a, out, (x * self._cell).astype(np.intp))
 
     def _one(self, psi, w, a):
         """Return :meth:`evaluate` of one sample (follow mode's usual case), in fewer calls."""
@@ -282,14 +245,17 @@ class CycleTable:
             row[sel] = [wrap_angle(v) for v in row[sel].tolist()]
         out += 0.0
         cell = int(x * self._cell)
+        return self._data(psi, w, a, out, slice(cell, cell + 1))
+
+    def _data(self, psi, w, a, out, cell):
+        """Return the RigData of the table's ``out`` rows, the diagnostics of ``cell``."""
         j = self._j
         e = 3 * j if self._effort else 2 * j
         return RigData(psi, w, a, out[:, :j], out[:, j:2 * j],
                        out[:, 2 * j:e] if self._effort else None, out[:, e:e + 3],
                        out[:, e + 3:e + 6], joint_names=self._names,
-                       residual=self._cells[0][cell:cell + 1],
-                       condition=self._cells[1][cell:cell + 1],
-                       near_singular=np.zeros(1, dtype=bool))
+                       residual=self._cells[0][cell], condition=self._cells[1][cell],
+                       near_singular=np.zeros(psi.shape[0], dtype=bool))
 
 
 def _column(value, n):
@@ -299,7 +265,7 @@ def _column(value, n):
 
 
 def _floored(scale, joints, effort):
-    """Return channel scales, each at least FLOOR of its group's (module docstring)."""
+    """Return channel scales, each at least FLOOR of its group's."""
     scale = np.array(scale, dtype=float)
     bounds = np.cumsum([0, joints, joints] + ([joints] if effort else []) + [3, 3])
     for lo, hi in zip(bounds[:-1], bounds[1:]):

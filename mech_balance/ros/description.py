@@ -1,29 +1,12 @@
 """
 What the rig node tells robot_state_publisher: the URDF joints on ``joint_states`` and the URDF.
 
-:class:`JointLayout` (numpy only) maps a rig's evaluation onto the joints the node publishes:
-
-* first every joint of the scene, in the rig's order (:attr:`Rig.joint_names`; the crank's
-  index is unchanged);
-* then the URDF joints the scene does not have (a spatial rig's spherical joint is three
-  revolute URDF joints, ``<name>_yaw``, ``_pitch``, ``_roll``, on massless links).
-
-Positions and velocities are those of the URDF (:func:`mech_balance.ros.urdf.joint_positions`,
-its zero convention: revolute joints wrapped to (-pi, pi], measured from the joint origin)
-for every URDF joint, so that robot_state_publisher puts each link where the core puts it.
-A scene joint the URDF lacks (a cut joint, closed by the core) keeps the rig's value
-(:mod:`mech_balance.core.planar.rig`: phi_b - phi_a, or the slide), revolute ones wrapped to
-(-pi, pi] as well.  Efforts are the rig's, by joint name (0 for the URDF-only joints: a
-frictionless spherical joint carries no moment).  No value is -0.0.  The whole batch is
-mapped with a few array operations (:meth:`JointLayout.apply`), whatever the kind of rig:
-the URDF tree model (:func:`mech_balance.ros.urdf.tree_model`) knows how to read its state.
-
-:class:`UrdfTwin` is the :class:`~mech_balance.ros.streaming.TwinModel` the node publishes
-from: ``evaluate`` returns its samples in this layout, ``joint_names`` are the published
-names.  :class:`DescriptionPublisher` publishes the URDF of the published design on
-``robot_description`` (std_msgs/msg/String, reliable, transient local, depth 1: the QoS of
-robot_state_publisher's own ``robot_description``), again whenever the scene, the design
-or ``frame_id`` changes.
+:class:`JointLayout` (numpy only) maps a rig's evaluation onto the published joints: every
+joint of the scene in the rig's order, then the URDF joints the scene lacks; URDF joints in
+the URDF's zero convention (:func:`mech_balance.ros.urdf.joint_positions`), cut joints as the
+rig gives them, efforts by name; no -0.0.  :class:`UrdfTwin` is the twin the node publishes
+from, :class:`DescriptionPublisher` the latched ``robot_description``
+(`docs/rviz_launch.md`, *joint_states drives the URDF*, *robot_description*).
 """
 
 from dataclasses import replace
@@ -42,18 +25,12 @@ ANGULAR = ('revolute', 'continuous', 'spherical')
 
 
 class JointLayout:
-    """
-    The published joints of a rig and how a batch of its samples maps onto them.
-
-    Built once per geometry: ``names`` (published order, module docstring), ``twin_names``
-    (the rig's), ``urdf_names`` (the URDF's, a subset of ``names``).
-    """
+    """The published joints of a rig (``names``; ``twin_names`` the rig's), once per geometry."""
 
     def __init__(self, rig):
         tree = urdf.tree_model(rig.scene)
         self.tree = tree
         self.twin_names = tuple(rig.joint_names)
-        self.urdf_names = tree.names
         extra = tuple(n for n in tree.names if n not in self.twin_names)
         self.names = self.twin_names + extra
         n_tree, n_twin = len(tree.names), len(self.twin_names)
@@ -69,12 +46,7 @@ class JointLayout:
                                     n not in tree.names for n in self.twin_names], dtype=bool)
 
     def angular(self, samples, twin_angular):
-        """
-        Return ``(n_published,)``: which published positions are angles (wrapped).
-
-        ``samples``: a RigData of the rig (the URDF joints' kinds are read from its state);
-        ``twin_angular``: the same for the rig's own joints.
-        """
+        """Return which published positions are angles, from a RigData and the rig's own."""
         tree = self.tree
         _, _, tree_angular = tree.coordinates(tree, tree.state_of(samples))
         both = np.concatenate([np.asarray(tree_angular, dtype=bool),
@@ -97,13 +69,7 @@ class JointLayout:
 
 
 class UrdfTwin(streaming.TwinModel):
-    """
-    A :class:`~mech_balance.ros.streaming.TwinModel` whose samples carry the URDF joints.
-
-    ``joint_names`` are the published names (:class:`JointLayout`), ``twin_joint_names``
-    the rig's; ``evaluate`` is the twin's, mapped by the layout.  A design of the same
-    geometry (:meth:`with_design`) shares the layout.
-    """
+    """A :class:`~mech_balance.ros.streaming.TwinModel` whose samples carry the URDF joints."""
 
     def __init__(self, rig, layout=None):
         super().__init__(rig)
@@ -116,7 +82,7 @@ class UrdfTwin(streaming.TwinModel):
         return UrdfTwin(self.rig.with_scene(scene), self.layout)
 
     def evaluate(self, psi, speed, accel=0.0):
-        """Return the published :class:`Samples` at crank angles ``psi`` ``(n,)``."""
+        """Return the published RigData at crank angles ``psi`` ``(n,)``."""
         return self.layout.apply(super().evaluate(psi, speed, accel))
 
     def published_angular(self):
@@ -139,13 +105,8 @@ class DescriptionPublisher:
     """
     The node's ``robot_description`` publisher: the URDF of the published design, latched.
 
-    :meth:`show` is called whenever what is published may have changed (any thread); it
-    publishes only when the design (the scene object) or ``frame_id`` differs from the last
-    one published, creates the publisher when enabled and destroys it when disabled (the publisher
-    has no event handlers, so it is in no wait set and this is safe from a parameter
-    callback of a multi-threaded executor).  A scene the
-    URDF cannot describe (e.g. a ``frame_id`` that names one of its links) is logged, never
-    raised.
+    :meth:`show` (any thread) publishes when the scene object or ``frame_id`` changed; a scene
+    the URDF cannot describe is logged, never raised.
     """
 
     def __init__(self, node):

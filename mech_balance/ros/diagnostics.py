@@ -1,28 +1,9 @@
 """
 The rig node's ``/diagnostics`` statuses, as plain data (no ROS: conversions fills messages).
 
-Four statuses, published at 1 Hz by the node (``diagnostic_msgs/DiagnosticArray``), each
-named ``<node>: <part>`` with the scene as ``hardware_id``:
-
-``publisher``
-    Mode, configured and achieved rate (samples per second on the node's clock since the
-    last status), samples published and clock ticks skipped.  WARN when ticks were skipped
-    in the last period or, in clock mode, the achieved rate is below
-    :data:`RATE_WARN_FRACTION` of the configured one.
-``encoder input``
-    ``crank_joint_state`` messages used and rejected, by reason (:func:`reason_of`).
-    WARN when messages were rejected in the last period.
-``model``
-    Over the samples the core evaluated in the last period: the worst loop-closure (Newton)
-    residual, the worst Jacobian condition number and how many were near-singular
-    (:class:`mech_balance.core.rig.RigData` ``residual``, ``condition``, ``near_singular``).
-    ERROR above :data:`RESIDUAL_ERROR`, WARN when any was near-singular.
-``measured wrench``
-    Per component the residual RMS as a fraction of the measured RMS over the residual
-    window (:meth:`mech_balance.ros.sensor.Comparison.rms`); OK / WARN / ERROR against
-    ``diagnostics.warn_fraction`` and ``diagnostics.error_fraction`` (the worst component
-    decides; components the model leaves at zero are not judged).  STALE when no
-    measurement arrived for :data:`STALE_AFTER_S`; OK "no sensor" when none ever did.
+``<node>: publisher``, ``encoder input``, ``model`` and ``measured wrench``, each with the
+scene as ``hardware_id``; what each reports and its thresholds:
+`docs/identification.md#the-twin-against-the-real-rig` (*Diagnostics and thresholds*).
 """
 
 from collections import Counter
@@ -39,8 +20,7 @@ LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
 RATE_WARN_FRACTION = 0.9
 """Clock mode: an achieved rate below this fraction of publish_rate is a WARN."""
 RESIDUAL_ERROR = 1e-7
-"""A loop-closure residual above this (relative, the planar solver's closure tolerance) is
-an ERROR: the published sample is not on the linkage."""
+"""A loop-closure residual above this (relative) is an ERROR: the sample is off the linkage."""
 STALE_AFTER_S = 5.0
 """The measured-wrench status is STALE when no measurement arrived for this long."""
 
@@ -67,13 +47,7 @@ def _fmt(value):
 
 
 def reason_of(exc):
-    """
-    Return the reason a message was rejected, from its exception: the field it names.
-
-    The checks raise ValueError whose message starts with the field (``stamp: ...``,
-    ``position of 'O': ...``); an impossible step is ``position jump``; any other exception
-    is ``internal error: <type>``.
-    """
+    """Return why a message was rejected: the field its ValueError names, or the error type."""
     if not isinstance(exc, ValueError):
         return f'internal error: {type(exc).__name__}'
     text = str(exc)
@@ -204,12 +178,7 @@ def input_status(name, hardware_id, topic, used, rejected, rejected_new):
 
 def model_status(name, hardware_id, samples, residual, condition, near_singular,
                  evaluation=None):
-    """
-    Return the model :class:`Status` from a :class:`ModelWatch` snapshot.
-
-    ``evaluation`` says how the samples are evaluated (follow mode: the cycle table and its
-    verified accuracy, or the exact core and why), the ``evaluation`` value.
-    """
+    """Return the model :class:`Status` of a :class:`ModelWatch` snapshot (and ``evaluation``)."""
     extra = [] if evaluation is None else [('evaluation', str(evaluation))]
     if samples == 0:
         return Status(name, OK, 'no samples evaluated in the last period', hardware_id,
@@ -231,11 +200,8 @@ def measurement_status(name, hardware_id, rms, components, units, warn_fraction,
     """
     Return the measured-wrench :class:`Status`.
 
-    ``rms`` is :meth:`Comparison.rms`'s dict (or None), ``age_s`` the time since the last
-    measurement arrived (None: never), ``bias`` the bias in use, ``model_name`` the scene
-    compared with, ``resyncs`` the re-synchronizations of the sensor's tracks (a stamp far
-    off locked one).  A component whose measured RMS is 0 (a constant channel) or whose
-    model is 0 is not judged: its fraction has no finite value.
+    ``rms``: :meth:`Comparison.rms`'s dict (or None); ``age_s``: since the last measurement
+    (None: never).  Components the model or the measurement leave at 0 are not judged.
     """
     values = [('received', _fmt(received)), ('paired', _fmt(used)),
               ('rejected', _fmt(sum(rejected.values()))),

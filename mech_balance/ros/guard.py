@@ -1,22 +1,11 @@
 """
 The one guard of every callback of the rig node: no input, of any kind, kills the node.
 
-rclpy lets an exception raised in a callback escape ``rclpy.spin`` and end the process; a
-thread that raises simply stops.  Every callback the node registers (parameter pre-, on- and
-post-set callbacks, services, subscriptions, timers) and every loop of its threads therefore
-runs under a :class:`Guard`:
-
-* a callback that answers (a parameter update, a service) turns any exception into a
-  *refusal with a reason*: :meth:`Guard.refusing` calls ``refuse(reason, *args)``, which
-  builds the answer (``SetParametersResult(successful=False, reason=...)``,
-  ``success=False, message=...``);
-* a callback that answers nobody (a subscription, a timer, a thread's loop) turns it into a
-  *logged, counted skip*: :meth:`Guard.skipping` counts it under the callback's label and
-  warns at most once every :data:`WARN_INTERVAL_S` per label, with the count so far.
-
-"Any exception" is every ``Exception``: ``RecursionError`` and ``MemoryError`` included (a
-deeply nested or huge input), ``KeyboardInterrupt`` and ``SystemExit`` excluded (they are
-how the process is asked to stop).  No ROS import: the publishing threads use it too.
+Every callback and thread loop of the node runs under a :class:`Guard`: in a callback that
+answers (a parameter update, a service) any ``Exception`` (``RecursionError`` and
+``MemoryError`` included) becomes a refusal with a reason (:meth:`Guard.refusing`); in one
+that answers nobody (a subscription, a timer, a thread) a counted, rate-limited warning
+(:meth:`Guard.skipping`).  No ROS import: the publishing threads use it too.
 """
 
 import functools
@@ -49,12 +38,7 @@ def show(value):
 
 
 def describe(exc):
-    """
-    Return the reason of an exception: its message, or what it means and its type.
-
-    A ``ValueError`` is the package's own error (its message names the field); any other
-    exception is a defect or a resource limit, named by its type so that it can be found.
-    """
+    """Return the reason of an exception: a ValueError's message, else named by its type."""
     if isinstance(exc, RecursionError):
         return 'the value is nested too deeply to process (RecursionError)'
     if isinstance(exc, MemoryError):
@@ -68,9 +52,7 @@ def parameter_reason(parameters, exc):
     """
     Return the reason of a refused parameter update, starting with a parameter's name.
 
-    ``parameters``: the update (objects with ``name`` and ``value``).  A message that starts
-    with one of their names is kept; otherwise it is given the node's form
-    ``name: got <value>, expected ...`` for the first parameter of the update.
+    Else in the node's form ``name: got <value>, expected ...`` for the first parameter.
     """
     text = describe(exc)
     for p in parameters:
@@ -87,12 +69,7 @@ def parameter_reason(parameters, exc):
 
 
 class Guard:
-    """
-    Wrap callbacks so that an exception becomes a refusal or a counted, logged skip.
-
-    ``warn(text)`` logs a warning (the node's logger).  ``counts`` holds the exceptions
-    caught per label (``mech-balance`` statistics and tests read it).
-    """
+    """Wrap callbacks: an exception becomes a refusal or a counted skip (``counts``, by label)."""
 
     def __init__(self, warn):
         self._warn = warn
@@ -117,12 +94,7 @@ class Guard:
         return reason
 
     def refusing(self, label, refuse):
-        """
-        Return a decorator: an exception becomes ``refuse(exc, *args)``, counted.
-
-        ``refuse`` builds the callback's answer from the exception and the callback's
-        arguments (:func:`parameter_reason` for parameters, :func:`describe` for others).
-        """
+        """Return a decorator: an exception becomes the answer ``refuse(exc, *args)``, counted."""
         def decorate(callback):
             @functools.wraps(callback)
             def guarded(*args):

@@ -14,13 +14,10 @@ import numpy as np
 RANGE_SAMPLES = 720
 """Crank angles per turn at which each joint's range over a cycle is first located."""
 GOLDEN_ITERATIONS = 36
-"""Golden-section steps refining each extreme: the bracket shrinks to ~3e-8 of its width
-(~3e-10 rad of crank angle), where the value at a smooth extreme is off by far less than its
-rounding (the error is quadratic in the angle); more steps only compare rounding noise and
-cost a kinematics evaluation each (a scene switch of the node waits for them)."""
+"""Golden-section steps refining each extreme (the bracket to ~3e-8 of its width: beyond,
+only rounding noise is compared, at a kinematics evaluation each)."""
 LIMIT_MARGIN = 1e-9
-"""Joint limits lie this far outside the cycle's extremes (rad; prismatic: times the
-linkage's length scale, m), so that round-off never puts a published position outside."""
+"""Joint limits lie this far outside the cycle's extremes (rad; prismatic: x length scale)."""
 FULL_TURN_FRACTION = 1.0 - 1e-9
 """A swing wider than this fraction of 2 pi is treated as a full turn (``continuous``)."""
 TWO_PI = 2.0 * math.pi
@@ -30,11 +27,10 @@ _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 def _golden_extremes(f, centres, rows, half_width, sign):
     """
-    Return refined extreme values of ``f`` near ``centres``.
+    Return refined extreme values of ``f`` near ``centres`` (one ``f`` call per step).
 
-    ``f(psi)`` returns ``(n_rows, len(psi))``; candidate i looks at row ``rows[i]`` within
-    ``centres[i] +- half_width``, for a minimum (``sign[i]`` +1) or a maximum (-1).  All
-    candidates share one evaluation of ``f`` per step.
+    Candidate i: row ``rows[i]`` within ``centres[i] +- half_width``, a minimum for
+    ``sign[i]`` +1, a maximum for -1.
     """
     cols = np.arange(len(centres))
     sign = np.broadcast_to(np.asarray(sign, dtype=float), cols.shape)
@@ -62,11 +58,8 @@ def cycle_ranges(f, start_rad, angular):
     """
     Return ``(lower, upper, turns)`` of each row of ``f(psi)`` over one crank turn.
 
-    ``f`` returns ``(n_rows, len(psi))`` joint coordinates; ``angular`` ``(n_rows,)`` says
-    which rows are angles (compared modulo 2 pi about the middle of their sampled swing).
-    ``turns`` is the number of full turns a row makes per crank turn (0: a limited swing);
-    its lower/upper are then nan.  Extremes: :data:`RANGE_SAMPLES` samples, then a
-    golden-section search about the best sample.
+    ``angular`` ``(n_rows,)``: which rows are angles.  ``turns``: full turns per crank turn
+    (0: a limited swing; otherwise lower and upper are nan).
     """
     angular = np.asarray(angular, dtype=bool)
     psi = start_rad + TWO_PI * np.arange(RANGE_SAMPLES + 1) / RANGE_SAMPLES
@@ -99,10 +92,9 @@ def cycle_ranges(f, start_rad, angular):
 
 def angle_limits(lower, upper):
     """
-    Return ``(offset, lower, upper)`` of a limited revolute joint (module docstring).
+    Return ``(offset, lower, upper)`` of a limited revolute joint.
 
-    Offset 0 (a whole number of turns) when the swing fits in (-pi, pi] as it is, else the
-    middle of the swing; the limits are widened by :data:`LIMIT_MARGIN`.
+    Offset 0 when the swing fits in (-pi, pi], else its middle; widened by LIMIT_MARGIN.
     """
     k = math.ceil((upper + LIMIT_MARGIN - math.pi) / TWO_PI)
     if lower - LIMIT_MARGIN - k * TWO_PI > -math.pi:

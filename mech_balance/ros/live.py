@@ -1,20 +1,10 @@
 """
 The rig node's recording part: ``recording_path`` (a file) and ``rerun_url`` (a viewer).
 
-:class:`Recording` never holds the caller: the publishing threads only queue what they
-evaluated (:meth:`Recording.push`, bounded, never blocks), the parameter callbacks only ask
-for a new recording (:meth:`Recording.start`, returns at once); a thread of its own opens,
-connects, logs and closes, each with a bounded wait.  A viewer that does not answer is
-reported (:attr:`Recording.status`, ``'dead: <reason>'``, on ``/diagnostics`` and in the
-log) and the file, if any, goes on.
-
-The viewer side follows the live-view interface agreed with :mod:`mech_balance.viz`:
-``LiveRecorder(path, scene, balanced, url=...)`` whose ``status`` is ``'connecting'``,
-``'connected'`` or ``'dead: <reason>'``, ``push`` never blocks and ``close(timeout_s)`` is
-bounded.  Until that recorder reports its own ``status``, this part checks that something
-listens at the viewer's address (a TCP connection, :data:`PROBE_TIMEOUT_S`) before it
-connects, and calls ``log_sample`` and ``close()`` from its own thread.  viz is imported by
-the node's recording hook only (the layer rule of ``ros``).
+:class:`Recording` never holds the caller: :meth:`Recording.push` only queues (bounded),
+:meth:`Recording.start` only asks; a thread of its own probes the viewer's address, opens,
+logs and closes, each with a bounded wait.  A dead viewer is reported and the file goes on
+(`docs/node.md`, *A dead viewer holds nothing*).  viz is imported by the node's hook only.
 """
 
 from collections import deque
@@ -35,9 +25,7 @@ RETRY_S = 5.0
 CLOSE_TIMEOUT_S = 5.0
 """Longest wait for a viewer's stream to close (rerun itself waits 5 s for a dead one)."""
 FILE_CLOSE_TIMEOUT_S = 120.0
-"""Longest wait for the file to be written whole and closed: a disk that has not taken a
-recording in this long is stuck (the file is then left ``.partial``).  Load only slows a
-flush down; the wait is for the flush to end, never a guess at how long it takes."""
+"""Longest wait for the file to be written whole and closed (longer: a stuck disk)."""
 IDLE_WAIT_S = 0.05
 """Longest sleep of the recording thread between two looks at its queue."""
 OFF, CONNECTING, CONNECTED, DEAD = 'off', 'connecting', 'connected', 'dead'
@@ -77,9 +65,7 @@ class Recording:
     """
     The node's recording and live view, run on a thread of their own.
 
-    ``log(level, text)`` logs (``level`` 'info', 'warning' or 'error'); ``make(path, url,
-    scene, balanced)`` returns a recorder (the node: :class:`mech_balance.viz.recording.
-    LiveRecorder`, imported in its recording hook; tests pass their own).
+    ``log(level, text)`` logs; ``make(path, url, scene, balanced)`` returns a recorder.
     """
 
     def __init__(self, log, make):
@@ -107,10 +93,7 @@ class Recording:
         """
         Record ``scene`` (against ``balanced``) to ``path`` and/or ``url``; returns at once.
 
-        The batches queued for the same scene and design stay queued (a file set after the
-        viewer, or the viewer after the file: the samples evaluated ahead of publishing were
-        pushed already, and are published after this call); another scene or design starts
-        an empty queue.
+        The batches queued for the same scene and design stay queued.
         """
         with self._cond:
             same = self._wanted is not None and self._wanted[3] is scene and \
@@ -131,12 +114,7 @@ class Recording:
             return self._wanted is not None and (self._wanted[1] or self._wanted[2])
 
     def push(self, samples, turned_rad, stamps_ns, original=True):
-        """
-        Queue an evaluated batch (never blocks; the oldest batch is dropped when full).
-
-        Nothing is queued once the recording is closing: a batch evaluated ahead while the
-        publisher stops is never published.
-        """
+        """Queue an evaluated batch (never blocks; the oldest dropped when full; not closing)."""
         with self._cond:
             if self._stopped or not self.active:
                 return
@@ -159,11 +137,7 @@ class Recording:
         return CONNECTING
 
     def file_status(self):
-        """
-        Return the file's state: 'off', 'recording', 'opening', 'closed' or 'dead: <reason>'.
-
-        'dead' also when the recording thread itself stopped on an error (:attr:`died`).
-        """
+        """Return the file's state: 'off', 'recording', 'opening', 'closed' or 'dead: <why>'."""
         with self._cond:
             wanted, targets = self._wanted, list(self._targets)
         if self.died is not None:
@@ -210,11 +184,7 @@ class Recording:
         """
         Close the recording and stop the thread; wait for it (at most ``timeout_s`` if given).
 
-        The thread first logs every batch queued (at most :data:`QUEUE_BATCHES`), then
-        closes the file (written whole: :data:`FILE_CLOSE_TIMEOUT_S` is only for a stuck
-        disk) and the viewer (at most :data:`CLOSE_TIMEOUT_S`).  The default waits for all
-        of it, so the last batch is in the file and the counts are final when this returns,
-        however loaded the machine.
+        Every queued batch is logged first, then the file is written whole.
         """
         with self._cond:
             self._stopped = True
@@ -304,13 +274,10 @@ class Recording:
             if why is not None:
                 self._mark_dead(target, why)
                 return
+        path, url = (None, target.where) if target.is_viewer else (target.where, None)
         try:
-            if not target.is_viewer:
-                target.recorder = self._make(target.where, None, scene, balanced)
-                target.status = CONNECTED
-            else:
-                target.recorder = self._make(None, target.where, scene, balanced)
-                target.status = CONNECTED
+            target.recorder = self._make(path, url, scene, balanced)
+            target.status = CONNECTED
         except (ValueError, OSError) as exc:  # checked when set; the disk may change
             if not target.is_viewer:
                 self._say('error', f'not recording: {exc}')

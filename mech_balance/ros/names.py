@@ -6,8 +6,7 @@ command line read them here, so that a name is spelled once.
 """
 
 ENCODER_TOPIC = '/crank_joint_state'
-"""Default encoder topic of a recording: the rig node subscribes ``crank_joint_state`` in
-follow mode."""
+"""Default encoder topic of a recording (the node subscribes ``crank_joint_state``)."""
 WRENCH_TOPIC = '/measured_wrench'
 """Default force-sensor topic of a recording (the node subscribes ``measured_wrench``)."""
 DEFAULT_FRAME_ID = 'rig_frame'

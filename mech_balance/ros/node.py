@@ -1,36 +1,11 @@
 """
 The rig node: joint states and the shaking wrench on ROS 2 topics, a balancing service.
 
-``ros2 run mech_balance rig_node`` (here: the ``rig_node`` console script or
-``python -m mech_balance.ros.node``) starts node ``rig``; every name is relative, so
-``--ros-args -r __ns:=/cell3`` runs several rigs side by side.
-
-Publications (both stamped with the time of the crank angle they belong to)
-    ``joint_states`` (sensor_msgs/msg/JointState: the URDF's joints,
-    :mod:`mech_balance.ros.description`) and ``shaking_wrench``
-    (geometry_msgs/msg/WrenchStamped), values in :mod:`mech_balance.ros.streaming`; the URDF
-    on ``robot_description`` (latched, while ``publish_robot_description``).
-Subscription (follow mode)
-    ``crank_joint_state`` (sensor_msgs/msg/JointState), the crank encoder.
-Services (std_srvs/srv/Trigger)
-    ``~/balance`` runs the balancing with the ``balance.*`` parameters and publishes the
-    balanced design (the answer's ``message`` is the YAML of the result); ``~/reset``
-    returns to the scene's original design (and from a calibrated scene to the scene).
-The real rig (:mod:`mech_balance.ros.real_rig`, :mod:`mech_balance.ros.sensor`)
-    subscribes ``measured_wrench`` (geometry_msgs/msg/WrenchStamped, the force sensor),
-    publishes ``wrench_residual`` (measured minus model, rig frame, moment point, the
-    measurement's stamp) and ``/diagnostics`` (diagnostic_msgs/msg/DiagnosticArray, 1 Hz,
-    :mod:`mech_balance.ros.diagnostics`); services ``~/tare`` (the sensor bias) and
-    ``~/identify`` (calibrate the scene from the buffered data, publish it).
-Every parameter is declared once in :data:`mech_balance.ros.params.PARAMETERS`
-(``config/rig_params.yaml`` is a working set).
-
-The node holds no numerics and no logic of its own: it declares the parameters
-(:mod:`mech_balance.ros.parameters`), wires the parts -- the publisher
-(:mod:`mech_balance.ros.publisher`), the real rig, the balancing
-(:mod:`mech_balance.ros.balance_service`), the recording and live view
-(:mod:`mech_balance.ros.live`) -- to its topics and services, and translates requests into
-calls of the parts and their results into answers.
+``ros2 run mech_balance rig_node`` (or ``python -m mech_balance.ros.node``) starts node
+``rig``, every name relative.  It holds no numerics: it declares the parameters
+(:mod:`mech_balance.ros.parameters`) and wires the parts -- the publisher, the real rig, the
+balancing, the recording -- to its topics and services.  Topics, services, parameters and
+the faults it survives: `docs/node.md`.
 """
 
 from collections import deque
@@ -60,38 +35,23 @@ from std_srvs.srv import Trigger
 EXECUTOR_THREADS = 4
 """Threads serving parameters, services and the inputs (a balancing run holds one)."""
 SERVICE_DEPTH = 1000
-"""Request and answer history of every service: a burst of calls is queued, never lost (the
-default, 10, drops the eleventh simultaneous request in the middleware)."""
+"""Request and answer history of every service: a burst of calls is queued, never lost."""
 ANSWER_GAP_S = 0.01
-"""Shortest pause between two answers of a service while more are waiting (a single call is
-answered at once).  Fast DDS sends a service's answer to the answer reader of *every*
-client of the service (each client keeps its own and drops the others when it takes them),
-and a client's reader keeps only its last ``depth`` (default 10) answers: a burst of 50
-answers overwrote the answer of a client that had not taken it yet -- lost without an error
-on either side (issue 32 item 1; a client with depth 100 got all 50)."""
+"""Shortest pause between two answers while more are waiting (why: `docs/node.md`, *Every
+service call is answered*)."""
 ANSWER_GAP_PER_CLIENT_S = 0.002
-"""The pause grows with the service's clients (:data:`ANSWER_GAP_S` at least): a process
-holding many clients takes one sample per client reader per executor round, so each answer
-costs every reader of that process a take; 50 clients in one single-threaded rclpy process
-under load lost answers at 10 ms (all answered at 100 ms)."""
+"""The pause per client of the service, when that is longer than :data:`ANSWER_GAP_S`."""
 ANSWER_TRIES = 100
-"""Sends of one answer before it is given up (counted): rmw_fastrtps waits 100 ms for the
-server to match a new client's answer reader, then rclpy only warns ``failed to send
-response (timeout)`` and drops the answer; the node turns that warning into an error
-(:data:`NOT_SENT`) and sends again later, so a client discovered late is still answered."""
+"""Sends of one answer whose client is not matched yet (:data:`NOT_SENT`) before giving up."""
 ANSWER_ECHOES = 2
-"""Sends of an answer again, once the waiting answers are out, when it went out within
-:data:`ANSWER_BURST_S` of another answer: a client reader that the burst overwrote (above)
-still gets it.  A client drops an answer whose request it no longer waits for (rclpy, rclcpp: by
-sequence number), so an echo is harmless; a single call is never echoed.  Paced as the
-answers are; 50 clients on a loaded machine lost 4 of 50 answers without echoes."""
+"""Sends again of an answer of a burst, once the waiting answers are out (harmless: a client
+drops an answer whose request it no longer waits for)."""
 ANSWER_BURST_S = 1.0
 """Two answers sent closer than this (s) make a burst, whose answers are echoed."""
 NOT_SENT = (RuntimeWarning, SystemError)
 """What a send whose answer was dropped raises, once the warning is an error (``main``)."""
 SWITCH_INTERVAL_S = 1e-4
-"""Python's thread switch interval in the node process: bounds how long a core evaluation
-in one thread delays the publishing thread (the default, 5 ms, would delay kHz ticks)."""
+"""Python's thread switch interval in the node (the default, 5 ms, would delay kHz ticks)."""
 WARN_THROTTLE_S = 2.0
 """Shortest interval between two warnings about the same kind of bad input."""
 STATS_TAG = 'stats '
@@ -120,7 +80,7 @@ class RigNode(Node):
         self._publisher = pub.Publisher(self, state, self._guard, self._warn, self._record,
                                         on_encoder=self._on_encoder_sample)
         self._rig = real_rig.RealRig(self, state, self._guard, self._warn, self._publisher,
-                                     extra_statuses=self._live_statuses)
+                                     extra_statuses=self._recording.diagnostic_statuses)
         self._balancer = Balancer(self, state, self._guard)
         self._description = description.DescriptionPublisher(self)
         self._identify_busy = False
@@ -171,10 +131,7 @@ class RigNode(Node):
         """
         Log ``text`` at ``level`` ('info', 'warning' or 'error'), one call site per level.
 
-        rclpy ties a logging call site (file, function, line) to the severity of its first
-        call and raises ``ValueError: Logger severity cannot be changed between calls`` when
-        the same line logs at another severity; one line dispatching every level killed the
-        recording thread (issue 32 item 0).
+        rclpy raises ``ValueError`` when one call site logs at another severity.
         """
         logger = self.get_logger()
         if level == 'error':
@@ -199,15 +156,8 @@ class RigNode(Node):
         """Pass an accepted encoder sample from the publisher to the real rig."""
         self._rig.on_encoder(stamp_ns, position_rad, turned_rad, resynced)
 
-    def _live_statuses(self, name, hardware_id):
-        return self._recording.diagnostic_statuses(name, hardware_id)
-
     def _open_recording(self, publishing=True):
-        """
-        (Re)open the recording: the original against the balanced design, if known.
-
-        ``publishing``: the publisher runs (not at start-up), so ticks may be evaluated ahead.
-        """
+        """(Re)open the recording (``publishing``: not at start-up): original against balanced."""
         state = self._state
         with state.lock:
             balanced = None if state.balanced is None else state.balanced.scene
@@ -220,13 +170,7 @@ class RigNode(Node):
                 self._publisher.set_model(state.published)
 
     def _switch_to(self, model):
-        """
-        Publish ``model`` (the original or a balanced design) from the next sample on.
-
-        Only a design of the current scene: the state's original or its balanced design
-        (both replaced together when the scene changes); another (a run of a scene switched
-        away from) is not published.  Returns whether it is.
-        """
+        """Publish ``model`` from the next sample on if it is the scene's; return whether."""
         with self._state.lock:
             if model is not self._state.original and model is not self._state.balanced:
                 return False
@@ -314,12 +258,7 @@ class RigNode(Node):
     # ------------------------------------------------------------------ services
 
     def _on_balance(self, request, response):
-        """
-        Balance with the current options, publish the design, answer its YAML.
-
-        A run in progress is waited for (its result answered if it was the same request);
-        a design whose scene was switched away from meanwhile is not published.
-        """
+        """Balance with the current options, publish the design, answer its YAML."""
         model, response.message = self._balancer.balance(wait=True)
         response.success = model is not None
         if model is not None and not self._use_balanced(model,
@@ -428,12 +367,8 @@ class RigNode(Node):
         """
         Stop the publishing threads, close the recording, destroy the node, log the stats.
 
-        After Ctrl-C or SIGTERM (``signalled``) rclpy shuts the context down, on its own
-        signal thread: the node's rosout publisher is then invalid, or becomes so while a
-        line is being logged. The statistics are then logged once the node (and its rosout
-        registration) is gone, to the console only, instead of failing to reach rosout
-        ("Failed to publish log message to rosout"). ``context.ok()`` alone cannot decide
-        it: the signal thread may shut the context down right after it answered True.
+        ``signalled`` (Ctrl-C, SIGTERM): the stats are logged after the node is gone, to the
+        console only (rosout may be invalid by then).
         """
         self._publisher.stop()
         self._recording.close()
@@ -481,11 +416,8 @@ class _PacedAnswers:
     """
     Send the services' answers from a thread of their own, paced.
 
-    :meth:`pace` replaces a service's ``send_response`` (what rclpy's executor calls with
-    the callback's answer) by a queue: the executor's thread returns at once, this thread
-    sends the answers in order, pausing between two while more are waiting
-    (:data:`ANSWER_GAP_S`, :data:`ANSWER_GAP_PER_CLIENT_S`), then sends the answers of a
-    burst again (:data:`ANSWER_ECHOES`).
+    :meth:`pace` replaces a service's ``send_response`` by a queue; this thread sends the
+    answers in order, paced while more are waiting, then echoes those of a burst.
     """
 
     def __init__(self, node, guard):
@@ -571,12 +503,7 @@ def _viz_recorder(path, url, scene, balanced):
 
 
 def _import_solvers():
-    """
-    Import the balancing and identification solvers (the node's warm-up thread).
-
-    Their imports (scipy.sparse, clarabel, scipy.signal) cost about 0.8 s: done at start,
-    the first ``~/balance`` or ``~/identify`` call does not pay them.
-    """
+    """Import the balancing and identification solvers (about 0.8 s) in a warm-up thread."""
     import importlib
     for name in ('mech_balance.balancing.redistribution',
                  'mech_balance.balancing.counterweights', 'mech_balance.balancing.certificate',
@@ -588,9 +515,7 @@ def main(args=None):
     """
     Run the rig node until shutdown; return the exit status (the Jazzy idiom).
 
-    Ctrl-C or SIGTERM shuts the context down under the executor's threads: one of them may
-    then fail to build its wait set (``RCLError: failed to initialize wait set: the given
-    context is not valid``); after a shutdown that is the shutdown, not a failure (exit 0).
+    An executor thread's error after a shutdown (Ctrl-C, SIGTERM) is the shutdown: exit 0.
     """
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     # an answer rclpy could not send (a client's reader not matched yet) raises: sent again

@@ -1,13 +1,8 @@
 """
 The rig node's parameter part: declaring the table of :mod:`mech_balance.ros.params`.
 
-:class:`NodeParameters` declares every parameter of :data:`mech_balance.ros.params.
-PARAMETERS` on the node (and ``balance.links.<link>.*`` for the links of the scene),
-converts what arrives to the declared type before rclpy stores it (the pre-set callback)
-and checks an update with the scene loader's and the balancing's own checks (the on-set
-callback), so that a refusal is ``SetParametersResult(successful=False, reason=...)``
-naming the parameter, the value and what was expected.  Applying an accepted update is the
-node's (it wires the parts).
+Declares it (and ``balance.links.<link>.*``), converts to the declared type before rclpy
+stores a value (pre-set) and checks an update (on-set); applying it is the node's.
 """
 
 from mech_balance import balancing, schema as scene_mod
@@ -29,12 +24,7 @@ def build_model(name):
 
 
 def link_names(model):
-    """
-    Return the links with ``balance.links.<link>.*`` options (redistributable rigs).
-
-    Every kind whose redistribution takes per-link options
-    (:func:`mech_balance.balancing.link_options`): planar and spatial scenes alike.
-    """
+    """Return the links with ``balance.links.<link>.*`` options (redistributable rigs)."""
     if not balancing.link_options(model.rig):
         return ()
     return tuple(lk.name for lk in model.scene.links)
@@ -43,21 +33,19 @@ def link_names(model):
 SCENE_DEPENDENT = ('balance.fixed_links', 'balance.counterweight_links',
                    'balance.mass_bounds', 'balance.distance_bounds', 'balance.method',
                    'balance.mass_factors')
-"""Parameters that name links of the scene (or a method it must have): revalidated when the
-scene switches, and cleared to their default (with an info line) where they no longer hold."""
+"""Parameters that name links of the scene (or a method): cleared where a new scene refutes."""
 
 
 def scene_conflicts(values, model):
     """Return ``{name: reason}`` of the :data:`SCENE_DEPENDENT` values ``model`` refutes."""
     links = [lk.name for lk in model.scene.links]
-    out = {}
-    for name in ('balance.fixed_links', 'balance.counterweight_links'):
-        strangers = [n for n in params.split_links(values[name]) if n not in links]
-        if strangers:
-            out[name] = f'names {", ".join(strangers)}, not a link of the scene'
+    named = {name: params.split_links(values[name])
+             for name in ('balance.fixed_links', 'balance.counterweight_links')}
     for name, unit in (('balance.mass_bounds', 'kg'), ('balance.distance_bounds', 'm')):
-        strangers = [n for n in params.parse_link_bounds(name, values[name], unit) or ()
-                     if n not in links]
+        named[name] = params.parse_link_bounds(name, values[name], unit) or ()
+    out = {}
+    for name, names in named.items():
+        strangers = [n for n in names if n not in links]
         if strangers:
             out[name] = f'names {", ".join(strangers)}, not a link of the scene'
     try:
@@ -65,18 +53,12 @@ def scene_conflicts(values, model):
     except ValueError as exc:
         out['balance.method'] = str(exc)
         return out
-    for name, reason in range_conflicts(values, model, method).items():
-        out[name] = reason
+    out.update(range_conflicts(values, model, method))
     return out
 
 
 def range_conflicts(values, model, method):
-    """
-    Return ``{name: reason}`` of the ``balance.*`` values outside ``method``'s ranges here.
-
-    The ranges are :func:`mech_balance.balancing.option_ranges` of the rig: the spatial
-    redistribution's mass factors.
-    """
+    """Return ``{name: reason}`` of the values outside the rig's ``option_ranges``."""
     out = {}
     for option, (low, high) in balancing.option_ranges(model.rig, method).items():
         name = f'balance.{option}'
@@ -91,9 +73,14 @@ def check_link_options(values, model):
     """Check the per-link balancing options against the links of a redistributable rig."""
     links = link_names(model)
     if links:
-        own = {f'{params.LINK_PREFIX}{link}.' for link in links}
-        params.check_links({k: v for k, v in values.items() if not k.startswith(
-            params.LINK_PREFIX) or k[:k.rindex('.') + 1] in own}, links)
+        params.check_links(_of_links(values, links), links)
+
+
+def _of_links(values, links):
+    """Return ``values`` without the per-link options of links not in ``links``."""
+    own = {f'{params.LINK_PREFIX}{link}.' for link in links}
+    return {k: v for k, v in values.items()
+            if not k.startswith(params.LINK_PREFIX) or k[:k.rindex('.') + 1] in own}
 
 
 class NodeParameters:
@@ -145,11 +132,8 @@ class NodeParameters:
         """
         Pre-set: convert to the declared type; hold per-link values of links to come.
 
-        An integer or a number as text becomes the declared double (rclpy stores the
-        declared type).  A ``balance.links.<link>.*`` value for a link the scene lacks is
-        held: declared now, checked on its own, used once a scene with that link is set --
-        so a params file loads in one go, whatever the order of ``scene`` in it
-        (``ros2 param load`` sets the parameters one by one, in the file's order).
+        Held: declared now, checked on its own, used once a scene with that link is set
+        (`docs/node.md`, *A params file loads in one go*).
         """
         out = []
         for p in parameters:
@@ -177,11 +161,7 @@ class NodeParameters:
             'none); it applies once such a scene is set')
 
     def check(self, parameters, original):
-        """
-        On-set: check an update against the values and ``original``; return the result.
-
-        Raises ValueError naming the parameter (the node's guard turns it into the refusal).
-        """
+        """On-set: check an update against the values and ``original``; raise ValueError."""
         candidate = dict(self.values)
         model = original
         for p in parameters:
@@ -200,9 +180,7 @@ class NodeParameters:
                                   if k not in given}
             for name in self.pending_clear:
                 candidate[name] = params.BY_NAME[name].default
-            own = {f'{params.LINK_PREFIX}{link}.' for link in link_names(model)}
-            candidate = {k: v for k, v in candidate.items() if not k.startswith(
-                params.LINK_PREFIX) or k[:k.rindex('.') + 1] in own}
+            candidate = _of_links(candidate, link_names(model))
         check_link_options(candidate, model)
         method = balance_method(candidate, model.rig)
         for name, reason in range_conflicts(candidate, model, method).items():

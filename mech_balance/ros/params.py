@@ -1,16 +1,10 @@
 """
 The rig node's parameters, each declared once: type, default, description, bounds, check.
 
-In the manner of generate_parameter_library: :data:`PARAMETERS` is the single table the
-node declares from (:func:`mech_balance.ros.conversions.parameter_descriptor` turns a
-:class:`Spec` into a ROS ``ParameterDescriptor``), ``config/rig_params.yaml`` documents a
-working set and :func:`check` is the validator the node runs on every update (a
-``ValueError`` naming the parameter, the value and what was expected becomes the ``reason``
-of ``SetParametersResult(successful=False)``).  ``scene`` is validated by the scene loader
-itself (:func:`mech_balance.schema.load`, then the twin traces the linkage's branch), the
-``balance.*`` options are built from the one options table of the command line and the node
-(:data:`mech_balance.balancing.options.OPTIONS`).  No ROS import here: the tests use this
-table too.
+In the manner of generate_parameter_library: :data:`PARAMETERS` is the table the node
+declares from and :func:`check` the validator of every update (its ``ValueError`` is the
+refusal's reason); the ``balance.*`` ones come from
+:data:`mech_balance.balancing.options.OPTIONS`.  No ROS import here.
 """
 
 from dataclasses import dataclass
@@ -32,10 +26,7 @@ MAX_ANGLE_RAD = 2.0 * math.pi
 MAX_FRACTION = 1000.0
 """Largest diagnostics threshold (residual RMS / measured RMS)."""
 METHODS = ('redistribution', 'counterweights', 'analytic')
-"""``balance.method``: :func:`mech_balance.balancing.balance`'s methods the node offers (a
-spatial scene that lists ``balancing_weights``, the RGGR, is balanced by its own method,
-weights, when the method is the default, redistribution; other spatial scenes are
-redistributed)."""
+"""``balance.method``: :func:`mech_balance.balancing.balance`'s methods the node offers."""
 MAX_CRANK_SPEED = 1000.0
 """Largest |crank_speed| accepted, rad/s (about 9500 rpm)."""
 MIN_PUBLISH_RATE = 0.1
@@ -56,11 +47,6 @@ class Spec:
     choices: tuple = None     # allowed values, strings only
     check: object = None      # callable(value) raising ValueError with the reason
     rule: str = ''            # what ``check`` accepts, for ``ros2 param describe``
-
-    @property
-    def kind(self):
-        """Return the ROS type, as :attr:`value_type` (the name ``ros2 param`` shows)."""
-        return self.value_type
 
     @property
     def constraints(self):
@@ -137,11 +123,7 @@ def spec_for(name):
 
 
 def check_links(values, link_names):
-    """
-    Raise ValueError if a ``balance.*`` option names a link the scene does not have.
-
-    ``values`` holds checked parameter values; ``link_names`` are the scene's moving links.
-    """
+    """Raise ValueError if a ``balance.*`` option names a link not in ``link_names``."""
     named = {'balance.fixed_links': split_links(values['balance.fixed_links']),
              'balance.counterweight_links': split_links(values['balance.counterweight_links'])}
     for key, unit in (('balance.mass_bounds', 'kg'), ('balance.distance_bounds', 'm')):
@@ -313,11 +295,7 @@ BY_NAME = {spec.name: spec for spec in PARAMETERS}
 
 
 def check(name, value):
-    """
-    Return ``value`` of parameter ``name`` checked (lists for arrays); raise ValueError.
-
-    The reason names the parameter, the value and what was expected.
-    """
+    """Return ``value`` of parameter ``name`` checked (lists for arrays); raise ValueError."""
     spec = spec_for(name)
     if spec is None:
         raise ValueError(f'{name}: unknown parameter, expected one of '
@@ -335,11 +313,7 @@ def check(name, value):
 
 
 def check_together(values):
-    """
-    Raise ValueError if checked parameter values disagree with each other.
-
-    ``diagnostics.warn_fraction`` must not exceed ``diagnostics.error_fraction``.
-    """
+    """Raise ValueError if ``diagnostics.warn_fraction`` exceeds ``error_fraction``."""
     warn, error = values['diagnostics.warn_fraction'], values['diagnostics.error_fraction']
     if warn > error:
         raise ValueError(f'diagnostics.warn_fraction: got {warn:g} above '
@@ -406,12 +380,8 @@ def coerced(name, value):
     """
     Return ``value`` converted to the declared type of ``name`` where that loses nothing.
 
-    An integer (or a list of integers, or an empty list of any type) becomes the double
-    (list) a ``DOUBLE`` (``DOUBLE_ARRAY``) parameter is declared with, and so does a
-    number written as text (:data:`NUMBER`: ``'1e9'``, then checked as any double); anything
-    else is
-    returned as it is (the check then names what is wrong).  The node applies it before
-    rclpy stores a value, so that the stored type stays the declared one.
+    Integers and numbers as text (:data:`NUMBER`) become doubles where doubles are
+    declared; anything else is returned as it is (the check then names what is wrong).
     """
     spec = spec_for(name)
     if spec is None:
@@ -441,9 +411,7 @@ def frame_id_from_params_file(path):
     """
     Return the rig node's ``frame_id`` in a ROS params file (the URDF's root link name).
 
-    Sections apply in file order, as ROS applies them: ``/**`` and any section whose last
-    name is ``*``, ``**`` or the node's name (:data:`mech_balance.ros.names.NODE_NAME`:
-    ``rig``, ``/cell/rig``).  Without a ``frame_id`` the node's default,
+    Sections whose last name is ``*``, ``**`` or the node's apply in file order; default
     :data:`mech_balance.ros.names.DEFAULT_FRAME_ID`.
     """
     from pathlib import Path
@@ -471,11 +439,5 @@ def frame_id_from_params_file(path):
 
 
 def balance_options(values, method='redistribution'):
-    """
-    Return the options of :func:`mech_balance.balancing.balance` for ``values``.
-
-    ``values`` maps parameter names to checked values (at least the ``balance.*`` ones);
-    the same call as ``mech-balance balance`` with the matching options, by the one table
-    :data:`mech_balance.balancing.options.OPTIONS` (:func:`~.options.from_params`).
-    """
+    """Return the options of :func:`mech_balance.balancing.balance` for checked ``values``."""
     return options.from_params(values, method)

@@ -1,11 +1,8 @@
 """
 The rig node's publisher part: ``joint_states`` and ``shaking_wrench``, clock or follow mode.
 
-:class:`Publisher` owns the two publishers, the publishing threads
-(:class:`mech_balance.ros.streamer.Streamer`), the follow-mode estimator and the
-``crank_joint_state`` subscription, and counts what the ``publisher``, ``encoder input`` and
-``model`` statuses of ``/diagnostics`` report.  It reads the designs and the parameters
-from the node's :class:`mech_balance.ros.rig_state.RigState`.
+The two publishers, the publishing threads, the follow-mode estimator and the
+``crank_joint_state`` subscription, and the counts of their ``/diagnostics`` statuses.
 """
 
 from collections import Counter, deque
@@ -25,12 +22,9 @@ ENCODER = 'crank_joint_state'
 PUBLISH_DEPTH = 100
 """History of both publishers (absorbs a subscriber's jitter at kHz rates)."""
 ENCODER_DEPTH = 1000
-"""History of the encoder subscription (1 s at 1 kHz: the executor may be held that long
-before the middleware overwrites a sample; one it overwrote is counted from the stamps'
-gap, :data:`GAP_FACTOR`)."""
+"""History of the encoder subscription (1 s at 1 kHz; a lost sample is counted by its gap)."""
 GAP_FACTOR = 1.5
-"""A step between two encoder stamps longer than this many typical steps (the median of the
-recent ones) counts the samples missing in it: never received, so never answered."""
+"""A step of the encoder stamps longer than this many typical steps counts missing samples."""
 GAP_WINDOW = 64
 """Recent encoder steps whose median is the typical step."""
 
@@ -47,11 +41,8 @@ class Publisher:
     """
     Publish the state's design on ``joint_states`` and ``shaking_wrench``.
 
-    ``node``: the rclpy node the entities belong to; ``state``: its RigState; ``guard``: the
-    node's :class:`~mech_balance.ros.guard.Guard`; ``warn(text)``: a throttled warning;
-    ``record(samples, turned_rad, stamps_ns)``: receives every evaluated batch (the
-    recording part); ``on_encoder(stamp_ns, position_rad, turned_rad, resynced)``: receives
-    every accepted encoder sample (the real-rig part).
+    ``record(samples, turned_rad, stamps_ns)`` receives every evaluated batch,
+    ``on_encoder(stamp_ns, position_rad, turned_rad, resynced)`` every accepted encoder sample.
     """
 
     def __init__(self, node, state, guard, warn, record=None, on_encoder=None):
@@ -99,10 +90,8 @@ class Publisher:
         """Start publishing in the current mode; subscribe the encoder when first following."""
         values, model = self._state.values, self._state.published
         if values['mode'] == 'clock':
-            # The encoder subscription, once made, stays: destroying it from a parameter
-            # callback races with the MultiThreadedExecutor's other threads, which may be
-            # adding it to their wait sets (rclpy raises InvalidHandle there and the node
-            # dies).  In clock mode on_encoder ignores what arrives.
+            # the encoder subscription stays (destroyed from a parameter callback it races
+            # with the executor's other threads: InvalidHandle); clock mode ignores it
             period_ns = max(1, round(1e9 / values['publish_rate']))
             self.streamer.clock(model, self._state.crank_speed(), period_ns)
             return
@@ -133,11 +122,7 @@ class Publisher:
             self._build_table(self._state.published)
 
     def _build_table(self, model):
-        """
-        Build ``model``'s cycle table in a thread of its own (follow mode), then log it.
-
-        Until it is built the exact core is evaluated; nothing is built with follow.exact.
-        """
+        """Build ``model``'s cycle table in a thread of its own (follow mode), then log it."""
         if self._state.values['follow.exact'] or not hasattr(model, 'cycle_table'):
             return
 
@@ -193,13 +178,7 @@ class Publisher:
             # this thread; the sample is dropped without a warning (rosout is gone too)
 
     def on_encoder(self, msg, info=None):
-        """
-        Turn one encoder message into a sample to publish; skip bad input with a warning.
-
-        ``info``: rclpy's message info (a subscription callback of two arguments receives
-        it); its middleware stamps stand in for a message's unset stamp
-        (:meth:`_receive_time`).
-        """
+        """Turn one encoder message (``info``: rclpy's message info) into a sample to publish."""
         values = self._state.values
         if values['mode'] != 'follow':  # subscribed by an earlier follow mode
             self.encoder_input.reject('ignored in clock mode')
@@ -265,14 +244,8 @@ class Publisher:
         """
         Return the time of an encoder message whose stamp is unset, ns on the node's clock.
 
-        The middleware's stamp of the message where it is on the node's clock (system time,
-        no simulated time): its ``source_timestamp``, the time the sender wrote it (as if
-        the sender had stamped it), else its ``received_timestamp``.  Messages that arrive
-        in a burst - queued while the executor was busy, or re-sent by a reliable writer
-        once discovery completes - keep their spacing, where the callback's own time would
-        bunch them and their steps would look like a crank faster than
-        ``follow.max_speed``.  Otherwise (simulated time, no message info) the node's clock
-        at the callback.
+        The middleware's source (else received) stamp, so a burst keeps its spacing; with
+        simulated time or no message info, the node's clock now (`docs/node.md#follow-mode`).
         """
         clock = self._node.get_clock()
         if isinstance(info, dict) and not getattr(clock, 'ros_time_is_active', False):

@@ -1,12 +1,9 @@
 """
 The rig node's real-rig part: the twin against a force sensor, ``~/tare``, ``~/identify``.
 
-:class:`RealRig` subscribes ``measured_wrench`` (geometry_msgs/msg/WrenchStamped, the
-sensor's frame), pairs each measurement with the published model
-(:class:`mech_balance.ros.sensor.Comparison`), publishes ``wrench_residual`` and, at 1 Hz,
-``/diagnostics`` (the publisher part's three statuses and the measured-wrench status,
-:mod:`mech_balance.ros.diagnostics`).  ``~/tare`` and ``~/identify`` are answered by
-:meth:`RealRig.tare` and :meth:`RealRig.identify`; the node wires them.
+``measured_wrench`` in, paired with the published model (:mod:`mech_balance.ros.sensor`),
+``wrench_residual`` and ``/diagnostics`` out; the node wires the two services to
+:meth:`RealRig.tare` and :meth:`RealRig.identify`.
 """
 
 import threading
@@ -48,9 +45,7 @@ class RealRig:
     """
     The measured wrench against the published model (the node's state), and its services.
 
-    ``publisher``: the node's :class:`mech_balance.ros.publisher.Publisher` (its clock
-    schedule, its statuses); ``extra_statuses(name, hardware_id)``: more statuses for
-    ``/diagnostics`` (the live view's), or None.
+    ``extra_statuses(name, hardware_id)``: more statuses for ``/diagnostics``, or None.
     """
 
     def __init__(self, node, state, guard, warn, publisher, extra_statuses=None):
@@ -168,10 +163,9 @@ class RealRig:
 
     def identify(self, base):
         """
-        Identify ``base``'s inertial parameters from the buffered data; the sensor bias too.
+        Identify ``base``'s inertial parameters (and the bias, then used) from the buffered data.
 
-        Return ``(success, message, calibrated model or None, bias before)``; on success the
-        identified bias is in use.
+        Return ``(success, message, calibrated model or None, bias before)``.
         """
         try:
             with self.lock:

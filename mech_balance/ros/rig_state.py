@@ -12,11 +12,8 @@ class RigState:
     """
     The checked parameter values and the designs of a rig node (one lock for all).
 
-    ``values``: ``{parameter name: checked value}``.  ``original``: the scene's twin
-    (:class:`mech_balance.ros.streaming.TwinModel`; after ``~/identify`` the calibrated
-    one); ``balanced``: the balanced design, once known (None); ``published``: the design
-    on the topics; ``calibration``: ``(calibrated, the model it replaced, the bias before)``
-    after ``~/identify``, else None.
+    ``original`` (the scene's twin, calibrated after ``~/identify``), ``balanced`` (or
+    None), ``published``; ``calibration``: ``(calibrated, replaced model, bias before)``.
     """
 
     def __init__(self, values, original):

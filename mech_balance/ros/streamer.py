@@ -1,14 +1,10 @@
 """
 The rig node's publishing threads: clock-mode ticks on schedule, follow-mode samples.
 
-numpy only (no ROS: the node passes its clock, its publishers and its warnings in as
-callables, :mod:`mech_balance.ros.publisher`).  :class:`Streamer` publishes what the
-numerics of :mod:`mech_balance.ros.streaming` evaluate: clock-mode ticks at their stamps
-from batches evaluated ahead on the exact tick angles (:class:`.streaming.ClockSchedule`),
-or follow-mode encoder samples evaluated in batches as they arrive (by the design's verified
-cycle table, :mod:`mech_balance.ros.cycle_table`, once it is built, unless
-``follow.exact``).  :class:`TickStats` times each publishing step for ``mech-balance
-bench``.
+numpy only (the node passes its clock, publishers and warnings in as callables,
+:mod:`mech_balance.ros.publisher`); what they publish is evaluated by
+:mod:`mech_balance.ros.streaming`.  Clock mode's promise under overload: `docs/node.md`
+(*Parameters*).
 """
 
 from collections import Counter, deque
@@ -22,16 +18,12 @@ import numpy as np
 MAX_LAG_S = 0.5
 """Clock mode: a tick later than this is skipped (counted) instead of published late."""
 CLOCK_JUMP_S = 5.0
-"""Clock mode: a tick later than this is a jump of the clock (``use_sim_time`` switched, a
-simulation resumed), not an overload: the schedule restarts from now and no tick is counted
-as skipped."""
+"""Clock mode: a tick later than this is a jump of the clock (the schedule restarts)."""
 STALL_SHARE = 0.5
-"""Clock mode: a tick late by more than CLOCK_JUMP_S is a stall of the publishing thread
-(not a jump of the clock) when at least this share of the clock's advance since the last
-step also passed on the monotonic clock."""
+"""Clock mode: a tick later than CLOCK_JUMP_S is a stall, not a jump, when this share of
+the clock's advance since the last step also passed on the monotonic clock."""
 NO_CLOCK_WARN_S = 3.0
-"""Clock mode: the node's clock reading 0 (``use_sim_time`` true and no ``/clock`` message)
-for this long is reported, and again every :data:`NO_CLOCK_REPEAT_S`."""
+"""Clock mode: a node clock reading 0 (no ``/clock`` yet) this long is reported."""
 NO_CLOCK_REPEAT_S = 30.0
 """Interval between two reports of a clock that still reads 0."""
 MAX_WAIT_S = 0.005
@@ -45,12 +37,7 @@ STATS_WINDOW = 4096
 
 
 class TickStats:
-    """
-    Wall time of the publishing step of each sample (for ``mech-balance bench``).
-
-    Kept since the last change of mode, rate or speed; the median is over the most recent
-    :data:`STATS_WINDOW` steps.
-    """
+    """Wall time of the publishing step of each sample since the last mode, rate or speed."""
 
     def __init__(self):
         self.count = 0
@@ -70,12 +57,7 @@ class TickStats:
         self._times.append(seconds)
 
     def summary(self):
-        """
-        Return count, skipped ticks, the median and 99th percentile publishing step.
-
-        ``prepare_per_sample_s`` is the compute per sample: the core's evaluation and the
-        preparation (serialization) of both messages, amortized over the batches.
-        """
+        """Return the counts, publishing step percentiles and compute per sample (a dict)."""
         times = np.array(self._times) if self._times else np.zeros(1)
         per_tick = (sum(self.batch_seconds) / sum(self.batch_sizes)) if self.batch_sizes \
             else float('nan')
@@ -92,19 +74,11 @@ class Streamer:
     """
     The publishing threads of the rig node (no ROS inside: callables are passed in).
 
-    ``now_ns()`` reads the node's clock; ``prepare(samples, stamps_ns)`` turns an evaluated
-    batch into one payload per sample (the node: both messages, serialized);
-    ``publish(payload)`` sends one; ``warn(text)`` reports a problem;
-    ``record(samples, turned_rad, stamps_ns)`` (optional) receives every evaluated batch;
-    ``guard`` (a :class:`mech_balance.ros.guard.Guard`, optional) counts and reports what
-    the threads catch: an exception skips one step, never ends a thread.  A sample with a
-    non-finite value is withheld (counted in ``stats.withheld``, warned), never published.
-
-    Clock mode: one thread publishes tick k at its stamp from prepared batches, a second
-    evaluates and prepares the next batch while the current one is published, so that a
-    tick costs only the publishing of its payload.  Follow mode: encoder samples queued by
-    :meth:`push` are evaluated in batches (as many as arrived while the last batch was
-    evaluated), prepared and published.
+    ``now_ns()``, ``prepare(samples, stamps_ns)`` (one payload per sample), ``publish(payload)``,
+    ``warn(text)``, ``record(samples, turned_rad, stamps_ns)`` (optional); ``guard`` counts
+    what the threads catch (an exception skips one step).  Clock mode: one thread publishes,
+    a second prepares the next batch ahead; follow mode: samples queued by :meth:`push` are
+    evaluated in batches.  A sample with a non-finite value is withheld, never published.
     """
 
     def __init__(self, now_ns, prepare, publish, warn, record=None, guard=None):
@@ -220,12 +194,7 @@ class Streamer:
         return payloads
 
     def _evaluate_follow(self, model, batch):
-        """
-        Evaluate queued encoder samples; on a core error, one by one (skipping bad ones).
-
-        The model's cycle table once built (``follow_evaluate``), unless
-        :attr:`follow_exact`; the exact ``evaluate`` otherwise.
-        """
+        """Evaluate queued encoder samples; on a core error, one by one (skipping bad ones)."""
         t0 = time.perf_counter()
         evaluate = model.evaluate if self.follow_exact else \
             getattr(model, 'follow_evaluate', model.evaluate)
@@ -312,12 +281,7 @@ class Streamer:
                 k = schedule.first_index_at_or_after(now)
             due = schedule.time_ns(k)
             if due > now + schedule.period_ns + int(MAX_LAG_S * 1e9):
-                # the clock went back (e.g. a simulation restarted): start again from now
-                self._schedule = schedule.rebased(now)
-                self.stats.rebased += 1
-                self._next_k = None
-                self._batches.clear()
-                self._generation += 1
+                self._rebase(schedule, now)   # the clock went back (a simulation restarted)
                 return
             if due > now:
                 self._next_k = k
@@ -328,30 +292,20 @@ class Streamer:
             self._last_step = (now, mono)
             held = last is not None and mono - last[1] >= STALL_SHARE * (now - last[0]) * 1e-9
             if late > CLOCK_JUMP_S and held:  # this thread was held, the clock ran on
-                k_now = schedule.first_index_at_or_after(now)
-                self.stats.skipped += k_now - k
-                self._next_k = k_now
-                self._batches.clear()
+                skipped = self._skip(schedule, k, now)
                 self._warn(f'clock mode: publishing was held up for {mono - last[1]:.3g} s '
                            f'(not a clock jump: the clock advanced as much): skipped '
-                           f'{k_now - k} ticks')
+                           f'{skipped} ticks')
                 return
             if late > CLOCK_JUMP_S:  # use_sim_time switched, a simulation resumed
-                self._schedule = schedule.rebased(now)
-                self.stats.rebased += 1
-                self._next_k = None
-                self._batches.clear()
-                self._generation += 1
+                self._rebase(schedule, now)
                 self._warn(f'clock mode: the clock jumped forward by {late:.3g} s (use_sim_time '
                            'switched or a simulation resumed): publishing from now on, no '
                            'ticks counted as skipped')
                 return
             if late > MAX_LAG_S:
-                k_now = schedule.first_index_at_or_after(now)
-                self.stats.skipped += k_now - k
-                self._next_k = k_now
-                self._batches.clear()
-                self._warn(f'clock mode: skipped {k_now - k} ticks ({late:.3f} s late: the '
+                skipped = self._skip(schedule, k, now)
+                self._warn(f'clock mode: skipped {skipped} ticks ({late:.3f} s late: the '
                            'clock jumped or the machine is overloaded)')
                 return
             found = self._lookup(k)
@@ -373,6 +327,22 @@ class Streamer:
                 self._next_k = k + 1
                 if self._needs_refill():
                     self._refill.set()
+
+    def _rebase(self, schedule, now):
+        """Start the schedule again from ``now`` (lock held)."""
+        self._schedule = schedule.rebased(now)
+        self.stats.rebased += 1
+        self._next_k = None
+        self._batches.clear()
+        self._generation += 1
+
+    def _skip(self, schedule, k, now):
+        """Skip from tick ``k`` to the first tick at ``now``; return the count (lock held)."""
+        k_now = schedule.first_index_at_or_after(now)
+        self.stats.skipped += k_now - k
+        self._next_k = k_now
+        self._batches.clear()
+        return k_now - k
 
     def _report_zero_clock(self):
         """Say so when the clock has read 0 for NO_CLOCK_WARN_S (lock held)."""

@@ -1,36 +1,11 @@
 """
 The live twin's numerics: a rig's joints and shaking wrench at given crank angles.
 
-numpy only (no ROS): the rig node's publisher part (:mod:`mech_balance.ros.publisher`)
-wires these pieces to topics, :mod:`mech_balance.ros.conversions` turns their arrays into
-messages.
-
-:func:`model_for`
-    A scene's :class:`TwinModel` (its :class:`~mech_balance.core.rig.Rig`, of any kind):
-    ``evaluate(psi, speed, accel)`` returns :class:`Samples`, every joint's position,
-    velocity and effort and the shaking wrench, evaluated by the core in one vectorized
-    call over a batch of crank angles.
-:class:`ClockSchedule`
-    Clock mode: tick ``k`` is stamped ``t_k = epoch + k * period`` and has the crank at
-    ``psi_k = psi_0 + omega (t_k - epoch)``.  The tick angles are known ahead, so the core
-    is evaluated on the exact angles of the next batch of ticks before they are due (no
-    interpolation: a published sample is the core's at its stamped angle).
-:class:`CrankEstimator`
-    Follow mode: crank speed and acceleration from an encoder's positions (and velocities,
-    if it sends them) by a causal least-squares polynomial fit over the last samples, with
-    the checks that reject input the rig cannot have produced.
-:class:`mech_balance.ros.streamer.Streamer`
-    The two threads that publish these (a module of their own): clock-mode ticks on
-    schedule from precomputed batches, or follow-mode samples evaluated in batches as
-    encoder messages arrive.
-
-Joint values and efforts: the rig's own (:mod:`mech_balance.core.planar.rig`,
-:mod:`mech_balance.core.spatial.rig`).
-
-Shaking wrench: :mod:`mech_balance.conventions` (force and moment the rig exerts on its
-frame, frame axes); planar rigs about the crank pivot (force x, y, moment z), spatial rigs
-about their scene's ``moment_point_m`` (the RGGR: the origin O of its frame, seed 002's foot
-of the common normal on the output axis), all six components.
+numpy only (no ROS): :class:`TwinModel` evaluates a scene's rig (any kind) over a batch of
+crank angles, :class:`ClockSchedule` places clock mode's ticks, :class:`CrankEstimator`
+follows an encoder; :mod:`mech_balance.ros.streamer` publishes them and
+:mod:`mech_balance.ros.conversions` makes the messages.  Clock and follow mode:
+`docs/node.md` (*Topics and services*, *Follow mode*).
 """
 
 from collections import deque
@@ -40,7 +15,7 @@ import math
 import threading
 from typing import NamedTuple
 
-from mech_balance.core.rig import rig_for, RigData
+from mech_balance.core.rig import rig_for
 from mech_balance.ros import cycle_table
 from mech_balance.rotations import wrap_angle
 from mech_balance.schema import registry
@@ -56,20 +31,8 @@ MAX_BATCH = 4096
 """Clock mode: most ticks per core call (high rates)."""
 
 
-# ------------------------------------------------------------------------------ samples
-
-
-Samples = RigData
-"""A batch of samples ready to publish: the Rig protocol's :class:`RigData`."""
-
-
 class TwinModel:
-    """
-    A rig as the publisher sees it: ``evaluate(psi, speed, accel)`` returns :class:`Samples`.
-
-    Any :class:`~mech_balance.core.rig.Rig`; the outputs evaluated are the shaking wrench and,
-    when the scene asks for the driving torque (or the bearing reactions), the joint efforts.
-    """
+    """A rig as the publisher sees it: ``evaluate(psi, speed, accel)`` returns a RigData."""
 
     def __init__(self, rig):
         self.rig = rig
@@ -102,9 +65,8 @@ class TwinModel:
         """
         Return the verified :class:`~mech_balance.ros.cycle_table.CycleTable`, or None.
 
-        Built on the first call (any thread; later calls wait for it, then return it at
-        once); None when the table was refused (:attr:`table_status` says why: follow mode
-        then evaluates the core per sample).
+        Built on the first call (later calls wait for it); None when refused
+        (:attr:`table_status` says why).
         """
         with self._table_lock:
             if self.table_status is None:
@@ -117,12 +79,7 @@ class TwinModel:
             return self._table
 
     def follow_evaluate(self, psi, speed, accel=0.0):
-        """
-        Return the :class:`Samples` of follow mode: the cycle table's once it is built.
-
-        The exact :meth:`evaluate` until then (never waits for the build) and where the
-        table was refused.
-        """
+        """Return follow mode's RigData: the cycle table's once built, else :meth:`evaluate`."""
         table = self._table
         if table is None:
             return self.evaluate(psi, speed, accel)
@@ -136,11 +93,7 @@ class TwinModel:
         return self.rig.at(psi, speed, accel, outputs=self.outputs).bodies
 
     def evaluate(self, psi, speed, accel=0.0):
-        """
-        Return the :class:`Samples` at crank angles ``psi`` ``(n,)`` (rad), rad/s, rad/s^2.
-
-        As published: revolute joint positions wrapped to (-pi, pi], no -0.0 anywhere.
-        """
+        """Return the RigData at ``psi`` ``(n,)`` as published: angles wrapped, no -0.0."""
         s = self.rig.at(psi, speed, accel, outputs=self.outputs)
         position = s.joint_position + 0.0
         position[:, self.angular] = wrap_angle(position[:, self.angular])
@@ -151,30 +104,20 @@ class TwinModel:
         return s
 
 
-def finite_rows(samples):
-    """Return a ``(n,)`` mask of the samples whose every published value is finite."""
-    parts = [samples.joint_position, samples.joint_velocity, samples.force_N, samples.moment_Nm]
-    if samples.joint_effort is not None:
-        parts.append(samples.joint_effort)
-    return np.isfinite(np.concatenate(parts, axis=1)).all(axis=1)
-
-
 def withhold_nonfinite(samples):
     """
     Return ``(samples, ok)``: rows with a non-finite value zeroed, and the mask of good rows.
 
-    The last check before publishing: a row that is not ``ok`` is never sent (its payload
-    is None); it is zeroed only so that serializing the batch stays on the fast path.
+    A row that is not ``ok`` is never sent; zeroed, the batch serializes on the fast path.
     """
-    ok = finite_rows(samples)
+    names = [n for n in ('joint_position', 'joint_velocity', 'joint_effort', 'force_N',
+                         'moment_Nm') if getattr(samples, n) is not None]
+    ok = np.isfinite(np.concatenate([getattr(samples, n) for n in names], axis=1)).all(axis=1)
     if not ok.all():
-        for name in ('joint_position', 'joint_velocity', 'joint_effort', 'force_N',
-                     'moment_Nm'):
-            values = getattr(samples, name)
-            if values is not None:
-                values = np.array(values, dtype=float)
-                values[~ok] = 0.0
-                setattr(samples, name, values)
+        for name in names:
+            values = np.array(getattr(samples, name), dtype=float)
+            values[~ok] = 0.0
+            setattr(samples, name, values)
     return samples, ok
 
 
@@ -189,10 +132,9 @@ def model_for(scene):
 @dataclass(frozen=True)
 class ClockSchedule:
     """
-    Clock-mode ticks: tick k at ``epoch_ns + k period_ns`` with the crank at psi_k.
+    Clock-mode ticks: tick k at ``epoch_ns + k period_ns``, crank at angle0 + speed t_k.
 
-    ``psi_k = angle0_rad + speed_rad_s (k period_ns 1e-9)``, published reduced to
-    [0, 2 pi); :meth:`turned` is the unreduced angle (for the recorder's timeline).
+    The tick angles are known ahead: the core is evaluated on the exact angles of a batch.
     """
 
     epoch_ns: int
@@ -248,8 +190,7 @@ MAX_SAMPLE_GAP_S = 0.5
 MAX_CRANK_SPEED = 200.0
 """Fastest crank the rig can have, rad/s (default of ``follow.max_speed``)."""
 RESYNC_AFTER = 10
-"""Consecutive messages rejected for their stamp or step after which the estimator
-re-synchronizes on the incoming stream (default of ``follow.resync_after``)."""
+"""Rejections for stamp or step in a row before re-synchronizing (``follow.resync_after``)."""
 
 
 class StreamRejected(ValueError):
@@ -268,30 +209,12 @@ class CrankSample(NamedTuple):
 
 class CrankEstimator:
     """
-    Crank speed and acceleration from an encoder stream (follow mode).
+    Crank speed and acceleration from an encoder stream (follow mode; `docs/node.md#follow-mode`).
 
-    Each sample's position is kept as sent (the core is evaluated at it); the turned angle
-    is unwrapped from the prediction of the last estimate, so encoders that wrap the angle
-    and encoders that do not are both followed.  Estimates (causal, at the newest sample):
-
-    * speed: the encoder's velocity if it sends one and ``use_encoder_velocity``; otherwise
-      the slope at the newest stamp of a least-squares quadratic in time through the last
-      ``window`` turned angles (a line through two; the first sample only primes);
-    * acceleration: twice the quadratic's leading coefficient or, with encoder velocities,
-      the slope of a least-squares line through the last ``window`` velocities.
-
-    The fit is exact for motion at constant acceleration and averages white encoder noise
-    over the window (the speed's noise falls as window^-1.5).  :meth:`update` raises
-    ``ValueError`` naming the problem for a sample the rig cannot have produced: a
-    non-finite value, a stamp not after the previous one, or a step that needs a crank
-    faster than ``max_speed``, or an encoder velocity beyond ``max_speed``.  A gap longer
-    than ``max_gap_s`` restarts the fit.
-
-    Re-synchronization: a reading rejected for its stamp or its step
-    (:class:`StreamRejected`) may be right and the history wrong (one message stamped far in
-    the future, an encoder re-zeroed).  After ``resync_after`` such rejections in a row the
-    history is dropped and the reading primes a new fit; ``resyncs`` counts these and
-    ``last_resync`` says why (the node logs it).
+    Causal least squares at the newest sample over the last ``window`` turned angles (or the
+    encoder's velocities).  :meth:`update` raises ``ValueError`` naming what the rig cannot
+    have produced; after ``resync_after`` :class:`StreamRejected` in a row the history is
+    dropped and the reading primes a new fit (``resyncs``, ``last_resync``).
     """
 
     def __init__(self, window=FOLLOW_WINDOW, max_speed=MAX_CRANK_SPEED,
@@ -431,6 +354,3 @@ def _slope(x, y):
     xm, ym = sum(x) / n, sum(y) / n
     xc = [v - xm for v in x]
     return float(sum(a * (b - ym) for a, b in zip(xc, y)) / sum(v * v for v in xc))
-
-
-# the publishing threads that use these: mech_balance.ros.streamer

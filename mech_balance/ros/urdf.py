@@ -527,12 +527,6 @@ def _spatial_parts(sc):
     return lk, k_of, s_of, chains
 
 
-def _spatial_values(tree, data):
-    """Return ``(q, qd)`` ``(k, n)`` of the URDF joints from a spatial RigData (by name)."""
-    idx = [data.joint_names.index(j.name) for j in tree.joints]
-    return data.joint_position[:, idx].T, data.joint_velocity[:, idx].T
-
-
 def spatial_tree(sc):
     """Return the :class:`TreeModel` of a spatial scene (the kind registry's ``urdf_tree``)."""
     from mech_balance.core.rig import rig_for
@@ -567,8 +561,8 @@ def spatial_tree(sc):
         if not hasattr(state, 'joint_names'):
             raise UrdfError(f'state: got {type(state).__name__}, expected the RigData of '
                             "this spatial scene's rig (rig.at)")
-        q, qd = _spatial_values(tree, state)
-        return q, qd, ~slides
+        idx = [state.joint_names.index(j.name) for j in tree.joints]
+        return state.joint_position[:, idx].T, state.joint_velocity[:, idx].T, ~slides
 
     return TreeModel(coordinates, tuple(joints), None, cuts, lambda data: data)
 
