@@ -1,11 +1,9 @@
 """
 Recordings of a real rig: rosbag2 (MCAP or sqlite3) and CSV, read and written.
 
-No ROS install is needed (the pure-Python ``rosbags`` library, Jazzy typestore).  Two
-streams, stamped by their messages' ``header.stamp``: the crank encoder (JointState on
-:data:`ENCODER_TOPIC`) and the force sensor (WrenchStamped on :data:`WRENCH_TOPIC`); times in
-seconds from the earliest stamp of either.  The CSV columns (:data:`CSV_REQUIRED`,
-:data:`CSV_OPTIONAL`) and the recording: `docs/identification.md` (*Recording*).
+No ROS install is needed (``rosbags``).  The encoder's JointState and the sensor's
+WrenchStamped, by their header stamps, in seconds from the earliest; the CSV columns
+(:data:`CSV_REQUIRED`, :data:`CSV_OPTIONAL`): `docs/identification.md` (*Recording*).
 """
 
 import csv
@@ -18,6 +16,7 @@ import shutil
 import tempfile
 import warnings
 
+from mech_balance import atomic
 from mech_balance.ros.names import DEFAULT_FRAME_ID, ENCODER_TOPIC, WRENCH_TOPIC
 from mech_balance.rotations import matrix_rpy, quaternion_matrix
 from mech_balance.schema.fields import MAX_ABS_VALUE
@@ -490,17 +489,10 @@ def write_csv(path, t_s, position_rad, wrench, effort_Nm=None):
         cols.append('crank_effort_Nm')
         data.append(np.asarray(effort_Nm, dtype=float))
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.tmp')
-    try:
-        with os.fdopen(fd, 'w', newline='') as fh:
-            w = csv.writer(fh)
-            w.writerow(cols)
-            w.writerows(zip(*(map(repr, map(float, col)) for col in data)))
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic.atomic_path(path) as tmp, open(tmp, 'w', newline='') as fh:
+        w = csv.writer(fh)
+        w.writerow(cols)
+        w.writerows(zip(*(map(repr, map(float, col)) for col in data)))
     return path
 
 

@@ -1,9 +1,8 @@
 """
 Message conversion for the rig node: pure functions, no node is ever created here.
 
-Samples (a RigData) into JointState and WrenchStamped messages and their serialized bytes;
-an encoder's JointState and a measured WrenchStamped read with checks; parameter
-descriptors and values; stamps; the ``/diagnostics`` array.
+Samples into JointState and WrenchStamped bytes; encoder and sensor messages read with
+checks; parameter descriptors and values; stamps; the ``/diagnostics`` array.
 """
 
 from array import array
@@ -71,10 +70,8 @@ def fill_wrench(msg, samples, i, stamp, frame_id):
     """Fill ``msg`` (``geometry_msgs/WrenchStamped``) with the shaking wrench of sample ``i``."""
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
-    f, m = samples.force_N[i], samples.moment_Nm[i]
-    force, torque = msg.wrench.force, msg.wrench.torque
-    force.x, force.y, force.z = float(f[0]), float(f[1]), float(f[2])
-    torque.x, torque.y, torque.z = float(m[0]), float(m[1]), float(m[2])
+    f, m = msg.wrench.force, msg.wrench.torque
+    f.x, f.y, f.z, m.x, m.y, m.z = map(float, (*samples.force_N[i], *samples.moment_Nm[i]))
     return msg
 
 
@@ -283,9 +280,6 @@ def parameter_value(parameter):
     if value is not None and not isinstance(value, (str, bool, int, float)):
         value = list(value)
     return value
-
-
-# ------------------------------------------------------------------------------ the real rig
 
 
 def wrench_reading(msg):

@@ -1,10 +1,8 @@
 """
 Follow mode's cycle table: a rig's published values at any crank angle, built once per design.
 
-numpy only (no ROS).  Positions q(psi), velocities q'(psi) w, and efforts and shaking wrench
-``Y0(psi) + Yw(psi) w + Y2(psi) w^2 + Ya(psi) a`` kept as Fourier series from a grid of
-exact evaluations, verified off the grid when built, refused (:class:`TableRefused`) when
-they cannot be trusted: `docs/node.md#follow-mode` (*The cycle table*).
+numpy only.  Fourier series of q(psi), q'(psi) and ``Y0 + Yw w + Y2 w^2 + Ya a``, verified
+when built, else refused: `docs/node.md#follow-mode` (*The cycle table*).
 """
 
 from dataclasses import dataclass
@@ -89,8 +87,6 @@ class CycleTable:
         self._cell = len(interval[0]) / TWO_PI
         self.report = report
         self.accuracy = report.accuracy
-
-    # ------------------------------------------------------------------ build
 
     @classmethod
     def build(cls, evaluate, angular, bound=BOUND, grids=GRIDS):
@@ -194,8 +190,6 @@ class CycleTable:
         rel[scale == 0.0] = np.where(np.max(diff[:, scale == 0.0], axis=0) > 0.0,
                                      math.inf, 0.0)
         return float(np.max(rel))
-
-    # ------------------------------------------------------------------ evaluation
 
     def evaluate(self, psi, speed, accel=0.0):
         """Return the published samples at crank angles ``psi`` ``(n,)``, rad/s, rad/s^2."""

@@ -1,12 +1,8 @@
 """
 What the rig node tells robot_state_publisher: the URDF joints on ``joint_states`` and the URDF.
 
-:class:`JointLayout` (numpy only) maps a rig's evaluation onto the published joints: every
-joint of the scene in the rig's order, then the URDF joints the scene lacks; URDF joints in
-the URDF's zero convention (:func:`mech_balance.ros.urdf.joint_positions`), cut joints as the
-rig gives them, efforts by name; no -0.0.  :class:`UrdfTwin` is the twin the node publishes
-from, :class:`DescriptionPublisher` the latched ``robot_description``
-(`docs/rviz_launch.md`, *joint_states drives the URDF*, *robot_description*).
+The published joints and their values: `docs/rviz_launch.md` (*joint_states drives the
+URDF*, *robot_description*).
 """
 
 from dataclasses import replace
@@ -114,12 +110,6 @@ class DescriptionPublisher:
         self._lock = threading.Lock()
         self._pub = None
         self._shown = None      # (scene, frame_id) last published
-        self.text = None        # the URDF last published
-
-    @property
-    def topic_name(self):
-        """Return the resolved topic name, or None while disabled."""
-        return None if self._pub is None else self._pub.topic_name
 
     def show(self, enabled, model, frame_id):
         """Publish the URDF of ``model``'s scene with root ``frame_id`` (if enabled, new)."""
@@ -148,7 +138,7 @@ class DescriptionPublisher:
                 self._node.get_logger().warning(f'{ROBOT_DESCRIPTION}: not published: {exc}')
                 return
             self._pub.publish(String(data=text))
-            self._shown, self.text = (model.scene, frame_id), text
+            self._shown = (model.scene, frame_id)
             topic = self._pub.topic_name
         self._node.get_logger().info(
             f'publishing {topic} (std_msgs/msg/String, transient local): the URDF of '

@@ -1,11 +1,8 @@
 """
 The one guard of every callback of the rig node: no input, of any kind, kills the node.
 
-Every callback and thread loop of the node runs under a :class:`Guard`: in a callback that
-answers (a parameter update, a service) any ``Exception`` (``RecursionError`` and
-``MemoryError`` included) becomes a refusal with a reason (:meth:`Guard.refusing`); in one
-that answers nobody (a subscription, a timer, a thread) a counted, rate-limited warning
-(:meth:`Guard.skipping`).  No ROS import: the publishing threads use it too.
+Any ``Exception`` (``RecursionError`` and ``MemoryError`` included) becomes a refusal with
+a reason (:meth:`Guard.refusing`) or a counted, rate-limited warning (:meth:`Guard.skipping`).
 """
 
 import functools

@@ -87,8 +87,6 @@ class Recording:
                                         daemon=True)
         self._thread.start()
 
-    # ------------------------------------------------------------------ any thread
-
     def start(self, path, url, scene, balanced=None):
         """
         Record ``scene`` (against ``balanced``) to ``path`` and/or ``url``; returns at once.
@@ -192,8 +190,6 @@ class Recording:
         if self._thread is not threading.current_thread():
             self._thread.join(timeout_s)
 
-    # ------------------------------------------------------------------ the thread
-
     def _say(self, level, text):
         """Log through the node; if even that fails, to stderr (never raises)."""
         try:
@@ -281,10 +277,14 @@ class Recording:
         except (ValueError, OSError) as exc:  # checked when set; the disk may change
             if not target.is_viewer:
                 self._say('error', f'not recording: {exc}')
-                target.status = f'{DEAD}: {exc}'
-                target.retry_at = float('inf')
+                self._file_dead(target, exc)
             else:
                 self._mark_dead(target, str(exc))
+
+    def _file_dead(self, target, exc):
+        """Mark the file dead for good (it is not tried again)."""
+        target.status = f'{DEAD}: {exc}'
+        target.retry_at = float('inf')
 
     def _mark_dead(self, target, why):
         first = not target.status.startswith(DEAD)
@@ -318,8 +318,7 @@ class Recording:
                 if not t.is_viewer:
                     self._say('warning', f'recording_path: stopped recording: {exc}')
                     self._close_one(t)
-                    t.status = f'{DEAD}: {exc}'
-                    t.retry_at = float('inf')
+                    self._file_dead(t, exc)
                 else:
                     self._close_one(t)
                     self._mark_dead(t, str(exc))

@@ -1,11 +1,8 @@
 """
 The rig node: joint states and the shaking wrench on ROS 2 topics, a balancing service.
 
-``ros2 run mech_balance rig_node`` (or ``python -m mech_balance.ros.node``) starts node
-``rig``, every name relative.  It holds no numerics: it declares the parameters
-(:mod:`mech_balance.ros.parameters`) and wires the parts -- the publisher, the real rig, the
-balancing, the recording -- to its topics and services.  Topics, services, parameters and
-the faults it survives: `docs/node.md`.
+``ros2 run mech_balance rig_node`` starts node ``rig``.  It holds no numerics: it declares
+the parameters and wires the parts to its topics and services (`docs/node.md`).
 """
 
 from collections import deque
@@ -115,8 +112,6 @@ class RigNode(Node):
         if values['use_balanced']:
             self._balance_in_background()
 
-    # ------------------------------------------------------------------ helpers
-
     def _refusing(self, label, callback):
         """Guard a Trigger service: any exception is answered ``success=False`` (a reason)."""
         def refuse(exc, request, response):
@@ -143,8 +138,6 @@ class RigNode(Node):
 
     def _service_name(self, name):
         return self._triggers[name].service_name
-
-    # ------------------------------------------------------------------ the parts
 
     def _record(self, samples, turned_rad, stamps_ns):
         """Queue a batch for the recording (the original's data when it is published)."""
@@ -215,8 +208,6 @@ class RigNode(Node):
                 f'{real_rig.DIAGNOSTICS} at {1.0 / real_rig.DIAGNOSTICS_PERIOD_S:g} Hz'):
             self.get_logger().info(line)
 
-    # ------------------------------------------------------------------ parameters
-
     def _on_parameters_set(self, parameters):
         """Apply an accepted update: tell each part what changed."""
         changed = self._params.accepted(parameters)
@@ -254,8 +245,6 @@ class RigNode(Node):
         if 'scene' in changed or 'mode' in changed:
             self._announce()
         self._rig.parameters_set(changed)
-
-    # ------------------------------------------------------------------ services
 
     def _on_balance(self, request, response):
         """Balance with the current options, publish the design, answer its YAML."""
@@ -360,8 +349,6 @@ class RigNode(Node):
             self.set_parameters([Parameter('use_balanced', value=False)])
             self._switch_to(calibrated)
         return response
-
-    # ------------------------------------------------------------------ shutdown
 
     def destroy_node(self, signalled=False):
         """

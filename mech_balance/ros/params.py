@@ -61,9 +61,6 @@ class Spec:
         return '; '.join(parts)
 
 
-# ------------------------------------------------------------------------------ checks
-
-
 def _scene(value):
     """Reject an empty scene name (the node then loads and assembles the scene)."""
     if not value:
@@ -190,8 +187,6 @@ METHOD_SPEC = Spec(
     'spatial scenes are redistributed.', choices=METHODS)
 """``balance.method``: the node's own (the command line chooses by its flags)."""
 
-
-# ------------------------------------------------------------------------------ table
 
 PARAMETERS = (
     Spec('scene', STRING, 'hoeken',
@@ -320,11 +315,10 @@ def check_together(values):
                          f'diagnostics.error_fraction = {error:g}, expected warn <= error')
 
 
-def sensor_pose_values(values):
-    """Return the keyword arguments of :class:`mech_balance.ros.sensor.SensorPose`."""
-    out = {k: values[f'sensor.{k}'] for k in ('x', 'y', 'z', 'roll', 'pitch', 'yaw')}
-    out['convention'] = values['sensor.convention']
-    return out
+def sensor_pose(values):
+    """Return the :class:`mech_balance.ros.sensor.SensorPose` of the ``sensor.*`` values."""
+    return sensor.SensorPose(**{k: values[f'sensor.{k}'] for k in (
+        'x', 'y', 'z', 'roll', 'pitch', 'yaw', 'convention')})
 
 
 def _typed(spec, value):

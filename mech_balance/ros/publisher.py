@@ -150,8 +150,6 @@ class Publisher:
         """Stop the publishing threads."""
         self.streamer.stop()
 
-    # ------------------------------------------------------------------ the threads
-
     def _prepare(self, samples, stamps_ns):
         """Serialize a batch of samples (the streamer's evaluating threads)."""
         self.model_watch.add(samples)
@@ -254,8 +252,6 @@ class Publisher:
                 if isinstance(stamp, int) and stamp > 0:
                     return stamp
         return clock.now().nanoseconds
-
-    # ------------------------------------------------------------------ reports
 
     def statuses(self, name, hardware_id, now_ns):
         """Return the ``publisher``, ``encoder input`` and ``model`` diagnostic statuses."""

@@ -1,9 +1,8 @@
 """
 The rig node's real-rig part: the twin against a force sensor, ``~/tare``, ``~/identify``.
 
-``measured_wrench`` in, paired with the published model (:mod:`mech_balance.ros.sensor`),
-``wrench_residual`` and ``/diagnostics`` out; the node wires the two services to
-:meth:`RealRig.tare` and :meth:`RealRig.identify`.
+``measured_wrench`` in, paired with the published model (:mod:`mech_balance.ros.sensor`);
+``wrench_residual`` and ``/diagnostics`` out.
 """
 
 import threading
@@ -57,7 +56,7 @@ class RealRig:
         values, model = state.values, state.published
         self.lock = threading.Lock()
         self.comparison = sensor.Comparison(
-            sensor.SensorPose(**params.sensor_pose_values(values)), model.moment_point_m,
+            params.sensor_pose(values), model.moment_point_m,
             values['sensor.crank_window'], sensor.WeightModel.of(model.rig),
             resync_after=values['follow.resync_after'])
         self._model = model                 # the model self.comparison compares with
@@ -83,8 +82,6 @@ class RealRig:
         """Count and report a skipped sensor step (the node never dies from input)."""
         self._skips += 1
         self._warn(f'{what}: skipped ({self._skips} so far): {type(exc).__name__}: {exc}')
-
-    # ------------------------------------------------------------------ input
 
     def on_encoder(self, stamp_ns, position_rad, turned_rad, resynced=False):
         """Follow mode: add an accepted encoder sample to the crank track."""
@@ -141,15 +138,13 @@ class RealRig:
                 self.comparison.resync_after = max(1, int(values['follow.resync_after']))
         if not any(k.startswith('sensor.') for k in changed):
             return
-        pose = sensor.SensorPose(**params.sensor_pose_values(values))
+        pose = params.sensor_pose(values)
         with self.lock:
             reposed = pose != self.comparison.pose
             self.comparison.configure(pose, values['sensor.crank_window'])
         if reposed:
             self._node.get_logger().info('sensor pose or convention changed: bias and buffered '
                                          'measurements forgotten (~/tare again)')
-
-    # ------------------------------------------------------------------ services
 
     def tare(self):
         """Return ``(success, message)``: the bias from the last sensor.tare_seconds, used."""
@@ -196,8 +191,6 @@ class RealRig:
         """Use ``bias`` again (``~/reset`` from a calibrated scene)."""
         with self.lock:
             self.comparison.bias = bias
-
-    # ------------------------------------------------------------------ diagnostics
 
     def on_diagnostics(self):
         """Publish the statuses on /diagnostics."""

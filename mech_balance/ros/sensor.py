@@ -132,9 +132,6 @@ class SensorPose:
         return w[:, :3] @ r, n_p @ r
 
 
-# ------------------------------------------------------------------------------ weight
-
-
 @dataclass(frozen=True)
 class WeightModel:
     """The moving links' static weight: ``mass_kg (nb,)``, ``centre_m (nb, 3)`` (link frames)."""
@@ -178,9 +175,6 @@ def model_wrench(data, weight, point_m):
     if weight is not None:
         w = w + weight.wrench(data.bodies, point_m)
     return w
-
-
-# ------------------------------------------------------------------------------ series
 
 
 class Series:
@@ -278,9 +272,6 @@ class Series:
         t = self.stamps_ns
         i = int(np.searchsorted(t, stamp_ns, side='left'))
         return t[i:], self.values[i:]
-
-
-# ------------------------------------------------------------------------------ crank
 
 
 class EncoderTrack:
@@ -385,9 +376,6 @@ def clock_crank(schedule, stamps_ns):
     return psi, np.full(t.size, schedule.speed_rad_s), np.zeros(t.size)
 
 
-# ------------------------------------------------------------------------------ bias
-
-
 @dataclass(frozen=True)
 class BiasEstimate:
     """A tare: bias ``(6,)`` and its standard error, samples used, at rest or turning."""
@@ -430,9 +418,6 @@ def estimate_bias(measured, model, speed_rad_s=None, span_s=0.0):
     return BiasEstimate(r.mean(axis=0), std / math.sqrt(n), n, float(span_s), rest)
 
 
-# ------------------------------------------------------------------------------ comparison
-
-
 @dataclass
 class Paired:
     """Measurements paired with the model: stamps, residual (n, 6) after the bias."""
@@ -462,7 +447,7 @@ class Comparison:
         self.used = 0
         self.received = 0
         self.rejected = Counter()
-        self.resync_after = max(1, int(resync_after))
+        self.resync_after = resync_after
         self.refused_in_a_row = 0      # measurements refused for their stamp, in a row
         self.measurement_resyncs = 0
         self.just_resynced = False
@@ -482,8 +467,6 @@ class Comparison:
     def resyncs(self):
         """Return the re-synchronizations of the encoder track and the measurements."""
         return self.track.resyncs + self.measurement_resyncs
-
-    # ------------------------------------------------------------------ input
 
     def measurement(self, stamp_ns, force_sensor, torque_sensor):
         """
@@ -527,8 +510,6 @@ class Comparison:
         if not self.track.add(stamp_ns, position_rad, turned_rad, resync=resynced):
             self.rejected['encoder stamp not after the newest'] += 1
 
-    # ------------------------------------------------------------------ settings
-
     def configure(self, pose=None, crank_window_s=None):
         """Change the sensor's pose (forgets the bias and the measurements) or crank window."""
         if pose is not None and pose != self.pose:
@@ -555,8 +536,6 @@ class Comparison:
         self.pending.clear()
         self.measured.clear()
         self.paired.clear()
-
-    # ------------------------------------------------------------------ pairing
 
     def process(self, evaluate, schedule=None):
         """
@@ -611,8 +590,6 @@ class Comparison:
             except ValueError:
                 self.rejected['model evaluation failed'] += 1
         return out, good
-
-    # ------------------------------------------------------------------ statistics
 
     def rms(self, window_s):
         """

@@ -1,10 +1,8 @@
 """
 The rig node's publishing threads: clock-mode ticks on schedule, follow-mode samples.
 
-numpy only (the node passes its clock, publishers and warnings in as callables,
-:mod:`mech_balance.ros.publisher`); what they publish is evaluated by
-:mod:`mech_balance.ros.streaming`.  Clock mode's promise under overload: `docs/node.md`
-(*Parameters*).
+numpy only (the node passes its clock and publishers in as callables).  Clock mode's
+promise under overload: `docs/node.md` (*Parameters*).
 """
 
 from collections import Counter, deque
@@ -112,8 +110,6 @@ class Streamer:
         for t in self._threads:
             t.start()
 
-    # -------------------------------------------------------------- control (any thread)
-
     def clock(self, model, speed_rad_s, period_ns, angle0_rad=0.0):
         """Publish ticks of ``model`` at ``speed_rad_s`` every ``period_ns``, continuing on."""
         with self._cond:
@@ -176,8 +172,6 @@ class Streamer:
             self.unanswered['discarded by a mode, rate or scene change'] += len(self._pending)
             self._pending.clear()
         self._cond.notify_all()
-
-    # -------------------------------------------------------------- evaluation
 
     def _evaluate_ticks(self, model, schedule, k0, count):
         """Return the payloads of ticks ``k0 ..``: the core on their exact angles, prepared."""
@@ -243,8 +237,6 @@ class Streamer:
         self._publish(payload)
         self.stats.add(time.perf_counter() - t0)
         self.published_total += 1
-
-    # -------------------------------------------------------------- threads
 
     def _run_publisher(self):
         while True:

@@ -1,11 +1,8 @@
 """
 The live twin's numerics: a rig's joints and shaking wrench at given crank angles.
 
-numpy only (no ROS): :class:`TwinModel` evaluates a scene's rig (any kind) over a batch of
-crank angles, :class:`ClockSchedule` places clock mode's ticks, :class:`CrankEstimator`
-follows an encoder; :mod:`mech_balance.ros.streamer` publishes them and
-:mod:`mech_balance.ros.conversions` makes the messages.  Clock and follow mode:
-`docs/node.md` (*Topics and services*, *Follow mode*).
+numpy only; :mod:`mech_balance.ros.streamer` publishes what these evaluate.  Clock and
+follow mode: `docs/node.md` (*Topics and services*, *Follow mode*).
 """
 
 from collections import deque
@@ -58,8 +55,6 @@ class TwinModel:
     def published_angular(self):
         """Return which published joint positions are angles (wrapped to (-pi, pi])."""
         return self.angular
-
-    # ------------------------------------------------------------------ follow mode
 
     def cycle_table(self):
         """
@@ -126,9 +121,6 @@ def model_for(scene):
     return TwinModel(rig_for(scene))
 
 
-# ------------------------------------------------------------------------------ clock
-
-
 @dataclass(frozen=True)
 class ClockSchedule:
     """
@@ -178,9 +170,6 @@ class ClockSchedule:
 def batch_size(period_ns):
     """Return the ticks per core call for a tick period (:data:`BATCH_SECONDS` of them)."""
     return int(min(MAX_BATCH, max(MIN_BATCH, math.ceil(BATCH_SECONDS * 1e9 / period_ns))))
-
-
-# ------------------------------------------------------------------------------ follow
 
 
 FOLLOW_WINDOW = 7

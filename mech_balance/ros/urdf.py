@@ -89,9 +89,6 @@ class TreeModel:
         return tuple(j.name for j in self.joints)
 
 
-# ----------------------------------------------------------------------------- helpers
-
-
 def urdf_rpy(matrix):
     """Return the URDF ``(roll, pitch, yaw)`` floats of one rotation matrix (3, 3)."""
     return tuple(float(v) for v in matrix_rpy(matrix))
@@ -110,9 +107,6 @@ def _revolute_spec(name, parent, child, xyz, rpy, axis, lower, upper, turns, rat
             rpy = urdf_rpy(rpy_matrix(rpy) @ axis_angle_matrix(axis, offset))
     return UrdfJoint(name, 'revolute', parent, child, xyz, rpy, axis, offset, lo, hi,
                      rate_max)
-
-
-# ----------------------------------------------------------------------------- tree model
 
 
 _MODELS = {}
@@ -215,9 +209,6 @@ def _planar_state(data):
     return state
 
 
-# ----------------------------------------------------------------------------- positions
-
-
 def joint_positions(model, state):
     """
     Return ``(names, positions, velocities)`` of the URDF joints at the core's state.
@@ -238,9 +229,6 @@ def rig_joint_positions(model, data):
     """Return :func:`joint_positions` at ``data``, a RigData of the scene's rig (any design)."""
     tree = tree_model(model)
     return joint_positions(tree, tree.state_of(data))
-
-
-# ----------------------------------------------------------------------------- inertials
 
 
 def thin_plate_inertia(link):
@@ -266,9 +254,6 @@ def thin_plate_inertia(link):
         iyy += i_y + m * dx * dx
         ixy -= m * dx * dy
     return mass, com, (ixx, iyy, izz, ixy)
-
-
-# ----------------------------------------------------------------------------- XML
 
 
 def _num(x):
@@ -400,10 +385,7 @@ def planar_robot(sc, frame_id, linkage=None):
     points = {FRAME: sc.frame_points, **{lk.name: lk.points for lk in sc.links}}
     links = {lk.name: lk for lk in sc.links}
     width, thick, pin_r = BAR_WIDTH * L, BAR_THICKNESS * L, PIN_RADIUS * L
-    rails = {}
-    for t, tj in enumerate(linkage.tree):
-        if tj.prismatic:
-            rails[tj.name] = model.joints[t]
+    rails = {tj.name: model.joints[t] for t, tj in enumerate(linkage.tree) if tj.prismatic}
     for bi, body in enumerate(names):
         el = ET.SubElement(robot, 'link', name=urdf_name[body])
         material = f'{sc.name}/{body}'
@@ -460,10 +442,8 @@ def _rod(parent, name, material, start, end, radius):
            _cylinder(radius, length))
 
 
-# ----------------------------------------------------------------------------- spatial kind
 # The URDF frames and joints of spatial scenes: docs/rviz_launch.md, "URDF frames of spatial
 # rigs".
-
 def _spatial_parts(sc):
     """Return the linkage, ``K`` and ``s_b`` of every body, and the URDF joint specs."""
     from mech_balance.core.spatial.rig import linkage_for as spatial_linkage
