@@ -583,7 +583,7 @@ def _csv_split(lines, numbers, label):
 
 
 def _csv_chunk(chunk, head, label, store):
-    """Parse and check CSV data lines into ``store``: numpy at once, else row by row."""
+    """Parse and check CSV data lines into ``store``: numpy at once, row by row to refuse."""
     numbers = [n for n, _ in chunk]
     lines = [ln for _, ln in chunk]
     text = ''.join(lines)
@@ -599,30 +599,20 @@ def _csv_chunk(chunk, head, label, store):
                 flat = None
         if flat is not None and flat.size == len(lines) * len(head):
             values = flat.reshape(len(lines), len(head))[:, head.index]
-    if values is None:
-        previous = store.stamps[store.n - 1] if store.n else None
-        for number, row in zip(numbers, _csv_split(lines, numbers, label)):
-            stamp, row_values = _csv_row(row, number, head, label, previous)  # raises
-            store.add(stamp, row_values)
-            previous = stamp
-        return
-    limits = np.where(np.array(head) == 't_s', MAX_T_S, MAX_ABS_VALUE)
-    bad = ~np.isfinite(values) | (np.abs(values) > limits)
-    if bad.any():
-        k, c = (int(v[0]) for v in np.nonzero(bad))
-        raise RecordingError(f'{label}: line {numbers[k]}, column {head[c]}: got '
-                             f'{float(values[k, c])!r}, expected a finite number of magnitude '
-                             f'at most {limits[c]:g}')
-    stamps = np.round(values[:, 0] * 1e9).astype(np.int64)
-    prev = np.concatenate([[store.stamps[store.n - 1]] if store.n else [np.iinfo(np.int64).min],
-                           stamps[:-1]])
-    late = stamps <= prev
-    if late.any():
-        k = int(np.flatnonzero(late)[0])
-        raise RecordingError(f'{label}: line {numbers[k]}, column t_s: {float(values[k, 0])!r} '
-                             f"is not after the previous row's {int(prev[k]) * 1e-9!r}, expected "
-                             'increasing times (rows are not sorted here)')
-    store.extend(stamps, values[:, 1:])
+    if values is not None:
+        limits = np.where(np.array(head) == 't_s', MAX_T_S, MAX_ABS_VALUE)
+        if not (~np.isfinite(values) | (np.abs(values) > limits)).any():
+            stamps = np.round(values[:, 0] * 1e9).astype(np.int64)
+            if np.all(stamps[1:] > stamps[:-1]) and \
+                    (not store.n or stamps[0] > store.stamps[store.n - 1]):
+                store.extend(stamps, values[:, 1:])
+                return
+    # quoted, ragged or refused: row by row (naming the line and column of a bad field)
+    previous = store.stamps[store.n - 1] if store.n else None
+    for number, row in zip(numbers, _csv_split(lines, numbers, label)):
+        stamp, row_values = _csv_row(row, number, head, label, previous)  # raises
+        store.add(stamp, row_values)
+        previous = stamp
 
 
 def _csv_row(row, number, head, label, previous):
