@@ -1,9 +1,7 @@
 """
 Each joint's range over one crank cycle, and the URDF limits that hold it.
 
-:func:`cycle_ranges` locates every joint coordinate's extremes over a turn
-(:data:`RANGE_SAMPLES` samples, then golden-section refinement of each extreme);
-:func:`angle_limits` turns an angle's swing into a URDF joint offset and symmetric limits.
+Extremes from :data:`RANGE_SAMPLES` samples per turn, refined by golden-section search.
 """
 
 import math

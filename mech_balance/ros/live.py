@@ -1,10 +1,8 @@
 """
 The rig node's recording part: ``recording_path`` (a file) and ``rerun_url`` (a viewer).
 
-:class:`Recording` never holds the caller: :meth:`Recording.push` only queues (bounded),
-:meth:`Recording.start` only asks; a thread of its own probes the viewer's address, opens,
-logs and closes, each with a bounded wait.  A dead viewer is reported and the file goes on
-(`docs/node.md`, *A dead viewer holds nothing*).  viz is imported by the node's hook only.
+Never holds the caller: a thread of its own probes the viewer, opens, logs and closes, each
+with a bounded wait (`docs/node.md`, *A dead viewer holds nothing*).
 """
 
 from collections import deque

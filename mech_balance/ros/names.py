@@ -1,8 +1,7 @@
 """
 The ROS names of the rig: topics, frames and defaults, in one place (no imports).
 
-docs/node.md documents them; the node, the bag reader, the URDF and the
-command line read them here, so that a name is spelled once.
+docs/node.md documents them; a name is spelled once, here.
 """
 
 ENCODER_TOPIC = '/crank_joint_state'

@@ -123,11 +123,7 @@ class RigNode(Node):
         self.get_logger().warning(text, throttle_duration_sec=WARN_THROTTLE_S)
 
     def _log(self, level, text):
-        """
-        Log ``text`` at ``level`` ('info', 'warning' or 'error'), one call site per level.
-
-        rclpy raises ``ValueError`` when one call site logs at another severity.
-        """
+        """Log ``text`` at ``level`` ('info', 'warning', 'error'), one call site per level."""
         logger = self.get_logger()
         if level == 'error':
             logger.error(text)
@@ -354,8 +350,7 @@ class RigNode(Node):
         """
         Stop the publishing threads, close the recording, destroy the node, log the stats.
 
-        ``signalled`` (Ctrl-C, SIGTERM): the stats are logged after the node is gone, to the
-        console only (rosout may be invalid by then).
+        ``signalled`` (Ctrl-C, SIGTERM): logged after the node is gone, to the console only.
         """
         self._publisher.stop()
         self._recording.close()

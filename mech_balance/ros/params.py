@@ -17,6 +17,7 @@ from mech_balance.balancing import options
 from mech_balance.balancing.options import BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, LINK_OPTIONS, \
     LINK_PREFIX, parse_link_bounds, split_links, STRING
 from mech_balance.ros import sensor
+from mech_balance.ros.guard import show as _show
 
 MODES = ('clock', 'follow')
 MAX_SENSOR_OFFSET_M = 100.0
@@ -359,11 +360,6 @@ def _finite(name, x, whole=None):
             raise ValueError(f'{name}: got {_show(x)}, expected a finite number')
         raise ValueError(f'{name}: got {_show(list(whole))}, expected finite numbers')
     return v
-
-
-def _show(value):
-    text = repr(value)
-    return text if len(text) <= 80 else f'{text[:80]}... ({len(text)} characters)'
 
 
 NUMBER = re.compile(r'\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*')

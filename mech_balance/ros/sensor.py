@@ -1,11 +1,9 @@
 """
 The twin against the real rig: a force sensor's wrench compared with the model (numpy only).
 
-No ROS here (:mod:`mech_balance.ros.real_rig` wires it to the node).  Every array is SI,
-sample-first, wrenches as six columns :data:`COMPONENTS` in the rig frame about the moment
-point.  The sensor's pose and sign convention, the model of a measurement (shaking wrench plus
-the links' weight plus a bias), the crank state at a stamp, the running RMS and the tare:
-`docs/identification.md#the-twin-against-the-real-rig`.
+Every array is SI, sample-first, wrenches as six columns :data:`COMPONENTS` in the rig
+frame about the moment point.  The sensor's pose, the model of a measurement, the crank state
+at a stamp, the RMS and the tare: `docs/identification.md#the-twin-against-the-real-rig`.
 """
 
 from collections import Counter

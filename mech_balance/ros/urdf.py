@@ -1,11 +1,9 @@
 """
 URDF of a rig's spanning tree and the tree's joint positions from the core's state.
 
-numpy only (no ROS): ``mech-balance urdf`` writes :func:`urdf_xml`, the launch file gives it
-to robot_state_publisher, and the rig node publishes :func:`joint_positions` on
-``joint_states``.  A closed linkage is opened into the spanning tree the core solves (the cut
-joints are listed in an XML comment).  Link frames, the joint zero convention, limits and
-inertials: `docs/rviz_launch.md` (*Links*, *Zero convention*, *URDF frames of spatial rigs*).
+numpy only.  A closed linkage is opened into the spanning tree the core solves.  Link
+frames, the zero convention, limits and inertials: `docs/rviz_launch.md` (*Links*, *Zero
+convention*, *URDF frames of spatial rigs*).
 """
 
 from dataclasses import dataclass, field, replace
@@ -94,6 +92,21 @@ def urdf_rpy(matrix):
     return tuple(float(v) for v in matrix_rpy(matrix))
 
 
+def _joint_specs(chains, lower, upper, turns, rate_max, length_scale):
+    """Return the :class:`UrdfJoint` of each ``(name, type, parent, child, xyz, rpy, axis)``."""
+    joints = []
+    margin = LIMIT_MARGIN * length_scale
+    for i, (name, jtype, parent, child, xyz, rpy, axis) in enumerate(chains):
+        if jtype == 'prismatic':
+            joints.append(UrdfJoint(name, 'prismatic', parent, child, xyz, rpy, axis, 0.0,
+                                    float(lower[i] - margin), float(upper[i] + margin),
+                                    float(rate_max[i])))
+        else:
+            joints.append(_revolute_spec(name, parent, child, xyz, rpy, axis, lower[i],
+                                         upper[i], turns[i], float(rate_max[i])))
+    return tuple(joints)
+
+
 def _revolute_spec(name, parent, child, xyz, rpy, axis, lower, upper, turns, rate_max):
     """Return the :class:`UrdfJoint` of a revolute joint with the cycle's range."""
     if turns != 0:
@@ -165,29 +178,22 @@ def planar_tree(linkage):
     rate_max = np.max(np.abs(rates), axis=1) * abs(sc.crank_speed_rad_s)
     lower, upper, turns = cycle_ranges(coordinates, sc.assembly_crank_angle_rad, ~prismatic)
     turns[0] = 1.0  # the crank turns fully by construction
-    joints = []
-    for t, tj in enumerate(linkage.tree):
+    chains = []
+    for tj in linkage.tree:
         p = tj.p_parent - offset[tj.parent]
-        xyz = (p.real, p.imag, 0.0)
-        parent = names[tj.parent]
-        child = names[tj.child]
-        if not tj.prismatic:
-            joints.append(_revolute_spec(tj.name, parent, child, xyz, (0.0, 0.0, 0.0),
-                                         (0.0, 0.0, 1.0), lower[t], upper[t], turns[t],
-                                         float(rate_max[t])))
-            continue
-        # prismatic: the child turns by +-angle against the parent; the slide axis in the
-        # child's (= joint frame's) axes (kinematics.Linkage.pose)
-        if tj.axis_on_parent:
-            turn, axis = tj.angle, tj.axis * complex(math.cos(-tj.angle), math.sin(-tj.angle))
-        else:
-            turn, axis = -tj.angle, -tj.axis
-        margin = LIMIT_MARGIN * linkage.length_scale
-        joints.append(UrdfJoint(tj.name, 'prismatic', parent, child, xyz, (0.0, 0.0, turn),
-                                (axis.real, axis.imag, 0.0), 0.0, float(lower[t] - margin),
-                                float(upper[t] + margin), float(rate_max[t])))
+        turn, axis = 0.0, (0.0, 0.0, 1.0)
+        if tj.prismatic:  # the child turns by +-angle against the parent; the slide axis in
+            # the child's (= joint frame's) axes (kinematics.Linkage.pose)
+            if tj.axis_on_parent:
+                turn, a = tj.angle, tj.axis * complex(math.cos(-tj.angle), math.sin(-tj.angle))
+            else:
+                turn, a = -tj.angle, -tj.axis
+            axis = (a.real, a.imag, 0.0)
+        chains.append((tj.name, 'prismatic' if tj.prismatic else 'revolute', names[tj.parent],
+                       names[tj.child], (p.real, p.imag, 0.0), (0.0, 0.0, turn), axis))
+    joints = _joint_specs(chains, lower, upper, turns, rate_max, linkage.length_scale)
     cuts = tuple((c.name, c.joint_type) for c in linkage.cuts)
-    return TreeModel(_planar_coordinates, tuple(joints), linkage, cuts, _planar_state)
+    return TreeModel(_planar_coordinates, joints, linkage, cuts, _planar_state)
 
 
 def _planar_coordinates(tree, state):
@@ -524,17 +530,8 @@ def spatial_tree(sc):
     psi = cycle_angles(RANGE_SAMPLES, start)
     rates = rig.at(psi, 1.0, 0.0, outputs=('kinematics',)).joint_velocity[:, rows]
     rate_max = np.max(np.abs(rates), axis=0) * abs(sc.crank_speed_rad_s)
-    joints = []
-    for i, (name, jtype, parent, child, xyz, rpy, axis) in enumerate(chains):
-        if jtype == 'prismatic':
-            margin = LIMIT_MARGIN * lk.length_scale
-            joints.append(UrdfJoint(name, 'prismatic', parent, child, xyz, rpy, axis, 0.0,
-                                    float(lower[i] - margin), float(upper[i] + margin),
-                                    float(rate_max[i])))
-        else:
-            joints.append(_revolute_spec(name, parent, child, xyz, rpy, axis, lower[i],
-                                         upper[i], 1.0 if name == sc.crank_joint else turns[i],
-                                         float(rate_max[i])))
+    turns = np.where(np.array(names) == sc.crank_joint, 1.0, turns)
+    joints = _joint_specs(chains, lower, upper, turns, rate_max, lk.length_scale)
     cuts = tuple((sc.joints[ji].name, sc.joints[ji].joint_type) for ji in lk.cut_joints)
 
     def coordinates(tree, state):
@@ -544,7 +541,7 @@ def spatial_tree(sc):
         idx = [state.joint_names.index(j.name) for j in tree.joints]
         return state.joint_position[:, idx].T, state.joint_velocity[:, idx].T, ~slides
 
-    return TreeModel(coordinates, tuple(joints), None, cuts, lambda data: data)
+    return TreeModel(coordinates, joints, None, cuts, lambda data: data)
 
 
 def _edges3(points):
