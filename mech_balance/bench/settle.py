@@ -1,13 +1,9 @@
 """
 Between two bench sections: wait for the machine to settle, and judge the printed verdicts.
 
-A section that starts processes (the node sections, the 24-node cell) leaves the machine busy
-for a while after it returns: its children are still exiting and the CPU still hot.  A
-section measured in that wake is measured against the previous one's load.  :func:`settle`
-waits until no child process of the bench is left and the CPU is idle enough, for at most
-:data:`SETTLE_TIMEOUT_S`, and says what it found, so that every table states the state of
-the machine it was measured on.  :func:`failures` finds the ``FAIL`` verdicts of the printed
-tables: ``mech-balance bench`` exits non-zero when there is one.
+:func:`settle` waits until no child process of the bench is left and the CPU is idle enough
+(docs/benchmarks.md#how-the-node-sections-measure); :func:`failures` finds the ``FAIL``
+verdicts of the printed tables.
 """
 
 import os
@@ -68,9 +64,8 @@ def settle(timeout_s=SETTLE_TIMEOUT_S, clock=time.monotonic):
     """
     Wait until no child is left and the CPU is at most SETTLE_BUSY_SHARE busy; say how it went.
 
-    Returns one line: how long it waited, the CPU's busy share and the load average, and
-    whether it settled (a machine shared with other work may not within ``timeout_s``: then
-    the next table's figures are upper bounds).
+    Returns one line: the wait, the CPU's busy share, the load average and whether it
+    settled within ``timeout_s`` (if not, the next table's figures are upper bounds).
     """
     start = clock()
     share = None
