@@ -46,9 +46,8 @@ def peak_bytes(fn):
     """
     Return the peak of the memory ``fn()`` allocates (Python and numpy), in bytes.
 
-    Measured by :mod:`tracemalloc` in a separate, untimed run (tracing slows every
-    allocation): the largest amount allocated at one time during the call beyond what was
-    allocated before it, i.e. the working memory of one cycle.
+    The largest amount allocated at one time during the call beyond what was allocated
+    before it (:mod:`tracemalloc`: call it in a run of its own, never a timed one).
     """
     started = not tracemalloc.is_tracing()
     if started:
@@ -67,12 +66,9 @@ def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
     """
     Return timing figures of one full cycle of a scene of any kind.
 
-    ``build_s`` is the one-off cost of building the rig (compiling the linkage and tracing
-    its branch: it depends on the geometry only); ``cycle_s`` is the median time of the core's
-    position, velocity, acceleration and inverse-dynamics analysis at ``samples`` angles (the
-    rig's own ``evaluate`` where it has one, else :meth:`Rig.at`), ``at_s`` that of the Rig
-    protocol's :meth:`Rig.at`, which adds the joint coordinates and 3-vector wrench;
-    ``peak_bytes`` the peak memory one :meth:`Rig.at` cycle allocates (:func:`peak_bytes`).
+    ``build_s``: building the rig (compiling, tracing the branch); ``cycle_s``: the median
+    cycle at ``samples`` angles of the rig's own ``evaluate`` (else :meth:`Rig.at`);
+    ``at_us_per_angle``: that of :meth:`Rig.at`; ``peak_bytes``: :func:`peak_bytes` of it.
     """
     t0 = time.perf_counter()
     rig = rig_for(scene, cache=False)
