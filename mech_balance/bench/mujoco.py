@@ -479,11 +479,5 @@ def cmd_compare(args):
         print(f'mech-balance bench --compare mujoco: the models disagree (worst relative '
               f'difference {worst_all:.1e} > {AGREEMENT_TOL:.0e})', file=sys.stderr)
         return EXIT_DISAGREE
-    failed = settle.failures('\n'.join(printed))
-    if failed:
-        print(f'mech-balance bench --compare mujoco: {len(failed)} target(s) FAILED:',
-              file=sys.stderr)
-        for line in failed:
-            print(f'  {line}', file=sys.stderr)
-        return EXIT_TARGET_FAILED
-    return 0
+    failed = settle.report_failures('mech-balance bench --compare mujoco', printed)
+    return EXIT_TARGET_FAILED if failed else 0

@@ -8,6 +8,7 @@ verdicts of the printed tables.
 
 import os
 import re
+import sys
 import time
 
 SETTLE_TIMEOUT_S = 30.0
@@ -88,3 +89,13 @@ def settle(timeout_s=SETTLE_TIMEOUT_S, clock=time.monotonic):
 def failures(text):
     """Return the lines of printed bench tables that hold a FAIL verdict."""
     return [line.strip() for line in text.splitlines() if FAIL_VERDICT.search(line)]
+
+
+def report_failures(command, printed):
+    """List the FAIL lines of the ``printed`` tables on stderr; return whether there are any."""
+    failed = failures('\n'.join(printed))
+    if failed:
+        print(f'{command}: {len(failed)} target(s) FAILED:', file=sys.stderr)
+        for line in failed:
+            print(f'  {line}', file=sys.stderr)
+    return bool(failed)

@@ -37,14 +37,10 @@ def register(subparsers):
     p = subparsers.add_parser(
         'balance', help='optimal mass redistribution (SOCP, certified) or analytic force '
                         'balance of a scene',
-        description='Redistribute the link masses of a planar scene to minimize '
-                    'w1 * RMS shaking force + w2 * RMS shaking moment (Chaudhary & Saha '
-                    'eqs. 42-53) to a certified global optimum, or (--analytic) balance the '
-                    'shaking force completely (Sinatra & Angeles eqs. 44-75, Chaudhary & Saha '
-                    'eq. 48). Prints the design per link, the before/after RMS table, the '
-                    'duality-gap certificate and the solve time. Scenes that list '
-                    'balancing_weights (the RGGR) print the balancing-weight report of Hedaya. '
-                    'Papers: see README.md, "The papers".',
+        description='Redistribute the link masses to minimize w1 * RMS shaking force + w2 * '
+                    'RMS shaking moment to a certified global optimum (Chaudhary & Saha eqs. '
+                    '42-53), or balance the shaking force completely (--analytic); prints '
+                    'the design, the before/after table and the certificate (docs/balancing.md).',
         formatter_class=flags.HelpFormatter)
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML file')

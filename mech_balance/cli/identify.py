@@ -30,14 +30,10 @@ def register(subparsers):
         'identify', help="identify a rig's link inertias from a recording of its encoder and "
                          'force sensor',
         description='Read a rosbag2 recording (MCAP or sqlite3) or a CSV of the crank encoder '
-                    '(sensor_msgs/JointState) and the force sensor (geometry_msgs/'
-                    'WrenchStamped: rig frame, about the crank pivot, the load the rig exerts '
-                    'on its frame), estimate the crank angle, speed and acceleration from the '
-                    'encoder by a Savitzky-Golay fit, and solve the linear least-squares '
-                    "problem for the links' inertial parameters and the sensor bias. Prints "
-                    'the rank, condition number, identifiable combinations (base parameters) '
-                    'with standard errors, the bias and the residual RMS before and after; '
-                    'writes the calibrated scene with --output.')
+                    "and the force sensor and solve for the links' inertial parameters and the "
+                    'sensor bias; prints the identifiable combinations with standard errors '
+                    'and the residuals, writes the calibrated scene with --output '
+                    '(docs/identification.md).')
     p.add_argument('--scene', required=True,
                    help='the rig: built-in scene name (see `mech-balance scenes`) or YAML file')
     p.add_argument('--bag', required=True, metavar='PATH',

@@ -19,9 +19,6 @@ from mech_balance.schema.fields import MAX_ABS_VALUE
 EXIT_USAGE = 2
 EXIT_BENCH_FAILED = 3
 """Exit status of ``mech-balance bench`` when a table printed a FAIL verdict."""
-EXIT_INTERRUPTED = 128 + signal.SIGINT
-"""Exit status after SIGINT when a file being written was not complete (128 + the signal);
-SIGTERM gives 128 + 15 = 143; a verb whose files were all written exits 0 (:func:`main`)."""
 SCENE_NAME_WIDTH = 18
 """``mech-balance scenes``: width of the name column; the description wraps after it."""
 LINE_WIDTH = 99
@@ -155,8 +152,6 @@ def number_between(lowest, highest, limit=None):
 
 FIXED_LIMIT = 'a fixed limit of mech_balance'
 """What an option's range error says of a limit no option or field raises."""
-positive_int = int_at_least(1)
-"""An argparse ``type``: an integer >= 1."""
 cycles = int_at_least(1, conventions.MAX_CYCLES, FIXED_LIMIT)
 """An argparse ``type``: crank turns, 1 <= n <= MAX_CYCLES."""
 repeats = int_at_least(1, conventions.MAX_REPEAT, FIXED_LIMIT)
@@ -199,12 +194,6 @@ def add_units(p):
                    help='print SI values (the default; kept for scripts that pass it)')
 
 
-def _add_scene(p):
-    p.add_argument('--scene', default='hoeken',
-                   help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
-                        'file (default: %(default)s)')
-
-
 _samples = int_at_least(4, conventions.MAX_SAMPLES, FIXED_LIMIT)
 
 
@@ -237,7 +226,9 @@ def build_parser():
                        description='Analyze one revolution of a scene: bearing reactions, '
                                    'driving torque, shaking force and moment (RMS and max), '
                                    'worst Newton residual and Jacobian condition number.')
-    _add_scene(p)
+    p.add_argument('--scene', default='hoeken',
+                   help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
+                        'file (default: %(default)s)')
     add_units(p)
     p.add_argument('--samples', type=_samples, default=None,
                    help="crank angles per revolution (default: the scene's, usually 360)")
@@ -348,13 +339,7 @@ def cmd_bench(args):
             print(f'{short}: {settle.settle()}', flush=True)
         printed.append(getattr(importlib.import_module(module), function)(args, progress))
         print(printed[-1], flush=True)
-    failed = settle.failures('\n'.join(printed))
-    if failed:
-        print(f'mech-balance bench: {len(failed)} target(s) FAILED:', file=sys.stderr)
-        for line in failed:
-            print(f'  {line}', file=sys.stderr)
-        return EXIT_BENCH_FAILED
-    return 0
+    return EXIT_BENCH_FAILED if settle.report_failures('mech-balance bench', printed) else 0
 
 
 def main(argv=None):
