@@ -21,6 +21,13 @@ BENCH_REPEAT_MAX = 5
 """Most timed runs (each takes about a second)."""
 
 
+def rippled_crank(t, w0=2.0 * math.pi, psi0=0.0):
+    """Return ``(psi, speed, accel)`` at times ``t``: ``w0`` with a 5 % ripple at 0.7 ``|w0|``."""
+    wr = 0.7 * abs(w0)
+    return (psi0 + w0 * t + w0 * 0.05 * (1.0 - np.cos(wr * t)) / wr,
+            w0 * (1.0 + 0.05 * np.sin(wr * t)), w0 * 0.05 * wr * np.cos(wr * t))
+
+
 def bench_data(sc, seconds=BENCH_SECONDS, rate_hz=BENCH_RATE_HZ, seed=0):
     """
     Return synthetic (t, position, wrench) of the scene itself for the bench (not a test).
@@ -31,10 +38,7 @@ def bench_data(sc, seconds=BENCH_SECONDS, rate_hz=BENCH_RATE_HZ, seed=0):
     """
     rng = np.random.default_rng(seed)
     t = np.arange(int(seconds * rate_hz)) / rate_hz
-    w0, wr = 2.0 * math.pi, 0.7 * 2.0 * math.pi
-    speed = w0 * (1.0 + 0.05 * np.sin(wr * t))
-    accel = w0 * 0.05 * wr * np.cos(wr * t)
-    psi = w0 * t + w0 * 0.05 * (1.0 - np.cos(wr * t)) / wr
+    psi, speed, accel = rippled_crank(t)
     _, w = analysis.Rig(sc).evaluate(np.mod(psi, 2.0 * math.pi), outputs=('shaking_wrench',),
                                      speed=speed, accel=accel)
     wrench = np.column_stack([w.shaking_force.real, w.shaking_force.imag, w.shaking_moment])

@@ -61,14 +61,11 @@ def rig_stream(scene, seconds, rate_hz=ID_RATE_HZ, seed=20, counts=4096, noise_r
     import math
     import numpy as np
     from mech_balance.analysis import cycle as analysis
+    from mech_balance.bench.identify import rippled_crank
     rng = np.random.default_rng(seed)
     n = max(int(round(seconds * rate_hz)), 1)
     t = np.arange(n) / rate_hz
-    w0 = float(w0)
-    wr = 0.7 * abs(w0)
-    speed = w0 * (1.0 + 0.05 * np.sin(wr * t))
-    accel = w0 * 0.05 * wr * np.cos(wr * t)
-    psi = 0.3 + w0 * t + w0 * 0.05 * (1.0 - np.cos(wr * t)) / wr
+    psi, speed, accel = rippled_crank(t, float(w0), psi0=0.3)
     rig = analysis.Rig(scene.with_outputs(('shaking_wrench',)))
     _, w = rig.evaluate(np.mod(psi, 2.0 * math.pi), outputs=('shaking_wrench',), speed=speed,
                         accel=accel)

@@ -19,7 +19,7 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import chains as chain
 from mech_balance.bench.core import peak_bytes
 from mech_balance.bench.mujoco_model import agreement, import_mujoco, mjcf, MujocoMissing, \
-    MujocoModel, relative_difference, TIMED, us_rows, worst, WRENCH, xml_numbers
+    MujocoModel, relative_difference, solve, TIMED, us_rows, worst, WRENCH, xml_numbers
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import dynamics, kinematics
 import numpy as np
@@ -49,16 +49,6 @@ EXIT_TARGET_FAILED = 3
 """Exit status of ``--compare mujoco`` when a timing target printed FAIL (as ``bench``)."""
 
 
-def _solve(a, b):
-    """Return the solution of a small dense system (Cramer's rule for 2 x 2, else LAPACK)."""
-    if a.shape[0] == 2:
-        (a00, a01), (a10, a11) = a.tolist()
-        b0, b1 = b.tolist()
-        det = a00 * a11 - a01 * a10
-        return np.array([(a11 * b0 - a01 * b1) / det, (a00 * b1 - a10 * b0) / det])
-    return np.linalg.solve(a, b)
-
-
 class MujocoRig(MujocoModel):
     """A planar rig as a MuJoCo model: hinge tree plus ``connect`` loop closures."""
 
@@ -83,6 +73,8 @@ class MujocoRig(MujocoModel):
         self._find_cuts(len(lk.cuts))
         self.pivot = np.array([lk.pivot.real, lk.pivot.imag, 0.0])
         self.length = lk.length_scale
+        self.crank_qpos, self.max_iter = self.crank, NEWTON_MAX_ITER
+        self.tol = NEWTON_TOL * self.length
 
     def _mjcf(self, sc):
         lk = self.linkage
@@ -135,7 +127,7 @@ class MujocoRig(MujocoModel):
         mj, m, d = self.mj, self.model, self.data
         # M qacc + c = tau e_crank + J^T lambda; the passive joints have no applied torque
         gen = d.qfrc_inverse + d.qfrc_constraint
-        lam = _solve(jac[:, self.passive].T, gen[self.passive])
+        lam = solve(jac[:, self.passive].T, gen[self.passive])
         tau = float(gen[self.crank] - jac[:, self.crank] @ lam)
         d.efc_force[:] = 0.0
         d.efc_force[self.rows] = lam
@@ -168,16 +160,14 @@ class MujocoRig(MujocoModel):
         ``q``, ``qd``, ``qdd`` are this package's tree coordinates ``(nt, p)``.  Also returns
         the cut-joint forces ``(ncut, p)`` (on the joint's link b from its link a).
         """
-        mj, m, d = self.mj, self.model, self.data
         p = q.shape[1]
-        qpos, qvel, qacc = (self.to_dofs(x) for x in (q, qd, qdd))
         tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
         cut = np.empty((len(self.site1), p), dtype=complex)
-        for i in range(p):
-            d.qpos[:], d.qvel[:], d.qacc[:] = qpos[i], qvel[i], qacc[i]
-            mj.mj_inverse(m, d)
+
+        def rigid(i):
             tau[i], lam, fsh[i], nsh[i] = self._rigid(self._jacobian())
             cut[:, i] = (lam[0::2] + 1j * lam[1::2]) * self.cut_sign
+        self._inverse(*(self.to_dofs(x) for x in (q, qd, qdd)), rigid)
         return tau, fsh, nsh, cut
 
     def to_dofs(self, x):
@@ -186,56 +176,31 @@ class MujocoRig(MujocoModel):
         out[:, self.dof] = x.T
         return out
 
+    def _closure(self):
+        """Return the connect rows' residual (m) and Jacobian at ``data.qpos``."""
+        mj, m, d = self.mj, self.model, self.data
+        mj.mj_kinematics(m, d)
+        mj.mj_comPos(m, d)
+        mj.mj_makeConstraint(m, d)
+        return d.efc_pos[self.rows], self._jacobian()
+
     def full(self, psi, speed, accel, q_start):
         """
         Return MuJoCo's own solution over crank angles ``psi``, one angle at a time.
 
-        Positions by Newton on the connect residual from a Taylor predictor off the
-        previous angle (the first from ``q_start``, this package's tree coordinates there),
-        then velocities, accelerations and the rigid inverse dynamics.  Returns ``(tau,
-        f_sh, n_sh, q, residual, iterations)``; ``q`` in this package's tree order.
+        The first angle's Newton starts from ``q_start`` (this package's tree coordinates).
+        Returns ``(tau, f_sh, n_sh, q, residual, iterations)``; ``q`` in this package's tree
+        order.
         """
-        mj, m, d = self.mj, self.model, self.data
         p = psi.size
-        crank, passive = self.crank, self.passive
-        tol = NEWTON_TOL * self.length
         tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
-        q_out, res_out, iters = np.empty((p, m.nv)), np.empty(p), np.zeros(p, dtype=int)
-        qpos = np.zeros(m.nv)
-        qpos[self.dof] = q_start
-        slope, curve = np.zeros(m.nv), np.zeros(m.nv)
-        qvel, qacc = np.zeros(m.nv), np.zeros(m.nv)
-        qvel[crank], qacc[crank] = speed, accel
-        for i in range(p):
-            if i:
-                h = psi[i] - psi[i - 1]
-                qpos += h * slope + 0.5 * h * h * curve
-            qpos[crank] = psi[i]
-            for it in range(NEWTON_MAX_ITER + 1):
-                d.qpos[:] = qpos
-                mj.mj_kinematics(m, d)
-                mj.mj_comPos(m, d)
-                mj.mj_makeConstraint(m, d)
-                r = d.efc_pos[self.rows]
-                res = max(map(abs, r.tolist()))
-                jac = self._jacobian()
-                if not res > tol or it == NEWTON_MAX_ITER:
-                    break
-                qpos[passive] -= _solve(jac[:, passive], r)
-                iters[i] += 1
-            res_out[i] = res / self.length
-            j_u, j_c = jac[:, passive], jac[:, crank]
-            qvel[passive] = _solve(j_u, -speed * j_c)
-            d.qvel[:] = qvel
-            mj.mj_comVel(m, d)
-            qacc[passive] = _solve(j_u, -accel * j_c - self._bias(qvel))
-            d.qacc[:] = qacc
-            mj.mj_inverse(m, d)
+
+        def rigid(i):
             tau[i], _, fsh[i], nsh[i] = self._rigid(self._jacobian())
-            q_out[i] = qpos
-            slope[:] = qvel / speed             # dq/dpsi and d2q/dpsi2 for the predictor
-            curve[:] = (qacc - slope * accel) / speed ** 2
-        return tau, fsh, nsh, q_out[:, self.dof].T, res_out, iters
+        qpos = np.zeros(self.model.nv)
+        qpos[self.dof] = q_start
+        q, res, iters = self._solution(psi, speed, accel, (psi, speed, accel), qpos, rigid)
+        return tau, fsh, nsh, q[:, self.dof].T, res / self.length, iters
 
 
 # ---------------------------------------------------------------------------- comparison

@@ -32,6 +32,16 @@ def import_mujoco():
     return mujoco
 
 
+def solve(a, b):
+    """Return the solution of a small dense system (Cramer's rule for 2 x 2, else LAPACK)."""
+    if a.shape[0] == 2:
+        (a00, a01), (a10, a11) = a.tolist()
+        b0, b1 = b.tolist()
+        det = a00 * a11 - a01 * a10
+        return np.array([(a11 * b0 - a01 * b1) / det, (a00 * b1 - a10 * b0) / det])
+    return np.linalg.solve(a, b)
+
+
 def xml_numbers(*values):
     """Return numbers as MJCF text, exactly (``repr`` of each, space-separated)."""
     return ' '.join(repr(float(x)) for x in values)
@@ -115,7 +125,12 @@ def mjcf(name, linkage, cut_ends, body, header=()):
 
 
 class MujocoModel:
-    """What the planar and the spatial MuJoCo models share: the cut sites, the timed kernel."""
+    """
+    What the planar and the spatial MuJoCo models share: the cut sites, MuJoCo's own motion.
+
+    A model has ``crank`` (its dof), ``crank_qpos``, ``passive`` (the other dofs), the
+    Newton ``tol`` and ``max_iter``, :meth:`_closure` and :meth:`_bias`.
+    """
 
     def _find_cuts(self, ncut):
         """Look up the cut sites and their bodies, and the bodies hinged to the world."""
@@ -128,6 +143,63 @@ class MujocoModel:
         self.world_cuts = [k for k, b in enumerate(self.body2) if b == 0]
         self._jac1 = np.zeros((3, m.nv))
         self._jac2 = np.zeros((3, m.nv))
+
+    def _solution(self, psi, speed, accel, coordinate, qpos, rigid):
+        """
+        Solve MuJoCo's own motion over crank angles ``psi`` in a Python loop, one at a time.
+
+        Newton on the closure rows from a Taylor predictor off the previous angle (the first
+        from ``qpos``), velocities and accelerations from the same rows, ``mj_inverse``, then
+        ``rigid(i)``.  ``coordinate``: the input's coordinate and rates at each angle.
+        Returns ``(qpos (p, nq), residual (p,), Newton iterations (p,))``.
+        """
+        mj, m, d = self.mj, self.model, self.data
+        p = psi.size
+        crank, passive = self.crank, self.passive
+        q_out, res_out, iters = np.empty((p, m.nq)), np.empty(p), np.zeros(p, dtype=int)
+        qpos = np.array(qpos, dtype=float)
+        slope, curve, step = np.zeros(m.nv), np.zeros(m.nv), np.zeros(m.nv)
+        qvel, qacc = np.zeros(m.nv), np.zeros(m.nv)
+        x, xd, xdd = (np.broadcast_to(v, psi.shape) for v in coordinate)
+        for i in range(p):
+            if i:
+                h = psi[i] - psi[i - 1]
+                step[:] = h * slope + 0.5 * h * h * curve
+                step[crank] = 0.0
+                mj.mj_integratePos(m, qpos, step, 1.0)
+            qpos[self.crank_qpos] = x[i]
+            for it in range(self.max_iter + 1):
+                d.qpos[:] = qpos
+                r, jac = self._closure()
+                res = max(map(abs, r.tolist()))
+                if not res > self.tol or it == self.max_iter:
+                    break
+                step[:] = 0.0
+                step[passive] = -solve(jac[:, passive], r)
+                mj.mj_integratePos(m, qpos, step, 1.0)
+                iters[i] += 1
+            res_out[i] = res
+            j_u, j_c = jac[:, passive], jac[:, crank]
+            qvel[crank], qacc[crank] = xd[i], xdd[i]
+            qvel[passive] = solve(j_u, -xd[i] * j_c)
+            d.qvel[:] = qvel
+            mj.mj_comVel(m, d)
+            qacc[passive] = solve(j_u, -xdd[i] * j_c - self._bias(qvel))
+            d.qacc[:] = qacc
+            mj.mj_inverse(m, d)
+            rigid(i)
+            q_out[i] = qpos
+            slope[:] = qvel / speed             # dq/dpsi and d2q/dpsi2 for the predictor
+            curve[:] = (qacc - slope * accel) / speed ** 2
+        return q_out, res_out, iters
+
+    def _inverse(self, qpos, qvel, qacc, rigid):
+        """Run ``mj_inverse`` and then ``rigid(i)`` at every angle of the dof arrays."""
+        mj, m, d = self.mj, self.model, self.data
+        for i in range(qpos.shape[0]):
+            d.qpos[:], d.qvel[:], d.qacc[:] = qpos[i], qvel[i], qacc[i]
+            mj.mj_inverse(m, d)
+            rigid(i)
 
     def inverse_only(self, qpos, qvel, qacc):
         """Run ``mj_inverse`` at every angle of ``(p, nq)``/``(p, nv)`` arrays (timed)."""

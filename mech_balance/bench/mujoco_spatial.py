@@ -77,6 +77,8 @@ class SpatialMujocoRig(MujocoModel):
                 self.dof_of[list(t.dofs)] = [m.jnt_dofadr[j] for j in ids]
         self.crank = int(self.dof_of[0])
         self.passive = np.array([d for d in range(m.nv) if d != self.crank])
+        self.crank_qpos = m.jnt_qposadr[self.tree_jnt[0][0]]
+        self.tol, self.max_iter = NEWTON_TOL, NEWTON_MAX_ITER
         ncut = len(lk.cut_joints)
         self._find_cuts(ncut)
         self.point = np.array(rig.moment_point_m, dtype=float)
@@ -301,35 +303,26 @@ class SpatialMujocoRig(MujocoModel):
         moment)), ``spin_residual`` (the spin rows' largest multiplier, N m), ``origin``,
         ``rot``, ``twist``, ``accel`` (MuJoCo's bodies, for the motion check).
         """
-        mj, m, d = self.mj, self.model, self.data
-        qpos, qvel, qacc = self.to_mujoco(state)
-        n = state.size
-        out = {k: [] for k in ('driving_torque', 'force', 'moment', 'spin_residual',
-                               'origin', 'rot', 'twist', 'accel')}
+        keys = ('driving_torque', 'force', 'moment', 'spin_residual', 'origin', 'rot', 'twist',
+                'accel')
+        out = {k: [] for k in keys}
         react = {jt.name: ([], []) for jt in self.linkage.scene.joints}
-        for i in range(n):
-            d.qpos[:], d.qvel[:], d.qacc[:] = qpos[i], qvel[i], qacc[i]
-            mj.mj_inverse(m, d)
+
+        def rigid(i):
             tau, _, fsh, nsh, resid, rc = self._rigid(reactions=True)
-            for key, val in zip(('driving_torque', 'force', 'moment', 'spin_residual'),
-                                (tau, fsh, nsh, resid)):
-                out[key].append(val)
-            for key, val in zip(('origin', 'rot', 'twist', 'accel'), self._motion()):
+            for key, val in zip(keys, (tau, fsh, nsh, resid, *self._motion())):
                 out[key].append(val)
             for name, (f, mom) in rc.items():
                 react[name][0].append(f)
                 react[name][1].append(mom)
+        self._inverse(*self.to_mujoco(state), rigid)
         out = {k: np.array(v) for k, v in out.items()}
         out['reactions'] = {k: (np.array(f), np.array(mom)) for k, (f, mom) in react.items()}
         return out
 
     def inverse_rigid(self, qpos, qvel, qacc):
         """``mj_inverse`` plus the rigid multipliers and the shaking wrench (same outputs)."""
-        mj, m, d = self.mj, self.model, self.data
-        for i in range(qpos.shape[0]):
-            d.qpos[:], d.qvel[:], d.qacc[:] = qpos[i], qvel[i], qacc[i]
-            mj.mj_inverse(m, d)
-            self._rigid(reactions=True)
+        self._inverse(qpos, qvel, qacc, lambda i: self._rigid(reactions=True))
 
     # ------------------------------------------------------------------ MuJoCo's own motion
 
@@ -375,56 +368,22 @@ class SpatialMujocoRig(MujocoModel):
         The first angle's Newton starts from ``qpos_start``.  Returns ``(tau, force, moment,
         reactions, qpos, residual, iterations)``, ``reactions`` as in :meth:`dynamics`.
         """
-        mj, m, d = self.mj, self.model, self.data
         p = psi.size
-        crank, passive = self.crank, self.passive
-        crank_adr = m.jnt_qposadr[self.tree_jnt[0][0]]
         tau, fsh, nsh = np.empty(p), np.empty((p, 3)), np.empty((p, 3))
-        q_out, res_out, iters = np.empty((p, m.nq)), np.empty(p), np.zeros(p, dtype=int)
-        qpos = np.array(qpos_start, dtype=float)
-        slope, curve, step = np.zeros(m.nv), np.zeros(m.nv), np.zeros(m.nv)
-        qvel, qacc = np.zeros(m.nv), np.zeros(m.nv)
-        # the input's coordinate and rates at each angle (a prismatic input: its Scotch-yoke
-        # slide, Linkage.input_motion); the predictor's slope and curve stay d/dpsi
-        x, xd, xdd = (np.broadcast_to(v, psi.shape) for v in
-                      self.linkage.input_coordinate(psi, speed, accel))
         react = {name: (np.empty((p, 3)), np.empty((p, 3))) for name, *_ in
                  self.tree_reactions}
         react.update({name: (np.empty((p, 3)), np.zeros((p, 3))) for name in self.cut_names})
-        for i in range(p):
-            if i:
-                h = psi[i] - psi[i - 1]
-                step[:] = h * slope + 0.5 * h * h * curve
-                step[crank] = 0.0
-                mj.mj_integratePos(m, qpos, step, 1.0)
-            qpos[crank_adr] = x[i]
-            for it in range(NEWTON_MAX_ITER + 1):
-                d.qpos[:] = qpos
-                r, jac = self._closure()
-                res = float(np.max(np.abs(r)))
-                if not res > NEWTON_TOL or it == NEWTON_MAX_ITER:
-                    break
-                step[:] = 0.0
-                step[passive] = -np.linalg.solve(jac[:, passive], r)
-                mj.mj_integratePos(m, qpos, step, 1.0)
-                iters[i] += 1
-            res_out[i] = res
-            j_u, j_c = jac[:, passive], jac[:, crank]
-            qvel[crank], qacc[crank] = xd[i], xdd[i]
-            qvel[passive] = np.linalg.solve(j_u, -xd[i] * j_c)
-            d.qvel[:] = qvel
-            mj.mj_comVel(m, d)
-            qacc[passive] = np.linalg.solve(j_u, -xdd[i] * j_c - self._bias(qvel))
-            d.qacc[:] = qacc
-            mj.mj_inverse(m, d)
+
+        def rigid(i):
             tau[i], _, fsh[i], nsh[i], _, rc = self._rigid(reactions=True)
             for name, (f, mom) in rc.items():
                 react[name][0][i] = f
                 react[name][1][i] = mom
-            q_out[i] = qpos
-            slope[:] = qvel / speed
-            curve[:] = (qacc - slope * accel) / speed ** 2
-        return tau, fsh, nsh, react, q_out, res_out, iters
+        # the input's coordinate and rates at each angle (a prismatic input: its Scotch-yoke
+        # slide, Linkage.input_motion); the predictor's slope and curve stay d/dpsi
+        coordinate = self.linkage.input_coordinate(psi, speed, accel)
+        q, res, iters = self._solution(psi, speed, accel, coordinate, qpos_start, rigid)
+        return tau, fsh, nsh, react, q, res, iters
 
 
 # ---------------------------------------------------------------------------- comparison
