@@ -249,20 +249,17 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
     say = progress or (lambda text: None)
     sc = scene_mod.load(name_or_path)
     kind = scene_mod.kind_of(sc)
-    if 'accuracy_study' not in kind.rig_factory().capabilities:
-        out = {'scene': sc.name, 'source': sc.source}
-        if 'rms' in sections:
-            say('RMS against p ...')
-            out['rms'] = rms_convergence(rig_for(sc))
-        out['notes'] = [f'{name}: needs the capability accuracy_study, which kind '
-                        f'{kind.name} lacks' for name in sections if name != 'rms']
-        return out
-    drive = simulate.drive_of(sc)
-    rig = analysis.Rig(sc)
+    capable = 'accuracy_study' in kind.rig_factory().capabilities
+    drive = simulate.drive_of(sc) if capable else None
+    rig = analysis.Rig(sc) if capable else None
     out = {'scene': sc.name, 'source': sc.source}
     if 'rms' in sections:
         say('RMS against p ...')
-        out['rms'] = rms_convergence(rig)
+        out['rms'] = rms_convergence(rig if capable else rig_for(sc))
+    if not capable:
+        out['notes'] = [f'{name}: needs the capability accuracy_study, which kind '
+                        f'{kind.name} lacks' for name in sections if name != 'rms']
+        return out
     if 'integrators' in sections:
         say('forward dynamics ...')
         model = simulate.ForwardDynamics(rig, drive)
@@ -281,14 +278,10 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
 def format_tables(result):
     """Return the studies as text tables."""
     lines = [f'scene: {result["scene"]} ({result["source"]})']
-    if 'rms' in result:
-        lines += [''] + _format_rms(result['rms'])
-    if 'integrators' in result:
-        lines += [''] + _format_integrators(result['integrators'])
-    if 'position' in result:
-        lines += [''] + _format_position(result['position'])
-    if 'balancing' in result:
-        lines += [''] + _format_balancing(result['balancing'])
+    for key, table in (('rms', _format_rms), ('integrators', _format_integrators),
+                       ('position', _format_position), ('balancing', _format_balancing)):
+        if key in result:
+            lines += [''] + table(result[key])
     for note in result.get('notes', ()):
         lines += ['', note]
     return '\n'.join(lines)

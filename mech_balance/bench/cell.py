@@ -13,6 +13,7 @@ import signal
 import subprocess
 import time
 
+from mech_balance.bench import settle
 from mech_balance.bench.node import missed_fraction, stamp_ns, start_node
 
 RATE_HZ = 100.0
@@ -43,9 +44,7 @@ _CLOCK_TICK_S = 1.0 / os.sysconf('SC_CLK_TCK')
 
 def process_cpu_s(pid):
     """Return the user + system CPU time of process ``pid`` so far, s (``/proc/pid/stat``)."""
-    with open(f'/proc/{pid}/stat') as f:
-        fields = f.read().rpartition(')')[2].split()
-    # after the command name: state is field 3, utime and stime are fields 14 and 15
+    fields = settle.stat_fields(pid)   # state is field 3, utime and stime 14 and 15
     return (int(fields[11]) + int(fields[12])) * _CLOCK_TICK_S
 
 

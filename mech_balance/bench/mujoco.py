@@ -301,23 +301,12 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
         f'{rep} runs (MuJoCo: {slow}): the median of {TIMING_ROUNDS} round medians, the '
         'engines timed in interleaved warm blocks',
         '',
-        'timed, per crank angle:',
-        '  full pipeline   mech_balance: Rig.evaluate on all angles at once (Newton from the '
-        'branch predictor,',
-        '                  residual and condition number per angle; velocities, '
-        'accelerations, driving torque,',
-        '                  every bearing reaction, shaking wrench)',
-        '                  MuJoCo: Python loop over angles: Newton on efc_pos/efc_J '
-        '(mj_kinematics, mj_comPos,',
-        '                  mj_makeConstraint, numpy solve), velocities, accelerations '
-        '(mj_comVel, mj_jacDot), mj_inverse,',
-        '                  rigid multipliers (numpy solve), mj_rnePostConstraint, '
-        'frame load from cfrc_int',
-        '  dynamics alone  motion imposed from mech_balance; mech_balance: '
-        'dynamics.inverse_dynamics (same outputs);',
-        '                  MuJoCo: mj_inverse per angle (qpos, qvel, qacc copied in); '
-        '"+ rigid": also the multipliers,',
-        '                  mj_rnePostConstraint and the frame load, i.e. the same outputs',
+        'timed, per crank angle: the full pipeline (mech_balance: Rig.evaluate on all angles at '
+        'once; MuJoCo: a Python loop',
+        'of Newton, rates, mj_inverse, rigid multipliers and frame load) and the dynamics alone '
+        '(motion imposed from',
+        'mech_balance; "+ rigid": the same outputs): docs/benchmarks.md#the-mujoco-models-in-'
+        'detail',
         '',
         f'{hoeken["scene"]} (seed 001 Table 1): {hoeken["links"]} moving links, '
         f'{hoeken["joints"]} joints, {hoeken["loops"]} loop',

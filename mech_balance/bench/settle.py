@@ -42,6 +42,12 @@ def busy_share(window_s=SETTLE_WINDOW_S):
     return (second[0] - first[0]) / (second[1] - first[1])
 
 
+def stat_fields(pid):
+    """Return the fields of /proc/PID/stat after the command name (``state`` first)."""
+    with open(f'/proc/{pid}/stat') as f:
+        return f.read().rpartition(')')[2].split()   # the command may hold spaces and ')'
+
+
 def children():
     """Return the process ids whose parent is this process (/proc; empty where missing)."""
     me, out = os.getpid(), []
@@ -51,9 +57,7 @@ def children():
         return out
     for pid in pids:
         try:
-            with open(f'/proc/{pid}/stat') as f:
-                # the command may hold spaces and parentheses: the ppid follows the last ')'
-                ppid = int(f.read().rsplit(')', 1)[1].split()[1])
+            ppid = int(stat_fields(pid)[1])
         except (OSError, ValueError, IndexError):
             continue
         if ppid == me:
