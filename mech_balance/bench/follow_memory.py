@@ -31,22 +31,16 @@ def follow_rss(scene_name='hoeken', seconds=SECONDS, rate_hz=RATE_HZ, progress=p
     ``counts`` is the node's ``follow`` statistics of its shutdown line (received, not
     answered) or ``{}``.  Returns ``(None, why)`` when the node did not start.
     """
-    from geometry_msgs.msg import WrenchStamped
+    from mech_balance.bench.identify_stamps import SensorFeed
     from mech_balance.bench.node import node_stats, NodeProbe, START_TIMEOUT_S, status_bytes
-    from mech_balance.ros import conversions as conv
-    from rclpy.qos import QoSProfile
-    from sensor_msgs.msg import JointState
 
     probe = NodeProbe(scene_name, 100.0, f'/followmem{os.getpid()}', ('mode:=follow',),
                       label='followmem')
     log = ''
     try:
-        qos = QoSProfile(depth=1000)
-        enc = probe.node.create_publisher(JointState, f'{probe.ns}/crank_joint_state', qos)
-        wr = probe.node.create_publisher(WrenchStamped, f'{probe.ns}/measured_wrench', qos)
-        probe.spin_for(START_TIMEOUT_S, lambda: probe.proc.poll() is not None or (
-            enc.get_subscription_count() >= 1 and wr.get_subscription_count() >= 1))
-        if probe.proc.poll() is not None or not enc.get_subscription_count():
+        feed = SensorFeed(probe)
+        probe.spin_for(START_TIMEOUT_S, lambda: feed.matched() or probe.proc.poll() is not None)
+        if not feed.matched():
             return None, 'the node did not start or its endpoints did not match'
         pid = probe.proc.pid
         samples = [(0.0, status_bytes(pid))]
@@ -63,16 +57,9 @@ def follow_rss(scene_name='hoeken', seconds=SECONDS, rate_hz=RATE_HZ, progress=p
                 break
             due = int(elapsed * rate_hz) + per_chunk
             while k < due:
-                stamp = conv.stamp_from_ns(t0_ns + k * period_ns)
                 angle = math.fmod(SPEED_RAD_S * k / rate_hz, 2.0 * math.pi)
-                e = JointState(name=['O1'], position=[angle])
-                e.header.stamp = stamp
-                enc.publish(e)
-                w = WrenchStamped()
-                w.header.stamp, w.header.frame_id = stamp, 'sensor'
-                w.wrench.force.x = math.cos(angle)
-                w.wrench.force.y = math.sin(angle)
-                wr.publish(w)
+                feed.publish(t0_ns + k * period_ns, angle, (math.cos(angle), math.sin(angle), 0.0),
+                             (0.0, 0.0, 0.0))
                 k += 1
             if elapsed >= next_sample:
                 samples.append((elapsed, status_bytes(pid)))

@@ -83,7 +83,7 @@ def rig_stream(scene, seconds, rate_hz=ID_RATE_HZ, seed=20, counts=4096, noise_r
     return t_ns, positions, wrench[:, :3], wrench[:, 3:]
 
 
-class _SensorFeed:
+class SensorFeed:
     """The bench's encoder and measured_wrench publishers, residual stamps, ~/identify."""
 
     def __init__(self, probe):
@@ -127,6 +127,11 @@ class _SensorFeed:
         return conv.fill_wrench_values(self._wrench(), int(stamp_ns), 'sensor',
                                        [*force, *torque])
 
+    def publish(self, stamp_ns, angle, force, torque):
+        """Publish one encoder and one measured_wrench message of the same stamp."""
+        self.encoder.publish(self.encoder_msg(stamp_ns, angle))
+        self.measured.publish(self.wrench_msg(stamp_ns, force, torque))
+
     def play(self, t_ns, angles, force, torque):
         """
         Publish a segment in chunks, waiting for the residual two chunks back.
@@ -136,8 +141,7 @@ class _SensorFeed:
         n = t_ns.size
         for c0 in range(0, n, ID_CHUNK):
             for i in range(c0, min(c0 + ID_CHUNK, n)):
-                self.encoder.publish(self.encoder_msg(t_ns[i], angles[i]))
-                self.measured.publish(self.wrench_msg(t_ns[i], force[i], torque[i]))
+                self.publish(t_ns[i], angles[i], force[i], torque[i])
             back = c0 - ID_CHUNK
             if back > 0:
                 target = int(t_ns[back - 1])
@@ -183,7 +187,7 @@ def identify_stamps_section(args, progress, seconds=None, calls=ID_CALLS):
     probe = NodeProbe(name, ID_RATE_HZ, f'/identify{os.getpid()}', ('mode:=follow',),
                       label='identify')
     try:
-        feed = _SensorFeed(probe)
+        feed = SensorFeed(probe)
         feed.limit_ns = int(t_ns[-1])
         probe.spin_for(START_TIMEOUT_S, lambda: feed.matched() or probe.proc.poll() is not None)
         if not feed.matched():
