@@ -410,14 +410,13 @@ def run(samples=360, repeat=50, progress=print, loops=CHAIN_LOOPS):
     return hoeken, chains, extras, mujoco.__version__
 
 
-def cmd_compare(args):
-    """Run ``mech-balance bench --compare mujoco``; return the exit status."""
+def cmd_compare(args, progress):
+    """Run ``mech-balance bench --compare mujoco`` (``progress(text)``); return the status."""
     try:
         import_mujoco()
     except MujocoMissing as exc:
         print(str(exc), file=sys.stderr)
         return EXIT_MISSING
-    progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     hoeken, chains, extras, version = run(args.samples, args.repeat, progress)
     printed = [format_report(hoeken, chains, version, extras)]
     print(printed[-1], flush=True)

@@ -277,7 +277,3 @@ def _write(balanced, path, summary):
     atomic.write_text_atomic(  # a failed write leaves an existing file as it was
         path, f'# written by mech-balance balance from scene {summary["source_scene"]}\n'
         + scene_text)
-
-
-if __name__ == '__main__':  # pragma: no cover - use `mech-balance balance`
-    sys.exit(cli.main(['balance', *sys.argv[1:]]))

@@ -160,6 +160,11 @@ weight = number_between(0.0, conventions.MAX_WEIGHT, FIXED_LIMIT)
 """An argparse ``type``: an objective weight, 0 <= w <= MAX_WEIGHT."""
 
 
+def progress(text):
+    """Print a verb's progress on stderr (stdout holds its result)."""
+    print(text, file=sys.stderr, flush=True)
+
+
 def writable_path(option, text, suffixes, create_parent=False):
     """Return the output file of ``option``, checked before any computation (paths.py)."""
     return paths.check_output_path(text, option, suffixes, create_dir=create_parent)
@@ -312,7 +317,7 @@ def cmd_bench(args):
     """Print core timings."""
     if args.compare == 'mujoco':
         from mech_balance.bench import mujoco as bench_mujoco
-        return bench_mujoco.cmd_compare(args)
+        return bench_mujoco.cmd_compare(args, progress)
     from mech_balance.bench import core as bench
     wanted = None if args.section is None else set(args.section)
     names = {bench.section_name(name): name for name in bench.SECTIONS}
@@ -321,7 +326,6 @@ def cmd_bench(args):
         raise ValueError(f'--section: got {unknown[0]!r}, expected core or one of '
                          f'{", ".join(names)}')
     from mech_balance.bench import settle
-    progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     printed = []
     if wanted is None or 'core' in wanted:
         print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} '

@@ -111,8 +111,7 @@ def cmd_accuracy(args):
         for name in args.sections:
             if name in accuracy.SECTION_CAPABILITY:
                 require(sc, accuracy.SECTION_CAPABILITY[name], f'accuracy --sections {name}')
-    progress = (lambda s: print(s, file=sys.stderr, flush=True))  # noqa: E731
-    result = accuracy.run(args.scene, args.sections, args.duration, progress=progress)
+    result = accuracy.run(args.scene, args.sections, args.duration, progress=cli.progress)
     if args.json:
         print(jsonout.dumps(accuracy.to_jsonable(result)))
     else:

@@ -60,8 +60,3 @@ def cmd_urdf(args):
     print(f'wrote {out.resolve()} ({sc.name}: root link {args.frame_id!r}, joints '
           f'{", ".join(urdf.tree_model(sc).names)})')
     return 0
-
-
-if __name__ == '__main__':  # pragma: no cover - use `mech-balance urdf`
-    from mech_balance.cli import main as cli
-    sys.exit(cli.main(['urdf', *sys.argv[1:]]))
