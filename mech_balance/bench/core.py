@@ -42,6 +42,15 @@ def section_name(entry):
     return module.rsplit('.', 1)[-1]
 
 
+def median_and_result(fn, repeat, **timing):
+    """Return the median seconds of ``fn()`` (:func:`median_seconds`) and its last result."""
+    last = []
+
+    def run():
+        last[:] = [fn()]
+    return median_seconds(run, repeat=repeat, **timing), last[0]
+
+
 def peak_bytes(fn):
     """
     Return the peak of the memory ``fn()`` allocates (Python and numpy), in bytes.

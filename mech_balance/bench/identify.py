@@ -9,7 +9,7 @@ import math
 
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis, identify
-from mech_balance.analysis.timing import median_seconds
+from mech_balance.bench.core import median_and_result
 import numpy as np
 
 BENCH_SCENE = 'hoeken'
@@ -54,12 +54,8 @@ def bench_section(args, progress):
     progress(f'  timing identify {BENCH_SCENE} on {BENCH_SECONDS:g} s at '
              f'{BENCH_RATE_HZ:g} Hz ...')
     t, pos, wrench = bench_data(sc)
-    last = {}
-
-    def run():
-        last['r'] = identify.identify(sc, t, pos, t, wrench)
-    sec = median_seconds(run, repeat=repeat, warmup=1)
-    r = last['r']
+    sec, r = median_and_result(lambda: identify.identify(sc, t, pos, t, wrench), repeat,
+                               warmup=1)
     head = (f"{'identify: scene':<18}{'samples':>9}{'rank':>6}{'cond':>10}{'median s':>10}"
             f"{'limit s':>9}  verdict")
     return '\n'.join([

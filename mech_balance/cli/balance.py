@@ -66,13 +66,10 @@ def register(subparsers):
                         'Table 12) with two point masses per link at 0 and 90 deg, and print the '
                         "certified bounds next to the paper's rows")
     p.add_argument('--method', choices=SPATIAL_METHODS, default='auto',
-                   help="spatial rigs (kind spatial): weights (Hedaya, the scene's "
-                        'balancing_weights; the default where listed, e.g. rggr), '
-                        'force-balance (the null space of the shaking force: conditions and '
-                        'the least-change design), '
-                        'redistribution (certified, every body a PSD pseudo-inertia; the '
-                        'default of kind spatial), counterweights (add-only spheres, with '
-                        '--counterweights LINKS)')
+                   help="spatial rigs: weights (Hedaya, the scene's balancing_weights; auto "
+                        'where listed), force-balance (conditions, least-change design), '
+                        'redistribution (certified; auto otherwise), counterweights (add-only '
+                        'spheres, with --counterweights LINKS)')
     options.add_arguments(p, TABLE_KEYS[TABLE_KEYS.index('extent_factor'):], TYPES)
     cli.add_units(p)
     p.add_argument('--json', action='store_true', help='print the result as JSON')
