@@ -18,8 +18,8 @@ from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import chains as chain
 from mech_balance.bench.core import peak_bytes
-from mech_balance.bench.mujoco_model import agreement, import_mujoco, mjcf, MujocoMissing, \
-    MujocoModel, relative_difference, solve, TIMED, us_rows, worst, WRENCH, xml_numbers
+from mech_balance.bench.mujoco_model import agreement, agreement_rows, import_mujoco, mjcf, \
+    MujocoMissing, MujocoModel, relative_difference, solve, TIMED, us_rows, worst, xml_numbers
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import dynamics, kinematics
 import numpy as np
@@ -311,11 +311,8 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
         f'{hoeken["scene"]} (seed 001 Table 1): {hoeken["links"]} moving links, '
         f'{hoeken["joints"]} joints, {hoeken["loops"]} loop',
         '  agreement, max |MuJoCo - mech_balance| / max |mech_balance| over the cycle:',
-        f'  {"":<18}{"imposed motion":>16}{"MuJoCo kinematics":>20}',
+        *agreement_rows(hoeken),
     ]
-    for q in WRENCH:
-        lines.append(f'  {q:<18}{hoeken["agreement_imposed"][q]:>16.1e}'
-                     f'{hoeken["agreement_own"][q]:>20.1e}')
     hoeken_worst = worst(hoeken)
     lines += [
         f'  {"cut joint forces":<18}{hoeken["cut_forces"]:>16.1e}',

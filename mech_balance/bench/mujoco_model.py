@@ -79,6 +79,17 @@ def worst(r):
     return float(np.max([*r['agreement_imposed'].values(), *r['agreement_own'].values()]))
 
 
+def agreement_rows(r, quantities=WRENCH, label=str):
+    """Return the agreement table of one comparison: a header, a row per quantity."""
+    rows = [f'  {"":<18}{"imposed motion":>16}{"MuJoCo kinematics":>20}']
+    for q in quantities:
+        a, b = r['agreement_imposed'].get(q), r['agreement_own'].get(q)
+        missing = 'not unique' if q.startswith('bearing') else '-'
+        rows.append(f'  {label(q):<18}' + (f'{a:>16.1e}' if a is not None else f'{missing:>16}')
+                    + (f'{b:>20.1e}' if b is not None else f'{"-":>20}'))
+    return rows
+
+
 def us_rows(us, width, same_outputs):
     """Return the printed rows of microseconds per crank angle, both engines and their ratio."""
     rows = (('full pipeline', 'ours_full', 'mj_full', ''),

@@ -7,8 +7,8 @@ bearing reaction; the details: docs/benchmarks.md#the-mujoco-models-in-detail.
 """
 
 from mech_balance import schema as scene_mod
-from mech_balance.bench.mujoco_model import agreement, import_mujoco, mjcf, MujocoModel, \
-    norms, relative_difference, TIMED, us_rows, worst, xml_numbers
+from mech_balance.bench.mujoco_model import agreement, agreement_rows, import_mujoco, mjcf, \
+    MujocoModel, norms, relative_difference, TIMED, us_rows, worst, xml_numbers
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import dynamics as sdyn
@@ -522,16 +522,8 @@ def format_report(results, tol):
             '',
             f'{r["scene"]}: {r["links"]} moving links, {r["joints"]} joints, cut '
             f'{", ".join(r["cuts"])} (connect), idle spin: {idle}; MuJoCo nv {r["nv"]}',
-            f'  {"":<18}{"imposed motion":>16}{"MuJoCo kinematics":>20}',
+            *agreement_rows(r, QUANTITIES, lambda q: effort if q == 'driving torque' else q),
         ]
-        for q in QUANTITIES:
-            a = r['agreement_imposed'].get(q)
-            b = r['agreement_own'].get(q)
-            label = effort if q == 'driving torque' else q
-            lines.append(f'  {label:<18}' + (f'{a:>16.1e}' if a is not None else
-                                             f'{"not unique":>16}' if q.startswith('bearing')
-                                             else f'{"-":>16}')
-                         + (f'{b:>20.1e}' if b is not None else f'{"-":>20}'))
         w = worst(r)
         lines += [
             f'  -> {"PASS" if w <= tol else "FAIL"} (worst {w:.1e}, limit {tol:.0e}); '
