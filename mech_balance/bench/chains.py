@@ -34,19 +34,6 @@ def _bar(length_m, density_kg_m):
             'inertia_com_kg_m2': mass * length_m ** 2 / 12.0}
 
 
-def _fourbar_angles(a, b, c, d, psi):
-    """Return (coupler, rocker) angles of the open four-bar at crank angle psi (rad)."""
-    ax, ay = a * math.cos(psi), a * math.sin(psi)
-    # B is at distance b from A and c from O3 = (d, 0): intersection of two circles, upper
-    dx, dy = d - ax, -ay
-    r = math.hypot(dx, dy)
-    along = (b * b - c * c + r * r) / (2.0 * r)
-    h = math.sqrt(max(b * b - along * along, 0.0))
-    ux, uy = dx / r, dy / r
-    bx, by = ax + along * ux - h * uy, ay + along * uy + h * ux
-    return math.atan2(by - ay, bx - ax), math.atan2(by, bx - d)
-
-
 def dyad_chain(loops, crank_m=0.05, density_kg_m=2.0, speed_rad_s=1.0, skew=DEFAULT_SKEW):
     """
     Return a planar :class:`~mech_balance.schema.scene.Scene` with ``loops`` closed loops.
@@ -64,7 +51,7 @@ def dyad_chain(loops, crank_m=0.05, density_kg_m=2.0, speed_rad_s=1.0, skew=DEFA
         raise ValueError(f'skew: got {skew!r}, expected a number in [0, 0.2)')
     u = float(crank_m)
     a, b, c, d = (STAGE0[k] * u for k in ('crank', 'coupler', 'rocker', 'frame'))
-    theta2, theta3 = _fourbar_angles(a, b, c, d, 0.0)
+    theta2, theta3 = _dyad_angles(complex(a, 0.0), complex(d, 0.0), b, c)
     frame = {'O1': [0.0, 0.0], 'P0': [d, 0.0]}
     links = {
         'crank': {'points': {'O1': [0.0, 0.0], 'A': [a, 0.0]}, **_bar(a, density_kg_m)},
