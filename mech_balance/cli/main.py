@@ -6,11 +6,13 @@ line naming the field, the value and what was expected, and exits with status 2.
 """
 
 import argparse
+import importlib
 import math
 import os
 import signal
 import sys
 import textwrap
+import warnings
 
 from mech_balance import atomic, conventions, paths, threads
 from mech_balance.cli import jsonout
@@ -271,7 +273,6 @@ def build_parser():
                         'package and through MuJoCo side by side: agreement, us per angle, '
                         'scaling (needs the optional mujoco package: make bench-mujoco)')
     p.set_defaults(func=cmd_bench)
-    import importlib
     for name in EXTENSIONS:
         importlib.import_module(name).register(sub)
     return parser
@@ -283,7 +284,6 @@ def cmd_scenes(args):
     if (args.convert is None) != (args.out is None):
         raise ValueError('--convert and --out: got one of them, expected both or neither')
     if args.convert is not None:
-        from mech_balance import atomic
         writable_path('--out', args.out, ('.yaml', '.yml'))
         text = scene.to_yaml(scene.load(args.convert))
         atomic.write_text_atomic(args.out, f'# converted by mech-balance scenes from '
@@ -333,7 +333,6 @@ def cmd_bench(args):
         rows = bench.run(args.scene, args.samples, args.repeat, progress=progress)
         printed.append(bench.format_rows(rows))
         print(printed[-1], flush=True)
-    import importlib
     for short, name in names.items():
         if wanted is not None and short not in wanted:
             continue
@@ -356,11 +355,10 @@ def main(argv=None):
     a signal after the verb has finished is ignored (its status stands); called with
     ``argv``, the previous handlers are restored on return.
     """
-    import warnings
     mark = atomic.write_count()
     previous = _install_signal_handlers()
     try:
-        return _run(argv, warnings, mark)
+        return _run(argv, mark)
     except KeyboardInterrupt as exc:   # in parsing, before a verb runs
         return _interrupted(None, exc, mark)
     finally:
@@ -377,7 +375,7 @@ def _install_signal_handlers():
             if signal.getsignal(s) is not signal.SIG_IGN}   # a background job's stays ignored
 
 
-def _run(argv, warnings, mark):
+def _run(argv, mark):
     """Parse ``argv`` and run its verb; return the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
