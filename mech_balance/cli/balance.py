@@ -85,8 +85,6 @@ def cmd_balance(args):
     """Balance a scene and print the design, the before/after table and the certificate."""
     from mech_balance import balancing, schema
     from mech_balance.balancing import two_point
-    if args.samples is not None and args.samples < 4:
-        raise ValueError(f'--samples: got {args.samples}, expected an integer >= 4')
     flags.check_planar(args)
     sc = schema.load(args.scene)
     caps = schema.kind_of(sc).rig_factory().capabilities
