@@ -97,10 +97,9 @@ def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
 
 def run(names=None, samples=360, repeat=DEFAULT_REPEAT, progress=print, loops=CHAIN_LOOPS):
     """
-    Return the bench table (list of dicts) for the given built-in scene names.
+    Return the bench table (a dict per row, :func:`cycle_timing`) of built-in scenes.
 
-    Without ``names``: every built-in scene, then the generated chains of ``loops`` loops
-    (:func:`mech_balance.bench.chains.dyad_chain`).
+    Without ``names``: every built-in, then the generated chains of ``loops`` loops.
     """
     chains = () if names else loops
     names = names or list(scene_mod.builtin_scenes())

@@ -392,8 +392,7 @@ def run(samples=360, repeat=50, progress=print, loops=CHAIN_LOOPS):
     """
     Return ``(hoeken, chains, extras, version)``: :func:`compare` of each rig.
 
-    ``chains`` are the generated chains with ``loops`` loops, ``extras`` the carpet scraper
-    (seed 001 Table 8, 7 moving links) as a paper rig of the same size as the 8-link chain.
+    ``chains``: the generated chains of ``loops`` loops; ``extras``: the carpet scraper.
     """
     mujoco = import_mujoco()
     progress('  comparing hoeken ...')

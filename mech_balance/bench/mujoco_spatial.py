@@ -414,13 +414,10 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
     """
     Return the agreement and timing figures of one spatial scene (name or scene), one process.
 
-    ``timer(fns)`` returns the median seconds of each ``(function, runs)`` pair (the planar
-    comparison's); the package's figures take ``repeat`` runs, MuJoCo's ``slow``.  Keys:
-    ``agreement_imposed`` and ``agreement_own`` (:data:`QUANTITIES` -> worst relative
-    difference; joint motion: MuJoCo's bodies or its own joint coordinates against the
-    package's, rad, slides / length scale, ball rotation matrices), ``us`` (microseconds
-    per angle), the spin residual, the inertia check, Newton figures, the model's counts and
-    ``driving_series`` (:attr:`~mech_balance.core.rig.Rig.driving_series`).
+    ``timer(fns)``: the median seconds of each ``(function, runs)``; the package's figures
+    take ``repeat`` runs, MuJoCo's ``slow``.  Keys as the planar :func:`.mujoco.compare`'s
+    (agreements by :data:`QUANTITIES`), with the spin residual, the inertia check and the
+    rig's ``driving_series``.
     """
     sc = scene_mod.load(scene) if isinstance(scene, str) else scene
     sc = sc.with_outputs(scene_mod.OUTPUTS)

@@ -416,10 +416,8 @@ def run_node(scene_name, rate_hz, seconds, params=(), domain=None):
     """
     Run the node in its own process at ``rate_hz`` and measure ``seconds`` of publishing.
 
-    ``params`` are extra ``name:=value`` parameters.  Returns ``{'rate_hz'``: distinct
-    joint_states stamps received per second of the window, ``'missed'``: the fraction of
-    periods whose sample did not arrive (either topic), ``'stats'``: the node's own
-    statistics at shutdown (compute per sample, tick time)}.
+    Returns ``{'rate_hz'``: joint_states received per s, ``'missed'``: the worst topic's
+    missed fraction, ``'stats'``: :func:`node_stats`, ``'log'``: the node's log}.
     """
     probe = NodeProbe(scene_name, rate_hz,
                       f'/live{os.getpid()}_{int(time.monotonic() * 1000) % 100000}', params,
