@@ -1,24 +1,9 @@
 """
 Error against run time: the numbers behind ``mech-balance accuracy``.
 
-Four studies of one planar scene, each against a converged reference:
-
-* **RMS against the number of crank samples p**: the RMS figures of the analysis table
-  (:func:`mech_balance.analysis.cycle.summarize`) at p equally spaced angles against p = 2880.
-  The p-point mean of a periodic analytic function is exact for its harmonics below p, so
-  the error falls geometrically with p (and the table shows how fast for each rig).
-* **Forward dynamics** (:mod:`mech_balance.simulate`): the error of the final state after a
-  few crank turns for explicit (RK45, DOP853) and implicit (Radau, BDF, LSODA) integrators
-  at several tolerances, with run time and right-hand-side evaluations, against a
-  tight-tolerance reference; the energy-balance residual of each run; and, at equal error,
-  the run-time ratio of each implicit run to the fastest explicit run that is as accurate.
-* **Position analysis**: loop-closure residual, Newton iterations and Jacobian condition
-  number per crank angle.
-* **Balancing** (:mod:`mech_balance.balancing`): the primal, the safe lower bound and gap against
-  solve time as the conic solver's tolerance tightens.
-
-Run times here are wall-clock seconds of one run (median of a few for the fast ones) and
-depend on the machine; errors and evaluation counts do not.
+Four studies of one scene against converged references: RMS against the number of crank
+samples, forward-dynamics integrators and tolerances, position analysis, and the balancing
+certificate's gap against the solver tolerance (docs/simulation.md#the-accuracy-studies).
 """
 
 from dataclasses import dataclass
@@ -62,8 +47,8 @@ def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
     """
     Return the RMS study: per p, the worst relative RMS error over the table and the time.
 
-    ``normalized`` defaults to True when the scene records a normalization.  Each row:
-    ``p``, ``max_rel_error``, ``worst`` (the quantity), ``seconds`` (median per cycle).
+    ``normalized`` defaults to whether the scene records a normalization.  Each row: ``p``,
+    ``max_rel_error``, ``worst`` (the quantity), ``seconds`` (median per cycle).
     """
     normalized = rig.scene.normalization is not None if normalized is None else normalized
     ref = analysis.summarize(analysis.run_cycle(rig, p_ref), normalized)
@@ -76,7 +61,7 @@ def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
         k = int(np.argmax(err))
         psi = cycle_angles(p, rig.scene.assembly_crank_angle_rad)
         evaluate = getattr(rig, 'evaluate', rig.at)   # a planar rig's own, else the protocol
-        seconds = _median(lambda: evaluate(psi), repeat)
+        seconds = timing.median_seconds(lambda: evaluate(psi), repeat=repeat, warmup=1)
         rows.append({'p': int(p), 'max_rel_error': float(err[k]), 'worst': ref[k].quantity,
                      'seconds': seconds})
     return {'p_reference': p_ref, 'normalized': bool(normalized), 'rows': rows,
@@ -133,10 +118,8 @@ def integrator_study(model, duration_s=None, methods=STUDY_METHODS, rtols=RTOL_L
     """
     Return the forward-dynamics study of a :class:`~mech_balance.core.forward.ForwardDynamics`.
 
-    The reference is the method ``auto`` would choose at ``REFERENCE_RTOL``; a second
-    reference (LSODA, or DOP853 when LSODA is the first) at the same tolerance bounds its
-    own error (``reference_spread``).  ``rtols`` is one ladder for every method or a
-    mapping ``{method: ladder}``.
+    Against the method ``auto`` would choose at ``REFERENCE_RTOL`` (LSODA at the same
+    tolerance: its ``spread``); ``rtols``: one ladder, or ``{method: ladder}``.
     """
     if duration_s is None:
         duration_s = ACCURACY_TURNS * 2.0 * math.pi / model.omega_ref
@@ -176,9 +159,8 @@ def equal_error(runs):
     """
     Return, per implicit run, the fastest explicit run that is at least as accurate.
 
-    Each row: the implicit :class:`Run`, the explicit one (or None when no explicit run
-    reaches that error), the run-time ratio explicit / implicit and the same for the
-    right-hand-side evaluations.
+    Each row: both :class:`Run` (the explicit one None when none is) and their ratios
+    explicit / implicit of run time and right-hand-side evaluations.
     """
     explicit = [r for r in runs if not r.implicit]
     rows = []
@@ -225,9 +207,7 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
     """
     Return the certificate gap against solve time, or a note if balancing is unavailable.
 
-    ``redistribution.optimize`` has no tolerance argument: the study sets the one Clarabel
-    tolerance of the package (:data:`mech_balance.conic.SOLVER_TOL`, which every cone
-    program's settings read) for the duration of each call and restores it.
+    Each solve runs with :data:`mech_balance.conic.SOLVER_TOL` set to one of ``tolerances``.
     """
     try:
         from mech_balance import conic
@@ -264,26 +244,22 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
     Return every requested study of a scene as a dict.
 
     A rig without the ``accuracy_study`` capability (the spatial kind) has the RMS study
-    only, through the Rig protocol; each other section is a note naming the capability and
-    the kind (:data:`SECTION_CAPABILITY`; the verb refuses such a section asked for by name).
+    only; each other section is a note naming the capability and the kind.
     """
     say = progress or (lambda text: None)
     sc = scene_mod.load(name_or_path)
     kind = scene_mod.kind_of(sc)
-    if 'accuracy_study' not in kind.rig_factory().capabilities:
-        out = {'scene': sc.name, 'source': sc.source}
-        if 'rms' in sections:
-            say('RMS against p ...')
-            out['rms'] = rms_convergence(rig_for(sc))
-        out['notes'] = [f'{name}: needs the capability accuracy_study, which kind '
-                        f'{kind.name} lacks' for name in sections if name != 'rms']
-        return out
-    drive = simulate.drive_of(sc)
-    rig = analysis.Rig(sc)
+    capable = 'accuracy_study' in kind.rig_factory().capabilities
+    drive = simulate.drive_of(sc) if capable else None
+    rig = analysis.Rig(sc) if capable else None
     out = {'scene': sc.name, 'source': sc.source}
     if 'rms' in sections:
         say('RMS against p ...')
-        out['rms'] = rms_convergence(rig)
+        out['rms'] = rms_convergence(rig if capable else rig_for(sc))
+    if not capable:
+        out['notes'] = [f'{name}: needs the capability accuracy_study, which kind '
+                        f'{kind.name} lacks' for name in sections if name != 'rms']
+        return out
     if 'integrators' in sections:
         say('forward dynamics ...')
         model = simulate.ForwardDynamics(rig, drive)
@@ -302,14 +278,10 @@ def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
 def format_tables(result):
     """Return the studies as text tables."""
     lines = [f'scene: {result["scene"]} ({result["source"]})']
-    if 'rms' in result:
-        lines += [''] + _format_rms(result['rms'])
-    if 'integrators' in result:
-        lines += [''] + _format_integrators(result['integrators'])
-    if 'position' in result:
-        lines += [''] + _format_position(result['position'])
-    if 'balancing' in result:
-        lines += [''] + _format_balancing(result['balancing'])
+    for key, table in (('rms', _format_rms), ('integrators', _format_integrators),
+                       ('position', _format_position), ('balancing', _format_balancing)):
+        if key in result:
+            lines += [''] + table(result[key])
     for note in result.get('notes', ()):
         lines += ['', note]
     return '\n'.join(lines)
@@ -414,8 +386,3 @@ def to_jsonable(result):
             return obj.item()
         return obj
     return conv(result)
-
-
-def _median(fn, repeat):
-    """Return the median wall time of ``fn()`` over ``repeat`` runs after one warm-up run."""
-    return timing.median_seconds(fn, repeat=repeat, warmup=1)

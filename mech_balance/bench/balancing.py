@@ -44,13 +44,8 @@ def bench_section(args, progress):
                 for paper in (True, False):
                     progress(f'  timing balance {name} {case} {w} '
                              f'{"paper" if paper else "realizable"} ...')
-                    last = {}
-
-                    def run(w=w, case=case, paper=paper, last=last):
-                        last['r'] = redistribution.optimize(sc, w, case, paper_constraints=paper,
-                                                            samples=args.samples)
-                    sec = bench.median_seconds(run, repeat=repeat)
-                    r = last['r']
+                    sec, r = bench.median_and_result(lambda: redistribution.optimize(
+                        sc, w, case, paper_constraints=paper, samples=args.samples), repeat)
                     lines.append(f"{name:<18}{case:<6}{f'({w[0]:g}, {w[1]:g})':<12}"
                                  f"{'paper' if paper else 'realizable':<13}"
                                  f"{r.objective['z']:>12.6g}{r.certificate.gap_rel:>10.1e}"
@@ -77,13 +72,8 @@ def counterweights_section(args, progress):
         links = links or tuple(lk.name for lk in sc.links)
         for w in seed_tables.WEIGHT_CASES:
             progress(f'  timing counterweights {name} {w} ...')
-            last = {}
-
-            def run(w=w, last=last):
-                last['r'] = cw_mod.balance_with_counterweights(sc, links, w,
-                                                               samples=args.samples)
-            sec = bench.median_seconds(run, repeat=repeat)
-            r = last['r']
+            sec, r = bench.median_and_result(lambda: cw_mod.balance_with_counterweights(
+                sc, links, w, samples=args.samples), repeat)
             label = ','.join(links) if len(links) <= 3 else f'all {len(links)}'
             lines.append(f"{name:<22}{label:<22}{f'({w[0]:g}, {w[1]:g})':<12}"
                          f'{r.certificate.gap_rel:>10.1e}{sec * 1e3:>11.1f}{limit_ms:>10.0f}'

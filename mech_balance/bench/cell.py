@@ -1,27 +1,20 @@
 """
 ``mech-balance bench`` section of a cell: how many rig nodes at 100 Hz this machine sustains.
 
-N rig nodes run as deployed, each in its own process (``python -m mech_balance.ros.node``,
-clock mode, :data:`RATE_HZ`), under the namespaces ``/cell/rig_1`` .. ``/cell/rig_N`` on a
-private ROS domain.  N grows in the steps of :data:`STEPS` (the rigs already running keep
-running; the new ones are started and waited for).  One subscriber, this process, takes
-every rig's ``joint_states`` serialized (``raw=True``, only the stamp is read) and counts,
-from the received stamps, the clock-mode periods of each rig whose sample never arrived
-over :data:`WINDOW_S` after :data:`SETTLE_S`; ``/proc/<pid>/stat`` gives each node's CPU
-time over the same window.  A step is sustained when every rig misses less than
-:data:`MISSED_MAX` of its periods (a failing window is measured once more, so that one
-burst of another program does not end the search).  The search stops at the first step not
-sustained, after the last step, or when :data:`TIME_BUDGET_S` is spent; every process it
-started is stopped (SIGINT, then killed) before the table is returned.
+N rig nodes, each in its own process (:func:`mech_balance.bench.node.start_node`), under
+``/cell/rig_1`` .. ``/cell/rig_N``; N grows in the :data:`STEPS` until a step is not
+sustained (every rig < :data:`MISSED_MAX` missed periods, a failing window measured once
+more), the last step, or :data:`TIME_BUDGET_S`.  Every process started is stopped before the
+table is returned.  More: docs/benchmarks.md#a-cell-of-rigs.
 """
 
 import os
 import signal
 import subprocess
-import sys
 import time
 
-from mech_balance.bench.node import CDR_HEADER, missed_fraction, STAMP
+from mech_balance.bench import settle
+from mech_balance.bench.node import missed_fraction, stamp_ns, start_node
 
 RATE_HZ = 100.0
 """Clock-mode publish rate of every rig of the cell."""
@@ -51,9 +44,7 @@ _CLOCK_TICK_S = 1.0 / os.sysconf('SC_CLK_TCK')
 
 def process_cpu_s(pid):
     """Return the user + system CPU time of process ``pid`` so far, s (``/proc/pid/stat``)."""
-    with open(f'/proc/{pid}/stat') as f:
-        fields = f.read().rpartition(')')[2].split()
-    # after the command name: state is field 3, utime and stime are fields 14 and 15
+    fields = settle.stat_fields(pid)   # state is field 3, utime and stime 14 and 15
     return (int(fields[11]) + int(fields[12])) * _CLOCK_TICK_S
 
 
@@ -91,11 +82,7 @@ def bench_section(args, progress):
 
 
 def _search(scene_name, progress):
-    """
-    Return ``([(n, missed per rig, CPU per rig, CPU of this process)], why it ended)``.
-
-    CPU figures are fractions of one core over the measuring window.
-    """
+    """Return ``([(n, missed per rig, CPU per rig, CPU here)], why it ended)``, CPU in cores."""
     import rclpy
     from rclpy.experimental import EventsExecutor
     from rclpy.qos import QoSProfile
@@ -103,11 +90,6 @@ def _search(scene_name, progress):
 
     deadline = time.monotonic() + TIME_BUDGET_S
     domain = DOMAIN_BASE + os.getpid() % DOMAIN_SPAN
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
-               ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE',
-                                                            'LOCALHOST'))
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    env['PYTHONPATH'] = os.pathsep.join(p for p in (root, env.get('PYTHONPATH')) if p)
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=domain)
     node = rclpy.create_node(f'cell_probe_{os.getpid()}', context=ctx)
@@ -117,10 +99,7 @@ def _search(scene_name, progress):
     period_ns = round(1e9 / RATE_HZ)
 
     def keep(rig_stamps):
-        def cb(raw):
-            sec, nsec = STAMP.unpack_from(raw, CDR_HEADER)
-            rig_stamps.append(sec * 1_000_000_000 + nsec)
-        return cb
+        return lambda raw: rig_stamps.append(stamp_ns(raw))
 
     def spin_for(seconds, until=None):
         end = time.monotonic() + seconds
@@ -151,11 +130,7 @@ def _search(scene_name, progress):
             while len(procs) < n:
                 k = len(procs) + 1
                 ns = NAMESPACE.format(k)
-                procs.append(subprocess.Popen(
-                    [sys.executable, '-m', 'mech_balance.ros.node', '--ros-args',
-                     '-r', f'__ns:={ns}', '-p', f'scene:={scene_name}',
-                     '-p', f'publish_rate:={RATE_HZ}'],
-                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+                procs.append(start_node(scene_name, RATE_HZ, ns, domain))
                 stamps.append([])
                 node.create_subscription(JointState, f'{ns}/joint_states', keep(stamps[-1]),
                                          QoSProfile(depth=1000), raw=True)

@@ -1,28 +1,9 @@
 """
 Generated single-input planar chains of any size, for scaling benchmarks and tests.
 
-:func:`dyad_chain` builds a crank-rocker four-bar followed by ``loops - 1`` near-parallelogram
-stages: stage k hangs a coupler from the tip of rocker k-1 and closes it on rocker k, which
-pivots on the frame one frame spacing further along +x.  Every stage adds two links and three
-revolute joints (one loop), so a chain of ``loops`` loops has ``2 loops + 1`` moving links
-and ``3 loops + 1`` joints: Gruebler's count 3 n - 2 j = 1 for every size (a single-input
-planar chain of revolute joints always has an odd number of moving links, i.e. an even
-number of links counting the frame).
-
-Geometry (in units of the crank length ``crank_m``)
-    * stage 0: crank 1, coupler 4, rocker 3, frame O1 O3 = 4 along +x: Grashof (1 + 4 <= 3 +
-      4) with the crank shortest, so the crank turns fully; the transmission angle stays
-      within [48, 90] deg and the rocker swings between 90 and 132 deg from +x;
-    * stage k >= 1: coupler 4 (1 + e_k), rocker 3 (1 - e_k), frame spacing 4, with
-      e_k = +-``skew`` alternating: close to a parallelogram, so rocker k follows rocker
-      k-1 within a few degrees (every rocker stays within 87-133 deg, every transmission
-      angle within 48-134 deg) and no stage comes near a singular (folded) position, for
-      any number of stages; the loop Jacobian's condition number grows about linearly
-      (4 at one loop, 63 at nine, 220 at thirty).
-
-Inertia: each link is a uniform bar along its joint line (mass ``density_kg_m`` per metre,
-I = m L^2 / 12 about the centre) with its mass centre moved off the line by a tenth of its
-length, so the first moments have both components.
+:func:`dyad_chain`: a crank-rocker four-bar followed by ``loops - 1`` near-parallelogram
+stages, ``2 loops + 1`` moving links and ``3 loops + 1`` revolute joints; the geometry, why
+it never folds, and the inertias: docs/benchmarks.md#the-generated-chains.
 """
 
 import math
@@ -47,23 +28,10 @@ def link_counts(loops):
 
 
 def _bar(length_m, density_kg_m):
-    """Return the mass properties of a link along its x axis (see the module docstring)."""
+    """Return the mass properties of a uniform bar along x, its centre moved off the line."""
     mass = density_kg_m * length_m
     return {'mass_kg': mass, 'com_m': [0.5 * length_m, COM_OFFSET * length_m],
             'inertia_com_kg_m2': mass * length_m ** 2 / 12.0}
-
-
-def _fourbar_angles(a, b, c, d, psi):
-    """Return (coupler, rocker) angles of the open four-bar at crank angle psi (rad)."""
-    ax, ay = a * math.cos(psi), a * math.sin(psi)
-    # B is at distance b from A and c from O3 = (d, 0): intersection of two circles, upper
-    dx, dy = d - ax, -ay
-    r = math.hypot(dx, dy)
-    along = (b * b - c * c + r * r) / (2.0 * r)
-    h = math.sqrt(max(b * b - along * along, 0.0))
-    ux, uy = dx / r, dy / r
-    bx, by = ax + along * ux - h * uy, ay + along * uy + h * ux
-    return math.atan2(by - ay, bx - ax), math.atan2(by, bx - d)
 
 
 def dyad_chain(loops, crank_m=0.05, density_kg_m=2.0, speed_rad_s=1.0, skew=DEFAULT_SKEW):
@@ -83,7 +51,7 @@ def dyad_chain(loops, crank_m=0.05, density_kg_m=2.0, speed_rad_s=1.0, skew=DEFA
         raise ValueError(f'skew: got {skew!r}, expected a number in [0, 0.2)')
     u = float(crank_m)
     a, b, c, d = (STAGE0[k] * u for k in ('crank', 'coupler', 'rocker', 'frame'))
-    theta2, theta3 = _fourbar_angles(a, b, c, d, 0.0)
+    theta2, theta3 = _dyad_angles(complex(a, 0.0), complex(d, 0.0), b, c)
     frame = {'O1': [0.0, 0.0], 'P0': [d, 0.0]}
     links = {
         'crank': {'points': {'O1': [0.0, 0.0], 'A': [a, 0.0]}, **_bar(a, density_kg_m)},

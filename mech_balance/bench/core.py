@@ -42,13 +42,21 @@ def section_name(entry):
     return module.rsplit('.', 1)[-1]
 
 
+def median_and_result(fn, repeat, **timing):
+    """Return the median seconds of ``fn()`` (:func:`median_seconds`) and its last result."""
+    last = []
+
+    def run():
+        last[:] = [fn()]
+    return median_seconds(run, repeat=repeat, **timing), last[0]
+
+
 def peak_bytes(fn):
     """
     Return the peak of the memory ``fn()`` allocates (Python and numpy), in bytes.
 
-    Measured by :mod:`tracemalloc` in a separate, untimed run (tracing slows every
-    allocation): the largest amount allocated at one time during the call beyond what was
-    allocated before it, i.e. the working memory of one cycle.
+    The largest amount allocated at one time during the call beyond what was allocated
+    before it (:mod:`tracemalloc`: call it in a run of its own, never a timed one).
     """
     started = not tracemalloc.is_tracing()
     if started:
@@ -67,12 +75,9 @@ def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
     """
     Return timing figures of one full cycle of a scene of any kind.
 
-    ``build_s`` is the one-off cost of building the rig (compiling the linkage and tracing
-    its branch: it depends on the geometry only); ``cycle_s`` is the median time of the core's
-    position, velocity, acceleration and inverse-dynamics analysis at ``samples`` angles (the
-    rig's own ``evaluate`` where it has one, else :meth:`Rig.at`), ``at_s`` that of the Rig
-    protocol's :meth:`Rig.at`, which adds the joint coordinates and 3-vector wrench;
-    ``peak_bytes`` the peak memory one :meth:`Rig.at` cycle allocates (:func:`peak_bytes`).
+    ``build_s``: building the rig (compiling, tracing the branch); ``cycle_s``: the median
+    cycle at ``samples`` angles of the rig's own ``evaluate`` (else :meth:`Rig.at`);
+    ``at_us_per_angle``: that of :meth:`Rig.at`; ``peak_bytes``: :func:`peak_bytes` of it.
     """
     t0 = time.perf_counter()
     rig = rig_for(scene, cache=False)
@@ -92,10 +97,9 @@ def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
 
 def run(names=None, samples=360, repeat=DEFAULT_REPEAT, progress=print, loops=CHAIN_LOOPS):
     """
-    Return the bench table (list of dicts) for the given built-in scene names.
+    Return the bench table (a dict per row, :func:`cycle_timing`) of built-in scenes.
 
-    Without ``names``: every built-in scene, then the generated chains of ``loops`` loops
-    (:func:`mech_balance.bench.chains.dyad_chain`).
+    Without ``names``: every built-in, then the generated chains of ``loops`` loops.
     """
     chains = () if names else loops
     names = names or list(scene_mod.builtin_scenes())

@@ -1,14 +1,9 @@
 """
 The ``follow_memory`` section of ``mech-balance bench``: the node's memory over a long follow run.
 
-A rig node in follow mode in its own process (:class:`mech_balance.bench.node.NodeProbe`)
-is fed a 1 kHz crank encoder and a 1 kHz measured wrench (the sensor path's identification
-buffers: the encoder track, the pending, measured and paired series of
-:class:`mech_balance.ros.sensor.Comparison`) in real time for :data:`SECONDS`, and its
-resident memory (``VmRSS`` of /proc/PID/status) is sampled every :data:`SAMPLE_EVERY_S`.
-The buffers are allocated whole at their first sample (issue 32 item 3), so the RSS after
-the first seconds stays flat while they fill (2 min of samples at 1 kHz each); before, it
-grew page by page as numpy's lazily mapped zeros were written (6 MB in 300 s, encoder alone).
+A rig node in follow mode (:class:`mech_balance.bench.node.NodeProbe`) fed a 1 kHz encoder
+and measured wrench for :data:`SECONDS`, its ``VmRSS`` sampled every :data:`SAMPLE_EVERY_S`
+(docs/benchmarks.md#how-the-node-sections-measure).
 """
 
 import math
@@ -29,15 +24,6 @@ SPEED_RAD_S = 2.0 * math.pi
 """The fed crank's speed (one turn a second)."""
 
 
-def rss_bytes(pid):
-    """Return the resident set size (``VmRSS``) of process ``pid`` in bytes."""
-    with open(f'/proc/{pid}/status') as f:
-        for line in f:
-            if line.startswith('VmRSS:'):
-                return int(line.split()[1]) * 1024
-    raise RuntimeError(f'/proc/{pid}/status has no VmRSS')
-
-
 def follow_rss(scene_name='hoeken', seconds=SECONDS, rate_hz=RATE_HZ, progress=print):
     """
     Return ``(samples, counts)``: ``[(s since the stream began, RSS bytes)]`` and the stats.
@@ -45,25 +31,19 @@ def follow_rss(scene_name='hoeken', seconds=SECONDS, rate_hz=RATE_HZ, progress=p
     ``counts`` is the node's ``follow`` statistics of its shutdown line (received, not
     answered) or ``{}``.  Returns ``(None, why)`` when the node did not start.
     """
-    from geometry_msgs.msg import WrenchStamped
-    from mech_balance.bench.node import node_stats, NodeProbe, START_TIMEOUT_S
-    from mech_balance.ros import conversions as conv
-    from rclpy.qos import QoSProfile
-    from sensor_msgs.msg import JointState
+    from mech_balance.bench.identify_stamps import SensorFeed
+    from mech_balance.bench.node import node_stats, NodeProbe, START_TIMEOUT_S, status_bytes
 
     probe = NodeProbe(scene_name, 100.0, f'/followmem{os.getpid()}', ('mode:=follow',),
                       label='followmem')
     log = ''
     try:
-        qos = QoSProfile(depth=1000)
-        enc = probe.node.create_publisher(JointState, f'{probe.ns}/crank_joint_state', qos)
-        wr = probe.node.create_publisher(WrenchStamped, f'{probe.ns}/measured_wrench', qos)
-        probe.spin_for(START_TIMEOUT_S, lambda: probe.proc.poll() is not None or (
-            enc.get_subscription_count() >= 1 and wr.get_subscription_count() >= 1))
-        if probe.proc.poll() is not None or not enc.get_subscription_count():
+        feed = SensorFeed(probe)
+        probe.spin_for(START_TIMEOUT_S, lambda: feed.matched() or probe.proc.poll() is not None)
+        if not feed.matched():
             return None, 'the node did not start or its endpoints did not match'
         pid = probe.proc.pid
-        samples = [(0.0, rss_bytes(pid))]
+        samples = [(0.0, status_bytes(pid))]
         period_ns = int(round(1e9 / rate_hz))
         per_chunk = max(1, int(round(CHUNK_S * rate_hz)))
         t0_ns = probe.node.get_clock().now().nanoseconds
@@ -77,22 +57,15 @@ def follow_rss(scene_name='hoeken', seconds=SECONDS, rate_hz=RATE_HZ, progress=p
                 break
             due = int(elapsed * rate_hz) + per_chunk
             while k < due:
-                stamp = conv.stamp_from_ns(t0_ns + k * period_ns)
                 angle = math.fmod(SPEED_RAD_S * k / rate_hz, 2.0 * math.pi)
-                e = JointState(name=['O1'], position=[angle])
-                e.header.stamp = stamp
-                enc.publish(e)
-                w = WrenchStamped()
-                w.header.stamp, w.header.frame_id = stamp, 'sensor'
-                w.wrench.force.x = math.cos(angle)
-                w.wrench.force.y = math.sin(angle)
-                wr.publish(w)
+                feed.publish(t0_ns + k * period_ns, angle, (math.cos(angle), math.sin(angle), 0.0),
+                             (0.0, 0.0, 0.0))
                 k += 1
             if elapsed >= next_sample:
-                samples.append((elapsed, rss_bytes(pid)))
+                samples.append((elapsed, status_bytes(pid)))
                 next_sample += SAMPLE_EVERY_S
             probe.spin_for(CHUNK_S)
-        samples.append((time.monotonic() - start, rss_bytes(pid)))
+        samples.append((time.monotonic() - start, status_bytes(pid)))
     finally:
         log = probe.close(timeout=60)
     return samples, node_stats(log).get('follow', {})

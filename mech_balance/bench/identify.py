@@ -9,7 +9,7 @@ import math
 
 from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis, identify
-from mech_balance.analysis.timing import median_seconds
+from mech_balance.bench.core import median_and_result
 import numpy as np
 
 BENCH_SCENE = 'hoeken'
@@ -19,6 +19,13 @@ BENCH_LIMIT_S = 2.0
 """The identification of 60 s at 1 kHz must take at most this long (median)."""
 BENCH_REPEAT_MAX = 5
 """Most timed runs (each takes about a second)."""
+
+
+def rippled_crank(t, w0=2.0 * math.pi, psi0=0.0):
+    """Return ``(psi, speed, accel)`` at times ``t``: ``w0`` with a 5 % ripple at 0.7 ``|w0|``."""
+    wr = 0.7 * abs(w0)
+    return (psi0 + w0 * t + w0 * 0.05 * (1.0 - np.cos(wr * t)) / wr,
+            w0 * (1.0 + 0.05 * np.sin(wr * t)), w0 * 0.05 * wr * np.cos(wr * t))
 
 
 def bench_data(sc, seconds=BENCH_SECONDS, rate_hz=BENCH_RATE_HZ, seed=0):
@@ -31,10 +38,7 @@ def bench_data(sc, seconds=BENCH_SECONDS, rate_hz=BENCH_RATE_HZ, seed=0):
     """
     rng = np.random.default_rng(seed)
     t = np.arange(int(seconds * rate_hz)) / rate_hz
-    w0, wr = 2.0 * math.pi, 0.7 * 2.0 * math.pi
-    speed = w0 * (1.0 + 0.05 * np.sin(wr * t))
-    accel = w0 * 0.05 * wr * np.cos(wr * t)
-    psi = w0 * t + w0 * 0.05 * (1.0 - np.cos(wr * t)) / wr
+    psi, speed, accel = rippled_crank(t)
     _, w = analysis.Rig(sc).evaluate(np.mod(psi, 2.0 * math.pi), outputs=('shaking_wrench',),
                                      speed=speed, accel=accel)
     wrench = np.column_stack([w.shaking_force.real, w.shaking_force.imag, w.shaking_moment])
@@ -50,12 +54,8 @@ def bench_section(args, progress):
     progress(f'  timing identify {BENCH_SCENE} on {BENCH_SECONDS:g} s at '
              f'{BENCH_RATE_HZ:g} Hz ...')
     t, pos, wrench = bench_data(sc)
-    last = {}
-
-    def run():
-        last['r'] = identify.identify(sc, t, pos, t, wrench)
-    sec = median_seconds(run, repeat=repeat, warmup=1)
-    r = last['r']
+    sec, r = median_and_result(lambda: identify.identify(sc, t, pos, t, wrench), repeat,
+                               warmup=1)
     head = (f"{'identify: scene':<18}{'samples':>9}{'rank':>6}{'cond':>10}{'median s':>10}"
             f"{'limit s':>9}  verdict")
     return '\n'.join([

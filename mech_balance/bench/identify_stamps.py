@@ -1,17 +1,16 @@
 """
 ``mech-balance bench`` section of the rig node: ``~/identify`` after a day-ahead stamp.
 
-Issue 20's acceptance: a node in follow mode in its own process
-(:class:`mech_balance.bench.node.NodeProbe`) is fed a synthetic rig's encoder and measured
-wrench (:func:`rig_stream`), one measured_wrench stamped a day ahead among them; then
-``~/identify`` is called and timed, and the node's resident memory is held against the
-bound of the sensor's buffers (:func:`identify_buffer_bytes`).
+Issue 20's acceptance: a node in follow mode (:class:`mech_balance.bench.node.NodeProbe`) fed
+a synthetic rig (:func:`rig_stream`), one measured_wrench stamped a day ahead; ``~/identify``
+timed and the node's memory held against :func:`identify_buffer_bytes`
+(docs/benchmarks.md#how-the-node-sections-measure).
 """
 
 import os
 import time
 
-from mech_balance.bench.node import CDR_HEADER, NodeProbe, STAMP, START_TIMEOUT_S
+from mech_balance.bench.node import NodeProbe, stamp_ns, START_TIMEOUT_S, status_bytes
 
 ID_RATE_HZ = 1000.0
 """Issue 20: the node's realistic sensor rate (encoder and measured wrench alike)."""
@@ -38,9 +37,8 @@ def identify_buffer_bytes():
     """
     Return the bytes of the sensor's bounded buffers, as the node allocates them.
 
-    The encoder track's, the pending, measured and paired series of one
-    :class:`mech_balance.ros.sensor.Comparison` (each kept in twice its capacity): the bound
-    on what filling them can add to the node's memory (numpy's zeros are touched lazily).
+    The encoder track and the pending, measured and paired series of one
+    :class:`mech_balance.ros.sensor.Comparison`: what filling them can add to the node's RSS.
     """
     from mech_balance.ros import sensor
     comparison = sensor.Comparison(sensor.SensorPose(), (0.0, 0.0, 0.0), 0.1)
@@ -63,14 +61,11 @@ def rig_stream(scene, seconds, rate_hz=ID_RATE_HZ, seed=20, counts=4096, noise_r
     import math
     import numpy as np
     from mech_balance.analysis import cycle as analysis
+    from mech_balance.bench.identify import rippled_crank
     rng = np.random.default_rng(seed)
     n = max(int(round(seconds * rate_hz)), 1)
     t = np.arange(n) / rate_hz
-    w0 = float(w0)
-    wr = 0.7 * abs(w0)
-    speed = w0 * (1.0 + 0.05 * np.sin(wr * t))
-    accel = w0 * 0.05 * wr * np.cos(wr * t)
-    psi = 0.3 + w0 * t + w0 * 0.05 * (1.0 - np.cos(wr * t)) / wr
+    psi, speed, accel = rippled_crank(t, float(w0), psi0=0.3)
     rig = analysis.Rig(scene.with_outputs(('shaking_wrench',)))
     _, w = rig.evaluate(np.mod(psi, 2.0 * math.pi), outputs=('shaking_wrench',), speed=speed,
                         accel=accel)
@@ -88,16 +83,7 @@ def rig_stream(scene, seconds, rate_hz=ID_RATE_HZ, seed=20, counts=4096, noise_r
     return t_ns, positions, wrench[:, :3], wrench[:, 3:]
 
 
-def _status_kb(pid, key):
-    """Return ``key`` (``VmRSS``, ``VmHWM``) of /proc/PID/status in bytes."""
-    with open(f'/proc/{pid}/status') as f:
-        for line in f:
-            if line.startswith(key + ':'):
-                return int(line.split()[1]) * 1024
-    raise RuntimeError(f'/proc/{pid}/status has no {key}')
-
-
-class _SensorFeed:
+class SensorFeed:
     """The bench's encoder and measured_wrench publishers, residual stamps, ~/identify."""
 
     def __init__(self, probe):
@@ -116,8 +102,7 @@ class _SensorFeed:
         self._joint, self._wrench, self._trigger = JointState, WrenchStamped, Trigger
 
     def _on_residual(self, raw):
-        sec, nsec = STAMP.unpack_from(raw, CDR_HEADER)
-        stamp = sec * 1_000_000_000 + nsec
+        stamp = stamp_ns(raw)
         self.residuals += 1
         if self.limit_ns is None or stamp <= self.limit_ns:  # never the day-ahead one
             self.newest = max(self.newest, stamp)
@@ -142,6 +127,11 @@ class _SensorFeed:
         return conv.fill_wrench_values(self._wrench(), int(stamp_ns), 'sensor',
                                        [*force, *torque])
 
+    def publish(self, stamp_ns, angle, force, torque):
+        """Publish one encoder and one measured_wrench message of the same stamp."""
+        self.encoder.publish(self.encoder_msg(stamp_ns, angle))
+        self.measured.publish(self.wrench_msg(stamp_ns, force, torque))
+
     def play(self, t_ns, angles, force, torque):
         """
         Publish a segment in chunks, waiting for the residual two chunks back.
@@ -151,8 +141,7 @@ class _SensorFeed:
         n = t_ns.size
         for c0 in range(0, n, ID_CHUNK):
             for i in range(c0, min(c0 + ID_CHUNK, n)):
-                self.encoder.publish(self.encoder_msg(t_ns[i], angles[i]))
-                self.measured.publish(self.wrench_msg(t_ns[i], force[i], torque[i]))
+                self.publish(t_ns[i], angles[i], force[i], torque[i])
             back = c0 - ID_CHUNK
             if back > 0:
                 target = int(t_ns[back - 1])
@@ -178,13 +167,8 @@ def identify_stamps_section(args, progress, seconds=None, calls=ID_CALLS):
     """
     Return ``~/identify`` after a day-ahead measured_wrench stamp (issue 20 acceptance).
 
-    A node in follow mode in its own process; the synthetic rig's encoder and measured
-    wrench streamed at :data:`ID_RATE_HZ` (paced by the node's residuals, stamps not wall
-    time), one measured_wrench stamped a day ahead at 30 % of the stream, then the normal
-    stream again, ``seconds`` in all (:data:`ID_SECONDS`: the identify buffer's capacity);
-    then ``calls`` ``~/identify`` calls: their median answer time, success, and the growth of
-    the node's resident memory (/proc/PID/status VmRSS; VmHWM the peak) from the matched
-    endpoints to the last answer, against :func:`identify_buffer_bytes`.
+    ``seconds`` streamed (default :data:`ID_SECONDS`), then ``calls`` calls: their median
+    answer time, success and the node's memory growth (module docstring).
     """
     import statistics
     from mech_balance import schema as scene_mod
@@ -203,14 +187,14 @@ def identify_stamps_section(args, progress, seconds=None, calls=ID_CALLS):
     probe = NodeProbe(name, ID_RATE_HZ, f'/identify{os.getpid()}', ('mode:=follow',),
                       label='identify')
     try:
-        feed = _SensorFeed(probe)
+        feed = SensorFeed(probe)
         feed.limit_ns = int(t_ns[-1])
         probe.spin_for(START_TIMEOUT_S, lambda: feed.matched() or probe.proc.poll() is not None)
         if not feed.matched():
             return '\n'.join([head, 'not measured: the node did not start or its endpoints '
                               'did not match'])
         pid = probe.proc.pid
-        rss0 = _status_kb(pid, 'VmRSS')
+        rss0 = status_bytes(pid)
         progress('    streaming ...')
         a = int(0.3 * t_ns.size)
         t0 = time.perf_counter()
@@ -222,10 +206,10 @@ def identify_stamps_section(args, progress, seconds=None, calls=ID_CALLS):
         if locked is not None:
             return '\n'.join([head, f'FAIL: no residual for the stamp {locked * 1e-9:.3f} s '
                               f'within {ID_WAIT_S:g} s (the sensor path locked)'])
-        rss1 = _status_kb(pid, 'VmRSS')
+        rss1 = status_bytes(pid)
         progress('    ~/identify ...')
         answers = [feed.call_identify() for _ in range(calls)]
-        rss2, hwm = _status_kb(pid, 'VmRSS'), _status_kb(pid, 'VmHWM')
+        rss2, hwm = status_bytes(pid), status_bytes(pid, 'VmHWM')
     finally:
         probe.close(timeout=30)
     median = statistics.median(s for s, _, _ in answers)

@@ -1,58 +1,12 @@
 """
 ``mech-balance bench --compare mujoco``: this package against MuJoCo, side by side.
 
-Only this module and :mod:`.mujoco_spatial` import :mod:`mujoco` (an optional benchmark
-dependency: ``make bench-mujoco`` installs a pinned version); without it the command prints
-how to install it and exits with status 2.
-
-The MuJoCo model of a planar rig (:class:`MujocoRig`)
-    The linkage's own spanning tree
-    (:class:`~mech_balance.core.planar.kinematics.Linkage`): one body per link with a hinge
-    about z to its tree parent (body frame at that joint, so hinge angle = this package's
-    relative joint coordinate), mass properties as ``inertial`` (mass, centre
-    of mass, ``diaginertia`` about it: the planar moment about z; the x and y moments only
-    matter for out-of-plane motion, which never happens), no geoms (no contacts), no joint
-    limits, gravity off.  Every cut joint closes its loop with a ``connect`` equality between
-    two sites, one on each link at the joint point.
-
-What MuJoCo's inverse dynamics gives for a closed loop, and the rigid forces
-    ``mj_inverse`` computes constraint forces from MuJoCo's *soft* constraint model:
-    ``f = -R^-1 (J qacc + Jdot qvel - aref)`` (Computation chapter, "Inverse dynamics").  For
-    a motion that satisfies the loop closure exactly (positions, velocities and
-    accelerations imposed from a rigid solution) the bracket is zero, so ``efc_force`` is
-    round-off (1e-12 N here, larger for stiffer ``solref``/``solimp``, which only amplify the
-    round-off) and ``qfrc_inverse`` carries ``M qacc + c`` on *every* joint, passive ones
-    included.  No option changes that (solref, solimp, noslip only shape the soft model and
-    the forward solver).  The rigid loop forces follow exactly from MuJoCo's own outputs: the
-    passive joints carry no applied torque, so ``J_u^T lambda = (qfrc_inverse +
-    qfrc_constraint)_u`` over their columns of ``efc_J`` (the x and y rows of each connect;
-    its z row is identically zero in a planar rig), and the driving torque is the crank
-    column's remainder ``qfrc_crank - J_crank^T lambda``.  ``lambda`` written to
-    ``efc_force`` then feeds ``mj_rnePostConstraint``, whose ``cfrc_int`` (wrench from the
-    tree parent) of the bodies hinged to the world, plus the connect forces to the world,
-    is the load on the frame.  The shaking wrench is its reaction about the crank pivot
-    (:mod:`mech_balance.conventions`).
-
-The spatial built-ins (printed after the planar part)
-    :mod:`mech_balance.bench.mujoco_spatial`: the same comparison for ``kind: spatial``
-    (the rig's spanning tree of hinges, slides and balls, ``connect`` at its spherical cut
-    joints, the package's S-S spin convention), bearing reactions included.
-
-What is timed, per crank angle (printed with the results)
-    full pipeline
-        this package: :meth:`~mech_balance.analysis.cycle.Rig.evaluate` of all angles at once
-        (Newton from the branch predictor with its residual and condition number per angle,
-        velocities, accelerations, driving torque, every bearing reaction, shaking wrench);
-        MuJoCo: a Python loop over the angles: Newton on the connect residual (``mj_kinematics``,
-        ``mj_comPos``, ``mj_makeConstraint``: ``efc_pos``, ``efc_J``; numpy solve) from a
-        Taylor predictor off the previous angle, velocities from ``efc_J``, accelerations with
-        ``mj_comVel`` and ``mj_jacDot``, ``mj_inverse``, the rigid multipliers (numpy solve),
-        ``mj_rnePostConstraint`` and the frame load.
-    dynamics alone (positions, velocities and accelerations imposed from this package)
-        this package: :func:`~mech_balance.core.planar.dynamics.inverse_dynamics`; MuJoCo:
-        ``mj_inverse`` per angle (qpos, qvel, qacc copied in), and separately the same plus
-        what it takes to get the same outputs (rigid multipliers, ``mj_rnePostConstraint``,
-        frame load).
+The planar rigs here (:class:`MujocoRig`: the spanning tree of hinges, ``connect`` at the cut
+joints), then the spatial built-ins (:mod:`mech_balance.bench.mujoco_spatial`); the models,
+how the rigid loop forces follow from ``mj_inverse``'s outputs and what is timed:
+docs/benchmarks.md#the-mujoco-models-in-detail.  :mod:`mujoco` is an optional benchmark
+dependency (``make bench-mujoco``); without it the command prints how to install it and
+exits with status 2.
 """
 
 import math
@@ -64,7 +18,8 @@ from mech_balance import schema as scene_mod
 from mech_balance.analysis import cycle as analysis
 from mech_balance.bench import chains as chain
 from mech_balance.bench.core import peak_bytes
-from mech_balance.bench.mujoco_spatial import worst as _worst
+from mech_balance.bench.mujoco_model import agreement, agreement_rows, import_mujoco, mjcf, \
+    MujocoMissing, MujocoModel, relative_difference, solve, TIMED, us_rows, worst, xml_numbers
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar import dynamics, kinematics
 import numpy as np
@@ -73,8 +28,6 @@ AGREEMENT_TOL = 1e-9
 """Largest relative difference (to the cycle's peak) accepted between the two engines."""
 SPEEDUP_GOAL = 20.0
 """This package's full pipeline must be at least this many times faster than MuJoCo's."""
-MUJOCO_PIN = '4.0.0'
-"""The MuJoCo version the comparison was written and checked against."""
 MUJOCO_REPEAT_DIVISOR = 5
 """MuJoCo's per-angle Python loop is timed ``repeat / this`` times (at least 5)."""
 CHAIN_LOOPS = (1, 3, 4, 9, 19)
@@ -94,39 +47,9 @@ EXIT_DISAGREE = 1
 """Exit status of ``--compare mujoco`` when an agreement figure is above AGREEMENT_TOL."""
 EXIT_TARGET_FAILED = 3
 """Exit status of ``--compare mujoco`` when a timing target printed FAIL (as ``bench``)."""
-INSTALL_HINT = (f'mech-balance bench --compare mujoco: the optional benchmark dependency '
-                f'"mujoco" is not installed; install it with `make bench-mujoco` (or '
-                f'`pip install mujoco=={MUJOCO_PIN}`)')
 
 
-class MujocoMissing(RuntimeError):
-    """MuJoCo is not installed."""
-
-
-def import_mujoco():
-    """Return the :mod:`mujoco` module or raise :class:`MujocoMissing`."""
-    try:
-        import mujoco
-    except ImportError as exc:
-        raise MujocoMissing(INSTALL_HINT) from exc
-    return mujoco
-
-
-def _f(x):
-    return repr(float(x))
-
-
-def _solve(a, b):
-    """Return the solution of a small dense system (Cramer's rule for 2 x 2, else LAPACK)."""
-    if a.shape[0] == 2:
-        (a00, a01), (a10, a11) = a.tolist()
-        b0, b1 = b.tolist()
-        det = a00 * a11 - a01 * a10
-        return np.array([(a11 * b0 - a01 * b1) / det, (a00 * b1 - a10 * b0) / det])
-    return np.linalg.solve(a, b)
-
-
-class MujocoRig:
+class MujocoRig(MujocoModel):
     """A planar rig as a MuJoCo model: hinge tree plus ``connect`` loop closures."""
 
     def __init__(self, rig):
@@ -140,28 +63,18 @@ class MujocoRig:
         if any(sc.gravity_m_s2):
             raise ValueError(f'scene {sc.name!r}: gravity_m_s2 is {list(sc.gravity_m_s2)}, '
                              'expected [0, 0] for the MuJoCo comparison')
-        self.xml = self._mjcf(sc)
-        mj = self.mj
-        self.model = mj.MjModel.from_xml_string(self.xml)
-        self.data = mj.MjData(self.model)
-        m = self.model
+        self.xml, self.cut_sign = self._mjcf(sc)
+        self.model = m = self.mj.MjModel.from_xml_string(self.xml)
+        self.data = self.mj.MjData(m)
         self.dof = np.array([m.jnt_dofadr[m.joint(f't{t}').id] for t in range(lk.nt)])
         self.crank = int(self.dof[0])
         self.passive = self.dof[1:]
-        ncut = len(lk.cuts)
-        self.rows = np.array([3 * k + r for k in range(ncut) for r in (0, 1)])
-        self.site1 = [m.site(f'cut{k}_1').id for k in range(ncut)]
-        self.site2 = [m.site(f'cut{k}_2').id for k in range(ncut)]
-        self.body1 = [int(m.site_bodyid[s]) for s in self.site1]
-        self.body2 = [int(m.site_bodyid[s]) for s in self.site2]
-        self.roots = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0]
-        self.world_cuts = [k for k, b in enumerate(self.body2) if b == 0]
+        self.rows = np.array([3 * k + r for k in range(len(lk.cuts)) for r in (0, 1)])
+        self._find_cuts(len(lk.cuts))
         self.pivot = np.array([lk.pivot.real, lk.pivot.imag, 0.0])
         self.length = lk.length_scale
-        self._jac1 = np.zeros((3, m.nv))
-        self._jac2 = np.zeros((3, m.nv))
-
-    # ------------------------------------------------------------------ model
+        self.crank_qpos, self.max_iter = self.crank, NEWTON_MAX_ITER
+        self.tol = NEWTON_TOL * self.length
 
     def _mjcf(self, sc):
         lk = self.linkage
@@ -170,49 +83,24 @@ class MujocoRig:
         for tj in lk.tree:
             offset[tj.child] = tj.p_child
         links = {i + 1: link for i, link in enumerate(sc.links)}
-        children = {b: [] for b in range(lk.nb)}
-        for t, tj in enumerate(lk.tree):
-            children[tj.parent].append((t, tj))
-        # cut k: site 1 on the moving end (body b unless b is the frame), site 2 on the other
-        self.cut_sign = []
-        sites = {b: [] for b in range(lk.nb)}
-        for k, cut in enumerate(lk.cuts):
-            ends = [(cut.b, cut.p_b), (cut.a, cut.p_a)]
-            if cut.b == 0:
-                ends.reverse()
-            self.cut_sign.append(1.0 if ends[0][0] == cut.b else -1.0)
-            for n, (body, point) in enumerate(ends, start=1):
-                pos = point - offset[body]
-                sites[body].append(f'<site name="cut{k}_{n}" pos="{_f(pos.real)} '
-                                   f'{_f(pos.imag)} 0"/>')
 
-        def body(t, tj, pad):
-            c = tj.child
-            link = links[c]
+        def site(body, point):
+            pos = point - offset[body]
+            return xml_numbers(pos.real, pos.imag, 0)
+
+        def body(t, tj):
+            link = links[tj.child]
             pos = tj.p_parent - offset[tj.parent]
-            com = complex(*link.com_m) - offset[c]
-            inertia = _f(link.inertia_com_kg_m2)
-            text = [f'{pad}<body name="{lk.body_names[c]}" pos="{_f(pos.real)} '
-                    f'{_f(pos.imag)} 0">',
-                    f'{pad}  <joint name="t{t}" type="hinge" axis="0 0 1"/>',
-                    f'{pad}  <inertial pos="{_f(com.real)} {_f(com.imag)} 0" '
-                    f'mass="{_f(link.mass_kg)}" diaginertia="{inertia} {inertia} {inertia}"/>']
-            text += [pad + '  ' + s for s in sites[c]]
-            for t2, tj2 in children[c]:
-                text += body(t2, tj2, pad + '  ')
-            return text + [f'{pad}</body>']
+            com = complex(*link.com_m) - offset[tj.child]
+            return (f'<body name="{lk.body_names[tj.child]}" '
+                    f'pos="{xml_numbers(pos.real, pos.imag, 0)}">',
+                    f'<joint name="t{t}" type="hinge" axis="0 0 1"/>',
+                    f'<inertial pos="{xml_numbers(com.real, com.imag, 0)}" '
+                    f'mass="{xml_numbers(link.mass_kg)}" '
+                    f'diaginertia="{xml_numbers(*[link.inertia_com_kg_m2] * 3)}"/>')
 
-        lines = ['<mujoco model="mech_balance">',
-                 '  <option gravity="0 0 0" jacobian="dense"/>',
-                 '  <worldbody>']
-        lines += ['    ' + s for s in sites[0]]
-        for t, tj in children[0]:
-            lines += body(t, tj, '    ')
-        lines += ['  </worldbody>', '  <equality>']
-        lines += [f'    <connect name="{cut.name}" site1="cut{k}_1" site2="cut{k}_2"/>'
-                  for k, cut in enumerate(lk.cuts)]
-        lines += ['  </equality>', '</mujoco>']
-        return '\n'.join(lines)
+        return mjcf('mech_balance', lk, [(c.name, c.b, site(c.b, c.p_b), c.a, site(c.a, c.p_a))
+                                         for c in lk.cuts], body)
 
     # ------------------------------------------------------------------ per angle
 
@@ -239,7 +127,7 @@ class MujocoRig:
         mj, m, d = self.mj, self.model, self.data
         # M qacc + c = tau e_crank + J^T lambda; the passive joints have no applied torque
         gen = d.qfrc_inverse + d.qfrc_constraint
-        lam = _solve(jac[:, self.passive].T, gen[self.passive])
+        lam = solve(jac[:, self.passive].T, gen[self.passive])
         tau = float(gen[self.crank] - jac[:, self.crank] @ lam)
         d.efc_force[:] = 0.0
         d.efc_force[self.rows] = lam
@@ -272,105 +160,58 @@ class MujocoRig:
         ``q``, ``qd``, ``qdd`` are this package's tree coordinates ``(nt, p)``.  Also returns
         the cut-joint forces ``(ncut, p)`` (on the joint's link b from its link a).
         """
-        mj, m, d = self.mj, self.model, self.data
         p = q.shape[1]
-        qpos, qvel, qacc = (self.to_dofs(x) for x in (q, qd, qdd))
         tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
         cut = np.empty((len(self.site1), p), dtype=complex)
-        for i in range(p):
-            d.qpos[:] = qpos[i]
-            d.qvel[:] = qvel[i]
-            d.qacc[:] = qacc[i]
-            mj.mj_inverse(m, d)
+
+        def rigid(i):
             tau[i], lam, fsh[i], nsh[i] = self._rigid(self._jacobian())
             cut[:, i] = (lam[0::2] + 1j * lam[1::2]) * self.cut_sign
+        self._inverse(*(self.to_dofs(x) for x in (q, qd, qdd)), rigid)
         return tau, fsh, nsh, cut
 
-    def inverse_only(self, qpos, qvel, qacc):
-        """Run ``mj_inverse`` at every angle of ``(p, nv)`` dof arrays (the timed kernel)."""
-        mj, m, d = self.mj, self.model, self.data
-        for i in range(qpos.shape[0]):
-            d.qpos[:] = qpos[i]
-            d.qvel[:] = qvel[i]
-            d.qacc[:] = qacc[i]
-            mj.mj_inverse(m, d)
-
     def to_dofs(self, x):
+        """Return this package's tree coordinates ``(nt, p)`` as MuJoCo dofs ``(p, nv)``."""
         out = np.empty((x.shape[1], self.model.nv))
         out[:, self.dof] = x.T
         return out
+
+    def _closure(self):
+        """Return the connect rows' residual (m) and Jacobian at ``data.qpos``."""
+        mj, m, d = self.mj, self.model, self.data
+        mj.mj_kinematics(m, d)
+        mj.mj_comPos(m, d)
+        mj.mj_makeConstraint(m, d)
+        return d.efc_pos[self.rows], self._jacobian()
 
     def full(self, psi, speed, accel, q_start):
         """
         Return MuJoCo's own solution over crank angles ``psi``, one angle at a time.
 
-        Positions by Newton on the connect residual from a Taylor predictor off the
-        previous angle (the first from ``q_start``, this package's tree coordinates there),
-        then velocities, accelerations and the rigid inverse dynamics.  Returns ``(tau,
-        f_sh, n_sh, q, residual, iterations)``; ``q`` in this package's tree order.
+        The first angle's Newton starts from ``q_start`` (this package's tree coordinates).
+        Returns ``(tau, f_sh, n_sh, q, residual, iterations)``; ``q`` in this package's tree
+        order.
         """
-        mj, m, d = self.mj, self.model, self.data
         p = psi.size
-        crank, passive = self.crank, self.passive
-        tol = NEWTON_TOL * self.length
         tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
-        q_out, res_out, iters = np.empty((p, m.nv)), np.empty(p), np.zeros(p, dtype=int)
-        qpos = np.zeros(m.nv)
-        qpos[self.dof] = q_start
-        slope, curve = np.zeros(m.nv), np.zeros(m.nv)
-        qvel, qacc = np.zeros(m.nv), np.zeros(m.nv)
-        qvel[crank], qacc[crank] = speed, accel
-        for i in range(p):
-            if i:
-                h = psi[i] - psi[i - 1]
-                qpos += h * slope + 0.5 * h * h * curve
-            qpos[crank] = psi[i]
-            for it in range(NEWTON_MAX_ITER + 1):
-                d.qpos[:] = qpos
-                mj.mj_kinematics(m, d)
-                mj.mj_comPos(m, d)
-                mj.mj_makeConstraint(m, d)
-                r = d.efc_pos[self.rows]
-                res = max(map(abs, r.tolist()))
-                jac = self._jacobian()
-                if not res > tol or it == NEWTON_MAX_ITER:
-                    break
-                qpos[passive] -= _solve(jac[:, passive], r)
-                iters[i] += 1
-            res_out[i] = res / self.length
-            j_u, j_c = jac[:, passive], jac[:, crank]
-            qvel[passive] = _solve(j_u, -speed * j_c)
-            d.qvel[:] = qvel
-            mj.mj_comVel(m, d)
-            qacc[passive] = _solve(j_u, -accel * j_c - self._bias(qvel))
-            d.qacc[:] = qacc
-            mj.mj_inverse(m, d)
+
+        def rigid(i):
             tau[i], _, fsh[i], nsh[i] = self._rigid(self._jacobian())
-            q_out[i] = qpos
-            slope[:] = qvel / speed             # dq/dpsi and d2q/dpsi2 for the predictor
-            curve[:] = (qacc - slope * accel) / speed ** 2
-        return tau, fsh, nsh, q_out[:, self.dof].T, res_out, iters
+        qpos = np.zeros(self.model.nv)
+        qpos[self.dof] = q_start
+        q, res, iters = self._solution(psi, speed, accel, (psi, speed, accel), qpos, rigid)
+        return tau, fsh, nsh, q[:, self.dof].T, res / self.length, iters
 
 
 # ---------------------------------------------------------------------------- comparison
-
-
-def relative_difference(ours, theirs):
-    """Return max |theirs - ours| / max |ours| over the cycle (vectors: magnitudes)."""
-    ours, theirs = np.asarray(ours), np.asarray(theirs)
-    scale = float(np.max(np.abs(ours)))
-    return float(np.max(np.abs(theirs - ours))) / (scale if scale > 0.0 else 1.0)
 
 
 def interleaved_rounds(fns, rounds=TIMING_ROUNDS, warmup=2):
     """
     Return, per ``(function, runs)``, its round medians of wall time (a list of ``rounds``).
 
-    The functions are timed in interleaved warm blocks: each round runs every function in
-    turn, one untimed call (it warms the caches the others used) and then a block of
-    ``ceil(runs / rounds)`` timed calls, whose median is the round's.  Both engines so see
-    the same load; the figure is the median of the round medians (:func:`_interleaved_medians`)
-    and the rounds' spread says how steady the machine was.
+    Each round runs every function in turn: one untimed call, then ``ceil(runs / rounds)``
+    timed ones (docs/benchmarks.md#the-mujoco-models-in-detail).
     """
     for fn, _ in fns:
         for _ in range(warmup):
@@ -418,17 +259,12 @@ def compare(sc, samples=360, repeat=50, progress=None):
     tau, fsh, nsh, cut = mjr.dynamics(state.q, state.qd, state.qdd)
     ours_cut = np.array([w.reaction_force[c.name] for c in lk.cuts])
     tau2, fsh2, nsh2, q2, res2, it2 = mjr.full(psi, speed, accel, state.q[:, 0])
+    ours = (w.driving_torque, w.shaking_force, w.shaking_moment)
     out = {
         'scene': sc.name, 'links': len(sc.links), 'joints': len(sc.joints),
         'loops': len(lk.cuts), 'samples': samples,
-        'agreement_imposed': {
-            'driving torque': relative_difference(w.driving_torque, tau),
-            'shaking force': relative_difference(w.shaking_force, fsh),
-            'shaking moment': relative_difference(w.shaking_moment, nsh)},
-        'agreement_own': {
-            'driving torque': relative_difference(w.driving_torque, tau2),
-            'shaking force': relative_difference(w.shaking_force, fsh2),
-            'shaking moment': relative_difference(w.shaking_moment, nsh2)},
+        'agreement_imposed': agreement(ours, (tau, fsh, nsh)),
+        'agreement_own': agreement(ours, (tau2, fsh2, nsh2)),
         'cut_forces': relative_difference(ours_cut, cut),
         'positions': float(np.max(np.abs(q2 - state.q))),
         'mujoco_residual': float(np.max(res2)), 'mujoco_iterations': float(np.mean(it2)),
@@ -447,10 +283,9 @@ def compare(sc, samples=360, repeat=50, progress=None):
         (lambda: mjr.inverse_only(qpos, qvel, qacc), slow),
         (lambda: mjr.dynamics(state.q, state.qd, state.qdd), slow),
     ]
-    names = ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse', 'mj_dyn')
     rounds = interleaved_rounds(fns)
-    out['us'] = {n: statistics.median(r) * 1e6 / samples for n, r in zip(names, rounds)}
-    out['us_rounds'] = {n: [x * 1e6 / samples for x in r] for n, r in zip(names, rounds)}
+    out['us'] = {n: statistics.median(r) * 1e6 / samples for n, r in zip(TIMED, rounds)}
+    out['us_rounds'] = {n: [x * 1e6 / samples for x in r] for n, r in zip(TIMED, rounds)}
     out['repeats'] = (repeat, slow)
     out['peak_bytes'] = peak_bytes(lambda: rig.evaluate(psi))
     return out
@@ -466,47 +301,28 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
         f'{rep} runs (MuJoCo: {slow}): the median of {TIMING_ROUNDS} round medians, the '
         'engines timed in interleaved warm blocks',
         '',
-        'timed, per crank angle:',
-        '  full pipeline   mech_balance: Rig.evaluate on all angles at once (Newton from the '
-        'branch predictor,',
-        '                  residual and condition number per angle; velocities, '
-        'accelerations, driving torque,',
-        '                  every bearing reaction, shaking wrench)',
-        '                  MuJoCo: Python loop over angles: Newton on efc_pos/efc_J '
-        '(mj_kinematics, mj_comPos,',
-        '                  mj_makeConstraint, numpy solve), velocities, accelerations '
-        '(mj_comVel, mj_jacDot), mj_inverse,',
-        '                  rigid multipliers (numpy solve), mj_rnePostConstraint, '
-        'frame load from cfrc_int',
-        '  dynamics alone  motion imposed from mech_balance; mech_balance: '
-        'dynamics.inverse_dynamics (same outputs);',
-        '                  MuJoCo: mj_inverse per angle (qpos, qvel, qacc copied in); '
-        '"+ rigid": also the multipliers,',
-        '                  mj_rnePostConstraint and the frame load, i.e. the same outputs',
+        'timed, per crank angle: the full pipeline (mech_balance: Rig.evaluate on all angles at '
+        'once; MuJoCo: a Python loop',
+        'of Newton, rates, mj_inverse, rigid multipliers and frame load) and the dynamics alone '
+        '(motion imposed from',
+        'mech_balance; "+ rigid": the same outputs): docs/benchmarks.md#the-mujoco-models-in-'
+        'detail',
         '',
         f'{hoeken["scene"]} (seed 001 Table 1): {hoeken["links"]} moving links, '
         f'{hoeken["joints"]} joints, {hoeken["loops"]} loop',
         '  agreement, max |MuJoCo - mech_balance| / max |mech_balance| over the cycle:',
-        f'  {"":<18}{"imposed motion":>16}{"MuJoCo kinematics":>20}',
+        *agreement_rows(hoeken),
     ]
-    for q in ('driving torque', 'shaking force', 'shaking moment'):
-        lines.append(f'  {q:<18}{hoeken["agreement_imposed"][q]:>16.1e}'
-                     f'{hoeken["agreement_own"][q]:>20.1e}')
-    worst = _worst(hoeken)
+    hoeken_worst = worst(hoeken)
     lines += [
         f'  {"cut joint forces":<18}{hoeken["cut_forces"]:>16.1e}',
-        f'  -> {"PASS" if worst <= AGREEMENT_TOL else "FAIL"} (worst {worst:.1e}, '
+        f'  -> {"PASS" if hoeken_worst <= AGREEMENT_TOL else "FAIL"} (worst {hoeken_worst:.1e}, '
         f'limit {AGREEMENT_TOL:.0e}); MuJoCo Newton: residual {hoeken["mujoco_residual"]:.1e}, '
         f'{hoeken["mujoco_iterations"]:.2f} iterations/angle; positions differ by '
         f'{hoeken["positions"]:.1e} rad',
         '  us per crank angle:',
         f'  {"":<26}{"mech_balance":>14}{"MuJoCo":>12}{"ratio":>10}',
-        f'  {"full pipeline":<26}{us["ours_full"]:>14.3f}{us["mj_full"]:>12.2f}'
-        f'{us["mj_full"] / us["ours_full"]:>9.1f}x',
-        f'  {"dynamics alone":<26}{us["ours_dyn"]:>14.3f}{us["mj_inverse"]:>12.2f}'
-        f'{us["mj_inverse"] / us["ours_dyn"]:>9.1f}x   (mj_inverse)',
-        f'  {"dynamics, same outputs":<26}{us["ours_dyn"]:>14.3f}{us["mj_dyn"]:>12.2f}'
-        f'{us["mj_dyn"] / us["ours_dyn"]:>9.1f}x   (mj_inverse + rigid)',
+        *us_rows(us, 26, 'mj_inverse + rigid'),
         f'  -> full pipeline {us["mj_full"] / us["ours_full"]:.1f}x faster '
         f'({"PASS" if us["mj_full"] >= SPEEDUP_GOAL * us["ours_full"] else "FAIL"}: '
         f'>= {SPEEDUP_GOAL:g}x); dynamics alone '
@@ -526,11 +342,11 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
         lines.append(f'  {r["links"] + 1:>5}{r["links"]:>7}{r["loops"]:>6} |'
                      f'{u["ours_full"]:>11.3f}{u["ours_dyn"]:>11.3f}{"":>6}|'
                      f'{u["mj_full"]:>10.2f}{u["mj_inverse"]:>12.2f}{"":>7}|'
-                     f'{u["mj_full"] / u["ours_full"]:>6.1f}x |{_worst(r):>10.1e}'
+                     f'{u["mj_full"] / u["ours_full"]:>6.1f}x |{worst(r):>10.1e}'
                      f'{r.get("peak_bytes", 0) / 2 ** 20:>9.2f}'
                      + ('' if r['scene'].startswith('dyad_chain') else f'  {r["scene"]}'))
     every = [hoeken] + list(chains) + list(extras)
-    worst_all = float(np.max([_worst(r) for r in every]))
+    worst_all = float(np.max([worst(r) for r in every]))
     lines.append(f'  agreement over all {len(every)} rigs (both motions, torque, shaking force '
                  f'and moment): worst {worst_all:.1e} -> '
                  f'{"PASS" if worst_all <= AGREEMENT_TOL else "FAIL"}')
@@ -576,8 +392,7 @@ def run(samples=360, repeat=50, progress=print, loops=CHAIN_LOOPS):
     """
     Return ``(hoeken, chains, extras, version)``: :func:`compare` of each rig.
 
-    ``chains`` are the generated chains with ``loops`` loops, ``extras`` the carpet scraper
-    (seed 001 Table 8, 7 moving links) as a paper rig of the same size as the 8-link chain.
+    ``chains``: the generated chains of ``loops`` loops; ``extras``: the carpet scraper.
     """
     mujoco = import_mujoco()
     progress('  comparing hoeken ...')
@@ -591,14 +406,13 @@ def run(samples=360, repeat=50, progress=print, loops=CHAIN_LOOPS):
     return hoeken, chains, extras, mujoco.__version__
 
 
-def cmd_compare(args):
-    """Run ``mech-balance bench --compare mujoco``; return the exit status."""
+def cmd_compare(args, progress):
+    """Run ``mech-balance bench --compare mujoco`` (``progress(text)``); return the status."""
     try:
         import_mujoco()
     except MujocoMissing as exc:
         print(str(exc), file=sys.stderr)
         return EXIT_MISSING
-    progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     hoeken, chains, extras, version = run(args.samples, args.repeat, progress)
     printed = [format_report(hoeken, chains, version, extras)]
     print(printed[-1], flush=True)
@@ -609,16 +423,10 @@ def cmd_compare(args):
     printed.append(mujoco_spatial.format_report(spatial, AGREEMENT_TOL))
     print(printed[-1], flush=True)
     # exit 1 when the two disagree (a correctness failure), 3 when a timing target FAILs
-    worst = float(np.max([_worst(r) for r in [hoeken, *chains, *extras, *spatial]]))
-    if not worst <= AGREEMENT_TOL:
+    worst_all = float(np.max([worst(r) for r in [hoeken, *chains, *extras, *spatial]]))
+    if not worst_all <= AGREEMENT_TOL:
         print(f'mech-balance bench --compare mujoco: the models disagree (worst relative '
-              f'difference {worst:.1e} > {AGREEMENT_TOL:.0e})', file=sys.stderr)
+              f'difference {worst_all:.1e} > {AGREEMENT_TOL:.0e})', file=sys.stderr)
         return EXIT_DISAGREE
-    failed = settle.failures('\n'.join(printed))
-    if failed:
-        print(f'mech-balance bench --compare mujoco: {len(failed)} target(s) FAILED:',
-              file=sys.stderr)
-        for line in failed:
-            print(f'  {line}', file=sys.stderr)
-        return EXIT_TARGET_FAILED
-    return 0
+    failed = settle.report_failures('mech-balance bench --compare mujoco', printed)
+    return EXIT_TARGET_FAILED if failed else 0

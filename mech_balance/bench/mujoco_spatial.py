@@ -1,72 +1,14 @@
 """
 The spatial part of ``mech-balance bench --compare mujoco``: the spatial built-ins in MuJoCo.
 
-The MuJoCo model of a spatial rig (:class:`SpatialMujocoRig`)
-    The rig's own spanning tree (:class:`~mech_balance.core.spatial.kinematics.Linkage`,
-    breadth first from the frame, crank first): one body per link, its MuJoCo frame *the
-    link's own axes* (origin and axes of the scene's link), placed in its tree parent at the
-    package's zero of the tree joint (``R = Z``, ``p = s_parent - Z s_child``), the joint at
-    the child's joint point.  Revolute: a hinge about ``Z^T a``; prismatic: a slide along
-    ``F^T a`` (``F`` the fixed rotation ``Rot(a, angle) Z``); cylindrical: hinge then slide
-    about/along ``Z^T a``; universal: two hinges, ``U^T a`` then the child's axis (MuJoCo
-    composes a body's joints from the right, ``R = R_p U Rot(U^T a, q1) Rot(b, q2)``, which
-    is the package's ``Rot(a, q1) U Rot(b, q2)``); spherical: a ball (quaternion = the
-    package's relative rotation).  Every hinge and slide value is then the package's tree
-    coordinate itself; a ball's velocity is the relative angular velocity in the child's axes
-    (``M^T`` times the package's, which is in the parent's), its acceleration the rate of
-    that.  Mass properties: ``inertial`` with ``pos`` = mass centre and ``fullinertia`` =
-    the scene's six numbers (link axes, about the mass centre; MuJoCo diagonalizes it).  No
-    geoms, no limits, gravity as the scene has it (none: the spatial kind has no gravity).
-
-Cut joints
-    The built-ins' trees cut only spherical joints (each loop closes at a ball), so every cut
-    joint is a ``connect`` equality between a site on its link b (site 1) and one on its
-    link a (site 2) at the joint point.  A scene that cuts any other joint type is refused
-    here (its closure would need ``weld``-type rows, not implemented).
-
-Idle freedoms (an S-S coupler's spin about the line through its balls)
-    The package fixes the spin by a convention row ``(R v) . n = 0`` and requires the link's
-    inertia about the line to be zero (a slender rod).  MuJoCo's compiler refuses a moving
-    body with a zero principal moment, so such a link is compiled with a placeholder
-    ``fullinertia = I + delta u u^T`` (u the principal axis of the zero moment) and the
-    compiled ``body_inertia`` is then set to the scene's tensor in MuJoCo's principal axes
-    ``body_iquat`` (which also diagonalize the scene's: u is an eigenvector of both, the
-    zero moment comes back exactly); :attr:`inertia_error`
-    reports the largest difference between MuJoCo's inertia tensor and the scene's.  The
-    mass matrix is then singular in the spin direction, which ``mj_inverse`` does not need
-    (``M qacc`` is a product).  With imposed motion the spin is the package's; MuJoCo's own
-    kinematics adds the same row (its vectors read from the compiled linkage).
-
-Rigid multipliers, driving effort, reactions, shaking wrench (as the planar comparison)
-    ``gen = qfrc_inverse + qfrc_constraint = M qacc + c``; the passive dofs carry no applied
-    force, so ``J_u^T lambda = gen_u`` over the passive columns of ``efc_J`` with the spin
-    convention's rows below it (square, as the package's system: the spin row's multiplier
-    ``mu`` is the moment the convention would have to exert about the S-S line, zero for a
-    link without inertia about it; :func:`compare` reports its largest value),
-    ``tau = gen_crank - J_crank^T (lambda, mu)``.  ``lambda`` written to ``efc_force``
-    feeds ``mj_rnePostConstraint``: ``cfrc_int`` of a body is the wrench on it from its tree
-    parent (about the subtree centre of mass of its root), which gives the tree joints'
-    reactions (moment moved to the joint point on the scene's link b, as the package
-    reports it - a cylindrical or prismatic joint's two points part along its axis, and
-    ``xanchor`` is a slide's zero position; negated for a tree joint whose child is the
-    scene's link a); the connect forces are the cut joints' reactions.  The load
-    on the frame is ``cfrc_int`` of the bodies hinged to the world plus the connect forces of
-    cuts to the world; the shaking wrench is its reaction, the moment about the scene's
-    ``moment_point_m``.
-
-What is timed, per crank angle (as the planar comparison)
-    mech_balance: the full pipeline is :meth:`SpatialRig.evaluate` of all angles at once
-    (every output: kinematics, shaking wrench, driving effort, bearing reactions); dynamics
-    alone is :func:`~mech_balance.core.spatial.dynamics.inverse_dynamics` of the solved
-    state (its per-state caches cleared before each run).  MuJoCo: the full pipeline is a
-    Python loop over the angles (Newton on the connect and spin rows from a Taylor
-    predictor, velocities, accelerations with ``mj_comVel`` and ``mj_jacDot``,
-    ``mj_inverse``, the multipliers, ``mj_rnePostConstraint``, every reaction and the
-    frame load); ``mj_inverse`` alone with the package's motion copied in; and the same
-    plus the multipliers, reactions and frame load (the same outputs).
+:class:`SpatialMujocoRig`: the rig's own spanning tree (hinges, slides, balls in the links'
+own axes), ``connect`` at its spherical cut joints, the package's S-S spin convention, every
+bearing reaction; the details: docs/benchmarks.md#the-mujoco-models-in-detail.
 """
 
 from mech_balance import schema as scene_mod
+from mech_balance.bench.mujoco_model import agreement, agreement_rows, import_mujoco, mjcf, \
+    MujocoModel, norms, relative_difference, TIMED, us_rows, worst, xml_numbers
 from mech_balance.conventions import cycle_angles
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial import dynamics as sdyn
@@ -85,41 +27,23 @@ ZERO_MOMENT_RTOL = 1e-12
 """A principal moment below this fraction of the trace counts as zero (idle rods)."""
 
 
-def _f(x):
-    return repr(float(x))
-
-
-def _vec(v):
-    return ' '.join(_f(x) for x in v)
-
-
-def _norms(x):
-    return np.sqrt(np.sum(np.asarray(x) ** 2, axis=-1))
-
-
-def relative_difference(ours, theirs):
-    """Return max |theirs - ours| / max |ours| over the cycle (3-vectors: Euclidean norms)."""
-    ours, theirs = np.asarray(ours, dtype=float), np.asarray(theirs, dtype=float)
-    if ours.ndim >= 2 and ours.shape[-1] == 3:
-        scale, diff = float(np.max(_norms(ours))), float(np.max(_norms(theirs - ours)))
-    else:
-        scale, diff = float(np.max(np.abs(ours))), float(np.max(np.abs(theirs - ours)))
-    return diff / (scale if scale > 0.0 else 1.0)
-
-
 def _quat(mj, rot):
     q = np.empty(4)
     mj.mju_mat2Quat(q, np.ascontiguousarray(rot, dtype=float).ravel())
     return q
 
 
-class SpatialMujocoRig:
+def _rotation(mj, quat):
+    mat = np.empty(9)
+    mj.mju_quat2Mat(mat, quat)
+    return mat.reshape(3, 3)
+
+
+class SpatialMujocoRig(MujocoModel):
     """A spatial rig as a MuJoCo model: its spanning tree plus ``connect`` loop closures."""
 
     def __init__(self, rig, mj=None):
-        if mj is None:
-            import mujoco as mj  # the optional dependency (bench.mujoco tells how to get it)
-        self.mj = mj
+        self.mj = mj = mj or import_mujoco()
         self.rig = rig
         lk = self.linkage = rig.linkage
         sc = rig.scene
@@ -129,14 +53,12 @@ class SpatialMujocoRig:
                 f'scene {sc.name!r}: the spatial MuJoCo comparison closes loops at spherical '
                 f'cut joints only (connect equalities); the spanning tree cuts '
                 + ', '.join(f'{j.name} ({j.joint_type})' for j in bad))
-        self.xml, placeholders = self._mjcf(sc)
-        self.model = mj.MjModel.from_xml_string(self.xml)
-        m = self.model
-        for name, tensor in placeholders:   # zero principal moments (module docstring)
+        placeholders = []
+        self.xml, self.cut_sign = self._mjcf(sc, placeholders)
+        self.model = m = mj.MjModel.from_xml_string(self.xml)
+        for name, tensor in placeholders:   # zero principal moments (idle freedoms, docs)
             body = m.body(name).id
-            frame = np.empty(9)
-            mj.mju_quat2Mat(frame, m.body_iquat[body])
-            frame = frame.reshape(3, 3)
+            frame = _rotation(mj, m.body_iquat[body])
             m.body_inertia[body] = np.maximum(np.diag(frame.T @ tensor @ frame), 0.0)
         self.data = mj.MjData(self.model)
         self.warnings = self._first_inverse()
@@ -155,13 +77,10 @@ class SpatialMujocoRig:
                 self.dof_of[list(t.dofs)] = [m.jnt_dofadr[j] for j in ids]
         self.crank = int(self.dof_of[0])
         self.passive = np.array([d for d in range(m.nv) if d != self.crank])
+        self.crank_qpos = m.jnt_qposadr[self.tree_jnt[0][0]]
+        self.tol, self.max_iter = NEWTON_TOL, NEWTON_MAX_ITER
         ncut = len(lk.cut_joints)
-        self.site1 = [m.site(f'cut{k}_1').id for k in range(ncut)]
-        self.site2 = [m.site(f'cut{k}_2').id for k in range(ncut)]
-        self.body1 = [int(m.site_bodyid[s]) for s in self.site1]
-        self.body2 = [int(m.site_bodyid[s]) for s in self.site2]
-        self.roots = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0]
-        self.world_cuts = [k for k, b in enumerate(self.body2) if b == 0]
+        self._find_cuts(ncut)
         self.point = np.array(rig.moment_point_m, dtype=float)
         # the package's spin convention rows: (R_k v) . n = 0 (kinematics docstring)
         self.spins = [(m.body(lk.body_names[int(r.body_b[0])]).id, r.vec_b[0].copy(),
@@ -177,32 +96,19 @@ class SpatialMujocoRig:
             self.tree_reactions.append((t.name, c, int(m.body_rootid[c])) + on_b
                                        + (-1.0 if t.flipped else 1.0,))
         self.cut_names = [sc.joints[ji].name for ji in lk.cut_joints]
-        self._jac1 = np.zeros((3, m.nv))
-        self._jac2 = np.zeros((3, m.nv))
         self._jacr = np.zeros((3, m.nv))
 
     # ------------------------------------------------------------------ model
 
-    def _mjcf(self, sc):
+    def _mjcf(self, sc, placeholders):
+        """Return the MJCF and the cut signs; list ``(link, tensor)`` of zero moments."""
         lk = self.linkage
-        children = {b: [] for b in range(lk.nb)}
-        for i, t in enumerate(lk.tree):
-            children[t.parent].append((i, t))
         names = lk.body_names
-        sites = {b: [] for b in range(lk.nb)}
-        self.cut_sign = []
         body_of = {n: i for i, n in enumerate(names)}
-        for k, ji in enumerate(lk.cut_joints):
-            jt = sc.joints[ji]
-            ends = [(jt.link_b, jt.point_b), (jt.link_a, jt.point_a)]
-            if body_of[jt.link_b] == 0:
-                ends.reverse()
-            self.cut_sign.append(1.0 if ends[0][0] == jt.link_b else -1.0)
-            for n, (link, point) in enumerate(ends, start=1):
-                pos = lk._points[link][point]
-                sites[body_of[link]].append(f'<site name="cut{k}_{n}" pos="{_vec(pos)}"/>')
-        links = {lk_.name: lk_ for lk_ in sc.links}
-        placeholders = []
+        links = {link.name: link for link in sc.links}
+
+        def site(link, point):
+            return xml_numbers(*lk._points[link][point])
 
         def inertial(name):
             link = links[name]
@@ -216,57 +122,38 @@ class SpatialMujocoRig:
                 t2 = tensor + IDLE_PLACEHOLDER_RTOL * trace * (u @ u.T)
                 six = [t2[0, 0], t2[1, 1], t2[2, 2], t2[0, 1], t2[0, 2], t2[1, 2]]
                 placeholders.append((name, tensor))
-            return (f'<inertial pos="{_vec(link.com_m)}" mass="{_f(link.mass_kg)}" '
-                    f'fullinertia="{_vec(six)}"/>')
+            return (f'<inertial pos="{xml_numbers(*link.com_m)}" '
+                    f'mass="{xml_numbers(link.mass_kg)}" fullinertia="{xml_numbers(*six)}"/>')
 
-        def body(i, t, pad):
-            c = t.child
-            name = names[c]
+        def body(i, t):
             if t.joint_type == 'spherical':
-                rel, pos = np.eye(3), t.s_parent - t.s_child
+                rel, pos, kinds = np.eye(3), t.s_parent - t.s_child, [('ball', None)]
             else:
                 rel, pos = t.fixed, t.s_parent - t.fixed @ t.s_child
-            quat = _quat(self.mj, rel)
-            text = [f'{pad}<body name="{name}" pos="{_vec(pos)}" quat="{_vec(quat)}">']
-            jpos = _vec(t.s_child)
-            if t.joint_type == 'spherical':
-                kinds = [('ball', None)]
-            else:
                 local = t.fixed.T @ t.axis
                 kinds = {'revolute': [('hinge', local)], 'prismatic': [('slide', local)],
                          'cylindrical': [('hinge', local), ('slide', local)],
                          'universal': [('hinge', local), ('hinge', t.axis_child)]
                          }[t.joint_type]
-            for k, (kind, axis) in enumerate(kinds):
-                ax = '' if axis is None else f' axis="{_vec(axis)}"'
-                text.append(f'{pad}  <joint name="t{i}_{k}" type="{kind}" pos="{jpos}"{ax}/>')
-            text.append(pad + '  ' + inertial(name))
-            text += [pad + '  ' + s for s in sites[c]]
-            for i2, t2 in children[c]:
-                text += body(i2, t2, pad + '  ')
-            return text + [f'{pad}</body>']
+            joints = [f'<joint name="t{i}_{k}" type="{kind}" pos="{xml_numbers(*t.s_child)}"'
+                      + ('' if axis is None else f' axis="{xml_numbers(*axis)}"') + '/>'
+                      for k, (kind, axis) in enumerate(kinds)]
+            return (f'<body name="{names[t.child]}" pos="{xml_numbers(*pos)}" '
+                    f'quat="{xml_numbers(*_quat(self.mj, rel))}">', *joints,
+                    inertial(names[t.child]))
 
-        lines = ['<mujoco model="mech_balance_spatial">',
-                 '  <compiler angle="radian"/>',
-                 '  <option gravity="0 0 0" jacobian="dense"/>',
-                 '  <worldbody>']
-        lines += ['    ' + s for s in sites[0]]
-        for i, t in children[0]:
-            lines += body(i, t, '    ')
-        lines += ['  </worldbody>', '  <equality>']
-        lines += [f'    <connect name="{sc.joints[ji].name}" site1="cut{k}_1" site2="cut{k}_2"/>'
-                  for k, ji in enumerate(lk.cut_joints)]
-        lines += ['  </equality>', '</mujoco>']
-        return '\n'.join(lines), placeholders
+        cuts = [sc.joints[ji] for ji in lk.cut_joints]
+        return mjcf('mech_balance_spatial', lk, [
+            (j.name, body_of[j.link_b], site(j.link_b, j.point_b),
+             body_of[j.link_a], site(j.link_a, j.point_a)) for j in cuts], body,
+            header=('  <compiler angle="radian"/>',))
 
     def _first_inverse(self):
         """
         Run ``mj_inverse`` once at ``qpos0``; return MuJoCo's warnings (caught, not printed).
 
-        MuJoCo prints a warning the first time it meets it in an ``MjData``; a zero principal
-        moment (idle rod) makes ``mj_factorM`` warn that the mass matrix is singular, which
-        the inverse dynamics does not need.  Catching it here keeps the report clean; the
-        text is kept in :attr:`warnings`.
+        An idle rod's zero moment makes ``mj_factorM`` warn once that the mass matrix is
+        singular, which the inverse dynamics does not need.
         """
         mj = self.mj
         caught = []
@@ -281,18 +168,16 @@ class SpatialMujocoRig:
     def _inertia_error(self, sc):
         """Return max |I_MuJoCo - I_scene| / max |I_scene| over the links (link axes)."""
         mj, m = self.mj, self.model
-        worst = 0.0
+        error = 0.0
         for link in sc.links:
             b = m.body(link.name).id
-            frame = np.empty(9)
-            mj.mju_quat2Mat(frame, m.body_iquat[b])
-            frame = frame.reshape(3, 3)
+            frame = _rotation(mj, m.body_iquat[b])
             tensor = frame @ np.diag(m.body_inertia[b]) @ frame.T
             ours = np.array(link.inertia_matrix(), dtype=float)
-            worst = max(worst, float(np.max(np.abs(tensor - ours)) / np.max(np.abs(ours))),
+            error = max(error, float(np.max(np.abs(tensor - ours)) / np.max(np.abs(ours))),
                         abs(float(m.body_mass[b]) - link.mass_kg) / link.mass_kg,
                         float(np.max(np.abs(m.body_ipos[b] - link.com_m))) / self.length)
-        return worst
+        return error
 
     # ------------------------------------------------------------------ the package's motion
 
@@ -340,9 +225,8 @@ class SpatialMujocoRig:
                 continue
             adr = m.jnt_qposadr[ids[0]]
             for k in range(n):
-                mat = np.empty(9)
-                mj.mju_quat2Mat(mat, qpos[k, adr:adr + 4] / np.linalg.norm(qpos[k, adr:adr + 4]))
-                sph[k, si] = mat.reshape(3, 3)
+                quat = qpos[k, adr:adr + 4]
+                sph[k, si] = _rotation(mj, quat / np.linalg.norm(quat))
             si += 1
         return q, sph
 
@@ -419,42 +303,26 @@ class SpatialMujocoRig:
         moment)), ``spin_residual`` (the spin rows' largest multiplier, N m), ``origin``,
         ``rot``, ``twist``, ``accel`` (MuJoCo's bodies, for the motion check).
         """
-        mj, m, d = self.mj, self.model, self.data
-        qpos, qvel, qacc = self.to_mujoco(state)
-        n = state.size
-        out = {k: [] for k in ('driving_torque', 'force', 'moment', 'spin_residual',
-                               'origin', 'rot', 'twist', 'accel')}
+        keys = ('driving_torque', 'force', 'moment', 'spin_residual', 'origin', 'rot', 'twist',
+                'accel')
+        out = {k: [] for k in keys}
         react = {jt.name: ([], []) for jt in self.linkage.scene.joints}
-        for i in range(n):
-            d.qpos[:], d.qvel[:], d.qacc[:] = qpos[i], qvel[i], qacc[i]
-            mj.mj_inverse(m, d)
+
+        def rigid(i):
             tau, _, fsh, nsh, resid, rc = self._rigid(reactions=True)
-            for key, val in zip(('driving_torque', 'force', 'moment', 'spin_residual'),
-                                (tau, fsh, nsh, resid)):
-                out[key].append(val)
-            for key, val in zip(('origin', 'rot', 'twist', 'accel'), self._motion()):
+            for key, val in zip(keys, (tau, fsh, nsh, resid, *self._motion())):
                 out[key].append(val)
             for name, (f, mom) in rc.items():
                 react[name][0].append(f)
                 react[name][1].append(mom)
+        self._inverse(*self.to_mujoco(state), rigid)
         out = {k: np.array(v) for k, v in out.items()}
         out['reactions'] = {k: (np.array(f), np.array(mom)) for k, (f, mom) in react.items()}
         return out
 
-    def inverse_only(self, qpos, qvel, qacc):
-        """Run ``mj_inverse`` at every angle of the ``(n, nq)``/``(n, nv)`` arrays (timed)."""
-        mj, m, d = self.mj, self.model, self.data
-        for i in range(qpos.shape[0]):
-            d.qpos[:], d.qvel[:], d.qacc[:] = qpos[i], qvel[i], qacc[i]
-            mj.mj_inverse(m, d)
-
     def inverse_rigid(self, qpos, qvel, qacc):
         """``mj_inverse`` plus the rigid multipliers and the shaking wrench (same outputs)."""
-        mj, m, d = self.mj, self.model, self.data
-        for i in range(qpos.shape[0]):
-            d.qpos[:], d.qvel[:], d.qacc[:] = qpos[i], qvel[i], qacc[i]
-            mj.mj_inverse(m, d)
-            self._rigid(reactions=True)
+        self._inverse(qpos, qvel, qacc, lambda i: self._rigid(reactions=True))
 
     # ------------------------------------------------------------------ MuJoCo's own motion
 
@@ -497,62 +365,25 @@ class SpatialMujocoRig:
         """
         Return MuJoCo's own solution over crank angles ``psi``, one angle at a time.
 
-        Newton on the connect and spin rows from a Taylor predictor off the previous angle
-        (the first from ``qpos_start``), velocities and accelerations from the same rows,
-        ``mj_inverse``, the rigid multipliers and every bearing reaction (the package's
-        full cycle computes them too).  Returns ``(tau, force, moment, reactions, qpos,
-        residual, iterations)``, ``reactions`` as in :meth:`dynamics`.
+        The first angle's Newton starts from ``qpos_start``.  Returns ``(tau, force, moment,
+        reactions, qpos, residual, iterations)``, ``reactions`` as in :meth:`dynamics`.
         """
-        mj, m, d = self.mj, self.model, self.data
         p = psi.size
-        crank, passive = self.crank, self.passive
-        crank_adr = m.jnt_qposadr[self.tree_jnt[0][0]]
         tau, fsh, nsh = np.empty(p), np.empty((p, 3)), np.empty((p, 3))
-        q_out, res_out, iters = np.empty((p, m.nq)), np.empty(p), np.zeros(p, dtype=int)
-        qpos = np.array(qpos_start, dtype=float)
-        slope, curve, step = np.zeros(m.nv), np.zeros(m.nv), np.zeros(m.nv)
-        qvel, qacc = np.zeros(m.nv), np.zeros(m.nv)
-        # the input's coordinate and rates at each angle (a prismatic input: its Scotch-yoke
-        # slide, Linkage.input_motion); the predictor's slope and curve stay d/dpsi
-        x, xd, xdd = (np.broadcast_to(v, psi.shape) for v in
-                      self.linkage.input_coordinate(psi, speed, accel))
         react = {name: (np.empty((p, 3)), np.empty((p, 3))) for name, *_ in
                  self.tree_reactions}
         react.update({name: (np.empty((p, 3)), np.zeros((p, 3))) for name in self.cut_names})
-        for i in range(p):
-            if i:
-                h = psi[i] - psi[i - 1]
-                step[:] = h * slope + 0.5 * h * h * curve
-                step[crank] = 0.0
-                mj.mj_integratePos(m, qpos, step, 1.0)
-            qpos[crank_adr] = x[i]
-            for it in range(NEWTON_MAX_ITER + 1):
-                d.qpos[:] = qpos
-                r, jac = self._closure()
-                res = float(np.max(np.abs(r)))
-                if not res > NEWTON_TOL or it == NEWTON_MAX_ITER:
-                    break
-                step[:] = 0.0
-                step[passive] = -np.linalg.solve(jac[:, passive], r)
-                mj.mj_integratePos(m, qpos, step, 1.0)
-                iters[i] += 1
-            res_out[i] = res
-            j_u, j_c = jac[:, passive], jac[:, crank]
-            qvel[crank], qacc[crank] = xd[i], xdd[i]
-            qvel[passive] = np.linalg.solve(j_u, -xd[i] * j_c)
-            d.qvel[:] = qvel
-            mj.mj_comVel(m, d)
-            qacc[passive] = np.linalg.solve(j_u, -xdd[i] * j_c - self._bias(qvel))
-            d.qacc[:] = qacc
-            mj.mj_inverse(m, d)
+
+        def rigid(i):
             tau[i], _, fsh[i], nsh[i], _, rc = self._rigid(reactions=True)
             for name, (f, mom) in rc.items():
                 react[name][0][i] = f
                 react[name][1][i] = mom
-            q_out[i] = qpos
-            slope[:] = qvel / speed
-            curve[:] = (qacc - slope * accel) / speed ** 2
-        return tau, fsh, nsh, react, q_out, res_out, iters
+        # the input's coordinate and rates at each angle (a prismatic input: its Scotch-yoke
+        # slide, Linkage.input_motion); the predictor's slope and curve stay d/dpsi
+        coordinate = self.linkage.input_coordinate(psi, speed, accel)
+        q, res, iters = self._solution(psi, speed, accel, coordinate, qpos_start, rigid)
+        return tau, fsh, nsh, react, q, res, iters
 
 
 # ---------------------------------------------------------------------------- comparison
@@ -574,8 +405,8 @@ def reaction_differences(ours, theirs):
     largest peak over the joints (a spherical joint's moment is zero).
     """
     forces = max(relative_difference(f, theirs[j][0]) for j, (f, _) in ours.items())
-    peak = max(float(np.max(_norms(mo))) for _, mo in ours.values())
-    moments = max(float(np.max(_norms(theirs[j][1] - mo))) for j, (_, mo) in ours.items())
+    peak = max(float(np.max(norms(mo))) for _, mo in ours.values())
+    moments = max(float(np.max(norms(theirs[j][1] - mo))) for j, (_, mo) in ours.items())
     return forces, moments / (peak if peak > 0.0 else 1.0)
 
 
@@ -583,16 +414,10 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
     """
     Return the agreement and timing figures of one spatial scene (name or scene), one process.
 
-    ``timer(fns)`` returns the median seconds of each ``(function, runs)`` pair, timed in
-    turn (the planar comparison's); the package's figures take ``repeat`` runs, MuJoCo's
-    ``slow``.
-
-    Keys: ``agreement_imposed`` and ``agreement_own`` (quantity -> worst relative
-    difference; ``driving torque`` is the driving effort of either kind), ``positions``
-    (MuJoCo's own joint coordinates against the package's: rad, slides / length scale, ball
-    rotation matrices), ``us`` (microseconds per angle), the spin residual, the inertia
-    check, Newton figures, the counts of the model, and ``driving_series`` (the rig's
-    :attr:`~mech_balance.core.rig.Rig.driving_series`, which names the effort printed).
+    ``timer(fns)``: the median seconds of each ``(function, runs)``; the package's figures
+    take ``repeat`` runs, MuJoCo's ``slow``.  Keys as the planar :func:`.mujoco.compare`'s
+    (agreements by :data:`QUANTITIES`), with the spin residual, the inertia check and the
+    rig's ``driving_series``.
     """
     sc = scene_mod.load(scene) if isinstance(scene, str) else scene
     sc = sc.with_outputs(scene_mod.OUTPUTS)
@@ -609,10 +434,9 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
                float(np.max(np.abs(res['rot'] - fr.rot[:, 1:]))))
     motion = max(pose, relative_difference(state.twist[:, 1:], res['twist']),
                  relative_difference(state.accel[:, 1:], res['accel']))
-    imposed = {'joint motion': motion,
-               'driving torque': relative_difference(w.driving_torque, res['driving_torque']),
-               'shaking force': relative_difference(w.force_N, res['force']),
-               'shaking moment': relative_difference(w.moment_Nm, res['moment'])}
+    ours = (w.driving_torque, w.force_N, w.moment_Nm)
+    imposed = {'joint motion': motion, **agreement(ours, (res['driving_torque'], res['force'],
+                                                          res['moment']))}
     if rig.reactions_unique:
         imposed['bearing forces'], imposed['bearing moments'] = reaction_differences(
             w.reactions, res['reactions'])
@@ -624,10 +448,7 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
                              / lk.col_scale[scalar]))
     if sph_own.size:
         positions = max(positions, float(np.max(np.abs(sph_own - state.sph))))
-    own = {'joint motion': positions,
-           'driving torque': relative_difference(w.driving_torque, tau2),
-           'shaking force': relative_difference(w.force_N, f2),
-           'shaking moment': relative_difference(w.moment_Nm, n2)}
+    own = {'joint motion': positions, **agreement(ours, (tau2, f2, n2))}
     if rig.reactions_unique:
         own['bearing forces'], own['bearing moments'] = reaction_differences(
             w.reactions, react2)
@@ -653,17 +474,9 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
         (lambda: mjr.inverse_only(qpos, qvel, qacc), slow),
         (lambda: mjr.inverse_rigid(qpos, qvel, qacc), slow),
     ]
-    names = ('ours_full', 'ours_dyn', 'mj_full', 'mj_inverse', 'mj_dyn')
-    secs = timer(fns)
-    out['us'] = {n: s * 1e6 / samples for n, s in zip(names, secs)}
+    out['us'] = {n: s * 1e6 / samples for n, s in zip(TIMED, timer(fns))}
     out['repeats'] = (repeat, slow)
     return out
-
-
-def worst(r):
-    """Return the worst agreement figure of one :func:`compare` result."""
-    # np.max, not max: a nan figure is the worst (max() would skip it by order)
-    return float(np.max([*r['agreement_imposed'].values(), *r['agreement_own'].values()]))
 
 
 QUANTITIES = ('joint motion', 'driving torque', 'shaking force', 'shaking moment',
@@ -673,12 +486,7 @@ printed as :func:`effort_label` says."""
 
 
 def effort_label(series):
-    """
-    Return the printed name of a rig's driving effort, its series ``series``' label.
-
-    ``series`` is :attr:`~mech_balance.core.rig.Rig.driving_series`: ``driving torque`` for a
-    revolute input, ``driving force`` for a prismatic one (:data:`SERIES`).
-    """
+    """Return the printed name of a rig's driving effort (driving torque or force, SERIES)."""
     return SERIES[series][0]
 
 
@@ -711,16 +519,8 @@ def format_report(results, tol):
             '',
             f'{r["scene"]}: {r["links"]} moving links, {r["joints"]} joints, cut '
             f'{", ".join(r["cuts"])} (connect), idle spin: {idle}; MuJoCo nv {r["nv"]}',
-            f'  {"":<18}{"imposed motion":>16}{"MuJoCo kinematics":>20}',
+            *agreement_rows(r, QUANTITIES, lambda q: effort if q == 'driving torque' else q),
         ]
-        for q in QUANTITIES:
-            a = r['agreement_imposed'].get(q)
-            b = r['agreement_own'].get(q)
-            label = effort if q == 'driving torque' else q
-            lines.append(f'  {label:<18}' + (f'{a:>16.1e}' if a is not None else
-                                             f'{"not unique":>16}' if q.startswith('bearing')
-                                             else f'{"-":>16}')
-                         + (f'{b:>20.1e}' if b is not None else f'{"-":>20}'))
         w = worst(r)
         lines += [
             f'  -> {"PASS" if w <= tol else "FAIL"} (worst {w:.1e}, limit {tol:.0e}); '
@@ -728,12 +528,7 @@ def format_report(results, tol):
             f'{r["spin_residual"]:.1e} of the peak {peak}; MuJoCo Newton residual '
             f'{r["mujoco_residual"]:.1e}, {r["mujoco_iterations"]:.2f} iterations/angle',
             f'  us per crank angle: {"":<4}{"mech_balance":>14}{"MuJoCo":>12}{"ratio":>10}',
-            f'  {"full pipeline":<24}{us["ours_full"]:>14.3f}{us["mj_full"]:>12.2f}'
-            f'{us["mj_full"] / us["ours_full"]:>9.1f}x',
-            f'  {"dynamics alone":<24}{us["ours_dyn"]:>14.3f}{us["mj_inverse"]:>12.2f}'
-            f'{us["mj_inverse"] / us["ours_dyn"]:>9.1f}x   (mj_inverse)',
-            f'  {"dynamics, same outputs":<24}{us["ours_dyn"]:>14.3f}{us["mj_dyn"]:>12.2f}'
-            f'{us["mj_dyn"] / us["ours_dyn"]:>9.1f}x   (mj_inverse + rigid + reactions)',
+            *us_rows(us, 24, 'mj_inverse + rigid + reactions'),
         ]
     w = float(np.max([worst(r) for r in results]))
     lines.append(f'agreement over the {len(results)} spatial built-ins: worst {w:.1e} -> '

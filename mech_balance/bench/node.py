@@ -1,27 +1,13 @@
 """
-``mech-balance bench`` section of the rig node: the publish rate it sustains, its step time.
+``mech-balance bench`` sections of the rig node: publish rate, step time, live view, faults.
 
-The node runs as it is deployed, in its own process (``python -m mech_balance.ros.node``, clock
-mode), on a private ROS domain; this process subscribes to both topics and counts, from the
-stamps, the clock-mode periods whose sample never arrived.  Each rate of :data:`RATES_HZ`
-is set through the parameter service and measured over :data:`WINDOW_S` after
-:data:`SETTLE_S`.  The subscriber takes the messages serialized (``raw=True``) and reads
-only the stamp, so that it is not the bottleneck.  The node's own statistics, logged at its
-shutdown after :data:`STATS_S` at the target rate (:data:`mech_balance.ros.node.STATS_TAG`),
-give the compute per sample (the core's evaluation and the serialization of both
-messages, amortized over the batches a second thread prepares ahead of the ticks) and the
-wall time of a tick (two ``publish`` calls of prepared bytes, middleware included).
-
-Follow mode is timed in this process on the node's own objects (:class:`FollowPath`): per
-encoder message the subscription callback (reading, estimator, the real rig's crank
-track, the queue), per batch the follow step's evaluation (the design's cycle table, and
-again with ``follow.exact``: the core) and preparation of both messages; only the rclpy
-``publish`` calls are left out.
-
-The ``scene switch`` rows are a section of their own (:mod:`mech_balance.bench.switch`), and so
-is ``~/identify`` after a day-ahead stamp (:mod:`mech_balance.bench.identify_stamps`).
+The node runs as deployed, in its own process (:class:`NodeProbe`), and this process counts
+from the received stamps the clock-mode periods whose sample never arrived; follow mode is
+timed on the node's own objects in this process (:class:`FollowPath`).  What each section
+measures: docs/benchmarks.md#how-the-node-sections-measure.
 """
 
+import functools
 import json
 import os
 import re
@@ -126,31 +112,21 @@ def bench_section(args, progress):
 
 def _follow_costs(scene_name, exact=False):
     """
-    Return the compute per encoder message in follow mode: alone, and in a batch.
+    Return the compute per encoder message in follow mode: alone, in a batch, and what it is.
 
-    The node's own code on its own objects, in this process (:class:`FollowPath`): per
-    message the encoder callback (:meth:`Publisher.on_encoder`: the reading, the estimator,
-    the real rig's crank track, the queue), then per batch the follow step's evaluation and
-    preparation (:meth:`Streamer._evaluate_follow`: the cycle table or, with ``exact``, the
-    core; the model watch, the non-finite check, both messages serialized, the recording
-    hook); only the two rclpy ``publish`` calls are left out.  Also returns what follow mode
-    evaluates (the model's table status).
+    The node's own code in this process (:class:`FollowPath`); only the two rclpy
+    ``publish`` calls are left out.  The third value is what follow mode evaluates.
     """
+    from mech_balance.analysis.timing import median_seconds
     path = FollowPath(scene_name, exact)
     try:
         times = []
         for n in (1, FOLLOW_BATCH):
             path.run(n)
-            times.append(bench_core_median(lambda n=n: path.run(n)) / n)
+            times.append(median_seconds(lambda n=n: path.run(n), repeat=FOLLOW_REPEAT) / n)
         return times[0], times[1], path.evaluation()
     finally:
         path.close()
-
-
-def bench_core_median(fn):
-    """Return the median seconds of ``fn()`` over :data:`FOLLOW_REPEAT` runs."""
-    from mech_balance.bench import core as bench
-    return bench.median_seconds(fn, repeat=FOLLOW_REPEAT)
 
 
 class FollowPath:
@@ -158,10 +134,8 @@ class FollowPath:
     The rig node's follow-mode objects in this process, its threads stopped (for timing).
 
     A :class:`~mech_balance.ros.publisher.Publisher` and a
-    :class:`~mech_balance.ros.real_rig.RealRig` on an rclpy node that is never spun, with
-    the parameter defaults, ``mode`` follow and ``follow.exact`` as given; the
-    streamer's threads are stopped so that :meth:`run` drives the follow path itself.
-    Encoder messages (positions only: the estimator's least-squares fit) are made ahead.
+    :class:`~mech_balance.ros.real_rig.RealRig` on a node that is never spun (the parameter
+    defaults, ``mode`` follow, ``follow.exact`` as given); encoder messages made ahead.
     """
 
     def __init__(self, scene_name, exact=False, messages=None):
@@ -237,15 +211,46 @@ class FollowPath:
         rclpy.try_shutdown(context=self.ctx)
 
 
+def start_node(scene_name, rate_hz, ns, domain, params=(), stderr=subprocess.DEVNULL):
+    """
+    Start ``python -m mech_balance.ros.node`` (clock mode) in a process of its own.
+
+    Under namespace ``ns`` on ROS domain ``domain`` (local discovery, this package first on
+    the path) with ``publish_rate`` ``rate_hz`` and the extra ``name:=value`` ``params``.
+    """
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
+               ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE',
+                                                            'LOCALHOST'))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env['PYTHONPATH'] = os.pathsep.join(p for p in (root, env.get('PYTHONPATH')) if p)
+    cmd = [sys.executable, '-m', 'mech_balance.ros.node', '--ros-args', '-r', f'__ns:={ns}',
+           '-p', f'scene:={scene_name}', '-p', f'publish_rate:={rate_hz}']
+    for p in params:
+        cmd += ['-p', p]
+    return subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=stderr, text=True)
+
+
+def stamp_ns(raw):
+    """Return the header stamp of a serialized message, ns (read without deserializing)."""
+    sec, nsec = STAMP.unpack_from(raw, CDR_HEADER)
+    return sec * 1_000_000_000 + nsec
+
+
+def status_bytes(pid, key='VmRSS'):
+    """Return ``key`` (``VmRSS``, ``VmHWM``) of /proc/PID/status in bytes."""
+    with open(f'/proc/{pid}/status') as f:
+        for line in f:
+            if line.startswith(key + ':'):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError(f'/proc/{pid}/status has no {key}')
+
+
 class NodeProbe:
     """
-    A rig node in its own process (clock mode) and a subscriber counting its stamps.
+    A rig node in its own process (:func:`start_node`) and a subscriber counting its stamps.
 
-    The node runs under namespace ``ns`` on ROS domain ``domain`` with ``publish_rate``
-    ``rate_hz`` and the extra ``name:=value`` parameters; :attr:`stamps` collects the stamps
-    of ``joint_states`` and ``shaking_wrench`` (read from the serialized messages, so that
-    the subscriber is not the bottleneck).  :meth:`close` stops both and returns the node's
-    log; :func:`node_stats` reads its statistics from it.
+    :attr:`stamps` collects those of ``joint_states`` and ``shaking_wrench``; :meth:`close`
+    stops both and returns the node's log (:func:`node_stats` reads its statistics).
     """
 
     def __init__(self, scene_name, rate_hz, ns, params=(), domain=None, label='bench'):
@@ -257,17 +262,7 @@ class NodeProbe:
 
         self.ns = ns
         self.domain = (101 - os.getpid() % 50) if domain is None else domain
-        env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain), PYTHONUNBUFFERED='1',
-                   ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get(
-                       'ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST'))
-        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        env['PYTHONPATH'] = os.pathsep.join(p for p in (root, env.get('PYTHONPATH')) if p)
-        cmd = [sys.executable, '-m', 'mech_balance.ros.node', '--ros-args', '-r',
-               f'__ns:={ns}', '-p', f'scene:={scene_name}', '-p', f'publish_rate:={rate_hz}']
-        for p in params:
-            cmd += ['-p', p]
-        self.proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.PIPE, text=True)
+        self.proc = start_node(scene_name, rate_hz, ns, self.domain, params, subprocess.PIPE)
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx, domain_id=self.domain)
         self.node = rclpy.create_node(f'{label}_probe_{os.getpid()}', context=self.ctx)
@@ -275,17 +270,12 @@ class NodeProbe:
         self.executor.add_node(self.node)
         self.stamps = {'joint_states': [], 'shaking_wrench': []}
 
-        def keep(key):
-            def cb(raw):
-                sec, nsec = STAMP.unpack_from(raw, CDR_HEADER)
-                self.stamps[key].append(sec * 1_000_000_000 + nsec)
-            return cb
+        def keep(got):
+            return lambda raw: got.append(stamp_ns(raw))
 
-        qos = QoSProfile(depth=1000)
-        self.node.create_subscription(JointState, f'{ns}/joint_states', keep('joint_states'),
-                                      qos, raw=True)
-        self.node.create_subscription(WrenchStamped, f'{ns}/shaking_wrench',
-                                      keep('shaking_wrench'), qos, raw=True)
+        for msg_type, key in ((JointState, 'joint_states'), (WrenchStamped, 'shaking_wrench')):
+            self.node.create_subscription(msg_type, f'{ns}/{key}', keep(self.stamps[key]),
+                                          QoSProfile(depth=1000), raw=True)
 
     def spin_for(self, seconds, until=None):
         """Spin the subscriber for ``seconds`` or until ``until()`` is true."""
@@ -297,13 +287,31 @@ class NodeProbe:
         """Return whether both topics have arrived (and the node still runs)."""
         return self.proc.poll() is None and all(len(v) > 10 for v in self.stamps.values())
 
-    def window(self, seconds):
-        """Count afresh for ``seconds``; return the window ``(start_ns, stop_ns)`` counted."""
+    def parameter_client(self):
+        """Return a parameter client of the node once it publishes; RuntimeError if it never."""
+        from rclpy.parameter_client import AsyncParameterClient
+        client = AsyncParameterClient(self.node, f'{self.ns}/rig')
+        self.spin_for(START_TIMEOUT_S, lambda: client.services_are_ready() and
+                      self.publishing() or self.proc.poll() is not None)
+        if self.proc.poll() is not None or not client.services_are_ready():
+            raise RuntimeError('the node did not start or was not discovered')
+        return client
+
+    def measure(self, seconds, period_ns, spin=None):
+        """
+        Count afresh for ``seconds`` (``spin(seconds)`` spins instead, if given).
+
+        Returns ``(missed fraction per topic, joint_states received per s, what spin
+        returned)``.
+        """
         start = self.node.get_clock().now().nanoseconds
         for v in self.stamps.values():
             v.clear()
-        self.spin_for(seconds)
-        return start, self.node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
+        result = spin(seconds) if spin else self.spin_for(seconds)
+        stop = self.node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
+        missed = [missed_fraction(v, start, stop, period_ns) for v in self.stamps.values()]
+        got = {s for s in self.stamps['joint_states'] if start <= s < stop}
+        return missed, len(got) / ((stop - start) * 1e-9), result
 
     def close(self, timeout=20):
         """Stop the subscriber and the node (SIGINT, then kill); return the node's log."""
@@ -329,16 +337,10 @@ def node_stats(log):
 
 def _sweep(scene_name, progress):
     from rclpy.parameter import Parameter
-    from rclpy.parameter_client import AsyncParameterClient
-
     probe = NodeProbe(scene_name, RATES_HZ[0], f'/bench{os.getpid()}')
-    client = AsyncParameterClient(probe.node, f'{probe.ns}/rig')
     rows = []
     try:
-        probe.spin_for(START_TIMEOUT_S, lambda: client.services_are_ready() and
-                       probe.publishing() or probe.proc.poll() is not None)
-        if probe.proc.poll() is not None or not client.services_are_ready():
-            raise RuntimeError('the node did not start or was not discovered')
+        client = probe.parameter_client()
         failures = 0
         for rate in RATES_HZ:
             future = client.set_parameters([Parameter('publish_rate', value=rate)])
@@ -347,9 +349,7 @@ def _sweep(scene_name, progress):
                 raise RuntimeError(f'could not set publish_rate to {rate:g}')
             progress(f'    {rate:g} Hz ...')
             probe.spin_for(SETTLE_S)
-            start, stop = probe.window(WINDOW_S)
-            period = round(1e9 / rate)
-            missed = [missed_fraction(v, start, stop, period) for v in probe.stamps.values()]
+            missed, _, _ = probe.measure(WINDOW_S, round(1e9 / rate))
             rows.append((rate, *missed))
             failures = failures + 1 if max(missed) >= MISSED_MAX else 0
             if failures >= 2:
@@ -416,10 +416,8 @@ def run_node(scene_name, rate_hz, seconds, params=(), domain=None):
     """
     Run the node in its own process at ``rate_hz`` and measure ``seconds`` of publishing.
 
-    ``params`` are extra ``name:=value`` parameters.  Returns ``{'rate_hz'``: distinct
-    joint_states stamps received per second of the window, ``'missed'``: the fraction of
-    periods whose sample did not arrive (either topic), ``'stats'``: the node's own
-    statistics at shutdown (compute per sample, tick time)}.
+    Returns ``{'rate_hz'``: joint_states received per s, ``'missed'``: the worst topic's
+    missed fraction, ``'stats'``: :func:`node_stats`, ``'log'``: the node's log}.
     """
     probe = NodeProbe(scene_name, rate_hz,
                       f'/live{os.getpid()}_{int(time.monotonic() * 1000) % 100000}', params,
@@ -430,14 +428,10 @@ def run_node(scene_name, rate_hz, seconds, params=(), domain=None):
         if not probe.publishing():
             raise RuntimeError('the node did not start or was not discovered')
         probe.spin_for(SETTLE_S)
-        start, stop = probe.window(seconds)
-        period = round(1e9 / rate_hz)
-        missed = max(missed_fraction(v, start, stop, period) for v in probe.stamps.values())
-        got = {s for s in probe.stamps['joint_states'] if start <= s < stop}
-        rate = len(got) / ((stop - start) * 1e-9)
+        missed, rate, _ = probe.measure(seconds, round(1e9 / rate_hz))
     finally:
         log = probe.close(timeout=30)
-    return {'rate_hz': rate, 'missed': missed, 'stats': node_stats(log), 'log': log}
+    return {'rate_hz': rate, 'missed': max(missed), 'stats': node_stats(log), 'log': log}
 
 
 def live_view_section(args, progress):
@@ -552,18 +546,9 @@ def faults_section(args, progress):
                               (f'{SIMULTANEOUS} simultaneous calls on each of 4 services',
                                _service_calls)):
             progress(f'  rig node: {label} ...')
-            start = probe.node.get_clock().now().nanoseconds
-            for v in probe.stamps.values():
-                v.clear()
-            futures = [] if attack is None else attack(probe, params, clients,
-                                                       FAULT_WINDOW_S)
-            if attack is None:
-                probe.spin_for(FAULT_WINDOW_S)
-            stop = probe.node.get_clock().now().nanoseconds - int(IN_FLIGHT_S * 1e9)
-            missed = max(missed_fraction(v, start, stop, period)
-                         for v in probe.stamps.values())
-            got = {s for s in probe.stamps['joint_states'] if start <= s < stop}
-            rate = len(got) / ((stop - start) * 1e-9)
+            spin = None if attack is None else functools.partial(attack, probe, params, clients)
+            missed, rate, futures = probe.measure(FAULT_WINDOW_S, period, spin)
+            missed, futures = max(missed), futures or []
             probe.spin_for(START_TIMEOUT_S, lambda: all(f.done() for f in futures))
             answered = f'{sum(f.done() for f in futures)}/{len(futures)}' if futures else '-'
             lines.append(f'{label:<44}{rate:>9.1f}{rate / FAULT_RATE_HZ:>12.3f}{missed:>8.2%}'

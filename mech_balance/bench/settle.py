@@ -1,17 +1,14 @@
 """
 Between two bench sections: wait for the machine to settle, and judge the printed verdicts.
 
-A section that starts processes (the node sections, the 24-node cell) leaves the machine busy
-for a while after it returns: its children are still exiting and the CPU still hot.  A
-section measured in that wake is measured against the previous one's load.  :func:`settle`
-waits until no child process of the bench is left and the CPU is idle enough, for at most
-:data:`SETTLE_TIMEOUT_S`, and says what it found, so that every table states the state of
-the machine it was measured on.  :func:`failures` finds the ``FAIL`` verdicts of the printed
-tables: ``mech-balance bench`` exits non-zero when there is one.
+:func:`settle` waits until no child process of the bench is left and the CPU is idle enough
+(docs/benchmarks.md#how-the-node-sections-measure); :func:`failures` finds the ``FAIL``
+verdicts of the printed tables.
 """
 
 import os
 import re
+import sys
 import time
 
 SETTLE_TIMEOUT_S = 30.0
@@ -45,6 +42,12 @@ def busy_share(window_s=SETTLE_WINDOW_S):
     return (second[0] - first[0]) / (second[1] - first[1])
 
 
+def stat_fields(pid):
+    """Return the fields of /proc/PID/stat after the command name (``state`` first)."""
+    with open(f'/proc/{pid}/stat') as f:
+        return f.read().rpartition(')')[2].split()   # the command may hold spaces and ')'
+
+
 def children():
     """Return the process ids whose parent is this process (/proc; empty where missing)."""
     me, out = os.getpid(), []
@@ -54,9 +57,7 @@ def children():
         return out
     for pid in pids:
         try:
-            with open(f'/proc/{pid}/stat') as f:
-                # the command may hold spaces and parentheses: the ppid follows the last ')'
-                ppid = int(f.read().rsplit(')', 1)[1].split()[1])
+            ppid = int(stat_fields(pid)[1])
         except (OSError, ValueError, IndexError):
             continue
         if ppid == me:
@@ -68,9 +69,8 @@ def settle(timeout_s=SETTLE_TIMEOUT_S, clock=time.monotonic):
     """
     Wait until no child is left and the CPU is at most SETTLE_BUSY_SHARE busy; say how it went.
 
-    Returns one line: how long it waited, the CPU's busy share and the load average, and
-    whether it settled (a machine shared with other work may not within ``timeout_s``: then
-    the next table's figures are upper bounds).
+    Returns one line: the wait, the CPU's busy share, the load average and whether it
+    settled within ``timeout_s`` (if not, the next table's figures are upper bounds).
     """
     start = clock()
     share = None
@@ -93,3 +93,13 @@ def settle(timeout_s=SETTLE_TIMEOUT_S, clock=time.monotonic):
 def failures(text):
     """Return the lines of printed bench tables that hold a FAIL verdict."""
     return [line.strip() for line in text.splitlines() if FAIL_VERDICT.search(line)]
+
+
+def report_failures(command, printed):
+    """List the FAIL lines of the ``printed`` tables on stderr; return whether there are any."""
+    failed = failures('\n'.join(printed))
+    if failed:
+        print(f'{command}: {len(failed)} target(s) FAILED:', file=sys.stderr)
+        for line in failed:
+            print(f'  {line}', file=sys.stderr)
+    return bool(failed)

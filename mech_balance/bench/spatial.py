@@ -1,16 +1,9 @@
 """
 ``mech-balance bench --section spatial``: the spatial kind's full cycle against its targets.
 
-Per spatial built-in: the one-off build (compile, assemble, trace the branch) and the median
-full cycle (every output: kinematics, shaking wrench, driving torque, bearing reactions,
-kinetic energy) at the bench's crank angles, in us per angle, with the spatial issue's
-targets (skew RSSR <= 5 us, two-loop <= 10 us) and the machine's load average, which the
-figures depend on.
-
-The cycle's angles (1 degree apart from the assembly angle) are the branch's dense nodes,
-where the predictor has already converged and the Newton step is skipped; the ``off-node``
-column is the same cycle shifted by half a node spacing (every angle takes the chord Newton
-step and the refined rates), the cost of arbitrary angles.
+Per spatial built-in: the one-off build and the median full cycle (every output) in us per
+angle at the branch's dense nodes, and ``off-node``, shifted by half a node spacing (Newton
+not skipped: the cost of arbitrary angles), with :data:`TARGETS_US` and the load average.
 """
 
 import os

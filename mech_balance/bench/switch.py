@@ -1,14 +1,9 @@
 """
 The ``scene switch`` rows of the rig node's bench: a scene switch until the new rig publishes.
 
-How long ``ros2 param set /rig scene <name>`` takes before the node publishes the new rig
-(issue 31 item 3).
-
-The node runs in its own process (:class:`mech_balance.bench.node.NodeProbe`, clock mode);
-this process sets ``scene`` through the parameter service and times, per built-in scene,
-from the set call to its answer and to the first ``joint_states`` message carrying the new
-scene's joint names.  Each built-in is switched to from a scene whose joint names differ
-(so that the first message of the new rig is told from the old one's).
+From ``ros2 param set /rig scene <name>`` to its answer and to the first ``joint_states`` of
+the new scene, node in its own process (:class:`mech_balance.bench.node.NodeProbe`), issue 31
+item 3 (docs/benchmarks.md#how-the-node-sections-measure).
 """
 
 import os
@@ -34,15 +29,11 @@ def switch_times(names, domain=None, progress=print):
     """
     Return ``{scene: [(answer_s, first_sample_s), (the same again)]}``: switches to ``names``.
 
-    The first pair is the first switch to the scene in the node's life (its modules and
-    caches cold, as a user's first switch), the second a later one.
-
-    ``answer_s``: from the set call to the parameter service's answer; ``first_sample_s``:
-    to the first joint_states message with the scene's joints (received here).
+    From the set call to its answer and to the first joint_states with the scene's joints;
+    the first pair is the first switch to the scene in the node's life, the second a later one.
     """
-    from mech_balance.bench.node import NodeProbe, START_TIMEOUT_S
+    from mech_balance.bench.node import NodeProbe
     from rclpy.parameter import Parameter
-    from rclpy.parameter_client import AsyncParameterClient
     from sensor_msgs.msg import JointState
     from rclpy.qos import QoSProfile
 
@@ -56,7 +47,6 @@ def switch_times(names, domain=None, progress=print):
         seen.append((time.monotonic(), tuple(msg.name)))
     probe.node.create_subscription(JointState, f'{probe.ns}/joint_states', keep,
                                    QoSProfile(depth=1000))
-    client = AsyncParameterClient(probe.node, f'{probe.ns}/rig')
     out = {}
 
     def switch(name):
@@ -76,10 +66,7 @@ def switch_times(names, domain=None, progress=print):
         return answered - t0, first - t0
 
     try:
-        probe.spin_for(START_TIMEOUT_S, lambda: client.services_are_ready() and
-                       probe.publishing() or probe.proc.poll() is not None)
-        if probe.proc.poll() is not None or not client.services_are_ready():
-            raise RuntimeError('the node did not start or was not discovered')
+        client = probe.parameter_client()
         current = start
         for name in names:   # the first switch to each: what a user's first switch costs
             if expected[name] == expected[current]:

@@ -23,12 +23,8 @@ def format_result(design, normalized=False):
     result = design.result
     sc = result.scene
     view = normalized and sc.normalization is not None
-    w1, w2 = result.weights
     lines = [f'scene: {sc.name} ({sc.source}); {result.samples} crank angles per revolution',
-             f'problem: minimize z = {w1:g} f~ + {w2:g} n~'
-             + (f' + {result.torque_weight:g} tau~' if result.torque_weight else '')
-             + (f' + {result.reaction_weight:g} sum f~_bearing' if result.reaction_weight
-                else '')
+             f'problem: minimize {_objective(result)}'
              + ' (seed 001 eqs. 42-53, RMS of normalized quantities)',
              f'constraints: case {result.case} ('
              + ('point masses >= 0' if result.case == 'b' else 'point masses of any sign')
@@ -40,13 +36,8 @@ def format_result(design, normalized=False):
         lines.append(f'total added mass <= {result.max_added_mass_kg:g} kg')
     lines += ['', links_table(result.links, view, sc), '']
     lines.append(before_after_text(result.table, si=not view))
-    obj, cert = result.objective, result.certificate
-    lines += ['', f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
-              f"f~ = {obj['shaking_force_rms']:.6g}, n~ = {obj['shaking_moment_rms']:.6g}",
-              *certificate_lines(cert)]
-    for f in cert.failed_stages or ():
-        lines.append(f"FAILED stage '{f['stage']}': {f['reason']}; the design is "
-                     f"{f['design']}")
+    cert = result.certificate
+    lines += ['', *_objective_lines(result), *_failed_lines(cert)]
     if cert.stage2 is not None:
         stage2 = cert.stage2
         lines.append(f"tie-break (optimum not unique): minimized {stage2['minimized']} among "
@@ -56,16 +47,41 @@ def format_result(design, normalized=False):
                      f"{stage2['status']}, {stage2['iterations']} iterations)")
     lines.append('design realizable: ' + ('yes' if result.realizable else 'NO ('
                  + ', '.join(d.name for d in result.links if not d.realizable) + ')'))
-    lines.append(counterweights.format_cost(design.report['cost']))
-    lines.append(f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
-                 f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
-                 f'{result.conic_time_s * 1e3:.1f} ms)')
+    lines += [counterweights.format_cost(design.report['cost']), _solve_time(result)]
     lines += _paper_comparison(paper_tables.compare_optimum(result))
     confidence = design.report.get('identification_confidence')
     if confidence is not None:
         from mech_balance.analysis import identify
         lines.append(identify.format_balance_confidence(confidence))
     return '\n'.join(lines)
+
+
+def _objective(problem):
+    """Return ``z = w1 f~ + w2 n~`` with the torque and bearing terms that are weighted."""
+    w1, w2 = problem.weights
+    return (f'z = {w1:g} f~ + {w2:g} n~'
+            + (f' + {problem.torque_weight:g} tau~' if problem.torque_weight else '')
+            + (f' + {problem.reaction_weight:g} sum f~_bearing' if problem.reaction_weight
+               else ''))
+
+
+def _objective_lines(result):
+    """Return the objective's figures and the certificate's lines."""
+    obj = result.objective
+    return [f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
+            f"f~ = {obj['shaking_force_rms']:.6g}, n~ = {obj['shaking_moment_rms']:.6g}",
+            *certificate_lines(result.certificate)]
+
+
+def _failed_lines(cert):
+    return [f"FAILED stage '{f['stage']}': {f['reason']}; the design is {f['design']}"
+            for f in cert.failed_stages or ()]
+
+
+def _solve_time(result):
+    return (f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
+            f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
+            f'{result.conic_time_s * 1e3:.1f} ms)')
 
 
 def links_table(links, view, sc):
@@ -155,12 +171,9 @@ def format_counterweights(design, normalized=False):
     result = design.result
     sc, opt = result.scene, result.options
     view = normalized and sc.normalization is not None
-    w1, w2 = opt.weights
     lines = [f'scene: {sc.name} ({sc.source}); {opt.samples} crank angles per revolution',
-             f'problem: add one solid disc to each of {", ".join(opt.links)}; minimize z = '
-             f'{w1:g} f~ + {w2:g} n~'
-             + (f' + {opt.torque_weight:g} tau~' if opt.torque_weight else '')
-             + (f' + {opt.reaction_weight:g} sum f~_bearing' if opt.reaction_weight else ''),
+             f'problem: add one solid disc to each of {", ".join(opt.links)}; minimize '
+             + _objective(opt),
              f'discs: density {opt.density_kg_m3:g} kg/m^3, thickness <= '
              f'{opt.max_thickness_m:g} m, centre <= {opt.max_radius_factor:g} x joint reach, '
              f'mass <= {opt.max_mass_factor:g} x link mass, radius of gyration <= '
@@ -184,11 +197,8 @@ def format_counterweights(design, normalized=False):
         lines += result.clearance.lines()
     if result.clearance_design is not None:
         lines += result.clearance_design.lines()
-    lines += ['', before_after_text(result.table, si=not view), '']
-    obj, cert = result.objective, result.certificate
-    lines += [f"objective z = {obj['z']:.6g} (original {obj['z_original']:.6g}): "
-              f"f~ = {obj['shaking_force_rms']:.6g}, n~ = {obj['shaking_moment_rms']:.6g}",
-              *certificate_lines(cert)]
+    lines += ['', before_after_text(result.table, si=not view), '', *_objective_lines(result)]
+    cert = result.certificate
     if cert.stage2 is not None:
         stage2 = cert.stage2
         lines.append(f"tie-break: minimized {stage2['minimized']} among optimal designs"
@@ -199,13 +209,7 @@ def format_counterweights(design, normalized=False):
         least = result.least_mass
         lines.append(f"tie-break: least total added mass {least['objective_kg']:.6g} kg "
                      f"(lower bound {least['lower_bound_kg']:.6g} kg; {least['status']})")
-    for f in cert.failed_stages or ():
-        lines.append(f"FAILED stage '{f['stage']}': {f['reason']}; the design is "
-                     f"{f['design']}")
-    lines.append(counterweights.format_cost(result.cost))
-    lines.append(f'solve time {result.solve_time_s * 1e3:.1f} ms (linear maps '
-                 f'{result.maps_time_s * 1e3:.1f} ms, cone programs '
-                 f'{result.conic_time_s * 1e3:.1f} ms)')
+    lines += [*_failed_lines(cert), counterweights.format_cost(result.cost), _solve_time(result)]
     return '\n'.join(lines)
 
 

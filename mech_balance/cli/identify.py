@@ -8,7 +8,6 @@ node.
 """
 
 import math
-import sys
 import time
 
 
@@ -30,14 +29,10 @@ def register(subparsers):
         'identify', help="identify a rig's link inertias from a recording of its encoder and "
                          'force sensor',
         description='Read a rosbag2 recording (MCAP or sqlite3) or a CSV of the crank encoder '
-                    '(sensor_msgs/JointState) and the force sensor (geometry_msgs/'
-                    'WrenchStamped: rig frame, about the crank pivot, the load the rig exerts '
-                    'on its frame), estimate the crank angle, speed and acceleration from the '
-                    'encoder by a Savitzky-Golay fit, and solve the linear least-squares '
-                    "problem for the links' inertial parameters and the sensor bias. Prints "
-                    'the rank, condition number, identifiable combinations (base parameters) '
-                    'with standard errors, the bias and the residual RMS before and after; '
-                    'writes the calibrated scene with --output.')
+                    "and the force sensor and solve for the links' inertial parameters and the "
+                    'sensor bias; prints the identifiable combinations with standard errors '
+                    'and the residuals, writes the calibrated scene with --output '
+                    '(docs/identification.md).')
     p.add_argument('--scene', required=True,
                    help='the rig: built-in scene name (see `mech-balance scenes`) or YAML file')
     p.add_argument('--bag', required=True, metavar='PATH',
@@ -111,10 +106,6 @@ def sensor_pose(args, rec):
     return pose, text
 
 
-def _progress(text):
-    print(text, file=sys.stderr, flush=True)
-
-
 def cmd_identify(args):
     """Identify the scene's inertial parameters from a recording; print and write the result."""
     from mech_balance.ros import bags
@@ -139,14 +130,14 @@ def cmd_identify(args):
     if not (math.isfinite(ratio) and 1.0 <= ratio <= MAX_RATIO):
         raise identify.IdentifyError(f'--max-residual-ratio: got {ratio!r}, expected a number '
                                      f'from 1 to {MAX_RATIO:g}')
-    _progress(f'mech-balance identify: reading {args.bag} ...')
+    cli.progress(f'mech-balance identify: reading {args.bag} ...')
     t0 = time.perf_counter()
     rec = bags.read(args.bag, args.encoder_topic, args.wrench_topic, args.joint,
-                    progress=_progress, default_joint=sc.crank_joint, rig_frame=args.rig_frame,
-                    wrench_frame_id=args.wrench_frame_id)
+                    progress=cli.progress, default_joint=sc.crank_joint,
+                    rig_frame=args.rig_frame, wrench_frame_id=args.wrench_frame_id)
     read_s = time.perf_counter() - t0
-    _progress(f'  {rec.position_rad.size} encoder and {rec.wrench_t_s.size} wrench samples '
-              f'(joint {rec.joint!r}) in {read_s:.2f} s; identifying ...')
+    cli.progress(f'  {rec.position_rad.size} encoder and {rec.wrench_t_s.size} wrench samples '
+                 f'(joint {rec.joint!r}) in {read_s:.2f} s; identifying ...')
     pose, pose_text = sensor_pose(args, rec)
     wrench = rec.planar_wrench
     if pose is not None:
@@ -185,8 +176,3 @@ def cmd_identify(args):
         if not args.json:
             print(f'calibrated scene written to {args.output}')
     return 0
-
-
-if __name__ == '__main__':  # pragma: no cover - use `mech-balance identify`
-    from mech_balance.cli import main as cli
-    sys.exit(cli.main(['identify', *sys.argv[1:]]))

@@ -6,11 +6,13 @@ line naming the field, the value and what was expected, and exits with status 2.
 """
 
 import argparse
+import importlib
 import math
 import os
 import signal
 import sys
 import textwrap
+import warnings
 
 from mech_balance import atomic, conventions, paths, threads
 from mech_balance.cli import jsonout
@@ -19,9 +21,6 @@ from mech_balance.schema.fields import MAX_ABS_VALUE
 EXIT_USAGE = 2
 EXIT_BENCH_FAILED = 3
 """Exit status of ``mech-balance bench`` when a table printed a FAIL verdict."""
-EXIT_INTERRUPTED = 128 + signal.SIGINT
-"""Exit status after SIGINT when a file being written was not complete (128 + the signal);
-SIGTERM gives 128 + 15 = 143; a verb whose files were all written exits 0 (:func:`main`)."""
 SCENE_NAME_WIDTH = 18
 """``mech-balance scenes``: width of the name column; the description wraps after it."""
 LINE_WIDTH = 99
@@ -155,14 +154,17 @@ def number_between(lowest, highest, limit=None):
 
 FIXED_LIMIT = 'a fixed limit of mech_balance'
 """What an option's range error says of a limit no option or field raises."""
-positive_int = int_at_least(1)
-"""An argparse ``type``: an integer >= 1."""
 cycles = int_at_least(1, conventions.MAX_CYCLES, FIXED_LIMIT)
 """An argparse ``type``: crank turns, 1 <= n <= MAX_CYCLES."""
 repeats = int_at_least(1, conventions.MAX_REPEAT, FIXED_LIMIT)
 """An argparse ``type``: timed runs of a benchmark, 1 <= n <= MAX_REPEAT."""
 weight = number_between(0.0, conventions.MAX_WEIGHT, FIXED_LIMIT)
 """An argparse ``type``: an objective weight, 0 <= w <= MAX_WEIGHT."""
+
+
+def progress(text):
+    """Print a verb's progress on stderr (stdout holds its result)."""
+    print(text, file=sys.stderr, flush=True)
 
 
 def writable_path(option, text, suffixes, create_parent=False):
@@ -199,12 +201,6 @@ def add_units(p):
                    help='print SI values (the default; kept for scripts that pass it)')
 
 
-def _add_scene(p):
-    p.add_argument('--scene', default='hoeken',
-                   help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
-                        'file (default: %(default)s)')
-
-
 _samples = int_at_least(4, conventions.MAX_SAMPLES, FIXED_LIMIT)
 
 
@@ -237,7 +233,9 @@ def build_parser():
                        description='Analyze one revolution of a scene: bearing reactions, '
                                    'driving torque, shaking force and moment (RMS and max), '
                                    'worst Newton residual and Jacobian condition number.')
-    _add_scene(p)
+    p.add_argument('--scene', default='hoeken',
+                   help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
+                        'file (default: %(default)s)')
     add_units(p)
     p.add_argument('--samples', type=_samples, default=None,
                    help="crank angles per revolution (default: the scene's, usually 360)")
@@ -275,7 +273,6 @@ def build_parser():
                         'package and through MuJoCo side by side: agreement, us per angle, '
                         'scaling (needs the optional mujoco package: make bench-mujoco)')
     p.set_defaults(func=cmd_bench)
-    import importlib
     for name in EXTENSIONS:
         importlib.import_module(name).register(sub)
     return parser
@@ -287,7 +284,6 @@ def cmd_scenes(args):
     if (args.convert is None) != (args.out is None):
         raise ValueError('--convert and --out: got one of them, expected both or neither')
     if args.convert is not None:
-        from mech_balance import atomic
         writable_path('--out', args.out, ('.yaml', '.yml'))
         text = scene.to_yaml(scene.load(args.convert))
         atomic.write_text_atomic(args.out, f'# converted by mech-balance scenes from '
@@ -321,7 +317,7 @@ def cmd_bench(args):
     """Print core timings."""
     if args.compare == 'mujoco':
         from mech_balance.bench import mujoco as bench_mujoco
-        return bench_mujoco.cmd_compare(args)
+        return bench_mujoco.cmd_compare(args, progress)
     from mech_balance.bench import core as bench
     wanted = None if args.section is None else set(args.section)
     names = {bench.section_name(name): name for name in bench.SECTIONS}
@@ -330,7 +326,6 @@ def cmd_bench(args):
         raise ValueError(f'--section: got {unknown[0]!r}, expected core or one of '
                          f'{", ".join(names)}')
     from mech_balance.bench import settle
-    progress = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     printed = []
     if wanted is None or 'core' in wanted:
         print(f'mech-balance bench: median of {args.repeat} runs after {bench.WARMUP} '
@@ -338,7 +333,6 @@ def cmd_bench(args):
         rows = bench.run(args.scene, args.samples, args.repeat, progress=progress)
         printed.append(bench.format_rows(rows))
         print(printed[-1], flush=True)
-    import importlib
     for short, name in names.items():
         if wanted is not None and short not in wanted:
             continue
@@ -348,13 +342,7 @@ def cmd_bench(args):
             print(f'{short}: {settle.settle()}', flush=True)
         printed.append(getattr(importlib.import_module(module), function)(args, progress))
         print(printed[-1], flush=True)
-    failed = settle.failures('\n'.join(printed))
-    if failed:
-        print(f'mech-balance bench: {len(failed)} target(s) FAILED:', file=sys.stderr)
-        for line in failed:
-            print(f'  {line}', file=sys.stderr)
-        return EXIT_BENCH_FAILED
-    return 0
+    return EXIT_BENCH_FAILED if settle.report_failures('mech-balance bench', printed) else 0
 
 
 def main(argv=None):
@@ -367,11 +355,10 @@ def main(argv=None):
     a signal after the verb has finished is ignored (its status stands); called with
     ``argv``, the previous handlers are restored on return.
     """
-    import warnings
     mark = atomic.write_count()
     previous = _install_signal_handlers()
     try:
-        return _run(argv, warnings, mark)
+        return _run(argv, mark)
     except KeyboardInterrupt as exc:   # in parsing, before a verb runs
         return _interrupted(None, exc, mark)
     finally:
@@ -388,7 +375,7 @@ def _install_signal_handlers():
             if signal.getsignal(s) is not signal.SIG_IGN}   # a background job's stays ignored
 
 
-def _run(argv, warnings, mark):
+def _run(argv, mark):
     """Parse ``argv`` and run its verb; return the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)

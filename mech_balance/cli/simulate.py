@@ -43,13 +43,9 @@ def register(sub):
     p = sub.add_parser(
         'simulate', help='forward dynamics: start-up and steady state with motor and damping',
         description='Integrate the equation of motion of a rig of any kind (Sinatra & '
-                    "Angeles eq. 39, built from the rig's own inverse dynamics) with the "
-                    "scene's drive: "
-                    'section (DC motor line, PI speed controller, joint damping, input '
-                    'flywheel; gravity from gravity_m_s2). Prints the method used and why, '
-                    'the model error, crank speed ripple, driving effort and shaking wrench '
-                    'over time, and the energy balance. A scene without a drive coasts from '
-                    'its crank speed.')
+                    "Angeles eq. 39) with the scene's drive: section; prints the method and "
+                    'why, the speed ripple, driving effort, shaking wrench and energy balance '
+                    'over time. A scene without a drive coasts (docs/simulation.md).')
     p.add_argument('--scene', default='slider_crank',
                    help='built-in scene name or path to a YAML file (default: %(default)s)')
     p.add_argument('--duration', type=_positive_float, required=True, metavar='T',
@@ -71,11 +67,9 @@ def register(sub):
     p = sub.add_parser(
         'accuracy', help='error against run time: RMS vs samples, integrators, Newton, '
                          'balancing',
-        description='Error against run time for one planar scene: RMS figures against the '
-                    'number of crank samples p; forward-dynamics error against integrator '
-                    'and tolerance (explicit and implicit) with run time, right-hand-side '
-                    'evaluations and energy balance; Newton residual and iterations per '
-                    'angle; balancing certificate gap against solve time.')
+        description='Error against run time for one scene: RMS against crank samples, '
+                    'integrators, Newton residuals, the balancing certificate '
+                    '(docs/simulation.md#the-accuracy-studies).')
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name or path to a YAML file (default: %(default)s)')
     p.add_argument('--duration', type=_positive_float, default=None, metavar='T',
@@ -117,8 +111,7 @@ def cmd_accuracy(args):
         for name in args.sections:
             if name in accuracy.SECTION_CAPABILITY:
                 require(sc, accuracy.SECTION_CAPABILITY[name], f'accuracy --sections {name}')
-    progress = (lambda s: print(s, file=sys.stderr, flush=True))  # noqa: E731
-    result = accuracy.run(args.scene, args.sections, args.duration, progress=progress)
+    result = accuracy.run(args.scene, args.sections, args.duration, progress=cli.progress)
     if args.json:
         print(jsonout.dumps(accuracy.to_jsonable(result)))
     else:

@@ -19,15 +19,9 @@ def register(subparsers):
     p = subparsers.add_parser(
         'urdf', help="write the URDF of the rig's spanning tree (RViz, robot_state_publisher)",
         description="Write the URDF of a scene: a root link named after the rig node's "
-                    'frame_id, one link per moving link with its inertial (mass, mass centre, '
-                    'inertia about it; z out of the plane for planar rigs), bars, pins and '
-                    'blocks as visuals and collisions, and one joint per joint of the '
-                    'spanning tree the core solves, named as on joint_states, with limits '
-                    'where the joint swings (continuous where it turns fully). The joints '
-                    'that close the loops are listed in a comment. Spatial rigs are written in '
-                    '3-D with their real axes, a spherical joint as three revolute joints on '
-                    'massless links. Zero convention: '
-                    'docs/rviz_launch.md and mech_balance/ros/urdf.py.')
+                    'frame_id, one link per moving link with its inertial and visuals, one '
+                    'joint per joint of the spanning tree, named as on joint_states '
+                    '(docs/rviz_launch.md).')
     p.add_argument('--scene', default='hoeken',
                    help='built-in scene name (see `mech-balance scenes`) or path to a YAML '
                         'file (default: %(default)s)')
@@ -66,8 +60,3 @@ def cmd_urdf(args):
     print(f'wrote {out.resolve()} ({sc.name}: root link {args.frame_id!r}, joints '
           f'{", ".join(urdf.tree_model(sc).names)})')
     return 0
-
-
-if __name__ == '__main__':  # pragma: no cover - use `mech-balance urdf`
-    from mech_balance.cli import main as cli
-    sys.exit(cli.main(['urdf', *sys.argv[1:]]))
