@@ -1,20 +1,10 @@
 """
 The scene file: read, validated and written here, for every kind of rig.
 
-The public face of the schema layer::
-
-    from mech_balance import schema
-    sc = schema.load('hoeken')            # a built-in name or a path to a .yaml file
-    text = schema.to_yaml(sc)             # what load() reads back, bit for bit
-
-The planar schema is documented in the README (section *Scenes*) and enforced by
-:mod:`mech_balance.schema.scene`; the spatial one by :mod:`mech_balance.schema.spatial` (a
-former ``kind: rggr`` file is translated by :mod:`mech_balance.schema.rggr_legacy`); ``drive:``
-by :mod:`mech_balance.schema.drive`; ``identification:`` by
-:mod:`mech_balance.schema.identification`; the field checks all of them share are in
-:mod:`mech_balance.schema.fields`; the kinds are registered in
-:mod:`mech_balance.schema.registry`.  Every error is a :class:`SceneError` (a
-``ValueError``) naming the field, the bad value and what was expected.
+``schema.load('hoeken')`` (a built-in name or a .yaml path) and ``schema.to_yaml(sc)`` (what
+load() reads back, bit for bit).  The schema: docs/scenes.md; the modules:
+docs/design.md#layers.  Every error is a :class:`SceneError` (a ``ValueError``) naming the
+field, the bad value and what was expected.
 """
 
 import importlib

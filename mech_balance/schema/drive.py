@@ -1,9 +1,8 @@
 """
 The ``drive:`` section of a scene: motor, speed controller, joint damping, initial state.
 
-Read here, used by the forward dynamics (:mod:`mech_balance.core.forward`).  The schema is
-documented there and in the README; the field checks are the scene loader's
-(:mod:`mech_balance.schema.fields`) raising :class:`DriveError`.
+Used by the forward dynamics (:mod:`mech_balance.core.forward`; docs/simulation.md); the
+field checks are :mod:`mech_balance.schema.fields`' raising :class:`DriveError`.
 """
 
 from dataclasses import dataclass, field
@@ -72,13 +71,10 @@ _PI_KEYS = {'kp_per_rad_s', 'ki_per_rad', 'setpoint_rad_s', 'voltage_limit'}
 
 def drive_from_dict(data, scene=None, joint_names=None):
     """
-    Return the validated :class:`Drive` of a scene's ``drive`` mapping.
+    Return the validated :class:`Drive` of a scene's ``drive`` mapping (raises DriveError).
 
-    Every error is a :class:`DriveError` naming the field (``drive.motor.gear_ratio``), the
-    value and what was expected.  The keys of ``joint_damping`` are checked against
-    ``joint_names`` (a rig's published joint coordinates,
-    :attr:`~mech_balance.core.rig.Rig.joint_names`) or, without them, the joints of
-    ``scene`` (a planar scene's joints are its coordinates).
+    The keys of ``joint_damping`` are checked against ``joint_names`` (a rig's
+    :attr:`~mech_balance.core.rig.Rig.joint_names`) or else the joints of ``scene``.
     """
     if data is None:
         return Drive()

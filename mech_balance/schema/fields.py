@@ -2,9 +2,8 @@
 The field validators every scene kind, ``drive:`` and the node's parameters share.
 
 Each takes the value, the field's path in the file (``links.crank.mass_kg``) and the error
-type to raise (a ``ValueError`` subclass, :class:`SceneError` by default), and returns the
-checked value.  Every message names the path, the value and what was expected, so the
-same bad number reads the same wherever it is given.
+type to raise (:class:`SceneError` by default), and returns the checked value; every message
+names the path, the value and what was expected.
 """
 
 import math
@@ -129,12 +128,7 @@ def integer(value, where, minimum=None, maximum=None, error=SceneError):
 
 
 def at_most(items, limit, where, what, name, error=SceneError):
-    """
-    Refuse more than ``limit`` entries.
-
-    ``name`` is the limit's constant in conventions, for the reader of the code; the message
-    says the limit is fixed (no scene field or option raises it).
-    """
+    """Refuse more than ``limit`` entries (``name``: the limit's constant in conventions)."""
     if len(items) > limit:
         raise error(f'{where}: got {len(items)} {what}, expected at most {limit} '
                     '(a fixed limit of mech_balance)')

@@ -1,12 +1,9 @@
 """
 The planar kind's scene reader and writer, side by side: YAML mapping <-> :class:`Scene`.
 
-:func:`planar_from_dict` validates a parsed ``kind: planar`` mapping (docs/scenes.md) into a
-:class:`~mech_balance.schema.scene.Scene`, every error a
-:class:`~mech_balance.schema.fields.SceneError` naming the field, the value and what was
-expected; :func:`planar_to_dict` writes a scene back as the mapping it loads from.  The
-types and constants of a scene are :mod:`mech_balance.schema.scene`'s; the kinds are
-registered in :mod:`mech_balance.schema.registry`.
+The schema: docs/scenes.md; the types and constants: :mod:`mech_balance.schema.scene`.
+Every error is a :class:`~mech_balance.schema.fields.SceneError` naming the field, the value
+and what was expected.
 """
 
 from dataclasses import replace
