@@ -349,23 +349,17 @@ class Sweep:
         ra = np.array([body_list[i].radius_m for i, _ in todo])[:, None]
         rb = np.array([body_list[j].radius_m for _, j in todo])[:, None]
         pa, pb = q1 + ra * u, q2 - rb * u
-        za, zb = [], []
-        for i, j in todo:
-            a, b = body_list[i], body_list[j]
-            lo_a, hi_a = a.z_m - 0.5 * a.thickness_m, a.z_m + 0.5 * a.thickness_m
-            lo_b, hi_b = b.z_m - 0.5 * b.thickness_m, b.z_m + 0.5 * b.thickness_m
-            lo, hi = max(lo_a, lo_b), min(hi_a, hi_b)
-            if lo <= hi:
-                za.append(0.5 * (lo + hi))
-                zb.append(0.5 * (lo + hi))
-            elif a.z_m < b.z_m:
-                za.append(hi_a)
-                zb.append(lo_b)
-            else:
-                za.append(lo_a)
-                zb.append(hi_b)
-        za = np.broadcast_to(np.array(za)[:, None], pa.shape)
-        zb = np.broadcast_to(np.array(zb)[:, None], pb.shape)
+        # along z: (pairs, 2) slabs of body a and body b
+        z = np.array([[body_list[i].z_m, body_list[j].z_m] for i, j in todo])
+        half = 0.5 * np.array([[body_list[i].thickness_m, body_list[j].thickness_m]
+                               for i, j in todo])
+        lo, hi = z - half, z + half
+        start, end = lo.max(axis=1), hi.min(axis=1)      # the overlap, if start <= end
+        mid, overlap, below = 0.5 * (start + end), start <= end, z[:, 0] < z[:, 1]
+        za = np.where(overlap, mid, np.where(below, hi[:, 0], lo[:, 0]))
+        zb = np.where(overlap, mid, np.where(below, lo[:, 1], hi[:, 1]))
+        za = np.broadcast_to(za[:, None], pa.shape)
+        zb = np.broadcast_to(zb[:, None], pb.shape)
         return (np.stack([pa.real, pa.imag, za], axis=-1),
                 np.stack([pb.real, pb.imag, zb], axis=-1))
 
@@ -457,11 +451,8 @@ def clearance(scene_or_rig, samples=None, margin_m=0.0, sweep=None):
     psi = cycle_angles(p)
     body_list = bodies(rig)
     planes = {b.name: b.z_m for b in body_list if b.shape == 'disc'}
-    rims = {}
-    for link in sc.links:
-        for i, cw in enumerate(link.counterweights):
-            rims[f'{link.name} counterweight {i + 1}'] = \
-                math.hypot(*cw.centre_m) + float(cw.radius_m)
+    rims = {f'{link.name} counterweight {i + 1}': math.hypot(*cw.centre_m) + float(cw.radius_m)
+            for link in sc.links for i, cw in enumerate(link.counterweights)}
     todo = pairs(body_list, margin_m)
     if not todo:
         return Clearance(None, [], 0, p, planes, rims, margin_m)

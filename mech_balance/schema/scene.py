@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 
 from mech_balance import conventions
-from mech_balance.schema import safe_yaml
+from mech_balance.schema import fields, safe_yaml
 from mech_balance.schema.fields import SceneError
 
 SCHEMA_VERSION = 1
@@ -94,6 +94,17 @@ class Normalization:
         """Return a normalized energy, E / (m_1 a_1^2 omega^2) (the unit of a moment)."""
         return conventions.normalize_moment(energy_J, self.mass_kg, self.length_m,
                                             self.omega_rad_s)
+
+    @classmethod
+    def parse(cls, data):
+        """Return the validated ``normalization:`` of a scene mapping, or None without one."""
+        if 'normalization' not in data:
+            return None
+        nd = fields.mapping(data['normalization'], 'normalization')
+        fields.known_keys(nd, {'mass_kg', 'length_m', 'omega_rad_s'}, 'normalization')
+        return cls(*(fields.positive(fields.require(nd, k, 'normalization'),
+                                     f'normalization.{k}')
+                     for k in ('mass_kg', 'length_m', 'omega_rad_s')))
 
     def keys(self):
         """Return the field names: a normalization reads as ``{mass_kg, length_m, ...}``."""

@@ -178,14 +178,6 @@ def _vec3(value, where):
     return fields.vector(value, where, 3)
 
 
-def _points3(value, where):
-    value = fields.mapping(value, where)
-    if not value:
-        raise SceneError(f'{where}: got an empty mapping, expected named points [x, y, z]')
-    fields.at_most(value, conventions.MAX_POINTS, where, 'points', 'MAX_POINTS')
-    return {k: _vec3(v, f'{where}.{k}') for k, v in value.items()}
-
-
 def check_inertia(tensor, where):
     """
     Refuse an inertia tensor no rigid body has; ``tensor`` is (ixx, iyy, izz, ixy, ixz, iyz).
@@ -215,7 +207,7 @@ def _link(name, spec):
     spec = fields.mapping(spec, where)
     fields.known_keys(spec, {'points', 'mass_kg', 'com_m', 'inertia_com_kg_m2',
                              'description'}, where)
-    points = _points3(fields.require(spec, 'points', where), f'{where}.points')
+    points = fields.points(fields.require(spec, 'points', where), f'{where}.points', size=3)
     mass = fields.nonneg(fields.require(spec, 'mass_kg', where), f'{where}.mass_kg')
     com = _vec3(spec.get('com_m', [0.0, 0.0, 0.0]), f'{where}.com_m')
     raw = fields.require(spec, 'inertia_com_kg_m2', where)
@@ -247,19 +239,7 @@ def _joint(name, spec, all_points):
     if jtype not in JOINT_TYPES:
         raise SceneError(f'{where}.type: got {jtype!r}, expected one of '
                          f'{", ".join(JOINT_TYPES)}')
-    ends = []
-    for key in ('a', 'b'):
-        ref = fields.string(fields.require(spec, key, where), f'{where}.{key}')
-        link, _, point = ref.partition('.')
-        if link not in all_points:
-            raise SceneError(f'{where}.{key}: got {ref!r}, expected "link.point" with link '
-                             f'one of {", ".join(all_points)}')
-        if point not in all_points[link]:
-            raise SceneError(f'{where}.{key}: got {ref!r}, link {link!r} has no point '
-                             f'{point!r} (it has {", ".join(all_points[link])})')
-        ends.append((link, point))
-    if ends[0][0] == ends[1][0]:
-        raise SceneError(f'{where}: both ends are on link {ends[0][0]!r}, expected two links')
+    ends = fields.joint_ends(spec, where, all_points)
     axis = axis_b = angle = None
     if jtype in AXIS_JOINTS:
         axis = _axis(fields.require(spec, 'axis', where), f'{where}.axis')
@@ -363,7 +343,8 @@ def spatial_from_dict(data, source='<dict>'):
     description = fields.text(data.get('description', ''), 'description')
     frame = fields.mapping(fields.require(data, 'frame', ''), 'frame')
     fields.known_keys(frame, {'points'}, 'frame')
-    frame_points = _points3(fields.require(frame, 'points', 'frame'), 'frame.points')
+    frame_points = fields.points(fields.require(frame, 'points', 'frame'), 'frame.points',
+                                 size=3)
 
     links_data = fields.mapping(fields.require(data, 'links', ''), 'links')
     if not links_data:
@@ -383,12 +364,7 @@ def spatial_from_dict(data, source='<dict>'):
 
     crank = fields.mapping(fields.require(data, 'crank', ''), 'crank')
     fields.known_keys(crank, CRANK_KEYS, 'crank')
-    crank_joint = fields.string(fields.require(crank, 'joint', 'crank'), 'crank.joint')
-    by_name = {j.name: j for j in joints}
-    if crank_joint not in by_name:
-        raise SceneError(f'crank.joint: got {crank_joint!r}, expected one of the joints '
-                         f'({", ".join(by_name)})')
-    cj = by_name[crank_joint]
+    crank_joint, cj = fields.crank_joint(crank, joints)
     if cj.joint_type not in INPUT_TYPES or FRAME not in (cj.link_a, cj.link_b):
         raise SceneError(
             f'crank.joint: got {crank_joint!r} ({cj.joint_type} between {cj.link_a} and '
@@ -412,13 +388,7 @@ def spatial_from_dict(data, source='<dict>'):
         poses[k] = _pose(v, f'assembly.poses.{k}')
     _check_axes_at_poses(joints, poses)
 
-    normalization = None
-    if 'normalization' in data:
-        nd = fields.mapping(data['normalization'], 'normalization')
-        fields.known_keys(nd, {'mass_kg', 'length_m', 'omega_rad_s'}, 'normalization')
-        normalization = Normalization(*(
-            fields.positive(fields.require(nd, k, 'normalization'), f'normalization.{k}')
-            for k in ('mass_kg', 'length_m', 'omega_rad_s')))
+    normalization = Normalization.parse(data)
     outputs = parse_outputs(data.get('outputs', list(DEFAULT_OUTPUTS)), 'outputs')
     samples = fields.integer(data.get('samples', conventions.DEFAULT_SAMPLES), 'samples',
                              MIN_SAMPLES)
