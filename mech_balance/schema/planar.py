@@ -102,9 +102,7 @@ def planar_from_dict(data, source='<dict>'):
     notes = data.get('notes', {})
     if 'balance' in data:  # provenance written by `mech-balance balance --output`
         _mapping(data['balance'], 'balance')
-    description = data.get('description', '')
-    if not isinstance(description, str):
-        raise SceneError(f'description: got {type(description).__name__}, expected text')
+    description = fields.text(data.get('description', ''), 'description')
     sc = Scene(
         name=name, description=description.strip(), frame_points=frame_points,
         links=links, joints=joints, crank_joint=crank_joint, crank_speed_rad_s=speed,
