@@ -41,17 +41,14 @@ def run_cycle(rig, samples=None, outputs=None):
     from mech_balance.core.rig import as_rig
     rig = as_rig(rig)
     samples = rig.scene.samples if samples is None else samples
+    psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
+                       links=len(rig.scene.links))
+    outputs = rig.scene.outputs if outputs is None else outputs
     if not isinstance(rig, Rig):   # every other rig: through the protocol
-        psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
-                           links=len(rig.scene.links))
-        outputs = rig.scene.outputs if outputs is None else outputs
         t0 = time.perf_counter()
         data = rig.at(psi, outputs=outputs)
         return Cycle(rig, psi, None, None, time.perf_counter() - t0, dict(data.series), data)
-    psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
-                       links=len(rig.scene.links))
     rig.linkage.skeleton  # noqa: B018 - trace the branch outside the timed section
-    outputs = rig.scene.outputs if outputs is None else outputs
     t0 = time.perf_counter()
     state, wrenches = rig.evaluate(psi, outputs)
     series = rig.series(state, outputs)
@@ -89,22 +86,18 @@ def summarize(cycle, normalized=False):
         unit = (NORMALIZED_UNITS if normalized else SI_UNITS)[dimension]
         rows.append(Row(name, unit, float(rms(values)), float(np.max(values)), dimension))
 
-    if w is None:
-        for name, values in (cycle.series or {}).items():
-            label, dimension = SERIES[name]
-            add(label, values, dimension)
-        return rows
-    if w.reaction_force is not None:
-        floor = MOMENT_ROUNDOFF_REL * moment_scale(cycle)
-        for name, f in w.reaction_force.items():
-            add(f'bearing {name} |f|', f, 'force')
-            moment = w.reaction_moment[name]
-            if name != cycle.rig.scene.crank_joint and np.max(np.abs(moment)) > floor:
-                add(f'bearing {name} moment', moment, 'moment')
-    if w.driving_torque is not None:
-        add('driving torque', w.driving_torque, 'moment')
-    add('shaking force |f_sh|', w.shaking_force, 'force')
-    add('shaking moment n_sh', w.shaking_moment, 'moment')
+    if w is not None:
+        if w.reaction_force is not None:
+            floor = MOMENT_ROUNDOFF_REL * moment_scale(cycle)
+            for name, f in w.reaction_force.items():
+                add(f'bearing {name} |f|', f, 'force')
+                moment = w.reaction_moment[name]
+                if name != cycle.rig.scene.crank_joint and np.max(np.abs(moment)) > floor:
+                    add(f'bearing {name} moment', moment, 'moment')
+        if w.driving_torque is not None:
+            add('driving torque', w.driving_torque, 'moment')
+        add('shaking force |f_sh|', w.shaking_force, 'force')
+        add('shaking moment n_sh', w.shaking_moment, 'moment')
     for name, values in (cycle.series or {}).items():
         label, dimension = SERIES[name]
         add(label, values, dimension)

@@ -20,17 +20,12 @@ def rows(rig, data, normalized):
     Shaking force and moment, the scalar series and the bearing loads, SI or ``normalized``.
     """
     norm = rig.scene.normalization if normalized else None
-
-    def scaled(values, dim):
-        if norm is None:
-            return values
-        return norm.force(values) if dim == 'force' else norm.moment(values)
-
     units = NORMALIZED_UNITS if norm is not None else SI_UNITS
     out = []
 
     def add(quantity, values, dim):
-        v = scaled(np.asarray(values, dtype=float), dim)
+        v = np.asarray(values, dtype=float)
+        v = v if norm is None else getattr(norm, dim)(v)   # energy: in the unit of a moment
         mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
         out.append({'quantity': quantity, 'unit': units[dim], 'rms': float(rms(v)),
                     'max_abs': float(np.max(mag)), 'kind': dim})
