@@ -60,12 +60,8 @@ class Drive:
 
 _DRIVE_KEYS = {'motor', 'speed_controller', 'joint_damping', 'initial_speed_rad_s',
                'initial_crank_angle_deg', 'input_inertia_kg_m2'}
-
-
 _MOTOR_KEYS = {'stall_torque_Nm', 'no_load_speed_rad_s', 'rotor_inertia_kg_m2', 'gear_ratio',
                'electrical_time_constant_s', 'voltage_fraction'}
-
-
 _PI_KEYS = {'kp_per_rad_s', 'ki_per_rad', 'setpoint_rad_s', 'voltage_limit'}
 
 

@@ -42,11 +42,8 @@ def identification_from_dict(value, links):
     if not isinstance(value, dict):
         raise IdentificationError(f'identification: got {type(value).__name__}, expected a '
                                   'mapping')
-    known = {'source', 'parameters', 'theta', 'std_directions', 'predicted_rms'}
-    extra = sorted(set(value) - known)
-    if extra:
-        raise IdentificationError(f'identification.{extra[0]}: unknown key, expected one of '
-                                  + ', '.join(sorted(known)))
+    fields.known_keys(value, {'source', 'parameters', 'theta', 'std_directions',
+                              'predicted_rms'}, 'identification', error=IdentificationError)
     n = 4 * len(links)
     names = value.get('parameters')
     expected = [f'{p}[{lk}]' for lk in links for p in ('m', 'hx', 'hy', 'I_O')]

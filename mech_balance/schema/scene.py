@@ -67,9 +67,7 @@ def series_stream(name):
     return f'{SERIES_OUTPUTS.get(name, name)}_plot'
 
 
-_CONFIG_DIRS = (
-    Path(__file__).resolve().parents[2] / 'config',
-)
+_CONFIG_DIRS = (Path(__file__).resolve().parents[2] / 'config',)
 
 
 @dataclass(frozen=True)
