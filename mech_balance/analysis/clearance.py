@@ -1,32 +1,10 @@
 """
 Clearance between the bodies of a planar rig over its cycle: where counterweights collide.
 
-Every body is drawn at the size that :mod:`mech_balance.core.planar.drawn` defines (the
-URDF's): a link's bars are capsules (segments of half-width ``BAR_WIDTH * L / 2``; the box
-the URDF draws together with the pins at its ends is exactly a capsule with those pins), its
-joint bosses discs of radius ``PIN_RADIUS * L``, a slider block the capsule that just holds
-its box, a counterweight its disc.  Each has a slab along z: its plane (the link's
-:func:`~mech_balance.core.planar.drawn.plane_z_m`, a disc's offset by its ``plane_m``) and
-its thickness.  Two bodies share a plane when their slabs overlap (faces that only touch do
-not); two bodies of one link never collide (a disc is bolted to its link).
-
-The clearance of a pair at a crank angle is the distance between their two outlines in the
-plane, ``d(segment_a, segment_b) - r_a - r_b`` (exact for capsules and discs; negative: the
-overlap, for two discs exactly the depth ``r_a + r_b - |c_a - c_b|``).  :func:`clearance`
-takes the least over the p sampled crank angles of the cycle and refines the least pair's
-minimum between samples (local grids, :data:`REFINE_PASSES`), so the least clearance it
-reports is that of the continuous cycle to the refinement's resolution; every other pair
-(each collision) keeps its sampled minimum.
-
-Convex bounds for the counterweight program (:func:`rim_cuts`): a disc of mass dm, first
-moment dh = dm r and inertia dI about its link's origin lies inside the circle of radius
-rho about the origin exactly when ``|r| + R <= rho``; per unit mass, with x = |r| and
-``dI / dm = x^2 + R^2 / 2``, that is ``dI / dm <= f(x) = x^2 + (rho - x)^2 / 2``.  f is
-convex, so the exact set (below a convex function) is not convex; each tangent of f with a
-slope f'(x0) = 3 x0 - rho <= 0 (x0 <= rho / 3) gives the convex, conservative cut
-``dI + (rho - 3 x0) |dh| <= (f(x0) + (rho - 3 x0) x0) dm`` (a second-order cone, linear at
-x0 = rho / 3).  Their intersection keeps every disc inside the circle; it admits centres
-|r| <= rho / sqrt(3) only (the price of convexity).
+Bodies as built (:mod:`mech_balance.analysis.layers`): bars, bosses, pins, blocks and discs as
+capsules, each with a slab along z; the least clearance over the cycle, refined between
+samples; the convex rim cuts of the counterweight program (:func:`rim_cuts`).  The model and
+the derivation of the cuts: docs/balancing.md#clearance-over-the-cycle and docs/build.md.
 """
 
 from dataclasses import dataclass
@@ -41,18 +19,14 @@ import numpy as np
 
 REFINE_POINTS = 17
 REFINE_PASSES = 2
-"""The least clearance of a pair is refined on a local grid of REFINE_POINTS angles across
-its two neighbouring samples, REFINE_PASSES times, each pass 8 times finer: to 1/64 of the
-sample step (0.016 deg at 360 samples; the clearance is smooth in the angle, so its error is
-of the order of the square of that), one batched core evaluation per pass."""
+"""The least pair is refined on REFINE_POINTS angles across its neighbouring samples,
+REFINE_PASSES times, each pass 8 times finer (to 1/64 of the sample step)."""
 RIM_CUT_POINTS = (0.0, 1.0 / 6.0, 1.0 / 3.0)
 """Tangent points x0 / rho of the rim cuts (:func:`rim_cuts`); 1/3 is the last convex one."""
 TOUCH_TOL_M = 1e-12
-"""Two slabs along z overlap when they share more than this thickness (m): touching faces
-are no collision."""
+"""Two slabs along z overlap when they share more than this thickness (m)."""
 ADDED_SHAPES = ('disc', 'shaft', 'web')
-"""The shapes of body a counterweight adds; only pairs with one of them are checked (the
-linkage's own bodies are the rig's business, not the design's)."""
+"""The shapes of body a counterweight adds; only pairs with one of them are checked."""
 
 
 @dataclass(frozen=True)
@@ -85,20 +59,14 @@ class Body:
         """Return the gap between the two slabs along z (m; negative: they overlap)."""
         return abs(self.z_m - other.z_m) - 0.5 * (self.thickness_m + other.thickness_m)
 
-    def shares_plane(self, other):
-        """Return whether the two slabs along z overlap (more than :data:`TOUCH_TOL_M`)."""
-        return self.z_gap(other) < -TOUCH_TOL_M
-
 
 @dataclass
 class Contact:
     """
     The least clearance of one pair over the cycle: where and how much (SI, deg).
 
-    ``point_a_m`` and ``point_b_m`` are the witness points (x, y, z in the world frame at
-    ``crank_angle_deg``, m): the point of body a nearest body b and of b nearest a, on their
-    surfaces.  Where the bodies overlap each lies inside the other, and their distance is
-    the overlap's depth; None where not computed.
+    ``point_a_m``, ``point_b_m``: the witness points (world x, y, z at ``crank_angle_deg``,
+    m) of each body nearest the other; None where not computed.
     """
 
     body_a: str
@@ -130,11 +98,9 @@ class Clearance:
     """
     The least clearance of a design over its cycle.
 
-    ``least`` is the pair of least clearance (None when no two bodies share a plane),
-    ``collisions`` every pair that overlaps somewhere on the cycle (worst first), ``pairs``
-    how many pairs share a plane, ``samples`` the crank angles sampled, ``planes_m`` the z of
-    every disc's mid-plane (absolute: its link's plane plus its ``plane_m``) and
-    ``rims_m`` ``|r| + R`` of every disc (its reach from its link's origin).
+    ``least``: the pair of least clearance (None: no pair shares a plane); ``collisions``:
+    every overlapping pair, worst first; ``planes_m``: each disc's absolute mid-plane z;
+    ``rims_m``: each disc's ``|r| + R``.
     """
 
     least: Contact
@@ -183,9 +149,6 @@ class Clearance:
             lines.append(f'COLLISIONS: {len(self.collisions)} pairs overlap (listed as '
                          'warnings)')
         return lines
-
-
-# ============================================================================ bodies
 
 
 def bodies(rig, layers=None):
@@ -268,8 +231,7 @@ def pairs(body_list, gap_m=0.0):
     """
     Return the pairs ``(i, j)`` that can meet: a counterweight's body and one of another link.
 
-    Two bodies can meet when their slabs along z overlap (``gap_m`` 0) or lie less than
-    ``gap_m`` apart (a margin), and neither runs through the other by design.
+    Their slabs along z overlap (or lie less than ``gap_m`` apart) and neither is exempt.
     """
     out = []
     for i, bi in enumerate(body_list):
@@ -284,21 +246,6 @@ def pairs(body_list, gap_m=0.0):
     return out
 
 
-# ============================================================================ geometry
-
-
-def _point_segment(p, a, b):
-    """Return the distance from points ``p`` to segments ``a``-``b`` (complex arrays)."""
-    d = b - a
-    den = (d * np.conj(d)).real
-    t = np.where(den > 0.0, ((p - a) * np.conj(d)).real / np.where(den > 0.0, den, 1.0), 0.0)
-    return np.abs(p - (a + np.clip(t, 0.0, 1.0) * d))
-
-
-def _cross(u, v):
-    return (np.conj(u) * v).imag
-
-
 def _project(p, a, b):
     """Return the points of segments ``a``-``b`` nearest the points ``p`` (complex arrays)."""
     d = b - a
@@ -307,13 +254,28 @@ def _project(p, a, b):
     return a + np.clip(t, 0.0, 1.0) * d
 
 
+def _point_segment(p, a, b):
+    """Return the distance from points ``p`` to segments ``a``-``b`` (complex arrays)."""
+    return np.abs(p - _project(p, a, b))
+
+
+def _cross(u, v):
+    return (np.conj(u) * v).imag
+
+
+def _crossing(a1, b1, a2, b2):
+    """Return where segments ``a1``-``b1`` and ``a2``-``b2`` cross (complex arrays)."""
+    d1, d2 = b1 - a1, b2 - a2
+    return (_cross(d1, a2 - a1) * _cross(d1, b2 - a1) < 0.0) & \
+        (_cross(d2, a1 - a2) * _cross(d2, b1 - a2) < 0.0)
+
+
 def segment_witness(a1, b1, a2, b2):
     """
     Return ``(q1, q2)``: the nearest points of segments ``a1``-``b1`` and ``a2``-``b2``.
 
-    Complex, broadcast.  Where the segments cross, both are the crossing point; otherwise the
-    nearest pair is an end of one segment and its projection on the other (the closest
-    points of two disjoint segments in the plane include an end of one of them).
+    Complex, broadcast.  Where the segments cross, both are the crossing point; otherwise an
+    end of one segment and its projection on the other.
     """
     a1, b1, a2, b2 = np.broadcast_arrays(*(np.asarray(v, dtype=complex) for v in
                                            (a1, b1, a2, b2)))
@@ -323,11 +285,9 @@ def segment_witness(a1, b1, a2, b2):
     k = np.argmin(dist, axis=0)
     q1 = np.choose(k, [p for p, _ in cands])
     q2 = np.choose(k, [q for _, q in cands])
-    d1, d2 = b1 - a1, b2 - a2
-    s1, s2 = _cross(d1, a2 - a1), _cross(d1, b2 - a1)
-    s3, s4 = _cross(d2, a1 - a2), _cross(d2, b1 - a2)
-    crossing = (s1 * s2 < 0.0) & (s3 * s4 < 0.0)
+    crossing = _crossing(a1, b1, a2, b2)
     if np.any(crossing):
+        d1, d2 = b1 - a1, b2 - a2
         den = _cross(d1, d2)
         t = _cross(a2 - a1, d2) / np.where(crossing, den, 1.0)
         x = a1 + t * d1
@@ -339,18 +299,13 @@ def segment_distance(a1, b1, a2, b2):
     """
     Return the distance between segments ``a1``-``b1`` and ``a2``-``b2`` (complex, broadcast).
 
-    Zero where they cross; otherwise the least of the four end-to-segment distances (the
-    closest points of two disjoint segments in the plane include an end of one of them).
+    Zero where they cross; otherwise the least of the four end-to-segment distances.
     """
     a1, b1, a2, b2 = np.broadcast_arrays(*(np.asarray(v, dtype=complex) for v in
                                            (a1, b1, a2, b2)))
     dist = np.minimum.reduce([_point_segment(a1, a2, b2), _point_segment(b1, a2, b2),
                               _point_segment(a2, a1, b1), _point_segment(b2, a1, b1)])
-    d1, d2 = b1 - a1, b2 - a2
-    s1, s2 = _cross(d1, a2 - a1), _cross(d1, b2 - a1)
-    s3, s4 = _cross(d2, a1 - a2), _cross(d2, b1 - a2)
-    crossing = (s1 * s2 < 0.0) & (s3 * s4 < 0.0)
-    return np.where(crossing, 0.0, dist)
+    return np.where(_crossing(a1, b1, a2, b2), 0.0, dist)
 
 
 class Sweep:
@@ -382,10 +337,9 @@ class Sweep:
         """
         Return the witness points ``(pa, pb)`` of each pair of ``todo``, ``(pairs, k, 3)`` (m).
 
-        In the plane: the nearest points of the two capsules' segments moved out by each
-        radius towards the other (where the segments cross, both at the crossing); along z:
-        where the slabs overlap, both at the middle of the overlap, else each on its face
-        towards the other.  ``cols`` as :meth:`gaps`.
+        In the plane: the segments' nearest points moved out by each radius; along z: the
+        middle of the slabs' overlap, else each face towards the other.  ``cols`` as
+        :meth:`gaps`.
         """
         a1, b1, a2, b2 = self._ends(body_list, todo, cols)
         q1, q2 = segment_witness(a1, b1, a2, b2)
@@ -395,23 +349,17 @@ class Sweep:
         ra = np.array([body_list[i].radius_m for i, _ in todo])[:, None]
         rb = np.array([body_list[j].radius_m for _, j in todo])[:, None]
         pa, pb = q1 + ra * u, q2 - rb * u
-        za, zb = [], []
-        for i, j in todo:
-            a, b = body_list[i], body_list[j]
-            lo_a, hi_a = a.z_m - 0.5 * a.thickness_m, a.z_m + 0.5 * a.thickness_m
-            lo_b, hi_b = b.z_m - 0.5 * b.thickness_m, b.z_m + 0.5 * b.thickness_m
-            lo, hi = max(lo_a, lo_b), min(hi_a, hi_b)
-            if lo <= hi:
-                za.append(0.5 * (lo + hi))
-                zb.append(0.5 * (lo + hi))
-            elif a.z_m < b.z_m:
-                za.append(hi_a)
-                zb.append(lo_b)
-            else:
-                za.append(lo_a)
-                zb.append(hi_b)
-        za = np.broadcast_to(np.array(za)[:, None], pa.shape)
-        zb = np.broadcast_to(np.array(zb)[:, None], pb.shape)
+        # along z: (pairs, 2) slabs of body a and body b
+        z = np.array([[body_list[i].z_m, body_list[j].z_m] for i, j in todo])
+        half = 0.5 * np.array([[body_list[i].thickness_m, body_list[j].thickness_m]
+                               for i, j in todo])
+        lo, hi = z - half, z + half
+        start, end = lo.max(axis=1), hi.min(axis=1)      # the overlap, if start <= end
+        mid, overlap, below = 0.5 * (start + end), start <= end, z[:, 0] < z[:, 1]
+        za = np.where(overlap, mid, np.where(below, hi[:, 0], lo[:, 0]))
+        zb = np.where(overlap, mid, np.where(below, lo[:, 1], hi[:, 1]))
+        za = np.broadcast_to(za[:, None], pa.shape)
+        zb = np.broadcast_to(zb[:, None], pb.shape)
         return (np.stack([pa.real, pa.imag, za], axis=-1),
                 np.stack([pb.real, pb.imag, zb], axis=-1))
 
@@ -433,9 +381,8 @@ class Sweep:
         Return the clearance ``(pairs, k)`` of each pair of ``todo`` (m).
 
         ``cols``: the sample columns, ``(k,)`` for every pair or ``(pairs, k)`` (default all).
-        Bodies whose slabs lie apart along z by g >= 0 are clear by ``hypot(d, g)`` (d >= 0
-        their distance in the plane; the bodies are prisms along z), else by ``d`` (negative:
-        the overlap).
+        Slabs a gap g >= 0 apart along z: ``hypot(d, g)`` (d >= 0 in the plane); else ``d``
+        (negative: the overlap).
         """
         local = np.array([[body_list[i].a, body_list[i].b, body_list[j].a, body_list[j].b]
                           for i, j in todo])
@@ -462,10 +409,8 @@ def contacts_at(scene_or_rig, psi, margin_m=0.0):
     """
     Return, per crank angle of ``psi`` (rad), the pairs closer than ``margin_m`` there.
 
-    ``[[(Contact, body_a, body_b), ...] per angle]``: each :class:`Contact` with its
-    clearance and witness points at that angle, beside the two :class:`Body` (to draw them);
-    and the :class:`Sweep` of ``psi`` (its :meth:`Sweep.outline` poses a body).  Pairs as
-    :func:`clearance` checks them (slabs less than ``margin_m`` apart along z).
+    Returns ``([[(Contact, body_a, body_b), ...] per angle], Sweep of psi)``; pairs as
+    :func:`clearance` checks them.
     """
     rig = scene_or_rig if isinstance(scene_or_rig, PlanarRig) else PlanarRig(scene_or_rig)
     psi = np.atleast_1d(np.asarray(psi, dtype=float))
@@ -492,17 +437,13 @@ def pair_clearance(rig, body_a, body_b, psi):
     return Sweep(rig, psi).gaps([body_a, body_b], [(0, 1)])[0]
 
 
-# ============================================================================ the check
-
-
 def clearance(scene_or_rig, samples=None, margin_m=0.0, sweep=None):
     """
     Return the :class:`Clearance` of a planar scene (or rig) over its cycle.
 
-    ``samples`` crank angles (default: the scene's) in one batched evaluation of the core
-    (or the given :class:`Sweep` of them); the minimum of the least pair is then refined
-    between its neighbouring samples (the other pairs, collisions included, keep their
-    sampled minimum).  Pairs whose slabs lie ``margin_m`` apart or more along z are clear.
+    ``samples`` crank angles (default: the scene's; or the given :class:`Sweep`); the least
+    pair is refined between its samples, the others keep their sampled minimum.  Pairs
+    whose slabs lie ``margin_m`` apart or more along z are clear.
     """
     rig = scene_or_rig if isinstance(scene_or_rig, PlanarRig) else PlanarRig(scene_or_rig)
     sc = rig.scene
@@ -510,11 +451,8 @@ def clearance(scene_or_rig, samples=None, margin_m=0.0, sweep=None):
     psi = cycle_angles(p)
     body_list = bodies(rig)
     planes = {b.name: b.z_m for b in body_list if b.shape == 'disc'}
-    rims = {}
-    for link in sc.links:
-        for i, cw in enumerate(link.counterweights):
-            rims[f'{link.name} counterweight {i + 1}'] = \
-                math.hypot(*cw.centre_m) + float(cw.radius_m)
+    rims = {f'{link.name} counterweight {i + 1}': math.hypot(*cw.centre_m) + float(cw.radius_m)
+            for link in sc.links for i, cw in enumerate(link.counterweights)}
     todo = pairs(body_list, margin_m)
     if not todo:
         return Clearance(None, [], 0, p, planes, rims, margin_m)
@@ -523,8 +461,7 @@ def clearance(scene_or_rig, samples=None, margin_m=0.0, sweep=None):
     worst_k = np.argmin(gap, axis=1)
     worst = gap[np.arange(len(todo)), worst_k]
     step = 2.0 * math.pi / p
-    # refine the least pair between its neighbouring samples (the others keep their sampled
-    # minimum: off by about the curvature times the half step squared, 1e-6 m on Hoeken)
+    # refine the least pair between its neighbouring samples
     refine = [int(np.argmin(worst))]
     angles = psi[worst_k].copy()
     for _ in range(REFINE_PASSES):
@@ -548,15 +485,13 @@ def clearance(scene_or_rig, samples=None, margin_m=0.0, sweep=None):
     return Clearance(least, collisions, len(todo), p, planes, rims, margin_m)
 
 
-# ============================================================================ convex bounds
-
-
 def rim_cuts(rho_m):
     """
     Return the convex rim cuts of a disc inside radius ``rho_m`` of its link's origin.
 
-    ``[(c_h, c_m), ...]`` for the cones ``dI + c_h |dh| <= c_m dm`` (module docstring; SI:
-    c_h in m, c_m in m^2), one per tangent point of :data:`RIM_CUT_POINTS`.
+    ``[(c_h, c_m), ...]`` for the cones ``dI + c_h |dh| <= c_m dm`` (c_h in m, c_m in m^2),
+    one per tangent point of :data:`RIM_CUT_POINTS`; the derivation:
+    docs/balancing.md#clearance-over-the-cycle.
     """
     rho = float(rho_m)
     out = []

@@ -1,20 +1,17 @@
 """
 Cycle analysis of a rig of any kind: the table of RMS and extreme values, SI or normalized.
 
-:func:`run_cycle` evaluates one revolution of a :class:`~mech_balance.core.rig.Rig` (or a
-scene) at p equally spaced crank angles and computes only what the scene's outputs need;
-:func:`summarize` turns it into the table's rows.  A planar rig (:class:`Rig`, which binds
-a scene's geometry, compiled once and its branch traced once, to an inertia) keeps its own
-kinematic state and wrenches (:attr:`Cycle.state`, :attr:`Cycle.wrenches`: its bearing
-reactions and round-off floor); any other rig is evaluated through the protocol
-(:meth:`~mech_balance.core.rig.Rig.at`, :attr:`Cycle.data`), its rows those of
-:mod:`mech_balance.analysis.spatial_report`.
+:func:`run_cycle` evaluates one revolution at p equally spaced crank angles, computing only
+what the scene's outputs need; :func:`summarize` turns it into the table's rows.  A planar
+:class:`Rig` keeps its kinematic state and wrenches; any other rig is evaluated through the
+protocol (:attr:`Cycle.data`, rows of :mod:`mech_balance.analysis.spatial_report`).
 """
 
 from dataclasses import dataclass
 import time
 
 from mech_balance.analysis.report import analysis_dict, ANALYSIS_KEYS, Report  # noqa: F401
+from mech_balance.analysis.report import NORMALIZED_UNITS, SI_UNITS
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics, kinematics
@@ -22,14 +19,8 @@ from mech_balance.core.planar.rig import linkage_for, PlanarRig as Rig  # noqa: 
 from mech_balance.schema.scene import OUTPUTS, SERIES
 import numpy as np
 
-SI_UNITS = {'force': 'N', 'moment': 'N*m', 'energy': 'J'}
-"""The unit of each dimension of a table row (:data:`mech_balance.schema.scene.SERIES`)."""
-NORMALIZED_UNITS = {'force': 'm1*a1*w^2', 'moment': 'm1*a1^2*w^2', 'energy': 'm1*a1^2*w^2'}
-"""The same in the papers' normalized view (seed 001 sec. 3.4)."""
 MOMENT_ROUNDOFF_REL = 1e-12
-"""A bearing moment whose largest value is below this fraction of the rig's moment scale
-(largest driving torque, shaking moment, or bearing force times the linkage's length) is
-round-off, not a load: its row is left out of the table."""
+"""A bearing moment below this fraction of :func:`moment_scale` is round-off: no row."""
 
 
 @dataclass
@@ -50,17 +41,14 @@ def run_cycle(rig, samples=None, outputs=None):
     from mech_balance.core.rig import as_rig
     rig = as_rig(rig)
     samples = rig.scene.samples if samples is None else samples
+    psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
+                       links=len(rig.scene.links))
+    outputs = rig.scene.outputs if outputs is None else outputs
     if not isinstance(rig, Rig):   # every other rig: through the protocol
-        psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
-                           links=len(rig.scene.links))
-        outputs = rig.scene.outputs if outputs is None else outputs
         t0 = time.perf_counter()
         data = rig.at(psi, outputs=outputs)
         return Cycle(rig, psi, None, None, time.perf_counter() - t0, dict(data.series), data)
-    psi = cycle_angles(samples, rig.scene.assembly_crank_angle_rad,
-                       links=len(rig.scene.links))
     rig.linkage.skeleton  # noqa: B018 - trace the branch outside the timed section
-    outputs = rig.scene.outputs if outputs is None else outputs
     t0 = time.perf_counter()
     state, wrenches = rig.evaluate(psi, outputs)
     series = rig.series(state, outputs)
@@ -98,22 +86,18 @@ def summarize(cycle, normalized=False):
         unit = (NORMALIZED_UNITS if normalized else SI_UNITS)[dimension]
         rows.append(Row(name, unit, float(rms(values)), float(np.max(values)), dimension))
 
-    if w is None:
-        for name, values in (cycle.series or {}).items():
-            label, dimension = SERIES[name]
-            add(label, values, dimension)
-        return rows
-    if w.reaction_force is not None:
-        floor = MOMENT_ROUNDOFF_REL * moment_scale(cycle)
-        for name, f in w.reaction_force.items():
-            add(f'bearing {name} |f|', f, 'force')
-            moment = w.reaction_moment[name]
-            if name != cycle.rig.scene.crank_joint and np.max(np.abs(moment)) > floor:
-                add(f'bearing {name} moment', moment, 'moment')
-    if w.driving_torque is not None:
-        add('driving torque', w.driving_torque, 'moment')
-    add('shaking force |f_sh|', w.shaking_force, 'force')
-    add('shaking moment n_sh', w.shaking_moment, 'moment')
+    if w is not None:
+        if w.reaction_force is not None:
+            floor = MOMENT_ROUNDOFF_REL * moment_scale(cycle)
+            for name, f in w.reaction_force.items():
+                add(f'bearing {name} |f|', f, 'force')
+                moment = w.reaction_moment[name]
+                if name != cycle.rig.scene.crank_joint and np.max(np.abs(moment)) > floor:
+                    add(f'bearing {name} moment', moment, 'moment')
+        if w.driving_torque is not None:
+            add('driving torque', w.driving_torque, 'moment')
+        add('shaking force |f_sh|', w.shaking_force, 'force')
+        add('shaking moment n_sh', w.shaking_moment, 'moment')
     for name, values in (cycle.series or {}).items():
         label, dimension = SERIES[name]
         add(label, values, dimension)
@@ -124,8 +108,8 @@ def moment_scale(cycle):
     """
     Return the rig's moment scale over a cycle, N*m: what round-off is measured against.
 
-    The largest of |driving torque|, |shaking moment| and |bearing force| times the
-    linkage's characteristic length (those the cycle computed); 0 for kinematics only.
+    The largest |driving torque|, |shaking moment|, |bearing force| x length; 0 for
+    kinematics only.
     """
     w = cycle.wrenches
     if w is None:
@@ -192,8 +176,8 @@ def analyze(sc, samples=None, normalized=False, design=None):
     """
     Return the ``mech-balance analyze`` :class:`~mech_balance.analysis.report.Report`.
 
-    ``design`` is an optional seed 001 point-mass design vector (normalized when the scene
-    records a normalization) applied to the scene's links first.
+    ``design``: a seed 001 point-mass design vector applied to the links first (normalized
+    when the scene records a normalization).
     """
     if design is not None:
         sc = equimomental.apply_design(sc, design, normalized=sc.normalization is not None)

@@ -1,24 +1,10 @@
 """
 The layered model of a planar rig as built: each body a layer along the joint axes.
 
-Body k of the linkage (the frame k = 0, then the links in
-:attr:`~mech_balance.core.planar.kinematics.Linkage.body_names` order) is a plate whose
-mid-plane is ``z_k`` and whose thickness is ``t_k``; its bars are ``w_k`` wide; each joint
-boss is a cylinder of the pin radius, ``boss_length`` long, centred on its body's plane; each
-revolute joint is a pin through the layers it joins (from the lower body's plane to the upper
-one's, boss ends included).  Every value is a field of the scene's ``build:`` section
-(:mod:`mech_balance.schema.build`); a missing one is the size drawn today
-(:mod:`mech_balance.core.planar.drawn`, fractions of the length scale L):
-``z_k = LAYER L k``, ``t_k = BAR_THICKNESS L``, ``w_k = BAR_WIDTH L``, pin radius
-``PIN_RADIUS L``, boss length ``PIN_LENGTH t``.
-
-A counterweight disc off its link's plane (``plane_m`` != 0) is carried as built: a shaft of
-the pin radius at its mount (its ``mount`` point, default the link's point nearest the disc
-centre) runs along z from the link's face towards the disc to the disc's near face, and a
-web (a bar of the link's width, as thick as the disc) joins the shaft to the disc in the
-disc's layer.  The shaft and the web are clearance bodies; their mass is not in the
-dynamics (docs/build.md).  A disc in its link's plane is bolted to the link: no shaft, no
-web.
+Plates, bars, bosses and pins at the sizes of the scene's ``build:`` section
+(:mod:`mech_balance.schema.build`), by default those :mod:`mech_balance.core.planar.drawn`
+draws; a disc off its link's plane is carried by a shaft and a web.  The table of sizes and
+defaults: docs/build.md#the-layered-model.
 """
 
 from dataclasses import dataclass
@@ -123,10 +109,3 @@ def stack(layers, items, side, margin_m):
         out[key] = face + side * (margin_m + 0.5 * t)
         face = face + side * (margin_m + t)
     return out
-
-
-def overhang_m(layers, z_mid, thickness_m):
-    """Return how far a disc's outer face lies beyond the linkage's extent along z (m)."""
-    lo, hi = layers.extent()
-    return max(z_mid + 0.5 * thickness_m - hi, lo - (z_mid - 0.5 * thickness_m), 0.0) \
-        if not (lo <= z_mid <= hi) else 0.0

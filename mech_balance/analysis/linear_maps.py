@@ -1,12 +1,9 @@
 """
 The RMS quantities of a scene as compressed linear maps of its inertial parameters.
 
-The shaking force and moment, the driving torque and the bearing reactions are linear in
-each link's inertial parameters (seed 001 eqs. 25-26), so the RMS of each over a cycle is
-the Euclidean norm of a linear map of them.  The balancing's cone programs
-(:mod:`mech_balance.balancing`) and the identification's predicted RMS
-(:mod:`mech_balance.analysis.identify`) both read these maps: one definition of the RMS
-objective (the RMS itself: :mod:`mech_balance.conventions`).
+The wrenches are linear in each link's inertial parameters (seed 001 eqs. 25-26), so each
+RMS over a cycle is the norm of a linear map; the balancing's cone programs and the
+identification's predicted RMS read these maps.
 """
 
 from dataclasses import dataclass
@@ -28,9 +25,8 @@ class LinearMaps:
     """
     The RMS quantities of a scene as compressed linear maps of its inertial parameters.
 
-    ``theta`` is the normalized ``(4 n,)`` vector [m, hx, hy, I_O] per link (mass by
-    units.mass_kg, first moment by mass*length, inertia by mass*length^2).  Each map R
-    satisfies ``RMS(quantity(theta)) = ||R theta||`` in normalized units.
+    ``theta``: the ``(4 n,)`` [m, hx, hy, I_O] per link in the rig's units; each map R
+    gives ``RMS(quantity(theta)) = ||R theta||`` in those units.
     """
 
     force: np.ndarray                 # (k, 4n) RMS shaking force
@@ -59,9 +55,8 @@ def linear_maps(scene, samples=None, outputs=('shaking_wrench',), units=None):
     """
     Return the :class:`LinearMaps` of a planar scene over ``samples`` crank angles.
 
-    One kinematic solution is reused; the wrenches are evaluated at the 4 n unit parameter
-    vectors (they are linear in theta, seed 001 eqs. 25-26) and each stacked map is
-    compressed to its triangular QR factor.
+    The wrenches at the 4 n unit parameter vectors on one kinematic solution, each stacked
+    map compressed to its triangular QR factor.
     """
     units = objective_units(scene) if units is None else units
     samples = scene.samples if samples is None else samples

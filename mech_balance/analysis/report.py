@@ -1,9 +1,8 @@
 """
 What ``mech-balance analyze`` prints: one :class:`Report` per scene, whatever its kind.
 
-Each kind's ``analyze`` implementation (registered in :mod:`mech_balance.schema.registry`)
-returns one; the command prints ``text`` or, with ``--json``, ``data``, and ``warnings`` on
-standard error.  ``data`` has one top-level shape for every kind (:func:`analysis_dict`).
+Each kind's registered ``analyze`` returns one: ``text``, or with ``--json`` ``data`` (one
+shape for every kind, :func:`analysis_dict`), and ``warnings`` on standard error.
 """
 
 from dataclasses import dataclass, field
@@ -23,6 +22,10 @@ ANALYSIS_KEYS = ('scene', 'kind', 'samples', 'crank_speed_rad_s', 'crank_acceler
                  'worst_condition', 'near_singular', 'near_singular_condition', 'extras')
 """The top-level keys of ``mech-balance analyze --json``, for every kind (docs/cli.md); a row
 is ``{quantity, unit, rms, max_abs, kind}``; what only one kind reports is under ``extras``."""
+SI_UNITS = {'force': 'N', 'moment': 'N*m', 'energy': 'J'}
+"""The unit of each dimension of a table row (:data:`mech_balance.schema.scene.SERIES`)."""
+NORMALIZED_UNITS = {'force': 'm1*a1*w^2', 'moment': 'm1*a1^2*w^2', 'energy': 'm1*a1^2*w^2'}
+"""The same in the papers' normalized view (seed 001 sec. 3.4)."""
 
 
 def analysis_dict(sc, rig, samples, normalized, rows, worst_residual, worst_condition,

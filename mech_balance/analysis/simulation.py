@@ -2,10 +2,7 @@
 The report of a forward-dynamics run (``mech-balance simulate``): time series and figures.
 
 :func:`simulate` integrates a scene or rig of any kind with its drive
-(:mod:`mech_balance.core.forward`) and returns a :class:`Report`: the run resampled on a
-uniform time grid, the rig's shaking wrench and driving effort along it, the start-up time,
-the steady-state figures (RMS over time), the energy balance, the model error of the tables
-and the inverse-dynamics check; :func:`format_report` prints it.
+(:mod:`mech_balance.core.forward`); :func:`format_report` prints its :class:`Report`.
 """
 
 from dataclasses import dataclass
@@ -44,9 +41,7 @@ def input_axis(rig):
     """
     Return the unit axis ``(3,)`` in the frame about which psi turns the input, or None.
 
-    A revolute input on the frame: its joint axis from the rig's drawing (turned round when
-    the frame is the joint's link b); a planar rig (a 2-D drawing): z.  None for a prismatic
-    input (its Scotch-yoke crank's axis is not part of the scene).
+    From the rig's drawing (z for a planar rig); None for a prismatic input.
     """
     if rig.joint_prismatic[rig.joint_names.index(rig.crank_joint)]:
         return None
@@ -63,14 +58,10 @@ def report(sim, samples_per_turn=72, max_samples=20000):
     """
     Return the :class:`Report` of a simulation on a uniform time grid.
 
-    The grid has ``samples_per_turn`` points per crank turn at the operating speed.  The
-    shaking wrench and driving effort come from the rig at the simulated (psi, psi',
-    psi''); its generalized force (the effort times dx/dpsi) must equal the motor torque
-    minus the joint damping and the inertia torque of the rotor and the input flywheel
-    (seed 000 eq. 39 read backwards): the largest difference is reported as
-    ``inverse_dynamics_check_Nm``, the model error of the tables as ``table_error``.  The
-    rotor and flywheel turn about the input axis (:func:`input_axis`); their reaction
-    moment is in the shaking moment where that axis is known.
+    ``samples_per_turn`` points per crank turn.  ``inverse_dynamics_check_Nm``: the rig's
+    generalized force against motor torque - damping - rotor and flywheel inertia (seed 000
+    eq. 39 read backwards); the rotor's reaction moment is in the shaking moment where
+    :func:`input_axis` is known.
     """
     model = sim.model
     t_end = float(sim.t[-1])

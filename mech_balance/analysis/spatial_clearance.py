@@ -1,16 +1,10 @@
 """
 Clearance of a spatial rig's sphere counterweights over the cycle (bodies as 3-D solids).
 
-A spatial rig as built: each moving body a chain of tubes along its drawn outline
-(capsules of radius ``BAR_WIDTH L / 2``), a joint housing (a ball of radius ``PIN_RADIUS L``)
-at each of its points, and each frame point a bearing housing of the same radius; L is the
-span of the crank body's points (the planar rule, :mod:`mech_balance.core.planar.drawn`
-sizes).  A counterweight is a cluster of spheres fixed to its body
-(:func:`mech_balance.balancing.spatial.spheres.sphere_cluster`, outer radii).  Every sphere is
-checked against every body of another body (and the frame) at each crank sample: the
-distance between a sphere and a capsule is the distance from its centre to the capsule's
-segment minus both radii (exact in 3-D).  The answer is a
-:class:`mech_balance.analysis.clearance.Clearance`, the planar check's report.
+Tubes along each body's drawn outline, joint and bearing housings as balls, each
+counterweight a cluster of spheres; distances exact in 3-D.  The answer is a
+:class:`mech_balance.analysis.clearance.Clearance`.  The model:
+docs/build.md#spatial-rigs-sphere-counterweights.
 """
 
 import math

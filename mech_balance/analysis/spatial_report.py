@@ -1,42 +1,31 @@
 """
 ``mech-balance analyze`` for spatial scenes: RMS and peak of every output over one cycle.
 
-Everything comes through the Rig protocol (:func:`mech_balance.core.rig.rig_for`); the rows
-are the magnitudes of the shaking force and moment (about the scene's moment point), the
-scalar series (:data:`mech_balance.schema.scene.SERIES`) and the bearing loads of every
-joint, SI or in the papers' normalized units when the scene records a normalization.
+Through the Rig protocol: the shaking force and moment (about the moment point), the scalar
+series (:data:`mech_balance.schema.scene.SERIES`) and every joint's bearing loads.
 """
 
-from mech_balance.analysis.report import analysis_dict, Report
+from mech_balance.analysis.report import analysis_dict, NORMALIZED_UNITS, Report, SI_UNITS
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core.rig import rig_for
 from mech_balance.core.spatial.kinematics import COND_WARN
 from mech_balance.schema.scene import SERIES
 import numpy as np
 
-SI_UNITS = {'force': 'N', 'moment': 'N*m', 'energy': 'J'}
-NORMALIZED_UNITS = {'force': 'm1*a1*w^2', 'moment': 'm1*a1^2*w^2', 'energy': 'm1*a1^2*w^2'}
-
 
 def rows(rig, data, normalized):
     """
     Return the table rows ``{quantity, unit, rms, max_abs, kind}`` of a rig evaluated by ``at``.
 
-    The shaking force and moment magnitudes, the scalar series and the bearing loads, SI or
-    normalized (``normalized``: by the scene's normalization).
+    Shaking force and moment, the scalar series and the bearing loads, SI or ``normalized``.
     """
     norm = rig.scene.normalization if normalized else None
-
-    def scaled(values, dim):
-        if norm is None:
-            return values
-        return norm.force(values) if dim == 'force' else norm.moment(values)
-
     units = NORMALIZED_UNITS if norm is not None else SI_UNITS
     out = []
 
     def add(quantity, values, dim):
-        v = scaled(np.asarray(values, dtype=float), dim)
+        v = np.asarray(values, dtype=float)
+        v = v if norm is None else getattr(norm, dim)(v)   # energy: in the unit of a moment
         mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
         out.append({'quantity': quantity, 'unit': units[dim], 'rms': float(rms(v)),
                     'max_abs': float(np.max(mag)), 'kind': dim})

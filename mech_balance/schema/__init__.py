@@ -1,59 +1,27 @@
 """
 The scene file: read, validated and written here, for every kind of rig.
 
-The public face of the schema layer::
-
-    from mech_balance import schema
-    sc = schema.load('hoeken')            # a built-in name or a path to a .yaml file
-    text = schema.to_yaml(sc)             # what load() reads back, bit for bit
-
-The planar schema is documented in the README (section *Scenes*) and enforced by
-:mod:`mech_balance.schema.scene`; the spatial one by :mod:`mech_balance.schema.spatial` (a
-former ``kind: rggr`` file is translated by :mod:`mech_balance.schema.rggr_legacy`); ``drive:``
-by :mod:`mech_balance.schema.drive`; ``identification:`` by
-:mod:`mech_balance.schema.identification`; the field checks all of them share are in
-:mod:`mech_balance.schema.fields`; the kinds are registered in
-:mod:`mech_balance.schema.registry`.  Every error is a :class:`SceneError` (a
-``ValueError``) naming the field, the bad value and what was expected.
+``schema.load('hoeken')`` (a built-in name or a .yaml path) and ``schema.to_yaml(sc)`` (what
+load() reads back, bit for bit).  The schema: docs/scenes.md; the modules:
+docs/design.md#layers.  Every error is a :class:`SceneError` (a ``ValueError``) naming the
+field, the bad value and what was expected.
 """
 
 import importlib
 
-_LAZY = {
-    'add_counterweights': 'scene',
-    'builtin_scenes': 'scene',
-    'Counterweight': 'scene',
-    'DEFAULT_OUTPUTS': 'scene',
-    'Drive': 'drive',
-    'drive_from_dict': 'drive',
-    'DriveError': 'drive',
-    'FRAME': 'scene',
-    'from_dict': 'registry',
-    'identification_from_dict': 'identification',
-    'identification_to_dict': 'identification',
-    'IdentificationError': 'identification',
-    'INERTIA_ROUNDOFF': 'scene',
-    'Joint': 'scene',
-    'kind_of': 'registry',
-    'KINDS': 'registry',
-    'Link': 'scene',
-    'load_data': 'scene',
-    'MAX_ABS_VALUE': 'fields',
-    'needs': 'scene',
-    'Normalization': 'scene',
-    'OUTPUTS': 'scene',
-    'parse_yaml': 'scene',
-    'Recording': 'scene',
-    'RECORDING_STREAMS': 'scene',
-    'resolve': 'scene',
-    'Scene': 'scene',
-    'SceneError': 'fields',
-    'SCHEMA_VERSION': 'scene',
-    'SERIES': 'scene',
-    'to_dict': 'registry',
-}
-"""The public names of the schema's modules, imported on first use (so that a command line
-parser that needs one constant does not load the loaders)."""
+_LAZY = {name: module for module, names in (
+    ('scene', ('add_counterweights', 'builtin_scenes', 'Counterweight', 'DEFAULT_OUTPUTS',
+               'FRAME', 'INERTIA_ROUNDOFF', 'Joint', 'Link', 'load_data', 'needs',
+               'Normalization', 'OUTPUTS', 'parse_yaml', 'Recording', 'RECORDING_STREAMS',
+               'resolve', 'Scene', 'SCHEMA_VERSION', 'SERIES')),
+    ('drive', ('Drive', 'drive_from_dict', 'DriveError')),
+    ('fields', ('MAX_ABS_VALUE', 'SceneError')),
+    ('registry', ('from_dict', 'kind_of', 'KINDS', 'to_dict')),
+    ('identification', ('identification_from_dict', 'identification_to_dict',
+                        'IdentificationError')),
+) for name in names}
+"""The public names of the schema's modules -> their module, imported on first use (so that
+a command line parser that needs one constant does not load the loaders)."""
 
 
 def __getattr__(name):
@@ -79,9 +47,7 @@ def to_yaml(sc, provenance=None):
     """
     Return a scene as YAML text that :func:`load` reads back bit for bit.
 
-    Floats are written with their shortest exact representation.  ``provenance`` (a plain
-    mapping, e.g. the summary of a balancing run) is stored under the scene's ``balance``
-    key.
+    ``provenance`` (a plain mapping, e.g. a balancing run's summary) goes under ``balance``.
     """
     import yaml
     from mech_balance.schema.registry import to_dict

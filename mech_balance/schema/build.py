@@ -1,21 +1,9 @@
 """
 The ``build:`` section of a planar scene: the rig as built, layer by layer along the joint axes.
 
-Every field is optional; a missing one takes the drawn size of
-:mod:`mech_balance.core.planar.drawn` (a fraction of the linkage's length scale), so a scene
-without ``build:`` is the rig the URDF draws.  The model that uses these values is
-:class:`mech_balance.analysis.layers.Layers`; docs/build.md shows it in a picture.
-
-.. code-block:: yaml
-
-    build:
-      layer_pitch_m: 0.0038      # z step between consecutive bodies' mid-planes
-      bar_width_m: 0.0053        # a bar's width in the plane
-      bar_thickness_m: 0.0023    # a bar's thickness along z
-      pin_radius_m: 0.003        # pins and shafts (and the bosses around them)
-      boss_length_m: 0.0034      # a joint boss's length along z, centred on its body's plane
-      layers:                    # per body (frame or a link), each field optional
-        crank: {z_m: 0.0038, thickness_m: 0.0023, bar_width_m: 0.0053}
+Every field is optional (a missing one: the size :mod:`mech_balance.core.planar.drawn`
+draws); the model that uses them is :class:`mech_balance.analysis.layers.Layers`.  The
+fields: docs/build.md#the-layered-model.
 """
 
 from mech_balance.schema.fields import known_keys, mapping, number, positive, SceneError
@@ -33,8 +21,7 @@ def build_from_dict(data, bodies, where='build'):
     """
     Return the ``build:`` section checked, as a plain dict of floats (missing fields absent).
 
-    ``bodies``: the frame and link names of the scene (the keys ``layers`` may use).  Errors
-    (:class:`SceneError`) name the field, the value and what was expected.
+    ``bodies``: the frame and link names (the keys ``layers`` may use); raises SceneError.
     """
     if data is None:
         return None

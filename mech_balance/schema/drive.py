@@ -1,9 +1,8 @@
 """
 The ``drive:`` section of a scene: motor, speed controller, joint damping, initial state.
 
-Read here, used by the forward dynamics (:mod:`mech_balance.core.forward`).  The schema is
-documented there and in the README; the field checks are the scene loader's
-(:mod:`mech_balance.schema.fields`) raising :class:`DriveError`.
+Used by the forward dynamics (:mod:`mech_balance.core.forward`; docs/simulation.md); the
+field checks are :mod:`mech_balance.schema.fields`' raising :class:`DriveError`.
 """
 
 from dataclasses import dataclass, field
@@ -61,24 +60,17 @@ class Drive:
 
 _DRIVE_KEYS = {'motor', 'speed_controller', 'joint_damping', 'initial_speed_rad_s',
                'initial_crank_angle_deg', 'input_inertia_kg_m2'}
-
-
 _MOTOR_KEYS = {'stall_torque_Nm', 'no_load_speed_rad_s', 'rotor_inertia_kg_m2', 'gear_ratio',
                'electrical_time_constant_s', 'voltage_fraction'}
-
-
 _PI_KEYS = {'kp_per_rad_s', 'ki_per_rad', 'setpoint_rad_s', 'voltage_limit'}
 
 
 def drive_from_dict(data, scene=None, joint_names=None):
     """
-    Return the validated :class:`Drive` of a scene's ``drive`` mapping.
+    Return the validated :class:`Drive` of a scene's ``drive`` mapping (raises DriveError).
 
-    Every error is a :class:`DriveError` naming the field (``drive.motor.gear_ratio``), the
-    value and what was expected.  The keys of ``joint_damping`` are checked against
-    ``joint_names`` (a rig's published joint coordinates,
-    :attr:`~mech_balance.core.rig.Rig.joint_names`) or, without them, the joints of
-    ``scene`` (a planar scene's joints are its coordinates).
+    The keys of ``joint_damping`` are checked against ``joint_names`` (a rig's
+    :attr:`~mech_balance.core.rig.Rig.joint_names`) or else the joints of ``scene``.
     """
     if data is None:
         return Drive()
@@ -92,19 +84,13 @@ def drive_from_dict(data, scene=None, joint_names=None):
             m = _mapping(data['motor'], 'drive.motor')
             _known(m, _MOTOR_KEYS, 'drive.motor')
             motor = Motor(
-                stall_torque_Nm=_positive(_require(m, 'stall_torque_Nm', 'drive.motor'),
-                                          'drive.motor.stall_torque_Nm'),
-                no_load_speed_rad_s=_positive(
-                    _require(m, 'no_load_speed_rad_s', 'drive.motor'),
-                    'drive.motor.no_load_speed_rad_s'),
-                rotor_inertia_kg_m2=_nonneg(m.get('rotor_inertia_kg_m2', 0.0),
-                                            'drive.motor.rotor_inertia_kg_m2'),
-                gear_ratio=_positive(m.get('gear_ratio', 1.0), 'drive.motor.gear_ratio'),
-                electrical_time_constant_s=_nonneg(
-                    m.get('electrical_time_constant_s', 0.0),
-                    'drive.motor.electrical_time_constant_s'),
-                voltage_fraction=_number(m.get('voltage_fraction', 1.0),
-                                         'drive.motor.voltage_fraction'))
+                stall_torque_Nm=_field(m, 'drive.motor', 'stall_torque_Nm', _positive),
+                no_load_speed_rad_s=_field(m, 'drive.motor', 'no_load_speed_rad_s', _positive),
+                rotor_inertia_kg_m2=_field(m, 'drive.motor', 'rotor_inertia_kg_m2', _nonneg, 0.0),
+                gear_ratio=_field(m, 'drive.motor', 'gear_ratio', _positive, 1.0),
+                electrical_time_constant_s=_field(m, 'drive.motor', 'electrical_time_constant_s',
+                                                  _nonneg, 0.0),
+                voltage_fraction=_field(m, 'drive.motor', 'voltage_fraction', _number, 1.0))
             if abs(motor.voltage_fraction) > VOLTAGE_FRACTION_MAX:
                 raise DriveError(
                     f'drive.motor.voltage_fraction: got {motor.voltage_fraction!r}, expected '
@@ -117,16 +103,12 @@ def drive_from_dict(data, scene=None, joint_names=None):
                                  'motor, expected drive.motor as well')
             c = _mapping(data['speed_controller'], 'drive.speed_controller')
             _known(c, _PI_KEYS, 'drive.speed_controller')
-            setpoint = c.get('setpoint_rad_s')
+            where = 'drive.speed_controller'
             pi = SpeedController(
-                kp_per_rad_s=_nonneg(_require(c, 'kp_per_rad_s', 'drive.speed_controller'),
-                                     'drive.speed_controller.kp_per_rad_s'),
-                ki_per_rad=_nonneg(_require(c, 'ki_per_rad', 'drive.speed_controller'),
-                                   'drive.speed_controller.ki_per_rad'),
-                setpoint_rad_s=None if setpoint is None else _number(
-                    setpoint, 'drive.speed_controller.setpoint_rad_s'),
-                voltage_limit=_positive(c.get('voltage_limit', 1.0),
-                                        'drive.speed_controller.voltage_limit'))
+                kp_per_rad_s=_field(c, where, 'kp_per_rad_s', _nonneg),
+                ki_per_rad=_field(c, where, 'ki_per_rad', _nonneg),
+                setpoint_rad_s=_field(c, where, 'setpoint_rad_s', _number, None),
+                voltage_limit=_field(c, where, 'voltage_limit', _positive, 1.0))
             if pi.voltage_limit > VOLTAGE_FRACTION_MAX:
                 raise DriveError(
                     f'drive.speed_controller.voltage_limit: got {pi.voltage_limit!r}, '
@@ -135,16 +117,12 @@ def drive_from_dict(data, scene=None, joint_names=None):
         for name, value in _mapping(data.get('joint_damping') or {},
                                     'drive.joint_damping').items():
             damping[name] = _nonneg(value, f'drive.joint_damping.{name}')
-        speed = data.get('initial_speed_rad_s')
-        angle = data.get('initial_crank_angle_deg')
         data_drive = Drive(
             motor=motor, speed_controller=pi, joint_damping=damping,
-            initial_speed_rad_s=None if speed is None else _number(
-                speed, 'drive.initial_speed_rad_s'),
-            initial_crank_angle_deg=None if angle is None else _number(
-                angle, 'drive.initial_crank_angle_deg'),
-            input_inertia_kg_m2=_nonneg(data.get('input_inertia_kg_m2', 0.0),
-                                        'drive.input_inertia_kg_m2'))
+            initial_speed_rad_s=_field(data, 'drive', 'initial_speed_rad_s', _number, None),
+            initial_crank_angle_deg=_field(data, 'drive', 'initial_crank_angle_deg', _number,
+                                           None),
+            input_inertia_kg_m2=_field(data, 'drive', 'input_inertia_kg_m2', _nonneg, 0.0))
     if joint_names is None and scene is not None:
         joint_names = [j.name for j in scene.joints]
     if joint_names is not None:
@@ -163,3 +141,10 @@ _require = functools.partial(fields.require, error=DriveError)
 _number = functools.partial(fields.number, error=DriveError)
 _positive = functools.partial(fields.positive, error=DriveError)
 _nonneg = functools.partial(fields.nonneg, error=DriveError)
+_REQUIRED = object()
+
+
+def _field(spec, where, key, check, default=_REQUIRED):
+    """Return ``spec[key]`` (required, or ``default``; None stays None) checked, named."""
+    value = _require(spec, key, where) if default is _REQUIRED else spec.get(key, default)
+    return None if value is None and default is None else check(value, f'{where}.{key}')

@@ -2,9 +2,8 @@
 The field validators every scene kind, ``drive:`` and the node's parameters share.
 
 Each takes the value, the field's path in the file (``links.crank.mass_kg``) and the error
-type to raise (a ``ValueError`` subclass, :class:`SceneError` by default), and returns the
-checked value.  Every message names the path, the value and what was expected, so the
-same bad number reads the same wherever it is given.
+type to raise (:class:`SceneError` by default), and returns the checked value; every message
+names the path, the value and what was expected.
 """
 
 import math
@@ -108,13 +107,44 @@ def vector(value, where, size=2, error=SceneError):
     return tuple(number(v, f'{where}[{i}]', error) for i, v in enumerate(value))
 
 
-def points(value, where, error=SceneError):
-    """Return a non-empty mapping of named ``[x, y]`` points."""
+def points(value, where, error=SceneError, size=2):
+    """Return a non-empty mapping of named points of ``size`` coordinates."""
     value = mapping(value, where, error)
     if not value:
-        raise error(f'{where}: got an empty mapping, expected named points')
+        raise error(f'{where}: got an empty mapping, expected named points'
+                    + (' [x, y, z]' if size == 3 else ''))
     at_most(value, conventions.MAX_POINTS, where, 'points', 'MAX_POINTS', error)
-    return {k: vector(v, f'{where}.{k}', 2, error) for k, v in value.items()}
+    return {k: vector(v, f'{where}.{k}', size, error) for k, v in value.items()}
+
+
+def joint_ends(spec, where, all_points):
+    """Return ``[(link, point), (link, point)]`` of a joint's ``a`` and ``b`` (two links)."""
+    ends = []
+    for key in ('a', 'b'):
+        ref = string(require(spec, key, where), f'{where}.{key}')
+        link, _, point = ref.partition('.')
+        if link not in all_points:
+            raise SceneError(
+                f'{where}.{key}: got {ref!r}, expected "link.point" with link one of '
+                f'{", ".join(all_points)}')
+        if point not in all_points[link]:
+            raise SceneError(
+                f'{where}.{key}: got {ref!r}, link {link!r} has no point {point!r} (it has '
+                f'{", ".join(all_points[link]) or "none"})')
+        ends.append((link, point))
+    if ends[0][0] == ends[1][0]:
+        raise SceneError(f'{where}: both ends are on link {ends[0][0]!r}, expected two links')
+    return ends
+
+
+def crank_joint(crank, joints):
+    """Return ``(name, joint)`` of ``crank.joint``, one of ``joints``."""
+    name = string(require(crank, 'joint', 'crank'), 'crank.joint')
+    by_name = {j.name: j for j in joints}
+    if name not in by_name:
+        raise SceneError(f'crank.joint: got {name!r}, expected one of the joints '
+                         f'({", ".join(by_name)})')
+    return name, by_name[name]
 
 
 def integer(value, where, minimum=None, maximum=None, error=SceneError):
@@ -129,12 +159,7 @@ def integer(value, where, minimum=None, maximum=None, error=SceneError):
 
 
 def at_most(items, limit, where, what, name, error=SceneError):
-    """
-    Refuse more than ``limit`` entries.
-
-    ``name`` is the limit's constant in conventions, for the reader of the code; the message
-    says the limit is fixed (no scene field or option raises it).
-    """
+    """Refuse more than ``limit`` entries (``name``: the limit's constant in conventions)."""
     if len(items) > limit:
         raise error(f'{where}: got {len(items)} {what}, expected at most {limit} '
                     '(a fixed limit of mech_balance)')

@@ -1,26 +1,10 @@
 """
 The ``identification:`` section of a calibrated scene: what the data said, and how sure.
 
-Written by ``mech-balance identify --output`` (and the rig node's ``~/identify``) beside the
-calibrated link inertias; read back bit for bit (the reader and the writer are side by side
-here).  Optional: a scene without it is a scene whose inertias are taken as exact.  Fields::
-
-    identification:
-      source: text                 # the recording it came from
-      parameters: [m[crank], hx[crank], hy[crank], I_O[crank], ...]   # 4 per moving link
-      theta: [...]                 # the calibrated parameters (SI), the links' values
-      std_directions: [[...], ...] # r rows of 4 per link: Cov(theta) = D^T D (SI)
-      predicted_rms:               # of the calibrated scene at its crank speed
-        shaking_force_N: {value: ..., std_error: ...}
-        shaking_moment_Nm: {value: ..., std_error: ...}
-
-A design balanced from a calibrated scene (``mech-balance balance --output``) keeps the
-section as it was: ``theta`` stays the calibrated scene's, and ``std_directions`` applies to
-the design as well (its changes to the links are known exactly).
-
-``std_directions`` holds the covariance of the identified parameters as a factor: the
-rig's true parameters lie at theta + D^T a with a of unit covariance, so a +-1 standard
-error change is ||a|| <= 1 (:func:`mech_balance.analysis.identify.balance_confidence`).
+Written by ``mech-balance identify --output`` and the node's ``~/identify``, read back bit
+for bit; optional.  The fields: docs/scenes.md#the-identification-section.
+``std_directions`` D factors the parameters' covariance, Cov(theta) = D^T D
+(:func:`mech_balance.analysis.identify.balance_confidence`).
 """
 
 import math
@@ -58,11 +42,8 @@ def identification_from_dict(value, links):
     if not isinstance(value, dict):
         raise IdentificationError(f'identification: got {type(value).__name__}, expected a '
                                   'mapping')
-    known = {'source', 'parameters', 'theta', 'std_directions', 'predicted_rms'}
-    extra = sorted(set(value) - known)
-    if extra:
-        raise IdentificationError(f'identification.{extra[0]}: unknown key, expected one of '
-                                  + ', '.join(sorted(known)))
+    fields.known_keys(value, {'source', 'parameters', 'theta', 'std_directions',
+                              'predicted_rms'}, 'identification', error=IdentificationError)
     n = 4 * len(links)
     names = value.get('parameters')
     expected = [f'{p}[{lk}]' for lk in links for p in ('m', 'hx', 'hy', 'I_O')]

@@ -1,21 +1,19 @@
 """
 The planar kind's scene reader and writer, side by side: YAML mapping <-> :class:`Scene`.
 
-:func:`planar_from_dict` validates a parsed ``kind: planar`` mapping (docs/scenes.md) into a
-:class:`~mech_balance.schema.scene.Scene`, every error a
-:class:`~mech_balance.schema.fields.SceneError` naming the field, the value and what was
-expected; :func:`planar_to_dict` writes a scene back as the mapping it loads from.  The
-types and constants of a scene are :mod:`mech_balance.schema.scene`'s; the kinds are
-registered in :mod:`mech_balance.schema.registry`.
+The schema: docs/scenes.md; the types and constants: :mod:`mech_balance.schema.scene`.
+Every error is a :class:`~mech_balance.schema.fields.SceneError` naming the field, the value
+and what was expected.
 """
 
 from dataclasses import replace
 import math
 
 from mech_balance import conventions
+from mech_balance.schema import fields
 from mech_balance.schema.build import build_from_dict
 from mech_balance.schema.drive import drive_from_dict
-from mech_balance.schema.fields import at_most as _at_most, check_connected, \
+from mech_balance.schema.fields import at_most as _at_most, check_connected, joint_ends, \
     known_keys as _known_keys, mapping as _mapping, number as _number, points as _points, \
     positive as _positive, require as _require, SceneError, string as _string, vector as _vector
 from mech_balance.schema.scene import add_counterweights, Counterweight, \
@@ -57,13 +55,8 @@ def planar_from_dict(data, source='<dict>'):
 
     crank = _mapping(_require(data, 'crank', ''), 'crank')
     _known_keys(crank, {'joint', 'speed_rad_s', 'acceleration_rad_s2'}, 'crank')
-    crank_joint = _string(_require(crank, 'joint', 'crank'), 'crank.joint')
+    crank_joint, cj = fields.crank_joint(crank, joints)
     by_name = {j.name: j for j in joints}
-    if crank_joint not in by_name:
-        raise SceneError(
-            f'crank.joint: got {crank_joint!r}, expected one of the joints '
-            f'({", ".join(by_name)})')
-    cj = by_name[crank_joint]
     if cj.prismatic or FRAME not in (cj.link_a, cj.link_b) or cj.link_a == cj.link_b:
         raise SceneError(
             f'crank.joint: got {crank_joint!r} ({cj.joint_type} between {cj.link_a} and '
@@ -96,16 +89,7 @@ def planar_from_dict(data, source='<dict>'):
                 f'assembly.joint_displacements_m.{k}: expected the name of a prismatic joint')
         displacements[k] = _number(v, f'assembly.joint_displacements_m.{k}')
 
-    normalization = None
-    if 'normalization' in data:
-        nd = _mapping(data['normalization'], 'normalization')
-        _known_keys(nd, {'mass_kg', 'length_m', 'omega_rad_s'}, 'normalization')
-        normalization = Normalization(
-            _positive(_require(nd, 'mass_kg', 'normalization'), 'normalization.mass_kg'),
-            _positive(_require(nd, 'length_m', 'normalization'), 'normalization.length_m'),
-            _positive(_require(nd, 'omega_rad_s', 'normalization'),
-                      'normalization.omega_rad_s'))
-
+    normalization = Normalization.parse(data)
     gravity = _vector(data.get('gravity_m_s2', [0.0, 0.0]), 'gravity_m_s2')
     outputs = parse_outputs(data.get('outputs', list(DEFAULT_OUTPUTS)), 'outputs')
     samples = data.get('samples', 360)
@@ -118,9 +102,7 @@ def planar_from_dict(data, source='<dict>'):
     notes = data.get('notes', {})
     if 'balance' in data:  # provenance written by `mech-balance balance --output`
         _mapping(data['balance'], 'balance')
-    description = data.get('description', '')
-    if not isinstance(description, str):
-        raise SceneError(f'description: got {type(description).__name__}, expected text')
+    description = fields.text(data.get('description', ''), 'description')
     sc = Scene(
         name=name, description=description.strip(), frame_points=frame_points,
         links=links, joints=joints, crank_joint=crank_joint, crank_speed_rad_s=speed,
@@ -143,10 +125,7 @@ def planar_to_dict(scene):
     """
     Return a planar scene as the mapping :func:`planar_from_dict` reads back.
 
-    Every top-level section is written: the links with their inertias and everything else
-    unchanged (description, normalization, crank, gravity, frame, joints, assembly, outputs,
-    samples, notes, ``recording`` and the ``drive`` of ``mech-balance simulate``).  A link
-    with a negative centroidal inertia cannot be written (no body has one).
+    Raises SceneError for a link with a negative centroidal inertia (no body has one).
     """
     for lk in scene.links:
         if lk.inertia_com_kg_m2 < 0.0:
@@ -156,9 +135,7 @@ def planar_to_dict(scene):
     data = {'schema_version': SCHEMA_VERSION, 'name': scene.name,
             'description': scene.description, 'kind': 'planar'}
     if scene.normalization is not None:
-        n = scene.normalization
-        data['normalization'] = {'mass_kg': n.mass_kg, 'length_m': n.length_m,
-                                 'omega_rad_s': n.omega_rad_s}
+        data['normalization'] = dict(scene.normalization.items())
     data['crank'] = {'joint': scene.crank_joint, 'speed_rad_s': scene.crank_speed_rad_s,
                      'acceleration_rad_s2': scene.crank_acceleration_rad_s2}
     data['gravity_m_s2'] = list(scene.gravity_m_s2)
@@ -211,12 +188,9 @@ def geometry(scene):
 
 def recording_to_dict(recording):
     """
-    Return a :class:`Recording` as the scene's ``recording:`` mapping.
+    Return a :class:`Recording` as the scene's ``recording:`` mapping (every stream).
 
-    The inverse of the loader's ``recording`` validation:
-    ``{streams: {name: bool, ...}, force_scale_m_per_N, moment_scale_deg_per_Nm}`` with
-    every stream of :data:`RECORDING_STREAMS`; a scale chosen from the data (``None``) is
-    left out.
+    A scale chosen from the data (``None``) is left out.
     """
     out = {'streams': {s: recording.enabled(s) for s in RECORDING_STREAMS}}
     for key in ('force_scale_m_per_N', 'moment_scale_deg_per_Nm'):
@@ -337,21 +311,7 @@ def _joint(name, spec, all_points):
     jtype = _require(spec, 'type', where)
     if jtype not in JOINT_TYPES:
         raise SceneError(f'{where}.type: got {jtype!r}, expected one of {", ".join(JOINT_TYPES)}')
-    ends = []
-    for key in ('a', 'b'):
-        ref = _string(_require(spec, key, where), f'{where}.{key}')
-        link, _, point = ref.partition('.')
-        if link not in all_points:
-            raise SceneError(
-                f'{where}.{key}: got {ref!r}, expected "link.point" with link one of '
-                f'{", ".join(all_points)}')
-        if point not in all_points[link]:
-            raise SceneError(
-                f'{where}.{key}: got {ref!r}, link {link!r} has no point {point!r} (it has '
-                f'{", ".join(all_points[link]) or "none"})')
-        ends.append((link, point))
-    if ends[0][0] == ends[1][0]:
-        raise SceneError(f'{where}: both ends are on link {ends[0][0]!r}, expected two links')
+    ends = joint_ends(spec, where, all_points)
     axis, angle = (1.0, 0.0), 0.0
     if jtype == 'prismatic':
         axis = _vector(_require(spec, 'axis', where), f'{where}.axis')

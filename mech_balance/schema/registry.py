@@ -1,21 +1,10 @@
 """
 The registry of scene kinds: the one place that knows which kinds of rig exist.
 
-Each :class:`Kind` names a scene file's ``kind:`` value and gives its loader (mapping ->
-scene), its writer (scene -> mapping), its scene type and its implementations by role:
-
-``rig``
-    the :class:`~mech_balance.core.rig.Rig` factory (scene -> rig);
-``analyze``
-    the ``mech-balance analyze`` report (scene, samples, normalized, design -> Report);
-``urdf``, ``urdf_tree``
-    the URDF of the rig's spanning tree and its joint model (:mod:`mech_balance.ros.urdf`);
-
-Implementations are named by their import path (``module:attribute``), the way setuptools
-entry points name plug-ins: the schema layer sits below the core and must not import it,
-and a kind's code is only imported when it is used.  A new kind of rig registers here and
-nowhere else; every consumer asks :func:`kind_of` for an implementation or builds the rig
-through :func:`mech_balance.core.rig.rig_for`.
+Each :class:`Kind` gives a ``kind:`` value's loader, writer, scene type and its
+implementations by role (``rig``, ``analyze``, ``urdf``, ``urdf_tree``), named by import
+path (``module:attribute``) so that the schema layer never imports the core:
+docs/design.md#the-rig-protocol.
 """
 
 from dataclasses import dataclass
@@ -33,7 +22,7 @@ class Kind:
     scene_type: type
     load: object             # (mapping, source) -> scene
     write: object            # scene -> mapping (the inverse of load)
-    implementations: dict    # role -> 'module:attribute' (module docstring)
+    implementations: dict    # role -> 'module:attribute': rig, analyze, urdf, urdf_tree
     geometry: object = None  # scene -> (what a design may not change, its name in words)
 
     def implementation(self, role):

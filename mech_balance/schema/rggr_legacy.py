@@ -1,30 +1,10 @@
 """
 Files of the former ``kind: rggr`` (seed 002's RGGR), read as the ``kind: spatial`` scene.
 
-The closed-form RGGR model was removed (issue 28): its rig is the general spatial kind's
-R-S-S-R (``config/rggr.yaml``).  :func:`translate` turns an old mapping into that scene's
-mapping, once, where the scene is read (:func:`mech_balance.schema.registry.from_dict`),
-and says so once per file in the ``mech_balance`` log.  ``mech-balance scenes --convert
-OLD.yaml --out NEW.yaml`` writes the translation.
-
-The old schema::
-
-    kind: rggr
-    geometry: {l1_m, l2_m, l3_m, beta_deg, a1_m, a2_m, a3_m}
-    links:
-      crank:   {mass_kg, centre_uvw_m: [u, v, w], inertia_about_pivot_kg_m2: {ww, wu, vw}}
-      coupler: {mass_kg, centre_from_b_m, transverse_inertia_kg_m2}
-      output:  {mass_kg, centre_uvw_m, inertia_about_pivot_kg_m2: {ww, wu, vw}}
-    balancing_weights: {crank: <pivot body>, output: <pivot body>}   # optional: folded in
-    balancing_design: {crank_weight_mass_kg, output_weight_density_length_kg_m2}  # optional
-    assembly: {branch: +1 | -1}        # +1: w3 . (BC x Q3C) > 0 (seed 002 eq. 23)
-    crank: {speed_rad_s}
-
-Frames (seed 002, eqs. 15-21): the crank axis z through Q1 = (0, l2, l1), the output axis
-w3 = (sin beta, 0, cos beta) through O with Q3 = l3 w3; link axes u towards the pin, w the
-axis.  A pivot body's I_ww and products about its pivot are kept; the second moments that do
-not enter the dynamics of a body turning about a fixed axis are those of a thin rod along u
-where the products allow, else the radial spread split between u and v.
+:func:`translate` turns an old mapping into the mapping of the same rig as a spatial R-S-S-R
+(``config/rggr.yaml``) where the scene is read, and logs so once per file; ``mech-balance
+scenes --convert OLD.yaml --out NEW.yaml`` writes it.  The old schema and its frames:
+docs/scenes.md#a-former-rggr-file-kind-rggr.
 """
 
 import logging

@@ -1,24 +1,14 @@
 """
 The one YAML reader of the package: safe, YAML 1.2 floats, and bounded.
 
-Every YAML text the package reads (scene files, balanced designs, the rig node's
-``balance.*_bounds`` parameters) goes through :func:`loads` or :func:`load_file`.  On top of
-PyYAML's ``SafeLoader`` (no Python objects) it reads ``1e-3`` as a float (YAML 1.2; YAML 1.1
-wants ``1.0e-3``) and refuses, with one error naming the file or field, the limit and where:
-
-* a file that is not a regular file, is empty, or is larger than :data:`MAX_BYTES`;
-* bytes that are not UTF-8 (the offset, line and column of the first bad byte);
-* nesting deeper than :data:`MAX_DEPTH` levels (counted through aliases);
-* more than :data:`MAX_ALIASES` aliases, or a document whose aliases expand to more than
-  :data:`MAX_NODES` nodes (a "billion laughs" document is refused while it is composed,
-  from the sizes of its anchors, before anything is expanded), or a recursive alias;
-* an integer of more than :data:`MAX_INT_DIGITS` digits;
-* a key given twice in one mapping (the later one would silently win), naming the key's
-  field path and both lines.
-
-No ``RecursionError``, ``MemoryError`` or decoding error escapes: every refusal is the
-caller's error class (``error=``, a ``ValueError``; :class:`YamlError` by default,
-:class:`mech_balance.schema.fields.SceneError` for scenes).
+Every YAML text the package reads goes through :func:`loads` or :func:`load_file`: PyYAML's
+``SafeLoader`` reading ``1e-3`` as a float, refusing with one error naming the file or
+field, the limit and where: a file that is not a regular file, empty or over
+:data:`MAX_BYTES`; bytes that are not UTF-8; nesting over :data:`MAX_DEPTH`; more than
+:data:`MAX_ALIASES` aliases or :data:`MAX_NODES` expanded nodes (counted before expanding),
+or a recursive alias; an integer over :data:`MAX_INT_DIGITS` digits; a duplicate key.  Every
+refusal is the caller's ``error=`` class (:class:`YamlError` by default); the limits:
+docs/scenes.md#limits.
 """
 
 import os
@@ -77,11 +67,8 @@ class Loader(_Base):
     """
     A safe loader with YAML 1.2 floats, duplicate-key refusal and this module's limits.
 
-    PyYAML's SafeConstructor makes plain data only.  The parser is libyaml's when PyYAML
-    has it (the events are the same); composing, where the limits are counted, is PyYAML's
-    Python composer overridden here.  Use it through :func:`loads`, which sets ``label``
-    (the file or field named in errors) and turns every refusal into the caller's error
-    class.
+    libyaml parses when available; the limits are counted in PyYAML's Python composer,
+    overridden here.  Use it through :func:`loads`.
     """
 
     label = 'YAML'
@@ -93,8 +80,6 @@ class Loader(_Base):
         self._extent = {}       # id(node) -> (expanded node count, expanded depth)
         self._paths = {}        # id(mapping node) -> its field path ('links.crank')
         self._path = []
-
-    # ------------------------------------------------------------------ composing
 
     def compose_document(self):
         """Compose one document; the bookkeeping of its anchors ends with it."""
@@ -147,8 +132,6 @@ class Loader(_Base):
                          '(a fixed limit; a "billion laughs" document?)', node.start_mark)
         self._extent[id(node)] = (count, depth)
         return node
-
-    # ------------------------------------------------------------------ constructing
 
     def construct_mapping(self, node, deep=False):
         """Construct a mapping; a key given twice is refused naming its path and lines."""
@@ -208,16 +191,12 @@ def _at(mark):
     return '' if mark is None else f' at line {mark.line + 1}, column {mark.column + 1}'
 
 
-# ------------------------------------------------------------------------------ public API
-
-
 def loads(text, label='YAML', error=YamlError):
     """
     Return the Python value of one YAML document ``text`` (a ``str``), or raise ``error``.
 
     ``label`` names the text in errors (``scene hoeken.yaml``, ``balance.mass_bounds``).
-    Refused: more than :data:`MAX_BYTES` of UTF-8, and everything this module's docstring
-    lists.  An empty document is ``None``.
+    Refused: what the module docstring lists.  An empty document is ``None``.
     """
     if not isinstance(text, str):
         raise error(f'{label}: got {type(text).__name__}, expected YAML text')
@@ -247,9 +226,8 @@ def _syntax_error(text, exc):
     """
     Return 'not valid YAML at line L, column C: PROBLEM' for a YAMLError of the parser.
 
-    libyaml's messages are terser than PyYAML's (``did not find expected ','`` against
-    ``expected ',' or ']', but got ':'``): the text is then parsed again by PyYAML's
-    pure-Python parser (events only, not recursive) for its message.
+    libyaml's messages are terse: the text is parsed again by PyYAML's Python parser
+    (events only, not recursive) for its message.
     """
     if _CParser is not None and not isinstance(exc, yaml.composer.ComposerError):
         try:
@@ -279,8 +257,7 @@ def check_file(path, label, error=YamlError):
     """
     Return ``path`` as a ``Path`` if it is a non-empty regular file of at most MAX_BYTES.
 
-    Otherwise raise ``error`` saying what it is: missing, a directory, not a regular file
-    (``/dev/null``, a pipe), empty, or too large.
+    Otherwise raise ``error`` saying what it is (missing, a directory, a device, empty, large).
     """
     path = Path(path).expanduser()
     text = str(path)

@@ -1,13 +1,10 @@
 """
-Scenes: the YAML description of a rig, its one schema, and its validation.
+Scenes: the planar scene's types, the constants of every kind, finding and parsing files.
 
-A scene describes a single-degree-of-freedom planar linkage (``kind: planar``: its types
-here, its reader and writer in :mod:`mech_balance.schema.planar`) or a spatial one (``kind:
-spatial``, :mod:`mech_balance.schema.spatial`); this module also finds and parses scene
-files.  The planar schema is documented in docs/scenes.md and enforced by
-:mod:`~mech_balance.schema.planar`; every error is a
-:class:`SceneError` (a ``ValueError``) that names the field, the bad value and what was
-expected.  Values are SI; the papers' normalization is recorded, never applied to storage.
+The planar reader and writer are in :mod:`mech_balance.schema.planar`, the spatial ones in
+:mod:`mech_balance.schema.spatial`; the schema: docs/scenes.md.  Every error is a
+:class:`SceneError` (a ``ValueError``) naming the field, the bad value and what was
+expected.  Values are SI; the papers' normalization is recorded, never applied.
 """
 
 from dataclasses import dataclass, field, replace
@@ -17,7 +14,7 @@ import os
 from pathlib import Path
 
 from mech_balance import conventions
-from mech_balance.schema import safe_yaml
+from mech_balance.schema import fields, safe_yaml
 from mech_balance.schema.fields import SceneError
 
 SCHEMA_VERSION = 1
@@ -33,26 +30,19 @@ SERIES = {
     'kinetic_energy': ('kinetic energy T', 'energy'),
 }
 """The scalar series among the outputs: name -> (label, dimension 'force' | 'moment' |
-'energy').  Reports, JSON and recording plots show every series a rig computes from this
-table; a new scalar output is one entry here plus its computation in each rig.  The output
-``driving_torque`` asks for the driving effort, which a rig reports under the series its
-:attr:`~mech_balance.core.rig.Rig.driving_series` names: ``driving_torque`` (N m) for a
-revolute input, ``driving_force`` (N, along the axis) for a prismatic input."""
+'energy'); reports, JSON and plots show every series a rig computes from this table.  A
+rig's driving effort is the series its :attr:`~mech_balance.core.rig.Rig.driving_series`
+names (a prismatic input's: ``driving_force``)."""
 SERIES_OUTPUTS = {'driving_force': 'driving_torque'}
-"""The output a series of :data:`SERIES` answers where their names differ: a prismatic input's
-``driving_force`` is the output ``driving_torque`` (the driving effort, of either kind)."""
+"""The output a series of :data:`SERIES` answers where their names differ."""
 
 JOINT_TYPES = ('revolute', 'prismatic')
 FRAME = 'frame'
 INERTIA_ROUNDOFF = 1e-12
-"""Relative slack of the check inertia about the mass centre >= 0 (parallel-axis round-off).
-
-Loading rejects what no body can have (I_c < 0); whether a link is *buildable* (I_c > 0 by a
-design margin, non-negative counterweights) is
-:func:`mech_balance.core.equimomental.is_realizable`."""
+"""Relative slack of the check inertia about the mass centre >= 0 (parallel-axis round-off);
+buildability is :func:`mech_balance.core.equimomental.is_realizable`."""
 COUNTERWEIGHT_MASS_REL_TOL = 1e-6
-"""A counterweight's mass_kg must equal density * pi * R^2 * t to this relative tolerance (the
-writer stores shortest-exact floats, so a written disc meets it to round-off, ~1e-16)."""
+"""A counterweight's mass_kg must equal density * pi * R^2 * t to this relative tolerance."""
 MAX_PLANE_OFFSET_M = 10.0
 """Largest |plane_m| of a counterweight (m): a disc's plane further from its link is a typo."""
 RECORDING_STREAMS = (
@@ -71,17 +61,13 @@ def series_stream(name):
     """
     Return the recording stream that switches the plot of series ``name``: ``OUTPUT_plot``.
 
-    ``OUTPUT`` is the output the series answers (:data:`SERIES_OUTPUTS`), so that
-    ``driving_torque_plot`` switches the driving effort's plot whatever the input's kind:
-    a revolute input's driving torque or a prismatic input's driving force.  A series whose
+    ``OUTPUT`` is the output the series answers (:data:`SERIES_OUTPUTS`); a series whose
     stream is not in :data:`RECORDING_STREAMS` is always plotted.
     """
     return f'{SERIES_OUTPUTS.get(name, name)}_plot'
 
 
-_CONFIG_DIRS = (
-    Path(__file__).resolve().parents[2] / 'config',
-)
+_CONFIG_DIRS = (Path(__file__).resolve().parents[2] / 'config',)
 
 
 @dataclass(frozen=True)
@@ -106,6 +92,17 @@ class Normalization:
         """Return a normalized energy, E / (m_1 a_1^2 omega^2) (the unit of a moment)."""
         return conventions.normalize_moment(energy_J, self.mass_kg, self.length_m,
                                             self.omega_rad_s)
+
+    @classmethod
+    def parse(cls, data):
+        """Return the validated ``normalization:`` of a scene mapping, or None without one."""
+        if 'normalization' not in data:
+            return None
+        nd = fields.mapping(data['normalization'], 'normalization')
+        fields.known_keys(nd, {'mass_kg', 'length_m', 'omega_rad_s'}, 'normalization')
+        return cls(*(fields.positive(fields.require(nd, k, 'normalization'),
+                                     f'normalization.{k}')
+                     for k in ('mass_kg', 'length_m', 'omega_rad_s')))
 
     def keys(self):
         """Return the field names: a normalization reads as ``{mass_kg, length_m, ...}``."""
@@ -137,14 +134,10 @@ class Counterweight:
     """
     A solid disc (cylinder) fixed to a link: ``links.<name>.counterweights`` entries (SI).
 
-    ``centre_m`` is the disc's centre ``(x, y)`` in the link frame; its axis is normal to
-    the plane of motion.  Mass = density * pi * radius^2 * thickness (checked on loading).
-    ``plane_m`` is the disc's plane: the z of its mid-plane relative to its link's plane (m,
-    along the normal, +z towards the viewer; 0, the default: the link's own plane).  It moves
-    no mass property of a planar rig; it decides which bodies the disc can collide with
-    (:mod:`mech_balance.analysis.clearance`).  ``mount`` names the link's point whose shaft
-    carries a disc off the link's plane (empty, the default: the point nearest the centre;
-    :mod:`mech_balance.analysis.layers`).
+    ``centre_m``: ``(x, y)`` in the link frame; mass = density * pi * radius^2 * thickness.
+    ``plane_m``: its mid-plane's z from its link's plane (m; moves no mass property);
+    ``mount``: the link's point whose shaft carries it (empty: the point nearest the centre).
+    docs/balancing.md#the-plane-of-a-counterweight.
     """
 
     mass_kg: float
@@ -176,9 +169,7 @@ def counterweight_totals(mass_kg, com_m, inertia_com_kg_m2, counterweights):
     """
     Return ``(mass_kg, com_m, inertia_com_kg_m2)`` of a link body plus its discs.
 
-    Sums of the masses, of the first moments m c and of the moments of inertia about the
-    link origin (parallel axes), then back to the mass centre.  With no discs the inputs are
-    returned unchanged (bit for bit).
+    Summed about the link origin (parallel axes); with no discs the inputs unchanged.
     """
     if not counterweights:
         return mass_kg, com_m, inertia_com_kg_m2
@@ -200,12 +191,9 @@ class Link:
     """
     A rigid link: named points and inertia, all in the link's own frame (SI).
 
-    ``mass_kg``, ``com_m`` and ``inertia_com_kg_m2`` are the TOTALS of the link body and its
-    ``counterweights`` (what every computation reads); the body alone is ``own_mass_kg``,
-    ``own_com_m``, ``own_inertia_com_kg_m2`` (``own``, set by :func:`add_counterweights`).
-    A copy whose totals no longer equal body + discs (``dataclasses.replace`` of the inertia
-    by a redistribution or analytic design: a new link as a whole) keeps the new totals and
-    drops the discs, so a link never lists counterweights that its totals do not contain.
+    ``mass_kg``, ``com_m`` and ``inertia_com_kg_m2`` are the TOTALS of the body and its
+    ``counterweights``; the body alone is ``own_*`` (set by :func:`add_counterweights`).  A
+    copy whose totals no longer equal body + discs drops the discs.
     """
 
     name: str
@@ -291,8 +279,8 @@ class Recording:
     """
     What ``mech-balance record`` and the rig node's recording show (``recording:`` key).
 
-    ``streams`` lists the enabled streams (of :data:`RECORDING_STREAMS`).  The scales of the
-    shaking-force arrow and the shaking-moment arc are chosen from the data when ``None``.
+    ``streams``: the enabled ones of :data:`RECORDING_STREAMS`; a scale None is chosen from
+    the data.
     """
 
     streams: tuple = DEFAULT_STREAMS
@@ -308,8 +296,7 @@ class SceneDesigns:
     """
     What every kind's scene dataclass offers: its links by name and its other designs.
 
-    A mixin of :class:`Scene` and of the spatial kind's scene (fields ``links``, ``name``,
-    ``outputs``): one definition of a design (other inertias, same geometry).
+    A mixin of the scene dataclasses (fields ``links``, ``name``, ``outputs``).
     """
 
     def link(self, name):
@@ -360,8 +347,8 @@ def needs(outputs):
     """
     Return the set of computations the given outputs require (a frozenset).
 
-    ``kinematics`` < ``shaking_wrench`` (accelerations) < ``driving_torque`` (NOC projection)
-    < ``bearing_reactions`` (cut-joint multipliers and the recursion through the tree).
+    ``kinematics`` < ``shaking_wrench`` (accelerations) < ``driving_torque`` <
+    ``bearing_reactions``.
     """
     return _needs_of(frozenset(outputs))   # the core asks once per evaluation: remembered
 
@@ -375,9 +362,6 @@ def _needs_of(outputs):
         out |= {'accelerations'}
     out |= {'kinematics'}
     return frozenset(out)
-
-
-# ----------------------------------------------------------------------------- loading
 
 
 def builtin_scenes():

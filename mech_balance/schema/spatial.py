@@ -1,54 +1,10 @@
 """
 The spatial scene (``kind: spatial``): any single-input spatial linkage; loader and writer.
 
-Schema (``config/rssr_skew.yaml`` is a commented example)::
-
-    kind: spatial
-    schema_version: 1                              # optional
-    name: <str>                                    # optional (the file's stem)
-    description: <str>                             # optional
-    normalization: {mass_kg, length_m, omega_rad_s}          # optional
-    frame: {points: {NAME: [x, y, z], ...}}        # m, in the frame's axes
-    links:
-      NAME:
-        points: {NAME: [x, y, z], ...}             # m, in the link's own axes
-        mass_kg: <number >= 0>
-        com_m: [x, y, z]                           # mass centre in the link's axes
-        inertia_com_kg_m2: [ixx, iyy, izz, ixy, ixz, iyz]   # about the mass centre, link axes
-    joints:
-      NAME: {type: revolute | prismatic | cylindrical | universal | spherical,
-             a: LINK.POINT, b: LINK.POINT,
-             axis: [x, y, z],      # revolute, prismatic, cylindrical, universal: in a's axes
-             axis_b: [x, y, z],    # the same axis in b's axes (default: the numbers of axis);
-                                   # universal: b's own cross axis (required)
-             angle_deg: <number>}  # prismatic only: b's fixed turn about the axis (default 0)
-    crank: {joint: NAME, speed_rad_s: <nonzero>, acceleration_rad_s2: 0,
-            stroke_m: [s_min, s_max]}   # stroke_m: a prismatic input only (required there)
-    moment_point_m: [x, y, z]      # the point the shaking moment is reduced to (frame axes)
-    assembly:
-      crank_angle_deg: <number>    # the crank coordinate at which the poses below hold
-      poses: {LINK: {origin_m: [x, y, z], rpy_deg: [roll, pitch, yaw]}}  # approximate
-    outputs: [kinematics, shaking_wrench, driving_torque, bearing_reactions, kinetic_energy]
-    samples: <int >= 4>
-    balancing_weights:             # optional: seed 002's method ``weights`` (balancing.weights)
-      LINK: {mass_kg: <number > 0>}                  # a weight of this mass, or
-      LINK: {density_length_kg_m2: <number > 0>}     # a cylinder, its mass by seed 002 eq. 13
-    drive: {...}                   # optional: motor, speed loop, damping, input flywheel
-                                   # (mech_balance.core.forward, docs/simulation.md)
-
-The inertia tensor's six numbers are the matrix entries in URDF order (``ixy`` is the
-off-diagonal entry, minus the product of inertia integral), validated here: a rigid body's
-tensor is positive semi-definite and its principal moments satisfy the triangle inequality
-(each <= the sum of the other two).  Values are stored as given (axes are not normalized,
-angles stay in degrees), so that the writer :func:`spatial_to_dict` reproduces them and a
-round trip is exact; the core normalizes.
-
-The input joint is revolute or prismatic.  A revolute input turns with the crank angle psi.
-A prismatic input is driven by an ideal Scotch yoke over the same cycle: psi turns at
-``speed_rad_s`` (and ``acceleration_rad_s2``) as a crank would, and the joint's slide is
-:func:`stroke_law`, ``s(psi) = (s_min + s_max) / 2 - (s_max - s_min) / 2 cos(psi)``: s_min at
-psi = 0, s_max at psi = 180 deg.  The joint conventions (zero of each joint
-coordinate, the spin convention of an S-S link) are in :mod:`mech_balance.core.spatial`.
+The schema, its checks and the prismatic input's Scotch yoke:
+docs/scenes.md#spatial-schema-kind-spatial (``config/rssr_skew.yaml`` is a commented
+example).  Values are stored as given (axes not normalized, angles in degrees) so that
+:func:`spatial_to_dict` round-trips exactly; the core normalizes.
 """
 
 from dataclasses import dataclass, field
@@ -82,10 +38,8 @@ MIN_SAMPLES = 4
 CRANK_KEYS = {'joint', 'speed_rad_s', 'acceleration_rad_s2', 'stroke_m'}
 """The fields of ``crank:`` (``stroke_m``: a prismatic input only)."""
 POSE_TOL_DEG = 5.0
-"""How far (deg) the stated assembly poses may be from the assembly: the angle between a
-link's stated and solved rotation, and between a joint's two axes at the stated poses
-(aligned; a universal's: normal).  The poses are approximate, but no nearer assembly branch
-of a linkage sound enough to turn fully lies this close (core.spatial.assembly)."""
+"""How far (deg) a link's solved rotation, and a joint's two axes, may be from the stated
+assembly poses."""
 POSE_TOL_REL = 0.05
 """How far a link's stated origin may be from its solved one, relative to the linkage's size
 (the largest distance between two of its points)."""
@@ -95,10 +49,8 @@ def stroke_law(stroke_m, psi):
     """
     Return ``(s, ds/dpsi, d2s/dpsi2)`` of a prismatic input at cycle angles ``psi`` (rad).
 
-    The ideal Scotch yoke of the module docstring: ``s = c - a cos(psi)`` with the centre
-    ``c = (s_min + s_max) / 2`` and the half stroke ``a = (s_max - s_min) / 2`` (m), so
-    ``ds/dpsi = a sin(psi)`` and ``d2s/dpsi2 = a cos(psi)``.  ``psi`` may be a float or a
-    numpy array (the results have its shape).
+    The ideal Scotch yoke ``s = (s_min + s_max) / 2 - (s_max - s_min) / 2 cos(psi)`` (m);
+    ``psi`` a float or a numpy array (the results have its shape).
     """
     s_min, s_max = stroke_m
     centre, half = 0.5 * (s_min + s_max), 0.5 * (s_max - s_min)
@@ -169,8 +121,8 @@ class WeightSpec:
     """
     A balancing weight of seed 002's method on a link pivoted on the frame (revolute joint).
 
-    Its mass is ``mass_kg``, or follows from the cylinder law of seed 002 eq. 13 with
-    ``density_length_kg_m2`` (density times length); its place is the force balance's.
+    Its mass is ``mass_kg``, or the cylinder law of seed 002 eq. 13 with
+    ``density_length_kg_m2`` (density times length).
     """
 
     link: str
@@ -181,7 +133,7 @@ class WeightSpec:
 
 @dataclass(frozen=True)
 class SpatialScene(SceneDesigns):
-    """A validated spatial scene (values as given, SI; see the module docstring)."""
+    """A validated spatial scene (values as given, SI)."""
 
     name: str
     description: str
@@ -209,18 +161,10 @@ class SpatialScene(SceneDesigns):
         """
         Return the assembly crank coordinate in rad (the cycle's start), within one turn.
 
-        ``assembly.crank_angle_deg`` reduced into (-360, 360) deg by ``math.fmod``, which is
-        exact for every float: an angle of any magnitude the scene admits (up to
-        :data:`~mech_balance.schema.fields.MAX_ABS_VALUE`) is the angle it denotes, and the
-        cycle's crank angles keep their resolution (a start of 1e18 deg taken as it is would
-        make every angle of a cycle one float).  A value within one turn is kept unchanged.
+        ``math.fmod`` into (-360, 360) deg is exact for every float, so a huge angle keeps
+        the cycle's resolution; a value within one turn is unchanged.
         """
         return math.radians(math.fmod(self.assembly_crank_angle_deg, 360.0))
-
-    @property
-    def prismatic_input(self):
-        """Return True when the input joint slides (driven by :func:`stroke_law`)."""
-        return self.crank_stroke_m is not None
 
 
 _TOP_KEYS = {'kind', 'schema_version', 'name', 'description', 'normalization', 'frame',
@@ -234,20 +178,12 @@ def _vec3(value, where):
     return fields.vector(value, where, 3)
 
 
-def _points3(value, where):
-    value = fields.mapping(value, where)
-    if not value:
-        raise SceneError(f'{where}: got an empty mapping, expected named points [x, y, z]')
-    fields.at_most(value, conventions.MAX_POINTS, where, 'points', 'MAX_POINTS')
-    return {k: _vec3(v, f'{where}.{k}') for k, v in value.items()}
-
-
 def check_inertia(tensor, where):
     """
     Refuse an inertia tensor no rigid body has; ``tensor`` is (ixx, iyy, izz, ixy, ixz, iyz).
 
-    Positive semi-definite and principal moments obeying the triangle inequality, both to
-    :data:`INERTIA_RTOL` of the trace.  The error names ``where``, the value and the test.
+    Positive semi-definite, principal moments obeying the triangle inequality (both to
+    :data:`INERTIA_RTOL` of the trace); raises SceneError naming ``where``.
     """
     import numpy as np  # on first use: the command line parsers need none
     ixx, iyy, izz, ixy, ixz, iyz = tensor
@@ -271,7 +207,7 @@ def _link(name, spec):
     spec = fields.mapping(spec, where)
     fields.known_keys(spec, {'points', 'mass_kg', 'com_m', 'inertia_com_kg_m2',
                              'description'}, where)
-    points = _points3(fields.require(spec, 'points', where), f'{where}.points')
+    points = fields.points(fields.require(spec, 'points', where), f'{where}.points', size=3)
     mass = fields.nonneg(fields.require(spec, 'mass_kg', where), f'{where}.mass_kg')
     com = _vec3(spec.get('com_m', [0.0, 0.0, 0.0]), f'{where}.com_m')
     raw = fields.require(spec, 'inertia_com_kg_m2', where)
@@ -303,19 +239,7 @@ def _joint(name, spec, all_points):
     if jtype not in JOINT_TYPES:
         raise SceneError(f'{where}.type: got {jtype!r}, expected one of '
                          f'{", ".join(JOINT_TYPES)}')
-    ends = []
-    for key in ('a', 'b'):
-        ref = fields.string(fields.require(spec, key, where), f'{where}.{key}')
-        link, _, point = ref.partition('.')
-        if link not in all_points:
-            raise SceneError(f'{where}.{key}: got {ref!r}, expected "link.point" with link '
-                             f'one of {", ".join(all_points)}')
-        if point not in all_points[link]:
-            raise SceneError(f'{where}.{key}: got {ref!r}, link {link!r} has no point '
-                             f'{point!r} (it has {", ".join(all_points[link])})')
-        ends.append((link, point))
-    if ends[0][0] == ends[1][0]:
-        raise SceneError(f'{where}: both ends are on link {ends[0][0]!r}, expected two links')
+    ends = fields.joint_ends(spec, where, all_points)
     axis = axis_b = angle = None
     if jtype in AXIS_JOINTS:
         axis = _axis(fields.require(spec, 'axis', where), f'{where}.axis')
@@ -368,11 +292,8 @@ def _check_axes_at_poses(joints, poses):
     """
     Refuse a joint whose two axes disagree at the stated poses, naming it and ``axis_b``.
 
-    ``axis`` (in a's axes) and ``axis_b`` (in b's; when left out, the numbers of ``axis``)
-    are one line of the joint (a universal: its two cross axes, normal to each other); at
-    the stated poses of both links (the frame's is the identity) they must be so within
-    :data:`POSE_TOL_DEG`.  The message gives the ``axis_b`` the poses imply.  Joints with a
-    link whose pose is not stated are not checked.
+    Aligned (a universal's: normal) within :data:`POSE_TOL_DEG`; the message gives the
+    ``axis_b`` the poses imply.  Joints with a link whose pose is not stated are skipped.
     """
     import numpy as np  # on first use: the command line parsers need none
     eye = np.eye(3)
@@ -410,7 +331,7 @@ def _check_axes_at_poses(joints, poses):
 
 
 def spatial_from_dict(data, source='<dict>'):
-    """Validate a parsed spatial scene mapping (module docstring) into a SpatialScene."""
+    """Validate a parsed spatial scene mapping into a SpatialScene (raises SceneError)."""
     data = fields.mapping(data, 'scene')
     fields.known_keys(data, _TOP_KEYS, '')
     if data.get('kind') != KIND:
@@ -422,7 +343,8 @@ def spatial_from_dict(data, source='<dict>'):
     description = fields.text(data.get('description', ''), 'description')
     frame = fields.mapping(fields.require(data, 'frame', ''), 'frame')
     fields.known_keys(frame, {'points'}, 'frame')
-    frame_points = _points3(fields.require(frame, 'points', 'frame'), 'frame.points')
+    frame_points = fields.points(fields.require(frame, 'points', 'frame'), 'frame.points',
+                                 size=3)
 
     links_data = fields.mapping(fields.require(data, 'links', ''), 'links')
     if not links_data:
@@ -442,12 +364,7 @@ def spatial_from_dict(data, source='<dict>'):
 
     crank = fields.mapping(fields.require(data, 'crank', ''), 'crank')
     fields.known_keys(crank, CRANK_KEYS, 'crank')
-    crank_joint = fields.string(fields.require(crank, 'joint', 'crank'), 'crank.joint')
-    by_name = {j.name: j for j in joints}
-    if crank_joint not in by_name:
-        raise SceneError(f'crank.joint: got {crank_joint!r}, expected one of the joints '
-                         f'({", ".join(by_name)})')
-    cj = by_name[crank_joint]
+    crank_joint, cj = fields.crank_joint(crank, joints)
     if cj.joint_type not in INPUT_TYPES or FRAME not in (cj.link_a, cj.link_b):
         raise SceneError(
             f'crank.joint: got {crank_joint!r} ({cj.joint_type} between {cj.link_a} and '
@@ -471,13 +388,7 @@ def spatial_from_dict(data, source='<dict>'):
         poses[k] = _pose(v, f'assembly.poses.{k}')
     _check_axes_at_poses(joints, poses)
 
-    normalization = None
-    if 'normalization' in data:
-        nd = fields.mapping(data['normalization'], 'normalization')
-        fields.known_keys(nd, {'mass_kg', 'length_m', 'omega_rad_s'}, 'normalization')
-        normalization = Normalization(*(
-            fields.positive(fields.require(nd, k, 'normalization'), f'normalization.{k}')
-            for k in ('mass_kg', 'length_m', 'omega_rad_s')))
+    normalization = Normalization.parse(data)
     outputs = parse_outputs(data.get('outputs', list(DEFAULT_OUTPUTS)), 'outputs')
     samples = fields.integer(data.get('samples', conventions.DEFAULT_SAMPLES), 'samples',
                              MIN_SAMPLES)
@@ -501,7 +412,7 @@ def spatial_from_dict(data, source='<dict>'):
 
 
 def _weights(data, joints):
-    """Return the :class:`WeightSpec` tuple of ``balancing_weights`` (module docstring)."""
+    """Return the :class:`WeightSpec` tuple of ``balancing_weights``."""
     data = fields.mapping(data, 'balancing_weights')
     out = []
     for link, spec in data.items():
@@ -524,12 +435,7 @@ def _weights(data, joints):
 
 
 def _drive(data):
-    """
-    Return the ``drive`` mapping as given, its fields checked.
-
-    The names in ``joint_damping`` are the rig's joint coordinates, checked when a
-    simulation builds the rig (:func:`mech_balance.core.forward.ForwardDynamics`).
-    """
+    """Return the ``drive`` mapping as given, its fields checked (joint names: on simulation)."""
     if data is not None:
         drive_from_dict(data)
     return data

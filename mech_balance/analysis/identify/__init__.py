@@ -1,10 +1,8 @@
 """
 Identification of a planar rig's inertial parameters from its encoder and force sensor.
 
-Pure functions on numpy arrays (numpy, scipy, clarabel): the ``identify`` command feeds them
-the arrays of a recording (:mod:`mech_balance.ros.bags`), the rig node its buffered
-samples.  Its modules, in the order the data passes through them, and the method with the
-figures behind the constants: docs/identification.md, *How identify computes*.
+Pure functions on numpy arrays, fed by the ``identify`` command and the rig node; the
+modules and the method: docs/identification.md, *How identify computes*.
 """
 
 from mech_balance.analysis.identify.alignment import FRAME_ANGLE_MAX_DEG, frame_check

@@ -14,16 +14,11 @@ from mech_balance.analysis.identify.model import CHANNELS, regressor
 import numpy as np
 
 FRAME_ANGLE_MAX_DEG = 45.0
-"""The measured force may differ from the scene's model by a rotation up to this angle (a
-scene off by tens of percent in its inertias shifts the phase of the force)."""
+"""The measured force may differ from the scene's model by a rotation up to this angle."""
 FRAME_GAIN_MIN = 0.3
-"""The frame is judged only where the model explains the measurement: the force's gain
-matrix with both singular values, the moment's gain in magnitude, at least this (a sign or
-an axis off gives about 1; a model that does not explain the data, about 0, is left to the
-fit's judgement)."""
+"""The frame is judged only where the model's gains (singular values) are at least this."""
 FRAME_SNR_MIN = 3.0
-"""The frame is judged only when the model's force (moment) RMS is this many noise
-floors."""
+"""The frame is judged only when the model's force (moment) RMS is this many floors."""
 OFFSET_MAX_S = 0.25
 """A time offset is searched within +- this many seconds (and +- OFFSET_MAX_TURNS)."""
 OFFSET_MAX_TURNS = 0.4
@@ -35,8 +30,7 @@ OFFSET_SAMPLES = 1500
 OFFSET_GRID = 41
 """Shifts of the search's coarse grid."""
 OFFSET_F = 25.0
-"""A shift is significant when the residual drops by this many residual variances (a 5
-standard-error change of a one-parameter fit)."""
+"""A shift is significant when the residual drops by this many residual variances."""
 MIN_ALIGNMENT_SAMPLES = 50
 """Fewest wrench samples inside the encoder's span for the frame and the clock to be judged."""
 
@@ -45,13 +39,10 @@ def frame_check(meas, model, floor, channels):
     """
     Return a refusing Finding when the measured wrench's sign or axes disagree with the model.
 
-    ``meas`` and ``model`` ``(p, >= 3)``: measured and the scene's modelled [f_x, f_y, n_z]
-    at the same samples; ``floor`` their noise floors.  The means are removed (the bias);
-    the force's gain matrix A (f_meas = A f_model, least squares) and its polar factor R
-    (the orthogonal matrix nearest A): a reflection (det R < 0), or a rotation by more than
-    :data:`FRAME_ANGLE_MAX_DEG` (a negation is one by 180 degrees); the moment's gain
-    negative.  Judged only where the model's signal is above :data:`FRAME_SNR_MIN` noise
-    floors.
+    ``meas`` and ``model`` ``(p, >= 3)``: measured and modelled [f_x, f_y, n_z];
+    ``floor`` their noise floors.  A reflection or a rotation beyond
+    :data:`FRAME_ANGLE_MAX_DEG` of the force's gain matrix, or a negative moment gain
+    (docs/identification.md, *What identify checks*).
     """
     y = np.asarray(meas, dtype=float)[:, :3] - np.mean(meas, axis=0)[:3]
     x = np.asarray(model, dtype=float)[:, :3] - np.mean(model, axis=0)[:3]
@@ -136,15 +127,9 @@ def time_offset(regress, motion, t_w, meas, floor):
     Return ``(offset s or 0, Finding or None)``: the sensor's lag behind the encoder.
 
     ``regress(psi, speed, accel)`` returns the ``(p, c, n)`` regressor (scaled);
-    ``motion`` the longest stretch's
-    :class:`~mech_balance.analysis.identify.encoder.CrankMotion`; ``t_w`` and ``meas`` the
-    wrench stamps and measurements; ``floor`` the channels' noise floors.  The weighted,
-    bias-free least squares is fitted at the wrench stamps minus a shift tau (the sample
-    stamped t taken at t - tau) over a grid of :data:`OFFSET_GRID` shifts within the limits
-    of :data:`OFFSET_MAX_S`, refined around the best and by a parabola.  A drop of the
-    residual by more than :data:`OFFSET_F` residual variances from tau = 0 is an offset
-    (corrected: the wrench stamps moved by -tau); a best shift at the edge of the search is
-    refused.
+    ``motion`` the longest stretch's crank motion; ``t_w``, ``meas`` the wrench stamps and
+    measurements; ``floor`` the channels' noise floors.  A grid search of the bias-free
+    least squares over the shift, refined by a parabola; :data:`OFFSET_F` decides.
     """
     t_m = motion.t_s
     turn_s = 2.0 * math.pi / motion.mean_speed_rad_s if motion.mean_speed_rad_s > 0 else 1.0

@@ -1,12 +1,9 @@
 """
 Checks of a recording and of its fit: the identification knows when it is wrong.
 
-Each check returns :class:`Finding` objects: what was found, the evidence (measured numbers),
-the way out, and what was done (``corrected``: the data were repaired and the fit used the
-repair; ``warned``; ``refused``: no calibrated scene is written).  The table of the checks
-and the figures behind their thresholds: docs/identification.md, *What identify checks*.
-The checks of the sensor's frame and clock against the scene's model are in
-:mod:`mech_balance.analysis.identify.alignment`.
+Each check returns :class:`Finding` objects (evidence, way out, and ``corrected``, ``warned``
+or ``refused``).  The table of the checks and the figures behind their thresholds:
+docs/identification.md, *What identify checks*.
 """
 
 from dataclasses import dataclass, field
@@ -17,46 +14,30 @@ from mech_balance.analysis.identify.quantization import unwrap_encoder
 import numpy as np
 
 DIFF_ORDER = 4
-"""Order k of the differences whose variance / C(2k, k) estimates the white noise: the
-k-th difference passes a sinusoid of f samples per period with gain (2 sin(pi / f))^k (a
-harmonic at 50 samples a period: 2.5e-4), so the signal does not leak in."""
+"""Order k of the differences whose variance / C(2k, k) estimates the white noise."""
 DEGREES_MODULUS = 360.0
 UNIT_SNAP_REL = 1e-3
 """Positions wrapping within this fraction of 360 are degrees."""
 INTERLEAVE_RATIO = 4.0
-"""Two interleaved sources: the sequence's difference noise this many times that of its
-even and odd samples taken apart (one source: about 1)."""
+"""Two interleaved sources: the difference noise this many times that of even/odd apart."""
 STUCK_JUMP = 8.0
-"""A run of one repeated position is a stuck encoder when the increment after it is this
-many times the 99th percentile of the nonzero increments (a crank starting from rest, or
-a slow one, moves a count)."""
+"""A repeated position is stuck when the increment after it is this many 99th percentiles."""
 STUCK_MIN_SAMPLES = 3
 FIT_RATIO_MAX = 2.0
-"""Refuse a fit whose residual RMS is above this many noise floors in any channel (good
-recordings stay below 1.4, misconfigured ones reach 2.4 and more)."""
+"""Refuse a fit whose residual RMS is above this many noise floors in any channel."""
 FIT_RATIO_WARN = 1.25
 """Warn above this many noise floors."""
 ACCEL_GAIN_WARN = 0.02
-"""Warn of an encoder whose smoothing window loses more than this fraction of the crank
-acceleration at once or twice the rotation frequency (the half-turn cap loses 8e-3 at
-twice)."""
+"""Warn when the smoothing window loses this fraction of the acceleration at 1x or 2x."""
 ACCEL_GAIN_REFUSE = 0.1
-"""Refuse it when the window loses more than this fraction at the rotation frequency (the
-rig node's tests at 250 Hz: 0.023; 0.05 rad of encoder noise: 0.38-0.45)."""
+"""Refuse when the window loses this fraction of it at the rotation frequency."""
 ENCODER_NOISE_STEPS = 3.0
-"""An encoder whose angle noise (smooth-fit residual) is above this many quantization
-steps / sqrt(12) (or, unquantized, whose acceleration noise is over budget) is named as the
-likely cause of a fit the noise does not explain."""
+"""Angle noise above this many steps / sqrt(12) names the encoder as a bad fit's cause."""
 
 
 @dataclass
 class Finding:
-    """
-    One thing a check found: its evidence, the way out, and what was done.
-
-    ``action`` is ``corrected`` (the data repaired, the fit made on the repair), ``warned``
-    or ``refused`` (no calibrated scene).
-    """
+    """One thing a check found; ``action``: ``corrected``, ``warned`` or ``refused``."""
 
     code: str
     action: str
@@ -81,17 +62,11 @@ def refusals(findings):
     return [f for f in findings if f.action == 'refused']
 
 
-# ============================================================================ noise
-
-
 def noise_floor(values):
     """
     Return the white noise's standard deviation per column of ``values`` (samples first).
 
-    The variance of the :data:`DIFF_ORDER`-th difference divided by C(2k, k): exact for
-    white noise, blind to a signal that is smooth over a few samples.  A sensor whose noise
-    is correlated over many samples (a low-pass filter below the sampling rate) has a
-    smaller floor than its noise.
+    The variance of the :data:`DIFF_ORDER`-th difference divided by C(2k, k).
     """
     v = np.asarray(values, dtype=float)
     if v.ndim == 1:
@@ -106,9 +81,7 @@ def interleaved(values):
     """
     Return per column the ratio of the sequence's noise floor to its even/odd samples'.
 
-    One source gives about 1 (white noise is white at half the rate); two sources taking
-    turns (two encoders, two sensors on one topic) give the size of their difference over
-    the noise, as the differences alternate.
+    About 1 for one source; two sources taking turns give their difference over the noise.
     """
     v = np.asarray(values, dtype=float)
     if v.ndim == 1:
@@ -119,9 +92,6 @@ def interleaved(values):
     half = np.sqrt(0.5 * (noise_floor(v[0::2]) ** 2 + noise_floor(v[1::2]) ** 2))
     return np.where(half > 0.0, full / np.where(half > 0.0, half, 1.0),
                     np.where(full > 0.0, np.inf, 1.0))
-
-
-# ============================================================================ encoder
 
 
 def encoder_unit(position, modulus, unit='auto'):
@@ -168,11 +138,9 @@ def stuck_runs(t_s, psi_unwrapped, modulus=2.0 * math.pi):
     """
     Return ``(keep mask, Finding or None)``: runs of a repeated position that jump after.
 
-    A run of at least :data:`STUCK_MIN_SAMPLES` equal positions followed by an increment
-    above :data:`STUCK_JUMP` times the 99th percentile of the nonzero increments (wrapped
-    to half a turn): the encoder repeated its last value while the crank turned.  The mask
-    drops the run but its first sample, so that the time the encoder was stuck is a gap
-    (:data:`mech_balance.analysis.identify.encoder.GAP_PERIODS`).
+    At least :data:`STUCK_MIN_SAMPLES` equal positions, then an increment above
+    :data:`STUCK_JUMP` 99th percentiles; the mask drops the run but its first sample, so
+    that the stuck time is a gap.
     """
     t = np.asarray(t_s, dtype=float)
     psi = np.asarray(psi_unwrapped, dtype=float)
@@ -214,11 +182,9 @@ def encoder_smoothing(motion, cap_turns):
     """
     Return a Finding when the encoder's noise needs a window that smooths the motion away.
 
-    ``motion`` the :class:`~mech_balance.analysis.identify.encoder.CrankMotion`; ``cap_turns`` the
-    window's cap in turns.  Above the cap the window's gain error at once and twice the
-    rotation frequency (:attr:`CrankMotion.gain_error`) is the fraction of the crank
-    acceleration lost: above :data:`ACCEL_GAIN_WARN` at either warned, above
-    :data:`ACCEL_GAIN_REFUSE` at once refused.
+    ``motion``: the :class:`~mech_balance.analysis.identify.encoder.CrankMotion`;
+    ``cap_turns``: the window's cap in turns; thresholds :data:`ACCEL_GAIN_WARN` and
+    :data:`ACCEL_GAIN_REFUSE`.
     """
     gain = motion.gain_error
     worst = max(abs(gain.get('accel_1x', 0.0)), abs(gain.get('accel_2x', 0.0)))
@@ -243,9 +209,6 @@ def encoder_smoothing(motion, cap_turns):
          'gain_error_accel_1x': gain['accel_1x'], 'gain_error_accel_2x': gain['accel_2x']})
 
 
-# ============================================================================ wrench
-
-
 def check_interleaved_wrench(wrench, channels):
     """Return a refusing Finding when the wrench samples come from two sensors, or None."""
     ratio = interleaved(wrench)
@@ -261,17 +224,13 @@ def check_interleaved_wrench(wrench, channels):
         "one sensor's messages)", {'ratio': [float(r) for r in ratio]})
 
 
-# ============================================================================ the fit
-
-
 def judge_fit(channels, rms_after, floor, motion, units, ratio_max=FIT_RATIO_MAX):
     """
     Return the Findings on the calibrated fit's residual against the noise floor.
 
-    ``rms_after`` and ``floor`` per channel; ``motion`` the encoder's
-    :class:`~mech_balance.analysis.identify.encoder.CrankMotion` (its angle noise and window are
-    named when they are the likely cause); ``units`` per channel; ``ratio_max`` the
-    refusal's threshold (:data:`FIT_RATIO_MAX`).
+    ``rms_after``, ``floor`` and ``units`` per channel; ``motion`` the encoder's
+    :class:`~mech_balance.analysis.identify.encoder.CrankMotion` (named when the likely
+    cause); ``ratio_max`` the refusal's threshold.
     """
     ratio = np.asarray(rms_after, dtype=float) / np.where(floor > 0.0, floor, np.inf)
     worst = int(np.argmax(ratio))
@@ -309,16 +268,8 @@ def judge_fit(channels, rms_after, floor, motion, units, ratio_max=FIT_RATIO_MAX
                     'floors: the noise does not explain the fit', way, values)]
 
 
-# ============================================================================ the data
-
-
 def checkable(t, values):
-    """
-    Return True when stamps and values are arrays the checks can read.
-
-    Else :func:`~mech_balance.analysis.identify.encoder.crank_motion` refuses them with its own
-    message.
-    """
+    """Return True when stamps and values are arrays the checks can read."""
     t = np.asarray(t, dtype=float)
     v = np.asarray(values, dtype=float)
     return (t.ndim == 1 and v.shape[:1] == t.shape and t.size >= 4 * (DIFF_ORDER + 2)
@@ -329,9 +280,8 @@ def check_data(t_encoder, position_rad, t_wrench, wrench, effort, unit):
     """
     Return ``(t_encoder, position_rad, effort, findings)`` after the checks of the data.
 
-    The encoder's unit (``unit``: auto, rad, deg; converted), two interleaved encoders or
-    sensors (raises :class:`IdentifyError` naming the finding), a stuck encoder (its
-    repeated samples dropped).
+    The encoder's unit (``unit``: auto, rad, deg), a stuck encoder (dropped); raises
+    :class:`IdentifyError` for interleaved encoders or sensors.
     """
     findings = []
     if checkable(t_encoder, position_rad):

@@ -1,9 +1,4 @@
-"""
-What the calibration's uncertainty means for the RMS shaking force and moment.
-
-The predicted RMS of a calibrated scene with its standard errors, and the range a balanced
-design's RMS lies in within +-1 standard error of the calibrated inertias.
-"""
+"""What the calibration's uncertainty means for the RMS shaking force and moment."""
 
 from dataclasses import dataclass
 import math
@@ -55,10 +50,8 @@ def predicted_rms(scene, theta, covariance):
     """
     Return the :class:`PredictedRms` of parameters ``theta`` (SI) on ``scene``'s geometry.
 
-    The RMS over :attr:`Scene.samples` crank angles at the scene's crank speed
-    (:func:`mech_balance.analysis.linear_maps.linear_maps`, the balancing's own definition,
-    RMS = ||R theta||); the standard error by the delta method, g^T Cov g with
-    g = R^T R theta / ||R theta||.
+    RMS = ||R theta|| (:func:`mech_balance.analysis.linear_maps.linear_maps`); the standard
+    error by the delta method.
     """
     theta = np.asarray(theta, dtype=float)
     out = []
@@ -81,13 +74,9 @@ def balance_confidence(scene, balanced_scene):
     """
     Return how a balanced design's RMS shaking force and moment vary within +-1 SE, or None.
 
-    ``scene`` is a calibrated scene (with an ``identification`` section,
-    :mod:`mech_balance.schema.identification`); ``balanced_scene`` the optimum of
-    ``mech-balance balance`` on it.  The design changes the links by known amounts, so the
-    true balanced parameters are theta_b + D^T a with the identification's factor D; for
-    ||a|| <= 1 (+-1 standard error) the RMS ||R (theta_b + D^T a)|| lies within
-    ||R theta_b|| -+ ||R D^T||_2 (the triangle inequality; a checked bound, not a linear
-    estimate: at a balanced optimum ||R theta|| is not differentiable).
+    ``scene``: a calibrated scene (``identification`` section); ``balanced_scene``: the
+    optimum on it.  The RMS lies within ||R theta_b|| -+ ||R D^T||_2 (the triangle
+    inequality, a checked bound).
     """
     block = getattr(scene, 'identification', None)
     if block is None:

@@ -1,8 +1,7 @@
 """
 The physically consistent calibration: the identified combinations kept, every link a body.
 
-Two Clarabel cone programs on the scaled deviation from the scene (docs/identification.md,
-*How identify computes*).
+Two Clarabel cone programs (docs/identification.md, *How identify computes*).
 """
 
 from dataclasses import dataclass
@@ -15,13 +14,11 @@ import numpy as np
 MIN_MASS_REL = 1e-3
 """Every calibrated link's mass at least this fraction of its scene mass."""
 INERTIA_MARGIN_REL = 1e-7
-"""The centroidal inertia at least this fraction of the link's m l^2 (above the cone
-solver's feasibility tolerance, so the written inertia is >= 0 after round-off)."""
+"""The centroidal inertia at least this fraction of the link's m l^2 (above round-off)."""
 CONFIDENCE_SE = 3.0
 """The data's confidence region: every combination within this many standard errors."""
 LS_TIE_REL = 1e-9
-"""Constrained least squares: weight of the pull towards the scene (times the largest
-squared singular value), choosing among equally good fits in the unseen directions."""
+"""Constrained least squares: the pull towards the scene, times the largest sv^2."""
 ACTIVE_REL = 1e-5
 """A consistency constraint whose slack is below this (relative) is reported active."""
 
@@ -31,13 +28,9 @@ class Consistency:
     """
     How the calibrated parameters were made physically consistent (:func:`consistent`).
 
-    ``stage``: ``exact`` (the identified combinations reproduced, the consistent set closest
-    to the scene) or ``least squares`` (no consistent set reproduces them: the least
-    residual subject to consistency); ``residual_growth`` the relative growth of the
-    weighted residual norm over the unconstrained least squares (0 for ``exact``);
-    ``max_shift_se`` the largest change of a combination in its standard errors;
-    ``within_confidence`` whether that is within :data:`CONFIDENCE_SE`; ``active`` the
-    constraints at their bound (``links.NAME.inertia_com_kg_m2 >= 0``, ``... mass_kg``).
+    ``stage``: ``exact`` or ``least squares``; ``residual_growth``: relative, over the
+    unconstrained fit; ``max_shift_se``: the largest change of a combination in standard
+    errors; ``active``: the constraints at their bound.
     """
 
     stage: str
@@ -77,10 +70,9 @@ def consistency_cones(scene, theta0, scale):
     """
     Return ``(A, b, cones)`` of the consistency cones on the scaled deviation u.
 
-    Per link, in its own scale y = theta / scale: y_m >= MIN_MASS_REL and the rotated cone
-    y_m (y_I - INERTIA_MARGIN_REL) >= y_hx^2 + y_hy^2, written as the second-order cone
-    ||(2 y_hx, 2 y_hy, y_m - y_I')|| <= y_m + y_I' (Wensing, Kim & Slotine 2017, planar;
-    Sousa & Cortesao 2014).  Clarabel's form: s = b - A u in the cone.
+    Per link, y = theta / scale: y_m >= MIN_MASS_REL and
+    y_m (y_I - INERTIA_MARGIN_REL) >= y_hx^2 + y_hy^2 (Wensing, Kim & Slotine 2017);
+    Clarabel's form s = b - A u in the cone.
     """
     import clarabel
     n = theta0.size
@@ -122,13 +114,10 @@ def consistent(scene, theta0, scale, v1, sv, du, chi2_ls, se_u):
     """
     Return ``(u, Consistency)``: the physically consistent scaled deviation from the scene.
 
-    ``v1`` ``(n, r)`` and ``sv`` ``(r,)``: the row space of the scaled, weighted regressor
-    and its singular values; ``du`` the least-squares deviation (minimum norm); ``chi2_ls``
-    its weighted residual sum of squares; ``se_u`` ``(r,)`` the standard errors of the
-    combinations v1^T u.  Stage 1 (exact): minimize ||u||^2 subject to v1^T u = v1^T du and
-    the cones of :func:`consistency_cones`.  If that is infeasible, stage 2 (least squares):
-    minimize ||S1 v1^T (u - du)||^2 + LS_TIE_REL s_1^2 ||(I - v1 v1^T) u||^2 subject to the
-    cones.  Raises :class:`IdentifyError` when no consistent set exists.
+    ``v1`` ``(n, r)``, ``sv`` ``(r,)``: the regressor's row space and singular values;
+    ``du``: the least-squares deviation; ``chi2_ls``: its residual; ``se_u``: the standard
+    errors of v1^T u.  The two stages: docs/identification.md, *How identify computes*.
+    Raises :class:`IdentifyError` when no consistent set exists.
     """
     import clarabel
     n = theta0.size

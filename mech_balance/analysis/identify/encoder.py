@@ -16,23 +16,18 @@ from mech_balance.analysis.identify.smoothing import (
 import numpy as np
 
 ACCEL_NOISE_REL = 1e-3
-"""Window choice: predicted crank acceleration noise (from the quantization) at most this
-fraction of the mean crank speed squared."""
+"""Window choice: predicted acceleration noise at most this fraction of mean speed^2."""
 MAX_WINDOW_TURNS = 0.5
-"""Window choice: at most this fraction of a mean crank revolution (bounds the smoothing
-bias of speed variations at the rotation frequency and its harmonics)."""
+"""Window choice: at most this fraction of a mean crank revolution (the smoothing bias)."""
 MIN_WINDOW = 2 * SG_ORDER + 3
 """Fewest samples in the smoothing window."""
 UNIFORM_JITTER_REL = 1e-3
-"""Encoder stamps whose periods deviate from their median by more than this fraction are
-resampled to a uniform grid before smoothing."""
+"""Stamps whose periods deviate from their median by this fraction are resampled first."""
 MAX_STEP_RAD = 0.9 * math.pi
 """Largest crank step between encoder samples that unwraps unambiguously."""
 GAP_PERIODS = 10.0
-"""The encoder data is split into stretches where two stamps are further apart than this
-many median encoder periods (dropped messages, a stopped encoder): each stretch gets its own
-crank-motion fit, and the wrench samples inside a gap, whose motion is unknown, are not
-used (:func:`encoder_segments`)."""
+"""The encoder data is split where two stamps are this many median periods apart; each
+stretch gets its own fit, the wrench samples inside a gap are not used."""
 
 
 @dataclass
@@ -40,9 +35,8 @@ class CrankMotion:
     """
     Crank angle, speed and acceleration estimated from encoder positions (uniform grid).
 
-    ``predicted_std`` is the standard deviation from the quantization alone (angle rad,
-    speed rad/s, acceleration rad/s^2); ``gain_error`` the relative error of speed and
-    acceleration for a sinusoidal speed variation at 1x and 2x the mean rotation frequency.
+    ``predicted_std``: the noise's standard deviations; ``gain_error``: the relative error
+    of speed and acceleration at 1x and 2x the rotation frequency.
     """
 
     t_s: np.ndarray             # (p,) grid stamps, s
@@ -118,10 +112,8 @@ def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_ra
     """
     Return the :class:`CrankMotion` of encoder samples (stamps s, positions rad).
 
-    ``window`` (odd number of samples) overrides the choice (the shortest window within the
-    acceleration noise budget :data:`ACCEL_NOISE_REL`, at most :data:`MAX_WINDOW_TURNS`
-    unless the noise needs more); ``counts_per_turn`` (or ``quantization_rad``, the step)
-    states the encoder's step instead of :func:`estimate_quantization`.
+    ``window`` (odd, samples) overrides the choice (:data:`ACCEL_NOISE_REL`,
+    :data:`MAX_WINDOW_TURNS`); ``counts_per_turn`` (or ``quantization_rad``) states the step.
     """
     t, pos = _checked_samples(t_s, position_rad)
     steps = np.diff(t)
@@ -190,9 +182,7 @@ class EncoderSegment:
     """
     One stretch of encoder data between gaps (:data:`GAP_PERIODS`) and what it gave.
 
-    ``used`` is False with ``reason`` when the stretch is too short for the crank-motion
-    window (or its fit failed); ``wrench_samples`` counts the measurements inside its fitted
-    span (0 when not used).
+    ``used`` False with ``reason`` when too short or its fit failed.
     """
 
     start_s: float
@@ -214,9 +204,7 @@ def encoder_segments(t_s, position_rad, gap_periods=GAP_PERIODS):
     """
     Return the encoder data split at its gaps: a list of ``(t, position)`` arrays.
 
-    A gap is a step between stamps above ``gap_periods`` median steps.  Data that cannot
-    be split (mismatched shapes, non-finite or non-increasing stamps, too few samples) is
-    returned whole, for :func:`crank_motion` to refuse with its own message.
+    Data that cannot be split is returned whole, for :func:`crank_motion` to refuse.
     """
     t = np.asarray(t_s, dtype=float).ravel()
     pos = np.asarray(position_rad, dtype=float).ravel()
@@ -234,9 +222,8 @@ def segment_motions(t_encoder, position_rad, window, quantization_rad, counts_pe
     """
     Return ``(main motion, [(motion or None, EncoderSegment)])`` over the encoder's stretches.
 
-    The longest stretch chooses the window and the quantization (:func:`crank_motion`); the
-    others are fitted with the same ones, or skipped (with the reason) when shorter than
-    the window or when their fit fails.
+    The longest stretch chooses the window and the quantization; the others are fitted
+    with the same ones, or skipped with the reason.
     """
     pieces = encoder_segments(t_encoder, position_rad)
     main = max(range(len(pieces)), key=lambda k: pieces[k][0].size)

@@ -1,11 +1,8 @@
 """
 The identification: checked data in, the calibrated inertial parameters and their report out.
 
-:func:`identify` runs the checks (:mod:`~mech_balance.analysis.identify.checks`,
-:mod:`~mech_balance.analysis.identify.alignment`), the crank motion
-(:mod:`~mech_balance.analysis.identify.encoder`), the least squares
-(:mod:`~mech_balance.analysis.identify.least_squares`) and the consistent calibration
-(:mod:`~mech_balance.analysis.identify.consistency`); :class:`Identification` holds it all.
+:func:`identify` runs the checks, the crank motion, the least squares and the consistent
+calibration; :class:`Identification` holds it all.
 """
 
 from dataclasses import dataclass, field, replace
@@ -30,8 +27,7 @@ import numpy as np
 MIN_TURNS = 1.0
 """A recording must turn the crank at least this many revolutions in its usable span."""
 CONFOUND_RTOL = 1e-9
-"""A bias channel whose sensitivity to the non-identifiable directions is below this
-fraction of the channel's regressor size is identifiable on its own."""
+"""A bias channel this insensitive (relative) to the unseen directions is identifiable."""
 
 
 @dataclass
@@ -106,8 +102,7 @@ class Identification:
         """
         Return the scene with the calibrated link inertias and its ``identification``.
 
-        Raises :class:`IdentifyError` naming the links whose calibrated parameters no body
-        can have (a mass <= 0 or a centroidal inertia < 0).
+        Raises :class:`IdentifyError` when refused or naming the links no body can have.
         """
         if self.refusals:
             raise IdentifyError('refused, no calibrated scene: '
@@ -187,17 +182,12 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     """
     Return the :class:`Identification` of a planar rig from encoder and wrench samples.
 
-    ``t_encoder`` and ``position_rad`` (s, rad): the encoder's stamps and crank positions;
-    ``t_wrench`` and ``wrench`` ``(samples, 3)``: the sensor's stamps and [f_x, f_y, n_z]
-    (rig frame, about the crank pivot, what the rig exerts on its frame, N and N*m);
-    ``effort``: the encoder's motor torque at its stamps (N*m) or None.  The model is
-    evaluated at each wrench stamp with the crank state interpolated from the encoder.
-
-    ``check``: run the checks of the recording (the encoder's unit, ``encoder_unit``
-    ``auto``, ``rad`` or ``deg``; interleaved sources; a stuck encoder; the sensor's frame;
-    a time offset; the fit against the noise floor, refused above ``max_residual_ratio``
-    floors): their findings are :attr:`Identification.findings`, and a refused one keeps
-    :meth:`Identification.calibrated_scene` from being made.
+    ``t_encoder``, ``position_rad`` (s, rad): the encoder; ``t_wrench``, ``wrench``
+    ``(samples, 3)``: the sensor's [f_x, f_y, n_z] on the frame about the crank pivot (N,
+    N*m); ``effort``: the motor torque at the encoder's stamps (N*m) or None.  ``check``
+    runs the checks (:mod:`~mech_balance.analysis.identify.checks`; ``encoder_unit``
+    ``auto``, ``rad`` or ``deg``; refused above ``max_residual_ratio`` noise floors); a
+    refused finding keeps :meth:`Identification.calibrated_scene` from being made.
     """
     check_identifiable(scene)
     findings = []

@@ -1,9 +1,7 @@
 """
 The weighted least squares of the inertial parameters and its base parameters.
 
-The samples are reduced chunk by chunk to small per-channel R factors, the bias projected
-out, the rank read off the SVD; the identifiable combinations are written as base
-parameters (docs/identification.md, *How identify computes*).
+The method: docs/identification.md, *How identify computes*.
 """
 
 from dataclasses import dataclass
@@ -15,18 +13,13 @@ import numpy as np
 import scipy.linalg
 
 RANK_RTOL = 1e-7
-"""Singular values of the scaled, weighted, bias-free regressor at or below this fraction of
-the largest span its null space (structurally non-identifiable combinations sit at
-round-off, every excited one far above)."""
+"""Singular values at or below this fraction of the largest span the regressor's null space."""
 WEIGHT_PASSES = 3
-"""Least-squares passes: the first weights each channel by its measured RMS, the next by
-the residual noise level of the previous pass."""
+"""Least-squares passes, each channel weighted by the previous pass's residual noise."""
 COEFF_PRINT_RTOL = 1e-6
-"""Coefficients of a base-parameter combination smaller than this (in the rig's units) are
-left out of its printed form (kept in the numbers)."""
+"""Coefficients of a combination below this are left out of its printed form."""
 REDUCE_CHUNK = 4096
-"""Samples per regressor evaluation in :func:`reduce_samples`: the working memory of an
-identification is that of this many samples, whatever the recording's length."""
+"""Samples per regressor evaluation in :func:`reduce_samples` (bounds the memory)."""
 
 
 def measurements(wrench, effort, t_wrench, t_effort, motion):
@@ -72,11 +65,8 @@ def reduce_samples(scene, psi, speed, accel, meas, torque, theta0, scale, chunk=
     """
     Return the :class:`Reduction` of the samples, ``chunk`` samples at a time.
 
-    Per channel c one orthogonal (QR) reduction of ``[1 | Y_c | r_c | w_c]`` (scaled
-    regressor, measured minus the scene's model, measured), updated chunk by chunk: the
-    trailing block of its R factor is the R factor of the centred columns (the bias-free
-    problem), its first row divided by sqrt(p) their means.  So the regressor of the whole
-    recording is never held at once.
+    Per channel one QR reduction of ``[1 | Y_c | r_c | w_c]`` updated chunk by chunk: its
+    trailing block is the R factor of the centred columns, its first row their means.
     """
     nc = meas.shape[1]
     factors = [None] * nc
@@ -130,9 +120,8 @@ def weighted_fit(red, nparam, nc):
     """
     Return the :class:`WeightedFit` of a :class:`Reduction` (``nc`` channels).
 
-    :data:`WEIGHT_PASSES` passes, each channel weighted by its noise level (at first its
-    measured spread, then the previous pass's residual); the rank counts the singular
-    values above :data:`RANK_RTOL` times the largest.
+    :data:`WEIGHT_PASSES` passes; the rank counts the singular values above
+    :data:`RANK_RTOL` times the largest.
     """
     p = red.samples
     sigma = np.where(red.sigma > 0.0, red.sigma, 1.0)
@@ -182,9 +171,8 @@ def base_parameters(v1t, scale, names, theta, theta0, cov, theta_cal):
     """
     Return the :class:`Combination` list of the row space ``v1t`` (scaled coordinates).
 
-    A QR factorization with column pivoting picks the base parameters; each combination has
-    coefficient 1 on its own and 0 on the others.  Estimates of ``theta`` (the least
-    squares), ``theta0`` (the scene) and ``theta_cal`` (the calibration), with ``cov``.
+    QR with column pivoting picks the base parameters (coefficient 1 on its own, 0 on the
+    others); estimates of ``theta``, ``theta0`` (scene) and ``theta_cal``, with ``cov``.
     """
     rank = v1t.shape[0]
     _, _, piv = scipy.linalg.qr(v1t, pivoting=True, mode='economic')

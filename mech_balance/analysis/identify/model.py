@@ -20,9 +20,8 @@ TORQUE_CHANNEL = 'torque'
 """Channel of the driving torque (from the encoder's effort), stacked when present."""
 CHANNEL_UNITS = {'force_x': 'N', 'force_y': 'N', 'moment_z': 'N*m', 'torque': 'N*m'}
 PARAMETERS = ('m', 'hx', 'hy', 'I_O')
-"""Per link: mass (kg), first moment m c_x and m c_y in the link frame (kg*m), inertia about
-the link origin (kg*m^2): the order of
-:func:`mech_balance.core.planar.dynamics.parameter_vector`."""
+"""Per link: m (kg), m c_x, m c_y (kg*m), I_O (kg*m^2), as
+:func:`mech_balance.core.planar.dynamics.parameter_vector` orders them."""
 PARAMETER_UNITS = ('kg', 'kg*m', 'kg*m', 'kg*m^2')
 
 SPATIAL_NOT_YET = (
@@ -57,9 +56,7 @@ def parameter_scales(scene):
     """
     Return the ``(4 n,)`` scale of each parameter: per link m, m l, m l, m l^2 (scene).
 
-    l = sqrt(I_O / m) is the link's radius of gyration about its origin (seed 001 eq. 27), so
-    a unit step in the scaled coordinates is a change of the link's own size.  A link
-    without mass or inertia falls back to the rig's units.
+    l = sqrt(I_O / m), the radius of gyration (seed 001 eq. 27); else the rig's units.
     """
     units = objective_units(scene)
     out = []
@@ -76,9 +73,8 @@ class Regressor:
     """
     The measured quantities as a linear function of the inertial parameters theta (SI).
 
-    ``wrench`` is ``(p, 3, 4 n)``: [f_x, f_y, n_z] per sample (rig frame, about the crank
-    pivot, what the links exert on the frame, weight included); ``torque`` ``(p, 4 n)`` the
-    driving torque, or None.  ``w = wrench @ theta (+ bias)``.
+    ``wrench`` ``(p, 3, 4 n)``: [f_x, f_y, n_z] on the frame about the crank pivot, weight
+    included; ``torque`` ``(p, 4 n)`` or None.  ``w = wrench @ theta (+ bias)``.
     """
 
     wrench: np.ndarray
@@ -102,9 +98,8 @@ def regressor(scene, psi_rad, speed_rad_s, accel_rad_s2, torque=False, rig=None)
     """
     Return the :class:`Regressor` of a planar scene at per-sample crank states.
 
-    One kinematic solution at the given angles, speeds and accelerations; the core's
-    shaking wrench (and driving torque) at the 4 n unit parameter vectors (seed 001 eqs.
-    25-26, 39; linear in theta); the links' weight from their poses.
+    The core's wrench at the 4 n unit parameter vectors (seed 001 eqs. 25-26, 39) plus the
+    links' weight from their poses.
     """
     check_identifiable(scene)
     rig = analysis.Rig(scene) if rig is None else rig

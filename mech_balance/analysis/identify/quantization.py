@@ -14,8 +14,7 @@ import numpy as np
 QUANT_TOL = 0.1
 """An increment agrees with a step q when it is within this many q of a multiple of q."""
 QUANT_FRACTION_MIN = 0.99
-"""An encoder step is accepted when at least this fraction of the nonzero increments agree
-with it (QUANT_TOL); the largest such step is the encoder's."""
+"""An encoder step needs this fraction of the nonzero increments on its grid (QUANT_TOL)."""
 QUANT_CLUSTER_MIN = 0.005
 """A level of the increments holding at least this fraction of them is a major level."""
 QUANT_CLUSTER_COVER = 0.9
@@ -23,14 +22,11 @@ QUANT_CLUSTER_COVER = 0.9
 QUANT_MAX_INCREMENTS = 20000
 """Increments the step search tests at most (evenly spaced over the recording)."""
 QUANT_SPLIT_RATIO = 30.0
-"""Sorted gaps between distinct positions jump by at least this ratio from the noise floor
-(float round-off) to the encoder step."""
+"""Sorted gaps jump by at least this ratio from float round-off to the encoder step."""
 QUANT_GAP_QUANTILE = 0.02
-"""Candidate step: this quantile of the gaps above the noise floor (robust to a few stray
-positions between two counts)."""
+"""Candidate step: this quantile of the gaps above the noise floor."""
 QUANT_MAX_DIVISOR = 8
-"""The candidate step may be this many encoder steps (counts missing from a short
-recording); divisors up to this are tried."""
+"""Divisors of the candidate step tried (counts missing from a short recording)."""
 QUANT_REFINE_PASSES = 2
 """Least-squares passes refining the step on the increments."""
 COUNT_SNAP = 0.05
@@ -44,12 +40,9 @@ class Quantization:
     """
     The encoder's quantization step and the angle noise the window choice rests on.
 
-    ``step_rad`` is 0 when the positions are not quantized (``source`` says which:
-    ``estimated``, ``stated`` by ``--counts-per-turn``, or ``not quantized``);
-    ``confidence`` the fraction of the nonzero increments within :data:`QUANT_TOL` steps of
-    a multiple of the step; ``noise_rad`` the standard deviation of the angle noise used for
-    the window: the larger of q / sqrt(12) and ``fit_noise_rad``, the residual of a smooth
-    fit (:func:`~mech_balance.analysis.identify.smoothing.fit_noise`).
+    ``step_rad`` 0: not quantized (``source``: ``estimated``, ``stated``, ``not quantized``);
+    ``confidence``: the fraction of increments on its grid; ``noise_rad``: the larger of
+    q / sqrt(12) and ``fit_noise_rad``, the residual of a smooth fit.
     """
 
     step_rad: float
@@ -87,10 +80,8 @@ def unwrap_encoder(position_rad):
     """
     Return ``(unwrapped angle, modulus)`` of encoder positions that may wrap at any modulus.
 
-    A wrap is an increment larger than half the positions' range; the modulus M follows
-    from the wraps: a wrap of d while the crank turns by the median increment delta is
-    d = delta - M sign(rotation), so M = median(|d - delta|).  A modulus within
-    :data:`MODULUS_SNAP_REL` of 2 pi is taken as 2 pi.  Positions without a wrap keep 2 pi.
+    The modulus follows from the wraps (docs/identification.md, *How identify computes*);
+    2 pi without a wrap or within :data:`MODULUS_SNAP_REL` of it.
     """
     pos = np.asarray(position_rad, dtype=float)
     steps = np.diff(pos)
@@ -115,11 +106,8 @@ def value_clusters(values, floor):
     """
     Return the centres of the major clusters of ``values`` (split where sorted gaps > floor).
 
-    A cluster is major when it holds at least :data:`QUANT_CLUSTER_MIN` of the values, and
-    the major ones must hold :data:`QUANT_CLUSTER_COVER` of them (else none is returned: the
-    values do not fall on a few levels, an unquantized encoder).  Two major clusters are two
-    different multiples of the step: a candidate step that puts them on one multiple (the
-    mean increment of a crank at a nearly constant 47.7 counts a sample) is refused.
+    Major: at least :data:`QUANT_CLUSTER_MIN` of the values; none unless the major ones hold
+    :data:`QUANT_CLUSTER_COVER` of them (an unquantized encoder).
     """
     v = np.sort(values)
     if v.size == 0:
@@ -137,14 +125,9 @@ def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
     """
     Return the :class:`Quantization` of encoder positions (rad; wrapped or not).
 
-    The robust greatest common divisor of the increments (float noise, float32 positions,
-    missing counts, either direction, any wrap): candidate steps from the gaps between
-    distinct positions and increments above their noise floor, the largest divisor of one
-    with :data:`QUANT_FRACTION_MIN` of the increments on its grid and every major level on
-    its own multiple, refined by least squares and snapped to whole counts per modulus
-    (docs/identification.md, *How identify computes*).  ``counts_per_turn`` states the step
-    instead.  When no candidate agrees the positions are "not quantized" and only the smooth
-    fit's noise is used.
+    The robust greatest common divisor of the increments (docs/identification.md, *How
+    identify computes*); ``counts_per_turn`` states the step instead.  When no candidate
+    agrees the positions are "not quantized" and only the smooth fit's noise is used.
     """
     pos = np.asarray(position_rad, dtype=float).ravel()
     psi, modulus = unwrap_encoder(pos)

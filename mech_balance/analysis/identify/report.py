@@ -1,8 +1,4 @@
-"""
-The identification as text: the report ``mech-balance identify`` prints, the calibrated YAML.
-
-Both read an :class:`~mech_balance.analysis.identify.estimate.Identification`.
-"""
+"""The identification as text: the report ``mech-balance identify`` prints, the YAML."""
 
 import math
 

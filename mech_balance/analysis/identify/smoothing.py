@@ -1,7 +1,7 @@
 """
 Savitzky-Golay smoothing of the encoder angle: weights, their accuracy, the angle noise.
 
-docs/identification.md (*How identify computes*) says how the window is chosen.
+The window choice: docs/identification.md, *How identify computes*.
 """
 
 import math
@@ -15,12 +15,7 @@ FIT_NOISE_WINDOW = 31
 
 
 def oaconvolve(*args, **kwargs):
-    """
-    Return :func:`scipy.signal.oaconvolve` (imported on first use).
-
-    Importing ``scipy.signal`` costs about 0.6 s, and this package is imported by every
-    ``balance`` call (a calibrated scene's +-1 SE); only the crank-motion fit convolves.
-    """
+    """Return :func:`scipy.signal.oaconvolve` (imported on first use: it costs 0.6 s)."""
     from scipy.signal import oaconvolve as convolve
     return convolve(*args, **kwargs)
 
@@ -29,11 +24,9 @@ def savgol_weights(window, order, period_s):
     """
     Return the ``(3, window)`` Savitzky-Golay weights of value, slope and curvature.
 
-    Row d applied (as a dot product) to ``window`` samples spaced ``period_s`` gives the d-th
-    derivative at the centre of the least-squares polynomial of degree ``order``.  The fit is
-    done on the abscissa scaled to [-1, 1] by an orthogonal factorization (scipy's
-    ``savgol_coeffs`` fits on raw sample indices and loses all accuracy for windows of
-    hundreds of samples at order 6).
+    Row d applied to ``window`` samples spaced ``period_s`` gives the d-th derivative at
+    the centre; fitted on the abscissa scaled to [-1, 1] (scipy's ``savgol_coeffs`` loses
+    all accuracy for long windows at order 6).
     """
     half = (window - 1) // 2
     x = np.arange(-half, half + 1) / half
@@ -47,9 +40,8 @@ def window_accuracy(window, order, period_s, angle_noise_rad, turn_hz):
     """
     Return (predicted std dict, gain error dict) of a Savitzky-Golay window.
 
-    The standard deviations of angle, speed and acceleration from white angle noise of
-    ``angle_noise_rad``; the relative gain error of speed and acceleration for a sinusoidal
-    speed variation at 1x and 2x the rotation frequency ``turn_hz``.
+    Standard deviations from white angle noise ``angle_noise_rad``; the relative gain
+    error of speed and acceleration at 1x and 2x the rotation frequency ``turn_hz``.
     """
     half = (window - 1) // 2
     k = np.arange(-half, half + 1)
@@ -71,9 +63,8 @@ def fit_noise(t_s, psi_rad, order=SG_ORDER):
     """
     Return the standard deviation of the angle noise about a smooth fit (rad).
 
-    A Savitzky-Golay fit of ``order`` over :data:`FIT_NOISE_WINDOW` samples; the residual's
-    RMS divided by sqrt(1 - h), h the fit's weight on the centre sample (the residual of a
-    least-squares smoother of white noise of standard deviation s has variance s^2 (1 - h)).
+    A Savitzky-Golay fit over :data:`FIT_NOISE_WINDOW` samples; the residual's RMS divided
+    by sqrt(1 - h), h the fit's weight on the centre sample.
     """
     psi = np.asarray(psi_rad, dtype=float)
     window = min(FIT_NOISE_WINDOW, (psi.size - 1) | 1) | 1
