@@ -1,11 +1,9 @@
 """
 Batched solves of many small square systems, batch on the last axis (both cores use it).
 
-:mod:`.ordering` (a static row and column order per sparsity pattern, the symbolic LU
-:class:`LUPlan`), :mod:`.lu` (:class:`Factored`, :func:`solve`, :func:`inverse`,
-:func:`det_sign`: closed form for k <= 2, the static-order sparse LU above, LAPACK where its
-pivots are weak) and :mod:`.blocks` (:class:`BlockFactored`: 2 x 2 diagonal blocks in closed
-form, the RRR dyads' Jacobian).
+:mod:`.ordering` (static orders, the symbolic :class:`LUPlan`), :mod:`.lu` (:class:`Factored`,
+:func:`solve`, :func:`inverse`, :func:`det_sign`) and :mod:`.blocks` (:class:`BlockFactored`,
+the RRR dyads' Jacobian).
 """
 
 from mech_balance.core.linalg.blocks import BlockFactored, BlockPlan

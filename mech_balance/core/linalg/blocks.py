@@ -23,13 +23,9 @@ class BlockPlan:
     """
     A block lower triangular pattern with 2 x 2 diagonal blocks (a linkage of RRR dyads).
 
-    ``rows``, ``cols`` (original indices) list the structural nonzeros in the order a
-    matrix's values come in (as :meth:`LUPlan.set_entries`); ``blocks`` the diagonal blocks
-    ``((row, row), (col, col))`` in dependency order: an entry outside the blocks must lie
-    in an earlier block's columns.  Each diagonal block is inverted in closed form, all blocks
-    at once (:class:`BlockFactored`), and the solves run block by block: no pivoting, no
-    fill-in, no LAPACK fallback (a singular block gives ``inf`` in the condition number).
-    Raises ``ValueError`` if the pattern is not of that form.
+    ``rows``, ``cols`` list the structural nonzeros in the order a matrix's values come in;
+    ``blocks`` the diagonal blocks ``((row, row), (col, col))`` in dependency order.  Raises
+    ``ValueError`` if the pattern is not of that form.
     """
 
     def __init__(self, k, rows, cols, blocks):
@@ -66,9 +62,6 @@ class BlockPlan:
         self.entries = (rows, cols)
         # Z = J^-1 with its columns in block row order: block i's rows of Z are nonzero only
         # in the columns of block i and the blocks it depends on (all before it)
-        pos_row = {r: p for p, r in enumerate(self.row_order)}
-        self.block_of_col = where_col
-        self.pos_row = pos_row
         reach = []
         for i in range(nb):
             lo = 2 * i
@@ -128,8 +121,6 @@ class BlockPlan:
                            for i in range(nb - 1, -1, -1) for q, c in self.block_pairs[i]]
         self.rows01 = np.array([[rs[0] for rs, _ in self.blocks],
                                 [rs[1] for rs, _ in self.blocks]], dtype=int)
-        self.cols01 = np.array([[cs[0] for _, cs in self.blocks],
-                                [cs[1] for _, cs in self.blocks]], dtype=int)
         if self.single:
             # inv holds D^-1 = [[0, 1], [2, 3]] in block order (col j, row a); J^-1[c, r] of
             # the original order is D^-1[position of c, position of r]
@@ -152,11 +143,8 @@ class BlockFactored:
     """
     The closed-form block factorization of a :class:`BlockPlan` matrix given by its values.
 
-    ``J = D (I + N)``: D the diagonal blocks (inverted in closed form, all at once), N the
-    weights ``D_i^-1 J_ic`` of each earlier column c in block i's unknowns (a 2-vector per
-    angle and pair, all pairs at once).  The same interface as :class:`Factored`:
-    :meth:`solve`, :meth:`solve_t`, :meth:`cond` (exact 1-norm), :meth:`sign`,
-    :meth:`inverse`, :attr:`mat`.
+    ``J = D (I + N)``: D the diagonal blocks inverted in closed form, N the weights
+    ``D_i^-1 J_ic``; the interface of :class:`Factored` (no pivoting, no LAPACK fallback).
     """
 
     def __init__(self, plan, values):
@@ -282,10 +270,8 @@ class BlockFactored:
         """
         Return ``Z = J^-1`` ``(k, k, p)``, columns in block row order (ranges only).
 
-        Block i's rows: ``Z_i = D_i^-1 E_i - sum_c (D_i^-1 J_ic) Z_c`` over the earlier
-        columns c its rows reach, each ``D_i^-1 J_ic`` a 2-vector per angle.  With
-        ``colsum`` ``(k, p)`` (zeros) the column sums of ``|Z|`` are added row by row and
-        the entries outside the ranges are left unset.
+        ``Z_i = D_i^-1 E_i - sum_c (D_i^-1 J_ic) Z_c``; with ``colsum`` ``(k, p)`` (zeros) the
+        column sums of ``|Z|`` are added and ``Z`` outside the ranges is left unset.
         """
         k, p = self.k, self.p
         z = np.empty((k, k, p)) if colsum is not None else np.zeros((k, k, p))
@@ -325,9 +311,8 @@ class BlockFactored:
         """
         Return the 1-norm condition numbers of one 2 x 2 block (under the caller's errstate).
 
-        ``entries`` ``(4, p)``: a, b, c, d; ``adet`` ``|det|``; the 1-norm of the inverse is
-        that of the adjugate over ``|det|``.  ``checked``: every ``|det|`` is at least
-        :data:`_TINY_DET` (so no 0/0 to look for).
+        ``entries`` ``(4, p)``: a, b, c, d; ``checked``: every ``|det|`` is at least
+        :data:`_TINY_DET` (no 0/0 to look for).
         """
         m = np.abs(entries)
         sums = np.empty((2, 2, m.shape[1]))   # (column sums, row sums): one maximum
@@ -363,11 +348,9 @@ class BlockFactored:
         """
         Return ``||J^-1||_1`` ``(p,)`` when every block reads one earlier unknown only.
 
-        Then block i's rows of ``Z = J^-1`` are ``-w_i`` times the row of the unknown c it
-        reads, so ``|Z|`` below a block's own rows is that row's ``|Z|`` times products of
-        ``|w|``: the column sums are the own entries ``|D_b^-1|`` times ``1 + U``, with U
-        summed once from the last block back (``U_r`` of an unknown r: the sum over the blocks
-        reading r of ``|w_0| + |w_1| + |w_0| U_c0 + |w_1| U_c1``).  Exact, and linear in k.
+        Exact and linear in k: the column sums are the own entries ``|D_b^-1|`` times
+        ``1 + U``, U summed once from the last block back (docs/core.md, "Small linear
+        systems").
         """
         plan = self.plan
         nb = len(plan.blocks)

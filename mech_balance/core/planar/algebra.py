@@ -41,12 +41,9 @@ class Tiles:
     """
     Constant columns ``(k, 1)`` materialized as ``(k, p)`` arrays for the last batch size.
 
-    A ufunc that broadcasts a column over a batch runs a strided inner loop, two to three
-    times slower than on two arrays of one shape (a complex column: the complex loop with a
-    stride of zero).  The columns of a compiled linkage or of an inertia are constants, so
-    their tiles are made once per batch size and reused (read-only) while it stays the same;
-    beyond :data:`TILE_LIMIT` elements the columns themselves are returned (memory stays
-    linear in the batch; the loop is long enough there for the difference not to matter).
+    A ufunc broadcasting a column runs a strided loop, two to three times slower than on two
+    arrays of one shape, so constant columns are tiled once per batch size (read-only); beyond
+    :data:`TILE_LIMIT` elements the columns themselves are returned.
     """
 
     def __init__(self, **columns):

@@ -1,24 +1,10 @@
 """
 Closed-form positions of planar linkages that decompose into RRR dyads (Assur groups of class II).
 
-Worked out once per linkage (:func:`plan`, symbolic): the loops are taken in an order in which
-each one, given the tree joints already known, has exactly two unknown revolute tree joints
-and closes with a revolute cut joint.  The three free joints of such a loop are the corners of
-a triangle whose two outer corners P and Q lie on bodies already placed and whose middle
-corner X is found by intersecting two circles (radii fixed by the link geometry); the branch
-sign of each dyad (on which side of P Q the corner X lies) is the one of the traced branch and
-is checked to be the same at every node of the branch skeleton (a sign change would be a
-folded dyad, i.e. a singular position, which the trace refuses to cross).  Two cases:
-
-* the two unknown joints are the last tree joints above the cut's two bodies (the cut point is
-  X, each body turns about its own tree joint: a four-bar's coupler and rocker);
-* both are on one side, one above the other (X is the lower joint) and the cut's other body is
-  already placed.
-
-A chain of four-bars is a sequence of such dyads, so its positions cost a fixed number of
-vectorized operations per loop (no Newton iteration, no factorization).  Linkages with a
-prismatic joint, or loops that are not dyads in this sense, keep the Newton path of
-:mod:`mech_balance.core.planar.kinematics`.
+:func:`plan` orders the loops once (symbolic) so that each has two unknown revolute tree joints
+and a revolute cut; each dyad's middle corner X is a circle intersection, its branch sign
+checked at every node of the traced skeleton.  Other linkages keep the Newton path of
+:mod:`mech_balance.core.planar.kinematics`.  docs/core.md#the-planar-core-coreplanar.
 """
 
 import numpy as np
@@ -29,8 +15,7 @@ _TWO_PI, _INV_TWO_PI, _HALF = np.array(TWO_PI), np.array(1.0 / TWO_PI), np.array
 _TINY = 1e-150
 """Smallest squared distance P Q divided by without an errstate (its inverse stays finite)."""
 NODE_AGREEMENT = 1e-8
-"""Largest difference (rad) between the closed form and the traced nodes for the plan to be
-used: a plan that does not reproduce the skeleton is dropped (Newton stays)."""
+"""Largest difference (rad) of the closed form from the traced nodes for the plan to be used."""
 
 
 class Step:

@@ -70,13 +70,8 @@ class Skeleton:
         """
         Return ``(slope, offset, error)``: the straight line in psi nearest each coordinate.
 
-        ``slope`` ``(nt - 1, 1)`` is each coordinate's whole turns per crank turn, ``offset``
-        ``(nt - 1, 1)`` centres what remains (periodic in psi) between its extremes, and
-        ``error`` is the largest distance of ``slope * psi + offset`` from :meth:`predict`
-        (sampled as in :meth:`turn_table_error`, plus the largest step between the
-        samples).  Where that is well below pi, the line alone tells the whole turns of a
-        coordinate known up to 2 pi (a rocker that swings, a coupler that turns with the
-        crank), at two operations per evaluation.
+        ``slope`` ``(nt - 1, 1)``: whole turns per crank turn; ``error``: the largest distance
+        of the line from :meth:`predict` (well below pi: the line tells the whole turns).
         """
         psi, q = self._dense_prediction()
         slope = (np.zeros((q.shape[0], 1)) if self.wrap_step_u is None
@@ -102,9 +97,7 @@ class Skeleton:
         """
         Return ``(nt - 1, p)``: the tree coordinates but the crank's at the nearest table angle.
 
-        Within :meth:`turn_table_error` of :meth:`predict` at a fraction of its cost (no
-        search, no interpolation): enough to tell the whole turns of an angle known up to a
-        multiple of 2 pi (the dyads' closed form) when that error is well below pi.
+        Within :meth:`turn_table_error` of :meth:`predict` at a fraction of its cost.
         """
         table, n = self._table(), self.TURN_TABLE_SIZE
         u = np.subtract(psi, self.psi[0])

@@ -15,15 +15,13 @@ import numpy as np
 
 COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which a position is refused as singular."""
+# a prismatic input's steps are these times its half stroke (m)
 STEP_MAX_RAD = math.radians(10.0)
-"""Largest crank step between branch nodes (a prismatic input: this angle of its Scotch
-yoke at mid-stroke, i.e. times the half stroke, m)."""
+"""Largest crank step between branch nodes."""
 STEP_MIN_RAD = 1e-7
-"""Smallest crank step before the continuation declares the branch lost (prismatic input:
-times the half stroke, m)."""
+"""Smallest crank step before the continuation declares the branch lost."""
 STEP_DONE = 1e-13
-"""What is left of a continuation's goal when it counts as reached (rad; a prismatic input:
-times the half stroke, m)."""
+"""What is left of a continuation's goal when it counts as reached (rad)."""
 STEP_TRUST = 0.05
 """Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
 EVAL_TRUST = 1e-3
@@ -42,9 +40,8 @@ class BranchFollowing:
     """
     The traced branch of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin).
 
-    :attr:`skeleton` (nodes from :mod:`mech_balance.core.continuation` over one turn or the
-    stroke), :attr:`dense` (nodes every :data:`DENSE_STEP_RAD`, solved in one batch) and the
-    predictor between them (:meth:`_step`).
+    :attr:`skeleton` (the traced nodes), :attr:`dense` (nodes every :data:`DENSE_STEP_RAD`)
+    and the predictor between them (:meth:`_step`).
     """
 
     @property
@@ -206,9 +203,7 @@ class Skeleton:
     """
     Branch nodes in tree coordinate 0; a second-order predictor from the nearest node.
 
-    ``psi`` are the nodes' input coordinates, ascending: one crank turn (``periodic``: the
-    last node is the first turned once) or a prismatic input's stroke (not periodic: a
-    coordinate beyond an end is predicted from that end).
+    ``psi`` ascending: one crank turn (``periodic``) or a prismatic input's stroke.
     """
 
     def __init__(self, psi, q, sph, qd, qdd, cond, periodic=True):
@@ -218,17 +213,11 @@ class Skeleton:
 
     def nearest(self, psi):
         """Return the nearest node's index and the signed step from it, per coordinate."""
-        if not self.periodic:
-            x = psi - self.psi[0]
-            k = np.searchsorted(self.offset, x, side='right') - 1
-            k = np.clip(k, 0, self.psi.size - 2)
-            k = np.where((self.offset[k + 1] - x) < (x - self.offset[k]), k + 1, k)
-            return k, x - self.offset[k]
-        x = np.mod(psi - self.psi[0], TWO_PI)
+        x = np.mod(psi - self.psi[0], TWO_PI) if self.periodic else psi - self.psi[0]
         k = np.searchsorted(self.offset, x, side='right') - 1
         k = np.clip(k, 0, self.psi.size - 2)
-        right = (self.offset[k + 1] - x) < (x - self.offset[k])
-        k = np.where(right, k + 1, k)
+        k = np.where((self.offset[k + 1] - x) < (x - self.offset[k]), k + 1, k)
         h = x - self.offset[k]
-        k = np.where(k == self.psi.size - 1, 0, k)  # the last node is the first turned once
+        if self.periodic:   # the last node is the first turned once
+            k = np.where(k == self.psi.size - 1, 0, k)
         return k, h

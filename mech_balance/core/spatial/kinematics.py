@@ -10,7 +10,6 @@ joints' zero conventions, idle spins and redundant rows: docs/core.md#the-spatia
 """
 
 from dataclasses import dataclass
-import math
 from typing import NamedTuple
 import warnings
 
@@ -22,9 +21,9 @@ from mech_balance.core.spatial.assembly import Assembling, RANK_RTOL
 from mech_balance.core.spatial.branch import BranchFollowing, EVAL_TRUST, SpatialError, \
     STEP_MAX_RAD, STEP_MIN_RAD
 from mech_balance.core.spatial.closure import ClosureRows
-from mech_balance.core.spatial.vectors import component_major, cross, cross_c, mv, perp_pair, \
-    sin_vers_one, unit
-from mech_balance.rotations import expmap, EYE3, min_rotation, rot_axis, skew
+from mech_balance.core.spatial.coordinates import joint_frames
+from mech_balance.core.spatial.vectors import component_major, cross, cross_c, mv, sin_vers_one
+from mech_balance.rotations import expmap, EYE3, skew
 from mech_balance.schema.scene import FRAME
 from mech_balance.schema.spatial import stroke_law
 import numpy as np
@@ -75,7 +74,6 @@ class Frames:
     origin: np.ndarray    # (n, nb, 3)
     cols: np.ndarray      # (n, ndof, 6) twist columns (omega, v at the frame origin)
     parts: list = None    # the closure rows' world vectors (cached by Linkage._row_parts)
-    grads: tuple = None   # the rows' twist gradients (cached by Linkage.gradients)
 
     @property
     def cols_c(self):
@@ -246,21 +244,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
             pn, cn = self.body_names[parent], self.body_names[child]
             sp = self._points[pn][jt.point_b if rev else jt.point_a]
             scp = self._points[cn][jt.point_a if rev else jt.point_b]
-            axis = axis_c = fixed = None
-            if jt.axis is not None:
-                a_ax = unit(jt.axis)
-                b_ax = unit(jt.axis if jt.axis_b is None else jt.axis_b)
-                axis, axis_c = (b_ax, a_ax) if rev else (a_ax, b_ax)
-                if jt.joint_type == 'universal':
-                    e = axis_c - (axis_c @ axis) * axis
-                    e = perp_pair(axis)[0] if np.linalg.norm(e) < 1e-12 else e / \
-                        np.linalg.norm(e)
-                    fixed = min_rotation(axis_c, e)
-                else:
-                    fixed = min_rotation(axis_c, axis)
-                    if jt.joint_type == 'prismatic':
-                        ang = math.radians(jt.angle_deg or 0.0) * (-1.0 if rev else 1.0)
-                        fixed = rot_axis(axis, np.array([ang]))[0] @ fixed
+            axis, axis_c, fixed = joint_frames(jt, flipped=rev)
             n = jt.freedoms
             dofs = tuple(range(dof, dof + n))
             dof += n
@@ -524,11 +508,8 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
 
     def solve_ut(self, solver, js, rhs):
         """Return ``y`` with ``js^T y = rhs`` (as :meth:`solve_u`; minimum norm if redundant)."""
-        y = mv(np.swapaxes(solver, 1, 2), rhs)
-        if self.square and js is not None:
-            for _ in range(REFINE_STEPS):
-                y += mv(np.swapaxes(solver, 1, 2), rhs - mv(np.swapaxes(js, 1, 2), y))
-        return y
+        return self.solve_u(np.swapaxes(solver, 1, 2),
+                            None if js is None else np.swapaxes(js, 1, 2), rhs)
 
     # ------------------------------------------------------------------ rates
 
