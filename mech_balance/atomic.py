@@ -32,12 +32,7 @@ _held = {'depth': 0, 'deferred': None}   # the main thread's held block (_signal
 
 
 def partial_path(path):
-    """
-    Create and return an empty temporary file next to ``path``: ``.NAME.partial-XXXXXXXX``.
-
-    Its permissions are those of an existing target, else :data:`DEFAULT_MODE` less the
-    umask.  Hand it to :func:`commit` when complete or to :func:`discard` on failure.
-    """
+    """Create and return an empty ``.NAME.partial-XXXXXXXX`` next to ``path`` (its permissions)."""
     path = Path(path)
     with _signals_held():
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}{PARTIAL_MARK}')

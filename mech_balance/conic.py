@@ -78,11 +78,7 @@ class Solve:
 
 
 def run_solver(q, a, b, cones):
-    """
-    Solve ``min q'x s.t. a x + s = b, s in K`` with Clarabel, retrying until Solved.
-
-    Without a Solved (or infeasible) attempt, the best one (AlmostSolved first) is returned.
-    """
+    """Solve ``min q'x s.t. a x + s = b, s in K`` with Clarabel, retrying until Solved."""
     q = np.asarray(q, dtype=float)
     a = sp.csc_matrix(a)
     b = np.asarray(b, dtype=float)

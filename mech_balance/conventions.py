@@ -47,12 +47,7 @@ MAX_REPEAT = 10_000
 
 
 def check_samples(samples, field='samples', links=1):
-    """
-    Return ``samples`` as an int if 1 <= samples <= MAX_SAMPLES and the work is bounded.
-
-    ``links * samples`` must not exceed :data:`MAX_LINK_SAMPLES`; raises ValueError naming
-    ``field`` and the limit.
-    """
+    """Return ``samples`` as an int within the limits (``links`` per angle), else ValueError."""
     try:
         count = int(samples)
     except (TypeError, ValueError, OverflowError):
@@ -79,11 +74,7 @@ def cycle_angles(samples, start_rad=0.0, links=1):
 
 
 def crank_angle_text(angle_rad, digits):
-    """
-    Return crank angle ``angle_rad`` as a message prints it: degrees in [0, 360), ``digits``.
-
-    Wrapped after rounding, so that an angle a hair below a whole turn prints as 0.
-    """
+    """Return crank angle ``angle_rad`` as a message prints it: degrees in [0, 360), ``digits``."""
     deg = round(math.degrees(angle_rad) % 360.0, digits) % 360.0
     return f'{deg:.{digits}f}'
 

@@ -70,12 +70,7 @@ _ALLOCATOR = {'settled': False, 'fixed': False}
 
 
 def settle_allocator():
-    """
-    Allocate and free one 8 MiB block, once per process, before the first cycle.
-
-    It raises glibc's mmap and trim thresholds, so a cycle's large temporaries are reused from
-    the heap; nothing after :func:`return_large_blocks`.
-    """
+    """Allocate and free 8 MiB once per process: glibc then reuses large temporaries."""
     if not (_ALLOCATOR['settled'] or _ALLOCATOR['fixed']):
         import numpy   # (on first use: the command line parsers need none)
         _ALLOCATOR['settled'] = True

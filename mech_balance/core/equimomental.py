@@ -48,12 +48,7 @@ class PointMasses:
 
 
 def point_mass_arrays(mass, first_moment, inertia_origin):
-    """
-    Return the point masses ``(..., 3)`` and their distance l ``(...)`` (seed 001 eqs. 8-15).
-
-    Vectorized over links (``first_moment`` h = m c complex), any consistent units:
-    ``l = sqrt(I_O/m)``, ``m_j = m/3 + (2/3) Re(h e^(-i theta_j)) / l``.  No checks.
-    """
+    """Return point masses ``(..., 3)`` and distances l of links (eqs. 8-15; no checks)."""
     m = np.asarray(mass, dtype=float)
     h = np.asarray(first_moment, dtype=complex)
     dist = np.sqrt(np.asarray(inertia_origin, dtype=float) / m)

@@ -190,11 +190,7 @@ class Rig(Protocol):
 
 
 def rig_for(scene, cache=True):
-    """
-    Return the :class:`Rig` of a validated scene of any registered kind.
-
-    With ``cache`` a rig reuses what an earlier rig of the same geometry built.
-    """
+    """Return the :class:`Rig` of a validated scene of any kind (``cache``: shared geometry)."""
     return registry.kind_of(scene).rig_factory()(scene, cache=cache)
 
 

@@ -140,12 +140,7 @@ def _pair(i, j):
 
 
 class BlockFactored:
-    """
-    The closed-form block factorization of a :class:`BlockPlan` matrix given by its values.
-
-    ``J = D (I + N)``: D the diagonal blocks inverted in closed form, N the weights
-    ``D_i^-1 J_ic``; the interface of :class:`Factored` (no pivoting, no LAPACK fallback).
-    """
+    """The closed-form ``J = D (I + N)`` of a :class:`BlockPlan` matrix (as :class:`Factored`)."""
 
     def __init__(self, plan, values):
         self.plan, self.values = plan, values
@@ -267,12 +262,7 @@ class BlockFactored:
         return self._pair_weights
 
     def _inverse_blocks(self, colsum=None):
-        """
-        Return ``Z = J^-1`` ``(k, k, p)``, columns in block row order (ranges only).
-
-        ``Z_i = D_i^-1 E_i - sum_c (D_i^-1 J_ic) Z_c``; with ``colsum`` ``(k, p)`` (zeros) the
-        column sums of ``|Z|`` are added and ``Z`` outside the ranges is left unset.
-        """
+        """Return ``Z = J^-1`` in block row order (``colsum``: add the column sums of ``|Z|``)."""
         k, p = self.k, self.p
         z = np.empty((k, k, p)) if colsum is not None else np.zeros((k, k, p))
         tmp = np.empty((k, p))
@@ -308,12 +298,7 @@ class BlockFactored:
 
     @staticmethod
     def _single_cond(entries, adet, checked=False):
-        """
-        Return the 1-norm condition numbers of one 2 x 2 block (under the caller's errstate).
-
-        ``entries`` ``(4, p)``: a, b, c, d; ``checked``: every ``|det|`` is at least
-        :data:`_TINY_DET` (no 0/0 to look for).
-        """
+        """Return the 1-norm condition numbers of one 2 x 2 block (caller's errstate)."""
         m = np.abs(entries)
         sums = np.empty((2, 2, m.shape[1]))   # (column sums, row sums): one maximum
         np.add(m[:2], m[2:], out=sums[0])   # |a| + |c|, |b| + |d|: the column sums
@@ -345,13 +330,7 @@ class BlockFactored:
         return self._cond
 
     def _norm_inv_tree(self):
-        """
-        Return ``||J^-1||_1`` ``(p,)`` when every block reads one earlier unknown only.
-
-        Exact and linear in k: the column sums are the own entries ``|D_b^-1|`` times
-        ``1 + U``, U summed once from the last block back (docs/core.md, "Small linear
-        systems").
-        """
+        """Return ``||J^-1||_1`` ``(p,)`` in linear time: each block reads one earlier unknown."""
         plan = self.plan
         nb = len(plan.blocks)
         ub = np.ones((nb, 2, self.p))                     # 1 + U per unknown, block order

@@ -115,12 +115,7 @@ def _substitute_t(lu, plan, y):
 
 
 def _inverse_z(lu, plan, p, colsum=None):
-    """
-    Return ``Z = U^-1 L^-1`` ``(k, k, p)`` from the factors, on nonzero ranges only.
-
-    With ``colsum`` ``(k, p)`` (zeros) the column sums of ``|Z|`` are added to it, and ``Z``
-    outside the ranges is left unset (scratch).
-    """
+    """Return ``Z = U^-1 L^-1`` on nonzero ranges (``colsum``: add the column sums of ``|Z|``)."""
     k = plan.k
     lo, hi = plan.z_lo, plan.z_hi
     if colsum is None:
@@ -311,11 +306,7 @@ def solve(mat, rhs, plan=None):
 
 
 def inverse(mat, plan=None, with_sign=False):
-    """
-    Return ``(inv (k, k, p), cond (p,))`` of a batch-last stack (cond ``inf`` where singular).
-
-    With ``with_sign`` the signs of the determinants come third.
-    """
+    """Return ``(inv (k, k, p), cond (p,)[, det signs])`` (cond ``inf`` where singular)."""
     fac = Factored(mat, plan)
     inv, cond = fac.inverse()
     return (inv, cond, fac.sign()) if with_sign else (inv, cond)

@@ -195,6 +195,12 @@ class LUPlan:
         self.entry_col_pad = pad
 
 
+def static_plan(pattern, sample):
+    """Return the :class:`LUPlan` in block triangular order (else pivoting on ``sample``)."""
+    order = block_triangular_order(pattern, sample)
+    return LUPlan(pattern, *(order or (pivot_order(sample), None)))
+
+
 def inversions(order):
     """Return the number of inversions of a permutation (its sign's parity)."""
     order = [int(i) for i in order]

@@ -38,13 +38,7 @@ TILE_LIMIT = 1 << 16
 
 
 class Tiles:
-    """
-    Constant columns ``(k, 1)`` materialized as ``(k, p)`` arrays for the last batch size.
-
-    A ufunc broadcasting a column runs a strided loop, two to three times slower than on two
-    arrays of one shape, so constant columns are tiled once per batch size (read-only); beyond
-    :data:`TILE_LIMIT` elements the columns themselves are returned.
-    """
+    """Constant columns ``(k, 1)`` tiled to ``(k, p)`` for the last batch size (faster ufuncs)."""
 
     def __init__(self, **columns):
         self.columns = {name: _frozen(np.array(col)) for name, col in columns.items()}

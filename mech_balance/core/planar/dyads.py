@@ -89,11 +89,8 @@ class DyadPlan:
         """
         Return ``(q, rot, origin, joint_at)``: tree coordinates ``(nt, p)`` and the poses.
 
-        ``ref`` ``(nt - 1, p)``, the tree coordinates but the crank's within less than pi
-        (the skeleton's line, table or predictor), only fixes the whole turns of each revolute
-        coordinate; ``signs`` (one per dyad) defaults to the traced branch's.  Where two
-        circles do not meet the results are ``nan``.  ``rot`` and ``origin`` ``(nb, p)`` are
-        the bodies' rotations and origins, ``joint_at`` ``(nt, p)`` the tree joints.
+        ``ref`` ``(nt - 1, p)`` (within pi of the result) only fixes the whole turns; ``signs``
+        default to the traced branch's.  Where two circles do not meet the results are ``nan``.
         """
         # one or two dyads: the circle intersections checked instead of an errstate (a third
         # of their cost), redone under one where two circles fail to meet or a dyad folds
@@ -128,16 +125,7 @@ class DyadPlan:
         return q, rot, origin, joint_at
 
     def _place(self, psi, signs, checked):
-        """
-        Return ``(rot, anchor, rel)`` of :meth:`solve`, or ``None`` where a check fails.
-
-        ``rel`` ``(nt - 1, p)`` the relative rotations of the tree joints but the crank's in
-        tree order (one dyad), else ``None`` (:meth:`solve` takes differences of angles).
-
-        With ``checked``, ``None`` as soon as a division by zero or the square root of a
-        negative number lies ahead: the caller then places again under an errstate, where
-        those give ``nan`` (circles that do not meet).
-        """
+        """Return ``(rot, anchor, rel)`` of :meth:`solve` (``checked``: ``None`` before a nan)."""
         p = psi.shape[0]
         rot = np.empty((self.nb, p), dtype=complex)
         anchor = np.empty((self.nb, p), dtype=complex)   # each body's parent tree joint
@@ -153,18 +141,7 @@ class DyadPlan:
         tmp = np.empty(p)
         for k, s in enumerate(self.steps):
             sign = s.sign if signs is None else signs[k]
-            body, at = s.p_at
-            if body:                                   # (else a world point on the frame)
-                big_p = np.multiply(rot[body], at)
-                big_p += anchor[body]
-            else:
-                big_p = at
-            body, at = s.q_at
-            if body:
-                big_q = np.multiply(rot[body], at)
-                big_q += anchor[body]
-            else:
-                big_q = at
+            big_p, big_q = _placed(rot, anchor, s.p_at), _placed(rot, anchor, s.q_at)
             d = big_q - big_p
             inv = np.multiply(d.real, d.real, out=tmp)
             inv += d.imag * d.imag
@@ -211,12 +188,18 @@ class DyadPlan:
         return np.array(out)
 
 
-def plan(linkage):
-    """
-    Return the :class:`DyadPlan` of a linkage, or ``None`` if it does not decompose.
+def _placed(rot, anchor, point):
+    """Return the world position of ``(body, offset from its anchor)`` (body 0: world)."""
+    body, at = point
+    if not body:
+        return at
+    x = np.multiply(rot[body], at)
+    x += anchor[body]
+    return x
 
-    All-revolute linkages only; the signs are not set here (:func:`attach_signs`).
-    """
+
+def plan(linkage):
+    """Return the :class:`DyadPlan` of an all-revolute linkage (signs unset), or ``None``."""
     lk = linkage
     if lk.has_pri or lk.npc or not lk.nu:
         return None

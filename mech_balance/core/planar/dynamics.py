@@ -133,11 +133,7 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
 
 
 def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
-    """
-    Fill in the driving torque, cut multipliers and every joint reaction (seed 001 eqs. 32-38).
-
-    ``m_net`` are the inertia moments of the bodies about the crank pivot.
-    """
+    """Fill in the driving torque, multipliers and joint reactions (seed 001 eqs. 32-38)."""
     pose = state.pose
     pivot = linkage.pivot
     f_net = out.f_star

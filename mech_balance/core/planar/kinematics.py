@@ -180,8 +180,7 @@ class Linkage(SpanningTree, RateAnalysis):
         self.pivot = self._crank_pivot(scene)
         self.branch_sign = 1.0  # sign of det J_u on the traced branch (set by the trace)
         self.sparse_jac = False  # J_u as its nonzeros only (all-revolute, nu > 2)
-        self.pivots = None  # static row order for the loop Jacobian, set at assembly
-        self.lu = None      # its sparse LU plan (linalg.LUPlan), set at assembly
+        self.lu = None      # the loop Jacobian's sparse LU plan (linalg.LUPlan), at assembly
         self._skeleton = None
         self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
         self.block = None   # its J_u as 2 x 2 diagonal blocks (linalg.BlockPlan), likewise
@@ -275,11 +274,7 @@ class Linkage(SpanningTree, RateAnalysis):
         return out
 
     def jacobian(self, pose, unknown_only=False):
-        """
-        Return the scaled loop Jacobian dg/dq over all tree coordinates, ``(m, nt, p)``.
-
-        With ``unknown_only`` only the columns of the unknown coordinates, ``(m, nu, p)``.
-        """
+        """Return the scaled loop Jacobian ``(m, nt, p)`` (``unknown_only``: ``(m, nu, p)``)."""
         if not self.m:
             return np.zeros((0, self.nu if unknown_only else self.nt, pose.phi.shape[1]))
         pa, pb = self.cut_points(pose)
@@ -324,11 +319,7 @@ class Linkage(SpanningTree, RateAnalysis):
         return np.concatenate(rows) * self.row_scale[:, None, None]
 
     def jacobian_values(self, pose):
-        """
-        Return ``(values, jac_psi)``: the nonzeros of J_u and the crank column ``(m, p)``.
-
-        All-revolute loops only (:attr:`sparse_jac`); ``values`` in the LU plan's entry order.
-        """
+        """Return the nonzeros of J_u (LU entry order) and the crank column ``(m, p)``."""
         self.cut_points(pose)
         _, _, i1, i2, n, crank_rows = self.jac_nz_split
         points = pose.cut_points[5]   # (pa, pb, joint_at)
@@ -451,13 +442,7 @@ class Linkage(SpanningTree, RateAnalysis):
             # the static order of the loop Jacobian: block triangular (the Assur groups in
             # dependency order), pivots inside the blocks from the assembly guess
             sample = self.jacobian(self.pose(q))[:, self.unknown, 0]
-            pattern = self._jacobian_pattern()
-            order = linalg.block_triangular_order(pattern, sample)
-            if order is None:
-                self.pivots, cols = linalg.pivot_order(sample), None
-            else:
-                self.pivots, cols = order
-            self.lu = linalg.LUPlan(pattern, self.pivots, cols)
+            self.lu = linalg.static_plan(self._jacobian_pattern(), sample)
             self.sparse_jac = not self.has_pri and not self.npc
             if self.sparse_jac:
                 c, t = self.jac_nz_split[0], self.jac_nz_split[1]
@@ -559,11 +544,7 @@ class Linkage(SpanningTree, RateAnalysis):
     # ------------------------------------------------------------------ public evaluation
 
     def solve(self, psi, psi_d=None, psi_dd=None, need_rates=True, need_acc=True):
-        """
-        Return the :class:`KinematicState` at crank angles ``psi`` (rad, any shape -> (p,)).
-
-        ``psi_d`` and ``psi_dd`` default to the scene's crank speed and acceleration.
-        """
+        """Return the :class:`KinematicState` at crank angles ``psi`` (rad; rates: the scene's)."""
         if not (type(psi) is np.ndarray and psi.ndim == 1 and psi.dtype == np.float64):
             psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
         # (a dot product is finite only if every angle is: one cheap pass, exact check after)

@@ -150,13 +150,9 @@ class PlanarRig:
                 (d * np.conj(1j * state.omega[a[s]] * axis)).real
         position[self.crank_index] = psi
         velocity[self.crank_index] = state.psi_d
-        n = psi.size
         series, reactions, joint_effort, force, moment = {}, None, None, None, None
         if w is not None:
-            force = np.zeros((n, 3))
-            force[:, 0], force[:, 1] = w.shaking_force.real, w.shaking_force.imag
-            moment = np.zeros((n, 3))
-            moment[:, 2] = w.shaking_moment
+            force, moment = _frame_wrench(w.shaking_force, w.shaking_moment)
             if w.driving_torque is not None and effort:
                 series['driving_torque'] = w.driving_torque
                 joint_effort = np.zeros_like(position)
@@ -165,13 +161,8 @@ class PlanarRig:
                 joint_effort[self.crank_index] = w.driving_torque
                 joint_effort = joint_effort.T
             if w.reaction_force is not None and 'bearing_reactions' in want:
-                reactions = {}
-                for name, f in w.reaction_force.items():
-                    rf = np.zeros((n, 3))
-                    rf[:, 0], rf[:, 1] = f.real, f.imag
-                    rm = np.zeros((n, 3))
-                    rm[:, 2] = w.reaction_moment[name]
-                    reactions[name] = (rf, rm)
+                reactions = {name: _frame_wrench(f, w.reaction_moment[name])
+                             for name, f in w.reaction_force.items()}
         series.update(self.series(state, want))
         return RigData(
             psi, speed, accel, position.T, velocity.T, joint_effort, force, moment,
@@ -200,6 +191,13 @@ class PlanarRig:
             self._drawing = Drawing(2, {k: (v[0], v[1], 0.0) for k, v in
                                         sc.frame_points.items()}, bodies, joints, guides)
         return self._drawing
+
+
+def _frame_wrench(force, moment):
+    """Return a planar force (complex) and moment ``(n,)`` as ``(n, 3)`` frame vectors."""
+    f, m = np.zeros((force.size, 3)), np.zeros((force.size, 3))
+    f[:, 0], f[:, 1], m[:, 2] = force.real, force.imag, moment
+    return f, m
 
 
 def _point_masses(link):

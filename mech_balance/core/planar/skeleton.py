@@ -46,12 +46,7 @@ class Skeleton:
     """Angles per turn of :meth:`turn_reference`'s table (the coordinates, nearest angle)."""
 
     def turn_table_error(self):
-        """
-        Return the largest distance of :meth:`turn_reference` from :meth:`predict`.
-
-        Sampled 16 times per table interval over the turn, plus the largest slope times a
-        sixteenth of the interval (what lies between the samples): rad for revolute rows.
-        """
+        """Return the largest distance (rad) of :meth:`turn_reference` from :meth:`predict`."""
         table = self._table()
         psi, q = self._dense_prediction()
         err = np.abs(self.turn_reference(psi) - q)
@@ -94,11 +89,7 @@ class Skeleton:
         return self._turn_table
 
     def turn_reference(self, psi):
-        """
-        Return ``(nt - 1, p)``: the tree coordinates but the crank's at the nearest table angle.
-
-        Within :meth:`turn_table_error` of :meth:`predict` at a fraction of its cost.
-        """
+        """Return the coordinates but the crank's ``(nt - 1, p)`` at the nearest table angle."""
         table, n = self._table(), self.TURN_TABLE_SIZE
         u = np.subtract(psi, self.psi[0])
         u *= n / TWO_PI

@@ -37,12 +37,7 @@ class SpatialError(ValueError):
 
 
 class BranchFollowing:
-    """
-    The traced branch of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin).
-
-    :attr:`skeleton` (the traced nodes), :attr:`dense` (nodes every :data:`DENSE_STEP_RAD`)
-    and the predictor between them (:meth:`_step`).
-    """
+    """The traced branch of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin)."""
 
     @property
     def skeleton(self):
@@ -200,11 +195,7 @@ class _SpatialBranch(continuation.Branch):
 
 
 class Skeleton:
-    """
-    Branch nodes in tree coordinate 0; a second-order predictor from the nearest node.
-
-    ``psi`` ascending: one crank turn (``periodic``) or a prismatic input's stroke.
-    """
+    """Branch nodes (a turn, or the stroke) and a second-order predictor from the nearest."""
 
     def __init__(self, psi, q, sph, qd, qdd, cond, periodic=True):
         self.psi, self.q, self.sph, self.qd, self.qdd, self.cond = psi, q, sph, qd, qdd, cond

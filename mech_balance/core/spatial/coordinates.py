@@ -42,13 +42,7 @@ def joint_frames(jt, flipped=False):
 
 
 def _functionals(jt, ax, bx, fixed, zero):
-    """
-    Return the ``(9, k)`` linear functionals of a joint's relative rotation it reads.
-
-    Every published angle is an ``arctan2`` of linear functionals ``sum(M * W)`` of
-    ``M = R_a^T R_b`` (revolute: those of :func:`~mech_balance.rotations.angle_about`;
-    spherical: the entries :func:`~mech_balance.rotations.matrix_rpy` reads).
-    """
+    """Return the ``(9, k)`` linear functionals of ``M = R_a^T R_b`` that a joint reads."""
     t = jt.joint_type
     if t == 'prismatic':
         return np.zeros((9, 0))
@@ -86,12 +80,7 @@ def _group_of(joint_type):
 
 
 def _constants(linkage):
-    """
-    Return (and cache on the linkage) the joints' bodies, points, functionals and groups.
-
-    The joints of one group are evaluated together; each group's functionals are one
-    ``(count, 9, k)`` stack (batched small products: no multi-threaded BLAS).
-    """
+    """Return (cached) the joints' bodies, points and functionals per coordinate group."""
     cached = getattr(linkage, '_joint_constants', None)
     if cached is not None:
         return cached

@@ -62,12 +62,7 @@ class _ReactionConstants:
 
 
 def _reaction_constants(lk):
-    """
-    Return the :class:`_ReactionConstants` of a linkage (cached while its rows stand).
-
-    A tree joint carries ``below (Phi - inc_b W_b - inc_a W_a)``, a cut joint ``cut_rows W_b``:
-    one matrix on the stacked ``[Phi, W_b, W_a]``, in scene order with a flipped joint's sign.
-    """
+    """Return the :class:`_ReactionConstants` of a linkage (cached while its rows stand)."""
     cached = getattr(lk, '_reaction_constants', None)
     if cached is not None and cached[0] == lk.m:
         return cached[1]

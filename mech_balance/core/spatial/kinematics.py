@@ -137,11 +137,7 @@ class Rates(NamedTuple):
 
 
 class Linkage(Assembling, ClosureRows, BranchFollowing):
-    """
-    A spatial scene's compiled spanning tree, closure rows, assembly and traced branch.
-
-    Immutable once built (the branch is traced on first use of :attr:`skeleton`).
-    """
+    """A spatial scene's compiled spanning tree, closure rows, assembly and traced branch."""
 
     def __init__(self, scene):
         threads.settle_allocator()   # the allocator's policy: mech_balance/threads.py
@@ -350,23 +346,18 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
                 origin[:, t.child] = r_joint - (rc.reshape(-1, 3) @ t.s_child).reshape(n, 3)
             else:
                 origin[:, t.child] = r_joint - mv(rc, t.s_child)
-            if root and jtype in _CONSTANT_ROOT_COLUMNS:
-                if jtype == 'universal':
-                    bw = mv(rc, t.axis_child)
-                    cols[:, d[1], :3] = bw
-                    cols[:, d[1], 3:] = cross(r_joint, bw)
-                continue
-            if jtype == 'spherical':
-                axes = EYE3 if root else np.swapaxes(rp, 1, 2)
-                cols[:, d[0]:d[0] + 3, :3] = axes
-                cols[:, d[0]:d[0] + 3, 3:] = cross(r_joint[:, None, :], axes)
-                continue
-            aw = np.broadcast_to(t.axis, (n, 3)) if root else mv(rp, t.axis)
-            if jtype != 'prismatic':
-                cols[:, d[0], :3] = aw
-                cols[:, d[0], 3:] = cross(r_joint, aw)
-            if jtype in ('cylindrical', 'prismatic'):
-                cols[:, d[-1], 3:] = aw
+            if not (root and jtype in _CONSTANT_ROOT_COLUMNS):   # (else in the template)
+                if jtype == 'spherical':
+                    axes = np.swapaxes(rp, 1, 2)
+                    cols[:, d[0]:d[0] + 3, :3] = axes
+                    cols[:, d[0]:d[0] + 3, 3:] = cross(r_joint[:, None, :], axes)
+                    continue
+                aw = np.broadcast_to(t.axis, (n, 3)) if root else mv(rp, t.axis)
+                if jtype != 'prismatic':
+                    cols[:, d[0], :3] = aw
+                    cols[:, d[0], 3:] = cross(r_joint, aw)
+                if jtype in ('cylindrical', 'prismatic'):
+                    cols[:, d[-1], 3:] = aw
             if jtype == 'universal':
                 bw = mv(rc, t.axis_child)
                 cols[:, d[1], :3] = bw
@@ -409,20 +400,12 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return q, sph
 
     def _lu_plan(self, js):
-        """
-        Return the :class:`~linalg.LUPlan` of the scaled square Jacobian (built once).
-
-        Structural pattern (row r depends on coordinate d if d moves one of its bodies), block
-        lower triangular order, pivots from the first Jacobian met (the assembly's).
-        """
+        """Return the :class:`~linalg.LUPlan` of the scaled square Jacobian (built once)."""
         plan = getattr(self, '_plan', None)
         if plan is None or plan[0] != self.m:
             pattern = ((self.mask_b + self.mask_a) > 0)[:, self.unknown]
             sample = np.where(pattern, js[0], 0.0)
-            order = linalg.block_triangular_order(pattern, sample)
-            if order is None:
-                order = (linalg.pivot_order(sample), None)
-            plan = (self.m, linalg.LUPlan(pattern, *order))
+            plan = (self.m, linalg.static_plan(pattern, sample))
             self._plan = plan
         return plan[1]
 
