@@ -48,11 +48,7 @@ def quaternion_matrix(xyzw):
 
 
 def matrix_rpy(rot, degrees=False):
-    """
-    Return ``(roll, pitch, yaw)`` of rotations ``(..., 3, 3)``: arrays of shape ``(...)``, rad.
-
-    The inverse of :func:`rpy_matrix`; at gimbal lock (:data:`GIMBAL_LOCK_COS`) the yaw is 0.
-    """
+    """Return ``(roll, pitch, yaw)`` (rad) of rotations ``(..., 3, 3)`` (:func:`rpy_matrix`^-1)."""
     rot = np.asarray(rot, dtype=float)
     cos_pitch = np.hypot(rot[..., 0, 0], rot[..., 1, 0])
     pitch = np.arctan2(-rot[..., 2, 0], cos_pitch)

@@ -19,11 +19,7 @@ DEFAULT_THREADS = 1
 
 
 def blas_threads(environ=None):
-    """
-    Return the BLAS thread count the package's processes use, or None to leave it alone.
-
-    Raises ValueError naming :data:`ENV` and its value when it is not an integer >= 1.
-    """
+    """Return the BLAS thread count to use, or None (ValueError naming :data:`ENV` if bad)."""
     environ = os.environ if environ is None else environ
     text = environ.get(ENV)
     if text is None:
@@ -38,7 +34,12 @@ def blas_threads(environ=None):
 
 
 def limit_blas_threads(environ=None):
-    """Limit numpy's BLAS pool to :func:`blas_threads`; return the limit set, or None."""
+    """
+    Limit numpy's BLAS pool to :func:`blas_threads`; return the limit set, or None.
+
+    None when the environment leaves the pool alone or ``threadpoolctl`` is missing (then
+    numpy's default pool is kept, which is only slower).
+    """
     n = blas_threads(environ)
     if n is None:
         return None

@@ -68,11 +68,7 @@ def from_link(mass_kg, com_m, inertia_origin_kg_m2):
 
 
 def link_properties(point_masses):
-    """
-    Return ``(mass_kg, com_m, inertia_origin_kg_m2)`` of a point-mass model (eqs. 19-22).
-
-    ``com_m`` is ``(x, y)``; raises ``ValueError`` when the total mass is not positive.
-    """
+    """Return ``(mass_kg, com_m (x, y), inertia_origin_kg_m2)`` (ValueError: mass <= 0)."""
     m = point_masses.mass_kg
     if not m > 0.0:
         raise ValueError(

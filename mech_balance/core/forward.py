@@ -7,8 +7,8 @@ Forward dynamics of any single-input rig, from its own inverse dynamics.
 crank angle); I, c1 and tau_G come from three batched evaluations of the rig's inverse
 dynamics (:func:`rig_functions`), tabulated once as checked Fourier series (:class:`RigTables`);
 tau_A is a DC motor through a gear N (rotor J_r, optional electrical lag and PI speed
-controller), tau_D the joint damping, J_in a flywheel. The derivation, the drive schema, the
-stiffness test and the energy balance: docs/simulation.md#the-equation-of-motion.
+controller), tau_D the joint damping, J_in a flywheel.  The derivation, the stiffness test
+and the energy balance: docs/core.md#the-equation-of-motion; the drive schema: docs/simulation.md.
 """
 
 from dataclasses import dataclass
@@ -95,7 +95,7 @@ def rig_functions(rig, psi, damping=None, check=False):
     """
     Return the ``(4, p)`` array of I, c1, tau_G, c_eff at crank angles ``psi`` (rad).
 
-    One batched :meth:`Rig.at` (docs/simulation.md#the-equation-of-motion); a rig that takes
+    One batched :meth:`Rig.at` (docs/core.md#the-equation-of-motion); a rig that takes
     no crank acceleration gives I by its kinetic energy (``I = 2 T / w0^2``).  With ``check``
     also return the ``(p,)`` residuals (N*m) of the ``structure`` and ``energy`` checks.
     """
@@ -142,9 +142,8 @@ class RigTables:
     """
     Fourier series of :data:`FUNCTIONS` over one crank turn, checked against the rig.
 
-    ``errors``: the largest relative deviation of each function from the rig at the
-    mid-points, plus ``inertia_slope`` (I' against -2 c1, seed 000 eq. 41), ``structure`` and
-    ``energy``; ``error`` the largest, ``ok`` whether it is within ``TABLE_CHECK_TOL``.
+    ``errors``: each function's largest relative deviation at the mid-points, ``inertia_slope``
+    (seed 000 eq. 41), ``structure``, ``energy``; ``ok``: ``error`` within ``TABLE_CHECK_TOL``.
     """
 
     def __init__(self, rig, damping=None, tol=TABLE_TOL):

@@ -19,11 +19,7 @@ N_PARAMETERS = len(PARAMETERS)
 
 
 def inertia_product_matrix(v):
-    """
-    Return ``L(v)`` ``(..., 3, 6)``: ``I v = L(v) i6`` for every inertia tensor I.
-
-    ``i6`` = [I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] (the tensor's entries).
-    """
+    """Return ``L(v)`` ``(..., 3, 6)``: ``I v = L(v) i6``, i6 the tensor's six entries."""
     v = np.asarray(v, dtype=float)
     out = np.zeros(v.shape[:-1] + (3, 6))
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
@@ -132,12 +128,7 @@ def wrench(kin, theta, moment_point_m=(0.0, 0.0, 0.0), gravity_m_s2=None):
 
 def momenta(rotation, origin_m, velocity_origin_m_s, omega_rad_s, theta,
             moment_point_m=(0.0, 0.0, 0.0)):
-    """
-    Return the total linear momentum and angular momentum about the point, ``(n, 3)`` each.
-
-    The reference for the finite-difference tests: p = m v_o + omega x R h, H_O = (o - O) x p
-    + R I R^T omega + R h x v_o, summed over bodies (``(n, nb, ...)`` inputs).
-    """
+    """Return the total momentum and angular momentum about the point, ``(n, 3)`` each."""
     t = np.asarray(theta, dtype=float).reshape(-1, 10)
     rot = np.asarray(rotation, dtype=float)
     h_w = np.einsum('nkij,kj->nki', rot, t[:, 1:4])

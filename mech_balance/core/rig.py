@@ -42,10 +42,9 @@ class BodyKinematics:
     """
     The motion of every moving body at n samples, in the frame's axes (SI).
 
-    ``names[k]`` is body k (moving bodies only, the order of :attr:`Drawing.bodies`);
-    ``rotation[i, k]`` ``(3, 3)`` maps body k's own axes to the frame's, ``origin_m[i, k]``
-    is its origin, m; ``omega_rad_s``, ``alpha_rad_s2`` and ``accel_origin_m_s2`` (of the
-    origin) are ``(n, nb, 3)`` in frame axes (input of :mod:`mech_balance.core.regressor`).
+    ``names``: the moving bodies (:attr:`Drawing.bodies` order); ``rotation`` ``(n, nb, 3, 3)``
+    body to frame axes; ``origin_m``, ``omega_rad_s``, ``alpha_rad_s2`` and the origin's
+    ``accel_origin_m_s2`` ``(n, nb, 3)`` in frame axes.
     """
 
     names: tuple

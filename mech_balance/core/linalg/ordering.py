@@ -112,9 +112,8 @@ class LUPlan:
     """
     The symbolic LU factorization of a ``(k, k)`` sparsity pattern in a static order.
 
-    ``pattern`` (bool ``(k, k)``) holds every entry that can be nonzero; the factors are those
-    of ``mat[row_order][:, col_order]``, stored as one ``(nnz, p)`` array of the nonzeros of
-    L (unit diagonal not stored) and U, fill-in included.
+    ``pattern`` (bool ``(k, k)``) holds every entry that can be nonzero; the factors of
+    ``mat[row_order][:, col_order]`` are one ``(nnz, p)`` array (L's unit diagonal not stored).
     """
 
     def __init__(self, pattern, row_order=None, col_order=None):

@@ -22,11 +22,9 @@ class Step:
     """
     One dyad: ``alpha`` turns about P and carries X, ``beta`` carries X and Q.
 
-    ``p_src``/``q_src`` are ``(body, local point)`` of P and Q on bodies already placed;
-    ``c_alpha``, ``c_beta`` the constants that turn ``X - P`` and ``X - Q`` into the
-    rotations of the two bodies; ``rel`` the rows ``(tree joint, child body, parent body)``
-    whose relative rotation gives the tree coordinate; ``x_src`` (body, local point) of X;
-    ``sign`` the branch (+1: X to the left of P -> Q), set from the skeleton.
+    ``p_src``/``q_src``/``x_src``: ``(body, local point)`` of P, Q, X; ``rel``: the rows
+    ``(tree joint, child body, parent body)`` of its tree coordinates; ``sign``: the branch
+    (+1: X to the left of P -> Q), set from the skeleton.
     """
 
     def __init__(self, cut, joints, ends, bodies, local, beta_at_x, rel, x_src):

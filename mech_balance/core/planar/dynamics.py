@@ -223,11 +223,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
 
 
 def gravity_power(state, inertia, gravity):
-    """
-    Return the power of the links' weights, ``(p,)`` W (per unit crank speed: tau_G).
-
-    sum_i m_i g . v_ci, with v_ci = v_i + omega_i x R_i h_i / m_i (seed 000 eq. 43).
-    """
+    """Return the power of the links' weights ``(p,)``, W (seed 000 eq. 43)."""
     world_h = state.pose.rot * inertia.first_moment[:, None]
     return np.sum(inertia.mass[:, None] * _dot(state.vel, gravity)
                   + state.omega * _cross(world_h, gravity), axis=0)

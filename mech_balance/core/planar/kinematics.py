@@ -353,11 +353,7 @@ class Linkage(SpanningTree, RateAnalysis):
     # ------------------------------------------------------------------ Newton
 
     def newton(self, psi, q, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
-        """
-        Solve g(q) = 0 from the guess ``q`` ``(nt, p)`` at crank angles ``psi``.
-
-        Returns ``(q, pose, residual, iterations, converged)``; no branch checks here.
-        """
+        """Solve g(q) = 0 from ``q`` ``(nt, p)``: ``(q, pose, residual, iterations, ok)``."""
         q = np.array(q, dtype=float)
         q[0] = psi
         iters = np.zeros(q.shape[1], dtype=int)

@@ -210,11 +210,7 @@ def _point_masses(link):
 
 
 def kinetic_energy(state, inertia):
-    """
-    Return the kinetic energy of the moving links, ``(p,)`` J.
-
-    T = m |v|^2 / 2 + omega cross(R h, v) + I_O omega^2 / 2 per body (seed 000 eq. 38).
-    """
+    """Return the kinetic energy of the moving links ``(p,)``, J (seed 000 eq. 38)."""
     world_h = state.pose.rot * inertia.first_moment[:, None]
     v, omega = state.vel, state.omega
     t = 0.5 * inertia.mass[:, None] * (v.real ** 2 + v.imag ** 2)

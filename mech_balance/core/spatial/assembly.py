@@ -1,12 +1,10 @@
 """
 The assembly of a spatial linkage from its scene's stated poses, and the check that it holds.
 
-The stated ``assembly.poses`` choose the branch: :func:`initial` reads the tree coordinates
-from them, Levenberg-Marquardt closes the loops (:meth:`Assembling._assemble`), and
-:func:`pose_mismatch` refuses a solved link off its stated pose by more than
-:data:`~mech_balance.schema.spatial.POSE_TOL_DEG` or
-:data:`~mech_balance.schema.spatial.POSE_TOL_REL` of the linkage's size (docs/core.md, "The
-stated assembly").
+The stated ``assembly.poses`` choose the branch: :func:`initial` reads the tree coordinates,
+Levenberg-Marquardt closes the loops (:meth:`Assembling._assemble`), :func:`pose_mismatch`
+refuses a solved link off its stated pose beyond ``POSE_TOL_DEG`` or ``POSE_TOL_REL`` of
+:mod:`mech_balance.schema.spatial` (docs/core.md, "The stated assembly").
 """
 
 import math
@@ -35,24 +33,14 @@ def _normal(axis):
 
 
 def twist_about(axis, rot):
-    """
-    Return the angle (rad) of the rotation ``rot`` (3, 3) about the unit ``axis``.
-
-    The twist of the swing-twist split (for a guessed pose, the turn about ``axis`` that best
-    explains it; :func:`mech_balance.rotations.angle_about` would mix in other turns).
-    """
+    """Return the angle (rad) of ``rot`` about the unit ``axis`` (swing-twist split)."""
     ref = _normal(axis)
     v = rot @ ref
     return math.atan2(float(axis @ np.cross(ref, v)), float(ref @ v))
 
 
 def tree_values(t, rel, d):
-    """
-    Return the coordinates of a (non-spherical) tree joint ``t`` from a relative pose.
-
-    ``rel`` is the child's rotation and ``d`` its joint point from the parent's, parent axes:
-    the inverse of the zero convention (docs/core.md#the-spatial-formulation).
-    """
+    """Return a (non-spherical) tree joint's coordinates from the child's pose in the parent."""
     jt = t.joint_type
     if jt == 'prismatic':
         return [float(d @ t.axis)]
@@ -112,11 +100,7 @@ def _angle(rot_a, rot_b):
 
 
 def pose_errors(linkage, fr):
-    """
-    Return ``[(link, angle rad, distance m)]``: each stated link's solved pose against it.
-
-    An idle-spin link is compared by its S-S line and its first ball's centre.
-    """
+    """Return ``[(link, angle rad, distance m)]`` of the solved poses from the stated ones."""
     idle = {name: (ul, x0) for name, _, _, ul, x0 in getattr(linkage, 'idle_lines', ())}
     out = []
     for name, (rot_s, org_s) in stated(linkage.scene).items():

@@ -1,10 +1,9 @@
 """
 The closure rows of a spatial linkage: residual, Jacobian, bias and wrenches.
 
-Each cut joint contributes rows g = 0 in groups of one form: ``point`` (three rows: the joint
-points coincide), ``dot`` (an a-vector normal to a b-vector), ``line`` (the b-point on the
-a-line) and ``spin`` (an idle S-S link's spin fixed by convention);
-docs/core.md#the-spatial-formulation.
+Each cut joint contributes rows g = 0 in groups: ``point`` (the joint points coincide), ``dot``
+(an a-vector normal to a b-vector), ``line`` (the b-point on the a-line), ``spin`` (an idle
+S-S link's spin fixed; docs/core.md#the-spatial-formulation).
 """
 
 from dataclasses import dataclass
@@ -164,9 +163,8 @@ class ClosureRows:
         """
         Return ``(W_b, W_a)`` ``(6, q, n)``: the closure rows' wrenches on their b and a bodies.
 
-        Component-major (moment about the frame origin, force) for multipliers ``lam``
-        ``(n, m)``: ``lambda_r G(r)`` per row, the three rows of a coincident point merged
-        into the force ``F`` at the point (``(x x F, F)``), in :attr:`wrench_rows` order.
+        Moment about the frame origin and force for multipliers ``lam`` ``(n, m)``, in
+        :attr:`wrench_rows` order (a coincident point's three rows: one force at the point).
         """
         n = lam.shape[0]
         lam_t = lam.T

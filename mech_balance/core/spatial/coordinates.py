@@ -20,11 +20,7 @@ SLIDES = {'revolute': (False,), 'prismatic': (True,), 'cylindrical': (False, Tru
 
 
 def joint_frames(jt, flipped=False):
-    """
-    Return a joint's unit axes ``(a, b)`` and its fixed rotation Z, Rot(a, angle) Z or U.
-
-    ``flipped``: the joint seen from its end b.  Nones for a joint without an axis.
-    """
+    """Return a joint's unit axes ``(a, b)`` and fixed rotation (``flipped``: seen from b)."""
     if jt.axis is None:
         return None, None, None
     a, b = unit(jt.axis), unit(jt.axis if jt.axis_b is None else jt.axis_b)

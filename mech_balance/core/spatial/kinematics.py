@@ -167,12 +167,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
     # ------------------------------------------------------------------ the input
 
     def input_motion(self, psi, psi_d, psi_dd):
-        """
-        Return the input joint's ``(x, x', x'')`` at cycle angles ``psi`` (rad, rad/s, rad/s^2).
-
-        A revolute input: ``psi`` and its rates (no copy); a prismatic input: the slide of
-        :func:`~mech_balance.schema.spatial.stroke_law` (m) and its rates by the chain rule.
-        """
+        """Return the input joint's ``(x, x', x'')`` at cycle angles ``psi`` (rad or m)."""
         if self.periodic:
             return psi, psi_d, psi_dd
         s, s1, s2 = stroke_law(self.stroke_m, psi)
@@ -369,11 +364,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return np.matmul(self.path_t, fr.cols_c * qd.T)
 
     def accelerations(self, fr, twist, qd):
-        """
-        Return the body spatial accelerations ``(6, nb, n)`` at zero coordinate accelerations.
-
-        The sum over the tree of ``S' q' = (T_owner x S) q'`` (``twist`` ``(6, nb, n)``).
-        """
+        """Return the bodies' spatial accelerations ``(6, nb, n)`` at ``q'' = 0``."""
         moving = self._moving_cols
         if not moving.size:
             return np.zeros(twist.shape)
@@ -477,12 +468,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
     # ------------------------------------------------------------------ refined solves
 
     def solve_u(self, solver, js, rhs):
-        """
-        Return ``x`` with ``js x = rhs`` ``(n, m)`` from an inverse ``solver`` of a nearby Js.
-
-        Square systems are refined against ``js`` (``REFINE_STEPS``); a redundant system's
-        ``solver`` is the pseudo-inverse of ``js`` itself.
-        """
+        """Return ``x`` with ``js x = rhs`` from the inverse ``solver`` of a nearby Js."""
         x = mv(solver, rhs)
         if self.square and js is not None:
             for _ in range(REFINE_STEPS):
