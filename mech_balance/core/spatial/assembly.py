@@ -267,10 +267,6 @@ class Assembling:
             x0 = self._points[name][sph_j[0].point_a if sph_j[0].link_a == name
                                     else sph_j[0].point_b]
             self.idle_lines.append((name, sph_j[0].name, sph_j[1].name, rl.T @ u, x0))
-        self.check_idle_inertia(self.scene)
-        for k, sph_j, x, u in spins:
-            name = self.body_names[k]
-            rl = fr.rot[0, k]
             n_ref = np.eye(3)[int(np.argmin(np.abs(u)))]
             v = cross(u, n_ref)
             v /= np.linalg.norm(v)
@@ -278,6 +274,7 @@ class Assembling:
                                   n_ref[None], None, (f'spin:{name}',)))
             self.idle_spins = getattr(self, 'idle_spins', ()) + (
                 (name, sph_j[0].name, sph_j[1].name),)
+        self.check_idle_inertia(self.scene)
         self._finish_rows()
 
     def check_idle_inertia(self, scene):

@@ -137,16 +137,13 @@ class BranchFollowing:
             qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
             q, sph, fr, res, ok = self.newton(qp, sphp)
             bad = ~ok | (self.change(q, sph, qp, sphp) > STEP_TRUST)
-            if bad.any():  # keep the traced nodes only: no dense node off the branch
-                self._dense = sk
-                return sk
-            q[:, 0] = psi
-            rates = self.unit_rates(fr, q)
-            if self.square and np.any(rates.sign != self.branch_sign):
-                self._dense = sk
-                return sk
-            qd, qdd, cond = rates.qd, rates.qdd, rates.cond
-            self._dense = Skeleton(psi, q, sph, qd, qdd, cond, self.periodic)
+            self._dense = sk           # the traced nodes only if a dense node leaves the branch
+            if not bad.any():
+                q[:, 0] = psi
+                rates = self.unit_rates(fr, q)
+                if not (self.square and np.any(rates.sign != self.branch_sign)):
+                    self._dense = Skeleton(psi, q, sph, rates.qd, rates.qdd, rates.cond,
+                                           self.periodic)
         return self._dense
 
 
