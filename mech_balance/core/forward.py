@@ -299,25 +299,18 @@ class ForwardDynamics:
         if rhs not in ('table', 'direct'):
             raise ValueError(f'rhs: got {rhs!r}, expected "table" or "direct"')
         damping = {k: v for k, v in drive.joint_damping.items() if v}
-        self.tables = None
-        if rhs == 'table':
-            tables = RigTables(rig, damping)
-            if tables.ok:
-                self.tables = tables
-        self.functions = self.tables if self.tables is not None else \
-            _DirectFunctions(rig, damping)
+        tables = RigTables(rig, damping) if rhs == 'table' else None
+        self.tables = tables if tables is not None and tables.ok else None
+        self.functions = self.tables or _DirectFunctions(rig, damping)
         self.rhs_kind = 'table' if self.tables is not None else 'direct'
         motor, pi = drive.motor, drive.speed_controller
         self.motor, self.pi = motor, pi
-        n_gear = motor.gear_ratio if motor else 1.0
-        self.gear = n_gear
-        self.rotor = n_gear ** 2 * motor.rotor_inertia_kg_m2 if motor else 0.0
+        self.gear = motor.gear_ratio if motor else 1.0
+        self.rotor = self.gear ** 2 * motor.rotor_inertia_kg_m2 if motor else 0.0
         self.added = self.rotor + drive.input_inertia_kg_m2   # turns with psi
         self.lag = bool(motor and motor.electrical_time_constant_s > 0.0)
-        self.setpoint = None
-        if pi is not None:
-            self.setpoint = sc.crank_speed_rad_s if pi.setpoint_rad_s is None \
-                else pi.setpoint_rad_s
+        self.setpoint = None if pi is None else (
+            sc.crank_speed_rad_s if pi.setpoint_rad_s is None else pi.setpoint_rad_s)
         names = ['psi', 'speed']
         if pi is not None:
             names.append('pi_integral')
@@ -570,9 +563,7 @@ class ForwardDynamics:
             raise ValueError(
                 f'duration_s: got {duration_s!r} s, about {turns:.3g} crank turns at up to '
                 f'{speed:.3g} rad/s; expected at most {MAX_SIMULATED_TURNS:g} turns')
-        kwargs = {}
-        if method in IMPLICIT_METHODS + ('LSODA',):
-            kwargs['jac'] = self.jac
+        kwargs = {'jac': self.jac} if method in IMPLICIT_METHODS + ('LSODA',) else {}
         self.rhs_calls = 0
         self.max_evaluations = int(max_evaluations)
         t0 = time.perf_counter()
