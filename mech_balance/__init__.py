@@ -11,17 +11,10 @@ simulated; the same objects feed the ROS 2 node and the recordings::
     design = mb.balance(rig)                     # certified optimum (method by capability)
     print(design.masses_kg)                      # the balanced design, per link, kg
 
-The same five lines run on every built-in (``examples/quickstart.py``).  Every verb takes a
-rig or a scene of any kind: ``mb.run_cycle(rig)`` and ``mb.summarize(cycle)`` (one
-revolution, the table's rows), ``mb.balance(sc)`` (one result type, :class:`Design`:
-``success``, ``status``, ``message``, ``objective``, ``lower_bound``, ``certified``,
-``masses_kg``, ``mass_centres_m``, ``inertias_kg_m2``, ``report``), ``mb.identify``,
-``mb.simulate('slider_crank_stiff', 0.4)``; where a kind lacks a capability the verb says
-which, in one line, before any work (:class:`CapabilityError`).
-
-Layers (docs/design.md): ``schema`` (the scene file) < ``core`` (numpy/scipy only) <
-``analysis`` < ``balancing`` < ``ros`` (rclpy), ``viz`` (rerun) < ``cli``, ``bench``.
-Names are imported on first use, so ``import mech_balance`` costs nothing.
+The same lines run on every built-in (``examples/quickstart.py``).  Every verb
+(``run_cycle``, ``summarize``, ``balance``, ``identify``, ``simulate``) takes a rig or a scene
+of any kind, and refuses a missing capability in one line (:class:`CapabilityError`).  Layers:
+docs/design.md.  Names are imported on first use, so ``import mech_balance`` costs nothing.
 """
 
 import importlib

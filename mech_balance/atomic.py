@@ -1,24 +1,14 @@
 """
 Atomic file writes: a target is replaced by a complete file or not touched at all.
 
-Every file the package writes (balanced scenes, recordings, reports) is written to a
-temporary file in the target's directory, named ``.NAME.partial-XXXXXXXX`` so that it is
-recognisably incomplete, flushed to disk (``fsync``) and renamed over the target
-(``os.replace``, atomic on POSIX) only once it is complete; the directory is then synced so
-that the rename survives a power loss.  On an exception the temporary file is removed and
-an existing target keeps its bytes; a process killed by SIGKILL may leave a ``.partial``
-file next to the target, never a truncated target.  Every temporary file not yet committed
-or discarded is listed (:func:`discard_pending` removes them all: the command line does on
-SIGINT and SIGTERM) and every commit and discard is logged (:func:`written_since`,
-:func:`discarded_since`), so an
-interrupted process can say whether its file was written completely; a handler of SIGINT
-or SIGTERM that asks :func:`defer_signal` first is held back while a temporary file is
-created and listed and while a target is renamed and logged, so no file escapes the list.
-
-Three ways in: :func:`write_text_atomic` and :func:`write_bytes_atomic` for data in memory,
-:func:`atomic_path` (a context manager yielding the temporary path) for writers that want a
-path, and :func:`partial_path` / :func:`commit` / :func:`discard` for a writer whose file
-outlives one block (the rig node's live recording).
+Every file is written to ``.NAME.partial-XXXXXXXX`` in the target's directory, synced and
+renamed over the target (the directory synced too); on an exception the temporary file is
+removed.  Pending temporary files are listed (:func:`discard_pending`, the command line's
+SIGINT and SIGTERM) and commits and discards logged (:func:`written_since`,
+:func:`discarded_since`); a signal handler that asks :func:`defer_signal` is held back while a
+file is listed or renamed.  Ways in: :func:`write_text_atomic`, :func:`write_bytes_atomic`,
+:func:`atomic_path`, and :func:`partial_path` / :func:`commit` / :func:`discard` for a file
+that outlives one block (the rig node's live recording).
 """
 
 import collections
@@ -42,12 +32,7 @@ _held = {'depth': 0, 'deferred': None}   # the main thread's held block (_signal
 
 
 def partial_path(path):
-    """
-    Create and return an empty temporary file next to ``path``: ``.NAME.partial-XXXXXXXX``.
-
-    Its permissions are those of an existing target, else :data:`DEFAULT_MODE` less the
-    umask.  Hand it to :func:`commit` when complete or to :func:`discard` on failure.
-    """
+    """Create and return an empty ``.NAME.partial-XXXXXXXX`` next to ``path`` (its permissions)."""
     path = Path(path)
     with _signals_held():
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}{PARTIAL_MARK}')
@@ -122,13 +107,7 @@ def discarded_since(mark):
 
 @contextmanager
 def atomic_path(path):
-    """
-    Yield a temporary path in the directory of ``path``; rename it over ``path`` on success.
-
-    ``with atomic_path('good.rrd') as tmp: writer.save(tmp)``: on a clean exit the complete
-    file replaces ``path`` (:func:`commit`); on any exception it is removed
-    (:func:`discard`) and ``path`` is untouched.
-    """
+    """Yield a temporary path next to ``path``; rename it over ``path`` on success."""
     tmp = partial_path(path)
     try:
         yield tmp
@@ -157,11 +136,8 @@ def _signals_held():
     """
     Hold SIGINT and SIGTERM back in the main thread for the block; deliver them after it.
 
-    A Python signal handler runs between bytecodes of the main thread, so a handler raising
-    between ``mkstemp`` and the listing of its file would leave the file behind.  A handler
-    that calls :func:`defer_signal` first (the command line's does) returns at once inside
-    the block, and the signal is raised again when the block ends.  (Blocking the signal
-    with ``pthread_sigmask`` would not do: the kernel hands it to another thread.)
+    Only for handlers that call :func:`defer_signal` (``pthread_sigmask`` would not do: the
+    kernel hands the signal to another thread).
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -177,11 +153,7 @@ def _signals_held():
 
 
 def defer_signal(signum):
-    """
-    For a signal handler: return True if ``signum`` is held back (raised again later).
-
-    Inside :func:`_signals_held` the handler should return without acting.
-    """
+    """For a signal handler: return True if ``signum`` is held back (then return at once)."""
     if _held['depth'] > 0:
         _held['deferred'] = _held['deferred'] or signum
         return True

@@ -1,11 +1,9 @@
 """
 Every cone program the package solves (Clarabel): its settings, and the run with retries.
 
-The balancing's programs (:mod:`mech_balance.balancing`) and the identification's
-physically consistent calibration (:mod:`mech_balance.analysis.identify`) all take their
-solver settings here, so a tolerance is stated once; :func:`run_solver` solves a program
-with the retries of :data:`RETRY_SETTINGS` and returns a :class:`Solve` (the solution, the
-program's data for the certificate, every attempt's status).
+The balancing (:mod:`mech_balance.balancing`) and the identification
+(:mod:`mech_balance.analysis.identify`) take their solver settings here, so a tolerance is
+stated once; :func:`run_solver` returns a :class:`Solve`.
 """
 
 from dataclasses import dataclass
@@ -35,12 +33,7 @@ INFEASIBLE = ('PrimalInfeasible', 'AlmostPrimalInfeasible')
 
 
 def solver_settings(**extra):
-    """
-    Return Clarabel's settings for every cone program of the balancing (quiet, tolerances).
-
-    ``extra``: settings to override (one entry of :data:`RETRY_SETTINGS`; ``tol_scale``
-    multiplies the tolerances).
-    """
+    """Return Clarabel's settings, ``extra`` overriding them (``tol_scale``: tolerances)."""
     extra = dict(extra)
     tol = SOLVER_TOL * extra.pop('tol_scale', 1.0)
     settings = clarabel.DefaultSettings()
@@ -54,11 +47,7 @@ def solver_settings(**extra):
 
 
 def solve_once(q, a, b, cones, **extra):
-    """
-    Solve ``min q'x s.t. a x + s = b, s in K`` once with :func:`solver_settings` ``(**extra)``.
-
-    Returns Clarabel's solution; ``a`` scipy csc (m, n), ``cones`` Clarabel cone objects.
-    """
+    """Return Clarabel's solution of ``min q'x s.t. a x + s = b, s in K`` (``a`` csc (m, n))."""
     p = sp.csc_matrix((q.size, q.size))
     return clarabel.DefaultSolver(p, q, a, b, cones, solver_settings(**extra)).solve()
 
@@ -89,13 +78,7 @@ class Solve:
 
 
 def run_solver(q, a, b, cones):
-    """
-    Solve ``min q'x s.t. a x + s = b, s in K`` with Clarabel, retrying until Solved.
-
-    Each entry of :data:`RETRY_SETTINGS` is tried in turn until one ends Solved (or proves
-    infeasibility); otherwise the best attempt (AlmostSolved before any other) is returned
-    with every status in :attr:`Solve.attempts`.
-    """
+    """Solve ``min q'x s.t. a x + s = b, s in K`` with Clarabel, retrying until Solved."""
     q = np.asarray(q, dtype=float)
     a = sp.csc_matrix(a)
     b = np.asarray(b, dtype=float)
@@ -116,12 +99,7 @@ def run_solver(q, a, b, cones):
 
 
 def solve_tight(q, a, b, cones, tol_scale, max_iter=400):
-    """
-    Return a :class:`Solve` of one solve with Clarabel's tolerances scaled by ``tol_scale``.
-
-    The re-solve of a program whose first solution is not certified (its dual residual,
-    which the certificate pays with the box, shrinks with the tolerances).
-    """
+    """Return a :class:`Solve` of one solve with Clarabel's tolerances scaled by ``tol_scale``."""
     q = np.asarray(q, dtype=float)
     a = sp.csc_matrix(a)
     b = np.asarray(b, dtype=float)

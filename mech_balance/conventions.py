@@ -1,31 +1,17 @@
 """
 The one home of the project's conventions: units, the shaking wrench and the RMS.
 
-Units
-    SI everywhere inside: m, kg, s, rad, N, N*m, kg*m^2.  The papers' normalized quantities
-    (by the original crank mass m_1, crank length a_1 and crank speed omega) are a view
-    computed by :func:`normalize_force` and :func:`normalize_moment`, never stored.
-    A message (warning or error) names a crank angle in degrees wrapped into one turn,
-    [0, 360) (:func:`crank_angle_text`), whatever turn the solver counts it in.
+Units: SI everywhere inside (m, kg, s, rad, N, N*m, kg*m^2); the papers' normalized figures
+(by crank mass m_1, crank length a_1 and speed omega) are a view (:func:`normalize_force`,
+:func:`normalize_moment`).  Messages name crank angles in degrees in [0, 360).
 
-Shaking wrench (seed 001 eq. 39)
-    The wrench that the moving links exert on the frame, reduced to the crank pivot O and
-    expressed in the frame's (world) axes, *minus* the static external loads (gravity) that
-    the frame also carries:
+Shaking wrench (seed 001 eq. 39): what the moving links exert on the frame, reduced to the
+crank pivot O in the frame's axes, minus the static loads (gravity):
+``f_sh = -sum_i m_i a_ci = -dp/dt``, ``n_sh = -sum_i (I_ci alpha_i + (c_i - O) x m_i a_ci)
+= -dH_O/dt``.  It includes the motor's reaction torque (seed 001 eqs. 41, 47).
 
-        f_sh = -sum_i m_i * a_ci            = -dp/dt
-        n_sh = -sum_i (I_ci*alpha_i + (c_i - O) x m_i*a_ci) = -dH_O/dt
-
-    It includes the motor's reaction torque (the motor stator is fixed to the frame), so
-    with no external loads it equals the sum of the bearing loads on the frame plus the
-    motor reaction (seed 001 eq. 41/47).  Planar rigs: force (x, y), moment z.  Spatial
-    rigs: force and moment 3-vectors.
-
-RMS over a cycle
-    The true root mean square over p equally spaced crank angles of one revolution,
-    ``sqrt((1/p) * sum f_k^2)`` where f_k is the magnitude (Euclidean norm) of the vector
-    quantity at angle k.  Seed 001 eq. 42 prints ``(1/p) sqrt(sum f^2)``; its tables were
-    computed with the true RMS (checked against Table 4), so that is the one used here.
+RMS over a cycle: ``sqrt((1/p) sum |f_k|^2)`` over p equally spaced angles of one turn (seed
+001 eq. 42 prints ``(1/p) sqrt(sum f^2)``; its tables use the true RMS, checked on Table 4).
 """
 
 import math
@@ -47,12 +33,9 @@ MAX_JOINTS = 128
 MAX_POINTS = 64
 """Most named points of one link (or of the frame)."""
 MAX_CYCLES = 100
-"""Most crank turns of a recording (``record --cycles``; at 360 samples per turn about
-25 MB of .rrd and 0.3 GB of memory while it is encoded)."""
+"""Most crank turns of a recording (``record --cycles``; 360 samples per turn: ~25 MB of .rrd)."""
 MAX_RECORD_ROWS = 36_000
-"""Most rows of a recording, samples per turn x turns (``record --samples`` x ``--cycles``;
-360 x :data:`MAX_CYCLES`): logging costs per row, and 100 000 samples of one turn of
-spatial_two_loop against its balanced design ran past 300 s and 3 GB (issue 32)."""
+"""Most rows of a recording, ``record --samples`` x ``--cycles`` (360 x :data:`MAX_CYCLES`)."""
 MAX_WEIGHT = 1e6
 """Largest objective weight (``--weights``, ``--torque-weight``, ``balance.*weight*``)."""
 MAX_NAME_LENGTH = 256
@@ -64,12 +47,7 @@ MAX_REPEAT = 10_000
 
 
 def check_samples(samples, field='samples', links=1):
-    """
-    Return ``samples`` as an int if 1 <= samples <= MAX_SAMPLES and the work is bounded.
-
-    ``links`` moving links are evaluated at each angle: ``links * samples`` must not exceed
-    :data:`MAX_LINK_SAMPLES`.  Raises ValueError naming ``field`` and the limit.
-    """
+    """Return ``samples`` as an int within the limits (``links`` per angle), else ValueError."""
     try:
         count = int(samples)
     except (TypeError, ValueError, OverflowError):
@@ -89,35 +67,20 @@ def check_samples(samples, field='samples', links=1):
 
 
 def cycle_angles(samples, start_rad=0.0, links=1):
-    """
-    Return ``samples`` equally spaced crank angles of one revolution, in rad.
-
-    The end point is excluded, so that each angle carries the same weight in the RMS.
-    ``samples`` is bounded by :func:`check_samples` (``links`` moving links per angle).
-    """
+    """Return ``samples`` equally spaced crank angles of one revolution (end excluded), rad."""
     import numpy as np  # on first use: the command line parsers need none
     samples = check_samples(samples, links=links)
     return start_rad + 2.0 * np.pi * np.arange(samples) / samples
 
 
 def crank_angle_text(angle_rad, digits):
-    """
-    Return crank angle ``angle_rad`` as a message prints it: degrees in [0, 360), ``digits``.
-
-    Wrapped into one turn after rounding to ``digits`` decimals, so that an angle a hair
-    below a whole turn prints as 0, never as 360.
-    """
+    """Return crank angle ``angle_rad`` as a message prints it: degrees in [0, 360), ``digits``."""
     deg = round(math.degrees(angle_rad) % 360.0, digits) % 360.0
     return f'{deg:.{digits}f}'
 
 
 def rms(values, axis=0):
-    """
-    Return the RMS over a cycle (this module's docstring): sqrt(mean(|v|^2)).
-
-    ``values`` is ``(p,)`` for a scalar series or ``(p, k)`` for a vector series, whose
-    magnitude is taken over the last axis.  The mean runs over ``axis`` (the samples).
-    """
+    """Return the RMS over ``axis`` of a ``(p,)`` series or of the magnitudes of ``(p, k)``."""
     import numpy as np  # on first use: the command line parsers need none
     v = np.asarray(values, dtype=float)
     if v.ndim == 0:

@@ -1,11 +1,8 @@
 """
 Names given as text -- frames, joints, lists of links -- checked one way everywhere.
 
-The rig node's parameters (``frame_id``, ``crank_joint``, ``balance.fixed_links``,
-``balance.counterweight_links``) and the command line (``mech-balance urdf --frame-id``,
-``balance --counterweights``) call these, so that a name one accepts the other accepts too.
-Each check returns the value or raises ``ValueError`` naming the field, the value and what
-was expected.  Standard library only (base layer).
+The rig node's parameters and the command line call these, so that a name one accepts the
+other accepts too; each returns the value or raises ``ValueError`` naming the field.
 """
 
 import re

@@ -1,9 +1,8 @@
 """
 Output files: the one check every writer runs before it computes anything.
 
-Used by ``mech-balance balance --output``, ``mech-balance record --out`` and the rig node's
-``recording_path`` parameter, so that a bad path fails at once, with one message naming the
-caller's option or parameter, the path and what was expected.
+Used by ``balance --output``, ``record --out`` and the node's ``recording_path``, so that a
+bad path fails at once, naming the option or parameter.
 """
 
 import os
@@ -16,11 +15,9 @@ def check_output_path(path, field, suffixes, create_dir=False):
     """
     Return the output file ``path`` as a ``Path``, checked before anything is computed.
 
-    The name must end in one of ``suffixes``; it must not be a directory; an existing file
-    must be writable.  Directory policy: the file's directory must exist and accept a new
-    file; ``create_dir=True`` creates missing directories (``mkdir -p``) for a command that
-    documents it; a writer never creates them on its own (a mistyped node parameter must
-    not litter a robot's disk).  Raises ``ValueError`` naming ``field``.
+    It must end in one of ``suffixes`` and be writable, in an existing directory that accepts a
+    new file (``create_dir=True``: created, for a command that documents it).  Raises
+    ``ValueError`` naming ``field``.
     """
     text = str(path)
     path = Path(text).expanduser()

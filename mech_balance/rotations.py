@@ -1,24 +1,10 @@
 """
 The one home of rotations and angle wrapping (roll-pitch-yaw, axis-angle, (-pi, pi]).
 
-Convention
-    Roll-pitch-yaw is the URDF's and ROS's, about fixed axes: ``R = Rz(yaw) Ry(pitch)
-    Rx(roll)``, which is scipy's extrinsic ``'xyz'`` (``Rotation.from_euler('xyz', (roll,
-    pitch, yaw))``).  The columns of ``R`` are the rotated frame's axes in the fixed one.
-
-Set-up and evaluation
-    scipy's :class:`~scipy.spatial.transform.Rotation` is the reference:
-    ``test/test_rotations.py`` holds every form here to it, and a recorded mount's
-    quaternion is read through it (:func:`quaternion_matrix`).  The other forms are written
-    out in numpy, for three measured reasons: the kinematics evaluate them at every crank
-    angle over whole stacks (:func:`rot_axis`, :func:`expmap`, :func:`matrix_rpy`: a
-    Rotation object per call costs more than the cycle's arithmetic); the exact bits of
-    :func:`rpy_matrix` and :func:`min_rotation` are scene geometry (the link frames and joint
-    zeros: through Rotation they move by round-off, and the balanced designs of the spatial
-    built-ins, whose optimum is not unique, then move by more than their printed digits);
-    and importing ``scipy.spatial.transform`` costs a quarter of a second that building a
-    spatial rig would otherwise not pay.  Base layer: numpy (and scipy) only, so the scene
-    schema, the core and the ROS side all import it.
+Roll-pitch-yaw is the URDF's, about fixed axes: ``R = Rz(yaw) Ry(pitch) Rx(roll)``, scipy's
+extrinsic ``'xyz'``; the columns of ``R`` are the rotated frame's axes in the fixed one.
+scipy's :class:`~scipy.spatial.transform.Rotation` is the reference (``test/test_rotations.py``);
+the forms are written out in numpy for measured reasons (docs/core.md#rotations).
 """
 
 import math
@@ -41,14 +27,7 @@ EYE3.flags.writeable = False
 
 
 def rpy_matrix(rpy, degrees=False):
-    """
-    Return the rotation ``(3, 3)`` of one roll-pitch-yaw ``(3,)`` (rad, or deg).
-
-    ``Rotation.from_euler('xyz', rpy).as_matrix()`` written out: the same matrix to
-    round-off, but these exact bits are the scenes' link frames, and the balanced designs
-    of the spatial built-ins move by more than their printed digits when the frames move by
-    round-off (their optimum is not unique); ``test_rotations`` holds it to scipy's.
-    """
+    """Return the rotation ``(3, 3)`` of one roll-pitch-yaw ``(3,)`` (rad, or deg)."""
     r, p, y = (math.radians(v) for v in rpy) if degrees else (float(v) for v in rpy)
     cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), \
         math.cos(y), math.sin(y)
@@ -69,14 +48,7 @@ def quaternion_matrix(xyzw):
 
 
 def matrix_rpy(rot, degrees=False):
-    """
-    Return ``(roll, pitch, yaw)`` of rotations ``(..., 3, 3)``: arrays of shape ``(...)``, rad.
-
-    The inverse of :func:`rpy_matrix`, vectorized (the published angles of spherical joints
-    at every crank angle).  At gimbal lock (``|cos pitch| <`` :data:`GIMBAL_LOCK_COS`) the
-    whole turn about the vertical is put into the roll and the yaw is 0.  Degrees with
-    ``degrees``.
-    """
+    """Return ``(roll, pitch, yaw)`` (rad) of rotations ``(..., 3, 3)`` (:func:`rpy_matrix`^-1)."""
     rot = np.asarray(rot, dtype=float)
     cos_pitch = np.hypot(rot[..., 0, 0], rot[..., 1, 0])
     pitch = np.arctan2(-rot[..., 2, 0], cos_pitch)
@@ -121,12 +93,7 @@ def expmap(v):
 
 
 def wrap_angle(angle_rad):
-    """
-    Return angles wrapped to (-pi, pi], with no -0.0 (array in, array out; float in, out).
-
-    A Python float takes a scalar path (the encoder's per-sample unwrapping), the same
-    arithmetic without numpy's per-call overhead.
-    """
+    """Return angles wrapped to (-pi, pi], with no -0.0 (array in, array out; float in, out)."""
     if type(angle_rad) is float:
         w = math.pi - (math.pi - angle_rad) % TWO_PI
         return (w + TWO_PI if w <= -math.pi else w) + 0.0   # mod may round up to 2 pi

@@ -1,26 +1,11 @@
 """
 Branch tracing: predictor-corrector continuation in the input coordinate (both cores).
 
-A linkage's assembly branch is followed from a solved node by steps ``h`` of its input
-coordinate (a crank angle, or a prismatic input's slide): the branch predicts the next
-position from the node's rates (:meth:`Branch.predict`), Newton corrects it
-(:meth:`Branch.correct`) and the rates at the solution make the next node
-(:meth:`Branch.node`).  A step is accepted only when
-
-* Newton converged and moved the predictor by at most ``Limits.step_trust`` (scaled),
-* the scaled Jacobian's condition number is finite and at most ``Limits.cond_limit``,
-* the sign of the Jacobian's determinant is the branch's (a change means a singular
-  position was crossed: :meth:`Branch.sign_changed` may refuse it at once), and
-* the branch's own check holds (:meth:`Branch.accept`; the planar trace tests the
-  predictor at the segment's midpoint);
-
-otherwise the step halves, and below ``Limits.step_min`` the branch is lost
-(:meth:`Branch.error`).  After an accepted step it grows by ``Limits.growth`` up to
-``Limits.step_max`` (only when Newton took at most ``Limits.grow_max_iterations``
-iterations, if that is set).  A node whose condition number exceeds ``Limits.cond_warn``
-is reported (:meth:`Branch.warn`).  The two cores differ only in what they pass in:
-the planar core in :mod:`mech_balance.core.planar.kinematics`, the spatial one in
-:mod:`mech_balance.core.spatial.kinematics`.
+A branch is followed from a solved node by steps of its input coordinate: :meth:`Branch.predict`,
+Newton (:meth:`Branch.correct`), the next node (:meth:`Branch.node`).  A step is accepted when
+Newton converged within ``Limits.step_trust``, the condition number is within
+``Limits.cond_limit``, the determinant keeps its sign and :meth:`Branch.accept` holds; otherwise
+it halves down to ``Limits.step_min`` (docs/core.md#branch-tracing).
 """
 
 from dataclasses import dataclass

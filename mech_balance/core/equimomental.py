@@ -1,17 +1,10 @@
 """
 Equimomental three-point-mass models of planar links (seed 001 eqs. 1-22, 27, 45).
 
-A link of mass m, mass centre c (polar d, theta in the link frame) and moment of inertia
-I_O about its origin is dynamically equivalent to three point masses m_1, m_2, m_3 at the
-common distance l from the origin and at the angles 0, 2 pi/3, 4 pi/3 (seed 001 eq. 27):
-
-    sum m_j = m,   l * sum m_j e^(i theta_j) = m c,   l^2 * sum m_j = I_O     (eqs. 19-22)
-
-With l = k = sqrt(I_O / m) (eq. 8) the masses are eqs. 13-15.  A design vector (eq. 45)
-stacks ``[m_i1, m_i2, m_i3, l_i1]`` per link.  Point masses may be negative; the link is
-*realizable* only if its centroidal moment of inertia I_O - |m c|^2 / m is positive (and,
-when the point masses stand for counterweights, they are non-negative): :func:`is_realizable`
-is the one definition, which the balancing reports use too.
+A link (mass m, first moment m c, inertia I_O about its origin) is dynamically equivalent to
+three point masses at the common distance l from the origin and the angles 0, 2 pi/3, 4 pi/3:
+``sum m_j = m``, ``l sum m_j e^(i theta_j) = m c``, ``l^2 sum m_j = I_O`` (eqs. 19-22).
+Point masses may be negative; :func:`is_realizable` is the one definition of a buildable link.
 """
 
 from dataclasses import dataclass, replace
@@ -25,13 +18,10 @@ POINT_ANGLES_RAD = np.array([0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0])
 UNIT = np.exp(1j * POINT_ANGLES_RAD)
 """The unit vectors e^(i theta_j) towards the three point masses, shape (3,) complex."""
 REALIZABLE_TOL = 1e-6
-"""A link whose centroidal moment of inertia is at most this fraction of I_O is a point mass,
-not a buildable body.  The data of a body is exact to far better than this, while a design on
-the bound I_c = 0 (all the mass in one point: seed 001 Table 5 b(2); an interior-point optimum
-without a realizability margin) lands within round-off of it, up to ~1e-8 I_O."""
+"""A link whose centroidal moment of inertia is at most this fraction of I_O is a point mass
+(an optimum on the bound I_c = 0, seed 001 Table 5 b(2), lands within ~1e-8 I_O of it)."""
 COUNTERWEIGHT_TOL = 1e-8
-"""With counterweights, point masses down to -this fraction of the link mass count as zero (an
-optimum on the bound m_j = 0 lands within round-off of it)."""
+"""With counterweights, point masses down to -this fraction of the link mass count as zero."""
 
 
 @dataclass(frozen=True)
@@ -58,15 +48,7 @@ class PointMasses:
 
 
 def point_mass_arrays(mass, first_moment, inertia_origin):
-    """
-    Return the point masses ``(..., 3)`` and their distance l ``(...)`` (seed 001 eqs. 8-15).
-
-    Vectorized over links: ``mass`` m and ``inertia_origin`` I_O are real arrays of one
-    shape, ``first_moment`` h = m c is complex of that shape (link frames); any consistent
-    units (SI or normalized).  With l = k = sqrt(I_O/m) (eq. 8) and theta_j = 0, 2 pi/3,
-    4 pi/3, eqs. 13-15 read ``m_j = m/3 + (2/3) Re(h e^(-i theta_j)) / l``.  No checks: m > 0
-    and I_O > 0 are the caller's (see :func:`from_link`).
-    """
+    """Return point masses ``(..., 3)`` and distances l of links (eqs. 8-15; no checks)."""
     m = np.asarray(mass, dtype=float)
     h = np.asarray(first_moment, dtype=complex)
     dist = np.sqrt(np.asarray(inertia_origin, dtype=float) / m)
@@ -76,11 +58,7 @@ def point_mass_arrays(mass, first_moment, inertia_origin):
 
 
 def from_link(mass_kg, com_m, inertia_origin_kg_m2):
-    """
-    Return the :class:`PointMasses` of a link with l = k = sqrt(I_O/m) (seed 001 eqs. 8-15).
-
-    ``com_m`` is ``(x, y)`` in the link frame.
-    """
+    """Return the :class:`PointMasses` of a link, ``com_m`` ``(x, y)`` (seed 001 eqs. 8-15)."""
     if not mass_kg > 0.0:
         raise ValueError(f'mass_kg: got {mass_kg!r}, expected > 0')
     if not inertia_origin_kg_m2 > 0.0:
@@ -90,11 +68,7 @@ def from_link(mass_kg, com_m, inertia_origin_kg_m2):
 
 
 def link_properties(point_masses):
-    """
-    Return ``(mass_kg, com_m, inertia_origin_kg_m2)`` of a point-mass model (eqs. 19-22).
-
-    ``com_m`` is ``(x, y)``; raises ``ValueError`` when the total mass is not positive.
-    """
+    """Return ``(mass_kg, com_m (x, y), inertia_origin_kg_m2)`` (ValueError: mass <= 0)."""
     m = point_masses.mass_kg
     if not m > 0.0:
         raise ValueError(
@@ -112,11 +86,8 @@ def is_realizable(point_masses, counterweights=False):
     """
     Return ``(ok, reason)``: a buildable link has positive mass and centroidal inertia.
 
-    The one definition of realizability: mass > 0 and centroidal moment of inertia
-    > :data:`REALIZABLE_TOL` x I_O (at or below it the link is a point mass, no body).  With
-    ``counterweights`` the point masses must also be non-negative (down to
-    -:data:`COUNTERWEIGHT_TOL` x m).  A design *margin* on the centroidal inertia, which an
-    optimizer may impose, is a separate, larger requirement of the design, not of a body.
+    Centroidal moment of inertia > :data:`REALIZABLE_TOL` x I_O; with ``counterweights``
+    also point masses >= -:data:`COUNTERWEIGHT_TOL` x m.
     """
     pm = point_masses
     m = pm.mass_kg

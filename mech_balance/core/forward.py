@@ -1,88 +1,14 @@
 """
 Forward dynamics of any single-input rig, from its own inverse dynamics.
 
-Equation of motion (seed 000 eqs. 39 and 43, for every rig of the Rig protocol)
-
     (I(psi) + J_in + N^2 J_r) psi'' = c1(psi) psi'^2 + tau_A + tau_D + tau_G
 
-psi is the input's cycle coordinate: the crank angle, or for a prismatic input the angle of
-its Scotch-yoke crank (the slide is x(psi), :attr:`Rig.joint_prismatic`).  The rig's own
-inverse dynamics (:meth:`Rig.at` with the output ``driving_torque``) gives the effort e on
-the input joint (N*m about a revolute input, N along a slide: :attr:`Rig.driving_series`) at
-(psi, psi', psi''); its generalized force on psi is ``Q = e dx/dpsi`` (virtual work; dx/dpsi
-is the input joint's rate at unit crank speed, 1 for a crank).  For rigid bodies with one
-degree of freedom Q is affine in the acceleration and quadratic in the speed,
-
-    Q(psi, w, a) = I(psi) a - c1(psi) w^2 - tau_G(psi),
-
-so three batched evaluations give the functions of the ODE (:func:`rig_functions`):
-``tau_G = -Q(psi, 0, 0)``, ``I = (Q(psi, 0, a0) - Q(psi, 0, 0)) / a0`` and
-``c1 = -(Q(psi, w0, 0) - Q(psi, 0, 0)) / w0^2`` (w0 the scene's crank speed, a0 = w0^2: the
-three torques of one size).  For any one-dof system ``c1 = -I'(psi) / 2`` (tested), and a
-fourth evaluation at (2 w0, -a0) checks the affine-quadratic form and the rig's kinetic energy
-checks I (``I = 2 T / psi'^2``): the ``structure`` and ``energy`` errors of the tables.
-
-* ``tau_A = N tau_m`` is the motor torque through a gear of ratio N (motor speed N psi');
-  ``J_r`` is the rotor inertia, ``J_in`` a flywheel on the input shaft
-  (``drive.input_inertia_kg_m2``).  The motor is a DC motor on its torque-speed line,
-  ``tau_line = tau_stall (u - N psi' / omega_0)`` at the voltage fraction u (u = 1: the
-  rated line), optionally with an electrical lag ``T_e tau_m' = tau_line - tau_m`` (T_e = L/R).
-  u is constant, or set by a PI speed controller ``u = kp e + ki integral(e)``,
-  ``e = setpoint - psi'``, clipped to ``|u| <= voltage_limit`` with conditional integration
-  (the integral stops while the output is saturated and the error drives it further).
-* ``tau_D = -c_eff(psi) psi'``, ``c_eff = sum_j c_j (dq_j/dpsi)^2``: viscous damping on the
-  rig's published joint coordinates q_j (:attr:`Rig.joint_names`; revolute: relative angle,
-  N*m*s/rad; prismatic: slide, N*s/m), the generalized force of the dissipation
-  ``sum_j c_j q_j'^2``.
-* ``tau_G``: the weights (a planar scene's ``gravity_m_s2``; spatial scenes have none), with
-  the potential ``V(psi) = -integral tau_G dpsi``.
-
-A prismatic input's I(psi) vanishes where dx/dpsi = 0 (the yoke's dead centres: the ideal
-yoke is massless); the motion through them needs a rotor or a flywheel on the yoke's crank,
-and :class:`ForwardDynamics` refuses a total inertia that is not positive over the turn.
-
-The right-hand side needs I, c1, tau_G, c_eff (and V for the energy balance) at one crank
-angle.  They depend on psi only, are 2 pi-periodic and analytic on a branch that turns fully,
-so they are tabulated once as Fourier series (:class:`RigTables`): sampled at n angles per
-turn, n doubled from ``TABLE_MIN_SAMPLES`` until the upper quarter of the spectrum falls
-below ``TABLE_TOL``, the series truncated there, and checked against the rig at the n
-mid-points between the samples (where a trigonometric interpolant is furthest from its
-samples).  The largest relative deviation there is the model error the simulation reports
-(``table_error``, per function in ``table_errors``); above ``TABLE_CHECK_TOL`` the simulation
-evaluates the rig at every call instead.  V is the exact integral of the tau_G series, so
-its error is at most 2 pi times tau_G's.  One table lookup costs microseconds against 0.5
-(planar) to 5 ms (spatial) for an evaluation of the rig; ``rhs='direct'`` evaluates the rig at
-every call (the check of the tables).
-
-Stiffness: the Jacobian of the ODE is known analytically (table derivatives are exact
-Fourier derivatives).  Its largest eigenvalue modulus over a turn at the operating speed,
-divided by the crank speed, is the stiffness ratio; above ``STIFFNESS_RATIO_LIMIT`` an
-explicit method's step is bounded by stability rather than accuracy, and ``method='auto'``
-picks Radau (implicit Runge-Kutta, order 5, L-stable), otherwise DOP853 (explicit, order 8).
-
-Energy balance: motor work - damping dissipation = change of kinetic + potential energy.
-Motor work and dissipation are integrated as two extra (quadrature) states, so the
-residual measures the integration error, not a post-hoc quadrature.
-
-Drive schema (the scene's optional top-level ``drive:`` key; :func:`drive_from_dict`)::
-
-    drive:
-      motor:                              # optional: without it the rig coasts
-        stall_torque_Nm: 2.0              # > 0, at rated voltage (u = 1)
-        no_load_speed_rad_s: 120.0        # > 0, at rated voltage
-        rotor_inertia_kg_m2: 2.0e-5       # >= 0, default 0
-        gear_ratio: 1.0                   # > 0, motor speed / crank speed, default 1
-        electrical_time_constant_s: 0.0   # >= 0, L/R, default 0 (torque follows at once)
-        voltage_fraction: 1.0             # constant u without a speed controller, default 1
-      speed_controller:                   # optional PI on the crank speed (needs a motor)
-        kp_per_rad_s: 0.05                # >= 0, voltage fraction per rad/s of speed error
-        ki_per_rad: 0.5                   # >= 0, voltage fraction per rad of integrated error
-        setpoint_rad_s: 31.4              # default: crank.speed_rad_s
-        voltage_limit: 1.0                # > 0, |u| <= limit, default 1
-      joint_damping: {O: 1.0e-4, S: 0.5}  # >= 0 per joint coordinate, default none
-      input_inertia_kg_m2: 0.0            # >= 0, flywheel on the input shaft, default 0
-      initial_speed_rad_s: 0.0            # default: 0 with a motor, crank.speed_rad_s without
-      initial_crank_angle_deg: 0.0        # default: assembly.crank_angle_deg
+(seed 000 eqs. 39 and 43): psi is the input's cycle coordinate (a prismatic input's Scotch-yoke
+crank angle); I, c1 and tau_G come from three batched evaluations of the rig's inverse
+dynamics (:func:`rig_functions`), tabulated once as checked Fourier series (:class:`RigTables`);
+tau_A is a DC motor through a gear N (rotor J_r, optional electrical lag and PI speed
+controller), tau_D the joint damping, J_in a flywheel.  The derivation, the stiffness test
+and the energy balance: docs/core.md#the-equation-of-motion; the drive schema: docs/simulation.md.
 """
 
 from dataclasses import dataclass
@@ -98,23 +24,16 @@ from mech_balance.schema.drive import Drive, drive_from_dict, DriveError, Motor,
 import numpy as np
 
 STIFFNESS_RATIO_LIMIT = 100.0
-"""Largest |eigenvalue| / crank speed for which ``method='auto'`` integrates explicitly.
-
-An explicit Runge-Kutta step must keep h |lambda| below about 3 (RK45) to 6 (DOP853); at the
-default tolerance DOP853 takes about 40 steps per crank turn on the built-in rigs, i.e.
-h omega ~ 0.15, so stability starts to bind near |lambda| / omega ~ 40; with Radau's higher
-cost per step the measured break-even is near 100 (see ``mech-balance accuracy``)."""
+"""Largest |eigenvalue| / crank speed for which ``method='auto'`` integrates explicitly."""
 TABLE_TOL = 1e-14
 """Fourier coefficients below this fraction of a function's scale are dropped."""
 TABLE_CHECK_TOL = 1e-11
-"""Largest relative deviation of a table from the rig (mid-point check) that is accepted;
-beyond it (or beyond ``TABLE_MAX_SAMPLES``) the simulation evaluates the rig directly."""
+"""Largest relative deviation of a table from the rig (mid-point check) that is accepted."""
 TABLE_MIN_SAMPLES = 64
 TABLE_MAX_SAMPLES = 4096
 """Samples per turn when tabulating; doubled from the minimum until the series converges."""
 INERTIA_FLOOR_REL = 1e-9
-"""Smallest total generalized inertia over a turn, relative to its largest, that is accepted
-(below it psi'' is not defined where the inertia vanishes: a yoke's dead centre)."""
+"""Smallest total generalized inertia over a turn, relative to its largest, that is accepted."""
 POTENTIAL_NODES = 16
 """Gauss-Legendre nodes per panel of the direct path's potential quadrature."""
 POTENTIAL_PANEL_RAD = math.pi / 4.0
@@ -143,22 +62,12 @@ def load(name_or_path):
 
 
 def drive_of(sc, joint_names=None):
-    """
-    Return the validated :class:`Drive` of a scene's ``drive`` key (empty without one).
-
-    ``joint_names``: the rig's joint coordinates to check ``joint_damping`` against (the
-    scene's loader checked a planar scene's already; a rig checks the rest when built).
-    """
+    """Return the validated :class:`Drive` of a scene's ``drive`` key (empty without one)."""
     return drive_from_dict(getattr(sc, 'drive', None), joint_names=joint_names)
 
 
 def rig_of(scene_or_rig):
-    """
-    Return the rig to simulate: a rig as given, a scene's through :func:`rig_for`.
-
-    Refuses, in one line and before any work, a rig without the capability the forward
-    dynamics is built from (``driving_torque``, the inverse dynamics).
-    """
+    """Return the rig to simulate (a rig as given, a scene's through :func:`rig_for`)."""
     rig = scene_or_rig if hasattr(scene_or_rig, 'at') else rig_for(scene_or_rig)
     if 'driving_torque' not in rig.capabilities:
         raise ValueError(
@@ -172,9 +81,8 @@ def rig_of(scene_or_rig):
 
 
 FUNCTIONS = ('inertia', 'c1', 'tau_gravity', 'damping', 'potential')
-"""The functions of the ODE per crank angle, in this order (SI): I (kg*m^2), c1 = C psi' at
-psi' = 1 (kg*m^2), tau_G (N*m), c_eff (N*m*s/rad), V (J); :func:`rig_functions` returns the
-first four, :class:`RigTables` all five."""
+"""The functions of the ODE per crank angle (SI): I, c1 (kg*m^2), tau_G (N*m), c_eff
+(N*m*s/rad), V (J)."""
 
 
 def _reference_speed(rig):
@@ -187,14 +95,9 @@ def rig_functions(rig, psi, damping=None, check=False):
     """
     Return the ``(4, p)`` array of I, c1, tau_G, c_eff at crank angles ``psi`` (rad).
 
-    From the rig's inverse dynamics (module docstring): one batched :meth:`Rig.at` of the
-    speed-acceleration pairs (0, 0), (0, a0), (w0, 0).  A rig whose inverse dynamics does
-    not take a crank acceleration (its :attr:`RigData.crank_accel_rad_s2` is not the one
-    asked for) gives I through its kinetic energy instead, ``I = 2 T(psi, w0) / w0^2``, and
-    is refused without the capability ``kinetic_energy``.  With ``check`` also return the
-    ``(p,)`` residuals (N*m) of the two checks of the model error: ``structure``, the effort
-    at (2 w0, -a0) against the affine-quadratic form (at (2 w0, 0) without accelerations),
-    and ``energy``, ``(I - 2 T / w0^2) a0`` (where both formulations exist).
+    One batched :meth:`Rig.at` (docs/core.md#the-equation-of-motion); a rig that takes
+    no crank acceleration gives I by its kinetic energy (``I = 2 T / w0^2``).  With ``check``
+    also return the ``(p,)`` residuals (N*m) of the ``structure`` and ``energy`` checks.
     """
     psi = np.atleast_1d(np.asarray(psi, dtype=float))
     p = psi.size
@@ -239,13 +142,8 @@ class RigTables:
     """
     Fourier series of :data:`FUNCTIONS` over one crank turn, checked against the rig.
 
-    ``values(psi)`` returns the five functions and their psi-derivatives at one angle.
-    ``samples`` is the number of tabulated angles per turn, ``harmonics`` the kept series
-    length, ``errors`` the largest relative deviation of each function from the rig at the
-    mid-points (``potential``: the bound 2 pi times tau_G's; ``inertia_slope``: the series'
-    I'(psi) against the rig's -2 c1, seed 000 eq. 41; ``structure`` and ``energy``: the
-    checks of :func:`rig_functions`, relative to the torque scale), ``error`` the largest of
-    them, ``ok`` whether it is within ``TABLE_CHECK_TOL``.
+    ``errors``: each function's largest relative deviation at the mid-points, ``inertia_slope``
+    (seed 000 eq. 41), ``structure``, ``energy``; ``ok``: ``error`` within ``TABLE_CHECK_TOL``.
     """
 
     def __init__(self, rig, damping=None, tol=TABLE_TOL):
@@ -401,25 +299,18 @@ class ForwardDynamics:
         if rhs not in ('table', 'direct'):
             raise ValueError(f'rhs: got {rhs!r}, expected "table" or "direct"')
         damping = {k: v for k, v in drive.joint_damping.items() if v}
-        self.tables = None
-        if rhs == 'table':
-            tables = RigTables(rig, damping)
-            if tables.ok:
-                self.tables = tables
-        self.functions = self.tables if self.tables is not None else \
-            _DirectFunctions(rig, damping)
+        tables = RigTables(rig, damping) if rhs == 'table' else None
+        self.tables = tables if tables is not None and tables.ok else None
+        self.functions = self.tables or _DirectFunctions(rig, damping)
         self.rhs_kind = 'table' if self.tables is not None else 'direct'
         motor, pi = drive.motor, drive.speed_controller
         self.motor, self.pi = motor, pi
-        n_gear = motor.gear_ratio if motor else 1.0
-        self.gear = n_gear
-        self.rotor = n_gear ** 2 * motor.rotor_inertia_kg_m2 if motor else 0.0
+        self.gear = motor.gear_ratio if motor else 1.0
+        self.rotor = self.gear ** 2 * motor.rotor_inertia_kg_m2 if motor else 0.0
         self.added = self.rotor + drive.input_inertia_kg_m2   # turns with psi
         self.lag = bool(motor and motor.electrical_time_constant_s > 0.0)
-        self.setpoint = None
-        if pi is not None:
-            self.setpoint = sc.crank_speed_rad_s if pi.setpoint_rad_s is None \
-                else pi.setpoint_rad_s
+        self.setpoint = None if pi is None else (
+            sc.crank_speed_rad_s if pi.setpoint_rad_s is None else pi.setpoint_rad_s)
         names = ['psi', 'speed']
         if pi is not None:
             names.append('pi_integral')
@@ -471,12 +362,7 @@ class ForwardDynamics:
         return next(abs(w) for w in candidates if abs(w) >= floor)
 
     def speed_bound(self):
-        """
-        Return a bound on the crank speed a run can reach (rad/s), for the turn limit.
-
-        Coasting: energy conservation bounds |psi'| by |psi'_0| sqrt(I_max / I_min); a
-        motor brakes beyond its no-load speed at the largest voltage it may apply.
-        """
+        """Return a bound on the crank speed a run can reach (rad/s), for the turn limit."""
         grid = 2.0 * math.pi * np.arange(64) / 64
         inertia = np.array([self.functions.values(x)[0][0] for x in grid]) + self.added
         bound = abs(self.initial_speed()) * math.sqrt(np.max(inertia) / np.min(inertia))
@@ -622,13 +508,7 @@ class ForwardDynamics:
     # ------------------------------------------------------------------ stiffness
 
     def stiffness(self):
-        """
-        Return the :class:`Stiffness` estimate at the operating point.
-
-        Eigenvalues of the dynamic part of the Jacobian (the quadrature states do not feed
-        back) at ``STIFFNESS_PROBE_ANGLES`` crank angles, at the operating crank speed with
-        the speed controller unsaturated.
-        """
+        """Return the :class:`Stiffness` estimate at the operating point."""
         w = self.omega_ref
         sign = math.copysign(1.0, self.setpoint if self.setpoint else
                              (self.initial_speed() or self.scene.crank_speed_rad_s))
@@ -683,9 +563,7 @@ class ForwardDynamics:
             raise ValueError(
                 f'duration_s: got {duration_s!r} s, about {turns:.3g} crank turns at up to '
                 f'{speed:.3g} rad/s; expected at most {MAX_SIMULATED_TURNS:g} turns')
-        kwargs = {}
-        if method in IMPLICIT_METHODS + ('LSODA',):
-            kwargs['jac'] = self.jac
+        kwargs = {'jac': self.jac} if method in IMPLICIT_METHODS + ('LSODA',) else {}
         self.rhs_calls = 0
         self.max_evaluations = int(max_evaluations)
         t0 = time.perf_counter()
@@ -724,12 +602,7 @@ class ForwardDynamics:
         return 0.5 * (f[0] + self.added) * y[1] ** 2 + self.functions.potential(y[0])
 
     def energy_residual(self, y0, y1):
-        """
-        Return ``(residual_J, relative)`` of motor work - dissipation - energy change.
-
-        Relative to the largest of the terms (and the kinetic energy at the operating
-        speed), so a coasting rig's drift and a driven rig's balance read alike.
-        """
+        """Return ``(residual_J, relative)`` of motor work - dissipation - energy change."""
         de = self.energy(y1) - self.energy(y0)
         work, loss = y1[self.i_w] - y0[self.i_w], y1[self.i_d] - y0[self.i_d]
         f0 = self.functions.values(y0[0])[0]

@@ -1,33 +1,16 @@
 """
 The spatial shaking wrench as a linear map of the bodies' inertial parameters (the regressor).
 
-Every moving body k carries ten inertial parameters, in pinocchio's order
-(``pinocchio.Inertia.toDynamicParameters``)::
-
-    theta_k = [m, h_x, h_y, h_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz]
-
-``m`` the mass (kg), ``h = m c`` the first moment about the body origin in body axes (kg m),
-``I`` the inertia tensor about the body origin in body axes (kg m^2; the tensor's entries, so
-``I_xy = -integral(x y dm)``).  With the motion of the body (:class:`BodyKinematics`: R,
-origin o, omega, alpha and the origin's acceleration a_o, all in frame axes) the shaking
-wrench of :mod:`mech_balance.conventions` is linear in theta:
-
-    p   = m v_o + omega x R h                                  (linear momentum)
-    f   = -dp/dt = -(m a_o + (alpha^ + omega^ omega^) R h)
-    H_O = (o - O) x p + R I R^T omega + R h x v_o              (angular momentum about O)
-    n   = -dH_O/dt = -((o - O) x dp/dt + R h x a_o
-                       + R (I alpha_b + omega_b x I omega_b))
-
-with ``alpha_b = R^T alpha`` and ``omega_b = R^T omega`` in body axes; the terms in v_o cancel
-(v_o x p + (omega x R h) x v_o + R h x ... : docs/_drafts/spatialbal.md derives it), so the
-origin's velocity is not needed.  ``O`` is the rig's moment point.  The frame's own load by
-the links' weight (``gravity_m_s2``) is not part of the shaking wrench (conventions: it is a
-static load); :func:`wrench_regressor` adds it on request, ``m g`` at the mass centre, which
-is what a force sensor under the frame reads (as :mod:`mech_balance.analysis.identify` does
-for planar rigs).
+Every moving body carries ten inertial parameters in pinocchio's order
+(``Inertia.toDynamicParameters``), :data:`PARAMETERS`: the mass (kg), the first moment
+``h = m c`` (kg m) and the inertia tensor's entries (kg m^2), both about the body origin in
+body axes.  With a body's motion (:class:`BodyKinematics`) the shaking wrench of
+:mod:`mech_balance.conventions` is linear in them; the derivation:
+docs/core.md#the-spatial-regressor-coreregressorpy.
 """
 
 from mech_balance.core.rig import BodyKinematics
+from mech_balance.rotations import skew
 import numpy as np
 
 PARAMETERS = ('m', 'h_x', 'h_y', 'h_z', 'I_xx', 'I_xy', 'I_yy', 'I_xz', 'I_yz', 'I_zz')
@@ -35,22 +18,8 @@ PARAMETERS = ('m', 'h_x', 'h_y', 'h_z', 'I_xx', 'I_xy', 'I_yy', 'I_xz', 'I_yz', 
 N_PARAMETERS = len(PARAMETERS)
 
 
-def skew(v):
-    """Return the ``(..., 3, 3)`` cross-product matrices of ``(..., 3)`` vectors."""
-    v = np.asarray(v, dtype=float)
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
-
-
 def inertia_product_matrix(v):
-    """
-    Return ``L(v)`` ``(..., 3, 6)``: ``I v = L(v) i6`` for every inertia tensor I.
-
-    ``i6`` = [I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] (the tensor's entries).
-    """
+    """Return ``L(v)`` ``(..., 3, 6)``: ``I v = L(v) i6``, i6 the tensor's six entries."""
     v = np.asarray(v, dtype=float)
     out = np.zeros(v.shape[:-1] + (3, 6))
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
@@ -117,10 +86,9 @@ def wrench_regressor(kin, moment_point_m=(0.0, 0.0, 0.0), gravity_m_s2=None):
     """
     Return Y ``(n, 6, 10 nb)``: [force (3); moment about the point (3)] = Y @ theta.
 
-    ``theta`` stacks the ten parameters of every body of ``kin`` (module docstring), in the
-    order of ``kin.names``; rows 0-2 are the shaking force (N), rows 3-5 the shaking moment
-    about ``moment_point_m`` (N m), frame axes.  With ``gravity_m_s2`` ``(3,)`` the links'
-    weight on the frame is added (module docstring).
+    ``theta`` stacks the ten parameters of every body of ``kin.names``; frame axes.  With
+    ``gravity_m_s2`` ``(3,)`` the links' weight on the frame is added (what a force sensor
+    under the frame reads; not part of the shaking wrench).
     """
     rot = _check(kin)
     n, nb = rot.shape[:2]
@@ -160,12 +128,7 @@ def wrench(kin, theta, moment_point_m=(0.0, 0.0, 0.0), gravity_m_s2=None):
 
 def momenta(rotation, origin_m, velocity_origin_m_s, omega_rad_s, theta,
             moment_point_m=(0.0, 0.0, 0.0)):
-    """
-    Return the total linear momentum and angular momentum about the point, ``(n, 3)`` each.
-
-    The reference for the finite-difference tests: p = m v_o + omega x R h, H_O = (o - O) x p
-    + R I R^T omega + R h x v_o, summed over bodies (``(n, nb, ...)`` inputs).
-    """
+    """Return the total momentum and angular momentum about the point, ``(n, 3)`` each."""
     t = np.asarray(theta, dtype=float).reshape(-1, 10)
     rot = np.asarray(rotation, dtype=float)
     h_w = np.einsum('nkij,kj->nki', rot, t[:, 1:4])
@@ -179,4 +142,4 @@ def momenta(rotation, origin_m, velocity_origin_m_s, omega_rad_s, theta,
 
 
 __all__ = ['inertia_matrix', 'inertia_product_matrix', 'momenta', 'N_PARAMETERS',
-           'PARAMETERS', 'parameters', 'pseudo_inertia', 'skew', 'wrench', 'wrench_regressor']
+           'PARAMETERS', 'parameters', 'pseudo_inertia', 'wrench', 'wrench_regressor']

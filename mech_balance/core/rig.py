@@ -1,22 +1,11 @@
 """
 The Rig protocol: one model of a rig, whatever its kind, and the data it evaluates to.
 
-The pinocchio idea: a :class:`Rig` is an immutable model built once per geometry and design
-(it holds no speeds and no warnings); :meth:`Rig.at` evaluates it at a batch of crank angles,
-speeds and accelerations and returns a fresh :class:`RigData`.  Every consumer (analysis,
-balancing, the node, the recording, the command line, the benchmarks) works through this
-protocol; none asks which kind of rig it has.  A rig says what it can do through
-:attr:`Rig.capabilities` (for example ``'bearing_reactions'`` or ``'mass_redistribution'``),
-and :func:`rig_for` builds the rig of any scene from the kind registry of
-:mod:`mech_balance.schema.registry`.
-
-Implementations: :class:`mech_balance.core.planar.rig.PlanarRig` (every single-input planar
-linkage) and :class:`mech_balance.core.spatial.rig.SpatialRig` (every single-input spatial
-linkage, the RGGR of seed 002 among them).
-
-Frames, units and signs: :mod:`mech_balance.conventions`.  The shaking wrench is always a pair
-of 3-vectors in the frame's axes (planar rigs: force z = 0, moment x = y = 0), reduced to the
-rig's moment point (:attr:`Rig.moment_point`).
+A :class:`Rig` is an immutable model built once per geometry and design; :meth:`Rig.at`
+evaluates it at a batch of crank angles and returns a fresh :class:`RigData`; consumers ask
+:attr:`Rig.capabilities`, never the kind.  :func:`rig_for` builds the rig of any scene from
+:mod:`mech_balance.schema.registry`.  docs/design.md#the-rig-protocol; frames, units and signs:
+:mod:`mech_balance.conventions`.
 """
 
 from dataclasses import dataclass, field
@@ -53,13 +42,9 @@ class BodyKinematics:
     """
     The motion of every moving body at n samples, in the frame's axes (SI).
 
-    ``names[k]`` is body k (moving bodies only, the order of :attr:`Drawing.bodies`);
-    ``rotation[i, k]`` ``(3, 3)`` maps body k's own axes to the frame's, ``origin_m[i, k]``
-    is its origin, m; ``omega_rad_s``, ``alpha_rad_s2`` its angular velocity and acceleration
-    and ``accel_origin_m_s2`` its origin's linear acceleration, all ``(n, nb, 3)`` in frame
-    axes.  With these, every body's inertia wrench is linear in its ten inertial parameters
-    (:mod:`mech_balance.core.regressor`), which is what spatial balancing and identification
-    build on.  Rigs that can produce it list ``'body_kinematics'`` in their capabilities.
+    ``names``: the moving bodies (:attr:`Drawing.bodies` order); ``rotation`` ``(n, nb, 3, 3)``
+    body to frame axes; ``origin_m``, ``omega_rad_s``, ``alpha_rad_s2`` and the origin's
+    ``accel_origin_m_s2`` ``(n, nb, 3)`` in frame axes.
     """
 
     names: tuple
@@ -75,17 +60,12 @@ class RigData:
     """
     A rig evaluated at n crank angles (SI; arrays are sample-first).
 
-    ``joint_*`` are ``(n, n_joints)`` in the order of ``joint_names`` (ROS ``JointState``
-    values; the implementations document their coordinates); ``joint_effort`` is None when
-    no torque was asked for.  ``force_N`` and ``moment_Nm`` are the shaking wrench ``(n, 3)``
-    (None for kinematics only).  ``series`` holds the scalar outputs that were asked for
-    (``driving_torque`` or ``driving_force``, ``kinetic_energy``, ...:
-    :data:`mech_balance.schema.scene.SERIES`),
-    ``reactions`` the bearing loads ``{joint: (force (n, 3), moment (n, 3))}`` when asked for.
-    ``residual`` (loop closure, relative), ``condition`` (Jacobian condition number) and
-    ``near_singular`` are the per-angle diagnostics of the position solution.  ``poses`` is
-    the :class:`BodyPoses` or a function computing them (read :attr:`bodies`).  ``native`` is
-    the implementation's own result (planar: ``(state, wrenches)``), for code inside the core.
+    ``joint_*`` ``(n, n_joints)`` in the order of ``joint_names`` (``joint_effort`` None
+    without a torque); ``force_N``, ``moment_Nm`` the shaking wrench ``(n, 3)`` (None for
+    kinematics only); ``series`` the scalar outputs asked for
+    (:data:`mech_balance.schema.scene.SERIES`); ``reactions`` ``{joint: (force (n, 3),
+    moment (n, 3))}``; ``residual``, ``condition``, ``near_singular`` per angle; ``poses``
+    read through :attr:`bodies`; ``native`` the implementation's own result.
     """
 
     crank_angle_rad: np.ndarray
@@ -132,10 +112,8 @@ class AddedBody:
     """
     A body fixed to a moving body, drawn at true size: a counterweight disc, a balancing weight.
 
-    ``centre_m`` ``(x, y, z)`` in the carrying body's frame; a disc (cylinder) of
-    ``radius_m`` and ``thickness_m`` whose axis is the body frame's z (a sphere when the
-    thickness is its diameter); ``mass_kg`` its mass.  On a planar rig the z of ``centre_m``
-    is the disc's plane: its mid-plane's offset along the normal from its link's plane.
+    ``centre_m`` in the carrying body's frame; a disc of ``radius_m`` and ``thickness_m``
+    about the body's z (a sphere when the thickness is its diameter).
     """
 
     name: str
@@ -169,11 +147,9 @@ class Drawing:
     """
     What a rig looks like, in body frames: the static part of every picture of it.
 
-    ``dimension`` is 2 (planar: z = 0) or 3; ``frame`` the fixed points ``{name: (x, y, z)}``;
-    ``bodies`` the moving bodies in the order of :class:`BodyPoses`'s names after ``frame``;
-    ``joints`` ``(name, body, point)`` for the joint markers; ``axes`` ``(name, point (3,),
-    direction (3,))`` of the joint axes fixed in the frame (3-D rigs: the revolute axes;
-    planar rigs: the guides of prismatic joints on the frame).
+    ``dimension`` 2 or 3; ``frame`` the fixed points; ``bodies`` in :class:`BodyPoses` order;
+    ``joints`` ``(name, body, point)``; ``axes`` ``(name, point, direction)`` of the joint
+    axes (planar: the prismatic guides) fixed in the frame.
     """
 
     dimension: int
@@ -185,18 +161,12 @@ class Drawing:
 
 class Rig(Protocol):
     """
-    The protocol every rig implements (see the module docstring).
+    The protocol every rig implements.
 
-    ``scene`` is the validated scene, ``name`` its name; ``joint_names`` and ``crank_joint``
-    name the published joints, ``joint_prismatic`` says which of them slide (m; the others
-    turn, rad); ``moment_point`` says in words where the shaking moment is reduced and
-    ``moment_point_m`` is that point ``(x, y, z)`` in the frame, m; ``capabilities`` what the
-    rig can compute or be balanced by; ``outputs`` what its scene asks for; ``drawing`` its
-    :class:`Drawing`.  ``driving_series`` names the series of :attr:`RigData.series` that
-    holds the driving effort when it is asked for (output ``driving_torque``):
-    ``'driving_torque'`` (N m about a revolute input's axis) or ``'driving_force'`` (N along
-    a prismatic input's axis); its label and dimension are in
-    :data:`mech_balance.schema.scene.SERIES`.
+    ``joint_prismatic`` says which ``joint_names`` slide (m; the others turn, rad);
+    ``moment_point`` says in words where the shaking moment is reduced, ``moment_point_m`` is
+    that point in the frame, m; ``driving_series`` names the series holding the driving
+    effort: ``'driving_torque'`` (N m, revolute input) or ``'driving_force'`` (N, prismatic).
     """
 
     scene: object
@@ -219,17 +189,14 @@ class Rig(Protocol):
 
 
 def rig_for(scene, cache=True):
-    """
-    Return the :class:`Rig` of a validated scene of any registered kind.
-
-    With ``cache`` (the default) a rig reuses what an earlier rig of the same geometry built
-    (the planar linkage and its branch trace); without, it builds everything anew.
-    """
+    """Return the :class:`Rig` of a validated scene of any kind (``cache``: shared geometry)."""
     return registry.kind_of(scene).rig_factory()(scene, cache=cache)
 
 
-def batch(psi, speed, accel):
-    """Return ``psi``, ``speed`` and ``accel`` as checked ``(n,)`` float arrays."""
+def batch(scene, psi, speed, accel):
+    """Return ``psi``, ``speed`` and ``accel`` as checked ``(n,)`` arrays (None: the scene's)."""
+    speed = scene.crank_speed_rad_s if speed is None else speed
+    accel = scene.crank_acceleration_rad_s2 if accel is None else accel
     psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
     if psi.size == 0 or not np.all(np.isfinite(psi)):
         raise ValueError(f'crank_angle_rad: got {psi!r}, expected finite angles (rad)')
@@ -253,12 +220,7 @@ def as_rig(rig_or_scene):
 
 
 def require(rig_or_scene, capability, verb):
-    """
-    Raise :class:`CapabilityError` unless the rig (or a scene's kind) has ``capability``.
-
-    The message is one line naming the verb, the capability, the scene and its kind, and the
-    kinds that have it; verbs call this before doing any work.
-    """
+    """Raise :class:`CapabilityError` unless the rig (or a scene's kind) has ``capability``."""
     kind = registry.kind_of(rig_or_scene)
     caps = getattr(rig_or_scene, 'capabilities', None)
     if caps is None:

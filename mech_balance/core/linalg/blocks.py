@@ -23,13 +23,9 @@ class BlockPlan:
     """
     A block lower triangular pattern with 2 x 2 diagonal blocks (a linkage of RRR dyads).
 
-    ``rows``, ``cols`` (original indices) list the structural nonzeros in the order a
-    matrix's values come in (as :meth:`LUPlan.set_entries`); ``blocks`` the diagonal blocks
-    ``((row, row), (col, col))`` in dependency order: an entry outside the blocks must lie
-    in an earlier block's columns.  Each diagonal block is inverted in closed form, all blocks
-    at once (:class:`BlockFactored`), and the solves run block by block: no pivoting, no
-    fill-in, no LAPACK fallback (a singular block gives ``inf`` in the condition number).
-    Raises ``ValueError`` if the pattern is not of that form.
+    ``rows``, ``cols`` list the structural nonzeros in the order a matrix's values come in;
+    ``blocks`` the diagonal blocks ``((row, row), (col, col))`` in dependency order.  Raises
+    ``ValueError`` if the pattern is not of that form.
     """
 
     def __init__(self, k, rows, cols, blocks):
@@ -66,9 +62,6 @@ class BlockPlan:
         self.entries = (rows, cols)
         # Z = J^-1 with its columns in block row order: block i's rows of Z are nonzero only
         # in the columns of block i and the blocks it depends on (all before it)
-        pos_row = {r: p for p, r in enumerate(self.row_order)}
-        self.block_of_col = where_col
-        self.pos_row = pos_row
         reach = []
         for i in range(nb):
             lo = 2 * i
@@ -128,8 +121,6 @@ class BlockPlan:
                            for i in range(nb - 1, -1, -1) for q, c in self.block_pairs[i]]
         self.rows01 = np.array([[rs[0] for rs, _ in self.blocks],
                                 [rs[1] for rs, _ in self.blocks]], dtype=int)
-        self.cols01 = np.array([[cs[0] for _, cs in self.blocks],
-                                [cs[1] for _, cs in self.blocks]], dtype=int)
         if self.single:
             # inv holds D^-1 = [[0, 1], [2, 3]] in block order (col j, row a); J^-1[c, r] of
             # the original order is D^-1[position of c, position of r]
@@ -149,15 +140,7 @@ def _pair(i, j):
 
 
 class BlockFactored:
-    """
-    The closed-form block factorization of a :class:`BlockPlan` matrix given by its values.
-
-    ``J = D (I + N)``: D the diagonal blocks (inverted in closed form, all at once), N the
-    weights ``D_i^-1 J_ic`` of each earlier column c in block i's unknowns (a 2-vector per
-    angle and pair, all pairs at once).  The same interface as :class:`Factored`:
-    :meth:`solve`, :meth:`solve_t`, :meth:`cond` (exact 1-norm), :meth:`sign`,
-    :meth:`inverse`, :attr:`mat`.
-    """
+    """The closed-form ``J = D (I + N)`` of a :class:`BlockPlan` matrix (as :class:`Factored`)."""
 
     def __init__(self, plan, values):
         self.plan, self.values = plan, values
@@ -279,14 +262,7 @@ class BlockFactored:
         return self._pair_weights
 
     def _inverse_blocks(self, colsum=None):
-        """
-        Return ``Z = J^-1`` ``(k, k, p)``, columns in block row order (ranges only).
-
-        Block i's rows: ``Z_i = D_i^-1 E_i - sum_c (D_i^-1 J_ic) Z_c`` over the earlier
-        columns c its rows reach, each ``D_i^-1 J_ic`` a 2-vector per angle.  With
-        ``colsum`` ``(k, p)`` (zeros) the column sums of ``|Z|`` are added row by row and
-        the entries outside the ranges are left unset.
-        """
+        """Return ``Z = J^-1`` in block row order (``colsum``: add the column sums of ``|Z|``)."""
         k, p = self.k, self.p
         z = np.empty((k, k, p)) if colsum is not None else np.zeros((k, k, p))
         tmp = np.empty((k, p))
@@ -322,13 +298,7 @@ class BlockFactored:
 
     @staticmethod
     def _single_cond(entries, adet, checked=False):
-        """
-        Return the 1-norm condition numbers of one 2 x 2 block (under the caller's errstate).
-
-        ``entries`` ``(4, p)``: a, b, c, d; ``adet`` ``|det|``; the 1-norm of the inverse is
-        that of the adjugate over ``|det|``.  ``checked``: every ``|det|`` is at least
-        :data:`_TINY_DET` (so no 0/0 to look for).
-        """
+        """Return the 1-norm condition numbers of one 2 x 2 block (caller's errstate)."""
         m = np.abs(entries)
         sums = np.empty((2, 2, m.shape[1]))   # (column sums, row sums): one maximum
         np.add(m[:2], m[2:], out=sums[0])   # |a| + |c|, |b| + |d|: the column sums
@@ -360,15 +330,7 @@ class BlockFactored:
         return self._cond
 
     def _norm_inv_tree(self):
-        """
-        Return ``||J^-1||_1`` ``(p,)`` when every block reads one earlier unknown only.
-
-        Then block i's rows of ``Z = J^-1`` are ``-w_i`` times the row of the unknown c it
-        reads, so ``|Z|`` below a block's own rows is that row's ``|Z|`` times products of
-        ``|w|``: the column sums are the own entries ``|D_b^-1|`` times ``1 + U``, with U
-        summed once from the last block back (``U_r`` of an unknown r: the sum over the blocks
-        reading r of ``|w_0| + |w_1| + |w_0| U_c0 + |w_1| U_c1``).  Exact, and linear in k.
-        """
+        """Return ``||J^-1||_1`` ``(p,)`` in linear time: each block reads one earlier unknown."""
         plan = self.plan
         nb = len(plan.blocks)
         ub = np.ones((nb, 2, self.p))                     # 1 + U per unknown, block order

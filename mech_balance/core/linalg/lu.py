@@ -1,22 +1,10 @@
 """
-Batched solves and inverses of many small matrices, batch on the last axis.
+Batched solves and inverses of many small matrices, batch on the last axis ``(k, k, p)``.
 
-``numpy.linalg`` on a stack of 2x2 matrices costs about half a microsecond per matrix
-(per-matrix LAPACK call overhead), which alone would exceed the per-angle budget of the
-cycle analysis.  Here a stack is stored batch-last, ``(k, k, p)``, so every elementary
-operation is one vectorized numpy call over all p angles:
-
-* k <= 2: closed form;
-* k > 2: an LU factorization with a *static* row order over a fixed sparsity pattern
-  (:class:`~mech_balance.core.linalg.ordering.LUPlan`): the loop Jacobian of a linkage has
-  the same zero pattern at every crank angle, so the elimination and its fill-in are worked
-  out once and each factorization or triangular solve is a short fixed sequence of
-  vectorized updates on the nonzeros only.  Its cost grows with the number of nonzeros, not
-  with k^3 as dense elimination does.  :func:`solve` (Newton steps) never forms an inverse;
-  :func:`inverse` (for the exact 1-norm condition number and the cut-joint multipliers)
-  builds it from the factors, touching only the column ranges of ``L^-1`` and ``U^-1 L^-1``
-  that can be nonzero.  Matrices whose static pivots turn out small are handed to LAPACK
-  (partial pivoting).
+k <= 2 in closed form; larger k by an LU factorization with a static row order over a fixed
+sparsity pattern (:class:`~mech_balance.core.linalg.ordering.LUPlan`, worked out once), each
+step one vectorized call over all p angles; matrices whose static pivots are small go to
+LAPACK.  Why and how: docs/core.md#the-planar-core-coreplanar ("Small linear systems").
 """
 
 from mech_balance.core.linalg.ordering import LUPlan
@@ -46,24 +34,14 @@ def matvec_t(mat, vec):
 
 
 def factor(mat, plan):
-    """
-    Return ``(lu, weak)``: the ``(nnz, p)`` LU nonzeros of a ``(k, k, p)`` stack and a mask.
-
-    ``weak`` ``(p,)`` marks the matrices whose static pivots are small (or zero): their
-    factors are not used (:func:`solve` and :func:`inverse` go to LAPACK for them).
-    """
+    """Return ``(lu, weak)``: the ``(nnz, p)`` LU nonzeros and the mask of weak pivots ``(p,)``."""
     lu = mat[plan.src_row, plan.src_col]           # (nnz, p), a copy
     col_max = np.max(np.abs(mat), axis=0)          # (k, p): largest entry of each column
     return lu, _eliminate(lu, plan, col_max.take(plan.pivot_col, axis=0))
 
 
 def _eliminate(lu, plan, col_max):
-    """
-    Eliminate in place on the nonzeros ``lu`` ``(nnz, p)``; return the weak mask ``(p,)``.
-
-    ``col_max`` ``(k, p)`` holds each pivot column's largest entry (in pivot order): a
-    matrix whose static pivot falls below :data:`STATIC_PIVOT_RATIO` of it is weak.
-    """
+    """Eliminate in place on ``lu`` ``(nnz, p)``; return the weak mask (pivot vs ``col_max``)."""
     p = lu.shape[1]
     weak = np.zeros(p, dtype=bool)
     with np.errstate(divide='ignore', invalid='ignore'):  # weak matrices are redone
@@ -137,13 +115,7 @@ def _substitute_t(lu, plan, y):
 
 
 def _inverse_z(lu, plan, p, colsum=None):
-    """
-    Return ``Z = U^-1 L^-1`` ``(k, k, p)`` from the factors, on nonzero ranges only.
-
-    With ``colsum`` ``(k, p)`` (zeros), also the column sums of ``|Z|`` (the 1-norm), each
-    row added as soon as it is final, on its nonzero range only; the entries of ``Z``
-    outside the ranges are then left unset (the returned array is scratch).
-    """
+    """Return ``Z = U^-1 L^-1`` on nonzero ranges (``colsum``: add the column sums of ``|Z|``)."""
     k = plan.k
     lo, hi = plan.z_lo, plan.z_hi
     if colsum is None:
@@ -178,11 +150,8 @@ class Factored:
     """
     One factorization of a batch-last stack ``(k, k, p)``, reused for every solve.
 
-    k <= 2 in closed form (the inverse itself); larger k by the static-order sparse LU of
-    ``plan`` (an :class:`LUPlan`, a static row order, or ``None`` for a dense plan), with
-    LAPACK for the matrices whose static pivots are weak.  :meth:`solve` and
-    :meth:`solve_t` never form the inverse; :meth:`inverse` (for the exact 1-norm condition
-    number) builds it once.  Singular matrices give ``nan``/``inf`` entries.
+    ``plan``: an :class:`LUPlan`, a static row order, or ``None`` (dense); ``values``: the
+    nonzeros of :meth:`LUPlan.set_entries` instead of ``mat``.  Singular: ``nan``/``inf``.
     """
 
     def __init__(self, mat, plan=None, values=None):
@@ -315,13 +284,7 @@ class Factored:
 
 
 def solve(mat, rhs, plan=None):
-    """
-    Return ``x`` with ``mat x = rhs`` for a stack ``(k, k, p)`` and ``rhs`` ``(k, p)``.
-
-    Closed form for k <= 2, else the static-pivot LU of ``plan`` (a dense plan in natural
-    row order if ``None``), with LAPACK for the matrices whose static pivots are weak.
-    Singular matrices give ``nan``/``inf`` entries.
-    """
+    """Return ``x`` with ``mat x = rhs`` for a stack ``(k, k, p)`` (closed form for k <= 2)."""
     mat = np.asarray(mat, dtype=float)
     rhs = np.asarray(rhs, dtype=float)
     k = mat.shape[0]
@@ -343,15 +306,7 @@ def solve(mat, rhs, plan=None):
 
 
 def inverse(mat, plan=None, with_sign=False):
-    """
-    Return the inverses of a batch-last stack ``(k, k, p)`` and the 1-norm condition numbers.
-
-    Returns ``(inv, cond)`` with ``inv`` of shape ``(k, k, p)`` and ``cond`` of shape ``(p,)``
-    (``inf`` where a matrix is singular; its ``inv`` entries are then ``nan``).  ``plan`` is
-    an :class:`LUPlan` (or a static row order) for k > 2; matrices whose static pivots are
-    small are inverted again with LAPACK's partial pivoting.  With ``with_sign`` the signs
-    of the determinants come third, from the same factorization (see :func:`det_sign`).
-    """
+    """Return ``(inv (k, k, p), cond (p,)[, det signs])`` (cond ``inf`` where singular)."""
     fac = Factored(mat, plan)
     inv, cond = fac.inverse()
     return (inv, cond, fac.sign()) if with_sign else (inv, cond)
@@ -361,12 +316,7 @@ _DENSE_PLANS = {}
 
 
 def det_sign(mat, plan=None):
-    """
-    Return the sign of the determinant of each matrix of a batch-last ``(k, k, p)`` stack.
-
-    k <= 2 in closed form; otherwise from the static-order LU (the permutations' sign times
-    the signs of U's diagonal), with LAPACK for the matrices whose static pivots are small.
-    """
+    """Return the sign of the determinant of each matrix of a batch-last ``(k, k, p)`` stack."""
     mat = np.asarray(mat, dtype=float)
     k, _, p = mat.shape
     if k == 0:

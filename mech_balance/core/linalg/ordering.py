@@ -1,29 +1,16 @@
 """
 The static plans of the batched LU: a row and column order worked out once per pattern.
 
-Order (:func:`block_triangular_order`)
-    Rows and columns are permuted to the block lower triangular form of the pattern
-    (Dulmage-Mendelsohn: a perfect matching of rows to columns, then the strongly connected
-    components of the matched dependency graph in dependency order), and the static pivots
-    are chosen inside each diagonal block only (:func:`pivot_order` on one representative
-    matrix).  For a linkage the diagonal blocks are its Assur groups (a chain of four-bars:
-    one 2 x 2 block per loop), so the factors have no fill outside the blocks and the
-    numeric work grows linearly with the number of loops instead of with the fill-in of one
-    global pivot order (quadratic for a chain).  :class:`LUPlan` is the symbolic
-    factorization of a pattern in that order.
+:func:`block_triangular_order` permutes a pattern to block lower triangular form
+(Dulmage-Mendelsohn; for a linkage the blocks are its Assur groups, so no fill between them)
+with pivots inside the blocks; :class:`LUPlan` is the symbolic factorization in that order.
 """
 
 import numpy as np
 
 
 def pivot_order(mat):
-    """
-    Return a row order for elimination without row swaps, from one ``(k, k)`` matrix.
-
-    Partial pivoting on a representative matrix (e.g. the loop Jacobian at the assembly
-    position); the same sparsity pattern makes the order good over the whole cycle, and
-    the factorization falls back to LAPACK wherever it is not.
-    """
+    """Return a row order for elimination without row swaps (partial pivoting on ``mat``)."""
     a = np.array(mat, dtype=float)
     k = a.shape[0]
     rows = list(range(k))
@@ -41,10 +28,8 @@ def block_triangular_order(pattern, mat):
     Return ``(row_order, col_order)``: a block lower triangular form with in-block pivots.
 
     ``pattern`` (bool ``(k, k)``) holds every entry that can be nonzero, ``mat`` is one
-    representative matrix (its magnitudes choose the matching and the pivots).  The matched
-    rows of the diagonal blocks come in dependency order (a block only needs the unknowns of
-    the blocks before it); inside a block the rows follow partial pivoting on ``mat``.
-    Returns ``None`` if the pattern has no perfect matching (structurally singular).
+    representative matrix (its magnitudes choose the matching and the pivots).  Returns
+    ``None`` if the pattern has no perfect matching (structurally singular).
     """
     pattern = np.asarray(pattern, dtype=bool)
     mat = np.asarray(mat, dtype=float)
@@ -127,12 +112,8 @@ class LUPlan:
     """
     The symbolic LU factorization of a ``(k, k)`` sparsity pattern in a static order.
 
-    ``pattern`` (bool ``(k, k)``, original order) must contain every entry that can be
-    nonzero; ``row_order`` is the static pivot order (:func:`pivot_order`) and ``col_order``
-    an optional column order (:func:`block_triangular_order` gives both): the factors are
-    those of ``mat[row_order][:, col_order]``.  They are stored as one ``(nnz, p)`` array
-    of the nonzeros of L (unit diagonal, not stored) and U, fill-in included; the index
-    lists below drive the numeric phase.
+    ``pattern`` (bool ``(k, k)``) holds every entry that can be nonzero; the factors of
+    ``mat[row_order][:, col_order]`` are one ``(nnz, p)`` array (L's unit diagonal not stored).
     """
 
     def __init__(self, pattern, row_order=None, col_order=None):
@@ -191,12 +172,7 @@ class LUPlan:
         self.entries = None
 
     def set_entries(self, rows, cols):
-        """
-        Fix the order in which :class:`Factored` gets the nonzeros of a matrix.
-
-        ``rows``, ``cols`` (original indices, every structural nonzero once): a matrix is
-        then passed as its ``(len(rows), p)`` values, never as a dense ``(k, k, p)`` stack.
-        """
+        """Fix the order ``rows``, ``cols`` in which :class:`Factored` gets a matrix's nonzeros."""
         rows, cols = np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)
         pr, pc = self._pivot_row[rows], self._pivot_pos[cols]
         slots = self._slot[pr, pc]
@@ -205,7 +181,6 @@ class LUPlan:
         self.entries = (rows, cols)
         self.entry_slot = slots
         by_col = np.argsort(pc, kind='stable')     # entries grouped by pivot column
-        self.entry_by_col = by_col
         counts = np.bincount(pc, minlength=self.k)
         if np.any(counts == 0):
             raise ValueError('rows, cols: a column has no entry (structurally singular)')
@@ -217,6 +192,12 @@ class LUPlan:
             own = by_col[self.entry_col_start[j]:self.entry_col_start[j] + counts[j]]
             pad[j, :own.size] = own
         self.entry_col_pad = pad
+
+
+def static_plan(pattern, sample):
+    """Return the :class:`LUPlan` in block triangular order (else pivoting on ``sample``)."""
+    order = block_triangular_order(pattern, sample)
+    return LUPlan(pattern, *(order or (pivot_order(sample), None)))
 
 
 def inversions(order):

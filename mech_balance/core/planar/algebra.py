@@ -38,16 +38,7 @@ TILE_LIMIT = 1 << 16
 
 
 class Tiles:
-    """
-    Constant columns ``(k, 1)`` materialized as ``(k, p)`` arrays for the last batch size.
-
-    A ufunc that broadcasts a column over a batch runs a strided inner loop, two to three
-    times slower than on two arrays of one shape (a complex column: the complex loop with a
-    stride of zero).  The columns of a compiled linkage or of an inertia are constants, so
-    their tiles are made once per batch size and reused (read-only) while it stays the same;
-    beyond :data:`TILE_LIMIT` elements the columns themselves are returned (memory stays
-    linear in the batch; the loop is long enough there for the difference not to matter).
-    """
+    """Constant columns ``(k, 1)`` tiled to ``(k, p)`` for the last batch size (faster ufuncs)."""
 
     def __init__(self, **columns):
         self.columns = {name: _frozen(np.array(col)) for name, col in columns.items()}

@@ -3,14 +3,8 @@ The drawn size of a planar rig's parts: bars, joint bosses, slider blocks and th
 
 One place for the sizes that the URDF (:mod:`mech_balance.ros.urdf`) draws and the clearance
 check (:mod:`mech_balance.analysis.clearance`) measures, as fractions of the linkage's length
-scale L (:attr:`~mech_balance.core.planar.kinematics.Linkage.length_scale`).
-
-Planes: the links of a planar rig move in parallel planes.  Body k of the linkage (the frame
-k = 0, then the moving links in :attr:`Linkage.body_names` order) lies in the plane
-``z = LAYER * L * k`` (:func:`plane_z_m`); its bars are ``BAR_THICKNESS * L`` thick and its
-joint bosses ``PIN_LENGTH * BAR_THICKNESS * L`` long, both centred on that plane.  A
-counterweight disc lies in its link's plane offset by its ``plane_m`` along z
-(:class:`mech_balance.schema.scene.Counterweight`), ``thickness_m`` thick.
+scale L.  Body k of the linkage lies in the plane ``z = LAYER * L * k`` (:func:`plane_z_m`); a
+counterweight disc in its link's plane offset by its ``plane_m``.
 """
 
 PIN_RADIUS = 0.08
@@ -28,11 +22,7 @@ BLOCK_SIZE = (0.8, 0.5)
 
 
 def bar_edges(points):
-    """
-    Return the bars of a link: a shortest spanning tree over its points (Prim).
-
-    ``points`` maps names to positions (complex, m); the answer is ``[(name_a, name_b), ...]``.
-    """
+    """Return the bars ``[(name_a, name_b), ...]`` of a link's points (complex, m): Prim's tree."""
     names = list(points)
     if len(names) < 2:
         return []

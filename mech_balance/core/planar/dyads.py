@@ -1,24 +1,10 @@
 """
 Closed-form positions of planar linkages that decompose into RRR dyads (Assur groups of class II).
 
-Worked out once per linkage (:func:`plan`, symbolic): the loops are taken in an order in which
-each one, given the tree joints already known, has exactly two unknown revolute tree joints
-and closes with a revolute cut joint.  The three free joints of such a loop are the corners of
-a triangle whose two outer corners P and Q lie on bodies already placed and whose middle
-corner X is found by intersecting two circles (radii fixed by the link geometry); the branch
-sign of each dyad (on which side of P Q the corner X lies) is the one of the traced branch and
-is checked to be the same at every node of the branch skeleton (a sign change would be a
-folded dyad, i.e. a singular position, which the trace refuses to cross).  Two cases:
-
-* the two unknown joints are the last tree joints above the cut's two bodies (the cut point is
-  X, each body turns about its own tree joint: a four-bar's coupler and rocker);
-* both are on one side, one above the other (X is the lower joint) and the cut's other body is
-  already placed.
-
-A chain of four-bars is a sequence of such dyads, so its positions cost a fixed number of
-vectorized operations per loop (no Newton iteration, no factorization).  Linkages with a
-prismatic joint, or loops that are not dyads in this sense, keep the Newton path of
-:mod:`mech_balance.core.planar.kinematics`.
+:func:`plan` orders the loops once (symbolic) so that each has two unknown revolute tree joints
+and a revolute cut; each dyad's middle corner X is a circle intersection, its branch sign
+checked at every node of the traced skeleton.  Other linkages keep the Newton path of
+:mod:`mech_balance.core.planar.kinematics`.  docs/core.md#the-planar-core-coreplanar.
 """
 
 import numpy as np
@@ -29,19 +15,16 @@ _TWO_PI, _INV_TWO_PI, _HALF = np.array(TWO_PI), np.array(1.0 / TWO_PI), np.array
 _TINY = 1e-150
 """Smallest squared distance P Q divided by without an errstate (its inverse stays finite)."""
 NODE_AGREEMENT = 1e-8
-"""Largest difference (rad) between the closed form and the traced nodes for the plan to be
-used: a plan that does not reproduce the skeleton is dropped (Newton stays)."""
+"""Largest difference (rad) of the closed form from the traced nodes for the plan to be used."""
 
 
 class Step:
     """
     One dyad: ``alpha`` turns about P and carries X, ``beta`` carries X and Q.
 
-    ``p_src``/``q_src`` are ``(body, local point)`` of P and Q on bodies already placed;
-    ``c_alpha``, ``c_beta`` the constants that turn ``X - P`` and ``X - Q`` into the
-    rotations of the two bodies; ``rel`` the rows ``(tree joint, child body, parent body)``
-    whose relative rotation gives the tree coordinate; ``x_src`` (body, local point) of X;
-    ``sign`` the branch (+1: X to the left of P -> Q), set from the skeleton.
+    ``p_src``/``q_src``/``x_src``: ``(body, local point)`` of P, Q, X; ``rel``: the rows
+    ``(tree joint, child body, parent body)`` of its tree coordinates; ``sign``: the branch
+    (+1: X to the left of P -> Q), set from the skeleton.
     """
 
     def __init__(self, cut, joints, ends, bodies, local, beta_at_x, rel, x_src):
@@ -104,11 +87,8 @@ class DyadPlan:
         """
         Return ``(q, rot, origin, joint_at)``: tree coordinates ``(nt, p)`` and the poses.
 
-        ``ref`` ``(nt - 1, p)``, the tree coordinates but the crank's within less than pi
-        (the skeleton's line, table or predictor), only fixes the whole turns of each revolute
-        coordinate; ``signs`` (one per dyad) defaults to the traced branch's.  Where two
-        circles do not meet the results are ``nan``.  ``rot`` and ``origin`` ``(nb, p)`` are
-        the bodies' rotations and origins, ``joint_at`` ``(nt, p)`` the tree joints.
+        ``ref`` ``(nt - 1, p)`` (within pi of the result) only fixes the whole turns; ``signs``
+        default to the traced branch's.  Where two circles do not meet the results are ``nan``.
         """
         # one or two dyads: the circle intersections checked instead of an errstate (a third
         # of their cost), redone under one where two circles fail to meet or a dyad folds
@@ -143,16 +123,7 @@ class DyadPlan:
         return q, rot, origin, joint_at
 
     def _place(self, psi, signs, checked):
-        """
-        Return ``(rot, anchor, rel)`` of :meth:`solve`, or ``None`` where a check fails.
-
-        ``rel`` ``(nt - 1, p)`` the relative rotations of the tree joints but the crank's in
-        tree order (one dyad), else ``None`` (:meth:`solve` takes differences of angles).
-
-        With ``checked``, ``None`` as soon as a division by zero or the square root of a
-        negative number lies ahead: the caller then places again under an errstate, where
-        those give ``nan`` (circles that do not meet).
-        """
+        """Return ``(rot, anchor, rel)`` of :meth:`solve` (``checked``: ``None`` before a nan)."""
         p = psi.shape[0]
         rot = np.empty((self.nb, p), dtype=complex)
         anchor = np.empty((self.nb, p), dtype=complex)   # each body's parent tree joint
@@ -168,18 +139,7 @@ class DyadPlan:
         tmp = np.empty(p)
         for k, s in enumerate(self.steps):
             sign = s.sign if signs is None else signs[k]
-            body, at = s.p_at
-            if body:                                   # (else a world point on the frame)
-                big_p = np.multiply(rot[body], at)
-                big_p += anchor[body]
-            else:
-                big_p = at
-            body, at = s.q_at
-            if body:
-                big_q = np.multiply(rot[body], at)
-                big_q += anchor[body]
-            else:
-                big_q = at
+            big_p, big_q = _placed(rot, anchor, s.p_at), _placed(rot, anchor, s.q_at)
             d = big_q - big_p
             inv = np.multiply(d.real, d.real, out=tmp)
             inv += d.imag * d.imag
@@ -226,12 +186,18 @@ class DyadPlan:
         return np.array(out)
 
 
-def plan(linkage):
-    """
-    Return the :class:`DyadPlan` of a linkage, or ``None`` if it does not decompose.
+def _placed(rot, anchor, point):
+    """Return the world position of ``(body, offset from its anchor)`` (body 0: world)."""
+    body, at = point
+    if not body:
+        return at
+    x = np.multiply(rot[body], at)
+    x += anchor[body]
+    return x
 
-    All-revolute linkages only; the signs are not set here (:func:`attach_signs`).
-    """
+
+def plan(linkage):
+    """Return the :class:`DyadPlan` of an all-revolute linkage (signs unset), or ``None``."""
     lk = linkage
     if lk.has_pri or lk.npc or not lk.nu:
         return None

@@ -1,23 +1,14 @@
 """
 Inverse dynamics of a planar linkage: driving torque, bearing reactions, shaking wrench.
 
-Per link, Newton-Euler about the link origin O_i (seed 001 eqs. 23-26): with the twist
-t_i = (omega_i, v_i) of O_i, the first moment h_i = m_i c_i and the inertia I_i about O_i,
+Per link, Newton-Euler about the link origin (seed 001 eqs. 23-26, complex numbers):
 
     f*_i = m_i a_i + (i alpha_i - omega_i^2) R_i h_i            (= m_i * a_ci)
     n*_i = I_i alpha_i + cross(R_i h_i, a_i)                    (about O_i)
 
-which is ``M_i tdot_i + C_i t_i`` of seed 001 eq. 25 written with complex numbers.
-
-* Driving torque: the natural orthogonal complement projects the uncoupled equations onto
-  the crank (seed 000 eq. 37, seed 001 eq. 32): tau = u^T (w* - w^E), u = t / psi_dot.
-* Bearing reactions: the tree's generalized forces Q = N^T (w* - w^E) give the cut-joint
-  multipliers lambda = J_u^-T Q_u and tau = Q_psi - J_psi^T lambda (seed 001 eqs. 33-38);
-  the tree-joint reactions follow recursively from the leaves to the frame.
-* Shaking wrench: seed 001 eq. 39 (sign and frame: :mod:`mech_balance.conventions`).
-
-All quantities are linear in the inertial parameters (m_i, h_i, I_i) for a given motion;
-:func:`parameter_vector` and :func:`inertia_from_vector` expose those parameters.
+The driving torque by the natural orthogonal complement (seed 000 eq. 37), the cut-joint
+multipliers ``lambda = J_u^-T Q_u`` and the reactions from the leaves to the frame (seed 001
+eqs. 32-38), the shaking wrench by seed 001 eq. 39 (:mod:`mech_balance.conventions`).
 """
 
 from dataclasses import dataclass
@@ -50,12 +41,7 @@ class Inertia:
         object.__setattr__(self, name, value)   # tiles below stay those of the fields
 
     def tiles(self, p):
-        """
-        Return the columns ``h``, ``m``, ``I_O`` as ``(nb, p)`` arrays (:class:`Tiles`).
-
-        ``h`` and ``m`` complex (their products with complex stacks then run the plain complex
-        loop), ``I_O`` real; made again when a field is replaced.
-        """
+        """Return the columns ``h``, ``m`` (complex) and ``I_O`` as ``(nb, p)`` :class:`Tiles`."""
         m, h, i_o = self.mass, self.first_moment, self.inertia_origin
         cached = self.__dict__.get('_tiles')
         if cached is None or not (cached[0] is m and cached[1] is h and cached[2] is i_o):
@@ -104,12 +90,7 @@ class Wrenches:
 
 
 def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench',)):
-    """
-    Return the :class:`Wrenches` of a solved :class:`KinematicState`.
-
-    ``need`` is a set from ``shaking_wrench``, ``driving_torque``, ``bearing_reactions``;
-    only what it asks for (and what that depends on) is computed.
-    """
+    """Return the :class:`Wrenches` of a solved state (only what ``need`` asks for)."""
     pose = state.pose
     omega, alpha, acc = state.omega, state.alpha, state.acc
     tiles = inertia.tiles(omega.shape[1])
@@ -152,11 +133,7 @@ def inverse_dynamics(linkage, state, inertia, gravity=0j, need=('shaking_wrench'
 
 
 def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
-    """
-    Fill in the driving torque, cut multipliers and every joint reaction (seed 001 eqs. 32-38).
-
-    ``m_net`` are the inertia moments of the bodies about the crank pivot.
-    """
+    """Fill in the driving torque, multipliers and joint reactions (seed 001 eqs. 32-38)."""
     pose = state.pose
     pivot = linkage.pivot
     f_net = out.f_star
@@ -246,11 +223,7 @@ def _reactions(linkage, state, inertia, world_h, arm, gravity, out, m_net):
 
 
 def gravity_power(state, inertia, gravity):
-    """
-    Return the power of the links' weights, ``(p,)`` W (per unit crank speed: tau_G).
-
-    sum_i m_i g . v_ci, with v_ci = v_i + omega_i x R_i h_i / m_i (seed 000 eq. 43).
-    """
+    """Return the power of the links' weights ``(p,)``, W (seed 000 eq. 43)."""
     world_h = state.pose.rot * inertia.first_moment[:, None]
     return np.sum(inertia.mass[:, None] * _dot(state.vel, gravity)
                   + state.omega * _cross(world_h, gravity), axis=0)

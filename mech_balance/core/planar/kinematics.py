@@ -1,29 +1,12 @@
 """
 Position, velocity and acceleration analysis of a single-input planar linkage.
 
-Formulation (seed 001 sec. 3.2, seed 000 eqs. 17-36)
-    The joint graph is opened into a spanning tree rooted at the frame (the crank joint
-    first); the remaining joints are *cut joints*.  The tree's relative joint coordinates q
-    (revolute: relative angle; prismatic: slide) are the unknowns, the crank's coordinate is
-    the input psi, and each cut joint contributes two loop-closure equations g(q) = 0
-    (revolute: the two joint points coincide; prismatic: the relative angle is fixed and the
-    point lies on the guide).  Gruebler's count makes this system square.
-
-Numbers
-    Planar vectors are complex numbers: x + i*y.  The seeds' 90-degree rotation operator E
-    is multiplication by 1j, ``a^T E b = -cross(a, b)`` and a rotation by phi is
-    ``exp(1j*phi)``.  Arrays are batch-last: one row per body or joint, one column per crank
-    angle.  The Newton system is scaled by a characteristic length L (the crank length) so
-    residuals, condition numbers and tolerances are dimensionless and scale-free.
-
-Branches
-    The assembly mode chosen in the scene (approximate link angles at one crank angle) is
-    followed by adaptive continuation around one full turn (the *branch skeleton*: nodes with
-    q, dq/dpsi and d2q/dpsi2).  Any set of crank angles is then solved by Newton from a
-    quintic Hermite predictor on that skeleton.  A step whose Newton correction leaves the
-    trust region, a Jacobian whose determinant changes sign between nodes (a singular
-    position was crossed), or a condition number above ``COND_LIMIT`` raises
-    :class:`BranchError` naming the crank angle; above ``COND_WARN`` a warning is recorded.
+The joint graph is opened into a spanning tree from the frame (crank first); each cut joint
+adds two loop-closure equations g(q) = 0 in the tree's relative coordinates (seed 001 sec. 3.2,
+seed 000 eqs. 17-36).  Planar vectors are complex numbers, arrays batch-last (one column per
+crank angle), the Newton system scaled by the crank length.  The scene's assembly mode is
+traced once round a turn (the branch skeleton); any angles are then solved from its predictor,
+and leaving the branch raises :class:`BranchError`.  docs/core.md#the-planar-core-coreplanar.
 """
 
 from dataclasses import dataclass
@@ -49,12 +32,10 @@ NEWTON_MAX_ITER = 8
 ASSEMBLY_MAX_ITER = 60
 """Damped Newton iterations allowed to assemble the linkage from the scene's guess."""
 PRINTED_RTOL = 5e-7
-"""Relative resolution of the printed figures: ``analyze`` prints 6 significant digits, and
-half a unit of the 6th digit is 5e-7 of a figure that starts with 9 (5e-6 of one with 1)."""
+"""Relative resolution of the printed figures (half a unit of ``analyze``'s 6th digit)."""
 COND_WARN = math.sqrt(PRINTED_RTOL / (2.0 * NEWTON_TOL))
-"""Scaled Jacobian condition number (1-norm) above which the position is reported
-near-singular: where the error bound of the rates, ``2 kappa^2 NEWTON_TOL``, reaches the
-printed resolution (~1581; derivation in docs/core.md, "The near-singular threshold")."""
+"""Scaled Jacobian condition number (1-norm, ~1581) above which a position is near-singular
+(docs/core.md#the-near-singular-threshold)."""
 COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which the position is refused as singular."""
 STEP_MAX_RAD = math.radians(5.0)
@@ -72,12 +53,10 @@ STEP_TRUST = 0.05
 EVAL_TRUST = 1e-4
 """Largest scaled correction from the skeleton predictor before an angle is re-traced."""
 CHORD_TRUST = 1.0
-"""Largest distance (rad) of the skeleton's straight line or turn table from its predictor
-for the dyads' closed form to take the whole turns from it (an error below pi is what that
-needs)."""
+"""Largest distance (rad) of the skeleton's line or turn table from its predictor for the
+dyads' closed form to take the whole turns from it (below pi is what that needs)."""
 MIDPOINT_TRUST_FRACTION = 0.1
-"""A traced segment is accepted when Newton moves its midpoint predictor by less than this
-fraction of ``EVAL_TRUST``, so that batched solves seldom need the step-by-step re-trace."""
+"""Fraction of ``EVAL_TRUST`` that Newton may move a traced segment's midpoint predictor."""
 TWO_PI = 2.0 * math.pi
 TRACE_LIMITS = continuation.Limits(
     step_max=STEP_MAX_RAD, step_min=STEP_MIN_RAD, step_done=ANGLE_EPS_RAD,
@@ -195,16 +174,13 @@ class Linkage(SpanningTree, RateAnalysis):
         self.anc = [set() for _ in range(self.nb)]
         for t, tj in enumerate(self.tree):
             self.anc[tj.child] = self.anc[tj.parent] | {t}
-        self.descendants = [[b for b in range(self.nb) if t in self.anc[b]]
-                            for t in range(self.nt)]
         self.is_prismatic = np.array([tj.prismatic for tj in self.tree])
         self.length_scale = self._length_scale(scene, pts)
         self._compile()
         self.pivot = self._crank_pivot(scene)
         self.branch_sign = 1.0  # sign of det J_u on the traced branch (set by the trace)
         self.sparse_jac = False  # J_u as its nonzeros only (all-revolute, nu > 2)
-        self.pivots = None  # static row order for the loop Jacobian, set at assembly
-        self.lu = None      # its sparse LU plan (linalg.LUPlan), set at assembly
+        self.lu = None      # the loop Jacobian's sparse LU plan (linalg.LUPlan), at assembly
         self._skeleton = None
         self.dyads = None   # closed-form dyad plan (dyads.DyadPlan), set with the skeleton
         self.block = None   # its J_u as 2 x 2 diagonal blocks (linalg.BlockPlan), likewise
@@ -236,7 +212,7 @@ class Linkage(SpanningTree, RateAnalysis):
 
     # ------------------------------------------------------------------ position level
 
-    def pose(self, q, rot_crank=None):
+    def pose(self, q):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
         phi = np.dot(self.anc_rev, q) if self.dense_tree else self._down_rev(q)
         if self.has_pri:
@@ -298,11 +274,7 @@ class Linkage(SpanningTree, RateAnalysis):
         return out
 
     def jacobian(self, pose, unknown_only=False):
-        """
-        Return the scaled loop Jacobian dg/dq over all tree coordinates, ``(m, nt, p)``.
-
-        With ``unknown_only`` only the columns of the unknown coordinates, ``(m, nu, p)``.
-        """
+        """Return the scaled loop Jacobian ``(m, nt, p)`` (``unknown_only``: ``(m, nu, p)``)."""
         if not self.m:
             return np.zeros((0, self.nu if unknown_only else self.nt, pose.phi.shape[1]))
         pa, pb = self.cut_points(pose)
@@ -347,13 +319,7 @@ class Linkage(SpanningTree, RateAnalysis):
         return np.concatenate(rows) * self.row_scale[:, None, None]
 
     def jacobian_values(self, pose):
-        """
-        Return ``(values, jac_psi)``: the nonzeros of J_u and the crank column ``(m, p)``.
-
-        All-revolute loops only (:attr:`sparse_jac`): ``values`` in the order of the LU
-        plan's entries (the x rows, then the y rows, of :attr:`jac_nz_split`), so no dense
-        ``(m, nu, p)`` stack is ever formed.
-        """
+        """Return the nonzeros of J_u (LU entry order) and the crank column ``(m, p)``."""
         self.cut_points(pose)
         _, _, i1, i2, n, crank_rows = self.jac_nz_split
         points = pose.cut_points[5]   # (pa, pb, joint_at)
@@ -387,12 +353,7 @@ class Linkage(SpanningTree, RateAnalysis):
     # ------------------------------------------------------------------ Newton
 
     def newton(self, psi, q, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
-        """
-        Solve g(q) = 0 for the unknown tree coordinates at crank angles ``psi``.
-
-        ``q`` ``(nt, p)`` is the starting guess (its crank row is overwritten by ``psi``).
-        Returns ``(q, pose, residual, iterations, converged)``; no branch checks here.
-        """
+        """Solve g(q) = 0 from ``q`` ``(nt, p)``: ``(q, pose, residual, iterations, ok)``."""
         q = np.array(q, dtype=float)
         q[0] = psi
         iters = np.zeros(q.shape[1], dtype=int)
@@ -419,13 +380,8 @@ class Linkage(SpanningTree, RateAnalysis):
         """
         Return :meth:`newton`'s ``(q, pose, residual, iterations, converged)`` and ``q_pred``.
 
-        The positions of a linkage that decomposes into RRR dyads (:mod:`dyads`) by circle
-        intersections on the traced branch, each revolute coordinate's whole turns from the
-        skeleton's straight line (:meth:`Skeleton.affine_reference`) or table
-        (:meth:`Skeleton.turn_reference`), whichever stays within :data:`CHORD_TRUST` of its
-        predictor (else the predictor itself); the residual is that of the result.
-        Where it is above ``tol`` (or a circle pair does not meet), Newton takes over from
-        the predictor, returned as ``q_pred`` (``None`` where it was not needed).
+        The positions of a linkage of RRR dyads (:mod:`dyads`) by circle intersections; where
+        the residual stays above ``tol``, Newton from the predictor ``q_pred`` (else None).
         """
         sk = self.skeleton
         q_pred = None
@@ -451,12 +407,7 @@ class Linkage(SpanningTree, RateAnalysis):
         return q, pose, res, np.zeros(psi.shape[0], dtype=int), ok, q_pred
 
     def assemble(self):
-        """
-        Return the tree coordinates at the scene's assembly angle, from its guess.
-
-        Damped Newton from the scene's approximate link angles (the assembly mode).
-        Raises :class:`BranchError` when the linkage does not close.
-        """
+        """Return the tree coordinates at the assembly angle (damped Newton from the guess)."""
         scene = self.scene
         psi0 = scene.assembly_crank_angle_rad
         angles = {0: 0.0, self.tree[0].child: psi0}
@@ -487,13 +438,7 @@ class Linkage(SpanningTree, RateAnalysis):
             # the static order of the loop Jacobian: block triangular (the Assur groups in
             # dependency order), pivots inside the blocks from the assembly guess
             sample = self.jacobian(self.pose(q))[:, self.unknown, 0]
-            pattern = self._jacobian_pattern()
-            order = linalg.block_triangular_order(pattern, sample)
-            if order is None:
-                self.pivots, cols = linalg.pivot_order(sample), None
-            else:
-                self.pivots, cols = order
-            self.lu = linalg.LUPlan(pattern, self.pivots, cols)
+            self.lu = linalg.static_plan(self._jacobian_pattern(), sample)
             self.sparse_jac = not self.has_pri and not self.npc
             if self.sparse_jac:
                 c, t = self.jac_nz_split[0], self.jac_nz_split[1]
@@ -595,11 +540,7 @@ class Linkage(SpanningTree, RateAnalysis):
     # ------------------------------------------------------------------ public evaluation
 
     def solve(self, psi, psi_d=None, psi_dd=None, need_rates=True, need_acc=True):
-        """
-        Return the :class:`KinematicState` at crank angles ``psi`` (rad, any shape -> (p,)).
-
-        ``psi_d`` and ``psi_dd`` default to the scene's crank speed and acceleration.
-        """
+        """Return the :class:`KinematicState` at crank angles ``psi`` (rad; rates: the scene's)."""
         if not (type(psi) is np.ndarray and psi.ndim == 1 and psi.dtype == np.float64):
             psi = np.atleast_1d(np.asarray(psi, dtype=float)).ravel()
         # (a dot product is finite only if every angle is: one cheap pass, exact check after)
@@ -741,10 +682,8 @@ class _PlanarBranch(continuation.Branch):
         """
         Return whether the quintic Hermite predictor holds at the middle of a new segment.
 
-        The batched solve starts Newton from that predictor, so a segment is accepted only
-        if, at its midpoint, Newton moves less than ``MIDPOINT_TRUST_FRACTION`` of
-        ``EVAL_TRUST`` and stays on the branch (same sign of det J_u).  Near a change point
-        this shortens the steps until the two nearby branches can no longer be confused.
+        Newton must move it less than ``MIDPOINT_TRUST_FRACTION * EVAL_TRUST`` and keep the
+        sign of det J_u, so near a change point the steps shorten.
         """
         lk = self.linkage
         if not self.midpoint_check or not lk.nu:

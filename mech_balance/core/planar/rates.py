@@ -20,13 +20,9 @@ class RateAnalysis:
         """
         Return joint and link rates at a solved pose (seed 000 eqs. 28-36).
 
-        ``psi_d``, ``psi_dd`` broadcast to ``(p,)``; ``jac`` is the scaled loop Jacobian at
-        ``pose`` if already known.  Returns a dict with ``qd``, ``omega``, ``vel``,
-        ``jac_factors`` (J_u factorized), ``cond``, ``jac`` (``None`` where J_u is kept
-        sparse), ``jac_psi`` and, if ``need_acc``, ``qdd``, ``alpha``, ``acc``.
-        Every link rate is the sum over the tree joints above it (vectorized with the
-        ancestry matrices): a revolute joint t turning at qd_t moves the point P at
-        ``i qd_t (P - J_t)``, a prismatic one at ``qd_t * axis_t``.
+        ``jac``: the scaled loop Jacobian at ``pose`` if already known.  Returns a dict with
+        ``qd``, ``omega``, ``vel``, ``jac_factors``, ``cond``, ``det_sign``, ``jac`` (None where
+        J_u is kept sparse), ``jac_psi`` and, if ``need_acc``, ``qdd``, ``alpha``, ``acc``.
         """
         p = pose.phi.shape[1]
         if not isinstance(psi_d, float) and np.ndim(psi_d):

@@ -1,20 +1,11 @@
 """
 The planar rig: a planar scene's compiled linkage and inertia behind the Rig protocol.
 
-:class:`PlanarRig` binds a scene's geometry (compiled once and its branch traced once, shared
-by every design of the same geometry through :func:`linkage_for`) to one design's inertia.
-:meth:`PlanarRig.evaluate` returns the core's own ``(state, wrenches)``;
-:meth:`PlanarRig.at` the protocol's :class:`~mech_balance.core.rig.RigData`.
-
-Joint values (ROS ``JointState`` convention: rad and rad/s for revolute joints, m and m/s
-for prismatic ones)
-    * the crank joint: the crank angle psi and speed psi_dot the core is evaluated at;
-    * any other revolute joint between links a and b: phi_b - phi_a, omega_b - omega_a;
-    * a prismatic joint: the slide of its point on link b from its point on link a along
-      the joint axis (fixed in link a), and its rate.
-    Effort (when the driving torque is asked for): the driving torque on the crank joint, the
-    core's reaction moment at a prismatic joint (on link b from link a), 0 at every other
-    joint (a frictionless revolute joint carries no moment about its axis).
+:class:`PlanarRig` binds a geometry (compiled and traced once, shared through
+:func:`linkage_for`) to one design's inertia.  Joint values (ROS ``JointState``: rad or m):
+the crank angle; ``phi_b - phi_a`` for another revolute joint; for a prismatic joint the slide
+of its point on b from its point on a along the axis fixed in a.  Effort: the driving torque
+on the crank, the reaction moment at a prismatic joint, 0 at the other joints.
 """
 
 from mech_balance.core import equimomental
@@ -54,12 +45,7 @@ def linkage_for(scene):
 
 
 def objective_units(scene):
-    """
-    Return the units of the objective: the scene's normalization, or its crank's.
-
-    Without a recorded normalization: the crank link's mass, the crank length (the
-    linkage's characteristic length) and the crank speed.
-    """
+    """Return the units of the objective: the scene's normalization, else its crank's."""
     if scene.normalization is not None:
         return scene.normalization
     rig_linkage = linkage_for(scene)
@@ -116,11 +102,7 @@ class PlanarRig:
         return PlanarRig(scene, self.linkage)
 
     def evaluate(self, psi, outputs=None, speed=None, accel=None):
-        """
-        Return the core's ``(state, wrenches)`` at crank angles ``psi`` (rad).
-
-        ``outputs`` defaults to the scene's; ``wrenches`` is ``None`` for kinematics only.
-        """
+        """Return the core's ``(state, wrenches or None)`` at crank angles ``psi`` (rad)."""
         need = needs(self.scene.outputs if outputs is None else outputs)
         # this rig's crank speed, not that of the scene the shared linkage was compiled from
         speed = self.scene.crank_speed_rad_s if speed is None else speed
@@ -142,9 +124,7 @@ class PlanarRig:
 
     def at(self, psi, speed=None, accel=None, outputs=None):
         """Return the :class:`RigData` at crank angles ``psi`` (module docstring: joints)."""
-        speed = self.scene.crank_speed_rad_s if speed is None else speed
-        accel = self.scene.crank_acceleration_rad_s2 if accel is None else accel
-        psi, speed, accel = batch(psi, speed, accel)
+        psi, speed, accel = batch(self.scene, psi, speed, accel)
         outputs = self.scene.outputs if outputs is None else tuple(outputs)
         want = set(outputs)
         # the reaction moments of prismatic joints come with the bearing reactions; those
@@ -170,13 +150,9 @@ class PlanarRig:
                 (d * np.conj(1j * state.omega[a[s]] * axis)).real
         position[self.crank_index] = psi
         velocity[self.crank_index] = state.psi_d
-        n = psi.size
         series, reactions, joint_effort, force, moment = {}, None, None, None, None
         if w is not None:
-            force = np.zeros((n, 3))
-            force[:, 0], force[:, 1] = w.shaking_force.real, w.shaking_force.imag
-            moment = np.zeros((n, 3))
-            moment[:, 2] = w.shaking_moment
+            force, moment = _frame_wrench(w.shaking_force, w.shaking_moment)
             if w.driving_torque is not None and effort:
                 series['driving_torque'] = w.driving_torque
                 joint_effort = np.zeros_like(position)
@@ -185,13 +161,8 @@ class PlanarRig:
                 joint_effort[self.crank_index] = w.driving_torque
                 joint_effort = joint_effort.T
             if w.reaction_force is not None and 'bearing_reactions' in want:
-                reactions = {}
-                for name, f in w.reaction_force.items():
-                    rf = np.zeros((n, 3))
-                    rf[:, 0], rf[:, 1] = f.real, f.imag
-                    rm = np.zeros((n, 3))
-                    rm[:, 2] = w.reaction_moment[name]
-                    reactions[name] = (rf, rm)
+                reactions = {name: _frame_wrench(f, w.reaction_moment[name])
+                             for name, f in w.reaction_force.items()}
         series.update(self.series(state, want))
         return RigData(
             psi, speed, accel, position.T, velocity.T, joint_effort, force, moment,
@@ -202,13 +173,7 @@ class PlanarRig:
 
     @property
     def drawing(self):
-        """
-        Return the rig's :class:`Drawing` (planar: every point at z = 0).
-
-        A link's frame has its plane at z = 0, so an added disc's centre z is its plane's
-        offset from its link's plane (``Counterweight.plane_m``); the planes of the links
-        themselves are :func:`mech_balance.core.planar.drawn.plane_z_m`.
-        """
+        """Return the rig's :class:`Drawing` (links at z = 0, a disc's z its ``plane_m``)."""
         if self._drawing is None:
             sc = self.scene
             bodies = tuple(
@@ -228,6 +193,13 @@ class PlanarRig:
         return self._drawing
 
 
+def _frame_wrench(force, moment):
+    """Return a planar force (complex) and moment ``(n,)`` as ``(n, 3)`` frame vectors."""
+    f, m = np.zeros((force.size, 3)), np.zeros((force.size, 3))
+    f[:, 0], f[:, 1], m[:, 2] = force.real, force.imag, moment
+    return f, m
+
+
 def _point_masses(link):
     """Return a link's three equimomental point masses (seed 001 eqs. 13-15) for drawing."""
     if not (link.mass_kg > 0.0 and link.inertia_origin_kg_m2 > 0.0):
@@ -238,13 +210,7 @@ def _point_masses(link):
 
 
 def kinetic_energy(state, inertia):
-    """
-    Return the kinetic energy of the moving links, ``(p,)`` J.
-
-    Per body with origin velocity v, angular velocity omega, world first moment R h and
-    inertia I_O about the origin: T = m |v|^2 / 2 + omega cross(R h, v) + I_O omega^2 / 2
-    (seed 000 eq. 38, T = t^T M t / 2, written about the link origin).
-    """
+    """Return the kinetic energy of the moving links ``(p,)``, J (seed 000 eq. 38)."""
     world_h = state.pose.rot * inertia.first_moment[:, None]
     v, omega = state.vel, state.omega
     t = 0.5 * inertia.mass[:, None] * (v.real ** 2 + v.imag ** 2)

@@ -46,12 +46,7 @@ class Skeleton:
     """Angles per turn of :meth:`turn_reference`'s table (the coordinates, nearest angle)."""
 
     def turn_table_error(self):
-        """
-        Return the largest distance of :meth:`turn_reference` from :meth:`predict`.
-
-        Sampled 16 times per table interval over the turn, plus the largest slope times a
-        sixteenth of the interval (what lies between the samples): rad for revolute rows.
-        """
+        """Return the largest distance (rad) of :meth:`turn_reference` from :meth:`predict`."""
         table = self._table()
         psi, q = self._dense_prediction()
         err = np.abs(self.turn_reference(psi) - q)
@@ -70,13 +65,8 @@ class Skeleton:
         """
         Return ``(slope, offset, error)``: the straight line in psi nearest each coordinate.
 
-        ``slope`` ``(nt - 1, 1)`` is each coordinate's whole turns per crank turn, ``offset``
-        ``(nt - 1, 1)`` centres what remains (periodic in psi) between its extremes, and
-        ``error`` is the largest distance of ``slope * psi + offset`` from :meth:`predict`
-        (sampled as in :meth:`turn_table_error`, plus the largest step between the
-        samples).  Where that is well below pi, the line alone tells the whole turns of a
-        coordinate known up to 2 pi (a rocker that swings, a coupler that turns with the
-        crank), at two operations per evaluation.
+        ``slope`` ``(nt - 1, 1)``: whole turns per crank turn; ``error``: the largest distance
+        of the line from :meth:`predict` (well below pi: the line tells the whole turns).
         """
         psi, q = self._dense_prediction()
         slope = (np.zeros((q.shape[0], 1)) if self.wrap_step_u is None
@@ -99,13 +89,7 @@ class Skeleton:
         return self._turn_table
 
     def turn_reference(self, psi):
-        """
-        Return ``(nt - 1, p)``: the tree coordinates but the crank's at the nearest table angle.
-
-        Within :meth:`turn_table_error` of :meth:`predict` at a fraction of its cost (no
-        search, no interpolation): enough to tell the whole turns of an angle known up to a
-        multiple of 2 pi (the dyads' closed form) when that error is well below pi.
-        """
+        """Return the coordinates but the crank's ``(nt - 1, p)`` at the nearest table angle."""
         table, n = self._table(), self.TURN_TABLE_SIZE
         u = np.subtract(psi, self.psi[0])
         u *= n / TWO_PI

@@ -14,9 +14,7 @@ from mech_balance.core.planar.algebra import rmat as _rmat, Tiles
 import numpy as np
 
 DENSE_TREE_MAX_BODIES = 8
-"""Up to this many bodies the sums over the spanning tree are one dense matrix product each
-(fewest numpy calls); above it they run level by level down or up the tree, so that their
-cost grows with the number of bodies, not with its square (and stays off BLAS threads)."""
+"""Up to this many bodies a sum over the tree is one dense product, above it level by level."""
 
 
 @dataclass
@@ -194,14 +192,7 @@ class SpanningTree:
         self.joint_rows = [(n, *rows[n]) for n in self.joint_names]
 
     def _compile_levels(self):
-        """
-        Precompute the tree's levels for sums over ancestors and over subtrees.
-
-        The tree is breadth-first, so the joints of one depth are contiguous and siblings
-        adjacent.  ``_down`` sums joint values over the joints above each body (level by
-        level from the frame), ``_up`` sums body values over the bodies below each joint
-        (from the deepest level up, in rounds whose parent joints are distinct).
-        """
+        """Precompute the tree's levels for ``_down`` (ancestor) and ``_up`` (subtree) sums."""
         nb, nt = self.nb, self.nt
         self.dense_tree = nb <= DENSE_TREE_MAX_BODIES
         joint_of_body = [nt] * nb                 # nt: the frame (a zero row)

@@ -1,18 +1,10 @@
 """
 The assembly of a spatial linkage from its scene's stated poses, and the check that it holds.
 
-A scene's ``assembly.poses`` state, approximately, where every link is at the crank angle
-``assembly.crank_angle_deg``; they choose the assembly branch (a closed linkage has several
-assemblies at one crank angle: a rocker on either side, a coupler flipped about its line
-through a universal joint).  :func:`initial` reads the tree coordinates from them (the
-inverse of the zero convention of :mod:`.kinematics`), Levenberg-Marquardt closes the loops
-from there (:meth:`Assembling._assemble`), and :func:`pose_mismatch` compares every
-stated link's solved pose with its stated one: a link off by more than
-:data:`~mech_balance.schema.spatial.POSE_TOL_DEG` or
-:data:`~mech_balance.schema.spatial.POSE_TOL_REL` of the linkage's size is refused, naming
-the link, the angle and the distance, and the pose it was solved at, so that no figure ever
-describes an assembly the scene did not state.  A link held only by two spherical joints
-(an idle spin, fixed by convention) is compared by its S-S line and its first ball centre.
+The stated ``assembly.poses`` choose the branch: :func:`initial` reads the tree coordinates,
+Levenberg-Marquardt closes the loops (:meth:`Assembling._assemble`), :func:`pose_mismatch`
+refuses a solved link off its stated pose beyond ``POSE_TOL_DEG`` or ``POSE_TOL_REL`` of
+:mod:`mech_balance.schema.spatial` (docs/core.md, "The stated assembly").
 """
 
 import math
@@ -41,32 +33,14 @@ def _normal(axis):
 
 
 def twist_about(axis, rot):
-    """
-    Return the angle (rad) of the rotation ``rot`` (3, 3) about the unit ``axis``.
-
-    The twist of the swing-twist split: the signed angle about ``axis`` from a unit vector
-    ``r`` normal to it to ``rot r`` (its part normal to ``axis``).  Exact for a rotation
-    about ``axis`` whatever its angle, and for an approximate one (a guessed pose) the turn
-    about ``axis`` that best explains it; the rotation vector
-    (:func:`mech_balance.rotations.angle_about`)
-    would mix in any turn about another axis.
-    """
+    """Return the angle (rad) of ``rot`` about the unit ``axis`` (swing-twist split)."""
     ref = _normal(axis)
     v = rot @ ref
     return math.atan2(float(axis @ np.cross(ref, v)), float(ref @ v))
 
 
 def tree_values(t, rel, d):
-    """
-    Return the coordinates of a (non-spherical) tree joint ``t`` from a relative pose.
-
-    ``rel`` is the child's rotation in the parent's axes and ``d`` the child's joint point
-    from the parent's, parent axes.  The inverse of the zero convention (kinematics module
-    docstring): revolute and cylindrical ``theta`` is the turn about ``a`` of ``rel Z^T``;
-    a universal's first angle is the turn about ``a`` taking ``U b`` (normal to ``a``) onto
-    ``rel b``, which does not depend on its second angle, and the second is the turn about
-    ``b`` of ``U^T Rot(a, -theta1) rel``; a slide is ``d . a``.
-    """
+    """Return a (non-spherical) tree joint's coordinates from the child's pose in the parent."""
     jt = t.joint_type
     if jt == 'prismatic':
         return [float(d @ t.axis)]
@@ -83,22 +57,13 @@ def tree_values(t, rel, d):
 
 
 def stated(scene):
-    """
-    Return ``{link: (rotation (3, 3), origin (3,))}`` of the links with a stated pose.
-
-    The frame's pose is the identity (it is the world).
-    """
+    """Return ``{link: (rotation (3, 3), origin (3,))}`` of the links with a stated pose."""
     return {name: (pose.rotation(), np.array(pose.origin_m, dtype=float))
             for name, pose in scene.assembly_poses.items()}
 
 
 def initial(linkage):
-    """
-    Return the tree coordinates ``(1, ndof)`` and spherical rotations read from the poses.
-
-    A link without a stated pose is guessed at the frame's pose; the crank coordinate is the
-    scene's ``assembly.crank_angle_deg`` (a prismatic input: its slide there).
-    """
+    """Return the tree coordinates ``(1, ndof)`` and spherical rotations read from the poses."""
     sc = linkage.scene
     poses = stated(sc)
     rot, org = [np.eye(3)], [np.zeros(3)]
@@ -135,13 +100,7 @@ def _angle(rot_a, rot_b):
 
 
 def pose_errors(linkage, fr):
-    """
-    Return ``[(link, angle rad, distance m)]``: each stated link's solved pose against it.
-
-    ``fr`` holds the solved poses at the assembly (batch of one).  An idle-spin link
-    (spin fixed by convention) is compared by its S-S line's direction and its first
-    ball's centre, which do not depend on the spin.
-    """
+    """Return ``[(link, angle rad, distance m)]`` of the solved poses from the stated ones."""
     idle = {name: (ul, x0) for name, _, _, ul, x0 in getattr(linkage, 'idle_lines', ())}
     out = []
     for name, (rot_s, org_s) in stated(linkage.scene).items():
@@ -160,13 +119,7 @@ def pose_errors(linkage, fr):
 
 
 def pose_mismatch(linkage, fr):
-    """
-    Return why an assembly's solved poses are not the stated ones, or None if they are.
-
-    The text (the linkage raises it) names every link off by more than the tolerances, the
-    angle and the distance, and the pose the linkage closed at (to state it, if it is the
-    intended assembly).
-    """
+    """Return why an assembly's solved poses are not the stated ones, or None if they are."""
     tol_m = POSE_TOL_REL * linkage.length_scale
     bad = [(name, a, d) for name, a, d in pose_errors(linkage, fr)
            if math.degrees(a) > POSE_TOL_DEG or d > tol_m]
@@ -202,16 +155,7 @@ def spherical_zeros(linkage, fr):
 
 
 class Assembling:
-    """
-    The assembly of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin).
-
-    From the stated poses (:func:`initial`), Levenberg-Marquardt, then the idle spins of
-    S-S links (fixed by one row each) and the redundant rows (the rank).
-    """
-
-    def _initial(self):
-        """Return tree coordinates ``(1, ndof)`` and rotations from the scene's poses."""
-        return initial(self)
+    """The assembly of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin)."""
 
     def _assemble(self):
         """Assemble the linkage (Levenberg-Marquardt), find idle spins and redundancy."""
@@ -220,7 +164,7 @@ class Assembling:
                 f'joints: the linkage is an open chain (no closed loop) with {self.nu} '
                 f'degree(s) of freedom besides the crank joint {self.scene.crank_joint!r}; '
                 'expected a single-input linkage')
-        q, sph = self._initial()
+        q, sph = initial(self)
         lam = 1e-3
         fr = self.frames(q, sph)
         g = self.residual(fr) * self.row_scale
@@ -323,10 +267,6 @@ class Assembling:
             x0 = self._points[name][sph_j[0].point_a if sph_j[0].link_a == name
                                     else sph_j[0].point_b]
             self.idle_lines.append((name, sph_j[0].name, sph_j[1].name, rl.T @ u, x0))
-        self.check_idle_inertia(self.scene)
-        for k, sph_j, x, u in spins:
-            name = self.body_names[k]
-            rl = fr.rot[0, k]
             n_ref = np.eye(3)[int(np.argmin(np.abs(u)))]
             v = cross(u, n_ref)
             v /= np.linalg.norm(v)
@@ -334,16 +274,11 @@ class Assembling:
                                   n_ref[None], None, (f'spin:{name}',)))
             self.idle_spins = getattr(self, 'idle_spins', ()) + (
                 (name, sph_j[0].name, sph_j[1].name),)
+        self.check_idle_inertia(self.scene)
         self._finish_rows()
 
     def check_idle_inertia(self, scene):
-        """
-        Refuse a design whose S-S link has inertia about its S-S line (the spin convention).
-
-        The inertia about the line through the two spherical joints, ``u.I_c u + m |(c - x0)
-        x u|^2``, must be zero to :data:`IDLE_INERTIA_RTOL`; the message names the link,
-        the two joints and the way out.
-        """
+        """Refuse a design whose S-S link has inertia about its S-S line (the spin convention)."""
         for name, j1, j2, ul, x0 in getattr(self, 'idle_lines', ()):
             lk = scene.link(name)
             c = np.array(lk.com_m) - x0

@@ -15,15 +15,13 @@ import numpy as np
 
 COND_LIMIT = 1e10
 """Scaled Jacobian condition number above which a position is refused as singular."""
+# a prismatic input's steps are these times its half stroke (m)
 STEP_MAX_RAD = math.radians(10.0)
-"""Largest crank step between branch nodes (a prismatic input: this angle of its Scotch
-yoke at mid-stroke, i.e. times the half stroke, m)."""
+"""Largest crank step between branch nodes."""
 STEP_MIN_RAD = 1e-7
-"""Smallest crank step before the continuation declares the branch lost (prismatic input:
-times the half stroke, m)."""
+"""Smallest crank step before the continuation declares the branch lost."""
 STEP_DONE = 1e-13
-"""What is left of a continuation's goal when it counts as reached (rad; a prismatic input:
-times the half stroke, m)."""
+"""What is left of a continuation's goal when it counts as reached (rad)."""
 STEP_TRUST = 0.05
 """Largest scaled Newton correction accepted in a continuation step (else the step halves)."""
 EVAL_TRUST = 1e-3
@@ -39,13 +37,7 @@ class SpatialError(ValueError):
 
 
 class BranchFollowing:
-    """
-    The traced branch of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin).
-
-    :attr:`skeleton` (nodes from :mod:`mech_balance.core.continuation` over one turn or the
-    stroke), :attr:`dense` (nodes every :data:`DENSE_STEP_RAD`, solved in one batch) and the
-    predictor between them (:meth:`_step`).
-    """
+    """The traced branch of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin)."""
 
     @property
     def skeleton(self):
@@ -145,16 +137,13 @@ class BranchFollowing:
             qp, sphp = self._step(sk.q[k], sk.sph[k], sk.qd[k], sk.qdd[k], h)
             q, sph, fr, res, ok = self.newton(qp, sphp)
             bad = ~ok | (self.change(q, sph, qp, sphp) > STEP_TRUST)
-            if bad.any():  # keep the traced nodes only: no dense node off the branch
-                self._dense = sk
-                return sk
-            q[:, 0] = psi
-            rates = self.unit_rates(fr, q)
-            if self.square and np.any(rates.sign != self.branch_sign):
-                self._dense = sk
-                return sk
-            qd, qdd, cond = rates.qd, rates.qdd, rates.cond
-            self._dense = Skeleton(psi, q, sph, qd, qdd, cond, self.periodic)
+            self._dense = sk           # the traced nodes only if a dense node leaves the branch
+            if not bad.any():
+                q[:, 0] = psi
+                rates = self.unit_rates(fr, q)
+                if not (self.square and np.any(rates.sign != self.branch_sign)):
+                    self._dense = Skeleton(psi, q, sph, rates.qd, rates.qdd, rates.cond,
+                                           self.periodic)
         return self._dense
 
 
@@ -203,13 +192,7 @@ class _SpatialBranch(continuation.Branch):
 
 
 class Skeleton:
-    """
-    Branch nodes in tree coordinate 0; a second-order predictor from the nearest node.
-
-    ``psi`` are the nodes' input coordinates, ascending: one crank turn (``periodic``: the
-    last node is the first turned once) or a prismatic input's stroke (not periodic: a
-    coordinate beyond an end is predicted from that end).
-    """
+    """Branch nodes (a turn, or the stroke) and a second-order predictor from the nearest."""
 
     def __init__(self, psi, q, sph, qd, qdd, cond, periodic=True):
         self.psi, self.q, self.sph, self.qd, self.qdd, self.cond = psi, q, sph, qd, qdd, cond
@@ -218,17 +201,11 @@ class Skeleton:
 
     def nearest(self, psi):
         """Return the nearest node's index and the signed step from it, per coordinate."""
-        if not self.periodic:
-            x = psi - self.psi[0]
-            k = np.searchsorted(self.offset, x, side='right') - 1
-            k = np.clip(k, 0, self.psi.size - 2)
-            k = np.where((self.offset[k + 1] - x) < (x - self.offset[k]), k + 1, k)
-            return k, x - self.offset[k]
-        x = np.mod(psi - self.psi[0], TWO_PI)
+        x = np.mod(psi - self.psi[0], TWO_PI) if self.periodic else psi - self.psi[0]
         k = np.searchsorted(self.offset, x, side='right') - 1
         k = np.clip(k, 0, self.psi.size - 2)
-        right = (self.offset[k + 1] - x) < (x - self.offset[k])
-        k = np.where(right, k + 1, k)
+        k = np.where((self.offset[k + 1] - x) < (x - self.offset[k]), k + 1, k)
         h = x - self.offset[k]
-        k = np.where(k == self.psi.size - 1, 0, k)  # the last node is the first turned once
+        if self.periodic:   # the last node is the first turned once
+            k = np.where(k == self.psi.size - 1, 0, k)
         return k, h

@@ -1,19 +1,15 @@
 """
-The closure rows of a spatial linkage: residual, gradients, Jacobian, bias and wrenches.
+The closure rows of a spatial linkage: residual, Jacobian, bias and wrenches.
 
-Each cut joint contributes rows g = 0 in groups of one form (the kinematics module
-docstring): ``point`` (three rows: the joint points coincide), ``dot`` (an a-vector normal
-to a b-vector), ``line`` (the b-point on the a-line) and ``spin`` (an idle S-S link's spin
-fixed by convention).  Every row's gradient with respect to a body's twist is analytic, so
-one formula gives Newton's Jacobian, the velocities and the accelerations.
+Each cut joint contributes rows g = 0 in groups: ``point`` (the joint points coincide), ``dot``
+(an a-vector normal to a b-vector), ``line`` (the b-point on the a-line), ``spin`` (an idle
+S-S link's spin fixed; docs/core.md#the-spatial-formulation).
 """
 
 from dataclasses import dataclass
-import math
 
-from mech_balance.core.spatial.vectors import cross, cross_c, dot, dot_c, mv, perp_pair, \
-    point_gradient, unit
-from mech_balance.rotations import min_rotation, rot_axis
+from mech_balance.core.spatial.coordinates import joint_frames
+from mech_balance.core.spatial.vectors import cross_c, dot, dot_c, mv, perp_pair
 import numpy as np
 
 
@@ -44,13 +40,7 @@ class Rows:
 
 
 class ClosureRows:
-    """
-    The closure rows of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin).
-
-    Built from the cut joints (:meth:`_build_rows`), evaluated on :class:`Frames`: the
-    residual, the rows' twist gradients, the Jacobian over the tree coordinates, the bias
-    accelerations and the wrenches of the rows' multipliers.
-    """
+    """The closure rows of :class:`~mech_balance.core.spatial.kinematics.Linkage` (a mixin)."""
 
     def _build_rows(self, body, cuts):
         sc = self.scene
@@ -65,8 +55,7 @@ class ClosureRows:
                 pts.append((b, a, sb, sa, jt.name))
             if t == 'spherical':
                 continue
-            ax = unit(jt.axis)
-            bx = unit(jt.axis if jt.axis_b is None else jt.axis_b)
+            ax, bx, fixed = joint_frames(jt)
             if t == 'universal':
                 dots.append((b, bx, a, ax, jt.name))
                 continue
@@ -77,8 +66,6 @@ class ClosureRows:
                 lines.append((b, a, sb, sa, e1, jt.name))
                 lines.append((b, a, sb, sa, e2, jt.name))
             if t == 'prismatic':
-                fixed = rot_axis(ax, np.array([math.radians(jt.angle_deg or 0.0)]))[0] @ \
-                    min_rotation(bx, ax)
                 dots.append((b, fixed.T @ e1, a, e2, jt.name))
         self.rows = []
         if pts:
@@ -158,46 +145,9 @@ class ClosureRows:
                 out.append(dot(vb, va))
         return np.concatenate(out, axis=1) if out else np.zeros((fr.rot.shape[0], 0))
 
-    def gradients(self, fr):
-        """Return ``(G_b, G_a)`` ``(n, m, 6)``: each row's rate per unit twist of b and a."""
-        if fr.grads is None:
-            fr.grads = self._gradients(fr)
-        return fr.grads
-
-    def _gradients(self, fr):
-        gb, ga = [], []
-        for r, rb, ra, vb, va in self._row_parts(fr):
-            n, k = vb.shape[:2]
-            if r.form == 'point':
-                gb.append(point_gradient(vb).reshape(n, 3 * k, 6))
-                ga.append(np.negative(point_gradient(va)).reshape(n, 3 * k, 6))
-            elif r.form == 'dot':
-                c = cross(vb, va)
-                z = np.zeros_like(c)
-                gb.append(np.concatenate([c, z], -1))
-                ga.append(np.concatenate([-c, z], -1))
-            elif r.form == 'line':
-                w = mv(ra, r.extra)
-                d = vb - va
-                gb.append(np.concatenate([cross(vb, w), w], -1))
-                ga.append(np.concatenate([-cross(va, w) + cross(w, d), -w], -1))
-            else:
-                c = cross(vb, np.broadcast_to(va, vb.shape))
-                gb.append(np.concatenate([c, np.zeros_like(c)], -1))
-                ga.append(np.zeros((n, k, 6)))
-        if not gb:
-            empty = np.zeros((fr.rot.shape[0], 0, 6))
-            return empty, empty
-        return np.concatenate(gb, axis=1), np.concatenate(ga, axis=1)
-
     @property
     def wrench_rows(self):
-        """
-        Return the first row of each row wrench of :meth:`row_wrenches` (built once).
-
-        A coincident-point joint's three rows act as one force at its point (one wrench);
-        every other row is a wrench of its own.
-        """
+        """Return the first row of each row wrench (a coincident point's three rows: one)."""
         cached = getattr(self, '_wrench_rows', None)
         if cached is None or cached[0] != self.m:
             rows, at = [], 0
@@ -213,9 +163,8 @@ class ClosureRows:
         """
         Return ``(W_b, W_a)`` ``(6, q, n)``: the closure rows' wrenches on their b and a bodies.
 
-        Component-major (moment about the frame origin, force) for multipliers ``lam``
-        ``(n, m)``: ``lambda_r G(r)`` per row, the three rows of a coincident point merged
-        into the force ``F`` at the point (``(x x F, F)``), in :attr:`wrench_rows` order.
+        Moment about the frame origin and force for multipliers ``lam`` ``(n, m)``, in
+        :attr:`wrench_rows` order (a coincident point's three rows: one force at the point).
         """
         n = lam.shape[0]
         lam_t = lam.T
@@ -253,12 +202,10 @@ class ClosureRows:
         """
         Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate).
 
-        Computed component-major, ``(m, ndof, n)`` (the batch-last stack the LU takes as
-        it is), and returned as a batch-first view of it.  A row's rate per coordinate d is
-        its twist gradient (:meth:`gradients`) applied to d's column on the row's bodies
-        that d moves: for a point x ``omega_d x x + v_d``, for a dot row ``(u_b x w_a) .
-        omega_d``, for a line row ``(x_b x w) . omega_d + w . v_d`` on b and ``(w x d - x_a
-        x w) . omega_d - w . v_d`` on a.
+        A batch-first view of the component-major ``(m, ndof, n)`` stack the LU takes.  A
+        row's rate per coordinate d: a point x ``omega_d x x + v_d``; a dot row
+        ``(u_b x w_a) . omega_d``; a line row ``(x_b x w) . omega_d + w . v_d`` on b and
+        ``(w x d - x_a x w) . omega_d - w . v_d`` on a.
         """
         n = fr.rot.shape[0]
         if not self.m:
@@ -298,10 +245,9 @@ class ClosureRows:
         """
         Return the rows' second time derivatives ``(m, n)`` at body accelerations ``acc0``.
 
-        Component-major throughout (``twist`` and ``acc0`` ``(6, nb, n)``).  Body point
-        acceleration ``a_O + alpha x x + omega x (v_O + omega x x)``; a vector u fixed in a
-        body: ``u' = omega x u``, ``u'' = alpha x u + omega x (omega x u)``.  The b and a
-        ends of a group are evaluated together (one stacked pass).
+        Component-major (``twist``, ``acc0`` ``(6, nb, n)``): a body point accelerates by
+        ``a_O + alpha x x + omega x (v_O + omega x x)``, a body vector by
+        ``alpha x u + omega x (omega x u)``.
         """
         out = []
         n = twist.shape[-1]

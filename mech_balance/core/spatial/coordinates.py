@@ -1,15 +1,13 @@
 """
-The spatial joints' coordinates from body poses (zero convention: kinematics docstring).
+The spatial joints' coordinates from body poses (docs/core.md#the-spatial-formulation).
 
-Every joint (tree or cut) is read from the relative pose of its two links, so a joint's
-published value does not depend on where the spanning tree was cut: ``M = R_a^T R_b`` and
-``d = R_a^T (x_b - x_a)`` (b's joint point from a's, in a's axes); rates from the relative
-angular velocity ``R_a^T (omega_b - omega_a)`` and the relative point velocity.
+Every joint (tree or cut) is read from the relative pose of its two links, ``M = R_a^T R_b``
+and ``d = R_a^T (x_b - x_a)``, so its value does not depend on where the tree was cut.
 """
 
 import math
 
-from mech_balance.core.spatial.vectors import cross, cross_c, perp_pair
+from mech_balance.core.spatial.vectors import cross, cross_c, perp_pair, unit
 from mech_balance.rotations import min_rotation, rot_axis, skew
 import numpy as np
 
@@ -21,37 +19,26 @@ SLIDES = {'revolute': (False,), 'prismatic': (True,), 'cylindrical': (False, Tru
 """Which of them slide (m) rather than turn (rad)."""
 
 
-def joint_frames(scene, jt):
-    """Return a joint's constants: unit axes in a and b, and its fixed rotation (or None)."""
+def joint_frames(jt, flipped=False):
+    """Return a joint's unit axes ``(a, b)`` and fixed rotation (``flipped``: seen from b)."""
     if jt.axis is None:
         return None, None, None
-    a = np.asarray(jt.axis, dtype=float)
-    a = a / np.linalg.norm(a)
-    b = np.asarray(jt.axis if jt.axis_b is None else jt.axis_b, dtype=float)
-    b = b / np.linalg.norm(b)
+    a, b = unit(jt.axis), unit(jt.axis if jt.axis_b is None else jt.axis_b)
+    if flipped:
+        a, b = b, a
     if jt.joint_type == 'universal':
         e = b - (b @ a) * a
-        if np.linalg.norm(e) < 1e-12:
-            e = perp_pair(a)[0]
-        return a, b, min_rotation(b, e / np.linalg.norm(e))
+        e = perp_pair(a)[0] if np.linalg.norm(e) < 1e-12 else e / np.linalg.norm(e)
+        return a, b, min_rotation(b, e)
     fixed = min_rotation(b, a)
     if jt.joint_type == 'prismatic':
-        fixed = rot_axis(a, np.array([math.radians(jt.angle_deg or 0.0)]))[0] @ fixed
+        angle = math.radians(jt.angle_deg or 0.0) * (-1.0 if flipped else 1.0)
+        fixed = rot_axis(a, np.array([angle]))[0] @ fixed
     return a, b, fixed
 
 
 def _functionals(jt, ax, bx, fixed, zero):
-    """
-    Return the ``(9, k)`` linear functionals of a joint's relative rotation it reads.
-
-    Every published angle is an ``arctan2`` of linear functionals of ``M = R_a^T R_b``
-    (``sum(M * W)``): revolute and cylindrical ``vee(M Z^T) . a`` and ``tr(M Z^T)``
-    (:func:`~mech_balance.rotations.angle_about`); spherical the five entries of ``M A^T``
-    that :func:`~mech_balance.rotations.matrix_rpy` reads; universal ``b_in_a = M b`` against
-    ``e`` and ``a x e`` and itself (the second rate), then the second angle's ``vee`` and
-    trace terms of ``U^T Rot(a, -theta1) M``, each split into its ``M``, ``K M`` and
-    ``K^2 M`` parts (K the cross matrix of a).  Built once per joint.
-    """
+    """Return the ``(9, k)`` linear functionals of ``M = R_a^T R_b`` that a joint reads."""
     t = jt.joint_type
     if t == 'prismatic':
         return np.zeros((9, 0))
@@ -89,20 +76,13 @@ def _group_of(joint_type):
 
 
 def _constants(linkage):
-    """
-    Return (and cache on the linkage) the joints' bodies, points, functionals and groups.
-
-    The joints of one group (revolute and cylindrical angles, slides, spherical, universal)
-    are evaluated together, one numpy call per step for all of them; each group's
-    functionals are one ``(count, 9, k)`` stack (one batched product of small matrices:
-    a single large product would run multi-threaded BLAS, slow on a loaded machine).
-    """
+    """Return (cached) the joints' bodies, points and functionals per coordinate group."""
     cached = getattr(linkage, '_joint_constants', None)
     if cached is not None:
         return cached
     sc = linkage.scene
     idx = {n: i for i, n in enumerate(linkage.body_names)}
-    frames = [joint_frames(sc, jt) for jt in sc.joints]
+    frames = [joint_frames(jt) for jt in sc.joints]
     members = {g: [] for g in _GROUPS}        # (joint index, published column)
     col = 0
     for i, jt in enumerate(sc.joints):

@@ -1,27 +1,12 @@
 """
 Inverse dynamics of a spatial linkage: shaking wrench, driving torque, bearing reactions.
 
-Per moving body k (frame axes, SI): mass centre ``x_c = p + R c``, its acceleration
-``a_c`` (point acceleration of :meth:`Linkage.bias`), world inertia ``I_w = R I R^T`` and
-the rate of angular momentum ``dH_c/dt = I_w alpha + omega x I_w omega``.  The rate of
-momentum as a wrench about the frame origin, ``Phi_k = (N_k, F_k)`` with ``F_k = m a_c`` and
-``N_k = dH_c/dt + x_c x F_k``, is what the joints must apply to the body (no gravity: the
-conventions consider inertia effects only).
-
-Shaking wrench (:mod:`mech_balance.conventions`): ``f = -sum F_k = -dp/dt`` and
-``n_P = -sum (N_k - P x F_k) = -dH_P/dt`` about the scene's moment point P, the motor's
-reaction included.
-
-Driving torque and reactions (virtual power in tree coordinates)
-    ``Q_d = sum over the bodies below coordinate d of Phi_k . S_d`` must equal ``tau_d + (J^T
-    lambda)_d``: tau only on the crank, lambda the closure rows' multipliers.  The unknown
-    coordinates give ``J_u^T lambda = Q_u`` (square: the unique solution; redundant rows:
-    the minimum-norm one, reactions *not unique*), the crank ``tau = Q_0 - J_0^T lambda``.
-    Row r exerts the wrench ``lambda_r G_b(r)`` on its body b (and ``lambda_r G_a(r)`` on a);
-    a tree joint carries the sum of ``Phi_k`` minus the cut-joint wrenches over the bodies
-    below it.  Reactions are reported as the force and moment on the joint's link b from its
-    link a, the moment about the joint point, frame axes; the crank joint's moment includes
-    the driving torque about its axis.
+Per moving body the rate of momentum about the frame origin ``Phi_k = (N_k, F_k)``; the
+shaking wrench is ``-sum Phi_k`` reduced to the scene's moment point
+(:mod:`mech_balance.conventions`).  The driving torque and the closure multipliers follow by
+virtual power in tree coordinates (minimum-norm, not unique, for redundant rows); the bearing
+reactions are the force and moment on each joint's link b from its link a, about the joint
+point, frame axes.  The derivation: docs/core.md#spatial-inverse-dynamics.
 """
 
 from dataclasses import dataclass
@@ -77,15 +62,7 @@ class _ReactionConstants:
 
 
 def _reaction_constants(lk):
-    """
-    Return the :class:`_ReactionConstants` of a linkage (cached while its rows stand).
-
-    A tree joint carries the rates of momentum of the bodies below it minus the row wrenches
-    on them (``below (Phi - inc_b W_b - inc_a W_a)``), a cut joint its rows' wrenches on b
-    (``cut_rows W_b``); both in scene order with a flipped tree joint's sign, folded into one
-    matrix applied to the stacked ``[Phi, W_b, W_a]`` (the row wrenches of
-    :meth:`~kinematics.Linkage.row_wrenches`, a coincident point's three rows as one).
-    """
+    """Return the :class:`_ReactionConstants` of a linkage (cached while its rows stand)."""
     cached = getattr(lk, '_reaction_constants', None)
     if cached is not None and cached[0] == lk.m:
         return cached[1]
@@ -123,10 +100,8 @@ def body_motion(state, inertia):
     """
     Return ``(x_c, v_c, a_c, omega, I_w omega, I_w alpha)`` of the moving bodies (cached).
 
-    Component-major ``(3, nb - 1, n)`` (contiguous components: every product below is one
-    vectorized call over all bodies and angles); the frame, at rest, is left out; ``a_c``
-    and ``I_w alpha`` are None without accelerations.  ``I_w x = R (I (R^T x))``
-    elementwise, without forming ``R I R^T``.
+    Component-major ``(3, nb - 1, n)``; ``a_c`` and ``I_w alpha`` are None without
+    accelerations.
     """
     cached = getattr(state, '_motion', None)
     if cached is not None and cached[0] is inertia:
@@ -205,15 +180,6 @@ def kinetic_energy(state, inertia):
     return 0.5 * (((vc * vc).sum(0) * mass).sum(0) + (w * h).sum(0).sum(0))
 
 
-def _cols_c(state):
-    """Return the twist columns component-major ``(6, ndof, n)`` (cached)."""
-    cached = getattr(state, '_cols_c', None)
-    if cached is None:
-        cached = np.ascontiguousarray(state.frames.cols.T)
-        state._cols_c = cached
-    return cached
-
-
 def inverse_dynamics(linkage, state, inertia, moment_point, need):
     """Return the :class:`SpatialWrenches` the outputs in ``need`` require."""
     phi = _momentum_rates_c(state, inertia)         # (6, nb, n)
@@ -226,7 +192,7 @@ def inverse_dynamics(linkage, state, inertia, moment_point, need):
         return out
     lk = linkage
     # generalized forces: the rates of momentum of the bodies below each coordinate
-    q_gen = (np.matmul(lk.path, phi) * _cols_c(state)).sum(0).T    # (n, ndof)
+    q_gen = (np.matmul(lk.path, phi) * state.frames.cols_c).sum(0).T    # (n, ndof)
     jac = state.jac
     n = state.size
     if lk.nu:

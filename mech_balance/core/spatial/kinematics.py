@@ -1,62 +1,15 @@
 """
 Position, velocity and acceleration of a single-input spatial linkage (``kind: spatial``).
 
-Formulation
-    The joint graph is opened into a spanning tree rooted at the frame (breadth first, the
-    crank joint first); the other joints are *cut joints*.  The unknowns are the tree
-    joints' relative coordinates: revolute (angle), prismatic (slide), cylindrical (angle,
-    slide), universal (two angles), spherical (a relative rotation, updated multiplicatively
-    ``M <- exp(d^) M`` with ``d`` in the parent's axes).  A tree joint places its child from
-    its parent: ``R_c = R_p M(q)``, ``p_c = p_p + R_p (s_p + d(q)) - R_c s_c``.  Each cut
-    joint contributes closure rows g = 0: three for a coincident point (R, U, S), two
-    *dot* rows per aligned axis (R, C, P: the b-axis normal to two a-vectors), one dot row
-    for a universal's crossed axes, two *line* rows (C, P: the b-point on the a-line) and one
-    more dot row locking a prismatic joint's turn.  Every row's gradient with respect to a
-    body's twist (angular velocity, velocity of the body point at the frame origin) is
-    analytic; the Jacobian with respect to the tree coordinates is that gradient applied to
-    each coordinate's twist column (its screw) on the bodies below it: one formula gives
-    Newton's Jacobian, the velocities and the accelerations (``J q'' = -g''|q''=0``).  Arrays
-    are batch-first (one row per crank angle) so that a whole cycle is one numpy pass.
-
-Joint coordinates (zero convention, also the URDF's)
-    Revolute and cylindrical angle: ``M = Rot(a, theta) Z`` with ``Z`` the smallest rotation
-    taking the b-axis onto the a-axis (0 where the link frames are related by ``Z`` alone);
-    prismatic: ``M = Rot(a, angle_deg) Z`` fixed, the slide of b's point from a's along a;
-    universal: ``M = Rot(a, theta1) U Rot(b, theta2)`` with ``U`` the smallest rotation taking
-    b onto the unit vector of b normal to a; spherical: ``M = Rz(yaw) Ry(pitch) Rx(roll) A``
-    with ``A`` the relative rotation at the assembly (the URDF's three revolute joints).
-
-The input and the cycle
-    The crank joint is tree coordinate 0.  A revolute input is the crank angle psi itself;
-    a prismatic input is its slide ``s(psi)`` (:func:`mech_balance.schema.spatial.stroke_law`,
-    the ideal Scotch yoke: ``s_min`` at psi = 0, ``s_max`` at psi = 180 deg), with rates by
-    the chain rule, ``s' = ds/dpsi psi'`` and ``s'' = d2s/dpsi2 psi'^2 + ds/dpsi psi''``
-    (:meth:`Linkage.input_motion`).  Everything inside the linkage (the branch trace, the
-    nodes, the predictor, Newton) works in tree coordinate 0: a revolute input's branch is
-    traced over one turn and must close; a prismatic input's over its stroke, from the
-    assembly to both ends, refusing a singular position on the way as for a turn, and a
-    cycle of psi runs it forth and back.
-
-The assembly
-    The tree coordinates are read from the scene's ``assembly.poses``, the loops closed
-    from there (Levenberg-Marquardt) and every stated link's solved pose compared with its
-    stated one, refused beyond the tolerances (:mod:`.assembly`): the branch analysed is
-    always the one the scene states.
-
-Idle freedoms and redundancy
-    A link held only by two spherical joints spins freely about the line through them; the
-    assembled Jacobian's null space shows it.  Convention (:data:`IDLE_INERTIA_RTOL`): its
-    spin is fixed by one more row, ``(R v) . n = 0`` (v normal to the line in the link, n the
-    frame axis most normal to the line at assembly; seed 002 eq. 42 takes n = z), which is
-    legitimate only if its inertia about that line is zero (a slender rod): otherwise the
-    scene is refused, naming the two joints and the way out (replace one S by a U).  More
-    rows than independent ones (Bennett's linkage) are solved in the least-squares sense
-    with the rank-revealing pseudo-inverse; the reactions are then not unique and the
-    minimum-norm ones are reported.
+The joint graph is opened into a spanning tree from the frame (crank first) plus cut joints
+whose closure rows (:mod:`.closure`) are solved for the tree joints' relative coordinates; one
+analytic Jacobian gives Newton's step, the velocities and the accelerations, batch-first over
+the crank angles.  Tree coordinate 0 is the input: the crank angle, or a prismatic input's
+slide ``s(psi)`` (:func:`mech_balance.schema.spatial.stroke_law`).  The formulation, the
+joints' zero conventions, idle spins and redundant rows: docs/core.md#the-spatial-formulation.
 """
 
 from dataclasses import dataclass
-import math
 from typing import NamedTuple
 import warnings
 
@@ -68,9 +21,9 @@ from mech_balance.core.spatial.assembly import Assembling, RANK_RTOL
 from mech_balance.core.spatial.branch import BranchFollowing, EVAL_TRUST, SpatialError, \
     STEP_MAX_RAD, STEP_MIN_RAD
 from mech_balance.core.spatial.closure import ClosureRows
-from mech_balance.core.spatial.vectors import component_major, cross, cross_c, mv, perp_pair, \
-    sin_vers_one, unit
-from mech_balance.rotations import expmap, EYE3, min_rotation, rot_axis, skew
+from mech_balance.core.spatial.coordinates import joint_frames
+from mech_balance.core.spatial.vectors import component_major, cross, cross_c, mv, sin_vers_one
+from mech_balance.rotations import expmap, EYE3, skew
 from mech_balance.schema.scene import FRAME
 from mech_balance.schema.spatial import stroke_law
 import numpy as np
@@ -78,8 +31,7 @@ import numpy as np
 NEWTON_MAX_ITER = 10
 """Newton iterations per batched evaluation or continuation step."""
 REFINE_STEPS = 1
-"""Iterative-refinement steps of a solve with the predictor's inverse (each squares the
-relative error, ~1e-8 from a dense node half a degree away, to ~1e-16)."""
+"""Iterative-refinement steps of a solve with the predictor's inverse (each squares the error)."""
 
 
 _CONSTANT_ROOT_COLUMNS = ('revolute', 'prismatic', 'spherical', 'universal')
@@ -122,7 +74,6 @@ class Frames:
     origin: np.ndarray    # (n, nb, 3)
     cols: np.ndarray      # (n, ndof, 6) twist columns (omega, v at the frame origin)
     parts: list = None    # the closure rows' world vectors (cached by Linkage._row_parts)
-    grads: tuple = None   # the rows' twist gradients (cached by Linkage.gradients)
 
     @property
     def cols_c(self):
@@ -160,12 +111,7 @@ class SpatialState:
         return self.psi.shape[0]
 
     def component_major(self):
-        """
-        Return ``(rot (3, 3, nb, n), origin (3, nb, n), twist (6, nb, n))`` (cached).
-
-        The poses and twists component-major (contiguous ``(nb, n)`` blocks), converted once
-        per state for the joint values and the inverse dynamics; twist None if not solved.
-        """
+        """Return ``(rot (3, 3, nb, n), origin (3, nb, n), twist (6, nb, n) or None)`` (cached)."""
         cached = getattr(self, '_component_major', None)
         if cached is None:
             fr = self.frames
@@ -191,11 +137,7 @@ class Rates(NamedTuple):
 
 
 class Linkage(Assembling, ClosureRows, BranchFollowing):
-    """
-    A spatial scene's compiled spanning tree, closure rows, assembly and traced branch.
-
-    Immutable once built (the branch is traced on first use of :attr:`skeleton`).
-    """
+    """A spatial scene's compiled spanning tree, closure rows, assembly and traced branch."""
 
     def __init__(self, scene):
         threads.settle_allocator()   # the allocator's policy: mech_balance/threads.py
@@ -225,13 +167,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
     # ------------------------------------------------------------------ the input
 
     def input_motion(self, psi, psi_d, psi_dd):
-        """
-        Return the input joint's ``(x, x', x'')`` at cycle angles ``psi`` (rad, rad/s, rad/s^2).
-
-        A revolute input: ``psi`` and its rates as they are (no copy); a prismatic input: the
-        slide of :func:`~mech_balance.schema.spatial.stroke_law` (m) and its rates by the
-        chain rule, in the joint's own convention (b's point from a's along a's axis).
-        """
+        """Return the input joint's ``(x, x', x'')`` at cycle angles ``psi`` (rad or m)."""
         if self.periodic:
             return psi, psi_d, psi_dd
         s, s1, s2 = stroke_law(self.stroke_m, psi)
@@ -299,21 +235,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
             pn, cn = self.body_names[parent], self.body_names[child]
             sp = self._points[pn][jt.point_b if rev else jt.point_a]
             scp = self._points[cn][jt.point_a if rev else jt.point_b]
-            axis = axis_c = fixed = None
-            if jt.axis is not None:
-                a_ax = unit(jt.axis)
-                b_ax = unit(jt.axis if jt.axis_b is None else jt.axis_b)
-                axis, axis_c = (b_ax, a_ax) if rev else (a_ax, b_ax)
-                if jt.joint_type == 'universal':
-                    e = axis_c - (axis_c @ axis) * axis
-                    e = perp_pair(axis)[0] if np.linalg.norm(e) < 1e-12 else e / \
-                        np.linalg.norm(e)
-                    fixed = min_rotation(axis_c, e)
-                else:
-                    fixed = min_rotation(axis_c, axis)
-                    if jt.joint_type == 'prismatic':
-                        ang = math.radians(jt.angle_deg or 0.0) * (-1.0 if rev else 1.0)
-                        fixed = rot_axis(axis, np.array([ang]))[0] @ fixed
+            axis, axis_c, fixed = joint_frames(jt, flipped=rev)
             n = jt.freedoms
             dofs = tuple(range(dof, dof + n))
             dof += n
@@ -361,12 +283,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
     # ------------------------------------------------------------------ forward kinematics
 
     def _col_template(self):
-        """
-        Return ``(ndof, 6)`` (built once): the constant twist columns of the frame's joints.
-
-        A revolute, prismatic, spherical or universal (first axis) joint on the frame has a
-        fixed axis through a fixed point: its columns do not depend on the coordinates.
-        """
+        """Return ``(ndof, 6)`` (built once): the constant twist columns of the frame's joints."""
         tpl = getattr(self, '_cols_tpl', None)
         if tpl is None:
             tpl = np.zeros((self.ndof, 6))
@@ -424,23 +341,18 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
                 origin[:, t.child] = r_joint - (rc.reshape(-1, 3) @ t.s_child).reshape(n, 3)
             else:
                 origin[:, t.child] = r_joint - mv(rc, t.s_child)
-            if root and jtype in _CONSTANT_ROOT_COLUMNS:
-                if jtype == 'universal':
-                    bw = mv(rc, t.axis_child)
-                    cols[:, d[1], :3] = bw
-                    cols[:, d[1], 3:] = cross(r_joint, bw)
-                continue
-            if jtype == 'spherical':
-                axes = EYE3 if root else np.swapaxes(rp, 1, 2)
-                cols[:, d[0]:d[0] + 3, :3] = axes
-                cols[:, d[0]:d[0] + 3, 3:] = cross(r_joint[:, None, :], axes)
-                continue
-            aw = np.broadcast_to(t.axis, (n, 3)) if root else mv(rp, t.axis)
-            if jtype != 'prismatic':
-                cols[:, d[0], :3] = aw
-                cols[:, d[0], 3:] = cross(r_joint, aw)
-            if jtype in ('cylindrical', 'prismatic'):
-                cols[:, d[-1], 3:] = aw
+            if not (root and jtype in _CONSTANT_ROOT_COLUMNS):   # (else in the template)
+                if jtype == 'spherical':
+                    axes = np.swapaxes(rp, 1, 2)
+                    cols[:, d[0]:d[0] + 3, :3] = axes
+                    cols[:, d[0]:d[0] + 3, 3:] = cross(r_joint[:, None, :], axes)
+                    continue
+                aw = np.broadcast_to(t.axis, (n, 3)) if root else mv(rp, t.axis)
+                if jtype != 'prismatic':
+                    cols[:, d[0], :3] = aw
+                    cols[:, d[0], 3:] = cross(r_joint, aw)
+                if jtype in ('cylindrical', 'prismatic'):
+                    cols[:, d[-1], 3:] = aw
             if jtype == 'universal':
                 bw = mv(rc, t.axis_child)
                 cols[:, d[1], :3] = bw
@@ -452,13 +364,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return np.matmul(self.path_t, fr.cols_c * qd.T)
 
     def accelerations(self, fr, twist, qd):
-        """
-        Return the body spatial accelerations ``(6, nb, n)`` at zero coordinate accelerations.
-
-        Component-major (``twist`` ``(6, nb, n)``): the sum over the tree of
-        ``S' q' = (T_owner x S) q'``, only for the columns fixed in a moving body (a frame
-        joint's columns are constant).
-        """
+        """Return the bodies' spatial accelerations ``(6, nb, n)`` at ``q'' = 0``."""
         moving = self._moving_cols
         if not moving.size:
             return np.zeros(twist.shape)
@@ -485,23 +391,12 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return q, sph
 
     def _lu_plan(self, js):
-        """
-        Return the :class:`~linalg.LUPlan` of the scaled square Jacobian (built once).
-
-        The pattern is structural: row r can depend on coordinate d only if d moves one of
-        the row's two bodies (``mask_b``, ``mask_a``); the static order is block lower
-        triangular (the loops in dependency order, :func:`linalg.block_triangular_order`,
-        so that the factors have no fill between loops and the work grows linearly with
-        them), pivots inside the blocks from the first Jacobian met (the assembly's).
-        """
+        """Return the :class:`~linalg.LUPlan` of the scaled square Jacobian (built once)."""
         plan = getattr(self, '_plan', None)
         if plan is None or plan[0] != self.m:
             pattern = ((self.mask_b + self.mask_a) > 0)[:, self.unknown]
             sample = np.where(pattern, js[0], 0.0)
-            order = linalg.block_triangular_order(pattern, sample)
-            if order is None:
-                order = (linalg.pivot_order(sample), None)
-            plan = (self.m, linalg.LUPlan(pattern, *order))
+            plan = (self.m, linalg.static_plan(pattern, sample))
             self._plan = plan
         return plan[1]
 
@@ -523,11 +418,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return pinv, s[:, 0] / smin, keep.sum(axis=1), np.ones(n)
 
     def newton(self, q, sph, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
-        """
-        Return ``(q, sph, frames, residual, ok)`` after Newton from ``q``, ``sph`` (batch).
-
-        Stops when every scaled residual is below ``tol``.
-        """
+        """Return ``(q, sph, frames, residual, ok)`` after Newton from ``q``, ``sph`` (batch)."""
         for _ in range(max_iter + 1):
             fr = self.frames(q, sph)
             g = self.residual(fr) * self.row_scale
@@ -547,12 +438,8 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         """
         Return ``(q, sph, frames, residual, ok, factor)``: Newton with the predictor's factor.
 
-        The Jacobian is factorized once, at the predictor; the iteration is then a chord
-        method (linear convergence with the factor ~1e-8 of the predictor's error, so one or
-        two steps).  ``factor`` is ``(solver, cond, rank, sign)`` (None: not square, the
-        full Newton of :meth:`newton` was used), with a fifth entry, the Jacobian at the
-        predictor, when every predictor residual is already within ``tol`` (no iteration:
-        the predictor is the solution, its factor exact, :meth:`rates` needs no refinement).
+        ``factor`` is ``(solver, cond, rank, sign)`` (None: not square, full Newton used),
+        plus the predictor's Jacobian when the predictor already converged (factor exact).
         """
         if not self.square or not self.nu:
             q, sph, fr, res, ok = self.newton(q, sph, max_iter, tol)
@@ -581,14 +468,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
     # ------------------------------------------------------------------ refined solves
 
     def solve_u(self, solver, js, rhs):
-        """
-        Return ``x`` with ``js x = rhs`` ``(n, m)`` from an inverse ``solver`` of a nearby Js.
-
-        Square systems: ``solver`` is the inverse at the branch predictor, ``js`` the scaled
-        Jacobian at the solution; REFINE_STEPS steps of iterative refinement make the result
-        that of ``js`` itself (the two differ by the predictor's error, ~1e-8).
-        Redundant systems: ``solver`` is the pseudo-inverse of ``js`` itself.
-        """
+        """Return ``x`` with ``js x = rhs`` from the inverse ``solver`` of a nearby Js."""
         x = mv(solver, rhs)
         if self.square and js is not None:
             for _ in range(REFINE_STEPS):
@@ -597,11 +477,8 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
 
     def solve_ut(self, solver, js, rhs):
         """Return ``y`` with ``js^T y = rhs`` (as :meth:`solve_u`; minimum norm if redundant)."""
-        y = mv(np.swapaxes(solver, 1, 2), rhs)
-        if self.square and js is not None:
-            for _ in range(REFINE_STEPS):
-                y += mv(np.swapaxes(solver, 1, 2), rhs - mv(np.swapaxes(js, 1, 2), y))
-        return y
+        return self.solve_u(np.swapaxes(solver, 1, 2),
+                            None if js is None else np.swapaxes(js, 1, 2), rhs)
 
     # ------------------------------------------------------------------ rates
 
@@ -609,9 +486,8 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         """
         Return the :class:`Rates` at ``fr``.
 
-        ``factor`` ``(solver, cond, rank, sign)`` from a nearby position (the predictor's)
-        is refined against this position's Jacobian instead of factorizing it anew;
-        ``(solver, cond, rank, sign, jac)`` is the factor of this very position (exact).
+        A ``factor`` of a nearby position is refined against this position's Jacobian; one
+        with a fifth entry (its Jacobian) is this very position's, used as it is.
         """
         n = q.shape[0]
         if factor is not None and len(factor) > 4:

@@ -1,17 +1,11 @@
 """
 The spatial rig: a ``kind: spatial`` scene behind the Rig protocol (:mod:`mech_balance.core.rig`).
 
-:class:`SpatialRig` binds a scene's compiled :class:`~kinematics.Linkage` (built and its
-branch traced once per geometry, shared by every design through :func:`linkage_for`) to one
-design's inertia.  Joint values: every joint's coordinates (:mod:`.coordinates`), the crank
-first as given (psi, rad; a prismatic input: its slide s(psi), m, and the rates by the chain
-rule, :meth:`~kinematics.Linkage.input_motion`); effort: the driving effort on the input
-joint, 0 on every other (frictionless joints).  The driving effort is a torque about a
-revolute input's axis (N m, series ``driving_torque``) or a force along a prismatic input's
-axis (N, series ``driving_force``); :attr:`SpatialRig.driving_series` names the one a rig
-reports (:data:`mech_balance.schema.scene.SERIES` holds its label and dimension).  The
-shaking wrench is reduced to the scene's ``moment_point_m``.  ``body_kinematics`` returns
-:class:`~mech_balance.core.rig.BodyKinematics` for spatial balancing and identification.
+:class:`SpatialRig` binds a compiled :class:`~kinematics.Linkage` (shared per geometry through
+:func:`linkage_for`) to one design's inertia.  Joint values: every joint's coordinates
+(:mod:`.coordinates`), the input first (psi, or a prismatic input's slide s(psi), m); effort:
+the driving effort on the input joint (``driving_torque``, N m, or ``driving_force``, N), 0
+elsewhere.  The shaking wrench is reduced to the scene's ``moment_point_m``.
 """
 
 from mech_balance.core.rig import batch, BodyKinematics, BodyPoses, Drawing, DrawingBody, \
@@ -87,9 +81,7 @@ class SpatialRig:
 
     def evaluate(self, psi, outputs=None, speed=None, accel=None):
         """Return the core's ``(state, wrenches)`` at crank angles ``psi`` (rad)."""
-        speed = self.scene.crank_speed_rad_s if speed is None else speed
-        accel = self.scene.crank_acceleration_rad_s2 if accel is None else accel
-        psi, speed, accel = batch(psi, speed, accel)
+        psi, speed, accel = batch(self.scene, psi, speed, accel)
         return self._evaluate(psi, outputs, speed, accel)
 
     def _evaluate(self, psi, outputs, speed, accel):
@@ -103,9 +95,7 @@ class SpatialRig:
 
     def at(self, psi, speed=None, accel=None, outputs=None):
         """Return the :class:`RigData` at crank angles ``psi`` (module docstring: joints)."""
-        speed = self.scene.crank_speed_rad_s if speed is None else speed
-        accel = self.scene.crank_acceleration_rad_s2 if accel is None else accel
-        psi, speed, accel = batch(psi, speed, accel)
+        psi, speed, accel = batch(self.scene, psi, speed, accel)
         outputs = self.scene.outputs if outputs is None else tuple(outputs)
         want = set(outputs)
         state, w = self._evaluate(psi, tuple(outputs) or ('kinematics',), speed, accel)
@@ -134,15 +124,8 @@ class SpatialRig:
             poses=lambda: body_poses(self.linkage, state), native=state)
 
     def body_kinematics(self, psi, speed=None, accel=None):
-        """
-        Return the :class:`~mech_balance.core.rig.BodyKinematics` of the moving bodies.
-
-        At crank angles ``psi`` (rad), speeds (rad/s) and accelerations (rad/s^2; the
-        scene's when None); bodies in the order of :attr:`Drawing.bodies`, frame axes.
-        """
-        speed = self.scene.crank_speed_rad_s if speed is None else speed
-        accel = self.scene.crank_acceleration_rad_s2 if accel is None else accel
-        psi, speed, accel = batch(psi, speed, accel)
+        """Return the :class:`~mech_balance.core.rig.BodyKinematics` at crank angles ``psi``."""
+        psi, speed, accel = batch(self.scene, psi, speed, accel)
         state = self.linkage.solve(psi, speed, accel, need_acc=True)
         fr, tw, ac = state.frames, state.twist, state.accel
         p = fr.origin

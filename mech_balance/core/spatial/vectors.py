@@ -5,7 +5,6 @@ Component-major arrays hold one contiguous block per component (``(3, ...)``), s
 cross or dot product is a few whole-array operations (no small trailing axis).
 """
 
-from mech_balance.rotations import EYE3
 import numpy as np
 
 
@@ -83,14 +82,3 @@ def perp_pair(axis):
     e1 = cross(axis, helper)
     e1 /= np.linalg.norm(e1)
     return e1, cross(axis, e1)
-
-
-def point_gradient(x):
-    """Return ``(..., 3, 6)``: row i is ``(x x e_i, e_i)``, the rate of ``x_i`` per twist."""
-    g = np.zeros(x.shape + (6,))
-    x0, x1, x2 = x[..., 0], x[..., 1], x[..., 2]
-    g[..., 0, 1], g[..., 0, 2] = x2, -x1
-    g[..., 1, 0], g[..., 1, 2] = -x2, x0
-    g[..., 2, 0], g[..., 2, 1] = x1, -x0
-    g[..., 3:] = EYE3
-    return g
