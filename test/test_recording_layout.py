@@ -118,29 +118,62 @@ def test_labels_never_overlap_at_the_default_window(recordings, name):
         assert 'G' not in flat or 'CoM' in flat      # the system mass centre is never 'G'
 
 
+def _strips(ent, path, kind='LineStrips2D:strips'):
+    return [np.array(s, dtype=float) for s in ent[path].static[kind]]
+
+
 @pytest.mark.parametrize('name', ALL)
-def test_plot_ranges_cover_the_data_with_three_ticks(recordings, name):
+def test_plots_read_the_crank_angle_in_degrees(recordings, name):
+    """Issue 31 item 7: each plot is a 2-D view whose x axis is the crank angle, 0-360 deg."""
     _, _, _, summary, ent, blueprint = recordings[name]
-    plots = [v for v in blueprint if v['kind'] == 'TimeSeries']
-    assert len(plots) == len(summary.layout.plots) >= 3
-    _, plot_px = recording.window_px(len(summary.layout.variants), len(plots), True)
-    for view in plots:
-        y0, y1 = view['y_range']
-        values = np.concatenate([
-            np.array([r[0] for r in ent[p].columns['Scalars:scalars']])
-            for p in ent if p.startswith(view['origin'] + '/')])
-        assert y0 <= values.min() and values.max() <= y1, view['name']
-        # legend room: the top share of the plot stays above the curves
-        assert values.max() <= y1 - recording.LEGEND_HEADROOM * 0.99 * (y1 - y0) or \
-            values.max() <= 0.0
-        # the viewer labels powers of ten at least PLOT_TICK_PX apart: count them
-        step = 10.0 ** math.floor(math.log10(y1 - y0) - 3)
-        while plot_px[1] * step / (y1 - y0) < recording.PLOT_TICK_PX:
-            step *= 10.0
-        # ... strictly inside the range: the viewer leaves a tick on the very edge unlabelled
-        inner = 0.01 * (y1 - y0)
-        ticks = math.floor((y1 - inner) / step) - math.ceil((y0 + inner) / step) + 1
-        assert ticks >= 3, (view['name'], y0, y1, step)
+    layout = summary.layout
+    plots = [v for v in blueprint if v['origin'].startswith('/by_angle/')]
+    assert len(plots) == len(layout.plots) >= 3
+    assert not [v for v in blueprint if v['kind'] == 'TimeSeries']
+    n = summary.rows
+    for view, plot in zip(sorted(plots, key=lambda v: v['origin']),
+                          sorted(layout.plots, key=lambda p: p.entity)):
+        root = view['origin']
+        assert view['kind'] == '2D' and root == f'/by_angle/{plot.entity}'
+        assert view['bounds']['x_range'] == [0.0, plot.axes.size_px[0]]
+        pts = np.array(ent[f'{root}/labels'].static['Points2D:positions'])
+        texts = ent[f'{root}/labels'].static['Points2D:labels']
+        centre = {t: recording.label_box_px(p, t) for p, t in zip(pts, texts)}
+        x0, y0, x1, y1 = plot.axes.box_px
+        for deg in (0, 90, 180, 270, 360):          # tick labels under their grid line
+            box = centre[f'{deg}°']
+            assert_allclose(0.5 * (box[0] + box[2]), x0 + (x1 - x0) * deg / 360, atol=1e-3)
+            assert box[1] > y1
+        assert 'crank angle (deg)' in texts
+        unit = plot.unit
+        ticks = [t for t in texts if t.endswith(f' {unit}')]
+        assert len(ticks) >= 3
+        grid = _strips(ent, f'{root}/grid')
+        for t in ticks:                             # each y tick at its value, with a line
+            value = float(t.split()[0])
+            box = centre[t]
+            y = plot.axes.y(value)
+            assert_allclose(0.5 * (box[1] + box[3]), y, atol=1e-3)
+            assert box[2] < x0 and any(abs(g[0, 1] - y) < 1e-3 for g in grid)
+        # the curves: x the angle turned, y the value plotted, as the numbers' series
+        lo, hi = plot.axes.y_ticks[0], plot.axes.y_ticks[-1]
+        for v in layout.variants:
+            curve = _strips(ent, f'{root}/{v}')[0]
+            values = np.array([r[0] for r in ent[f'/plots/{plot.entity}/{v}'].columns[
+                'Scalars:scalars']])
+            assert curve.shape == (n + 1, 2)
+            deg = (curve[:, 0] - x0) * 360.0 / (x1 - x0)
+            assert_allclose(deg, 360.0 * np.arange(n + 1) / n, atol=1e-3)
+            back = lo + (y1 - curve[:, 1]) * (hi - lo) / (y1 - y0)
+            span = hi - lo
+            assert_allclose(back[:-1], values, atol=1e-5 * span)
+            assert lo <= values.min() and values.max() <= hi
+        # the cursor stands at each sample's angle
+        cursor = ent[f'{root}/cursor'].columns['LineStrips2D:strips']
+        assert len(cursor) == n
+        for k in (0, n // 4, n - 1):
+            x = np.array(cursor[k][0])[:, 0]
+            assert_allclose(x, x0 + (x1 - x0) * k / n, atol=1e-3)
 
 
 def _drawn_points(ent, layout, variant):
@@ -311,11 +344,9 @@ def test_a_new_series_is_plotted_with_no_recording_change(tmp_path):
     want = rig_for(sc).at(psi, outputs=('kinetic_energy',)).series['kinetic_energy']
     assert_allclose(got, want, rtol=1e-12, atol=0.0)
     assert '/plots/kinetic_energy/original' in summary.entity_paths
-    names = [v['name'] for v in recording.read_blueprint(path) if v['kind'] == 'TimeSeries']
-    assert any(n.startswith('kinetic energy') and n.split(' | ')[0].endswith('(J)')
-               for n in names), names
-    # the bottom plot says its x axis: the degrees of the crank angle, not a sample index
-    assert sum(n.endswith(' | x: crank angle, deg') for n in names) == 1
+    names = [v['name'] for v in recording.read_blueprint(path)
+             if v['origin'].startswith('/by_angle/')]
+    assert any(n.startswith('kinetic energy') and n.endswith('(J)') for n in names), names
     assert 'kinetic energy' in ent['/info'].static['TextDocument:text'][0]
 
 

@@ -33,6 +33,8 @@ LEFT_SHARE = 0.6
 """Share of the window width of the left column (rigs over the RMS table); plots right."""
 RIG_ROW_SHARE = 0.66
 """Share of the left column's height of the rig views (the RMS table below)."""
+INSET_SHARE = 0.4
+"""Share of the right column's height of the inset (a crowded core zoomed), plots below."""
 GAUGE_GRID = 15
 """Places per side of the grid over the rig's box where a free corner for the gauge is sought."""
 GAUGE_CLEAR_POINTS = 9
@@ -149,6 +151,7 @@ class Layout:
     grid_box: tuple = None       # 3-D: (x0, x1, y0, y1) of the grid drawn on z = 0
     marks: dict = None           # variant -> {'rings': [(body, (k, 3))], 'stalks': [...]}
     changes: dict = None         # variant -> [(body index, mass change kg)]
+    inset: object = None         # a Screen zoomed on a crowded core, or None
 
     def on(self, stream):
         """Return whether ``stream`` is logged."""
@@ -192,14 +195,19 @@ def arc_scale(largest):
     return 90.0 / nice_ceil(largest * 90.0 / MOMENT_ARC_MAX_DEG)
 
 
-def window_px(n_views, n_plots, has_text):
-    """Return the drawing-area sizes (px) of a rig view and of a plot at :data:`WINDOW_PX`."""
+def window_px(n_views, n_plots, has_text, inset=None):
+    """
+    Return the drawing-area sizes (px) of a rig view and of a plot at :data:`WINDOW_PX`.
+
+    The plots share the right column, under the inset (:data:`INSET_SHARE`) if there is one.
+    """
     w, h = WINDOW_PX
     height = h - TOP_BAR_PX - TIME_PANEL_PX
-    left = w * LEFT_SHARE if n_plots else w
+    left = w * LEFT_SHARE if n_plots or inset is not None else w
     rig_h = (height * RIG_ROW_SHARE if has_text else height) - VIEW_TITLE_PX
     rig_w = left / max(n_views, 1) - 6.0
-    plot = ((w - left) - 60.0, height / max(n_plots, 1) - VIEW_TITLE_PX - 24.0)
+    plots_h = height * (1.0 - INSET_SHARE) if inset is not None else height
+    plot = ((w - left) - 8.0, plots_h / max(n_plots, 1) - VIEW_TITLE_PX)
     return (float(rig_w), float(rig_h)), plot
 
 

@@ -68,7 +68,7 @@ from mech_balance.viz.drawing import (
 from mech_balance.viz.labels import label_box_px, label_size_px, LABEL_TEXT_PX, place_labels
 from mech_balance.viz.layout import Screen, WINDOW_PX, window_px
 from mech_balance.viz.live import LIVE_MAX_RATE_HZ, LiveRecorder
-from mech_balance.viz.plots import LEGEND_HEADROOM, plot_range, PLOT_TICK_PX
+from mech_balance.viz.plots import ANGLE_ROOT
 from mech_balance.viz.readback import (
     EntityData, read_blueprint, read_blueprint_views, read_recording
 )
@@ -82,8 +82,8 @@ import rerun as rr
 __all__ = [
     'align_design', 'application_id', 'blueprint', 'check_output_path', 'check_viewer_url',
     'entity_paths', 'EntityData', 'furniture_paths', 'label_box_px', 'label_size_px',
-    'LABEL_TEXT_PX', 'LEGEND_HEADROOM', 'LIVE_MAX_RATE_HZ', 'LiveRecorder', 'PLOT_TICK_PX',
-    'plot_range', 'read_blueprint', 'read_blueprint_views', 'read_recording', 'record',
+    'LABEL_TEXT_PX', 'LIVE_MAX_RATE_HZ', 'LiveRecorder', 'read_blueprint',
+    'read_blueprint_views', 'read_recording', 'record',
     'RecordingSummary', 'RRD_SUFFIX', 'Screen', 'turn_angles', 'VARIANTS', 'window_px',
     'WINDOW_PX',
 ]
@@ -175,6 +175,9 @@ def entity_paths(layout):
         out |= {f'/{v}/mass_changes' for v, moved in (layout.changes or {}).items() if moved}
     for p in layout.plots:
         out |= {f'/plots/{p.entity}/{v}' for v in layout.variants}
+        if not layout.live:
+            out |= {f'/{ANGLE_ROOT}/{p.entity}/{k}'
+                    for k in layout.variants + ('cursor', 'values')}
     return sorted(out)
 
 
@@ -187,4 +190,7 @@ def furniture_paths(layout):
         out.add('/rig/gauge')
     if layout.grid_box is not None:
         out.add('/rig/grid')
+    if not layout.live:
+        out |= {f'/{ANGLE_ROOT}/{p.entity}/{k}' for p in layout.plots
+                for k in ('grid', 'axes', 'labels')}
     return sorted(out)

@@ -6,14 +6,15 @@ import re
 from mech_balance import paths
 from mech_balance.viz.blueprint import blueprint
 from mech_balance.viz.drawing import DEGREE_TIMELINE
-from mech_balance.viz.labels import place_labels
-from mech_balance.viz.plots import plot_values
+from mech_balance.viz.labels import label_size_px, place_labels
+from mech_balance.viz.plots import ANGLE_ROOT, furniture, label_anchor, plot_values
 from mech_balance.viz.style import (
     ADDED_ALPHA, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
     DIAL_COLOR, DIAL_POINTS, FORCE_COLOR, FRAME_COLOR, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI,
     GRID_COLOR, GRID_RADIUS_UI, JOINT_COLOR, JOINT_RADIUS_3D_SHARE, JOINT_RADIUS_UI,
     LINE_RADIUS_UI, LINK_RADIUS_3D_SHARE, MOMENT_ARC_LIMIT_DEG, MOMENT_COLOR, MOMENT_HEAD_SHARE,
-    NEGATIVE_MASS_COLOR, PLANE_ALPHA, POINT_MASS_RADIUS_SHARE, POSITIVE_MASS_COLOR, SCALE_COLOR,
+    NEGATIVE_MASS_COLOR, PLANE_ALPHA, PLOT_GRID_COLOR, POINT_MASS_RADIUS_SHARE,
+    POSITIVE_MASS_COLOR, SCALE_COLOR,
     SERIES_COLORS, SERIES_WIDTHS, SYSTEM_CENTRE_COLOR
 )
 import numpy as np
@@ -194,6 +195,63 @@ def log_static(rec, layout):
         for v in layout.variants:
             rec.log(f'plots/{p.entity}/{v}', rr.SeriesLines(
                 colors=[SERIES_COLORS[v]], names=[v], widths=[SERIES_WIDTHS[v]]), static=True)
+        if not layout.live:
+            log_angle_plot(rec, layout, p)
+
+
+def log_angle_plot(rec, layout, plot):
+    """Log a plot's static 2-D drawing over the crank angle (:mod:`.plots`)."""
+    root = f'{ANGLE_ROOT}/{plot.entity}'
+    grid, frame, texts = furniture(plot.axes, plot.unit, angle_name(layout))
+    rec.log(f'{root}/grid', rr.LineStrips2D(grid, colors=[PLOT_GRID_COLOR], radii=[
+        GRID_RADIUS_UI], draw_order=1.0), static=True)
+    rec.log(f'{root}/axes', rr.LineStrips2D(frame, colors=[SCALE_COLOR], radii=[
+        GRID_RADIUS_UI], draw_order=2.0), static=True)
+    colors = [SCALE_COLOR] * len(texts)
+    if len(layout.variants) > 1:        # a legend in the top margin, right
+        x = plot.axes.box_px[2]
+        for v in layout.variants[::-1]:
+            w = label_size_px(v)[0]
+            texts.append((label_anchor((x - 0.5 * w, 12.0), v), v))
+            colors.append(SERIES_COLORS[v])
+            x -= w + 8.0
+    rec.log(f'{root}/labels', rr.Points2D([t[0] for t in texts], labels=[t[1] for t in texts],
+                                          colors=colors, radii=[0.0], show_labels=True),
+            static=True)
+    for order, v in enumerate(('balanced', 'original')):     # the thin original on top
+        if v in plot.curves:
+            rec.log(f'{root}/{v}', rr.LineStrips2D(
+                [plot.curves[v]], colors=[SERIES_COLORS[v]], draw_order=10.0 + order,
+                radii=[rr.components.Radius.ui_points(0.5 * SERIES_WIDTHS[v])]), static=True)
+    rec.log(f'{root}/cursor', rr.LineStrips2D.from_fields(
+        colors=[SCALE_COLOR], radii=[FRAME_RADIUS_UI], draw_order=20.0), static=True)
+    rec.log(f'{root}/values', rr.Points2D.from_fields(
+        colors=[SERIES_COLORS[v] for v in layout.variants],
+        radii=[rr.components.Radius.ui_points(4.0)], draw_order=21.0), static=True)
+
+
+def angle_name(layout):
+    """Return the name of a plot's x axis: the crank angle, or a prismatic input's phase."""
+    stroke = getattr(layout.rigs['original'].scene, 'crank_stroke_m', None)
+    return 'crank angle (deg)' if stroke is None else 'input phase (deg)'
+
+
+def log_cursor(rec, layout, motion, index):
+    """Log each plot's cursor: a line at the sample's crank angle, a dot on each curve."""
+    sign = -1.0 if layout.rigs['original'].scene.crank_speed_rad_s < 0.0 else 1.0
+    turned = np.mod(sign * motion.degrees, 360.0)
+    p, n = motion.size, len(layout.variants)
+    for plot in layout.plots:
+        root = f'{ANGLE_ROOT}/{plot.entity}'
+        x = plot.axes.x(turned)
+        _, y0, _, y1 = plot.axes.box_px
+        lines = np.stack([np.stack([x, np.full(p, y0)], -1), np.stack([x, np.full(p, y1)], -1)],
+                         axis=1)
+        rec.send_columns(f'{root}/cursor', index, rr.LineStrips2D.columns(strips=lines))
+        dots = np.stack([plot.axes.points(turned, values)
+                         for _, values in plot_values(layout, motion, plot.entity)], axis=1)
+        rec.send_columns(f'{root}/values', index, rr.Points2D.columns(
+            positions=dots.reshape(-1, 2)).partition(np.full(p, n)))
 
 
 def moment_arc(centre, moment_Nm, scale_deg_per_Nm, radius):
@@ -276,6 +334,8 @@ def log_motion(rec, layout, motion, degrees, seconds, labels=None):
         for v, values in plot_values(layout, motion, plot.entity):
             rec.send_columns(f'plots/{plot.entity}/{v}', index,
                              rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
+    if layout.plots and not layout.live:
+        log_cursor(rec, layout, motion, index)
 
 
 def start_stream(rec, scene, layout):

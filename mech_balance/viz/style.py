@@ -57,6 +57,8 @@ JOINT_RADIUS_UI = rr.components.Radius.ui_points(4.5)
 FRAME_COLOR = (150, 150, 150)
 GRID_COLOR = (70, 70, 70)
 """The 3-D grid's lines: darker than the frame, so that the rig stands out."""
+PLOT_GRID_COLOR = (55, 55, 60)
+"""The plots' grid lines at their ticks."""
 GRID_RADIUS_UI = rr.components.Radius.ui_points(0.5)
 """Radius of the 3-D grid's lines."""
 JOINT_COLOR = (235, 235, 235)

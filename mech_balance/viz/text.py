@@ -160,6 +160,8 @@ def info_text(layout, scene, data, samples, balanced_source):
                          f'{fmt(0.01 / layout.moment_scale)} N*m).')
     if layout.plots:
         lines.append('* Plots: ' + ', '.join(p.title for p in layout.plots)
+                     + (' over time (s)' if layout.live else ' over the crank angle (deg), '
+                        'the cursor at the current angle')
                      + '; orange (thin) = original, blue (wide, under it) = balanced: where '
                      'the two agree the orange line runs inside the blue one.')
     lines.append('* Timelines: `crank_angle_deg` (the default; `crank_angle` holds the same) = '
