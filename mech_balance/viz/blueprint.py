@@ -1,7 +1,7 @@
 """The default blueprint: rigs side by side over the RMS table, plots right."""
 
 from mech_balance.viz.drawing import DEGREE_TIMELINE
-from mech_balance.viz.layout import LEFT_SHARE, RIG_ROW_SHARE
+from mech_balance.viz.layout import INSET_SHARE, LEFT_SHARE, RIG_ROW_SHARE
 from mech_balance.viz.plots import ANGLE_ROOT
 from mech_balance.viz.text import fmt
 import rerun.blueprint as rrb
@@ -75,8 +75,17 @@ def blueprint(layout):
     if left:
         columns.append(rrb.Vertical(*left, row_shares=[RIG_ROW_SHARE, 1.0 - RIG_ROW_SHARE])
                        if len(left) > 1 else left[0])
+    if layout.inset is not None:
+        (x0, x1), (y0, y1) = layout.inset.bounds
+        zoom = layout.screens['original'].metres_per_px / layout.inset.metres_per_px
+        plots.insert(0, rrb.Spatial2DView(
+            origin='/', name=f'zoom x{zoom:.1f} on the crowded core (its names)',
+            contents=['/rig/**', '- /rig/gauge', '- /rig/scale', '/inset/**'],
+            visual_bounds=rrb.VisualBounds2D(x_range=[x0, x1], y_range=[-y1, -y0])))
+        shares = [INSET_SHARE] + [(1.0 - INSET_SHARE) / len(layout.plots)] * len(layout.plots)
     if plots:
-        columns.append(rrb.Vertical(*plots))
+        columns.append(rrb.Vertical(*plots, row_shares=shares) if layout.inset is not None
+                       else rrb.Vertical(*plots))
     root = rrb.Horizontal(*columns, column_shares=[LEFT_SHARE, 1.0 - LEFT_SHARE][:len(columns)])
     return rrb.Blueprint(
         root, rrb.BlueprintPanel(state='collapsed'), rrb.SelectionPanel(state='collapsed'),

@@ -14,8 +14,10 @@ from mech_balance.core.rig import rig_for
 from mech_balance.schema import registry
 from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS, SERIES, \
     series_stream
-from mech_balance.viz.labels import label_specs
-from mech_balance.viz.layout import arc_scale, arrow_scale, Layout, nice_floor, place_views
+from mech_balance.viz.labels import label_specs, place_labels
+from mech_balance.viz.layout import (
+    arc_scale, arrow_scale, Layout, nice_floor, place_views, zoom_inset
+)
 from mech_balance.viz.plots import plot_specs
 from mech_balance.viz.style import (
     ARROW_3D_SHARE, AXIS_MARGIN_SHARE, BLOCK_SHARE, FORCE_ARROW_SHARE, LINK_PALETTE,
@@ -462,6 +464,14 @@ def plan(scene, balanced, samples, balanced_source, live=False):
     layout.pivot_name = pivot_label(layout, rig)
     place_views(layout, motion, fmax, nmax, len(series))
     layout.labels = label_specs(layout, motion)
+    if not live:        # a live view places its labels batch by batch
+        layout.placed = {'original': place_labels(layout, motion, 'original')}
+        inset = zoom_inset(layout, motion, layout.placed)
+        if inset is not None:       # the crowded core's names moved to the inset
+            layout.placed = {'original': place_labels(layout, motion, 'original'),
+                             'inset': inset}
+        layout.placed.update({v: place_labels(layout, motion, v) for v in layout.variants
+                              if v not in layout.placed})
     layout.plots = plot_specs(layout, motion)
     if 'info' in streams:
         layout.text = info_text(layout, scene, data, samples, balanced_source)

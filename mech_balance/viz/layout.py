@@ -7,12 +7,12 @@ the drawing.  The labels are placed by :mod:`.labels`, the plots' ranges chosen 
 :mod:`.plots`.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import functools
 import itertools
 import math
 
-from mech_balance.viz.labels import LABEL_PAD_PX, LABEL_TEXT_PX
+from mech_balance.viz.labels import label_anchor, LABEL_PAD_PX, LABEL_TEXT_PX, place_labels
 from mech_balance.viz.style import (
     CENTRE_RADIUS_SHARE, DIAL_OVER_ARROW, DIAL_SHARE, FORCE_ARROW_SHARE, GAUGE_GAP_SHARE,
     GAUGE_LABEL_DROP,
@@ -35,6 +35,12 @@ RIG_ROW_SHARE = 0.66
 """Share of the left column's height of the rig views (the RMS table below)."""
 INSET_SHARE = 0.4
 """Share of the right column's height of the inset (a crowded core zoomed), plots below."""
+INSET_TRIGGER = 0.1
+"""A 2-D rig gets an inset when more than this share of its labels' places is not clean."""
+INSET_MIN_ZOOM = 1.5
+"""... and the inset shows the crowded labels' features at least this much larger."""
+INSET_PAD_PX = 70.0
+"""Room around the crowded features in the inset, for their labels."""
 GAUGE_GRID = 15
 """Places per side of the grid over the rig's box where a free corner for the gauge is sought."""
 GAUGE_CLEAR_POINTS = 9
@@ -152,6 +158,7 @@ class Layout:
     marks: dict = None           # variant -> {'rings': [(body, (k, 3))], 'stalks': [...]}
     changes: dict = None         # variant -> [(body index, mass change kg)]
     inset: object = None         # a Screen zoomed on a crowded core, or None
+    placed: dict = None          # view -> its labels at every sample (place_labels)
 
     def on(self, stream):
         """Return whether ``stream`` is logged."""
@@ -281,6 +288,52 @@ def place_views(layout, motion, fmax, nmax, n_series):
         layout.grid_box = grid_box(lo, hi, layout.grid_m)
         screen = _frame_3d(layout, motion, pts, lo, hi, reach if gauge else 0.0, gap, view_px)
     layout.screens = {v: screen for v in layout.variants}
+
+
+def zoom_inset(layout, motion, placed):
+    """
+    Return the labels of an inset zoomed on the original view's crowded core, or None.
+
+    A 2-D rig whose labels (``placed``: :func:`.labels.place_labels` of each view) are not
+    clean at more than :data:`INSET_TRIGGER` of their places gets a view of its own over the
+    frame points and joints (else links) whose labels are not clean that often, at least
+    :data:`INSET_MIN_ZOOM` times larger; there the names of the frame points, joints and
+    links inside it are placed again, and the crowded ones among them leave the rig views'
+    labels (``layout.labels``).  Sets ``layout.inset`` (its :class:`Screen`).
+    """
+    tiers = placed['original'][4].reshape(motion.size, -1)
+    if layout.dim != 2 or not np.mean(tiers >= 2) > INSET_TRIGGER:
+        return None
+    kinds = ('frame', 'joint', 'link')
+    specs = [s for s in layout.labels if not s.members or 'original' in s.members]
+    crowded = [s for s, t in zip(specs, tiers.T)
+               if s.where in kinds and np.mean(t >= 2) > INSET_TRIGGER]
+    points = [s for s in crowded if s.where != 'link'] or crowded   # the core's points
+    if not points:
+        return None
+    pts = np.concatenate([label_anchor(layout, motion, s, 'original', None) for s in points])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    _, (w, h) = window_px(len(layout.variants), 1, False)
+    w_px, h_px = w, (h + VIEW_TITLE_PX) * INSET_SHARE - VIEW_TITLE_PX
+    s = max((hi[0] - lo[0]) / (w_px - 2 * INSET_PAD_PX),
+            (hi[1] - lo[1]) / (h_px - 2 * INSET_PAD_PX), 1e-300)
+    if layout.screens['original'].metres_per_px < INSET_MIN_ZOOM * s:
+        return None
+    c = 0.5 * (lo + hi)
+    screen = Screen((w_px, h_px), bounds=((c[0] - 0.5 * w_px * s, c[0] + 0.5 * w_px * s),
+                                          (c[1] - 0.5 * h_px * s, c[1] + 0.5 * h_px * s)))
+    layout.inset = screen
+    (x0, x1), (y0, y1) = screen.bounds
+
+    def inside(spec):
+        a = label_anchor(layout, motion, spec, 'original', None)
+        return np.all((a[:, 0] > x0) & (a[:, 0] < x1) & (a[:, 1] > y0) & (a[:, 1] < y1))
+    named = [x for x in specs if x.where in kinds and inside(x)]
+    zoomed = replace(layout, screens={'original': screen}, scale_bar=None, has_added=False,
+                     streams=tuple(x for x in layout.streams if x != 'mass_centres'),
+                     labels=named)
+    layout.labels = [x for x in layout.labels if x not in crowded or x not in named]
+    return place_labels(zoomed, motion, 'original')
 
 
 def grid_box(lo, hi, spacing):

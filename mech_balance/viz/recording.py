@@ -65,7 +65,7 @@ from mech_balance.viz.blueprint import blueprint
 from mech_balance.viz.drawing import (
     align_design, check_samples, plan, tile, turn_angles, turn_ticks, VARIANTS
 )
-from mech_balance.viz.labels import label_box_px, label_size_px, LABEL_TEXT_PX, place_labels
+from mech_balance.viz.labels import label_box_px, label_size_px, LABEL_TEXT_PX
 from mech_balance.viz.layout import Screen, WINDOW_PX, window_px
 from mech_balance.viz.live import LIVE_MAX_RATE_HZ, LiveRecorder
 from mech_balance.viz.plots import ANGLE_ROOT
@@ -124,11 +124,11 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
         else samples
     check_samples(samples, cycles, links=len(rig_for(scene).drawing.bodies))
     layout, motion = plan(scene, balanced, int(samples), balanced_source)
-    labels = {v: place_labels(layout, motion, v) for v in layout.variants}
+    labels = {k: t[:4] for k, t in layout.placed.items()}
     if cycles > 1:
-        labels = {v: (np.concatenate([pos] * cycles), texts * cycles, colors * cycles,
+        labels = {k: (np.concatenate([pos] * cycles), texts * cycles, colors * cycles,
                       np.concatenate([counts] * cycles))
-                  for v, (pos, texts, colors, counts) in labels.items()}
+                  for k, (pos, texts, colors, counts) in labels.items()}
     motion = tile(motion, int(cycles))
     degrees, seconds = turn_ticks(int(samples), scene.crank_speed_rad_s, int(cycles))
     # Encoded into one binary stream (its reads do not concatenate: read it once, at the end)

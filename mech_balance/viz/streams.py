@@ -103,8 +103,10 @@ def log_static(rec, layout):
     else:
         # rerun's 2-D views draw y downwards (rerun-io/rerun#1387): mirror the drawing so
         # that the scene's y axis points up; the logged data stay in the scene's frame.
-        for root in ('rig',) + layout.variants:
+        for root in ('rig', 'inset') + layout.variants:
             rec.log(root, rr.Transform3D(scale=Y_UP_SCALE), static=True)
+    if layout.inset is not None:
+        rec.log('inset/labels', points.from_fields(radii=[0.0], show_labels=True), static=True)
     if layout.grid_box is not None:
         rec.log('rig/grid', strips(grid_strips(layout.grid_box, layout.grid_m),
                                    colors=[GRID_COLOR], radii=[GRID_RADIUS_UI]), static=True)
@@ -326,16 +328,24 @@ def log_motion(rec, layout, motion, degrees, seconds, labels=None):
             else:
                 rec.send_columns(f'{v}/shaking_moment', index, rr.Arrows3D.columns(
                     vectors=data.moment_Nm * layout.moment_scale))
-        pos, texts, colors, counts = labels[v] if labels else place_labels(layout, motion, v)
-        rec.send_columns(f'{v}/labels', index, points.columns(
-            positions=view_coords(layout, pos).reshape(-1, layout.dim), labels=texts,
-            colors=colors).partition(counts))
+        log_labels(rec, layout, f'{v}/labels', index, labels[v] if labels else
+                   place_labels(layout, motion, v))
+    if labels and 'inset' in labels:
+        log_labels(rec, layout, 'inset/labels', index, labels['inset'])
     for plot in layout.plots:
         for v, values in plot_values(layout, motion, plot.entity):
             rec.send_columns(f'plots/{plot.entity}/{v}', index,
                              rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
     if layout.plots and not layout.live:
         log_cursor(rec, layout, motion, index)
+
+
+def log_labels(rec, layout, path, index, placed):
+    """Send a view's labels at every sample (:func:`.labels.place_labels`)."""
+    pos, texts, colors, counts = placed[:4]
+    rec.send_columns(path, index, archetypes(layout.dim)[0].columns(
+        positions=view_coords(layout, pos).reshape(-1, layout.dim), labels=texts,
+        colors=colors).partition(counts))
 
 
 def start_stream(rec, scene, layout):
