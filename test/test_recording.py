@@ -408,10 +408,9 @@ def test_live_recorder_writes_what_the_core_computes(tmp_path):
     singles = [0.0, 0.02, 0.04]
     for k, psi in enumerate(singles):
         assert rec.log_sample(10.0 + 0.02 * k, psi) == 1
-    rig = analysis.Rig(sc)
     batch = 0.1 + 0.05 * np.arange(4)
-    state, w = rig.evaluate(batch)
-    assert rec.log_sample(10.1 + 0.05 * np.arange(4), batch, state=state, wrenches=w) == 4
+    assert rec.log_sample(10.1 + 0.05 * np.arange(4), batch,
+                          data=rig_for(sc).at(batch)) == 4
     rec.close()
     rec.close()                                    # idempotent
     assert rec.closed and rec.log_sample(11.0, 0.5) == 0

@@ -1,9 +1,8 @@
 """
 The drawing adapter: the Rig protocol's ``rig.drawing`` posed by ``RigData.bodies``.
 
-It never asks which kind of rig it draws; where a 2-D and a 3-D picture differ it asks
-``drawing.dimension``.  :func:`plan` lays out a recording (:class:`.layout.Layout`) from one
-reference turn; :func:`motion_of` turns evaluated data into drawn positions.
+:func:`plan` lays out a recording (:class:`.layout.Layout`) from one reference turn;
+:func:`motion_of` turns evaluated data into drawn positions.
 """
 
 from dataclasses import dataclass
@@ -72,12 +71,7 @@ def check_samples(samples, cycles, links=1):
 
 
 DEGREE_TIMELINE = 'crank_angle_deg'
-"""The default timeline: whole degrees turned from crank angle 0 (its name says the unit: a
-sequence timeline shows ``#90`` and nothing else; rerun 0.41's duration and timestamp
-timelines show seconds or dates, never degrees)."""
-TIMELINES = (DEGREE_TIMELINE, 'crank_angle', 'time')
-"""Every timeline of a recording: ``crank_angle`` holds the same values as
-:data:`DEGREE_TIMELINE` (kept for older readers), ``time`` the seconds."""
+"""The default timeline: whole degrees turned from crank angle 0 (``crank_angle``: the same)."""
 
 
 def turn_angles(samples, speed_rad_s=1.0):
@@ -115,12 +109,7 @@ def streams_for(scene, rig):
 
 
 def series_on(name, streams):
-    """
-    Return whether the plot of series ``name`` is switched on.
-
-    Its switch is :func:`~mech_balance.schema.scene.series_stream`'s: ``driving_torque_plot``
-    for the driving effort of either kind (``driving_torque`` or ``driving_force``).
-    """
+    """Return whether the plot of series ``name`` is switched on (``series_stream``)."""
     stream = series_stream(name)
     return stream not in RECORDING_STREAMS or stream in streams
 
@@ -153,9 +142,7 @@ def align_design(original, balanced):
     """
     Return ``balanced`` with its bodies in the order of ``original``'s.
 
-    Raises ValueError unless both scenes are of one kind and have the same geometry: the
-    same drawing (frame points, body points, joints, axes) and the same poses over a turn
-    (the same assembly branch), so that they differ in inertias only.
+    Raises ValueError unless both have one kind, drawing and poses over a turn.
     """
     ko, kb = registry.kind_of(original), registry.kind_of(balanced)
     if kb is not ko:
@@ -183,11 +170,7 @@ def align_design(original, balanced):
 
 
 def outline(body, half_block):
-    """
-    Return a body's polyline in its own frame ``(k, 3)``.
-
-    Closed for a plate, a square for a one-point body (a slider block).
-    """
+    """Return a body's polyline ``(k, 3)``: closed for a plate, a square for a slider block."""
     pts = np.array([body.points[n] for n in body.outline], dtype=float).reshape(-1, 3)
     if len(pts) == 1:
         square = half_block * np.array([[1, 1, 0], [-1, 1, 0], [-1, -1, 0], [1, -1, 0],
@@ -266,12 +249,9 @@ def design_marks(drawings, templates, size):
     """
     Return what a design changed, to draw: ``({variant: marks}, {variant: changes})``.
 
-    ``rings``: per added body (a counterweight disc, a balancing weight) a ring in its own
-    plane (the carrying body's x-y plane at the disc's centre, whose z is the plane's offset:
-    seen edge-on in 3-D, a rim in 2-D), :data:`PLANE_RING_SHARE` of the disc's radius.
-    ``stalks``: for a body of the balanced design whose mass or mass centre moved and that
-    has no added body to show it, a line from the nearest point of its outline to its new
-    mass centre; ``changes`` ``[(body index, mass change kg)]`` of those bodies.
+    ``rings``: a ring in each added body's plane; ``stalks``: a line from a body whose mass
+    or mass centre moved (and no added body shows it) to its new mass centre; ``changes``:
+    ``[(body index, mass change kg)]`` of those bodies.
     """
     marks, changes = {}, {}
     original = {b.name: b for b in drawings['original'].bodies}
@@ -320,40 +300,8 @@ def body_point(drawing, body, point):
     return next(b for b in drawing.bodies if b.name == body).points[point]
 
 
-def tile(motion, cycles):
-    """Return the motion repeated ``cycles`` times (periodic in the crank angle)."""
-    if cycles == 1:
-        return motion
-
-    def rep(a):
-        return np.concatenate([a] * cycles, axis=0)
-    return Motion([rep(a) for a in motion.links], rep(motion.joints),
-                  {v: rep(a) for v, a in motion.centres.items()},
-                  {v: rep(a) for v, a in motion.added.items()},
-                  {v: rep(a) for v, a in motion.point_masses.items()},
-                  {v: TiledData(d, cycles) for v, d in motion.data.items()},
-                  rep(motion.degrees),
-                  {v: {k: None if a is None else rep(a) for k, a in m.items()}
-                   for v, m in (motion.marks or {}).items()})
-
-
-class TiledData:
-    """The wrench and series of a RigData repeated over several turns (logging only)."""
-
-    def __init__(self, data, cycles):
-        def rep(a):
-            return None if a is None else np.concatenate([a] * cycles, axis=0)
-        self.force_N, self.moment_Nm = rep(data.force_N), rep(data.moment_Nm)
-        self.series = {k: rep(v) for k, v in data.series.items()}
-
-
 def frame_strips_of(drawing, moving, size):
-    """
-    Return the frame's polylines: the ground link, and each fixed axis or guide.
-
-    An axis or guide spans the points of the rig near it (:data:`AXIS_NEAR_SHARE`) over the
-    turn, and :data:`~mech_balance.viz.style.AXIS_MARGIN_SHARE` beyond.
-    """
+    """Return the frame's polylines: the ground link, each fixed axis or guide over its part."""
     frame = {n: np.asarray(p, dtype=float) for n, p in drawing.frame.items()}
     tol = SAME_POINT_RTOL * size
     on_axis = set()

@@ -1,11 +1,4 @@
-"""
-The labels of a rig view: their boxes on screen and their greedy placement at every sample.
-
-Pure geometry (no rerun): a label's box as the viewer draws it at the default window, the
-labels of a view most important first (:func:`label_specs`), and :func:`place_labels`, which
-puts each at the first place around its feature that keeps clear of the other labels, of
-every drawn point and line, and that names its own feature.
-"""
+"""The labels of a rig view (no rerun): their boxes on screen, their places at every sample."""
 
 from dataclasses import dataclass
 import functools
@@ -54,11 +47,7 @@ def label_size_px(text):
 
 
 def label_box_px(anchor_px, text):
-    """
-    Return the box ``(x0, y0, x1, y1)`` (pixels) that a label at ``anchor_px`` covers.
-
-    The viewer draws a point's label centred under it, :data:`LABEL_DROP_PX` below.
-    """
+    """Return the box ``(x0, y0, x1, y1)`` (px) of a label at ``anchor_px`` (centred under it)."""
     a = np.asarray(anchor_px, dtype=float)
     w, h = label_size_px(text)
     top = a[..., 1] + LABEL_DROP_PX
@@ -101,12 +90,7 @@ def moved_text(layout, variant, i):
 
 
 def slide_readout(stroke_m, motion, variant):
-    """
-    Return the readout of a prismatic input: ``deg -> 'slide 30.0 mm, force +12.3 N'``.
-
-    The slide follows the input's stroke law at the cycle angle; the driving force is the
-    design's at the recorded samples (a live view's new angles show the slide alone).
-    """
+    """Return the readout of a prismatic input: ``deg -> 'slide 30.0 mm, force +12.3 N'``."""
     from mech_balance.schema.spatial import stroke_law
     data = (motion.data or {}).get(variant)
     force = getattr(data, 'series', {}).get('driving_force') if data is not None else None
@@ -162,13 +146,7 @@ def label_specs(layout, motion):
 
 
 def candidates(w, h, rings=LABEL_OFFSETS_PX):
-    """
-    Return label-box centre offsets (px) around a feature: above, right, below, left, ...
-
-    The four sides and four corners first, then eight places between them on the ellipse
-    through the sides (a box there keeps about its offset from the feature), for each of
-    :data:`LABEL_OFFSETS_PX` in turn.
-    """
+    """Return label-box centre offsets (px) around a feature: sides, corners, between, per ring."""
     out = []
     for offset in rings:
         dx, dy = 0.5 * w + offset, 0.5 * h + offset
@@ -226,12 +204,7 @@ def link_segments_px(motion, screen):
 
 
 def segments_px(layout, motion, screen, variant=None):
-    """
-    Return every drawn line segment of a view ``(p, m, 2, 2)`` on screen.
-
-    The links and the frame; with ``variant``, also that design's marks as drawn: the
-    counterweight plane rings and the stalks to moved mass centres (:func:`design_marks`).
-    """
+    """Return every drawn segment ``(p, m, 2, 2)`` on screen: links, frame, a design's marks."""
     segs = [s for s in link_segments_px(motion, screen) if s.shape[1]]
     for strip in layout.frame_strips:
         px = screen.px(strip)
@@ -286,12 +259,11 @@ def place_labels(layout, motion, variant):
             continue                    # a label of the other design (its discs, changes)
         texts = [spec.text(d) for d in motion.degrees] if callable(spec.text) else None
         w = max(label_size_px(t)[0] for t in (texts or [spec.text]))
+        half = np.array([0.5 * w, 0.5 * h])
         if spec.where in ('readout', 'scale'):
-            corner = np.array([LABEL_GAP_PX + 0.5 * w, LABEL_GAP_PX + 0.5 * h])
-            if spec.where == 'scale':
-                corner = screen.px(layout.scale_bar[2])
-            placed.append(np.broadcast_to(np.array([corner[0] - w / 2, corner[1] - h / 2,
-                                                    corner[0] + w / 2, corner[1] + h / 2]),
+            corner = screen.px(layout.scale_bar[2]) if spec.where == 'scale' else \
+                LABEL_GAP_PX + half
+            placed.append(np.broadcast_to(np.concatenate([corner - half, corner + half]),
                                           (p, 4)))
             base = unproject(screen, np.broadcast_to(corner, (p, 2))
                              - [0.0, LABEL_DROP_PX + 0.5 * h], layout, motion)
@@ -308,8 +280,7 @@ def place_labels(layout, motion, variant):
             if spec.where == 'gauge':
                 offs = offs[[2, 6, 7, 1, 3, 0, 4, 5] + list(range(8, len(offs)))]
             centres = (f_px[rows, :, None, :] + offs[None, None]).reshape(len(rows), -1, 2)
-            boxes = np.stack([centres[..., 0] - w / 2, centres[..., 1] - h / 2,
-                              centres[..., 0] + w / 2, centres[..., 1] + h / 2], axis=-1)
+            boxes = np.concatenate([centres - half, centres + half], axis=-1)
             inside = (boxes[..., 0] >= 0) & (boxes[..., 1] >= 0) & \
                 (boxes[..., 2] <= w_px) & (boxes[..., 3] <= h_px)
             free = inside.copy()
@@ -368,8 +339,7 @@ def place_labels(layout, motion, variant):
             at[rest[got == 0]] = c[got == 0, 0]
             anchor[rest[got == 0]] = 0
             tier[rest] = np.where(got == 0, 5, got)
-        placed.append(np.stack([at[:, 0] - w / 2, at[:, 1] - h / 2, at[:, 0] + w / 2,
-                                at[:, 1] + h / 2], axis=-1))
+        placed.append(np.concatenate([at - half, at + half], axis=-1))
         chosen = np.stack(features, axis=1)[rows, anchor]           # (p, 3)
         base = unproject(screen, at - [0.0, LABEL_DROP_PX + 0.5 * h], layout, motion, chosen)
         out.append((base, tier, texts or [spec.text] * p, spec.color))
@@ -388,13 +358,7 @@ def place_labels(layout, motion, variant):
 
 
 def _nearest_own(spec, feature_px, centres, markers, links_px):
-    """
-    Return ``(p, c)``: whether a label box centred at ``centres`` names its own feature.
-
-    A point's label (frame, joint, mass centre) is nearer its point than any other drawn
-    point (points at its place excepted), by :data:`NEAR_MARGIN_PX`; a link's name nearer
-    its link than any other link.
-    """
+    """Return ``(p, c)``: whether labels at ``centres`` are nearer their feature than any other."""
     if spec.where == 'link':
         own = links_px[spec.index]
         others = [s for i, s in enumerate(links_px) if i != spec.index and s.shape[1]]

@@ -1,10 +1,8 @@
 """
-Where things land on screen: the default window, the views, the gauge, the 2-D bounds or 3-D eye.
+Where things land on screen (no rerun): the default window, the views, the gauge, the inset.
 
-Pure geometry of the picture (no rerun): the :class:`Screen` of a view at :data:`WINDOW_PX`,
-the :class:`Layout` of a recording, the gauge's place and the 2-D bounds or 3-D eye fitted to
-the drawing.  The labels are placed by :mod:`.labels`, the plots' ranges chosen by
-:mod:`.plots`.
+The :class:`Screen` of a view at :data:`WINDOW_PX`, the :class:`Layout` of a recording, and
+the 2-D bounds or 3-D eye fitted to the drawing.
 """
 
 from dataclasses import dataclass, replace
@@ -64,9 +62,7 @@ class Screen:
     """
     Where a view's points land on screen at the default window (:data:`WINDOW_PX`).
 
-    ``size_px`` (w, h) of the view's drawing area; 2-D: ``bounds`` ((x0, x1), (y0, y1)) in
-    the scene's frame (y up), fitted exactly; 3-D: an eye at ``eye_m`` looking at
-    ``target_m`` with ``up`` and :data:`FOV_Y_RAD`.
+    ``size_px`` of the drawing area; 2-D: ``bounds`` ((x0, x1), (y0, y1)), y up; 3-D: an eye.
     """
 
     size_px: tuple
@@ -184,12 +180,7 @@ def nice_floor(x):
 
 
 def arrow_scale(size_m, largest, share=FORCE_ARROW_SHARE, steps=(1.0, 2.0, 5.0)):
-    """
-    Return metres of arrow per unit value (m per N, or m per N*m).
-
-    1 cm of arrow is a round value (``steps`` times a power of ten) and the longest arrow at
-    most ``share`` of the rig's size.
-    """
+    """Return metres of arrow per unit (1 cm a round value, the longest <= ``share`` of rig)."""
     if not largest > 0.0:
         return 1.0
     return 0.01 / nice_ceil(largest * 0.01 / (share * size_m), steps)
@@ -272,8 +263,7 @@ def place_views(layout, motion, fmax, nmax, n_series):
             hi = np.maximum(hi, centre + reach)
         # the bounds: the view's aspect, everything drawn inside with a margin
         w_px, h_px = view_px
-        s = max((hi[0] - lo[0]) / (w_px - 2 * VIEW_PAD_PX),
-                (hi[1] - lo[1]) / (h_px - 2 * VIEW_PAD_PX - 2 * LABEL_TEXT_PX))
+        s = _scale_2d(lo, hi, view_px)
         cx, cy = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
         bounds = ((float(cx - 0.5 * w_px * s), float(cx + 0.5 * w_px * s)),
                   (float(cy - 0.5 * h_px * s), float(cy + 0.5 * h_px * s)))
@@ -337,13 +327,7 @@ def zoom_inset(layout, motion, placed):
 
 
 def grid_box(lo, hi, spacing):
-    """
-    Return the 3-D grid's ``(x0, x1, y0, y1)``: the rig's extent rounded out to the lines.
-
-    The grid lies on z = 0 under (or through) the rig and covers its extent over the turn,
-    rounded out to the grid's lines, plus :data:`GRID_MARGIN_LINES` spacings, so that it
-    frames the rig instead of filling the view to the horizon.
-    """
+    """Return the 3-D grid's ``(x0, x1, y0, y1)`` on z = 0: the rig's extent rounded out."""
     if not spacing > 0.0:
         return None
     m = GRID_MARGIN_LINES * spacing
@@ -363,9 +347,7 @@ def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
     """
     Return the 2-D gauge's centre: where the rig, gauge and all fit the view the largest.
 
-    Tried: beside the rig (right, left), under and over it, and every place of a grid over
-    the rig's own box where nothing of the rig comes within ``gap`` of the gauge over the
-    whole turn (a free corner); the first of the best is taken.
+    Tried: beside, under and over the rig, and the free corners of its own box.
     """
     cx, cy = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
     places = [(hi[0] + gap + reach, cy), (cx, lo[1] - gap - reach),
@@ -432,10 +414,8 @@ def _frame_3d(layout, motion, pts, lo, hi, reach, gap, view_px):
     """
     Return the 3-D screen: the eye fitted to the rig and its gauge, the gauge's place chosen.
 
-    The gauge goes beside the rig, to its right, left or above it as seen from
-    :data:`EYE_DIRECTION`, level with it, in front of it or behind it, where its arrows over
-    the turn keep off the rig's picture and the eye that sees both stands nearest (the rig
-    comes out largest); the eye looks at the middle of what it sees (:func:`fit_eye`).
+    The gauge goes right, left or above the rig where its arrows keep off the rig's picture
+    and the eye stands nearest (:func:`fit_eye`).
     """
     d = np.asarray(EYE_DIRECTION, dtype=float)
     d = d / np.linalg.norm(d)
@@ -474,12 +454,8 @@ def fit_eye(view_px, target, direction, corners):
     """
     Return a 3-D :class:`Screen` whose eye sees every corner inside the view's margins.
 
-    The eye looks along ``-direction`` from the nearest distance at which every corner is
-    inside :data:`VIEW_PAD_PX` of the edges (in closed form: a corner at ``x`` right of the
-    line of sight and ``z`` in front of the target is inside when the distance is at least
-    ``f |x| / half_width - z``, ``f`` the focal length in pixels); the look target is moved
-    so that the corners' picture is centred, :data:`EYE_CENTRING` times, and the eye stands
-    :data:`EYE_FIT` times further than that.
+    The nearest distance along ``direction`` in closed form (a corner ``x`` across and ``z``
+    in front is inside from ``f |x| / half_width - z``), the picture centred.
     """
     target = np.asarray(target, dtype=float)
     corners = np.asarray(corners, dtype=float)

@@ -14,8 +14,7 @@ from mech_balance.viz.style import (
     GRID_COLOR, GRID_RADIUS_UI, JOINT_COLOR, JOINT_RADIUS_3D_SHARE, JOINT_RADIUS_UI,
     LINE_RADIUS_UI, LINK_RADIUS_3D_SHARE, MOMENT_ARC_LIMIT_DEG, MOMENT_COLOR, MOMENT_HEAD_SHARE,
     NEGATIVE_MASS_COLOR, PLANE_ALPHA, PLOT_GRID_COLOR, POINT_MASS_RADIUS_SHARE,
-    POSITIVE_MASS_COLOR, SCALE_COLOR,
-    SERIES_COLORS, SERIES_WIDTHS, SYSTEM_CENTRE_COLOR
+    POSITIVE_MASS_COLOR, SCALE_COLOR, SERIES_COLORS, SERIES_WIDTHS, SYSTEM_CENTRE_COLOR
 )
 import numpy as np
 import rerun as rr
@@ -35,18 +34,8 @@ def application_id(scene):
 
 
 def check_output_path(path, field, create_dir=False):
-    """
-    Return the recording file ``path`` as a ``Path``, checked before anything is computed.
-
-    :func:`mech_balance.paths.check_output_path` with the suffix :data:`RRD_SUFFIX`; ``field``
-    names the caller's option or parameter (``--out``, ``recording_path``) in the error.
-    """
+    """Return the ``.rrd`` file ``path`` checked (:func:`mech_balance.paths.check_output_path`)."""
     return paths.check_output_path(path, field, (RRD_SUFFIX,), create_dir=create_dir)
-
-
-def check_viewer_url(url, field='rerun_url'):
-    """Return ``url`` if it is a rerun viewer's gRPC address (:func:`paths.check_viewer_url`)."""
-    return paths.check_viewer_url(url, field)
 
 
 def time_index(degrees, seconds):
@@ -72,13 +61,7 @@ def view_coords(layout, a):
 
 
 def uniform_strips(strips):
-    """
-    Return polylines per sample ``[(p, k_i, d)]`` as one array ``(p * n, max k_i, d)``.
-
-    Each polyline is padded with its end point (a repeated point draws nothing more), so that
-    rerun converts one array at once instead of each polyline on its own (its list path cost
-    more than the rest of a recording).
-    """
+    """Return polylines ``[(p, k_i, d)]`` as one array ``(p * n, max k_i, d)``, end-padded."""
     k = max(s.shape[1] for s in strips)
     out = np.stack([np.concatenate([s, np.repeat(s[:, -1:], k - s.shape[1], axis=1)], axis=1)
                     for s in strips], axis=1)                     # (p, n, k, d)
@@ -276,76 +259,58 @@ def moment_arc(centre, moment_Nm, scale_deg_per_Nm, radius):
 
 
 def log_motion(rec, layout, motion, degrees, seconds, labels=None):
-    """Send the columns of a batch of samples (``labels``: precomputed per variant)."""
+    """Send the columns of a batch of samples (``labels``: placed per view beforehand)."""
     index = time_index(degrees, seconds)
     points, strips, arrows = archetypes(layout.dim)
     p = motion.size
+
+    def send_points(path, pts, counts=None, **fields):     # (p, n, 3): n points per sample
+        rec.send_columns(path, index, points.columns(
+            positions=view_coords(layout, pts).reshape(-1, layout.dim), **fields).partition(
+                np.full(p, pts.shape[1]) if counts is None else counts))
     if layout.on('links'):
-        n = len(motion.links)
         flat = uniform_strips([view_coords(layout, s) for s in motion.links])
-        rec.send_columns('rig/links', index, strips.columns(strips=flat).partition(np.full(p, n)))
+        rec.send_columns('rig/links', index, strips.columns(strips=flat).partition(
+            np.full(p, len(motion.links))))
     if layout.on('joints') and motion.joints.shape[1]:
-        n = motion.joints.shape[1]
-        rec.send_columns('rig/joints', index, points.columns(
-            positions=view_coords(layout, motion.joints).reshape(-1, layout.dim)).partition(
-                np.full(p, n)))
+        send_points('rig/joints', motion.joints)
     for v in layout.variants:
         data = motion.data[v]
         if layout.on('mass_centres'):
-            c = motion.centres[v]
-            rec.send_columns(f'{v}/mass_centres', index, points.columns(
-                positions=view_coords(layout, c).reshape(-1, layout.dim)).partition(
-                    np.full(p, c.shape[1])))
+            send_points(f'{v}/mass_centres', motion.centres[v])
         if layout.has_added and motion.added[v].shape[1]:
-            a = motion.added[v]
-            rec.send_columns(f'{v}/counterweights', index, points.columns(
-                positions=view_coords(layout, a).reshape(-1, layout.dim)).partition(
-                    np.full(p, a.shape[1])))
+            send_points(f'{v}/counterweights', motion.added[v])
         marks = (motion.marks or {}).get(v, {})
         drawn = {'rings': layout.has_added, 'stalks': layout.on('links')}
         for kind, path in (('rings', 'counterweight_planes'), ('stalks', 'mass_changes')):
             m = marks.get(kind)
-            if m is None or not drawn[kind]:
-                continue
-            flat = view_coords(layout, m).reshape((-1,) + m.shape[2:3] + (layout.dim,))
-            rec.send_columns(f'{v}/{path}', index,
-                             strips.columns(strips=flat).partition(np.full(p, m.shape[1])))
+            if m is not None and drawn[kind]:
+                flat = view_coords(layout, m).reshape((-1,) + m.shape[2:3] + (layout.dim,))
+                rec.send_columns(f'{v}/{path}', index, strips.columns(strips=flat).partition(
+                    np.full(p, m.shape[1])))
         if layout.has_point_masses:
-            pm = motion.point_masses[v]
-            rec.send_columns(f'{v}/point_masses', index, points.columns(
-                positions=view_coords(layout, pm).reshape(-1, layout.dim)).partition(
-                    np.full(p, pm.shape[1])))
+            send_points(f'{v}/point_masses', motion.point_masses[v])
         if layout.on('shaking_force_arrow'):
             rec.send_columns(f'{v}/shaking_force', index, arrows.columns(
                 vectors=view_coords(layout, data.force_N * layout.force_scale_m_per_N)))
-        if layout.on('shaking_moment_arc'):
-            if layout.dim == 2:
-                arc, head = moment_arc(layout.gauge_m, data.moment_Nm[:, 2],
-                                       layout.moment_scale, layout.dial_radius_m)
-                flat = uniform_strips([arc, head])
-                rec.send_columns(f'{v}/shaking_moment', index,
-                                 rr.LineStrips2D.columns(strips=flat).partition(np.full(p, 2)))
-            else:
-                rec.send_columns(f'{v}/shaking_moment', index, rr.Arrows3D.columns(
-                    vectors=data.moment_Nm * layout.moment_scale))
-        log_labels(rec, layout, f'{v}/labels', index, labels[v] if labels else
-                   place_labels(layout, motion, v))
-    if labels and 'inset' in labels:
-        log_labels(rec, layout, 'inset/labels', index, labels['inset'])
+        if layout.on('shaking_moment_arc') and layout.dim == 2:
+            flat = uniform_strips(list(moment_arc(layout.gauge_m, data.moment_Nm[:, 2],
+                                                  layout.moment_scale, layout.dial_radius_m)))
+            rec.send_columns(f'{v}/shaking_moment', index,
+                             rr.LineStrips2D.columns(strips=flat).partition(np.full(p, 2)))
+        elif layout.on('shaking_moment_arc'):
+            rec.send_columns(f'{v}/shaking_moment', index, rr.Arrows3D.columns(
+                vectors=data.moment_Nm * layout.moment_scale))
+    for view in layout.variants + (('inset',) if labels and 'inset' in labels else ()):
+        pos, texts, colors, counts = (labels[view] if labels else
+                                      place_labels(layout, motion, view))[:4]
+        send_points(f'{view}/labels', pos[None], labels=texts, colors=colors, counts=counts)
     for plot in layout.plots:
         for v, values in plot_values(layout, motion, plot.entity):
             rec.send_columns(f'plots/{plot.entity}/{v}', index,
                              rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
     if layout.plots and not layout.live:
         log_cursor(rec, layout, motion, index)
-
-
-def log_labels(rec, layout, path, index, placed):
-    """Send a view's labels at every sample (:func:`.labels.place_labels`)."""
-    pos, texts, colors, counts = placed[:4]
-    rec.send_columns(path, index, archetypes(layout.dim)[0].columns(
-        positions=view_coords(layout, pos).reshape(-1, layout.dim), labels=texts,
-        colors=colors).partition(counts))
 
 
 def start_stream(rec, scene, layout):
