@@ -12,13 +12,7 @@ DRAWN_STREAMS = ('frame', 'links', 'joints', 'mass_centres', 'point_masses',
 
 
 def spatial_name(layout, variant):
-    """
-    Return a rig view's title: the design, then the scales of what it draws.
-
-    2-D: ``force arrow 1 cm = .. N | moment arc 90 deg = .. N*m``; 3-D, whose views are
-    narrower, says the grid and the arrows in short (``grid 5 cm | 1 cm: .. N, .. N*m``) so
-    that the title fits its view at the default window.
-    """
+    """Return a rig view's title: the design, then the scales of what it draws (3-D: short)."""
     force, moment = layout.on('shaking_force_arrow'), layout.on('shaking_moment_arc')
     if layout.dim == 3:
         scales = ([f'{fmt(0.01 / layout.force_scale_m_per_N)} N'] if force else []) + \

@@ -15,7 +15,7 @@ from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS, SERIE
     series_stream
 from mech_balance.viz.labels import label_specs, place_labels
 from mech_balance.viz.layout import (
-    arc_scale, arrow_scale, Layout, nice_floor, place_views, zoom_inset
+    arc_scale, arrow_scale, Layout, length_text, nice_floor, place_views, zoom_inset
 )
 from mech_balance.viz.plots import plot_specs
 from mech_balance.viz.style import (
@@ -238,13 +238,6 @@ def motion_of(layout, data):
     return Motion(links, joints, centres, added, point_masses, data, degrees, marks)
 
 
-def length_text(length_m):
-    """Return a round length as a person writes it (``5 cm``, ``2 mm``, ``1 m``)."""
-    if length_m >= 1.0:
-        return f'{length_m:g} m'
-    return f'{length_m * 100:g} cm' if length_m >= 0.01 else f'{length_m * 1000:g} mm'
-
-
 def design_marks(drawings, templates, size):
     """
     Return what a design changed, to draw: ``({variant: marks}, {variant: changes})``.
@@ -356,12 +349,10 @@ def plan(scene, balanced, samples, balanced_source, live=False):
     psi = turn_angles(samples, scene.crank_speed_rad_s)
     data = {v: r.at(psi, outputs=table_outputs) for v, r in rigs.items()}
     ref = data['original']
-    has_wrench = ref.force_N is not None
-    if not has_wrench:
+    if ref.force_N is None:
         streams = tuple(s for s in streams if s not in SHAKING_STREAMS)
-    series = tuple(k for k in list(SERIES) + sorted(ref.series)
-                   if k in ref.series and series_on(k, streams))
-    series = tuple(dict.fromkeys(series))
+    series = tuple(dict.fromkeys(k for k in list(SERIES) + sorted(ref.series)
+                                 if k in ref.series and series_on(k, streams)))
     has_pm = 'point_masses' in streams and all(
         b.point_masses for dr in drawings.values() for b in dr.bodies)
     if not has_pm:
@@ -389,27 +380,21 @@ def plan(scene, balanced, samples, balanced_source, live=False):
     share = FORCE_ARROW_SHARE if dim == 2 else ARROW_3D_SHARE
     steps = (1.0, 2.0, 5.0) if dim == 2 else ARROW_3D_STEPS    # 3-D: lengths matter more
     fscale = rec.force_scale_m_per_N or arrow_scale(size, fmax, share, steps)
-    if dim == 2:
-        mscale = rec.moment_scale_deg_per_Nm or arc_scale(nmax)
-    else:
-        mscale = arrow_scale(size, nmax, share, steps)
+    mscale = (rec.moment_scale_deg_per_Nm or arc_scale(nmax)) if dim == 2 else \
+        arrow_scale(size, nmax, share, steps)
 
     layout = Layout(
-        title=scene.name, dim=dim, streams=streams, variants=tuple(rigs), rigs=rigs,
-        drawings=drawings, stream_outputs=stream_outputs, size_m=size, templates=templates,
-        link_names=names, link_colors=colors,
-        joint_names=[j[0] for j in drawing.joints], frame_names=list(drawing.frame),
-        frame_points=frame_pts, frame_strips=frame_strips,
-        pivot_name=rig.moment_point, force_scale_m_per_N=fscale,
-        moment_scale=mscale, gauge_m=np.zeros(3), gauge_reach_m=0.0, dial_radius_m=0.0,
-        scale_bar=None,
-        screens={}, plots=[], labels=[], series=series, has_added=has_added,
-        has_point_masses=has_pm, live=live)
+        dim=dim, streams=streams, variants=tuple(rigs), rigs=rigs, drawings=drawings,
+        stream_outputs=stream_outputs, size_m=size, templates=templates, link_names=names,
+        link_colors=colors, joint_names=[j[0] for j in drawing.joints],
+        frame_names=list(drawing.frame), frame_points=frame_pts, frame_strips=frame_strips,
+        pivot_name=rig.moment_point, force_scale_m_per_N=fscale, moment_scale=mscale,
+        series=series, has_added=has_added, has_point_masses=has_pm, live=live,
+        grid_m=nice_floor(SCALE_BAR_SHARE * size))
     layout.marks, layout.changes = design_marks(drawings, templates, size)
-    layout.grid_m = nice_floor(SCALE_BAR_SHARE * size)
     layout.grid_text = length_text(layout.grid_m)
-    motion = motion_of(layout, data)
     layout.pivot_name = pivot_label(layout, rig)
+    motion = motion_of(layout, data)
     place_views(layout, motion, fmax, nmax, len(series))
     layout.labels = label_specs(layout, motion)
     if not live:        # a live view places its labels batch by batch

@@ -5,7 +5,7 @@ The :class:`Screen` of a view at :data:`WINDOW_PX`, the :class:`Layout` of a rec
 the 2-D bounds or 3-D eye fitted to the drawing.
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 import functools
 import itertools
 import math
@@ -118,7 +118,6 @@ class Screen:
 class Layout:
     """Everything static of a recording: rigs, drawings, styles, scales, screens, text."""
 
-    title: str
     dim: int
     streams: tuple
     variants: tuple
@@ -136,16 +135,16 @@ class Layout:
     pivot_name: str
     force_scale_m_per_N: float
     moment_scale: float          # deg per N*m (2-D arc) or m per N*m (3-D arrow)
-    gauge_m: np.ndarray          # (3,)
-    gauge_reach_m: float         # radius of everything the gauge draws
-    dial_radius_m: float
-    scale_bar: tuple             # ((k, 3) strip, label text, label point (3,)) or None
-    screens: dict
-    plots: list
-    labels: list
     series: tuple
     has_added: bool
     has_point_masses: bool
+    gauge_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gauge_reach_m: float = 0.0   # radius of everything the gauge draws
+    dial_radius_m: float = 0.0
+    scale_bar: tuple = None      # ((k, 3) strip, label text, label point (3,))
+    screens: dict = None
+    plots: list = ()
+    labels: list = ()
     text: str = ''
     live: bool = False
     grid_m: float = 0.0          # 3-D: spacing of the grid lines
@@ -254,20 +253,14 @@ def place_views(layout, motion, fmax, nmax, n_series):
         x_bar = lo[0]
         strip = np.array([[x_bar, y_bar + tick, 0], [x_bar, y_bar, 0],
                           [x_bar + bar, y_bar, 0], [x_bar + bar, y_bar + tick, 0]])
-        text = f'{bar * 100:g} cm' if bar >= 0.01 else f'{bar * 1000:g} mm'
+        text = length_text(bar)
         lo = np.minimum(lo, strip.min(axis=0) - [0, tick, 0])
         if gauge and reach > 0.0:
             centre = _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px)
             layout.gauge_m, layout.gauge_reach_m = centre, reach
             lo = np.minimum(lo, centre - reach)
             hi = np.maximum(hi, centre + reach)
-        # the bounds: the view's aspect, everything drawn inside with a margin
-        w_px, h_px = view_px
-        s = _scale_2d(lo, hi, view_px)
-        cx, cy = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
-        bounds = ((float(cx - 0.5 * w_px * s), float(cx + 0.5 * w_px * s)),
-                  (float(cy - 0.5 * h_px * s), float(cy + 0.5 * h_px * s)))
-        screen = Screen(view_px, bounds=bounds)
+        screen = fit_2d(lo, hi, view_px)
         label_at = 0.5 * (strip[1] + strip[2]) + screen.offset_m(
             strip[1], [0.0, 3.0 + 0.5 * (LABEL_TEXT_PX + LABEL_PAD_PX[1])])
         layout.scale_bar = (strip, text, label_at)
@@ -304,14 +297,10 @@ def zoom_inset(layout, motion, placed):
     pts = np.concatenate([label_anchor(layout, motion, s, 'original', None) for s in points])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     _, (w, h) = window_px(len(layout.variants), 1, False)
-    w_px, h_px = w, (h + VIEW_TITLE_PX) * INSET_SHARE - VIEW_TITLE_PX
-    s = max((hi[0] - lo[0]) / (w_px - 2 * INSET_PAD_PX),
-            (hi[1] - lo[1]) / (h_px - 2 * INSET_PAD_PX), 1e-300)
-    if layout.screens['original'].metres_per_px < INSET_MIN_ZOOM * s:
+    screen = fit_2d(lo, hi, (w, (h + VIEW_TITLE_PX) * INSET_SHARE - VIEW_TITLE_PX),
+                    (INSET_PAD_PX, INSET_PAD_PX))
+    if layout.screens['original'].metres_per_px < INSET_MIN_ZOOM * screen.metres_per_px:
         return None
-    c = 0.5 * (lo + hi)
-    screen = Screen((w_px, h_px), bounds=((c[0] - 0.5 * w_px * s, c[0] + 0.5 * w_px * s),
-                                          (c[1] - 0.5 * h_px * s, c[1] + 0.5 * h_px * s)))
     layout.inset = screen
     (x0, x1), (y0, y1) = screen.bounds
 
@@ -336,11 +325,21 @@ def grid_box(lo, hi, spacing):
     return (x0, x1, y0, y1)
 
 
-def _scale_2d(lo, hi, view_px):
-    """Return the metres per pixel at which the box ``lo``-``hi`` fits a 2-D view."""
-    w_px, h_px = view_px
-    return max((hi[0] - lo[0]) / (w_px - 2 * VIEW_PAD_PX),
-               (hi[1] - lo[1]) / (h_px - 2 * VIEW_PAD_PX - 2 * LABEL_TEXT_PX))
+def fit_2d(lo, hi, view_px, pad_px=(VIEW_PAD_PX, VIEW_PAD_PX + LABEL_TEXT_PX)):
+    """Return the 2-D :class:`Screen` of ``view_px`` that fits the box ``lo``-``hi``, centred."""
+    w, h = view_px
+    s = max((hi[0] - lo[0]) / (w - 2 * pad_px[0]), (hi[1] - lo[1]) / (h - 2 * pad_px[1]),
+            1e-300)
+    c = 0.5 * (np.asarray(lo, dtype=float) + hi)
+    return Screen(view_px, bounds=((float(c[0] - 0.5 * w * s), float(c[0] + 0.5 * w * s)),
+                                   (float(c[1] - 0.5 * h * s), float(c[1] + 0.5 * h * s))))
+
+
+def length_text(length_m):
+    """Return a round length as a person writes it (``5 cm``, ``2 mm``, ``1 m``)."""
+    if length_m >= 1.0:
+        return f'{length_m:g} m'
+    return f'{length_m * 100:g} cm' if length_m >= 0.01 else f'{length_m * 1000:g} mm'
 
 
 def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
@@ -380,7 +379,7 @@ def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
     best, best_s = None, math.inf
     for x, y in places:
         c = np.array([x, y, 0.0])
-        s = _scale_2d(np.minimum(lo, c - reach), np.maximum(hi, c + reach), view_px)
+        s = fit_2d(np.minimum(lo, c - reach), np.maximum(hi, c + reach), view_px).metres_per_px
         if s < best_s * (1.0 - 1e-9):
             best, best_s = c, s
     return best

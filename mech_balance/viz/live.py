@@ -206,15 +206,13 @@ class LiveRecorder:
         if self.path is not None:       # a viewer alone is laid out on its own thread
             self._layout, _ = plan(scene, balanced, samples, balanced_source, live=True)
         self._lock = threading.Lock()
-        self._owner = None
         self._logging = threading.local()   # set before the lock is taken: see close()
         self._closed = False
         self._close_requested = False
         self.samples_logged = 0
         self._t0 = None
         self._rec = self._partial = self._view = None
-        if self.path is not None:
-            # visibly partial (.NAME.partial-XXXXXXXX) until close() renames it over the path
+        if self.path is not None:     # .NAME.partial-XXXXXXXX until close() renames it
             self._partial = atomic.partial_path(self.path)
             try:
                 self._rec = rr.RecordingStream(application_id(scene))
@@ -235,11 +233,7 @@ class LiveRecorder:
 
     @property
     def status(self):
-        """
-        Return the viewer's state: ``'connecting'``, ``'connected'`` or ``'dead: <reason>'``.
-
-        ``'off'`` without ``url`` (a file only).  Reading it never blocks.
-        """
+        """Return ``'off'`` (no viewer), ``'connecting'``, ``'connected'`` or ``'dead: ...'``."""
         return 'off' if self._view is None else self._view.status
 
     @property
@@ -275,16 +269,12 @@ class LiveRecorder:
         self._logging.active = True
         try:
             with self._lock:        # held by a close at most: the file's flush, then closed
-                self._owner = threading.get_ident()
-                try:
-                    if self._closed:
-                        return 0
-                    if self._t0 is None:
-                        self._t0 = float(t[0])
-                    log_motion(self._rec, self.layout, motion, degrees, t - self._t0)
-                    self.samples_logged += psi.size
-                finally:
-                    self._owner = None
+                if self._closed:
+                    return 0
+                if self._t0 is None:
+                    self._t0 = float(t[0])
+                log_motion(self._rec, self.layout, motion, degrees, t - self._t0)
+                self.samples_logged += psi.size
         finally:
             self._logging.active = False
         if self._close_requested:
@@ -303,7 +293,7 @@ class LiveRecorder:
             return
         deadline = time.monotonic() + max(0.0, float(timeout_s))
         self._close_requested = True
-        if self._owner == threading.get_ident() or getattr(self._logging, 'active', False):
+        if getattr(self._logging, 'active', False):
             return  # interrupted a log call on this thread: it closes the file when done
         self._lock.acquire()        # a log call on another thread: waited for, then closed
         try:

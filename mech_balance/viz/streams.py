@@ -80,106 +80,90 @@ def line_radius(layout, share, ui):
 
 
 def log_static(rec, layout):
+    """Log the static geometry and styles of a recording."""
     points, strips, arrows = archetypes(layout.dim)
+    size = layout.size_m
+    thin = line_radius(layout, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI)
+    joint = line_radius(layout, JOINT_RADIUS_3D_SHARE, JOINT_RADIUS_UI)
+
+    def static(path, archetype):
+        rec.log(path, archetype, static=True)
     if layout.dim == 3:
-        rec.log('/', rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    else:
-        # rerun's 2-D views draw y downwards (rerun-io/rerun#1387): mirror the drawing so
-        # that the scene's y axis points up; the logged data stay in the scene's frame.
+        static('/', rr.ViewCoordinates.RIGHT_HAND_Z_UP)
+    else:       # rerun's 2-D views draw y down (rerun-io/rerun#1387): mirror the drawing
         for root in ('rig', 'inset') + layout.variants:
-            rec.log(root, rr.Transform3D(scale=Y_UP_SCALE), static=True)
-    if layout.inset is not None:
-        rec.log('inset/labels', points.from_fields(radii=[0.0], show_labels=True), static=True)
+            static(root, rr.Transform3D(scale=Y_UP_SCALE))
+    for view in layout.variants + (('inset',) if layout.inset is not None else ()):
+        static(f'{view}/labels', points.from_fields(radii=[0.0], show_labels=True))
     if layout.grid_box is not None:
-        rec.log('rig/grid', strips(grid_strips(layout.grid_box, layout.grid_m),
-                                   colors=[GRID_COLOR], radii=[GRID_RADIUS_UI]), static=True)
+        static('rig/grid', strips(grid_strips(layout.grid_box, layout.grid_m),
+                                  colors=[GRID_COLOR], radii=[GRID_RADIUS_UI]))
     if layout.on('info'):
-        rec.log('info', rr.TextDocument(layout.text, media_type=rr.MediaType.MARKDOWN),
-                static=True)
+        static('info', rr.TextDocument(layout.text, media_type=rr.MediaType.MARKDOWN))
     if layout.on('frame'):
         if layout.frame_strips:
-            rec.log('rig/frame', strips([view_coords(layout, s) for s in layout.frame_strips],
-                                        colors=[FRAME_COLOR],
-                                        radii=[line_radius(layout, FRAME_RADIUS_3D_SHARE,
-                                                           FRAME_RADIUS_UI)]), static=True)
-        rec.log('rig/pivots', points(view_coords(layout, layout.frame_points),
-                                     colors=[FRAME_COLOR],
-                                     radii=[line_radius(layout, JOINT_RADIUS_3D_SHARE,
-                                                        JOINT_RADIUS_UI)]), static=True)
+            static('rig/frame', strips([view_coords(layout, s) for s in layout.frame_strips],
+                                       colors=[FRAME_COLOR], radii=[thin]))
+        static('rig/pivots', points(view_coords(layout, layout.frame_points),
+                                    colors=[FRAME_COLOR], radii=[joint]))
     if layout.on('links'):
-        rec.log('rig/links', strips.from_fields(
-            colors=layout.link_colors,
-            radii=[line_radius(layout, LINK_RADIUS_3D_SHARE, LINE_RADIUS_UI)]), static=True)
+        static('rig/links', strips.from_fields(colors=layout.link_colors, radii=[
+            line_radius(layout, LINK_RADIUS_3D_SHARE, LINE_RADIUS_UI)]))
     if layout.on('joints'):
-        rec.log('rig/joints', points.from_fields(
-            colors=[JOINT_COLOR], radii=[line_radius(layout, JOINT_RADIUS_3D_SHARE,
-                                                     JOINT_RADIUS_UI)]), static=True)
+        static('rig/joints', points.from_fields(colors=[JOINT_COLOR], radii=[joint]))
     if layout.scale_bar is not None:
-        rec.log('rig/scale', strips([view_coords(layout, layout.scale_bar[0])],
-                                    colors=[SCALE_COLOR], radii=[FRAME_RADIUS_UI]),
-                static=True)
+        static('rig/scale', strips([view_coords(layout, layout.scale_bar[0])],
+                                   colors=[SCALE_COLOR], radii=[FRAME_RADIUS_UI]))
     if layout.dim == 2 and layout.dial_radius_m > 0.0:
         t = np.linspace(0.0, 2.0 * math.pi, DIAL_POINTS)
         circle = layout.gauge_m[:2] + layout.dial_radius_m * np.stack([np.cos(t), np.sin(t)],
                                                                       axis=-1)
-        rec.log('rig/gauge', rr.LineStrips2D([circle], colors=[DIAL_COLOR],
-                                             radii=[FRAME_RADIUS_UI]), static=True)
-    size = layout.size_m
+        static('rig/gauge', rr.LineStrips2D([circle], colors=[DIAL_COLOR],
+                                            radii=[FRAME_RADIUS_UI]))
     for v in layout.variants:
-        rec.log(f'{v}/labels', points.from_fields(radii=[0.0], show_labels=True),
-                static=True)
         if layout.on('mass_centres'):
             n = len(layout.link_names)
-            rec.log(f'{v}/mass_centres', points.from_fields(
+            static(f'{v}/mass_centres', points.from_fields(
                 colors=list(layout.link_colors) + [SYSTEM_CENTRE_COLOR],
-                radii=[CENTRE_RADIUS_SHARE * size] * n + [1.8 * CENTRE_RADIUS_SHARE * size]),
-                static=True)
-        bodies = layout.drawings[v].bodies
-        added = [(i, a) for i, b in enumerate(bodies) for a in b.added]
+                radii=[CENTRE_RADIUS_SHARE * size] * n + [1.8 * CENTRE_RADIUS_SHARE * size]))
+        added = [(i, a) for i, b in enumerate(layout.drawings[v].bodies) for a in b.added]
         behind = {'draw_order': ADDED_DRAW_ORDER} if layout.dim == 2 else {}
-        if layout.has_added and added:
-            # each disc in its link's colour, see-through so that the link under it shows
-            rec.log(f'{v}/counterweights', points.from_fields(
+        if layout.has_added and added:      # see-through discs in their link's colour
+            static(f'{v}/counterweights', points.from_fields(
                 radii=[a.radius_m for _, a in added],
                 colors=[layout.link_colors[i] + (ADDED_ALPHA,) for i, _ in added],
                 labels=[f'{a.name}: {a.mass_kg:.3g} kg' for _, a in added], show_labels=False,
-                **behind), static=True)
-            rec.log(f'{v}/counterweight_planes', strips.from_fields(
+                **behind))
+            static(f'{v}/counterweight_planes', strips.from_fields(
                 colors=[layout.link_colors[i] + (PLANE_ALPHA,) for i, _ in added],
-                radii=[line_radius(layout, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI)],
-                **behind), static=True)
+                radii=[thin], **behind))
         moved = (layout.changes or {}).get(v, [])
         if layout.on('links') and moved:
-            rec.log(f'{v}/mass_changes', strips.from_fields(
-                colors=[layout.link_colors[i] for i, _ in moved],
-                radii=[line_radius(layout, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI)]),
-                static=True)
+            static(f'{v}/mass_changes', strips.from_fields(
+                colors=[layout.link_colors[i] for i, _ in moved], radii=[thin]))
         if layout.has_point_masses:
             kg = np.array([m for b in layout.drawings[v].bodies for m, _ in b.point_masses])
-            mmax = max(float(np.max(np.abs(np.array(
-                [m for dr in layout.drawings.values() for b in dr.bodies
-                 for m, _ in b.point_masses])))), 1e-300)
-            rec.log(f'{v}/point_masses', points.from_fields(
+            mmax = max(max(abs(m) for dr in layout.drawings.values() for b in dr.bodies
+                           for m, _ in b.point_masses), 1e-300)
+            static(f'{v}/point_masses', points.from_fields(
                 radii=POINT_MASS_RADIUS_SHARE * size * np.sqrt(np.abs(kg) / mmax),
                 colors=[POSITIVE_MASS_COLOR if m >= 0.0 else NEGATIVE_MASS_COLOR for m in kg],
-                labels=[f'{m * 1e3:+.4g} g' for m in kg], show_labels=False), static=True)
+                labels=[f'{m * 1e3:+.4g} g' for m in kg], show_labels=False))
         if layout.on('shaking_force_arrow'):
-            rec.log(f'{v}/shaking_force', arrows.from_fields(
+            static(f'{v}/shaking_force', arrows.from_fields(
                 origins=[view_coords(layout, layout.gauge_m)], colors=[FORCE_COLOR],
-                radii=[line_radius(layout, ARROW_3D_RADIUS_SHARE, LINE_RADIUS_UI)]),
-                static=True)
-        if layout.on('shaking_moment_arc'):
-            if layout.dim == 2:
-                rec.log(f'{v}/shaking_moment', rr.LineStrips2D.from_fields(
-                    colors=[MOMENT_COLOR], radii=[LINE_RADIUS_UI]), static=True)
-            else:
-                rec.log(f'{v}/shaking_moment', rr.Arrows3D.from_fields(
-                    origins=[layout.gauge_m], colors=[MOMENT_COLOR],
-                    radii=[ARROW_3D_RADIUS_SHARE * size]), static=True)
+                radii=[line_radius(layout, ARROW_3D_RADIUS_SHARE, LINE_RADIUS_UI)]))
+        if layout.on('shaking_moment_arc') and layout.dim == 2:
+            static(f'{v}/shaking_moment', rr.LineStrips2D.from_fields(
+                colors=[MOMENT_COLOR], radii=[LINE_RADIUS_UI]))
+        elif layout.on('shaking_moment_arc'):
+            static(f'{v}/shaking_moment', rr.Arrows3D.from_fields(
+                origins=[layout.gauge_m], colors=[MOMENT_COLOR],
+                radii=[ARROW_3D_RADIUS_SHARE * size]))
     for p in layout.plots:
         for v in layout.variants:
-            rec.log(f'plots/{p.entity}/{v}', rr.SeriesLines(
-                colors=[SERIES_COLORS[v]], names=[v], widths=[SERIES_WIDTHS[v]]), static=True)
+            static(f'plots/{p.entity}/{v}', rr.SeriesLines(
+                colors=[SERIES_COLORS[v]], names=[v], widths=[SERIES_WIDTHS[v]]))
         if not layout.live:
             log_angle_plot(rec, layout, p)
 
