@@ -401,8 +401,7 @@ def plan(scene, balanced, samples, balanced_source, live=False):
         layout.placed = {'original': place_labels(layout, motion, 'original')}
         inset = zoom_inset(layout, motion, layout.placed)
         if inset is not None:       # the crowded core's names moved to the inset
-            layout.placed = {'original': place_labels(layout, motion, 'original'),
-                             'inset': inset}
+            layout.placed['inset'] = inset
         layout.placed.update({v: place_labels(layout, motion, v) for v in layout.variants
                               if v not in layout.placed})
     layout.plots = plot_specs(layout, motion)

@@ -324,8 +324,9 @@ def place_labels(layout, motion, variant):
         rest = np.flatnonzero(tier == 0)
         if rest.size:                   # no clean place: every ring, the tests one by one
             c, wh, (cheap, free, inside), (clean, uncrossed) = trial(rest, candidates(w, h))
+            far = np.tile(np.arange(len(candidates(w, h))) >= len(near), len(features))
             got = np.zeros(rest.size, dtype=int)
-            for level, mask, test in ((1, cheap, clean), (2, cheap, uncrossed),
+            for level, mask, test in ((1, cheap & far, clean), (2, cheap, uncrossed),
                                       (3, free, None), (4, inside, None)):
                 todo = np.flatnonzero(got == 0)
                 sub = mask[todo]

@@ -281,8 +281,8 @@ def zoom_inset(layout, motion, placed):
     clean at more than :data:`INSET_TRIGGER` of their places gets a view of its own over the
     frame points and joints (else links) whose labels are not clean that often, at least
     :data:`INSET_MIN_ZOOM` times larger; there the names of the frame points, joints and
-    links inside it are placed again, and the crowded ones among them leave the rig views'
-    labels (``layout.labels``).  Sets ``layout.inset`` (its :class:`Screen`).
+    links inside it are placed again; the crowded ones among them leave the rig views' labels
+    (``layout.labels``, ``placed``).  Sets ``layout.inset`` (its :class:`Screen`).
     """
     tiers = placed['original'][4].reshape(motion.size, -1)
     if layout.dim != 2 or not np.mean(tiers >= 2) > INSET_TRIGGER:
@@ -311,7 +311,12 @@ def zoom_inset(layout, motion, placed):
     zoomed = replace(layout, screens={'original': screen}, scale_bar=None, has_added=False,
                      streams=tuple(x for x in layout.streams if x != 'mass_centres'),
                      labels=named)
-    layout.labels = [x for x in layout.labels if x not in crowded or x not in named]
+    moved = [x in crowded and x in named for x in specs]
+    layout.labels = [x for x in layout.labels if not (x in crowded and x in named)]
+    pos, texts, colors, counts, tiers = placed['original']
+    keep = np.tile(~np.array(moved), motion.size)
+    placed['original'] = (pos[keep], [t for t, k in zip(texts, keep) if k],
+                          [c for c, k in zip(colors, keep) if k], counts - sum(moved), tiers[keep])
     return place_labels(zoomed, motion, 'original')
 
 

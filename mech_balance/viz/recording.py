@@ -18,31 +18,23 @@ import time
 from mech_balance import atomic, conventions
 from mech_balance.core.rig import rig_for
 from mech_balance.viz import collisions
-from mech_balance.viz.blueprint import blueprint
-from mech_balance.viz.drawing import (
-    align_design, check_samples, concat_motions, plan, turn_angles, turn_ticks, VARIANTS
-)
-from mech_balance.viz.labels import label_box_px, label_size_px, LABEL_TEXT_PX
-from mech_balance.viz.layout import Screen, WINDOW_PX, window_px
-from mech_balance.viz.live import LIVE_MAX_RATE_HZ, LiveRecorder
+from mech_balance.viz.drawing import align_design, check_samples, concat_motions, plan, \
+    turn_angles, turn_ticks
+from mech_balance.viz.labels import label_box_px, LABEL_TEXT_PX
+from mech_balance.viz.layout import Screen, WINDOW_PX
+from mech_balance.viz.live import LiveRecorder
 from mech_balance.viz.plots import ANGLE_ROOT
-from mech_balance.viz.readback import (
-    EntityData, read_blueprint, read_blueprint_views, read_recording
-)
-from mech_balance.viz.streams import (
-    application_id, check_output_path, log_motion, RRD_SUFFIX, start_stream
-)
+from mech_balance.viz.readback import read_blueprint, read_blueprint_views, read_recording
+from mech_balance.viz.streams import application_id, check_output_path, log_motion, \
+    start_stream
 import numpy as np
 import rerun as rr
 
 
 __all__ = [
-    'align_design', 'application_id', 'blueprint', 'check_output_path',
-    'entity_paths', 'EntityData', 'furniture_paths', 'label_box_px', 'label_size_px',
-    'LABEL_TEXT_PX', 'LIVE_MAX_RATE_HZ', 'LiveRecorder', 'read_blueprint',
-    'read_blueprint_views', 'read_recording', 'record',
-    'RecordingSummary', 'RRD_SUFFIX', 'Screen', 'turn_angles', 'VARIANTS', 'window_px',
-    'WINDOW_PX',
+    'align_design', 'check_output_path', 'entity_paths', 'furniture_paths', 'label_box_px',
+    'LABEL_TEXT_PX', 'LiveRecorder', 'read_blueprint', 'read_blueprint_views',
+    'read_recording', 'record', 'RecordingSummary', 'Screen', 'turn_angles', 'WINDOW_PX',
 ]
 
 
