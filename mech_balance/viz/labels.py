@@ -228,14 +228,8 @@ def place_labels(layout, motion, variant):
     """
     Return ``(positions (q, 3), texts, colours, counts (p,), tiers (q,))``: a view's labels.
 
-    Every label at every sample, most important first.  Each takes a place around its
-    feature (:func:`candidates`), the same at every sample where it can: the place most
-    samples would take first, else that sample's first.  Tier 1, clean: inside the view,
-    clear of the other labels and of every drawn point and line, nearer its own feature than
-    any other (:func:`_nearest_own`).  Where no place is clean the tests are dropped one by
-    one, the label is never dropped: tier 2 may name a neighbour's point, tier 3 may be
-    crossed by a line or cover a point, tier 4 may overlap another label, tier 5 (no place
-    inside the view) stands at its first place.
+    Every label at every sample, most important first, at one place where it is clean (tier
+    1), else with the tests dropped one by one (tiers 2-5: `docs/recordings.md`, Labels).
     """
     screen = layout.screens[variant]
     p = motion.size

@@ -277,12 +277,8 @@ def zoom_inset(layout, motion, placed):
     """
     Return the labels of an inset zoomed on the original view's crowded core, or None.
 
-    A 2-D rig whose labels (``placed``: :func:`.labels.place_labels` of each view) are not
-    clean at more than :data:`INSET_TRIGGER` of their places gets a view of its own over the
-    frame points and joints (else links) whose labels are not clean that often, at least
-    :data:`INSET_MIN_ZOOM` times larger; there the names of the frame points, joints and
-    links inside it are placed again; the crowded ones among them leave the rig views' labels
-    (``layout.labels``, ``placed``).  Sets ``layout.inset`` (its :class:`Screen`).
+    Sets ``layout.inset`` (a :class:`Screen`) and moves the crowded names there from
+    ``layout.labels`` and ``placed['original']`` (`docs/recordings.md`, Inset).
     """
     tiers = placed['original'][4].reshape(motion.size, -1)
     if layout.dim != 2 or not np.mean(tiers >= 2) > INSET_TRIGGER:

@@ -1,10 +1,8 @@
 """
-The plots of a recording: each quantity over the crank angle, drawn as a 2-D view.
+The plots of a recording (no rerun): each quantity over the crank angle, as a 2-D view.
 
-Pure numbers (no rerun).  An offline recording draws each plot in a 2-D view whose x axis
-IS the crank angle (0-360 deg, ticks every 90 deg) and whose y axis is in the quantity's
-unit: the coordinates are the view's pixels at the default window (y down), so the ticks
-and labels land where :class:`AnglePlot` says.  A live view plots over time instead.
+Drawn in the view's pixels at the default window (y down): x the crank angle, 0-360 deg,
+y in the quantity's unit (`docs/recordings.md`).  A live view plots over time instead.
 """
 
 from dataclasses import dataclass
@@ -66,11 +64,7 @@ class AnglePlot:
 
 
 def y_ticks(values):
-    """
-    Return round tick values (1, 2 or 5 times a power of ten apart) that cover ``values``.
-
-    Between :data:`Y_TICKS` of them; 0 is among them when the data do not keep away from it.
-    """
+    """Return :data:`Y_TICKS` round ticks (1, 2, 5 x 10^k apart) over ``values``, 0 if near."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
@@ -106,12 +100,7 @@ def label_anchor(centre_px, text):
 
 
 def furniture(axes, unit, x_name):
-    """
-    Return a plot's static drawing: ``(grid strips, axis strips, [(point, text)])``.
-
-    The grid at every tick, the axes' frame, the tick labels (``0°`` ... ``360°``, the y
-    ticks with the unit) and the x axis's name beside its ticks.
-    """
+    """Return a plot's static drawing: ``(grid strips, axis strips, [(point, tick label)])``."""
     x0, y0, x1, y1 = axes.box_px
     grid = [np.array([[x, y0], [x, y1]]) for x in axes.x(X_TICKS_DEG)] + \
         [np.array([[x0, y], [x1, y]]) for y in axes.y(axes.y_ticks)]
