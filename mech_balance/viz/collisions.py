@@ -72,12 +72,7 @@ def marks(scene, balanced, samples, margin_m=0.0, spheres=None):
 
 def log_collisions(rec, scene, balanced, samples, cycles, degrees, seconds, margin_m=0.0,
                    spheres=None):
-    """
-    Log the collision marks of a recording; return the entity paths logged (a set).
-
-    ``degrees``, ``seconds``: the recording's ticks (``samples`` x ``cycles``); ``spheres``:
-    a spatial design's sphere counterweights (``{body: [sphere, ...]}``), else None.
-    """
+    """Log the collision marks at the recording's ticks; return the entity paths logged."""
     found = marks(scene, balanced, int(samples), margin_m, spheres)
     if found is None:
         return set()

@@ -193,11 +193,7 @@ def arc_scale(largest):
 
 
 def window_px(n_views, n_plots, has_text, inset=None):
-    """
-    Return the drawing-area sizes (px) of a rig view and of a plot at :data:`WINDOW_PX`.
-
-    The plots share the right column, under the inset (:data:`INSET_SHARE`) if there is one.
-    """
+    """Return the drawing-area sizes (px) of a rig view and of a plot (under any inset)."""
     w, h = WINDOW_PX
     height = h - TOP_BAR_PX - TIME_PANEL_PX
     left = w * LEFT_SHARE if n_plots or inset is not None else w

@@ -137,7 +137,7 @@ def plot_specs(layout, motion):
     turned = 360.0 * np.arange(motion.size + 1) / motion.size       # from 0 deg, one turn
     plots = []
     for stream, entity, title, unit in specs:
-        values = dict(plot_values(layout, motion, entity))
+        values = plot_values(layout, motion.data, entity)
         axes = AnglePlot((w, h), (left, top, w - right, h - bottom),
                          y_ticks(np.concatenate(list(values.values()))))
         curves = {v: axes.points(turned, np.append(x, x[:1])) for v, x in values.items()}
@@ -145,14 +145,12 @@ def plot_specs(layout, motion):
     return plots
 
 
-def plot_values(layout, motion, entity):
-    """Yield ``(variant, values)`` of one plotted quantity."""
-    for v in layout.variants:
-        d = motion.data[v]
-        if entity == 'shaking_force':
-            yield v, np.linalg.norm(d.force_N, axis=1)
-        elif entity == 'shaking_moment':
-            norm = np.linalg.norm(d.moment_Nm, axis=1)
-            yield v, d.moment_Nm[:, 2] if layout.dim == 2 else norm
-        elif entity in d.series:
-            yield v, d.series[entity]
+def plot_values(layout, data, entity):
+    """Return ``{variant: values}`` of one plotted quantity (``data``: variant -> RigData)."""
+    if entity == 'shaking_force':
+        return {v: np.linalg.norm(d.force_N, axis=1) for v, d in data.items()}
+    if entity == 'shaking_moment' and layout.dim == 2:
+        return {v: d.moment_Nm[:, 2] for v, d in data.items()}
+    if entity == 'shaking_moment':
+        return {v: np.linalg.norm(d.moment_Nm, axis=1) for v, d in data.items()}
+    return {v: d.series[entity] for v, d in data.items() if entity in d.series}

@@ -217,8 +217,8 @@ def log_cursor(rec, layout, motion, index):
         lines = np.stack([np.stack([x, np.full(p, y0)], -1), np.stack([x, np.full(p, y1)], -1)],
                          axis=1)
         rec.send_columns(f'{root}/cursor', index, rr.LineStrips2D.columns(strips=lines))
-        dots = np.stack([plot.axes.points(turned, values)
-                         for _, values in plot_values(layout, motion, plot.entity)], axis=1)
+        dots = np.stack([plot.axes.points(turned, values) for values in plot_values(
+            layout, motion.data, plot.entity).values()], axis=1)
         rec.send_columns(f'{root}/values', index, rr.Points2D.columns(
             positions=dots.reshape(-1, 2)).partition(np.full(p, n)))
 
@@ -290,7 +290,7 @@ def log_motion(rec, layout, motion, degrees, seconds, labels=None):
                                       place_labels(layout, motion, view))[:4]
         send_points(f'{view}/labels', pos[None], labels=texts, colors=colors, counts=counts)
     for plot in layout.plots:
-        for v, values in plot_values(layout, motion, plot.entity):
+        for v, values in plot_values(layout, motion.data, plot.entity).items():
             rec.send_columns(f'plots/{plot.entity}/{v}', index,
                              rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
     if layout.plots and not layout.live:
