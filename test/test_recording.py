@@ -47,7 +47,10 @@ PLOTS = ('shaking_force', 'shaking_moment', 'driving_torque')
 PLANAR_PATHS = ({'/info', '/rig/frame', '/rig/pivots', '/rig/links', '/rig/joints'}
                 | {f'/{v}/{e}' for v in VARIANTS
                    for e in ('mass_centres', 'point_masses', 'shaking_force', 'shaking_moment')}
-                | {f'/plots/{q}/{v}' for q in PLOTS for v in VARIANTS})
+                | {f'/plots/{q}/{v}' for q in PLOTS for v in VARIANTS}
+                | {f'/by_angle/{q}/{k}' for q in PLOTS for k in VARIANTS + ('cursor', 'values')})
+CURVES = {f'/by_angle/{q}/{v}' for q in PLOTS for v in VARIANTS}
+"""The plots' curves over the crank angle: static, drawn whole."""
 
 
 def _series(entities, path):
@@ -90,7 +93,7 @@ def test_entity_paths_and_one_row_per_sample(hoeken):
     assert set(summary.entity_paths) == PLANAR_PATHS | {'/balanced/mass_changes'}
     assert PLANAR_PATHS <= set(ent)
     assert summary.rows == SAMPLES and summary.variants == VARIANTS
-    animated = PLANAR_PATHS - {'/info', '/rig/frame', '/rig/pivots'}
+    animated = PLANAR_PATHS - {'/info', '/rig/frame', '/rig/pivots'} - CURVES
     turn_s = 2.0 * math.pi / abs(sc.crank_speed_rad_s)
     for p in animated:
         assert ent[p].rows == SAMPLES, p
@@ -98,7 +101,7 @@ def test_entity_paths_and_one_row_per_sample(hoeken):
         assert_array_equal(ent[p].index['crank_angle_deg'], np.arange(SAMPLES))
         assert_allclose(ent[p].index['time'], np.arange(SAMPLES) * turn_s / SAMPLES,
                         rtol=0.0, atol=TIME_ATOL_S)
-    for p in ('/info', '/rig/frame', '/rig/pivots'):
+    for p in {'/info', '/rig/frame', '/rig/pivots'} | CURVES:
         assert ent[p].rows == 0 and ent[p].static, p
 
 
@@ -193,11 +196,12 @@ def test_text_panel_and_blueprint(hoeken):
             assert f'{row.rms:.4g}' in text, (v, row.quantity)
     views = recording.read_blueprint_views(path)
     kinds = sorted(k for k, _, _ in views)
-    assert kinds == ['2D', '2D', 'TextDocument', 'TimeSeries', 'TimeSeries', 'TimeSeries']
+    assert kinds == ['2D'] * 5 + ['TextDocument']        # the rigs, then the plots
     names = {n for _, n, _ in views}
     assert any(n.startswith('original | force arrow 1 cm = ') for n in names)
     assert any(n.startswith('balanced | force arrow 1 cm = ') for n in names)
-    assert {o for k, _, o in views if k == 'TimeSeries'} == {f'/plots/{q}' for q in PLOTS}
+    assert {o for k, _, o in views if o.startswith('/by_angle/')} == \
+        {f'/by_angle/{q}' for q in PLOTS}
 
 
 def _scene_with(**top):
@@ -214,7 +218,8 @@ def test_switching_a_stream_off_removes_it(tmp_path):
     summary = recording.record(path, sc, bal)
     ent = recording.read_recording(path)
     gone = {f'/{v}/point_masses' for v in VARIANTS} | \
-        {f'/plots/driving_torque/{v}' for v in VARIANTS}
+        {f'/plots/driving_torque/{v}' for v in VARIANTS} | \
+        {f'/by_angle/driving_torque/{k}' for k in VARIANTS + ('cursor', 'values')}
     assert set(summary.entity_paths) == (PLANAR_PATHS - gone) | {'/balanced/mass_changes'}
     assert not gone & set(ent)
     assert (PLANAR_PATHS - gone) <= set(ent)
@@ -291,7 +296,8 @@ def test_user_scale_is_used_and_stated(tmp_path):
     arrows = _points(ent, '/original/shaking_force', 'Arrows2D:vectors')[:, 0]
     assert_allclose(arrows, 2.0 * np.stack([w.shaking_force.real, w.shaking_force.imag], -1),
                     rtol=1e-6, atol=FLOAT32_ATOL_M)
-    names = [n for k, n, _ in recording.read_blueprint_views(path) if k == '2D']
+    names = [n for k, n, o in recording.read_blueprint_views(path)
+             if k == '2D' and not o.startswith('/by_angle/') and not n.startswith('zoom')]
     assert names == ['original | force arrow 1 cm = 0.005 N | moment arc 90 deg = 0.1 N*m']
 
 
@@ -389,7 +395,7 @@ def test_rggr_recording_is_3d(tmp_path):
         1e-9 * rms(_series(ent, '/plots/shaking_force/original'))
     g = _points(ent, '/balanced/mass_centres', 'Points3D:positions')[:, -1]
     assert np.ptp(g, axis=0).max() < 1e-6
-    assert sorted(k for k, _, _ in recording.read_blueprint_views(path))[:2] == ['3D', '3D']
+    assert [k for k, _, _ in recording.read_blueprint_views(path)].count('3D') == 2
 
 
 # ------------------------------------------------------------------------------ live
@@ -402,10 +408,9 @@ def test_live_recorder_writes_what_the_core_computes(tmp_path):
     singles = [0.0, 0.02, 0.04]
     for k, psi in enumerate(singles):
         assert rec.log_sample(10.0 + 0.02 * k, psi) == 1
-    rig = analysis.Rig(sc)
     batch = 0.1 + 0.05 * np.arange(4)
-    state, w = rig.evaluate(batch)
-    assert rec.log_sample(10.1 + 0.05 * np.arange(4), batch, state=state, wrenches=w) == 4
+    assert rec.log_sample(10.1 + 0.05 * np.arange(4), batch,
+                          data=rig_for(sc).at(batch)) == 4
     rec.close()
     rec.close()                                    # idempotent
     assert rec.closed and rec.log_sample(11.0, 0.5) == 0

@@ -1,27 +1,18 @@
 """The default blueprint: rigs side by side over the RMS table, plots right."""
 
 from mech_balance.viz.drawing import DEGREE_TIMELINE
-from mech_balance.viz.layout import LEFT_SHARE, RIG_ROW_SHARE
+from mech_balance.viz.layout import INSET_SHARE, LEFT_SHARE, RIG_ROW_SHARE
+from mech_balance.viz.plots import ANGLE_ROOT
 from mech_balance.viz.text import fmt
 import rerun.blueprint as rrb
 
 
-X_AXIS_NOTE = ' | x: crank angle, deg'
-"""Said by the bottom plot's title: its x axis (the timeline crank_angle_deg) in degrees."""
-X_AXIS_LIVE = ' | x: time, s'
-"""The same for a live view, which follows the time timeline."""
 DRAWN_STREAMS = ('frame', 'links', 'joints', 'mass_centres', 'point_masses',
                  'shaking_force_arrow', 'shaking_moment_arc')
 
 
 def spatial_name(layout, variant):
-    """
-    Return a rig view's title: the design, then the scales of what it draws.
-
-    2-D: ``force arrow 1 cm = .. N | moment arc 90 deg = .. N*m``; 3-D, whose views are
-    narrower, says the grid and the arrows in short (``grid 5 cm | 1 cm: .. N, .. N*m``) so
-    that the title fits its view at the default window.
-    """
+    """Return a rig view's title: the design, then the scales of what it draws (3-D: short)."""
     force, moment = layout.on('shaking_force_arrow'), layout.on('shaking_moment_arc')
     if layout.dim == 3:
         scales = ([f'{fmt(0.01 / layout.force_scale_m_per_N)} N'] if force else []) + \
@@ -57,19 +48,18 @@ def blueprint(layout):
                         look_target=screen.target_m, eye_up=screen.up),
                     # the rig's own grid (rig/grid, sized to it) instead of the endless one
                     line_grid=rrb.LineGrid3D(visible=False)))
-    # the viewer's legend lists its entities in name order (balanced above original): the
-    # title says it instead, in the order of the rig views (original left, balanced right)
-    both = len(layout.variants) > 1
-    key = ': orange original, blue balanced' if both else ''
-    # the x axis shows a sequence timeline as `#90`: the bottom plot says what it counts
-    x_note = [''] * len(layout.plots)
-    if x_note:
-        x_note[-1] = X_AXIS_LIVE if layout.live else X_AXIS_NOTE
-    plots = [rrb.TimeSeriesView(origin=f'/plots/{p.entity}', name=p.title + key + x,
-                                axis_y=rrb.ScalarAxis(range=p.y_range, zoom_lock=False),
-                                plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop,
-                                                           visible=not both))
-             for p, x in zip(layout.plots, x_note)]
+    # the title names the curves' colours in the order of the rig views (original left)
+    key = ': orange original, blue balanced' if len(layout.variants) > 1 else ''
+    if layout.live:     # a live view plots over its time timeline (seconds)
+        plots = [rrb.TimeSeriesView(origin=f'/plots/{p.entity}', name=p.title + key,
+                                    plot_legend=rrb.PlotLegend(visible=False))
+                 for p in layout.plots]
+    else:               # over the crank angle: 2-D views in pixels of the default window
+        plots = [rrb.Spatial2DView(origin=f'/{ANGLE_ROOT}/{p.entity}', name=p.title + key,
+                                   visual_bounds=rrb.VisualBounds2D(
+                                       x_range=[0.0, p.axes.size_px[0]],
+                                       y_range=[0.0, p.axes.size_px[1]]))
+                 for p in layout.plots]
     left = []
     if spatial:
         left.append(rrb.Horizontal(*spatial) if len(spatial) > 1 else spatial[0])
@@ -79,8 +69,17 @@ def blueprint(layout):
     if left:
         columns.append(rrb.Vertical(*left, row_shares=[RIG_ROW_SHARE, 1.0 - RIG_ROW_SHARE])
                        if len(left) > 1 else left[0])
+    if layout.inset is not None:
+        (x0, x1), (y0, y1) = layout.inset.bounds
+        zoom = layout.screens['original'].metres_per_px / layout.inset.metres_per_px
+        plots.insert(0, rrb.Spatial2DView(
+            origin='/', name=f'zoom x{zoom:.1f} on the crowded core (its names)',
+            contents=['/rig/**', '- /rig/gauge', '- /rig/scale', '/inset/**'],
+            visual_bounds=rrb.VisualBounds2D(x_range=[x0, x1], y_range=[-y1, -y0])))
+        shares = [INSET_SHARE] + [(1.0 - INSET_SHARE) / len(layout.plots)] * len(layout.plots)
     if plots:
-        columns.append(rrb.Vertical(*plots))
+        columns.append(rrb.Vertical(*plots, row_shares=shares) if layout.inset is not None
+                       else rrb.Vertical(*plots))
     root = rrb.Horizontal(*columns, column_shares=[LEFT_SHARE, 1.0 - LEFT_SHARE][:len(columns)])
     return rrb.Blueprint(
         root, rrb.BlueprintPanel(state='collapsed'), rrb.SelectionPanel(state='collapsed'),

@@ -1,19 +1,11 @@
 """
 The build sheet of a counterweight design: one SVG page a workshop can work from.
 
-Per link that carries a disc: the link as built (its bars and bosses, from the layered
-model :mod:`mech_balance.analysis.layers`) with the disc, its web and its shaft to one
-common scale, drawn with the link's axis horizontal (from the disc's mount joint to the
-link's farthest joint); beside it the disc's diameter and thickness, its centre measured
-from the mount joint along and across that axis, its layer (mid-plane offset from the
-link's plane and the side of the linkage), material and mass.  At the foot: the total
-added mass and the predicted RMS shaking force and moment before and after (SI).
-
-Every number is also an SVG ``<text>`` with an ``id`` (``crank-diameter-mm``, ...) and a
-``data-value`` attribute holding the value at full precision in the printed unit, so a test
-or a script reads the sheet back (:func:`read_values`).  Plain SVG 1.1, no dependency; a
-``.png`` or ``.pdf`` name is rendered by ``rsvg-convert`` (Debian ``librsvg2-bin``) when it
-is on PATH.
+Per link with a disc: the link as built (:mod:`mech_balance.analysis.layers`) with its disc,
+web and shaft to one scale, its axis horizontal, and the disc's dimensions, place, layer,
+material and mass; at the foot the added mass, the RMS before and after, and a side view
+of the stack.  Every number is an SVG ``<text>`` with an ``id`` and its full-precision
+``data-value`` (:func:`read_values`); ``.png``/``.pdf`` by ``rsvg-convert`` (docs/build.md).
 """
 
 import os
@@ -46,12 +38,7 @@ def material(density_kg_m3):
 
 
 def link_axis(link, mount):
-    """
-    Return ``(joint, unit, other)``: the mount joint's position, the link's axis and its far end.
-
-    The axis runs from the mount joint to the link's farthest point (the x axis of the link
-    frame for a one-point link); positions complex (m, link frame).
-    """
+    """Return ``(joint, unit, far end)``: the link's axis from its mount joint (complex, m)."""
     j = complex(*link.points[mount])
     others = [(abs(complex(*p) - j), k) for k, p in link.points.items() if k != mount]
     if not others or max(others)[0] == 0.0:
@@ -62,13 +49,7 @@ def link_axis(link, mount):
 
 
 def sheet_rows(result):
-    """
-    Return the sheet's numbers per disc (a list of dicts, SI and mm) and the totals.
-
-    ``along_mm``/``across_mm``: the disc centre from its mount joint along the link's axis
-    and across it (to the left of the axis, positive); ``layer_mm``: the mid-plane offset
-    from the link's plane (+z towards the viewer).
-    """
+    """Return the sheet's numbers per disc (dicts, SI and mm; across: left +) and the totals."""
     rows = []
     for d in result.designs:
         link = result.scene.link(d.link)
@@ -149,14 +130,12 @@ def render(result):
                'stroke="#888"/>')
     out.append(_text(MARGIN_PX, y + 4, 'total-added-mass-kg', 'total added mass ',
                      totals['added_mass_kg'], '.4g', ' kg', 14, 'bold'))
-    out.append(_text(MARGIN_PX, y + 28, 'force-before-N', 'RMS shaking force: before ',
-                     totals['force_before_N'], '.4g', ' N'))
-    out.append(_text(MARGIN_PX + 300, y + 28, 'force-after-N', 'after ',
-                     totals['force_after_N'], '.4g', ' N'))
-    out.append(_text(MARGIN_PX, y + 50, 'moment-before-Nm', 'RMS shaking moment: before ',
-                     totals['moment_before_Nm'], '.4g', ' N m'))
-    out.append(_text(MARGIN_PX + 300, y + 50, 'moment-after-Nm', 'after ',
-                     totals['moment_after_Nm'], '.4g', ' N m'))
+    for dy, what, key, unit in ((28, 'force', 'force_{}_N', ' N'),
+                                (50, 'moment', 'moment_{}_Nm', ' N m')):
+        for dx, when in ((0, 'before'), (300, 'after')):
+            label = f'RMS shaking {what}: before ' if when == 'before' else 'after '
+            out.append(_text(MARGIN_PX + dx, y + dy, key.format(when).replace('_', '-'),
+                             label, totals[key.format(when)], '.4g', unit))
     clear = result.clearance
     if clear is not None and clear.least is not None:
         out.append(_text(MARGIN_PX, y + 72, 'least-clearance-mm', 'least clearance over the '
@@ -247,12 +226,7 @@ SIDE_H = 300
 
 
 def side_view(result, x0, top, width, height):
-    """
-    Return the SVG elements of the stack along the joint axes, seen from the side (x, z).
-
-    At crank angle 0: each body's plate over its x extent, each pin through the layers it
-    joins, each disc with its shaft; z upwards (m, to one scale of its own, printed).
-    """
+    """Return the SVG elements of the stack along the joint axes at crank angle 0, side view."""
     from mech_balance.analysis import clearance as clearance_mod
     from mech_balance.core.planar.rig import PlanarRig
     sc = result.balanced_scene

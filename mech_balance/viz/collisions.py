@@ -2,22 +2,11 @@
 The collisions of a counterweight design, drawn where and when they happen.
 
 At every recorded crank angle where two bodies of the balanced design come closer than the
-margin (a counterweight's disc, shaft or web against another body:
-:func:`mech_balance.analysis.clearance.contacts_at`, the check ``balance`` prints), the
-balanced view shows
-
-* ``/balanced/collisions``: a red point at the contact, midway between the two witness
-  points (the nearest points of the two bodies), labelled with the pair and the overlap
-  (hover: the labels are not shown, so that the view's own labels stay readable);
-* ``/balanced/collision_bodies``: the outlines of the two offending bodies in red and the
-  segment between the witness points (its length is the overlap, or the clearance).
-
-At every other angle both are empty; a collision-free design logs neither entity.  A planar
-design's discs, shafts and webs (:mod:`mech_balance.analysis.clearance`) and a spatial
-design's sphere counterweights (``spheres``, :func:`mech_balance.analysis.spatial_clearance.
-contacts_at`: the point and the witness segment in 3-D) are checked; for any other design
-nothing is drawn.  The hook is :func:`log_collisions`, called by
-:func:`mech_balance.viz.recording.record`.
+margin (:func:`mech_balance.analysis.clearance.contacts_at`, the check ``balance`` prints; a
+spatial design's spheres: :func:`mech_balance.analysis.spatial_clearance.contacts_at`),
+``/balanced/collisions`` holds a red point midway between the witness points (hover: the
+pair and the overlap) and ``/balanced/collision_bodies`` the two bodies' outlines and the
+witness segment; empty at other angles, absent for a collision-free design.
 """
 
 from mech_balance.analysis import clearance, spatial_clearance
@@ -50,62 +39,40 @@ def marks(scene, balanced, samples, margin_m=0.0, spheres=None):
     per sample its contacts' points and the outlines and witness segments of their bodies
     (d = 2 for a planar design, 3 for a spatial one's ``spheres``).
     """
-    if spheres:
-        return _sphere_marks(scene, samples, margin_m, spheres)
-    if balanced is None or not any(getattr(lk, 'counterweights', ()) for lk in
-                                   getattr(balanced, 'links', ())):
-        return None
-    rig = rig_for(scene)
-    if not isinstance(rig, PlanarRig):
-        return None
     psi = turn_angles(samples, scene.crank_speed_rad_s)
-    per_sample, sweep = clearance.contacts_at(rig.with_scene(balanced), psi, margin_m)
+    if spheres:             # (body a, body b, gap, witness a, witness b, outlines)
+        per_sample = [[c + ((),) for c in found] for found in spatial_clearance.contacts_at(
+            rig_for(scene), spheres, psi, margin_m)]
+        dim = 3
+    else:
+        rig = rig_for(scene)
+        if balanced is None or not isinstance(rig, PlanarRig) or not any(
+                getattr(lk, 'counterweights', ()) for lk in getattr(balanced, 'links', ())):
+            return None
+        found, sweep = clearance.contacts_at(rig.with_scene(balanced), psi, margin_m)
+        per_sample = [[(c.body_a, c.body_b, c.clearance_m, c.point_a_m, c.point_b_m,
+                        [sweep.outline(b, k, OUTLINE_POINTS) for b in (body_a, body_b)])
+                       for c, body_a, body_b in contacts] for k, contacts in enumerate(found)]
+        dim = 2
     points, labels, counts, strips, strip_counts = [], [], [], [], []
-    for k, contacts in enumerate(per_sample):
+    for contacts in per_sample:
         counts.append(len(contacts))
         before = len(strips)
-        for contact, body_a, body_b in contacts:
-            pa, pb = np.asarray(contact.point_a_m), np.asarray(contact.point_b_m)
-            points.append(0.5 * (pa[:2] + pb[:2]))
-            what = 'overlap' if contact.clearance_m < 0.0 else 'clearance'
-            labels.append(f'{contact.body_a} / {contact.body_b}: {what} '
-                          f'{abs(contact.clearance_m) * 1e3:.3g} mm')
-            for body in (body_a, body_b):
-                ring = sweep.outline(body, k, OUTLINE_POINTS)
-                strips.append(np.vstack([ring, ring[:1]]))
-            strips.append(np.array([pa[:2], pb[:2]]))
+        for name_a, name_b, gap, pa, pb, outlines in contacts:
+            pa, pb = np.asarray(pa)[:dim], np.asarray(pb)[:dim]
+            points.append(0.5 * (pa + pb))
+            what = 'overlap' if gap < 0.0 else 'clearance'
+            labels.append(f'{name_a} / {name_b}: {what} {abs(gap) * 1e3:.3g} mm')
+            strips += [np.vstack([r, r[:1]]) for r in outlines] + [np.array([pa, pb])]
         strip_counts.append(len(strips) - before)
     if not points:
         return None
     return (np.array(points), labels, np.array(counts), strips, np.array(strip_counts))
 
 
-def _sphere_marks(scene, samples, margin_m, spheres):
-    """Return :func:`marks` of a spatial design's sphere counterweights (3-D), or None."""
-    psi = turn_angles(samples, scene.crank_speed_rad_s)
-    per_angle = spatial_clearance.contacts_at(rig_for(scene), spheres, psi, margin_m)
-    points, labels, counts, strips = [], [], [], []
-    for contacts in per_angle:
-        counts.append(len(contacts))
-        for name_a, name_b, gap, pa, pb in contacts:
-            pa, pb = np.asarray(pa), np.asarray(pb)
-            points.append(0.5 * (pa + pb))
-            what = 'overlap' if gap < 0.0 else 'clearance'
-            labels.append(f'{name_a} / {name_b}: {what} {abs(gap) * 1e3:.3g} mm')
-            strips.append(np.array([pa, pb]))
-    if not points:
-        return None
-    return (np.array(points), labels, np.array(counts), strips, np.array(counts))
-
-
 def log_collisions(rec, scene, balanced, samples, cycles, degrees, seconds, margin_m=0.0,
                    spheres=None):
-    """
-    Log the collision marks of a recording; return the entity paths logged (a set).
-
-    ``degrees``, ``seconds``: the recording's ticks (``samples`` x ``cycles``); ``spheres``:
-    a spatial design's sphere counterweights (``{body: [sphere, ...]}``), else None.
-    """
+    """Log the collision marks at the recording's ticks; return the entity paths logged."""
     found = marks(scene, balanced, int(samples), margin_m, spheres)
     if found is None:
         return set()

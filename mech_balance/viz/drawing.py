@@ -1,9 +1,8 @@
 """
 The drawing adapter: the Rig protocol's ``rig.drawing`` posed by ``RigData.bodies``.
 
-It never asks which kind of rig it draws; where a 2-D and a 3-D picture differ it asks
-``drawing.dimension``.  :func:`plan` lays out a recording (:class:`.layout.Layout`) from one
-reference turn; :func:`motion_of` turns evaluated data into drawn positions.
+:func:`plan` lays out a recording (:class:`.layout.Layout`) from one reference turn;
+:func:`motion_of` turns evaluated data into drawn positions.
 """
 
 from dataclasses import dataclass
@@ -14,8 +13,10 @@ from mech_balance.core.rig import rig_for
 from mech_balance.schema import registry
 from mech_balance.schema.scene import needs, Recording, RECORDING_STREAMS, SERIES, \
     series_stream
-from mech_balance.viz.labels import label_specs
-from mech_balance.viz.layout import arc_scale, arrow_scale, Layout, nice_floor, place_views
+from mech_balance.viz.labels import label_specs, place_labels
+from mech_balance.viz.layout import (
+    arc_scale, arrow_scale, Layout, length_text, nice_floor, place_views, zoom_inset
+)
 from mech_balance.viz.plots import plot_specs
 from mech_balance.viz.style import (
     ARROW_3D_SHARE, AXIS_MARGIN_SHARE, BLOCK_SHARE, FORCE_ARROW_SHARE, LINK_PALETTE,
@@ -70,12 +71,7 @@ def check_samples(samples, cycles, links=1):
 
 
 DEGREE_TIMELINE = 'crank_angle_deg'
-"""The default timeline: whole degrees turned from crank angle 0 (its name says the unit: a
-sequence timeline shows ``#90`` and nothing else; rerun 0.41's duration and timestamp
-timelines show seconds or dates, never degrees)."""
-TIMELINES = (DEGREE_TIMELINE, 'crank_angle', 'time')
-"""Every timeline of a recording: ``crank_angle`` holds the same values as
-:data:`DEGREE_TIMELINE` (kept for older readers), ``time`` the seconds."""
+"""The default timeline: whole degrees turned from crank angle 0 (``crank_angle``: the same)."""
 
 
 def turn_angles(samples, speed_rad_s=1.0):
@@ -113,12 +109,7 @@ def streams_for(scene, rig):
 
 
 def series_on(name, streams):
-    """
-    Return whether the plot of series ``name`` is switched on.
-
-    Its switch is :func:`~mech_balance.schema.scene.series_stream`'s: ``driving_torque_plot``
-    for the driving effort of either kind (``driving_torque`` or ``driving_force``).
-    """
+    """Return whether the plot of series ``name`` is switched on (``series_stream``)."""
     stream = series_stream(name)
     return stream not in RECORDING_STREAMS or stream in streams
 
@@ -151,9 +142,7 @@ def align_design(original, balanced):
     """
     Return ``balanced`` with its bodies in the order of ``original``'s.
 
-    Raises ValueError unless both scenes are of one kind and have the same geometry: the
-    same drawing (frame points, body points, joints, axes) and the same poses over a turn
-    (the same assembly branch), so that they differ in inertias only.
+    Raises ValueError unless both have one kind, drawing and poses over a turn.
     """
     ko, kb = registry.kind_of(original), registry.kind_of(balanced)
     if kb is not ko:
@@ -181,11 +170,7 @@ def align_design(original, balanced):
 
 
 def outline(body, half_block):
-    """
-    Return a body's polyline in its own frame ``(k, 3)``.
-
-    Closed for a plate, a square for a one-point body (a slider block).
-    """
+    """Return a body's polyline ``(k, 3)``: closed for a plate, a square for a slider block."""
     pts = np.array([body.points[n] for n in body.outline], dtype=float).reshape(-1, 3)
     if len(pts) == 1:
         square = half_block * np.array([[1, 1, 0], [-1, 1, 0], [-1, -1, 0], [1, -1, 0],
@@ -253,23 +238,13 @@ def motion_of(layout, data):
     return Motion(links, joints, centres, added, point_masses, data, degrees, marks)
 
 
-def length_text(length_m):
-    """Return a round length as a person writes it (``5 cm``, ``2 mm``, ``1 m``)."""
-    if length_m >= 1.0:
-        return f'{length_m:g} m'
-    return f'{length_m * 100:g} cm' if length_m >= 0.01 else f'{length_m * 1000:g} mm'
-
-
 def design_marks(drawings, templates, size):
     """
     Return what a design changed, to draw: ``({variant: marks}, {variant: changes})``.
 
-    ``rings``: per added body (a counterweight disc, a balancing weight) a ring in its own
-    plane (the carrying body's x-y plane at the disc's centre, whose z is the plane's offset:
-    seen edge-on in 3-D, a rim in 2-D), :data:`PLANE_RING_SHARE` of the disc's radius.
-    ``stalks``: for a body of the balanced design whose mass or mass centre moved and that
-    has no added body to show it, a line from the nearest point of its outline to its new
-    mass centre; ``changes`` ``[(body index, mass change kg)]`` of those bodies.
+    ``rings``: a ring in each added body's plane; ``stalks``: a line from a body whose mass
+    or mass centre moved (and no added body shows it) to its new mass centre; ``changes``:
+    ``[(body index, mass change kg)]`` of those bodies.
     """
     marks, changes = {}, {}
     original = {b.name: b for b in drawings['original'].bodies}
@@ -318,40 +293,8 @@ def body_point(drawing, body, point):
     return next(b for b in drawing.bodies if b.name == body).points[point]
 
 
-def tile(motion, cycles):
-    """Return the motion repeated ``cycles`` times (periodic in the crank angle)."""
-    if cycles == 1:
-        return motion
-
-    def rep(a):
-        return np.concatenate([a] * cycles, axis=0)
-    return Motion([rep(a) for a in motion.links], rep(motion.joints),
-                  {v: rep(a) for v, a in motion.centres.items()},
-                  {v: rep(a) for v, a in motion.added.items()},
-                  {v: rep(a) for v, a in motion.point_masses.items()},
-                  {v: TiledData(d, cycles) for v, d in motion.data.items()},
-                  rep(motion.degrees),
-                  {v: {k: None if a is None else rep(a) for k, a in m.items()}
-                   for v, m in (motion.marks or {}).items()})
-
-
-class TiledData:
-    """The wrench and series of a RigData repeated over several turns (logging only)."""
-
-    def __init__(self, data, cycles):
-        def rep(a):
-            return None if a is None else np.concatenate([a] * cycles, axis=0)
-        self.force_N, self.moment_Nm = rep(data.force_N), rep(data.moment_Nm)
-        self.series = {k: rep(v) for k, v in data.series.items()}
-
-
 def frame_strips_of(drawing, moving, size):
-    """
-    Return the frame's polylines: the ground link, and each fixed axis or guide.
-
-    An axis or guide spans the points of the rig near it (:data:`AXIS_NEAR_SHARE`) over the
-    turn, and :data:`~mech_balance.viz.style.AXIS_MARGIN_SHARE` beyond.
-    """
+    """Return the frame's polylines: the ground link, each fixed axis or guide over its part."""
     frame = {n: np.asarray(p, dtype=float) for n, p in drawing.frame.items()}
     tol = SAME_POINT_RTOL * size
     on_axis = set()
@@ -406,12 +349,10 @@ def plan(scene, balanced, samples, balanced_source, live=False):
     psi = turn_angles(samples, scene.crank_speed_rad_s)
     data = {v: r.at(psi, outputs=table_outputs) for v, r in rigs.items()}
     ref = data['original']
-    has_wrench = ref.force_N is not None
-    if not has_wrench:
+    if ref.force_N is None:
         streams = tuple(s for s in streams if s not in SHAKING_STREAMS)
-    series = tuple(k for k in list(SERIES) + sorted(ref.series)
-                   if k in ref.series and series_on(k, streams))
-    series = tuple(dict.fromkeys(series))
+    series = tuple(dict.fromkeys(k for k in list(SERIES) + sorted(ref.series)
+                                 if k in ref.series and series_on(k, streams)))
     has_pm = 'point_masses' in streams and all(
         b.point_masses for dr in drawings.values() for b in dr.bodies)
     if not has_pm:
@@ -439,29 +380,30 @@ def plan(scene, balanced, samples, balanced_source, live=False):
     share = FORCE_ARROW_SHARE if dim == 2 else ARROW_3D_SHARE
     steps = (1.0, 2.0, 5.0) if dim == 2 else ARROW_3D_STEPS    # 3-D: lengths matter more
     fscale = rec.force_scale_m_per_N or arrow_scale(size, fmax, share, steps)
-    if dim == 2:
-        mscale = rec.moment_scale_deg_per_Nm or arc_scale(nmax)
-    else:
-        mscale = arrow_scale(size, nmax, share, steps)
+    mscale = (rec.moment_scale_deg_per_Nm or arc_scale(nmax)) if dim == 2 else \
+        arrow_scale(size, nmax, share, steps)
 
     layout = Layout(
-        title=scene.name, dim=dim, streams=streams, variants=tuple(rigs), rigs=rigs,
-        drawings=drawings, stream_outputs=stream_outputs, size_m=size, templates=templates,
-        link_names=names, link_colors=colors,
-        joint_names=[j[0] for j in drawing.joints], frame_names=list(drawing.frame),
-        frame_points=frame_pts, frame_strips=frame_strips,
-        pivot_name=rig.moment_point, force_scale_m_per_N=fscale,
-        moment_scale=mscale, gauge_m=np.zeros(3), gauge_reach_m=0.0, dial_radius_m=0.0,
-        scale_bar=None,
-        screens={}, plots=[], labels=[], series=series, has_added=has_added,
-        has_point_masses=has_pm, live=live)
+        dim=dim, streams=streams, variants=tuple(rigs), rigs=rigs, drawings=drawings,
+        stream_outputs=stream_outputs, size_m=size, templates=templates, link_names=names,
+        link_colors=colors, joint_names=[j[0] for j in drawing.joints],
+        frame_names=list(drawing.frame), frame_points=frame_pts, frame_strips=frame_strips,
+        pivot_name=rig.moment_point, force_scale_m_per_N=fscale, moment_scale=mscale,
+        series=series, has_added=has_added, has_point_masses=has_pm, live=live,
+        grid_m=nice_floor(SCALE_BAR_SHARE * size))
     layout.marks, layout.changes = design_marks(drawings, templates, size)
-    layout.grid_m = nice_floor(SCALE_BAR_SHARE * size)
     layout.grid_text = length_text(layout.grid_m)
-    motion = motion_of(layout, data)
     layout.pivot_name = pivot_label(layout, rig)
+    motion = motion_of(layout, data)
     place_views(layout, motion, fmax, nmax, len(series))
     layout.labels = label_specs(layout, motion)
+    if not live:        # a live view places its labels batch by batch
+        layout.placed = {'original': place_labels(layout, motion, 'original')}
+        inset = zoom_inset(layout, motion, layout.placed)
+        if inset is not None:       # the crowded core's names moved to the inset
+            layout.placed['inset'] = inset
+        layout.placed.update({v: place_labels(layout, motion, v) for v in layout.variants
+                              if v not in layout.placed})
     layout.plots = plot_specs(layout, motion)
     if 'info' in streams:
         layout.text = info_text(layout, scene, data, samples, balanced_source)

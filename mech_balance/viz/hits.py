@@ -1,9 +1,4 @@
-"""
-Screen-space tests of the label placement: segments against boxes, points to segments.
-
-Vectorized over the samples of a turn (``p``) and the candidate places of a label (``c``);
-:func:`first_passing` runs a costly test only where it can still change a label's place.
-"""
+"""Screen-space tests of the label placement, vectorized over samples ``p`` and places ``c``."""
 
 import numpy as np
 
@@ -15,10 +10,7 @@ def segments_hit_boxes(segments, boxes):
     """
     Return ``(p, c)``: whether any segment ``(p, m, 2, 2)`` crosses box ``(p, c, 4)``.
 
-    Liang-Barsky clipping of each segment against each box (x0, y0, x1, y1): the segment's
-    parameter interval inside both slabs is not empty.  A segment parallel to an axis has an
-    infinite inverse slope there, so its slab is everything or nothing (``fmin``/``fmax``
-    skip the 0 * inf of a segment that starts exactly on the slab's edge).
+    Liang-Barsky clipping; ``fmin``/``fmax`` skip the 0 * inf of an axis-parallel segment.
     """
     if segments.shape[1] == 0:
         return np.zeros(boxes.shape[:2], dtype=bool)
@@ -49,10 +41,8 @@ def first_passing(ok, test, chunk=LABEL_CHUNK):
     """
     Return ``ok (p, c)`` narrowed by ``test``, exact up to each row's first passing column.
 
-    ``test(rows, cols)`` returns the costly test's ``(len(rows), cols)`` mask.  It is run in
-    column chunks of ``chunk``, on the rows still without a passing column and that pass the
-    cheap mask somewhere in the chunk; a row stops at the chunk of its first passing column
-    (later columns are left False), so ``argmax`` of the result is that of the full test.
+    ``test(rows, cols)`` returns the costly mask; run in column chunks on the rows still
+    without a passing column, so ``argmax`` of the result is that of the full test.
     """
     out = np.zeros_like(ok)
     pending = np.flatnonzero(ok.any(axis=1))

@@ -1,11 +1,4 @@
-"""
-The labels of a rig view: their boxes on screen and their greedy placement at every sample.
-
-Pure geometry (no rerun): a label's box as the viewer draws it at the default window, the
-labels of a view most important first (:func:`label_specs`), and :func:`place_labels`, which
-puts each at the first place around its feature that keeps clear of the other labels, of
-every drawn point and line, and that names its own feature.
-"""
+"""The labels of a rig view (no rerun): their boxes on screen, their places at every sample."""
 
 from dataclasses import dataclass
 import functools
@@ -31,9 +24,9 @@ LABEL_GAP_PX = 3.0
 """Free space kept between two label boxes."""
 LABEL_OFFSET_PX = 9.0
 """Distance from a feature to the nearest edge of its label box."""
-LABEL_OFFSETS_PX = (LABEL_OFFSET_PX, 2.5 * LABEL_OFFSET_PX)
-"""The rings of places tried around a feature (the nearer first; the farther clears a
-slider's block or a crowded joint)."""
+LABEL_OFFSETS_PX = (LABEL_OFFSET_PX, 2.5 * LABEL_OFFSET_PX, 5.0 * LABEL_OFFSET_PX)
+"""The rings of places tried around a feature (the nearer first; the farther clear a
+slider's block or a crowded joint; the farthest only where the others hold no clean place)."""
 NEAR_MARGIN_PX = 2.0
 """A label is at least this much nearer its own feature than any other (points, links)."""
 SAME_PLACE_PX = 1.0
@@ -54,11 +47,7 @@ def label_size_px(text):
 
 
 def label_box_px(anchor_px, text):
-    """
-    Return the box ``(x0, y0, x1, y1)`` (pixels) that a label at ``anchor_px`` covers.
-
-    The viewer draws a point's label centred under it, :data:`LABEL_DROP_PX` below.
-    """
+    """Return the box ``(x0, y0, x1, y1)`` (px) of a label at ``anchor_px`` (centred under it)."""
     a = np.asarray(anchor_px, dtype=float)
     w, h = label_size_px(text)
     top = a[..., 1] + LABEL_DROP_PX
@@ -96,16 +85,12 @@ def moved_text(layout, variant, i):
     """Return the label of a body whose mass is kept and whose mass centre moved: how far."""
     moved = np.linalg.norm(np.subtract(layout.drawings[variant].bodies[i].mass_centre_m,
                                        layout.drawings['original'].bodies[i].mass_centre_m))
-    return f'moved {moved * 1e3:.0f} mm'
+    mm = moved * 1e3
+    return f'moved {mm:.0f} mm' if mm >= 1.0 else f'moved {mm:.2g} mm'
 
 
 def slide_readout(stroke_m, motion, variant):
-    """
-    Return the readout of a prismatic input: ``deg -> 'slide 30.0 mm, force +12.3 N'``.
-
-    The slide follows the input's stroke law at the cycle angle; the driving force is the
-    design's at the recorded samples (a live view's new angles show the slide alone).
-    """
+    """Return the readout of a prismatic input: ``deg -> 'slide 30.0 mm, force +12.3 N'``."""
     from mech_balance.schema.spatial import stroke_law
     data = (motion.data or {}).get(variant)
     force = getattr(data, 'series', {}).get('driving_force') if data is not None else None
@@ -160,16 +145,10 @@ def label_specs(layout, motion):
     return specs
 
 
-def candidates(w, h):
-    """
-    Return label-box centre offsets (px) around a feature: above, right, below, left, ...
-
-    The four sides and four corners first, then eight places between them on the ellipse
-    through the sides (a box there keeps about its offset from the feature), for each of
-    :data:`LABEL_OFFSETS_PX` in turn.
-    """
+def candidates(w, h, rings=LABEL_OFFSETS_PX):
+    """Return label-box centre offsets (px) around a feature: sides, corners, between, per ring."""
     out = []
-    for offset in LABEL_OFFSETS_PX:
+    for offset in rings:
         dx, dy = 0.5 * w + offset, 0.5 * h + offset
         out += [[0, -dy], [dx, 0], [0, dy], [-dx, 0], [dx, -dy], [-dx, -dy], [dx, dy],
                 [-dx, dy]]
@@ -202,6 +181,10 @@ def label_anchor(layout, motion, spec, variant, screen):
         return [strip[:, j] + t * (strip[:, j + 1] - strip[:, j])
                 for j in range(strip.shape[1] - 1)
                 for t in (LINK_LABEL_ALONG if j == 0 else LINK_LABEL_ALONG[:2])]
+    if spec.where == 'change_along':      # along the stalk from the link to the centre
+        j = [i for i, _ in layout.changes[variant]].index(spec.index)
+        stalk = motion.marks[variant]['stalks'][:, j]
+        return [stalk[:, 0] + t * (stalk[:, 1] - stalk[:, 0]) for t in (0.5, 0.25, 0.75)]
     if spec.where == 'gauge':
         below = np.array([0.0, layout.gauge_reach_m, 0.0] if layout.dim == 2 else   # 3-D:
                          [0.0, 0.0, GAUGE_LABEL_DROP * layout.gauge_reach_m])   # under arrows
@@ -221,12 +204,7 @@ def link_segments_px(motion, screen):
 
 
 def segments_px(layout, motion, screen, variant=None):
-    """
-    Return every drawn line segment of a view ``(p, m, 2, 2)`` on screen.
-
-    The links and the frame; with ``variant``, also that design's marks as drawn: the
-    counterweight plane rings and the stalks to moved mass centres (:func:`design_marks`).
-    """
+    """Return every drawn segment ``(p, m, 2, 2)`` on screen: links, frame, a design's marks."""
     segs = [s for s in link_segments_px(motion, screen) if s.shape[1]]
     for strip in layout.frame_strips:
         px = screen.px(strip)
@@ -248,14 +226,10 @@ def segments_px(layout, motion, screen, variant=None):
 
 def place_labels(layout, motion, variant):
     """
-    Return ``(positions (q, 3), texts, colours, counts (p,))``: the labels of one view.
+    Return ``(positions (q, 3), texts, colours, counts (p,), tiers (q,))``: a view's labels.
 
-    Greedy, most important label first, at each sample: each label takes the first place
-    around its feature whose box keeps clear of the boxes already placed, of every drawn
-    point and of every drawn line, inside the view, and that is nearer its own feature than
-    any other (:func:`_nearest_own`); else it is left out at that sample.  So no two labels
-    ever overlap, no line crosses a label and no label names a neighbour's point at the
-    default window.
+    Every label at every sample, most important first, at one place where it is clean (tier
+    1), else with the tests dropped one by one (tiers 2-5: `docs/recordings.md`, Labels).
     """
     screen = layout.screens[variant]
     p = motion.size
@@ -271,93 +245,115 @@ def place_labels(layout, motion, variant):
     markers = np.concatenate(points, axis=1) if points else np.zeros((p, 0, 2))
     lines = segments_px(layout, motion, screen, variant)
     links_px = link_segments_px(motion, screen)
-    placed = []      # (p, 4) boxes with (p,) masks
-    out = []         # per spec: (p, 3) anchors, mask, texts
+    placed = []      # (p, 4) boxes
+    out = []         # per spec: (p, 3) anchors, tiers (p,), texts, colour
     h = LABEL_TEXT_PX + LABEL_PAD_PX[1]
     for spec in layout.labels:
         if spec.members and variant not in spec.members:
             continue                    # a label of the other design (its discs, changes)
         texts = [spec.text(d) for d in motion.degrees] if callable(spec.text) else None
         w = max(label_size_px(t)[0] for t in (texts or [spec.text]))
+        half = np.array([0.5 * w, 0.5 * h])
         if spec.where in ('readout', 'scale'):
-            corner = np.array([LABEL_GAP_PX + 0.5 * w, LABEL_GAP_PX + 0.5 * h])
-            if spec.where == 'scale':
-                corner = screen.px(layout.scale_bar[2])
-            box = np.broadcast_to(np.array([corner[0] - w / 2, corner[1] - h / 2,
-                                            corner[0] + w / 2, corner[1] + h / 2]), (p, 4))
-            ok = np.ones(p, dtype=bool)
-            centre_px = np.broadcast_to(corner, (p, 2))
-            base = unproject(screen, centre_px - [0.0, LABEL_DROP_PX + 0.5 * h], layout,
-                             motion)
-            placed.append((box, ok))
-            out.append((base, ok, texts or [spec.text] * p, spec.color))
+            corner = screen.px(layout.scale_bar[2]) if spec.where == 'scale' else \
+                LABEL_GAP_PX + half
+            placed.append(np.broadcast_to(np.concatenate([corner - half, corner + half]),
+                                          (p, 4)))
+            base = unproject(screen, np.broadcast_to(corner, (p, 2))
+                             - [0.0, LABEL_DROP_PX + 0.5 * h], layout, motion)
+            out.append((base, np.ones(p, dtype=int), texts or [spec.text] * p, spec.color))
             continue
-        feature = label_anchor(layout, motion, spec, variant, screen)
-        features = [feature]
-        if spec.where == 'link':
-            features += label_anchor(layout, motion, Label('', (), 'link_along', spec.index),
-                                     variant, screen) or []
-        offs = candidates(w, h)                                     # (c, 2)
-        if spec.where == 'gauge':
-            offs = offs[[2, 6, 7, 1, 3, 0, 4, 5] + list(range(8, len(offs)))]
+        features = [label_anchor(layout, motion, spec, variant, screen)]
+        if spec.where in ('link', 'change'):
+            features += label_anchor(layout, motion, Label('', (), spec.where + '_along',
+                                                           spec.index), variant, screen) or []
         f_px = np.stack([screen.px(f) for f in features], axis=1)  # (p, a, 2)
-        centres = (f_px[:, :, None, :] + offs[None, None]).reshape(p, -1, 2)   # (p, a c, 2)
-        which = np.repeat(np.arange(len(features)), len(offs))     # anchor of each place
-        boxes = np.stack([centres[..., 0] - w / 2, centres[..., 1] - h / 2,
-                          centres[..., 0] + w / 2, centres[..., 1] + h / 2], axis=-1)
-        ok = (boxes[..., 0] >= 0) & (boxes[..., 1] >= 0) & (boxes[..., 2] <= w_px) & \
-            (boxes[..., 3] <= h_px)
-        for other, mask in placed:
+
+        def trial(rows, offs):
+            """Return the places of ``rows`` at offsets ``offs``: centres, boxes, masks."""
+            if spec.where == 'gauge':
+                offs = offs[[2, 6, 7, 1, 3, 0, 4, 5] + list(range(8, len(offs)))]
+            centres = (f_px[rows, :, None, :] + offs[None, None]).reshape(len(rows), -1, 2)
+            boxes = np.concatenate([centres - half, centres + half], axis=-1)
+            inside = (boxes[..., 0] >= 0) & (boxes[..., 1] >= 0) & \
+                (boxes[..., 2] <= w_px) & (boxes[..., 3] <= h_px)
+            free = inside.copy()
             g = LABEL_GAP_PX
-            hit = (boxes[..., 0] < other[:, None, 2] + g) & \
-                (boxes[..., 2] > other[:, None, 0] - g) & \
-                (boxes[..., 1] < other[:, None, 3] + g) & (boxes[..., 3] > other[:, None, 1] - g)
-            ok &= ~(hit & mask[:, None])
-        if markers.shape[1]:
-            mx, my = markers[:, None, :, 0], markers[:, None, :, 1]
-            m = MARKER_PX
-            hit = (mx > boxes[..., 0, None] - m) & (mx < boxes[..., 2, None] + m) & \
-                (my > boxes[..., 1, None] - m) & (my < boxes[..., 3, None] + m)
-            ok &= ~hit.any(axis=-1)
-        # no line crosses a label, and it names its own feature: the costly tests, run only
-        # where the cheap ones passed and only until each sample's first place is found
-        ok = first_passing(ok, lambda rows, cols: ~segments_hit_boxes(
-            lines[rows], boxes[rows, cols]) & _nearest_own(
-            spec, f_px[rows, 0], centres[rows, cols], markers[rows],
-            [s[rows] for s in links_px]))
-        found = ok.any(axis=1)
-        first = np.argmax(ok, axis=1)
+            for other in placed:
+                o = other[rows, None]
+                free &= ~((boxes[..., 0] < o[..., 2] + g) & (boxes[..., 2] > o[..., 0] - g) &
+                          (boxes[..., 1] < o[..., 3] + g) & (boxes[..., 3] > o[..., 1] - g))
+            cheap = free.copy()
+            if markers.shape[1]:
+                mx, my = markers[rows, None, :, 0], markers[rows, None, :, 1]
+                m = MARKER_PX
+                cheap &= ~((mx > boxes[..., 0, None] - m) & (mx < boxes[..., 2, None] + m) &
+                           (my > boxes[..., 1, None] - m) & (my < boxes[..., 3, None] + m)
+                           ).any(axis=-1)
+            which = np.repeat(np.arange(len(features)), len(offs))     # anchor of a place
+
+            def uncrossed(r, cols):
+                return ~segments_hit_boxes(lines[rows[r]], boxes[r, cols])
+
+            def clean(r, cols):
+                return uncrossed(r, cols) & _nearest_own(
+                    spec, f_px[rows[r], 0], centres[r, cols], markers[rows[r]],
+                    [s[rows[r]] for s in links_px])
+            return centres, which, (cheap, free, inside), (clean, uncrossed)
+        # clean places on the near rings: the costly tests run only where the cheap ones
+        # passed, and only until each sample's first place is found (:func:`first_passing`)
         rows = np.arange(p)
-        box = boxes[rows, first]
-        centre_px = centres[rows, first]
-        placed.append((box, found))
-        chosen = np.stack(features, axis=1)[rows, which[first]]    # (p, 3)
-        base = unproject(screen, centre_px - [0.0, LABEL_DROP_PX + 0.5 * h], layout, motion,
-                         chosen)
-        out.append((base, found, texts or [spec.text] * p, spec.color))
+        near = candidates(w, h, LABEL_OFFSETS_PX[:2])
+        centres, which, (cheap, _, _), (clean, _) = trial(rows, near)
+        ok = first_passing(cheap, clean)
+        tier = np.where(ok.any(axis=1), 1, 0)
+        first = np.argmax(ok, axis=1)
+        if tier.any():                  # the same place wherever it is clean
+            mode = np.bincount(first[tier == 1]).argmax()
+            redo = np.flatnonzero((tier == 1) & (first != mode) & cheap[:, mode])
+            if redo.size:
+                first[redo[clean(redo, slice(mode, mode + 1))[:, 0]]] = mode
+        at = centres[rows, first]
+        anchor = which[first]
+        rest = np.flatnonzero(tier == 0)
+        if rest.size:                   # no clean place: every ring, the tests one by one
+            c, wh, (cheap, free, inside), (clean, uncrossed) = trial(rest, candidates(w, h))
+            far = np.tile(np.arange(len(candidates(w, h))) >= len(near), len(features))
+            got = np.zeros(rest.size, dtype=int)
+            for level, mask, test in ((1, cheap & far, clean), (2, cheap, uncrossed),
+                                      (3, free, None), (4, inside, None)):
+                todo = np.flatnonzero(got == 0)
+                sub = mask[todo]
+                if test is not None:
+                    sub = first_passing(sub, lambda r, cols: test(todo[r], cols))
+                hit = sub.any(axis=1)
+                got[todo[hit]] = level
+                col = np.argmax(sub[hit], axis=1)
+                at[rest[todo[hit]]] = c[todo[hit], col]
+                anchor[rest[todo[hit]]] = wh[col]
+            at[rest[got == 0]] = c[got == 0, 0]
+            anchor[rest[got == 0]] = 0
+            tier[rest] = np.where(got == 0, 5, got)
+        placed.append(np.concatenate([at - half, at + half], axis=-1))
+        chosen = np.stack(features, axis=1)[rows, anchor]           # (p, 3)
+        base = unproject(screen, at - [0.0, LABEL_DROP_PX + 0.5 * h], layout, motion, chosen)
+        out.append((base, tier, texts or [spec.text] * p, spec.color))
     if not out:
-        return np.zeros((0, 3)), [], [], np.zeros(p, dtype=np.int64)
+        return np.zeros((0, 3)), [], [], np.zeros(p, dtype=np.int64), np.zeros(0, dtype=int)
     # sample by sample, each sample's labels in the order of importance
-    mask = np.stack([m for _, m, _, _ in out], axis=1)                  # (p, s)
     bases = np.stack([b for b, _, _, _ in out], axis=1)                 # (p, s, 3)
+    tiers = np.stack([t for _, t, _, _ in out], axis=1)                 # (p, s)
     texts = np.empty((p, len(out)), dtype=object)
-    for j, (_, _, t, _) in enumerate(out):
-        texts[:, j] = t
     colors = np.empty((p, len(out)), dtype=object)
-    for j, (_, _, _, c) in enumerate(out):
+    for j, (_, _, t, c) in enumerate(out):
+        texts[:, j] = t
         colors[:, j] = [c] * p
-    return (bases[mask].reshape(-1, 3), texts[mask].tolist(), colors[mask].tolist(),
-            mask.sum(axis=1).astype(np.int64))
+    return (bases.reshape(-1, 3), texts.ravel().tolist(), colors.ravel().tolist(),
+            np.full(p, len(out), dtype=np.int64), tiers.ravel())
 
 
 def _nearest_own(spec, feature_px, centres, markers, links_px):
-    """
-    Return ``(p, c)``: whether a label box centred at ``centres`` names its own feature.
-
-    A point's label (frame, joint, mass centre) is nearer its point than any other drawn
-    point (points at its place excepted), by :data:`NEAR_MARGIN_PX`; a link's name nearer
-    its link than any other link.
-    """
+    """Return ``(p, c)``: whether labels at ``centres`` are nearer their feature than any other."""
     if spec.where == 'link':
         own = links_px[spec.index]
         others = [s for i, s in enumerate(links_px) if i != spec.index and s.shape[1]]

@@ -1,18 +1,16 @@
 """
-Where things land on screen: the default window, the views, the gauge, the 2-D bounds or 3-D eye.
+Where things land on screen (no rerun): the default window, the views, the gauge, the inset.
 
-Pure geometry of the picture (no rerun): the :class:`Screen` of a view at :data:`WINDOW_PX`,
-the :class:`Layout` of a recording, the gauge's place and the 2-D bounds or 3-D eye fitted to
-the drawing.  The labels are placed by :mod:`.labels`, the plots' ranges chosen by
-:mod:`.plots`.
+The :class:`Screen` of a view at :data:`WINDOW_PX`, the :class:`Layout` of a recording, and
+the 2-D bounds or 3-D eye fitted to the drawing.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 import functools
 import itertools
 import math
 
-from mech_balance.viz.labels import LABEL_PAD_PX, LABEL_TEXT_PX
+from mech_balance.viz.labels import label_anchor, LABEL_PAD_PX, LABEL_TEXT_PX, place_labels
 from mech_balance.viz.style import (
     CENTRE_RADIUS_SHARE, DIAL_OVER_ARROW, DIAL_SHARE, FORCE_ARROW_SHARE, GAUGE_GAP_SHARE,
     GAUGE_LABEL_DROP,
@@ -33,6 +31,14 @@ LEFT_SHARE = 0.6
 """Share of the window width of the left column (rigs over the RMS table); plots right."""
 RIG_ROW_SHARE = 0.66
 """Share of the left column's height of the rig views (the RMS table below)."""
+INSET_SHARE = 0.4
+"""Share of the right column's height of the inset (a crowded core zoomed), plots below."""
+INSET_TRIGGER = 0.1
+"""A 2-D rig gets an inset when more than this share of its labels' places is not clean."""
+INSET_MIN_ZOOM = 1.5
+"""... and the inset shows the crowded labels' features at least this much larger."""
+INSET_PAD_PX = 70.0
+"""Room around the crowded features in the inset, for their labels."""
 GAUGE_GRID = 15
 """Places per side of the grid over the rig's box where a free corner for the gauge is sought."""
 GAUGE_CLEAR_POINTS = 9
@@ -56,9 +62,7 @@ class Screen:
     """
     Where a view's points land on screen at the default window (:data:`WINDOW_PX`).
 
-    ``size_px`` (w, h) of the view's drawing area; 2-D: ``bounds`` ((x0, x1), (y0, y1)) in
-    the scene's frame (y up), fitted exactly; 3-D: an eye at ``eye_m`` looking at
-    ``target_m`` with ``up`` and :data:`FOV_Y_RAD`.
+    ``size_px`` of the drawing area; 2-D: ``bounds`` ((x0, x1), (y0, y1)), y up; 3-D: an eye.
     """
 
     size_px: tuple
@@ -114,7 +118,6 @@ class Screen:
 class Layout:
     """Everything static of a recording: rigs, drawings, styles, scales, screens, text."""
 
-    title: str
     dim: int
     streams: tuple
     variants: tuple
@@ -132,16 +135,16 @@ class Layout:
     pivot_name: str
     force_scale_m_per_N: float
     moment_scale: float          # deg per N*m (2-D arc) or m per N*m (3-D arrow)
-    gauge_m: np.ndarray          # (3,)
-    gauge_reach_m: float         # radius of everything the gauge draws
-    dial_radius_m: float
-    scale_bar: tuple             # ((k, 3) strip, label text, label point (3,)) or None
-    screens: dict
-    plots: list
-    labels: list
     series: tuple
     has_added: bool
     has_point_masses: bool
+    gauge_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gauge_reach_m: float = 0.0   # radius of everything the gauge draws
+    dial_radius_m: float = 0.0
+    scale_bar: tuple = None      # ((k, 3) strip, label text, label point (3,))
+    screens: dict = None
+    plots: list = ()
+    labels: list = ()
     text: str = ''
     live: bool = False
     grid_m: float = 0.0          # 3-D: spacing of the grid lines
@@ -149,6 +152,8 @@ class Layout:
     grid_box: tuple = None       # 3-D: (x0, x1, y0, y1) of the grid drawn on z = 0
     marks: dict = None           # variant -> {'rings': [(body, (k, 3))], 'stalks': [...]}
     changes: dict = None         # variant -> [(body index, mass change kg)]
+    inset: object = None         # a Screen zoomed on a crowded core, or None
+    placed: dict = None          # view -> its labels at every sample (place_labels)
 
     def on(self, stream):
         """Return whether ``stream`` is logged."""
@@ -174,12 +179,7 @@ def nice_floor(x):
 
 
 def arrow_scale(size_m, largest, share=FORCE_ARROW_SHARE, steps=(1.0, 2.0, 5.0)):
-    """
-    Return metres of arrow per unit value (m per N, or m per N*m).
-
-    1 cm of arrow is a round value (``steps`` times a power of ten) and the longest arrow at
-    most ``share`` of the rig's size.
-    """
+    """Return metres of arrow per unit (1 cm a round value, the longest <= ``share`` of rig)."""
     if not largest > 0.0:
         return 1.0
     return 0.01 / nice_ceil(largest * 0.01 / (share * size_m), steps)
@@ -192,14 +192,15 @@ def arc_scale(largest):
     return 90.0 / nice_ceil(largest * 90.0 / MOMENT_ARC_MAX_DEG)
 
 
-def window_px(n_views, n_plots, has_text):
-    """Return the drawing-area sizes (px) of a rig view and of a plot at :data:`WINDOW_PX`."""
+def window_px(n_views, n_plots, has_text, inset=None):
+    """Return the drawing-area sizes (px) of a rig view and of a plot (under any inset)."""
     w, h = WINDOW_PX
     height = h - TOP_BAR_PX - TIME_PANEL_PX
-    left = w * LEFT_SHARE if n_plots else w
+    left = w * LEFT_SHARE if n_plots or inset is not None else w
     rig_h = (height * RIG_ROW_SHARE if has_text else height) - VIEW_TITLE_PX
     rig_w = left / max(n_views, 1) - 6.0
-    plot = ((w - left) - 60.0, height / max(n_plots, 1) - VIEW_TITLE_PX - 24.0)
+    plots_h = height * (1.0 - INSET_SHARE) if inset is not None else height
+    plot = ((w - left) - 8.0, plots_h / max(n_plots, 1) - VIEW_TITLE_PX)
     return (float(rig_w), float(rig_h)), plot
 
 
@@ -248,21 +249,14 @@ def place_views(layout, motion, fmax, nmax, n_series):
         x_bar = lo[0]
         strip = np.array([[x_bar, y_bar + tick, 0], [x_bar, y_bar, 0],
                           [x_bar + bar, y_bar, 0], [x_bar + bar, y_bar + tick, 0]])
-        text = f'{bar * 100:g} cm' if bar >= 0.01 else f'{bar * 1000:g} mm'
+        text = length_text(bar)
         lo = np.minimum(lo, strip.min(axis=0) - [0, tick, 0])
         if gauge and reach > 0.0:
             centre = _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px)
             layout.gauge_m, layout.gauge_reach_m = centre, reach
             lo = np.minimum(lo, centre - reach)
             hi = np.maximum(hi, centre + reach)
-        # the bounds: the view's aspect, everything drawn inside with a margin
-        w_px, h_px = view_px
-        s = max((hi[0] - lo[0]) / (w_px - 2 * VIEW_PAD_PX),
-                (hi[1] - lo[1]) / (h_px - 2 * VIEW_PAD_PX - 2 * LABEL_TEXT_PX))
-        cx, cy = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
-        bounds = ((float(cx - 0.5 * w_px * s), float(cx + 0.5 * w_px * s)),
-                  (float(cy - 0.5 * h_px * s), float(cy + 0.5 * h_px * s)))
-        screen = Screen(view_px, bounds=bounds)
+        screen = fit_2d(lo, hi, view_px)
         label_at = 0.5 * (strip[1] + strip[2]) + screen.offset_m(
             strip[1], [0.0, 3.0 + 0.5 * (LABEL_TEXT_PX + LABEL_PAD_PX[1])])
         layout.scale_bar = (strip, text, label_at)
@@ -275,14 +269,51 @@ def place_views(layout, motion, fmax, nmax, n_series):
     layout.screens = {v: screen for v in layout.variants}
 
 
-def grid_box(lo, hi, spacing):
+def zoom_inset(layout, motion, placed):
     """
-    Return the 3-D grid's ``(x0, x1, y0, y1)``: the rig's extent rounded out to the lines.
+    Return the labels of an inset zoomed on the original view's crowded core, or None.
 
-    The grid lies on z = 0 under (or through) the rig and covers its extent over the turn,
-    rounded out to the grid's lines, plus :data:`GRID_MARGIN_LINES` spacings, so that it
-    frames the rig instead of filling the view to the horizon.
+    Sets ``layout.inset`` (a :class:`Screen`) and moves the crowded names there from
+    ``layout.labels`` and ``placed['original']`` (`docs/recordings.md`, Inset).
     """
+    tiers = placed['original'][4].reshape(motion.size, -1)
+    if layout.dim != 2 or not np.mean(tiers >= 2) > INSET_TRIGGER:
+        return None
+    kinds = ('frame', 'joint', 'link')
+    specs = [s for s in layout.labels if not s.members or 'original' in s.members]
+    crowded = [s for s, t in zip(specs, tiers.T)
+               if s.where in kinds and np.mean(t >= 2) > INSET_TRIGGER]
+    points = [s for s in crowded if s.where != 'link'] or crowded   # the core's points
+    if not points:
+        return None
+    pts = np.concatenate([label_anchor(layout, motion, s, 'original', None) for s in points])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    _, (w, h) = window_px(len(layout.variants), 1, False)
+    screen = fit_2d(lo, hi, (w, (h + VIEW_TITLE_PX) * INSET_SHARE - VIEW_TITLE_PX),
+                    (INSET_PAD_PX, INSET_PAD_PX))
+    if layout.screens['original'].metres_per_px < INSET_MIN_ZOOM * screen.metres_per_px:
+        return None
+    layout.inset = screen
+    (x0, x1), (y0, y1) = screen.bounds
+
+    def inside(spec):
+        a = label_anchor(layout, motion, spec, 'original', None)
+        return np.all((a[:, 0] > x0) & (a[:, 0] < x1) & (a[:, 1] > y0) & (a[:, 1] < y1))
+    named = [x for x in specs if x.where in kinds and inside(x)]
+    zoomed = replace(layout, screens={'original': screen}, scale_bar=None, has_added=False,
+                     streams=tuple(x for x in layout.streams if x != 'mass_centres'),
+                     labels=named)
+    moved = [x in crowded and x in named for x in specs]
+    layout.labels = [x for x in layout.labels if not (x in crowded and x in named)]
+    pos, texts, colors, counts, tiers = placed['original']
+    keep = np.tile(~np.array(moved), motion.size)
+    placed['original'] = (pos[keep], [t for t, k in zip(texts, keep) if k],
+                          [c for c, k in zip(colors, keep) if k], counts - sum(moved), tiers[keep])
+    return place_labels(zoomed, motion, 'original')
+
+
+def grid_box(lo, hi, spacing):
+    """Return the 3-D grid's ``(x0, x1, y0, y1)`` on z = 0: the rig's extent rounded out."""
     if not spacing > 0.0:
         return None
     m = GRID_MARGIN_LINES * spacing
@@ -291,20 +322,28 @@ def grid_box(lo, hi, spacing):
     return (x0, x1, y0, y1)
 
 
-def _scale_2d(lo, hi, view_px):
-    """Return the metres per pixel at which the box ``lo``-``hi`` fits a 2-D view."""
-    w_px, h_px = view_px
-    return max((hi[0] - lo[0]) / (w_px - 2 * VIEW_PAD_PX),
-               (hi[1] - lo[1]) / (h_px - 2 * VIEW_PAD_PX - 2 * LABEL_TEXT_PX))
+def fit_2d(lo, hi, view_px, pad_px=(VIEW_PAD_PX, VIEW_PAD_PX + LABEL_TEXT_PX)):
+    """Return the 2-D :class:`Screen` of ``view_px`` that fits the box ``lo``-``hi``, centred."""
+    w, h = view_px
+    s = max((hi[0] - lo[0]) / (w - 2 * pad_px[0]), (hi[1] - lo[1]) / (h - 2 * pad_px[1]),
+            1e-300)
+    c = 0.5 * (np.asarray(lo, dtype=float) + hi)
+    return Screen(view_px, bounds=((float(c[0] - 0.5 * w * s), float(c[0] + 0.5 * w * s)),
+                                   (float(c[1] - 0.5 * h * s), float(c[1] + 0.5 * h * s))))
+
+
+def length_text(length_m):
+    """Return a round length as a person writes it (``5 cm``, ``2 mm``, ``1 m``)."""
+    if length_m >= 1.0:
+        return f'{length_m:g} m'
+    return f'{length_m * 100:g} cm' if length_m >= 0.01 else f'{length_m * 1000:g} mm'
 
 
 def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
     """
     Return the 2-D gauge's centre: where the rig, gauge and all fit the view the largest.
 
-    Tried: beside the rig (right, left), under and over it, and every place of a grid over
-    the rig's own box where nothing of the rig comes within ``gap`` of the gauge over the
-    whole turn (a free corner); the first of the best is taken.
+    Tried: beside, under and over the rig, and the free corners of its own box.
     """
     cx, cy = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
     places = [(hi[0] + gap + reach, cy), (cx, lo[1] - gap - reach),
@@ -337,7 +376,7 @@ def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
     best, best_s = None, math.inf
     for x, y in places:
         c = np.array([x, y, 0.0])
-        s = _scale_2d(np.minimum(lo, c - reach), np.maximum(hi, c + reach), view_px)
+        s = fit_2d(np.minimum(lo, c - reach), np.maximum(hi, c + reach), view_px).metres_per_px
         if s < best_s * (1.0 - 1e-9):
             best, best_s = c, s
     return best
@@ -371,10 +410,8 @@ def _frame_3d(layout, motion, pts, lo, hi, reach, gap, view_px):
     """
     Return the 3-D screen: the eye fitted to the rig and its gauge, the gauge's place chosen.
 
-    The gauge goes beside the rig, to its right, left or above it as seen from
-    :data:`EYE_DIRECTION`, level with it, in front of it or behind it, where its arrows over
-    the turn keep off the rig's picture and the eye that sees both stands nearest (the rig
-    comes out largest); the eye looks at the middle of what it sees (:func:`fit_eye`).
+    The gauge goes right, left or above the rig where its arrows keep off the rig's picture
+    and the eye stands nearest (:func:`fit_eye`).
     """
     d = np.asarray(EYE_DIRECTION, dtype=float)
     d = d / np.linalg.norm(d)
@@ -413,12 +450,8 @@ def fit_eye(view_px, target, direction, corners):
     """
     Return a 3-D :class:`Screen` whose eye sees every corner inside the view's margins.
 
-    The eye looks along ``-direction`` from the nearest distance at which every corner is
-    inside :data:`VIEW_PAD_PX` of the edges (in closed form: a corner at ``x`` right of the
-    line of sight and ``z`` in front of the target is inside when the distance is at least
-    ``f |x| / half_width - z``, ``f`` the focal length in pixels); the look target is moved
-    so that the corners' picture is centred, :data:`EYE_CENTRING` times, and the eye stands
-    :data:`EYE_FIT` times further than that.
+    The nearest distance along ``direction`` in closed form (a corner ``x`` across and ``z``
+    in front is inside from ``f |x| / half_width - z``), the picture centred.
     """
     target = np.asarray(target, dtype=float)
     corners = np.asarray(corners, dtype=float)

@@ -8,9 +8,10 @@ import time
 from urllib.parse import urlsplit
 
 from mech_balance import atomic, conventions
+from mech_balance.paths import check_viewer_url
 from mech_balance.viz.drawing import concat_motions, live_motion, plan
 from mech_balance.viz.streams import (
-    application_id, check_output_path, check_viewer_url, log_motion, start_stream
+    application_id, check_output_path, log_motion, start_stream
 )
 import numpy as np
 import rerun as rr
@@ -40,16 +41,10 @@ class LiveView:
     """
     The views of a running rig streamed to a viewer, throttled, on a thread of its own.
 
-    The constructor returns at once: the thread lays the views out (if no ``layout`` is
-    given), connects (rerun's ``connect_grpc`` waits up to 5 s for a viewer that is not
-    there), sends the blueprint and the static geometry, and then logs.  :attr:`status` says
-    how far it got: ``'connecting'``, ``'connected'`` (a flush reached the viewer) or
-    ``'dead: <reason>'`` (a flush failed or the thread stopped on an error); a dead viewer
-    is retried every :data:`LIVE_RETRY_S` and its samples are dropped meanwhile, so nothing
-    piles up.  :meth:`push` only queues a batch (the oldest is dropped when
-    :data:`LIVE_QUEUE` are waiting) and never blocks; the thread keeps at most one sample
-    per 1 / :data:`LIVE_MAX_RATE_HZ` seconds of the rig's clock, evaluates the other design
-    and logs.  :meth:`close` waits at most its ``timeout_s``.
+    The constructor returns at once; the thread lays out, connects, sends and logs.
+    :meth:`push` only queues (the oldest batch dropped when :data:`LIVE_QUEUE` wait);
+    :meth:`close` waits at most its ``timeout_s``.  A dead viewer is retried every
+    :data:`LIVE_RETRY_S`, its samples dropped meanwhile (`docs/recordings.md`, live view).
     """
 
     def __init__(self, url, scene, layout=None, balanced=None, balanced_source=None):
@@ -130,12 +125,7 @@ class LiveView:
                 return
 
     def _knock(self):
-        """
-        Return whether something accepts a connection at the viewer's host and port.
-
-        rerun's own ``connect_grpc`` waits 5 s for a viewer that is not there and its
-        disconnect 5 s more; a refused TCP connection says so at once (status ``dead``).
-        """
+        """Return whether something accepts a connection at the viewer's port (else: dead)."""
         where = urlsplit(self.url.replace('rerun+', '', 1))
         try:
             with socket.create_connection((where.hostname, where.port or LIVE_DEFAULT_PORT),
@@ -197,22 +187,11 @@ class LiveRecorder:
     """
     Record a running rig sample by sample (used by the rig node): to a file and/or a viewer.
 
-    ``LiveRecorder(path, scene, balanced=None)`` opens ``path`` (``.rrd``, checked by
-    :func:`check_output_path`, whose errors name ``field``; None for no file) and, with
-    ``url`` (a running viewer's ``rerun+http://HOST:PORT/proxy``), streams the same views to
-    it, throttled to :data:`LIVE_MAX_RATE_HZ` on a thread of its own.  Both are laid out
-    from one reference turn (``scene.samples`` angles).  The viewer part never blocks the
-    caller: the constructor returns at once and connects on the view's thread,
-    :attr:`status` says whether the viewer answers, :meth:`log_sample` only queues for it.
-    :meth:`log_sample` appends samples (the file gets every one: a call waits for a
-    :meth:`close` on another thread to finish, and after it takes nothing, returning 0);
-    :meth:`close` (also run at interpreter exit) gives the viewer at most ``timeout_s``, waits
-    for the file to be written whole (a flush without a timeout: what was logged before it
-    is in the file, whatever the load), is idempotent and safe to call from a signal
-    handler or another thread.  Until
-    then the file's samples go to ``.NAME.partial-XXXXXXXX`` next to ``path``
-    (:mod:`mech_balance.atomic`); :meth:`close` renames it over ``path``, so an existing
-    recording is replaced only by a complete one.
+    ``path``: an ``.rrd`` file (checked by :func:`check_output_path`, errors name ``field``)
+    or None; ``url``: a running viewer's ``rerun+http://HOST:PORT/proxy`` (its views
+    throttled to :data:`LIVE_MAX_RATE_HZ`, never blocking the caller) or None.  The file is
+    written to ``.NAME.partial-XXXXXXXX`` and renamed over ``path`` by :meth:`close` (also
+    run at exit), so an existing recording is replaced only by a complete one.
     """
 
     def __init__(self, path, scene, balanced=None, balanced_source=None, *, field='path',
@@ -227,15 +206,13 @@ class LiveRecorder:
         if self.path is not None:       # a viewer alone is laid out on its own thread
             self._layout, _ = plan(scene, balanced, samples, balanced_source, live=True)
         self._lock = threading.Lock()
-        self._owner = None
         self._logging = threading.local()   # set before the lock is taken: see close()
         self._closed = False
         self._close_requested = False
         self.samples_logged = 0
         self._t0 = None
         self._rec = self._partial = self._view = None
-        if self.path is not None:
-            # visibly partial (.NAME.partial-XXXXXXXX) until close() renames it over the path
+        if self.path is not None:     # .NAME.partial-XXXXXXXX until close() renames it
             self._partial = atomic.partial_path(self.path)
             try:
                 self._rec = rr.RecordingStream(application_id(scene))
@@ -256,11 +233,7 @@ class LiveRecorder:
 
     @property
     def status(self):
-        """
-        Return the viewer's state: ``'connecting'``, ``'connected'`` or ``'dead: <reason>'``.
-
-        ``'off'`` without ``url`` (a file only).  Reading it never blocks.
-        """
+        """Return ``'off'`` (no viewer), ``'connecting'``, ``'connected'`` or ``'dead: ...'``."""
         return 'off' if self._view is None else self._view.status
 
     @property
@@ -268,24 +241,13 @@ class LiveRecorder:
         """Return whether the recording has been closed."""
         return self._closed
 
-    @property
-    def view_samples_logged(self):
-        """Return how many samples the live view has sent (after throttling)."""
-        return 0 if self._view is None else self._view.samples_logged
-
-    def log_sample(self, time_s, crank_angle_rad, state=None, wrenches=None,
-                   balanced_wrenches=None, data=None):
+    def log_sample(self, time_s, crank_angle_rad, data=None):
         """
         Append one sample (scalars) or a batch ``(p,)`` of samples; return the count taken.
 
-        ``crank_angle_rad`` is the cumulative crank angle (the ``crank_angle`` timeline shows
-        it rounded to whole degrees), ``time_s`` the rig's clock in seconds (the ``time``
-        timeline counts from the first sample logged).  ``data`` is the original design's
-        :class:`~mech_balance.core.rig.RigData` at those angles if the caller has it (the
-        node does), saving its evaluation; everything missing is evaluated here through the
-        rig.  ``state``, ``wrenches`` and ``balanced_wrenches`` (a planar core's own
-        results) are accepted for older callers and not read: the rig's data is.  After
-        :meth:`close` nothing is logged and 0 is returned.
+        ``crank_angle_rad``: the cumulative crank angle; ``time_s``: the rig's clock (s);
+        ``data``: the original design's :class:`~mech_balance.core.rig.RigData` at those
+        angles if the caller has it (else evaluated here).  After :meth:`close`: 0.
         """
         t = np.atleast_1d(np.asarray(time_s, dtype=float)).ravel()
         psi = np.atleast_1d(np.asarray(crank_angle_rad, dtype=float)).ravel()
@@ -296,8 +258,6 @@ class LiveRecorder:
             raise ValueError('time_s, crank_angle_rad: got non-finite values, expected finite')
         if data is not None and len(data) != psi.size:
             raise ValueError(f'data: got {len(data)} angles, expected {psi.size}')
-        if state is not None and getattr(state, 'size', psi.size) != psi.size:
-            raise ValueError(f'state: got {state.size} angles, expected {psi.size}')
         if self._closed or self._close_requested:
             return 0
         if self._view is not None:
@@ -309,16 +269,12 @@ class LiveRecorder:
         self._logging.active = True
         try:
             with self._lock:        # held by a close at most: the file's flush, then closed
-                self._owner = threading.get_ident()
-                try:
-                    if self._closed:
-                        return 0
-                    if self._t0 is None:
-                        self._t0 = float(t[0])
-                    log_motion(self._rec, self.layout, motion, degrees, t - self._t0)
-                    self.samples_logged += psi.size
-                finally:
-                    self._owner = None
+                if self._closed:
+                    return 0
+                if self._t0 is None:
+                    self._t0 = float(t[0])
+                log_motion(self._rec, self.layout, motion, degrees, t - self._t0)
+                self.samples_logged += psi.size
         finally:
             self._logging.active = False
         if self._close_requested:
@@ -329,19 +285,15 @@ class LiveRecorder:
         """
         Flush and close the file and the viewer stream (idempotent; signal-safe).
 
-        The viewer gets at most ``timeout_s`` seconds whatever it does: the view's thread is
-        given that to send its last samples and disconnects on its own (rerun waits up to
-        5 s for a viewer that is not there).  The file is not timed: a log call on another
-        thread is waited for, then the file is flushed to the disk whole and renamed over
-        the target, so every sample logged before is in it, however loaded the machine (a
-        timed flush under load once left the last batch out).  Called on a thread inside
-        :meth:`log_sample` (a signal handler), it only asks: that call closes when done.
+        The viewer gets at most ``timeout_s``; the file is not timed: a log call on another
+        thread is waited for, then every sample is flushed and the file renamed over the
+        target.  Called inside :meth:`log_sample` (a signal handler) it only asks.
         """
         if self._closed:
             return
         deadline = time.monotonic() + max(0.0, float(timeout_s))
         self._close_requested = True
-        if self._owner == threading.get_ident() or getattr(self._logging, 'active', False):
+        if getattr(self._logging, 'active', False):
             return  # interrupted a log call on this thread: it closes the file when done
         self._lock.acquire()        # a log call on another thread: waited for, then closed
         try:

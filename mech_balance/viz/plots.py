@@ -1,52 +1,70 @@
 """
-The time-series views of a recording: which quantities, their values, their y ranges.
+The plots of a recording (no rerun): each quantity over the crank angle, as a 2-D view.
 
-Pure numbers (no rerun): the y range of a plot on the viewer's decade ticks, chosen from the
-reference turn's data so that each plot shows at least :data:`PLOT_MIN_TICKS` labelled ticks.
+Drawn in the view's pixels at the default window (y down): x the crank angle, 0-360 deg,
+y in the quantity's unit (`docs/recordings.md`).  A live view plots over time instead.
 """
 
 from dataclasses import dataclass
 import math
 
 from mech_balance.schema.scene import series_stream
-from mech_balance.viz.layout import window_px
+from mech_balance.viz.labels import LABEL_DROP_PX, label_size_px
+from mech_balance.viz.layout import nice_ceil, window_px
 from mech_balance.viz.style import series_label
 import numpy as np
 
 
-LEGEND_HEADROOM = 0.24
-"""Share of a plot's height kept free above the curves for the legend (top right)."""
-PLOT_MIN_TICKS = 3
-"""A plot's y range holds at least this many labelled ticks."""
-PLOT_EDGE_SHARE = 0.04
-"""Share of a plot's range added beyond its end ticks, so that the viewer labels them."""
-PLOT_TICK_PX = 24.0
-"""Least distance between two labelled y ticks (the viewer hides denser labels: 23 px are
-shown, 12 px are not, on screenshots of rerun 0.41)."""
+ANGLE_ROOT = 'by_angle'
+"""The entities of the plots over the crank angle (2-D views), one subtree per quantity."""
+X_TICKS_DEG = (0, 90, 180, 270, 360)
+"""The x axis's labelled ticks (deg)."""
+Y_TICKS = (3, 6)
+"""A plot's y axis has at least and at most this many labelled ticks."""
+X_NAME_DEG = 225.0
+"""The x axis's name stands in the row of its tick labels, between 180 and 270 deg."""
+MARGIN_PX = (84.0, 24.0, 26.0, 28.0)
+"""Room inside a plot's view (left, right, top, bottom) for its tick labels and legend."""
 
 
 @dataclass
 class Plot:
-    """One time-series view: entity, title, values per variant (reference turn), y range."""
+    """One plotted quantity: stream switch, entity, title, unit and the drawing over angle."""
 
     stream: str
     entity: str
     title: str
     unit: str
-    y_range: tuple = None
-    tick_step: float = None
+    axes: object = None
+    curves: dict = None       # variant -> (n + 1, 2) pixel points over one turn, 0-360 deg
 
 
-def plot_range(values, height_px):
-    """
-    Return ``(lo, hi, step)``: a y range on round ticks that covers ``values``.
+@dataclass
+class AnglePlot:
+    """Where a plot's values land in its 2-D view: pixel box, y ticks, the value->px map."""
 
-    The viewer labels a plot's y axis at powers of ten only (egui_plot's decade grid), and
-    only where two labels are at least :data:`PLOT_TICK_PX` apart: ``step`` is the smallest
-    power of ten that is, so a plot ``height_px`` tall shows at least
-    :data:`PLOT_MIN_TICKS` labelled ticks.  0 is inside when the data do not keep away from
-    it, and :data:`LEGEND_HEADROOM` of the height is free above the data for the legend.
-    """
+    size_px: tuple            # (w, h) of the view's drawing area at the default window
+    box_px: tuple             # (x0, y0, x1, y1) of the plotting area
+    y_ticks: tuple            # tick values, in the quantity's unit
+
+    def x(self, degrees):
+        """Return the pixel x of crank angles (deg, reduced to a turn)."""
+        x0, _, x1, _ = self.box_px
+        return x0 + (x1 - x0) * np.asarray(degrees, dtype=float) / 360.0
+
+    def y(self, values):
+        """Return the pixel ordinates (down) of values."""
+        _, y0, _, y1 = self.box_px
+        lo, hi = self.y_ticks[0], self.y_ticks[-1]
+        return y1 - (y1 - y0) * (np.asarray(values, dtype=float) - lo) / (hi - lo)
+
+    def points(self, degrees, values):
+        """Return the pixel points ``(n, 2)`` of values at crank angles (deg)."""
+        return np.stack([self.x(degrees), self.y(values)], axis=-1)
+
+
+def y_ticks(values):
+    """Return :data:`Y_TICKS` round ticks (1, 2, 5 x 10^k apart) over ``values``, 0 if near."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
@@ -54,31 +72,55 @@ def plot_range(values, height_px):
         lo = 0.0
     if hi <= 0.0 and hi > 0.5 * lo:
         hi = 0.0
-    span = hi - lo
-    if not span > 1e-300:
-        span = abs(hi) or 1.0
-        lo, hi = lo - 0.5 * span, hi + 0.5 * span
-        span = hi - lo
-    top = hi + span * LEGEND_HEADROOM / (1.0 - LEGEND_HEADROOM)
-    step = 10.0 ** math.floor(math.log10(top - lo) - 3.0)
+    if not hi - lo > 1e-12 * max(abs(lo), abs(hi), 1e-300):
+        pad = 0.5 * (abs(hi) or 1.0)
+        lo, hi = lo - pad, hi + pad
+    step = nice_ceil((hi - lo) / (Y_TICKS[1] - 1))
     while True:
-        y0 = math.floor(lo / step + 1e-9) * step
-        y1 = math.ceil(top / step - 1e-9) * step
-        steps = round((y1 - y0) / step)
-        if height_px / ((1.0 + 2.0 * PLOT_EDGE_SHARE) * max(steps, 1)) >= PLOT_TICK_PX:
+        t0, t1 = math.floor(lo / step + 1e-9), math.ceil(hi / step - 1e-9)
+        if t1 - t0 + 1 <= Y_TICKS[1]:
             break
-        step *= 10.0
-    while round((y1 - y0) / step) < PLOT_MIN_TICKS - 1:
-        y0 -= step if lo < 0.0 or y0 > 0.0 else 0.0
-        if round((y1 - y0) / step) < PLOT_MIN_TICKS - 1:
-            y1 += step
-    # the viewer does not label a tick on the very edge: keep the end ticks inside
-    margin = PLOT_EDGE_SHARE * (y1 - y0)
-    return float(y0 - margin), float(y1 + margin), float(step)
+        step = nice_ceil(step * 1.01)
+    ticks = [k * step for k in range(t0, t1 + 1)]
+    while len(ticks) < Y_TICKS[0]:
+        ticks = ticks + [ticks[-1] + step] if hi > 0.0 or lo >= 0.0 else \
+            [ticks[0] - step] + ticks
+    return tuple(float(round(t / step) * step) for t in ticks)
+
+
+def tick_text(value, unit):
+    """Return a tick's label: the value and the unit (``0.5 N``, ``-1 N*m``)."""
+    return f'{value:.4g} {unit}'.strip() if value else f'0 {unit}'.strip()
+
+
+def label_anchor(centre_px, text):
+    """Return the point whose label (drawn centred under it) is centred at ``centre_px``."""
+    h = label_size_px(text)[1]
+    return np.array([centre_px[0], centre_px[1] - LABEL_DROP_PX - 0.5 * h])
+
+
+def furniture(axes, unit, x_name):
+    """Return a plot's static drawing: ``(grid strips, axis strips, [(point, tick label)])``."""
+    x0, y0, x1, y1 = axes.box_px
+    grid = [np.array([[x, y0], [x, y1]]) for x in axes.x(X_TICKS_DEG)] + \
+        [np.array([[x0, y], [x1, y]]) for y in axes.y(axes.y_ticks)]
+    frame = [np.array([[x0, y0], [x0, y1], [x1, y1]])]
+    if axes.y_ticks[0] < 0.0 < axes.y_ticks[-1]:
+        frame.append(np.array([[x0, axes.y(0.0)], [x1, axes.y(0.0)]]))
+    texts = []
+    row = y1 + 3.0 + 0.5 * label_size_px('0')[1]            # the x tick labels' row
+    for d in X_TICKS_DEG:
+        texts.append((label_anchor((axes.x(d), row), f'{d}°'), f'{d}°'))
+    texts.append((label_anchor((axes.x(X_NAME_DEG), row), x_name), x_name))
+    for t in axes.y_ticks:
+        text = tick_text(t, unit)
+        w = label_size_px(text)[0]
+        texts.append((label_anchor((x0 - 4.0 - 0.5 * w, axes.y(t)), text), text))
+    return grid, frame, texts
 
 
 def plot_specs(layout, motion):
-    """Return the time-series views with their y ranges (from the reference turn's data)."""
+    """Return the plots, each with its :class:`AnglePlot` (from the reference turn's data)."""
     specs = []
     if layout.on('shaking_force_plot'):
         specs.append(('shaking_force_plot', 'shaking_force', '|shaking force| (N)', 'N'))
@@ -90,23 +132,25 @@ def plot_specs(layout, motion):
     for k in layout.series:
         label, unit, _ = series_label(k)
         specs.append((series_stream(k), k, label + (f' ({unit})' if unit else ''), unit))
+    _, (w, h) = window_px(len(layout.variants), len(specs), layout.on('info'), layout.inset)
+    left, right, top, bottom = MARGIN_PX
+    turned = 360.0 * np.arange(motion.size + 1) / motion.size       # from 0 deg, one turn
     plots = []
-    _, plot_px = window_px(len(layout.variants), len(specs), layout.on('info'))
     for stream, entity, title, unit in specs:
-        values = np.concatenate([v for _, v in plot_values(layout, motion, entity)])
-        y0, y1, step = plot_range(values, plot_px[1])
-        plots.append(Plot(stream, entity, title, unit, (y0, y1), step))
+        values = plot_values(layout, motion.data, entity)
+        axes = AnglePlot((w, h), (left, top, w - right, h - bottom),
+                         y_ticks(np.concatenate(list(values.values()))))
+        curves = {v: axes.points(turned, np.append(x, x[:1])) for v, x in values.items()}
+        plots.append(Plot(stream, entity, title, unit, axes, curves))
     return plots
 
 
-def plot_values(layout, motion, entity):
-    """Yield ``(variant, values)`` of one plotted quantity."""
-    for v in layout.variants:
-        d = motion.data[v]
-        if entity == 'shaking_force':
-            yield v, np.linalg.norm(d.force_N, axis=1)
-        elif entity == 'shaking_moment':
-            norm = np.linalg.norm(d.moment_Nm, axis=1)
-            yield v, d.moment_Nm[:, 2] if layout.dim == 2 else norm
-        elif entity in d.series:
-            yield v, d.series[entity]
+def plot_values(layout, data, entity):
+    """Return ``{variant: values}`` of one plotted quantity (``data``: variant -> RigData)."""
+    if entity == 'shaking_force':
+        return {v: np.linalg.norm(d.force_N, axis=1) for v, d in data.items()}
+    if entity == 'shaking_moment' and layout.dim == 2:
+        return {v: d.moment_Nm[:, 2] for v, d in data.items()}
+    if entity == 'shaking_moment':
+        return {v: np.linalg.norm(d.moment_Nm, axis=1) for v, d in data.items()}
+    return {v: d.series[entity] for v, d in data.items() if entity in d.series}

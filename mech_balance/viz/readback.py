@@ -8,12 +8,10 @@ import numpy as np
 @dataclass
 class EntityData:
     """
-    One entity of a recording read back: its static components and its time series.
+    One entity of a recording read back, its rows in time order.
 
-    ``static`` maps a component (``'Points2D:colors'``) to its value (a list);
-    ``columns`` maps a component to one value per logged row; ``index`` maps a timeline to
-    its values per row (``crank_angle``: int degrees, ``time``: float seconds).  Rows are
-    in time order.
+    ``static``: component -> value; ``columns``: component -> a value per row; ``index``:
+    timeline -> its value per row (``time`` in seconds).
     """
 
     static: dict
@@ -27,12 +25,7 @@ class EntityData:
 
 
 def read_recording(path):
-    """
-    Return ``{entity_path: EntityData}`` of the recording in an ``.rrd`` file.
-
-    Uses rerun's own loader (``rerun.chunk.RrdReader``), so a file that this returns is one
-    the viewer reads.
-    """
+    """Return ``{entity_path: EntityData}`` of an ``.rrd`` file, by rerun's own loader."""
     from rerun.chunk import RrdReader
     entities = {}
     for chunk in RrdReader(str(path)).stream():
@@ -67,8 +60,7 @@ def read_blueprint(path):
     """
     Return the views of an ``.rrd`` file's blueprint: ``[{kind, name, origin, ...}]``.
 
-    Each view's properties where set: ``bounds`` (2-D: ``{x_range, y_range}``), ``y_range``
-    (plots), ``eye`` (3-D: ``{position, look_target, eye_up}``).
+    With ``bounds`` (2-D) and ``eye`` (3-D) where set.
     """
     from rerun.chunk import RrdReader
     reader = RrdReader(str(path))
@@ -88,8 +80,6 @@ def read_blueprint(path):
             view = '/'.join(entity.split('/')[:3])
             if 'VisualBounds2D:range' in cols:
                 props.setdefault(view, {})['bounds'] = cols['VisualBounds2D:range'][-1][0]
-            if 'ScalarAxis:range' in cols:
-                props.setdefault(view, {})['y_range'] = tuple(cols['ScalarAxis:range'][-1][0])
             if 'EyeControls3D:position' in cols:
                 props.setdefault(view, {})['eye'] = {
                     k: tuple(cols[f'EyeControls3D:{k}'][-1][0])

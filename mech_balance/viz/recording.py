@@ -1,56 +1,13 @@
 """
 Rerun recordings of a rig in motion: the original mechanism against its balanced design.
 
-The only module of mech_balance that imports rerun.  It is one drawing adapter of the Rig
-protocol (:mod:`mech_balance.core.rig`): the picture comes from ``rig.drawing`` (frame
-points, bodies with their outlines, mass centres, added bodies and point masses, joints,
-fixed axes) posed by ``rig.at(...).bodies``, the numbers from ``rig.at(...)`` (the shaking
-wrench and every scalar in ``RigData.series``).  It never asks which kind of rig it draws;
-where a 2-D and a 3-D picture differ it asks ``drawing.dimension``.
-
-Entities (the stream switch of the scene's ``recording: {streams: ...}`` in brackets;
-``variant`` is ``original`` or ``balanced``):
-
-* ``/info`` [info]: the RMS table first, then the design and how to read the views;
-* ``/rig/frame``, ``/rig/pivots`` [frame]: the ground link, fixed joint axes and guides,
-  the frame points;  ``/rig/links`` [links];  ``/rig/joints`` [joints];
-* ``/{variant}/mass_centres`` [mass_centres]: body mass centres, the system's last;
-* ``/{variant}/counterweights`` [links]: the design's added bodies (counterweight discs,
-  balancing weights) at true size, on their bodies, in their link's colour, labelled in kg;
-  ``/{variant}/counterweight_planes``: a ring in each one's plane;
-* ``/{variant}/mass_changes`` [links]: a redistribution design's moved mass centres, a line
-  from the link to each, labelled with the mass added or removed;
-* ``/{variant}/point_masses`` [point_masses, off unless a scene asks]: the equimomental
-  point masses of the bodies, where the rig has them;
-* ``/{variant}/shaking_force`` [shaking_force_arrow] and ``/{variant}/shaking_moment``
-  [shaking_moment_arc]: a gauge beside the rig (2-D: an arrow inside a dial whose arc is
-  the moment; 3-D: two arrows);
-* ``/balanced/collisions``, ``/balanced/collision_bodies``: where and when a counterweight
-  design's bodies collide (:mod:`.collisions`);
-* ``/plots/{quantity}/{variant}`` [``{quantity}_plot``]: |shaking force| (N), shaking
-  moment (N*m, 3-D: its norm) and every series of ``RigData.series`` (driving torque,
-  kinetic energy, ...: :data:`mech_balance.schema.scene.SERIES`).
-
-View furniture, not switchable: ``/{variant}/labels`` (every label of that view, placed so
-that none overlaps another, none is crossed by a line and each is nearer its own point than
-any other at the default window, :data:`WINDOW_PX`), ``/rig/scale`` (2-D scale bar),
-``/rig/gauge`` (the moment dial), ``/rig/grid`` (3-D: the grid on z = 0, sized to the rig
-and its gauge; the viewer's endless grid is off).
-
-Timelines: ``crank_angle_deg`` (the default) and ``crank_angle`` (the same values), the
-crank angle turned from 0 in whole degrees (offline: a turn starts at 0 deg, sample k of n
-at round(360 k / n), any n; live: the rig's cumulative angle), and ``time``, seconds
-(offline at the scene's crank speed; live on the rig's clock).  The exact angle is written
-in every rig view.  Geometry and styles are static; whole time series go out through
-``send_columns``.  :func:`record` writes a file;
-:class:`LiveRecorder` the same views sample by sample, to a file and/or to a running viewer
-(``url``), the viewer throttled to :data:`LIVE_MAX_RATE_HZ` on a thread of its own.
-
-The package's face; the work is split by concern: :mod:`.style` (sizes, colours),
-:mod:`.layout` (the screen, the views, the eye), :mod:`.labels` (label
-placement), :mod:`.plots` (the plots' ranges and ticks), :mod:`.drawing` (the drawing adapter of
-the Rig protocol), :mod:`.text` (the info panel), :mod:`.blueprint`, :mod:`.streams`
-(logging to rerun), :mod:`.live` (the live stream) and :mod:`.readback` (reading back).
+The package's face and the only part of mech_balance that imports rerun: one drawing
+adapter of the Rig protocol (:mod:`mech_balance.core.rig`), the picture from ``rig.drawing``
+posed by ``rig.at(...).bodies``, the numbers from ``rig.at(...)``.  :func:`record` writes a
+file; :class:`LiveRecorder` the same views sample by sample, to a file and/or a viewer.
+What is drawn, its entities and timelines: `docs/recordings.md`; the modules: :mod:`.style`,
+:mod:`.layout`, :mod:`.labels`, :mod:`.plots`, :mod:`.drawing`, :mod:`.text`,
+:mod:`.blueprint`, :mod:`.streams`, :mod:`.live`, :mod:`.readback`.
 """
 
 from dataclasses import dataclass
@@ -61,31 +18,23 @@ import time
 from mech_balance import atomic, conventions
 from mech_balance.core.rig import rig_for
 from mech_balance.viz import collisions
-from mech_balance.viz.blueprint import blueprint
-from mech_balance.viz.drawing import (
-    align_design, check_samples, plan, tile, turn_angles, turn_ticks, VARIANTS
-)
-from mech_balance.viz.labels import label_box_px, label_size_px, LABEL_TEXT_PX, place_labels
-from mech_balance.viz.layout import Screen, WINDOW_PX, window_px
-from mech_balance.viz.live import LIVE_MAX_RATE_HZ, LiveRecorder
-from mech_balance.viz.plots import LEGEND_HEADROOM, plot_range, PLOT_TICK_PX
-from mech_balance.viz.readback import (
-    EntityData, read_blueprint, read_blueprint_views, read_recording
-)
-from mech_balance.viz.streams import (
-    application_id, check_output_path, check_viewer_url, log_motion, RRD_SUFFIX, start_stream
-)
+from mech_balance.viz.drawing import align_design, check_samples, concat_motions, plan, \
+    turn_angles, turn_ticks
+from mech_balance.viz.labels import label_box_px, LABEL_TEXT_PX
+from mech_balance.viz.layout import Screen, WINDOW_PX
+from mech_balance.viz.live import LiveRecorder
+from mech_balance.viz.plots import ANGLE_ROOT
+from mech_balance.viz.readback import read_blueprint, read_blueprint_views, read_recording
+from mech_balance.viz.streams import application_id, check_output_path, log_motion, \
+    start_stream
 import numpy as np
 import rerun as rr
 
 
 __all__ = [
-    'align_design', 'application_id', 'blueprint', 'check_output_path', 'check_viewer_url',
-    'entity_paths', 'EntityData', 'furniture_paths', 'label_box_px', 'label_size_px',
-    'LABEL_TEXT_PX', 'LEGEND_HEADROOM', 'LIVE_MAX_RATE_HZ', 'LiveRecorder', 'PLOT_TICK_PX',
-    'plot_range', 'read_blueprint', 'read_blueprint_views', 'read_recording', 'record',
-    'RecordingSummary', 'RRD_SUFFIX', 'Screen', 'turn_angles', 'VARIANTS', 'window_px',
-    'WINDOW_PX',
+    'align_design', 'check_output_path', 'entity_paths', 'furniture_paths', 'label_box_px',
+    'LABEL_TEXT_PX', 'LiveRecorder', 'read_blueprint', 'read_blueprint_views',
+    'read_recording', 'record', 'RecordingSummary', 'Screen', 'turn_angles', 'WINDOW_PX',
 ]
 
 
@@ -109,14 +58,11 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
     """
     Write an offline recording of ``scene`` (and ``balanced``) to ``path`` (``.rrd``).
 
-    ``balanced`` is a scene with the same geometry and other inertias (or None for the
-    original alone); ``samples`` per crank turn (any count >= 4, default the scene's) over
-    ``cycles`` turns from crank angle 0.  One turn is computed and repeated, since the rig's
-    motion is periodic in the crank angle.  ``path`` is checked first by
-    :func:`check_output_path` (its errors name ``field``).  A counterweight design's bodies
-    closer than ``clearance_margin_m`` are marked where and when (:mod:`.collisions`; a
-    spatial design's sphere counterweights ``{body: [sphere, ...]}`` given as ``spheres``).
-    Returns a :class:`RecordingSummary`.
+    ``balanced``: a scene of the same geometry, other inertias (or None); ``samples`` per
+    crank turn (>= 4, default the scene's) over ``cycles`` turns from crank angle 0; a
+    counterweight design's bodies closer than ``clearance_margin_m`` are marked
+    (:mod:`.collisions`; a spatial design's sphere counterweights as ``spheres``).  Errors
+    name ``field`` for ``path``.  Returns a :class:`RecordingSummary`.
     """
     t0 = time.perf_counter()
     path = check_output_path(path, field)
@@ -124,16 +70,12 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
         else samples
     check_samples(samples, cycles, links=len(rig_for(scene).drawing.bodies))
     layout, motion = plan(scene, balanced, int(samples), balanced_source)
-    labels = {v: place_labels(layout, motion, v) for v in layout.variants}
-    if cycles > 1:
-        labels = {v: (np.concatenate([pos] * cycles), texts * cycles, colors * cycles,
-                      np.concatenate([counts] * cycles))
-                  for v, (pos, texts, colors, counts) in labels.items()}
-    motion = tile(motion, int(cycles))
+    labels = {k: (np.concatenate([t[0]] * cycles), t[1] * cycles, t[2] * cycles,
+                  np.tile(t[3], cycles)) for k, t in layout.placed.items()}
+    motion = concat_motions([motion] * int(cycles))   # periodic in the crank angle
     degrees, seconds = turn_ticks(int(samples), scene.crank_speed_rad_s, int(cycles))
-    # Encoded into one binary stream (its reads do not concatenate: read it once, at the end)
-    # that this process writes atomically (atomic.py): a write error is raised here (rerun's
-    # own file sink blocks on one) and an existing file survives any failure, SIGKILL too.
+    # one binary stream (read once, at the end), written atomically: a write error is raised
+    # here and an existing file survives any failure
     rec = rr.RecordingStream(application_id(scene))
     stream = rec.binary_stream()
     try:
@@ -175,6 +117,9 @@ def entity_paths(layout):
         out |= {f'/{v}/mass_changes' for v, moved in (layout.changes or {}).items() if moved}
     for p in layout.plots:
         out |= {f'/plots/{p.entity}/{v}' for v in layout.variants}
+        if not layout.live:
+            out |= {f'/{ANGLE_ROOT}/{p.entity}/{k}'
+                    for k in layout.variants + ('cursor', 'values')}
     return sorted(out)
 
 
@@ -187,4 +132,7 @@ def furniture_paths(layout):
         out.add('/rig/gauge')
     if layout.grid_box is not None:
         out.add('/rig/grid')
+    if not layout.live:
+        out |= {f'/{ANGLE_ROOT}/{p.entity}/{k}' for p in layout.plots
+                for k in ('grid', 'axes', 'labels')}
     return sorted(out)

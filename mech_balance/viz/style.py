@@ -1,9 +1,4 @@
-"""
-Sizes and colours of what a recording draws: shares of the rig's size, radii, colour roles.
-
-One home for every style constant, read by the layout (:mod:`.layout`), the drawing adapter
-(:mod:`.drawing`) and the logging (:mod:`.streams`).
-"""
+"""Sizes and colours of what a recording draws: shares of the rig's size, radii, colour roles."""
 
 from mech_balance.schema.scene import SERIES
 import rerun as rr
@@ -56,7 +51,9 @@ FRAME_RADIUS_UI = rr.components.Radius.ui_points(1.5)
 JOINT_RADIUS_UI = rr.components.Radius.ui_points(4.5)
 FRAME_COLOR = (150, 150, 150)
 GRID_COLOR = (70, 70, 70)
-"""The 3-D grid's lines: darker than the frame, so that the rig stands out."""
+"""The 3-D grid's lines: darker than the frame."""
+PLOT_GRID_COLOR = (55, 55, 60)
+"""The plots' grid lines at their ticks."""
 GRID_RADIUS_UI = rr.components.Radius.ui_points(0.5)
 """Radius of the 3-D grid's lines."""
 JOINT_COLOR = (235, 235, 235)
@@ -76,10 +73,8 @@ SYSTEM_CENTRE_COLOR = (255, 255, 255)
 READOUT_COLOR = (255, 255, 255)
 SERIES_COLORS = {'original': (255, 150, 40), 'balanced': (70, 165, 255)}
 SERIES_WIDTHS = {'original': 2.0, 'balanced': 6.0}
-"""Line widths (ui points) of the plots: the viewer draws the entities in name order, so
-the original's thin line runs on top of the balanced design's wide one and a curve that two
-designs share shows both colours (blue edges, an orange core) instead of hiding one."""
-"""Orange and blue mean original and balanced in the plots, and nothing else anywhere."""
+"""Line widths (ui points) of the plots: the original's thin line over the balanced wide one,
+so a curve two designs share shows both colours (orange and blue mean nothing else)."""
 LINK_PALETTE = ((27, 158, 119), (166, 216, 84), (255, 217, 47), (229, 196, 148),
                 (141, 211, 199), (188, 189, 34), (166, 118, 29), (178, 223, 138))
 """Link colours: greens, yellows and browns (none is a plot, arrow or mass colour)."""

@@ -4,6 +4,7 @@ import math
 
 from mech_balance.conventions import rms
 from mech_balance.schema.scene import SERIES
+from mech_balance.viz.plots import plot_values
 from mech_balance.viz.style import series_label
 import numpy as np
 
@@ -31,15 +32,11 @@ def rms_rows(layout, data):
     rows = []
     ref = data['original']
     if ref.force_N is not None:
-        rows.append(('shaking force |f_sh|', 'N', 'force',
-                     {v: np.linalg.norm(d.force_N, axis=1) for v, d in data.items()}))
-        where = layout.pivot_name
-        if layout.dim == 2:
-            rows.append((f'shaking moment n_sh about {where}', 'N*m', 'moment',
-                         {v: d.moment_Nm[:, 2] for v, d in data.items()}))
-        else:
-            rows.append((f'|shaking moment| about {where}', 'N*m', 'moment',
-                         {v: np.linalg.norm(d.moment_Nm, axis=1) for v, d in data.items()}))
+        moment = 'shaking moment n_sh' if layout.dim == 2 else '|shaking moment|'
+        rows += [('shaking force |f_sh|', 'N', 'force',
+                  plot_values(layout, data, 'shaking_force')),
+                 (f'{moment} about {layout.pivot_name}', 'N*m', 'moment',
+                  plot_values(layout, data, 'shaking_moment'))]
     for k in dict.fromkeys(list(SERIES) + sorted(ref.series)):
         if k in ref.series:
             label, unit, dim = series_label(k)
@@ -160,6 +157,8 @@ def info_text(layout, scene, data, samples, balanced_source):
                          f'{fmt(0.01 / layout.moment_scale)} N*m).')
     if layout.plots:
         lines.append('* Plots: ' + ', '.join(p.title for p in layout.plots)
+                     + (' over time (s)' if layout.live else ' over the crank angle (deg), '
+                        'the cursor at the current angle')
                      + '; orange (thin) = original, blue (wide, under it) = balanced: where '
                      'the two agree the orange line runs inside the blue one.')
     lines.append('* Timelines: `crank_angle_deg` (the default; `crank_angle` holds the same) = '
