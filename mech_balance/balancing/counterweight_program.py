@@ -57,21 +57,6 @@ class CounterweightDesign:
 
 
 @dataclass
-class Stage:
-    """One solved stage of the program: its point, objective and solver figures."""
-
-    y: np.ndarray
-    objective: float
-    dual: float
-    status: str
-    iterations: int
-    r_prim: float
-    r_dual: float
-    seconds: float
-    solve: object = None      # conic.Solve: the data and statuses of the program
-
-
-@dataclass
 class Problem:
     """The counterweight SOCP of one scene: variables, cones, stages."""
 
@@ -258,15 +243,11 @@ class Problem:
         b_all = np.concatenate(b_blocks[:dynamic] + [b_static])
         cones = cones[:dynamic] + [clarabel.SecondOrderConeT(k) for k in sizes]
         run = conic.run_solver(q, a_all, b_all, cones)
-        status = run.status
         if not np.all(np.isfinite(np.asarray(run.sol.x))):
             raise CounterweightError(f'solver: {run.why()} (counterweight problem); no '
                                      f'design{self.blame()}')
         x = np.array(run.sol.x)
-        return Stage(y=x[:ny], objective=float(q @ x), dual=float(run.sol.obj_val_dual),
-                     status=status, iterations=int(run.sol.iterations),
-                     r_prim=float(run.sol.r_prim), r_dual=float(run.sol.r_dual),
-                     seconds=run.seconds, solve=run)
+        return certificate.Stage(x[:ny], float(q @ x), run)
 
     def box(self, level=None, q=None):
         """
@@ -314,7 +295,7 @@ class Problem:
 
     def lower_bound(self, stage, level):
         """Return the safe lower bound (:mod:`.certificate`) of a solved stage."""
-        run = stage.solve
+        run = stage.run
         lo, hi = self.box(level, run.q if level is not None else None)
         return certificate.safe_lower_bound(run.q, run.a, run.b, run.cones, run.sol.z, lo, hi)
 

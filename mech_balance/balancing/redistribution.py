@@ -1,18 +1,11 @@
 """
 Optimal mass redistribution of planar linkages (seed 001 eqs. 42-53): :func:`optimize`.
 
-Per moving link the inertial parameters theta_i = (m_i, h_i = m_i c_i, I_Oi) enter the
-shaking force, the shaking moment, the driving torque and every bearing reaction linearly
-(seed 001 eqs. 25-26, 39), so each RMS over p crank angles is a Euclidean norm
-``||A theta|| / sqrt(p)`` and the paper's constraints are convex in theta: a second-order
-cone program, solved by Clarabel (:func:`mech_balance.conic.run_solver`) and certified by a
-safe lower bound (:mod:`mech_balance.balancing.certificate`).  The constraints in theta and
-the units of the objective: docs/balancing.md, "Mass redistribution".
-
-Units: scenes are SI.  The objective ``z = w1 f~ + w2 n~`` is dimensionless, in the units of
-seed 001 sec. 3.4 (force by m_1 a_1 omega^2, moment by m_1 a_1^2 omega^2) taken from the
-scene's ``normalization`` or, if it records none, from its crank link mass, crank length
-and crank speed (:func:`mech_balance.core.planar.rig.objective_units`).
+Each RMS is the norm of a linear map of the links' inertial parameters, so the paper's
+problem is a second-order cone program in them, solved by Clarabel and certified by a safe
+lower bound (:mod:`mech_balance.balancing.certificate`); the constraints in theta:
+docs/balancing.md, "Mass redistribution".  The objective ``z = w1 f~ + w2 n~`` is in the
+units of :func:`mech_balance.core.planar.rig.objective_units` (seed 001 sec. 3.4).
 """
 
 from dataclasses import dataclass, replace
@@ -24,7 +17,7 @@ from mech_balance import schema
 from mech_balance.analysis.linear_maps import linear_maps, RANK_REL_TOL
 from mech_balance.balancing import certificate, conditioning
 from mech_balance.balancing.certificate import bound_detail, Certificate, CERTIFIED_GAP_REL, \
-    failed_stage, GAP_FLOOR
+    failed_stage, GAP_FLOOR, Stage
 from mech_balance.balancing.checks import BalanceError, check_link_names, check_nonneg, \
     check_planar, check_weights, finite_or_none, link_bounds, show
 from mech_balance.balancing.defaults import CASES, CENTROIDAL_MARGIN, DEFAULT_WEIGHTS, \
@@ -51,31 +44,18 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
              mass_factors=PAPER_MASS_FACTORS, distance_factors=PAPER_DISTANCE_FACTORS,
              centroidal_margin=CENTROIDAL_MARGIN, tie_break=True):
     """
-    Return the globally optimal mass distribution of a planar scene (seed 001 eqs. 42-53).
+    Return the globally optimal mass distribution of a planar scene (a :class:`BalanceResult`).
 
-    Minimizes ``z = w1 f~ + w2 n~ [+ torque_weight tau~ + reaction_weight sum_j f~_j]``
-    (RMS over one revolution of the normalized shaking force, shaking moment, driving
-    torque and bearing forces) over every moving link's mass, mass centre and inertia;
-    ``weights`` = (w1, w2) defaults to :data:`DEFAULT_WEIGHTS`.
-
-    Constraints per link (not for ``fixed_links``, whose inertia stays the original):
-    ``mass_bounds`` ``{link: (min_kg, max_kg)}`` (default ``mass_factors`` times the
-    original mass), ``distance_bounds`` ``{link: (min_m, max_m)}`` on the point-mass
-    distance l = sqrt(I_O/m) (default ``distance_factors`` times the original l; ``None``
-    for no upper bound), ``case`` 'a' (point masses of any sign) or 'b' (non-negative,
-    counterweights), ``realizable`` (centroidal inertia >= ``centroidal_margin`` I_O, on
-    by default), ``max_added_mass_kg`` (cap on total mass minus the original's).  Bounds
-    and factors need 0 < min <= max (equal bounds fix the value; a zero mass or distance
-    is no body), else ``ValueError`` naming the option.
-
-    ``paper_constraints=True`` reproduces seed 001 eqs. 50/53 exactly: the paper's bounds,
-    the chosen case, no realizability constraint; it rejects the options the paper lacks.
-
-    If exactly one of w1, w2 is zero (and no other term is weighted) the optimum is
-    generally not unique; with ``tie_break`` a second cone program returns, among the
-    optimal designs, the one with the least RMS of the unweighted quantity; when complete
-    force balance is attainable with w2 = 0 it is imposed exactly (shaking force zero to
-    round-off) and the least RMS shaking moment is found among force-balanced designs.
+    Minimizes ``z = w1 f~ + w2 n~ [+ torque_weight tau~ + reaction_weight sum_j f~_j]`` over
+    every moving link's mass, mass centre and inertia (``fixed_links`` keep theirs).
+    ``mass_bounds`` ``{link: (min_kg, max_kg)}`` and ``distance_bounds`` ``{link: (min_m,
+    max_m or None)}`` on l = sqrt(I_O/m) default to ``mass_factors`` / ``distance_factors``
+    times the original; ``case`` 'a' (point masses of any sign) or 'b' (non-negative);
+    ``realizable``: centroidal inertia >= ``centroidal_margin`` I_O; ``max_added_mass_kg``
+    caps the added mass.  ``paper_constraints`` solves seed 001 eqs. 50/53 exactly and
+    refuses the options the paper lacks.  With exactly one of w1, w2 zero, ``tie_break``
+    returns the optimal design with the least RMS of the other (docs/balancing.md, "Mass
+    redistribution").  Raises :class:`~.checks.BalanceError` naming a bad option.
     """
     t_start = time.perf_counter()
     w1, w2 = check_weights(weights)
@@ -145,7 +125,7 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     if not stage1.run.ok:
         failed.append(failed_stage('primary (z)', stage1.run, "the solver's last iterate, "
                                    'made feasible; its lower bound is safe', blame))
-    theta, stage2, exact = stage1.theta, None, False
+    theta, stage2, exact = stage1.point, None, False
     secondary = _tie_break_quantity(spec)
     if tie_break and secondary is not None and stage1.run.ok:
         f_star = float(np.linalg.norm(maps.force @ theta))
@@ -164,7 +144,7 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
                                        stage2.run, "the primary stage's optimum", blame))
             stage2, exact = None, False
         if stage2 is not None:
-            theta = stage2.theta
+            theta = stage2.point
             if exact:
                 theta = theta - maps.force_null_projector @ theta
     theta, violation, pull = _feasible(theta, spec)
@@ -214,12 +194,10 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
 
 def scene_to_yaml(scene, balance=None):
     """
-    Return a balanced planar scene as YAML text that :func:`mech_balance.schema.load` reads.
+    Return a balanced planar scene as YAML text, ``balance`` (a plain dict) under its key.
 
-    The scene writer (:func:`mech_balance.schema.to_yaml`) with ``balance`` (a plain dict,
-    e.g. the summary of a :class:`BalanceResult`) stored under the scene's ``balance`` key.
-    A link with a negative centroidal inertia cannot be written (no body has one):
-    :class:`~mech_balance.balancing.checks.BalanceError`.
+    Raises :class:`~mech_balance.balancing.checks.BalanceError` for a link with a negative
+    centroidal inertia (no body has one).
     """
     for lk in scene.links:
         if lk.inertia_com_kg_m2 < 0.0:
@@ -314,21 +292,13 @@ class _Spec:
 
 
 @dataclass
-class _Stage:
-    theta: np.ndarray
-    objective: float
-    dual: float
-    status: str
-    iterations: int
-    r_prim: float
-    r_dual: float
-    seconds: float
-    run: object = None         # Solve
+class _Stage(Stage):
+    """A stage (``point``: theta) with what its certificate needs."""
+
     lo: np.ndarray = None     # explicit box of the program's variables (certificate)
     hi: np.ndarray = None
     norms: list = None        # (G in y units, epigraph index, weight) per objective term
     dscale: np.ndarray = None
-    nv: int = 0
     radius_scale: float = None
     free_h: bool = False      # h enters no constraint (case a, no realizability)
 
@@ -385,10 +355,8 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
     """
     Build and solve the SOCP (stage 1, or the tie-break stage 2); return a _Stage.
 
-    The variables are each link's parameters in units of its original link,
-    y = theta / (m^o, m^o l^o, m^o l^o, m^o l^o^2): the cone forms below are invariant under
-    that scaling (h^2 and m I_O scale alike) and it equilibrates links of very different
-    size (the carpet scraper's inertias span four decades).
+    The variables are each link's parameters in units of its original link (y = theta /
+    (m^o, m^o l^o, m^o l^o, m^o l^o^2)), which equilibrates links of very different size.
     """
     n = spec.n
     nv = 4 * n
@@ -497,26 +465,21 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
     if spec.w[2]:
         norms.append((maps.torque * dscale, it_t, spec.w[2]))
     norms += [(mat * dscale, ir0 + j, spec.w[3]) for j, mat in enumerate(react)]
-    return _Stage(theta=x[:nv] * dscale, objective=float(q @ x),
-                  dual=float(run.sol.obj_val_dual), status=status,
-                  iterations=int(run.sol.iterations), r_prim=float(run.sol.r_prim),
-                  r_dual=float(run.sol.r_dual), seconds=run.seconds, run=run, lo=lo, hi=hi,
-                  norms=norms, dscale=dscale, nv=nv,
-                  free_h=spec.case == 'a' and not spec.realizable,
+    return _Stage(x[:nv] * dscale, float(q @ x), run, lo=lo, hi=hi, norms=norms,
+                  dscale=dscale, free_h=spec.case == 'a' and not spec.realizable,
                   radius_scale=None if secondary is None or exact_force else
                   bound + TIE_BREAK_SLACK * max(abs(bound), GAP_FLOOR))
 
 
 def _certify(stage, level, centre_theta=None):
     """
-    Return the safe lower bound (:mod:`.certificate`) of a stage's program.
+    Return (bound, null directions assumed): the safe lower bound of a stage's program.
 
-    ``level``: an upper bound on the weighted objective sum w_k ||G_k y|| at some optimal
-    point (a feasible design's z, or a tie-break's cap), which bounds the coordinates that
-    the constraints leave free (:func:`.certificate.level_set_bounds`).
+    ``level`` bounds the weighted objective at some optimal point (a feasible design's z, or
+    a tie-break's cap), which bounds the free coordinates (:func:`.certificate.level_set_bounds`).
     """
     lo, hi = stage.lo.copy(), stage.hi.copy()
-    nv = stage.nv
+    nv = stage.point.size
     weighted = [(g, w) for g, _, w in stage.norms if w > 0.0]
     nulls = 0
     if weighted and np.isfinite(level):
@@ -544,10 +507,8 @@ def _tie_break_bound(stage, exact):
     """
     Return the safe lower bound of a tie-break stage, never above its solver objective.
 
-    Every feasible point of the stage keeps the primary objective at most its cap
-    (``radius_scale``), or, with the exact force balance, the force zero: that level bounds
-    the coordinates as in :func:`_certify` (no null direction is assumed: the force rows or
-    the cap constrain the first moments).  The min with the solver's objective keeps a bound.
+    Its level is the primary objective's cap (``radius_scale``), or 0 with the exact force
+    balance (no null direction assumed).
     """
     level = stage.radius_scale if stage.radius_scale is not None else \
         (0.0 if exact else math.inf)
@@ -603,10 +564,8 @@ def _repaired(theta, spec):
     """
     Return ``theta`` with each link moved onto its bounds by the least local change.
 
-    The mass clipped into its bounds (and the cap on the added mass taken off the masses
-    above their lower bounds), I_O into [m l_lo^2, m l_hi^2], the first moment
-    shrunk to the realizability cone (|h|^2 <= m (1 - margin) I_O): the round-off
-    violations of an interior-point solution at active constraints.
+    The mass clipped (the added-mass cap taken off), I_O clipped, the first moment shrunk into
+    the realizability cone: the round-off violations at active constraints.
     """
     t = np.array(theta, dtype=float).reshape(-1, 4)
     free = [i for i in range(spec.n) if not spec.fixed[i]]
@@ -657,12 +616,7 @@ def _anchor(spec):
 
 
 def _feasible(theta, spec):
-    """
-    Return (design, its violation before, pull): ``theta`` pulled towards the anchor.
-
-    The first fraction of :data:`PULL_STEPS` whose convex combination violates nothing
-    (the constraints are convex and the anchor satisfies them).
-    """
+    """Return (design, its violation before, pull): ``theta`` repaired, else pulled inwards."""
     before = _violation(theta, spec)
     if before == 0.0:
         return theta, 0.0, 0.0
