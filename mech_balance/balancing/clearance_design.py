@@ -2,25 +2,13 @@
 Collision-free counterweights: the certified convex optimum moved into layers of its own.
 
 The counterweight program (:mod:`mech_balance.balancing.counterweights`) is convex in each
-disc's mass, first moment and inertia; where a disc lies along z does not enter the planar
-dynamics at all, and the clearance over the cycle is not convex.  So the design is found as
-what it is (docs/build.md):
-
-1. the convex program's certified optimum and its safe lower bound ``z_lb``;
-2. the layers: each disc in a layer of its own beyond the linkage (the layered model of
-   :mod:`mech_balance.analysis.layers`), on the side the user chose or, by default, every
-   assignment of sides and stacking orders tried (a heuristic one beyond
-   :data:`MAX_ENUMERATED` discs), the one clear of everything by the margin with the least
-   overhang kept.  The objective is unchanged: the price of clearance is zero;
-3. where no arrangement is clear, a local search over the discs in the plane (mass, centre,
-   radius; SLSQP from the convex optimum, each arrangement among the :data:`STARTS` least
-   colliding) with the clearance at every sampled crank angle >= margin as constraints and
-   the disc bounds of the convex program (thickness, centre radius, mass, gyration, rim).
-
-The design's objective ``z`` is reported next to ``z_lb``: ``z - z_lb`` is the price of
-clearance (an upper bound on it: ``z_lb`` is at most the convex optimum).  Where no design
-is clear within the bounds the answer says so, with the least clearance reached and the
-bounds active at the best attempt; no colliding design is given as the answer.
+disc's mass, first moment and inertia, not in where the discs lie along z or in the
+clearance over the cycle.  So :func:`design` takes the convex optimum and its safe lower
+bound ``z_lb``, puts each disc in a layer of its own beyond the linkage (every arrangement of
+sides and orders up to :data:`MAX_ENUMERATED` discs), and where none is clear searches the
+discs in the plane (SLSQP) with the clearance as constraints.  ``z - z_lb`` is the price of
+clearance; where no design is clear the report says why (docs/build.md, "Collision-free by
+default").
 """
 
 from dataclasses import dataclass, field, replace

@@ -2,29 +2,13 @@
 Collision-free sphere counterweights of spatial rigs: the convex optimum, then a local search.
 
 The spatial counterweight program (:func:`mech_balance.balancing.spatial.counterweights`) is
-convex in each body's added mass, first moment and spread; where its spheres lie against the
-other bodies over the cycle is not.  So the default design is found as the planar one is
-(:mod:`mech_balance.balancing.clearance_design`, docs/build.md):
-
-1. the convex program's certified optimum and its safe lower bound ``z_lb``;
-2. its spheres checked against every body over the cycle
-   (:func:`mech_balance.analysis.spatial_clearance.check`); clear by the margin: the design,
-   at no price beyond the certificate's gap;
-3. else a local search over the spheres (each sphere's centre in its body's axes and its
-   mass, its hollow shape kept: the inner to outer radius ratio of the convex design), SLSQP
-   from the convex optimum, then from the other starts (lighter spheres, spheres pushed
-   out) until one ends clear, with the sampled clearance of the :data:`CLEAR_ROWS` least
-   pairs >= margin as constraints (their exact derivatives at each pair's least sample),
-   and the convex program's bounds (each body's added mass <= its maximum, the added
-   mass's RMS distance from the body origin <= its maximum: ``tr Sigma <= dm (f r0)^2``).
-   The spheres are realizable by construction (each is a sphere), so the design lies in
-   the convex program's feasible set and ``z_lb`` bounds its objective from below.
-
-The design found is checked again at :data:`VERIFY_ANGLES` crank angles; its objective ``z``
-(the core's value of the built design) is reported beside ``z_lb``: ``z - z_lb`` is the price
-of clearance.  Where no design is clear within the bounds, :class:`NoClearDesign` says so, with
-the least clearance reached, the pair and the bounds active at the best attempt; its
-``result`` gives ``balance --json`` its answer (:class:`NoSphereDesign`).
+convex, the clearance of its spheres over the cycle is not.  :func:`design` checks the
+certified optimum's spheres against every body (:mod:`mech_balance.analysis.spatial_clearance`)
+and, where they come closer than the margin, searches the spheres' centres and masses
+(SLSQP, from several starts) with the sampled clearance as constraints within the convex
+program's bounds, so ``z - z_lb`` is the price of clearance; the design found is checked
+again at :data:`VERIFY_ANGLES` crank angles.  Where none is clear, :class:`NoClearDesign`
+says why (docs/build.md, "Spatial rigs: sphere counterweights").
 """
 
 from dataclasses import dataclass, replace
@@ -36,6 +20,7 @@ from mech_balance.balancing.clearance_design import check_margin, ClearanceRepor
     NoClearDesign
 from mech_balance.balancing.spatial import model as spatial_model, result as spatial_result, \
     spheres as sphere_clusters
+from mech_balance.balancing.spatial.program import SIGMA_ENTRIES
 from mech_balance.conventions import cycle_angles, rms
 from mech_balance.core import regressor
 import numpy as np
@@ -86,18 +71,17 @@ def _theta_jac(mass_kg, centre_m, spread_kg_m2):
     """
     c = centre_m
     out = np.zeros((10, 4))
-    entries = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))
     for j in range(3):
         e = np.zeros(3)
         e[j] = 1.0
         out[1 + j, j] = mass_kg
         d_io = mass_kg * (2.0 * c[j] * np.eye(3) - np.outer(e, c) - np.outer(c, e))
-        out[4:, j] = [d_io[a, b] for a, b in entries]
+        out[4:, j] = [d_io[a, b] for a, b in SIGMA_ENTRIES]
     d_io = 2.0 * (5.0 / 3.0) * spread_kg_m2 / mass_kg * np.eye(3) + \
         (np.dot(c, c) * np.eye(3) - np.outer(c, c))
     out[0, 3] = 1.0
     out[1:4, 3] = c
-    out[4:, 3] = [d_io[a, b] for a, b in entries]
+    out[4:, 3] = [d_io[a, b] for a, b in SIGMA_ENTRIES]
     return out
 
 
@@ -372,19 +356,8 @@ def _evaluate(rig, result, search, spheres):
                                   for b, cl in clusters.items()},
                    sphere_overlap_m={b: sphere_clusters.cluster_overlap_m(cl)
                                      for b, cl in clusters.items()})
-    bodies = []
-    for entry, k in zip(result.bodies, range(len(search.model.bodies))):
-        t = theta[10 * k:10 * k + 10]
-        m = float(t[0])
-        c = t[1:4] / m if m > 0.0 else np.zeros(3)
-        i_c = regressor.inertia_matrix(t[4:10]) - m * (np.dot(c, c) * np.eye(3)
-                                                       - np.outer(c, c))
-        bodies.append(dict(entry, mass_kg=m, mass_centre_m=c.tolist(),
-                           inertia_centre_kg_m2=i_c.tolist(),
-                           pseudo_inertia_min_eigenvalue=float(
-                               np.linalg.eigvalsh(regressor.pseudo_inertia(t))[0])))
     return replace(result, balanced_scene=balanced, objective=objective, options=options,
-                   bodies=bodies, theta=theta,
+                   bodies=spatial_result.body_rows(search.model, theta), theta=theta,
                    table=spatial_result.before_after(rig, balanced, result.samples, units,
                                                      (base, data)))
 

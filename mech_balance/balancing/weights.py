@@ -1,39 +1,13 @@
 """
 Balancing weights (seed 002): force balance, then the least RMS shaking moment.
 
-Complete force balance by one weight on each link pivoted on the frame, then their products
-of inertia for the least RMS shaking moment: the method ``weights`` of
-:func:`mech_balance.balancing.balance` for a spatial rig whose scene lists
-``balancing_weights`` (:class:`mech_balance.schema.spatial.WeightSpec`; the
-RGGR of seed 002 is ``config/rggr.yaml``).  Every quantity comes from the general kind: the
-shaking wrench is linear in each body's ten inertial parameters
-(:func:`mech_balance.core.regressor.wrench_regressor` over the rig's body kinematics), so
-
-1. **force balance** (seed 002, eqs. 1-14): the shaking force is ``F theta``.  A weight on a
-   link turning about a fixed axis changes the force through its first moment ``g`` about
-   the pivot only (a mass on the axis does not move), and of that through the radial part
-   (the axial part moves along the axis, at constant distance).  The radial parts that make
-   ``F theta`` vanish over the cycle are the least-squares solution of ``F_g g = -F theta``
-   (refused unless it is an exact zero, :data:`FORCE_BALANCED_REL`); the axial part cancels
-   the link's own (eqs. 6-8, 9-11).  The weight's mass is ``mass_kg``, or follows from the
-   cylinder law of eq. 13 (reconstructed: ``m^3 = rho L pi |g_radial|^2``, the cylinder's
-   axis parallel to the link's and one generator on it, eq. 14: its radius is the distance
-   of its centre from the axis); its moment of inertia about the axis is a point mass's
-   (``mass_kg``) or the cylinder's ``1.5 m r^2``, its products about the pivot zero;
-2. **least RMS shaking moment** (eqs. 73-95): only the products ``J = (I_wu, I_vw)`` of each
-   weighted link about its pivot (``w`` its axis, ``u`` towards its other joint) are left
-   free; the moment is affine in them, so the optimum is a linear least-squares solution
-   (an orthogonal factorization: eq. 94 without squaring its condition number), with the
-   Gram matrix of eq. 93, the normal-equation residual and a safe lower bound
-   (:func:`least_squares_lower_bound`);
-3. **the cylinder's end faces** (eqs. 96-103): the inclination ``alpha`` of a cylinder
-   weight's end faces to its axis and the angle ``gamma`` of their plane that give it the
-   optimal products.
-
-A body turning about a fixed axis ``w`` has the angular momentum ``I w omega`` about its
-pivot: only ``I_ww`` and the products ``I_wu``, ``I_vw`` enter its dynamics (seed 002, text
-after eq. 12).  The links' other second moments are written as the least that makes each
-link realizable (:func:`pivot_fill`); they change no figure.
+The method ``weights`` of :func:`mech_balance.balancing.balance` for a spatial rig whose
+scene lists ``balancing_weights`` (the RGGR, ``config/rggr.yaml``): one weight on each link
+pivoted on the frame zeroes the shaking force (eqs. 1-14, least squares over the regressor
+of :func:`mech_balance.core.regressor.wrench_regressor`); then the products of inertia
+``(I_wu, I_vw)`` of each weighted link about its pivot minimize the RMS shaking moment
+(eqs. 73-95, least squares with a safe lower bound); a cylinder weight's end faces give it
+those products (eqs. 96-103).  docs/balancing.md, "Hedaya: balancing weights".
 """
 
 from dataclasses import dataclass, replace
@@ -138,10 +112,8 @@ def pivot_fill(m, g, i_ww, p_wu, p_vw, where):
     """
     Return the second moments (3, 3) about the pivot: the given I_ww, products, least rest.
 
-    Only ``I_ww = s_uu + s_vv`` and the products ``s_wu``, ``s_vw`` enter the dynamics; the
-    spread ``S = sigma - g g^T / m`` must be PSD for the body to exist.  Chosen: the radial
-    spread ``I_ww - (g_u^2 + g_v^2) / m`` split evenly between u and v, no uv spread beyond
-    the first moment's, and the least axial spread that keeps S PSD (its Schur complement 0).
+    The radial spread split evenly between u and v, and the least axial spread that keeps
+    ``sigma - g g^T / m`` PSD (only I_ww and the products enter the dynamics).
     """
     spread = i_ww - (g[0] ** 2 + g[1] ** 2) / m
     b = np.array([p_wu, p_vw]) - g[2] * g[:2] / m
@@ -192,7 +164,6 @@ class WeightsResult:
     link_products_kg_m2: np.ndarray   # J: (I_wu, I_vw) of each weighted link, with weight
     moment_rms_optimal_Nm: float
     moment_rms_lower_bound_Nm: float
-    gram_matrix: np.ndarray
     normal_equation_residual: float
     rank: int
     samples: int
@@ -315,7 +286,7 @@ def balance_weights(rig, samples=None):
     return WeightsResult(
         scene=sc, force_balanced_scene=fb, balanced_scene=opt, weights=weights,
         link_products_kg_m2=np.array(products), moment_rms_optimal_Nm=optimal,
-        moment_rms_lower_bound_Nm=lower, gram_matrix=gram,
+        moment_rms_lower_bound_Nm=lower,
         normal_equation_residual=float(np.max(np.abs(normal)) / scale), rank=int(rank),
         samples=n, force_residual_rel=residual_rel,
         solve_time_s=time.perf_counter() - start)
@@ -325,13 +296,7 @@ def end_faces(weight):
     """
     Return ``(alpha, gamma)`` (rad) of a cylinder weight with its designed products.
 
-    seed 002, eqs. 96-103, reconstructed.  The products about the weight's centre in axes
-    parallel to the link's (eqs. 96-97); eq. 98 prints I_w'u' = I_w''u'' cos^2(alpha) -
-    I_w''v'' sin^2(alpha) and eq. 99 is missing: u'' makes the angle gamma with u' about the
-    common axis, so I_w'u' = I_w''u'' cos(gamma) - I_v''w'' sin(gamma) and I_v'w' =
-    I_w''u'' sin(gamma) + I_v''w'' cos(gamma).  End faces w'' = -u'' cot(alpha) +/- L/2 give
-    I_w''u'' = -m r^2 / (4 tan(alpha)) (eq. 100) and I_v''w'' = 0 (eq. 101).  Eq. 103 prints
-    gamma = atan(I_v'w' / I_w'u'); its quadrant follows from I_w''u'' < 0.
+    seed 002, eqs. 96-103, reconstructed (docs/balancing.md, "Hedaya's end faces").
     """
     ub, vb, wb = weight.centre_uvw_m
     m, r = weight.mass_kg, weight.radius_m
@@ -347,10 +312,8 @@ def least_squares_lower_bound(design, target, residual):
     """
     Return a safe lower bound on ``min_J ||design J - target||`` (:mod:`.certificate`).
 
-    The problem as a cone program ``min s s.t. ||target - design J|| <= s`` in Clarabel's
-    form, the dual point (1, -r/||r||) of the residual r = design J - target (dual residual
-    design' r / ||r||, the normal equations), and the box of the level set
-    ``||design J|| <= ||r|| + ||target||`` (:func:`.certificate.level_set_bounds`).
+    The cone form ``min s s.t. ||target - design J|| <= s`` at the dual point (1, r/||r||)
+    of the ``residual`` r, over the box of the level set ``||design J|| <= ||r|| + ||target||``.
     """
     from mech_balance.balancing import certificate
     rows, cols = design.shape
@@ -436,11 +399,8 @@ def balance_report(rig, result, normalized=False):
     """
     Return the weights' report as a plain dict (SI, or normalized by the scene's units).
 
-    The weights (mass, centre, radius, I_ww about the axis, products about the pivot and, for
-    a cylinder, alpha and gamma), the links' optimal products J, a table of the unbalanced,
-    force-balanced and optimized rigs (``rigs``), the before/after rows of every balancing
-    result (``table``, :func:`mech_balance.balancing.spatial.result.before_after`), and the
-    least-squares optimum with its lower bound.
+    The weights, the links' optimal products J, the unbalanced, force-balanced and optimized
+    rigs (``rigs``), the before/after ``table`` and the least-squares optimum with its bound.
     """
     sc = rig.scene
     view = ReportView(sc, normalized)

@@ -81,10 +81,8 @@ def line_basis(point_a, point_b):
     """
     Return the (10, 3) basis of mass distributions on the line through two points (body axes).
 
-    With p(s) = a + s d (d the unit direction), Sigma = int p p^T dm = mu0 a a^T + mu1 (a d^T
-    + d a^T) + mu2 d d^T and h = mu0 a + mu1 d, linear in the moments (mu0, mu1, mu2) of the
-    mass along the line (mu0 = m); J is PSD exactly when [[mu0, mu1], [mu1, mu2]] is.  A
-    slender rod on an S-S line (its idle spin needs zero inertia about the line).
+    theta is linear in the moments (mu0, mu1, mu2) of the mass along the line from
+    ``point_a``; J is PSD exactly when [[mu0, mu1], [mu1, mu2]] is.
     """
     a = np.asarray(point_a, dtype=float)
     d = np.asarray(point_b, dtype=float) - a
@@ -102,12 +100,9 @@ def spatial_model(rig):
     """
     Return the :class:`ParameterModel` of a ``kind: spatial`` rig.
 
-    Every link has its ten parameters, except a link held only by two spherical joints (an
-    idle spin, :class:`mech_balance.core.spatial.kinematics` fixes it by convention): its mass
-    stays on the line through the two joints (:func:`line_basis`), as the rig requires.  A
-    design is written as the links' mass, mass centre and inertia about it; counterweights are
-    folded into their link's (the scene has no counterweight field; the spheres are in the
-    report and the provenance).
+    Every link has its ten parameters, but a link held only by two spherical joints (an idle
+    spin) keeps its mass on their line (:func:`line_basis`).  Counterweights are folded into
+    their link's mass, mass centre and inertia.
     """
     from mech_balance.schema.spatial import SpatialLink
     sc = rig.scene
@@ -116,9 +111,8 @@ def spatial_model(rig):
     names = [b.name for b in rig.drawing.bodies]
     reaches = {name: max([float(np.linalg.norm(p)) for p in sc.link(name).points.values()]
                          + [0.0]) for name in names}
-    # a link whose points all sit at its origin (a slider carriage) has no span of its own:
-    # it is given the smallest span of the rig's other links (the size of its parts), not a
-    # metre, so its extent bound and its counterweight's distance stay within the rig
+    # a link whose points all sit at its origin (a slider carriage): the least span of the
+    # rig's other links, so its extent bound and counterweight's distance stay within the rig
     spans = [r for r in reaches.values() if r > 0.0]
     least_span = min(spans) if spans else 1.0
     bodies, thetas = [], []
@@ -180,12 +174,8 @@ def clip_roundoff(inertia, scale):
     """
     Return an inertia tensor (3, 3) with its round-off negative principal moments set to 0.
 
-    A design at the edge of the feasible set (a rod's transverse inertia driven to zero)
-    comes out of ``I_O - m (|c|^2 1 - c c^T)`` a few 1e-15 below zero, which the scene's
-    loader would refuse although the design is a body; principal moments below zero by at
-    most :data:`INERTIA_CLIP_RTOL` of the body's ``m reach^2`` (``scale``) are that
-    round-off and are clipped, the tensor rebuilt from its eigenvectors.  A larger negative
-    one (a design that is no body) is kept, so the loader names it.
+    Only those above -:data:`INERTIA_CLIP_RTOL` ``scale`` (the body's m reach^2); a larger
+    negative one (no body) is kept, so the scene loader names it.
     """
     eig, vec = np.linalg.eigh(0.5 * (inertia + inertia.T))
     if eig[0] >= 0.0 or eig[0] < -INERTIA_CLIP_RTOL * scale:
@@ -249,12 +239,7 @@ def units_of(rig, model):
 
 @dataclass
 class Maps:
-    """
-    The RMS shaking force and moment as compressed maps of theta (10 nb,) in SI.
-
-    ``RMS(force) = ||force @ theta||`` (N) and likewise the moment (N m), over ``samples``
-    crank angles (:func:`mech_balance.conventions.rms`).
-    """
+    """The RMS shaking force and moment as compressed maps: ``RMS(force) = ||force @ theta||``."""
 
     force: np.ndarray
     moment: np.ndarray
@@ -306,13 +291,9 @@ def program_units(model, k, m_lo, m_hi, radius):
     """
     Return (M, R): the units of body k's variables in the redistribution and its checks.
 
-    The rig's own units (the original mass m0 and reach r0, :func:`reference_units`) moved into the
-    bounds: M = m0 clipped into [m_lo, m_hi], R = min(r0, radius) (on a line, radius plus the
-    line's offset from the origin).  A body whose mass is fixed at 1e3 m0 or must lie within
-    0.1 r0 of its origin then still has variables of order one at the optimum and a PSD
-    block ``D J D`` (D = diag(1/(sqrt(M) R) 1, 1/sqrt(M))) with entries of order one, and
-    its constraints are checked to round-off of its own size.  (In units of a wide bound,
-    1e6 m0, the solver stalls on the designs near m0 that the objective prefers.)
+    M = m0 clipped into [m_lo, m_hi], R = min(r0, radius (+ a line's offset)): the rig's
+    own units (:func:`reference_units`) moved into the bounds (docs/balancing.md, "Spatial
+    rigs").
     """
     m0, r0 = reference_units(model, k)
     return (float(min(max(m0, m_lo), m_hi)),

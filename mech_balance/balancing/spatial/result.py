@@ -126,13 +126,8 @@ def before_after(rig, balanced, samples, units, data=None):
     """
     Return the before/after rows of RMS shaking force, moment and driving effort.
 
-    The driving effort is the rig's :attr:`~mech_balance.core.rig.Rig.driving_series` under
-    its label of :data:`~mech_balance.schema.scene.SERIES` (a driving torque, N m, or a
-    prismatic input's driving force, N).
-
-    The planar rows' shape (:func:`mech_balance.balancing.tables.before_after`): quantity,
-    unit/before/after normalized (SI when the scene records no normalization), change_percent,
-    unit_si, before_si, after_si.
+    The planar rows' shape (:func:`mech_balance.balancing.tables.before_after`); the driving
+    effort is the rig's :attr:`~mech_balance.core.rig.Rig.driving_series`.
     """
     if data is None:
         psi = cycle_of(rig, samples)
@@ -195,10 +190,10 @@ def scale_blame(rig, units):
 
 def write_scene(result, path):
     """
-    Write the balanced scene to ``path`` (through :mod:`mech_balance.atomic`) and reload it.
+    Write the balanced scene to ``path`` atomically and return it reloaded.
 
-    The provenance goes under the scene's ``balance`` key when its kind's loader accepts one,
-    else into a comment header.  Returns the reloaded scene.
+    The provenance goes under the scene's ``balance`` key where the loader accepts one, else
+    into a comment header.
     """
     from mech_balance import atomic
     import yaml

@@ -16,7 +16,7 @@ from mech_balance.balancing.defaults import DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_M
 from mech_balance.balancing.spatial.model import check_samples, check_weights, maps_of, \
     parameter_model, SpatialBalanceError, units_of
 from mech_balance.balancing.spatial.program import ConeProgram, SIGMA_ENTRIES, \
-    SIGMA_TO_INERTIA, unit_row
+    SIGMA_TO_INERTIA
 from mech_balance.balancing.spatial.result import best_certified, check_run, finish
 from mech_balance.core import regressor
 import numpy as np
@@ -33,14 +33,9 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
     """
     Return the certified optimal add-only spheres on the listed bodies (a SpatialResult).
 
-    Each listed body keeps its parameters and gains a counterweight of mass at most
-    ``max_mass_factor`` x its mass, made of spheres of ``density_kg_m3``, whose mass lies
-    within RMS distance ``max_radius_factor`` x its reach of the body origin.  The convex set
-    (docs/balancing.md, "Spatial rigs"): ``[[Sigma - s 1, dh], [dh^T, dm]]`` PSD and
-    ``s >= k dm^(5/3)`` (a power cone; ``k dm^(5/3)`` the spread of one solid sphere of mass
-    dm) is exactly what clusters of hollow spheres realize, so the optimum is built
-    (:func:`sphere_cluster`): up to six spheres, in pairs about the counterweight's centre
-    along the principal axes of its spread.
+    Each listed body gains a counterweight of mass at most ``max_mass_factor`` x its mass,
+    spheres of ``density_kg_m3`` whose mass lies within RMS distance ``max_radius_factor`` x
+    its reach of the body origin, built as up to six spheres (:func:`sphere_cluster`).
     """
     t_start = time.perf_counter()
     w = check_weights(weights)
@@ -127,7 +122,9 @@ def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radi
     for j, k in enumerate(idx):
         m0, r0 = float(model.theta[10 * k]), model.bodies[k].reach_m
         c = 11 * j
-        prog.rows('nonneg', [unit_row(prog.nx, c, -1.0), unit_row(prog.nx, c, 1.0)], [0.0, hi])
+        mass = np.zeros((2, prog.nx))
+        mass[:, c] = (-1.0, 1.0)
+        prog.rows('nonneg', mass, [0.0, hi])
         lin = np.zeros((10, prog.nx))
         for row, (a, b) in enumerate(SVEC):
             f = 1.0 if a == b else math.sqrt(2.0)
@@ -151,8 +148,8 @@ def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radi
         pw[0, c + 10] = -1.0 / spread_unit
         pw[2, c] = -1.0
         prog.rows('pow', pw, [0.0, 1.0, 0.0])
-        # the box every feasible point lies in (module docstring of certificate):
-        # |dh_i| <= dm f r0, |Sigma_ij| <= tr Sigma <= dm (f r0)^2, s <= tr Sigma / 3
+        # the box every feasible point lies in: |dh_i| <= dm f r0,
+        # |Sigma_ij| <= tr Sigma <= dm (f r0)^2, s <= tr Sigma / 3
         prog.box_lo[c:c + 11] = [0.0] + [-hi * max_radius_factor] * 3 + [-hi * fr2] * 6 + [0.0]
         prog.box_hi[c:c + 11] = [hi] + [hi * max_radius_factor] * 3 + [hi * fr2] * 6 \
             + [hi * fr2 / 3.0]
@@ -183,8 +180,7 @@ def hollow_sphere(mass_kg, spread_kg_m2, density_kg_m3):
     """
     Return (outer, inner) radii, m, of a hollow sphere of the mass and spread int(x^2 dm).
 
-    m = rho 4/3 pi (R^3 - r^3) and int(x^2 dm) = rho 4/15 pi (R^5 - r^5); r = 0 is the solid
-    sphere (the least spread of a sphere of that mass); R^5 - r^5 grows with r at fixed mass.
+    m = rho 4/3 pi (R^3 - r^3) and int(x^2 dm) = rho 4/15 pi (R^5 - r^5) (r = 0: solid).
     """
     from scipy.optimize import brentq
     a = 3.0 * mass_kg / (4.0 * math.pi * density_kg_m3)
@@ -205,12 +201,9 @@ def sphere_cluster(dm, dh, sigma, s, density_kg_m3, reach_m):
     """
     Return the spheres realizing a counterweight (dm, dh, Sigma about the origin, spread s).
 
-    c = dh / dm, S = Sigma - s 1 - dm c c^T (PSD) = sum_j sigma_j u_j u_j^T over its r
-    eigenvalues above round-off (:data:`CLUSTER_SPREAD_REL` dm reach^2): masses dm / (2 r) at
-    c +/- sqrt(r sigma_j / dm) u_j carry S exactly (one sphere at c when r = 0); each gets
-    the spread s mu / dm, a hollow sphere (:func:`hollow_sphere`; s mu / dm >= k mu^(5/3)
-    since mu <= dm).  Each entry: mass_kg, centre_m (body axes), spread_kg_m2,
-    outer_radius_m, inner_radius_m.
+    Pairs of masses dm / (2 r) at c +/- sqrt(r sigma_j / dm) u_j along the r principal axes
+    of the spread about c = dh / dm, each a hollow sphere of spread s mu / dm.  Each entry:
+    mass_kg, centre_m (body axes), spread_kg_m2, outer_radius_m, inner_radius_m.
     """
     c = np.asarray(dh, dtype=float) / dm
     spread = np.asarray(sigma, dtype=float) - s * np.eye(3) - dm * np.outer(c, c)
