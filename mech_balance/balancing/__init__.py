@@ -2,31 +2,13 @@
 Balancing: one entry point, :func:`balance`, for the command line, the node and recordings.
 
 ``balance(rig, method=..., **options)`` returns a :class:`Design` for every method and kind
-(:mod:`mech_balance.balancing.result`): ``success``, ``status``, ``message``, the objective,
-its lower bound, ``certified``, the per-link masses, mass centres and inertias, the balanced
-scene, the method's report and its own result; :meth:`Design.to_dict` is what
-``mech-balance balance --json`` prints and the node's ``~/balance`` answers.  ``rig`` may be
-a scene (its rig is built).  The method is chosen from what the rig
-can be balanced by (:attr:`mech_balance.core.rig.Rig.capabilities`), never from its kind:
-
-* ``redistribution``: the certified optimal mass redistribution of seed 001 (planar rigs,
-  :func:`mech_balance.balancing.redistribution.optimize`);
-* ``weights``: the complete force balance and minimum RMS shaking moment by balancing
-  weights on the links pivoted on the frame (seed 002's RGGR, any spatial scene that lists
-  ``balancing_weights``: :mod:`mech_balance.balancing.weights`);
-* ``counterweights``: add-only discs on listed links, to a certified optimum
-  (:func:`mech_balance.balancing.counterweights.balance_with_counterweights`; its report
-  carries ``counterweights`` in the scene's form, ``{link: [disc entry]}``);
-* ``analytic``: the complete force balance in closed form, the slider-crank's (seed 000,
-  :func:`mech_balance.balancing.analytic.slider_crank_balance`) for a rig with a prismatic
-  joint, else the four-bar's (seed 001 eq. 48, :func:`~.analytic.four_bar_balance`);
-* ``force_balance``: the complete force balance of a spatial rig (null space of its force
-  map, :func:`mech_balance.balancing.spatial.force_balance`);
-* ``auto`` (the default): the first of those the rig supports.
-
-A rig with the ``body_kinematics`` capability (spatial rigs) is balanced by
-``redistribution`` and ``counterweights`` too, through :mod:`mech_balance.balancing.spatial`
-(PSD pseudo-inertia per body; spheres as counterweights): :data:`ALTERNATIVES`.
+(:mod:`mech_balance.balancing.result`; its ``to_dict`` is what ``balance --json`` prints and
+the node's ``~/balance`` answers).  The method is chosen from the rig's capabilities, never
+from its kind: ``redistribution`` (:mod:`.redistribution`, or :mod:`.spatial` for a rig with
+body kinematics), ``weights`` (:mod:`.weights`), ``counterweights`` (:mod:`.counterweights`
+or spatial spheres), ``analytic`` (:mod:`.analytic`), ``force_balance``
+(:func:`mech_balance.balancing.spatial.force_balance`), ``auto``: the first the rig supports
+(docs/balancing.md, "Dispatch").
 
 The modules that solve are imported when a method runs, so importing this package is cheap.
 The defaults of every option are :mod:`mech_balance.balancing.defaults`'s.
@@ -86,13 +68,7 @@ LINK_OPTIONS = ('mass_bounds', 'distance_bounds')
 
 
 def link_options(rig):
-    """
-    Return the per-link options (:data:`LINK_OPTIONS`) the redistribution of ``rig`` takes.
-
-    Both for a rig redistributed by seed 001; those the spatial implementation takes
-    (:data:`SPATIAL_OPTIONS`) for a rig with body kinematics; none for a rig without the
-    redistribution.
-    """
+    """Return the per-link options (:data:`LINK_OPTIONS`) the redistribution of ``rig`` takes."""
     caps = rig.capabilities
     if METHODS['redistribution'] in caps:
         return LINK_OPTIONS
@@ -111,13 +87,7 @@ it certifies: :data:`mech_balance.balancing.defaults.SPATIAL_MASS_FACTOR_RANGE`)
 
 
 def option_ranges(rig, method):
-    """
-    Return ``{option: (low, high)}``: the ranges of ``method`` on ``rig`` narrower than usual.
-
-    Empty but where the rig is balanced by the spatial implementation of the method (it has
-    the method through :data:`ALTERNATIVES` only): the node checks these where a parameter
-    is set, as the command line does where it reads the option.
-    """
+    """Return ``{option: (low, high)}``: the ranges of ``method`` narrower on ``rig``."""
     caps = rig.capabilities
     if METHODS.get(method) in caps or ALTERNATIVES.get(method) not in caps:
         return {}
@@ -208,13 +178,10 @@ def _spatial(rig, method, options):
 
 def balance(rig, method='auto', **options):
     """
-    Balance a rig and return its :class:`Design` (module docstring: methods).
+    Balance a rig (or scene) and return its :class:`Design` (module docstring: methods).
 
-    ``options`` are the method's: those of
-    :func:`mech_balance.balancing.redistribution.optimize` for ``redistribution``; of
-    :func:`~.counterweights.balance_with_counterweights` for ``counterweights`` (``links``
-    first); ``samples`` (and for a four-bar ``mass_factor``, ``inertia``) for ``analytic``;
-    ``samples`` for ``weights``.
+    ``options`` are the method's (:func:`~.redistribution.optimize`,
+    :func:`~.counterweights.balance_with_counterweights`, ...).
     """
     from mech_balance.core.rig import as_rig
     rig = as_rig(rig)

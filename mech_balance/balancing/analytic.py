@@ -136,12 +136,7 @@ def _analytic(method, scene, balanced, params, samples, counterweights):
 
 
 def _chain(scene, output_type):
-    """
-    Identify crank, coupler and output of a 3-link single loop; return them and points.
-
-    Points (complex, link frames): P1 crank pivot, A1 crank pin, A2/B2 coupler ends, and
-    Q3/B3 rocker pivot and pin (``output_type`` 'revolute') or B3 the slider's joint point.
-    """
+    """Return crank, coupler, output of a 3-link loop and their points P1, A1, A2, B2, B3, Q3."""
     check_planar(scene)
     kind = 'slider-crank' if output_type == 'prismatic' else 'four-bar'
     if len(scene.links) != 3 or len(scene.joints) != 4:

@@ -79,11 +79,7 @@ def cone_list(cones):
 
 
 def project_dual(z, cones):
-    """
-    Return z projected onto the dual cone K* (every entry exactly inside, after rounding).
-
-    A second-order cone's first entry is raised by the rounding bound of the computed norm.
-    """
+    """Return z projected onto the dual cone K* (every entry exactly inside, after rounding)."""
     z = np.array(z, dtype=float)
     out = z.copy()
     k = 0
@@ -595,12 +591,7 @@ moved into each one's dual cone."""
 
 @dataclass
 class Certificate:
-    """
-    Global-optimality certificate of a balancing cone program (the primary stage).
-
-    ``lower_bound`` (also under the key ``dual``) is a safe lower bound on every feasible z,
-    never above ``primal``, the core's z of the returned design.
-    """
+    """Global-optimality certificate of a balancing cone program: ``lower_bound`` <= ``primal``."""
 
     solver: str
     status: str
@@ -647,13 +638,31 @@ class Stage:
             int(sol.iterations), float(sol.r_prim), float(sol.r_dual)
 
 
-def failed_stage(stage, run, design, blame=''):
+def certify(stage, primal, bound, violation, pull, failed, design_violation, stage2=None,
+            **detail):
     """
-    Return the report entry of a stage whose solve failed (name, status, why, design).
+    Return the :class:`Certificate` of a primary :class:`Stage` whose design has z ``primal``.
 
-    ``blame``: the scene values that make the program ill-posed
-    (:func:`mech_balance.balancing.conditioning.blame`).
+    ``bound``: the stage's :class:`LowerBound`; ``violation``: the solver's design's worst
+    violation before the ``pull``; ``design_violation``: the returned design's; ``detail``:
+    entries added to :func:`bound_detail`.
     """
+    import clarabel
+    lower = min(bound.value, primal)
+    gap, gap_rel = relative_gap(primal, lower, GAP_FLOOR)
+    return Certificate(
+        solver=f'clarabel {clarabel.__version__}', status=stage.status, primal=primal,
+        dual=lower, gap_abs=gap, gap_rel=gap_rel, residual_primal=stage.r_prim,
+        residual_dual=stage.r_dual, iterations=stage.iterations, stage2=stage2,
+        max_violation=violation, lower_bound=lower, attempts=list(stage.run.attempts),
+        bound_detail=dict(bound_detail(bound), **detail), feasibility_pull=pull,
+        failed_stages=failed, design_violation=design_violation,
+        certified=bool(np.isfinite(lower) and gap_rel <= CERTIFIED_GAP_REL
+                       and design_violation == 0.0))
+
+
+def failed_stage(stage, run, design, blame=''):
+    """Return the report entry of a stage whose solve failed (name, status, why, design)."""
     return {'stage': stage, 'status': run.status, 'reason': run.why() + blame,
             'design': design}
 
@@ -666,7 +675,8 @@ def bound_detail(bound):
             'unbounded_variables': list(bound.unbounded)}
 
 
-__all__ = ['bound_detail', 'Certificate', 'CERTIFIED_GAP_REL', 'cone_list', 'failed_stage',
+__all__ = ['bound_detail', 'Certificate', 'CERTIFIED_GAP_REL', 'certify', 'cone_list',
+           'failed_stage',
            'folded_lower_bound', 'gamma', 'GAP_FLOOR', 'level_set_bounds', 'LowerBound',
            'norm_bound', 'polytope_bounds', 'POWER_ALPHA', 'project_dual', 'relative_gap',
            'safe_lower_bound', 'Stage', 'SVEC']

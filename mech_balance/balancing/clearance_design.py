@@ -41,13 +41,7 @@ BOUND_ACTIVE_REL = 1e-4
 
 
 class NoClearDesign(BalanceError):
-    """
-    No collision-free counterweight design within the bounds (the message says why).
-
-    ``result`` is the solver's result where there is one (a planar
-    :class:`~mech_balance.balancing.counterweights.CounterweightResult`: its
-    ``clearance_design`` says why, its ``to_dict`` is what ``balance --json`` prints).
-    """
+    """No collision-free counterweight design within the bounds (``result``: the solver's)."""
 
     def __init__(self, message, result=None):
         super().__init__(message)
@@ -192,12 +186,7 @@ class _Search:
         return [out[k] for k in range(len(self.designs))]
 
     def mount(self, k, side):
-        """
-        Return the mount of disc k on a side (+1 above, -1 below).
-
-        The link's point whose shaft and web keep clearest of the linkage with the disc
-        alone, innermost (the nearest point on a tie).
-        """
+        """Return the link point whose shaft keeps disc k (``side`` +1 above) clearest."""
         key = (k, side)
         if key not in self._mounts:
             d = self.designs[k]
@@ -342,9 +331,7 @@ def design(scene, prob, designs, lower_bound, margin_m=DEFAULT_CLEARANCE_MARGIN_
     """
     Return ``(designs, ClearanceReport)``: the convex optimum ``designs`` made collision-free.
 
-    ``prob``: the counterweight program (its objective ``z`` and disc bounds), ``lower_bound``
-    its certified lower bound; ``fixed_planes``: the user gave the discs' planes (no layer
-    search).  ``designs`` is empty when none is clear (the report says why).
+    ``fixed_planes``: the user gave the planes (no layer search); ``designs`` empty: none.
     """
     z_convex = prob.z(y_of(prob, designs))
     report = ClearanceReport('collision-free', margin_m, side, z_convex, z_convex, lower_bound,

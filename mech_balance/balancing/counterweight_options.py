@@ -138,12 +138,7 @@ def _clearance_options(options):
 
 
 def plane_list(planes, links, scene, name='planes'):
-    """
-    Return ``((link, plane_m), ...)`` of a plane per counterweight link, checked.
-
-    ``planes``: a mapping, pairs, or text 'crank=-0.03,rocker=0.03' (m: the disc's mid-plane
-    offset along z from its link's plane; a listed link without one: its own plane, 0).
-    """
+    """Return ``((link, plane_m), ...)`` of a mapping, pairs or text 'crank=-0.03,rocker=0.03'."""
     listed = link_list(links, scene)
     if isinstance(planes, str):
         items = []

@@ -1,10 +1,9 @@
 """
 The counterweight program: one disc per listed link as a second-order cone program.
 
-:class:`Problem` builds the cones of :mod:`mech_balance.balancing.counterweights` (the
-derivation is its docstring) in link units, runs its stages with Clarabel, bounds their
-optimum safely (:mod:`.certificate`) and turns a point into the discs as built
-(:class:`CounterweightDesign`).
+:class:`Problem` builds the cones (docs/balancing.md, "Counterweights (add-only discs)") in
+link units, runs its stages with Clarabel, bounds their optimum safely (:mod:`.certificate`)
+and turns a point into the discs as built (:class:`CounterweightDesign`).
 """
 
 from dataclasses import dataclass, field
@@ -22,8 +21,7 @@ import scipy.sparse as sp
 
 MIN_MASS_REL = 1e-7
 """An optimal disc mass below this fraction of its link's mass is no counterweight (omitted:
-the cones force its first moment and inertia to zero with it; the solver's accuracy is
-~1e-9 of the link, so such a disc's centre is noise)."""
+its centre is the solver's noise)."""
 FREE_INERTIA_REL = 1e-12
 """A link's inertia column below this fraction of a term's map: the inertia enters no term."""
 
@@ -148,10 +146,7 @@ class Problem:
 
     def secondary(self):
         """Return the index of the tie-break norm (0 force, 1 moment) or None."""
-        w1, w2, wt, wr = self.weights4
-        if wt or wr or (w1 and w2):
-            return None
-        return 1 if w2 == 0.0 else 0
+        return redistribution.tie_break_term(self.weights4)
 
     # ----------------------------------------------------------------------- pins
 
@@ -163,21 +158,14 @@ class Problem:
         return u[:, :r], sv[:r], vt[:r]
 
     def pin(self, k, y, exact):
-        """
-        Return (rows, target): the optimal set of a single-norm stage, ``rows y = target``.
-
-        ``exact``: the norm's map is zero (complete force balance): the minimum-norm
-        solution's row-space part; else the image of the stage's optimum ``y``.
-        """
+        """Return (rows, target): the optimal set of a single-norm stage (``exact``: map 0)."""
         g, c = self.norms[k]
         u, sv, vt = self._row_space(g)
         if not sv.size:        # the term does not depend on the counterweights at all
             return vt, np.zeros(0)
         if exact:
             return vt, -(u.T @ c) / sv
-        # rows weighted by their singular values: the solver's equality residual is then
-        # measured in units of the norm (orthonormal rows let a 1e-9 residual along a large
-        # singular direction move the optimum's norm by 1e-5 on the carpet scraper)
+        # rows weighted by their singular values: the equality residual in units of the norm
         rows = vt * (sv / sv[0])[:, None]
         return rows, rows @ y
 
@@ -253,14 +241,8 @@ class Problem:
         """
         Return (lo, hi): bounds on every variable that the constraints imply (link units).
 
-        ``0 <= y_m <= m_max/m0``, ``|y_h| <= (r_max/l0) y_m``, ``0 <= y_s <= y_I <=
-        (k_max/l0)^2 y_m`` (and, with the rim bound, ``y_I <= b y_m`` and ``|y_h| <= (b/a)
-        y_m`` from each cut ``y_I + a |y_h| <= b y_m``); an epigraph t at most its norm's
-        bound over that box, and at most ``level / w`` when the stage's weighted objective
-        is at most ``level``.  When
-        a link's inertia enters none of the norms that the objective ``q`` weights (exactly
-        zero columns: the RMS force alone), an optimal point with the least inertia the
-        disc allows exists, ``y_I = |y_h|^2/y_m + kappa y_m^2``, which bounds y_I instead.
+        An epigraph at most ``level / w`` when the stage's objective is at most ``level``; a
+        link's inertia that no norm weighted by ``q`` sees at the least the disc allows.
         """
         nx, ny, nl = self.nx, self.ny, self.nl
         lo, hi = np.zeros(nx), np.zeros(nx)
@@ -307,13 +289,7 @@ class Problem:
         return [(c_h / l0, c_m / (l0 * l0)) for c_h, c_m in clearance_mod.rim_cuts(self.rho[i])]
 
     def anchor(self):
-        """
-        Return a strictly feasible point of the disc constraints (centred small discs).
-
-        Centred (y_h = 0), a disc's y_I lies between ``kappa y_m^2`` (the thickest disc) and
-        ``g2 y_m``, g2 the least of the gyration bound and the rim cuts' ``b`` (the rim bound
-        leaves a centred disc a radius of gyration up to rho / sqrt(3)).
-        """
+        """Return a strictly feasible point of the disc constraints (centred small discs)."""
         y = np.zeros(self.ny)
         for i in range(self.nl):
             g2 = min([(self.k_max[i] / self.l0[i]) ** 2] + [b for _, b in self._rim_cuts(i)])
@@ -327,12 +303,8 @@ class Problem:
         """
         Return ``y`` with each disc moved onto its constraints by the least local change.
 
-        The mass is capped at m_max, the first moment shrunk to the radius bound and to what
-        the gyration bound and the rim cuts leave, and the inertia clipped into
-        [|dh|^2/dm + dm^2/c, min(k_max^2 dm, c_m dm - c_h |dh|)] (the violations an
-        interior-point solution has at active constraints; with a small rim bound the
-        solver's absolute accuracy moves a light disc's centre by more than the rim), each
-        with a margin of a few ulp.
+        The mass capped, the first moment shrunk into the radius, gyration and rim bounds and
+        the inertia clipped into its interval, each with a margin of a few ulp.
         """
         y = np.array(y, dtype=float)
         shrink = 1.0 - 16.0 * certificate.UNIT_ROUNDOFF
@@ -367,24 +339,10 @@ class Problem:
                 y[im + 3] = min(max(y[im + 3], i_lo), i_hi)
         return y
 
-    def feasible(self, y, worst):
-        """
-        Return (y, pull): ``y`` repaired (:meth:`repair`), else moved towards :meth:`anchor`.
-
-        The constraints are convex and the anchor inside them, so a convex combination
-        with a large enough fraction ``pull`` is feasible; ``pull`` 0 when ``y`` already is.
-        """
-        if worst <= 0.0:
-            return y, 0.0
-        y = self.repair(y)
-        if self.discs(y)[2] <= 0.0:
-            return y, 0.0
-        anchor = self.anchor()
-        for lam in redistribution.PULL_STEPS[1:]:
-            cand = (1.0 - lam) * y + lam * anchor
-            if self.discs(cand)[2] <= 0.0:
-                return cand, lam
-        return anchor, 1.0
+    def feasible(self, y):
+        """Return (y, pull): ``y`` repaired (:meth:`repair`), else moved towards :meth:`anchor`."""
+        return redistribution.pull_inside(y, lambda v: self.discs(v)[2], self.repair,
+                                          self.anchor)
 
     def _add_cones(self, add):
         """Add the cones every stage shares: the discs' and the objective terms' epigraphs."""
@@ -425,12 +383,7 @@ class Problem:
     # ----------------------------------------------------------------------- discs
 
     def discs(self, y):
-        """
-        Return (designs, omitted links, worst constraint violation) of ``y``.
-
-        Violations are in units of the link: mass by its own mass, first moment by own mass x
-        reach, inertia by own mass x reach^2.
-        """
+        """Return (designs, omitted links, worst constraint violation in units of the link)."""
         u, opt = self.units, self.opt
         ms, ls = u.mass_kg, u.length_m
         d = (y * self.dsc).reshape(-1, 4)

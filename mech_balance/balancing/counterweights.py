@@ -13,9 +13,8 @@ docs/balancing.md, "Counterweights (add-only discs)").  Objective and ties as
 from dataclasses import dataclass
 import time
 
-import clarabel
 from mech_balance import schema
-from mech_balance.analysis import clearance as clearance_mod, linear_maps
+from mech_balance.analysis import clearance as clearance_mod
 from mech_balance.balancing import certificate, clearance_design, redistribution, tables
 from mech_balance.balancing.counterweight_options import (
     check_options, CounterweightError, CounterweightOptions, joint_reach_m)
@@ -147,14 +146,8 @@ def solve(scene, options):
     t_start = time.perf_counter()
     opt = check_options(scene, options)
     units = planar_rig.objective_units(scene)
-    need = ['shaking_wrench']
-    if opt.torque_weight:
-        need.append('driving_torque')
-    if opt.reaction_weight:
-        need.append('bearing_reactions')
-    t0 = time.perf_counter()
-    maps = linear_maps.linear_maps(scene, opt.samples, need, units)
-    maps_s = time.perf_counter() - t0
+    maps, maps_s = redistribution.objective_maps(scene, opt.samples, units, opt.torque_weight,
+                                                 opt.reaction_weight)
     prob = Problem(scene, maps, opt, units)
     blame = prob.blame()
     stage1 = prob.run(prob.weights_vector(), [])
@@ -230,36 +223,23 @@ def solve(scene, options):
     if exact:
         y = prob.project_force_balance(y)
     designs, omitted, worst = prob.discs(y)
-    y, pull = prob.feasible(y, worst)
+    y, pull = prob.feasible(y)
     designs, omitted, final_violation = prob.discs(y)
     balanced = _balanced(scene, designs)
     theta = dynamics.parameter_vector(dynamics.Inertia.from_links(balanced.links)) / prob.scale
     terms = maps.terms(theta)
     w = prob.weights4
     primal = float(np.dot(w, terms))
-    bound1 = prob.lower_bound(stage1, primal)
-    lower = min(bound1.value, primal)
-    gap, gap_rel = certificate.relative_gap(primal, lower, certificate.GAP_FLOOR)
     s2 = None
     if stage2 is not None:
-        # its own safe bound (the box of the disc constraints holds an optimal point: every
-        # t at its norm); min with the solver's objective keeps it a bound, never above it
-        lb2 = min(prob.lower_bound(stage2, None).value, stage2.objective)
-        s2 = {'minimized': f"RMS shaking {('force', 'moment')[secondary]}",
-              'status': stage2.status, 'objective': stage2.objective,
-              'lower_bound': lb2, 'iterations': stage2.iterations,
-              'attempts': list(stage2.run.attempts), 'exact_force_balance': bool(exact)}
-    cert = certificate.Certificate(
-        solver=f'clarabel {clarabel.__version__}', status=stage1.status, primal=primal,
-        dual=lower, gap_abs=gap, gap_rel=gap_rel,
-        residual_primal=stage1.r_prim, residual_dual=stage1.r_dual,
-        iterations=stage1.iterations, stage2=s2, max_violation=worst, lower_bound=lower,
-        attempts=list(stage1.run.attempts),
-        bound_detail=dict(certificate.bound_detail(bound1), null_directions_assumed=0),
-        feasibility_pull=pull, failed_stages=failed,
-        certified=bool(np.isfinite(lower) and gap_rel <= certificate.CERTIFIED_GAP_REL
-                       and final_violation == 0.0),
-        design_violation=final_violation)
+        # its own safe bound (the box of the disc constraints holds an optimal point); the
+        # min with the solver's objective keeps it a bound, never above it
+        s2 = redistribution.tie_break_report(
+            stage2, f"RMS shaking {('force', 'moment')[secondary]}",
+            min(prob.lower_bound(stage2, None).value, stage2.objective), exact)
+    cert = certificate.certify(stage1, primal, prob.lower_bound(stage1, primal), worst, pull,
+                               failed, final_violation, s2, null_directions_assumed=0)
+    lower = cert.lower_bound
     least = None
     if stage3 is not None:
         mass = sum(d.mass_kg for d in designs) / units.mass_kg
@@ -315,10 +295,8 @@ def cost_of_balancing(original, balanced, table):
     """
     Return what a balance did to the shaking moment, torque, bearing loads and total mass.
 
-    From the before/after rows of :func:`mech_balance.balancing.tables.before_after` (SI RMS
-    values): ``{quantity: {before, after, change_percent}}`` for the shaking force, shaking
-    moment, driving torque, the sum of the RMS bearing forces and the total moving mass
-    (kg).  ``change_percent`` is None when the before value is zero.
+    ``{quantity: {before, after, change_percent}}`` (SI) from the before/after ``table``
+    (:func:`mech_balance.balancing.tables.before_after`).
     """
     rows = {r['quantity']: r for r in table}
 

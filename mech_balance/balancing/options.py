@@ -2,15 +2,10 @@
 The balancing options, each declared once: the command line's and the node's from one table.
 
 :data:`OPTIONS` holds every option of :func:`mech_balance.balancing.balance` that a user sets:
-its keyword, the rig node's parameter (``balance.*``, :mod:`mech_balance.ros.params` builds its
-``Spec`` from the entry), the ``mech-balance balance`` flag (:mod:`mech_balance.cli.balance`
-adds its argparse option from the entry), its type, default, texts, bounds, choices and check
-(a ``ValueError`` naming the parameter or flag given, the value and what was expected), and
-the methods that take it.  :func:`from_params` and :func:`from_args` turn the node's values
-and the parsed command line into ``balance()``'s keyword arguments by the same entries: the
-two surfaces cannot drift apart (``clearance`` off, ``--no-clearance``, becomes
-``clearance_margin_m`` None: the one option that is not a keyword of ``balance()``).
-No ROS import here.
+its keyword, the node's ``balance.*`` parameter (:mod:`mech_balance.ros.params`), the
+``mech-balance balance`` flag (:mod:`mech_balance.cli.balance`), type, default, texts, bounds,
+choices, check and methods.  :func:`from_params` and :func:`from_args` turn either surface's
+values into ``balance()``'s keyword arguments by the same entries.  No ROS import here.
 """
 
 from dataclasses import dataclass
@@ -36,13 +31,10 @@ ALL_METHODS = ('redistribution', 'counterweights', 'analytic', 'weights', 'force
 @dataclass(frozen=True)
 class Option:
     """
-    One balancing option (module docstring).
+    One balancing option (module docstring); ``param``/``flag`` None where a surface lacks it.
 
-    ``param``/``flag`` are None where a surface does not offer it; ``param_default`` is the
-    parameter's default where its form differs from ``default`` (the value ``balance()``
-    gets); ``to_option`` converts a parameter's value to that form; ``cli`` holds the
-    argparse keywords of the flag's form (``nargs``, ``type``, ``action``, ``metavar``) and
-    ``flag_help`` its text where the flag reads otherwise than the parameter's ``description``.
+    ``param_default``/``to_option``: the parameter's form where it differs from ``default``;
+    ``cli``: the flag's argparse keywords; ``flag_help``: its text if not ``description``.
     """
 
     key: str
@@ -109,9 +101,7 @@ def parse_link_bounds(name, text, unit):
     Return ``{link: (min, max)}`` from a ``balance.*_bounds`` text, or None when empty.
 
     The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in
-    ``unit``, parsed as scenes are (:func:`mech_balance.schema.safe_yaml.loads`: YAML 1.2
-    floats, ``1e-1`` is a number); link names are checked against the scene when the
-    balancing runs.
+    ``unit`` (:func:`mech_balance.schema.safe_yaml.loads`).
     """
     if not text.strip():
         return None
@@ -376,7 +366,6 @@ OPTIONS = (
 """Every balancing option a user sets (module docstring), in the node's declaration order."""
 
 BY_KEY = {opt.key: opt for opt in OPTIONS}
-BY_PARAM = {opt.param: opt for opt in OPTIONS if opt.param}
 BY_FLAG = {opt.flag: opt for opt in OPTIONS if opt.flag}
 
 
@@ -397,12 +386,7 @@ def flag_default(opt):
 
 
 def add_arguments(parser, keys, types=None):
-    """
-    Add the flags of the options ``keys`` to an argparse parser, from :data:`OPTIONS`.
-
-    ``types`` maps keys to argparse ``type`` callables (the command line's number parsers);
-    the rest are float, int or str by the option's type.
-    """
+    """Add the flags of the options ``keys`` to a parser (``types``: key -> argparse type)."""
     base = {DOUBLE: float, DOUBLE_ARRAY: float, INTEGER: int, STRING: str}
     for key in keys:
         opt = BY_KEY[key]
@@ -422,9 +406,7 @@ def from_params(values, method):
     """
     Return ``balance()``'s keyword arguments for ``method`` from the node's parameter values.
 
-    ``values`` maps parameter names to checked values; the per-link
-    ``balance.links.<link>.*_bounds`` join the text ``balance.*_bounds`` (a link in both is
-    refused by :func:`mech_balance.ros.params.check_links`).
+    The per-link ``balance.links.<link>.*_bounds`` join the text ``balance.*_bounds``.
     """
     out = {}
     for opt in OPTIONS:
@@ -446,12 +428,7 @@ def from_params(values, method):
 
 
 def from_args(args, method, keys=None):
-    """
-    Return ``balance()``'s keyword arguments for ``method`` from a parsed command line.
-
-    Only the options with a flag (``keys``: those of them the caller added); a flag at its
-    default gives the option's default.
-    """
+    """Return ``balance()``'s keyword arguments for ``method`` from parsed flags (``keys``)."""
     out = {}
     for opt in OPTIONS:
         if opt.flag is None or method not in opt.methods or \

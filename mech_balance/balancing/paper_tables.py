@@ -72,14 +72,9 @@ def compare_optimum(result):
     """
     Return how a redistribution optimum compares with seed 001's, or None where none applies.
 
-    ``result`` is a :class:`mech_balance.balancing.redistribution.BalanceResult` of the Hoeken
-    linkage
-    (Tables 5 and 7) or the carpet scraper (case a: Tables 9 and 10) at one of the paper's
-    weightings without driving-torque or bearing weights.  The mapping holds the table's
-    label, its RMS normalized shaking force ``f`` and moment ``n``, its ``z_paper`` = w1 f +
-    w2 n, this optimum's ``z``, their difference in percent, whether the paper's
-    constraints were solved, and ``unrealizable``: ``{link: reason}`` of the paper's own
-    design vector where a link of it is no body.
+    Hoeken (Tables 5, 7) or the carpet scraper (case a: Tables 9, 10) at a paper weighting:
+    the table's label, ``f``, ``n``, ``z_paper``, this ``z``, the change in percent,
+    ``paper_constraints`` and ``unrealizable`` (links of the paper's design that are no body).
     """
     k = weight_case(result.weights)
     name = result.scene.name
@@ -118,10 +113,8 @@ def analytic_variants(rig, mass_factors=None, keep_centroidal=False, samples=Non
     """
     Return the :class:`~mech_balance.balancing.result.Design` of each analytic variant.
 
-    A slider-crank (a prismatic joint): seed 000's force balance, then with eq. 75 as
-    printed; a four-bar: seed 001 eq. 48 for each crank and rocker mass factor (default
-    :data:`TABLE3_MASS_FACTORS`), with the paper's point-mass distance l or, with
-    ``keep_centroidal``, the centroidal inertias kept.
+    A slider-crank: seed 000's balance and eq. 75 as printed; a four-bar: eq. 48 for each
+    mass factor (default :data:`TABLE3_MASS_FACTORS`).
     """
     from mech_balance import balancing
     from mech_balance.core.rig import as_rig
@@ -138,9 +131,7 @@ def table12_rows(table12):
     """
     Return the rows of seed 001 Table 12's comparison: label, torque, force, moment and z.
 
-    ``table12`` is :func:`mech_balance.balancing.two_point.table12`'s result; the paper's
-    two rows come first where the paper has them (its scene, weights 0.5 0.5), then the
-    certified relaxation and the best two-point design; z = w1 f~ + w2 n~ (eq. 43).
+    The paper's rows (where it has them), then :func:`mech_balance.balancing.two_point.table12`'s.
     """
     w1, w2 = table12.weights
     rows = []

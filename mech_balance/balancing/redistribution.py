@@ -16,8 +16,8 @@ import clarabel
 from mech_balance import schema
 from mech_balance.analysis.linear_maps import linear_maps, RANK_REL_TOL
 from mech_balance.balancing import certificate, conditioning
-from mech_balance.balancing.certificate import bound_detail, Certificate, CERTIFIED_GAP_REL, \
-    failed_stage, GAP_FLOOR, Stage
+from mech_balance.balancing.certificate import Certificate, certify, failed_stage, GAP_FLOOR, \
+    Stage
 from mech_balance.balancing.checks import BalanceError, check_link_names, check_nonneg, \
     check_planar, check_weights, finite_or_none, link_bounds, show
 from mech_balance.balancing.defaults import CASES, CENTROIDAL_MARGIN, DEFAULT_WEIGHTS, \
@@ -95,14 +95,7 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     if samples < 4:
         raise BalanceError(f'samples: got {samples}, expected an integer >= 4')
     units = objective_units(scene)
-    need = ['shaking_wrench']
-    if torque_weight:
-        need.append('driving_torque')
-    if reaction_weight:
-        need.append('bearing_reactions')
-    t0 = time.perf_counter()
-    maps = linear_maps(scene, samples, need, units)
-    maps_s = time.perf_counter() - t0
+    maps, maps_s = objective_maps(scene, samples, units, torque_weight, reaction_weight)
     theta0 = maps.theta_original
     m0 = theta0[0::4]
     l0 = np.sqrt(theta0[3::4] / m0)
@@ -126,7 +119,8 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
         failed.append(failed_stage('primary (z)', stage1.run, "the solver's last iterate, "
                                    'made feasible; its lower bound is safe', blame))
     theta, stage2, exact = stage1.point, None, False
-    secondary = _tie_break_quantity(spec)
+    term = tie_break_term(spec.w)
+    secondary = None if term is None else ('force', 'moment')[term]
     if tie_break and secondary is not None and stage1.run.ok:
         f_star = float(np.linalg.norm(maps.force @ theta))
         exact = (secondary == 'moment' and
@@ -147,30 +141,17 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
             theta = stage2.point
             if exact:
                 theta = theta - maps.force_null_projector @ theta
-    theta, violation, pull = _feasible(theta, spec)
+    violation = _violation(theta, spec)
+    theta, pull = pull_inside(theta, lambda t: _violation(t, spec), lambda t: _repaired(t, spec),
+                              lambda: _anchor(spec))
     balanced = _scene_from_theta(scene, theta, units, case)
     terms = maps.terms(theta)
     primal = float(np.dot(spec.w, terms))
     bound, nulls = _certify(stage1, primal, theta)
-    lower = min(bound.value, primal)
-    gap, gap_rel = certificate.relative_gap(primal, lower, GAP_FLOOR)
-    cert = Certificate(
-        solver=f'clarabel {clarabel.__version__}', status=stage1.status,
-        primal=primal, dual=lower, gap_abs=gap, gap_rel=gap_rel,
-        residual_primal=stage1.r_prim, residual_dual=stage1.r_dual,
-        iterations=stage1.iterations,
-        stage2=None if stage2 is None else {
-            'minimized': f'RMS shaking {secondary}', 'status': stage2.status,
-            'objective': stage2.objective, 'lower_bound': _tie_break_bound(stage2, exact),
-            'iterations': stage2.iterations,
-            'attempts': list(stage2.run.attempts),
-            'exact_force_balance': bool(exact)},
-        max_violation=violation, lower_bound=lower, attempts=list(stage1.run.attempts),
-        bound_detail=dict(bound_detail(bound), null_directions_assumed=nulls),
-        feasibility_pull=pull, failed_stages=failed,
-        certified=bool(np.isfinite(lower) and gap_rel <= CERTIFIED_GAP_REL
-                       and _violation(theta, spec) == 0.0),
-        design_violation=_violation(theta, spec))
+    cert = certify(stage1, primal, bound, violation, pull, failed, _violation(theta, spec),
+                   None if stage2 is None else tie_break_report(
+                       stage2, f'RMS shaking {secondary}', _tie_break_bound(stage2, exact),
+                       exact), null_directions_assumed=nulls)
     conic_s = stage1.seconds + (0.0 if stage2 is None else stage2.seconds)
     table = before_after(scene, balanced, samples)
     return BalanceResult(
@@ -190,6 +171,14 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
         max_added_mass_kg=max_added_mass_kg, certificate=cert, table=table,
         maps_time_s=maps_s, conic_time_s=conic_s,
         solve_time_s=time.perf_counter() - t_start)
+
+
+def objective_maps(scene, samples, units, torque_weight, reaction_weight):
+    """Return (maps, seconds): the :func:`linear_maps` of the terms the weights use."""
+    need = ['shaking_wrench'] + ['driving_torque'] * bool(torque_weight) + \
+        ['bearing_reactions'] * bool(reaction_weight)
+    t0 = time.perf_counter()
+    return linear_maps(scene, samples, need, units), time.perf_counter() - t0
 
 
 def scene_to_yaml(scene, balance=None):
@@ -303,16 +292,19 @@ class _Stage(Stage):
     free_h: bool = False      # h enters no constraint (case a, no realizability)
 
 
-def _tie_break_quantity(spec):
-    """Return the quantity a tie-break stage minimizes ('moment', 'force') or None."""
-    w1, w2, wt, wr = spec.w
-    if wt or wr:
+def tie_break_report(stage, minimized, lower_bound, exact):
+    """Return a tie-break stage's entry of the certificate (``stage2``)."""
+    return {'minimized': minimized, 'status': stage.status, 'objective': stage.objective,
+            'lower_bound': lower_bound, 'iterations': stage.iterations,
+            'attempts': list(stage.run.attempts), 'exact_force_balance': bool(exact)}
+
+
+def tie_break_term(w):
+    """Return what a tie-break stage minimizes (0 force, 1 moment) for weights ``w`` (4,)."""
+    w1, w2, wt, wr = w
+    if wt or wr or (w1 and w2):
         return None
-    if w2 == 0.0:
-        return 'moment'
-    if w1 == 0.0:
-        return 'force'
-    return None
+    return 1 if w2 == 0.0 else 0
 
 
 class _Program:
@@ -615,21 +607,23 @@ def _anchor(spec):
     return out.ravel()
 
 
-def _feasible(theta, spec):
-    """Return (design, its violation before, pull): ``theta`` repaired, else pulled inwards."""
-    before = _violation(theta, spec)
-    if before == 0.0:
-        return theta, 0.0, 0.0
-    fixed = _repaired(theta, spec)
-    if _violation(fixed, spec) == 0.0:
-        return fixed, before, 0.0
-    theta = fixed
-    anchor = _anchor(spec)
+def pull_inside(x, violation, repair, anchor):
+    """
+    Return (x, pull): ``x`` if feasible, else ``repair(x)``, else moved towards ``anchor()``.
+
+    The first fraction of :data:`PULL_STEPS` whose convex combination has ``violation`` <= 0.
+    """
+    if violation(x) <= 0.0:
+        return x, 0.0
+    x = repair(x)
+    if violation(x) <= 0.0:
+        return x, 0.0
+    inside = anchor()
     for lam in PULL_STEPS[1:]:
-        cand = (1.0 - lam) * theta + lam * anchor
-        if _violation(cand, spec) == 0.0:
-            return cand, before, lam
-    return anchor, before, 1.0
+        cand = (1.0 - lam) * x + lam * inside
+        if violation(cand) <= 0.0:
+            return cand, lam
+    return inside, 1.0
 
 
 def _scene_from_theta(scene, theta, units, case):
@@ -646,5 +640,5 @@ def _scene_from_theta(scene, theta, units, case):
     return scene.with_links(links, name=f'{scene.name}_balanced')
 
 
-__all__ = ['BalanceResult', 'FORCE_BALANCE_REL_TOL', 'optimize', 'PULL_STEPS', 'scene_to_yaml',
-           'TIE_BREAK_SLACK']
+__all__ = ['BalanceResult', 'FORCE_BALANCE_REL_TOL', 'objective_maps', 'optimize', 'pull_inside',
+           'PULL_STEPS', 'scene_to_yaml', 'TIE_BREAK_SLACK', 'tie_break_report', 'tie_break_term']

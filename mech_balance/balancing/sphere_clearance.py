@@ -63,12 +63,7 @@ class NoSphereDesign:
 
 
 def _theta_jac(mass_kg, centre_m, spread_kg_m2):
-    """
-    Return d theta (10,) / d (centre (3), mass) of one sphere, ``(10, 4)``.
-
-    theta = (mu, mu c, I_o) with I_o = 2 s 1 + mu (|c|^2 1 - c c^T) (:func:`regressor
-    .parameters`) and the spread s of a hollow sphere of fixed radius ratio, s ~ mu^(5/3).
-    """
+    """Return d theta / d (centre, mass) of one hollow sphere (spread ~ mass^(5/3)), (10, 4)."""
     c = centre_m
     out = np.zeros((10, 4))
     for j in range(3):
@@ -366,11 +361,8 @@ def design(rig, result, samples, margin_m):
     """
     Return ``(result, report entries)``: the convex sphere optimum made collision-free.
 
-    ``result``: the :class:`~.spatial.SpatialResult` of the convex program; ``margin_m`` None:
-    the check only (the optimum as is).  The entries are ``clearance`` (of the design),
-    ``warnings`` and ``clearance_design`` (a :class:`ClearanceReport`'s dict).  Raises
-    :class:`NoClearDesign` (its ``result`` a :class:`NoSphereDesign`) when no design is clear
-    within the bounds.
+    ``margin_m`` None: the check only.  The entries: ``clearance``, ``warnings``,
+    ``clearance_design``.  Raises :class:`NoClearDesign` when no design is clear.
     """
     margin = check_margin(margin_m)
     cert = result.certificate

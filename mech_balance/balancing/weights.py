@@ -344,9 +344,10 @@ class ReportView:
     def __init__(self, scene, normalized):
         norm = scene.normalization
         self.normalized = bool(normalized) and norm is not None
-        if self.normalized:
-            self.mass_kg, self.length_m = norm.mass_kg, norm.length_m
-            self.omega_rad_s = norm.omega_rad_s
+        ms, ls, w = (norm.mass_kg, norm.length_m, norm.omega_rad_s) if self.normalized else \
+            (1.0, 1.0, 1.0)
+        self.scale = {'mass': ms, 'length': ls, 'inertia': ms * ls ** 2,
+                      'force': ms * ls * w ** 2, 'moment': ms * ls ** 2 * w ** 2}
 
     def units(self):
         """Return the unit of each kind of value."""
@@ -358,29 +359,24 @@ class ReportView:
 
     def mass(self, x):
         """Return a mass in the view's unit."""
-        return float(x) / self.mass_kg if self.normalized else float(x)
+        return float(x) / self.scale['mass']
 
     def length(self, x):
         """Return lengths in the view's unit (a vector as a list)."""
-        x = np.asarray(x, dtype=float)
-        out = x / self.length_m if self.normalized else x
+        out = np.asarray(x, dtype=float) / self.scale['length']
         return out.tolist() if out.ndim else float(out)
 
     def inertia(self, x):
         """Return a moment or product of inertia in the view's unit."""
-        return float(x) / (self.mass_kg * self.length_m ** 2) if self.normalized else float(x)
+        return float(x) / self.scale['inertia']
 
     def force(self, x):
         """Return forces in the view's unit."""
-        x = np.asarray(x, dtype=float)
-        return x / (self.mass_kg * self.length_m * self.omega_rad_s ** 2) \
-            if self.normalized else x
+        return np.asarray(x, dtype=float) / self.scale['force']
 
     def moment(self, x):
         """Return moments or torques in the view's unit."""
-        x = np.asarray(x, dtype=float)
-        return x / (self.mass_kg * self.length_m ** 2 * self.omega_rad_s ** 2) \
-            if self.normalized else x
+        return np.asarray(x, dtype=float) / self.scale['moment']
 
 
 def metrics(data, view, crank_index):

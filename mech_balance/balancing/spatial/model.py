@@ -40,9 +40,7 @@ class BodyModel:
     """
     What a kind's scene can hold of one body: ``theta = basis @ y`` (``basis`` (10, d)).
 
-    ``orders[j]`` is 0, 1 or 2 for a column in kg, kg m or kg m^2 (its scale);
-    ``reach_m`` the farthest drawn point from the body origin; ``counterweights`` whether
-    the scene can carry one on this body (else the reason, text).
+    ``orders``: each column's power of length; ``counterweights``: True or why not.
     """
 
     name: str

@@ -49,12 +49,7 @@ J_MAP = _j_map()
 
 
 class ConeProgram:
-    """
-    ``min q'x s.t. A x + s = b, s in K`` with x = (y, t_f, t_n): theta = offset + basis y.
-
-    Blocks of rows by cone ('zero', 'nonneg', 'soc', 'psd' (4x4), 'pow' (alpha 3/5)); the
-    box (box_lo, box_hi) contains every feasible y (for the certificate).
-    """
+    """The program by blocks of rows by cone; ``box_lo``/``box_hi`` hold every feasible y."""
 
     def __init__(self, basis, offset, units):
         self.basis = np.asarray(basis, dtype=float)
@@ -159,12 +154,7 @@ class ConeProgram:
         return a, b, cones, layout
 
     def solve(self, tol_scale=None):
-        """
-        Solve with the retries of :func:`mech_balance.conic.run_solver`.
-
-        With ``tol_scale`` one solve with Clarabel's tolerances scaled by it instead
-        (:func:`mech_balance.conic.solve_tight`).
-        """
+        """Solve with :func:`mech_balance.conic.run_solver` (``tol_scale``: ``solve_tight``)."""
         a, b, cones, layout = self.assemble()
         if tol_scale is None:
             run = run_solver(self.q, a, b, cones)
@@ -182,13 +172,6 @@ class ConeProgram:
                 bound = min(bound, primal / self.q[self.nd + i] * (1.0 + 1e-12))
             hi[self.nd + i] = bound
         return lo, hi
-
-
-def unit_row(nx, i, value):
-    """Return a row of ``nx`` zeros with ``value`` at ``i``."""
-    row = np.zeros(nx)
-    row[i] = value
-    return row
 
 
 __all__ = ['ConeProgram', 'INERTIA_TO_SIGMA', 'J_MAP', 'SIGMA_ENTRIES', 'SIGMA_TO_INERTIA',
