@@ -365,32 +365,31 @@ def design(scene, prob, designs, lower_bound, margin_m=DEFAULT_CLEARANCE_MARGIN_
                 break
         if not attempts:
             value, moved, stuck = fixed[0]
-            report.status = 'none'
-            report.binding = [f'the layers: {stuck} in every arrangement of sides, orders and '
-                              f'mounts ({search.tried} tried; the shaft stands at a joint, so '
-                              'no move of a disc in the plane frees it)']
-            report.best_attempt = [d.to_dict() for d in moved]
             _final(search, report, moved)
-            return [], report
+            return _none(report, moved, [
+                f'the layers: {stuck} in every arrangement of sides, orders and mounts '
+                f'({search.tried} tried; the shaft stands at a joint, so no move of a disc in '
+                'the plane frees it)'])
         value, moved, active = max(attempts, key=lambda a: a[0])
         report.moved_in_plane = True
         if value >= margin_m:
             chosen, least = moved, value
         else:
-            report.status = 'none'
-            report.binding = active
-            report.best_attempt = [d.to_dict() for d in moved]
             report.objective = prob.z(y_of(prob, moved))
             _final(search, report, moved)
-            return [], report
+            return _none(report, moved, active)
     report.objective = prob.z(y_of(prob, chosen))
     _final(search, report, chosen)
     if report.least_clearance_m < margin_m:   # the refined minimum fell below the margin
-        report.status = 'none'
-        report.binding = ['the clearance between crank-angle samples']
-        report.best_attempt = [d.to_dict() for d in chosen]
-        return [], report
+        return _none(report, chosen, ['the clearance between crank-angle samples'])
     return chosen, report
+
+
+def _none(report, attempt, binding):
+    """Return ``([], report)``: no clear design, ``binding`` why, ``attempt`` the best."""
+    report.status, report.binding = 'none', binding
+    report.best_attempt = [d.to_dict() for d in attempt]
+    return [], report
 
 
 def _final(search, report, designs):

@@ -94,19 +94,15 @@ def compare_optimum(result):
     w1, w2 = result.weights
     z_paper = w1 * f + w2 * n
     z = result.objective['z']
-    links = _design_links(result.scene, x, result.case == 'b')
+    from mech_balance.balancing import tables
+    from mech_balance.core import equimomental
+    sc = result.scene
+    links = [tables.link_design(lk, result.case == 'b', sc.normalization)
+             for lk in equimomental.apply_design(sc, x, normalized=True).links]
     return {'label': label, 'f': f, 'n': n, 'z_paper': z_paper, 'z': z,
             'change_percent': (z - z_paper) / z_paper * 100.0,
             'paper_constraints': result.paper_constraints,
             'unrealizable': {d.name: d.reason for d in links if not d.realizable}}
-
-
-def _design_links(sc, x, counterweights):
-    """Return the per-link designs of a table's normalized design vector ``x`` on ``sc``."""
-    from mech_balance.balancing import tables
-    from mech_balance.core import equimomental
-    design = equimomental.apply_design(sc, x, normalized=True)
-    return [tables.link_design(lk, counterweights, sc.normalization) for lk in design.links]
 
 
 def analytic_variants(rig, mass_factors=None, keep_centroidal=False, samples=None):

@@ -178,14 +178,11 @@ def check_run(run, rig, units):
         raise SpatialBalanceError(
             f'constraints: the balancing problem is infeasible (solver status {run.status}); '
             'widen mass_bounds / extent_bounds')
-    if not run.ok:
-        raise SpatialBalanceError(f'solver: {run.why()}{scale_blame(rig, units)}')
-
-
-def scale_blame(rig, units):
-    """Return the scene values that make a failed program ill-posed ('' when none is)."""
-    speed = abs(float(rig.at([0.0], outputs=('kinematics',)).crank_speed_rad_s[0]))
-    return blame(rig.scene, units if units.source == 'scene' else None, speed)
+    if not run.ok:   # with the scene values that make the program ill-posed
+        speed = abs(float(rig.at([0.0], outputs=('kinematics',)).crank_speed_rad_s[0]))
+        raise SpatialBalanceError(f'solver: {run.why()}'
+                                  + blame(rig.scene, units if units.source == 'scene' else None,
+                                          speed))
 
 
 def write_scene(result, path):
