@@ -135,12 +135,7 @@ def refine_dual(a, z, r, cols, weight, rot=None):
 
 
 def _movable(cones, frozen=None):
-    """
-    Return the weight of :func:`refine_dual` that moves only the rows free within K*.
-
-    Zero cones and second-order cones' vector parts move (weight 1); a non-negative row, a
-    cone's first entry and the ``frozen`` rows stay (weight inf).
-    """
+    """Return the weight of :func:`refine_dual` that moves only the rows free within K*."""
     total = sum(dim for _, dim in cones)
     movable = np.zeros(total, dtype=bool)
     k = 0
@@ -200,12 +195,7 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
 
 
 def _idle_epigraphs(a, q, cones, z):
-    """
-    Return (z with the dual of every idle second-order cone set to 0, their rows) or Nones.
-
-    A cone is idle when its first row is ``-t`` for one variable t the objective does not
-    weight (q_t = 0): its small dual would cost r_t times t's wide box.
-    """
+    """Return (z with each unweighted epigraph cone's dual set to 0, their rows) or Nones."""
     out = np.array(z, dtype=float)
     frozen = np.zeros(out.size, dtype=bool)
     k = 0
@@ -328,12 +318,7 @@ def level_set_bounds(mat, radius, lo, hi, centre=None, null_rel_tol=None):
 
 
 def polytope_bounds(mat, radius, lo, hi, rel_tol):
-    """
-    Return (lo, hi): every coordinate bounded over ``{lo <= y <= hi, ||mat y|| <= radius}``.
-
-    ``|v_j' y| <= radius / s_j`` for the singular directions above ``rel_tol s_max`` and the
-    box make a polytope; each coordinate's range over it is a linear program (scipy HiGHS).
-    """
+    """Return (lo, hi): each coordinate's range over ``{lo <= y <= hi, ||mat y|| <= radius}``."""
     from scipy.optimize import linprog
     lo = np.array(lo, dtype=float)
     hi = np.array(hi, dtype=float)
@@ -410,13 +395,7 @@ slack."""
 
 
 def _slack_weighted_duals(run, z):
-    """
-    Return the dual points of :data:`REFINE_ROUNDS` rounds of :func:`refine_dual`, weighted.
-
-    Each row weighted by its slack at the solver's point (a PSD block in the eigenbasis of
-    its slack matrix), plus a floor: docs/balancing.md, "Correction of the whole dual".  A
-    heuristic for choosing z only: each point is certified by :func:`_fold_at`.
-    """
+    """Return the dual points of :data:`REFINE_ROUNDS` slack-weighted rounds of refine_dual."""
     a = sp.csr_matrix(run.a).toarray()
     m = a.shape[0]
     s = np.asarray(run.sol.s, dtype=float)
@@ -473,12 +452,7 @@ direction of its range (:func:`_psd_ranges`)."""
 
 
 def _psd_ranges(run):
-    """
-    Return ``{first row: P}``: the projector onto the range every J(y) of a PSD block spans.
-
-    Only rank-deficient blocks (a body on a line): docs/balancing.md, "Compression onto the
-    structural range".
-    """
+    """Return ``{first row: P}``: the projector onto a rank-deficient PSD block's range."""
     cached = getattr(run, 'psd_ranges', None)
     if cached is not None:
         return cached

@@ -125,12 +125,7 @@ def balance_with_counterweights(scene, links, weights=DEFAULT_WEIGHTS, *,
                                 tie_break=True, planes=(), max_rim_radius_factor=None,
                                 clearance_margin_m=clearance_design.DEFAULT_CLEARANCE_MARGIN_M,
                                 disc_side='auto', max_overhang_m=None):
-    """
-    Return the optimal add-only counterweights of ``links`` (a :class:`CounterweightResult`).
-
-    ``links``: names (a sequence or 'a,b').  The options are those of
-    :class:`CounterweightOptions` (SI); see the module docstring for the problem.
-    """
+    """Return the optimal add-only discs on ``links`` ('a,b' or names): a CounterweightResult."""
     return solve(scene, CounterweightOptions(
         links=links, weights=weights, density_kg_m3=density_kg_m3,
         max_thickness_m=max_thickness_m, max_radius_factor=max_radius_factor,
@@ -292,12 +287,7 @@ def _balanced(scene, designs):
 
 
 def cost_of_balancing(original, balanced, table):
-    """
-    Return what a balance did to the shaking moment, torque, bearing loads and total mass.
-
-    ``{quantity: {before, after, change_percent}}`` (SI) from the before/after ``table``
-    (:func:`mech_balance.balancing.tables.before_after`).
-    """
+    """Return ``{quantity: {before, after, change_percent}}`` (SI) of a before/after ``table``."""
     rows = {r['quantity']: r for r in table}
 
     def entry(before, after):

@@ -403,11 +403,7 @@ def add_arguments(parser, keys, types=None):
 
 
 def from_params(values, method):
-    """
-    Return ``balance()``'s keyword arguments for ``method`` from the node's parameter values.
-
-    The per-link ``balance.links.<link>.*_bounds`` join the text ``balance.*_bounds``.
-    """
+    """Return ``balance()``'s keyword arguments for ``method`` from the node's parameters."""
     out = {}
     for opt in OPTIONS:
         if opt.param is None or method not in opt.methods or opt.param not in values:

@@ -124,11 +124,7 @@ def analytic_variants(rig, mass_factors=None, keep_centroidal=False, samples=Non
 
 
 def table12_rows(table12):
-    """
-    Return the rows of seed 001 Table 12's comparison: label, torque, force, moment and z.
-
-    The paper's rows (where it has them), then :func:`mech_balance.balancing.two_point.table12`'s.
-    """
+    """Return the rows of seed 001 Table 12's comparison: label, torque, force, moment and z."""
     w1, w2 = table12.weights
     rows = []
     paper = TABLE12.get(table12.scene)

@@ -182,12 +182,7 @@ def objective_maps(scene, samples, units, torque_weight, reaction_weight):
 
 
 def scene_to_yaml(scene, balance=None):
-    """
-    Return a balanced planar scene as YAML text, ``balance`` (a plain dict) under its key.
-
-    Raises :class:`~mech_balance.balancing.checks.BalanceError` for a link with a negative
-    centroidal inertia (no body has one).
-    """
+    """Return a balanced scene as YAML (``balance`` under its key); BalanceError if I_c < 0."""
     for lk in scene.links:
         if lk.inertia_com_kg_m2 < 0.0:
             raise BalanceError(
@@ -307,7 +302,7 @@ def tie_break_term(w):
     return 1 if w2 == 0.0 else 0
 
 
-class _Program:
+class ConeRows:
     """Rows of ``A x + s = b, s in K`` for Clarabel, built block by block."""
 
     def __init__(self, nx):
@@ -344,12 +339,7 @@ class _Program:
 
 
 def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
-    """
-    Build and solve the SOCP (stage 1, or the tie-break stage 2); return a _Stage.
-
-    The variables are each link's parameters in units of its original link (y = theta /
-    (m^o, m^o l^o, m^o l^o, m^o l^o^2)), which equilibrates links of very different size.
-    """
+    """Build and solve the SOCP (stage 1, or the tie-break stage 2) in link units; a _Stage."""
     n = spec.n
     nv = 4 * n
     t0 = spec.theta0.reshape(-1, 4)
@@ -363,17 +353,16 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
     ir0 = nv + 3
     iu0 = ir0 + len(react)
     nx = iu0 + (n if spec.case == 'b' else 0)
-    prog = _Program(nx)
-    cols = np.arange(nv)
-    prog.norm_cone(it_f, maps.force * dscale, cols)
-    prog.norm_cone(it_n, maps.moment * dscale, cols)
-    primary = np.zeros(nx)
-    primary[[it_f, it_n, it_t]] = spec.w[:3]
+    prog = ConeRows(nx)
+    # (G in y units, epigraph index, weight) per objective term
+    norms = [(maps.force * dscale, it_f, spec.w[0]), (maps.moment * dscale, it_n, spec.w[1])]
     if spec.w[2]:
-        prog.norm_cone(it_t, maps.torque * dscale, cols)
-    for j, mat in enumerate(react):
-        prog.norm_cone(ir0 + j, mat * dscale, cols)
-        primary[ir0 + j] = spec.w[3]
+        norms.append((maps.torque * dscale, it_t, spec.w[2]))
+    norms += [(mat * dscale, ir0 + j, spec.w[3]) for j, mat in enumerate(react)]
+    primary = np.zeros(nx)
+    for g, it, w in norms:
+        prog.norm_cone(it, g, np.arange(nv))
+        primary[it] = w
     for i in range(n):
         im, ix, iy, ii = 4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3
         if spec.fixed[i]:
@@ -381,29 +370,22 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
             a[:, im:im + 4] = np.eye(4)
             prog.add('zero', a, y0[im:im + 4])
             continue
-        rows, rhs = [], []
+        rows = []   # (entries, bound): sum_k entries[k] x_k <= bound
         if np.isfinite(spec.mass_lo[i]):   # seed 001 eq. 46b / 50b
-            rows.append(_row(nx, {im: -1.0}))
-            rhs.append(-spec.mass_lo[i] / m0[i])
+            rows.append(({im: -1.0}, -spec.mass_lo[i] / m0[i]))
         if np.isfinite(spec.mass_hi[i]):
-            rows.append(_row(nx, {im: 1.0}))
-            rhs.append(spec.mass_hi[i] / m0[i])
+            rows.append(({im: 1.0}, spec.mass_hi[i] / m0[i]))
         # eq. 46c / 50c: l_lo <= l <= l_hi  <=>  m l_lo^2 <= I_O <= m l_hi^2
-        rows.append(_row(nx, {im: (spec.dist_lo[i] / l0[i]) ** 2, ii: -1.0}))
-        rhs.append(0.0)
+        rows.append(({im: (spec.dist_lo[i] / l0[i]) ** 2, ii: -1.0}, 0.0))
         if np.isfinite(spec.dist_hi[i]):
-            rows.append(_row(nx, {im: -(spec.dist_hi[i] / l0[i]) ** 2, ii: 1.0}))
-            rhs.append(0.0)
+            rows.append(({im: -(spec.dist_hi[i] / l0[i]) ** 2, ii: 1.0}, 0.0))
         if spec.case == 'b':
             # eq. 50f: m_j >= 0  <=>  u >= -2 Re(h e^(-i theta_j)), u >= 0, u^2 <= m I_O
             iu = iu0 + i
-            rows.append(_row(nx, {iu: -1.0}))
-            rhs.append(0.0)
-            for unit in equimomental.UNIT:
-                rows.append(_row(nx, {ix: -2.0 * unit.real, iy: -2.0 * unit.imag,
-                                      iu: -1.0}))
-                rhs.append(0.0)
-        prog.add('nonneg', rows, rhs)
+            rows.append(({iu: -1.0}, 0.0))
+            rows += [({ix: -2.0 * unit.real, iy: -2.0 * unit.imag, iu: -1.0}, 0.0)
+                     for unit in equimomental.UNIT]
+        prog.add('nonneg', [_row(nx, e) for e, _ in rows], [b for _, b in rows])
         if spec.case == 'b':
             prog.add('soc', [_row(nx, {im: -1.0, ii: -1.0}), _row(nx, {iu0 + i: -2.0}),
                              _row(nx, {im: -1.0, ii: 1.0})], np.zeros(3))
@@ -453,10 +435,6 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
             lo[im + 1:im + 3], hi[im + 1:im + 3] = -reach, reach
         if spec.case == 'b':
             lo[iu0 + i], hi[iu0 + i] = 0.0, reach
-    norms = [(maps.force * dscale, it_f, spec.w[0]), (maps.moment * dscale, it_n, spec.w[1])]
-    if spec.w[2]:
-        norms.append((maps.torque * dscale, it_t, spec.w[2]))
-    norms += [(mat * dscale, ir0 + j, spec.w[3]) for j, mat in enumerate(react)]
     return _Stage(x[:nv] * dscale, float(q @ x), run, lo=lo, hi=hi, norms=norms,
                   dscale=dscale, free_h=spec.case == 'a' and not spec.realizable,
                   radius_scale=None if secondary is None or exact_force else
@@ -464,12 +442,7 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
 
 
 def _certify(stage, level, centre_theta=None):
-    """
-    Return (bound, null directions assumed): the safe lower bound of a stage's program.
-
-    ``level`` bounds the weighted objective at some optimal point (a feasible design's z, or
-    a tie-break's cap), which bounds the free coordinates (:func:`.certificate.level_set_bounds`).
-    """
+    """Return (safe lower bound, null directions assumed) with the objective <= ``level``."""
     lo, hi = stage.lo.copy(), stage.hi.copy()
     nv = stage.point.size
     weighted = [(g, w) for g, _, w in stage.norms if w > 0.0]
@@ -496,12 +469,7 @@ def _certify(stage, level, centre_theta=None):
 
 
 def _tie_break_bound(stage, exact):
-    """
-    Return the safe lower bound of a tie-break stage, never above its solver objective.
-
-    Its level is the primary objective's cap (``radius_scale``), or 0 with the exact force
-    balance (no null direction assumed).
-    """
+    """Return the safe lower bound of a tie-break stage, never above its solver objective."""
     level = stage.radius_scale if stage.radius_scale is not None else \
         (0.0 if exact else math.inf)
     bound, _ = _certify(stage, level)
@@ -553,12 +521,7 @@ def _violation(theta, spec):
 
 
 def _repaired(theta, spec):
-    """
-    Return ``theta`` with each link moved onto its bounds by the least local change.
-
-    The mass clipped (the added-mass cap taken off), I_O clipped, the first moment shrunk into
-    the realizability cone: the round-off violations at active constraints.
-    """
+    """Return ``theta`` with each link moved onto its bounds by the least local change."""
     t = np.array(theta, dtype=float).reshape(-1, 4)
     free = [i for i in range(spec.n) if not spec.fixed[i]]
     for i in free:
@@ -608,11 +571,7 @@ def _anchor(spec):
 
 
 def pull_inside(x, violation, repair, anchor):
-    """
-    Return (x, pull): ``x`` if feasible, else ``repair(x)``, else moved towards ``anchor()``.
-
-    The first fraction of :data:`PULL_STEPS` whose convex combination has ``violation`` <= 0.
-    """
+    """Return (x, pull): ``x`` if feasible, else repaired, else pulled towards ``anchor()``."""
     if violation(x) <= 0.0:
         return x, 0.0
     x = repair(x)
@@ -640,5 +599,6 @@ def _scene_from_theta(scene, theta, units, case):
     return scene.with_links(links, name=f'{scene.name}_balanced')
 
 
-__all__ = ['BalanceResult', 'FORCE_BALANCE_REL_TOL', 'objective_maps', 'optimize', 'pull_inside',
-           'PULL_STEPS', 'scene_to_yaml', 'TIE_BREAK_SLACK', 'tie_break_report', 'tie_break_term']
+__all__ = ['BalanceResult', 'ConeRows', 'FORCE_BALANCE_REL_TOL', 'objective_maps', 'optimize',
+           'pull_inside', 'PULL_STEPS', 'scene_to_yaml', 'TIE_BREAK_SLACK', 'tie_break_report',
+           'tie_break_term']

@@ -39,11 +39,7 @@ class LinkDesign:
 
 
 def link_design(link, counterweights=False, units=None):
-    """
-    Return the :class:`LinkDesign` of a scene link (three point masses, l = sqrt(I_O/m)).
-
-    ``counterweights`` also requires non-negative point masses for realizability (case b).
-    """
+    """Return the :class:`LinkDesign` of a link (``counterweights``: point masses >= 0 needed)."""
     m = float(link.mass_kg)
     h = complex(*link.first_moment_kg_m)
     i_o = float(link.inertia_origin_kg_m2)

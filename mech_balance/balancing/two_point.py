@@ -14,10 +14,10 @@ import itertools
 import math
 import time
 
-import clarabel
 from mech_balance import conic, schema
 from mech_balance.analysis import linear_maps
 from mech_balance.balancing import certificate, checks, conditioning
+from mech_balance.balancing.redistribution import ConeRows
 import numpy as np
 
 PAPER_MASS_FACTORS = (1.0, 5.0)
@@ -154,12 +154,7 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
 
 
 def _clipped(t, m0, i0, solver_tol):
-    """
-    Return the upper design moved into the bounds B.2-B.3 exactly, and its tolerance.
-
-    Clipped where that keeps every link representable (tolerance: a few ulp), else as the
-    solver left it (tolerance: the solver's).
-    """
+    """Return the upper design moved into the bounds B.2-B.3 where it stays representable, tol."""
     c = t.copy()
     c[:, 0] = np.clip(c[:, 0], PAPER_MASS_FACTORS[0] * m0, PAPER_MASS_FACTORS[1] * m0)
     c[:, 3] = np.maximum(c[:, 3], PAPER_INERTIA_FACTOR * i0)
@@ -175,12 +170,7 @@ def _rebuild(p):
 
 
 def _repaired(pm, m0, i0):
-    """
-    Return point masses whose rebuilt parameters meet B.2-B.3 exactly, and those parameters.
-
-    Both distances scaled up, or both masses scaled into the bounds, by a few ulp: solving
-    for the point masses cancels digits.
-    """
+    """Return point masses whose rebuilt parameters meet B.2-B.3 exactly, and those parameters."""
     margin = 1.0 + 8.0 * np.finfo(float).eps
     out, rebuilt = {}, []
     for (name, p), mo, io in zip(pm.items(), m0, i0):
@@ -230,11 +220,7 @@ def _program(maps, dsc, w, n, pieces, theta_at):
     """Solve B.1-B.3 with each link in its piece ('free': the relaxation); return a dict."""
     nv = 4 * n
     nx = nv + 2 + n
-    blocks = []
-
-    def add(cone, a, b):
-        blocks.append((cone, np.atleast_2d(a), np.asarray(b, dtype=float).ravel()))
-
+    prog = ConeRows(nx)
     rows, rhs = [], []
 
     def at_most(entries, value):
@@ -263,24 +249,19 @@ def _program(maps, dsc, w, n, pieces, theta_at):
             at_most({ib: -sb, id_: sd, 4 * i: 0.5 / a_, 4 * i + 3: 0.5 * a_}, 0.0)
             for idx, s in ((ib, sb), (id_, sd)):
                 at_most({idx: -s}, 0.0)
-    add(clarabel.NonnegativeConeT, rows, rhs)
+    prog.add('nonneg', rows, rhs)
     for i in range(n):
         if pieces[i] == 'P':
             a = np.zeros((3, nx))
             a[0, [4 * i, 4 * i + 3]] = -1.0
             a[1, nv + 2 + i] = -2.0
             a[2, [4 * i, 4 * i + 3]] = (-1.0, 1.0)
-            add(clarabel.SecondOrderConeT, a, np.zeros(3))
+            prog.add('soc', a, np.zeros(3))
     for k, mat in enumerate((maps.force, maps.moment)):
-        a = np.zeros((1 + mat.shape[0], nx))
-        a[0, nv + k] = -1.0
-        a[1:, :nv] = -mat * dsc
-        add(clarabel.SecondOrderConeT, a, np.zeros(a.shape[0]))
+        prog.norm_cone(nv + k, mat * dsc, np.arange(nv))
     q = np.zeros(nx)
     q[nv:nv + 2] = w
-    run = conic.run_solver(q, np.vstack([b[1] for b in blocks]),
-                           np.concatenate([b[2] for b in blocks]),
-                           [b[0](b[1].shape[0]) for b in blocks])
+    run = prog.solve(q)
     status = run.status
     if not run.ok:
         raise checks.BalanceError(f'two-point model: {run.why()}')
@@ -292,9 +273,7 @@ def _program(maps, dsc, w, n, pieces, theta_at):
         # the relaxation's constraints are bounds only: clip the design into them exactly
         # (a feasible design), then the safe lower bound (certificate.safe_lower_bound)
         y = y.copy()
-        ym = y[0::4]
-        np.clip(ym, PAPER_MASS_FACTORS[0], PAPER_MASS_FACTORS[1], out=ym)
-        y[0::4] = ym
+        y[0::4] = np.clip(y[0::4], PAPER_MASS_FACTORS[0], PAPER_MASS_FACTORS[1])
         y[3::4] = np.maximum(y[3::4], PAPER_INERTIA_FACTOR)
         out['feasibility_tol'] = 0.0
     theta = y * dsc
@@ -306,12 +285,7 @@ def _program(maps, dsc, w, n, pieces, theta_at):
 
 
 def _relaxation_bound(run, maps, dsc, w, n, y, level):
-    """
-    Return the safe lower bound (:mod:`.certificate`) of the relaxation B.1-B.3.
-
-    Box: the bounds B.2-B.3; a coordinate that enters no term at the design's value; the
-    rest from the level set ``w1 f~ + w2 n~ <= level`` (:func:`.certificate.polytope_bounds`).
-    """
+    """Return the safe lower bound (:mod:`.certificate`) of the relaxation B.1-B.3."""
     nv = 4 * n
     nx = run.q.size
     lo, hi = np.full(nx, -np.inf), np.full(nx, np.inf)

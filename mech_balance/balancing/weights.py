@@ -11,6 +11,7 @@ those products (eqs. 96-103).  docs/balancing.md, "Hedaya: balancing weights".
 """
 
 from dataclasses import dataclass, replace
+import itertools
 import math
 import time
 
@@ -81,11 +82,7 @@ def pivots_of(rig):
 
 
 def pivot_quantities(theta_k, pivot):
-    """
-    Return ``(m, g, sigma)`` of a body about its pivot in its axes (u, v, w).
-
-    ``g`` the first moment (3,), ``sigma`` the second moments ``int r r^T dm`` (3, 3).
-    """
+    """Return ``(m, g (3,), sigma = int r r^T dm (3, 3))`` about the pivot in its axes."""
     m = float(theta_k[0])
     h = np.asarray(theta_k[1:4], dtype=float)
     i_o = regressor.inertia_matrix(theta_k[4:10])
@@ -130,11 +127,6 @@ def pivot_fill(m, g, i_ww, p_wu, p_vw, where):
     s[1, 2] = s[2, 1] = p_vw
     s[2, 2] += float(b @ b) / (0.5 * spread) if spread > 0.0 else 0.0
     return s
-
-
-def _regressor(rig, psi):
-    """Return the shaking wrench regressor (n, 6, 10 nb) over ``psi`` (SI)."""
-    return regressor.wrench_regressor(rig.body_kinematics(psi), rig.moment_point_m)
 
 
 @dataclass
@@ -206,21 +198,14 @@ def balance_weights(rig, samples=None):
     pivots = pivots_of(rig)
     model = spatial_model.parameter_model(rig)
     psi = spatial_model.cycle_of(rig, samples)
-    y = _regressor(rig, psi)
+    y = regressor.wrench_regressor(rig.body_kinematics(psi), rig.moment_point_m)   # (n, 6, 10 nb)
     n = psi.size
     force = y[:, :3].reshape(3 * n, -1)
     moment = y[:, 3:].reshape(3 * n, -1)
 
     # 1. force balance: the radial first moments (u, v) of each weight about its pivot
     nb = len(model.bodies)
-    cols = []
-    for pv in pivots:
-        for j in range(2):
-            col = np.zeros(10 * nb)
-            col[10 * pv.index:10 * pv.index + 10] = pivot_theta(0.0, np.eye(3)[j],
-                                                                np.zeros((3, 3)), pv)
-            cols.append(col)
-    design = force @ np.column_stack(cols)
+    design = force @ _columns(pivots, nb, [(np.eye(3)[j], np.zeros((3, 3))) for j in range(2)])
     target = -force @ model.theta
     g_radial = np.linalg.lstsq(design, target, rcond=None)[0].reshape(-1, 2)
     before = float(np.linalg.norm(target))
@@ -253,15 +238,12 @@ def balance_weights(rig, samples=None):
     theta_fb = _fold(rig, model, pivots, weights, 'balancing_weights')
 
     # 2. least RMS shaking moment over the products of each weighted link (eqs. 89-95)
-    jcols = []
-    for pv in pivots:
-        for a, b in ((0, 2), (1, 2)):          # (u, w), (v, w)
-            ds = np.zeros((3, 3))
-            ds[a, b] = ds[b, a] = 1.0
-            col = np.zeros(10 * nb)
-            col[10 * pv.index:10 * pv.index + 10] = pivot_theta(0.0, np.zeros(3), ds, pv)
-            jcols.append(col)
-    jmap = moment @ np.column_stack(jcols)
+    unit_products = []
+    for a in (0, 1):                        # (u, w), (v, w)
+        ds = np.zeros((3, 3))
+        ds[a, 2] = ds[2, a] = 1.0
+        unit_products.append((np.zeros(3), ds))
+    jmap = moment @ _columns(pivots, nb, unit_products)
     rest = -moment @ theta_fb
     dj, _, rank, _ = np.linalg.lstsq(jmap, rest, rcond=None)
     resid = jmap @ dj - rest
@@ -292,12 +274,16 @@ def balance_weights(rig, samples=None):
         solve_time_s=time.perf_counter() - start)
 
 
-def end_faces(weight):
-    """
-    Return ``(alpha, gamma)`` (rad) of a cylinder weight with its designed products.
+def _columns(pivots, nb, moments):
+    """Return (10 nb, len(pivots) len(moments)): theta of each ``(g, sigma)`` about each pivot."""
+    out = np.zeros((10 * nb, len(pivots) * len(moments)))
+    for k, (pv, (g, sigma)) in enumerate(itertools.product(pivots, moments)):
+        out[10 * pv.index:10 * pv.index + 10, k] = pivot_theta(0.0, g, sigma, pv)
+    return out
 
-    seed 002, eqs. 96-103, reconstructed (docs/balancing.md, "Hedaya's end faces").
-    """
+
+def end_faces(weight):
+    """Return ``(alpha, gamma)`` (rad) of a cylinder weight's end faces (seed 002 eqs. 96-103)."""
     ub, vb, wb = weight.centre_uvw_m
     m, r = weight.mass_kg, weight.radius_m
     iwu_c = weight.product_wu_kg_m2 - m * wb * ub                           # eq. 96

@@ -74,12 +74,7 @@ class RealizableChecks:
 
     @staticmethod
     def _line_anchor(body, m, r2, near, k):
-        """
-        Return y = (m, mu1, mu2) of a body on a line strictly inside its bounds.
-
-        mu2 = mu1^2 / m + half the room the extent bound leaves; mu1 the design's (``near``),
-        halved until there is room.
-        """
+        """Return y = (m, mu1, mu2) of a body on a line strictly inside its bounds."""
         def spread(y):
             """Return tr(Sigma) of the coordinates y."""
             t = body.basis @ y

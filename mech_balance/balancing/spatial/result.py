@@ -123,12 +123,7 @@ def body_rows(model, theta):
 
 
 def before_after(rig, balanced, samples, units, data=None):
-    """
-    Return the before/after rows of RMS shaking force, moment and driving effort.
-
-    The planar rows' shape (:func:`mech_balance.balancing.tables.before_after`); the driving
-    effort is the rig's :attr:`~mech_balance.core.rig.Rig.driving_series`.
-    """
+    """Return the before/after rows of RMS shaking force, moment and driving effort."""
     if data is None:
         psi = cycle_of(rig, samples)
         rig2 = rig.with_scene(balanced)
@@ -186,12 +181,7 @@ def check_run(run, rig, units):
 
 
 def write_scene(result, path):
-    """
-    Write the balanced scene to ``path`` atomically and return it reloaded.
-
-    The provenance goes under the scene's ``balance`` key where the loader accepts one, else
-    into a comment header.
-    """
+    """Write the balanced scene and its provenance to ``path`` atomically; return it reloaded."""
     from mech_balance import atomic
     import yaml
     provenance = result.summary()

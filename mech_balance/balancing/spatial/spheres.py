@@ -177,11 +177,7 @@ def _repaired_counterweight(dm, dh, sigma, s, k_sphere, mass_hi, radius2):
 
 
 def hollow_sphere(mass_kg, spread_kg_m2, density_kg_m3):
-    """
-    Return (outer, inner) radii, m, of a hollow sphere of the mass and spread int(x^2 dm).
-
-    m = rho 4/3 pi (R^3 - r^3) and int(x^2 dm) = rho 4/15 pi (R^5 - r^5) (r = 0: solid).
-    """
+    """Return (outer, inner) radii, m, of a hollow sphere of the mass and spread int(x^2 dm)."""
     from scipy.optimize import brentq
     a = 3.0 * mass_kg / (4.0 * math.pi * density_kg_m3)
     b = 15.0 * spread_kg_m2 / (4.0 * math.pi * density_kg_m3)
