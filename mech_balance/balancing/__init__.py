@@ -53,13 +53,15 @@ PLANAR_DEFAULTS = {'case': 'a', 'realizable': True, 'paper_constraints': False,
 node passes every option); any other value is refused, naming the option."""
 
 
-def _table_figures(table, certificate):
-    """Return :attr:`Design.figures` from before/after rows (``before_si``, ``after_si``)."""
-    rows = {r['quantity'].split()[1]: r for r in table
+def _design(result, method, certificate, report=None):
+    """Return the :class:`Design` of a result with a before/after table (``certificate``: text)."""
+    rows = {r['quantity'].split()[1]: r for r in result.table
             if r['quantity'].startswith('shaking ')}
-    return {'force_N': (rows['force']['before_si'], rows['force']['after_si']),
-            'moment_Nm': (rows['moment']['before_si'], rows['moment']['after_si']),
-            'certificate': certificate}
+    return Design(result.balanced_scene, result.to_dict() if report is None else report, method,
+                  result, {'force_N': (rows['force']['before_si'], rows['force']['after_si']),
+                           'moment_Nm': (rows['moment']['before_si'],
+                                         rows['moment']['after_si']),
+                           'certificate': certificate})
 
 
 LINK_OPTIONS = ('mass_bounds', 'distance_bounds')
@@ -154,15 +156,12 @@ def _spatial(rig, method, options):
         ratio = result.force_rms_N[1] / max(result.force_rms_N[0], 1e-300)
         unbuilt = '' if result.realizable else \
             f', NOT realizable ({", ".join(result.unrealizable)})'
-        return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
-            result.table, f'null space (rank {result.rank}), RMS shaking force after/before '
-                          f'{ratio:.1e}{unbuilt}'))
+        return _design(result, method, f'null space (rank {result.rank}), RMS shaking force '
+                                       f'after/before {ratio:.1e}{unbuilt}')
     if method == 'redistribution':
         result = spatial.redistribute(rig, **options)
     else:
-        options = dict(options)
-        links = options.pop('links', ())
-        result = spatial.counterweights(rig, links, **options)
+        result = spatial.counterweights(rig, options.pop('links', ()), **options)
     cert = result.certificate
     # shorter than _certificate_text: a spatial optimum is often ~0 (e-notation on both sides)
     text = (f'{cert.status}, {"certified" if cert.certified else "NOT certified"}, '
@@ -171,18 +170,11 @@ def _spatial(rig, method, options):
     if method == 'counterweights':   # the spheres clear of every body (sphere_clearance)
         from mech_balance.balancing import sphere_clearance
         result, entries = sphere_clearance.design(rig, result, options.get('samples'), margin)
-    report = dict(result.to_dict(), **entries)
-    return Design(result.balanced_scene, report, method, result,
-                  _table_figures(result.table, text))
+    return _design(result, method, text, dict(result.to_dict(), **entries))
 
 
 def balance(rig, method='auto', **options):
-    """
-    Balance a rig (or scene) and return its :class:`Design` (module docstring: methods).
-
-    ``options`` are the method's (:func:`~.redistribution.optimize`,
-    :func:`~.counterweights.balance_with_counterweights`, ...).
-    """
+    """Balance a rig (or scene) by ``method`` with its ``options``; return its :class:`Design`."""
     from mech_balance.core.rig import as_rig
     rig = as_rig(rig)
     method = method_for(rig, method)
@@ -200,19 +192,16 @@ def balance(rig, method='auto', **options):
                 sc, result.balanced_scene)
         report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
                                                           result.table)
-        return Design(result.balanced_scene, report, method, result, _table_figures(
-            result.table, _certificate_text(result.certificate)))
+        return _design(result, method, _certificate_text(result.certificate), report)
     if method == 'counterweights':
         from mech_balance.balancing import clearance_design, counterweights
-        options = dict(options)
-        links = options.pop('links', ())
-        result = counterweights.balance_with_counterweights(sc, links, **options)
+        result = counterweights.balance_with_counterweights(sc, options.pop('links', ()),
+                                                            **options)
         if not result.answered:   # never a colliding design as the answer
             raise clearance_design.NoClearDesign(
                 '; '.join(result.clearance_design.lines()), result)
         # the price of clearance and the least clearance: in the report (clearance_design)
-        return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
-            result.table, _certificate_text(result.certificate)))
+        return _design(result, method, _certificate_text(result.certificate))
     if method == 'analytic':
         from mech_balance.balancing import analytic, counterweights
         if any(j.prismatic for j in sc.joints):
@@ -222,9 +211,8 @@ def balance(rig, method='auto', **options):
         report = result.to_dict()
         report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
                                                           result.table)
-        return Design(result.balanced_scene, report, method, result, _table_figures(
-            result.table, f'closed form, RMS shaking force after/before '
-                          f'{result.force_rms_ratio:.1e}'))
+        return _design(result, method, 'closed form, RMS shaking force after/before '
+                                       f'{result.force_rms_ratio:.1e}', report)
     from mech_balance.balancing import weights
     unknown = sorted(set(options) - {'samples'})
     if unknown:

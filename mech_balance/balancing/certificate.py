@@ -6,11 +6,9 @@ any z in the dual cone K* and a box ``lo <= x <= hi`` that holds an optimal poin
 
     L = -b'z + sum_i min(r_i lo_i, r_i hi_i)  <=  min q'x,     r = q + A'z        (1)
 
-evaluated with its floating-point rounding subtracted (:func:`safe_lower_bound`); the
-solver's z is projected onto K* first and need not be optimal.  PSD and power-cone blocks
-(the spatial programs) are folded into the objective (:func:`folded_lower_bound`).  The
-derivation, the refinements of z and the measured gaps: docs/balancing.md, "Certificates
-(safe lower bounds)".  :class:`Certificate` is what every balancing result reports.
+evaluated with its rounding subtracted (:func:`safe_lower_bound`; PSD and power cones:
+:func:`folded_lower_bound`).  The derivation and the measured gaps: docs/balancing.md,
+"Certificates (safe lower bounds)".
 """
 
 from dataclasses import dataclass, field
@@ -233,11 +231,7 @@ def _bound(q, a, b, cones, z, lo, hi, abs_a):
     dual_obj = -float(b @ zp)
     r = q + a.T @ zp
     with np.errstate(invalid='ignore'):
-        t_lo = r * lo
-        t_hi = r * hi
-    t_lo = np.where(r == 0.0, 0.0, t_lo)
-    t_hi = np.where(r == 0.0, 0.0, t_hi)
-    terms = np.minimum(t_lo, t_hi)
+        terms = np.where(r == 0.0, 0.0, np.minimum(r * lo, r * hi))
     bad = tuple(int(i) for i in np.flatnonzero(~np.isfinite(terms)))
     shift = float(np.max(np.abs(zp - z_raw), initial=0.0))
     if bad:

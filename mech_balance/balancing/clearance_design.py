@@ -1,14 +1,10 @@
 """
 Collision-free counterweights: the certified convex optimum moved into layers of its own.
 
-The counterweight program (:mod:`mech_balance.balancing.counterweights`) is convex in each
-disc's mass, first moment and inertia, not in where the discs lie along z or in the
-clearance over the cycle.  So :func:`design` takes the convex optimum and its safe lower
-bound ``z_lb``, puts each disc in a layer of its own beyond the linkage (every arrangement of
-sides and orders up to :data:`MAX_ENUMERATED` discs), and where none is clear searches the
-discs in the plane (SLSQP) with the clearance as constraints.  ``z - z_lb`` is the price of
-clearance; where no design is clear the report says why (docs/build.md, "Collision-free by
-default").
+:func:`design` puts each disc of the convex optimum in a layer of its own beyond the linkage
+and, where no arrangement is clear, searches the discs in the plane (SLSQP) with the
+clearance as constraints; ``z - z_lb`` is the price of clearance (docs/build.md,
+"Collision-free by default").
 """
 
 from dataclasses import dataclass, field, replace
@@ -119,6 +115,19 @@ class ClearanceReport:
         return out
 
 
+def with_discs(scene, designs, name=None):
+    """Return ``scene`` with the disc of each design added to its link."""
+    by = {d.link: d for d in designs}
+    return scene.with_links([lk if lk.name not in by else
+                             add_counterweights(lk, [by[lk.name].counterweight()])
+                             for lk in scene.links], name=name)
+
+
+def least_pair(clear):
+    """Return the two bodies of a clearance check's least pair (() when none)."""
+    return () if clear.least is None else (clear.least.body_a, clear.least.body_b)
+
+
 def check_margin(value, name='clearance_margin_m'):
     """Return a margin (m) in [0, MAX_CLEARANCE_MARGIN_M], or None (the design off)."""
     if value is None:
@@ -157,10 +166,8 @@ class _Search:
         self._mounts = {}
 
     def scene_of(self, designs):
-        by = {d.link: d for d in designs}
-        return self.scene.with_links(
-            [lk if lk.name not in by else add_counterweights(lk, [by[lk.name].counterweight()])
-             for lk in self.scene.links])
+        """Return the scene with the discs of ``designs``."""
+        return with_discs(self.scene, designs)
 
     def gaps(self, designs):
         """Return (least sampled clearance per pair, body list, pairs) of a design."""
@@ -397,7 +404,7 @@ def _final(search, report, designs):
     clear = clearance_mod.clearance(search.rig.with_scene(search.scene_of(designs)),
                                     search.prob.opt.samples, search.margin, search.sweep)
     report.least_clearance_m = clear.least_clearance_m
-    report.least_pair = () if clear.least is None else (clear.least.body_a, clear.least.body_b)
+    report.least_pair = least_pair(clear)
     report.layers = []
     for d in designs:
         z = search.layers.z_m(d.link) + d.plane_m

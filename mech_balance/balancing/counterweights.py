@@ -23,7 +23,6 @@ from mech_balance.balancing.defaults import (
     DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR,
     DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_MAX_THICKNESS_M, DEFAULT_WEIGHTS)
 from mech_balance.core.planar import dynamics, rig as planar_rig
-from mech_balance.schema.scene import add_counterweights
 import numpy as np
 
 __all__ = ['balance_with_counterweights', 'cost_of_balancing', 'CounterweightDesign',
@@ -220,9 +219,9 @@ def solve(scene, options):
     designs, omitted, worst = prob.discs(y)
     y, pull = prob.feasible(y)
     designs, omitted, final_violation = prob.discs(y)
-    balanced = _balanced(scene, designs)
-    theta = dynamics.parameter_vector(dynamics.Inertia.from_links(balanced.links)) / prob.scale
-    terms = maps.terms(theta)
+    balanced = clearance_design.with_discs(scene, designs, f'{scene.name}_counterweights')
+    terms = maps.terms(dynamics.parameter_vector(
+        dynamics.Inertia.from_links(balanced.links)) / prob.scale)
     w = prob.weights4
     primal = float(np.dot(w, terms))
     s2 = None
@@ -234,7 +233,6 @@ def solve(scene, options):
             min(prob.lower_bound(stage2, None).value, stage2.objective), exact)
     cert = certificate.certify(stage1, primal, prob.lower_bound(stage1, primal), worst, pull,
                                failed, final_violation, s2, null_directions_assumed=0)
-    lower = cert.lower_bound
     least = None
     if stage3 is not None:
         mass = sum(d.mass_kg for d in designs) / units.mass_kg
@@ -246,9 +244,9 @@ def solve(scene, options):
     report = None
     if opt.clearance_margin_m is not None:   # the convex optimum made collision-free
         designs, report = clearance_design.design(
-            scene, prob, designs, lower, opt.clearance_margin_m, opt.disc_side,
+            scene, prob, designs, cert.lower_bound, opt.clearance_margin_m, opt.disc_side,
             opt.max_overhang_m, fixed_planes=bool(opt.planes))
-        balanced = _balanced(scene, designs)
+        balanced = clearance_design.with_discs(scene, designs, f'{scene.name}_counterweights')
         terms = maps.terms(dynamics.parameter_vector(
             dynamics.Inertia.from_links(balanced.links)) / prob.scale)
     clear = clearance_mod.of_design(scene, balanced, opt.samples,
@@ -276,14 +274,6 @@ def solve(scene, options):
         cost=cost_of_balancing(scene, balanced, table), maps_time_s=maps_s,
         conic_time_s=conic_s, solve_time_s=time.perf_counter() - t_start, clearance=clear,
         clearance_design=report)
-
-
-def _balanced(scene, designs):
-    """Return the scene with the discs of ``designs`` added to their links."""
-    by_link = {d.link: d for d in designs}
-    return scene.with_links([lk if lk.name not in by_link else
-                             add_counterweights(lk, [by_link[lk.name].counterweight()])
-                             for lk in scene.links], name=f'{scene.name}_counterweights')
 
 
 def cost_of_balancing(original, balanced, table):

@@ -334,27 +334,21 @@ OPTIONS = (
            param_default=0.0, to_option=_none_if_zero, cli={'metavar': 'M'},
            flag_help="--counterweights: a disc's outer face at most M beyond its link's "
                      "plane (m; default: no bound but the scene's plane_m limit)"),
+    # the options without a node parameter: their description is the flag's help
     Option('extent_factor', None, '--extent-factor', DOUBLE, 1.5,
-           "Spatial redistribution: RMS distance of each body's mass from its origin at most "
-           'this factor times its reach (farthest drawn point).', methods=REDISTRIBUTION,
-           bounds=defaults.EXTENT_FACTOR_RANGE, cli={'metavar': 'F'},
-           flag_help="spatial redistribution: RMS distance of each body's mass from its origin at "
-                     'most F x its reach (farthest drawn point); range '
-                     f'{defaults.EXTENT_FACTOR_RANGE[0]:g} to '
-                     f'{defaults.EXTENT_FACTOR_RANGE[1]:g}'),
+           "spatial redistribution: RMS distance of each body's mass from its origin at most F x "
+           f'its reach (farthest drawn point); range {defaults.EXTENT_FACTOR_RANGE[0]:g} to '
+           f'{defaults.EXTENT_FACTOR_RANGE[1]:g}', methods=REDISTRIBUTION,
+           bounds=defaults.EXTENT_FACTOR_RANGE, cli={'metavar': 'F'}),
     Option('planes', None, '--planes', STRING, '',
-           "Counterweights: a disc's plane, its mid-plane's offset along z from its link's plane "
-           'in m.', methods=COUNTERWEIGHTS, cli={'metavar': 'LINK=Z[,LINK=Z...]'},
-           flag_help="--counterweights: a disc's plane, its mid-plane's offset along z from "
-                     "its link's plane in m (default: each link's own plane, 0); bodies whose "
-                     'slabs along z overlap share a plane and are checked for clearance over '
-                     'the cycle'),
+           "--counterweights: a disc's plane, its mid-plane's offset along z from its link's "
+           "plane in m (default: each link's own plane, 0); bodies whose slabs along z overlap "
+           'share a plane and are checked for clearance over the cycle', methods=COUNTERWEIGHTS,
+           cli={'metavar': 'LINK=Z[,LINK=Z...]'}),
     Option('max_rim_radius_factor', None, '--max-rim-radius-factor', DOUBLE, None,
-           "Counterweights: the whole disc inside this factor times the link's joint reach of "
-           "the link's origin.", methods=COUNTERWEIGHTS, cli={'metavar': 'F'},
-           flag_help="--counterweights: the whole disc inside F x the link's joint reach of "
-                     "the link's origin (a convex constraint of the program; default: no "
-                     'bound)' + _range_text('max_rim_radius_factor')),
+           "--counterweights: the whole disc inside F x the link's joint reach of the link's "
+           'origin (a convex constraint of the program; default: no bound)'
+           + _range_text('max_rim_radius_factor'), methods=COUNTERWEIGHTS, cli={'metavar': 'F'}),
     Option('force_balanced', None, '--force-balanced', BOOL, False,
            'Spatial redistribution: impose complete force balance (falls back to the least '
            'RMS shaking force, with a note, when impossible).', methods=REDISTRIBUTION,

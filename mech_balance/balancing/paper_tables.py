@@ -1,9 +1,7 @@
 """
 Seed 001's printed tables that the code compares itself with (data, normalized units).
 
-The ``balance`` verb prints its optima next to these numbers (:func:`compare_optimum`) and
-its analytic designs for the papers' variants (:func:`analytic_variants`); the tests use the
-same design vectors as inputs, the expected results stay in the tests.  Damaged entries of the
+``balance`` prints its optima next to them (:func:`compare_optimum`); damaged entries of the
 extracted text are reconstructed where noted.
 """
 
@@ -72,8 +70,7 @@ def compare_optimum(result):
     """
     Return how a redistribution optimum compares with seed 001's, or None where none applies.
 
-    Hoeken (Tables 5, 7) or the carpet scraper (case a: Tables 9, 10) at a paper weighting:
-    the table's label, ``f``, ``n``, ``z_paper``, this ``z``, the change in percent,
+    The table's label, ``f``, ``n``, ``z_paper``, this ``z``, the change in percent,
     ``paper_constraints`` and ``unrealizable`` (links of the paper's design that are no body).
     """
     k = weight_case(result.weights)
@@ -106,12 +103,7 @@ def compare_optimum(result):
 
 
 def analytic_variants(rig, mass_factors=None, keep_centroidal=False, samples=None):
-    """
-    Return the :class:`~mech_balance.balancing.result.Design` of each analytic variant.
-
-    A slider-crank: seed 000's balance and eq. 75 as printed; a four-bar: eq. 48 for each
-    mass factor (default :data:`TABLE3_MASS_FACTORS`).
-    """
+    """Return the Design of each analytic variant (a four-bar: per :data:`TABLE3_MASS_FACTORS`)."""
     from mech_balance import balancing
     from mech_balance.core.rig import as_rig
     rig = as_rig(rig)

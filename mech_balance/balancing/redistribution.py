@@ -47,15 +47,11 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     Return the globally optimal mass distribution of a planar scene (a :class:`BalanceResult`).
 
     Minimizes ``z = w1 f~ + w2 n~ [+ torque_weight tau~ + reaction_weight sum_j f~_j]`` over
-    every moving link's mass, mass centre and inertia (``fixed_links`` keep theirs).
-    ``mass_bounds`` ``{link: (min_kg, max_kg)}`` and ``distance_bounds`` ``{link: (min_m,
-    max_m or None)}`` on l = sqrt(I_O/m) default to ``mass_factors`` / ``distance_factors``
-    times the original; ``case`` 'a' (point masses of any sign) or 'b' (non-negative);
-    ``realizable``: centroidal inertia >= ``centroidal_margin`` I_O; ``max_added_mass_kg``
-    caps the added mass.  ``paper_constraints`` solves seed 001 eqs. 50/53 exactly and
-    refuses the options the paper lacks.  With exactly one of w1, w2 zero, ``tie_break``
-    returns the optimal design with the least RMS of the other (docs/balancing.md, "Mass
-    redistribution").  Raises :class:`~.checks.BalanceError` naming a bad option.
+    the links' mass, mass centre and inertia.  ``mass_bounds`` ``{link: (min_kg, max_kg)}``,
+    ``distance_bounds`` ``{link: (min_m, max_m or None)}`` (defaults: the factors x the
+    original); ``case`` 'a' or 'b' (point masses >= 0); ``paper_constraints``: seed 001 eqs.
+    50/53 exactly (docs/balancing.md, "Mass redistribution").  Raises
+    :class:`~.checks.BalanceError` naming a bad option.
     """
     t_start = time.perf_counter()
     w1, w2 = check_weights(weights)

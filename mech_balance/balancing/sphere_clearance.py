@@ -1,14 +1,10 @@
 """
 Collision-free sphere counterweights of spatial rigs: the convex optimum, then a local search.
 
-The spatial counterweight program (:func:`mech_balance.balancing.spatial.counterweights`) is
-convex, the clearance of its spheres over the cycle is not.  :func:`design` checks the
-certified optimum's spheres against every body (:mod:`mech_balance.analysis.spatial_clearance`)
-and, where they come closer than the margin, searches the spheres' centres and masses
-(SLSQP, from several starts) with the sampled clearance as constraints within the convex
-program's bounds, so ``z - z_lb`` is the price of clearance; the design found is checked
-again at :data:`VERIFY_ANGLES` crank angles.  Where none is clear, :class:`NoClearDesign`
-says why (docs/build.md, "Spatial rigs: sphere counterweights").
+:func:`design` checks the certified spheres against every body
+(:mod:`mech_balance.analysis.spatial_clearance`) and, where they come closer than the margin,
+searches their centres and masses (SLSQP) within the convex program's bounds; ``z - z_lb`` is
+the price of clearance (docs/build.md, "Spatial rigs: sphere counterweights").
 """
 
 from dataclasses import dataclass, replace
@@ -17,11 +13,11 @@ import math
 from mech_balance.analysis import spatial_clearance
 from mech_balance.balancing import spatial
 from mech_balance.balancing.clearance_design import check_margin, ClearanceReport, \
-    NoClearDesign
+    least_pair, NoClearDesign
 from mech_balance.balancing.spatial import model as spatial_model, result as spatial_result, \
     spheres as sphere_clusters
 from mech_balance.balancing.spatial.program import SIGMA_ENTRIES
-from mech_balance.conventions import cycle_angles, rms
+from mech_balance.conventions import cycle_angles
 from mech_balance.core import regressor
 import numpy as np
 from scipy import optimize
@@ -341,16 +337,11 @@ def _evaluate(rig, result, search, spheres):
     data = rig.with_scene(balanced).at(search.maps.angles)
     base = rig.at(search.maps.angles)
     units = search.units
-    f = float(rms(data.force_N)) / units.force_N
-    n = float(rms(data.moment_Nm)) / units.moment_Nm
+    f, n = spatial_result.normalized_rms(data, units)
     w = search.w
     objective = dict(result.objective, z=w[0] * f + w[1] * n, shaking_force_rms=f,
                      shaking_moment_rms=n, z_convex=result.objective['z'])
-    options = dict(result.options, counterweights=clusters,
-                   added_mass_kg={b: float(sum(s['mass_kg'] for s in cl))
-                                  for b, cl in clusters.items()},
-                   sphere_overlap_m={b: sphere_clusters.cluster_overlap_m(cl)
-                                     for b, cl in clusters.items()})
+    options = dict(result.options, **sphere_clusters.cluster_entries(clusters))
     return replace(result, balanced_scene=balanced, objective=objective, options=options,
                    bodies=spatial_result.body_rows(search.model, theta), theta=theta,
                    table=spatial_result.before_after(rig, balanced, result.samples, units,
@@ -372,7 +363,7 @@ def design(rig, result, samples, margin_m):
     least = clear.least_clearance_m
     z_convex = result.objective['z']
     report = ClearanceReport('collision-free', margin or 0.0, SIDE, z_convex, z_convex,
-                             cert.lower_bound, least, _pair(clear))
+                             cert.lower_bound, least, least_pair(clear))
     if margin is None:
         report.status = 'off'
     if margin is None or least >= margin or not spheres:
@@ -398,7 +389,7 @@ def design(rig, result, samples, margin_m):
         check = spatial_clearance.check(rig, moved.options['counterweights'], p, margin)
         report.objective = moved.objective['z']
         report.least_clearance_m = min(check.least_clearance_m, dense)
-        report.least_pair = _pair(check)
+        report.least_pair = least_pair(check)
         report.moved_in_plane = True
         return moved, _entries(check, report)
     # none clear: the best attempt (the largest least clearance reached) says why
@@ -407,7 +398,7 @@ def design(rig, result, samples, margin_m):
     report.status = 'none'
     report.objective = search.z(found)
     report.least_clearance_m = min(value, tried.least_clearance_m)
-    report.least_pair = _pair(tried)
+    report.least_pair = least_pair(tried)
     report.moved_in_plane = True
     report.binding = active or [f'the clearance over the cycle (a local optimum from '
                                 f'{report.arrangements_tried} starts)']
@@ -416,10 +407,6 @@ def design(rig, result, samples, margin_m):
     raise NoClearDesign('; '.join(report.lines()) + f' ({len(clear.collisions)} colliding '
                         'pairs at the convex optimum, clearance_margin_m None gives the '
                         'optimum as is)', NoSphereDesign(out, report))
-
-
-def _pair(clear):
-    return () if clear.least is None else (clear.least.body_a, clear.least.body_b)
 
 
 def _entries(clear, report):

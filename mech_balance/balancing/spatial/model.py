@@ -1,12 +1,9 @@
 """
 The parameter models of spatial rigs, the objective's units and the RMS maps.
 
-A kind takes part in the spatial balancing through a parameter model
-(:data:`PARAMETER_MODELS`, by kind name): which of the ten inertial parameters of each body
-its scene can hold (a basis, ``theta_k = B_k y_k``), how to write a design back as a scene,
-how to add counterweights.  The RMS shaking force and moment are linear maps of theta
-(:func:`maps_of`, from :mod:`mech_balance.core.regressor`).  The shared option checks of the
-spatial methods are here too.
+A kind takes part through a parameter model (:data:`PARAMETER_MODELS`): which inertial
+parameters of each body its scene can hold (``theta_k = B_k y_k``) and how a design is written
+back.  The RMS maps (:func:`maps_of`) and the spatial methods' option checks are here too.
 """
 
 from dataclasses import dataclass
@@ -95,13 +92,7 @@ def line_basis(point_a, point_b):
 
 
 def spatial_model(rig):
-    """
-    Return the :class:`ParameterModel` of a ``kind: spatial`` rig.
-
-    Every link has its ten parameters, but a link held only by two spherical joints (an idle
-    spin) keeps its mass on their line (:func:`line_basis`).  Counterweights are folded into
-    their link's mass, mass centre and inertia.
-    """
+    """Return the :class:`ParameterModel` of a ``kind: spatial`` rig (S-S links: line_basis)."""
     from mech_balance.schema.spatial import SpatialLink
     sc = rig.scene
     idle = {name: (ja, jb) for name, ja, jb in getattr(rig.linkage, 'idle_spins', ())}
@@ -169,12 +160,7 @@ def spatial_model(rig):
 
 
 def clip_roundoff(inertia, scale):
-    """
-    Return an inertia tensor (3, 3) with its round-off negative principal moments set to 0.
-
-    Only those above -:data:`INERTIA_CLIP_RTOL` ``scale`` (the body's m reach^2); a larger
-    negative one (no body) is kept, so the scene loader names it.
-    """
+    """Return an inertia (3, 3) with principal moments in [-INERTIA_CLIP_RTOL scale, 0) set 0."""
     eig, vec = np.linalg.eigh(0.5 * (inertia + inertia.T))
     if eig[0] >= 0.0 or eig[0] < -INERTIA_CLIP_RTOL * scale:
         return inertia
@@ -289,9 +275,7 @@ def program_units(model, k, m_lo, m_hi, radius):
     """
     Return (M, R): the units of body k's variables in the redistribution and its checks.
 
-    M = m0 clipped into [m_lo, m_hi], R = min(r0, radius (+ a line's offset)): the rig's
-    own units (:func:`reference_units`) moved into the bounds (docs/balancing.md, "Spatial
-    rigs").
+    The rig's own units (:func:`reference_units`) moved into the bounds (docs/balancing.md).
     """
     m0, r0 = reference_units(model, k)
     return (float(min(max(m0, m_lo), m_hi)),

@@ -26,10 +26,8 @@ class ForceBalance:
     """
     The complete force balance of a spatial rig.
 
-    ``conditions`` ``[{'parameter': name, 'equals': {name: coefficient}}]`` (SI): ``rank``
-    pivot parameters in terms of the others.  ``theta`` is the least change of the free bodies
-    that meets them (``attainable``: its RMS force at most :data:`FORCE_BALANCED_REL` of the
-    original's).
+    ``conditions`` ``[{'parameter': name, 'equals': {name: coefficient}}]`` (SI); ``theta``
+    the least change of the free bodies that meets them (``attainable``: it balances).
     """
 
     scene: object
@@ -72,12 +70,7 @@ class ForceBalance:
 
 
 def force_balance(rig, free=None, samples=None):
-    """
-    Return the :class:`ForceBalance` of a rig: its conditions and the least-change design.
-
-    ``free`` names the bodies that may change (default all); the least change is in units of
-    each body's mass and reach.
-    """
+    """Return the :class:`ForceBalance` of a rig; ``free``: the bodies that may change (all)."""
     model = parameter_model(rig)
     samples = check_samples(samples, rig)
     maps = maps_of(rig, samples)
@@ -105,11 +98,10 @@ def force_balance(rig, free=None, samples=None):
     force = (float(np.linalg.norm(f0)), float(np.linalg.norm(maps.force @ theta)))
     moment = (float(np.linalg.norm(maps.moment @ model.theta)),
               float(np.linalg.norm(maps.moment @ theta)))
-    added_h, added_m = {}, {}
-    for k in free_idx:
-        d = theta[10 * k:10 * k + 10] - model.theta[10 * k:10 * k + 10]
-        added_h[model.bodies[k].name] = [float(x) for x in d[1:4]]
-        added_m[model.bodies[k].name] = float(d[0])
+    added = {model.bodies[k].name: theta[10 * k:10 * k + 10] - model.theta[10 * k:10 * k + 10]
+             for k in free_idx}
+    added_h = {name: [float(x) for x in d[1:4]] for name, d in added.items()}
+    added_m = {name: float(d[0]) for name, d in added.items()}
     result = ForceBalance(
         scene=rig.scene, balanced_scene=balanced, rank=rank, nullity=full_basis.shape[1] - rank,
         conditions=conditions, theta=theta,

@@ -70,8 +70,7 @@ def finish(rig, model, units, maps, prog, run, theta, balanced, w, samples, viol
     """Evaluate the written design with the core, certify it, and return the result."""
     rig2 = rig.with_scene(balanced) if hasattr(rig, 'with_scene') else rig_for(balanced)
     data = rig2.at(maps.angles)
-    f = float(rms(data.force_N)) / units.force_N
-    n = float(rms(data.moment_Nm)) / units.moment_Nm
+    f, n = normalized_rms(data, units)
     primal = w[0] * f + w[1] * n
     model_value = w[0] * np.linalg.norm(maps.force @ theta) / units.force_N + \
         w[1] * np.linalg.norm(maps.moment @ theta) / units.moment_Nm
@@ -94,8 +93,7 @@ def finish(rig, model, units, maps, prog, run, theta, balanced, w, samples, viol
         feasibility_pull=float(pull), failed_stages=[],
         certified=bool(math.isfinite(lower) and gap_rel <= CERTIFIED_GAP_REL))
     base = rig.at(maps.angles)
-    f0 = float(rms(base.force_N)) / units.force_N
-    n0 = float(rms(base.moment_Nm)) / units.moment_Nm
+    f0, n0 = normalized_rms(base, units)
     objective = {'z': primal, 'shaking_force_rms': f, 'shaking_moment_rms': n,
                  'z_original': w[0] * f0 + w[1] * n0}
     return SpatialResult(
@@ -104,6 +102,11 @@ def finish(rig, model, units, maps, prog, run, theta, balanced, w, samples, viol
         table=before_after(rig, balanced, samples, units, (base, data)),
         bodies=body_rows(model, theta), options=options,
         solve_time_s=time.perf_counter() - t_start, theta=theta)
+
+
+def normalized_rms(data, units):
+    """Return the RMS shaking force and moment of the core's ``data`` in the objective's units."""
+    return float(rms(data.force_N)) / units.force_N, float(rms(data.moment_Nm)) / units.moment_Nm
 
 
 def body_rows(model, theta):
