@@ -78,16 +78,15 @@ class Problem:
         # variables y per listed link, in units of the link: dm = m0 y_m, dh = m0 l0 y_h, ...
         self.m0, self.l0 = m0, l0
         self.cols = np.concatenate([np.arange(4 * i, 4 * i + 4) for i in self.idx])
-        self.r_max = np.array([opt.max_radius_factor * joint_reach_m(self.scene, nm) / ls
-                               for nm in opt.links])
-        self.k_max = np.array([opt.max_gyration_factor * joint_reach_m(self.scene, nm) / ls
-                               for nm in opt.links])
+        reach = np.array([joint_reach_m(self.scene, nm) for nm in opt.links])   # m
+        self.r_max = opt.max_radius_factor * reach / ls
+        self.k_max = opt.max_gyration_factor * reach / ls
         self.dsc = np.column_stack([m0, m0 * l0, m0 * l0, m0 * l0 * l0]).ravel()
         self.m_max = np.array([opt.max_mass_factor * self.scene.link(nm).own_mass_kg / ms
                                for nm in opt.links])
         # the rim bound rho (normalized), None without max_rim_radius_factor
-        self.rho = None if opt.max_rim_radius_factor is None else np.array(
-            [opt.max_rim_radius_factor * joint_reach_m(self.scene, nm) / ls for nm in opt.links])
+        self.rho = None if opt.max_rim_radius_factor is None else \
+            opt.max_rim_radius_factor * reach / ls
         self.plane = dict(opt.planes)
         # c = 2 pi rho t_max (kg/m^2), normalized: kg/m^2 * ls^2 / ms
         self.c_disc = 2.0 * math.pi * opt.density_kg_m3 * opt.max_thickness_m * ls * ls / ms
@@ -206,10 +205,8 @@ class Problem:
             b[3 * i + 1] = self.m_max[i] / self.m0[i]
             a[3 * i + 2, 4 * i] = -(self.k_max[i] / self.l0[i]) ** 2
             a[3 * i + 2, 4 * i + 3] = 1.0
-        if bound is not None:
-            a = np.vstack([a, self.weights_vector()])
-            b = np.append(b, bound)
-        for row, value in caps:
+        extra = [(self.weights_vector(), bound)] if bound is not None else []
+        for row, value in extra + list(caps):   # the objective's bound, then the caps
             a = np.vstack([a, row])
             b = np.append(b, value)
         add(clarabel.NonnegativeConeT, a, b)
@@ -238,12 +235,7 @@ class Problem:
         return certificate.Stage(x[:ny], float(q @ x), run)
 
     def box(self, level=None, q=None):
-        """
-        Return (lo, hi): bounds on every variable that the constraints imply (link units).
-
-        An epigraph at most ``level / w`` when the stage's objective is at most ``level``; a
-        link's inertia that no norm weighted by ``q`` sees at the least the disc allows.
-        """
+        """Return (lo, hi): the variables' bounds (link units), epigraphs capped by ``level``."""
         nx, ny, nl = self.nx, self.ny, self.nl
         lo, hi = np.zeros(nx), np.zeros(nx)
         used = None if q is None else \
@@ -300,12 +292,7 @@ class Problem:
         return y
 
     def repair(self, y):
-        """
-        Return ``y`` with each disc moved onto its constraints by the least local change.
-
-        The mass capped, the first moment shrunk into the radius, gyration and rim bounds and
-        the inertia clipped into its interval, each with a margin of a few ulp.
-        """
+        """Return ``y`` with each disc moved onto its constraints by the least local change."""
         y = np.array(y, dtype=float)
         shrink = 1.0 - 16.0 * certificate.UNIT_ROUNDOFF
         for i in range(self.nl):

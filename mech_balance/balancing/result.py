@@ -52,10 +52,9 @@ class Design:
             failed = bool(cert.failed_stages)
             realizable = bool(getattr(res, 'realizable', True))
         elif hasattr(res, 'moment_rms_lower_bound_Nm'):   # least squares (balancing weights)
-            opt = res
             self.objective_name = 'RMS shaking moment, N m (least squares)'
-            self.objective = float(opt.moment_rms_optimal_Nm)
-            self.lower_bound = float(opt.moment_rms_lower_bound_Nm)
+            self.objective = float(res.moment_rms_optimal_Nm)
+            self.lower_bound = float(res.moment_rms_lower_bound_Nm)
             self.certified = self.lower_bound <= self.objective
         else:   # a complete force balance in closed form
             force = self.figures['force_N']

@@ -378,12 +378,7 @@ def metrics(data, view, crank_index):
 
 
 def balance_report(rig, result, normalized=False):
-    """
-    Return the weights' report as a plain dict (SI, or normalized by the scene's units).
-
-    The weights, the links' optimal products J, the unbalanced, force-balanced and optimized
-    rigs (``rigs``), the before/after ``table`` and the least-squares optimum with its bound.
-    """
+    """Return the weights' report as a plain dict (SI, or normalized by the scene's units)."""
     sc = rig.scene
     view = ReportView(sc, normalized)
     from mech_balance.balancing.spatial import model as spatial_model, result as spatial_result
@@ -404,10 +399,8 @@ def balance_report(rig, result, normalized=False):
             entry.update(alpha_deg=math.degrees(wt.alpha_rad),
                          gamma_deg=math.degrees(wt.gamma_rad))
         weights[wt.link] = entry
-    products = {}
-    for k, wt in enumerate(result.weights):
-        products[f'{wt.link}.I_wu'] = view.inertia(result.link_products_kg_m2[2 * k])
-        products[f'{wt.link}.I_vw'] = view.inertia(result.link_products_kg_m2[2 * k + 1])
+    products = {f'{wt.link}.{name}': view.inertia(result.link_products_kg_m2[2 * k + j])
+                for k, wt in enumerate(result.weights) for j, name in enumerate(('I_wu', 'I_vw'))}
     norm = sc.normalization
     return {
         'scene': sc.name, 'source': sc.source, 'command': 'balance', 'method': 'weights',

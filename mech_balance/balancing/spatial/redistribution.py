@@ -30,10 +30,8 @@ def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAP
     """
     Return the certified optimal redistribution (:class:`SpatialResult`) of a spatial rig.
 
-    Every body not in ``fixed`` changes within ``mass_bounds`` ``{body: (lo_kg, hi_kg)}``
-    (default ``mass_factors`` x its mass) and ``extent_bounds`` ``{body: r_m}`` (default
-    ``extent_factor`` x its reach).  ``force_balanced``: complete force balance, else (when
-    infeasible, with a note) the least RMS shaking force.
+    Bodies not ``fixed`` change within ``mass_bounds`` ``{body: (lo_kg, hi_kg)}`` and
+    ``extent_bounds`` ``{body: r_m}`` (defaults: the factors x the original).
     """
     t_start = time.perf_counter()
     w = check_weights(weights)

@@ -86,10 +86,7 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
             theta[10 * k:10 * k + 10] += added[body.name]
         extra = {'links': [model.bodies[k].name for k in idx], 'density_kg_m3': density_kg_m3,
                  'max_mass_factor': max_mass_factor, 'max_radius_factor': max_radius_factor,
-                 'counterweights': spheres,
-                 'added_mass_kg': {n: float(sum(c['mass_kg'] for c in cl))
-                                   for n, cl in spheres.items()},
-                 'sphere_overlap_m': {n: cluster_overlap_m(cl) for n, cl in spheres.items()}}
+                 **cluster_entries(spheres)}
         return finish(rig, model, units, maps, prog, run, theta, model.add(added, spheres), w,
                       samples, violation, 0.0, t_start,
                       'counterweights (add-only spheres, SOCP+SDP)', extra)
@@ -124,7 +121,7 @@ def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radi
         c = 11 * j
         mass = np.zeros((2, prog.nx))
         mass[:, c] = (-1.0, 1.0)
-        prog.rows('nonneg', mass, [0.0, hi])
+        prog.add('nonneg', mass, [0.0, hi])
         lin = np.zeros((10, prog.nx))
         for row, (a, b) in enumerate(SVEC):
             f = 1.0 if a == b else math.sqrt(2.0)
@@ -136,18 +133,18 @@ def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radi
                 lin[row, c + 1 + a] = f
             else:
                 lin[row, c] = 1.0
-        prog.rows('psd', -lin, np.zeros(10))
+        prog.add('psd', -lin, np.zeros(10))
         ext = np.zeros(prog.nx)
         ext[[c + 4, c + 6, c + 9]] = 1.0            # tr(Sigma) <= dm (f r0)^2
         ext[c] = -fr2
-        prog.rows('nonneg', [ext], [0.0])
+        prog.add('nonneg', [ext], [0.0])
         # s >= k dm^(5/3)  <=>  (s / u, 1, dm) in K_pow(3/5): (s / u)^(3/5) >= |dm|, u the
         # spread of a solid sphere of mass m0 (units m0 r0^2)
         spread_unit = k_sphere * m0 ** (5.0 / 3.0) / (m0 * r0 * r0)
         pw = np.zeros((3, prog.nx))
         pw[0, c + 10] = -1.0 / spread_unit
         pw[2, c] = -1.0
-        prog.rows('pow', pw, [0.0, 1.0, 0.0])
+        prog.add('pow', pw, [0.0, 1.0, 0.0])
         # the box every feasible point lies in: |dh_i| <= dm f r0,
         # |Sigma_ij| <= tr Sigma <= dm (f r0)^2, s <= tr Sigma / 3
         prog.box_lo[c:c + 11] = [0.0] + [-hi * max_radius_factor] * 3 + [-hi * fr2] * 6 + [0.0]
@@ -230,11 +227,19 @@ def cluster_overlap_m(cluster):
     return float(worst) if math.isfinite(worst) else 0.0
 
 
+def cluster_entries(clusters):
+    """Return the report's ``counterweights``, ``added_mass_kg``, ``sphere_overlap_m``."""
+    return {'counterweights': clusters,
+            'added_mass_kg': {n: float(sum(c['mass_kg'] for c in cl))
+                              for n, cl in clusters.items()},
+            'sphere_overlap_m': {n: cluster_overlap_m(cl) for n, cl in clusters.items()}}
+
+
 def cluster_theta(cluster):
     """Return theta (10,) of a list of spheres (their inertia 2 x spread about the centre)."""
     return sum(regressor.parameters(c['mass_kg'], c['centre_m'],
                                     2.0 * c['spread_kg_m2'] * np.eye(3)) for c in cluster)
 
 
-__all__ = ['cluster_overlap_m', 'cluster_theta', 'counterweights', 'hollow_sphere',
-           'MIN_COUNTERWEIGHT_REL', 'sphere_cluster']
+__all__ = ['cluster_entries', 'cluster_overlap_m', 'cluster_theta', 'counterweights',
+           'hollow_sphere', 'MIN_COUNTERWEIGHT_REL', 'sphere_cluster']
