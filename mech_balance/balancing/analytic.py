@@ -43,10 +43,8 @@ def slider_crank_balance(scene, mass_ratios=None, printed_eq75=False, samples=No
     """
     Return the complete force balance of a slider-crank (seed 000 eqs. 44-75).
 
-    The link masses are kept (or set by ``mass_ratios`` = (mu_1, mu_2) = (m_1, m_2)/m_3,
-    eq. 59); the crank's and rod's mass centres move to the balancing positions, their
-    centroidal inertias kept.  Eq. 75 prints xi_2 = 1/mu_2, which does not balance;
-    ``printed_eq75=True`` builds that design to show it.
+    ``mass_ratios``: (m_1, m_2)/m_3 (eq. 59; default the scene's); ``printed_eq75``: eq. 75's
+    printed xi_2 = 1/mu_2, which does not balance.
     """
     crank, rod, slider, pts = _chain(scene, 'prismatic')
     m1, m2, m3 = crank.mass_kg, rod.mass_kg, slider.mass_kg
@@ -83,10 +81,8 @@ def four_bar_balance(scene, mass_factor=1.0, inertia='distance', samples=None):
     """
     Return the Berkof-Lowen complete force balance of a four-bar (seed 001 eq. 48).
 
-    The coupler is kept; the crank's and rocker's masses become ``mass_factor`` times the
-    original and their first moments balance it.  ``inertia``: 'distance' keeps the
-    point-mass distance l = sqrt(I_O/m) (Table 3; realizable only if d <= l), 'centroidal'
-    the centroidal moment of inertia.
+    Crank and rocker masses x ``mass_factor``; ``inertia``: 'distance' keeps l = sqrt(I_O/m)
+    (Table 3), 'centroidal' the centroidal moment of inertia.
     """
     crank, coupler, rocker, pts = _chain(scene, 'revolute')
     if inertia not in ('distance', 'centroidal'):

@@ -152,10 +152,8 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
     """
     Return the :class:`LowerBound` (1) of ``min q'x s.t. a x + s = b, s in K``.
 
-    ``a`` dense or scipy sparse, ``cones`` Clarabel cone objects or ``(family, dim)`` pairs
-    in row order, ``z`` the solver's dual (any vector: it is projected), ``lo``/``hi`` (n,)
-    a box (may be infinite) that holds at least one optimal point.  The best bound of the
-    refined duals (:func:`refine_dual`) is returned.
+    ``cones``: Clarabel cones or ``(family, dim)`` pairs in row order; ``z``: any dual (it is
+    projected and refined); ``lo``/``hi`` (n,): a box (may be infinite) holding an optimum.
     """
     cones = cone_list(cones)
     a = _dense(a)
@@ -270,10 +268,8 @@ def level_set_bounds(mat, radius, lo, hi, centre=None, null_rel_tol=None):
     """
     Return (lo, hi, nulls): the infinite entries replaced by what ``||mat y|| <= radius`` implies.
 
-    A rank-deficient ``mat`` needs ``centre`` (a design) and ``null_rel_tol``: singular
-    directions below it are taken as null directions of the objective that an optimal point
-    shares with the centre; ``nulls`` counts them.  Derivation: docs/balancing.md,
-    "Certificates (safe lower bounds)".
+    A rank-deficient ``mat`` needs ``centre`` and ``null_rel_tol``: directions below it are
+    taken as null directions an optimum shares with the centre (``nulls`` of them).
     """
     lo = np.array(lo, dtype=float)
     hi = np.array(hi, dtype=float)
@@ -368,9 +364,7 @@ def folded_lower_bound(run, lo, hi):
     """
     Return (value, LowerBound, fold rounding): the safe lower bound with PSD and power cones.
 
-    Their duals are moved into K* and folded into the objective (docs/balancing.md,
-    "Certificates (safe lower bounds)"); the best of the solver's dual and those of
-    :func:`_slack_weighted_duals` is kept.
+    Their duals are moved into K* and folded into the objective (docs/balancing.md).
     """
     z = np.asarray(run.sol.z, dtype=float)
     best = _fold_at(run, z, lo, hi)
@@ -611,9 +605,8 @@ def certify(stage, primal, bound, violation, pull, failed, design_violation, sta
     """
     Return the :class:`Certificate` of a primary :class:`Stage` whose design has z ``primal``.
 
-    ``bound``: the stage's :class:`LowerBound`; ``violation``: the solver's design's worst
-    violation before the ``pull``; ``design_violation``: the returned design's; ``detail``:
-    entries added to :func:`bound_detail`.
+    ``violation``: the solver's design's before the ``pull``; ``design_violation``: the
+    returned design's; ``detail``: entries added to :func:`bound_detail`.
     """
     import clarabel
     lower = min(bound.value, primal)

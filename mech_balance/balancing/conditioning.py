@@ -36,8 +36,7 @@ def blame(scene, units=None, speed_rad_s=None):
     """
     Return the text naming every scene value that makes the program ill-posed ('' if none).
 
-    ``units``: the objective's units (``mass_kg``, ``length_m``, ``omega_rad_s``) when they
-    are the scene's ``normalization`` (None: the scene's own); ``speed_rad_s`` the crank speed.
+    ``units``: the scene's ``normalization`` when the objective uses it (None: its own units).
     """
     causes = []
     masses = {lk.name: float(lk.mass_kg) for lk in scene.links

@@ -28,12 +28,7 @@ SCHEMA_KEYS = ('scene', 'kind', 'method', 'success', 'status', 'message', 'objec
 
 @dataclass
 class Design:
-    """
-    A balanced design: its scene, the method's report and result, and the solver's verdict.
-
-    ``figures``: the RMS shaking force (N) and moment (N m) before/after and the certificate
-    in words (:meth:`summary`).
-    """
+    """A balanced design: scene, report, result, verdict; ``figures``: RMS before/after, text."""
 
     scene: object
     report: dict

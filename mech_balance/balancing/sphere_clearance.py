@@ -215,8 +215,7 @@ class _Search:
         """
         Return the least sampled clearance of every sphere pair with another body (m).
 
-        With ``jacobian``: also its derivative ``(pairs, 4 P)`` by the variables (each
-        sphere's centre and mass), at each pair's least sample (the minimum's envelope).
+        With ``jacobian``: also its derivative ``(pairs, 4 P)`` at each pair's least sample.
         """
         local = np.array([s['centre_m'] for _, s in spheres])           # (P, 3)
         radii = np.array([s['outer_radius_m'] for _, s in spheres])

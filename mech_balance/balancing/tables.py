@@ -68,9 +68,8 @@ def before_after(original, balanced, samples=None):
     """
     Return the before/after rows of RMS bearing forces, torque, shaking force and moment.
 
-    Each row: quantity, ``unit``/``before``/``after`` (normalized where the scene records a
-    normalization), ``unit_si``/``before_si``/``after_si`` and ``change_percent`` (None:
-    :data:`CHANGE_BASELINE_REL_TOL`); a row one side lacks counts 0 there.
+    Each row: quantity, ``unit``/``before``/``after`` (normalized if the scene is), the same
+    ``*_si`` and ``change_percent`` (None: :data:`CHANGE_BASELINE_REL_TOL`).
     """
     rig = analysis.Rig(original.with_outputs(('bearing_reactions',)))
     cycles = [analysis.run_cycle(r, samples) for r in

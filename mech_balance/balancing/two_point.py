@@ -72,12 +72,7 @@ def representable(theta, rel_tol=BAND_REL_TOL):
 
 
 def point_masses(m, hx, hy, i_o):
-    """
-    Return (m_1, m_2, l_1, l_2) of a link in P or N (seed 001 Table 11, theta = 0, pi/2).
-
-    ``I_O m_1^2 + (hy^2 - hx^2 - I_O m) m_1 + hx^2 m = 0`` (from I_O = hx^2/m_1 +
-    hy^2/(m - m_1)); the root with 0 < m_1 < m is taken when it exists.
-    """
+    """Return (m_1, m_2, l_1, l_2) of a link in P or N (seed 001 Table 11, theta = 0, pi/2)."""
     b = hy * hy - hx * hx - i_o * m
     disc = max(b * b - 4.0 * i_o * hx * hx * m, 0.0)
     roots = [(-b + s * math.sqrt(disc)) / (2.0 * i_o) for s in (1.0, -1.0)]

@@ -106,12 +106,7 @@ def pivot_theta(m, g, sigma, pivot):
 
 
 def pivot_fill(m, g, i_ww, p_wu, p_vw, where):
-    """
-    Return the second moments (3, 3) about the pivot: the given I_ww, products, least rest.
-
-    The radial spread split evenly between u and v, and the least axial spread that keeps
-    ``sigma - g g^T / m`` PSD (only I_ww and the products enter the dynamics).
-    """
+    """Return the second moments (3, 3) about the pivot: the given I_ww, products, least rest."""
     spread = i_ww - (g[0] ** 2 + g[1] ** 2) / m
     b = np.array([p_wu, p_vw]) - g[2] * g[:2] / m
     scale = max(abs(i_ww), 1e-300)
@@ -298,8 +293,7 @@ def least_squares_lower_bound(design, target, residual):
     """
     Return a safe lower bound on ``min_J ||design J - target||`` (:mod:`.certificate`).
 
-    The cone form ``min s s.t. ||target - design J|| <= s`` at the dual point (1, r/||r||)
-    of the ``residual`` r, over the box of the level set ``||design J|| <= ||r|| + ||target||``.
+    The cone form ``min s s.t. ||target - design J|| <= s`` at the dual point (1, r/||r||).
     """
     from mech_balance.balancing import certificate
     rows, cols = design.shape

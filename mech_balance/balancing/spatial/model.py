@@ -73,12 +73,7 @@ def full_body(name, reach):
 
 
 def line_basis(point_a, point_b):
-    """
-    Return the (10, 3) basis of mass distributions on the line through two points (body axes).
-
-    theta is linear in the moments (mu0, mu1, mu2) of the mass along the line from
-    ``point_a``; J is PSD exactly when [[mu0, mu1], [mu1, mu2]] is.
-    """
+    """Return the (10, 3) basis of mass on the line from ``point_a`` (moments mu0, mu1, mu2)."""
     a = np.asarray(point_a, dtype=float)
     d = np.asarray(point_b, dtype=float) - a
     d = d / np.linalg.norm(d)

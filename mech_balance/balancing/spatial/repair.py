@@ -48,9 +48,8 @@ class RealizableChecks:
         """
         Return a design strictly inside every bound.
 
-        Without ``near``: each body's mass mid-range, first moment 0, spread m r^2 / 6.
-        With it, each body keeps its mass (clipped) and its first moment (shrunk to
-        |h| <= m r / 2), so a pull towards the anchor leaves the shaking force as it was.
+        ``near`` (a design): each body keeps its mass (clipped) and first moment (shrunk), so a
+        pull towards the anchor leaves the shaking force as it was.
         """
         theta = self.model.theta.copy()
         for k in self.free:
@@ -111,9 +110,8 @@ class RealizableChecks:
         """
         Return (theta, pull): theta moved onto the feasible set where round-off left it.
 
-        The masses clipped, then the least isotropic spread that makes each J PSD (``pull``:
-        that spread in units of M R^2); else the least fraction ``pull`` of the way to the
-        :meth:`anchor` (bisection); of two feasible designs the one ``objective`` prefers.
+        The masses clipped, then the least spread that makes each J PSD, else the least
+        fraction ``pull`` of the way to the :meth:`anchor`; ``objective`` picks of the two.
         """
         if self.feasible(theta):
             return theta, 0.0

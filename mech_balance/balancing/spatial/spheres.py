@@ -33,9 +33,8 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
     """
     Return the certified optimal add-only spheres on the listed bodies (a SpatialResult).
 
-    Each listed body gains a counterweight of mass at most ``max_mass_factor`` x its mass,
-    spheres of ``density_kg_m3`` whose mass lies within RMS distance ``max_radius_factor`` x
-    its reach of the body origin, built as up to six spheres (:func:`sphere_cluster`).
+    Each listed body gains spheres of at most ``max_mass_factor`` x its mass within RMS
+    distance ``max_radius_factor`` x its reach of its origin (:func:`sphere_cluster`).
     """
     t_start = time.perf_counter()
     w = check_weights(weights)
@@ -194,9 +193,8 @@ def sphere_cluster(dm, dh, sigma, s, density_kg_m3, reach_m):
     """
     Return the spheres realizing a counterweight (dm, dh, Sigma about the origin, spread s).
 
-    Pairs of masses dm / (2 r) at c +/- sqrt(r sigma_j / dm) u_j along the r principal axes
-    of the spread about c = dh / dm, each a hollow sphere of spread s mu / dm.  Each entry:
-    mass_kg, centre_m (body axes), spread_kg_m2, outer_radius_m, inner_radius_m.
+    Pairs along the principal axes of the spread about c = dh / dm.  Each entry: mass_kg,
+    centre_m (body axes), spread_kg_m2, outer_radius_m, inner_radius_m.
     """
     c = np.asarray(dh, dtype=float) / dm
     spread = np.asarray(sigma, dtype=float) - s * np.eye(3) - dm * np.outer(c, c)
