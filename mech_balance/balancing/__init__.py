@@ -2,31 +2,13 @@
 Balancing: one entry point, :func:`balance`, for the command line, the node and recordings.
 
 ``balance(rig, method=..., **options)`` returns a :class:`Design` for every method and kind
-(:mod:`mech_balance.balancing.result`): ``success``, ``status``, ``message``, the objective,
-its lower bound, ``certified``, the per-link masses, mass centres and inertias, the balanced
-scene, the method's report and its own result; :meth:`Design.to_dict` is what
-``mech-balance balance --json`` prints and the node's ``~/balance`` answers.  ``rig`` may be
-a scene (its rig is built).  The method is chosen from what the rig
-can be balanced by (:attr:`mech_balance.core.rig.Rig.capabilities`), never from its kind:
-
-* ``redistribution``: the certified optimal mass redistribution of seed 001 (planar rigs,
-  :func:`mech_balance.balancing.redistribution.optimize`);
-* ``weights``: the complete force balance and minimum RMS shaking moment by balancing
-  weights on the links pivoted on the frame (seed 002's RGGR, any spatial scene that lists
-  ``balancing_weights``: :mod:`mech_balance.balancing.weights`);
-* ``counterweights``: add-only discs on listed links, to a certified optimum
-  (:func:`mech_balance.balancing.counterweights.balance_with_counterweights`; its report
-  carries ``counterweights`` in the scene's form, ``{link: [disc entry]}``);
-* ``analytic``: the complete force balance in closed form, the slider-crank's (seed 000,
-  :func:`mech_balance.balancing.analytic.slider_crank_balance`) for a rig with a prismatic
-  joint, else the four-bar's (seed 001 eq. 48, :func:`~.analytic.four_bar_balance`);
-* ``force_balance``: the complete force balance of a spatial rig (null space of its force
-  map, :func:`mech_balance.balancing.spatial.force_balance`);
-* ``auto`` (the default): the first of those the rig supports.
-
-A rig with the ``body_kinematics`` capability (spatial rigs) is balanced by
-``redistribution`` and ``counterweights`` too, through :mod:`mech_balance.balancing.spatial`
-(PSD pseudo-inertia per body; spheres as counterweights): :data:`ALTERNATIVES`.
+(:mod:`mech_balance.balancing.result`; its ``to_dict`` is what ``balance --json`` prints and
+the node's ``~/balance`` answers).  The method is chosen from the rig's capabilities, never
+from its kind: ``redistribution`` (:mod:`.redistribution`, or :mod:`.spatial` for a rig with
+body kinematics), ``weights`` (:mod:`.weights`), ``counterweights`` (:mod:`.counterweights`
+or spatial spheres), ``analytic`` (:mod:`.analytic`), ``force_balance``
+(:func:`mech_balance.balancing.spatial.force_balance`), ``auto``: the first the rig supports
+(docs/balancing.md, "Dispatch").
 
 The modules that solve are imported when a method runs, so importing this package is cheap.
 The defaults of every option are :mod:`mech_balance.balancing.defaults`'s.
@@ -71,13 +53,15 @@ PLANAR_DEFAULTS = {'case': 'a', 'realizable': True, 'paper_constraints': False,
 node passes every option); any other value is refused, naming the option."""
 
 
-def _table_figures(table, certificate):
-    """Return :attr:`Design.figures` from before/after rows (``before_si``, ``after_si``)."""
-    rows = {r['quantity'].split()[1]: r for r in table
+def _design(result, method, certificate, report=None):
+    """Return the :class:`Design` of a result with a before/after table (``certificate``: text)."""
+    rows = {r['quantity'].split()[1]: r for r in result.table
             if r['quantity'].startswith('shaking ')}
-    return {'force_N': (rows['force']['before_si'], rows['force']['after_si']),
-            'moment_Nm': (rows['moment']['before_si'], rows['moment']['after_si']),
-            'certificate': certificate}
+    return Design(result.balanced_scene, result.to_dict() if report is None else report, method,
+                  result, {'force_N': (rows['force']['before_si'], rows['force']['after_si']),
+                           'moment_Nm': (rows['moment']['before_si'],
+                                         rows['moment']['after_si']),
+                           'certificate': certificate})
 
 
 LINK_OPTIONS = ('mass_bounds', 'distance_bounds')
@@ -86,13 +70,7 @@ LINK_OPTIONS = ('mass_bounds', 'distance_bounds')
 
 
 def link_options(rig):
-    """
-    Return the per-link options (:data:`LINK_OPTIONS`) the redistribution of ``rig`` takes.
-
-    Both for a rig redistributed by seed 001; those the spatial implementation takes
-    (:data:`SPATIAL_OPTIONS`) for a rig with body kinematics; none for a rig without the
-    redistribution.
-    """
+    """Return the per-link options (:data:`LINK_OPTIONS`) the redistribution of ``rig`` takes."""
     caps = rig.capabilities
     if METHODS['redistribution'] in caps:
         return LINK_OPTIONS
@@ -111,13 +89,7 @@ it certifies: :data:`mech_balance.balancing.defaults.SPATIAL_MASS_FACTOR_RANGE`)
 
 
 def option_ranges(rig, method):
-    """
-    Return ``{option: (low, high)}``: the ranges of ``method`` on ``rig`` narrower than usual.
-
-    Empty but where the rig is balanced by the spatial implementation of the method (it has
-    the method through :data:`ALTERNATIVES` only): the node checks these where a parameter
-    is set, as the command line does where it reads the option.
-    """
+    """Return ``{option: (low, high)}``: the ranges of ``method`` narrower on ``rig``."""
     caps = rig.capabilities
     if METHODS.get(method) in caps or ALTERNATIVES.get(method) not in caps:
         return {}
@@ -184,15 +156,12 @@ def _spatial(rig, method, options):
         ratio = result.force_rms_N[1] / max(result.force_rms_N[0], 1e-300)
         unbuilt = '' if result.realizable else \
             f', NOT realizable ({", ".join(result.unrealizable)})'
-        return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
-            result.table, f'null space (rank {result.rank}), RMS shaking force after/before '
-                          f'{ratio:.1e}{unbuilt}'))
+        return _design(result, method, f'null space (rank {result.rank}), RMS shaking force '
+                                       f'after/before {ratio:.1e}{unbuilt}')
     if method == 'redistribution':
         result = spatial.redistribute(rig, **options)
     else:
-        options = dict(options)
-        links = options.pop('links', ())
-        result = spatial.counterweights(rig, links, **options)
+        result = spatial.counterweights(rig, options.pop('links', ()), **options)
     cert = result.certificate
     # shorter than _certificate_text: a spatial optimum is often ~0 (e-notation on both sides)
     text = (f'{cert.status}, {"certified" if cert.certified else "NOT certified"}, '
@@ -201,21 +170,11 @@ def _spatial(rig, method, options):
     if method == 'counterweights':   # the spheres clear of every body (sphere_clearance)
         from mech_balance.balancing import sphere_clearance
         result, entries = sphere_clearance.design(rig, result, options.get('samples'), margin)
-    report = dict(result.to_dict(), **entries)
-    return Design(result.balanced_scene, report, method, result,
-                  _table_figures(result.table, text))
+    return _design(result, method, text, dict(result.to_dict(), **entries))
 
 
 def balance(rig, method='auto', **options):
-    """
-    Balance a rig and return its :class:`Design` (module docstring: methods).
-
-    ``options`` are the method's: those of
-    :func:`mech_balance.balancing.redistribution.optimize` for ``redistribution``; of
-    :func:`~.counterweights.balance_with_counterweights` for ``counterweights`` (``links``
-    first); ``samples`` (and for a four-bar ``mass_factor``, ``inertia``) for ``analytic``;
-    ``samples`` for ``weights``.
-    """
+    """Balance a rig (or scene) by ``method`` with its ``options``; return its :class:`Design`."""
     from mech_balance.core.rig import as_rig
     rig = as_rig(rig)
     method = method_for(rig, method)
@@ -233,19 +192,16 @@ def balance(rig, method='auto', **options):
                 sc, result.balanced_scene)
         report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
                                                           result.table)
-        return Design(result.balanced_scene, report, method, result, _table_figures(
-            result.table, _certificate_text(result.certificate)))
+        return _design(result, method, _certificate_text(result.certificate), report)
     if method == 'counterweights':
         from mech_balance.balancing import clearance_design, counterweights
-        options = dict(options)
-        links = options.pop('links', ())
-        result = counterweights.balance_with_counterweights(sc, links, **options)
+        result = counterweights.balance_with_counterweights(sc, options.pop('links', ()),
+                                                            **options)
         if not result.answered:   # never a colliding design as the answer
             raise clearance_design.NoClearDesign(
                 '; '.join(result.clearance_design.lines()), result)
         # the price of clearance and the least clearance: in the report (clearance_design)
-        return Design(result.balanced_scene, result.to_dict(), method, result, _table_figures(
-            result.table, _certificate_text(result.certificate)))
+        return _design(result, method, _certificate_text(result.certificate))
     if method == 'analytic':
         from mech_balance.balancing import analytic, counterweights
         if any(j.prismatic for j in sc.joints):
@@ -255,9 +211,8 @@ def balance(rig, method='auto', **options):
         report = result.to_dict()
         report['cost'] = counterweights.cost_of_balancing(sc, result.balanced_scene,
                                                           result.table)
-        return Design(result.balanced_scene, report, method, result, _table_figures(
-            result.table, f'closed form, RMS shaking force after/before '
-                          f'{result.force_rms_ratio:.1e}'))
+        return _design(result, method, 'closed form, RMS shaking force after/before '
+                                       f'{result.force_rms_ratio:.1e}', report)
     from mech_balance.balancing import weights
     unknown = sorted(set(options) - {'samples'})
     if unknown:

@@ -5,10 +5,8 @@ Complete force balance of planar linkages in closed form (the total mass centre 
 * four-bar, Berkof-Lowen, seed 001 eq. 48: :func:`four_bar_balance`.
 
 Both solve no cone program: they are derived in complex numbers for arbitrary link frames
-(docs/balancing.md, "Mass redistribution", and the docstrings below) and checked against the
-physics (the shaking force of the result vanishes to round-off).  Seed 000 eq. 75 prints
-``xi_2 = 1/mu_2``; eqs. 67 and 71 give ``mu_2 xi_2 = -1``, and only ``xi_2 = -1/mu_2`` makes the
-shaking force vanish (``printed_eq75=True`` shows it).
+(docs/balancing.md, "Closed-form force balances") and checked against the physics (the
+shaking force of the result vanishes to round-off).
 """
 
 from dataclasses import dataclass, replace
@@ -45,27 +43,8 @@ def slider_crank_balance(scene, mass_ratios=None, printed_eq75=False, samples=No
     """
     Return the complete force balance of a slider-crank (seed 000 eqs. 44-75).
 
-    The link masses are kept (or set by ``mass_ratios`` = (mu_1, mu_2) = (m_1, m_2)/m_3,
-    eq. 59, with the slider mass kept); the crank's and rod's mass centres are moved to
-    the balancing positions and their centroidal inertias kept.
-
-    Derivation in complex numbers (link frames arbitrary): a point P of link k is at
-    ``o_k + R_k P`` and the link's first moment about the world origin is
-    ``m_k o_k + R_k h_k``.  With crank pivot P_1 and pin A_1 (crank frame), rod points
-    A_2, B_2 (rod frame) and the slider at B, the rod's rotation is
-    ``R_2 = (B - A) / (B_2 - A_2)`` and the total first moment is, up to a constant,
-    ``R_1 [h_1 - m_1 P_1 + (m_2 - g)(A_1 - P_1)] + (g + m_3) B``, with
-    ``g = (h_2 - m_2 A_2)/(B_2 - A_2)``.  R_1 and the slider position B(psi) are
-    independent functions of the crank angle, so both brackets vanish:
-
-        h_2 = m_2 A_2 - m_3 (B_2 - A_2),   h_1 = m_1 P_1 - (m_2 + m_3)(A_1 - P_1).
-
-    In seed 000's notation (eqs. 63-64, 73: r_1 = (xi_1 + i eta_1) r_12,
-    r_2 = (xi_2 + i eta_2) r_23) this is eta_1 = eta_2 = 0 (eq. 74),
-    xi_1 = -(1 + mu_2)/mu_1 (eq. 75, as printed) and **xi_2 = -1/mu_2**: eqs. 67 and 71
-    give mu_2 xi_2 = -1, while eq. 75 prints xi_2 = 1/mu_2 (a lost sign).  The rod's mass
-    centre lies beyond the crank pin, away from the slider.  ``printed_eq75=True`` builds
-    the printed design instead, to show that its shaking force does not vanish.
+    ``mass_ratios``: (m_1, m_2)/m_3 (eq. 59; default the scene's); ``printed_eq75``: eq. 75's
+    printed xi_2 = 1/mu_2, which does not balance.
     """
     crank, rod, slider, pts = _chain(scene, 'prismatic')
     m1, m2, m3 = crank.mass_kg, rod.mass_kg, slider.mass_kg
@@ -102,22 +81,8 @@ def four_bar_balance(scene, mass_factor=1.0, inertia='distance', samples=None):
     """
     Return the Berkof-Lowen complete force balance of a four-bar (seed 001 eq. 48).
 
-    The coupler (link 2) is kept; the crank's and rocker's masses become ``mass_factor``
-    times the original (Table 3 cases 1, 2, 5) and their first moments are set to
-
-        h_1 = m_1 P_1 - (m_2 - g)(A_1 - P_1),   h_3 = m_3 Q_3 - g (B_3 - Q_3),
-        g = (h_2 - m_2 A_2) / (B_2 - A_2)
-
-    (crank pivot P_1 and pin A_1, coupler points A_2, B_2, rocker pivot Q_3 and pin B_3, in
-    the link frames): the coefficients of the crank and rocker rotations in the total first
-    moment after eliminating the coupler's rotation through the loop ``B - A``.  With the
-    link x-axes along O_i O_(i+1) this is eq. 48: ``m_1 d_1 = m_2 r_2 a_12/a_2B`` with
-    r_2 = |c_2 - B|, ``m_3 d_3 = m_2 d_2 a_3B / a_2B``, theta_1 = theta'_2 and
-    theta_3 = theta_2 + pi.
-
-    ``inertia``: 'distance' keeps the point-mass distance l = sqrt(I_O/m) of the original
-    (the paper's Table 3, ``l_i1 = l_i1^o``: I_O = m l^2, realizable only if d <= l);
-    'centroidal' keeps the centroidal moment of inertia (always realizable).
+    Crank and rocker masses x ``mass_factor``; ``inertia``: 'distance' keeps l = sqrt(I_O/m)
+    (Table 3), 'centroidal' the centroidal moment of inertia.
     """
     crank, coupler, rocker, pts = _chain(scene, 'revolute')
     if inertia not in ('distance', 'centroidal'):
@@ -167,12 +132,7 @@ def _analytic(method, scene, balanced, params, samples, counterweights):
 
 
 def _chain(scene, output_type):
-    """
-    Identify crank, coupler and output of a 3-link single loop; return them and points.
-
-    Points (complex, link frames): P1 crank pivot, A1 crank pin, A2/B2 coupler ends, and
-    Q3/B3 rocker pivot and pin (``output_type`` 'revolute') or B3 the slider's joint point.
-    """
+    """Return crank, coupler, output of a 3-link loop and their points P1, A1, A2, B2, B3, Q3."""
     check_planar(scene)
     kind = 'slider-crank' if output_type == 'prismatic' else 'four-bar'
     if len(scene.links) != 3 or len(scene.joints) != 4:

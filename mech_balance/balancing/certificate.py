@@ -6,14 +6,12 @@ any z in the dual cone K* and a box ``lo <= x <= hi`` that holds an optimal poin
 
     L = -b'z + sum_i min(r_i lo_i, r_i hi_i)  <=  min q'x,     r = q + A'z        (1)
 
-evaluated with its floating-point rounding subtracted (:func:`safe_lower_bound`); the
-solver's z is projected onto K* first and need not be optimal.  PSD and power-cone blocks
-(the spatial programs) are folded into the objective (:func:`folded_lower_bound`).  The
-derivation, the refinements of z and the measured gaps: docs/balancing.md, "Certificates
-(safe lower bounds)".  :class:`Certificate` is what every balancing result reports.
+evaluated with its rounding subtracted (:func:`safe_lower_bound`; PSD and power cones:
+:func:`folded_lower_bound`).  The derivation and the measured gaps: docs/balancing.md,
+"Certificates (safe lower bounds)".
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 
 from mech_balance import schema
@@ -54,6 +52,8 @@ class LowerBound:
     dual_residual: float      # max_i |r_i|
     projection_shift: float   # max |z - proj(z)|: how far the solver's dual was outside K*
     unbounded: tuple = ()     # coordinates with an infinite box side and a residual against it
+    terms: np.ndarray = field(default=None, repr=False, compare=False)  # min(r lo, r hi)
+    r: np.ndarray = field(default=None, repr=False, compare=False)      # q + A'z
 
 
 def cone_list(cones):
@@ -77,13 +77,7 @@ def cone_list(cones):
 
 
 def project_dual(z, cones):
-    """
-    Return z projected onto the dual cone K* (every entry exactly inside, after rounding).
-
-    Zero cone: its dual is the whole space (z unchanged).  Non-negative orthant: max(z, 0).
-    Second-order cone {(t, v): ||v|| <= t}: the Euclidean projection, then t raised by the
-    relative error bound of the computed norm so that ||v|| <= t holds exactly.
-    """
+    """Return z projected onto the dual cone K* (every entry exactly inside, after rounding)."""
     z = np.array(z, dtype=float)
     out = z.copy()
     k = 0
@@ -109,14 +103,8 @@ def project_dual(z, cones):
 
 
 REFINE_ROUNDS = 3
-"""Rounds of :func:`refine_dual` tried by every bound (the best bound is kept).  Each round
-projects the corrected dual back onto K*, which undoes part of the correction where a cone
-is active (a PSD block's eigenvalues clipped at zero), so the residual shrinks by a factor
-per round, not to zero in one.  Measured on the spatial programs of the built-in scenes
-(redistribution, weights (0.5, 0.5), (1, 0), (0, 1)): the bound rose in every one of the
-three rounds in 9 of the 10 programs refined (rggr, weights (1, 0): -7.10e-6, -6.57e-6,
--6.09e-6); the planar programs stop earlier (a round that does not raise the bound ends
-them) and give the same bounds with 2 or 3 rounds."""
+"""Rounds of :func:`refine_dual` tried by every bound, the best bound kept (measured:
+docs/balancing.md, "Certificates (safe lower bounds)")."""
 REFINE_BELOW = 1e-8
 """No refinement when the residual term is below this fraction of max(1, |L|)."""
 REFINE_SHARE = 1e-2
@@ -127,11 +115,8 @@ def refine_dual(a, z, r, cols, weight, rot=None):
     """
     Return z + Delta: the least ``sum w_i Delta_i^2`` with ``(A'Delta)_j = -r_j`` on ``cols``.
 
-    The one dual correction of every bound (least squares; the least-norm solution where
-    ``cols`` leave it free).  ``weight`` (m,): w_i of each row; a row of weight ``inf``
-    stays (a non-negative row, a second-order cone's first entry).  ``rot`` (m, m)
-    orthogonal: Delta is weighted in its basis, ``Delta = rot @ d`` with ``sum w_i d_i^2``
-    least (a PSD block in the eigenbasis of its slack); None: the identity.
+    ``weight`` (m,): a row of weight ``inf`` stays; ``rot`` (m, m) orthogonal: Delta is
+    weighted in its basis (``Delta = rot @ d``); None: the identity.
     """
     a = _dense(a)
     rows = np.flatnonzero(np.isfinite(weight))
@@ -148,14 +133,7 @@ def refine_dual(a, z, r, cols, weight, rot=None):
 
 
 def _movable(cones, frozen=None):
-    """
-    Return the weight of :func:`refine_dual` that moves only the rows free within K*.
-
-    Zero cones and the vector part of second-order cones (whose first entry is then raised
-    to the new norm by :func:`project_dual`) move with weight 1; a non-negative row, a cone's
-    first entry and the ``frozen`` rows stay (weight inf).  The residual moves to the
-    columns of those first entries (epigraph variables with a finite box).
-    """
+    """Return the weight of :func:`refine_dual` that moves only the rows free within K*."""
     total = sum(dim for _, dim in cones)
     movable = np.zeros(total, dtype=bool)
     k = 0
@@ -174,12 +152,8 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
     """
     Return the :class:`LowerBound` (1) of ``min q'x s.t. a x + s = b, s in K``.
 
-    ``q`` (n,), ``a`` (m, n) dense or scipy sparse, ``b`` (m,), ``cones`` Clarabel cone
-    objects or ``(family, dim)`` pairs in row order, ``z`` the solver's dual (m,) (any
-    vector: it is projected), ``lo``/``hi`` (n,) a box (entries may be -inf/inf) that the
-    caller guarantees to contain at least one optimal point.  Where a few coordinates with
-    wide boxes dominate the residual term, :func:`refine_dual` removes their residual and
-    the better of the bounds is returned (each is a bound).
+    ``cones``: Clarabel cones or ``(family, dim)`` pairs in row order; ``z``: any dual (it is
+    projected and refined); ``lo``/``hi`` (n,): a box (may be infinite) holding an optimum.
     """
     cones = cone_list(cones)
     a = _dense(a)
@@ -213,18 +187,11 @@ def safe_lower_bound(q, a, b, cones, z, lo, hi):
             best = cand
         else:
             break
-    return LowerBound(best.value, best.dual_objective, best.residual_term, best.rounding,
-                      best.dual_residual, best.projection_shift, best.unbounded)
+    return best
 
 
 def _idle_epigraphs(a, q, cones, z):
-    """
-    Return (z with the dual of every idle second-order cone set to 0, their rows) or Nones.
-
-    A cone is idle when its first row is ``-t`` for one variable t that the objective does
-    not weight (q_t = 0): ``t >= ||...||`` then only bounds t, whose box is wide (a norm
-    the stage does not minimize), and the solver's small dual there costs r_t times it.
-    """
+    """Return (z with each unweighted epigraph cone's dual set to 0, their rows) or Nones."""
     out = np.array(z, dtype=float)
     frozen = np.zeros(out.size, dtype=bool)
     k = 0
@@ -238,26 +205,13 @@ def _idle_epigraphs(a, q, cones, z):
     return (out, frozen) if frozen.any() else (None, None)
 
 
-@dataclass(frozen=True)
-class _Work:
-    value: float
-    dual_objective: float
-    residual_term: float
-    rounding: float
-    dual_residual: float
-    projection_shift: float
-    unbounded: tuple
-    terms: np.ndarray
-    r: np.ndarray
-
-
 def _dense(a):
     """Return ``a`` as a dense float array (the balancing programs have at most ~1e4 entries)."""
     return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
 
 
 def _bound(q, a, b, cones, z, lo, hi, abs_a):
-    """Return the bound (1) at one dual point, with its terms and residual (a _Work)."""
+    """Return the :class:`LowerBound` (1) at one dual point, with its terms and residual."""
     q = np.asarray(q, dtype=float).ravel()
     b = np.asarray(b, dtype=float).ravel()
     lo = np.asarray(lo, dtype=float).ravel()
@@ -270,46 +224,37 @@ def _bound(q, a, b, cones, z, lo, hi, abs_a):
         raise ValueError('safe_lower_bound: lo > hi, expected a box')
     z_raw = np.asarray(z, dtype=float).ravel()
     if not np.all(np.isfinite(z_raw)):
-        return _Work(-math.inf, math.nan, math.nan, 0.0, math.inf, math.inf, (), None, None)
+        return LowerBound(-math.inf, math.nan, math.nan, 0.0, math.inf, math.inf)
     zp = project_dual(z_raw, cones)
     dual_obj = -float(b @ zp)
     r = q + a.T @ zp
     with np.errstate(invalid='ignore'):
-        t_lo = r * lo
-        t_hi = r * hi
-    t_lo = np.where(r == 0.0, 0.0, t_lo)
-    t_hi = np.where(r == 0.0, 0.0, t_hi)
-    terms = np.minimum(t_lo, t_hi)
+        terms = np.where(r == 0.0, 0.0, np.minimum(r * lo, r * hi))
     bad = tuple(int(i) for i in np.flatnonzero(~np.isfinite(terms)))
     shift = float(np.max(np.abs(zp - z_raw), initial=0.0))
     if bad:
-        return _Work(-math.inf, dual_obj, -math.inf, 0.0, float(np.max(np.abs(r))), shift,
-                     bad, np.where(np.isfinite(terms), terms, 0.0), r)
+        return LowerBound(-math.inf, dual_obj, -math.inf, 0.0, float(np.max(np.abs(r))),
+                          shift, bad, np.where(np.isfinite(terms), terms, 0.0), r)
     resid_term = float(np.sum(terms))
     box = np.maximum(np.abs(lo), np.abs(hi))
     size = np.abs(q) + abs_a.T @ np.abs(zp)       # bounds |r_i| and its rounding error
     blind = (~np.isfinite(box)) & (size > 0.0)
     if blind.any():   # r_i computed 0 on an unbounded coordinate: its error is unbounded
         bad = tuple(int(i) for i in np.flatnonzero(blind))
-        return _Work(-math.inf, dual_obj, resid_term, math.inf, float(np.max(np.abs(r))),
-                     shift, bad, terms, r)
+        return LowerBound(-math.inf, dual_obj, resid_term, math.inf,
+                          float(np.max(np.abs(r))), shift, bad, terms, r)
     k = m + n + 4
     err = (float(np.abs(b) @ np.abs(zp))
            + float(np.where(size > 0.0, box, 0.0) @ size)
            + float(np.sum(np.abs(terms))))
     rounding = 2.0 * gamma(k) * err * (1.0 + 4.0 * gamma(k))
     value = dual_obj + resid_term - rounding
-    return _Work(float(value), dual_obj, resid_term, float(rounding),
-                 float(np.max(np.abs(r), initial=0.0)), shift, (), terms, r)
+    return LowerBound(float(value), dual_obj, resid_term, float(rounding),
+                      float(np.max(np.abs(r), initial=0.0)), shift, (), terms, r)
 
 
 def norm_bound(g, c, lo, hi):
-    """
-    Return an upper bound on ``||g y + c||`` over the box ``lo <= y <= hi`` (finite or inf).
-
-    ``||c|| + sum_j ||g_j|| max(|lo_j|, |hi_j|)``, raised by its rounding error: the box of
-    an epigraph variable ``t >= ||g y + c||`` that some optimal point attains.
-    """
+    """Return ``||c|| + sum_j ||g_j|| max(|lo_j|, |hi_j|)`` (rounded up) >= ``||g y + c||``."""
     g = np.atleast_2d(np.asarray(g, dtype=float))
     box = np.maximum(np.abs(np.asarray(lo, float)), np.abs(np.asarray(hi, float)))
     cols = np.linalg.norm(g, axis=0)
@@ -323,19 +268,8 @@ def level_set_bounds(mat, radius, lo, hi, centre=None, null_rel_tol=None):
     """
     Return (lo, hi, nulls): the infinite entries replaced by what ``||mat y|| <= radius`` implies.
 
-    For the coordinates S whose box is unbounded and B the others,
-    ``||mat_S y_S|| <= radius + sum_{j in B} ||mat_j|| max(|lo_j|, |hi_j|)``, so
-    ``|y_i| <= that / sigma_min(mat_S)`` for i in S, with sigma_min lowered by its rounding
-    error bound (sqrt(k) n u sigma_max).  ``radius`` is p / w_min for an objective
-    ``sum w_k ||G_k y|| <= p`` and ``mat`` the stacked G_k (||mat y|| <= sum ||G_k y||).
-
-    If mat_S is rank-deficient the bound needs ``centre`` (a design) and ``null_rel_tol``:
-    singular directions below ``null_rel_tol`` sigma_max are taken as exact null directions
-    of the objective (moving along them changes no term, so an optimal point shares the
-    centre's component there; valid when the coordinates S enter no constraint but the
-    objective), and ``|y_i - centre_i| <= (radius + rest + ||mat_S centre_S||) /
-    sigma_r`` with sigma_r the least singular value above it.  ``nulls`` counts those
-    directions (0 when none was assumed).
+    A rank-deficient ``mat`` needs ``centre`` and ``null_rel_tol``: directions below it are
+    taken as null directions an optimum shares with the centre (``nulls`` of them).
     """
     lo = np.array(lo, dtype=float)
     hi = np.array(hi, dtype=float)
@@ -374,16 +308,7 @@ def level_set_bounds(mat, radius, lo, hi, centre=None, null_rel_tol=None):
 
 
 def polytope_bounds(mat, radius, lo, hi, rel_tol):
-    """
-    Return (lo, hi): every coordinate bounded over ``{lo <= y <= hi, ||mat y|| <= radius}``.
-
-    With ``mat = U S V'``, ``||mat y|| <= radius`` implies ``|v_j' y| <= radius / s_j`` for
-    each right singular vector; the directions with ``s_j > rel_tol s_max`` and the box make
-    a polytope, and each coordinate's range over it is a linear program (scipy HiGHS).  A
-    direction the objective does not see (s_j below rel_tol) is bounded only where the box
-    bounds the coordinates it moves, with both signs (the inertias of Table 12's null
-    direction, each >= 0.25 I^o).  An unbounded program leaves the side infinite.
-    """
+    """Return (lo, hi): each coordinate's range over ``{lo <= y <= hi, ||mat y|| <= radius}``."""
     from scipy.optimize import linprog
     lo = np.array(lo, dtype=float)
     hi = np.array(hi, dtype=float)
@@ -437,15 +362,9 @@ POWER_ALPHA = 0.6
 
 def folded_lower_bound(run, lo, hi):
     """
-    Return the safe lower bound of a program with PSD and power cones.
+    Return (value, LowerBound, fold rounding): the safe lower bound with PSD and power cones.
 
-    Their duals are moved into K* (PSD: eigenvalues clipped and raised by their rounding
-    bound; power: the dual cone {(u, v, w): (u/a)^a (v/(1-a))^(1-a) >= |w|} reached by
-    scaling u, v up) and folded into the objective: for z_P in K*, q'x >= (q + A_P'z_P)'x -
-    b_P'z_P on every feasible x, so a safe bound of the rest (zero, nonneg, soc) with q' =
-    q + A_P'z_P, minus b_P'z_P and its rounding bound, bounds the program.  Every dual point
-    gives a bound: the solver's and those of :func:`_slack_weighted_duals` are tried, the best
-    kept.
+    Their duals are moved into K* and folded into the objective (docs/balancing.md).
     """
     z = np.asarray(run.sol.z, dtype=float)
     best = _fold_at(run, z, lo, hi)
@@ -459,25 +378,12 @@ def folded_lower_bound(run, lo, hi):
 
 
 REFINE_WEIGHT_FLOOR = 1e-10
-"""The least weight of a dual entry in :func:`_slack_weighted_duals`, relative to the largest slack
-(the entries of active constraints, slack 0, move almost freely)."""
+"""The least weight of a dual entry in :func:`_slack_weighted_duals`, relative to the largest
+slack."""
 
 
 def _slack_weighted_duals(run, z):
-    """
-    Return the dual points of :data:`REFINE_ROUNDS` rounds of :func:`refine_dual`, weighted.
-
-    The bound (1) of :mod:`.certificate` pays each residual r_i with the box of x_i, which a
-    mass bound of 1e6 x the original makes wide.  A correction Delta with A'Delta = -r removes
-    it instead; at the solver's primal point (x, s = b - A x) the dual objective changes by
-    ``-b'Delta = r'x - s'Delta``: the residual at the point the solver found (not at the box's
-    corner) less ``s'Delta``, small when Delta lives on the active constraints.  So Delta is
-    the least ``sum w_i Delta_i^2`` with w_i the slack of row i (a PSD block in the eigenbasis
-    of its slack matrix S: entry (i, j) weighted (lambda_i + lambda_j)/2, the diagonal ones
-    being exactly <S, Delta Z>), plus a floor.  Projecting z + Delta back onto K* undoes
-    part of it (:data:`REFINE_ROUNDS`).  Only a heuristic for choosing z: each point is
-    certified by :func:`_fold_at` as any other (any z in K* gives a bound).
-    """
+    """Return the dual points of :data:`REFINE_ROUNDS` slack-weighted rounds of refine_dual."""
     a = sp.csr_matrix(run.a).toarray()
     m = a.shape[0]
     s = np.asarray(run.sol.s, dtype=float)
@@ -530,18 +436,11 @@ def _project_all(z, run):
 
 STRUCTURAL_RANK_REL = 1e-12
 """Singular values of a PSD block's matrices below this fraction of the largest span no
-direction of its structural range (:func:`_psd_ranges`)."""
+direction of its range (:func:`_psd_ranges`)."""
 
 
 def _psd_ranges(run):
-    """
-    Return ``{first row: P}``: the projector onto the range every J(y) of a PSD block spans.
-
-    A body on a line (:func:`line_basis`) has J(y) of rank 2 for every y: the dual entries in
-    the other directions enter no residual, and the solver leaves them large (1e4 where the
-    dual objective is 1e-10).  Compressed onto the range (P Z P, PSD when Z is), they no
-    longer scale the rounding shift of :func:`_dual_psd`.  None for a full-rank block.
-    """
+    """Return ``{first row: P}``: the projector onto a rank-deficient PSD block's range."""
     cached = getattr(run, 'psd_ranges', None)
     if cached is not None:
         return cached
@@ -623,16 +522,13 @@ def _fold_at(run, z, lo, hi):
 
 def _dual_psd(zb):
     """Return the svec of a PSD matrix nearest the svec ``zb`` (raised by its rounding)."""
-    m = np.zeros((4, 4))
-    for v, (i, j) in zip(zb, SVEC):
-        m[i, j] = m[j, i] = v if i == j else v / math.sqrt(2.0)
-    vals, vecs = np.linalg.eigh(m)
+    vals, vecs = np.linalg.eigh(_smat(zb))
     vals = np.clip(vals, 0.0, None)
     m = (vecs * vals) @ vecs.T
     m += (64.0 * np.finfo(float).eps * max(float(vals.max(initial=0.0)), 1e-300)) * np.eye(4)
     while np.linalg.eigvalsh(m)[0] < 0.0:     # pragma: no cover - the shift above suffices
         m += np.finfo(float).eps * np.abs(m).max() * 16.0 * np.eye(4)
-    return np.array([m[i, j] if i == j else m[i, j] * math.sqrt(2.0) for i, j in SVEC])
+    return _svec(m)
 
 
 def _dual_pow(zb, alpha):
@@ -657,14 +553,7 @@ moved into each one's dual cone."""
 
 @dataclass
 class Certificate:
-    """
-    Global-optimality certificate of a balancing cone program (the primary stage).
-
-    ``lower_bound`` (also under the old key ``dual``) is a safe lower bound on every
-    feasible z (:func:`safe_lower_bound`), never above
-    ``primal``, the core's z of the returned design (which satisfies every constraint:
-    ``max_violation`` is its worst violation before ``feasibility_pull`` moved it).
-    """
+    """Global-optimality certificate of a balancing cone program: ``lower_bound`` <= ``primal``."""
 
     solver: str
     status: str
@@ -690,13 +579,51 @@ class Certificate:
         return schema.plain(self.__dict__)
 
 
-def failed_stage(stage, run, design, blame=''):
-    """
-    Return the report entry of a stage whose solve failed (name, status, why, design).
+@dataclass
+class Stage:
+    """One solved stage of a balancing cone program: its point, objective and solver figures."""
 
-    ``blame``: the scene values that make the program ill-posed
-    (:func:`mech_balance.balancing.conditioning.blame`).
+    point: np.ndarray          # the design variables at the solver's point
+    objective: float           # q'x
+    run: object                # mech_balance.conic.Solve: the data, statuses and solution
+    status: str = field(init=False)
+    iterations: int = field(init=False)
+    r_prim: float = field(init=False)
+    r_dual: float = field(init=False)
+    seconds: float = field(init=False)
+
+    def __post_init__(self):
+        """Read the solver's figures from ``run``."""
+        sol = self.run.sol
+        self.status, self.seconds = self.run.status, self.run.seconds
+        self.iterations, self.r_prim, self.r_dual = \
+            int(sol.iterations), float(sol.r_prim), float(sol.r_dual)
+
+
+def certify(stage, primal, bound, violation, pull, failed, design_violation, stage2=None,
+            **detail):
     """
+    Return the :class:`Certificate` of a primary :class:`Stage` whose design has z ``primal``.
+
+    ``violation``: the solver's design's before the ``pull``; ``design_violation``: the
+    returned design's; ``detail``: entries added to :func:`bound_detail`.
+    """
+    import clarabel
+    lower = min(bound.value, primal)
+    gap, gap_rel = relative_gap(primal, lower, GAP_FLOOR)
+    return Certificate(
+        solver=f'clarabel {clarabel.__version__}', status=stage.status, primal=primal,
+        dual=lower, gap_abs=gap, gap_rel=gap_rel, residual_primal=stage.r_prim,
+        residual_dual=stage.r_dual, iterations=stage.iterations, stage2=stage2,
+        max_violation=violation, lower_bound=lower, attempts=list(stage.run.attempts),
+        bound_detail=dict(bound_detail(bound), **detail), feasibility_pull=pull,
+        failed_stages=failed, design_violation=design_violation,
+        certified=bool(np.isfinite(lower) and gap_rel <= CERTIFIED_GAP_REL
+                       and design_violation == 0.0))
+
+
+def failed_stage(stage, run, design, blame=''):
+    """Return the report entry of a stage whose solve failed (name, status, why, design)."""
     return {'stage': stage, 'status': run.status, 'reason': run.why() + blame,
             'design': design}
 
@@ -709,7 +636,8 @@ def bound_detail(bound):
             'unbounded_variables': list(bound.unbounded)}
 
 
-__all__ = ['bound_detail', 'Certificate', 'CERTIFIED_GAP_REL', 'cone_list', 'failed_stage',
+__all__ = ['bound_detail', 'Certificate', 'CERTIFIED_GAP_REL', 'certify', 'cone_list',
+           'failed_stage',
            'folded_lower_bound', 'gamma', 'GAP_FLOOR', 'level_set_bounds', 'LowerBound',
            'norm_bound', 'polytope_bounds', 'POWER_ALPHA', 'project_dual', 'relative_gap',
-           'safe_lower_bound', 'SVEC']
+           'safe_lower_bound', 'Stage', 'SVEC']

@@ -72,13 +72,7 @@ def check_link_names(values, names, field_name):
 
 
 def link_bounds(given, names, original, factors, field_name, factors_name):
-    """
-    Return SI (lo, hi) arrays: defaults are factors x original, overridden per link.
-
-    Every link needs 0 < lo <= hi (hi may be inf, for no bound; lo == hi fixes the value):
-    a link without mass, or with point masses at distance 0 (I_O = 0, no body, the
-    equimomental model of seed 001 eq. 27 degenerates), makes the problem meaningless.
-    """
+    """Return SI (lo, hi) arrays: factors x original, overridden per link (0 < lo <= hi <= inf)."""
     try:
         f_lo, f_hi = (float(v) for v in factors)
     except (TypeError, ValueError):

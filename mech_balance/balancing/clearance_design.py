@@ -1,26 +1,10 @@
 """
 Collision-free counterweights: the certified convex optimum moved into layers of its own.
 
-The counterweight program (:mod:`mech_balance.balancing.counterweights`) is convex in each
-disc's mass, first moment and inertia; where a disc lies along z does not enter the planar
-dynamics at all, and the clearance over the cycle is not convex.  So the design is found as
-what it is (docs/build.md):
-
-1. the convex program's certified optimum and its safe lower bound ``z_lb``;
-2. the layers: each disc in a layer of its own beyond the linkage (the layered model of
-   :mod:`mech_balance.analysis.layers`), on the side the user chose or, by default, every
-   assignment of sides and stacking orders tried (a heuristic one beyond
-   :data:`MAX_ENUMERATED` discs), the one clear of everything by the margin with the least
-   overhang kept.  The objective is unchanged: the price of clearance is zero;
-3. where no arrangement is clear, a local search over the discs in the plane (mass, centre,
-   radius; SLSQP from the convex optimum, each arrangement among the :data:`STARTS` least
-   colliding) with the clearance at every sampled crank angle >= margin as constraints and
-   the disc bounds of the convex program (thickness, centre radius, mass, gyration, rim).
-
-The design's objective ``z`` is reported next to ``z_lb``: ``z - z_lb`` is the price of
-clearance (an upper bound on it: ``z_lb`` is at most the convex optimum).  Where no design
-is clear within the bounds the answer says so, with the least clearance reached and the
-bounds active at the best attempt; no colliding design is given as the answer.
+:func:`design` puts each disc of the convex optimum in a layer of its own beyond the linkage
+and, where no arrangement is clear, searches the discs in the plane (SLSQP) with the
+clearance as constraints; ``z - z_lb`` is the price of clearance (docs/build.md,
+"Collision-free by default").
 """
 
 from dataclasses import dataclass, field, replace
@@ -53,13 +37,7 @@ BOUND_ACTIVE_REL = 1e-4
 
 
 class NoClearDesign(BalanceError):
-    """
-    No collision-free counterweight design within the bounds (the message says why).
-
-    ``result`` is the solver's result where there is one (a planar
-    :class:`~mech_balance.balancing.counterweights.CounterweightResult`: its
-    ``clearance_design`` says why, its ``to_dict`` is what ``balance --json`` prints).
-    """
+    """No collision-free counterweight design within the bounds (``result``: the solver's)."""
 
     def __init__(self, message, result=None):
         super().__init__(message)
@@ -137,6 +115,19 @@ class ClearanceReport:
         return out
 
 
+def with_discs(scene, designs, name=None):
+    """Return ``scene`` with the disc of each design added to its link."""
+    by = {d.link: d for d in designs}
+    return scene.with_links([lk if lk.name not in by else
+                             add_counterweights(lk, [by[lk.name].counterweight()])
+                             for lk in scene.links], name=name)
+
+
+def least_pair(clear):
+    """Return the two bodies of a clearance check's least pair (() when none)."""
+    return () if clear.least is None else (clear.least.body_a, clear.least.body_b)
+
+
 def check_margin(value, name='clearance_margin_m'):
     """Return a margin (m) in [0, MAX_CLEARANCE_MARGIN_M], or None (the design off)."""
     if value is None:
@@ -175,10 +166,8 @@ class _Search:
         self._mounts = {}
 
     def scene_of(self, designs):
-        by = {d.link: d for d in designs}
-        return self.scene.with_links(
-            [lk if lk.name not in by else add_counterweights(lk, [by[lk.name].counterweight()])
-             for lk in self.scene.links])
+        """Return the scene with the discs of ``designs``."""
+        return with_discs(self.scene, designs)
 
     def gaps(self, designs):
         """Return (least sampled clearance per pair, body list, pairs) of a design."""
@@ -204,12 +193,7 @@ class _Search:
         return [out[k] for k in range(len(self.designs))]
 
     def mount(self, k, side):
-        """
-        Return the mount of disc k on a side (+1 above, -1 below).
-
-        The link's point whose shaft and web keep clearest of the linkage with the disc
-        alone, innermost (the nearest point on a tie).
-        """
+        """Return the link point whose shaft keeps disc k (``side`` +1 above) clearest."""
         key = (k, side)
         if key not in self._mounts:
             d = self.designs[k]
@@ -354,9 +338,7 @@ def design(scene, prob, designs, lower_bound, margin_m=DEFAULT_CLEARANCE_MARGIN_
     """
     Return ``(designs, ClearanceReport)``: the convex optimum ``designs`` made collision-free.
 
-    ``prob``: the counterweight program (its objective ``z`` and disc bounds), ``lower_bound``
-    its certified lower bound; ``fixed_planes``: the user gave the discs' planes (no layer
-    search).  ``designs`` is empty when none is clear (the report says why).
+    ``fixed_planes``: the user gave the planes (no layer search); ``designs`` empty: none.
     """
     z_convex = prob.z(y_of(prob, designs))
     report = ClearanceReport('collision-free', margin_m, side, z_convex, z_convex, lower_bound,
@@ -390,32 +372,31 @@ def design(scene, prob, designs, lower_bound, margin_m=DEFAULT_CLEARANCE_MARGIN_
                 break
         if not attempts:
             value, moved, stuck = fixed[0]
-            report.status = 'none'
-            report.binding = [f'the layers: {stuck} in every arrangement of sides, orders and '
-                              f'mounts ({search.tried} tried; the shaft stands at a joint, so '
-                              'no move of a disc in the plane frees it)']
-            report.best_attempt = [d.to_dict() for d in moved]
             _final(search, report, moved)
-            return [], report
+            return _none(report, moved, [
+                f'the layers: {stuck} in every arrangement of sides, orders and mounts '
+                f'({search.tried} tried; the shaft stands at a joint, so no move of a disc in '
+                'the plane frees it)'])
         value, moved, active = max(attempts, key=lambda a: a[0])
         report.moved_in_plane = True
         if value >= margin_m:
             chosen, least = moved, value
         else:
-            report.status = 'none'
-            report.binding = active
-            report.best_attempt = [d.to_dict() for d in moved]
             report.objective = prob.z(y_of(prob, moved))
             _final(search, report, moved)
-            return [], report
+            return _none(report, moved, active)
     report.objective = prob.z(y_of(prob, chosen))
     _final(search, report, chosen)
     if report.least_clearance_m < margin_m:   # the refined minimum fell below the margin
-        report.status = 'none'
-        report.binding = ['the clearance between crank-angle samples']
-        report.best_attempt = [d.to_dict() for d in chosen]
-        return [], report
+        return _none(report, chosen, ['the clearance between crank-angle samples'])
     return chosen, report
+
+
+def _none(report, attempt, binding):
+    """Return ``([], report)``: no clear design, ``binding`` why, ``attempt`` the best."""
+    report.status, report.binding = 'none', binding
+    report.best_attempt = [d.to_dict() for d in attempt]
+    return [], report
 
 
 def _final(search, report, designs):
@@ -423,7 +404,7 @@ def _final(search, report, designs):
     clear = clearance_mod.clearance(search.rig.with_scene(search.scene_of(designs)),
                                     search.prob.opt.samples, search.margin, search.sweep)
     report.least_clearance_m = clear.least_clearance_m
-    report.least_pair = () if clear.least is None else (clear.least.body_a, clear.least.body_b)
+    report.least_pair = least_pair(clear)
     report.layers = []
     for d in designs:
         z = search.layers.z_m(d.link) + d.plane_m

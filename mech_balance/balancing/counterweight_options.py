@@ -1,8 +1,7 @@
 """
 The options of add-only counterweight balancing: checked where they are read.
 
-What :func:`mech_balance.balancing.counterweights.balance_with_counterweights` takes
-(:class:`CounterweightOptions`, SI), the checks that name the bad option and value, and the
+:class:`CounterweightOptions` (SI), the checks that name the bad option and value, and the
 joint reach that scales the disc bounds.
 """
 
@@ -112,11 +111,9 @@ def check_options(scene, options):
         raise CounterweightError(f'samples: got {samples!r}, expected an integer >= 4')
     return CounterweightOptions(
         links=link_list(options.links, scene), weights=(w1, w2),
-        density_kg_m3=_ranged(options.density_kg_m3, 'density_kg_m3'),
-        max_thickness_m=_ranged(options.max_thickness_m, 'max_thickness_m'),
-        max_radius_factor=_ranged(options.max_radius_factor, 'max_radius_factor'),
-        max_mass_factor=_ranged(options.max_mass_factor, 'max_mass_factor'),
-        max_gyration_factor=_ranged(options.max_gyration_factor, 'max_gyration_factor'),
+        **{key: _ranged(getattr(options, key), key) for key in (
+            'density_kg_m3', 'max_thickness_m', 'max_radius_factor', 'max_mass_factor',
+            'max_gyration_factor')},
         torque_weight=tw, reaction_weight=rw, samples=int(samples),
         tie_break=bool(options.tie_break), planes=plane_list(options.planes, options.links,
                                                              scene),
@@ -138,12 +135,7 @@ def _clearance_options(options):
 
 
 def plane_list(planes, links, scene, name='planes'):
-    """
-    Return ``((link, plane_m), ...)`` of a plane per counterweight link, checked.
-
-    ``planes``: a mapping, pairs, or text 'crank=-0.03,rocker=0.03' (m: the disc's mid-plane
-    offset along z from its link's plane; a listed link without one: its own plane, 0).
-    """
+    """Return ``((link, plane_m), ...)`` of a mapping, pairs or text 'crank=-0.03,rocker=0.03'."""
     listed = link_list(links, scene)
     if isinstance(planes, str):
         items = []

@@ -1,10 +1,9 @@
 """
 The counterweight program: one disc per listed link as a second-order cone program.
 
-:class:`Problem` builds the cones of :mod:`mech_balance.balancing.counterweights` (the
-derivation is its docstring) in link units, runs its stages with Clarabel, bounds their
-optimum safely (:mod:`.certificate`) and turns a point into the discs as built
-(:class:`CounterweightDesign`).
+:class:`Problem` builds the cones (docs/balancing.md, "Counterweights (add-only discs)") in
+link units, runs its stages with Clarabel, bounds their optimum safely (:mod:`.certificate`)
+and turns a point into the discs as built (:class:`CounterweightDesign`).
 """
 
 from dataclasses import dataclass, field
@@ -22,8 +21,7 @@ import scipy.sparse as sp
 
 MIN_MASS_REL = 1e-7
 """An optimal disc mass below this fraction of its link's mass is no counterweight (omitted:
-the cones force its first moment and inertia to zero with it; the solver's accuracy is
-~1e-9 of the link, so such a disc's centre is noise)."""
+its centre is the solver's noise)."""
 FREE_INERTIA_REL = 1e-12
 """A link's inertia column below this fraction of a term's map: the inertia enters no term."""
 
@@ -57,21 +55,6 @@ class CounterweightDesign:
 
 
 @dataclass
-class Stage:
-    """One solved stage of the program: its point, objective and solver figures."""
-
-    y: np.ndarray
-    objective: float
-    dual: float
-    status: str
-    iterations: int
-    r_prim: float
-    r_dual: float
-    seconds: float
-    solve: object = None      # conic.Solve: the data and statuses of the program
-
-
-@dataclass
 class Problem:
     """The counterweight SOCP of one scene: variables, cones, stages."""
 
@@ -95,16 +78,15 @@ class Problem:
         # variables y per listed link, in units of the link: dm = m0 y_m, dh = m0 l0 y_h, ...
         self.m0, self.l0 = m0, l0
         self.cols = np.concatenate([np.arange(4 * i, 4 * i + 4) for i in self.idx])
-        self.r_max = np.array([opt.max_radius_factor * joint_reach_m(self.scene, nm) / ls
-                               for nm in opt.links])
-        self.k_max = np.array([opt.max_gyration_factor * joint_reach_m(self.scene, nm) / ls
-                               for nm in opt.links])
+        reach = np.array([joint_reach_m(self.scene, nm) for nm in opt.links])   # m
+        self.r_max = opt.max_radius_factor * reach / ls
+        self.k_max = opt.max_gyration_factor * reach / ls
         self.dsc = np.column_stack([m0, m0 * l0, m0 * l0, m0 * l0 * l0]).ravel()
         self.m_max = np.array([opt.max_mass_factor * self.scene.link(nm).own_mass_kg / ms
                                for nm in opt.links])
         # the rim bound rho (normalized), None without max_rim_radius_factor
-        self.rho = None if opt.max_rim_radius_factor is None else np.array(
-            [opt.max_rim_radius_factor * joint_reach_m(self.scene, nm) / ls for nm in opt.links])
+        self.rho = None if opt.max_rim_radius_factor is None else \
+            opt.max_rim_radius_factor * reach / ls
         self.plane = dict(opt.planes)
         # c = 2 pi rho t_max (kg/m^2), normalized: kg/m^2 * ls^2 / ms
         self.c_disc = 2.0 * math.pi * opt.density_kg_m3 * opt.max_thickness_m * ls * ls / ms
@@ -163,10 +145,7 @@ class Problem:
 
     def secondary(self):
         """Return the index of the tie-break norm (0 force, 1 moment) or None."""
-        w1, w2, wt, wr = self.weights4
-        if wt or wr or (w1 and w2):
-            return None
-        return 1 if w2 == 0.0 else 0
+        return redistribution.tie_break_term(self.weights4)
 
     # ----------------------------------------------------------------------- pins
 
@@ -178,21 +157,14 @@ class Problem:
         return u[:, :r], sv[:r], vt[:r]
 
     def pin(self, k, y, exact):
-        """
-        Return (rows, target): the optimal set of a single-norm stage, ``rows y = target``.
-
-        ``exact``: the norm's map is zero (complete force balance): the minimum-norm
-        solution's row-space part; else the image of the stage's optimum ``y``.
-        """
+        """Return (rows, target): the optimal set of a single-norm stage (``exact``: map 0)."""
         g, c = self.norms[k]
         u, sv, vt = self._row_space(g)
         if not sv.size:        # the term does not depend on the counterweights at all
             return vt, np.zeros(0)
         if exact:
             return vt, -(u.T @ c) / sv
-        # rows weighted by their singular values: the solver's equality residual is then
-        # measured in units of the norm (orthonormal rows let a 1e-9 residual along a large
-        # singular direction move the optimum's norm by 1e-5 on the carpet scraper)
+        # rows weighted by their singular values: the equality residual in units of the norm
         rows = vt * (sv / sv[0])[:, None]
         return rows, rows @ y
 
@@ -233,10 +205,8 @@ class Problem:
             b[3 * i + 1] = self.m_max[i] / self.m0[i]
             a[3 * i + 2, 4 * i] = -(self.k_max[i] / self.l0[i]) ** 2
             a[3 * i + 2, 4 * i + 3] = 1.0
-        if bound is not None:
-            a = np.vstack([a, self.weights_vector()])
-            b = np.append(b, bound)
-        for row, value in caps:
+        extra = [(self.weights_vector(), bound)] if bound is not None else []
+        for row, value in extra + list(caps):   # the objective's bound, then the caps
             a = np.vstack([a, row])
             b = np.append(b, value)
         add(clarabel.NonnegativeConeT, a, b)
@@ -258,29 +228,14 @@ class Problem:
         b_all = np.concatenate(b_blocks[:dynamic] + [b_static])
         cones = cones[:dynamic] + [clarabel.SecondOrderConeT(k) for k in sizes]
         run = conic.run_solver(q, a_all, b_all, cones)
-        status = run.status
         if not np.all(np.isfinite(np.asarray(run.sol.x))):
             raise CounterweightError(f'solver: {run.why()} (counterweight problem); no '
                                      f'design{self.blame()}')
         x = np.array(run.sol.x)
-        return Stage(y=x[:ny], objective=float(q @ x), dual=float(run.sol.obj_val_dual),
-                     status=status, iterations=int(run.sol.iterations),
-                     r_prim=float(run.sol.r_prim), r_dual=float(run.sol.r_dual),
-                     seconds=run.seconds, solve=run)
+        return certificate.Stage(x[:ny], float(q @ x), run)
 
     def box(self, level=None, q=None):
-        """
-        Return (lo, hi): bounds on every variable that the constraints imply (link units).
-
-        ``0 <= y_m <= m_max/m0``, ``|y_h| <= (r_max/l0) y_m``, ``0 <= y_s <= y_I <=
-        (k_max/l0)^2 y_m`` (and, with the rim bound, ``y_I <= b y_m`` and ``|y_h| <= (b/a)
-        y_m`` from each cut ``y_I + a |y_h| <= b y_m``); an epigraph t at most its norm's
-        bound over that box, and at most ``level / w`` when the stage's weighted objective
-        is at most ``level``.  When
-        a link's inertia enters none of the norms that the objective ``q`` weights (exactly
-        zero columns: the RMS force alone), an optimal point with the least inertia the
-        disc allows exists, ``y_I = |y_h|^2/y_m + kappa y_m^2``, which bounds y_I instead.
-        """
+        """Return (lo, hi): the variables' bounds (link units), epigraphs capped by ``level``."""
         nx, ny, nl = self.nx, self.ny, self.nl
         lo, hi = np.zeros(nx), np.zeros(nx)
         used = None if q is None else \
@@ -314,7 +269,7 @@ class Problem:
 
     def lower_bound(self, stage, level):
         """Return the safe lower bound (:mod:`.certificate`) of a solved stage."""
-        run = stage.solve
+        run = stage.run
         lo, hi = self.box(level, run.q if level is not None else None)
         return certificate.safe_lower_bound(run.q, run.a, run.b, run.cones, run.sol.z, lo, hi)
 
@@ -326,13 +281,7 @@ class Problem:
         return [(c_h / l0, c_m / (l0 * l0)) for c_h, c_m in clearance_mod.rim_cuts(self.rho[i])]
 
     def anchor(self):
-        """
-        Return a strictly feasible point of the disc constraints (centred small discs).
-
-        Centred (y_h = 0), a disc's y_I lies between ``kappa y_m^2`` (the thickest disc) and
-        ``g2 y_m``, g2 the least of the gyration bound and the rim cuts' ``b`` (the rim bound
-        leaves a centred disc a radius of gyration up to rho / sqrt(3)).
-        """
+        """Return a strictly feasible point of the disc constraints (centred small discs)."""
         y = np.zeros(self.ny)
         for i in range(self.nl):
             g2 = min([(self.k_max[i] / self.l0[i]) ** 2] + [b for _, b in self._rim_cuts(i)])
@@ -343,16 +292,7 @@ class Problem:
         return y
 
     def repair(self, y):
-        """
-        Return ``y`` with each disc moved onto its constraints by the least local change.
-
-        The mass is capped at m_max, the first moment shrunk to the radius bound and to what
-        the gyration bound and the rim cuts leave, and the inertia clipped into
-        [|dh|^2/dm + dm^2/c, min(k_max^2 dm, c_m dm - c_h |dh|)] (the violations an
-        interior-point solution has at active constraints; with a small rim bound the
-        solver's absolute accuracy moves a light disc's centre by more than the rim), each
-        with a margin of a few ulp.
-        """
+        """Return ``y`` with each disc moved onto its constraints by the least local change."""
         y = np.array(y, dtype=float)
         shrink = 1.0 - 16.0 * certificate.UNIT_ROUNDOFF
         for i in range(self.nl):
@@ -386,24 +326,10 @@ class Problem:
                 y[im + 3] = min(max(y[im + 3], i_lo), i_hi)
         return y
 
-    def feasible(self, y, worst):
-        """
-        Return (y, pull): ``y`` repaired (:meth:`repair`), else moved towards :meth:`anchor`.
-
-        The constraints are convex and the anchor inside them, so a convex combination
-        with a large enough fraction ``pull`` is feasible; ``pull`` 0 when ``y`` already is.
-        """
-        if worst <= 0.0:
-            return y, 0.0
-        y = self.repair(y)
-        if self.discs(y)[2] <= 0.0:
-            return y, 0.0
-        anchor = self.anchor()
-        for lam in redistribution.PULL_STEPS[1:]:
-            cand = (1.0 - lam) * y + lam * anchor
-            if self.discs(cand)[2] <= 0.0:
-                return cand, lam
-        return anchor, 1.0
+    def feasible(self, y):
+        """Return (y, pull): ``y`` repaired (:meth:`repair`), else moved towards :meth:`anchor`."""
+        return redistribution.pull_inside(y, lambda v: self.discs(v)[2], self.repair,
+                                          self.anchor)
 
     def _add_cones(self, add):
         """Add the cones every stage shares: the discs' and the objective terms' epigraphs."""
@@ -444,12 +370,7 @@ class Problem:
     # ----------------------------------------------------------------------- discs
 
     def discs(self, y):
-        """
-        Return (designs, omitted links, worst constraint violation) of ``y``.
-
-        Violations are in units of the link: mass by its own mass, first moment by own mass x
-        reach, inertia by own mass x reach^2.
-        """
+        """Return (designs, omitted links, worst constraint violation in units of the link)."""
         u, opt = self.units, self.opt
         ms, ls = u.mass_kg, u.length_m
         d = (y * self.dsc).reshape(-1, 4)

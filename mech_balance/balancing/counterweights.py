@@ -1,67 +1,34 @@
 """
 Add-only counterweight balancing: one solid disc per listed link, to a certified optimum.
 
-Seed 001's optimum redistributes each link's whole mass; an engineer who owns the rig adds
-counterweights to the links it has.  Here each listed link keeps its own mass, mass centre
-and inertia and gains one disc (solid cylinder, axis normal to the plane of motion) of
-density rho and thickness t <= t_max, its centre r (link frame) at |r| <= r_max and its mass
-dm <= max_mass_factor x the link's mass; every other link is untouched.
-
-Convexity (the derivation).  A disc of mass dm, radius R and thickness t has
-``dm = rho pi R^2 t`` and centroidal inertia ``I_c = dm R^2 / 2 = dm^2 / (2 pi rho t)``.  With
-``dh = dm r`` (its first moment) and ``dI`` (its inertia about the link origin, parallel
-axes) ``dI = I_c + dm |r|^2 = I_c + |dh|^2 / dm``.  So t <= t_max is
-``I_c >= dm^2 / (2 pi rho t_max)``, and a disc realizes (dm, dh, dI) exactly when
-
-    |dh| <= r_max dm,      dI >= |dh|^2 / dm + dm^2 / (2 pi rho t_max)
-
-(any larger I_c is a thinner, wider disc: ``t = dm^2/(2 pi rho I_c)``, ``R = sqrt(2 I_c/dm)``),
-and one bound more, linear: ``dI <= k_max^2 dm`` (:data:`DEFAULT_MAX_GYRATION_FACTOR`).
-``|dh|^2/dm`` (quadratic over linear) and ``dm^2/c`` are convex, so the set is convex; with an
-auxiliary s it is two rotated second-order cones, ``|dh|^2 <= dm (dI - s)`` and
-``dm^2 <= c s`` (c = 2 pi rho t_max), plus the cone ``|dh| <= r_max dm``.  The link
-parameters theta = (m, m c, I_O) become theta_0 + (dm, dh, dI), and every RMS quantity of
-the objective is the norm of an affine map of them (seed 001 eqs. 25-26, 39;
-:func:`mech_balance.analysis.linear_maps.linear_maps`), so the whole problem is a second-order cone
-program, solved by Clarabel with its duality gap as the certificate.
-
-Objective and ties as :func:`mech_balance.balancing.redistribution.optimize`: ``z = w1 f~ + w2 n~
-[+ torque_weight tau~ + reaction_weight sum f~_j]``.  With exactly one of w1, w2 non-zero the
-optimum is generally not unique: stage 2 minimizes the other RMS among the optimal designs
-(with complete force balance imposed exactly when w2 = 0 and it is attainable), and stage 3
-the total added mass among those.  A single-norm stage's optimal set is pinned exactly (a
-Euclidean norm minimized over a convex set has one optimal image, so the optimal designs
-are those with the same image: an equality on the map's row space), a weighted sum of norms
-by ``z <= z* + TIE_BREAK_SLACK max(z*, 1)``.  A link whose inertia enters no term (a crank
-turning at constant speed) gets the thickest, smallest disc, t = t_max.  A counterweight
-lighter than :data:`MIN_MASS_REL` of its link is none (omitted).
+Each listed link keeps its own mass, mass centre and inertia and gains one disc (axis normal
+to the plane of motion) of density rho, thickness t <= t_max, centre |r| <= r_max and mass
+dm <= max_mass_factor x the link's; every other link is untouched.  The discs' set is
+convex (two rotated second-order cones and ``|dh| <= r_max dm``), so the problem is a
+certified second-order cone program (:mod:`.counterweight_program`; the derivation:
+docs/balancing.md, "Counterweights (add-only discs)").  Objective and ties as
+:func:`mech_balance.balancing.redistribution.optimize`, then the least total added mass.
 """
 
 from dataclasses import dataclass
 import time
 
-import clarabel
 from mech_balance import schema
-from mech_balance.analysis import clearance as clearance_mod, linear_maps
+from mech_balance.analysis import clearance as clearance_mod
 from mech_balance.balancing import certificate, clearance_design, redistribution, tables
 from mech_balance.balancing.counterweight_options import (
-    check_options, CounterweightError, CounterweightOptions, joint_reach_m, link_list,
-    nonnegative, plane_list, positive)
-from mech_balance.balancing.counterweight_program import (
-    CounterweightDesign, MIN_MASS_REL, Problem)
+    check_options, CounterweightError, CounterweightOptions, joint_reach_m)
+from mech_balance.balancing.counterweight_program import CounterweightDesign, Problem
 from mech_balance.balancing.defaults import (
     DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_GYRATION_FACTOR, DEFAULT_MAX_MASS_FACTOR,
     DEFAULT_MAX_RADIUS_FACTOR, DEFAULT_MAX_THICKNESS_M, DEFAULT_WEIGHTS)
 from mech_balance.core.planar import dynamics, rig as planar_rig
-from mech_balance.schema.scene import add_counterweights
 import numpy as np
 
-__all__ = ['balance_with_counterweights', 'check_options', 'cost_of_balancing',
-           'CounterweightDesign', 'CounterweightError', 'CounterweightOptions',
-           'CounterweightResult', 'DEFAULT_DENSITY_KG_M3', 'DEFAULT_MAX_GYRATION_FACTOR',
-           'DEFAULT_MAX_MASS_FACTOR', 'DEFAULT_MAX_RADIUS_FACTOR', 'DEFAULT_MAX_THICKNESS_M',
-           'format_cost', 'joint_reach_m', 'link_list', 'METHOD', 'MIN_MASS_REL',
-           'nonnegative', 'plane_list', 'positive', 'Problem', 'solve']
+__all__ = ['balance_with_counterweights', 'cost_of_balancing', 'CounterweightDesign',
+           'CounterweightError', 'CounterweightOptions', 'CounterweightResult',
+           'DEFAULT_MAX_GYRATION_FACTOR', 'DEFAULT_MAX_THICKNESS_M', 'format_cost',
+           'joint_reach_m', 'METHOD', 'Problem', 'solve']
 TIE_BREAK_SLACK = 1e-9
 """A tie-break stage after a weighted sum of norms keeps z within this fraction of
 max(z*, 1) (a single-norm stage is pinned exactly instead)."""
@@ -157,12 +124,7 @@ def balance_with_counterweights(scene, links, weights=DEFAULT_WEIGHTS, *,
                                 tie_break=True, planes=(), max_rim_radius_factor=None,
                                 clearance_margin_m=clearance_design.DEFAULT_CLEARANCE_MARGIN_M,
                                 disc_side='auto', max_overhang_m=None):
-    """
-    Return the optimal add-only counterweights of ``links`` (a :class:`CounterweightResult`).
-
-    ``links``: names (a sequence or 'a,b').  The options are those of
-    :class:`CounterweightOptions` (SI); see the module docstring for the problem.
-    """
+    """Return the optimal add-only discs on ``links`` ('a,b' or names): a CounterweightResult."""
     return solve(scene, CounterweightOptions(
         links=links, weights=weights, density_kg_m3=density_kg_m3,
         max_thickness_m=max_thickness_m, max_radius_factor=max_radius_factor,
@@ -178,54 +140,48 @@ def solve(scene, options):
     t_start = time.perf_counter()
     opt = check_options(scene, options)
     units = planar_rig.objective_units(scene)
-    need = ['shaking_wrench']
-    if opt.torque_weight:
-        need.append('driving_torque')
-    if opt.reaction_weight:
-        need.append('bearing_reactions')
-    t0 = time.perf_counter()
-    maps = linear_maps.linear_maps(scene, opt.samples, need, units)
-    maps_s = time.perf_counter() - t0
+    maps, maps_s = redistribution.objective_maps(scene, opt.samples, units, opt.torque_weight,
+                                                 opt.reaction_weight)
     prob = Problem(scene, maps, opt, units)
     blame = prob.blame()
     stage1 = prob.run(prob.weights_vector(), [])
     failed = []
-    if not stage1.solve.ok:
+    if not stage1.run.ok:
         failed.append(certificate.failed_stage(
-            'primary (z)', stage1.solve, "the solver's last iterate, made "
+            'primary (z)', stage1.run, "the solver's last iterate, made "
             'feasible; its lower bound is safe', blame))
-    y, stage2, stage3, exact = stage1.y, None, None, False
+    y, stage2, stage3, exact = stage1.point, None, None, False
     secondary = prob.secondary()
     pins = []
-    if opt.tie_break and secondary is not None and stage1.solve.ok:
+    if opt.tie_break and secondary is not None and stage1.run.ok:
         name2 = f"tie-break (least RMS shaking {('force', 'moment')[secondary]})"
         primary = 0 if secondary == 1 else 1
         exact = (secondary == 1 and
                  prob.norm(0, y) <= redistribution.FORCE_BALANCE_REL_TOL * maps.force_rms_original)
         pins = [prob.pin(primary, y, exact)]
         stage2 = prob.run(prob.unit(secondary), pins)
-        tried = list(stage2.solve.attempts)
-        if not stage2.solve.ok and not exact:
+        tried = list(stage2.run.attempts)
+        if not stage2.run.ok and not exact:
             # the optimal image pinned exactly can be infeasible to round-off: cap the
             # primary norm instead (z <= z* + slack), as the mass stage does
             z_p = prob.norm(primary, y)
             for slack in MASS_STAGE_SLACKS[1:]:
                 cap = [(prob.unit(primary), z_p + slack * max(z_p, certificate.GAP_FLOOR))]
                 stage2 = prob.run(prob.unit(secondary), [], None, cap)
-                tried.extend(stage2.solve.attempts)
-                if stage2.solve.ok:
+                tried.extend(stage2.run.attempts)
+                if stage2.run.ok:
                     pins = []
                     break
-        stage2.solve.attempts = tuple(tried)
-        if not stage2.solve.ok:
-            failed.append(certificate.failed_stage(name2, stage2.solve,
+        stage2.run.attempts = tuple(tried)
+        if not stage2.run.ok:
+            failed.append(certificate.failed_stage(name2, stage2.run,
                                                    "the primary stage's optimum", blame))
             stage2, exact, pins = None, False, []
         else:
-            y = stage2.y
+            y = stage2.point
             if pins:
                 pins = pins + [prob.pin(secondary, y, False)]
-    if opt.tie_break and stage1.solve.ok:
+    if opt.tie_break and stage1.run.ok:
         # the mass stage keeps every earlier objective optimal: the optimal images pinned
         # exactly, or, where that is infeasible to round-off at active cones (Clarabel ends
         # AlmostPrimalInfeasible), each objective capped at its optimum plus a slack
@@ -247,50 +203,36 @@ def solve(scene, options):
         tried = []
         for keep, bound, caps in variants:
             stage3 = prob.run(prob.mass_vector(), keep, bound, caps)
-            tried.extend(stage3.solve.attempts)
-            if stage3.solve.ok:
+            tried.extend(stage3.run.attempts)
+            if stage3.run.ok:
                 break
-        stage3.solve.attempts = tuple(tried)
-        if not stage3.solve.ok:
+        stage3.run.attempts = tuple(tried)
+        if not stage3.run.ok:
             failed.append(certificate.failed_stage(
-                'least added mass', stage3.solve, "the previous stage's optimum (its "
+                'least added mass', stage3.run, "the previous stage's optimum (its "
                 'added mass is not the least)', blame))
             stage3 = None
         else:
-            y = stage3.y
+            y = stage3.point
     if exact:
         y = prob.project_force_balance(y)
     designs, omitted, worst = prob.discs(y)
-    y, pull = prob.feasible(y, worst)
+    y, pull = prob.feasible(y)
     designs, omitted, final_violation = prob.discs(y)
-    balanced = _balanced(scene, designs)
-    theta = dynamics.parameter_vector(dynamics.Inertia.from_links(balanced.links)) / prob.scale
-    terms = maps.terms(theta)
+    balanced = clearance_design.with_discs(scene, designs, f'{scene.name}_counterweights')
+    terms = maps.terms(dynamics.parameter_vector(
+        dynamics.Inertia.from_links(balanced.links)) / prob.scale)
     w = prob.weights4
     primal = float(np.dot(w, terms))
-    bound1 = prob.lower_bound(stage1, primal)
-    lower = min(bound1.value, primal)
-    gap, gap_rel = certificate.relative_gap(primal, lower, certificate.GAP_FLOOR)
     s2 = None
     if stage2 is not None:
-        # its own safe bound (the box of the disc constraints holds an optimal point: every
-        # t at its norm); min with the solver's objective keeps it a bound, never above it
-        lb2 = min(prob.lower_bound(stage2, None).value, stage2.objective)
-        s2 = {'minimized': f"RMS shaking {('force', 'moment')[secondary]}",
-              'status': stage2.status, 'objective': stage2.objective,
-              'lower_bound': lb2, 'iterations': stage2.iterations,
-              'attempts': list(stage2.solve.attempts), 'exact_force_balance': bool(exact)}
-    cert = certificate.Certificate(
-        solver=f'clarabel {clarabel.__version__}', status=stage1.status, primal=primal,
-        dual=lower, gap_abs=gap, gap_rel=gap_rel,
-        residual_primal=stage1.r_prim, residual_dual=stage1.r_dual,
-        iterations=stage1.iterations, stage2=s2, max_violation=worst, lower_bound=lower,
-        attempts=list(stage1.solve.attempts),
-        bound_detail=dict(certificate.bound_detail(bound1), null_directions_assumed=0),
-        feasibility_pull=pull, failed_stages=failed,
-        certified=bool(np.isfinite(lower) and gap_rel <= certificate.CERTIFIED_GAP_REL
-                       and final_violation == 0.0),
-        design_violation=final_violation)
+        # its own safe bound (the box of the disc constraints holds an optimal point); the
+        # min with the solver's objective keeps it a bound, never above it
+        s2 = redistribution.tie_break_report(
+            stage2, f"RMS shaking {('force', 'moment')[secondary]}",
+            min(prob.lower_bound(stage2, None).value, stage2.objective), exact)
+    cert = certificate.certify(stage1, primal, prob.lower_bound(stage1, primal), worst, pull,
+                               failed, final_violation, s2, null_directions_assumed=0)
     least = None
     if stage3 is not None:
         mass = sum(d.mass_kg for d in designs) / units.mass_kg
@@ -298,13 +240,13 @@ def solve(scene, options):
         least = {'minimized': 'total added mass', 'status': stage3.status,
                  'objective_kg': mass * units.mass_kg, 'lower_bound_kg': lb3 * units.mass_kg,
                  'dual_kg': lb3 * units.mass_kg, 'iterations': stage3.iterations,
-                 'attempts': list(stage3.solve.attempts)}
+                 'attempts': list(stage3.run.attempts)}
     report = None
     if opt.clearance_margin_m is not None:   # the convex optimum made collision-free
         designs, report = clearance_design.design(
-            scene, prob, designs, lower, opt.clearance_margin_m, opt.disc_side,
+            scene, prob, designs, cert.lower_bound, opt.clearance_margin_m, opt.disc_side,
             opt.max_overhang_m, fixed_planes=bool(opt.planes))
-        balanced = _balanced(scene, designs)
+        balanced = clearance_design.with_discs(scene, designs, f'{scene.name}_counterweights')
         terms = maps.terms(dynamics.parameter_vector(
             dynamics.Inertia.from_links(balanced.links)) / prob.scale)
     clear = clearance_mod.of_design(scene, balanced, opt.samples,
@@ -334,23 +276,8 @@ def solve(scene, options):
         clearance_design=report)
 
 
-def _balanced(scene, designs):
-    """Return the scene with the discs of ``designs`` added to their links."""
-    by_link = {d.link: d for d in designs}
-    return scene.with_links([lk if lk.name not in by_link else
-                             add_counterweights(lk, [by_link[lk.name].counterweight()])
-                             for lk in scene.links], name=f'{scene.name}_counterweights')
-
-
 def cost_of_balancing(original, balanced, table):
-    """
-    Return what a balance did to the shaking moment, torque, bearing loads and total mass.
-
-    From the before/after rows of :func:`mech_balance.balancing.tables.before_after` (SI RMS
-    values): ``{quantity: {before, after, change_percent}}`` for the shaking force, shaking
-    moment, driving torque, the sum of the RMS bearing forces and the total moving mass
-    (kg).  ``change_percent`` is None when the before value is zero.
-    """
+    """Return ``{quantity: {before, after, change_percent}}`` (SI) of a before/after ``table``."""
     rows = {r['quantity']: r for r in table}
 
     def entry(before, after):

@@ -2,15 +2,10 @@
 The balancing options, each declared once: the command line's and the node's from one table.
 
 :data:`OPTIONS` holds every option of :func:`mech_balance.balancing.balance` that a user sets:
-its keyword, the rig node's parameter (``balance.*``, :mod:`mech_balance.ros.params` builds its
-``Spec`` from the entry), the ``mech-balance balance`` flag (:mod:`mech_balance.cli.balance`
-adds its argparse option from the entry), its type, default, texts, bounds, choices and check
-(a ``ValueError`` naming the parameter or flag given, the value and what was expected), and
-the methods that take it.  :func:`from_params` and :func:`from_args` turn the node's values
-and the parsed command line into ``balance()``'s keyword arguments by the same entries: the
-two surfaces cannot drift apart (``clearance`` off, ``--no-clearance``, becomes
-``clearance_margin_m`` None: the one option that is not a keyword of ``balance()``).
-No ROS import here.
+its keyword, the node's ``balance.*`` parameter (:mod:`mech_balance.ros.params`), the
+``mech-balance balance`` flag (:mod:`mech_balance.cli.balance`), type, default, texts, bounds,
+choices, check and methods.  :func:`from_params` and :func:`from_args` turn either surface's
+values into ``balance()``'s keyword arguments by the same entries.  No ROS import here.
 """
 
 from dataclasses import dataclass
@@ -36,13 +31,10 @@ ALL_METHODS = ('redistribution', 'counterweights', 'analytic', 'weights', 'force
 @dataclass(frozen=True)
 class Option:
     """
-    One balancing option (module docstring).
+    One balancing option (module docstring); ``param``/``flag`` None where a surface lacks it.
 
-    ``param``/``flag`` are None where a surface does not offer it; ``param_default`` is the
-    parameter's default where its form differs from ``default`` (the value ``balance()``
-    gets); ``to_option`` converts a parameter's value to that form; ``cli`` holds the
-    argparse keywords of the flag's form (``nargs``, ``type``, ``action``, ``metavar``) and
-    ``flag_help`` its text where the flag reads otherwise than the parameter's ``description``.
+    ``param_default``/``to_option``: the parameter's form where it differs from ``default``;
+    ``cli``: the flag's argparse keywords; ``flag_help``: its text if not ``description``.
     """
 
     key: str
@@ -109,9 +101,7 @@ def parse_link_bounds(name, text, unit):
     Return ``{link: (min, max)}`` from a ``balance.*_bounds`` text, or None when empty.
 
     The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in
-    ``unit``, parsed as scenes are (:func:`mech_balance.schema.safe_yaml.loads`: YAML 1.2
-    floats, ``1e-1`` is a number); link names are checked against the scene when the
-    balancing runs.
+    ``unit`` (:func:`mech_balance.schema.safe_yaml.loads`).
     """
     if not text.strip():
         return None
@@ -344,27 +334,21 @@ OPTIONS = (
            param_default=0.0, to_option=_none_if_zero, cli={'metavar': 'M'},
            flag_help="--counterweights: a disc's outer face at most M beyond its link's "
                      "plane (m; default: no bound but the scene's plane_m limit)"),
+    # the options without a node parameter: their description is the flag's help
     Option('extent_factor', None, '--extent-factor', DOUBLE, 1.5,
-           "Spatial redistribution: RMS distance of each body's mass from its origin at most "
-           'this factor times its reach (farthest drawn point).', methods=REDISTRIBUTION,
-           bounds=defaults.EXTENT_FACTOR_RANGE, cli={'metavar': 'F'},
-           flag_help="spatial redistribution: RMS distance of each body's mass from its origin at "
-                     'most F x its reach (farthest drawn point); range '
-                     f'{defaults.EXTENT_FACTOR_RANGE[0]:g} to '
-                     f'{defaults.EXTENT_FACTOR_RANGE[1]:g}'),
+           "spatial redistribution: RMS distance of each body's mass from its origin at most F x "
+           f'its reach (farthest drawn point); range {defaults.EXTENT_FACTOR_RANGE[0]:g} to '
+           f'{defaults.EXTENT_FACTOR_RANGE[1]:g}', methods=REDISTRIBUTION,
+           bounds=defaults.EXTENT_FACTOR_RANGE, cli={'metavar': 'F'}),
     Option('planes', None, '--planes', STRING, '',
-           "Counterweights: a disc's plane, its mid-plane's offset along z from its link's plane "
-           'in m.', methods=COUNTERWEIGHTS, cli={'metavar': 'LINK=Z[,LINK=Z...]'},
-           flag_help="--counterweights: a disc's plane, its mid-plane's offset along z from "
-                     "its link's plane in m (default: each link's own plane, 0); bodies whose "
-                     'slabs along z overlap share a plane and are checked for clearance over '
-                     'the cycle'),
+           "--counterweights: a disc's plane, its mid-plane's offset along z from its link's "
+           "plane in m (default: each link's own plane, 0); bodies whose slabs along z overlap "
+           'share a plane and are checked for clearance over the cycle', methods=COUNTERWEIGHTS,
+           cli={'metavar': 'LINK=Z[,LINK=Z...]'}),
     Option('max_rim_radius_factor', None, '--max-rim-radius-factor', DOUBLE, None,
-           "Counterweights: the whole disc inside this factor times the link's joint reach of "
-           "the link's origin.", methods=COUNTERWEIGHTS, cli={'metavar': 'F'},
-           flag_help="--counterweights: the whole disc inside F x the link's joint reach of "
-                     "the link's origin (a convex constraint of the program; default: no "
-                     'bound)' + _range_text('max_rim_radius_factor')),
+           "--counterweights: the whole disc inside F x the link's joint reach of the link's "
+           'origin (a convex constraint of the program; default: no bound)'
+           + _range_text('max_rim_radius_factor'), methods=COUNTERWEIGHTS, cli={'metavar': 'F'}),
     Option('force_balanced', None, '--force-balanced', BOOL, False,
            'Spatial redistribution: impose complete force balance (falls back to the least '
            'RMS shaking force, with a note, when impossible).', methods=REDISTRIBUTION,
@@ -376,7 +360,6 @@ OPTIONS = (
 """Every balancing option a user sets (module docstring), in the node's declaration order."""
 
 BY_KEY = {opt.key: opt for opt in OPTIONS}
-BY_PARAM = {opt.param: opt for opt in OPTIONS if opt.param}
 BY_FLAG = {opt.flag: opt for opt in OPTIONS if opt.flag}
 
 
@@ -397,12 +380,7 @@ def flag_default(opt):
 
 
 def add_arguments(parser, keys, types=None):
-    """
-    Add the flags of the options ``keys`` to an argparse parser, from :data:`OPTIONS`.
-
-    ``types`` maps keys to argparse ``type`` callables (the command line's number parsers);
-    the rest are float, int or str by the option's type.
-    """
+    """Add the flags of the options ``keys`` to a parser (``types``: key -> argparse type)."""
     base = {DOUBLE: float, DOUBLE_ARRAY: float, INTEGER: int, STRING: str}
     for key in keys:
         opt = BY_KEY[key]
@@ -419,13 +397,7 @@ def add_arguments(parser, keys, types=None):
 
 
 def from_params(values, method):
-    """
-    Return ``balance()``'s keyword arguments for ``method`` from the node's parameter values.
-
-    ``values`` maps parameter names to checked values; the per-link
-    ``balance.links.<link>.*_bounds`` join the text ``balance.*_bounds`` (a link in both is
-    refused by :func:`mech_balance.ros.params.check_links`).
-    """
+    """Return ``balance()``'s keyword arguments for ``method`` from the node's parameters."""
     out = {}
     for opt in OPTIONS:
         if opt.param is None or method not in opt.methods or opt.param not in values:
@@ -446,12 +418,7 @@ def from_params(values, method):
 
 
 def from_args(args, method, keys=None):
-    """
-    Return ``balance()``'s keyword arguments for ``method`` from a parsed command line.
-
-    Only the options with a flag (``keys``: those of them the caller added); a flag at its
-    default gives the option's default.
-    """
+    """Return ``balance()``'s keyword arguments for ``method`` from parsed flags (``keys``)."""
     out = {}
     for opt in OPTIONS:
         if opt.flag is None or method not in opt.methods or \

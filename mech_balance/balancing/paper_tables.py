@@ -1,9 +1,7 @@
 """
 Seed 001's printed tables that the code compares itself with (data, normalized units).
 
-The ``balance`` verb prints its optima next to these numbers (:func:`compare_optimum`) and
-its analytic designs for the papers' variants (:func:`analytic_variants`); the tests use the
-same design vectors as inputs, the expected results stay in the tests.  Damaged entries of the
+``balance`` prints its optima next to them (:func:`compare_optimum`); damaged entries of the
 extracted text are reconstructed where noted.
 """
 
@@ -72,14 +70,8 @@ def compare_optimum(result):
     """
     Return how a redistribution optimum compares with seed 001's, or None where none applies.
 
-    ``result`` is a :class:`mech_balance.balancing.redistribution.BalanceResult` of the Hoeken
-    linkage
-    (Tables 5 and 7) or the carpet scraper (case a: Tables 9 and 10) at one of the paper's
-    weightings without driving-torque or bearing weights.  The mapping holds the table's
-    label, its RMS normalized shaking force ``f`` and moment ``n``, its ``z_paper`` = w1 f +
-    w2 n, this optimum's ``z``, their difference in percent, whether the paper's
-    constraints were solved, and ``unrealizable``: ``{link: reason}`` of the paper's own
-    design vector where a link of it is no body.
+    The table's label, ``f``, ``n``, ``z_paper``, this ``z``, the change in percent,
+    ``paper_constraints`` and ``unrealizable`` (links of the paper's design that are no body).
     """
     k = weight_case(result.weights)
     name = result.scene.name
@@ -99,30 +91,19 @@ def compare_optimum(result):
     w1, w2 = result.weights
     z_paper = w1 * f + w2 * n
     z = result.objective['z']
-    links = _design_links(result.scene, x, result.case == 'b')
+    from mech_balance.balancing import tables
+    from mech_balance.core import equimomental
+    sc = result.scene
+    links = [tables.link_design(lk, result.case == 'b', sc.normalization)
+             for lk in equimomental.apply_design(sc, x, normalized=True).links]
     return {'label': label, 'f': f, 'n': n, 'z_paper': z_paper, 'z': z,
             'change_percent': (z - z_paper) / z_paper * 100.0,
             'paper_constraints': result.paper_constraints,
             'unrealizable': {d.name: d.reason for d in links if not d.realizable}}
 
 
-def _design_links(sc, x, counterweights):
-    """Return the per-link designs of a table's normalized design vector ``x`` on ``sc``."""
-    from mech_balance.balancing import tables
-    from mech_balance.core import equimomental
-    design = equimomental.apply_design(sc, x, normalized=True)
-    return [tables.link_design(lk, counterweights, sc.normalization) for lk in design.links]
-
-
 def analytic_variants(rig, mass_factors=None, keep_centroidal=False, samples=None):
-    """
-    Return the :class:`~mech_balance.balancing.result.Design` of each analytic variant.
-
-    A slider-crank (a prismatic joint): seed 000's force balance, then with eq. 75 as
-    printed; a four-bar: seed 001 eq. 48 for each crank and rocker mass factor (default
-    :data:`TABLE3_MASS_FACTORS`), with the paper's point-mass distance l or, with
-    ``keep_centroidal``, the centroidal inertias kept.
-    """
+    """Return the Design of each analytic variant (a four-bar: per :data:`TABLE3_MASS_FACTORS`)."""
     from mech_balance import balancing
     from mech_balance.core.rig import as_rig
     rig = as_rig(rig)
@@ -135,13 +116,7 @@ def analytic_variants(rig, mass_factors=None, keep_centroidal=False, samples=Non
 
 
 def table12_rows(table12):
-    """
-    Return the rows of seed 001 Table 12's comparison: label, torque, force, moment and z.
-
-    ``table12`` is :func:`mech_balance.balancing.two_point.table12`'s result; the paper's
-    two rows come first where the paper has them (its scene, weights 0.5 0.5), then the
-    certified relaxation and the best two-point design; z = w1 f~ + w2 n~ (eq. 43).
-    """
+    """Return the rows of seed 001 Table 12's comparison: label, torque, force, moment and z."""
     w1, w2 = table12.weights
     rows = []
     paper = TABLE12.get(table12.scene)

@@ -1,18 +1,11 @@
 """
 Optimal mass redistribution of planar linkages (seed 001 eqs. 42-53): :func:`optimize`.
 
-Per moving link the inertial parameters theta_i = (m_i, h_i = m_i c_i, I_Oi) enter the
-shaking force, the shaking moment, the driving torque and every bearing reaction linearly
-(seed 001 eqs. 25-26, 39), so each RMS over p crank angles is a Euclidean norm
-``||A theta|| / sqrt(p)`` and the paper's constraints are convex in theta: a second-order
-cone program, solved by Clarabel (:func:`mech_balance.conic.run_solver`) and certified by a
-safe lower bound (:mod:`mech_balance.balancing.certificate`).  The constraints in theta and
-the units of the objective: docs/balancing.md, "Mass redistribution".
-
-Units: scenes are SI.  The objective ``z = w1 f~ + w2 n~`` is dimensionless, in the units of
-seed 001 sec. 3.4 (force by m_1 a_1 omega^2, moment by m_1 a_1^2 omega^2) taken from the
-scene's ``normalization`` or, if it records none, from its crank link mass, crank length
-and crank speed (:func:`mech_balance.core.planar.rig.objective_units`).
+Each RMS is the norm of a linear map of the links' inertial parameters, so the paper's
+problem is a second-order cone program in them, solved by Clarabel and certified by a safe
+lower bound (:mod:`mech_balance.balancing.certificate`); the constraints in theta:
+docs/balancing.md, "Mass redistribution".  The objective ``z = w1 f~ + w2 n~`` is in the
+units of :func:`mech_balance.core.planar.rig.objective_units` (seed 001 sec. 3.4).
 """
 
 from dataclasses import dataclass, replace
@@ -23,8 +16,8 @@ import clarabel
 from mech_balance import schema
 from mech_balance.analysis.linear_maps import linear_maps, RANK_REL_TOL
 from mech_balance.balancing import certificate, conditioning
-from mech_balance.balancing.certificate import bound_detail, Certificate, CERTIFIED_GAP_REL, \
-    failed_stage, GAP_FLOOR
+from mech_balance.balancing.certificate import Certificate, certify, failed_stage, GAP_FLOOR, \
+    Stage
 from mech_balance.balancing.checks import BalanceError, check_link_names, check_nonneg, \
     check_planar, check_weights, finite_or_none, link_bounds, show
 from mech_balance.balancing.defaults import CASES, CENTROIDAL_MARGIN, DEFAULT_WEIGHTS, \
@@ -51,31 +44,14 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
              mass_factors=PAPER_MASS_FACTORS, distance_factors=PAPER_DISTANCE_FACTORS,
              centroidal_margin=CENTROIDAL_MARGIN, tie_break=True):
     """
-    Return the globally optimal mass distribution of a planar scene (seed 001 eqs. 42-53).
+    Return the globally optimal mass distribution of a planar scene (a :class:`BalanceResult`).
 
-    Minimizes ``z = w1 f~ + w2 n~ [+ torque_weight tau~ + reaction_weight sum_j f~_j]``
-    (RMS over one revolution of the normalized shaking force, shaking moment, driving
-    torque and bearing forces) over every moving link's mass, mass centre and inertia;
-    ``weights`` = (w1, w2) defaults to :data:`DEFAULT_WEIGHTS`.
-
-    Constraints per link (not for ``fixed_links``, whose inertia stays the original):
-    ``mass_bounds`` ``{link: (min_kg, max_kg)}`` (default ``mass_factors`` times the
-    original mass), ``distance_bounds`` ``{link: (min_m, max_m)}`` on the point-mass
-    distance l = sqrt(I_O/m) (default ``distance_factors`` times the original l; ``None``
-    for no upper bound), ``case`` 'a' (point masses of any sign) or 'b' (non-negative,
-    counterweights), ``realizable`` (centroidal inertia >= ``centroidal_margin`` I_O, on
-    by default), ``max_added_mass_kg`` (cap on total mass minus the original's).  Bounds
-    and factors need 0 < min <= max (equal bounds fix the value; a zero mass or distance
-    is no body), else ``ValueError`` naming the option.
-
-    ``paper_constraints=True`` reproduces seed 001 eqs. 50/53 exactly: the paper's bounds,
-    the chosen case, no realizability constraint; it rejects the options the paper lacks.
-
-    If exactly one of w1, w2 is zero (and no other term is weighted) the optimum is
-    generally not unique; with ``tie_break`` a second cone program returns, among the
-    optimal designs, the one with the least RMS of the unweighted quantity; when complete
-    force balance is attainable with w2 = 0 it is imposed exactly (shaking force zero to
-    round-off) and the least RMS shaking moment is found among force-balanced designs.
+    Minimizes ``z = w1 f~ + w2 n~ [+ torque_weight tau~ + reaction_weight sum_j f~_j]`` over
+    the links' mass, mass centre and inertia.  ``mass_bounds`` ``{link: (min_kg, max_kg)}``,
+    ``distance_bounds`` ``{link: (min_m, max_m or None)}`` (defaults: the factors x the
+    original); ``case`` 'a' or 'b' (point masses >= 0); ``paper_constraints``: seed 001 eqs.
+    50/53 exactly (docs/balancing.md, "Mass redistribution").  Raises
+    :class:`~.checks.BalanceError` naming a bad option.
     """
     t_start = time.perf_counter()
     w1, w2 = check_weights(weights)
@@ -115,14 +91,7 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     if samples < 4:
         raise BalanceError(f'samples: got {samples}, expected an integer >= 4')
     units = objective_units(scene)
-    need = ['shaking_wrench']
-    if torque_weight:
-        need.append('driving_torque')
-    if reaction_weight:
-        need.append('bearing_reactions')
-    t0 = time.perf_counter()
-    maps = linear_maps(scene, samples, need, units)
-    maps_s = time.perf_counter() - t0
+    maps, maps_s = objective_maps(scene, samples, units, torque_weight, reaction_weight)
     theta0 = maps.theta_original
     m0 = theta0[0::4]
     l0 = np.sqrt(theta0[3::4] / m0)
@@ -145,8 +114,9 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     if not stage1.run.ok:
         failed.append(failed_stage('primary (z)', stage1.run, "the solver's last iterate, "
                                    'made feasible; its lower bound is safe', blame))
-    theta, stage2, exact = stage1.theta, None, False
-    secondary = _tie_break_quantity(spec)
+    theta, stage2, exact = stage1.point, None, False
+    term = tie_break_term(spec.w)
+    secondary = None if term is None else ('force', 'moment')[term]
     if tie_break and secondary is not None and stage1.run.ok:
         f_star = float(np.linalg.norm(maps.force @ theta))
         exact = (secondary == 'moment' and
@@ -164,33 +134,20 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
                                        stage2.run, "the primary stage's optimum", blame))
             stage2, exact = None, False
         if stage2 is not None:
-            theta = stage2.theta
+            theta = stage2.point
             if exact:
                 theta = theta - maps.force_null_projector @ theta
-    theta, violation, pull = _feasible(theta, spec)
+    violation = _violation(theta, spec)
+    theta, pull = pull_inside(theta, lambda t: _violation(t, spec), lambda t: _repaired(t, spec),
+                              lambda: _anchor(spec))
     balanced = _scene_from_theta(scene, theta, units, case)
     terms = maps.terms(theta)
     primal = float(np.dot(spec.w, terms))
     bound, nulls = _certify(stage1, primal, theta)
-    lower = min(bound.value, primal)
-    gap, gap_rel = certificate.relative_gap(primal, lower, GAP_FLOOR)
-    cert = Certificate(
-        solver=f'clarabel {clarabel.__version__}', status=stage1.status,
-        primal=primal, dual=lower, gap_abs=gap, gap_rel=gap_rel,
-        residual_primal=stage1.r_prim, residual_dual=stage1.r_dual,
-        iterations=stage1.iterations,
-        stage2=None if stage2 is None else {
-            'minimized': f'RMS shaking {secondary}', 'status': stage2.status,
-            'objective': stage2.objective, 'lower_bound': _tie_break_bound(stage2, exact),
-            'iterations': stage2.iterations,
-            'attempts': list(stage2.run.attempts),
-            'exact_force_balance': bool(exact)},
-        max_violation=violation, lower_bound=lower, attempts=list(stage1.run.attempts),
-        bound_detail=dict(bound_detail(bound), null_directions_assumed=nulls),
-        feasibility_pull=pull, failed_stages=failed,
-        certified=bool(np.isfinite(lower) and gap_rel <= CERTIFIED_GAP_REL
-                       and _violation(theta, spec) == 0.0),
-        design_violation=_violation(theta, spec))
+    cert = certify(stage1, primal, bound, violation, pull, failed, _violation(theta, spec),
+                   None if stage2 is None else tie_break_report(
+                       stage2, f'RMS shaking {secondary}', _tie_break_bound(stage2, exact),
+                       exact), null_directions_assumed=nulls)
     conic_s = stage1.seconds + (0.0 if stage2 is None else stage2.seconds)
     table = before_after(scene, balanced, samples)
     return BalanceResult(
@@ -212,15 +169,16 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
         solve_time_s=time.perf_counter() - t_start)
 
 
-def scene_to_yaml(scene, balance=None):
-    """
-    Return a balanced planar scene as YAML text that :func:`mech_balance.schema.load` reads.
+def objective_maps(scene, samples, units, torque_weight, reaction_weight):
+    """Return (maps, seconds): the :func:`linear_maps` of the terms the weights use."""
+    need = ['shaking_wrench'] + ['driving_torque'] * bool(torque_weight) + \
+        ['bearing_reactions'] * bool(reaction_weight)
+    t0 = time.perf_counter()
+    return linear_maps(scene, samples, need, units), time.perf_counter() - t0
 
-    The scene writer (:func:`mech_balance.schema.to_yaml`) with ``balance`` (a plain dict,
-    e.g. the summary of a :class:`BalanceResult`) stored under the scene's ``balance`` key.
-    A link with a negative centroidal inertia cannot be written (no body has one):
-    :class:`~mech_balance.balancing.checks.BalanceError`.
-    """
+
+def scene_to_yaml(scene, balance=None):
+    """Return a balanced scene as YAML (``balance`` under its key); BalanceError if I_c < 0."""
     for lk in scene.links:
         if lk.inertia_com_kg_m2 < 0.0:
             raise BalanceError(
@@ -314,38 +272,33 @@ class _Spec:
 
 
 @dataclass
-class _Stage:
-    theta: np.ndarray
-    objective: float
-    dual: float
-    status: str
-    iterations: int
-    r_prim: float
-    r_dual: float
-    seconds: float
-    run: object = None         # Solve
+class _Stage(Stage):
+    """A stage (``point``: theta) with what its certificate needs."""
+
     lo: np.ndarray = None     # explicit box of the program's variables (certificate)
     hi: np.ndarray = None
     norms: list = None        # (G in y units, epigraph index, weight) per objective term
     dscale: np.ndarray = None
-    nv: int = 0
     radius_scale: float = None
     free_h: bool = False      # h enters no constraint (case a, no realizability)
 
 
-def _tie_break_quantity(spec):
-    """Return the quantity a tie-break stage minimizes ('moment', 'force') or None."""
-    w1, w2, wt, wr = spec.w
-    if wt or wr:
+def tie_break_report(stage, minimized, lower_bound, exact):
+    """Return a tie-break stage's entry of the certificate (``stage2``)."""
+    return {'minimized': minimized, 'status': stage.status, 'objective': stage.objective,
+            'lower_bound': lower_bound, 'iterations': stage.iterations,
+            'attempts': list(stage.run.attempts), 'exact_force_balance': bool(exact)}
+
+
+def tie_break_term(w):
+    """Return what a tie-break stage minimizes (0 force, 1 moment) for weights ``w`` (4,)."""
+    w1, w2, wt, wr = w
+    if wt or wr or (w1 and w2):
         return None
-    if w2 == 0.0:
-        return 'moment'
-    if w1 == 0.0:
-        return 'force'
-    return None
+    return 1 if w2 == 0.0 else 0
 
 
-class _Program:
+class ConeRows:
     """Rows of ``A x + s = b, s in K`` for Clarabel, built block by block."""
 
     def __init__(self, nx):
@@ -382,14 +335,7 @@ class _Program:
 
 
 def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
-    """
-    Build and solve the SOCP (stage 1, or the tie-break stage 2); return a _Stage.
-
-    The variables are each link's parameters in units of its original link,
-    y = theta / (m^o, m^o l^o, m^o l^o, m^o l^o^2): the cone forms below are invariant under
-    that scaling (h^2 and m I_O scale alike) and it equilibrates links of very different
-    size (the carpet scraper's inertias span four decades).
-    """
+    """Build and solve the SOCP (stage 1, or the tie-break stage 2) in link units; a _Stage."""
     n = spec.n
     nv = 4 * n
     t0 = spec.theta0.reshape(-1, 4)
@@ -403,17 +349,16 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
     ir0 = nv + 3
     iu0 = ir0 + len(react)
     nx = iu0 + (n if spec.case == 'b' else 0)
-    prog = _Program(nx)
-    cols = np.arange(nv)
-    prog.norm_cone(it_f, maps.force * dscale, cols)
-    prog.norm_cone(it_n, maps.moment * dscale, cols)
-    primary = np.zeros(nx)
-    primary[[it_f, it_n, it_t]] = spec.w[:3]
+    prog = ConeRows(nx)
+    # (G in y units, epigraph index, weight) per objective term
+    norms = [(maps.force * dscale, it_f, spec.w[0]), (maps.moment * dscale, it_n, spec.w[1])]
     if spec.w[2]:
-        prog.norm_cone(it_t, maps.torque * dscale, cols)
-    for j, mat in enumerate(react):
-        prog.norm_cone(ir0 + j, mat * dscale, cols)
-        primary[ir0 + j] = spec.w[3]
+        norms.append((maps.torque * dscale, it_t, spec.w[2]))
+    norms += [(mat * dscale, ir0 + j, spec.w[3]) for j, mat in enumerate(react)]
+    primary = np.zeros(nx)
+    for g, it, w in norms:
+        prog.norm_cone(it, g, np.arange(nv))
+        primary[it] = w
     for i in range(n):
         im, ix, iy, ii = 4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3
         if spec.fixed[i]:
@@ -421,29 +366,22 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
             a[:, im:im + 4] = np.eye(4)
             prog.add('zero', a, y0[im:im + 4])
             continue
-        rows, rhs = [], []
+        rows = []   # (entries, bound): sum_k entries[k] x_k <= bound
         if np.isfinite(spec.mass_lo[i]):   # seed 001 eq. 46b / 50b
-            rows.append(_row(nx, {im: -1.0}))
-            rhs.append(-spec.mass_lo[i] / m0[i])
+            rows.append(({im: -1.0}, -spec.mass_lo[i] / m0[i]))
         if np.isfinite(spec.mass_hi[i]):
-            rows.append(_row(nx, {im: 1.0}))
-            rhs.append(spec.mass_hi[i] / m0[i])
+            rows.append(({im: 1.0}, spec.mass_hi[i] / m0[i]))
         # eq. 46c / 50c: l_lo <= l <= l_hi  <=>  m l_lo^2 <= I_O <= m l_hi^2
-        rows.append(_row(nx, {im: (spec.dist_lo[i] / l0[i]) ** 2, ii: -1.0}))
-        rhs.append(0.0)
+        rows.append(({im: (spec.dist_lo[i] / l0[i]) ** 2, ii: -1.0}, 0.0))
         if np.isfinite(spec.dist_hi[i]):
-            rows.append(_row(nx, {im: -(spec.dist_hi[i] / l0[i]) ** 2, ii: 1.0}))
-            rhs.append(0.0)
+            rows.append(({im: -(spec.dist_hi[i] / l0[i]) ** 2, ii: 1.0}, 0.0))
         if spec.case == 'b':
             # eq. 50f: m_j >= 0  <=>  u >= -2 Re(h e^(-i theta_j)), u >= 0, u^2 <= m I_O
             iu = iu0 + i
-            rows.append(_row(nx, {iu: -1.0}))
-            rhs.append(0.0)
-            for unit in equimomental.UNIT:
-                rows.append(_row(nx, {ix: -2.0 * unit.real, iy: -2.0 * unit.imag,
-                                      iu: -1.0}))
-                rhs.append(0.0)
-        prog.add('nonneg', rows, rhs)
+            rows.append(({iu: -1.0}, 0.0))
+            rows += [({ix: -2.0 * unit.real, iy: -2.0 * unit.imag, iu: -1.0}, 0.0)
+                     for unit in equimomental.UNIT]
+        prog.add('nonneg', [_row(nx, e) for e, _ in rows], [b for _, b in rows])
         if spec.case == 'b':
             prog.add('soc', [_row(nx, {im: -1.0, ii: -1.0}), _row(nx, {iu0 + i: -2.0}),
                              _row(nx, {im: -1.0, ii: 1.0})], np.zeros(3))
@@ -493,30 +431,16 @@ def _solve(maps, spec, secondary=None, bound=None, exact_force=False):
             lo[im + 1:im + 3], hi[im + 1:im + 3] = -reach, reach
         if spec.case == 'b':
             lo[iu0 + i], hi[iu0 + i] = 0.0, reach
-    norms = [(maps.force * dscale, it_f, spec.w[0]), (maps.moment * dscale, it_n, spec.w[1])]
-    if spec.w[2]:
-        norms.append((maps.torque * dscale, it_t, spec.w[2]))
-    norms += [(mat * dscale, ir0 + j, spec.w[3]) for j, mat in enumerate(react)]
-    return _Stage(theta=x[:nv] * dscale, objective=float(q @ x),
-                  dual=float(run.sol.obj_val_dual), status=status,
-                  iterations=int(run.sol.iterations), r_prim=float(run.sol.r_prim),
-                  r_dual=float(run.sol.r_dual), seconds=run.seconds, run=run, lo=lo, hi=hi,
-                  norms=norms, dscale=dscale, nv=nv,
-                  free_h=spec.case == 'a' and not spec.realizable,
+    return _Stage(x[:nv] * dscale, float(q @ x), run, lo=lo, hi=hi, norms=norms,
+                  dscale=dscale, free_h=spec.case == 'a' and not spec.realizable,
                   radius_scale=None if secondary is None or exact_force else
                   bound + TIE_BREAK_SLACK * max(abs(bound), GAP_FLOOR))
 
 
 def _certify(stage, level, centre_theta=None):
-    """
-    Return the safe lower bound (:mod:`.certificate`) of a stage's program.
-
-    ``level``: an upper bound on the weighted objective sum w_k ||G_k y|| at some optimal
-    point (a feasible design's z, or a tie-break's cap), which bounds the coordinates that
-    the constraints leave free (:func:`.certificate.level_set_bounds`).
-    """
+    """Return (safe lower bound, null directions assumed) with the objective <= ``level``."""
     lo, hi = stage.lo.copy(), stage.hi.copy()
-    nv = stage.nv
+    nv = stage.point.size
     weighted = [(g, w) for g, _, w in stage.norms if w > 0.0]
     nulls = 0
     if weighted and np.isfinite(level):
@@ -541,14 +465,7 @@ def _certify(stage, level, centre_theta=None):
 
 
 def _tie_break_bound(stage, exact):
-    """
-    Return the safe lower bound of a tie-break stage, never above its solver objective.
-
-    Every feasible point of the stage keeps the primary objective at most its cap
-    (``radius_scale``), or, with the exact force balance, the force zero: that level bounds
-    the coordinates as in :func:`_certify` (no null direction is assumed: the force rows or
-    the cap constrain the first moments).  The min with the solver's objective keeps a bound.
-    """
+    """Return the safe lower bound of a tie-break stage, never above its solver objective."""
     level = stage.radius_scale if stage.radius_scale is not None else \
         (0.0 if exact else math.inf)
     bound, _ = _certify(stage, level)
@@ -600,14 +517,7 @@ def _violation(theta, spec):
 
 
 def _repaired(theta, spec):
-    """
-    Return ``theta`` with each link moved onto its bounds by the least local change.
-
-    The mass clipped into its bounds (and the cap on the added mass taken off the masses
-    above their lower bounds), I_O into [m l_lo^2, m l_hi^2], the first moment
-    shrunk to the realizability cone (|h|^2 <= m (1 - margin) I_O): the round-off
-    violations of an interior-point solution at active constraints.
-    """
+    """Return ``theta`` with each link moved onto its bounds by the least local change."""
     t = np.array(theta, dtype=float).reshape(-1, 4)
     free = [i for i in range(spec.n) if not spec.fixed[i]]
     for i in free:
@@ -656,26 +566,19 @@ def _anchor(spec):
     return out.ravel()
 
 
-def _feasible(theta, spec):
-    """
-    Return (design, its violation before, pull): ``theta`` pulled towards the anchor.
-
-    The first fraction of :data:`PULL_STEPS` whose convex combination violates nothing
-    (the constraints are convex and the anchor satisfies them).
-    """
-    before = _violation(theta, spec)
-    if before == 0.0:
-        return theta, 0.0, 0.0
-    fixed = _repaired(theta, spec)
-    if _violation(fixed, spec) == 0.0:
-        return fixed, before, 0.0
-    theta = fixed
-    anchor = _anchor(spec)
+def pull_inside(x, violation, repair, anchor):
+    """Return (x, pull): ``x`` if feasible, else repaired, else pulled towards ``anchor()``."""
+    if violation(x) <= 0.0:
+        return x, 0.0
+    x = repair(x)
+    if violation(x) <= 0.0:
+        return x, 0.0
+    inside = anchor()
     for lam in PULL_STEPS[1:]:
-        cand = (1.0 - lam) * theta + lam * anchor
-        if _violation(cand, spec) == 0.0:
-            return cand, before, lam
-    return anchor, before, 1.0
+        cand = (1.0 - lam) * x + lam * inside
+        if violation(cand) <= 0.0:
+            return cand, lam
+    return inside, 1.0
 
 
 def _scene_from_theta(scene, theta, units, case):
@@ -692,5 +595,6 @@ def _scene_from_theta(scene, theta, units, case):
     return scene.with_links(links, name=f'{scene.name}_balanced')
 
 
-__all__ = ['BalanceResult', 'FORCE_BALANCE_REL_TOL', 'optimize', 'PULL_STEPS', 'scene_to_yaml',
-           'TIE_BREAK_SLACK']
+__all__ = ['BalanceResult', 'ConeRows', 'FORCE_BALANCE_REL_TOL', 'objective_maps', 'optimize',
+           'pull_inside', 'PULL_STEPS', 'scene_to_yaml', 'TIE_BREAK_SLACK', 'tie_break_report',
+           'tie_break_term']

@@ -1,24 +1,12 @@
 """
 The one result of :func:`mech_balance.balancing.balance`, for every method and kind of rig.
 
-A :class:`Design` carries what a scipy user expects of a solver result (``success``,
-``status``, ``message``, the ``objective`` and its ``lower_bound``, ``certified``), the
-balanced design per link (``masses_kg``, ``mass_centres_m``, ``inertias_kg_m2``), the
-balanced scene, the method's own report and its native result.  The command line
-(``mech-balance balance``) and the node (``~/balance``) build their outputs from it:
-:meth:`Design.to_dict` is the one top-level shape of ``balance --json`` and of the node's
-answer (docs/cli.md, "JSON output").
-
-What ``objective`` and ``lower_bound`` are depends on the method, never on the kind:
-
-* a cone program (``redistribution``, ``counterweights``): the weighted normalized objective
-  z of seed 001 eq. 43 of the design returned and the certificate's safe lower bound on every
-  feasible z; ``certified`` is the certificate's (gap within
-  :data:`mech_balance.balancing.certificate.CERTIFIED_GAP_REL`);
-* a complete force balance in closed form (``analytic``, ``force_balance``): the RMS shaking
-  force after / before (dimensionless), lower bound 0; ``certified`` when the ratio is
-  round-off (:data:`FORCE_BALANCE_ROUNDOFF`);
-* least squares (``weights``): the RMS shaking moment (N m) and its safe lower bound.
+A :class:`Design` carries ``success``, ``status``, ``message``, the ``objective`` and its
+``lower_bound``, ``certified``, the balanced design per link, the balanced scene, the
+method's report and its native result; :meth:`Design.to_dict` is the one shape of ``balance
+--json`` and the node's answer (docs/cli.md, "JSON output").  The objective is a cone
+program's z (seed 001 eq. 43) with its certificate, a closed-form force balance's RMS force
+after / before (bound 0), or the balancing weights' RMS moment with its bound.
 """
 
 from dataclasses import dataclass
@@ -40,14 +28,7 @@ SCHEMA_KEYS = ('scene', 'kind', 'method', 'success', 'status', 'message', 'objec
 
 @dataclass
 class Design:
-    """
-    A balanced design: its scene, the method's report and result, and the solver's verdict.
-
-    Built by :func:`mech_balance.balancing.balance` from ``(scene, report, method, result,
-    figures)``; the solver fields are read from ``result`` (module docstring).
-    ``figures`` holds the RMS shaking force (N) and moment (N m) before/after and the
-    certificate in words (:meth:`summary`).
-    """
+    """A balanced design: scene, report, result, verdict; ``figures``: RMS before/after, text."""
 
     scene: object
     report: dict
@@ -66,10 +47,9 @@ class Design:
             failed = bool(cert.failed_stages)
             realizable = bool(getattr(res, 'realizable', True))
         elif hasattr(res, 'moment_rms_lower_bound_Nm'):   # least squares (balancing weights)
-            opt = res
             self.objective_name = 'RMS shaking moment, N m (least squares)'
-            self.objective = float(opt.moment_rms_optimal_Nm)
-            self.lower_bound = float(opt.moment_rms_lower_bound_Nm)
+            self.objective = float(res.moment_rms_optimal_Nm)
+            self.lower_bound = float(res.moment_rms_lower_bound_Nm)
             self.certified = self.lower_bound <= self.objective
         else:   # a complete force balance in closed form
             force = self.figures['force_N']
@@ -117,12 +97,7 @@ class Design:
 
     @property
     def inertias_kg_m2(self):
-        """
-        Return ``{link: inertia about its mass centre}``, kg m^2.
-
-        A spatial link's is the 3x3 tensor in its axes; a planar link's the moment about the
-        plane's normal (the only one the planar model has).
-        """
+        """Return ``{link: inertia about its mass centre}``, kg m^2 (spatial: 3x3, link axes)."""
         return {d['name']: d['inertia_com_kg_m2'] for d in self.links}
 
     @property
@@ -144,12 +119,7 @@ class Design:
         return rows
 
     def to_dict(self, normalized=False):
-        """
-        Return the one top-level shape of a balancing result (:data:`SCHEMA_KEYS`).
-
-        ``table`` in SI (default) or normalized units; ``report`` is the method's own
-        mapping (what differs by method and kind is there and only there).
-        """
+        """Return the one top-level shape of a result (:data:`SCHEMA_KEYS`), table SI or not."""
         from mech_balance.schema import registry
         return {'scene': str(self.report.get('scene', getattr(self.scene, 'name', ''))),
                 'kind': registry.kind_of(self.scene).name, 'method': self.method,
@@ -165,13 +135,7 @@ class Design:
         return (self.figures or {}).get('certificate', 'none')
 
     def summary(self, certificate=True):
-        """
-        Return one line a person reads in a terminal: method, RMS before -> after, certificate.
-
-        ``balanced hoeken (redistribution): RMS shaking force 0.143 -> 0.0168 N, moment
-        0.0173 -> 0.00603 N m; certificate Solved, gap 1.0e-09`` (without the certificate
-        when ``certificate`` is false).
-        """
+        """Return one line for a terminal: method, RMS before -> after, certificate."""
         f = self.figures or {}
         name = str(self.report.get('scene', ''))
         name = name if len(name) <= SUMMARY_NAME_CHARS else name[:SUMMARY_NAME_CHARS] + '...'

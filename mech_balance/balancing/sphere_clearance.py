@@ -1,30 +1,10 @@
 """
 Collision-free sphere counterweights of spatial rigs: the convex optimum, then a local search.
 
-The spatial counterweight program (:func:`mech_balance.balancing.spatial.counterweights`) is
-convex in each body's added mass, first moment and spread; where its spheres lie against the
-other bodies over the cycle is not.  So the default design is found as the planar one is
-(:mod:`mech_balance.balancing.clearance_design`, docs/build.md):
-
-1. the convex program's certified optimum and its safe lower bound ``z_lb``;
-2. its spheres checked against every body over the cycle
-   (:func:`mech_balance.analysis.spatial_clearance.check`); clear by the margin: the design,
-   at no price beyond the certificate's gap;
-3. else a local search over the spheres (each sphere's centre in its body's axes and its
-   mass, its hollow shape kept: the inner to outer radius ratio of the convex design), SLSQP
-   from the convex optimum, then from the other starts (lighter spheres, spheres pushed
-   out) until one ends clear, with the sampled clearance of the :data:`CLEAR_ROWS` least
-   pairs >= margin as constraints (their exact derivatives at each pair's least sample),
-   and the convex program's bounds (each body's added mass <= its maximum, the added
-   mass's RMS distance from the body origin <= its maximum: ``tr Sigma <= dm (f r0)^2``).
-   The spheres are realizable by construction (each is a sphere), so the design lies in
-   the convex program's feasible set and ``z_lb`` bounds its objective from below.
-
-The design found is checked again at :data:`VERIFY_ANGLES` crank angles; its objective ``z``
-(the core's value of the built design) is reported beside ``z_lb``: ``z - z_lb`` is the price
-of clearance.  Where no design is clear within the bounds, :class:`NoClearDesign` says so, with
-the least clearance reached, the pair and the bounds active at the best attempt; its
-``result`` gives ``balance --json`` its answer (:class:`NoSphereDesign`).
+:func:`design` checks the certified spheres against every body
+(:mod:`mech_balance.analysis.spatial_clearance`) and, where they come closer than the margin,
+searches their centres and masses (SLSQP) within the convex program's bounds; ``z - z_lb`` is
+the price of clearance (docs/build.md, "Spatial rigs: sphere counterweights").
 """
 
 from dataclasses import dataclass, replace
@@ -33,10 +13,11 @@ import math
 from mech_balance.analysis import spatial_clearance
 from mech_balance.balancing import spatial
 from mech_balance.balancing.clearance_design import check_margin, ClearanceReport, \
-    NoClearDesign
+    least_pair, NoClearDesign
 from mech_balance.balancing.spatial import model as spatial_model, result as spatial_result, \
     spheres as sphere_clusters
-from mech_balance.conventions import cycle_angles, rms
+from mech_balance.balancing.spatial.program import SIGMA_ENTRIES
+from mech_balance.conventions import cycle_angles
 from mech_balance.core import regressor
 import numpy as np
 from scipy import optimize
@@ -78,26 +59,20 @@ class NoSphereDesign:
 
 
 def _theta_jac(mass_kg, centre_m, spread_kg_m2):
-    """
-    Return d theta (10,) / d (centre (3), mass) of one sphere, ``(10, 4)``.
-
-    theta = (mu, mu c, I_o) with I_o = 2 s 1 + mu (|c|^2 1 - c c^T) (:func:`regressor
-    .parameters`) and the spread s of a hollow sphere of fixed radius ratio, s ~ mu^(5/3).
-    """
+    """Return d theta / d (centre, mass) of one hollow sphere (spread ~ mass^(5/3)), (10, 4)."""
     c = centre_m
     out = np.zeros((10, 4))
-    entries = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))
     for j in range(3):
         e = np.zeros(3)
         e[j] = 1.0
         out[1 + j, j] = mass_kg
         d_io = mass_kg * (2.0 * c[j] * np.eye(3) - np.outer(e, c) - np.outer(c, e))
-        out[4:, j] = [d_io[a, b] for a, b in entries]
+        out[4:, j] = [d_io[a, b] for a, b in SIGMA_ENTRIES]
     d_io = 2.0 * (5.0 / 3.0) * spread_kg_m2 / mass_kg * np.eye(3) + \
         (np.dot(c, c) * np.eye(3) - np.outer(c, c))
     out[0, 3] = 1.0
     out[1:4, 3] = c
-    out[4:, 3] = [d_io[a, b] for a, b in entries]
+    out[4:, 3] = [d_io[a, b] for a, b in SIGMA_ENTRIES]
     return out
 
 
@@ -240,8 +215,7 @@ class _Search:
         """
         Return the least sampled clearance of every sphere pair with another body (m).
 
-        With ``jacobian``: also its derivative ``(pairs, 4 P)`` by the variables (each
-        sphere's centre and mass), at each pair's least sample (the minimum's envelope).
+        With ``jacobian``: also its derivative ``(pairs, 4 P)`` at each pair's least sample.
         """
         local = np.array([s['centre_m'] for _, s in spheres])           # (P, 3)
         radii = np.array([s['outer_radius_m'] for _, s in spheres])
@@ -362,29 +336,13 @@ def _evaluate(rig, result, search, spheres):
     data = rig.with_scene(balanced).at(search.maps.angles)
     base = rig.at(search.maps.angles)
     units = search.units
-    f = float(rms(data.force_N)) / units.force_N
-    n = float(rms(data.moment_Nm)) / units.moment_Nm
+    f, n = spatial_result.normalized_rms(data, units)
     w = search.w
     objective = dict(result.objective, z=w[0] * f + w[1] * n, shaking_force_rms=f,
                      shaking_moment_rms=n, z_convex=result.objective['z'])
-    options = dict(result.options, counterweights=clusters,
-                   added_mass_kg={b: float(sum(s['mass_kg'] for s in cl))
-                                  for b, cl in clusters.items()},
-                   sphere_overlap_m={b: sphere_clusters.cluster_overlap_m(cl)
-                                     for b, cl in clusters.items()})
-    bodies = []
-    for entry, k in zip(result.bodies, range(len(search.model.bodies))):
-        t = theta[10 * k:10 * k + 10]
-        m = float(t[0])
-        c = t[1:4] / m if m > 0.0 else np.zeros(3)
-        i_c = regressor.inertia_matrix(t[4:10]) - m * (np.dot(c, c) * np.eye(3)
-                                                       - np.outer(c, c))
-        bodies.append(dict(entry, mass_kg=m, mass_centre_m=c.tolist(),
-                           inertia_centre_kg_m2=i_c.tolist(),
-                           pseudo_inertia_min_eigenvalue=float(
-                               np.linalg.eigvalsh(regressor.pseudo_inertia(t))[0])))
+    options = dict(result.options, **sphere_clusters.cluster_entries(clusters))
     return replace(result, balanced_scene=balanced, objective=objective, options=options,
-                   bodies=bodies, theta=theta,
+                   bodies=spatial_result.body_rows(search.model, theta), theta=theta,
                    table=spatial_result.before_after(rig, balanced, result.samples, units,
                                                      (base, data)))
 
@@ -393,11 +351,8 @@ def design(rig, result, samples, margin_m):
     """
     Return ``(result, report entries)``: the convex sphere optimum made collision-free.
 
-    ``result``: the :class:`~.spatial.SpatialResult` of the convex program; ``margin_m`` None:
-    the check only (the optimum as is).  The entries are ``clearance`` (of the design),
-    ``warnings`` and ``clearance_design`` (a :class:`ClearanceReport`'s dict).  Raises
-    :class:`NoClearDesign` (its ``result`` a :class:`NoSphereDesign`) when no design is clear
-    within the bounds.
+    ``margin_m`` None: the check only.  The entries: ``clearance``, ``warnings``,
+    ``clearance_design``.  Raises :class:`NoClearDesign` when no design is clear.
     """
     margin = check_margin(margin_m)
     cert = result.certificate
@@ -407,7 +362,7 @@ def design(rig, result, samples, margin_m):
     least = clear.least_clearance_m
     z_convex = result.objective['z']
     report = ClearanceReport('collision-free', margin or 0.0, SIDE, z_convex, z_convex,
-                             cert.lower_bound, least, _pair(clear))
+                             cert.lower_bound, least, least_pair(clear))
     if margin is None:
         report.status = 'off'
     if margin is None or least >= margin or not spheres:
@@ -433,7 +388,7 @@ def design(rig, result, samples, margin_m):
         check = spatial_clearance.check(rig, moved.options['counterweights'], p, margin)
         report.objective = moved.objective['z']
         report.least_clearance_m = min(check.least_clearance_m, dense)
-        report.least_pair = _pair(check)
+        report.least_pair = least_pair(check)
         report.moved_in_plane = True
         return moved, _entries(check, report)
     # none clear: the best attempt (the largest least clearance reached) says why
@@ -442,7 +397,7 @@ def design(rig, result, samples, margin_m):
     report.status = 'none'
     report.objective = search.z(found)
     report.least_clearance_m = min(value, tried.least_clearance_m)
-    report.least_pair = _pair(tried)
+    report.least_pair = least_pair(tried)
     report.moved_in_plane = True
     report.binding = active or [f'the clearance over the cycle (a local optimum from '
                                 f'{report.arrangements_tried} starts)']
@@ -451,10 +406,6 @@ def design(rig, result, samples, margin_m):
     raise NoClearDesign('; '.join(report.lines()) + f' ({len(clear.collisions)} colliding '
                         'pairs at the convex optimum, clearance_margin_m None gives the '
                         'optimum as is)', NoSphereDesign(out, report))
-
-
-def _pair(clear):
-    return () if clear.least is None else (clear.least.body_a, clear.least.body_b)
 
 
 def _entries(clear, report):

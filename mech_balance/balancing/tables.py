@@ -1,11 +1,8 @@
 """
 The before/after table and the per-link design rows that every planar method reports.
 
-:func:`before_after` (RMS bearing forces, driving torque, shaking force and moment of the
-original and the balanced scene, normalized and SI) and :func:`link_design` (a link's three
-equimomental point masses, seed 001 eqs. 8-15) are shared by the redistribution
-(:mod:`.redistribution`), the closed-form balances (:mod:`.analytic`) and the planar
-counterweights (:mod:`.counterweights`).
+:func:`before_after` (RMS bearing forces, driving torque, shaking force and moment, normalized
+and SI) and :func:`link_design` (three equimomental point masses, seed 001 eqs. 8-15).
 """
 
 from dataclasses import dataclass, field
@@ -16,9 +13,8 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.core import equimomental
 
 CHANGE_BASELINE_REL_TOL = 1e-9
-"""A before/after row whose before value is below this fraction of the table's largest value
-of the same kind (force or moment) is round-off (e.g. the moment of a prismatic bearing that
-is zero but for the last bits): its change is reported as None ('n/a'), not a percentage."""
+"""A before value below this fraction of the table's largest of its kind is round-off: its
+change is None ('n/a')."""
 
 
 @dataclass
@@ -43,11 +39,7 @@ class LinkDesign:
 
 
 def link_design(link, counterweights=False, units=None):
-    """
-    Return the :class:`LinkDesign` of a scene link (three point masses, l = sqrt(I_O/m)).
-
-    ``counterweights`` also requires non-negative point masses for realizability (case b).
-    """
+    """Return the :class:`LinkDesign` of a link (``counterweights``: point masses >= 0 needed)."""
     m = float(link.mass_kg)
     h = complex(*link.first_moment_kg_m)
     i_o = float(link.inertia_origin_kg_m2)
@@ -76,12 +68,8 @@ def before_after(original, balanced, samples=None):
     """
     Return the before/after rows of RMS bearing forces, torque, shaking force and moment.
 
-    Each row: quantity, ``unit``/``before``/``after`` in the papers' normalized units when
-    the scene records a normalization (SI otherwise), the same in SI (``unit_si``,
-    ``before_si``, ``after_si``) and ``change_percent``: ``None`` (print 'n/a') when the
-    before value is round-off, below :data:`CHANGE_BASELINE_REL_TOL` times the largest
-    value of its kind (force or moment) in the table.  Rows are matched by quantity: one
-    that the analysis leaves out on one side as round-off (a bearing moment) counts 0 there.
+    Each row: quantity, ``unit``/``before``/``after`` (normalized if the scene is), the same
+    ``*_si`` and ``change_percent`` (None: :data:`CHANGE_BASELINE_REL_TOL`).
     """
     rig = analysis.Rig(original.with_outputs(('bearing_reactions',)))
     cycles = [analysis.run_cycle(r, samples) for r in

@@ -1,36 +1,12 @@
 """
 Seed 001 Appendix B: the two-point-mass model of a link, and Table 12's comparison.
 
-Two point masses m_1, m_2 at theta = 0 and pi/2 of the link frame, at distances l_1, l_2
-(seed 001 Table 11, [23]) give the link parameters
-
-    m = m_1 + m_2,   h = (m_1 l_1, m_2 l_2),   I_O = m_1 l_1^2 + m_2 l_2^2,
-
-and the paper's problem (eqs. B.1-B.3) is ``min w1 f~ + w2 n~`` subject to
-``m^o <= m <= 5 m^o`` and ``I_O >= 0.25 I^o`` (point masses of any sign, as case a).
-
-Which (m, h, I_O) can two such masses represent?  Eliminating l_j,
-``I_O = hx^2/m_1 + hy^2/(m - m_1)``; over real m_1 (m > 0) that reaches exactly
-
-    P: m I_O >= (|hx| + |hy|)^2   (0 < m_1 < m: both masses positive), or
-    N: m I_O <= (|hx| - |hy|)^2   (one mass negative; then I_c < 0, no body),
-
-so the two-point model cannot represent the band between, which contains real bodies (a
-compact link whose mass centre is off both axes).  The three-point model (seed 001 eq. 27)
-represents every m > 0, I_O > 0.  Hence, with the same bounds (B.2-B.5):
-
-* the three-point problem is the convex relaxation R of the two-point problem (an SOCP,
-  certified by Clarabel): its optimum is a certified LOWER bound on the two-point optimum;
-* P is convex (``|hx| + |hy| <= sqrt(m I_O)``, a rotated cone) and N, for a fixed sign
-  pattern and dominant axis, is inner-approximated by the polyhedron
-  ``sx hx - sy hy >= m/(2a) + a I_O/2`` (AM-GM: sqrt(m I_O) <= m/(2a) + a I_O/2, tight at
-  a = sqrt(m/I_O)).  Sequential convex programs over these pieces, started from R's
-  optimum with every choice of piece for the links R leaves in the band, give feasible
-  two-point designs: an UPPER bound, verified by building the point masses and evaluating
-  the design with the core.
-
-:func:`table12` returns both bounds and their relative gap: the certified statement about
-the two-point model's optimum.
+Two point masses at theta = 0 and pi/2 of the link frame represent only the links outside a
+band of (m, h, I_O); the three-point model represents every link, so with the same bounds
+(eqs. B.1-B.5) it is the convex relaxation: its certified optimum is a LOWER bound on the
+two-point optimum.  Sequential cone programs over convex pieces of the two-point set give a
+feasible two-point design, verified with the core: an UPPER bound.  :func:`table12` returns
+both (docs/balancing.md, "Chaudhary & Saha Table 12: two point masses").
 """
 
 from dataclasses import dataclass
@@ -38,10 +14,10 @@ import itertools
 import math
 import time
 
-import clarabel
 from mech_balance import conic, schema
 from mech_balance.analysis import linear_maps
 from mech_balance.balancing import certificate, checks, conditioning
+from mech_balance.balancing.redistribution import ConeRows
 import numpy as np
 
 PAPER_MASS_FACTORS = (1.0, 5.0)
@@ -96,12 +72,7 @@ def representable(theta, rel_tol=BAND_REL_TOL):
 
 
 def point_masses(m, hx, hy, i_o):
-    """
-    Return (m_1, m_2, l_1, l_2) of a link in P or N (seed 001 Table 11, theta = 0, pi/2).
-
-    ``I_O m_1^2 + (hy^2 - hx^2 - I_O m) m_1 + hx^2 m = 0`` (from I_O = hx^2/m_1 +
-    hy^2/(m - m_1)); the root with 0 < m_1 < m is taken when it exists.
-    """
+    """Return (m_1, m_2, l_1, l_2) of a link in P or N (seed 001 Table 11, theta = 0, pi/2)."""
     b = hy * hy - hx * hx - i_o * m
     disc = max(b * b - 4.0 * i_o * hx * hx * m, 0.0)
     roots = [(-b + s * math.sqrt(disc)) / (2.0 * i_o) for s in (1.0, -1.0)]
@@ -159,10 +130,7 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
     pm = {lk.name: dict(zip(('m_1', 'm_2', 'l_1', 'l_2'), point_masses(*row)))
           for lk, row in zip(scene.links, t)}
     # verify: the point masses give back the parameters, and the core evaluates the design
-    rebuilt = []
-    for p in pm.values():
-        rebuilt += [p['m_1'] + p['m_2'], p['m_1'] * p['l_1'], p['m_2'] * p['l_2'],
-                    p['m_1'] * p['l_1'] ** 2 + p['m_2'] * p['l_2'] ** 2]
+    rebuilt = [v for p in pm.values() for v in _rebuild(p)]
     if feas_tol < conic.SOLVER_TOL:   # clipped: repair the rebuild's round-off
         pm, rebuilt = _repaired(pm, m0, i0)
     upper_terms = _terms(maps, np.array(rebuilt))
@@ -181,15 +149,7 @@ def table12(scene, weights=(0.5, 0.5), samples=None):
 
 
 def _clipped(t, m0, i0, solver_tol):
-    """
-    Return the upper design moved into the bounds B.2-B.3 exactly, and its tolerance.
-
-    An interior-point solution meets the bounds to the solver's feasibility tolerance; the
-    masses are clipped into [1, 5] m^o and the inertias raised to 0.25 I^o where that keeps
-    every link representable by two point masses.  The tolerance returned is then the
-    round-off of rebuilding the parameters from the point masses (a few ulp), else the
-    solver's.
-    """
+    """Return the upper design moved into the bounds B.2-B.3 where it stays representable, tol."""
     c = t.copy()
     c[:, 0] = np.clip(c[:, 0], PAPER_MASS_FACTORS[0] * m0, PAPER_MASS_FACTORS[1] * m0)
     c[:, 3] = np.maximum(c[:, 3], PAPER_INERTIA_FACTOR * i0)
@@ -199,19 +159,13 @@ def _clipped(t, m0, i0, solver_tol):
 
 
 def _rebuild(p):
+    """Return a link's (m, hx, hy, I_O) from its point masses."""
     return [p['m_1'] + p['m_2'], p['m_1'] * p['l_1'], p['m_2'] * p['l_2'],
             p['m_1'] * p['l_1'] ** 2 + p['m_2'] * p['l_2'] ** 2]
 
 
 def _repaired(pm, m0, i0):
-    """
-    Return point masses whose rebuilt parameters meet B.2-B.3 exactly, and those parameters.
-
-    Solving for the point masses cancels digits (masses of opposite sign at distances of
-    hundreds of link lengths): a rebuilt inertia can fall 1e-8 below its bound.  Any point
-    masses are a two-point design, so both distances are scaled up (inertia by the square)
-    or both masses scaled into the mass bounds, with a margin of a few ulp.
-    """
+    """Return point masses whose rebuilt parameters meet B.2-B.3 exactly, and those parameters."""
     margin = 1.0 + 8.0 * np.finfo(float).eps
     out, rebuilt = {}, []
     for (name, p), mo, io in zip(pm.items(), m0, i0):
@@ -261,33 +215,25 @@ def _program(maps, dsc, w, n, pieces, theta_at):
     """Solve B.1-B.3 with each link in its piece ('free': the relaxation); return a dict."""
     nv = 4 * n
     nx = nv + 2 + n
-    blocks = []
-
-    def add(cone, a, b):
-        blocks.append((cone, np.atleast_2d(a), np.asarray(b, dtype=float).ravel()))
-
+    prog = ConeRows(nx)
     rows, rhs = [], []
+
+    def at_most(entries, value):
+        """Add the row ``sum_k entries[k] x_k <= value``."""
+        r = np.zeros(nx)
+        r[list(entries)] = list(entries.values())
+        rows.append(r)
+        rhs.append(value)
+
     for i in range(n):
-        r = np.zeros(nx)
-        r[4 * i] = -1.0
-        rows.append(r)
-        rhs.append(-PAPER_MASS_FACTORS[0])                      # seed 001 eq. B.2
-        r = np.zeros(nx)
-        r[4 * i] = 1.0
-        rows.append(r)
-        rhs.append(PAPER_MASS_FACTORS[1])
-        r = np.zeros(nx)
-        r[4 * i + 3] = -1.0
-        rows.append(r)
-        rhs.append(-PAPER_INERTIA_FACTOR)                       # eq. B.3
+        at_most({4 * i: -1.0}, -PAPER_MASS_FACTORS[0])           # seed 001 eq. B.2
+        at_most({4 * i: 1.0}, PAPER_MASS_FACTORS[1])
+        at_most({4 * i + 3: -1.0}, -PAPER_INERTIA_FACTOR)        # eq. B.3
         piece = pieces[i]
         if piece == 'P':
             # |hx| + |hy| <= u (4 rows) and u^2 <= m I_O (rotated cone below)
             for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-                r = np.zeros(nx)
-                r[[4 * i + 1, 4 * i + 2, nv + 2 + i]] = (sx, sy, -1.0)
-                rows.append(r)
-                rhs.append(0.0)
+                at_most({4 * i + 1: sx, 4 * i + 2: sy, nv + 2 + i: -1.0}, 0.0)
         elif piece != 'free':
             _, axis, sx, sy = piece
             m, hx, hy, i_o = theta_at[4 * i:4 * i + 4]
@@ -295,33 +241,22 @@ def _program(maps, dsc, w, n, pieces, theta_at):
             sb, sd = (sx, sy) if axis == 0 else (sy, sx)
             ib, id_ = (4 * i + 1, 4 * i + 2) if axis == 0 else (4 * i + 2, 4 * i + 1)
             # sb h_b - sd h_d >= m/(2a) + a I/2 (in units: h by sqrt(m0 I0)), and signs fixed
-            r = np.zeros(nx)
-            r[ib], r[id_], r[4 * i], r[4 * i + 3] = -sb, sd, 0.5 / a_, 0.5 * a_
-            rows.append(r)
-            rhs.append(0.0)
+            at_most({ib: -sb, id_: sd, 4 * i: 0.5 / a_, 4 * i + 3: 0.5 * a_}, 0.0)
             for idx, s in ((ib, sb), (id_, sd)):
-                r = np.zeros(nx)
-                r[idx] = -s
-                rows.append(r)
-                rhs.append(0.0)
-    add(clarabel.NonnegativeConeT, rows, rhs)
+                at_most({idx: -s}, 0.0)
+    prog.add('nonneg', rows, rhs)
     for i in range(n):
         if pieces[i] == 'P':
             a = np.zeros((3, nx))
             a[0, [4 * i, 4 * i + 3]] = -1.0
             a[1, nv + 2 + i] = -2.0
             a[2, [4 * i, 4 * i + 3]] = (-1.0, 1.0)
-            add(clarabel.SecondOrderConeT, a, np.zeros(3))
+            prog.add('soc', a, np.zeros(3))
     for k, mat in enumerate((maps.force, maps.moment)):
-        a = np.zeros((1 + mat.shape[0], nx))
-        a[0, nv + k] = -1.0
-        a[1:, :nv] = -mat * dsc
-        add(clarabel.SecondOrderConeT, a, np.zeros(a.shape[0]))
+        prog.norm_cone(nv + k, mat * dsc, np.arange(nv))
     q = np.zeros(nx)
     q[nv:nv + 2] = w
-    run = conic.run_solver(q, np.vstack([b[1] for b in blocks]),
-                           np.concatenate([b[2] for b in blocks]),
-                           [b[0](b[1].shape[0]) for b in blocks])
+    run = prog.solve(q)
     status = run.status
     if not run.ok:
         raise checks.BalanceError(f'two-point model: {run.why()}')
@@ -333,9 +268,7 @@ def _program(maps, dsc, w, n, pieces, theta_at):
         # the relaxation's constraints are bounds only: clip the design into them exactly
         # (a feasible design), then the safe lower bound (certificate.safe_lower_bound)
         y = y.copy()
-        ym = y[0::4]
-        np.clip(ym, PAPER_MASS_FACTORS[0], PAPER_MASS_FACTORS[1], out=ym)
-        y[0::4] = ym
+        y[0::4] = np.clip(y[0::4], PAPER_MASS_FACTORS[0], PAPER_MASS_FACTORS[1])
         y[3::4] = np.maximum(y[3::4], PAPER_INERTIA_FACTOR)
         out['feasibility_tol'] = 0.0
     theta = y * dsc
@@ -347,15 +280,7 @@ def _program(maps, dsc, w, n, pieces, theta_at):
 
 
 def _relaxation_bound(run, maps, dsc, w, n, y, level):
-    """
-    Return the safe lower bound (:mod:`.certificate`) of the relaxation B.1-B.3.
-
-    Box: m in [1, 5] and I_O >= 0.25 (link units); a coordinate that enters no term
-    (exactly zero columns: the crank's inertia at constant speed) is fixed at the design's
-    value (an optimal point shares it: its only constraint is its own bound); the rest from
-    the level set ``w1 f~ + w2 n~ <= level`` (:func:`.certificate.polytope_bounds`); the
-    epigraphs in [0, level / w_k].
-    """
+    """Return the safe lower bound (:mod:`.certificate`) of the relaxation B.1-B.3."""
     nv = 4 * n
     nx = run.q.size
     lo, hi = np.full(nx, -np.inf), np.full(nx, np.inf)

@@ -1,42 +1,17 @@
 """
 Balancing weights (seed 002): force balance, then the least RMS shaking moment.
 
-Complete force balance by one weight on each link pivoted on the frame, then their products
-of inertia for the least RMS shaking moment: the method ``weights`` of
-:func:`mech_balance.balancing.balance` for a spatial rig whose scene lists
-``balancing_weights`` (:class:`mech_balance.schema.spatial.WeightSpec`; the
-RGGR of seed 002 is ``config/rggr.yaml``).  Every quantity comes from the general kind: the
-shaking wrench is linear in each body's ten inertial parameters
-(:func:`mech_balance.core.regressor.wrench_regressor` over the rig's body kinematics), so
-
-1. **force balance** (seed 002, eqs. 1-14): the shaking force is ``F theta``.  A weight on a
-   link turning about a fixed axis changes the force through its first moment ``g`` about
-   the pivot only (a mass on the axis does not move), and of that through the radial part
-   (the axial part moves along the axis, at constant distance).  The radial parts that make
-   ``F theta`` vanish over the cycle are the least-squares solution of ``F_g g = -F theta``
-   (refused unless it is an exact zero, :data:`FORCE_BALANCED_REL`); the axial part cancels
-   the link's own (eqs. 6-8, 9-11).  The weight's mass is ``mass_kg``, or follows from the
-   cylinder law of eq. 13 (reconstructed: ``m^3 = rho L pi |g_radial|^2``, the cylinder's
-   axis parallel to the link's and one generator on it, eq. 14: its radius is the distance
-   of its centre from the axis); its moment of inertia about the axis is a point mass's
-   (``mass_kg``) or the cylinder's ``1.5 m r^2``, its products about the pivot zero;
-2. **least RMS shaking moment** (eqs. 73-95): only the products ``J = (I_wu, I_vw)`` of each
-   weighted link about its pivot (``w`` its axis, ``u`` towards its other joint) are left
-   free; the moment is affine in them, so the optimum is a linear least-squares solution
-   (an orthogonal factorization: eq. 94 without squaring its condition number), with the
-   Gram matrix of eq. 93, the normal-equation residual and a safe lower bound
-   (:func:`least_squares_lower_bound`);
-3. **the cylinder's end faces** (eqs. 96-103): the inclination ``alpha`` of a cylinder
-   weight's end faces to its axis and the angle ``gamma`` of their plane that give it the
-   optimal products.
-
-A body turning about a fixed axis ``w`` has the angular momentum ``I w omega`` about its
-pivot: only ``I_ww`` and the products ``I_wu``, ``I_vw`` enter its dynamics (seed 002, text
-after eq. 12).  The links' other second moments are written as the least that makes each
-link realizable (:func:`pivot_fill`); they change no figure.
+The method ``weights`` of :func:`mech_balance.balancing.balance` for a spatial rig whose
+scene lists ``balancing_weights`` (the RGGR, ``config/rggr.yaml``): one weight on each link
+pivoted on the frame zeroes the shaking force (eqs. 1-14, least squares over the regressor
+of :func:`mech_balance.core.regressor.wrench_regressor`); then the products of inertia
+``(I_wu, I_vw)`` of each weighted link about its pivot minimize the RMS shaking moment
+(eqs. 73-95, least squares with a safe lower bound); a cylinder weight's end faces give it
+those products (eqs. 96-103).  docs/balancing.md, "Hedaya: balancing weights".
 """
 
 from dataclasses import dataclass, replace
+import itertools
 import math
 import time
 
@@ -107,11 +82,7 @@ def pivots_of(rig):
 
 
 def pivot_quantities(theta_k, pivot):
-    """
-    Return ``(m, g, sigma)`` of a body about its pivot in its axes (u, v, w).
-
-    ``g`` the first moment (3,), ``sigma`` the second moments ``int r r^T dm`` (3, 3).
-    """
+    """Return ``(m, g (3,), sigma = int r r^T dm (3, 3))`` about the pivot in its axes."""
     m = float(theta_k[0])
     h = np.asarray(theta_k[1:4], dtype=float)
     i_o = regressor.inertia_matrix(theta_k[4:10])
@@ -135,14 +106,7 @@ def pivot_theta(m, g, sigma, pivot):
 
 
 def pivot_fill(m, g, i_ww, p_wu, p_vw, where):
-    """
-    Return the second moments (3, 3) about the pivot: the given I_ww, products, least rest.
-
-    Only ``I_ww = s_uu + s_vv`` and the products ``s_wu``, ``s_vw`` enter the dynamics; the
-    spread ``S = sigma - g g^T / m`` must be PSD for the body to exist.  Chosen: the radial
-    spread ``I_ww - (g_u^2 + g_v^2) / m`` split evenly between u and v, no uv spread beyond
-    the first moment's, and the least axial spread that keeps S PSD (its Schur complement 0).
-    """
+    """Return the second moments (3, 3) about the pivot: the given I_ww, products, least rest."""
     spread = i_ww - (g[0] ** 2 + g[1] ** 2) / m
     b = np.array([p_wu, p_vw]) - g[2] * g[:2] / m
     scale = max(abs(i_ww), 1e-300)
@@ -158,11 +122,6 @@ def pivot_fill(m, g, i_ww, p_wu, p_vw, where):
     s[1, 2] = s[2, 1] = p_vw
     s[2, 2] += float(b @ b) / (0.5 * spread) if spread > 0.0 else 0.0
     return s
-
-
-def _regressor(rig, psi):
-    """Return the shaking wrench regressor (n, 6, 10 nb) over ``psi`` (SI)."""
-    return regressor.wrench_regressor(rig.body_kinematics(psi), rig.moment_point_m)
 
 
 @dataclass
@@ -192,7 +151,6 @@ class WeightsResult:
     link_products_kg_m2: np.ndarray   # J: (I_wu, I_vw) of each weighted link, with weight
     moment_rms_optimal_Nm: float
     moment_rms_lower_bound_Nm: float
-    gram_matrix: np.ndarray
     normal_equation_residual: float
     rank: int
     samples: int
@@ -235,21 +193,14 @@ def balance_weights(rig, samples=None):
     pivots = pivots_of(rig)
     model = spatial_model.parameter_model(rig)
     psi = spatial_model.cycle_of(rig, samples)
-    y = _regressor(rig, psi)
+    y = regressor.wrench_regressor(rig.body_kinematics(psi), rig.moment_point_m)   # (n, 6, 10 nb)
     n = psi.size
     force = y[:, :3].reshape(3 * n, -1)
     moment = y[:, 3:].reshape(3 * n, -1)
 
     # 1. force balance: the radial first moments (u, v) of each weight about its pivot
     nb = len(model.bodies)
-    cols = []
-    for pv in pivots:
-        for j in range(2):
-            col = np.zeros(10 * nb)
-            col[10 * pv.index:10 * pv.index + 10] = pivot_theta(0.0, np.eye(3)[j],
-                                                                np.zeros((3, 3)), pv)
-            cols.append(col)
-    design = force @ np.column_stack(cols)
+    design = force @ _columns(pivots, nb, [(np.eye(3)[j], np.zeros((3, 3))) for j in range(2)])
     target = -force @ model.theta
     g_radial = np.linalg.lstsq(design, target, rcond=None)[0].reshape(-1, 2)
     before = float(np.linalg.norm(target))
@@ -282,15 +233,12 @@ def balance_weights(rig, samples=None):
     theta_fb = _fold(rig, model, pivots, weights, 'balancing_weights')
 
     # 2. least RMS shaking moment over the products of each weighted link (eqs. 89-95)
-    jcols = []
-    for pv in pivots:
-        for a, b in ((0, 2), (1, 2)):          # (u, w), (v, w)
-            ds = np.zeros((3, 3))
-            ds[a, b] = ds[b, a] = 1.0
-            col = np.zeros(10 * nb)
-            col[10 * pv.index:10 * pv.index + 10] = pivot_theta(0.0, np.zeros(3), ds, pv)
-            jcols.append(col)
-    jmap = moment @ np.column_stack(jcols)
+    unit_products = []
+    for a in (0, 1):                        # (u, w), (v, w)
+        ds = np.zeros((3, 3))
+        ds[a, 2] = ds[2, a] = 1.0
+        unit_products.append((np.zeros(3), ds))
+    jmap = moment @ _columns(pivots, nb, unit_products)
     rest = -moment @ theta_fb
     dj, _, rank, _ = np.linalg.lstsq(jmap, rest, rcond=None)
     resid = jmap @ dj - rest
@@ -315,24 +263,22 @@ def balance_weights(rig, samples=None):
     return WeightsResult(
         scene=sc, force_balanced_scene=fb, balanced_scene=opt, weights=weights,
         link_products_kg_m2=np.array(products), moment_rms_optimal_Nm=optimal,
-        moment_rms_lower_bound_Nm=lower, gram_matrix=gram,
+        moment_rms_lower_bound_Nm=lower,
         normal_equation_residual=float(np.max(np.abs(normal)) / scale), rank=int(rank),
         samples=n, force_residual_rel=residual_rel,
         solve_time_s=time.perf_counter() - start)
 
 
-def end_faces(weight):
-    """
-    Return ``(alpha, gamma)`` (rad) of a cylinder weight with its designed products.
+def _columns(pivots, nb, moments):
+    """Return (10 nb, len(pivots) len(moments)): theta of each ``(g, sigma)`` about each pivot."""
+    out = np.zeros((10 * nb, len(pivots) * len(moments)))
+    for k, (pv, (g, sigma)) in enumerate(itertools.product(pivots, moments)):
+        out[10 * pv.index:10 * pv.index + 10, k] = pivot_theta(0.0, g, sigma, pv)
+    return out
 
-    seed 002, eqs. 96-103, reconstructed.  The products about the weight's centre in axes
-    parallel to the link's (eqs. 96-97); eq. 98 prints I_w'u' = I_w''u'' cos^2(alpha) -
-    I_w''v'' sin^2(alpha) and eq. 99 is missing: u'' makes the angle gamma with u' about the
-    common axis, so I_w'u' = I_w''u'' cos(gamma) - I_v''w'' sin(gamma) and I_v'w' =
-    I_w''u'' sin(gamma) + I_v''w'' cos(gamma).  End faces w'' = -u'' cot(alpha) +/- L/2 give
-    I_w''u'' = -m r^2 / (4 tan(alpha)) (eq. 100) and I_v''w'' = 0 (eq. 101).  Eq. 103 prints
-    gamma = atan(I_v'w' / I_w'u'); its quadrant follows from I_w''u'' < 0.
-    """
+
+def end_faces(weight):
+    """Return ``(alpha, gamma)`` (rad) of a cylinder weight's end faces (seed 002 eqs. 96-103)."""
     ub, vb, wb = weight.centre_uvw_m
     m, r = weight.mass_kg, weight.radius_m
     iwu_c = weight.product_wu_kg_m2 - m * wb * ub                           # eq. 96
@@ -347,10 +293,7 @@ def least_squares_lower_bound(design, target, residual):
     """
     Return a safe lower bound on ``min_J ||design J - target||`` (:mod:`.certificate`).
 
-    The problem as a cone program ``min s s.t. ||target - design J|| <= s`` in Clarabel's
-    form, the dual point (1, -r/||r||) of the residual r = design J - target (dual residual
-    design' r / ||r||, the normal equations), and the box of the level set
-    ``||design J|| <= ||r|| + ||target||`` (:func:`.certificate.level_set_bounds`).
+    The cone form ``min s s.t. ||target - design J|| <= s`` at the dual point (1, r/||r||).
     """
     from mech_balance.balancing import certificate
     rows, cols = design.shape
@@ -381,9 +324,10 @@ class ReportView:
     def __init__(self, scene, normalized):
         norm = scene.normalization
         self.normalized = bool(normalized) and norm is not None
-        if self.normalized:
-            self.mass_kg, self.length_m = norm.mass_kg, norm.length_m
-            self.omega_rad_s = norm.omega_rad_s
+        ms, ls, w = (norm.mass_kg, norm.length_m, norm.omega_rad_s) if self.normalized else \
+            (1.0, 1.0, 1.0)
+        self.scale = {'mass': ms, 'length': ls, 'inertia': ms * ls ** 2,
+                      'force': ms * ls * w ** 2, 'moment': ms * ls ** 2 * w ** 2}
 
     def units(self):
         """Return the unit of each kind of value."""
@@ -395,29 +339,24 @@ class ReportView:
 
     def mass(self, x):
         """Return a mass in the view's unit."""
-        return float(x) / self.mass_kg if self.normalized else float(x)
+        return float(x) / self.scale['mass']
 
     def length(self, x):
         """Return lengths in the view's unit (a vector as a list)."""
-        x = np.asarray(x, dtype=float)
-        out = x / self.length_m if self.normalized else x
+        out = np.asarray(x, dtype=float) / self.scale['length']
         return out.tolist() if out.ndim else float(out)
 
     def inertia(self, x):
         """Return a moment or product of inertia in the view's unit."""
-        return float(x) / (self.mass_kg * self.length_m ** 2) if self.normalized else float(x)
+        return float(x) / self.scale['inertia']
 
     def force(self, x):
         """Return forces in the view's unit."""
-        x = np.asarray(x, dtype=float)
-        return x / (self.mass_kg * self.length_m * self.omega_rad_s ** 2) \
-            if self.normalized else x
+        return np.asarray(x, dtype=float) / self.scale['force']
 
     def moment(self, x):
         """Return moments or torques in the view's unit."""
-        x = np.asarray(x, dtype=float)
-        return x / (self.mass_kg * self.length_m ** 2 * self.omega_rad_s ** 2) \
-            if self.normalized else x
+        return np.asarray(x, dtype=float) / self.scale['moment']
 
 
 def metrics(data, view, crank_index):
@@ -433,15 +372,7 @@ def metrics(data, view, crank_index):
 
 
 def balance_report(rig, result, normalized=False):
-    """
-    Return the weights' report as a plain dict (SI, or normalized by the scene's units).
-
-    The weights (mass, centre, radius, I_ww about the axis, products about the pivot and, for
-    a cylinder, alpha and gamma), the links' optimal products J, a table of the unbalanced,
-    force-balanced and optimized rigs (``rigs``), the before/after rows of every balancing
-    result (``table``, :func:`mech_balance.balancing.spatial.result.before_after`), and the
-    least-squares optimum with its lower bound.
-    """
+    """Return the weights' report as a plain dict (SI, or normalized by the scene's units)."""
     sc = rig.scene
     view = ReportView(sc, normalized)
     from mech_balance.balancing.spatial import model as spatial_model, result as spatial_result
@@ -462,10 +393,8 @@ def balance_report(rig, result, normalized=False):
             entry.update(alpha_deg=math.degrees(wt.alpha_rad),
                          gamma_deg=math.degrees(wt.gamma_rad))
         weights[wt.link] = entry
-    products = {}
-    for k, wt in enumerate(result.weights):
-        products[f'{wt.link}.I_wu'] = view.inertia(result.link_products_kg_m2[2 * k])
-        products[f'{wt.link}.I_vw'] = view.inertia(result.link_products_kg_m2[2 * k + 1])
+    products = {f'{wt.link}.{name}': view.inertia(result.link_products_kg_m2[2 * k + j])
+                for k, wt in enumerate(result.weights) for j, name in enumerate(('I_wu', 'I_vw'))}
     norm = sc.normalization
     return {
         'scene': sc.name, 'source': sc.source, 'command': 'balance', 'method': 'weights',

@@ -1,25 +1,13 @@
 """
 Balancing of spatial rigs: complete force balance, certified redistribution, counterweights.
 
-Generic over every rig with the ``'body_kinematics'`` capability (the general ``kind:
-spatial``, the RGGR of seed 002 among its scenes): the shaking wrench is linear in the ten
-inertial parameters of each moving body (:mod:`mech_balance.core.regressor`), so
-
-* **complete force balance** (:func:`force_balance`, :mod:`.null_space`): the null space of
-  the force map, and the least change of the free bodies that meets it;
-* **optimal redistribution** (:func:`redistribute`, :mod:`.redistribution`): minimize
-  ``w1 f~ + w2 n~`` over the free bodies' parameters, each body physically realizable (PSD
-  pseudo-inertia), with mass and extent bounds;
-* **counterweights** (:func:`counterweights`, :mod:`.spheres`): add-only clusters of steel
-  spheres on the listed bodies, certified the same way.
-
-The modules: :mod:`.model` (parameter models, units, RMS maps, option checks),
-:mod:`.program` (the cone program), :mod:`.repair` (the constraints at a design and the
-repair of round-off), :mod:`.result` (evaluation, certificate, table, scene writer).  Every
-program carries the safe lower bound of
-:func:`mech_balance.balancing.certificate.folded_lower_bound`; the primal value is the core's
-evaluation (``rig.at``) of the written design, and the design satisfies every constraint.
-The derivations: docs/balancing.md, "Spatial rigs".
+Generic over every rig with the ``'body_kinematics'`` capability: the shaking wrench is
+linear in each body's ten inertial parameters (:mod:`mech_balance.core.regressor`), so
+:func:`force_balance` (:mod:`.null_space`) is the null space of the force map,
+:func:`redistribute` (:mod:`.redistribution`) a certified cone program over realizable bodies
+and :func:`counterweights` (:mod:`.spheres`) certified add-only sphere clusters.  The
+primal value is the core's evaluation of the written design.  The derivations:
+docs/balancing.md, "Spatial rigs".
 """
 
 from mech_balance.balancing.spatial.model import parameter_model, PARAMETER_MODELS, \

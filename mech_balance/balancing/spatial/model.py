@@ -1,12 +1,9 @@
 """
 The parameter models of spatial rigs, the objective's units and the RMS maps.
 
-A kind takes part in the spatial balancing through a parameter model
-(:data:`PARAMETER_MODELS`, by kind name): which of the ten inertial parameters of each body
-its scene can hold (a basis, ``theta_k = B_k y_k``), how to write a design back as a scene,
-how to add counterweights.  The RMS shaking force and moment are linear maps of theta
-(:func:`maps_of`, from :mod:`mech_balance.core.regressor`).  The shared option checks of the
-spatial methods are here too.
+A kind takes part through a parameter model (:data:`PARAMETER_MODELS`): which inertial
+parameters of each body its scene can hold (``theta_k = B_k y_k``) and how a design is written
+back.  The RMS maps (:func:`maps_of`) and the spatial methods' option checks are here too.
 """
 
 from dataclasses import dataclass
@@ -40,9 +37,7 @@ class BodyModel:
     """
     What a kind's scene can hold of one body: ``theta = basis @ y`` (``basis`` (10, d)).
 
-    ``orders[j]`` is 0, 1 or 2 for a column in kg, kg m or kg m^2 (its scale);
-    ``reach_m`` the farthest drawn point from the body origin; ``counterweights`` whether
-    the scene can carry one on this body (else the reason, text).
+    ``orders``: each column's power of length; ``counterweights``: True or why not.
     """
 
     name: str
@@ -78,14 +73,7 @@ def full_body(name, reach):
 
 
 def line_basis(point_a, point_b):
-    """
-    Return the (10, 3) basis of mass distributions on the line through two points (body axes).
-
-    With p(s) = a + s d (d the unit direction), Sigma = int p p^T dm = mu0 a a^T + mu1 (a d^T
-    + d a^T) + mu2 d d^T and h = mu0 a + mu1 d, linear in the moments (mu0, mu1, mu2) of the
-    mass along the line (mu0 = m); J is PSD exactly when [[mu0, mu1], [mu1, mu2]] is.  A
-    slender rod on an S-S line (its idle spin needs zero inertia about the line).
-    """
+    """Return the (10, 3) basis of mass on the line from ``point_a`` (moments mu0, mu1, mu2)."""
     a = np.asarray(point_a, dtype=float)
     d = np.asarray(point_b, dtype=float) - a
     d = d / np.linalg.norm(d)
@@ -99,16 +87,7 @@ def line_basis(point_a, point_b):
 
 
 def spatial_model(rig):
-    """
-    Return the :class:`ParameterModel` of a ``kind: spatial`` rig.
-
-    Every link has its ten parameters, except a link held only by two spherical joints (an
-    idle spin, :class:`mech_balance.core.spatial.kinematics` fixes it by convention): its mass
-    stays on the line through the two joints (:func:`line_basis`), as the rig requires.  A
-    design is written as the links' mass, mass centre and inertia about it; counterweights are
-    folded into their link's (the scene has no counterweight field; the spheres are in the
-    report and the provenance).
-    """
+    """Return the :class:`ParameterModel` of a ``kind: spatial`` rig (S-S links: line_basis)."""
     from mech_balance.schema.spatial import SpatialLink
     sc = rig.scene
     idle = {name: (ja, jb) for name, ja, jb in getattr(rig.linkage, 'idle_spins', ())}
@@ -116,9 +95,8 @@ def spatial_model(rig):
     names = [b.name for b in rig.drawing.bodies]
     reaches = {name: max([float(np.linalg.norm(p)) for p in sc.link(name).points.values()]
                          + [0.0]) for name in names}
-    # a link whose points all sit at its origin (a slider carriage) has no span of its own:
-    # it is given the smallest span of the rig's other links (the size of its parts), not a
-    # metre, so its extent bound and its counterweight's distance stay within the rig
+    # a link whose points all sit at its origin (a slider carriage): the least span of the
+    # rig's other links, so its extent bound and counterweight's distance stay within the rig
     spans = [r for r in reaches.values() if r > 0.0]
     least_span = min(spans) if spans else 1.0
     bodies, thetas = [], []
@@ -177,16 +155,7 @@ def spatial_model(rig):
 
 
 def clip_roundoff(inertia, scale):
-    """
-    Return an inertia tensor (3, 3) with its round-off negative principal moments set to 0.
-
-    A design at the edge of the feasible set (a rod's transverse inertia driven to zero)
-    comes out of ``I_O - m (|c|^2 1 - c c^T)`` a few 1e-15 below zero, which the scene's
-    loader would refuse although the design is a body; principal moments below zero by at
-    most :data:`INERTIA_CLIP_RTOL` of the body's ``m reach^2`` (``scale``) are that
-    round-off and are clipped, the tensor rebuilt from its eigenvectors.  A larger negative
-    one (a design that is no body) is kept, so the loader names it.
-    """
+    """Return an inertia (3, 3) with principal moments in [-INERTIA_CLIP_RTOL scale, 0) set 0."""
     eig, vec = np.linalg.eigh(0.5 * (inertia + inertia.T))
     if eig[0] >= 0.0 or eig[0] < -INERTIA_CLIP_RTOL * scale:
         return inertia
@@ -249,12 +218,7 @@ def units_of(rig, model):
 
 @dataclass
 class Maps:
-    """
-    The RMS shaking force and moment as compressed maps of theta (10 nb,) in SI.
-
-    ``RMS(force) = ||force @ theta||`` (N) and likewise the moment (N m), over ``samples``
-    crank angles (:func:`mech_balance.conventions.rms`).
-    """
+    """The RMS shaking force and moment as compressed maps: ``RMS(force) = ||force @ theta||``."""
 
     force: np.ndarray
     moment: np.ndarray
@@ -306,13 +270,7 @@ def program_units(model, k, m_lo, m_hi, radius):
     """
     Return (M, R): the units of body k's variables in the redistribution and its checks.
 
-    The rig's own units (the original mass m0 and reach r0, :func:`reference_units`) moved into the
-    bounds: M = m0 clipped into [m_lo, m_hi], R = min(r0, radius) (on a line, radius plus the
-    line's offset from the origin).  A body whose mass is fixed at 1e3 m0 or must lie within
-    0.1 r0 of its origin then still has variables of order one at the optimum and a PSD
-    block ``D J D`` (D = diag(1/(sqrt(M) R) 1, 1/sqrt(M))) with entries of order one, and
-    its constraints are checked to round-off of its own size.  (In units of a wide bound,
-    1e6 m0, the solver stalls on the designs near m0 that the objective prefers.)
+    The rig's own units (:func:`reference_units`) moved into the bounds (docs/balancing.md).
     """
     m0, r0 = reference_units(model, k)
     return (float(min(max(m0, m_lo), m_hi)),

@@ -1,10 +1,8 @@
 """
 Complete force balance of a spatial rig: the null space of its force map (:func:`force_balance`).
 
-The shaking force over the cycle is ``F theta``; its zero set is the null space of F (in the
-masses and first moments: the inertia columns of F are zero).  The conditions are reported as
-equations expressing r pivot parameters through the others (r the rank of F), and the least
-change of the free bodies that meets them is returned (docs/balancing.md, "Spatial rigs").
+The conditions express rank(F) pivot parameters through the others; the least change of the
+free bodies that meets them is returned (docs/balancing.md, "Spatial rigs").
 """
 
 from dataclasses import dataclass, field
@@ -17,8 +15,7 @@ from mech_balance.core import regressor
 import numpy as np
 
 FORCE_BALANCED_REL = 1e-9
-"""A design whose RMS shaking force is at most this fraction of the original's counts as
-completely force balanced (issue 21's acceptance)."""
+"""A design whose RMS shaking force is at most this fraction of the original's is balanced."""
 CONDITION_COEFF_REL = 1e-12
 """Coefficients of a printed force-balance condition below this fraction of its largest are
 round-off (left out of the text, kept in the matrix)."""
@@ -29,12 +26,8 @@ class ForceBalance:
     """
     The complete force balance of a spatial rig.
 
-    ``conditions`` ``[{'parameter': name, 'equals': {name: coefficient}}]`` (SI: kg and
-    kg m) hold exactly for the force-balanced designs: r = ``rank`` pivot parameters in terms
-    of the others.  ``theta`` is the least change of the free bodies that meets them (or, when
-    none does, the least-squares one); ``attainable`` says whether its RMS shaking force is at
-    most :data:`FORCE_BALANCED_REL` of the original's.  ``added_first_moment_kg_m`` gives per
-    free body the change of h (body axes), ``added_mass_kg`` of m.
+    ``conditions`` ``[{'parameter': name, 'equals': {name: coefficient}}]`` (SI); ``theta``
+    the least change of the free bodies that meets them (``attainable``: it balances).
     """
 
     scene: object
@@ -77,14 +70,7 @@ class ForceBalance:
 
 
 def force_balance(rig, free=None, samples=None):
-    """
-    Return the :class:`ForceBalance` of a rig: its conditions and the least-change design.
-
-    ``free`` names the bodies that may change (default all); the others keep their
-    parameters.  The conditions are those of every body (the rig's own); the design changes
-    the free bodies' parameters by the least amount (in the units of each body: its mass and
-    reach) that zeroes the shaking force at every crank angle.
-    """
+    """Return the :class:`ForceBalance` of a rig; ``free``: the bodies that may change (all)."""
     model = parameter_model(rig)
     samples = check_samples(samples, rig)
     maps = maps_of(rig, samples)
@@ -112,11 +98,10 @@ def force_balance(rig, free=None, samples=None):
     force = (float(np.linalg.norm(f0)), float(np.linalg.norm(maps.force @ theta)))
     moment = (float(np.linalg.norm(maps.moment @ model.theta)),
               float(np.linalg.norm(maps.moment @ theta)))
-    added_h, added_m = {}, {}
-    for k in free_idx:
-        d = theta[10 * k:10 * k + 10] - model.theta[10 * k:10 * k + 10]
-        added_h[model.bodies[k].name] = [float(x) for x in d[1:4]]
-        added_m[model.bodies[k].name] = float(d[0])
+    added = {model.bodies[k].name: theta[10 * k:10 * k + 10] - model.theta[10 * k:10 * k + 10]
+             for k in free_idx}
+    added_h = {name: [float(x) for x in d[1:4]] for name, d in added.items()}
+    added_m = {name: float(d[0]) for name, d in added.items()}
     result = ForceBalance(
         scene=rig.scene, balanced_scene=balanced, rank=rank, nullity=full_basis.shape[1] - rank,
         conditions=conditions, theta=theta,
@@ -129,13 +114,7 @@ def force_balance(rig, free=None, samples=None):
 
 
 def unrealizable_bodies(model, theta, indices):
-    """
-    Return ``{body: reason}`` of the bodies among ``indices`` that no physical body realizes.
-
-    A body is realizable when its mass is positive and its pseudo-inertia is PSD (down to
-    :data:`PSD_ROUNDOFF` of its largest eigenvalue): the least-change force balance is a
-    least-squares step that knows neither, and may ask for a negative mass.
-    """
+    """Return ``{body: reason}`` of the bodies among ``indices`` with no positive mass or PSD J."""
     out = {}
     for k in indices:
         t = theta[10 * k:10 * k + 10]
@@ -151,12 +130,7 @@ def unrealizable_bodies(model, theta, indices):
 
 
 def _conditions(rows, scale, names):
-    """
-    Return the conditions ``rows @ (y / scale) = 0`` as pivot = sum(coefficient * other).
-
-    The pivots are chosen by a column-pivoted QR of the row basis (the best-conditioned
-    parameters to solve for); the coefficients are SI (kg, kg m per kg, ...).
-    """
+    """Return ``rows @ (y / scale) = 0`` as pivot = sum(coefficient * other) (pivoted QR, SI)."""
     import scipy.linalg
     if rows.shape[0] == 0:
         return []

@@ -11,6 +11,7 @@ import math
 import clarabel
 from mech_balance.balancing import certificate
 from mech_balance.balancing.certificate import POWER_ALPHA, SVEC
+from mech_balance.balancing.redistribution import ConeRows
 from mech_balance.balancing.spatial.model import RANK_REL_TOL
 from mech_balance.conic import run_solver, solve_tight
 import numpy as np
@@ -48,21 +49,15 @@ def _j_map():
 J_MAP = _j_map()
 
 
-class ConeProgram:
-    """
-    ``min q'x s.t. A x + s = b, s in K`` with x = (y, t_f, t_n): theta = offset + basis y.
-
-    Blocks of rows by cone ('zero', 'nonneg', 'soc', 'psd' (4x4), 'pow' (alpha 3/5)); the
-    box (box_lo, box_hi) contains every feasible y (for the certificate).
-    """
+class ConeProgram(ConeRows):
+    """The program by blocks of rows by cone; ``box_lo``/``box_hi`` hold every feasible y."""
 
     def __init__(self, basis, offset, units):
         self.basis = np.asarray(basis, dtype=float)
         self.offset = np.asarray(offset, dtype=float)
         self.units = units
         self.nd = self.basis.shape[1]
-        self.nx = self.nd + 2
-        self.blocks = []
+        super().__init__(self.nd + 2)
         self.q = np.zeros(self.nx)
         self.box_lo = np.full(self.nx, -math.inf)
         self.box_hi = np.full(self.nx, math.inf)
@@ -74,11 +69,6 @@ class ConeProgram:
         """Return the parameters (10 nb,) of a solution x."""
         return self.offset + self.basis @ np.asarray(x, dtype=float)[:self.nd]
 
-    def rows(self, kind, a, b):
-        """Add a block of rows ``b - a x in K``."""
-        self.blocks.append((kind, np.atleast_2d(np.asarray(a, dtype=float)),
-                            np.asarray(b, dtype=float).ravel()))
-
     def epigraphs(self, maps, w):
         """Add t_f >= RMS force, t_n >= RMS moment (normalized) and the objective."""
         for i, (mat, unit) in enumerate(((maps.force, self.units.force_N),
@@ -87,7 +77,7 @@ class ConeProgram:
             a = np.zeros((1 + g.shape[0], self.nx))
             a[0, self.nd + i] = -1.0
             a[1:, :self.nd] = -g @ self.basis
-            self.rows('soc', a, np.concatenate([[0.0], g @ self.offset]))
+            self.add('soc', a, np.concatenate([[0.0], g @ self.offset]))
             self.q[self.nd + i] = w[i]
             self.norm_maps.append((g @ self.basis, g @ self.offset))
         self.box_lo[self.nd:] = 0.0
@@ -96,7 +86,7 @@ class ConeProgram:
         """Add lo <= m <= hi of the body with design columns ``cols`` (rows in units m0)."""
         a = np.zeros((2, self.nx))
         a[0, cols], a[1, cols] = -b_k[0] / m0, b_k[0] / m0
-        self.rows('nonneg', a, [-lo / m0, hi / m0])
+        self.add('nonneg', a, [-lo / m0, hi / m0])
 
     def psd(self, cols, b_k, m0, r0):
         """Add J(theta_k) PSD, as D J D with D = diag(1/(sqrt(m0) r0) 1, 1/sqrt(m0))."""
@@ -104,14 +94,14 @@ class ConeProgram:
         scale = np.array([d[i] * d[j] for i, j in SVEC])
         a = np.zeros((10, self.nx))
         a[:, cols] = -(scale[:, None] * J_MAP) @ b_k
-        self.rows('psd', a, np.zeros(10))
+        self.add('psd', a, np.zeros(10))
 
     def extent(self, cols, b_k, radius, m0, r0):
         """Add tr(Sigma) = tr(I)/2 <= m radius^2 (units m0 r0^2)."""
         row = 0.5 * (b_k[4] + b_k[6] + b_k[9]) - radius ** 2 * b_k[0]
         a = np.zeros((1, self.nx))
         a[0, cols] = row / (m0 * r0 * r0)
-        self.rows('nonneg', a, [0.0])
+        self.add('nonneg', a, [0.0])
 
     def force_null(self, maps):
         """Add RMS shaking force = 0 (rows of the force map's range); False if impossible."""
@@ -121,7 +111,7 @@ class ConeProgram:
         rank = int(np.sum(sv > RANK_REL_TOL * sv[0])) if sv.size and sv[0] > 0 else 0
         a = np.zeros((rank, self.nx))
         a[:, :self.nd] = vt[:rank]
-        self.rows('zero', a, -(u[:, :rank].T @ c) / sv[:rank])
+        self.add('zero', a, -(u[:, :rank].T @ c) / sv[:rank])
         outside = c - u[:, :rank] @ (u[:, :rank].T @ c)
         self.null = (vt[:rank], u[:, :rank], sv[:rank])
         self.force_norm = g
@@ -147,24 +137,14 @@ class ConeProgram:
         """Return (A csc, b, clarabel cones, [(kind, rows)])."""
         a = sp.csc_matrix(np.vstack([blk[1] for blk in self.blocks]))
         b = np.concatenate([blk[2] for blk in self.blocks])
-        cones, layout = [], []
-        for kind, blk, _ in self.blocks:
-            n = blk.shape[0]
-            cones.append({'zero': lambda: clarabel.ZeroConeT(n),
-                          'nonneg': lambda: clarabel.NonnegativeConeT(n),
-                          'soc': lambda: clarabel.SecondOrderConeT(n),
-                          'psd': lambda: clarabel.PSDTriangleConeT(4),
-                          'pow': lambda: clarabel.PowerConeT(POWER_ALPHA)}[kind]())
-            layout.append((kind, n))
-        return a, b, cones, layout
+        make = {'zero': clarabel.ZeroConeT, 'nonneg': clarabel.NonnegativeConeT,
+                'soc': clarabel.SecondOrderConeT, 'psd': lambda n: clarabel.PSDTriangleConeT(4),
+                'pow': lambda n: clarabel.PowerConeT(POWER_ALPHA)}
+        layout = [(kind, blk.shape[0]) for kind, blk, _ in self.blocks]
+        return a, b, [make[kind](n) for kind, n in layout], layout
 
     def solve(self, tol_scale=None):
-        """
-        Solve with the retries of :func:`mech_balance.conic.run_solver`.
-
-        With ``tol_scale`` one solve with Clarabel's tolerances scaled by it instead
-        (:func:`mech_balance.conic.solve_tight`).
-        """
+        """Solve with :func:`mech_balance.conic.run_solver` (``tol_scale``: ``solve_tight``)."""
         a, b, cones, layout = self.assemble()
         if tol_scale is None:
             run = run_solver(self.q, a, b, cones)
@@ -182,13 +162,6 @@ class ConeProgram:
                 bound = min(bound, primal / self.q[self.nd + i] * (1.0 + 1e-12))
             hi[self.nd + i] = bound
         return lo, hi
-
-
-def unit_row(nx, i, value):
-    """Return a row of ``nx`` zeros with ``value`` at ``i``."""
-    row = np.zeros(nx)
-    row[i] = value
-    return row
 
 
 __all__ = ['ConeProgram', 'INERTIA_TO_SIGMA', 'J_MAP', 'SIGMA_ENTRIES', 'SIGMA_TO_INERTIA',

@@ -1,12 +1,9 @@
 """
 Certified optimal redistribution of a spatial rig with physically realizable bodies.
 
-Minimize ``w1 f~ + w2 n~`` (RMS of the normalized shaking force and moment) over the free
-bodies' parameters, each body realizable: its pseudo-inertia ``J = [[Sigma, h], [h^T, m]]``
-(``Sigma = tr(I)/2 1 - I``) positive semi-definite (Wensing, Kim & Slotine 2017), with mass
-bounds and an extent bound ``tr(Sigma) <= m r^2``; an SOC epigraph per RMS term and a 4x4 PSD
-cone per body (:class:`~.program.ConeProgram`), solved by Clarabel and certified
-(:func:`~.result.finish`).  docs/balancing.md, "Spatial rigs", states the program.
+Minimize ``w1 f~ + w2 n~`` over the free bodies' parameters, each body's pseudo-inertia PSD
+(Wensing, Kim & Slotine 2017), with mass and extent bounds (:class:`~.program.ConeProgram`,
+certified by :func:`~.result.finish`; docs/balancing.md, "Spatial rigs").
 """
 
 import math
@@ -33,12 +30,8 @@ def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAP
     """
     Return the certified optimal redistribution (:class:`SpatialResult`) of a spatial rig.
 
-    Minimizes ``w1 f~ + w2 n~`` over the parameters of every body not in ``fixed``, each
-    with a PSD pseudo-inertia, ``mass_bounds`` ``{body: (lo_kg, hi_kg)}`` (default
-    ``mass_factors`` x its mass) and ``extent_bounds`` ``{body: r_m}`` (default
-    ``extent_factor`` x its reach).  ``force_balanced`` adds the shaking force's null space
-    as equalities (complete force balance); when it is infeasible the result says so and
-    minimizes the RMS shaking force instead (``weights`` (1, 0)).
+    Bodies not ``fixed`` change within ``mass_bounds`` ``{body: (lo_kg, hi_kg)}`` and
+    ``extent_bounds`` ``{body: r_m}`` (defaults: the factors x the original).
     """
     t_start = time.perf_counter()
     w = check_weights(weights)

@@ -48,13 +48,8 @@ class RealizableChecks:
         """
         Return a design strictly inside every bound.
 
-        Without ``near``: each body's mass mid-range, first moment 0, spread m r^2 / 6.
-        With it (the design being repaired), each body keeps its mass clipped into its bounds
-        and (a full body) its first moment h, shrunk to |h| <= m r / 2, with the spread
-        ``Sigma = h h^T / m + c 1``, ``c = (m r^2 - |h|^2 / m) / 6``: J is then positive
-        definite and tr Sigma < m r^2.  The shaking force depends on m and h only, so a pull
-        towards this anchor leaves it as the solver made it (a complete force balance of 1e3
-        x heavier bodies stays one), and moves the rest by the fraction pulled of its size.
+        ``near`` (a design): each body keeps its mass (clipped) and first moment (shrunk), so a
+        pull towards the anchor leaves the shaking force as it was.
         """
         theta = self.model.theta.copy()
         for k in self.free:
@@ -78,13 +73,7 @@ class RealizableChecks:
 
     @staticmethod
     def _line_anchor(body, m, r2, near, k):
-        """
-        Return y = (m, mu1, mu2) of a body on a line strictly inside its bounds.
-
-        J is PSD exactly when [[m, mu1], [mu1, mu2]] is: mu2 = mu1^2 / m + c with c > 0 half
-        the room the extent bound leaves (tr Sigma is linear in y); mu1 is the design's
-        (``near``), halved until there is room (0: the anchor without a design).
-        """
+        """Return y = (m, mu1, mu2) of a body on a line strictly inside its bounds."""
         def spread(y):
             """Return tr(Sigma) of the coordinates y."""
             t = body.basis @ y
@@ -105,13 +94,7 @@ class RealizableChecks:
         return self.violation(theta) <= VIOLATION_TOL
 
     def clip_masses(self, theta):
-        """
-        Return theta with each free body's mass clipped into its bounds.
-
-        A full body: the mass alone (its first moment, which the shaking force sees with it,
-        stays; J and the extent are the pull's to restore).  A body on a line: scaled (its
-        mass column carries first and second moments too; keeps J PSD and the extent).
-        """
+        """Return theta with each free body's mass clipped into its bounds (a line body scaled)."""
         theta = theta.copy()
         for k in self.free:
             m = theta[10 * k]
@@ -127,13 +110,8 @@ class RealizableChecks:
         """
         Return (theta, pull): theta moved onto the feasible set where round-off left it.
 
-        First each body's mass clipped into its bounds, then the least spread along the
-        inertia (which the force map does not see) that makes each J PSD; ``pull`` is then
-        that spread (units of the body's M R^2, :func:`program_units`).  Where that breaks
-        the extent bound (without equality constraints): the least fraction ``pull`` of the
-        way to the :meth:`anchor` (a convex set holds the segment; bisection).  A solver
-        point 1e-9 outside a PSD cone of a body 1e3 x heavier than the original is thus moved
-        by 1e-9 of its own inertia, not towards an anchor whose inertia is m r^2.
+        The masses clipped, then the least spread that makes each J PSD, else the least
+        fraction ``pull`` of the way to the :meth:`anchor`; ``objective`` picks of the two.
         """
         if self.feasible(theta):
             return theta, 0.0

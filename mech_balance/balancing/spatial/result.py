@@ -70,8 +70,7 @@ def finish(rig, model, units, maps, prog, run, theta, balanced, w, samples, viol
     """Evaluate the written design with the core, certify it, and return the result."""
     rig2 = rig.with_scene(balanced) if hasattr(rig, 'with_scene') else rig_for(balanced)
     data = rig2.at(maps.angles)
-    f = float(rms(data.force_N)) / units.force_N
-    n = float(rms(data.moment_Nm)) / units.moment_Nm
+    f, n = normalized_rms(data, units)
     primal = w[0] * f + w[1] * n
     model_value = w[0] * np.linalg.norm(maps.force @ theta) / units.force_N + \
         w[1] * np.linalg.norm(maps.moment @ theta) / units.moment_Nm
@@ -94,8 +93,7 @@ def finish(rig, model, units, maps, prog, run, theta, balanced, w, samples, viol
         feasibility_pull=float(pull), failed_stages=[],
         certified=bool(math.isfinite(lower) and gap_rel <= CERTIFIED_GAP_REL))
     base = rig.at(maps.angles)
-    f0 = float(rms(base.force_N)) / units.force_N
-    n0 = float(rms(base.moment_Nm)) / units.moment_Nm
+    f0, n0 = normalized_rms(base, units)
     objective = {'z': primal, 'shaking_force_rms': f, 'shaking_moment_rms': n,
                  'z_original': w[0] * f0 + w[1] * n0}
     return SpatialResult(
@@ -104,6 +102,11 @@ def finish(rig, model, units, maps, prog, run, theta, balanced, w, samples, viol
         table=before_after(rig, balanced, samples, units, (base, data)),
         bodies=body_rows(model, theta), options=options,
         solve_time_s=time.perf_counter() - t_start, theta=theta)
+
+
+def normalized_rms(data, units):
+    """Return the RMS shaking force and moment of the core's ``data`` in the objective's units."""
+    return float(rms(data.force_N)) / units.force_N, float(rms(data.moment_Nm)) / units.moment_Nm
 
 
 def body_rows(model, theta):
@@ -123,17 +126,7 @@ def body_rows(model, theta):
 
 
 def before_after(rig, balanced, samples, units, data=None):
-    """
-    Return the before/after rows of RMS shaking force, moment and driving effort.
-
-    The driving effort is the rig's :attr:`~mech_balance.core.rig.Rig.driving_series` under
-    its label of :data:`~mech_balance.schema.scene.SERIES` (a driving torque, N m, or a
-    prismatic input's driving force, N).
-
-    The planar rows' shape (:func:`mech_balance.balancing.tables.before_after`): quantity,
-    unit/before/after normalized (SI when the scene records no normalization), change_percent,
-    unit_si, before_si, after_si.
-    """
+    """Return the before/after rows of RMS shaking force, moment and driving effort."""
     if data is None:
         psi = cycle_of(rig, samples)
         rig2 = rig.with_scene(balanced)
@@ -183,23 +176,15 @@ def check_run(run, rig, units):
         raise SpatialBalanceError(
             f'constraints: the balancing problem is infeasible (solver status {run.status}); '
             'widen mass_bounds / extent_bounds')
-    if not run.ok:
-        raise SpatialBalanceError(f'solver: {run.why()}{scale_blame(rig, units)}')
-
-
-def scale_blame(rig, units):
-    """Return the scene values that make a failed program ill-posed ('' when none is)."""
-    speed = abs(float(rig.at([0.0], outputs=('kinematics',)).crank_speed_rad_s[0]))
-    return blame(rig.scene, units if units.source == 'scene' else None, speed)
+    if not run.ok:   # with the scene values that make the program ill-posed
+        speed = abs(float(rig.at([0.0], outputs=('kinematics',)).crank_speed_rad_s[0]))
+        raise SpatialBalanceError(f'solver: {run.why()}'
+                                  + blame(rig.scene, units if units.source == 'scene' else None,
+                                          speed))
 
 
 def write_scene(result, path):
-    """
-    Write the balanced scene to ``path`` (through :mod:`mech_balance.atomic`) and reload it.
-
-    The provenance goes under the scene's ``balance`` key when its kind's loader accepts one,
-    else into a comment header.  Returns the reloaded scene.
-    """
+    """Write the balanced scene and its provenance to ``path`` atomically; return it reloaded."""
     from mech_balance import atomic
     import yaml
     provenance = result.summary()

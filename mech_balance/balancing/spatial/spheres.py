@@ -16,7 +16,7 @@ from mech_balance.balancing.defaults import DEFAULT_DENSITY_KG_M3, DEFAULT_MAX_M
 from mech_balance.balancing.spatial.model import check_samples, check_weights, maps_of, \
     parameter_model, SpatialBalanceError, units_of
 from mech_balance.balancing.spatial.program import ConeProgram, SIGMA_ENTRIES, \
-    SIGMA_TO_INERTIA, unit_row
+    SIGMA_TO_INERTIA
 from mech_balance.balancing.spatial.result import best_certified, check_run, finish
 from mech_balance.core import regressor
 import numpy as np
@@ -33,14 +33,8 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
     """
     Return the certified optimal add-only spheres on the listed bodies (a SpatialResult).
 
-    Each listed body keeps its parameters and gains a counterweight of mass at most
-    ``max_mass_factor`` x its mass, made of spheres of ``density_kg_m3``, whose mass lies
-    within RMS distance ``max_radius_factor`` x its reach of the body origin.  The convex set
-    (docs/balancing.md, "Spatial rigs"): ``[[Sigma - s 1, dh], [dh^T, dm]]`` PSD and
-    ``s >= k dm^(5/3)`` (a power cone; ``k dm^(5/3)`` the spread of one solid sphere of mass
-    dm) is exactly what clusters of hollow spheres realize, so the optimum is built
-    (:func:`sphere_cluster`): up to six spheres, in pairs about the counterweight's centre
-    along the principal axes of its spread.
+    Each listed body gains spheres of at most ``max_mass_factor`` x its mass within RMS
+    distance ``max_radius_factor`` x its reach of its origin (:func:`sphere_cluster`).
     """
     t_start = time.perf_counter()
     w = check_weights(weights)
@@ -91,10 +85,7 @@ def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
             theta[10 * k:10 * k + 10] += added[body.name]
         extra = {'links': [model.bodies[k].name for k in idx], 'density_kg_m3': density_kg_m3,
                  'max_mass_factor': max_mass_factor, 'max_radius_factor': max_radius_factor,
-                 'counterweights': spheres,
-                 'added_mass_kg': {n: float(sum(c['mass_kg'] for c in cl))
-                                   for n, cl in spheres.items()},
-                 'sphere_overlap_m': {n: cluster_overlap_m(cl) for n, cl in spheres.items()}}
+                 **cluster_entries(spheres)}
         return finish(rig, model, units, maps, prog, run, theta, model.add(added, spheres), w,
                       samples, violation, 0.0, t_start,
                       'counterweights (add-only spheres, SOCP+SDP)', extra)
@@ -127,7 +118,9 @@ def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radi
     for j, k in enumerate(idx):
         m0, r0 = float(model.theta[10 * k]), model.bodies[k].reach_m
         c = 11 * j
-        prog.rows('nonneg', [unit_row(prog.nx, c, -1.0), unit_row(prog.nx, c, 1.0)], [0.0, hi])
+        mass = np.zeros((2, prog.nx))
+        mass[:, c] = (-1.0, 1.0)
+        prog.add('nonneg', mass, [0.0, hi])
         lin = np.zeros((10, prog.nx))
         for row, (a, b) in enumerate(SVEC):
             f = 1.0 if a == b else math.sqrt(2.0)
@@ -139,20 +132,20 @@ def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radi
                 lin[row, c + 1 + a] = f
             else:
                 lin[row, c] = 1.0
-        prog.rows('psd', -lin, np.zeros(10))
+        prog.add('psd', -lin, np.zeros(10))
         ext = np.zeros(prog.nx)
         ext[[c + 4, c + 6, c + 9]] = 1.0            # tr(Sigma) <= dm (f r0)^2
         ext[c] = -fr2
-        prog.rows('nonneg', [ext], [0.0])
+        prog.add('nonneg', [ext], [0.0])
         # s >= k dm^(5/3)  <=>  (s / u, 1, dm) in K_pow(3/5): (s / u)^(3/5) >= |dm|, u the
         # spread of a solid sphere of mass m0 (units m0 r0^2)
         spread_unit = k_sphere * m0 ** (5.0 / 3.0) / (m0 * r0 * r0)
         pw = np.zeros((3, prog.nx))
         pw[0, c + 10] = -1.0 / spread_unit
         pw[2, c] = -1.0
-        prog.rows('pow', pw, [0.0, 1.0, 0.0])
-        # the box every feasible point lies in (module docstring of certificate):
-        # |dh_i| <= dm f r0, |Sigma_ij| <= tr Sigma <= dm (f r0)^2, s <= tr Sigma / 3
+        prog.add('pow', pw, [0.0, 1.0, 0.0])
+        # the box every feasible point lies in: |dh_i| <= dm f r0,
+        # |Sigma_ij| <= tr Sigma <= dm (f r0)^2, s <= tr Sigma / 3
         prog.box_lo[c:c + 11] = [0.0] + [-hi * max_radius_factor] * 3 + [-hi * fr2] * 6 + [0.0]
         prog.box_hi[c:c + 11] = [hi] + [hi * max_radius_factor] * 3 + [hi * fr2] * 6 \
             + [hi * fr2 / 3.0]
@@ -180,12 +173,7 @@ def _repaired_counterweight(dm, dh, sigma, s, k_sphere, mass_hi, radius2):
 
 
 def hollow_sphere(mass_kg, spread_kg_m2, density_kg_m3):
-    """
-    Return (outer, inner) radii, m, of a hollow sphere of the mass and spread int(x^2 dm).
-
-    m = rho 4/3 pi (R^3 - r^3) and int(x^2 dm) = rho 4/15 pi (R^5 - r^5); r = 0 is the solid
-    sphere (the least spread of a sphere of that mass); R^5 - r^5 grows with r at fixed mass.
-    """
+    """Return (outer, inner) radii, m, of a hollow sphere of the mass and spread int(x^2 dm)."""
     from scipy.optimize import brentq
     a = 3.0 * mass_kg / (4.0 * math.pi * density_kg_m3)
     b = 15.0 * spread_kg_m2 / (4.0 * math.pi * density_kg_m3)
@@ -205,12 +193,8 @@ def sphere_cluster(dm, dh, sigma, s, density_kg_m3, reach_m):
     """
     Return the spheres realizing a counterweight (dm, dh, Sigma about the origin, spread s).
 
-    c = dh / dm, S = Sigma - s 1 - dm c c^T (PSD) = sum_j sigma_j u_j u_j^T over its r
-    eigenvalues above round-off (:data:`CLUSTER_SPREAD_REL` dm reach^2): masses dm / (2 r) at
-    c +/- sqrt(r sigma_j / dm) u_j carry S exactly (one sphere at c when r = 0); each gets
-    the spread s mu / dm, a hollow sphere (:func:`hollow_sphere`; s mu / dm >= k mu^(5/3)
-    since mu <= dm).  Each entry: mass_kg, centre_m (body axes), spread_kg_m2,
-    outer_radius_m, inner_radius_m.
+    Pairs along the principal axes of the spread about c = dh / dm.  Each entry: mass_kg,
+    centre_m (body axes), spread_kg_m2, outer_radius_m, inner_radius_m.
     """
     c = np.asarray(dh, dtype=float) / dm
     spread = np.asarray(sigma, dtype=float) - s * np.eye(3) - dm * np.outer(c, c)
@@ -241,11 +225,19 @@ def cluster_overlap_m(cluster):
     return float(worst) if math.isfinite(worst) else 0.0
 
 
+def cluster_entries(clusters):
+    """Return the report's ``counterweights``, ``added_mass_kg``, ``sphere_overlap_m``."""
+    return {'counterweights': clusters,
+            'added_mass_kg': {n: float(sum(c['mass_kg'] for c in cl))
+                              for n, cl in clusters.items()},
+            'sphere_overlap_m': {n: cluster_overlap_m(cl) for n, cl in clusters.items()}}
+
+
 def cluster_theta(cluster):
     """Return theta (10,) of a list of spheres (their inertia 2 x spread about the centre)."""
     return sum(regressor.parameters(c['mass_kg'], c['centre_m'],
                                     2.0 * c['spread_kg_m2'] * np.eye(3)) for c in cluster)
 
 
-__all__ = ['cluster_overlap_m', 'cluster_theta', 'counterweights', 'hollow_sphere',
-           'MIN_COUNTERWEIGHT_REL', 'sphere_cluster']
+__all__ = ['cluster_entries', 'cluster_overlap_m', 'cluster_theta', 'counterweights',
+           'hollow_sphere', 'MIN_COUNTERWEIGHT_REL', 'sphere_cluster']
