@@ -33,6 +33,10 @@ def blas_threads(environ=None):
     return n
 
 
+_LIMIT = {'threads': None}
+"""The BLAS limit this process set (a verb run in-process again skips the library scan)."""
+
+
 def limit_blas_threads(environ=None):
     """
     Limit numpy's BLAS pool to :func:`blas_threads`; return the limit set, or None.
@@ -41,8 +45,8 @@ def limit_blas_threads(environ=None):
     numpy's default pool is kept, which is only slower).
     """
     n = blas_threads(environ)
-    if n is None:
-        return None
+    if n is None or _LIMIT['threads'] == n:   # none, or set already in this process
+        return n
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
@@ -51,6 +55,7 @@ def limit_blas_threads(environ=None):
     import numpy  # noqa: F401
     import scipy.linalg  # noqa: F401
     threadpool_limits(limits=n, user_api='blas')
+    _LIMIT['threads'] = n
     return n
 
 

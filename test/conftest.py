@@ -25,29 +25,30 @@ import pytest
 threads.limit_blas_threads()
 
 SLOW_MODULES = (
-    'test_spatial.py', 'test_spatial_branch.py', 'test_node_recording.py',
-    'test_node_services.py', 'test_flake8.py', 'test_node.py', 'test_node_faults.py',
-    'test_clearance_spatial.py', 'test_conformance.py', 'test_fuzz_verbs.py',
-    'test_recording_layout.py', 'test_hardening.py', 'test_identify_real.py',
-    'test_identify_faults.py', 'test_examples.py', 'test_node_overload.py', 'test_cli.py',
-    'test_recording.py', 'test_recording_fuzz.py', 'test_node_hardening.py',
-    'test_description.py', 'test_layers.py', 'test_accuracy.py', 'test_fuzz_scenes.py',
-    'test_bench_mujoco.py', 'test_bad_input.py', 'test_pep257.py', 'test_forward_generic.py',
-    'test_clearance.py', 'test_twin_sensor.py', 'test_certificate.py', 'test_extreme.py',
-    'test_identify.py', 'test_cycle_table.py', 'test_node_follow.py', 'test_cli_snapshot.py',
-    'test_words.py', 'test_spatial_bounds.py', 'test_node_switch.py',
+    'test_spatial.py', 'test_node_services.py', 'test_flake8.py', 'test_node_faults.py',
+    'test_node_recording.py', 'test_node.py', 'test_twin_sensor.py', 'test_identify_real.py',
+    'test_recording_layout.py', 'test_fuzz_verbs.py', 'test_conformance.py',
+    'test_node_hardening.py', 'test_spatial_branch.py', 'test_fuzz_scenes.py',
+    'test_cli_signals.py', 'test_examples.py', 'test_hardening.py', 'test_bad_input.py',
+    'test_recording.py', 'test_spatial_bounds.py', 'test_forward_generic.py',
+    'test_identify.py', 'test_identify_faults.py', 'test_accuracy.py', 'test_recording_fuzz.py',
+    'test_cli.py', 'test_description.py', 'test_layers.py', 'test_clearance_design.py',
+    'test_certificate.py', 'test_extreme.py', 'test_pep257.py', 'test_node_overload.py',
+    'test_clearance_spatial.py', 'test_cli_snapshot.py', 'test_bench_mujoco.py',
+    'test_node_follow.py', 'test_dyads.py', 'test_cycle_table.py', 'test_spatial_ranges.py',
+    'test_threads.py', 'test_simulate.py', 'test_colcon_build.py',
 )
 """
 The longest modules, longest first: the others follow in file order.
 
-Measured one module at a time (``pytest test/test_x.py --durations``, CPU and wall time,
-2026-12-06 06:00 UTC on the loaded 2-core machine, so ranked relatively) for the modules
-from ``test_spatial.py`` to ``test_recording.py`` and the modules added since the first
-ranking (``test_spatial_branch.py``, ``test_node_recording.py``, ``test_node_services.py``,
-``test_identify_faults.py``, ``test_examples.py``, ``test_node_overload.py`` and the short
-ones at the end); the rest keep their place of the first ranking (a serial run,
-``--junitxml``, 2026-12-06).  A long module left out of this list starts last and bounds
-the run: add a new module here by its measured time.
+Ranked by the CPU time each module costs, its own and its child processes' (the node, the
+command line, flake8's workers), measured one group of modules at a time (a pytest plugin
+summing ``time.process_time()`` and ``RUSAGE_CHILDREN`` per test phase, 2026-12-06 08:00-08:50
+UTC, on the loaded 2-core machine, so ranked relatively), after the speed-ups of that round
+(``test_clearance_spatial.py``'s exact tube distance, ``test_conformance.py``'s quickstart
+in-process).  A module of node tests also waits (discovery, the node's ticks) while the
+other worker computes: ranking it early lets that wait overlap.  A long module left out of
+this list starts last and bounds the run: add a new module here by its measured time.
 """
 
 

@@ -22,6 +22,7 @@ function.
 """
 
 import ast
+import functools
 from pathlib import Path
 import re
 
@@ -64,8 +65,13 @@ def _modules():
 MODULES = _modules()
 
 
+@functools.lru_cache(maxsize=None)
 def _imports(path):
-    """Return ``[(target module, imported names, top_level, lineno)]`` of a module's imports."""
+    """
+    Return ``((target module, imported names, top_level, lineno), ...)`` of a module's imports.
+
+    Parsed once per file and run (the checks below each walk every module).
+    """
     tree = ast.parse(path.read_text(), str(path))
     top = {id(n) for n in tree.body}
     found = []
@@ -80,7 +86,7 @@ def _imports(path):
                     found.append((sub, (), id(node) in top, node.lineno))
                 else:
                     found.append((node.module, (alias.name,), id(node) in top, node.lineno))
-    return found
+    return tuple(found)
 
 
 def _graph():

@@ -274,13 +274,23 @@ def assemblies(data, poses, rng):
     crank = poses['crank']
     found = [poses]
 
+    turned = {}   # (link, rotation vector) -> its rotation: a finite-difference column of
+    #               least_squares moves one unknown, so the other link's rotation is reused
+
+    def rotation(k, v, base):
+        key = (k, v.tobytes())
+        if key not in turned:
+            turned[key] = _rodrigues(v) @ base
+        return turned[key]
+
     def unpack(z, base):
         return {'frame': (np.eye(3), np.zeros(3)), 'crank': crank,
-                'coupler': (_rodrigues(z[:3]) @ base[0], z[3:6]),
-                'output': (_rodrigues(z[6:9]) @ base[1], z[9:])}
+                'coupler': (rotation(0, z[:3], base[0]), z[3:6]),
+                'output': (rotation(1, z[6:9], base[1]), z[9:])}
 
     for _ in range(STARTS):
         base = [Rotation.random(random_state=rng).as_matrix() for _ in range(2)]
+        turned.clear()
         z0 = np.concatenate([np.zeros(3), rng.normal(size=3) * 0.05,
                              np.zeros(3), rng.normal(size=3) * 0.05])
         sol = least_squares(lambda z: rows(unpack(z, base)), z0, method='lm',

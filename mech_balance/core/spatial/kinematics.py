@@ -425,14 +425,20 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
             res = np.max(np.abs(g), axis=1) if self.m else np.zeros(q.shape[0])
             if np.all(res <= tol) or _ == max_iter or not self.nu:
                 break
-            js = self.scaled(self.jacobian(fr))
-            solver, _, _, _ = self._solver(js)
-            delta = -np.einsum('nij,nj->ni', solver, g) * self.col_scale[self.unknown]
+            delta = -self._newton_step(self.scaled(self.jacobian(fr)), g) \
+                * self.col_scale[self.unknown]
             bad = ~np.isfinite(delta).all(axis=1)
             delta[bad] = 0.0
             q, sph = self._update(q, sph, delta)
         ok = (res <= tol) & np.isfinite(res)
         return q, sph, fr, res, ok
+
+    def _newton_step(self, js, g):
+        """Return ``x`` with ``js x = g`` per sample: solved, not inverted (redundant: pinv)."""
+        if not self.square:
+            return np.einsum('nij,nj->ni', self._solver(js)[0], g)
+        batch_last = np.ascontiguousarray(js.transpose(1, 2, 0))
+        return linalg.Factored(batch_last, self._lu_plan(js)).solve(g.T).T
 
     def _chord(self, q, sph, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
         """
