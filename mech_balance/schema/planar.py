@@ -1,10 +1,4 @@
-"""
-The planar kind's scene reader and writer, side by side: YAML mapping <-> :class:`Scene`.
-
-The schema: docs/scenes.md; the types and constants: :mod:`mech_balance.schema.scene`.
-Every error is a :class:`~mech_balance.schema.fields.SceneError` naming the field, the value
-and what was expected.
-"""
+"""The planar kind's scene reader and writer: YAML mapping <-> :class:`Scene` (docs/scenes.md)."""
 
 from dataclasses import replace
 import math
