@@ -1,9 +1,8 @@
 """
 Error against run time: the numbers behind ``mech-balance accuracy``.
 
-Four studies of one scene against converged references: RMS against the number of crank
-samples, forward-dynamics integrators and tolerances, position analysis, and the balancing
-certificate's gap against the solver tolerance (docs/simulation.md#the-accuracy-studies).
+RMS against samples, integrators, position analysis and the balancing certificate
+(docs/simulation.md#the-accuracy-studies).
 """
 
 from dataclasses import dataclass
@@ -47,8 +46,7 @@ def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
     """
     Return the RMS study: per p, the worst relative RMS error over the table and the time.
 
-    ``normalized`` defaults to whether the scene records a normalization.  Each row: ``p``,
-    ``max_rel_error``, ``worst`` (the quantity), ``seconds`` (median per cycle).
+    Rows: ``p``, ``max_rel_error``, ``worst``, ``seconds`` (median per cycle).
     """
     normalized = rig.scene.normalization is not None if normalized is None else normalized
     ref = analysis.summarize(analysis.run_cycle(rig, p_ref), normalized)
@@ -118,8 +116,7 @@ def integrator_study(model, duration_s=None, methods=STUDY_METHODS, rtols=RTOL_L
     """
     Return the forward-dynamics study of a :class:`~mech_balance.core.forward.ForwardDynamics`.
 
-    Against the method ``auto`` would choose at ``REFERENCE_RTOL`` (LSODA at the same
-    tolerance: its ``spread``); ``rtols``: one ladder, or ``{method: ladder}``.
+    ``rtols``: one ladder, or ``{method: ladder}``.
     """
     if duration_s is None:
         duration_s = ACCURACY_TURNS * 2.0 * math.pi / model.omega_ref
@@ -156,12 +153,7 @@ def integrator_study(model, duration_s=None, methods=STUDY_METHODS, rtols=RTOL_L
 
 
 def equal_error(runs):
-    """
-    Return, per implicit run, the fastest explicit run that is at least as accurate.
-
-    Each row: both :class:`Run` (the explicit one None when none is) and their ratios
-    explicit / implicit of run time and right-hand-side evaluations.
-    """
+    """Return, per implicit run, the fastest explicit run at least as accurate (or None)."""
     explicit = [r for r in runs if not r.implicit]
     rows = []
     for imp in (r for r in runs if r.implicit):
@@ -240,12 +232,7 @@ SECTION_CAPABILITY = {'integrators': 'accuracy_study', 'position': 'accuracy_stu
 
 
 def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
-    """
-    Return every requested study of a scene as a dict.
-
-    A rig without the ``accuracy_study`` capability (the spatial kind) has the RMS study
-    only; each other section is a note naming the capability and the kind.
-    """
+    """Return every requested study of a scene as a dict (RMS only without ``accuracy_study``)."""
     say = progress or (lambda text: None)
     sc = scene_mod.load(name_or_path)
     kind = scene_mod.kind_of(sc)

@@ -1,9 +1,4 @@
-"""
-The balancing bench sections of ``mech-balance bench``, redistribution and counterweights.
-
-Medians of whole solves (linear maps, cone programs, certificate, before/after table) over
-the paper's weight cases.
-"""
+"""The balancing bench sections of ``mech-balance bench``: medians of whole solves."""
 
 from mech_balance import schema as scene_mod
 from mech_balance.balancing import counterweights as cw_mod, paper_tables as seed_tables, \

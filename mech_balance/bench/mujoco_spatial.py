@@ -1,9 +1,7 @@
 """
 The spatial part of ``mech-balance bench --compare mujoco``: the spatial built-ins in MuJoCo.
 
-:class:`SpatialMujocoRig`: the rig's own spanning tree (hinges, slides, balls in the links'
-own axes), ``connect`` at its spherical cut joints, the package's S-S spin convention, every
-bearing reaction; the details: docs/benchmarks.md#the-mujoco-models-in-detail.
+:class:`SpatialMujocoRig`; the model: docs/benchmarks.md#the-mujoco-models-in-detail.
 """
 
 from mech_balance import schema as scene_mod
@@ -149,12 +147,7 @@ class SpatialMujocoRig(MujocoModel):
             header=('  <compiler angle="radian"/>',))
 
     def _first_inverse(self):
-        """
-        Run ``mj_inverse`` once at ``qpos0``; return MuJoCo's warnings (caught, not printed).
-
-        An idle rod's zero moment makes ``mj_factorM`` warn once that the mass matrix is
-        singular, which the inverse dynamics does not need.
-        """
+        """Run ``mj_inverse`` once at ``qpos0``; return MuJoCo's warnings (caught, not printed)."""
         mj = self.mj
         caught = []
         previous = mj.get_mju_user_warning()
@@ -299,9 +292,8 @@ class SpatialMujocoRig(MujocoModel):
         """
         Return MuJoCo's results for the package's motion ``state`` (dict of ``(n, ...)``).
 
-        Keys: ``driving_torque``, ``force``, ``moment``, ``reactions`` (joint -> (force,
-        moment)), ``spin_residual`` (the spin rows' largest multiplier, N m), ``origin``,
-        ``rot``, ``twist``, ``accel`` (MuJoCo's bodies, for the motion check).
+        Keys: ``driving_torque``, ``force``, ``moment``, ``reactions`` (joint -> (force, moment)),
+        ``spin_residual`` (N m), ``origin``, ``rot``, ``twist``, ``accel``.
         """
         keys = ('driving_torque', 'force', 'moment', 'spin_residual', 'origin', 'rot', 'twist',
                 'accel')
@@ -363,10 +355,9 @@ class SpatialMujocoRig(MujocoModel):
 
     def full(self, psi, speed, accel, qpos_start):
         """
-        Return MuJoCo's own solution over crank angles ``psi``, one angle at a time.
+        Return MuJoCo's own solution over crank angles ``psi``, from ``qpos_start``.
 
-        The first angle's Newton starts from ``qpos_start``.  Returns ``(tau, force, moment,
-        reactions, qpos, residual, iterations)``, ``reactions`` as in :meth:`dynamics`.
+        ``(tau, force, moment, reactions, qpos, residual, iterations)``.
         """
         p = psi.size
         tau, fsh, nsh = np.empty(p), np.empty((p, 3)), np.empty((p, 3))
@@ -401,8 +392,7 @@ def reaction_differences(ours, theirs):
     """
     Return ``(forces, moments)``: the bearing reactions' worst relative differences.
 
-    Forces: per joint, to that joint's cycle peak.  Moments (about each joint point): to the
-    largest peak over the joints (a spherical joint's moment is zero).
+    Forces to each joint's cycle peak; moments to the largest peak over the joints.
     """
     forces = max(relative_difference(f, theirs[j][0]) for j, (f, _) in ours.items())
     peak = max(float(np.max(norms(mo))) for _, mo in ours.values())
@@ -414,10 +404,8 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
     """
     Return the agreement and timing figures of one spatial scene (name or scene), one process.
 
-    ``timer(fns)``: the median seconds of each ``(function, runs)``; the package's figures
-    take ``repeat`` runs, MuJoCo's ``slow``.  Keys as the planar :func:`.mujoco.compare`'s
-    (agreements by :data:`QUANTITIES`), with the spin residual, the inertia check and the
-    rig's ``driving_series``.
+    ``timer(fns)``: the median seconds of each ``(function, runs)``; keys as the planar
+    :func:`.mujoco.compare`'s, plus the spin residual, inertia check and ``driving_series``.
     """
     sc = scene_mod.load(scene) if isinstance(scene, str) else scene
     sc = sc.with_outputs(scene_mod.OUTPUTS)

@@ -1,8 +1,7 @@
 """
 The plots of a recording (no rerun): each quantity over the crank angle, as a 2-D view.
 
-Drawn in the view's pixels at the default window (y down): x the crank angle, 0-360 deg,
-y in the quantity's unit (`docs/recordings.md`).  A live view plots over time instead.
+In the view's pixels (y down), x the crank angle 0-360 deg (`docs/recordings.md`).
 """
 
 from dataclasses import dataclass
