@@ -166,11 +166,7 @@ def format_table(cycle, rows, normalized=False):
 
 
 def analyze(sc, samples=None, normalized=False, design=None):
-    """
-    Return the ``mech-balance analyze`` :class:`~mech_balance.analysis.report.Report`.
-
-    ``design``: a seed 001 point-mass design vector applied first (normalized if the scene is).
-    """
+    """Return the ``analyze`` :class:`Report`; ``design``: a seed 001 design applied first."""
     if design is not None:
         sc = equimomental.apply_design(sc, design, normalized=sc.normalization is not None)
     rig = Rig(sc)

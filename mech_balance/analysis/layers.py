@@ -1,8 +1,4 @@
-"""
-The layered model of a planar rig as built: each body a layer along the joint axes.
-
-Sizes from the scene's ``build:`` section (docs/build.md#the-layered-model).
-"""
+"""The layered model of a planar rig as built (docs/build.md#the-layered-model)."""
 
 from dataclasses import dataclass
 

@@ -1,8 +1,4 @@
-"""
-The RMS quantities of a scene as compressed linear maps of its inertial parameters.
-
-Read by the balancing's cone programs and the identification's predicted RMS.
-"""
+"""The RMS quantities of a scene as compressed linear maps of its inertial parameters."""
 
 from dataclasses import dataclass
 import math

@@ -38,9 +38,6 @@ BALANCE_WEIGHTS = (0.5, 0.5)
 """Objective weights (shaking force, shaking moment) of the balancing study: one stage."""
 
 
-# ============================================================================ RMS vs p
-
-
 def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
                     repeat=RMS_TIMING_REPEAT):
     """
@@ -74,9 +71,6 @@ def first_p_below(study, tol):
         if all(r['max_rel_error'] < tol for r in rows[i:]):
             return row['p']
     return None
-
-
-# ============================================================================ integrators
 
 
 @dataclass
@@ -113,11 +107,7 @@ def state_error(model, y, y_ref):
 
 def integrator_study(model, duration_s=None, methods=STUDY_METHODS, rtols=RTOL_LADDER,
                      progress=None):
-    """
-    Return the forward-dynamics study of a :class:`~mech_balance.core.forward.ForwardDynamics`.
-
-    ``rtols``: one ladder, or ``{method: ladder}``.
-    """
+    """Return the forward-dynamics study; ``rtols``: one ladder or ``{method: ladder}``."""
     if duration_s is None:
         duration_s = ACCURACY_TURNS * 2.0 * math.pi / model.omega_ref
     stiff = model.stiffness()
@@ -165,9 +155,6 @@ def equal_error(runs):
     return rows
 
 
-# ============================================================================ position
-
-
 def position_study(rig, samples=None):
     """Return the position-analysis figures of one revolution and per-angle rows."""
     samples = rig.scene.samples if samples is None else samples
@@ -190,9 +177,6 @@ def position_study(rig, samples=None):
             'skeleton_nodes': int(rig.linkage.skeleton.psi.size),
             'newton_tol': kinematics.NEWTON_TOL, 'rows': rows,
             'first_angle_deg': float(psi_deg[0])}
-
-
-# ============================================================================ balancing
 
 
 def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHTS):
@@ -221,9 +205,6 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
                      'conic_seconds': res.conic_time_s, 'solve_seconds': res.solve_time_s})
     return {'available': True, 'weights': list(weights), 'rows': rows,
             'tolerance_via': 'mech_balance.conic.SOLVER_TOL'}
-
-
-# ============================================================================ all of it
 
 
 SECTION_CAPABILITY = {'integrators': 'accuracy_study', 'position': 'accuracy_study',

@@ -14,11 +14,7 @@ COUNTERWEIGHT_BENCH = {'hoeken': (('crank', 'rocker'), 20.0), 'carpet_scraper': 
 
 
 def bench_section(args, progress):
-    """
-    Return the bench table of the redistribution: median wall time per case.
-
-    :func:`mech_balance.balancing.redistribution.optimize` over the paper's weight cases.
-    """
+    """Return the redistribution's bench table: median wall time per weight case."""
     names = args.scene or ['hoeken', 'carpet_scraper']
     repeat = min(int(args.repeat), BENCH_REPEAT_MAX)
     head = (f"{'balance: scene':<18}{'case':<6}{'weights':<12}{'constraints':<13}"

@@ -1,8 +1,4 @@
-"""
-Generated single-input planar chains of any size, for scaling benchmarks and tests.
-
-The geometry: docs/benchmarks.md#the-generated-chains.
-"""
+"""Generated single-input planar chains (docs/benchmarks.md#the-generated-chains)."""
 
 import math
 

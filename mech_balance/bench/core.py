@@ -1,8 +1,4 @@
-"""
-Timings for ``mech-balance bench``: median of repeated runs after warm-up.
-
-Only this module (and the command that prints it) measures time; tests never do.
-"""
+"""Timings for ``mech-balance bench``: median of repeated runs after warm-up."""
 
 import time
 import tracemalloc

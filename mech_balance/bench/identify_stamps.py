@@ -1,8 +1,4 @@
-"""
-``mech-balance bench`` section of the rig node: ``~/identify`` after a day-ahead stamp.
-
-Issue 20's acceptance (docs/benchmarks.md#how-the-node-sections-measure).
-"""
+"""``mech-balance bench`` section: ``~/identify`` after a day-ahead stamp (issue 20)."""
 
 import os
 import time
@@ -153,11 +149,7 @@ class SensorFeed:
 
 
 def identify_stamps_section(args, progress, seconds=None, calls=ID_CALLS):
-    """
-    Return ``~/identify`` after a day-ahead measured_wrench stamp (issue 20 acceptance).
-
-    ``seconds`` streamed (default :data:`ID_SECONDS`), then ``calls`` calls.
-    """
+    """Return ``~/identify`` after a day-ahead stamp: ``seconds`` streamed, ``calls`` calls."""
     import statistics
     from mech_balance import schema as scene_mod
     from mech_balance.ros import sensor

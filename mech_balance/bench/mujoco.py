@@ -99,8 +99,6 @@ class MujocoRig(MujocoModel):
         return mjcf('mech_balance', lk, [(c.name, c.b, site(c.b, c.p_b), c.a, site(c.a, c.p_a))
                                          for c in lk.cuts], body)
 
-    # ------------------------------------------------------------------ per angle
-
     def _jacobian(self):
         d = self.data
         return d.efc_J[:d.nefc * self.model.nv].reshape(d.nefc, self.model.nv)[self.rows]
@@ -195,9 +193,6 @@ class MujocoRig(MujocoModel):
         qpos[self.dof] = q_start
         q, res, iters = self._solution(psi, speed, accel, (psi, speed, accel), qpos, rigid)
         return tau, fsh, nsh, q[:, self.dof].T, res / self.length, iters
-
-
-# ---------------------------------------------------------------------------- comparison
 
 
 def interleaved_rounds(fns, rounds=TIMING_ROUNDS, warmup=2):

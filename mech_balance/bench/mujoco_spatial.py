@@ -1,8 +1,4 @@
-"""
-The spatial part of ``mech-balance bench --compare mujoco``: the spatial built-ins in MuJoCo.
-
-:class:`SpatialMujocoRig`; the model: docs/benchmarks.md#the-mujoco-models-in-detail.
-"""
+"""The spatial built-ins in MuJoCo for ``bench --compare mujoco`` (:class:`SpatialMujocoRig`)."""
 
 from mech_balance import schema as scene_mod
 from mech_balance.bench.mujoco_model import agreement, agreement_rows, import_mujoco, mjcf, \
@@ -96,8 +92,6 @@ class SpatialMujocoRig(MujocoModel):
         self.cut_names = [sc.joints[ji].name for ji in lk.cut_joints]
         self._jacr = np.zeros((3, m.nv))
 
-    # ------------------------------------------------------------------ model
-
     def _mjcf(self, sc, placeholders):
         """Return the MJCF and the cut signs; list ``(link, tensor)`` of zero moments."""
         lk = self.linkage
@@ -172,8 +166,6 @@ class SpatialMujocoRig(MujocoModel):
                         float(np.max(np.abs(m.body_ipos[b] - link.com_m))) / self.length)
         return error
 
-    # ------------------------------------------------------------------ the package's motion
-
     def to_mujoco(self, state):
         """Return ``(qpos (n, nq), qvel (n, nv), qacc (n, nv))`` of a solved package state."""
         mj, m, lk = self.mj, self.model, self.linkage
@@ -222,8 +214,6 @@ class SpatialMujocoRig(MujocoModel):
                 sph[k, si] = _rotation(mj, quat / np.linalg.norm(quat))
             si += 1
         return q, sph
-
-    # ------------------------------------------------------------------ rigid inverse dynamics
 
     def _rigid(self, reactions=False):
         """From ``mj_inverse``'s outputs: torque, multipliers, shaking wrench (docstring)."""
@@ -316,8 +306,6 @@ class SpatialMujocoRig(MujocoModel):
         """``mj_inverse`` plus the rigid multipliers and the shaking wrench (same outputs)."""
         self._inverse(qpos, qvel, qacc, lambda i: self._rigid(reactions=True))
 
-    # ------------------------------------------------------------------ MuJoCo's own motion
-
     def _closure(self):
         """Return the closure rows' scaled residual (nrow,) and Jacobian (nrow, nv)."""
         mj, m, d = self.mj, self.model, self.data
@@ -375,9 +363,6 @@ class SpatialMujocoRig(MujocoModel):
         coordinate = self.linkage.input_coordinate(psi, speed, accel)
         q, res, iters = self._solution(psi, speed, accel, coordinate, qpos_start, rigid)
         return tau, fsh, nsh, react, q, res, iters
-
-
-# ---------------------------------------------------------------------------- comparison
 
 
 def _fresh_dynamics(rig, state, need):

@@ -1,8 +1,4 @@
-"""
-The ``scene switch`` rows of the rig node's bench: a scene switch until the new rig publishes.
-
-Issue 31 item 3 (docs/benchmarks.md#how-the-node-sections-measure).
-"""
+"""The ``scene switch`` rows of the node's bench: a switch until the new rig publishes."""
 
 import os
 import time

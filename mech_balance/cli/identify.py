@@ -1,8 +1,4 @@
-"""
-``mech-balance identify``: a rig's inertial parameters from a recording of its sensors.
-
-Thin over :mod:`mech_balance.ros.bags` and :mod:`mech_balance.analysis.identify`.
-"""
+"""``mech-balance identify``: a rig's inertial parameters from a recording of its sensors."""
 
 import math
 import time

@@ -85,11 +85,7 @@ def _interrupted(verb, exc, mark):
 
 
 class Parser(argparse.ArgumentParser):
-    """
-    ArgumentParser whose usage errors are one line, with the verb and where its help is.
-
-    Subparsers inherit the class; exits with :data:`EXIT_USAGE`.
-    """
+    """ArgumentParser whose usage errors are one line naming the verb; exits :data:`EXIT_USAGE`."""
 
     def error(self, message):
         """Print one line naming the verb and the problem to stderr; exit with status 2."""

@@ -1,8 +1,4 @@
-"""
-The ``drive:`` section of a scene: motor, speed controller, joint damping, initial state.
-
-Used by :mod:`mech_balance.core.forward` (docs/simulation.md).
-"""
+"""The ``drive:`` section of a scene: motor, speed controller, joint damping, initial state."""
 
 from dataclasses import dataclass, field
 import functools

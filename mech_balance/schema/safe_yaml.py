@@ -279,11 +279,7 @@ def decode(data, label, error=YamlError):
 
 
 def load_file(path, label=None, error=YamlError):
-    """
-    Return the parsed YAML document of the file ``path`` (checked by :func:`check_file`).
-
-    ``label`` names the file in errors (default ``file PATH``).
-    """
+    """Return the parsed YAML of file ``path`` (:func:`check_file`; ``label`` in errors)."""
     label = label or f'file {str(path)!r}'
     path = check_file(path, label, error)
     try:

@@ -277,11 +277,7 @@ class Recording:
 
 
 class SceneDesigns:
-    """
-    What every kind's scene dataclass offers: its links by name and its other designs.
-
-    A mixin of the scene dataclasses (fields ``links``, ``name``, ``outputs``).
-    """
+    """The mixin of every kind's scene dataclass: its links by name and its other designs."""
 
     def link(self, name):
         """Return the link called ``name``."""

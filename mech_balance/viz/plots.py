@@ -1,8 +1,4 @@
-"""
-The plots of a recording (no rerun): each quantity over the crank angle, as a 2-D view.
-
-In the view's pixels (y down), x the crank angle 0-360 deg (`docs/recordings.md`).
-"""
+"""The plots of a recording (no rerun): each quantity over the crank angle, as a 2-D view."""
 
 from dataclasses import dataclass
 import math

@@ -162,11 +162,7 @@ def stuck_runs(t_s, psi_unwrapped, modulus=2.0 * math.pi):
 
 
 def encoder_smoothing(motion, cap_turns):
-    """
-    Return a Finding when the encoder's noise needs a window that smooths the motion away.
-
-    ``motion``: a :class:`~mech_balance.analysis.identify.encoder.CrankMotion`; ``cap_turns``.
-    """
+    """Return a Finding when the encoder's noise needs a window that smooths ``motion`` away."""
     gain = motion.gain_error
     worst = max(abs(gain.get('accel_1x', 0.0)), abs(gain.get('accel_2x', 0.0)))
     if worst <= ACCEL_GAIN_WARN:
@@ -206,11 +202,7 @@ def check_interleaved_wrench(wrench, channels):
 
 
 def judge_fit(channels, rms_after, floor, motion, units, ratio_max=FIT_RATIO_MAX):
-    """
-    Return the Findings on the calibrated fit's residual against the noise floor.
-
-    ``rms_after``, ``floor``, ``units`` per channel; ``ratio_max`` refuses.
-    """
+    """Return the Findings on the fit's residual against ``floor`` (refused over ``ratio_max``)."""
     ratio = np.asarray(rms_after, dtype=float) / np.where(floor > 0.0, floor, np.inf)
     worst = int(np.argmax(ratio))
     text = ', '.join(f'{c} {a:.4g} vs {f:.3g} {u} ({r:.3g}x)'

@@ -1,8 +1,4 @@
-"""
-The physically consistent calibration: the identified combinations kept, every link a body.
-
-Two Clarabel cone programs (docs/identification.md, *How identify computes*).
-"""
+"""The physically consistent calibration: two Clarabel cone programs (docs/identification.md)."""
 
 from dataclasses import dataclass
 import math

@@ -1,8 +1,4 @@
-"""
-The weighted least squares of the inertial parameters and its base parameters.
-
-The method: docs/identification.md, *How identify computes*.
-"""
+"""The weighted least squares of the inertial parameters, and the base parameters."""
 
 from dataclasses import dataclass
 import math

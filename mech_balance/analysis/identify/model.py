@@ -1,8 +1,4 @@
-"""
-The measurement model: channels, inertial parameters, and the regressor that links them.
-
-Derivation: docs/identification.md, *How identify computes*.
-"""
+"""The measurement model: channels, inertial parameters, and the regressor that links them."""
 
 from dataclasses import dataclass
 import math

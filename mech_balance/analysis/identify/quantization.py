@@ -106,11 +106,7 @@ def value_clusters(values, floor):
 
 
 def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
-    """
-    Return the :class:`Quantization` of encoder positions (rad; wrapped or not).
-
-    ``counts_per_turn`` states the step instead of estimating it.
-    """
+    """Return the :class:`Quantization` of encoder positions (rad), or of ``counts_per_turn``."""
     pos = np.asarray(position_rad, dtype=float).ravel()
     psi, modulus = unwrap_encoder(pos)
     t = np.arange(pos.size, dtype=float) if t_s is None else np.asarray(t_s, dtype=float)

@@ -1,8 +1,4 @@
-"""
-Savitzky-Golay smoothing of the encoder angle: weights, their accuracy, the angle noise.
-
-The window choice: docs/identification.md, *How identify computes*.
-"""
+"""Savitzky-Golay smoothing of the encoder angle: weights, their accuracy, the angle noise."""
 
 import math
 
