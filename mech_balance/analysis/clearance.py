@@ -1,10 +1,8 @@
 """
 Clearance between the bodies of a planar rig over its cycle: where counterweights collide.
 
-Bodies as built (:mod:`mech_balance.analysis.layers`): bars, bosses, pins, blocks and discs as
-capsules, each with a slab along z; the least clearance over the cycle, refined between
-samples; the convex rim cuts of the counterweight program (:func:`rim_cuts`).  The model and
-the derivation of the cuts: docs/balancing.md#clearance-over-the-cycle and docs/build.md.
+Bodies as built (:mod:`mech_balance.analysis.layers`); the model and the rim cuts:
+docs/balancing.md#clearance-over-the-cycle.
 """
 
 from dataclasses import dataclass
@@ -34,10 +32,8 @@ class Body:
     """
     One body as built: a capsule fixed to ``link`` (``frame`` for the frame), in its link frame.
 
-    ``a``, ``b`` are the segment's ends (complex, m; equal for a disc), ``radius_m`` its
-    half-width, ``z_m`` the mid-plane and ``thickness_m`` the slab's thickness along z;
-    ``shape`` one of bar, boss, block, pin, disc, shaft, web; ``exempt`` the names of the
-    bodies it passes through by design (a counterweight's shaft through its joint's bearing).
+    ``a``, ``b``: ends (complex, m); ``radius_m``; ``z_m`` and ``thickness_m``: its slab;
+    ``shape``; ``exempt``: bodies it passes through by design.
     """
 
     name: str
@@ -65,8 +61,7 @@ class Contact:
     """
     The least clearance of one pair over the cycle: where and how much (SI, deg).
 
-    ``point_a_m``, ``point_b_m``: the witness points (world x, y, z at ``crank_angle_deg``,
-    m) of each body nearest the other; None where not computed.
+    ``point_a_m``, ``point_b_m``: witness points (m) at ``crank_angle_deg``, or None.
     """
 
     body_a: str
@@ -98,9 +93,8 @@ class Clearance:
     """
     The least clearance of a design over its cycle.
 
-    ``least``: the pair of least clearance (None: no pair shares a plane); ``collisions``:
-    every overlapping pair, worst first; ``planes_m``: each disc's absolute mid-plane z;
-    ``rims_m``: each disc's ``|r| + R``.
+    ``least`` (None: no pair shares a plane); ``collisions``: worst first; ``planes_m``,
+    ``rims_m``: each disc's mid-plane z and ``|r| + R``.
     """
 
     least: Contact
@@ -271,12 +265,7 @@ def _crossing(a1, b1, a2, b2):
 
 
 def segment_witness(a1, b1, a2, b2):
-    """
-    Return ``(q1, q2)``: the nearest points of segments ``a1``-``b1`` and ``a2``-``b2``.
-
-    Complex, broadcast.  Where the segments cross, both are the crossing point; otherwise an
-    end of one segment and its projection on the other.
-    """
+    """Return ``(q1, q2)``: the nearest points of segments ``a1``-``b1`` and ``a2``-``b2``."""
     a1, b1, a2, b2 = np.broadcast_arrays(*(np.asarray(v, dtype=complex) for v in
                                            (a1, b1, a2, b2)))
     cands = [(a1, _project(a1, a2, b2)), (b1, _project(b1, a2, b2)),
@@ -334,13 +323,7 @@ class Sweep:
                 ob + rb * local[:, 2, None], ob + rb * local[:, 3, None])
 
     def witness(self, body_list, todo, cols=None):
-        """
-        Return the witness points ``(pa, pb)`` of each pair of ``todo``, ``(pairs, k, 3)`` (m).
-
-        In the plane: the segments' nearest points moved out by each radius; along z: the
-        middle of the slabs' overlap, else each face towards the other.  ``cols`` as
-        :meth:`gaps`.
-        """
+        """Return the witness points ``(pa, pb)`` of the pairs ``todo``, ``(pairs, k, 3)`` (m)."""
         a1, b1, a2, b2 = self._ends(body_list, todo, cols)
         q1, q2 = segment_witness(a1, b1, a2, b2)
         d = q2 - q1
@@ -378,11 +361,9 @@ class Sweep:
 
     def gaps(self, body_list, todo, cols=None):
         """
-        Return the clearance ``(pairs, k)`` of each pair of ``todo`` (m).
+        Return the clearance ``(pairs, k)`` of each pair of ``todo`` (m; negative: overlap).
 
-        ``cols``: the sample columns, ``(k,)`` for every pair or ``(pairs, k)`` (default all).
-        Slabs a gap g >= 0 apart along z: ``hypot(d, g)`` (d >= 0 in the plane); else ``d``
-        (negative: the overlap).
+        ``cols``: the sample columns, ``(k,)`` or ``(pairs, k)`` (default all).
         """
         local = np.array([[body_list[i].a, body_list[i].b, body_list[j].a, body_list[j].b]
                           for i, j in todo])
@@ -406,12 +387,7 @@ class Sweep:
 
 
 def contacts_at(scene_or_rig, psi, margin_m=0.0):
-    """
-    Return, per crank angle of ``psi`` (rad), the pairs closer than ``margin_m`` there.
-
-    Returns ``([[(Contact, body_a, body_b), ...] per angle], Sweep of psi)``; pairs as
-    :func:`clearance` checks them.
-    """
+    """Return ``([[(Contact, body_a, body_b), ...] per angle of psi], Sweep)`` within margin."""
     rig = scene_or_rig if isinstance(scene_or_rig, PlanarRig) else PlanarRig(scene_or_rig)
     psi = np.atleast_1d(np.asarray(psi, dtype=float))
     body_list = bodies(rig)
@@ -441,9 +417,7 @@ def clearance(scene_or_rig, samples=None, margin_m=0.0, sweep=None):
     """
     Return the :class:`Clearance` of a planar scene (or rig) over its cycle.
 
-    ``samples`` crank angles (default: the scene's; or the given :class:`Sweep`); the least
-    pair is refined between its samples, the others keep their sampled minimum.  Pairs
-    whose slabs lie ``margin_m`` apart or more along z are clear.
+    ``samples``: a count or a :class:`Sweep`; slabs ``margin_m`` apart along z are clear.
     """
     rig = scene_or_rig if isinstance(scene_or_rig, PlanarRig) else PlanarRig(scene_or_rig)
     sc = rig.scene
@@ -489,9 +463,7 @@ def rim_cuts(rho_m):
     """
     Return the convex rim cuts of a disc inside radius ``rho_m`` of its link's origin.
 
-    ``[(c_h, c_m), ...]`` for the cones ``dI + c_h |dh| <= c_m dm`` (c_h in m, c_m in m^2),
-    one per tangent point of :data:`RIM_CUT_POINTS`; the derivation:
-    docs/balancing.md#clearance-over-the-cycle.
+    ``[(c_h, c_m), ...]``: cones ``dI + c_h |dh| <= c_m dm`` (m, m^2).
     """
     rho = float(rho_m)
     out = []

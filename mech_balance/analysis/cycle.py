@@ -1,10 +1,8 @@
 """
 Cycle analysis of a rig of any kind: the table of RMS and extreme values, SI or normalized.
 
-:func:`run_cycle` evaluates one revolution at p equally spaced crank angles, computing only
-what the scene's outputs need; :func:`summarize` turns it into the table's rows.  A planar
-:class:`Rig` keeps its kinematic state and wrenches; any other rig is evaluated through the
-protocol (:attr:`Cycle.data`, rows of :mod:`mech_balance.analysis.spatial_report`).
+:func:`run_cycle` evaluates one revolution (only what the outputs need); :func:`summarize`
+turns it into the table's rows.
 """
 
 from dataclasses import dataclass
@@ -105,12 +103,7 @@ def summarize(cycle, normalized=False):
 
 
 def moment_scale(cycle):
-    """
-    Return the rig's moment scale over a cycle, N*m: what round-off is measured against.
-
-    The largest |driving torque|, |shaking moment|, |bearing force| x length; 0 for
-    kinematics only.
-    """
+    """Return the rig's moment scale over a cycle (N*m; 0: kinematics only) for round-off."""
     w = cycle.wrenches
     if w is None:
         return 0.0
@@ -173,12 +166,7 @@ def format_table(cycle, rows, normalized=False):
 
 
 def analyze(sc, samples=None, normalized=False, design=None):
-    """
-    Return the ``mech-balance analyze`` :class:`~mech_balance.analysis.report.Report`.
-
-    ``design``: a seed 001 point-mass design vector applied to the links first (normalized
-    when the scene records a normalization).
-    """
+    """Return the ``analyze`` :class:`Report`; ``design``: a seed 001 design applied first."""
     if design is not None:
         sc = equimomental.apply_design(sc, design, normalized=sc.normalization is not None)
     rig = Rig(sc)

@@ -1,11 +1,4 @@
-"""
-The layered model of a planar rig as built: each body a layer along the joint axes.
-
-Plates, bars, bosses and pins at the sizes of the scene's ``build:`` section
-(:mod:`mech_balance.schema.build`), by default those :mod:`mech_balance.core.planar.drawn`
-draws; a disc off its link's plane is carried by a shaft and a web.  The table of sizes and
-defaults: docs/build.md#the-layered-model.
-"""
+"""The layered model of a planar rig as built (docs/build.md#the-layered-model)."""
 
 from dataclasses import dataclass
 
@@ -98,8 +91,7 @@ def stack(layers, items, side, margin_m):
     """
     Return ``{key: z_mid}``: discs stacked beyond the linkage on ``side`` (+1 above, -1 below).
 
-    ``items``: ``[(key, thickness_m), ...]`` innermost first; each disc ``margin_m`` clear of
-    the linkage's extent (or of the disc inside it) along z (plus :data:`STACK_EXTRA_M`).
+    ``items``: ``[(key, thickness_m), ...]`` innermost first, each ``margin_m`` clear.
     """
     lo, hi = layers.extent()
     margin_m = margin_m + STACK_EXTRA_M

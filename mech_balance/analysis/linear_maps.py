@@ -1,10 +1,4 @@
-"""
-The RMS quantities of a scene as compressed linear maps of its inertial parameters.
-
-The wrenches are linear in each link's inertial parameters (seed 001 eqs. 25-26), so each
-RMS over a cycle is the norm of a linear map; the balancing's cone programs and the
-identification's predicted RMS read these maps.
-"""
+"""The RMS quantities of a scene as compressed linear maps of its inertial parameters."""
 
 from dataclasses import dataclass
 import math
@@ -25,8 +19,7 @@ class LinearMaps:
     """
     The RMS quantities of a scene as compressed linear maps of its inertial parameters.
 
-    ``theta``: the ``(4 n,)`` [m, hx, hy, I_O] per link in the rig's units; each map R
-    gives ``RMS(quantity(theta)) = ||R theta||`` in those units.
+    ``theta``: ``(4 n,)`` [m, hx, hy, I_O] per link; ``RMS(quantity(theta)) = ||R theta||``.
     """
 
     force: np.ndarray                 # (k, 4n) RMS shaking force
@@ -52,12 +45,7 @@ class LinearMaps:
 
 
 def linear_maps(scene, samples=None, outputs=('shaking_wrench',), units=None):
-    """
-    Return the :class:`LinearMaps` of a planar scene over ``samples`` crank angles.
-
-    The wrenches at the 4 n unit parameter vectors on one kinematic solution, each stacked
-    map compressed to its triangular QR factor.
-    """
+    """Return the :class:`LinearMaps` of a planar scene over ``samples`` crank angles."""
     units = objective_units(scene) if units is None else units
     samples = scene.samples if samples is None else samples
     rig = analysis.Rig(scene)

@@ -1,9 +1,4 @@
-"""
-What ``mech-balance analyze`` prints: one :class:`Report` per scene, whatever its kind.
-
-Each kind's registered ``analyze`` returns one: ``text``, or with ``--json`` ``data`` (one
-shape for every kind, :func:`analysis_dict`), and ``warnings`` on standard error.
-"""
+"""What ``mech-balance analyze`` prints: one :class:`Report` per scene, whatever its kind."""
 
 from dataclasses import dataclass, field
 

@@ -1,9 +1,4 @@
-"""
-The report of a forward-dynamics run (``mech-balance simulate``): time series and figures.
-
-:func:`simulate` integrates a scene or rig of any kind with its drive
-(:mod:`mech_balance.core.forward`); :func:`format_report` prints its :class:`Report`.
-"""
+"""The report of a forward-dynamics run (``mech-balance simulate``): time series and figures."""
 
 from dataclasses import dataclass
 import math
@@ -55,14 +50,7 @@ def input_axis(rig):
 
 
 def report(sim, samples_per_turn=72, max_samples=20000):
-    """
-    Return the :class:`Report` of a simulation on a uniform time grid.
-
-    ``samples_per_turn`` points per crank turn.  ``inverse_dynamics_check_Nm``: the rig's
-    generalized force against motor torque - damping - rotor and flywheel inertia (seed 000
-    eq. 39 read backwards); the rotor's reaction moment is in the shaking moment where
-    :func:`input_axis` is known.
-    """
+    """Return the :class:`Report` of a simulation on a grid of ``samples_per_turn`` per turn."""
     model = sim.model
     t_end = float(sim.t[-1])
     turns = t_end * model.omega_ref / (2.0 * math.pi)

@@ -1,9 +1,7 @@
 """
 Clearance of a spatial rig's sphere counterweights over the cycle (bodies as 3-D solids).
 
-Tubes along each body's drawn outline, joint and bearing housings as balls, each
-counterweight a cluster of spheres; distances exact in 3-D.  The answer is a
-:class:`mech_balance.analysis.clearance.Clearance`.  The model:
+The answer is a :class:`mech_balance.analysis.clearance.Clearance`; the model:
 docs/build.md#spatial-rigs-sphere-counterweights.
 """
 
@@ -71,12 +69,7 @@ def _witness(p, q, r_p, r_q):
 
 
 def _pairs(rig, spheres, psi):
-    """
-    Yield ``(name_a, name_b, gap (n,), centre_a (n, 3), centre_b (n, 3), r_a, r_b)`` per pair.
-
-    Each sphere against every solid of another body (``centre_a`` the solid's nearest point)
-    and against every sphere of another body, at the crank angles ``psi``.
-    """
+    """Yield ``(name_a, name_b, gap (n,), centre_a (n, 3), centre_b, r_a, r_b)`` per pair."""
     poses = rig.at(psi).bodies
     index = {n: k for k, n in enumerate(poses.names)}
 
@@ -101,12 +94,7 @@ def _pairs(rig, spheres, psi):
 
 
 def contacts_at(rig, spheres, psi, margin_m=0.0):
-    """
-    Return, per crank angle of ``psi``, the pairs closer than ``margin_m``.
-
-    A list (one entry per angle) of ``[(name_a, name_b, clearance_m, point_a, point_b)]``,
-    the points the two bodies' witness points (m, rig frame).
-    """
+    """Return per angle of ``psi`` ``[(name_a, name_b, clearance_m, point_a, point_b)]``."""
     psi = np.asarray(psi, dtype=float)
     per_angle = [[] for _ in psi]
     for name_a, name_b, gap, ca, cb, ra, rb in _pairs(rig, spheres, psi):
@@ -120,8 +108,7 @@ def check(rig, spheres, samples=None, margin_m=0.0):
     """
     Return the :class:`Clearance` of sphere counterweights over the cycle.
 
-    ``spheres``: ``{body: [sphere, ...]}``, each sphere with ``centre_m`` in its body's axes
-    and ``outer_radius_m``.
+    ``spheres``: ``{body: [sphere, ...]}`` with ``centre_m`` (body axes) and ``outer_radius_m``.
     """
     p = int(getattr(rig.scene, 'samples', 360) if samples is None else samples)
     psi = cycle_angles(p)

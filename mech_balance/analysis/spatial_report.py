@@ -1,9 +1,4 @@
-"""
-``mech-balance analyze`` for spatial scenes: RMS and peak of every output over one cycle.
-
-Through the Rig protocol: the shaking force and moment (about the moment point), the scalar
-series (:data:`mech_balance.schema.scene.SERIES`) and every joint's bearing loads.
-"""
+"""``mech-balance analyze`` for spatial scenes: RMS and peak of every output over one cycle."""
 
 from mech_balance.analysis.report import analysis_dict, NORMALIZED_UNITS, Report, SI_UNITS
 from mech_balance.conventions import cycle_angles, rms

@@ -1,8 +1,4 @@
-"""
-The names and defaults of the accuracy studies (no imports).
-
-Read by :mod:`mech_balance.bench.accuracy` and by the ``accuracy`` verb's parser.
-"""
+"""The names and defaults of the accuracy studies (no imports)."""
 
 
 ACCURACY_TURNS = 2.0

@@ -1,8 +1,4 @@
-"""
-Wall-clock medians: the one timing helper of the benchmarks and the accuracy study.
-
-Only ``mech-balance bench`` and ``mech-balance accuracy`` time things; tests never do.
-"""
+"""Wall-clock medians: the one timing helper of ``bench`` and ``accuracy`` (tests never time)."""
 
 import statistics
 import time

@@ -1,5 +1,1 @@
-"""
-The bench layer of mech_balance.
-
-See docs/design.md for what lives here and what it may import.
-"""
+"""The bench layer of mech_balance (its scope and imports: docs/design.md#layers)."""

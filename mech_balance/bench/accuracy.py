@@ -1,9 +1,8 @@
 """
 Error against run time: the numbers behind ``mech-balance accuracy``.
 
-Four studies of one scene against converged references: RMS against the number of crank
-samples, forward-dynamics integrators and tolerances, position analysis, and the balancing
-certificate's gap against the solver tolerance (docs/simulation.md#the-accuracy-studies).
+RMS against samples, integrators, position analysis and the balancing certificate
+(docs/simulation.md#the-accuracy-studies).
 """
 
 from dataclasses import dataclass
@@ -39,16 +38,12 @@ BALANCE_WEIGHTS = (0.5, 0.5)
 """Objective weights (shaking force, shaking moment) of the balancing study: one stage."""
 
 
-# ============================================================================ RMS vs p
-
-
 def rms_convergence(rig, p_values=P_LADDER, p_ref=P_REFERENCE, normalized=None,
                     repeat=RMS_TIMING_REPEAT):
     """
     Return the RMS study: per p, the worst relative RMS error over the table and the time.
 
-    ``normalized`` defaults to whether the scene records a normalization.  Each row: ``p``,
-    ``max_rel_error``, ``worst`` (the quantity), ``seconds`` (median per cycle).
+    Rows: ``p``, ``max_rel_error``, ``worst``, ``seconds`` (median per cycle).
     """
     normalized = rig.scene.normalization is not None if normalized is None else normalized
     ref = analysis.summarize(analysis.run_cycle(rig, p_ref), normalized)
@@ -76,9 +71,6 @@ def first_p_below(study, tol):
         if all(r['max_rel_error'] < tol for r in rows[i:]):
             return row['p']
     return None
-
-
-# ============================================================================ integrators
 
 
 @dataclass
@@ -115,12 +107,7 @@ def state_error(model, y, y_ref):
 
 def integrator_study(model, duration_s=None, methods=STUDY_METHODS, rtols=RTOL_LADDER,
                      progress=None):
-    """
-    Return the forward-dynamics study of a :class:`~mech_balance.core.forward.ForwardDynamics`.
-
-    Against the method ``auto`` would choose at ``REFERENCE_RTOL`` (LSODA at the same
-    tolerance: its ``spread``); ``rtols``: one ladder, or ``{method: ladder}``.
-    """
+    """Return the forward-dynamics study; ``rtols``: one ladder or ``{method: ladder}``."""
     if duration_s is None:
         duration_s = ACCURACY_TURNS * 2.0 * math.pi / model.omega_ref
     stiff = model.stiffness()
@@ -156,12 +143,7 @@ def integrator_study(model, duration_s=None, methods=STUDY_METHODS, rtols=RTOL_L
 
 
 def equal_error(runs):
-    """
-    Return, per implicit run, the fastest explicit run that is at least as accurate.
-
-    Each row: both :class:`Run` (the explicit one None when none is) and their ratios
-    explicit / implicit of run time and right-hand-side evaluations.
-    """
+    """Return, per implicit run, the fastest explicit run at least as accurate (or None)."""
     explicit = [r for r in runs if not r.implicit]
     rows = []
     for imp in (r for r in runs if r.implicit):
@@ -171,9 +153,6 @@ def equal_error(runs):
                      'time_ratio': None if best is None else best.seconds / imp.seconds,
                      'nfev_ratio': None if best is None else best.nfev / imp.nfev})
     return rows
-
-
-# ============================================================================ position
 
 
 def position_study(rig, samples=None):
@@ -198,9 +177,6 @@ def position_study(rig, samples=None):
             'skeleton_nodes': int(rig.linkage.skeleton.psi.size),
             'newton_tol': kinematics.NEWTON_TOL, 'rows': rows,
             'first_angle_deg': float(psi_deg[0])}
-
-
-# ============================================================================ balancing
 
 
 def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHTS):
@@ -231,21 +207,13 @@ def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHT
             'tolerance_via': 'mech_balance.conic.SOLVER_TOL'}
 
 
-# ============================================================================ all of it
-
-
 SECTION_CAPABILITY = {'integrators': 'accuracy_study', 'position': 'accuracy_study',
                       'balancing': 'accuracy_study'}
 """The rig capability each study needs beyond the protocol (the RMS study needs none)."""
 
 
 def run(name_or_path, sections=SECTIONS, duration_s=None, progress=None):
-    """
-    Return every requested study of a scene as a dict.
-
-    A rig without the ``accuracy_study`` capability (the spatial kind) has the RMS study
-    only; each other section is a note naming the capability and the kind.
-    """
+    """Return every requested study of a scene as a dict (RMS only without ``accuracy_study``)."""
     say = progress or (lambda text: None)
     sc = scene_mod.load(name_or_path)
     kind = scene_mod.kind_of(sc)

@@ -1,9 +1,4 @@
-"""
-The balancing bench sections of ``mech-balance bench``, redistribution and counterweights.
-
-Medians of whole solves (linear maps, cone programs, certificate, before/after table) over
-the paper's weight cases.
-"""
+"""The balancing bench sections of ``mech-balance bench``: medians of whole solves."""
 
 from mech_balance import schema as scene_mod
 from mech_balance.balancing import counterweights as cw_mod, paper_tables as seed_tables, \
@@ -19,11 +14,7 @@ COUNTERWEIGHT_BENCH = {'hoeken': (('crank', 'rocker'), 20.0), 'carpet_scraper': 
 
 
 def bench_section(args, progress):
-    """
-    Return the bench table of the redistribution: median wall time per case.
-
-    :func:`mech_balance.balancing.redistribution.optimize` over the paper's weight cases.
-    """
+    """Return the redistribution's bench table: median wall time per weight case."""
     names = args.scene or ['hoeken', 'carpet_scraper']
     repeat = min(int(args.repeat), BENCH_REPEAT_MAX)
     head = (f"{'balance: scene':<18}{'case':<6}{'weights':<12}{'constraints':<13}"

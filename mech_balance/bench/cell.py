@@ -1,11 +1,9 @@
 """
 ``mech-balance bench`` section of a cell: how many rig nodes at 100 Hz this machine sustains.
 
-N rig nodes, each in its own process (:func:`mech_balance.bench.node.start_node`), under
-``/cell/rig_1`` .. ``/cell/rig_N``; N grows in the :data:`STEPS` until a step is not
-sustained (every rig < :data:`MISSED_MAX` missed periods, a failing window measured once
-more), the last step, or :data:`TIME_BUDGET_S`.  Every process started is stopped before the
-table is returned.  More: docs/benchmarks.md#a-cell-of-rigs.
+N nodes under ``/cell/rig_1`` .. ``/cell/rig_N``, N growing through :data:`STEPS` while
+sustained (< :data:`MISSED_MAX` missed periods), within :data:`TIME_BUDGET_S`; every
+process is stopped.  docs/benchmarks.md#a-cell-of-rigs.
 """
 
 import os

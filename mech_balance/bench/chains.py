@@ -1,10 +1,4 @@
-"""
-Generated single-input planar chains of any size, for scaling benchmarks and tests.
-
-:func:`dyad_chain`: a crank-rocker four-bar followed by ``loops - 1`` near-parallelogram
-stages, ``2 loops + 1`` moving links and ``3 loops + 1`` revolute joints; the geometry, why
-it never folds, and the inertias: docs/benchmarks.md#the-generated-chains.
-"""
+"""Generated single-input planar chains (docs/benchmarks.md#the-generated-chains)."""
 
 import math
 
@@ -38,8 +32,7 @@ def dyad_chain(loops, crank_m=0.05, density_kg_m=2.0, speed_rad_s=1.0, skew=DEFA
     """
     Return a planar :class:`~mech_balance.schema.scene.Scene` with ``loops`` closed loops.
 
-    ``2 loops + 1`` moving links, ``3 loops + 1`` revolute joints, one input (joint ``O1``).
-    The assembly guess (link angles at crank angle 0) is computed from the stage geometry.
+    ``2 loops + 1`` moving links, ``3 loops + 1`` revolute joints, input joint ``O1``.
     """
     if isinstance(loops, bool) or not isinstance(loops, int) or not 1 <= loops <= MAX_LOOPS:
         raise ValueError(f'loops: got {loops!r}, expected an integer from 1 to {MAX_LOOPS}')

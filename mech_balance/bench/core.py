@@ -1,8 +1,4 @@
-"""
-Timings for ``mech-balance bench``: median of repeated runs after warm-up.
-
-Only this module (and the command that prints it) measures time; tests never do.
-"""
+"""Timings for ``mech-balance bench``: median of repeated runs after warm-up."""
 
 import time
 import tracemalloc
@@ -52,12 +48,7 @@ def median_and_result(fn, repeat, **timing):
 
 
 def peak_bytes(fn):
-    """
-    Return the peak of the memory ``fn()`` allocates (Python and numpy), in bytes.
-
-    The largest amount allocated at one time during the call beyond what was allocated
-    before it (:mod:`tracemalloc`: call it in a run of its own, never a timed one).
-    """
+    """Return the peak memory ``fn()`` allocates beyond what was before, in bytes (tracemalloc)."""
     started = not tracemalloc.is_tracing()
     if started:
         tracemalloc.start()
@@ -75,9 +66,7 @@ def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
     """
     Return timing figures of one full cycle of a scene of any kind.
 
-    ``build_s``: building the rig (compiling, tracing the branch); ``cycle_s``: the median
-    cycle at ``samples`` angles of the rig's own ``evaluate`` (else :meth:`Rig.at`);
-    ``at_us_per_angle``: that of :meth:`Rig.at`; ``peak_bytes``: :func:`peak_bytes` of it.
+    ``build_s``, ``cycle_s`` (median at ``samples`` angles), ``at_us_per_angle``, ``peak_bytes``.
     """
     t0 = time.perf_counter()
     rig = rig_for(scene, cache=False)

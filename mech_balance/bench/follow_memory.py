@@ -1,9 +1,7 @@
 """
 The ``follow_memory`` section of ``mech-balance bench``: the node's memory over a long follow run.
 
-A rig node in follow mode (:class:`mech_balance.bench.node.NodeProbe`) fed a 1 kHz encoder
-and measured wrench for :data:`SECONDS`, its ``VmRSS`` sampled every :data:`SAMPLE_EVERY_S`
-(docs/benchmarks.md#how-the-node-sections-measure).
+What it measures: docs/benchmarks.md#how-the-node-sections-measure.
 """
 
 import math
@@ -28,8 +26,7 @@ def follow_rss(scene_name='hoeken', seconds=SECONDS, rate_hz=RATE_HZ, progress=p
     """
     Return ``(samples, counts)``: ``[(s since the stream began, RSS bytes)]`` and the stats.
 
-    ``counts`` is the node's ``follow`` statistics of its shutdown line (received, not
-    answered) or ``{}``.  Returns ``(None, why)`` when the node did not start.
+    ``counts``: the node's ``follow`` statistics or ``{}``; ``(None, why)`` if it did not start.
     """
     from mech_balance.bench.identify_stamps import SensorFeed
     from mech_balance.bench.node import node_stats, NodeProbe, START_TIMEOUT_S, status_bytes

@@ -1,9 +1,4 @@
-"""
-The identification bench section of ``mech-balance bench``: identify on 60 s of 1 kHz data.
-
-The data is synthetic: the scene's own shaking wrench with 1% noise and a quantized encoder
-(the tests build their own, independent, synthetic rig).
-"""
+"""The identification bench section of ``mech-balance bench``: identify on 60 s of 1 kHz data."""
 
 import math
 
@@ -32,9 +27,7 @@ def bench_data(sc, seconds=BENCH_SECONDS, rate_hz=BENCH_RATE_HZ, seed=0):
     """
     Return synthetic (t, position, wrench) of the scene itself for the bench (not a test).
 
-    The crank turns at 1 rev/s with a 5% speed ripple; the encoder has 4096 counts per
-    turn (floor of psi N / 2 pi, times 2 pi / N, wrapped with a float modulo, as a real
-    encoder publishes it); the wrench is the core's shaking wrench plus 1% white noise.
+    1 rev/s with 5% ripple, a 4096-count wrapping encoder, the shaking wrench plus 1% noise.
     """
     rng = np.random.default_rng(seed)
     t = np.arange(int(seconds * rate_hz)) / rate_hz

@@ -1,11 +1,4 @@
-"""
-``mech-balance bench`` section of the rig node: ``~/identify`` after a day-ahead stamp.
-
-Issue 20's acceptance: a node in follow mode (:class:`mech_balance.bench.node.NodeProbe`) fed
-a synthetic rig (:func:`rig_stream`), one measured_wrench stamped a day ahead; ``~/identify``
-timed and the node's memory held against :func:`identify_buffer_bytes`
-(docs/benchmarks.md#how-the-node-sections-measure).
-"""
+"""``mech-balance bench`` section: ``~/identify`` after a day-ahead stamp (issue 20)."""
 
 import os
 import time
@@ -34,12 +27,7 @@ ID_CALL_TIMEOUT_S = 300.0
 
 
 def identify_buffer_bytes():
-    """
-    Return the bytes of the sensor's bounded buffers, as the node allocates them.
-
-    The encoder track and the pending, measured and paired series of one
-    :class:`mech_balance.ros.sensor.Comparison`: what filling them can add to the node's RSS.
-    """
+    """Return the bytes of the bounded buffers of a :class:`mech_balance.ros.sensor.Comparison`."""
     from mech_balance.ros import sensor
     comparison = sensor.Comparison(sensor.SensorPose(), (0.0, 0.0, 0.0), 0.1)
     series = [comparison.track.series, comparison.pending, comparison.measured,
@@ -52,11 +40,8 @@ def rig_stream(scene, seconds, rate_hz=ID_RATE_HZ, seed=20, counts=4096, noise_r
     """
     Return ``(t_ns, encoder positions, force (n, 3), torque (n, 3))`` of a synthetic rig.
 
-    The rig of ``test/synthetic_rig.py`` in brief: the crank at ``w0`` with a 5 %
-    ripple (0.7 per turn), the core's shaking wrench (about the crank pivot) reported by a
-    sensor at the rig frame's origin with 1 % white noise of the peak and a bias, an encoder
-    of ``counts`` per turn wrapped to [0, 2 pi) with a floating-point modulo; stamps from a
-    real epoch at ``rate_hz``.
+    ``test/synthetic_rig.py``'s rig in brief: crank at ``w0`` with a 5 % ripple, 1 % noise and a
+    bias, an encoder of ``counts`` per turn, stamps from a real epoch at ``rate_hz``.
     """
     import math
     import numpy as np
@@ -164,12 +149,7 @@ class SensorFeed:
 
 
 def identify_stamps_section(args, progress, seconds=None, calls=ID_CALLS):
-    """
-    Return ``~/identify`` after a day-ahead measured_wrench stamp (issue 20 acceptance).
-
-    ``seconds`` streamed (default :data:`ID_SECONDS`), then ``calls`` calls: their median
-    answer time, success and the node's memory growth (module docstring).
-    """
+    """Return ``~/identify`` after a day-ahead stamp: ``seconds`` streamed, ``calls`` calls."""
     import statistics
     from mech_balance import schema as scene_mod
     from mech_balance.ros import sensor

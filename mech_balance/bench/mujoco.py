@@ -1,12 +1,9 @@
 """
 ``mech-balance bench --compare mujoco``: this package against MuJoCo, side by side.
 
-The planar rigs here (:class:`MujocoRig`: the spanning tree of hinges, ``connect`` at the cut
-joints), then the spatial built-ins (:mod:`mech_balance.bench.mujoco_spatial`); the models,
-how the rigid loop forces follow from ``mj_inverse``'s outputs and what is timed:
-docs/benchmarks.md#the-mujoco-models-in-detail.  :mod:`mujoco` is an optional benchmark
-dependency (``make bench-mujoco``); without it the command prints how to install it and
-exits with status 2.
+The planar rigs (:class:`MujocoRig`), then :mod:`mech_balance.bench.mujoco_spatial`; the
+models: docs/benchmarks.md#the-mujoco-models-in-detail.  Without :mod:`mujoco` (optional,
+``make bench-mujoco``) the command says how to install it and exits with status 2.
 """
 
 import math
@@ -102,8 +99,6 @@ class MujocoRig(MujocoModel):
         return mjcf('mech_balance', lk, [(c.name, c.b, site(c.b, c.p_b), c.a, site(c.a, c.p_a))
                                          for c in lk.cuts], body)
 
-    # ------------------------------------------------------------------ per angle
-
     def _jacobian(self):
         d = self.data
         return d.efc_J[:d.nefc * self.model.nv].reshape(d.nefc, self.model.nv)[self.rows]
@@ -157,8 +152,7 @@ class MujocoRig(MujocoModel):
         """
         Return MuJoCo's driving torque, shaking force and moment for imposed motion.
 
-        ``q``, ``qd``, ``qdd`` are this package's tree coordinates ``(nt, p)``.  Also returns
-        the cut-joint forces ``(ncut, p)`` (on the joint's link b from its link a).
+        ``q``, ``qd``, ``qdd``: tree coordinates ``(nt, p)``; also the cut forces ``(ncut, p)``.
         """
         p = q.shape[1]
         tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
@@ -186,11 +180,9 @@ class MujocoRig(MujocoModel):
 
     def full(self, psi, speed, accel, q_start):
         """
-        Return MuJoCo's own solution over crank angles ``psi``, one angle at a time.
+        Return MuJoCo's own solution over crank angles ``psi``, from ``q_start``.
 
-        The first angle's Newton starts from ``q_start`` (this package's tree coordinates).
-        Returns ``(tau, f_sh, n_sh, q, residual, iterations)``; ``q`` in this package's tree
-        order.
+        ``(tau, f_sh, n_sh, q, residual, iterations)``, ``q`` in this package's tree order.
         """
         p = psi.size
         tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
@@ -203,16 +195,8 @@ class MujocoRig(MujocoModel):
         return tau, fsh, nsh, q[:, self.dof].T, res / self.length, iters
 
 
-# ---------------------------------------------------------------------------- comparison
-
-
 def interleaved_rounds(fns, rounds=TIMING_ROUNDS, warmup=2):
-    """
-    Return, per ``(function, runs)``, its round medians of wall time (a list of ``rounds``).
-
-    Each round runs every function in turn: one untimed call, then ``ceil(runs / rounds)``
-    timed ones (docs/benchmarks.md#the-mujoco-models-in-detail).
-    """
+    """Return, per ``(function, runs)``, its round medians of wall time (a list of ``rounds``)."""
     for fn, _ in fns:
         for _ in range(warmup):
             fn()
@@ -244,8 +228,7 @@ def compare(sc, samples=360, repeat=50, progress=None):
     """
     Return the agreement and timing figures of one scene, both engines, one process.
 
-    Keys: ``agreement_imposed`` and ``agreement_own`` (dicts quantity -> relative
-    difference), ``cut_forces`` (imposed), ``us`` (dict of microseconds per angle),
+    Keys: ``agreement_imposed``, ``agreement_own``, ``cut_forces``, ``us``,
     ``mujoco_residual``, ``mujoco_iterations``, ``ours_residual``, ``ours_cond``.
     """
     sc = sc.with_outputs(scene_mod.OUTPUTS)

@@ -1,10 +1,4 @@
-"""
-The MuJoCo side that the planar and the spatial comparisons share (``bench --compare mujoco``).
-
-Installing and importing :mod:`mujoco`, the MJCF of a spanning tree closed by ``connect``
-equalities, the cut sites and the timed ``mj_inverse`` kernel, and the agreement figures
-and printed rows of both (docs/benchmarks.md#the-mujoco-models-in-detail).
-"""
+"""The MuJoCo side the planar and spatial comparisons share (``bench --compare mujoco``)."""
 
 import numpy as np
 
@@ -48,12 +42,7 @@ def xml_numbers(*values):
 
 
 def relative_difference(ours, theirs):
-    """
-    Return max |theirs - ours| / max |ours| over the cycle.
-
-    Complex numbers (planar vectors) by their moduli, real stacks of 3-vectors by their
-    Euclidean norms.
-    """
+    """Return max |theirs - ours| / max |ours| over the cycle (vectors by their norms)."""
     ours, theirs = np.asarray(ours), np.asarray(theirs)
     if ours.ndim >= 2 and ours.shape[-1] == 3 and not np.iscomplexobj(ours):
         size = norms
@@ -103,10 +92,8 @@ def mjcf(name, linkage, cut_ends, body, header=()):
     """
     Return ``(MJCF text, cut signs)``: a spanning tree closed by ``connect`` equalities.
 
-    ``cut_ends``: per cut joint ``(name, body b, site position on b, body a, on a)``, tree
-    body indices and MJCF positions; site 1 goes on the moving end (b, unless b is the frame:
-    sign -1).  ``body(t, tree_joint)`` returns the child body's opening tag, then its joint
-    and inertial elements.
+    ``cut_ends``: per cut joint ``(name, body b, site on b, body a, on a)``; ``body(t,
+    tree_joint)``: the child body's opening tag, joint and inertial elements.
     """
     sites = {b: [] for b in range(linkage.nb)}
     signs = []
@@ -139,8 +126,8 @@ class MujocoModel:
     """
     What the planar and the spatial MuJoCo models share: the cut sites, MuJoCo's own motion.
 
-    A model has ``crank`` (its dof), ``crank_qpos``, ``passive`` (the other dofs), the
-    Newton ``tol`` and ``max_iter``, :meth:`_closure` and :meth:`_bias`.
+    Subclasses give ``crank``, ``crank_qpos``, ``passive``, ``tol``, ``max_iter``,
+    :meth:`_closure` and :meth:`_bias`.
     """
 
     def _find_cuts(self, ncut):
@@ -157,11 +144,8 @@ class MujocoModel:
 
     def _solution(self, psi, speed, accel, coordinate, qpos, rigid):
         """
-        Solve MuJoCo's own motion over crank angles ``psi`` in a Python loop, one at a time.
+        Solve MuJoCo's own motion over crank angles ``psi``, one at a time, from ``qpos``.
 
-        Newton on the closure rows from a Taylor predictor off the previous angle (the first
-        from ``qpos``), velocities and accelerations from the same rows, ``mj_inverse``, then
-        ``rigid(i)``.  ``coordinate``: the input's coordinate and rates at each angle.
         Returns ``(qpos (p, nq), residual (p,), Newton iterations (p,))``.
         """
         mj, m, d = self.mj, self.model, self.data

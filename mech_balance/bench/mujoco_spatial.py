@@ -1,10 +1,4 @@
-"""
-The spatial part of ``mech-balance bench --compare mujoco``: the spatial built-ins in MuJoCo.
-
-:class:`SpatialMujocoRig`: the rig's own spanning tree (hinges, slides, balls in the links'
-own axes), ``connect`` at its spherical cut joints, the package's S-S spin convention, every
-bearing reaction; the details: docs/benchmarks.md#the-mujoco-models-in-detail.
-"""
+"""The spatial built-ins in MuJoCo for ``bench --compare mujoco`` (:class:`SpatialMujocoRig`)."""
 
 from mech_balance import schema as scene_mod
 from mech_balance.bench.mujoco_model import agreement, agreement_rows, import_mujoco, mjcf, \
@@ -98,8 +92,6 @@ class SpatialMujocoRig(MujocoModel):
         self.cut_names = [sc.joints[ji].name for ji in lk.cut_joints]
         self._jacr = np.zeros((3, m.nv))
 
-    # ------------------------------------------------------------------ model
-
     def _mjcf(self, sc, placeholders):
         """Return the MJCF and the cut signs; list ``(link, tensor)`` of zero moments."""
         lk = self.linkage
@@ -149,12 +141,7 @@ class SpatialMujocoRig(MujocoModel):
             header=('  <compiler angle="radian"/>',))
 
     def _first_inverse(self):
-        """
-        Run ``mj_inverse`` once at ``qpos0``; return MuJoCo's warnings (caught, not printed).
-
-        An idle rod's zero moment makes ``mj_factorM`` warn once that the mass matrix is
-        singular, which the inverse dynamics does not need.
-        """
+        """Run ``mj_inverse`` once at ``qpos0``; return MuJoCo's warnings (caught, not printed)."""
         mj = self.mj
         caught = []
         previous = mj.get_mju_user_warning()
@@ -178,8 +165,6 @@ class SpatialMujocoRig(MujocoModel):
                         abs(float(m.body_mass[b]) - link.mass_kg) / link.mass_kg,
                         float(np.max(np.abs(m.body_ipos[b] - link.com_m))) / self.length)
         return error
-
-    # ------------------------------------------------------------------ the package's motion
 
     def to_mujoco(self, state):
         """Return ``(qpos (n, nq), qvel (n, nv), qacc (n, nv))`` of a solved package state."""
@@ -229,8 +214,6 @@ class SpatialMujocoRig(MujocoModel):
                 sph[k, si] = _rotation(mj, quat / np.linalg.norm(quat))
             si += 1
         return q, sph
-
-    # ------------------------------------------------------------------ rigid inverse dynamics
 
     def _rigid(self, reactions=False):
         """From ``mj_inverse``'s outputs: torque, multipliers, shaking wrench (docstring)."""
@@ -299,9 +282,8 @@ class SpatialMujocoRig(MujocoModel):
         """
         Return MuJoCo's results for the package's motion ``state`` (dict of ``(n, ...)``).
 
-        Keys: ``driving_torque``, ``force``, ``moment``, ``reactions`` (joint -> (force,
-        moment)), ``spin_residual`` (the spin rows' largest multiplier, N m), ``origin``,
-        ``rot``, ``twist``, ``accel`` (MuJoCo's bodies, for the motion check).
+        Keys: ``driving_torque``, ``force``, ``moment``, ``reactions`` (joint -> (force, moment)),
+        ``spin_residual`` (N m), ``origin``, ``rot``, ``twist``, ``accel``.
         """
         keys = ('driving_torque', 'force', 'moment', 'spin_residual', 'origin', 'rot', 'twist',
                 'accel')
@@ -323,8 +305,6 @@ class SpatialMujocoRig(MujocoModel):
     def inverse_rigid(self, qpos, qvel, qacc):
         """``mj_inverse`` plus the rigid multipliers and the shaking wrench (same outputs)."""
         self._inverse(qpos, qvel, qacc, lambda i: self._rigid(reactions=True))
-
-    # ------------------------------------------------------------------ MuJoCo's own motion
 
     def _closure(self):
         """Return the closure rows' scaled residual (nrow,) and Jacobian (nrow, nv)."""
@@ -363,10 +343,9 @@ class SpatialMujocoRig(MujocoModel):
 
     def full(self, psi, speed, accel, qpos_start):
         """
-        Return MuJoCo's own solution over crank angles ``psi``, one angle at a time.
+        Return MuJoCo's own solution over crank angles ``psi``, from ``qpos_start``.
 
-        The first angle's Newton starts from ``qpos_start``.  Returns ``(tau, force, moment,
-        reactions, qpos, residual, iterations)``, ``reactions`` as in :meth:`dynamics`.
+        ``(tau, force, moment, reactions, qpos, residual, iterations)``.
         """
         p = psi.size
         tau, fsh, nsh = np.empty(p), np.empty((p, 3)), np.empty((p, 3))
@@ -386,9 +365,6 @@ class SpatialMujocoRig(MujocoModel):
         return tau, fsh, nsh, react, q, res, iters
 
 
-# ---------------------------------------------------------------------------- comparison
-
-
 def _fresh_dynamics(rig, state, need):
     """Return the package's inverse dynamics of a solved state, its per-state caches cleared."""
     for key in ('_motion', '_spin'):
@@ -401,8 +377,7 @@ def reaction_differences(ours, theirs):
     """
     Return ``(forces, moments)``: the bearing reactions' worst relative differences.
 
-    Forces: per joint, to that joint's cycle peak.  Moments (about each joint point): to the
-    largest peak over the joints (a spherical joint's moment is zero).
+    Forces to each joint's cycle peak; moments to the largest peak over the joints.
     """
     forces = max(relative_difference(f, theirs[j][0]) for j, (f, _) in ours.items())
     peak = max(float(np.max(norms(mo))) for _, mo in ours.values())
@@ -414,10 +389,8 @@ def compare(scene, timer, samples=360, repeat=50, slow=10, progress=None, mj=Non
     """
     Return the agreement and timing figures of one spatial scene (name or scene), one process.
 
-    ``timer(fns)``: the median seconds of each ``(function, runs)``; the package's figures
-    take ``repeat`` runs, MuJoCo's ``slow``.  Keys as the planar :func:`.mujoco.compare`'s
-    (agreements by :data:`QUANTITIES`), with the spin residual, the inertia check and the
-    rig's ``driving_series``.
+    ``timer(fns)``: the median seconds of each ``(function, runs)``; keys as the planar
+    :func:`.mujoco.compare`'s, plus the spin residual, inertia check and ``driving_series``.
     """
     sc = scene_mod.load(scene) if isinstance(scene, str) else scene
     sc = sc.with_outputs(scene_mod.OUTPUTS)

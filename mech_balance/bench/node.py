@@ -1,10 +1,8 @@
 """
 ``mech-balance bench`` sections of the rig node: publish rate, step time, live view, faults.
 
-The node runs as deployed, in its own process (:class:`NodeProbe`), and this process counts
-from the received stamps the clock-mode periods whose sample never arrived; follow mode is
-timed on the node's own objects in this process (:class:`FollowPath`).  What each section
-measures: docs/benchmarks.md#how-the-node-sections-measure.
+The node runs in its own process (:class:`NodeProbe`); follow mode is timed in this one
+(:class:`FollowPath`); docs/benchmarks.md#how-the-node-sections-measure.
 """
 
 import functools
@@ -111,12 +109,7 @@ def bench_section(args, progress):
 
 
 def _follow_costs(scene_name, exact=False):
-    """
-    Return the compute per encoder message in follow mode: alone, in a batch, and what it is.
-
-    The node's own code in this process (:class:`FollowPath`); only the two rclpy
-    ``publish`` calls are left out.  The third value is what follow mode evaluates.
-    """
+    """Return the compute per encoder message in follow mode: alone, in a batch, and what it is."""
     from mech_balance.analysis.timing import median_seconds
     path = FollowPath(scene_name, exact)
     try:
@@ -130,13 +123,7 @@ def _follow_costs(scene_name, exact=False):
 
 
 class FollowPath:
-    """
-    The rig node's follow-mode objects in this process, its threads stopped (for timing).
-
-    A :class:`~mech_balance.ros.publisher.Publisher` and a
-    :class:`~mech_balance.ros.real_rig.RealRig` on a node that is never spun (the parameter
-    defaults, ``mode`` follow, ``follow.exact`` as given); encoder messages made ahead.
-    """
+    """The rig node's follow-mode objects in this process, its threads stopped (for timing)."""
 
     def __init__(self, scene_name, exact=False, messages=None):
         import math
@@ -215,8 +202,7 @@ def start_node(scene_name, rate_hz, ns, domain, params=(), stderr=subprocess.DEV
     """
     Start ``python -m mech_balance.ros.node`` (clock mode) in a process of its own.
 
-    Under namespace ``ns`` on ROS domain ``domain`` (local discovery, this package first on
-    the path) with ``publish_rate`` ``rate_hz`` and the extra ``name:=value`` ``params``.
+    Namespace ``ns``, domain ``domain``, ``publish_rate`` ``rate_hz``, ``name:=value`` ``params``.
     """
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
                ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE',
@@ -249,8 +235,7 @@ class NodeProbe:
     """
     A rig node in its own process (:func:`start_node`) and a subscriber counting its stamps.
 
-    :attr:`stamps` collects those of ``joint_states`` and ``shaking_wrench``; :meth:`close`
-    stops both and returns the node's log (:func:`node_stats` reads its statistics).
+    :meth:`close` stops both and returns the node's log.
     """
 
     def __init__(self, scene_name, rate_hz, ns, params=(), domain=None, label='bench'):
@@ -301,8 +286,7 @@ class NodeProbe:
         """
         Count afresh for ``seconds`` (``spin(seconds)`` spins instead, if given).
 
-        Returns ``(missed fraction per topic, joint_states received per s, what spin
-        returned)``.
+        Returns ``(missed fraction per topic, joint_states per s, what spin returned)``.
         """
         start = self.node.get_clock().now().nanoseconds
         for v in self.stamps.values():
@@ -381,12 +365,7 @@ LIVE_WINDOW_S = 4.0
 
 
 def viewer_endpoint(path, port):
-    """
-    Start ``rerun --port PORT --save PATH`` (a viewer-side endpoint that saves what it gets).
-
-    Returns the process once its gRPC port accepts connections; the caller stops it (SIGINT,
-    by its process id).
-    """
+    """Start ``rerun --port PORT --save PATH``; return the process once its port accepts."""
     import pathlib
     import socket
     import rerun_cli
@@ -416,8 +395,7 @@ def run_node(scene_name, rate_hz, seconds, params=(), domain=None):
     """
     Run the node in its own process at ``rate_hz`` and measure ``seconds`` of publishing.
 
-    Returns ``{'rate_hz'``: joint_states received per s, ``'missed'``: the worst topic's
-    missed fraction, ``'stats'``: :func:`node_stats`, ``'log'``: the node's log}.
+    Returns ``{'rate_hz', 'missed', 'stats', 'log'}`` (joint_states per s, worst missed share).
     """
     probe = NodeProbe(scene_name, rate_hz,
                       f'/live{os.getpid()}_{int(time.monotonic() * 1000) % 100000}', params,

@@ -1,10 +1,4 @@
-"""
-Between two bench sections: wait for the machine to settle, and judge the printed verdicts.
-
-:func:`settle` waits until no child process of the bench is left and the CPU is idle enough
-(docs/benchmarks.md#how-the-node-sections-measure); :func:`failures` finds the ``FAIL``
-verdicts of the printed tables.
-"""
+"""Between two bench sections: wait for the machine to settle, and judge the printed verdicts."""
 
 import os
 import re
@@ -69,8 +63,7 @@ def settle(timeout_s=SETTLE_TIMEOUT_S, clock=time.monotonic):
     """
     Wait until no child is left and the CPU is at most SETTLE_BUSY_SHARE busy; say how it went.
 
-    Returns one line: the wait, the CPU's busy share, the load average and whether it
-    settled within ``timeout_s`` (if not, the next table's figures are upper bounds).
+    Returns one line: the wait, busy share, load average and whether it settled in ``timeout_s``.
     """
     start = clock()
     share = None

@@ -1,9 +1,8 @@
 """
 ``mech-balance bench --section spatial``: the spatial kind's full cycle against its targets.
 
-Per spatial built-in: the one-off build and the median full cycle (every output) in us per
-angle at the branch's dense nodes, and ``off-node``, shifted by half a node spacing (Newton
-not skipped: the cost of arbitrary angles), with :data:`TARGETS_US` and the load average.
+Per built-in: build, then the median full cycle in us per angle on and off the branch's
+nodes, with :data:`TARGETS_US`.
 """
 
 import os

@@ -1,10 +1,4 @@
-"""
-The ``scene switch`` rows of the rig node's bench: a scene switch until the new rig publishes.
-
-From ``ros2 param set /rig scene <name>`` to its answer and to the first ``joint_states`` of
-the new scene, node in its own process (:class:`mech_balance.bench.node.NodeProbe`), issue 31
-item 3 (docs/benchmarks.md#how-the-node-sections-measure).
-"""
+"""The ``scene switch`` rows of the node's bench: a switch until the new rig publishes."""
 
 import os
 import time
@@ -29,8 +23,7 @@ def switch_times(names, domain=None, progress=print):
     """
     Return ``{scene: [(answer_s, first_sample_s), (the same again)]}``: switches to ``names``.
 
-    From the set call to its answer and to the first joint_states with the scene's joints;
-    the first pair is the first switch to the scene in the node's life, the second a later one.
+    Set call to answer and to the first joint_states; first switch, then a later one.
     """
     from mech_balance.bench.node import NodeProbe
     from rclpy.parameter import Parameter

@@ -1,9 +1,7 @@
 """
 Run ``python -m mech_balance.cli``, the ``mech-balance`` command.
 
-The same entry point as the console script.  SIGINT and SIGTERM before the command line's
-own handlers are in place (while the modules load) end the process quietly with 128 + the
-signal's number: nothing is written yet.
+SIGINT or SIGTERM while the modules load end the process quietly with 128 + the signal.
 """
 
 import os

@@ -1,10 +1,8 @@
 """
 ``mech-balance balance``: optimal mass redistribution and analytic force balance of a scene.
 
-A thin verb over :func:`mech_balance.balancing.balance`: it reads the flags (declared once
-in :mod:`mech_balance.balancing.options`; which go together: :mod:`.balance_flags`), calls the
-library and prints its :class:`~mech_balance.balancing.result.Design` as text
-(:mod:`.balance_text`) or JSON (:meth:`Design.to_dict`).
+Thin over :func:`mech_balance.balancing.balance`; flags: :mod:`.balance_flags`; text:
+:mod:`.balance_text`, JSON: :meth:`Design.to_dict`.
 """
 
 import sys

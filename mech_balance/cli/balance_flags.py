@@ -1,10 +1,8 @@
 """
 Which ``mech-balance balance`` flags go together: the groups, and the checks before a solve.
 
-Every flag that is a balancing option is declared once in
-:data:`mech_balance.balancing.options.OPTIONS`; this module only says which of them a method
-of the command line (the optimization, ``--analytic``, ``--counterweights``, the spatial
-``--method``) takes, and refuses a flag the chosen method would ignore, naming it.
+Flags are declared once in :data:`mech_balance.balancing.options.OPTIONS`; a flag the
+chosen method would ignore is refused, naming it.
 """
 
 import argparse
@@ -77,11 +75,9 @@ def dest(flag):
 
 def add_weight_and_case(p, when='', case_when=None):
     """
-    Add ``--weights W1 W2`` and ``--case a|b`` (default None: the caller applies the defaults).
+    Add ``--weights W1 W2`` and ``--case a|b`` (default None), ``when`` prefixing their help.
 
-    ``when`` prefixes the help texts (e.g. ``'with --balance (planar): '``), ``case_when``
-    the help of ``--case`` when it applies in fewer cases (default: ``when``).  The weights
-    are checked where they are used, by :func:`mech_balance.balancing.balance`.
+    ``case_when`` overrides it for ``--case``; the weights are checked by the solver.
     """
     from mech_balance.cli import main as cli
     case_when = when if case_when is None else case_when
@@ -155,12 +151,7 @@ def _check_counterweights(args):
 
 
 def check_spatial(args, rig, method):
-    """
-    Raise ValueError for a flag the spatial ``method`` would ignore or a value out of range.
-
-    The ranges are checked where the flags are read, before the solve (the solver checks
-    them again, naming its keyword).
-    """
+    """Raise ValueError for a flag the spatial ``method`` would ignore or a value out of range."""
     from mech_balance import balancing
     if method == 'weights':
         ignored = [f for f in given(args, SPATIAL_SHARED + SPATIAL_OPTIONS) if f != '--method']

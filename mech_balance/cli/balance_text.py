@@ -1,9 +1,4 @@
-"""
-The text ``mech-balance balance`` prints of a :class:`~mech_balance.balancing.result.Design`.
-
-Formatting only: every figure is the library's (the design, its report and its native
-result, :func:`mech_balance.balancing.paper_tables.compare_optimum`).
-"""
+"""The text ``mech-balance balance`` prints of a :class:`~mech_balance.balancing.result.Design`."""
 
 from mech_balance.balancing import paper_tables
 
@@ -12,13 +7,7 @@ NO_CLEAR_MESSAGE = 'no collision-free counterweight design within the bounds'
 
 
 def format_result(design, normalized=False):
-    """
-    Return a redistribution :class:`~mech_balance.balancing.result.Design` as readable text.
-
-    The problem, the design per link, the before/after table, the certificate, the cost of
-    balancing, the solve time, the comparison with seed 001's tables where one applies and
-    the identification confidence of a calibrated scene.
-    """
+    """Return a redistribution :class:`~mech_balance.balancing.result.Design` as readable text."""
     from mech_balance.balancing import counterweights
     result = design.result
     sc = result.scene
@@ -161,12 +150,7 @@ def certificate_lines(cert):
 
 
 def format_counterweights(design, normalized=False):
-    """
-    Return a counterweight :class:`~mech_balance.balancing.result.Design` as readable text.
-
-    The problem, the discs as built, the clearance, the before/after table, the
-    certificate and its tie-breaks, the cost of balancing and the solve time.
-    """
+    """Return a counterweight :class:`~mech_balance.balancing.result.Design` as readable text."""
     from mech_balance.balancing import counterweights
     result = design.result
     sc, opt = result.scene, result.options
@@ -322,8 +306,7 @@ def no_design_dict(sc, result):
     """
     Return ``balance --json`` of a counterweight problem with no collision-free design.
 
-    The keys of :meth:`mech_balance.balancing.result.Design.to_dict` that exist without a
-    design (``success`` false); ``report`` is the solver's, its ``clearance_design`` says why.
+    The keys of ``Design.to_dict`` that exist without a design; ``success`` false.
     """
     from mech_balance.schema import registry
     return {'scene': sc.name, 'kind': registry.kind_of(sc).name, 'method': 'counterweights',

@@ -1,11 +1,4 @@
-"""
-``mech-balance identify``: a rig's inertial parameters from a recording of its sensors.
-
-A thin verb over :mod:`mech_balance.ros.bags` (rosbag2 MCAP or sqlite3, or CSV) and
-:mod:`mech_balance.analysis.identify` (encoder smoothing, regressor, base parameters,
-calibrated scene).  The calibrated scene it writes loads in every other command and in the
-node.
-"""
+"""``mech-balance identify``: a rig's inertial parameters from a recording of its sensors."""
 
 import math
 import time
@@ -83,9 +76,7 @@ def sensor_pose(args, rec):
     """
     Return ``(SensorPose or None, description)`` of the force sensor for a recording.
 
-    The options win; else the recording's /tf_static pose of the wrench frame in the rig
-    frame; else the sensor is the rig frame (None: the wrench is used as recorded).  The
-    transformation is the rig node's (:class:`mech_balance.ros.sensor.SensorPose`).
+    The options win; else the recording's /tf_static pose; else None (the rig frame).
     """
     from mech_balance.ros import sensor
     tf = rec.sensor_tf

@@ -1,10 +1,4 @@
-"""
-The commands' ``--json`` output: strict JSON, a non-finite number written as ``null``.
-
-Python's :mod:`json` writes ``NaN`` and ``-Infinity``, which strict parsers (``jq``,
-JavaScript's ``JSON.parse``) refuse; a bound that does not exist (a tie-break stage with no
-lower bound, ``-inf``) or a figure that is undefined (``nan``) is therefore ``null`` here.
-"""
+"""The commands' ``--json`` output: strict JSON, a non-finite number written as ``null``."""
 
 import json
 import math

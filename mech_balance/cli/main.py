@@ -1,8 +1,8 @@
 """
 The ``mech-balance`` command line: thin verbs over the numerical core.
 
-Every verb validates its input at the boundary; a bad scene, field or option prints one
-line naming the field, the value and what was expected, and exits with status 2.
+A bad scene, field or option prints one line naming it, its value and what was expected,
+and exits with status 2.
 """
 
 import argparse
@@ -68,12 +68,7 @@ def _raise_interrupted(signum, frame):
 
 
 def _interrupted(verb, exc, mark):
-    """
-    Report an interrupted verb on stderr; return its exit status.
-
-    Temporary files still being written are removed; if none was and every file the verb
-    wrote is complete, it says so and the status is 0, else 128 + the signal's number.
-    """
+    """Report an interrupted verb on stderr; return its status (0 if every file was written)."""
     signum = getattr(exc, 'signum', signal.SIGINT)
     name = signal.Signals(signum).name
     atomic.discard_pending()
@@ -90,13 +85,7 @@ def _interrupted(verb, exc, mark):
 
 
 class Parser(argparse.ArgumentParser):
-    """
-    ArgumentParser whose usage errors are one line: verb, message and where the help is.
-
-    Subparsers inherit the class (``add_subparsers`` makes them of the parent's type), so every
-    verb prints ``mech-balance VERB: error: MESSAGE (see mech-balance VERB --help)`` and exits
-    with :data:`EXIT_USAGE`, without the usage block argparse prints first.
-    """
+    """ArgumentParser whose usage errors are one line naming the verb; exits :data:`EXIT_USAGE`."""
 
     def error(self, message):
         """Print one line naming the verb and the problem to stderr; exit with status 2."""
@@ -174,10 +163,9 @@ def writable_path(option, text, suffixes, create_parent=False):
 
 def requires(sc, capability, **given):
     """
-    Raise ValueError when an option was given for a scene whose rig lacks ``capability``.
+    Raise ValueError when an option in ``given`` was set for a rig lacking ``capability``.
 
-    ``given`` maps each option (``--design``) to whether the command line set it; the
-    message names the kinds of scene the option applies to (from the kind registry).
+    ``given`` maps each option (``--design``) to whether it was set; the message names the kinds.
     """
     from mech_balance.schema import registry
     kind = registry.kind_of(sc)
@@ -349,11 +337,8 @@ def main(argv=None):
     """
     Run ``mech-balance``; return the exit status.
 
-    SIGINT and SIGTERM interrupt the verb: a file being written is removed (never left as
-    ``.partial``) and the status is 130 or 143; a verb interrupted after all its files were
-    written says so and exits 0 (:func:`_interrupted`).  Run as the process (``argv`` None),
-    a signal after the verb has finished is ignored (its status stands); called with
-    ``argv``, the previous handlers are restored on return.
+    SIGINT/SIGTERM remove a file being written and exit 130/143 (0 if all files were written,
+    :func:`_interrupted`); with ``argv`` given, the previous handlers are restored on return.
     """
     mark = atomic.write_count()
     previous = _install_signal_handlers()

@@ -1,9 +1,4 @@
-"""
-The ``simulate`` and ``accuracy`` verbs of ``mech-balance`` (registered in cli.EXTENSIONS).
-
-Thin: parse, call :mod:`mech_balance.analysis.simulation` or
-:mod:`mech_balance.bench.accuracy`, print.
-"""
+"""The ``simulate`` and ``accuracy`` verbs of ``mech-balance`` (registered in cli.EXTENSIONS)."""
 
 import argparse
 import math

@@ -1,10 +1,4 @@
-"""
-The ``mech-balance urdf`` verb: the URDF of a rig's spanning tree, for robot_state_publisher.
-
-The verb is thin: it loads the scene (and a balanced design of the same geometry, if given)
-and prints or writes :func:`mech_balance.ros.urdf.urdf_xml`, atomically
-(:mod:`mech_balance.atomic`).
-"""
+"""The ``mech-balance urdf`` verb: a rig's URDF (:func:`mech_balance.ros.urdf.urdf_xml`)."""
 
 import sys
 

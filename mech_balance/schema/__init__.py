@@ -1,10 +1,8 @@
 """
 The scene file: read, validated and written here, for every kind of rig.
 
-``schema.load('hoeken')`` (a built-in name or a .yaml path) and ``schema.to_yaml(sc)`` (what
-load() reads back, bit for bit).  The schema: docs/scenes.md; the modules:
-docs/design.md#layers.  Every error is a :class:`SceneError` (a ``ValueError``) naming the
-field, the bad value and what was expected.
+``schema.load('hoeken')`` (a built-in name or a .yaml path); ``schema.to_yaml(sc)`` round-trips
+it.  Every error is a :class:`SceneError` (a ``ValueError``); the schema: docs/scenes.md.
 """
 
 import importlib

@@ -1,9 +1,8 @@
 """
 The ``build:`` section of a planar scene: the rig as built, layer by layer along the joint axes.
 
-Every field is optional (a missing one: the size :mod:`mech_balance.core.planar.drawn`
-draws); the model that uses them is :class:`mech_balance.analysis.layers.Layers`.  The
-fields: docs/build.md#the-layered-model.
+Every field optional (docs/build.md#the-layered-model); used by
+:class:`mech_balance.analysis.layers.Layers`.
 """
 
 from mech_balance.schema.fields import known_keys, mapping, number, positive, SceneError

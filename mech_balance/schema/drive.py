@@ -1,9 +1,4 @@
-"""
-The ``drive:`` section of a scene: motor, speed controller, joint damping, initial state.
-
-Used by the forward dynamics (:mod:`mech_balance.core.forward`; docs/simulation.md); the
-field checks are :mod:`mech_balance.schema.fields`' raising :class:`DriveError`.
-"""
+"""The ``drive:`` section of a scene: motor, speed controller, joint damping, initial state."""
 
 from dataclasses import dataclass, field
 import functools
@@ -43,12 +38,7 @@ class SpeedController:
 
 @dataclass(frozen=True)
 class Drive:
-    """
-    Motor, speed controller, joint damping, input inertia and initial state of a simulation.
-
-    ``input_inertia_kg_m2`` is a flywheel on the input shaft (the crank; a prismatic
-    input's Scotch-yoke crank), turning with psi.
-    """
+    """Motor, speed controller, damping, input (crank) flywheel inertia and initial state (SI)."""
 
     motor: Motor = None
     speed_controller: SpeedController = None
@@ -69,8 +59,7 @@ def drive_from_dict(data, scene=None, joint_names=None):
     """
     Return the validated :class:`Drive` of a scene's ``drive`` mapping (raises DriveError).
 
-    The keys of ``joint_damping`` are checked against ``joint_names`` (a rig's
-    :attr:`~mech_balance.core.rig.Rig.joint_names`) or else the joints of ``scene``.
+    ``joint_damping`` keys are checked against ``joint_names``, else the joints of ``scene``.
     """
     if data is None:
         return Drive()

@@ -1,9 +1,8 @@
 """
 The field validators every scene kind, ``drive:`` and the node's parameters share.
 
-Each takes the value, the field's path in the file (``links.crank.mass_kg``) and the error
-type to raise (:class:`SceneError` by default), and returns the checked value; every message
-names the path, the value and what was expected.
+Each takes the value, its path (``links.crank.mass_kg``) and the error type (default
+:class:`SceneError`); it returns the checked value or raises naming path, value, expectation.
 """
 
 import math

@@ -1,10 +1,8 @@
 """
 The ``identification:`` section of a calibrated scene: what the data said, and how sure.
 
-Written by ``mech-balance identify --output`` and the node's ``~/identify``, read back bit
-for bit; optional.  The fields: docs/scenes.md#the-identification-section.
-``std_directions`` D factors the parameters' covariance, Cov(theta) = D^T D
-(:func:`mech_balance.analysis.identify.balance_confidence`).
+Optional; the fields: docs/scenes.md#the-identification-section.  ``std_directions`` D
+factors the parameters' covariance, Cov(theta) = D^T D.
 """
 
 import math

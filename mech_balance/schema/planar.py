@@ -1,10 +1,4 @@
-"""
-The planar kind's scene reader and writer, side by side: YAML mapping <-> :class:`Scene`.
-
-The schema: docs/scenes.md; the types and constants: :mod:`mech_balance.schema.scene`.
-Every error is a :class:`~mech_balance.schema.fields.SceneError` naming the field, the value
-and what was expected.
-"""
+"""The planar kind's scene reader and writer: YAML mapping <-> :class:`Scene` (docs/scenes.md)."""
 
 from dataclasses import replace
 import math
@@ -187,11 +181,7 @@ def geometry(scene):
 
 
 def recording_to_dict(recording):
-    """
-    Return a :class:`Recording` as the scene's ``recording:`` mapping (every stream).
-
-    A scale chosen from the data (``None``) is left out.
-    """
+    """Return a :class:`Recording` as its ``recording:`` mapping (a ``None`` scale left out)."""
     out = {'streams': {s: recording.enabled(s) for s in RECORDING_STREAMS}}
     for key in ('force_scale_m_per_N', 'moment_scale_deg_per_Nm'):
         if getattr(recording, key) is not None:

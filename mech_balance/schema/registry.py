@@ -1,10 +1,8 @@
 """
 The registry of scene kinds: the one place that knows which kinds of rig exist.
 
-Each :class:`Kind` gives a ``kind:`` value's loader, writer, scene type and its
-implementations by role (``rig``, ``analyze``, ``urdf``, ``urdf_tree``), named by import
-path (``module:attribute``) so that the schema layer never imports the core:
-docs/design.md#the-rig-protocol.
+Each :class:`Kind` names its loader, writer, scene type and role implementations by import
+path, so the schema never imports the core (docs/design.md#the-rig-protocol).
 """
 
 from dataclasses import dataclass

@@ -1,10 +1,8 @@
 """
 Files of the former ``kind: rggr`` (seed 002's RGGR), read as the ``kind: spatial`` scene.
 
-:func:`translate` turns an old mapping into the mapping of the same rig as a spatial R-S-S-R
-(``config/rggr.yaml``) where the scene is read, and logs so once per file; ``mech-balance
-scenes --convert OLD.yaml --out NEW.yaml`` writes it.  The old schema and its frames:
-docs/scenes.md#a-former-rggr-file-kind-rggr.
+:func:`translate` maps an old file to the spatial R-S-S-R (``config/rggr.yaml``), logging
+once per file; the old schema: docs/scenes.md#a-former-rggr-file-kind-rggr.
 """
 
 import logging

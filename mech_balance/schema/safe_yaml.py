@@ -1,14 +1,11 @@
 """
 The one YAML reader of the package: safe, YAML 1.2 floats, and bounded.
 
-Every YAML text the package reads goes through :func:`loads` or :func:`load_file`: PyYAML's
-``SafeLoader`` reading ``1e-3`` as a float, refusing with one error naming the file or
-field, the limit and where: a file that is not a regular file, empty or over
-:data:`MAX_BYTES`; bytes that are not UTF-8; nesting over :data:`MAX_DEPTH`; more than
-:data:`MAX_ALIASES` aliases or :data:`MAX_NODES` expanded nodes (counted before expanding),
-or a recursive alias; an integer over :data:`MAX_INT_DIGITS` digits; a duplicate key.  Every
-refusal is the caller's ``error=`` class (:class:`YamlError` by default); the limits:
-docs/scenes.md#limits.
+:func:`loads` and :func:`load_file` refuse, with the caller's ``error=`` class
+(:class:`YamlError` by default) naming the file or field and the limit, what
+exceeds :data:`MAX_BYTES`, :data:`MAX_DEPTH`, :data:`MAX_ALIASES`, :data:`MAX_NODES` or
+:data:`MAX_INT_DIGITS`, non-UTF-8 bytes, a recursive alias or a duplicate key
+(docs/scenes.md#limits).
 """
 
 import os
@@ -64,12 +61,7 @@ else:
 
 
 class Loader(_Base):
-    """
-    A safe loader with YAML 1.2 floats, duplicate-key refusal and this module's limits.
-
-    libyaml parses when available; the limits are counted in PyYAML's Python composer,
-    overridden here.  Use it through :func:`loads`.
-    """
+    """A safe loader: YAML 1.2 floats, duplicate keys refused, the limits (use :func:`loads`)."""
 
     label = 'YAML'
 
@@ -193,10 +185,9 @@ def _at(mark):
 
 def loads(text, label='YAML', error=YamlError):
     """
-    Return the Python value of one YAML document ``text`` (a ``str``), or raise ``error``.
+    Return the Python value of one YAML document ``text`` (``None`` if empty), or raise ``error``.
 
     ``label`` names the text in errors (``scene hoeken.yaml``, ``balance.mass_bounds``).
-    Refused: what the module docstring lists.  An empty document is ``None``.
     """
     if not isinstance(text, str):
         raise error(f'{label}: got {type(text).__name__}, expected YAML text')
@@ -223,12 +214,7 @@ def loads(text, label='YAML', error=YamlError):
 
 
 def _syntax_error(text, exc):
-    """
-    Return 'not valid YAML at line L, column C: PROBLEM' for a YAMLError of the parser.
-
-    libyaml's messages are terse: the text is parsed again by PyYAML's Python parser
-    (events only, not recursive) for its message.
-    """
+    """Return 'not valid YAML at line L, column C: PROBLEM' (PyYAML's Python parser's message)."""
     if _CParser is not None and not isinstance(exc, yaml.composer.ComposerError):
         try:
             for _ in yaml.parse(text, Loader=yaml.SafeLoader):
@@ -293,11 +279,7 @@ def decode(data, label, error=YamlError):
 
 
 def load_file(path, label=None, error=YamlError):
-    """
-    Return the parsed YAML document of the file ``path`` (checked by :func:`check_file`).
-
-    ``label`` names the file in errors (default ``file PATH``).
-    """
+    """Return the parsed YAML of file ``path`` (:func:`check_file`; ``label`` in errors)."""
     label = label or f'file {str(path)!r}'
     path = check_file(path, label, error)
     try:

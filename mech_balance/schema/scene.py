@@ -1,10 +1,8 @@
 """
 Scenes: the planar scene's types, the constants of every kind, finding and parsing files.
 
-The planar reader and writer are in :mod:`mech_balance.schema.planar`, the spatial ones in
-:mod:`mech_balance.schema.spatial`; the schema: docs/scenes.md.  Every error is a
-:class:`SceneError` (a ``ValueError``) naming the field, the bad value and what was
-expected.  Values are SI; the papers' normalization is recorded, never applied.
+Readers and writers: :mod:`mech_balance.schema.planar`, :mod:`mech_balance.schema.spatial`;
+the schema: docs/scenes.md.  Values are SI; the papers' normalization is recorded, never applied.
 """
 
 from dataclasses import dataclass, field, replace
@@ -58,12 +56,7 @@ DEFAULT_STREAMS = tuple(s for s in RECORDING_STREAMS if s not in DEFAULT_OFF_STR
 
 
 def series_stream(name):
-    """
-    Return the recording stream that switches the plot of series ``name``: ``OUTPUT_plot``.
-
-    ``OUTPUT`` is the output the series answers (:data:`SERIES_OUTPUTS`); a series whose
-    stream is not in :data:`RECORDING_STREAMS` is always plotted.
-    """
+    """Return ``OUTPUT_plot``, the stream switching series ``name``'s plot."""
     return f'{SERIES_OUTPUTS.get(name, name)}_plot'
 
 
@@ -132,12 +125,10 @@ class Normalization:
 @dataclass(frozen=True)
 class Counterweight:
     """
-    A solid disc (cylinder) fixed to a link: ``links.<name>.counterweights`` entries (SI).
+    A solid disc fixed to a link: a ``links.<name>.counterweights`` entry (SI).
 
-    ``centre_m``: ``(x, y)`` in the link frame; mass = density * pi * radius^2 * thickness.
-    ``plane_m``: its mid-plane's z from its link's plane (m; moves no mass property);
-    ``mount``: the link's point whose shaft carries it (empty: the point nearest the centre).
-    docs/balancing.md#the-plane-of-a-counterweight.
+    ``centre_m``: ``(x, y)`` in the link frame; ``plane_m``: mid-plane z from the link's plane;
+    ``mount``: the point whose shaft carries it (docs/balancing.md#the-plane-of-a-counterweight).
     """
 
     mass_kg: float
@@ -189,11 +180,9 @@ def counterweight_totals(mass_kg, com_m, inertia_com_kg_m2, counterweights):
 @dataclass(frozen=True)
 class Link:
     """
-    A rigid link: named points and inertia, all in the link's own frame (SI).
+    A rigid link: named points and inertia in its own frame (SI).
 
-    ``mass_kg``, ``com_m`` and ``inertia_com_kg_m2`` are the TOTALS of the body and its
-    ``counterweights``; the body alone is ``own_*`` (set by :func:`add_counterweights`).  A
-    copy whose totals no longer equal body + discs drops the discs.
+    Mass properties are the TOTALS of body and ``counterweights``; the body alone is ``own_*``.
     """
 
     name: str
@@ -276,12 +265,7 @@ class Joint:
 
 @dataclass(frozen=True)
 class Recording:
-    """
-    What ``mech-balance record`` and the rig node's recording show (``recording:`` key).
-
-    ``streams``: the enabled ones of :data:`RECORDING_STREAMS`; a scale None is chosen from
-    the data.
-    """
+    """What ``mech-balance record`` and the node's recording show (a scale None: from the data)."""
 
     streams: tuple = DEFAULT_STREAMS
     force_scale_m_per_N: float = None
@@ -293,11 +277,7 @@ class Recording:
 
 
 class SceneDesigns:
-    """
-    What every kind's scene dataclass offers: its links by name and its other designs.
-
-    A mixin of the scene dataclasses (fields ``links``, ``name``, ``outputs``).
-    """
+    """The mixin of every kind's scene dataclass: its links by name and its other designs."""
 
     def link(self, name):
         """Return the link called ``name``."""
@@ -344,12 +324,7 @@ class Scene(SceneDesigns):
 
 
 def needs(outputs):
-    """
-    Return the set of computations the given outputs require (a frozenset).
-
-    ``kinematics`` < ``shaking_wrench`` (accelerations) < ``driving_torque`` <
-    ``bearing_reactions``.
-    """
+    """Return the frozenset of computations ``outputs`` need (kinematics < ... < reactions)."""
     return _needs_of(frozenset(outputs))   # the core asks once per evaluation: remembered
 
 

@@ -1,10 +1,8 @@
 """
 The spatial scene (``kind: spatial``): any single-input spatial linkage; loader and writer.
 
-The schema, its checks and the prismatic input's Scotch yoke:
-docs/scenes.md#spatial-schema-kind-spatial (``config/rssr_skew.yaml`` is a commented
-example).  Values are stored as given (axes not normalized, angles in degrees) so that
-:func:`spatial_to_dict` round-trips exactly; the core normalizes.
+Values are stored as given (the core normalizes), so :func:`spatial_to_dict` round-trips
+exactly; the schema: docs/scenes.md#spatial-schema-kind-spatial.
 """
 
 from dataclasses import dataclass, field
@@ -46,12 +44,7 @@ POSE_TOL_REL = 0.05
 
 
 def stroke_law(stroke_m, psi):
-    """
-    Return ``(s, ds/dpsi, d2s/dpsi2)`` of a prismatic input at cycle angles ``psi`` (rad).
-
-    The ideal Scotch yoke ``s = (s_min + s_max) / 2 - (s_max - s_min) / 2 cos(psi)`` (m);
-    ``psi`` a float or a numpy array (the results have its shape).
-    """
+    """Return ``(s, ds/dpsi, d2s/dpsi2)`` (m) of a prismatic input's Scotch yoke at ``psi``."""
     s_min, s_max = stroke_m
     centre, half = 0.5 * (s_min + s_max), 0.5 * (s_max - s_min)
     if isinstance(psi, (int, float)):
@@ -118,12 +111,7 @@ class Pose:
 
 @dataclass(frozen=True)
 class WeightSpec:
-    """
-    A balancing weight of seed 002's method on a link pivoted on the frame (revolute joint).
-
-    Its mass is ``mass_kg``, or the cylinder law of seed 002 eq. 13 with
-    ``density_length_kg_m2`` (density times length).
-    """
+    """A seed 002 balancing weight on a frame-pivoted link: ``mass_kg`` or eq. 13's cylinder."""
 
     link: str
     joint: str
@@ -158,12 +146,7 @@ class SpatialScene(SceneDesigns):
 
     @property
     def assembly_crank_angle_rad(self):
-        """
-        Return the assembly crank coordinate in rad (the cycle's start), within one turn.
-
-        ``math.fmod`` into (-360, 360) deg is exact for every float, so a huge angle keeps
-        the cycle's resolution; a value within one turn is unchanged.
-        """
+        """Return the assembly crank coordinate in rad, reduced exactly into one turn (fmod)."""
         return math.radians(math.fmod(self.assembly_crank_angle_deg, 360.0))
 
 
@@ -180,10 +163,9 @@ def _vec3(value, where):
 
 def check_inertia(tensor, where):
     """
-    Refuse an inertia tensor no rigid body has; ``tensor`` is (ixx, iyy, izz, ixy, ixz, iyz).
+    Raise SceneError naming ``where`` for an inertia (ixx, iyy, izz, ixy, ixz, iyz) no body has.
 
-    Positive semi-definite, principal moments obeying the triangle inequality (both to
-    :data:`INERTIA_RTOL` of the trace); raises SceneError naming ``where``.
+    Positive semi-definite and the triangle inequality, to :data:`INERTIA_RTOL` of the trace.
     """
     import numpy as np  # on first use: the command line parsers need none
     ixx, iyy, izz, ixy, ixz, iyz = tensor
@@ -290,10 +272,9 @@ def _pose(spec, where):
 
 def _check_axes_at_poses(joints, poses):
     """
-    Refuse a joint whose two axes disagree at the stated poses, naming it and ``axis_b``.
+    Refuse a joint whose axes disagree at the stated poses (:data:`POSE_TOL_DEG`), naming it.
 
-    Aligned (a universal's: normal) within :data:`POSE_TOL_DEG`; the message gives the
-    ``axis_b`` the poses imply.  Joints with a link whose pose is not stated are skipped.
+    The message gives the ``axis_b`` the poses imply; joints of an unposed link are skipped.
     """
     import numpy as np  # on first use: the command line parsers need none
     eye = np.eye(3)

@@ -1,11 +1,10 @@
 """
 The build sheet of a counterweight design: one SVG page a workshop can work from.
 
-Per link with a disc: the link as built (:mod:`mech_balance.analysis.layers`) with its disc,
-web and shaft to one scale, its axis horizontal, and the disc's dimensions, place, layer,
-material and mass; at the foot the added mass, the RMS before and after, and a side view
-of the stack.  Every number is an SVG ``<text>`` with an ``id`` and its full-precision
-``data-value`` (:func:`read_values`); ``.png``/``.pdf`` by ``rsvg-convert`` (docs/build.md).
+Per link with a disc: the link as built with its disc, web and shaft to scale, and the
+disc's dimensions, place, layer, material and mass; at the foot the totals and a side view.
+Every number is a ``<text>`` with an ``id`` and its ``data-value`` (:func:`read_values`);
+``.png``/``.pdf`` by ``rsvg-convert`` (docs/build.md).
 """
 
 import os

@@ -1,12 +1,10 @@
 """
 The collisions of a counterweight design, drawn where and when they happen.
 
-At every recorded crank angle where two bodies of the balanced design come closer than the
-margin (:func:`mech_balance.analysis.clearance.contacts_at`, the check ``balance`` prints; a
-spatial design's spheres: :func:`mech_balance.analysis.spatial_clearance.contacts_at`),
-``/balanced/collisions`` holds a red point midway between the witness points (hover: the
-pair and the overlap) and ``/balanced/collision_bodies`` the two bodies' outlines and the
-witness segment; empty at other angles, absent for a collision-free design.
+``/balanced/collisions``: a red point per contact closer than the margin
+(:func:`mech_balance.analysis.clearance.contacts_at`, or
+:func:`mech_balance.analysis.spatial_clearance.contacts_at`); ``/balanced/collision_bodies``:
+the two outlines and the witness segment.  Absent for a collision-free design.
 """
 
 from mech_balance.analysis import clearance, spatial_clearance
@@ -35,9 +33,8 @@ def marks(scene, balanced, samples, margin_m=0.0, spheres=None):
     """
     Return the collision marks of one recorded turn, or None (nothing to check).
 
-    ``(points (n, d), labels, counts (samples,), strips [(m, d)], strip_counts (samples,))``:
-    per sample its contacts' points and the outlines and witness segments of their bodies
-    (d = 2 for a planar design, 3 for a spatial one's ``spheres``).
+    ``(points (n, d), labels, counts (samples,), strips [(m, d)], strip_counts (samples,))``,
+    d = 2 (planar) or 3 (spatial).
     """
     psi = turn_angles(samples, scene.crank_speed_rad_s)
     if spheres:             # (body a, body b, gap, witness a, witness b, outlines)

@@ -242,9 +242,8 @@ def design_marks(drawings, templates, size):
     """
     Return what a design changed, to draw: ``({variant: marks}, {variant: changes})``.
 
-    ``rings``: a ring in each added body's plane; ``stalks``: a line from a body whose mass
-    or mass centre moved (and no added body shows it) to its new mass centre; ``changes``:
-    ``[(body index, mass change kg)]`` of those bodies.
+    ``rings`` in each added body's plane; ``stalks`` to a moved mass centre; ``changes``:
+    ``[(body index, mass change kg)]``.
     """
     marks, changes = {}, {}
     original = {b.name: b for b in drawings['original'].bodies}

@@ -41,8 +41,7 @@ def first_passing(ok, test, chunk=LABEL_CHUNK):
     """
     Return ``ok (p, c)`` narrowed by ``test``, exact up to each row's first passing column.
 
-    ``test(rows, cols)`` returns the costly mask; run in column chunks on the rows still
-    without a passing column, so ``argmax`` of the result is that of the full test.
+    ``test(rows, cols)`` returns the costly mask; ``argmax`` of the result equals the full test's.
     """
     out = np.zeros_like(ok)
     pending = np.flatnonzero(ok.any(axis=1))

@@ -228,8 +228,7 @@ def place_labels(layout, motion, variant):
     """
     Return ``(positions (q, 3), texts, colours, counts (p,), tiers (q,))``: a view's labels.
 
-    Every label at every sample, most important first, at one place where it is clean (tier
-    1), else with the tests dropped one by one (tiers 2-5: `docs/recordings.md`, Labels).
+    Tiers 1-5: `docs/recordings.md`, Labels.
     """
     screen = layout.screens[variant]
     p = motion.size

@@ -1,9 +1,4 @@
-"""
-Where things land on screen (no rerun): the default window, the views, the gauge, the inset.
-
-The :class:`Screen` of a view at :data:`WINDOW_PX`, the :class:`Layout` of a recording, and
-the 2-D bounds or 3-D eye fitted to the drawing.
-"""
+"""Where things land on screen (no rerun): the default window, the views, the gauge, the inset."""
 
 from dataclasses import dataclass, field, replace
 import functools
@@ -273,8 +268,7 @@ def zoom_inset(layout, motion, placed):
     """
     Return the labels of an inset zoomed on the original view's crowded core, or None.
 
-    Sets ``layout.inset`` (a :class:`Screen`) and moves the crowded names there from
-    ``layout.labels`` and ``placed['original']`` (`docs/recordings.md`, Inset).
+    Sets ``layout.inset`` and moves the crowded names there (`docs/recordings.md`, Inset).
     """
     tiers = placed['original'][4].reshape(motion.size, -1)
     if layout.dim != 2 or not np.mean(tiers >= 2) > INSET_TRIGGER:
@@ -407,12 +401,7 @@ def _hull(points):
 
 
 def _frame_3d(layout, motion, pts, lo, hi, reach, gap, view_px):
-    """
-    Return the 3-D screen: the eye fitted to the rig and its gauge, the gauge's place chosen.
-
-    The gauge goes right, left or above the rig where its arrows keep off the rig's picture
-    and the eye stands nearest (:func:`fit_eye`).
-    """
+    """Return the 3-D screen: the eye fitted to the rig and its gauge, the gauge's place chosen."""
     d = np.asarray(EYE_DIRECTION, dtype=float)
     d = d / np.linalg.norm(d)
     right = np.cross(-d, (0.0, 0.0, 1.0))
@@ -447,12 +436,7 @@ def _frame_3d(layout, motion, pts, lo, hi, reach, gap, view_px):
 
 
 def fit_eye(view_px, target, direction, corners):
-    """
-    Return a 3-D :class:`Screen` whose eye sees every corner inside the view's margins.
-
-    The nearest distance along ``direction`` in closed form (a corner ``x`` across and ``z``
-    in front is inside from ``f |x| / half_width - z``), the picture centred.
-    """
+    """Return a 3-D :class:`Screen` whose eye along ``direction`` sees every corner, centred."""
     target = np.asarray(target, dtype=float)
     corners = np.asarray(corners, dtype=float)
     d = np.asarray(direction, dtype=float)

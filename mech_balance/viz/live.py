@@ -41,10 +41,8 @@ class LiveView:
     """
     The views of a running rig streamed to a viewer, throttled, on a thread of its own.
 
-    The constructor returns at once; the thread lays out, connects, sends and logs.
-    :meth:`push` only queues (the oldest batch dropped when :data:`LIVE_QUEUE` wait);
-    :meth:`close` waits at most its ``timeout_s``.  A dead viewer is retried every
-    :data:`LIVE_RETRY_S`, its samples dropped meanwhile (`docs/recordings.md`, live view).
+    :meth:`push` only queues (dropping the oldest beyond :data:`LIVE_QUEUE`); :meth:`close`
+    waits at most ``timeout_s``; a dead viewer is retried every :data:`LIVE_RETRY_S`.
     """
 
     def __init__(self, url, scene, layout=None, balanced=None, balanced_source=None):
@@ -187,11 +185,9 @@ class LiveRecorder:
     """
     Record a running rig sample by sample (used by the rig node): to a file and/or a viewer.
 
-    ``path``: an ``.rrd`` file (checked by :func:`check_output_path`, errors name ``field``)
-    or None; ``url``: a running viewer's ``rerun+http://HOST:PORT/proxy`` (its views
-    throttled to :data:`LIVE_MAX_RATE_HZ`, never blocking the caller) or None.  The file is
-    written to ``.NAME.partial-XXXXXXXX`` and renamed over ``path`` by :meth:`close` (also
-    run at exit), so an existing recording is replaced only by a complete one.
+    ``path``: an ``.rrd`` file (errors name ``field``) or None, replaced only by a complete
+    recording at :meth:`close`; ``url``: a viewer's ``rerun+http://HOST:PORT/proxy`` or None
+    (throttled to :data:`LIVE_MAX_RATE_HZ`, never blocking the caller).
     """
 
     def __init__(self, path, scene, balanced=None, balanced_source=None, *, field='path',
@@ -245,9 +241,8 @@ class LiveRecorder:
         """
         Append one sample (scalars) or a batch ``(p,)`` of samples; return the count taken.
 
-        ``crank_angle_rad``: the cumulative crank angle; ``time_s``: the rig's clock (s);
-        ``data``: the original design's :class:`~mech_balance.core.rig.RigData` at those
-        angles if the caller has it (else evaluated here).  After :meth:`close`: 0.
+        ``crank_angle_rad``: cumulative; ``time_s``: the rig's clock; ``data``: the original's
+        :class:`~mech_balance.core.rig.RigData` at those angles, or None.  After :meth:`close`: 0.
         """
         t = np.atleast_1d(np.asarray(time_s, dtype=float)).ravel()
         psi = np.atleast_1d(np.asarray(crank_angle_rad, dtype=float)).ravel()
@@ -285,9 +280,7 @@ class LiveRecorder:
         """
         Flush and close the file and the viewer stream (idempotent; signal-safe).
 
-        The viewer gets at most ``timeout_s``; the file is not timed: a log call on another
-        thread is waited for, then every sample is flushed and the file renamed over the
-        target.  Called inside :meth:`log_sample` (a signal handler) it only asks.
+        The viewer gets at most ``timeout_s``; the file is flushed and renamed over the target.
         """
         if self._closed:
             return

@@ -1,9 +1,4 @@
-"""
-The plots of a recording (no rerun): each quantity over the crank angle, as a 2-D view.
-
-Drawn in the view's pixels at the default window (y down): x the crank angle, 0-360 deg,
-y in the quantity's unit (`docs/recordings.md`).  A live view plots over time instead.
-"""
+"""The plots of a recording (no rerun): each quantity over the crank angle, as a 2-D view."""
 
 from dataclasses import dataclass
 import math

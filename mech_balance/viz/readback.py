@@ -10,8 +10,7 @@ class EntityData:
     """
     One entity of a recording read back, its rows in time order.
 
-    ``static``: component -> value; ``columns``: component -> a value per row; ``index``:
-    timeline -> its value per row (``time`` in seconds).
+    ``static``, ``columns`` (a value per row), ``index`` (timeline -> values; ``time`` in s).
     """
 
     static: dict

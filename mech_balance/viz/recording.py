@@ -1,13 +1,9 @@
 """
 Rerun recordings of a rig in motion: the original mechanism against its balanced design.
 
-The package's face and the only part of mech_balance that imports rerun: one drawing
-adapter of the Rig protocol (:mod:`mech_balance.core.rig`), the picture from ``rig.drawing``
-posed by ``rig.at(...).bodies``, the numbers from ``rig.at(...)``.  :func:`record` writes a
-file; :class:`LiveRecorder` the same views sample by sample, to a file and/or a viewer.
-What is drawn, its entities and timelines: `docs/recordings.md`; the modules: :mod:`.style`,
-:mod:`.layout`, :mod:`.labels`, :mod:`.plots`, :mod:`.drawing`, :mod:`.text`,
-:mod:`.blueprint`, :mod:`.streams`, :mod:`.live`, :mod:`.readback`.
+The only part of mech_balance that imports rerun; one drawing adapter of the Rig protocol
+(:mod:`mech_balance.core.rig`).  :func:`record` writes a file; :class:`LiveRecorder`
+the same views sample by sample.  What is drawn: `docs/recordings.md`.
 """
 
 from dataclasses import dataclass
@@ -58,11 +54,9 @@ def record(path, scene, balanced=None, cycles=1, samples=None, balanced_source=N
     """
     Write an offline recording of ``scene`` (and ``balanced``) to ``path`` (``.rrd``).
 
-    ``balanced``: a scene of the same geometry, other inertias (or None); ``samples`` per
-    crank turn (>= 4, default the scene's) over ``cycles`` turns from crank angle 0; a
-    counterweight design's bodies closer than ``clearance_margin_m`` are marked
-    (:mod:`.collisions`; a spatial design's sphere counterweights as ``spheres``).  Errors
-    name ``field`` for ``path``.  Returns a :class:`RecordingSummary`.
+    ``balanced``: same geometry, other inertias, or None; ``samples`` per turn (>= 4) over
+    ``cycles`` turns; bodies closer than ``clearance_margin_m`` are marked (``spheres``: a
+    spatial design's).  Errors name ``field``.  Returns a :class:`RecordingSummary`.
     """
     t0 = time.perf_counter()
     path = check_output_path(path, field)

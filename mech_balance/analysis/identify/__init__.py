@@ -1,9 +1,4 @@
-"""
-Identification of a planar rig's inertial parameters from its encoder and force sensor.
-
-Pure functions on numpy arrays, fed by the ``identify`` command and the rig node; the
-modules and the method: docs/identification.md, *How identify computes*.
-"""
+"""Identifying a planar rig's inertial parameters from encoder and force sensor (numpy)."""
 
 from mech_balance.analysis.identify.alignment import FRAME_ANGLE_MAX_DEG, frame_check
 from mech_balance.analysis.identify.checks import (

@@ -1,10 +1,4 @@
-"""
-The sensor's frame and clock judged against the scene's model.
-
-:func:`frame_check`: a sign or axes the model does not have (refused); :func:`time_offset`:
-the sensor's lag behind the encoder (corrected, or refused at the search's edge);
-:func:`check_pose_and_time` runs both on a recording.
-"""
+"""The sensor's frame and clock judged against the scene's model (:func:`check_pose_and_time`)."""
 
 import math
 
@@ -39,10 +33,7 @@ def frame_check(meas, model, floor, channels):
     """
     Return a refusing Finding when the measured wrench's sign or axes disagree with the model.
 
-    ``meas`` and ``model`` ``(p, >= 3)``: measured and modelled [f_x, f_y, n_z];
-    ``floor`` their noise floors.  A reflection or a rotation beyond
-    :data:`FRAME_ANGLE_MAX_DEG` of the force's gain matrix, or a negative moment gain
-    (docs/identification.md, *What identify checks*).
+    ``meas``, ``model`` ``(p, >= 3)``: [f_x, f_y, n_z]; ``floor`` their noise floors.
     """
     y = np.asarray(meas, dtype=float)[:, :3] - np.mean(meas, axis=0)[:3]
     x = np.asarray(model, dtype=float)[:, :3] - np.mean(model, axis=0)[:3]
@@ -126,10 +117,8 @@ def time_offset(regress, motion, t_w, meas, floor):
     """
     Return ``(offset s or 0, Finding or None)``: the sensor's lag behind the encoder.
 
-    ``regress(psi, speed, accel)`` returns the ``(p, c, n)`` regressor (scaled);
-    ``motion`` the longest stretch's crank motion; ``t_w``, ``meas`` the wrench stamps and
-    measurements; ``floor`` the channels' noise floors.  A grid search of the bias-free
-    least squares over the shift, refined by a parabola; :data:`OFFSET_F` decides.
+    ``regress(psi, speed, accel)`` returns the ``(p, c, n)`` regressor; ``motion`` the
+    longest stretch's; ``t_w``, ``meas`` the wrench stamps and values; ``floor`` noise floors.
     """
     t_m = motion.t_s
     turn_s = 2.0 * math.pi / motion.mean_speed_rad_s if motion.mean_speed_rad_s > 0 else 1.0
@@ -192,12 +181,7 @@ def time_offset(regress, motion, t_w, meas, floor):
 
 
 def check_pose_and_time(scene, motion, t_wrench, wrench, floor, theta0, scale):
-    """
-    Return ``(wrench stamps, findings)``: the sensor frame judged, a time offset corrected.
-
-    Both on the longest stretch (``motion``), against the scene's model ``theta0``
-    (``scale`` the parameters' scales); ``floor`` the channels' noise floors.
-    """
+    """Return ``(wrench stamps, findings)``: the sensor frame judged, a time offset corrected."""
     t_w = np.asarray(t_wrench, dtype=float)
     w = np.asarray(wrench, dtype=float)
     inside = np.flatnonzero((t_w >= motion.t_s[0]) & (t_w <= motion.t_s[-1]))

@@ -1,10 +1,4 @@
-"""
-Checks of a recording and of its fit: the identification knows when it is wrong.
-
-Each check returns :class:`Finding` objects (evidence, way out, and ``corrected``, ``warned``
-or ``refused``).  The table of the checks and the figures behind their thresholds:
-docs/identification.md, *What identify checks*.
-"""
+"""Checks of a recording and of its fit, as :class:`Finding` objects (docs/identification.md)."""
 
 from dataclasses import dataclass, field
 import math
@@ -95,12 +89,7 @@ def interleaved(values):
 
 
 def encoder_unit(position, modulus, unit='auto'):
-    """
-    Return ``(positions in rad, Finding or None)`` from the wrap modulus of the positions.
-
-    ``unit`` ``rad`` takes them as given, ``deg`` converts, ``auto`` converts when they wrap
-    at 360 (within :data:`UNIT_SNAP_REL`).
-    """
+    """Return ``(positions in rad, Finding or None)``; ``unit`` ``rad``, ``deg`` or ``auto``."""
     pos = np.asarray(position, dtype=float)
     if unit == 'rad':
         return pos, None
@@ -135,13 +124,7 @@ def check_interleaved_encoder(psi_unwrapped):
 
 
 def stuck_runs(t_s, psi_unwrapped, modulus=2.0 * math.pi):
-    """
-    Return ``(keep mask, Finding or None)``: runs of a repeated position that jump after.
-
-    At least :data:`STUCK_MIN_SAMPLES` equal positions, then an increment above
-    :data:`STUCK_JUMP` 99th percentiles; the mask drops the run but its first sample, so
-    that the stuck time is a gap.
-    """
+    """Return ``(keep mask, Finding or None)``: runs of a repeated position that jump after."""
     t = np.asarray(t_s, dtype=float)
     psi = np.asarray(psi_unwrapped, dtype=float)
     keep = np.ones(psi.size, dtype=bool)
@@ -179,13 +162,7 @@ def stuck_runs(t_s, psi_unwrapped, modulus=2.0 * math.pi):
 
 
 def encoder_smoothing(motion, cap_turns):
-    """
-    Return a Finding when the encoder's noise needs a window that smooths the motion away.
-
-    ``motion``: the :class:`~mech_balance.analysis.identify.encoder.CrankMotion`;
-    ``cap_turns``: the window's cap in turns; thresholds :data:`ACCEL_GAIN_WARN` and
-    :data:`ACCEL_GAIN_REFUSE`.
-    """
+    """Return a Finding when the encoder's noise needs a window that smooths ``motion`` away."""
     gain = motion.gain_error
     worst = max(abs(gain.get('accel_1x', 0.0)), abs(gain.get('accel_2x', 0.0)))
     if worst <= ACCEL_GAIN_WARN:
@@ -225,13 +202,7 @@ def check_interleaved_wrench(wrench, channels):
 
 
 def judge_fit(channels, rms_after, floor, motion, units, ratio_max=FIT_RATIO_MAX):
-    """
-    Return the Findings on the calibrated fit's residual against the noise floor.
-
-    ``rms_after``, ``floor`` and ``units`` per channel; ``motion`` the encoder's
-    :class:`~mech_balance.analysis.identify.encoder.CrankMotion` (named when the likely
-    cause); ``ratio_max`` the refusal's threshold.
-    """
+    """Return the Findings on the fit's residual against ``floor`` (refused over ``ratio_max``)."""
     ratio = np.asarray(rms_after, dtype=float) / np.where(floor > 0.0, floor, np.inf)
     worst = int(np.argmax(ratio))
     text = ', '.join(f'{c} {a:.4g} vs {f:.3g} {u} ({r:.3g}x)'
@@ -280,8 +251,7 @@ def check_data(t_encoder, position_rad, t_wrench, wrench, effort, unit):
     """
     Return ``(t_encoder, position_rad, effort, findings)`` after the checks of the data.
 
-    The encoder's unit (``unit``: auto, rad, deg), a stuck encoder (dropped); raises
-    :class:`IdentifyError` for interleaved encoders or sensors.
+    Raises :class:`IdentifyError` for interleaved encoders or sensors.
     """
     findings = []
     if checkable(t_encoder, position_rad):

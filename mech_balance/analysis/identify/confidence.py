@@ -47,12 +47,7 @@ def rms_maps(scene):
 
 
 def predicted_rms(scene, theta, covariance):
-    """
-    Return the :class:`PredictedRms` of parameters ``theta`` (SI) on ``scene``'s geometry.
-
-    RMS = ||R theta|| (:func:`mech_balance.analysis.linear_maps.linear_maps`); the standard
-    error by the delta method.
-    """
+    """Return the :class:`PredictedRms` of parameters ``theta`` (SI) on ``scene``'s geometry."""
     theta = np.asarray(theta, dtype=float)
     out = []
     for r in rms_maps(scene):
@@ -74,9 +69,7 @@ def balance_confidence(scene, balanced_scene):
     """
     Return how a balanced design's RMS shaking force and moment vary within +-1 SE, or None.
 
-    ``scene``: a calibrated scene (``identification`` section); ``balanced_scene``: the
-    optimum on it.  The RMS lies within ||R theta_b|| -+ ||R D^T||_2 (the triangle
-    inequality, a checked bound).
+    ``scene``: calibrated; ``balanced_scene``: the optimum on it.
     """
     block = getattr(scene, 'identification', None)
     if block is None:

@@ -1,8 +1,4 @@
-"""
-The physically consistent calibration: the identified combinations kept, every link a body.
-
-Two Clarabel cone programs (docs/identification.md, *How identify computes*).
-"""
+"""The physically consistent calibration: two Clarabel cone programs (docs/identification.md)."""
 
 from dataclasses import dataclass
 import math
@@ -28,9 +24,8 @@ class Consistency:
     """
     How the calibrated parameters were made physically consistent (:func:`consistent`).
 
-    ``stage``: ``exact`` or ``least squares``; ``residual_growth``: relative, over the
-    unconstrained fit; ``max_shift_se``: the largest change of a combination in standard
-    errors; ``active``: the constraints at their bound.
+    ``stage``: ``exact`` or ``least squares``; ``residual_growth``: relative; ``max_shift_se``:
+    the largest change in standard errors; ``active``: the constraints at their bound.
     """
 
     stage: str
@@ -67,13 +62,7 @@ class Consistency:
 
 
 def consistency_cones(scene, theta0, scale):
-    """
-    Return ``(A, b, cones)`` of the consistency cones on the scaled deviation u.
-
-    Per link, y = theta / scale: y_m >= MIN_MASS_REL and
-    y_m (y_I - INERTIA_MARGIN_REL) >= y_hx^2 + y_hy^2 (Wensing, Kim & Slotine 2017);
-    Clarabel's form s = b - A u in the cone.
-    """
+    """Return ``(A, b, cones)``: Clarabel's consistency cones on the scaled deviation u."""
     import clarabel
     n = theta0.size
     y0 = theta0 / scale
@@ -114,10 +103,8 @@ def consistent(scene, theta0, scale, v1, sv, du, chi2_ls, se_u):
     """
     Return ``(u, Consistency)``: the physically consistent scaled deviation from the scene.
 
-    ``v1`` ``(n, r)``, ``sv`` ``(r,)``: the regressor's row space and singular values;
-    ``du``: the least-squares deviation; ``chi2_ls``: its residual; ``se_u``: the standard
-    errors of v1^T u.  The two stages: docs/identification.md, *How identify computes*.
-    Raises :class:`IdentifyError` when no consistent set exists.
+    ``v1`` ``(n, r)``, ``sv``: row space and singular values; ``du``, ``chi2_ls``: the least
+    squares and its residual; ``se_u``: standard errors.  Raises :class:`IdentifyError`.
     """
     import clarabel
     n = theta0.size

@@ -1,9 +1,4 @@
-"""
-The crank's angle, speed and acceleration from encoder positions, stretch by stretch.
-
-The window choice and the figures behind its constants: docs/identification.md, *How
-identify computes*.
-"""
+"""The crank's angle, speed and acceleration from encoder positions (docs/identification.md)."""
 
 from dataclasses import dataclass, field
 import math
@@ -33,10 +28,9 @@ stretch gets its own fit, the wrench samples inside a gap are not used."""
 @dataclass
 class CrankMotion:
     """
-    Crank angle, speed and acceleration estimated from encoder positions (uniform grid).
+    Crank angle, speed and acceleration from encoder positions (uniform grid).
 
-    ``predicted_std``: the noise's standard deviations; ``gain_error``: the relative error
-    of speed and acceleration at 1x and 2x the rotation frequency.
+    ``predicted_std``: noise std; ``gain_error``: relative, at 1x and 2x the rotation frequency.
     """
 
     t_s: np.ndarray             # (p,) grid stamps, s
@@ -61,12 +55,7 @@ class CrankMotion:
         return self.window * self.period_s
 
     def at(self, t_s):
-        """
-        Return (psi, speed, accel) interpolated to stamps ``t_s`` (s) in the valid span.
-
-        Linear interpolation on the grid (its error in the angle is below
-        period^2 |psidd| / 8, far below the quantization).
-        """
+        """Return (psi, speed, accel) interpolated to stamps ``t_s`` (s) in the valid span."""
         t_s = np.asarray(t_s, dtype=float)
         return tuple(np.interp(t_s, self.t_s, v)
                      for v in (self.psi_rad, self.speed_rad_s, self.accel_rad_s2))
@@ -112,8 +101,7 @@ def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_ra
     """
     Return the :class:`CrankMotion` of encoder samples (stamps s, positions rad).
 
-    ``window`` (odd, samples) overrides the choice (:data:`ACCEL_NOISE_REL`,
-    :data:`MAX_WINDOW_TURNS`); ``counts_per_turn`` (or ``quantization_rad``) states the step.
+    ``window`` (odd) overrides the choice; ``counts_per_turn`` or ``quantization_rad`` the step.
     """
     t, pos = _checked_samples(t_s, position_rad)
     steps = np.diff(t)
@@ -222,8 +210,7 @@ def segment_motions(t_encoder, position_rad, window, quantization_rad, counts_pe
     """
     Return ``(main motion, [(motion or None, EncoderSegment)])`` over the encoder's stretches.
 
-    The longest stretch chooses the window and the quantization; the others are fitted
-    with the same ones, or skipped with the reason.
+    The longest stretch sets the window and quantization for the others.
     """
     pieces = encoder_segments(t_encoder, position_rad)
     main = max(range(len(pieces)), key=lambda k: pieces[k][0].size)

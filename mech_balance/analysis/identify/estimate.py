@@ -1,9 +1,4 @@
-"""
-The identification: checked data in, the calibrated inertial parameters and their report out.
-
-:func:`identify` runs the checks, the crank motion, the least squares and the consistent
-calibration; :class:`Identification` holds it all.
-"""
+"""The identification: checked data in, calibrated inertial parameters and their report out."""
 
 from dataclasses import dataclass, field, replace
 import math
@@ -182,12 +177,9 @@ def identify(scene, t_encoder, position_rad, t_wrench, wrench, effort=None, wind
     """
     Return the :class:`Identification` of a planar rig from encoder and wrench samples.
 
-    ``t_encoder``, ``position_rad`` (s, rad): the encoder; ``t_wrench``, ``wrench``
-    ``(samples, 3)``: the sensor's [f_x, f_y, n_z] on the frame about the crank pivot (N,
-    N*m); ``effort``: the motor torque at the encoder's stamps (N*m) or None.  ``check``
-    runs the checks (:mod:`~mech_balance.analysis.identify.checks`; ``encoder_unit``
-    ``auto``, ``rad`` or ``deg``; refused above ``max_residual_ratio`` noise floors); a
-    refused finding keeps :meth:`Identification.calibrated_scene` from being made.
+    ``t_encoder``, ``position_rad`` (s, rad); ``t_wrench``, ``wrench`` ``(samples, 3)``:
+    [f_x, f_y, n_z] about the crank pivot (N, N*m); ``effort`` (N*m) or None.  ``encoder_unit``
+    ``auto``, ``rad`` or ``deg``; a refused finding blocks the calibrated scene.
     """
     check_identifiable(scene)
     findings = []

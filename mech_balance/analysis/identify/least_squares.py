@@ -1,8 +1,4 @@
-"""
-The weighted least squares of the inertial parameters and its base parameters.
-
-The method: docs/identification.md, *How identify computes*.
-"""
+"""The weighted least squares of the inertial parameters, and the base parameters."""
 
 from dataclasses import dataclass
 import math
@@ -62,12 +58,7 @@ class Reduction:
 
 
 def reduce_samples(scene, psi, speed, accel, meas, torque, theta0, scale, chunk=REDUCE_CHUNK):
-    """
-    Return the :class:`Reduction` of the samples, ``chunk`` samples at a time.
-
-    Per channel one QR reduction of ``[1 | Y_c | r_c | w_c]`` updated chunk by chunk: its
-    trailing block is the R factor of the centred columns, its first row their means.
-    """
+    """Return the :class:`Reduction` of the samples (QR, ``chunk`` samples at a time)."""
     nc = meas.shape[1]
     factors = [None] * nc
     names, residual, cond, squares = (), 0.0, 0.0, np.zeros(nc)
@@ -117,12 +108,7 @@ class WeightedFit:
 
 
 def weighted_fit(red, nparam, nc):
-    """
-    Return the :class:`WeightedFit` of a :class:`Reduction` (``nc`` channels).
-
-    :data:`WEIGHT_PASSES` passes; the rank counts the singular values above
-    :data:`RANK_RTOL` times the largest.
-    """
+    """Return the :class:`WeightedFit` of a :class:`Reduction` (``nc`` channels)."""
     p = red.samples
     sigma = np.where(red.sigma > 0.0, red.sigma, 1.0)
     for _ in range(WEIGHT_PASSES):
@@ -171,8 +157,7 @@ def base_parameters(v1t, scale, names, theta, theta0, cov, theta_cal):
     """
     Return the :class:`Combination` list of the row space ``v1t`` (scaled coordinates).
 
-    QR with column pivoting picks the base parameters (coefficient 1 on its own, 0 on the
-    others); estimates of ``theta``, ``theta0`` (scene) and ``theta_cal``, with ``cov``.
+    Base parameters by pivoted QR; estimates of ``theta``, ``theta0`` and ``theta_cal``.
     """
     rank = v1t.shape[0]
     _, _, piv = scipy.linalg.qr(v1t, pivoting=True, mode='economic')

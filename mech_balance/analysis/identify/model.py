@@ -1,10 +1,4 @@
-"""
-The measurement model: channels, inertial parameters, and the regressor that links them.
-
-The sensor's wrench (and the driving torque) is linear in the links' inertial parameters
-theta = (m, m c_x, m c_y, I_O) per link (derivation: docs/identification.md, *How identify
-computes*).
-"""
+"""The measurement model: channels, inertial parameters, and the regressor that links them."""
 
 from dataclasses import dataclass
 import math
@@ -73,8 +67,7 @@ class Regressor:
     """
     The measured quantities as a linear function of the inertial parameters theta (SI).
 
-    ``wrench`` ``(p, 3, 4 n)``: [f_x, f_y, n_z] on the frame about the crank pivot, weight
-    included; ``torque`` ``(p, 4 n)`` or None.  ``w = wrench @ theta (+ bias)``.
+    ``wrench`` ``(p, 3, 4 n)``: [f_x, f_y, n_z] about the crank pivot; ``torque`` or None.
     """
 
     wrench: np.ndarray
@@ -95,12 +88,7 @@ def cross_z(a, b):
 
 
 def regressor(scene, psi_rad, speed_rad_s, accel_rad_s2, torque=False, rig=None):
-    """
-    Return the :class:`Regressor` of a planar scene at per-sample crank states.
-
-    The core's wrench at the 4 n unit parameter vectors (seed 001 eqs. 25-26, 39) plus the
-    links' weight from their poses.
-    """
+    """Return the :class:`Regressor` of a planar scene at per-sample crank states."""
     check_identifiable(scene)
     rig = analysis.Rig(scene) if rig is None else rig
     # the kinematics is periodic in the crank angle: solve at the wrapped angle (the solver

@@ -1,9 +1,4 @@
-"""
-The encoder's quantization step, estimated from its positions, and its unwrapping.
-
-The method and the figures behind the constants: docs/identification.md, *How identify
-computes*.
-"""
+"""The encoder's quantization step, estimated from its positions, and its unwrapping."""
 
 from dataclasses import dataclass
 import math
@@ -40,9 +35,8 @@ class Quantization:
     """
     The encoder's quantization step and the angle noise the window choice rests on.
 
-    ``step_rad`` 0: not quantized (``source``: ``estimated``, ``stated``, ``not quantized``);
-    ``confidence``: the fraction of increments on its grid; ``noise_rad``: the larger of
-    q / sqrt(12) and ``fit_noise_rad``, the residual of a smooth fit.
+    ``step_rad`` 0: not quantized; ``source``: ``estimated``, ``stated``, ``not quantized``;
+    ``confidence``: the fraction of increments on the grid; ``noise_rad`` (rad).
     """
 
     step_rad: float
@@ -77,12 +71,7 @@ class Quantization:
 
 
 def unwrap_encoder(position_rad):
-    """
-    Return ``(unwrapped angle, modulus)`` of encoder positions that may wrap at any modulus.
-
-    The modulus follows from the wraps (docs/identification.md, *How identify computes*);
-    2 pi without a wrap or within :data:`MODULUS_SNAP_REL` of it.
-    """
+    """Return ``(unwrapped angle, modulus)`` of encoder positions that may wrap at any modulus."""
     pos = np.asarray(position_rad, dtype=float)
     steps = np.diff(pos)
     span = float(np.max(pos) - np.min(pos)) if pos.size else 0.0
@@ -103,12 +92,7 @@ def fraction_on_grid(increments, step):
 
 
 def value_clusters(values, floor):
-    """
-    Return the centres of the major clusters of ``values`` (split where sorted gaps > floor).
-
-    Major: at least :data:`QUANT_CLUSTER_MIN` of the values; none unless the major ones hold
-    :data:`QUANT_CLUSTER_COVER` of them (an unquantized encoder).
-    """
+    """Return the centres of the major clusters of ``values`` (none if they cover too little)."""
     v = np.sort(values)
     if v.size == 0:
         return v
@@ -122,13 +106,7 @@ def value_clusters(values, floor):
 
 
 def estimate_quantization(position_rad, counts_per_turn=None, t_s=None):
-    """
-    Return the :class:`Quantization` of encoder positions (rad; wrapped or not).
-
-    The robust greatest common divisor of the increments (docs/identification.md, *How
-    identify computes*); ``counts_per_turn`` states the step instead.  When no candidate
-    agrees the positions are "not quantized" and only the smooth fit's noise is used.
-    """
+    """Return the :class:`Quantization` of encoder positions (rad), or of ``counts_per_turn``."""
     pos = np.asarray(position_rad, dtype=float).ravel()
     psi, modulus = unwrap_encoder(pos)
     t = np.arange(pos.size, dtype=float) if t_s is None else np.asarray(t_s, dtype=float)

@@ -1,8 +1,4 @@
-"""
-Savitzky-Golay smoothing of the encoder angle: weights, their accuracy, the angle noise.
-
-The window choice: docs/identification.md, *How identify computes*.
-"""
+"""Savitzky-Golay smoothing of the encoder angle: weights, their accuracy, the angle noise."""
 
 import math
 
@@ -24,9 +20,7 @@ def savgol_weights(window, order, period_s):
     """
     Return the ``(3, window)`` Savitzky-Golay weights of value, slope and curvature.
 
-    Row d applied to ``window`` samples spaced ``period_s`` gives the d-th derivative at
-    the centre; fitted on the abscissa scaled to [-1, 1] (scipy's ``savgol_coeffs`` loses
-    all accuracy for long windows at order 6).
+    Row d gives the d-th derivative at the centre of ``window`` samples spaced ``period_s``.
     """
     half = (window - 1) // 2
     x = np.arange(-half, half + 1) / half
@@ -40,8 +34,7 @@ def window_accuracy(window, order, period_s, angle_noise_rad, turn_hz):
     """
     Return (predicted std dict, gain error dict) of a Savitzky-Golay window.
 
-    Standard deviations from white angle noise ``angle_noise_rad``; the relative gain
-    error of speed and acceleration at 1x and 2x the rotation frequency ``turn_hz``.
+    Std from white angle noise ``angle_noise_rad``; gain errors at 1x and 2x ``turn_hz``.
     """
     half = (window - 1) // 2
     k = np.arange(-half, half + 1)
@@ -60,12 +53,7 @@ def window_accuracy(window, order, period_s, angle_noise_rad, turn_hz):
 
 
 def fit_noise(t_s, psi_rad, order=SG_ORDER):
-    """
-    Return the standard deviation of the angle noise about a smooth fit (rad).
-
-    A Savitzky-Golay fit over :data:`FIT_NOISE_WINDOW` samples; the residual's RMS divided
-    by sqrt(1 - h), h the fit's weight on the centre sample.
-    """
+    """Return the standard deviation of the angle noise about a smooth fit (rad)."""
     psi = np.asarray(psi_rad, dtype=float)
     window = min(FIT_NOISE_WINDOW, (psi.size - 1) | 1) | 1
     if window < order + 2:
