@@ -219,7 +219,7 @@ def test_identification_section_round_trips_bit_for_bit(calibrated, tmp_path):
     ('parameters', ['m[a]'], r'identification\.parameters'),
     ('predicted_rms', {'shaking_force_N': {'value': math.inf, 'std_error': 0.0}},
      r'identification\.predicted_rms\.shaking_force_N'),
-    ('extra', 1, r'identification\.extra: unknown key'),
+    ('extra', 1, r'identification\.extra: unknown field'),
 ])
 def test_identification_section_refuses_bad_fields(calibrated, tmp_path, field, value, match):
     import yaml
