@@ -350,9 +350,6 @@ def relative_gap(primal, lower, floor=1.0):
     return gap, gap / max(abs(float(primal)), floor)
 
 
-# ================================================================ cones folded first
-
-
 SVEC = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2), (0, 3), (1, 3), (2, 3), (3, 3))
 """Clarabel's PSDTriangleConeT order of a 4x4 matrix: the upper triangle by columns (its
 off-diagonal entries times sqrt(2))."""
@@ -546,9 +543,6 @@ def _dual_pow(zb, alpha):
 DUAL_CONES = {'psd': lambda z: _dual_psd(z), 'pow': lambda z: _dual_pow(z, POWER_ALPHA)}
 """The cones :func:`safe_lower_bound` does not take (folded first), and how a dual point is
 moved into each one's dual cone."""
-
-
-# =================================================================== the certificate
 
 
 @dataclass

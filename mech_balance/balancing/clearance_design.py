@@ -149,9 +149,6 @@ def check_side(value, name='disc_side'):
     return value
 
 
-# ============================================================================ the search
-
-
 class _Search:
     """The arrangement and in-plane searches of one convex optimum."""
 
@@ -251,8 +248,6 @@ class _Search:
                 return (f'{shaft.name} crosses the layer of {other.name} '
                         f'(clearance {value * 1e3:.3g} mm)')
         return ''
-
-    # ------------------------------------------------------------------ in the plane
 
     def _params(self, designs):
         return np.concatenate([[d.mass_kg, d.centre_m[0], d.centre_m[1], d.radius_m]

@@ -112,8 +112,6 @@ class Problem:
         self.ny = 4 * self.nl
         self.nx = self.ny + self.nl + len(self.norms)   # y | s (aux) | t (epigraphs)
 
-    # ----------------------------------------------------------------- objective pieces
-
     def weights_vector(self):
         q = np.zeros(self.nx)
         for k, term in enumerate(self.term_of):
@@ -146,8 +144,6 @@ class Problem:
     def secondary(self):
         """Return the index of the tie-break norm (0 force, 1 moment) or None."""
         return redistribution.tie_break_term(self.weights4)
-
-    # ----------------------------------------------------------------------- pins
 
     def _row_space(self, g):
         u, sv, vt = np.linalg.svd(g, full_matrices=False)
@@ -183,8 +179,6 @@ class Problem:
         """Return ``y`` moved onto the exact force balance (orthogonal projection)."""
         rows, target = self.pin(0, y, True)
         return y - rows.T @ (rows @ y - target)
-
-    # ----------------------------------------------------------------------- solve
 
     def run(self, q, pins, bound=None, caps=()):
         nx, ny, nl = self.nx, self.ny, self.nl
@@ -366,8 +360,6 @@ class Problem:
             a[0, ny + nl + k] = -1.0
             a[1:, :ny] = -g
             add(clarabel.SecondOrderConeT, a, np.concatenate([[0.0], c]))
-
-    # ----------------------------------------------------------------------- discs
 
     def discs(self, y):
         """Return (designs, omitted links, worst constraint violation in units of the link)."""

@@ -111,9 +111,6 @@ class CounterweightResult:
             'warnings': [] if self.clearance is None else self.clearance.warnings()})
 
 
-# ============================================================================ public API
-
-
 def balance_with_counterweights(scene, links, weights=DEFAULT_WEIGHTS, *,
                                 density_kg_m3=DEFAULT_DENSITY_KG_M3,
                                 max_thickness_m=DEFAULT_MAX_THICKNESS_M,

@@ -70,9 +70,6 @@ class Option:
             self.check(name, value)
 
 
-# ------------------------------------------------------------------------------ checks
-
-
 def check_weights(name, value):
     """Accept [w1, w2] >= 0, not both 0 (weights of the RMS shaking force and moment)."""
     top = conventions.MAX_WEIGHT
@@ -178,8 +175,6 @@ _tuple = tuple   # parameter arrays become the tuples balance() takes
 def _none_if_zero(value):
     return value or None
 
-
-# ------------------------------------------------------------------------------ table
 
 OPTIONS = (
     Option('weights', 'balance.weights', '--weights', DOUBLE_ARRAY, defaults.DEFAULT_WEIGHTS,

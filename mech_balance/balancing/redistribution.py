@@ -251,9 +251,6 @@ class BalanceResult:
             'solve_time_s': self.solve_time_s})
 
 
-# ============================================================================ cone program
-
-
 @dataclass
 class _Spec:
     n: int

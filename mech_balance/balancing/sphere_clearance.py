@@ -131,8 +131,6 @@ class _Search:
         self.apart = np.array([[bi != bj and j > i for j, bj in enumerate(bodies)]
                                for i, bi in enumerate(bodies)])
 
-    # ------------------------------------------------------------------ the variables
-
     def pack(self, spheres):
         """Return the variables of ``[(body, sphere)]``: centre (3) and mass per sphere."""
         return np.concatenate([[*s['centre_m'], s['mass_kg']] for _, s in spheres])
@@ -159,8 +157,6 @@ class _Search:
         for body, s in spheres:
             out.setdefault(body, []).append(s)
         return out
-
-    # ------------------------------------------------------------------ the figures
 
     def theta(self, spheres):
         """Return the parameters (10 nb,) of the rig with the spheres added."""
@@ -263,8 +259,6 @@ class _Search:
         jac_p[rows_p, aj, 3] = -drad[aj]
         return values, np.concatenate([jac_s.reshape(-1, 4 * n_p),
                                        jac_p.reshape(-1, 4 * n_p)])
-
-    # ------------------------------------------------------------------ the search
 
     def local(self, start, cushion):
         """Return (spheres, least sampled clearance, active bounds) of one SLSQP run."""

@@ -315,9 +315,6 @@ def least_squares_lower_bound(design, target, residual):
     return max(bound.value, 0.0)
 
 
-# ============================================================================ the report
-
-
 class ReportView:
     """SI values or the papers' dimensionless view (by the scene's normalization)."""
 
