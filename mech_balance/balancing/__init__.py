@@ -1,17 +1,9 @@
 """
 Balancing: one entry point, :func:`balance`, for the command line, the node and recordings.
 
-``balance(rig, method=..., **options)`` returns a :class:`Design` for every method and kind
-(:mod:`mech_balance.balancing.result`; its ``to_dict`` is what ``balance --json`` prints and
-the node's ``~/balance`` answers).  The method is chosen from the rig's capabilities, never
-from its kind: ``redistribution`` (:mod:`.redistribution`, or :mod:`.spatial` for a rig with
-body kinematics), ``weights`` (:mod:`.weights`), ``counterweights`` (:mod:`.counterweights`
-or spatial spheres), ``analytic`` (:mod:`.analytic`), ``force_balance``
-(:func:`mech_balance.balancing.spatial.force_balance`), ``auto``: the first the rig supports
-(docs/balancing.md, "Dispatch").
-
-The modules that solve are imported when a method runs, so importing this package is cheap.
-The defaults of every option are :mod:`mech_balance.balancing.defaults`'s.
+``balance(rig, method=..., **options)`` returns a :class:`Design`; the method is chosen from
+the rig's capabilities (:data:`METHODS`; ``auto``: the first the rig supports; docs/balancing.md,
+"Dispatch").  The solving modules are imported when a method runs.
 """
 
 from mech_balance.balancing.defaults import CENTROIDAL_MARGIN, DEFAULT_MAX_GYRATION_FACTOR, \

@@ -1,12 +1,8 @@
 """
 Complete force balance of planar linkages in closed form (the total mass centre stationary).
 
-* slider-crank, seed 000 eqs. 44-75: :func:`slider_crank_balance`;
-* four-bar, Berkof-Lowen, seed 001 eq. 48: :func:`four_bar_balance`.
-
-Both solve no cone program: they are derived in complex numbers for arbitrary link frames
-(docs/balancing.md, "Closed-form force balances") and checked against the physics (the
-shaking force of the result vanishes to round-off).
+Slider-crank (seed 000 eqs. 44-75) and four-bar (Berkof-Lowen, seed 001 eq. 48); the
+derivation: docs/balancing.md, "Closed-form force balances".
 """
 
 from dataclasses import dataclass, replace

@@ -1,14 +1,9 @@
 """
 Safe lower bounds for the balancing cone programs (Jansson 2004; Neumaier & Shcherbina 2004).
 
-Every program is in Clarabel's standard form ``min q'x  s.t.  A x + s = b,  s in K``.  For
-any z in the dual cone K* and a box ``lo <= x <= hi`` that holds an optimal point,
-
-    L = -b'z + sum_i min(r_i lo_i, r_i hi_i)  <=  min q'x,     r = q + A'z        (1)
-
-evaluated with its rounding subtracted (:func:`safe_lower_bound`; PSD and power cones:
-:func:`folded_lower_bound`).  The derivation and the measured gaps: docs/balancing.md,
-"Certificates (safe lower bounds)".
+For Clarabel's ``min q'x s.t. A x + s = b, s in K``, any z in K* and a box lo <= x <= hi
+holding an optimum: ``L = -b'z + sum_i min(r_i lo_i, r_i hi_i) <= min q'x``, r = q + A'z (1),
+with its rounding subtracted.  docs/balancing.md, "Certificates (safe lower bounds)".
 """
 
 from dataclasses import dataclass, field

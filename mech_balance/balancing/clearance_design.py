@@ -1,10 +1,8 @@
 """
 Collision-free counterweights: the certified convex optimum moved into layers of its own.
 
-:func:`design` puts each disc of the convex optimum in a layer of its own beyond the linkage
-and, where no arrangement is clear, searches the discs in the plane (SLSQP) with the
-clearance as constraints; ``z - z_lb`` is the price of clearance (docs/build.md,
-"Collision-free by default").
+Where no layer arrangement is clear, the discs are searched in the plane (SLSQP); ``z - z_lb``
+is the price of clearance (docs/build.md, "Collision-free by default").
 """
 
 from dataclasses import dataclass, field, replace

@@ -1,11 +1,7 @@
 """
 Which value of a scene makes a balancing cone program ill-posed: the text a failed solve adds.
 
-A solver failure (after every retry of :data:`mech_balance.conic.RETRY_SETTINGS`) is reported
-with the scene values that spread the program's data over more decades than the solver
-resolves (:func:`blame`): the objective's units (``normalization``) far from the scene's
-masses, lengths and crank speed, or link masses spanning many decades.  The limits are
-measured (docs/balancing.md, "Ill-scaled scenes").
+The limits are measured (docs/balancing.md, "Ill-scaled scenes").
 """
 
 import math

@@ -1,9 +1,7 @@
 """
 The counterweight program: one disc per listed link as a second-order cone program.
 
-:class:`Problem` builds the cones (docs/balancing.md, "Counterweights (add-only discs)") in
-link units, runs its stages with Clarabel, bounds their optimum safely (:mod:`.certificate`)
-and turns a point into the discs as built (:class:`CounterweightDesign`).
+docs/balancing.md, "Counterweights (add-only discs)".
 """
 
 from dataclasses import dataclass, field

@@ -1,13 +1,9 @@
 """
 Add-only counterweight balancing: one solid disc per listed link, to a certified optimum.
 
-Each listed link keeps its own mass, mass centre and inertia and gains one disc (axis normal
-to the plane of motion) of density rho, thickness t <= t_max, centre |r| <= r_max and mass
-dm <= max_mass_factor x the link's; every other link is untouched.  The discs' set is
-convex (two rotated second-order cones and ``|dh| <= r_max dm``), so the problem is a
-certified second-order cone program (:mod:`.counterweight_program`; the derivation:
-docs/balancing.md, "Counterweights (add-only discs)").  Objective and ties as
-:func:`mech_balance.balancing.redistribution.optimize`, then the least total added mass.
+Each listed link gains one disc of density rho, thickness t <= t_max, centre |r| <= r_max and
+mass dm <= max_mass_factor x the link's; a second-order cone program
+(:mod:`.counterweight_program`; docs/balancing.md, "Counterweights (add-only discs)").
 """
 
 from dataclasses import dataclass

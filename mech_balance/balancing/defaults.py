@@ -1,9 +1,7 @@
 """
 The balancing defaults: the one home of every default the balancing options take.
 
-The command line (``mech-balance balance``, ``record --balance``), the rig node's
-``balance.*`` parameters and :func:`mech_balance.balancing.balance` all read them here; the
-README's *Conventions* section lists them.
+The README's *Conventions* section lists them.
 """
 
 

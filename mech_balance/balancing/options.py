@@ -1,11 +1,8 @@
 """
 The balancing options, each declared once: the command line's and the node's from one table.
 
-:data:`OPTIONS` holds every option of :func:`mech_balance.balancing.balance` that a user sets:
-its keyword, the node's ``balance.*`` parameter (:mod:`mech_balance.ros.params`), the
-``mech-balance balance`` flag (:mod:`mech_balance.cli.balance`), type, default, texts, bounds,
-choices, check and methods.  :func:`from_params` and :func:`from_args` turn either surface's
-values into ``balance()``'s keyword arguments by the same entries.  No ROS import here.
+:data:`OPTIONS`: keyword, ``balance.*`` parameter, ``mech-balance balance`` flag, type, default,
+texts, bounds, check and methods; :func:`from_params` and :func:`from_args` read either surface.
 """
 
 from dataclasses import dataclass

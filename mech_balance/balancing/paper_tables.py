@@ -1,9 +1,4 @@
-"""
-Seed 001's printed tables that the code compares itself with (data, normalized units).
-
-``balance`` prints its optima next to them (:func:`compare_optimum`); damaged entries of the
-extracted text are reconstructed where noted.
-"""
+"""Seed 001's printed tables that the code compares itself with (data, normalized units)."""
 
 WEIGHT_CASES = ((1.0, 0.0), (0.5, 0.5), (0.0, 1.0))
 """The three weightings of seed 001 Tables 5-10, cases (1)-(3)."""

@@ -1,11 +1,9 @@
 """
 Optimal mass redistribution of planar linkages (seed 001 eqs. 42-53): :func:`optimize`.
 
-Each RMS is the norm of a linear map of the links' inertial parameters, so the paper's
-problem is a second-order cone program in them, solved by Clarabel and certified by a safe
-lower bound (:mod:`mech_balance.balancing.certificate`); the constraints in theta:
-docs/balancing.md, "Mass redistribution".  The objective ``z = w1 f~ + w2 n~`` is in the
-units of :func:`mech_balance.core.planar.rig.objective_units` (seed 001 sec. 3.4).
+A second-order cone program in the links' inertial parameters, solved by Clarabel and certified
+by a safe lower bound (:mod:`mech_balance.balancing.certificate`); docs/balancing.md, "Mass
+redistribution".
 """
 
 from dataclasses import dataclass, replace

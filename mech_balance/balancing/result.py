@@ -1,12 +1,8 @@
 """
 The one result of :func:`mech_balance.balancing.balance`, for every method and kind of rig.
 
-A :class:`Design` carries ``success``, ``status``, ``message``, the ``objective`` and its
-``lower_bound``, ``certified``, the balanced design per link, the balanced scene, the
-method's report and its native result; :meth:`Design.to_dict` is the one shape of ``balance
---json`` and the node's answer (docs/cli.md, "JSON output").  The objective is a cone
-program's z (seed 001 eq. 43) with its certificate, a closed-form force balance's RMS force
-after / before (bound 0), or the balancing weights' RMS moment with its bound.
+:meth:`Design.to_dict` is the one shape of ``balance --json`` and the node's answer
+(docs/cli.md, "JSON output").
 """
 
 from dataclasses import dataclass

@@ -1,10 +1,7 @@
 """
 Collision-free sphere counterweights of spatial rigs: the convex optimum, then a local search.
 
-:func:`design` checks the certified spheres against every body
-(:mod:`mech_balance.analysis.spatial_clearance`) and, where they come closer than the margin,
-searches their centres and masses (SLSQP) within the convex program's bounds; ``z - z_lb`` is
-the price of clearance (docs/build.md, "Spatial rigs: sphere counterweights").
+``z - z_lb`` is the price of clearance (docs/build.md, "Spatial rigs: sphere counterweights").
 """
 
 from dataclasses import dataclass, replace

@@ -1,9 +1,4 @@
-"""
-The before/after table and the per-link design rows that every planar method reports.
-
-:func:`before_after` (RMS bearing forces, driving torque, shaking force and moment, normalized
-and SI) and :func:`link_design` (three equimomental point masses, seed 001 eqs. 8-15).
-"""
+"""The before/after table and the per-link design rows that every planar method reports."""
 
 from dataclasses import dataclass, field
 import math

@@ -1,13 +1,8 @@
 """
 Balancing weights (seed 002): force balance, then the least RMS shaking moment.
 
-The method ``weights`` of :func:`mech_balance.balancing.balance` for a spatial rig whose
-scene lists ``balancing_weights`` (the RGGR, ``config/rggr.yaml``): one weight on each link
-pivoted on the frame zeroes the shaking force (eqs. 1-14, least squares over the regressor
-of :func:`mech_balance.core.regressor.wrench_regressor`); then the products of inertia
-``(I_wu, I_vw)`` of each weighted link about its pivot minimize the RMS shaking moment
-(eqs. 73-95, least squares with a safe lower bound); a cylinder weight's end faces give it
-those products (eqs. 96-103).  docs/balancing.md, "Hedaya: balancing weights".
+The method ``weights`` for a spatial rig whose scene lists ``balancing_weights`` (the RGGR);
+docs/balancing.md, "Hedaya: balancing weights".
 """
 
 from dataclasses import dataclass, replace

@@ -1,9 +1,7 @@
 """
 The parameter models of spatial rigs, the objective's units and the RMS maps.
 
-A kind takes part through a parameter model (:data:`PARAMETER_MODELS`): which inertial
-parameters of each body its scene can hold (``theta_k = B_k y_k``) and how a design is written
-back.  The RMS maps (:func:`maps_of`) and the spatial methods' option checks are here too.
+A kind takes part through :data:`PARAMETER_MODELS`; the spatial methods' option checks are here.
 """
 
 from dataclasses import dataclass

@@ -1,9 +1,4 @@
-"""
-Complete force balance of a spatial rig: the null space of its force map (:func:`force_balance`).
-
-The conditions express rank(F) pivot parameters through the others; the least change of the
-free bodies that meets them is returned (docs/balancing.md, "Spatial rigs").
-"""
+"""Complete force balance of a spatial rig: the null space of its force map."""
 
 from dataclasses import dataclass, field
 

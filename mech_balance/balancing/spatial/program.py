@@ -1,9 +1,7 @@
 """
 The cone program of the spatial redistribution and counterweights (Clarabel, with PSD cones).
 
-``min q'x s.t. A x + s = b, s in K`` with x = (y, t_f, t_n): theta = offset + basis y, built
-block by block (:class:`ConeProgram`); the pseudo-inertia ``J(theta)`` of each body enters as a
-4x4 PSD block (:data:`J_MAP`, Clarabel's scaled triangle :data:`~.certificate.SVEC`).
+Each body's pseudo-inertia enters as a 4x4 PSD block (:data:`J_MAP`).
 """
 
 import math

@@ -1,9 +1,7 @@
 """
 Certified optimal redistribution of a spatial rig with physically realizable bodies.
 
-Minimize ``w1 f~ + w2 n~`` over the free bodies' parameters, each body's pseudo-inertia PSD
-(Wensing, Kim & Slotine 2017), with mass and extent bounds (:class:`~.program.ConeProgram`,
-certified by :func:`~.result.finish`; docs/balancing.md, "Spatial rigs").
+docs/balancing.md, "Spatial rigs".
 """
 
 import math

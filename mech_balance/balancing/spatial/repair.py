@@ -1,10 +1,4 @@
-"""
-The constraints of a spatial redistribution at a design, and the repair of solver round-off.
-
-:class:`RealizableChecks`: each free body's mass bounds, PSD pseudo-inertia and extent bound
-evaluated in the units of the program (:func:`~.model.program_units`), an interior anchor,
-and the least move onto the feasible set.
-"""
+"""The constraints of a spatial redistribution at a design, and the repair of solver round-off."""
 
 import math
 

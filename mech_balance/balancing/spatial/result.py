@@ -1,10 +1,4 @@
-"""
-The result of a spatial redistribution or counterweights: evaluated, certified, tabled.
-
-:func:`finish` evaluates the written design with the core (``rig.at``), certifies it
-(:func:`mech_balance.balancing.certificate.folded_lower_bound`) and returns a
-:class:`SpatialResult`; :func:`write_scene` writes the balanced scene.
-"""
+"""The result of a spatial redistribution or counterweights: evaluated, certified, tabled."""
 
 from dataclasses import dataclass
 import math

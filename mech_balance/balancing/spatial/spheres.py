@@ -1,10 +1,8 @@
 """
 Certified optimal add-only counterweights of a spatial rig: clusters of hollow spheres.
 
-Each listed body keeps its parameters and gains a counterweight; the convex set
-``[[Sigma - s 1, dh], [dh^T, dm]]`` PSD and ``s >= k dm^(5/3)`` (a power cone) is exactly what
-clusters of hollow spheres realize (docs/balancing.md, "Spatial rigs"), so the optimum is
-built (:func:`sphere_cluster`) and certified as the redistribution is.
+The convex set is exactly what clusters of hollow spheres realize (docs/balancing.md, "Spatial
+rigs").
 """
 
 import math
