@@ -353,11 +353,7 @@ POWER_ALPHA = 0.6
 
 
 def folded_lower_bound(run, lo, hi):
-    """
-    Return (value, LowerBound, fold rounding): the safe lower bound with PSD and power cones.
-
-    Their duals are moved into K* and folded into the objective (docs/balancing.md).
-    """
+    """Return (value, LowerBound, fold rounding): the safe lower bound with PSD and power cones."""
     z = np.asarray(run.sol.z, dtype=float)
     best = _fold_at(run, z, lo, hi)
     if not (math.isfinite(best[0]) and

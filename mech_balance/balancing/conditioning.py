@@ -29,11 +29,7 @@ def _unit_cause(what, value, unit_key, unit, limit, near):
 
 
 def blame(scene, units=None, speed_rad_s=None):
-    """
-    Return the text naming every scene value that makes the program ill-posed ('' if none).
-
-    ``units``: the scene's ``normalization`` when the objective uses it (None: its own units).
-    """
+    """Return the text naming every scene value that makes the program ill-posed ('' if none)."""
     causes = []
     masses = {lk.name: float(lk.mass_kg) for lk in scene.links
               if math.isfinite(float(lk.mass_kg)) and float(lk.mass_kg) > 0.0}

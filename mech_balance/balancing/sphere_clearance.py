@@ -205,11 +205,7 @@ class _Search:
         return np.array(out), names
 
     def gaps(self, spheres, jacobian=False):
-        """
-        Return the least sampled clearance of every sphere pair with another body (m).
-
-        With ``jacobian``: also its derivative ``(pairs, 4 P)`` at each pair's least sample.
-        """
+        """Return the least sampled clearance (m) of each sphere-body pair (and its jacobian)."""
         local = np.array([s['centre_m'] for _, s in spheres])           # (P, 3)
         radii = np.array([s['outer_radius_m'] for _, s in spheres])
         mass = np.array([s['mass_kg'] for _, s in spheres])

@@ -32,11 +32,7 @@ class SpatialBalanceError(BalanceError):
 
 @dataclass(frozen=True)
 class BodyModel:
-    """
-    What a kind's scene can hold of one body: ``theta = basis @ y`` (``basis`` (10, d)).
-
-    ``orders``: each column's power of length; ``counterweights``: True or why not.
-    """
+    """What a kind's scene can hold of one body: ``theta = basis @ y`` (``basis`` (10, d))."""
 
     name: str
     basis: np.ndarray
@@ -63,11 +59,6 @@ class ParameterModel:
             raise SpatialBalanceError(f'{option}: got {name!r}, expected one of '
                                       f'{", ".join(names)}')
         return names.index(name)
-
-
-def full_body(name, reach):
-    """Return the :class:`BodyModel` of a body with all ten parameters free."""
-    return BodyModel(name, np.eye(10), (0, 1, 1, 1, 2, 2, 2, 2, 2, 2), reach)
 
 
 def line_basis(point_a, point_b):
@@ -115,7 +106,7 @@ def spatial_model(rig):
                                     ('m', 'm s', 'm s^2'),
                                     float(np.linalg.norm(ends[0]))))
         else:
-            bodies.append(full_body(name, reach))
+            bodies.append(BodyModel(name, np.eye(10), (0, 1, 1, 1, 2, 2, 2, 2, 2, 2), reach))
 
     def build(t, name=None):
         t = np.asarray(t, dtype=float).reshape(-1, 10)
@@ -265,11 +256,7 @@ def coordinates(body, theta_k):
 
 
 def program_units(model, k, m_lo, m_hi, radius):
-    """
-    Return (M, R): the units of body k's variables in the redistribution and its checks.
-
-    The rig's own units (:func:`reference_units`) moved into the bounds (docs/balancing.md).
-    """
+    """Return (M, R): body k's units (:func:`reference_units`) moved into its bounds."""
     m0, r0 = reference_units(model, k)
     return (float(min(max(m0, m_lo), m_hi)),
             float(min(r0, radius + model.bodies[k].line_offset_m)))

@@ -18,12 +18,7 @@ round-off (left out of the text, kept in the matrix)."""
 
 @dataclass
 class ForceBalance:
-    """
-    The complete force balance of a spatial rig.
-
-    ``conditions`` ``[{'parameter': name, 'equals': {name: coefficient}}]`` (SI); ``theta``
-    the least change of the free bodies that meets them (``attainable``: it balances).
-    """
+    """The complete force balance of a spatial rig: its conditions (SI) and least change."""
 
     scene: object
     balanced_scene: object
