@@ -20,19 +20,16 @@ METHODS = {
 }
 """Balancing methods by name, and the rig capability each needs."""
 ALTERNATIVES = {'redistribution': 'body_kinematics', 'counterweights': 'body_kinematics'}
-"""Methods that a second capability also supports (the spatial implementation), tried by
-``auto`` after every method's own capability."""
+"""Methods that a second capability (the spatial implementation) also supports."""
 AUTO_LAST = ('force_balance',)
-"""Methods ``auto`` picks only when nothing else applies (a spatial rig's default is the
-certified redistribution, as a planar rig's)."""
+"""Methods ``auto`` picks only when nothing else applies."""
 SPATIAL_OPTIONS = {
     'redistribution': ('weights', 'samples', 'mass_bounds', 'mass_factors', 'fixed_links',
                        'extent_bounds', 'extent_factor', 'force_balanced'),
     'counterweights': ('links', 'weights', 'samples', 'density_kg_m3', 'max_mass_factor',
                        'max_radius_factor'),
     'force_balance': ('samples', 'free')}
-"""The options of each spatial method; the planar options at their defaults are ignored (the
-node passes them all), any other value is refused."""
+"""The options of each spatial method (other options: :data:`PLANAR_DEFAULTS`)."""
 PLANAR_DEFAULTS = {'case': 'a', 'realizable': True, 'paper_constraints': False,
                    'distance_bounds': None, 'torque_weight': 0.0, 'reaction_weight': 0.0,
                    'max_added_mass_kg': None, 'max_thickness_m': DEFAULT_MAX_THICKNESS_M,
@@ -57,8 +54,7 @@ def _design(result, method, certificate, report=None):
 
 
 LINK_OPTIONS = ('mass_bounds', 'distance_bounds')
-"""Per-link options of the redistribution (``{link: (min, max)}``; the node's
-``balance.links.<link>.<option>``)."""
+"""Per-link options of the redistribution (``{link: (min, max)}``)."""
 
 
 def link_options(rig):
@@ -76,8 +72,7 @@ def _supports(method, caps):
 
 
 SPATIAL_RANGES = {'redistribution': {'mass_factors': SPATIAL_MASS_FACTOR_RANGE}}
-"""Options whose range is narrower in the spatial implementation of a method (measured where
-it certifies: :data:`mech_balance.balancing.defaults.SPATIAL_MASS_FACTOR_RANGE`)."""
+"""Options whose range is narrower in the spatial implementation of a method."""
 
 
 def option_ranges(rig, method):

@@ -19,8 +19,7 @@ SVD_MARGIN = 1e-6
 """Relative margin on level-set reaches computed from singular vectors: it covers their
 rounding (orthogonal to ~1e-15) for the directions kept."""
 CONE_FAMILIES = ('zero', 'nonneg', 'soc')
-"""The cones of the balancing programs, by name (Clarabel's ZeroConeT, NonnegativeConeT,
-SecondOrderConeT)."""
+"""The cones of the balancing programs, by name."""
 GAP_FLOOR = 1.0
 """Relative gap = |primal - dual| / max(|primal|, |dual|, GAP_FLOOR) (normalized units)."""
 CERTIFIED_GAP_REL = 1e-5
@@ -263,8 +262,7 @@ def level_set_bounds(mat, radius, lo, hi, centre=None, null_rel_tol=None):
     """
     Return (lo, hi, nulls): the infinite entries replaced by what ``||mat y|| <= radius`` implies.
 
-    A rank-deficient ``mat`` needs ``centre`` and ``null_rel_tol``: directions below it are
-    taken as null directions an optimum shares with the centre (``nulls`` of them).
+    A rank-deficient ``mat`` needs ``centre`` and ``null_rel_tol`` (``nulls``: directions taken).
     """
     lo = np.array(lo, dtype=float)
     hi = np.array(hi, dtype=float)
@@ -366,8 +364,7 @@ def folded_lower_bound(run, lo, hi):
 
 
 REFINE_WEIGHT_FLOOR = 1e-10
-"""The least weight of a dual entry in :func:`_slack_weighted_duals`, relative to the largest
-slack."""
+"""The least weight of a dual entry in :func:`_slack_weighted_duals` (x the largest slack)."""
 
 
 def _slack_weighted_duals(run, z):
@@ -532,8 +529,7 @@ def _dual_pow(zb, alpha):
 
 
 DUAL_CONES = {'psd': lambda z: _dual_psd(z), 'pow': lambda z: _dual_pow(z, POWER_ALPHA)}
-"""The cones :func:`safe_lower_bound` does not take (folded first), and how a dual point is
-moved into each one's dual cone."""
+"""The cones folded first, and how a dual point is moved into each one's dual cone."""
 
 
 @dataclass
@@ -590,8 +586,7 @@ def certify(stage, primal, bound, violation, pull, failed, design_violation, sta
     """
     Return the :class:`Certificate` of a primary :class:`Stage` whose design has z ``primal``.
 
-    ``violation``: the solver's design's before the ``pull``; ``design_violation``: the
-    returned design's; ``detail``: entries added to :func:`bound_detail`.
+    ``violation``: before the ``pull``; ``detail``: entries added to :func:`bound_detail`.
     """
     import clarabel
     lower = min(bound.value, primal)

@@ -25,8 +25,7 @@ DEFAULT_DENSITY_KG_M3 = 7850.0
 DEFAULT_MAX_THICKNESS_M = 0.02
 """Thickest disc allowed (m)."""
 DEFAULT_MAX_RADIUS_FACTOR = 1.0
-"""Disc centre at most this factor times the distance from the link origin to its farthest
-joint point."""
+"""Disc centre at most this factor times the link's joint reach."""
 DEFAULT_MAX_MASS_FACTOR = 5.0
 """Disc mass at most this factor times the link's own mass."""
 DEFAULT_MAX_GYRATION_FACTOR = 2.0
@@ -50,8 +49,7 @@ COUNTERWEIGHT_RANGES = {
     'max_gyration_factor': (1e-3, 100.0),
     'max_rim_radius_factor': (1e-3, 10.0),
 }
-"""The range of each counterweight option, (lowest, highest), both included (why:
-docs/balancing.md, "Option ranges")."""
+"""The range of each counterweight option, (lowest, highest), both included."""
 BOUND_RATIO_RANGE = (1e-6, 1e6)
 """Link mass and point-mass distance bounds of the redistribution must lie within these
 factors of the link's original value (a tighter bound no solver tells from zero)."""
@@ -59,8 +57,7 @@ EXTENT_FACTOR_RANGE = (0.1, 2.0)
 """The spatial redistribution's extent bound as a factor of each body's reach, where it
 certifies (docs/balancing.md, "Spatial rigs")."""
 SPATIAL_MASS_FACTOR_RANGE = (1e-6, 1e2)
-"""Mass factors of the spatial redistribution, where it certifies (docs/balancing.md,
-"Spatial rigs")."""
+"""Mass factors of the spatial redistribution, where it certifies."""
 
 
 def check_range(name, value, lowest, highest, unit=''):
@@ -88,8 +85,7 @@ DISTANCE_RATIO_RANGE = (1e-2, 1e2)
 """Point-mass distance bounds (and factors) of the redistribution within these factors of
 the link's original l (I_O scales with l^2: eight decades)."""
 ABSOLUTE_BOUND_RANGE = {'kg': (1e-6, 1e6), 'm': (1e-6, 1e3)}
-"""Where a link mass (kg) or point-mass distance (m) bound may be set without the scene at
-hand (the rig node's parameters)."""
+"""Where a link mass (kg) or point-mass distance (m) bound may be set without the scene."""
 
 
 def check_bound_pair(name, low, high, unit):

@@ -27,12 +27,7 @@ ALL_METHODS = ('redistribution', 'counterweights', 'analytic', 'weights', 'force
 
 @dataclass(frozen=True)
 class Option:
-    """
-    One balancing option (module docstring); ``param``/``flag`` None where a surface lacks it.
-
-    ``param_default``/``to_option``: the parameter's form where it differs from ``default``;
-    ``cli``: the flag's argparse keywords; ``flag_help``: its text if not ``description``.
-    """
+    """One balancing option (module docstring); ``param``/``flag`` None if a surface lacks it."""
 
     key: str
     param: str
@@ -94,8 +89,7 @@ def parse_link_bounds(name, text, unit):
     """
     Return ``{link: (min, max)}`` from a ``balance.*_bounds`` text, or None when empty.
 
-    The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in
-    ``unit`` (:func:`mech_balance.schema.safe_yaml.loads`).
+    The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in ``unit``.
     """
     if not text.strip():
         return None

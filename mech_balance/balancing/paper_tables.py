@@ -62,12 +62,7 @@ def weight_case(weights):
 
 
 def compare_optimum(result):
-    """
-    Return how a redistribution optimum compares with seed 001's, or None where none applies.
-
-    The table's label, ``f``, ``n``, ``z_paper``, this ``z``, the change in percent,
-    ``paper_constraints`` and ``unrealizable`` (links of the paper's design that are no body).
-    """
+    """Return how a redistribution optimum compares with seed 001's, or None where none applies."""
     k = weight_case(result.weights)
     name = result.scene.name
     if k is None or result.torque_weight or result.reaction_weight or \

@@ -44,12 +44,9 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     """
     Return the globally optimal mass distribution of a planar scene (a :class:`BalanceResult`).
 
-    Minimizes ``z = w1 f~ + w2 n~ [+ torque_weight tau~ + reaction_weight sum_j f~_j]`` over
-    the links' mass, mass centre and inertia.  ``mass_bounds`` ``{link: (min_kg, max_kg)}``,
-    ``distance_bounds`` ``{link: (min_m, max_m or None)}`` (defaults: the factors x the
-    original); ``case`` 'a' or 'b' (point masses >= 0); ``paper_constraints``: seed 001 eqs.
-    50/53 exactly (docs/balancing.md, "Mass redistribution").  Raises
-    :class:`~.checks.BalanceError` naming a bad option.
+    ``mass_bounds`` ``{link: (min_kg, max_kg)}``, ``distance_bounds`` ``{link: (min_m, max_m
+    or None)}`` (defaults: the factors x the original); docs/balancing.md, "Mass
+    redistribution".  Raises :class:`~.checks.BalanceError` naming a bad option.
     """
     t_start = time.perf_counter()
     w1, w2 = check_weights(weights)

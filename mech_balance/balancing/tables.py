@@ -8,8 +8,7 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.core import equimomental
 
 CHANGE_BASELINE_REL_TOL = 1e-9
-"""A before value below this fraction of the table's largest of its kind is round-off: its
-change is None ('n/a')."""
+"""A before value below this fraction of its kind's largest is round-off (change None)."""
 
 
 @dataclass
@@ -63,8 +62,7 @@ def before_after(original, balanced, samples=None):
     """
     Return the before/after rows of RMS bearing forces, torque, shaking force and moment.
 
-    Each row: quantity, ``unit``/``before``/``after`` (normalized if the scene is), the same
-    ``*_si`` and ``change_percent`` (None: :data:`CHANGE_BASELINE_REL_TOL`).
+    Each row: quantity, unit, before, after (normalized if the scene is), ``*_si``, change %.
     """
     rig = analysis.Rig(original.with_outputs(('bearing_reactions',)))
     cycles = [analysis.run_cycle(r, samples) for r in

@@ -18,8 +18,7 @@ from mech_balance.conic import INFEASIBLE
 import numpy as np
 
 EXTENT_FACTOR = 1.5
-"""Default extent bound: RMS distance of a body's mass from its origin at most this factor
-times its reach (the farthest point of its drawing from its origin)."""
+"""Default extent bound: RMS distance of a body's mass from its origin <= this x its reach."""
 
 
 def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAPER_MASS_FACTORS,
@@ -28,8 +27,7 @@ def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAP
     """
     Return the certified optimal redistribution (:class:`SpatialResult`) of a spatial rig.
 
-    Bodies not ``fixed`` change within ``mass_bounds`` ``{body: (lo_kg, hi_kg)}`` and
-    ``extent_bounds`` ``{body: r_m}`` (defaults: the factors x the original).
+    ``mass_bounds`` ``{body: (lo_kg, hi_kg)}``, ``extent_bounds`` ``{body: r_m}``.
     """
     t_start = time.perf_counter()
     w = check_weights(weights)

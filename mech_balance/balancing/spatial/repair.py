@@ -39,12 +39,7 @@ class RealizableChecks:
         return float(max([0.0] + [max(self._body(theta, k)) for k in self.free]))
 
     def anchor(self, near=None):
-        """
-        Return a design strictly inside every bound.
-
-        ``near`` (a design): each body keeps its mass (clipped) and first moment (shrunk), so a
-        pull towards the anchor leaves the shaking force as it was.
-        """
+        """Return a design strictly inside every bound (``near``: keep its mass, first moment)."""
         theta = self.model.theta.copy()
         for k in self.free:
             body = self.model.bodies[k]
@@ -104,8 +99,7 @@ class RealizableChecks:
         """
         Return (theta, pull): theta moved onto the feasible set where round-off left it.
 
-        The masses clipped, then the least spread that makes each J PSD, else the least
-        fraction ``pull`` of the way to the :meth:`anchor`; ``objective`` picks of the two.
+        ``pull``: the fraction of the way to the :meth:`anchor` (0 when clipping sufficed).
         """
         if self.feasible(theta):
             return theta, 0.0

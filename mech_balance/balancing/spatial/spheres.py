@@ -28,12 +28,7 @@ core's value of the built spheres)."""
 def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
                    density_kg_m3=DEFAULT_DENSITY_KG_M3, max_mass_factor=DEFAULT_MAX_MASS_FACTOR,
                    max_radius_factor=DEFAULT_MAX_RADIUS_FACTOR):
-    """
-    Return the certified optimal add-only spheres on the listed bodies (a SpatialResult).
-
-    Each listed body gains spheres of at most ``max_mass_factor`` x its mass within RMS
-    distance ``max_radius_factor`` x its reach of its origin (:func:`sphere_cluster`).
-    """
+    """Return the certified optimal add-only spheres on the listed bodies (a SpatialResult)."""
     t_start = time.perf_counter()
     w = check_weights(weights)
     model = parameter_model(rig)
@@ -191,8 +186,7 @@ def sphere_cluster(dm, dh, sigma, s, density_kg_m3, reach_m):
     """
     Return the spheres realizing a counterweight (dm, dh, Sigma about the origin, spread s).
 
-    Pairs along the principal axes of the spread about c = dh / dm.  Each entry: mass_kg,
-    centre_m (body axes), spread_kg_m2, outer_radius_m, inner_radius_m.
+    Each entry: mass_kg, centre_m (body axes), spread_kg_m2, outer_radius_m, inner_radius_m.
     """
     c = np.asarray(dh, dtype=float) / dm
     spread = np.asarray(sigma, dtype=float) - s * np.eye(3) - dm * np.outer(c, c)
