@@ -16,8 +16,7 @@ import scipy.sparse as sp
 UNIT_ROUNDOFF = np.finfo(float).eps / 2.0
 """u of IEEE double precision (round to nearest)."""
 SVD_MARGIN = 1e-6
-"""Relative margin on level-set reaches computed from singular vectors: it covers their
-rounding (orthogonal to ~1e-15) for the directions kept."""
+"""Relative margin on level-set reaches computed from singular vectors (their rounding)."""
 CONE_FAMILIES = ('zero', 'nonneg', 'soc')
 """The cones of the balancing programs, by name."""
 GAP_FLOOR = 1.0
@@ -109,8 +108,7 @@ def refine_dual(a, z, r, cols, weight, rot=None):
     """
     Return z + Delta: the least ``sum w_i Delta_i^2`` with ``(A'Delta)_j = -r_j`` on ``cols``.
 
-    ``weight`` (m,): a row of weight ``inf`` stays; ``rot`` (m, m) orthogonal: Delta is
-    weighted in its basis (``Delta = rot @ d``); None: the identity.
+    ``weight`` (m,): ``inf`` keeps a row; ``rot`` (m, m) orthogonal: the basis of the weights.
     """
     a = _dense(a)
     rows = np.flatnonzero(np.isfinite(weight))
@@ -344,8 +342,7 @@ def relative_gap(primal, lower, floor=1.0):
 
 
 SVEC = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2), (0, 3), (1, 3), (2, 3), (3, 3))
-"""Clarabel's PSDTriangleConeT order of a 4x4 matrix: the upper triangle by columns (its
-off-diagonal entries times sqrt(2))."""
+"""Clarabel's PSDTriangleConeT order of a 4x4 matrix: the upper triangle by columns."""
 POWER_ALPHA = 0.6
 """The power cone x^alpha y^(1 - alpha) >= |z| of the spheres' least spread (5/3 = 1/alpha)."""
 
@@ -420,8 +417,7 @@ def _project_all(z, run):
 
 
 STRUCTURAL_RANK_REL = 1e-12
-"""Singular values of a PSD block's matrices below this fraction of the largest span no
-direction of its range (:func:`_psd_ranges`)."""
+"""Singular values of a PSD block's matrices below this fraction of the largest are null."""
 
 
 def _psd_ranges(run):
@@ -617,7 +613,6 @@ def bound_detail(bound):
 
 
 __all__ = ['bound_detail', 'Certificate', 'CERTIFIED_GAP_REL', 'certify', 'cone_list',
-           'failed_stage',
-           'folded_lower_bound', 'gamma', 'GAP_FLOOR', 'level_set_bounds', 'LowerBound',
-           'norm_bound', 'polytope_bounds', 'POWER_ALPHA', 'project_dual', 'relative_gap',
-           'safe_lower_bound', 'Stage', 'SVEC']
+           'failed_stage', 'folded_lower_bound', 'gamma', 'GAP_FLOOR', 'level_set_bounds',
+           'LowerBound', 'norm_bound', 'polytope_bounds', 'POWER_ALPHA', 'project_dual',
+           'relative_gap', 'safe_lower_bound', 'Stage', 'SVEC']

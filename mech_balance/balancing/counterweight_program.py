@@ -18,8 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 MIN_MASS_REL = 1e-7
-"""An optimal disc mass below this fraction of its link's mass is no counterweight (omitted:
-its centre is the solver's noise)."""
+"""An optimal disc mass below this fraction of its link's mass is omitted (solver noise)."""
 FREE_INERTIA_REL = 1e-12
 """A link's inertia column below this fraction of a term's map: the inertia enters no term."""
 

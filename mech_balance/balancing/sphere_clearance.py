@@ -28,13 +28,11 @@ START_SHRINK = (0.5, 0.25)
 CLEAR_ROWS = 12
 """The local search constrains this many of the least pairs' sampled clearances."""
 SEARCH_CUSHION = 0.05
-"""The search asks the sampled clearance for margin x (1 + this) (between samples it may dip
-a little lower); a design that fails the dense check is searched again with this doubled."""
+"""The search asks the sampled clearance for margin x (1 + this), then x (1 + 2 this)."""
 SEARCH_MAX_ITER = 300
 """Iteration limit of one local search (SLSQP)."""
 SEARCH_ANGLES = 120
-"""Crank angles the local search samples the clearance at (3 deg: between samples a smooth
-clearance dips by about its curvature x (1.5 deg)^2 / 2, far below the cushion)."""
+"""Crank angles the local search samples the clearance at (every 3 deg)."""
 VERIFY_ANGLES = 3600
 """Crank angles of the final check of a design found by the search."""
 BOUND_ACTIVE_REL = 1e-4
@@ -338,8 +336,7 @@ def design(rig, result, samples, margin_m):
     """
     Return ``(result, report entries)``: the convex sphere optimum made collision-free.
 
-    ``margin_m`` None: the check only.  The entries: ``clearance``, ``warnings``,
-    ``clearance_design``.  Raises :class:`NoClearDesign` when no design is clear.
+    ``margin_m`` None: the check only.  Raises :class:`NoClearDesign` when no design is clear.
     """
     margin = check_margin(margin_m)
     cert = result.certificate

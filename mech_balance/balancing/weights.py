@@ -429,5 +429,4 @@ def format_report(report):
     return '\n'.join(lines)
 
 
-__all__ = ['balance_report', 'balance_weights', 'format_report', 'WeightsError',
-           'WeightsResult']
+__all__ = ['balance_report', 'balance_weights', 'format_report', 'WeightsError', 'WeightsResult']

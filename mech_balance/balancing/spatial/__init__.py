@@ -5,14 +5,11 @@ Generic over every rig with the ``'body_kinematics'`` capability (docs/balancing
 rigs").
 """
 
-from mech_balance.balancing.spatial.model import parameter_model, PARAMETER_MODELS, \
-    SpatialBalanceError
-from mech_balance.balancing.spatial.null_space import force_balance, ForceBalance, \
-    format_conditions
+from mech_balance.balancing.spatial.model import parameter_model, SpatialBalanceError
+from mech_balance.balancing.spatial.null_space import force_balance, format_conditions
 from mech_balance.balancing.spatial.redistribution import redistribute
 from mech_balance.balancing.spatial.result import SpatialResult, write_scene
 from mech_balance.balancing.spatial.spheres import counterweights
 
-__all__ = ['counterweights', 'force_balance', 'ForceBalance', 'format_conditions',
-           'parameter_model', 'PARAMETER_MODELS', 'redistribute', 'SpatialBalanceError',
-           'SpatialResult', 'write_scene']
+__all__ = ['counterweights', 'force_balance', 'format_conditions', 'parameter_model',
+           'redistribute', 'SpatialBalanceError', 'SpatialResult', 'write_scene']

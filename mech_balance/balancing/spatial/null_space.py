@@ -12,8 +12,7 @@ import numpy as np
 FORCE_BALANCED_REL = 1e-9
 """A design whose RMS shaking force is at most this fraction of the original's is balanced."""
 CONDITION_COEFF_REL = 1e-12
-"""Coefficients of a printed force-balance condition below this fraction of its largest are
-round-off (left out of the text, kept in the matrix)."""
+"""Coefficients of a condition below this fraction of its largest are left out of its text."""
 
 
 @dataclass

@@ -16,8 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 TIGHT_TOL_SCALE = 1e-3
-"""A program whose first solve is not certified is solved again with Clarabel's tolerances
-this factor tighter (its dual residual, paid with the box, shrinks with them)."""
+"""An uncertified program is solved again with Clarabel's tolerances this factor tighter."""
 
 
 SIGMA_ENTRIES = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))
