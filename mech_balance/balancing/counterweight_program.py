@@ -100,8 +100,7 @@ class Problem:
                 mats.append(r)
                 self.term_of.append(3)
         self.norms = [(mat[:, self.cols] * self.dsc, mat @ theta0) for mat in mats]
-        # a link whose inertia enters no term (a crank at constant speed: alpha = 0) gets
-        # the thickest disc, t = t_max: the objective and the added mass do not decide it
+        # a link whose inertia enters no term (a crank at constant speed) gets t = t_max
         col = [max(np.linalg.norm(g[:, 4 * i + 3]) / max(np.linalg.norm(g), 1e-300)
                    for g, _ in self.norms) for i in range(len(opt.links))]
         self.inertia_free = [v <= FREE_INERTIA_REL for v in col]

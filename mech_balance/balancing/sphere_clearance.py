@@ -304,8 +304,7 @@ class _Search:
             x = x0.copy()
             x[3::4] *= share
             yield x
-        # each sphere pushed along its body's first axis normal to its centre (out of the
-        # plane the linkage moves in, where the frame bearings and tubes are)
+        # each sphere pushed along its body's first axis normal to its centre
         x = x0.copy()
         for i, (body, _) in enumerate(self.spheres):
             x[4 * i + 2] += (1.0 if i % 2 == 0 else -1.0) * 0.5 * self.rms_max[body]

@@ -59,11 +59,7 @@ def link_design(link, counterweights=False, units=None):
 
 
 def before_after(original, balanced, samples=None):
-    """
-    Return the before/after rows of RMS bearing forces, torque, shaking force and moment.
-
-    Each row: quantity, unit, before, after (normalized if the scene is), ``*_si``, change %.
-    """
+    """Return the before/after rows of RMS bearing forces, torque, shaking force and moment."""
     rig = analysis.Rig(original.with_outputs(('bearing_reactions',)))
     cycles = [analysis.run_cycle(r, samples) for r in
               (rig, rig.with_scene(balanced.with_outputs(('bearing_reactions',))))]

@@ -291,9 +291,7 @@ def _relaxation_bound(run, maps, dsc, w, n, y, level):
     radius = level / min(w[w > 0])
     lo[:nv], hi[:nv] = certificate.polytope_bounds(np.vstack(used), radius, lo[:nv], hi[:nv],
                                                    linear_maps.RANK_REL_TOL)
-    # what stays unbounded is first moments along null directions of the objective: they
-    # enter no constraint of the relaxation, so an optimal point shares the design's
-    # component there (certificate.level_set_bounds, centre)
+    # first moments along null directions of the objective: the design's (level_set_bounds)
     lo[:nv], hi[:nv], _ = certificate.level_set_bounds(np.vstack(used), radius, lo[:nv],
                                                        hi[:nv], y, linear_maps.RANK_REL_TOL)
     for k, wk in enumerate(w):

@@ -84,8 +84,7 @@ def spatial_model(rig):
     names = [b.name for b in rig.drawing.bodies]
     reaches = {name: max([float(np.linalg.norm(p)) for p in sc.link(name).points.values()]
                          + [0.0]) for name in names}
-    # a link whose points all sit at its origin (a slider carriage): the least span of the
-    # rig's other links, so its extent bound and counterweight's distance stay within the rig
+    # a link whose points all sit at its origin (a slider carriage): the least span of others
     spans = [r for r in reaches.values() if r > 0.0]
     least_span = min(spans) if spans else 1.0
     bodies, thetas = [], []

@@ -66,8 +66,7 @@ def force_balance(rig, free=None, samples=None):
     nb = len(model.bodies)
     free_idx = free_bodies(model, free, 'free')
     units = units_of(rig, model)
-    # conditions over the parameters the scene can hold (every body's basis), each in units
-    # of its body's mass and reach
+    # conditions over the parameters the scene can hold, in units of each body's mass, reach
     every = set(range(nb))
     full_basis, _, _ = design_columns(model, every)
     full_scale = body_scales(model, every, units)

@@ -24,11 +24,7 @@ EXTENT_FACTOR = 1.5
 def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAPER_MASS_FACTORS,
                  mass_bounds=None, extent_factor=EXTENT_FACTOR, extent_bounds=None,
                  fixed=(), force_balanced=False):
-    """
-    Return the certified optimal redistribution (:class:`SpatialResult`) of a spatial rig.
-
-    ``mass_bounds`` ``{body: (lo_kg, hi_kg)}``, ``extent_bounds`` ``{body: r_m}``.
-    """
+    """Return the certified optimal redistribution (:class:`SpatialResult`) of a spatial rig."""
     t_start = time.perf_counter()
     w = check_weights(weights)
     model = parameter_model(rig)

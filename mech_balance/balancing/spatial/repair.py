@@ -96,11 +96,7 @@ class RealizableChecks:
         return theta
 
     def repair(self, theta, keep_force=False, objective=None):
-        """
-        Return (theta, pull): theta moved onto the feasible set where round-off left it.
-
-        ``pull``: the fraction of the way to the :meth:`anchor` (0 when clipping sufficed).
-        """
+        """Return (theta, pull): theta moved onto the feasible set (``pull``: to the anchor)."""
         if self.feasible(theta):
             return theta, 0.0
         if not keep_force:

@@ -92,8 +92,7 @@ MIN_COUNTERWEIGHT_REL = 1e-9
 def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radius_factor,
                            k_sphere):
     """Return the :class:`~.program.ConeProgram` of the counterweights on the bodies ``idx``."""
-    # variables per counterweight j (11): dm, dh (3), Sigma (6, SIGMA_ENTRIES), s; in units
-    # of the body's mass m0 and reach r0
+    # variables per counterweight (11): dm, dh (3), Sigma (6), s; in units of m0 and r0
     nvar = 11 * len(idx)
     nb = len(model.bodies)
     basis = np.zeros((10 * nb, nvar))
