@@ -38,8 +38,7 @@ PLANAR_DEFAULTS = {'case': 'a', 'realizable': True, 'paper_constraints': False,
                    'centroidal_margin': CENTROIDAL_MARGIN, 'mass_factors': PAPER_MASS_FACTORS,
                    'mass_bounds': None, 'fixed_links': (), 'disc_side': 'auto',
                    'max_overhang_m': None}
-"""Planar options a spatial method that does not take them ignores at these values (the
-node passes every option); any other value is refused, naming the option."""
+"""Planar options a spatial method ignores at these values (the node passes them all)."""
 
 
 def _design(result, method, certificate, report=None):

@@ -96,8 +96,7 @@ def project_dual(z, cones):
 
 
 REFINE_ROUNDS = 3
-"""Rounds of :func:`refine_dual` tried by every bound, the best bound kept (measured:
-docs/balancing.md, "Certificates (safe lower bounds)")."""
+"""Rounds of :func:`refine_dual` tried by every bound, the best bound kept."""
 REFINE_BELOW = 1e-8
 """No refinement when the residual term is below this fraction of max(1, |L|)."""
 REFINE_SHARE = 1e-2

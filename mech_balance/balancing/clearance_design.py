@@ -24,8 +24,7 @@ MAX_ENUMERATED = 4
 STARTS = 3
 """The local search starts from this many of the least colliding arrangements."""
 SEARCH_CUSHION = 0.02
-"""The local search asks the sampled clearance for margin x (1 + this): the refined minimum
-between samples may lie a little below the sampled one."""
+"""The local search asks the sampled clearance for margin x (1 + this)."""
 CLEAR_ROWS = 8
 """The local search constrains this many of the least pairs' clearances."""
 SEARCH_MAX_ITER = 200

@@ -10,8 +10,7 @@ from dataclasses import dataclass
 SUMMARY_NAME_CHARS = 40
 """Longest scene name in :meth:`Design.summary` (the line stays under 200 characters)."""
 FORCE_BALANCE_ROUNDOFF = 1e-9
-"""A closed-form force balance is certified when its RMS shaking force after / before is at
-most this (what is left is round-off: the designs of the built-ins leave 1e-16 to 1e-14)."""
+"""A closed-form force balance is certified when its RMS shaking force after / before <= this."""
 STATUS = {0: 'optimal design, certified',
           1: 'design returned, its objective NOT certified',
           2: 'objective certified, but the design is not realizable or a stage failed'}

@@ -17,8 +17,7 @@ import numpy as np
 CAPABILITY = 'body_kinematics'
 """The rig capability every method of this module needs."""
 INERTIA_CLIP_RTOL = 1e-12
-"""A designed body's principal moment of inertia below zero by at most this fraction of its
-m reach^2 is round-off (the design at the edge of the PSD set) and is written as 0."""
+"""A designed principal moment of inertia in [-this x m reach^2, 0) is written as 0."""
 PSD_ROUNDOFF = 64.0 * np.finfo(float).eps
 """A body's normalized pseudo-inertia counts as PSD down to this fraction of its largest
 eigenvalue below zero (the eigenvalue solver's round-off; a thin rod has exact zeros)."""

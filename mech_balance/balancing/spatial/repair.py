@@ -7,9 +7,7 @@ from mech_balance.core import regressor
 import numpy as np
 
 VIOLATION_TOL = 16.0 * np.finfo(float).eps
-"""A design meets a constraint when it violates it by at most this (units of its body's mass
-and reach): the rounding of evaluating the constraint (equal mass bounds are met exactly
-otherwise only by luck)."""
+"""A design meets a constraint violated by at most this (units of its body's mass and reach)."""
 REPAIR_GROWTH = 2.0
 """The realizability repair multiplies its step by this factor until the body is PSD."""
 REPAIR_STEPS = 60

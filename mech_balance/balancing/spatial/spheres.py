@@ -20,9 +20,7 @@ from mech_balance.core import regressor
 import numpy as np
 
 CLUSTER_SPREAD_REL = 1e-6
-"""Eigenvalues of a counterweight's spread about its centre below this fraction of dm reach^2
-are round-off: no sphere pair is placed along them (the error is evaluated: the primal is the
-core's value of the built spheres)."""
+"""Eigenvalues of a counterweight's spread below this x dm reach^2 get no sphere pair."""
 
 
 def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
