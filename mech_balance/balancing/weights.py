@@ -366,8 +366,7 @@ def balance_report(rig, result, normalized=False):
             entry.update(alpha_deg=math.degrees(wt.alpha_rad),
                          gamma_deg=math.degrees(wt.gamma_rad))
         weights[wt.link] = entry
-    products = {f'{wt.link}.{name}':
-                view('inertia', result.link_products_kg_m2[2 * k + j])
+    products = {f'{wt.link}.{name}': view('inertia', result.link_products_kg_m2[2 * k + j])
                 for k, wt in enumerate(result.weights) for j, name in enumerate(('I_wu', 'I_vw'))}
     norm = sc.normalization
     return {
