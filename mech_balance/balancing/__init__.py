@@ -1,17 +1,9 @@
 """
 Balancing: one entry point, :func:`balance`, for the command line, the node and recordings.
 
-``balance(rig, method=..., **options)`` returns a :class:`Design` for every method and kind
-(:mod:`mech_balance.balancing.result`; its ``to_dict`` is what ``balance --json`` prints and
-the node's ``~/balance`` answers).  The method is chosen from the rig's capabilities, never
-from its kind: ``redistribution`` (:mod:`.redistribution`, or :mod:`.spatial` for a rig with
-body kinematics), ``weights`` (:mod:`.weights`), ``counterweights`` (:mod:`.counterweights`
-or spatial spheres), ``analytic`` (:mod:`.analytic`), ``force_balance``
-(:func:`mech_balance.balancing.spatial.force_balance`), ``auto``: the first the rig supports
-(docs/balancing.md, "Dispatch").
-
-The modules that solve are imported when a method runs, so importing this package is cheap.
-The defaults of every option are :mod:`mech_balance.balancing.defaults`'s.
+``balance(rig, method=..., **options)`` returns a :class:`Design`; the method is chosen from
+the rig's capabilities (:data:`METHODS`; ``auto``: the first the rig supports; docs/balancing.md,
+"Dispatch").  The solving modules are imported when a method runs.
 """
 
 from mech_balance.balancing.defaults import CENTROIDAL_MARGIN, DEFAULT_MAX_GYRATION_FACTOR, \
@@ -28,19 +20,16 @@ METHODS = {
 }
 """Balancing methods by name, and the rig capability each needs."""
 ALTERNATIVES = {'redistribution': 'body_kinematics', 'counterweights': 'body_kinematics'}
-"""Methods that a second capability also supports (the spatial implementation), tried by
-``auto`` after every method's own capability."""
+"""Methods that a second capability (the spatial implementation) also supports."""
 AUTO_LAST = ('force_balance',)
-"""Methods ``auto`` picks only when nothing else applies (a spatial rig's default is the
-certified redistribution, as a planar rig's)."""
+"""Methods ``auto`` picks only when nothing else applies."""
 SPATIAL_OPTIONS = {
     'redistribution': ('weights', 'samples', 'mass_bounds', 'mass_factors', 'fixed_links',
                        'extent_bounds', 'extent_factor', 'force_balanced'),
     'counterweights': ('links', 'weights', 'samples', 'density_kg_m3', 'max_mass_factor',
                        'max_radius_factor'),
     'force_balance': ('samples', 'free')}
-"""The options of each spatial method; the planar options at their defaults are ignored (the
-node passes them all), any other value is refused."""
+"""The options of each spatial method (other options: :data:`PLANAR_DEFAULTS`)."""
 PLANAR_DEFAULTS = {'case': 'a', 'realizable': True, 'paper_constraints': False,
                    'distance_bounds': None, 'torque_weight': 0.0, 'reaction_weight': 0.0,
                    'max_added_mass_kg': None, 'max_thickness_m': DEFAULT_MAX_THICKNESS_M,
@@ -49,8 +38,7 @@ PLANAR_DEFAULTS = {'case': 'a', 'realizable': True, 'paper_constraints': False,
                    'centroidal_margin': CENTROIDAL_MARGIN, 'mass_factors': PAPER_MASS_FACTORS,
                    'mass_bounds': None, 'fixed_links': (), 'disc_side': 'auto',
                    'max_overhang_m': None}
-"""Planar options a spatial method that does not take them ignores at these values (the
-node passes every option); any other value is refused, naming the option."""
+"""Planar options a spatial method ignores at these values (the node passes them all)."""
 
 
 def _design(result, method, certificate, report=None):
@@ -65,8 +53,7 @@ def _design(result, method, certificate, report=None):
 
 
 LINK_OPTIONS = ('mass_bounds', 'distance_bounds')
-"""Per-link options of the redistribution (``{link: (min, max)}``; the node's
-``balance.links.<link>.<option>``)."""
+"""Per-link options of the redistribution (``{link: (min, max)}``)."""
 
 
 def link_options(rig):
@@ -84,8 +71,7 @@ def _supports(method, caps):
 
 
 SPATIAL_RANGES = {'redistribution': {'mass_factors': SPATIAL_MASS_FACTOR_RANGE}}
-"""Options whose range is narrower in the spatial implementation of a method (measured where
-it certifies: :data:`mech_balance.balancing.defaults.SPATIAL_MASS_FACTOR_RANGE`)."""
+"""Options whose range is narrower in the spatial implementation of a method."""
 
 
 def option_ranges(rig, method):

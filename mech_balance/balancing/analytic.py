@@ -1,12 +1,8 @@
 """
 Complete force balance of planar linkages in closed form (the total mass centre stationary).
 
-* slider-crank, seed 000 eqs. 44-75: :func:`slider_crank_balance`;
-* four-bar, Berkof-Lowen, seed 001 eq. 48: :func:`four_bar_balance`.
-
-Both solve no cone program: they are derived in complex numbers for arbitrary link frames
-(docs/balancing.md, "Closed-form force balances") and checked against the physics (the
-shaking force of the result vanishes to round-off).
+Slider-crank (seed 000 eqs. 44-75) and four-bar (Berkof-Lowen, seed 001 eq. 48); the
+derivation: docs/balancing.md, "Closed-form force balances".
 """
 
 from dataclasses import dataclass, replace
@@ -43,8 +39,7 @@ def slider_crank_balance(scene, mass_ratios=None, printed_eq75=False, samples=No
     """
     Return the complete force balance of a slider-crank (seed 000 eqs. 44-75).
 
-    ``mass_ratios``: (m_1, m_2)/m_3 (eq. 59; default the scene's); ``printed_eq75``: eq. 75's
-    printed xi_2 = 1/mu_2, which does not balance.
+    ``mass_ratios``: (m_1, m_2)/m_3 (eq. 59); ``printed_eq75``: eq. 75 as printed (unbalanced).
     """
     crank, rod, slider, pts = _chain(scene, 'prismatic')
     m1, m2, m3 = crank.mass_kg, rod.mass_kg, slider.mass_kg
@@ -81,8 +76,7 @@ def four_bar_balance(scene, mass_factor=1.0, inertia='distance', samples=None):
     """
     Return the Berkof-Lowen complete force balance of a four-bar (seed 001 eq. 48).
 
-    Crank and rocker masses x ``mass_factor``; ``inertia``: 'distance' keeps l = sqrt(I_O/m)
-    (Table 3), 'centroidal' the centroidal moment of inertia.
+    Crank and rocker masses x ``mass_factor``; ``inertia``: 'distance' or 'centroidal' kept.
     """
     crank, coupler, rocker, pts = _chain(scene, 'revolute')
     if inertia not in ('distance', 'centroidal'):

@@ -1,14 +1,9 @@
 """
 Safe lower bounds for the balancing cone programs (Jansson 2004; Neumaier & Shcherbina 2004).
 
-Every program is in Clarabel's standard form ``min q'x  s.t.  A x + s = b,  s in K``.  For
-any z in the dual cone K* and a box ``lo <= x <= hi`` that holds an optimal point,
-
-    L = -b'z + sum_i min(r_i lo_i, r_i hi_i)  <=  min q'x,     r = q + A'z        (1)
-
-evaluated with its rounding subtracted (:func:`safe_lower_bound`; PSD and power cones:
-:func:`folded_lower_bound`).  The derivation and the measured gaps: docs/balancing.md,
-"Certificates (safe lower bounds)".
+For Clarabel's ``min q'x s.t. A x + s = b, s in K``, any z in K* and a box lo <= x <= hi
+holding an optimum: ``L = -b'z + sum_i min(r_i lo_i, r_i hi_i) <= min q'x``, r = q + A'z (1),
+with its rounding subtracted.  docs/balancing.md, "Certificates (safe lower bounds)".
 """
 
 from dataclasses import dataclass, field
@@ -21,11 +16,9 @@ import scipy.sparse as sp
 UNIT_ROUNDOFF = np.finfo(float).eps / 2.0
 """u of IEEE double precision (round to nearest)."""
 SVD_MARGIN = 1e-6
-"""Relative margin on level-set reaches computed from singular vectors: it covers their
-rounding (orthogonal to ~1e-15) for the directions kept."""
+"""Relative margin on level-set reaches computed from singular vectors (their rounding)."""
 CONE_FAMILIES = ('zero', 'nonneg', 'soc')
-"""The cones of the balancing programs, by name (Clarabel's ZeroConeT, NonnegativeConeT,
-SecondOrderConeT)."""
+"""The cones of the balancing programs, by name."""
 GAP_FLOOR = 1.0
 """Relative gap = |primal - dual| / max(|primal|, |dual|, GAP_FLOOR) (normalized units)."""
 CERTIFIED_GAP_REL = 1e-5
@@ -103,8 +96,7 @@ def project_dual(z, cones):
 
 
 REFINE_ROUNDS = 3
-"""Rounds of :func:`refine_dual` tried by every bound, the best bound kept (measured:
-docs/balancing.md, "Certificates (safe lower bounds)")."""
+"""Rounds of :func:`refine_dual` tried by every bound, the best bound kept."""
 REFINE_BELOW = 1e-8
 """No refinement when the residual term is below this fraction of max(1, |L|)."""
 REFINE_SHARE = 1e-2
@@ -115,8 +107,7 @@ def refine_dual(a, z, r, cols, weight, rot=None):
     """
     Return z + Delta: the least ``sum w_i Delta_i^2`` with ``(A'Delta)_j = -r_j`` on ``cols``.
 
-    ``weight`` (m,): a row of weight ``inf`` stays; ``rot`` (m, m) orthogonal: Delta is
-    weighted in its basis (``Delta = rot @ d``); None: the identity.
+    ``weight`` (m,): ``inf`` keeps a row; ``rot`` (m, m) orthogonal: the basis of the weights.
     """
     a = _dense(a)
     rows = np.flatnonzero(np.isfinite(weight))
@@ -268,8 +259,7 @@ def level_set_bounds(mat, radius, lo, hi, centre=None, null_rel_tol=None):
     """
     Return (lo, hi, nulls): the infinite entries replaced by what ``||mat y|| <= radius`` implies.
 
-    A rank-deficient ``mat`` needs ``centre`` and ``null_rel_tol``: directions below it are
-    taken as null directions an optimum shares with the centre (``nulls`` of them).
+    A rank-deficient ``mat`` needs ``centre`` and ``null_rel_tol`` (``nulls``: directions taken).
     """
     lo = np.array(lo, dtype=float)
     hi = np.array(hi, dtype=float)
@@ -350,22 +340,14 @@ def relative_gap(primal, lower, floor=1.0):
     return gap, gap / max(abs(float(primal)), floor)
 
 
-# ================================================================ cones folded first
-
-
 SVEC = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2), (0, 3), (1, 3), (2, 3), (3, 3))
-"""Clarabel's PSDTriangleConeT order of a 4x4 matrix: the upper triangle by columns (its
-off-diagonal entries times sqrt(2))."""
+"""Clarabel's PSDTriangleConeT order of a 4x4 matrix: the upper triangle by columns."""
 POWER_ALPHA = 0.6
 """The power cone x^alpha y^(1 - alpha) >= |z| of the spheres' least spread (5/3 = 1/alpha)."""
 
 
 def folded_lower_bound(run, lo, hi):
-    """
-    Return (value, LowerBound, fold rounding): the safe lower bound with PSD and power cones.
-
-    Their duals are moved into K* and folded into the objective (docs/balancing.md).
-    """
+    """Return (value, LowerBound, fold rounding): the safe lower bound with PSD and power cones."""
     z = np.asarray(run.sol.z, dtype=float)
     best = _fold_at(run, z, lo, hi)
     if not (math.isfinite(best[0]) and
@@ -378,8 +360,7 @@ def folded_lower_bound(run, lo, hi):
 
 
 REFINE_WEIGHT_FLOOR = 1e-10
-"""The least weight of a dual entry in :func:`_slack_weighted_duals`, relative to the largest
-slack."""
+"""The least weight of a dual entry in :func:`_slack_weighted_duals` (x the largest slack)."""
 
 
 def _slack_weighted_duals(run, z):
@@ -435,8 +416,7 @@ def _project_all(z, run):
 
 
 STRUCTURAL_RANK_REL = 1e-12
-"""Singular values of a PSD block's matrices below this fraction of the largest span no
-direction of its range (:func:`_psd_ranges`)."""
+"""Singular values of a PSD block's matrices below this fraction of the largest are null."""
 
 
 def _psd_ranges(run):
@@ -544,11 +524,7 @@ def _dual_pow(zb, alpha):
 
 
 DUAL_CONES = {'psd': lambda z: _dual_psd(z), 'pow': lambda z: _dual_pow(z, POWER_ALPHA)}
-"""The cones :func:`safe_lower_bound` does not take (folded first), and how a dual point is
-moved into each one's dual cone."""
-
-
-# =================================================================== the certificate
+"""The cones folded first, and how a dual point is moved into each one's dual cone."""
 
 
 @dataclass
@@ -605,8 +581,7 @@ def certify(stage, primal, bound, violation, pull, failed, design_violation, sta
     """
     Return the :class:`Certificate` of a primary :class:`Stage` whose design has z ``primal``.
 
-    ``violation``: the solver's design's before the ``pull``; ``design_violation``: the
-    returned design's; ``detail``: entries added to :func:`bound_detail`.
+    ``violation``: before the ``pull``; ``detail``: entries added to :func:`bound_detail`.
     """
     import clarabel
     lower = min(bound.value, primal)
@@ -637,7 +612,6 @@ def bound_detail(bound):
 
 
 __all__ = ['bound_detail', 'Certificate', 'CERTIFIED_GAP_REL', 'certify', 'cone_list',
-           'failed_stage',
-           'folded_lower_bound', 'gamma', 'GAP_FLOOR', 'level_set_bounds', 'LowerBound',
-           'norm_bound', 'polytope_bounds', 'POWER_ALPHA', 'project_dual', 'relative_gap',
-           'safe_lower_bound', 'Stage', 'SVEC']
+           'failed_stage', 'folded_lower_bound', 'gamma', 'GAP_FLOOR', 'level_set_bounds',
+           'LowerBound', 'norm_bound', 'polytope_bounds', 'POWER_ALPHA', 'project_dual',
+           'relative_gap', 'safe_lower_bound', 'Stage', 'SVEC']

@@ -1,9 +1,4 @@
-"""
-The balancing's option checks: each names the option, its value and what was expected.
-
-:class:`BalanceError` is the error every balancing method raises for an ill-posed,
-infeasible or unsolvable problem (a ``ValueError``).
-"""
+"""The balancing's option checks: each names the option, its value and what was expected."""
 
 import math
 

@@ -1,10 +1,8 @@
 """
 Collision-free counterweights: the certified convex optimum moved into layers of its own.
 
-:func:`design` puts each disc of the convex optimum in a layer of its own beyond the linkage
-and, where no arrangement is clear, searches the discs in the plane (SLSQP) with the
-clearance as constraints; ``z - z_lb`` is the price of clearance (docs/build.md,
-"Collision-free by default").
+Where no layer arrangement is clear, the discs are searched in the plane (SLSQP); ``z - z_lb``
+is the price of clearance (docs/build.md, "Collision-free by default").
 """
 
 from dataclasses import dataclass, field, replace
@@ -26,8 +24,7 @@ MAX_ENUMERATED = 4
 STARTS = 3
 """The local search starts from this many of the least colliding arrangements."""
 SEARCH_CUSHION = 0.02
-"""The local search asks the sampled clearance for margin x (1 + this): the refined minimum
-between samples may lie a little below the sampled one."""
+"""The local search asks the sampled clearance for margin x (1 + this)."""
 CLEAR_ROWS = 8
 """The local search constrains this many of the least pairs' clearances."""
 SEARCH_MAX_ITER = 200
@@ -149,9 +146,6 @@ def check_side(value, name='disc_side'):
     return value
 
 
-# ============================================================================ the search
-
-
 class _Search:
     """The arrangement and in-plane searches of one convex optimum."""
 
@@ -165,13 +159,9 @@ class _Search:
         self.tried = 0
         self._mounts = {}
 
-    def scene_of(self, designs):
-        """Return the scene with the discs of ``designs``."""
-        return with_discs(self.scene, designs)
-
     def gaps(self, designs):
         """Return (least sampled clearance per pair, body list, pairs) of a design."""
-        rig = self.rig.with_scene(self.scene_of(designs))
+        rig = self.rig.with_scene(with_discs(self.scene, designs))
         body_list = clearance_mod.bodies(rig, self.layers)
         todo = clearance_mod.pairs(body_list, self.margin)
         if not todo:
@@ -252,12 +242,6 @@ class _Search:
                         f'(clearance {value * 1e3:.3g} mm)')
         return ''
 
-    # ------------------------------------------------------------------ in the plane
-
-    def _params(self, designs):
-        return np.concatenate([[d.mass_kg, d.centre_m[0], d.centre_m[1], d.radius_m]
-                               for d in designs])
-
     def _designs(self, x, template):
         out = []
         for k, d in enumerate(template):
@@ -275,7 +259,8 @@ class _Search:
         """Return (designs, least sampled clearance): SLSQP in the plane, layers fixed."""
         prob = self.prob
         slots = [d.thickness_m for d in template]
-        x0 = self._params(template)
+        x0 = np.concatenate([[d.mass_kg, d.centre_m[0], d.centre_m[1], d.radius_m]
+                             for d in template])
         z0 = max(prob.z(y_of(prob, template)), 1e-300)
         scale = np.concatenate([[d.max_mass_kg, d.max_centre_radius_m, d.max_centre_radius_m,
                                  d.max_centre_radius_m] for d in template])
@@ -335,11 +320,7 @@ class _Search:
 
 def design(scene, prob, designs, lower_bound, margin_m=DEFAULT_CLEARANCE_MARGIN_M,
            side='auto', max_overhang_m=None, fixed_planes=False):
-    """
-    Return ``(designs, ClearanceReport)``: the convex optimum ``designs`` made collision-free.
-
-    ``fixed_planes``: the user gave the planes (no layer search); ``designs`` empty: none.
-    """
+    """Return ``(designs, ClearanceReport)``: the convex optimum ``designs`` made clear."""
     z_convex = prob.z(y_of(prob, designs))
     report = ClearanceReport('collision-free', margin_m, side, z_convex, z_convex, lower_bound,
                              math.inf)
@@ -401,7 +382,7 @@ def _none(report, attempt, binding):
 
 def _final(search, report, designs):
     """Fill the report's least clearance (refined, :func:`clearance`) and layers."""
-    clear = clearance_mod.clearance(search.rig.with_scene(search.scene_of(designs)),
+    clear = clearance_mod.clearance(search.rig.with_scene(with_discs(search.scene, designs)),
                                     search.prob.opt.samples, search.margin, search.sweep)
     report.least_clearance_m = clear.least_clearance_m
     report.least_pair = least_pair(clear)

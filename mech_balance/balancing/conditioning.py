@@ -1,11 +1,7 @@
 """
 Which value of a scene makes a balancing cone program ill-posed: the text a failed solve adds.
 
-A solver failure (after every retry of :data:`mech_balance.conic.RETRY_SETTINGS`) is reported
-with the scene values that spread the program's data over more decades than the solver
-resolves (:func:`blame`): the objective's units (``normalization``) far from the scene's
-masses, lengths and crank speed, or link masses spanning many decades.  The limits are
-measured (docs/balancing.md, "Ill-scaled scenes").
+The limits are measured (docs/balancing.md, "Ill-scaled scenes").
 """
 
 import math
@@ -33,11 +29,7 @@ def _unit_cause(what, value, unit_key, unit, limit, near):
 
 
 def blame(scene, units=None, speed_rad_s=None):
-    """
-    Return the text naming every scene value that makes the program ill-posed ('' if none).
-
-    ``units``: the scene's ``normalization`` when the objective uses it (None: its own units).
-    """
+    """Return the text naming every scene value that makes the program ill-posed ('' if none)."""
     causes = []
     masses = {lk.name: float(lk.mass_kg) for lk in scene.links
               if math.isfinite(float(lk.mass_kg)) and float(lk.mass_kg) > 0.0}

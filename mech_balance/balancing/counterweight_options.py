@@ -1,9 +1,4 @@
-"""
-The options of add-only counterweight balancing: checked where they are read.
-
-:class:`CounterweightOptions` (SI), the checks that name the bad option and value, and the
-joint reach that scales the disc bounds.
-"""
+"""The options of add-only counterweight balancing: checked where they are read."""
 
 from dataclasses import dataclass
 import math

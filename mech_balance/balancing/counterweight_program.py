@@ -1,9 +1,7 @@
 """
 The counterweight program: one disc per listed link as a second-order cone program.
 
-:class:`Problem` builds the cones (docs/balancing.md, "Counterweights (add-only discs)") in
-link units, runs its stages with Clarabel, bounds their optimum safely (:mod:`.certificate`)
-and turns a point into the discs as built (:class:`CounterweightDesign`).
+docs/balancing.md, "Counterweights (add-only discs)".
 """
 
 from dataclasses import dataclass, field
@@ -20,8 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 MIN_MASS_REL = 1e-7
-"""An optimal disc mass below this fraction of its link's mass is no counterweight (omitted:
-its centre is the solver's noise)."""
+"""An optimal disc mass below this fraction of its link's mass is omitted (solver noise)."""
 FREE_INERTIA_REL = 1e-12
 """A link's inertia column below this fraction of a term's map: the inertia enters no term."""
 
@@ -103,16 +100,13 @@ class Problem:
                 mats.append(r)
                 self.term_of.append(3)
         self.norms = [(mat[:, self.cols] * self.dsc, mat @ theta0) for mat in mats]
-        # a link whose inertia enters no term (a crank at constant speed: alpha = 0) gets
-        # the thickest disc, t = t_max: the objective and the added mass do not decide it
+        # a link whose inertia enters no term (a crank at constant speed) gets t = t_max
         col = [max(np.linalg.norm(g[:, 4 * i + 3]) / max(np.linalg.norm(g), 1e-300)
                    for g, _ in self.norms) for i in range(len(opt.links))]
         self.inertia_free = [v <= FREE_INERTIA_REL for v in col]
         self.nl = len(opt.links)
         self.ny = 4 * self.nl
         self.nx = self.ny + self.nl + len(self.norms)   # y | s (aux) | t (epigraphs)
-
-    # ----------------------------------------------------------------- objective pieces
 
     def weights_vector(self):
         q = np.zeros(self.nx)
@@ -146,8 +140,6 @@ class Problem:
     def secondary(self):
         """Return the index of the tie-break norm (0 force, 1 moment) or None."""
         return redistribution.tie_break_term(self.weights4)
-
-    # ----------------------------------------------------------------------- pins
 
     def _row_space(self, g):
         u, sv, vt = np.linalg.svd(g, full_matrices=False)
@@ -183,8 +175,6 @@ class Problem:
         """Return ``y`` moved onto the exact force balance (orthogonal projection)."""
         rows, target = self.pin(0, y, True)
         return y - rows.T @ (rows @ y - target)
-
-    # ----------------------------------------------------------------------- solve
 
     def run(self, q, pins, bound=None, caps=()):
         nx, ny, nl = self.nx, self.ny, self.nl
@@ -366,8 +356,6 @@ class Problem:
             a[0, ny + nl + k] = -1.0
             a[1:, :ny] = -g
             add(clarabel.SecondOrderConeT, a, np.concatenate([[0.0], c]))
-
-    # ----------------------------------------------------------------------- discs
 
     def discs(self, y):
         """Return (designs, omitted links, worst constraint violation in units of the link)."""

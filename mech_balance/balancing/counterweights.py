@@ -1,13 +1,9 @@
 """
 Add-only counterweight balancing: one solid disc per listed link, to a certified optimum.
 
-Each listed link keeps its own mass, mass centre and inertia and gains one disc (axis normal
-to the plane of motion) of density rho, thickness t <= t_max, centre |r| <= r_max and mass
-dm <= max_mass_factor x the link's; every other link is untouched.  The discs' set is
-convex (two rotated second-order cones and ``|dh| <= r_max dm``), so the problem is a
-certified second-order cone program (:mod:`.counterweight_program`; the derivation:
-docs/balancing.md, "Counterweights (add-only discs)").  Objective and ties as
-:func:`mech_balance.balancing.redistribution.optimize`, then the least total added mass.
+Each listed link gains one disc of density rho, thickness t <= t_max, centre |r| <= r_max and
+mass dm <= max_mass_factor x the link's; a second-order cone program
+(:mod:`.counterweight_program`; docs/balancing.md, "Counterweights (add-only discs)").
 """
 
 from dataclasses import dataclass
@@ -30,11 +26,9 @@ __all__ = ['balance_with_counterweights', 'cost_of_balancing', 'CounterweightDes
            'DEFAULT_MAX_GYRATION_FACTOR', 'DEFAULT_MAX_THICKNESS_M', 'format_cost',
            'joint_reach_m', 'METHOD', 'Problem', 'solve']
 TIE_BREAK_SLACK = 1e-9
-"""A tie-break stage after a weighted sum of norms keeps z within this fraction of
-max(z*, 1) (a single-norm stage is pinned exactly instead)."""
+"""A tie-break stage after a weighted sum of norms keeps z within this fraction of max(z*, 1)."""
 MASS_STAGE_SLACKS = (TIE_BREAK_SLACK, TIE_BREAK_SLACK, 1e-7)
-"""The least-mass stage keeps the earlier objectives within these fractions of max(z, 1), tried
-in turn until it solves (first with an exact force balance kept exactly, then capped)."""
+"""The least-mass stage's slacks on the earlier objectives (x max(z, 1)), tried in turn."""
 METHOD = 'counterweights (add-only discs, SOCP)'
 
 
@@ -111,9 +105,6 @@ class CounterweightResult:
             'warnings': [] if self.clearance is None else self.clearance.warnings()})
 
 
-# ============================================================================ public API
-
-
 def balance_with_counterweights(scene, links, weights=DEFAULT_WEIGHTS, *,
                                 density_kg_m3=DEFAULT_DENSITY_KG_M3,
                                 max_thickness_m=DEFAULT_MAX_THICKNESS_M,
@@ -162,8 +153,7 @@ def solve(scene, options):
         stage2 = prob.run(prob.unit(secondary), pins)
         tried = list(stage2.run.attempts)
         if not stage2.run.ok and not exact:
-            # the optimal image pinned exactly can be infeasible to round-off: cap the
-            # primary norm instead (z <= z* + slack), as the mass stage does
+            # the optimal image pinned exactly can be infeasible to round-off: cap it instead
             z_p = prob.norm(primary, y)
             for slack in MASS_STAGE_SLACKS[1:]:
                 cap = [(prob.unit(primary), z_p + slack * max(z_p, certificate.GAP_FLOOR))]
@@ -182,9 +172,7 @@ def solve(scene, options):
             if pins:
                 pins = pins + [prob.pin(secondary, y, False)]
     if opt.tie_break and stage1.run.ok:
-        # the mass stage keeps every earlier objective optimal: the optimal images pinned
-        # exactly, or, where that is infeasible to round-off at active cones (Clarabel ends
-        # AlmostPrimalInfeasible), each objective capped at its optimum plus a slack
+        # the mass stage keeps every earlier objective optimal: pinned exactly, else capped
         variants = []
         if pins:   # first the optimal images pinned exactly (the tie-break's own argument)
             variants.append((prob.merged(pins, y), None, []))
@@ -226,8 +214,7 @@ def solve(scene, options):
     primal = float(np.dot(w, terms))
     s2 = None
     if stage2 is not None:
-        # its own safe bound (the box of the disc constraints holds an optimal point); the
-        # min with the solver's objective keeps it a bound, never above it
+        # its own safe bound, never above the solver's objective
         s2 = redistribution.tie_break_report(
             stage2, f"RMS shaking {('force', 'moment')[secondary]}",
             min(prob.lower_bound(stage2, None).value, stage2.objective), exact)

@@ -1,23 +1,18 @@
 """
 The balancing defaults: the one home of every default the balancing options take.
 
-The command line (``mech-balance balance``, ``record --balance``), the rig node's
-``balance.*`` parameters and :func:`mech_balance.balancing.balance` all read them here; the
-README's *Conventions* section lists them.
+The README's *Conventions* section lists them.
 """
 
 
 DEFAULT_WEIGHTS = (0.5, 0.5)
-"""Default objective weights (w1, w2) of the RMS shaking force and moment (seed 001 eq. 43):
-the paper's best compromise, its cases a(2) and b(2)."""
+"""Default objective weights (w1, w2) of the RMS shaking force and moment (seed 001 eq. 43)."""
 PAPER_MASS_FACTORS = (1.0, 5.0)
 """Link mass bounds as factors of the original mass (seed 001 eqs. 50b, 53b)."""
 PAPER_DISTANCE_FACTORS = (0.5, 1.5)
 """Point-mass distance bounds as factors of the original l = sqrt(I_O/m) (eqs. 50c, 53c)."""
 CENTROIDAL_MARGIN = 1e-2
-"""Realizability margin: each link keeps a centroidal moment of inertia >= this fraction of
-I_O (a design requirement, not the definition of a body: docs/balancing.md, "Balancing
-defaults")."""
+"""Realizability margin: each link keeps a centroidal moment of inertia >= this x I_O."""
 CASES = ('a', 'b')
 """seed 001 sec. 4.1.2: (a) point masses of any sign, (b) non-negative point masses."""
 DEFAULT_CASE = 'a'
@@ -27,23 +22,17 @@ DEFAULT_DENSITY_KG_M3 = 7850.0
 DEFAULT_MAX_THICKNESS_M = 0.02
 """Thickest disc allowed (m)."""
 DEFAULT_MAX_RADIUS_FACTOR = 1.0
-"""Disc centre at most this factor times the distance from the link origin to its farthest
-joint point."""
+"""Disc centre at most this factor times the link's joint reach."""
 DEFAULT_MAX_MASS_FACTOR = 5.0
 """Disc mass at most this factor times the link's own mass."""
 DEFAULT_MAX_GYRATION_FACTOR = 2.0
-"""The disc's radius of gyration about the link origin, sqrt(|r|^2 + R^2/2), at most this
-factor times the link's joint reach (why it is needed: docs/balancing.md, "Balancing
-defaults")."""
+"""The disc's radius of gyration about the link origin at most this x the link's joint reach."""
 DEFAULT_CLEARANCE_MARGIN_M = 0.003
 """Default least clearance between a counterweight and any other body over the cycle (m)."""
 MAX_CLEARANCE_MARGIN_M = 1.0
 """Largest margin accepted (m)."""
 SIDES = ('auto', 'above', 'below')
-"""Where the discs go along z: ``auto`` (the side with room, per disc), ``above`` (+z beyond
-the linkage) or ``below`` (-z)."""
-
-
+"""Where the discs go along z: ``auto`` (the side with room, per disc), ``above`` or ``below``."""
 COUNTERWEIGHT_RANGES = {
     'density_kg_m3': (1.0, 1e5),
     'max_thickness_m': (1e-4, 1.0),
@@ -52,17 +41,13 @@ COUNTERWEIGHT_RANGES = {
     'max_gyration_factor': (1e-3, 100.0),
     'max_rim_radius_factor': (1e-3, 10.0),
 }
-"""The range of each counterweight option, (lowest, highest), both included (why:
-docs/balancing.md, "Option ranges")."""
+"""The range of each counterweight option, (lowest, highest), both included."""
 BOUND_RATIO_RANGE = (1e-6, 1e6)
-"""Link mass and point-mass distance bounds of the redistribution must lie within these
-factors of the link's original value (a tighter bound no solver tells from zero)."""
+"""Link mass and distance bounds of the redistribution lie within these factors of the original."""
 EXTENT_FACTOR_RANGE = (0.1, 2.0)
-"""The spatial redistribution's extent bound as a factor of each body's reach, where it
-certifies (docs/balancing.md, "Spatial rigs")."""
+"""The spatial redistribution's extent bound as a factor of a body's reach, where it certifies."""
 SPATIAL_MASS_FACTOR_RANGE = (1e-6, 1e2)
-"""Mass factors of the spatial redistribution, where it certifies (docs/balancing.md,
-"Spatial rigs")."""
+"""Mass factors of the spatial redistribution, where it certifies."""
 
 
 def check_range(name, value, lowest, highest, unit=''):
@@ -87,11 +72,9 @@ def check_counterweight_option(option, value, name=None):
 
 
 DISTANCE_RATIO_RANGE = (1e-2, 1e2)
-"""Point-mass distance bounds (and factors) of the redistribution within these factors of
-the link's original l (I_O scales with l^2: eight decades)."""
+"""Point-mass distance bounds (and factors) of the redistribution within these x the original l."""
 ABSOLUTE_BOUND_RANGE = {'kg': (1e-6, 1e6), 'm': (1e-6, 1e3)}
-"""Where a link mass (kg) or point-mass distance (m) bound may be set without the scene at
-hand (the rig node's parameters)."""
+"""Where a link mass (kg) or point-mass distance (m) bound may be set without the scene."""
 
 
 def check_bound_pair(name, low, high, unit):

@@ -1,11 +1,8 @@
 """
 The balancing options, each declared once: the command line's and the node's from one table.
 
-:data:`OPTIONS` holds every option of :func:`mech_balance.balancing.balance` that a user sets:
-its keyword, the node's ``balance.*`` parameter (:mod:`mech_balance.ros.params`), the
-``mech-balance balance`` flag (:mod:`mech_balance.cli.balance`), type, default, texts, bounds,
-choices, check and methods.  :func:`from_params` and :func:`from_args` turn either surface's
-values into ``balance()``'s keyword arguments by the same entries.  No ROS import here.
+:data:`OPTIONS`: keyword, ``balance.*`` parameter, ``mech-balance balance`` flag, type, default,
+texts, bounds, check and methods; :func:`from_params` and :func:`from_args` read either surface.
 """
 
 from dataclasses import dataclass
@@ -30,12 +27,7 @@ ALL_METHODS = ('redistribution', 'counterweights', 'analytic', 'weights', 'force
 
 @dataclass(frozen=True)
 class Option:
-    """
-    One balancing option (module docstring); ``param``/``flag`` None where a surface lacks it.
-
-    ``param_default``/``to_option``: the parameter's form where it differs from ``default``;
-    ``cli``: the flag's argparse keywords; ``flag_help``: its text if not ``description``.
-    """
+    """One balancing option (module docstring); ``param``/``flag`` None if a surface lacks it."""
 
     key: str
     param: str
@@ -70,9 +62,6 @@ class Option:
             self.check(name, value)
 
 
-# ------------------------------------------------------------------------------ checks
-
-
 def check_weights(name, value):
     """Accept [w1, w2] >= 0, not both 0 (weights of the RMS shaking force and moment)."""
     top = conventions.MAX_WEIGHT
@@ -100,8 +89,7 @@ def parse_link_bounds(name, text, unit):
     """
     Return ``{link: (min, max)}`` from a ``balance.*_bounds`` text, or None when empty.
 
-    The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in
-    ``unit`` (:func:`mech_balance.schema.safe_yaml.loads`).
+    The text is a YAML mapping such as ``{crank: [0.3, 1.5], rocker: [5e-1, null]}`` in ``unit``.
     """
     if not text.strip():
         return None
@@ -178,8 +166,6 @@ _tuple = tuple   # parameter arrays become the tuples balance() takes
 def _none_if_zero(value):
     return value or None
 
-
-# ------------------------------------------------------------------------------ table
 
 OPTIONS = (
     Option('weights', 'balance.weights', '--weights', DOUBLE_ARRAY, defaults.DEFAULT_WEIGHTS,

@@ -1,9 +1,4 @@
-"""
-Seed 001's printed tables that the code compares itself with (data, normalized units).
-
-``balance`` prints its optima next to them (:func:`compare_optimum`); damaged entries of the
-extracted text are reconstructed where noted.
-"""
+"""Seed 001's printed tables that the code compares itself with (data, normalized units)."""
 
 WEIGHT_CASES = ((1.0, 0.0), (0.5, 0.5), (0.0, 1.0))
 """The three weightings of seed 001 Tables 5-10, cases (1)-(3)."""
@@ -67,12 +62,7 @@ def weight_case(weights):
 
 
 def compare_optimum(result):
-    """
-    Return how a redistribution optimum compares with seed 001's, or None where none applies.
-
-    The table's label, ``f``, ``n``, ``z_paper``, this ``z``, the change in percent,
-    ``paper_constraints`` and ``unrealizable`` (links of the paper's design that are no body).
-    """
+    """Return how a redistribution optimum compares with seed 001's, or None where none applies."""
     k = weight_case(result.weights)
     name = result.scene.name
     if k is None or result.torque_weight or result.reaction_weight or \

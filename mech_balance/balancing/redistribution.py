@@ -1,11 +1,9 @@
 """
 Optimal mass redistribution of planar linkages (seed 001 eqs. 42-53): :func:`optimize`.
 
-Each RMS is the norm of a linear map of the links' inertial parameters, so the paper's
-problem is a second-order cone program in them, solved by Clarabel and certified by a safe
-lower bound (:mod:`mech_balance.balancing.certificate`); the constraints in theta:
-docs/balancing.md, "Mass redistribution".  The objective ``z = w1 f~ + w2 n~`` is in the
-units of :func:`mech_balance.core.planar.rig.objective_units` (seed 001 sec. 3.4).
+A second-order cone program in the links' inertial parameters, solved by Clarabel and certified
+by a safe lower bound (:mod:`mech_balance.balancing.certificate`); docs/balancing.md, "Mass
+redistribution".
 """
 
 from dataclasses import dataclass, replace
@@ -46,12 +44,9 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     """
     Return the globally optimal mass distribution of a planar scene (a :class:`BalanceResult`).
 
-    Minimizes ``z = w1 f~ + w2 n~ [+ torque_weight tau~ + reaction_weight sum_j f~_j]`` over
-    the links' mass, mass centre and inertia.  ``mass_bounds`` ``{link: (min_kg, max_kg)}``,
-    ``distance_bounds`` ``{link: (min_m, max_m or None)}`` (defaults: the factors x the
-    original); ``case`` 'a' or 'b' (point masses >= 0); ``paper_constraints``: seed 001 eqs.
-    50/53 exactly (docs/balancing.md, "Mass redistribution").  Raises
-    :class:`~.checks.BalanceError` naming a bad option.
+    ``mass_bounds`` ``{link: (min_kg, max_kg)}``, ``distance_bounds`` ``{link: (min_m, max_m
+    or None)}`` (defaults: the factors x the original); docs/balancing.md, "Mass
+    redistribution".  Raises :class:`~.checks.BalanceError` naming a bad option.
     """
     t_start = time.perf_counter()
     w1, w2 = check_weights(weights)
@@ -249,9 +244,6 @@ class BalanceResult:
             'certificate': self.certificate.to_dict(), 'table': self.table,
             'maps_time_s': self.maps_time_s, 'conic_time_s': self.conic_time_s,
             'solve_time_s': self.solve_time_s})
-
-
-# ============================================================================ cone program
 
 
 @dataclass

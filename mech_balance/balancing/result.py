@@ -1,12 +1,8 @@
 """
 The one result of :func:`mech_balance.balancing.balance`, for every method and kind of rig.
 
-A :class:`Design` carries ``success``, ``status``, ``message``, the ``objective`` and its
-``lower_bound``, ``certified``, the balanced design per link, the balanced scene, the
-method's report and its native result; :meth:`Design.to_dict` is the one shape of ``balance
---json`` and the node's answer (docs/cli.md, "JSON output").  The objective is a cone
-program's z (seed 001 eq. 43) with its certificate, a closed-form force balance's RMS force
-after / before (bound 0), or the balancing weights' RMS moment with its bound.
+:meth:`Design.to_dict` is the one shape of ``balance --json`` and the node's answer
+(docs/cli.md, "JSON output").
 """
 
 from dataclasses import dataclass
@@ -14,8 +10,7 @@ from dataclasses import dataclass
 SUMMARY_NAME_CHARS = 40
 """Longest scene name in :meth:`Design.summary` (the line stays under 200 characters)."""
 FORCE_BALANCE_ROUNDOFF = 1e-9
-"""A closed-form force balance is certified when its RMS shaking force after / before is at
-most this (what is left is round-off: the designs of the built-ins leave 1e-16 to 1e-14)."""
+"""A closed-form force balance is certified when its RMS shaking force after / before <= this."""
 STATUS = {0: 'optimal design, certified',
           1: 'design returned, its objective NOT certified',
           2: 'objective certified, but the design is not realizable or a stage failed'}

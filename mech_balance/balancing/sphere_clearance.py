@@ -1,10 +1,7 @@
 """
 Collision-free sphere counterweights of spatial rigs: the convex optimum, then a local search.
 
-:func:`design` checks the certified spheres against every body
-(:mod:`mech_balance.analysis.spatial_clearance`) and, where they come closer than the margin,
-searches their centres and masses (SLSQP) within the convex program's bounds; ``z - z_lb`` is
-the price of clearance (docs/build.md, "Spatial rigs: sphere counterweights").
+``z - z_lb`` is the price of clearance (docs/build.md, "Spatial rigs: sphere counterweights").
 """
 
 from dataclasses import dataclass, replace
@@ -31,13 +28,11 @@ START_SHRINK = (0.5, 0.25)
 CLEAR_ROWS = 12
 """The local search constrains this many of the least pairs' sampled clearances."""
 SEARCH_CUSHION = 0.05
-"""The search asks the sampled clearance for margin x (1 + this) (between samples it may dip
-a little lower); a design that fails the dense check is searched again with this doubled."""
+"""The search asks the sampled clearance for margin x (1 + this), then x (1 + 2 this)."""
 SEARCH_MAX_ITER = 300
 """Iteration limit of one local search (SLSQP)."""
 SEARCH_ANGLES = 120
-"""Crank angles the local search samples the clearance at (3 deg: between samples a smooth
-clearance dips by about its curvature x (1.5 deg)^2 / 2, far below the cushion)."""
+"""Crank angles the local search samples the clearance at (every 3 deg)."""
 VERIFY_ANGLES = 3600
 """Crank angles of the final check of a design found by the search."""
 BOUND_ACTIVE_REL = 1e-4
@@ -131,8 +126,6 @@ class _Search:
         self.apart = np.array([[bi != bj and j > i for j, bj in enumerate(bodies)]
                                for i, bi in enumerate(bodies)])
 
-    # ------------------------------------------------------------------ the variables
-
     def pack(self, spheres):
         """Return the variables of ``[(body, sphere)]``: centre (3) and mass per sphere."""
         return np.concatenate([[*s['centre_m'], s['mass_kg']] for _, s in spheres])
@@ -159,8 +152,6 @@ class _Search:
         for body, s in spheres:
             out.setdefault(body, []).append(s)
         return out
-
-    # ------------------------------------------------------------------ the figures
 
     def theta(self, spheres):
         """Return the parameters (10 nb,) of the rig with the spheres added."""
@@ -212,11 +203,7 @@ class _Search:
         return np.array(out), names
 
     def gaps(self, spheres, jacobian=False):
-        """
-        Return the least sampled clearance of every sphere pair with another body (m).
-
-        With ``jacobian``: also its derivative ``(pairs, 4 P)`` at each pair's least sample.
-        """
+        """Return the least sampled clearance (m) of each sphere-body pair (and its jacobian)."""
         local = np.array([s['centre_m'] for _, s in spheres])           # (P, 3)
         radii = np.array([s['outer_radius_m'] for _, s in spheres])
         mass = np.array([s['mass_kg'] for _, s in spheres])
@@ -263,8 +250,6 @@ class _Search:
         jac_p[rows_p, aj, 3] = -drad[aj]
         return values, np.concatenate([jac_s.reshape(-1, 4 * n_p),
                                        jac_p.reshape(-1, 4 * n_p)])
-
-    # ------------------------------------------------------------------ the search
 
     def local(self, start, cushion):
         """Return (spheres, least sampled clearance, active bounds) of one SLSQP run."""
@@ -319,8 +304,7 @@ class _Search:
             x = x0.copy()
             x[3::4] *= share
             yield x
-        # each sphere pushed along its body's first axis normal to its centre (out of the
-        # plane the linkage moves in, where the frame bearings and tubes are)
+        # each sphere pushed along its body's first axis normal to its centre
         x = x0.copy()
         for i, (body, _) in enumerate(self.spheres):
             x[4 * i + 2] += (1.0 if i % 2 == 0 else -1.0) * 0.5 * self.rms_max[body]
@@ -351,8 +335,7 @@ def design(rig, result, samples, margin_m):
     """
     Return ``(result, report entries)``: the convex sphere optimum made collision-free.
 
-    ``margin_m`` None: the check only.  The entries: ``clearance``, ``warnings``,
-    ``clearance_design``.  Raises :class:`NoClearDesign` when no design is clear.
+    ``margin_m`` None: the check only.  Raises :class:`NoClearDesign` when no design is clear.
     """
     margin = check_margin(margin_m)
     cert = result.certificate

@@ -1,9 +1,4 @@
-"""
-The before/after table and the per-link design rows that every planar method reports.
-
-:func:`before_after` (RMS bearing forces, driving torque, shaking force and moment, normalized
-and SI) and :func:`link_design` (three equimomental point masses, seed 001 eqs. 8-15).
-"""
+"""The before/after table and the per-link design rows that every planar method reports."""
 
 from dataclasses import dataclass, field
 import math
@@ -13,8 +8,7 @@ from mech_balance.analysis import cycle as analysis
 from mech_balance.core import equimomental
 
 CHANGE_BASELINE_REL_TOL = 1e-9
-"""A before value below this fraction of the table's largest of its kind is round-off: its
-change is None ('n/a')."""
+"""A before value below this fraction of its kind's largest is round-off (change None)."""
 
 
 @dataclass
@@ -65,12 +59,7 @@ def link_design(link, counterweights=False, units=None):
 
 
 def before_after(original, balanced, samples=None):
-    """
-    Return the before/after rows of RMS bearing forces, torque, shaking force and moment.
-
-    Each row: quantity, ``unit``/``before``/``after`` (normalized if the scene is), the same
-    ``*_si`` and ``change_percent`` (None: :data:`CHANGE_BASELINE_REL_TOL`).
-    """
+    """Return the before/after rows of RMS bearing forces, torque, shaking force and moment."""
     rig = analysis.Rig(original.with_outputs(('bearing_reactions',)))
     cycles = [analysis.run_cycle(r, samples) for r in
               (rig, rig.with_scene(balanced.with_outputs(('bearing_reactions',))))]

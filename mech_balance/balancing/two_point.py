@@ -1,12 +1,9 @@
 """
 Seed 001 Appendix B: the two-point-mass model of a link, and Table 12's comparison.
 
-Two point masses at theta = 0 and pi/2 of the link frame represent only the links outside a
-band of (m, h, I_O); the three-point model represents every link, so with the same bounds
-(eqs. B.1-B.5) it is the convex relaxation: its certified optimum is a LOWER bound on the
-two-point optimum.  Sequential cone programs over convex pieces of the two-point set give a
-feasible two-point design, verified with the core: an UPPER bound.  :func:`table12` returns
-both (docs/balancing.md, "Chaudhary & Saha Table 12: two point masses").
+:func:`table12` returns the certified three-point relaxation (a LOWER bound) and a verified
+two-point design (an UPPER bound); docs/balancing.md, "Chaudhary & Saha Table 12: two point
+masses".
 """
 
 from dataclasses import dataclass
@@ -294,9 +291,7 @@ def _relaxation_bound(run, maps, dsc, w, n, y, level):
     radius = level / min(w[w > 0])
     lo[:nv], hi[:nv] = certificate.polytope_bounds(np.vstack(used), radius, lo[:nv], hi[:nv],
                                                    linear_maps.RANK_REL_TOL)
-    # what stays unbounded is first moments along null directions of the objective: they
-    # enter no constraint of the relaxation, so an optimal point shares the design's
-    # component there (certificate.level_set_bounds, centre)
+    # first moments along null directions of the objective: the design's (level_set_bounds)
     lo[:nv], hi[:nv], _ = certificate.level_set_bounds(np.vstack(used), radius, lo[:nv],
                                                        hi[:nv], y, linear_maps.RANK_REL_TOL)
     for k, wk in enumerate(w):

@@ -1,13 +1,8 @@
 """
 Balancing weights (seed 002): force balance, then the least RMS shaking moment.
 
-The method ``weights`` of :func:`mech_balance.balancing.balance` for a spatial rig whose
-scene lists ``balancing_weights`` (the RGGR, ``config/rggr.yaml``): one weight on each link
-pivoted on the frame zeroes the shaking force (eqs. 1-14, least squares over the regressor
-of :func:`mech_balance.core.regressor.wrench_regressor`); then the products of inertia
-``(I_wu, I_vw)`` of each weighted link about its pivot minimize the RMS shaking moment
-(eqs. 73-95, least squares with a safe lower bound); a cylinder weight's end faces give it
-those products (eqs. 96-103).  docs/balancing.md, "Hedaya: balancing weights".
+The method ``weights`` for a spatial rig whose scene lists ``balancing_weights`` (the RGGR);
+docs/balancing.md, "Hedaya: balancing weights".
 """
 
 from dataclasses import dataclass, replace
@@ -290,11 +285,7 @@ def end_faces(weight):
 
 
 def least_squares_lower_bound(design, target, residual):
-    """
-    Return a safe lower bound on ``min_J ||design J - target||`` (:mod:`.certificate`).
-
-    The cone form ``min s s.t. ||target - design J|| <= s`` at the dual point (1, r/||r||).
-    """
+    """Return a safe lower bound on ``min_J ||design J - target||`` (:mod:`.certificate`)."""
     from mech_balance.balancing import certificate
     rows, cols = design.shape
     norm_r = float(np.linalg.norm(residual))
@@ -313,9 +304,6 @@ def least_squares_lower_bound(design, target, residual):
     lo[cols], hi[cols] = 0.0, norm_r * (1.0 + 4.0 * certificate.UNIT_ROUNDOFF)
     bound = certificate.safe_lower_bound(q, a, b, [('soc', rows + 1)], z, lo, hi)
     return max(bound.value, 0.0)
-
-
-# ============================================================================ the report
 
 
 class ReportView:
@@ -337,32 +325,16 @@ class ReportView:
         return {'mass': 'kg', 'length': 'm', 'inertia': 'kg m^2', 'force': 'N',
                 'moment': 'N m', 'torque': 'N m', 'angle': 'deg'}
 
-    def mass(self, x):
-        """Return a mass in the view's unit."""
-        return float(x) / self.scale['mass']
-
-    def length(self, x):
-        """Return lengths in the view's unit (a vector as a list)."""
-        out = np.asarray(x, dtype=float) / self.scale['length']
-        return out.tolist() if out.ndim else float(out)
-
-    def inertia(self, x):
-        """Return a moment or product of inertia in the view's unit."""
-        return float(x) / self.scale['inertia']
-
-    def force(self, x):
-        """Return forces in the view's unit."""
-        return np.asarray(x, dtype=float) / self.scale['force']
-
-    def moment(self, x):
-        """Return moments or torques in the view's unit."""
-        return np.asarray(x, dtype=float) / self.scale['moment']
+    def __call__(self, kind, x):
+        """Return a value of ``kind`` (a key of ``scale``) in the view's unit (array or float)."""
+        out = np.asarray(x, dtype=float) / self.scale[kind]
+        return out if out.ndim else float(out)
 
 
 def metrics(data, view, crank_index):
     """Return the RMS and largest |shaking force|, |shaking moment| and |driving torque|."""
-    force, moment = view.force(data.force_N), view.moment(data.moment_Nm)
-    torque = view.moment(data.joint_effort[:, crank_index])
+    force, moment = view('force', data.force_N), view('moment', data.moment_Nm)
+    torque = view('moment', data.joint_effort[:, crank_index])
     return {'shaking_force_rms': float(rms(force)),
             'shaking_force_max': float(np.max(np.linalg.norm(force, axis=1))),
             'shaking_moment_rms': float(rms(moment)),
@@ -383,17 +355,18 @@ def balance_report(rig, result, normalized=False):
         rows.append({'rig': label, **metrics(data, view, rig.crank_index)})
     weights = {}
     for wt in result.weights:
-        entry = {'mass': view.mass(wt.mass_kg), 'centre_uvw': view.length(wt.centre_uvw_m),
-                 'radius': view.length(wt.radius_m),
-                 'inertia_ww': view.inertia(wt.inertia_ww_kg_m2),
-                 'product_wu': view.inertia(wt.product_wu_kg_m2),
-                 'product_vw': view.inertia(wt.product_vw_kg_m2),
+        entry = {'mass': view('mass', wt.mass_kg),
+                 'centre_uvw': view('length', wt.centre_uvw_m).tolist(),
+                 'radius': view('length', wt.radius_m),
+                 'inertia_ww': view('inertia', wt.inertia_ww_kg_m2),
+                 'product_wu': view('inertia', wt.product_wu_kg_m2),
+                 'product_vw': view('inertia', wt.product_vw_kg_m2),
                  'cylinder': wt.cylinder}
         if wt.cylinder:
             entry.update(alpha_deg=math.degrees(wt.alpha_rad),
                          gamma_deg=math.degrees(wt.gamma_rad))
         weights[wt.link] = entry
-    products = {f'{wt.link}.{name}': view.inertia(result.link_products_kg_m2[2 * k + j])
+    products = {f'{wt.link}.{name}': view('inertia', result.link_products_kg_m2[2 * k + j])
                 for k, wt in enumerate(result.weights) for j, name in enumerate(('I_wu', 'I_vw'))}
     norm = sc.normalization
     return {
@@ -405,9 +378,9 @@ def balance_report(rig, result, normalized=False):
         'table': spatial_result.before_after(
             rig, result.balanced_scene, result.samples,
             spatial_model.units_of(rig, spatial_model.parameter_model(rig))),
-        'optimum': {'shaking_moment_rms': float(view.moment(result.moment_rms_optimal_Nm)),
+        'optimum': {'shaking_moment_rms': view('moment', result.moment_rms_optimal_Nm),
                     'shaking_moment_rms_lower_bound':
-                        float(view.moment(result.moment_rms_lower_bound_Nm)),
+                        view('moment', result.moment_rms_lower_bound_Nm),
                     'moment_rms_lower_bound_Nm': result.moment_rms_lower_bound_Nm,
                     'normal_equation_residual': result.normal_equation_residual,
                     'rank': result.rank},
@@ -455,5 +428,4 @@ def format_report(report):
     return '\n'.join(lines)
 
 
-__all__ = ['balance_report', 'balance_weights', 'format_report', 'WeightsError',
-           'WeightsResult']
+__all__ = ['balance_report', 'balance_weights', 'format_report', 'WeightsError', 'WeightsResult']

@@ -1,9 +1,7 @@
 """
 The parameter models of spatial rigs, the objective's units and the RMS maps.
 
-A kind takes part through a parameter model (:data:`PARAMETER_MODELS`): which inertial
-parameters of each body its scene can hold (``theta_k = B_k y_k``) and how a design is written
-back.  The RMS maps (:func:`maps_of`) and the spatial methods' option checks are here too.
+A kind takes part through :data:`PARAMETER_MODELS`; the spatial methods' option checks are here.
 """
 
 from dataclasses import dataclass
@@ -19,8 +17,7 @@ import numpy as np
 CAPABILITY = 'body_kinematics'
 """The rig capability every method of this module needs."""
 INERTIA_CLIP_RTOL = 1e-12
-"""A designed body's principal moment of inertia below zero by at most this fraction of its
-m reach^2 is round-off (the design at the edge of the PSD set) and is written as 0."""
+"""A designed principal moment of inertia in [-this x m reach^2, 0) is written as 0."""
 PSD_ROUNDOFF = 64.0 * np.finfo(float).eps
 """A body's normalized pseudo-inertia counts as PSD down to this fraction of its largest
 eigenvalue below zero (the eigenvalue solver's round-off; a thin rod has exact zeros)."""
@@ -34,11 +31,7 @@ class SpatialBalanceError(BalanceError):
 
 @dataclass(frozen=True)
 class BodyModel:
-    """
-    What a kind's scene can hold of one body: ``theta = basis @ y`` (``basis`` (10, d)).
-
-    ``orders``: each column's power of length; ``counterweights``: True or why not.
-    """
+    """What a kind's scene can hold of one body: ``theta = basis @ y`` (``basis`` (10, d))."""
 
     name: str
     basis: np.ndarray
@@ -67,11 +60,6 @@ class ParameterModel:
         return names.index(name)
 
 
-def full_body(name, reach):
-    """Return the :class:`BodyModel` of a body with all ten parameters free."""
-    return BodyModel(name, np.eye(10), (0, 1, 1, 1, 2, 2, 2, 2, 2, 2), reach)
-
-
 def line_basis(point_a, point_b):
     """Return the (10, 3) basis of mass on the line from ``point_a`` (moments mu0, mu1, mu2)."""
     a = np.asarray(point_a, dtype=float)
@@ -95,8 +83,7 @@ def spatial_model(rig):
     names = [b.name for b in rig.drawing.bodies]
     reaches = {name: max([float(np.linalg.norm(p)) for p in sc.link(name).points.values()]
                          + [0.0]) for name in names}
-    # a link whose points all sit at its origin (a slider carriage): the least span of the
-    # rig's other links, so its extent bound and counterweight's distance stay within the rig
+    # a link whose points all sit at its origin (a slider carriage): the least span of others
     spans = [r for r in reaches.values() if r > 0.0]
     least_span = min(spans) if spans else 1.0
     bodies, thetas = [], []
@@ -117,7 +104,7 @@ def spatial_model(rig):
                                     ('m', 'm s', 'm s^2'),
                                     float(np.linalg.norm(ends[0]))))
         else:
-            bodies.append(full_body(name, reach))
+            bodies.append(BodyModel(name, np.eye(10), (0, 1, 1, 1, 2, 2, 2, 2, 2, 2), reach))
 
     def build(t, name=None):
         t = np.asarray(t, dtype=float).reshape(-1, 10)
@@ -267,11 +254,7 @@ def coordinates(body, theta_k):
 
 
 def program_units(model, k, m_lo, m_hi, radius):
-    """
-    Return (M, R): the units of body k's variables in the redistribution and its checks.
-
-    The rig's own units (:func:`reference_units`) moved into the bounds (docs/balancing.md).
-    """
+    """Return (M, R): body k's units (:func:`reference_units`) moved into its bounds."""
     m0, r0 = reference_units(model, k)
     return (float(min(max(m0, m_lo), m_hi)),
             float(min(r0, radius + model.bodies[k].line_offset_m)))

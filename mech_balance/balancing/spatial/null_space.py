@@ -1,9 +1,4 @@
-"""
-Complete force balance of a spatial rig: the null space of its force map (:func:`force_balance`).
-
-The conditions express rank(F) pivot parameters through the others; the least change of the
-free bodies that meets them is returned (docs/balancing.md, "Spatial rigs").
-"""
+"""Complete force balance of a spatial rig: the null space of its force map."""
 
 from dataclasses import dataclass, field
 
@@ -17,18 +12,12 @@ import numpy as np
 FORCE_BALANCED_REL = 1e-9
 """A design whose RMS shaking force is at most this fraction of the original's is balanced."""
 CONDITION_COEFF_REL = 1e-12
-"""Coefficients of a printed force-balance condition below this fraction of its largest are
-round-off (left out of the text, kept in the matrix)."""
+"""Coefficients of a condition below this fraction of its largest are left out of its text."""
 
 
 @dataclass
 class ForceBalance:
-    """
-    The complete force balance of a spatial rig.
-
-    ``conditions`` ``[{'parameter': name, 'equals': {name: coefficient}}]`` (SI); ``theta``
-    the least change of the free bodies that meets them (``attainable``: it balances).
-    """
+    """The complete force balance of a spatial rig: its conditions (SI) and least change."""
 
     scene: object
     balanced_scene: object
@@ -77,8 +66,7 @@ def force_balance(rig, free=None, samples=None):
     nb = len(model.bodies)
     free_idx = free_bodies(model, free, 'free')
     units = units_of(rig, model)
-    # conditions over the parameters the scene can hold (every body's basis), each in units
-    # of its body's mass and reach
+    # conditions over the parameters the scene can hold, in units of each body's mass, reach
     every = set(range(nb))
     full_basis, _, _ = design_columns(model, every)
     full_scale = body_scales(model, every, units)

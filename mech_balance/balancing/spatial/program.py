@@ -1,9 +1,7 @@
 """
 The cone program of the spatial redistribution and counterweights (Clarabel, with PSD cones).
 
-``min q'x s.t. A x + s = b, s in K`` with x = (y, t_f, t_n): theta = offset + basis y, built
-block by block (:class:`ConeProgram`); the pseudo-inertia ``J(theta)`` of each body enters as a
-4x4 PSD block (:data:`J_MAP`, Clarabel's scaled triangle :data:`~.certificate.SVEC`).
+Each body's pseudo-inertia enters as a 4x4 PSD block (:data:`J_MAP`).
 """
 
 import math
@@ -18,8 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 TIGHT_TOL_SCALE = 1e-3
-"""A program whose first solve is not certified is solved again with Clarabel's tolerances
-this factor tighter (its dual residual, paid with the box, shrinks with them)."""
+"""An uncertified program is solved again with Clarabel's tolerances this factor tighter."""
 
 
 SIGMA_ENTRIES = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))

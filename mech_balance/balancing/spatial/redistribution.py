@@ -1,9 +1,7 @@
 """
 Certified optimal redistribution of a spatial rig with physically realizable bodies.
 
-Minimize ``w1 f~ + w2 n~`` over the free bodies' parameters, each body's pseudo-inertia PSD
-(Wensing, Kim & Slotine 2017), with mass and extent bounds (:class:`~.program.ConeProgram`,
-certified by :func:`~.result.finish`; docs/balancing.md, "Spatial rigs").
+docs/balancing.md, "Spatial rigs".
 """
 
 import math
@@ -20,19 +18,13 @@ from mech_balance.conic import INFEASIBLE
 import numpy as np
 
 EXTENT_FACTOR = 1.5
-"""Default extent bound: RMS distance of a body's mass from its origin at most this factor
-times its reach (the farthest point of its drawing from its origin)."""
+"""Default extent bound: RMS distance of a body's mass from its origin <= this x its reach."""
 
 
 def redistribute(rig, weights=DEFAULT_WEIGHTS, samples=None, *, mass_factors=PAPER_MASS_FACTORS,
                  mass_bounds=None, extent_factor=EXTENT_FACTOR, extent_bounds=None,
                  fixed=(), force_balanced=False):
-    """
-    Return the certified optimal redistribution (:class:`SpatialResult`) of a spatial rig.
-
-    Bodies not ``fixed`` change within ``mass_bounds`` ``{body: (lo_kg, hi_kg)}`` and
-    ``extent_bounds`` ``{body: r_m}`` (defaults: the factors x the original).
-    """
+    """Return the certified optimal redistribution (:class:`SpatialResult`) of a spatial rig."""
     t_start = time.perf_counter()
     w = check_weights(weights)
     model = parameter_model(rig)

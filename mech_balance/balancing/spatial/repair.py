@@ -1,10 +1,4 @@
-"""
-The constraints of a spatial redistribution at a design, and the repair of solver round-off.
-
-:class:`RealizableChecks`: each free body's mass bounds, PSD pseudo-inertia and extent bound
-evaluated in the units of the program (:func:`~.model.program_units`), an interior anchor,
-and the least move onto the feasible set.
-"""
+"""The constraints of a spatial redistribution at a design, and the repair of solver round-off."""
 
 import math
 
@@ -13,9 +7,7 @@ from mech_balance.core import regressor
 import numpy as np
 
 VIOLATION_TOL = 16.0 * np.finfo(float).eps
-"""A design meets a constraint when it violates it by at most this (units of its body's mass
-and reach): the rounding of evaluating the constraint (equal mass bounds are met exactly
-otherwise only by luck)."""
+"""A design meets a constraint violated by at most this (units of its body's mass and reach)."""
 REPAIR_GROWTH = 2.0
 """The realizability repair multiplies its step by this factor until the body is PSD."""
 REPAIR_STEPS = 60
@@ -45,12 +37,7 @@ class RealizableChecks:
         return float(max([0.0] + [max(self._body(theta, k)) for k in self.free]))
 
     def anchor(self, near=None):
-        """
-        Return a design strictly inside every bound.
-
-        ``near`` (a design): each body keeps its mass (clipped) and first moment (shrunk), so a
-        pull towards the anchor leaves the shaking force as it was.
-        """
+        """Return a design strictly inside every bound (``near``: keep its mass, first moment)."""
         theta = self.model.theta.copy()
         for k in self.free:
             body = self.model.bodies[k]
@@ -107,12 +94,7 @@ class RealizableChecks:
         return theta
 
     def repair(self, theta, keep_force=False, objective=None):
-        """
-        Return (theta, pull): theta moved onto the feasible set where round-off left it.
-
-        The masses clipped, then the least spread that makes each J PSD, else the least
-        fraction ``pull`` of the way to the :meth:`anchor`; ``objective`` picks of the two.
-        """
+        """Return (theta, pull): theta moved onto the feasible set (``pull``: to the anchor)."""
         if self.feasible(theta):
             return theta, 0.0
         if not keep_force:

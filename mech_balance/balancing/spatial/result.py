@@ -1,10 +1,4 @@
-"""
-The result of a spatial redistribution or counterweights: evaluated, certified, tabled.
-
-:func:`finish` evaluates the written design with the core (``rig.at``), certifies it
-(:func:`mech_balance.balancing.certificate.folded_lower_bound`) and returns a
-:class:`SpatialResult`; :func:`write_scene` writes the balanced scene.
-"""
+"""The result of a spatial redistribution or counterweights: evaluated, certified, tabled."""
 
 from dataclasses import dataclass
 import math
@@ -195,8 +189,7 @@ def write_scene(result, path):
         comment = yaml.safe_dump(provenance, sort_keys=False, width=95)
         text = ''.join(f'# {line}\n' for line in comment.splitlines()) + \
             schema.to_yaml(result.balanced_scene)
-        # the design itself must load (a force balance may ask for a negative mass): checked
-        # before anything is written, so a refused design leaves no file behind
+        # the design itself must load: checked before anything is written
         schema.from_dict(yaml.safe_load(text), source=str(path))
     atomic.write_text_atomic(path, f'# written by mech-balance balance from scene '
                                    f'{result.scene.name}\n' + text)

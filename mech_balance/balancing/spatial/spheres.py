@@ -1,10 +1,8 @@
 """
 Certified optimal add-only counterweights of a spatial rig: clusters of hollow spheres.
 
-Each listed body keeps its parameters and gains a counterweight; the convex set
-``[[Sigma - s 1, dh], [dh^T, dm]]`` PSD and ``s >= k dm^(5/3)`` (a power cone) is exactly what
-clusters of hollow spheres realize (docs/balancing.md, "Spatial rigs"), so the optimum is
-built (:func:`sphere_cluster`) and certified as the redistribution is.
+The convex set is exactly what clusters of hollow spheres realize (docs/balancing.md, "Spatial
+rigs").
 """
 
 import math
@@ -22,20 +20,13 @@ from mech_balance.core import regressor
 import numpy as np
 
 CLUSTER_SPREAD_REL = 1e-6
-"""Eigenvalues of a counterweight's spread about its centre below this fraction of dm reach^2
-are round-off: no sphere pair is placed along them (the error is evaluated: the primal is the
-core's value of the built spheres)."""
+"""Eigenvalues of a counterweight's spread below this x dm reach^2 get no sphere pair."""
 
 
 def counterweights(rig, links, weights=DEFAULT_WEIGHTS, samples=None, *,
                    density_kg_m3=DEFAULT_DENSITY_KG_M3, max_mass_factor=DEFAULT_MAX_MASS_FACTOR,
                    max_radius_factor=DEFAULT_MAX_RADIUS_FACTOR):
-    """
-    Return the certified optimal add-only spheres on the listed bodies (a SpatialResult).
-
-    Each listed body gains spheres of at most ``max_mass_factor`` x its mass within RMS
-    distance ``max_radius_factor`` x its reach of its origin (:func:`sphere_cluster`).
-    """
+    """Return the certified optimal add-only spheres on the listed bodies (a SpatialResult)."""
     t_start = time.perf_counter()
     w = check_weights(weights)
     model = parameter_model(rig)
@@ -99,8 +90,7 @@ MIN_COUNTERWEIGHT_REL = 1e-9
 def _counterweight_program(model, maps, units, idx, w, max_mass_factor, max_radius_factor,
                            k_sphere):
     """Return the :class:`~.program.ConeProgram` of the counterweights on the bodies ``idx``."""
-    # variables per counterweight j (11): dm, dh (3), Sigma (6, SIGMA_ENTRIES), s; in units
-    # of the body's mass m0 and reach r0
+    # variables per counterweight (11): dm, dh (3), Sigma (6), s; in units of m0 and r0
     nvar = 11 * len(idx)
     nb = len(model.bodies)
     basis = np.zeros((10 * nb, nvar))
@@ -193,8 +183,7 @@ def sphere_cluster(dm, dh, sigma, s, density_kg_m3, reach_m):
     """
     Return the spheres realizing a counterweight (dm, dh, Sigma about the origin, spread s).
 
-    Pairs along the principal axes of the spread about c = dh / dm.  Each entry: mass_kg,
-    centre_m (body axes), spread_kg_m2, outer_radius_m, inner_radius_m.
+    Each entry: mass_kg, centre_m (body axes), spread_kg_m2, outer_radius_m, inner_radius_m.
     """
     c = np.asarray(dh, dtype=float) / dm
     spread = np.asarray(sigma, dtype=float) - s * np.eye(3) - dm * np.outer(c, c)
