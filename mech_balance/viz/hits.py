@@ -7,8 +7,9 @@ Vectorized over the samples of a turn (``p``) and the candidate places of a labe
 
 import numpy as np
 
-LABEL_CHUNK = 4
-"""Candidate places of a label tested at once by the costly tests (:func:`first_passing`)."""
+LABEL_CHUNK = 2
+"""Places of a sample that passed the cheap tests, given to the costly tests at once
+(:func:`first_passing`; a larger round tests more places than it saves rounds)."""
 
 
 def segments_hit_boxes(segments, boxes):
@@ -49,22 +50,27 @@ def first_passing(ok, test, chunk=LABEL_CHUNK):
     """
     Return ``ok (p, c)`` narrowed by ``test``, exact up to each row's first passing column.
 
-    ``test(rows, cols)`` returns the costly test's ``(len(rows), cols)`` mask.  It is run in
-    column chunks of ``chunk``, on the rows still without a passing column and that pass the
-    cheap mask somewhere in the chunk; a row stops at the chunk of its first passing column
-    (later columns are left False), so ``argmax`` of the result is that of the full test.
+    ``test(rows, cols)`` returns the costly test of the places ``(rows[i], cols[i])``, a
+    ``(q,)`` mask.  It is run only on places that pass the cheap mask ``ok``, in rounds of
+    ``chunk`` such places per row in column order, on the rows still without a passing
+    place; a row stops at the round of its first (later places are left False), so
+    ``argmax`` of the result is that of the full test.
     """
     out = np.zeros_like(ok)
-    pending = np.flatnonzero(ok.any(axis=1))
-    for start in range(0, ok.shape[1], chunk):
-        if not len(pending):
-            break
-        cols = slice(start, start + chunk)
-        sub = ok[pending, cols]
-        need = sub.any(axis=1)
-        rows = pending[need]
-        if len(rows):
-            passed = sub[need] & test(rows, cols)
-            out[rows, cols] = passed
-            pending = np.concatenate([pending[~need], rows[~passed.any(axis=1)]])
+    rows, cols = np.nonzero(ok)                         # row by row, in column order
+    if not len(rows):
+        return out
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    rank = np.arange(len(rows)) - np.repeat(starts, np.diff(np.r_[starts, len(rows)]))
+    order = np.argsort(rank, kind='stable')            # round by round, rows in order
+    rows, cols, rank = rows[order], cols[order], rank[order]
+    bounds = np.searchsorted(rank, np.arange(0, rank[-1] + chunk + 1, chunk))
+    pending = np.ones(len(ok), dtype=bool)
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        take = lo + np.flatnonzero(pending[rows[lo:hi]])
+        if not len(take):
+            continue
+        passed = take[test(rows[take], cols[take])]
+        out[rows[passed], cols[passed]] = True
+        pending[rows[passed]] = False
     return out

@@ -321,10 +321,10 @@ def place_labels(layout, motion, variant):
             ok &= ~hit.any(axis=-1)
         # no line crosses a label, and it names its own feature: the costly tests, run only
         # where the cheap ones passed and only until each sample's first place is found
-        ok = first_passing(ok, lambda rows, cols: ~segments_hit_boxes(
-            lines[rows], boxes[rows, cols]) & _nearest_own(
-            spec, f_px[rows, 0], centres[rows, cols], markers[rows],
-            [s[rows] for s in links_px]))
+        ok = first_passing(ok, lambda rows, cols: (~segments_hit_boxes(
+            lines[rows], boxes[rows, cols, None]) & _nearest_own(
+            spec, f_px[rows, 0], centres[rows, cols, None], markers[rows],
+            [s[rows] for s in links_px]))[:, 0])
         found = ok.any(axis=1)
         first = np.argmax(ok, axis=1)
         rows = np.arange(p)
