@@ -374,7 +374,7 @@ def _gauge_tips(layout, motion):
 
 
 def _hull(points):
-    """Return the points of ``points`` ``(m, 3)`` that can be extreme on any screen."""
+    """Return the distinct points of ``points`` ``(m, 3)``: those extreme on a screen too."""
     return np.unique(np.asarray(points, dtype=float), axis=0)
 
 
