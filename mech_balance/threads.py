@@ -42,7 +42,8 @@ def limit_blas_threads(environ=None):
     Limit numpy's BLAS pool to :func:`blas_threads`; return the limit set, or None.
 
     None when the environment leaves the pool alone or ``threadpoolctl`` is missing (then
-    numpy's default pool is kept, which is only slower).
+    numpy's default pool is kept, which is only slower).  A BLAS loaded later (scipy's) and
+    child processes get the limit through ``OPENBLAS_NUM_THREADS``, which this call sets.
     """
     n = blas_threads(environ)
     if n is None or _LIMIT['threads'] == n:   # none, or set already in this process
@@ -51,9 +52,10 @@ def limit_blas_threads(environ=None):
         from threadpoolctl import threadpool_limits
     except ImportError:
         return None
-    # threadpoolctl reaches the libraries loaded so far: load numpy's and scipy's OpenBLAS
+    # threadpoolctl reaches the libraries loaded so far (numpy's OpenBLAS); one loaded later
+    # (scipy's, imported only by what uses it) reads OPENBLAS_NUM_THREADS as it loads
     import numpy  # noqa: F401
-    import scipy.linalg  # noqa: F401
+    os.environ['OPENBLAS_NUM_THREADS'] = str(n)
     threadpool_limits(limits=n, user_api='blas')
     _LIMIT['threads'] = n
     return n

@@ -17,7 +17,6 @@ from mech_balance.conventions import cycle_angles
 from mech_balance.core.planar.rig import PlanarRig
 from mech_balance.schema.scene import add_counterweights, MAX_PLANE_OFFSET_M
 import numpy as np
-from scipy import optimize
 
 MAX_ENUMERATED = 4
 """Up to this many discs every assignment of sides and orders is tried (2^n n! of them)."""
@@ -295,6 +294,7 @@ class _Search:
             g = np.sort(np.concatenate([g, np.full(CLEAR_ROWS, 1e3 * ref)]))[:CLEAR_ROWS]
             return (g - self.margin * (1.0 + SEARCH_CUSHION)) / ref
 
+        from scipy import optimize   # only when a search runs (record --balance never)
         u0 = x0 / scale
         bounds = [(1e-9, None), (-1.0, 1.0), (-1.0, 1.0), (1e-6, 10.0)] * len(template)
         res = optimize.minimize(objective, u0, method='SLSQP', bounds=bounds,

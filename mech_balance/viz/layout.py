@@ -357,12 +357,11 @@ def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
     xs = np.linspace(lo[0] + reach, hi[0] - reach, GAUGE_GRID)
     ys = np.linspace(lo[1] + reach, hi[1] - reach, GAUGE_GRID)
     if hi[0] - lo[0] > 2 * reach and hi[1] - lo[1] > 2 * reach:
-        from scipy.spatial import cKDTree
         grid = np.array([(x, y) for y in ys[::-1] for x in xs])
         free = np.ones(len(grid), dtype=bool)
         padded = pad > 0.0
-        if not padded.all():          # the nearest bare point, by a tree
-            free &= cKDTree(cloud[~padded]).query(grid)[0] >= reach + gap
+        if not padded.all():          # the nearest bare point, column by column of the grid
+            free &= _nearest(grid, cloud[~padded], reach + gap) >= reach + gap
         if padded.any():              # points drawn with a radius (mass centres, discs)
             d = np.linalg.norm(grid[:, None] - cloud[padded][None], axis=-1) - pad[padded]
             free &= d.min(axis=1) >= reach + gap
@@ -374,6 +373,25 @@ def _gauge_place(layout, motion, pts, radii, lo, hi, reach, gap, view_px):
         if s < best_s * (1.0 - 1e-9):
             best, best_s = c, s
     return best
+
+
+def _nearest(grid, cloud, within):
+    """
+    Return the distance from each grid point ``(g, 2)`` to its nearest cloud point.
+
+    Exact where it is below ``within``; elsewhere at least ``within`` (``inf`` where no cloud
+    point is within ``within`` in x): each grid column is held against the cloud points of
+    its strip of x alone (numpy, no k-d tree: scipy.spatial costs more to import).
+    """
+    out = np.full(len(grid), np.inf)
+    near_x = within * (1.0 + 1e-9)
+    for x in np.unique(grid[:, 0]):
+        rows = np.flatnonzero(grid[:, 0] == x)
+        strip = cloud[np.abs(cloud[:, 0] - x) <= near_x]
+        if len(strip):
+            d = grid[rows, None, :] - strip[None]
+            out[rows] = np.sqrt((d * d).sum(axis=-1)).min(axis=1)
+    return out
 
 
 def _gauge_tips(layout, motion):
@@ -389,15 +407,8 @@ def _gauge_tips(layout, motion):
 
 
 def _hull(points):
-    """Return the points of ``points`` ``(m, 3)`` that can be extreme on any screen."""
-    points = np.asarray(points, dtype=float)
-    if len(points) <= 8:
-        return points
-    from scipy.spatial import ConvexHull
-    try:
-        return points[ConvexHull(points, qhull_options='QJ').vertices]
-    except Exception:   # qhull refuses a degenerate cloud: keep every point
-        return points
+    """Return the distinct points of ``points`` ``(m, 3)``: those extreme on a screen too."""
+    return np.unique(np.asarray(points, dtype=float), axis=0)
 
 
 def _frame_3d(layout, motion, pts, lo, hi, reach, gap, view_px):
