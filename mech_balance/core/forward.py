@@ -52,9 +52,6 @@ class _TooManyEvaluations(Exception):
     """Raised inside the right-hand side to stop a runaway integration."""
 
 
-# ============================================================================ loading
-
-
 def load(name_or_path):
     """Return ``(scene, drive)`` of a scene of any kind by built-in name or path."""
     sc = scene_mod.load(name_or_path)
@@ -75,9 +72,6 @@ def rig_of(scene_or_rig):
             'capability driving_torque (its inverse dynamics), which the forward dynamics '
             'is built from')
     return rig
-
-
-# ============================================================================ rig functions
 
 
 FUNCTIONS = ('inertia', 'c1', 'tau_gravity', 'damping', 'potential')
@@ -238,9 +232,6 @@ class _DirectFunctions:
         return -float(np.sum(width[:, None] * self._weights * tau))
 
 
-# ============================================================================ the ODE
-
-
 @dataclass
 class Stiffness:
     """The stiffness estimate of a simulation and the method it implies."""
@@ -327,8 +318,6 @@ class ForwardDynamics:
         self.max_evaluations = MAX_RHS_EVALUATIONS
         self._check_inertia()
 
-    # ------------------------------------------------------------------ set-up
-
     def _check_inertia(self):
         """Refuse a total generalized inertia that is not positive over the turn."""
         grid = 2.0 * math.pi * np.arange(TABLE_MIN_SAMPLES) / TABLE_MIN_SAMPLES
@@ -404,8 +393,6 @@ class ForwardDynamics:
                   'motor_torque': self.motor.stall_torque_Nm if self.motor else 1.0,
                   'motor_work': energy, 'damping_loss': energy}
         return rtol * np.array([scales[n] for n in self.names])
-
-    # ------------------------------------------------------------------ right-hand side
 
     def _voltage(self, y, e, saturate=True):
         """Return (u, du/de, du/dz, integrating) of the speed controller or the open loop."""
@@ -505,8 +492,6 @@ class ForwardDynamics:
             jm[self.i_m, self.i_m] = -1.0 / self.motor.electrical_time_constant_s
         return jm
 
-    # ------------------------------------------------------------------ stiffness
-
     def stiffness(self):
         """Return the :class:`Stiffness` estimate at the operating point."""
         w = self.omega_ref
@@ -533,8 +518,6 @@ class ForwardDynamics:
                       f'{ratio:.3g} <= {STIFFNESS_RATIO_LIMIT:g}; accuracy, not stability, '
                       'sets the step, so DOP853 (explicit Runge-Kutta, order 8) is used')
         return Stiffness(ratio, lam, w, ratio > STIFFNESS_RATIO_LIMIT, method, reason)
-
-    # ------------------------------------------------------------------ integration
 
     def simulate(self, duration_s, method='auto', rtol=DEFAULT_RTOL, t_eval=None,
                  dense_output=False, y0=None, max_evaluations=MAX_RHS_EVALUATIONS):

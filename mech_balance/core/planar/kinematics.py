@@ -189,8 +189,6 @@ class Linkage(SpanningTree, RateAnalysis):
         #                             its slope and offset as algebra.Tiles)
         self.warnings = []
 
-    # ------------------------------------------------------------------ construction
-
     @staticmethod
     def _length_scale(scene, pts):
         if scene.normalization is not None:
@@ -209,8 +207,6 @@ class Linkage(SpanningTree, RateAnalysis):
         crank = next(j for j in scene.joints if j.name == scene.crank_joint)
         point = crank.point_a if crank.link_a == FRAME else crank.point_b
         return complex(*scene.frame_points[point])
-
-    # ------------------------------------------------------------------ position level
 
     def pose(self, q):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
@@ -350,8 +346,6 @@ class Linkage(SpanningTree, RateAnalysis):
             return linalg.Factored(None, self.lu, values=values), jac_psi
         return linalg.Factored(self.jacobian(pose, unknown_only=True), self.lu), None
 
-    # ------------------------------------------------------------------ Newton
-
     def newton(self, psi, q, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
         """Solve g(q) = 0 from ``q`` ``(nt, p)``: ``(q, pose, residual, iterations, ok)``."""
         q = np.array(q, dtype=float)
@@ -467,8 +461,6 @@ class Linkage(SpanningTree, RateAnalysis):
             f'after {ASSEMBLY_MAX_ITER} damped Newton steps); check the joint points and '
             'lengths')
 
-    # ------------------------------------------------------------------ branch skeleton
-
     @property
     def skeleton(self):
         """Return the traced branch: nodes over one crank turn (computed on first use)."""
@@ -536,8 +528,6 @@ class Linkage(SpanningTree, RateAnalysis):
         if text not in self.warnings:
             self.warnings.append(text)
             warnings.warn(text, RuntimeWarning, stacklevel=3)
-
-    # ------------------------------------------------------------------ public evaluation
 
     def solve(self, psi, psi_d=None, psi_dd=None, need_rates=True, need_acc=True):
         """Return the :class:`KinematicState` at crank angles ``psi`` (rad; rates: the scene's)."""

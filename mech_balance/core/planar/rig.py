@@ -120,8 +120,6 @@ class PlanarRig:
             out['kinetic_energy'] = kinetic_energy(state, self.inertia)
         return out
 
-    # ------------------------------------------------------------------ the Rig protocol
-
     def at(self, psi, speed=None, accel=None, outputs=None):
         """Return the :class:`RigData` at crank angles ``psi`` (module docstring: joints)."""
         psi, speed, accel = batch(self.scene, psi, speed, accel)

@@ -164,8 +164,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         self._assemble()
         self._skeleton = None
 
-    # ------------------------------------------------------------------ the input
-
     def input_motion(self, psi, psi_d, psi_dd):
         """Return the input joint's ``(x, x', x'')`` at cycle angles ``psi`` (rad or m)."""
         if self.periodic:
@@ -185,8 +183,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         if self.periodic:
             return f'crank angle {crank_angle_text(x, digits)} deg'
         return f'input slide {self.input_sign * x:.{digits + 3}f} m'
-
-    # ------------------------------------------------------------------ compile
 
     def _length_scale(self):
         ext = []
@@ -279,8 +275,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
     def scaled(self, jac):
         """Return the scaled Jacobian of the unknowns ``(n, m, nu)`` (rows and columns)."""
         return jac[:, :, self.unknown] * self.js_scale
-
-    # ------------------------------------------------------------------ forward kinematics
 
     def _col_template(self):
         """Return ``(ndof, 6)`` (built once): the constant twist columns of the frame's joints."""
@@ -378,8 +372,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         dcols *= qd.T[moving]
         return np.matmul(self._path_t_moving, dcols)
 
-    # ------------------------------------------------------------------ Newton
-
     def _update(self, q, sph, delta):
         q = q.copy()
         q[:, self.unknown] += delta * (~self.is_sph_dof[self.unknown])
@@ -465,8 +457,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         ok = (res <= tol) & np.isfinite(res)
         return q, sph, fr, res, ok, factor
 
-    # ------------------------------------------------------------------ refined solves
-
     def solve_u(self, solver, js, rhs):
         """Return ``x`` with ``js x = rhs`` from the inverse ``solver`` of a nearby Js."""
         x = mv(solver, rhs)
@@ -479,8 +469,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         """Return ``y`` with ``js^T y = rhs`` (as :meth:`solve_u`; minimum norm if redundant)."""
         return self.solve_u(np.swapaxes(solver, 1, 2),
                             None if js is None else np.swapaxes(js, 1, 2), rhs)
-
-    # ------------------------------------------------------------------ rates
 
     def rates(self, fr, q, psi_d, psi_dd, need_acc=True, factor=None):
         """
@@ -526,8 +514,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         if text not in self.warnings:
             self.warnings.append(text)
             warnings.warn(text, RuntimeWarning, stacklevel=3)
-
-    # ------------------------------------------------------------------ evaluation
 
     def solve(self, psi, psi_d, psi_dd, need_rates=True, need_acc=True):
         """Return the :class:`SpatialState` at crank angles ``psi`` (n,), rad/s, rad/s^2."""
