@@ -1,14 +1,10 @@
 """
-Forward dynamics of any single-input rig, from its own inverse dynamics.
+Forward dynamics of any single-input rig, from its own inverse dynamics (seed 000 eqs. 39, 43).
 
-    (I(psi) + J_in + N^2 J_r) psi'' = c1(psi) psi'^2 + tau_A + tau_D + tau_G
-
-(seed 000 eqs. 39 and 43): psi is the input's cycle coordinate (a prismatic input's Scotch-yoke
-crank angle); I, c1 and tau_G come from three batched evaluations of the rig's inverse
-dynamics (:func:`rig_functions`), tabulated once as checked Fourier series (:class:`RigTables`);
-tau_A is a DC motor through a gear N (rotor J_r, optional electrical lag and PI speed
-controller), tau_D the joint damping, J_in a flywheel.  The derivation, the stiffness test
-and the energy balance: docs/core.md#the-equation-of-motion; the drive schema: docs/simulation.md.
+:func:`rig_functions` evaluates I, c1 and tau_G, :class:`RigTables` tabulates them as checked
+Fourier series, :class:`ForwardDynamics` adds the drive and integrates.  The equation, the
+stiffness test and the energy balance: docs/core.md#the-equation-of-motion; the drive schema:
+docs/simulation.md.
 """
 
 from dataclasses import dataclass
@@ -325,7 +321,7 @@ class ForwardDynamics:
             inertia = np.array([self.tables.values(x)[0][0] for x in grid])
         else:
             inertia = rig_functions(self.rig, grid)[0]
-        total = inertia + self.added
+        self._inertia_turn = total = inertia + self.added   # kept for speed_bound
         peak = float(np.max(np.abs(total)))
         low = int(np.argmin(total))
         if not peak > 0.0 or total[low] <= INERTIA_FLOOR_REL * peak:
@@ -352,8 +348,7 @@ class ForwardDynamics:
 
     def speed_bound(self):
         """Return a bound on the crank speed a run can reach (rad/s), for the turn limit."""
-        grid = 2.0 * math.pi * np.arange(64) / 64
-        inertia = np.array([self.functions.values(x)[0][0] for x in grid]) + self.added
+        inertia = self._inertia_turn
         bound = abs(self.initial_speed()) * math.sqrt(np.max(inertia) / np.min(inertia))
         bound = max(bound, self.omega_ref)
         if self.motor is not None:

@@ -1,12 +1,8 @@
 """
 The spatial shaking wrench as a linear map of the bodies' inertial parameters (the regressor).
 
-Every moving body carries ten inertial parameters in pinocchio's order
-(``Inertia.toDynamicParameters``), :data:`PARAMETERS`: the mass (kg), the first moment
-``h = m c`` (kg m) and the inertia tensor's entries (kg m^2), both about the body origin in
-body axes.  With a body's motion (:class:`BodyKinematics`) the shaking wrench of
-:mod:`mech_balance.conventions` is linear in them; the derivation:
-docs/core.md#the-spatial-regressor-coreregressorpy.
+Ten parameters per moving body in pinocchio's order (:data:`PARAMETERS`), about the body
+origin in body axes; docs/core.md#the-spatial-regressor-coreregressorpy.
 """
 
 from mech_balance.core.rig import BodyKinematics

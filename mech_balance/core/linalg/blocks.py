@@ -1,9 +1,7 @@
 """
 Closed-form factors of block lower triangular matrices with 2 x 2 diagonal blocks.
 
-The loop Jacobian of a linkage of RRR dyads (:mod:`mech_balance.core.planar.dyads`) in
-dependency order: :class:`BlockPlan` (the pattern, worked out once) and
-:class:`BlockFactored` (one batch of values), with the interface of
+The loop Jacobian of a linkage of RRR dyads, with the interface of
 :class:`~mech_balance.core.linalg.lu.Factored`.
 """
 

@@ -1,9 +1,7 @@
 """
 The static plans of the batched LU: a row and column order worked out once per pattern.
 
-:func:`block_triangular_order` permutes a pattern to block lower triangular form
-(Dulmage-Mendelsohn; for a linkage the blocks are its Assur groups, so no fill between them)
-with pivots inside the blocks; :class:`LUPlan` is the symbolic factorization in that order.
+Block lower triangular (Dulmage-Mendelsohn; a linkage's blocks are its Assur groups).
 """
 
 import numpy as np

@@ -1,10 +1,7 @@
 """
-Closed-form positions of planar linkages that decompose into RRR dyads (Assur groups of class II).
+Closed-form positions of planar linkages that decompose into RRR dyads (Assur groups, class II).
 
-:func:`plan` orders the loops once (symbolic) so that each has two unknown revolute tree joints
-and a revolute cut; each dyad's middle corner X is a circle intersection, its branch sign
-checked at every node of the traced skeleton.  Other linkages keep the Newton path of
-:mod:`mech_balance.core.planar.kinematics`.  docs/core.md#the-planar-core-coreplanar.
+Each dyad's middle corner is a circle intersection; docs/core.md#the-planar-core-coreplanar.
 """
 
 import numpy as np

@@ -1,14 +1,9 @@
 """
 Inverse dynamics of a planar linkage: driving torque, bearing reactions, shaking wrench.
 
-Per link, Newton-Euler about the link origin (seed 001 eqs. 23-26, complex numbers):
-
-    f*_i = m_i a_i + (i alpha_i - omega_i^2) R_i h_i            (= m_i * a_ci)
-    n*_i = I_i alpha_i + cross(R_i h_i, a_i)                    (about O_i)
-
-The driving torque by the natural orthogonal complement (seed 000 eq. 37), the cut-joint
-multipliers ``lambda = J_u^-T Q_u`` and the reactions from the leaves to the frame (seed 001
-eqs. 32-38), the shaking wrench by seed 001 eq. 39 (:mod:`mech_balance.conventions`).
+Newton-Euler per link about its origin (seed 001 eqs. 23-26), the driving torque by the
+natural orthogonal complement (seed 000 eq. 37), the reactions from the leaves to the frame
+(seed 001 eqs. 32-38); the equations: docs/core.md#module-overviews.
 """
 
 from dataclasses import dataclass

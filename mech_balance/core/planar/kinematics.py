@@ -1,12 +1,9 @@
 """
 Position, velocity and acceleration analysis of a single-input planar linkage.
 
-The joint graph is opened into a spanning tree from the frame (crank first); each cut joint
-adds two loop-closure equations g(q) = 0 in the tree's relative coordinates (seed 001 sec. 3.2,
-seed 000 eqs. 17-36).  Planar vectors are complex numbers, arrays batch-last (one column per
-crank angle), the Newton system scaled by the crank length.  The scene's assembly mode is
-traced once round a turn (the branch skeleton); any angles are then solved from its predictor,
-and leaving the branch raises :class:`BranchError`.  docs/core.md#the-planar-core-coreplanar.
+Loop closure in the spanning tree's relative coordinates (seed 001 sec. 3.2, seed 000 eqs.
+17-36), complex vectors, batch-last; solved from the traced branch's predictor, leaving the
+branch raises :class:`BranchError`.  docs/core.md#the-planar-core-coreplanar.
 """
 
 from dataclasses import dataclass

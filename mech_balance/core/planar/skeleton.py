@@ -1,9 +1,7 @@
 """
-The traced branch of a planar linkage: nodes over one crank turn and their predictor.
+The traced branch of a planar linkage: nodes over one crank turn, quintic Hermite predictor.
 
-:class:`Skeleton` holds the nodes the continuation (:mod:`mech_balance.core.continuation`)
-found and predicts the tree coordinates anywhere on the turn by quintic Hermite
-interpolation (value, slope and curvature at both ends of a segment).
+The nodes come from :mod:`mech_balance.core.continuation`.
 """
 
 import math

@@ -1,11 +1,7 @@
 """
 The spanning tree of a planar linkage: tree and cut joints, incidence and ancestry matrices.
 
-The joint graph is opened breadth first from the frame (the crank joint first); the other
-joints are cut joints.  :class:`SpanningTree` (a mixin of
-:class:`~mech_balance.core.planar.kinematics.Linkage`) precomputes the matrices that
-vectorize over bodies and the sums down the tree (over the joints above each body) and up
-it (over the bodies below each joint).
+Opened breadth first from the frame, the crank joint first; the other joints are cut joints.
 """
 
 from dataclasses import dataclass

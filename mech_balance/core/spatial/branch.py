@@ -1,9 +1,7 @@
 """
 The assembly branch of a spatial linkage: its trace, its dense nodes and the predictor.
 
-The branch is followed by :func:`mech_balance.core.continuation.advance` in tree
-coordinate 0 (a crank angle, or a prismatic input's slide in units of its half stroke):
-over one turn, which must close, or from the assembly to both ends of the stroke.
+One turn, which must close, or from the assembly to both ends of a prismatic input's stroke.
 """
 
 import math

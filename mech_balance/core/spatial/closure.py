@@ -1,9 +1,7 @@
 """
 The closure rows of a spatial linkage: residual, Jacobian, bias and wrenches.
 
-Each cut joint contributes rows g = 0 in groups: ``point`` (the joint points coincide), ``dot``
-(an a-vector normal to a b-vector), ``line`` (the b-point on the a-line), ``spin`` (an idle
-S-S link's spin fixed; docs/core.md#the-spatial-formulation).
+Row groups ``point``, ``dot``, ``line`` and ``spin``: docs/core.md#the-spatial-formulation.
 """
 
 from dataclasses import dataclass

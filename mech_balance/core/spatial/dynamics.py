@@ -1,11 +1,7 @@
 """
 Inverse dynamics of a spatial linkage: shaking wrench, driving torque, bearing reactions.
 
-Per moving body the rate of momentum about the frame origin ``Phi_k = (N_k, F_k)``; the
-shaking wrench is ``-sum Phi_k`` reduced to the scene's moment point
-(:mod:`mech_balance.conventions`).  The driving torque and the closure multipliers follow by
-virtual power in tree coordinates (minimum-norm, not unique, for redundant rows); the bearing
-reactions are the force and moment on each joint's link b from its link a, about the joint
+Reactions: the force and moment on each joint's link b from its link a, about the joint
 point, frame axes.  The derivation: docs/core.md#spatial-inverse-dynamics.
 """
 

@@ -1,12 +1,8 @@
 """
 Position, velocity and acceleration of a single-input spatial linkage (``kind: spatial``).
 
-The joint graph is opened into a spanning tree from the frame (crank first) plus cut joints
-whose closure rows (:mod:`.closure`) are solved for the tree joints' relative coordinates; one
-analytic Jacobian gives Newton's step, the velocities and the accelerations, batch-first over
-the crank angles.  Tree coordinate 0 is the input: the crank angle, or a prismatic input's
-slide ``s(psi)`` (:func:`mech_balance.schema.spatial.stroke_law`).  The formulation, the
-joints' zero conventions, idle spins and redundant rows: docs/core.md#the-spatial-formulation.
+Tree coordinate 0 is the input: the crank angle, or a prismatic input's slide ``s(psi)``
+(:func:`mech_balance.schema.spatial.stroke_law`).  docs/core.md#the-spatial-formulation.
 """
 
 from dataclasses import dataclass
