@@ -1,14 +1,9 @@
 """
 Atomic file writes: a target is replaced by a complete file or not touched at all.
 
-Every file is written to ``.NAME.partial-XXXXXXXX`` in the target's directory, synced and
-renamed over the target (the directory synced too); on an exception the temporary file is
-removed.  Pending temporary files are listed (:func:`discard_pending`, the command line's
-SIGINT and SIGTERM) and commits and discards logged (:func:`written_since`,
-:func:`discarded_since`); a signal handler that asks :func:`defer_signal` is held back while a
-file is listed or renamed.  Ways in: :func:`write_text_atomic`, :func:`write_bytes_atomic`,
-:func:`atomic_path`, and :func:`partial_path` / :func:`commit` / :func:`discard` for a file
-that outlives one block (the rig node's live recording).
+Ways in: :func:`write_text_atomic`, :func:`write_bytes_atomic`, :func:`atomic_path`, and
+:func:`partial_path` / :func:`commit` / :func:`discard` for a file that outlives one block;
+how the files are synced, listed and logged: docs/core.md#module-overviews.
 """
 
 import collections

@@ -1,11 +1,8 @@
 """
 The BLAS thread pool and glibc's allocator of the package's processes: one home for both.
 
-Computing processes settle the allocator once (:func:`settle_allocator`); the rig node fixes
-its mmap threshold instead (:func:`return_large_blocks`); ``MALLOC_*`` settings win over
-both.  The entry points limit numpy's BLAS pool to :data:`DEFAULT_THREADS` unless
-``MECH_BALANCE_BLAS_THREADS`` or the user's own BLAS variables say otherwise.  Measurements:
-docs/core.md#threads-and-memory.
+:func:`settle_allocator`, :func:`return_large_blocks`, :func:`limit_blas_threads`;
+measurements and the environment variables that win: docs/core.md#threads-and-memory.
 """
 
 import os

@@ -49,16 +49,13 @@ class DyadPlan:
         crank = linkage.tree[0]
         self.crank_body = crank.child
         self.crank_anchor_world = crank.p_parent     # on the frame: world coordinates
-        # (tree joint, child body, parent body) in solving order: every tree joint but the
-        # crank's once (plan() checks it), so each lands on the row of its joint, minus one
+        # (tree joint, child body, parent body) in solving order: each tree joint but the crank's
         self.rows = []
         for s in steps:
             self.rows += s.rel
         if sorted(r[0] for r in self.rows) != list(range(1, self.nt)):
             raise ValueError('dyad plan: the dyads do not cover each tree joint once')
-        # one dyad: its two relative rotations directly (fewest operations); more: every
-        # body's angle at once, the relative angles as differences in tree order (a dyad's
-        # rotations then cost nothing more than its placement)
+        # one dyad: its two relative rotations directly; more: differences of the body angles
         self.per_step_rel = len(steps) == 1
         by_joint = sorted(self.rows)
         self.rel_child = np.array([c for _, c, _ in by_joint], dtype=np.intp)
@@ -69,13 +66,10 @@ class DyadPlan:
         local = np.zeros(linkage.nb, dtype=complex)
         for tj in linkage.tree:
             local[tj.child] = tj.p_child
-        # the bodies whose origin is not at their anchor (often none: links drawn from
-        # their parent joint), so the origins cost nothing where every anchor is the origin
+        # the bodies whose origin is not at their anchor (often none)
         self.offset_bodies = np.flatnonzero(local != 0.0)
         self.offset_local = local[self.offset_bodies][:, None]
-        # the points P and Q read from placed bodies, relative to the body's anchor
-        # (per step: (body, its offset from the body's anchor as a 0-d array), or (0, the
-        # world point) on the frame)
+        # P and Q per step: (body, offset from its anchor as a 0-d array), or (0, world point)
         for st in steps:
             st.p_at, st.q_at = ((body, point if body == 0 else np.array(point - local[body]))
                                 for body, point in (st.p_src, st.q_src))
@@ -87,9 +81,7 @@ class DyadPlan:
         ``ref`` ``(nt - 1, p)`` (within pi of the result) only fixes the whole turns; ``signs``
         default to the traced branch's.  Where two circles do not meet the results are ``nan``.
         """
-        # one or two dyads: the circle intersections checked instead of an errstate (a third
-        # of their cost), redone under one where two circles fail to meet or a dyad folds
-        # flat; more: one errstate (the checks of two dyads cost as much)
+        # up to two dyads: checked (cheaper than an errstate), redone under one where that fails
         placed = self._place(psi, signs, checked=True) if len(self.steps) <= 2 else None
         if placed is None:
             with np.errstate(invalid='ignore', divide='ignore', over='ignore'):

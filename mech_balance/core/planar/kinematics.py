@@ -229,10 +229,8 @@ class Linkage(SpanningTree, RateAnalysis):
     def cut_points(self, pose):
         """Return the world points ``(pa, pb)`` of the cut joints (cached on the pose)."""
         if pose.cut_points is None:
-            # both ends of every cut in one go: rows (a ends, b ends)
-            # (ndarray.take: half the cost of a fancy index on these few rows)
-            # (the cut points sit above the tree joints in one buffer: the Jacobian's
-            # differences take from both without a concatenation)
+            # both ends of every cut in one go (a ends, b ends), above the tree joints in one
+            # buffer that the Jacobian's differences take from
             arms = pose.rot.take(self.cut_ab, axis=0)
             arms *= self.cut_tiles.at(arms.shape[1])['p_ab']
             n = len(self.cuts)
@@ -535,8 +533,7 @@ class Linkage(SpanningTree, RateAnalysis):
             raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
         sk = self.skeleton
         if self.dyads is not None:
-            # the closed form needs the whole turns only; where it did not close, Newton
-            # from the predictor (q_pred), and the predictor's check below
+            # where the closed form did not close: Newton from the predictor q_pred
             q, pose, res, iters, ok, q_pred = self.closed_form(psi)
         else:
             q_pred = sk.predict(psi)
@@ -576,10 +573,8 @@ class Linkage(SpanningTree, RateAnalysis):
             return {'cond': fac.cond(), 'det_sign': fac.sign()}
 
         r = at(pose)
-        # The branch is the set of solutions where det J_u keeps the sign it has at the
-        # assembly (the trace refuses to cross a sign change).  Near a change point the two
-        # branches can be closer than EVAL_TRUST, so the correction size alone does not tell
-        # them apart; the sign (a by-product of the factorization the rates need) does.
+        # near a sign change of det J_u the two branches can be closer than EVAL_TRUST: the
+        # sign (a by-product of the rates' factorization) tells them apart
         wrong = r['det_sign'] != self.branch_sign
         if np.count_nonzero(wrong):
             q[:, wrong] = self._retrace(psi[wrong])
