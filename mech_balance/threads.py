@@ -31,12 +31,7 @@ def blas_threads(environ=None):
 
 
 def limit_blas_threads(environ=None):
-    """
-    Limit numpy's BLAS pool to :func:`blas_threads`; return the limit set, or None.
-
-    None when the environment leaves the pool alone or ``threadpoolctl`` is missing (then
-    numpy's default pool is kept, which is only slower).
-    """
+    """Limit numpy's BLAS pool to :func:`blas_threads`; return the limit, or None if left alone."""
     n = blas_threads(environ)
     if n is None:
         return None

@@ -34,13 +34,7 @@ def inertia_matrix(params):
 
 
 def parameters(mass_kg, centre_m, inertia_centre_kg_m2):
-    """
-    Return theta ``(10,)`` of a body: mass, mass centre (body axes, m), inertia about it.
-
-    ``inertia_centre_kg_m2`` is the ``(3, 3)`` tensor about the mass centre in body axes; the
-    parameters take it to the body origin (parallel-axis theorem, I_o = I_c + m (|c|^2 1 -
-    c c^T)).
-    """
+    """Return theta ``(10,)`` from mass, mass centre and centroidal inertia (body axes, SI)."""
     c = np.asarray(centre_m, dtype=float)
     i_o = np.asarray(inertia_centre_kg_m2, dtype=float) + mass_kg * (
         np.dot(c, c) * np.eye(3) - np.outer(c, c))

@@ -232,12 +232,7 @@ def potential_energy(state, inertia, gravity):
 
 
 def generalized_inertia(state, inertia):
-    """
-    Return I(psi) = u^T M u (seed 000 eq. 39) per crank angle, kg*m^2.
-
-    With the seed-001 link inertia dyad about the origin: I_O w^2 + m |v|^2 + 2 w cross(h, v)
-    per unit crank speed.
-    """
+    """Return I(psi) = u^T M u (seed 000 eq. 39) per crank angle, kg*m^2."""
     u_w = state.omega / state.psi_d
     u_v = state.vel / state.psi_d
     world_h = state.pose.rot * inertia.first_moment[:, None]
@@ -247,12 +242,7 @@ def generalized_inertia(state, inertia):
 
 
 def coriolis_term(state, inertia, wrenches):
-    """
-    Return C(psi, psi_dot) * psi_dot of seed 000 eq. 39 per crank angle, N*m.
-
-    From the projected equation without external loads: I psi_ddot = C psi_dot + tau, so
-    ``C psi_dot = I psi_ddot - u^T w*``.
-    """
+    """Return C psi_dot = I psi_ddot - u^T w* (seed 000 eq. 39) per crank angle, N*m."""
     u_w = state.omega / state.psi_d
     u_v = state.vel / state.psi_d
     inertial = np.sum(u_w * wrenches.n_star + _dot(u_v, wrenches.f_star), axis=0)

@@ -661,12 +661,7 @@ class _PlanarBranch(continuation.Branch):
                 'the assembly branch is not unique, so the cycle cannot be followed')
 
     def accept(self, start, node, h):
-        """
-        Return whether the quintic Hermite predictor holds at the middle of a new segment.
-
-        Newton must move it less than ``MIDPOINT_TRUST_FRACTION * EVAL_TRUST`` and keep the
-        sign of det J_u, so near a change point the steps shorten.
-        """
+        """Return whether Newton keeps a segment's Hermite midpoint within trust, on the branch."""
         lk = self.linkage
         if not self.midpoint_check or not lk.nu:
             return True

@@ -93,12 +93,7 @@ def _reaction_constants(lk):
 
 
 def body_motion(state, inertia):
-    """
-    Return ``(x_c, v_c, a_c, omega, I_w omega, I_w alpha)`` of the moving bodies (cached).
-
-    Component-major ``(3, nb - 1, n)``; ``a_c`` and ``I_w alpha`` are None without
-    accelerations.
-    """
+    """Return ``(x_c, v_c, a_c, omega, I_w omega, I_w alpha)`` ``(3, nb - 1, n)`` (cached)."""
     cached = getattr(state, '_motion', None)
     if cached is not None and cached[0] is inertia:
         return cached[1]

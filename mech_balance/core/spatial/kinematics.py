@@ -467,12 +467,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
                             None if js is None else np.swapaxes(js, 1, 2), rhs)
 
     def rates(self, fr, q, psi_d, psi_dd, need_acc=True, factor=None):
-        """
-        Return the :class:`Rates` at ``fr``.
-
-        A ``factor`` of a nearby position is refined against this position's Jacobian; one
-        with a fifth entry (its Jacobian) is this very position's, used as it is.
-        """
+        """Return the :class:`Rates` at ``fr`` (a nearby position's ``factor`` is refined)."""
         n = q.shape[0]
         if factor is not None and len(factor) > 4:
             jac = factor[4]  # the factor's own Jacobian, at this very position
