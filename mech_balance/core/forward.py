@@ -141,7 +141,9 @@ class RigTables:
         psi = 2.0 * math.pi * np.arange(n) / n
         vals = rig_functions(rig, psi, damping)
         while True:
-            scale = self._scales(vals)
+            scale = np.max(np.abs(vals), axis=1)
+            scale[1] = max(scale[1], scale[0])          # c1 has the units of I
+            scale = np.where(scale > 0.0, scale, 1.0)
             spec = np.fft.rfft(vals, axis=1) / n
             tail = float(np.max(np.abs(spec[:, n // 4:]) / scale[:, None]))
             mid = psi + math.pi / n
@@ -179,12 +181,6 @@ class RigTables:
         self.errors = errors
         self.error = float(max(errors.values()))
         self.ok = self.error <= TABLE_CHECK_TOL
-
-    @staticmethod
-    def _scales(vals):
-        scale = np.max(np.abs(vals), axis=1)
-        scale[1] = max(scale[1], scale[0])          # c1 has the units of I
-        return np.where(scale > 0.0, scale, 1.0)
 
     def values(self, psi):
         """Return ``(f, df/dpsi)``: two ``(5,)`` arrays of :data:`FUNCTIONS` at ``psi``."""

@@ -174,7 +174,9 @@ class Linkage(SpanningTree, RateAnalysis):
         self.is_prismatic = np.array([tj.prismatic for tj in self.tree])
         self.length_scale = self._length_scale(scene, pts)
         self._compile()
-        self.pivot = self._crank_pivot(scene)
+        crank = next(j for j in scene.joints if j.name == scene.crank_joint)
+        self.pivot = complex(*scene.frame_points[crank.point_a if crank.link_a == FRAME
+                                                 else crank.point_b])
         self.branch_sign = 1.0  # sign of det J_u on the traced branch (set by the trace)
         self.sparse_jac = False  # J_u as its nonzeros only (all-revolute, nu > 2)
         self.lu = None      # the loop Jacobian's sparse LU plan (linalg.LUPlan), at assembly
@@ -198,12 +200,6 @@ class Linkage(SpanningTree, RateAnalysis):
             return span
         spans = [abs(x - y) for q in pts.values() for x in q.values() for y in q.values()]
         return max(spans) if max(spans, default=0.0) > 0.0 else 1.0
-
-    @staticmethod
-    def _crank_pivot(scene):
-        crank = next(j for j in scene.joints if j.name == scene.crank_joint)
-        point = crank.point_a if crank.link_a == FRAME else crank.point_b
-        return complex(*scene.frame_points[point])
 
     def pose(self, q):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
@@ -607,7 +603,7 @@ class Linkage(SpanningTree, RateAnalysis):
         branch = _PlanarBranch(self, midpoint_check=False)
         out = np.empty((self.nt, psi.size))
         for i, target in enumerate(psi):
-            k, x = sk.locate(np.array([target]))
+            k, x, _ = sk.locate(np.array([target]))
             base = sk.psi[k[0]] + (target - sk.psi[0] - x[0])
             q = sk.q[:, k[0]:k[0] + 1] + np.where(
                 self.is_prismatic, 0.0, TWO_PI * sk.turns * sk.wraps(target))[:, None]
