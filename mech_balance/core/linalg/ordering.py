@@ -107,12 +107,7 @@ def _tarjan(needs):
 
 
 class LUPlan:
-    """
-    The symbolic LU factorization of a ``(k, k)`` sparsity pattern in a static order.
-
-    ``pattern`` (bool ``(k, k)``) holds every entry that can be nonzero; the factors of
-    ``mat[row_order][:, col_order]`` are one ``(nnz, p)`` array (L's unit diagonal not stored).
-    """
+    """The symbolic LU factorization of a bool ``(k, k)`` sparsity pattern in a static order."""
 
     def __init__(self, pattern, row_order=None, col_order=None):
         pattern = np.asarray(pattern, dtype=bool)

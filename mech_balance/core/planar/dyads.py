@@ -242,12 +242,7 @@ def _dyad(lk, c, known, pj):
 
 
 def attach_signs(dyad_plan, linkage, skeleton):
-    """
-    Set each dyad's branch sign from the skeleton; return the plan, or ``None`` if unusable.
-
-    Unusable: a dyad whose sign is not the same nonzero value at every node, or a closed form
-    that does not reproduce the nodes to :data:`NODE_AGREEMENT`.
-    """
+    """Set the dyads' branch signs from the skeleton; return the plan, or None if unusable."""
     if dyad_plan is None:
         return None
     pose = linkage.pose(skeleton.q)

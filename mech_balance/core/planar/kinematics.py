@@ -362,12 +362,7 @@ class Linkage(SpanningTree, RateAnalysis):
         return q, pose, res, iters, ok
 
     def closed_form(self, psi, tol=NEWTON_TOL):
-        """
-        Return :meth:`newton`'s ``(q, pose, residual, iterations, converged)`` and ``q_pred``.
-
-        The positions of a linkage of RRR dyads (:mod:`dyads`) by circle intersections; where
-        the residual stays above ``tol``, Newton from the predictor ``q_pred`` (else None).
-        """
+        """Return :meth:`newton`'s tuple and ``q_pred`` (None: the dyads closed everywhere)."""
         sk = self.skeleton
         q_pred = None
         if self.turn_line is not None:

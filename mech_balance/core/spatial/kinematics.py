@@ -423,12 +423,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return q, sph, fr, res, ok
 
     def _chord(self, q, sph, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
-        """
-        Return ``(q, sph, frames, residual, ok, factor)``: Newton with the predictor's factor.
-
-        ``factor`` is ``(solver, cond, rank, sign)`` (None: not square, full Newton used),
-        plus the predictor's Jacobian when the predictor already converged (factor exact).
-        """
+        """Return ``(q, sph, frames, residual, ok, factor)``: Newton with one factor."""
         if not self.square or not self.nu:
             q, sph, fr, res, ok = self.newton(q, sph, max_iter, tol)
             return q, sph, fr, res, ok, None
