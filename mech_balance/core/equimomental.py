@@ -81,12 +81,7 @@ def centroidal_inertia(mass_kg, first_moment_kg_m, inertia_origin_kg_m2):
 
 
 def is_realizable(point_masses, counterweights=False):
-    """
-    Return ``(ok, reason)``: a buildable link has positive mass and centroidal inertia.
-
-    Centroidal moment of inertia > :data:`REALIZABLE_TOL` x I_O; with ``counterweights``
-    also point masses >= -:data:`COUNTERWEIGHT_TOL` x m.
-    """
+    """Return ``(ok, reason)``: positive mass, centroidal inertia (and point masses if asked)."""
     pm = point_masses
     m = pm.mass_kg
     if not m > 0.0:

@@ -14,19 +14,12 @@ DENSE_TREE_MAX_BODIES = 8
 
 
 @dataclass
-class TreeJoint:
-    """A joint of the spanning tree: ``child`` hangs from ``parent``."""
+class _Joint:
+    """A joint of the scene (its index) as the spanning tree uses it."""
 
     joint: int
     name: str
     joint_type: str
-    parent: int
-    child: int
-    p_parent: complex
-    p_child: complex
-    axis: complex
-    axis_on_parent: bool
-    angle: float
 
     @property
     def prismatic(self):
@@ -35,23 +28,28 @@ class TreeJoint:
 
 
 @dataclass
-class CutJoint:
+class TreeJoint(_Joint):
+    """A joint of the spanning tree: ``child`` hangs from ``parent``."""
+
+    parent: int
+    child: int
+    p_parent: complex
+    p_child: complex
+    axis: complex
+    axis_on_parent: bool
+    angle: float
+
+
+@dataclass
+class CutJoint(_Joint):
     """A joint closing a loop: two equations g = 0 between bodies ``a`` and ``b``."""
 
-    joint: int
-    name: str
-    joint_type: str
     a: int
     b: int
     p_a: complex
     p_b: complex
     axis: complex
     angle: float
-
-    @property
-    def prismatic(self):
-        """Return whether the joint slides (else it turns)."""
-        return self.joint_type == 'prismatic'
 
 
 class SpanningTree:

@@ -6,6 +6,7 @@ Tree coordinate 0 is the input: the crank angle, or a prismatic input's slide ``
 """
 
 from dataclasses import dataclass
+import itertools
 from typing import NamedTuple
 import warnings
 
@@ -149,12 +150,10 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         self._compile(body)
         self.stroke_m = getattr(scene, 'crank_stroke_m', None)
         self.periodic = self.stroke_m is None
-        # tree coordinate 0 against the input joint's own coordinate: a prismatic tree joint
-        # hung from its scene end b slides the other way (coordinates.joint_values)
+        # a prismatic input hung from its scene end b slides against its own coordinate
         self.input_sign = -1.0 if self.tree[0].flipped and not self.periodic else 1.0
         half = 1.0 if self.periodic else 0.5 * (self.stroke_m[1] - self.stroke_m[0])
-        # the input coordinate's own scale (rad, or the half stroke in m): every step and
-        # tolerance in it is relative to this, so the figures do not depend on the unit
+        # the input's own scale (rad, or the half stroke in m) for every step and tolerance
         self.input_scale = half
         self.step_max, self.step_min = STEP_MAX_RAD * half, STEP_MIN_RAD * half
         self._assemble()
@@ -181,14 +180,9 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return f'input slide {self.input_sign * x:.{digits + 3}f} m'
 
     def _length_scale(self):
-        ext = []
-        for pts in self._points.values():
-            vals = list(pts.values())
-            for i, a in enumerate(vals):
-                for b in vals[i + 1:]:
-                    ext.append(float(np.linalg.norm(a - b)))
-        ext = [e for e in ext if e > 0.0]
-        return max(ext) if ext else 1.0
+        ext = [float(np.linalg.norm(a - b)) for pts in self._points.values()
+               for a, b in itertools.combinations(pts.values(), 2)]
+        return max((e for e in ext if e > 0.0), default=1.0)
 
     def _compile(self, body):
         sc = self.scene
