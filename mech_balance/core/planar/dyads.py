@@ -16,17 +16,11 @@ NODE_AGREEMENT = 1e-8
 
 
 class Step:
-    """
-    One dyad: ``alpha`` turns about P and carries X, ``beta`` carries X and Q.
-
-    ``p_src``/``q_src``/``x_src``: ``(body, local point)`` of P, Q, X; ``rel``: the rows
-    ``(tree joint, child body, parent body)`` of its tree coordinates; ``sign``: the branch
-    (+1: X to the left of P -> Q), set from the skeleton.
-    """
+    """One dyad: ``alpha`` turns about P and carries X, ``beta`` carries X and Q."""
 
     def __init__(self, cut, joints, ends, bodies, local, beta_at_x, rel, x_src):
         self.cut, self.joints = cut, joints
-        self.p_src, self.q_src = ends
+        self.p_src, self.q_src = ends      # (body, local point) of P and of Q
         self.alpha, self.beta = bodies
         lp, lx_a, lx_b, lq = local
         va, vb = lx_a - lp, lx_b - lq
@@ -36,8 +30,8 @@ class Step:
         self.neg_c_beta = np.array(-np.conj(vb) / (r2 * r2))
         self.half_k, self.r1_sq = np.array(0.5 * (r1 * r1 - r2 * r2)), np.array(r1 * r1)
         self.beta_at_x = beta_at_x       # beta hangs from its tree joint at X (else at Q)
-        self.rel, self.x_src = rel, x_src
-        self.sign = 0.0
+        self.rel, self.x_src = rel, x_src   # rows (tree joint, child, parent); X's source
+        self.sign = 0.0                     # +1: X to the left of P -> Q (from the skeleton)
 
 
 class DyadPlan:
