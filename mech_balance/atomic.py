@@ -1,18 +1,13 @@
 """
 Atomic file writes: a target is replaced by a complete file or not touched at all.
 
-Every file is written to ``.NAME.partial-XXXXXXXX`` in the target's directory, synced and
-renamed over the target (the directory synced too); on an exception the temporary file is
-removed.  Pending temporary files are listed (:func:`discard_pending`, the command line's
-SIGINT and SIGTERM) and commits and discards logged (:func:`written_since`,
-:func:`discarded_since`); a signal handler that asks :func:`defer_signal` is held back while a
-file is listed or renamed.  Ways in: :func:`write_text_atomic`, :func:`write_bytes_atomic`,
-:func:`atomic_path`, and :func:`partial_path` / :func:`commit` / :func:`discard` for a file
-that outlives one block (the rig node's live recording).
+Ways in: :func:`write_text_atomic`, :func:`write_bytes_atomic`, :func:`atomic_path`, and
+:func:`partial_path` / :func:`commit` / :func:`discard` for a file that outlives one block;
+how the files are synced, listed and logged: docs/core.md#module-overviews.
 """
 
 import collections
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 import os
 from pathlib import Path
 import signal
@@ -57,10 +52,8 @@ def commit(tmp, path):
 
 def discard(tmp):
     """Remove a temporary file (no error if it is already gone)."""
-    try:
+    with suppress(FileNotFoundError):
         os.unlink(tmp)
-    except FileNotFoundError:
-        pass
     _note(tmp, 'discarded', target_of(tmp))
 
 
@@ -133,12 +126,7 @@ def write_text_atomic(path, text, encoding='utf-8'):
 
 @contextmanager
 def _signals_held():
-    """
-    Hold SIGINT and SIGTERM back in the main thread for the block; deliver them after it.
-
-    Only for handlers that call :func:`defer_signal` (``pthread_sigmask`` would not do: the
-    kernel hands the signal to another thread).
-    """
+    """Hold SIGINT and SIGTERM (handlers that call :func:`defer_signal`) in the main thread."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -169,13 +157,10 @@ def _mode_for(path):
 
 def _umask():
     """Return the process umask without changing it (os.umask would race other threads)."""
-    try:
-        with open('/proc/self/status') as f:
-            for line in f:
-                if line.startswith('Umask:'):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
+    with suppress(OSError, ValueError, IndexError), open('/proc/self/status') as f:
+        for line in f:
+            if line.startswith('Umask:'):
+                return int(line.split()[1], 8)
     return 0o022
 
 
@@ -185,8 +170,7 @@ def _fsync_dir(directory):
     except OSError:  # a platform without directory file descriptors
         return
     try:
-        os.fsync(fd)
-    except OSError:
-        pass
+        with suppress(OSError):
+            os.fsync(fd)
     finally:
         os.close(fd)

@@ -1,9 +1,7 @@
 """
 Every cone program the package solves (Clarabel): its settings, and the run with retries.
 
-The balancing (:mod:`mech_balance.balancing`) and the identification
-(:mod:`mech_balance.analysis.identify`) take their solver settings here, so a tolerance is
-stated once; :func:`run_solver` returns a :class:`Solve`.
+A tolerance is stated once here; :func:`run_solver` returns a :class:`Solve`.
 """
 
 from dataclasses import dataclass

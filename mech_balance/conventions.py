@@ -1,17 +1,9 @@
 """
 The one home of the project's conventions: units, the shaking wrench and the RMS.
 
-Units: SI everywhere inside (m, kg, s, rad, N, N*m, kg*m^2); the papers' normalized figures
-(by crank mass m_1, crank length a_1 and speed omega) are a view (:func:`normalize_force`,
-:func:`normalize_moment`).  Messages name crank angles in degrees in [0, 360).
-
-Shaking wrench (seed 001 eq. 39): what the moving links exert on the frame, reduced to the
-crank pivot O in the frame's axes, minus the static loads (gravity):
-``f_sh = -sum_i m_i a_ci = -dp/dt``, ``n_sh = -sum_i (I_ci alpha_i + (c_i - O) x m_i a_ci)
-= -dH_O/dt``.  It includes the motor's reaction torque (seed 001 eqs. 41, 47).
-
-RMS over a cycle: ``sqrt((1/p) sum |f_k|^2)`` over p equally spaced angles of one turn (seed
-001 eq. 42 prints ``(1/p) sqrt(sum f^2)``; its tables use the true RMS, checked on Table 4).
+SI everywhere inside; the papers' normalized figures are a view (:func:`normalize_force`,
+:func:`normalize_moment`); crank angles in messages in degrees in [0, 360).  The shaking
+wrench (seed 001 eq. 39) and the RMS over a cycle: docs/core.md#module-overviews.
 """
 
 import math

@@ -1,9 +1,4 @@
-"""
-Names given as text -- frames, joints, lists of links -- checked one way everywhere.
-
-The rig node's parameters and the command line call these, so that a name one accepts the
-other accepts too; each returns the value or raises ``ValueError`` naming the field.
-"""
+"""Names given as text (frames, joints, lists of links), checked one way everywhere."""
 
 import re
 

@@ -1,9 +1,4 @@
-"""
-Output files: the one check every writer runs before it computes anything.
-
-Used by ``balance --output``, ``record --out`` and the node's ``recording_path``, so that a
-bad path fails at once, naming the option or parameter.
-"""
+"""Output files: the one check every writer runs before it computes anything."""
 
 import os
 from pathlib import Path

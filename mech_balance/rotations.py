@@ -1,10 +1,8 @@
 """
 The one home of rotations and angle wrapping (roll-pitch-yaw, axis-angle, (-pi, pi]).
 
-Roll-pitch-yaw is the URDF's, about fixed axes: ``R = Rz(yaw) Ry(pitch) Rx(roll)``, scipy's
-extrinsic ``'xyz'``; the columns of ``R`` are the rotated frame's axes in the fixed one.
-scipy's :class:`~scipy.spatial.transform.Rotation` is the reference (``test/test_rotations.py``);
-the forms are written out in numpy for measured reasons (docs/core.md#rotations).
+Roll-pitch-yaw is the URDF's, ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (scipy's extrinsic
+``'xyz'``); why numpy and not scipy: docs/core.md#rotations.
 """
 
 import math

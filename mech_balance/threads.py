@@ -1,11 +1,8 @@
 """
 The BLAS thread pool and glibc's allocator of the package's processes: one home for both.
 
-Computing processes settle the allocator once (:func:`settle_allocator`); the rig node fixes
-its mmap threshold instead (:func:`return_large_blocks`); ``MALLOC_*`` settings win over
-both.  The entry points limit numpy's BLAS pool to :data:`DEFAULT_THREADS` unless
-``MECH_BALANCE_BLAS_THREADS`` or the user's own BLAS variables say otherwise.  Measurements:
-docs/core.md#threads-and-memory.
+:func:`settle_allocator`, :func:`return_large_blocks`, :func:`limit_blas_threads`;
+measurements and the environment variables that win: docs/core.md#threads-and-memory.
 """
 
 import os
@@ -39,11 +36,10 @@ _LIMIT = {'threads': None}
 
 def limit_blas_threads(environ=None):
     """
-    Limit numpy's BLAS pool to :func:`blas_threads`; return the limit set, or None.
+    Limit numpy's BLAS pool to :func:`blas_threads`; return the limit, or None if left alone.
 
-    None when the environment leaves the pool alone or ``threadpoolctl`` is missing (then
-    numpy's default pool is kept, which is only slower).  A BLAS loaded later (scipy's) and
-    child processes get the limit through ``OPENBLAS_NUM_THREADS``, which this call sets.
+    A BLAS loaded later (scipy's) and child processes get the limit through
+    ``OPENBLAS_NUM_THREADS``, which this call sets.
     """
     n = blas_threads(environ)
     if n is None or _LIMIT['threads'] == n:   # none, or set already in this process

@@ -1,11 +1,7 @@
 """
 Branch tracing: predictor-corrector continuation in the input coordinate (both cores).
 
-A branch is followed from a solved node by steps of its input coordinate: :meth:`Branch.predict`,
-Newton (:meth:`Branch.correct`), the next node (:meth:`Branch.node`).  A step is accepted when
-Newton converged within ``Limits.step_trust``, the condition number is within
-``Limits.cond_limit``, the determinant keeps its sign and :meth:`Branch.accept` holds; otherwise
-it halves down to ``Limits.step_min`` (docs/core.md#branch-tracing).
+How a step is accepted or halved: docs/core.md#branch-tracing.
 """
 
 from dataclasses import dataclass

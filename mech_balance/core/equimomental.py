@@ -1,10 +1,8 @@
 """
 Equimomental three-point-mass models of planar links (seed 001 eqs. 1-22, 27, 45).
 
-A link (mass m, first moment m c, inertia I_O about its origin) is dynamically equivalent to
-three point masses at the common distance l from the origin and the angles 0, 2 pi/3, 4 pi/3:
-``sum m_j = m``, ``l sum m_j e^(i theta_j) = m c``, ``l^2 sum m_j = I_O`` (eqs. 19-22).
-Point masses may be negative; :func:`is_realizable` is the one definition of a buildable link.
+:func:`is_realizable` is the one definition of a buildable link; the model:
+docs/core.md#module-overviews.
 """
 
 from dataclasses import dataclass, replace
@@ -83,12 +81,7 @@ def centroidal_inertia(mass_kg, first_moment_kg_m, inertia_origin_kg_m2):
 
 
 def is_realizable(point_masses, counterweights=False):
-    """
-    Return ``(ok, reason)``: a buildable link has positive mass and centroidal inertia.
-
-    Centroidal moment of inertia > :data:`REALIZABLE_TOL` x I_O; with ``counterweights``
-    also point masses >= -:data:`COUNTERWEIGHT_TOL` x m.
-    """
+    """Return ``(ok, reason)``: positive mass, centroidal inertia (and point masses if asked)."""
     pm = point_masses
     m = pm.mass_kg
     if not m > 0.0:

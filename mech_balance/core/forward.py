@@ -1,14 +1,10 @@
 """
-Forward dynamics of any single-input rig, from its own inverse dynamics.
+Forward dynamics of any single-input rig, from its own inverse dynamics (seed 000 eqs. 39, 43).
 
-    (I(psi) + J_in + N^2 J_r) psi'' = c1(psi) psi'^2 + tau_A + tau_D + tau_G
-
-(seed 000 eqs. 39 and 43): psi is the input's cycle coordinate (a prismatic input's Scotch-yoke
-crank angle); I, c1 and tau_G come from three batched evaluations of the rig's inverse
-dynamics (:func:`rig_functions`), tabulated once as checked Fourier series (:class:`RigTables`);
-tau_A is a DC motor through a gear N (rotor J_r, optional electrical lag and PI speed
-controller), tau_D the joint damping, J_in a flywheel.  The derivation, the stiffness test
-and the energy balance: docs/core.md#the-equation-of-motion; the drive schema: docs/simulation.md.
+:func:`rig_functions` evaluates I, c1 and tau_G, :class:`RigTables` tabulates them as checked
+Fourier series, :class:`ForwardDynamics` adds the drive and integrates.  The equation, the
+stiffness test and the energy balance: docs/core.md#the-equation-of-motion; the drive schema:
+docs/simulation.md.
 """
 
 from dataclasses import dataclass
@@ -52,9 +48,6 @@ class _TooManyEvaluations(Exception):
     """Raised inside the right-hand side to stop a runaway integration."""
 
 
-# ============================================================================ loading
-
-
 def load(name_or_path):
     """Return ``(scene, drive)`` of a scene of any kind by built-in name or path."""
     sc = scene_mod.load(name_or_path)
@@ -75,9 +68,6 @@ def rig_of(scene_or_rig):
             'capability driving_torque (its inverse dynamics), which the forward dynamics '
             'is built from')
     return rig
-
-
-# ============================================================================ rig functions
 
 
 FUNCTIONS = ('inertia', 'c1', 'tau_gravity', 'damping', 'potential')
@@ -151,7 +141,9 @@ class RigTables:
         psi = 2.0 * math.pi * np.arange(n) / n
         vals = rig_functions(rig, psi, damping)
         while True:
-            scale = self._scales(vals)
+            scale = np.max(np.abs(vals), axis=1)
+            scale[1] = max(scale[1], scale[0])          # c1 has the units of I
+            scale = np.where(scale > 0.0, scale, 1.0)
             spec = np.fft.rfft(vals, axis=1) / n
             tail = float(np.max(np.abs(spec[:, n // 4:]) / scale[:, None]))
             mid = psi + math.pi / n
@@ -189,12 +181,6 @@ class RigTables:
         self.errors = errors
         self.error = float(max(errors.values()))
         self.ok = self.error <= TABLE_CHECK_TOL
-
-    @staticmethod
-    def _scales(vals):
-        scale = np.max(np.abs(vals), axis=1)
-        scale[1] = max(scale[1], scale[0])          # c1 has the units of I
-        return np.where(scale > 0.0, scale, 1.0)
 
     def values(self, psi):
         """Return ``(f, df/dpsi)``: two ``(5,)`` arrays of :data:`FUNCTIONS` at ``psi``."""
@@ -236,9 +222,6 @@ class _DirectFunctions:
         nodes = (edges[:-1, None] + width[:, None] * self._nodes).ravel()
         tau = rig_functions(self.rig, nodes)[2].reshape(panels, -1)
         return -float(np.sum(width[:, None] * self._weights * tau))
-
-
-# ============================================================================ the ODE
 
 
 @dataclass
@@ -327,8 +310,6 @@ class ForwardDynamics:
         self.max_evaluations = MAX_RHS_EVALUATIONS
         self._check_inertia()
 
-    # ------------------------------------------------------------------ set-up
-
     def _check_inertia(self):
         """Refuse a total generalized inertia that is not positive over the turn."""
         grid = 2.0 * math.pi * np.arange(TABLE_MIN_SAMPLES) / TABLE_MIN_SAMPLES
@@ -336,7 +317,7 @@ class ForwardDynamics:
             inertia = np.array([self.tables.values(x)[0][0] for x in grid])
         else:
             inertia = rig_functions(self.rig, grid)[0]
-        total = inertia + self.added
+        self._inertia_turn = total = inertia + self.added   # kept for speed_bound
         peak = float(np.max(np.abs(total)))
         low = int(np.argmin(total))
         if not peak > 0.0 or total[low] <= INERTIA_FLOOR_REL * peak:
@@ -363,8 +344,7 @@ class ForwardDynamics:
 
     def speed_bound(self):
         """Return a bound on the crank speed a run can reach (rad/s), for the turn limit."""
-        grid = 2.0 * math.pi * np.arange(64) / 64
-        inertia = np.array([self.functions.values(x)[0][0] for x in grid]) + self.added
+        inertia = self._inertia_turn
         bound = abs(self.initial_speed()) * math.sqrt(np.max(inertia) / np.min(inertia))
         bound = max(bound, self.omega_ref)
         if self.motor is not None:
@@ -404,8 +384,6 @@ class ForwardDynamics:
                   'motor_torque': self.motor.stall_torque_Nm if self.motor else 1.0,
                   'motor_work': energy, 'damping_loss': energy}
         return rtol * np.array([scales[n] for n in self.names])
-
-    # ------------------------------------------------------------------ right-hand side
 
     def _voltage(self, y, e, saturate=True):
         """Return (u, du/de, du/dz, integrating) of the speed controller or the open loop."""
@@ -505,8 +483,6 @@ class ForwardDynamics:
             jm[self.i_m, self.i_m] = -1.0 / self.motor.electrical_time_constant_s
         return jm
 
-    # ------------------------------------------------------------------ stiffness
-
     def stiffness(self):
         """Return the :class:`Stiffness` estimate at the operating point."""
         w = self.omega_ref
@@ -533,8 +509,6 @@ class ForwardDynamics:
                       f'{ratio:.3g} <= {STIFFNESS_RATIO_LIMIT:g}; accuracy, not stability, '
                       'sets the step, so DOP853 (explicit Runge-Kutta, order 8) is used')
         return Stiffness(ratio, lam, w, ratio > STIFFNESS_RATIO_LIMIT, method, reason)
-
-    # ------------------------------------------------------------------ integration
 
     def simulate(self, duration_s, method='auto', rtol=DEFAULT_RTOL, t_eval=None,
                  dense_output=False, y0=None, max_evaluations=MAX_RHS_EVALUATIONS):

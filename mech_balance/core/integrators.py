@@ -1,8 +1,4 @@
-"""
-The integrators the forward dynamics accepts and its default tolerances (no imports).
-
-Read by :mod:`mech_balance.core.forward` and by the ``simulate`` verb's parser.
-"""
+"""The forward dynamics' integrators and default tolerances (no imports: the parser reads them)."""
 
 
 DEFAULT_RTOL = 1e-8

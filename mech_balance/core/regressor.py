@@ -1,12 +1,8 @@
 """
 The spatial shaking wrench as a linear map of the bodies' inertial parameters (the regressor).
 
-Every moving body carries ten inertial parameters in pinocchio's order
-(``Inertia.toDynamicParameters``), :data:`PARAMETERS`: the mass (kg), the first moment
-``h = m c`` (kg m) and the inertia tensor's entries (kg m^2), both about the body origin in
-body axes.  With a body's motion (:class:`BodyKinematics`) the shaking wrench of
-:mod:`mech_balance.conventions` is linear in them; the derivation:
-docs/core.md#the-spatial-regressor-coreregressorpy.
+Ten parameters per moving body in pinocchio's order (:data:`PARAMETERS`), about the body
+origin in body axes; docs/core.md#the-spatial-regressor-coreregressorpy.
 """
 
 from mech_balance.core.rig import BodyKinematics
@@ -38,13 +34,7 @@ def inertia_matrix(params):
 
 
 def parameters(mass_kg, centre_m, inertia_centre_kg_m2):
-    """
-    Return theta ``(10,)`` of a body: mass, mass centre (body axes, m), inertia about it.
-
-    ``inertia_centre_kg_m2`` is the ``(3, 3)`` tensor about the mass centre in body axes; the
-    parameters take it to the body origin (parallel-axis theorem, I_o = I_c + m (|c|^2 1 -
-    c c^T)).
-    """
+    """Return theta ``(10,)`` from mass, mass centre and centroidal inertia (body axes, SI)."""
     c = np.asarray(centre_m, dtype=float)
     i_o = np.asarray(inertia_centre_kg_m2, dtype=float) + mass_kg * (
         np.dot(c, c) * np.eye(3) - np.outer(c, c))

@@ -1,10 +1,8 @@
 """
 The Rig protocol: one model of a rig, whatever its kind, and the data it evaluates to.
 
-A :class:`Rig` is an immutable model built once per geometry and design; :meth:`Rig.at`
-evaluates it at a batch of crank angles and returns a fresh :class:`RigData`; consumers ask
-:attr:`Rig.capabilities`, never the kind.  :func:`rig_for` builds the rig of any scene from
-:mod:`mech_balance.schema.registry`.  docs/design.md#the-rig-protocol; frames, units and signs:
+:func:`rig_for` builds the rig of any scene; consumers ask :attr:`Rig.capabilities`, never
+the kind.  docs/design.md#the-rig-protocol; frames, units and signs:
 :mod:`mech_balance.conventions`.
 """
 

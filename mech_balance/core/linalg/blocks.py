@@ -1,9 +1,7 @@
 """
 Closed-form factors of block lower triangular matrices with 2 x 2 diagonal blocks.
 
-The loop Jacobian of a linkage of RRR dyads (:mod:`mech_balance.core.planar.dyads`) in
-dependency order: :class:`BlockPlan` (the pattern, worked out once) and
-:class:`BlockFactored` (one batch of values), with the interface of
+The loop Jacobian of a linkage of RRR dyads, with the interface of
 :class:`~mech_balance.core.linalg.lu.Factored`.
 """
 
@@ -60,8 +58,7 @@ class BlockPlan:
         self.perm_sign = -1.0 if (inversions(self.row_order)
                                   + inversions(self.col_order)) % 2 else 1.0
         self.entries = (rows, cols)
-        # Z = J^-1 with its columns in block row order: block i's rows of Z are nonzero only
-        # in the columns of block i and the blocks it depends on (all before it)
+        # Z = J^-1 (columns in block row order): block i's rows reach back to its dependencies
         reach = []
         for i in range(nb):
             lo = 2 * i
@@ -92,8 +89,7 @@ class BlockPlan:
             fill[c] += 1
         self.col_pad = pad
         self.single = nb == 1 and rows.size == 4        # one dyad: closed form throughout
-        # the (block, earlier column) pairs in block order, with their entries (rows.size:
-        # none, a zero row) and each block's range of pairs
+        # the (block, earlier column) pairs in block order, their entries (rows.size: none)
         pairs = [(i, c, e0, e1) for i in range(nb) for c, e0, e1, _, _ in self.off_cols[i]]
         pad = rows.size
         self.pair_block = np.array([q[0] for q in pairs], dtype=int)
@@ -103,12 +99,10 @@ class BlockPlan:
         starts = np.searchsorted(self.pair_block, np.arange(nb + 1))
         self.block_pairs = [[(int(q), pairs[q][1]) for q in range(starts[i], starts[i + 1])]
                             for i in range(nb)]
-        # blocks that read one earlier unknown only: (pair, child block, row, parent block)
-        # from the last block back (the condition number in linear time)
+        # each block reads one earlier unknown at most: the condition number in linear time
         self.tree_like = all(len(self.off_cols[i]) <= 1 for i in range(nb))
-        # the solves work on the unknowns in block order, block j's two as rows 2 j, 2 j + 1
-        # (``flat``): each substitution then updates a block's two rows at once.  The
-        # column of each flat row, and the flat row of each column:
+        # the solves take block j's two unknowns as (``flat``) rows 2 j, 2 j + 1: the column
+        # of each flat row, and the flat row of each column
         self.col_of_flat = np.array([cs[a] for _, cs in self.blocks for a in (0, 1)],
                                     dtype=np.intp)
         self.flat_of_col = np.argsort(self.col_of_flat).astype(np.intp)

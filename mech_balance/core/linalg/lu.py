@@ -1,10 +1,7 @@
 """
 Batched solves and inverses of many small matrices, batch on the last axis ``(k, k, p)``.
 
-k <= 2 in closed form; larger k by an LU factorization with a static row order over a fixed
-sparsity pattern (:class:`~mech_balance.core.linalg.ordering.LUPlan`, worked out once), each
-step one vectorized call over all p angles; matrices whose static pivots are small go to
-LAPACK.  Why and how: docs/core.md#the-planar-core-coreplanar ("Small linear systems").
+Why and how: docs/core.md#the-planar-core-coreplanar ("Small linear systems").
 """
 
 from mech_balance.core.linalg.ordering import LUPlan

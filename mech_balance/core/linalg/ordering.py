@@ -1,9 +1,7 @@
 """
 The static plans of the batched LU: a row and column order worked out once per pattern.
 
-:func:`block_triangular_order` permutes a pattern to block lower triangular form
-(Dulmage-Mendelsohn; for a linkage the blocks are its Assur groups, so no fill between them)
-with pivots inside the blocks; :class:`LUPlan` is the symbolic factorization in that order.
+Block lower triangular (Dulmage-Mendelsohn; a linkage's blocks are its Assur groups).
 """
 
 import numpy as np
@@ -109,12 +107,7 @@ def _tarjan(needs):
 
 
 class LUPlan:
-    """
-    The symbolic LU factorization of a ``(k, k)`` sparsity pattern in a static order.
-
-    ``pattern`` (bool ``(k, k)``) holds every entry that can be nonzero; the factors of
-    ``mat[row_order][:, col_order]`` are one ``(nnz, p)`` array (L's unit diagonal not stored).
-    """
+    """The symbolic LU factorization of a bool ``(k, k)`` sparsity pattern in a static order."""
 
     def __init__(self, pattern, row_order=None, col_order=None):
         pattern = np.asarray(pattern, dtype=bool)

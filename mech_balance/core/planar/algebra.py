@@ -1,10 +1,8 @@
 """
 Planar vector algebra on complex-coded vectors and batch-last stacks.
 
-A planar vector is a complex number x + i*y; seed 000's 90-degree rotation operator E is
-multiplication by 1j, so ``a^T E b = -cross(a, b)``.  Stacks are batch-last: one row per
-body or joint, one column per crank angle.  Shared by the kinematics, the dynamics and the
-forward dynamics (one home for each of these one-liners).
+A planar vector is x + i*y; seed 000's rotation operator E is multiplication by 1j, so
+``a^T E b = -cross(a, b)``.  Stacks: one row per body or joint, one column per crank angle.
 """
 
 import numpy as np

@@ -1,10 +1,8 @@
 """
 The drawn size of a planar rig's parts: bars, joint bosses, slider blocks and their planes.
 
-One place for the sizes that the URDF (:mod:`mech_balance.ros.urdf`) draws and the clearance
-check (:mod:`mech_balance.analysis.clearance`) measures, as fractions of the linkage's length
-scale L.  Body k of the linkage lies in the plane ``z = LAYER * L * k`` (:func:`plane_z_m`); a
-counterweight disc in its link's plane offset by its ``plane_m``.
+Fractions of the linkage's length scale L, for the URDF and the clearance check; body k lies
+in the plane ``z = LAYER * L * k`` (:func:`plane_z_m`).
 """
 
 PIN_RADIUS = 0.08

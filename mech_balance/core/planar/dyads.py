@@ -1,10 +1,7 @@
 """
-Closed-form positions of planar linkages that decompose into RRR dyads (Assur groups of class II).
+Closed-form positions of planar linkages that decompose into RRR dyads (Assur groups, class II).
 
-:func:`plan` orders the loops once (symbolic) so that each has two unknown revolute tree joints
-and a revolute cut; each dyad's middle corner X is a circle intersection, its branch sign
-checked at every node of the traced skeleton.  Other linkages keep the Newton path of
-:mod:`mech_balance.core.planar.kinematics`.  docs/core.md#the-planar-core-coreplanar.
+Each dyad's middle corner is a circle intersection; docs/core.md#the-planar-core-coreplanar.
 """
 
 import numpy as np
@@ -19,17 +16,11 @@ NODE_AGREEMENT = 1e-8
 
 
 class Step:
-    """
-    One dyad: ``alpha`` turns about P and carries X, ``beta`` carries X and Q.
-
-    ``p_src``/``q_src``/``x_src``: ``(body, local point)`` of P, Q, X; ``rel``: the rows
-    ``(tree joint, child body, parent body)`` of its tree coordinates; ``sign``: the branch
-    (+1: X to the left of P -> Q), set from the skeleton.
-    """
+    """One dyad: ``alpha`` turns about P and carries X, ``beta`` carries X and Q."""
 
     def __init__(self, cut, joints, ends, bodies, local, beta_at_x, rel, x_src):
         self.cut, self.joints = cut, joints
-        self.p_src, self.q_src = ends
+        self.p_src, self.q_src = ends      # (body, local point) of P and of Q
         self.alpha, self.beta = bodies
         lp, lx_a, lx_b, lq = local
         va, vb = lx_a - lp, lx_b - lq
@@ -39,8 +30,8 @@ class Step:
         self.neg_c_beta = np.array(-np.conj(vb) / (r2 * r2))
         self.half_k, self.r1_sq = np.array(0.5 * (r1 * r1 - r2 * r2)), np.array(r1 * r1)
         self.beta_at_x = beta_at_x       # beta hangs from its tree joint at X (else at Q)
-        self.rel, self.x_src = rel, x_src
-        self.sign = 0.0
+        self.rel, self.x_src = rel, x_src   # rows (tree joint, child, parent); X's source
+        self.sign = 0.0                     # +1: X to the left of P -> Q (from the skeleton)
 
 
 class DyadPlan:
@@ -52,16 +43,13 @@ class DyadPlan:
         crank = linkage.tree[0]
         self.crank_body = crank.child
         self.crank_anchor_world = crank.p_parent     # on the frame: world coordinates
-        # (tree joint, child body, parent body) in solving order: every tree joint but the
-        # crank's once (plan() checks it), so each lands on the row of its joint, minus one
+        # (tree joint, child body, parent body) in solving order: each tree joint but the crank's
         self.rows = []
         for s in steps:
             self.rows += s.rel
         if sorted(r[0] for r in self.rows) != list(range(1, self.nt)):
             raise ValueError('dyad plan: the dyads do not cover each tree joint once')
-        # one dyad: its two relative rotations directly (fewest operations); more: every
-        # body's angle at once, the relative angles as differences in tree order (a dyad's
-        # rotations then cost nothing more than its placement)
+        # one dyad: its two relative rotations directly; more: differences of the body angles
         self.per_step_rel = len(steps) == 1
         by_joint = sorted(self.rows)
         self.rel_child = np.array([c for _, c, _ in by_joint], dtype=np.intp)
@@ -72,13 +60,10 @@ class DyadPlan:
         local = np.zeros(linkage.nb, dtype=complex)
         for tj in linkage.tree:
             local[tj.child] = tj.p_child
-        # the bodies whose origin is not at their anchor (often none: links drawn from
-        # their parent joint), so the origins cost nothing where every anchor is the origin
+        # the bodies whose origin is not at their anchor (often none)
         self.offset_bodies = np.flatnonzero(local != 0.0)
         self.offset_local = local[self.offset_bodies][:, None]
-        # the points P and Q read from placed bodies, relative to the body's anchor
-        # (per step: (body, its offset from the body's anchor as a 0-d array), or (0, the
-        # world point) on the frame)
+        # P and Q per step: (body, offset from its anchor as a 0-d array), or (0, world point)
         for st in steps:
             st.p_at, st.q_at = ((body, point if body == 0 else np.array(point - local[body]))
                                 for body, point in (st.p_src, st.q_src))
@@ -90,9 +75,7 @@ class DyadPlan:
         ``ref`` ``(nt - 1, p)`` (within pi of the result) only fixes the whole turns; ``signs``
         default to the traced branch's.  Where two circles do not meet the results are ``nan``.
         """
-        # one or two dyads: the circle intersections checked instead of an errstate (a third
-        # of their cost), redone under one where two circles fail to meet or a dyad folds
-        # flat; more: one errstate (the checks of two dyads cost as much)
+        # up to two dyads: checked (cheaper than an errstate), redone under one where that fails
         placed = self._place(psi, signs, checked=True) if len(self.steps) <= 2 else None
         if placed is None:
             with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
@@ -253,12 +236,7 @@ def _dyad(lk, c, known, pj):
 
 
 def attach_signs(dyad_plan, linkage, skeleton):
-    """
-    Set each dyad's branch sign from the skeleton; return the plan, or ``None`` if unusable.
-
-    Unusable: a dyad whose sign is not the same nonzero value at every node, or a closed form
-    that does not reproduce the nodes to :data:`NODE_AGREEMENT`.
-    """
+    """Set the dyads' branch signs from the skeleton; return the plan, or None if unusable."""
     if dyad_plan is None:
         return None
     pose = linkage.pose(skeleton.q)

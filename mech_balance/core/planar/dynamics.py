@@ -1,14 +1,9 @@
 """
 Inverse dynamics of a planar linkage: driving torque, bearing reactions, shaking wrench.
 
-Per link, Newton-Euler about the link origin (seed 001 eqs. 23-26, complex numbers):
-
-    f*_i = m_i a_i + (i alpha_i - omega_i^2) R_i h_i            (= m_i * a_ci)
-    n*_i = I_i alpha_i + cross(R_i h_i, a_i)                    (about O_i)
-
-The driving torque by the natural orthogonal complement (seed 000 eq. 37), the cut-joint
-multipliers ``lambda = J_u^-T Q_u`` and the reactions from the leaves to the frame (seed 001
-eqs. 32-38), the shaking wrench by seed 001 eq. 39 (:mod:`mech_balance.conventions`).
+Newton-Euler per link about its origin (seed 001 eqs. 23-26), the driving torque by the
+natural orthogonal complement (seed 000 eq. 37), the reactions from the leaves to the frame
+(seed 001 eqs. 32-38); the equations: docs/core.md#module-overviews.
 """
 
 from dataclasses import dataclass
@@ -237,12 +232,7 @@ def potential_energy(state, inertia, gravity):
 
 
 def generalized_inertia(state, inertia):
-    """
-    Return I(psi) = u^T M u (seed 000 eq. 39) per crank angle, kg*m^2.
-
-    With the seed-001 link inertia dyad about the origin: I_O w^2 + m |v|^2 + 2 w cross(h, v)
-    per unit crank speed.
-    """
+    """Return I(psi) = u^T M u (seed 000 eq. 39) per crank angle, kg*m^2."""
     u_w = state.omega / state.psi_d
     u_v = state.vel / state.psi_d
     world_h = state.pose.rot * inertia.first_moment[:, None]
@@ -252,12 +242,7 @@ def generalized_inertia(state, inertia):
 
 
 def coriolis_term(state, inertia, wrenches):
-    """
-    Return C(psi, psi_dot) * psi_dot of seed 000 eq. 39 per crank angle, N*m.
-
-    From the projected equation without external loads: I psi_ddot = C psi_dot + tau, so
-    ``C psi_dot = I psi_ddot - u^T w*``.
-    """
+    """Return C psi_dot = I psi_ddot - u^T w* (seed 000 eq. 39) per crank angle, N*m."""
     u_w = state.omega / state.psi_d
     u_v = state.vel / state.psi_d
     inertial = np.sum(u_w * wrenches.n_star + _dot(u_v, wrenches.f_star), axis=0)

@@ -1,12 +1,9 @@
 """
 Position, velocity and acceleration analysis of a single-input planar linkage.
 
-The joint graph is opened into a spanning tree from the frame (crank first); each cut joint
-adds two loop-closure equations g(q) = 0 in the tree's relative coordinates (seed 001 sec. 3.2,
-seed 000 eqs. 17-36).  Planar vectors are complex numbers, arrays batch-last (one column per
-crank angle), the Newton system scaled by the crank length.  The scene's assembly mode is
-traced once round a turn (the branch skeleton); any angles are then solved from its predictor,
-and leaving the branch raises :class:`BranchError`.  docs/core.md#the-planar-core-coreplanar.
+Loop closure in the spanning tree's relative coordinates (seed 001 sec. 3.2, seed 000 eqs.
+17-36), complex vectors, batch-last; solved from the traced branch's predictor, leaving the
+branch raises :class:`BranchError`.  docs/core.md#the-planar-core-coreplanar.
 """
 
 from dataclasses import dataclass
@@ -177,7 +174,9 @@ class Linkage(SpanningTree, RateAnalysis):
         self.is_prismatic = np.array([tj.prismatic for tj in self.tree])
         self.length_scale = self._length_scale(scene, pts)
         self._compile()
-        self.pivot = self._crank_pivot(scene)
+        crank = next(j for j in scene.joints if j.name == scene.crank_joint)
+        self.pivot = complex(*scene.frame_points[crank.point_a if crank.link_a == FRAME
+                                                 else crank.point_b])
         self.branch_sign = 1.0  # sign of det J_u on the traced branch (set by the trace)
         self.sparse_jac = False  # J_u as its nonzeros only (all-revolute, nu > 2)
         self.lu = None      # the loop Jacobian's sparse LU plan (linalg.LUPlan), at assembly
@@ -188,8 +187,6 @@ class Linkage(SpanningTree, RateAnalysis):
         self.turn_line = None       # or from a line in psi (Skeleton.affine_reference;
         #                             its slope and offset as algebra.Tiles)
         self.warnings = []
-
-    # ------------------------------------------------------------------ construction
 
     @staticmethod
     def _length_scale(scene, pts):
@@ -203,14 +200,6 @@ class Linkage(SpanningTree, RateAnalysis):
             return span
         spans = [abs(x - y) for q in pts.values() for x in q.values() for y in q.values()]
         return max(spans) if max(spans, default=0.0) > 0.0 else 1.0
-
-    @staticmethod
-    def _crank_pivot(scene):
-        crank = next(j for j in scene.joints if j.name == scene.crank_joint)
-        point = crank.point_a if crank.link_a == FRAME else crank.point_b
-        return complex(*scene.frame_points[point])
-
-    # ------------------------------------------------------------------ position level
 
     def pose(self, q):
         """Return the body poses for tree coordinates ``q`` of shape ``(nt, p)``."""
@@ -236,10 +225,8 @@ class Linkage(SpanningTree, RateAnalysis):
     def cut_points(self, pose):
         """Return the world points ``(pa, pb)`` of the cut joints (cached on the pose)."""
         if pose.cut_points is None:
-            # both ends of every cut in one go: rows (a ends, b ends)
-            # (ndarray.take: half the cost of a fancy index on these few rows)
-            # (the cut points sit above the tree joints in one buffer: the Jacobian's
-            # differences take from both without a concatenation)
+            # both ends of every cut in one go (a ends, b ends), above the tree joints in one
+            # buffer that the Jacobian's differences take from
             arms = pose.rot.take(self.cut_ab, axis=0)
             arms *= self.cut_tiles.at(arms.shape[1])['p_ab']
             n = len(self.cuts)
@@ -350,8 +337,6 @@ class Linkage(SpanningTree, RateAnalysis):
             return linalg.Factored(None, self.lu, values=values), jac_psi
         return linalg.Factored(self.jacobian(pose, unknown_only=True), self.lu), None
 
-    # ------------------------------------------------------------------ Newton
-
     def newton(self, psi, q, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
         """Solve g(q) = 0 from ``q`` ``(nt, p)``: ``(q, pose, residual, iterations, ok)``."""
         q = np.array(q, dtype=float)
@@ -377,12 +362,7 @@ class Linkage(SpanningTree, RateAnalysis):
         return q, pose, res, iters, ok
 
     def closed_form(self, psi, tol=NEWTON_TOL):
-        """
-        Return :meth:`newton`'s ``(q, pose, residual, iterations, converged)`` and ``q_pred``.
-
-        The positions of a linkage of RRR dyads (:mod:`dyads`) by circle intersections; where
-        the residual stays above ``tol``, Newton from the predictor ``q_pred`` (else None).
-        """
+        """Return :meth:`newton`'s tuple and ``q_pred`` (None: the dyads closed everywhere)."""
         sk = self.skeleton
         q_pred = None
         if self.turn_line is not None:
@@ -467,8 +447,6 @@ class Linkage(SpanningTree, RateAnalysis):
             f'after {ASSEMBLY_MAX_ITER} damped Newton steps); check the joint points and '
             'lengths')
 
-    # ------------------------------------------------------------------ branch skeleton
-
     @property
     def skeleton(self):
         """Return the traced branch: nodes over one crank turn (computed on first use)."""
@@ -537,8 +515,6 @@ class Linkage(SpanningTree, RateAnalysis):
             self.warnings.append(text)
             warnings.warn(text, RuntimeWarning, stacklevel=3)
 
-    # ------------------------------------------------------------------ public evaluation
-
     def solve(self, psi, psi_d=None, psi_dd=None, need_rates=True, need_acc=True):
         """Return the :class:`KinematicState` at crank angles ``psi`` (rad; rates: the scene's)."""
         if not (type(psi) is np.ndarray and psi.ndim == 1 and psi.dtype == np.float64):
@@ -548,8 +524,7 @@ class Linkage(SpanningTree, RateAnalysis):
             raise ValueError('crank_angle_rad: got a non-finite value, expected finite angles')
         sk = self.skeleton
         if self.dyads is not None:
-            # the closed form needs the whole turns only; where it did not close, Newton
-            # from the predictor (q_pred), and the predictor's check below
+            # where the closed form did not close: Newton from the predictor q_pred
             q, pose, res, iters, ok, q_pred = self.closed_form(psi)
         else:
             q_pred = sk.predict(psi)
@@ -589,10 +564,8 @@ class Linkage(SpanningTree, RateAnalysis):
             return {'cond': fac.cond(), 'det_sign': fac.sign()}
 
         r = at(pose)
-        # The branch is the set of solutions where det J_u keeps the sign it has at the
-        # assembly (the trace refuses to cross a sign change).  Near a change point the two
-        # branches can be closer than EVAL_TRUST, so the correction size alone does not tell
-        # them apart; the sign (a by-product of the factorization the rates need) does.
+        # near a sign change of det J_u the two branches can be closer than EVAL_TRUST: the
+        # sign (a by-product of the rates' factorization) tells them apart
         wrong = r['det_sign'] != self.branch_sign
         if np.count_nonzero(wrong):
             q[:, wrong] = self._retrace(psi[wrong])
@@ -625,7 +598,7 @@ class Linkage(SpanningTree, RateAnalysis):
         branch = _PlanarBranch(self, midpoint_check=False)
         out = np.empty((self.nt, psi.size))
         for i, target in enumerate(psi):
-            k, x = sk.locate(np.array([target]))
+            k, x, _ = sk.locate(np.array([target]))
             base = sk.psi[k[0]] + (target - sk.psi[0] - x[0])
             q = sk.q[:, k[0]:k[0] + 1] + np.where(
                 self.is_prismatic, 0.0, TWO_PI * sk.turns * sk.wraps(target))[:, None]
@@ -679,12 +652,7 @@ class _PlanarBranch(continuation.Branch):
                 'the assembly branch is not unique, so the cycle cannot be followed')
 
     def accept(self, start, node, h):
-        """
-        Return whether the quintic Hermite predictor holds at the middle of a new segment.
-
-        Newton must move it less than ``MIDPOINT_TRUST_FRACTION * EVAL_TRUST`` and keep the
-        sign of det J_u, so near a change point the steps shorten.
-        """
+        """Return whether Newton keeps a segment's Hermite midpoint within trust, on the branch."""
         lk = self.linkage
         if not self.midpoint_check or not lk.nu:
             return True

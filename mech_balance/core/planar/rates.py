@@ -1,9 +1,7 @@
 """
 Velocity and acceleration analysis of a solved planar pose (seed 000 eqs. 28-36).
 
-:class:`RateAnalysis` is a mixin of :class:`~mech_balance.core.planar.kinematics.Linkage`:
-the joint rates from the loop Jacobian's factors, the link rates as sums over the tree
-joints above each link.
+A mixin of :class:`~mech_balance.core.planar.kinematics.Linkage`.
 """
 
 from mech_balance.core import linalg

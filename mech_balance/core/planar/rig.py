@@ -1,11 +1,7 @@
 """
 The planar rig: a planar scene's compiled linkage and inertia behind the Rig protocol.
 
-:class:`PlanarRig` binds a geometry (compiled and traced once, shared through
-:func:`linkage_for`) to one design's inertia.  Joint values (ROS ``JointState``: rad or m):
-the crank angle; ``phi_b - phi_a`` for another revolute joint; for a prismatic joint the slide
-of its point on b from its point on a along the axis fixed in a.  Effort: the driving torque
-on the crank, the reaction moment at a prismatic joint, 0 at the other joints.
+Joint values and efforts (ROS ``JointState``): docs/core.md#module-overviews.
 """
 
 from mech_balance.core import equimomental
@@ -119,8 +115,6 @@ class PlanarRig:
         if 'kinetic_energy' in names:
             out['kinetic_energy'] = kinetic_energy(state, self.inertia)
         return out
-
-    # ------------------------------------------------------------------ the Rig protocol
 
     def at(self, psi, speed=None, accel=None, outputs=None):
         """Return the :class:`RigData` at crank angles ``psi`` (module docstring: joints)."""

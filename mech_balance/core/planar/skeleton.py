@@ -1,9 +1,7 @@
 """
-The traced branch of a planar linkage: nodes over one crank turn and their predictor.
+The traced branch of a planar linkage: nodes over one crank turn, quintic Hermite predictor.
 
-:class:`Skeleton` holds the nodes the continuation (:mod:`mech_balance.core.continuation`)
-found and predicts the tree coordinates anywhere on the turn by quintic Hermite
-interpolation (value, slope and curvature at both ends of a segment).
+The nodes come from :mod:`mech_balance.core.continuation`.
 """
 
 import math
@@ -105,11 +103,6 @@ class Skeleton:
         return np.floor((np.asarray(psi) - self.psi[0]) / TWO_PI)
 
     def locate(self, psi):
-        """Return the interval index and the offset into one turn for each angle."""
-        k, x, _ = self._locate(psi)
-        return k, x
-
-    def _locate(self, psi):
         """Return the interval index, the offset into the turn and the whole turns."""
         x = np.subtract(psi, self.psi[0])
         turns = np.multiply(x, 1.0 / TWO_PI)
@@ -125,7 +118,7 @@ class Skeleton:
     def predict(self, psi):
         """Return predicted tree coordinates ``(nt, p)`` at crank angles ``psi``."""
         psi = np.asarray(psi, dtype=float)
-        k, x, turns = self._locate(psi)
+        k, x, turns = self.locate(psi)
         x -= self.offset[k]
         x /= self.h[k]                   # t in [0, 1] along the segment
         q = np.empty((self.q.shape[0], psi.size))

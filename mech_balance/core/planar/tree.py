@@ -1,11 +1,7 @@
 """
 The spanning tree of a planar linkage: tree and cut joints, incidence and ancestry matrices.
 
-The joint graph is opened breadth first from the frame (the crank joint first); the other
-joints are cut joints.  :class:`SpanningTree` (a mixin of
-:class:`~mech_balance.core.planar.kinematics.Linkage`) precomputes the matrices that
-vectorize over bodies and the sums down the tree (over the joints above each body) and up
-it (over the bodies below each joint).
+Opened breadth first from the frame, the crank joint first; the other joints are cut joints.
 """
 
 from dataclasses import dataclass
@@ -18,19 +14,12 @@ DENSE_TREE_MAX_BODIES = 8
 
 
 @dataclass
-class TreeJoint:
-    """A joint of the spanning tree: ``child`` hangs from ``parent``."""
+class _Joint:
+    """A joint of the scene (its index) as the spanning tree uses it."""
 
     joint: int
     name: str
     joint_type: str
-    parent: int
-    child: int
-    p_parent: complex
-    p_child: complex
-    axis: complex
-    axis_on_parent: bool
-    angle: float
 
     @property
     def prismatic(self):
@@ -39,23 +28,28 @@ class TreeJoint:
 
 
 @dataclass
-class CutJoint:
+class TreeJoint(_Joint):
+    """A joint of the spanning tree: ``child`` hangs from ``parent``."""
+
+    parent: int
+    child: int
+    p_parent: complex
+    p_child: complex
+    axis: complex
+    axis_on_parent: bool
+    angle: float
+
+
+@dataclass
+class CutJoint(_Joint):
     """A joint closing a loop: two equations g = 0 between bodies ``a`` and ``b``."""
 
-    joint: int
-    name: str
-    joint_type: str
     a: int
     b: int
     p_a: complex
     p_b: complex
     axis: complex
     angle: float
-
-    @property
-    def prismatic(self):
-        """Return whether the joint slides (else it turns)."""
-        return self.joint_type == 'prismatic'
 
 
 class SpanningTree:
@@ -159,15 +153,13 @@ class SpanningTree:
         n_unk = int(unk.sum())
         self.jac_nz_split = (nz[unk, 0], nz[unk, 1] - 1, nz[order, 2], nz[order, 3], n_unk,
                              nz[~unk, 0])
-        # jacobian_values: the crank column's x and y rows as slices where they are a range
+        # the crank column's x and y rows as slices where a range, and whether they are all rows
         self.crank_row_slices = _as_slices(nz[~unk, 0], self.nr)
-        # ... and whether they are every row (then J_psi needs no zeros first)
         self.crank_rows_all = bool(self.crank_row_slices) and \
             np.array_equal(np.sort(nz[~unk, 0]), np.arange(self.nr)) and not self.npc
         self.cut_angle = np.array([c.angle for c in self.cuts[self.nr:]])[:, None]
         self.cut_axis = np.array([c.axis for c in self.cuts[self.nr:]], dtype=complex)[:, None]
-        # reaction recursion (dynamics): bodies below each tree joint, and the cut-joint
-        # loads summed over those bodies
+        # reaction recursion: bodies below each tree joint, and the cut loads summed over them
         self.below = np.ascontiguousarray(self.anc_all.T)                  # (nt, nb)
         self.minus_ones = np.full(self.nb, -1.0)   # minus the sum over the bodies
         self.below_cut_a = self.below @ self.cut_inc_a                     # (nt, ncut)
@@ -176,13 +168,10 @@ class SpanningTree:
         rev = ~self.is_prismatic
         rev[0] = False
         self.rev_passive = np.flatnonzero(rev)     # revolute tree joints other than the crank
-        # the rows the dynamics' consistency figure reads: the crank's, then those joints
-        # (a slice where they are a range: no fancy indexing per call)
+        # the rows of the consistency figure: the crank's, then those (a slice if a range)
         self.check_rows = np.concatenate([[0], self.rev_passive]).astype(np.intp)
         self.rev_passive_rows = (_as_slices(self.rev_passive, 0) or (self.rev_passive,))[0]
-        # the first row scale and its negative as 0-d arrays (all the rows' scale without
-        # point-contact cuts or prismatic joints): a ufunc takes those a third quicker than
-        # a Python or NumPy scalar (these multiply every cycle's rows)
+        # the first row scale and its negative as 0-d arrays (quicker ufunc operands than scalars)
         first = float(self.row_scale[0]) if self.row_scale.size else 1.0
         self.scale0, self.neg_scale0 = np.array(first), np.array(-first)
         self.tree_flip = np.flatnonzero(self.tree_sign < 0)  # reported from child to parent

@@ -1,10 +1,7 @@
 """
 The assembly of a spatial linkage from its scene's stated poses, and the check that it holds.
 
-The stated ``assembly.poses`` choose the branch: :func:`initial` reads the tree coordinates,
-Levenberg-Marquardt closes the loops (:meth:`Assembling._assemble`), :func:`pose_mismatch`
-refuses a solved link off its stated pose beyond ``POSE_TOL_DEG`` or ``POSE_TOL_REL`` of
-:mod:`mech_balance.schema.spatial` (docs/core.md, "The stated assembly").
+Levenberg-Marquardt from the stated ``assembly.poses`` (docs/core.md, "The stated assembly").
 """
 
 import math

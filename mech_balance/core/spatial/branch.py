@@ -1,9 +1,7 @@
 """
 The assembly branch of a spatial linkage: its trace, its dense nodes and the predictor.
 
-The branch is followed by :func:`mech_balance.core.continuation.advance` in tree
-coordinate 0 (a crank angle, or a prismatic input's slide in units of its half stroke):
-over one turn, which must close, or from the assembly to both ends of the stroke.
+One turn, which must close, or from the assembly to both ends of a prismatic input's stroke.
 """
 
 import math
@@ -65,32 +63,22 @@ class BranchFollowing:
         one = np.ones(q.shape[0])
         return self.rates(fr, q, one, 0.0 * one)
 
-    def coordinate_change(self, q, q_ref):
-        """Return per sample the largest scaled change of the scalar coordinates but the input."""
-        return np.max(np.abs(q - q_ref)[:, self.scalar_dofs[1:]]
-                      / self.col_scale[self.scalar_dofs[1:]], axis=1, initial=0.0)
-
-    def rotation_change(self, sph, sph_ref):
-        """Return per sample the largest entry of ``sph_ref^T sph - I`` (spherical joints)."""
-        if not self.sph_index:
-            return np.zeros(sph.shape[0])
-        diff = np.matmul(np.swapaxes(sph_ref, -1, -2), sph) - EYE3
-        return np.max(np.abs(diff), axis=(1, 2, 3))
-
     def change(self, q, sph, q_ref, sph_ref):
-        """Return per sample the largest scaled change of ``(q, sph)`` from a reference."""
-        return np.maximum(self.coordinate_change(q, q_ref), self.rotation_change(sph, sph_ref))
-
-    def _limits(self):
-        """Return the :class:`continuation.Limits` of this linkage's input (rad, or m)."""
-        return continuation.Limits(
-            step_max=self.step_max, step_min=self.step_min,
-            step_done=STEP_DONE * self.input_scale, step_trust=STEP_TRUST,
-            cond_limit=COND_LIMIT, cond_warn=COND_WARN)
+        """Return per sample the largest scaled change of ``(q, sph)`` but the input's."""
+        s = self.scalar_dofs[1:]
+        out = np.max(np.abs(q - q_ref)[:, s] / self.col_scale[s], axis=1, initial=0.0)
+        if not self.sph_index:
+            return out
+        diff = np.matmul(np.swapaxes(sph_ref, -1, -2), sph) - EYE3   # spherical joints
+        return np.maximum(out, np.max(np.abs(diff), axis=(1, 2, 3)))
 
     def _advance(self, start, goal):
         """Yield the nodes from ``start`` to ``goal`` along the input (:mod:`continuation`)."""
-        return continuation.advance(_SpatialBranch(self), start, goal, self._limits(),
+        limits = continuation.Limits(
+            step_max=self.step_max, step_min=self.step_min,
+            step_done=STEP_DONE * self.input_scale, step_trust=STEP_TRUST,
+            cond_limit=COND_LIMIT, cond_warn=COND_WARN)
+        return continuation.advance(_SpatialBranch(self), start, goal, limits,
                                     self.branch_sign if self.square else None)
 
     def _node(self, q, sph, qd, qdd, cond=1.0):

@@ -1,9 +1,7 @@
 """
 The closure rows of a spatial linkage: residual, Jacobian, bias and wrenches.
 
-Each cut joint contributes rows g = 0 in groups: ``point`` (the joint points coincide), ``dot``
-(an a-vector normal to a b-vector), ``line`` (the b-point on the a-line), ``spin`` (an idle
-S-S link's spin fixed; docs/core.md#the-spatial-formulation).
+Row groups ``point``, ``dot``, ``line`` and ``spin``: docs/core.md#the-spatial-formulation.
 """
 
 from dataclasses import dataclass
@@ -199,14 +197,7 @@ class ClosureRows:
         return np.concatenate(wb, axis=1), np.concatenate(wa, axis=1)
 
     def jacobian(self, fr):
-        """
-        Return the closure Jacobian ``(n, m, ndof)`` (rows' rates per coordinate rate).
-
-        A batch-first view of the component-major ``(m, ndof, n)`` stack the LU takes.  A
-        row's rate per coordinate d: a point x ``omega_d x x + v_d``; a dot row
-        ``(u_b x w_a) . omega_d``; a line row ``(x_b x w) . omega_d + w . v_d`` on b and
-        ``(w x d - x_a x w) . omega_d - w . v_d`` on a.
-        """
+        """Return the closure Jacobian ``(n, m, ndof)``: a view of the component-major stack."""
         n = fr.rot.shape[0]
         if not self.m:
             return np.zeros((n, 0, self.ndof))
@@ -242,13 +233,7 @@ class ClosureRows:
         return np.concatenate(out, axis=0).transpose(2, 0, 1)
 
     def bias(self, fr, twist, acc0):
-        """
-        Return the rows' second time derivatives ``(m, n)`` at body accelerations ``acc0``.
-
-        Component-major (``twist``, ``acc0`` ``(6, nb, n)``): a body point accelerates by
-        ``a_O + alpha x x + omega x (v_O + omega x x)``, a body vector by
-        ``alpha x u + omega x (omega x u)``.
-        """
+        """Return the rows' second time derivatives ``(m, n)`` at accelerations ``acc0``."""
         out = []
         n = twist.shape[-1]
         for r, rb, ra, vb, va in self._row_parts(fr):

@@ -69,10 +69,9 @@ _GROUPS = ('angle', 'slide', 'spherical', 'universal')
 """The joint coordinate groups evaluated together (:func:`joint_values`)."""
 
 
-def _group_of(joint_type):
-    """Return the groups of a joint type's coordinates (published order)."""
-    return {'revolute': ('angle',), 'prismatic': ('slide',), 'cylindrical': ('angle', 'slide'),
-            'spherical': ('spherical',), 'universal': ('universal',)}[joint_type]
+_GROUP_OF = {'revolute': ('angle',), 'prismatic': ('slide',), 'cylindrical': ('angle', 'slide'),
+             'spherical': ('spherical',), 'universal': ('universal',)}
+"""The groups of each joint type's coordinates (published order)."""
 
 
 def _constants(linkage):
@@ -86,7 +85,7 @@ def _constants(linkage):
     members = {g: [] for g in _GROUPS}        # (joint index, published column)
     col = 0
     for i, jt in enumerate(sc.joints):
-        for g in _group_of(jt.joint_type):
+        for g in _GROUP_OF[jt.joint_type]:
             members[g].append((i, col))
             col += 3 if g == 'spherical' else 2 if g == 'universal' else 1
     groups = {}

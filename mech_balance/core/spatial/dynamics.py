@@ -1,11 +1,7 @@
 """
 Inverse dynamics of a spatial linkage: shaking wrench, driving torque, bearing reactions.
 
-Per moving body the rate of momentum about the frame origin ``Phi_k = (N_k, F_k)``; the
-shaking wrench is ``-sum Phi_k`` reduced to the scene's moment point
-(:mod:`mech_balance.conventions`).  The driving torque and the closure multipliers follow by
-virtual power in tree coordinates (minimum-norm, not unique, for redundant rows); the bearing
-reactions are the force and moment on each joint's link b from its link a, about the joint
+Reactions: the force and moment on each joint's link b from its link a, about the joint
 point, frame axes.  The derivation: docs/core.md#spatial-inverse-dynamics.
 """
 
@@ -97,12 +93,7 @@ def _reaction_constants(lk):
 
 
 def body_motion(state, inertia):
-    """
-    Return ``(x_c, v_c, a_c, omega, I_w omega, I_w alpha)`` of the moving bodies (cached).
-
-    Component-major ``(3, nb - 1, n)``; ``a_c`` and ``I_w alpha`` are None without
-    accelerations.
-    """
+    """Return ``(x_c, v_c, a_c, omega, I_w omega, I_w alpha)`` ``(3, nb - 1, n)`` (cached)."""
     cached = getattr(state, '_motion', None)
     if cached is not None and cached[0] is inertia:
         return cached[1]

@@ -1,15 +1,12 @@
 """
 Position, velocity and acceleration of a single-input spatial linkage (``kind: spatial``).
 
-The joint graph is opened into a spanning tree from the frame (crank first) plus cut joints
-whose closure rows (:mod:`.closure`) are solved for the tree joints' relative coordinates; one
-analytic Jacobian gives Newton's step, the velocities and the accelerations, batch-first over
-the crank angles.  Tree coordinate 0 is the input: the crank angle, or a prismatic input's
-slide ``s(psi)`` (:func:`mech_balance.schema.spatial.stroke_law`).  The formulation, the
-joints' zero conventions, idle spins and redundant rows: docs/core.md#the-spatial-formulation.
+Tree coordinate 0 is the input: the crank angle, or a prismatic input's slide ``s(psi)``
+(:func:`mech_balance.schema.spatial.stroke_law`).  docs/core.md#the-spatial-formulation.
 """
 
 from dataclasses import dataclass
+import itertools
 from typing import NamedTuple
 import warnings
 
@@ -153,18 +150,14 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         self._compile(body)
         self.stroke_m = getattr(scene, 'crank_stroke_m', None)
         self.periodic = self.stroke_m is None
-        # tree coordinate 0 against the input joint's own coordinate: a prismatic tree joint
-        # hung from its scene end b slides the other way (coordinates.joint_values)
+        # a prismatic input hung from its scene end b slides against its own coordinate
         self.input_sign = -1.0 if self.tree[0].flipped and not self.periodic else 1.0
         half = 1.0 if self.periodic else 0.5 * (self.stroke_m[1] - self.stroke_m[0])
-        # the input coordinate's own scale (rad, or the half stroke in m): every step and
-        # tolerance in it is relative to this, so the figures do not depend on the unit
+        # the input's own scale (rad, or the half stroke in m) for every step and tolerance
         self.input_scale = half
         self.step_max, self.step_min = STEP_MAX_RAD * half, STEP_MIN_RAD * half
         self._assemble()
         self._skeleton = None
-
-    # ------------------------------------------------------------------ the input
 
     def input_motion(self, psi, psi_d, psi_dd):
         """Return the input joint's ``(x, x', x'')`` at cycle angles ``psi`` (rad or m)."""
@@ -186,17 +179,10 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
             return f'crank angle {crank_angle_text(x, digits)} deg'
         return f'input slide {self.input_sign * x:.{digits + 3}f} m'
 
-    # ------------------------------------------------------------------ compile
-
     def _length_scale(self):
-        ext = []
-        for pts in self._points.values():
-            vals = list(pts.values())
-            for i, a in enumerate(vals):
-                for b in vals[i + 1:]:
-                    ext.append(float(np.linalg.norm(a - b)))
-        ext = [e for e in ext if e > 0.0]
-        return max(ext) if ext else 1.0
+        ext = [float(np.linalg.norm(a - b)) for pts in self._points.values()
+               for a, b in itertools.combinations(pts.values(), 2)]
+        return max((e for e in ext if e > 0.0), default=1.0)
 
     def _compile(self, body):
         sc = self.scene
@@ -279,8 +265,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
     def scaled(self, jac):
         """Return the scaled Jacobian of the unknowns ``(n, m, nu)`` (rows and columns)."""
         return jac[:, :, self.unknown] * self.js_scale
-
-    # ------------------------------------------------------------------ forward kinematics
 
     def _col_template(self):
         """Return ``(ndof, 6)`` (built once): the constant twist columns of the frame's joints."""
@@ -378,8 +362,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         dcols *= qd.T[moving]
         return np.matmul(self._path_t_moving, dcols)
 
-    # ------------------------------------------------------------------ Newton
-
     def _update(self, q, sph, delta):
         q = q.copy()
         q[:, self.unknown] += delta * (~self.is_sph_dof[self.unknown])
@@ -441,12 +423,7 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return linalg.Factored(batch_last, self._lu_plan(js)).solve(g.T).T
 
     def _chord(self, q, sph, max_iter=NEWTON_MAX_ITER, tol=NEWTON_TOL):
-        """
-        Return ``(q, sph, frames, residual, ok, factor)``: Newton with the predictor's factor.
-
-        ``factor`` is ``(solver, cond, rank, sign)`` (None: not square, full Newton used),
-        plus the predictor's Jacobian when the predictor already converged (factor exact).
-        """
+        """Return ``(q, sph, frames, residual, ok, factor)``: Newton with one factor."""
         if not self.square or not self.nu:
             q, sph, fr, res, ok = self.newton(q, sph, max_iter, tol)
             return q, sph, fr, res, ok, None
@@ -471,8 +448,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         ok = (res <= tol) & np.isfinite(res)
         return q, sph, fr, res, ok, factor
 
-    # ------------------------------------------------------------------ refined solves
-
     def solve_u(self, solver, js, rhs):
         """Return ``x`` with ``js x = rhs`` from the inverse ``solver`` of a nearby Js."""
         x = mv(solver, rhs)
@@ -486,15 +461,8 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         return self.solve_u(np.swapaxes(solver, 1, 2),
                             None if js is None else np.swapaxes(js, 1, 2), rhs)
 
-    # ------------------------------------------------------------------ rates
-
     def rates(self, fr, q, psi_d, psi_dd, need_acc=True, factor=None):
-        """
-        Return the :class:`Rates` at ``fr``.
-
-        A ``factor`` of a nearby position is refined against this position's Jacobian; one
-        with a fifth entry (its Jacobian) is this very position's, used as it is.
-        """
+        """Return the :class:`Rates` at ``fr`` (a nearby position's ``factor`` is refined)."""
         n = q.shape[0]
         if factor is not None and len(factor) > 4:
             jac = factor[4]  # the factor's own Jacobian, at this very position
@@ -532,8 +500,6 @@ class Linkage(Assembling, ClosureRows, BranchFollowing):
         if text not in self.warnings:
             self.warnings.append(text)
             warnings.warn(text, RuntimeWarning, stacklevel=3)
-
-    # ------------------------------------------------------------------ evaluation
 
     def solve(self, psi, psi_d, psi_dd, need_rates=True, need_acc=True):
         """Return the :class:`SpatialState` at crank angles ``psi`` (n,), rad/s, rad/s^2."""

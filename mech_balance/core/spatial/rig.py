@@ -1,11 +1,7 @@
 """
 The spatial rig: a ``kind: spatial`` scene behind the Rig protocol (:mod:`mech_balance.core.rig`).
 
-:class:`SpatialRig` binds a compiled :class:`~kinematics.Linkage` (shared per geometry through
-:func:`linkage_for`) to one design's inertia.  Joint values: every joint's coordinates
-(:mod:`.coordinates`), the input first (psi, or a prismatic input's slide s(psi), m); effort:
-the driving effort on the input joint (``driving_torque``, N m, or ``driving_force``, N), 0
-elsewhere.  The shaking wrench is reduced to the scene's ``moment_point_m``.
+Joint values and efforts: docs/core.md#module-overviews.
 """
 
 from mech_balance.core.rig import batch, BodyKinematics, BodyPoses, Drawing, DrawingBody, \
