@@ -229,7 +229,7 @@ PARAMETERS = (
     Spec('follow.max_gap', DOUBLE, 0.5,
          'Follow mode: a longer gap between encoder stamps, s, restarts the estimator.',
          bounds=(1e-6, 3600.0)),
-    Spec('follow.resync_after', INTEGER, 10,
+    Spec('follow.resync_after', INTEGER, sensor.RESYNC_AFTER,
          'Follow mode: after this many encoder messages in a row rejected for their stamp '
          '(not after the last accepted) or their step (a jump), the node re-synchronizes on '
          'the incoming stream (one message stamped far in the future cannot lock it out).',

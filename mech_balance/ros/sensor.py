@@ -39,7 +39,7 @@ IDENTIFY_SPAN_S = 120.0
 REST_SPEED_RAD_S = 1e-3
 """A tare whose crank speeds stay below this is taken at rest."""
 RESYNC_AFTER = 10
-"""Refusals for the stamp in a row after which a track re-synchronizes (default)."""
+"""Refusals in a row after which a track re-synchronizes (default of ``follow.resync_after``)."""
 MAX_MEASUREMENT = 1e9
 """Largest |component| of a measured wrench accepted, N and N*m (beyond: corrupt)."""
 MODEL_FLOOR = 1e-12
