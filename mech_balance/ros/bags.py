@@ -150,10 +150,7 @@ class _Growing:
             self.stamps = np.resize(self.stamps, grow)
 
     def add(self, stamp_ns, row):
-        self._reserve(self.n + 1)
-        self.rows[self.n] = row
-        self.stamps[self.n] = stamp_ns
-        self.n += 1
+        self.extend([stamp_ns], [row])
 
     def extend(self, stamps_ns, rows):
         need = self.n + len(stamps_ns)

@@ -105,11 +105,6 @@ def link_spec(link, option):
                 rule=f'[], [min] or [min, max] in {unit}, 0 < min <= max')
 
 
-def link_specs(link_names, link_options=tuple(LINK_OPTIONS)):
-    """Return the per-link :class:`Spec` of every link and option, in declaration order."""
-    return [link_spec(link, option) for link in link_names for option in link_options]
-
-
 def spec_for(name):
     """Return the :class:`Spec` of a parameter name (per-link ones included), or None."""
     spec = BY_NAME.get(name)
@@ -120,12 +115,18 @@ def spec_for(name):
     return spec
 
 
-def check_links(values, link_names):
-    """Raise ValueError if a ``balance.*`` option names a link not in ``link_names``."""
-    named = {'balance.fixed_links': split_links(values['balance.fixed_links']),
-             'balance.counterweight_links': split_links(values['balance.counterweight_links'])}
+def named_links(values):
+    """Return ``{option: [link names]}`` of the ``balance.*`` options that name links."""
+    named = {key: split_links(values[key])
+             for key in ('balance.fixed_links', 'balance.counterweight_links')}
     for key, unit in (('balance.mass_bounds', 'kg'), ('balance.distance_bounds', 'm')):
         named[key] = list(parse_link_bounds(key, values[key], unit) or ())
+    return named
+
+
+def check_links(values, link_names):
+    """Raise ValueError if a ``balance.*`` option names a link not in ``link_names``."""
+    named = named_links(values)
     for key, value in values.items():
         if key.startswith(LINK_PREFIX) and value:
             link, _, option = key[len(LINK_PREFIX):].rpartition('.')
@@ -159,20 +160,15 @@ def _viewer_url(value):
         paths.check_viewer_url(value, 'rerun_url')
 
 
-def _option_spec(opt):
-    """Return the :class:`Spec` of a balancing option's parameter (its one declaration)."""
-    check = None if opt.check is None else (lambda value, o=opt: o.check(o.param, value))
-    return Spec(opt.param, opt.value_type, options.param_default(opt), opt.description,
-                bounds=opt.bounds, choices=opt.choices, check=check, rule=opt.rule)
-
-
 def _balance_specs():
     """Return the ``balance.*`` specs: :data:`mech_balance.balancing.options.OPTIONS`."""
     out = []
     for opt in options.OPTIONS:
         if opt.param is None:
             continue
-        out.append(_option_spec(opt))
+        check = None if opt.check is None else (lambda value, o=opt: o.check(o.param, value))
+        out.append(Spec(opt.param, opt.value_type, options.param_default(opt), opt.description,
+                        bounds=opt.bounds, choices=opt.choices, check=check, rule=opt.rule))
         if opt.param == 'balance.samples':
             out.append(METHOD_SPEC)
     return out
