@@ -16,7 +16,7 @@ from mech_balance.balancing import defaults as balancing_defaults
 from mech_balance.balancing import options
 from mech_balance.balancing.options import BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, LINK_OPTIONS, \
     LINK_PREFIX, parse_link_bounds, split_links, STRING
-from mech_balance.ros import sensor
+from mech_balance.ros import names, sensor
 from mech_balance.ros.guard import show as _show
 
 MODES = ('clock', 'follow')
@@ -66,11 +66,6 @@ def _scene(value):
     """Reject an empty scene name (the node then loads and assembles the scene)."""
     if not value:
         raise ValueError('scene: got an empty name, expected a built-in scene or a path')
-
-
-def _frame_id(value):
-    """Accept a TF frame name (:func:`mech_balance.identifiers.check_frame_id`)."""
-    identifiers.check_frame_id(value, 'frame_id')
 
 
 def _joint_name(value):
@@ -135,8 +130,8 @@ def check_links(values, link_names):
             if link in named[older]:
                 raise ValueError(f'{key}: got {list(value)}, expected no second bound for link '
                                  f'{link!r} ({older} gives one; clear one of them)')
-    for key, names in named.items():
-        for name in names:
+    for key, found in named.items():
+        for name in found:
             if name not in link_names:
                 raise ValueError(f'{key}: got link {name!r}, expected links of the scene '
                                  f'({", ".join(link_names)})')
@@ -152,12 +147,6 @@ def _path(value):
                          f"ending in .rrd (e.g. {value.rstrip('/')}/rig.rrd)")
     if value:
         paths.check_output_path(value, 'recording_path', ('.rrd',), create_dir=False)
-
-
-def _viewer_url(value):
-    """Accept empty (no live view) or a rerun viewer's gRPC address."""
-    if value:
-        paths.check_viewer_url(value, 'rerun_url')
 
 
 def _balance_specs():
@@ -201,8 +190,9 @@ PARAMETERS = (
     Spec('publish_rate', DOUBLE, 100.0,
          'Clock mode: samples per second on joint_states and shaking_wrench, Hz.',
          bounds=(MIN_PUBLISH_RATE, MAX_PUBLISH_RATE)),
-    Spec('frame_id', STRING, 'rig_frame',
-         'Frame of the shaking wrench (header.frame_id of shaking_wrench).', check=_frame_id,
+    Spec('frame_id', STRING, names.DEFAULT_FRAME_ID,
+         'Frame of the shaking wrench (header.frame_id of shaking_wrench).',
+         check=lambda value: identifiers.check_frame_id(value, 'frame_id'),
          rule="letters, digits, '_' and '/', not starting with '/' or a digit"),
     Spec('publish_robot_description', BOOL, True,
          'Publish the URDF of the published design on robot_description (std_msgs/String, '
@@ -248,7 +238,8 @@ PARAMETERS = (
          "Stream the recording's views live to a running rerun viewer at this gRPC address "
          '(`rerun` prints it when it starts, e.g. rerun+http://127.0.0.1:9876/proxy), at most '
          '30 samples per second on a thread of its own; empty: none.',
-         check=_viewer_url, rule='empty or rerun[+http|+https]://HOST[:PORT]/proxy'),
+         check=lambda value: paths.check_viewer_url(value, 'rerun_url') if value else None,
+         rule='empty or rerun[+http|+https]://HOST[:PORT]/proxy'),
     # the twin against the real rig (mech_balance.ros.sensor, README)
     *(Spec(f'sensor.{axis}', DOUBLE, 0.0,
            f'Origin of the force sensor in frame_id (the rig frame), {axis} in m; the '
@@ -401,7 +392,6 @@ def frame_id_from_params_file(path):
     :data:`mech_balance.ros.names.DEFAULT_FRAME_ID`.
     """
     from pathlib import Path
-    from mech_balance.ros import names
     from mech_balance.schema.scene import parse_yaml
     try:
         data = parse_yaml(Path(path).read_text())
