@@ -95,10 +95,8 @@ class Publisher:
             period_ns = max(1, round(1e9 / values['publish_rate']))
             self.streamer.clock(model, self._state.crank_speed(), period_ns)
             return
-        self.estimator = new_estimator(values)
-        self.streamer.follow_exact = values['follow.exact']
+        self.renew_estimator()  # and the cycle table
         self.streamer.follow(model)
-        self._build_table(model)
         if self._encoder_sub is None:
             guarded = self._guard.skipping(ENCODER)(self.on_encoder)
             # two required arguments: rclpy then passes the message info (its reception stamp)
