@@ -53,11 +53,7 @@ def joint_state_template(msg, joint_names):
 
 
 def fill_joint_state(msg, samples, i, stamp):
-    """
-    Fill ``msg`` (``sensor_msgs/JointState``, names set) with sample ``i`` of ``samples``.
-
-    SI positions, velocities and efforts; effort empty when the scene computes none.
-    """
+    """Fill ``msg`` (a JointState, names set) with sample ``i`` (effort empty if none)."""
     msg.header.stamp = stamp
     msg.position = _doubles(samples.joint_position[i])
     msg.velocity = _doubles(samples.joint_velocity[i])
@@ -225,11 +221,7 @@ def wrench_values(msg):
 
 
 def crank_reading(msg, joint):
-    """
-    Return ``(stamp_ns, position_rad, velocity_rad_s or None)`` of ``joint`` in a JointState.
-
-    Raises ``ValueError`` naming the problem (a missing joint, wrong lengths, non-finite).
-    """
+    """Return ``(stamp_ns, position_rad, velocity_rad_s or None)`` of ``joint``; ValueError."""
     names = list(msg.name)
     if joint not in names:
         raise ValueError(f'name: no joint {joint!r} in {names}, expected the crank joint '

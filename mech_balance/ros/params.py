@@ -354,12 +354,7 @@ NUMBER = re.compile(r'\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*')
 
 
 def coerced(name, value):
-    """
-    Return ``value`` converted to the declared type of ``name`` where that loses nothing.
-
-    Integers and numbers as text (:data:`NUMBER`) become doubles where doubles are
-    declared; anything else is returned as it is (the check then names what is wrong).
-    """
+    """Return ``value`` as the declared type of ``name`` where that loses nothing, else as is."""
     spec = spec_for(name)
     if spec is None:
         return value

@@ -401,11 +401,7 @@ class BiasEstimate:
 
 
 def estimate_bias(measured, model, speed_rad_s=None, span_s=0.0):
-    """
-    Return the :class:`BiasEstimate` of ``measured - model = bias + noise`` (``(n, 6)`` each).
-
-    The mean, with standard error std / sqrt(n); ``speed_rad_s`` says whether at rest.
-    """
+    """Return the :class:`BiasEstimate` of ``measured - model = bias + noise``, ``(n, 6)`` each."""
     r = np.asarray(measured, dtype=float) - np.asarray(model, dtype=float)
     n = r.shape[0]
     if n < 2:
@@ -517,11 +513,7 @@ class Comparison:
             self.track.set_window(crank_window_s)
 
     def new_model(self, weight, point_m):
-        """
-        Compare with another model (``weight``, ``point_m``): forget the paired measurements.
-
-        Another moment point forgets the bias and the measurements too.
-        """
+        """Compare with another model: forget the paired data (another point: all the data)."""
         self.weight = weight
         self.paired.clear()
         point = _point(point_m)

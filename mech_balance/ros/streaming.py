@@ -58,12 +58,7 @@ class TwinModel:
         return self.angular
 
     def cycle_table(self):
-        """
-        Return the verified :class:`~mech_balance.ros.cycle_table.CycleTable`, or None.
-
-        Built on the first call (later calls wait for it); None when refused
-        (:attr:`table_status` says why).
-        """
+        """Return the verified CycleTable, built at the first call, or None (see table_status)."""
         with self._table_lock:
             if self.table_status is None:
                 try:
