@@ -119,11 +119,7 @@ def model_for(scene):
 
 @dataclass(frozen=True)
 class ClockSchedule:
-    """
-    Clock-mode ticks: tick k at ``epoch_ns + k period_ns``, crank at angle0 + speed t_k.
-
-    The tick angles are known ahead: the core is evaluated on the exact angles of a batch.
-    """
+    """Clock-mode ticks: tick k at ``epoch_ns + k period_ns``, crank at angle0 + speed t_k."""
 
     epoch_ns: int
     period_ns: int
