@@ -10,10 +10,9 @@ from collections import Counter
 from dataclasses import dataclass
 import math
 
-from mech_balance.rotations import rpy_matrix
+from mech_balance.rotations import rpy_matrix, TWO_PI
 import numpy as np
 
-TWO_PI = 2.0 * math.pi
 CONVENTIONS = ('load_on_sensor', 'reaction')
 """``sensor.convention``: what the sensor reports (s = +1, -1: :data:`SIGN`)."""
 SIGN = {'load_on_sensor': 1.0, 'reaction': -1.0}

@@ -15,11 +15,9 @@ from typing import NamedTuple
 from mech_balance.core.rig import rig_for
 from mech_balance.ros import cycle_table
 from mech_balance.ros.params import defaults
-from mech_balance.rotations import wrap_angle
+from mech_balance.rotations import TWO_PI, wrap_angle
 from mech_balance.schema import registry
 import numpy as np
-
-TWO_PI = 2.0 * math.pi
 
 BATCH_SECONDS = 0.25
 """Clock mode: ticks evaluated per core call, in seconds of publishing."""

@@ -36,7 +36,6 @@ PALETTE = (
 """Link colours (rgba), in body order; the frame is grey."""
 FRAME_COLOUR = (0.6, 0.6, 0.6, 1.0)
 WEIGHT_COLOUR = (0.25, 0.25, 0.25, 1.0)
-TWO_PI = 2.0 * math.pi
 
 
 class UrdfError(ValueError):
