@@ -364,7 +364,7 @@ class RigNode(Node):
 
     def _stats_line(self):
         """Return the publishing statistics: a summary, then :data:`STATS_TAG` and JSON."""
-        stats = self._publisher.stats()
+        stats = self._publisher.streamer.stats.summary()
         counts = dict(self._guard.counts)
         stats['caught'] = counts
         stats['published_total'] = self._publisher.streamer.published_total

@@ -81,11 +81,6 @@ class Publisher:
         ns = self._node.get_namespace().rstrip('/')
         return f'{ns}/{ENCODER}'
 
-    @property
-    def clock_schedule(self):
-        """Return the clock-mode schedule in force, or None (follow mode)."""
-        return self.streamer.clock_schedule
-
     def apply_mode(self):
         """Start publishing in the current mode; subscribe the encoder when first following."""
         values, model = self._state.values, self._state.published
@@ -273,7 +268,3 @@ class Publisher:
                 diagnostics.model_status(f'{name}: model', hardware_id,
                                          *self.model_watch.snapshot(),
                                          evaluation=self.follow_evaluation())]
-
-    def stats(self):
-        """Return the publishing statistics (:meth:`TickStats.summary`)."""
-        return self.streamer.stats.summary()

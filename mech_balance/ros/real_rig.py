@@ -105,7 +105,7 @@ class RealRig:
                     self.comparison.new_model(sensor.WeightModel.of(model.rig),
                                               model.moment_point_m)
                     self._model = model
-                schedule = self._publisher.clock_schedule
+                schedule = self._publisher.streamer.clock_schedule
                 if self._state.values['mode'] == 'clock' and schedule is None:
                     return
                 paired = self.comparison.process(model.evaluate, schedule)
@@ -155,7 +155,7 @@ class RealRig:
         """
         try:
             with self.lock:
-                schedule = self._publisher.clock_schedule
+                schedule = self._publisher.streamer.clock_schedule
                 data = self.comparison.identification_data(schedule)
             result = identification.identify(base.scene, *data[:4])
             rms = ', '.join(f'{c} {b:.4g} -> {a:.4g} {identification.CHANNEL_UNITS[c]}' for c, b, a
