@@ -240,10 +240,6 @@ class Series:
         if self._hi - self._lo > self.capacity:
             self._lo = self._hi - self.capacity
 
-    def newest_value(self, column):
-        """Return the newest sample's value in ``column`` (a float; the series is not empty)."""
-        return float(self._v[self._hi - 1, column])
-
     @property
     def stamps_ns(self):
         """Return the stamps, ns, oldest first."""
@@ -312,7 +308,7 @@ class EncoderTrack:
             newest = self.series.newest_ns
         self.refused_in_a_row = 0
         if newest is not None:
-            last = self.series.newest_value(0)
+            last = float(self.series.values[-1, 0])
             turned -= TWO_PI * round((turned - last) / TWO_PI)
         self.series.append_one(int(stamp_ns), (turned, raw))
         return True
