@@ -150,10 +150,7 @@ class _Growing:
             self.stamps = np.resize(self.stamps, grow)
 
     def add(self, stamp_ns, row):
-        self._reserve(self.n + 1)
-        self.rows[self.n] = row
-        self.stamps[self.n] = stamp_ns
-        self.n += 1
+        self.extend([stamp_ns], [row])
 
     def extend(self, stamps_ns, rows):
         need = self.n + len(stamps_ns)
@@ -518,12 +515,7 @@ def _csv_lines(fh, label):
 
 
 def read_csv(path, joint=None):
-    """
-    Return the :class:`Recording` of a CSV file (columns: module docstring).
-
-    Bounded by :data:`MAX_SAMPLES` rows and :data:`MAX_CSV_BYTES`; every bad row, column or
-    value is refused naming the line and the column.
-    """
+    """Return the :class:`Recording` of a CSV file; a bad field raises naming line and column."""
     path = Path(path)
     label = f'--bag: {str(path)!r}'
     try:

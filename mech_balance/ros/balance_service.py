@@ -25,11 +25,7 @@ BALANCE_RESULT = '~/balance_result'
 
 
 def balance_method(values, rig):
-    """
-    Return the balancing method of ``balance.method`` for ``rig``; ValueError if it has none.
-
-    The default on a rig that cannot be redistributed is the rig's own method.
-    """
+    """Return the method of ``balance.method`` for ``rig`` (default: the rig's own); ValueError."""
     chosen = values['balance.method']
     if chosen == params.BY_NAME['balance.method'].default and \
             balancing.METHODS[chosen] not in rig.capabilities:

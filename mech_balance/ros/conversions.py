@@ -53,11 +53,7 @@ def joint_state_template(msg, joint_names):
 
 
 def fill_joint_state(msg, samples, i, stamp):
-    """
-    Fill ``msg`` (``sensor_msgs/JointState``, names set) with sample ``i`` of ``samples``.
-
-    SI positions, velocities and efforts; effort empty when the scene computes none.
-    """
+    """Fill ``msg`` (a JointState, names set) with sample ``i`` (effort empty if none)."""
     msg.header.stamp = stamp
     msg.position = _doubles(samples.joint_position[i])
     msg.velocity = _doubles(samples.joint_velocity[i])
@@ -68,10 +64,13 @@ def fill_joint_state(msg, samples, i, stamp):
 
 def fill_wrench(msg, samples, i, stamp, frame_id):
     """Fill ``msg`` (``geometry_msgs/WrenchStamped``) with the shaking wrench of sample ``i``."""
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
+    return _fill_wrench(msg, stamp, frame_id, (*samples.force_N[i], *samples.moment_Nm[i]))
+
+
+def _fill_wrench(msg, stamp, frame_id, wrench):
+    msg.header.stamp, msg.header.frame_id = stamp, frame_id
     f, m = msg.wrench.force, msg.wrench.torque
-    f.x, f.y, f.z, m.x, m.y, m.z = map(float, (*samples.force_N[i], *samples.moment_Nm[i]))
+    f.x, f.y, f.z, m.x, m.y, m.z = (float(v) for v in wrench)
     return msg
 
 
@@ -116,11 +115,8 @@ class SampleSerializer:
         js.header.stamp = Time(sec=_PROBE_SEC, nanosec=_PROBE_NANOSEC)
         js.position, js.velocity = probe[:n].tolist(), probe[n:2 * n].tolist()
         js.effort = probe[2 * n:3 * n].tolist() if self.has_effort else []
-        ws = WrenchStamped()
-        ws.header.stamp, ws.header.frame_id = js.header.stamp, frame_id
         w = probe[count * n:]
-        f, m = ws.wrench.force, ws.wrench.torque
-        f.x, f.y, f.z, m.x, m.y, m.z = (float(x) for x in w)
+        ws = _fill_wrench(WrenchStamped(), js.header.stamp, frame_id, w)
         self._joint = _Template(serialize_message(js), probe[:count * n])
         self._wrench = _Template(serialize_message(ws), w)
         self.fast = self._joint.ok and self._wrench.ok
@@ -225,11 +221,7 @@ def wrench_values(msg):
 
 
 def crank_reading(msg, joint):
-    """
-    Return ``(stamp_ns, position_rad, velocity_rad_s or None)`` of ``joint`` in a JointState.
-
-    Raises ``ValueError`` naming the problem (a missing joint, wrong lengths, non-finite).
-    """
+    """Return ``(stamp_ns, position_rad, velocity_rad_s or None)`` of ``joint``; ValueError."""
     names = list(msg.name)
     if joint not in names:
         raise ValueError(f'name: no joint {joint!r} in {names}, expected the crank joint '
@@ -293,11 +285,7 @@ def wrench_reading(msg):
 
 def fill_wrench_values(msg, stamp_ns, frame_id, wrench):
     """Fill a ``WrenchStamped`` with a ``(6,)`` wrench (force xyz N, torque xyz N*m)."""
-    msg.header.stamp = stamp_from_ns(stamp_ns)
-    msg.header.frame_id = frame_id
-    f, m = msg.wrench.force, msg.wrench.torque
-    f.x, f.y, f.z, m.x, m.y, m.z = (float(v) for v in wrench)
-    return msg
+    return _fill_wrench(msg, stamp_from_ns(stamp_ns), frame_id, wrench)
 
 
 def diagnostic_array(statuses, stamp_ns):

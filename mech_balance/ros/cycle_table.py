@@ -10,10 +10,8 @@ import math
 import time
 
 from mech_balance.core.rig import RigData
-from mech_balance.rotations import wrap_angle
+from mech_balance.rotations import TWO_PI, wrap_angle
 import numpy as np
-
-TWO_PI = 2.0 * math.pi
 
 BOUND = 1e-10
 """Largest accepted accuracy, relative to each channel's scale (the node tests ask 1e-9)."""

@@ -165,15 +165,19 @@ def publisher_status(name, hardware_id, mode, configured_hz, achieved_hz, publis
         ('skipped ticks', _fmt(skipped))])
 
 
+def _by_reason(rejected):
+    """Return the text and the key-value pairs of ``{reason: count}``, by reason."""
+    pairs = sorted(rejected.items())
+    return ', '.join(f'{k} {v}' for k, v in pairs), [(f'rejected: {k}', _fmt(v)) for k, v in pairs]
+
+
 def input_status(name, hardware_id, topic, used, rejected, rejected_new):
     """Return the :class:`Status` of an input topic: used and rejected by reason."""
     total = sum(rejected.values())
-    level = WARN if rejected_new else OK
-    detail = ', '.join(f'{k} {v}' for k, v in sorted(rejected.items()))
+    detail, by_reason = _by_reason(rejected)
     message = f'{topic}: {used} used, {total} rejected' + (f' ({detail})' if detail else '')
-    values = [('used', _fmt(used)), ('rejected', _fmt(total))]
-    values += [(f'rejected: {k}', _fmt(v)) for k, v in sorted(rejected.items())]
-    return Status(name, level, message, hardware_id, values)
+    return Status(name, WARN if rejected_new else OK, message, hardware_id,
+                  [('used', _fmt(used)), ('rejected', _fmt(total))] + by_reason)
 
 
 def model_status(name, hardware_id, samples, residual, condition, near_singular,
@@ -206,15 +210,14 @@ def measurement_status(name, hardware_id, rms, components, units, warn_fraction,
     values = [('received', _fmt(received)), ('paired', _fmt(used)),
               ('rejected', _fmt(sum(rejected.values()))),
               ('re-synchronizations', _fmt(resyncs))]
-    values += [(f'rejected: {k}', _fmt(v)) for k, v in sorted(rejected.items())]
-    values += [('model', model_name), ('warn fraction', _fmt(warn_fraction)),
-               ('error fraction', _fmt(error_fraction))]
+    detail, by_reason = _by_reason(rejected)
+    values += by_reason + [('model', model_name), ('warn fraction', _fmt(warn_fraction)),
+                           ('error fraction', _fmt(error_fraction))]
     values += [(f'bias {c} {u}', _fmt(float(b))) for c, u, b in zip(components, units, bias)]
     if age_s is None:
         return Status(name, OK, 'no measured_wrench received (no sensor connected)',
                       hardware_id, values)
     if rms is None:
-        detail = ', '.join(f'{k} {v}' for k, v in sorted(rejected.items()))
         return Status(name, WARN, f'{received} measurements received, none paired with the '
                       'model yet' + (f' (rejected: {detail})' if detail else '') +
                       (f'; {resyncs} re-synchronizations on the incoming stamps'

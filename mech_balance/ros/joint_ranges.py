@@ -6,7 +6,7 @@ Extremes from :data:`RANGE_SAMPLES` samples per turn, refined by golden-section 
 
 import math
 
-from mech_balance.rotations import wrap_angle
+from mech_balance.rotations import TWO_PI, wrap_angle
 import numpy as np
 
 RANGE_SAMPLES = 720
@@ -18,7 +18,6 @@ LIMIT_MARGIN = 1e-9
 """Joint limits lie this far outside the cycle's extremes (rad; prismatic: x length scale)."""
 FULL_TURN_FRACTION = 1.0 - 1e-9
 """A swing wider than this fraction of 2 pi is treated as a full turn (``continuous``)."""
-TWO_PI = 2.0 * math.pi
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 """The golden section's inner fraction."""
 

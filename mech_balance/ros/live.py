@@ -177,11 +177,7 @@ class Recording:
                                                 ('batches dropped', str(self.dropped))])
 
     def close(self, timeout_s=None):
-        """
-        Close the recording and stop the thread; wait for it (at most ``timeout_s`` if given).
-
-        Every queued batch is logged first, then the file is written whole.
-        """
+        """Log the queued batches, write the file, stop the thread; wait at most ``timeout_s``."""
         with self._cond:
             self._stopped = True
             self._cond.notify_all()

@@ -364,7 +364,7 @@ class RigNode(Node):
 
     def _stats_line(self):
         """Return the publishing statistics: a summary, then :data:`STATS_TAG` and JSON."""
-        stats = self._publisher.stats()
+        stats = self._publisher.streamer.stats.summary()
         counts = dict(self._guard.counts)
         stats['caught'] = counts
         stats['published_total'] = self._publisher.streamer.published_total
@@ -494,11 +494,7 @@ def _import_solvers():
 
 
 def main(args=None):
-    """
-    Run the rig node until shutdown; return the exit status (the Jazzy idiom).
-
-    An executor thread's error after a shutdown (Ctrl-C, SIGTERM) is the shutdown: exit 0.
-    """
+    """Run the rig node until shutdown; return the exit status (0 after Ctrl-C, SIGTERM)."""
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     # an answer rclpy could not send (a client's reader not matched yet) raises: sent again
     warnings.filterwarnings('error', message='failed to send response', category=RuntimeWarning)

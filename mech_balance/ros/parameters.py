@@ -30,21 +30,11 @@ def link_names(model):
     return tuple(lk.name for lk in model.scene.links)
 
 
-SCENE_DEPENDENT = ('balance.fixed_links', 'balance.counterweight_links',
-                   'balance.mass_bounds', 'balance.distance_bounds', 'balance.method',
-                   'balance.mass_factors')
-"""Parameters that name links of the scene (or a method): cleared where a new scene refutes."""
-
-
 def scene_conflicts(values, model):
-    """Return ``{name: reason}`` of the :data:`SCENE_DEPENDENT` values ``model`` refutes."""
+    """Return ``{name: reason}`` of the link-naming and balancing values ``model`` refutes."""
     links = [lk.name for lk in model.scene.links]
-    named = {name: params.split_links(values[name])
-             for name in ('balance.fixed_links', 'balance.counterweight_links')}
-    for name, unit in (('balance.mass_bounds', 'kg'), ('balance.distance_bounds', 'm')):
-        named[name] = params.parse_link_bounds(name, values[name], unit) or ()
     out = {}
-    for name, names in named.items():
+    for name, names in params.named_links(values).items():
         strangers = [n for n in names if n not in links]
         if strangers:
             out[name] = f'names {", ".join(strangers)}, not a link of the scene'
@@ -114,8 +104,9 @@ class NodeParameters:
     def declare_link_parameters(self, model):
         """Declare ``balance.links.<link>.*`` for the scene's links; drop the others'."""
         self.links = link_names(model)
-        wanted = {spec.name: spec for spec in params.link_specs(
-            self.links, balancing.link_options(model.rig) if self.links else ())}
+        options = balancing.link_options(model.rig) if self.links else ()
+        wanted = {f'{params.LINK_PREFIX}{link}.{option}': params.link_spec(link, option)
+                  for link in self.links for option in options}
         for name in [n for n in self.values if n.startswith(params.LINK_PREFIX)]:
             if name not in wanted:
                 if self.values.get(name):
@@ -129,12 +120,7 @@ class NodeParameters:
                 self.declare(spec)
 
     def coerce(self, parameters):
-        """
-        Pre-set: convert to the declared type; hold per-link values of links to come.
-
-        Held: declared now, checked on its own, used once a scene with that link is set
-        (`docs/node.md`, *A params file loads in one go*).
-        """
+        """Pre-set: convert to the declared type; hold per-link values of links to come."""
         out = []
         for p in parameters:
             try:

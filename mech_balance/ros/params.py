@@ -16,7 +16,7 @@ from mech_balance.balancing import defaults as balancing_defaults
 from mech_balance.balancing import options
 from mech_balance.balancing.options import BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, LINK_OPTIONS, \
     LINK_PREFIX, parse_link_bounds, split_links, STRING
-from mech_balance.ros import sensor
+from mech_balance.ros import names, sensor
 from mech_balance.ros.guard import show as _show
 
 MODES = ('clock', 'follow')
@@ -68,11 +68,6 @@ def _scene(value):
         raise ValueError('scene: got an empty name, expected a built-in scene or a path')
 
 
-def _frame_id(value):
-    """Accept a TF frame name (:func:`mech_balance.identifiers.check_frame_id`)."""
-    identifiers.check_frame_id(value, 'frame_id')
-
-
 def _joint_name(value):
     """Accept empty (the scene's crank joint) or a joint name (identifiers.check_name)."""
     if value != value.strip():
@@ -105,11 +100,6 @@ def link_spec(link, option):
                 rule=f'[], [min] or [min, max] in {unit}, 0 < min <= max')
 
 
-def link_specs(link_names, link_options=tuple(LINK_OPTIONS)):
-    """Return the per-link :class:`Spec` of every link and option, in declaration order."""
-    return [link_spec(link, option) for link in link_names for option in link_options]
-
-
 def spec_for(name):
     """Return the :class:`Spec` of a parameter name (per-link ones included), or None."""
     spec = BY_NAME.get(name)
@@ -120,12 +110,18 @@ def spec_for(name):
     return spec
 
 
-def check_links(values, link_names):
-    """Raise ValueError if a ``balance.*`` option names a link not in ``link_names``."""
-    named = {'balance.fixed_links': split_links(values['balance.fixed_links']),
-             'balance.counterweight_links': split_links(values['balance.counterweight_links'])}
+def named_links(values):
+    """Return ``{option: [link names]}`` of the ``balance.*`` options that name links."""
+    named = {key: split_links(values[key])
+             for key in ('balance.fixed_links', 'balance.counterweight_links')}
     for key, unit in (('balance.mass_bounds', 'kg'), ('balance.distance_bounds', 'm')):
         named[key] = list(parse_link_bounds(key, values[key], unit) or ())
+    return named
+
+
+def check_links(values, link_names):
+    """Raise ValueError if a ``balance.*`` option names a link not in ``link_names``."""
+    named = named_links(values)
     for key, value in values.items():
         if key.startswith(LINK_PREFIX) and value:
             link, _, option = key[len(LINK_PREFIX):].rpartition('.')
@@ -134,8 +130,8 @@ def check_links(values, link_names):
             if link in named[older]:
                 raise ValueError(f'{key}: got {list(value)}, expected no second bound for link '
                                  f'{link!r} ({older} gives one; clear one of them)')
-    for key, names in named.items():
-        for name in names:
+    for key, found in named.items():
+        for name in found:
             if name not in link_names:
                 raise ValueError(f'{key}: got link {name!r}, expected links of the scene '
                                  f'({", ".join(link_names)})')
@@ -153,26 +149,15 @@ def _path(value):
         paths.check_output_path(value, 'recording_path', ('.rrd',), create_dir=False)
 
 
-def _viewer_url(value):
-    """Accept empty (no live view) or a rerun viewer's gRPC address."""
-    if value:
-        paths.check_viewer_url(value, 'rerun_url')
-
-
-def _option_spec(opt):
-    """Return the :class:`Spec` of a balancing option's parameter (its one declaration)."""
-    check = None if opt.check is None else (lambda value, o=opt: o.check(o.param, value))
-    return Spec(opt.param, opt.value_type, options.param_default(opt), opt.description,
-                bounds=opt.bounds, choices=opt.choices, check=check, rule=opt.rule)
-
-
 def _balance_specs():
     """Return the ``balance.*`` specs: :data:`mech_balance.balancing.options.OPTIONS`."""
     out = []
     for opt in options.OPTIONS:
         if opt.param is None:
             continue
-        out.append(_option_spec(opt))
+        check = None if opt.check is None else (lambda value, o=opt: o.check(o.param, value))
+        out.append(Spec(opt.param, opt.value_type, options.param_default(opt), opt.description,
+                        bounds=opt.bounds, choices=opt.choices, check=check, rule=opt.rule))
         if opt.param == 'balance.samples':
             out.append(METHOD_SPEC)
     return out
@@ -205,8 +190,9 @@ PARAMETERS = (
     Spec('publish_rate', DOUBLE, 100.0,
          'Clock mode: samples per second on joint_states and shaking_wrench, Hz.',
          bounds=(MIN_PUBLISH_RATE, MAX_PUBLISH_RATE)),
-    Spec('frame_id', STRING, 'rig_frame',
-         'Frame of the shaking wrench (header.frame_id of shaking_wrench).', check=_frame_id,
+    Spec('frame_id', STRING, names.DEFAULT_FRAME_ID,
+         'Frame of the shaking wrench (header.frame_id of shaking_wrench).',
+         check=lambda value: identifiers.check_frame_id(value, 'frame_id'),
          rule="letters, digits, '_' and '/', not starting with '/' or a digit"),
     Spec('publish_robot_description', BOOL, True,
          'Publish the URDF of the published design on robot_description (std_msgs/String, '
@@ -229,7 +215,7 @@ PARAMETERS = (
     Spec('follow.max_gap', DOUBLE, 0.5,
          'Follow mode: a longer gap between encoder stamps, s, restarts the estimator.',
          bounds=(1e-6, 3600.0)),
-    Spec('follow.resync_after', INTEGER, 10,
+    Spec('follow.resync_after', INTEGER, sensor.RESYNC_AFTER,
          'Follow mode: after this many encoder messages in a row rejected for their stamp '
          '(not after the last accepted) or their step (a jump), the node re-synchronizes on '
          'the incoming stream (one message stamped far in the future cannot lock it out).',
@@ -252,7 +238,8 @@ PARAMETERS = (
          "Stream the recording's views live to a running rerun viewer at this gRPC address "
          '(`rerun` prints it when it starts, e.g. rerun+http://127.0.0.1:9876/proxy), at most '
          '30 samples per second on a thread of its own; empty: none.',
-         check=_viewer_url, rule='empty or rerun[+http|+https]://HOST[:PORT]/proxy'),
+         check=lambda value: paths.check_viewer_url(value, 'rerun_url') if value else None,
+         rule='empty or rerun[+http|+https]://HOST[:PORT]/proxy'),
     # the twin against the real rig (mech_balance.ros.sensor, README)
     *(Spec(f'sensor.{axis}', DOUBLE, 0.0,
            f'Origin of the force sensor in frame_id (the rig frame), {axis} in m; the '
@@ -367,12 +354,7 @@ NUMBER = re.compile(r'\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*')
 
 
 def coerced(name, value):
-    """
-    Return ``value`` converted to the declared type of ``name`` where that loses nothing.
-
-    Integers and numbers as text (:data:`NUMBER`) become doubles where doubles are
-    declared; anything else is returned as it is (the check then names what is wrong).
-    """
+    """Return ``value`` as the declared type of ``name`` where that loses nothing, else as is."""
     spec = spec_for(name)
     if spec is None:
         return value
@@ -405,7 +387,6 @@ def frame_id_from_params_file(path):
     :data:`mech_balance.ros.names.DEFAULT_FRAME_ID`.
     """
     from pathlib import Path
-    from mech_balance.ros import names
     from mech_balance.schema.scene import parse_yaml
     try:
         data = parse_yaml(Path(path).read_text())

@@ -81,11 +81,6 @@ class Publisher:
         ns = self._node.get_namespace().rstrip('/')
         return f'{ns}/{ENCODER}'
 
-    @property
-    def clock_schedule(self):
-        """Return the clock-mode schedule in force, or None (follow mode)."""
-        return self.streamer.clock_schedule
-
     def apply_mode(self):
         """Start publishing in the current mode; subscribe the encoder when first following."""
         values, model = self._state.values, self._state.published
@@ -95,10 +90,8 @@ class Publisher:
             period_ns = max(1, round(1e9 / values['publish_rate']))
             self.streamer.clock(model, self._state.crank_speed(), period_ns)
             return
-        self.estimator = new_estimator(values)
-        self.streamer.follow_exact = values['follow.exact']
+        self.renew_estimator()  # and the cycle table
         self.streamer.follow(model)
-        self._build_table(model)
         if self._encoder_sub is None:
             guarded = self._guard.skipping(ENCODER)(self.on_encoder)
             # two required arguments: rclpy then passes the message info (its reception stamp)
@@ -275,7 +268,3 @@ class Publisher:
                 diagnostics.model_status(f'{name}: model', hardware_id,
                                          *self.model_watch.snapshot(),
                                          evaluation=self.follow_evaluation())]
-
-    def stats(self):
-        """Return the publishing statistics (:meth:`TickStats.summary`)."""
-        return self.streamer.stats.summary()

@@ -31,15 +31,6 @@ DIAGNOSTICS_PERIOD_S = 1.0
 """Period of /diagnostics (the ROS convention: 1 Hz)."""
 
 
-def identify_summary(result):
-    """Return the one-line summary of an identification (the first line of ~/identify)."""
-    rms = ', '.join(f'{c} {b:.4g} -> {a:.4g} {identification.CHANNEL_UNITS[c]}'
-                    for c, b, a in zip(result.channels, result.rms_before, result.rms_after))
-    return (f'identified scene {result.scene.name!r} from {result.samples} measurements: '
-            f'rank {result.rank} of {len(result.names)}, condition number '
-            f'{result.condition_number:.4g}; residual RMS before -> after: {rms}')
-
-
 class RealRig:
     """
     The measured wrench against the published model (the node's state), and its services.
@@ -114,7 +105,7 @@ class RealRig:
                     self.comparison.new_model(sensor.WeightModel.of(model.rig),
                                               model.moment_point_m)
                     self._model = model
-                schedule = self._publisher.clock_schedule
+                schedule = self._publisher.streamer.clock_schedule
                 if self._state.values['mode'] == 'clock' and schedule is None:
                     return
                 paired = self.comparison.process(model.evaluate, schedule)
@@ -164,10 +155,15 @@ class RealRig:
         """
         try:
             with self.lock:
-                schedule = self._publisher.clock_schedule
+                schedule = self._publisher.streamer.clock_schedule
                 data = self.comparison.identification_data(schedule)
             result = identification.identify(base.scene, *data[:4])
-            summary = identify_summary(result)
+            rms = ', '.join(f'{c} {b:.4g} -> {a:.4g} {identification.CHANNEL_UNITS[c]}' for c, b, a
+                            in zip(result.channels, result.rms_before, result.rms_after))
+            summary = (f'identified scene {result.scene.name!r} from {result.samples} '
+                       f'measurements: rank {result.rank} of {len(result.names)}, condition '
+                       f'number {result.condition_number:.4g}; residual RMS before -> after: '
+                       f'{rms}')
             report = {'summary': summary, **result.to_dict(),
                       'calibrated_scene': identification.calibrated_yaml(result, 'the rig node')
                       if result.realizable else None}

@@ -10,10 +10,9 @@ from collections import Counter
 from dataclasses import dataclass
 import math
 
-from mech_balance.rotations import rpy_matrix
+from mech_balance.rotations import rpy_matrix, TWO_PI
 import numpy as np
 
-TWO_PI = 2.0 * math.pi
 CONVENTIONS = ('load_on_sensor', 'reaction')
 """``sensor.convention``: what the sensor reports (s = +1, -1: :data:`SIGN`)."""
 SIGN = {'load_on_sensor': 1.0, 'reaction': -1.0}
@@ -39,7 +38,7 @@ IDENTIFY_SPAN_S = 120.0
 REST_SPEED_RAD_S = 1e-3
 """A tare whose crank speeds stay below this is taken at rest."""
 RESYNC_AFTER = 10
-"""Refusals for the stamp in a row after which a track re-synchronizes (default)."""
+"""Refusals in a row after which a track re-synchronizes (default of ``follow.resync_after``)."""
 MAX_MEASUREMENT = 1e9
 """Largest |component| of a measured wrench accepted, N and N*m (beyond: corrupt)."""
 MODEL_FLOOR = 1e-12
@@ -241,10 +240,6 @@ class Series:
         if self._hi - self._lo > self.capacity:
             self._lo = self._hi - self.capacity
 
-    def newest_value(self, column):
-        """Return the newest sample's value in ``column`` (a float; the series is not empty)."""
-        return float(self._v[self._hi - 1, column])
-
     @property
     def stamps_ns(self):
         """Return the stamps, ns, oldest first."""
@@ -313,7 +308,7 @@ class EncoderTrack:
             newest = self.series.newest_ns
         self.refused_in_a_row = 0
         if newest is not None:
-            last = self.series.newest_value(0)
+            last = float(self.series.values[-1, 0])
             turned -= TWO_PI * round((turned - last) / TWO_PI)
         self.series.append_one(int(stamp_ns), (turned, raw))
         return True
@@ -401,11 +396,7 @@ class BiasEstimate:
 
 
 def estimate_bias(measured, model, speed_rad_s=None, span_s=0.0):
-    """
-    Return the :class:`BiasEstimate` of ``measured - model = bias + noise`` (``(n, 6)`` each).
-
-    The mean, with standard error std / sqrt(n); ``speed_rad_s`` says whether at rest.
-    """
+    """Return the :class:`BiasEstimate` of ``measured - model = bias + noise``, ``(n, 6)`` each."""
     r = np.asarray(measured, dtype=float) - np.asarray(model, dtype=float)
     n = r.shape[0]
     if n < 2:
@@ -517,11 +508,7 @@ class Comparison:
             self.track.set_window(crank_window_s)
 
     def new_model(self, weight, point_m):
-        """
-        Compare with another model (``weight``, ``point_m``): forget the paired measurements.
-
-        Another moment point forgets the bias and the measurements too.
-        """
+        """Compare with another model: forget the paired data (another point: all the data)."""
         self.weight = weight
         self.paired.clear()
         point = _point(point_m)

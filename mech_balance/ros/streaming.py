@@ -14,11 +14,10 @@ from typing import NamedTuple
 
 from mech_balance.core.rig import rig_for
 from mech_balance.ros import cycle_table
-from mech_balance.rotations import wrap_angle
+from mech_balance.ros.params import defaults
+from mech_balance.rotations import TWO_PI, wrap_angle
 from mech_balance.schema import registry
 import numpy as np
-
-TWO_PI = 2.0 * math.pi
 
 BATCH_SECONDS = 0.25
 """Clock mode: ticks evaluated per core call, in seconds of publishing."""
@@ -57,12 +56,7 @@ class TwinModel:
         return self.angular
 
     def cycle_table(self):
-        """
-        Return the verified :class:`~mech_balance.ros.cycle_table.CycleTable`, or None.
-
-        Built on the first call (later calls wait for it); None when refused
-        (:attr:`table_status` says why).
-        """
+        """Return the verified CycleTable, built at the first call, or None (see table_status)."""
         with self._table_lock:
             if self.table_status is None:
                 try:
@@ -123,11 +117,7 @@ def model_for(scene):
 
 @dataclass(frozen=True)
 class ClockSchedule:
-    """
-    Clock-mode ticks: tick k at ``epoch_ns + k period_ns``, crank at angle0 + speed t_k.
-
-    The tick angles are known ahead: the core is evaluated on the exact angles of a batch.
-    """
+    """Clock-mode ticks: tick k at ``epoch_ns + k period_ns``, crank at angle0 + speed t_k."""
 
     epoch_ns: int
     period_ns: int
@@ -172,14 +162,8 @@ def batch_size(period_ns):
     return int(min(MAX_BATCH, max(MIN_BATCH, math.ceil(BATCH_SECONDS * 1e9 / period_ns))))
 
 
-FOLLOW_WINDOW = 7
-"""Encoder samples in the least-squares fit (default of ``follow.window``)."""
-MAX_SAMPLE_GAP_S = 0.5
-"""A longer gap between encoder stamps restarts the estimator (default ``follow.max_gap``)."""
-MAX_CRANK_SPEED = 200.0
-"""Fastest crank the rig can have, rad/s (default of ``follow.max_speed``)."""
-RESYNC_AFTER = 10
-"""Rejections for stamp or step in a row before re-synchronizing (``follow.resync_after``)."""
+FOLLOW = {k[len('follow.'):]: v for k, v in defaults().items() if k.startswith('follow.')}
+"""The ``follow.*`` parameters' defaults (:mod:`mech_balance.ros.params`), by short name."""
 
 
 class StreamRejected(ValueError):
@@ -206,9 +190,9 @@ class CrankEstimator:
     dropped and the reading primes a new fit (``resyncs``, ``last_resync``).
     """
 
-    def __init__(self, window=FOLLOW_WINDOW, max_speed=MAX_CRANK_SPEED,
-                 max_gap_s=MAX_SAMPLE_GAP_S, use_encoder_velocity=True,
-                 resync_after=RESYNC_AFTER):
+    def __init__(self, window=FOLLOW['window'], max_speed=FOLLOW['max_speed'],
+                 max_gap_s=FOLLOW['max_gap'], use_encoder_velocity=FOLLOW['use_encoder_velocity'],
+                 resync_after=FOLLOW['resync_after']):
         window = int(window)
         if window < 2:
             raise ValueError(f'window: got {window}, expected an integer >= 2')

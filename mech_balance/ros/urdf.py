@@ -36,7 +36,6 @@ PALETTE = (
 """Link colours (rgba), in body order; the frame is grey."""
 FRAME_COLOUR = (0.6, 0.6, 0.6, 1.0)
 WEIGHT_COLOUR = (0.25, 0.25, 0.25, 1.0)
-TWO_PI = 2.0 * math.pi
 
 
 class UrdfError(ValueError):
@@ -296,10 +295,6 @@ def _cylinder(radius, length):
     return 'cylinder', {'radius': _num(radius), 'length': _num(length)}
 
 
-def _sphere(radius):
-    return 'sphere', {'radius': _num(radius)}
-
-
 def _inertial(link_el, mass, xyz, tensor):
     """Add ``<inertial>``; ``tensor`` is (ixx, iyy, izz, ixy, ixz, iyz)."""
     el = ET.SubElement(link_el, 'inertial')
@@ -351,6 +346,11 @@ def _header(robot, text):
     robot.append(ET.Comment(' ' + ' '.join(text.split()) + ' '))
 
 
+def _cut_header(robot, cut_lines):
+    _header(robot, 'Cut joints (closed by the core, not part of the URDF tree; points in '
+                   'the URDF frames of their links): ' + ('; '.join(cut_lines) or 'none'))
+
+
 def urdf_xml(scene, frame_id=DEFAULT_FRAME_ID, linkage=None):
     """Return the URDF (text) of a scene (any kind); ``frame_id`` names the root link."""
     robot = schema.kind_of(scene).implementation('urdf')(scene, frame_id, linkage)
@@ -382,8 +382,7 @@ def planar_robot(sc, frame_id, linkage=None):
             f'{c.name}: {c.joint_type}, closes {names[c.a]}.{jt.point_a} ({_num(pa.real)}, '
             f'{_num(pa.imag)}) with {names[c.b]}.{jt.point_b} ({_num(pb.real)}, '
             f'{_num(pb.imag)})')
-    _header(robot, 'Cut joints (closed by the core, not part of the URDF tree; points in '
-                   'the URDF frames of their links): ' + ('; '.join(cut_lines) or 'none'))
+    _cut_header(robot, cut_lines)
     colours = _link_colours(sc.name, names)
     if any(getattr(lk, 'counterweights', ()) for lk in sc.links):
         colours.append((f'{sc.name}/counterweight', WEIGHT_COLOUR))
@@ -577,10 +576,8 @@ def spatial_robot(sc, frame_id, linkage=None):
         pb = k_of[ib] @ (lk._points[jt.link_b][jt.point_b] - s_of[ib])
         cut_lines.append(f'{jt.name}: {jt.joint_type}, closes {jt.link_a}.{jt.point_a} '
                          f'({_vec(pa)}) with {jt.link_b}.{jt.point_b} ({_vec(pb)})')
-    _header(robot, 'Cut joints (closed by the core, not part of the URDF tree; points in '
-                   'the URDF frames of their links): ' + ('; '.join(cut_lines) or 'none'))
-    colours = _link_colours(sc.name, names)
-    _materials(robot, colours)
+    _cut_header(robot, cut_lines)
+    _materials(robot, _link_colours(sc.name, names))
     rod = ROD_RADIUS * lk.length_scale
     pin = PIN_RADIUS_3D * lk.length_scale
     for bi, body in enumerate(names):
@@ -599,8 +596,8 @@ def spatial_robot(sc, frame_id, linkage=None):
             if np.linalg.norm(local[b] - local[a]) > 0.0:
                 _rod(el, f'bar_{a}_{b}', material, local[a], local[b], rod)
         for p, x in local.items():
-            _shape(el, f'pin_{p}', material, tuple(x), (0.0, 0.0, 0.0), _sphere(pin),
-                   collide=False)
+            _shape(el, f'pin_{p}', material, tuple(x), (0.0, 0.0, 0.0),
+                   ('sphere', {'radius': _num(pin)}), collide=False)
     for name in helpers:
         ET.SubElement(robot, 'link', name=name)
     for spec in model.joints:
