@@ -180,11 +180,7 @@ def position_study(rig, samples=None):
 
 
 def balancing_study(scene, tolerances=BALANCE_TOLERANCES, weights=BALANCE_WEIGHTS):
-    """
-    Return the certificate gap against solve time, or a note if balancing is unavailable.
-
-    Each solve runs with :data:`mech_balance.conic.SOLVER_TOL` set to one of ``tolerances``.
-    """
+    """Return the certificate gap against solve time, or a note if balancing is unavailable."""
     try:
         from mech_balance import conic
         from mech_balance.balancing import redistribution

@@ -63,11 +63,7 @@ def peak_bytes(fn):
 
 
 def cycle_timing(scene, samples=360, outputs=None, repeat=DEFAULT_REPEAT):
-    """
-    Return timing figures of one full cycle of a scene of any kind.
-
-    ``build_s``, ``cycle_s`` (median at ``samples`` angles), ``at_us_per_angle``, ``peak_bytes``.
-    """
+    """Return ``build_s``, ``cycle_s`` (median), ``at_us_per_angle``, ``peak_bytes`` of a scene."""
     t0 = time.perf_counter()
     rig = rig_for(scene, cache=False)
     build = time.perf_counter() - t0

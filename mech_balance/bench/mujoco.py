@@ -179,11 +179,7 @@ class MujocoRig(MujocoModel):
         return d.efc_pos[self.rows], self._jacobian()
 
     def full(self, psi, speed, accel, q_start):
-        """
-        Return MuJoCo's own solution over crank angles ``psi``, from ``q_start``.
-
-        ``(tau, f_sh, n_sh, q, residual, iterations)``, ``q`` in this package's tree order.
-        """
+        """Return MuJoCo's ``(tau, f_sh, n_sh, q, residual, iterations)``, ``q`` in tree order."""
         p = psi.size
         tau, fsh, nsh = np.empty(p), np.empty(p, dtype=complex), np.empty(p)
 

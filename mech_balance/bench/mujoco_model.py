@@ -143,11 +143,7 @@ class MujocoModel:
         self._jac2 = np.zeros((3, m.nv))
 
     def _solution(self, psi, speed, accel, coordinate, qpos, rigid):
-        """
-        Solve MuJoCo's own motion over crank angles ``psi``, one at a time, from ``qpos``.
-
-        Returns ``(qpos (p, nq), residual (p,), Newton iterations (p,))``.
-        """
+        """Return MuJoCo's ``(qpos (p, nq), residual (p,), Newton iterations (p,))``."""
         mj, m, d = self.mj, self.model, self.data
         p = psi.size
         crank, passive = self.crank, self.passive

@@ -342,11 +342,7 @@ class SpatialMujocoRig(MujocoModel):
         return gam
 
     def full(self, psi, speed, accel, qpos_start):
-        """
-        Return MuJoCo's own solution over crank angles ``psi``, from ``qpos_start``.
-
-        ``(tau, force, moment, reactions, qpos, residual, iterations)``.
-        """
+        """Return MuJoCo's ``(tau, force, moment, reactions, qpos, residual, iterations)``."""
         p = psi.size
         tau, fsh, nsh = np.empty(p), np.empty((p, 3)), np.empty((p, 3))
         react = {name: (np.empty((p, 3)), np.empty((p, 3))) for name, *_ in

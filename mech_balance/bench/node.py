@@ -199,11 +199,7 @@ class FollowPath:
 
 
 def start_node(scene_name, rate_hz, ns, domain, params=(), stderr=subprocess.DEVNULL):
-    """
-    Start ``python -m mech_balance.ros.node`` (clock mode) in a process of its own.
-
-    Namespace ``ns``, domain ``domain``, ``publish_rate`` ``rate_hz``, ``name:=value`` ``params``.
-    """
+    """Start ``python -m mech_balance.ros.node`` (clock mode) in a process of its own."""
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
                ROS_AUTOMATIC_DISCOVERY_RANGE=os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE',
                                                             'LOCALHOST'))
@@ -232,11 +228,7 @@ def status_bytes(pid, key='VmRSS'):
 
 
 class NodeProbe:
-    """
-    A rig node in its own process (:func:`start_node`) and a subscriber counting its stamps.
-
-    :meth:`close` stops both and returns the node's log.
-    """
+    """A rig node in its own process (:func:`start_node`) and a subscriber counting its stamps."""
 
     def __init__(self, scene_name, rate_hz, ns, params=(), domain=None, label='bench'):
         import rclpy

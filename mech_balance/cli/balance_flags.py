@@ -74,11 +74,7 @@ def dest(flag):
 
 
 def add_weight_and_case(p, when='', case_when=None):
-    """
-    Add ``--weights W1 W2`` and ``--case a|b`` (default None), ``when`` prefixing their help.
-
-    ``case_when`` overrides it for ``--case``; the weights are checked by the solver.
-    """
+    """Add ``--weights W1 W2`` and ``--case a|b`` (default None), ``when`` prefixing their help."""
     from mech_balance.cli import main as cli
     case_when = when if case_when is None else case_when
     w1, w2 = defaults.DEFAULT_WEIGHTS

@@ -303,11 +303,7 @@ def warning_lines(cert):
 
 
 def no_design_dict(sc, result):
-    """
-    Return ``balance --json`` of a counterweight problem with no collision-free design.
-
-    The keys of ``Design.to_dict`` that exist without a design; ``success`` false.
-    """
+    """Return ``balance --json`` of a counterweight problem with no collision-free design."""
     from mech_balance.schema import registry
     return {'scene': sc.name, 'kind': registry.kind_of(sc).name, 'method': 'counterweights',
             'success': False, 'message': NO_CLEAR_MESSAGE, 'report': result.to_dict()}

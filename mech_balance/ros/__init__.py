@@ -1,5 +1,1 @@
-"""
-The ros layer of mech_balance.
-
-See docs/design.md for what lives here and what it may import.
-"""
+"""The ros layer of mech_balance: docs/design.md says what lives here."""

@@ -1,9 +1,4 @@
-"""
-Message conversion for the rig node: pure functions, no node is ever created here.
-
-Samples into JointState and WrenchStamped bytes; encoder and sensor messages read with
-checks; parameter descriptors and values; stamps; the ``/diagnostics`` array.
-"""
+"""Message conversion for the rig node: pure functions, no node is ever created here."""
 
 from array import array
 import math

@@ -1,8 +1,4 @@
-"""
-The ROS names of the rig: topics, frames and defaults, in one place (no imports).
-
-docs/node.md documents them; a name is spelled once, here.
-"""
+"""The ROS names of the rig: topics, frames and defaults, spelled once (docs/node.md)."""
 
 ENCODER_TOPIC = '/crank_joint_state'
 """Default encoder topic of a recording (the node subscribes ``crank_joint_state``)."""

@@ -395,12 +395,7 @@ class RigNode(Node):
 
 
 class _PacedAnswers:
-    """
-    Send the services' answers from a thread of their own, paced.
-
-    :meth:`pace` replaces a service's ``send_response`` by a queue; this thread sends the
-    answers in order, paced while more are waiting, then echoes those of a burst.
-    """
+    """Send the services' answers from a thread of their own, paced (:meth:`pace`)."""
 
     def __init__(self, node, guard):
         self._node = node

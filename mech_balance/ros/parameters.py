@@ -1,9 +1,4 @@
-"""
-The rig node's parameter part: declaring the table of :mod:`mech_balance.ros.params`.
-
-Declares it (and ``balance.links.<link>.*``), converts to the declared type before rclpy
-stores a value (pre-set) and checks an update (on-set); applying it is the node's.
-"""
+"""The rig node's parameter part: declaring the table of :mod:`mech_balance.ros.params`."""
 
 from mech_balance import balancing, schema as scene_mod
 from mech_balance.ros import conversions as conv, description, params

@@ -1,9 +1,4 @@
-"""
-The rig node's publisher part: ``joint_states`` and ``shaking_wrench``, clock or follow mode.
-
-The two publishers, the publishing threads, the follow-mode estimator and the
-``crank_joint_state`` subscription, and the counts of their ``/diagnostics`` statuses.
-"""
+"""The rig node's publisher part: ``joint_states`` and ``shaking_wrench``, clock or follow mode."""
 
 from collections import Counter, deque
 import threading

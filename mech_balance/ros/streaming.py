@@ -94,11 +94,7 @@ class TwinModel:
 
 
 def withhold_nonfinite(samples):
-    """
-    Return ``(samples, ok)``: rows with a non-finite value zeroed, and the mask of good rows.
-
-    A row that is not ``ok`` is never sent; zeroed, the batch serializes on the fast path.
-    """
+    """Return ``(samples, ok)``: rows with a non-finite value zeroed, and the mask of good rows."""
     names = [n for n in ('joint_position', 'joint_velocity', 'joint_effort', 'force_N',
                          'moment_Nm') if getattr(samples, n) is not None]
     ok = np.isfinite(np.concatenate([getattr(samples, n) for n in names], axis=1)).all(axis=1)
