@@ -1,9 +1,4 @@
-"""
-``mech-balance balance``: optimal mass redistribution and analytic force balance of a scene.
-
-Thin over :func:`mech_balance.balancing.balance`; flags: :mod:`.balance_flags`; text:
-:mod:`.balance_text`, JSON: :meth:`Design.to_dict`.
-"""
+"""``mech-balance balance``: optimal mass redistribution and analytic force balance of a scene."""
 
 import sys
 

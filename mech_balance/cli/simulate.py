@@ -88,7 +88,6 @@ def cmd_simulate(args):
     else:
         print(simulation.format_report(rep, rows=args.rows))
     rig = rep.simulation.model.rig
-    # the rig's own warnings (spatial rigs), else its linkage's (planar)
     texts = getattr(rig, 'warnings', None) or getattr(getattr(rig, 'linkage', None),
                                                       'warnings', ())
     for text in texts:

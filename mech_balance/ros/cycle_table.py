@@ -75,7 +75,6 @@ class CycleTable:
         self._effort = template.joint_effort is not None
         self._j = joints
         self._angular = angular
-        # the positions wrapped: all of them (a slice), some (indices) or none
         self._wrapped = slice(0, joints) if angular.all() else \
             np.flatnonzero(angular) if angular.any() else None
         self._coef = coef                          # (4 (2 M + 2), C)

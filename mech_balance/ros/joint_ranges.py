@@ -1,8 +1,4 @@
-"""
-Each joint's range over one crank cycle, and the URDF limits that hold it.
-
-Extremes from :data:`RANGE_SAMPLES` samples per turn, refined by golden-section search.
-"""
+"""Each joint's range over one crank cycle, and the URDF limits that hold it."""
 
 import math
 

@@ -60,7 +60,11 @@ class _Target:
 
 
 class Recording:
-    """The node's recording and live view, run on a thread of their own."""
+    """
+    The node's recording and live view, run on a thread of their own.
+
+    ``log(level, text)`` logs; ``make(path, url, scene, balanced)`` returns a recorder.
+    """
 
     def __init__(self, log, make):
         self._log = log

@@ -32,7 +32,11 @@ DIAGNOSTICS_PERIOD_S = 1.0
 
 
 class RealRig:
-    """The measured wrench against the published model (the node's state), and its services."""
+    """
+    The measured wrench against the published model (the node's state), and its services.
+
+    ``extra_statuses(name, hardware_id)``: more statuses for ``/diagnostics``, or None.
+    """
 
     def __init__(self, node, state, guard, warn, publisher, extra_statuses=None):
         self._node = node

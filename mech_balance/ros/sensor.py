@@ -546,7 +546,6 @@ class Comparison:
         for reason in status[done & (status != 'ok')]:
             self.rejected[reason] += 1
         ok = np.flatnonzero(status == 'ok')
-        # keep the measurements still waiting (in order)
         self.pending.clear()
         self.pending.append(t[~done], w[~done])
         if ok.size == 0:
