@@ -146,11 +146,7 @@ class Clearance:
 
 
 def bodies(rig, layers=None):
-    """
-    Return every :class:`Body` of a planar rig as built (frame, links, bosses, pins, discs).
-
-    ``layers``: the :class:`~mech_balance.analysis.layers.Layers` (default: the scene's).
-    """
+    """Return every :class:`Body` of a planar rig as built (frame, links, bosses, pins, discs)."""
     sc, lk = rig.scene, rig.linkage
     lay = layers or layer_model.Layers.of(sc, lk)
     pin_r, boss = lay.pin_radius_m, lay.boss_length_m

@@ -1,8 +1,7 @@
 """
 Cycle analysis of a rig of any kind: the table of RMS and extreme values, SI or normalized.
 
-:func:`run_cycle` evaluates one revolution (only what the outputs need); :func:`summarize`
-turns it into the table's rows.
+:func:`run_cycle` evaluates one revolution, :func:`summarize` makes the table's rows.
 """
 
 from dataclasses import dataclass

@@ -33,11 +33,7 @@ class Report:
 
 
 def input_axis(rig):
-    """
-    Return the unit axis ``(3,)`` in the frame about which psi turns the input, or None.
-
-    From the rig's drawing (z for a planar rig); None for a prismatic input.
-    """
+    """Return the unit ``(3,)`` frame axis the input turns about (planar: z; prismatic: None)."""
     if rig.joint_prismatic[rig.joint_names.index(rig.crank_joint)]:
         return None
     drawing = rig.drawing

@@ -1,9 +1,8 @@
 """
 Balancing: one entry point, :func:`balance`, for the command line, the node and recordings.
 
-``balance(rig, method=..., **options)`` returns a :class:`Design`; the method is chosen from
-the rig's capabilities (:data:`METHODS`; ``auto``: the first the rig supports; docs/balancing.md,
-"Dispatch").  The solving modules are imported when a method runs.
+``balance(rig, method=..., **options)`` returns a :class:`Design`; :data:`METHODS` by capability
+(``auto``: the first the rig supports; docs/balancing.md, "Dispatch").
 """
 
 from mech_balance.balancing.defaults import CENTROIDAL_MARGIN, DEFAULT_MAX_GYRATION_FACTOR, \

@@ -1,8 +1,4 @@
-"""
-Which value of a scene makes a balancing cone program ill-posed: the text a failed solve adds.
-
-The limits are measured (docs/balancing.md, "Ill-scaled scenes").
-"""
+"""The scene value that makes a cone program ill-posed: docs/balancing.md#ill-scaled-scenes."""
 
 import math
 

@@ -1,8 +1,4 @@
-"""
-The counterweight program: one disc per listed link as a second-order cone program.
-
-docs/balancing.md, "Counterweights (add-only discs)".
-"""
+"""One disc per listed link as a cone program: docs/balancing.md#counterweights-add-only-discs."""
 
 from dataclasses import dataclass, field
 import math

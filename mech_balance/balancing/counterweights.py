@@ -1,9 +1,8 @@
 """
 Add-only counterweight balancing: one solid disc per listed link, to a certified optimum.
 
-Each listed link gains one disc of density rho, thickness t <= t_max, centre |r| <= r_max and
-mass dm <= max_mass_factor x the link's; a second-order cone program
-(:mod:`.counterweight_program`; docs/balancing.md, "Counterweights (add-only discs)").
+Disc bounds: t <= t_max, |r| <= r_max, dm <= max_mass_factor x the link's mass; the program:
+:mod:`.counterweight_program`, docs/balancing.md, "Counterweights (add-only discs)".
 """
 
 from dataclasses import dataclass

@@ -1,8 +1,4 @@
-"""
-The balancing defaults: the one home of every default the balancing options take.
-
-The README's *Conventions* section lists them.
-"""
+"""The one home of every balancing default (the README's *Conventions* lists them)."""
 
 
 DEFAULT_WEIGHTS = (0.5, 0.5)

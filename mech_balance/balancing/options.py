@@ -1,8 +1,7 @@
 """
 The balancing options, each declared once: the command line's and the node's from one table.
 
-:data:`OPTIONS`: keyword, ``balance.*`` parameter, ``mech-balance balance`` flag, type, default,
-texts, bounds, check and methods; :func:`from_params` and :func:`from_args` read either surface.
+:data:`OPTIONS`; :func:`from_params` and :func:`from_args` read either surface.
 """
 
 from dataclasses import dataclass

@@ -1,9 +1,8 @@
 """
 Optimal mass redistribution of planar linkages (seed 001 eqs. 42-53): :func:`optimize`.
 
-A second-order cone program in the links' inertial parameters, solved by Clarabel and certified
-by a safe lower bound (:mod:`mech_balance.balancing.certificate`); docs/balancing.md, "Mass
-redistribution".
+A cone program in the links' inertial parameters (Clarabel), certified by a safe lower bound
+(:mod:`mech_balance.balancing.certificate`); docs/balancing.md, "Mass redistribution".
 """
 
 from dataclasses import dataclass, replace
@@ -44,9 +43,8 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
     """
     Return the globally optimal mass distribution of a planar scene (a :class:`BalanceResult`).
 
-    ``mass_bounds`` ``{link: (min_kg, max_kg)}``, ``distance_bounds`` ``{link: (min_m, max_m
-    or None)}`` (defaults: the factors x the original); docs/balancing.md, "Mass
-    redistribution".  Raises :class:`~.checks.BalanceError` naming a bad option.
+    ``mass_bounds`` ``{link: (min_kg, max_kg)}``, ``distance_bounds`` ``{link: (min_m, max_m or
+    None)}`` (defaults: the factors x the original).  Raises :class:`~.checks.BalanceError`.
     """
     t_start = time.perf_counter()
     w1, w2 = check_weights(weights)

@@ -1,9 +1,8 @@
 """
 Seed 001 Appendix B: the two-point-mass model of a link, and Table 12's comparison.
 
-:func:`table12` returns the certified three-point relaxation (a LOWER bound) and a verified
-two-point design (an UPPER bound); docs/balancing.md, "Chaudhary & Saha Table 12: two point
-masses".
+:func:`table12`: the certified three-point relaxation (a LOWER bound), a verified two-point
+design (an UPPER bound); docs/balancing.md, "Chaudhary & Saha Table 12: two point masses".
 """
 
 from dataclasses import dataclass

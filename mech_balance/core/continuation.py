@@ -1,8 +1,4 @@
-"""
-Branch tracing: predictor-corrector continuation in the input coordinate (both cores).
-
-How a step is accepted or halved: docs/core.md#branch-tracing.
-"""
+"""Predictor-corrector branch tracing in the input coordinate: docs/core.md#branch-tracing."""
 
 from dataclasses import dataclass
 import math

@@ -1,10 +1,8 @@
 """
 Forward dynamics of any single-input rig, from its own inverse dynamics (seed 000 eqs. 39, 43).
 
-:func:`rig_functions` evaluates I, c1 and tau_G, :class:`RigTables` tabulates them as checked
-Fourier series, :class:`ForwardDynamics` adds the drive and integrates.  The equation, the
-stiffness test and the energy balance: docs/core.md#the-equation-of-motion; the drive schema:
-docs/simulation.md.
+The equation, the stiffness test and the energy balance: docs/core.md#the-equation-of-motion;
+the drive schema: docs/simulation.md.
 """
 
 from dataclasses import dataclass

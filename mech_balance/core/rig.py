@@ -1,9 +1,8 @@
 """
 The Rig protocol: one model of a rig, whatever its kind, and the data it evaluates to.
 
-:func:`rig_for` builds the rig of any scene; consumers ask :attr:`Rig.capabilities`, never
-the kind.  docs/design.md#the-rig-protocol; frames, units and signs:
-:mod:`mech_balance.conventions`.
+:func:`rig_for` builds the rig of any scene; consumers ask :attr:`Rig.capabilities`, never the
+kind.  docs/design.md#the-rig-protocol; frames, units and signs: :mod:`mech_balance.conventions`.
 """
 
 from dataclasses import dataclass, field

@@ -32,11 +32,7 @@ def _floats(value, where, length=None):
 
 
 def identification_from_dict(value, links):
-    """
-    Return the validated ``identification`` mapping of a scene with moving ``links`` (names).
-
-    Raises :class:`IdentificationError` naming the field.
-    """
+    """Return the validated ``identification`` mapping; raises :class:`IdentificationError`."""
     if not isinstance(value, dict):
         raise IdentificationError(f'identification: got {type(value).__name__}, expected a '
                                   'mapping')

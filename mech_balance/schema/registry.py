@@ -84,11 +84,7 @@ def to_dict(sc):
 
 
 def same_geometry(base, design, field='design'):
-    """
-    Raise SceneError unless ``design`` is ``base`` with other inertias (same kind, geometry).
-
-    ``field`` names the option or parameter that gave the design (``--design``).
-    """
+    """Raise SceneError unless ``design`` is ``base`` with other inertias (same kind, geometry)."""
     kind = kind_of(base)
     other = kind_of(design)
     if other is not kind:

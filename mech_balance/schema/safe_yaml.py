@@ -1,11 +1,10 @@
 """
 The one YAML reader of the package: safe, YAML 1.2 floats, and bounded.
 
-:func:`loads` and :func:`load_file` refuse, with the caller's ``error=`` class
-(:class:`YamlError` by default) naming the file or field and the limit, what
-exceeds :data:`MAX_BYTES`, :data:`MAX_DEPTH`, :data:`MAX_ALIASES`, :data:`MAX_NODES` or
-:data:`MAX_INT_DIGITS`, non-UTF-8 bytes, a recursive alias or a duplicate key
-(docs/scenes.md#limits).
+:func:`loads` and :func:`load_file` refuse, with the caller's ``error=`` class (:class:`YamlError`
+by default) naming the file or field and the limit, what exceeds :data:`MAX_BYTES`,
+:data:`MAX_DEPTH`, :data:`MAX_ALIASES`, :data:`MAX_NODES` or :data:`MAX_INT_DIGITS`, non-UTF-8
+bytes, a recursive alias or a duplicate key (docs/scenes.md#limits).
 """
 
 import os

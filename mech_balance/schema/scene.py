@@ -157,11 +157,7 @@ class Counterweight:
 
 
 def counterweight_totals(mass_kg, com_m, inertia_com_kg_m2, counterweights):
-    """
-    Return ``(mass_kg, com_m, inertia_com_kg_m2)`` of a link body plus its discs.
-
-    Summed about the link origin (parallel axes); with no discs the inputs unchanged.
-    """
+    """Return ``(mass_kg, com_m, inertia_com_kg_m2)`` of a link body plus its discs."""
     if not counterweights:
         return mass_kg, com_m, inertia_com_kg_m2
     m = mass_kg

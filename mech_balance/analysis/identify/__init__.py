@@ -21,21 +21,15 @@ from mech_balance.analysis.identify.quantization import (
 from mech_balance.analysis.identify.report import calibrated_yaml, format_report
 
 __all__ = [
-    # the identification and its result
     'identify', 'Identification', 'IdentifyError', 'check_identifiable', 'Combination',
     'Consistency', 'calibrated_links', 'PredictedRms', 'predicted_rms', 'std_directions',
-    # the printed forms
     'format_report', 'calibrated_yaml', 'balance_confidence', 'format_balance_confidence',
-    # the measurement model
     'CHANNELS', 'CHANNEL_UNITS', 'PARAMETERS', 'parameter_names', 'parameter_scales',
     'regressor', 'Regressor',
-    # the encoder
     'crank_motion', 'CrankMotion', 'encoder_segments', 'EncoderSegment',
     'estimate_quantization', 'Quantization', 'unwrap_encoder', 'GAP_PERIODS', 'MIN_WINDOW',
     'QUANT_FRACTION_MIN',
-    # the fit's and the consistency's thresholds
     'RANK_RTOL', 'CONFIDENCE_SE', 'INERTIA_MARGIN_REL', 'LS_TIE_REL', 'MIN_MASS_REL',
-    # the checks
     'Finding', 'noise_floor', 'interleaved', 'frame_check', 'FIT_RATIO_MAX',
     'FIT_RATIO_WARN', 'FRAME_ANGLE_MAX_DEG',
 ]

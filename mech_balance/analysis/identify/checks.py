@@ -57,11 +57,7 @@ def refusals(findings):
 
 
 def noise_floor(values):
-    """
-    Return the white noise's standard deviation per column of ``values`` (samples first).
-
-    The variance of the :data:`DIFF_ORDER`-th difference divided by C(2k, k).
-    """
+    """Return the white noise's standard deviation per column of ``values`` (samples first)."""
     v = np.asarray(values, dtype=float)
     if v.ndim == 1:
         v = v[:, None]
@@ -248,11 +244,7 @@ def checkable(t, values):
 
 
 def check_data(t_encoder, position_rad, t_wrench, wrench, effort, unit):
-    """
-    Return ``(t_encoder, position_rad, effort, findings)`` after the checks of the data.
-
-    Raises :class:`IdentifyError` for interleaved encoders or sensors.
-    """
+    """Return ``(t_encoder, position_rad, effort, findings)``; IdentifyError if interleaved."""
     findings = []
     if checkable(t_encoder, position_rad):
         t_encoder = np.asarray(t_encoder, dtype=float)

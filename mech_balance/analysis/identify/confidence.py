@@ -66,11 +66,7 @@ def std_directions(covariance, rank):
 
 
 def balance_confidence(scene, balanced_scene):
-    """
-    Return how a balanced design's RMS shaking force and moment vary within +-1 SE, or None.
-
-    ``scene``: calibrated; ``balanced_scene``: the optimum on it.
-    """
+    """Return how a balanced design's RMS shaking force and moment vary within +-1 SE, or None."""
     block = getattr(scene, 'identification', None)
     if block is None:
         return None

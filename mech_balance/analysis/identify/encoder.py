@@ -167,11 +167,7 @@ def crank_motion(t_s, position_rad, window=None, order=SG_ORDER, quantization_ra
 
 @dataclass
 class EncoderSegment:
-    """
-    One stretch of encoder data between gaps (:data:`GAP_PERIODS`) and what it gave.
-
-    ``used`` False with ``reason`` when too short or its fit failed.
-    """
+    """A stretch of encoder data between gaps (:data:`GAP_PERIODS`); ``reason``: why unused."""
 
     start_s: float
     end_s: float

@@ -17,11 +17,7 @@ def oaconvolve(*args, **kwargs):
 
 
 def savgol_weights(window, order, period_s):
-    """
-    Return the ``(3, window)`` Savitzky-Golay weights of value, slope and curvature.
-
-    Row d gives the d-th derivative at the centre of ``window`` samples spaced ``period_s``.
-    """
+    """Return ``(3, window)`` Savitzky-Golay weights of value, slope, curvature at the centre."""
     half = (window - 1) // 2
     x = np.arange(-half, half + 1) / half
     vander = np.vander(x, order + 1, increasing=True)

@@ -1,8 +1,7 @@
 """
 Balancing of spatial rigs: complete force balance, certified redistribution, counterweights.
 
-Generic over every rig with the ``'body_kinematics'`` capability (docs/balancing.md, "Spatial
-rigs").
+For every rig with ``'body_kinematics'`` (docs/balancing.md, "Spatial rigs").
 """
 
 from mech_balance.balancing.spatial.model import parameter_model, SpatialBalanceError

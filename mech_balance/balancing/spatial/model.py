@@ -1,8 +1,4 @@
-"""
-The parameter models of spatial rigs, the objective's units and the RMS maps.
-
-A kind takes part through :data:`PARAMETER_MODELS`; the spatial methods' option checks are here.
-"""
+"""The spatial parameter models (:data:`PARAMETER_MODELS`), objective units and RMS maps."""
 
 from dataclasses import dataclass
 import math

@@ -1,8 +1,4 @@
-"""
-The cone program of the spatial redistribution and counterweights (Clarabel, with PSD cones).
-
-Each body's pseudo-inertia enters as a 4x4 PSD block (:data:`J_MAP`).
-"""
+"""The spatial cone program (Clarabel): each pseudo-inertia a 4x4 PSD block (:data:`J_MAP`)."""
 
 import math
 

@@ -1,8 +1,4 @@
-"""
-Certified optimal redistribution of a spatial rig with physically realizable bodies.
-
-docs/balancing.md, "Spatial rigs".
-"""
+"""Certified redistribution of a spatial rig into realizable bodies (docs/balancing.md)."""
 
 import math
 import time

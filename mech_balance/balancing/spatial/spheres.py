@@ -1,8 +1,7 @@
 """
 Certified optimal add-only counterweights of a spatial rig: clusters of hollow spheres.
 
-The convex set is exactly what clusters of hollow spheres realize (docs/balancing.md, "Spatial
-rigs").
+The convex set is exactly what they realize (docs/balancing.md, "Spatial rigs").
 """
 
 import math

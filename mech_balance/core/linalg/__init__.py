@@ -1,8 +1,4 @@
-"""
-Batched solves of many small square systems, batch on the last axis (both cores use it).
-
-:mod:`.ordering` (static orders), :mod:`.lu` (:class:`Factored`), :mod:`.blocks` (dyads).
-"""
+"""Batched small square solves, batch last: :mod:`.ordering`, :mod:`.lu`, :mod:`.blocks`."""
 
 from mech_balance.core.linalg.blocks import BlockFactored, BlockPlan
 from mech_balance.core.linalg.lu import det_sign, Factored, inverse, matvec, matvec_t, solve

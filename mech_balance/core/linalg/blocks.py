@@ -1,9 +1,4 @@
-"""
-Closed-form factors of block lower triangular matrices with 2 x 2 diagonal blocks.
-
-The loop Jacobian of a linkage of RRR dyads, with the interface of
-:class:`~mech_balance.core.linalg.lu.Factored`.
-"""
+"""Closed-form factors of block lower triangular matrices with 2 x 2 blocks (dyad Jacobians)."""
 
 import contextlib
 import math

@@ -1,8 +1,4 @@
-"""
-Batched solves and inverses of many small matrices, batch on the last axis ``(k, k, p)``.
-
-Why and how: docs/core.md#the-planar-core-coreplanar ("Small linear systems").
-"""
+"""Batched solves of small matrices ``(k, k, p)``: docs/core.md#the-planar-core-coreplanar."""
 
 from mech_balance.core.linalg.ordering import LUPlan
 import numpy as np

@@ -1,8 +1,4 @@
-"""
-The static plans of the batched LU: a row and column order worked out once per pattern.
-
-Block lower triangular (Dulmage-Mendelsohn; a linkage's blocks are its Assur groups).
-"""
+"""Static row and column orders of the batched LU: block lower triangular (Dulmage-Mendelsohn)."""
 
 import numpy as np
 

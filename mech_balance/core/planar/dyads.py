@@ -1,8 +1,4 @@
-"""
-Closed-form positions of planar linkages that decompose into RRR dyads (Assur groups, class II).
-
-Each dyad's middle corner is a circle intersection; docs/core.md#the-planar-core-coreplanar.
-"""
+"""Closed-form positions of linkages of RRR dyads: docs/core.md#the-planar-core-coreplanar."""
 
 import numpy as np
 

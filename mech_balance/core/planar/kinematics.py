@@ -131,7 +131,6 @@ class Linkage(SpanningTree, RateAnalysis):
         crank_idx = self.joint_names.index(scene.crank_joint)
         order = [crank_idx] + [i for i in range(len(joints)) if i != crank_idx]
 
-        # Breadth-first spanning tree from the frame, crank joint first.
         self.tree, self.cuts = [], []
         visited, used, frontier = {0}, set(), [0]
         parent_joint = {0: None}

@@ -1,8 +1,4 @@
-"""
-Velocity and acceleration analysis of a solved planar pose (seed 000 eqs. 28-36).
-
-A mixin of :class:`~mech_balance.core.planar.kinematics.Linkage`.
-"""
+"""Velocity and acceleration analysis of a solved planar pose (a mixin of ``Linkage``)."""
 
 from mech_balance.core import linalg
 from mech_balance.core.planar.algebra import cross as _cross

@@ -1,8 +1,4 @@
-"""
-The planar rig: a planar scene's compiled linkage and inertia behind the Rig protocol.
-
-Joint values and efforts (ROS ``JointState``): docs/core.md#module-overviews.
-"""
+"""The planar rig behind the Rig protocol; joint values: docs/core.md#module-overviews."""
 
 from mech_balance.core import equimomental
 from mech_balance.core.planar import dynamics, kinematics

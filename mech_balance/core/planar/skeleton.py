@@ -1,8 +1,4 @@
-"""
-The traced branch of a planar linkage: nodes over one crank turn, quintic Hermite predictor.
-
-The nodes come from :mod:`mech_balance.core.continuation`.
-"""
+"""The traced branch of a planar linkage: nodes over one crank turn, quintic Hermite predictor."""
 
 import math
 

@@ -1,8 +1,4 @@
-"""
-The spanning tree of a planar linkage: tree and cut joints, incidence and ancestry matrices.
-
-Opened breadth first from the frame, the crank joint first; the other joints are cut joints.
-"""
+"""The spanning tree of a planar linkage (breadth first, crank first): cut joints, ancestry."""
 
 from dataclasses import dataclass
 

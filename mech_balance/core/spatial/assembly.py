@@ -1,8 +1,4 @@
-"""
-The assembly of a spatial linkage from its scene's stated poses, and the check that it holds.
-
-Levenberg-Marquardt from the stated ``assembly.poses`` (docs/core.md, "The stated assembly").
-"""
+"""Spatial assembly from the stated poses, and its check: docs/core.md, "The stated assembly"."""
 
 import math
 

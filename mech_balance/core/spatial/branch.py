@@ -1,8 +1,4 @@
-"""
-The assembly branch of a spatial linkage: its trace, its dense nodes and the predictor.
-
-One turn, which must close, or from the assembly to both ends of a prismatic input's stroke.
-"""
+"""The assembly branch of a spatial linkage: its trace, its dense nodes and the predictor."""
 
 import math
 

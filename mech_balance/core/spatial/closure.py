@@ -1,8 +1,4 @@
-"""
-The closure rows of a spatial linkage: residual, Jacobian, bias and wrenches.
-
-Row groups ``point``, ``dot``, ``line`` and ``spin``: docs/core.md#the-spatial-formulation.
-"""
+"""Closure rows of a spatial linkage: docs/core.md#the-spatial-formulation."""
 
 from dataclasses import dataclass
 

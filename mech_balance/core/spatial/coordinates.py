@@ -1,9 +1,4 @@
-"""
-The spatial joints' coordinates from body poses (docs/core.md#the-spatial-formulation).
-
-Every joint (tree or cut) is read from the relative pose of its two links, ``M = R_a^T R_b``
-and ``d = R_a^T (x_b - x_a)``, so its value does not depend on where the tree was cut.
-"""
+"""The spatial joints' coordinates from body poses (docs/core.md#the-spatial-formulation)."""
 
 import math
 

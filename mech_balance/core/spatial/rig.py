@@ -1,8 +1,4 @@
-"""
-The spatial rig: a ``kind: spatial`` scene behind the Rig protocol (:mod:`mech_balance.core.rig`).
-
-Joint values and efforts: docs/core.md#module-overviews.
-"""
+"""The spatial rig behind the Rig protocol; joint values: docs/core.md#module-overviews."""
 
 from mech_balance.core.rig import batch, BodyKinematics, BodyPoses, Drawing, DrawingBody, \
     RigData

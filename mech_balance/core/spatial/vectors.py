@@ -1,9 +1,4 @@
-"""
-Vector helpers of the spatial core over stacks: batch-first ``(..., 3)`` or component-major.
-
-Component-major arrays hold one contiguous block per component (``(3, ...)``), so that a
-cross or dot product is a few whole-array operations (no small trailing axis).
-"""
+"""Vector helpers of the spatial core over stacks: batch-first ``(..., 3)`` or ``(3, ...)``."""
 
 import numpy as np
 
