@@ -73,7 +73,7 @@ def hoeken(tmp_path_factory):
     bal = equimomental.apply_design(sc, A2, normalized=True)
     path = tmp_path_factory.mktemp('rec') / 'hoeken.rrd'
     summary = recording.record(path, sc, bal, cycles=1, samples=SAMPLES,
-                               balanced_source='seed 001 Table 5 a(2)')
+                               balanced_source='Chaudhary & Saha Table 5 a(2)')
     return sc, bal, path, summary, recording.read_recording(path)
 
 
@@ -189,7 +189,7 @@ def test_text_panel_and_blueprint(hoeken):
     sc, bal, path, _, ent = hoeken
     text = ent['/info'].static['TextDocument:text'][0]
     assert text.startswith('# hoeken: original vs balanced')
-    assert 'seed 001 Table 5 a(2)' in text
+    assert 'Chaudhary & Saha Table 5 a(2)' in text
     for v, s in zip(VARIANTS, (sc, bal)):
         rig, psi, state, w = _core(s)
         for row in analysis.summarize(analysis.Cycle(rig, psi, state, w, 0.0), True):

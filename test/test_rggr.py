@@ -457,7 +457,7 @@ def test_reports_are_plain_and_formatted(rig, scene):
     for normalized in (True, False):
         rep = weights.balance_report(rig, result, normalized)
         text = weights.format_report(rep)
-        assert 'seed 002' in text and 'least-squares optimum' in text
+        assert 'Hedaya' in text and 'least-squares optimum' in text
         assert max(len(line) for line in text.splitlines()) <= 120
         _assert_plain(rep)
         assert set(rep['rigs'][0]) == {'rig', *weights.METRIC_KEYS}

@@ -67,8 +67,9 @@ def slider_crank_balance(scene, mass_ratios=None, printed_eq75=False, samples=No
               'eta_2': 0.0, 'xi_2_printed_eq75': 1.0 / mu2, 'printed_eq75': bool(printed_eq75),
               'rho_1': abs(xi1), 'alpha_1_deg': 180.0 if xi1 < 0 else 0.0,
               'rho_2': abs(xi2), 'alpha_2_deg': 180.0 if xi2 < 0 else 0.0}
-    return _analytic('slider-crank, seed 000 eqs. 44-75 (xi_2 = -1/mu_2)' if not printed_eq75
-                     else 'slider-crank, seed 000 eq. 75 as printed (xi_2 = +1/mu_2)',
+    method = ('slider-crank, Sinatra & Angeles eqs. 44-75 (xi_2 = -1/mu_2)' if not printed_eq75
+              else 'slider-crank, Sinatra & Angeles eq. 75 as printed (xi_2 = +1/mu_2)')
+    return _analytic(method,
                      scene, balanced, params, samples, counterweights=False)
 
 
@@ -110,7 +111,7 @@ def four_bar_balance(scene, mass_factor=1.0, inertia='distance', samples=None):
         'theta_3_deg': _angle_deg((h3 - m3 * pts['Q3']) / link3),
         'm1_d1': abs(h1 - m1 * pts['P1']) / (units.mass_kg * units.length_m),
         'm3_d3': abs(h3 - m3 * pts['Q3']) / (units.mass_kg * units.length_m)}
-    return _analytic(f'four-bar, Berkof-Lowen (seed 001 eq. 48), links 1 and 3 x{k:g}',
+    return _analytic(f'four-bar, Berkof-Lowen (Chaudhary & Saha eq. 48), links 1 and 3 x{k:g}',
                      scene, balanced, params, samples, counterweights=False)
 
 

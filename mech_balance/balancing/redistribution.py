@@ -71,7 +71,7 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
                 tuple(distance_factors) != PAPER_DISTANCE_FACTORS:
             raise BalanceError(
                 f'paper_constraints: got also {", ".join(given) or "other bound factors"}, '
-                'expected none: the paper problem (seed 001 eqs. 50/53) has only its own '
+                'expected none: the paper problem (Chaudhary & Saha eqs. 50/53) has only its own '
                 'bounds and weights')
         realizable = False
     if max_added_mass_kg is not None:
@@ -212,7 +212,7 @@ class BalanceResult:
     def summary(self):
         """Return the provenance stored with a balanced scene (``balance`` key)."""
         return schema.plain({
-            'source_scene': self.scene.name, 'method': 'seed 001 eqs. 42-53, SOCP',
+            'source_scene': self.scene.name, 'method': 'Chaudhary & Saha eqs. 42-53, SOCP',
             'weights': list(self.weights), 'case': self.case,
             'torque_weight': self.torque_weight, 'reaction_weight': self.reaction_weight,
             'paper_constraints': self.paper_constraints,

@@ -36,7 +36,7 @@ class Design:
         res, realizable, failed = self.result, True, False
         cert = getattr(res, 'certificate', None)
         if cert is not None:
-            self.objective_name = 'z = w1 f~ + w2 n~ (normalized, seed 001 eq. 43)'
+            self.objective_name = 'z = w1 f~ + w2 n~ (normalized, Chaudhary & Saha eq. 43)'
             self.objective, self.lower_bound = float(cert.primal), float(cert.lower_bound)
             self.certified = bool(cert.certified)
             failed = bool(cert.failed_stages)

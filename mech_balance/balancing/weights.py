@@ -218,7 +218,7 @@ def balance_weights(rig, samples=None):
             if radial == 0.0:
                 raise WeightsError(f'balancing_weights.{spec.link}: the link needs no weight '
                                    '(radial first moment 0), expected a nonzero one for the '
-                                   'cylinder of seed 002 eqs. 13-14')
+                                   'cylinder of Hedaya eqs. 13-14')
             m = (spec.density_length_kg_m2 * math.pi * radial ** 2) ** (1.0 / 3.0)  # eq. 13
         centre = g / m
         r = radial / m                                                     # eq. 14
@@ -391,7 +391,7 @@ def balance_report(rig, result, normalized=False):
 def format_report(report):
     """Return a weights report as a readable fixed-width text table."""
     u = report['units']
-    lines = [f"balancing weights (seed 002) of '{report['scene']}' ({report['source']}): "
+    lines = [f"balancing weights (Hedaya) of '{report['scene']}' ({report['source']}): "
              f"crank {report['crank_speed_rad_s']:g} rad/s, {report['samples']} angles"]
     if report['normalized']:
         n = report['normalization']

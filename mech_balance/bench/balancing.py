@@ -19,7 +19,7 @@ def bench_section(args, progress):
     repeat = min(int(args.repeat), BENCH_REPEAT_MAX)
     head = (f"{'balance: scene':<18}{'case':<6}{'weights':<12}{'constraints':<13}"
             f"{'z':>12}{'rel. gap':>10}{'median ms':>11}{'cone ms':>9}")
-    lines = [f'balance (seed 001 SOCP): median of {repeat} optimizations after '
+    lines = [f'balance (Chaudhary & Saha SOCP): median of {repeat} optimizations after '
              f'{bench.WARMUP} warm-up runs, {args.samples} crank angles'
              + (f' (--repeat {args.repeat} capped at {BENCH_REPEAT_MAX})'
                 if args.repeat > repeat else ''),

@@ -287,7 +287,7 @@ def format_report(hoeken, chains, mujoco_version, extras=()):
         'mech_balance; "+ rigid": the same outputs): docs/benchmarks.md#the-mujoco-models-in-'
         'detail',
         '',
-        f'{hoeken["scene"]} (seed 001 Table 1): {hoeken["links"]} moving links, '
+        f'{hoeken["scene"]} (Chaudhary & Saha Table 1): {hoeken["links"]} moving links, '
         f'{hoeken["joints"]} joints, {hoeken["loops"]} loop',
         '  agreement, max |MuJoCo - mech_balance| / max |mech_balance| over the cycle:',
         *agreement_rows(hoeken),

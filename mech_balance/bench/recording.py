@@ -63,8 +63,9 @@ def bench_section(args, progress):
         size = path.stat().st_size
     progress('  timing LiveRecorder against a url where nothing listens ...')
     dead = dead_viewer_timings(sc)
-    lines = [f'record (rerun file): hoeken original + seed 001 a(2), 1 turn at {BENCH_SAMPLES} '
-             'samples;', f'median of {repeat} runs after {bench.WARMUP} warm-up runs'
+    lines = [f'record (rerun file): hoeken original + Chaudhary & Saha a(2), 1 turn at '
+             f'{BENCH_SAMPLES} samples;',
+             f'median of {repeat} runs after {bench.WARMUP} warm-up runs'
              + (f' (--repeat {asked} capped at {BENCH_REPEAT_MAX}: each run writes a file)'
                 if asked > repeat else ''),
              f'{"scene":<16}{"first run s":>14}{"median s":>12}{"file MB":>10}',

@@ -14,7 +14,7 @@ def format_result(design, normalized=False):
     view = normalized and sc.normalization is not None
     lines = [f'scene: {sc.name} ({sc.source}); {result.samples} crank angles per revolution',
              f'problem: minimize {_objective(result)}'
-             + ' (seed 001 eqs. 42-53, RMS of normalized quantities)',
+             + ' (Chaudhary & Saha eqs. 42-53, RMS of normalized quantities)',
              f'constraints: case {result.case} ('
              + ('point masses >= 0' if result.case == 'b' else 'point masses of any sign')
              + '), ' + ('paper constraints (eqs. 50/53), realizability not imposed'
@@ -123,7 +123,7 @@ def _paper_comparison(comparison):
         return []
     c = comparison
     bad = [f'{name} ({reason})' for name, reason in c['unrealizable'].items()]
-    return ['', f"seed 001 {c['label']}: f~ = {c['f']:g}, n~ = {c['n']:g}, z = "
+    return ['', f"Chaudhary & Saha {c['label']}: f~ = {c['f']:g}, n~ = {c['n']:g}, z = "
                 f"{c['z_paper']:.6g}; this optimum z = {c['z']:.6g} ({c['change_percent']:+.3f}%)"
                 + ('' if c['paper_constraints'] else
                    ' [other constraints than the paper: see --paper-constraints]'),
@@ -200,8 +200,9 @@ def format_counterweights(design, normalized=False):
 def format_table12(table12):
     """Return seed 001 Table 12's comparison (:func:`mech_balance.balancing.two_point.table12`)."""
     w1, w2 = table12.weights
-    head = f"{'seed 001 eqs. B.1-B.5':<44}{'torque':>10}{'force':>10}{'moment':>10}{'z':>10}"
-    lines = [f'two-point-mass model (seed 001 Appendix B), weights ({w1:g}, {w2:g}), '
+    head = (f"{'Chaudhary & Saha eqs. B.1-B.5':<44}"
+            f"{'torque':>10}{'force':>10}{'moment':>10}{'z':>10}")
+    lines = [f'two-point-mass model (Chaudhary & Saha Appendix B), weights ({w1:g}, {w2:g}), '
              'normalized RMS', head, '-' * len(head)]
     for label, torque, force, moment, z in paper_tables.table12_rows(table12):
         lines.append(f'{label:<44}{torque:>10.4g}{force:>10.4g}{moment:>10.4g}{z:>10.5g}')

@@ -402,7 +402,7 @@ def _weights(data, joints):
                   and {j.link_a, j.link_b} == {FRAME, link}]
         if len(pivots) != 1:
             raise SceneError(f'{where}: link {link!r} has {len(pivots)} revolute joints with '
-                             'the frame, expected one (a weight of seed 002 turns about a '
+                             "the frame, expected one (a weight in Hedaya's method turns about a "
                              'fixed axis)')
         spec = fields.mapping(spec, where)
         fields.known_keys(spec, set(WEIGHT_KEYS), where)
