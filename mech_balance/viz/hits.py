@@ -3,7 +3,10 @@
 import numpy as np
 
 LABEL_CHUNK = 4
-"""Candidate places of a label tested at once (:func:`first_place`)."""
+"""Candidate places of a label tested at once at first (:func:`first_place`)."""
+CHUNK_GROWTH = 2
+"""Each round of :func:`first_place` tests this many times the places of the one before
+(on the fewer samples still without a place)."""
 
 
 def segments_hit_boxes(segments, boxes):
@@ -47,10 +50,10 @@ def first_place(n, width, cheap, costly, chunk=LABEL_CHUNK):
     """
     first = np.full(n, -1)
     pending = np.arange(n)
-    for start in range(0, width, chunk):
-        if not len(pending):
-            break
+    start = 0
+    while start < width and len(pending):
         cols = np.arange(start, min(start + chunk, width))
+        start, chunk = start + chunk, chunk * CHUNK_GROWTH
         i, j = np.nonzero(cheap(pending, cols))                # row by row, columns in order
         if len(i):
             good = costly(pending[i], cols[j])

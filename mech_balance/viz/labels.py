@@ -302,9 +302,13 @@ def place_labels(layout, motion, variant):
 
             def clean(r, cols):
                 """Return ``(q,)``: uncrossed, and nearer its own feature than any other."""
-                return uncrossed(r, cols) & _nearest_own(
-                    spec, f_px[rows[r], 0], centres[r, cols, None], markers[rows[r]],
-                    [s[rows[r]] for s in links_px])[:, 0]
+                ok = uncrossed(r, cols)
+                i = np.flatnonzero(ok)            # the nearness only where no line crosses
+                if i.size:
+                    at = rows[r[i]]
+                    ok[i] = _nearest_own(spec, f_px[at, 0], centres[r[i], cols[i], None],
+                                         markers[at], links_px, at)[:, 0]
+                return ok
             return centres, which, cheap, (clean, uncrossed)
         # clean places on the near rings: the cheap tests run in column chunks on the samples
         # still without a place, the costly ones only where the cheap ones passed
@@ -364,11 +368,15 @@ def place_labels(layout, motion, variant):
             np.full(p, len(out), dtype=np.int64), tiers.ravel())
 
 
-def _nearest_own(spec, feature_px, centres, markers, links_px):
-    """Return ``(p, c)``: whether labels at ``centres`` are nearer their feature than any other."""
+def _nearest_own(spec, feature_px, centres, markers, links_px, rows):
+    """
+    Return ``(p, c)``: whether labels at ``centres`` are nearer their feature than any other.
+
+    ``links_px`` are every link's segments at every sample, of which the ``rows`` are these.
+    """
     if spec.where == 'link':
-        own = links_px[spec.index]
-        others = [s for i, s in enumerate(links_px) if i != spec.index and s.shape[1]]
+        own = links_px[spec.index][rows]
+        others = [s[rows] for i, s in enumerate(links_px) if i != spec.index and s.shape[1]]
         if own.shape[1] == 0 or not others:
             return np.ones(centres.shape[:2], dtype=bool)
         # one distance computation over every link's segments, then the least per link
