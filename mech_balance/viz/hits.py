@@ -3,7 +3,10 @@
 import numpy as np
 
 LABEL_CHUNK = 4
-"""Candidate places of a label tested at once by the costly tests (:func:`first_passing`)."""
+"""Candidate places of a label tested at once at first (:func:`first_place`)."""
+CHUNK_GROWTH = 2
+"""Each round of :func:`first_place` tests this many times the places of the one before
+(on the fewer samples still without a place)."""
 
 
 def segments_hit_boxes(segments, boxes):
@@ -37,23 +40,24 @@ def segment_distances(points, segments):
     return np.sqrt(np.einsum('...k,...k->...', r, r))
 
 
-def first_passing(ok, test, chunk=LABEL_CHUNK):
+def first_place(n, width, cheap, costly, chunk=LABEL_CHUNK):
     """
-    Return ``ok (p, c)`` narrowed by ``test``, exact up to each row's first passing column.
+    Return per row of ``n`` the first of ``width`` columns passing both tests (-1: none).
 
-    ``test(rows, cols)`` returns the costly mask; ``argmax`` of the result equals the full test's.
+    ``cheap(rows, cols)`` returns the ``(len(rows), len(cols))`` mask of a column chunk, run
+    only on rows still without a place; ``costly(rows, cols)`` returns the ``(q,)`` mask of
+    the places ``(rows[i], cols[i])``, run only on places that passed the cheap test.
     """
-    out = np.zeros_like(ok)
-    pending = np.flatnonzero(ok.any(axis=1))
-    for start in range(0, ok.shape[1], chunk):
-        if not len(pending):
-            break
-        cols = slice(start, start + chunk)
-        sub = ok[pending, cols]
-        need = sub.any(axis=1)
-        rows = pending[need]
-        if len(rows):
-            passed = sub[need] & test(rows, cols)
-            out[rows, cols] = passed
-            pending = np.concatenate([pending[~need], rows[~passed.any(axis=1)]])
-    return out
+    first = np.full(n, -1)
+    pending = np.arange(n)
+    start = 0
+    while start < width and len(pending):
+        cols = np.arange(start, min(start + chunk, width))
+        start, chunk = start + chunk, chunk * CHUNK_GROWTH
+        i, j = np.nonzero(cheap(pending, cols))                # row by row, columns in order
+        if len(i):
+            good = costly(pending[i], cols[j])
+            done, at = np.unique(i[good], return_index=True)   # each row's first passing place
+            first[pending[done]] = cols[j[good][at]]
+            pending = np.delete(pending, done)
+    return first

@@ -4,7 +4,7 @@ from dataclasses import dataclass
 import functools
 import math
 
-from mech_balance.viz.hits import first_passing, segment_distances, segments_hit_boxes
+from mech_balance.viz.hits import first_place, segment_distances, segments_hit_boxes
 from mech_balance.viz.style import (
     FRAME_COLOR, GAUGE_LABEL_DROP, JOINT_COLOR, MOMENT_COLOR, READOUT_COLOR, SAME_POINT_RTOL,
     SCALE_COLOR, SYSTEM_CENTRE_COLOR
@@ -268,66 +268,83 @@ def place_labels(layout, motion, variant):
                                                            spec.index), variant, screen) or []
         f_px = np.stack([screen.px(f) for f in features], axis=1)  # (p, a, 2)
 
+        others = np.stack(placed, axis=1) if placed else np.zeros((p, 0, 4))   # (p, L, 4)
+
         def trial(rows, offs):
-            """Return the places of ``rows`` at offsets ``offs``: centres, boxes, masks."""
+            """Return the places of ``rows`` at offsets ``offs``: centres, boxes, tests."""
             if spec.where == 'gauge':
                 offs = offs[[2, 6, 7, 1, 3, 0, 4, 5] + list(range(8, len(offs)))]
             centres = (f_px[rows, :, None, :] + offs[None, None]).reshape(len(rows), -1, 2)
             boxes = np.concatenate([centres - half, centres + half], axis=-1)
-            inside = (boxes[..., 0] >= 0) & (boxes[..., 1] >= 0) & \
-                (boxes[..., 2] <= w_px) & (boxes[..., 3] <= h_px)
-            free = inside.copy()
-            g = LABEL_GAP_PX
-            for other in placed:
-                o = other[rows, None]
-                free &= ~((boxes[..., 0] < o[..., 2] + g) & (boxes[..., 2] > o[..., 0] - g) &
-                          (boxes[..., 1] < o[..., 3] + g) & (boxes[..., 3] > o[..., 1] - g))
-            cheap = free.copy()
-            if markers.shape[1]:
-                mx, my = markers[rows, None, :, 0], markers[rows, None, :, 1]
+
+            def cheap(r, cols):
+                """Return the masks (inside, free, cheap) of the places ``(r, cols)``."""
+                b = boxes[np.ix_(r, cols)]                              # (n, k, 4)
+                inside = (b[..., 0] >= 0) & (b[..., 1] >= 0) & \
+                    (b[..., 2] <= w_px) & (b[..., 3] <= h_px)
+                o, g = others[rows[r], None], LABEL_GAP_PX             # (n, 1, L, 4)
+                b = b[:, :, None]
+                free = inside & ~((b[..., 0] < o[..., 2] + g) & (b[..., 2] > o[..., 0] - g) &
+                                  (b[..., 1] < o[..., 3] + g) & (b[..., 3] > o[..., 1] - g)
+                                  ).any(axis=-1)
+                if not markers.shape[1]:
+                    return inside, free, free
+                mx, my = markers[rows[r], None, :, 0], markers[rows[r], None, :, 1]
                 m = MARKER_PX
-                cheap &= ~((mx > boxes[..., 0, None] - m) & (mx < boxes[..., 2, None] + m) &
-                           (my > boxes[..., 1, None] - m) & (my < boxes[..., 3, None] + m)
-                           ).any(axis=-1)
+                return inside, free, free & ~(
+                    (mx > b[..., 0] - m) & (mx < b[..., 2] + m) &
+                    (my > b[..., 1] - m) & (my < b[..., 3] + m)).any(axis=-1)
             which = np.repeat(np.arange(len(features)), len(offs))     # anchor of a place
 
             def uncrossed(r, cols):
-                return ~segments_hit_boxes(lines[rows[r]], boxes[r, cols])
+                """Return ``(q,)``: no line crosses the places ``(r[i], cols[i])``."""
+                return ~segments_hit_boxes(lines[rows[r]], boxes[r, cols, None])[:, 0]
 
             def clean(r, cols):
-                return uncrossed(r, cols) & _nearest_own(
-                    spec, f_px[rows[r], 0], centres[r, cols], markers[rows[r]],
-                    [s[rows[r]] for s in links_px])
-            return centres, which, (cheap, free, inside), (clean, uncrossed)
-        # clean places on the near rings: the costly tests run only where the cheap ones
-        # passed, and only until each sample's first place is found (:func:`first_passing`)
+                """Return ``(q,)``: uncrossed, and nearer its own feature than any other."""
+                ok = uncrossed(r, cols)
+                i = np.flatnonzero(ok)            # the nearness only where no line crosses
+                if i.size:
+                    at = rows[r[i]]
+                    ok[i] = _nearest_own(spec, f_px[at, 0], centres[r[i], cols[i], None],
+                                         markers[at], links_px, at)[:, 0]
+                return ok
+            return centres, which, cheap, (clean, uncrossed)
+        # clean places on the near rings: the cheap tests run in column chunks on the samples
+        # still without a place, the costly ones only where the cheap ones passed
         rows = np.arange(p)
         near = candidates(w, h, LABEL_OFFSETS_PX[:2])
-        centres, which, (cheap, _, _), (clean, _) = trial(rows, near)
-        ok = first_passing(cheap, clean)
-        tier = np.where(ok.any(axis=1), 1, 0)
-        first = np.argmax(ok, axis=1)
+        centres, which, cheap, (clean, _) = trial(rows, near)
+        first = first_place(p, centres.shape[1], lambda r, cols: cheap(r, cols)[2], clean)
+        tier = np.where(first >= 0, 1, 0)
+        first = np.maximum(first, 0)
         if tier.any():                  # the same place wherever it is clean
             mode = np.bincount(first[tier == 1]).argmax()
-            redo = np.flatnonzero((tier == 1) & (first != mode) & cheap[:, mode])
+            redo = np.flatnonzero((tier == 1) & (first != mode))
+            redo = redo[cheap(redo, [mode])[2][:, 0]]
             if redo.size:
-                first[redo[clean(redo, slice(mode, mode + 1))[:, 0]]] = mode
+                first[redo[clean(redo, np.full(redo.size, mode))]] = mode
         at = centres[rows, first]
         anchor = which[first]
         rest = np.flatnonzero(tier == 0)
         if rest.size:                   # no clean place: every ring, the tests one by one
-            c, wh, (cheap, free, inside), (clean, uncrossed) = trial(rest, candidates(w, h))
+            c, wh, cheap, (clean, uncrossed) = trial(rest, candidates(w, h))
+            inside, free, cheap = cheap(np.arange(rest.size), np.arange(c.shape[1]))
             far = np.tile(np.arange(len(candidates(w, h))) >= len(near), len(features))
             got = np.zeros(rest.size, dtype=int)
             for level, mask, test in ((1, cheap & far, clean), (2, cheap, uncrossed),
                                       (3, free, None), (4, inside, None)):
                 todo = np.flatnonzero(got == 0)
                 sub = mask[todo]
-                if test is not None:
-                    sub = first_passing(sub, lambda r, cols: test(todo[r], cols))
-                hit = sub.any(axis=1)
+                if test is None:
+                    col = np.where(sub.any(axis=1), np.argmax(sub, axis=1), -1)
+                else:
+                    col = first_place(todo.size, sub.shape[1],
+                                      lambda r, cols: sub[np.ix_(r, cols)],
+                                      lambda r, cols: test(todo[r], cols))
+                hit = col >= 0
+                col = col[hit]
                 got[todo[hit]] = level
-                col = np.argmax(sub[hit], axis=1)
                 at[rest[todo[hit]]] = c[todo[hit], col]
                 anchor[rest[todo[hit]]] = wh[col]
             at[rest[got == 0]] = c[got == 0, 0]
@@ -351,11 +368,15 @@ def place_labels(layout, motion, variant):
             np.full(p, len(out), dtype=np.int64), tiers.ravel())
 
 
-def _nearest_own(spec, feature_px, centres, markers, links_px):
-    """Return ``(p, c)``: whether labels at ``centres`` are nearer their feature than any other."""
+def _nearest_own(spec, feature_px, centres, markers, links_px, rows):
+    """
+    Return ``(p, c)``: whether labels at ``centres`` are nearer their feature than any other.
+
+    ``links_px`` are every link's segments at every sample, of which the ``rows`` are these.
+    """
     if spec.where == 'link':
-        own = links_px[spec.index]
-        others = [s for i, s in enumerate(links_px) if i != spec.index and s.shape[1]]
+        own = links_px[spec.index][rows]
+        others = [s[rows] for i, s in enumerate(links_px) if i != spec.index and s.shape[1]]
         if own.shape[1] == 0 or not others:
             return np.ones(centres.shape[:2], dtype=bool)
         # one distance computation over every link's segments, then the least per link
