@@ -3,22 +3,9 @@ Launch the rig node, robot_state_publisher with the rig's URDF and, optionally, 
 
     ros2 launch mech_balance rig.launch.py scene:=hoeken use_rviz:=true
 
-The URDF is generated here, at launch, by :func:`mech_balance.ros.urdf.urdf_xml` for the
-launched scene, with the root link named after the node's ``frame_id`` from the params
-file, and handed to robot_state_publisher as its ``robot_description`` parameter;
-robot_state_publisher then owns the ``robot_description`` topic, so the rig node is started
-with ``publish_robot_description`` false (one publisher per topic).  robot_state_publisher
-turns the node's ``joint_states`` (every URDF joint, in the URDF's zero convention) into TF.
-With ``use_robot_state_publisher:=false`` the rig node publishes ``robot_description``
-itself and no TF is published.  The launch arguments are :data:`ARGUMENTS` (documented in
-docs/rviz_launch.md).
-
-Everything the launch needs is checked before anything is started (:func:`check`): the
-argument values, the scene, the params file and the executables of every package it would
-start.  A missing piece stops the launch with one message that lists every problem and how
-to fix it, and no process has been started.  Once started, the rig node and
-robot_state_publisher are required: if either exits, the launch shuts down and stops the
-others, so a failed launch leaves no process behind.
+The arguments are :data:`ARGUMENTS`; everything is checked before anything starts
+(:func:`check`), and a failed launch leaves no process behind. docs/rviz_launch.md says
+who publishes ``robot_description`` and TF, and what each argument does.
 """
 
 import os
