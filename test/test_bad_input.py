@@ -22,6 +22,7 @@ from mech_balance.cli import main as cli
 from mech_balance.core import forward as simulate
 import numpy as np
 import pytest
+from scene_paths import paths as _paths
 import yaml
 
 NAN, INF = float('nan'), float('inf')
@@ -296,18 +297,6 @@ def test_cli_bad_drive_exits_2_in_a_fresh_process(tmp_path):
 
 
 # ----------------------------------------------------------------------------- property test
-
-
-def _paths(node, prefix=()):
-    """Yield the path of every value in a nested mapping/list (containers included)."""
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield prefix + (k,)
-            yield from _paths(v, prefix + (k,))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield prefix + (i,)
-            yield from _paths(v, prefix + (i,))
 
 
 BASE = {name: _data(name) for name in SCENES}
