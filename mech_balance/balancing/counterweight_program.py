@@ -312,9 +312,9 @@ class Problem:
                 y[im + 3] = min(max(y[im + 3], i_lo), i_hi)
         return y
 
-    def feasible(self, y):
+    def feasible(self, y, worst):
         """Return (y, pull): ``y`` repaired (:meth:`repair`), else moved towards :meth:`anchor`."""
-        return redistribution.pull_inside(y, lambda v: self.discs(v)[2], self.repair,
+        return redistribution.pull_inside(y, worst, lambda v: self.discs(v)[2], self.repair,
                                           self.anchor)
 
     def _add_cones(self, add):

@@ -204,7 +204,7 @@ def solve(scene, options):
     if exact:
         y = prob.project_force_balance(y)
     designs, omitted, worst = prob.discs(y)
-    y, pull = prob.feasible(y)
+    y, pull = prob.feasible(y, worst)
     designs, omitted, final_violation = prob.discs(y)
     balanced = clearance_design.with_discs(scene, designs, f'{scene.name}_counterweights')
     terms = maps.terms(dynamics.parameter_vector(

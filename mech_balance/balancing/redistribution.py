@@ -131,8 +131,8 @@ def optimize(scene, weights=DEFAULT_WEIGHTS, case='a', realizable=True,
             if exact:
                 theta = theta - maps.force_null_projector @ theta
     violation = _violation(theta, spec)
-    theta, pull = pull_inside(theta, lambda t: _violation(t, spec), lambda t: _repaired(t, spec),
-                              lambda: _anchor(spec))
+    theta, pull = pull_inside(theta, violation, lambda t: _violation(t, spec),
+                              lambda t: _repaired(t, spec), lambda: _anchor(spec))
     balanced = _scene_from_theta(scene, theta, units, case)
     terms = maps.terms(theta)
     primal = float(np.dot(spec.w, terms))
@@ -556,9 +556,9 @@ def _anchor(spec):
     return out.ravel()
 
 
-def pull_inside(x, violation, repair, anchor):
-    """Return (x, pull): ``x`` if feasible, else repaired, else pulled towards ``anchor()``."""
-    if violation(x) <= 0.0:
+def pull_inside(x, worst, violation, repair, anchor):
+    """Return (x, pull): ``x`` if ``worst`` (its violation) is 0, else repaired, else pulled."""
+    if worst <= 0.0:
         return x, 0.0
     x = repair(x)
     if violation(x) <= 0.0:
