@@ -30,10 +30,6 @@ def blas_threads(environ=None):
     return n
 
 
-_LIMIT = {'threads': None}
-"""The BLAS limit this process set (a verb run in-process again skips the library scan)."""
-
-
 def limit_blas_threads(environ=None):
     """
     Limit numpy's BLAS pool to :func:`blas_threads`; return the limit, or None if left alone.
@@ -42,7 +38,7 @@ def limit_blas_threads(environ=None):
     ``OPENBLAS_NUM_THREADS``, which this call sets.
     """
     n = blas_threads(environ)
-    if n is None or _LIMIT['threads'] == n:   # none, or set already in this process
+    if n is None or os.environ.get('OPENBLAS_NUM_THREADS') == str(n):   # none, or set already
         return n
     try:
         from threadpoolctl import threadpool_limits
@@ -53,7 +49,6 @@ def limit_blas_threads(environ=None):
     import numpy  # noqa: F401
     os.environ['OPENBLAS_NUM_THREADS'] = str(n)
     threadpool_limits(limits=n, user_api='blas')
-    _LIMIT['threads'] = n
     return n
 
 

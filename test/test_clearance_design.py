@@ -19,6 +19,7 @@ from mech_balance.core.rig import rig_for
 from mech_balance.schema.planar import planar_from_dict, planar_to_dict
 import numpy as np
 import pytest
+from test_clearance_spatial import segment_distance
 
 ANGLES = 3600
 """Crank angles of the independent check."""
@@ -28,14 +29,6 @@ CASES = (('hoeken', 'crank,rocker'), ('hoeken', 'crank,coupler,rocker'),
          ('carpet_scraper', 'crank'), ('carpet_scraper', 'crank,rocker'))
 """Every built-in that takes counterweights (kind planar), with the links of its examples."""
 MARGIN = clearance_design.DEFAULT_CLEARANCE_MARGIN_M
-
-
-def _point_segment(p, a, b):
-    """Return the distances of points ``p`` from the segments ``a``-``b``, each ``(n, 2)``."""
-    ab = b - a
-    length2 = np.sum(ab * ab, axis=-1)
-    t = np.sum((p - a) * ab, axis=-1) / np.where(length2 > 0.0, length2, 1.0)
-    return np.linalg.norm(p - a - np.clip(t, 0.0, 1.0)[:, None] * ab, axis=-1)
 
 
 def segment_gap(a1, b1, a2, b2):
@@ -50,8 +43,8 @@ def segment_gap(a1, b1, a2, b2):
     d1, d2 = b1 - a1, b2 - a2
     cross = (side(a2, d2, a1) * side(a2, d2, b1) < 0.0) & \
         (side(a1, d1, a2) * side(a1, d1, b2) < 0.0)
-    ends = np.minimum(np.minimum(_point_segment(a1, a2, b2), _point_segment(b1, a2, b2)),
-                      np.minimum(_point_segment(a2, a1, b1), _point_segment(b2, a1, b1)))
+    ends = np.minimum(np.minimum(segment_distance(a1, a2, b2), segment_distance(b1, a2, b2)),
+                      np.minimum(segment_distance(a2, a1, b1), segment_distance(b2, a1, b1)))
     return np.where(cross, 0.0, ends)
 
 

@@ -62,7 +62,7 @@ def _solids(rig):
 
 def segment_distance(c, a, b):
     """
-    Return the distances of points ``c`` from the segments ``a``-``b``, each ``(n, 3)``.
+    Return the distances of points ``c`` from the segments ``a``-``b``, each ``(n, 3)`` (or 2).
 
     The nearest point of a segment is the foot of the perpendicular, clipped to the ends
     (a segment of length zero: its point).

@@ -150,7 +150,11 @@ class _Growing:
             self.stamps = np.resize(self.stamps, grow)
 
     def add(self, stamp_ns, row):
-        self.extend([stamp_ns], [row])
+        if self.n == self.rows.shape[0]:
+            self._reserve(self.n + 1)
+        self.rows[self.n] = row
+        self.stamps[self.n] = stamp_ns
+        self.n += 1
 
     def extend(self, stamps_ns, rows):
         need = self.n + len(stamps_ns)

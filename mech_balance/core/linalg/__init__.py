@@ -2,8 +2,7 @@
 
 from mech_balance.core.linalg.blocks import BlockFactored, BlockPlan
 from mech_balance.core.linalg.lu import det_sign, Factored, inverse, matvec, matvec_t, solve
-from mech_balance.core.linalg.ordering import block_triangular_order, LUPlan, pivot_order, \
-    static_plan
+from mech_balance.core.linalg.ordering import block_triangular_order, LUPlan, static_plan
 
 __all__ = ['BlockFactored', 'BlockPlan', 'Factored', 'LUPlan', 'block_triangular_order',
-           'det_sign', 'inverse', 'matvec', 'matvec_t', 'pivot_order', 'solve', 'static_plan']
+           'det_sign', 'inverse', 'matvec', 'matvec_t', 'solve', 'static_plan']
