@@ -49,7 +49,7 @@ class CutJoint(_Joint):
 
 
 class SpanningTree:
-    """The tree's compiled matrices and its sums (see the module docstring)."""
+    """The tree's compiled matrices and its sums (docs/core.md, "Module overviews")."""
 
     @staticmethod
     def _tree(ji, jt, parent, child, index, pts):
