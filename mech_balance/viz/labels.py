@@ -328,9 +328,10 @@ def place_labels(layout, motion, variant):
         anchor = which[first]
         rest = np.flatnonzero(tier == 0)
         if rest.size:                   # no clean place: every ring, the tests one by one
-            c, wh, cheap, (clean, uncrossed) = trial(rest, candidates(w, h))
+            every = candidates(w, h)
+            c, wh, cheap, (clean, uncrossed) = trial(rest, every)
             inside, free, cheap = cheap(np.arange(rest.size), np.arange(c.shape[1]))
-            far = np.tile(np.arange(len(candidates(w, h))) >= len(near), len(features))
+            far = np.tile(np.arange(len(every)) >= len(near), len(features))
             got = np.zeros(rest.size, dtype=int)
             for level, mask, test in ((1, cheap & far, clean), (2, cheap, uncrossed),
                                       (3, free, None), (4, inside, None)):
