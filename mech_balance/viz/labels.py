@@ -54,6 +54,12 @@ def label_box_px(anchor_px, text):
     return np.array([a[..., 0] - w / 2, top, a[..., 0] + w / 2, top + h])
 
 
+def label_point_px(centre_px, text):
+    """Return the point (px) whose label (drawn centred under it) is centred at ``centre_px``."""
+    h = label_size_px(text)[1]
+    return np.array([centre_px[0], centre_px[1] - LABEL_DROP_PX - 0.5 * h])
+
+
 @dataclass
 class Label:
     """A label of a view: text (or texts per sample), colour, the feature it names."""

@@ -6,8 +6,8 @@ import re
 from mech_balance import paths
 from mech_balance.viz.blueprint import blueprint
 from mech_balance.viz.drawing import DEGREE_TIMELINE
-from mech_balance.viz.labels import label_size_px, place_labels
-from mech_balance.viz.plots import ANGLE_ROOT, furniture, label_anchor, plot_values
+from mech_balance.viz.labels import label_point_px, label_size_px, place_labels
+from mech_balance.viz.plots import ANGLE_ROOT, furniture, plot_values
 from mech_balance.viz.style import (
     ADDED_ALPHA, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
     DIAL_COLOR, DIAL_POINTS, FORCE_COLOR, FRAME_COLOR, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI,
@@ -181,7 +181,7 @@ def log_angle_plot(rec, layout, plot):
         x = plot.axes.box_px[2]
         for v in layout.variants[::-1]:
             w = label_size_px(v)[0]
-            texts.append((label_anchor((x - 0.5 * w, 12.0), v), v))
+            texts.append((label_point_px((x - 0.5 * w, 12.0), v), v))
             colors.append(SERIES_COLORS[v])
             x -= w + 8.0
     rec.log(f'{root}/labels', rr.Points2D([t[0] for t in texts], labels=[t[1] for t in texts],
