@@ -54,6 +54,12 @@ def label_box_px(anchor_px, text):
     return np.array([a[..., 0] - w / 2, top, a[..., 0] + w / 2, top + h])
 
 
+def label_point_px(centre_px, text):
+    """Return the point (px) whose label (drawn centred under it) is centred at ``centre_px``."""
+    h = label_size_px(text)[1]
+    return np.array([centre_px[0], centre_px[1] - LABEL_DROP_PX - 0.5 * h])
+
+
 @dataclass
 class Label:
     """A label of a view: text (or texts per sample), colour, the feature it names."""
@@ -328,9 +334,10 @@ def place_labels(layout, motion, variant):
         anchor = which[first]
         rest = np.flatnonzero(tier == 0)
         if rest.size:                   # no clean place: every ring, the tests one by one
-            c, wh, cheap, (clean, uncrossed) = trial(rest, candidates(w, h))
+            every = candidates(w, h)
+            c, wh, cheap, (clean, uncrossed) = trial(rest, every)
             inside, free, cheap = cheap(np.arange(rest.size), np.arange(c.shape[1]))
-            far = np.tile(np.arange(len(candidates(w, h))) >= len(near), len(features))
+            far = np.tile(np.arange(len(every)) >= len(near), len(features))
             got = np.zeros(rest.size, dtype=int)
             for level, mask, test in ((1, cheap & far, clean), (2, cheap, uncrossed),
                                       (3, free, None), (4, inside, None)):

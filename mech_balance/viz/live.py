@@ -48,7 +48,6 @@ class LiveView:
     def __init__(self, url, scene, layout=None, balanced=None, balanced_source=None):
         self.url = url
         self.layout = layout
-        self.samples_logged = 0
         self._queue = deque(maxlen=LIVE_QUEUE)
         self._cond = threading.Condition()
         self._stopped = False
@@ -171,7 +170,6 @@ class LiveView:
         psi = np.concatenate([p[1] for p in pending])
         log_motion(self._rec, self.layout, motion, np.round(np.degrees(psi)).astype(np.int64),
                    t - self._t0)
-        self.samples_logged += t.size
 
     def close(self, timeout_s=CLOSE_TIMEOUT_S):
         """Ask the thread to send what is queued and disconnect; wait at most ``timeout_s``."""

@@ -4,7 +4,7 @@ from dataclasses import dataclass
 import math
 
 from mech_balance.schema.scene import series_stream
-from mech_balance.viz.labels import LABEL_DROP_PX, label_size_px
+from mech_balance.viz.labels import label_point_px, label_size_px
 from mech_balance.viz.layout import nice_ceil, window_px
 from mech_balance.viz.style import series_label
 import numpy as np
@@ -88,12 +88,6 @@ def tick_text(value, unit):
     return f'{value:.4g} {unit}'.strip() if value else f'0 {unit}'.strip()
 
 
-def label_anchor(centre_px, text):
-    """Return the point whose label (drawn centred under it) is centred at ``centre_px``."""
-    h = label_size_px(text)[1]
-    return np.array([centre_px[0], centre_px[1] - LABEL_DROP_PX - 0.5 * h])
-
-
 def furniture(axes, unit, x_name):
     """Return a plot's static drawing: ``(grid strips, axis strips, [(point, tick label)])``."""
     x0, y0, x1, y1 = axes.box_px
@@ -105,12 +99,12 @@ def furniture(axes, unit, x_name):
     texts = []
     row = y1 + 3.0 + 0.5 * label_size_px('0')[1]            # the x tick labels' row
     for d in X_TICKS_DEG:
-        texts.append((label_anchor((axes.x(d), row), f'{d}°'), f'{d}°'))
-    texts.append((label_anchor((axes.x(X_NAME_DEG), row), x_name), x_name))
+        texts.append((label_point_px((axes.x(d), row), f'{d}°'), f'{d}°'))
+    texts.append((label_point_px((axes.x(X_NAME_DEG), row), x_name), x_name))
     for t in axes.y_ticks:
         text = tick_text(t, unit)
         w = label_size_px(text)[0]
-        texts.append((label_anchor((x0 - 4.0 - 0.5 * w, axes.y(t)), text), text))
+        texts.append((label_point_px((x0 - 4.0 - 0.5 * w, axes.y(t)), text), text))
     return grid, frame, texts
 
 

@@ -6,8 +6,8 @@ import re
 from mech_balance import paths
 from mech_balance.viz.blueprint import blueprint
 from mech_balance.viz.drawing import DEGREE_TIMELINE
-from mech_balance.viz.labels import label_size_px, place_labels
-from mech_balance.viz.plots import ANGLE_ROOT, furniture, label_anchor, plot_values
+from mech_balance.viz.labels import label_point_px, label_size_px, place_labels
+from mech_balance.viz.plots import ANGLE_ROOT, furniture, plot_values
 from mech_balance.viz.style import (
     ADDED_ALPHA, ADDED_DRAW_ORDER, ARC_POINTS, ARROW_3D_RADIUS_SHARE, CENTRE_RADIUS_SHARE,
     DIAL_COLOR, DIAL_POINTS, FORCE_COLOR, FRAME_COLOR, FRAME_RADIUS_3D_SHARE, FRAME_RADIUS_UI,
@@ -181,7 +181,7 @@ def log_angle_plot(rec, layout, plot):
         x = plot.axes.box_px[2]
         for v in layout.variants[::-1]:
             w = label_size_px(v)[0]
-            texts.append((label_anchor((x - 0.5 * w, 12.0), v), v))
+            texts.append((label_point_px((x - 0.5 * w, 12.0), v), v))
             colors.append(SERIES_COLORS[v])
             x -= w + 8.0
     rec.log(f'{root}/labels', rr.Points2D([t[0] for t in texts], labels=[t[1] for t in texts],
@@ -205,20 +205,23 @@ def angle_name(layout):
     return 'crank angle (deg)' if stroke is None else 'input phase (deg)'
 
 
-def log_cursor(rec, layout, motion, index):
-    """Log each plot's cursor: a line at the sample's crank angle, a dot on each curve."""
+def log_cursor(rec, layout, motion, index, values):
+    """
+    Log each plot's cursor: a line at the sample's crank angle, a dot on each curve.
+
+    ``values``: per plot, its :func:`.plots.plot_values` at these samples.
+    """
     sign = -1.0 if layout.rigs['original'].scene.crank_speed_rad_s < 0.0 else 1.0
     turned = np.mod(sign * motion.degrees, 360.0)
     p, n = motion.size, len(layout.variants)
-    for plot in layout.plots:
+    for plot, by_variant in zip(layout.plots, values):
         root = f'{ANGLE_ROOT}/{plot.entity}'
         x = plot.axes.x(turned)
         _, y0, _, y1 = plot.axes.box_px
         lines = np.stack([np.stack([x, np.full(p, y0)], -1), np.stack([x, np.full(p, y1)], -1)],
                          axis=1)
         rec.send_columns(f'{root}/cursor', index, rr.LineStrips2D.columns(strips=lines))
-        dots = np.stack([plot.axes.points(turned, values) for values in plot_values(
-            layout, motion.data, plot.entity).values()], axis=1)
+        dots = np.stack([plot.axes.points(turned, v) for v in by_variant.values()], axis=1)
         rec.send_columns(f'{root}/values', index, rr.Points2D.columns(
             positions=dots.reshape(-1, 2)).partition(np.full(p, n)))
 
@@ -289,12 +292,13 @@ def log_motion(rec, layout, motion, degrees, seconds, labels=None):
         pos, texts, colors, counts = (labels[view] if labels else
                                       place_labels(layout, motion, view))[:4]
         send_points(f'{view}/labels', pos[None], labels=texts, colors=colors, counts=counts)
-    for plot in layout.plots:
-        for v, values in plot_values(layout, motion.data, plot.entity).items():
+    values = [plot_values(layout, motion.data, plot.entity) for plot in layout.plots]
+    for plot, by_variant in zip(layout.plots, values):
+        for v, x in by_variant.items():
             rec.send_columns(f'plots/{plot.entity}/{v}', index,
-                             rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
+                             rr.Scalars.columns(scalars=np.asarray(x, dtype=np.float64)))
     if layout.plots and not layout.live:
-        log_cursor(rec, layout, motion, index)
+        log_cursor(rec, layout, motion, index, values)
 
 
 def start_stream(rec, scene, layout):
