@@ -5,8 +5,7 @@ import numpy as np
 LABEL_CHUNK = 4
 """Candidate places of a label tested at once at first (:func:`first_place`)."""
 CHUNK_GROWTH = 2
-"""Each round of :func:`first_place` tests this many times the places of the one before
-(on the fewer samples still without a place)."""
+"""Each round of :func:`first_place` tests this many times the places of the round before."""
 
 
 def segments_hit_boxes(segments, boxes):
